@@ -1,0 +1,1 @@
+"""Mode libraries shipped with hybridteam (reached as ``hybridteam.modes.<lib>``)."""

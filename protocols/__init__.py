@@ -1,0 +1,1 @@
+"""Protocol declarations (YAML) shipped with hybridteam."""
