@@ -1,0 +1,115 @@
+"""The Python API: ``load`` a team, ``simulate`` it, read the :class:`Run`.
+
+>>> import hybridteam as ht
+>>> team = ht.load("examples/automata/bouncing_ball.yaml")
+>>> run = ht.simulate(team, duration=2.0)
+>>> run.outcome, len(run.transitions)
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from hybridteam.engine.compiled import compile_team
+from hybridteam.engine.simulator import Simulator
+from hybridteam.model import Team
+from hybridteam.trace import Table, Trace
+
+
+class Run(Trace):
+    """The result of :func:`simulate`: a :class:`~hybridteam.trace.Trace` with conveniences.
+
+    For an ensemble (``n > 1``) every table has an ``instance`` column;
+    :meth:`instance` gives the run of one instance as if it had been simulated alone.
+    """
+
+    @property
+    def outcomes(self) -> list[str]:  # type: ignore[override]
+        return [o["outcome"] for o in self._outcomes]
+
+    @outcomes.setter
+    def outcomes(self, value: list[dict[str, Any]]) -> None:
+        self._outcomes = value
+
+    @property
+    def diagnostics(self) -> list[dict[str, Any]]:
+        """Per instance: outcome, time and a message naming agent, mode, guard."""
+        return self._outcomes
+
+    @property
+    def outcome(self) -> str:
+        if self.n != 1:
+            raise ValueError(f"this run has n={self.n} instances: use run.outcomes "
+                             "or run.instance(i).outcome")
+        return self._outcomes[0]["outcome"]
+
+    @property
+    def message(self) -> str:
+        return self.diagnostics[0]["message"] if self.n == 1 else ""
+
+    def to_dict(self) -> dict[str, Any]:
+        d = super().to_dict()
+        d["outcomes"] = self._outcomes
+        return d
+
+    def instance(self, i: int) -> Run:
+        """Instance ``i`` of an ensemble as a single run (instance numbers reset to 0)."""
+        if not 0 <= i < self.n:
+            raise IndexError(f"instance {i} out of range 0..{self.n - 1}")
+
+        def pick(table: Table) -> Table:
+            sub = table.filter(table["instance"] == i)
+            sub.columns["instance"] = np.zeros(len(sub), np.int64)
+            return sub
+
+        meta = dict(self.meta, n=1)
+        outcome = dict(self._outcomes[i], instance=0)
+        return Run(meta, [outcome], pick(self.transitions), pick(self.intervals),
+                   pick(self.messages), self.sample_times.copy(),
+                   {a: s[:, i : i + 1].copy() for a, s in self.samples.items()})
+
+    def summary(self) -> dict[str, Any]:
+        """Counts per instance, for ``summary.json`` and the terminal."""
+        counts = np.bincount(np.asarray(self.transitions["instance"], dtype=np.int64),
+                             minlength=self.n)
+        msgs = np.bincount(np.asarray(self.messages["instance"], dtype=np.int64),
+                           minlength=self.n)
+        per = []
+        for i, o in enumerate(self._outcomes):
+            per.append({"instance": i, "outcome": o["outcome"], "t_end": o["t"],
+                        "message": o["message"], "transitions": int(counts[i]),
+                        "messages": int(msgs[i])})
+        tally: dict[str, int] = {}
+        for o in self.outcomes:
+            tally[o] = tally.get(o, 0) + 1
+        return {"team": self.meta["team"], "n": self.n, "seed": self.meta["seed"],
+                "duration": self.meta["duration"], "outcomes": tally, "instances": per}
+
+
+def load(path: str | os.PathLike) -> Team:
+    """Load and validate a team file (raises ``InputErrors`` with file:line messages)."""
+    from hybridteam.io.loader import load_team
+
+    return load_team(path)
+
+
+def simulate(team: Team, seed: int | None = None, n: int = 1, duration: float | None = None,
+             overrides: Mapping[str, float | Sequence[float]] | None = None,
+             progress: Callable[[float], None] | None = None) -> Run:
+    """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
+
+    ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``) to one value or
+    to ``n`` values, one per instance — that is how an ensemble varies. ``seed`` defaults to
+    the team's ``simulation.seed``.
+    """
+    cteam = compile_team(team)
+    seed = team.simulation.seed if seed is None else seed
+    sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
+                    progress=progress)
+    trace = sim.run()
+    return Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
+               trace.messages, trace.sample_times, trace.samples)

@@ -1,0 +1,95 @@
+"""Plants: the continuous part of an agent (state, inputs, kinematics).
+
+Kinematic plants integrate *exactly* under a zero-order-held input: a sampled control law
+holds ``u`` over a control period, and the unicycle's arc or the holonomic base's straight
+line is then known in closed form. Exactness matters for guards: a guard crossing located on
+the closed form is located on the true trajectory, not on a numerical approximation of it.
+
+The generic flow plant has no inputs; each mode gives ``dx/dt`` as expressions and the
+engine integrates it with the Runge–Kutta scheme in :mod:`hybridteam.dynamics.rk`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Plant:
+    """Kinematics of one agent: names of its state and input components."""
+
+    kind: str
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+
+    @property
+    def exact(self) -> bool:
+        """Whether :meth:`propagate` gives the exact flow under a held input."""
+        return bool(self.input_names)
+
+    def derivative(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
+        raise NotImplementedError  # pragma: no cover
+
+
+class Unicycle(Plant):
+    """Differential drive: state (x, y, theta), input (v, omega) in the body frame."""
+
+    def __init__(self) -> None:
+        super().__init__("unicycle", ("x", "y", "theta"), ("v", "omega"))
+
+    def derivative(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        th = x[:, 2]
+        return np.stack([u[:, 0] * np.cos(th), u[:, 0] * np.sin(th), u[:, 1]], axis=1)
+
+    def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
+        """Exact arc: chord length ``v h sinc(omega h / 2)`` along the mid-arc heading.
+
+        This form has no 0/0 at omega = 0 (``np.sinc`` is analytic there), so straight
+        lines and arcs share one code path with no branch on tiny turn rates.
+        """
+        v, w = u[:, 0], u[:, 1]
+        half = 0.5 * w * h
+        chord = v * h * np.sinc(half / np.pi)
+        mid = x[:, 2] + half
+        return np.stack([x[:, 0] + chord * np.cos(mid), x[:, 1] + chord * np.sin(mid),
+                         x[:, 2] + w * h], axis=1)
+
+
+class Holonomic(Plant):
+    """Omni-directional base: state (x, y, theta), input (vx, vy, omega) in the world frame."""
+
+    def __init__(self) -> None:
+        super().__init__("holonomic", ("x", "y", "theta"), ("vx", "vy", "omega"))
+
+    def derivative(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return u.copy()
+
+    def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
+        return x + u * h[:, None]
+
+
+class Flow(Plant):
+    """A classical hybrid automaton's state vector; modes define its derivative."""
+
+    def __init__(self, state_names: tuple[str, ...]) -> None:
+        super().__init__("flow", tuple(state_names), ())
+
+
+KINEMATICS: dict[str, type[Plant]] = {"unicycle": Unicycle, "holonomic": Holonomic}
+
+
+def make_plant(kind: str, state_names: tuple[str, ...] = ()) -> Plant:
+    """Build a plant by kind name (``unicycle``, ``holonomic`` or ``flow``)."""
+    if kind == "flow":
+        return Flow(state_names)
+    return KINEMATICS[kind]()
+
+
+def saturate(u: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Actuator limits: clip each input component into ``[lower, upper]``."""
+    return np.clip(u, lower, upper)

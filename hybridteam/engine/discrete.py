@@ -1,0 +1,137 @@
+"""The discrete phase: everything that happens at one instant, in micro-steps.
+
+At an instant ``t`` an instance takes micro-steps ``(t, 0), (t, 1), ...`` (superdense time)
+until it is quiescent. In each micro-step, if any urgent transition (guard and/or ``after``,
+no trigger) is enabled in some agent, every agent takes its enabled urgent transitions;
+otherwise the first pending event (scenario, message, local) is dispatched. Within an agent,
+transitions are considered in precedence order (higher ``priority``, then outer before inner,
+then declaration order) and a transition is blocked by any higher-precedence transition that
+fires and exits an overlapping part of the mode tree, so parallel regions step together while
+an outer transition pre-empts everything inside it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.engine.events import LOCAL, MESSAGE, SCENARIO
+
+if TYPE_CHECKING:
+    from hybridteam.engine.compiled import CAgent
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.state import AgentState
+
+
+def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
+    """Run micro-steps for instances ``idx`` (all at their current time) until quiescent."""
+    sim.micro[idx] = 0
+    active = idx
+    while active.size:
+        fired = np.zeros(sim.n, bool)
+        for ag, st in zip(sim.cteam.agents, sim.states, strict=True):
+            if ag.eventless:
+                sel = active[~sim.done[active]]
+                fired[sel] |= select_and_fire(sim, ag, st, sel, ag.eventless, None)
+        rest = active[~fired[active] & ~sim.done[active]]
+        if rest.size:
+            for (kind, agent, name), members in sim.queue.pop_due(rest, sim.t).items():
+                inst = np.array(members, np.intp)
+                inst = inst[~sim.done[inst]]
+                ag, st = sim.cteam.agents[agent], sim.states[agent]
+                cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
+                select_and_fire(sim, ag, st, inst, ag.triggered.get(name, []), cause)
+                fired[inst] = True
+                if kind in (SCENARIO, LOCAL) and not ag.triggered.get(name):
+                    pass  # an event nobody waits for is dropped, as in statecharts
+        stepped = active[fired[active]]
+        sim.changed[stepped] = True
+        sim.micro[stepped] += 1
+        over = stepped[sim.micro[stepped] >= sim.settings.zeno.max_steps_per_instant]
+        if over.size:
+            sim.finish(over, "zeno", lambda i: (
+                f"{sim.settings.zeno.max_steps_per_instant} discrete steps at t={float(sim.t[i])!r} "
+                f"without time advancing; last: {sim.last_step_text(i)}"))
+        active = stepped[~sim.done[stepped]]
+
+
+def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
+                    candidates: list[int], cause: str | None) -> np.ndarray:
+    """Fire, in each instance of ``idx``, the enabled candidates that are not pre-empted."""
+    fired = np.zeros(idx.size, bool)
+    if idx.size == 0 or not candidates:
+        return fired
+    t = sim.t[idx]
+    enabled: dict[int, np.ndarray] = {}
+    for j in candidates:
+        tr = ag.transitions[j]
+        e = st.active[idx, tr.source]
+        if not e.any():
+            continue
+        if tr.after is not None:
+            e &= t >= st.deadline[idx, tr.after_slot]
+        if tr.guard is not None and e.any():
+            sub = idx[e]
+            g = np.broadcast_to(tr.guard(st.ctx(sub, sim.t[sub], tr.source)), sub.shape)
+            e[e] = g
+        if e.any():
+            enabled[j] = e
+    if not enabled:
+        return fired
+    chosen: dict[int, np.ndarray] = {}
+    for j in sorted(enabled):
+        e = enabled[j]
+        for k in ag.transitions[j].conflicts.tolist():
+            if k in chosen:
+                e = e & ~chosen[k]
+        if e.any():
+            chosen[j] = e
+    for j, e in chosen.items():
+        tr = ag.transitions[j]
+        reason = cause or ("after" if tr.after is not None and tr.guard is None else "guard")
+        fire(sim, ag, st, j, idx[e], reason)
+        fired |= e
+    return fired
+
+
+def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
+         cause: str) -> None:
+    """Exit, act, enter — for transition ``j`` in instances ``sub``."""
+    tr = ag.transitions[j]
+    ctx = st.ctx(sub, sim.t[sub], tr.source)
+    st.exit(tr.exit_root, sub, sim.t, sim.rec)
+    for act in tr.actions:
+        if act.kind == "assign":
+            kind, col = act.target  # type: ignore[misc]
+            value = np.broadcast_to(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
+            if kind == "x":
+                st.x[sub, col] = value
+                ctx.x[:, col] = value
+            else:
+                st.v[sub, col] = value
+                ctx.v[:, col] = value
+        elif act.kind == "raise":
+            sim.queue.push(sub, sim.t[sub], LOCAL, ag.index, act.name)
+        else:
+            fields = {k: np.broadcast_to(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
+            sim.medium.send(sub, sim.t[sub], ag.index, act.to, act.socket, act.name, fields)
+    st.enter_path(tr.entry_path, sub, sim.t)
+    sim.rec.transition(ag.index, j, sub, sim.t[sub], sim.micro[sub], cause)
+    sim.last_fired[sub] = ag.index * 1_000_000 + j
+    _zeno_window(sim, ag, st, sub)
+
+
+def _zeno_window(sim: Simulator, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:
+    """Too many transitions of one agent within a short window: a Zeno run, stop it."""
+    ring, ptr = sim.zeno_ring[ag.index], sim.zeno_ptr[ag.index]
+    pos = ptr[sub]
+    old = ring[sub, pos]
+    ring[sub, pos] = sim.t[sub]
+    ptr[sub] = (pos + 1) % ring.shape[1]
+    bad = sub[(sim.t[sub] - old) <= sim.settings.zeno.window]
+    if bad.size:
+        z = sim.settings.zeno
+        sim.finish(bad, "zeno", lambda i: (
+            f"agent '{ag.name}' took {z.max_transitions + 1} transitions within {z.window:g} s "
+            f"up to t={float(sim.t[i])!r}; last: {sim.last_step_text(i)}"))

@@ -1,0 +1,125 @@
+"""Collects what the engine does, in vectorized chunks, and assembles the :class:`Trace`.
+
+The engine records whole groups of instances at a time (``instances`` is an index array);
+rows are only materialized once, at the end, and sorted stably by instance so an instance's
+rows come out in the order it produced them, whatever its neighbours did.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from hybridteam.engine.compiled import CTeam
+from hybridteam.trace import (
+    INTERVAL_COLUMNS,
+    MESSAGE_COLUMNS,
+    TRANSITION_COLUMNS,
+    Table,
+)
+
+
+class Recorder:
+    def __init__(self, cteam: CTeam, n: int, sample_times: np.ndarray) -> None:
+        self.cteam = cteam
+        self.n = n
+        self._transitions: list[tuple] = []
+        self._intervals: list[tuple] = []
+        self._messages: list[tuple] = []
+        self.sample_times = sample_times
+        self.samples = {a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
+                        for a in cteam.agents}
+
+    # the engine calls these with index arrays ------------------------------------------
+    def transition(self, agent: int, index: int, instances: np.ndarray, t: np.ndarray,
+                   step: np.ndarray, cause: str) -> None:
+        self._transitions.append((agent, index, instances.copy(), t.copy(), step.copy(), cause))
+
+    def initial(self, agent: int, mode: int, instances: np.ndarray, t: np.ndarray) -> None:
+        self._transitions.append((agent, -1 - mode, instances.copy(), t.copy(),
+                                  np.zeros(len(instances), np.int64), "init"))
+
+    def interval(self, agent: int, mode: int, instances: np.ndarray, start: np.ndarray,
+                 end: np.ndarray) -> None:
+        self._intervals.append((agent, mode, instances.copy(), start.copy(), end.copy()))
+
+    def message(self, instances: np.ndarray, seq: np.ndarray, sender: int, receiver: int,
+                socket: str, kind: str, t_send: np.ndarray, t_recv: np.ndarray, status: str,
+                reason: str = "") -> None:
+        self._messages.append((instances.copy(), seq.copy(), sender, receiver, socket, kind,
+                               t_send.copy(), t_recv.copy(), status, reason))
+
+    def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
+        ok = k < len(self.sample_times)
+        self.samples[agent][k[ok], instances[ok]] = x[ok]
+
+    # assembly ---------------------------------------------------------------------------
+    def _transition_table(self) -> Table:
+        cols: dict[str, list[Any]] = {c: [] for c in TRANSITION_COLUMNS}
+        agents = self.cteam.agents
+        for agent, index, inst, t, step, cause in self._transitions:
+            ca = agents[agent]
+            if index < 0:
+                source, target, guard = "", ca.modes[-1 - index].path, ""
+            else:
+                tr = ca.transitions[index]
+                source, target, guard = ca.modes[tr.source].path, ca.modes[tr.target].path, \
+                    tr.guard_text
+            k = len(inst)
+            cols["instance"].append(inst)
+            cols["agent"].append([ca.name] * k)
+            cols["t"].append(t)
+            cols["step"].append(step)
+            cols["source"].append([source] * k)
+            cols["target"].append([target] * k)
+            cols["cause"].append([cause] * k)
+            cols["guard"].append([guard] * k)
+        return _sorted(TRANSITION_COLUMNS, cols)
+
+    def _interval_table(self) -> Table:
+        cols: dict[str, list[Any]] = {c: [] for c in INTERVAL_COLUMNS}
+        agents = self.cteam.agents
+        for agent, mode, inst, start, end in self._intervals:
+            m = agents[agent].modes[mode]
+            k = len(inst)
+            cols["instance"].append(inst)
+            cols["agent"].append([agents[agent].name] * k)
+            cols["mode"].append([m.path] * k)
+            cols["depth"].append(np.full(k, m.depth))
+            cols["start"].append(start)
+            cols["end"].append(end)
+        return _sorted(INTERVAL_COLUMNS, cols)
+
+    def _message_table(self) -> Table:
+        cols: dict[str, list[Any]] = {c: [] for c in MESSAGE_COLUMNS}
+        names = [a.name for a in self.cteam.agents]
+        for inst, seq, snd, rcv, socket, kind, ts, tr, status, reason in self._messages:
+            k = len(inst)
+            cols["instance"].append(inst)
+            cols["seq"].append(seq)
+            cols["sender"].append([names[snd]] * k)
+            cols["receiver"].append([names[rcv]] * k)
+            cols["socket"].append([socket] * k)
+            cols["type"].append([kind] * k)
+            cols["t_send"].append(ts)
+            cols["t_recv"].append(tr)
+            cols["status"].append([status] * k)
+            cols["reason"].append([reason] * k)
+        return _sorted(MESSAGE_COLUMNS, cols)
+
+    def tables(self) -> tuple[Table, Table, Table]:
+        return self._transition_table(), self._interval_table(), self._message_table()
+
+
+def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
+    if not cols["instance"]:
+        return Table(names)
+    flat = {}
+    for name, chunks in cols.items():
+        if name in ("instance", "t", "step", "depth", "start", "end", "seq", "t_send", "t_recv"):
+            flat[name] = np.concatenate([np.asarray(c) for c in chunks])
+        else:
+            flat[name] = np.array([v for c in chunks for v in c], dtype=object)
+    order = np.argsort(flat["instance"], kind="stable")
+    return Table(names, {n: c[order] for n, c in flat.items()})

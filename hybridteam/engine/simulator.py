@@ -1,0 +1,471 @@
+"""The simulator: ``n`` instances of one team advanced in lockstep.
+
+Each instance keeps its own clock. One engine iteration moves every live instance from its
+time to the nearest of: its next scheduled instant (a sampled law's tick, an ``after:``
+deadline, a pending event, an output sample, the end of the run) or, when some agent flows
+under a continuous law, the step its own error control allows. Kinematic plants under held
+inputs move along their exact arcs; flows take a Dormand–Prince step. Guard and invariant
+crossings found inside the step are located (:mod:`.crossing`) and the instance stops there.
+Instances that arrived at an instant then run the discrete phase (:mod:`.discrete`).
+
+Nothing an instance does depends on another instance: step sizes, event times, sequence
+numbers and round-off are all per instance, so an ensemble equals that many single runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from hybridteam.dynamics import rk
+from hybridteam.dynamics.plants import saturate
+from hybridteam.engine.compiled import CAgent, CTeam, Ctx, Driver
+from hybridteam.engine.crossing import find_crossings, watch_truth
+from hybridteam.engine.discrete import discrete_phase
+from hybridteam.engine.events import EventQueue, IdealMedium
+from hybridteam.engine.record import Recorder
+from hybridteam.engine.state import AgentState
+from hybridteam.trace import Trace
+
+Progress = Callable[[float], None]
+
+
+def _did_you_mean(name: str, candidates) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, sorted(candidates), n=1, cutoff=0.5)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+class Simulator:
+    def __init__(self, cteam: CTeam, n: int = 1, *, seed: int = 0,
+                 duration: float | None = None,
+                 overrides: Mapping[str, float | Sequence[float]] | None = None,
+                 progress: Progress | None = None) -> None:
+        if n < 1:
+            raise ValueError(f"n must be at least 1, got {n}")
+        self.cteam = cteam
+        self.n = n
+        self.seed = seed
+        self.settings = cteam.team.simulation
+        self.t_end = float(duration if duration is not None else self.settings.duration)
+        if not self.t_end >= 0:
+            raise ValueError(f"duration must be >= 0, got {self.t_end}")
+        self.progress = progress
+        self.t = np.zeros(n)
+        self.t0 = np.zeros(n)
+        self.h = np.zeros(n)
+        self.done = np.zeros(n, bool)
+        self.changed = np.zeros(n, bool)
+        self.micro = np.zeros(n, np.int64)
+        self.last_fired = np.full(n, -1, np.int64)
+        self.outcomes: list[dict | None] = [None] * n
+        self.states = [AgentState(a, n) for a in cteam.agents]
+        self.timer = [np.full(n, np.inf) for _ in cteam.agents]
+        self.h_rk = np.full(n, np.nan)
+        self.max_step = self.settings.max_step or np.inf
+        zk = self.settings.zeno.max_transitions
+        self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
+        self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]
+        dt = self.settings.output_period()
+        k = int(np.floor(self.t_end / dt + 1e-9)) + 1
+        times = np.arange(k) * dt
+        if times[-1] < self.t_end - 1e-12 * max(1.0, self.t_end):
+            times = np.append(times, self.t_end)
+        self.sample_times = times
+        self.out_k = np.zeros(n, np.intp)
+        self.next_out = np.full(n, times[0])
+        self.rec = Recorder(cteam, n, times)
+        self.queue = EventQueue(n, cteam.scenario)
+        self.medium = IdealMedium(self.queue, len(cteam.agents), self.rec)
+        self._apply_overrides(overrides or {})
+
+    # ------------------------------------------------------------------ set-up
+    def _apply_overrides(self, overrides: Mapping[str, float | Sequence[float]]) -> None:
+        for key, value in overrides.items():
+            values = np.asarray(value, dtype=float)
+            if values.ndim > 1 or (values.ndim == 1 and values.size != self.n):
+                raise ValueError(f"override '{key}': expected a number or {self.n} values, "
+                                 f"got shape {values.shape}")
+            agent, _, name = key.rpartition(".")
+            hit = False
+            for st in self.states:
+                if agent and st.ca.name != agent:
+                    continue
+                if name in st.ca.param_index:
+                    st.p[:, st.ca.param_index[name]] = values
+                    hit = True
+            if not hit:
+                known = sorted({f"{st.ca.name}.{p}" for st in self.states
+                                for p in st.ca.param_index}
+                               | {p for st in self.states for p in st.ca.param_index})
+                raise ValueError(f"override '{key}' names no parameter"
+                                 f"{_did_you_mean(key, known)}")
+
+    # ------------------------------------------------------------------ drivers
+    def evaluate_driver(self, ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
+        """Plant inputs from a law or ``inputs:`` expressions, saturated to the limits."""
+        m = ctx.x.shape[0]
+        if drv.kind == "zero":
+            return np.zeros((m, len(ca.plant.input_names)))
+        if drv.inputs is not None:
+            u = np.stack([np.broadcast_to(np.asarray(e(ctx), dtype=float), (m,))
+                          for e in drv.inputs], axis=1)
+        else:
+            u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
+            if u.shape != (m, len(ca.plant.input_names)):
+                raise RuntimeError(f"law '{drv.law.name}' returned shape {u.shape}, expected "
+                                   f"{(m, len(ca.plant.input_names))} (inputs "
+                                   f"{', '.join(ca.plant.input_names)})")
+        return saturate(u, ca.lower, ca.upper)
+
+    def deriv(self, a: int, idx: np.ndarray) -> rk.Derivative:
+        """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
+        st = self.states[a]
+        ca, plant = st.ca, st.ca.plant
+        drv = st.driver[idx]
+        groups = [(int(d), np.flatnonzero(drv == d)) for d in np.unique(drv)]
+        v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
+
+        def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
+            out = np.zeros_like(xx)
+            for d, rows in groups:
+                D = ca.drivers[d]
+                whole = rows.size == xx.shape[0]
+                sel = slice(None) if whole else rows
+                tr = tt[sel]
+                t_in = tr - entry[sel, D.owner] if D.owner >= 0 else tr
+                ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in)
+                if D.kind == "flow":
+                    for j, e in enumerate(D.flow):  # type: ignore[arg-type]
+                        if e is not None:
+                            out[sel, j] = e(ctx)
+                elif plant.input_names:
+                    out[sel] = plant.derivative(ctx.x, self.evaluate_driver(ca, D, ctx))
+            return out
+
+        return f
+
+    def state_at(self, a: int, idx: np.ndarray, tau: np.ndarray, step: dict, *,
+                 dense: bool = False, rows: np.ndarray | None = None) -> np.ndarray:
+        """Agent ``a``'s state ``tau`` after the step start, for instances ``idx``.
+
+        ``rows`` are the positions of ``idx`` in the step's arrays (all when None).
+        """
+        if rows is None:
+            rows = np.arange(idx.size)
+        x0, u, is_rk = step["x0"][rows], step["u"][rows], step["rk"][rows]
+        plant = self.states[a].ca.plant
+        if not is_rk.any():
+            return plant.propagate(x0, u, tau)
+        out = np.empty_like(x0)
+        ex = ~is_rk
+        if ex.any():
+            out[ex] = plant.propagate(x0[ex], u[ex], tau[ex])
+        r = np.flatnonzero(is_rk)
+        if dense:
+            pos = step["rk_pos"][rows[r]]
+            s: rk.Step = step["rk_step"]
+            out[r] = s.dense(tau[r] / np.where(s.h[pos] > 0, s.h[pos], 1.0), pos)
+        else:
+            sub = idx[r]
+            s = rk.step(self.deriv(a, sub), self.t0[sub], x0[r], tau[r], self.settings.rtol,
+                        self.settings.atol)
+            out[r] = s.x1
+        return out
+
+    # ------------------------------------------------------------------ outcomes
+    def finish(self, idx: np.ndarray, kind: str, message: Callable[[int], str]) -> None:
+        for i in idx.tolist():
+            if not self.done[i]:
+                self.done[i] = True
+                self.outcomes[i] = {"instance": i, "outcome": kind, "t": float(self.t[i]),
+                                    "message": message(i)}
+
+    def last_step_text(self, i: int) -> str:
+        code = int(self.last_fired[i])
+        if code < 0:
+            return "no transition"
+        ca = self.cteam.agents[code // 1_000_000]
+        tr = ca.transitions[code % 1_000_000]
+        text = f"agent '{ca.name}' {ca.modes[tr.source].path} -> {ca.modes[tr.target].path}"
+        return text + (f" on guard '{tr.guard_text}'" if tr.guard_text else "")
+
+    # ------------------------------------------------------------------ the run
+    def run(self) -> Trace:
+        with np.errstate(all="ignore"):
+            self._initialize()
+            last_report = -1.0
+            while not self.done.all():
+                self._step()
+                if self.progress is not None:
+                    frac = float(np.min(np.where(self.done, self.t_end, self.t))) / \
+                        (self.t_end or 1.0)
+                    if frac - last_report >= 0.01:
+                        self.progress(frac)
+                        last_report = frac
+            return self._close()
+
+    def _initialize(self) -> None:
+        everyone = np.arange(self.n)
+        for st in self.states:
+            ca = st.ca
+            ctx = Ctx(st.x, st.v, st.p, self.t)
+            for j, e in enumerate(ca.init_state):
+                st.x[:, j] = np.broadcast_to(e(ctx), (self.n,))
+            for j, e in enumerate(ca.init_vars):
+                st.v[:, j] = np.broadcast_to(e(ctx), (self.n,))
+            st.activate(0, everyone, self.t)
+            st.enter_default(0, everyone, self.t)
+            for leaf in ca.leaves.tolist():
+                sel = everyone[st.active[:, leaf]]
+                if sel.size:
+                    self.rec.initial(ca.index, leaf, sel, self.t[sel])
+        self.changed[:] = True
+        self._instant(everyone, entering=True)
+        self._record_samples(everyone)
+
+    def _instant(self, idx: np.ndarray, entering: bool = False) -> None:
+        """Discrete phase at the current time of instances ``idx``, then bookkeeping."""
+        if not entering:
+            self.changed[idx] = False
+        discrete_phase(self, idx)
+        live = idx[~self.done[idx]]
+        changed = live[self.changed[live]] if not entering else live
+        for a, st in enumerate(self.states):
+            if live.size:
+                self.timer[a][live] = st.next_timer(live, self.t[live])
+            if changed.size:
+                st.update_drivers(changed)
+                if not st.ca.plant.input_names:
+                    st.rk[changed] = True
+                if st.ca.watches:
+                    st.truth[:, changed] = watch_truth(self, a, changed, st.x[changed],
+                                                       self.t[changed])
+            self._sample_laws(a, live, changed)
+        self._check(live)
+
+    def _sample_laws(self, a: int, live: np.ndarray, changed: np.ndarray) -> None:
+        """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered."""
+        st = self.states[a]
+        ca = st.ca
+        if not ca.plant.input_names or live.size == 0:
+            return
+        tick = live[self.t[live] >= st.next_tick[live]]
+        due = np.union1d(tick, changed) if changed.size else tick
+        if due.size == 0:
+            return
+        drv = st.driver[due]
+        for d in np.unique(drv).tolist():
+            D = ca.drivers[d]
+            rows = due[drv == d]
+            if D.kind == "continuous":
+                st.next_tick[rows] = np.inf
+                continue
+            if D.kind == "sampled" and changed.size:
+                # re-sample on a tick, or when the law's mode was (re)entered just now
+                fresh = np.isin(rows, changed) & (st.entry[rows, D.owner] == self.t[rows])
+                rows = rows[fresh | (self.t[rows] >= st.next_tick[rows])]
+            if rows.size == 0:
+                continue
+            ctx = st.ctx(rows, self.t[rows], D.owner)
+            st.u[rows] = self.evaluate_driver(ca, D, ctx)
+            if D.kind == "sampled":
+                T = D.period
+                k = np.floor(self.t[rows] / T) + 1
+                nxt = k * T
+                nxt = np.where(nxt <= self.t[rows], (k + 1) * T, nxt)
+                st.next_tick[rows] = nxt
+            else:
+                st.next_tick[rows] = np.inf
+
+    def _check(self, idx: np.ndarray) -> None:
+        """Invariants (``stuck``), all agents final (``ok``), nothing can happen (``deadlock``)."""
+        if idx.size == 0:
+            return
+        for st in self.states:
+            ca = st.ca
+            for m in ca.modes:
+                if m.invariant is None:
+                    continue
+                sel = idx[st.active[idx, m.index] & ~self.done[idx]]
+                if sel.size == 0:
+                    continue
+                ok = np.broadcast_to(m.invariant(st.ctx(sel, self.t[sel], m.index)), sel.shape)
+                bad = sel[~ok]
+                if bad.size:
+                    self.finish(bad, "stuck", lambda i, ca=ca, m=m: (
+                        f"agent '{ca.name}' in mode '{m.path}' at t={float(self.t[i])!r}: invariant "
+                        f"'{m.invariant_text}' is false and no transition out is enabled"))
+        idx = idx[~self.done[idx]]
+        if idx.size == 0:
+            return
+        all_final = np.ones(idx.size, bool)
+        waiting = np.ones(idx.size, bool)
+        someone_waits = np.zeros(idx.size, bool)
+        for a, st in enumerate(self.states):
+            ca = st.ca
+            act = st.active[idx]
+            leaf_act = act[:, ca.leaves]
+            final = (~leaf_act | ca.final[ca.leaves]).all(axis=1)
+            all_final &= final
+            eventless = (act & ca.has_eventless).any(axis=1)
+            trig = (act & ca.has_triggered).any(axis=1)
+            waiting &= final | (~eventless & trig & ~np.isfinite(self.timer[a][idx]))
+            someone_waits |= ~final & trig
+        fin = idx[all_final]
+        if fin.size:
+            self.finish(fin, "ok", lambda i: "every agent reached a final mode")
+        stalled = idx[~all_final & waiting & someone_waits & ~self.queue.pending(idx)]
+        if stalled.size:
+            self.finish(stalled, "deadlock", self._deadlock_text)
+
+    def _deadlock_text(self, i: int) -> str:
+        parts = []
+        for st in self.states:
+            ca = st.ca
+            waits = sorted({ca.transitions[j].on for m in ca.modes if st.active[i, m.index]
+                            for j in m.outgoing if ca.transitions[j].on})
+            if waits:
+                parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
+                             f"{', '.join(waits)}")
+        return f"nothing pending at t={float(self.t[i])!r}: " + "; ".join(parts)
+
+    def _step(self) -> None:
+        live = ~self.done
+        idx = np.flatnonzero(live)
+        t = self.t
+        t_next = np.minimum(self.next_out, self.t_end)
+        np.minimum(t_next, self.queue.next, out=t_next)
+        any_rk = np.zeros(self.n, bool)
+        for a, st in enumerate(self.states):
+            np.minimum(t_next, st.next_tick, out=t_next)
+            np.minimum(t_next, self.timer[a], out=t_next)
+            any_rk |= st.rk
+        any_rk &= live
+        if any_rk.any():
+            self._initial_rk_steps(np.flatnonzero(any_rk & np.isnan(self.h_rk)))
+            t_rk = t + np.minimum(self.h_rk, self.max_step)
+            t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
+            limited = any_rk & (t_rk < t_next)
+        else:
+            t1, limited = t_next, any_rk
+        t1 = np.where(live, np.maximum(t1, t), t)
+        self.t0 = t.copy()
+        self.h = t1 - t
+        h = self.h[idx]
+        x_end, steps = [], []
+        err = np.zeros(idx.size)
+        for a, st in enumerate(self.states):
+            x0, u, is_rk = st.x[idx], st.u[idx], st.rk[idx]
+            step: dict = {"x0": x0, "u": u, "rk": is_rk}
+            if not is_rk.any():
+                xe = st.ca.plant.propagate(x0, u, h)
+            else:
+                xe = np.empty_like(x0)
+                ex = ~is_rk
+                if ex.any():
+                    xe[ex] = st.ca.plant.propagate(x0[ex], u[ex], h[ex])
+                r = np.flatnonzero(is_rk)
+                sub = idx[r]
+                s = rk.step(self.deriv(a, sub), t[sub], x0[r], h[r], self.settings.rtol,
+                            self.settings.atol)
+                xe[r] = s.x1
+                err[r] = np.maximum(err[r], s.err)
+                pos = np.full(idx.size, -1, np.intp)
+                pos[r] = np.arange(r.size)
+                step.update(rk_step=s, rk_pos=pos)
+            x_end.append(xe)
+            steps.append(step)
+        rows_rk = any_rk[idx]
+        if rows_rk.any():
+            new_h = rk.next_step_size(h, err)
+            reject = rows_rk & (err > 1)
+            grow = rows_rk & ~reject & limited[idx]
+            upd = reject | grow
+            self.h_rk[idx[upd]] = new_h[upd]
+            if reject.any():
+                t1[idx[reject]] = t[idx[reject]]
+                self.h[idx[reject]] = 0.0
+                for a in range(len(self.states)):
+                    x_end[a][reject] = steps[a]["x0"][reject]
+        accepted = self.h[idx] > 0
+        tau = find_crossings(self, idx, x_end, steps) if accepted.any() else \
+            np.full(idx.size, np.inf)
+        crossing = np.isfinite(tau) & accepted
+        if crossing.any():
+            rows = np.flatnonzero(crossing)
+            for a in range(len(self.states)):
+                x_end[a][rows] = self.state_at(a, idx[rows], tau[rows], steps[a], rows=rows)
+            t1[idx[rows]] = t[idx[rows]] + tau[rows]
+        for a, st in enumerate(self.states):
+            st.x[idx] = x_end[a]
+        self.t[idx] = t1[idx]
+        tn = self.t[idx]
+        at = crossing | (tn >= self.t_end) | (tn >= self.queue.next[idx])
+        for a, st in enumerate(self.states):
+            at |= (tn >= st.next_tick[idx]) | (tn >= self.timer[a][idx])
+        moved = idx[accepted]
+        for a, st in enumerate(self.states):
+            if st.ca.watches and moved.size:
+                st.truth[:, moved] = watch_truth(self, a, moved, st.x[moved], self.t[moved])
+        events = idx[at]
+        if events.size:
+            self._instant(events)
+        self._record_samples(idx)
+        ended = idx[(self.t[idx] >= self.t_end) & ~self.done[idx]]
+        if ended.size:
+            self.finish(ended, "ok", lambda i: f"reached the end of the run at t={float(self.t[i])!r}")
+
+    def _initial_rk_steps(self, idx: np.ndarray) -> None:
+        if idx.size == 0:
+            return
+        h = np.full(idx.size, np.inf)
+        for a, st in enumerate(self.states):
+            rows = np.flatnonzero(st.rk[idx])
+            if rows.size == 0:
+                continue
+            sub = idx[rows]
+            h0 = rk.initial_step_size(self.deriv(a, sub), self.t[sub], st.x[sub],
+                                      self.settings.rtol, self.settings.atol,
+                                      min(self.max_step, self.t_end or 1.0))
+            h[rows] = np.minimum(h[rows], h0)
+        self.h_rk[idx] = h
+
+    def _record_samples(self, idx: np.ndarray) -> None:
+        due = idx[self.t[idx] >= self.next_out[idx]]
+        if due.size == 0:
+            return
+        k = self.out_k[due]
+        for st in self.states:
+            self.rec.sample(k, due, st.ca.name, st.x[due])
+        self.out_k[due] += 1
+        nxt = np.append(self.sample_times, np.inf)
+        self.next_out[due] = nxt[self.out_k[due]]
+
+    def _close(self) -> Trace:
+        everyone = np.arange(self.n)
+        for st in self.states:
+            st.exit(0, everyone, self.t, self.rec)
+        transitions, intervals, messages = self.rec.tables()
+        team = self.cteam.team
+        meta = {
+            "team": team.name,
+            "n": self.n,
+            "seed": self.seed,
+            "duration": self.t_end,
+            "agents": [{
+                "name": ca.name,
+                "plant": ca.plant.kind,
+                "state": list(ca.plant.state_names),
+                "inputs": list(ca.plant.input_names),
+                "modes": [{"path": m.path, "depth": m.depth, "kind": m.kind,
+                           "final": m.final} for m in ca.modes if m.index],
+            } for ca in self.cteam.agents],
+        }
+        outcomes = [o if o is not None else {"instance": i, "outcome": "ok",
+                                             "t": float(self.t[i]), "message": ""}
+                    for i, o in enumerate(self.outcomes)]
+        return Trace(meta, outcomes, transitions, intervals, messages, self.sample_times,
+                     self.rec.samples)

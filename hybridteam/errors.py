@@ -1,0 +1,45 @@
+"""Errors raised while building or checking a model, before anything runs.
+
+A :class:`ModelError` carries the *document path* of the offending field (``agents.ball.
+modes.Fall.flow.h``) and, for expressions, the character offset inside the expression text.
+The YAML layer turns that into ``file:line:column`` using the positions it recorded; models
+built in Python keep the path alone.
+"""
+
+from __future__ import annotations
+
+DocPath = tuple[str | int, ...]
+
+
+def render_path(path: DocPath) -> str:
+    """``("agents", "ball", "modes", 2)`` -> ``agents.ball.modes[2]``."""
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+class ModelError(ValueError):
+    """A problem in a model, located by its path in the document it came from."""
+
+    def __init__(self, path: DocPath, message: str, *, offset: int | None = None,
+                 hint: str | None = None) -> None:
+        self.path = tuple(path)
+        self.message = message
+        self.offset = offset
+        self.hint = hint
+        text = f"{render_path(self.path)}: {message}" if self.path else message
+        if hint:
+            text += f"; {hint}"
+        super().__init__(text)
+
+
+class ModelErrors(ValueError):
+    """Several model errors found in one pass (the checker reports them all)."""
+
+    def __init__(self, errors: list[ModelError]) -> None:
+        self.errors = errors
+        super().__init__("\n".join(str(e) for e in errors))

@@ -1,0 +1,221 @@
+"""pydantic schemas of the files users write: teams and mode libraries.
+
+Every model forbids unknown keys, so a misspelt ``gaurd:`` is an error with a "did you
+mean", never a silently ignored line. Names that expressions refer to (agents, modes,
+parameters, variables) must be identifiers; that is checked here so the message can say
+which key is wrong. ``hybridteam schema`` prints these models as JSON Schema for editors.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+Number = float
+ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
+PositiveFloat = Annotated[float, Field(gt=0)]
+
+
+def check_names(names, what: str) -> None:
+    for name in names:
+        if not isinstance(name, str) or not NAME.match(name):
+            raise ValueError(f"{what} name {name!r} is not valid: use letters, digits and _, "
+                             "not starting with a digit")
+        if name.startswith("__"):
+            raise ValueError(f"{what} name {name!r} may not start with '__'")
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class SendSchema(Strict):
+    """Broadcast a message (``send: Grant``), optionally to one agent only."""
+
+    send: str = Field(description="message type")
+    to: str | None = Field(None, description="receiving agent (default: every other agent)")
+    socket: str = Field("control", description="socket name, e.g. control or data")
+    fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
+
+
+class RaiseSchema(Strict):
+    """Raise a local event in the same agent (handled later in the same instant)."""
+
+    raise_: str = Field(alias="raise", description="event name")
+
+
+ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_to_right")]
+
+
+class TransitionSchema(Strict):
+    """A guarded switch from the enclosing mode to ``to``."""
+
+    to: str = Field(description="target mode: a unique name or a dotted path")
+    on: str | None = Field(None, description="message type or local event that triggers it")
+    after: ExprOrNumber | None = Field(None, description="seconds in the source mode")
+    guard: str | None = Field(None, description="condition, e.g. 'x >= 22'")
+    do: list[ActionSchema] = Field(default_factory=list,
+                                   description="'var = expr' assignments/resets, send, raise")
+    priority: int = 0
+    description: str | None = None
+
+    @field_validator("after")
+    @classmethod
+    def _after_not_negative(cls, v: float | str | None) -> float | str | None:
+        if isinstance(v, float) and v < 0:
+            raise ValueError(f"after must be >= 0 seconds, got {v}")
+        return v
+
+
+class LawSchema(Strict):
+    """A control law: registry name or ``module:function``; sampled if ``period`` is set."""
+
+    use: str
+    period: PositiveFloat | None = None
+    with_: dict[str, ExprOrNumber] = Field(default_factory=dict, alias="with")
+
+
+class ModeSchema(Strict):
+    """A mode: a leaf, an OR-composite (``modes`` + ``initial``) or parallel regions."""
+
+    description: str | None = None
+    initial: str | None = None
+    history: Literal["none", "shallow", "deep"] = "none"
+    parallel: bool = False
+    modes: dict[str, ModeSchema] | None = None
+    law: str | LawSchema | None = None
+    inputs: dict[str, ExprOrNumber] | None = None
+    period: PositiveFloat | None = Field(None, description="sampling period of 'inputs'")
+    flow: dict[str, ExprOrNumber] | None = None
+    invariant: str | None = None
+    final: bool = False
+    transitions: list[TransitionSchema] = Field(default_factory=list)
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
+        if v is not None:
+            if not v:
+                raise ValueError("'modes' is empty; remove it or declare a mode")
+            check_names(v, "mode")
+        return v
+
+    @model_validator(mode="after")
+    def _period_needs_inputs(self) -> ModeSchema:
+        if self.period is not None and self.inputs is None:
+            raise ValueError("'period' samples 'inputs'; this mode has no 'inputs' "
+                             "(a law takes its period in 'law: {use: ..., period: ...}')")
+        return self
+
+
+class PlantSchema(Strict):
+    """Kinematics: unicycle (x, y, theta; v, omega), holonomic (x, y, theta; vx, vy, omega)
+    or flow (any state; each mode gives its derivative)."""
+
+    kind: Literal["unicycle", "holonomic", "flow"]
+    state: dict[str, ExprOrNumber] = Field(default_factory=dict)
+    limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
+
+    @field_validator("state")
+    @classmethod
+    def _state_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "state")
+        return v
+
+
+class AgentSchema(Strict):
+    """One robot or automaton: a plant, a mode tree, parameters and variables."""
+
+    description: str | None = None
+    plant: PlantSchema
+    parameters: dict[str, float] = Field(default_factory=dict)
+    variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
+    initial: str | None = None
+    history: Literal["none", "shallow", "deep"] = "none"
+    modes: dict[str, ModeSchema]
+
+    @field_validator("parameters", "variables")
+    @classmethod
+    def _names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "parameter/variable")
+        return v
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        if not v:
+            raise ValueError("an agent needs at least one mode")
+        check_names(v, "mode")
+        return v
+
+
+class ZenoSchema(Strict):
+    max_steps_per_instant: Annotated[int, Field(ge=1)] = 1000
+    max_transitions: Annotated[int, Field(ge=1)] = 100
+    window: Annotated[float, Field(ge=0)] = 1e-6
+
+
+class SimulationSchema(Strict):
+    """Duration, output sampling, integrator accuracy and Zeno caps."""
+
+    duration: Annotated[float, Field(ge=0)] = 10.0
+    seed: Annotated[int, Field(ge=0)] = 0
+    sample_period: PositiveFloat | None = Field(
+        None, description="trace sampling period (default: duration/500)")
+    rtol: PositiveFloat = 1e-10
+    atol: PositiveFloat = 1e-12
+    max_step: PositiveFloat | None = None
+    event_tol: PositiveFloat = 1e-12
+    crossing_checks: Annotated[int, Field(ge=0, le=32)] = 2
+    zeno: ZenoSchema = Field(default_factory=ZenoSchema)
+
+
+class ScenarioSchema(Strict):
+    """A scripted event: ``{at: 5.0, agent: xr4000, raise: obstacle}``."""
+
+    at: Annotated[float, Field(ge=0)]
+    agent: str
+    raise_: str = Field(alias="raise")
+
+
+class TeamFile(Strict):
+    """A team: agents that run in parallel, shared parameters, a simulation setup."""
+
+    kind: Literal["team"] = "team"
+    team: str = Field(description="name of the team")
+    description: str | None = None
+    parameters: dict[str, float] = Field(default_factory=dict)
+    agents: dict[str, AgentSchema]
+    simulation: SimulationSchema = Field(default_factory=SimulationSchema)
+    scenario: list[ScenarioSchema] = Field(default_factory=list)
+
+    @field_validator("agents")
+    @classmethod
+    def _agent_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        if not v:
+            raise ValueError("a team needs at least one agent")
+        check_names(v, "agent")
+        return v
+
+    @field_validator("parameters")
+    @classmethod
+    def _param_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "parameter")
+        return v
+
+
+FILE_KINDS: dict[str, type[BaseModel]] = {"team": TeamFile}
+
+
+def detect_kind(data: dict[str, Any]) -> str | None:
+    """Which kind of file a document is: its ``kind`` key, or the key only that kind has."""
+    kind = data.get("kind")
+    if isinstance(kind, str):
+        return kind
+    if "agents" in data or "team" in data:
+        return "team"
+    return None

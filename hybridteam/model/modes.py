@@ -1,0 +1,114 @@
+"""Mode trees and transitions, as plain declarations.
+
+These classes say *what* a behaviour is; they hold expression text, not compiled code, so a
+model can be built in Python, loaded from YAML, printed back or drawn without running anything.
+:mod:`hybridteam.engine.compiled` turns them into vectorized callables.
+
+A mode is a leaf, an OR-composite (``children`` with an ``initial`` child, optionally with
+``history``) or an AND-composite (``parallel=True``: every child is a region that runs at the
+same time). Transitions are declared on their source mode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal
+
+from hybridteam.errors import DocPath
+
+History = Literal["none", "shallow", "deep"]
+
+
+@dataclass(frozen=True)
+class LawBinding:
+    """A control law attached to a mode: registry name or ``module:function``.
+
+    ``period`` makes the law sampled (evaluated at mode entry and every ``period`` seconds on
+    the global clock, output held in between); ``None`` makes it continuous. ``params`` are
+    expression texts evaluated on the agent's parameters and variables.
+    """
+
+    name: str
+    period: float | None = None
+    params: dict[str, str | float] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Assign:
+    """``target = expression``: a variable update, or a reset when the target is plant state."""
+
+    text: str
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Send:
+    """Broadcast a message (to every other agent, or to ``to`` only) on a socket."""
+
+    message: str
+    to: str | None = None
+    socket: str = "control"
+    fields: dict[str, str | float] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Raise:
+    """Raise a local event in the same agent, handled later in the same instant."""
+
+    event: str
+    where: DocPath = ()
+
+
+Action = Assign | Send | Raise
+
+
+@dataclass(frozen=True)
+class Transition:
+    """A guarded, possibly triggered switch from the mode it is declared on to ``target``.
+
+    ``on`` names a message type or local event; ``after`` is a delay (seconds in the source
+    mode; a number or an expression of parameters). Without ``on`` a transition is *urgent*:
+    taken at the first instant its guard and delay allow. Higher ``priority`` wins; at equal
+    priority an outer (ancestor) mode's transition beats an inner one.
+    """
+
+    target: str
+    on: str | None = None
+    after: str | float | None = None
+    guard: str | None = None
+    actions: tuple[Action, ...] = ()
+    priority: int = 0
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A node of a mode tree."""
+
+    name: str
+    children: tuple[Mode, ...] = ()
+    initial: str | None = None
+    parallel: bool = False
+    history: History = "none"
+    law: LawBinding | None = None
+    inputs: dict[str, str | float] | None = None
+    input_period: float | None = None
+    flow: dict[str, str | float] | None = None
+    invariant: str | None = None
+    final: bool = False
+    transitions: tuple[Transition, ...] = ()
+    where: DocPath = ()
+
+    @property
+    def is_leaf(self) -> bool:
+        return not self.children
+
+    def walk(self, prefix: str = "") -> Iterator[tuple[str, Mode]]:
+        """Pre-order walk yielding ``(dotted path, mode)``; the root's path is its name."""
+        path = f"{prefix}.{self.name}" if prefix else self.name
+        yield path, self
+        for child in self.children:
+            yield from child.walk(path)

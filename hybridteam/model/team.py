@@ -1,0 +1,97 @@
+"""Agents, teams and simulation settings, as plain declarations."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hybridteam.errors import DocPath
+from hybridteam.model.modes import Mode
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """An agent's kinematics: ``unicycle``, ``holonomic`` or ``flow``.
+
+    ``state`` gives the initial value of every state component (numbers or expressions of
+    parameters, so an ensemble can vary initial conditions through parameter overrides).
+    ``limits`` saturate the inputs: ``{"v": (-1, 1)}``.
+    """
+
+    kind: str
+    state: dict[str, str | float]
+    limits: dict[str, tuple[float, float]] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Agent:
+    """One robot (or any hybrid automaton): a plant, a mode tree, variables and parameters."""
+
+    name: str
+    plant: PlantSpec
+    root: Mode
+    parameters: dict[str, float] = field(default_factory=dict)
+    variables: dict[str, str | float] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class ScenarioEvent:
+    """A scripted local event: at time ``at``, raise ``event`` in ``agent``."""
+
+    at: float
+    agent: str
+    event: str
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class Zeno:
+    """Caps that stop a run that would never advance (or crawl toward a Zeno point).
+
+    More than ``max_steps_per_instant`` discrete steps at one time instant, or more than
+    ``max_transitions`` transitions of one agent within ``window`` seconds, end the instance
+    with outcome ``zeno``.
+    """
+
+    max_steps_per_instant: int = 1000
+    max_transitions: int = 100
+    window: float = 1e-6
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """How to simulate: duration, output sampling and integrator accuracy."""
+
+    duration: float = 10.0
+    seed: int = 0
+    sample_period: float | None = None
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    max_step: float | None = None
+    event_tol: float = 1e-12
+    crossing_checks: int = 2
+    zeno: Zeno = field(default_factory=Zeno)
+    where: DocPath = ()
+
+    def output_period(self) -> float:
+        """Trace sampling period: as declared, else 1/500 of the duration."""
+        return self.sample_period if self.sample_period else self.duration / 500.0
+
+
+@dataclass(frozen=True)
+class Team:
+    """Agents that run in parallel, with shared parameters and a simulation setup."""
+
+    name: str
+    agents: tuple[Agent, ...]
+    parameters: dict[str, float] = field(default_factory=dict)
+    simulation: Simulation = field(default_factory=Simulation)
+    scenario: tuple[ScenarioEvent, ...] = ()
+    source: str | None = None
+
+    def agent(self, name: str) -> Agent:
+        for a in self.agents:
+            if a.name == name:
+                return a
+        raise KeyError(name)
