@@ -191,8 +191,12 @@ def test_strict_and_non_strict_at_equality(op, at_equality):
 
 
 def test_atom_sources_keep_parentheses_balanced():
-    atoms = compile_expression("0 < (x) < 1 and (h) <= 0", SYMS, condition=True).atoms
-    assert [a.source for a in atoms] == ["0 < (x)", "(x) < 1", "(h) <= 0"]
+    source = "0 < (x) < 1 and (h) <= 0 or x < ((v + 1)) <= (y) and (\n  v > -1)"
+    atoms = compile_expression(source, SYMS, condition=True).atoms
+    assert [a.source for a in atoms] == ["0 < (x)", "(x) < 1", "(h) <= 0", "x < ((v + 1))",
+                                         "((v + 1)) <= (y)", "v > -1"]
+    for atom in atoms:
+        _check_atom(atom)
 
 
 def test_chain_evaluates_each_operand_once():
@@ -485,6 +489,16 @@ soups = st.tuples(st.lists(st.sampled_from(ALLOWED + FORBIDDEN), max_size=30),
                   st.sampled_from(["", " "])).map(lambda t: t[1].join(t[0]))
 
 
+def _check_atom(atom: Atom) -> None:
+    """The engine re-reads atom sources (free_names(atom.source)): they must stand alone."""
+    margin, truth = atom.margin(CTX), atom.truth(CTX)
+    alone = compile_expression(atom.source, SYMS, condition=True)
+    assert len(alone.atoms) == 1 and alone.atoms[0].op == atom.op
+    assert free_names(atom.source, condition=True) == alone.names
+    np.testing.assert_array_equal(alone(CTX), truth)
+    np.testing.assert_array_equal(alone.atoms[0].margin(CTX), margin)
+
+
 def _exercise(source: str) -> None:
     """Only ExpressionError may escape compilation; whatever compiles must evaluate."""
     with np.errstate(all="ignore"):
@@ -497,8 +511,7 @@ def _exercise(source: str) -> None:
             else:
                 expr(CTX)
                 for atom in expr.atoms:
-                    atom.margin(CTX)
-                    atom.truth(CTX)
+                    _check_atom(atom)
             with contextlib.suppress(ExpressionError):
                 free_names(source, condition=condition)
         try:
@@ -572,4 +585,7 @@ def test_fuzz_differential(left, right, op):
                  "==": np.equal, "!=": np.not_equal}[op]
         source = f"{left[0]} {op} {right[0]} or not {right[0]} > 1"
         expected = ufunc(left[1], right[1]) | ~(np.asarray(right[1]) > 1)
-        np.testing.assert_array_equal(ev(source, condition=True), expected)
+        expr = compile_expression(source, SYMS, condition=True)
+        np.testing.assert_array_equal(expr(CTX), expected)
+        for atom in expr.atoms:
+            _check_atom(atom)

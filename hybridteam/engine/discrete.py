@@ -89,7 +89,7 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
             chosen[j] = e
     for j, e in chosen.items():
         tr = ag.transitions[j]
-        reason = cause or ("after" if tr.after is not None and tr.guard is None else "guard")
+        reason = cause or ("after" if tr.after is not None else "guard")
         fire(sim, ag, st, j, idx[e], reason)
         fired |= e
     return fired

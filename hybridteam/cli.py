@@ -1,0 +1,198 @@
+"""Command line: ``hybridteam validate | run | schema``.
+
+Bad input of any kind — YAML, schema, model, arguments — prints located messages to stderr
+and exits with status 2, never a traceback, and writes nothing. Outputs are written only
+after a run completes, each file atomically, ``summary.json`` last.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+EXIT_OK, EXIT_FAILURE, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(Exception):
+    """A bad argument: printed as one line, exit status 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # argparse would print usage + exit 2 too
+        self.print_usage(sys.stderr)
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        raise SystemExit(EXIT_USAGE)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="hybridteam", description="Teams of robots as hybrid systems.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    v = sub.add_parser("validate", help="check files without running anything")
+    v.add_argument("files", nargs="+", metavar="FILE")
+    v.add_argument("--strict", action="store_true", help="treat warnings as errors")
+
+    r = sub.add_parser("run", help="simulate a team and write its trace")
+    r.add_argument("team", metavar="TEAM.yaml")
+    r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    r.add_argument("--seed", type=int, default=None, help="random seed (default: the file's)")
+    r.add_argument("--duration", type=float, default=None, help="simulated seconds")
+    r.add_argument("-n", type=int, default=None, help="ensemble size (default 1)")
+    r.add_argument("--set", action="append", default=[], metavar="KEY=V[,V...]",
+                   help="override a parameter (agent.param or team param); a list gives "
+                        "one value per instance")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
+    s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        return {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema}[
+            args.command](args)
+    except UsageError as exc:
+        print(f"hybridteam: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("hybridteam: interrupted; nothing written", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # output piped into `head`: not an error of ours
+        sys.stderr.close()
+        return EXIT_OK
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from hybridteam.io.loader import InputErrors, load
+
+    status = EXIT_OK
+    for name in args.files:
+        try:
+            loaded = load(name)
+        except InputErrors as exc:
+            for err in exc.errors:
+                print(err, file=sys.stderr)
+            status = EXIT_USAGE
+            continue
+        for w in loaded.warnings:
+            print(f"{w} (warning)", file=sys.stderr)
+        if loaded.warnings and args.strict:
+            status = EXIT_USAGE
+        elif status == EXIT_OK:
+            print(f"{name}: ok ({loaded.kind})")
+    return status
+
+
+def _overrides(items: list[str], n: int | None) -> tuple[dict[str, list[float]], int]:
+    out: dict[str, list[float]] = {}
+    size = n
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"--set {item!r}: expected KEY=VALUE or KEY=V1,V2,...")
+        try:
+            values = [float(v) for v in text.split(",")]
+        except ValueError:
+            raise UsageError(f"--set {item!r}: values must be numbers") from None
+        if len(values) > 1:
+            if size is not None and size != len(values):
+                raise UsageError(f"--set {key}: {len(values)} values for an ensemble of "
+                                 f"{size}")
+            size = len(values)
+        out[key.strip()] = values
+    size = size or 1
+    return {k: (v if len(v) > 1 else v * size) for k, v in out.items()}, size
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from hybridteam.api import simulate
+    from hybridteam.io.loader import InputErrors, load_team
+    from hybridteam.trace import write_atomic
+
+    if args.n is not None and args.n < 1:
+        raise UsageError(f"-n must be at least 1, got {args.n}")
+    if args.duration is not None and not args.duration >= 0:
+        raise UsageError(f"--duration must be >= 0, got {args.duration}")
+    if args.seed is not None and args.seed < 0:
+        raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"output '{out}' exists and is not a folder")
+    try:
+        team = load_team(args.team)
+    except InputErrors as exc:
+        for err in exc.errors:
+            print(err, file=sys.stderr)
+        return EXIT_USAGE
+    overrides, n = _overrides(args.set, args.n)
+    bar = None
+    progress = None
+    if not args.quiet and sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=100, unit="%", desc=team.name, leave=False,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| ETA {remaining}")
+
+        def progress(frac: float) -> None:
+            bar.n = round(100 * frac)
+            bar.refresh()
+
+    start = time.perf_counter()
+    try:
+        run = simulate(team, seed=args.seed, n=n, duration=args.duration,
+                       overrides=overrides, progress=progress)
+    except ValueError as exc:  # overrides naming no parameter, and the like
+        raise UsageError(str(exc)) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - start
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").unlink(missing_ok=True)
+    run.to_json(out / "trace.json")
+    run.write_csv(out)
+    summary = run.summary()
+    summary["wall_time_s"] = round(wall, 4)
+    write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    if not args.quiet:
+        _print_summary(summary, out)
+    return EXIT_OK
+
+
+def _print_summary(summary: dict, out: Path) -> None:
+    tally = ", ".join(f"{k}: {v}" for k, v in sorted(summary["outcomes"].items()))
+    print(f"{summary['team']}: {summary['n']} instance(s), {summary['duration']:g} s simulated "
+          f"in {summary['wall_time_s']:.3f} s wall — {tally}")
+    for inst in summary["instances"][:10]:
+        print(f"  [{inst['instance']}] {inst['outcome']} at t={inst['t_end']:.6g}: "
+              f"{inst['transitions']} transitions, {inst['messages']} messages"
+              + (f" — {inst['message']}" if inst["outcome"] != "ok" else ""))
+    if summary["n"] > 10:
+        print(f"  ... {summary['n'] - 10} more in summary.json")
+    print(f"wrote {out}/ (trace.json, modes.csv, transitions.csv, messages.csv, samples.csv, "
+          "summary.json)")
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from hybridteam.io.schema import FILE_KINDS
+
+    if args.kind is not None and args.kind not in FILE_KINDS:
+        from hybridteam.io.errors import did_you_mean
+
+        hint = did_you_mean(args.kind, FILE_KINDS)
+        raise UsageError(f"unknown file kind '{args.kind}' (kinds: {', '.join(FILE_KINDS)})"
+                         + (f"; {hint}" if hint else ""))
+    kinds = [args.kind] if args.kind else list(FILE_KINDS)
+    schemas = {k: FILE_KINDS[k].model_json_schema(by_alias=True) for k in kinds}
+    print(json.dumps(schemas[kinds[0]] if args.kind else schemas, indent=2))
+    return EXIT_OK
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
