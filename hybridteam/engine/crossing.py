@@ -43,43 +43,56 @@ def watch_truth(sim: Simulator, a: int, idx: np.ndarray, x: np.ndarray,
                 t: np.ndarray) -> np.ndarray:
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx."""
     st = sim.states[a]
-    out = np.zeros((len(st.ca.watches), idx.size), bool)
+    out = np.empty((len(st.ca.watches), idx.size), bool)
+    v, p = st.v[idx], st.p[idx]
+    ctx: Ctx | None = None
+    mode = -1
     for w, watch in enumerate(st.ca.watches):
-        ctx = Ctx(x, st.v[idx], st.p[idx], t, t - st.entry[idx, watch.mode])
-        out[w] = np.broadcast_to(watch.atom.truth(ctx), idx.shape)
+        if watch.mode != mode:
+            mode = watch.mode
+            ctx = Ctx(x, v, p, t, t - st.entry[idx, mode])
+        out[w] = watch.atom.truth(ctx)  # assignment broadcasts scalars
     return out
 
 
 def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[dict]) -> np.ndarray:
+                   steps: list[dict]) -> tuple[np.ndarray, list[np.ndarray | None]]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
-    ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances;
-    returns ``inf`` where nothing relevant crossed. Updates nothing.
+    ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
+    Returns ``inf`` where nothing relevant crossed, and each agent's atom truths at the end
+    of the step (None for agents without watched atoms), which stay valid where nothing
+    crossed. Updates nothing.
     """
     h = sim.h[idx]
     t0 = sim.t0[idx]
     best = np.full(idx.size, np.inf)
+    best_lo = np.full(idx.size, np.inf)
     checks = sim.settings.crossing_checks
     thetas = [0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0]
+    end_truths: list[np.ndarray | None] = []
     for a, st in enumerate(sim.states):
         ca = st.ca
         if not ca.watches:
+            end_truths.append(None)
             continue
+        t1 = t0 + h
+        end = watch_truth(sim, a, idx, x_end[a], t1)
+        end_truths.append(end)
         watched = st.active[np.ix_(idx, [w.mode for w in ca.watches])].T  # (nw, m)
+        truths = [st.truth[:, idx]]
+        if not (watched & (end != truths[0])).any() and checks == 0:
+            continue
         if not watched.any():
             continue
-        truths = [st.truth[:, idx]]
         points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a]["x0"], t0)]
-        for theta in thetas[1:]:
-            if theta == 1.0:
-                x_th = x_end[a]
-            else:
-                x_th = sim.state_at(a, idx, np.full(idx.size, theta) * h, steps[a],
-                                    dense=True)
+        for theta in thetas[1:-1]:
+            x_th = sim.state_at(a, idx, np.full(idx.size, theta) * h, steps[a], dense=True)
             t_th = t0 + theta * h
             points.append((x_th, t_th))
             truths.append(watch_truth(sim, a, idx, x_th, t_th))
+        points.append((x_end[a], t1))
+        truths.append(end)
         flips = np.stack([watched & (truths[k] != truths[k - 1])
                           for k in range(1, len(truths))])  # (K, nw, m)
         if not flips.any():
@@ -87,17 +100,41 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         relevant = _relevant(sim, a, idx, flips, points)
         first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
         has = relevant.any(axis=0)
-        for w in range(len(ca.watches)):
+        stacked = np.stack(truths)
+        theta_arr = np.asarray(thetas)
+        # atoms in order of their first sub-interval: the earliest crossing is found first and
+        # later atoms only need one probe to show they do not cross before it
+        order = sorted(range(len(ca.watches)),
+                       key=lambda w: float(first[w][has[w]].min()) if has[w].any() else 9.0)
+        seg: _Segment | None = None
+        for w in order:
             cand = np.flatnonzero(has[w])
             if cand.size == 0:
                 continue
+            if seg is None:
+                seg = _Segment(sim, a, idx, steps[a])
             k = first[w, cand]
-            lo = np.asarray(thetas)[k] * h[cand]
-            hi = np.asarray(thetas)[k + 1] * h[cand]
-            truth_lo = np.stack(truths)[k, w, cand]
-            tau = _locate(sim, a, w, idx[cand], lo, hi, truth_lo, steps[a], cand)
-            best[cand] = np.minimum(best[cand], tau)
-    return best
+            lo = theta_arr[k] * h[cand]
+            hi = theta_arr[k + 1] * h[cand]
+            truth_lo = stacked[k, w, cand]
+            known = np.isfinite(best[cand])
+            if known.any():
+                # crossing later than the best so far (original truth still at best_lo)?
+                rows = cand[known]
+                probe = np.minimum(best_lo[rows], hi[known])
+                later = seg.truth_margin(w, rows, probe, dense=True)[0] == truth_lo[known]
+                later |= best_lo[rows] <= lo[known]
+                keep = np.ones(cand.size, bool)
+                keep[np.flatnonzero(known)[later]] = False
+                hi[known] = np.minimum(hi[known], best_lo[rows])
+                cand, lo, hi, truth_lo = cand[keep], lo[keep], hi[keep], truth_lo[keep]
+                if cand.size == 0:
+                    continue
+            tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
+            better = tau < best[cand]
+            best[cand[better]] = tau[better]
+            best_lo[cand[better]] = tau_lo[better]
+    return best, end_truths
 
 
 def _relevant(sim: Simulator, a: int, idx: np.ndarray, flips: np.ndarray,
@@ -133,66 +170,100 @@ def _relevant(sim: Simulator, a: int, idx: np.ndarray, flips: np.ndarray,
     return keep
 
 
-def _locate(sim: Simulator, a: int, w: int, sub: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-            truth0: np.ndarray, step: dict, cand: np.ndarray) -> np.ndarray:
-    """Crossing time within ``[lo, hi]``: on the exact flow, cheaply where possible.
+class _Segment:
+    """Agent ``a``'s motion over the current step, for the instances being searched.
 
-    Kinematic plants are searched directly on their closed form. For Runge–Kutta flows the
-    search first runs on the step's dense output (no derivative evaluations), then a narrow
-    bracket around that estimate is confirmed with true steps — widened a thousandfold at a
-    time while the interpolant's error exceeds it — and finished on true steps. Few true
-    steps are needed, and the answer is as accurate as a direct search.
+    Built once per step and agent: the dense-output coefficients and the derivative of the
+    flowing instances are prepared once, so each trial point costs a handful of array
+    operations.
     """
-    if not step["rk"][cand].any():
-        return _illinois(sim, a, w, sub, lo, hi, truth0, step, cand, dense=False)
-    guess = _illinois(sim, a, w, sub, lo.copy(), hi.copy(), truth0, step, cand, dense=True)
-    t0 = sim.t0[sub]
-    tol = np.maximum(sim.settings.event_tol, 4 * np.finfo(float).eps * np.abs(t0 + hi))
-    new_lo, new_hi = lo.copy(), hi.copy()
-    todo = np.arange(sub.size)
-    width = 4 * tol
-    for _ in range(6):
-        if todo.size == 0:
-            break
-        a_ = np.maximum(lo[todo], guess[todo] - width[todo])
-        b_ = np.minimum(hi[todo], guess[todo] + width[todo])
-        ta = _probe(sim, a, w, sub, a_, todo, step, cand)
-        tb = _probe(sim, a, w, sub, b_, todo, step, cand)
-        ok = (ta == truth0[todo]) & (tb != truth0[todo])
-        new_lo[todo[ok]], new_hi[todo[ok]] = a_[ok], b_[ok]
-        todo = todo[~ok]
-        width = width * 1000.0
-    return _illinois(sim, a, w, sub, new_lo, new_hi, truth0, step, cand, dense=False)
+
+    def __init__(self, sim: Simulator, a: int, idx: np.ndarray, step: dict) -> None:
+        self.sim, self.a, self.idx, self.step = sim, a, idx, step
+        self.st = sim.states[a]
+        self.t0 = sim.t0[idx]
+        self.tol = np.maximum(sim.settings.event_tol,
+                              4 * np.finfo(float).eps * np.abs(self.t0 + sim.h[idx]))
+        self.has_rk = bool(step["rk"].any())
+
+    def state(self, rows: np.ndarray, tau: np.ndarray, dense: bool) -> np.ndarray:
+        return self.sim.state_at(self.a, self.idx[rows], tau, self.step, rows=rows,
+                                 dense=dense)
+
+    def truth_margin(self, w: int, rows: np.ndarray, tau: np.ndarray,
+                     dense: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        x = self.state(rows, tau, dense)
+        return _truth_margin(self.sim, self.a, w, self.idx[rows], x, self.t0[rows] + tau)
+
+    def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+               truth_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
+
+        Kinematic plants are searched directly on their closed form. For Runge–Kutta
+        flows the search first runs on the step's dense output (no derivative evaluations).
+        The interpolant's error is smooth, so one Newton correction from the *true* margin
+        at that estimate (slope from the interpolant) lands within the tolerance; two true
+        steps confirm the bracket. Where they do not, the bracket is widened a
+        thousandfold at a time until confirmed, and finished on true steps.
+        """
+        tol = self.tol[rows]
+        if not self.has_rk or not self.step["rk"][rows].any():
+            return _illinois(self, w, rows, lo, hi, truth_lo, tol, dense=False)
+        span_lo, span_hi = lo.copy(), hi.copy()
+        _, g = _illinois(self, w, rows, lo.copy(), hi.copy(), truth_lo, tol, dense=True)
+        d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
+        a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
+        slope = (self.truth_margin(w, rows, b_, dense=True)[1]
+                 - self.truth_margin(w, rows, a_, dense=True)[1]) / (b_ - a_)
+        m_g = self.truth_margin(w, rows, g)[1]
+        with np.errstate(all="ignore"):
+            g1 = g - m_g / slope
+        guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
+        new_lo, new_hi = span_lo.copy(), span_hi.copy()
+        m_lo = np.full(rows.size, np.nan)
+        m_hi = np.full(rows.size, np.nan)
+        todo = np.arange(rows.size)
+        width = 0.5 * tol
+        for _ in range(6):
+            if todo.size == 0:
+                break
+            a_ = np.maximum(span_lo[todo], guess[todo] - width[todo])
+            b_ = np.minimum(span_hi[todo], guess[todo] + width[todo])
+            r = rows[todo]
+            ta, ma = self.truth_margin(w, r, a_)
+            tb, mb = self.truth_margin(w, r, b_)
+            ok = (ta == truth_lo[todo]) & (tb != truth_lo[todo])
+            sel = todo[ok]
+            new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]
+            todo = todo[~ok]
+            width = width * 1000.0
+        return _illinois(self, w, rows, new_lo, new_hi, truth_lo, tol, dense=False,
+                         m_lo=m_lo, m_hi=m_hi)
 
 
-def _probe(sim: Simulator, a: int, w: int, sub: np.ndarray, tau: np.ndarray,
-           rows: np.ndarray, step: dict, cand: np.ndarray) -> np.ndarray:
-    x = sim.state_at(a, sub[rows], tau, step, rows=cand[rows])
-    return _truth_margin(sim, a, w, sub[rows], x, sim.t0[sub[rows]] + tau)[0]
+def _illinois(seg: _Segment, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+              truth0: np.ndarray, tol: np.ndarray, *, dense: bool,
+              m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it.
 
-
-def _illinois(sim: Simulator, a: int, w: int, sub: np.ndarray, lo: np.ndarray,
-              hi: np.ndarray, truth0: np.ndarray, step: dict, cand: np.ndarray, *,
-              dense: bool) -> np.ndarray:
-    """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``event_tol``.
-
-    Trial points are kept at least half a tolerance inside the bracket: when the crossing
-    sits at an end (a strict comparison starting exactly on its boundary, or a margin of
-    1e-12 at one end) the next trial collapses the bracket at once instead of crawling.
-    A bisection replaces the secant whenever two rounds failed to halve the bracket.
+    Regula falsi with the Anderson–Björck correction. Trial points are kept at least half
+    a tolerance inside the bracket: when the crossing sits at an end (a strict comparison
+    starting exactly on its boundary, or a margin of 1e-12 at one end) the next trial
+    collapses the bracket at once instead of crawling. A bisection replaces the secant
+    whenever three rounds failed to halve the bracket, which bounds the worst case.
     """
-    t0 = sim.t0[sub]
-    tol = np.maximum(sim.settings.event_tol, 4 * np.finfo(float).eps * np.abs(t0 + hi))
-
-    def at(tau: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        x = sim.state_at(a, sub[rows], tau, step, rows=cand[rows], dense=dense)
-        return _truth_margin(sim, a, w, sub[rows], x, t0[rows] + tau)
-
-    everyone = np.arange(sub.size)
-    _, ma = at(lo, everyone)
-    _, mb = at(hi, everyone)
-    kept = np.zeros(sub.size, np.int8)  # +1: hi survived last round, -1: lo survived
-    slow = np.zeros(sub.size, np.int8)  # rounds in a row that did not halve the bracket
+    everyone = np.arange(rows.size)
+    if m_lo is None or np.isnan(m_lo).any():
+        need = everyone if m_lo is None else np.flatnonzero(np.isnan(m_lo))
+        m_lo = np.empty(rows.size) if m_lo is None else m_lo
+        m_hi = np.empty(rows.size) if m_hi is None else m_hi
+        m_lo[need] = seg.truth_margin(w, rows[need], lo[need], dense)[1]
+        m_hi[need] = seg.truth_margin(w, rows[need], hi[need], dense)[1]
+    ma, mb = m_lo, m_hi
+    assert mb is not None
+    kept = np.zeros(rows.size, np.int8)  # +1: hi survived last round, -1: lo survived
+    slow = np.zeros(rows.size, np.int8)  # rounds in a row that did not halve the bracket
     for _ in range(MAX_ITER):
         open_ = np.flatnonzero(hi - lo > tol)
         if open_.size == 0:
@@ -201,17 +272,22 @@ def _illinois(sim: Simulator, a: int, w: int, sub: np.ndarray, lo: np.ndarray,
         width = b_ - a_
         with np.errstate(all="ignore"):
             c = b_ - fb * width / (fb - fa)
-        c = np.where(np.isfinite(c) & (slow[open_] < 2), c, 0.5 * (a_ + b_))
+        c = np.where(np.isfinite(c) & (slow[open_] < 3), c, 0.5 * (a_ + b_))
         c = np.clip(c, a_ + 0.5 * tl, b_ - 0.5 * tl)
-        tc, mc = at(c, open_)
+        tc, mc = seg.truth_margin(w, rows[open_], c, dense)
         to_lo = tc == truth0[open_]  # c has the original truth: it becomes the new lo
         lo[open_] = np.where(to_lo, c, a_)
         hi[open_] = np.where(to_lo, b_, c)
         slow[open_] = np.where(hi[open_] - lo[open_] > 0.5 * width, slow[open_] + 1, 0)
         survivor = np.where(to_lo, 1, -1).astype(np.int8)
         again = kept[open_] == survivor
-        # Illinois: an end that survives twice in a row has its value halved
-        ma[open_] = np.where(to_lo, mc, np.where(again, 0.5 * fa, fa))
-        mb[open_] = np.where(to_lo, np.where(again, 0.5 * fb, fb), mc)
+        # Anderson–Björck: the end that survives again has its value scaled by
+        # 1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next
+        # secant across the root instead of creeping from one side as regula falsi does
+        with np.errstate(all="ignore"):
+            scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
+        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 0.5)
+        ma[open_] = np.where(to_lo, mc, np.where(again, scale * fa, fa))
+        mb[open_] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
         kept[open_] = survivor
-    return hi
+    return lo, hi

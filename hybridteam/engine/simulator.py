@@ -74,6 +74,7 @@ class Simulator:
         if times[-1] < self.t_end - 1e-12 * max(1.0, self.t_end):
             times = np.append(times, self.t_end)
         self.sample_times = times
+        self._sample_after = np.append(times, np.inf)
         self.out_k = np.zeros(n, np.intp)
         self.next_out = np.full(n, times[0])
         self.rec = Recorder(cteam, n, times)
@@ -336,8 +337,7 @@ class Simulator:
         live = ~self.done
         idx = np.flatnonzero(live)
         t = self.t
-        t_next = np.minimum(self.next_out, self.t_end)
-        np.minimum(t_next, self.queue.next, out=t_next)
+        t_next = np.minimum(self.queue.next, self.t_end)
         any_rk = np.zeros(self.n, bool)
         for a, st in enumerate(self.states):
             np.minimum(t_next, st.next_tick, out=t_next)
@@ -391,14 +391,17 @@ class Simulator:
                 for a in range(len(self.states)):
                     x_end[a][reject] = steps[a]["x0"][reject]
         accepted = self.h[idx] > 0
-        tau = find_crossings(self, idx, x_end, steps) if accepted.any() else \
-            np.full(idx.size, np.inf)
+        if accepted.any():
+            tau, end_truths = find_crossings(self, idx, x_end, steps)
+        else:
+            tau, end_truths = np.full(idx.size, np.inf), [None] * len(self.states)
         crossing = np.isfinite(tau) & accepted
         if crossing.any():
             rows = np.flatnonzero(crossing)
             for a in range(len(self.states)):
                 x_end[a][rows] = self.state_at(a, idx[rows], tau[rows], steps[a], rows=rows)
             t1[idx[rows]] = t[idx[rows]] + tau[rows]
+        self._interpolate_samples(idx, t1[idx], steps)
         for a, st in enumerate(self.states):
             st.x[idx] = x_end[a]
         self.t[idx] = t1[idx]
@@ -406,8 +409,11 @@ class Simulator:
         at = crossing | (tn >= self.t_end) | (tn >= self.queue.next[idx])
         for a, st in enumerate(self.states):
             at |= (tn >= st.next_tick[idx]) | (tn >= self.timer[a][idx])
-        moved = idx[accepted]
+        plain = accepted & ~crossing
+        moved = idx[crossing]
         for a, st in enumerate(self.states):
+            if end_truths[a] is not None:
+                st.truth[:, idx[plain]] = end_truths[a][:, plain]
             if st.ca.watches and moved.size:
                 st.truth[:, moved] = watch_truth(self, a, moved, st.x[moved], self.t[moved])
         events = idx[at]
@@ -433,6 +439,31 @@ class Simulator:
             h[rows] = np.minimum(h[rows], h0)
         self.h_rk[idx] = h
 
+    def _interpolate_samples(self, idx: np.ndarray, t1: np.ndarray, steps: list[dict]) -> None:
+        """Record output samples that fall strictly inside this step, without stopping there.
+
+        Outputs do not constrain the integrator: flows are read off the step's dense
+        output, kinematic plants off their exact arcs, all samples of a step in one call.
+        Samples exactly at the step's end are taken after that instant's discrete steps,
+        by :meth:`_record_samples`.
+        """
+        first = self.out_k[idx]
+        last = np.searchsorted(self.sample_times, t1, side="left")  # samples < t1
+        count = np.maximum(last - first, 0)
+        if not count.any():
+            return
+        rows = np.repeat(np.arange(idx.size), count)
+        k = np.repeat(first, count) + (np.arange(rows.size) - np.repeat(np.cumsum(count) - count,
+                                                                         count))
+        due = idx[rows]
+        tau = self.sample_times[k] - self.t0[due]
+        for a, st in enumerate(self.states):
+            x = self.state_at(a, due, tau, steps[a], rows=rows, dense=True)
+            self.rec.sample(k, due, st.ca.name, x)
+        moved = idx[count > 0]
+        self.out_k[moved] = last[count > 0]
+        self.next_out[moved] = self._sample_after[self.out_k[moved]]
+
     def _record_samples(self, idx: np.ndarray) -> None:
         due = idx[self.t[idx] >= self.next_out[idx]]
         if due.size == 0:
@@ -441,8 +472,7 @@ class Simulator:
         for st in self.states:
             self.rec.sample(k, due, st.ca.name, st.x[due])
         self.out_k[due] += 1
-        nxt = np.append(self.sample_times, np.inf)
-        self.next_out[due] = nxt[self.out_k[due]]
+        self.next_out[due] = self._sample_after[self.out_k[due]]
 
     def _close(self) -> Trace:
         everyone = np.arange(self.n)

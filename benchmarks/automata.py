@@ -1,0 +1,133 @@
+"""Event-time error and wall time: hybridteam vs scipy's solve_ivp, at matched accuracy.
+
+For the bouncing ball (20 impacts) and the hysteresis thermostat (50 switches), run
+hybridteam at its default settings, then solve_ivp with events (RK45 and DOP853, restarted
+at each event as hybrid systems require) over a ladder of tolerances, and compare against
+the cheapest solve_ivp configuration that is at least as accurate as hybridteam.
+Budget (issue 2): hybridteam no slower than solve_ivp for the same accuracy (ratio <= 1).
+
+    python benchmarks/automata.py
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import hybridteam as ht
+
+ROOT = Path(__file__).resolve().parents[1]
+G, E, H0 = 9.81, 0.7, 1.0
+K = 0.1
+
+
+def ball_exact(k: int) -> np.ndarray:
+    v1 = math.sqrt(2 * G * H0)
+    t = [math.sqrt(2 * H0 / G)]
+    for j in range(1, k):
+        t.append(t[-1] + 2 * E**j * v1 / G)
+    return np.array(t)
+
+
+def thermostat_exact(k: int) -> np.ndarray:
+    t = [math.log(11 / 8) / K]
+    for j in range(1, k):
+        t.append(t[-1] + (math.log(22 / 18) if j % 2 else math.log(12 / 8)) / K)
+    return np.array(t)
+
+
+def best_of(fn, repeat: int = 3) -> tuple[float, np.ndarray]:
+    best, out = math.inf, None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out  # type: ignore[return-value]
+
+
+def scipy_ball(method: str, rtol: float, k: int = 20) -> np.ndarray:
+    def f(t, y):
+        return [y[1], -G]
+
+    def hit(t, y):
+        return y[0]
+
+    hit.terminal, hit.direction = True, -1
+    t, y, out = 0.0, [H0, 0.0], []
+    while len(out) < k:
+        sol = solve_ivp(f, (t, 10.0), y, method=method, events=hit, rtol=rtol,
+                        atol=rtol * 1e-2)
+        t = float(sol.t_events[0][0])
+        ye = sol.y_events[0][0]
+        out.append(t)
+        y = [0.0, -E * ye[1]]
+    return np.array(out)
+
+
+def scipy_thermostat(method: str, rtol: float, k: int = 50) -> np.ndarray:
+    heat = [True]
+
+    def f(t, y):
+        return [K * (30 - y[0])] if heat[0] else [-K * y[0]]
+
+    def up(t, y):
+        return y[0] - 22
+
+    def down(t, y):
+        return y[0] - 18
+
+    up.terminal, up.direction = True, 1
+    down.terminal, down.direction = True, -1
+    t, y, out = 0.0, [19.0], []
+    while len(out) < k:
+        ev = up if heat[0] else down
+        sol = solve_ivp(f, (t, 1e3), y, method=method, events=ev, rtol=rtol, atol=rtol * 1e-2)
+        t = float(sol.t_events[0][0])
+        y = [float(sol.y_events[0][0][0])]
+        out.append(t)
+        heat[0] = not heat[0]
+    return np.array(out)
+
+
+def ours(path: str, k: int, duration: float) -> np.ndarray:
+    team = ht.load(ROOT / "examples" / "automata" / path)
+    run = ht.simulate(team, duration=duration)
+    tr = run.transitions
+    return tr["t"][tr["cause"] != "init"][:k]
+
+
+def compare(name: str, exact: np.ndarray, our_fn, scipy_fn) -> float:
+    t_ours, got = best_of(our_fn)
+    err_ours = float(np.max(np.abs(got - exact)))
+    print(f"\n{name}: {len(exact)} events")
+    print(f"  {'method':<22}{'rtol':>8}{'max |dt| (s)':>16}{'wall (ms)':>12}")
+    print(f"  {'hybridteam (default)':<22}{'1e-10':>8}{err_ours:>16.2e}{1e3 * t_ours:>12.1f}")
+    matched = math.inf
+    for method in ("RK45", "DOP853"):
+        for rtol in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13):
+            wall, got_s = best_of(lambda m=method, r=rtol: scipy_fn(m, r))
+            err = float(np.max(np.abs(got_s - exact)))
+            mark = ""
+            if err <= err_ours:
+                matched = min(matched, wall)
+                mark = "  <= our error"
+            print(f"  {'solve_ivp ' + method:<22}{rtol:>8.0e}{err:>16.2e}{1e3 * wall:>12.1f}{mark}")
+    if math.isfinite(matched):
+        ratio = t_ours / matched
+        print(f"  ratio hybridteam / fastest solve_ivp at matched accuracy: {ratio:.2f} "
+              f"({'within' if ratio <= 1 else 'OVER'} budget 1.0)")
+    else:
+        ratio = 0.0
+        print("  no solve_ivp configuration reached hybridteam's accuracy (ratio: n/a)")
+    return ratio
+
+
+if __name__ == "__main__":
+    compare("bouncing ball", ball_exact(20),
+            lambda: ours("bouncing_ball.yaml", 20, ball_exact(20)[-1] + 1e-4), scipy_ball)
+    compare("thermostat", thermostat_exact(50),
+            lambda: ours("thermostat.yaml", 50, 151.0), scipy_thermostat)
