@@ -20,7 +20,7 @@ import numpy as np
 class LawContext:
     """What a law sees for the ``m`` instances it is evaluated on."""
 
-    __slots__ = ("_params", "_pnames", "_vnames", "_xnames", "_ctx", "agent", "inputs")
+    __slots__ = ("_ctx", "_params", "_pnames", "_vnames", "_xnames", "agent", "inputs")
 
     def __init__(self, ctx, params: Mapping[str, np.ndarray], agent: str,
                  state_names: Mapping[str, int], var_names: Mapping[str, int],

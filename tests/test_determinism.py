@@ -90,7 +90,7 @@ def test_ensemble_of_kinematic_agents_equals_single_runs():
 
 def test_overrides_are_checked():
     team = ht.load(EXAMPLES / "automata" / "thermostat.yaml")
-    with pytest.raises(ValueError, match="did you mean 'thermostat.K'"):
+    with pytest.raises(ValueError, match=r"did you mean 'thermostat\.K'"):
         ht.simulate(team, overrides={"thermostat.k": 0.2})
     with pytest.raises(ValueError, match="expected a number or 4 values"):
         ht.simulate(team, n=4, overrides={"thermostat.K": [0.1, 0.2]})
@@ -98,7 +98,7 @@ def test_overrides_are_checked():
 
 def test_run_outcome_of_an_ensemble_says_how_to_read_it():
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "unicycle_square.yaml"), n=2)
-    with pytest.raises(ValueError, match="run.outcomes"):
+    with pytest.raises(ValueError, match=r"run\.outcomes"):
         _ = run.outcome
     assert run.outcomes == ["ok", "ok"]
     assert run.instance(1).outcome == "ok"

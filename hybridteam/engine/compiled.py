@@ -327,8 +327,8 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
 
     transitions: list[CTransition] = []
     decl: list[tuple[int, int, int, CTransition]] = []
-    for idx, (path, mode, _parent, depth) in enumerate(flat):
-        for k, tr in enumerate(mode.transitions):
+    for idx, (_path, mode, _parent, depth) in enumerate(flat):
+        for tr in mode.transitions:
             ct = _compile_transition(tr, idx, modes, paths, syms, state_index, var_index,
                                      agent_names, agent.name, col)
             if ct is not None:

@@ -51,8 +51,8 @@ def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
         over = stepped[sim.micro[stepped] >= sim.settings.zeno.max_steps_per_instant]
         if over.size:
             sim.finish(over, "zeno", lambda i: (
-                f"{sim.settings.zeno.max_steps_per_instant} discrete steps at t={float(sim.t[i])!r} "
-                f"without time advancing; last: {sim.last_step_text(i)}"))
+                f"{sim.settings.zeno.max_steps_per_instant} discrete steps at "
+                f"t={sim.when(i)} without time advancing; last: {sim.last_step_text(i)}"))
         active = stepped[~sim.done[stepped]]
 
 
@@ -134,4 +134,4 @@ def _zeno_window(sim: Simulator, ag: CAgent, st: AgentState, sub: np.ndarray) ->
         z = sim.settings.zeno
         sim.finish(bad, "zeno", lambda i: (
             f"agent '{ag.name}' took {z.max_transitions + 1} transitions within {z.window:g} s "
-            f"up to t={float(sim.t[i])!r}; last: {sim.last_step_text(i)}"))
+            f"up to t={sim.when(i)}; last: {sim.last_step_text(i)}"))

@@ -184,6 +184,10 @@ class Simulator:
                 self.outcomes[i] = {"instance": i, "outcome": kind, "t": float(self.t[i]),
                                     "message": message(i)}
 
+    def when(self, i: int) -> str:
+        """Instance ``i``'s current time, printed exactly (shortest round-trip digits)."""
+        return repr(float(self.t[i]))
+
     def last_step_text(self, i: int) -> str:
         code = int(self.last_fired[i])
         if code < 0:
@@ -297,7 +301,7 @@ class Simulator:
                 bad = sel[~ok]
                 if bad.size:
                     self.finish(bad, "stuck", lambda i, ca=ca, m=m: (
-                        f"agent '{ca.name}' in mode '{m.path}' at t={float(self.t[i])!r}: invariant "
+                        f"agent '{ca.name}' in mode '{m.path}' at t={self.when(i)}: invariant "
                         f"'{m.invariant_text}' is false and no transition out is enabled"))
         idx = idx[~self.done[idx]]
         if idx.size == 0:
@@ -331,7 +335,7 @@ class Simulator:
             if waits:
                 parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
                              f"{', '.join(waits)}")
-        return f"nothing pending at t={float(self.t[i])!r}: " + "; ".join(parts)
+        return f"nothing pending at t={self.when(i)}: " + "; ".join(parts)
 
     def _step(self) -> None:
         live = ~self.done
@@ -422,7 +426,7 @@ class Simulator:
         self._record_samples(idx)
         ended = idx[(self.t[idx] >= self.t_end) & ~self.done[idx]]
         if ended.size:
-            self.finish(ended, "ok", lambda i: f"reached the end of the run at t={float(self.t[i])!r}")
+            self.finish(ended, "ok", lambda i: f"reached the end of the run at t={self.when(i)}")
 
     def _initial_rk_steps(self, idx: np.ndarray) -> None:
         if idx.size == 0:

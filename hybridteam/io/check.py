@@ -63,20 +63,14 @@ def check_team(team: Team) -> list[ModelError]:
     cteam = compile_team(team)
     warnings: list[ModelError] = []
     for agent, ca in zip(team.agents, cteam.agents, strict=True):
-        where = {p: m.where for p, m in agent.root.walk()}
-        by_path = {ca.modes[i].path: i for i in range(len(ca.modes))}
-        root_name = agent.root.name
-
-        def loc(i: int) -> tuple:
-            path = ca.modes[i].path
-            return where.get(f"{root_name}.{path}" if path else root_name, agent.where)
-
+        # pre-order walks of the declaration and of the compiled tree visit modes alike
+        where = [m.where for _, m in agent.root.walk()]
         for i in unreachable_modes(ca):
-            warnings.append(ModelError(loc(i), f"mode '{ca.modes[i].path}' is unreachable: it "
-                                       "is not an initial mode and no transition enters it"))
+            warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' is unreachable: "
+                                       "it is not an initial mode and no transition enters it"))
+        if len(ca.modes) == 2:  # a single-mode agent: running forever is the point
+            continue
         for i in dead_ends(ca):
-            if len(by_path) == 2:  # a single-mode agent: running forever is the point
-                continue
-            warnings.append(ModelError(loc(i), f"mode '{ca.modes[i].path}' has no way out and "
-                                       "is not marked 'final: true'"))
+            warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' has no way out "
+                                       "and is not marked 'final: true'"))
     return warnings
