@@ -26,8 +26,9 @@ class ModelError(ValueError):
     """A problem in a model, located by its path in the document it came from."""
 
     def __init__(self, path: DocPath, message: str, *, offset: int | None = None,
-                 hint: str | None = None) -> None:
+                 hint: str | None = None, at_key: bool = False) -> None:
         self.path = tuple(path)
+        self.at_key = at_key  # point at the key (a mode's name) rather than its value
         self.message = message
         self.offset = offset
         self.hint = hint

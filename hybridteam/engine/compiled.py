@@ -518,8 +518,15 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
             try:
                 name, e = compile_assignment(act.text, syms, targets)
             except ExpressionError as exc:
-                col.errors.append(ModelError(awhere, exc.message, offset=exc.offset,
-                                             hint=exc.hint))
+                lhs = act.text.split("=")[0].strip(" +-*/%")
+                if lhs in syms and lhs not in targets:
+                    what = "time" if lhs in CONTINUOUS_NAMES else "a parameter"
+                    col.errors.append(ModelError(awhere, f"'{lhs}' is {what} and cannot be "
+                                                 "assigned; assign variables or plant state",
+                                                 offset=exc.offset))
+                else:
+                    col.errors.append(ModelError(awhere, exc.message, offset=exc.offset,
+                                                 hint=exc.hint))
                 continue
             target = ("x", state_index[name]) if name in state_index else ("v", var_index[name])
             actions.append(CAction("assign", target=target, expr=e))

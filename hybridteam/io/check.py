@@ -67,10 +67,11 @@ def check_team(team: Team) -> list[ModelError]:
         where = [m.where for _, m in agent.root.walk()]
         for i in unreachable_modes(ca):
             warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' is unreachable: "
-                                       "it is not an initial mode and no transition enters it"))
+                                       "it is not an initial mode and no transition enters it",
+                                       at_key=True))
         if len(ca.modes) == 2:  # a single-mode agent: running forever is the point
             continue
         for i in dead_ends(ca):
             warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' has no way out "
-                                       "and is not marked 'final: true'"))
+                                       "and is not marked 'final: true'", at_key=True))
     return warnings

@@ -64,7 +64,7 @@ class Loaded:
 
 def locate(err: ModelError, positions: Positions, filename: str) -> SourceError:
     """A :class:`ModelError` (document path + offset) as a ``file:line:col`` error."""
-    mark = None
+    mark = positions.key(err.path) if err.at_key else None
     if err.offset is not None:
         mark = positions.in_scalar(err.path, err.offset)
     if mark is None:

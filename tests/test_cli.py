@@ -1,0 +1,120 @@
+"""The command line: what it writes, what it prints, and how it refuses bad arguments."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import venv
+
+import pytest
+
+from hybridteam import Run
+from hybridteam.cli import main
+from tests.conftest import EXAMPLES, ROOT
+
+THERMO = str(EXAMPLES / "automata" / "thermostat.yaml")
+
+
+def test_run_writes_trace_tables_and_summary(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", THERMO, "-o", str(out), "--duration", "20"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert names == {"trace.json", "modes.csv", "transitions.csv", "messages.csv",
+                     "samples.csv", "summary.json"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcomes"] == {"ok": 1}
+    # the initial entry, then switches at 3.18, 5.19, 9.25, 11.25, 15.31, 17.31 (21.37 > 20)
+    assert summary["instances"][0]["transitions"] == 7
+    assert summary["wall_time_s"] > 0
+    run = Run.load(out / "trace.json")
+    switch = run.transitions["t"][1]
+    assert abs(switch - math.log(11 / 8) / 0.1) < 1e-8
+    header = (out / "transitions.csv").read_text().splitlines()[0]
+    assert header == "instance,agent,t,step,source,target,cause,guard"
+    samples = (out / "samples.csv").read_text().splitlines()
+    assert samples[0] == "t,instance,thermostat.x" and samples[1] == "0.0,0,19.0"
+    printed = capsys.readouterr().out
+    assert "thermostat: 1 instance(s)" in printed and "ok: 1" in printed
+
+
+def test_run_ensemble_with_per_instance_overrides(tmp_path):
+    out = tmp_path / "ens"
+    assert main(["run", THERMO, "-o", str(out), "--duration", "10", "--quiet",
+                 "--set", "thermostat.K=0.1,0.2,0.3"]) == 0
+    run = Run.load(out / "trace.json")
+    assert run.n == 3
+    first = [run.instance(i).transitions["t"][1] for i in range(3)]
+    for got, K in zip(first, (0.1, 0.2, 0.3), strict=True):
+        assert abs(got - math.log(11 / 8) / K) < 1e-8
+
+
+@pytest.mark.parametrize("args, words", [
+    (["-n", "0"], "-n must be at least 1"),
+    (["--duration", "-1"], "--duration must be >= 0"),
+    (["--set", "thermostat.K"], "expected KEY=VALUE"),
+    (["--set", "thermostat.K=abc"], "values must be numbers"),
+    (["--set", "thermostat.Q=1"], "names no parameter"),
+    (["-n", "2", "--set", "thermostat.K=1,2,3"], "3 values for an ensemble of 2"),
+    (["--seed", "-3"], "--seed must be >= 0"),
+])
+def test_run_refuses_bad_arguments(tmp_path, capsys, args, words):
+    out = tmp_path / "o"
+    assert main(["run", THERMO, "-o", str(out), *args]) == 2
+    assert words in capsys.readouterr().err
+    assert not (out / "summary.json").exists()
+
+
+def test_validate_ok_and_warnings(tmp_path, capsys):
+    assert main(["validate", THERMO]) == 0
+    assert "ok (team)" in capsys.readouterr().out
+    model = tmp_path / "warn.yaml"
+    model.write_text("""team: w
+agents:
+  a:
+    plant: {kind: flow, state: {x: 0}}
+    initial: A
+    modes:
+      A: {transitions: [{to: B, after: 1}]}
+      B: {}
+      Orphan: {final: true}
+""")
+    assert main(["validate", str(model)]) == 0
+    err = capsys.readouterr().err
+    assert f"{model}:9:7: agents.a.modes.Orphan: mode 'Orphan' is unreachable" in err
+    assert f"{model}:8:7: agents.a.modes.B: mode 'B' has no way out" in err
+    assert main(["validate", "--strict", str(model)]) == 2
+
+
+def test_schema_prints_json_schema(capsys):
+    assert main(["schema", "team"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert schema["additionalProperties"] is False
+    assert {"team", "agents", "simulation"} <= set(schema["properties"])
+    assert main(["schema", "teem"]) == 2
+    assert "did you mean 'team'" in capsys.readouterr().err
+
+
+def test_pip_install_into_a_fresh_venv_works_from_any_directory(tmp_path):
+    """A non-editable install (dependencies from this environment) and the CLI elsewhere."""
+    env_dir = tmp_path / "venv"
+    venv.create(env_dir, with_pip=True, system_site_packages=True)
+    py = env_dir / "bin" / "python"
+    pip = subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(ROOT)],
+                         capture_output=True, text=True)
+    assert pip.returncode == 0, pip.stderr
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    (work / "model.yaml").write_text((EXAMPLES / "automata" / "thermostat.yaml").read_text())
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    cli = env_dir / "bin" / "hybridteam"
+    done = subprocess.run([str(cli), "run", "model.yaml", "-o", "out", "--duration", "5"],
+                          cwd=work, capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr
+    assert (work / "out" / "summary.json").exists()
+    where = subprocess.run([str(py), "-c", "import hybridteam, hybridteam.modes, "
+                            "hybridteam.protocols; print(hybridteam.__file__)"],
+                           cwd=work, capture_output=True, text=True, env=env)
+    assert where.returncode == 0, where.stderr
+    assert str(env_dir) in where.stdout  # the installed copy, not the checkout
