@@ -112,12 +112,21 @@ class Atom:
     op: str
     _margin: Callable[[Any], Any] = field(repr=False)
     _truth: Callable[[Any], Any] = field(repr=False)
+    _both: Callable[[Any], Any] = field(repr=False)
 
     def margin(self, ctx: Any) -> np.ndarray | float:
         return self._margin(ctx)
 
     def truth(self, ctx: Any) -> np.ndarray | bool:
         return self._truth(ctx)
+
+    def truth_and_margin(self, ctx: Any) -> tuple[Any, Any]:
+        """Both at once, evaluating each operand once (what a crossing search needs)."""
+        return self._both(ctx)
+
+
+def _truth_and_margin(ufunc: Any, a: Any, b: Any, less: bool) -> tuple[Any, Any]:
+    return ufunc(a, b), (np.subtract(b, a) if less else np.subtract(a, b))
 
 
 class Expression:
@@ -473,9 +482,13 @@ class _Compiler:
                 end = self.pos(node if i == len(ops) - 1 else operands[i + 1])[1]
                 f, g = values[i].fn, values[i + 1].fn
                 hi, lo = (g, f) if sym in ("<", "<=") else (f, g)
-                self.atoms.append(Atom(self._balanced(start, end), sym,
-                                       lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),
-                                       lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx))))
+                less = sym in ("<", "<=")
+                self.atoms.append(Atom(
+                    self._balanced(start, end), sym,
+                    lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),
+                    lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),
+                    lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(
+                        u, f(ctx), g(ctx), less)))
         if len(ops) == 1:
             return _apply(ops[0][1], values, True)
         if all(v.const for v in values):

@@ -47,17 +47,24 @@ class Unicycle(Plant):
         return np.stack([u[:, 0] * np.cos(th), u[:, 0] * np.sin(th), u[:, 1]], axis=1)
 
     def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
-        """Exact arc: chord length ``v h sinc(omega h / 2)`` along the mid-arc heading.
+        """Exact arc: chord length ``v h sin(a)/a`` (a = omega h / 2) along the mid-arc heading.
 
-        This form has no 0/0 at omega = 0 (``np.sinc`` is analytic there), so straight
-        lines and arcs share one code path with no branch on tiny turn rates.
+        Straight lines and arcs share one code path: ``sin(a)/a`` is exact in floating
+        point for any nonzero ``a`` (for tiny ``a``, ``sin(a)`` rounds to ``a`` itself) and is
+        set to its limit 1 at ``a = 0``, so there is no branch on small turn rates.
         """
         v, w = u[:, 0], u[:, 1]
         half = 0.5 * w * h
-        chord = v * h * np.sinc(half / np.pi)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.sin(half) / half
+        ratio[half == 0] = 1.0
+        chord = v * h * ratio
         mid = x[:, 2] + half
-        return np.stack([x[:, 0] + chord * np.cos(mid), x[:, 1] + chord * np.sin(mid),
-                         x[:, 2] + w * h], axis=1)
+        out = np.empty_like(x)
+        out[:, 0] = x[:, 0] + chord * np.cos(mid)
+        out[:, 1] = x[:, 1] + chord * np.sin(mid)
+        out[:, 2] = x[:, 2] + w * h
+        return out
 
 
 class Holonomic(Plant):
@@ -92,4 +99,4 @@ def make_plant(kind: str, state_names: tuple[str, ...] = ()) -> Plant:
 
 def saturate(u: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Actuator limits: clip each input component into ``[lower, upper]``."""
-    return np.clip(u, lower, upper)
+    return np.minimum(np.maximum(u, lower), upper)

@@ -153,6 +153,11 @@ class CAgent:
     final: np.ndarray
     leaves: np.ndarray
 
+    @property
+    def limited(self) -> bool:
+        """Whether any input has a finite actuator limit."""
+        return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
+
     def mode_index(self, path: str) -> int:
         for m in self.modes:
             if m.path == path:

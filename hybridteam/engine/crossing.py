@@ -17,6 +17,7 @@ side of the boundary, within ``event_tol`` seconds of the crossing.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,14 +29,18 @@ if TYPE_CHECKING:
 
 MAX_ITER = 200
 
+Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
+
 
 def _truth_margin(sim: Simulator, a: int, w: int, idx: np.ndarray, x: np.ndarray,
                   t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     st = sim.states[a]
     watch = st.ca.watches[w]
     ctx = Ctx(x, st.v[idx], st.p[idx], t, t - st.entry[idx, watch.mode])
-    truth = np.broadcast_to(watch.atom.truth(ctx), idx.shape)
-    margin = np.broadcast_to(watch.atom.margin(ctx), idx.shape)
+    truth, margin = watch.atom.truth_and_margin(ctx)
+    truth = np.broadcast_to(truth, idx.shape)
+    margin = np.broadcast_to(margin, idx.shape)
     return truth, np.array(margin, dtype=float)
 
 
@@ -79,18 +84,26 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         t1 = t0 + h
         end = watch_truth(sim, a, idx, x_end[a], t1)
         end_truths.append(end)
-        watched = st.active[np.ix_(idx, [w.mode for w in ca.watches])].T  # (nw, m)
+        watched = st.watched[:, idx]  # (nw, m)
         truths = [st.truth[:, idx]]
         if not (watched & (end != truths[0])).any() and checks == 0:
             continue
         if not watched.any():
             continue
         points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a]["x0"], t0)]
-        for theta in thetas[1:-1]:
-            x_th = sim.state_at(a, idx, np.full(idx.size, theta) * h, steps[a], dense=True)
-            t_th = t0 + theta * h
-            points.append((x_th, t_th))
-            truths.append(watch_truth(sim, a, idx, x_th, t_th))
+        if checks:
+            # every interior checkpoint of every instance in one batch
+            m = idx.size
+            inner = np.asarray(thetas[1:-1])
+            rows = np.tile(np.arange(m), checks)
+            tau = np.repeat(inner, m) * h[rows]
+            x_all = sim.state_at(a, idx[rows], tau, steps[a], dense=True, rows=rows)
+            t_all = t0[rows] + tau
+            tr_all = watch_truth(sim, a, idx[rows], x_all, t_all)
+            for c in range(checks):
+                part = slice(c * m, (c + 1) * m)
+                points.append((x_all[part], t_all[part]))
+                truths.append(tr_all[:, part])
         points.append((x_end[a], t1))
         truths.append(end)
         flips = np.stack([watched & (truths[k] != truths[k - 1])
@@ -195,6 +208,30 @@ class _Segment:
         x = self.state(rows, tau, dense)
         return _truth_margin(self.sim, self.a, w, self.idx[rows], x, self.t0[rows] + tau)
 
+    def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
+        """``ev(pos, tau) -> (truth, margin)`` for the candidates ``rows[pos]``.
+
+        Kinematic candidates get a closure over their gathered start states and inputs,
+        so a trial point is one exact propagation and one comparison.
+        """
+        if self.has_rk and self.step["rk"][rows].any():
+            return lambda pos, tau: self.truth_margin(w, rows[pos], tau, dense)
+        st, sub = self.st, self.idx[rows]
+        atom = st.ca.watches[w].atom
+        plant = st.ca.plant
+        x0, u = self.step["x0"][rows], self.step["u"][rows]
+        v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
+        entry = st.entry[sub, st.ca.watches[w].mode]
+
+        def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            t = t0[pos] + tau
+            ctx = Ctx(plant.propagate(x0[pos], u[pos], tau), v[pos], p[pos], t, t - entry[pos])
+            truth, margin = atom.truth_and_margin(ctx)
+            return (np.broadcast_to(truth, tau.shape),
+                    np.array(np.broadcast_to(margin, tau.shape), dtype=float))
+
+        return ev
+
     def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                truth_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
@@ -207,10 +244,12 @@ class _Segment:
         thousandfold at a time until confirmed, and finished on true steps.
         """
         tol = self.tol[rows]
+        exact = self.evaluator(w, rows, dense=False)
         if not self.has_rk or not self.step["rk"][rows].any():
-            return _illinois(self, w, rows, lo, hi, truth_lo, tol, dense=False)
+            return _illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
-        _, g = _illinois(self, w, rows, lo.copy(), hi.copy(), truth_lo, tol, dense=True)
+        _, g = _illinois(self.evaluator(w, rows, dense=True), lo.copy(), hi.copy(), truth_lo,
+                         tol)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
         slope = (self.truth_margin(w, rows, b_, dense=True)[1]
@@ -237,13 +276,11 @@ class _Segment:
             new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]
             todo = todo[~ok]
             width = width * 1000.0
-        return _illinois(self, w, rows, new_lo, new_hi, truth_lo, tol, dense=False,
-                         m_lo=m_lo, m_hi=m_hi)
+        return _illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
 
 
-def _illinois(seg: _Segment, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-              truth0: np.ndarray, tol: np.ndarray, *, dense: bool,
-              m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None
+def _illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
+              tol: np.ndarray, m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
     """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it.
 
@@ -253,17 +290,18 @@ def _illinois(seg: _Segment, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.nd
     collapses the bracket at once instead of crawling. A bisection replaces the secant
     whenever three rounds failed to halve the bracket, which bounds the worst case.
     """
-    everyone = np.arange(rows.size)
+    size = lo.size
+    everyone = np.arange(size)
     if m_lo is None or np.isnan(m_lo).any():
         need = everyone if m_lo is None else np.flatnonzero(np.isnan(m_lo))
-        m_lo = np.empty(rows.size) if m_lo is None else m_lo
-        m_hi = np.empty(rows.size) if m_hi is None else m_hi
-        m_lo[need] = seg.truth_margin(w, rows[need], lo[need], dense)[1]
-        m_hi[need] = seg.truth_margin(w, rows[need], hi[need], dense)[1]
+        m_lo = np.empty(size) if m_lo is None else m_lo
+        m_hi = np.empty(size) if m_hi is None else m_hi
+        m_lo[need] = ev(need, lo[need])[1]
+        m_hi[need] = ev(need, hi[need])[1]
     ma, mb = m_lo, m_hi
     assert mb is not None
-    kept = np.zeros(rows.size, np.int8)  # +1: hi survived last round, -1: lo survived
-    slow = np.zeros(rows.size, np.int8)  # rounds in a row that did not halve the bracket
+    kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
+    slow = np.zeros(size, np.int8)  # rounds in a row that did not halve the bracket
     for _ in range(MAX_ITER):
         open_ = np.flatnonzero(hi - lo > tol)
         if open_.size == 0:
@@ -274,7 +312,7 @@ def _illinois(seg: _Segment, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.nd
             c = b_ - fb * width / (fb - fa)
         c = np.where(np.isfinite(c) & (slow[open_] < 3), c, 0.5 * (a_ + b_))
         c = np.clip(c, a_ + 0.5 * tl, b_ - 0.5 * tl)
-        tc, mc = seg.truth_margin(w, rows[open_], c, dense)
+        tc, mc = ev(open_, c)
         to_lo = tc == truth0[open_]  # c has the original truth: it becomes the new lo
         lo[open_] = np.where(to_lo, c, a_)
         hi[open_] = np.where(to_lo, b_, c)

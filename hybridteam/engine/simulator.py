@@ -111,15 +111,16 @@ class Simulator:
         if drv.kind == "zero":
             return np.zeros((m, len(ca.plant.input_names)))
         if drv.inputs is not None:
-            u = np.stack([np.broadcast_to(np.asarray(e(ctx), dtype=float), (m,))
-                          for e in drv.inputs], axis=1)
+            u = np.empty((m, len(drv.inputs)))
+            for j, e in enumerate(drv.inputs):
+                u[:, j] = e(ctx)
         else:
             u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
             if u.shape != (m, len(ca.plant.input_names)):
                 raise RuntimeError(f"law '{drv.law.name}' returned shape {u.shape}, expected "
                                    f"{(m, len(ca.plant.input_names))} (inputs "
                                    f"{', '.join(ca.plant.input_names)})")
-        return saturate(u, ca.lower, ca.upper)
+        return saturate(u, ca.lower, ca.upper) if ca.limited else u
 
     def deriv(self, a: int, idx: np.ndarray) -> rk.Derivative:
         """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
@@ -231,11 +232,21 @@ class Simulator:
         self._instant(everyone, entering=True)
         self._record_samples(everyone)
 
-    def _instant(self, idx: np.ndarray, entering: bool = False) -> None:
-        """Discrete phase at the current time of instances ``idx``, then bookkeeping."""
+    def _instant(self, idx: np.ndarray, entering: bool = False,
+                 crossed: np.ndarray | None = None,
+                 discrete: np.ndarray | None = None) -> None:
+        """Discrete phase at the current time of instances ``idx``, then bookkeeping.
+
+        ``discrete`` (default: all of ``idx``) are the instances that may take transitions:
+        one that only reached a sampling tick cannot — a guard changes truth only when one
+        of its comparisons flips, and flips are located as crossings. (Equality tests on
+        continuous state, which no search can locate, are therefore evaluated at events
+        only.) Invariants, deadlock and final modes are checked only where something
+        happened (a transition, an event, a located crossing).
+        """
         if not entering:
             self.changed[idx] = False
-        discrete_phase(self, idx)
+        discrete_phase(self, idx if discrete is None else discrete)
         live = idx[~self.done[idx]]
         changed = live[self.changed[live]] if not entering else live
         for a, st in enumerate(self.states):
@@ -249,39 +260,50 @@ class Simulator:
                     st.truth[:, changed] = watch_truth(self, a, changed, st.x[changed],
                                                        self.t[changed])
             self._sample_laws(a, live, changed)
-        self._check(live)
+        if crossed is not None and crossed.size:
+            changed = np.union1d(changed, crossed[~self.done[crossed]])
+        self._check(changed)
 
     def _sample_laws(self, a: int, live: np.ndarray, changed: np.ndarray) -> None:
-        """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered."""
+        """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered.
+
+        Instances are grouped by driver with boolean masks over the whole ensemble: in the
+        common case every instance ticks under the same law, and the law sees all of them
+        at once without any gathering.
+        """
         st = self.states[a]
         ca = st.ca
         if not ca.plant.input_names or live.size == 0:
             return
-        tick = live[self.t[live] >= st.next_tick[live]]
-        due = np.union1d(tick, changed) if changed.size else tick
-        if due.size == 0:
+        due = np.zeros(self.n, bool)
+        due[live] = self.t[live] >= st.next_tick[live]
+        fresh = np.zeros(self.n, bool)
+        fresh[changed] = True
+        due |= fresh
+        if not due.any():
             return
-        drv = st.driver[due]
-        for d in np.unique(drv).tolist():
-            D = ca.drivers[d]
-            rows = due[drv == d]
+        for d, D in enumerate(ca.drivers):
+            mine = due & (st.driver == d)
+            if not mine.any():
+                continue
             if D.kind == "continuous":
-                st.next_tick[rows] = np.inf
+                st.next_tick[mine] = np.inf
                 continue
-            if D.kind == "sampled" and changed.size:
+            if D.kind == "sampled":
                 # re-sample on a tick, or when the law's mode was (re)entered just now
-                fresh = np.isin(rows, changed) & (st.entry[rows, D.owner] == self.t[rows])
-                rows = rows[fresh | (self.t[rows] >= st.next_tick[rows])]
-            if rows.size == 0:
-                continue
-            ctx = st.ctx(rows, self.t[rows], D.owner)
+                entered = fresh & (st.entry[:, D.owner] == self.t)
+                mine &= entered | (self.t >= st.next_tick)
+                if not mine.any():
+                    continue
+            everyone = bool(mine.all())
+            rows = slice(None) if everyone else np.flatnonzero(mine)
+            t = self.t[rows]
+            ctx = st.ctx(rows, t, D.owner)
             st.u[rows] = self.evaluate_driver(ca, D, ctx)
             if D.kind == "sampled":
-                T = D.period
-                k = np.floor(self.t[rows] / T) + 1
-                nxt = k * T
-                nxt = np.where(nxt <= self.t[rows], (k + 1) * T, nxt)
-                st.next_tick[rows] = nxt
+                k = np.floor(t / D.period) + 1
+                nxt = k * D.period
+                st.next_tick[rows] = np.where(nxt <= t, (k + 1) * D.period, nxt)
             else:
                 st.next_tick[rows] = np.inf
 
@@ -340,6 +362,9 @@ class Simulator:
     def _step(self) -> None:
         live = ~self.done
         idx = np.flatnonzero(live)
+        # with every instance live (the usual case) gathers are views, not copies
+        full = idx.size == self.n
+        sel: slice | np.ndarray = slice(None) if full else idx
         t = self.t
         t_next = np.minimum(self.queue.next, self.t_end)
         any_rk = np.zeros(self.n, bool)
@@ -358,11 +383,11 @@ class Simulator:
         t1 = np.where(live, np.maximum(t1, t), t)
         self.t0 = t.copy()
         self.h = t1 - t
-        h = self.h[idx]
+        h = self.h[sel]
         x_end, steps = [], []
         err = np.zeros(idx.size)
         for a, st in enumerate(self.states):
-            x0, u, is_rk = st.x[idx], st.u[idx], st.rk[idx]
+            x0, u, is_rk = st.x[sel], st.u[sel], st.rk[sel]
             step: dict = {"x0": x0, "u": u, "rk": is_rk}
             if not is_rk.any():
                 xe = st.ca.plant.propagate(x0, u, h)
@@ -382,11 +407,11 @@ class Simulator:
                 step.update(rk_step=s, rk_pos=pos)
             x_end.append(xe)
             steps.append(step)
-        rows_rk = any_rk[idx]
+        rows_rk = any_rk[sel]
         if rows_rk.any():
             new_h = rk.next_step_size(h, err)
             reject = rows_rk & (err > 1)
-            grow = rows_rk & ~reject & limited[idx]
+            grow = rows_rk & ~reject & limited[sel]
             upd = reject | grow
             self.h_rk[idx[upd]] = new_h[upd]
             if reject.any():
@@ -394,7 +419,7 @@ class Simulator:
                 self.h[idx[reject]] = 0.0
                 for a in range(len(self.states)):
                     x_end[a][reject] = steps[a]["x0"][reject]
-        accepted = self.h[idx] > 0
+        accepted = self.h[sel] > 0
         if accepted.any():
             tau, end_truths = find_crossings(self, idx, x_end, steps)
         else:
@@ -405,26 +430,34 @@ class Simulator:
             for a in range(len(self.states)):
                 x_end[a][rows] = self.state_at(a, idx[rows], tau[rows], steps[a], rows=rows)
             t1[idx[rows]] = t[idx[rows]] + tau[rows]
-        self._interpolate_samples(idx, t1[idx], steps)
+        tn = t1[sel]
+        self._interpolate_samples(idx, tn, steps)
         for a, st in enumerate(self.states):
-            st.x[idx] = x_end[a]
-        self.t[idx] = t1[idx]
-        tn = self.t[idx]
-        at = crossing | (tn >= self.t_end) | (tn >= self.queue.next[idx])
+            if full:
+                st.x = x_end[a]
+            else:
+                st.x[idx] = x_end[a]
+        self.t = t1
+        at = crossing | (tn >= self.t_end) | (tn >= self.queue.next[sel])
+        tick = np.zeros(idx.size, bool)
         for a, st in enumerate(self.states):
-            at |= (tn >= st.next_tick[idx]) | (tn >= self.timer[a][idx])
+            at |= tn >= self.timer[a][sel]
+            tick |= tn >= st.next_tick[sel]
         plain = accepted & ~crossing
         moved = idx[crossing]
         for a, st in enumerate(self.states):
             if end_truths[a] is not None:
-                st.truth[:, idx[plain]] = end_truths[a][:, plain]
+                if plain.all() and full:
+                    st.truth = end_truths[a]
+                else:
+                    st.truth[:, idx[plain]] = end_truths[a][:, plain]
             if st.ca.watches and moved.size:
                 st.truth[:, moved] = watch_truth(self, a, moved, st.x[moved], self.t[moved])
-        events = idx[at]
+        events = idx[at | tick]
         if events.size:
-            self._instant(events)
+            self._instant(events, crossed=moved, discrete=idx[at])
         self._record_samples(idx)
-        ended = idx[(self.t[idx] >= self.t_end) & ~self.done[idx]]
+        ended = idx[(self.t[sel] >= self.t_end) & ~self.done[sel]]
         if ended.size:
             self.finish(ended, "ok", lambda i: f"reached the end of the run at t={self.when(i)}")
 

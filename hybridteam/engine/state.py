@@ -38,6 +38,8 @@ class AgentState:
         self.rk = np.zeros(n, bool)
         self.next_tick = np.full(n, np.inf)
         self.truth = np.zeros((len(ca.watches), n), bool)
+        self.watch_modes = np.array([w.mode for w in ca.watches], np.intp)
+        self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` already restricted to them)."""
@@ -113,7 +115,8 @@ class AgentState:
         self.enter_default(path[-1], idx, t)
 
     def update_drivers(self, idx: np.ndarray) -> None:
-        """Which driver (law/flow) is in charge: the deepest active mode that declares one."""
+        """After a configuration change: which driver (law/flow) is in charge — the deepest
+        active mode that declares one — and which atoms are watched."""
         ca = self.ca
         drv = np.zeros(idx.size, np.intp)
         for m in ca.driver_modes:
@@ -122,6 +125,8 @@ class AgentState:
         self.driver[idx] = drv
         needs = np.array([d.needs_rk for d in ca.drivers], bool)
         self.rk[idx] = needs[drv]
+        if self.watch_modes.size:
+            self.watched[:, idx] = self.active[np.ix_(idx, self.watch_modes)].T
 
     def next_timer(self, idx: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Earliest ``after:`` deadline still ahead of ``t`` among active transitions.
