@@ -126,8 +126,45 @@ def compare(name: str, exact: np.ndarray, our_fn, scipy_fn) -> float:
     return ratio
 
 
+def ensemble_table(n: int = 100) -> None:
+    """n thermostats with different K: one hybridteam ensemble vs n solve_ivp runs."""
+    global K
+    team = ht.load(ROOT / "examples" / "automata" / "thermostat.yaml")
+    gains = np.linspace(0.08, 0.12, n)
+    t0 = time.perf_counter()
+    run = ht.simulate(team, n=n, duration=151.0 * 0.1 / gains.min(),
+                      overrides={"thermostat.K": gains})
+    ours = time.perf_counter() - t0
+    keep = K
+    errs_ours = []
+    t0 = time.perf_counter()
+    for i, k in enumerate(gains):
+        K = float(k)
+        exact = thermostat_exact(50)
+        tr = run.instance(i).transitions
+        got = tr["t"][tr["cause"] != "init"][:50]
+        errs_ours.append(np.max(np.abs(got - exact[: len(got)])))
+    check = time.perf_counter() - t0
+    print(f"\nensemble: {n} thermostats (K from 0.08 to 0.12), 50 switches each")
+    print(f"  hybridteam, one ensemble call        {1e3 * ours:9.1f} ms   max |dt| "
+          f"{max(errs_ours):.2e}")
+    for rtol in (1e-10, 1e-12):
+        errs_scipy = []
+        t0 = time.perf_counter()
+        for k in gains:
+            K = float(k)
+            errs_scipy.append(np.max(np.abs(scipy_thermostat("DOP853", rtol) -
+                                            thermostat_exact(50))))
+        theirs = time.perf_counter() - t0
+        print(f"  solve_ivp DOP853 rtol={rtol:.0e}, loop {1e3 * theirs:9.1f} ms   max |dt| "
+              f"{max(errs_scipy):.2e}   ratio hybridteam/solve_ivp {ours / theirs:.2f}")
+    K = keep
+    print(f"  (checking the ensemble's answers took {1e3 * check:.0f} ms, not counted)")
+
+
 if __name__ == "__main__":
     compare("bouncing ball", ball_exact(20),
             lambda: ours("bouncing_ball.yaml", 20, ball_exact(20)[-1] + 1e-4), scipy_ball)
     compare("thermostat", thermostat_exact(50),
             lambda: ours("thermostat.yaml", 50, 151.0), scipy_thermostat)
+    ensemble_table(100)

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
 
 if TYPE_CHECKING:
@@ -61,13 +62,14 @@ def watch_truth(sim: Simulator, a: int, idx: np.ndarray, x: np.ndarray,
 
 
 def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[dict]) -> tuple[np.ndarray, list[np.ndarray | None]]:
+                   steps: list[dict]) -> tuple[np.ndarray, list[np.ndarray | None], dict]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
     Returns ``inf`` where nothing relevant crossed, and each agent's atom truths at the end
     of the step (None for agents without watched atoms), which stay valid where nothing
-    crossed. Updates nothing.
+    crossed, and the true states computed at trial times ({agent: {(row, tau): x}}) so
+    the engine need not integrate to the crossing again. Updates nothing.
     """
     h = sim.h[idx]
     t0 = sim.t0[idx]
@@ -76,10 +78,12 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
     checks = sim.settings.crossing_checks
     thetas = [0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0]
     end_truths: list[np.ndarray | None] = []
+    segments: list[_Segment | None] = []
     for a, st in enumerate(sim.states):
         ca = st.ca
         if not ca.watches:
             end_truths.append(None)
+            segments.append(None)
             continue
         t1 = t0 + h
         end = watch_truth(sim, a, idx, x_end[a], t1)
@@ -89,6 +93,7 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         if not (watched & (end != truths[0])).any() and checks == 0:
             continue
         if not watched.any():
+            segments.append(None)
             continue
         points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a]["x0"], t0)]
         if checks:
@@ -109,6 +114,7 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         flips = np.stack([watched & (truths[k] != truths[k - 1])
                           for k in range(1, len(truths))])  # (K, nw, m)
         if not flips.any():
+            segments.append(None)
             continue
         relevant = _relevant(sim, a, idx, flips, points)
         first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
@@ -120,12 +126,14 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         order = sorted(range(len(ca.watches)),
                        key=lambda w: float(first[w][has[w]].min()) if has[w].any() else 9.0)
         seg: _Segment | None = None
+        segments.append(None)
         for w in order:
             cand = np.flatnonzero(has[w])
             if cand.size == 0:
                 continue
             if seg is None:
                 seg = _Segment(sim, a, idx, steps[a])
+                segments[-1] = seg
             k = first[w, cand]
             lo = theta_arr[k] * h[cand]
             hi = theta_arr[k + 1] * h[cand]
@@ -147,7 +155,8 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
             better = tau < best[cand]
             best[cand[better]] = tau[better]
             best_lo[cand[better]] = tau_lo[better]
-    return best, end_truths
+    cache = {a: seg.true_states for a, seg in enumerate(segments) if seg is not None}
+    return best, end_truths, cache
 
 
 def _relevant(sim: Simulator, a: int, idx: np.ndarray, flips: np.ndarray,
@@ -198,6 +207,7 @@ class _Segment:
         self.tol = np.maximum(sim.settings.event_tol,
                               4 * np.finfo(float).eps * np.abs(self.t0 + sim.h[idx]))
         self.has_rk = bool(step["rk"].any())
+        self.true_states: dict[tuple[int, float], np.ndarray] = {}
 
     def state(self, rows: np.ndarray, tau: np.ndarray, dense: bool) -> np.ndarray:
         return self.sim.state_at(self.a, self.idx[rows], tau, self.step, rows=rows,
@@ -211,21 +221,46 @@ class _Segment:
     def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
         """``ev(pos, tau) -> (truth, margin)`` for the candidates ``rows[pos]``.
 
-        Kinematic candidates get a closure over their gathered start states and inputs,
-        so a trial point is one exact propagation and one comparison.
+        Everything a trial point needs is gathered once per search: start states and
+        inputs (kinematic plants), dense-output coefficients, or the derivative of the
+        flowing instances; true states computed here are remembered so the engine does not
+        integrate to the crossing a second time.
         """
-        if self.has_rk and self.step["rk"][rows].any():
-            return lambda pos, tau: self.truth_margin(w, rows[pos], tau, dense)
         st, sub = self.st, self.idx[rows]
-        atom = st.ca.watches[w].atom
-        plant = st.ca.plant
+        watch = st.ca.watches[w]
+        atom, plant = watch.atom, st.ca.plant
         x0, u = self.step["x0"][rows], self.step["u"][rows]
         v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
-        entry = st.entry[sub, st.ca.watches[w].mode]
+        entry = st.entry[sub, watch.mode]
+        is_rk = self.step["rk"][rows]
+        any_rk = self.has_rk and bool(is_rk.any())
+        sim, a = self.sim, self.a
+        derivs: dict[bytes, object] = {}
+
+        def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
+            if not any_rk:
+                return plant.propagate(x0[pos], u[pos], tau)
+            if dense:
+                return sim.state_at(a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
+            out = np.empty((pos.size, x0.shape[1]))
+            flow = is_rk[pos]
+            if (~flow).any():
+                ex = pos[~flow]
+                out[~flow] = plant.propagate(x0[ex], u[ex], tau[~flow])
+            fp = pos[flow]
+            key = fp.tobytes()
+            if key not in derivs:
+                derivs[key] = sim.deriv(a, sub[fp])
+            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
+                           sim.settings.rtol, sim.settings.atol)
+            out[flow] = step.x1
+            for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
+                self.true_states[(r, tt)] = x
+            return out
 
         def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             t = t0[pos] + tau
-            ctx = Ctx(plant.propagate(x0[pos], u[pos], tau), v[pos], p[pos], t, t - entry[pos])
+            ctx = Ctx(state(pos, tau), v[pos], p[pos], t, t - entry[pos])
             truth, margin = atom.truth_and_margin(ctx)
             return (np.broadcast_to(truth, tau.shape),
                     np.array(np.broadcast_to(margin, tau.shape), dtype=float))
@@ -248,13 +283,13 @@ class _Segment:
         if not self.has_rk or not self.step["rk"][rows].any():
             return _illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
-        _, g = _illinois(self.evaluator(w, rows, dense=True), lo.copy(), hi.copy(), truth_lo,
-                         tol)
+        dense = self.evaluator(w, rows, dense=True)
+        everyone = np.arange(rows.size)
+        _, g = _illinois(dense, lo.copy(), hi.copy(), truth_lo, tol)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
-        slope = (self.truth_margin(w, rows, b_, dense=True)[1]
-                 - self.truth_margin(w, rows, a_, dense=True)[1]) / (b_ - a_)
-        m_g = self.truth_margin(w, rows, g)[1]
+        slope = (dense(everyone, b_)[1] - dense(everyone, a_)[1]) / (b_ - a_)
+        m_g = exact(everyone, g)[1]
         with np.errstate(all="ignore"):
             g1 = g - m_g / slope
         guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
@@ -268,9 +303,8 @@ class _Segment:
                 break
             a_ = np.maximum(span_lo[todo], guess[todo] - width[todo])
             b_ = np.minimum(span_hi[todo], guess[todo] + width[todo])
-            r = rows[todo]
-            ta, ma = self.truth_margin(w, r, a_)
-            tb, mb = self.truth_margin(w, r, b_)
+            ta, ma = exact(todo, a_)
+            tb, mb = exact(todo, b_)
             ok = (ta == truth_lo[todo]) & (tb != truth_lo[todo])
             sel = todo[ok]
             new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]

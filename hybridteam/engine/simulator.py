@@ -420,15 +420,24 @@ class Simulator:
                 for a in range(len(self.states)):
                     x_end[a][reject] = steps[a]["x0"][reject]
         accepted = self.h[sel] > 0
+        cache: dict = {}
         if accepted.any():
-            tau, end_truths = find_crossings(self, idx, x_end, steps)
+            tau, end_truths, cache = find_crossings(self, idx, x_end, steps)
         else:
             tau, end_truths = np.full(idx.size, np.inf), [None] * len(self.states)
         crossing = np.isfinite(tau) & accepted
         if crossing.any():
             rows = np.flatnonzero(crossing)
             for a in range(len(self.states)):
-                x_end[a][rows] = self.state_at(a, idx[rows], tau[rows], steps[a], rows=rows)
+                known = cache.get(a, {})
+                hits = [known.get((r, tt)) for r, tt in zip(rows.tolist(), tau[rows].tolist(),
+                                                            strict=True)]
+                miss = np.array([x is None for x in hits], bool)
+                for k in np.flatnonzero(~miss).tolist():
+                    x_end[a][rows[k]] = hits[k]
+                if miss.any():
+                    r = rows[miss]
+                    x_end[a][r] = self.state_at(a, idx[r], tau[r], steps[a], rows=r)
             t1[idx[rows]] = t[idx[rows]] + tau[rows]
         tn = t1[sel]
         self._interpolate_samples(idx, tn, steps)
