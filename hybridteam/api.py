@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import compile_team
+from hybridteam.engine.compiler import compile_team
 from hybridteam.engine.simulator import Simulator
 from hybridteam.model import Team
 from hybridteam.trace import Table, Trace

@@ -8,7 +8,26 @@ built in Python keep the path alone.
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
+
 DocPath = tuple[str | int, ...]
+
+
+def closest(name: str, candidates: Iterable[str]) -> str | None:
+    """The candidate closest to ``name`` (case-insensitive), or None."""
+    pool = [c for c in candidates if isinstance(c, str) and not c.startswith("__")]
+    if not isinstance(name, str) or not pool or name in pool:
+        return None
+    by_lower = {c.lower(): c for c in reversed(pool)}  # first spelling wins
+    match = difflib.get_close_matches(name.lower(), list(by_lower), n=1, cutoff=0.6)
+    return by_lower[match[0]] if match else None
+
+
+def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
+    """``"did you mean 'guard'?"`` for the closest candidate, else None."""
+    match = closest(name, candidates)
+    return f"did you mean {match!r}?" if match else None
 
 
 def render_path(path: DocPath) -> str:

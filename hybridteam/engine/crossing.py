@@ -24,6 +24,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.drivers import derivative
 
 if TYPE_CHECKING:
     from hybridteam.engine.simulator import Simulator
@@ -250,7 +251,7 @@ class _Segment:
             fp = pos[flow]
             key = fp.tobytes()
             if key not in derivs:
-                derivs[key] = sim.deriv(a, sub[fp])
+                derivs[key] = derivative(sim, a, sub[fp])
             step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
                            sim.settings.rtol, sim.settings.atol)
             out[flow] = step.x1

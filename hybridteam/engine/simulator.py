@@ -19,23 +19,18 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from hybridteam.dynamics import rk
-from hybridteam.dynamics.plants import saturate
-from hybridteam.engine.compiled import CAgent, CTeam, Ctx, Driver
+from hybridteam.engine.compiled import CTeam, Ctx
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
+from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.events import EventQueue, IdealMedium
+from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import Recorder
 from hybridteam.engine.state import AgentState
+from hybridteam.errors import did_you_mean
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
-
-
-def _did_you_mean(name: str, candidates) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(name, sorted(candidates), n=1, cutoff=0.5)
-    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 class Simulator:
@@ -102,53 +97,9 @@ class Simulator:
                                 for p in st.ca.param_index}
                                | {p for st in self.states for p in st.ca.param_index})
                 raise ValueError(f"override '{key}' names no parameter"
-                                 f"{_did_you_mean(key, known)}")
+                                 + (f"; {hint}" if (hint := did_you_mean(key, known)) else ""))
 
     # ------------------------------------------------------------------ drivers
-    def evaluate_driver(self, ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
-        """Plant inputs from a law or ``inputs:`` expressions, saturated to the limits."""
-        m = ctx.x.shape[0]
-        if drv.kind == "zero":
-            return np.zeros((m, len(ca.plant.input_names)))
-        if drv.inputs is not None:
-            u = np.empty((m, len(drv.inputs)))
-            for j, e in enumerate(drv.inputs):
-                u[:, j] = e(ctx)
-        else:
-            u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
-            if u.shape != (m, len(ca.plant.input_names)):
-                raise RuntimeError(f"law '{drv.law.name}' returned shape {u.shape}, expected "
-                                   f"{(m, len(ca.plant.input_names))} (inputs "
-                                   f"{', '.join(ca.plant.input_names)})")
-        return saturate(u, ca.lower, ca.upper) if ca.limited else u
-
-    def deriv(self, a: int, idx: np.ndarray) -> rk.Derivative:
-        """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
-        st = self.states[a]
-        ca, plant = st.ca, st.ca.plant
-        drv = st.driver[idx]
-        groups = [(int(d), np.flatnonzero(drv == d)) for d in np.unique(drv)]
-        v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
-
-        def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
-            out = np.zeros_like(xx)
-            for d, rows in groups:
-                D = ca.drivers[d]
-                whole = rows.size == xx.shape[0]
-                sel = slice(None) if whole else rows
-                tr = tt[sel]
-                t_in = tr - entry[sel, D.owner] if D.owner >= 0 else tr
-                ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in)
-                if D.kind == "flow":
-                    for j, e in enumerate(D.flow):  # type: ignore[arg-type]
-                        if e is not None:
-                            out[sel, j] = e(ctx)
-                elif plant.input_names:
-                    out[sel] = plant.derivative(ctx.x, self.evaluate_driver(ca, D, ctx))
-            return out
-
-        return f
-
     def state_at(self, a: int, idx: np.ndarray, tau: np.ndarray, step: dict, *,
                  dense: bool = False, rows: np.ndarray | None = None) -> np.ndarray:
         """Agent ``a``'s state ``tau`` after the step start, for instances ``idx``.
@@ -172,7 +123,7 @@ class Simulator:
             out[r] = s.dense(tau[r] / np.where(s.h[pos] > 0, s.h[pos], 1.0), pos)
         else:
             sub = idx[r]
-            s = rk.step(self.deriv(a, sub), self.t0[sub], x0[r], tau[r], self.settings.rtol,
+            s = rk.step(derivative(self, a, sub), self.t0[sub], x0[r], tau[r], self.settings.rtol,
                         self.settings.atol)
             out[r] = s.x1
         return out
@@ -259,105 +210,10 @@ class Simulator:
                 if st.ca.watches:
                     st.truth[:, changed] = watch_truth(self, a, changed, st.x[changed],
                                                        self.t[changed])
-            self._sample_laws(a, live, changed)
+            sample_laws(self, a, live, changed)
         if crossed is not None and crossed.size:
             changed = np.union1d(changed, crossed[~self.done[crossed]])
-        self._check(changed)
-
-    def _sample_laws(self, a: int, live: np.ndarray, changed: np.ndarray) -> None:
-        """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered.
-
-        Instances are grouped by driver with boolean masks over the whole ensemble: in the
-        common case every instance ticks under the same law, and the law sees all of them
-        at once without any gathering.
-        """
-        st = self.states[a]
-        ca = st.ca
-        if not ca.plant.input_names or live.size == 0:
-            return
-        due = np.zeros(self.n, bool)
-        due[live] = self.t[live] >= st.next_tick[live]
-        fresh = np.zeros(self.n, bool)
-        fresh[changed] = True
-        due |= fresh
-        if not due.any():
-            return
-        for d, D in enumerate(ca.drivers):
-            mine = due & (st.driver == d)
-            if not mine.any():
-                continue
-            if D.kind == "continuous":
-                st.next_tick[mine] = np.inf
-                continue
-            if D.kind == "sampled":
-                # re-sample on a tick, or when the law's mode was (re)entered just now
-                entered = fresh & (st.entry[:, D.owner] == self.t)
-                mine &= entered | (self.t >= st.next_tick)
-                if not mine.any():
-                    continue
-            everyone = bool(mine.all())
-            rows = slice(None) if everyone else np.flatnonzero(mine)
-            t = self.t[rows]
-            ctx = st.ctx(rows, t, D.owner)
-            st.u[rows] = self.evaluate_driver(ca, D, ctx)
-            if D.kind == "sampled":
-                k = np.floor(t / D.period) + 1
-                nxt = k * D.period
-                st.next_tick[rows] = np.where(nxt <= t, (k + 1) * D.period, nxt)
-            else:
-                st.next_tick[rows] = np.inf
-
-    def _check(self, idx: np.ndarray) -> None:
-        """Invariants (``stuck``), all agents final (``ok``), nothing can happen (``deadlock``)."""
-        if idx.size == 0:
-            return
-        for st in self.states:
-            ca = st.ca
-            for m in ca.modes:
-                if m.invariant is None:
-                    continue
-                sel = idx[st.active[idx, m.index] & ~self.done[idx]]
-                if sel.size == 0:
-                    continue
-                ok = np.broadcast_to(m.invariant(st.ctx(sel, self.t[sel], m.index)), sel.shape)
-                bad = sel[~ok]
-                if bad.size:
-                    self.finish(bad, "stuck", lambda i, ca=ca, m=m: (
-                        f"agent '{ca.name}' in mode '{m.path}' at t={self.when(i)}: invariant "
-                        f"'{m.invariant_text}' is false and no transition out is enabled"))
-        idx = idx[~self.done[idx]]
-        if idx.size == 0:
-            return
-        all_final = np.ones(idx.size, bool)
-        waiting = np.ones(idx.size, bool)
-        someone_waits = np.zeros(idx.size, bool)
-        for a, st in enumerate(self.states):
-            ca = st.ca
-            act = st.active[idx]
-            leaf_act = act[:, ca.leaves]
-            final = (~leaf_act | ca.final[ca.leaves]).all(axis=1)
-            all_final &= final
-            eventless = (act & ca.has_eventless).any(axis=1)
-            trig = (act & ca.has_triggered).any(axis=1)
-            waiting &= final | (~eventless & trig & ~np.isfinite(self.timer[a][idx]))
-            someone_waits |= ~final & trig
-        fin = idx[all_final]
-        if fin.size:
-            self.finish(fin, "ok", lambda i: "every agent reached a final mode")
-        stalled = idx[~all_final & waiting & someone_waits & ~self.queue.pending(idx)]
-        if stalled.size:
-            self.finish(stalled, "deadlock", self._deadlock_text)
-
-    def _deadlock_text(self, i: int) -> str:
-        parts = []
-        for st in self.states:
-            ca = st.ca
-            waits = sorted({ca.transitions[j].on for m in ca.modes if st.active[i, m.index]
-                            for j in m.outgoing if ca.transitions[j].on})
-            if waits:
-                parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
-                             f"{', '.join(waits)}")
-        return f"nothing pending at t={self.when(i)}: " + "; ".join(parts)
+        check_instances(self, changed)
 
     def _step(self) -> None:
         live = ~self.done
@@ -398,7 +254,7 @@ class Simulator:
                     xe[ex] = st.ca.plant.propagate(x0[ex], u[ex], h[ex])
                 r = np.flatnonzero(is_rk)
                 sub = idx[r]
-                s = rk.step(self.deriv(a, sub), t[sub], x0[r], h[r], self.settings.rtol,
+                s = rk.step(derivative(self, a, sub), t[sub], x0[r], h[r], self.settings.rtol,
                             self.settings.atol)
                 xe[r] = s.x1
                 err[r] = np.maximum(err[r], s.err)
@@ -479,7 +335,7 @@ class Simulator:
             if rows.size == 0:
                 continue
             sub = idx[rows]
-            h0 = rk.initial_step_size(self.deriv(a, sub), self.t[sub], st.x[sub],
+            h0 = rk.initial_step_size(derivative(self, a, sub), self.t[sub], st.x[sub],
                                       self.settings.rtol, self.settings.atol,
                                       min(self.max_step, self.t_end or 1.0))
             h[rows] = np.minimum(h[rows], h0)

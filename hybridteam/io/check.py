@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import networkx as nx
 
-from hybridteam.engine.compiled import CAgent, compile_team
+from hybridteam.engine.compiled import CAgent
+from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import ModelError
 from hybridteam.model import Team
 

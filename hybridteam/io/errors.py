@@ -10,16 +10,16 @@ merge "expected X" / "expected Y" for the same value into one message.
 
 from __future__ import annotations
 
-import difflib
 import re
 import types
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from collections.abc import Set as AbstractSet
 from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
+from hybridteam.errors import closest, did_you_mean
 from hybridteam.io.yamlpos import Path, Positions, SourceError, format_path
 
 _EXPECTED = {
@@ -52,21 +52,6 @@ _COMPARE = {
     "multiple_of": ("multiple_of", "a multiple of"),
 }
 _QUOTED = re.compile(r"'((?:[^'\\]|\\.)*)'")
-
-
-def _closest(name: str, candidates: Iterable[str]) -> str | None:
-    pool = [c for c in candidates if isinstance(c, str)]
-    if not isinstance(name, str) or not pool or name in pool:
-        return None
-    by_lower = {c.lower(): c for c in reversed(pool)}  # first spelling wins
-    match = difflib.get_close_matches(name.lower(), list(by_lower), n=1, cutoff=0.6)
-    return by_lower[match[0]] if match else None
-
-
-def did_you_mean(name: str, candidates: Iterable[str]) -> str | None:
-    """``"did you mean 'guard'?"`` for the closest candidate (case-insensitive), else None."""
-    match = _closest(name, candidates)
-    return f"did you mean {match!r}?" if match else None
 
 
 def _show(value: Any) -> str:
@@ -197,7 +182,7 @@ def _score(member: Any, value: Any) -> tuple[int, ...]:
                 tags += 1 if value[key] in options else -1
         missing = sum(1 for key, info in fields.items() if info.is_required() and key not in value)
         known = len(value.keys() & fields.keys())
-        typos = sum(1 for key in value.keys() - fields.keys() if _closest(str(key), fields))
+        typos = sum(1 for key in value.keys() - fields.keys() if closest(str(key), fields))
         return (2, tags, known, typos, known - len(value), -missing)
     origin = get_origin(tp) or tp
     if isinstance(value, dict | list):
@@ -289,13 +274,13 @@ def _describe(err: Any, walk: _Walk) -> _Item:
         item.anchor, name = "key", path[-1] if path else last
         item.text = f"unknown key {name!r}"
         if _is_model(walk.parent):
-            item.key = _closest(str(name), _fields(walk.parent))
+            item.key = closest(str(name), _fields(walk.parent))
             item.hint = f"did you mean {item.key!r}?" if item.key else None
     elif kind in ("union_tag_invalid", "union_tag_not_found"):
         disc = str(ctx.get("discriminator", "kind")).strip("'\"")
         if kind == "union_tag_not_found":
             item.text = f"missing required key {disc!r}"
-            typo = _closest(disc, walk.value) if isinstance(walk.value, dict) else None
+            typo = closest(disc, walk.value) if isinstance(walk.value, dict) else None
             item.hint = f"is {typo!r} a misspelling of it?" if typo else None
         else:
             tags = _QUOTED.findall(str(ctx.get("expected_tags", "")))

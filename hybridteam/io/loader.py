@@ -15,7 +15,7 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
-from hybridteam.engine.compiled import compile_team
+from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import DocPath, ModelError, ModelErrors
 from hybridteam.io.errors import did_you_mean, located_errors
 from hybridteam.io.schema import (

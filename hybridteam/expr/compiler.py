@@ -1,207 +1,49 @@
-"""Safe, vectorized expressions for guards, invariants, flows, inputs and assignments.
+"""Compile expression text to vectorized callables, or reject it with the culprit's position.
 
-Model files are data and may come from anyone, so user text never reaches eval/exec/compile:
-it is only given to ``ast.parse``, the tree is checked against a small whitelist, and what
-passes is turned once into a tree of closures over numpy ufuncs.  Values are arrays over the
-ensemble axis (or scalars that broadcast), so nothing here loops over instances.
-
-Two static types exist, *number* and *condition*; mixing them is a compile-time error, which
-catches ``x and y`` or ``(x > 0) + 1`` before a simulation runs.  Ordering comparisons are
-exposed as :class:`Atom` objects because the engine locates events by their margins' zeros.
+The parser is Python's own (``ast.parse``, parsing only); a whitelist walk rejects anything
+but numbers, names, arithmetic, comparisons, ``and/or/not`` and calls of the fixed function
+table, and reports the offending token's character offset for ``file:line:column`` errors.
 """
 
 from __future__ import annotations
 
 import ast
-import difflib
 import math
 import re
 import unicodedata
 import warnings
-from collections.abc import Callable, Collection, Mapping
-from dataclasses import dataclass, field
-from functools import reduce
-from types import MappingProxyType
-from typing import Any, NamedTuple
+from collections.abc import Collection, Mapping
+from typing import Any
 
 import numpy as np
 
-__all__ = ["CONSTANTS", "FUNCTIONS", "Atom", "Expression", "ExpressionError", "Getter",
-           "compile_assignment", "compile_expression", "free_names"]
-
-Getter = Callable[[Any], "np.ndarray | float"]
-MAX_LENGTH = 2000  # characters; longer text is generated or hostile, not written by hand
-MAX_DEPTH = 60  # nesting limit; keeps every recursive step far below Python's recursion limit
-_DEEP = f"expression is nested too deeply (limit {MAX_DEPTH})"
-
-
-class ExpressionError(ValueError):
-    """A rejected expression; ``offset``/``length`` locate the culprit in the source string."""
-
-    def __init__(self, message: str, offset: int = 0, length: int = 1,
-                 hint: str | None = None) -> None:
-        self.message, self.offset, self.length, self.hint = message, offset, max(1, length), hint
-        super().__init__(message, offset, self.length, hint)  # args make the error picklable
-
-    def __str__(self) -> str:
-        text = f"{self.message} (column {self.offset + 1})"
-        return f"{text}; {self.hint}" if self.hint else text
-
-
-class _Function(NamedTuple):
-    impl: Callable[..., Any]
-    min_args: int
-    max_args: int | None  # None: any number of arguments
-    usage: str
-
-
-def _wrap(angle: Any) -> Any:
-    """Wrap to [-pi, pi); the correction catches remainders that round up to exactly 2*pi."""
-    r = np.remainder(np.add(angle, np.pi), 2 * np.pi) - np.pi
-    return r - (r >= np.pi) * (2 * np.pi)
-
-
-_UNARY = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos,
-          "atan": np.arctan, "sqrt": np.sqrt, "abs": np.abs, "exp": np.exp, "log": np.log,
-          "floor": np.floor, "ceil": np.ceil, "sign": np.sign, "wrap": _wrap}
-FUNCTIONS: Mapping[str, _Function] = MappingProxyType({
-    **{name: _Function(f, 1, 1, f"{name}(x)") for name, f in _UNARY.items()},
-    "atan2": _Function(np.arctan2, 2, 2, "atan2(y, x)"),
-    "hypot": _Function(np.hypot, 2, 2, "hypot(a, b)"),
-    "min": _Function(lambda *a: reduce(np.minimum, a), 2, None, "min(a, b, ...)"),
-    "max": _Function(lambda *a: reduce(np.maximum, a), 2, None, "max(a, b, ...)"),
-    "clip": _Function(lambda x, lo, hi: np.minimum(np.maximum(x, lo), hi), 3, 3,
-                      "clip(x, lo, hi)")})
-CONSTANTS: Mapping[str, float] = MappingProxyType({"pi": math.pi, "inf": math.inf})
-_BOOL_NAMES = {"true": True, "false": False}
-_FUNCTION_HINTS = {"pow": "use ** for powers", "ln": "did you mean 'log'?", "mod": "use a % b"}
-_BINOPS: dict[type, tuple[str, Any]] = {
-    ast.Add: ("+", np.add), ast.Sub: ("-", np.subtract), ast.Mult: ("*", np.multiply),
-    ast.Div: ("/", np.true_divide), ast.Mod: ("%", np.remainder),
-    ast.Pow: ("**", np.float_power)}  # float_power: int operands can neither wrap nor raise
-_AUGOPS = dict(_BINOPS.values())
-_BAD_BINOPS: dict[type, tuple[str, str | None]] = {
-    ast.BitXor: ("^", "use ** for powers"), ast.BitAnd: ("&", "use 'and'/'or'"),
-    ast.BitOr: ("|", "use 'and'/'or'"), ast.LShift: ("<<", None), ast.RShift: (">>", None),
-    ast.FloorDiv: ("//", "use floor(a / b)"), ast.MatMult: ("@", None)}
-_CMPOPS: dict[type, tuple[str, Any]] = {
-    ast.Lt: ("<", np.less), ast.LtE: ("<=", np.less_equal), ast.Gt: (">", np.greater),
-    ast.GtE: (">=", np.greater_equal), ast.Eq: ("==", np.equal), ast.NotEq: ("!=", np.not_equal)}
-_REJECTED: dict[type, str] = {
-    ast.Attribute: "attribute access is not allowed",
-    ast.Subscript: "indexing with [...] is not allowed", ast.Lambda: "lambda is not allowed",
-    ast.NamedExpr: "':=' is not allowed", ast.JoinedStr: "strings are not allowed",
-    ast.IfExp: "'a if c else b' is not allowed", ast.Starred: "'*' unpacking is not allowed",
-    **dict.fromkeys((ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp),
-                    "comprehensions are not allowed"),
-    **dict.fromkeys((ast.List, ast.Tuple, ast.Set, ast.Dict),
-                    "lists, tuples, sets and dicts are not allowed")}
-_IGNORED = (ast.expr_context, ast.operator, ast.boolop, ast.unaryop, ast.cmpop)
-_ASSIGN_RE = re.compile(r"\s*([^\W\d]\w*)\s*(\*\*|//|<<|>>|[-+*/%@&|^])?=(?!=)")
-_NOVALUE = object()
-_Problem = tuple[int, int, int, str, str | None]  # (rank, start, end, message, hint)
-
-
-@dataclass(frozen=True, eq=False)
-class Atom:
-    """An ordering comparison `a OP b` (OP in <, <=, >, >=); the engine watches its margin for
-    zero crossings.  The margin is positive where the comparison holds strictly, so one sign
-    convention serves every operator; ``truth`` compares directly so equality stays exact."""
-
-    source: str
-    op: str
-    _margin: Callable[[Any], Any] = field(repr=False)
-    _truth: Callable[[Any], Any] = field(repr=False)
-    _both: Callable[[Any], Any] = field(repr=False)
-
-    def margin(self, ctx: Any) -> np.ndarray | float:
-        return self._margin(ctx)
-
-    def truth(self, ctx: Any) -> np.ndarray | bool:
-        return self._truth(ctx)
-
-    def truth_and_margin(self, ctx: Any) -> tuple[Any, Any]:
-        """Both at once, evaluating each operand once (what a crossing search needs)."""
-        return self._both(ctx)
-
-
-def _truth_and_margin(ufunc: Any, a: Any, b: Any, less: bool) -> tuple[Any, Any]:
-    return ufunc(a, b), (np.subtract(b, a) if less else np.subtract(a, b))
-
-
-class Expression:
-    """A compiled expression; calling it evaluates the closure tree on an engine context."""
-
-    __slots__ = ("_fn", "atoms", "is_condition", "names", "source")
-
-    def __init__(self, source: str, fn: Callable[[Any], Any], names: frozenset[str],
-                 is_condition: bool, atoms: tuple[Atom, ...]) -> None:
-        self.source, self._fn, self.names = source, fn, names
-        self.is_condition, self.atoms = is_condition, atoms
-
-    def __call__(self, ctx: Any) -> np.ndarray | float | bool:
-        return self._fn(ctx)
-
-    def __repr__(self) -> str:
-        return f"Expression({self.source!r})"
-
-
-class _C:
-    """A compiled node: its closure, its static type and, if constant-folded, its value."""
-
-    __slots__ = ("cond", "fn", "value")
-
-    def __init__(self, fn: Callable[[Any], Any], cond: bool, value: Any = _NOVALUE) -> None:
-        self.fn, self.cond, self.value = fn, cond, value
-
-    @property
-    def const(self) -> bool:
-        return self.value is not _NOVALUE
-
-
-def _const(value: Any, cond: bool) -> _C:
-    return _C(lambda ctx: value, cond, value)
-
-
-def _did_you_mean(name: str, candidates: Collection[str]) -> str | None:
-    match = difflib.get_close_matches(name, [c for c in candidates if not c.startswith("__")], 1)
-    return f"did you mean '{match[0]}'?" if match else None
-
-
-def _apply(impl: Callable[..., Any], args: list[_C], cond: bool) -> _C:
-    """Apply `impl` to compiled arguments: folded when all are constant, else one closure."""
-    if all(a.const for a in args):
-        with np.errstate(all="ignore"):
-            return _const(impl(*(a.value for a in args)), cond)
-    fns = [a.fn for a in args]
-    if len(args) == 1:
-        (f,) = fns
-        return _C(lambda ctx: impl(f(ctx)), cond)
-    if len(args) == 2:  # the hot case: inline constants instead of calling their closures
-        (f, g), (a, b) = fns, args
-        if b.const:
-            return _C(lambda ctx, c=b.value: impl(f(ctx), c), cond)
-        if a.const:
-            return _C(lambda ctx, c=a.value: impl(c, g(ctx)), cond)
-        return _C(lambda ctx: impl(f(ctx), g(ctx)), cond)
-    return _C(lambda ctx: impl(*[f(ctx) for f in fns]), cond)
-
-
-def _fold_left(first: _C, steps: list[tuple[Any, _C]], cond: bool) -> _C:
-    """Evaluate ``((first u1 a1) u2 a2) ...`` in one loop, so that long chains such as
-    a+b+c+... need no deep recursion; a constant prefix is folded at compile time."""
-    while steps and first.const and steps[0][1].const:
-        first = _apply(steps[0][0], [first, steps.pop(0)[1]], cond)
-    if len(steps) <= 1:
-        return _apply(steps[0][0], [first, steps[0][1]], cond) if steps else first
-    f0, rest = first.fn, tuple((u, a.fn) for u, a in steps)
-
-    def fn(ctx: Any) -> Any:
-        value = f0(ctx)
-        for u, g in rest:
-            value = u(value, g(ctx))
-        return value
-    return _C(fn, cond)
+from hybridteam.errors import did_you_mean
+from hybridteam.expr.language import (
+    _ASSIGN_RE,
+    _AUGOPS,
+    _BAD_BINOPS,
+    _BINOPS,
+    _BOOL_NAMES,
+    _C,
+    _CMPOPS,
+    _DEEP,
+    _FUNCTION_HINTS,
+    _IGNORED,
+    _REJECTED,
+    CONSTANTS,
+    FUNCTIONS,
+    MAX_DEPTH,
+    MAX_LENGTH,
+    Atom,
+    Expression,
+    ExpressionError,
+    Getter,
+    _apply,
+    _const,
+    _fold_left,
+    _Problem,
+    _truth_and_margin,
+)
 
 
 class _Compiler:
@@ -392,7 +234,7 @@ class _Compiler:
                 return 1, paren, paren + 1, "only functions such as sin(x) can be called", None
             name, n = node.func.id, len(node.args)
             if name not in FUNCTIONS:
-                hint = _FUNCTION_HINTS.get(name) or _did_you_mean(name, FUNCTIONS)
+                hint = _FUNCTION_HINTS.get(name) or did_you_mean(name, FUNCTIONS)
                 return 1, *self.pos(node.func), f"unknown function '{name}'", hint
             spec = FUNCTIONS[name]
             if n < spec.min_args or (spec.max_args is not None and n > spec.max_args):
@@ -458,7 +300,7 @@ class _Compiler:
             return _C(lambda ctx: 0.0, False)
         if name in FUNCTIONS:
             raise self.error(f"'{name}' is a function", start, end, f"call it: {name}(...)")
-        hint = _did_you_mean(name, [*self.symbols, *CONSTANTS])
+        hint = did_you_mean(name, [*self.symbols, *CONSTANTS])
         raise self.error(f"unknown name '{name}'", start, end, hint)
 
     def typed(self, node: ast.expr, cond: bool, user: str) -> _C:
@@ -561,7 +403,7 @@ def compile_assignment(source: str, symbols: Mapping[str, Getter],
                          "use =, +=, -=, *=, /=, %= or **=")
     if target not in targets:
         raise comp.error(f"unknown assignment target '{target}'", t0, t1,
-                         _did_you_mean(target, targets))
+                         did_you_mean(target, targets))
     tree, rhs = comp.run(match.end(), False)
     text = source[match.end():].strip()
     if op:  # n += 1 is n + (1): the target is read, so it must also be a symbol

@@ -1,0 +1,113 @@
+"""Running drivers: inputs from laws and expressions, derivatives for the integrator, and
+the zero-order hold of sampled laws.
+
+These are the only places user laws are called. A law is given all instances that share it
+at once (an ensemble of a thousand robots under one law is one call), and its output is
+checked for shape and saturated to the actuator limits.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.dynamics import rk
+from hybridteam.dynamics.plants import saturate
+from hybridteam.engine.compiled import CAgent, Ctx, Driver
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+
+
+def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
+    """Plant inputs from a law or ``inputs:`` expressions, saturated to the limits."""
+    m = ctx.x.shape[0]
+    if drv.kind == "zero":
+        return np.zeros((m, len(ca.plant.input_names)))
+    if drv.inputs is not None:
+        u = np.empty((m, len(drv.inputs)))
+        for j, e in enumerate(drv.inputs):
+            u[:, j] = e(ctx)
+    else:
+        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
+        if u.shape != (m, len(ca.plant.input_names)):
+            raise RuntimeError(f"law '{drv.law.name}' returned shape {u.shape}, expected "
+                               f"{(m, len(ca.plant.input_names))} (inputs "
+                               f"{', '.join(ca.plant.input_names)})")
+    return saturate(u, ca.lower, ca.upper) if ca.limited else u
+
+
+
+def derivative(sim: Simulator, a: int, idx: np.ndarray) -> rk.Derivative:
+    """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
+    st = sim.states[a]
+    ca, plant = st.ca, st.ca.plant
+    drv = st.driver[idx]
+    groups = [(int(d), np.flatnonzero(drv == d)) for d in np.unique(drv)]
+    v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
+
+    def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
+        out = np.zeros_like(xx)
+        for d, rows in groups:
+            D = ca.drivers[d]
+            whole = rows.size == xx.shape[0]
+            sel = slice(None) if whole else rows
+            tr = tt[sel]
+            t_in = tr - entry[sel, D.owner] if D.owner >= 0 else tr
+            ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in)
+            if D.kind == "flow":
+                for j, e in enumerate(D.flow):  # type: ignore[arg-type]
+                    if e is not None:
+                        out[sel, j] = e(ctx)
+            elif plant.input_names:
+                out[sel] = plant.derivative(ctx.x, evaluate_driver(ca, D, ctx))
+        return out
+
+    return f
+
+
+
+def sample_laws(sim: Simulator, a: int, live: np.ndarray, changed: np.ndarray) -> None:
+    """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered.
+
+    Instances are grouped by driver with boolean masks over the whole ensemble: in the
+    common case every instance ticks under the same law, and the law sees all of them
+    at once without any gathering.
+    """
+    st = sim.states[a]
+    ca = st.ca
+    if not ca.plant.input_names or live.size == 0:
+        return
+    due = np.zeros(sim.n, bool)
+    due[live] = sim.t[live] >= st.next_tick[live]
+    fresh = np.zeros(sim.n, bool)
+    fresh[changed] = True
+    due |= fresh
+    if not due.any():
+        return
+    for d, D in enumerate(ca.drivers):
+        mine = due & (st.driver == d)
+        if not mine.any():
+            continue
+        if D.kind == "continuous":
+            st.next_tick[mine] = np.inf
+            continue
+        if D.kind == "sampled":
+            # re-sample on a tick, or when the law's mode was (re)entered just now
+            entered = fresh & (st.entry[:, D.owner] == sim.t)
+            mine &= entered | (sim.t >= st.next_tick)
+            if not mine.any():
+                continue
+        everyone = bool(mine.all())
+        rows = slice(None) if everyone else np.flatnonzero(mine)
+        t = sim.t[rows]
+        ctx = st.ctx(rows, t, D.owner)
+        st.u[rows] = evaluate_driver(ca, D, ctx)
+        if D.kind == "sampled":
+            k = np.floor(t / D.period) + 1
+            nxt = k * D.period
+            st.next_tick[rows] = np.where(nxt <= t, (k + 1) * D.period, nxt)
+        else:
+            st.next_tick[rows] = np.inf
+

@@ -1,0 +1,73 @@
+"""End-of-instant checks that can end an instance: ``stuck``, ``ok``, ``deadlock``.
+
+``stuck``: an active mode's invariant is false and no transition took the instance out.
+``ok`` early: every agent's active leaves are final. ``deadlock``: nothing is pending (no
+event, message, timer) and every agent either is final or waits for a trigger, so no
+discrete step can ever happen again. Each outcome carries a message naming agents, modes,
+guards or triggers, and the time.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+
+
+def check_instances(sim: Simulator, idx: np.ndarray) -> None:
+    """Invariants (``stuck``), all agents final (``ok``), nothing can happen (``deadlock``)."""
+    if idx.size == 0:
+        return
+    for st in sim.states:
+        ca = st.ca
+        for m in ca.modes:
+            if m.invariant is None:
+                continue
+            sel = idx[st.active[idx, m.index] & ~sim.done[idx]]
+            if sel.size == 0:
+                continue
+            ok = np.broadcast_to(m.invariant(st.ctx(sel, sim.t[sel], m.index)), sel.shape)
+            bad = sel[~ok]
+            if bad.size:
+                sim.finish(bad, "stuck", lambda i, ca=ca, m=m: (
+                    f"agent '{ca.name}' in mode '{m.path}' at t={sim.when(i)}: invariant "
+                    f"'{m.invariant_text}' is false and no transition out is enabled"))
+    idx = idx[~sim.done[idx]]
+    if idx.size == 0:
+        return
+    all_final = np.ones(idx.size, bool)
+    waiting = np.ones(idx.size, bool)
+    someone_waits = np.zeros(idx.size, bool)
+    for a, st in enumerate(sim.states):
+        ca = st.ca
+        act = st.active[idx]
+        leaf_act = act[:, ca.leaves]
+        final = (~leaf_act | ca.final[ca.leaves]).all(axis=1)
+        all_final &= final
+        eventless = (act & ca.has_eventless).any(axis=1)
+        trig = (act & ca.has_triggered).any(axis=1)
+        waiting &= final | (~eventless & trig & ~np.isfinite(sim.timer[a][idx]))
+        someone_waits |= ~final & trig
+    fin = idx[all_final]
+    if fin.size:
+        sim.finish(fin, "ok", lambda i: "every agent reached a final mode")
+    stalled = idx[~all_final & waiting & someone_waits & ~sim.queue.pending(idx)]
+    if stalled.size:
+        sim.finish(stalled, "deadlock", lambda i: deadlock_text(sim, i))
+
+
+
+def deadlock_text(sim: Simulator, i: int) -> str:
+    parts = []
+    for st in sim.states:
+        ca = st.ca
+        waits = sorted({ca.transitions[j].on for m in ca.modes if st.active[i, m.index]
+                        for j in m.outgoing if ca.transitions[j].on})
+        if waits:
+            parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
+                         f"{', '.join(waits)}")
+    return f"nothing pending at t={sim.when(i)}: " + "; ".join(parts)
+
