@@ -162,7 +162,18 @@ def ensemble_table(n: int = 100) -> None:
     print(f"  (checking the ensemble's answers took {1e3 * check:.0f} ms, not counted)")
 
 
+def ball_to_zeno() -> None:
+    """Issue 2: run to t = 5 s ends zeno near 2.558633965586 s within a second of wall time."""
+    team = ht.load(ROOT / "examples" / "automata" / "bouncing_ball.yaml")
+    wall, run = best_of(lambda: ht.simulate(team, duration=5.0))
+    t = run.diagnostics[0]["t"]
+    print(f"\nbouncing ball to t=5 s: outcome {run.outcome} at t={t:.12f} "
+          f"(Zeno time 2.558633965586, off by {abs(t - 2.558633965586):.1e} s), "
+          f"{len(run.transitions)} transitions, wall {wall:.3f} s (budget 1 s)")
+
+
 if __name__ == "__main__":
+    ball_to_zeno()
     compare("bouncing ball", ball_exact(20),
             lambda: ours("bouncing_ball.yaml", 20, ball_exact(20)[-1] + 1e-4), scipy_ball)
     compare("thermostat", thermostat_exact(50),

@@ -65,7 +65,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: _Collector,
             spec = resolve(b.name)
         except LawNotFound as exc:
             col.fail((*b.where, "use") if b.where else mode.where, str(exc),
-                     did_you_mean(b.name, exc.candidates))
+                     did_you_mean(b.name.rpartition(":")[2], exc.candidates))
             return None
         if spec.plants and plant.kind not in spec.plants:
             col.fail((*b.where, "use"), f"law '{b.name}' drives {'/'.join(spec.plants)} "

@@ -1,0 +1,122 @@
+"""Laws and plants against closed forms: user laws, continuous laws, holonomic, limits."""
+
+from __future__ import annotations
+
+import math
+from importlib import metadata
+
+import numpy as np
+import pytest
+
+import hybridteam as ht
+from hybridteam import laws
+from hybridteam.dynamics.plants import Holonomic, Unicycle
+
+
+def test_unicycle_arc_is_exact_for_any_step():
+    p = Unicycle()
+    x0 = np.array([[1.0, 2.0, 0.3], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    u = np.array([[2.0, 0.5], [1.0, 0.0], [1.0, 1e-12]])
+    h = np.array([1.7, 2.0, 3.0])
+    got = p.propagate(x0, u, h)
+    th = 0.3 + 0.5 * 1.7
+    np.testing.assert_allclose(got[0], [1 + 4 * (math.sin(th) - math.sin(0.3)),
+                                        2 - 4 * (math.cos(th) - math.cos(0.3)), th], atol=1e-14)
+    np.testing.assert_allclose(got[1], [2.0, 0.0, 0.0], atol=0)
+    np.testing.assert_allclose(got[2], [3 * math.cos(1.0), 3 * math.sin(1.0), 1.0 + 3e-12],
+                               atol=1e-12)
+    # two half steps equal one full step (the flow property of an exact solution)
+    half = p.propagate(p.propagate(x0, u, h / 2), u, h / 2)
+    np.testing.assert_allclose(half, got, atol=1e-13)
+
+
+def test_holonomic_moves_in_world_frame():
+    got = Holonomic().propagate(np.array([[1.0, 1.0, 0.5]]), np.array([[0.2, -0.1, 0.3]]),
+                                np.array([2.0]))
+    np.testing.assert_allclose(got, [[1.4, 0.8, 1.1]], atol=1e-15)
+
+
+UNICYCLE = """
+team: laws
+agents:
+  r:
+    plant:
+      kind: {kind}
+      state: {state}
+      limits: {limits}
+    parameters: {{k: 0.5}}
+    modes:
+      Go:
+        {body}
+simulation: {{duration: 4.0, sample_period: 1.0}}
+"""
+
+
+def make(team_from_yaml, body, kind="unicycle", state="{x: 0, y: 0, theta: 0}", limits="{}"):
+    return team_from_yaml(UNICYCLE.format(kind=kind, state=state, limits=limits, body=body))
+
+
+def test_user_law_by_module_function_reference(team_from_yaml):
+    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:circle', period: 0.1, "
+                                "with: {v: 2.0, w: 0.5}}")
+    run = ht.simulate(team)
+    final = run.samples["r"][-1, 0]
+    th = 0.5 * 4.0
+    np.testing.assert_allclose(final, [4 * math.sin(th), 4 * (1 - math.cos(th)), th],
+                               atol=1e-12)
+
+
+def test_continuous_law_is_integrated_accurately(team_from_yaml):
+    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:heading_decay'}",
+                state="{x: 0, y: 0, theta: 1.0}")
+    run = ht.simulate(team)
+    theta = run.samples["r"][:, 0, 2]
+    np.testing.assert_allclose(theta, np.exp(-0.5 * run.sample_times), rtol=1e-9)
+
+
+def test_holonomic_inputs_and_limits_saturate(team_from_yaml):
+    team = make(team_from_yaml, "inputs: {vx: 3.0, vy: -0.5, omega: 0.1}\n        period: 0.5",
+                kind="holonomic", limits="{vx: [-1, 1], vy: [-1, 1]}")
+    run = ht.simulate(team)
+    np.testing.assert_allclose(run.samples["r"][-1, 0], [4.0, -2.0, 0.4], atol=1e-12)
+
+
+def test_law_with_wrong_output_shape_names_the_law(team_from_yaml):
+    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:wrong_shape', "
+                                "period: 0.1}")
+    with pytest.raises(RuntimeError, match=r"tests\.fixtures\.userlaws:wrong_shape.*shape"):
+        ht.simulate(team)
+
+
+def test_law_reference_errors_are_model_errors(team_from_yaml):
+    from hybridteam.io.loader import InputErrors
+
+    with pytest.raises(InputErrors, match=r"cannot import module 'tests\.fixtures\.nope'"):
+        make(team_from_yaml, "law: {use: 'tests.fixtures.nope:f', period: 0.1}")
+    with pytest.raises(InputErrors, match=r"has no function 'cirle'.*did you mean 'circle'"):
+        make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:cirle', period: 0.1}")
+
+
+def test_libraries_are_found_through_entry_points(monkeypatch):
+    """A third-party package ships laws by registering a hybridteam.libraries entry point."""
+
+    class FakeEntryPoint:
+        name = "thirdparty"
+
+        def load(self):
+            @laws.law("thirdparty.spin", plants=("unicycle",))
+            def spin(ctx):
+                return np.stack([np.zeros(ctx.size), np.ones(ctx.size)], axis=1)
+
+            return object()
+
+    def entry_points(group):
+        assert group == "hybridteam.libraries"
+        return [FakeEntryPoint()]
+
+    monkeypatch.setattr(metadata, "entry_points", entry_points)
+    monkeypatch.setattr(laws, "_LOADED", False)
+    monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
+    assert "thirdparty.spin" not in laws._REGISTRY
+    assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
+    assert "thirdparty.spin" in laws.registered()
