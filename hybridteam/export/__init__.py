@@ -1,0 +1,1 @@
+"""Views of models and runs: state diagrams, timelines, trajectories, sequence charts."""
