@@ -46,6 +46,47 @@ def _parser() -> argparse.ArgumentParser:
                    help="override a parameter (agent.param or team param); a list gives "
                         "one value per instance")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--no-views", action="store_true",
+                   help="skip the state diagram, timeline, trajectory and sequence views")
+
+    d = sub.add_parser("diagram", help="draw a model's state diagram")
+    d.add_argument("model", metavar="MODEL.yaml")
+    d.add_argument("-f", "--format", default=None,
+                   help="dot, mermaid, plantuml, svg or png (default: from -o, else dot)")
+    d.add_argument("-o", "--output", default=None, metavar="FILE",
+                   help="output file (default: text to standard output)")
+
+    tl = sub.add_parser("timeline", help="draw the mode timeline of a run")
+    tl.add_argument("trace", metavar="trace.json")
+    tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
+                    help="close-up between two times, with message arrows")
+    tl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    tl.add_argument("-o", "--output", default="timeline.png", metavar="FILE",
+                    help=".png or .svg (default timeline.png)")
+    tl.add_argument("--data", default=None, metavar="FILE",
+                    help="also write the drawn data as .csv or .json")
+
+    pl = sub.add_parser("plot", help="draw the trajectories of a run")
+    pl.add_argument("trace", metavar="trace.json")
+    pl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
+                    help=".png or .svg (default trajectories.png)")
+
+    an = sub.add_parser("animate", help="animate a run (GIF; MP4 when ffmpeg is installed)")
+    an.add_argument("trace", metavar="trace.json")
+    an.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
+    an.add_argument("-o", "--output", default="run.gif", metavar="FILE",
+                    help=".gif or .mp4 (default run.gif)")
+
+    sq = sub.add_parser("sequence", help="message sequence chart of a run")
+    sq.add_argument("trace", metavar="trace.json")
+    sq.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    sq.add_argument("-f", "--format", default="mermaid", choices=["mermaid", "plantuml"])
+    sq.add_argument("--all-sockets", action="store_true",
+                    help="include data messages, not only control messages")
+    sq.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help="output file (default: standard output)")
 
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
@@ -55,8 +96,11 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema}[
-            args.command](args)
+        from hybridteam.views_cli import VIEW_COMMANDS
+
+        commands = {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema,
+                    **VIEW_COMMANDS}
+        return commands[args.command](args)
     except UsageError as exc:
         print(f"hybridteam: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -159,13 +203,18 @@ def cmd_run(args: argparse.Namespace) -> int:
     run.write_csv(out)
     summary = run.summary()
     summary["wall_time_s"] = round(wall, 4)
+    views: list[str] = []
+    if not args.no_views:
+        from hybridteam.views_cli import write_run_views
+
+        views = write_run_views(team, run, out)
     write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     if not args.quiet:
-        _print_summary(summary, out)
+        _print_summary(summary, out, views)
     return EXIT_OK
 
 
-def _print_summary(summary: dict, out: Path) -> None:
+def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
     tally = ", ".join(f"{k}: {v}" for k, v in sorted(summary["outcomes"].items()))
     print(f"{summary['team']}: {summary['n']} instance(s), {summary['duration']:g} s simulated "
           f"in {summary['wall_time_s']:.3f} s wall — {tally}")
@@ -175,8 +224,9 @@ def _print_summary(summary: dict, out: Path) -> None:
               + (f" — {inst['message']}" if inst["outcome"] != "ok" else ""))
     if summary["n"] > 10:
         print(f"  ... {summary['n'] - 10} more in summary.json")
-    print(f"wrote {out}/ (trace.json, modes.csv, transitions.csv, messages.csv, samples.csv, "
-          "summary.json)")
+    files = ["trace.json", "modes.csv", "transitions.csv", "messages.csv", "samples.csv",
+             *views, "summary.json"]
+    print(f"wrote {out}/ ({', '.join(files)})")
 
 
 def cmd_schema(args: argparse.Namespace) -> int:

@@ -22,7 +22,10 @@ def test_run_writes_trace_tables_and_summary(tmp_path, capsys):
     assert main(["run", THERMO, "-o", str(out), "--duration", "20"]) == 0
     names = {p.name for p in out.iterdir()}
     assert names == {"trace.json", "modes.csv", "transitions.csv", "messages.csv",
-                     "samples.csv", "summary.json"}
+                     "samples.csv", "summary.json", "modes.dot", "modes.mmd", "modes.svg",
+                     "timeline.png", "timeline.svg", "trajectories.png", "trajectories.svg",
+                     "sequence.mmd"}
+    assert (out / "timeline.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcomes"] == {"ok": 1}
     # the initial entry, then switches at 3.18, 5.19, 9.25, 11.25, 15.31, 17.31 (21.37 > 20)
@@ -118,3 +121,59 @@ def test_pip_install_into_a_fresh_venv_works_from_any_directory(tmp_path):
                            cwd=work, capture_output=True, text=True, env=env)
     assert where.returncode == 0, where.stderr
     assert str(env_dir) in where.stdout  # the installed copy, not the checkout
+
+
+def test_run_without_views_writes_only_the_trace(tmp_path):
+    out = tmp_path / "plain"
+    assert main(["run", THERMO, "-o", str(out), "--duration", "5", "--quiet", "--no-views"]) == 0
+    assert {p.name for p in out.iterdir()} == {"trace.json", "modes.csv", "transitions.csv",
+                                               "messages.csv", "samples.csv", "summary.json"}
+
+
+RELAY = str(EXAMPLES / "automata" / "relay.yaml")
+
+
+@pytest.fixture(scope="module")
+def relay_trace(tmp_path_factory):
+    out = tmp_path_factory.mktemp("relay")
+    assert main(["run", RELAY, "-o", str(out), "--quiet", "--no-views"]) == 0
+    return out / "trace.json"
+
+
+def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
+    assert main(["diagram", RELAY, "-o", str(tmp_path / "d.svg")]) == 0
+    assert "<svg" in (tmp_path / "d.svg").read_text()
+    assert main(["diagram", RELAY, "-f", "mermaid"]) == 0
+    assert capsys.readouterr().out.startswith("stateDiagram-v2")
+    assert main(["timeline", str(relay_trace), "--window", "4.9", "5.1", "-o",
+                 str(tmp_path / "t.svg"), "--data", str(tmp_path / "t.json")]) == 0
+    data = json.loads((tmp_path / "t.json").read_text())
+    assert [(a["t_send"], a["type"]) for a in data["arrows"]] == [(5.0, "baton")]
+    assert main(["plot", str(relay_trace), "-o", str(tmp_path / "p.png")]) == 0
+    assert main(["animate", str(relay_trace), "-o", str(tmp_path / "a.gif"), "--fps", "5"]) == 0
+    assert (tmp_path / "a.gif").read_bytes()[:6] == b"GIF89a"
+    assert main(["sequence", str(relay_trace), "-f", "plantuml"]) == 0
+    out = capsys.readouterr().out
+    assert "@startuml" in out and "runner -> anchor" in out
+
+
+@pytest.mark.parametrize("args, words", [
+    (["diagram", RELAY, "-f", "dott"], "did you mean 'dot'"),
+    (["diagram", RELAY, "-f", "png"], "needs -o FILE"),
+    (["timeline", "{trace}", "-o", "x.jpg"], "written as .png or .svg"),
+    (["timeline", "{trace}", "--window", "5", "1"], "T0 must be < T1"),
+    (["timeline", "{trace}", "--instance", "3"], "instances 0..0"),
+    (["plot", "{missing}"], "no such file"),
+    (["plot", "{notjson}"], "not a JSON file"),
+    (["plot", "{notrace}"], "not a hybridteam trace"),
+    (["animate", "{trace}", "-o", "a.avi"], ".gif or .mp4"),
+])
+def test_view_commands_refuse_bad_arguments(tmp_path, relay_trace, capsys, args, words):
+    (tmp_path / "bad.json").write_text("{nope")
+    (tmp_path / "other.json").write_text('{"hello": 1}')
+    subst = {"{trace}": str(relay_trace), "{missing}": str(tmp_path / "none.json"),
+             "{notjson}": str(tmp_path / "bad.json"), "{notrace}": str(tmp_path / "other.json")}
+    argv = [subst.get(a, a) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err

@@ -21,8 +21,7 @@ FONT = "DejaVu Sans"
 def mode_colors(paths: Iterable[str], finals: Iterable[str] = ()) -> dict[str, str]:
     """Colour of each mode path, in the order given; final modes are grey.
 
-    Leaves sharing a name in different agents get the same colour when they come from the
-    same position, which is what a reader comparing two robots' timelines expects.
+    A path listed twice keeps its first colour.
     """
     finals = set(finals)
     out: dict[str, str] = {}
@@ -36,6 +35,23 @@ def mode_colors(paths: Iterable[str], finals: Iterable[str] = ()) -> dict[str, s
         out[path] = PALETTE[k % len(PALETTE)]
         k += 1
     return out
+
+
+def team_mode_colors(agents: Iterable[Iterable[tuple[str, bool]]]) -> dict[str, str]:
+    """One colour per mode path across a whole team, given each agent's (path, final) pairs.
+
+    The same path in two agents (both robots' ``Transport.Lead``) gets the same colour, so a
+    reader compares roles at a glance; different modes never share a colour, so a legend
+    entry is unambiguous.
+    """
+    paths: list[str] = []
+    finals: list[str] = []
+    for modes in agents:
+        for path, final in modes:
+            paths.append(path)
+            if final:
+                finals.append(path)
+    return mode_colors(paths, finals)
 
 
 def text_color(background: str) -> str:

@@ -1,0 +1,391 @@
+"""Timeline of a run: who was in which mode when, with transitions and (close up) messages.
+
+A lane per agent and per parallel region shows the deepest active modes as coloured bars, so
+concurrent activity reads side by side; agents with composite modes get a thin row of their
+top-level modes above, so "Dock" vs "Transport" stays visible over the Dock submodes. A
+close-up (``window``) also draws every message as an arrow from send to receipt time, with
+its latency, because in a close-up the interleaving of messages and mode changes is the point.
+
+The drawing is computed first as :class:`TimelineData` — plain numbers, tested and exported
+as CSV/JSON — and only then rendered, so what a test checks is what the figure shows.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from collections import defaultdict
+from dataclasses import asdict, dataclass, field
+from itertools import takewhile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib import patheffects, rc_context
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+
+from hybridteam.export.style import FONT, team_mode_colors, text_color
+from hybridteam.trace import Table, Trace, write_atomic
+
+FIGURE_FORMATS = {".png": "png", ".svg": "svg"}
+DATA_FORMATS = {".csv": "csv", ".json": "json"}
+HALO = [patheffects.withStroke(linewidth=2.5, foreground="white")]
+MAIN_HEIGHT, TOP_HEIGHT, GAP = 0.8, 0.35, 0.35
+
+
+@dataclass(frozen=True)
+class Lane:
+    """A horizontal row: an agent's modes, one parallel region, or the agent's top level."""
+
+    agent: str
+    region: str  # path of the region, "" for the agent's own lane
+    label: str
+    y: float  # centre, in data coordinates
+    height: float = MAIN_HEIGHT
+    top: bool = False  # the thin row of top-level modes
+
+
+@dataclass(frozen=True)
+class Bar:
+    lane: int  # index into TimelineData.lanes
+    mode: str
+    label: str
+    start: float
+    end: float
+    color: str
+
+
+@dataclass(frozen=True)
+class Mark:
+    lane: int  # a transition tick
+    t: float
+    source: str
+    target: str
+
+
+@dataclass(frozen=True)
+class Arrow:
+    y_send: float
+    y_recv: float
+    t_send: float
+    t_recv: float  # NaN when lost
+    type: str
+    latency: float  # seconds; NaN when lost
+    lost: bool
+    sender: str = ""
+    receiver: str = ""
+
+
+@dataclass
+class TimelineData:
+    """Everything the timeline draws, in data coordinates."""
+
+    lanes: list[Lane]
+    bars: list[Bar]
+    marks: list[Mark]
+    arrows: list[Arrow]
+    span: tuple[float, float] = (0.0, 1.0)  # x limits
+    window: tuple[float, float] | None = None
+    lost: int = 0  # lost messages of the instance (summarised when there is no window)
+    legend: dict[str, str] = field(default_factory=dict)  # label -> colour
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """Plain lists of dicts; NaN (a lost message's receipt) becomes null."""
+        return {key: [{k: None if isinstance(v, float) and math.isnan(v) else v
+                       for k, v in asdict(x).items()} for x in getattr(self, key)]
+                for key in ("lanes", "bars", "marks", "arrows")}
+
+    def to_csv(self) -> str:  # the bars: what was active where, for a spreadsheet
+        out = io.StringIO()
+        writer = csv.writer(out, lineterminator="\n")
+        writer.writerow(["lane", "agent", "region", "mode", "start", "end"])
+        for b in self.bars:
+            lane = self.lanes[b.lane]
+            writer.writerow([b.lane, lane.agent, lane.region, b.mode, repr(b.start), repr(b.end)])
+        return out.getvalue()
+
+
+# ---------------------------------------------------------------------- model structure
+def pick(table: Table, instance: int) -> Table:
+    """Rows of one instance of an ensemble table."""
+    return table.filter(np.asarray(table["instance"]) == instance)
+
+
+def agent_meta(trace: Trace, agent: str) -> dict[str, Any]:
+    """The agent's entry in the trace's meta (KeyError for a payload or unknown name)."""
+    return {a["name"]: a for a in trace.meta["agents"]}[agent]
+
+
+def mode_lanes(modes: list[dict[str, Any]]) -> dict[str, str]:
+    """Each mode path -> the region lane it is drawn in ("" = the agent's lane).
+
+    A region is a child of an ``and`` mode; a mode belongs to its innermost enclosing region
+    (itself included), so nested parallel modes give nested lanes.
+    """
+    kinds = {m["path"]: m["kind"] for m in modes}
+    regions = {p for p in kinds if "." in p and kinds.get(p.rsplit(".", 1)[0]) == "and"}
+    return {p: region_of(p, regions) for p in kinds}
+
+
+def region_of(path: str, regions: set[str]) -> str:
+    parts = path.split(".") if path else []
+    inside = [".".join(parts[:k]) for k in range(len(parts), 0, -1)]
+    return next((p for p in inside if p in regions), "")
+
+
+def drawn(kind: str | None) -> bool:
+    """Deepest within its lane: a leaf, or a parallel mode (its children have own lanes)."""
+    return kind in (None, "leaf", "and")
+
+
+def team_colors(agents: list[dict[str, Any]]) -> dict[str, str]:
+    """Mode colours of a trace's team (see :func:`style.team_mode_colors`)."""
+    return team_mode_colors([(m["path"], m["final"]) for m in meta.get("modes", [])]
+                            for meta in agents)
+
+
+def end_time(trace: Trace, instance: int) -> float:
+    """When the instance ended: its outcome time, else the last recorded event or sample."""
+    outcomes = getattr(trace, "diagnostics", trace.outcomes)
+    o = outcomes[instance] if instance < len(outcomes) else {}
+    t = max([float(o.get("t") or 0.0) if isinstance(o, dict) else 0.0,
+             *pick(trace.intervals, instance)["end"].tolist()])
+    t = t if t > 0 or not len(trace.sample_times) else float(trace.sample_times[-1])
+    return t if t > 0 else float(trace.meta.get("duration") or 1.0)
+
+
+def common_ancestor(a: str, b: str) -> str:
+    """The innermost mode containing both paths (a transition lives there); "" = top."""
+    pairs = zip(a.split("."), b.split("."), strict=False)
+    same = takewhile(lambda pair: pair[0] == pair[1], pairs)
+    return ".".join(x for x, _ in same) if a else b
+
+
+# ---------------------------------------------------------------------- data
+def timeline_data(trace: Trace, instance: int = 0,
+                  window: tuple[float, float] | None = None) -> TimelineData:
+    """What the timeline of ``instance`` shows, optionally restricted to ``window``."""
+    lanes: list[Lane] = []
+    index: dict[tuple[str, str, bool], int] = {}
+    agents = trace.meta["agents"]
+    cursor = 0.0
+    for meta in agents:
+        modes = meta.get("modes", [])
+        lane_of = mode_lanes(modes)
+        regions = sorted({r for r in lane_of.values() if r},
+                         key=[m["path"] for m in modes].index)
+        composite = any(lane_of[m["path"]] == "" and drawn(m["kind"]) and m["depth"] > 1
+                        for m in modes)
+        rows = [("", True)] * composite + [("", False)] + [(r, False) for r in regions]
+        for region, top in rows:
+            h = TOP_HEIGHT if top else MAIN_HEIGHT
+            label = (f"{meta['name']} (top)" if top else
+                     f"{meta['name']} / {region}" if region else meta["name"])
+            index[(meta["name"], region, top)] = len(lanes)
+            lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, top))
+            cursor -= h + GAP
+
+    iv, tr = pick(trace.intervals, instance), pick(trace.transitions, instance)
+    bars: list[Bar] = []
+    marks: list[Mark] = []
+    legend: dict[str, str] = {}
+    used: set[tuple[str, str]] = set()
+    colors = team_colors(agents)
+    for meta in agents:
+        name = meta["name"]
+        kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
+        lane_of = mode_lanes(meta.get("modes", []))
+        mine = iv.where(agent=name)
+        mine = mine.filter(np.lexsort((mine["depth"], mine["start"])))
+        for mode, depth, start, end in zip(mine["mode"].tolist(), mine["depth"].tolist(),
+                                           mine["start"].tolist(), mine["end"].tolist(),
+                                           strict=True):
+            if window is not None and not ((start < window[1] and end > window[0])
+                                           or window[0] <= start == end <= window[1]):
+                continue
+            color, label = colors.get(mode, "#BBBBBB"), mode.rsplit(".", 1)[-1]
+            rows = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
+            rows += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
+            bars += [Bar(index[row], mode, label, start, end, color) for row in rows]
+            if rows:
+                used.add((name, mode))
+        regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
+        marks += [Mark(index[(name, region_of(common_ancestor(a, b), regions), False)], t, a, b)
+                  for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
+                                     mine_tr["target"].tolist(), strict=True)
+                  if window is None or window[0] <= t <= window[1]]
+        for path, color in colors.items():  # the legend follows the model, not the run
+            if (name, path) in used:
+                legend[path] = color
+
+    arrows: list[Arrow] = []
+    msgs = pick(trace.messages, instance)
+    lost = int(np.sum(msgs["status"] == "lost")) if len(msgs) else 0
+    ys = {lane.agent: lane.y for lane in lanes if not lane.top and not lane.region}
+    for m in msgs:
+        if m.sender not in ys or m.receiver not in ys:
+            continue
+        is_lost = m.status == "lost"
+        t_recv = math.nan if is_lost or m.t_recv is None else float(m.t_recv)
+        inside = (window[0] <= m.t_send <= window[1] or window[0] <= t_recv <= window[1]
+                  ) if window is not None else is_lost  # no window: only the lost are marked
+        if inside:
+            arrows.append(Arrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv, m.type,
+                                t_recv - m.t_send, is_lost, m.sender, m.receiver))
+    span = window if window is not None else (0.0, end_time(trace, instance))
+    return TimelineData(lanes, bars, marks, arrows, span, window, lost, legend)
+
+
+def latency_text(latency: float) -> str:
+    ms = latency * 1000.0
+    return f"+{ms:.0f} ms" if abs(ms) >= 1 or ms == 0 else f"+{ms:.2g} ms"
+
+
+# ---------------------------------------------------------------------- drawing
+def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float] | None = None
+                    ) -> tuple[Figure, TimelineData]:
+    """The timeline as a matplotlib figure (Agg canvas) and the data it shows."""
+    data = timeline_data(trace, instance, window)
+    extent = sum(lane.height + GAP for lane in data.lanes)
+    with rc_context({"font.family": FONT}):
+        fig = Figure(figsize=(11.0, 1.4 + 0.55 * extent), dpi=100)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        _draw(fig, ax, data, trace, instance)
+    return fig, data
+
+
+def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int) -> None:
+    t0, t1 = data.span
+    width = max(t1 - t0, 1e-9)
+    groups: dict[tuple[int, str], list[tuple[float, float]]] = defaultdict(list)
+    for b in data.bars:  # zero-length intervals (a final mode at the end) stay visible
+        groups[(b.lane, b.color)].append((b.start, max(b.end - b.start, width * 0.002)))
+    per_lane = np.bincount([b.lane for b in data.bars], minlength=len(data.lanes))
+    for (lane_i, color), spans in groups.items():
+        lane = data.lanes[lane_i]  # white separators, unless so dense they would wash out
+        ax.broken_barh(spans, (lane.y - lane.height / 2, lane.height), facecolors=color,
+                       edgecolors="white", linewidth=0.4 if per_lane[lane_i] < 300 else 0,
+                       gid=f"bars:{lane_i}")
+    # labels where they fit: estimate from the axes width in pixels
+    px_per_s = ax.get_position().width * fig.get_figwidth() * fig.dpi / width
+    for b in data.bars:
+        lane = data.lanes[b.lane]
+        size = 6.5 if lane.top else 8.0
+        lo, hi = max(b.start, t0), min(b.end, t1)
+        if (hi - lo) * px_per_s > len(b.label) * size * 0.62 * fig.dpi / 72 + 4:
+            ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
+                    color=text_color(b.color), clip_on=True)
+    if data.marks:  # ticks across the lower edge of the lane, all in one collection
+        lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
+                       for m in data.marks])
+        ax.vlines([m.t for m in data.marks], lo, lo + 0.22, colors="black", linewidth=0.7,
+                  gid="transitions")
+    _draw_messages(ax, data, 7 * 0.62 * fig.dpi / 72 / px_per_s)
+    pad = 0.0 if data.window else 0.01 * width
+    ax.set_xlim(t0 - pad, t1 + pad)
+    first, last = data.lanes[0], data.lanes[-1]
+    ax.set_ylim(last.y - last.height / 2 - 0.2, first.y + first.height / 2 + 0.2)
+    ax.set_yticks([lane.y for lane in data.lanes], [lane.label for lane in data.lanes])
+    for tick, lane in zip(ax.get_yticklabels(), data.lanes, strict=True):
+        tick.set(fontsize=7 if lane.top else 9, color="#555555" if lane.top else "black")
+    ax.set_xlabel("time (s)")
+    ax.grid(axis="x", color="#DDDDDD", linewidth=0.6)
+    ax.set_axisbelow(True)
+    title = str(trace.meta.get("team", "")) + (f" — instance {instance}" if trace.n > 1 else "")
+    ax.set_title(title + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else
+                          f" — {data.lost} message{'s' * (data.lost != 1)} lost (×)"
+                          if data.lost else ""))
+    handles = [Patch(facecolor=c, label=label) for label, c in data.legend.items()]
+    if handles:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+                  frameon=False, title="modes", ncol=1 + len(handles) // 30)
+
+
+def _draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
+    """Arrows for all messages; a label only where it does not run into the previous one
+    at the same height (``char_width``: seconds per character of label text)."""
+    lost: list[tuple[float, float]] = []
+    free_from: dict[float, float] = {}  # label row (y) -> time where it is free again
+    for a in data.arrows:
+        if a.lost:
+            lost.append((a.t_send, a.y_send))
+            if data.window:
+                ax.annotate(a.type, (a.t_send, a.y_send), xytext=(5, 6),
+                            textcoords="offset points", fontsize=7, color="#CC0000",
+                            path_effects=HALO, gid="lost-label")
+            continue
+        # an annotation keeps its end points as data (xyann -> xy), exactly send -> receipt
+        ax.annotate("", xy=(a.t_recv, a.y_recv), xytext=(a.t_send, a.y_send), zorder=4,
+                    gid="message", arrowprops={"arrowstyle": "-|>", "mutation_scale": 9,
+                                               "shrinkA": 0, "shrinkB": 0, "color": "#333333",
+                                               "linewidth": 0.9})
+        x, y = (a.t_send + a.t_recv) / 2, (a.y_send + a.y_recv) / 2
+        text = f"{a.type} {latency_text(a.latency)}"
+        if x >= free_from.get(y, -math.inf):
+            free_from[y] = x + (len(text) + 1) * char_width
+            ax.text(x, y, text, fontsize=7, ha="left", va="center", zorder=5, path_effects=HALO,
+                    clip_on=True, gid="message-label")
+    if lost:
+        ax.plot(*zip(*lost, strict=True), linestyle="none", marker="X", color="#CC0000",
+                markersize=8, markeredgecolor="white", markeredgewidth=0.5, zorder=6, gid="lost")
+
+
+# ---------------------------------------------------------------------- files
+def figure_format(path: str | os.PathLike, formats: dict[str, str] = FIGURE_FORMATS) -> str:
+    suffix = Path(path).suffix.lower()
+    if suffix not in formats:
+        raise ValueError(f"{path}: unsupported format {suffix or '(none)'}; "
+                         f"use one of {', '.join(formats)}")
+    return formats[suffix]
+
+
+def write_bytes_atomic(path: Path, data: bytes) -> Path:
+    """Bytes twin of :func:`hybridteam.trace.write_atomic`: temp file, then rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temp_path(path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def temp_path(path: Path) -> Path:
+    """A hidden name beside ``path`` keeping its extension (writers pick formats by it)."""
+    return path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
+
+
+def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
+    """Save as PNG or SVG (by extension) without leaving a partial file; text stays text in
+    SVG (searchable, and the names can be checked), and no date is stamped into it."""
+    path = Path(path)
+    fmt = figure_format(path)
+    buf = io.BytesIO()
+    metadata = {"Date": None} if fmt == "svg" else None
+    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "hybridteam"}):
+        fig.savefig(buf, format=fmt, bbox_inches="tight", dpi=fig.dpi, metadata=metadata)
+    return write_bytes_atomic(path, buf.getvalue())
+
+
+def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
+                   window: tuple[float, float] | None = None,
+                   data_path: str | os.PathLike | None = None) -> Path:
+    """Write the timeline (.png/.svg) and, when ``data_path`` is given, its data (.csv/.json)."""
+    figure_format(path)
+    kind = None if data_path is None else figure_format(data_path, DATA_FORMATS)
+    fig, data = timeline_figure(trace, instance, window)
+    try:
+        save_figure(fig, path)
+    finally:
+        fig.clear()
+    if data_path is not None:
+        text = data.to_csv() if kind == "csv" else json.dumps(data.to_json_dict(), allow_nan=False)
+        write_atomic(Path(data_path), text)
+    return Path(path)

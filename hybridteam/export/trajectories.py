@@ -1,0 +1,380 @@
+"""Where the robots went: paths in the plane, or state against time for flow plants.
+
+For planar agents (state with x and y) a reader wants the geometry — paths, the robot's
+footprint and heading every so often, the world it moved in, the payload it carried — and
+where along the path the mode changed; those points are numbered in time order across the
+team ("1R", "2A", ...) so a figure and a timeline can be read together. Flow agents have no
+geometry, so each state component is drawn against time, coloured by the active mode.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib import rc_context
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import EllipseCollection, LineCollection, PolyCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Polygon
+
+from hybridteam.export.style import FONT, PALETTE
+from hybridteam.export.timeline import (
+    HALO,
+    agent_meta,
+    drawn,
+    end_time,
+    mode_lanes,
+    pick,
+    save_figure,
+    team_colors,
+)
+from hybridteam.trace import Table, Trace
+
+MAX_NUMBERS = 120  # beyond this, numbered labels only on every k-th change (legibility)
+LINESTYLES = ("solid", "dashed", "dashdot", "dotted")
+
+
+# ---------------------------------------------------------------------- what is what
+def main_lane_intervals(trace: Trace, instance: int, agent: str) -> Table:
+    """Intervals of the modes drawn in the agent's own lane, sorted by start: the agent's
+    "current mode" for plots that colour by mode."""
+    meta = agent_meta(trace, agent)
+    kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
+    lanes = mode_lanes(meta.get("modes", []))
+    iv = pick(trace.intervals, instance).where(agent=agent)
+    keep = np.array([lanes.get(m, "") == "" and drawn(kinds.get(m)) for m in iv["mode"]], bool)
+    iv = iv.filter(keep) if len(iv) else iv
+    return iv.filter(np.argsort(iv["start"], kind="stable"))
+
+
+def payload_names(trace: Trace) -> list[str]:
+    names = [p["name"] if isinstance(p, dict) else str(p)
+             for p in trace.meta.get("payloads", []) or []]
+    return [p for p in names if p in trace.samples]
+
+
+def planar_agents(trace: Trace) -> list[str]:
+    """Agents with x and y in their state (payloads excluded: they are drawn as loads)."""
+    payloads = set(payload_names(trace))
+    return [a["name"] for a in trace.meta["agents"]
+            if a["name"] not in payloads and {"x", "y"} <= set(a["state"])]
+
+
+def flow_agents(trace: Trace) -> list[str]:
+    """Agents without a position: drawn as state against time."""
+    payloads = set(payload_names(trace))
+    return [a["name"] for a in trace.meta["agents"]
+            if a["name"] not in payloads and not {"x", "y"} <= set(a["state"])]
+
+
+def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
+    """(K, 3) x, y, theta of an agent or payload (theta 0 when its state has none)."""
+    try:
+        states = agent_meta(trace, name)["state"]
+    except KeyError:
+        states = ["x", "y", "theta"]
+    s = trace.samples[name][:, instance]
+    out = np.zeros((len(s), 3))
+    for k, key in enumerate(("x", "y", "theta")):
+        if key in states:
+            out[:, k] = s[:, states.index(key)]
+        else:
+            out[:, k] = np.where(np.isnan(s[:, 0]), np.nan, 0.0)
+    return out
+
+
+def letters(names: Sequence[str]) -> dict[str, str]:
+    """First letter of each name, upper case; longer prefixes only where two would clash."""
+    out: dict[str, str] = {}
+    for name in names:
+        k = 1
+        while k < len(name) and any(v == name[:k].upper() for v in out.values()):
+            k += 1
+        out[name] = name[:k].upper()
+    return out
+
+
+def nice_step(span: float, count: int = 10) -> float:
+    """A round spacing (1, 2, 2.5, 5 x 10^k) giving about ``count`` footprints per run."""
+    raw = max(span, 1e-9) / count
+    mag = 10 ** math.floor(math.log10(raw))
+    return min((m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= raw), default=10 * mag)
+
+
+def footprint_indices(times: np.ndarray, valid: np.ndarray, every: float) -> np.ndarray:
+    """First sample at or after t0, t0 + every, ... while the agent is alive (valid)."""
+    if not valid.any():
+        return np.zeros(0, int)
+    t_valid = times[valid]
+    marks = np.arange(t_valid[0], t_valid[-1] + every * 1e-9, every)
+    idx = np.clip(np.searchsorted(t_valid, marks), 0, len(t_valid) - 1)
+    return np.unique(np.flatnonzero(valid)[idx])
+
+
+def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
+                 modes: Sequence[str] | None) -> list[tuple[float, int, str, str]]:
+    """(t, step, agent, target) of the numbered points, in time order.
+
+    Default: every transition into a leaf (the start, numbered 0, is not one). With
+    ``modes``: transitions whose source or target is one of those paths or lies inside one.
+    """
+    tr = pick(trace.transitions, instance)
+    out = []
+    leaves = {a: {m["path"] for m in agent_meta(trace, a).get("modes", []) if m["kind"] == "leaf"}
+              for a in agents}
+
+    def inside(path: str) -> bool:
+        return any(path == m or path.startswith(m + ".") for m in modes or ())
+
+    for row in tr:
+        if row.agent not in leaves or row.cause == "init":
+            continue
+        selected = inside(row.source) or inside(row.target)
+        if selected if modes else row.target in leaves[row.agent]:
+            out.append((row.t, row.step, row.agent, row.target))
+    order = {a: k for k, a in enumerate(agents)}
+    return sorted(out, key=lambda r: (r[0], r[1], order[r[2]]))
+
+
+# ---------------------------------------------------------------------- world and payloads
+def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
+    """Walls, obstacles and labelled regions, under everything else."""
+    if not world:
+        return
+    for region in world.get("regions", []) or []:
+        pts = np.asarray(region["points"] if isinstance(region, dict) else region, float)
+        ax.add_patch(Polygon(pts, closed=True, facecolor="#F2E6B8", edgecolor="#C8B46A",
+                             alpha=0.6, zorder=0, gid="region"))
+        label = region.get("label") if isinstance(region, dict) else None
+        if label:
+            cx, cy = pts.mean(axis=0)
+            ax.text(cx, cy, label, ha="center", va="center", fontsize=8, color="#7A6A2A",
+                    zorder=1, gid="region-label")
+    for ob in world.get("obstacles", []) or []:
+        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1, "gid": "obstacle"}
+        if ob.get("kind") == "circle":
+            ax.add_patch(Circle((ob["x"], ob["y"]), ob["r"], **style))
+        else:
+            ax.add_patch(Polygon(np.asarray(ob["points"], float), closed=True, **style))
+    walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
+    if len(walls):
+        ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
+                                         linewidths=2.5, zorder=2, gid="walls"))
+
+
+def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.ndarray:
+    """Corners of a payload shape at a pose (a bar is a thin rectangle)."""
+    if shape.get("kind") == "bar":
+        w, d = float(shape["length"]), float(shape.get("width", shape["length"] * 0.04))
+    else:
+        w, d = float(shape["width"]), float(shape["depth"])
+    corners = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2
+    c, s = math.cos(th), math.sin(th)
+    return corners @ np.array([[c, s], [-s, c]]) + [x, y]
+
+
+def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> None:
+    shapes = trace.meta.get("payload_shapes", {}) or {}
+    for k, name in enumerate(payload_names(trace)):
+        p = pose(trace, name, instance)
+        ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
+        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        polys = [payload_outline(shape, *p[i]) for i in ok]
+        color = PALETTE[(k + 5) % len(PALETTE)]
+        ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
+                                         alpha=0.35, linewidths=0.6, zorder=3,
+                                         gid=f"payload:{name}"))
+        ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, linestyle="dotted", zorder=3)
+
+
+# ---------------------------------------------------------------------- planar
+def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
+                modes: Sequence[str] | None) -> None:
+    agents = planar_agents(trace)
+    times = trace.sample_times
+    draw_world(ax, trace.meta.get("world"))
+    poses = {a: pose(trace, a, instance) for a in agents}
+    pts = np.concatenate([p[:, :2] for p in poses.values()]) if poses else np.zeros((0, 2))
+    pts = pts[~np.isnan(pts).any(axis=1)]
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 1.0
+    every = every or nice_step(end_time(trace, instance), 10)
+    letter = letters(agents)
+    all_idx = np.zeros(0, int)
+    for k, a in enumerate(agents):
+        p, color = poses[a], PALETTE[k % len(PALETTE)]
+        valid = ~np.isnan(p[:, 0])
+        ax.plot(p[:, 0], p[:, 1], color=color, linewidth=1.4, label=a, zorder=4, gid=f"path:{a}")
+        idx = footprint_indices(times, valid, every)
+        all_idx = np.union1d(all_idx, idx)
+        radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
+        xy = p[idx, :2]
+        heading = np.c_[np.cos(p[idx, 2]), np.sin(p[idx, 2])]
+        if radius:
+            ax.add_collection(EllipseCollection(
+                np.full(len(idx), 2 * radius), np.full(len(idx), 2 * radius), 0.0,
+                units="xy", offsets=xy, offset_transform=ax.transData, facecolors="none",
+                edgecolors=color, linewidths=0.8, zorder=5, gid=f"footprints:{a}"))
+            heads = np.stack([xy, xy + float(radius) * heading], 1)
+            ax.add_collection(LineCollection(heads, colors=color, linewidths=1.0, zorder=5,
+                                             gid=f"headings:{a}"))
+        else:
+            # no footprint size known: a small pose triangle pointing along the heading, which
+            # cannot be mistaken for a piece of path (a heading line could)
+            size = 0.018 * max(extent, 1e-9)
+            side = np.c_[-heading[:, 1], heading[:, 0]]
+            tri = np.stack([xy + size * heading, xy - 0.6 * size * heading + 0.55 * size * side,
+                            xy - 0.6 * size * heading - 0.55 * size * side], 1)
+            ax.add_collection(PolyCollection(tri, facecolors=color, edgecolors="white",
+                                             linewidths=0.4, alpha=0.9, zorder=5,
+                                             gid=f"footprints:{a}"))
+        if valid.any():
+            x0, y0 = p[np.flatnonzero(valid)[0], :2]
+            ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)
+            ax.annotate(f"0{letter[a]}", (x0, y0), xytext=(-6, -12), textcoords="offset points",
+                        fontsize=8, fontweight="bold", color=color, path_effects=HALO,
+                        zorder=7, gid="start")
+    draw_payloads(ax, trace, instance, all_idx)
+    changes = mode_changes(trace, instance, agents, modes)
+    stride = max(1, math.ceil(len(changes) / MAX_NUMBERS))
+    at = np.full((len(changes), 2), np.nan)
+    for a in agents:  # positions at the change times, one interpolation per agent
+        rows = [k for k, c in enumerate(changes) if c[2] == a]
+        valid = ~np.isnan(poses[a][:, 0])
+        if rows and valid.any():
+            ts = [changes[k][0] for k in rows]
+            at[rows] = np.c_[np.interp(ts, times[valid], poses[a][valid, 0]),
+                             np.interp(ts, times[valid], poses[a][valid, 1])]
+    placed: list[tuple[float, float]] = []
+    tol = 0.015 * max(extent, 1e-9)
+    for n, ((_t, _step, a, _target), (x, y)) in enumerate(zip(changes, at, strict=True), 1):
+        if (n - 1) % stride == 0 and not np.isnan(x):  # labels at one spot stack upwards
+            near = sum(abs(x - px) < tol and abs(y - py) < tol for px, py in placed)
+            placed.append((x, y))
+            ax.annotate(f"{n}{letter[a]}", (x, y), xytext=(4, 4 + 9 * near),
+                        textcoords="offset points",
+                        fontsize=7.5, color="#111111", path_effects=HALO, zorder=8,
+                        gid="change")
+    if len(at):
+        ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(color="#E0E0E0", linewidth=0.6)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    if agents:
+        # "best" scans every plotted point: fine for a short run, seconds for a long one
+        ax.legend(loc="best" if len(pts) < 20_000 else "upper right", fontsize=8,
+                  framealpha=0.8)
+    if stride > 1:
+        ax.text(0.01, 0.01, f"numbers shown on every {stride}th mode change",
+                transform=ax.transAxes, fontsize=7, color="#666666")
+
+
+# ---------------------------------------------------------------------- flow
+def draw_flow(ax: Any, trace: Trace, instance: int, agent: str) -> None:
+    """Each state component against time, segment by segment in the active mode's colour."""
+    times = trace.sample_times
+    meta = agent_meta(trace, agent)
+    colors = team_colors(trace.meta["agents"])
+    iv = main_lane_intervals(trace, instance, agent)
+    starts, mode_of = iv["start"], iv["mode"]
+    s = trace.samples[agent][:, instance]
+    tr = pick(trace.transitions, instance).where(agent=agent)
+    ts = np.sort(tr["t"][tr["cause"] != "init"])
+    used: dict[str, str] = {}
+    if len(times) > 1 and len(starts):
+        runs = mode_runs(times, s, starts, ts)
+        for k, name in enumerate(meta["state"]):
+            y = s[:, k]
+            lines = [np.c_[times[a : b + 1], y[a : b + 1]] for a, b, _ in runs]
+            ax.add_collection(LineCollection(
+                lines, colors=[colors.get(mode_of[m], "#777777") for _, _, m in runs],
+                linewidths=1.4, zorder=3, linestyles=LINESTYLES[k % len(LINESTYLES)],
+                gid=f"state:{name}"))
+        for _, _, m in runs:
+            used[mode_of[m]] = colors.get(mode_of[m], "#777777")
+    if len(ts):
+        ax.vlines(ts, 0, 1, transform=ax.get_xaxis_transform(), colors="#888888",
+                  linestyles="dotted", linewidth=0.7, zorder=1, gid="transitions")
+    ax.autoscale_view()
+    ax.set_xlim(float(times[0]) if len(times) else 0.0, end_time(trace, instance))
+    ax.set_ylabel(", ".join(meta["state"]))
+    ax.set_title(agent, fontsize=10, loc="left")
+    ax.grid(color="#E8E8E8", linewidth=0.6)
+    handles = [Line2D([], [], color=c, linewidth=2, label=m) for m, c in sorted(
+        used.items(), key=lambda mc: list(colors).index(mc[0]) if mc[0] in colors else 0)]
+    if len(meta["state"]) > 1:  # components differ by line style, modes by colour
+        handles += [Line2D([], [], color="#444444", linewidth=1.2, label=name,
+                           linestyle=LINESTYLES[k % len(LINESTYLES)])
+                    for k, name in enumerate(meta["state"])]
+    if handles:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+                  frameon=False, title="modes / state" if len(meta["state"]) > 1 else "modes")
+
+
+def mode_runs(times: np.ndarray, s: np.ndarray, starts: np.ndarray,
+              switches: np.ndarray) -> list[tuple[int, int, int]]:
+    """(first, last sample, interval) of each stretch sampled in one mode interval.
+
+    A segment between two samples with a transition strictly between them is not drawn: the
+    state may jump there (a reset) and a straight line would invent values; the gap is one
+    sample period wide. Stretches are whole polylines so dash patterns read as one line.
+    """
+    mid = (times[:-1] + times[1:]) / 2
+    key = np.clip(np.searchsorted(starts, mid, side="right") - 1, 0, len(starts) - 1)
+    alive = ~(np.isnan(s[:-1]).any(axis=1) | np.isnan(s[1:]).any(axis=1))
+    crossed = (np.searchsorted(switches, times[1:], side="left")
+               > np.searchsorted(switches, times[:-1], side="right"))
+    key = np.where(alive & ~crossed, key, -1)
+    edges = np.flatnonzero(np.diff(key)) + 1
+    runs = []
+    for a, b in zip(np.r_[0, edges], np.r_[edges, len(key)], strict=True):
+        if key[a] >= 0:
+            runs.append((int(a), int(b), int(key[a])))  # segments a..b-1 = samples a..b
+    return runs
+
+
+# ---------------------------------------------------------------------- figure and file
+def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = None,
+                      modes: Sequence[str] | None = None) -> Figure:
+    """Planar agents in one equal-aspect plot; flow agents one time plot each below it.
+
+    ``every``: seconds between drawn footprints (default: about ten along the run);
+    ``modes``: the mode paths whose changes are numbered (default: every leaf transition).
+    """
+    planar, flows = planar_agents(trace), flow_agents(trace)
+    heights = ([3.2] if planar else []) + [1.8] * len(flows)
+    with rc_context({"font.family": FONT}):
+        fig = Figure(figsize=(8.0, 0.8 + max(sum(heights), 2.0)), dpi=100)
+        FigureCanvasAgg(fig)
+        grid = fig.add_gridspec(max(len(heights), 1), 1, height_ratios=heights or [1])
+        row = 0
+        if planar:
+            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes)
+            row = 1
+        for k, agent in enumerate(flows):
+            ax = fig.add_subplot(grid[row + k])
+            draw_flow(ax, trace, instance, agent)
+            if k == len(flows) - 1:
+                ax.set_xlabel("time (s)")
+        title = str(trace.meta.get("team", ""))
+        if trace.n > 1:
+            title += f" — instance {instance}"
+        fig.suptitle(title)
+        fig.set_layout_engine("constrained")
+    return fig
+
+
+def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0,
+                       **kw: Any) -> Path:
+    """Write :func:`trajectory_figure` as .png or .svg (chosen by the extension)."""
+    fig = trajectory_figure(trace, instance, **kw)
+    try:
+        return save_figure(fig, path)
+    finally:
+        fig.clear()

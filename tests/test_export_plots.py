@@ -1,0 +1,184 @@
+"""Trajectory figures and animations: paths, numbered mode changes, worlds, payloads, files."""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from matplotlib.collections import EllipseCollection, LineCollection, PolyCollection
+from matplotlib.colors import to_rgba
+from matplotlib.image import imread
+from PIL import Image
+
+import hybridteam as ht
+from hybridteam.export import animate
+from hybridteam.export.animate import frame_times, write_animation
+from hybridteam.export.style import mode_colors
+from hybridteam.export.trajectories import trajectory_figure, write_trajectories
+from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
+from tests.conftest import EXAMPLES
+
+AUTOMATA = sorted((EXAMPLES / "automata").glob("*.yaml"))
+NUMBERED = re.compile(r"^([1-9]\d*)([A-Z]+)$")
+
+
+def by_gid(artists, gid: str) -> list:
+    return [a for a in artists if a.get_gid() == gid]
+
+
+@pytest.mark.parametrize("example", AUTOMATA, ids=lambda p: p.stem)
+def test_every_example_writes_trajectories_and_a_gif(example, tmp_path):
+    run = ht.simulate(ht.load(example), duration=10.0)
+    png = write_trajectories(run, tmp_path / "tr.png")
+    svg = write_trajectories(run, tmp_path / "tr.svg")
+    gif = write_animation(run, tmp_path / "run.gif", fps=10, duration=0.6)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    h, w, channels = imread(png).shape
+    assert h > 150 and w > 300 and channels in (3, 4)
+    root = ET.parse(svg).getroot()
+    text = " ".join("".join(el.itertext()) for el in root.iter() if el.tag.endswith("text"))
+    assert all(agent in text for agent in run.agents)
+    assert gif.read_bytes()[:6] == b"GIF89a"
+    with Image.open(gif) as im:
+        assert im.n_frames == 6 and im.size[0] > 300
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.gif", "tr.png", "tr.svg"]
+
+
+def test_relay_paths_start_labels_and_numbered_mode_changes():
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "relay.yaml"))
+    fig = trajectory_figure(run)
+    (ax,) = fig.axes
+    paths = {ln.get_gid(): ln for ln in ax.lines if (ln.get_gid() or "").startswith("path:")}
+    assert set(paths) == {"path:runner", "path:anchor"}
+    runner_x = paths["path:runner"].get_xdata()
+    end_x = runner_x[~np.isnan(runner_x)][-1]
+    samples = run.samples["runner"][:, 0, 0]
+    assert end_x == samples[~np.isnan(samples)][-1] == pytest.approx(5.0, abs=1e-9)
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0R"]
+    numbers = [t.get_text() for t in by_gid(ax.texts, "change")]
+    leaf_changes = [r for r in run.transitions if r.cause != "init"]  # all modes are leaves
+    assert len(numbers) == len(leaf_changes) == 4
+    # numbered in time order across the team: runner and anchor switch at t=5 and t=8.14
+    assert numbers == ["1R", "2A", "3A", "4R"]
+    # each number sits where its agent was at the switch; shared spots stack the labels
+    one = by_gid(ax.texts, "change")[0]
+    assert one.xy == pytest.approx((5.0, 0.0), abs=1e-9)
+    offsets = sorted(t.xyann[1] for t in by_gid(ax.texts, "change") if t.get_text()[-1] == "R")
+    assert offsets[0] < offsets[1]
+    assert ax.get_aspect() == 1.0 and ax.get_title() == "" and fig.get_suptitle() == "relay"
+
+
+def test_selected_modes_restrict_the_numbering():
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "unicycle_square.yaml"))
+    fig = trajectory_figure(run, modes=["Turn"])
+    numbers = [t.get_text() for t in by_gid(fig.axes[0].texts, "change")]
+    # 4 entries into Turn and 4 exits from it (3 to Drive, 1 to Done)
+    assert numbers == [f"{k}R" for k in range(1, 9)]
+    fig = trajectory_figure(run, every=5.0)
+    (foot,) = [c for c in fig.axes[0].collections if c.get_gid() == "footprints:robot"]
+    assert len(foot.get_paths()) == 6  # t = 0, 5, 10, 15, 20, 25 while the robot is alive
+
+
+def synthetic_trace() -> Trace:
+    """Two robots carrying a bar through a walled room: a hand-built trace with a world."""
+    times = np.linspace(0.0, 10.0, 101)
+    n = len(times)
+    a = np.c_[times * 0.5, np.zeros(n), np.zeros(n)]
+    b = np.c_[times * 0.5, np.ones(n), np.zeros(n)]
+    bar = np.c_[times * 0.5, np.full(n, 0.5), np.full(n, np.pi / 2)]
+    b[90:] = np.nan  # robot b's instance part ends early
+    modes = [{"path": "Carry", "depth": 1, "kind": "leaf", "final": False},
+             {"path": "Stop", "depth": 1, "kind": "leaf", "final": True}]
+    agents = [{"name": name, "plant": "holonomic", "state": ["x", "y", "theta"],
+               "inputs": ["vx", "vy", "omega"], "modes": modes,
+               "footprint": {"radius": 0.2}} for name in ("alpha", "beta")]
+    meta = {"team": "carry", "n": 1, "seed": 0, "duration": 10.0, "agents": agents,
+            "payloads": ["bar"], "payload_shapes": {"bar": {"kind": "bar", "length": 1.4}},
+            "world": {"walls": [[-1, -1, 6, -1], [-1, 2, 6, 2], [-1, -1, -1, 2]],
+                      "obstacles": [{"kind": "circle", "x": 3, "y": -0.5, "r": 0.2},
+                                    {"kind": "polygon", "points": [[4, 1.6], [5, 1.6], [5, 2]]}],
+                      "regions": [{"points": [[5, 0], [6, 0], [6, 1], [5, 1]],
+                                   "label": "corner"}]}}
+    transitions = Table(TRANSITION_COLUMNS, {
+        "instance": [0, 0, 0, 0], "agent": ["alpha", "beta", "beta", "alpha"],
+        "t": [0.0, 0.0, 8.9, 10.0], "step": [0, 0, 0, 0], "source": ["", "", "Carry", "Carry"],
+        "target": ["Carry", "Carry", "Stop", "Stop"], "cause": ["init", "init", "guard", "after"],
+        "guard": ["", "", "", ""]})
+    intervals = Table(INTERVAL_COLUMNS, {
+        "instance": [0] * 4, "agent": ["alpha", "beta", "beta", "alpha"],
+        "mode": ["Carry", "Carry", "Stop", "Stop"], "depth": [1] * 4,
+        "start": [0.0, 0.0, 8.9, 10.0], "end": [10.0, 8.9, 8.9, 10.0]})
+    outcomes = [{"instance": 0, "outcome": "ok", "t": 10.0, "message": ""}]
+    return Trace(meta, outcomes, transitions, intervals, Table(MESSAGE_COLUMNS), times,
+                 {"alpha": a[:, None, :], "beta": b[:, None, :], "bar": bar[:, None, :]})
+
+
+def test_world_payload_and_footprints_are_drawn(tmp_path):
+    trace = synthetic_trace()
+    fig = trajectory_figure(trace, every=2.0)
+    (ax,) = fig.axes  # the payload is not a robot: no extra subplot for it
+    (walls,) = by_gid(ax.collections, "walls")
+    assert isinstance(walls, LineCollection) and len(walls.get_segments()) == 3
+    np.testing.assert_allclose(walls.get_segments()[0], [[-1, -1], [6, -1]])
+    assert len(by_gid(ax.patches, "obstacle")) == 2
+    assert len(by_gid(ax.patches, "region")) == 1
+    assert [t.get_text() for t in by_gid(ax.texts, "region-label")] == ["corner"]
+    (foot,) = by_gid(ax.collections, "footprints:alpha")
+    assert isinstance(foot, EllipseCollection) and len(foot.get_offsets()) == 6
+    (foot_b,) = by_gid(ax.collections, "footprints:beta")
+    assert len(foot_b.get_offsets()) == 5  # beta ended at 8.9 s: 0, 2, 4, 6, 8
+    (payload,) = by_gid(ax.collections, "payload:bar")
+    assert isinstance(payload, PolyCollection) and len(payload.get_paths()) == 6
+    # the bar is 1.4 long and turned 90 degrees: vertical, centred on the pose
+    corners = payload.get_paths()[0].vertices[:4]
+    assert np.ptp(corners[:, 1]) == pytest.approx(1.4)
+    assert corners[:, 0].mean() == pytest.approx(0.0) and corners[:, 1].mean() == 0.5
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0B"]
+    assert [t.get_text() for t in by_gid(ax.texts, "change")] == ["1B", "2A"]
+    gif = write_animation(trace, tmp_path / "carry.gif", fps=10, duration=0.5)
+    with Image.open(gif) as im:
+        assert im.n_frames == 5
+
+
+def test_without_world_nothing_extra_is_drawn():
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "unicycle_square.yaml"))
+    ax = trajectory_figure(run).axes[0]
+    for gid in ("walls", "obstacle", "region"):
+        assert not by_gid([*ax.collections, *ax.patches], gid)
+    assert not [c for c in ax.collections if (c.get_gid() or "").startswith("payload")]
+
+
+def test_flow_agents_plot_state_against_time_coloured_by_mode():
+    team = ht.load(EXAMPLES / "automata" / "thermostat.yaml")
+    run = ht.simulate(team, duration=20.0)
+    fig = trajectory_figure(run)
+    (ax,) = fig.axes
+    (state,) = by_gid(ax.collections, "state:x")
+    colors = mode_colors(["Heat", "Cool"])
+    iv = run.intervals
+    # one polyline per mode interval, in that interval's colour
+    assert len(state.get_paths()) == len(iv)
+    got = [tuple(c) for c in state.get_colors()]
+    assert got == [to_rgba(colors[m]) for m in iv["mode"]]
+    for path, start, end in zip(state.get_paths(), iv["start"], iv["end"], strict=True):
+        t = path.vertices[:, 0]
+        assert start <= t.min() and t.max() <= end
+    (ticks,) = by_gid(ax.collections, "transitions")
+    assert sorted(s[0, 0] for s in ticks.get_segments()) == run.transitions["t"][1:].tolist()
+    assert {t.get_text() for t in ax.get_legend().get_texts()} == {"Heat", "Cool"}
+
+
+def test_frames_are_capped_and_mp4_needs_ffmpeg(tmp_path, monkeypatch):
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "thermostat.yaml"))
+    assert len(frame_times(run, 0, 20, None)) == 300  # 1601 samples, capped
+    assert len(frame_times(run, 0, 20, 2.0)) == 40
+    times = frame_times(run, 0, 20, 2.0)
+    assert times[0] == 0.0 and times[-1] == run.diagnostics[0]["t"]
+    monkeypatch.setattr(animate.shutil, "which", lambda name: None)
+    with pytest.raises(RuntimeError, match=re.escape("ffmpeg is not installed; write a .gif")):
+        write_animation(run, tmp_path / "run.mp4")
+    with pytest.raises(ValueError, match="unsupported animation format"):
+        write_animation(run, tmp_path / "run.avi")
+    assert list(tmp_path.iterdir()) == []
