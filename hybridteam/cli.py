@@ -112,6 +112,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_OK
 
 
+def load_team_or_report(path: str):
+    """The team in ``path``, or None after printing its located errors to stderr."""
+    from hybridteam.io.loader import InputErrors, load_team
+
+    try:
+        return load_team(path)
+    except InputErrors as exc:
+        for err in exc.errors:
+            print(err, file=sys.stderr)
+        return None
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     from hybridteam.io.loader import InputErrors, load
 
@@ -156,7 +168,6 @@ def _overrides(items: list[str], n: int | None) -> tuple[dict[str, list[float]],
 
 def cmd_run(args: argparse.Namespace) -> int:
     from hybridteam.api import simulate
-    from hybridteam.io.loader import InputErrors, load_team
     from hybridteam.trace import write_atomic
 
     if args.n is not None and args.n < 1:
@@ -168,11 +179,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise UsageError(f"output '{out}' exists and is not a folder")
-    try:
-        team = load_team(args.team)
-    except InputErrors as exc:
-        for err in exc.errors:
-            print(err, file=sys.stderr)
+    team = load_team_or_report(args.team)
+    if team is None:
         return EXIT_USAGE
     overrides, n = _overrides(args.set, args.n)
     bar = None

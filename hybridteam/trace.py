@@ -212,10 +212,22 @@ class Trace:
         return written
 
 
-def write_atomic(path: Path, text: str) -> Path:
+def temp_path(path: Path) -> Path:
+    """A hidden name beside ``path`` keeping its extension (writers pick formats by it)."""
+    return path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
+
+
+def write_atomic(path: Path, content: str | bytes) -> Path:
     """Write to a temporary name beside ``path``, then rename: never a half-written file."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    tmp = temp_path(path)
+    try:
+        if isinstance(content, str):
+            tmp.write_text(content, encoding="utf-8")
+        else:
+            tmp.write_bytes(content)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path

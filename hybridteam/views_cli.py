@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from hybridteam.cli import EXIT_OK, EXIT_USAGE, UsageError
+from hybridteam.cli import EXIT_OK, EXIT_USAGE, UsageError, load_team_or_report
 from hybridteam.trace import Trace, write_atomic
 
 IMAGE = (".png", ".svg")
@@ -47,7 +47,6 @@ def _suffix(path: str, allowed: tuple[str, ...], what: str) -> str:
 def cmd_diagram(args: argparse.Namespace) -> int:
     from hybridteam.export.diagram import diagram_graph
     from hybridteam.export.render import RENDERERS, render
-    from hybridteam.io.loader import InputErrors, load_team
 
     fmt = args.format
     if fmt is None:
@@ -61,28 +60,15 @@ def cmd_diagram(args: argparse.Namespace) -> int:
                          + (f"; {hint}" if hint else ""))
     if fmt in ("svg", "png") and not args.output:
         raise UsageError(f"a {fmt} diagram needs -o FILE")
-    try:
-        team = load_team(args.model)
-    except InputErrors as exc:
-        for err in exc.errors:
-            print(err, file=sys.stderr)
+    team = load_team_or_report(args.model)
+    if team is None:
         return EXIT_USAGE
     out = render(diagram_graph(team), fmt)
     if args.output:
-        _write(Path(args.output), out)
+        write_atomic(Path(args.output), out)
     else:
         sys.stdout.write(out if isinstance(out, str) else out.decode())
     return EXIT_OK
-
-
-def _write(path: Path, content: str | bytes) -> None:
-    if isinstance(content, str):
-        write_atomic(path, content)
-        return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(content)
-    tmp.replace(path)
 
 
 def cmd_timeline(args: argparse.Namespace) -> int:
@@ -154,7 +140,7 @@ def write_run_views(team, run, out: Path) -> list[str]:
     graph = diagram_graph(team)
     written = []
     for name, fmt in (("modes.dot", "dot"), ("modes.mmd", "mermaid"), ("modes.svg", "svg")):
-        _write(out / name, render(graph, fmt))
+        write_atomic(out / name, render(graph, fmt))
         written.append(name)
     trace = run.instance(0) if run.n > 1 else run
     for name in ("timeline.png", "timeline.svg"):

@@ -22,7 +22,7 @@ from matplotlib.patches import Circle
 from PIL import Image
 
 from hybridteam.export.style import FONT, PALETTE
-from hybridteam.export.timeline import HALO, agent_meta, end_time, temp_path
+from hybridteam.export.timeline import HALO, agent_meta, end_time
 from hybridteam.export.trajectories import (
     draw_flow,
     draw_world,
@@ -31,7 +31,7 @@ from hybridteam.export.trajectories import (
     planar_agents,
     pose,
 )
-from hybridteam.trace import Trace
+from hybridteam.trace import Trace, temp_path
 
 MAX_FRAMES = 300
 FORMATS = (".gif", ".mp4")

@@ -345,23 +345,6 @@ def figure_format(path: str | os.PathLike, formats: dict[str, str] = FIGURE_FORM
     return formats[suffix]
 
 
-def write_bytes_atomic(path: Path, data: bytes) -> Path:
-    """Bytes twin of :func:`hybridteam.trace.write_atomic`: temp file, then rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temp_path(path)
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
-
-
-def temp_path(path: Path) -> Path:
-    """A hidden name beside ``path`` keeping its extension (writers pick formats by it)."""
-    return path.with_name(f".{path.stem}.tmp-{os.getpid()}{path.suffix}")
-
-
 def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
     """Save as PNG or SVG (by extension) without leaving a partial file; text stays text in
     SVG (searchable, and the names can be checked), and no date is stamped into it."""
@@ -371,7 +354,7 @@ def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
     metadata = {"Date": None} if fmt == "svg" else None
     with rc_context({"svg.fonttype": "none", "svg.hashsalt": "hybridteam"}):
         fig.savefig(buf, format=fmt, bbox_inches="tight", dpi=fig.dpi, metadata=metadata)
-    return write_bytes_atomic(path, buf.getvalue())
+    return write_atomic(path, buf.getvalue())
 
 
 def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
