@@ -17,6 +17,7 @@ from hybridteam.expr import Atom, Expression
 from hybridteam.laws import LawContext, LawSpec
 from hybridteam.model import Team
 
+REPLY = -1  # ``to: sender``: answer whoever sent the message that triggered the transition
 RESERVED = frozenset({"t", "t_in_mode", "pi", "inf", "true", "false"})
 CONTINUOUS_NAMES = frozenset({"t", "t_in_mode"})
 
@@ -25,15 +26,18 @@ class Ctx:
     """Evaluation context of expressions and laws for a subset of instances.
 
     ``x`` state (m, d), ``v`` variables (m, V), ``p`` parameters (m, P), ``t`` time (m,),
-    ``t_in`` time since the owning mode was entered (m,).
+    ``t_in`` time since the owning mode was entered (m,), ``m`` the fields of the message
+    that triggered the transition being evaluated (name -> (m,)), if any.
     """
 
-    __slots__ = ("p", "t", "t_in", "v", "x")
+    __slots__ = ("m", "p", "t", "t_in", "v", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
-                 t_in: np.ndarray | None = None) -> None:
+                 t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None
+                 ) -> None:
         self.x, self.v, self.p, self.t = x, v, p, t
         self.t_in = t if t_in is None else t_in
+        self.m = m
 
 
 @dataclass
@@ -59,7 +63,7 @@ class CAction:
     target: tuple[str, int] | None = None  # ("x", j) or ("v", j)
     expr: Expression | None = None
     name: str = ""
-    to: int | None = None
+    to: int | None = None  # an agent, None for broadcast, REPLY for the triggering sender
     socket: str = "control"
     fields: dict[str, Expression] = field(default_factory=dict)
 

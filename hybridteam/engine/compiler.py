@@ -13,6 +13,7 @@ from hybridteam.dynamics.plants import make_plant
 from hybridteam.engine.bindings import check_parallel_drivers, compile_driver
 from hybridteam.engine.compiled import (
     CONTINUOUS_NAMES,
+    REPLY,
     RESERVED,
     CAction,
     CAgent,
@@ -65,6 +66,27 @@ def _symbols(state: dict[str, int], variables: dict[str, int], params: dict[str,
     return syms
 
 
+def _message_symbols(fields: set[str]) -> dict:
+    """Names a transition triggered by a message can read: ``msg_sender`` (the sending
+    agent's index), ``msg_sent`` (its send time) and ``msg_<field>`` for each field."""
+    syms = {"msg_sender": lambda c: c.m["sender"], "msg_sent": lambda c: c.m["t_send"]}
+    for f in sorted(fields):
+        syms[f"msg_{f}"] = lambda c, f=f: c.m[f]
+    return syms
+
+
+def message_fields(team: Team) -> dict[str, set[str]]:
+    """The fields sent with each message type anywhere in the team (the receivers' view)."""
+    out: dict[str, set[str]] = {}
+    for agent in team.agents:
+        for _, mode in agent.root.walk():
+            for tr in mode.transitions:
+                for act in tr.actions:
+                    if isinstance(act, Send):
+                        out.setdefault(act.message, set()).update(act.fields)
+    return out
+
+
 def _flatten(root: Mode) -> tuple[list[tuple[str, Mode, int, int]], dict[int, list[int]]]:
     """Pre-order list of (path, mode, parent, depth); paths exclude the root's name."""
     out: list[tuple[str, Mode, int, int]] = []
@@ -93,7 +115,8 @@ def resolve_mode(name: str, paths: list[str]) -> tuple[int | None, list[str]]:
 
 
 def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
-                  agent_names: list[str]) -> CAgent:
+                  agent_names: list[str],
+                  message_fields: dict[str, set[str]] | None = None) -> CAgent:
     col = _Collector()
     where = agent.where
     try:
@@ -186,7 +209,10 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
     decl: list[tuple[int, int, int, CTransition]] = []
     for idx, (_path, mode, _parent, depth) in enumerate(flat):
         for tr in mode.transitions:
-            ct = _compile_transition(tr, idx, modes, paths, syms, state_index, var_index,
+            tsyms = syms
+            if tr.on is not None and message_fields and tr.on in message_fields:
+                tsyms = {**syms, **_message_symbols(message_fields[tr.on])}
+            ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
                                      agent_names, agent.name, col)
             if ct is not None:
                 decl.append((-tr.priority, depth, len(decl), ct))
@@ -303,7 +329,14 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
             actions.append(CAction("raise", name=act.event))
         elif isinstance(act, Send):
             to = None
-            if act.to is not None:
+            if act.to == "sender":
+                if "msg_sender" not in syms:
+                    col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
+                             "message that triggered the transition; this transition has "
+                             "no triggering message ('on:' a message type)")
+                    continue
+                to = REPLY
+            elif act.to is not None:
                 if act.to not in agent_names:
                     col.fail((*awhere, "to"), f"unknown agent '{act.to}'",
                              did_you_mean(act.to, agent_names))
@@ -347,12 +380,15 @@ def _watches(modes: list[CMode], transitions: list[CTransition],
 
 def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
-    errors: list[ModelError] = []
+    from hybridteam.network import check_network
+
+    errors: list[ModelError] = check_network(team)
+    fields = message_fields(team)
     agents: list[CAgent] = []
     names = [a.name for a in team.agents]
     for i, agent in enumerate(team.agents):
         try:
-            agents.append(compile_agent(agent, i, team.parameters, names))
+            agents.append(compile_agent(agent, i, team.parameters, names, fields))
         except ModelErrors as exc:
             errors.extend(exc.errors)
     scenario = []

@@ -16,7 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.events import LOCAL, MESSAGE, SCENARIO
+from hybridteam.engine.compiled import REPLY
+from hybridteam.engine.events import LOCAL, MESSAGE
 
 if TYPE_CHECKING:
     from hybridteam.engine.compiled import CAgent
@@ -37,14 +38,20 @@ def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
         rest = active[~fired[active] & ~sim.done[active]]
         if rest.size:
             for (kind, agent, name), members in sim.queue.pop_due(rest, sim.t).items():
-                inst = np.array(members, np.intp)
-                inst = inst[~sim.done[inst]]
+                inst = np.array([i for i, _ in members], np.intp)
+                fired[inst] = True  # consuming an event is a micro-step, taken or not
                 ag, st = sim.cteam.agents[agent], sim.states[agent]
+                msg = None
+                if kind == MESSAGE:
+                    payloads = [p for _, p in members]
+                    keep = sim.network.receive(inst, sim.t[inst], payloads) & ~sim.done[inst]
+                    inst = inst[keep]
+                    msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
+                else:
+                    inst = inst[~sim.done[inst]]
+                # an event nobody waits for is dropped, as in statecharts
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
-                select_and_fire(sim, ag, st, inst, ag.triggered.get(name, []), cause)
-                fired[inst] = True
-                if kind in (SCENARIO, LOCAL) and not ag.triggered.get(name):
-                    pass  # an event nobody waits for is dropped, as in statecharts
+                select_and_fire(sim, ag, st, inst, ag.triggered.get(name, []), cause, msg)
         stepped = active[fired[active]]
         sim.changed[stepped] = True
         sim.micro[stepped] += 1
@@ -56,9 +63,26 @@ def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
         active = stepped[~sim.done[stepped]]
 
 
+def message_fields(messages: list) -> dict[str, np.ndarray]:
+    """The triggering messages' fields as arrays over the instances receiving them."""
+    out = {"sender": np.array([m.sender for m in messages], float),
+           "t_send": np.array([m.t_send for m in messages], float)}
+    for name in messages[0].fields if messages else ():
+        out[name] = np.array([m.fields.get(name, np.nan) for m in messages], float)
+    return out
+
+
+def _rows(msg: dict[str, np.ndarray] | None, rows: np.ndarray) -> dict[str, np.ndarray] | None:
+    return None if msg is None else {k: v[rows] for k, v in msg.items()}
+
+
 def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
-                    candidates: list[int], cause: str | None) -> np.ndarray:
-    """Fire, in each instance of ``idx``, the enabled candidates that are not pre-empted."""
+                    candidates: list[int], cause: str | None,
+                    msg: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    """Fire, in each instance of ``idx``, the enabled candidates that are not pre-empted.
+
+    ``msg`` holds the fields of the message being dispatched (aligned with ``idx``).
+    """
     fired = np.zeros(idx.size, bool)
     if idx.size == 0 or not candidates:
         return fired
@@ -73,8 +97,8 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
             e &= t >= st.deadline[idx, tr.after_slot]
         if tr.guard is not None and e.any():
             sub = idx[e]
-            g = np.broadcast_to(tr.guard(st.ctx(sub, sim.t[sub], tr.source)), sub.shape)
-            e[e] = g
+            ctx = st.ctx(sub, sim.t[sub], tr.source, _rows(msg, np.flatnonzero(e)))
+            e[e] = np.broadcast_to(tr.guard(ctx), sub.shape)
         if e.any():
             enabled[j] = e
     if not enabled:
@@ -90,16 +114,16 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
     for j, e in chosen.items():
         tr = ag.transitions[j]
         reason = cause or ("after" if tr.after is not None else "guard")
-        fire(sim, ag, st, j, idx[e], reason)
+        fire(sim, ag, st, j, idx[e], reason, _rows(msg, np.flatnonzero(e)))
         fired |= e
     return fired
 
 
 def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
-         cause: str) -> None:
+         cause: str, msg: dict[str, np.ndarray] | None = None) -> None:
     """Exit, act, enter — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
-    ctx = st.ctx(sub, sim.t[sub], tr.source)
+    ctx = st.ctx(sub, sim.t[sub], tr.source, msg)
     st.exit(tr.exit_root, sub, sim.t, sim.rec)
     for act in tr.actions:
         if act.kind == "assign":
@@ -115,7 +139,10 @@ def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
             sim.queue.push(sub, sim.t[sub], LOCAL, ag.index, act.name)
         else:
             fields = {k: np.broadcast_to(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
-            sim.medium.send(sub, sim.t[sub], ag.index, act.to, act.socket, act.name, fields)
+            to = act.to
+            if to == REPLY:
+                to = msg["sender"].astype(np.intp) if msg is not None else None
+            sim.network.send(sub, sim.t[sub], ag.index, to, act.socket, act.name, fields)
     st.enter_path(tr.entry_path, sub, sim.t)
     sim.rec.transition(ag.index, j, sub, sim.t[sub], sim.micro[sub], cause)
     sim.last_fired[sub] = ag.index * 1_000_000 + j

@@ -48,16 +48,34 @@ class EventQueue:
         self.next[idx] = np.minimum(self.next[idx], t)
         return seqs
 
+    def push_each(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
+                  payloads: Sequence[Any]) -> None:
+        """Queue one event per instance in ``idx``, each with its own payload."""
+        seqs = self.seq[idx].copy()
+        self.seq[idx] += 1
+        for i, ti, s, payload in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
+                                     seqs.tolist(), payloads, strict=True):
+            heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, agent, s, name, payload))
+        np.minimum.at(self.next, idx, t)
+
+    def pending_messages(self) -> list[tuple[int, Any]]:
+        """(instance, payload) of every message still queued, in instance order."""
+        out = []
+        for i in sorted(self.heaps):
+            out += [(i, e[5]) for e in sorted(self.heaps[i]) if e[1] == MESSAGE]
+        return out
+
     def pending(self, idx: np.ndarray) -> np.ndarray:
         """Whether anything is still queued (now or later) for each instance."""
         return np.isfinite(self.next[idx])
 
-    def pop_due(self, idx: np.ndarray, t: np.ndarray) -> dict[tuple[int, int, str],
-                                                                list[int]]:
+    def pop_due(self, idx: np.ndarray, t: np.ndarray
+                ) -> dict[tuple[int, int, str], list[tuple[int, Any]]]:
         """Pop the first due event of each instance in ``idx``; group them by
-        (kind, agent, name) so each group is dispatched as one vectorized step."""
+        (kind, agent, name) so each group is dispatched as one vectorized step. Members are
+        (instance, payload) pairs."""
         due = idx[self.next[idx] <= t[idx]]
-        groups: dict[tuple[int, int, str], list[int]] = {}
+        groups: dict[tuple[int, int, str], list[tuple[int, Any]]] = {}
         for i in due.tolist():
             c = int(self.cursor[i])
             heap = self.heaps.get(i)
@@ -67,29 +85,11 @@ class EventQueue:
                 head is None or (scn[0], SCENARIO, scn[1]) <= head[:3])
             if use_scn:
                 self.cursor[i] += 1
-                key = (SCENARIO, scn[1], scn[2])
+                key, payload = (SCENARIO, scn[1], scn[2]), None
             else:
                 ev = heapq.heappop(heap)  # type: ignore[arg-type]
-                key = (ev[1], ev[2], ev[4])
-            groups.setdefault(key, []).append(i)
+                key, payload = (ev[1], ev[2], ev[4]), ev[5]
+            groups.setdefault(key, []).append((i, payload))
         if due.size:
             self._refresh(due)
         return groups
-
-
-class IdealMedium:
-    """Zero-latency, lossless broadcast: every send is delivered at the same instant.
-
-    Messages still travel through the event queue (so a reply comes one micro-step later
-    in superdense time) and are recorded in the trace as delivered.
-    """
-
-    def __init__(self, queue: EventQueue, n_agents: int, recorder) -> None:
-        self.queue, self.n_agents, self.rec = queue, n_agents, recorder
-
-    def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | None, socket: str,
-             kind: str, fields: dict[str, np.ndarray]) -> None:
-        receivers = [to] if to is not None else [a for a in range(self.n_agents) if a != sender]
-        for r in receivers:
-            seq = self.queue.push(idx, t, MESSAGE, r, kind, fields)
-            self.rec.message(idx, seq, sender, r, socket, kind, t, t, "delivered")

@@ -23,11 +23,12 @@ from hybridteam.engine.compiled import CTeam, Ctx
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
-from hybridteam.engine.events import EventQueue, IdealMedium
+from hybridteam.engine.events import EventQueue
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import Recorder
 from hybridteam.engine.state import AgentState
 from hybridteam.errors import did_you_mean
+from hybridteam.network import Network
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
@@ -74,8 +75,8 @@ class Simulator:
         self.next_out = np.full(n, times[0])
         self.rec = Recorder(cteam, n, times)
         self.queue = EventQueue(n, cteam.scenario)
-        self.medium = IdealMedium(self.queue, len(cteam.agents), self.rec)
         self._apply_overrides(overrides or {})
+        self.network = Network(cteam.team, n, seed, self._team_params(), self.queue, self.rec)
 
     # ------------------------------------------------------------------ set-up
     def _apply_overrides(self, overrides: Mapping[str, float | Sequence[float]]) -> None:
@@ -98,6 +99,12 @@ class Simulator:
                                | {p for st in self.states for p in st.ca.param_index})
                 raise ValueError(f"override '{key}' names no parameter"
                                  + (f"; {hint}" if (hint := did_you_mean(key, known)) else ""))
+
+    def _team_params(self) -> dict[str, np.ndarray]:
+        """Team parameters per instance (after overrides), as every agent sees them."""
+        st = self.states[0]
+        return {name: st.p[:, st.ca.param_index[name]].copy()
+                for name in self.cteam.team.parameters}
 
     # ------------------------------------------------------------------ drivers
     def state_at(self, a: int, idx: np.ndarray, tau: np.ndarray, step: dict, *,
@@ -380,6 +387,7 @@ class Simulator:
         everyone = np.arange(self.n)
         for st in self.states:
             st.exit(0, everyone, self.t, self.rec)
+        self.network.close(self.queue.pending_messages())
         transitions, intervals, messages = self.rec.tables()
         team = self.cteam.team
         meta = {

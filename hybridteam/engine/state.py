@@ -41,10 +41,11 @@ class AgentState:
         self.watch_modes = np.array([w.mode for w in ca.watches], np.intp)
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
 
-    def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None) -> Ctx:
-        """Evaluation context for instances ``idx`` (``t`` already restricted to them)."""
+    def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
+            m: dict[str, np.ndarray] | None = None) -> Ctx:
+        """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted)."""
         t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
-        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in)
+        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m)
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:

@@ -32,7 +32,9 @@ from hybridteam.model import (
     Agent,
     Assign,
     LawBinding,
+    LinkSettings,
     Mode,
+    NetworkSpec,
     PlantSpec,
     Raise,
     ScenarioEvent,
@@ -140,8 +142,20 @@ def build_team(doc: TeamFile, filename: str) -> Team:
     )
     scenario = tuple(ScenarioEvent(e.at, e.agent, e.raise_, ("scenario", k))
                      for k, e in enumerate(doc.scenario))
+    net = doc.network
+
+    def link(spec, where) -> LinkSettings:
+        return LinkSettings(spec.latency, spec.jitter, spec.loss, where)
+
+    network = NetworkSpec(
+        default=link(net, ("network",)),
+        links={tuple(s.strip() for s in key.split("->", 1)): link(spec, ("network", "links", key))
+               for key, spec in net.links.items()},
+        rate_limits={agent: dict(limits) for agent, limits in net.rate_limits.items()},
+        where=("network",),
+    )
     return Team(doc.team, agents, dict(doc.parameters), sim, scenario,
-                source=Path(filename).name)
+                source=Path(filename).name, network=network)
 
 
 def _agent(name: str, spec: AgentSchema, where: DocPath) -> Agent:

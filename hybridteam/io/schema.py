@@ -182,6 +182,47 @@ class ScenarioSchema(Strict):
     raise_: str = Field(alias="raise")
 
 
+class LinkSchema(Strict):
+    """Delay and loss on a link; numbers, or expressions of team parameters."""
+
+    latency: ExprOrNumber = Field(0.0, description="seconds from send to receipt")
+    jitter: ExprOrNumber = Field(0.0, description="extra delay, uniform in [0, jitter] s")
+    loss: ExprOrNumber = Field(0.0, description="probability that a message is lost")
+
+    @field_validator("latency", "jitter", "loss")
+    @classmethod
+    def _not_negative(cls, v: float | str) -> float | str:
+        if isinstance(v, float) and v < 0:
+            raise ValueError(f"must be >= 0, got {v}")
+        return v
+
+    @field_validator("loss")
+    @classmethod
+    def _probability(cls, v: float | str) -> float | str:
+        if isinstance(v, float) and v > 1:
+            raise ValueError(f"a loss probability is at most 1, got {v}")
+        return v
+
+
+class NetworkSchema(LinkSchema):
+    """The broadcast medium: default link settings, per-link overrides, receive limits."""
+
+    links: dict[str, LinkSchema] = Field(
+        default_factory=dict, description="overrides per link, keyed 'sender->receiver'")
+    rate_limits: dict[str, dict[str, PositiveFloat]] = Field(
+        default_factory=dict,
+        description="messages per second a receiver processes, per socket ('*' for all)")
+
+    @field_validator("links")
+    @classmethod
+    def _link_keys(cls, v: dict[str, Any]) -> dict[str, Any]:
+        for key in v:
+            sender, arrow, receiver = key.partition("->")
+            if not arrow or not sender.strip() or not receiver.strip():
+                raise ValueError(f"link {key!r} must be written 'sender->receiver'")
+        return v
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -192,6 +233,7 @@ class TeamFile(Strict):
     agents: dict[str, AgentSchema]
     simulation: SimulationSchema = Field(default_factory=SimulationSchema)
     scenario: list[ScenarioSchema] = Field(default_factory=list)
+    network: NetworkSchema = Field(default_factory=NetworkSchema)
 
     @field_validator("agents")
     @classmethod

@@ -10,9 +10,19 @@ from hybridteam.model.modes import (
     Send,
     Transition,
 )
-from hybridteam.model.team import Agent, PlantSpec, ScenarioEvent, Simulation, Team, Zeno
+from hybridteam.model.team import (
+    Agent,
+    LinkSettings,
+    NetworkSpec,
+    PlantSpec,
+    ScenarioEvent,
+    Simulation,
+    Team,
+    Zeno,
+)
 
 __all__ = [
-    "Action", "Agent", "Assign", "History", "LawBinding", "Mode", "PlantSpec", "Raise",
+    "Action", "Agent", "Assign", "History", "LawBinding", "LinkSettings", "Mode",
+    "NetworkSpec", "PlantSpec", "Raise",
     "ScenarioEvent", "Send", "Simulation", "Team", "Transition", "Zeno",
 ]

@@ -60,6 +60,29 @@ class Zeno:
 
 
 @dataclass(frozen=True)
+class LinkSettings:
+    """Delay and loss of messages on a link: numbers or expressions of team parameters, so
+    an ensemble can vary them per instance (``latency: link_latency``)."""
+
+    latency: str | float = 0.0
+    jitter: str | float = 0.0
+    loss: str | float = 0.0
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
+class NetworkSpec:
+    """The broadcast medium: default link settings, per-link overrides keyed by
+    ``(sender, receiver)``, and receive-rate limits (messages per second a receiver can
+    process, per socket; ``"*"`` for all sockets)."""
+
+    default: LinkSettings = field(default_factory=LinkSettings)
+    links: dict[tuple[str, str], LinkSettings] = field(default_factory=dict)
+    rate_limits: dict[str, dict[str, float]] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
 class Simulation:
     """How to simulate: duration, output sampling and integrator accuracy."""
 
@@ -89,6 +112,7 @@ class Team:
     simulation: Simulation = field(default_factory=Simulation)
     scenario: tuple[ScenarioEvent, ...] = ()
     source: str | None = None
+    network: NetworkSpec = field(default_factory=NetworkSpec)
 
     def agent(self, name: str) -> Agent:
         for a in self.agents:

@@ -1,0 +1,180 @@
+"""The broadcast medium: datagrams on named sockets over lossy, delayed links.
+
+As on the architecture paper's IPX network, every message is a datagram broadcast to all
+other agents (or addressed to one, which the others ignore) with no delivery guarantee:
+each copy to a receiver is independently delayed (latency plus uniform jitter) and lost
+with the link's probability, and a receiver that can process only so many messages per
+second drops the excess (the paper's Scout took 8 of 20 data messages a second). Every
+copy is recorded once its fate is known — delivered at its arrival time, or lost with the
+reason (``loss``, ``rate limit``, ``run ended``).
+
+Acknowledgements, retransmission and role assignment are protocol matters built on top of
+this medium; nothing here retries anything. Link settings are expressions of team
+parameters, evaluated per instance, so an ensemble can sweep latency or loss in one call.
+Random draws are counter-based (:mod:`hybridteam.engine.randomness`): a copy's fate depends
+only on the seed, the link and the sender's own message number, so an ensemble instance
+draws exactly what the same single run draws.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hybridteam.engine.events import MESSAGE
+from hybridteam.engine.randomness import component_key, uniform
+from hybridteam.errors import ModelError, ModelErrors, did_you_mean
+from hybridteam.expr import ExpressionError, compile_expression
+from hybridteam.model import Team
+
+if TYPE_CHECKING:
+    from hybridteam.engine.record import Recorder
+
+LOSS, JITTER = 0, 1  # which draw of a copy
+
+
+class Message:
+    """One copy in flight, as carried by the event queue to its receiver."""
+
+    __slots__ = ("fields", "receiver", "sender", "seq", "socket", "t_send", "type")
+
+    def __init__(self, sender: int, receiver: int, seq: int, t_send: float, socket: str,
+                 type_: str, fields: dict[str, float]) -> None:
+        self.sender, self.receiver, self.seq, self.t_send = sender, receiver, seq, t_send
+        self.socket, self.type, self.fields = socket, type_, fields
+
+
+def check_network(team: Team) -> list[ModelError]:
+    """Problems in a team's ``network:`` block (unknown agents, bad expressions)."""
+    names = [a.name for a in team.agents]
+    errors: list[ModelError] = []
+    net = team.network
+    for (sender, receiver), link in net.links.items():
+        for who in (sender, receiver):
+            if who not in names:
+                errors.append(ModelError(link.where, f"unknown agent '{who}' in link",
+                                         hint=did_you_mean(who, names), at_key=True))
+    for agent in net.rate_limits:
+        if agent not in names:
+            errors.append(ModelError((*net.where, "rate_limits", agent),
+                                     f"unknown agent '{agent}'", hint=did_you_mean(agent, names),
+                                     at_key=True))
+    symbols = {name: (lambda c: 0.0) for name in team.parameters}
+    for link in [net.default, *net.links.values()]:
+        for what in ("latency", "jitter", "loss"):
+            text = getattr(link, what)
+            if isinstance(text, str):
+                try:
+                    compile_expression(text, symbols)
+                except ExpressionError as exc:
+                    errors.append(ModelError((*link.where, what), exc.message,
+                                             offset=exc.offset, hint=exc.hint))
+    return errors
+
+
+class Network:
+    """The medium of one simulation: per-link arrays over the ensemble, and counters."""
+
+    def __init__(self, team: Team, n: int, seed: int, team_params: dict[str, np.ndarray],
+                 queue, recorder: Recorder) -> None:
+        errors = check_network(team)
+        if errors:
+            raise ModelErrors(errors)
+        self.n = n
+        self.queue, self.rec = queue, recorder
+        self.names = [a.name for a in team.agents]
+        self.key = component_key(seed, "network")
+        count = len(self.names)
+        self.count = [np.zeros(n, np.int64) for _ in range(count)]
+        net = team.network
+        self.links: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for s in range(count):
+            for r in range(count):
+                if s != r:
+                    spec = net.links.get((self.names[s], self.names[r]), net.default)
+                    self.links[(s, r)] = tuple(  # type: ignore[assignment]
+                        _evaluate(getattr(spec, what), team_params, n)
+                        for what in ("latency", "jitter", "loss"))
+        self.limits: dict[tuple[int, str], float] = {}
+        for agent, per_socket in net.rate_limits.items():
+            for socket, rate in per_socket.items():
+                self.limits[(self.names.index(agent), socket)] = float(rate)
+        self.last_accept: dict[tuple[int, str], np.ndarray] = {}
+
+    # ------------------------------------------------------------------ sending
+    def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | np.ndarray | None,
+             socket: str, type_: str, fields: dict[str, np.ndarray]) -> None:
+        """Broadcast (``to`` None), or address one agent (an index, or one per instance)."""
+        seq = self.count[sender][idx].copy()
+        self.count[sender][idx] += 1
+        if to is None:
+            receivers = [(r, np.ones(idx.size, bool)) for r in range(len(self.names))
+                         if r != sender]
+        elif isinstance(to, np.ndarray):
+            receivers = [(r, to == r) for r in range(len(self.names)) if r != sender]
+        else:
+            receivers = [(to, np.ones(idx.size, bool))]
+        for r, mine in receivers:
+            if not mine.any():
+                continue
+            inst, ts, k = idx[mine], t[mine], seq[mine]
+            latency, jitter, loss = (a[inst] for a in self.links[(sender, r)])
+            u_loss = uniform(self.key, sender, r, k, LOSS)
+            u_jit = uniform(self.key, sender, r, k, JITTER)
+            lost = u_loss < loss
+            t_recv = ts + latency + jitter * u_jit
+            if lost.any():
+                self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],
+                                 np.full(int(lost.sum()), np.nan), "lost", "loss")
+            ok = ~lost
+            if ok.any():
+                rows = np.flatnonzero(ok)
+                payloads = [Message(sender, r, int(k[j]), float(ts[j]), socket, type_,
+                                    {f: float(v[mine][j]) for f, v in fields.items()})
+                            for j in rows.tolist()]
+                self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads)
+
+    # ------------------------------------------------------------------ receiving
+    def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message]) -> np.ndarray:
+        """Arrivals at their receivers: apply rate limits, record; returns which are kept.
+
+        Arrivals are processed in time order, so a receiver busy with the previous message
+        (less than 1/rate ago) drops this one, as an overloaded robot would.
+        """
+        keep = np.ones(inst.size, bool)
+        for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
+            rate = self.limits.get((msg.receiver, msg.socket)) or \
+                self.limits.get((msg.receiver, "*"))
+            if rate is None:
+                continue
+            last = self.last_accept.setdefault((msg.receiver, msg.socket if
+                                                (msg.receiver, msg.socket) in self.limits
+                                                else "*"), np.full(self.n, -np.inf))
+            if t[j] - last[i] < 1.0 / rate - 1e-12:
+                keep[j] = False
+            else:
+                last[i] = t[j]
+        for status, mask, reason in (("delivered", keep, ""), ("lost", ~keep, "rate limit")):
+            for j in np.flatnonzero(mask).tolist():
+                msg = messages[j]
+                self.rec.message(inst[j : j + 1], np.array([msg.seq]), msg.sender,
+                                 msg.receiver, msg.socket, msg.type,
+                                 np.array([msg.t_send]), t[j : j + 1], status, reason)
+        return keep
+
+    def close(self, pending: list[tuple[int, Any]]) -> None:
+        """Copies still in flight when the run ends: recorded as lost, reason 'run ended'."""
+        for i, msg in pending:
+            self.rec.message(np.array([i]), np.array([msg.seq]), msg.sender, msg.receiver,
+                             msg.socket, msg.type, np.array([msg.t_send]),
+                             np.array([np.nan]), "lost", "run ended")
+
+
+def _evaluate(text: str | float, team_params: dict[str, np.ndarray], n: int) -> np.ndarray:
+    """A link setting per instance (numbers broadcast; expressions over team parameters)."""
+    if not isinstance(text, str):
+        return np.full(n, float(text))
+    symbols = {name: (lambda c, v=v: v) for name, v in team_params.items()}
+    return np.broadcast_to(np.asarray(compile_expression(text, symbols)(None), dtype=float),
+                           (n,)).copy()

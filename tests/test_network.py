@@ -1,0 +1,211 @@
+"""The network against known answers: latency, jitter, loss, rate limits, fields, replies."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import hybridteam as ht
+from hybridteam.io.loader import InputErrors
+
+HANDSHAKE = """
+team: handshake
+parameters: {{d: {d}, p_loss: {loss}, timeout: 1.0, priority: {priority}}}
+network: {{latency: d, loss: p_loss}}
+agents:
+  follower:
+    plant: {{kind: flow, state: {{c: 0}}}}
+    initial: Follow
+    modes:
+      Follow:
+        transitions:
+          - to: Requesting
+            after: 1.0
+            do: [{{send: request, to: leader, fields: {{priority: priority}}}}]
+      Requesting:
+        transitions:
+          - {{to: Lead, on: grant}}
+          - {{to: Refused, on: deny}}
+          - {{to: Stalled, after: timeout}}
+      Lead: {{final: true}}
+      Refused: {{final: true}}
+      Stalled: {{final: true}}
+  leader:
+    plant: {{kind: flow, state: {{c: 0}}}}
+    initial: Lead
+    modes:
+      Lead:
+        transitions:
+          - {{to: Follow, on: request, guard: msg_priority > 1, do: [{{send: grant, to: sender}}]}}
+          - {{to: Declined, on: request, guard: msg_priority <= 1,
+              do: [{{send: deny, to: sender}}]}}
+      Follow: {{final: true}}
+      Declined: {{final: true}}
+"""
+
+
+def handshake(team_from_yaml, d=0.03, loss=0.0, priority=2):
+    return team_from_yaml(HANDSHAKE.format(d=d, loss=loss, priority=priority))
+
+
+def when(run, agent, target):
+    rows = [r.t for r in run.transitions if r.agent == agent and r.target == target]
+    return rows[0] if rows else None
+
+
+@pytest.mark.parametrize("d", [0.0, 0.03, 0.25])
+def test_handover_takes_one_latency_each_way(team_from_yaml, d):
+    run = ht.simulate(handshake(team_from_yaml, d=d))
+    t_a = when(run, "follower", "Requesting")
+    t_b = when(run, "leader", "Follow")
+    t_c = when(run, "follower", "Lead")
+    assert t_a == 1.0
+    assert t_b - t_a == pytest.approx(d, abs=1e-12)
+    assert t_c - t_b == pytest.approx(d, abs=1e-12)
+    msgs = [(m.sender, m.receiver, m.type, m.t_send, m.t_recv, m.status) for m in run.messages]
+    assert msgs == [("follower", "leader", "request", 1.0, 1.0 + d, "delivered"),
+                    ("leader", "follower", "grant", t_b, t_b + d, "delivered")]
+    assert run.outcome == "ok"
+
+
+def test_message_fields_and_replies(team_from_yaml):
+    run = ht.simulate(handshake(team_from_yaml, priority=0))
+    assert when(run, "leader", "Declined") == pytest.approx(1.03)
+    assert when(run, "follower", "Refused") == pytest.approx(1.06)
+    assert [m.type for m in run.messages] == ["request", "deny"]
+
+
+def test_dead_link_is_detected_by_the_timeout(team_from_yaml):
+    run = ht.simulate(handshake(team_from_yaml, loss=1.0))
+    assert when(run, "follower", "Stalled") == pytest.approx(2.0)
+    (msg,) = list(run.messages)
+    assert (msg.type, msg.status, msg.reason) == ("request", "lost", "loss")
+    assert math.isnan(msg.t_recv)
+
+
+BEACON = """
+team: beacon
+parameters: {{period: {period}, d: 0.1, j: {jitter}, p: {loss}}}
+network:
+  latency: d
+  jitter: j
+  loss: p
+  rate_limits: {{listener: {limits}}}
+agents:
+  beacon:
+    plant: {{kind: flow, state: {{c: 0}}}}
+    initial: Send
+    modes:
+      Send:
+        transitions:
+          - {{to: Send, after: period, do: [{{send: ping, socket: data,
+              fields: {{k: t}}}}]}}
+  listener:
+    plant: {{kind: flow, state: {{c: 0}}}}
+    variables: {{heard: 0, last: -1}}
+    initial: Listen
+    modes:
+      Listen:
+        transitions:
+          - {{to: Listen, on: ping, do: ["heard += 1", "last = msg_k"]}}
+simulation: {{duration: {duration}}}
+"""
+
+
+def beacon(team_from_yaml, period=0.01, jitter=0.0, loss=0.0, limits="{}", duration=10.0):
+    return team_from_yaml(BEACON.format(period=period, jitter=jitter, loss=loss, limits=limits,
+                                        duration=duration))
+
+
+def test_jitter_is_uniform_on_top_of_the_latency(team_from_yaml):
+    run = ht.simulate(beacon(team_from_yaml, jitter=0.05))
+    sends = len(run.transitions.where(agent="beacon", cause="after"))
+    m = run.messages.where(status="delivered")
+    assert sends == 1000  # every 0.01 s up to t = 10 s
+    assert len(m) + len(run.messages.where(reason="run ended")) == sends
+    delay = m["t_recv"] - m["t_send"]
+    assert len(delay) >= 985  # the last 0.1-0.15 s of sends are still in flight
+    assert delay.min() >= 0.1 - 1e-12 and delay.max() <= 0.15 + 1e-12
+    assert stats.kstest((delay - 0.1) / 0.05, "uniform").pvalue > 1e-3
+
+
+def test_loss_rate_is_the_declared_probability(team_from_yaml):
+    run = ht.simulate(beacon(team_from_yaml, loss=0.3))
+    m = run.messages
+    resolved = m.filter(m["reason"] != "run ended")
+    lost = np.sum(resolved["reason"] == "loss")
+    n = len(resolved)
+    assert n >= 990
+    assert abs(lost / n - 0.3) < 4 * math.sqrt(0.3 * 0.7 / n)
+    # what the listener heard is exactly what was delivered
+    heard = run.transitions.where(agent="listener", cause="message:ping")
+    assert len(heard) == np.sum(resolved["status"] == "delivered")
+
+
+def test_same_seed_same_losses_other_seed_other_losses(team_from_yaml):
+    team = beacon(team_from_yaml, loss=0.5, duration=2.0)
+    a = ht.simulate(team, seed=1).messages["status"]
+    b = ht.simulate(team, seed=1).messages["status"]
+    c = ht.simulate(team, seed=2).messages["status"]
+    assert list(a) == list(b) and list(a) != list(c)
+
+
+def test_receiver_limited_to_8_hz_drops_the_excess_of_a_20_hz_stream(team_from_yaml):
+    run = ht.simulate(beacon(team_from_yaml, period=0.05, limits="{data: 8}", duration=10.0))
+    sends = len(run.transitions.where(agent="beacon", cause="after"))
+    m = run.messages.filter(run.messages["reason"] != "run ended")
+    kept = m.where(status="delivered")["t_recv"]
+    dropped = m.where(reason="rate limit")
+    assert len(kept) + len(dropped) == len(m) == sends - len(run.messages.where(
+        reason="run ended"))
+    assert np.all(np.diff(kept) >= 1 / 8 - 1e-9)
+    # each drop arrived while the receiver was still busy with the last accepted message
+    for t in dropped["t_recv"]:
+        before = kept[kept <= t]
+        assert before.size and t - before[-1] < 1 / 8
+    # arrivals every 0.05 s and a receiver busy for 1/8 s: it accepts every third one
+    assert abs(len(kept) - len(m) / 3) <= 1 and len(kept) / 10.0 <= 8
+    assert np.all(dropped["status"] == "lost")
+    heard = run.transitions.where(agent="listener", cause="message:ping")
+    assert len(heard) == len(kept)
+
+
+def test_messages_in_flight_at_the_end_are_recorded(team_from_yaml):
+    run = ht.simulate(beacon(team_from_yaml, period=0.5, duration=1.05))
+    last = list(run.messages)[-1]
+    assert (last.status, last.reason) == ("lost", "run ended") and last.t_send == 1.0
+
+
+def test_ensemble_over_loss_rates_equals_single_runs(team_from_yaml):
+    team = beacon(team_from_yaml, loss=0.0, duration=3.0)
+    rates = np.linspace(0.0, 0.5, 6)
+    ens = ht.simulate(team, n=6, seed=4, overrides={"p": rates})
+    for i, p in enumerate(rates):
+        one = ht.simulate(team, seed=4, overrides={"p": p})
+        mine = ens.instance(i)
+        assert list(mine.messages["status"]) == list(one.messages["status"])
+        np.testing.assert_array_equal(mine.messages["t_recv"], one.messages["t_recv"])
+        assert list(mine.transitions["t"]) == list(one.transitions["t"])
+    lost = [np.mean(ens.instance(i).messages["reason"] == "loss") for i in range(6)]
+    assert lost[0] == 0 and lost[-1] > 0.3
+
+
+def test_network_errors_are_located(team_from_yaml):
+    bad = HANDSHAKE.format(d=0.03, loss=0.0, priority=2).replace(
+        "network: {latency: d, loss: p_loss}",
+        "network: {latency: dd, loss: p_loss, links: {'leader->folower': {loss: 0.5}}}")
+    with pytest.raises(InputErrors) as err:
+        team_from_yaml(bad)
+    text = str(err.value)
+    assert "network.latency: unknown name 'dd'; did you mean 'd'?" in text
+    assert "unknown agent 'folower' in link; did you mean 'follower'?" in text
+
+
+def test_reply_needs_a_triggering_message(team_from_yaml):
+    bad = HANDSHAKE.format(d=0.03, loss=0.0, priority=2).replace(
+        "{send: request, to: leader,", "{send: request, to: sender,")
+    with pytest.raises(InputErrors, match="'to: sender' replies to the sender"):
+        team_from_yaml(bad)
