@@ -144,14 +144,13 @@ class Network:
         """
         keep = np.ones(inst.size, bool)
         for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
-            rate = self.limits.get((msg.receiver, msg.socket)) or \
-                self.limits.get((msg.receiver, "*"))
-            if rate is None:
-                continue
-            last = self.last_accept.setdefault((msg.receiver, msg.socket if
-                                                (msg.receiver, msg.socket) in self.limits
-                                                else "*"), np.full(self.n, -np.inf))
-            if t[j] - last[i] < 1.0 / rate - 1e-12:
+            key = (msg.receiver, msg.socket)
+            if key not in self.limits:
+                key = (msg.receiver, "*")
+                if key not in self.limits:
+                    continue
+            last = self.last_accept.setdefault(key, np.full(self.n, -np.inf))
+            if t[j] - last[i] < 1.0 / self.limits[key] - 1e-12:
                 keep[j] = False
             else:
                 last[i] = t[j]
