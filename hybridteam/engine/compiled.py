@@ -147,12 +147,6 @@ class CAgent:
         """Whether any input has a finite actuator limit."""
         return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
 
-    def mode_index(self, path: str) -> int:
-        for m in self.modes:
-            if m.path == path:
-                return m.index
-        raise KeyError(path)
-
     def law_context(self, ctx: Ctx, driver: Driver) -> LawContext:
         params = {k: e(ctx) for k, e in driver.params.items()}
         return LawContext(ctx, params, self.name, self.state_index, self.var_index,
@@ -163,5 +157,4 @@ class CAgent:
 class CTeam:
     team: Team
     agents: list[CAgent]
-    agent_index: dict[str, int]
     scenario: list[tuple[float, int, str]]

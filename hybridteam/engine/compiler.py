@@ -401,4 +401,4 @@ def compile_team(team: Team) -> CTeam:
     if errors:
         raise ModelErrors(errors)
     scenario.sort(key=lambda s: (s[0], s[1]))
-    return CTeam(team, agents, {a.name: a.index for a in agents}, scenario)
+    return CTeam(team, agents, scenario)

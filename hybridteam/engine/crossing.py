@@ -35,17 +35,6 @@ Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
 
 
-def _truth_margin(sim: Simulator, a: int, w: int, idx: np.ndarray, x: np.ndarray,
-                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    st = sim.states[a]
-    watch = st.ca.watches[w]
-    ctx = Ctx(x, st.v[idx], st.p[idx], t, t - st.entry[idx, watch.mode])
-    truth, margin = watch.atom.truth_and_margin(ctx)
-    truth = np.broadcast_to(truth, idx.shape)
-    margin = np.broadcast_to(margin, idx.shape)
-    return truth, np.array(margin, dtype=float)
-
-
 def watch_truth(sim: Simulator, a: int, idx: np.ndarray, x: np.ndarray,
                 t: np.ndarray) -> np.ndarray:
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx."""
@@ -144,7 +133,8 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
                 # crossing later than the best so far (original truth still at best_lo)?
                 rows = cand[known]
                 probe = np.minimum(best_lo[rows], hi[known])
-                later = seg.truth_margin(w, rows, probe, dense=True)[0] == truth_lo[known]
+                dense = seg.evaluator(w, rows, dense=True)
+                later = dense(np.arange(rows.size), probe)[0] == truth_lo[known]
                 later |= best_lo[rows] <= lo[known]
                 keep = np.ones(cand.size, bool)
                 keep[np.flatnonzero(known)[later]] = False
@@ -209,15 +199,6 @@ class _Segment:
                               4 * np.finfo(float).eps * np.abs(self.t0 + sim.h[idx]))
         self.has_rk = bool(step["rk"].any())
         self.true_states: dict[tuple[int, float], np.ndarray] = {}
-
-    def state(self, rows: np.ndarray, tau: np.ndarray, dense: bool) -> np.ndarray:
-        return self.sim.state_at(self.a, self.idx[rows], tau, self.step, rows=rows,
-                                 dense=dense)
-
-    def truth_margin(self, w: int, rows: np.ndarray, tau: np.ndarray,
-                     dense: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        x = self.state(rows, tau, dense)
-        return _truth_margin(self.sim, self.a, w, self.idx[rows], x, self.t0[rows] + tau)
 
     def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
         """``ev(pos, tau) -> (truth, margin)`` for the candidates ``rows[pos]``.

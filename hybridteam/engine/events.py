@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 SCENARIO, MESSAGE, LOCAL = 0, 1, 2
-KIND_NAMES = {SCENARIO: "event", MESSAGE: "message", LOCAL: "event"}
 
 
 class EventQueue:

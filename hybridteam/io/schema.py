@@ -15,7 +15,6 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
-Number = float
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
 PositiveFloat = Annotated[float, Field(gt=0)]
 

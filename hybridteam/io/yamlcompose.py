@@ -267,12 +267,7 @@ def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Com
 def load(
     source: str | bytes | os.PathLike[str], *, filename: str | None = None
 ) -> tuple[Any, Positions]:
-    """Load one YAML document whose top level must be a mapping.
-
-    ``source`` is the document text (``str`` or ``bytes``) or a path (``os.PathLike``; plain
-    strings are always treated as text, never guessed to be paths). Returns the plain data and
-    its :class:`Positions`. Any problem raises :class:`SourceError` and nothing else.
-    """
+    """The implementation of :func:`hybridteam.io.yamlpos.load_yaml` (see there)."""
     if isinstance(source, os.PathLike):
         name = filename if filename is not None else os.fspath(source)
         try:
