@@ -57,11 +57,70 @@ class LawContext:
             return self._ctx.v[:, self._vnames[name]]
         raise KeyError(f"law for agent '{self.agent}' asked for unknown name '{name}'")
 
+    def estimate(self, message: str, sender: np.ndarray | int | None = None,
+                 extrapolate: bool = False) -> Estimate:
+        """The latest copy of a data stream (``message``) this agent received, per instance:
+        from ``sender`` (an agent index, or one per instance), else the most recent sender.
+
+        ``extrapolate`` dead-reckons a pose stream over the copy's age: fields x, y, theta
+        with v, omega (a unicycle's arc) or vx, vy, omega (a holonomic robot's line) —
+        the paper's x̂_l for a leader whose last message is a few periods old.
+        """
+        view = self._ctx.e
+        if view is None or message not in view.box.fields:
+            raise KeyError(f"law for agent '{self.agent}' asked for stream '{message}', "
+                           "which no protocol of this team sends")
+        who = view.sender(message, None if sender is None else np.asarray(sender))
+        fields = {f: view.field(message, f, who) for f in view.box.fields[message]}
+        age = self.t - view.sent(message, who)
+        if extrapolate:
+            fields = _dead_reckon(fields, np.where(np.isfinite(age), age, 0.0))
+        return Estimate(fields, age, who)
+
     def get(self, name: str, default: float) -> np.ndarray:
         try:
             return self[name]
         except KeyError:
             return np.full(self.size, float(default))
+
+
+class Estimate:
+    """A teammate's state as last heard: ``est["x"]``, ``est.age`` (s since it was sent;
+    inf before the first copy), ``est.sender``, ``est.valid`` (a copy has arrived)."""
+
+    __slots__ = ("age", "fields", "sender")
+
+    def __init__(self, fields: dict[str, np.ndarray], age: np.ndarray,
+                 sender: np.ndarray) -> None:
+        self.fields, self.age, self.sender = fields, age, sender
+
+    @property
+    def valid(self) -> np.ndarray:
+        return self.sender >= 0
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.fields[name]
+
+
+def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndarray]:
+    out = dict(f)
+    if not {"x", "y", "theta"} <= set(f):
+        return out
+    w = f.get("omega", np.zeros_like(age))
+    w = np.where(np.isnan(w), 0.0, w)
+    th = f["theta"] + w * age
+    if "v" in f:
+        a = w * age
+        # exact arc: chord length v*age*sinc(a/2), along the mean heading
+        chord = f["v"] * age * np.sinc(a / (2 * np.pi))
+        mid = f["theta"] + a / 2
+        out["x"] = f["x"] + chord * np.cos(mid)
+        out["y"] = f["y"] + chord * np.sin(mid)
+    elif {"vx", "vy"} <= set(f):
+        out["x"] = f["x"] + f["vx"] * age
+        out["y"] = f["y"] + f["vy"] * age
+    out["theta"] = th
+    return out
 
 
 LawFunction = Callable[[LawContext], np.ndarray]

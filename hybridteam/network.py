@@ -18,6 +18,7 @@ draws exactly what the same single run draws.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,14 +36,21 @@ LOSS, JITTER = 0, 1  # which draw of a copy
 
 
 class Message:
-    """One copy in flight, as carried by the event queue to its receiver."""
+    """One copy in flight, as carried by the event queue to its receiver.
 
-    __slots__ = ("fields", "receiver", "sender", "seq", "socket", "t_send", "type")
+    ``msg_id`` names an acknowledged message across its retransmissions (-1 for a plain
+    datagram); ``note`` is recorded as the copy's reason (``retransmission``, ``ack``).
+    """
+
+    __slots__ = ("fields", "msg_id", "note", "receiver", "sender", "seq", "socket", "t_send",
+                 "type")
 
     def __init__(self, sender: int, receiver: int, seq: int, t_send: float, socket: str,
-                 type_: str, fields: dict[str, float]) -> None:
+                 type_: str, fields: dict[str, float], msg_id: int = -1,
+                 note: str = "") -> None:
         self.sender, self.receiver, self.seq, self.t_send = sender, receiver, seq, t_send
         self.socket, self.type, self.fields = socket, type_, fields
+        self.msg_id, self.note = msg_id, note
 
 
 def check_network(team: Team) -> list[ModelError]:
@@ -104,21 +112,26 @@ class Network:
 
     # ------------------------------------------------------------------ sending
     def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | np.ndarray | None,
-             socket: str, type_: str, fields: dict[str, np.ndarray]) -> None:
-        """Broadcast (``to`` None), or address one agent (an index, or one per instance)."""
+             socket: str, type_: str, fields: dict[str, np.ndarray], *,
+             msg_id: np.ndarray | None = None, note: str = "",
+             rank: np.ndarray | None = None) -> None:
+        """Broadcast (``to`` None), or address one agent (an index, or one per instance;
+        a negative index broadcasts). ``rank`` orders same-instant arrivals (lower first)."""
         seq = self.count[sender][idx].copy()
         self.count[sender][idx] += 1
+        ids = np.full(idx.size, -1, np.int64) if msg_id is None else msg_id
         if to is None:
             receivers = [(r, np.ones(idx.size, bool)) for r in range(len(self.names))
                          if r != sender]
         elif isinstance(to, np.ndarray):
-            receivers = [(r, to == r) for r in range(len(self.names)) if r != sender]
+            receivers = [(r, (to == r) | (to < 0)) for r in range(len(self.names))
+                         if r != sender]
         else:
             receivers = [(to, np.ones(idx.size, bool))]
         for r, mine in receivers:
             if not mine.any():
                 continue
-            inst, ts, k = idx[mine], t[mine], seq[mine]
+            inst, ts, k, ids_r = idx[mine], t[mine], seq[mine], ids[mine]
             latency, jitter, loss = (a[inst] for a in self.links[(sender, r)])
             u_loss = uniform(self.key, sender, r, k, LOSS)
             u_jit = uniform(self.key, sender, r, k, JITTER)
@@ -126,21 +139,27 @@ class Network:
             t_recv = ts + latency + jitter * u_jit
             if lost.any():
                 self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],
-                                 np.full(int(lost.sum()), np.nan), "lost", "loss")
-            ok = ~lost
-            if ok.any():
-                rows = np.flatnonzero(ok)
-                payloads = [Message(sender, r, int(k[j]), float(ts[j]), socket, type_,
-                                    {f: float(v[mine][j]) for f, v in fields.items()})
-                            for j in rows.tolist()]
-                self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads)
+                                 np.full(int(lost.sum()), np.nan), "lost",
+                                 "loss" + (f" ({note})" if note else ""), ids_r[lost])
+            rows = np.flatnonzero(~lost)
+            ranks = np.zeros(idx.size) if rank is None else rank[mine]
+            for j in rows.tolist():
+                payload = Message(sender, r, int(k[j]), float(ts[j]), socket, type_,
+                                  {f: float(v[mine][j]) for f, v in fields.items()},
+                                  int(ids_r[j]), note)
+                self.queue.push_each(inst[j : j + 1], t_recv[j : j + 1], MESSAGE, r, type_,
+                                     [payload], rank=float(ranks[j]))
 
     # ------------------------------------------------------------------ receiving
-    def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message]) -> np.ndarray:
+    def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message],
+                screen: Callable[[int, Message, float], str | None] | None = None
+                ) -> np.ndarray:
         """Arrivals at their receivers: apply rate limits, record; returns which are kept.
 
         Arrivals are processed in time order, so a receiver busy with the previous message
-        (less than 1/rate ago) drops this one, as an overloaded robot would.
+        (less than 1/rate ago) drops this one, as an overloaded robot would. ``screen``
+        (the protocol layer) sees each copy that got through and may withhold it from the
+        receiver's modes, returning the reason (an acknowledgement, a duplicate).
         """
         keep = np.ones(inst.size, bool)
         for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
@@ -154,20 +173,27 @@ class Network:
                 keep[j] = False
             else:
                 last[i] = t[j]
-        for status, mask, reason in (("delivered", keep, ""), ("lost", ~keep, "rate limit")):
-            for j in np.flatnonzero(mask).tolist():
-                msg = messages[j]
-                self.rec.message(inst[j : j + 1], np.array([msg.seq]), msg.sender,
-                                 msg.receiver, msg.socket, msg.type,
-                                 np.array([msg.t_send]), t[j : j + 1], status, reason)
+        for j, msg in enumerate(messages):
+            status, reason = ("delivered", msg.note) if keep[j] else \
+                ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
+            if keep[j] and screen is not None:
+                withheld = screen(int(inst[j]), msg, float(t[j]))
+                if withheld is not None:
+                    keep[j] = False
+                    reason = withheld
+            self.record(int(inst[j]), msg, float(t[j]), status, reason)
         return keep
+
+    def record(self, i: int, msg: Message, t_recv: float, status: str, reason: str) -> None:
+        """One copy's row in the trace's message table."""
+        self.rec.message(np.array([i]), np.array([msg.seq]), msg.sender, msg.receiver,
+                         msg.socket, msg.type, np.array([msg.t_send]), np.array([t_recv]),
+                         status, reason, np.array([msg.msg_id]))
 
     def close(self, pending: list[tuple[int, Any]]) -> None:
         """Copies still in flight when the run ends: recorded as lost, reason 'run ended'."""
         for i, msg in pending:
-            self.rec.message(np.array([i]), np.array([msg.seq]), msg.sender, msg.receiver,
-                             msg.socket, msg.type, np.array([msg.t_send]),
-                             np.array([np.nan]), "lost", "run ended")
+            self.record(i, msg, np.nan, "lost", "run ended")
 
 
 def _evaluate(text: str | float, team_params: dict[str, np.ndarray], n: int) -> np.ndarray:

@@ -29,8 +29,8 @@ VERSION = 1
 TRANSITION_COLUMNS = ("instance", "agent", "t", "step", "source", "target", "cause", "guard")
 INTERVAL_COLUMNS = ("instance", "agent", "mode", "depth", "start", "end")
 MESSAGE_COLUMNS = ("instance", "seq", "sender", "receiver", "socket", "type", "t_send",
-                   "t_recv", "status", "reason")
-_INT_COLUMNS = {"instance", "step", "depth", "seq"}
+                   "t_recv", "status", "reason", "msg_id")
+_INT_COLUMNS = {"instance", "step", "depth", "seq", "msg_id"}
 _FLOAT_COLUMNS = {"t", "start", "end", "t_send", "t_recv"}
 
 
@@ -83,7 +83,9 @@ class Table:
         return self.filter(mask)
 
     def to_json_dict(self) -> dict[str, list]:
-        return {n: self._plain(c) for n, c in self.columns.items()}
+        # NaN (a lost message's arrival time) is not JSON: null, read back as NaN
+        return {n: _nan_to_none(c.tolist()) if c.dtype == float else c.tolist()
+                for n, c in self.columns.items()}
 
     def to_csv(self) -> str:
         out = io.StringIO()

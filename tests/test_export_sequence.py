@@ -59,13 +59,14 @@ def test_relay_chart_in_plantuml(relay_run):
 
 def synthetic(n: int = 2) -> Trace:
     """A hand-made run of two agents: latencies, a loss, a retransmission, other traffic."""
-    rows = [  # instance, seq, sender, receiver, socket, type, t_send, t_recv, status, reason
-        (0, 3, "b", "a", "control", "ack", 2.6, 2.61, "delivered", ""),
-        (0, 0, "a", "b", "control", "req", 1.0, 1.03, "delivered", ""),
-        (0, 1, "a", "b", "control", "req", 2.0, math.nan, "lost", "dropped by link"),
-        (0, 2, "a", "b", "control", "req", 2.5, 2.55, "delivered", "retransmit #1"),
-        (0, 4, "a", "b", "data", "pose", 0.5, 0.5, "delivered", ""),
-        (1, 0, "b", "a", "control", "other", 0.1, 0.1, "delivered", ""),
+    rows = [  # instance, seq, sender, receiver, socket, type, t_send, t_recv, status, reason,
+        # msg_id
+        (0, 3, "b", "a", "control", "ack", 2.6, 2.61, "delivered", "", -1),
+        (0, 0, "a", "b", "control", "req", 1.0, 1.03, "delivered", "", -1),
+        (0, 1, "a", "b", "control", "req", 2.0, math.nan, "lost", "dropped by link", -1),
+        (0, 2, "a", "b", "control", "req", 2.5, 2.55, "delivered", "retransmission", -1),
+        (0, 4, "a", "b", "data", "pose", 0.5, 0.5, "delivered", "", -1),
+        (1, 0, "b", "a", "control", "other", 0.1, 0.1, "delivered", "", -1),
     ]
     data = {c: [r[k] for r in rows] for k, c in enumerate(MESSAGE_COLUMNS)}
     meta = {"team": "synthetic", "n": n, "seed": 0, "duration": 3.0,

@@ -87,6 +87,23 @@ class Flow(Plant):
         super().__init__("flow", tuple(state_names), ())
 
 
+class NoPlant(Plant):
+    """No body at all: an agent that only thinks and talks (a human operator)."""
+
+    def __init__(self) -> None:
+        super().__init__("none", (), ())
+
+    @property
+    def exact(self) -> bool:
+        return True
+
+    def derivative(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return np.zeros_like(x)
+
+    def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
+        return x.copy()
+
+
 KINEMATICS: dict[str, type[Plant]] = {"unicycle": Unicycle, "holonomic": Holonomic}
 
 
@@ -94,6 +111,8 @@ def make_plant(kind: str, state_names: tuple[str, ...] = ()) -> Plant:
     """Build a plant by kind name (``unicycle``, ``holonomic`` or ``flow``)."""
     if kind == "flow":
         return Flow(state_names)
+    if kind == "none":
+        return NoPlant()
     return KINEMATICS[kind]()
 
 

@@ -27,17 +27,21 @@ class Ctx:
 
     ``x`` state (m, d), ``v`` variables (m, V), ``p`` parameters (m, P), ``t`` time (m,),
     ``t_in`` time since the owning mode was entered (m,), ``m`` the fields of the message
-    that triggered the transition being evaluated (name -> (m,)), if any.
+    that triggered the transition being evaluated (name -> (m,)), if any; ``e`` the agent's
+    stream estimates for these instances (an :class:`~.streams.InboxView`), ``u`` the held
+    inputs (m, k) where a stream's fields may read them.
     """
 
-    __slots__ = ("m", "p", "t", "t_in", "v", "x")
+    __slots__ = ("e", "m", "p", "t", "t_in", "u", "v", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
-                 t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None
-                 ) -> None:
+                 t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
+                 e=None) -> None:
         self.x, self.v, self.p, self.t = x, v, p, t
         self.t_in = t if t_in is None else t_in
         self.m = m
+        self.e = e
+        self.u: np.ndarray | None = None
 
 
 @dataclass
@@ -66,6 +70,21 @@ class CAction:
     to: int | None = None  # an agent, None for broadcast, REPLY for the triggering sender
     socket: str = "control"
     fields: dict[str, Expression] = field(default_factory=dict)
+    to_expr: Expression | None = None  # ``to: <expression>``: an agent index per instance
+
+
+@dataclass
+class CPolicy:
+    """How an agent sends one message type: its priority and, if acknowledged, the ack
+    timeout and retry limit (expressions of the sender's parameters)."""
+
+    priority: Expression | None = None
+    timeout: Expression | None = None
+    retries: Expression | None = None
+
+    @property
+    def acknowledged(self) -> bool:
+        return self.timeout is not None
 
 
 @dataclass
@@ -85,6 +104,7 @@ class CTransition:
     guard_text: str
     conflicts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     after_slot: int = -1
+    internal: bool = False  # no target: actions only, nothing exited or entered
 
 
 @dataclass
@@ -141,6 +161,8 @@ class CAgent:
     has_triggered: np.ndarray
     final: np.ndarray
     leaves: np.ndarray
+    policies: dict[str, CPolicy] = field(default_factory=dict)
+    streams: list = field(default_factory=list)  # list[streams.CStream]
 
     @property
     def limited(self) -> bool:

@@ -23,6 +23,7 @@ from hybridteam.engine.compiled import (
     Driver,
     Watch,
 )
+from hybridteam.engine.protocols import attach, check_messages, team_symbols
 from hybridteam.errors import DocPath, ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import (
     Expression,
@@ -77,7 +78,7 @@ def _message_symbols(fields: set[str]) -> dict:
 
 def message_fields(team: Team) -> dict[str, set[str]]:
     """The fields sent with each message type anywhere in the team (the receivers' view)."""
-    out: dict[str, set[str]] = {}
+    out: dict[str, set[str]] = {name: set(spec.fields) for name, spec in team.messages.items()}
     for agent in team.agents:
         for _, mode in agent.root.walk():
             for tr in mode.transitions:
@@ -105,9 +106,26 @@ def _flatten(root: Mode) -> tuple[list[tuple[str, Mode, int, int]], dict[int, li
     return out, children
 
 
-def resolve_mode(name: str, paths: list[str]) -> tuple[int | None, list[str]]:
-    """Index of the mode called ``name`` (a unique name or dotted-path suffix), and matches."""
+def resolve_mode(name: str, paths: list[str], near: str | None = None
+                 ) -> tuple[int | None, list[str]]:
+    """Index of the mode called ``name`` (a unique name or dotted-path suffix), and matches.
+
+    Of several matches, the one sharing the longest enclosing scope with ``near`` (the
+    transition's source) wins if it alone does: a mode library copied under two protocol
+    roles (``Lead.Avoid``, ``Offering.Avoid``) still says ``to: Avoid`` inside each copy.
+    """
     matches = [i for i, p in enumerate(paths) if p and (p == name or p.endswith("." + name))]
+    if len(matches) > 1 and near is not None:
+        def scope(i: int) -> int:
+            a, b = paths[i].split(".")[:-1], near.split(".")
+            k = 0
+            while k < min(len(a), len(b)) and a[k] == b[k]:
+                k += 1
+            return k
+        best = max(scope(i) for i in matches)
+        nearest = [i for i in matches if scope(i) == best]
+        if len(nearest) == 1:
+            return nearest[0], [paths[i] for i in matches]
     return (matches[0] if len(matches) == 1 else None), [paths[i] for i in matches]
 
 
@@ -116,14 +134,15 @@ def resolve_mode(name: str, paths: list[str]) -> tuple[int | None, list[str]]:
 
 def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
                   agent_names: list[str],
-                  message_fields: dict[str, set[str]] | None = None) -> CAgent:
+                  message_fields: dict[str, set[str]] | None = None,
+                  team: Team | None = None, extra_symbols: dict | None = None) -> CAgent:
     col = _Collector()
     where = agent.where
     try:
         plant = make_plant(agent.plant.kind, tuple(agent.plant.state))
     except KeyError:
         col.fail((*agent.plant.where, "kind"), f"unknown plant kind '{agent.plant.kind}'",
-                 did_you_mean(agent.plant.kind, ["unicycle", "holonomic", "flow"]))
+                 did_you_mean(agent.plant.kind, ["unicycle", "holonomic", "flow", "none"]))
         raise ModelErrors(col.errors) from None
     state_index = {n: j for j, n in enumerate(plant.state_names)}
     var_index = {n: j for j, n in enumerate(agent.variables)}
@@ -139,8 +158,8 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
             elif n in seen and not (seen[n] == "parameter" and kind == "parameter"):
                 col.fail((*where, n), f"name '{n}' is both a {seen[n]} and a {kind}")
             seen[n] = kind
-    syms = _symbols(state_index, var_index, param_index)
-    param_syms = _symbols({}, {}, param_index)
+    syms = {**(extra_symbols or {}), **_symbols(state_index, var_index, param_index)}
+    param_syms = {**(extra_symbols or {}), **_symbols({}, {}, param_index)}
 
     missing = [n for n in plant.state_names if n not in agent.plant.state]
     if plant.kind != "flow" and (missing or set(agent.plant.state) - set(plant.state_names)):
@@ -241,7 +260,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         (has_triggered if ct.on else has_eventless)[ct.source] = True
     driver_modes = sorted((m.index for m in modes if m.driver >= 0),
                           key=lambda i: -modes[i].depth)
-    return CAgent(
+    ca = CAgent(
         index=index, name=agent.name, plant=plant, modes=modes, transitions=transitions,
         drivers=drivers, state_index=state_index, var_index=var_index,
         param_index=param_index,
@@ -255,6 +274,11 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         final=np.array([m.final for m in modes], bool),
         leaves=np.array([m.index for m in modes if m.kind == "leaf"], dtype=np.intp),
     )
+    if team is not None:
+        attach(ca, team, syms, paths, col)
+        if col.errors:
+            raise ModelErrors(col.errors)
+    return ca
 
 
 def _group_triggered(transitions: list[CTransition]) -> dict[str, list[int]]:
@@ -276,7 +300,8 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
 def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
                         state_index, var_index, agent_names, agent_name: str,
                         col: _Collector) -> CTransition | None:
-    tgt, matches = resolve_mode(tr.target, paths)
+    internal = tr.target is None
+    tgt, matches = (src, []) if internal else resolve_mode(tr.target, paths, paths[src])
     if tgt is None:
         if matches:
             col.fail((*tr.where, "to"), f"mode name '{tr.target}' is ambiguous: "
@@ -290,6 +315,9 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     common = next(a for a in anc_s if a in anc_t)
     if common in (src, tgt):
         common = modes[common].parent
+    if common < 0 and internal:
+        col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
+        return None
     if common < 0:
         col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
         return None
@@ -328,7 +356,7 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         elif isinstance(act, Raise):
             actions.append(CAction("raise", name=act.event))
         elif isinstance(act, Send):
-            to = None
+            to, to_expr = None, None
             if act.to == "sender":
                 if "msg_sender" not in syms:
                     col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
@@ -336,24 +364,30 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
                              "no triggering message ('on:' a message type)")
                     continue
                 to = REPLY
-            elif act.to is not None:
-                if act.to not in agent_names:
-                    col.fail((*awhere, "to"), f"unknown agent '{act.to}'",
-                             did_you_mean(act.to, agent_names))
-                    continue
+            elif act.to is not None and act.to in agent_names:
                 to = agent_names.index(act.to)
+            elif act.to is not None:
+                # an expression giving an agent's index per instance (negative: everyone)
+                try:
+                    to_expr = compile_expression(act.to, syms)
+                except ExpressionError as exc:
+                    col.fail((*awhere, "to"), f"unknown agent '{act.to}'" if
+                             act.to.isidentifier() else exc.message,
+                             did_you_mean(act.to, agent_names) if act.to.isidentifier()
+                             else exc.hint)
+                    continue
             fields = {}
             for fname, text in act.fields.items():
                 e = col.expr(text, syms, (*awhere, "fields", fname))
                 if e is not None:
                     fields[fname] = e
             actions.append(CAction("send", name=act.message, to=to, socket=act.socket,
-                                   fields=fields))
+                                   fields=fields, to_expr=to_expr))
     return CTransition(
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
         depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
-        guard_text=str(tr.guard or ""),
+        guard_text=str(tr.guard or ""), internal=internal,
     )
 
 
@@ -382,13 +416,14 @@ def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
     from hybridteam.network import check_network
 
-    errors: list[ModelError] = check_network(team)
+    errors: list[ModelError] = check_network(team) + check_messages(team)
     fields = message_fields(team)
+    extra = team_symbols(team)
     agents: list[CAgent] = []
     names = [a.name for a in team.agents]
     for i, agent in enumerate(team.agents):
         try:
-            agents.append(compile_agent(agent, i, team.parameters, names, fields))
+            agents.append(compile_agent(agent, i, team.parameters, names, fields, team, extra))
         except ModelErrors as exc:
             errors.extend(exc.errors)
     scenario = []

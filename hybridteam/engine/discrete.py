@@ -17,10 +17,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.engine.compiled import REPLY
-from hybridteam.engine.events import LOCAL, MESSAGE
+from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CAgent
+    from hybridteam.engine.compiled import CAction, CAgent, Ctx
     from hybridteam.engine.simulator import Simulator
     from hybridteam.engine.state import AgentState
 
@@ -42,9 +42,16 @@ def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
                 fired[inst] = True  # consuming an event is a micro-step, taken or not
                 ag, st = sim.cteam.agents[agent], sim.states[agent]
                 msg = None
+                if kind == TIMER:
+                    live = ~sim.done[inst]
+                    sim.reliable.on_timer(inst[live], agent,
+                                          [p for (_, p), ok in zip(members, live, strict=True)
+                                           if ok])
+                    continue
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
-                    keep = sim.network.receive(inst, sim.t[inst], payloads) & ~sim.done[inst]
+                    keep = sim.network.receive(inst, sim.t[inst], payloads,
+                                               screen=sim.screen) & ~sim.done[inst]
                     inst = inst[keep]
                     msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
                 else:
@@ -124,7 +131,8 @@ def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     """Exit, act, enter — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
     ctx = st.ctx(sub, sim.t[sub], tr.source, msg)
-    st.exit(tr.exit_root, sub, sim.t, sim.rec)
+    if not tr.internal:
+        st.exit(tr.exit_root, sub, sim.t, sim.rec)
     for act in tr.actions:
         if act.kind == "assign":
             kind, col = act.target  # type: ignore[misc]
@@ -138,15 +146,36 @@ def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
         elif act.kind == "raise":
             sim.queue.push(sub, sim.t[sub], LOCAL, ag.index, act.name)
         else:
-            fields = {k: np.broadcast_to(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
-            to = act.to
-            if to == REPLY:
-                to = msg["sender"].astype(np.intp) if msg is not None else None
-            sim.network.send(sub, sim.t[sub], ag.index, to, act.socket, act.name, fields)
-    st.enter_path(tr.entry_path, sub, sim.t)
+            _send(sim, ag, act, sub, ctx, msg)
+    if not tr.internal:
+        st.enter_path(tr.entry_path, sub, sim.t)
     sim.rec.transition(ag.index, j, sub, sim.t[sub], sim.micro[sub], cause)
     sim.last_fired[sub] = ag.index * 1_000_000 + j
     _zeno_window(sim, ag, st, sub)
+
+
+def _send(sim: Simulator, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
+          msg: dict[str, np.ndarray] | None) -> None:
+    """A ``send`` action: plain datagrams, or through the acknowledged layer when the
+    message type's protocol asks for acks; priority ranks same-instant arrivals."""
+    fields = {k: np.broadcast_to(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
+    to: int | np.ndarray | None = act.to
+    if act.to_expr is not None:
+        to = np.rint(np.broadcast_to(act.to_expr(ctx), sub.shape)).astype(np.intp)
+    elif to == REPLY:
+        to = msg["sender"].astype(np.intp) if msg is not None else None
+    policy = ag.policies.get(act.name)
+    rank = None
+    if policy is not None and policy.priority is not None:
+        rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
+    if policy is not None and policy.acknowledged:
+        timeout = np.broadcast_to(policy.timeout(ctx), sub.shape)  # type: ignore[misc]
+        retries = np.broadcast_to(policy.retries(ctx), sub.shape)  # type: ignore[misc]
+        sim.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
+                          rank)
+    else:
+        sim.network.send(sub, sim.t[sub], ag.index, to, act.socket, act.name, fields,
+                         rank=rank)
 
 
 def _zeno_window(sim: Simulator, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:

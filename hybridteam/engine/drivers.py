@@ -55,7 +55,8 @@ def derivative(sim: Simulator, a: int, idx: np.ndarray) -> rk.Derivative:
             sel = slice(None) if whole else rows
             tr = tt[sel]
             t_in = tr - entry[sel, D.owner] if D.owner >= 0 else tr
-            ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in)
+            ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in,
+                      e=None if st.inbox is None else st.inbox.view(idx[sel]))
             if D.kind == "flow":
                 for j, e in enumerate(D.flow):  # type: ignore[arg-type]
                     if e is not None:

@@ -1,8 +1,10 @@
 """Pending discrete events: scripted scenario events, local events, message deliveries.
 
-Events at the same time are handled in a fixed order — (time, kind, receiving agent, sequence
-number) with kinds ordered scenario < message < local — so a run is a pure function of the
-model and the seed. Sequence numbers count per instance, so an instance's events do not
+Events at the same time are handled in a fixed order — (time, kind, rank, receiving agent,
+sequence number) with kinds ordered scenario < message < local < timer — so a run is a pure
+function of the model and the seed. ``rank`` is minus a message's declared priority: of two
+requests arriving at the same instant, the higher-priority one is handled first. Sequence
+numbers count per instance, so an instance's events do not
 depend on its neighbours in an ensemble.
 """
 
@@ -14,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-SCENARIO, MESSAGE, LOCAL = 0, 1, 2
+SCENARIO, MESSAGE, LOCAL, TIMER = 0, 1, 2, 3
 
 
 class EventQueue:
@@ -43,25 +45,27 @@ class EventQueue:
         self.seq[idx] += 1
         for i, ti, s in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
                             seqs.tolist(), strict=True):
-            heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, agent, s, name, payload))
+            heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, 0.0, agent, s, name, payload))
         self.next[idx] = np.minimum(self.next[idx], t)
         return seqs
 
     def push_each(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
-                  payloads: Sequence[Any]) -> None:
+                  payloads: Sequence[Any], rank: float = 0.0) -> None:
         """Queue one event per instance in ``idx``, each with its own payload."""
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
         for i, ti, s, payload in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
                                      seqs.tolist(), payloads, strict=True):
-            heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, agent, s, name, payload))
+            heapq.heappush(self.heaps.setdefault(i, []),
+                           (ti, kind, rank, agent, s, name, payload))
         np.minimum.at(self.next, idx, t)
 
     def pending_messages(self) -> list[tuple[int, Any]]:
         """(instance, payload) of every message still queued, in instance order."""
         out = []
         for i in sorted(self.heaps):
-            out += [(i, e[5]) for e in sorted(self.heaps[i]) if e[1] == MESSAGE]
+            out += [(i, e[6]) for e in sorted(self.heaps[i], key=lambda e: e[:5])
+                    if e[1] == MESSAGE]
         return out
 
     def pending(self, idx: np.ndarray) -> np.ndarray:
@@ -81,13 +85,13 @@ class EventQueue:
             scn = self.scenario[c] if c < len(self.scenario) else None
             head = heap[0] if heap else None
             use_scn = scn is not None and scn[0] <= t[i] and (
-                head is None or (scn[0], SCENARIO, scn[1]) <= head[:3])
+                head is None or (scn[0], SCENARIO, 0.0, scn[1]) <= head[:4])
             if use_scn:
                 self.cursor[i] += 1
                 key, payload = (SCENARIO, scn[1], scn[2]), None
             else:
                 ev = heapq.heappop(heap)  # type: ignore[arg-type]
-                key, payload = (ev[1], ev[2], ev[4]), ev[5]
+                key, payload = (ev[1], ev[3], ev[5]), ev[6]
             groups.setdefault(key, []).append((i, payload))
         if due.size:
             self._refresh(due)

@@ -2,7 +2,7 @@
 
 ``stuck``: an active mode's invariant is false and no transition took the instance out.
 ``ok`` early: every agent's active leaves are final. ``deadlock``: nothing is pending (no
-event, message, timer) and every agent either is final or waits for a trigger, so no
+event, message, timer, stream) and every agent either is final or waits for a trigger, so no
 discrete step can ever happen again. Each outcome carries a message naming agents, modes,
 guards or triggers, and the time.
 """
@@ -54,7 +54,9 @@ def check_instances(sim: Simulator, idx: np.ndarray) -> None:
     fin = idx[all_final]
     if fin.size:
         sim.finish(fin, "ok", lambda i: "every agent reached a final mode")
-    stalled = idx[~all_final & waiting & someone_waits & ~sim.queue.pending(idx)]
+    # periodic stream sends are pending messages too: a robot that still talks is not stalled
+    pending = sim.queue.pending(idx) | np.isfinite(sim.streams.next[idx])
+    stalled = idx[~all_final & waiting & someone_waits & ~pending]
     if stalled.size:
         sim.finish(stalled, "deadlock", lambda i: deadlock_text(sim, i))
 

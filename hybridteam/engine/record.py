@@ -46,9 +46,12 @@ class Recorder:
 
     def message(self, instances: np.ndarray, seq: np.ndarray, sender: int, receiver: int,
                 socket: str, kind: str, t_send: np.ndarray, t_recv: np.ndarray, status: str,
-                reason: str = "") -> None:
+                reason: str = "", msg_id: np.ndarray | None = None) -> None:
+        """One row per copy. ``msg_id`` identifies an acknowledged message across its
+        retransmissions (-1 for plain datagrams)."""
+        ids = np.full(len(instances), -1, np.int64) if msg_id is None else msg_id.copy()
         self._messages.append((instances.copy(), seq.copy(), sender, receiver, socket, kind,
-                               t_send.copy(), t_recv.copy(), status, reason))
+                               t_send.copy(), t_recv.copy(), status, reason, ids))
 
     def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
         ok = k < len(self.sample_times)
@@ -94,7 +97,7 @@ class Recorder:
     def _message_table(self) -> Table:
         cols: dict[str, list[Any]] = {c: [] for c in MESSAGE_COLUMNS}
         names = [a.name for a in self.cteam.agents]
-        for inst, seq, snd, rcv, socket, kind, ts, tr, status, reason in self._messages:
+        for inst, seq, snd, rcv, socket, kind, ts, tr, status, reason, ids in self._messages:
             k = len(inst)
             cols["instance"].append(inst)
             cols["seq"].append(seq)
@@ -106,6 +109,7 @@ class Recorder:
             cols["t_recv"].append(tr)
             cols["status"].append([status] * k)
             cols["reason"].append([reason] * k)
+            cols["msg_id"].append(ids)
         return _sorted(MESSAGE_COLUMNS, cols)
 
     def tables(self) -> tuple[Table, Table, Table]:
@@ -117,7 +121,8 @@ def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
         return Table(names)
     flat = {}
     for name, chunks in cols.items():
-        if name in ("instance", "t", "step", "depth", "start", "end", "seq", "t_send", "t_recv"):
+        if name in ("instance", "t", "step", "depth", "start", "end", "seq", "t_send", "t_recv",
+                    "msg_id"):
             flat[name] = np.concatenate([np.asarray(c) for c in chunks])
         else:
             flat[name] = np.array([v for c in chunks for v in c], dtype=object)

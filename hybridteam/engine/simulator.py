@@ -26,9 +26,11 @@ from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import Recorder
+from hybridteam.engine.reliable import Reliable
 from hybridteam.engine.state import AgentState
+from hybridteam.engine.streams import Inbox, Streams, stream_fields
 from hybridteam.errors import did_you_mean
-from hybridteam.network import Network
+from hybridteam.network import Message, Network
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
@@ -77,6 +79,21 @@ class Simulator:
         self.queue = EventQueue(n, cteam.scenario)
         self._apply_overrides(overrides or {})
         self.network = Network(cteam.team, n, seed, self._team_params(), self.queue, self.rec)
+        self.reliable = Reliable(self)
+        self.streams = Streams(self, [ca.streams for ca in cteam.agents])
+        if self.streams.any:
+            fields = stream_fields(cteam)
+            for st in self.states:
+                st.inbox = Inbox(n, len(cteam.agents), fields)
+
+    def screen(self, i: int, msg: Message, t: float) -> str | None:
+        """The protocol layer's look at each copy that got through the medium: acks and
+        duplicates are withheld from the modes; stream copies update the estimates."""
+        why = self.reliable.screen(i, msg, t)
+        inbox = self.states[msg.receiver].inbox
+        if why is None and inbox is not None and msg.type in inbox.fields:
+            inbox.deliver(i, msg)
+        return why
 
     # ------------------------------------------------------------------ set-up
     def _apply_overrides(self, overrides: Mapping[str, float | Sequence[float]]) -> None:
@@ -212,12 +229,13 @@ class Simulator:
                 self.timer[a][live] = st.next_timer(live, self.t[live])
             if changed.size:
                 st.update_drivers(changed)
-                if not st.ca.plant.input_names:
+                if st.ca.plant.kind == "flow":
                     st.rk[changed] = True
                 if st.ca.watches:
                     st.truth[:, changed] = watch_truth(self, a, changed, st.x[changed],
                                                        self.t[changed])
             sample_laws(self, a, live, changed)
+        self.streams.update(live)
         if crossed is not None and crossed.size:
             changed = np.union1d(changed, crossed[~self.done[crossed]])
         check_instances(self, changed)
@@ -230,6 +248,7 @@ class Simulator:
         sel: slice | np.ndarray = slice(None) if full else idx
         t = self.t
         t_next = np.minimum(self.queue.next, self.t_end)
+        np.minimum(t_next, self.streams.next, out=t_next)
         any_rk = np.zeros(self.n, bool)
         for a, st in enumerate(self.states):
             np.minimum(t_next, st.next_tick, out=t_next)
@@ -311,7 +330,7 @@ class Simulator:
                 st.x[idx] = x_end[a]
         self.t = t1
         at = crossing | (tn >= self.t_end) | (tn >= self.queue.next[sel])
-        tick = np.zeros(idx.size, bool)
+        tick = tn >= self.streams.next[sel]
         for a, st in enumerate(self.states):
             at |= tn >= self.timer[a][sel]
             tick |= tn >= st.next_tick[sel]

@@ -17,6 +17,7 @@ from hybridteam.engine.compiled import CAgent, Ctx
 
 if TYPE_CHECKING:
     from hybridteam.engine.record import Recorder
+    from hybridteam.engine.streams import Inbox
 
 
 class AgentState:
@@ -40,12 +41,14 @@ class AgentState:
         self.truth = np.zeros((len(ca.watches), n), bool)
         self.watch_modes = np.array([w.mode for w in ca.watches], np.intp)
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
+        self.inbox: Inbox | None = None  # stream estimates, when the team has streams
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
             m: dict[str, np.ndarray] | None = None) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted)."""
         t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
-        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m)
+        e = self.inbox.view(idx) if self.inbox is not None else None
+        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m, e)
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:

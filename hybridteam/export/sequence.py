@@ -68,7 +68,7 @@ def arrows(trace: Trace, instance: int = 0,
         reason = str(r.reason or "")
         if lost:
             label += f" (lost: {reason})" if reason else " (lost)"
-        if "retransmit" in reason:
+        if "retransmi" in reason:
             label += " (retransmission)"
         out.append(Arrow(str(r.sender), str(r.receiver), label, lost))
     return out

@@ -225,6 +225,8 @@ def timeline_data(trace: Trace, instance: int = 0,
 
     arrows: list[Arrow] = []
     msgs = pick(trace.messages, instance)
+    if len(msgs):  # copies still in flight when the run ended were not lost by the network
+        msgs = msgs.filter(msgs["reason"] != "run ended")
     lost = int(np.sum(msgs["status"] == "lost")) if len(msgs) else 0
     ys = {lane.agent: lane.y for lane in lanes if not lane.top and not lane.region}
     for m in msgs:

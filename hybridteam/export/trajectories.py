@@ -67,10 +67,11 @@ def planar_agents(trace: Trace) -> list[str]:
 
 
 def flow_agents(trace: Trace) -> list[str]:
-    """Agents without a position: drawn as state against time."""
+    """Agents without a position: drawn as state against time (agents with no state at
+    all, such as an operator, are not drawn)."""
     payloads = set(payload_names(trace))
     return [a["name"] for a in trace.meta["agents"]
-            if a["name"] not in payloads and not {"x", "y"} <= set(a["state"])]
+            if a["name"] not in payloads and a["state"] and not {"x", "y"} <= set(a["state"])]
 
 
 def pose(trace: Trace, name: str, instance: int) -> np.ndarray:

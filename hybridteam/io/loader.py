@@ -8,6 +8,7 @@ warnings for unreachable modes and dead ends. Nothing is run before all gates pa
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from pydantic import BaseModel, ValidationError
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import DocPath, ModelError, ModelErrors
 from hybridteam.io.errors import did_you_mean, located_errors
+from hybridteam.io.protocols import Composer, InFile, ProtocolErrors
 from hybridteam.io.schema import (
     FILE_KINDS,
     AgentSchema,
@@ -64,8 +66,17 @@ class Loaded:
     warnings: list[SourceError] = field(default_factory=list)
 
 
-def locate(err: ModelError, positions: Positions, filename: str) -> SourceError:
-    """A :class:`ModelError` (document path + offset) as a ``file:line:col`` error."""
+def locate(err: ModelError, positions: Positions, filename: str,
+           elsewhere: dict[str, Positions] | None = None) -> SourceError:
+    """A :class:`ModelError` (document path + offset) as a ``file:line:col`` error.
+
+    A path starting with an :class:`InFile` tag lies in that file (a protocol's), found in
+    ``elsewhere``.
+    """
+    if err.path and isinstance(err.path[0], InFile) and elsewhere and err.path[0] in elsewhere:
+        filename, positions = str(err.path[0]), elsewhere[err.path[0]]
+        err = ModelError(err.path[1:], err.message, offset=err.offset, hint=err.hint,
+                         at_key=err.at_key)
     mark = positions.key(err.path) if err.at_key else None
     if err.offset is not None:
         mark = positions.in_scalar(err.path, err.offset)
@@ -106,15 +117,24 @@ def load(source: str | os.PathLike) -> Loaded:
     except ValidationError as exc:
         raise InputErrors(located_errors(exc, schema, data, positions, filename)) from None
     if kind == "team":
-        team = build_team(document, filename)  # type: ignore[arg-type]
         try:
+            team, comp = compose_team(document, filename)  # type: ignore[arg-type]
+        except ProtocolErrors as exc:
+            raise InputErrors(exc.errors) from None
+        others = {InFile(p.filename): p.positions for p in comp.cache.values()}
+        try:
+            if comp.errors:
+                raise ModelErrors(comp.errors)
             compile_team(team)
         except ModelErrors as exc:
-            raise InputErrors([locate(e, positions, filename) for e in exc.errors]) from None
+            raise InputErrors([locate(e, positions, filename, others)
+                               for e in exc.errors]) from None
         from hybridteam.io.check import check_team
 
-        warnings = [locate(w, positions, filename) for w in check_team(team)]
+        warnings = [locate(w, positions, filename, others) for w in check_team(team)]
         return Loaded(kind, document, team, warnings)
+    if kind == "protocol":
+        return Loaded(kind, document, document)
     raise AssertionError(kind)  # pragma: no cover
 
 
@@ -131,7 +151,18 @@ def load_team(source: str | os.PathLike) -> Team:
 
 
 def build_team(doc: TeamFile, filename: str) -> Team:
-    agents = tuple(_agent(name, spec, ("agents", name)) for name, spec in doc.agents.items())
+    """The team a validated document declares (protocol errors raised, not collected)."""
+    team, comp = compose_team(doc, filename)
+    if comp.errors:
+        raise ModelErrors(comp.errors)
+    return team
+
+
+def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
+    """The team, and the composer that brought in its protocols (with their errors)."""
+    comp = Composer(Path(filename).resolve().parent, _mode, _transition)
+    agents = tuple(_agent(name, spec, ("agents", name), comp, set(doc.parameters))
+                   for name, spec in doc.agents.items())
     s = doc.simulation
     sim = Simulation(
         duration=s.duration, seed=s.seed, sample_period=s.sample_period, rtol=s.rtol,
@@ -154,18 +185,45 @@ def build_team(doc: TeamFile, filename: str) -> Team:
         rate_limits={agent: dict(limits) for agent, limits in net.rate_limits.items()},
         where=("network",),
     )
-    return Team(doc.team, agents, dict(doc.parameters), sim, scenario,
-                source=Path(filename).name, network=network)
+    team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
+                source=Path(filename).name, network=network, messages=comp.messages())
+    return team, comp
 
 
-def _agent(name: str, spec: AgentSchema, where: DocPath) -> Agent:
-    plant = PlantSpec(spec.plant.kind, dict(spec.plant.state),
-                      {k: tuple(v) for k, v in spec.plant.limits.items()},  # type: ignore[misc]
-                      (*where, "plant"))
-    children = tuple(_mode(n, m, (*where, "modes", n)) for n, m in spec.modes.items())
-    root = Mode(name, children, initial=spec.initial, history=spec.history,
-                where=where)
-    return Agent(name, plant, root, dict(spec.parameters), dict(spec.variables), where)
+def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
+           team_params: set[str]) -> Agent:
+    extra: dict = {"parameters": dict(spec.parameters), "variables": dict(spec.variables),
+                   "streams": [], "initial": spec.initial}
+    if spec.operator is not None:
+        plant = PlantSpec("none", {}, {}, where)
+        children = comp.operator(spec.operator, where, extra) or ()
+    else:
+        assert spec.plant is not None and spec.modes is not None  # the schema checked
+        plant = PlantSpec(spec.plant.kind, dict(spec.plant.state),
+                          {k: tuple(v) for k, v in spec.plant.limits.items()},  # type: ignore
+                          (*where, "plant"))
+        children = tuple(_compose(n, m, (*where, "modes", n), comp, extra)
+                         for n, m in spec.modes.items())
+    root = Mode(name, children, initial=spec.initial or extra["initial"],
+                history=spec.history, where=where)
+    # protocol defaults yield to the team's parameters of the same name
+    params = {k: v for k, v in extra["parameters"].items()
+              if k in spec.parameters or k not in team_params}
+    return Agent(name, plant, root, params, extra["variables"], where,
+                 tuple(extra["streams"]))
+
+
+def _compose(name: str, spec: ModeSchema, where: DocPath, comp: Composer, extra: dict
+             ) -> Mode:
+    """A mode of an agent's tree; one declared with ``protocol:`` gets the role region."""
+    if spec.protocol is not None:
+        return comp.region(name, spec, where, extra) or _mode(
+            name, spec.model_copy(update={"protocol": None, "roles": None}), where)
+    if not spec.modes:
+        return _mode(name, spec, where)
+    mode = _mode(name, spec.model_copy(update={"modes": None}), where)
+    return dataclasses.replace(mode, children=tuple(
+        _compose(n, m, (*where, "modes", n), comp, extra) for n, m in spec.modes.items()))
 
 
 def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:

@@ -53,7 +53,8 @@ ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_
 class TransitionSchema(Strict):
     """A guarded switch from the enclosing mode to ``to``."""
 
-    to: str = Field(description="target mode: a unique name or a dotted path")
+    to: str | None = Field(None, description="target mode: a unique name or a dotted path "
+                           "(none: an internal transition, actions only)")
     on: str | None = Field(None, description="message type or local event that triggers it")
     after: ExprOrNumber | None = Field(None, description="seconds in the source mode")
     guard: str | None = Field(None, description="condition, e.g. 'x >= 22'")
@@ -93,6 +94,10 @@ class ModeSchema(Strict):
     invariant: str | None = None
     final: bool = False
     transitions: list[TransitionSchema] = Field(default_factory=list)
+    protocol: str | None = Field(
+        None, description="a protocol (name or file) whose role region this mode becomes")
+    roles: dict[str, ModeSchema] | None = Field(
+        None, description="with 'protocol': what each role (e.g. lead, follow) does")
 
     @field_validator("modes")
     @classmethod
@@ -108,6 +113,11 @@ class ModeSchema(Strict):
         if self.period is not None and self.inputs is None:
             raise ValueError("'period' samples 'inputs'; this mode has no 'inputs' "
                              "(a law takes its period in 'law: {use: ..., period: ...}')")
+        if self.roles is not None and self.protocol is None:
+            raise ValueError("'roles' binds the roles of a protocol; add 'protocol: <name>'")
+        if self.protocol is not None and self.modes is not None:
+            raise ValueError("a mode with 'protocol' gets its modes from the protocol's "
+                             "region; bind them with 'roles', not 'modes'")
         return self
 
 
@@ -115,7 +125,7 @@ class PlantSchema(Strict):
     """Kinematics: unicycle (x, y, theta; v, omega), holonomic (x, y, theta; vx, vy, omega)
     or flow (any state; each mode gives its derivative)."""
 
-    kind: Literal["unicycle", "holonomic", "flow"]
+    kind: Literal["unicycle", "holonomic", "flow", "none"]
     state: dict[str, ExprOrNumber] = Field(default_factory=dict)
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
 
@@ -130,12 +140,14 @@ class AgentSchema(Strict):
     """One robot or automaton: a plant, a mode tree, parameters and variables."""
 
     description: str | None = None
-    plant: PlantSchema
+    plant: PlantSchema | None = None
     parameters: dict[str, float] = Field(default_factory=dict)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     history: Literal["none", "shallow", "deep"] = "none"
-    modes: dict[str, ModeSchema]
+    modes: dict[str, ModeSchema] | None = None
+    operator: str | None = Field(
+        None, description="a protocol whose operator automaton this agent runs (no plant)")
 
     @field_validator("parameters", "variables")
     @classmethod
@@ -145,11 +157,23 @@ class AgentSchema(Strict):
 
     @field_validator("modes")
     @classmethod
-    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        if not v:
-            raise ValueError("an agent needs at least one mode")
-        check_names(v, "mode")
+    def _mode_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
+        if v is not None:
+            if not v:
+                raise ValueError("an agent needs at least one mode")
+            check_names(v, "mode")
         return v
+
+    @model_validator(mode="after")
+    def _modes_or_operator(self) -> AgentSchema:
+        missing = [k for k in ("plant", "modes") if getattr(self, k) is None]
+        if self.operator is None and missing:
+            raise ValueError(f"missing required key '{missing[0]}' (an agent without a "
+                             "plant and modes is declared with 'operator: <protocol>')")
+        if self.operator is not None and self.modes is not None:
+            raise ValueError("an operator agent gets its modes from its protocol; "
+                             "remove 'modes'")
+        return self
 
 
 class ZenoSchema(Strict):
@@ -249,7 +273,72 @@ class TeamFile(Strict):
         return v
 
 
-FILE_KINDS: dict[str, type[BaseModel]] = {"team": TeamFile}
+class AckSchema(Strict):
+    """Acknowledged delivery: wait ``timeout`` s for an ack, resend at most ``retries``."""
+
+    timeout: ExprOrNumber = 0.1
+    retries: ExprOrNumber = 3
+
+
+class MessageDeclSchema(Strict):
+    """A message type of a protocol."""
+
+    description: str | None = None
+    socket: str = "control"
+    fields: list[str] = Field(default_factory=list)
+    ack: AckSchema | None = None
+    priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
+
+
+class StreamDeclSchema(Strict):
+    """A periodic data message, e.g. a leader's pose at 20 Hz while in Lead."""
+
+    message: str
+    rate: ExprOrNumber = Field(description="messages per second")
+    while_: list[str] | None = Field(None, alias="while",
+                                     description="modes it is sent in (default: always)")
+    socket: str = "data"
+    fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
+
+
+class RegionModeSchema(ModeSchema):
+    """A mode of a protocol's role region; ``role`` names the slot whose behaviour (law,
+    submodes, transitions) the agent supplies."""
+
+    role: str | None = None
+
+
+class RegionSchema(Strict):
+    roles: list[str] = Field(default_factory=list)
+    initial: str | None = None
+    modes: dict[str, RegionModeSchema]
+
+
+class OperatorSchema(Strict):
+    """The automaton of an agent with no plant (a human operator)."""
+
+    description: str | None = None
+    parameters: dict[str, float] = Field(default_factory=dict)
+    variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
+    initial: str | None = None
+    modes: dict[str, ModeSchema]
+
+
+class ProtocolFile(Strict):
+    """A protocol: message types, data streams, and a role region to compose onto agents."""
+
+    kind: Literal["protocol"] = "protocol"
+    protocol: str
+    description: str | None = None
+    parameters: dict[str, float] = Field(default_factory=dict)
+    variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
+    messages: dict[str, MessageDeclSchema] = Field(default_factory=dict)
+    streams: list[StreamDeclSchema] = Field(default_factory=list)
+    region: RegionSchema | None = None
+    operator: OperatorSchema | None = None
+
+
+FILE_KINDS: dict[str, type[BaseModel]] = {"team": TeamFile, "protocol": ProtocolFile}
 
 
 def detect_kind(data: dict[str, Any]) -> str | None:
@@ -259,4 +348,6 @@ def detect_kind(data: dict[str, Any]) -> str | None:
         return kind
     if "agents" in data or "team" in data:
         return "team"
+    if "protocol" in data:
+        return "protocol"
     return None

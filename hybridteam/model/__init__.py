@@ -10,6 +10,7 @@ from hybridteam.model.modes import (
     Send,
     Transition,
 )
+from hybridteam.model.protocol import AckPolicy, MessageSpec, StreamSpec
 from hybridteam.model.team import (
     Agent,
     LinkSettings,
@@ -22,7 +23,23 @@ from hybridteam.model.team import (
 )
 
 __all__ = [
-    "Action", "Agent", "Assign", "History", "LawBinding", "LinkSettings", "Mode",
-    "NetworkSpec", "PlantSpec", "Raise",
-    "ScenarioEvent", "Send", "Simulation", "Team", "Transition", "Zeno",
+    "AckPolicy",
+    "Action",
+    "Agent",
+    "Assign",
+    "History",
+    "LawBinding",
+    "LinkSettings",
+    "MessageSpec",
+    "Mode",
+    "NetworkSpec",
+    "PlantSpec",
+    "Raise",
+    "ScenarioEvent",
+    "Send",
+    "Simulation",
+    "StreamSpec",
+    "Team",
+    "Transition",
+    "Zeno",
 ]

@@ -72,10 +72,12 @@ class Transition:
     ``on`` names a message type or local event; ``after`` is a delay (seconds in the source
     mode; a number or an expression of parameters). Without ``on`` a transition is *urgent*:
     taken at the first instant its guard and delay allow. Higher ``priority`` wins; at equal
-    priority an outer (ancestor) mode's transition beats an inner one.
+    priority an outer (ancestor) mode's transition beats an inner one. Without a ``target``
+    the transition is *internal*: its actions run but the mode is neither left nor
+    re-entered (a leader denying a request keeps its plan and its time in mode).
     """
 
-    target: str
+    target: str | None
     on: str | None = None
     after: str | float | None = None
     guard: str | None = None

@@ -6,11 +6,13 @@ from dataclasses import dataclass, field
 
 from hybridteam.errors import DocPath
 from hybridteam.model.modes import Mode
+from hybridteam.model.protocol import MessageSpec, StreamSpec
 
 
 @dataclass(frozen=True)
 class PlantSpec:
-    """An agent's kinematics: ``unicycle``, ``holonomic`` or ``flow``.
+    """An agent's kinematics: ``unicycle``, ``holonomic``, ``flow``, or ``none`` (an agent
+    with no plant, e.g. a human operator who only exchanges messages).
 
     ``state`` gives the initial value of every state component (numbers or expressions of
     parameters, so an ensemble can vary initial conditions through parameter overrides).
@@ -33,6 +35,7 @@ class Agent:
     parameters: dict[str, float] = field(default_factory=dict)
     variables: dict[str, str | float] = field(default_factory=dict)
     where: DocPath = ()
+    streams: tuple[StreamSpec, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -113,6 +116,7 @@ class Team:
     scenario: tuple[ScenarioEvent, ...] = ()
     source: str | None = None
     network: NetworkSpec = field(default_factory=NetworkSpec)
+    messages: dict[str, MessageSpec] = field(default_factory=dict)
 
     def agent(self, name: str) -> Agent:
         for a in self.agents:

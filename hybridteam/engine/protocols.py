@@ -1,0 +1,106 @@
+"""Compiling what protocols add to agents: message policies, streams, estimate names.
+
+Kept apart from :mod:`.compiler` (modes and transitions): a team without protocols never
+touches this, and the names a protocol introduces are defined in one place —
+``est_<type>_<field>``, ``est_<type>_age``, ``est_<type>_sender`` for stream estimates,
+``id_<agent>`` for agent indices (what ``msg_sender`` and ``to: <expression>`` use).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.engine.compiled import CAgent, CPolicy
+from hybridteam.engine.streams import CStream
+from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.model import Team
+
+if TYPE_CHECKING:
+    from hybridteam.engine.compiler import _Collector
+
+
+def stream_fields(team: Team) -> dict[str, list[str]]:
+    out: dict[str, list[str]] = {}
+    for agent in team.agents:
+        for s in agent.streams:
+            have = out.setdefault(s.message, [])
+            have += [f for f in s.fields if f not in have]
+    return out
+
+
+def team_symbols(team: Team) -> dict:
+    """Names every agent's expressions can read besides its own state and parameters."""
+    syms: dict = {}
+    for k, agent in enumerate(team.agents):
+        syms[f"id_{agent.name}"] = lambda c, k=k: np.float64(k)
+    for type_, fields in stream_fields(team).items():
+        syms[f"est_{type_}_sender"] = lambda c, T=type_: c.e.sender(T).astype(float)
+        syms[f"est_{type_}_age"] = lambda c, T=type_: c.t - c.e.sent(T)
+        for f in fields:
+            syms[f"est_{type_}_{f}"] = lambda c, T=type_, f=f: c.e.field(T, f)
+    return syms
+
+
+def check_messages(team: Team) -> list[ModelError]:
+    """Sends of undeclared message fields, reserved names, and sockets that disagree."""
+    errors: list[ModelError] = []
+    if "ack" in team.messages:
+        errors.append(ModelError(team.messages["ack"].where, "'ack' is reserved for "
+                                 "acknowledgements", at_key=True))
+    for agent in team.agents:
+        for _, mode in agent.root.walk():
+            for tr in mode.transitions:
+                for act in tr.actions:
+                    spec = team.messages.get(getattr(act, "message", ""))
+                    if spec is None or not spec.fields:
+                        continue
+                    for f in act.fields:  # type: ignore[attr-defined]
+                        if f not in spec.fields:
+                            errors.append(ModelError(
+                                (*act.where, "fields", f),
+                                f"message '{spec.name}' has no field '{f}'",
+                                hint=did_you_mean(f, spec.fields), at_key=True))
+    return errors
+
+
+def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: _Collector) -> None:
+    """Give a compiled agent its message policies and its streams."""
+    agent = team.agent(ca.name)
+    for name, spec in team.messages.items():
+        pol = CPolicy()
+        if spec.priority not in (0, 0.0, "0"):
+            pol.priority = col.expr(spec.priority, syms, (*spec.where, "priority"))
+        if spec.ack is not None:
+            pol.timeout = col.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
+            pol.retries = col.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
+        ca.policies[name] = pol
+    usyms = {**syms, **{f"u_{n}": (lambda c, j=j: c.u[:, j])
+                        for j, n in enumerate(ca.plant.input_names)}}
+    from hybridteam.engine.compiler import resolve_mode
+
+    for s in agent.streams:
+        modes = []
+        for k, name in enumerate(s.while_):
+            m, matches = resolve_mode(name, paths)
+            if m is None:
+                col.fail((*s.where, "while", k), f"unknown mode '{name}' in agent "
+                         f"'{ca.name}'" if not matches else
+                         f"mode name '{name}' is ambiguous: {', '.join(matches)}",
+                         None if matches else did_you_mean(name, [p.rsplit('.', 1)[-1]
+                                                                  for p in paths if p]))
+                continue
+            modes.append(m)
+        rate = col.expr(s.rate, syms, (*s.where, "rate"))
+        fields = {f: col.expr(e, usyms, (*s.where, "fields", f)) for f, e in s.fields.items()}
+        if rate is None or any(v is None for v in fields.values()):
+            continue
+        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
+                                  modes))
+
+
+def _reciprocal(rate):
+    def period(ctx):
+        return 1.0 / rate(ctx)
+    return period

@@ -1,0 +1,153 @@
+"""Data streams: periodic messages and what receivers make of them (estimates).
+
+The architecture paper's robots broadcast their estimated pose and intended velocity at
+20 Hz; a follower's law reads the latest copy from its leader (the paper's x̂_l, v̂_l), not
+the leader's true state. A stream is declared by a protocol: message type, rate, the modes
+it is sent in, and its fields as expressions at the sender (which may read the held inputs
+as ``u_<input>``). Each receiver keeps, per stream type and per sender, the newest copy by
+send time, with its arrival time; laws read it through :meth:`LawContext.estimate`, and
+expressions through ``est_<type>_<field>``, ``est_<type>_age`` and ``est_<type>_sender``
+(the most recently received copy of that type).
+
+Data copies are ordinary network messages (lossy, delayed, rate-limited, recorded), so a
+Scout limited to 8 Hz really sees every third of 20 messages.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.expr import Expression
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.network import Message
+
+
+@dataclass
+class CStream:
+    """A compiled stream of one sending agent."""
+
+    message: str
+    socket: str
+    period: Expression  # 1 / rate, an expression of the sender's parameters
+    fields: dict[str, Expression]
+    modes: list[int]  # indices of the modes it is sent in; empty: always
+
+
+class Inbox:
+    """One agent's latest copy of each stream type, per sender, over the ensemble."""
+
+    def __init__(self, n: int, agents: int, fields: dict[str, list[str]]) -> None:
+        self.fields = fields
+        self.index = {t: {f: j for j, f in enumerate(fs)} for t, fs in fields.items()}
+        self.values = {t: np.full((n, agents, len(fs)), np.nan) for t, fs in fields.items()}
+        self.sent = {t: np.full((n, agents), -np.inf) for t in fields}
+        self.latest = {t: np.full(n, -1, np.intp) for t in fields}
+
+    def deliver(self, i: int, msg: Message) -> None:
+        """Keep a copy if it is newer (by send time) than the one held from its sender."""
+        t = msg.type
+        if msg.t_send <= self.sent[t][i, msg.sender]:
+            return  # an older copy overtaken by a newer one (jitter): ignore it
+        self.sent[t][i, msg.sender] = msg.t_send
+        row = self.values[t][i, msg.sender]
+        for f, j in self.index[t].items():
+            row[j] = msg.fields.get(f, np.nan)
+        latest = self.latest[t][i]
+        if latest < 0 or msg.t_send >= self.sent[t][i, latest]:
+            self.latest[t][i] = msg.sender
+
+    def view(self, idx: np.ndarray | slice) -> InboxView:
+        return InboxView(self, idx)
+
+
+class InboxView:
+    """An inbox restricted to the instances a context is evaluated on."""
+
+    __slots__ = ("box", "idx")
+
+    def __init__(self, box: Inbox, idx: np.ndarray | slice) -> None:
+        self.box, self.idx = box, idx
+
+    def sender(self, type_: str, sender: np.ndarray | None = None) -> np.ndarray:
+        """The chosen sender per instance: the given one, else the most recent (-1: none)."""
+        if sender is None:
+            return self.box.latest[type_][self.idx]
+        return np.broadcast_to(np.asarray(sender), self.box.latest[type_][self.idx].shape
+                               ).astype(np.intp)
+
+    def field(self, type_: str, name: str, sender: np.ndarray | None = None) -> np.ndarray:
+        who = self.sender(type_, sender)
+        vals = self.box.values[type_][self.idx]
+        ok = who >= 0
+        out = np.full(who.shape, np.nan)
+        rows = np.flatnonzero(ok)
+        out[rows] = vals[rows, who[rows], self.box.index[type_][name]]
+        return out
+
+    def sent(self, type_: str, sender: np.ndarray | None = None) -> np.ndarray:
+        who = self.sender(type_, sender)
+        sent = self.box.sent[type_][self.idx]
+        out = np.full(who.shape, -np.inf)
+        rows = np.flatnonzero(who >= 0)
+        out[rows] = sent[rows, who[rows]]
+        return out
+
+
+class Streams:
+    """Sending side: when each agent's streams are due, and the sends themselves."""
+
+    def __init__(self, sim: Simulator, streams: list[list[CStream]]) -> None:
+        self.sim = sim
+        self.streams = streams
+        self.due = [[np.full(sim.n, np.inf) for _ in mine] for mine in streams]
+        self.next = np.full(sim.n, np.inf)
+
+    @property
+    def any(self) -> bool:
+        return any(self.streams)
+
+    def update(self, idx: np.ndarray) -> None:
+        """After an instant: start streams whose modes were entered (first copy now), stop
+        those whose modes were left, and send every copy that is due."""
+        sim = self.sim
+        if idx.size == 0 or not self.any:
+            return
+        t = sim.t[idx]
+        for a, mine in enumerate(self.streams):
+            st = sim.states[a]
+            for s, cs in enumerate(mine):
+                due = self.due[a][s]
+                on = st.active[np.ix_(idx, cs.modes)].any(axis=1) if cs.modes else \
+                    np.ones(idx.size, bool)
+                was = np.isfinite(due[idx])
+                due[idx[~on]] = np.inf
+                start = on & ~was
+                due[idx[start]] = t[start]
+                send = on & (t >= due[idx])
+                if send.any():
+                    sub = idx[send]
+                    ctx = st.ctx(sub, sim.t[sub])
+                    ctx.u = st.u[sub]
+                    fields = {f: np.broadcast_to(e(ctx), sub.shape).astype(float)
+                              for f, e in cs.fields.items()}
+                    sim.network.send(sub, sim.t[sub], a, None, cs.socket, cs.message, fields)
+                    period = np.broadcast_to(cs.period(ctx), sub.shape)
+                    due[sub] = sim.t[sub] + period
+        nxt = np.full(idx.size, np.inf)
+        for per_agent in self.due:
+            for due in per_agent:
+                np.minimum(nxt, due[idx], out=nxt)
+        self.next[idx] = nxt
+
+
+
+def stream_fields(cteam) -> dict[str, list[str]]:
+    """Every stream type in the team with its fields (what an inbox must hold)."""
+    from hybridteam.engine.protocols import stream_fields as declared
+
+    return declared(cteam.team)

@@ -1,0 +1,1 @@
+"""Formation keeping from stream estimates: the simplest follower for role protocols."""
