@@ -1,0 +1,57 @@
+"""Robot-steps per second of the ladder stepper, against the scalar reference loop.
+
+A robot-step is one control period of one robot (a pair-step is two). The population is
+the paper's random set S (Sec. 4) with a ladder of 450; n = 1, 100 and 1000 pairs run in
+one vectorized batch each, and the scalar reference (``reference.run``) runs a few of the
+same pairs one by one. Also timed: the single Section 4 sample run. Budget (issue): at
+least 1 M robot-steps/s at n = 1000 on this 2-core machine, and the sample run under
+0.1 s. The machine is noisy, so compare the ratios printed by one run; each figure is the
+best of a few repeats.
+
+    python benchmarks/ladder.py
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from hybridteam.modes.ladder import Pairs, random_pairs, reference, sample_run, simulate
+
+
+def best_of(repeats: int, fn) -> tuple[float, object]:
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def main() -> None:
+    pop = random_pairs(np.random.default_rng(2024), 1000, length=450.0)
+    ref_pairs = 8
+    ref_time, ref_steps = 0.0, 0
+    for i in range(ref_pairs):
+        seconds, res = best_of(2, lambda i=i: reference.run(pop.scenario(i)))
+        ref_time += seconds
+        ref_steps += 2 * int(res.steps[0])
+    ref_rate = ref_steps / ref_time
+    print(f"scalar reference     {ref_rate / 1e6:8.3f} M robot-steps/s "
+          f"({ref_pairs} pairs one by one)")
+    for n, repeats in ((1, 3), (100, 3), (1000, 2)):
+        batch = pop.take(slice(0, n))
+        seconds, res = best_of(repeats, lambda batch=batch: simulate(batch))
+        rate = 2 * int(res.steps.sum()) / seconds
+        print(f"vectorized n = {n:5d} {rate / 1e6:8.3f} M robot-steps/s   "
+              f"x{rate / ref_rate:6.2f} the reference   ({seconds:.3f} s, "
+              f"{int(res.steps.max())} steps for the slowest pair)")
+    sample = Pairs.of(sample_run())
+    seconds, res = best_of(5, lambda: simulate(sample))
+    ref_seconds, _ = best_of(5, lambda: reference.run(sample_run()))
+    print(f"sample run (Sec. 4)  {seconds * 1e3:8.1f} ms vectorized, {ref_seconds * 1e3:.1f} ms "
+          f"reference ({int(res.steps[0])} steps)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,121 @@
+"""Payloads held by compliant grasps: where a carried rigid body settles.
+
+A payload is a rigid body with k grasp points ``b_i`` (body coordinates). Each grasp is
+joined to a robot point ``r_i`` by a spring of constant ``sc_i`` (a force sensor that
+gives a little, as on RIKEN's omni robots). The robots move much more slowly than the
+springs settle, so we take the body to be in quasi-static equilibrium: its pose
+``(p, R)`` minimizes the spring energy
+
+    E(p, R) = sum_i sc_i |R b_i + p - r_i|^2 ,
+
+a weighted Procrustes problem with a closed form in 2-D: the weighted centroids coincide,
+and the angle is the atan2 of the weighted cross-covariance of the centred point sets.
+The *offset* of grasp i is ``r_i - (R b_i + p)``, the spring's stretch from the robot's
+side; the body's link to robot i breaks when its offset exceeds that grasp's limit.
+
+Sums over grasps are written out one grasp at a time, so an instance's result does not
+depend on the size of the batch it is computed in.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class Equilibrium(NamedTuple):
+    """Pose of n payloads and the offsets of their grasps."""
+
+    x: np.ndarray        # (n,)
+    y: np.ndarray        # (n,)
+    theta: np.ndarray    # (n,) radians, body frame to world
+    offsets: np.ndarray  # (n, k, 2): robot point minus world grasp point
+
+
+def bar(length: float) -> np.ndarray:
+    """Body points of a bar gripped at both ends, centred on its origin along x: ``(2, 2)``.
+
+    Row 0 is the front end (+x), row 1 the back end, matching robots listed front first.
+    """
+    h = 0.5 * float(length)
+    return np.array([[h, 0.0], [-h, 0.0]])
+
+
+def _weighted_sum(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """sum_i w[:, i] * v[:, i] in a fixed order (no reduction whose order depends on shape)."""
+    acc = weights[:, 0] * values[:, 0]
+    for i in range(1, values.shape[1]):
+        acc = acc + weights[:, i] * values[:, i]
+    return acc
+
+
+def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
+                springs: np.ndarray) -> Equilibrium:
+    """Quasi-static pose of n payloads held at k grasps by springs.
+
+    ``robot_points`` is ``(n, k, 2)``; ``body_points`` is ``(k, 2)`` (one body for all) or
+    ``(n, k, 2)``; ``springs`` is ``(n, k)`` or ``(k,)``, all positive. When the body's
+    orientation is undetermined (every cross-covariance term zero, e.g. all robots on one
+    point) the angle is 0.
+    """
+    r = np.asarray(robot_points, dtype=float)
+    if r.ndim != 3 or r.shape[2] != 2:
+        raise ValueError(f"robot_points must have shape (n, k, 2), got {r.shape}")
+    n, k, _ = r.shape
+    b = np.broadcast_to(np.asarray(body_points, dtype=float), (n, k, 2))
+    w = np.broadcast_to(np.asarray(springs, dtype=float), (n, k))
+    if np.any(w <= 0):
+        raise ValueError("spring constants must be positive")
+    total = w[:, 0]
+    for i in range(1, k):
+        total = total + w[:, i]
+    rcx = _weighted_sum(r[..., 0], w) / total
+    rcy = _weighted_sum(r[..., 1], w) / total
+    bcx = _weighted_sum(b[..., 0], w) / total
+    bcy = _weighted_sum(b[..., 1], w) / total
+    rx, ry = r[..., 0] - rcx[:, None], r[..., 1] - rcy[:, None]
+    bx, by = b[..., 0] - bcx[:, None], b[..., 1] - bcy[:, None]
+    dot = _weighted_sum(bx * rx + by * ry, w)
+    cross = _weighted_sum(bx * ry - by * rx, w)
+    theta = np.arctan2(cross, dot)
+    c, s = np.cos(theta), np.sin(theta)
+    x = rcx - (c * bcx - s * bcy)
+    y = rcy - (s * bcx + c * bcy)
+    gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]
+    gy = s[:, None] * b[..., 0] + c[:, None] * b[..., 1] + y[:, None]
+    offsets = np.stack([r[..., 0] - gx, r[..., 1] - gy], axis=-1)
+    return Equilibrium(x, y, theta, offsets)
+
+
+def world_points(x: np.ndarray, y: np.ndarray, theta: np.ndarray,
+                 body_points: np.ndarray) -> np.ndarray:
+    """Body points placed at poses ``(x, y, theta)`` (each ``(n,)``): ``(n, k, 2)``."""
+    b = np.asarray(body_points, dtype=float)
+    c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    bx, by = b[..., 0], b[..., 1]
+    return np.stack([c * bx - s * by + np.asarray(x)[:, None],
+                     s * bx + c * by + np.asarray(y)[:, None]], axis=-1)
+
+
+def spring_energy(robot_points: np.ndarray, body_points: np.ndarray, springs: np.ndarray,
+                  x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """E(p, R) for given poses, ``(n,)``: what :func:`equilibrium` minimizes."""
+    g = world_points(x, y, theta, np.broadcast_to(body_points, np.shape(robot_points)))
+    d = np.asarray(robot_points, dtype=float) - g
+    w = np.broadcast_to(np.asarray(springs, dtype=float), d.shape[:2])
+    return _weighted_sum(d[..., 0] ** 2 + d[..., 1] ** 2, w)
+
+
+def two_grasp_slack(limit_a: float, limit_b: float, spring_a: float, spring_b: float) -> float:
+    """Largest |D - length| a bar held at both ends can take before a link breaks.
+
+    With two grasps the bar lies on the line through the robots and the springs share the
+    mismatch ``|D - length|`` in inverse proportion to their constants:
+    ``|o_a| = sc_b / (sc_a + sc_b) * |D - length|``. Each offset must stay within its
+    limit, so the mismatch is at most ``limit_a (sc_a + sc_b) / sc_b`` and at most
+    ``limit_b (sc_a + sc_b) / sc_a``. This is how much longer than a rigid-grasp limit a
+    compliantly held bar can be.
+    """
+    total = spring_a + spring_b
+    return min(limit_a * total / spring_b, limit_b * total / spring_a)
