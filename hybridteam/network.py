@@ -141,14 +141,16 @@ class Network:
                 self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],
                                  np.full(int(lost.sum()), np.nan), "lost",
                                  "loss" + (f" ({note})" if note else ""), ids_r[lost])
-            rows = np.flatnonzero(~lost)
-            ranks = np.zeros(idx.size) if rank is None else rank[mine]
-            for j in rows.tolist():
-                payload = Message(sender, r, int(k[j]), float(ts[j]), socket, type_,
-                                  {f: float(v[mine][j]) for f, v in fields.items()},
-                                  int(ids_r[j]), note)
-                self.queue.push_each(inst[j : j + 1], t_recv[j : j + 1], MESSAGE, r, type_,
-                                     [payload], rank=float(ranks[j]))
+            ok = ~lost
+            if ok.any():
+                values = {f: v[mine][ok].tolist() for f, v in fields.items()}
+                payloads = [Message(sender, r, kj, tj, socket, type_,
+                                    {f: vs[j] for f, vs in values.items()}, idj, note)
+                            for j, (kj, tj, idj) in enumerate(zip(
+                                k[ok].tolist(), ts[ok].tolist(), ids_r[ok].tolist(),
+                                strict=True))]
+                self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads,
+                                     rank=0.0 if rank is None else rank[mine][ok])
 
     # ------------------------------------------------------------------ receiving
     def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message],

@@ -50,14 +50,15 @@ class EventQueue:
         return seqs
 
     def push_each(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
-                  payloads: Sequence[Any], rank: float = 0.0) -> None:
-        """Queue one event per instance in ``idx``, each with its own payload."""
+                  payloads: Sequence[Any], rank: np.ndarray | float = 0.0) -> None:
+        """Queue one event per instance in ``idx``, each with its own payload (and rank)."""
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
-        for i, ti, s, payload in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
-                                     seqs.tolist(), payloads, strict=True):
+        ranks = np.broadcast_to(np.asarray(rank, float), idx.shape).tolist()
+        for i, ti, r, s, payload in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
+                                        ranks, seqs.tolist(), payloads, strict=True):
             heapq.heappush(self.heaps.setdefault(i, []),
-                           (ti, kind, rank, agent, s, name, payload))
+                           (ti, kind, r, agent, s, name, payload))
         np.minimum.at(self.next, idx, t)
 
     def pending_messages(self) -> list[tuple[int, Any]]:

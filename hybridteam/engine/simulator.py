@@ -25,10 +25,11 @@ from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.outcomes import check_instances
+from hybridteam.engine.protocols import stream_fields
 from hybridteam.engine.record import Recorder
 from hybridteam.engine.reliable import Reliable
 from hybridteam.engine.state import AgentState
-from hybridteam.engine.streams import Inbox, Streams, stream_fields
+from hybridteam.engine.streams import Inbox, Streams
 from hybridteam.errors import did_you_mean
 from hybridteam.network import Message, Network
 from hybridteam.trace import Trace
@@ -82,7 +83,7 @@ class Simulator:
         self.reliable = Reliable(self)
         self.streams = Streams(self, [ca.streams for ca in cteam.agents])
         if self.streams.any:
-            fields = stream_fields(cteam)
+            fields = stream_fields(cteam.team)
             for st in self.states:
                 st.inbox = Inbox(n, len(cteam.agents), fields)
 

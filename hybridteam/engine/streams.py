@@ -81,20 +81,20 @@ class InboxView:
                                ).astype(np.intp)
 
     def field(self, type_: str, name: str, sender: np.ndarray | None = None) -> np.ndarray:
-        who = self.sender(type_, sender)
-        vals = self.box.values[type_][self.idx]
-        ok = who >= 0
-        out = np.full(who.shape, np.nan)
-        rows = np.flatnonzero(ok)
-        out[rows] = vals[rows, who[rows], self.box.index[type_][name]]
-        return out
+        """A field of the chosen sender's latest copy (NaN where nothing has arrived)."""
+        values = self.box.values[type_][..., self.box.index[type_][name]]
+        return self._gather(values, self.sender(type_, sender), np.nan)
 
     def sent(self, type_: str, sender: np.ndarray | None = None) -> np.ndarray:
-        who = self.sender(type_, sender)
-        sent = self.box.sent[type_][self.idx]
-        out = np.full(who.shape, -np.inf)
+        """Send time of the chosen sender's latest copy (-inf where nothing has arrived)."""
+        return self._gather(self.box.sent[type_], self.sender(type_, sender), -np.inf)
+
+    def _gather(self, per_sender: np.ndarray, who: np.ndarray, missing: float) -> np.ndarray:
+        """``per_sender[instance, who]`` for these instances; ``missing`` where who < 0."""
+        table = per_sender[self.idx]
+        out = np.full(who.shape, missing)
         rows = np.flatnonzero(who >= 0)
-        out[rows] = sent[rows, who[rows]]
+        out[rows] = table[rows, who[rows]]
         return out
 
 
@@ -143,11 +143,3 @@ class Streams:
             for due in per_agent:
                 np.minimum(nxt, due[idx], out=nxt)
         self.next[idx] = nxt
-
-
-
-def stream_fields(cteam) -> dict[str, list[str]]:
-    """Every stream type in the team with its fields (what an inbox must hold)."""
-    from hybridteam.engine.protocols import stream_fields as declared
-
-    return declared(cteam.team)

@@ -160,7 +160,7 @@ def build_team(doc: TeamFile, filename: str) -> Team:
 
 def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     """The team, and the composer that brought in its protocols (with their errors)."""
-    comp = Composer(Path(filename).resolve().parent, _mode, _transition)
+    comp = Composer(Path(filename).resolve().parent, _mode)
     agents = tuple(_agent(name, spec, ("agents", name), comp, set(doc.parameters))
                    for name, spec in doc.agents.items())
     s = doc.simulation

@@ -84,11 +84,10 @@ def load_protocol(path: Path) -> Protocol:
 class Composer:
     """Loads protocols once per team and composes them onto agents."""
 
-    def __init__(self, base: Path, mode_builder, transition_builder) -> None:
+    def __init__(self, base: Path, mode_builder) -> None:
         self.base = base
         self.cache: dict[str, Protocol] = {}
         self.build_mode = mode_builder
-        self.build_transition = transition_builder
         self.used: dict[str, Protocol] = {}
         self.errors: list[ModelError] = []
 
@@ -104,16 +103,25 @@ class Composer:
         self.used[proto.doc.protocol] = proto
         return proto
 
+    def section(self, reference: str, where: DocPath, key: str, what: str):
+        """The protocol a reference names and its ``key`` section (``region`` or
+        ``operator``); None, with the error recorded, when either is missing."""
+        proto = self.get(reference, where)
+        if proto is None:
+            return None, None
+        part = getattr(proto.doc, key)
+        if part is None:
+            self.errors.append(ModelError(where, f"protocol '{proto.doc.protocol}' "
+                                          f"declares no {what}"))
+            return None, None
+        return proto, part
+
     # ------------------------------------------------------------------ composition
     def region(self, name: str, spec, where: DocPath, agent_extra: dict) -> Mode | None:
         """The mode ``name`` (declared with ``protocol:``) with the protocol's region."""
-        proto = self.get(spec.protocol, (*where, "protocol"))
+        proto, region = self.section(spec.protocol, (*where, "protocol"), "region",
+                                     "role region")
         if proto is None:
-            return None
-        region = proto.doc.region
-        if region is None:
-            self.errors.append(ModelError((*where, "protocol"), f"protocol "
-                                          f"'{proto.doc.protocol}' has no role region"))
             return None
         roles = spec.roles or {}
         for role in roles:
@@ -144,20 +152,12 @@ class Composer:
 
     def operator(self, reference: str, where: DocPath, agent_extra: dict
                  ) -> tuple[Mode, ...] | None:
-        proto = self.get(reference, (*where, "operator"))
+        proto, op = self.section(reference, (*where, "operator"), "operator", "operator")
         if proto is None:
-            return None
-        op = proto.doc.operator
-        if op is None:
-            self.errors.append(ModelError((*where, "operator"), f"protocol "
-                                          f"'{proto.doc.protocol}' declares no operator"))
             return None
         tag = proto.tag
         agent_extra["initial"] = op.initial
-        for k, v in op.parameters.items():
-            agent_extra["parameters"].setdefault(k, v)
-        for k, v in op.variables.items():
-            agent_extra["variables"].setdefault(k, v)
+        _defaults(agent_extra, op.parameters, op.variables)
         self._add_agent_parts(proto, agent_extra, where, streams=False)
         return tuple(self.build_mode(n, m, (tag, "operator", "modes", n))
                      for n, m in op.modes.items())
@@ -165,10 +165,7 @@ class Composer:
     def _add_agent_parts(self, proto: Protocol, extra: dict, where: DocPath,
                          streams: bool = True) -> None:
         doc, tag = proto.doc, proto.tag
-        for k, v in doc.parameters.items():
-            extra["parameters"].setdefault(k, v)
-        for k, v in doc.variables.items():
-            extra["variables"].setdefault(k, v)
+        _defaults(extra, doc.parameters, doc.variables)
         if streams:
             for j, s in enumerate(doc.streams):
                 extra["streams"].append(StreamSpec(
@@ -192,3 +189,11 @@ class Composer:
                                                   at_key=True))
                 out.setdefault(name, spec)
         return out
+
+
+def _defaults(extra: dict, parameters: dict, variables: dict) -> None:
+    """A protocol's parameters and variables, where the agent does not declare its own."""
+    for k, v in parameters.items():
+        extra["parameters"].setdefault(k, v)
+    for k, v in variables.items():
+        extra["variables"].setdefault(k, v)
