@@ -51,6 +51,14 @@ def main() -> None:
     ref_seconds, _ = best_of(5, lambda: reference.run(sample_run()))
     print(f"sample run (Sec. 4)  {seconds * 1e3:8.1f} ms vectorized, {ref_seconds * 1e3:.1f} ms "
           f"reference ({int(res.steps[0])} steps)")
+    # the same run as a YAML team through the general engine (modes, events, world component)
+    from pathlib import Path
+
+    from hybridteam.api import load, summaries
+    team = load(Path(__file__).resolve().parents[1] / "examples" / "ladder" / "sample.yaml")
+    eng_seconds, rows = best_of(3, lambda: summaries(team, 1, accelerate=False))
+    print(f"sample run, engine   {eng_seconds * 1e3:8.1f} ms ({rows[0]['steps']} steps; "
+          f"x{eng_seconds / seconds:.1f} the vectorized stepper)")
 
 
 if __name__ == "__main__":

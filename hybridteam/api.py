@@ -67,6 +67,8 @@ class Run(Trace):
             return sub
 
         meta = dict(self.meta, n=1)
+        if isinstance(meta.get("seed"), list):  # per-instance seeds: this instance's own
+            meta["seed"] = meta["seed"][i]
         outcome = dict(self._outcomes[i], instance=0)
         return Run(meta, [outcome], pick(self.transitions), pick(self.intervals),
                    pick(self.messages), self.sample_times.copy(),
@@ -78,11 +80,14 @@ class Run(Trace):
                              minlength=self.n)
         msgs = np.bincount(np.asarray(self.messages["instance"], dtype=np.int64),
                            minlength=self.n)
+        seeds = self.meta["seed"]
         per = []
         for i, o in enumerate(self._outcomes):
             per.append({"instance": i, "outcome": o["outcome"], "t_end": o["t"],
                         "message": o["message"], "transitions": int(counts[i]),
-                        "messages": int(msgs[i])})
+                        "messages": int(msgs[i]), **o.get("stats", {})})
+            if isinstance(seeds, list):  # per-instance seeds: say which one each ran with
+                per[-1]["seed"] = seeds[i]
         tally: dict[str, int] = {}
         for o in self.outcomes:
             tally[o] = tally.get(o, 0) + 1
@@ -97,14 +102,18 @@ def load(path: str | os.PathLike) -> Team:
     return load_team(path)
 
 
-def simulate(team: Team, seed: int | None = None, n: int = 1, duration: float | None = None,
+def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
+             duration: float | None = None,
              overrides: Mapping[str, float | Sequence[float]] | None = None,
              progress: Callable[[float], None] | None = None) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``) to one value or
     to ``n`` values, one per instance — that is how an ensemble varies. ``seed`` defaults to
-    the team's ``simulation.seed``.
+    the team's ``simulation.seed``; it may also be ``n`` seeds, one per instance, and
+    instance ``i`` then draws exactly what a single run with ``seed[i]`` draws (how a
+    parameter study packs runs with their own seeds into one ensemble). The trace's
+    ``meta["seed"]`` is then that list.
     """
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
@@ -113,3 +122,30 @@ def simulate(team: Team, seed: int | None = None, n: int = 1, duration: float | 
     trace = sim.run()
     return Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
                trace.messages, trace.sample_times, trace.samples)
+
+
+def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,
+              seed: int | Sequence[int] | None = None, *,
+              accelerate: bool = True) -> list[dict[str, Any]]:
+    """Per-instance results of ``n`` runs (outcome, end time and the world's statistics),
+    without keeping a trace: what a parameter study needs.
+
+    When the team's only world component offers a batch simulator for it
+    (:meth:`~hybridteam.world.component.WorldComponent.batch`) and ``accelerate`` is true,
+    that is used; it must give the rows the engine gives (its library's tests pin this).
+    """
+    overrides = dict(overrides or {})
+    seed = team.simulation.seed if seed is None else seed
+    if accelerate and len(team.world) == 1:
+        from hybridteam.world.component import lookup
+
+        rows = lookup(team.world[0].use).batch(team, n, overrides, seed)
+        if rows is not None:
+            return rows
+    run = simulate(team, seed=seed, n=n, overrides=overrides)  # type: ignore[arg-type]
+    keep = ("instance", "outcome", "t_end")
+    return [{k: v for k, v in row.items() if k in keep or k not in _COUNTS}
+            for row in run.summary()["instances"]]
+
+
+_COUNTS = frozenset({"message", "transitions", "messages"})

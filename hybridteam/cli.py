@@ -1,4 +1,5 @@
-"""Command line: ``hybridteam validate | run | schema``.
+"""Command line: ``hybridteam validate | run | schema`` (views: :mod:`.views_cli`; studies:
+:mod:`hybridteam.sweep.cli`).
 
 Bad input of any kind — YAML, schema, model, arguments — prints located messages to stderr
 and exits with status 2, never a traceback, and writes nothing. Outputs are written only
@@ -90,16 +91,20 @@ def _parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
+    from hybridteam.sweep.cli import add_parsers  # sweep, report
+
+    add_parsers(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
+        from hybridteam.sweep.cli import COMMANDS as SWEEP_COMMANDS
         from hybridteam.views_cli import VIEW_COMMANDS
 
         commands = {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema,
-                    **VIEW_COMMANDS}
+                    **VIEW_COMMANDS, **SWEEP_COMMANDS}
         return commands[args.command](args)
     except UsageError as exc:
         print(f"hybridteam: error: {exc}", file=sys.stderr)
@@ -222,6 +227,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+_BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "messages"})
+
+
+def _fmt(value) -> str:
+    """A statistic for the terminal: numbers to 6 significant digits, lists joined by '/'."""
+    if isinstance(value, list):
+        return " / ".join(_fmt(v) for v in value)
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
 def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
     tally = ", ".join(f"{k}: {v}" for k, v in sorted(summary["outcomes"].items()))
     print(f"{summary['team']}: {summary['n']} instance(s), {summary['duration']:g} s simulated "
@@ -230,6 +245,9 @@ def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
         print(f"  [{inst['instance']}] {inst['outcome']} at t={inst['t_end']:.6g}: "
               f"{inst['transitions']} transitions, {inst['messages']} messages"
               + (f" — {inst['message']}" if inst["outcome"] != "ok" else ""))
+        stats = {k: v for k, v in inst.items() if k not in _BASIC}
+        if stats:
+            print("      " + ", ".join(f"{k} {_fmt(v)}" for k, v in stats.items()))
     if summary["n"] > 10:
         print(f"  ... {summary['n'] - 10} more in summary.json")
     files = ["trace.json", "modes.csv", "transitions.csv", "messages.csv", "samples.csv",

@@ -77,6 +77,25 @@ class LawContext:
             fields = _dead_reckon(fields, np.where(np.isfinite(age), age, 0.0))
         return Estimate(fields, age, who)
 
+    @property
+    def instances(self) -> np.ndarray:
+        """Which ensemble instances these rows are (e.g. to key per-instance caches)."""
+        return self._ctx.w.instances()
+
+    def sense(self, name: str) -> np.ndarray:
+        """What a world component lets this robot sense (a grasp offset, the ladder's ends),
+        computed from the whole team's state at this instant; shape (m, ...)."""
+        return self._ctx.w.sense(name)
+
+    def recall(self, name: str, initial: float = 0.0) -> np.ndarray:
+        """The law's memory ``name`` per instance (``initial`` before it was ever kept):
+        the state of a discrete-time controller, kept from one period to the next."""
+        return self._ctx.w.recall(name, initial)
+
+    def keep(self, name: str, values: np.ndarray) -> None:
+        """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
+        self._ctx.w.keep(name, np.asarray(values, dtype=float))
+
     def get(self, name: str, default: float) -> np.ndarray:
         try:
             return self[name]

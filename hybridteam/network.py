@@ -13,18 +13,19 @@ this medium; nothing here retries anything. Link settings are expressions of tea
 parameters, evaluated per instance, so an ensemble can sweep latency or loss in one call.
 Random draws are counter-based (:mod:`hybridteam.engine.randomness`): a copy's fate depends
 only on the seed, the link and the sender's own message number, so an ensemble instance
-draws exactly what the same single run draws.
+draws exactly what the same single run draws. The seed may be one per instance (a key per
+instance), so an ensemble can also pack runs that a study gives different seeds.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hybridteam.engine.events import MESSAGE
-from hybridteam.engine.randomness import component_key, uniform
+from hybridteam.engine.randomness import instance_keys, uniform
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.model import Team
@@ -84,15 +85,15 @@ def check_network(team: Team) -> list[ModelError]:
 class Network:
     """The medium of one simulation: per-link arrays over the ensemble, and counters."""
 
-    def __init__(self, team: Team, n: int, seed: int, team_params: dict[str, np.ndarray],
-                 queue, recorder: Recorder) -> None:
+    def __init__(self, team: Team, n: int, seed: int | Sequence[int],
+                 team_params: dict[str, np.ndarray], queue, recorder: Recorder) -> None:
         errors = check_network(team)
         if errors:
             raise ModelErrors(errors)
         self.n = n
         self.queue, self.rec = queue, recorder
         self.names = [a.name for a in team.agents]
-        self.key = component_key(seed, "network")
+        self.keys = instance_keys(seed, "network", n)  # (n,): one key per instance
         count = len(self.names)
         self.count = [np.zeros(n, np.int64) for _ in range(count)]
         net = team.network
@@ -133,8 +134,9 @@ class Network:
                 continue
             inst, ts, k, ids_r = idx[mine], t[mine], seq[mine], ids[mine]
             latency, jitter, loss = (a[inst] for a in self.links[(sender, r)])
-            u_loss = uniform(self.key, sender, r, k, LOSS)
-            u_jit = uniform(self.key, sender, r, k, JITTER)
+            key = self.keys[inst]
+            u_loss = uniform(key, sender, r, k, LOSS)
+            u_jit = uniform(key, sender, r, k, JITTER)
             lost = u_loss < loss
             t_recv = ts + latency + jitter * u_jit
             if lost.any():

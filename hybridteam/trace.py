@@ -185,15 +185,19 @@ class Trace:
 
     # ------------------------------------------------------------------ CSV
     def samples_table(self) -> tuple[list[str], list[list[Any]]]:
+        """Samples of agents' states and of world series (a payload's pose), one row per
+        time and instance; rows with a missing value are left out."""
         header = ["t", "instance"]
-        for agent in self.agents:
-            header += [f"{agent}.{s}" for s in self.state_names(agent)]
+        series = [(a, self.state_names(a)) for a in self.agents]
+        series += [(name, list(cols)) for name, cols in self.meta.get("series", {}).items()]
+        for name, cols in series:
+            header += [f"{name}.{s}" for s in cols]
         rows = []
         for k, tk in enumerate(self.sample_times.tolist()):
             for i in range(self.n):
                 row: list[Any] = [tk, i]
-                for agent in self.agents:
-                    row += self.samples[agent][k, i].tolist()
+                for name, _cols in series:
+                    row += self.samples[name][k, i].tolist()
                 if not any(isinstance(v, float) and math.isnan(v) for v in row[2:]):
                     rows.append(row)
         return header, rows

@@ -29,18 +29,20 @@ class Ctx:
     ``t_in`` time since the owning mode was entered (m,), ``m`` the fields of the message
     that triggered the transition being evaluated (name -> (m,)), if any; ``e`` the agent's
     stream estimates for these instances (an :class:`~.streams.InboxView`), ``u`` the held
-    inputs (m, k) where a stream's fields may read them.
+    inputs (m, k) where a stream's fields may read them; ``w`` the agent's view of the
+    world components and its law memory (an :class:`~.world.AgentView`), where laws run.
     """
 
-    __slots__ = ("e", "m", "p", "t", "t_in", "u", "v", "x")
+    __slots__ = ("e", "m", "p", "t", "t_in", "u", "v", "w", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
                  t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
-                 e=None) -> None:
+                 e=None, w=None) -> None:
         self.x, self.v, self.p, self.t = x, v, p, t
         self.t_in = t if t_in is None else t_in
         self.m = m
         self.e = e
+        self.w = w
         self.u: np.ndarray | None = None
 
 
@@ -161,6 +163,7 @@ class CAgent:
     has_triggered: np.ndarray
     final: np.ndarray
     leaves: np.ndarray
+    outcome: list[str | None] = field(default_factory=list)  # per mode: a final's outcome
     policies: dict[str, CPolicy] = field(default_factory=dict)
     streams: list = field(default_factory=list)  # list[streams.CStream]
 

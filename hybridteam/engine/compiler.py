@@ -272,6 +272,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         after=[ct.index for ct in transitions if ct.after is not None],
         driver_modes=driver_modes, has_eventless=has_eventless, has_triggered=has_triggered,
         final=np.array([m.final for m in modes], bool),
+        outcome=[mode.outcome for _p, mode, _q, _d in flat],
         leaves=np.array([m.index for m in modes if m.kind == "leaf"], dtype=np.intp),
     )
     if team is not None:
@@ -414,9 +415,11 @@ def _watches(modes: list[CMode], transitions: list[CTransition],
 
 def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
+    from hybridteam.engine.world import check_world
     from hybridteam.network import check_network
 
-    errors: list[ModelError] = check_network(team) + check_messages(team)
+    errors: list[ModelError] = (check_network(team) + check_messages(team)
+                                + check_world(team))
     fields = message_fields(team)
     extra = team_symbols(team)
     agents: list[CAgent] = []

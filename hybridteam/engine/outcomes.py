@@ -53,13 +53,28 @@ def check_instances(sim: Simulator, idx: np.ndarray) -> None:
         someone_waits |= ~final & trig
     fin = idx[all_final]
     if fin.size:
-        sim.finish(fin, "ok", lambda i: "every agent reached a final mode")
+        for kind, group in final_outcomes(sim, fin).items():
+            sim.finish(group, kind, lambda i: "every agent reached a final mode")
     # periodic stream sends are pending messages too: a robot that still talks is not stalled
-    pending = sim.queue.pending(idx) | np.isfinite(sim.streams.next[idx])
+    pending = sim.queue.pending(idx) | np.isfinite(sim.streams.next[idx]) | sim.world.raises
     stalled = idx[~all_final & waiting & someone_waits & ~pending]
     if stalled.size:
         sim.finish(stalled, "deadlock", lambda i: deadlock_text(sim, i))
 
+
+
+def final_outcomes(sim: Simulator, idx: np.ndarray) -> dict[str, np.ndarray]:
+    """Instances ``idx`` (all final) grouped by outcome: the ``outcome`` of the first active
+    final mode that names one, in agent order, else ``ok``."""
+    kind = np.full(idx.size, "ok", dtype=object)
+    named = np.zeros(idx.size, bool)
+    for st in sim.states:
+        for m, name in enumerate(st.ca.outcome):
+            if name is not None:
+                hit = ~named & st.active[idx, m]
+                kind[hit] = name
+                named |= hit
+    return {k: idx[kind == k] for k in dict.fromkeys(kind.tolist())}
 
 
 def deadlock_text(sim: Simulator, i: int) -> str:

@@ -31,6 +31,11 @@ class Recorder:
         self.samples = {a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
                         for a in cteam.agents}
 
+    def add_series(self, series: dict[str, tuple[str, ...]]) -> None:
+        """Sample series besides the agents' states (a payload's pose, from the world)."""
+        for name, columns in series.items():
+            self.samples[name] = np.full((len(self.sample_times), self.n, len(columns)), np.nan)
+
     # the engine calls these with index arrays ------------------------------------------
     def transition(self, agent: int, index: int, instances: np.ndarray, t: np.ndarray,
                    step: np.ndarray, cause: str) -> None:

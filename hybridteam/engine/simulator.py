@@ -25,12 +25,14 @@ from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.outcomes import check_instances
+from hybridteam.engine.overrides import apply_overrides
 from hybridteam.engine.protocols import stream_fields
+from hybridteam.engine.randomness import seed_value
 from hybridteam.engine.record import Recorder
 from hybridteam.engine.reliable import Reliable
 from hybridteam.engine.state import AgentState
 from hybridteam.engine.streams import Inbox, Streams
-from hybridteam.errors import did_you_mean
+from hybridteam.engine.world import World
 from hybridteam.network import Message, Network
 from hybridteam.trace import Trace
 
@@ -38,7 +40,7 @@ Progress = Callable[[float], None]
 
 
 class Simulator:
-    def __init__(self, cteam: CTeam, n: int = 1, *, seed: int = 0,
+    def __init__(self, cteam: CTeam, n: int = 1, *, seed: int | Sequence[int] = 0,
                  duration: float | None = None,
                  overrides: Mapping[str, float | Sequence[float]] | None = None,
                  progress: Progress | None = None) -> None:
@@ -46,7 +48,7 @@ class Simulator:
             raise ValueError(f"n must be at least 1, got {n}")
         self.cteam = cteam
         self.n = n
-        self.seed = seed
+        self.seed = seed_value(seed, n)  # one int, or a list: one seed per instance
         self.settings = cteam.team.simulation
         self.t_end = float(duration if duration is not None else self.settings.duration)
         if not self.t_end >= 0:
@@ -79,9 +81,14 @@ class Simulator:
         self.rec = Recorder(cteam, n, times)
         self.queue = EventQueue(n, cteam.scenario)
         self._apply_overrides(overrides or {})
-        self.network = Network(cteam.team, n, seed, self._team_params(), self.queue, self.rec)
+        self.network = Network(cteam.team, n, self.seed, self._team_params(), self.queue,
+                               self.rec)
         self.reliable = Reliable(self)
         self.streams = Streams(self, [ca.streams for ca in cteam.agents])
+        self.world = World(cteam.team, n, self._team_params())
+        for st in self.states:
+            st.world = self.world
+        self.rec.add_series(self.world.sample_series())
         if self.streams.any:
             fields = stream_fields(cteam.team)
             for st in self.states:
@@ -98,25 +105,8 @@ class Simulator:
 
     # ------------------------------------------------------------------ set-up
     def _apply_overrides(self, overrides: Mapping[str, float | Sequence[float]]) -> None:
-        for key, value in overrides.items():
-            values = np.asarray(value, dtype=float)
-            if values.ndim > 1 or (values.ndim == 1 and values.size != self.n):
-                raise ValueError(f"override '{key}': expected a number or {self.n} values, "
-                                 f"got shape {values.shape}")
-            agent, _, name = key.rpartition(".")
-            hit = False
-            for st in self.states:
-                if agent and st.ca.name != agent:
-                    continue
-                if name in st.ca.param_index:
-                    st.p[:, st.ca.param_index[name]] = values
-                    hit = True
-            if not hit:
-                known = sorted({f"{st.ca.name}.{p}" for st in self.states
-                                for p in st.ca.param_index}
-                               | {p for st in self.states for p in st.ca.param_index})
-                raise ValueError(f"override '{key}' names no parameter"
-                                 + (f"; {hint}" if (hint := did_you_mean(key, known)) else ""))
+        apply_overrides([st.ca for st in self.states], [st.p for st in self.states], self.n,
+                        overrides)
 
     def _team_params(self) -> dict[str, np.ndarray]:
         """Team parameters per instance (after overrides), as every agent sees them."""
@@ -198,6 +188,9 @@ class Simulator:
                 st.x[:, j] = np.broadcast_to(e(ctx), (self.n,))
             for j, e in enumerate(ca.init_vars):
                 st.v[:, j] = np.broadcast_to(e(ctx), (self.n,))
+        self.world.start(self)
+        for st in self.states:
+            ca = st.ca
             st.activate(0, everyone, self.t)
             st.enter_default(0, everyone, self.t)
             for leaf in ca.leaves.tolist():
@@ -222,7 +215,14 @@ class Simulator:
         """
         if not entering:
             self.changed[idx] = False
-        discrete_phase(self, idx if discrete is None else discrete)
+        if discrete is None:
+            discrete = idx
+        if self.world.any:  # components see the state first; events they raise run now
+            raised = self.world.update(self, idx)
+            if raised.size:
+                discrete = np.union1d(discrete, raised)
+            discrete = discrete[~self.done[discrete]]
+        discrete_phase(self, discrete)
         live = idx[~self.done[idx]]
         changed = live[self.changed[live]] if not entering else live
         for a, st in enumerate(self.states):
@@ -400,8 +400,21 @@ class Simulator:
         k = self.out_k[due]
         for st in self.states:
             self.rec.sample(k, due, st.ca.name, st.x[due])
+        for name, values in self.world.sample(due).items():
+            self.rec.sample(k, due, name, values)
         self.out_k[due] += 1
         self.next_out[due] = self._sample_after[self.out_k[due]]
+
+    def _world_meta(self, meta: dict) -> None:
+        """What the world components tell the views: walls, payloads, robot footprints."""
+        extra = self.world.meta()
+        footprints = extra.pop("footprints", {})
+        for a in meta["agents"]:
+            if a["name"] in footprints:
+                a["footprint"] = footprints[a["name"]]
+        series = self.world.sample_series()
+        meta["series"] = {k: list(v) for k, v in series.items()}
+        meta.update(extra)
 
     def _close(self) -> Trace:
         everyone = np.arange(self.n)
@@ -424,8 +437,12 @@ class Simulator:
                            "final": m.final} for m in ca.modes if m.index],
             } for ca in self.cteam.agents],
         }
+        self._world_meta(meta)
         outcomes = [o if o is not None else {"instance": i, "outcome": "ok",
                                              "t": float(self.t[i]), "message": ""}
                     for i, o in enumerate(self.outcomes)]
+        if self.world.any:
+            for i, o in enumerate(outcomes):
+                o["stats"] = self.world.summary(i)
         return Trace(meta, outcomes, transitions, intervals, messages, self.sample_times,
                      self.rec.samples)

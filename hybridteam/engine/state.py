@@ -14,10 +14,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.engine.compiled import CAgent, Ctx
+from hybridteam.engine.world import AgentView
 
 if TYPE_CHECKING:
     from hybridteam.engine.record import Recorder
     from hybridteam.engine.streams import Inbox
+    from hybridteam.engine.world import World
 
 
 class AgentState:
@@ -42,13 +44,16 @@ class AgentState:
         self.watch_modes = np.array([w.mode for w in ca.watches], np.intp)
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
+        self.world: World | None = None  # the team's world components, if any
+        self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
             m: dict[str, np.ndarray] | None = None) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted)."""
         t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
         e = self.inbox.view(idx) if self.inbox is not None else None
-        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m, e)
+        w = AgentView(self.world, self.ca.index, idx, self.memory, self.x.shape[0])
+        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m, e, w)
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:

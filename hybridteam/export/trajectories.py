@@ -93,6 +93,8 @@ def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
 def letters(names: Sequence[str]) -> dict[str, str]:
     """First letter of each name, upper case; longer prefixes only where two would clash."""
     out: dict[str, str] = {}
+    if all(len(n) <= 3 for n in names) and len({n.upper() for n in names}) == len(names):
+        return {n: n.upper() for n in names}  # short names (R1, R2) are their own labels
     for name in names:
         k = 1
         while k < len(name) and any(v == name[:k].upper() for v in out.values()):
@@ -169,6 +171,33 @@ def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
                                          linewidths=2.5, zorder=2, gid="walls"))
 
 
+def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
+                agents: Sequence[str]) -> None:
+    """Planned paths (``world.paths``: instance, agent, points), dashed in the agent's colour."""
+    for entry in (world or {}).get("paths", []) or []:
+        if entry.get("instance", instance) != instance or entry.get("agent") not in agents:
+            continue
+        pts = np.asarray(entry["points"], float)
+        color = PALETTE[list(agents).index(entry["agent"]) % len(PALETTE)]
+        ax.plot(pts[:, 0], pts[:, 1], color=color, linewidth=0.9, linestyle=(0, (4, 3)),
+                alpha=0.8, zorder=3, label=f"{entry['agent']} guide path",
+                gid=f"guide:{entry['agent']}")
+
+
+def plot_aspect(trace: Trace, instance: int) -> float:
+    """Height over width of what the planar plot shows (world and paths), for its size."""
+    world = trace.meta.get("world") or {}
+    pts = [np.asarray(world.get("walls", []) or [], float).reshape(-1, 2)]
+    for a in planar_agents(trace):
+        pts.append(pose(trace, a, instance)[:, :2])
+    xy = np.concatenate(pts)
+    xy = xy[~np.isnan(xy).any(axis=1)]
+    if len(xy) < 2:
+        return 0.5
+    span = np.ptp(xy, axis=0)
+    return float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.2))
+
+
 def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.ndarray:
     """Corners of a payload shape at a pose (a bar is a thin rectangle)."""
     if shape.get("kind") == "bar":
@@ -240,6 +269,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             ax.annotate(f"0{letter[a]}", (x0, y0), xytext=(-6, -12), textcoords="offset points",
                         fontsize=8, fontweight="bold", color=color, path_effects=HALO,
                         zorder=7, gid="start")
+    draw_guides(ax, trace.meta.get("world"), instance, agents)
     draw_payloads(ax, trace, instance, all_idx)
     changes = mode_changes(trace, instance, agents, modes)
     stride = max(1, math.ceil(len(changes) / MAX_NUMBERS))
@@ -265,8 +295,9 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(color="#E0E0E0", linewidth=0.6)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    unit = (trace.meta.get("world") or {}).get("units", "m")
+    ax.set_xlabel(f"x ({unit})" if unit else "x")
+    ax.set_ylabel(f"y ({unit})" if unit else "y")
     if agents:
         # "best" scans every plotted point: fine for a short run, seconds for a long one
         ax.legend(loc="best" if len(pts) < 20_000 else "upper right", fontsize=8,
@@ -349,7 +380,8 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
     ``modes``: the mode paths whose changes are numbered (default: every leaf transition).
     """
     planar, flows = planar_agents(trace), flow_agents(trace)
-    heights = ([3.2] if planar else []) + [1.8] * len(flows)
+    planar_height = 7.2 * plot_aspect(trace, instance) + 0.6 if planar else 0.0
+    heights = ([max(planar_height, 2.6)] if planar else []) + [1.8] * len(flows)
     with rc_context({"font.family": FONT}):
         fig = Figure(figsize=(8.0, 0.8 + max(sum(heights), 2.0)), dpi=100)
         FigureCanvasAgg(fig)

@@ -44,6 +44,7 @@ from hybridteam.model import (
     Simulation,
     Team,
     Transition,
+    WorldSpec,
     Zeno,
 )
 
@@ -185,8 +186,11 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
         rate_limits={agent: dict(limits) for agent, limits in net.rate_limits.items()},
         where=("network",),
     )
+    world = tuple(WorldSpec(w.use, dict(w.with_), ("world", k))
+                  for k, w in enumerate(doc.world))
     team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
-                source=Path(filename).name, network=network, messages=comp.messages())
+                source=Path(filename).name, network=network, messages=comp.messages(),
+                world=world)
     return team, comp
 
 
@@ -241,7 +245,8 @@ def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
         name, children, initial=spec.initial, parallel=spec.parallel, history=spec.history,
         law=law, inputs=None if spec.inputs is None else dict(spec.inputs),
         input_period=spec.period, flow=None if spec.flow is None else dict(spec.flow),
-        invariant=spec.invariant, final=spec.final, transitions=transitions, where=where,
+        invariant=spec.invariant, final=spec.final, outcome=spec.outcome,
+        transitions=transitions, where=where,
     )
 
 

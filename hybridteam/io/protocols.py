@@ -143,7 +143,8 @@ class Composer:
             mine = self.build_mode(rname, body, bwhere)
             children.append(dataclasses.replace(
                 mine, transitions=own.transitions + mine.transitions, where=rwhere,
-                invariant=mine.invariant or own.invariant, final=own.final))
+                invariant=mine.invariant or own.invariant, final=own.final,
+                outcome=own.outcome))
         self._add_agent_parts(proto, agent_extra, where)
         host = self.build_mode(name, spec.model_copy(update={"protocol": None, "roles": None}),
                                where)

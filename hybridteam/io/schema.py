@@ -93,6 +93,8 @@ class ModeSchema(Strict):
     flow: dict[str, ExprOrNumber] | None = None
     invariant: str | None = None
     final: bool = False
+    outcome: str | None = Field(
+        None, description="a final mode's run outcome, e.g. 'success' (default: 'ok')")
     transitions: list[TransitionSchema] = Field(default_factory=list)
     protocol: str | None = Field(
         None, description="a protocol (name or file) whose role region this mode becomes")
@@ -113,6 +115,12 @@ class ModeSchema(Strict):
         if self.period is not None and self.inputs is None:
             raise ValueError("'period' samples 'inputs'; this mode has no 'inputs' "
                              "(a law takes its period in 'law: {use: ..., period: ...}')")
+        if self.outcome is not None and not self.final:
+            raise ValueError("'outcome' names how a run ends in this mode; it needs "
+                             "'final: true'")
+        if self.outcome is not None and not self.outcome.isidentifier():
+            raise ValueError(f"'outcome' must be a name such as 'success', got "
+                             f"{self.outcome!r}")
         if self.roles is not None and self.protocol is None:
             raise ValueError("'roles' binds the roles of a protocol; add 'protocol: <name>'")
         if self.protocol is not None and self.modes is not None:
@@ -246,6 +254,15 @@ class NetworkSchema(LinkSchema):
         return v
 
 
+class WorldSchema(Strict):
+    """A world component: ``{use: ladder.corridor, with: {length: 450}}``."""
+
+    use: str = Field(description="registered name of the component")
+    with_: dict[str, float | str | list[Any]] = Field(
+        default_factory=dict, alias="with",
+        description="settings: numbers or expressions of team parameters, or literals")
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -257,6 +274,8 @@ class TeamFile(Strict):
     simulation: SimulationSchema = Field(default_factory=SimulationSchema)
     scenario: list[ScenarioSchema] = Field(default_factory=list)
     network: NetworkSchema = Field(default_factory=NetworkSchema)
+    world: list[WorldSchema] = Field(
+        default_factory=list, description="world components: payloads, corridors, sensors")
 
     @field_validator("agents")
     @classmethod

@@ -19,6 +19,7 @@ from hybridteam.model.team import (
     ScenarioEvent,
     Simulation,
     Team,
+    WorldSpec,
     Zeno,
 )
 
@@ -41,5 +42,6 @@ __all__ = [
     "StreamSpec",
     "Team",
     "Transition",
+    "WorldSpec",
     "Zeno",
 ]

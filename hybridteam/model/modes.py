@@ -101,6 +101,7 @@ class Mode:
     flow: dict[str, str | float] | None = None
     invariant: str | None = None
     final: bool = False
+    outcome: str | None = None  # a final mode may name the run's outcome (e.g. "success")
     transitions: tuple[Transition, ...] = ()
     where: DocPath = ()
 

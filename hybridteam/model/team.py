@@ -106,6 +106,15 @@ class Simulation:
 
 
 @dataclass(frozen=True)
+class WorldSpec:
+    """A world component (``use``: its registered name) and its ``with:`` settings."""
+
+    use: str
+    values: dict[str, object] = field(default_factory=dict)
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
 class Team:
     """Agents that run in parallel, with shared parameters and a simulation setup."""
 
@@ -117,6 +126,7 @@ class Team:
     source: str | None = None
     network: NetworkSpec = field(default_factory=NetworkSpec)
     messages: dict[str, MessageSpec] = field(default_factory=dict)
+    world: tuple[WorldSpec, ...] = ()
 
     def agent(self, name: str) -> Agent:
         for a in self.agents:

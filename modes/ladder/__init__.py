@@ -5,6 +5,7 @@ control law (:mod:`.law`), the vectorized stepper (:mod:`.kernel`) and its scala
 cross-check (:mod:`.reference`). See README.md for the choices the paper leaves open.
 """
 
+from . import carry, world  # noqa: F401  (registers the law and the world component)
 from .kernel import OUTCOMES, Result, simulate
 from .params import Pairs, Robot, Scenario, Settings, random_pairs, sample_run
 

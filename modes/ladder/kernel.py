@@ -102,14 +102,18 @@ def _initial(pairs: Pairs, start: np.ndarray, goal: np.ndarray,
 
 
 def simulate(pairs: Pairs, corridor: Corridor | None = None, settings: Settings | None = None,
-             *, record: bool = False) -> Result:
-    """Run every pair to success, stuck or a broken link, and collect the statistics."""
+             *, record: bool = False, start: np.ndarray | None = None) -> Result:
+    """Run every pair to success, stuck or a broken link, and collect the statistics.
+
+    ``start`` ``(2, n, 2)`` (front row first) places the robots; by default they start on
+    the centre line as :func:`.scene.placements` says.
+    """
     corridor = corridor or corridor_with_turn()
     settings = settings or Settings()
     pairs.check()
     if settings.window < 1 or settings.path_points < 2:
         raise ValueError("settings need window >= 1 and path_points >= 2")
-    scene = build(pairs, corridor, settings)
+    scene = build(pairs, corridor, settings, start)
     frame = CornerFrame.of(corridor)
     window, last = settings.window, settings.path_points - 1
     path_x, path_y = law.pad_paths(frame.to_frame(scene.paths), window)

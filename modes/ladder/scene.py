@@ -39,9 +39,12 @@ def placements(corridor: Corridor, length: np.ndarray, settings: Settings
     return np.stack([front_start, rear_start]), np.stack([front_goal, rear_goal])
 
 
-def build(pairs: Pairs, corridor: Corridor, settings: Settings) -> Scene:
-    """Starts, goals and both robots' guide paths for every pair."""
-    start, goal = placements(corridor, pairs.length, settings)
+def build(pairs: Pairs, corridor: Corridor, settings: Settings,
+          start: np.ndarray | None = None) -> Scene:
+    """Starts, goals and both robots' guide paths for every pair (``start`` ``(2, n, 2)``
+    replaces the default placement of the robots)."""
+    placed, goal = placements(corridor, pairs.length, settings)
+    start = placed if start is None else np.asarray(start, dtype=float)
     paths = np.stack([
         guide_paths(corridor, start[r], goal[r], pairs.robot["alpha"][r],
                     count=settings.path_points, tension=settings.tension,

@@ -1,0 +1,47 @@
+"""Per-instance parameter values: the agents' defaults with an ensemble's overrides applied.
+
+Shared by the simulator and by libraries' batch simulators (which must see exactly the
+parameters the engine would), so the rules live in one place: ``"agent.param"`` sets one
+agent's parameter, a bare ``"param"`` every agent that has it (team parameters are copied
+into every agent); a value is one number or one per instance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from hybridteam.engine.compiled import CAgent
+from hybridteam.errors import did_you_mean
+
+
+def parameter_matrices(agents: Sequence[CAgent], n: int,
+                       overrides: Mapping[str, float | Sequence[float]]) -> list[np.ndarray]:
+    """One ``(n, P)`` parameter matrix per agent, defaults tiled, then overrides applied."""
+    mats = [np.tile(ca.param_defaults, (n, 1)) for ca in agents]
+    apply_overrides(agents, mats, n, overrides)
+    return mats
+
+
+def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int,
+                    overrides: Mapping[str, float | Sequence[float]]) -> None:
+    """Write ``overrides`` into the agents' ``(n, P)`` matrices; ValueError names a bad key."""
+    for key, value in overrides.items():
+        values = np.asarray(value, dtype=float)
+        if values.ndim > 1 or (values.ndim == 1 and values.size != n):
+            raise ValueError(f"override '{key}': expected a number or {n} values, "
+                             f"got shape {values.shape}")
+        agent, _, name = key.rpartition(".")
+        hit = False
+        for ca, p in zip(agents, mats, strict=True):
+            if agent and ca.name != agent:
+                continue
+            if name in ca.param_index:
+                p[:, ca.param_index[name]] = values
+                hit = True
+        if not hit:
+            known = sorted({f"{ca.name}.{p}" for ca in agents for p in ca.param_index}
+                           | {p for ca in agents for p in ca.param_index})
+            raise ValueError(f"override '{key}' names no parameter"
+                             + (f"; {hint}" if (hint := did_you_mean(key, known)) else ""))

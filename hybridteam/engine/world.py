@@ -1,0 +1,169 @@
+"""The team's world components at run time, and what an agent's law may read of them.
+
+:class:`World` instantiates the components a team lists under ``world:``, evaluates their
+numeric settings per instance (expressions of team parameters, so an ensemble can sweep
+a ladder's length), and calls them at every instant before laws are sampled.
+:class:`AgentView` is what a law's context carries: the component readings its robot may
+sense, and the law's own memory (per-instance values a discrete-time controller keeps
+from one period to the next, such as how far along its guide path it is).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.expr import ExpressionError, compile_expression
+from hybridteam.world.component import WorldComponent, lookup, registered
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.model import Team
+
+
+def check_world(team: Team) -> list[ModelError]:
+    """Problems in a team's ``world:`` list: unknown components, settings, expressions."""
+    errors: list[ModelError] = []
+    symbols = {name: (lambda c: 0.0) for name in team.parameters}
+    for spec in team.world:
+        try:
+            cls = lookup(spec.use)
+        except KeyError:
+            errors.append(ModelError((*spec.where, "use"), f"unknown world component "
+                                     f"'{spec.use}'", hint=did_you_mean(spec.use, registered())))
+            continue
+        for key, value in spec.values.items():
+            where = (*spec.where, "with", key)
+            if key not in cls.params:
+                errors.append(ModelError(where, f"'{spec.use}' has no setting '{key}'",
+                                         hint=did_you_mean(key, list(cls.params)), at_key=True))
+                continue
+            default = cls.params[key]
+            if isinstance(default, float | int) and not isinstance(default, bool):
+                if isinstance(value, str):
+                    try:
+                        compile_expression(value, symbols)
+                    except ExpressionError as exc:
+                        errors.append(ModelError(where, exc.message, offset=exc.offset,
+                                                 hint=exc.hint))
+                elif not isinstance(value, float | int) or isinstance(value, bool):
+                    errors.append(ModelError(where, f"expected a number or an expression, "
+                                             f"got {value!r}"))
+            elif type(value) is not type(default):
+                errors.append(ModelError(where, f"expected a {type(default).__name__}, "
+                                         f"got {value!r}"))
+    return errors
+
+
+def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
+            team_params: Mapping[str, np.ndarray], n: int) -> dict[str, Any]:
+    """Settings with defaults filled in; numeric ones as (n,) arrays, one per instance."""
+    symbols = {k: (lambda c, v=v: v) for k, v in team_params.items()}
+    out: dict[str, Any] = {}
+    for key, default in cls.params.items():
+        value = given.get(key, default)
+        if isinstance(default, float | int) and not isinstance(default, bool):
+            if isinstance(value, str):
+                value = compile_expression(value, symbols)(None)
+            out[key] = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+        else:
+            out[key] = value
+    return out
+
+
+class World:
+    """Every component of one simulation, called in declaration order."""
+
+    def __init__(self, team: Team, n: int, team_params: Mapping[str, np.ndarray]) -> None:
+        self.components: list[WorldComponent] = []
+        for spec in team.world:
+            cls = lookup(spec.use)
+            self.components.append(cls(team, n, component_values(cls, spec.values,
+                                                                 team_params, n)))
+
+    @property
+    def any(self) -> bool:
+        return bool(self.components)
+
+    @property
+    def raises(self) -> bool:
+        """Whether some component may raise events (then nobody is deadlocked)."""
+        return any(c.raises for c in self.components)
+
+    def start(self, sim: Simulator) -> None:
+        for c in self.components:
+            c.start(sim)
+
+    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+        """Run every component on instances ``idx``; the instances where events were raised."""
+        raised = []
+        for c in self.components:
+            live = idx[~sim.done[idx]]
+            if live.size:
+                got = c.update(sim, live)
+                if got is not None and len(got):
+                    raised.append(np.asarray(got, np.intp))
+        return np.unique(np.concatenate(raised)) if raised else np.empty(0, np.intp)
+
+    def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        for c in self.components:
+            if name in c.senses():
+                return c.sense(agent, idx, name)
+        known = sorted({s for c in self.components for s in c.senses()})
+        raise KeyError(f"no world component lets a robot sense '{name}'"
+                       + (f" (known: {', '.join(known)})" if known else
+                          " (the team declares no 'world:' components)"))
+
+    def sample_series(self) -> dict[str, tuple[str, ...]]:
+        return {k: v for c in self.components for k, v in c.sample_series().items()}
+
+    def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        return {k: v for c in self.components for k, v in c.sample(idx).items()}
+
+    def summary(self, i: int) -> dict[str, Any]:
+        return {k: v for c in self.components for k, v in c.summary(i).items()}
+
+    def meta(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for c in self.components:
+            for key, value in c.meta().items():
+                if isinstance(value, dict) and isinstance(out.get(key), dict):
+                    out[key] = {**out[key], **value}
+                elif isinstance(value, list) and isinstance(out.get(key), list):
+                    out[key] = [*out[key], *value]
+                else:
+                    out[key] = value
+        return out
+
+
+class AgentView:
+    """One agent's window on the world and its law memory, for instances ``idx``."""
+
+    __slots__ = ("agent", "idx", "memory", "n", "world")
+
+    def __init__(self, world: World | None, agent: int, idx: np.ndarray | slice,
+                 memory: dict[str, np.ndarray], n: int) -> None:
+        self.world, self.agent, self.idx, self.memory, self.n = world, agent, idx, memory, n
+
+    def instances(self) -> np.ndarray:
+        return np.arange(self.n)[self.idx] if isinstance(self.idx, slice) else \
+            np.asarray(self.idx, np.intp)
+
+    def sense(self, name: str) -> np.ndarray:
+        if self.world is None:
+            raise KeyError(f"no world component lets a robot sense '{name}' (the team "
+                           "declares no 'world:' components)")
+        return self.world.sense(self.agent, self.instances(), name)
+
+    def recall(self, name: str, initial: float) -> np.ndarray:
+        store = self.memory.get(name)
+        if store is None:
+            store = self.memory[name] = np.full(self.n, float(initial))
+        return store[self.idx].copy()
+
+    def keep(self, name: str, values: np.ndarray) -> None:
+        store = self.memory.setdefault(name, np.full(self.n, np.nan))
+        store[self.idx] = values

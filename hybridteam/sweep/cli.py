@@ -1,0 +1,99 @@
+"""``hybridteam sweep STUDY.yaml -o OUT`` and ``hybridteam report OUT``.
+
+Registered by :mod:`hybridteam.cli` through :func:`add_parsers` and :data:`COMMANDS`.
+Bad input (the study, its team, the arguments, an output folder holding another study) is
+one located line per problem on stderr and exit status 2, before anything is written. An
+interruption keeps the finished chunks and says how to resume.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def add_parsers(sub) -> None:
+    """Add the ``sweep`` and ``report`` subcommands to the main parser's subparsers."""
+    sw = sub.add_parser("sweep", help="run a parameter study (resumes an interrupted one)")
+    sw.add_argument("study", metavar="STUDY.yaml")
+    sw.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    where = sw.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="local worker processes (default 1: this process)")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                       help="run on a Dask distributed cluster, e.g. tcp://host:8786 "
+                            "(needs hybridteam[dask])")
+    sw.add_argument("--chunk", type=int, default=None, metavar="K",
+                    help="runs per ensemble chunk (default: the study's, else 500)")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    rp = sub.add_parser("report", help="plots and report.md of a finished study")
+    rp.add_argument("output", metavar="OUT", help="the study's output folder")
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from hybridteam.cli import EXIT_OK, EXIT_USAGE, UsageError
+    from hybridteam.io.loader import InputErrors
+    from hybridteam.sweep.run import run_study
+    from hybridteam.sweep.store import StudyError
+    from hybridteam.sweep.study import load_study
+
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {args.workers}")
+    if args.chunk is not None and args.chunk < 1:
+        raise UsageError(f"--chunk must be at least 1, got {args.chunk}")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"output '{out}' exists and is not a folder")
+    try:
+        study = load_study(args.study)
+    except InputErrors as exc:
+        for err in exc.errors:
+            print(err, file=sys.stderr)
+        return EXIT_USAGE
+    show = not args.quiet and sys.stderr.isatty()
+    try:
+        result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
+                           chunk=args.chunk, progress=show)
+    except StudyError as exc:
+        raise UsageError(str(exc)) from None
+    except KeyboardInterrupt:
+        print(f"hybridteam: interrupted; the finished chunks are kept in {out}/chunks — "
+              "run the same command to resume", file=sys.stderr)
+        return 130
+    for warning in result.warnings:
+        print(f"hybridteam: warning: {warning}", file=sys.stderr)
+    if not args.quiet:
+        plan = result.plan
+        tally: dict[str, int] = {}
+        assert result.table is not None
+        for row in result.table.rows:
+            for name in result.table.columns[result.table.columns.index("runs") + 1:
+                                             result.table.columns.index("success_rate")]:
+                tally[name] = tally.get(name, 0) + row[name]
+        reused = f", {len(result.reused)} found done" if result.reused else ""
+        print(f"{study.name}: {plan.runs} runs in {len(plan.chunks)} chunks "
+              f"({len(result.computed)} computed{reused}"
+              + (f", {result.executor}" if result.computed else "")
+              + f") in {result.wall_s:.2f} s — "
+              + ", ".join(f"{k}: {v}" for k, v in tally.items()))
+        print(f"wrote {out}/ (results.csv, results.md, runs.csv, study.json, chunks/); "
+              f"'hybridteam report {out}' draws the plots")
+    return EXIT_OK
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from hybridteam.cli import EXIT_OK, UsageError
+    from hybridteam.sweep.report import write_report
+    from hybridteam.sweep.store import StudyError
+
+    try:
+        path = write_report(args.output)
+    except StudyError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"wrote {path} (plots in {Path(args.output) / 'plots'})")
+    return EXIT_OK
+
+
+COMMANDS = {"sweep": cmd_sweep, "report": cmd_report}

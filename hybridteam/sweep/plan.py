@@ -1,0 +1,174 @@
+"""A study expanded into runs, and the runs cut into ensemble chunks.
+
+Run order is fixed: settings (factor by factor, value by value, the axes crossed with the
+first axis outermost), then population members, then repetitions. Run ``r`` gets the
+``r``-th child of ``SeedSequence(study.seed).spawn(...)``; member ``i`` draws its
+parameters from a generator seeded by ``(population.seed, i, draw name)``, so it is the same
+member whatever the population size or the other draws. A run's overrides and seed are
+therefore functions of its own index alone — which, with the engine's guarantee that an
+ensemble instance equals its single run, makes results independent of chunk size and of
+the executor.
+
+A chunk is a slice of one setting's runs (at most ``chunk`` of them) and runs as one
+ensemble: every instance of it sets the same override keys, so no key ever needs a
+"team default" filled in for runs that do not vary it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from hybridteam.sweep.study import FactorValue, Study
+
+BASE = "base"  # the factor name of a study without factors
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One row of the result table: a factor at one value, at one point of the axes."""
+
+    index: int
+    factor: str
+    value: FactorValue | None  # None: the base setting of a study without factors
+    axes: tuple[tuple[str, float], ...]
+    assign: tuple[tuple[str, float], ...]  # override keys this setting fixes
+
+    @property
+    def label(self) -> str:
+        """The value as the table shows it: ``0.4``, ``240``, ``(1.5, 0.5)``."""
+        return value_label(self.value)
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Runs ``start .. stop - 1``, all of setting ``setting``: one ensemble call."""
+
+    id: str
+    setting: int
+    start: int
+    stop: int
+
+    @property
+    def size(self) -> int:
+        return self.stop - self.start
+
+
+@dataclass(frozen=True)
+class Task:
+    """What a worker needs to run a chunk: no study, no files — only arrays."""
+
+    chunk: Chunk
+    overrides: dict[str, np.ndarray]
+    seeds: list[int]
+    members: list[int]
+    repetitions: list[int]
+    metrics: tuple[str, ...]
+    accelerate: bool
+
+
+def value_label(value: FactorValue | None) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, tuple):
+        return "(" + ", ".join(value_label(v) for v in value) + ")"
+    return repr(int(value)) if float(value).is_integer() and abs(value) < 1e15 else repr(value)
+
+
+class Plan:
+    """Settings, runs and chunks of a study; chunk size fixed at construction."""
+
+    def __init__(self, study: Study, chunk: int | None = None) -> None:
+        self.study = study
+        self.chunk = int(chunk or study.chunk)
+        if self.chunk < 1:
+            raise ValueError(f"chunk must be at least 1, got {self.chunk}")
+        self.per_setting = study.size * study.repetitions
+        self.settings = _settings(study)
+        self.runs = len(self.settings) * self.per_setting
+        parts = math.ceil(self.per_setting / self.chunk)
+        self.chunks = [Chunk(f"{s.index:05d}-{p:04d}", s.index,
+                             s.index * self.per_setting + p * self.chunk,
+                             s.index * self.per_setting + min((p + 1) * self.chunk,
+                                                              self.per_setting))
+                       for s in self.settings for p in range(parts)]
+        self._draws: dict[str, np.ndarray] | None = None
+
+    # ------------------------------------------------------------------ per run
+    def member(self, run: np.ndarray | int) -> np.ndarray:
+        return (np.asarray(run) % self.per_setting) // self.study.repetitions
+
+    def repetition(self, run: np.ndarray | int) -> np.ndarray:
+        return np.asarray(run) % self.study.repetitions
+
+    def setting_of(self, run: np.ndarray | int) -> np.ndarray:
+        return np.asarray(run) // self.per_setting
+
+    def seeds(self, start: int, stop: int) -> list[int]:
+        """Runs' seeds: child ``r`` of ``SeedSequence(seed).spawn``, as a 63-bit int.
+
+        ``SeedSequence(seed, spawn_key=(r,))`` *is* that child, so a chunk derives its own
+        seeds without spawning everyone else's.
+        """
+        return [int(np.random.SeedSequence(self.study.seed, spawn_key=(r,))
+                    .generate_state(1, np.uint64)[0] >> np.uint64(1))
+                for r in range(start, stop)]
+
+    def draws(self) -> dict[str, np.ndarray]:
+        """Population draws: override key -> (size,) values, member by member."""
+        if self._draws is None:
+            self._draws = population(self.study)
+        return self._draws
+
+    def task(self, chunk: Chunk) -> Task:
+        """The overrides (one value per instance) and seeds of a chunk's runs."""
+        runs = np.arange(chunk.start, chunk.stop)
+        members = self.member(runs)
+        overrides = {key: values[members] for key, values in self.draws().items()}
+        for key, value in self.settings[chunk.setting].assign:
+            overrides[key] = np.full(chunk.size, value)
+        return Task(chunk, overrides, self.seeds(chunk.start, chunk.stop), members.tolist(),
+                    self.repetition(runs).tolist(), self.study.metrics,
+                    self.study.accelerate)
+
+
+def _settings(study: Study) -> list[Setting]:
+    axis_points = list(itertools.product(*[[(a.name, a.keys, v) for v in a.values]
+                                           for a in study.axes]))
+    factor_values = [(f.name, f.keys, v) for f in study.factors for v in f.values] or \
+        [(BASE, (), None)]
+    out: list[Setting] = []
+    for name, keys, value in factor_values:
+        for point in axis_points:
+            assign: list[tuple[str, float]] = []
+            if value is not None:
+                per_key = value if isinstance(value, tuple) else (value,) * len(keys)
+                assign += [(k, float(v)) for k, v in zip(keys, per_key, strict=True)]
+            for _, axis_keys, v in point:
+                assign += [(k, float(v)) for k in axis_keys]
+            out.append(Setting(len(out), name, value, tuple((a, float(v)) for a, _, v in point),
+                               tuple(assign)))
+    return out
+
+
+def population(study: Study) -> dict[str, np.ndarray]:
+    """Every member's draws. Member ``i``'s draw ``name`` comes from its own generator,
+    seeded ``(population.seed, i, crc32(name))``: independent of size and of other draws."""
+    out: dict[str, np.ndarray] = {}
+    for d in study.draws:
+        tag = zlib.crc32(d.name.encode("utf-8"))
+        values = np.empty(study.size)
+        for i in range(study.size):
+            rng = np.random.default_rng(
+                np.random.SeedSequence(study.population_seed, spawn_key=(i, tag)))
+            if d.kind == "uniform":
+                values[i] = rng.uniform(d.low, d.high)
+            else:
+                values[i] = rng.integers(int(d.low), int(d.high), endpoint=True)
+        for key in d.keys:
+            out[key] = values
+    return out

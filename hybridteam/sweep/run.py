@@ -1,0 +1,190 @@
+"""Run a study's chunks on an executor, chunk by chunk into the output folder, resumably.
+
+Executors: in this process (``workers=1``), a local process pool (``workers=N``), or a
+Dask distributed cluster (``scheduler=ADDRESS`` or a ``client``; Dask is imported only
+then). They differ only in *where* :func:`~hybridteam.sweep.worker.run_chunk` runs: this
+process writes every finished chunk file as results come back, so the folder always holds
+whole chunks, whichever finished first. Chunk files already present are not recomputed.
+Once every chunk is in, the per-setting table is aggregated from the files (never from
+memory), so a resumed study and an uninterrupted one produce the same bytes.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hybridteam.model import Team
+from hybridteam.sweep.plan import Chunk, Plan, Task
+from hybridteam.sweep.store import (
+    FORMAT,
+    StudyError,
+    finished_chunks,
+    open_folder,
+    versions,
+    write_chunk,
+    write_record,
+)
+from hybridteam.sweep.study import Study
+from hybridteam.sweep.table import (
+    ResultTable,
+    aggregate,
+    collect_runs,
+    run_table,
+    write_results,
+)
+from hybridteam.sweep.worker import run_chunk
+
+Results = Iterator[tuple[Chunk, dict[str, list[Any]]]]
+
+
+@dataclass
+class Outcome:
+    """What :func:`run_study` did: chunks computed now and found done, and the table."""
+
+    plan: Plan
+    computed: list[str] = field(default_factory=list)
+    reused: list[str] = field(default_factory=list)
+    table: ResultTable | None = None  # None while chunks are missing (stopped early)
+    executor: str = ""
+    wall_s: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.table is not None
+
+
+def run_study(study: Study, out: str | Path, *, workers: int | None = None,
+              scheduler: str | None = None, client: Any = None, chunk: int | None = None,
+              progress: bool = False, max_chunks: int | None = None,
+              fmt: str | None = None) -> Outcome:
+    """Run ``study`` into folder ``out`` and write its table; resume if ``out`` holds part.
+
+    ``max_chunks`` stops after computing that many chunks (the table is then not written):
+    what an interruption does, on purpose — tests use it to check resuming.
+    ``fmt`` forces the chunk file format ('parquet' or 'csv'; default: Parquet if pyarrow
+    is installed).
+    """
+    out = Path(out)
+    if workers is not None and workers < 1:
+        raise StudyError(f"workers must be at least 1, got {workers}")
+    if (scheduler is not None or client is not None) and workers not in (None, 1):
+        raise StudyError("give either a number of local workers or a Dask scheduler, not both")
+    plan = Plan(study, chunk)
+    record = {"format": FORMAT, "study": str(study.path), "team": str(study.team_path),
+              "name": study.name, "digest": study.digest, "chunk": plan.chunk,
+              "runs": plan.runs, "chunks": len(plan.chunks), "seed": study.seed,
+              "factors": [f.name for f in study.factors], "axes": [a.name for a in study.axes],
+              "metrics": list(study.metrics), "success": list(study.success)}
+    old = open_folder(out, record)
+    done = finished_chunks(out) if old is not None else {}
+    unknown = sorted(set(done) - {c.id for c in plan.chunks})
+    if unknown:
+        raise StudyError(f"{out}: chunk file '{unknown[0]}' belongs to no chunk of this "
+                         "study; use another output folder")
+    result = Outcome(plan, reused=[c.id for c in plan.chunks if c.id in done])
+    record["versions"] = versions()
+    if old is not None and old.get("versions") not in (None, record["versions"]):
+        record["earlier_versions"] = old.get("earlier_versions") or old["versions"]
+        result.warnings.append(f"{out}: resuming with other package versions than the "
+                               "chunks already there were computed with (see study.json)")
+    todo = [c for c in plan.chunks if c.id not in done]
+    if max_chunks is not None:
+        todo = todo[:max_chunks]
+    start = time.perf_counter()
+    if todo:  # connect first: a scheduler that cannot be reached leaves no folder behind
+        results, result.executor, close = _executor(study.team, plan, todo, workers,
+                                                    scheduler, client)
+        bar = None
+        try:
+            write_record(out, {**record, "status": "running"})
+            bar = _bar(plan, done, study.name, progress)
+            for c, columns in results:
+                write_chunk(out, c.id, columns, fmt)
+                result.computed.append(c.id)
+                if bar is not None:
+                    bar.update(c.size)
+        finally:
+            if bar is not None:
+                bar.close()
+            close()
+    result.wall_s = time.perf_counter() - start
+    if len(result.computed) + len(result.reused) < len(plan.chunks):
+        return result  # stopped early: no table, the record still says "running"
+    runs = collect_runs(plan, out)
+    result.table = aggregate(plan, runs)
+    write_results(out, result.table, run_table(plan, runs))
+    write_record(out, {**record, "status": "complete"})
+    return result
+
+
+def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool):
+    if not progress:
+        return None
+    from tqdm import tqdm
+
+    finished = sum(c.size for c in plan.chunks if c.id in done)
+    return tqdm(total=plan.runs, initial=finished, unit="run", desc=name, file=sys.stderr,
+                dynamic_ncols=True, smoothing=0.1)
+
+
+def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
+              scheduler: str | None, client: Any
+              ) -> tuple[Results, str, Callable[[], None]]:
+    """(chunk results as they finish, a description, what to call when done)."""
+    tasks = (plan.task(c) for c in todo)
+    if scheduler is not None or client is not None:
+        return _dask(team, tasks, scheduler, client)
+    if workers is None or workers == 1 or len(todo) == 1:
+        return ((t.chunk, run_chunk(team, t)) for t in tasks), "in-process", lambda: None
+    return _pool(team, list(tasks), workers)
+
+
+def _pool(team: Team, tasks: list[Task], workers: int
+          ) -> tuple[Results, str, Callable[[], None]]:
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)))
+    futures = {pool.submit(run_chunk, team, t): t.chunk for t in tasks}
+
+    def results() -> Results:
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+
+    def close() -> None:  # on an interruption or a failure: drop what has not started
+        pool.shutdown(wait=True, cancel_futures=True)
+
+    return results(), f"{workers} local processes", close
+
+
+def _dask(team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any
+          ) -> tuple[Results, str, Callable[[], None]]:
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise StudyError("running on a Dask cluster needs dask.distributed: "
+                         "pip install 'hybridteam[dask]'") from None
+    own = client is None
+    if own:
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    shared = client.scatter(team, broadcast=True)
+    futures = {client.submit(run_chunk, shared, t, pure=False): t.chunk for t in tasks}
+
+    def results() -> Results:
+        for fut, columns in as_completed(list(futures), with_results=True):
+            yield futures[fut], columns
+
+    def close() -> None:  # on an interruption or a failure: drop what has not run
+        client.cancel(list(futures))
+        if own:
+            client.close()
+
+    return results(), f"Dask at {client.scheduler.address}", close

@@ -1,0 +1,274 @@
+"""Study files -> a validated :class:`Study`, every mistake located in the file.
+
+Three gates, like a team file's: YAML syntax, the schema (:mod:`.schema`), then what needs
+the team — the team file must load, every override key must name a parameter (checked by
+building the simulator with it, since the engine is what knows), factor values must have
+one number per key, and each metric must be a per-instance summary key. Everything is
+checked before a single run starts: a typo must not surface an hour into a study.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from hybridteam.engine.compiler import compile_team
+from hybridteam.io.errors import located_errors
+from hybridteam.io.loader import InputErrors, load_team
+from hybridteam.io.yamlpos import Path as DocPath
+from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
+from hybridteam.model import Team
+from hybridteam.sweep.schema import AxisSchema, FactorSchema, StudyFile
+
+#: A factor value: one number for all the factor's keys, or one per key.
+FactorValue = float | tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Draw:
+    """A population parameter: drawn per member, then set on every key in ``keys``."""
+
+    name: str
+    keys: tuple[str, ...]
+    kind: str  # "uniform" or "integers" (inclusive hi)
+    low: float
+    high: float
+
+
+@dataclass(frozen=True)
+class Factor:
+    """Varied alone over ``values``; the other parameters keep the population's draws."""
+
+    name: str
+    keys: tuple[str, ...]
+    values: tuple[FactorValue, ...]
+
+
+@dataclass(frozen=True)
+class Axis:
+    """Crossed with every factor value; ``name`` is its column in the table."""
+
+    name: str
+    keys: tuple[str, ...]
+    values: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study, its team loaded; ``digest`` identifies it for resuming."""
+
+    path: Path
+    name: str
+    team_path: Path
+    team: Team
+    size: int
+    population_seed: int
+    draws: tuple[Draw, ...]
+    factors: tuple[Factor, ...]
+    axes: tuple[Axis, ...]
+    repetitions: int
+    seed: int
+    success: tuple[str, ...]
+    outcomes: tuple[str, ...]
+    metrics: tuple[str, ...]
+    chunk: int
+    accelerate: bool
+    digest: str
+
+
+def load_study(source: str | os.PathLike) -> Study:
+    """Load and fully check a study file; raises :class:`InputErrors` (file:line messages)."""
+    filename = str(source)
+    try:
+        data, positions = load_yaml(Path(source), filename=filename)
+    except SourceError as exc:
+        raise InputErrors([exc]) from None
+    if data.get("kind") != "study":
+        mark = positions.value(("kind",)) or positions.nearest(())[1]
+        what = f"got kind {data['kind']!r}" if "kind" in data else "no 'kind:' key"
+        raise InputErrors([SourceError(filename, mark.line, mark.column, ("kind",),
+                                       f"expected a study file with 'kind: study' ({what})")])
+    try:
+        doc = StudyFile.model_validate(data)
+    except ValidationError as exc:
+        raise InputErrors(located_errors(exc, StudyFile, data, positions, filename)) from None
+    team_path = (Path(source).resolve().parent / doc.team).resolve()
+    if not team_path.is_file():
+        raise InputErrors([positions.error(("team",), f"no team file '{doc.team}' "
+                                           f"(looked for {team_path})")])
+    team = load_team(team_path)  # its own errors name the team file
+    if doc.duration is not None:  # the study's duration is the team's, for every executor
+        team = with_duration(team, doc.duration)
+    errors: list[SourceError] = []
+    draws = tuple(Draw(name, tuple(d.keys or [name]), "uniform" if d.uniform else "integers",
+                       *(d.uniform or d.integers))  # type: ignore[misc]
+                  for name, d in doc.population.draws.items())
+    factors = tuple(_factor(name, spec, positions, errors)
+                    for name, spec in doc.factors.items())
+    axes = tuple(Axis(name, _keys(name, spec), tuple(_axis_values(spec)))
+                 for name, spec in doc.axes.items())
+    study = Study(
+        path=Path(source), name=doc.name or Path(source).stem, team_path=team_path, team=team,
+        size=doc.population.size, population_seed=doc.population.seed, draws=draws,
+        factors=factors, axes=axes, repetitions=doc.repetitions, seed=doc.seed,
+        success=tuple(doc.success), outcomes=tuple(doc.outcomes), metrics=tuple(doc.metrics),
+        chunk=doc.chunk, accelerate=doc.accelerate,
+        digest=_digest(Path(source), team_path),
+    )
+    if not errors:
+        errors += _check_keys(study, positions)
+    if not errors:
+        errors += _check_overlaps(study, compile_team(study.team), positions)
+    if not errors:
+        errors += _check_metrics(study, positions)
+    if errors:
+        raise InputErrors(sorted(errors, key=lambda e: (e.line or 0, e.column or 0)))
+    return study
+
+
+def with_duration(team: Team, duration: float) -> Team:
+    """``team`` simulated for ``duration``, sampled as before (like ``run --duration``)."""
+    sim = team.simulation
+    return replace(team, simulation=replace(sim, duration=duration,
+                                            sample_period=sim.output_period()))
+
+
+def _keys(name: str, spec: object) -> tuple[str, ...]:
+    if isinstance(spec, FactorSchema | AxisSchema):
+        if spec.keys is not None:
+            return tuple(spec.keys)
+        if spec.key is not None:
+            return (spec.key,)
+    return (name,)
+
+
+def _axis_values(spec: object) -> list[float]:
+    return spec.values if isinstance(spec, AxisSchema) else spec  # type: ignore[return-value]
+
+
+def _factor(name: str, spec: object, positions: Positions, errors: list[SourceError]
+            ) -> Factor:
+    keys = _keys(name, spec)
+    raw = spec.values if isinstance(spec, FactorSchema) else spec
+    where: DocPath = ("factors", name, "values") if isinstance(spec, FactorSchema) else \
+        ("factors", name)
+    values: list[FactorValue] = []
+    for k, v in enumerate(raw):  # type: ignore[arg-type]
+        if isinstance(v, list):
+            if len(v) != len(keys):
+                errors.append(positions.error((*where, k), f"a list value gives one number "
+                                              f"per key: expected {len(keys)} "
+                                              f"({', '.join(keys)}), got {len(v)}"))
+            values.append(v[0] if len(v) == 1 else tuple(v))
+        else:
+            values.append(v)
+    return Factor(name, keys, tuple(values))
+
+
+def _check_overlaps(study: Study, cteam, positions: Positions) -> list[SourceError]:
+    """No parameter set twice in one run: by two draws, two axes, an axis and a factor, or
+    two keys of one item — ``wait`` and ``asker.wait`` count as the same parameter. (A
+    factor may set a drawn parameter: that is what varying it means.)"""
+    def targets(key: str) -> list[str]:
+        agent, _, name = key.rpartition(".")
+        return [f"{ca.name}.{name}" for ca in cteam.agents
+                if (not agent or ca.name == agent) and name in ca.param_index]
+
+    errors: list[SourceError] = []
+
+    def claim(owners: dict[str, str], label: str, keys: tuple[str, ...], where: DocPath
+              ) -> None:
+        for key in keys:
+            for t in targets(key):
+                if t in owners:
+                    errors.append(positions.error(where, f"'{key}' sets {t}, which "
+                                                  f"{owners[t]} sets too", at_key=True))
+                    return
+            owners.update({t: label for t in targets(key)})
+
+    drawn: dict[str, str] = {}
+    for d in study.draws:
+        claim(drawn, f"draw '{d.name}'", d.keys, ("population", "draws", d.name))
+    by_axes: dict[str, str] = {}
+    for axis in study.axes:
+        claim(by_axes, f"axis '{axis.name}'", axis.keys, ("axes", axis.name))
+    for factor in study.factors:
+        claim(dict(by_axes), f"factor '{factor.name}'", factor.keys, ("factors", factor.name))
+    return errors
+
+
+def _check_keys(study: Study, positions: Positions) -> list[SourceError]:
+    """Each override key, tried on the engine itself (which knows agent and team params)."""
+    from hybridteam.engine.simulator import Simulator
+
+    cteam = compile_team(study.team)
+    uses: list[tuple[str, DocPath, bool]] = []  # key, where it is written, at a mapping key
+    named = [("population", "draws", d.name, d.keys) for d in study.draws]
+    named += [(group, item.name, None, item.keys)
+              for group, items in (("factors", study.factors), ("axes", study.axes))
+              for item in items]
+    for group, name, sub, keys in named:
+        base: DocPath = (group, name, sub) if sub else (group, name)
+        for j, key in enumerate(keys):
+            if positions.value((*base, "keys")) is not None:
+                uses.append((key, (*base, "keys", j), False))
+            elif positions.value((*base, "key")) is not None:
+                uses.append((key, (*base, "key"), False))
+            else:  # shorthand: the name is the key
+                uses.append((key, base, True))
+    errors: list[SourceError] = []
+    problems: dict[str, str | None] = {}
+    for key, where, at_key in uses:
+        if key not in problems:
+            problems[key] = None
+            try:  # the engine sets overrides before anything else: a bad name fails first
+                Simulator(cteam, 1, duration=0.0, overrides={key: _default(cteam, key)})
+            except ValueError as exc:
+                if str(exc).startswith(f"override '{key}'"):
+                    problems[key] = str(exc)
+            except Exception:  # the name is fine; values are not what is checked here
+                pass
+        if problems[key] is not None:
+            head, _, hint = problems[key].partition("; ")  # "...; did you mean 'x'?"
+            errors.append(positions.error(where, f"{head} of team '{study.team.name}'"
+                                          + (f"; {hint}" if hint else ""), at_key=at_key))
+    return errors
+
+
+def _default(cteam, key: str) -> float:
+    """The team's own value of ``key`` (so the trial run sees a sensible value), else 0."""
+    agent, _, name = key.rpartition(".")
+    for ca in cteam.agents:
+        if (not agent or ca.name == agent) and name in ca.param_index:
+            return float(ca.param_defaults[ca.param_index[name]])
+    return 0.0
+
+
+def _check_metrics(study: Study, positions: Positions) -> list[SourceError]:
+    """Each metric must be a per-instance summary key (as :func:`hybridteam.api.summaries`
+    gives them; tried on a zero-length run of the engine)."""
+    if not study.metrics:
+        return []
+    from hybridteam.api import summaries
+
+    row = summaries(with_duration(study.team, 0.0), n=1, accelerate=False)[0]
+    known = [k for k, v in row.items() if k != "instance" and not isinstance(v, str)]
+    from hybridteam.errors import did_you_mean
+
+    return [positions.error(("metrics", j), f"'{m}' is not a per-instance summary key of team "
+                            f"'{study.team.name}' (known: {', '.join(known)})"
+                            + (f"; {hint}" if (hint := did_you_mean(m, known)) else ""))
+            for j, m in enumerate(study.metrics) if m not in known]
+
+
+def _digest(study_path: Path, team_path: Path) -> str:
+    """What a resumed study must match: the bytes of the study file and of its team file."""
+    h = hashlib.sha256()
+    for path in (study_path, team_path):
+        data = path.read_bytes()
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()

@@ -1,0 +1,129 @@
+"""World components: the parts of a simulation that belong to no single agent.
+
+A payload held by several robots, a corridor that judges when a ladder has made it round
+the corner, range sensors that need every robot's pose: these read the whole team's state
+at once, so they cannot be an agent's law. A team file lists them under ``world:``; each is
+a class registered by name (``@world_component("ladder.corridor")``) in a mode library and
+found through the ``hybridteam.libraries`` entry points, like laws.
+
+The engine calls a component at every instant of every instance, *before* the agents'
+laws are sampled, so a law sees what the component worked out from the current state:
+``update`` may end instances (``sim.finish(..., "link_broken", ...)``) and raise local
+events in agents (returned so the engine runs their discrete phase at that instant).
+Laws read what a component lets their robot sense through ``LawContext.sense(name)``.
+Everything is vectorized over the ensemble and per instance, so an ensemble still equals
+that many single runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.model import Team
+
+
+class WorldComponent:
+    """Base class of world components; subclasses override what they need.
+
+    ``params`` are the defaults of the component's ``with:`` settings: a float default
+    makes the setting a number or an expression of team parameters (evaluated per
+    instance, so ensembles can sweep it), a str or list default makes it a literal.
+    """
+
+    name: ClassVar[str] = ""
+    params: ClassVar[Mapping[str, Any]] = {}
+    #: Local events the component may raise in agents. While it may, an agent waiting for
+    #: one is not deadlocked (the component is a pending source of events).
+    raises: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def batch(cls, team: Team, n: int, overrides: Mapping[str, Any],
+              seed: int | Sequence[int]) -> list[dict[str, Any]] | None:
+        """An accelerated equivalent of simulating ``team`` for its per-instance summaries,
+        or None when the component does not recognise the team.
+
+        Parameter studies need thousands of runs of one kind of team; a library may own a
+        specialised batch simulator for the teams it defines (tests must pin it to the
+        engine instance by instance). Rows carry ``instance``, ``outcome``, ``t_end`` and
+        the component's :meth:`summary` keys.
+        """
+        return None
+
+    def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
+        self.team, self.n, self.values = team, n, dict(values)
+
+    def start(self, sim: Simulator) -> None:
+        """Called once, after every agent's initial state is set and before the first
+        instant; agents' states may be read (and, for placements, written) here."""
+
+    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
+        """React to the state of instances ``idx`` at their current time; return the
+        instances where local events were pushed (their discrete phase must run)."""
+        return None
+
+    def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        """What agent ``agent`` senses as ``name`` in instances ``idx`` (for its law)."""
+        raise KeyError(name)
+
+    def senses(self) -> tuple[str, ...]:
+        """Names :meth:`sense` answers (for error messages)."""
+        return ()
+
+    def sample_series(self) -> dict[str, tuple[str, ...]]:
+        """Extra trace sample series (e.g. a payload's pose): name -> component names."""
+        return {}
+
+    def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """Current values of :meth:`sample_series` for instances ``idx``: name -> (m, d)."""
+        return {}
+
+    def summary(self, i: int) -> dict[str, Any]:
+        """Statistics of instance ``i`` at the end of the run (for ``summary.json``)."""
+        return {}
+
+    def meta(self) -> dict[str, Any]:
+        """Trace metadata for views: ``world`` (walls, regions, obstacles, paths),
+        ``payloads``, ``payload_shapes``, agent ``footprint``s."""
+        return {}
+
+
+_REGISTRY: dict[str, type[WorldComponent]] = {}
+
+
+def world_component(name: str):
+    """Register a :class:`WorldComponent` subclass under ``name``."""
+
+    def deco(cls: type[WorldComponent]) -> type[WorldComponent]:
+        cls.name = name
+        _REGISTRY[name] = cls
+        return cls
+
+    return deco
+
+
+def lookup(name: str) -> type[WorldComponent]:
+    """The component class registered as ``name`` (after loading mode libraries)."""
+    from hybridteam.laws import load_libraries
+
+    _builtins()
+    if name not in _REGISTRY:
+        load_libraries()
+    return _REGISTRY[name]
+
+
+def registered() -> list[str]:
+    from hybridteam.laws import load_libraries
+
+    _builtins()
+    load_libraries()
+    return sorted(_REGISTRY)
+
+
+def _builtins() -> None:
+    """The framework's own components (a carried payload) register on first use."""
+    import hybridteam.world.carried  # noqa: F401

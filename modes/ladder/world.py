@@ -1,0 +1,233 @@
+"""The corridor and the ladder as an engine world component (``ladder.corridor``).
+
+Two robot agents carry the ladder; this component is everything that belongs to neither:
+the corridor, the ladder on its springs, each robot's guide path, and the referee. At every
+instant it
+
+1. finds the ladder's spring equilibrium from both robots' positions (Sec. 2) and ends the
+   run with outcome ``link_broken`` when an offset exceeds its limit;
+2. raises ``arrived`` in both robots when both are within ``arrive_tol`` of their goals,
+   and ``stuck`` when the pair has not come closer to its goals by ``stuck_tol`` within
+   ``stuck_window`` steps (the robots' modes turn these into final modes with outcomes);
+3. keeps the paper's statistics: steps, steps with the ladder in the corner square, path
+   lengths in total and in the corner, the largest offsets.
+
+What a robot may sense (``ctx.sense``): ``partner`` (the other end's robot, as the ladder
+tells it), ``path`` (its guide path), ``goal_heading``, ``length``, ``sc_partner`` and the
+``corridor`` map. Guide paths are built once, at the start, from the robots' initial
+positions, their ``alpha`` parameters and the goals this component places (``goal_gap``
+before the exit on the centre line, the rear robot one ladder length behind).
+
+Judgments, statistics and their order are those of :func:`.kernel.simulate`, so a team
+run through the engine reproduces the vectorized stepper (the tests compare them).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from hybridteam.engine.events import LOCAL
+from hybridteam.world.component import WorldComponent, world_component
+from hybridteam.world.geometry import corridor_with_turn
+
+from . import law
+from .frame import CornerFrame
+from .guide import guide_paths
+from .kernel import in_corner
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+
+#: Corridor settings: one corridor for the whole ensemble.
+_CORRIDOR = ("width_in", "width_out", "outer_leg_in", "outer_leg_out")
+
+
+@world_component("ladder.corridor")
+class LadderCorridor(WorldComponent):
+    """A corridor with one turn, a ladder on two springs, guide paths and the referee."""
+
+    raises: ClassVar[tuple[str, ...]] = ("arrived", "stuck")
+    params: ClassVar[dict[str, Any]] = {
+        "front": "R1", "rear": "R2", "turn": "right",
+        "width_in": 200.0, "width_out": 200.0, "outer_leg_in": 1200.0, "outer_leg_out": 1200.0,
+        "length": 450.0, "goal_gap": 70.0, "path_points": 160.0, "tension": 0.0,
+        "approach": 200.0, "alpha_inset": 0.0, "arrive_tol": 0.5, "stuck_window": 200.0,
+        "stuck_tol": 1.0,
+    }
+
+    @classmethod
+    def batch(cls, team, n, overrides, seed):
+        """Plain ladder teams run on the vectorized stepper (see :mod:`.batch`)."""
+        from .batch import rows
+
+        return rows(cls, team, n, overrides, seed)
+
+    # ------------------------------------------------------------------ set-up
+    def start(self, sim: Simulator) -> None:
+        v = self.values
+        names = [a.name for a in self.team.agents]
+        for role in ("front", "rear"):
+            if v[role] not in names:
+                raise ValueError(f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
+                                 f"of the team (agents: {', '.join(names)})")
+        self.robots = (names.index(v["front"]), names.index(v["rear"]))
+        dims = {}
+        for key in (*_CORRIDOR, "path_points", "approach", "tension", "alpha_inset"):
+            if np.ptp(v[key]) != 0:
+                raise ValueError(f"ladder.corridor: '{key}' must be the same in every instance")
+            dims[key] = float(v[key][0])
+        self.corridor = corridor_with_turn(*(dims[k] for k in _CORRIDOR), turn=v["turn"])
+        self.frame = CornerFrame.of(self.corridor)
+        n = self.n
+        length = v["length"]
+        goal = np.stack([self.corridor.leg_point("out", v["goal_gap"]),
+                         self.corridor.leg_point("out", v["goal_gap"] + length)])  # (2, n, 2)
+        start = np.stack([sim.states[a].x[:, :2] for a in self.robots])
+        param = self._robot_params(sim)
+        self.paths = np.stack([
+            guide_paths(self.corridor, start[r], goal[r], param["alpha"][r],
+                        count=int(dims["path_points"]), tension=dims["tension"],
+                        approach=dims["approach"] if dims["approach"] > 0 else None,
+                        inset=dims["alpha_inset"]) for r in range(2)])     # (2, n, P, 2)
+        self.goal = goal
+        heading = goal - goal[::-1]
+        self.heading = heading / np.hypot(heading[..., 0], heading[..., 1])[..., None]
+        sc = param["sc"]
+        self.sc, self.olim = sc, param["olim"]
+        self.share = sc[::-1] / (sc + sc[::-1])
+        self.length = length
+        self.radius = param["radius"]
+        # statistics and referee state, per instance (robot ones (2, n))
+        self.prev = np.full((2, n, 2), np.nan)
+        self.was_corner = np.zeros(n, bool)
+        self.steps = np.zeros(n, np.int64)
+        self.corner_steps = np.zeros(n, np.int64)
+        self.path = np.zeros((2, n))
+        self.corner_path = np.zeros((2, n))
+        self.max_offset = np.zeros((2, n))
+        self.best = np.full(n, np.inf)
+        self.improved_at = np.zeros(n, np.int64)
+        self.tips = np.full((2, n, 2), np.nan)
+
+    def _robot_params(self, sim: Simulator) -> dict[str, np.ndarray]:
+        out = {}
+        for key in ("alpha", "sc", "olim", "radius"):
+            rows = []
+            for a in self.robots:
+                st = sim.states[a]
+                if key not in st.ca.param_index:
+                    raise ValueError(f"ladder.corridor: robot '{st.ca.name}' has no "
+                                     f"parameter '{key}'")
+                rows.append(st.p[:, st.ca.param_index[key]].copy())
+            out[key] = np.stack(rows)
+        return out
+
+    # ------------------------------------------------------------------ each instant
+    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
+        pos = np.stack([sim.states[a].x[idx, :2] for a in self.robots])      # (2, m, 2)
+        fx, fy = np.moveaxis(self.frame.to_frame(pos), -1, 0)                 # (2, m) each
+        ox, oy, _ = law.spring_offsets(fx, fy, fx[::-1], fy[::-1], self.length[idx],
+                                       self.share[:, idx])
+        no = law.norm(ox, oy)
+        ax, ay = fx + ox, fy + oy
+        self.tips[:, idx] = self.frame.to_world(np.stack([ax, ay], axis=-1))
+        # statistics of the step that led here
+        prev = self.prev[:, idx]
+        moved = ~np.isnan(prev[0, :, 0])
+        if moved.any():
+            d = pos - prev
+            dist = np.where(moved, law.norm(d[..., 0], d[..., 1]), 0.0)
+            corner = self.was_corner[idx] & moved
+            self.path[:, idx] += dist
+            self.corner_path[:, idx] += np.where(corner, dist, 0.0)
+            self.steps[idx] += moved
+            self.corner_steps[idx] += corner
+        self.prev[:, idx] = pos
+        self.was_corner[idx] = in_corner(ax[0], ay[0], ax[1], ay[1], self.frame.width_in,
+                                         self.frame.width_out)
+        # the referee: a broken link, arrival, no progress
+        self.max_offset[:, idx] = np.maximum(self.max_offset[:, idx], no)
+        broken = (no > self.olim[:, idx]).any(axis=0)
+        if broken.any():
+            bad = idx[broken]
+            sim.finish(bad, "link_broken", lambda i: (
+                f"a ladder link broke at step {self.steps[i]}: offsets "
+                f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
+                f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"))
+        gx, gy = self.goal[:, idx, 0], self.goal[:, idx, 1]
+        dgoal = law.norm(gx - pos[..., 0], gy - pos[..., 1])
+        progress = dgoal[0] + dgoal[1]
+        step = self.steps[idx]
+        better = progress < self.best[idx] - self.values["stuck_tol"][idx]
+        self.best[idx] = np.where(better, progress, self.best[idx])
+        self.improved_at[idx] = np.where(better, step, self.improved_at[idx])
+        arrived = (dgoal <= self.values["arrive_tol"][idx]).all(axis=0) & ~broken
+        stuck = ~broken & ~arrived & (
+            self.improved_at[idx] <= step - self.values["stuck_window"][idx])
+        for event, mask in (("arrived", arrived), ("stuck", stuck)):
+            if mask.any():
+                who = idx[mask]
+                for a in self.robots:
+                    sim.queue.push(who, sim.t[who], LOCAL, a, event)
+        return idx[arrived | stuck]
+
+    def _offsets(self, i: int) -> np.ndarray:
+        d = self.tips[:, i] - self.prev[:, i]
+        return np.hypot(d[:, 0], d[:, 1])
+
+    # ------------------------------------------------------------------ what robots sense
+    def senses(self) -> tuple[str, ...]:
+        return ("partner", "path", "goal_heading", "length", "sc_partner", "corridor",
+                "frame")
+
+    def sense(self, agent: int, idx: np.ndarray, name: str) -> Any:
+        if agent not in self.robots:
+            raise KeyError(f"ladder.corridor: agent {agent} does not hold the ladder")
+        row = self.robots.index(agent)
+        if name == "partner":
+            return self.prev[1 - row, idx].copy()
+        if name == "path":
+            return self.paths[row, idx]
+        if name == "goal_heading":
+            return self.heading[row, idx]
+        if name == "length":
+            return self.length[idx]
+        if name == "sc_partner":
+            return self.sc[1 - row, idx]
+        if name == "corridor":
+            return self.corridor
+        if name == "frame":
+            return self.frame
+        raise KeyError(name)
+
+    # ------------------------------------------------------------------ results
+    def sample_series(self) -> dict[str, tuple[str, ...]]:
+        return {"ladder": ("x", "y", "theta")}
+
+    def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        a, b = self.tips[0, idx], self.tips[1, idx]
+        c = 0.5 * (a + b)
+        th = np.arctan2(a[:, 1] - b[:, 1], a[:, 0] - b[:, 0])
+        return {"ladder": np.column_stack([c, th])}
+
+    def summary(self, i: int) -> dict[str, Any]:
+        return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),
+                "path_length": [float(v) for v in self.path[:, i]],
+                "corner_path_length": [float(v) for v in self.corner_path[:, i]],
+                "max_offset": [float(v) for v in self.max_offset[:, i]]}
+
+    def meta(self) -> dict[str, Any]:
+        world = self.corridor.to_meta()
+        world["units"] = "units"  # the paper's corridor units; one time unit is one step
+        shown = min(self.n, 8)  # guide paths of the first instances, for the plots
+        world["paths"] = [{"instance": i, "agent": self.team.agents[a].name,
+                           "points": self.paths[r, i].round(3).tolist()}
+                          for i in range(shown) for r, a in enumerate(self.robots)]
+        lengths = np.unique(self.length)
+        shape = {"kind": "bar", "length": float(lengths[0]), "width": 6.0}
+        footprints = {self.team.agents[a].name: {"radius": float(self.radius[r, 0])}
+                      for r, a in enumerate(self.robots)}
+        return {"world": world, "payloads": ["ladder"], "payload_shapes": {"ladder": shape},
+                "footprints": footprints}
