@@ -289,3 +289,17 @@ def test_report_writes_plots_and_markdown(reference, tmp_path, capsys):
     for name in ("success_p_loss", "success_latency"):
         assert (out / "plots" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
         assert (out / "plots" / f"{name}.svg").exists()
+
+
+def test_validate_and_schema_know_study_files(tmp_path, capsys):
+    from hybridteam.cli import main
+
+    assert main(["validate", str(STUDY)]) == 0
+    assert "ok (study)" in capsys.readouterr().out
+    bad = tmp_path / "study.yaml"
+    bad.write_text(STUDY.read_text().replace("handshake.yaml", "handshak.yaml"))
+    assert main(["validate", str(bad)]) == 2
+    assert "no team file 'handshak.yaml'" in capsys.readouterr().err
+    assert main(["schema", "study"]) == 0
+    schema = capsys.readouterr().out
+    assert '"population"' in schema and '"factors"' in schema

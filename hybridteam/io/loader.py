@@ -136,6 +136,10 @@ def load(source: str | os.PathLike) -> Loaded:
         return Loaded(kind, document, team, warnings)
     if kind == "protocol":
         return Loaded(kind, document, document)
+    if kind == "study":  # the team it names, its keys and metrics are checked too
+        from hybridteam.sweep.study import load_study
+
+        return Loaded(kind, document, load_study(source))
     raise AssertionError(kind)  # pragma: no cover
 
 

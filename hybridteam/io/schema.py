@@ -370,3 +370,14 @@ def detect_kind(data: dict[str, Any]) -> str | None:
     if "protocol" in data:
         return "protocol"
     return None
+
+
+def _register_study() -> None:
+    """Studies are a file kind too (``validate``, ``schema``); their schema lives with the
+    sweep runner, which builds on this module, so it is added once this module is loaded."""
+    from hybridteam.sweep.schema import StudyFile
+
+    FILE_KINDS["study"] = StudyFile
+
+
+_register_study()
