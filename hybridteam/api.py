@@ -143,8 +143,7 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
         if rows is not None:
             return rows
     run = simulate(team, seed=seed, n=n, overrides=overrides)  # type: ignore[arg-type]
-    keep = ("instance", "outcome", "t_end")
-    return [{k: v for k, v in row.items() if k in keep or k not in _COUNTS}
+    return [{k: v for k, v in row.items() if k not in _COUNTS}
             for row in run.summary()["instances"]]
 
 

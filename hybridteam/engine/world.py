@@ -42,20 +42,25 @@ def check_world(team: Team) -> list[ModelError]:
                                          hint=did_you_mean(key, list(cls.params)), at_key=True))
                 continue
             default = cls.params[key]
-            if isinstance(default, float | int) and not isinstance(default, bool):
+            if _numeric(default):
                 if isinstance(value, str):
                     try:
                         compile_expression(value, symbols)
                     except ExpressionError as exc:
                         errors.append(ModelError(where, exc.message, offset=exc.offset,
                                                  hint=exc.hint))
-                elif not isinstance(value, float | int) or isinstance(value, bool):
+                elif not _numeric(value):
                     errors.append(ModelError(where, f"expected a number or an expression, "
                                              f"got {value!r}"))
             elif type(value) is not type(default):
                 errors.append(ModelError(where, f"expected a {type(default).__name__}, "
                                          f"got {value!r}"))
     return errors
+
+
+def _numeric(value: Any) -> bool:
+    """A number setting (evaluated per instance), as opposed to a literal; bools are not."""
+    return isinstance(value, float | int) and not isinstance(value, bool)
 
 
 def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
@@ -65,7 +70,7 @@ def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
     out: dict[str, Any] = {}
     for key, default in cls.params.items():
         value = given.get(key, default)
-        if isinstance(default, float | int) and not isinstance(default, bool):
+        if _numeric(default):
             if isinstance(value, str):
                 value = compile_expression(value, symbols)(None)
             out[key] = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()

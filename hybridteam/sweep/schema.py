@@ -57,34 +57,30 @@ class PopulationSchema(Strict):
     draws: dict[Key, DrawSchema] = Field(default_factory=dict)
 
 
-class FactorSchema(Strict):
+class _Keyed(Strict):
+    """What factors and axes share: the override key (or keys) their values set."""
+
+    key: Key | None = None
+    keys: list[Key] | None = Field(None, min_length=1)
+
+    @field_validator("keys")
+    @classmethod
+    def _not_both(cls, keys: list[str] | None, info: ValidationInfo) -> list[str] | None:
+        if keys is not None and info.data.get("key") is not None:
+            raise ValueError("give 'key' or 'keys', not both")
+        return keys
+
+
+class FactorSchema(_Keyed):
     """A factor with explicit keys: ``{keys: [R1.alpha, R2.alpha], values: [0.4, 0.8]}``."""
 
-    key: Key | None = None
-    keys: list[Key] | None = Field(None, min_length=1)
     values: list[Value] = Field(min_length=1)
 
-    @field_validator("keys")
-    @classmethod
-    def _not_both(cls, keys: list[str] | None, info: ValidationInfo) -> list[str] | None:
-        if keys is not None and info.data.get("key") is not None:
-            raise ValueError("give 'key' or 'keys', not both")
-        return keys
 
-
-class AxisSchema(Strict):
+class AxisSchema(_Keyed):
     """An axis whose column name differs from its key: ``{key: length, values: [...]}``."""
 
-    key: Key | None = None
-    keys: list[Key] | None = Field(None, min_length=1)
     values: list[float] = Field(min_length=1)
-
-    @field_validator("keys")
-    @classmethod
-    def _not_both(cls, keys: list[str] | None, info: ValidationInfo) -> list[str] | None:
-        if keys is not None and info.data.get("key") is not None:
-            raise ValueError("give 'key' or 'keys', not both")
-        return keys
 
 
 FactorSpec = Annotated[list[Value] | FactorSchema, Field(union_mode="left_to_right")]

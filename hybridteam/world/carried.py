@@ -80,12 +80,13 @@ class CarriedPayload(WorldComponent):
         return pts, poses[..., 2]
 
     def start(self, sim: Simulator) -> None:
-        idx = np.arange(self.n)
-        self._settle(sim, idx)
-        self.rel0[:] = self.pose[:, 2:3] - self._headings
+        heading = self._settle(sim, np.arange(self.n))
+        self.rel0[:] = self.pose[:, 2:3] - heading
         self.arm[..., 2] = 0.0
 
-    def _settle(self, sim: Simulator, idx: np.ndarray) -> None:
+    def _settle(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+        """Pose, offsets and arm readings of instances ``idx``; returns the robots' headings
+        ``(m, k)`` (the start counts the arms' angles from them)."""
         pts, heading = self._robot_points(sim, idx)
         eq = equilibrium(pts, self.body, self.spring)
         self.pose[idx] = np.c_[eq.x, eq.y, eq.theta]
@@ -95,7 +96,7 @@ class CarriedPayload(WorldComponent):
         rel = eq.theta[:, None] - heading - self.rel0[idx]
         self.arm[idx] = np.stack([c * ox + s * oy, -s * ox + c * oy,
                                   np.arctan2(np.sin(rel), np.cos(rel))], -1)
-        self._headings = heading
+        return heading
 
     def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
         self._settle(sim, idx)

@@ -129,14 +129,17 @@ def _window(drv: Driver, ca: CAgent, p: np.ndarray, n: int) -> np.ndarray:
     """The law binding's search window per instance (the law's default is 8)."""
     if "window" not in drv.params:
         return np.full(n, 8.0)
-    ctx = Ctx(np.zeros((n, len(ca.plant.state_names))), np.zeros((n, len(ca.var_index))), p,
-              np.zeros(n))
-    return np.broadcast_to(np.asarray(drv.params["window"](ctx), float), (n,))
+    return np.broadcast_to(np.asarray(drv.params["window"](_start_ctx(ca, p, n)), float), (n,))
+
+
+def _start_ctx(ca: CAgent, p: np.ndarray, n: int) -> Ctx:
+    """A context in which expressions of parameters (initial states, bindings) evaluate."""
+    return Ctx(np.zeros((n, len(ca.plant.state_names))), np.zeros((n, len(ca.var_index))), p,
+               np.zeros(n))
 
 
 def _initial_xy(ca: CAgent, p: np.ndarray, n: int) -> np.ndarray:
     """The agent's initial (x, y) per instance, from its plant's state expressions."""
-    ctx = Ctx(np.zeros((n, len(ca.plant.state_names))), np.zeros((n, len(ca.var_index))), p,
-              np.zeros(n))
+    ctx = _start_ctx(ca, p, n)
     cols = [np.broadcast_to(e(ctx), (n,)) for e in ca.init_state[:2]]
     return np.stack(cols, axis=-1).astype(float)
