@@ -22,14 +22,14 @@ from . import law
 ROBOT = ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladder_margin")
 
 
-@register("ladder.carry", plants=("holonomic",), params={"window": 8.0})
+@register("ladder.carry", plants=("holonomic",), params={"window": 16.0})
 def carry(ctx: LawContext) -> np.ndarray:
     """Target, rotation and correction vectors, clamped, then the wall rules (Sec. 3.2)."""
     params = {k: np.asarray(ctx[k], dtype=float) for k in ROBOT}
     params.update(length=ctx.sense("length"), sc_partner=ctx.sense("sc_partner"),
                   goal_heading=ctx.sense("goal_heading"))
     own = ctx.state[:, :2]
-    window = int(ctx["window"][0]) if ctx.size else 8
+    window = int(ctx["window"][0]) if ctx.size else 16
     move, nearest = law.step(own, ctx.sense("partner"), ctx.sense("path"),
                              ctx.recall("nearest", 0.0).astype(np.int64), params,
                              ctx.sense("corridor"), window=window, frame=ctx.sense("frame"))

@@ -48,9 +48,9 @@ class Settings:
     goal_gap: float = 70.0       # front robot's goal, distance before the exit line
     path_points: int = 160       # points per guide path (the paper's 160)
     tension: float = 0.0         # cardinal spline tension (0: Catmull-Rom)
-    approach: float | None = 200.0  # centre-line control points before/after the corner
+    approach: float | None = None   # optional centre-line control points before/after the corner
     alpha_inset: float = 0.0     # alpha 0/1 put the corner control points this far from walls
-    window: int = 8              # nearest-point search: +- this many points around the last
+    window: int = 16             # nearest-point search: +- this many points around the last
     arrive_tol: float = 0.5      # both robots within this of their goals: success
     stuck_window: int = 200      # no progress for this many steps: stuck
     stuck_tol: float = 1.0       # progress = the sum of goal distances drops by more than this

@@ -53,7 +53,7 @@ class LadderCorridor(WorldComponent):
         "front": "R1", "rear": "R2", "turn": "right",
         "width_in": 200.0, "width_out": 200.0, "outer_leg_in": 1200.0, "outer_leg_out": 1200.0,
         "length": 450.0, "goal_gap": 70.0, "path_points": 160.0, "tension": 0.0,
-        "approach": 200.0, "alpha_inset": 0.0, "arrive_tol": 0.5, "stuck_window": 200.0,
+        "approach": 0.0, "alpha_inset": 0.0, "arrive_tol": 0.5, "stuck_window": 200.0,
         "stuck_tol": 1.0,
     }
 
