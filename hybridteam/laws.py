@@ -63,8 +63,9 @@ class LawContext:
         from ``sender`` (an agent index, or one per instance), else the most recent sender.
 
         ``extrapolate`` dead-reckons a pose stream over the copy's age: fields x, y, theta
-        with v, omega (a unicycle's arc) or vx, vy, omega (a holonomic robot's line) —
-        the paper's x̂_l for a leader whose last message is a few periods old.
+        with v, omega (a unicycle's arc) or vx, vy, omega (a holonomic robot's line), or
+        all of them (the rule is in :func:`_dead_reckon`) — the paper's x̂_l for a leader
+        whose last message is a few periods old.
         """
         view = self._ctx.e
         if view is None or message not in view.box.fields:
@@ -122,23 +123,41 @@ class Estimate:
 
 
 def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndarray]:
+    """A pose copy moved on by ``age`` seconds under the velocity it was sent with.
+
+    A unicycle under a held input moves on an arc (``v``, ``omega``: constant in its own
+    frame), a holonomic base on a straight line (``vx``, ``vy``: constant in the world
+    frame) while it turns with ``omega``. A copy with only one of the two velocity forms is
+    moved that way. A copy with both (the role-assignment stream sends ``v``, ``vx``, ``vy``
+    and ``omega`` from every plant) is moved on the arc when its world velocity lies along
+    its heading (lateral speed ``-vx sin(theta) + vy cos(theta)`` zero to 1e-9 relative),
+    which every unicycle's does, and on the line otherwise. Exact for every unicycle, and
+    for every holonomic base that does not turn or moves off its heading; a holonomic base
+    driving exactly along its heading while turning is taken for a unicycle (off by at most
+    ``|v omega| age^2 / 2``).
+    """
     out = dict(f)
     if not {"x", "y", "theta"} <= set(f):
         return out
     w = f.get("omega", np.zeros_like(age))
     w = np.where(np.isnan(w), 0.0, w)
-    th = f["theta"] + w * age
+    th0 = f["theta"]
+    arc = line = None
     if "v" in f:
         a = w * age
         # exact arc: chord length v*age*sinc(a/2), along the mean heading
         chord = f["v"] * age * np.sinc(a / (2 * np.pi))
-        mid = f["theta"] + a / 2
-        out["x"] = f["x"] + chord * np.cos(mid)
-        out["y"] = f["y"] + chord * np.sin(mid)
-    elif {"vx", "vy"} <= set(f):
-        out["x"] = f["x"] + f["vx"] * age
-        out["y"] = f["y"] + f["vy"] * age
-    out["theta"] = th
+        mid = th0 + a / 2
+        arc = (f["x"] + chord * np.cos(mid), f["y"] + chord * np.sin(mid))
+    if {"vx", "vy"} <= set(f):
+        line = (f["x"] + f["vx"] * age, f["y"] + f["vy"] * age)
+    if arc is not None and line is not None:
+        lateral = -f["vx"] * np.sin(th0) + f["vy"] * np.cos(th0)
+        along = np.abs(lateral) <= 1e-9 * (1.0 + np.hypot(f["vx"], f["vy"]))
+        arc = (np.where(along, arc[0], line[0]), np.where(along, arc[1], line[1]))
+    if arc is not None or line is not None:
+        out["x"], out["y"] = arc if arc is not None else line  # type: ignore[misc]
+    out["theta"] = th0 + w * age
     return out
 
 

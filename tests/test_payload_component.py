@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from hybridteam.api import load, simulate
+from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.simulator import Simulator
 from hybridteam.laws import LawContext, law
+from hybridteam.robots import resolve
+from hybridteam.world.carried import CarriedPayload
 
 FIXTURE = Path(__file__).parent / "fixtures" / "world" / "bar_pull.yaml"
 
@@ -52,3 +58,83 @@ def test_arm_reads_the_offset_in_the_robot_frame(tmp_path):
     b = run.samples["B"][:, 0]
     k = int(np.argmin(abs(run.sample_times - 1.0)))
     np.testing.assert_allclose(b[k], [0.0, 0.5 * 0.0125, np.pi / 2], atol=1e-12)
+
+
+PICKUP = Path(__file__).parent / "fixtures" / "world" / "box_pickup.yaml"
+
+
+def test_a_resting_box_stays_put_until_grasped_then_follows_the_engaged_grasps():
+    run = simulate(load(PICKUP))
+    (o,) = run._outcomes
+    assert o["outcome"] == "ok"
+    t = run.sample_times
+    box = run.samples["box"][:, 0]
+    rest, alone, both = t < 2.05, (t > 2.05) & (t < 4.05), t > 4.05
+    np.testing.assert_allclose(box[rest], [[1.0, 0.0, 0.0]] * rest.sum(), atol=1e-12)
+    # A alone: a point spring turns nothing, so the box keeps its angle and its right end
+    # (body point [1, 0]) is at A: x = 2 + 0.1 t - 1
+    np.testing.assert_allclose(box[alone, 0], 1 + 0.1 * t[alone], atol=1e-12)
+    np.testing.assert_allclose(box[both, 0], (0.5 + 0.1 * t[both]) / 4 + 0.5, atol=1e-12)
+    np.testing.assert_allclose(box[~rest, 1:], 0.0, atol=1e-12)
+    # engaged time only: B was 0.9 short of its end at t = 4 but held nothing then; at the
+    # end the springs (1 : 3) share the mismatch 0.5 + 0.1 t = 1.1 as 3/4 and 1/4
+    np.testing.assert_allclose(o["stats"]["max_grasp_offset"], [0.825, 0.275], atol=1e-12)
+
+
+def test_arms_read_their_offsets_before_they_hold_anything():
+    """The Labmate docks by its arm's reading, before it holds the box."""
+    sim = Simulator(compile_team(load(PICKUP)), 1, duration=1.0)
+    sim.run()
+    # at t = 1: A is 0.1 past the box's right end, B 0.5 short of its left end
+    np.testing.assert_allclose(sim.world.sense(0, np.arange(1), "arm"), [[0.1, 0.0, 0.0]],
+                               atol=1e-12)
+    np.testing.assert_allclose(sim.world.sense(1, np.arange(1), "arm"), [[-0.5, 0.0, 0.0]],
+                               atol=1e-12)
+    np.testing.assert_allclose(sim.world.sense(1, np.arange(1), "payload"), [[1.0, 0.0, 0.0]])
+
+
+def xr4000_bar(tmp_path, grasp_b: str = "{agent: B, point: [-1, 0]}"):
+    """The bar pull with both robots XR4000s and grasps that say only where they hold."""
+    text = FIXTURE.read_text().replace(
+        "{agent: A, point: [1, 0], spring: 1, limit: 0.31}", "{agent: A, point: [1, 0]}"
+    ).replace("{agent: B, point: [-1, 0], spring: 3, limit: 0.31}", grasp_b)
+    path = tmp_path / "xr_bar.yaml"
+    path.write_text(text)
+    team = load(path)
+    preset = resolve("xr4000")
+    return dataclasses.replace(team, agents=tuple(dataclasses.replace(a, preset=preset)
+                                                  for a in team.agents))
+
+
+def test_grasps_default_to_the_robot_models_manipulator(tmp_path):
+    """XR4000 forks: mount 0.45 ahead, spring 5000, limit 0.05. The mount points start
+    2 apart (the bar's length); A pulls at 0.1 and equal springs share the stretch, so
+    each offset is 0.05 t: past the limit after 1 s, reported at the next tick."""
+    team = xr4000_bar(tmp_path)
+    comp = CarriedPayload(team, 1, {**CarriedPayload.params,
+                                    "grasps": team.world[0].values["grasps"]})
+    np.testing.assert_allclose(comp.mount, [[0.45, 0.0], [0.45, 0.0]])
+    np.testing.assert_allclose(comp.spring, [5000.0, 5000.0])
+    np.testing.assert_allclose(comp.limit, [0.05, 0.05])
+    run = simulate(team)
+    (o,) = run._outcomes
+    assert o["outcome"] == "link_broken" and abs(o["t"] - 1.1) < 1e-9
+
+
+def test_explicit_grasp_keys_win_over_the_model(tmp_path):
+    team = xr4000_bar(tmp_path, "{agent: B, point: [-1, 0], spring: 2, mount: [0, 0.1]}")
+    comp = CarriedPayload(team, 1, {**CarriedPayload.params,
+                                    "grasps": team.world[0].values["grasps"]})
+    np.testing.assert_allclose(comp.mount, [[0.45, 0.0], [0.0, 0.1]])
+    np.testing.assert_allclose(comp.spring, [5000.0, 2.0])
+    np.testing.assert_allclose(comp.limit, [0.05, 0.05])
+
+
+def test_an_engaged_grasp_must_name_a_variable_of_its_agent(tmp_path):
+    text = PICKUP.read_text().replace("point: [1, 0], spring: 1, engaged: holding",
+                                      "point: [1, 0], spring: 1, engaged: hodling")
+    path = tmp_path / "typo.yaml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=r"payload: grasps\[0\]\.engaged: agent 'A' has no "
+                                         r"variable 'hodling' \(its variables: holding\)"):
+        simulate(load(path))

@@ -3,7 +3,9 @@
 Kept apart from :mod:`.compiler` (modes and transitions): a team without protocols never
 touches this, and the names a protocol introduces are defined in one place —
 ``est_<type>_<field>``, ``est_<type>_age``, ``est_<type>_sender`` for stream estimates,
-``id_<agent>`` for agent indices (what ``msg_sender`` and ``to: <expression>`` use).
+``id_<agent>`` for agent indices (what ``msg_sender`` and ``to: <expression>`` use), and,
+in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral velocities
+``vel_x``, ``vel_y``, ``vel_theta``, ``vel_forward`` (:func:`velocity_symbols`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.dynamics.plants import Plant
 from hybridteam.engine.compiled import CAgent, CPolicy
 from hybridteam.engine.streams import CStream
 from hybridteam.errors import ModelError, did_you_mean
@@ -76,8 +79,8 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: _Collector
             pol.timeout = col.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
             pol.retries = col.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
         ca.policies[name] = pol
-    usyms = {**syms, **{f"u_{n}": (lambda c, j=j: c.u[:, j])
-                        for j, n in enumerate(ca.plant.input_names)}}
+    usyms = {**syms, **velocity_symbols(ca.plant),
+             **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)}}
     from hybridteam.engine.compiler import resolve_mode
 
     for s in agent.streams:
@@ -98,6 +101,35 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: _Collector
             continue
         ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
                                   modes))
+
+
+VELOCITY_NAMES = ("vel_x", "vel_y", "vel_theta", "vel_forward")
+
+
+def velocity_symbols(plant: Plant) -> dict:
+    """``vel_x``, ``vel_y``, ``vel_theta``: the world-frame rates of x, y, theta under the
+    held input (the plant's ``derivative``), and ``vel_forward`` = vel_x cos(theta) +
+    vel_y sin(theta), the speed along the heading.
+
+    ``u_<input>`` name a plant's own inputs, so a stream written with them (``v: u_v``)
+    works for one kind of robot only; these names mean the same for a unicycle and a
+    holonomic base, so one protocol serves a team of both. Plants without inputs (flows,
+    operators) or without a planar pose report zero.
+    """
+    if not plant.input_names or not {"x", "y", "theta"} <= set(plant.state_names):
+        def zero(c):
+            return np.zeros(c.x.shape[0])
+        return dict.fromkeys(VELOCITY_NAMES, zero)
+    ix, iy, ith = (plant.state_names.index(n) for n in ("x", "y", "theta"))
+
+    def forward(c):
+        d, th = plant.derivative(c.x, c.u), c.x[:, ith]
+        return d[:, ix] * np.cos(th) + d[:, iy] * np.sin(th)
+
+    return {"vel_x": lambda c: plant.derivative(c.x, c.u)[:, ix],
+            "vel_y": lambda c: plant.derivative(c.x, c.u)[:, iy],
+            "vel_theta": lambda c: plant.derivative(c.x, c.u)[:, ith],
+            "vel_forward": forward}
 
 
 def _reciprocal(rate):

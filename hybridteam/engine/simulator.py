@@ -410,8 +410,11 @@ class Simulator:
         extra = self.world.meta()
         footprints = extra.pop("footprints", {})
         for a in meta["agents"]:
+            preset = self.cteam.team.agent(a["name"]).preset
             if a["name"] in footprints:
                 a["footprint"] = footprints[a["name"]]
+            elif preset is not None:  # no component drew it: the robot model's disk
+                a["footprint"] = {"radius": preset.footprint.radius}
         series = self.world.sample_series()
         meta["series"] = {k: list(v) for k, v in series.items()}
         meta.update(extra)

@@ -35,6 +35,7 @@ def check_world(team: Team) -> list[ModelError]:
             errors.append(ModelError((*spec.where, "use"), f"unknown world component "
                                      f"'{spec.use}'", hint=did_you_mean(spec.use, registered())))
             continue
+        before = len(errors)
         for key, value in spec.values.items():
             where = (*spec.where, "with", key)
             if key not in cls.params:
@@ -55,6 +56,9 @@ def check_world(team: Team) -> list[ModelError]:
             elif type(value) is not type(default):
                 errors.append(ModelError(where, f"expected a {type(default).__name__}, "
                                          f"got {value!r}"))
+        if len(errors) == before:  # the component's own checks, on well-typed settings
+            errors += [ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint,
+                                  at_key=e.at_key) for e in cls.check(team, spec.values)]
     return errors
 
 

@@ -159,12 +159,19 @@ def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
             cx, cy = pts.mean(axis=0)
             ax.text(cx, cy, label, ha="center", va="center", fontsize=8, color="#7A6A2A",
                     zorder=1, gid="region-label")
+    thin = []
     for ob in world.get("obstacles", []) or []:
-        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1, "gid": "obstacle"}
+        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1.8,  # over the grid
+                 "gid": "obstacle"}
         if ob.get("kind") == "circle":
             ax.add_patch(Circle((ob["x"], ob["y"]), ob["r"], **style))
+        elif ob.get("kind") == "wall":  # no thickness: a heavy grey stroke
+            thin.append(np.asarray(ob["points"], float))
         else:
             ax.add_patch(Polygon(np.asarray(ob["points"], float), closed=True, **style))
+    if thin:
+        ax.add_collection(LineCollection(thin, colors="#9A9A9A", linewidths=4.0, zorder=1.8,
+                                         capstyle="round", gid="obstacle-walls"))
     walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
     if len(walls):
         ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
@@ -188,6 +195,10 @@ def plot_aspect(trace: Trace, instance: int) -> float:
     """Height over width of what the planar plot shows (world and paths), for its size."""
     world = trace.meta.get("world") or {}
     pts = [np.asarray(world.get("walls", []) or [], float).reshape(-1, 2)]
+    for ob in world.get("obstacles", []) or []:
+        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
+                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]) if ob.get("kind") ==
+                   "circle" else np.asarray(ob["points"], float).reshape(-1, 2))
     for a in planar_agents(trace):
         pts.append(pose(trace, a, instance)[:, :2])
     xy = np.concatenate(pts)

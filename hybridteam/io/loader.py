@@ -12,7 +12,7 @@ import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ValidationError
 
@@ -47,6 +47,9 @@ from hybridteam.model import (
     WorldSpec,
     Zeno,
 )
+
+if TYPE_CHECKING:
+    from hybridteam.robots.presets import RobotPreset
 
 
 class InputErrors(Exception):
@@ -202,14 +205,13 @@ def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
            team_params: set[str]) -> Agent:
     extra: dict = {"parameters": dict(spec.parameters), "variables": dict(spec.variables),
                    "streams": [], "initial": spec.initial}
+    preset = None
     if spec.operator is not None:
         plant = PlantSpec("none", {}, {}, where)
         children = comp.operator(spec.operator, where, extra) or ()
     else:
         assert spec.plant is not None and spec.modes is not None  # the schema checked
-        plant = PlantSpec(spec.plant.kind, dict(spec.plant.state),
-                          {k: tuple(v) for k, v in spec.plant.limits.items()},  # type: ignore
-                          (*where, "plant"))
+        plant, preset = _plant(spec, where, comp.errors)
         children = tuple(_compose(n, m, (*where, "modes", n), comp, extra)
                          for n, m in spec.modes.items())
     root = Mode(name, children, initial=spec.initial or extra["initial"],
@@ -218,7 +220,53 @@ def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
     params = {k: v for k, v in extra["parameters"].items()
               if k in spec.parameters or k not in team_params}
     return Agent(name, plant, root, params, extra["variables"], where,
-                 tuple(extra["streams"]))
+                 tuple(extra["streams"]), preset)
+
+
+_OVERRIDDEN = ("sensors", "manipulator", "footprint")
+
+
+def _plant(spec: AgentSchema, where: DocPath, errors: list[ModelError]
+           ) -> tuple[PlantSpec, RobotPreset | None]:
+    """The agent's plant, and its robot model with the team's overrides (``model:``).
+
+    The model's kind and limits become the plant's, the agent's ``plant.limits`` merged onto
+    them input by input; a ``plant.kind`` that says otherwise is an error rather than a
+    silent choice. Problems are recorded in ``errors`` located in the team file (the
+    override paths are the agent's own keys), with a stand-in plant so loading can go on.
+    """
+    from hybridteam.robots.presets import resolve
+
+    p, pwhere = spec.plant, (*where, "plant")
+    assert p is not None
+    limits = {k: tuple(v) for k, v in p.limits.items()}
+    stand_in = PlantSpec(p.kind or "none", dict(p.state), limits, pwhere)  # type: ignore
+    if spec.model is None:
+        return stand_in, None
+    # the sections the agent wrote, even as null (which removes the model's manipulator)
+    overrides: dict[str, Any] = {k: getattr(spec, k) for k in _OVERRIDDEN
+                                 if k in spec.model_fields_set}
+    if p.limits:
+        overrides["plant"] = {"limits": {k: list(v) for k, v in p.limits.items()}}
+    try:
+        base = resolve(spec.model)
+        kind = base.plant.kind
+        if p.kind is not None and p.kind != kind:
+            raise ModelError(("plant", "kind"), f"robot model '{spec.model}' is a {kind}, "
+                             f"not a {p.kind}", hint="remove 'kind': it comes from the model")
+        for n, (lo, hi) in p.limits.items():  # located at the input, as without a model
+            if n not in base.inputs:
+                raise ModelError(("plant", "limits", n), f"a {kind} plant has no input '{n}'",
+                                 hint=did_you_mean(n, base.inputs), at_key=True)
+            if lo > hi:
+                raise ModelError(("plant", "limits", n), f"lower limit {lo} exceeds upper {hi}")
+        preset = resolve(spec.model, overrides)
+    except (ModelError, ModelErrors) as exc:
+        found = exc.errors if isinstance(exc, ModelErrors) else [exc]
+        errors += [ModelError((*where, *(e.path or ("model",))), e.message, hint=e.hint,
+                              at_key=e.at_key) for e in found]
+        return stand_in, None
+    return PlantSpec(preset.plant.kind, dict(p.state), dict(preset.plant.limits), pwhere), preset
 
 
 def _compose(name: str, spec: ModeSchema, where: DocPath, comp: Composer, extra: dict

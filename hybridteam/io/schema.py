@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -131,9 +131,11 @@ class ModeSchema(Strict):
 
 class PlantSchema(Strict):
     """Kinematics: unicycle (x, y, theta; v, omega), holonomic (x, y, theta; vx, vy, omega)
-    or flow (any state; each mode gives its derivative)."""
+    or flow (any state; each mode gives its derivative). With a robot ``model`` the kind
+    and limits come from the model, and ``limits`` here override it input by input."""
 
-    kind: Literal["unicycle", "holonomic", "flow", "none"]
+    kind: Literal["unicycle", "holonomic", "flow", "none"] | None = Field(
+        None, description="required unless the agent names a robot 'model'")
     state: dict[str, ExprOrNumber] = Field(default_factory=dict)
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
 
@@ -148,7 +150,17 @@ class AgentSchema(Strict):
     """One robot or automaton: a plant, a mode tree, parameters and variables."""
 
     description: str | None = None
+    model: str | None = Field(
+        None, description="a robot model (labmate, xr4000, scout, omni): its plant kind, "
+        "limits, footprint, sensors and manipulator, overridden by the keys below")
     plant: PlantSchema | None = None
+    # partial overrides of the model's sections, checked against it when it is resolved
+    sensors: dict[str, Any] | None = Field(
+        None, description="with 'model': per-sensor overrides, e.g. {ir: {max_range: 0.6}}")
+    manipulator: dict[str, Any] | None = Field(
+        None, description="with 'model': overrides of its manipulator (null removes it)")
+    footprint: dict[str, Any] | None = Field(
+        None, description="with 'model': overrides of its footprint, e.g. {radius: 0.4}")
     parameters: dict[str, float] = Field(default_factory=dict)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
@@ -156,6 +168,23 @@ class AgentSchema(Strict):
     modes: dict[str, ModeSchema] | None = None
     operator: str | None = Field(
         None, description="a protocol whose operator automaton this agent runs (no plant)")
+
+    @field_validator("plant")
+    @classmethod
+    def _kind_or_model(cls, v: PlantSchema | None, info: ValidationInfo) -> PlantSchema | None:
+        # 'model' is declared first, so it is in info.data unless it failed on its own
+        if v is not None and v.kind is None and info.data.get("model", "") is None:
+            raise ValueError("missing required key 'kind' (or give the agent a robot "
+                             "'model')")
+        return v
+
+    @field_validator("sensors", "manipulator", "footprint")
+    @classmethod
+    def _needs_model(cls, v: Any, info: ValidationInfo) -> Any:
+        if info.data.get("model", "") is None:
+            raise ValueError(f"'{info.field_name}' overrides a robot model's; add "
+                             "'model: <name>' (e.g. xr4000)")
+        return v
 
     @field_validator("parameters", "variables")
     @classmethod
@@ -181,6 +210,8 @@ class AgentSchema(Strict):
         if self.operator is not None and self.modes is not None:
             raise ValueError("an operator agent gets its modes from its protocol; "
                              "remove 'modes'")
+        if self.operator is not None and self.model is not None:
+            raise ValueError("an operator agent has no body; remove 'model'")
         return self
 
 

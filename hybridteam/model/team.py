@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from hybridteam.errors import DocPath
 from hybridteam.model.modes import Mode
 from hybridteam.model.protocol import MessageSpec, StreamSpec
+
+if TYPE_CHECKING:  # the model only carries a preset; it never needs the robots package
+    from hybridteam.robots.presets import RobotPreset
 
 
 @dataclass(frozen=True)
@@ -27,7 +31,13 @@ class PlantSpec:
 
 @dataclass(frozen=True)
 class Agent:
-    """One robot (or any hybrid automaton): a plant, a mode tree, variables and parameters."""
+    """One robot (or any hybrid automaton): a plant, a mode tree, variables and parameters.
+
+    ``preset`` is the robot model the agent was declared with (``model: xr4000``), with the
+    team's overrides applied: its plant kind and limits are already in ``plant``; world
+    components read the rest (footprint, sensors, manipulator) from here. None for an agent
+    declared with explicit kinematics.
+    """
 
     name: str
     plant: PlantSpec
@@ -36,6 +46,7 @@ class Agent:
     variables: dict[str, str | float] = field(default_factory=dict)
     where: DocPath = ()
     streams: tuple[StreamSpec, ...] = ()
+    preset: RobotPreset | None = None
 
 
 @dataclass(frozen=True)

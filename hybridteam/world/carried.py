@@ -2,12 +2,26 @@
 
 Each grasp joins a point mounted on a robot (``mount``, robot frame) to a point of the
 payload (``point``, body frame) by a spring (``spring``), and breaks past its offset
-``limit``. At every instant the payload settles where the springs balance
+``limit``; a robot with a manipulator in its robot model (``model: xr4000``) lends its
+grasp's ``mount``, ``spring`` and ``limit`` to the keys the grasp leaves out. At every
+instant the payload settles where the springs of the *engaged* grasps balance
 (:func:`~hybridteam.world.payload.equilibrium`, a weighted Procrustes fit), and each
 robot's arm or force sensor reads its grasp's offset in the robot's frame plus the angle
 of the payload relative to the robot, counted from the start: the architecture paper's
-x_a = [x_a, y_a, θ_a] (``ctx.sense("arm")``). A grasp past its limit drops the payload:
-the run ends with outcome ``link_broken``.
+x_a = [x_a, y_a, θ_a] (``ctx.sense("arm")``). An engaged grasp past its limit drops the
+payload: the run ends with outcome ``link_broken``.
+
+Engagement is how a box gets picked up. A grasp with ``engaged: holding`` holds only
+while the robot's variable ``holding`` is above 0.5 (a transition sets it); without the
+key it always holds. With no grasp engaged the payload stays where it rests — ``pose``,
+or the spring equilibrium of every grasp at the start — and from then on where it was
+last put down. Arms read their offsets whether engaged or not: an arm touching the box is
+how the Labmate docks. A single engaged grasp transmits no torque (a point spring), so
+the payload keeps its angle and follows that grasp's point.
+
+The payload's outline (a box, or a bar as a segment) is an obstacle to the range sensors
+of the ``obstacles`` component, which asks it where rays meet it and how far it is from
+the static obstacles (:meth:`CarriedPayload.ray_hits`, :meth:`CarriedPayload.gap`).
 
 Grasps are checked at the run's instants (law ticks, events), not located between them:
 a break is reported at the first instant past the limit, at most one law period late.
@@ -15,19 +29,47 @@ a break is reported at the first instant past the limit, at most one law period 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from hybridteam.world.component import WorldComponent, world_component
-from hybridteam.world.payload import equilibrium
+from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.world.component import (
+    WorldComponent,
+    settings_error,
+    variable_index,
+    world_component,
+)
+from hybridteam.world.payload import equilibrium, world_points
+from hybridteam.world.sensors import cast
 
 if TYPE_CHECKING:
     from hybridteam.engine.simulator import Simulator
-    from hybridteam.model import Team
+    from hybridteam.model import Agent, Team
 
-_GRASP_KEYS = {"agent", "point", "mount", "spring", "limit"}
+_GRASP_KEYS = ("agent", "point", "mount", "spring", "limit", "engaged")
+#: A grasp's defaults when neither the grasp nor the robot's model gives them.
+_FREE = {"mount": [0.0, 0.0], "spring": 1.0, "limit": math.inf}
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _pair(v: Any) -> bool:
+    return isinstance(v, list | tuple) and len(v) == 2 and all(map(_number, v))
+
+
+def grasp_defaults(agent: Agent | None) -> dict[str, Any]:
+    """``mount``, ``spring`` and ``limit`` of the agent's manipulator (its robot model's),
+    or the free defaults: a grasp at the robot's centre, spring 1, never breaking."""
+    arm = getattr(getattr(agent, "preset", None), "manipulator", None)
+    if arm is None:
+        return dict(_FREE)
+    return {"mount": [float(arm.mount[0]), float(arm.mount[1])], "spring": float(arm.spring),
+            "limit": float(arm.limit)}
 
 
 @world_component("payload")
@@ -36,35 +78,70 @@ class CarriedPayload(WorldComponent):
 
     params: ClassVar[dict[str, Any]] = {
         "name": "payload", "shape": "box", "width": 1.0, "depth": 0.6, "length": 1.0,
-        "grasps": [],
+        "grasps": [], "pose": [],
     }
+
+    @classmethod
+    def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
+        names = [a.name for a in team.agents]
+        grasps = values.get("grasps", [])
+        problems = []
+        if values.get("shape", "box") not in ("box", "bar"):
+            problems.append(ModelError(("shape",), f"expected 'box' or 'bar', got "
+                                       f"{values['shape']!r}"))
+        pose = values.get("pose", [])
+        if pose and not (isinstance(pose, list) and len(pose) == 3 and all(map(_number, pose))):
+            problems.append(ModelError(("pose",), f"expected [x, y, theta] (theta in radians), "
+                                       f"got {pose!r}"))
+        if not grasps:
+            problems.append(ModelError(("grasps",), "needs at least one grasp"))
+        for k, g in enumerate(grasps):
+            at = ("grasps", k)
+            if not isinstance(g, dict) or "agent" not in g:
+                problems.append(ModelError(at, "a grasp is a mapping with 'agent' and "
+                                           f"optionally {', '.join(_GRASP_KEYS[1:])}"))
+                continue
+            for key in g:
+                if key not in _GRASP_KEYS:
+                    problems.append(ModelError((*at, key), f"a grasp has no key {key!r}",
+                                               hint=did_you_mean(str(key), _GRASP_KEYS),
+                                               at_key=True))
+            if g["agent"] not in names:
+                problems.append(ModelError((*at, "agent"), f"unknown agent {g['agent']!r}",
+                                           hint=did_you_mean(str(g["agent"]), names)))
+            for key in ("point", "mount"):
+                if key in g and not _pair(g[key]):
+                    problems.append(ModelError((*at, key), f"expected [x, y], got {g[key]!r}"))
+            for key in ("spring", "limit"):
+                if key in g and not (_number(g[key]) and g[key] > 0):
+                    problems.append(ModelError((*at, key), f"expected a positive number, "
+                                               f"got {g[key]!r}"))
+            if "engaged" in g and not (isinstance(g["engaged"], str)
+                                       and g["engaged"].isidentifier()):
+                problems.append(ModelError((*at, "engaged"), "expected the name of one of the "
+                                           f"agent's variables, got {g['engaged']!r}"))
+        return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         super().__init__(team, n, values)
+        problems = self.check(team, values)
+        if problems:
+            raise settings_error("payload", problems)
         names = [a.name for a in team.agents]
         grasps = values["grasps"]
-        problems = []
-        if len(grasps) < 1:
-            problems.append("'grasps' needs at least one grasp")
-        for k, g in enumerate(grasps):
-            if not isinstance(g, dict) or set(g) - _GRASP_KEYS or "agent" not in g:
-                problems.append(f"grasp {k} must be a mapping with 'agent' and optionally "
-                                f"'point', 'mount', 'spring', 'limit'")
-            elif g["agent"] not in names:
-                problems.append(f"grasp {k}: unknown agent '{g['agent']}'")
-        if problems:
-            raise ValueError("payload: " + "; ".join(problems))
         self.agents = [names.index(g["agent"]) for g in grasps]
-        self.body = np.array([g.get("point", [0.0, 0.0]) for g in grasps], float)
-        self.mount = np.array([g.get("mount", [0.0, 0.0]) for g in grasps], float)
-        self.spring = np.array([float(g.get("spring", 1.0)) for g in grasps])
-        self.limit = np.array([float(g.get("limit", np.inf)) for g in grasps])
-        if self.body.shape != (len(grasps), 2) or self.mount.shape != (len(grasps), 2) \
-                or np.any(self.spring <= 0) or np.any(self.limit <= 0):
-            raise ValueError("payload: grasp points and mounts are [x, y]; springs and "
-                             "limits must be positive")
+        full = [{**grasp_defaults(team.agents[a]), **g}
+                for a, g in zip(self.agents, grasps, strict=True)]
+        self.body = np.array([g.get("point", [0.0, 0.0]) for g in full], float)
+        self.mount = np.array([g["mount"] for g in full], float)
+        self.spring = np.array([float(g["spring"]) for g in full])
+        self.limit = np.array([float(g["limit"]) for g in full])
+        self.engaged_by = [g.get("engaged") for g in grasps]
+        self.columns: list[int | None] = [None] * len(grasps)
         k = len(grasps)
         self.pose = np.full((n, 3), np.nan)
+        self.rest = np.full((n, 3), np.nan)        # where it lies when nobody holds it
+        self.engaged = np.ones((n, k), bool)
         self.offset = np.full((n, k, 2), np.nan)     # world frame, robot minus grasp point
         self.arm = np.full((n, k, 3), np.nan)        # robot frame, and relative angle
         self.rel0 = np.zeros((n, k))
@@ -80,29 +157,74 @@ class CarriedPayload(WorldComponent):
         return pts, poses[..., 2]
 
     def start(self, sim: Simulator) -> None:
-        heading = self._settle(sim, np.arange(self.n))
+        self.columns = [None if name is None else variable_index(
+            sim, a, name, f"payload: grasps[{k}].engaged")
+            for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True))]
+        if self.values["pose"]:
+            self.rest[:] = np.asarray(self.values["pose"], float)
+        else:
+            pts, _ = self._robot_points(sim, np.arange(self.n))
+            eq = equilibrium(pts, self.body, self.spring)
+            self.rest[:] = np.c_[eq.x, eq.y, eq.theta]
+        heading = self.settle(sim, np.arange(self.n))
         self.rel0[:] = self.pose[:, 2:3] - heading
         self.arm[..., 2] = 0.0
 
-    def _settle(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
-        """Pose, offsets and arm readings of instances ``idx``; returns the robots' headings
-        ``(m, k)`` (the start counts the arms' angles from them)."""
+    def _engagement(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+        """Which grasps hold in instances ``idx``: ``(m, k)`` bool."""
+        on = np.ones((idx.size, len(self.agents)), bool)
+        for k, col in enumerate(self.columns):
+            if col is not None:
+                on[:, k] = sim.states[self.agents[k]].v[idx, col] > 0.5
+        return on
+
+    def settle(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+        """Pose, offsets and arm readings of instances ``idx`` from the current state;
+        returns the robots' headings ``(m, k)`` (the start counts the arms' angles from them).
+
+        A function of the state and of where the payload rests, which it updates to the
+        settled pose: calling it twice at one instant gives the same result (the
+        ``obstacles`` component does so when it is listed before the payload). Instances
+        are grouped by which grasps hold, one equilibrium per group present (at most 2^k,
+        usually one), so the work stays vectorized over the ensemble.
+        """
         pts, heading = self._robot_points(sim, idx)
-        eq = equilibrium(pts, self.body, self.spring)
-        self.pose[idx] = np.c_[eq.x, eq.y, eq.theta]
-        self.offset[idx] = eq.offsets
+        on = self._engagement(sim, idx)
+        pose = self.rest[idx]
+        k = len(self.agents)
+        code = on @ (1 << np.arange(k))
+        for c in np.unique(code).tolist():
+            rows = code == c
+            held = np.flatnonzero((c >> np.arange(k)) & 1)
+            if held.size == 1:      # no torque: keep the angle, follow the grasp point
+                (j,) = held
+                th = pose[rows, 2]
+                cs, sn = np.cos(th), np.sin(th)
+                bx, by = self.body[j]
+                pose[rows, 0] = pts[rows, j, 0] - (cs * bx - sn * by)
+                pose[rows, 1] = pts[rows, j, 1] - (sn * bx + cs * by)
+            elif held.size > 1:
+                eq = equilibrium(pts[rows][:, held], self.body[held], self.spring[held])
+                pose[rows] = np.c_[eq.x, eq.y, eq.theta]
+        self.pose[idx] = pose
+        self.rest[idx] = pose
+        self.engaged[idx] = on
+        offsets = pts - world_points(pose[:, 0], pose[:, 1], pose[:, 2], self.body)
+        self.offset[idx] = offsets
         c, s = np.cos(heading), np.sin(heading)
-        ox, oy = eq.offsets[..., 0], eq.offsets[..., 1]
-        rel = eq.theta[:, None] - heading - self.rel0[idx]
+        ox, oy = offsets[..., 0], offsets[..., 1]
+        rel = pose[:, 2:3] - heading - self.rel0[idx]
         self.arm[idx] = np.stack([c * ox + s * oy, -s * ox + c * oy,
                                   np.arctan2(np.sin(rel), np.cos(rel))], -1)
         return heading
 
     def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
-        self._settle(sim, idx)
+        self.settle(sim, idx)
         size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
-        self.max_offset[idx] = np.maximum(self.max_offset[idx], size)
-        over = size > self.limit
+        on = self.engaged[idx]
+        self.max_offset[idx] = np.where(on, np.maximum(self.max_offset[idx], size),
+                                        self.max_offset[idx])
+        over = (size > self.limit) & on
         bad = over.any(axis=1)
         if bad.any():
             names = [self.team.agents[a].name for a in self.agents]
@@ -133,9 +255,99 @@ class CarriedPayload(WorldComponent):
     def summary(self, i: int) -> dict[str, Any]:
         return {"max_grasp_offset": [float(v) for v in self.max_offset[i]]}
 
+    # ------------------------------------------------------------------ the outline
+    def half_extents(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Half length and half width per instance (a bar is a segment: no width)."""
+        v = self.values
+        if v["shape"] == "bar":
+            return v["length"][idx] / 2.0, np.zeros(idx.size)
+        return v["width"][idx] / 2.0, v["depth"][idx] / 2.0
+
+    def ray_hits(self, idx: np.ndarray, origins: np.ndarray, directions: np.ndarray,
+                 max_range: float) -> np.ndarray:
+        """Where rays ``(m, R, 2)`` of instances ``idx`` meet the outline: ``(m, R)``.
+
+        Cast in the body frame, where the outline is one set of segments for every
+        instance of a size, so one :func:`~hybridteam.world.sensors.cast` serves them all
+        (a loop over the distinct sizes, usually one, never over instances).
+        """
+        pose = self.pose[idx]
+        ox, oy = _to_body(origins[..., 0], origins[..., 1], pose)
+        dx, dy = _to_body(directions[..., 0], directions[..., 1], pose, move=False)
+        o, d = np.stack([ox, oy], -1), np.stack([dx, dy], -1)
+        hw, hd = self.half_extents(idx)
+        out = np.full(origins.shape[:2], float(max_range))
+        for w, h in np.unique(np.c_[hw, hd], axis=0):
+            rows = (hw == w) & (hd == h)
+            edges = [[-w, 0.0, w, 0.0]] if h == 0 else \
+                [[-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]]
+            out[rows] = cast(o[rows], d[rows], edges, None, max_range)
+        return out
+
+    def gap(self, idx: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
+        """Distance from the outline to the nearest of ``segments`` ``(s, 4)`` and
+        ``circles`` ``(c, 3)``: ``(m,)``, 0 where they meet or overlap, inf if none."""
+        pose = self.pose[idx]
+        hw, hd = (h[:, None] for h in self.half_extents(idx))
+        out = np.full(idx.size, np.inf)
+        if len(segments):
+            s = np.asarray(segments, float)[None]
+            ax, ay = _to_body(s[..., 0], s[..., 1], pose)
+            bx, by = _to_body(s[..., 2], s[..., 3], pose)
+            out = np.minimum(out, _segment_box(ax, ay, bx, by, hw, hd).min(axis=1))
+        if len(circles):
+            c = np.asarray(circles, float)[None]
+            cx, cy = _to_body(c[..., 0], c[..., 1], pose)
+            out = np.minimum(out, np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2],
+                                             0.0).min(axis=1))
+        return out
+
     def meta(self) -> dict[str, Any]:
         v = self.values
         shape = ({"kind": "bar", "length": float(v["length"][0])} if v["shape"] == "bar" else
                  {"kind": "box", "width": float(v["width"][0]),
                   "depth": float(v["depth"][0])})
         return {"payloads": [v["name"]], "payload_shapes": {v["name"]: shape}}
+
+
+def _to_body(x: np.ndarray, y: np.ndarray, pose: np.ndarray, move: bool = True
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``(m, ...)`` in the frames of ``m`` poses; with ``move`` false, vectors
+    (rotated, not shifted)."""
+    shape = (-1,) + (1,) * (max(np.ndim(x), np.ndim(y)) - 1)
+    px, py, th = (pose[:, j].reshape(shape) for j in range(3))
+    c, s = np.cos(th), np.sin(th)
+    dx, dy = (x - px, y - py) if move else (x, y)
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def _point_box(x: np.ndarray, y: np.ndarray, hw: np.ndarray, hd: np.ndarray) -> np.ndarray:
+    """Distance from points to the box ``|x| <= hw, |y| <= hd`` (0 inside)."""
+    return np.hypot(np.maximum(np.abs(x) - hw, 0.0), np.maximum(np.abs(y) - hd, 0.0))
+
+
+def _segment_box(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
+                 hw: np.ndarray, hd: np.ndarray) -> np.ndarray:
+    """Distance between segments ``a -> b`` and the box ``|x| <= hw, |y| <= hd``.
+
+    Zero when they meet (a Liang–Barsky clip of the segment by the box's two slabs is not
+    empty); otherwise the distance between two disjoint convex sets is reached at a vertex
+    of one of them: a segment end to the box, or a box corner to the segment.
+    """
+    dx, dy = bx - ax, by - ay
+    t0, t1 = np.zeros(np.broadcast(ax, hw).shape), np.ones(np.broadcast(ax, hw).shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for p, d, h in ((ax, dx, hw), (ay, dy, hd)):
+            ta, tb = (-h - p) / d, (h - p) / d
+            inside, flat = np.abs(p) <= h, d == 0
+            t0 = np.maximum(t0, np.where(flat, np.where(inside, -np.inf, np.inf),
+                                         np.minimum(ta, tb)))
+            t1 = np.minimum(t1, np.where(flat, np.where(inside, np.inf, -np.inf),
+                                         np.maximum(ta, tb)))
+    dist = np.minimum(_point_box(ax, ay, hw, hd), _point_box(bx, by, hw, hd))
+    dd = dx * dx + dy * dy
+    for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+        cx, cy = sx * hw, sy * hd
+        t = np.clip(((cx - ax) * dx + (cy - ay) * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        dist = np.minimum(dist, np.hypot(ax + t * dx - cx, ay + t * dy - cy))
+    return np.where(t0 <= t1, 0.0, dist)

@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from hybridteam.errors import ModelError
+
 if TYPE_CHECKING:
     from hybridteam.engine.simulator import Simulator
     from hybridteam.model import Team
@@ -53,6 +55,17 @@ class WorldComponent:
         the component's :meth:`summary` keys.
         """
         return None
+
+    @classmethod
+    def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
+        """Problems in the literal settings ``values`` (as written, defaults not filled in),
+        each located by its path inside ``with:`` (``("detect", 0, "agent")``).
+
+        ``hybridteam validate`` reports them at their line in the team file, before
+        anything runs; a component's constructor should raise the same problems as one
+        ValueError (:func:`settings_error`), for teams built in Python.
+        """
+        return []
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         self.team, self.n, self.values = team, n, dict(values)
@@ -92,6 +105,27 @@ class WorldComponent:
         return {}
 
 
+def settings_error(component: str, problems: Sequence[ModelError]) -> ValueError:
+    """One ValueError naming every problem and the setting it is in:
+    ``obstacles: detect[0].agent: unknown agent 'C'; did you mean 'A'?``."""
+    return ValueError(f"{component}: " + "; ".join(str(p) for p in problems))
+
+
+def variable_index(sim: Simulator, agent: int, name: str, setting: str) -> int:
+    """Column of agent ``agent``'s variable ``name`` in its state's ``v`` (what a component
+    reads when a setting names a variable, e.g. a grasp's ``engaged``).
+
+    Checked at the start of the run, not by :meth:`WorldComponent.check`: protocols add
+    variables that the team file does not list.
+    """
+    ca = sim.states[agent].ca
+    if name not in ca.var_index:
+        known = ", ".join(ca.var_index) or "none"
+        raise ValueError(f"{setting}: agent '{ca.name}' has no variable '{name}' "
+                         f"(its variables: {known})")
+    return ca.var_index[name]
+
+
 _REGISTRY: dict[str, type[WorldComponent]] = {}
 
 
@@ -125,5 +159,7 @@ def registered() -> list[str]:
 
 
 def _builtins() -> None:
-    """The framework's own components (a carried payload) register on first use."""
-    import hybridteam.world.carried  # noqa: F401
+    """The framework's own components (a carried payload, static obstacles and the range
+    sensors that see them) register on first use."""
+    import hybridteam.world.carried
+    import hybridteam.world.obstacles  # noqa: F401

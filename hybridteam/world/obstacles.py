@@ -1,0 +1,382 @@
+"""Static obstacles and the range sensors that see them: the ``obstacles`` component.
+
+The architecture paper's robots react to what their rings see: the XR4000's infrared ring
+detects an obstacle ahead while it carries a box, the Scout's sonar detects one, and the
+XR4000's Dock approaches the box guided by its IR. This component holds the world's
+static obstacles — walls (segments), circles, and boxes (rectangles, four walls each) —
+and, at every instant, casts the range rings of the robots that need them
+(:class:`~hybridteam.world.sensors.RangeRing`) against those obstacles *and* the outline
+of every ``payload`` component's payload (a resting box is what the Dock's IR approaches).
+
+Nothing is excluded from what a ring sees, not even the payload its own robot carries (a
+simple rule is a predictable one): a ``detect`` rule picks the beams that look away from
+the payload. Other robots are not obstacles here.
+
+A rule ``{agent, sensor, beams | sector, below, raise}`` raises the local event ``raise``
+in ``agent`` when the nearest of its beams drops below ``below`` — on the rising edge
+only, per instance, so a robot standing by a wall is told once; before the run nothing
+counts as seen, so an obstacle already in range is reported at the first instant. Like
+payload breaks, readings are taken at the run's instants (law ticks, events), so a
+detection is reported at the first instant past the crossing, at most one period late.
+Laws read a ring with ``ctx.sense("ir")``: ``(m, count)`` ranges, ``max_range`` where
+nothing is seen. Ring geometry comes from the robot's model (``model: xr4000``) or, for
+robots declared without one, from the rule (``ring:`` with :class:`RangeRing`'s
+arguments).
+
+Statistics, per instance, minimized over the run's instants: ``min_clearance`` (one entry
+per planar robot in the team's order: the gap between its footprint disk and the nearest
+static obstacle, negative when overlapping; a robot with no footprint radius is a point)
+and ``payload_clearance`` (the gap between any payload's outline and the static
+obstacles, 0 when they touch or overlap).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import fields
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
+
+import numpy as np
+
+from hybridteam.engine.events import LOCAL
+from hybridteam.errors import ModelError, ModelErrors, did_you_mean
+from hybridteam.world.carried import CarriedPayload
+from hybridteam.world.component import WorldComponent, settings_error, world_component
+from hybridteam.world.sensors import RangeRing, cast, clearance
+
+if TYPE_CHECKING:
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.model import Agent, Team
+
+_RULE_KEYS = ("agent", "sensor", "beams", "sector", "below", "raise", "ring")
+
+
+class Rule(NamedTuple):
+    """A ``detect`` rule, resolved: agent index, sensor, beam indices, threshold, event."""
+
+    agent: int
+    sensor: str
+    beams: np.ndarray
+    below: float
+    event: str
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool)
+
+
+def _rows(values: Any, size: int, key: str, form: str, problems: list[ModelError]
+          ) -> np.ndarray:
+    """A list of ``size``-number rows as a float array ``(r, size)``; problems recorded."""
+    rows = []
+    for k, row in enumerate(values or []):
+        if isinstance(row, list) and len(row) == size and all(map(_number, row)):
+            rows.append(row)
+        else:
+            problems.append(ModelError((key, k), f"expected {form}, got {row!r}"))
+    return np.array(rows, float).reshape(-1, size)
+
+
+def _planar(agent: Agent) -> bool:
+    return agent.plant.kind in ("unicycle", "holonomic") or {"x", "y"} <= set(agent.plant.state)
+
+
+def _ring(agent: Agent, rule: Mapping[str, Any], at: tuple) -> RangeRing | ModelError:
+    """The ring a rule reads: given inline, else the agent's model's sensor."""
+    sensor = rule["sensor"]
+    if "ring" in rule:
+        spec, keys = rule["ring"], [f.name for f in fields(RangeRing) if f.name != "name"]
+        if not (isinstance(spec, dict) and {"count", "max_range"} <= set(spec) <= set(keys)):
+            bad = [k for k in spec if k not in keys] if isinstance(spec, dict) else []
+            return ModelError((*at, "ring"), f"expected a mapping of {', '.join(keys)} "
+                              "(count and max_range required)", hint=did_you_mean(
+                                  str(bad[0]), keys) if bad else None)
+        try:
+            return RangeRing(**{**spec, "name": sensor})
+        except (TypeError, ValueError) as exc:
+            return ModelError((*at, "ring"), str(exc))
+    preset = getattr(agent, "preset", None)
+    if preset is None:
+        return ModelError((*at, "sensor"), f"agent '{agent.name}' has no robot model to take "
+                          f"'{sensor}' from", hint="give the ring inline: ring: {count: 24, "
+                          "max_range: 0.5}")
+    try:
+        return preset.ring(sensor)
+    except (ModelError, ModelErrors) as exc:
+        e = exc if isinstance(exc, ModelError) else exc.errors[0]
+        return ModelError((*at, "sensor"), f"agent '{agent.name}': {e.message}", hint=e.hint)
+
+
+def _beams(ring: RangeRing, rule: Mapping[str, Any], at: tuple) -> np.ndarray | ModelError:
+    """Indices of the beams a rule watches: listed, in a sector, or every beam."""
+    if "beams" in rule and "sector" in rule:
+        return ModelError(at, "give 'beams' or 'sector', not both")
+    if "beams" in rule:
+        b = rule["beams"]
+        if not (isinstance(b, list) and b and all(isinstance(i, int) and not isinstance(i, bool)
+                                                   and 0 <= i < ring.count for i in b)):
+            return ModelError((*at, "beams"), f"expected beam indices 0..{ring.count - 1}, "
+                              f"got {b!r}")
+        return np.array(b, np.intp)
+    if "sector" in rule:
+        s = rule["sector"]
+        if not (isinstance(s, list) and len(s) == 2 and all(map(_number, s)) and s[0] < s[1]):
+            return ModelError((*at, "sector"), "expected [from_deg, to_deg] with from < to "
+                              f"(counter-clockwise from the heading), got {s!r}")
+        width = s[1] - s[0]
+        off = (np.degrees(ring.angles) - s[0] + 1e-9) % 360.0
+        sel = np.flatnonzero((off <= width + 2e-9) | (width >= 360.0))
+        if not sel.size:
+            return ModelError((*at, "sector"), f"no beam of '{ring.name}' points within {s}")
+        return sel
+    return np.arange(ring.count)
+
+
+def _parse(team: Team, values: Mapping[str, Any]) -> tuple[dict[str, Any], list[ModelError]]:
+    """Geometry, rules, inline rings and radii from the settings, and every problem."""
+    problems: list[ModelError] = []
+    names = [a.name for a in team.agents]
+    out: dict[str, Any] = {
+        "walls": _rows(values.get("walls"), 4, "walls", "[x0, y0, x1, y1]", problems),
+        "circles": _rows(values.get("circles"), 3, "circles", "[x, y, r]", problems),
+        "boxes": _rows(values.get("boxes"), 5, "boxes",
+                       "[cx, cy, width, depth, theta_deg]", problems),
+        "rules": [], "rings": {}, "radius": {}}
+    for k in np.flatnonzero(out["circles"][:, 2] <= 0):
+        problems.append(ModelError(("circles", int(k)), "a circle's radius must be positive"))
+    for k in np.flatnonzero((out["boxes"][:, 2] <= 0) | (out["boxes"][:, 3] <= 0)):
+        problems.append(ModelError(("boxes", int(k)), "a box's width and depth must be positive"))
+    out["boxes"][:, 4] = np.radians(out["boxes"][:, 4])
+    for k, row in enumerate(values.get("radius") or []):
+        if not (isinstance(row, list) and len(row) == 2 and _number(row[1]) and row[1] >= 0):
+            problems.append(ModelError(("radius", k), f"expected [agent, radius >= 0], got "
+                                       f"{row!r}"))
+        elif row[0] not in names:
+            problems.append(ModelError(("radius", k, 0), f"unknown agent {row[0]!r}",
+                                       hint=did_you_mean(str(row[0]), names)))
+        else:
+            out["radius"][names.index(row[0])] = float(row[1])
+    for k, rule in enumerate(values.get("detect") or []):
+        at = ("detect", k)
+        missing = [key for key in ("agent", "sensor", "below", "raise")
+                   if not isinstance(rule, dict) or key not in rule]
+        if missing:
+            problems.append(ModelError(at, f"a rule needs {', '.join(missing)} (keys: "
+                                       f"{', '.join(_RULE_KEYS)})"))
+            continue
+        if not isinstance(rule["sensor"], str):
+            problems.append(ModelError((*at, "sensor"), f"expected a sensor name, got "
+                                       f"{rule['sensor']!r}"))
+            continue
+        bad = [key for key in rule if key not in _RULE_KEYS]
+        problems += [ModelError((*at, key), f"a detect rule has no key {key!r}",
+                                hint=did_you_mean(str(key), _RULE_KEYS), at_key=True)
+                     for key in bad]
+        if rule["agent"] not in names:
+            problems.append(ModelError((*at, "agent"), f"unknown agent {rule['agent']!r}",
+                                       hint=did_you_mean(str(rule["agent"]), names)))
+            continue
+        a = names.index(rule["agent"])
+        if not _planar(team.agents[a]):
+            problems.append(ModelError((*at, "agent"), f"agent {rule['agent']!r} has no "
+                                       "position (x, y) to sense from"))
+            continue
+        if not (isinstance(rule["raise"], str) and rule["raise"].isidentifier()):
+            problems.append(ModelError((*at, "raise"), f"expected an event name, got "
+                                       f"{rule['raise']!r}"))
+        ring = _ring(team.agents[a], rule, at)
+        if isinstance(ring, ModelError):
+            problems.append(ring)
+            continue
+        key = (a, str(rule["sensor"]))
+        if out["rings"].setdefault(key, ring) != ring:
+            problems.append(ModelError((*at, "ring"), f"another rule gives agent "
+                                       f"{rule['agent']!r} a different '{key[1]}' ring"))
+        beams = _beams(ring, rule, at)
+        below = rule["below"]
+        if not (_number(below) and 0 < below <= ring.max_range):
+            problems.append(ModelError((*at, "below"), f"expected a range in (0, max_range = "
+                                       f"{ring.max_range:g}], got {below!r}"))
+        elif isinstance(beams, ModelError):
+            problems.append(beams)
+        else:
+            out["rules"].append(Rule(a, key[1], beams, float(below), str(rule["raise"])))
+    return out, problems
+
+
+@world_component("obstacles")
+class Obstacles(WorldComponent):
+    """Walls, circles and boxes; range rings cast against them and the payloads."""
+
+    params: ClassVar[dict[str, Any]] = {
+        "walls": [], "circles": [], "boxes": [], "detect": [], "radius": [],
+    }
+
+    @classmethod
+    def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
+        return _parse(team, values)[1]
+
+    def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
+        super().__init__(team, n, values)
+        parsed, problems = _parse(team, values)
+        if problems:
+            raise settings_error("obstacles", problems)
+        self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
+            parsed["boxes"]
+        self.segments = np.concatenate([self.walls, _box_edges(self.boxes)])
+        self.rules: list[Rule] = parsed["rules"]
+        self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
+        self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
+        self.planar = [a for a, agent in enumerate(team.agents) if _planar(agent)]
+        given = parsed["radius"]
+        self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
+        names = {s for _, s in self.rings}
+        for agent in team.agents:
+            preset = getattr(agent, "preset", None)
+            names |= set(preset.rings()) if preset is not None else set()
+        self.sensors = tuple(sorted(names))  # what laws may sense (asked at every tick)
+        self.payloads: list[CarriedPayload] = []
+        self.axes: dict[int, tuple[int, int, int | None]] = {}
+        self.near = np.zeros((len(self.rules), n), bool)
+        self.min_clear = np.full((len(self.planar), n), np.inf)
+        self.payload_clear = np.full(n, np.inf)
+
+    def start(self, sim: Simulator) -> None:
+        self.sim = sim
+        mine = sim.world.components.index(self)
+        self.payloads = [c for c in sim.world.components if isinstance(c, CarriedPayload)]
+        # payloads listed after this component settle after it: settle them first here
+        self.late = [c for c in self.payloads if sim.world.components.index(c) > mine]
+        for a in {*self.planar, *(r.agent for r in self.rules)}:
+            names = list(sim.states[a].ca.plant.state_names)
+            self.axes[a] = (names.index("x"), names.index("y"),
+                            names.index("theta") if "theta" in names else None)
+
+    # ------------------------------------------------------------------ readings
+    def _poses(self, a: int, idx: np.ndarray) -> np.ndarray:
+        x, y, th = self.axes[a]
+        s = self.sim.states[a].x
+        return np.c_[s[idx, x], s[idx, y], s[idx, th] if th is not None else np.zeros(idx.size)]
+
+    def _ring(self, a: int, sensor: str) -> RangeRing | None:
+        if (a, sensor) in self.rings:
+            return self.rings[(a, sensor)]
+        preset = getattr(self.team.agents[a], "preset", None)
+        if preset is None or sensor not in preset.rings():
+            return None
+        return self.rings.setdefault((a, sensor), preset.ring(sensor))
+
+    def read(self, a: int, ring: RangeRing, idx: np.ndarray) -> np.ndarray:
+        """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
+        every payload's outline: ``(m, count)``."""
+        origins, directions = ring.rays(self._poses(a, idx))
+        dist = cast(origins, directions, self.segments, self.circles, ring.max_range)
+        for p in self.payloads:
+            dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
+        dist = dist.reshape(idx.size, ring.count, ring.rays_per_beam).min(axis=2)
+        return np.maximum(dist, ring.min_range)
+
+    def senses(self) -> tuple[str, ...]:
+        return self.sensors
+
+    def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        ring = self._ring(agent, name) if agent in self.axes else None
+        if ring is None:
+            raise KeyError(f"obstacles: robot '{self.team.agents[agent].name}' has no range "
+                           f"ring '{name}' (from its robot model or a detect rule's ring)")
+        return self.read(agent, ring, np.asarray(idx, np.intp))
+
+    # ------------------------------------------------------------------ each instant
+    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
+        for p in self.late:
+            p.settle(sim, idx)
+        self._measure(idx)
+        readings: dict[tuple[int, str], np.ndarray] = {}
+        raised = []
+        for r, rule in enumerate(self.rules):
+            key = (rule.agent, rule.sensor)
+            if key not in readings:
+                readings[key] = self.read(rule.agent, self.rings[key], idx)
+            near = readings[key][:, rule.beams].min(axis=1) < rule.below
+            rising = near & ~self.near[r, idx]
+            self.near[r, idx] = near
+            if rising.any():
+                who = idx[rising]
+                sim.queue.push(who, sim.t[who], LOCAL, rule.agent, rule.event)
+                raised.append(who)
+        return np.unique(np.concatenate(raised)) if raised else None
+
+    def _measure(self, idx: np.ndarray) -> None:
+        """Running minima of the robots' and the payloads' clearances."""
+        if self.planar:
+            pts = np.concatenate([self._poses(a, idx)[:, :2] for a in self.planar])
+            gap = clearance(pts, 0.0, self.walls, self.circles)
+            if len(self.boxes):
+                gap = np.minimum(gap, _box_sdf(pts, self.boxes))
+            gap = gap.reshape(len(self.planar), idx.size) - self.radius[:, None]
+            self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
+        for p in self.payloads:
+            self.payload_clear[idx] = np.minimum(self.payload_clear[idx],
+                                                 self._payload_gap(p, idx))
+
+    def _payload_gap(self, p: CarriedPayload, idx: np.ndarray) -> np.ndarray:
+        """Gap between payload ``p``'s outline and the static obstacles (0 if they meet)."""
+        gap = p.gap(idx, self.segments, self.circles)
+        if len(self.boxes):  # a payload wholly inside an obstacle box meets no edge
+            gap = np.where(_box_sdf(p.pose[idx, :2], self.boxes) <= 0.0, 0.0, gap)
+        return gap
+
+    # ------------------------------------------------------------------ results
+    def summary(self, i: int) -> dict[str, Any]:
+        out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
+        if self.payloads:
+            out["payload_clearance"] = _finite(self.payload_clear[i])
+        return out
+
+    def meta(self) -> dict[str, Any]:
+        obstacles = [{"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
+                     for w in self.walls]
+        obstacles += [{"kind": "circle", "x": float(x), "y": float(y), "r": float(r)}
+                      for x, y, r in self.circles]
+        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in self.boxes]
+        footprints = {self.team.agents[a].name: {"radius": float(r)}
+                      for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
+        return {"world": {"obstacles": obstacles}, "footprints": footprints}
+
+
+def _footprint(agent: Agent) -> float:
+    preset = getattr(agent, "preset", None)
+    return float(preset.footprint.radius) if preset is not None else 0.0
+
+
+def _finite(v: float) -> float | None:
+    """JSON has no infinity: a clearance with nothing to measure against is None."""
+    return float(v) if math.isfinite(v) else None
+
+
+# ---------------------------------------------------------------------- geometry
+def _corners(box: np.ndarray) -> np.ndarray:
+    """World corners ``(4, 2)`` of a box ``[cx, cy, width, depth, theta_rad]``, CCW."""
+    cx, cy, w, d, th = box
+    local = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2.0
+    c, s = math.cos(th), math.sin(th)
+    return local @ np.array([[c, s], [-s, c]]) + [cx, cy]
+
+
+def _box_edges(boxes: np.ndarray) -> np.ndarray:
+    """The four walls of every box: ``(4 b, 4)``."""
+    if not len(boxes):
+        return np.zeros((0, 4))
+    return np.concatenate([np.c_[c, np.roll(c, -1, axis=0)] for c in map(_corners, boxes)])
+
+
+def _box_sdf(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Signed distance from each point ``(P, 2)`` to the nearest box: ``(P,)``, < 0 inside."""
+    dx = points[:, 0:1] - boxes[:, 0]
+    dy = points[:, 1:2] - boxes[:, 1]
+    c, s = np.cos(boxes[:, 4]), np.sin(boxes[:, 4])
+    qx = np.abs(c * dx + s * dy) - boxes[:, 2] / 2.0
+    qy = np.abs(-s * dx + c * dy) - boxes[:, 3] / 2.0
+    outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
+    return (outside + np.minimum(np.maximum(qx, qy), 0.0)).min(axis=1)
