@@ -126,6 +126,7 @@ class CMode:
     invariant_text: str
     subtree: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     outgoing: list[int] = field(default_factory=list)
+    role: str | None = None  # the protocol role this mode plays (views number role changes)
 
 
 @dataclass

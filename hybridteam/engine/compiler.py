@@ -214,7 +214,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
             inv = col.expr(mode.invariant, syms, (*mode.where, "invariant"), condition=True)
         modes.append(CMode(idx, mode.name, path, parent, depth, kind, children[idx], initial,
                            mode.history, mode.final, len(drivers) - 1 if driver else -1, inv,
-                           str(mode.invariant or "")))
+                           str(mode.invariant or ""), role=mode.role))
         if mode.final and mode.children:
             col.fail((*mode.where, "final"), "only leaf modes can be final")
     check_parallel_drivers(modes, col, flat)

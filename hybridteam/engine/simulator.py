@@ -436,8 +436,9 @@ class Simulator:
                 "plant": ca.plant.kind,
                 "state": list(ca.plant.state_names),
                 "inputs": list(ca.plant.input_names),
-                "modes": [{"path": m.path, "depth": m.depth, "kind": m.kind,
-                           "final": m.final} for m in ca.modes if m.index],
+                "modes": [{"path": m.path, "depth": m.depth, "kind": m.kind, "final": m.final,
+                           **({"role": m.role} if m.role else {})}
+                          for m in ca.modes if m.index],
             } for ca in self.cteam.agents],
         }
         self._world_meta(meta)

@@ -121,16 +121,27 @@ def footprint_indices(times: np.ndarray, valid: np.ndarray, every: float) -> np.
 
 
 def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
-                 modes: Sequence[str] | None) -> list[tuple[float, int, str, str]]:
-    """(t, step, agent, target) of the numbered points, in time order.
+                 modes: Sequence[str] | None) -> list[tuple[float, int, str, str, int]]:
+    """(t, step, agent, target, number) of the numbered points, in time order.
 
-    Default: every transition into a leaf (the start, numbered 0, is not one). With
-    ``modes``: transitions whose source or target is one of those paths or lies inside one.
+    Default: when the team plays protocol roles, every change of role (a leadership change:
+    the numbers of the architecture paper's Figs. 7, 8, 11); otherwise every transition into
+    a leaf (the start, numbered 0, is not one). With ``modes``: transitions whose source or
+    target is one of those paths or lies inside one.
     """
     tr = pick(trace.transitions, instance)
     out = []
-    leaves = {a: {m["path"] for m in agent_meta(trace, a).get("modes", []) if m["kind"] == "leaf"}
-              for a in agents}
+    metas = {a: agent_meta(trace, a).get("modes", []) for a in agents}
+    leaves = {a: {m["path"] for m in ms if m["kind"] == "leaf"} for a, ms in metas.items()}
+    roles = {a: {m["path"]: m["role"] for m in ms if m.get("role")} for a, ms in metas.items()}
+    by_role = not modes and any(roles.values())
+
+    def role(agent: str, path: str) -> str | None:
+        while path:
+            if path in roles[agent]:
+                return roles[agent][path]
+            path = path.rpartition(".")[0]
+        return None
 
     def inside(path: str) -> bool:
         return any(path == m or path.startswith(m + ".") for m in modes or ())
@@ -138,11 +149,39 @@ def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
     for row in tr:
         if row.agent not in leaves or row.cause == "init":
             continue
-        selected = inside(row.source) or inside(row.target)
-        if selected if modes else row.target in leaves[row.agent]:
-            out.append((row.t, row.step, row.agent, row.target))
+        if by_role:
+            before, after = role(row.agent, row.source), role(row.agent, row.target)
+            selected = before is not None and after is not None and before != after
+        elif modes:
+            selected = inside(row.source) or inside(row.target)
+        else:
+            selected = row.target in leaves[row.agent]
+        if selected:
+            out.append((row.t, row.step, row.agent, row.target,
+                        role(row.agent, row.target) if by_role else None))
     order = {a: k for k, a in enumerate(agents)}
-    return sorted(out, key=lambda r: (r[0], r[1], order[r[2]]))
+    out.sort(key=lambda r: (r[0], r[1], order[r[2]]))
+    return _numbered(out) if by_role else [(*r[:4], k) for k, r in enumerate(out, 1)]
+
+
+def _numbered(changes: list) -> list[tuple[float, int, str, str, int]]:
+    """Number role changes per hand-over, as the architecture paper does: a robot taking the
+    ``lead`` role starts number k, and the robot that gave it up (its change just before)
+    shares k — so a request reads 1X (new leader) and 1L (old leader), not 1 and 2."""
+    numbers = [0] * len(changes)
+    count, pending = 0, []
+    for k, (*_, new_role) in enumerate(changes):
+        if new_role == "lead":
+            count += 1
+            numbers[k] = count
+            for j in pending:
+                numbers[j] = count
+            pending = []
+        else:
+            pending.append(k)
+    for j in pending:  # gave up the lead and nobody has taken it (yet)
+        numbers[j] = count + 1
+    return [(*c[:4], n) for c, n in zip(changes, numbers, strict=True)]
 
 
 # ---------------------------------------------------------------------- world and payloads
@@ -294,8 +333,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                              np.interp(ts, times[valid], poses[a][valid, 1])]
     placed: list[tuple[float, float]] = []
     tol = 0.015 * max(extent, 1e-9)
-    for n, ((_t, _step, a, _target), (x, y)) in enumerate(zip(changes, at, strict=True), 1):
-        if (n - 1) % stride == 0 and not np.isnan(x):  # labels at one spot stack upwards
+    for k, ((_t, _step, a, _target, n), (x, y)) in enumerate(zip(changes, at, strict=True)):
+        if k % stride == 0 and not np.isnan(x):  # labels at one spot stack upwards
             near = sum(abs(x - px) < tol and abs(y - py) < tol for px, py in placed)
             placed.append((x, y))
             ax.annotate(f"{n}{letter[a]}", (x, y), xytext=(4, 4 + 9 * near),

@@ -137,14 +137,14 @@ class Composer:
             own = self.build_mode(rname, rspec, rwhere)
             body = roles.get(rspec.role) if rspec.role else None
             if body is None:
-                children.append(own)
+                children.append(dataclasses.replace(own, role=rspec.role))
                 continue
             bwhere: DocPath = (*where, "roles", rspec.role)
             mine = self.build_mode(rname, body, bwhere)
             children.append(dataclasses.replace(
                 mine, transitions=own.transitions + mine.transitions, where=rwhere,
                 invariant=mine.invariant or own.invariant, final=own.final,
-                outcome=own.outcome))
+                outcome=own.outcome, role=rspec.role))
         self._add_agent_parts(proto, agent_extra, where)
         host = self.build_mode(name, spec.model_copy(update={"protocol": None, "roles": None}),
                                where)

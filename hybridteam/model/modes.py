@@ -102,6 +102,7 @@ class Mode:
     invariant: str | None = None
     final: bool = False
     outcome: str | None = None  # a final mode may name the run's outcome (e.g. "success")
+    role: str | None = None  # a protocol region's mode: the role it plays (lead, follow, ...)
     transitions: tuple[Transition, ...] = ()
     where: DocPath = ()
 

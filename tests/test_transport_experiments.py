@@ -1,0 +1,102 @@
+"""The three experiments of the architecture paper (Chaimowicz et al., ICRA 2001, Sec. 4).
+
+Each experiment must end ``ok`` with the box never dropped (every grasp offset within the
+robot model's limit), every robot and the box clear of every obstacle, and the leadership
+changes the paper describes, numbered as in its Figs. 7, 8 and 11. Experiment 2 must show
+Fig. 10's docking submodes in order and its request close-up (t_c − t_b = the configured
+latency); experiment 3 must complete with the Scout limited to 8 data messages per second,
+its dropped copies recorded in the trace.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybridteam.api import load, simulate
+from hybridteam.export.trajectories import mode_changes
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "transport"
+
+#: Per experiment: who leads first, then who takes the lead at each numbered change.
+LEADERSHIP = {
+    "experiment1": ("xr4000", ["labmate", "xr4000"]),  # Fig. 7: 1X resigns, 2X gets it back
+    "experiment2": ("labmate", ["xr4000", "labmate"]),  # Fig. 8: 1X requests, 2X returns
+    "experiment3": ("labmate", ["scout", "labmate"]),   # Fig. 11: 1S requests, 2S returns
+}
+
+
+@pytest.fixture(scope="module", params=sorted(LEADERSHIP))
+def experiment(request):
+    team = load(EXAMPLES / f"{request.param}.yaml")
+    return request.param, team, simulate(team)
+
+
+def leaders_in_order(run) -> list[str]:
+    """Who takes the lead at each numbered hand-over (the views' numbering)."""
+    changes = mode_changes(run, 0, run.agents, None)
+    out: dict[int, str] = {}
+    for _t, _step, agent, target, number in changes:
+        if ".Lead" in f".{target}" or target.endswith("Lead"):
+            out[number] = agent
+    return [out[k] for k in sorted(out)]
+
+
+def test_ends_ok_with_the_box_held_and_clear_of_obstacles(experiment):
+    name, team, run = experiment
+    assert run.outcome == "ok", run.message
+    row = run.summary()["instances"][0]
+    grasps = [g["agent"] for g in next(w for w in team.world if w.use == "payload")
+              .values["grasps"]]
+    limits = [team.agent(a).preset.manipulator.limit for a in grasps]
+    assert np.all(np.array(row["max_grasp_offset"]) < np.array(limits)), name
+    assert min(row["min_clearance"]) > 0.0, name
+    assert row["payload_clearance"] > 0.0, name
+
+
+def test_leadership_changes_as_in_the_paper(experiment):
+    name, _team, run = experiment
+    first, then = LEADERSHIP[name]
+    inits = run.transitions
+    start = {a: t for a, t, c in zip(inits["agent"], inits["target"], inits["cause"],
+                                     strict=True) if c == "init"}
+    assert start[first].startswith(("Transport.Lead", "Dock"))
+    assert leaders_in_order(run) == then, name
+
+
+def test_experiment2_timeline_reproduces_fig10():
+    team = load(EXAMPLES / "experiment2.yaml")
+    run = simulate(team)
+    tr = run.transitions
+    rows = list(zip(tr["t"], tr["agent"], tr["source"], tr["target"], tr["cause"], strict=True))
+    xr = [target for _t, a, _s, target, _c in rows if a == "xr4000"]
+    dock = [m.split(".")[1] for m in xr if m.startswith("Dock.")]
+    assert dock == ["Approach", "Deploy", "Lift", "Wait"]
+    assert next(i for i, m in enumerate(xr) if m.startswith("Transport")) == len(dock)
+    # the close-up: t_a the XR4000 asks, t_b the Labmate grants, t_c the XR4000 leads
+    t_a = next(t for t, a, _s, tg, _c in rows if a == "xr4000" and tg.endswith("Requesting"))
+    t_b = next(t for t, a, s, _tg, c in rows if a == "labmate" and c == "message:request")
+    t_c = next(t for t, a, s, _tg, c in rows if a == "xr4000" and c == "message:grant")
+    latency = team.parameters["latency"]
+    assert t_a < t_b < t_c
+    assert t_c - t_b == pytest.approx(latency, abs=1e-9)  # paper: "approximately 0.03 s"
+    assert t_b - t_a == pytest.approx(latency, abs=1e-9)
+
+
+def test_experiment3_scout_at_8_hz_drops_data_copies():
+    team = load(EXAMPLES / "experiment3.yaml")
+    run = simulate(team)
+    assert run.outcome == "ok", run.message
+    m = run.messages
+    to_scout = np.asarray(m["receiver"]) == "scout"
+    data = np.asarray(m["type"]) == "state"
+    status = np.asarray(m["status"])
+    reason = np.asarray(m["reason"]).astype(str)
+    dropped = to_scout & data & (status == "lost") & np.char.startswith(reason, "rate limit")
+    taken = to_scout & data & (status == "delivered")
+    assert dropped.sum() > 0
+    # the Scout takes at most 8 copies per second, whatever the others send at 20 Hz
+    t = np.sort(np.asarray(m["t_recv"])[taken])
+    assert np.all(np.diff(t) >= 1 / 8 - 1e-9)
