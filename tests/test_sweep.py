@@ -99,10 +99,12 @@ def test_plan_orders_runs_seeds_and_members(study):
     s = plan.settings[3]  # p_loss = 0.3 at the second wait_time
     assert (s.factor, s.label, s.axes) == ("p_loss", "0.3", (("wait_time", 1.0),))
     assert dict(s.assign) == {"p_loss": 0.3, "wait": 1.0}
-    # each setting's 8 runs cut into 3 + 3 + 2, never across settings
-    assert [c.size for c in plan.chunks[:4]] == [3, 3, 2, 3]
-    assert all(plan.setting_of(c.start) == plan.setting_of(c.stop - 1) == c.setting
-               for c in plan.chunks)
+    # each factor's runs (p_loss: 6 settings of 8, latency: 4) cut into threes, across its
+    # settings but never across factors
+    assert [c.size for c in plan.chunks] == [3] * 16 + [3] * 10 + [2]
+    assert [c.group for c in plan.chunks] == [0] * 16 + [1] * 11
+    assert all({plan.settings[s].factor for s in plan.setting_of(np.arange(c.start, c.stop))}
+               == {("p_loss", "latency")[c.group]} for c in plan.chunks)
     children = np.random.SeedSequence(study.seed).spawn(plan.runs)
     assert plan.seeds(0, plan.runs) == [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1))
                                         for c in children]
@@ -110,6 +112,12 @@ def test_plan_orders_runs_seeds_and_members(study):
     assert task.members == [1, 2, 2] and task.repetitions == [1, 0, 1]
     np.testing.assert_array_equal(task.overrides["d"], plan.draws()["d"][[1, 2, 2]])
     assert set(task.overrides["p_loss"]) == {0.0}
+    task = plan.task(plan.chunks[2])  # runs 6, 7 of setting 0 and run 8 of setting 1
+    assert task.settings == [0, 0, 1] and task.members == [3, 3, 0]
+    assert task.overrides["wait"].tolist() == [0.5, 0.5, 1.0]  # each run its setting's
+    task = plan.task(plan.chunks[16])  # latency 0.01: the factor's value beats the draw
+    assert list(task.overrides)[-2:] == ["d", "wait"]  # set after the draws
+    assert task.overrides["d"].tolist() == [0.01] * 3
 
 
 def test_members_do_not_depend_on_the_population_size(study):
@@ -119,6 +127,36 @@ def test_members_do_not_depend_on_the_population_size(study):
     for key in ("d", "wait"):
         np.testing.assert_array_equal(big[key][: study.size], small[key])
     assert np.all((big["d"] >= 0.01) & (big["d"] <= 0.05))
+
+
+def test_population_set_fixes_parameters_a_factor_may_vary(tmp_path):
+    path = _study(tmp_path, """\
+        population: {size: 3, set: {d: 0.02, asker.wait: 2}}
+        factors: {wait: [1]}
+        """)
+    plan = Plan(load_study(path))
+    assert {k: v.tolist() for k, v in plan.draws().items()} == {
+        "d": [0.02] * 3, "asker.wait": [2.0] * 3}
+    overrides = plan.task(plan.chunks[0]).overrides
+    assert list(overrides) == ["d", "asker.wait", "wait"]  # in order: the factor's 1 wins
+    assert overrides["wait"].tolist() == [1.0] * 3
+
+
+def test_restrict_keeps_some_values_and_the_population(study):
+    from hybridteam.sweep import restrict
+
+    part = restrict(study, p_loss=[0.3], wait_time=[1])
+    plan, full = Plan(part), Plan(study)
+    assert [(s.factor, s.label, s.axes) for s in plan.settings] == [
+        ("p_loss", "0.3", (("wait_time", 1.0),)), ("latency", "0.01", (("wait_time", 1.0),)),
+        ("latency", "0.2", (("wait_time", 1.0),))]
+    assert all(np.array_equal(plan.draws()[k], v) for k, v in full.draws().items())
+    assert part.digest != study.digest
+    assert {s.factor for s in Plan(restrict(study, latency=[])).settings} == {"p_loss"}
+    with pytest.raises(ValueError, match=r"p_loss: 0.5 is not one of the study's values"):
+        restrict(study, p_loss=[0.5])
+    with pytest.raises(ValueError, match="'wait' is no factor or axis of the study"):
+        restrict(study, wait=[1])
 
 
 # ------------------------------------------------------------------ executors and chunks
@@ -131,7 +169,7 @@ def test_chunk_size_does_not_change_the_table(study, reference, tmp_path, chunk)
 
 def test_local_pool_gives_the_same_table(study, reference, tmp_path):
     result = run_study(study, tmp_path, workers=2, chunk=3)
-    assert result.executor == "2 local processes" and len(result.computed) == 30
+    assert result.executor == "2 local processes" and len(result.computed) == 27
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
 
 
@@ -171,11 +209,11 @@ def test_interrupted_study_resumes_without_recomputing(study, reference, tmp_pat
     stamps = {k: p.stat().st_mtime_ns for k, p in done.items()}
     second = run_study(study, tmp_path, chunk=3)
     assert sorted(second.reused) == sorted(first.computed) == sorted(done)
-    assert len(second.computed) == 23 and not set(second.computed) & set(done)
+    assert len(second.computed) == 20 and not set(second.computed) & set(done)
     assert {k: p.stat().st_mtime_ns for k, p in done.items()} == stamps
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
     again = run_study(study, tmp_path, chunk=3)  # a finished study: nothing to compute
-    assert again.computed == [] and len(again.reused) == 30
+    assert again.computed == [] and len(again.reused) == 27
 
 
 def test_resuming_another_study_or_chunk_size_is_refused(study, tmp_path, capsys):
@@ -216,6 +254,10 @@ def _study(tmp_path, body: str):
      "values: [2]}\n", "6:3: factors.w", "'granter.wait' sets granter.wait, which axis "
      "'start' sets too"),
     ("chunk: 0\n", "3:8: chunk", "must be >= 1"),
+    ("population:\n  set: {wiat: 1}\n", "4:9: population.set.wiat", "override 'wiat' names "
+     "no parameter of team 'handshake'; did you mean 'wait'?"),
+    ("population:\n  set: {d: 0.02}\n  draws:\n    d: {uniform: [0.01, 0.05]}\n",
+     "6:5: population.draws.d", "'d' sets asker.d, which population.set 'd' sets too"),
 ])
 def test_bad_study_files_name_file_line_and_field(tmp_path, capsys, body, where, message):
     path = _study(tmp_path, body)
@@ -281,7 +323,7 @@ def test_report_writes_plots_and_markdown(reference, tmp_path, capsys):
     out = tmp_path / "out"
     shutil.copytree(reference[0].plan.study.path.parent, tmp_path / "study")
     assert main(["sweep", str(tmp_path / "study" / "study.yaml"), "-o", str(out)]) == 0
-    assert "80 runs in 30 chunks (30 computed, in-process)" in capsys.readouterr().out
+    assert "80 runs in 27 chunks (27 computed, in-process)" in capsys.readouterr().out
     assert main(["report", str(out)]) == 0
     report = (out / "report.md").read_text()
     assert "![success rate against p_loss](plots/success_p_loss.png)" in report

@@ -18,6 +18,7 @@ from typing import Any
 
 _EXPORTS = {
     "load_study": "hybridteam.sweep.study",
+    "restrict": "hybridteam.sweep.study",
     "Study": "hybridteam.sweep.study",
     "Plan": "hybridteam.sweep.plan",
     "run_study": "hybridteam.sweep.run",

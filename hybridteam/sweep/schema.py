@@ -50,10 +50,17 @@ class DrawSchema(Strict):
 
 
 class PopulationSchema(Strict):
-    """The random population every setting is run on (e.g. 100 robot pairs)."""
+    """The random population every setting is run on (e.g. 100 robot pairs).
+
+    ``set`` fixes parameters for every member (the paper's population S draws some
+    parameters and sets others, k_c = sc = 1, to one value); a factor or an axis may vary
+    them, as it may vary a draw.
+    """
 
     size: Count = 1
     seed: Seed = 0
+    set: dict[Key, float] = Field(default_factory=dict,
+                                  description="override key -> one value for every member")
     draws: dict[Key, DrawSchema] = Field(default_factory=dict)
 
 

@@ -67,6 +67,7 @@ class Study:
     team: Team
     size: int
     population_seed: int
+    fixed: tuple[tuple[str, float], ...]  # population.set: key -> one value for every member
     draws: tuple[Draw, ...]
     factors: tuple[Factor, ...]
     axes: tuple[Axis, ...]
@@ -113,7 +114,8 @@ def load_study(source: str | os.PathLike) -> Study:
                  for name, spec in doc.axes.items())
     study = Study(
         path=Path(source), name=doc.name or Path(source).stem, team_path=team_path, team=team,
-        size=doc.population.size, population_seed=doc.population.seed, draws=draws,
+        size=doc.population.size, population_seed=doc.population.seed,
+        fixed=tuple(doc.population.set.items()), draws=draws,
         factors=factors, axes=axes, repetitions=doc.repetitions, seed=doc.seed,
         success=tuple(doc.success), outcomes=tuple(doc.outcomes), metrics=tuple(doc.metrics),
         chunk=doc.chunk, accelerate=doc.accelerate,
@@ -128,6 +130,43 @@ def load_study(source: str | os.PathLike) -> Study:
     if errors:
         raise InputErrors(sorted(errors, key=lambda e: (e.line or 0, e.column or 0)))
     return study
+
+
+def restrict(study: Study, **keep: list[float | tuple[float, ...]]) -> Study:
+    """``study`` with only some values of its factors or axes, e.g. a quick look (or a
+    test) at one ladder length: ``restrict(study, alpha=[0.4, 0.8], ladder_length=[480])``.
+
+    Each name is a factor or an axis of the study and keeps the listed values, which must
+    be among its own (an empty list drops a factor); the rest stays whole. The population
+    is the study's, member for member, but runs are numbered — and seeded — within the
+    slice, so a stochastic team's runs differ from the full study's (a deterministic
+    one's, like the ladder's, do not). The digest changes, so the slice's output folder
+    cannot be mistaken for the study's.
+    """
+    def kept(name: str, values: tuple) -> tuple:
+        wanted = [tuple(float(x) for x in v) if isinstance(v, list | tuple) else float(v)
+                  for v in keep[name]]
+        have = [tuple(map(float, v)) if isinstance(v, tuple) else float(v) for v in values]
+        missing = [v for v in wanted if v not in have]
+        if missing:
+            raise ValueError(f"{name}: {missing[0]!r} is not one of the study's values "
+                             f"{list(values)}")
+        return tuple(v for v, h in zip(values, have, strict=True) if h in wanted)
+
+    names = {f.name for f in study.factors} | {a.name for a in study.axes}
+    unknown = sorted(set(keep) - names)
+    if unknown:
+        raise ValueError(f"'{unknown[0]}' is no factor or axis of the study "
+                         f"(it has {', '.join(sorted(names))})")
+    if any(not keep.get(a.name, True) for a in study.axes):
+        raise ValueError("an axis needs at least one value")
+    factors = tuple(replace(f, values=kept(f.name, f.values)) if f.name in keep else f
+                    for f in study.factors)
+    factors = tuple(f for f in factors if f.values)
+    axes = tuple(replace(a, values=kept(a.name, a.values)) if a.name in keep else a
+                 for a in study.axes)
+    digest = hashlib.sha256((study.digest + repr(sorted(keep.items()))).encode()).hexdigest()
+    return replace(study, factors=factors, axes=axes, digest=digest)
 
 
 def with_duration(team: Team, duration: float) -> Team:
@@ -170,9 +209,10 @@ def _factor(name: str, spec: object, positions: Positions, errors: list[SourceEr
 
 
 def _check_overlaps(study: Study, cteam, positions: Positions) -> list[SourceError]:
-    """No parameter set twice in one run: by two draws, two axes, an axis and a factor, or
-    two keys of one item — ``wait`` and ``asker.wait`` count as the same parameter. (A
-    factor may set a drawn parameter: that is what varying it means.)"""
+    """No parameter set twice in one run: by two draws (or a draw and ``population.set``),
+    two axes, an axis and a factor, or two keys of one item — ``wait`` and ``asker.wait``
+    count as the same parameter. (A factor may set a drawn or fixed parameter: that is what
+    varying it means.)"""
     def targets(key: str) -> list[str]:
         agent, _, name = key.rpartition(".")
         return [f"{ca.name}.{name}" for ca in cteam.agents
@@ -191,6 +231,8 @@ def _check_overlaps(study: Study, cteam, positions: Positions) -> list[SourceErr
             owners.update({t: label for t in targets(key)})
 
     drawn: dict[str, str] = {}
+    for key, _ in study.fixed:
+        claim(drawn, f"population.set '{key}'", (key,), ("population", "set", key))
     for d in study.draws:
         claim(drawn, f"draw '{d.name}'", d.keys, ("population", "draws", d.name))
     by_axes: dict[str, str] = {}
@@ -207,7 +249,8 @@ def _check_keys(study: Study, positions: Positions) -> list[SourceError]:
 
     cteam = compile_team(study.team)
     uses: list[tuple[str, DocPath, bool]] = []  # key, where it is written, at a mapping key
-    named = [("population", "draws", d.name, d.keys) for d in study.draws]
+    named = [("population", "set", key, (key,)) for key, _ in study.fixed]
+    named += [("population", "draws", d.name, d.keys) for d in study.draws]
     named += [(group, item.name, None, item.keys)
               for group, items in (("factors", study.factors), ("axes", study.axes))
               for item in items]

@@ -32,7 +32,7 @@ def run_chunk(team: Team, task: Task) -> dict[str, list[Any]]:
     runs = np.arange(chunk.start, chunk.stop)
     cols: dict[str, list[Any]] = {
         "run": runs.tolist(),
-        "setting": [chunk.setting] * chunk.size,
+        "setting": list(task.settings),
         "member": list(task.members),
         "repetition": list(task.repetitions),
         "seed": list(task.seeds),

@@ -126,9 +126,9 @@ def rows(cls: type[WorldComponent], team: Team, n: int, overrides: Mapping[str, 
 
 
 def _window(drv: Driver, ca: CAgent, p: np.ndarray, n: int) -> np.ndarray:
-    """The law binding's search window per instance (the law's default is 8)."""
+    """The law binding's search window per instance (the law's default is 16)."""
     if "window" not in drv.params:
-        return np.full(n, 8.0)
+        return np.full(n, 16.0)
     return np.broadcast_to(np.asarray(drv.params["window"](_start_ctx(ca, p, n)), float), (n,))
 
 
