@@ -18,7 +18,7 @@ import numpy as np
 
 from hybridteam.laws import LawContext, law
 
-from .leader import arm_terms, leader_estimate, stack_inputs, wrap
+from .leader import LeaderState, arm_terms, leader_estimate, stack_inputs, wrap
 
 #: Arm-feedback gains shared by every law that holds a grasp. x_a, y_a are robot minus
 #: grasp point, so negative gains pull the robot back onto its grasp (for a unicycle, k_y
@@ -91,7 +91,7 @@ def follow_holonomic(ctx: LawContext) -> np.ndarray:
     return np.where(lead.ok[:, None], u, 0.0)
 
 
-def _station(ctx: LawContext, lead) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _station(ctx: LawContext, lead: LeaderState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ahead, left, phi): the follower's place and heading offset in the leader's frame —
     (D, 0, phi) from the parameters, or captured from the poses at the first copy of a
     new leader's stream where ``capture`` is set."""
@@ -99,10 +99,9 @@ def _station(ctx: LawContext, lead) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     on = ctx["capture"] > 0
     if not on.any():
         return ahead, left, phi
-    who = np.rint(ctx.get("leader", -1.0))
     had = ctx.recall("station_leader", -1.0)
     keep = [ctx.recall("station_ahead"), ctx.recall("station_left"), ctx.recall("station_phi")]
-    new = on & lead.ok & (had != who)
+    new = on & lead.ok & (had != lead.who)
     if new.any():
         c, s = np.cos(lead.theta), np.sin(lead.theta)
         dx, dy = ctx["x"] - lead.x, ctx["y"] - lead.y
@@ -111,7 +110,7 @@ def _station(ctx: LawContext, lead) -> tuple[np.ndarray, np.ndarray, np.ndarray]
         for name, values in zip(("station_ahead", "station_left", "station_phi"), keep,
                                 strict=True):
             ctx.keep(name, values)
-        ctx.keep("station_leader", np.where(new, who, had))
+        ctx.keep("station_leader", np.where(new, lead.who, had))
     return (np.where(on, keep[0], ahead), np.where(on, keep[1], left),
             np.where(on, keep[2], phi))
 

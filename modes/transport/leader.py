@@ -34,6 +34,7 @@ class LeaderState:
     hold zeros, never NaN, so arithmetic on them is safe and their result is discarded)."""
 
     ok: np.ndarray      # (m,) bool: a copy from the named leader has arrived
+    who: np.ndarray     # (m,) the leader's agent index (-1: none)
     x: np.ndarray
     y: np.ndarray
     theta: np.ndarray
@@ -70,8 +71,8 @@ def leader_estimate(ctx: LawContext) -> LeaderState:
     def clean(a: np.ndarray) -> np.ndarray:
         return np.where(ok, np.nan_to_num(np.asarray(a, dtype=float)), 0.0)
 
-    return LeaderState(ok, clean(x), clean(y), clean(th), clean(v), clean(vx), clean(vy),
-                       clean(omega))
+    return LeaderState(ok, who, clean(x), clean(y), clean(th), clean(v), clean(vx),
+                       clean(vy), clean(omega))
 
 
 def arm_reading(ctx: LawContext) -> np.ndarray:
