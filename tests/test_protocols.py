@@ -159,6 +159,69 @@ def test_resignation_to_everyone_goes_to_the_first_acceptor(team_from_yaml):
     assert t_c == pytest.approx(1.0 + 3 * 0.03)  # offer, accept, confirm
 
 
+PLAN = """
+team: plan
+parameters: {d: 0.03}
+network: {latency: d}
+agents:
+  r1:
+    plant: {kind: unicycle, state: {x: 1.0, y: 0.0, theta: 0.0}}
+    variables: {successor: id_r2}
+    modes:
+      Transport:
+        protocol: role_assignment
+        initial: Lead
+        roles:
+          lead:
+            initial: Go
+            modes:
+              Go:
+                inputs: {v: 0.3, omega: 0}
+                transitions: [{to: Slow, after: 1.0}]
+              Slow:
+                initial: Creep
+                modes:
+                  Start: {inputs: {v: 0.2, omega: 0}}
+                  Creep:
+                    inputs: {v: 0.1, omega: 0}
+                    transitions: [{to: Start, after: 0.5}]
+          follow: {inputs: {v: 0, omega: 0}}
+  r2:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    variables: {leader: id_r1}
+    modes:
+      Transport:
+        protocol: role_assignment
+        roles:
+          lead: {inputs: {v: 0.3, omega: 0}}
+          follow: {inputs: {v: 0, omega: 0}}
+scenario: [{at: 2.0, agent: r1, raise: resign}]
+simulation: {duration: 3.0, sample_period: 0.01}
+"""
+
+
+def test_a_resigning_leader_keeps_doing_what_its_plan_was_doing(team_from_yaml):
+    """Lead -> Offering switches protocol state, not role: the plan goes on where it was
+    (Slow.Creep at 0.1 m/s, then Start at 0.2 m/s when its 0.5 s are up), it does not
+    restart (Go, 0.3 m/s) and its delay does not start again."""
+    text = PLAN.replace("d: 0.03", "d: 0.2").replace("at: 2.0", "at: 1.2")
+    run = ht.simulate(team_from_yaml(text))
+    assert run.outcome == "ok", run.message
+    iv = run.intervals.where(agent="r1")
+    spans = {m: (s, e) for m, s, e in zip(iv["mode"], iv["start"], iv["end"], strict=True)
+             if m.startswith("Transport.Offering")}
+    # offered at 1.2; offer and accept take a latency each, then r1 follows; Creep was
+    # entered at 1.0 and ends at 1.5, inside the offer
+    assert spans == {"Transport.Offering": pytest.approx((1.2, 1.6)),
+                     "Transport.Offering.Slow": pytest.approx((1.2, 1.6)),
+                     "Transport.Offering.Slow.Creep": pytest.approx((1.2, 1.5)),
+                     "Transport.Offering.Slow.Start": pytest.approx((1.5, 1.6))}
+    t, px = run.sample_times, run.samples["r1"][:, 0, 0]  # (time, instance, state)
+    for lo, hi, v in [(1.2, 1.5, 0.1), (1.5, 1.6, 0.2)]:
+        inside = (t >= lo - 1e-9) & (t <= hi + 1e-9)
+        assert np.diff(px[inside]) / np.diff(t[inside]) == pytest.approx(v)
+
+
 # ---------------------------------------------------------------------------- deadlock
 def test_dead_link_is_a_deadlock_and_the_operator_takes_command(team_from_yaml):
     run = ht.simulate(team(team_from_yaml, scenario=[(1.0, "r2", "want_lead")],

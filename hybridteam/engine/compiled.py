@@ -107,6 +107,15 @@ class CTransition:
     conflicts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     after_slot: int = -1
     internal: bool = False  # no target: actions only, nothing exited or entered
+    origin: tuple = ()  # document path of the declaration (copies of one body share it)
+    # between two protocol states of one role (Lead -> Offering): the role body's
+    # configuration carries over. ``carry`` pairs each OR mode of the source's body with its
+    # copy in the target's; ``carry_map[m]`` is the copy of mode m (-1 elsewhere, and at
+    # index -1, so an unset history maps to unset); ``carry_timers`` holds (mode of the
+    # copy, after-slot in the source, after-slot in the copy), so running delays go on.
+    carry: list[tuple[int, int]] = field(default_factory=list)
+    carry_map: np.ndarray | None = None
+    carry_timers: list[tuple[int, int, int]] = field(default_factory=list)
 
 
 @dataclass

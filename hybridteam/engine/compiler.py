@@ -249,6 +249,8 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         if ct.after is not None:
             ct.after_slot = after_slot
             after_slot += 1
+    for ct in transitions:
+        _role_carry(ct, modes, transitions)
     if col.errors:
         raise ModelErrors(col.errors)
 
@@ -280,6 +282,45 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         if col.errors:
             raise ModelErrors(col.errors)
     return ca
+
+
+def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransition]) -> None:
+    """Fill ``ct.carry`` when it switches between two protocol states of one role.
+
+    A protocol gives each of its states that plays a role a copy of the robot's role body
+    (``Lead`` and ``Offering`` both lead). Which copy is active is bookkeeping of the
+    handshake; what the robot does is the body. So a transition from one such state straight
+    into another (a resignation: Lead -> Offering) resumes the body where it was, as a deep
+    history would, instead of restarting the plan; its ``after:`` delays go on running
+    (a plan's phase ends when it would have), while ``t_in_mode`` counts from the switch,
+    when the copies' modes are entered.
+    """
+    if ct.internal or len(ct.entry_path) != 1:
+        return
+    s, t = modes[ct.exit_root], modes[ct.entry_path[0]]
+    if s.role is None or s.role != t.role or s.parent != t.parent or not s.children:
+        return
+    mapping = np.full(len(modes) + 1, -1, np.intp)
+
+    def pair(a: int, b: int) -> None:
+        mapping[a] = b
+        if modes[a].kind == "or":
+            ct.carry.append((a, b))
+        names = {modes[c].name: c for c in modes[b].children}
+        for c in modes[a].children:
+            if modes[c].name in names:
+                pair(c, names[modes[c].name])
+
+    pair(s.index, t.index)
+    ct.carry_map = mapping
+    for a in np.flatnonzero(mapping[:-1] >= 0).tolist():
+        b = int(mapping[a])
+        timed = {transitions[j].origin: transitions[j].after_slot
+                 for j in modes[b].outgoing if transitions[j].after is not None}
+        ct.carry_timers += [(b, transitions[j].after_slot, timed[transitions[j].origin])
+                            for j in modes[a].outgoing
+                            if transitions[j].after is not None
+                            and transitions[j].origin in timed]
 
 
 def _group_triggered(transitions: list[CTransition]) -> dict[str, list[int]]:
@@ -388,7 +429,7 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
         depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
-        guard_text=str(tr.guard or ""), internal=internal,
+        guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
     )
 
 

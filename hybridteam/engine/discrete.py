@@ -148,7 +148,12 @@ def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
         else:
             _send(sim, ag, act, sub, ctx, msg)
     if not tr.internal:
-        st.enter_path(tr.entry_path, sub, sim.t)
+        for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
+            st.last[sub, b] = tr.carry_map[st.last[sub, a]]  # type: ignore[index]
+        st.enter_path(tr.entry_path, sub, sim.t, deep=bool(tr.carry))
+        for b, slot_a, slot_b in tr.carry_timers:
+            on = sub[st.active[sub, b]]
+            st.deadline[on, slot_b] = st.deadline[on, slot_a]
     sim.rec.transition(ag.index, j, sub, sim.t[sub], sim.micro[sub], cause)
     sim.last_fired[sub] = ag.index * 1_000_000 + j
     _zeno_window(sim, ag, st, sub)

@@ -108,8 +108,10 @@ class AgentState:
                     self.activate(c, sub, t)
                     self.enter_default(c, sub, t, deeper)
 
-    def enter_path(self, path: list[int], idx: np.ndarray, t: np.ndarray) -> None:
-        """Enter along ``path`` (outermost first) to its last mode, then complete its entry.
+    def enter_path(self, path: list[int], idx: np.ndarray, t: np.ndarray,
+                   deep: bool = False) -> None:
+        """Enter along ``path`` (outermost first) to its last mode, then complete its entry
+        (by deep history when ``deep``).
 
         Parallel modes crossed on the way enter their other regions by default.
         """
@@ -121,7 +123,7 @@ class AgentState:
                     if r != path[k + 1]:
                         self.activate(r, idx, t)
                         self.enter_default(r, idx, t)
-        self.enter_default(path[-1], idx, t)
+        self.enter_default(path[-1], idx, t, deep)
 
     def update_drivers(self, idx: np.ndarray) -> None:
         """After a configuration change: which driver (law/flow) is in charge — the deepest
