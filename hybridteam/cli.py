@@ -56,6 +56,10 @@ def _parser() -> argparse.ArgumentParser:
                    help="dot, mermaid, plantuml, svg or png (default: from -o, else dot)")
     d.add_argument("-o", "--output", default=None, metavar="FILE",
                    help="output file (default: text to standard output)")
+    d.add_argument("--detail", choices=("roles", "full"), default="roles",
+                   help="roles: a protocol's states summarised by the roles they play (Lead, "
+                        "Follow), as a paper draws them; full: every protocol state, "
+                        "transition and message (default: roles)")
 
     tl = sub.add_parser("timeline", help="draw the mode timeline of a run")
     tl.add_argument("trace", metavar="trace.json")
@@ -66,6 +70,8 @@ def _parser() -> argparse.ArgumentParser:
                     help=".png or .svg (default timeline.png)")
     tl.add_argument("--data", default=None, metavar="FILE",
                     help="also write the drawn data as .csv or .json")
+    tl.add_argument("--agents", default=None, metavar="A,B",
+                    help="lanes of these agents only, in team order (default: all)")
 
     pl = sub.add_parser("plot", help="draw the trajectories of a run")
     pl.add_argument("trace", metavar="trace.json")

@@ -63,7 +63,12 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     team = load_team_or_report(args.model)
     if team is None:
         return EXIT_USAGE
-    out = render(diagram_graph(team), fmt)
+    graph = diagram_graph(team)
+    if args.detail == "roles":
+        from hybridteam.export.roles import roles_view
+
+        graph = roles_view(graph)
+    out = render(graph, fmt)
     if args.output:
         write_atomic(Path(args.output), out)
     else:
@@ -72,7 +77,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
 
 
 def cmd_timeline(args: argparse.Namespace) -> int:
-    from hybridteam.export.timeline import write_timeline
+    from hybridteam.export.timeline import select_agents, write_timeline
 
     _suffix(args.output, IMAGE, "timeline")
     if args.data:
@@ -80,8 +85,16 @@ def cmd_timeline(args: argparse.Namespace) -> int:
     if args.window and not args.window[0] < args.window[1]:
         raise UsageError(f"--window {args.window[0]:g} {args.window[1]:g}: T0 must be < T1")
     trace = _load_trace(args.trace, args.instance)
+    agents = [a.strip() for a in args.agents.split(",") if a.strip()] if args.agents else None
+    if args.agents is not None and not agents:
+        raise UsageError("--agents: name at least one agent")
+    try:
+        select_agents(trace, agents)
+    except ValueError as exc:
+        raise UsageError(f"--agents: {exc}") from None
     write_timeline(trace, args.output, instance=args.instance,
-                   window=tuple(args.window) if args.window else None, data_path=args.data)
+                   window=tuple(args.window) if args.window else None, data_path=args.data,
+                   agents=agents)
     print(f"wrote {args.output}" + (f" and {args.data}" if args.data else ""))
     return EXIT_OK
 
@@ -133,15 +146,20 @@ def write_run_views(team, run, out: Path) -> list[str]:
     """The views ``hybridteam run`` writes beside the trace (instance 0 of an ensemble)."""
     from hybridteam.export.diagram import diagram_graph
     from hybridteam.export.render import render
+    from hybridteam.export.roles import role_hosts, roles_view
     from hybridteam.export.sequence import sequence_chart
     from hybridteam.export.timeline import write_timeline
     from hybridteam.export.trajectories import write_trajectories
 
-    graph = diagram_graph(team)
+    full = diagram_graph(team)
+    graph = roles_view(full)
     written = []
     for name, fmt in (("modes.dot", "dot"), ("modes.mmd", "mermaid"), ("modes.svg", "svg")):
         write_atomic(out / name, render(graph, fmt))
         written.append(name)
+    if role_hosts(full):  # the protocol's own states too, for whoever debugs a handshake
+        write_atomic(out / "modes-full.svg", render(full, "svg"))
+        written.append("modes-full.svg")
     trace = run.instance(0) if run.n > 1 else run
     for name in ("timeline.png", "timeline.svg"):
         write_timeline(trace, out / name)

@@ -59,6 +59,8 @@ CORPUS = {
     "no_initial_among_children.yaml": (4, "agents.thermostat.initial", "no 'initial'"),
     "law_and_flow_together.yaml": (16, "modes.Cool", "declares both"),
     "period_without_inputs.yaml": (16, "modes.Cool", "'period' samples 'inputs'"),
+    "message_declared_twice.yaml": (4, "messages.request",
+                                    "already declared by protocol 'role_assignment'"),
 }
 
 

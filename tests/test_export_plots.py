@@ -182,3 +182,17 @@ def test_frames_are_capped_and_mp4_needs_ffmpeg(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="unsupported animation format"):
         write_animation(run, tmp_path / "run.avi")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_robot_standing_still_is_drawn_once():
+    """Footprints every 1 s of a robot that waits 5 s, drives 0.1 m/s, then turns on the
+    spot: the waiting poses collapse into one; moves over 0.05 m and turns over 15 degrees
+    are kept (poses at 0, then 6, 7, 8, 9, 10 s of driving; the turn at 11, 12 s)."""
+    from hybridteam.export.trajectories import moved
+
+    t = np.arange(13.0)
+    x = np.where(t <= 5, 0.0, 0.1 * (np.minimum(t, 10) - 5))
+    th = np.where(t <= 10, 0.0, np.radians(20.0) * (t - 10))
+    p = np.c_[x, np.zeros_like(t), th]
+    assert moved(p, np.arange(13), 0.05).tolist() == [0, 6, 7, 8, 9, 10, 11, 12]
+    assert moved(p, np.arange(13), 0.15).tolist() == [0, 7, 9, 11, 12]

@@ -12,6 +12,7 @@ import pytest
 from matplotlib.image import imread
 
 import hybridteam as ht
+from hybridteam.cli import main
 from hybridteam.export.style import mode_colors
 from hybridteam.export.timeline import timeline_data, timeline_figure, write_timeline
 from tests.conftest import EXAMPLES
@@ -213,7 +214,24 @@ def test_a_lost_message_is_a_red_x_at_its_send_time(tmp_path):
     assert arrows == [{"y_send": anchor_y, "y_recv": data.arrows[0].y_recv,
                        "t_send": msgs["t_send"][1], "t_recv": None, "type": "done",
                        "latency": None, "lost": True, "sender": "anchor",
-                       "receiver": "runner"}]
+                       "receiver": "runner", "socket": "control"}]
+
+
+def test_agents_picks_lanes_and_keeps_the_team_colours(tmp_path, capsys):
+    run = relay_with_latencies()
+    whole = timeline_data(run)
+    only = timeline_data(run, window=(4.0, 9.0), agents=["anchor"])
+    assert [lane.agent for lane in only.lanes] == ["anchor"]
+    assert only.arrows == []  # the other end of every message is not drawn
+    colour = {b.mode: b.color for b in whole.bars}
+    assert all(colour[b.mode] == b.color for b in only.bars)
+    with pytest.raises(ValueError, match="did you mean 'anchor'"):
+        timeline_data(run, agents=["anchr"])
+    path = tmp_path / "trace.json"
+    run.to_json(path)
+    assert main(["timeline", str(path), "--agents", "anchr", "-o", str(tmp_path / "t.png")]) == 2
+    assert "--agents: no agent 'anchr'" in capsys.readouterr().err
+    assert not (tmp_path / "t.png").exists()
 
 
 def test_window_keeps_only_what_overlaps_it():

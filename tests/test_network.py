@@ -209,3 +209,47 @@ def test_reply_needs_a_triggering_message(team_from_yaml):
         "{send: request, to: leader,", "{send: request, to: sender,")
     with pytest.raises(InputErrors, match="'to: sender' replies to the sender"):
         team_from_yaml(bad)
+
+
+PING = """
+team: ping
+messages:
+  ping: {ack: {timeout: 0.1, retries: 2}}
+network:
+  latency: 0.02
+  links:
+    a -> b: {latency: 0.02, loss: {loss}}
+agents:
+  a:
+    plant: {kind: flow, state: {x: 0}}
+    initial: Send
+    modes:
+      Send: {transitions: [{to: Wait, after: 1.0, do: [{send: ping, to: b}]}]}
+      Wait: {transitions: [{to: Failed, on: ping_undeliverable}]}
+      Failed: {final: true}
+  b:
+    plant: {kind: flow, state: {x: 0}}
+    initial: Listen
+    modes:
+      Listen: {transitions: [{to: Heard, on: ping}]}
+      Heard: {final: true}
+simulation: {duration: 2.0}
+"""
+
+
+def test_a_team_declares_its_own_acknowledged_message(team_from_yaml):
+    """A team's own ``messages:`` work like a protocol's: a dead link gives up after the
+    first send and 2 resends, each waited for 0.1 s (1.0 + 3 * 0.1); a live one is heard
+    once, and acknowledged."""
+    run = ht.simulate(team_from_yaml(PING.replace("{loss}", "1.0")))
+    tr = run.transitions.where(agent="a")
+    (failed,) = [t for t, g in zip(tr["t"], tr["target"], strict=True) if g == "Failed"]
+    assert failed == pytest.approx(1.3)
+    m = run.messages
+    pings = np.asarray(m["type"]) == "ping"
+    np.testing.assert_allclose(np.asarray(m["t_send"])[pings], [1.0, 1.1, 1.2])
+    run = ht.simulate(team_from_yaml(PING.replace("{loss}", "0.0")))
+    tr = run.transitions.where(agent="b")
+    assert [(t, g) for t, g in zip(tr["t"], tr["target"], strict=True)][-1] == (
+        pytest.approx(1.02), "Heard")
+    assert sorted(run.messages["type"].tolist()) == ["ack", "ping"]

@@ -8,6 +8,10 @@ completion time is when the Labmate's plan stops. All levels and repetitions are
 ensemble of the engine (instances differ in ``p_loss`` and seed only).
 
     python examples/transport/loss_sweep.py [--runs 20] [--levels 0 0.1 0.2 0.3 0.4 0.5]
+                                            [--retries N]
+
+``--retries`` sets both robots' ``ack_retries`` (the role-assignment protocol's resends
+before a control message is reported undeliverable, default 3).
 """
 
 from __future__ import annotations
@@ -34,20 +38,35 @@ def completed(run, i: int) -> tuple[bool, float]:
     return took_back and bool(stop), stop[0] if stop else float("nan")
 
 
+def operator_took_over(run, i: int) -> bool:
+    """Whether a robot gave up on an unacknowledged control message and the operator took
+    command (the protocol's deadlock handling: a safe stop, not a success)."""
+    tr = run.instance(i).transitions
+    return bool(np.any((np.asarray(tr["agent"]) == "operator")
+                       & (np.asarray(tr["target"]) == "Command")))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=20, help="repetitions per loss level")
     ap.add_argument("--levels", type=float, nargs="+", default=[0, 0.1, 0.2, 0.3, 0.4, 0.5])
+    ap.add_argument("--retries", type=int, default=None,
+                    help="the robots' ack_retries (default: the protocol's 3)")
     args = ap.parse_args()
     team = load(TEAM)
     loss = np.repeat(args.levels, args.runs)
     seeds = list(range(len(loss)))
+    overrides: dict = {"p_loss": loss}
+    if args.retries is not None:
+        overrides |= {f"{robot}.ack_retries": args.retries for robot in ("xr4000", "labmate")}
     start = time.perf_counter()
-    run = simulate(team, seed=seeds, n=len(loss), overrides={"p_loss": loss})
+    run = simulate(team, seed=seeds, n=len(loss), overrides=overrides)
     wall = time.perf_counter() - start
-    print(f"{len(loss)} runs of {TEAM.name} in one ensemble: {wall:.1f} s wall\n")
-    print("| message loss | runs | ok | success | mean completion time (s) | outcomes |")
-    print("|---:|---:|---:|---:|---:|---|")
+    retries = "" if args.retries is None else f", ack_retries {args.retries}"
+    print(f"{len(loss)} runs of {TEAM.name}{retries} in one ensemble: {wall:.1f} s wall\n")
+    print("| message loss | runs | ok | success | mean completion time (s) | outcomes | "
+          "operator took over |")
+    print("|---:|---:|---:|---:|---:|---|---:|")
     for p in args.levels:
         idx = np.flatnonzero(loss == p)
         done = [completed(run, int(i)) for i in idx]
@@ -57,8 +76,9 @@ def main() -> None:
         times = [d[1] for s, d in zip(success, done, strict=True) if s]
         counts = {o: outcomes.count(o) for o in sorted(set(outcomes))}
         mean = f"{np.mean(times):.2f}" if times else "—"
+        operated = sum(operator_took_over(run, int(i)) for i in idx)
         print(f"| {p:.0%} | {len(idx)} | {sum(ok)} | {sum(success) / len(idx):.0%} | {mean} "
-              f"| {', '.join(f'{k} {v}' for k, v in counts.items())} |")
+              f"| {', '.join(f'{k} {v}' for k, v in counts.items())} | {operated} |")
 
 
 if __name__ == "__main__":

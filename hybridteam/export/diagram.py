@@ -13,13 +13,20 @@ Node ids are ``agent`` for agents and ``agent/Dotted.Path`` for modes; edges car
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import networkx as nx
 
 from hybridteam.engine.compiled import CAgent
 from hybridteam.engine.compiler import compile_team
 from hybridteam.export.style import team_mode_colors
+from hybridteam.io.protocols import InFile
 from hybridteam.model import Assign, Mode, Raise, Send, Team, Transition
+
+
+def protocol_of(where: tuple) -> str:
+    """Name of the protocol file a declaration comes from ("" for the team's own)."""
+    return Path(where[0]).stem if where and isinstance(where[0], InFile) else ""
 
 
 def mode_id(agent: str, path: str) -> str:
@@ -116,7 +123,8 @@ def _add_modes(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode],
             node, kind="mode", agent=agent.name, path=cm.path, name=cm.name, depth=cm.depth,
             mode_kind=cm.kind, region=parent.kind == "and", initial=parent.initial == cm.index,
             final=cm.final, history=cm.history, dynamics=dynamics_text(declared[cm.index]),
-            invariant=cm.invariant_text, color=colors[cm.path],
+            invariant=cm.invariant_text, color=colors[cm.path], role=cm.role or "",
+            protocol=protocol_of(declared[cm.index].where),
         )
         _link(graph, mode_id(agent.name, parent.path), node, kind="contains")
 
@@ -135,7 +143,7 @@ def _add_transitions(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode]
                 kind="transition", agent=agent.name, trigger=tr.on or "",
                 after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
                 actions=[action_text(a) for a in tr.actions], priority=tr.priority,
-                label=transition_label(tr), index=k,
+                label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
             )
             k += 1
 
@@ -165,7 +173,8 @@ def _add_messages(graph: nx.MultiDiGraph, team: Team, agents: list[CAgent]) -> N
                             continue
                         seen.add((source, node, act.message))
                         _link(graph, source, node, kind="message", message=act.message,
-                              socket=act.socket, label=act.message)
+                              socket=act.socket, label=act.message,
+                              protocol=protocol_of(tr.where))
 
 
 def diagram_graph(team: Team) -> nx.MultiDiGraph:
@@ -176,7 +185,8 @@ def diagram_graph(team: Team) -> nx.MultiDiGraph:
     """
     cteam = compile_team(team)
     graph = nx.MultiDiGraph(name=team.name)
-    colors = team_mode_colors([(m.path, m.final) for m in a.modes[1:]] for a in cteam.agents)
+    colors = team_mode_colors([(m.path, m.final, m.role) for m in a.modes[1:]]
+                              for a in cteam.agents)
     for agent, spec in zip(cteam.agents, team.agents, strict=True):
         root = agent.modes[0]
         graph.add_node(agent.name, kind="agent", label=agent.name, plant=agent.plant.kind,

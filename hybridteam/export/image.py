@@ -65,6 +65,8 @@ class Box:
     y: float = 0.0
     loop: float = 0.0  # room kept on the right for self-loops and their labels
     rows: list[list[Box]] = field(default_factory=list)
+    gaps: list[float] = field(default_factory=list)  # below each row: room for edge labels
+    row_gaps: list[float] = field(default_factory=list)  # between the boxes of each row
     lines: list[str] = field(default_factory=list)
 
 
@@ -114,17 +116,38 @@ class Layout:
             inner_h = max(k.h for k in kids)
         else:
             box.rows = self.layers(node, kids)
-            inner_w = max(sum(k.w + k.loop for k in row) + GAP_X * (len(row) - 1)
-                          for row in box.rows)
+            box.gaps, box.row_gaps = self.label_room(node, box.rows)
+            inner_w = max(sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
+                          for row, gap in zip(box.rows, box.row_gaps, strict=True))
             labels = [line for text in self.sibling_labels(node) for line in _wrap(text, 24)]
             widest = max(k.w for k in kids)
             inner_w = max(inner_w, widest + 2 * (_text_width(labels, SMALL_PT) + 6))
-            inner_h = sum(max(k.h for k in row) for row in box.rows)
-            inner_h += GAP_Y * (len(box.rows) - 1)
+            inner_h = sum(max(k.h for k in row) for row in box.rows) + sum(box.gaps[:-1])
         title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
         box.w = max(inner_w + 2 * PAD + 14.0, title_w)  # 14: room for the initial dot
         box.h = inner_h + TITLE + 2 * PAD
         return box
+
+    def label_room(self, node: str, rows: list[list[Box]]) -> tuple[list[float], list[float]]:
+        """Room for the labels of edges between children of ``node``: below each row, the
+        tallest label of an edge to the next row (labels sit half-way along an edge); within
+        a row, the widest label of an edge between two of its boxes."""
+        row_of = {k.node: i for i, row in enumerate(rows) for k in row}
+        tall = [0] * len(rows)
+        wide = [0.0] * len(rows)
+        for u, v, d in self.transitions:
+            a = next((n for n in self.up[u] if n in row_of), None)
+            b = next((n for n in self.up[v] if n in row_of), None)
+            if a is None or b is None or a == b:
+                continue
+            lines = _wrap(d["label"], 24)
+            ra, rb = sorted((row_of[a], row_of[b]))
+            if ra == rb:
+                wide[ra] = max(wide[ra], _text_width(lines, SMALL_PT) + 12.0)
+            elif rb == ra + 1:
+                tall[ra] = max(tall[ra], len(lines))
+        gaps = [max(GAP_Y, n * SMALL_PT * 1.25 + 16.0) for n in tall]
+        return gaps, [max(GAP_X, w) for w in wide]
 
     def sibling_labels(self, node: str) -> list[str]:
         """Labels of transitions between different children of ``node`` (drawn inside it)."""
@@ -171,15 +194,15 @@ class Layout:
         if not box.rows:
             return
         and_mode = self.graph.nodes[box.node].get("mode_kind") == "and"
-        gap = PAD if and_mode else GAP_X
         cy = y + TITLE + PAD
-        for row in box.rows:
+        for i, row in enumerate(box.rows):
+            gap = PAD if and_mode else box.row_gaps[i]
             row_w = sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
             cx = x + 14.0 + PAD + (box.w - 14.0 - 2 * PAD - row_w) / 2
             for k in row:
                 self.place(k, cx, cy + (0 if and_mode else (max(r.h for r in row) - k.h) / 2))
                 cx += k.w + k.loop + gap
-            cy += max(k.h for k in row) + GAP_Y
+            cy += max(k.h for k in row) + (GAP_Y if and_mode else box.gaps[i])
 
 
 # ------------------------------------------------------------------ drawing

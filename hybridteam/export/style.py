@@ -8,12 +8,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-# Okabe–Ito (colour-blind safe) then Tableau 10, without near-duplicates
+# Okabe–Ito (colour-blind safe), then Tableau 10 and a few of ColorBrewer's Dark2 and
+# Tableau's, without near-duplicates: 24 colours before a colour is used twice
 PALETTE = (
     "#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442",
     "#4E79A7", "#F28E2B", "#59A14F", "#B07AA1", "#9C755F", "#76B7B2", "#EDC948",
-    "#BAB0AC", "#FF9DA7",
+    "#BAB0AC", "#FF9DA7", "#7570B3", "#E7298A", "#66A61E", "#A6761D", "#17BECF",
+    "#BCBD22", "#1F3A93", "#8B0000",
 )
+COPY_TINTS = (0.45, 0.7)  # how much white a protocol state's copy of a role body mixes in
 FINAL = "#7F7F7F"
 FONT = "DejaVu Sans"
 
@@ -37,21 +40,58 @@ def mode_colors(paths: Iterable[str], finals: Iterable[str] = ()) -> dict[str, s
     return out
 
 
-def team_mode_colors(agents: Iterable[Iterable[tuple[str, bool]]]) -> dict[str, str]:
-    """One colour per mode path across a whole team, given each agent's (path, final) pairs.
+def team_mode_colors(agents: Iterable[Iterable[tuple]]) -> dict[str, str]:
+    """One colour per mode path across a whole team, given each agent's ``(path, final)`` or
+    ``(path, final, role)`` entries.
 
     The same path in two agents (both robots' ``Transport.Lead``) gets the same colour, so a
-    reader compares roles at a glance; different modes never share a colour, so a legend
-    entry is unambiguous.
+    reader compares roles at a glance. A protocol copies a role body into several of its
+    states (``Offering`` leads like ``Lead``; ``Requesting`` follows like ``Follow``): the
+    first state of each role gets palette colours, the others and their submodes a tint of
+    them (``Offering.Curve`` a pale ``Lead.Curve``), since the robot is doing the same thing
+    while the handshake goes on. Otherwise different modes share a colour only when a team
+    has more modes than the palette has colours.
     """
     paths: list[str] = []
     finals: list[str] = []
+    roles: dict[str, str] = {}
     for modes in agents:
-        for path, final in modes:
-            paths.append(path)
+        for path, final, *role in modes:
+            if path not in roles:
+                paths.append(path)
+                roles[path] = role[0] if role and role[0] else ""
             if final:
                 finals.append(path)
-    return mode_colors(paths, finals)
+    copy_of: dict[str, tuple[str, int]] = {}  # role state -> (its role's first state, k)
+    first: dict[tuple[str, str], str] = {}
+    count: dict[tuple[str, str], int] = {}
+    for path in paths:
+        if roles[path]:
+            key = (path.rpartition(".")[0], roles[path])
+            if key in first:
+                count[key] = count.get(key, 0) + 1
+                copy_of[path] = (first[key], count[key])
+            else:
+                first[key] = path
+    counterpart: dict[str, tuple[str, int]] = {}  # a copy's mode -> (the original, k)
+    for path in paths:
+        for state, (original, k) in copy_of.items():
+            if path == state or path.startswith(state + "."):
+                counterpart[path] = (original + path[len(state):], k)
+    out = mode_colors([p for p in paths if p not in counterpart], finals)
+    for path in paths:
+        if path in counterpart:
+            original, k = counterpart[path]
+            base = out.get(original)
+            out[path] = (tint(base, COPY_TINTS[min(k, len(COPY_TINTS)) - 1]) if base else
+                         PALETTE[len(out) % len(PALETTE)])
+    return out
+
+
+def tint(color: str, white: float) -> str:
+    """``color`` (#rrggbb) mixed with a fraction ``white`` of white."""
+    rgb = (int(color[i : i + 2], 16) for i in (1, 3, 5))
+    return "#" + "".join(f"{round(c + (255 - c) * white):02X}" for c in rgb)
 
 
 def text_color(background: str) -> str:

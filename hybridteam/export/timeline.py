@@ -29,6 +29,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from hybridteam.errors import did_you_mean
 from hybridteam.export.style import FONT, team_mode_colors, text_color
 from hybridteam.trace import Table, Trace, write_atomic
 
@@ -79,6 +80,7 @@ class Arrow:
     lost: bool
     sender: str = ""
     receiver: str = ""
+    socket: str = "control"
 
 
 @dataclass
@@ -91,7 +93,8 @@ class TimelineData:
     arrows: list[Arrow]
     span: tuple[float, float] = (0.0, 1.0)  # x limits
     window: tuple[float, float] | None = None
-    lost: int = 0  # lost messages of the instance (summarised when there is no window)
+    lost: int = 0  # lost control messages of the instance (summarised without a window)
+    dropped: int = 0  # lost data copies (a stream's; counted, marked only in a close-up)
     legend: dict[str, str] = field(default_factory=dict)  # label -> colour
 
     def to_json_dict(self) -> dict[str, Any]:
@@ -145,8 +148,24 @@ def drawn(kind: str | None) -> bool:
 
 def team_colors(agents: list[dict[str, Any]]) -> dict[str, str]:
     """Mode colours of a trace's team (see :func:`style.team_mode_colors`)."""
-    return team_mode_colors([(m["path"], m["final"]) for m in meta.get("modes", [])]
+    return team_mode_colors([(m["path"], m["final"], m.get("role", ""))
+                             for m in meta.get("modes", [])]
                             for meta in agents)
+
+
+def select_agents(trace: Trace, names: list[str] | None) -> list[dict[str, Any]]:
+    """The meta of the agents called ``names`` (all when None), in team order; an unknown
+    name is a ValueError that suggests the closest."""
+    every = trace.meta["agents"]
+    if names is None:
+        return every
+    known = [a["name"] for a in every]
+    for name in names:
+        if name not in known:
+            hint = did_you_mean(name, known)
+            raise ValueError(f"no agent '{name}' in this trace (agents: {', '.join(known)})"
+                             + (f"; {hint}" if hint else ""))
+    return [a for a in every if a["name"] in names]
 
 
 def end_time(trace: Trace, instance: int) -> float:
@@ -168,11 +187,14 @@ def common_ancestor(a: str, b: str) -> str:
 
 # ---------------------------------------------------------------------- data
 def timeline_data(trace: Trace, instance: int = 0,
-                  window: tuple[float, float] | None = None) -> TimelineData:
-    """What the timeline of ``instance`` shows, optionally restricted to ``window``."""
+                  window: tuple[float, float] | None = None,
+                  agents: list[str] | None = None) -> TimelineData:
+    """What the timeline of ``instance`` shows, optionally restricted to ``window`` and to
+    some ``agents`` (in team order; colours stay those of the whole team)."""
     lanes: list[Lane] = []
     index: dict[tuple[str, str, bool], int] = {}
-    agents = trace.meta["agents"]
+    colors = team_colors(trace.meta["agents"])
+    agents = select_agents(trace, agents)
     cursor = 0.0
     for meta in agents:
         modes = meta.get("modes", [])
@@ -195,7 +217,6 @@ def timeline_data(trace: Trace, instance: int = 0,
     marks: list[Mark] = []
     legend: dict[str, str] = {}
     used: set[tuple[str, str]] = set()
-    colors = team_colors(agents)
     for meta in agents:
         name = meta["name"]
         kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
@@ -227,7 +248,9 @@ def timeline_data(trace: Trace, instance: int = 0,
     msgs = pick(trace.messages, instance)
     if len(msgs):  # copies still in flight when the run ended were not lost by the network
         msgs = msgs.filter(msgs["reason"] != "run ended")
-    lost = int(np.sum(msgs["status"] == "lost")) if len(msgs) else 0
+    gone = (msgs["status"] == "lost") if len(msgs) else np.zeros(0, bool)
+    on_data = (msgs["socket"].astype(str) == "data") if len(msgs) else np.zeros(0, bool)
+    lost, dropped = int(np.sum(gone & ~on_data)), int(np.sum(gone & on_data))
     ys = {lane.agent: lane.y for lane in lanes if not lane.top and not lane.region}
     for m in msgs:
         if m.sender not in ys or m.receiver not in ys:
@@ -235,12 +258,16 @@ def timeline_data(trace: Trace, instance: int = 0,
         is_lost = m.status == "lost"
         t_recv = math.nan if is_lost or m.t_recv is None else float(m.t_recv)
         inside = (window[0] <= m.t_send <= window[1] or window[0] <= t_recv <= window[1]
-                  ) if window is not None else is_lost  # no window: only the lost are marked
+                  ) if window is not None else is_lost and m.socket != "data"
+        # no window: only lost control messages are marked (a stream to a rate-limited
+        # receiver drops thousands of copies, which would hide the lanes)
         if inside:
             arrows.append(Arrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv, m.type,
-                                t_recv - m.t_send, is_lost, m.sender, m.receiver))
+                                t_recv - m.t_send, is_lost, m.sender, m.receiver,
+                                str(m.socket)))
     span = window if window is not None else (0.0, end_time(trace, instance))
-    return TimelineData(lanes, bars, marks, arrows, span, window, lost, legend)
+    return TimelineData(lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped,
+                        legend=legend)
 
 
 def latency_text(latency: float) -> str:
@@ -249,10 +276,10 @@ def latency_text(latency: float) -> str:
 
 
 # ---------------------------------------------------------------------- drawing
-def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float] | None = None
-                    ) -> tuple[Figure, TimelineData]:
+def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float] | None = None,
+                    agents: list[str] | None = None) -> tuple[Figure, TimelineData]:
     """The timeline as a matplotlib figure (Agg canvas) and the data it shows."""
-    data = timeline_data(trace, instance, window)
+    data = timeline_data(trace, instance, window, agents)
     extent = sum(lane.height + GAP for lane in data.lanes)
     with rc_context({"font.family": FONT}):
         fig = Figure(figsize=(11.0, 1.4 + 0.55 * extent), dpi=100)
@@ -301,20 +328,38 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
     ax.set_axisbelow(True)
     title = str(trace.meta.get("team", "")) + (f" — instance {instance}" if trace.n > 1 else "")
     ax.set_title(title + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else
-                          f" — {data.lost} message{'s' * (data.lost != 1)} lost (×)"
-                          if data.lost else ""))
+                          _loss_text(data)))
     handles = [Patch(facecolor=c, label=label) for label, c in data.legend.items()]
     if handles:
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
                   frameon=False, title="modes", ncol=1 + len(handles) // 30)
 
 
+def _loss_text(data: TimelineData) -> str:
+    """`` — 2 messages lost (×), 2500 data copies dropped`` (empty when nothing was)."""
+    parts = [f"{data.lost} message{'s' * (data.lost != 1)} lost (×)"] * bool(data.lost)
+    parts += [f"{data.dropped} data cop{'ies' if data.dropped != 1 else 'y'} dropped"
+              ] * bool(data.dropped)
+    return " — " + ", ".join(parts) if parts else ""
+
+
 def _draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
     """Arrows for all messages; a label only where it does not run into the previous one
-    at the same height (``char_width``: seconds per character of label text)."""
+    at the same height (``char_width``: seconds per character of label text).
+
+    Control messages are the story of a close-up (request, grant, their acks): black, and
+    messages sharing an arrow (a grant and the ack of the request it answers, sent at the
+    same instant) share one label, ``grant + ack +30 ms``. Periodic data (a pose stream on
+    the ``data`` socket) is drawn thin and light, unlabelled, so it shows without hiding them.
+    """
     lost: list[tuple[float, float]] = []
     free_from: dict[float, float] = {}  # label row (y) -> time where it is free again
+    shared: dict[tuple[float, float, float, float], list[str]] = {}
+    faint_lost: list[tuple[float, float]] = []
     for a in data.arrows:
+        if a.lost and a.socket == "data":
+            faint_lost.append((a.t_send, a.y_send))
+            continue
         if a.lost:
             lost.append((a.t_send, a.y_send))
             if data.window:
@@ -322,17 +367,31 @@ def _draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
                             textcoords="offset points", fontsize=7, color="#CC0000",
                             path_effects=HALO, gid="lost-label")
             continue
+        faint = a.socket == "data"
+        key = (a.t_send, a.t_recv, a.y_send, a.y_recv)
+        if not faint and key in shared:  # one arrow, one label for all it carries
+            if a.type not in shared[key]:
+                shared[key].append(a.type)
+            continue
         # an annotation keeps its end points as data (xyann -> xy), exactly send -> receipt
-        ax.annotate("", xy=(a.t_recv, a.y_recv), xytext=(a.t_send, a.y_send), zorder=4,
-                    gid="message", arrowprops={"arrowstyle": "-|>", "mutation_scale": 9,
-                                               "shrinkA": 0, "shrinkB": 0, "color": "#333333",
-                                               "linewidth": 0.9})
-        x, y = (a.t_send + a.t_recv) / 2, (a.y_send + a.y_recv) / 2
-        text = f"{a.type} {latency_text(a.latency)}"
+        ax.annotate("", xy=(a.t_recv, a.y_recv), xytext=(a.t_send, a.y_send),
+                    zorder=3 if faint else 4, gid="data-message" if faint else "message",
+                    arrowprops={"arrowstyle": "-|>", "mutation_scale": 6 if faint else 9,
+                                "shrinkA": 0, "shrinkB": 0,
+                                "color": "#BBBBBB" if faint else "#333333",
+                                "linewidth": 0.5 if faint else 0.9})
+        if not faint:
+            shared[key] = [a.type]
+    for (t_send, t_recv, y_send, y_recv), types in shared.items():
+        x, y = (t_send + t_recv) / 2, (y_send + y_recv) / 2
+        text = f"{' + '.join(types)} {latency_text(t_recv - t_send)}"
         if x >= free_from.get(y, -math.inf):
             free_from[y] = x + (len(text) + 1) * char_width
             ax.text(x, y, text, fontsize=7, ha="left", va="center", zorder=5, path_effects=HALO,
                     clip_on=True, gid="message-label")
+    if faint_lost:
+        ax.plot(*zip(*faint_lost, strict=True), linestyle="none", marker="x", color="#999999",
+                markersize=4, markeredgewidth=0.8, zorder=3, gid="data-lost")
     if lost:
         ax.plot(*zip(*lost, strict=True), linestyle="none", marker="X", color="#CC0000",
                 markersize=8, markeredgecolor="white", markeredgewidth=0.5, zorder=6, gid="lost")
@@ -361,11 +420,12 @@ def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
 
 def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
                    window: tuple[float, float] | None = None,
-                   data_path: str | os.PathLike | None = None) -> Path:
+                   data_path: str | os.PathLike | None = None,
+                   agents: list[str] | None = None) -> Path:
     """Write the timeline (.png/.svg) and, when ``data_path`` is given, its data (.csv/.json)."""
     figure_format(path)
     kind = None if data_path is None else figure_format(data_path, DATA_FORMATS)
-    fig, data = timeline_figure(trace, instance, window)
+    fig, data = timeline_figure(trace, instance, window, agents)
     try:
         save_figure(fig, path)
     finally:

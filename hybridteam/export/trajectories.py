@@ -259,12 +259,31 @@ def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.
     return corners @ np.array([[c, s], [-s, c]]) + [x, y]
 
 
+def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
+          ) -> np.ndarray:
+    """Of the poses at ``indices``, those where the body has moved by more than ``step`` or
+    turned by more than ``turn`` since the last one kept: a robot that waits 13 s while the
+    team docks is drawn once, not as a pile of identical footprints."""
+    keep: list[int] = []
+    for i in indices.tolist():
+        if keep:
+            last = p[keep[-1]]
+            dist = math.hypot(p[i, 0] - last[0], p[i, 1] - last[1])
+            dth = abs((p[i, 2] - last[2] + math.pi) % (2 * math.pi) - math.pi)
+            if not (dist > step or dth > turn):
+                continue
+        keep.append(i)
+    return np.array(keep, int)
+
+
 def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> None:
     shapes = trace.meta.get("payload_shapes", {}) or {}
     for k, name in enumerate(payload_names(trace)):
         p = pose(trace, name, instance)
         ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
         shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        size = [float(v) for k, v in shape.items() if k in ("width", "depth", "length")]
+        ok = moved(p, ok, 0.15 * min(size or [0.3]))
         polys = [payload_outline(shape, *p[i]) for i in ok]
         color = PALETTE[(k + 5) % len(PALETTE)]
         ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
@@ -290,9 +309,10 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         p, color = poses[a], PALETTE[k % len(PALETTE)]
         valid = ~np.isnan(p[:, 0])
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=1.4, label=a, zorder=4, gid=f"path:{a}")
+        radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
         idx = footprint_indices(times, valid, every)
         all_idx = np.union1d(all_idx, idx)
-        radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
+        idx = moved(p, idx, 0.25 * float(radius) if radius else 0.01 * extent)
         xy = p[idx, :2]
         heading = np.c_[np.cos(p[idx, 2]), np.sin(p[idx, 2])]
         if radius:

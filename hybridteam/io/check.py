@@ -14,6 +14,7 @@ import networkx as nx
 from hybridteam.engine.compiled import CAgent
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import ModelError
+from hybridteam.io.protocols import InFile
 from hybridteam.model import Team
 
 
@@ -73,6 +74,8 @@ def check_team(team: Team) -> list[ModelError]:
         if len(ca.modes) == 2:  # a single-mode agent: running forever is the point
             continue
         for i in dead_ends(ca):
+            if where[i] and isinstance(where[i][0], InFile):
+                continue  # a protocol's deliberate sink (Operated: the operator decides)
             warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' has no way out "
                                        "and is not marked 'final: true'", at_key=True))
-    return warnings
+    return list({(w.path, str(w)): w for w in warnings}.values())  # once per place

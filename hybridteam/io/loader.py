@@ -31,10 +31,12 @@ from hybridteam.io.schema import (
 )
 from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
 from hybridteam.model import (
+    AckPolicy,
     Agent,
     Assign,
     LawBinding,
     LinkSettings,
+    MessageSpec,
     Mode,
     NetworkSpec,
     PlantSpec,
@@ -196,9 +198,24 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     world = tuple(WorldSpec(w.use, dict(w.with_), ("world", k))
                   for k, w in enumerate(doc.world))
     team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
-                source=Path(filename).name, network=network, messages=comp.messages(),
-                world=world)
+                source=Path(filename).name, network=network,
+                messages=_messages(doc, comp), world=world)
     return team, comp
+
+
+def _messages(doc: TeamFile, comp: Composer) -> dict[str, MessageSpec]:
+    """The protocols' message types, then the team's own (a name may be declared once)."""
+    out = comp.messages()
+    for name, m in doc.messages.items():
+        where: DocPath = ("messages", name)
+        if name in out:
+            comp.errors.append(ModelError(where, f"message '{name}' is already declared by "
+                                          f"protocol '{out[name].protocol}'", at_key=True))
+            continue
+        ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries,
+                                                   (*where, "ack"))
+        out[name] = MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority, "", where)
+    return out
 
 
 def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,

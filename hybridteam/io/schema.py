@@ -294,6 +294,23 @@ class WorldSchema(Strict):
         description="settings: numbers or expressions of team parameters, or literals")
 
 
+class AckSchema(Strict):
+    """Acknowledged delivery: wait ``timeout`` s for an ack, resend at most ``retries``."""
+
+    timeout: ExprOrNumber = 0.1
+    retries: ExprOrNumber = 3
+
+
+class MessageDeclSchema(Strict):
+    """A message type of a protocol or of a team: its fields, socket, acknowledgement."""
+
+    description: str | None = None
+    socket: str = "control"
+    fields: list[str] = Field(default_factory=list)
+    ack: AckSchema | None = None
+    priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -307,6 +324,9 @@ class TeamFile(Strict):
     network: NetworkSchema = Field(default_factory=NetworkSchema)
     world: list[WorldSchema] = Field(
         default_factory=list, description="world components: payloads, corridors, sensors")
+    messages: dict[str, MessageDeclSchema] = Field(
+        default_factory=dict, description="the team's own message types (fields, ack:, "
+        "priority); a protocol's are declared in the protocol")
 
     @field_validator("agents")
     @classmethod
@@ -321,23 +341,6 @@ class TeamFile(Strict):
     def _param_names(cls, v: dict[str, Any]) -> dict[str, Any]:
         check_names(v, "parameter")
         return v
-
-
-class AckSchema(Strict):
-    """Acknowledged delivery: wait ``timeout`` s for an ack, resend at most ``retries``."""
-
-    timeout: ExprOrNumber = 0.1
-    retries: ExprOrNumber = 3
-
-
-class MessageDeclSchema(Strict):
-    """A message type of a protocol."""
-
-    description: str | None = None
-    socket: str = "control"
-    fields: list[str] = Field(default_factory=list)
-    ack: AckSchema | None = None
-    priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
 
 
 class StreamDeclSchema(Strict):

@@ -125,7 +125,7 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
     slack += size
     hit &= np.less_equal(sn, slack, out=test)                             # s <= 1
     hit &= np.logical_not(parallel, out=test)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # non-hits -> inf
         dist = np.divide(tn, size, out=tn)
     np.copyto(dist, np.inf, where=np.logical_not(hit, out=test))
     rows, cols = np.nonzero(parallel)
