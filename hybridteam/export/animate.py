@@ -21,8 +21,8 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from PIL import Image
 
-from hybridteam.export.style import FONT, PALETTE
-from hybridteam.export.timeline import HALO, agent_meta, end_time
+from hybridteam.export.style import FONT, HALO, PALETTE
+from hybridteam.export.timeline import agent_meta, end_time
 from hybridteam.export.trajectories import (
     draw_flow,
     draw_world,

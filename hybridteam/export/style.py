@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from matplotlib import patheffects
+
 # Okabe–Ito (colour-blind safe), then Tableau 10 and a few of ColorBrewer's Dark2 and
 # Tableau's, without near-duplicates: 24 colours before a colour is used twice
 PALETTE = (
@@ -18,6 +20,7 @@ PALETTE = (
 )
 COPY_TINTS = (0.45, 0.7)  # how much white a protocol state's copy of a role body mixes in
 FINAL = "#7F7F7F"
+HALO = [patheffects.withStroke(linewidth=2.5, foreground="white")]  # text over drawings
 FONT = "DejaVu Sans"
 
 

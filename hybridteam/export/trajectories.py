@@ -23,9 +23,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Polygon
 
-from hybridteam.export.style import FONT, PALETTE
+from hybridteam.export.style import FONT, HALO, PALETTE
 from hybridteam.export.timeline import (
-    HALO,
     agent_meta,
     drawn,
     end_time,

@@ -1,0 +1,83 @@
+"""Messages in a timeline: arrows from send to receipt time, their labels, lost copies.
+
+Kept apart from :mod:`.timeline` (lanes and bars) because the rules for what a close-up
+says about messages are their own: control messages are the story, data streams background,
+and messages that share an arrow share a label.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+from hybridteam.export.style import HALO
+
+if TYPE_CHECKING:
+    from hybridteam.export.timeline import TimelineData
+
+
+def latency_text(latency: float) -> str:
+    ms = latency * 1000.0
+    return f"+{ms:.0f} ms" if abs(ms) >= 1 or ms == 0 else f"+{ms:.2g} ms"
+
+
+def loss_text(data: TimelineData) -> str:
+    """`` — 2 messages lost (×), 2500 data copies dropped`` (empty when nothing was)."""
+    parts = [f"{data.lost} message{'s' * (data.lost != 1)} lost (×)"] * bool(data.lost)
+    parts += [f"{data.dropped} data cop{'ies' if data.dropped != 1 else 'y'} dropped"
+              ] * bool(data.dropped)
+    return " — " + ", ".join(parts) if parts else ""
+
+
+def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
+    """Arrows for all messages; a label only where it does not run into the previous one
+    at the same height (``char_width``: seconds per character of label text).
+
+    Control messages are the story of a close-up (request, grant, their acks): black, and
+    messages sharing an arrow (a grant and the ack of the request it answers, sent at the
+    same instant) share one label, ``grant + ack +30 ms``. Periodic data (a pose stream on
+    the ``data`` socket) is drawn thin and light, unlabelled, so it shows without hiding them.
+    """
+    lost: list[tuple[float, float]] = []
+    free_from: dict[float, float] = {}  # label row (y) -> time where it is free again
+    shared: dict[tuple[float, float, float, float], list[str]] = {}
+    faint_lost: list[tuple[float, float]] = []
+    for a in data.arrows:
+        if a.lost and a.socket == "data":
+            faint_lost.append((a.t_send, a.y_send))
+            continue
+        if a.lost:
+            lost.append((a.t_send, a.y_send))
+            if data.window:
+                ax.annotate(a.type, (a.t_send, a.y_send), xytext=(5, 6),
+                            textcoords="offset points", fontsize=7, color="#CC0000",
+                            path_effects=HALO, gid="lost-label")
+            continue
+        faint = a.socket == "data"
+        key = (a.t_send, a.t_recv, a.y_send, a.y_recv)
+        if not faint and key in shared:  # one arrow, one label for all it carries
+            if a.type not in shared[key]:
+                shared[key].append(a.type)
+            continue
+        # an annotation keeps its end points as data (xyann -> xy), exactly send -> receipt
+        ax.annotate("", xy=(a.t_recv, a.y_recv), xytext=(a.t_send, a.y_send),
+                    zorder=3 if faint else 4, gid="data-message" if faint else "message",
+                    arrowprops={"arrowstyle": "-|>", "mutation_scale": 6 if faint else 9,
+                                "shrinkA": 0, "shrinkB": 0,
+                                "color": "#BBBBBB" if faint else "#333333",
+                                "linewidth": 0.5 if faint else 0.9})
+        if not faint:
+            shared[key] = [a.type]
+    for (t_send, t_recv, y_send, y_recv), types in shared.items():
+        x, y = (t_send + t_recv) / 2, (y_send + y_recv) / 2
+        text = f"{' + '.join(types)} {latency_text(t_recv - t_send)}"
+        if x >= free_from.get(y, -math.inf):
+            free_from[y] = x + (len(text) + 1) * char_width
+            ax.text(x, y, text, fontsize=7, ha="left", va="center", zorder=5, path_effects=HALO,
+                    clip_on=True, gid="message-label")
+    if faint_lost:
+        ax.plot(*zip(*faint_lost, strict=True), linestyle="none", marker="x", color="#999999",
+                markersize=4, markeredgewidth=0.8, zorder=3, gid="data-lost")
+    if lost:
+        ax.plot(*zip(*lost, strict=True), linestyle="none", marker="X", color="#CC0000",
+                markersize=8, markeredgecolor="white", markeredgewidth=0.5, zorder=6, gid="lost")
