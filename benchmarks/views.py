@@ -79,7 +79,7 @@ def synthetic_trace(seed: int = 0) -> Trace:
             "socket": ["control"] * MESSAGES, "type": ["status"] * MESSAGES, "t_send": sent,
             "t_recv": np.where(lost, np.nan, sent + latency),
             "status": np.where(lost, "lost", "delivered"),
-            "reason": np.where(lost, "drop", "")}
+            "reason": np.where(lost, "drop", ""), "msg_id": np.full(MESSAGES, -1)}
     outcomes = [{"instance": 0, "outcome": "ok", "t": DURATION, "message": ""}]
     return Trace(meta, outcomes, Table(TRANSITION_COLUMNS, tr), Table(INTERVAL_COLUMNS, iv),
                  Table(MESSAGE_COLUMNS, msgs), times, samples)
