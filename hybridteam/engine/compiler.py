@@ -298,7 +298,7 @@ def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransiti
     if ct.internal or len(ct.entry_path) != 1:
         return
     s, t = modes[ct.exit_root], modes[ct.entry_path[0]]
-    if s.role is None or s.role != t.role or s.parent != t.parent or not s.children:
+    if s.role is None or s.role != t.role or not s.children:  # siblings: both under common
         return
     mapping = np.full(len(modes) + 1, -1, np.intp)
 

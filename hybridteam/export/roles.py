@@ -24,6 +24,7 @@ from __future__ import annotations
 import networkx as nx
 
 from hybridteam.export.diagram import agents, children, edges_of, parent, walk
+from hybridteam.export.style import role_copies
 
 
 def role_hosts(graph: nx.MultiDiGraph) -> list[str]:
@@ -53,16 +54,16 @@ def roles_view(graph: nx.MultiDiGraph) -> nx.MultiDiGraph:
     out = graph.copy()
     hidden: set[str] = set()
     summary: list[tuple[str, str, str]] = []  # (source, target, label) per pair of roles
-    for host in role_hosts(graph):
+    hosts = role_hosts(graph)
+    transitions = [(u, v, d) for u, v, d in edges_of(graph, "transition") if d["protocol"]]
+    for host in hosts:
         states = [c for c in children(graph, host) if graph.nodes[c].get("role")]
         role = {c: graph.nodes[c]["role"] for c in states}
-        primary: dict[str, str] = {}
-        for c in states:
-            primary.setdefault(role[c], c)
-        hide = {c for c in states if primary[role[c]] != c}
+        copies = role_copies(role.items())  # node ids share the host's prefix, as paths do
+        primary = {role[c]: c for c in states if c not in copies}
+        hide = set(copies)
         reached: dict[str, list[str]] = {}  # hidden state -> triggers from its primary
-        protocol_edges = [(u, v, d) for u, v, d in edges_of(graph, "transition")
-                          if u in role and v in role and d["protocol"]]
+        protocol_edges = [(u, v, d) for u, v, d in transitions if u in role and v in role]
         for u, v, d in protocol_edges:
             if u == primary[role[u]] and v in hide and role[v] == role[u]:
                 reached.setdefault(v, []).append(_trigger(d))
@@ -80,7 +81,7 @@ def roles_view(graph: nx.MultiDiGraph) -> nx.MultiDiGraph:
         modes = list(walk(graph, agent))
         if modes and all(graph.nodes[m].get("protocol") for m in modes):
             hidden |= {agent, *modes}
-    links = _protocol_links(graph, hidden)
+    links = _protocol_links(graph, set(hosts), hidden)
     out.remove_nodes_from(hidden)
     out.remove_edges_from([(u, v, k) for u, v, k, d in graph.edges(keys=True, data=True)
                            if d["kind"] in ("transition", "message") and d.get("protocol")
@@ -96,9 +97,9 @@ def roles_view(graph: nx.MultiDiGraph) -> nx.MultiDiGraph:
     return out
 
 
-def _protocol_links(graph: nx.MultiDiGraph, hidden: set[str]) -> list[tuple[str, str, str]]:
+def _protocol_links(graph: nx.MultiDiGraph, hosts: set[str], hidden: set[str]
+                    ) -> list[tuple[str, str, str]]:
     """One (host, host, protocol) link per pair of visible robots exchanging its messages."""
-    hosts = set(role_hosts(graph))
     seen: dict[frozenset, tuple[str, str, str]] = {}
     for u, v, d in edges_of(graph, "message"):
         if not d.get("protocol"):

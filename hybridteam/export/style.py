@@ -65,17 +65,7 @@ def team_mode_colors(agents: Iterable[Iterable[tuple]]) -> dict[str, str]:
                 roles[path] = role[0] if role and role[0] else ""
             if final:
                 finals.append(path)
-    copy_of: dict[str, tuple[str, int]] = {}  # role state -> (its role's first state, k)
-    first: dict[tuple[str, str], str] = {}
-    count: dict[tuple[str, str], int] = {}
-    for path in paths:
-        if roles[path]:
-            key = (path.rpartition(".")[0], roles[path])
-            if key in first:
-                count[key] = count.get(key, 0) + 1
-                copy_of[path] = (first[key], count[key])
-            else:
-                first[key] = path
+    copy_of = role_copies((p, roles[p]) for p in paths)
     counterpart: dict[str, tuple[str, int]] = {}  # a copy's mode -> (the original, k)
     for path in paths:
         for state, (original, k) in copy_of.items():
@@ -88,6 +78,27 @@ def team_mode_colors(agents: Iterable[Iterable[tuple]]) -> dict[str, str]:
             base = out.get(original)
             out[path] = (tint(base, COPY_TINTS[min(k, len(COPY_TINTS)) - 1]) if base else
                          PALETTE[len(out) % len(PALETTE)])
+    return out
+
+
+def role_copies(states: Iterable[tuple[str, str]]) -> dict[str, tuple[str, int]]:
+    """Of ``(path, role)`` pairs in declaration order (role "" for none): each protocol state
+    that is not the first of its role among its siblings -> (that first state, k), k = 1, 2,
+    ... in order. The first (``Lead``, ``Follow``) stands for the role; the others
+    (``Offering``, ``Requesting``, ``Accepting``) carry copies of its body. The diagram's
+    roles view and the mode colours both follow this rule."""
+    first: dict[tuple[str, str], str] = {}
+    count: dict[tuple[str, str], int] = {}
+    out: dict[str, tuple[str, int]] = {}
+    for path, role in states:
+        if not role:
+            continue
+        key = (path.rpartition(".")[0], role)
+        if key in first:
+            count[key] = count.get(key, 0) + 1
+            out[path] = (first[key], count[key])
+        else:
+            first[key] = path
     return out
 
 

@@ -281,7 +281,7 @@ def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> 
         p = pose(trace, name, instance)
         ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
         shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
-        size = [float(v) for k, v in shape.items() if k in ("width", "depth", "length")]
+        size = [float(v) for key, v in shape.items() if key in ("width", "depth", "length")]
         ok = moved(p, ok, 0.15 * min(size or [0.3]))
         polys = [payload_outline(shape, *p[i]) for i in ok]
         color = PALETTE[(k + 5) % len(PALETTE)]

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ValidationError
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import DocPath, ModelError, ModelErrors
 from hybridteam.io.errors import did_you_mean, located_errors
-from hybridteam.io.protocols import Composer, InFile, ProtocolErrors
+from hybridteam.io.protocols import Composer, InFile, ProtocolErrors, message_spec
 from hybridteam.io.schema import (
     FILE_KINDS,
     AgentSchema,
@@ -31,7 +31,6 @@ from hybridteam.io.schema import (
 )
 from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
 from hybridteam.model import (
-    AckPolicy,
     Agent,
     Assign,
     LawBinding,
@@ -212,9 +211,7 @@ def _messages(doc: TeamFile, comp: Composer) -> dict[str, MessageSpec]:
             comp.errors.append(ModelError(where, f"message '{name}' is already declared by "
                                           f"protocol '{out[name].protocol}'", at_key=True))
             continue
-        ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries,
-                                                   (*where, "ack"))
-        out[name] = MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority, "", where)
+        out[name] = message_spec(name, m, "", where)
     return out
 
 

@@ -23,7 +23,7 @@ from pydantic import ValidationError
 
 from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.io.errors import located_errors
-from hybridteam.io.schema import ProtocolFile
+from hybridteam.io.schema import MessageDeclSchema, ProtocolFile
 from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
 from hybridteam.model import AckPolicy, MessageSpec, Mode, StreamSpec
 
@@ -180,16 +180,20 @@ class Composer:
             tag = proto.tag
             for name, m in proto.doc.messages.items():
                 where: DocPath = (tag, "messages", name)
-                ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries,
-                                                           (*where, "ack"))
-                spec = MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority,
-                                   proto.doc.protocol, where)
+                spec = message_spec(name, m, proto.doc.protocol, where)
                 if name in out and out[name].protocol != spec.protocol:
                     self.errors.append(ModelError(where, f"message '{name}' is also declared "
                                                   f"by protocol '{out[name].protocol}'",
                                                   at_key=True))
                 out.setdefault(name, spec)
         return out
+
+
+def message_spec(name: str, m: MessageDeclSchema, protocol: str, where: DocPath
+                 ) -> MessageSpec:
+    """The model of a declared message type, a protocol's or (``protocol`` "") a team's."""
+    ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries, (*where, "ack"))
+    return MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority, protocol, where)
 
 
 def _defaults(extra: dict, parameters: dict, variables: dict) -> None:
