@@ -130,19 +130,23 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
     """Per-instance results of ``n`` runs (outcome, end time and the world's statistics),
     without keeping a trace: what a parameter study needs.
 
-    When the team's only world component offers a batch simulator for it
-    (:meth:`~hybridteam.world.component.WorldComponent.batch`) and ``accelerate`` is true,
-    that is used; it must give the rows the engine gives (its library's tests pin this).
+    When ``accelerate`` is true, every world component with a batch fast path
+    (:meth:`~hybridteam.library.WorldComponent.batch`) is offered the runs, in declaration
+    order, and the first that accepts gives the rows; it must give the rows the engine
+    gives (its library's tests pin this). Otherwise the engine runs them.
     """
     overrides = dict(overrides or {})
     seed = team.simulation.seed if seed is None else seed
-    if accelerate and len(team.world) == 1:
-        from hybridteam.world.component import lookup
+    cteam = compile_team(team)
+    if accelerate and team.world:
+        from hybridteam.engine.batch import batch_rows
 
-        rows = lookup(team.world[0].use).batch(team, n, overrides, seed)
+        rows = batch_rows(cteam, n, overrides, seed)
         if rows is not None:
             return rows
-    run = simulate(team, seed=seed, n=n, overrides=overrides)  # type: ignore[arg-type]
+    trace = Simulator(cteam, n, seed=seed, overrides=overrides).run()
+    run = Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
+              trace.messages, trace.sample_times, trace.samples)
     return [{k: v for k, v in row.items() if k not in _COUNTS}
             for row in run.summary()["instances"]]
 

@@ -10,11 +10,14 @@ only way a model file can bring in code, and it is visible in the file.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from importlib import metadata
 
 import numpy as np
+
+from hybridteam.libraries import broken_note, load_libraries
 
 
 class LawContext:
@@ -203,12 +206,17 @@ def registered() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def resolve(reference: str) -> LawSpec:
-    """A law by registry name, or by explicit ``module:function`` reference."""
+def resolve(reference: str, folder: str | None = None) -> LawSpec:
+    """A law by registry name, or by explicit ``module:function`` reference.
+
+    A module is looked for first in ``folder`` (the team file's), then on the Python path.
+    A function registered with :func:`law` keeps its registration (defaults, plants)
+    whatever name it is referenced by.
+    """
     if ":" in reference:
         module_name, _, attr = reference.partition(":")
         try:
-            module = importlib.import_module(module_name)
+            module = _import(module_name, folder)
         except Exception as exc:  # an import error in user code is still a model error
             raise LawNotFound(f"cannot import module '{module_name}': {exc}", []) from exc
         obj = getattr(module, attr, None)
@@ -217,32 +225,29 @@ def resolve(reference: str) -> LawSpec:
         if not callable(obj):
             raise LawNotFound(f"module '{module_name}' has no function '{attr}'",
                               [n for n in dir(module) if not n.startswith("_")])
-        return _REGISTRY.get(reference) or LawSpec(reference, obj, doc=obj.__doc__ or "")
+        registered = next((s for s in _REGISTRY.values() if s.fn is obj), None)
+        return registered or LawSpec(reference, obj, doc=obj.__doc__ or "")
     if reference not in _REGISTRY:
         load_libraries()
     if reference not in _REGISTRY:
-        raise LawNotFound(f"unknown law '{reference}'", sorted(_REGISTRY))
+        note = broken_note()
+        raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
+                          sorted(_REGISTRY))
     return _REGISTRY[reference]
 
 
-_LOADED = False
-
-
-def load_libraries() -> None:
-    """Import every mode library registered under the ``hybridteam.libraries`` entry points.
-
-    Importing a library registers its laws. Third-party packages ship libraries the same way,
-    without touching hybridteam.
-    """
-    global _LOADED
-    if _LOADED:
-        return
-    _LOADED = True
-    for ep in metadata.entry_points(group="hybridteam.libraries"):
+def _import(module_name: str, folder: str | None):
+    """Import ``module_name``, from ``folder`` when it is there (a module beside the team
+    file), else from the Python path."""
+    top = module_name.split(".")[0]
+    if folder and (os.path.isfile(os.path.join(folder, top + ".py"))
+                   or os.path.isdir(os.path.join(folder, top))):
+        sys.path.insert(0, folder)
         try:
-            ep.load()
-        except Exception:  # a broken third-party library must not break unrelated models
-            continue
+            return importlib.import_module(module_name)
+        finally:
+            sys.path.remove(folder)
+    return importlib.import_module(module_name)
 
 
 @law("zero")

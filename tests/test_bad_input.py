@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hybridteam.cli import main
-from hybridteam.io.loader import InputErrors, load
+from hybridteam.io.filekind import InputErrors
+from hybridteam.kinds import load
 from tests.conftest import EXAMPLES, FIXTURES
 
 BAD = FIXTURES / "bad"

@@ -106,11 +106,11 @@ def test_batch_path_declines_teams_it_does_not_compute(tmp_path):
                                       "          - {to: Stuck, guard: t > 5000}")
     path = tmp_path / "guarded.yaml"
     path.write_text(text)
-    from hybridteam.modes.ladder.batch import rows
-    from hybridteam.modes.ladder.world import LadderCorridor
+    from hybridteam.engine.batch import batch_rows
+    from hybridteam.engine.compiler import compile_team
 
-    assert rows(LadderCorridor, load(path), 1, {}, 0) is None
-    assert rows(LadderCorridor, load(SAMPLE), 1, {}, 0) is not None
+    assert batch_rows(compile_team(load(path)), 1, {}, 0) is None
+    assert batch_rows(compile_team(load(SAMPLE)), 1, {}, 0) is not None
 
 
 def test_cli_run_prints_statistics_and_writes_summary(tmp_path, capsys):

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
-from hybridteam import laws
+from hybridteam import laws, libraries
 from hybridteam.dynamics.plants import Holonomic, Unicycle
+from hybridteam.io.filekind import InputErrors
 
 
 def test_unicycle_arc_is_exact_for_any_step():
@@ -115,8 +116,39 @@ def test_libraries_are_found_through_entry_points(monkeypatch):
         return [FakeEntryPoint()]
 
     monkeypatch.setattr(metadata, "entry_points", entry_points)
-    monkeypatch.setattr(laws, "_LOADED", False)
+    monkeypatch.setattr(libraries, "_LOADED", False)
+    monkeypatch.setattr(libraries, "_BROKEN", {})
     monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
     assert "thirdparty.spin" not in laws._REGISTRY
     assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
     assert "thirdparty.spin" in laws.registered()
+
+
+def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp_path):
+    """A broken library must not break other models, but a model that needs one of its
+    names is told which library failed and why, not just "unknown law"."""
+
+    class BrokenEntryPoint:
+        name = "conveyors"
+        value = "conveyors.laws"
+
+        def load(self):
+            import conveyors_missing_dependency  # noqa: F401
+
+    monkeypatch.setattr(metadata, "entry_points", lambda group: [BrokenEntryPoint()])
+    monkeypatch.setattr(libraries, "_LOADED", False)
+    monkeypatch.setattr(libraries, "_BROKEN", {})
+    with pytest.raises(laws.LawNotFound) as exc:
+        laws.resolve("conveyor.belt")
+    assert str(exc.value) == (
+        "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
+        "(conveyors.laws: ModuleNotFoundError: No module named "
+        "'conveyors_missing_dependency'))")
+    text = ("team: t\nagents:\n  a:\n    plant: {kind: unicycle, state: {x: 0, y: 0, "
+            "theta: 0}}\n    modes: {M: {}}\nworld:\n  - {use: conveyor.belt}\n")
+    path = tmp_path / "t.yaml"
+    path.write_text(text)
+    with pytest.raises(InputErrors, match=r"t.yaml:7:11: world\[0\].use: unknown world component "
+                       r"'conveyor.belt' \(mode library 'conveyors' failed to import "
+                       r"\(conveyors.laws: ModuleNotFoundError"):
+        ht.load(path)

@@ -11,6 +11,7 @@ import pytest
 
 from hybridteam.api import load, simulate
 from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.simulator import Simulator
 from hybridteam.io.loader import InputErrors
 from hybridteam.laws import LawContext, law
@@ -21,10 +22,11 @@ FIXTURES = Path(__file__).parent / "fixtures" / "world"
 IR_WALL = FIXTURES / "ir_wall.yaml"
 
 
-def run_sim(team, n=1, duration=0.0, overrides=None) -> Simulator:
+def run_sim(team, n=1, duration=0.0, overrides=None) -> Ensemble:
+    """The ensemble state after a run (its world components, recorder, agent states)."""
     sim = Simulator(compile_team(team), n, duration=duration, overrides=overrides)
     sim.run()
-    return sim
+    return sim.ensemble
 
 
 def with_preset(team, **models):

@@ -83,8 +83,9 @@ def test_a_resting_box_stays_put_until_grasped_then_follows_the_engaged_grasps()
 
 def test_arms_read_their_offsets_before_they_hold_anything():
     """The Labmate docks by its arm's reading, before it holds the box."""
-    sim = Simulator(compile_team(load(PICKUP)), 1, duration=1.0)
-    sim.run()
+    run = Simulator(compile_team(load(PICKUP)), 1, duration=1.0)
+    run.run()
+    sim = run.ensemble
     # at t = 1: A is 0.1 past the box's right end, B 0.5 short of its left end
     np.testing.assert_allclose(sim.world.sense(0, np.arange(1), "arm"), [[0.1, 0.0, 0.0]],
                                atol=1e-12)

@@ -107,15 +107,15 @@ class WallRing(WorldComponent):
     params: ClassVar[dict[str, Any]] = {"x0": 1.0, "y0": -5.0, "x1": 1.0, "y1": 5.0}
     RING = RangeRing(count=24, max_range=0.5, mount_radius=0.33, name="ir")
 
-    def start(self, sim) -> None:
+    def start(self, world) -> None:
         self.ir = np.full((self.n, len(self.team.agents), 24), np.nan)
-        self.update(sim, np.arange(self.n))
+        self.update(world, np.arange(self.n))
 
-    def update(self, sim, idx: np.ndarray) -> None:
+    def update(self, world, idx: np.ndarray) -> None:
         seg = [[float(np.asarray(self.values[k], float)[0]) for k in ("x0", "y0", "x1", "y1")]]
-        for a, st in enumerate(sim.states):
-            if st.x.shape[1] >= 3:
-                self.ir[idx, a] = self.RING.read(st.x[idx, :3], seg)
+        for a in range(len(world.agents)):
+            if world.has_pose(a):
+                self.ir[idx, a] = self.RING.read(world.pose(a, idx), seg)
 
     def senses(self) -> tuple[str, ...]:
         return ("ir",)

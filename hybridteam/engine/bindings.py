@@ -16,11 +16,13 @@ from hybridteam.laws import LawNotFound, resolve
 from hybridteam.model import Mode
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiler import _Collector
+    from hybridteam.engine.scope import Collector
 
 
-def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: _Collector,
-                    params: dict[str, float]) -> Driver | None:
+def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
+                   params: dict[str, float], folder: str | None = None) -> Driver | None:
+    """The driver a mode declares (None: it declares none); ``folder`` is where the team
+    file lives, where ``module:function`` laws are looked for first."""
     declared = [k for k in ("law", "inputs", "flow") if getattr(mode, k) is not None]
     if len(declared) > 1:
         col.fail(mode.where, f"mode '{mode.name}' declares both '{declared[0]}' and "
@@ -62,7 +64,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: _Collector,
             col.fail((*b.where,), "a flow plant has no inputs for a law to drive; use 'flow'")
             return None
         try:
-            spec = resolve(b.name)
+            spec = resolve(b.name, folder)
         except LawNotFound as exc:
             col.fail((*b.where, "use") if b.where else mode.where, str(exc),
                      did_you_mean(b.name.rpartition(":")[2], exc.candidates))
@@ -86,7 +88,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: _Collector,
     return None
 
 
-def check_parallel_drivers(modes: list[CMode], col: _Collector, flat) -> None:
+def check_parallel_drivers(modes: list[CMode], col: Collector, flat) -> None:
     """At most one region of a parallel mode may drive the plant: inputs must be unambiguous."""
     for m in modes:
         if m.kind != "and":

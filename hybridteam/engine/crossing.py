@@ -25,9 +25,10 @@ import numpy as np
 from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
+from hybridteam.engine.step import AgentStep, state_at
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.ensemble import Ensemble
 
 MAX_ITER = 200
 
@@ -35,10 +36,10 @@ Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
 
 
-def watch_truth(sim: Simulator, a: int, idx: np.ndarray, x: np.ndarray,
+def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
                 t: np.ndarray) -> np.ndarray:
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx."""
-    st = sim.states[a]
+    st = ens.states[a]
     out = np.empty((len(st.ca.watches), idx.size), bool)
     v, p = st.v[idx], st.p[idx]
     ctx: Ctx | None = None
@@ -51,8 +52,8 @@ def watch_truth(sim: Simulator, a: int, idx: np.ndarray, x: np.ndarray,
     return out
 
 
-def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[dict]) -> tuple[np.ndarray, list[np.ndarray | None], dict]:
+def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
+                   steps: list[AgentStep]) -> tuple[np.ndarray, list[np.ndarray | None], dict]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
@@ -61,22 +62,22 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
     crossed, and the true states computed at trial times ({agent: {(row, tau): x}}) so
     the engine need not integrate to the crossing again. Updates nothing.
     """
-    h = sim.h[idx]
-    t0 = sim.t0[idx]
+    h = ens.h[idx]
+    t0 = ens.t0[idx]
     best = np.full(idx.size, np.inf)
     best_lo = np.full(idx.size, np.inf)
-    checks = sim.settings.crossing_checks
+    checks = ens.settings.crossing_checks
     thetas = [0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0]
     end_truths: list[np.ndarray | None] = []
     segments: list[_Segment | None] = []
-    for a, st in enumerate(sim.states):
+    for a, st in enumerate(ens.states):
         ca = st.ca
         if not ca.watches:
             end_truths.append(None)
             segments.append(None)
             continue
         t1 = t0 + h
-        end = watch_truth(sim, a, idx, x_end[a], t1)
+        end = watch_truth(ens, a, idx, x_end[a], t1)
         end_truths.append(end)
         watched = st.watched[:, idx]  # (nw, m)
         truths = [st.truth[:, idx]]
@@ -85,16 +86,16 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         if not watched.any():
             segments.append(None)
             continue
-        points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a]["x0"], t0)]
+        points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a].x0, t0)]
         if checks:
             # every interior checkpoint of every instance in one batch
             m = idx.size
             inner = np.asarray(thetas[1:-1])
             rows = np.tile(np.arange(m), checks)
             tau = np.repeat(inner, m) * h[rows]
-            x_all = sim.state_at(a, idx[rows], tau, steps[a], dense=True, rows=rows)
+            x_all = state_at(ens, a, idx[rows], tau, steps[a], dense=True, rows=rows)
             t_all = t0[rows] + tau
-            tr_all = watch_truth(sim, a, idx[rows], x_all, t_all)
+            tr_all = watch_truth(ens, a, idx[rows], x_all, t_all)
             for c in range(checks):
                 part = slice(c * m, (c + 1) * m)
                 points.append((x_all[part], t_all[part]))
@@ -106,7 +107,7 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
         if not flips.any():
             segments.append(None)
             continue
-        relevant = _relevant(sim, a, idx, flips, points)
+        relevant = _relevant(ens, a, idx, flips, points)
         first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
         has = relevant.any(axis=0)
         stacked = np.stack(truths)
@@ -122,7 +123,7 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
             if cand.size == 0:
                 continue
             if seg is None:
-                seg = _Segment(sim, a, idx, steps[a])
+                seg = _Segment(ens, a, idx, steps[a])
                 segments[-1] = seg
             k = first[w, cand]
             lo = theta_arr[k] * h[cand]
@@ -150,7 +151,7 @@ def find_crossings(sim: Simulator, idx: np.ndarray, x_end: list[np.ndarray],
     return best, end_truths, cache
 
 
-def _relevant(sim: Simulator, a: int, idx: np.ndarray, flips: np.ndarray,
+def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
               points: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """Keep only flips that can matter, so a run does not stop at every one of them.
 
@@ -159,7 +160,7 @@ def _relevant(sim: Simulator, a: int, idx: np.ndarray, flips: np.ndarray,
     that sub-interval. A guard false there was not enabled by the flip (a ball's apex flips
     ``v < 0`` while ``h <= 0`` is false); an invariant true there was not violated.
     """
-    st = sim.states[a]
+    st = ens.states[a]
     watches = st.ca.watches
     keep = flips.copy()
     for k in range(flips.shape[0]):
@@ -191,13 +192,13 @@ class _Segment:
     operations.
     """
 
-    def __init__(self, sim: Simulator, a: int, idx: np.ndarray, step: dict) -> None:
-        self.sim, self.a, self.idx, self.step = sim, a, idx, step
-        self.st = sim.states[a]
-        self.t0 = sim.t0[idx]
-        self.tol = np.maximum(sim.settings.event_tol,
-                              4 * np.finfo(float).eps * np.abs(self.t0 + sim.h[idx]))
-        self.has_rk = bool(step["rk"].any())
+    def __init__(self, ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep) -> None:
+        self.ens, self.a, self.idx, self.step = ens, a, idx, step
+        self.st = ens.states[a]
+        self.t0 = ens.t0[idx]
+        self.tol = np.maximum(ens.settings.event_tol,
+                              4 * np.finfo(float).eps * np.abs(self.t0 + ens.h[idx]))
+        self.has_rk = bool(step.rk.any())
         self.true_states: dict[tuple[int, float], np.ndarray] = {}
 
     def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
@@ -211,19 +212,19 @@ class _Segment:
         st, sub = self.st, self.idx[rows]
         watch = st.ca.watches[w]
         atom, plant = watch.atom, st.ca.plant
-        x0, u = self.step["x0"][rows], self.step["u"][rows]
+        x0, u = self.step.x0[rows], self.step.u[rows]
         v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
         entry = st.entry[sub, watch.mode]
-        is_rk = self.step["rk"][rows]
+        is_rk = self.step.rk[rows]
         any_rk = self.has_rk and bool(is_rk.any())
-        sim, a = self.sim, self.a
+        ens, a = self.ens, self.a
         derivs: dict[bytes, object] = {}
 
         def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
             if not any_rk:
                 return plant.propagate(x0[pos], u[pos], tau)
             if dense:
-                return sim.state_at(a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
+                return state_at(ens, a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
             out = np.empty((pos.size, x0.shape[1]))
             flow = is_rk[pos]
             if (~flow).any():
@@ -232,9 +233,9 @@ class _Segment:
             fp = pos[flow]
             key = fp.tobytes()
             if key not in derivs:
-                derivs[key] = derivative(sim, a, sub[fp])
+                derivs[key] = derivative(ens, a, sub[fp])
             step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
-                           sim.settings.rtol, sim.settings.atol)
+                           ens.settings.rtol, ens.settings.atol)
             out[flow] = step.x1
             for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
                 self.true_states[(r, tt)] = x
@@ -262,7 +263,7 @@ class _Segment:
         """
         tol = self.tol[rows]
         exact = self.evaluator(w, rows, dense=False)
-        if not self.has_rk or not self.step["rk"][rows].any():
+        if not self.has_rk or not self.step.rk[rows].any():
             return _illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
         dense = self.evaluator(w, rows, dense=True)

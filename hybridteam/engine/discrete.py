@@ -21,53 +21,53 @@ from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
 
 if TYPE_CHECKING:
     from hybridteam.engine.compiled import CAction, CAgent, Ctx
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
 
 
-def discrete_phase(sim: Simulator, idx: np.ndarray) -> None:
+def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     """Run micro-steps for instances ``idx`` (all at their current time) until quiescent."""
-    sim.micro[idx] = 0
+    ens.micro[idx] = 0
     active = idx
     while active.size:
-        fired = np.zeros(sim.n, bool)
-        for ag, st in zip(sim.cteam.agents, sim.states, strict=True):
+        fired = np.zeros(ens.n, bool)
+        for ag, st in zip(ens.cteam.agents, ens.states, strict=True):
             if ag.eventless:
-                sel = active[~sim.done[active]]
-                fired[sel] |= select_and_fire(sim, ag, st, sel, ag.eventless, None)
-        rest = active[~fired[active] & ~sim.done[active]]
+                sel = active[~ens.done[active]]
+                fired[sel] |= select_and_fire(ens, ag, st, sel, ag.eventless, None)
+        rest = active[~fired[active] & ~ens.done[active]]
         if rest.size:
-            for (kind, agent, name), members in sim.queue.pop_due(rest, sim.t).items():
+            for (kind, agent, name), members in ens.queue.pop_due(rest, ens.t).items():
                 inst = np.array([i for i, _ in members], np.intp)
                 fired[inst] = True  # consuming an event is a micro-step, taken or not
-                ag, st = sim.cteam.agents[agent], sim.states[agent]
+                ag, st = ens.cteam.agents[agent], ens.states[agent]
                 msg = None
                 if kind == TIMER:
-                    live = ~sim.done[inst]
-                    sim.reliable.on_timer(inst[live], agent,
+                    live = ~ens.done[inst]
+                    ens.reliable.on_timer(inst[live], agent,
                                           [p for (_, p), ok in zip(members, live, strict=True)
                                            if ok])
                     continue
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
-                    keep = sim.network.receive(inst, sim.t[inst], payloads,
-                                               screen=sim.screen) & ~sim.done[inst]
+                    keep = ens.network.receive(inst, ens.t[inst], payloads,
+                                               screen=ens.screen) & ~ens.done[inst]
                     inst = inst[keep]
                     msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
                 else:
-                    inst = inst[~sim.done[inst]]
+                    inst = inst[~ens.done[inst]]
                 # an event nobody waits for is dropped, as in statecharts
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
-                select_and_fire(sim, ag, st, inst, ag.triggered.get(name, []), cause, msg)
+                select_and_fire(ens, ag, st, inst, ag.triggered.get(name, []), cause, msg)
         stepped = active[fired[active]]
-        sim.changed[stepped] = True
-        sim.micro[stepped] += 1
-        over = stepped[sim.micro[stepped] >= sim.settings.zeno.max_steps_per_instant]
+        ens.changed[stepped] = True
+        ens.micro[stepped] += 1
+        over = stepped[ens.micro[stepped] >= ens.settings.zeno.max_steps_per_instant]
         if over.size:
-            sim.finish(over, "zeno", lambda i: (
-                f"{sim.settings.zeno.max_steps_per_instant} discrete steps at "
-                f"t={sim.when(i)} without time advancing; last: {sim.last_step_text(i)}"))
-        active = stepped[~sim.done[stepped]]
+            ens.finish(over, "zeno", lambda i: (
+                f"{ens.settings.zeno.max_steps_per_instant} discrete steps at "
+                f"t={ens.when(i)} without time advancing; last: {ens.last_step_text(i)}"))
+        active = stepped[~ens.done[stepped]]
 
 
 def message_fields(messages: list) -> dict[str, np.ndarray]:
@@ -83,7 +83,7 @@ def _rows(msg: dict[str, np.ndarray] | None, rows: np.ndarray) -> dict[str, np.n
     return None if msg is None else {k: v[rows] for k, v in msg.items()}
 
 
-def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
+def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
                     candidates: list[int], cause: str | None,
                     msg: dict[str, np.ndarray] | None = None) -> np.ndarray:
     """Fire, in each instance of ``idx``, the enabled candidates that are not pre-empted.
@@ -93,7 +93,7 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
     fired = np.zeros(idx.size, bool)
     if idx.size == 0 or not candidates:
         return fired
-    t = sim.t[idx]
+    t = ens.t[idx]
     enabled: dict[int, np.ndarray] = {}
     for j in candidates:
         tr = ag.transitions[j]
@@ -104,7 +104,7 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
             e &= t >= st.deadline[idx, tr.after_slot]
         if tr.guard is not None and e.any():
             sub = idx[e]
-            ctx = st.ctx(sub, sim.t[sub], tr.source, _rows(msg, np.flatnonzero(e)))
+            ctx = st.ctx(sub, ens.t[sub], tr.source, _rows(msg, np.flatnonzero(e)))
             e[e] = np.broadcast_to(tr.guard(ctx), sub.shape)
         if e.any():
             enabled[j] = e
@@ -121,18 +121,18 @@ def select_and_fire(sim: Simulator, ag: CAgent, st: AgentState, idx: np.ndarray,
     for j, e in chosen.items():
         tr = ag.transitions[j]
         reason = cause or ("after" if tr.after is not None else "guard")
-        fire(sim, ag, st, j, idx[e], reason, _rows(msg, np.flatnonzero(e)))
+        fire(ens, ag, st, j, idx[e], reason, _rows(msg, np.flatnonzero(e)))
         fired |= e
     return fired
 
 
-def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
+def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
          cause: str, msg: dict[str, np.ndarray] | None = None) -> None:
     """Exit, act, enter — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
-    ctx = st.ctx(sub, sim.t[sub], tr.source, msg)
+    ctx = st.ctx(sub, ens.t[sub], tr.source, msg)
     if not tr.internal:
-        st.exit(tr.exit_root, sub, sim.t, sim.rec)
+        st.exit(tr.exit_root, sub, ens.t, ens.rec)
     for act in tr.actions:
         if act.kind == "assign":
             kind, col = act.target  # type: ignore[misc]
@@ -144,22 +144,22 @@ def fire(sim: Simulator, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
                 st.v[sub, col] = value
                 ctx.v[:, col] = value
         elif act.kind == "raise":
-            sim.queue.push(sub, sim.t[sub], LOCAL, ag.index, act.name)
+            ens.queue.push(sub, ens.t[sub], LOCAL, ag.index, act.name)
         else:
-            _send(sim, ag, act, sub, ctx, msg)
+            _send(ens, ag, act, sub, ctx, msg)
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
             st.last[sub, b] = tr.carry_map[st.last[sub, a]]  # type: ignore[index]
-        st.enter_path(tr.entry_path, sub, sim.t, deep=bool(tr.carry))
+        st.enter_path(tr.entry_path, sub, ens.t, deep=bool(tr.carry))
         for b, slot_a, slot_b in tr.carry_timers:
             on = sub[st.active[sub, b]]
             st.deadline[on, slot_b] = st.deadline[on, slot_a]
-    sim.rec.transition(ag.index, j, sub, sim.t[sub], sim.micro[sub], cause)
-    sim.last_fired[sub] = ag.index * 1_000_000 + j
-    _zeno_window(sim, ag, st, sub)
+    ens.rec.transition(ag.index, j, sub, ens.t[sub], ens.micro[sub], cause)
+    ens.last_fired[sub] = ag.index * 1_000_000 + j
+    _zeno_window(ens, ag, st, sub)
 
 
-def _send(sim: Simulator, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
+def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
           msg: dict[str, np.ndarray] | None) -> None:
     """A ``send`` action: plain datagrams, or through the acknowledged layer when the
     message type's protocol asks for acks; priority ranks same-instant arrivals."""
@@ -176,23 +176,23 @@ def _send(sim: Simulator, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.acknowledged:
         timeout = np.broadcast_to(policy.timeout(ctx), sub.shape)  # type: ignore[misc]
         retries = np.broadcast_to(policy.retries(ctx), sub.shape)  # type: ignore[misc]
-        sim.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
+        ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
                           rank)
     else:
-        sim.network.send(sub, sim.t[sub], ag.index, to, act.socket, act.name, fields,
+        ens.network.send(sub, ens.t[sub], ag.index, to, act.socket, act.name, fields,
                          rank=rank)
 
 
-def _zeno_window(sim: Simulator, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:
+def _zeno_window(ens: Ensemble, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:
     """Too many transitions of one agent within a short window: a Zeno run, stop it."""
-    ring, ptr = sim.zeno_ring[ag.index], sim.zeno_ptr[ag.index]
+    ring, ptr = ens.zeno_ring[ag.index], ens.zeno_ptr[ag.index]
     pos = ptr[sub]
     old = ring[sub, pos]
-    ring[sub, pos] = sim.t[sub]
+    ring[sub, pos] = ens.t[sub]
     ptr[sub] = (pos + 1) % ring.shape[1]
-    bad = sub[(sim.t[sub] - old) <= sim.settings.zeno.window]
+    bad = sub[(ens.t[sub] - old) <= ens.settings.zeno.window]
     if bad.size:
-        z = sim.settings.zeno
-        sim.finish(bad, "zeno", lambda i: (
+        z = ens.settings.zeno
+        ens.finish(bad, "zeno", lambda i: (
             f"agent '{ag.name}' took {z.max_transitions + 1} transitions within {z.window:g} s "
-            f"up to t={sim.when(i)}; last: {sim.last_step_text(i)}"))
+            f"up to t={ens.when(i)}; last: {ens.last_step_text(i)}"))

@@ -17,7 +17,7 @@ from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.ensemble import Ensemble
 
 
 def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
@@ -39,9 +39,9 @@ def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
 
 
 
-def derivative(sim: Simulator, a: int, idx: np.ndarray) -> rk.Derivative:
+def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
-    st = sim.states[a]
+    st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
     drv = st.driver[idx]
     groups = [(int(d), np.flatnonzero(drv == d)) for d in np.unique(drv)]
@@ -69,20 +69,20 @@ def derivative(sim: Simulator, a: int, idx: np.ndarray) -> rk.Derivative:
 
 
 
-def sample_laws(sim: Simulator, a: int, live: np.ndarray, changed: np.ndarray) -> None:
+def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) -> None:
     """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered.
 
     Instances are grouped by driver with boolean masks over the whole ensemble: in the
     common case every instance ticks under the same law, and the law sees all of them
     at once without any gathering.
     """
-    st = sim.states[a]
+    st = ens.states[a]
     ca = st.ca
     if not ca.plant.input_names or live.size == 0:
         return
-    due = np.zeros(sim.n, bool)
-    due[live] = sim.t[live] >= st.next_tick[live]
-    fresh = np.zeros(sim.n, bool)
+    due = np.zeros(ens.n, bool)
+    due[live] = ens.t[live] >= st.next_tick[live]
+    fresh = np.zeros(ens.n, bool)
     fresh[changed] = True
     due |= fresh
     if not due.any():
@@ -96,13 +96,13 @@ def sample_laws(sim: Simulator, a: int, live: np.ndarray, changed: np.ndarray) -
             continue
         if D.kind == "sampled":
             # re-sample on a tick, or when the law's mode was (re)entered just now
-            entered = fresh & (st.entry[:, D.owner] == sim.t)
-            mine &= entered | (sim.t >= st.next_tick)
+            entered = fresh & (st.entry[:, D.owner] == ens.t)
+            mine &= entered | (ens.t >= st.next_tick)
             if not mine.any():
                 continue
         everyone = bool(mine.all())
         rows = slice(None) if everyone else np.flatnonzero(mine)
-        t = sim.t[rows]
+        t = ens.t[rows]
         ctx = st.ctx(rows, t, D.owner)
         st.u[rows] = evaluate_driver(ca, D, ctx)
         if D.kind == "sampled":

@@ -14,34 +14,34 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.ensemble import Ensemble
 
 
-def check_instances(sim: Simulator, idx: np.ndarray) -> None:
+def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
     """Invariants (``stuck``), all agents final (``ok``), nothing can happen (``deadlock``)."""
     if idx.size == 0:
         return
-    for st in sim.states:
+    for st in ens.states:
         ca = st.ca
         for m in ca.modes:
             if m.invariant is None:
                 continue
-            sel = idx[st.active[idx, m.index] & ~sim.done[idx]]
+            sel = idx[st.active[idx, m.index] & ~ens.done[idx]]
             if sel.size == 0:
                 continue
-            ok = np.broadcast_to(m.invariant(st.ctx(sel, sim.t[sel], m.index)), sel.shape)
+            ok = np.broadcast_to(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
             bad = sel[~ok]
             if bad.size:
-                sim.finish(bad, "stuck", lambda i, ca=ca, m=m: (
-                    f"agent '{ca.name}' in mode '{m.path}' at t={sim.when(i)}: invariant "
+                ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (
+                    f"agent '{ca.name}' in mode '{m.path}' at t={ens.when(i)}: invariant "
                     f"'{m.invariant_text}' is false and no transition out is enabled"))
-    idx = idx[~sim.done[idx]]
+    idx = idx[~ens.done[idx]]
     if idx.size == 0:
         return
     all_final = np.ones(idx.size, bool)
     waiting = np.ones(idx.size, bool)
     someone_waits = np.zeros(idx.size, bool)
-    for a, st in enumerate(sim.states):
+    for a, st in enumerate(ens.states):
         ca = st.ca
         act = st.active[idx]
         leaf_act = act[:, ca.leaves]
@@ -49,26 +49,26 @@ def check_instances(sim: Simulator, idx: np.ndarray) -> None:
         all_final &= final
         eventless = (act & ca.has_eventless).any(axis=1)
         trig = (act & ca.has_triggered).any(axis=1)
-        waiting &= final | (~eventless & trig & ~np.isfinite(sim.timer[a][idx]))
+        waiting &= final | (~eventless & trig & ~np.isfinite(ens.timer[a][idx]))
         someone_waits |= ~final & trig
     fin = idx[all_final]
     if fin.size:
-        for kind, group in final_outcomes(sim, fin).items():
-            sim.finish(group, kind, lambda i: "every agent reached a final mode")
+        for kind, group in final_outcomes(ens, fin).items():
+            ens.finish(group, kind, lambda i: "every agent reached a final mode")
     # periodic stream sends are pending messages too: a robot that still talks is not stalled
-    pending = sim.queue.pending(idx) | np.isfinite(sim.streams.next[idx]) | sim.world.raises
+    pending = ens.queue.pending(idx) | np.isfinite(ens.streams.next[idx]) | ens.world.raises
     stalled = idx[~all_final & waiting & someone_waits & ~pending]
     if stalled.size:
-        sim.finish(stalled, "deadlock", lambda i: deadlock_text(sim, i))
+        ens.finish(stalled, "deadlock", lambda i: deadlock_text(ens, i))
 
 
 
-def final_outcomes(sim: Simulator, idx: np.ndarray) -> dict[str, np.ndarray]:
+def final_outcomes(ens: Ensemble, idx: np.ndarray) -> dict[str, np.ndarray]:
     """Instances ``idx`` (all final) grouped by outcome: the ``outcome`` of the first active
     final mode that names one, in agent order, else ``ok``."""
     kind = np.full(idx.size, "ok", dtype=object)
     named = np.zeros(idx.size, bool)
-    for st in sim.states:
+    for st in ens.states:
         for m, name in enumerate(st.ca.outcome):
             if name is not None:
                 hit = ~named & st.active[idx, m]
@@ -77,14 +77,14 @@ def final_outcomes(sim: Simulator, idx: np.ndarray) -> dict[str, np.ndarray]:
     return {k: idx[kind == k] for k in dict.fromkeys(kind.tolist())}
 
 
-def deadlock_text(sim: Simulator, i: int) -> str:
+def deadlock_text(ens: Ensemble, i: int) -> str:
     parts = []
-    for st in sim.states:
+    for st in ens.states:
         ca = st.ca
         waits = sorted({ca.transitions[j].on for m in ca.modes if st.active[i, m.index]
                         for j in m.outgoing if ca.transitions[j].on})
         if waits:
             parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
                          f"{', '.join(waits)}")
-    return f"nothing pending at t={sim.when(i)}: " + "; ".join(parts)
+    return f"nothing pending at t={ens.when(i)}: " + "; ".join(parts)
 

@@ -32,16 +32,22 @@ def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int
         if values.ndim > 1 or (values.ndim == 1 and values.size != n):
             raise ValueError(f"override '{key}': expected a number or {n} values, "
                              f"got shape {values.shape}")
+        problem = key_problem(agents, key)
+        if problem is not None:
+            raise ValueError(problem)
         agent, _, name = key.rpartition(".")
-        hit = False
         for ca, p in zip(agents, mats, strict=True):
-            if agent and ca.name != agent:
-                continue
-            if name in ca.param_index:
+            if (not agent or ca.name == agent) and name in ca.param_index:
                 p[:, ca.param_index[name]] = values
-                hit = True
-        if not hit:
-            known = sorted({f"{ca.name}.{p}" for ca in agents for p in ca.param_index}
-                           | {p for ca in agents for p in ca.param_index})
-            raise ValueError(f"override '{key}' names no parameter"
-                             + (f"; {hint}" if (hint := did_you_mean(key, known)) else ""))
+
+
+def key_problem(agents: Sequence[CAgent], key: str) -> str | None:
+    """Why ``key`` names no parameter of the agents (``"override 'x' names no parameter;
+    did you mean 'speed'?"``), or None when it names one."""
+    agent, _, name = key.rpartition(".")
+    if any((not agent or ca.name == agent) and name in ca.param_index for ca in agents):
+        return None
+    known = sorted({f"{ca.name}.{p}" for ca in agents for p in ca.param_index}
+                   | {p for ca in agents for p in ca.param_index})
+    return f"override '{key}' names no parameter" + \
+        (f"; {hint}" if (hint := did_you_mean(key, known)) else "")

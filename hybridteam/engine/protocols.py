@@ -16,12 +16,13 @@ import numpy as np
 
 from hybridteam.dynamics.plants import Plant
 from hybridteam.engine.compiled import CAgent, CPolicy
+from hybridteam.engine.scope import resolve_mode
 from hybridteam.engine.streams import CStream
 from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.model import Team
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiler import _Collector
+    from hybridteam.engine.scope import Collector
 
 
 def stream_fields(team: Team) -> dict[str, list[str]]:
@@ -68,7 +69,7 @@ def check_messages(team: Team) -> list[ModelError]:
     return errors
 
 
-def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: _Collector) -> None:
+def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
     agent = team.agent(ca.name)
     for name, spec in team.messages.items():
@@ -81,8 +82,6 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: _Collector
         ca.policies[name] = pol
     usyms = {**syms, **velocity_symbols(ca.plant),
              **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)}}
-    from hybridteam.engine.compiler import resolve_mode
-
     for s in agent.streams:
         modes = []
         for k, name in enumerate(s.while_):

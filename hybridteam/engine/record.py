@@ -7,7 +7,7 @@ rows come out in the order it produced them, whatever its neighbours did.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from hybridteam.trace import (
     TRANSITION_COLUMNS,
     Table,
 )
+
+if TYPE_CHECKING:
+    from hybridteam.engine.world import World
 
 
 class Recorder:
@@ -133,3 +136,35 @@ def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
             flat[name] = np.array([v for c in chunks for v in c], dtype=object)
     order = np.argsort(flat["instance"], kind="stable")
     return Table(names, {n: c[order] for n, c in flat.items()})
+
+
+def trace_meta(cteam: CTeam, n: int, seed: int | list[int], t_end: float,
+               world: World) -> dict[str, Any]:
+    """The trace's ``meta``: the team's agents and modes, and what the world components
+    tell the views (walls, payloads, robot footprints, extra sample series)."""
+    meta: dict[str, Any] = {
+        "team": cteam.team.name,
+        "n": n,
+        "seed": seed,
+        "duration": t_end,
+        "agents": [{
+            "name": ca.name,
+            "plant": ca.plant.kind,
+            "state": list(ca.plant.state_names),
+            "inputs": list(ca.plant.input_names),
+            "modes": [{"path": m.path, "depth": m.depth, "kind": m.kind, "final": m.final,
+                       **({"role": m.role} if m.role else {})}
+                      for m in ca.modes if m.index],
+        } for ca in cteam.agents],
+    }
+    extra = world.meta()
+    footprints = extra.pop("footprints", {})
+    for a in meta["agents"]:
+        preset = cteam.team.agent(a["name"]).preset
+        if a["name"] in footprints:
+            a["footprint"] = footprints[a["name"]]
+        elif preset is not None:  # no component drew it: the robot model's disk
+            a["footprint"] = {"radius": preset.footprint.radius}
+    meta["series"] = {k: list(v) for k, v in world.sample_series().items()}
+    meta.update(extra)
+    return meta

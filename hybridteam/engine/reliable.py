@@ -1,6 +1,6 @@
 """Acknowledged control messages: sequence ids, acks, retransmission, duplicate suppression.
 
-The medium (:mod:`hybridteam.network`) only offers datagrams that may be lost. A protocol
+The medium (:mod:`hybridteam.engine.network`) only offers datagrams that may be lost. A protocol
 that declares ``ack: {timeout, retries}`` for a message type gets, from this layer, what the
 architecture paper's control messages had: each message carries an id unique per sender;
 every receiver that gets a copy answers with an ``ack`` datagram (lossy too); the sender
@@ -24,8 +24,8 @@ import numpy as np
 from hybridteam.engine.events import LOCAL, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
-    from hybridteam.network import Message
+    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.network import Message
 
 ACK = "ack"
 
@@ -44,9 +44,9 @@ class _Pending:
 class Reliable:
     """Outboxes and duplicate filters of every agent in every instance."""
 
-    def __init__(self, sim: Simulator) -> None:
-        self.sim = sim
-        self.next_id = [np.zeros(sim.n, np.int64) for _ in sim.cteam.agents]
+    def __init__(self, ens: Ensemble) -> None:
+        self.ens = ens
+        self.next_id = [np.zeros(ens.n, np.int64) for _ in ens.cteam.agents]
         self.outbox: dict[tuple[int, int, int], _Pending] = {}  # (instance, sender, id)
         self.seen: set[tuple[int, int, int, int]] = set()  # (instance, receiver, sender, id)
 
@@ -54,10 +54,10 @@ class Reliable:
              type_: str, fields: dict[str, np.ndarray], timeout: np.ndarray,
              retries: np.ndarray, rank: np.ndarray | None) -> None:
         """Send an acknowledged message from ``sender`` in instances ``idx``."""
-        sim = self.sim
+        ens = self.ens
         ids = self.next_id[sender][idx].copy()
         self.next_id[sender][idx] += 1
-        count = len(sim.cteam.agents)
+        count = len(ens.cteam.agents)
         if to is None:
             targets = np.full(idx.size, -1)
         elif isinstance(to, np.ndarray):
@@ -71,14 +71,14 @@ class Reliable:
             self.outbox[(i, sender, int(ids[j]))] = _Pending(
                 type_, socket, {f: v[j : j + 1].copy() for f, v in fields.items()}, waiting,
                 int(retries[j]), float(timeout[j]), float(ranks[j]))
-        sim.network.send(idx, sim.t[idx], sender, to, socket, type_, fields, msg_id=ids,
+        ens.network.send(idx, ens.t[idx], sender, to, socket, type_, fields, msg_id=ids,
                          rank=rank)
-        sim.queue.push_each(idx, sim.t[idx] + timeout, TIMER, sender, "retransmit",
+        ens.queue.push_each(idx, ens.t[idx] + timeout, TIMER, sender, "retransmit",
                             [int(k) for k in ids])
 
     def on_timer(self, inst: np.ndarray, sender: int, ids: list[int]) -> None:
         """An ack timeout: resend to whoever has not acknowledged, or give up."""
-        sim = self.sim
+        ens = self.ens
         for i, k in zip(inst.tolist(), ids, strict=True):
             entry = self.outbox.get((i, sender, k))
             if entry is None:
@@ -86,14 +86,14 @@ class Reliable:
             one = np.array([i])
             if entry.retries_left <= 0:
                 del self.outbox[(i, sender, k)]
-                sim.queue.push(one, sim.t[one], LOCAL, sender, f"{entry.type}_undeliverable")
+                ens.queue.push(one, ens.t[one], LOCAL, sender, f"{entry.type}_undeliverable")
                 continue
             entry.retries_left -= 1
             for r in sorted(entry.waiting):
-                sim.network.send(one, sim.t[one], sender, r, entry.socket, entry.type,
+                ens.network.send(one, ens.t[one], sender, r, entry.socket, entry.type,
                                  entry.fields, msg_id=np.array([k]), note="retransmission",
                                  rank=np.array([entry.rank]))
-            sim.queue.push_each(one, sim.t[one] + entry.timeout, TIMER, sender, "retransmit",
+            ens.queue.push_each(one, ens.t[one] + entry.timeout, TIMER, sender, "retransmit",
                                 [k])
 
     def screen(self, i: int, msg: Message, t: float) -> str | None:
@@ -101,7 +101,7 @@ class Reliable:
 
         Returns why the copy is withheld from the receiver's modes, or None to dispatch it.
         """
-        sim = self.sim
+        ens = self.ens
         if msg.type == ACK:
             key = (i, msg.receiver, int(msg.fields["id"]))
             entry = self.outbox.get(key)
@@ -113,7 +113,7 @@ class Reliable:
         if msg.msg_id < 0:
             return None
         one = np.array([i])
-        sim.network.send(one, np.array([t]), msg.receiver, msg.sender, msg.socket, ACK,
+        ens.network.send(one, np.array([t]), msg.receiver, msg.sender, msg.socket, ACK,
                          {"id": np.array([float(msg.msg_id)])}, note="ack")
         key4 = (i, msg.receiver, msg.sender, msg.msg_id)
         if key4 in self.seen:

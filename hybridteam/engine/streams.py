@@ -23,8 +23,8 @@ import numpy as np
 from hybridteam.expr import Expression
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
-    from hybridteam.network import Message
+    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.network import Message
 
 
 @dataclass
@@ -101,11 +101,11 @@ class InboxView:
 class Streams:
     """Sending side: when each agent's streams are due, and the sends themselves."""
 
-    def __init__(self, sim: Simulator, streams: list[list[CStream]]) -> None:
-        self.sim = sim
+    def __init__(self, ens: Ensemble, streams: list[list[CStream]]) -> None:
+        self.ens = ens
         self.streams = streams
-        self.due = [[np.full(sim.n, np.inf) for _ in mine] for mine in streams]
-        self.next = np.full(sim.n, np.inf)
+        self.due = [[np.full(ens.n, np.inf) for _ in mine] for mine in streams]
+        self.next = np.full(ens.n, np.inf)
 
     @property
     def any(self) -> bool:
@@ -114,12 +114,12 @@ class Streams:
     def update(self, idx: np.ndarray) -> None:
         """After an instant: start streams whose modes were entered (first copy now), stop
         those whose modes were left, and send every copy that is due."""
-        sim = self.sim
+        ens = self.ens
         if idx.size == 0 or not self.any:
             return
-        t = sim.t[idx]
+        t = ens.t[idx]
         for a, mine in enumerate(self.streams):
-            st = sim.states[a]
+            st = ens.states[a]
             for s, cs in enumerate(mine):
                 due = self.due[a][s]
                 on = st.active[np.ix_(idx, cs.modes)].any(axis=1) if cs.modes else \
@@ -131,13 +131,13 @@ class Streams:
                 send = on & (t >= due[idx])
                 if send.any():
                     sub = idx[send]
-                    ctx = st.ctx(sub, sim.t[sub])
+                    ctx = st.ctx(sub, ens.t[sub])
                     ctx.u = st.u[sub]
                     fields = {f: np.broadcast_to(e(ctx), sub.shape).astype(float)
                               for f, e in cs.fields.items()}
-                    sim.network.send(sub, sim.t[sub], a, None, cs.socket, cs.message, fields)
+                    ens.network.send(sub, ens.t[sub], a, None, cs.socket, cs.message, fields)
                     period = np.broadcast_to(cs.period(ctx), sub.shape)
-                    due[sub] = sim.t[sub] + period
+                    due[sub] = ens.t[sub] + period
         nxt = np.full(idx.size, np.inf)
         for per_agent in self.due:
             for due in per_agent:

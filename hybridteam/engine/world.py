@@ -17,10 +17,11 @@ import numpy as np
 
 from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
+from hybridteam.libraries import broken_note
 from hybridteam.world.component import WorldComponent, lookup, registered
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.access import EnsembleAccess
     from hybridteam.model import Team
 
 
@@ -32,8 +33,10 @@ def check_world(team: Team) -> list[ModelError]:
         try:
             cls = lookup(spec.use)
         except KeyError:
+            note = broken_note()
             errors.append(ModelError((*spec.where, "use"), f"unknown world component "
-                                     f"'{spec.use}'", hint=did_you_mean(spec.use, registered())))
+                                     f"'{spec.use}'" + (f" ({note})" if note else ""),
+                                     hint=did_you_mean(spec.use, registered())))
             continue
         before = len(errors)
         for key, value in spec.values.items():
@@ -102,20 +105,24 @@ class World:
         """Whether some component may raise events (then nobody is deadlocked)."""
         return any(c.raises for c in self.components)
 
-    def start(self, sim: Simulator) -> None:
+    def start(self, access: EnsembleAccess) -> None:
         for c in self.components:
-            c.start(sim)
+            c.start(access)
 
-    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
-        """Run every component on instances ``idx``; the instances where events were raised."""
+    def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
+        """Run every component on the live instances of ``idx``; returns the instances
+        where events were raised (through the access, or returned by ``update``)."""
         raised = []
         for c in self.components:
-            live = idx[~sim.done[idx]]
+            live = access.live(idx)
             if live.size:
-                got = c.update(sim, live)
+                got = c.update(access, live)
                 if got is not None and len(got):
                     raised.append(np.asarray(got, np.intp))
-        return np.unique(np.concatenate(raised)) if raised else np.empty(0, np.intp)
+        pushed = access.take_raised()
+        if not raised:
+            return pushed
+        return np.unique(np.concatenate([*raised, pushed]))
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         for c in self.components:

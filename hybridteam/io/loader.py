@@ -4,13 +4,14 @@ Loading runs three gates, each reporting *all* its problems with ``file:line:col
 YAML syntax (:mod:`.yamlpos`), the schema (:mod:`.schema`, pydantic), and the model itself
 (names, expressions, laws — by compiling it). The semantic checker (:mod:`.check`) adds
 warnings for unreachable modes and dead ends. Nothing is run before all gates pass.
+Team and protocol files are file kinds (:data:`FILE_KINDS`); :mod:`hybridteam.kinds`
+dispatches any file to its kind.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -19,17 +20,25 @@ from pydantic import BaseModel, ValidationError
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import DocPath, ModelError, ModelErrors
 from hybridteam.io.errors import did_you_mean, located_errors
+from hybridteam.io.filekind import (
+    Document,
+    FileKind,
+    InputErrors,
+    Loaded,
+    detect,
+    kind_error,
+    read_document,
+)
 from hybridteam.io.protocols import Composer, InFile, ProtocolErrors, message_spec
 from hybridteam.io.schema import (
-    FILE_KINDS,
     AgentSchema,
     ModeSchema,
+    ProtocolFile,
     RaiseSchema,
     SendSchema,
     TeamFile,
-    detect_kind,
 )
-from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
+from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import (
     Agent,
     Assign,
@@ -51,24 +60,6 @@ from hybridteam.model import (
 
 if TYPE_CHECKING:
     from hybridteam.robots.presets import RobotPreset
-
-
-class InputErrors(Exception):
-    """All problems found in one input file; ``str()`` gives one located line per error."""
-
-    def __init__(self, errors: list[SourceError]) -> None:
-        self.errors = errors
-        super().__init__("\n".join(str(e) for e in errors))
-
-
-@dataclass
-class Loaded:
-    """A validated document: its kind, the schema object, the model and any warnings."""
-
-    kind: str
-    document: BaseModel
-    model: Any
-    warnings: list[SourceError] = field(default_factory=list)
 
 
 def locate(err: ModelError, positions: Positions, filename: str,
@@ -94,66 +85,54 @@ def locate(err: ModelError, positions: Positions, filename: str,
                        err.path, message)
 
 
-def read_document(source: str | os.PathLike) -> tuple[str, dict, Positions, str]:
-    """Parse a YAML file and tell its kind; raise :class:`InputErrors` on any problem."""
-    filename = str(source)
+def _load_team(doc: Document) -> Loaded:
+    """A team document: schema, protocols composed, compiled (every name and expression
+    checked), then the semantic checker's warnings."""
+    document = _validated(doc, TeamFile)
     try:
-        data, positions = load_yaml(Path(source), filename=filename)
-    except SourceError as exc:
-        raise InputErrors([exc]) from None
-    kind = detect_kind(data)
-    if kind not in FILE_KINDS:
-        hint = did_you_mean(kind, FILE_KINDS) if isinstance(kind, str) else None
-        what = f"unknown file kind '{kind}'" if kind else \
-            "cannot tell what kind of file this is (expected e.g. 'team:' and 'agents:')"
-        mark = positions.value(("kind",)) if kind else None
-        raise InputErrors([SourceError(filename, mark.line if mark else 1,
-                                       mark.column if mark else 1, ("kind",) if kind else (),
-                                       what + (f"; {hint}" if hint else ""))])
-    return kind, data, positions, filename
+        team, comp = compose_team(document, doc.filename)  # type: ignore[arg-type]
+    except ProtocolErrors as exc:
+        raise InputErrors(exc.errors) from None
+    others = {InFile(p.filename): p.positions for p in comp.cache.values()}
+    try:
+        if comp.errors:
+            raise ModelErrors(comp.errors)
+        compile_team(team)
+    except ModelErrors as exc:
+        raise InputErrors([locate(e, doc.positions, doc.filename, others)
+                           for e in exc.errors]) from None
+    from hybridteam.io.check import check_team
+
+    warnings = [locate(w, doc.positions, doc.filename, others) for w in check_team(team)]
+    return Loaded("team", team, warnings)
 
 
-def load(source: str | os.PathLike) -> Loaded:
-    """Load and fully validate any hybridteam file (kind detected from its keys)."""
-    kind, data, positions, filename = read_document(source)
-    schema = FILE_KINDS[kind]
+def _load_protocol(doc: Document) -> Loaded:
+    return Loaded("protocol", _validated(doc, ProtocolFile))
+
+
+def _validated(doc: Document, schema: type[BaseModel]) -> BaseModel:
     try:
-        document = schema.model_validate(data)
+        return schema.model_validate(doc.data)
     except ValidationError as exc:
-        raise InputErrors(located_errors(exc, schema, data, positions, filename)) from None
-    if kind == "team":
-        try:
-            team, comp = compose_team(document, filename)  # type: ignore[arg-type]
-        except ProtocolErrors as exc:
-            raise InputErrors(exc.errors) from None
-        others = {InFile(p.filename): p.positions for p in comp.cache.values()}
-        try:
-            if comp.errors:
-                raise ModelErrors(comp.errors)
-            compile_team(team)
-        except ModelErrors as exc:
-            raise InputErrors([locate(e, positions, filename, others)
-                               for e in exc.errors]) from None
-        from hybridteam.io.check import check_team
+        raise InputErrors(located_errors(exc, schema, doc.data, doc.positions,
+                                         doc.filename)) from None
 
-        warnings = [locate(w, positions, filename, others) for w in check_team(team)]
-        return Loaded(kind, document, team, warnings)
-    if kind == "protocol":
-        return Loaded(kind, document, document)
-    if kind == "study":  # the team it names, its keys and metrics are checked too
-        from hybridteam.sweep.study import load_study
 
-        return Loaded(kind, document, load_study(source))
-    raise AssertionError(kind)  # pragma: no cover
+#: The file kinds this package reads (collected by :mod:`hybridteam.kinds`).
+FILE_KINDS = (
+    FileKind("team", lambda: TeamFile, _load_team, marks=("agents", "team")),
+    FileKind("protocol", lambda: ProtocolFile, _load_protocol, marks=("protocol",)),
+)
 
 
 def load_team(source: str | os.PathLike) -> Team:
     """Load a team file; raises :class:`InputErrors` with located messages."""
-    loaded = load(source)
-    if loaded.kind != "team":
-        raise InputErrors([SourceError(str(source), 1, 1, (), f"expected a team file, "
-                                       f"got a {loaded.kind} file")])
-    return loaded.model
+    doc = read_document(source)
+    kind = detect(doc.data, FILE_KINDS)
+    if kind != "team":
+        raise kind_error(doc, kind, ["team", "protocol", "study"], expected="team")
+    return _load_team(doc).model
 
 
 # ------------------------------------------------------------------ schema -> model
@@ -198,7 +177,8 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                   for k, w in enumerate(doc.world))
     team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
                 source=Path(filename).name, network=network,
-                messages=_messages(doc, comp), world=world)
+                messages=_messages(doc, comp), world=world,
+                folder=str(Path(filename).resolve().parent))
     return team, comp
 
 

@@ -389,29 +389,3 @@ class ProtocolFile(Strict):
     streams: list[StreamDeclSchema] = Field(default_factory=list)
     region: RegionSchema | None = None
     operator: OperatorSchema | None = None
-
-
-FILE_KINDS: dict[str, type[BaseModel]] = {"team": TeamFile, "protocol": ProtocolFile}
-
-
-def detect_kind(data: dict[str, Any]) -> str | None:
-    """Which kind of file a document is: its ``kind`` key, or the key only that kind has."""
-    kind = data.get("kind")
-    if isinstance(kind, str):
-        return kind
-    if "agents" in data or "team" in data:
-        return "team"
-    if "protocol" in data:
-        return "protocol"
-    return None
-
-
-def _register_study() -> None:
-    """Studies are a file kind too (``validate``, ``schema``); their schema lives with the
-    sweep runner, which builds on this module, so it is added once this module is loaded."""
-    from hybridteam.sweep.schema import StudyFile
-
-    FILE_KINDS["study"] = StudyFile
-
-
-_register_study()

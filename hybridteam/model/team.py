@@ -138,6 +138,8 @@ class Team:
     network: NetworkSpec = field(default_factory=NetworkSpec)
     messages: dict[str, MessageSpec] = field(default_factory=dict)
     world: tuple[WorldSpec, ...] = ()
+    #: the folder of the team file: ``module:function`` laws are looked for there first
+    folder: str | None = None
 
     def agent(self, name: str) -> Agent:
         for a in self.agents:

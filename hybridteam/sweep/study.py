@@ -16,11 +16,14 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.overrides import key_problem
 from hybridteam.io.errors import located_errors
-from hybridteam.io.loader import InputErrors, load_team
+from hybridteam.io.filekind import Document, FileKind, InputErrors, Loaded, read_document
+from hybridteam.io.loader import load_team
 from hybridteam.io.yamlpos import Path as DocPath
-from hybridteam.io.yamlpos import Positions, SourceError, load_yaml
+from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import Team
 from hybridteam.sweep.schema import AxisSchema, FactorSchema, StudyFile
 
@@ -83,14 +86,17 @@ class Study:
 
 def load_study(source: str | os.PathLike) -> Study:
     """Load and fully check a study file; raises :class:`InputErrors` (file:line messages)."""
-    filename = str(source)
-    try:
-        data, positions = load_yaml(Path(source), filename=filename)
-    except SourceError as exc:
-        raise InputErrors([exc]) from None
-    if data.get("kind") != "study":
+    return _load(read_document(source))
+
+
+def _load(document: Document) -> Study:
+    """A parsed study file, validated and checked against its team."""
+    data, positions, filename = document.data, document.positions, document.filename
+    source = Path(filename)
+    if not isinstance(data, dict) or data.get("kind") != "study":
         mark = positions.value(("kind",)) or positions.nearest(())[1]
-        what = f"got kind {data['kind']!r}" if "kind" in data else "no 'kind:' key"
+        what = f"got kind {data['kind']!r}" if isinstance(data, dict) and "kind" in data \
+            else "no 'kind:' key"
         raise InputErrors([SourceError(filename, mark.line, mark.column, ("kind",),
                                        f"expected a study file with 'kind: study' ({what})")])
     try:
@@ -121,10 +127,11 @@ def load_study(source: str | os.PathLike) -> Study:
         chunk=doc.chunk, accelerate=doc.accelerate,
         digest=_digest(Path(source), team_path),
     )
+    cteam = compile_team(study.team)
     if not errors:
-        errors += _check_keys(study, positions)
+        errors += _check_keys(study, cteam, positions)
     if not errors:
-        errors += _check_overlaps(study, compile_team(study.team), positions)
+        errors += _check_overlaps(study, cteam, positions)
     if not errors:
         errors += _check_metrics(study, positions)
     if errors:
@@ -208,7 +215,7 @@ def _factor(name: str, spec: object, positions: Positions, errors: list[SourceEr
     return Factor(name, keys, tuple(values))
 
 
-def _check_overlaps(study: Study, cteam, positions: Positions) -> list[SourceError]:
+def _check_overlaps(study: Study, cteam: CTeam, positions: Positions) -> list[SourceError]:
     """No parameter set twice in one run: by two draws (or a draw and ``population.set``),
     two axes, an axis and a factor, or two keys of one item — ``wait`` and ``asker.wait``
     count as the same parameter. (A factor may set a drawn or fixed parameter: that is what
@@ -243,11 +250,8 @@ def _check_overlaps(study: Study, cteam, positions: Positions) -> list[SourceErr
     return errors
 
 
-def _check_keys(study: Study, positions: Positions) -> list[SourceError]:
-    """Each override key, tried on the engine itself (which knows agent and team params)."""
-    from hybridteam.engine.simulator import Simulator
-
-    cteam = compile_team(study.team)
+def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[SourceError]:
+    """Each override key must name a parameter of the team (the engine's own rule)."""
     uses: list[tuple[str, DocPath, bool]] = []  # key, where it is written, at a mapping key
     named = [("population", "set", key, (key,)) for key, _ in study.fixed]
     named += [("population", "draws", d.name, d.keys) for d in study.draws]
@@ -264,31 +268,13 @@ def _check_keys(study: Study, positions: Positions) -> list[SourceError]:
             else:  # shorthand: the name is the key
                 uses.append((key, base, True))
     errors: list[SourceError] = []
-    problems: dict[str, str | None] = {}
     for key, where, at_key in uses:
-        if key not in problems:
-            problems[key] = None
-            try:  # the engine sets overrides before anything else: a bad name fails first
-                Simulator(cteam, 1, duration=0.0, overrides={key: _default(cteam, key)})
-            except ValueError as exc:
-                if str(exc).startswith(f"override '{key}'"):
-                    problems[key] = str(exc)
-            except Exception:  # the name is fine; values are not what is checked here
-                pass
-        if problems[key] is not None:
-            head, _, hint = problems[key].partition("; ")  # "...; did you mean 'x'?"
+        problem = key_problem(cteam.agents, key)
+        if problem is not None:
+            head, _, hint = problem.partition("; ")  # "...; did you mean 'x'?"
             errors.append(positions.error(where, f"{head} of team '{study.team.name}'"
                                           + (f"; {hint}" if hint else ""), at_key=at_key))
     return errors
-
-
-def _default(cteam, key: str) -> float:
-    """The team's own value of ``key`` (so the trial run sees a sensible value), else 0."""
-    agent, _, name = key.rpartition(".")
-    for ca in cteam.agents:
-        if (not agent or ca.name == agent) and name in ca.param_index:
-            return float(ca.param_defaults[ca.param_index[name]])
-    return 0.0
 
 
 def _check_metrics(study: Study, positions: Positions) -> list[SourceError]:
@@ -315,3 +301,8 @@ def _digest(study_path: Path, team_path: Path) -> str:
         data = path.read_bytes()
         h.update(len(data).to_bytes(8, "little") + data)
     return h.hexdigest()
+
+
+#: Studies are a file kind (``hybridteam validate``, ``hybridteam schema study``).
+FILE_KINDS = (FileKind("study", lambda: StudyFile,
+                       lambda doc: Loaded("study", _load(doc))),)

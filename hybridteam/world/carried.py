@@ -36,17 +36,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from hybridteam.errors import ModelError, did_you_mean
-from hybridteam.world.component import (
-    WorldComponent,
-    settings_error,
-    variable_index,
-    world_component,
-)
+from hybridteam.world.access import WorldAccess, require_variable
+from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
 from hybridteam.world.sensors import cast
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
     from hybridteam.model import Agent, Team
 
 _GRASP_KEYS = ("agent", "point", "mount", "spring", "limit", "engaged")
@@ -136,8 +131,7 @@ class CarriedPayload(WorldComponent):
         self.mount = np.array([g["mount"] for g in full], float)
         self.spring = np.array([float(g["spring"]) for g in full])
         self.limit = np.array([float(g["limit"]) for g in full])
-        self.engaged_by = [g.get("engaged") for g in grasps]
-        self.columns: list[int | None] = [None] * len(grasps)
+        self.engaged_by: list[str | None] = [g.get("engaged") for g in grasps]
         k = len(grasps)
         self.pose = np.full((n, 3), np.nan)
         self.rest = np.full((n, 3), np.nan)        # where it lies when nobody holds it
@@ -147,38 +141,37 @@ class CarriedPayload(WorldComponent):
         self.rel0 = np.zeros((n, k))
         self.max_offset = np.zeros((n, k))
 
-    def _robot_points(self, sim: Simulator, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        poses = np.stack([sim.states[a].x[idx, :3] if sim.states[a].x.shape[1] >= 3 else
-                          np.c_[sim.states[a].x[idx, :2], np.zeros(idx.size)]
-                          for a in self.agents], axis=1)                 # (m, k, 3)
+    def _robot_points(self, world: WorldAccess, idx: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        poses = np.stack([world.pose(a, idx) for a in self.agents], axis=1)  # (m, k, 3)
         c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
         mx, my = self.mount[:, 0], self.mount[:, 1]
         pts = np.stack([poses[..., 0] + c * mx - s * my, poses[..., 1] + s * mx + c * my], -1)
         return pts, poses[..., 2]
 
-    def start(self, sim: Simulator) -> None:
-        self.columns = [None if name is None else variable_index(
-            sim, a, name, f"payload: grasps[{k}].engaged")
-            for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True))]
+    def start(self, world: WorldAccess) -> None:
+        for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True)):
+            if name is not None:
+                require_variable(world, a, name, f"payload: grasps[{k}].engaged")
         if self.values["pose"]:
             self.rest[:] = np.asarray(self.values["pose"], float)
         else:
-            pts, _ = self._robot_points(sim, np.arange(self.n))
+            pts, _ = self._robot_points(world, np.arange(self.n))
             eq = equilibrium(pts, self.body, self.spring)
             self.rest[:] = np.c_[eq.x, eq.y, eq.theta]
-        heading = self.settle(sim, np.arange(self.n))
+        heading = self.settle(world, np.arange(self.n))
         self.rel0[:] = self.pose[:, 2:3] - heading
         self.arm[..., 2] = 0.0
 
-    def _engagement(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+    def _engagement(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """Which grasps hold in instances ``idx``: ``(m, k)`` bool."""
         on = np.ones((idx.size, len(self.agents)), bool)
-        for k, col in enumerate(self.columns):
-            if col is not None:
-                on[:, k] = sim.states[self.agents[k]].v[idx, col] > 0.5
+        for k, name in enumerate(self.engaged_by):
+            if name is not None:
+                on[:, k] = world.variable(self.agents[k], name, idx) > 0.5
         return on
 
-    def settle(self, sim: Simulator, idx: np.ndarray) -> np.ndarray:
+    def settle(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """Pose, offsets and arm readings of instances ``idx`` from the current state;
         returns the robots' headings ``(m, k)`` (the start counts the arms' angles from them).
 
@@ -188,8 +181,8 @@ class CarriedPayload(WorldComponent):
         are grouped by which grasps hold, one equilibrium per group present (at most 2^k,
         usually one), so the work stays vectorized over the ensemble.
         """
-        pts, heading = self._robot_points(sim, idx)
-        on = self._engagement(sim, idx)
+        pts, heading = self._robot_points(world, idx)
+        on = self._engagement(world, idx)
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ (1 << np.arange(k))
@@ -218,8 +211,8 @@ class CarriedPayload(WorldComponent):
                                   np.arctan2(np.sin(rel), np.cos(rel))], -1)
         return heading
 
-    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
-        self.settle(sim, idx)
+    def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        self.settle(world, idx)
         size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
         on = self.engaged[idx]
         self.max_offset[idx] = np.where(on, np.maximum(self.max_offset[idx], size),
@@ -230,11 +223,10 @@ class CarriedPayload(WorldComponent):
             names = [self.team.agents[a].name for a in self.agents]
             rows = dict(zip(idx[bad].tolist(), over[bad], strict=True))
             sizes = dict(zip(idx[bad].tolist(), size[bad], strict=True))
-            sim.finish(idx[bad], "link_broken", lambda i: "; ".join(
+            world.finish(idx[bad], "link_broken", lambda i: "; ".join(
                 f"{self.values['name']} dropped: the grasp of '{names[k]}' is offset "
                 f"{sizes[i][k]:.4g} > limit {self.limit[k]:.4g}"
                 for k in np.flatnonzero(rows[i]).tolist()))
-        return None
 
     def senses(self) -> tuple[str, ...]:
         return ("arm", "payload")

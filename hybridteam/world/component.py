@@ -7,9 +7,11 @@ a class registered by name (``@world_component("ladder.corridor")``) in a mode l
 found through the ``hybridteam.libraries`` entry points, like laws.
 
 The engine calls a component at every instant of every instance, *before* the agents'
-laws are sampled, so a law sees what the component worked out from the current state:
-``update`` may end instances (``sim.finish(..., "link_broken", ...)``) and raise local
-events in agents (returned so the engine runs their discrete phase at that instant).
+laws are sampled, so a law sees what the component worked out from the current state.
+It hands the component a :class:`~hybridteam.world.access.WorldAccess`, never itself:
+through it ``update`` reads poses, variables and parameters, ends instances
+(``world.finish(idx, "link_broken", ...)``) and raises local events in agents
+(``world.raise_event(idx, agent, "arrived")``; their discrete phase runs at that instant).
 Laws read what a component lets their robot sense through ``LawContext.sense(name)``.
 Everything is vectorized over the ensemble and per instance, so an ensemble still equals
 that many single runs.
@@ -23,10 +25,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from hybridteam.errors import ModelError
+from hybridteam.libraries import load_libraries
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
     from hybridteam.model import Team
+    from hybridteam.world.access import WorldAccess
+    from hybridteam.world.request import BatchRequest
 
 
 class WorldComponent:
@@ -44,15 +48,16 @@ class WorldComponent:
     raises: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
-    def batch(cls, team: Team, n: int, overrides: Mapping[str, Any],
-              seed: int | Sequence[int]) -> list[dict[str, Any]] | None:
-        """An accelerated equivalent of simulating ``team`` for its per-instance summaries,
-        or None when the component does not recognise the team.
+    def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:
+        """An accelerated equivalent of simulating ``request.team`` for its per-instance
+        summaries, or None when the component does not recognise the team.
 
         Parameter studies need thousands of runs of one kind of team; a library may own a
         specialised batch simulator for the teams it defines (tests must pin it to the
-        engine instance by instance). Rows carry ``instance``, ``outcome``, ``t_end`` and
-        the component's :meth:`summary` keys.
+        engine instance by instance). The request carries everything resolved as the
+        engine would (parameters after overrides, this component's settings, initial
+        states) and the team's shape (:mod:`hybridteam.world.request`). Rows carry
+        ``instance``, ``outcome``, ``t_end`` and the component's :meth:`summary` keys.
         """
         return None
 
@@ -70,14 +75,15 @@ class WorldComponent:
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         self.team, self.n, self.values = team, n, dict(values)
 
-    def start(self, sim: Simulator) -> None:
+    def start(self, world: WorldAccess) -> None:
         """Called once, after every agent's initial state is set and before the first
-        instant; agents' states may be read (and, for placements, written) here."""
+        instant; agents' states may be read (and, for placements, written) here. The
+        ``world`` stays valid for the whole run: a component may keep it for
+        :meth:`sense`."""
 
-    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
-        """React to the state of instances ``idx`` at their current time; return the
-        instances where local events were pushed (their discrete phase must run)."""
-        return None
+    def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """React to the state of the live instances ``idx`` at their current time: end
+        instances, raise events, update what robots sense (through ``world``)."""
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         """What agent ``agent`` senses as ``name`` in instances ``idx`` (for its law)."""
@@ -111,21 +117,6 @@ def settings_error(component: str, problems: Sequence[ModelError]) -> ValueError
     return ValueError(f"{component}: " + "; ".join(str(p) for p in problems))
 
 
-def variable_index(sim: Simulator, agent: int, name: str, setting: str) -> int:
-    """Column of agent ``agent``'s variable ``name`` in its state's ``v`` (what a component
-    reads when a setting names a variable, e.g. a grasp's ``engaged``).
-
-    Checked at the start of the run, not by :meth:`WorldComponent.check`: protocols add
-    variables that the team file does not list.
-    """
-    ca = sim.states[agent].ca
-    if name not in ca.var_index:
-        known = ", ".join(ca.var_index) or "none"
-        raise ValueError(f"{setting}: agent '{ca.name}' has no variable '{name}' "
-                         f"(its variables: {known})")
-    return ca.var_index[name]
-
-
 _REGISTRY: dict[str, type[WorldComponent]] = {}
 
 
@@ -142,8 +133,6 @@ def world_component(name: str):
 
 def lookup(name: str) -> type[WorldComponent]:
     """The component class registered as ``name`` (after loading mode libraries)."""
-    from hybridteam.laws import load_libraries
-
     _builtins()
     if name not in _REGISTRY:
         load_libraries()
@@ -151,8 +140,6 @@ def lookup(name: str) -> type[WorldComponent]:
 
 
 def registered() -> list[str]:
-    from hybridteam.laws import load_libraries
-
     _builtins()
     load_libraries()
     return sorted(_REGISTRY)

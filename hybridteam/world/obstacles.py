@@ -39,14 +39,13 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from hybridteam.engine.events import LOCAL
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
+from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.sensors import RangeRing, cast, clearance
 
 if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
     from hybridteam.model import Agent, Team
 
 _RULE_KEYS = ("agent", "sensor", "beams", "sector", "below", "raise", "ring")
@@ -237,27 +236,26 @@ class Obstacles(WorldComponent):
             names |= set(preset.rings()) if preset is not None else set()
         self.sensors = tuple(sorted(names))  # what laws may sense (asked at every tick)
         self.payloads: list[CarriedPayload] = []
-        self.axes: dict[int, tuple[int, int, int | None]] = {}
+        self.late: list[CarriedPayload] = []
+        self.sensing: set[int] = set()  # agents with a pose, once the run has started
         self.near = np.zeros((len(self.rules), n), bool)
         self.min_clear = np.full((len(self.planar), n), np.inf)
         self.payload_clear = np.full(n, np.inf)
 
-    def start(self, sim: Simulator) -> None:
-        self.sim = sim
-        mine = sim.world.components.index(self)
-        self.payloads = [c for c in sim.world.components if isinstance(c, CarriedPayload)]
+    def start(self, world: WorldAccess) -> None:
+        self.world = world  # kept: sense() reads poses when a law asks
+        everyone = world.components()
+        mine = everyone.index(self)
+        self.payloads = world.components(CarriedPayload)
         # payloads listed after this component settle after it: settle them first here
-        self.late = [c for c in self.payloads if sim.world.components.index(c) > mine]
-        for a in {*self.planar, *(r.agent for r in self.rules)}:
-            names = list(sim.states[a].ca.plant.state_names)
-            self.axes[a] = (names.index("x"), names.index("y"),
-                            names.index("theta") if "theta" in names else None)
+        self.late = [c for c in self.payloads if everyone.index(c) > mine]
+        self.sensing = {*self.planar, *(r.agent for r in self.rules)}
+        for a in self.sensing:
+            world.pose(a, np.arange(0))  # a plant without x and y fails now, not mid-run
 
     # ------------------------------------------------------------------ readings
     def _poses(self, a: int, idx: np.ndarray) -> np.ndarray:
-        x, y, th = self.axes[a]
-        s = self.sim.states[a].x
-        return np.c_[s[idx, x], s[idx, y], s[idx, th] if th is not None else np.zeros(idx.size)]
+        return self.world.pose(a, idx)
 
     def _ring(self, a: int, sensor: str) -> RangeRing | None:
         if (a, sensor) in self.rings:
@@ -281,19 +279,18 @@ class Obstacles(WorldComponent):
         return self.sensors
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
-        ring = self._ring(agent, name) if agent in self.axes else None
+        ring = self._ring(agent, name) if agent in self.sensing else None
         if ring is None:
             raise KeyError(f"obstacles: robot '{self.team.agents[agent].name}' has no range "
                            f"ring '{name}' (from its robot model or a detect rule's ring)")
         return self.read(agent, ring, np.asarray(idx, np.intp))
 
     # ------------------------------------------------------------------ each instant
-    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
+    def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         for p in self.late:
-            p.settle(sim, idx)
+            p.settle(world, idx)
         self._measure(idx)
         readings: dict[tuple[int, str], np.ndarray] = {}
-        raised = []
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
             if key not in readings:
@@ -302,10 +299,7 @@ class Obstacles(WorldComponent):
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
             if rising.any():
-                who = idx[rising]
-                sim.queue.push(who, sim.t[who], LOCAL, rule.agent, rule.event)
-                raised.append(who)
-        return np.unique(np.concatenate(raised)) if raised else None
+                world.raise_event(idx[rising], rule.agent, rule.event)
 
     def _measure(self, idx: np.ndarray) -> None:
         """Running minima of the robots' and the payloads' clearances."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridteam.laws import LawContext, law
+from hybridteam.library import LawContext, law
 
 
 @law("formation.follow", plants=("unicycle",),

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridteam.laws import LawContext
-from hybridteam.laws import law as register
+from hybridteam.library import LawContext
+from hybridteam.library import law as register
 
 from . import law
 

@@ -24,21 +24,17 @@ run through the engine reproduces the vectorized stepper (the tests compare them
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
-from hybridteam.engine.events import LOCAL
-from hybridteam.world.component import WorldComponent, world_component
+from hybridteam.library import BatchRequest, WorldAccess, WorldComponent, world_component
 from hybridteam.world.geometry import corridor_with_turn
 
 from . import law
 from .frame import CornerFrame
 from .guide import guide_paths
 from .kernel import in_corner
-
-if TYPE_CHECKING:
-    from hybridteam.engine.simulator import Simulator
 
 #: Corridor settings: one corridor for the whole ensemble.
 _CORRIDOR = ("width_in", "width_out", "outer_leg_in", "outer_leg_out")
@@ -58,21 +54,21 @@ class LadderCorridor(WorldComponent):
     }
 
     @classmethod
-    def batch(cls, team, n, overrides, seed):
+    def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:
         """Plain ladder teams run on the vectorized stepper (see :mod:`.batch`)."""
         from .batch import rows
 
-        return rows(cls, team, n, overrides, seed)
+        return rows(request)
 
     # ------------------------------------------------------------------ set-up
-    def start(self, sim: Simulator) -> None:
+    def start(self, world: WorldAccess) -> None:
         v = self.values
-        names = [a.name for a in self.team.agents]
+        names = world.agents
         for role in ("front", "rear"):
             if v[role] not in names:
                 raise ValueError(f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
                                  f"of the team (agents: {', '.join(names)})")
-        self.robots = (names.index(v["front"]), names.index(v["rear"]))
+        self.robots = (world.agent(v["front"]), world.agent(v["rear"]))
         dims = {}
         for key in (*_CORRIDOR, "path_points", "approach", "tension", "alpha_inset"):
             if np.ptp(v[key]) != 0:
@@ -84,8 +80,9 @@ class LadderCorridor(WorldComponent):
         length = v["length"]
         goal = np.stack([self.corridor.leg_point("out", v["goal_gap"]),
                          self.corridor.leg_point("out", v["goal_gap"] + length)])  # (2, n, 2)
-        start = np.stack([sim.states[a].x[:, :2] for a in self.robots])
-        param = self._robot_params(sim)
+        everyone = np.arange(n)
+        start = np.stack([world.pose(a, everyone)[:, :2] for a in self.robots])
+        param = self._robot_params(world)
         self.paths = np.stack([
             guide_paths(self.corridor, start[r], goal[r], param["alpha"][r],
                         count=int(dims["path_points"]), tension=dims["tension"],
@@ -111,22 +108,21 @@ class LadderCorridor(WorldComponent):
         self.improved_at = np.zeros(n, np.int64)
         self.tips = np.full((2, n, 2), np.nan)
 
-    def _robot_params(self, sim: Simulator) -> dict[str, np.ndarray]:
+    def _robot_params(self, world: WorldAccess) -> dict[str, np.ndarray]:
         out = {}
         for key in ("alpha", "sc", "olim", "radius"):
             rows = []
             for a in self.robots:
-                st = sim.states[a]
-                if key not in st.ca.param_index:
-                    raise ValueError(f"ladder.corridor: robot '{st.ca.name}' has no "
+                if key not in world.parameter_names(a):
+                    raise ValueError(f"ladder.corridor: robot '{world.agents[a]}' has no "
                                      f"parameter '{key}'")
-                rows.append(st.p[:, st.ca.param_index[key]].copy())
+                rows.append(world.parameter(a, key))
             out[key] = np.stack(rows)
         return out
 
     # ------------------------------------------------------------------ each instant
-    def update(self, sim: Simulator, idx: np.ndarray) -> np.ndarray | None:
-        pos = np.stack([sim.states[a].x[idx, :2] for a in self.robots])      # (2, m, 2)
+    def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        pos = np.stack([world.pose(a, idx)[:, :2] for a in self.robots])     # (2, m, 2)
         fx, fy = np.moveaxis(self.frame.to_frame(pos), -1, 0)                 # (2, m) each
         ox, oy, _ = law.spring_offsets(fx, fy, fx[::-1], fy[::-1], self.length[idx],
                                        self.share[:, idx])
@@ -152,7 +148,7 @@ class LadderCorridor(WorldComponent):
         broken = (no > self.olim[:, idx]).any(axis=0)
         if broken.any():
             bad = idx[broken]
-            sim.finish(bad, "link_broken", lambda i: (
+            world.finish(bad, "link_broken", lambda i: (
                 f"a ladder link broke at step {self.steps[i]}: offsets "
                 f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
                 f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"))
@@ -168,10 +164,8 @@ class LadderCorridor(WorldComponent):
             self.improved_at[idx] <= step - self.values["stuck_window"][idx])
         for event, mask in (("arrived", arrived), ("stuck", stuck)):
             if mask.any():
-                who = idx[mask]
                 for a in self.robots:
-                    sim.queue.push(who, sim.t[who], LOCAL, a, event)
-        return idx[arrived | stuck]
+                    world.raise_event(idx[mask], a, event)
 
     def _offsets(self, i: int) -> np.ndarray:
         d = self.tips[:, i] - self.prev[:, i]

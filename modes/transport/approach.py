@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridteam.laws import LawContext, law
+from hybridteam.library import LawContext, law
 
 from .leader import stack_inputs
 

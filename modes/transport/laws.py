@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridteam.laws import LawContext, law
+from hybridteam.library import LawContext, law
 
 from .leader import LeaderState, arm_terms, leader_estimate, stack_inputs, wrap
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hybridteam.laws import LawContext
+from hybridteam.library import LawContext
 
 #: The data stream of the role-assignment protocol that carries a robot's pose and velocity.
 STREAM = "state"

@@ -1,7 +1,6 @@
-"""Command-line front ends of the views: ``diagram``, ``timeline``, ``plot``, ``animate``,
-``sequence``, and the views ``run`` writes next to its trace.
+"""The view commands: ``diagram``, ``timeline``, ``plot``, ``animate``, ``sequence``.
 
-Kept apart from :mod:`hybridteam.cli` so that plain ``validate``/``run --no-views`` never
+Kept apart from the core commands so that plain ``validate``/``run --no-views`` never
 import matplotlib. Every bad argument or unreadable trace is a one-line error, exit 2.
 """
 
@@ -12,8 +11,60 @@ import json
 import sys
 from pathlib import Path
 
-from hybridteam.cli import EXIT_OK, EXIT_USAGE, UsageError, load_team_or_report
+from hybridteam.cli.common import EXIT_OK, EXIT_USAGE, UsageError, load_team_or_report
 from hybridteam.trace import Trace, write_atomic
+
+
+def register(sub) -> dict:
+    """Add the view subcommands; returns their handlers by name."""
+    d = sub.add_parser("diagram", help="draw a model's state diagram")
+    d.add_argument("model", metavar="MODEL.yaml")
+    d.add_argument("-f", "--format", default=None,
+                   help="dot, mermaid, plantuml, svg or png (default: from -o, else dot)")
+    d.add_argument("-o", "--output", default=None, metavar="FILE",
+                   help="output file (default: text to standard output)")
+    d.add_argument("--detail", choices=("roles", "full"), default="roles",
+                   help="roles: a protocol's states summarised by the roles they play (Lead, "
+                        "Follow), as a paper draws them; full: every protocol state, "
+                        "transition and message (default: roles)")
+
+    tl = sub.add_parser("timeline", help="draw the mode timeline of a run")
+    tl.add_argument("trace", metavar="trace.json")
+    tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
+                    help="close-up between two times, with message arrows")
+    tl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    tl.add_argument("-o", "--output", default="timeline.png", metavar="FILE",
+                    help=".png or .svg (default timeline.png)")
+    tl.add_argument("--data", default=None, metavar="FILE",
+                    help="also write the drawn data as .csv or .json")
+    tl.add_argument("--agents", default=None, metavar="A,B",
+                    help="lanes of these agents only, in team order (default: all)")
+
+    pl = sub.add_parser("plot", help="draw the trajectories of a run")
+    pl.add_argument("trace", metavar="trace.json")
+    pl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
+                    help=".png or .svg (default trajectories.png)")
+
+    an = sub.add_parser("animate", help="animate a run (GIF; MP4 when ffmpeg is installed)")
+    an.add_argument("trace", metavar="trace.json")
+    an.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
+    an.add_argument("-o", "--output", default="run.gif", metavar="FILE",
+                    help=".gif or .mp4 (default run.gif)")
+
+    sq = sub.add_parser("sequence", help="message sequence chart of a run")
+    sq.add_argument("trace", metavar="trace.json")
+    sq.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    sq.add_argument("-f", "--format", default="mermaid", choices=["mermaid", "plantuml"])
+    sq.add_argument("--all-sockets", action="store_true",
+                    help="include data messages, not only control messages")
+    sq.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help="output file (default: standard output)")
+
+    return {"diagram": cmd_diagram, "timeline": cmd_timeline, "plot": cmd_plot,
+            "animate": cmd_animate, "sequence": cmd_sequence}
+
 
 IMAGE = (".png", ".svg")
 DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "mermaid",
@@ -136,37 +187,3 @@ def cmd_sequence(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(text)
     return EXIT_OK
-
-
-VIEW_COMMANDS = {"diagram": cmd_diagram, "timeline": cmd_timeline, "plot": cmd_plot,
-                 "animate": cmd_animate, "sequence": cmd_sequence}
-
-
-def write_run_views(team, run, out: Path) -> list[str]:
-    """The views ``hybridteam run`` writes beside the trace (instance 0 of an ensemble)."""
-    from hybridteam.export.diagram import diagram_graph
-    from hybridteam.export.render import render
-    from hybridteam.export.roles import role_hosts, roles_view
-    from hybridteam.export.sequence import sequence_chart
-    from hybridteam.export.timeline import write_timeline
-    from hybridteam.export.trajectories import write_trajectories
-
-    full = diagram_graph(team)
-    graph = roles_view(full)
-    written = []
-    for name, fmt in (("modes.dot", "dot"), ("modes.mmd", "mermaid"), ("modes.svg", "svg")):
-        write_atomic(out / name, render(graph, fmt))
-        written.append(name)
-    if role_hosts(full):  # the protocol's own states too, for whoever debugs a handshake
-        write_atomic(out / "modes-full.svg", render(full, "svg"))
-        written.append("modes-full.svg")
-    trace = run.instance(0) if run.n > 1 else run
-    for name in ("timeline.png", "timeline.svg"):
-        write_timeline(trace, out / name)
-        written.append(name)
-    for name in ("trajectories.png", "trajectories.svg"):
-        write_trajectories(trace, out / name)
-        written.append(name)
-    write_atomic(out / "sequence.mmd", sequence_chart(trace, "mermaid"))
-    written.append("sequence.mmd")
-    return written

@@ -1,9 +1,7 @@
-"""Command line: ``hybridteam validate | run | schema`` (views: :mod:`.views_cli`; studies:
-:mod:`hybridteam.sweep.cli`).
+"""The core commands: ``validate``, ``run`` and ``schema``.
 
-Bad input of any kind — YAML, schema, model, arguments — prints located messages to stderr
-and exits with status 2, never a traceback, and writes nothing. Outputs are written only
-after a run completes, each file atomically, ``summary.json`` last.
+Outputs of ``run`` are written only after the run completes, each file atomically,
+``summary.json`` last.
 """
 
 from __future__ import annotations
@@ -12,27 +10,19 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Sequence
 from pathlib import Path
 
-EXIT_OK, EXIT_USAGE = 0, 2
+from hybridteam.cli.common import (
+    EXIT_OK,
+    EXIT_USAGE,
+    UsageError,
+    load_team_or_report,
+    print_errors,
+)
 
 
-class UsageError(Exception):
-    """A bad argument: printed as one line, exit status 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # argparse would print usage + exit 2 too
-        self.print_usage(sys.stderr)
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
-        raise SystemExit(EXIT_USAGE)
-
-
-def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="hybridteam", description="Teams of robots as hybrid systems.")
-    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
+def register(sub) -> dict:
+    """Add the core subcommands; returns their handlers by name."""
     v = sub.add_parser("validate", help="check files without running anything")
     v.add_argument("files", nargs="+", metavar="FILE")
     v.add_argument("--strict", action="store_true", help="treat warnings as errors")
@@ -50,101 +40,21 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--no-views", action="store_true",
                    help="skip the state diagram, timeline, trajectory and sequence views")
 
-    d = sub.add_parser("diagram", help="draw a model's state diagram")
-    d.add_argument("model", metavar="MODEL.yaml")
-    d.add_argument("-f", "--format", default=None,
-                   help="dot, mermaid, plantuml, svg or png (default: from -o, else dot)")
-    d.add_argument("-o", "--output", default=None, metavar="FILE",
-                   help="output file (default: text to standard output)")
-    d.add_argument("--detail", choices=("roles", "full"), default="roles",
-                   help="roles: a protocol's states summarised by the roles they play (Lead, "
-                        "Follow), as a paper draws them; full: every protocol state, "
-                        "transition and message (default: roles)")
-
-    tl = sub.add_parser("timeline", help="draw the mode timeline of a run")
-    tl.add_argument("trace", metavar="trace.json")
-    tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
-                    help="close-up between two times, with message arrows")
-    tl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
-    tl.add_argument("-o", "--output", default="timeline.png", metavar="FILE",
-                    help=".png or .svg (default timeline.png)")
-    tl.add_argument("--data", default=None, metavar="FILE",
-                    help="also write the drawn data as .csv or .json")
-    tl.add_argument("--agents", default=None, metavar="A,B",
-                    help="lanes of these agents only, in team order (default: all)")
-
-    pl = sub.add_parser("plot", help="draw the trajectories of a run")
-    pl.add_argument("trace", metavar="trace.json")
-    pl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
-    pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
-                    help=".png or .svg (default trajectories.png)")
-
-    an = sub.add_parser("animate", help="animate a run (GIF; MP4 when ffmpeg is installed)")
-    an.add_argument("trace", metavar="trace.json")
-    an.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
-    an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
-    an.add_argument("-o", "--output", default="run.gif", metavar="FILE",
-                    help=".gif or .mp4 (default run.gif)")
-
-    sq = sub.add_parser("sequence", help="message sequence chart of a run")
-    sq.add_argument("trace", metavar="trace.json")
-    sq.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
-    sq.add_argument("-f", "--format", default="mermaid", choices=["mermaid", "plantuml"])
-    sq.add_argument("--all-sockets", action="store_true",
-                    help="include data messages, not only control messages")
-    sq.add_argument("-o", "--output", default=None, metavar="FILE",
-                    help="output file (default: standard output)")
-
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
-    from hybridteam.sweep.cli import add_parsers  # sweep, report
-
-    add_parsers(sub)
-    return p
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    try:
-        from hybridteam.sweep.cli import COMMANDS as SWEEP_COMMANDS
-        from hybridteam.views_cli import VIEW_COMMANDS
-
-        commands = {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema,
-                    **VIEW_COMMANDS, **SWEEP_COMMANDS}
-        return commands[args.command](args)
-    except UsageError as exc:
-        print(f"hybridteam: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("hybridteam: interrupted; nothing written", file=sys.stderr)
-        return 130
-    except BrokenPipeError:  # output piped into `head`: not an error of ours
-        sys.stderr.close()
-        return EXIT_OK
-
-
-def load_team_or_report(path: str):
-    """The team in ``path``, or None after printing its located errors to stderr."""
-    from hybridteam.io.loader import InputErrors, load_team
-
-    try:
-        return load_team(path)
-    except InputErrors as exc:
-        for err in exc.errors:
-            print(err, file=sys.stderr)
-        return None
+    return {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema}
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from hybridteam.io.loader import InputErrors, load
+    from hybridteam.io.filekind import InputErrors
+    from hybridteam.kinds import load
 
     status = EXIT_OK
     for name in args.files:
         try:
             loaded = load(name)
         except InputErrors as exc:
-            for err in exc.errors:
-                print(err, file=sys.stderr)
+            print_errors(exc)
             status = EXIT_USAGE
             continue
         for w in loaded.warnings:
@@ -224,7 +134,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary["wall_time_s"] = round(wall, 4)
     views: list[str] = []
     if not args.no_views:
-        from hybridteam.views_cli import write_run_views
+        from hybridteam.export.runviews import write_run_views
 
         views = write_run_views(team, run, out)
     write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
@@ -262,19 +172,16 @@ def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from hybridteam.io.schema import FILE_KINDS
+    from hybridteam.kinds import kinds
 
-    if args.kind is not None and args.kind not in FILE_KINDS:
-        from hybridteam.io.errors import did_you_mean
+    known = kinds()
+    if args.kind is not None and args.kind not in known:
+        from hybridteam.errors import did_you_mean
 
-        hint = did_you_mean(args.kind, FILE_KINDS)
-        raise UsageError(f"unknown file kind '{args.kind}' (kinds: {', '.join(FILE_KINDS)})"
+        hint = did_you_mean(args.kind, known)
+        raise UsageError(f"unknown file kind '{args.kind}' (kinds: {', '.join(known)})"
                          + (f"; {hint}" if hint else ""))
-    kinds = [args.kind] if args.kind else list(FILE_KINDS)
-    schemas = {k: FILE_KINDS[k].model_json_schema(by_alias=True) for k in kinds}
-    print(json.dumps(schemas[kinds[0]] if args.kind else schemas, indent=2))
+    names = [args.kind] if args.kind else list(known)
+    schemas = {k: known[k].schema().model_json_schema(by_alias=True) for k in names}
+    print(json.dumps(schemas[names[0]] if args.kind else schemas, indent=2))
     return EXIT_OK
-
-
-if __name__ == "__main__":  # pragma: no cover
-    raise SystemExit(main())

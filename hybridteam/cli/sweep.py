@@ -1,6 +1,5 @@
-"""``hybridteam sweep STUDY.yaml -o OUT`` and ``hybridteam report OUT``.
+"""The study commands: ``sweep STUDY.yaml -o OUT`` and ``report OUT``.
 
-Registered by :mod:`hybridteam.cli` through :func:`add_parsers` and :data:`COMMANDS`.
 Bad input (the study, its team, the arguments, an output folder holding another study) is
 one located line per problem on stderr and exit status 2, before anything is written. An
 interruption keeps the finished chunks and says how to resume.
@@ -12,9 +11,17 @@ import argparse
 import sys
 from pathlib import Path
 
+from hybridteam.cli.common import (
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    UsageError,
+    print_errors,
+)
 
-def add_parsers(sub) -> None:
-    """Add the ``sweep`` and ``report`` subcommands to the main parser's subparsers."""
+
+def register(sub) -> dict:
+    """Add the ``sweep`` and ``report`` subcommands; returns their handlers by name."""
     sw = sub.add_parser("sweep", help="run a parameter study (resumes an interrupted one)")
     sw.add_argument("study", metavar="STUDY.yaml")
     sw.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
@@ -30,11 +37,11 @@ def add_parsers(sub) -> None:
 
     rp = sub.add_parser("report", help="plots and report.md of a finished study")
     rp.add_argument("output", metavar="OUT", help="the study's output folder")
+    return {"sweep": cmd_sweep, "report": cmd_report}
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from hybridteam.cli import EXIT_OK, EXIT_USAGE, UsageError
-    from hybridteam.io.loader import InputErrors
+    from hybridteam.io.filekind import InputErrors
     from hybridteam.sweep.run import run_study
     from hybridteam.sweep.store import StudyError
     from hybridteam.sweep.study import load_study
@@ -49,8 +56,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:
         study = load_study(args.study)
     except InputErrors as exc:
-        for err in exc.errors:
-            print(err, file=sys.stderr)
+        print_errors(exc)
         return EXIT_USAGE
     show = not args.quiet and sys.stderr.isatty()
     try:
@@ -61,7 +67,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(f"hybridteam: interrupted; the finished chunks are kept in {out}/chunks — "
               "run the same command to resume", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     for warning in result.warnings:
         print(f"hybridteam: warning: {warning}", file=sys.stderr)
     if not args.quiet:
@@ -84,7 +90,6 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from hybridteam.cli import EXIT_OK, UsageError
     from hybridteam.sweep.report import write_report
     from hybridteam.sweep.store import StudyError
 
@@ -94,6 +99,3 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     print(f"wrote {path} (plots in {Path(args.output) / 'plots'})")
     return EXIT_OK
-
-
-COMMANDS = {"sweep": cmd_sweep, "report": cmd_report}

@@ -1,0 +1,42 @@
+"""Command line: ``hybridteam COMMAND ...``.
+
+Each command group registers its own parsers and handlers — :mod:`.core` (validate, run,
+schema), :mod:`.views` (diagram, timeline, plot, animate, sequence), :mod:`.sweep` (sweep,
+report) — and shares exit codes and errors through :mod:`.common`. Groups never import
+each other.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from hybridteam.cli import core, sweep, views
+from hybridteam.cli.common import EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
+
+__all__ = ["main"]
+
+
+def _parser() -> tuple[Parser, dict]:
+    p = Parser(prog="hybridteam", description="Teams of robots as hybrid systems.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
+    commands: dict = {}
+    for group in (core, views, sweep):
+        commands.update(group.register(sub))
+    return p, commands
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser, commands = _parser()
+    args = parser.parse_args(argv)
+    try:
+        return commands[args.command](args)
+    except UsageError as exc:
+        print(f"hybridteam: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("hybridteam: interrupted; nothing written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # output piped into `head`: not an error of ours
+        sys.stderr.close()
+        return EXIT_OK

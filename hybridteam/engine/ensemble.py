@@ -1,0 +1,130 @@
+"""The state of ``n`` instances of one team: what every engine module reads and writes.
+
+The simulator's loop (:mod:`.simulator`), the discrete phase, crossing location, drivers,
+outcome checks, streams and the reliable layer all act on one :class:`Ensemble`: clocks,
+the done mask and outcomes, per-agent states (:class:`~.state.AgentState`), the event
+queue, the network, the recorder and the world. Keeping the state in one typed object,
+apart from the loop that advances it, is what lets each module be read (and tested) on its
+own: a module's signature says it acts on the ensemble, not on a simulator's internals.
+
+World components never see this object; they get a :class:`~.access.EnsembleAccess`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+
+from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.events import EventQueue
+from hybridteam.engine.network import Message, Network
+from hybridteam.engine.overrides import apply_overrides
+from hybridteam.engine.protocols import stream_fields
+from hybridteam.engine.randomness import seed_value
+from hybridteam.engine.record import Recorder
+from hybridteam.engine.reliable import Reliable
+from hybridteam.engine.state import AgentState
+from hybridteam.engine.streams import Inbox, Streams
+from hybridteam.engine.world import World
+
+
+def output_times(t_end: float, dt: float) -> np.ndarray:
+    """Output sample times ``0, dt, 2 dt, ...`` up to ``t_end``, which is always included."""
+    k = int(np.floor(t_end / dt + 1e-9)) + 1
+    times = np.arange(k) * dt
+    if times[-1] < t_end - 1e-12 * max(1.0, t_end):
+        times = np.append(times, t_end)
+    return times
+
+
+class Ensemble:
+    """Every array of one simulation, leading axis the instance (see the module docstring).
+
+    Clocks: ``t`` (now), ``t0`` and ``h`` (start and length of the step being taken),
+    ``h_rk`` (each instance's next Runge–Kutta step size, NaN until first needed).
+    Discrete bookkeeping: ``done`` and ``outcomes``, ``changed`` (configuration changed at
+    this instant), ``micro`` (superdense index), ``last_fired`` (for Zeno messages),
+    ``timer[a]`` (agent ``a``'s next ``after:`` deadline), the Zeno rings. Outputs:
+    ``sample_times``, ``out_k`` (next sample per instance), ``rec``.
+    """
+
+    def __init__(self, cteam: CTeam, n: int, seed: int | Sequence[int], t_end: float,
+                 overrides: Mapping[str, float | Sequence[float]]) -> None:
+        self.cteam = cteam
+        self.n = n
+        self.seed = seed_value(seed, n)  # one int, or a list: one seed per instance
+        self.settings = cteam.team.simulation
+        self.t_end = t_end
+        self.t = np.zeros(n)
+        self.t0 = np.zeros(n)
+        self.h = np.zeros(n)
+        self.done = np.zeros(n, bool)
+        self.changed = np.zeros(n, bool)
+        self.micro = np.zeros(n, np.int64)
+        self.last_fired = np.full(n, -1, np.int64)
+        self.outcomes: list[dict | None] = [None] * n
+        self.states = [AgentState(a, n) for a in cteam.agents]
+        self.timer = [np.full(n, np.inf) for _ in cteam.agents]
+        self.h_rk = np.full(n, np.nan)
+        self.max_step = self.settings.max_step or np.inf
+        zk = self.settings.zeno.max_transitions
+        self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
+        self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]
+        self.sample_times = output_times(t_end, self.settings.output_period())
+        self.sample_after = np.append(self.sample_times, np.inf)
+        self.out_k = np.zeros(n, np.intp)
+        self.next_out = np.full(n, self.sample_times[0])
+        self.rec = Recorder(cteam, n, self.sample_times)
+        self.queue = EventQueue(n, cteam.scenario)
+        apply_overrides([st.ca for st in self.states], [st.p for st in self.states], n,
+                        overrides)
+        params = self.team_params()
+        self.network = Network(cteam.team, n, self.seed, params, self.queue, self.rec)
+        self.reliable = Reliable(self)
+        self.streams = Streams(self, [ca.streams for ca in cteam.agents])
+        self.world = World(cteam.team, n, params)
+        for st in self.states:
+            st.world = self.world
+        self.rec.add_series(self.world.sample_series())
+        if self.streams.any:
+            fields = stream_fields(cteam.team)
+            for st in self.states:
+                st.inbox = Inbox(n, len(cteam.agents), fields)
+
+    def team_params(self) -> dict[str, np.ndarray]:
+        """Team parameters per instance (after overrides), as every agent sees them."""
+        st = self.states[0]
+        return {name: st.p[:, st.ca.param_index[name]].copy()
+                for name in self.cteam.team.parameters}
+
+    def screen(self, i: int, msg: Message, t: float) -> str | None:
+        """The protocol layer's look at each copy that got through the medium: acks and
+        duplicates are withheld from the modes; stream copies update the estimates."""
+        why = self.reliable.screen(i, msg, t)
+        inbox = self.states[msg.receiver].inbox
+        if why is None and inbox is not None and msg.type in inbox.fields:
+            inbox.deliver(i, msg)
+        return why
+
+    # ------------------------------------------------------------------ outcomes
+    def finish(self, idx: np.ndarray, kind: str, message: Callable[[int], str]) -> None:
+        """End instances ``idx`` (those not ended already) with outcome ``kind``."""
+        for i in idx.tolist():
+            if not self.done[i]:
+                self.done[i] = True
+                self.outcomes[i] = {"instance": i, "outcome": kind, "t": float(self.t[i]),
+                                    "message": message(i)}
+
+    def when(self, i: int) -> str:
+        """Instance ``i``'s current time, printed exactly (shortest round-trip digits)."""
+        return repr(float(self.t[i]))
+
+    def last_step_text(self, i: int) -> str:
+        code = int(self.last_fired[i])
+        if code < 0:
+            return "no transition"
+        ca = self.cteam.agents[code // 1_000_000]
+        tr = ca.transitions[code % 1_000_000]
+        text = f"agent '{ca.name}' {ca.modes[tr.source].path} -> {ca.modes[tr.target].path}"
+        return text + (f" on guard '{tr.guard_text}'" if tr.guard_text else "")

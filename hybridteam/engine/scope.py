@@ -1,0 +1,77 @@
+"""Names an agent's expressions can read, and the collector of a model's errors.
+
+Every expression of an agent (guards, flows, inputs, actions, law bindings) is compiled
+against one symbol table: its plant state, variables and parameters by column, ``t`` and
+``t_in_mode``, and — in a transition triggered by a message — the message's fields. The
+compiler modules share the table's construction and the :class:`Collector`, which gathers
+every problem of a model instead of stopping at the first.
+"""
+
+from __future__ import annotations
+
+from hybridteam.errors import DocPath, ModelError
+from hybridteam.expr import Expression, ExpressionError, compile_expression
+
+
+class Collector:
+    """Collects every error of a model instead of stopping at the first."""
+
+    def __init__(self) -> None:
+        self.errors: list[ModelError] = []
+
+    def expr(self, text: str | float, symbols, where: DocPath, *, condition: bool = False
+             ) -> Expression | None:
+        try:
+            return compile_expression(str(text), symbols, condition=condition)
+        except ExpressionError as exc:
+            self.errors.append(ModelError(where, exc.message, offset=exc.offset, hint=exc.hint))
+            return None
+
+    def fail(self, where: DocPath, message: str, hint: str | None = None) -> None:
+        self.errors.append(ModelError(where, message, hint=hint))
+
+
+def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]):
+    syms = {
+        "t": lambda c: c.t,
+        "t_in_mode": lambda c: c.t_in,
+    }
+    for name, j in state.items():
+        syms[name] = lambda c, j=j: c.x[:, j]
+    for name, j in variables.items():
+        syms[name] = lambda c, j=j: c.v[:, j]
+    for name, j in params.items():
+        syms[name] = lambda c, j=j: c.p[:, j]
+    return syms
+
+
+def message_symbols(fields: set[str]) -> dict:
+    """Names a transition triggered by a message can read: ``msg_sender`` (the sending
+    agent's index), ``msg_sent`` (its send time) and ``msg_<field>`` for each field."""
+    syms = {"msg_sender": lambda c: c.m["sender"], "msg_sent": lambda c: c.m["t_send"]}
+    for f in sorted(fields):
+        syms[f"msg_{f}"] = lambda c, f=f: c.m[f]
+    return syms
+
+
+def resolve_mode(name: str, paths: list[str], near: str | None = None
+                 ) -> tuple[int | None, list[str]]:
+    """Index of the mode called ``name`` (a unique name or dotted-path suffix), and matches.
+
+    Of several matches, the one sharing the longest enclosing scope with ``near`` (the
+    transition's source) wins if it alone does: a mode library copied under two protocol
+    roles (``Lead.Avoid``, ``Offering.Avoid``) still says ``to: Avoid`` inside each copy.
+    """
+    matches = [i for i, p in enumerate(paths) if p and (p == name or p.endswith("." + name))]
+    if len(matches) > 1 and near is not None:
+        def scope(i: int) -> int:
+            a, b = paths[i].split(".")[:-1], near.split(".")
+            k = 0
+            while k < min(len(a), len(b)) and a[k] == b[k]:
+                k += 1
+            return k
+        best = max(scope(i) for i in matches)
+        nearest = [i for i in matches if scope(i) == best]
+        if len(nearest) == 1:
+            return nearest[0], [paths[i] for i in matches]
+    return (matches[0] if len(matches) == 1 else None), [paths[i] for i in matches]

@@ -1,0 +1,96 @@
+"""One integration step of one agent: where it started, what moved it, and states inside it.
+
+The simulator advances every agent of the live instances over ``[t0, t0 + h]`` at once. A
+kinematic plant under a held input moves on its exact arc; a flow (or a continuous law)
+takes one Dormand–Prince step. :class:`AgentStep` records what the rest of the step's work
+needs — the crossing search, the output samples that fall inside the step, the state at a
+located crossing — so nothing is integrated twice: the start states and inputs, which rows
+flow, and the Runge–Kutta step with its dense output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.dynamics import rk
+from hybridteam.engine.drivers import derivative
+
+if TYPE_CHECKING:
+    from hybridteam.engine.ensemble import Ensemble
+
+
+@dataclass(slots=True)
+class AgentStep:
+    """Agent ``a``'s step over the live instances (rows aligned with the step's index).
+
+    ``x0`` start states (m, d), ``u`` held inputs (m, k), ``rk`` which rows flow under a
+    Runge–Kutta step; for those, ``rk_step`` (its dense output) and ``rk_pos`` (row ->
+    position in ``rk_step``, -1 for rows that move exactly).
+    """
+
+    x0: np.ndarray
+    u: np.ndarray
+    rk: np.ndarray
+    rk_step: rk.Step | None = None
+    rk_pos: np.ndarray | None = None
+
+
+def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
+              h: np.ndarray, err: np.ndarray) -> tuple[np.ndarray, AgentStep]:
+    """Agent ``a``'s states at the end of the step for instances ``idx`` (``sel`` selects
+    them: a slice when all are live), and its step record; RK error estimates are folded
+    into ``err`` (the largest over agents decides acceptance)."""
+    st = ens.states[a]
+    x0, u, is_rk = st.x[sel], st.u[sel], st.rk[sel]
+    step = AgentStep(x0, u, is_rk)
+    if not is_rk.any():
+        return st.ca.plant.propagate(x0, u, h), step
+    xe = np.empty_like(x0)
+    ex = ~is_rk
+    if ex.any():
+        xe[ex] = st.ca.plant.propagate(x0[ex], u[ex], h[ex])
+    r = np.flatnonzero(is_rk)
+    sub = idx[r]
+    s = rk.step(derivative(ens, a, sub), ens.t[sub], x0[r], h[r], ens.settings.rtol,
+                ens.settings.atol)
+    xe[r] = s.x1
+    err[r] = np.maximum(err[r], s.err)
+    pos = np.full(idx.size, -1, np.intp)
+    pos[r] = np.arange(r.size)
+    step.rk_step, step.rk_pos = s, pos
+    return xe, step
+
+
+def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: AgentStep, *,
+             dense: bool = False, rows: np.ndarray | None = None) -> np.ndarray:
+    """Agent ``a``'s state ``tau`` after the step start, for instances ``idx``.
+
+    ``rows`` are the positions of ``idx`` in the step's arrays (all when None). Flowing
+    rows are read off the dense output when ``dense``, else integrated afresh from the
+    step start (what a located crossing needs: a state as accurate as a step).
+    """
+    if rows is None:
+        rows = np.arange(idx.size)
+    x0, u, is_rk = step.x0[rows], step.u[rows], step.rk[rows]
+    plant = ens.states[a].ca.plant
+    if not is_rk.any():
+        return plant.propagate(x0, u, tau)
+    out = np.empty_like(x0)
+    ex = ~is_rk
+    if ex.any():
+        out[ex] = plant.propagate(x0[ex], u[ex], tau[ex])
+    r = np.flatnonzero(is_rk)
+    if dense:
+        s = step.rk_step
+        assert s is not None and step.rk_pos is not None
+        pos = step.rk_pos[rows[r]]
+        out[r] = s.dense(tau[r] / np.where(s.h[pos] > 0, s.h[pos], 1.0), pos)
+    else:
+        sub = idx[r]
+        s = rk.step(derivative(ens, a, sub), ens.t0[sub], x0[r], tau[r], ens.settings.rtol,
+                    ens.settings.atol)
+        out[r] = s.x1
+    return out

@@ -1,0 +1,240 @@
+"""Compiling transitions: targets, exit and entry paths, guards, actions, precedence.
+
+A transition is compiled once into a :class:`~.compiled.CTransition` whose mode indices,
+exit root and entry path are resolved, whose guard, delay and actions are numpy
+callables, and whose conflicts with higher-precedence transitions are precomputed, so the
+discrete phase (:mod:`.discrete`) only evaluates and fires. The atoms of urgent guards and
+invariants that can change while time flows are collected as watches (:mod:`.crossing`
+locates their sign changes).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hybridteam.engine.compiled import (
+    CONTINUOUS_NAMES,
+    REPLY,
+    CAction,
+    CMode,
+    CTransition,
+    Watch,
+)
+from hybridteam.engine.scope import Collector, message_symbols, resolve_mode
+from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.expr import (
+    Expression,
+    ExpressionError,
+    compile_assignment,
+    compile_expression,
+    free_names,
+)
+from hybridteam.model import Assign, Mode, Raise, Send, Transition
+
+
+def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMode],
+                        paths: list[str], syms: dict, state_index: dict[str, int],
+                        var_index: dict[str, int], agent_names: list[str], agent_name: str,
+                        message_fields: dict[str, set[str]] | None,
+                        col: Collector) -> list[CTransition]:
+    """Every transition of an agent, in precedence order: higher ``priority`` first, then
+    outer before inner, then declaration order; with conflicts, ``after`` slots, the modes'
+    ``outgoing`` lists and role carries filled in."""
+    decl: list[tuple[int, int, int, CTransition]] = []
+    for idx, (_path, mode, _parent, depth) in enumerate(flat):
+        for tr in mode.transitions:
+            tsyms = syms
+            if tr.on is not None and message_fields and tr.on in message_fields:
+                tsyms = {**syms, **message_symbols(message_fields[tr.on])}
+            ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
+                                     agent_names, agent_name, col)
+            if ct is not None:
+                decl.append((-tr.priority, depth, len(decl), ct))
+    decl.sort(key=lambda item: item[:3])
+    transitions: list[CTransition] = []
+    for order, (_, _, _, ct) in enumerate(decl):
+        ct.index = order
+        transitions.append(ct)
+    after_slot = 0
+    for ct in transitions:
+        sub_j = set(modes[ct.exit_root].subtree.tolist())
+        ct.conflicts = np.array(
+            [o.index for o in transitions[: ct.index]
+             if sub_j & set(modes[o.exit_root].subtree.tolist())], dtype=np.intp)
+        modes[ct.source].outgoing.append(ct.index)
+        if ct.after is not None:
+            ct.after_slot = after_slot
+            after_slot += 1
+    for ct in transitions:
+        _role_carry(ct, modes, transitions)
+    return transitions
+
+
+def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransition]) -> None:
+    """Fill ``ct.carry`` when it switches between two protocol states of one role.
+
+    A protocol gives each of its states that plays a role a copy of the robot's role body
+    (``Lead`` and ``Offering`` both lead). Which copy is active is bookkeeping of the
+    handshake; what the robot does is the body. So a transition from one such state straight
+    into another (a resignation: Lead -> Offering) resumes the body where it was, as a deep
+    history would, instead of restarting the plan; its ``after:`` delays go on running
+    (a plan's phase ends when it would have), while ``t_in_mode`` counts from the switch,
+    when the copies' modes are entered.
+    """
+    if ct.internal or len(ct.entry_path) != 1:
+        return
+    s, t = modes[ct.exit_root], modes[ct.entry_path[0]]
+    if s.role is None or s.role != t.role or not s.children:  # siblings: both under common
+        return
+    mapping = np.full(len(modes) + 1, -1, np.intp)
+
+    def pair(a: int, b: int) -> None:
+        mapping[a] = b
+        if modes[a].kind == "or":
+            ct.carry.append((a, b))
+        names = {modes[c].name: c for c in modes[b].children}
+        for c in modes[a].children:
+            if modes[c].name in names:
+                pair(c, names[modes[c].name])
+
+    pair(s.index, t.index)
+    ct.carry_map = mapping
+    for a in np.flatnonzero(mapping[:-1] >= 0).tolist():
+        b = int(mapping[a])
+        timed = {transitions[j].origin: transitions[j].after_slot
+                 for j in modes[b].outgoing if transitions[j].after is not None}
+        ct.carry_timers += [(b, transitions[j].after_slot, timed[transitions[j].origin])
+                            for j in modes[a].outgoing
+                            if transitions[j].after is not None
+                            and transitions[j].origin in timed]
+
+
+def group_triggered(transitions: list[CTransition]) -> dict[str, list[int]]:
+    out: dict[str, list[int]] = {}
+    for ct in transitions:
+        if ct.on is not None:
+            out.setdefault(ct.on, []).append(ct.index)
+    return out
+
+
+def _ancestors(modes: list[CMode], i: int) -> list[int]:
+    """``i`` and its ancestors, innermost first."""
+    out = [i]
+    while modes[out[-1]].parent >= 0:
+        out.append(modes[out[-1]].parent)
+    return out
+
+
+def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
+                        state_index, var_index, agent_names, agent_name: str,
+                        col: Collector) -> CTransition | None:
+    internal = tr.target is None
+    tgt, matches = (src, []) if internal else resolve_mode(tr.target, paths, paths[src])
+    if tgt is None:
+        if matches:
+            col.fail((*tr.where, "to"), f"mode name '{tr.target}' is ambiguous: "
+                     f"{', '.join(matches)}; write its dotted path")
+        else:
+            col.fail((*tr.where, "to"), f"unknown mode '{tr.target}'",
+                     did_you_mean(tr.target, [p.rsplit('.', 1)[-1] for p in paths if p]
+                                   + [p for p in paths if p]))
+        return None
+    anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
+    common = next(a for a in anc_s if a in anc_t)
+    if common in (src, tgt):
+        common = modes[common].parent
+    if common < 0 and internal:
+        col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
+        return None
+    if common < 0:
+        col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
+        return None
+    if modes[common].kind == "and":
+        col.fail((*tr.where, "to"), f"transition from '{modes[src].path}' to "
+                 f"'{modes[tgt].path}' crosses parallel regions of '{modes[common].path}'")
+        return None
+    exit_root = anc_s[anc_s.index(common) - 1]
+    entry_path = list(reversed(anc_t[: anc_t.index(common)]))
+    guard = None
+    if tr.guard is not None:
+        guard = col.expr(tr.guard, syms, (*tr.where, "guard"), condition=True)
+    after = None
+    if tr.after is not None:
+        after = col.expr(tr.after, syms, (*tr.where, "after"))
+    actions: list[CAction] = []
+    targets = list(state_index) + list(var_index)
+    for k, act in enumerate(tr.actions):
+        awhere = act.where or (*tr.where, "do", k)
+        if isinstance(act, Assign):
+            try:
+                name, e = compile_assignment(act.text, syms, targets)
+            except ExpressionError as exc:
+                lhs = act.text.split("=")[0].strip(" +-*/%")
+                if lhs in syms and lhs not in targets:
+                    what = "time" if lhs in CONTINUOUS_NAMES else "a parameter"
+                    col.errors.append(ModelError(awhere, f"'{lhs}' is {what} and cannot be "
+                                                 "assigned; assign variables or plant state",
+                                                 offset=exc.offset))
+                else:
+                    col.errors.append(ModelError(awhere, exc.message, offset=exc.offset,
+                                                 hint=exc.hint))
+                continue
+            target = ("x", state_index[name]) if name in state_index else ("v", var_index[name])
+            actions.append(CAction("assign", target=target, expr=e))
+        elif isinstance(act, Raise):
+            actions.append(CAction("raise", name=act.event))
+        elif isinstance(act, Send):
+            to, to_expr = None, None
+            if act.to == "sender":
+                if "msg_sender" not in syms:
+                    col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
+                             "message that triggered the transition; this transition has "
+                             "no triggering message ('on:' a message type)")
+                    continue
+                to = REPLY
+            elif act.to is not None and act.to in agent_names:
+                to = agent_names.index(act.to)
+            elif act.to is not None:
+                # an expression giving an agent's index per instance (negative: everyone)
+                try:
+                    to_expr = compile_expression(act.to, syms)
+                except ExpressionError as exc:
+                    col.fail((*awhere, "to"), f"unknown agent '{act.to}'" if
+                             act.to.isidentifier() else exc.message,
+                             did_you_mean(act.to, agent_names) if act.to.isidentifier()
+                             else exc.hint)
+                    continue
+            fields = {}
+            for fname, text in act.fields.items():
+                e = col.expr(text, syms, (*awhere, "fields", fname))
+                if e is not None:
+                    fields[fname] = e
+            actions.append(CAction("send", name=act.message, to=to, socket=act.socket,
+                                   fields=fields, to_expr=to_expr))
+    return CTransition(
+        index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
+        on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
+        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
+        guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
+    )
+
+
+def watches(modes: list[CMode], transitions: list[CTransition],
+             dynamic: frozenset[str]) -> list[Watch]:
+    """Atoms to locate during flow: those of urgent guards and invariants that mention state
+    or time (an atom over variables and parameters only cannot change while time flows)."""
+    found: list[Watch] = []
+
+    def add(expr: Expression | None, mode: int, invariant: bool) -> None:
+        if expr is None:
+            return
+        for atom in expr.atoms:
+            if free_names(atom.source, condition=True) & dynamic:
+                found.append(Watch(atom, mode, expr, invariant))
+
+    for ct in transitions:
+        if ct.on is None:
+            add(ct.guard, ct.source, False)
+    for m in modes:
+        add(m.invariant, m.index, True)
+    return found

@@ -1,0 +1,62 @@
+"""The public extension API: everything a mode library imports from hybridteam.
+
+A mode library is a Python package that registers **laws** (vectorized control laws a mode
+binds with ``law: {use: NAME}``) and **world components** (what belongs to no single
+agent: a payload, a corridor and its referee, a charging dock), optionally with a **batch
+fast path** that stands in for the engine on the teams it recognises. It is found through
+the ``hybridteam.libraries`` entry-point group, so a third-party package ships one without
+touching hybridteam (see ``docs/extending.md`` and ``examples/extending/``).
+
+A library imports this module only (plus numpy/scipy and, for geometry,
+:mod:`hybridteam.world.geometry`). Three objects are the whole contract between the
+engine and a library:
+
+- :class:`LawContext` — what a law sees for the ``m`` instances it is evaluated on: state,
+  parameters, variables, time, stream estimates, what world components let its robot
+  sense, and its own memory between periods;
+- :class:`WorldAccess` — what a world component may read and do of the running ensemble:
+  poses, states, variables, parameters, time, ending instances with an outcome, raising
+  local events, finding sibling components;
+- :class:`BatchRequest` — what a batch fast path is given: the team resolved as the
+  engine resolves it (parameters after overrides, settings, initial states) and the
+  team's shape as plain read-only values.
+
+The engine may change anything else between versions; these three and the registration
+decorators are kept stable and documented.
+"""
+
+from __future__ import annotations
+
+from hybridteam.errors import ModelError
+from hybridteam.laws import Estimate, LawContext, LawFunction, LawSpec, law
+from hybridteam.model import Agent, Team
+from hybridteam.world.access import WorldAccess, require_variable
+from hybridteam.world.component import WorldComponent, settings_error, world_component
+from hybridteam.world.request import (
+    AgentShape,
+    BatchRequest,
+    ModeShape,
+    OneLaw,
+    TransitionShape,
+)
+
+__all__ = [
+    "Agent",
+    "AgentShape",
+    "BatchRequest",
+    "Estimate",
+    "LawContext",
+    "LawFunction",
+    "LawSpec",
+    "ModeShape",
+    "ModelError",
+    "OneLaw",
+    "Team",
+    "TransitionShape",
+    "WorldAccess",
+    "WorldComponent",
+    "law",
+    "require_variable",
+    "settings_error",
+    "world_component",
+]
