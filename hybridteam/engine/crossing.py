@@ -62,93 +62,108 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
     crossed, and the true states computed at trial times ({agent: {(row, tau): x}}) so
     the engine need not integrate to the crossing again. Updates nothing.
     """
-    h = ens.h[idx]
-    t0 = ens.t0[idx]
     best = np.full(idx.size, np.inf)
     best_lo = np.full(idx.size, np.inf)
     checks = ens.settings.crossing_checks
-    thetas = [0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0]
+    thetas = np.array([0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0])
     end_truths: list[np.ndarray | None] = []
-    segments: list[_Segment | None] = []
+    cache: dict[int, dict] = {}
     for a, st in enumerate(ens.states):
-        ca = st.ca
-        if not ca.watches:
+        if not st.ca.watches:
             end_truths.append(None)
-            segments.append(None)
             continue
-        t1 = t0 + h
-        end = watch_truth(ens, a, idx, x_end[a], t1)
+        end, flips = _flips(ens, a, idx, x_end[a], steps[a], thetas)
         end_truths.append(end)
-        watched = st.watched[:, idx]  # (nw, m)
-        truths = [st.truth[:, idx]]
-        if not (watched & (end != truths[0])).any() and checks == 0:
+        if flips is None:
             continue
-        if not watched.any():
-            segments.append(None)
+        seg = _search(ens, a, idx, steps[a], thetas, *flips, best, best_lo)
+        if seg is not None:
+            cache[a] = seg.true_states
+    return best, end_truths, cache
+
+
+def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
+           thetas: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+    """Agent ``a``'s atom truths at the step's end, and — where some watched atom flipped
+    in a way that can matter — which sub-intervals of the step it flipped in and the truths
+    at their ends: ``(relevant (K, nw, m), truths (K + 1, nw, m))``, else None.
+
+    Atoms are evaluated at the step's ends and at ``crossing_checks`` interior points (all
+    instances' checkpoints in one batch, off the dense output or the exact arc).
+    """
+    st = ens.states[a]
+    h, t0 = ens.h[idx], ens.t0[idx]
+    t1 = t0 + h
+    end = watch_truth(ens, a, idx, x_end, t1)
+    watched = st.watched[:, idx]  # (nw, m)
+    truths = [st.truth[:, idx]]
+    checks = thetas.size - 2
+    if not watched.any() or (checks == 0 and not (watched & (end != truths[0])).any()):
+        return end, None
+    points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
+    if checks:
+        m = idx.size
+        rows = np.tile(np.arange(m), checks)
+        tau = np.repeat(thetas[1:-1], m) * h[rows]
+        x_all = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
+        t_all = t0[rows] + tau
+        tr_all = watch_truth(ens, a, idx[rows], x_all, t_all)
+        for c in range(checks):
+            part = slice(c * m, (c + 1) * m)
+            points.append((x_all[part], t_all[part]))
+            truths.append(tr_all[:, part])
+    points.append((x_end, t1))
+    truths.append(end)
+    flips = np.stack([watched & (truths[k] != truths[k - 1])
+                      for k in range(1, len(truths))])  # (K, nw, m)
+    if not flips.any():
+        return end, None
+    return end, (_relevant(ens, a, idx, flips, points), np.stack(truths))
+
+
+def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,
+            relevant: np.ndarray, truths: np.ndarray, best: np.ndarray, best_lo: np.ndarray
+            ) -> _Segment | None:
+    """Locate agent ``a``'s relevant flips, lowering ``best`` (the earliest crossing per
+    instance over all agents so far) and ``best_lo`` (the bracket's lower end) in place.
+    Returns the segment searched on (its true states), or None if nothing was searched."""
+    h = ens.h[idx]
+    first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
+    has = relevant.any(axis=0)
+    # atoms in order of their first sub-interval: the earliest crossing is found first and
+    # later atoms only need one probe to show they do not cross before it
+    order = sorted(range(relevant.shape[1]),
+                   key=lambda w: float(first[w][has[w]].min()) if has[w].any() else 9.0)
+    seg: _Segment | None = None
+    for w in order:
+        cand = np.flatnonzero(has[w])
+        if cand.size == 0:
             continue
-        points: list[tuple[np.ndarray, np.ndarray]] = [(steps[a].x0, t0)]
-        if checks:
-            # every interior checkpoint of every instance in one batch
-            m = idx.size
-            inner = np.asarray(thetas[1:-1])
-            rows = np.tile(np.arange(m), checks)
-            tau = np.repeat(inner, m) * h[rows]
-            x_all = state_at(ens, a, idx[rows], tau, steps[a], dense=True, rows=rows)
-            t_all = t0[rows] + tau
-            tr_all = watch_truth(ens, a, idx[rows], x_all, t_all)
-            for c in range(checks):
-                part = slice(c * m, (c + 1) * m)
-                points.append((x_all[part], t_all[part]))
-                truths.append(tr_all[:, part])
-        points.append((x_end[a], t1))
-        truths.append(end)
-        flips = np.stack([watched & (truths[k] != truths[k - 1])
-                          for k in range(1, len(truths))])  # (K, nw, m)
-        if not flips.any():
-            segments.append(None)
-            continue
-        relevant = _relevant(ens, a, idx, flips, points)
-        first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
-        has = relevant.any(axis=0)
-        stacked = np.stack(truths)
-        theta_arr = np.asarray(thetas)
-        # atoms in order of their first sub-interval: the earliest crossing is found first and
-        # later atoms only need one probe to show they do not cross before it
-        order = sorted(range(len(ca.watches)),
-                       key=lambda w: float(first[w][has[w]].min()) if has[w].any() else 9.0)
-        seg: _Segment | None = None
-        segments.append(None)
-        for w in order:
-            cand = np.flatnonzero(has[w])
+        if seg is None:
+            seg = _Segment(ens, a, idx, step)
+        k = first[w, cand]
+        lo = thetas[k] * h[cand]
+        hi = thetas[k + 1] * h[cand]
+        truth_lo = truths[k, w, cand]
+        known = np.isfinite(best[cand])
+        if known.any():
+            # crossing later than the best so far (original truth still at best_lo)?
+            rows = cand[known]
+            probe = np.minimum(best_lo[rows], hi[known])
+            dense = seg.evaluator(w, rows, dense=True)
+            later = dense(np.arange(rows.size), probe)[0] == truth_lo[known]
+            later |= best_lo[rows] <= lo[known]
+            keep = np.ones(cand.size, bool)
+            keep[np.flatnonzero(known)[later]] = False
+            hi[known] = np.minimum(hi[known], best_lo[rows])
+            cand, lo, hi, truth_lo = cand[keep], lo[keep], hi[keep], truth_lo[keep]
             if cand.size == 0:
                 continue
-            if seg is None:
-                seg = _Segment(ens, a, idx, steps[a])
-                segments[-1] = seg
-            k = first[w, cand]
-            lo = theta_arr[k] * h[cand]
-            hi = theta_arr[k + 1] * h[cand]
-            truth_lo = stacked[k, w, cand]
-            known = np.isfinite(best[cand])
-            if known.any():
-                # crossing later than the best so far (original truth still at best_lo)?
-                rows = cand[known]
-                probe = np.minimum(best_lo[rows], hi[known])
-                dense = seg.evaluator(w, rows, dense=True)
-                later = dense(np.arange(rows.size), probe)[0] == truth_lo[known]
-                later |= best_lo[rows] <= lo[known]
-                keep = np.ones(cand.size, bool)
-                keep[np.flatnonzero(known)[later]] = False
-                hi[known] = np.minimum(hi[known], best_lo[rows])
-                cand, lo, hi, truth_lo = cand[keep], lo[keep], hi[keep], truth_lo[keep]
-                if cand.size == 0:
-                    continue
-            tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
-            better = tau < best[cand]
-            best[cand[better]] = tau[better]
-            best_lo[cand[better]] = tau_lo[better]
-    cache = {a: seg.true_states for a, seg in enumerate(segments) if seg is not None}
-    return best, end_truths, cache
+        tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
+        better = tau < best[cand]
+        best[cand[better]] = tau[better]
+        best_lo[cand[better]] = tau_lo[better]
+    return seg
 
 
 def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,

@@ -161,6 +161,20 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     after = None
     if tr.after is not None:
         after = col.expr(tr.after, syms, (*tr.where, "after"))
+    actions = _compile_actions(tr, syms, state_index, var_index, agent_names, col)
+    return CTransition(
+        index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
+        on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
+        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
+        guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
+    )
+
+
+def _compile_actions(tr: Transition, syms: dict, state_index: dict[str, int],
+                     var_index: dict[str, int], agent_names: list[str],
+                     col: Collector) -> list[CAction]:
+    """A transition's ``do:`` list: assignments (to variables or plant state: a reset),
+    raised local events and sends."""
     actions: list[CAction] = []
     targets = list(state_index) + list(var_index)
     for k, act in enumerate(tr.actions):
@@ -184,39 +198,42 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         elif isinstance(act, Raise):
             actions.append(CAction("raise", name=act.event))
         elif isinstance(act, Send):
-            to, to_expr = None, None
-            if act.to == "sender":
-                if "msg_sender" not in syms:
-                    col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
-                             "message that triggered the transition; this transition has "
-                             "no triggering message ('on:' a message type)")
-                    continue
-                to = REPLY
-            elif act.to is not None and act.to in agent_names:
-                to = agent_names.index(act.to)
-            elif act.to is not None:
-                # an expression giving an agent's index per instance (negative: everyone)
-                try:
-                    to_expr = compile_expression(act.to, syms)
-                except ExpressionError as exc:
-                    col.fail((*awhere, "to"), f"unknown agent '{act.to}'" if
-                             act.to.isidentifier() else exc.message,
-                             did_you_mean(act.to, agent_names) if act.to.isidentifier()
-                             else exc.hint)
-                    continue
-            fields = {}
-            for fname, text in act.fields.items():
-                e = col.expr(text, syms, (*awhere, "fields", fname))
-                if e is not None:
-                    fields[fname] = e
-            actions.append(CAction("send", name=act.message, to=to, socket=act.socket,
-                                   fields=fields, to_expr=to_expr))
-    return CTransition(
-        index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
-        on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
-        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
-        guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
-    )
+            send = _compile_send(act, awhere, syms, agent_names, col)
+            if send is not None:
+                actions.append(send)
+    return actions
+
+
+def _compile_send(act: Send, awhere: tuple, syms: dict, agent_names: list[str],
+                  col: Collector) -> CAction | None:
+    """A ``send`` action: to everyone, to a named agent, back to the triggering message's
+    sender, or to an agent index given by an expression (negative: everyone)."""
+    to, to_expr = None, None
+    if act.to == "sender":
+        if "msg_sender" not in syms:
+            col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
+                     "message that triggered the transition; this transition has "
+                     "no triggering message ('on:' a message type)")
+            return None
+        to = REPLY
+    elif act.to is not None and act.to in agent_names:
+        to = agent_names.index(act.to)
+    elif act.to is not None:
+        try:
+            to_expr = compile_expression(act.to, syms)
+        except ExpressionError as exc:
+            col.fail((*awhere, "to"), f"unknown agent '{act.to}'" if
+                     act.to.isidentifier() else exc.message,
+                     did_you_mean(act.to, agent_names) if act.to.isidentifier()
+                     else exc.hint)
+            return None
+    fields = {}
+    for fname, text in act.fields.items():
+        e = col.expr(text, syms, (*awhere, "fields", fname))
+        if e is not None:
+            fields[fname] = e
+    return CAction("send", name=act.message, to=to, socket=act.socket, fields=fields,
+                   to_expr=to_expr)
 
 
 def watches(modes: list[CMode], transitions: list[CTransition],
