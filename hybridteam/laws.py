@@ -9,14 +9,12 @@ only way a model file can bring in code, and it is visible in the file.
 
 from __future__ import annotations
 
-import importlib
-import os
-import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from hybridteam.lawrefs import RefusedReference, import_model_module
 from hybridteam.libraries import broken_note, load_libraries
 
 
@@ -207,26 +205,32 @@ def registered() -> list[str]:
 
 
 def resolve(reference: str, folder: str | None = None) -> LawSpec:
-    """A law by registry name, or by explicit ``module:function`` reference.
+    """A law by registry name, or by ``module:function`` reference.
 
-    A module is looked for first in ``folder`` (the team file's), then on the Python path.
-    A function registered with :func:`law` keeps its registration (defaults, plants)
-    whatever name it is referenced by.
+    A module is imported only from ``folder`` (the team file's) or an installed mode
+    library, and the function must be registered with :func:`law`
+    (:mod:`hybridteam.lawrefs` has the rules); it keeps its registration (defaults,
+    plants) whatever name it is referenced by.
     """
     if ":" in reference:
         module_name, _, attr = reference.partition(":")
         try:
-            module = _import(module_name, folder)
+            module = import_model_module(module_name.strip(), folder)
+        except RefusedReference as exc:
+            raise LawNotFound(str(exc), []) from None
         except Exception as exc:  # an import error in user code is still a model error
-            raise LawNotFound(f"cannot import module '{module_name}': {exc}", []) from exc
+            raise LawNotFound(f"cannot import module '{module_name}': "
+                              f"{type(exc).__name__}: {exc}", []) from exc
         obj = getattr(module, attr, None)
-        if isinstance(obj, LawSpec):
-            return obj
-        if not callable(obj):
+        if obj is None:
             raise LawNotFound(f"module '{module_name}' has no function '{attr}'",
                               [n for n in dir(module) if not n.startswith("_")])
-        registered = next((s for s in _REGISTRY.values() if s.fn is obj), None)
-        return registered or LawSpec(reference, obj, doc=obj.__doc__ or "")
+        spec = obj if isinstance(obj, LawSpec) else \
+            next((s for s in _REGISTRY.values() if s.fn is obj), None)
+        if spec is None:
+            raise LawNotFound(f"'{reference}' is not a registered law: decorate the function "
+                              "with @law(...) from hybridteam.library", [])
+        return spec
     if reference not in _REGISTRY:
         load_libraries()
     if reference not in _REGISTRY:
@@ -234,20 +238,6 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
                           sorted(_REGISTRY))
     return _REGISTRY[reference]
-
-
-def _import(module_name: str, folder: str | None):
-    """Import ``module_name``, from ``folder`` when it is there (a module beside the team
-    file), else from the Python path."""
-    top = module_name.split(".")[0]
-    if folder and (os.path.isfile(os.path.join(folder, top + ".py"))
-                   or os.path.isdir(os.path.join(folder, top))):
-        sys.path.insert(0, folder)
-        try:
-            return importlib.import_module(module_name)
-        finally:
-            sys.path.remove(folder)
-    return importlib.import_module(module_name)
 
 
 @law("zero")

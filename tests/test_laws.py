@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+import shutil
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -57,8 +59,14 @@ def make(team_from_yaml, body, kind="unicycle", state="{x: 0, y: 0, theta: 0}", 
     return team_from_yaml(UNICYCLE.format(kind=kind, state=state, limits=limits, body=body))
 
 
-def test_user_law_by_module_function_reference(team_from_yaml):
-    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:circle', period: 0.1, "
+@pytest.fixture
+def userlaws(tmp_path):
+    """The user-law module beside the team file (where a model may name Python)."""
+    shutil.copy(Path(__file__).parent / "fixtures" / "userlaws.py", tmp_path / "userlaws.py")
+
+
+def test_user_law_by_module_function_reference(team_from_yaml, userlaws):
+    team = make(team_from_yaml, "law: {use: 'userlaws:circle', period: 0.1, "
                                 "with: {v: 2.0, w: 0.5}}")
     run = ht.simulate(team)
     final = run.samples["r"][-1, 0]
@@ -67,8 +75,8 @@ def test_user_law_by_module_function_reference(team_from_yaml):
                                atol=1e-12)
 
 
-def test_continuous_law_is_integrated_accurately(team_from_yaml):
-    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:heading_decay'}",
+def test_continuous_law_is_integrated_accurately(team_from_yaml, userlaws):
+    team = make(team_from_yaml, "law: {use: 'userlaws:heading_decay'}",
                 state="{x: 0, y: 0, theta: 1.0}")
     run = ht.simulate(team)
     theta = run.samples["r"][:, 0, 2]
@@ -82,20 +90,20 @@ def test_holonomic_inputs_and_limits_saturate(team_from_yaml):
     np.testing.assert_allclose(run.samples["r"][-1, 0], [4.0, -2.0, 0.4], atol=1e-12)
 
 
-def test_law_with_wrong_output_shape_names_the_law(team_from_yaml):
-    team = make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:wrong_shape', "
+def test_law_with_wrong_output_shape_names_the_law(team_from_yaml, userlaws):
+    team = make(team_from_yaml, "law: {use: 'userlaws:wrong_shape', "
                                 "period: 0.1}")
-    with pytest.raises(RuntimeError, match=r"tests\.fixtures\.userlaws:wrong_shape.*shape"):
+    with pytest.raises(RuntimeError, match=r"userlaws\.wrong_shape.*shape"):
         ht.simulate(team)
 
 
-def test_law_reference_errors_are_model_errors(team_from_yaml):
+def test_law_reference_errors_are_model_errors(team_from_yaml, userlaws):
     from hybridteam.io.loader import InputErrors
 
-    with pytest.raises(InputErrors, match=r"cannot import module 'tests\.fixtures\.nope'"):
-        make(team_from_yaml, "law: {use: 'tests.fixtures.nope:f', period: 0.1}")
+    with pytest.raises(InputErrors, match=r"module 'nope' is not beside the team file"):
+        make(team_from_yaml, "law: {use: 'nope:f', period: 0.1}")
     with pytest.raises(InputErrors, match=r"has no function 'cirle'.*did you mean 'circle'"):
-        make(team_from_yaml, "law: {use: 'tests.fixtures.userlaws:cirle', period: 0.1}")
+        make(team_from_yaml, "law: {use: 'userlaws:cirle', period: 0.1}")
 
 
 def test_libraries_are_found_through_entry_points(monkeypatch):

@@ -49,10 +49,19 @@ def state_title(graph: nx.MultiDiGraph, node: str) -> str:
 # ------------------------------------------------------------------ DOT
 
 
+_LINE_BREAKS = re.compile("[\r\n\v\f\x1c\x1d\x1e\x85\u2028\u2029]")
+
+
+def one_line(text: str) -> str:
+    """``text`` with every line break (all that a parser may end a line at) a space: what a
+    model names cannot start a line of its own in a text export (no injected statements)."""
+    return _LINE_BREAKS.sub(" ", text)
+
+
 def dot_quote(text: str) -> str:
     """A Graphviz double-quoted string: any id or label, newlines as centred line breaks."""
-    text = text.replace("\\", "\\\\").replace('"', '\\"')
-    return '"' + text.replace("\r", "").replace("\n", "\\n") + '"'
+    text = text.replace("\\", "\\\\").replace('"', '\\"').replace("\r\n", "\n")
+    return '"' + _LINE_BREAKS.sub(r"\\n", text) + '"'
 
 
 def _attrs(**attrs: str | float | bool) -> str:
@@ -206,7 +215,7 @@ class _StateText:
         self.lines: list[str] = []
 
     def label(self, text: str) -> str:
-        return text.replace("\n", " ")
+        return one_line(text)
 
     def arrow(self, u: str, v: str, text: str, arrow: str = "-->") -> str:
         a = u if u == "[*]" else self.ids[u]
@@ -300,7 +309,7 @@ class _Mermaid(_StateText):
     """
 
     def label(self, text: str) -> str:
-        text = text.replace("\n", " ").replace(":", "\u2236").replace(";", "\uff1b")
+        text = one_line(text).replace(":", "\u2236").replace(";", "\uff1b")
         text = text.replace("#", "\uff03").replace('"', "'").replace("%%", "%")
         return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
 
@@ -308,7 +317,8 @@ class _Mermaid(_StateText):
         return self.arrow(u, v, f"{data['message']} (message)")
 
     def render(self) -> str:
-        self.lines = ["stateDiagram-v2", f"    %% team {self.graph.graph.get('name', '')}"]
+        self.lines = ["stateDiagram-v2",
+                      f"    %% team {self.label(self.graph.graph.get('name', ''))}"]
         self.body()
         colors: dict[str, list[str]] = {}
         for node, data in self.graph.nodes(data=True):

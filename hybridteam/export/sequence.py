@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybridteam.errors import did_you_mean
+from hybridteam.export.render import one_line
 from hybridteam.trace import Trace
 
 FORMATS = ("mermaid", "plantuml")
@@ -103,14 +104,15 @@ def _ident(name: str) -> str:
 
 def _mermaid_text(text: str) -> str:
     """Mermaid ends a message at ``;`` or a newline and reads ``#...;`` as an entity."""
-    return text.replace("\n", " ").replace(";", ",").replace("#", "\uff03")
+    return one_line(text).replace(";", ",").replace("#", "\uff03")
 
 
 def _mermaid(names: list[str], found: list[Arrow]) -> str:
     lines = ["sequenceDiagram"]
     for n in names:
         ident = _ident(n)
-        lines.append(f"    participant {ident}" + (f" as {n}" if ident != n else ""))
+        lines.append(f"    participant {ident}" + (f" as {_mermaid_text(n)}" if ident != n
+                                                     else ""))
     for a in found:
         arrow = "-x" if a.lost else "->>"
         lines.append(f"    {_ident(a.sender)}{arrow}{_ident(a.receiver)}: "
@@ -124,10 +126,11 @@ def _plantuml(names: list[str], found: list[Arrow]) -> str:
     lines = ["@startuml", "hide footbox"]
     for n in names:
         ident = _ident(n)
-        lines.append(f'participant "{n}" as {ident}' if ident != n else f"participant {n}")
+        shown = one_line(n).replace('"', "'")
+        lines.append(f'participant "{shown}" as {ident}' if ident != n else f"participant {n}")
     for a in found:
         arrow = "->x" if a.lost else "->"
-        label = a.label.replace("\n", " ")
+        label = one_line(a.label)
         lines.append(f"{_ident(a.sender)} {arrow} {_ident(a.receiver)} : {label}")
     if not found:
         lines.append(f"note over {', '.join(_span(names))} : no messages")
