@@ -105,7 +105,8 @@ def load(path: str | os.PathLike) -> Team:
 def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
              duration: float | None = None,
              overrides: Mapping[str, float | Sequence[float]] | None = None,
-             progress: Callable[[float], None] | None = None) -> Run:
+             progress: Callable[[float], None] | None = None, *,
+             max_memory: float | None = None, max_periods: float | None = None) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``) to one value or
@@ -113,12 +114,14 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     the team's ``simulation.seed``; it may also be ``n`` seeds, one per instance, and
     instance ``i`` then draws exactly what a single run with ``seed[i]`` draws (how a
     parameter study packs runs with their own seeds into one ensemble). The trace's
-    ``meta["seed"]`` is then that list.
+    ``meta["seed"]`` is then that list. A run that would need more than ``max_memory``
+    bytes (default 4 GB) or ``max_periods`` control periods per instance (default 1e8)
+    raises :class:`~hybridteam.engine.budget.ResourceError` before allocating anything.
     """
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
     sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
-                    progress=progress)
+                    progress=progress, max_memory=max_memory, max_periods=max_periods)
     trace = sim.run()
     return Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
                trace.messages, trace.sample_times, trace.samples)

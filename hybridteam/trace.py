@@ -104,6 +104,14 @@ def _nan_to_none(values: Any) -> Any:
     return values
 
 
+def _sample_list(values: np.ndarray) -> list:
+    """Samples as nested lists, NaN (no sample) as None; without NaN, numpy's own fast
+    ``tolist`` (a large team's trace is millions of values)."""
+    if not np.isnan(values).any():
+        return values.tolist()
+    return np.where(np.isnan(values), None, values.astype(object)).tolist()
+
+
 def _none_to_nan(values: Any) -> Any:
     if isinstance(values, list):
         return [_none_to_nan(v) for v in values]
@@ -151,7 +159,7 @@ class Trace:
             "messages": self.messages.to_json_dict(),
             "samples": {
                 "t": self.sample_times.tolist(),
-                "agents": {a: _nan_to_none(s.tolist()) for a, s in self.samples.items()},
+                "agents": {a: _sample_list(s) for a, s in self.samples.items()},
             },
         }
 

@@ -55,7 +55,7 @@ def test_run_ensemble_with_per_instance_overrides(tmp_path):
 
 @pytest.mark.parametrize("args, words", [
     (["-n", "0"], "-n must be at least 1"),
-    (["--duration", "-1"], "--duration must be >= 0"),
+    (["--duration", "-1"], "--duration must be a finite number >= 0"),
     (["--set", "thermostat.K"], "expected KEY=VALUE"),
     (["--set", "thermostat.K=abc"], "values must be numbers"),
     (["--set", "thermostat.Q=1"], "names no parameter"),
@@ -165,7 +165,7 @@ def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     (["timeline", "{trace}", "--instance", "3"], "instances 0..0"),
     (["plot", "{missing}"], "no such file"),
     (["plot", "{notjson}"], "not a JSON file"),
-    (["plot", "{notrace}"], "not a hybridteam trace"),
+    (["plot", "{notrace}"], "not a valid hybridteam trace: format: Field required"),
     (["animate", "{trace}", "-o", "a.avi"], ".gif or .mp4"),
 ])
 def test_view_commands_refuse_bad_arguments(tmp_path, relay_trace, capsys, args, words):

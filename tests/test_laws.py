@@ -13,6 +13,7 @@ import pytest
 import hybridteam as ht
 from hybridteam import laws, libraries
 from hybridteam.dynamics.plants import Holonomic, Unicycle
+from hybridteam.errors import ModelError
 from hybridteam.io.filekind import InputErrors
 
 
@@ -93,7 +94,8 @@ def test_holonomic_inputs_and_limits_saturate(team_from_yaml):
 def test_law_with_wrong_output_shape_names_the_law(team_from_yaml, userlaws):
     team = make(team_from_yaml, "law: {use: 'userlaws:wrong_shape', "
                                 "period: 0.1}")
-    with pytest.raises(RuntimeError, match=r"userlaws\.wrong_shape.*shape"):
+    with pytest.raises(ModelError, match=r"law 'userlaws\.wrong_shape' of agent 'r' returned "
+                       r"shape \(1,\), expected \(1, 2\)"):
         ht.simulate(team)
 
 

@@ -320,7 +320,7 @@ def test_syntax_error_mentions_where_the_construct_started() -> None:
 @pytest.mark.parametrize("text", ["", "\n\n", "# only a comment\n  # another\n", "---\n"])
 def test_empty_files(text: str) -> None:
     err = error_of(text, filename="e.yaml")
-    assert str(err) == "e.yaml: file is empty"
+    assert str(err) == "e.yaml:1:1: file is empty (no document in it)"
 
 
 @pytest.mark.parametrize(

@@ -40,3 +40,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head`: not an error of ours
         sys.stderr.close()
         return EXIT_OK
+    except OSError as exc:  # standard output full or closed, and the like: one line
+        print(f"hybridteam: error: cannot write: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE

@@ -8,17 +8,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
 
 from hybridteam.cli.common import (
+    EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
     load_team_or_report,
     print_errors,
 )
+from hybridteam.errors import ModelError
 
 
 def register(sub) -> dict:
@@ -39,6 +42,10 @@ def register(sub) -> dict:
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     r.add_argument("--no-views", action="store_true",
                    help="skip the state diagram, timeline, trajectory and sequence views")
+    r.add_argument("--max-memory", type=float, default=None, metavar="GB",
+                   help="refuse runs needing more memory (default 4 GB)")
+    r.add_argument("--max-periods", type=float, default=None, metavar="N",
+                   help="refuse runs of more control periods per instance (default 1e8)")
 
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
@@ -66,7 +73,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return status
 
 
-def _overrides(items: list[str], n: int | None) -> tuple[dict[str, list[float]], int]:
+def _overrides(items: list[str], n: int | None
+               ) -> tuple[dict[str, list[float] | float], int]:
     out: dict[str, list[float]] = {}
     size = n
     for item in items:
@@ -83,23 +91,28 @@ def _overrides(items: list[str], n: int | None) -> tuple[dict[str, list[float]],
                                  f"{size}")
             size = len(values)
         out[key.strip()] = values
-    size = size or 1
-    return {k: (v if len(v) > 1 else v * size) for k, v in out.items()}, size
+    # one value stays one number (the engine broadcasts it): no list of -n copies
+    return {k: (v if len(v) > 1 else v[0]) for k, v in out.items()}, size or 1
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     from hybridteam.api import simulate
-    from hybridteam.trace import write_atomic
 
     if args.n is not None and args.n < 1:
         raise UsageError(f"-n must be at least 1, got {args.n}")
-    if args.duration is not None and not args.duration >= 0:
-        raise UsageError(f"--duration must be >= 0, got {args.duration}")
+    if args.duration is not None and not 0 <= args.duration < math.inf:
+        raise UsageError(f"--duration must be a finite number >= 0, got {args.duration}")
+    for flag, value in (("--max-memory", args.max_memory), ("--max-periods", args.max_periods)):
+        if value is not None and not 0 < value < math.inf:
+            raise UsageError(f"{flag} must be a finite number > 0, got {value}")
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise UsageError(f"output '{out}' exists and is not a folder")
+    if (out / "study.json").exists():
+        raise UsageError(f"output '{out}' holds a study's results; give the run a folder of "
+                         "its own")
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
@@ -119,28 +132,72 @@ def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         run = simulate(team, seed=args.seed, n=n, duration=args.duration,
-                       overrides=overrides, progress=progress)
+                       overrides=overrides, progress=progress,
+                       max_memory=None if args.max_memory is None else args.max_memory * 1e9,
+                       max_periods=args.max_periods)
+    except ModelError as exc:  # a value out of range in some instance: at its line
+        from hybridteam.io.loader import locate_in_file
+
+        print(locate_in_file(exc, args.team), file=sys.stderr)
+        return EXIT_USAGE
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
     finally:
         if bar is not None:
             bar.close()
-    wall = time.perf_counter() - start
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").unlink(missing_ok=True)
-    run.to_json(out / "trace.json")
-    run.write_csv(out)
     summary = run.summary()
-    summary["wall_time_s"] = round(wall, 4)
-    views: list[str] = []
-    if not args.no_views:
-        from hybridteam.export.runviews import write_run_views
-
-        views = write_run_views(team, run, out)
-    write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    summary["wall_time_s"] = round(time.perf_counter() - start, 4)
+    views = _write_run(out, team, run, summary, views=not args.no_views)
     if not args.quiet:
         _print_summary(summary, out, views)
     return EXIT_OK
+
+
+INCOMPLETE = "INCOMPLETE"
+
+
+def _write_run(out: Path, team, run, summary: dict, views: bool) -> list[str]:
+    """Write a run's folder; ``summary.json`` last. Until it is written the folder holds an
+    ``INCOMPLETE`` file saying so, which stays if writing fails or is interrupted: a folder
+    is complete (``summary.json``, no ``INCOMPLETE``) or says it is not."""
+    from hybridteam.trace import write_atomic
+
+    marker = out / INCOMPLETE
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").unlink(missing_ok=True)
+        write_atomic(marker, "hybridteam run was writing this folder and did not finish: "
+                     "its files may be partial or stale (summary.json is written last)\n")
+        run.to_json(out / "trace.json")
+        run.write_csv(out)
+        written: list[str] = []
+        failed = None
+        if views:
+            from hybridteam.export.runviews import write_run_views
+
+            try:
+                written = write_run_views(team, run, out)
+            except OSError:
+                raise
+            except Exception as exc:  # a view that cannot be drawn: the data still stands
+                failed = f"{type(exc).__name__}: {exc}"
+                summary["views_error"] = failed
+        write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+        marker.unlink()
+        if failed is not None:
+            raise UsageError(f"drawing the views failed ({failed}); {out}/ has the trace, "
+                             "the tables and summary.json (--no-views skips the views)")
+        return written
+    except OSError as exc:
+        target = getattr(exc, "filename2", None) or exc.filename  # a rename's target
+        where = f" {target}" if target else ""
+        raise UsageError(f"cannot write{where}: {exc.strerror or exc}"
+                         + ("" if not marker.exists() else
+                            f"; {out}/ is incomplete ({INCOMPLETE} marks it)")) from None
+    except KeyboardInterrupt:
+        print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
+              f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None
 
 
 _BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "messages"})

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -72,17 +73,26 @@ DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "
 
 
 def _load_trace(path: str, instance: int) -> Trace:
-    """A trace file, or a one-line error naming it."""
+    """A trace file, checked against the trace format; or a one-line error naming it."""
+    from hybridteam.trace_schema import check_trace
+
     try:
-        trace = Trace.load(path)
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
     except FileNotFoundError:
         raise UsageError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UsageError(f"{path}: is a directory, not a trace file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read: {exc}") from None
     except json.JSONDecodeError as exc:
         raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
-    except (ValueError, KeyError, TypeError) as exc:
-        raise UsageError(f"{path}: not a hybridteam trace ({exc})") from None
+    except RecursionError:
+        raise UsageError(f"{path}: not a hybridteam trace (nested too deeply)") from None
+    problem = check_trace(data)
+    if problem is not None:
+        raise UsageError(f"{path}: not a valid hybridteam trace: {problem}")
+    trace = Trace.from_dict(data)
     if not 0 <= instance < trace.n:
         raise UsageError(f"--instance {instance}: the trace has instances 0..{trace.n - 1}")
     return trace
@@ -133,6 +143,9 @@ def cmd_timeline(args: argparse.Namespace) -> int:
     _suffix(args.output, IMAGE, "timeline")
     if args.data:
         _suffix(args.data, (".csv", ".json"), "timeline's data")
+    if args.window and not all(math.isfinite(w) for w in args.window):
+        raise UsageError(f"--window {args.window[0]:g} {args.window[1]:g}: times must be "
+                         "finite numbers")
     if args.window and not args.window[0] < args.window[1]:
         raise UsageError(f"--window {args.window[0]:g} {args.window[1]:g}: T0 must be < T1")
     trace = _load_trace(args.trace, args.instance)

@@ -44,7 +44,8 @@ def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
         request = BatchRequest(
             team=cteam.team, n=n, seed=seed_value(seed, n),
             duration=float(cteam.team.simulation.duration), component=k,
-            settings=component_values(cls, spec.values, team_params, n), agents=shapes,
+            settings=component_values(cls, spec.values, team_params, n, spec.where),
+            agents=shapes,
             team_params=team_params)
         rows = cls.batch(request)
         if rows is not None:

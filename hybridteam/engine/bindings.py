@@ -84,7 +84,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             if e is not None:
                 pexprs[name] = e
         return Driver("sampled" if b.period else "continuous", idx, period=b.period or 0.0,
-                      law=spec, params=pexprs)
+                      law=spec, params=pexprs, where=b.where or mode.where)
     return None
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hybridteam.dynamics.plants import Plant
+from hybridteam.errors import DocPath
 from hybridteam.expr import Atom, Expression
 from hybridteam.laws import LawContext, LawSpec
 from hybridteam.model import Team
@@ -57,6 +58,7 @@ class Driver:
     params: dict[str, Expression] = field(default_factory=dict)
     inputs: list[Expression] | None = None  # expression inputs (``inputs:`` in a mode)
     flow: list[Expression | None] | None = None  # one per state component (None: 0)
+    where: DocPath = ()  # the law binding (a law that fails is reported there)
 
     @property
     def needs_rk(self) -> bool:
@@ -83,6 +85,7 @@ class CPolicy:
     priority: Expression | None = None
     timeout: Expression | None = None
     retries: Expression | None = None
+    where: DocPath = ()  # the ``ack:`` declaration (its values are checked when sent)
 
     @property
     def acknowledged(self) -> bool:

@@ -18,6 +18,7 @@ import numpy as np
 
 from hybridteam.engine.compiled import REPLY
 from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
+from hybridteam.engine.values import require
 
 if TYPE_CHECKING:
     from hybridteam.engine.compiled import CAction, CAgent, Ctx
@@ -174,8 +175,13 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.priority is not None:
         rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
     if policy is not None and policy.acknowledged:
-        timeout = np.broadcast_to(policy.timeout(ctx), sub.shape)  # type: ignore[misc]
-        retries = np.broadcast_to(policy.retries(ctx), sub.shape)  # type: ignore[misc]
+        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore
+                          (*policy.where, "timeout"), "the ack timeout",
+                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore
+                          instances=sub)
+        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore
+                          (*policy.where, "retries"), "the number of retries",
+                          policy.retries.source, low=0.0, instances=sub)  # type: ignore
         ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
                           rank)
     else:

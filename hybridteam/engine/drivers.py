@@ -8,6 +8,7 @@ checked for shape and saturated to the actuator limits.
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +16,8 @@ import numpy as np
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
+from hybridteam.engine.numerics import broken_inputs, stop_broken_inputs
+from hybridteam.errors import ModelError
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
@@ -30,13 +33,30 @@ def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
         for j, e in enumerate(drv.inputs):
             u[:, j] = e(ctx)
     else:
-        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
-        if u.shape != (m, len(ca.plant.input_names)):
-            raise RuntimeError(f"law '{drv.law.name}' returned shape {u.shape}, expected "
-                               f"{(m, len(ca.plant.input_names))} (inputs "
-                               f"{', '.join(ca.plant.input_names)})")
+        u = _call_law(ca, drv, ctx, m)
     return saturate(u, ca.lower, ca.upper) if ca.limited else u
 
+
+
+def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
+    """The law's inputs, shape-checked. A law that fails or returns the wrong shape is a
+    :class:`ModelError` at its binding, with what went wrong (``HYBRIDTEAM_DEBUG=1``
+    re-raises the law's own exception instead, for its traceback)."""
+    name = drv.law.name  # type: ignore[union-attr]
+    try:
+        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
+    except Exception as exc:
+        if os.environ.get("HYBRIDTEAM_DEBUG"):
+            raise
+        detail = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        raise ModelError((*drv.where, "use"), f"law '{name}' of agent '{ca.name}' failed: "
+                         f"{type(exc).__name__}: {detail}") from exc
+    expected = (m, len(ca.plant.input_names))
+    if u.shape != expected:
+        raise ModelError((*drv.where, "use"), f"law '{name}' of agent '{ca.name}' returned "
+                         f"shape {u.shape}, expected {expected} (inputs "
+                         f"{', '.join(ca.plant.input_names)})")
+    return u
 
 
 def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
@@ -104,7 +124,11 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         rows = slice(None) if everyone else np.flatnonzero(mine)
         t = ens.t[rows]
         ctx = st.ctx(rows, t, D.owner)
-        st.u[rows] = evaluate_driver(ca, D, ctx)
+        u = evaluate_driver(ca, D, ctx)
+        st.u[rows] = u
+        if not np.isfinite(u).all():
+            where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
+            stop_broken_inputs(ens, a, where, u, broken_inputs(u))
         if D.kind == "sampled":
             k = np.floor(t / D.period) + 1
             nxt = k * D.period

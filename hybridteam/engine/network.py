@@ -26,6 +26,7 @@ import numpy as np
 
 from hybridteam.engine.events import MESSAGE
 from hybridteam.engine.randomness import instance_keys, uniform
+from hybridteam.engine.values import require
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.model import Team
@@ -69,16 +70,19 @@ def check_network(team: Team) -> list[ModelError]:
             errors.append(ModelError((*net.where, "rate_limits", agent),
                                      f"unknown agent '{agent}'", hint=did_you_mean(agent, names),
                                      at_key=True))
-    symbols = {name: (lambda c: 0.0) for name in team.parameters}
+    defaults = {name: np.array([float(v)]) for name, v in team.parameters.items()}
     for link in [net.default, *net.links.values()]:
         for what in ("latency", "jitter", "loss"):
             text = getattr(link, what)
-            if isinstance(text, str):
-                try:
-                    compile_expression(text, symbols)
-                except ExpressionError as exc:
-                    errors.append(ModelError((*link.where, what), exc.message,
-                                             offset=exc.offset, hint=exc.hint))
+            try:  # the team's own values must give a sensible setting (studies may not)
+                require(_evaluate(text, defaults, 1), (*link.where, what),
+                        f"the link's {what}", str(text), low=0.0,
+                        high=1.0 if what == "loss" else np.inf)
+            except ExpressionError as exc:
+                errors.append(ModelError((*link.where, what), exc.message,
+                                         offset=exc.offset, hint=exc.hint))
+            except ModelError as exc:
+                errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
     return errors
 
 
@@ -97,14 +101,12 @@ class Network:
         count = len(self.names)
         self.count = [np.zeros(n, np.int64) for _ in range(count)]
         net = team.network
-        self.links: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        for s in range(count):
-            for r in range(count):
-                if s != r:
-                    spec = net.links.get((self.names[s], self.names[r]), net.default)
-                    self.links[(s, r)] = tuple(  # type: ignore[assignment]
-                        _evaluate(getattr(spec, what), team_params, n)
-                        for what in ("latency", "jitter", "loss"))
+        index = {name: k for k, name in enumerate(self.names)}
+        # the default link once, and the links the team names: not one per pair of agents
+        self.default = _link(net.default, team_params, n)
+        self.links: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {
+            (index[s], index[r]): _link(spec, team_params, n)
+            for (s, r), spec in net.links.items() if s != r}
         self.limits: dict[tuple[int, str], float] = {}
         for agent, per_socket in net.rate_limits.items():
             for socket, rate in per_socket.items():
@@ -133,7 +135,8 @@ class Network:
             if not mine.any():
                 continue
             inst, ts, k, ids_r = idx[mine], t[mine], seq[mine], ids[mine]
-            latency, jitter, loss = (a[inst] for a in self.links[(sender, r)])
+            latency, jitter, loss = (a[inst] for a in self.links.get((sender, r),
+                                                                      self.default))
             key = self.keys[inst]
             u_loss = uniform(key, sender, r, k, LOSS)
             u_jit = uniform(key, sender, r, k, JITTER)
@@ -198,6 +201,16 @@ class Network:
         """Copies still in flight when the run ends: recorded as lost, reason 'run ended'."""
         for i, msg in pending:
             self.record(i, msg, np.nan, "lost", "run ended")
+
+
+def _link(spec, team_params: dict[str, np.ndarray], n: int
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A link's latency, jitter and loss per instance, each checked for its range."""
+    return tuple(  # type: ignore[return-value]
+        require(_evaluate(getattr(spec, what), team_params, n), (*spec.where, what),
+                f"the link's {what}", str(getattr(spec, what)), low=0.0,
+                high=1.0 if what == "loss" else np.inf)
+        for what in ("latency", "jitter", "loss"))
 
 
 def _evaluate(text: str | float, team_params: dict[str, np.ndarray], n: int) -> np.ndarray:

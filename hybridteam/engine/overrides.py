@@ -32,6 +32,10 @@ def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int
         if values.ndim > 1 or (values.ndim == 1 and values.size != n):
             raise ValueError(f"override '{key}': expected a number or {n} values, "
                              f"got shape {values.shape}")
+        if not np.isfinite(values).all():
+            bad = np.flatnonzero(~np.isfinite(np.atleast_1d(values)))[0]
+            raise ValueError(f"override '{key}': {np.atleast_1d(values)[bad]} (instance "
+                             f"{bad}) is not a finite number")
         problem = key_problem(agents, key)
         if problem is not None:
             raise ValueError(problem)

@@ -71,7 +71,7 @@ def check_messages(team: Team) -> list[ModelError]:
 
 def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
-    agent = team.agent(ca.name)
+    agent = team.agents[ca.index]
     for name, spec in team.messages.items():
         pol = CPolicy()
         if spec.priority not in (0, 0.0, "0"):
@@ -79,6 +79,7 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
         if spec.ack is not None:
             pol.timeout = col.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
             pol.retries = col.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
+            pol.where = spec.ack.where
         ca.policies[name] = pol
     usyms = {**syms, **velocity_symbols(ca.plant),
              **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)}}
@@ -99,7 +100,7 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
         if rate is None or any(v is None for v in fields.values()):
             continue
         ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
-                                  modes))
+                                  modes, where=s.where, rate_text=str(s.rate)))
 
 
 VELOCITY_NAMES = ("vel_x", "vel_y", "vel_theta", "vel_forward")

@@ -159,8 +159,9 @@ def trace_meta(cteam: CTeam, n: int, seed: int | list[int], t_end: float,
     }
     extra = world.meta()
     footprints = extra.pop("footprints", {})
+    declared = {a.name: a for a in cteam.team.agents}
     for a in meta["agents"]:
-        preset = cteam.team.agent(a["name"]).preset
+        preset = declared[a["name"]].preset
         if a["name"] in footprints:
             a["footprint"] = footprints[a["name"]]
         elif preset is not None:  # no component drew it: the robot model's disk

@@ -15,17 +15,20 @@ The state lives in an :class:`~.ensemble.Ensemble`; this module is only the loop
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
+from hybridteam.engine.budget import check_budget
 from hybridteam.engine.compiled import CTeam, Ctx
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.ensemble import Ensemble
+from hybridteam.engine.numerics import step_floor, stop_broken_states, stop_collapsed_steps
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import trace_meta
 from hybridteam.engine.step import AgentStep, state_at, take_step
@@ -40,12 +43,15 @@ class Simulator:
     def __init__(self, cteam: CTeam, n: int = 1, *, seed: int | Sequence[int] = 0,
                  duration: float | None = None,
                  overrides: Mapping[str, float | Sequence[float]] | None = None,
-                 progress: Progress | None = None) -> None:
+                 progress: Progress | None = None, max_memory: float | None = None,
+                 max_periods: float | None = None) -> None:
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
-        if not t_end >= 0:
-            raise ValueError(f"duration must be >= 0, got {t_end}")
+        if not 0 <= t_end < math.inf:
+            raise ValueError(f"duration must be a finite number >= 0, got {t_end}")
+        check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
+                     max_periods)
         self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {})
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
@@ -149,6 +155,7 @@ class Simulator:
         steps = [s for _, s in moved]
         if any_rk[sel].any():
             self._control_step_size(idx, sel, t1, any_rk, limited, err, x_end, steps)
+        stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
         tn = t1[sel]
         self._interpolate_samples(idx, tn, steps)
@@ -190,7 +197,8 @@ class Simulator:
                            x_end: list[np.ndarray], steps: list[AgentStep]) -> None:
         """Runge–Kutta error control: a rejected step is taken back (the instance stays
         where it was, ``h`` = 0) and retried smaller; an accepted step that the error
-        control limited proposes the next size."""
+        control limited proposes the next size. A step size that collapses ends the
+        instance (``stiff``, :mod:`.numerics`)."""
         ens = self.ensemble
         rows_rk = any_rk[sel]
         h = ens.h[sel]
@@ -200,6 +208,14 @@ class Simulator:
         upd = reject | grow
         ens.h_rk[idx[upd]] = new_h[upd]
         if reject.any():
+            # a derivative that is not a number at the start is a numerical error, not a
+            # step too large: stop_broken_states reports it
+            hopeless = np.zeros(idx.size, bool)
+            for s in steps:
+                if s.start_bad is not None:
+                    hopeless |= s.start_bad
+            dead = stop_collapsed_steps(ens, idx, steps, np.flatnonzero(reject & ~hopeless))
+            reject[dead] = True  # (already) taken back: nothing of the step is kept
             back = idx[reject]
             t1[back] = ens.t[back]
             ens.h[back] = 0.0
@@ -276,6 +292,9 @@ class Simulator:
             h0 = rk.initial_step_size(derivative(ens, a, sub), ens.t[sub], st.x[sub],
                                       ens.settings.rtol, ens.settings.atol,
                                       min(ens.max_step, ens.t_end or 1.0))
+            # a derivative that is not a number gives no estimate: take the smallest
+            # step, whose first stage reports it (numerical_error)
+            h0 = np.where(h0 > 0, h0, step_floor(ens, ens.t[sub]))
             h[rows] = np.minimum(h[rows], h0)
         ens.h_rk[idx] = h
 

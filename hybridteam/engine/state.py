@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.engine.compiled import CAgent, Ctx
+from hybridteam.engine.values import require
 from hybridteam.engine.world import AgentView
 
 if TYPE_CHECKING:
@@ -81,8 +82,10 @@ class AgentState:
             tr = ca.transitions[j]
             if tr.after is not None:
                 ctx = self.ctx(idx, t[idx])
-                self.deadline[idx, tr.after_slot] = t[idx] + np.broadcast_to(
-                    tr.after(ctx), idx.shape)
+                delay = require(np.broadcast_to(tr.after(ctx), idx.shape),
+                                (*tr.origin, "after"), "the delay", tr.after.source, low=0.0,
+                                instances=idx)
+                self.deadline[idx, tr.after_slot] = t[idx] + delay
 
     def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
         """Complete the entry of an already-activated mode: initial children, or history."""

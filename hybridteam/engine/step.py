@@ -27,8 +27,11 @@ class AgentStep:
     """Agent ``a``'s step over the live instances (rows aligned with the step's index).
 
     ``x0`` start states (m, d), ``u`` held inputs (m, k), ``rk`` which rows flow under a
-    Runge–Kutta step; for those, ``rk_step`` (its dense output) and ``rk_pos`` (row ->
-    position in ``rk_step``, -1 for rows that move exactly).
+    Runge–Kutta step; for those, ``rk_step`` (its dense output), ``rk_pos`` (row ->
+    position in ``rk_step``, -1 for rows that move exactly), ``err`` (the step's error
+    norm per row, 0 for exact rows; inf where the result is not a finite number, so the
+    step is rejected) and ``start_bad`` (rows whose derivative at the start state is not a
+    finite number: no step size can help them).
     """
 
     x0: np.ndarray
@@ -36,13 +39,15 @@ class AgentStep:
     rk: np.ndarray
     rk_step: rk.Step | None = None
     rk_pos: np.ndarray | None = None
+    err: np.ndarray | None = None
+    start_bad: np.ndarray | None = None
 
 
 def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
               h: np.ndarray, err: np.ndarray) -> tuple[np.ndarray, AgentStep]:
     """Agent ``a``'s states at the end of the step for instances ``idx`` (``sel`` selects
     them: a slice when all are live), and its step record; RK error estimates are folded
-    into ``err`` (the largest over agents decides acceptance)."""
+    into ``err`` (the largest over agents decides acceptance; NaN counts as largest)."""
     st = ens.states[a]
     x0, u, is_rk = st.x[sel], st.u[sel], st.rk[sel]
     step = AgentStep(x0, u, is_rk)
@@ -57,10 +62,14 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     s = rk.step(derivative(ens, a, sub), ens.t[sub], x0[r], h[r], ens.settings.rtol,
                 ens.settings.atol)
     xe[r] = s.x1
-    err[r] = np.maximum(err[r], s.err)
+    mine = np.zeros(idx.size)
+    mine[r] = np.where(np.isfinite(s.x1).all(axis=1) & ~np.isnan(s.err), s.err, np.inf)
+    np.maximum(err, mine, out=err)
+    start_bad = np.zeros(idx.size, bool)
+    start_bad[r] = ~np.isfinite(s.k[0]).all(axis=1)
     pos = np.full(idx.size, -1, np.intp)
     pos[r] = np.arange(r.size)
-    step.rk_step, step.rk_pos = s, pos
+    step.rk_step, step.rk_pos, step.err, step.start_bad = s, pos, mine, start_bad
     return xe, step
 
 

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.engine.values import require
+from hybridteam.errors import DocPath
 from hybridteam.expr import Expression
 
 if TYPE_CHECKING:
@@ -36,6 +38,8 @@ class CStream:
     period: Expression  # 1 / rate, an expression of the sender's parameters
     fields: dict[str, Expression]
     modes: list[int]  # indices of the modes it is sent in; empty: always
+    where: DocPath = ()  # the declaration (its ``rate`` is checked where it is evaluated)
+    rate_text: str = ""
 
 
 class Inbox:
@@ -136,7 +140,9 @@ class Streams:
                     fields = {f: np.broadcast_to(e(ctx), sub.shape).astype(float)
                               for f, e in cs.fields.items()}
                     ens.network.send(sub, ens.t[sub], a, None, cs.socket, cs.message, fields)
-                    period = np.broadcast_to(cs.period(ctx), sub.shape)
+                    period = require(np.broadcast_to(cs.period(ctx), sub.shape),
+                                     (*cs.where, "rate"), "1 / rate", cs.rate_text,
+                                     low=0.0, open_low=True, instances=sub)
                     due[sub] = ens.t[sub] + period
         nxt = np.full(idx.size, np.inf)
         for per_agent in self.due:

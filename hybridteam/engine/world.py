@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.engine.values import require
+from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.libraries import broken_note
 from hybridteam.world.component import WorldComponent, lookup, registered
@@ -71,16 +72,20 @@ def _numeric(value: Any) -> bool:
 
 
 def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
-            team_params: Mapping[str, np.ndarray], n: int) -> dict[str, Any]:
-    """Settings with defaults filled in; numeric ones as (n,) arrays, one per instance."""
+                     team_params: Mapping[str, np.ndarray], n: int,
+                     where: DocPath = ()) -> dict[str, Any]:
+    """Settings with defaults filled in; numeric ones as (n,) arrays, one per instance,
+    each a finite number (a ModelError at ``where`` + ``with.<key>`` otherwise)."""
     symbols = {k: (lambda c, v=v: v) for k, v in team_params.items()}
     out: dict[str, Any] = {}
     for key, default in cls.params.items():
         value = given.get(key, default)
         if _numeric(default):
+            text = str(value)
             if isinstance(value, str):
                 value = compile_expression(value, symbols)(None)
-            out[key] = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+            value = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
+            out[key] = require(value, (*where, "with", key), f"setting '{key}'", text)
         else:
             out[key] = value
     return out
@@ -94,7 +99,7 @@ class World:
         for spec in team.world:
             cls = lookup(spec.use)
             self.components.append(cls(team, n, component_values(cls, spec.values,
-                                                                 team_params, n)))
+                                                                 team_params, n, spec.where)))
 
     @property
     def any(self) -> bool:

@@ -10,6 +10,7 @@ dispatches any file to its kind.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 from pathlib import Path
@@ -85,6 +86,21 @@ def locate(err: ModelError, positions: Positions, filename: str,
                        err.path, message)
 
 
+def locate_in_file(err: ModelError, team_file: str | os.PathLike) -> SourceError:
+    """A run-time :class:`ModelError` (a delay, rate or link setting out of range for some
+    instance) located in the team file it came from, or in the protocol file its path
+    names: the file is read again for its positions."""
+    elsewhere = {}
+    if err.path and isinstance(err.path[0], InFile):
+        with contextlib.suppress(InputErrors):  # then it is located by its path alone
+            elsewhere[err.path[0]] = read_document(str(err.path[0])).positions
+    try:
+        doc = read_document(team_file)
+    except InputErrors:
+        return SourceError(str(team_file), None, None, err.path, err.message)
+    return locate(err, doc.positions, doc.filename, elsewhere)
+
+
 def _load_team(doc: Document) -> Loaded:
     """A team document: schema, protocols composed, compiled (every name and expression
     checked), then the semantic checker's warnings."""
@@ -154,7 +170,7 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     s = doc.simulation
     sim = Simulation(
         duration=s.duration, seed=s.seed, sample_period=s.sample_period, rtol=s.rtol,
-        atol=s.atol, max_step=s.max_step, event_tol=s.event_tol,
+        atol=s.atol, max_step=s.max_step, min_step=s.min_step, event_tol=s.event_tol,
         crossing_checks=s.crossing_checks,
         zeno=Zeno(s.zeno.max_steps_per_instant, s.zeno.max_transitions, s.zeno.window),
         where=("simulation",),

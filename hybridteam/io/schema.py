@@ -29,7 +29,10 @@ def check_names(names, what: str) -> None:
 
 
 class Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    """Unknown keys are errors, and so are NaN and infinite numbers: no setting of a file
+    means anything with them (leave a limit out to have none)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True, allow_inf_nan=False)
 
 
 class SendSchema(Strict):
@@ -231,6 +234,9 @@ class SimulationSchema(Strict):
     rtol: PositiveFloat = 1e-10
     atol: PositiveFloat = 1e-12
     max_step: PositiveFloat | None = None
+    min_step: PositiveFloat | None = Field(
+        None, description="smallest integrator step before a run ends 'stiff' "
+                          "(default: duration * 1e-6)")
     event_tol: PositiveFloat = 1e-12
     crossing_checks: Annotated[int, Field(ge=0, le=32)] = 2
     zeno: ZenoSchema = Field(default_factory=ZenoSchema)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hybridteam.sweep.study import FactorValue, Study
+from hybridteam.sweep.study import MAX_RUNS, FactorValue, Study, run_count
 
 BASE = "base"  # the factor name of a study without factors
 
@@ -91,6 +91,9 @@ class Plan:
         self.chunk = int(chunk or study.chunk)
         if self.chunk < 1:
             raise ValueError(f"chunk must be at least 1, got {self.chunk}")
+        if run_count(study) > MAX_RUNS:  # a study built in Python skipped the file check
+            raise ValueError(f"the study asks for {run_count(study):,} runs, more than the "
+                             f"{MAX_RUNS:,} a study may plan")
         self.per_setting = study.size * study.repetitions
         self.settings = _settings(study)
         self.runs = len(self.settings) * self.per_setting

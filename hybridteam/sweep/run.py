@@ -23,6 +23,8 @@ from hybridteam.sweep.plan import Chunk, Plan, Task
 from hybridteam.sweep.store import (
     FORMAT,
     StudyError,
+    chunk_problem,
+    discard_chunk,
     finished_chunks,
     open_folder,
     versions,
@@ -87,7 +89,12 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     if unknown:
         raise StudyError(f"{out}: chunk file '{unknown[0]}' belongs to no chunk of this "
                          "study; use another output folder")
-    result = Outcome(plan, reused=[c.id for c in plan.chunks if c.id in done])
+    result = Outcome(plan)
+    for c in plan.chunks:  # a chunk is reused only if it verifies; else it is run again
+        if c.id in done and (why := chunk_problem(done[c.id], c.size)) is not None:
+            result.warnings.append(f"{done[c.id]}: {why}; computing chunk {c.id} again")
+            discard_chunk(done.pop(c.id))
+    result.reused = [c.id for c in plan.chunks if c.id in done]
     record["versions"] = versions()
     if old is not None and old.get("versions") not in (None, record["versions"]):
         record["earlier_versions"] = old.get("earlier_versions") or old["versions"]

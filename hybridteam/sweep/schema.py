@@ -20,6 +20,8 @@ RESERVED = ("factor", "value", "runs", "success_rate", "setting", "member", "rep
 
 Key = Annotated[str, Field(min_length=1, description="override key: agent.param or param")]
 Count = Annotated[int, Field(ge=1)]
+#: an integer draw's bounds: what numpy's 64-bit generator can draw between
+Integer = Annotated[int, Field(ge=-(2**62), le=2**62)]
 Seed = Annotated[int, Field(ge=0)]
 #: A factor value: one number for all the factor's keys, or one number per key.
 Value = Annotated[float | list[float], Field(union_mode="left_to_right")]
@@ -34,7 +36,7 @@ class DrawSchema(Strict):
 
     keys: list[Key] | None = Field(None, min_length=1)
     uniform: tuple[float, float] | None = None
-    integers: tuple[int, int] | None = None
+    integers: tuple[Integer, Integer] | None = None
 
     @model_validator(mode="after")
     def _one_distribution(self) -> DrawSchema:
@@ -90,8 +92,10 @@ class AxisSchema(_Keyed):
     values: list[float] = Field(min_length=1)
 
 
-FactorSpec = Annotated[list[Value] | FactorSchema, Field(union_mode="left_to_right")]
-AxisSpec = Annotated[list[float] | AxisSchema, Field(union_mode="left_to_right")]
+Values = Annotated[list[Value], Field(min_length=1)]
+Points = Annotated[list[float], Field(min_length=1)]
+FactorSpec = Annotated[Values | FactorSchema, Field(union_mode="left_to_right")]
+AxisSpec = Annotated[Points | AxisSchema, Field(union_mode="left_to_right")]
 
 
 class StudyFile(Strict):

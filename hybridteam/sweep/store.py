@@ -86,7 +86,44 @@ def write_chunk(out: Path, chunk_id: str, columns: dict[str, list[Any]],
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+    write_atomic(_sum_path(path), f"{_digest(path)}  {path.name}\n")
     return path
+
+
+def _sum_path(path: Path) -> Path:
+    return path.with_name(path.name + ".sha256")
+
+
+def _digest(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def chunk_problem(path: Path, rows: int) -> str | None:
+    """Why a chunk file cannot be trusted (no checksum, a checksum that does not match, not
+    the rows its chunk has), or None. A chunk is written, then its checksum: a file a
+    crash, a copy or a hand cut short is never taken for a finished chunk."""
+    sums = _sum_path(path)
+    if not sums.is_file():
+        return "it has no checksum"
+    try:
+        expected = sums.read_text(encoding="utf-8").split()[0]
+        if expected != _digest(path):
+            return "its checksum does not match"
+        got = len(next(iter(read_chunk(path).values()), []))
+    except (OSError, ValueError, IndexError, KeyError, StudyError, StopIteration) as exc:
+        return f"it cannot be read ({exc})"
+    except Exception as exc:  # a Parquet reader's own errors on a damaged file
+        return f"it cannot be read ({type(exc).__name__})"
+    if got != rows:
+        return f"it holds {got} rows, not {rows}"
+    return None
+
+
+def discard_chunk(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    _sum_path(path).unlink(missing_ok=True)
 
 
 def read_chunk(path: Path) -> dict[str, list[Any]]:
@@ -127,6 +164,9 @@ def open_folder(out: Path, record: dict[str, Any]) -> dict[str, Any] | None:
     if out.exists() and not out.is_dir():
         raise StudyError(f"output '{out}' exists and is not a folder")
     if not path.exists():
+        if any((out / name).exists() for name in ("trace.json", "summary.json", "INCOMPLETE")):
+            raise StudyError(f"{out}: holds the outputs of 'hybridteam run'; give the study "
+                             "a folder of its own")
         if finished_chunks(out):
             raise StudyError(f"{out}: holds chunk files but no study.json; use an empty "
                              "folder")

@@ -129,6 +129,8 @@ def _load(document: Document) -> Study:
     )
     cteam = compile_team(study.team)
     if not errors:
+        errors += _check_size(study, positions)
+    if not errors:
         errors += _check_keys(study, cteam, positions)
     if not errors:
         errors += _check_overlaps(study, cteam, positions)
@@ -248,6 +250,33 @@ def _check_overlaps(study: Study, cteam: CTeam, positions: Positions) -> list[So
     for factor in study.factors:
         claim(dict(by_axes), f"factor '{factor.name}'", factor.keys, ("factors", factor.name))
     return errors
+
+
+#: The most runs a study may plan (its table, plan and chunk list are held in memory).
+MAX_RUNS = 10_000_000
+
+
+def run_count(study: Study) -> int:
+    """How many runs the study asks for: settings x members x repetitions."""
+    settings = max(sum(len(f.values) for f in study.factors), 1)
+    for axis in study.axes:
+        settings *= len(axis.values)
+    return settings * study.size * study.repetitions
+
+
+def _check_size(study: Study, positions: Positions) -> list[SourceError]:
+    """At most :data:`MAX_RUNS` runs; the error sits at the largest factor of the count."""
+    runs = run_count(study)
+    if runs <= MAX_RUNS:
+        return []
+    settings = runs // (study.size * study.repetitions)
+    parts = {("repetitions",): study.repetitions, ("population", "size"): study.size}
+    where = max(parts, key=lambda k: parts[k]) if max(parts.values()) > settings else \
+        (("factors",) if study.factors else ("axes",))
+    return [positions.error(where, f"this study asks for {runs:,} runs ({settings:,} "
+                            f"settings x {study.size:,} members x {study.repetitions:,} "
+                            f"repetitions), more than the {MAX_RUNS:,} a study may plan; "
+                            "split it into several studies")]
 
 
 def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[SourceError]:
