@@ -8,6 +8,7 @@ runs, chunks or executors shows up as a different table.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import shutil
 import sys
@@ -214,6 +215,31 @@ def test_interrupted_study_resumes_without_recomputing(study, reference, tmp_pat
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
     again = run_study(study, tmp_path, chunk=3)  # a finished study: nothing to compute
     assert again.computed == [] and len(again.reused) == 27
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "no checksum", "other rows"])
+def test_a_damaged_chunk_is_computed_again_on_resume(study, reference, tmp_path, damage):
+    """A chunk file that does not verify (its checksum, its row count) is never taken for
+    a finished chunk: resuming computes it again, says so, and the table is a clean run's."""
+    run_study(study, tmp_path, chunk=3, max_chunks=4, fmt="csv")
+    done = finished_chunks(tmp_path)
+    victim = done[sorted(done)[1]]
+    text = victim.read_text()
+    if damage == "garbage":
+        victim.write_text("run,outcome\n1,ok\nnot,a,chunk\n")
+    elif damage == "truncated":
+        victim.write_text(text[: len(text) // 2])
+    elif damage == "no checksum":
+        victim.with_name(victim.name + ".sha256").unlink()
+    else:  # one row of three, with a checksum made to match
+        victim.write_text("\n".join(text.splitlines()[:2]) + "\n")
+        victim.with_name(victim.name + ".sha256").write_text(
+            hashlib.sha256(victim.read_bytes()).hexdigest() + "\n")
+    result = run_study(study, tmp_path, chunk=3, fmt="csv")
+    assert victim.stem in result.computed and victim.stem not in result.reused
+    (warning,) = [w for w in result.warnings if victim.name in w]
+    assert warning.endswith(f"computing chunk {victim.stem} again")
+    assert (tmp_path / "results.csv").read_bytes() == reference[1]
 
 
 def test_resuming_another_study_or_chunk_size_is_refused(study, tmp_path, capsys):

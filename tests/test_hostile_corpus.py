@@ -1,0 +1,424 @@
+"""A corpus of hostile and degenerate inputs, one case per way a file, an argument or an
+output folder can go wrong: each must give exit 0 with a diagnosed outcome, or exit 2 with
+one clear message naming file:line and field — never a traceback, never a hang (every
+case runs under a 5 s alarm), never a folder that looks complete when it is not.
+
+Each case writes its files into a fresh folder and runs the command line in-process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+from hybridteam.cli import main
+
+FLOW = """\
+team: h
+parameters: {{c: 1.0}}
+agents:
+  a:
+    plant: {{kind: flow, state: {{x: 1.0}}}}
+    initial: A
+    modes:
+      A:
+        flow: {{x: "{flow}"}}
+simulation: {{duration: {duration}{extra}}}
+"""
+
+NET = """\
+team: n
+parameters: {{lat: 0.05, d: 1.0, r: 10.0, k: 0.2}}
+network: {{latency: "{latency}", loss: "{loss}"}}
+messages:
+  ping: {{ack: {{timeout: "{timeout}", retries: 2}}}}
+agents:
+  a:
+    plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+    initial: A
+    modes:
+      A:
+        transitions:
+          - {{to: B, after: "{after}", do: [{{send: ping}}]}}
+      B: {{}}
+  b:
+    plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+    modes: {{W: {{}}}}
+simulation: {{duration: 2.0}}
+"""
+
+ROBOT = """\
+team: r
+agents:
+  r:
+    plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}{limits}}}
+    modes:
+      Go: {{{body}}}
+simulation: {{duration: {duration}{extra}}}
+"""
+
+STUDY = """\
+kind: study
+team: team.yaml
+population: {{size: {size}{draws}}}
+factors: {{c: {values}}}
+repetitions: {reps}
+"""
+
+PROTOCOL = """\
+kind: protocol
+protocol: p
+parameters: {rate: 0}
+streams:
+  - {message: state, rate: rate, fields: {x: x}}
+region:
+  roles: [go]
+  initial: Going
+  modes:
+    Going: {role: go}
+"""
+
+USERLAWS = """\
+import numpy as np
+from hybridteam.library import law
+
+@law("corpus.flat")
+def flat(ctx):
+    return np.zeros(ctx.size)
+
+@law("corpus.asks")
+def asks(ctx):
+    return np.column_stack([ctx["no_such_name"], ctx["no_such_name"]])
+"""
+
+
+def flow(f: str, duration: float = 2.0, extra: str = "") -> str:
+    return FLOW.format(flow=f, duration=duration, extra=extra)
+
+
+def net(latency="lat", loss="0", timeout="k", after="d") -> str:
+    return NET.format(latency=latency, loss=loss, timeout=timeout, after=after)
+
+
+def robot(body="inputs: {v: 0.1, omega: 0}, period: 0.1", limits="", duration=2.0,
+          extra="") -> str:
+    return ROBOT.format(body=body, limits=limits, duration=duration, extra=extra)
+
+
+def study(size=2, values="[0.5, 1.0]", reps=1, draws="") -> str:
+    return STUDY.format(size=size, values=values, reps=reps, draws=draws)
+
+
+@dataclass
+class Case:
+    files: dict[str, str]
+    argv: list[str]
+    code: int
+    expect: list[str]  # substrings of stderr (exit 2) or stdout + summary.json (exit 0)
+    outcome: str | None = None  # the run's outcome in summary.json
+    absent: list[str] = field(default_factory=list)  # files that must not exist after
+
+
+RUN = ["run", "team.yaml", "-o", "out", "--quiet"]
+
+CASES: dict[str, Case] = {
+    # --- numerical failure: an outcome, fast -------------------------------------------
+    "flow_divides_by_zero": Case({"team.yaml": flow("1/(x-c)")}, RUN, 0,
+                                 ["the derivative of state 'x' is inf"], "numerical_error"),
+    "flow_sqrt_negative": Case({"team.yaml": flow("sqrt(-x)")}, RUN, 0,
+                               ["the derivative of state 'x' is nan"], "numerical_error"),
+    "flow_overflows": Case({"team.yaml": flow("exp(1000*x)")}, RUN, 0,
+                           ["is inf (flow x: exp(1000*x))"], "numerical_error"),
+    "flow_log_zero": Case({"team.yaml": flow("log(x-c)")}, RUN, 0, ["is -inf"],
+                          "numerical_error"),
+    "flow_fast_oscillation": Case({"team.yaml": flow("1e6*sin(1e6*t)")}, RUN, 0,
+                                  ["step size fell to"], "stiff"),
+    "flow_stiff": Case({"team.yaml": flow("-1e9*x")}, RUN, 0, ["below 2e-06 s"], "stiff"),
+    "flow_blows_up": Case({"team.yaml": flow("x*x")}, RUN, 0, ["step size fell to"], "stiff"),
+    "input_infinite": Case({"team.yaml": robot("inputs: {v: 1/(1-t), omega: 0}, period: 0.25")},
+                           RUN, 0, ["input 'v' is inf"], "numerical_error"),
+    "input_nan": Case({"team.yaml": robot("inputs: {v: sqrt(t-1), omega: 0}, period: 0.25")},
+                      RUN, 0, ["input 'v' is nan"], "numerical_error"),
+    # --- values out of range, at their file:line ----------------------------------------
+    "set_nan": Case({"team.yaml": net()}, [*RUN, "--set", "lat=nan"], 2,
+                    ["override 'lat': nan (instance 0) is not a finite number"]),
+    "set_inf": Case({"team.yaml": net()}, [*RUN, "--set", "lat=inf"], 2,
+                    ["override 'lat': inf"]),
+    "set_makes_loss_above_one": Case({"team.yaml": net(loss="lat*10")},
+                                     [*RUN, "--set", "lat=0.2"], 2,
+                                     ["team.yaml:3:33: network.loss: the link's loss 'lat*10' is "
+                                      "2.0 in instance 0; it must be a number in [0, 1]"]),
+    "negative_latency_expression": Case({"team.yaml": net(latency="lat - 1")}, RUN, 2,
+                                        ["team.yaml:3:20: network.latency: the link's latency "
+                                         "'lat - 1' is -0.95; it must be a number >= 0"]),
+    "loss_above_one": Case({"team.yaml": net(loss="1.5")}, RUN, 2,
+                           ["team.yaml:3:33: network.loss: a loss probability is at most 1, "
+                            "got 1.5"]),
+    "negative_after_expression": Case({"team.yaml": net(after="d - 2")}, RUN, 2,
+                                      ["team.yaml:13:28: agents.a.modes.A.transitions[0].after: "
+                                       "the delay 'd - 2' is -1.0 in instance 0; it must be a "
+                                       "number >= 0"]),
+    "zero_ack_timeout": Case({"team.yaml": net(timeout="k - 0.2")}, RUN, 2,
+                             ["messages.ping.ack.timeout: the ack timeout 'k - 0.2' is 0.0"]),
+    "nan_latency_literal": Case({"team.yaml": net().replace('"lat"', ".nan")}, RUN, 2,
+                                ["network.latency: expected a finite number, got nan"]),
+    "infinite_speed_limit": Case({"team.yaml": robot(limits=", limits: {v: [-1, .inf]}")}, RUN,
+                                 2, ["agents.r.plant.limits.v[1]: expected a finite number"]),
+    "nan_actuator_limit": Case({"team.yaml": robot(limits=", limits: {v: [.nan, 1]}")}, RUN, 2,
+                               ["agents.r.plant.limits.v[0]: expected a finite number, got nan"]),
+    "duration_inf": Case({"team.yaml": robot(duration=".inf")}, RUN, 2,
+                         ["team.yaml:7:24: simulation.duration: expected a finite number"]),
+    "duration_1e999": Case({"team.yaml": robot(duration="1e999")}, RUN, 2,
+                           ["simulation.duration: expected a finite number, got inf"]),
+    "sample_period_inf": Case({"team.yaml": robot(extra=", sample_period: .inf")}, RUN, 2,
+                              ["simulation.sample_period: expected a finite number"]),
+    "component_setting_nan": Case(
+        {"team.yaml": robot() + "world:\n  - {use: payload, with: {width: 0/0, grasps: "
+                                "[{agent: r}]}}\n"}, RUN, 2,
+        ["world[0].with.width: setting 'width' '0/0' is nan in instance 0"]),
+    "stream_rate_zero": Case({"team.yaml": robot("protocol: p.yaml, roles: {go: {inputs: "
+                                                 "{v: 0.1, omega: 0}, period: 0.1}}"),
+                              "p.yaml": PROTOCOL}, RUN, 2,
+                             ["p.yaml:5:28: streams[0].rate: 1 / rate 'rate' is inf in "
+                              "instance 0; it must be a number > 0"]),
+    # --- resources: refused before allocation -------------------------------------------
+    "duration_1e12": Case({"team.yaml": robot()}, [*RUN, "--duration", "1e12"], 2,
+                          ["of memory", "--max-memory"]),
+    "tiny_sample_period": Case({"team.yaml": robot(extra=", sample_period: 1e-12")}, RUN, 2,
+                               ["output samples", "raise simulation.sample_period"]),
+    "huge_ensemble": Case({"team.yaml": robot()}, [*RUN, "-n", "1000000000"], 2,
+                          ["1,000,000,000 instance(s)"]),
+    "law_periods": Case({"team.yaml": robot(body="inputs: {v: 0.1, omega: 0}, period: 1e-6",
+                                            extra=", sample_period: 100")},
+                        [*RUN, "--duration", "1000"], 2, ["1e+09 control periods"]),
+    "max_memory_negative": Case({"team.yaml": robot()}, [*RUN, "--max-memory", "-1"], 2,
+                                ["--max-memory must be a finite number > 0"]),
+    "duration_nan_argument": Case({"team.yaml": robot()}, [*RUN, "--duration", "nan"], 2,
+                                  ["--duration must be a finite number >= 0, got nan"]),
+    "file_too_large": Case({"team.yaml": "team: x\nparameters: {" + ", ".join(
+        f"p{i}: {i}" for i in range(120000)) + "}\n"}, RUN, 2,
+        ["team.yaml: file is 1.8 MB; model files are read up to 1 MB"]),
+    "alias_bomb": Case({"team.yaml": "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n"
+        for p, c in zip("abcdefgh", "bcdefghi", strict=True)) + "team: x\n"}, RUN, 2,
+        ["alias"]),
+    "deep_nesting": Case({"team.yaml": "team: x\nagents: " + "[" * 500 + "]" * 500 + "\n"},
+                         RUN, 2, ["nested too deeply"]),
+    "study_1e9_runs": Case({"team.yaml": flow("c"), "s.yaml": study(reps=500_000_000)},
+                           ["sweep", "s.yaml", "-o", "sout", "--quiet"], 2,
+                           ["s.yaml:5:14: repetitions: this study asks for 2,000,000,000 runs (2 "
+                            "settings x 2 members x 500,000,000 repetitions), more than the "
+                            "10,000,000 a study may plan"]),
+    "study_population_1e18": Case(
+        {"team.yaml": flow("c"), "s.yaml": study(size=10**18)},
+        ["sweep", "s.yaml", "-o", "sout", "--quiet"], 2,
+        ["population.size: this study asks for 2,000,000,000,000,000,000 runs"]),
+    "study_integers_1e30": Case(
+        {"team.yaml": flow("c"),
+         "s.yaml": study(draws=", draws: {c: {integers: [0, 1e30]}}").replace(
+             "factors: {c: [0.5, 1.0]}", "factors: {}")},
+        ["sweep", "s.yaml", "-o", "sout", "--quiet"], 2,
+        ["s.yaml:3:49: population.draws.c.integers[1]: Unable to parse input "
+         "string as an integer"]),
+    "study_empty_factor": Case({"team.yaml": flow("c"), "s.yaml": study(values="[]")},
+                               ["validate", "s.yaml"], 2, ["s.yaml:4:14: factors.c"]),
+    # --- outputs: one line, exit 2, nothing that looks complete -------------------------
+    "output_under_proc": Case({"team.yaml": robot()}, ["run", "team.yaml", "-o",
+                                                       "/proc/hybridteam", "--quiet"], 2,
+                              ["cannot write /proc/hybridteam"]),
+    "output_is_a_file": Case({"team.yaml": robot(), "out": "x"}, RUN, 2,
+                             ["output 'out' exists and is not a folder"]),
+    "trace_json_is_a_directory": Case({"team.yaml": robot(), "out/trace.json/x": ""}, RUN, 2,
+                                      ["cannot write out/trace.json: Is a directory; out/ is "
+                                       "incomplete (INCOMPLETE marks it)"],
+                                      absent=["out/summary.json"]),
+    "run_into_study_folder": Case({"team.yaml": robot(), "out/study.json": "{}"}, RUN, 2,
+                                  ["holds a study's results"]),
+    "study_into_run_folder": Case({"team.yaml": flow("c"), "s.yaml": study(),
+                                   "sout/summary.json": "{}"},
+                                  ["sweep", "s.yaml", "-o", "sout", "--quiet"], 2,
+                                  ["holds the outputs of 'hybridteam run'"]),
+    "report_not_a_study": Case({"folder/x.txt": "x"}, ["report", "folder"], 2,
+                               ["no study.json here"]),
+    # --- traces as input ----------------------------------------------------------------
+    "trace_list": Case({"t.json": "[1, 2]"}, ["plot", "t.json", "-o", "p.png"], 2,
+                       ["not a valid hybridteam trace: expected a JSON object"]),
+    "trace_null": Case({"t.json": "null"}, ["timeline", "t.json"], 2,
+                       ["not a valid hybridteam trace"]),
+    "trace_deep": Case({"t.json": "[" * 100000 + "]" * 100000}, ["sequence", "t.json"], 2,
+                       ["nested too deeply"]),
+    "trace_not_json": Case({"t.json": "{nope"}, ["animate", "t.json"], 2,
+                           ["t.json:1:2: not a JSON file"]),
+    "trace_is_a_directory": Case({"t.json/x": ""}, ["plot", "t.json"], 2,
+                                 ["is a directory, not a trace file"]),
+    "trace_ragged_samples": Case({}, ["plot", "{ragged}", "-o", "p.png"], 2,
+                                 ["samples.agents.r: expected"]),
+    "trace_infinite_time": Case({}, ["timeline", "{inf_t}", "-o", "p.png"], 2,
+                                ["samples.t[2]: Input should be a finite number"]),
+    "trace_bad_instance": Case({}, ["sequence", "{bad_instance}"], 2,
+                               ["transitions.instance: 7 is not an instance of 0..0"]),
+    "trace_short_column": Case({}, ["timeline", "{short}", "-o", "p.png"], 2,
+                               ["transitions: column 't'"]),
+    "window_infinite": Case({}, ["timeline", "{good}", "--window", "0", "inf", "-o", "p.png"],
+                            2, ["times must be finite numbers"]),
+    # --- user code: located at the binding ----------------------------------------------
+    "law_wrong_shape": Case({"team.yaml": robot("law: {use: 'userlaws:flat', period: 0.1}"),
+                             "userlaws.py": USERLAWS}, RUN, 2,
+                            ["team.yaml:6:23: agents.r.modes.Go.law.use: law 'corpus.flat' of "
+                             "agent 'r' returned shape (1,), expected (1, 2) (inputs v, omega)"]),
+    "law_unknown_name": Case({"team.yaml": robot("law: {use: 'userlaws:asks', period: 0.1}"),
+                              "userlaws.py": USERLAWS}, RUN, 2,
+                             ["agents.r.modes.Go.law.use: law 'corpus.asks' of agent 'r' "
+                              "failed: KeyError: law for agent 'r' asked for unknown name "
+                              "'no_such_name'"]),
+    "law_code_interact": Case({"team.yaml": robot("law: {use: 'code:interact'}")},
+                              ["validate", "team.yaml"], 2,
+                              ["module 'code' is not beside the team file"]),
+    # --- errors located where a line exists ---------------------------------------------
+    "empty_document": Case({"team.yaml": ""}, ["validate", "team.yaml"], 2,
+                           ["team.yaml:1:1: file is empty"]),
+    "team_is_a_directory": Case({"team.yaml/x": ""}, ["validate", "team.yaml"], 2,
+                                ["team.yaml: cannot read file: it is a directory"]),
+    "missing_team": Case({}, ["validate", "none.yaml"], 2,
+                         ["none.yaml: cannot read file: No such file or directory"]),
+    "missing_protocol": Case({"team.yaml": robot("protocol: nowhere.yaml")},
+                             ["validate", "team.yaml"], 2,
+                             ["team.yaml:6:22: agents.r.modes.Go.protocol: unknown protocol "
+                              "'nowhere.yaml'"]),
+}
+
+
+@pytest.fixture(scope="module")
+def traces(tmp_path_factory) -> dict[str, Path]:
+    """A good trace and adversarial variants of it."""
+    folder = tmp_path_factory.mktemp("traces")
+    team = folder / "team.yaml"
+    team.write_text(robot())
+    assert main(["run", str(team), "-o", str(folder / "run"), "--quiet", "--no-views"]) == 0
+    good = json.loads((folder / "run" / "trace.json").read_text())
+    out = {"good": folder / "run" / "trace.json"}
+
+    def variant(name: str, change) -> None:
+        data = json.loads(json.dumps(good))
+        change(data)
+        (folder / f"{name}.json").write_text(json.dumps(data))
+        out[name] = folder / f"{name}.json"
+
+    variant("ragged", lambda d: d["samples"]["agents"]["r"][1].append([1.0, 2.0, 3.0]))
+    variant("inf_t", lambda d: d["samples"]["t"].__setitem__(2, 1e999))
+    variant("bad_instance", lambda d: d["transitions"]["instance"].__setitem__(0, 7))
+    variant("short", lambda d: d["transitions"]["t"].pop())
+    return out
+
+
+class _Hang(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Hang("took longer than 5 s")
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_hostile_case(name, tmp_path, monkeypatch, capsys, traces):
+    case = CASES[name]
+    for rel, text in case.files.items():
+        path = tmp_path / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    monkeypatch.chdir(tmp_path)
+    argv = [str(traces[a[1:-1]]) if a.startswith("{") and a[1:-1] in traces else a
+            for a in case.argv]
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(5)
+    try:
+        code = main(argv)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    assert code == case.code, (out, err)
+    if case.code == 2:
+        assert len(err.strip().splitlines()) >= 1
+        for words in case.expect:
+            assert words in err, err
+    else:
+        summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+        assert summary["instances"][0]["outcome"] == case.outcome
+        text = json.dumps(summary)
+        for words in case.expect:
+            assert words in text, text
+    for rel in case.absent:
+        assert not (tmp_path / rel).exists()
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path, monkeypatch, capsys):
+    os.mkfifo(tmp_path / "team.yaml")
+    monkeypatch.chdir(tmp_path)
+    signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(5)
+    try:
+        assert main(["validate", "team.yaml"]) == 2
+    finally:
+        signal.alarm(0)
+    assert "team.yaml: cannot read file: it is a FIFO, not a regular file" in \
+        capsys.readouterr().err
+
+
+def test_a_full_standard_output_is_one_line(tmp_path):
+    (tmp_path / "team.yaml").write_text(robot())
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "run", "team.yaml",
+                               "-o", "out", "--no-views"], cwd=tmp_path, stdout=full,
+                              stderr=subprocess.PIPE, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert proc.stderr.strip() == "hybridteam: error: cannot write: No space left on device"
+    assert (tmp_path / "out" / "summary.json").exists()  # the run itself is complete
+
+
+def test_an_interrupted_write_leaves_a_folder_that_says_so(tmp_path, monkeypatch, capsys):
+    (tmp_path / "team.yaml").write_text(robot())
+    monkeypatch.chdir(tmp_path)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("hybridteam.export.runviews.write_run_views", interrupted)
+    with pytest.raises(SystemExit) as stop:
+        main(["run", "team.yaml", "-o", "out", "--quiet"])
+    assert stop.value.code == 130
+    err = capsys.readouterr().err
+    assert "interrupted while writing out/: it is incomplete (no summary.json; INCOMPLETE " \
+           "marks it)" in err
+    assert (tmp_path / "out" / "INCOMPLETE").exists()
+    assert (tmp_path / "out" / "trace.json").exists()
+    assert not (tmp_path / "out" / "summary.json").exists()
+    # run again: the folder is completed and says so
+    monkeypatch.undo()
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "team.yaml", "-o", "out", "--quiet", "--no-views"]) == 0
+    assert not (tmp_path / "out" / "INCOMPLETE").exists()
+
+
+def test_a_failing_view_still_writes_the_summary(tmp_path, monkeypatch, capsys):
+    (tmp_path / "team.yaml").write_text(robot())
+    monkeypatch.chdir(tmp_path)
+
+    def broken(*args, **kwargs):
+        raise ValueError("cannot draw this")
+
+    monkeypatch.setattr("hybridteam.export.runviews.write_run_views", broken)
+    assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "drawing the views failed (ValueError: cannot draw this); out/ has the trace" in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["views_error"] == "ValueError: cannot draw this"
+    assert not (tmp_path / "out" / "INCOMPLETE").exists()
