@@ -106,7 +106,8 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
              duration: float | None = None,
              overrides: Mapping[str, float | Sequence[float]] | None = None,
              progress: Callable[[float], None] | None = None, *,
-             max_memory: float | None = None, max_periods: float | None = None) -> Run:
+             max_memory: float | None = None, max_periods: float | None = None,
+             max_wall: float | None = None) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``) to one value or
@@ -116,12 +117,15 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     parameter study packs runs with their own seeds into one ensemble). The trace's
     ``meta["seed"]`` is then that list. A run that would need more than ``max_memory``
     bytes (default 4 GB) or ``max_periods`` control periods per instance (default 1e8)
-    raises :class:`~hybridteam.engine.budget.ResourceError` before allocating anything.
+    raises :class:`~hybridteam.engine.budget.ResourceError` before allocating anything;
+    one whose pace projects more than ``max_wall`` seconds (default 24 h) raises it once it
+    has run a few seconds.
     """
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
     sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
-                    progress=progress, max_memory=max_memory, max_periods=max_periods)
+                    progress=progress, max_memory=max_memory, max_periods=max_periods,
+                    max_wall=max_wall)
     trace = sim.run()
     return Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
                trace.messages, trace.sample_times, trace.samples)

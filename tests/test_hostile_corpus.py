@@ -72,6 +72,18 @@ factors: {{c: {values}}}
 repetitions: {reps}
 """
 
+SAWTOOTH = """\
+team: saw
+agents:
+  a:
+    plant: {kind: flow, state: {x: 0.0}}
+    modes:
+      Up:
+        flow: {x: 1}
+        transitions: [{to: Up, guard: x >= 1, do: [x = 0]}]
+simulation: {duration: 1e12, sample_period: 1e9}
+"""
+
 PROTOCOL = """\
 kind: protocol
 protocol: p
@@ -198,6 +210,8 @@ CASES: dict[str, Case] = {
     "law_periods": Case({"team.yaml": robot(body="inputs: {v: 0.1, omega: 0}, period: 1e-6",
                                             extra=", sample_period: 100")},
                         [*RUN, "--duration", "1000"], 2, ["1e+09 control periods"]),
+    "pace_projects_years": Case({"team.yaml": SAWTOOTH}, RUN, 2,
+                                ["of wall time at its pace", "--max-wall HOURS"]),
     "max_memory_negative": Case({"team.yaml": robot()}, [*RUN, "--max-memory", "-1"], 2,
                                 ["--max-memory must be a finite number > 0"]),
     "duration_nan_argument": Case({"team.yaml": robot()}, [*RUN, "--duration", "nan"], 2,

@@ -46,6 +46,8 @@ def register(sub) -> dict:
                    help="refuse runs needing more memory (default 4 GB)")
     r.add_argument("--max-periods", type=float, default=None, metavar="N",
                    help="refuse runs of more control periods per instance (default 1e8)")
+    r.add_argument("--max-wall", type=float, default=None, metavar="HOURS",
+                   help="stop a run whose pace projects more wall time (default 24)")
 
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
@@ -102,7 +104,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"-n must be at least 1, got {args.n}")
     if args.duration is not None and not 0 <= args.duration < math.inf:
         raise UsageError(f"--duration must be a finite number >= 0, got {args.duration}")
-    for flag, value in (("--max-memory", args.max_memory), ("--max-periods", args.max_periods)):
+    for flag, value in (("--max-memory", args.max_memory), ("--max-periods", args.max_periods),
+                        ("--max-wall", args.max_wall)):
         if value is not None and not 0 < value < math.inf:
             raise UsageError(f"{flag} must be a finite number > 0, got {value}")
     if args.seed is not None and args.seed < 0:
@@ -134,7 +137,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         run = simulate(team, seed=args.seed, n=n, duration=args.duration,
                        overrides=overrides, progress=progress,
                        max_memory=None if args.max_memory is None else args.max_memory * 1e9,
-                       max_periods=args.max_periods)
+                       max_periods=args.max_periods,
+                       max_wall=None if args.max_wall is None else args.max_wall * 3600)
     except ModelError as exc:  # a value out of range in some instance: at its line
         from hybridteam.io.loader import locate_in_file
 

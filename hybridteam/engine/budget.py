@@ -10,17 +10,27 @@ how to lower it, or how to raise the limit.
 Limits: ``max_memory`` bytes (default 4 GB, ``--max-memory`` on the command line,
 ``HYBRIDTEAM_MAX_MEMORY_GB``), ``max_periods`` control periods per instance (default
 ``1e8``, ``--max-periods``).
+
+What no estimate can tell in advance — how many events a flow will produce — is watched
+while the run goes (:class:`Pace`): once it has run a few seconds, a run whose pace says it
+would need more than ``max_wall`` (default 24 h, ``--max-wall``) stops with the projection,
+instead of computing for days. Whether a run stops this way depends on the machine, but a
+run that finishes is the same run bit for bit.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import time
 
 from hybridteam.engine.compiled import CTeam
 
 DEFAULT_MAX_MEMORY = 4e9
 DEFAULT_MAX_PERIODS = 1e8
+DEFAULT_MAX_WALL = 24 * 3600.0
+#: wall seconds a run goes before its pace is judged (a slow start is not a slow run)
+GRACE = 2.0
 
 
 class ResourceError(ValueError):
@@ -77,3 +87,37 @@ def check_budget(cteam: CTeam, n: int, t_end: float, dt: float,
             f"this run would take about {periods:.3g} control periods per instance (a "
             f"{fastest:g} s law over {t_end:g} s), more than the limit of {max_periods:.3g}: "
             "shorten the run, or raise the limit (--max-periods N)")
+
+
+class Pace:
+    """Projects a running simulation's wall time from its progress (see the module)."""
+
+    def __init__(self, t_end: float, max_wall: float | None) -> None:
+        self.t_end = t_end
+        self.max_wall = DEFAULT_MAX_WALL if max_wall is None else max_wall
+        self.start = time.perf_counter()
+
+    def check(self, fraction: float) -> None:
+        """ResourceError if, after the grace period, the projected wall time exceeds the
+        limit; ``fraction`` is the share of the run the slowest live instance has done."""
+        elapsed = time.perf_counter() - self.start
+        if elapsed < GRACE:
+            return
+        projected = elapsed / fraction if fraction > 0 else math.inf
+        if projected > self.max_wall:
+            raise ResourceError(
+                f"this run would take about {_duration(projected)} of wall time at its pace "
+                f"({fraction:.2g} of {self.t_end:g} simulated seconds in {elapsed:.1f} s), "
+                f"more than the limit of {_duration(self.max_wall)}: shorten the run, or "
+                "raise the limit (--max-wall HOURS)")
+
+
+def _duration(seconds: float) -> str:
+    if not math.isfinite(seconds):
+        return "forever"
+    for unit, scale in (("years", 365.25 * 86400), ("days", 86400), ("hours", 3600),
+                        ("minutes", 60)):
+        if seconds >= scale:
+            value = f"{seconds / scale:.3g}"
+            return f"{value} {unit if value != '1' else unit[:-1]}"
+    return f"{seconds:.3g} s"

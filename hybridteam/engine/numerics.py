@@ -117,9 +117,10 @@ def stop_collapsed_steps(ens: Ensemble, idx: np.ndarray, steps: list[AgentStep],
         ens.finish(np.array([i]), "stiff", lambda i, a=a, size=size, limit=limit: (
             f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
             f"t={ens.when(i)}: the integrator's step size fell to {size:.3g} s, below "
-            f"{limit:.3g} s ({_driver_text(ens, a, i, None)}): the flow is stiff, oscillates "
-            "faster than the run can follow, or blows up; simulation.min_step sets the "
-            "smallest step allowed"))
+            f"{limit:.3g} s ({_driver_text(ens, a, i, None)}): the flow changes too fast for "
+            f"a run of {ens.t_end:g} s (it is stiff, oscillates, or blows up, or the run is "
+            "far longer than its time scale); simulation.min_step sets the smallest step "
+            "allowed"))
     return failed
 
 

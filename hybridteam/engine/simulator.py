@@ -22,7 +22,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
-from hybridteam.engine.budget import check_budget
+from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Ctx
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
@@ -44,7 +44,7 @@ class Simulator:
                  duration: float | None = None,
                  overrides: Mapping[str, float | Sequence[float]] | None = None,
                  progress: Progress | None = None, max_memory: float | None = None,
-                 max_periods: float | None = None) -> None:
+                 max_periods: float | None = None, max_wall: float | None = None) -> None:
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -53,21 +53,27 @@ class Simulator:
         check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
                      max_periods)
         self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {})
+        self.max_wall = max_wall
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
         ens = self.ensemble
+        pace = Pace(ens.t_end, self.max_wall)
         with np.errstate(all="ignore"):
             self._initialize()
             last_report = -1.0
+            steps = 0
             while not ens.done.all():
                 self._step()
-                if self.progress is not None:
+                steps += 1
+                if self.progress is not None or steps % 64 == 0:
                     frac = float(np.min(np.where(ens.done, ens.t_end, ens.t))) / \
                         (ens.t_end or 1.0)
-                    if frac - last_report >= 0.01:
+                    if steps % 64 == 0:
+                        pace.check(frac)
+                    if self.progress is not None and frac - last_report >= 0.01:
                         self.progress(frac)
                         last_report = frac
             return self._close()
