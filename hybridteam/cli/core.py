@@ -26,7 +26,8 @@ from hybridteam.errors import ModelError
 
 def register(sub) -> dict:
     """Add the core subcommands; returns their handlers by name."""
-    v = sub.add_parser("validate", help="check files without running anything")
+    v = sub.add_parser("validate", help="check files without running a simulation (Python "
+                       "modules beside a team file are imported: they are part of it)")
     v.add_argument("files", nargs="+", metavar="FILE")
     v.add_argument("--strict", action="store_true", help="treat warnings as errors")
 
