@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
 
@@ -23,6 +24,14 @@ class Parser(argparse.ArgumentParser):
         self.print_usage(sys.stderr)
         print(f"{self.prog}: error: {message}", file=sys.stderr)
         raise SystemExit(EXIT_USAGE)
+
+
+def output_folder(name: str) -> Path:
+    """``-o``'s folder: new, or an existing folder (a file there is a usage error)."""
+    out = Path(name)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"output '{out}' exists and is not a folder")
+    return out
 
 
 def print_errors(exc) -> None:

@@ -19,6 +19,7 @@ from hybridteam.cli.common import (
     EXIT_USAGE,
     UsageError,
     load_team_or_report,
+    output_folder,
     print_errors,
 )
 from hybridteam.errors import ModelError
@@ -111,9 +112,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"{flag} must be a finite number > 0, got {value}")
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"output '{out}' exists and is not a folder")
+    out = output_folder(args.output)
     if (out / "study.json").exists():
         raise UsageError(f"output '{out}' holds a study's results; give the run a folder of "
                          "its own")

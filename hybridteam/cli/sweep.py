@@ -16,6 +16,7 @@ from hybridteam.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
+    output_folder,
     print_errors,
 )
 
@@ -50,9 +51,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--workers must be at least 1, got {args.workers}")
     if args.chunk is not None and args.chunk < 1:
         raise UsageError(f"--chunk must be at least 1, got {args.chunk}")
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"output '{out}' exists and is not a folder")
+    out = output_folder(args.output)
     try:
         study = load_study(args.study)
     except InputErrors as exc:
