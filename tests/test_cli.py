@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import site
 import subprocess
 import venv
 
@@ -100,10 +101,17 @@ def test_schema_prints_json_schema(capsys):
 
 
 def test_pip_install_into_a_fresh_venv_works_from_any_directory(tmp_path):
-    """A non-editable install (dependencies from this environment) and the CLI elsewhere."""
+    """A non-editable install (dependencies from this environment) and the CLI elsewhere.
+
+    The new venv sees this environment's packages through a path file, not through
+    ``system_site_packages``: when the tests themselves run in a virtual environment, a
+    nested venv's "system" packages are the base interpreter's, which lack ours.
+    """
     env_dir = tmp_path / "venv"
-    venv.create(env_dir, with_pip=True, system_site_packages=True)
+    venv.create(env_dir, with_pip=True)
     py = env_dir / "bin" / "python"
+    (inner,) = (env_dir / "lib").glob("python*/site-packages")
+    (inner / "outer.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     pip = subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(ROOT)],
                          capture_output=True, text=True)
     assert pip.returncode == 0, pip.stderr
