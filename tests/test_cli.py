@@ -185,3 +185,20 @@ def test_view_commands_refuse_bad_arguments(tmp_path, relay_trace, capsys, args,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+def test_views_write_vector_pdf_and_never_dot_text_under_another_name(tmp_path, relay_trace,
+                                                                       capsys):
+    """A paper wants PDF; a file named .pdf must be one. The same figure gives the same
+    bytes (no dates stamped in)."""
+    first, second = tmp_path / "a.pdf", tmp_path / "b.pdf"
+    for path in (first, second):
+        assert main(["diagram", RELAY, "-o", str(path)]) == 0
+    assert first.read_bytes()[:5] == b"%PDF-" and first.read_bytes() == second.read_bytes()
+    for view in ("timeline", "plot"):
+        out = tmp_path / f"{view}.pdf"
+        assert main([view, str(relay_trace), "-o", str(out)]) == 0
+        assert out.read_bytes()[:5] == b"%PDF-"
+    assert main(["diagram", RELAY, "-o", str(tmp_path / "modes.pdff")]) == 2
+    assert "cannot tell the format from '.pdff'" in capsys.readouterr().err
+    assert not (tmp_path / "modes.pdff").exists()

@@ -250,7 +250,7 @@ def test_ensemble_instance_and_bad_extensions(tmp_path):
     assert [(b.mode, b.start, b.end) for b in one.bars] == [
         (b.mode, b.start, b.end) for b in alone.bars]
     with pytest.raises(ValueError, match="unsupported format"):
-        write_timeline(run, tmp_path / "t.pdf")
+        write_timeline(run, tmp_path / "t.jpg")
     with pytest.raises(ValueError, match="unsupported format"):
         write_timeline(run, tmp_path / "t.png", data_path=tmp_path / "t.xml")
     assert list(tmp_path.iterdir()) == []

@@ -67,9 +67,10 @@ def register(sub) -> dict:
             "animate": cmd_animate, "sequence": cmd_sequence}
 
 
-IMAGE = (".png", ".svg")
+IMAGE = (".png", ".svg", ".pdf")
 DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "mermaid",
-                   ".puml": "plantuml", ".plantuml": "plantuml", ".svg": "svg", ".png": "png"}
+                   ".puml": "plantuml", ".plantuml": "plantuml", ".svg": "svg", ".png": "png",
+                   ".pdf": "pdf"}
 
 
 def _load_trace(path: str, instance: int) -> Trace:
@@ -110,16 +111,21 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     from hybridteam.export.render import RENDERERS, render
 
     fmt = args.format
-    if fmt is None:
-        fmt = DIAGRAM_FORMATS.get(Path(args.output).suffix.lower(), "dot") if args.output \
-            else "dot"
+    if fmt is None and args.output:
+        suffix = Path(args.output).suffix.lower()
+        if suffix not in DIAGRAM_FORMATS:  # never DOT text in a file named otherwise
+            raise UsageError(f"-o {args.output}: cannot tell the format from "
+                             f"'{suffix or '(no extension)'}'; name the file "
+                             f"{', '.join(sorted(set(DIAGRAM_FORMATS)))} or give -f")
+        fmt = DIAGRAM_FORMATS[suffix]
+    fmt = fmt or "dot"
     if fmt not in RENDERERS:
         from hybridteam.errors import did_you_mean
 
         hint = did_you_mean(fmt, RENDERERS)
         raise UsageError(f"unknown diagram format '{fmt}' (formats: {', '.join(RENDERERS)})"
                          + (f"; {hint}" if hint else ""))
-    if fmt in ("svg", "png") and not args.output:
+    if fmt in ("svg", "png", "pdf") and not args.output:
         raise UsageError(f"a {fmt} diagram needs -o FILE")
     team = load_team_or_report(args.model)
     if team is None:

@@ -386,6 +386,8 @@ def _metadata(fmt: str) -> dict[str, str | None]:
     """No dates or versions in the file, so the same diagram gives the same bytes."""
     if fmt == "svg":
         return {"Date": None, "Creator": None}
+    if fmt == "pdf":
+        return {"CreationDate": None, "ModDate": None, "Producer": None, "Creator": None}
     return {"Software": None}
 
 
@@ -411,3 +413,9 @@ def render_svg(graph: nx.MultiDiGraph) -> str:
 def render_png(graph: nx.MultiDiGraph) -> bytes:
     """PNG bytes of the state diagram (Graphviz if available, else the built-in layout)."""
     return via_dot(graph, "png") or draw(graph, "png")
+
+
+def render_pdf(graph: nx.MultiDiGraph) -> bytes:
+    """PDF bytes of the state diagram, vector (Graphviz if available, else the built-in
+    layout)."""
+    return via_dot(graph, "pdf") or draw(graph, "pdf")

@@ -384,13 +384,15 @@ def _image(fmt: str) -> Renderer:
     def draw(graph: nx.MultiDiGraph) -> str | bytes:
         from hybridteam.export import image  # matplotlib loads only when an image is asked for
 
-        return image.render_svg(graph) if fmt == "svg" else image.render_png(graph)
+        return {"svg": image.render_svg, "png": image.render_png,
+                "pdf": image.render_pdf}[fmt](graph)
 
     return draw
 
 
 RENDERERS: dict[str, Renderer] = {"dot": to_dot, "mermaid": to_mermaid, "plantuml": to_plantuml,
-                                  "svg": _image("svg"), "png": _image("png")}
+                                  "svg": _image("svg"), "png": _image("png"),
+                                  "pdf": _image("pdf")}
 
 
 def register(name: str, fn: Renderer) -> None:

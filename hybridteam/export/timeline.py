@@ -34,7 +34,7 @@ from hybridteam.export.arrows import draw_messages, loss_text
 from hybridteam.export.style import FONT, team_mode_colors, text_color
 from hybridteam.trace import Table, Trace, write_atomic
 
-FIGURE_FORMATS = {".png": "png", ".svg": "svg"}
+FIGURE_FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 DATA_FORMATS = {".csv": "csv", ".json": "json"}
 MAIN_HEIGHT, TOP_HEIGHT, GAP = 0.8, 0.35, 0.35
 
@@ -340,12 +340,14 @@ def figure_format(path: str | os.PathLike, formats: dict[str, str] = FIGURE_FORM
 
 
 def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
-    """Save as PNG or SVG (by extension) without leaving a partial file; text stays text in
-    SVG (searchable, and the names can be checked), and no date is stamped into it."""
+    """Save as PNG, SVG or PDF (by extension) without leaving a partial file; text stays
+    text in SVG (searchable, and the names can be checked), PDF is vector for papers, and no
+    date is stamped into either (the same figure gives the same bytes)."""
     path = Path(path)
     fmt = figure_format(path)
     buf = io.BytesIO()
-    metadata = {"Date": None} if fmt == "svg" else None
+    metadata = {"svg": {"Date": None},
+                "pdf": {"CreationDate": None, "ModDate": None, "Producer": None}}.get(fmt)
     with rc_context({"svg.fonttype": "none", "svg.hashsalt": "hybridteam"}):
         fig.savefig(buf, format=fmt, bbox_inches="tight", dpi=fig.dpi, metadata=metadata)
     return write_atomic(path, buf.getvalue())
