@@ -202,3 +202,19 @@ def test_views_write_vector_pdf_and_never_dot_text_under_another_name(tmp_path, 
     assert main(["diagram", RELAY, "-o", str(tmp_path / "modes.pdff")]) == 2
     assert "cannot tell the format from '.pdff'" in capsys.readouterr().err
     assert not (tmp_path / "modes.pdff").exists()
+
+
+def test_progress_is_reported_in_lines_when_not_on_a_terminal(tmp_path, capsys):
+    """Without a terminal (as here) --progress auto prints lines with an estimate; the
+    summary says how far the run got when it ended before its duration."""
+    out = tmp_path / "ball"
+    assert main(["run", str(EXAMPLES / "automata" / "bouncing_ball.yaml"), "-o", str(out),
+                 "--no-views"]) == 0
+    captured = capsys.readouterr()
+    lines = [x for x in captured.err.splitlines() if x.startswith("hybridteam: bouncing")]
+    assert lines and all("% simulated, " in x for x in lines)
+    assert any("ETA" in x for x in lines)
+    # the ball reaches its Zeno point at t = 2.5586 of the file's 5 s
+    assert "2.55863 of 5 s simulated" in captured.out
+    assert main(["run", THERMO, "-o", str(tmp_path / "q"), "--quiet", "--no-views"]) == 0
+    assert capsys.readouterr().err == ""

@@ -371,3 +371,14 @@ def test_validate_and_schema_know_study_files(tmp_path, capsys):
     assert main(["schema", "study"]) == 0
     schema = capsys.readouterr().out
     assert '"population"' in schema and '"factors"' in schema
+
+
+def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, capsys):
+    """A study run from a script or CI says how far it is, in lines, with an estimate."""
+    assert main(["sweep", str(STUDY), "-o", str(tmp_path / "out"), "--chunk", "9",
+                 "--progress", "log"]) == 0
+    lines = [x for x in capsys.readouterr().err.splitlines() if "runs (" in x]
+    total = reference[0].plan.runs
+    assert lines[-1].startswith(f"hybridteam: {study.name}: {total:,}/{total:,} runs (100%)")
+    assert len(lines) >= 2 and any("ETA" in x for x in lines[:-1])
+    assert (tmp_path / "out" / "results.csv").read_bytes() == reference[1]

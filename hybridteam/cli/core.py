@@ -23,6 +23,7 @@ from hybridteam.cli.common import (
     print_errors,
 )
 from hybridteam.errors import ModelError
+from hybridteam.progress import MODES, reporter
 
 
 def register(sub) -> dict:
@@ -41,7 +42,9 @@ def register(sub) -> dict:
     r.add_argument("--set", action="append", default=[], metavar="KEY=V[,V...]",
                    help="override a parameter (agent.param or team param); a list gives "
                         "one value per instance")
-    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    r.add_argument("--quiet", action="store_true", help="no progress or summary")
+    r.add_argument("--progress", choices=MODES, default="auto",
+                   help="auto (a bar on a terminal, lines otherwise), bar, log or none")
     r.add_argument("--no-views", action="store_true",
                    help="skip the state diagram, timeline, trajectory and sequence views")
     r.add_argument("--max-memory", type=float, default=None, metavar="GB",
@@ -120,22 +123,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     if team is None:
         return EXIT_USAGE
     overrides, n = _overrides(args.set, args.n)
-    bar = None
-    progress = None
-    if not args.quiet and sys.stderr.isatty():
-        from tqdm import tqdm
+    shown = reporter("none" if args.quiet else args.progress, 100, team.name, "%")
 
-        bar = tqdm(total=100, unit="%", desc=team.name, leave=False,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| ETA {remaining}")
-
-        def progress(frac: float) -> None:
-            bar.n = round(100 * frac)
-            bar.refresh()
+    def progress(frac: float) -> None:
+        assert shown is not None
+        shown.update(round(100 * frac) - shown.n)
 
     start = time.perf_counter()
     try:
         run = simulate(team, seed=args.seed, n=n, duration=args.duration,
-                       overrides=overrides, progress=progress,
+                       overrides=overrides, progress=None if shown is None else progress,
                        max_memory=None if args.max_memory is None else args.max_memory * 1e9,
                        max_periods=args.max_periods,
                        max_wall=None if args.max_wall is None else args.max_wall * 3600)
@@ -147,8 +144,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
     finally:
-        if bar is not None:
-            bar.close()
+        if shown is not None:
+            shown.close()
     summary = run.summary()
     summary["wall_time_s"] = round(time.perf_counter() - start, 4)
     views = _write_run(out, team, run, summary, views=not args.no_views)
@@ -216,8 +213,11 @@ def _fmt(value) -> str:
 
 def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
     tally = ", ".join(f"{k}: {v}" for k, v in sorted(summary["outcomes"].items()))
-    print(f"{summary['team']}: {summary['n']} instance(s), {summary['duration']:g} s simulated "
-          f"in {summary['wall_time_s']:.3f} s wall — {tally}")
+    ended = max(inst["t_end"] for inst in summary["instances"])
+    simulated = f"{summary['duration']:g} s simulated" if ended >= summary["duration"] else \
+        f"{ended:g} of {summary['duration']:g} s simulated"
+    print(f"{summary['team']}: {summary['n']} instance(s), {simulated} in "
+          f"{summary['wall_time_s']:.3f} s wall — {tally}")
     for inst in summary["instances"][:10]:
         print(f"  [{inst['instance']}] {inst['outcome']} at t={inst['t_end']:.6g}: "
               f"{inst['transitions']} transitions, {inst['messages']} messages"

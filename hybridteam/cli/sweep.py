@@ -19,6 +19,7 @@ from hybridteam.cli.common import (
     output_folder,
     print_errors,
 )
+from hybridteam.progress import MODES
 
 
 def register(sub) -> dict:
@@ -34,7 +35,9 @@ def register(sub) -> dict:
                             "(needs hybridteam[dask])")
     sw.add_argument("--chunk", type=int, default=None, metavar="K",
                     help="runs per ensemble chunk (default: the study's, else 500)")
-    sw.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    sw.add_argument("--quiet", action="store_true", help="no progress or summary")
+    sw.add_argument("--progress", choices=MODES, default="auto",
+                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
 
     rp = sub.add_parser("report", help="plots and report.md of a finished study")
     rp.add_argument("output", metavar="OUT", help="the study's output folder")
@@ -57,7 +60,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     except InputErrors as exc:
         print_errors(exc)
         return EXIT_USAGE
-    show = not args.quiet and sys.stderr.isatty()
+    show = "none" if args.quiet else args.progress
     try:
         result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
                            chunk=args.chunk, progress=show)

@@ -11,7 +11,6 @@ memory), so a resumed study and an uninterrupted one produce the same bytes.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -19,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from hybridteam.model import Team
+from hybridteam.progress import reporter
 from hybridteam.sweep.plan import Chunk, Plan, Task
 from hybridteam.sweep.store import (
     FORMAT,
@@ -63,7 +63,7 @@ class Outcome:
 
 def run_study(study: Study, out: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, client: Any = None, chunk: int | None = None,
-              progress: bool = False, max_chunks: int | None = None,
+              progress: bool | str = False, max_chunks: int | None = None,
               fmt: str | None = None) -> Outcome:
     """Run ``study`` into folder ``out`` and write its table; resume if ``out`` holds part.
 
@@ -130,14 +130,12 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     return result
 
 
-def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool):
-    if not progress:
-        return None
-    from tqdm import tqdm
-
+def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool | str):
+    """A progress reporter over the runs (``progress``: a mode of
+    :mod:`hybridteam.progress`; True means a bar, False none)."""
+    mode = {True: "bar", False: "none"}.get(progress, progress)  # type: ignore[call-overload]
     finished = sum(c.size for c in plan.chunks if c.id in done)
-    return tqdm(total=plan.runs, initial=finished, unit="run", desc=name, file=sys.stderr,
-                dynamic_ncols=True, smoothing=0.1)
+    return reporter(str(mode), plan.runs, name, "run", initial=finished)
 
 
 def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
