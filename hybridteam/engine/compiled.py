@@ -196,3 +196,5 @@ class CTeam:
     team: Team
     agents: list[CAgent]
     scenario: list[tuple[float, int, str]]
+    ending: list[int] = field(default_factory=list)  # agents whose final modes end a run
+    end_any: bool = False  # the first of them to be final ends it (else: all of them)

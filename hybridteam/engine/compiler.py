@@ -243,7 +243,25 @@ def compile_team(team: Team) -> CTeam:
                                      hint=did_you_mean(ev.agent, names)))
             continue
         scenario.append((float(ev.at), names.index(ev.agent), ev.event))
+    ending = _ending(team, names, errors)
     if errors:
         raise ModelErrors(errors)
     scenario.sort(key=lambda s: (s[0], s[1]))
-    return CTeam(team, agents, scenario)
+    return CTeam(team, agents, scenario, ending, team.end.when == "any")
+
+
+def _ending(team: Team, names: list[str], errors: list[ModelError]) -> list[int]:
+    """Indices of the agents whose final modes end a run: those ``end.agents`` names, else
+    every agent but operators (a protocol's operator stands by forever; waiting for it
+    would keep every run going to its duration)."""
+    if team.end.agents is None:
+        chosen = [i for i, a in enumerate(team.agents) if not a.operator]
+        return chosen or list(range(len(team.agents)))
+    out = []
+    for k, name in enumerate(team.end.agents):
+        if name not in names:
+            errors.append(ModelError((*team.end.where, "agents", k), f"unknown agent '{name}'",
+                                     hint=did_you_mean(name, names)))
+        else:
+            out.append(names.index(name))
+    return out

@@ -1,7 +1,10 @@
 """End-of-instant checks that can end an instance: ``stuck``, ``ok``, ``deadlock``.
 
 ``stuck``: an active mode's invariant is false and no transition took the instance out.
-``ok`` early: every agent's active leaves are final. ``deadlock``: nothing is pending (no
+The run's end: the agents of the team's end rule (by default every agent but a protocol's
+operators, which stand by forever) are all in final modes — or, with ``when: any``, one
+of them is — and the outcome is the first named by their final modes, else ``ok``.
+``deadlock``: nothing is pending (no
 event, message, timer, stream) and every agent either is final or waits for a trigger, so no
 discrete step can ever happen again. Each outcome carries a message naming agents, modes,
 guards or triggers, and the time.
@@ -18,7 +21,8 @@ if TYPE_CHECKING:
 
 
 def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
-    """Invariants (``stuck``), all agents final (``ok``), nothing can happen (``deadlock``)."""
+    """Invariants (``stuck``), the end rule (a final mode's outcome, else ``ok``), nothing
+    can happen (``deadlock``)."""
     if idx.size == 0:
         return
     for st in ens.states:
@@ -38,7 +42,9 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
     idx = idx[~ens.done[idx]]
     if idx.size == 0:
         return
+    cteam = ens.cteam
     all_final = np.ones(idx.size, bool)
+    ends = np.zeros(idx.size, bool) if cteam.end_any else np.ones(idx.size, bool)
     waiting = np.ones(idx.size, bool)
     someone_waits = np.zeros(idx.size, bool)
     for a, st in enumerate(ens.states):
@@ -47,14 +53,17 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
         leaf_act = act[:, ca.leaves]
         final = (~leaf_act | ca.final[ca.leaves]).all(axis=1)
         all_final &= final
+        if a in cteam.ending:
+            ends = ends | final if cteam.end_any else ends & final
         eventless = (act & ca.has_eventless).any(axis=1)
         trig = (act & ca.has_triggered).any(axis=1)
         waiting &= final | (~eventless & trig & ~np.isfinite(ens.timer[a][idx]))
         someone_waits |= ~final & trig
-    fin = idx[all_final]
+    fin = idx[ends]
     if fin.size:
+        text = _end_text(ens)
         for kind, group in final_outcomes(ens, fin).items():
-            ens.finish(group, kind, lambda i: "every agent reached a final mode")
+            ens.finish(group, kind, lambda i: text)
     # periodic stream sends are pending messages too: a robot that still talks is not stalled
     pending = ens.queue.pending(idx) | np.isfinite(ens.streams.next[idx]) | ens.world.raises
     stalled = idx[~all_final & waiting & someone_waits & ~pending]
@@ -63,12 +72,28 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
 
 
 
+def _end_text(ens: Ensemble) -> str:
+    cteam = ens.cteam
+    if len(cteam.ending) == len(cteam.agents) and not cteam.end_any:
+        return "every agent reached a final mode"
+    if cteam.team.end.agents is None:
+        ops = ", ".join(f"'{a.name}'" for a in cteam.team.agents if a.operator)
+        return f"every agent reached a final mode (operators are not waited for: {ops})"
+    names = ", ".join(f"'{cteam.agents[a].name}'" for a in cteam.ending)
+    if cteam.end_any:
+        return f"one of {names} reached a final mode" if len(cteam.ending) > 1 else \
+            f"{names} reached a final mode"
+    return f"{names} reached final modes (the end rule)" if len(cteam.ending) > 1 else \
+        f"{names} reached a final mode (the end rule)"
+
+
 def final_outcomes(ens: Ensemble, idx: np.ndarray) -> dict[str, np.ndarray]:
-    """Instances ``idx`` (all final) grouped by outcome: the ``outcome`` of the first active
-    final mode that names one, in agent order, else ``ok``."""
+    """Instances ``idx`` (at their end) grouped by outcome: the ``outcome`` of the first
+    active final mode that names one, among the agents that end the run in agent order,
+    else ``ok``."""
     kind = np.full(idx.size, "ok", dtype=object)
     named = np.zeros(idx.size, bool)
-    for st in ens.states:
+    for st in (ens.states[a] for a in ens.cteam.ending):
         for m, name in enumerate(st.ca.outcome):
             if name is not None:
                 hit = ~named & st.active[idx, m]

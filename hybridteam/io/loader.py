@@ -43,6 +43,7 @@ from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import (
     Agent,
     Assign,
+    EndRule,
     LawBinding,
     LinkSettings,
     MessageSpec,
@@ -194,7 +195,9 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
                 source=Path(filename).name, network=network,
                 messages=_messages(doc, comp), world=world,
-                folder=str(Path(filename).resolve().parent))
+                folder=str(Path(filename).resolve().parent),
+                end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
+                            doc.end.when if doc.end else "all", ("end",)))
     return team, comp
 
 
@@ -230,7 +233,7 @@ def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
     params = {k: v for k, v in extra["parameters"].items()
               if k in spec.parameters or k not in team_params}
     return Agent(name, plant, root, params, extra["variables"], where,
-                 tuple(extra["streams"]), preset)
+                 tuple(extra["streams"]), preset, operator=spec.operator is not None)
 
 
 _OVERRIDDEN = ("sensors", "manipulator", "footprint")

@@ -317,6 +317,16 @@ class MessageDeclSchema(Strict):
     priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
 
 
+class EndSchema(Strict):
+    """When a run ends before its duration: ``{agents: [labmate, xr4000], when: all}``."""
+
+    agents: list[str] | None = Field(
+        None, min_length=1,
+        description="agents whose final modes end the run (default: all but operators)")
+    when: Literal["all", "any"] = Field(
+        "all", description="all: when every one of them is final; any: when the first is")
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -330,6 +340,7 @@ class TeamFile(Strict):
     network: NetworkSchema = Field(default_factory=NetworkSchema)
     world: list[WorldSchema] = Field(
         default_factory=list, description="world components: payloads, corridors, sensors")
+    end: EndSchema | None = Field(None, description="when a run ends before its duration")
     messages: dict[str, MessageDeclSchema] = Field(
         default_factory=dict, description="the team's own message types (fields, ack:, "
         "priority); a protocol's are declared in the protocol")

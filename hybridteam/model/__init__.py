@@ -13,6 +13,7 @@ from hybridteam.model.modes import (
 from hybridteam.model.protocol import AckPolicy, MessageSpec, StreamSpec
 from hybridteam.model.team import (
     Agent,
+    EndRule,
     LinkSettings,
     NetworkSpec,
     PlantSpec,
@@ -28,6 +29,7 @@ __all__ = [
     "Action",
     "Agent",
     "Assign",
+    "EndRule",
     "History",
     "LawBinding",
     "LinkSettings",

@@ -47,6 +47,17 @@ class Agent:
     where: DocPath = ()
     streams: tuple[StreamSpec, ...] = ()
     preset: RobotPreset | None = None
+    operator: bool = False  # a protocol's operator: no body; not waited for by default
+
+
+@dataclass(frozen=True)
+class EndRule:
+    """When a run ends before its duration: once ``all`` (or ``any``) of ``agents`` are in
+    final modes; ``agents`` None means every agent but operators."""
+
+    agents: tuple[str, ...] | None = None
+    when: str = "all"  # "all" | "any"
+    where: DocPath = ()
 
 
 @dataclass(frozen=True)
@@ -141,6 +152,7 @@ class Team:
     world: tuple[WorldSpec, ...] = ()
     #: the folder of the team file: ``module:function`` laws are looked for there first
     folder: str | None = None
+    end: EndRule = field(default_factory=EndRule)
 
     def agent(self, name: str) -> Agent:
         for a in self.agents:
