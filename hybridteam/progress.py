@@ -4,8 +4,8 @@ On a terminal a tqdm bar is the pleasant thing; in a non-interactive shell, a CI
 batch system a bar prints nothing useful (or garbage), and a five-minute study that says
 nothing looks hung. :func:`reporter` picks: ``bar``, ``log`` (a line every tenth of the
 work or every 30 s, with the time taken and an estimate of what is left), ``none``, or
-``auto`` — a bar on a terminal, lines otherwise. Both kinds answer ``update(k)`` and
-``close()``.
+``auto`` — a bar on a terminal, lines otherwise. Lines start after two seconds, so
+quick work stays quiet. Both kinds answer ``update(k)`` and ``close()``.
 """
 
 from __future__ import annotations
@@ -21,10 +21,12 @@ class LogProgress:
     """Progress as lines: ``hybridteam: alpha: 1,500/3,000 runs (50%), 4.2 s, ETA 4.1 s``."""
 
     def __init__(self, total: float, desc: str, unit: str, initial: float = 0,
-                 file: TextIO | None = None, step: float = 0.1, seconds: float = 30.0) -> None:
+                 file: TextIO | None = None, step: float = 0.1, seconds: float = 30.0,
+                 grace: float = 2.0) -> None:
         self.total, self.desc, self.unit, self.n = total, desc, unit, initial
         self.file = file if file is not None else sys.stderr
-        self.step, self.seconds = step, seconds
+        self.step, self.seconds, self.grace = step, seconds, grace
+        self.spoke = False
         self.start = time.perf_counter()
         self.first = initial
         self.shown, self.shown_at = initial, self.start
@@ -32,16 +34,17 @@ class LogProgress:
     def update(self, k: float = 1) -> None:
         self.n += k
         now = time.perf_counter()
-        if self.total and (self.n - self.shown >= self.step * self.total
-                           or now - self.shown_at >= self.seconds):
+        if self.total and now - self.start >= self.grace and (
+                self.n - self.shown >= self.step * self.total
+                or now - self.shown_at >= self.seconds):
             self._line(now)
 
     def close(self) -> None:
-        if self.n != self.shown:
+        if self.spoke and self.n != self.shown:
             self._line(time.perf_counter())
 
     def _line(self, now: float) -> None:
-        self.shown, self.shown_at = self.n, now
+        self.shown, self.shown_at, self.spoke = self.n, now, True
         elapsed = now - self.start
         done = self.n - self.first
         left = self.total - self.n

@@ -391,7 +391,8 @@ def test_a_full_standard_output_is_one_line(tmp_path):
     (tmp_path / "team.yaml").write_text(robot())
     with open("/dev/full", "w") as full:
         proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "run", "team.yaml",
-                               "-o", "out", "--no-views"], cwd=tmp_path, stdout=full,
+                               "-o", "out", "--no-views", "--progress", "none"],
+                              cwd=tmp_path, stdout=full,
                               stderr=subprocess.PIPE, text=True, timeout=60)
     assert proc.returncode == 2
     assert proc.stderr.strip() == "hybridteam: error: cannot write: No space left on device"

@@ -373,8 +373,14 @@ def test_validate_and_schema_know_study_files(tmp_path, capsys):
     assert '"population"' in schema and '"factors"' in schema
 
 
-def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, capsys):
-    """A study run from a script or CI says how far it is, in lines, with an estimate."""
+def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, capsys,
+                                                 monkeypatch):
+    """A study run from a script or CI says how far it is, in lines, with an estimate
+    (the clock here ticks a second per reading, so the two-second grace is soon over)."""
+    from hybridteam import progress
+
+    clock = iter(range(0, 10_000))
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: float(next(clock)))
     assert main(["sweep", str(STUDY), "-o", str(tmp_path / "out"), "--chunk", "9",
                  "--progress", "log"]) == 0
     lines = [x for x in capsys.readouterr().err.splitlines() if "runs (" in x]

@@ -42,6 +42,7 @@ import numpy as np
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
+from hybridteam.world.collisions import MODES, box_sdf, name_hit, robot_overlaps
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.sensors import RangeRing, cast, clearance
 
@@ -210,15 +211,23 @@ class Obstacles(WorldComponent):
 
     params: ClassVar[dict[str, Any]] = {
         "walls": [], "circles": [], "boxes": [], "detect": [], "radius": [],
+        "on_collision": "outcome",
     }
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
-        return _parse(team, values)[1]
+        problems = _parse(team, values)[1]
+        mode = values.get("on_collision", "outcome")
+        if mode not in MODES:
+            problems.append(ModelError(("on_collision",), f"expected one of "
+                                       f"{', '.join(MODES)}, got {mode!r}",
+                                       hint=did_you_mean(str(mode), MODES)))
+        return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         super().__init__(team, n, values)
         parsed, problems = _parse(team, values)
+        problems += [p for p in self.check(team, values) if p.path == ("on_collision",)]
         if problems:
             raise settings_error("obstacles", problems)
         self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
@@ -241,6 +250,7 @@ class Obstacles(WorldComponent):
         self.near = np.zeros((len(self.rules), n), bool)
         self.min_clear = np.full((len(self.planar), n), np.inf)
         self.payload_clear = np.full(n, np.inf)
+        self.collisions: list[list[str]] = [[] for _ in range(n)]  # on_collision: warn
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -289,7 +299,7 @@ class Obstacles(WorldComponent):
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         for p in self.late:
             p.settle(world, idx)
-        self._measure(idx)
+        self._measure(world, idx)
         readings: dict[tuple[int, str], np.ndarray] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
@@ -301,29 +311,57 @@ class Obstacles(WorldComponent):
             if rising.any():
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
-    def _measure(self, idx: np.ndarray) -> None:
-        """Running minima of the robots' and the payloads' clearances."""
+    def _measure(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """Running minima of the robots' and the payloads' clearances, and collisions."""
+        hits: list[tuple[np.ndarray, str]] = []  # (instances, what happened)
         if self.planar:
-            pts = np.concatenate([self._poses(a, idx)[:, :2] for a in self.planar])
+            points = np.stack([self._poses(a, idx)[:, :2] for a in self.planar])  # (R, m, 2)
+            pts = points.reshape(-1, 2)
             gap = clearance(pts, 0.0, self.walls, self.circles)
             if len(self.boxes):
-                gap = np.minimum(gap, _box_sdf(pts, self.boxes))
+                gap = np.minimum(gap, box_sdf(pts, self.boxes))
             gap = gap.reshape(len(self.planar), idx.size) - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
+            for r, a in enumerate(self.planar):
+                for k in np.flatnonzero(gap[r] < 0).tolist():
+                    what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
+                    hits.append((idx[k:k + 1], f"robot '{self.team.agents[a].name}' hit "
+                                 f"{what}, its footprint overlapping it by {-gap[r, k]:.3g}"))
+            overlap = robot_overlaps(points, self.radius)
+            for k, r1, r2 in zip(*np.nonzero(np.triu(overlap > 0, 1)), strict=True):
+                names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
+                hits.append((idx[k:k + 1], f"robots '{names[0]}' and '{names[1]}' collided, "
+                             f"their footprints overlapping by {overlap[k, r1, r2]:.3g}"))
         for p in self.payloads:
-            self.payload_clear[idx] = np.minimum(self.payload_clear[idx],
-                                                 self._payload_gap(p, idx))
+            gap = self._payload_gap(p, idx)
+            self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
+            for k in np.flatnonzero(gap <= 0).tolist():
+                hits.append((idx[k:k + 1], f"payload '{p.values['name']}' hit an obstacle"))
+        if hits and self.values["on_collision"] != "ignore":
+            self._collide(world, hits)
+
+    def _collide(self, world: WorldAccess, hits: list[tuple[np.ndarray, str]]) -> None:
+        for inst, what in hits:
+            i = int(inst[0])
+            text = f"{what} at t={float(world.t[i])!r}"
+            if self.values["on_collision"] == "outcome":
+                world.finish(inst, "collision", text)
+            elif not any(c.startswith(what.split(" hit ")[0].split(" collided")[0])
+                         for c in self.collisions[i]):
+                self.collisions[i].append(text)  # warn: each party's first collision
 
     def _payload_gap(self, p: CarriedPayload, idx: np.ndarray) -> np.ndarray:
         """Gap between payload ``p``'s outline and the static obstacles (0 if they meet)."""
         gap = p.gap(idx, self.segments, self.circles)
         if len(self.boxes):  # a payload wholly inside an obstacle box meets no edge
-            gap = np.where(_box_sdf(p.pose[idx, :2], self.boxes) <= 0.0, 0.0, gap)
+            gap = np.where(box_sdf(p.pose[idx, :2], self.boxes) <= 0.0, 0.0, gap)
         return gap
 
     # ------------------------------------------------------------------ results
     def summary(self, i: int) -> dict[str, Any]:
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
+        if self.values["on_collision"] == "warn":
+            out["collisions"] = list(self.collisions[i])
         if self.payloads:
             out["payload_clearance"] = _finite(self.payload_clear[i])
         return out
@@ -363,14 +401,3 @@ def _box_edges(boxes: np.ndarray) -> np.ndarray:
     if not len(boxes):
         return np.zeros((0, 4))
     return np.concatenate([np.c_[c, np.roll(c, -1, axis=0)] for c in map(_corners, boxes)])
-
-
-def _box_sdf(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    """Signed distance from each point ``(P, 2)`` to the nearest box: ``(P,)``, < 0 inside."""
-    dx = points[:, 0:1] - boxes[:, 0]
-    dy = points[:, 1:2] - boxes[:, 1]
-    c, s = np.cos(boxes[:, 4]), np.sin(boxes[:, 4])
-    qx = np.abs(c * dx + s * dy) - boxes[:, 2] / 2.0
-    qy = np.abs(-s * dx + c * dy) - boxes[:, 3] / 2.0
-    outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-    return (outside + np.minimum(np.maximum(qx, qy), 0.0)).min(axis=1)

@@ -1,0 +1,73 @@
+"""Collisions (issue 16, item 5): an overlap with a wall, an obstacle or another robot ends
+the run with outcome ``collision`` (or is listed, or ignored, as ``on_collision`` says).
+
+Hand-timed cases: robots at 1 m/s under a 0.1 s law, so positions at the ticks are exact.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+import hybridteam as ht
+
+TEAM = """
+team: crash
+agents:
+  a:
+    plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+    modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+  b:
+    plant: {{kind: unicycle, state: {{x: 3.0, y: {b_y}, theta: 3.141592653589793}}}}
+    modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+world:
+  - use: obstacles
+    with:
+      walls: {walls}
+      radius: [[a, 0.25], [b, 0.25]]
+      on_collision: {mode}
+simulation: {{duration: 4.0}}
+"""
+
+
+def team(team_from_yaml, mode: str = "outcome", b_y: float = 5.0,
+         walls: str = "[[2.0, -1.0, 2.0, 1.0]]"):
+    return team_from_yaml(TEAM.format(mode=mode, b_y=b_y, walls=walls))
+
+
+def test_robots_that_meet_collide(team_from_yaml):
+    """Head on, closing at 2 m/s from 3 m apart: the 0.25 m disks touch at t = 1.25 s; the
+    first instant after, t = 1.3 s, they overlap by 0.1 m."""
+    run = ht.simulate(team(team_from_yaml, b_y=0.0, walls="[]"))
+    assert run.outcome == "collision"
+    assert run.diagnostics[0]["t"] == pytest.approx(1.3, abs=1e-12)
+    assert run.message.startswith("robots 'a' and 'b' collided, their footprints "
+                                  "overlapping by 0.1 at t=1.3")
+
+
+def test_a_robot_that_drives_into_a_wall_collides(team_from_yaml):
+    """Robot b is kept out of the way (y = 5); robot a's disk reaches the wall at x = 2
+    when x = 1.75, first overlapping it at the tick t = 1.8 s (by 0.05 m)."""
+    run = ht.simulate(team(team_from_yaml))
+    assert run.outcome == "collision"
+    assert run.diagnostics[0]["t"] == pytest.approx(1.8, abs=1e-12)
+    assert run.message.startswith("robot 'a' hit walls[0], its footprint overlapping it by "
+                                  "0.05 at t=1.8")
+
+
+def test_warn_lists_collisions_and_ignore_keeps_only_clearances(team_from_yaml):
+    warned = ht.simulate(team(team_from_yaml, "warn"))
+    assert warned.outcome == "ok" and warned.diagnostics[0]["t"] == 4.0
+    (first,) = warned.diagnostics[0]["stats"]["collisions"]
+    assert first.startswith("robot 'a' hit walls[0]") and first.endswith("at t=1.8")
+    ignored = ht.simulate(team(team_from_yaml, "ignore"))
+    assert ignored.outcome == "ok"
+    assert "collisions" not in ignored.diagnostics[0]["stats"]
+    assert ignored.diagnostics[0]["stats"]["min_clearance"][0] < 0  # it went through
+
+
+def test_an_unknown_collision_mode_is_a_located_error(team_from_yaml):
+    from hybridteam.io.filekind import InputErrors
+
+    with pytest.raises(InputErrors, match=r"world\[0\].with.on_collision: expected one of "
+                                          r"outcome, warn, ignore, got 'stopp'"):
+        team(team_from_yaml, "stopp")
