@@ -8,4 +8,14 @@ from hybridteam.api import Run, load, simulate
 from hybridteam.model import Team
 
 __version__ = "0.1.0"
+
+
+def _notebook() -> None:
+    """Teams draw themselves in Jupyter (a no-op outside IPython)."""
+    from hybridteam.notebook import enable
+
+    enable()
+
+
+_notebook()
 __all__ = ["Run", "Team", "__version__", "load", "simulate"]

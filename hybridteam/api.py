@@ -51,6 +51,42 @@ class Run(Trace):
     def message(self) -> str:
         return self.diagnostics[0]["message"] if self.n == 1 else ""
 
+    @property
+    def modes(self) -> Table:
+        """Time spent in each mode: one row per stay (``modes.csv``; also ``intervals``)."""
+        return self.intervals
+
+    def to_pandas(self) -> dict[str, Any]:
+        """Every table as a pandas DataFrame: ``modes``, ``transitions``, ``messages``,
+        ``samples`` (tidy: instance, t, series, variable, value) and ``outcomes``."""
+        from hybridteam.frames import run_frames
+
+        return run_frames(self)
+
+    def samples_frame(self, wide: bool = False) -> Any:
+        """The samples as a DataFrame: tidy, or ``wide`` (a column per series.variable)."""
+        from hybridteam.frames import samples_frame
+
+        return samples_frame(self, wide)
+
+    def __repr__(self) -> str:
+        counts = f"{len(self.transitions)} transitions, {len(self.messages)} messages"
+        if self.n == 1:
+            o = self._outcomes[0]
+            return f"<Run of {self.meta['team']!r}: {o['outcome']} at t={o['t']:g}, {counts}>"
+        tally: dict[str, int] = {}
+        for name in self.outcomes:
+            tally[name] = tally.get(name, 0) + 1
+        shown = ", ".join(f"{k}: {v}" for k, v in tally.items())
+        return f"<Run of {self.meta['team']!r}: {self.n} instances ({shown}), {counts}>"
+
+    def _repr_html_(self) -> str:
+        """In Jupyter: the outcome of each instance (the first 20) and the timeline of the
+        first, drawn inline."""
+        from hybridteam.notebook import run_html
+
+        return run_html(self)
+
     def to_dict(self) -> dict[str, Any]:
         d = super().to_dict()
         d["outcomes"] = self._outcomes

@@ -68,6 +68,12 @@ class Table:
     def __repr__(self) -> str:
         return f"Table({len(self)} rows: {', '.join(self.names)})"
 
+    def to_pandas(self):
+        """The table as a pandas DataFrame (``pip install 'hybridteam[pandas]'``)."""
+        from hybridteam.frames import table_frame
+
+        return table_frame(self)
+
     @staticmethod
     def _plain(col: np.ndarray) -> list:
         return col.tolist()

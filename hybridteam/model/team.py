@@ -154,6 +154,11 @@ class Team:
     folder: str | None = None
     end: EndRule = field(default_factory=EndRule)
 
+    def __repr__(self) -> str:
+        names = ", ".join(a.name for a in self.agents)
+        return (f"<Team {self.name!r}: {len(self.agents)} agent(s) ({names}), "
+                f"{self.simulation.duration:g} s>")
+
     def agent(self, name: str) -> Agent:
         for a in self.agents:
             if a.name == name:
