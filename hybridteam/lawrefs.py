@@ -58,6 +58,11 @@ def _beside(folder: str | None, top: str) -> Path | None:
     return None
 
 
+def is_beside(folder: str | None, module: str) -> bool:
+    """Whether ``folder`` (a team file's) holds the module ``module``."""
+    return _beside(folder, module) is not None
+
+
 def import_model_module(module_name: str, folder: str | None) -> ModuleType:
     """The module a model's ``module:function`` names, imported only from the allowed
     places (see the module docstring); :class:`RefusedReference` otherwise."""

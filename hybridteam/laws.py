@@ -9,12 +9,16 @@ only way a model file can bring in code, and it is visible in the file.
 
 from __future__ import annotations
 
+import ast
+import functools
+import inspect
+import textwrap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from hybridteam.lawrefs import RefusedReference, import_model_module
+from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 from hybridteam.libraries import broken_note, load_libraries
 
 
@@ -165,6 +169,26 @@ def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndar
 LawFunction = Callable[[LawContext], np.ndarray]
 
 
+@functools.cache
+def asked_names(fn: LawFunction) -> frozenset[str]:
+    """The names a law reads as ``ctx["name"]`` with a literal name (from its source):
+    what must exist for the agent that binds it. ``ctx.get(name, default)`` is not among
+    them (it has a default); names built at run time cannot be known here."""
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
+    except (OSError, TypeError, SyntaxError):
+        return frozenset()
+    func = next((n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.Lambda)),
+                None)
+    if func is None or not func.args.args:
+        return frozenset()
+    ctx = func.args.args[0].arg
+    return frozenset(
+        n.slice.value for n in ast.walk(func)
+        if isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id == ctx
+        and isinstance(n.slice, ast.Constant) and isinstance(n.slice.value, str))
+
+
 @dataclass(frozen=True)
 class LawSpec:
     """A registered law: the callable and what it expects."""
@@ -235,6 +259,10 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         load_libraries()
     if reference not in _REGISTRY:
         note = broken_note()
+        module, _, function = reference.rpartition(".")
+        if module and is_beside(folder, module.split(".")[0]):  # a user module, unimported
+            note = (f"a law in a module beside the team file is named by module:function, "
+                    f"e.g. '{module}:{function}'")
         raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
                           sorted(_REGISTRY))
     return _REGISTRY[reference]

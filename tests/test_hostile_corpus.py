@@ -108,6 +108,11 @@ def flat(ctx):
 @law("corpus.asks")
 def asks(ctx):
     return np.column_stack([ctx["no_such_name"], ctx["no_such_name"]])
+
+@law("corpus.builds")
+def builds(ctx):
+    name = "no_" + "such"  # a name made at run time: only the run can tell
+    return np.column_stack([ctx[name], ctx[name]])
 """
 
 
@@ -288,10 +293,15 @@ CASES: dict[str, Case] = {
                             ["team.yaml:6:23: agents.r.modes.Go.law.use: law 'corpus.flat' of "
                              "agent 'r' returned shape (1,), expected (1, 2) (inputs v, omega)"]),
     "law_unknown_name": Case({"team.yaml": robot("law: {use: 'userlaws:asks', period: 0.1}"),
-                              "userlaws.py": USERLAWS}, RUN, 2,
-                             ["agents.r.modes.Go.law.use: law 'corpus.asks' of agent 'r' "
-                              "failed: KeyError: law for agent 'r' asked for unknown name "
-                              "'no_such_name'"]),
+                              "userlaws.py": USERLAWS}, ["validate", "team.yaml"], 2,
+                             ["team.yaml:6:23: agents.r.modes.Go.law.use: law 'corpus.asks' "
+                              "reads ctx['no_such_name'], which is no binding parameter"]),
+    "law_unknown_name_at_run": Case({"team.yaml": robot("law: {use: 'userlaws:builds', "
+                                                        "period: 0.1}"),
+                                     "userlaws.py": USERLAWS}, RUN, 2,
+                                    ["agents.r.modes.Go.law.use: law 'corpus.builds' of agent "
+                                     "'r' failed: KeyError: law for agent 'r' asked for unknown "
+                                     "name 'no_such'"]),
     "law_code_interact": Case({"team.yaml": robot("law: {use: 'code:interact'}")},
                               ["validate", "team.yaml"], 2,
                               ["module 'code' is not beside the team file"]),

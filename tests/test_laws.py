@@ -162,3 +162,42 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
                        r"'conveyor.belt' \(mode library 'conveyors' failed to import "
                        r"\(conveyors.laws: ModuleNotFoundError"):
         ht.load(path)
+
+
+def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, tmp_path):
+    """A law reading ctx["k_along"] that the agent does not have fails `validate`, at the
+    binding — not with a KeyError a few seconds into the run."""
+    (tmp_path / "reader.py").write_text(
+        "import numpy as np\nfrom hybridteam.library import law\n\n"
+        "@law('tests.reader', params={'gain': 1.0})\n"
+        "def reader(ctx):\n"
+        "    return np.column_stack([ctx['gain'] * ctx['k_along'], ctx.get('w', 0.0)])\n")
+    with pytest.raises(InputErrors, match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: law "
+                       r"'tests.reader' reads ctx\['k_along'\], which is no binding parameter"):
+        make(team_from_yaml, "law: {use: 'reader:reader', period: 0.1}")
+    text = UNICYCLE.format(kind="unicycle", state="{x: 0, y: 0, theta: 0}", limits="{}",
+                           body="law: {use: 'reader:reader', period: 0.1}")
+    team = team_from_yaml(text.replace("{k: 0.5}", "{k: 0.5, k_along: 0.5}"))
+    assert ht.simulate(team).samples["r"][-1, 0, 0] == pytest.approx(2.0)  # 0.5 m/s for 4 s
+
+
+def test_a_registered_name_of_a_module_beside_the_team_gets_a_hint(team_from_yaml, tmp_path):
+    """The module beside the team is not imported for a registry name (only installed
+    libraries are), so the name is unknown: the message says how to name it."""
+    (tmp_path / "beside.py").write_text(
+        "from hybridteam.library import law\n\n@law('beside.drive')\n"
+        "def drive(ctx):\n    pass\n")
+    with pytest.raises(InputErrors, match=r"unknown law 'beside.drive' \(a law in a module "
+                       r"beside the team file is named by module:function, e.g. "
+                       r"'beside:drive'\)"):
+        make(team_from_yaml, "law: {use: beside.drive, period: 0.1}")
+
+
+def test_the_laws_command_lists_parameters_and_docs(capsys):
+    from hybridteam.cli import main
+
+    assert main(["laws", "formation"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("formation.follow  (unicycle)\n")
+    assert "with: ahead=" in out and "reads from the agent:" in out
+    assert main(["laws", "nosuch"]) == 2

@@ -54,9 +54,13 @@ def register(sub) -> dict:
     r.add_argument("--max-wall", type=float, default=None, metavar="HOURS",
                    help="stop a run whose pace projects more wall time (default 24)")
 
+    lw = sub.add_parser("laws", help="list the registered laws: parameters and what they do")
+    lw.add_argument("prefix", nargs="?", default=None,
+                    help="only laws whose name starts with this (e.g. transport)")
+
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
-    return {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema}
+    return {"validate": cmd_validate, "run": cmd_run, "schema": cmd_schema, "laws": cmd_laws}
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -245,4 +249,32 @@ def cmd_schema(args: argparse.Namespace) -> int:
     names = [args.kind] if args.kind else list(known)
     schemas = {k: known[k].schema().model_json_schema(by_alias=True) for k in names}
     print(json.dumps(schemas[names[0]] if args.kind else schemas, indent=2))
+    return EXIT_OK
+
+
+def cmd_laws(args: argparse.Namespace) -> int:
+    """Every registered law (installed libraries included): plants, parameters with their
+    defaults, the names it reads from the agent, and the first line of its docstring."""
+    from hybridteam.laws import asked_names, registered, resolve
+    from hybridteam.libraries import broken_note
+
+    names = [n for n in registered() if args.prefix is None or n.startswith(args.prefix)]
+    if not names:
+        from hybridteam.errors import did_you_mean
+
+        hint = did_you_mean(args.prefix, registered())
+        raise UsageError(f"no law starts with '{args.prefix}'" + (f"; {hint}" if hint else ""))
+    for name in names:
+        spec = resolve(name)
+        plants = "/".join(spec.plants) if spec.plants else "any plant"
+        print(f"{name}  ({plants})")
+        if spec.doc:
+            print(f"    {spec.doc.splitlines()[0]}")
+        if spec.params:
+            print("    with: " + ", ".join(f"{k}={v:g}" for k, v in spec.params.items()))
+        reads = sorted(asked_names(spec.fn) - set(spec.params))
+        if reads:
+            print("    reads from the agent: " + ", ".join(reads))
+    if (note := broken_note()) is not None:
+        print(f"hybridteam: warning: {note}", file=sys.stderr)
     return EXIT_OK

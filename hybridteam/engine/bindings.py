@@ -6,13 +6,14 @@ its nearest ancestor's, and an agent with none anywhere stands still (the "zero"
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 from hybridteam.dynamics.plants import Plant
 from hybridteam.engine.compiled import CMode, Driver
 from hybridteam.errors import did_you_mean
 from hybridteam.expr import Expression, compile_expression
-from hybridteam.laws import LawNotFound, resolve
+from hybridteam.laws import LawNotFound, asked_names, resolve
 from hybridteam.model import Mode
 
 if TYPE_CHECKING:
@@ -20,7 +21,8 @@ if TYPE_CHECKING:
 
 
 def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
-                   params: dict[str, float], folder: str | None = None) -> Driver | None:
+                   params: dict[str, float], folder: str | None = None,
+                   variables: Iterable[str] = ()) -> Driver | None:
     """The driver a mode declares (None: it declares none); ``folder`` is where the team
     file lives, where ``module:function`` laws are looked for first."""
     declared = [k for k in ("law", "inputs", "flow") if getattr(mode, k) is not None]
@@ -83,6 +85,11 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             e = col.expr(text, syms, (*b.where, "with", name))
             if e is not None:
                 pexprs[name] = e
+        known = {*pexprs, *plant.state_names, *params, *variables}
+        for name in sorted(asked_names(spec.fn) - known):
+            col.fail((*b.where, "use"), f"law '{spec.name}' reads ctx[{name!r}], which is no "
+                     "binding parameter, state, parameter or variable of this agent; give "
+                     "the agent that parameter", did_you_mean(name, known))
         return Driver("sampled" if b.period else "continuous", idx, period=b.period or 0.0,
                       law=spec, params=pexprs, where=b.where or mode.where)
     return None

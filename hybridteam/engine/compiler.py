@@ -151,7 +151,7 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             col.fail((*mode.where, "initial"), "a parallel mode enters all its regions; "
                      "it has no 'initial'")
         driver = compile_driver(mode, idx, names.plant, names.syms, col, names.params,
-                                folder)
+                                folder, names.variables)
         if driver is not None:
             drivers.append(driver)
         inv = None
