@@ -29,8 +29,7 @@ def pandas():
 
 
 def table_frame(table: Table) -> pd.DataFrame:
-    pd = pandas()
-    return pd.DataFrame({name: table.columns[name] for name in table.names})
+    return table.to_pandas()
 
 
 def samples_frame(trace: Trace, wide: bool = False) -> pd.DataFrame:

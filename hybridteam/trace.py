@@ -70,9 +70,11 @@ class Table:
 
     def to_pandas(self):
         """The table as a pandas DataFrame (``pip install 'hybridteam[pandas]'``)."""
-        from hybridteam.frames import table_frame
-
-        return table_frame(self)
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("this needs pandas: pip install 'hybridteam[pandas]'") from None
+        return pd.DataFrame({name: self.columns[name] for name in self.names})
 
     @staticmethod
     def _plain(col: np.ndarray) -> list:
