@@ -10,19 +10,14 @@ in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral veloci
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from hybridteam.dynamics.plants import Plant
 from hybridteam.engine.compiled import CAgent, CPolicy
-from hybridteam.engine.scope import resolve_mode
+from hybridteam.engine.scope import Collector, resolve_mode
 from hybridteam.engine.streams import CStream
 from hybridteam.errors import ModelError, did_you_mean
-from hybridteam.model import Team
-
-if TYPE_CHECKING:
-    from hybridteam.engine.scope import Collector
+from hybridteam.model import Send, Team
 
 
 def stream_fields(team: Team) -> dict[str, list[str]]:
@@ -72,15 +67,27 @@ def check_messages(team: Team) -> list[ModelError]:
 def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
     agent = team.agents[ca.index]
+    sends = {act.message for _, mode in agent.root.walk() for tr in mode.transitions
+             for act in tr.actions if isinstance(act, Send)}
     for name, spec in team.messages.items():
+        if name not in sends:  # how a message is sent matters only to its senders
+            continue
+        own = Collector()  # a sender without the names its policy reads: say who and why
         pol = CPolicy()
         if spec.priority not in (0, 0.0, "0"):
-            pol.priority = col.expr(spec.priority, syms, (*spec.where, "priority"))
+            pol.priority = own.expr(spec.priority, syms, (*spec.where, "priority"))
         if spec.ack is not None:
-            pol.timeout = col.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
-            pol.retries = col.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
+            pol.timeout = own.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
+            pol.retries = own.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
             pol.where = spec.ack.where
         ca.policies[name] = pol
+        for err in own.errors:
+            what = {"timeout": "ack timeout", "retries": "ack retries"}.get(
+                str(err.path[-1]), str(err.path[-1])) if err.path else "policy"
+            col.fail(agent.where, f"agent '{ca.name}' sends '{name}', whose {what} cannot be "
+                     f"evaluated for it: {err.message}", "give the agent that parameter "
+                     f"(parameters:), or make it a member of the protocol that declares "
+                     f"'{name}'" + (f" ({spec.protocol})" if spec.protocol else ""))
     usyms = {**syms, **velocity_symbols(ca.plant),
              **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)}}
     for s in agent.streams:
