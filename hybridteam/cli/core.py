@@ -123,7 +123,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if (out / "study.json").exists():
         raise UsageError(f"output '{out}' holds a study's results; give the run a folder of "
                          "its own")
-    team = load_team_or_report(args.team)
+    team = load_team_or_report(args.team, warnings=not args.quiet)
     if team is None:
         return EXIT_USAGE
     overrides, n = _overrides(args.set, args.n)
