@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import os
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -74,10 +75,7 @@ class Run(Trace):
         if self.n == 1:
             o = self._outcomes[0]
             return f"<Run of {self.meta['team']!r}: {o['outcome']} at t={o['t']:g}, {counts}>"
-        tally: dict[str, int] = {}
-        for name in self.outcomes:
-            tally[name] = tally.get(name, 0) + 1
-        shown = ", ".join(f"{k}: {v}" for k, v in tally.items())
+        shown = ", ".join(f"{k}: {v}" for k, v in self.tally().items())
         return f"<Run of {self.meta['team']!r}: {self.n} instances ({shown}), {counts}>"
 
     def _repr_html_(self) -> str:
@@ -86,6 +84,16 @@ class Run(Trace):
         from hybridteam.notebook import run_html
 
         return run_html(self)
+
+    def tally(self) -> dict[str, int]:
+        """How many instances ended with each outcome, in order of first appearance."""
+        return dict(Counter(self.outcomes))
+
+    @classmethod
+    def of(cls, trace: Trace) -> Run:
+        """The run a simulator's trace records."""
+        return cls(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
+                   trace.messages, trace.sample_times, trace.samples)
 
     def to_dict(self) -> dict[str, Any]:
         d = super().to_dict()
@@ -124,9 +132,7 @@ class Run(Trace):
                         "messages": int(msgs[i]), **o.get("stats", {})})
             if isinstance(seeds, list):  # per-instance seeds: say which one each ran with
                 per[-1]["seed"] = seeds[i]
-        tally: dict[str, int] = {}
-        for o in self.outcomes:
-            tally[o] = tally.get(o, 0) + 1
+        tally = self.tally()
         return {"team": self.meta["team"], "n": self.n, "seed": self.meta["seed"],
                 "duration": self.meta["duration"], "outcomes": tally, "instances": per}
 
@@ -162,9 +168,7 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
                     progress=progress, max_memory=max_memory, max_periods=max_periods,
                     max_wall=max_wall)
-    trace = sim.run()
-    return Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
-               trace.messages, trace.sample_times, trace.samples)
+    return Run.of(sim.run())
 
 
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,
@@ -187,9 +191,7 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
         rows = batch_rows(cteam, n, overrides, seed)
         if rows is not None:
             return rows
-    trace = Simulator(cteam, n, seed=seed, overrides=overrides).run()
-    run = Run(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
-              trace.messages, trace.sample_times, trace.samples)
+    run = Run.of(Simulator(cteam, n, seed=seed, overrides=overrides).run())
     return [{k: v for k, v in row.items() if k not in _COUNTS}
             for row in run.summary()["instances"]]
 

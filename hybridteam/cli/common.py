@@ -43,20 +43,13 @@ def print_errors(exc) -> None:
 def load_team_or_report(path: str, warnings: bool = False):
     """The team in ``path``, or None after printing its located errors to stderr; with
     ``warnings``, its warnings are printed too (``run`` warns as ``validate`` does)."""
-    from hybridteam.io.filekind import detect, kind_error, read_document
-    from hybridteam.io.loader import FILE_KINDS, InputErrors, load_team
+    from hybridteam.io.loader import InputErrors, load_team_file
 
     try:
-        if not warnings:
-            return load_team(path)
-        doc = read_document(path)
-        if detect(doc.data, FILE_KINDS) != "team":
-            raise kind_error(doc, detect(doc.data, FILE_KINDS), ["team", "protocol", "study"],
-                             expected="team")
-        loaded = next(k for k in FILE_KINDS if k.name == "team").load(doc)
+        loaded = load_team_file(path)
     except InputErrors as exc:
         print_errors(exc)
         return None
-    for w in loaded.warnings:
+    for w in loaded.warnings if warnings else ():
         print(f"{w} (warning)", file=sys.stderr)
     return loaded.model

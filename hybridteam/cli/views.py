@@ -21,7 +21,7 @@ def register(sub) -> dict:
     d = sub.add_parser("diagram", help="draw a model's state diagram")
     d.add_argument("model", metavar="MODEL.yaml")
     d.add_argument("-f", "--format", default=None,
-                   help="dot, mermaid, plantuml, svg or png (default: from -o, else dot)")
+                   help="dot, mermaid, plantuml, svg, png or pdf (default: from -o, else dot)")
     d.add_argument("-o", "--output", default=None, metavar="FILE",
                    help="output file (default: text to standard output)")
     d.add_argument("--detail", choices=("roles", "full"), default="roles",
@@ -29,34 +29,26 @@ def register(sub) -> dict:
                         "Follow), as a paper draws them; full: every protocol state, "
                         "transition and message (default: roles)")
 
-    tl = sub.add_parser("timeline", help="draw the mode timeline of a run")
-    tl.add_argument("trace", metavar="trace.json")
+    tl = _trace_parser(sub, "timeline", "draw the mode timeline of a run")
     tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
                     help="close-up between two times, with message arrows")
-    tl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
     tl.add_argument("-o", "--output", default="timeline.png", metavar="FILE",
-                    help=".png or .svg (default timeline.png)")
+                    help=".png, .svg or .pdf (default timeline.png)")
     tl.add_argument("--data", default=None, metavar="FILE",
                     help="also write the drawn data as .csv or .json")
     tl.add_argument("--agents", default=None, metavar="A,B",
                     help="lanes of these agents only, in team order (default: all)")
 
-    pl = sub.add_parser("plot", help="draw the trajectories of a run")
-    pl.add_argument("trace", metavar="trace.json")
-    pl.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    pl = _trace_parser(sub, "plot", "draw the trajectories of a run")
     pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
-                    help=".png or .svg (default trajectories.png)")
+                    help=".png, .svg or .pdf (default trajectories.png)")
 
-    an = sub.add_parser("animate", help="animate a run (GIF; MP4 when ffmpeg is installed)")
-    an.add_argument("trace", metavar="trace.json")
-    an.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    an = _trace_parser(sub, "animate", "animate a run (GIF; MP4 when ffmpeg is installed)")
     an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
     an.add_argument("-o", "--output", default="run.gif", metavar="FILE",
                     help=".gif or .mp4 (default run.gif)")
 
-    sq = sub.add_parser("sequence", help="message sequence chart of a run")
-    sq.add_argument("trace", metavar="trace.json")
-    sq.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    sq = _trace_parser(sub, "sequence", "message sequence chart of a run")
     sq.add_argument("-f", "--format", default="mermaid", choices=["mermaid", "plantuml"])
     sq.add_argument("--all-sockets", action="store_true",
                     help="include data messages, not only control messages")
@@ -65,6 +57,14 @@ def register(sub) -> dict:
 
     return {"diagram": cmd_diagram, "timeline": cmd_timeline, "plot": cmd_plot,
             "animate": cmd_animate, "sequence": cmd_sequence}
+
+
+def _trace_parser(sub, name: str, help: str):
+    """A view of a run: its trace file and which instance of an ensemble."""
+    p = sub.add_parser(name, help=help)
+    p.add_argument("trace", metavar="trace.json")
+    p.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
+    return p
 
 
 IMAGE = (".png", ".svg", ".pdf")

@@ -53,18 +53,8 @@ def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
     return None
 
 
-def _start_ctx(ca: CAgent, p: np.ndarray, n: int) -> Ctx:
-    """The context initial states are evaluated in: parameters, zero state, t = 0."""
-    return Ctx(np.zeros((n, len(ca.plant.state_names))), np.zeros((n, len(ca.var_index))), p,
-               np.zeros(n))
-
-
 def _shape(ca: CAgent, p: np.ndarray, n: int) -> AgentShape:
-    ctx = _start_ctx(ca, p, n)
-    x0 = np.stack([np.broadcast_to(np.asarray(e(ctx), float), (n,)) for e in ca.init_state],
-                  axis=1) if ca.init_state else np.zeros((n, 0))
-    v0 = np.stack([np.broadcast_to(np.asarray(e(ctx), float), (n,)) for e in ca.init_vars],
-                  axis=1) if ca.init_vars else np.zeros((n, 0))
+    x0, v0 = ca.initial_values(p)
     start = Ctx(x0, v0, p, np.zeros(n))  # law bindings see the initial state
     modes, law_params = [], {}
     for m in ca.modes:

@@ -4,7 +4,7 @@ A tiny ``sample_period``, a duration of ``1e12`` s or ``-n 1000000000`` asks for
 than the machine has, or for more control periods than anyone will wait for; without a
 check the run allocates tens of GiB and dies, or silently computes for days. The estimate
 is deliberately simple — output samples and per-instance arrays for memory, the fastest
-sampled law (or data stream) for control periods — and the error says what drives it and
+sampled law or ``inputs:`` for control periods — and the error says what drives it and
 how to lower it, or how to raise the limit.
 
 Limits: ``max_memory`` bytes (default 4 GB, ``--max-memory`` on the command line,

@@ -185,6 +185,20 @@ class CAgent:
         """Whether any input has a finite actuator limit."""
         return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
 
+    def initial_values(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Initial plant state ``(n, d)`` and variables ``(n, V)`` for parameters ``p``
+        ``(n, P)``: their expressions read parameters only (the engine starts a run with
+        these, a batch fast path is given them)."""
+        n = p.shape[0]
+        x = np.zeros((n, len(self.plant.state_names)))
+        v = np.zeros((n, len(self.var_index)))
+        ctx = Ctx(x, v, p, np.zeros(n))
+        for j, e in enumerate(self.init_state):
+            x[:, j] = np.broadcast_to(e(ctx), (n,))
+        for j, e in enumerate(self.init_vars):
+            v[:, j] = np.broadcast_to(e(ctx), (n,))
+        return x, v
+
     def law_context(self, ctx: Ctx, driver: Driver) -> LawContext:
         params = {k: e(ctx) for k, e in driver.params.items()}
         return LawContext(ctx, params, self.name, self.state_index, self.var_index,

@@ -16,7 +16,7 @@ import numpy as np
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
-from hybridteam.engine.numerics import broken_inputs, stop_broken_inputs
+from hybridteam.engine.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError
 
 if TYPE_CHECKING:
@@ -128,7 +128,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         st.u[rows] = u
         if not np.isfinite(u).all():
             where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
-            stop_broken_inputs(ens, a, where, u, broken_inputs(u))
+            stop_broken_inputs(ens, a, where, u)
         if D.kind == "sampled":
             k = np.floor(t / D.period) + 1
             nxt = k * D.period

@@ -124,17 +124,11 @@ def stop_collapsed_steps(ens: Ensemble, idx: np.ndarray, steps: list[AgentStep],
     return failed
 
 
-def broken_inputs(u: np.ndarray) -> np.ndarray:
-    """Rows of held inputs that are not finite numbers."""
-    return ~np.isfinite(u).all(axis=1)
-
-
-def stop_broken_inputs(ens: Ensemble, a: int, rows: np.ndarray, u: np.ndarray,
-                       bad: np.ndarray) -> None:
-    """End with ``numerical_error`` the instances (``rows[bad]``) where agent ``a``'s law
-    or input expressions gave a value that is not a finite number."""
+def stop_broken_inputs(ens: Ensemble, a: int, rows: np.ndarray, u: np.ndarray) -> None:
+    """End with ``numerical_error`` the instances ``rows`` where agent ``a``'s law or input
+    expressions gave a value that is not a finite number (``u``: their inputs)."""
     ca = ens.cteam.agents[a]
-    for k in np.flatnonzero(bad).tolist():
+    for k in np.flatnonzero(~np.isfinite(u).all(axis=1)).tolist():
         i = int(rows[k])
         col = int(np.flatnonzero(~np.isfinite(u[k]))[0])
         value = u[k, col]

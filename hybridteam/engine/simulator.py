@@ -23,7 +23,7 @@ import numpy as np
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
-from hybridteam.engine.compiled import CTeam, Ctx
+from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
@@ -82,12 +82,7 @@ class Simulator:
         ens = self.ensemble
         everyone = np.arange(ens.n)
         for st in ens.states:
-            ca = st.ca
-            ctx = Ctx(st.x, st.v, st.p, ens.t)
-            for j, e in enumerate(ca.init_state):
-                st.x[:, j] = np.broadcast_to(e(ctx), (ens.n,))
-            for j, e in enumerate(ca.init_vars):
-                st.v[:, j] = np.broadcast_to(e(ctx), (ens.n,))
+            st.x[:], st.v[:] = st.ca.initial_values(st.p)
         ens.world.start(self.access)
         for st in ens.states:
             ca = st.ca

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import networkx as nx
 
-from hybridteam.engine.compiled import CAgent
+from hybridteam.engine.compiled import CAgent, CTeam
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import ModelError
 from hybridteam.io.protocols import InFile
@@ -60,9 +60,10 @@ def dead_ends(ca: CAgent) -> list[int]:
     return out
 
 
-def check_team(team: Team) -> list[ModelError]:
-    """Warnings for a team that compiles (call after :func:`compile_team` succeeded)."""
-    cteam = compile_team(team)
+def check_team(team: Team, cteam: CTeam | None = None) -> list[ModelError]:
+    """Warnings for a team that compiles (``cteam``: its compiled form, when the caller
+    has it already)."""
+    cteam = cteam if cteam is not None else compile_team(team)
     warnings: list[ModelError] = []
     for agent, ca in zip(team.agents, cteam.agents, strict=True):
         # pre-order walks of the declaration and of the compiled tree visit modes alike
@@ -82,7 +83,7 @@ def check_team(team: Team) -> list[ModelError]:
     return list({(w.path, str(w)): w for w in warnings}.values())  # once per place
 
 
-def ack_timeouts(team: Team, cteam) -> list[ModelError]:
+def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
     """Acknowledged messages whose timeout is no longer than a round trip to a receiver
     (latency and jitter, there and back, with the team's own values): every one would be
     resent, and after its retries reported undeliverable, though nothing is lost."""

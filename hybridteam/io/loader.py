@@ -114,13 +114,14 @@ def _load_team(doc: Document) -> Loaded:
     try:
         if comp.errors:
             raise ModelErrors(comp.errors)
-        compile_team(team)
+        cteam = compile_team(team)
     except ModelErrors as exc:
         raise InputErrors([locate(e, doc.positions, doc.filename, others)
                            for e in exc.errors]) from None
     from hybridteam.io.check import check_team
 
-    warnings = [locate(w, doc.positions, doc.filename, others) for w in check_team(team)]
+    warnings = [locate(w, doc.positions, doc.filename, others)
+                for w in check_team(team, cteam)]
     return Loaded("team", team, warnings)
 
 
@@ -143,13 +144,19 @@ FILE_KINDS = (
 )
 
 
-def load_team(source: str | os.PathLike) -> Team:
-    """Load a team file; raises :class:`InputErrors` with located messages."""
+def load_team_file(source: str | os.PathLike) -> Loaded:
+    """Load a team file with its warnings; raises :class:`InputErrors` with located
+    messages (also for a file of another kind)."""
     doc = read_document(source)
     kind = detect(doc.data, FILE_KINDS)
     if kind != "team":
         raise kind_error(doc, kind, ["team", "protocol", "study"], expected="team")
-    return _load_team(doc).model
+    return _load_team(doc)
+
+
+def load_team(source: str | os.PathLike) -> Team:
+    """Load a team file; raises :class:`InputErrors` with located messages."""
+    return load_team_file(source).model
 
 
 # ------------------------------------------------------------------ schema -> model

@@ -143,6 +143,10 @@ def _parse(team: Team, values: Mapping[str, Any]) -> tuple[dict[str, Any], list[
         "boxes": _rows(values.get("boxes"), 5, "boxes",
                        "[cx, cy, width, depth, theta_deg]", problems),
         "rules": [], "rings": {}, "radius": {}}
+    mode = values.get("on_collision", "outcome")
+    if mode not in MODES:
+        problems.append(ModelError(("on_collision",), f"expected one of {', '.join(MODES)}, "
+                                   f"got {mode!r}", hint=did_you_mean(str(mode), MODES)))
     for k in np.flatnonzero(out["circles"][:, 2] <= 0):
         problems.append(ModelError(("circles", int(k)), "a circle's radius must be positive"))
     for k in np.flatnonzero((out["boxes"][:, 2] <= 0) | (out["boxes"][:, 3] <= 0)):
@@ -216,18 +220,11 @@ class Obstacles(WorldComponent):
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
-        problems = _parse(team, values)[1]
-        mode = values.get("on_collision", "outcome")
-        if mode not in MODES:
-            problems.append(ModelError(("on_collision",), f"expected one of "
-                                       f"{', '.join(MODES)}, got {mode!r}",
-                                       hint=did_you_mean(str(mode), MODES)))
-        return problems
+        return _parse(team, values)[1]
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         super().__init__(team, n, values)
         parsed, problems = _parse(team, values)
-        problems += [p for p in self.check(team, values) if p.path == ("on_collision",)]
         if problems:
             raise settings_error("obstacles", problems)
         self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
@@ -250,7 +247,8 @@ class Obstacles(WorldComponent):
         self.near = np.zeros((len(self.rules), n), bool)
         self.min_clear = np.full((len(self.planar), n), np.inf)
         self.payload_clear = np.full(n, np.inf)
-        self.collisions: list[list[str]] = [[] for _ in range(n)]  # on_collision: warn
+        # on_collision: warn — each party's first collision, per instance
+        self.collisions: list[dict[str, str]] = [{} for _ in range(n)]
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -313,7 +311,7 @@ class Obstacles(WorldComponent):
 
     def _measure(self, world: WorldAccess, idx: np.ndarray) -> None:
         """Running minima of the robots' and the payloads' clearances, and collisions."""
-        hits: list[tuple[np.ndarray, str]] = []  # (instances, what happened)
+        hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
         if self.planar:
             points = np.stack([self._poses(a, idx)[:, :2] for a in self.planar])  # (R, m, 2)
             pts = points.reshape(-1, 2)
@@ -325,30 +323,31 @@ class Obstacles(WorldComponent):
             for r, a in enumerate(self.planar):
                 for k in np.flatnonzero(gap[r] < 0).tolist():
                     what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
-                    hits.append((idx[k:k + 1], f"robot '{self.team.agents[a].name}' hit "
-                                 f"{what}, its footprint overlapping it by {-gap[r, k]:.3g}"))
+                    who = self.team.agents[a].name
+                    hits.append((int(idx[k]), who, f"robot '{who}' hit {what}, its footprint "
+                                 f"overlapping it by {-gap[r, k]:.3g}"))
             overlap = robot_overlaps(points, self.radius)
             for k, r1, r2 in zip(*np.nonzero(np.triu(overlap > 0, 1)), strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
-                hits.append((idx[k:k + 1], f"robots '{names[0]}' and '{names[1]}' collided, "
-                             f"their footprints overlapping by {overlap[k, r1, r2]:.3g}"))
+                hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
+                             f"'{names[1]}' collided, their footprints overlapping by "
+                             f"{overlap[k, r1, r2]:.3g}"))
         for p in self.payloads:
             gap = self._payload_gap(p, idx)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
             for k in np.flatnonzero(gap <= 0).tolist():
-                hits.append((idx[k:k + 1], f"payload '{p.values['name']}' hit an obstacle"))
+                hits.append((int(idx[k]), p.values["name"],
+                             f"payload '{p.values['name']}' hit an obstacle"))
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
 
-    def _collide(self, world: WorldAccess, hits: list[tuple[np.ndarray, str]]) -> None:
-        for inst, what in hits:
-            i = int(inst[0])
+    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str]]) -> None:
+        for i, who, what in hits:
             text = f"{what} at t={float(world.t[i])!r}"
             if self.values["on_collision"] == "outcome":
-                world.finish(inst, "collision", text)
-            elif not any(c.startswith(what.split(" hit ")[0].split(" collided")[0])
-                         for c in self.collisions[i]):
-                self.collisions[i].append(text)  # warn: each party's first collision
+                world.finish(np.array([i]), "collision", text)
+            else:
+                self.collisions[i].setdefault(who, text)
 
     def _payload_gap(self, p: CarriedPayload, idx: np.ndarray) -> np.ndarray:
         """Gap between payload ``p``'s outline and the static obstacles (0 if they meet)."""
@@ -361,7 +360,7 @@ class Obstacles(WorldComponent):
     def summary(self, i: int) -> dict[str, Any]:
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":
-            out["collisions"] = list(self.collisions[i])
+            out["collisions"] = list(self.collisions[i].values())
         if self.payloads:
             out["payload_clearance"] = _finite(self.payload_clear[i])
         return out
