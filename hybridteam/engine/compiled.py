@@ -179,6 +179,8 @@ class CAgent:
     outcome: list[str | None] = field(default_factory=list)  # per mode: a final's outcome
     policies: dict[str, CPolicy] = field(default_factory=dict)
     streams: list = field(default_factory=list)  # list[streams.CStream]
+    # parameters written as expressions of the others: (column, expression), in order
+    derived_params: tuple = ()
 
     @property
     def limited(self) -> bool:

@@ -16,7 +16,15 @@ import numpy as np
 
 from hybridteam.dynamics.plants import Plant, make_plant
 from hybridteam.engine.bindings import check_parallel_drivers, compile_driver
-from hybridteam.engine.compiled import CONTINUOUS_NAMES, RESERVED, CAgent, CMode, CTeam, Driver
+from hybridteam.engine.compiled import (
+    CONTINUOUS_NAMES,
+    RESERVED,
+    CAgent,
+    CMode,
+    CTeam,
+    Ctx,
+    Driver,
+)
 from hybridteam.engine.protocols import attach, check_messages, team_symbols
 from hybridteam.engine.scope import Collector, resolve_mode, symbols
 from hybridteam.engine.transitions import compile_transitions, group_triggered, watches
@@ -67,10 +75,12 @@ class _Names:
     plant: Plant
     state: dict[str, int]
     variables: dict[str, int]
-    params: dict[str, float]  # team parameters, then the agent's (which override them)
+    params: dict[str, float | str]  # team parameters, then the agent's (which override them)
     param_index: dict[str, int]
     syms: dict  # every name an expression of the agent may use
     param_syms: dict  # parameters only (initial values are evaluated before anything runs)
+    defaults: np.ndarray  # every parameter's value, derived ones evaluated on the defaults
+    derived: tuple[tuple[int, Expression], ...]  # (column, expression) of derived ones
 
 
 def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | None,
@@ -96,9 +106,44 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
                 col.fail((*agent.where, n), f"name '{n}' is both a {seen[n]} and a {kind}")
             seen[n] = kind
     extra = extra_symbols or {}
+    defaults, derived = _derived(agent, params, param_index, extra, col)
     return _Names(plant, state_index, var_index, params, param_index,
                   {**extra, **symbols(state_index, var_index, param_index)},
-                  {**extra, **symbols({}, {}, param_index)})
+                  {**extra, **symbols({}, {}, param_index)}, defaults, derived)
+
+
+def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str, int],
+             extra: dict, col: Collector
+             ) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
+    """Default values of every parameter, and the agent's parameters written as
+    expressions (``ack_timeout: 2 * latency + 0.05``).
+
+    A derived parameter reads the team's parameters and the agent's own parameters declared
+    above it (so there is an order and no cycle); it is re-evaluated per instance after an
+    ensemble's overrides (see :func:`.overrides.apply_overrides`), unless it is overridden
+    itself. Its default is the expression on the defaults.
+    """
+    values = np.zeros((1, len(params)))
+    derived: list[tuple[int, Expression]] = []
+    readable: dict[str, int] = {}
+    ctx = Ctx(np.zeros((1, 0)), np.zeros((1, 0)), values, np.zeros(1))
+    for name, value in params.items():
+        j = param_index[name]
+        if isinstance(value, str):
+            where = (*agent.where, "parameters", name)
+            expr = col.expr(value, {**extra, **symbols({}, {}, param_index)}, where)
+            later = sorted((expr.names - set(readable)) & set(params)) if expr else []
+            if later:
+                col.fail(where, f"parameter '{name}' reads '{later[0]}', which is not "
+                         "declared above it", "a parameter may read the team's parameters "
+                         "and the agent's own parameters declared before it")
+            elif expr is not None:
+                values[0, j] = float(np.asarray(expr(ctx), float).reshape(-1)[0])
+                derived.append((j, expr))
+        else:
+            values[0, j] = float(value)
+        readable[name] = j
+    return values[0], tuple(derived)
 
 
 def _initial_values(agent: Agent, names: _Names, col: Collector
@@ -197,7 +242,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         index=index, name=agent.name, plant=names.plant, modes=modes, transitions=transitions,
         drivers=drivers, state_index=names.state, var_index=names.variables,
         param_index=names.param_index,
-        param_defaults=np.array([float(v) for v in names.params.values()], dtype=float),
+        param_defaults=names.defaults, derived_params=names.derived,
         init_state=init_state, init_vars=init_vars, lower=lower, upper=upper,
         watches=watches(modes, transitions, CONTINUOUS_NAMES | frozenset(names.state)),
         eventless=[ct.index for ct in transitions if ct.on is None],

@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent
+from hybridteam.engine.compiled import CAgent, Ctx
 from hybridteam.errors import did_you_mean
 
 
@@ -26,7 +26,15 @@ def parameter_matrices(agents: Sequence[CAgent], n: int,
 
 def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int,
                     overrides: Mapping[str, float | Sequence[float]]) -> None:
-    """Write ``overrides`` into the agents' ``(n, P)`` matrices; ValueError names a bad key."""
+    """Write ``overrides`` into the agents' ``(n, P)`` matrices; ValueError names a bad key.
+
+    Parameters an agent writes as expressions (``ack_timeout: 2 * latency``) are then
+    re-evaluated per instance from the overridden values, except those overridden
+    themselves: an explicit value wins over the formula.
+    """
+    if not overrides:
+        return  # the defaults already hold every derived value
+    fixed: list[set[int]] = [set() for _ in agents]
     for key, value in overrides.items():
         values = np.asarray(value, dtype=float)
         if values.ndim > 1 or (values.ndim == 1 and values.size != n):
@@ -40,9 +48,16 @@ def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int
         if problem is not None:
             raise ValueError(problem)
         agent, _, name = key.rpartition(".")
-        for ca, p in zip(agents, mats, strict=True):
+        for ca, p, own in zip(agents, mats, fixed, strict=True):
             if (not agent or ca.name == agent) and name in ca.param_index:
                 p[:, ca.param_index[name]] = values
+                own.add(ca.param_index[name])
+    for ca, p, own in zip(agents, mats, fixed, strict=True):
+        if ca.derived_params:
+            ctx = Ctx(np.zeros((n, 0)), np.zeros((n, 0)), p, np.zeros(n))
+            for j, expr in ca.derived_params:
+                if j not in own:
+                    p[:, j] = np.broadcast_to(expr(ctx), (n,))
 
 
 def key_problem(agents: Sequence[CAgent], key: str) -> str | None:

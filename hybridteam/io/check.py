@@ -15,6 +15,7 @@ from hybridteam.engine.compiled import CAgent, CTeam
 from hybridteam.engine.compiler import compile_team
 from hybridteam.errors import ModelError
 from hybridteam.io.protocols import InFile
+from hybridteam.io.timing import timing_warnings
 from hybridteam.model import Team
 
 
@@ -79,49 +80,5 @@ def check_team(team: Team, cteam: CTeam | None = None) -> list[ModelError]:
                 continue  # a protocol's deliberate sink (Operated: the operator decides)
             warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' has no way out "
                                        "and is not marked 'final: true'", at_key=True))
-    warnings += ack_timeouts(team, cteam)
+    warnings += timing_warnings(team, cteam)
     return list({(w.path, str(w)): w for w in warnings}.values())  # once per place
-
-
-def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
-    """Acknowledged messages whose timeout is no longer than a round trip to a receiver
-    (latency and jitter, there and back, with the team's own values): every one would be
-    resent, and after its retries reported undeliverable, though nothing is lost."""
-    import numpy as np
-
-    from hybridteam.engine.compiled import Ctx
-    from hybridteam.engine.network import _evaluate
-
-    params = {k: np.array([float(v)]) for k, v in team.parameters.items()}
-    net = team.network
-
-    def way(s: str, r: str) -> float:
-        spec = net.links.get((s, r), net.default)
-        return float(_evaluate(spec.latency, params, 1)[0] + _evaluate(spec.jitter, params, 1)[0])
-
-    out: list[ModelError] = []
-    for agent, ca in zip(team.agents, cteam.agents, strict=True):
-        ctx = Ctx(np.zeros((1, len(ca.plant.state_names))), np.zeros((1, len(ca.var_index))),
-                  ca.param_defaults[None, :], np.zeros(1))
-        trips = {other.name: way(agent.name, other.name) + way(other.name, agent.name)
-                 for other in team.agents if other.name != agent.name}
-        if not trips:
-            continue
-        worst = max(trips, key=trips.get)  # type: ignore[arg-type]
-        short: dict[float, list[str]] = {}  # timeout -> the messages resent that soon
-        for name, pol in ca.policies.items():
-            if pol.timeout is not None:
-                timeout = float(np.asarray(pol.timeout(ctx), float).reshape(-1)[0])
-                if timeout <= trips[worst]:
-                    short.setdefault(timeout, []).append(name)
-        for timeout, names in short.items():
-            out.append(ModelError(agent.where, f"agent '{agent.name}' resends "
-                                  f"{', '.join(names)} after {timeout:g} s without an "
-                                  f"acknowledgement, but a round trip to '{worst}' takes up "
-                                  f"to {trips[worst]:g} s (latency and jitter, both ways): "
-                                  "every copy would be sent again and, after its retries, "
-                                  "reported undeliverable",
-                                  hint=f"make the ack timeout longer than {trips[worst]:g} s "
-                                  f"(e.g. ack_timeout: {2 * trips[worst] + 0.05:g})",
-                                  at_key=True))
-    return out

@@ -164,7 +164,10 @@ class AgentSchema(Strict):
         None, description="with 'model': overrides of its manipulator (null removes it)")
     footprint: dict[str, Any] | None = Field(
         None, description="with 'model': overrides of its footprint, e.g. {radius: 0.4}")
-    parameters: dict[str, float] = Field(default_factory=dict)
+    parameters: dict[str, ExprOrNumber] = Field(
+        default_factory=dict,
+        description="numbers, or expressions of the team's parameters and of this agent's "
+        "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated per run")
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     history: Literal["none", "shallow", "deep"] = "none"
@@ -388,7 +391,10 @@ class OperatorSchema(Strict):
     """The automaton of an agent with no plant (a human operator)."""
 
     description: str | None = None
-    parameters: dict[str, float] = Field(default_factory=dict)
+    parameters: dict[str, ExprOrNumber] = Field(
+        default_factory=dict,
+        description="numbers, or expressions of the team's parameters and of this agent's "
+        "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated per run")
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     modes: dict[str, ModeSchema]

@@ -42,7 +42,7 @@ class Agent:
     name: str
     plant: PlantSpec
     root: Mode
-    parameters: dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, float | str] = field(default_factory=dict)  # str: an expression
     variables: dict[str, str | float] = field(default_factory=dict)
     where: DocPath = ()
     streams: tuple[StreamSpec, ...] = ()
