@@ -102,6 +102,32 @@ class LawContext:
         """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
         self._ctx.w.keep(name, np.asarray(values, dtype=float))
 
+    def capture(self, name: str, who: np.ndarray, fresh: Mapping[str, np.ndarray],
+                where: np.ndarray) -> dict[str, np.ndarray]:
+        """Values measured once per reference, kept until the reference changes.
+
+        Where ``where`` holds and ``who`` (a teammate's index, say the leader) differs from
+        the one the values were last captured for, or the law's mode was entered again since
+        (a follower that led in between, then follows the same robot), ``fresh`` is taken
+        and kept in the law's memory (``name.<key>``); elsewhere the kept values stay.
+        Returns the kept values, NaN where nothing was captured yet. This is how a follower
+        holds the place it had when a new leader took over, instead of a place fixed
+        relative to whoever leads.
+        """
+        had = self.recall(f"{name}.who", -1.0)
+        entered = self.t - self.t_in_mode
+        had_entry = self.recall(f"{name}.entry", np.nan)
+        again = ~(np.abs(entered - had_entry) <= 1e-6)  # NaN (never) counts as again
+        new = np.asarray(where, bool) & ((np.asarray(who, float) != had) | again)
+        kept = {k: self.recall(f"{name}.{k}", np.nan) for k in fresh}
+        if new.any():
+            for k, v in fresh.items():
+                kept[k] = np.where(new, v, kept[k])
+                self.keep(f"{name}.{k}", kept[k])
+            self.keep(f"{name}.who", np.where(new, who, had))
+            self.keep(f"{name}.entry", np.where(new, entered, had_entry))
+        return kept
+
     def get(self, name: str, default: float) -> np.ndarray:
         try:
             return self[name]

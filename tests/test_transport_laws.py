@@ -228,8 +228,8 @@ def test_match_reproduces_the_leaders_speed_and_turn_rate(team_from_yaml, latenc
     run = run_team(team_from_yaml, {
         "labmate": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0.2), held(v=0, omega=0),
                          initial="Lead"),
-        "scout": robot("unicycle", (0, 0.5, 0), held(v=0, omega=0), uses("transport.match"),
-                       leader="labmate")}, latency=latency)
+        "scout": robot("unicycle", (0, 0.5, 0), held(v=0, omega=0),
+                       uses("transport.match", k_form=0), leader="labmate")}, latency=latency)
     lab, scout = poses(run, "labmate"), poses(run, "scout")
     lag = int(np.ceil(latency / T - 1e-9))
     np.testing.assert_allclose(scout[: lag + 1], scout[:1].repeat(lag + 1, 0), atol=1e-15)
@@ -237,21 +237,89 @@ def test_match_reproduces_the_leaders_speed_and_turn_rate(team_from_yaml, latenc
     np.testing.assert_allclose(moved, lab[: len(lab) - lag] - lab[0], atol=1e-12)
 
 
-def test_match_formation_term_is_off_by_default_and_pulls_when_on(team_from_yaml):
-    """The Scout starts 0.3 m off its station (one metre behind the leader): with k_form 0
-    the offset stays; with k_form 1 it shrinks."""
-    def gap(k_form: float) -> np.ndarray:
+def test_match_formation_term_is_on_by_default_and_off_at_k_form_0(team_from_yaml):
+    """The Scout starts 0.3 m off its station (one metre behind the leader; capture off):
+    with k_form 0 (the paper's copy) the offset stays; by default it shrinks."""
+    def gap(**params: float) -> np.ndarray:
         run = run_team(team_from_yaml, {
             "labmate": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
                              initial="Lead"),
             "scout": robot("unicycle", (-0.3, 0, 0), held(v=0, omega=0),
-                           uses("transport.match", k_form=k_form, ahead=-1.0),
+                           uses("transport.match", capture=0, ahead=-1.0, **params),
                            leader="labmate")}, duration=3.0)
         return poses(run, "labmate")[:, 0] - 1.0 - poses(run, "scout")[:, 0]
 
-    np.testing.assert_allclose(gap(0.0), 0.3, atol=1e-12)
-    pulled = gap(1.0)
+    np.testing.assert_allclose(gap(k_form=0.0), 0.3, atol=1e-12)
+    pulled = gap()
     assert pulled[-1] < 0.3 * 0.1 and np.all(np.diff(pulled) < 0)
+
+
+def _switching_team(follow: dict) -> dict:
+    """Two leaders side by side, 2 m apart, driving +x at 0.3 m/s; the follower hears A
+    until t = 2 s, when its ``leader`` becomes B (as a role change would make it)."""
+    follower = robot("unicycle", (0, 0.5, 0), held(v=0, omega=0), follow, leader="a")
+    follower["modes"]["Transport"]["roles"]["follow"]["transitions"] = [
+        {"on": "switch", "do": ["leader = id_b"]}]
+    return {"a": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
+                       initial="Lead"),
+            "b": robot("unicycle", (1, 2, 0), held(v=0.3, omega=0), held(v=0, omega=0),
+                       initial="Lead"),
+            "scout": follower}
+
+
+@pytest.mark.parametrize("name", ["transport.match", "formation.follow"])
+def test_a_capturing_follower_keeps_its_place_in_the_team_when_the_leader_changes(
+        team_from_yaml, name):
+    """With ``capture`` the follower holds the place it had when a leader's first copy
+    arrived — 1 m behind A and 0.5 m to its left, 1.5 m to B's right — so the change of
+    leader at t = 2 s changes nothing: it drives on at y = 0.5, 1 m behind the leaders.
+    Without it, it heads for its fixed station 1 m behind B, at y = 2."""
+    kw = {"duration": 6.0, "scenario": [{"at": 2.0, "agent": "scout", "raise": "switch"}]}
+    run = run_team(team_from_yaml, _switching_team(uses(name, capture=1)), **kw)
+    scout, a = poses(run, "scout"), poses(run, "a")
+    started = run.samples_frame(wide=True)["t"].to_numpy() >= T  # the first copy is at t = 0
+    np.testing.assert_allclose(scout[started, 1], 0.5, atol=1e-9)
+    np.testing.assert_allclose((a[:, 0] - scout[:, 0])[started], 1.0, atol=1e-9)
+    fixed = run_team(team_from_yaml, _switching_team(uses(name, capture=0, left=0.0)), **kw)
+    assert poses(fixed, "scout")[-1, 1] > 1.0  # on its way to y = 2, behind B
+
+
+def test_a_follower_captures_again_when_it_follows_the_same_leader_anew(team_from_yaml):
+    """The Scout holds 1 m behind A, pauses from t = 2 s to 3 s (another mode: it stands
+    while A drives on 0.3 m) and follows A again: it holds the new place, 1.3 m behind,
+    rather than closing up to where it was before."""
+    scout = robot("unicycle", (0, 0, 0), held(v=0, omega=0),
+                  uses("transport.match", capture=1), leader="a")
+    scout["initial"] = "Transport"
+    scout["modes"]["Transport"]["transitions"] = [{"to": "Pause", "on": "pause"}]
+    scout["modes"]["Pause"] = {**held(v=0, omega=0),
+                               "transitions": [{"to": "Transport", "after": 1.0}]}
+    run = run_team(team_from_yaml, {
+        "a": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
+                   initial="Lead"), "scout": scout},
+        duration=6.0, scenario=[{"at": 2.0, "agent": "scout", "raise": "pause"}])
+    t = run.sample_times
+    gap = poses(run, "a")[:, 0] - poses(run, "scout")[:, 0]
+    np.testing.assert_allclose(gap[(t > 0) & (t <= 2.0)], 1.0, atol=1e-9)
+    np.testing.assert_allclose(gap[t >= 3.0], 1.3, atol=1e-9)
+
+
+def test_follow_with_capture_uses_the_link_it_has_to_its_leader(team_from_yaml):
+    """``capture`` replaces D by the leader's distance along the robot's heading when the
+    first copy arrives: a Labmate 3 m behind a turning leader, told D = 1, then moves
+    exactly as with D = 3 (the rigid link it actually has)."""
+    def labmate(**params: float) -> np.ndarray:
+        run = run_team(team_from_yaml, {
+            "lead": robot("unicycle", (3, 0, 0), held(v=0.3, omega=0.2), held(v=0, omega=0),
+                          initial="Lead"),
+            "labmate": robot("unicycle", (0, 0, 0), held(v=0, omega=0),
+                             uses("transport.follow", **params), leader="lead")},
+            duration=4.0)
+        return poses(run, "labmate")
+
+    captured, told = labmate(D=1.0, capture=1), labmate(D=3.0)
+    np.testing.assert_allclose(captured, told, atol=1e-12)
+    assert not np.allclose(labmate(D=1.0), told, atol=1e-3)  # D matters: the test can fail
 
 
 # ----------------------------------------------------------------------------- (4) dock_arm
@@ -365,15 +433,15 @@ def test_a_lead_role_can_be_a_composite_plan_entered_on_a_handover(team_from_yam
     """The Labmate follows the XR4000, asks to lead at t = 1, is granted at 1.06 (30 ms a
     leg) and runs its open-loop plan: Back for 4 s, Turn for 2 s, Stop; the XR4000, now
     following, keeps its place D ahead on the Labmate's heading, and the Scout copies the
-    Labmate's motion, ending with its heading."""
+    Labmate's motion (the paper's law, k_form = 0), ending with its heading."""
     D = 1.0
     run = run_team(team_from_yaml, {
         "xr4000": robot("holonomic", (D, 0, 0), held(vx=0.1, vy=0, omega=0),
                         uses("transport.follow_holonomic", D=D), initial="Lead"),
         "labmate": robot("unicycle", (0, 0, 0), PLAN, uses("transport.follow", D=D),
                          leader="xr4000"),
-        "scout": robot("unicycle", (0, -1, 0), held(v=0, omega=0), uses("transport.match"),
-                       leader="labmate")},
+        "scout": robot("unicycle", (0, -1, 0), held(v=0, omega=0),
+                       uses("transport.match", k_form=0), leader="labmate")},
         latency=0.03, duration=11.0, scenario=[{"at": 1.0, "agent": "labmate",
                                                "raise": "want_lead"}])
     tr = run.transitions.where(agent="labmate")

@@ -27,7 +27,7 @@ from .leader import LeaderState, arm_terms, leader_estimate, stack_inputs, wrap
 ARM = {"k_x": -1.0, "k_y": -1.0, "k_th": 1.0}
 
 
-@law("transport.follow", plants=("unicycle",), params={"D": 1.0, **ARM})
+@law("transport.follow", plants=("unicycle",), params={"D": 1.0, "capture": 0.0, **ARM})
 def follow(ctx: LawContext) -> np.ndarray:
     """The Labmate's Follow: u1 = v̂_l cos(θ̂_l − θ) + f, u2 = (v̂_l/D) sin(θ̂_l − θ) + g + h.
 
@@ -39,12 +39,22 @@ def follow(ctx: LawContext) -> np.ndarray:
     while the leader moves away from this robot (pulls; v̂_l / D > 0 when θ̂_l ≈ θ) and
     unstable while it pushes, when only the arm terms hold the box. Stands still until a
     copy of the leader's stream arrives.
+
+    ``capture`` = 1 replaces D by the leader's distance along this robot's heading when the
+    first copy from a new leader arrives: after a change of leader the link is the one this
+    robot has to the new leader, not D to whichever robot leads.
     """
     D = ctx["D"]
     if np.any(D == 0):
         raise ValueError("transport.follow: D (the distance to the leader, signed) must "
                          "not be 0")
     lead = leader_estimate(ctx)
+    on = ctx["capture"] > 0
+    if on.any():
+        th = ctx["theta"]
+        link = np.cos(th) * (lead.x - ctx["x"]) + np.sin(th) * (lead.y - ctx["y"])
+        kept = ctx.capture("link", lead.who, {"D": link}, on & lead.ok)["D"]
+        D = np.where(on & np.isfinite(kept) & (np.abs(kept) > 1e-9), kept, D)
     f, g, h = arm_terms(ctx)
     err = lead.theta - ctx["theta"]
     v = lead.v * np.cos(err) + f
@@ -73,7 +83,7 @@ def follow_holonomic(ctx: LawContext) -> np.ndarray:
     relative to whoever leads instead of driving to D ahead of a robot it is not linked to.
     """
     lead = leader_estimate(ctx)
-    ahead, left, phi = _station(ctx, lead)
+    ahead, left, phi = _station(ctx, lead, ctx["D"], np.zeros(ctx.size))
     ff = ctx["k_ff"]
     c, s = np.cos(lead.theta), np.sin(lead.theta)
     xd, yd = lead.x + ahead * c - left * s, lead.y + ahead * s + left * c
@@ -91,53 +101,70 @@ def follow_holonomic(ctx: LawContext) -> np.ndarray:
     return np.where(lead.ok[:, None], u, 0.0)
 
 
-def _station(ctx: LawContext, lead: LeaderState) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _station(ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ahead, left, phi): the follower's place and heading offset in the leader's frame —
-    (D, 0, phi) from the parameters, or captured from the poses at the first copy of a
+    as given (phi from the parameters), or captured from the poses at the first copy of a
     new leader's stream where ``capture`` is set."""
-    ahead, left, phi = ctx["D"].astype(float), np.zeros(ctx.size), ctx["phi"].astype(float)
+    given = (np.asarray(ahead, float), np.asarray(left, float), np.asarray(ctx["phi"], float))
     on = ctx["capture"] > 0
     if not on.any():
-        return ahead, left, phi
-    had = ctx.recall("station_leader", -1.0)
-    keep = [ctx.recall("station_ahead"), ctx.recall("station_left"), ctx.recall("station_phi")]
-    new = on & lead.ok & (had != lead.who)
-    if new.any():
-        c, s = np.cos(lead.theta), np.sin(lead.theta)
-        dx, dy = ctx["x"] - lead.x, ctx["y"] - lead.y
-        fresh = [c * dx + s * dy, -s * dx + c * dy, wrap(ctx["theta"] - lead.theta)]
-        keep = [np.where(new, f, k) for f, k in zip(fresh, keep, strict=True)]
-        for name, values in zip(("station_ahead", "station_left", "station_phi"), keep,
-                                strict=True):
-            ctx.keep(name, values)
-        ctx.keep("station_leader", np.where(new, lead.who, had))
-    return (np.where(on, keep[0], ahead), np.where(on, keep[1], left),
-            np.where(on, keep[2], phi))
+        return given
+    c, s = np.cos(lead.theta), np.sin(lead.theta)
+    dx, dy = ctx["x"] - lead.x, ctx["y"] - lead.y
+    kept = ctx.capture("station", lead.who, {
+        "ahead": c * dx + s * dy, "left": -s * dx + c * dy,
+        "phi": wrap(ctx["theta"] - lead.theta)}, on & lead.ok)
+    use = on & np.isfinite(kept["ahead"])
+    return tuple(np.where(use, kept[k], g)  # type: ignore[return-value]
+                 for k, g in zip(("ahead", "left", "phi"), given, strict=True))
 
 
 @law("transport.match", plants=("unicycle",),
-     params={"k_form": 0.0, "ahead": -1.0, "left": 0.0})
+     params={"k_form": 1.0, "k_cross": 30.0, "k_heading": 8.0, "capture": 1.0,
+             "ahead": -1.0, "left": 0.0, "phi": 0.0})
 def match(ctx: LawContext) -> np.ndarray:
-    """The Scout's Follow: u1 = v̂_l, u2 = ω̂_l — the leader's speed and turn rate, copied.
+    """The Scout's Follow: the paper's u = (v̂_l, ω̂_l) with ``k_form`` = 0; by default it
+    also closes the loop on its place in the team.
 
-    The Scout is a remote sensor, not a carrier: its place relative to the leader may drift
-    (the paper lets it), so by default nothing pulls it back. ``k_form`` > 0 adds a weak
-    formation-keeping term toward the station (``ahead``, ``left``) in the leader's frame:
-    ``k_form`` times the along-track error on u1, and times the cross-track error plus
-    sin(θ̂_l − θ) on u2. Copying v̂_l assumes the Scout faces the way its leader does (see
-    README.md). Stands still until a copy of the leader's stream arrives.
+    The place is (``ahead``, ``left``) in the leader's frame, or with ``capture`` (the
+    default) the place the Scout held when the first copy of a new leader's stream arrived,
+    so a change of leader does not send it across the team. The place moves on a path of
+    its own (v_d = v̂_l + ω̂_l × offset); the Scout tracks it as a reference unicycle that
+    drives along that path (forwards, or backwards when the path points away from the
+    leader's heading + ``phi``; standing, that heading) with Kanayama's law:
+    u1 = v_r cos e_θ + k_form e_x, u2 = ω̂_l + v_r k_cross e_y + |v_r| k_heading sin e_θ,
+    where (e_x, e_y) is the place's offset in the Scout's frame, e_θ the reference heading
+    minus the Scout's, v_r the place's signed speed. With V = (e_x² + e_y²)/2 +
+    (1 − cos e_θ)/k_cross, dV/dt = −k_form e_x² − (k_heading/k_cross)|v_r| sin² e_θ ≤ 0 for
+    a leader at constant velocity, forwards or backwards. Stands still until a copy of the
+    leader's stream arrives.
     """
     lead = leader_estimate(ctx)
     k = ctx["k_form"]
+    copy = stack_inputs(ctx, {"v": lead.v, "omega": lead.omega})
+    if not np.any(k > 0):
+        return np.where(lead.ok[:, None], copy, 0.0)
+    ahead, left, phi = _station(ctx, lead, ctx["ahead"], ctx["left"])
     x, y, th = ctx["x"], ctx["y"], ctx["theta"]
     c, s = np.cos(lead.theta), np.sin(lead.theta)
-    ex = lead.x + ctx["ahead"] * c - ctx["left"] * s - x
-    ey = lead.y + ctx["ahead"] * s + ctx["left"] * c - y
-    along = ex * np.cos(th) + ey * np.sin(th)
-    cross = -ex * np.sin(th) + ey * np.cos(th)
-    v = lead.v + k * along
-    omega = lead.omega + k * (cross + np.sin(lead.theta - th))
-    return np.where(lead.ok[:, None], stack_inputs(ctx, {"v": v, "omega": omega}), 0.0)
+    ox, oy = ahead * c - left * s, ahead * s + left * c  # the place's offset, world frame
+    ex, ey = lead.x + ox - x, lead.y + oy - y
+    ct, st = np.cos(th), np.sin(th)
+    along, cross = ex * ct + ey * st, -ex * st + ey * ct
+    dx, dy = lead.vx - lead.omega * oy, lead.vy + lead.omega * ox  # the place's velocity
+    speed, path = np.hypot(dx, dy), np.arctan2(dy, dx)
+    nominal = lead.theta + phi
+    back = np.cos(path - nominal) < 0
+    moving = speed > 1e-9
+    ref = np.where(moving, np.where(back, path + np.pi, path), nominal)
+    vr = np.where(back, -speed, speed)
+    e_th = wrap(ref - th)
+    v = vr * np.cos(e_th) + k * along
+    omega = lead.omega + vr * ctx["k_cross"] * cross + np.abs(vr) * ctx["k_heading"] * \
+        np.sin(e_th)
+    track = stack_inputs(ctx, {"v": v, "omega": omega})
+    return np.where(lead.ok[:, None], np.where((k > 0)[:, None], track, copy), 0.0)
 
 
 @law("transport.dock_arm", plants=("unicycle",), params=dict(ARM))
