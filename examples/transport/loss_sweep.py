@@ -1,11 +1,12 @@
 """Experiment 2 over a lossy network: success rate and completion time, one ensemble call.
 
 Every message (data copies and acknowledged control messages alike) is lost with
-probability ``p_loss``. A run succeeds when it ends ``ok`` (the box never dropped, no
-deadlock handed to the operator) and the leadership went as in the paper — the XR4000
-takes it at the obstacle and hands it back — and the Labmate finished its plan; the
-completion time is when the Labmate's plan stops. All levels and repetitions are one
-ensemble of the engine (instances differ in ``p_loss`` and seed only).
+probability ``p_loss``. A run succeeds when it ends ``success`` (the Labmate finished its
+plan: its final Stop ends the run by the team's end rule; a run whose robots deadlocked and
+handed command to the operator ends ``ok`` at the duration instead) and the leadership went
+as in the paper — the XR4000 takes it at the obstacle and hands it back; the completion
+time is when the run ended. All levels and repetitions are one ensemble of the engine
+(instances differ in ``p_loss`` and seed only).
 
     python examples/transport/loss_sweep.py [--runs 20] [--levels 0 0.1 0.2 0.3 0.4 0.5]
                                             [--retries N]
@@ -28,14 +29,15 @@ TEAM = Path(__file__).with_name("experiment2.yaml")
 
 
 def completed(run, i: int) -> tuple[bool, float]:
-    """(leadership as in the paper and plan finished, time the Labmate's plan stopped)."""
-    tr = run.instance(i).transitions
+    """(ended in success with the leadership as in the paper, the time the run ended)."""
+    one = run.instance(i)
+    tr = one.transitions
     rows = list(zip(tr["t"], tr["agent"], tr["source"], tr["target"], strict=True))
     leads = [a for _t, a, src, tg in rows  # who takes the lead, in order
              if tg.startswith("Transport.Lead") and not src.startswith("Transport.Lead")]
-    stop = [t for t, a, _s, tg in rows if a == "labmate" and tg.endswith("Lead.Stop")]
     took_back = "xr4000" in leads and leads[-1] == "labmate"
-    return took_back and bool(stop), stop[0] if stop else float("nan")
+    row = one.summary()["instances"][0]
+    return row["outcome"] == "success" and took_back, row["t_end"]
 
 
 def operator_took_over(run, i: int) -> bool:
@@ -64,20 +66,19 @@ def main() -> None:
     wall = time.perf_counter() - start
     retries = "" if args.retries is None else f", ack_retries {args.retries}"
     print(f"{len(loss)} runs of {TEAM.name}{retries} in one ensemble: {wall:.1f} s wall\n")
-    print("| message loss | runs | ok | success | mean completion time (s) | outcomes | "
+    print("| message loss | runs | success | mean completion time (s) | outcomes | "
           "operator took over |")
-    print("|---:|---:|---:|---:|---:|---|---:|")
+    print("|---:|---:|---:|---:|---|---:|")
     for p in args.levels:
         idx = np.flatnonzero(loss == p)
         done = [completed(run, int(i)) for i in idx]
         outcomes = [run.outcomes[int(i)] for i in idx]
-        ok = [o == "ok" for o in outcomes]
-        success = [k and d[0] for k, d in zip(ok, done, strict=True)]
-        times = [d[1] for s, d in zip(success, done, strict=True) if s]
+        success = [d[0] for d in done]
+        times = [d[1] for d in done if d[0]]
         counts = {o: outcomes.count(o) for o in sorted(set(outcomes))}
         mean = f"{np.mean(times):.2f}" if times else "—"
         operated = sum(operator_took_over(run, int(i)) for i in idx)
-        print(f"| {p:.0%} | {len(idx)} | {sum(ok)} | {sum(success) / len(idx):.0%} | {mean} "
+        print(f"| {p:.0%} | {len(idx)} | {sum(success) / len(idx):.0%} | {mean} "
               f"| {', '.join(f'{k} {v}' for k, v in counts.items())} | {operated} |")
 
 
