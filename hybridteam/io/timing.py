@@ -14,7 +14,7 @@ import re
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, Ctx, CTeam
+from hybridteam.engine.compiled import CAgent, CTeam, Ctx
 from hybridteam.engine.network import _evaluate
 from hybridteam.errors import ModelError
 from hybridteam.model import Team
