@@ -101,8 +101,11 @@ class EnsembleAccess(WorldAccess):
                              f"{', '.join(self.state_names(a)) or 'empty'} (no x and y)")
         x, y, th = cols
         s = self._ens.states[a].x
-        return np.c_[s[idx, x], s[idx, y], s[idx, th] if th is not None else
-                     np.zeros(len(idx))]
+        out = np.zeros((len(idx), 3))
+        out[:, 0], out[:, 1] = s[idx, x], s[idx, y]
+        if th is not None:
+            out[:, 2] = s[idx, th]
+        return out
 
     def variable_names(self, agent: Agent) -> tuple[str, ...]:
         return tuple(self._ens.cteam.agents[self.agent(agent)].var_index)

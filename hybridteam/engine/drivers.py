@@ -107,10 +107,9 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
     due |= fresh
     if not due.any():
         return
-    for d, D in enumerate(ca.drivers):
+    for d in np.unique(st.driver[due]).tolist():  # the drivers in charge, in index order
+        D = ca.drivers[d]
         mine = due & (st.driver == d)
-        if not mine.any():
-            continue
         if D.kind == "continuous":
             st.next_tick[mine] = np.inf
             continue

@@ -138,9 +138,13 @@ class Network:
             latency, jitter, loss = (a[inst] for a in self.links.get((sender, r),
                                                                       self.default))
             key = self.keys[inst]
-            u_loss = uniform(key, sender, r, k, LOSS)
-            u_jit = uniform(key, sender, r, k, JITTER)
-            lost = u_loss < loss
+            # a draw is a pure function of (key, link, counter): where the link cannot lose
+            # or delay a copy its outcome is known without hashing (lost: u < 0 is false;
+            # jitter 0 * u is 0 for every u in [0, 1)), so the draws are skipped
+            lost = uniform(key, sender, r, k, LOSS) < loss if loss.any() else \
+                np.zeros(inst.size, bool)
+            u_jit = uniform(key, sender, r, k, JITTER) if jitter.any() else \
+                np.zeros(inst.size)
             t_recv = ts + latency + jitter * u_jit
             if lost.any():
                 self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],

@@ -43,6 +43,8 @@ class AgentState:
         self.next_tick = np.full(n, np.inf)
         self.truth = np.zeros((len(ca.watches), n), bool)
         self.watch_modes = np.array([w.mode for w in ca.watches], np.intp)
+        self.after_slots = np.array([ca.transitions[j].after_slot for j in ca.after], np.intp)
+        self.after_sources = np.array([ca.transitions[j].source for j in ca.after], np.intp)
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
@@ -148,14 +150,12 @@ class AgentState:
         A deadline that has passed with its guard false is no longer a scheduling point:
         from then on the guard's atoms are watched like any urgent guard.
         """
-        ca = self.ca
-        out = np.full(idx.size, np.inf)
-        for j in ca.after:
-            tr = ca.transitions[j]
-            d = self.deadline[idx, tr.after_slot]
-            d = np.where(self.active[idx, tr.source] & (d > t), d, np.inf)
-            np.minimum(out, d, out=out)
-        return out
+        if not self.after_slots.size:
+            return np.full(idx.size, np.inf)
+        # one gather for every ``after:`` transition (not a loop over them)
+        d = self.deadline[idx][:, self.after_slots]
+        live = self.active[idx][:, self.after_sources] & (d > t[:, None])
+        return np.where(live, d, np.inf).min(axis=1)
 
     def leaf_paths(self, i: int) -> list[str]:
         """Active leaf modes of instance ``i`` (for messages)."""

@@ -186,7 +186,9 @@ class CarriedPayload(WorldComponent):
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ (1 << np.arange(k))
-        for c in np.unique(code).tolist():
+        codes = [int(code[0])] if code.size and np.all(code == code[0]) else \
+            np.unique(code).tolist()
+        for c in codes:
             rows = code == c
             held = np.flatnonzero((c >> np.arange(k)) & 1)
             if held.size == 1:      # no torque: keep the angle, follow the grasp point
@@ -269,7 +271,10 @@ class CarriedPayload(WorldComponent):
         o, d = np.stack([ox, oy], -1), np.stack([dx, dy], -1)
         hw, hd = self.half_extents(idx)
         out = np.full(origins.shape[:2], float(max_range))
-        for w, h in np.unique(np.c_[hw, hd], axis=0):
+        same = hw.size == 0 or (np.all(hw == hw[0]) and np.all(hd == hd[0]))
+        sizes = [(hw[0], hd[0])] if same and hw.size else \
+            np.unique(np.stack([hw, hd], 1), axis=0)
+        for w, h in sizes:
             rows = (hw == w) & (hd == h)
             edges = [[-w, 0.0, w, 0.0]] if h == 0 else \
                 [[-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]]

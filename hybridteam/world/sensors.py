@@ -27,6 +27,7 @@ Conventions a caller can rely on:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -266,6 +267,15 @@ class RangeRing:
         spread = np.linspace(-self.half_angle, self.half_angle, self.rays_per_beam)
         return self.angles[:, None] + spread[None, :]
 
+    @functools.cached_property
+    def _local(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every sub-ray's mount point and direction in the robot frame, ``(1, R)`` each:
+        fixed for the ring, so computed once, not at every reading."""
+        ray = self.ray_angles
+        lx = np.repeat(self.mount_radius * np.cos(self.angles), self.rays_per_beam)[None, :]
+        ly = np.repeat(self.mount_radius * np.sin(self.angles), self.rays_per_beam)[None, :]
+        return lx, ly, np.cos(ray).ravel()[None, :], np.sin(ray).ravel()[None, :]
+
     def sector(self, center: float, half_width: float) -> np.ndarray:
         """Indices of the beams pointing within ``half_width`` of ``center`` (robot frame).
 
@@ -285,10 +295,7 @@ class RangeRing:
         if p.ndim != 2 or p.shape[1] < 3:
             raise ValueError(f"poses must have shape (m, 3) [x, y, theta], got {p.shape}")
         cos, sin = np.cos(p[:, 2])[:, None], np.sin(p[:, 2])[:, None]
-        ray = self.ray_angles
-        lx = np.repeat(self.mount_radius * np.cos(self.angles), self.rays_per_beam)[None, :]
-        ly = np.repeat(self.mount_radius * np.sin(self.angles), self.rays_per_beam)[None, :]
-        dx, dy = np.cos(ray).ravel()[None, :], np.sin(ray).ravel()[None, :]
+        lx, ly, dx, dy = self._local
         origins = np.stack([p[:, 0:1] + (cos * lx - sin * ly),
                             p[:, 1:2] + (sin * lx + cos * ly)], axis=-1)
         directions = np.stack([cos * dx - sin * dy, sin * dx + cos * dy], axis=-1)
