@@ -254,3 +254,59 @@ def test_ensemble_instance_and_bad_extensions(tmp_path):
     with pytest.raises(ValueError, match="unsupported format"):
         write_timeline(run, tmp_path / "t.png", data_path=tmp_path / "t.xml")
     assert list(tmp_path.iterdir()) == []
+
+
+ONE_PHASE = """
+    team: one-phase
+    agents:
+      r:
+        plant: {kind: flow, state: {c: 0}}
+        initial: Go
+        modes:
+          Go:
+            initial: A
+            transitions: [{to: Done, after: 2}]
+            modes:
+              A: {transitions: [{to: B, after: 1}]}
+              B: {}
+          Done: {final: true, outcome: success}
+          Fail: {final: true, outcome: stuck}
+    simulation: {duration: 5}
+"""
+
+
+def test_the_top_row_is_drawn_only_where_an_agent_has_phases(team_from_yaml):
+    """One composite top mode and final leaves: the top row would repeat the lane (off by
+    default, on with top=True); Dock and Transport are two phases: on by default, off with
+    top=False."""
+    one = ht.simulate(team_from_yaml(ONE_PHASE))
+    assert [lane.top for lane in timeline_data(one).lanes] == [False]
+    assert [lane.top for lane in timeline_data(one, top=True).lanes] == [True, False]
+    two = ht.simulate(team_from_yaml(DOCKING))
+    assert [lane.top for lane in timeline_data(two).lanes] == [True, False]
+    assert [lane.top for lane in timeline_data(two, top=False).lanes] == [False]
+
+
+def test_final_modes_get_distinct_colours():
+    colors = mode_colors(["Go", "Done", "Fail", "Parked"], finals=["Done", "Fail", "Parked"])
+    assert len({colors["Done"], colors["Fail"], colors["Parked"]}) == 3
+    assert colors["Go"] not in {colors["Done"], colors["Fail"], colors["Parked"]}
+
+
+def test_the_legend_is_grouped_by_robot_with_short_names(team_from_yaml):
+    """Two robots: each name heads its modes (bold), modes by their shortest unambiguous
+    suffix — Lead.Curve and Offering.Curve stay apart, Follow is just Follow."""
+    from hybridteam.export.timeline import short_names
+
+    assert short_names(["Transport.Lead.Curve", "Transport.Offering.Curve",
+                        "Transport.Follow"]) == {
+        "Transport.Lead.Curve": "Lead.Curve", "Transport.Offering.Curve": "Offering.Curve",
+        "Transport.Follow": "Follow"}
+    run = ht.simulate(ht.load(EXAMPLES / "protocols" / "handover.yaml"))
+    fig, _ = timeline_figure(run)
+    texts = fig.axes[0].get_legend().get_texts()
+    labels = [t.get_text() for t in texts]
+    bold = [t.get_text() for t in texts if t.get_fontweight() == "bold"]
+    assert bold == ["xr4000", "labmate", "operator"]
+    assert labels[:labels.index("labmate")] == ["xr4000", "Lead", "Follow"]
+    assert "Transport.Lead" not in labels

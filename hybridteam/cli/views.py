@@ -38,6 +38,12 @@ def register(sub) -> dict:
                     help="also write the drawn data as .csv or .json")
     tl.add_argument("--agents", default=None, metavar="A,B",
                     help="lanes of these agents only, in team order (default: all)")
+    top = tl.add_mutually_exclusive_group()
+    top.add_argument("--top", dest="top", action="store_true", default=None,
+                     help="a row of top-level modes above every agent with nested modes "
+                     "(default: only for agents with more than one top-level mode)")
+    top.add_argument("--no-top", dest="top", action="store_false",
+                     help="no rows of top-level modes")
 
     pl = _trace_parser(sub, "plot", "draw the trajectories of a run")
     pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
@@ -164,7 +170,7 @@ def cmd_timeline(args: argparse.Namespace) -> int:
         raise UsageError(f"--agents: {exc}") from None
     write_timeline(trace, args.output, instance=args.instance,
                    window=tuple(args.window) if args.window else None, data_path=args.data,
-                   agents=agents)
+                   agents=agents, top=args.top)
     print(f"wrote {args.output}" + (f" and {args.data}" if args.data else ""))
     return EXIT_OK
 

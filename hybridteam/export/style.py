@@ -20,23 +20,29 @@ PALETTE = (
 )
 COPY_TINTS = (0.45, 0.7)  # how much white a protocol state's copy of a role body mixes in
 FINAL = "#7F7F7F"
+#: Final modes: muted tones, one per final mode (an Arrived and a Stuck must not look alike),
+#: still set apart from the palette's bright colours
+FINALS = ("#7F7F7F", "#3B3B3B", "#A89F91", "#5F7A8A", "#8C6D62", "#6B8E6B", "#B5B5B5",
+          "#4F4F6F")
 HALO = [patheffects.withStroke(linewidth=2.5, foreground="white")]  # text over drawings
 FONT = "DejaVu Sans"
 
 
 def mode_colors(paths: Iterable[str], finals: Iterable[str] = ()) -> dict[str, str]:
-    """Colour of each mode path, in the order given; final modes are grey.
+    """Colour of each mode path, in the order given; final modes take muted tones, a
+    different one each (``FINALS``).
 
     A path listed twice keeps its first colour.
     """
     finals = set(finals)
     out: dict[str, str] = {}
-    k = 0
+    k = f = 0
     for path in paths:
         if path in out:
             continue
         if path in finals:
-            out[path] = FINAL
+            out[path] = FINALS[f % len(FINALS)]
+            f += 1
             continue
         out[path] = PALETTE[k % len(PALETTE)]
         k += 1

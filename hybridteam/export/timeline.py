@@ -95,7 +95,7 @@ class TimelineData:
     window: tuple[float, float] | None = None
     lost: int = 0  # lost control messages of the instance (summarised without a window)
     dropped: int = 0  # lost data copies (a stream's; counted, marked only in a close-up)
-    legend: dict[str, str] = field(default_factory=dict)  # label -> colour
+    legend: dict[str, dict[str, str]] = field(default_factory=dict)  # agent -> path -> colour
 
     def to_json_dict(self) -> dict[str, Any]:
         """Plain lists of dicts; NaN (a lost message's receipt) becomes null."""
@@ -188,9 +188,16 @@ def common_ancestor(a: str, b: str) -> str:
 # ---------------------------------------------------------------------- data
 def timeline_data(trace: Trace, instance: int = 0,
                   window: tuple[float, float] | None = None,
-                  agents: list[str] | None = None) -> TimelineData:
+                  agents: list[str] | None = None, top: bool | None = None) -> TimelineData:
     """What the timeline of ``instance`` shows, optionally restricted to ``window`` and to
-    some ``agents`` (in team order; colours stay those of the whole team)."""
+    some ``agents`` (in team order; colours stay those of the whole team).
+
+    ``top``: the thin row of an agent's top-level modes above its lane. By default (None)
+    only for agents with more than one top-level mode besides final leaves (``Dock`` then
+    ``Transport``), where it says which phase the submodes below belong to; otherwise it
+    would repeat the lane below (a final ``Arrived`` leaf shows in the lane itself). True
+    draws it for every agent with nested modes.
+    """
     lanes: list[Lane] = []
     index: dict[tuple[str, str, bool], int] = {}
     colors = team_colors(trace.meta["agents"])
@@ -203,19 +210,24 @@ def timeline_data(trace: Trace, instance: int = 0,
                          key=[m["path"] for m in modes].index)
         composite = any(lane_of[m["path"]] == "" and drawn(m["kind"]) and m["depth"] > 1
                         for m in modes)
+        if top is None:  # phases: more than one top-level mode, a final leaf aside
+            composite &= sum(m["depth"] == 1 and not (m["final"] and m["kind"] == "leaf")
+                             for m in modes) > 1
+        elif not top:
+            composite = False
         rows = [("", True)] * composite + [("", False)] + [(r, False) for r in regions]
-        for region, top in rows:
-            h = TOP_HEIGHT if top else MAIN_HEIGHT
-            label = (f"{meta['name']} (top)" if top else
+        for region, is_top in rows:
+            h = TOP_HEIGHT if is_top else MAIN_HEIGHT
+            label = (f"{meta['name']} (top)" if is_top else
                      f"{meta['name']} / {region}" if region else meta["name"])
-            index[(meta["name"], region, top)] = len(lanes)
-            lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, top))
+            index[(meta["name"], region, is_top)] = len(lanes)
+            lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, is_top))
             cursor -= h + GAP
 
     iv, tr = pick(trace.intervals, instance), pick(trace.transitions, instance)
     bars: list[Bar] = []
     marks: list[Mark] = []
-    legend: dict[str, str] = {}
+    legend: dict[str, dict[str, str]] = {}  # agent -> {mode path: colour}
     used: set[tuple[str, str]] = set()
     for meta in agents:
         name = meta["name"]
@@ -240,9 +252,9 @@ def timeline_data(trace: Trace, instance: int = 0,
                   for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
                                      mine_tr["target"].tolist(), strict=True)
                   if window is None or window[0] <= t <= window[1]]
-        for path, color in colors.items():  # the legend follows the model, not the run
+        for path in kinds:  # the legend follows the agent's model order, not the run
             if (name, path) in used:
-                legend[path] = color
+                legend.setdefault(name, {})[path] = colors.get(path, "#BBBBBB")
 
     arrows: list[Arrow] = []
     msgs = pick(trace.messages, instance)
@@ -272,9 +284,10 @@ def timeline_data(trace: Trace, instance: int = 0,
 
 # ---------------------------------------------------------------------- drawing
 def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float] | None = None,
-                    agents: list[str] | None = None) -> tuple[Figure, TimelineData]:
+                    agents: list[str] | None = None, top: bool | None = None
+                    ) -> tuple[Figure, TimelineData]:
     """The timeline as a matplotlib figure (Agg canvas) and the data it shows."""
-    data = timeline_data(trace, instance, window, agents)
+    data = timeline_data(trace, instance, window, agents, top)
     extent = sum(lane.height + GAP for lane in data.lanes)
     with rc_context({"font.family": FONT}):
         fig = Figure(figsize=(11.0, 1.4 + 0.55 * extent), dpi=100)
@@ -324,10 +337,43 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
     title = str(trace.meta.get("team", "")) + (f" — instance {instance}" if trace.n > 1 else "")
     ax.set_title(title + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else
                           loss_text(data)))
-    handles = [Patch(facecolor=c, label=label) for label, c in data.legend.items()]
+    handles, heads = legend_handles(data.legend)
     if handles:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
-                  frameon=False, title="modes", ncol=1 + len(handles) // 30)
+        box = ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                        fontsize=8, frameon=False, ncol=1 + len(handles) // 30,
+                        handlelength=1.4)
+        for k in heads:
+            box.get_texts()[k].set_fontweight("bold")
+
+
+def short_names(paths: list[str]) -> dict[str, str]:
+    """Each path by its shortest suffix that no other path of the list ends with:
+    ``Transport.Lead.Curve`` is ``Curve`` unless ``Transport.Offering.Curve`` is listed too,
+    when the two are ``Lead.Curve`` and ``Offering.Curve``."""
+    out: dict[str, str] = {}
+    for path in paths:
+        parts = path.split(".")
+        for k in range(1, len(parts) + 1):
+            tail = ".".join(parts[-k:])
+            if not any(o != path and (o == tail or o.endswith("." + tail)) for o in paths):
+                break
+        out[path] = tail
+    return out
+
+
+def legend_handles(legend: dict[str, dict[str, str]]) -> tuple[list[Any], list[int]]:
+    """The legend grouped by robot: the robot's name (a heading, at the returned positions;
+    none for a single robot), then its modes by short name (a mode two robots share appears
+    under each, in the same colour)."""
+    handles: list[Any] = []
+    heads: list[int] = []
+    for agent, modes in legend.items():
+        if len(legend) > 1:
+            heads.append(len(handles))
+            handles.append(Patch(facecolor="none", edgecolor="none", label=agent))
+        short = short_names(list(modes))
+        handles += [Patch(facecolor=c, label=short[path]) for path, c in modes.items()]
+    return handles, heads
 
 
 # ---------------------------------------------------------------------- files
@@ -356,11 +402,11 @@ def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
 def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
                    window: tuple[float, float] | None = None,
                    data_path: str | os.PathLike | None = None,
-                   agents: list[str] | None = None) -> Path:
+                   agents: list[str] | None = None, top: bool | None = None) -> Path:
     """Write the timeline (.png/.svg) and, when ``data_path`` is given, its data (.csv/.json)."""
     figure_format(path)
     kind = None if data_path is None else figure_format(data_path, DATA_FORMATS)
-    fig, data = timeline_figure(trace, instance, window, agents)
+    fig, data = timeline_figure(trace, instance, window, agents, top)
     try:
         save_figure(fig, path)
     finally:
