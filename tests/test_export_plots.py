@@ -188,7 +188,7 @@ def test_a_robot_standing_still_is_drawn_once():
     """Footprints every 1 s of a robot that waits 5 s, drives 0.1 m/s, then turns on the
     spot: the waiting poses collapse into one; moves over 0.05 m and turns over 15 degrees
     are kept (poses at 0, then 6, 7, 8, 9, 10 s of driving; the turn at 11, 12 s)."""
-    from hybridteam.export.trajectories import moved
+    from hybridteam.export.scene import moved
 
     t = np.arange(13.0)
     x = np.where(t <= 5, 0.0, 0.1 * (np.minimum(t, 10) - 5))
@@ -196,3 +196,56 @@ def test_a_robot_standing_still_is_drawn_once():
     p = np.c_[x, np.zeros_like(t), th]
     assert moved(p, np.arange(13), 0.05).tolist() == [0, 6, 7, 8, 9, 10, 11, 12]
     assert moved(p, np.arange(13), 0.15).tolist() == [0, 7, 9, 11, 12]
+
+
+CORRIDOR = """
+team: corridor
+agents:
+  r:
+    model: scout
+    plant: {state: {x: 0.5, y: 0.3, theta: 0}}
+    modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+world:
+  - use: obstacles
+    with:
+      walls: [[0, -1.3, 20, -1.3], [0, 1.3, 20, 1.3]]
+      circles: [[10, -0.8, 0.2]]
+simulation: {duration: 38}
+"""
+
+
+def _spans(ax) -> tuple[float, float]:
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return x1 - x0, y1 - y0
+
+
+def test_a_long_corridor_fills_the_plot(team_from_yaml):
+    """A 20 m by 2.6 m corridor: the axes span the scene within 15 % each way (equal aspect
+    used to widen the short side to the figure's shape: ±4 m around a ±1.3 m corridor)."""
+    run = ht.simulate(team_from_yaml(CORRIDOR))
+    fig = trajectory_figure(run)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    w, h = _spans(ax)
+    assert 20.0 <= w <= 1.15 * 20.0 and 2.6 <= h <= 1.15 * 2.6
+    assert ax.get_aspect() == 1.0
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["r", "0X: start of robot X", "footprint and heading, every 5 s",
+                      "obstacle"]
+
+
+def test_plot_limits_and_size_are_the_users(team_from_yaml, tmp_path, capsys):
+    from hybridteam.cli import main
+
+    run = ht.simulate(team_from_yaml(CORRIDOR))
+    trace = tmp_path / "trace.json"
+    trace.write_text(run.to_json())
+    out = tmp_path / "p.png"
+    assert main(["plot", str(trace), "-o", str(out), "--xlim", "8", "12", "--ylim", "-2", "2",
+                 "--size", "6", "4"]) == 0
+    assert imread(out).shape[:2] == (400, 600)
+    fig = trajectory_figure(run, xlim=(8, 12), ylim=(-2, 2))
+    assert fig.axes[0].get_xlim() == (8, 12) and fig.axes[0].get_ylim() == (-2, 2)
+    capsys.readouterr()
+    assert main(["plot", str(trace), "-o", str(out), "--ylim", "2", "-2"]) == 2
+    assert "--ylim 2 -2: need two finite numbers, the first smaller" in capsys.readouterr().err

@@ -134,3 +134,33 @@ def test_experiment3_scout_at_8_hz_drops_data_copies():
     # the Scout takes at most 8 copies per second, whatever the others send at 20 Hz
     t = np.sort(np.asarray(m["t_recv"])[taken])
     assert np.all(np.diff(t) >= 1 / 8 - 1e-9)
+
+
+def test_trajectories_fit_the_scene_and_explain_their_marks(experiment):
+    """The plane's axes span the robots' footprints, the box and the obstacles within
+    15 %, and the legend says what the box snapshots, numbers and obstacles are."""
+    from hybridteam.export.trajectories import trajectory_figure
+
+    name, team, run = experiment
+    pts = []
+    for agent in ("labmate", "xr4000", "scout"):
+        if agent in run.samples:
+            xy = run.samples[agent][:, 0, :2]
+            r = team.agent(agent).preset.footprint.radius
+            pts += [xy - r, xy + r]
+    box = run.samples["box"][:, 0, :2]
+    pts += [box - 0.48, box + 0.48]  # the box's half diagonal: hypot(0.4, 0.25) = 0.47
+    for ob in run.meta["world"]["obstacles"]:  # circles: [x, y, r] in the team file
+        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
+                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]))
+    xy = np.concatenate(pts)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    span = xy.max(axis=0) - xy.min(axis=0)
+    fig = trajectory_figure(run)
+    ax = fig.axes[0]
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert x0 <= xy[:, 0].min() and x1 >= xy[:, 0].max(), name
+    assert x1 - x0 <= 1.15 * span[0] and y1 - y0 <= 1.15 * span[1], name
+    labels = {t.get_text() for t in ax.get_legend().get_texts()}
+    assert {"obstacle", "nX: n-th mode change, by robot X"} <= labels, name
+    assert any(label.startswith("box, every ") for label in labels), name

@@ -48,6 +48,13 @@ def register(sub) -> dict:
     pl = _trace_parser(sub, "plot", "draw the trajectories of a run")
     pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
                     help=".png, .svg or .pdf (default trajectories.png)")
+    pl.add_argument("--xlim", nargs=2, type=float, metavar=("X0", "X1"),
+                    help="x range of the plane (default: the scene, walls and paths)")
+    pl.add_argument("--ylim", nargs=2, type=float, metavar=("Y0", "Y1"),
+                    help="y range of the plane (default: the scene)")
+    pl.add_argument("--size", nargs=2, type=float, metavar=("W", "H"),
+                    help="figure width and height in inches (default: 8 wide, as tall as "
+                    "the scene asks)")
 
     an = _trace_parser(sub, "animate", "animate a run (GIF; MP4 when ffmpeg is installed)")
     an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
@@ -179,8 +186,19 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from hybridteam.export.trajectories import write_trajectories
 
     _suffix(args.output, IMAGE, "trajectory plot")
+    for name in ("xlim", "ylim"):
+        lo_hi = getattr(args, name)
+        if lo_hi and not (all(math.isfinite(v) for v in lo_hi) and lo_hi[0] < lo_hi[1]):
+            raise UsageError(f"--{name} {lo_hi[0]:g} {lo_hi[1]:g}: need two finite numbers, "
+                             "the first smaller")
+    if args.size and not all(math.isfinite(v) and 1.0 <= v <= 50.0 for v in args.size):
+        raise UsageError(f"--size {args.size[0]:g} {args.size[1]:g}: width and height must "
+                         "be between 1 and 50 inches")
     trace = _load_trace(args.trace, args.instance)
-    write_trajectories(trace, args.output, instance=args.instance)
+    write_trajectories(trace, args.output, instance=args.instance,
+                       xlim=tuple(args.xlim) if args.xlim else None,
+                       ylim=tuple(args.ylim) if args.ylim else None,
+                       size=tuple(args.size) if args.size else None)
     print(f"wrote {args.output}")
     return EXIT_OK
 

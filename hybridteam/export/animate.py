@@ -21,16 +21,10 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 from PIL import Image
 
+from hybridteam.export.scene import draw_world, flow_agents, planar_agents, pose
 from hybridteam.export.style import FONT, HALO, PALETTE
 from hybridteam.export.timeline import agent_meta, end_time
-from hybridteam.export.trajectories import (
-    draw_flow,
-    draw_world,
-    flow_agents,
-    main_lane_intervals,
-    planar_agents,
-    pose,
-)
+from hybridteam.export.trajectories import draw_flow, main_lane_intervals
 from hybridteam.trace import Trace, temp_path
 
 MAX_FRAMES = 300

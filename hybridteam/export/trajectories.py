@@ -21,8 +21,19 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import EllipseCollection, LineCollection, PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Polygon
+from matplotlib.patches import Patch
 
+from hybridteam.export.scene import (
+    draw_guides,
+    draw_payloads,
+    draw_world,
+    flow_agents,
+    moved,
+    payload_names,
+    planar_agents,
+    pose,
+    scene_extent,
+)
 from hybridteam.export.style import FONT, HALO, PALETTE
 from hybridteam.export.timeline import (
     agent_meta,
@@ -50,43 +61,6 @@ def main_lane_intervals(trace: Trace, instance: int, agent: str) -> Table:
     keep = np.array([lanes.get(m, "") == "" and drawn(kinds.get(m)) for m in iv["mode"]], bool)
     iv = iv.filter(keep) if len(iv) else iv
     return iv.filter(np.argsort(iv["start"], kind="stable"))
-
-
-def payload_names(trace: Trace) -> list[str]:
-    names = [p["name"] if isinstance(p, dict) else str(p)
-             for p in trace.meta.get("payloads", []) or []]
-    return [p for p in names if p in trace.samples]
-
-
-def planar_agents(trace: Trace) -> list[str]:
-    """Agents with x and y in their state (payloads excluded: they are drawn as loads)."""
-    payloads = set(payload_names(trace))
-    return [a["name"] for a in trace.meta["agents"]
-            if a["name"] not in payloads and {"x", "y"} <= set(a["state"])]
-
-
-def flow_agents(trace: Trace) -> list[str]:
-    """Agents without a position: drawn as state against time (agents with no state at
-    all, such as an operator, are not drawn)."""
-    payloads = set(payload_names(trace))
-    return [a["name"] for a in trace.meta["agents"]
-            if a["name"] not in payloads and a["state"] and not {"x", "y"} <= set(a["state"])]
-
-
-def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
-    """(K, 3) x, y, theta of an agent or payload (theta 0 when its state has none)."""
-    try:
-        states = agent_meta(trace, name)["state"]
-    except KeyError:
-        states = ["x", "y", "theta"]
-    s = trace.samples[name][:, instance]
-    out = np.zeros((len(s), 3))
-    for k, key in enumerate(("x", "y", "theta")):
-        if key in states:
-            out[:, k] = s[:, states.index(key)]
-        else:
-            out[:, k] = np.where(np.isnan(s[:, 0]), np.nan, 0.0)
-    return out
 
 
 def letters(names: Sequence[str]) -> dict[str, str]:
@@ -183,117 +157,10 @@ def _numbered(changes: list) -> list[tuple[float, int, str, str, int]]:
     return [(*c[:4], n) for c, n in zip(changes, numbers, strict=True)]
 
 
-# ---------------------------------------------------------------------- world and payloads
-def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
-    """Walls, obstacles and labelled regions, under everything else."""
-    if not world:
-        return
-    for region in world.get("regions", []) or []:
-        pts = np.asarray(region["points"] if isinstance(region, dict) else region, float)
-        ax.add_patch(Polygon(pts, closed=True, facecolor="#F2E6B8", edgecolor="#C8B46A",
-                             alpha=0.6, zorder=0, gid="region"))
-        label = region.get("label") if isinstance(region, dict) else None
-        if label:
-            cx, cy = pts.mean(axis=0)
-            ax.text(cx, cy, label, ha="center", va="center", fontsize=8, color="#7A6A2A",
-                    zorder=1, gid="region-label")
-    thin = []
-    for ob in world.get("obstacles", []) or []:
-        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1.8,  # over the grid
-                 "gid": "obstacle"}
-        if ob.get("kind") == "circle":
-            ax.add_patch(Circle((ob["x"], ob["y"]), ob["r"], **style))
-        elif ob.get("kind") == "wall":  # no thickness: a heavy grey stroke
-            thin.append(np.asarray(ob["points"], float))
-        else:
-            ax.add_patch(Polygon(np.asarray(ob["points"], float), closed=True, **style))
-    if thin:
-        ax.add_collection(LineCollection(thin, colors="#9A9A9A", linewidths=4.0, zorder=1.8,
-                                         capstyle="round", gid="obstacle-walls"))
-    walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
-    if len(walls):
-        ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
-                                         linewidths=2.5, zorder=2, gid="walls"))
-
-
-def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
-                agents: Sequence[str]) -> None:
-    """Planned paths (``world.paths``: instance, agent, points), dashed in the agent's colour."""
-    for entry in (world or {}).get("paths", []) or []:
-        if entry.get("instance", instance) != instance or entry.get("agent") not in agents:
-            continue
-        pts = np.asarray(entry["points"], float)
-        color = PALETTE[list(agents).index(entry["agent"]) % len(PALETTE)]
-        ax.plot(pts[:, 0], pts[:, 1], color=color, linewidth=0.9, linestyle=(0, (4, 3)),
-                alpha=0.8, zorder=3, label=f"{entry['agent']} guide path",
-                gid=f"guide:{entry['agent']}")
-
-
-def plot_aspect(trace: Trace, instance: int) -> float:
-    """Height over width of what the planar plot shows (world and paths), for its size."""
-    world = trace.meta.get("world") or {}
-    pts = [np.asarray(world.get("walls", []) or [], float).reshape(-1, 2)]
-    for ob in world.get("obstacles", []) or []:
-        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
-                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]) if ob.get("kind") ==
-                   "circle" else np.asarray(ob["points"], float).reshape(-1, 2))
-    for a in planar_agents(trace):
-        pts.append(pose(trace, a, instance)[:, :2])
-    xy = np.concatenate(pts)
-    xy = xy[~np.isnan(xy).any(axis=1)]
-    if len(xy) < 2:
-        return 0.5
-    span = np.ptp(xy, axis=0)
-    return float(np.clip(span[1] / max(span[0], 1e-9), 0.3, 1.2))
-
-
-def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.ndarray:
-    """Corners of a payload shape at a pose (a bar is a thin rectangle)."""
-    if shape.get("kind") == "bar":
-        w, d = float(shape["length"]), float(shape.get("width", shape["length"] * 0.04))
-    else:
-        w, d = float(shape["width"]), float(shape["depth"])
-    corners = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2
-    c, s = math.cos(th), math.sin(th)
-    return corners @ np.array([[c, s], [-s, c]]) + [x, y]
-
-
-def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
-          ) -> np.ndarray:
-    """Of the poses at ``indices``, those where the body has moved by more than ``step`` or
-    turned by more than ``turn`` since the last one kept: a robot that waits 13 s while the
-    team docks is drawn once, not as a pile of identical footprints."""
-    keep: list[int] = []
-    for i in indices.tolist():
-        if keep:
-            last = p[keep[-1]]
-            dist = math.hypot(p[i, 0] - last[0], p[i, 1] - last[1])
-            dth = abs((p[i, 2] - last[2] + math.pi) % (2 * math.pi) - math.pi)
-            if not (dist > step or dth > turn):
-                continue
-        keep.append(i)
-    return np.array(keep, int)
-
-
-def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> None:
-    shapes = trace.meta.get("payload_shapes", {}) or {}
-    for k, name in enumerate(payload_names(trace)):
-        p = pose(trace, name, instance)
-        ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
-        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
-        size = [float(v) for key, v in shape.items() if key in ("width", "depth", "length")]
-        ok = moved(p, ok, 0.15 * min(size or [0.3]))
-        polys = [payload_outline(shape, *p[i]) for i in ok]
-        color = PALETTE[(k + 5) % len(PALETTE)]
-        ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
-                                         alpha=0.35, linewidths=0.6, zorder=3,
-                                         gid=f"payload:{name}"))
-        ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, linestyle="dotted", zorder=3)
-
-
 # ---------------------------------------------------------------------- planar
 def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
-                modes: Sequence[str] | None) -> None:
+                modes: Sequence[str] | None,
+                limits: tuple[float, float, float, float] | None = None) -> None:
     agents = planar_agents(trace)
     times = trace.sample_times
     draw_world(ax, trace.meta.get("world"))
@@ -362,18 +229,59 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                         gid="change")
     if len(at):
         ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
-    ax.set_aspect("equal", adjustable="datalim")
+    x0, x1, y0, y1 = limits or scene_extent(trace, instance)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal", adjustable="box")  # the limits stay: the box takes the shape
     ax.grid(color="#E0E0E0", linewidth=0.6)
     unit = (trace.meta.get("world") or {}).get("units", "m")
     ax.set_xlabel(f"x ({unit})" if unit else "x")
     ax.set_ylabel(f"y ({unit})" if unit else "y")
     if agents:
         # "best" scans every plotted point: fine for a short run, seconds for a long one
-        ax.legend(loc="best" if len(pts) < 20_000 else "upper right", fontsize=8,
-                  framealpha=0.8)
+        # outside the plot, never over a path or a wall: below a wide scene, beside a tall one
+        handles = _legend(ax, trace, every, bool(len(at)))
+        if wide(limits or scene_extent(trace, instance)):
+            ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
+                      fontsize=7.5, frameon=False, ncol=3)
+        else:
+            ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      fontsize=7.5, frameon=False)
     if stride > 1:
         ax.text(0.01, 0.01, f"numbers shown on every {stride}th mode change",
                 transform=ax.transAxes, fontsize=7, color="#666666")
+
+
+def wide(limits: tuple[float, float, float, float]) -> bool:
+    """Whether a scene is wider than tall enough to take its legend below, not beside."""
+    return (limits[3] - limits[2]) < 0.6 * (limits[1] - limits[0])
+
+
+def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
+    """Robots and guide paths as drawn, then what the marks mean: the start (0X), the
+    numbered mode changes (1X: the first, by robot X), footprints and payload snapshots
+    (every so many seconds), obstacles and walls — each only if the plot has it."""
+    handles, _ = ax.get_legend_handles_labels()
+    grey = "#555555"
+    handles.append(Line2D([], [], marker="s", color=grey, linestyle="none", markersize=4,
+                          label="0X: start of robot X"))
+    if changes:
+        handles.append(Line2D([], [], marker="o", color="#111111", linestyle="none",
+                              markersize=3, label="nX: n-th mode change, by robot X"))
+    if any((agent_meta(trace, a).get("footprint") or {}).get("radius")
+           for a in planar_agents(trace)):
+        handles.append(Line2D([], [], marker="o", markerfacecolor="none", color=grey,
+                              linestyle="none", markersize=7,
+                              label=f"footprint and heading, every {every:g} s"))
+    for k, name in enumerate(payload_names(trace)):
+        handles.append(Patch(facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.35,
+                             edgecolor="#333333", label=f"{name}, every {every:g} s"))
+    world = trace.meta.get("world") or {}
+    if world.get("obstacles"):
+        handles.append(Patch(facecolor="#9A9A9A", edgecolor=grey, label="obstacle"))
+    if len(world.get("walls", []) or []):
+        handles.append(Line2D([], [], color="#222222", linewidth=2.5, label="wall"))
+    return handles
 
 
 # ---------------------------------------------------------------------- flow
@@ -442,22 +350,39 @@ def mode_runs(times: np.ndarray, s: np.ndarray, starts: np.ndarray,
 
 # ---------------------------------------------------------------------- figure and file
 def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = None,
-                      modes: Sequence[str] | None = None) -> Figure:
+                      modes: Sequence[str] | None = None,
+                      xlim: tuple[float, float] | None = None,
+                      ylim: tuple[float, float] | None = None,
+                      size: tuple[float, float] | None = None) -> Figure:
     """Planar agents in one equal-aspect plot; flow agents one time plot each below it.
 
     ``every``: seconds between drawn footprints (default: about ten along the run);
-    ``modes``: the mode paths whose changes are numbered (default: every leaf transition).
+    ``modes``: the mode paths whose changes are numbered (default: every leaf transition);
+    ``xlim``, ``ylim``: the planar plot's limits (default: the scene, see
+    :func:`~.scene.scene_extent`); ``size``: the figure's width and height in inches
+    (default: 8 wide, as tall as the scene's shape asks).
     """
     planar, flows = planar_agents(trace), flow_agents(trace)
-    planar_height = 7.2 * plot_aspect(trace, instance) + 0.6 if planar else 0.0
-    heights = ([max(planar_height, 2.6)] if planar else []) + [1.8] * len(flows)
+    limits = None
+    if planar:
+        x0, x1, y0, y1 = scene_extent(trace, instance)
+        limits = (*(xlim or (x0, x1)), *(ylim or (y0, y1)))
+    aspect = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-12) if limits else 0.5
+    width = size[0] if size else 8.0
+    # the planar axes' width: the figure's, less the y labels and a legend at the side
+    axes_w = width - 1.2 - (0.0 if limits is None or wide(limits) else 2.4)
+    legend_h = 0.0 if limits is None or not wide(limits) else 0.55  # three rows below
+    planar_height = axes_w * float(np.clip(aspect, 0.12, 1.6)) + 0.45 + legend_h \
+        if planar else 0.0
+    heights = ([max(planar_height, 2.0)] if planar else []) + [1.8] * len(flows)
     with rc_context({"font.family": FONT}):
-        fig = Figure(figsize=(8.0, 0.8 + max(sum(heights), 2.0)), dpi=100)
+        fig = Figure(figsize=(width, size[1] if size else 0.45 + max(sum(heights), 2.0)),
+                     dpi=100)
         FigureCanvasAgg(fig)
         grid = fig.add_gridspec(max(len(heights), 1), 1, height_ratios=heights or [1])
         row = 0
         if planar:
-            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes)
+            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes, limits)
             row = 1
         for k, agent in enumerate(flows):
             ax = fig.add_subplot(grid[row + k])
@@ -477,6 +402,6 @@ def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0,
     """Write :func:`trajectory_figure` as .png or .svg (chosen by the extension)."""
     fig = trajectory_figure(trace, instance, **kw)
     try:
-        return save_figure(fig, path)
+        return save_figure(fig, path, tight=kw.get("size") is None)
     finally:
         fig.clear()

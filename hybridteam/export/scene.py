@@ -1,0 +1,189 @@
+"""The scene of a planar run: the world it moved in and the payloads it carried.
+
+Shared by the trajectory plot and the animation: what is a robot and what is a load in a
+trace, the walls, obstacles, regions and guide paths (``meta.world``), payload outlines at
+their poses, and the extent of all of it, which both views fit their axes to.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.patches import Circle, Polygon
+
+from hybridteam.export.style import PALETTE
+from hybridteam.export.timeline import agent_meta
+from hybridteam.trace import Trace
+
+
+# ---------------------------------------------------------------------- what is what
+def payload_names(trace: Trace) -> list[str]:
+    names = [p["name"] if isinstance(p, dict) else str(p)
+             for p in trace.meta.get("payloads", []) or []]
+    return [p for p in names if p in trace.samples]
+
+
+def planar_agents(trace: Trace) -> list[str]:
+    """Agents with x and y in their state (payloads excluded: they are drawn as loads)."""
+    payloads = set(payload_names(trace))
+    return [a["name"] for a in trace.meta["agents"]
+            if a["name"] not in payloads and {"x", "y"} <= set(a["state"])]
+
+
+def flow_agents(trace: Trace) -> list[str]:
+    """Agents without a position: drawn as state against time (agents with no state at
+    all, such as an operator, are not drawn)."""
+    payloads = set(payload_names(trace))
+    return [a["name"] for a in trace.meta["agents"]
+            if a["name"] not in payloads and a["state"] and not {"x", "y"} <= set(a["state"])]
+
+
+def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
+    """(K, 3) x, y, theta of an agent or payload (theta 0 when its state has none)."""
+    try:
+        states = agent_meta(trace, name)["state"]
+    except KeyError:
+        states = ["x", "y", "theta"]
+    s = trace.samples[name][:, instance]
+    out = np.zeros((len(s), 3))
+    for k, key in enumerate(("x", "y", "theta")):
+        if key in states:
+            out[:, k] = s[:, states.index(key)]
+        else:
+            out[:, k] = np.where(np.isnan(s[:, 0]), np.nan, 0.0)
+    return out
+
+
+
+# ---------------------------------------------------------------------- world and payloads
+def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
+    """Walls, obstacles and labelled regions, under everything else."""
+    if not world:
+        return
+    for region in world.get("regions", []) or []:
+        pts = np.asarray(region["points"] if isinstance(region, dict) else region, float)
+        ax.add_patch(Polygon(pts, closed=True, facecolor="#F2E6B8", edgecolor="#C8B46A",
+                             alpha=0.6, zorder=0, gid="region"))
+        label = region.get("label") if isinstance(region, dict) else None
+        if label:
+            cx, cy = pts.mean(axis=0)
+            ax.text(cx, cy, label, ha="center", va="center", fontsize=8, color="#7A6A2A",
+                    zorder=1, gid="region-label")
+    thin = []
+    for ob in world.get("obstacles", []) or []:
+        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1.8,  # over the grid
+                 "gid": "obstacle"}
+        if ob.get("kind") == "circle":
+            ax.add_patch(Circle((ob["x"], ob["y"]), ob["r"], **style))
+        elif ob.get("kind") == "wall":  # no thickness: a heavy grey stroke
+            thin.append(np.asarray(ob["points"], float))
+        else:
+            ax.add_patch(Polygon(np.asarray(ob["points"], float), closed=True, **style))
+    if thin:
+        ax.add_collection(LineCollection(thin, colors="#9A9A9A", linewidths=4.0, zorder=1.8,
+                                         capstyle="round", gid="obstacle-walls"))
+    walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
+    if len(walls):
+        ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
+                                         linewidths=2.5, zorder=2, gid="walls"))
+
+
+def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
+                agents: Sequence[str]) -> None:
+    """Planned paths (``world.paths``: instance, agent, points), dashed in the agent's colour."""
+    for entry in (world or {}).get("paths", []) or []:
+        if entry.get("instance", instance) != instance or entry.get("agent") not in agents:
+            continue
+        pts = np.asarray(entry["points"], float)
+        color = PALETTE[list(agents).index(entry["agent"]) % len(PALETTE)]
+        ax.plot(pts[:, 0], pts[:, 1], color=color, linewidth=0.9, linestyle=(0, (4, 3)),
+                alpha=0.8, zorder=3, label=f"{entry['agent']} guide path",
+                gid=f"guide:{entry['agent']}")
+
+
+def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) of everything the planar plot draws: walls, obstacles, regions,
+    guide paths, the robots' paths with their footprints, and the payloads' outlines. The
+    axes are fitted to it, so a narrow corridor fills the plot instead of a square around
+    it (equal aspect would otherwise widen the shorter side to the figure's shape)."""
+    world = trace.meta.get("world") or {}
+    pts = [np.asarray(world.get("walls", []) or [], float).reshape(-1, 2)]
+    for ob in world.get("obstacles", []) or []:
+        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
+                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]) if ob.get("kind") ==
+                   "circle" else np.asarray(ob["points"], float).reshape(-1, 2))
+    for region in world.get("regions", []) or []:
+        pts.append(np.asarray(region["points"] if isinstance(region, dict) else region,
+                              float).reshape(-1, 2))
+    for entry in world.get("paths", []) or []:
+        if entry.get("instance", instance) == instance:
+            pts.append(np.asarray(entry["points"], float).reshape(-1, 2))
+    for a in planar_agents(trace):
+        xy = pose(trace, a, instance)[:, :2]
+        r = float((agent_meta(trace, a).get("footprint") or {}).get("radius") or 0.0)
+        pts += [xy - r, xy + r]
+    shapes = trace.meta.get("payload_shapes", {}) or {}
+    for name in payload_names(trace):
+        p = pose(trace, name, instance)
+        p = p[np.isfinite(p).all(axis=1)]
+        corners = payload_outline(shapes.get(name, {"kind": "box", "width": 0.0,
+                                                    "depth": 0.0}), 0.0, 0.0, 0.0)
+        c, s = np.cos(p[:, 2])[:, None], np.sin(p[:, 2])[:, None]
+        pts += [np.stack([p[:, 0:1] + c * cx - s * cy, p[:, 1:2] + s * cx + c * cy],
+                         -1).reshape(-1, 2) for cx, cy in corners]
+    xy = np.concatenate(pts) if pts else np.zeros((0, 2))
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if len(xy) == 0:
+        return (-1.0, 1.0, -1.0, 1.0)
+    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    span = max(x1 - x0, y1 - y0, 1e-9)
+    pad_x, pad_y = max(0.04 * (x1 - x0), 0.005 * span), max(0.04 * (y1 - y0), 0.005 * span)
+    return (float(x0 - pad_x), float(x1 + pad_x), float(y0 - pad_y), float(y1 + pad_y))
+
+
+def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.ndarray:
+    """Corners of a payload shape at a pose (a bar is a thin rectangle)."""
+    if shape.get("kind") == "bar":
+        w, d = float(shape["length"]), float(shape.get("width", shape["length"] * 0.04))
+    else:
+        w, d = float(shape["width"]), float(shape["depth"])
+    corners = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2
+    c, s = math.cos(th), math.sin(th)
+    return corners @ np.array([[c, s], [-s, c]]) + [x, y]
+
+
+def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
+          ) -> np.ndarray:
+    """Of the poses at ``indices``, those where the body has moved by more than ``step`` or
+    turned by more than ``turn`` since the last one kept: a robot that waits 13 s while the
+    team docks is drawn once, not as a pile of identical footprints."""
+    keep: list[int] = []
+    for i in indices.tolist():
+        if keep:
+            last = p[keep[-1]]
+            dist = math.hypot(p[i, 0] - last[0], p[i, 1] - last[1])
+            dth = abs((p[i, 2] - last[2] + math.pi) % (2 * math.pi) - math.pi)
+            if not (dist > step or dth > turn):
+                continue
+        keep.append(i)
+    return np.array(keep, int)
+
+
+def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> None:
+    shapes = trace.meta.get("payload_shapes", {}) or {}
+    for k, name in enumerate(payload_names(trace)):
+        p = pose(trace, name, instance)
+        ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
+        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        size = [float(v) for key, v in shape.items() if key in ("width", "depth", "length")]
+        ok = moved(p, ok, 0.15 * min(size or [0.3]))
+        polys = [payload_outline(shape, *p[i]) for i in ok]
+        color = PALETTE[(k + 5) % len(PALETTE)]
+        ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
+                                         alpha=0.35, linewidths=0.6, zorder=3,
+                                         gid=f"payload:{name}"))
+        ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, linestyle="dotted", zorder=3)
