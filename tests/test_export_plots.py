@@ -249,3 +249,20 @@ def test_plot_limits_and_size_are_the_users(team_from_yaml, tmp_path, capsys):
     capsys.readouterr()
     assert main(["plot", str(trace), "-o", str(out), "--ylim", "2", "-2"]) == 2
     assert "--ylim 2 -2: need two finite numbers, the first smaller" in capsys.readouterr().err
+
+
+def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
+    from hybridteam.cli import main
+
+    run = ht.simulate(team_from_yaml(CORRIDOR), duration=4.0)
+    trace = tmp_path / "trace.json"
+    trace.write_text(run.to_json())
+    gif = tmp_path / "a.gif"
+    assert main(["animate", str(trace), "-o", str(gif), "--size", "6", "3", "--dpi", "50",
+                 "--fps", "5", "--speed", "2"]) == 0
+    with Image.open(gif) as im:
+        assert im.size == (300, 150)
+        assert im.n_frames == 10  # 4 s at 2x is 2 s of playback at 5 frames a second
+    capsys.readouterr()
+    assert main(["animate", str(trace), "-o", str(gif), "--speed", "0"]) == 2
+    assert "--speed must be a positive number, got 0" in capsys.readouterr().err

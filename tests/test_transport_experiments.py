@@ -164,3 +164,31 @@ def test_trajectories_fit_the_scene_and_explain_their_marks(experiment):
     labels = {t.get_text() for t in ax.get_legend().get_texts()}
     assert {"obstacle", "nX: n-th mode change, by robot X"} <= labels, name
     assert any(label.startswith("box, every ") for label in labels), name
+
+
+def _overlaps(boxes) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
+            if boxes[i].overlaps(boxes[j])]
+
+
+def test_experiment2_animation_shows_the_box_in_every_frame_and_no_label_overlaps():
+    """Every frame draws the box at its sampled pose (true size and heading); the texts of a
+    frame (time, robot names, modes) never overlap, whatever the robots do."""
+    from hybridteam.export import animate
+    from hybridteam.export.scene import payload_outline, pose
+
+    _team, run = _run("experiment2")
+    times = animate.frame_times(run, 0, 10, None)
+    fig, update, _trails, _moving = animate._build(run, 0, None, 100.0, 0.3)
+    (box,) = [p for ax in fig.axes for p in ax.patches if p.get_gid() == "payload:box"]
+    samples = pose(run, "box", 0)
+    shape = run.meta["payload_shapes"]["box"]
+    renderer = fig.canvas.get_renderer()
+    for t in times[::10]:
+        update(float(t))
+        k = max(int(np.searchsorted(run.sample_times, t, side="right")) - 1, 0)
+        assert box.get_visible(), t
+        np.testing.assert_allclose(box.get_xy()[:4], payload_outline(shape, *samples[k]))
+        texts = [x for ax in fig.axes for x in ax.texts if x.get_visible() and x.get_text()]
+        boxes = [x.get_window_extent(renderer) for x in texts]
+        assert not _overlaps(boxes), (t, [texts[i].get_text() for i, _ in _overlaps(boxes)])

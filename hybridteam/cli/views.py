@@ -58,6 +58,13 @@ def register(sub) -> dict:
 
     an = _trace_parser(sub, "animate", "animate a run (GIF; MP4 when ffmpeg is installed)")
     an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
+    an.add_argument("--speed", type=float, default=None, metavar="X",
+                    help="simulated seconds per second of playback (default: a frame per "
+                    "sample, at most 300 frames)")
+    an.add_argument("--size", nargs=2, type=float, metavar=("W", "H"),
+                    help="frame size in inches (default: 9 wide, as tall as the scene asks)")
+    an.add_argument("--dpi", type=float, default=100.0,
+                    help="pixels per inch (default 100: 900 pixels wide)")
     an.add_argument("-o", "--output", default="run.gif", metavar="FILE",
                     help=".gif or .mp4 (default run.gif)")
 
@@ -213,8 +220,17 @@ def cmd_animate(args: argparse.Namespace) -> int:
         raise UsageError("ffmpeg is not installed; write a .gif instead")
     if args.fps < 1:
         raise UsageError(f"--fps must be at least 1, got {args.fps}")
+    if args.speed is not None and not (math.isfinite(args.speed) and args.speed > 0):
+        raise UsageError(f"--speed must be a positive number, got {args.speed:g}")
+    if args.size and not all(math.isfinite(v) and 1.0 <= v <= 50.0 for v in args.size):
+        raise UsageError(f"--size {args.size[0]:g} {args.size[1]:g}: width and height must "
+                         "be between 1 and 50 inches")
+    if not (math.isfinite(args.dpi) and 20 <= args.dpi <= 600):
+        raise UsageError(f"--dpi must be between 20 and 600, got {args.dpi:g}")
     trace = _load_trace(args.trace, args.instance)
-    write_animation(trace, args.output, instance=args.instance, fps=args.fps)
+    write_animation(trace, args.output, instance=args.instance, fps=args.fps,
+                    speed=args.speed, size=tuple(args.size) if args.size else None,
+                    dpi=args.dpi)
     print(f"wrote {args.output}")
     return EXIT_OK
 

@@ -17,13 +17,23 @@ import numpy as np
 from matplotlib import rc_context
 from matplotlib.animation import FFMpegWriter, PillowWriter
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle
+from matplotlib.patches import Circle, Polygon
 from PIL import Image
 
-from hybridteam.export.scene import draw_world, flow_agents, planar_agents, pose
+from hybridteam.export.scene import (
+    draw_guides,
+    draw_world,
+    flow_agents,
+    payload_names,
+    payload_outline,
+    planar_agents,
+    pose,
+    scene_extent,
+)
 from hybridteam.export.style import FONT, HALO, PALETTE
-from hybridteam.export.timeline import agent_meta, end_time
+from hybridteam.export.timeline import agent_meta, end_time, pick
 from hybridteam.export.trajectories import draw_flow, main_lane_intervals
 from hybridteam.trace import Trace, temp_path
 
@@ -57,9 +67,12 @@ def frame_times(trace: Trace, instance: int, fps: float, duration: float | None)
 
 
 def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fps: int = 20,
-                    duration: float | None = None) -> Path:
+                    duration: float | None = None, speed: float | None = None,
+                    size: tuple[float, float] | None = None, dpi: float = 100.0) -> Path:
     """Write a .gif (Pillow) or .mp4 (ffmpeg) of the run; ``duration`` is the playback
-    length in seconds (default: a frame per sample, at most ``MAX_FRAMES``)."""
+    length in seconds, or ``speed`` simulated seconds per second of playback (default: a
+    frame per sample, at most ``MAX_FRAMES``); ``size`` in inches and ``dpi`` set the
+    frame's pixels (default 8 inches wide at 100 dpi)."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
@@ -67,9 +80,13 @@ def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fp
                          f"use one of {', '.join(FORMATS)}")
     if suffix == ".mp4" and shutil.which("ffmpeg") is None:
         raise RuntimeError("ffmpeg is not installed; write a .gif instead")
+    if speed is not None:
+        t0 = float(trace.sample_times[0]) if len(trace.sample_times) else 0.0
+        duration = max(end_time(trace, instance) - t0, 0.0) / speed
     times = frame_times(trace, instance, fps, duration)
+    linger = 1.5 * float(times[1] - times[0]) if len(times) > 1 else 0.0
     with rc_context({"font.family": FONT}):
-        fig, update, trails, moving = _build(trace, instance)
+        fig, update, trails, moving = _build(trace, instance, size, dpi, linger)
         canvas = fig.canvas
         for artist in [*trails, *moving]:
             artist.set_animated(True)  # left out of the background, drawn per frame
@@ -132,27 +149,54 @@ class _CanvasFFMpegWriter(FFMpegWriter):
         self._proc.stdin.write(np.asarray(self.fig.canvas.buffer_rgba()).tobytes())
 
 
-def _build(trace: Trace, instance: int) -> tuple[Figure, Any, list[Any], list[Any]]:
+def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
+           dpi: float = 100.0, linger: float = 0.0
+           ) -> tuple[Figure, Any, list[Any], list[Any]]:
     """The figure with its static parts drawn, a function moving it to time t, the artists
     that accumulate (trails: each frame adds the stretch since the previous one, so a frame
-    costs the same late in a long run as early) and those redrawn every frame."""
+    costs the same late in a long run as early) and those redrawn every frame.
+
+    The plane is fitted to the scene at equal aspect; a panel beside it holds the time and
+    each robot's current mode, one line per robot, so no label ever sits on another.
+    """
     planar, flows = planar_agents(trace), flow_agents(trace)
-    heights = ([3.0] if planar else []) + [1.5] * len(flows)
-    fig = Figure(figsize=(6.4, 0.6 + max(sum(heights), 2.0)), dpi=80)
+    limits = scene_extent(trace, instance) if planar else None
+    aspect = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-12) if limits else 0.5
+    width = size[0] if size else 9.0
+    panel_w = 2.1  # the time and one line pair per robot
+    plane_h = (width - panel_w - 0.9) * float(np.clip(aspect, 0.2, 1.4)) if planar else 0.0
+    heights = ([max(plane_h, 1.6)] if planar else []) + [1.5] * len(flows)
+    fig = Figure(figsize=(width, size[1] if size else 1.3 + max(sum(heights), 1.8)), dpi=dpi)
     FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(max(len(heights), 1), 1, height_ratios=heights or [1])
+    grid = fig.add_gridspec(max(len(heights), 1), 2, height_ratios=heights or [1],
+                            width_ratios=[width - panel_w, panel_w])
+    panel = fig.add_subplot(grid[:, 1])
+    panel.axis("off")
     updates, trails, moving = [], [], []
     if planar:
-        fn, trails, artists = _planar(fig.add_subplot(grid[0]), trace, instance, planar)
+        fn, trails, artists = _planar(fig.add_subplot(grid[0, 0]), trace, instance, planar,
+                                      limits, linger)  # type: ignore[arg-type]
         updates.append(fn)
         moving += artists
     for k, agent in enumerate(flows):
-        ax = fig.add_subplot(grid[(1 if planar else 0) + k])
+        ax = fig.add_subplot(grid[(1 if planar else 0) + k, 0])
         fn, artists = _flow(ax, trace, instance, agent)
         updates.append(fn)
         moving += artists
-    stamp = fig.text(0.01, 0.99, "", ha="left", va="top", fontsize=9, family="monospace")
-    fig.suptitle(str(trace.meta.get("team", "")), fontsize=10)
+    stamp = panel.text(0.0, 1.0, "", ha="left", va="top", fontsize=10, family="monospace",
+                       transform=panel.transAxes, gid="time")
+    rows = [(a, PALETTE[i % len(PALETTE)], _Mode(trace, instance, a))
+            for i, a in enumerate(planar + [f for f in flows if f not in planar])]
+    lines = []
+    tall = fig.get_figheight() * 0.85  # the panel's height in inches, about
+    step = min(0.5 / tall, 0.85 / max(len(rows), 1))  # a row: name and mode, 0.5 in
+    for k, (a, color, _mode) in enumerate(rows):  # fixed rows: texts cannot overlap
+        y = 0.88 - k * step
+        panel.text(0.0, y, a, ha="left", va="top", fontsize=9, fontweight="bold",
+                   color=color, transform=panel.transAxes, gid="robot")
+        lines.append(panel.text(0.0, y - 0.42 * step, "", ha="left", va="top", fontsize=8,
+                                color="#222222", transform=panel.transAxes, gid="mode"))
+    fig.suptitle(str(trace.meta.get("team", "")), fontsize=11)
     fig.set_layout_engine("constrained")
     fig.canvas.draw()  # lay out once, then freeze: every frame keeps the same geometry
     fig.set_layout_engine(None)  # None, not "none": a placeholder engine costs a 2nd draw
@@ -161,41 +205,56 @@ def _build(trace: Trace, instance: int) -> tuple[Figure, Any, list[Any], list[An
         k = max(int(np.searchsorted(trace.sample_times, t, side="right")) - 1, 0)
         for fn in updates:
             fn(t, k)
-        stamp.set_text(f"t = {t:8.3f} s")
+        stamp.set_text(f"t = {t:.2f} s")
+        for line, (_a, _c, mode) in zip(lines, rows, strict=True):
+            line.set_text(_fit(mode.at(t), 30))
 
-    return fig, update, trails, [*moving, stamp]
+    return fig, update, trails, [*moving, stamp, *lines]
 
 
-def _planar(ax: Any, trace: Trace, instance: int, agents: list[str]
+def _fit(text: str, width: int) -> str:
+    """A mode path cut from the left to ``width`` characters (the leaf matters most)."""
+    return text if len(text) <= width else "…" + text[-(width - 1):]
+
+
+def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
+            limits: tuple[float, float, float, float], linger: float
             ) -> tuple[Any, list[Any], list[Any]]:
-    draw_world(ax, trace.meta.get("world"))
+    """Walls, obstacles and guide paths; per robot its path to come (faint), its trail, its
+    footprint at true size with a heading line; the payloads at their poses; control
+    messages as lines from sender to receiver while in flight (and ``linger`` seconds after
+    they were sent, so a 30 ms message is seen at all), lost ones dashed red."""
+    world = trace.meta.get("world")
+    draw_world(ax, world)
+    draw_guides(ax, world, instance, agents)
     poses = {a: pose(trace, a, instance) for a in agents}
-    pts = np.concatenate([p[:, :2] for p in poses.values()])
-    pts = pts[~np.isnan(pts).any(axis=1)]
-    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 1.0
+    extent = max(limits[1] - limits[0], limits[3] - limits[2])
     robots = []
     for i, a in enumerate(agents):
         p, color = poses[a], PALETTE[i % len(PALETTE)]
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, alpha=0.25)  # where it will go
         radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
-        r = float(radius) if radius else 0.03 * max(extent, 1e-9)
+        r = float(radius) if radius else 0.02 * max(extent, 1e-9)
         trail = ax.plot([], [], color=color, linewidth=1.6, zorder=4)[0]
         body = ax.add_patch(Circle((np.nan, np.nan), r, facecolor=color, alpha=0.35,
-                                   edgecolor=color, zorder=5))
+                                   edgecolor=color, zorder=5, gid=f"robot:{a}"))
         head = ax.plot([], [], color=color, linewidth=1.6, zorder=6)[0]
-        label = ax.text(np.nan, np.nan, "", fontsize=8, color=color, path_effects=HALO,
-                        zorder=7)
         valid = ~np.isnan(p[:, 0])
         last = np.maximum.accumulate(np.where(valid, np.arange(len(p)), -1))
-        robots.append((a, p, last, r, trail, body, head, label, _Mode(trace, instance, a)))
+        robots.append((p, last, r, trail, body, head))
+    loads = _payloads(ax, trace, instance)
+    flashes = _messages(ax, trace, instance, agents, poses, linger)
     done = [0] * len(robots)  # trail drawn up to this sample
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.margins(0.08)
-    ax.autoscale_view()
+    ax.set_xlim(limits[0], limits[1])
+    ax.set_ylim(limits[2], limits[3])
+    ax.set_aspect("equal", adjustable="box")
     ax.grid(color="#E0E0E0", linewidth=0.6)
+    unit = (world or {}).get("units", "m")
+    ax.set_xlabel(f"x ({unit})" if unit else "x")
+    ax.set_ylabel(f"y ({unit})" if unit else "y")
 
     def update(t: float, k: int) -> None:
-        for i, (a, p, last, r, trail, body, head, label, mode) in enumerate(robots):
+        for i, (p, last, r, trail, body, head) in enumerate(robots):
             j = last[min(k, len(last) - 1)]
             if j < 0:
                 continue
@@ -203,11 +262,69 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str]
             trail.set_data(p[done[i] : j + 1, 0], p[done[i] : j + 1, 1])
             done[i] = j
             body.set_center((x, y))
-            head.set_data([x, x + r * 1.6 * np.cos(th)], [y, y + r * 1.6 * np.sin(th)])
-            label.set_position((x + r * 1.2, y + r * 1.2))
-            label.set_text(f"{a}: {mode.at(t)}")
+            head.set_data([x, x + r * 1.4 * np.cos(th)], [y, y + r * 1.4 * np.sin(th)])
+        for fn in (loads[0], flashes[0]):
+            fn(t, k)
 
-    return update, [r[4] for r in robots], [x for r in robots for x in r[5:8]]
+    moving = [x for r in robots for x in r[4:]] + loads[1] + flashes[1]
+    return update, [r[3] for r in robots], moving
+
+
+def _payloads(ax: Any, trace: Trace, instance: int) -> tuple[Any, list[Any]]:
+    """One outline per payload, moved to its pose at every frame."""
+    shapes = trace.meta.get("payload_shapes", {}) or {}
+    items = []
+    for k, name in enumerate(payload_names(trace)):
+        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        patch = ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, visible=False,
+                                     facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.55,
+                                     edgecolor="#333333", linewidth=0.8, zorder=4.5,
+                                     gid=f"payload:{name}"))
+        items.append((pose(trace, name, instance), shape, patch))
+
+    def update(t: float, k: int) -> None:
+        for p, shape, patch in items:
+            j = min(k, len(p) - 1)
+            ok = bool(np.isfinite(p[j]).all())
+            patch.set_visible(ok)
+            if ok:
+                patch.set_xy(payload_outline(shape, *p[j]))
+
+    return update, [patch for _p, _s, patch in items]
+
+
+def _messages(ax: Any, trace: Trace, instance: int, agents: list[str],
+              poses: dict[str, np.ndarray], linger: float) -> tuple[Any, list[Any]]:
+    """Control messages between drawn robots: (t_send, t_shown_until, sender, receiver,
+    lost) rows, drawn as one collection per frame."""
+    msgs = pick(trace.messages, instance)
+    rows = []
+    times = trace.sample_times
+    if len(msgs):
+        for m in msgs:
+            if m.socket == "data" or m.sender not in poses or m.receiver not in poses \
+                    or m.reason == "run ended":
+                continue
+            lost = m.status == "lost"
+            arrive = m.t_send if lost or m.t_recv is None else float(m.t_recv)
+            rows.append((float(m.t_send), max(arrive, m.t_send + linger), m.sender,
+                         m.receiver, lost))
+    sent = LineCollection([], colors="#222222", linewidths=1.0, zorder=8, gid="messages")
+    gone = LineCollection([], colors="#CC0000", linewidths=1.0, linestyles="dashed",
+                          zorder=8, gid="lost-messages")
+    ax.add_collection(sent)
+    ax.add_collection(gone)
+
+    def at(name: str, t: float) -> np.ndarray:
+        p = poses[name]
+        return np.array([np.interp(t, times, p[:, 0]), np.interp(t, times, p[:, 1])])
+
+    def update(t: float, k: int) -> None:
+        live = [r for r in rows if r[0] <= t <= r[1]]
+        sent.set_segments([[at(r[2], t), at(r[3], t)] for r in live if not r[4]])
+        gone.set_segments([[at(r[2], t), at(r[3], t)] for r in live if r[4]])
+
+    return update, [sent, gone]
 
 
 def _flow(ax: Any, trace: Trace, instance: int, agent: str) -> tuple[Any, list[Any]]:
