@@ -151,6 +151,7 @@ def relay_trace(tmp_path_factory):
 def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     assert main(["diagram", RELAY, "-o", str(tmp_path / "d.svg")]) == 0
     assert "<svg" in (tmp_path / "d.svg").read_text()
+    assert capsys.readouterr().out == f"wrote {tmp_path / 'd.svg'}\n"
     assert main(["diagram", RELAY, "-f", "mermaid"]) == 0
     assert capsys.readouterr().out.startswith("stateDiagram-v2")
     assert main(["timeline", str(relay_trace), "--window", "4.9", "5.1", "-o",
@@ -163,6 +164,11 @@ def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     assert main(["sequence", str(relay_trace), "-f", "plantuml"]) == 0
     out = capsys.readouterr().out
     assert "@startuml" in out and "runner -> anchor" in out
+    # every command that writes a file says so, one line each
+    assert main(["diagram", RELAY, "-o", str(tmp_path / "d.pdf")]) == 0
+    assert main(["sequence", str(relay_trace), "-o", str(tmp_path / "s.mmd")]) == 0
+    assert capsys.readouterr().out.splitlines() == [f"wrote {tmp_path / 'd.pdf'}",
+                                                    f"wrote {tmp_path / 's.mmd'}"]
 
 
 @pytest.mark.parametrize("args, words", [

@@ -158,8 +158,12 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     out = render(graph, fmt)
     if args.output:
         write_atomic(Path(args.output), out)
-    else:
-        sys.stdout.write(out if isinstance(out, str) else out.decode())
+        print(f"wrote {args.output}")
+    elif isinstance(out, str):
+        sys.stdout.write(out)
+    else:  # PNG or PDF bytes, piped on
+        sys.stdout.flush()
+        sys.stdout.buffer.write(out)
     return EXIT_OK
 
 
@@ -243,6 +247,7 @@ def cmd_sequence(args: argparse.Namespace) -> int:
     text = sequence_chart(trace, args.format, instance=args.instance, sockets=sockets)
     if args.output:
         write_atomic(Path(args.output), text)
+        print(f"wrote {args.output}")
     else:
         sys.stdout.write(text)
     return EXIT_OK
