@@ -47,6 +47,9 @@ def register(sub) -> dict:
                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
     r.add_argument("--no-views", action="store_true",
                    help="skip the state diagram, timeline, trajectory and sequence views")
+    r.add_argument("--report", action="store_true",
+                   help="also write report.html: every view and the summary on one "
+                   "self-contained page (see 'hybridteam report')")
     r.add_argument("--max-memory", type=float, default=None, metavar="GB",
                    help="refuse runs needing more memory (default 4 GB)")
     r.add_argument("--max-periods", type=float, default=None, metavar="N",
@@ -153,6 +156,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = run.summary()
     summary["wall_time_s"] = round(time.perf_counter() - start, 4)
     views = _write_run(out, team, run, summary, views=not args.no_views)
+    if args.report:
+        from hybridteam.export.report import write_report
+
+        write_report(out, run, summary)
+        views.append("report.html")
     if not args.quiet:
         _print_summary(summary, out, views)
     return EXIT_OK

@@ -39,8 +39,19 @@ def register(sub) -> dict:
     sw.add_argument("--progress", choices=MODES, default="auto",
                     help="auto (a bar on a terminal, lines otherwise), bar, log or none")
 
-    rp = sub.add_parser("report", help="plots and report.md of a finished study")
-    rp.add_argument("output", metavar="OUT", help="the study's output folder")
+    rp = sub.add_parser("report", help="a run folder's HTML page, or a study's plots and "
+                        "report.md", description="For a folder written by 'hybridteam run "
+                        "-o FOLDER': one self-contained HTML page (summary, state diagram, "
+                        "timeline, trajectories, animation, sequence chart). For a study's "
+                        "output folder: its plots and report.md.")
+    rp.add_argument("folder", metavar="FOLDER", help="a run folder or a study's output folder")
+    rp.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help="run folders: the page (default FOLDER/report.html)")
+    rp.add_argument("--instance", type=int, default=0,
+                    help="run folders: which instance (default 0)")
+    rp.add_argument("--no-animation", action="store_true",
+                    help="run folders: leave the animation out (drawn unless FOLDER has "
+                    "run.gif)")
     return {"sweep": cmd_sweep, "report": cmd_report}
 
 
@@ -95,9 +106,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     from hybridteam.sweep.report import write_report
     from hybridteam.sweep.store import StudyError
 
+    if (Path(args.folder) / "trace.json").is_file():  # a run's folder
+        from hybridteam.cli.views import cmd_run_report
+
+        return cmd_run_report(args)
     try:
-        path = write_report(args.output)
+        path = write_report(args.folder)
     except StudyError as exc:
         raise UsageError(str(exc)) from None
-    print(f"wrote {path} (plots in {Path(args.output) / 'plots'})")
+    print(f"wrote {path} (plots in {Path(args.folder) / 'plots'})")
     return EXIT_OK

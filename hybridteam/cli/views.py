@@ -251,3 +251,31 @@ def cmd_sequence(args: argparse.Namespace) -> int:
     else:
         sys.stdout.write(text)
     return EXIT_OK
+
+
+def cmd_run_report(args: argparse.Namespace) -> int:
+    """``hybridteam report RUN_FOLDER``: the HTML page of a run (a study folder gets the
+    study's report, see :mod:`.sweep`)."""
+    from hybridteam.export.report import write_report
+
+    folder = Path(args.folder)
+    if not folder.is_dir():
+        raise UsageError(f"{folder}: no such folder (give a folder written by "
+                         "'hybridteam run -o FOLDER')")
+    if args.output is not None:
+        _suffix(args.output, (".html", ".htm"), "report")
+    for name in ("trace.json", "summary.json"):
+        if not (folder / name).is_file():
+            raise UsageError(f"{folder}: no {name}; is it a folder written by "
+                             "'hybridteam run -o FOLDER'?")
+    trace = _load_trace(str(folder / "trace.json"), args.instance)
+    try:
+        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UsageError(f"{folder / 'summary.json'}: cannot read: {exc}") from None
+    if not isinstance(summary, dict):
+        raise UsageError(f"{folder / 'summary.json'}: not a run summary")
+    out = write_report(folder, trace, summary, args.output, instance=args.instance,
+                       animation=not args.no_animation)
+    print(f"wrote {out}")
+    return EXIT_OK

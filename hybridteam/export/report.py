@@ -1,0 +1,116 @@
+"""One self-contained HTML page for a run folder: what a reader opens first.
+
+Everything is inline — SVG as markup, the animation as a data URI, no script, no font or
+stylesheet from elsewhere — so the page opens from a mail attachment or an offline laptop
+exactly as it was written. Sections: the summary (outcome per instance, with the
+statistics world components report), the state diagram, the timeline, the trajectories,
+the animation, and the message sequence chart as Mermaid source (rendering Mermaid needs a
+JavaScript library, which an offline page cannot fetch; the source is readable, and pastes
+into any Mermaid viewer).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+import re
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from hybridteam.trace import Trace, write_atomic
+
+SECTIONS = ("summary", "diagram", "timeline", "trajectories", "animation", "sequence")
+
+_STYLE = """
+body { font-family: DejaVu Sans, Helvetica, Arial, sans-serif; margin: 2em auto;
+       max-width: 1150px; color: #222; }
+h1 { font-size: 1.6em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; font-size: 0.9em; }
+td, th { border: 1px solid #ddd; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
+th { background: #f3f3f3; }
+.figure svg, .figure img { max-width: 100%; height: auto; }
+pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
+.ok { color: #1a7f37; } .bad { color: #b3261e; }
+"""
+
+
+def _svg(path: Path) -> str:
+    """An SVG file's markup, without its XML prolog and doctype (inline in HTML)."""
+    text = path.read_text(encoding="utf-8")
+    return re.sub(r"^\s*(<\?xml[^>]*>\s*)?(<!DOCTYPE[^>]*>\s*)?", "", text)
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list):
+        return " / ".join(_cell(v) for v in value)
+    return html.escape(str(value))
+
+
+def _summary(summary: dict[str, Any]) -> str:
+    rows = summary.get("instances", [])
+    keys = [k for k in (rows[0] if rows else {}) if k != "instance"]
+    head = "".join(f"<th>{html.escape(k)}</th>" for k in ["instance", *keys])
+    body = []
+    for row in rows:
+        cls = "ok" if row.get("outcome") in ("ok", "success") else "bad"
+        cells = [f"<td>{row.get('instance', '')}</td>"]
+        cells += [f"<td class='{cls}'>{_cell(row[k])}</td>" if k == "outcome" else
+                  f"<td>{_cell(row.get(k, ''))}</td>" for k in keys]
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    tally = ", ".join(f"{k}: {v}" for k, v in (summary.get("outcomes") or {}).items())
+    facts = (f"<p>{summary.get('n', len(rows))} instance(s), seed {summary.get('seed')}, "
+             f"{summary.get('duration')} s simulated at most — {html.escape(tally)}</p>")
+    return facts + f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any],
+                 output: str | os.PathLike | None = None, instance: int = 0,
+                 animation: bool = True) -> Path:
+    """Write ``report.html`` (or ``output``) for the run folder ``folder`` from its trace
+    and summary (``trace.json``, ``summary.json``, as ``hybridteam run`` writes them). The
+    state diagram and an animation already in the folder are used; the other views are
+    drawn now, for ``instance``."""
+    from hybridteam.export.animate import write_animation
+    from hybridteam.export.sequence import sequence_chart
+    from hybridteam.export.timeline import write_timeline
+    from hybridteam.export.trajectories import write_trajectories
+
+    folder = Path(folder)
+    team = html.escape(str(trace.meta.get("team", folder.name)))
+    parts = [f"<h1>{team}</h1>", f"<section id='summary'><h2>Summary</h2>"
+             f"{_summary(summary)}</section>"]
+    with tempfile.TemporaryDirectory() as tmp:
+        scratch = Path(tmp)
+        diagram = folder / "modes.svg"
+        parts.append("<section id='diagram'><h2>State diagram</h2><div class='figure'>" +
+                     (_svg(diagram) if diagram.is_file() else
+                      "<p>(no modes.svg in the folder: run without --no-views)</p>") +
+                     "</div></section>")
+        write_timeline(trace, scratch / "timeline.svg", instance=instance)
+        parts.append("<section id='timeline'><h2>Timeline</h2><div class='figure'>" +
+                     _svg(scratch / "timeline.svg") + "</div></section>")
+        write_trajectories(trace, scratch / "trajectories.svg", instance=instance)
+        parts.append("<section id='trajectories'><h2>Trajectories</h2><div class='figure'>"
+                     + _svg(scratch / "trajectories.svg") + "</div></section>")
+        if animation:
+            gif = folder / "run.gif"
+            if not gif.is_file():
+                gif = write_animation(trace, scratch / "run.gif", instance=instance, fps=10,
+                                      dpi=80)
+            uri = "data:image/gif;base64," + base64.b64encode(gif.read_bytes()).decode()
+            parts.append("<section id='animation'><h2>Animation</h2><div class='figure'>"
+                         f"<img alt='animation of the run' src='{uri}'></div></section>")
+    chart = sequence_chart(trace, "mermaid", instance=instance, sockets=("control",))
+    parts.append("<section id='sequence'><h2>Message sequence chart</h2><p>Mermaid source "
+                 "(control messages; paste into a Mermaid viewer to draw it):</p>"
+                 f"<pre>{html.escape(chart)}</pre></section>")
+    page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<title>{team} — hybridteam run</title><style>{_STYLE}</style></head><body>"
+            + "\n".join(parts) + "</body></html>\n")
+    out = Path(output) if output is not None else folder / "report.html"
+    write_atomic(out, page)
+    return out
