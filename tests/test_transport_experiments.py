@@ -192,3 +192,25 @@ def test_experiment2_animation_shows_the_box_in_every_frame_and_no_label_overlap
         texts = [x for ax in fig.axes for x in ax.texts if x.get_visible() and x.get_text()]
         boxes = [x.get_window_extent(renderer) for x in texts]
         assert not _overlaps(boxes), (t, [texts[i].get_text() for i, _ in _overlaps(boxes)])
+
+
+def test_close_ups_of_every_hand_over_have_no_overlapping_text(experiment):
+    """Each experiment's first hand-over, 20 ms before its first control message to 150 ms
+    after (the Fig. 10 close-up): mode names, message labels and lost-message labels are
+    all drawn, none over another."""
+    name, _team, run = experiment
+    first, _then = LEADERSHIP[name]
+    m = run.messages
+    control = [(t, s, r) for t, s, r, k, ty in zip(m["t_send"], m["sender"], m["receiver"],
+                                                    m["socket"], m["type"], strict=True)
+               if k == "control" and ty in ("request", "offer")]
+    t0, sender, receiver = control[0]
+    fig, _data = timeline_figure(run, window=(t0 - 0.02, t0 + 0.15),
+                                 agents=[a for a in run.agents if a in (sender, receiver)])
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    texts = [x for x in fig.axes[0].texts if x.get_visible() and x.get_text()]
+    assert {x.get_gid() for x in texts} >= {"mode-label", "message-label"}, name
+    boxes = [x.get_window_extent(renderer) for x in texts]
+    assert not _overlaps(boxes), (name, [(texts[i].get_text(), texts[j].get_text())
+                                         for i, j in _overlaps(boxes)])

@@ -29,6 +29,13 @@ def loss_text(data: TimelineData) -> str:
     return " — " + ", ".join(parts) if parts else ""
 
 
+def gap_centres(data: TimelineData) -> list[float]:
+    """The middle of each white gap between two lanes (lanes are stacked downwards)."""
+    lanes = sorted(data.lanes, key=lambda lane: -lane.y)
+    return [((a.y - a.height / 2) + (b.y + b.height / 2)) / 2
+            for a, b in zip(lanes, lanes[1:], strict=False)]
+
+
 def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
     """Arrows for all messages; a label only where it does not run into the previous one
     at the same height (``char_width``: seconds per character of label text).
@@ -68,12 +75,18 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
                                 "linewidth": 0.5 if faint else 0.9})
         if not faint:
             shared[key] = [a.type]
+    gaps = gap_centres(data)
     for (t_send, t_recv, y_send, y_recv), types in shared.items():
-        x, y = (t_send + t_recv) / 2, (y_send + y_recv) / 2
+        # in the white gap between lanes nearest the arrow's middle, where the arrow
+        # crosses it (never on a bar, where it would cover a mode's name)
+        y = min(gaps, key=lambda g: abs(g - (y_send + y_recv) / 2)) if gaps else \
+            (y_send + y_recv) / 2
+        frac = (y - y_send) / (y_recv - y_send) if y_recv != y_send else 0.5
+        x = t_send + min(max(frac, 0.0), 1.0) * (t_recv - t_send) + 0.6 * char_width
         text = f"{' + '.join(types)} {latency_text(t_recv - t_send)}"
         if x >= free_from.get(y, -math.inf):
             free_from[y] = x + (len(text) + 1) * char_width
-            ax.text(x, y, text, fontsize=7, ha="left", va="center", zorder=5, path_effects=HALO,
+            ax.text(x, y, text, fontsize=7, ha="left", va="center", zorder=7, path_effects=HALO,
                     clip_on=True, gid="message-label")
     if faint_lost:
         ax.plot(*zip(*faint_lost, strict=True), linestyle="none", marker="x", color="#999999",

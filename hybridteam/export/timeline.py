@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib import rc_context
+from matplotlib import patheffects, rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
@@ -178,6 +178,16 @@ def end_time(trace: Trace, instance: int) -> float:
     return t if t > 0 else float(trace.meta.get("duration") or 1.0)
 
 
+def _phase_changes(trace: Trace, instance: int, agent: str,
+                   window: tuple[float, float]) -> bool:
+    """Whether more than one top-level mode of ``agent`` is active within ``window``."""
+    iv = pick(trace.intervals, instance).where(agent=agent)
+    top = {m for m, d, s, e in zip(iv["mode"].tolist(), iv["depth"].tolist(),
+                                   iv["start"].tolist(), iv["end"].tolist(), strict=True)
+           if d == 1 and s <= window[1] and e >= window[0]}
+    return len(top) > 1
+
+
 def common_ancestor(a: str, b: str) -> str:
     """The innermost mode containing both paths (a transition lives there); "" = top."""
     pairs = zip(a.split("."), b.split("."), strict=False)
@@ -213,6 +223,8 @@ def timeline_data(trace: Trace, instance: int = 0,
         if top is None:  # phases: more than one top-level mode, a final leaf aside
             composite &= sum(m["depth"] == 1 and not (m["final"] and m["kind"] == "leaf")
                              for m in modes) > 1
+            if window is not None:  # a close-up: only if the phase changes within it
+                composite &= _phase_changes(trace, instance, meta["name"], window)
         elif not top:
             composite = False
         rows = [("", True)] * composite + [("", False)] + [(r, False) for r in regions]
@@ -316,8 +328,11 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
         size = 6.5 if lane.top else 8.0
         lo, hi = max(b.start, t0), min(b.end, t1)
         if (hi - lo) * px_per_s > len(b.label) * size * 0.62 * fig.dpi / 72 + 4:
+            # over the message arrows, outlined in the bar's colour: an arrow passing
+            # under a mode's name stops short of its letters instead of striking them out
             ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
-                    color=text_color(b.color), clip_on=True)
+                    color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label",
+                    path_effects=[patheffects.withStroke(linewidth=3, foreground=b.color)])
     if data.marks:  # ticks across the lower edge of the lane, all in one collection
         lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
                        for m in data.marks])
