@@ -7,6 +7,7 @@ and messages that share an arrow share a label.
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import TYPE_CHECKING, Any
 
@@ -33,7 +34,7 @@ def gap_centres(data: TimelineData) -> list[float]:
     """The middle of each white gap between two lanes (lanes are stacked downwards)."""
     lanes = sorted(data.lanes, key=lambda lane: -lane.y)
     return [((a.y - a.height / 2) + (b.y + b.height / 2)) / 2
-            for a, b in zip(lanes, lanes[1:], strict=False)]
+            for a, b in itertools.pairwise(lanes)]
 
 
 def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
