@@ -199,7 +199,6 @@ def test_close_ups_of_every_hand_over_have_no_overlapping_text(experiment):
     after (the Fig. 10 close-up): mode names, message labels and lost-message labels are
     all drawn, none over another."""
     name, _team, run = experiment
-    first, _then = LEADERSHIP[name]
     m = run.messages
     control = [(t, s, r) for t, s, r, k, ty in zip(m["t_send"], m["sender"], m["receiver"],
                                                     m["socket"], m["type"], strict=True)
