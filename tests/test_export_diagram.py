@@ -429,3 +429,24 @@ def test_images_through_graphviz(nested):
     png = render(g, "png")
     assert png.startswith(b"\x89PNG\r\n\x1a\n")
     assert 400 <= mpimg.imread(io.BytesIO(png)).shape[1] <= 6000
+
+
+def test_one_agent_and_elided_details():
+    """--agent keeps one robot's modes and the messages among the kept agents only; long
+    inputs (the XR4000's sidestep, 97 characters) are cut to 44 with "…" unless details."""
+    from hybridteam.export.diagram import ELIDE, diagram_graph
+
+    team = ht.load(EXAMPLES / "transport" / "experiment2.yaml")
+    lab = diagram_graph(team, ["labmate"])
+    assert {d.get("agent") or n for n, d in lab.nodes(data=True)} == {"labmate"}
+    owner = {n: d.get("agent") or n for n, d in lab.nodes(data=True)}
+    assert all(owner[u] == owner[v] == "labmate" for u, v in lab.edges())
+    whole = diagram_graph(team)
+    assert any(d["kind"] == "message" for _u, _v, d in whole.edges(data=True))
+    side = next(n for n, d in whole.nodes(data=True) if d.get("path", "").endswith("Sidestep"))
+    cut = whole.nodes[side]["dynamics"]
+    full = diagram_graph(team, details=True).nodes[side]["dynamics"]
+    assert len(full) > ELIDE and len(cut) == ELIDE and cut.endswith("…")
+    assert full.startswith(cut[:-1].rstrip())
+    with pytest.raises(ValueError, match="no agent 'lab' in team 'experiment2'"):
+        diagram_graph(team, ["lab"])

@@ -28,6 +28,11 @@ def register(sub) -> dict:
                    help="roles: a protocol's states summarised by the roles they play (Lead, "
                         "Follow), as a paper draws them; full: every protocol state, "
                         "transition and message (default: roles)")
+    d.add_argument("--agent", action="append", default=None, metavar="NAME",
+                   help="only this agent (repeat for more; default: the whole team)")
+    d.add_argument("--details", action="store_true",
+                   help="inputs, laws and transition labels in full (default: cut to "
+                   "44 characters)")
 
     tl = _trace_parser(sub, "timeline", "draw the mode timeline of a run")
     tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
@@ -150,7 +155,10 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     team = load_team_or_report(args.model)
     if team is None:
         return EXIT_USAGE
-    graph = diagram_graph(team)
+    try:
+        graph = diagram_graph(team, args.agent, details=args.details)
+    except ValueError as exc:
+        raise UsageError(f"--agent: {exc}") from None
     if args.detail == "roles":
         from hybridteam.export.roles import roles_view
 

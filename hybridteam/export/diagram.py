@@ -177,12 +177,46 @@ def _add_messages(graph: nx.MultiDiGraph, team: Team, agents: list[CAgent]) -> N
                               protocol=protocol_of(tr.where))
 
 
-def diagram_graph(team: Team) -> nx.MultiDiGraph:
+#: Longest text a state box or an edge shows without ``details`` (characters); longer
+#: inputs, laws and labels end in "…" — a diagram is for the structure, the file has the rest
+ELIDE = 44
+
+
+def elide(text: str, limit: int = ELIDE) -> str:
+    """``text`` cut to ``limit`` characters, ending in "…" when cut."""
+    return text if len(text) <= limit else text[: limit - 1].rstrip() + "…"
+
+
+def diagram_graph(team: Team, agents: list[str] | None = None,
+                  details: bool = False) -> nx.MultiDiGraph:
     """The team as one graph: agents, their mode trees, transitions and message links.
 
-    Raises :class:`~hybridteam.errors.ModelErrors` if the team does not compile: a diagram
-    of a model whose transitions cannot be resolved would silently be wrong.
+    ``agents``: only these agents (messages between them only); ``details``: every input
+    expression and transition label in full (by default each is cut to ``ELIDE``
+    characters). Raises :class:`~hybridteam.errors.ModelErrors` if the team does not
+    compile: a diagram of a model whose transitions cannot be resolved would silently be
+    wrong; ValueError names an unknown agent.
     """
+    graph = _whole_graph(team)
+    if agents is not None:
+        names = [a.name for a in team.agents]
+        for name in agents:
+            if name not in names:
+                raise ValueError(f"no agent '{name}' in team '{team.name}' (agents: "
+                                 f"{', '.join(names)})")
+        graph.remove_nodes_from([n for n, d in list(graph.nodes(data=True))
+                                 if (d.get("agent") or n) not in agents])
+    if not details:
+        for _n, d in graph.nodes(data=True):
+            if d.get("dynamics"):
+                d["dynamics"] = elide(d["dynamics"])
+        for _u, _v, d in graph.edges(data=True):
+            if d.get("kind") == "transition":
+                d["label"] = elide(d["label"])
+    return graph
+
+
+def _whole_graph(team: Team) -> nx.MultiDiGraph:
     cteam = compile_team(team)
     graph = nx.MultiDiGraph(name=team.name)
     colors = team_mode_colors([(m.path, m.final, m.role) for m in a.modes[1:]]
