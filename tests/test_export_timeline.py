@@ -296,7 +296,7 @@ def test_final_modes_get_distinct_colours():
 def test_the_legend_is_grouped_by_robot_with_short_names(team_from_yaml):
     """Two robots: each name heads its modes (bold), modes by their shortest unambiguous
     suffix — Lead.Curve and Offering.Curve stay apart, Follow is just Follow."""
-    from hybridteam.export.timeline import short_names
+    from hybridteam.export.legend import short_names
 
     assert short_names(["Transport.Lead.Curve", "Transport.Offering.Curve",
                         "Transport.Follow"]) == {

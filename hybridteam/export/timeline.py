@@ -27,15 +27,14 @@ import numpy as np
 from matplotlib import patheffects, rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.patches import Patch
 
 from hybridteam.errors import did_you_mean
 from hybridteam.export.arrows import draw_messages, loss_text
+from hybridteam.export.figures import DATA_FORMATS, figure_format, save_figure
+from hybridteam.export.legend import legend_handles
 from hybridteam.export.style import FONT, team_mode_colors, text_color
 from hybridteam.trace import Table, Trace, write_atomic
 
-FIGURE_FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
-DATA_FORMATS = {".csv": "csv", ".json": "json"}
 MAIN_HEIGHT, TOP_HEIGHT, GAP = 0.8, 0.35, 0.35
 
 
@@ -361,61 +360,7 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
             box.get_texts()[k].set_fontweight("bold")
 
 
-def short_names(paths: list[str]) -> dict[str, str]:
-    """Each path by its shortest suffix that no other path of the list ends with:
-    ``Transport.Lead.Curve`` is ``Curve`` unless ``Transport.Offering.Curve`` is listed too,
-    when the two are ``Lead.Curve`` and ``Offering.Curve``."""
-    out: dict[str, str] = {}
-    for path in paths:
-        parts = path.split(".")
-        for k in range(1, len(parts) + 1):
-            tail = ".".join(parts[-k:])
-            if not any(o != path and (o == tail or o.endswith("." + tail)) for o in paths):
-                break
-        out[path] = tail
-    return out
-
-
-def legend_handles(legend: dict[str, dict[str, str]]) -> tuple[list[Any], list[int]]:
-    """The legend grouped by robot: the robot's name (a heading, at the returned positions;
-    none for a single robot), then its modes by short name (a mode two robots share appears
-    under each, in the same colour)."""
-    handles: list[Any] = []
-    heads: list[int] = []
-    for agent, modes in legend.items():
-        if len(legend) > 1:
-            heads.append(len(handles))
-            handles.append(Patch(facecolor="none", edgecolor="none", label=agent))
-        short = short_names(list(modes))
-        handles += [Patch(facecolor=c, label=short[path]) for path, c in modes.items()]
-    return handles, heads
-
-
 # ---------------------------------------------------------------------- files
-def figure_format(path: str | os.PathLike, formats: dict[str, str] = FIGURE_FORMATS) -> str:
-    suffix = Path(path).suffix.lower()
-    if suffix not in formats:
-        raise ValueError(f"{path}: unsupported format {suffix or '(none)'}; "
-                         f"use one of {', '.join(formats)}")
-    return formats[suffix]
-
-
-def save_figure(fig: Figure, path: str | os.PathLike, tight: bool = True) -> Path:
-    """Save as PNG, SVG or PDF (by extension) without leaving a partial file; text stays
-    text in SVG (searchable, and the names can be checked), PDF is vector for papers, and no
-    date is stamped into either (the same figure gives the same bytes). ``tight`` crops to
-    what is drawn; off, the file has the figure's own size (a size the user asked for)."""
-    path = Path(path)
-    fmt = figure_format(path)
-    buf = io.BytesIO()
-    metadata = {"svg": {"Date": None},
-                "pdf": {"CreationDate": None, "ModDate": None, "Producer": None}}.get(fmt)
-    with rc_context({"svg.fonttype": "none", "svg.hashsalt": "hybridteam"}):
-        fig.savefig(buf, format=fmt, bbox_inches="tight" if tight else None, dpi=fig.dpi,
-                    metadata=metadata)
-    return write_atomic(path, buf.getvalue())
-
-
 def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
                    window: tuple[float, float] | None = None,
                    data_path: str | os.PathLike | None = None,

@@ -23,6 +23,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from hybridteam.export.figures import save_figure
 from hybridteam.export.scene import (
     draw_guides,
     draw_payloads,
@@ -41,7 +42,6 @@ from hybridteam.export.timeline import (
     end_time,
     mode_lanes,
     pick,
-    save_figure,
     team_colors,
 )
 from hybridteam.trace import Table, Trace

@@ -88,7 +88,7 @@ def plot_factor(table: ResultTable, factor: str, axes: list[str]):
 
 def write_plots(out: Path, record: dict[str, Any], table: ResultTable) -> list[Path]:
     """``plots/success_<factor>.png`` and ``.svg`` for every factor; the PNG paths."""
-    from hybridteam.export.timeline import save_figure
+    from hybridteam.export.figures import save_figure
 
     axes = [a for a in record.get("axes", []) if a in table.columns]
     factors = list(dict.fromkeys(r["factor"] for r in table.rows))
