@@ -450,3 +450,23 @@ def test_one_agent_and_elided_details():
     assert full.startswith(cut[:-1].rstrip())
     with pytest.raises(ValueError, match="no agent 'lab' in team 'experiment2'"):
         diagram_graph(team, ["lab"])
+
+
+@pytest.mark.parametrize("name", ["experiment1", "experiment2", "experiment3"])
+def test_built_in_full_diagram_has_no_overlapping_text(name):
+    """The full diagram (every protocol state, transition and message) of each transport
+    experiment, drawn by the built-in layout: no two texts — mode names, their inputs,
+    composite titles, edge labels, footnote markers — overlap (matplotlib's extents)."""
+    from hybridteam.export.image import diagram_figure
+
+    graph = diagram_graph(ht.load(EXAMPLES / "transport" / f"{name}.yaml"))
+    fig = diagram_figure(graph, dpi=72.0)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    texts = [t for t in fig.axes[0].texts if t.get_text().strip()]
+    boxes = [t.get_window_extent(renderer) for t in texts]
+    clash = [(texts[i].get_text()[:30], texts[j].get_text()[:30])
+             for i in range(len(boxes)) for j in range(i + 1, len(boxes))
+             if boxes[i].overlaps(boxes[j])]
+    assert clash == []
+    assert any(t.get_gid() == "edge-label" for t in texts)

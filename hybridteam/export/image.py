@@ -6,17 +6,18 @@ built-in layout draws the same diagram with matplotlib: one panel per agent side
 composites as labelled boxes holding their children, children stacked in layers found by a
 breadth-first walk from the initial mode (so the default path reads top to bottom),
 parallel regions side by side with dashed borders, messages as dashed arrows between
-panels. It is deterministic: same graph, same picture.
+panels (:mod:`.layout`). Edge labels are placed clear of boxes and of each other, or
+become footnotes under the diagram (:mod:`.labels`). It is deterministic: same graph, same
+picture.
 """
 
 from __future__ import annotations
 
 import io
-import re
+import math
 import shutil
 import subprocess
-import textwrap
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import matplotlib as mpl
 import networkx as nx
@@ -24,186 +25,23 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, FancyArrowPatch, FancyBboxPatch
 
-from hybridteam.export.diagram import (
-    agents,
-    ancestors,
-    children,
-    edges_of,
-    initial_child,
-    is_composite,
+from hybridteam.export.diagram import edges_of, initial_child, is_composite
+from hybridteam.export.labels import Placer, Rect, text_size
+from hybridteam.export.layout import (
+    NAME_PT,
+    PAD,
+    SMALL_PT,
+    TITLE,
+    Box,
+    Layout,
+    _text_width,
+    _wrap,
 )
 from hybridteam.export.render import state_title, to_dot
 from hybridteam.export.style import FONT, text_color
 
-NAME_PT, SMALL_PT = 8.0, 6.5  # font sizes; layout units are points
-GAP_X, GAP_Y, PAD, TITLE = 26.0, 34.0, 8.0, 15.0
-ROW_MAX = 4  # boxes per row before a layer wraps
-PANEL_GAP, WRAP = 80.0, 34
 EDGE, MESSAGE = "#333333", "#777777"
 DOT_TIMEOUT = 30.0
-
-
-def _text_width(lines: list[str], size: float) -> float:
-    """Rough width of text in points (DejaVu Sans averages ~0.6 em per character)."""
-    return max((len(s) for s in lines), default=0) * size * 0.6
-
-
-def _wrap(text: str, width: int = WRAP) -> list[str]:
-    """Lines of at most ``width`` characters; a rate such as ``@10 Hz`` stays in one piece."""
-    text = re.sub(r"@(\S+) Hz", "@\\1\u00a0Hz", text)
-    return textwrap.wrap(text, width, break_on_hyphens=False) if text else []
-
-
-@dataclass
-class Box:
-    """A mode's rectangle (points, y downwards); ``rows`` hold a composite's children."""
-
-    node: str
-    w: float = 0.0
-    h: float = 0.0
-    x: float = 0.0
-    y: float = 0.0
-    loop: float = 0.0  # room kept on the right for self-loops and their labels
-    rows: list[list[Box]] = field(default_factory=list)
-    gaps: list[float] = field(default_factory=list)  # below each row: room for edge labels
-    row_gaps: list[float] = field(default_factory=list)  # between the boxes of each row
-    lines: list[str] = field(default_factory=list)
-
-
-class Layout:
-    """Sizes and positions of every mode box of a team, agents side by side."""
-
-    def __init__(self, graph: nx.MultiDiGraph) -> None:
-        self.graph = graph
-        self.boxes: dict[str, Box] = {}
-        self.transitions = edges_of(graph, "transition")
-        self.loops: dict[str, list[str]] = {}
-        for u, v, d in self.transitions:
-            if u == v:
-                self.loops.setdefault(u, []).append(d["label"])
-        self.up = {n: ancestors(graph, n) for n in graph.nodes}
-        self.panels = [self.measure(a) for a in agents(graph)]
-        x = PAD
-        for panel in self.panels:
-            self.place(panel, x, PAD + TITLE)
-            x += panel.w + panel.loop + PANEL_GAP
-        self.width = max(x - PANEL_GAP + PAD, 240.0)
-        self.height = max(p.h for p in self.panels) + 2 * PAD + TITLE
-
-    # -------------------------------------------------------------- sizes
-    def measure(self, node: str) -> Box:
-        data = self.graph.nodes[node]
-        box = Box(node)
-        self.boxes[node] = box
-        if node in self.loops:
-            labels = [line for text in self.loops[node] for line in _wrap(text, 24)]
-            box.loop = 26.0 + _text_width(labels, SMALL_PT)
-        if not is_composite(self.graph, node):
-            box.lines = _wrap(data["dynamics"]) + _wrap(
-                f"inv: {data['invariant']}" if data["invariant"] else "")
-            box.w = max(_text_width([data["name"]], NAME_PT) * 1.1,
-                        _text_width(box.lines, SMALL_PT), 44.0) + 2 * PAD
-            box.h = NAME_PT * 1.5 + len(box.lines) * SMALL_PT * 1.3 + PAD
-            return box
-        kids = [self.measure(c) for c in children(self.graph, node)]
-        if not kids:  # an agent without modes (possible when built in Python): an empty box
-            box.w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
-            box.h = TITLE + 2 * PAD
-            return box
-        if data.get("mode_kind") == "and":
-            box.rows = [kids]  # regions side by side
-            inner_w = sum(k.w + k.loop for k in kids) + PAD * (len(kids) - 1)
-            inner_h = max(k.h for k in kids)
-        else:
-            box.rows = self.layers(node, kids)
-            box.gaps, box.row_gaps = self.label_room(node, box.rows)
-            inner_w = max(sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
-                          for row, gap in zip(box.rows, box.row_gaps, strict=True))
-            labels = [line for text in self.sibling_labels(node) for line in _wrap(text, 24)]
-            widest = max(k.w for k in kids)
-            inner_w = max(inner_w, widest + 2 * (_text_width(labels, SMALL_PT) + 6))
-            inner_h = sum(max(k.h for k in row) for row in box.rows) + sum(box.gaps[:-1])
-        title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
-        box.w = max(inner_w + 2 * PAD + 14.0, title_w)  # 14: room for the initial dot
-        box.h = inner_h + TITLE + 2 * PAD
-        return box
-
-    def label_room(self, node: str, rows: list[list[Box]]) -> tuple[list[float], list[float]]:
-        """Room for the labels of edges between children of ``node``: below each row, the
-        tallest label of an edge to the next row (labels sit half-way along an edge); within
-        a row, the widest label of an edge between two of its boxes."""
-        row_of = {k.node: i for i, row in enumerate(rows) for k in row}
-        tall = [0] * len(rows)
-        wide = [0.0] * len(rows)
-        for u, v, d in self.transitions:
-            a = next((n for n in self.up[u] if n in row_of), None)
-            b = next((n for n in self.up[v] if n in row_of), None)
-            if a is None or b is None or a == b:
-                continue
-            lines = _wrap(d["label"], 24)
-            ra, rb = sorted((row_of[a], row_of[b]))
-            if ra == rb:
-                wide[ra] = max(wide[ra], _text_width(lines, SMALL_PT) + 12.0)
-            elif rb == ra + 1:
-                tall[ra] = max(tall[ra], len(lines))
-        gaps = [max(GAP_Y, n * SMALL_PT * 1.25 + 16.0) for n in tall]
-        return gaps, [max(GAP_X, w) for w in wide]
-
-    def sibling_labels(self, node: str) -> list[str]:
-        """Labels of transitions between different children of ``node`` (drawn inside it)."""
-        found = []
-        for u, v, d in self.transitions:
-            a, b = self.up[u], self.up[v]
-            if node in a[1:] and node in b[1:] and a[a.index(node) - 1] != b[b.index(node) - 1]:
-                found.append(d["label"])
-        return found
-
-    def layers(self, node: str, kids: list[Box]) -> list[list[Box]]:
-        """Children in breadth-first layers from the initial child, following transitions
-        between the subtrees of siblings; unreached children start new layers in order."""
-        index = {k.node: i for i, k in enumerate(kids)}
-        succ: dict[str, list[str]] = {k.node: [] for k in kids}
-        for u, v, _ in self.transitions:
-            a = next((n for n in self.up[u] if n in index), None)
-            b = next((n for n in self.up[v] if n in index), None)
-            if a and b and a != b and b not in succ[a]:
-                succ[a].append(b)
-        layer: dict[str, int] = {}
-        first = initial_child(self.graph, node)
-        seeds = ([first] if first else []) + [k.node for k in kids]
-        for seed in seeds:
-            if seed in layer:
-                continue
-            layer[seed] = max(layer.values(), default=-1) + 1
-            queue = [seed]
-            while queue:
-                cur = queue.pop(0)
-                for nxt in succ[cur]:
-                    if nxt not in layer:
-                        layer[nxt] = layer[cur] + 1
-                        queue.append(nxt)
-        rows: list[list[Box]] = []
-        for level in sorted(set(layer.values())):
-            members = [k for k in kids if layer[k.node] == level]
-            rows += [members[i:i + ROW_MAX] for i in range(0, len(members), ROW_MAX)]
-        return rows
-
-    # -------------------------------------------------------------- positions
-    def place(self, box: Box, x: float, y: float) -> None:
-        box.x, box.y = x, y
-        if not box.rows:
-            return
-        and_mode = self.graph.nodes[box.node].get("mode_kind") == "and"
-        cy = y + TITLE + PAD
-        for i, row in enumerate(box.rows):
-            gap = PAD if and_mode else box.row_gaps[i]
-            row_w = sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
-            cx = x + 14.0 + PAD + (box.w - 14.0 - 2 * PAD - row_w) / 2
-            for k in row:
-                self.place(k, cx, cy + (0 if and_mode else (max(r.h for r in row) - k.h) / 2))
-                cx += k.w + k.loop + gap
-            cy += max(k.h for k in row) + (GAP_Y if and_mode else box.gaps[i])
-
 
 # ------------------------------------------------------------------ drawing
 
@@ -248,12 +86,11 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
               fontsize=SMALL_PT, ha="center", va="top", color=ink, linespacing=1.15)
 
 
-def _label(ax, x: float, y: float, text: str, color: str, **kw) -> None:
-    if text:
-        _text(ax, x, y, "\n".join(_wrap(text, 24)), fontsize=SMALL_PT, color=color,
-              ha=kw.pop("ha", "center"), va=kw.pop("va", "center"), linespacing=1.1, zorder=5,
-              bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
-              **kw)
+def _label(ax, x: float, y: float, lines: list[str], color: str, **kw) -> None:
+    _text(ax, x, y, "\n".join(lines), fontsize=SMALL_PT, color=color, ha="center",
+          va="center", linespacing=1.1, zorder=5, gid="edge-label",
+          bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
+          **kw)
 
 
 def _clip(box: Box, toward: tuple[float, float]) -> tuple[float, float]:
@@ -315,69 +152,144 @@ def _bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool) ->
     return best
 
 
-def _draw_edge(ax, layout: Layout, u: str, v: str, label: str, rad: float,
-               message: bool) -> None:
-    color = MESSAGE if message else EDGE
-    pa, pb = _ends(layout, u, v)
-    rad = _bend(layout, u, v, pa, pb, rad, message)
-    ax.add_patch(FancyArrowPatch(pa, pb, connectionstyle=f"arc3,rad={rad}", arrowstyle="-|>",
-                                 mutation_scale=9, lw=1.0, color=color, shrinkA=1, shrinkB=1,
-                                 zorder=4, ls="--" if message else "-"))
-    # the label sits on the curve (past the middle for messages, so two opposite messages
-    # do not share a spot), on the outside of the bend
-    mx, my = _bezier(pa, pb, rad, 0.7 if message else 0.5)
-    ox, oy = -rad * (pb[1] - pa[1]), rad * (pb[0] - pa[0])
-    if abs(ox) >= abs(oy):
-        align = {"ha": "left" if ox > 0 else "right", "va": "center"}
-        mx += 3 if ox > 0 else -3
-    else:
-        align = {"ha": "center", "va": "top" if oy > 0 else "bottom"}
-    _label(ax, mx, my, label, color, fontstyle="italic" if message else "normal", **align)
+@dataclass
+class _Edge:
+    """An edge ready to draw: its ends and bend, its label's text and centre."""
+
+    pa: tuple[float, float]
+    pb: tuple[float, float]
+    rad: float
+    message: bool
+    lines: list[str]
+    at: tuple[float, float]
+    loop: bool = False
 
 
-def _draw_loop(ax, box: Box, label: str, k: int) -> None:
-    x, cy = box.x + box.w, box.y + min(box.h / 2, 14.0)
-    rad = -2.6 - 1.2 * k
-    ax.add_patch(FancyArrowPatch((x, cy - 5), (x, cy + 5), connectionstyle=f"arc3,rad={rad}",
-                                 arrowstyle="-|>", mutation_scale=8, lw=1.0, color=EDGE,
-                                 shrinkA=0, shrinkB=0, zorder=4))
-    _label(ax, x - rad * 5 + 6, cy + 10 * k, label, EDGE, ha="left")
+def _spots(pa, pb, rad: float, ts: tuple[float, ...], step: float
+           ) -> list[tuple[float, float]]:
+    """Candidate label centres: points of the curve at ``ts``, then beside it either side."""
+    out = []
+    for k in (0, 1, -1, 2, -2, 3, -3):
+        for t in ts:
+            x, y = _bezier(pa, pb, rad, t)
+            x2, y2 = _bezier(pa, pb, rad, min(t + 0.01, 1.0))
+            tx, ty = x2 - x, y2 - y
+            norm = max((tx * tx + ty * ty) ** 0.5, 1e-9)
+            out.append((x - ty / norm * k * step, y + tx / norm * k * step))
+    return out
+
+
+def _place(placer: Placer, text: str, spots: list[tuple[float, float]],
+           more: list[tuple[float, float]]) -> tuple[list[str], tuple[float, float]]:
+    """The label's lines and centre: at the first free spot, else a footnote marker at the
+    first free one of ``spots`` and ``more`` (denser, further out), else at the first."""
+    lines = _wrap(text, 24)
+    w, h = text_size(lines, SMALL_PT)
+    at = placer.place(spots, w, h)
+    if at is None:
+        lines = [placer.footnote(text)]
+        w, h = text_size(lines, SMALL_PT)
+        at = placer.place([*spots, *more, *_spiral(*spots[0])], w, h) or spots[0]
+    return lines, at
+
+
+def _spiral(x: float, y: float) -> list[tuple[float, float]]:
+    """Spots on rings of growing radius around (x, y): somewhere near, a marker fits."""
+    return [(x + r * math.cos(a * math.pi / 8), y + r * math.sin(a * math.pi / 8))
+            for r in range(8, 400, 6) for a in range(16)]
+
+
+def _blocked(layout: Layout) -> list[Rect]:
+    """What a label must not cover: every mode box with text in it and composite titles."""
+    out: list[Rect] = [(PAD, PAD, PAD + 200.0, PAD + TITLE)]  # the team's title
+    for node, b in layout.boxes.items():
+        if is_composite(layout.graph, node):
+            w = _text_width([state_title(layout.graph, node)], NAME_PT) + 2 * PAD
+            out.append((b.x, b.y, b.x + w, b.y + TITLE))
+        else:
+            out.append((b.x, b.y, b.x + b.w, b.y + b.h))
+    return out
+
+
+def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str]]:
+    """Every edge's geometry and label spot, and the labels that became footnotes."""
+    placer = Placer(_blocked(layout))
+    edges: list[_Edge] = []
+    seen: dict[frozenset, int] = {}
+    for u, v, d in layout.transitions + edges_of(graph, "message"):
+        message = d["kind"] == "message"
+        text = d["message"] if message else d["label"]
+        k = seen.get(frozenset((u, v)), 0)
+        seen[frozenset((u, v))] = k + 1
+        if u == v:
+            box = layout.boxes[u]
+            x, cy = box.x + box.w, box.y + min(box.h / 2, 14.0)
+            rad = -2.6 - 1.2 * k
+            w, _h = text_size(_wrap(text, 24), SMALL_PT)
+            spots = [(x - rad * 5 + 8 + w / 2, cy + dy) for dy in
+                     (10 * k, *(s * j * 9.0 for j in range(1, 12) for s in (1, -1)))]
+            more = [(x - rad * 5 + 14, cy + s * j * 5.0) for j in range(1, 40) for s in (1, -1)]
+            lines, at = _place(placer, text, spots, more)
+            edges.append(_Edge((x, cy - 5), (x, cy + 5), rad, False, lines, at, loop=True))
+            continue
+        pa, pb = _ends(layout, u, v)
+        rad = _bend(layout, u, v, pa, pb, (0.18 if message else 0.12) + 0.18 * k, message)
+        ts = (0.7, 0.6, 0.8, 0.5) if message else (0.5, 0.4, 0.6, 0.3, 0.7, 0.22, 0.78)
+        dense = tuple(k / 20 for k in range(1, 20))
+        lines, at = _place(placer, text, _spots(pa, pb, rad, ts, 9.0),
+                           _spots(pa, pb, rad, dense, 6.0))
+        edges.append(_Edge(pa, pb, rad, message, lines, at))
+    return edges, placer.notes
+
+
+def _draw_edge(ax, edge: _Edge) -> None:
+    color = MESSAGE if edge.message else EDGE
+    ax.add_patch(FancyArrowPatch(edge.pa, edge.pb, connectionstyle=f"arc3,rad={edge.rad}",
+                                 arrowstyle="-|>", mutation_scale=8 if edge.loop else 9,
+                                 lw=1.0, color=color, shrinkA=0 if edge.loop else 1,
+                                 shrinkB=0 if edge.loop else 1, zorder=4,
+                                 ls="--" if edge.message else "-"))
+    _label(ax, *edge.at, edge.lines, color, fontstyle="italic" if edge.message else "normal")
+
+
+def diagram_figure(graph: nx.MultiDiGraph, dpi: float = 150.0) -> Figure:
+    """The built-in drawing of the diagram graph as a matplotlib figure (points as data
+    units, y down): boxes, edges, labels clear of each other, footnotes below."""
+    layout = Layout(graph)
+    edges, notes = _plan(layout, graph)
+    note_lines = [line for k, text in enumerate(notes, 1)
+                  for line in _wrap(f"({k}) {text}", 90)]
+    w = layout.width
+    h = layout.height + (len(note_lines) * SMALL_PT * 1.3 + 2 * PAD if note_lines else 0.0)
+    dpi = min(dpi, 5800.0 * 72.0 / max(w, h))  # keep the image under ~6000 px a side
+    fig = Figure(figsize=(w / 72.0, h / 72.0), dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.set_xlim(0, w)
+    ax.set_ylim(h, 0)
+    ax.set_aspect("equal")
+    ax.axis("off")
+    _text(ax, PAD, PAD, f"team {graph.graph.get('name', '')}", fontsize=NAME_PT + 1,
+          fontweight="bold", va="top", ha="left")
+    for panel in layout.panels:
+        _draw_box(ax, layout, panel, 0)
+    for edge in edges:
+        _draw_edge(ax, edge)
+    if note_lines:
+        _text(ax, PAD, layout.height, "\n".join(note_lines), fontsize=SMALL_PT, va="top",
+              ha="left", color=EDGE, linespacing=1.15, gid="footnotes")
+    return fig
 
 
 def draw(graph: nx.MultiDiGraph, fmt: str, dpi: float = 150.0) -> bytes:
-    """The built-in matplotlib drawing of the diagram graph as ``svg`` or ``png`` bytes."""
-    layout = Layout(graph)
-    w, h = layout.width, layout.height
-    dpi = min(dpi, 5800.0 * 72.0 / max(w, h))  # keep the image under ~6000 px a side
+    """The built-in matplotlib drawing of the diagram graph as ``svg``/``png``/``pdf``."""
     with mpl.rc_context({"svg.fonttype": "none", "font.family": FONT, "svg.hashsalt": "ht",
                          "path.simplify": False}):
-        fig = Figure(figsize=(w / 72.0, h / 72.0), dpi=dpi)
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
-        ax.set_xlim(0, w)
-        ax.set_ylim(h, 0)
-        ax.set_aspect("equal")
-        ax.axis("off")
-        _text(ax, PAD, PAD, f"team {graph.graph.get('name', '')}", fontsize=NAME_PT + 1,
-              fontweight="bold", va="top", ha="left")
-        for panel in layout.panels:
-            _draw_box(ax, layout, panel, 0)
-        seen: dict[frozenset, int] = {}
-        for u, v, d in layout.transitions + edges_of(graph, "message"):
-            message = d["kind"] == "message"
-            if u == v:
-                k = seen.get(frozenset((u,)), 0)
-                seen[frozenset((u,))] = k + 1
-                _draw_loop(ax, layout.boxes[u], d["label"], k)
-                continue
-            k = seen.get(frozenset((u, v)), 0)
-            seen[frozenset((u, v))] = k + 1
-            rad = (0.18 if message else 0.12) + 0.18 * k
-            _draw_edge(ax, layout, u, v, d["message"] if message else d["label"], rad, message)
+        fig = diagram_figure(graph, dpi)
         out = io.BytesIO()
         # "tight" grows the canvas to any label that reaches past the estimated layout
-        fig.savefig(out, format=fmt, dpi=dpi, metadata=_metadata(fmt), bbox_inches="tight",
-                    pad_inches=0.08)
+        fig.savefig(out, format=fmt, dpi=fig.dpi, metadata=_metadata(fmt),
+                    bbox_inches="tight", pad_inches=0.08)
         fig.clear()
     return out.getvalue()
 
