@@ -230,3 +230,17 @@ def test_progress_is_reported_in_lines_when_not_on_a_terminal(tmp_path, capsys, 
     monkeypatch.undo()
     assert main(["run", THERMO, "-o", str(tmp_path / "q"), "--no-views"]) == 0
     assert "simulated," not in capsys.readouterr().err  # quick: no progress lines
+
+
+def test_every_view_writes_a_valid_pdf(tmp_path, relay_trace, capsys):
+    """Papers need vector PDF: the diagram, the timeline (whole and close-up) and the
+    trajectories each write one with a PDF header and at least one page."""
+    outs = {"diagram": ["diagram", RELAY], "timeline": ["timeline", str(relay_trace)],
+            "close-up": ["timeline", str(relay_trace), "--window", "4.9", "5.1"],
+            "plot": ["plot", str(relay_trace)]}
+    for name, args in outs.items():
+        path = tmp_path / f"{name}.pdf"
+        assert main([*args, "-o", str(path)]) == 0, name
+        data = path.read_bytes()
+        assert data[:5] == b"%PDF-" and b"/Type /Page" in data and data.rstrip().endswith(
+            b"%%EOF"), name
