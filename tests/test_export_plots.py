@@ -229,7 +229,8 @@ def test_a_long_corridor_fills_the_plot(team_from_yaml):
     w, h = _spans(ax)
     assert 20.0 <= w <= 1.15 * 20.0 and 2.6 <= h <= 1.15 * 2.6
     assert ax.get_aspect() == 1.0
-    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    (legend,) = fig.legends  # a wide scene: the legend goes below the plot
+    labels = [t.get_text() for t in legend.get_texts()]
     assert labels == ["r", "0X: start of robot X", "footprint and heading, every 5 s",
                       "obstacle"]
 

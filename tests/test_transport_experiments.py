@@ -161,7 +161,8 @@ def test_trajectories_fit_the_scene_and_explain_their_marks(experiment):
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     assert x0 <= xy[:, 0].min() and x1 >= xy[:, 0].max(), name
     assert x1 - x0 <= 1.15 * span[0] and y1 - y0 <= 1.15 * span[1], name
-    labels = {t.get_text() for t in ax.get_legend().get_texts()}
+    legend = fig.legends[0] if fig.legends else ax.get_legend()  # below a wide scene
+    labels = {t.get_text() for t in legend.get_texts()}
     assert {"obstacle", "nX: n-th mode change, by robot X"} <= labels, name
     assert any(label.startswith("box, every ") for label in labels), name
 

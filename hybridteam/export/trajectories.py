@@ -241,9 +241,9 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         # "best" scans every plotted point: fine for a short run, seconds for a long one
         # outside the plot, never over a path or a wall: below a wide scene, beside a tall one
         handles = _legend(ax, trace, every, bool(len(at)))
-        if wide(limits or scene_extent(trace, instance)):
-            ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
-                      fontsize=7.5, frameon=False, ncol=3)
+        if wide(limits or scene_extent(trace, instance)):  # the layout makes room below
+            ax.figure.legend(handles=handles, loc="outside lower center", fontsize=7.5,
+                             frameon=False, ncol=3)
         else:
             ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                       fontsize=7.5, frameon=False)
@@ -268,11 +268,15 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
     if changes:
         handles.append(Line2D([], [], marker="o", color="#111111", linestyle="none",
                               markersize=3, label="nX: n-th mode change, by robot X"))
-    if any((agent_meta(trace, a).get("footprint") or {}).get("radius")
-           for a in planar_agents(trace)):
+    sized = [bool((agent_meta(trace, a).get("footprint") or {}).get("radius"))
+             for a in planar_agents(trace)]
+    if any(sized):
         handles.append(Line2D([], [], marker="o", markerfacecolor="none", color=grey,
                               linestyle="none", markersize=7,
                               label=f"footprint and heading, every {every:g} s"))
+    if not all(sized):
+        handles.append(Line2D([], [], marker=">", color=grey, linestyle="none",
+                              markersize=5, label=f"pose (no footprint), every {every:g} s"))
     for k, name in enumerate(payload_names(trace)):
         handles.append(Patch(facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.35,
                              edgecolor="#333333", label=f"{name}, every {every:g} s"))
