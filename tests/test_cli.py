@@ -175,6 +175,7 @@ def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     (["diagram", RELAY, "-f", "dott"], "did you mean 'dot'"),
     (["diagram", RELAY, "-f", "png"], "needs -o FILE"),
     (["timeline", "{trace}", "-o", "x.jpg"], "written as .png or .svg"),
+    (["plot", "{trace}", "-f", "svg", "-o", "x.png"], "says png but --format says svg"),
     (["timeline", "{trace}", "--window", "5", "1"], "T0 must be < T1"),
     (["timeline", "{trace}", "--instance", "3"], "instances 0..0"),
     (["plot", "{missing}"], "no such file"),
@@ -235,6 +236,7 @@ def test_progress_is_reported_in_lines_when_not_on_a_terminal(tmp_path, capsys, 
 def test_every_view_writes_a_valid_pdf(tmp_path, relay_trace, capsys):
     """Papers need vector PDF: the diagram, the timeline (whole and close-up) and the
     trajectories each write one with a PDF header and at least one page."""
+    assert main(["plot", str(relay_trace), "-f", "pdf", "-o", str(tmp_path / "f.pdf")]) == 0
     outs = {"diagram": ["diagram", RELAY], "timeline": ["timeline", str(relay_trace)],
             "close-up": ["timeline", str(relay_trace), "--window", "4.9", "5.1"],
             "plot": ["plot", str(relay_trace)]}

@@ -37,8 +37,10 @@ def register(sub) -> dict:
     tl = _trace_parser(sub, "timeline", "draw the mode timeline of a run")
     tl.add_argument("--window", nargs=2, type=float, metavar=("T0", "T1"),
                     help="close-up between two times, with message arrows")
-    tl.add_argument("-o", "--output", default="timeline.png", metavar="FILE",
-                    help=".png, .svg or .pdf (default timeline.png)")
+    tl.add_argument("-f", "--format", choices=("png", "svg", "pdf"), default=None,
+                    help="png, svg or pdf (default: from -o, else png)")
+    tl.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help=".png, .svg or .pdf (default timeline.<format>)")
     tl.add_argument("--data", default=None, metavar="FILE",
                     help="also write the drawn data as .csv or .json")
     tl.add_argument("--agents", default=None, metavar="A,B",
@@ -51,8 +53,10 @@ def register(sub) -> dict:
                      help="no rows of top-level modes")
 
     pl = _trace_parser(sub, "plot", "draw the trajectories of a run")
-    pl.add_argument("-o", "--output", default="trajectories.png", metavar="FILE",
-                    help=".png, .svg or .pdf (default trajectories.png)")
+    pl.add_argument("-f", "--format", choices=("png", "svg", "pdf"), default=None,
+                    help="png, svg or pdf (default: from -o, else png)")
+    pl.add_argument("-o", "--output", default=None, metavar="FILE",
+                    help=".png, .svg or .pdf (default trajectories.<format>)")
     pl.add_argument("--xlim", nargs=2, type=float, metavar=("X0", "X1"),
                     help="x range of the plane (default: the scene, walls and paths)")
     pl.add_argument("--ylim", nargs=2, type=float, metavar=("Y0", "Y1"),
@@ -124,6 +128,18 @@ def _load_trace(path: str, instance: int) -> Trace:
     return trace
 
 
+def _figure_output(path: str | None, fmt: str | None, stem: str) -> str:
+    """The file a figure view writes: ``-o`` as given (its extension must be a figure's and
+    agree with ``--format``), else ``<stem>.<format>`` (png by default)."""
+    if path is None:
+        return f"{stem}.{fmt or 'png'}"
+    suffix = _suffix(path, IMAGE, f"{stem} figure")
+    if fmt is not None and suffix != f".{fmt}":
+        raise UsageError(f"-o {path} says {suffix[1:]} but --format says {fmt}; name the "
+                         f"file .{fmt} or drop --format")
+    return path
+
+
 def _suffix(path: str, allowed: tuple[str, ...], what: str) -> str:
     suffix = Path(path).suffix.lower()
     if suffix not in allowed:
@@ -178,7 +194,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
 def cmd_timeline(args: argparse.Namespace) -> int:
     from hybridteam.export.timeline import select_agents, write_timeline
 
-    _suffix(args.output, IMAGE, "timeline")
+    args.output = _figure_output(args.output, args.format, "timeline")
     if args.data:
         _suffix(args.data, (".csv", ".json"), "timeline's data")
     if args.window and not all(math.isfinite(w) for w in args.window):
@@ -204,7 +220,7 @@ def cmd_timeline(args: argparse.Namespace) -> int:
 def cmd_plot(args: argparse.Namespace) -> int:
     from hybridteam.export.trajectories import write_trajectories
 
-    _suffix(args.output, IMAGE, "trajectory plot")
+    args.output = _figure_output(args.output, args.format, "trajectories")
     for name in ("xlim", "ylim"):
         lo_hi = getattr(args, name)
         if lo_hi and not (all(math.isfinite(v) for v in lo_hi) and lo_hi[0] < lo_hi[1]):
