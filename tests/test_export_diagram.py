@@ -470,3 +470,27 @@ def test_built_in_full_diagram_has_no_overlapping_text(name):
              if boxes[i].overlaps(boxes[j])]
     assert clash == []
     assert any(t.get_gid() == "edge-label" for t in texts)
+
+
+def test_many_message_links_become_labelled_stubs_at_their_senders():
+    """Experiment 2's full diagram has dozens of message links between the robots' panels:
+    each sending mode gets one short arrow per message, labelled with its receivers
+    (``ready → xr4000``), instead of arcs across every box; a team with a few messages
+    (the relay) keeps its arcs from sender to receiver."""
+    from hybridteam.export import image
+    from hybridteam.export.layout import Layout
+
+    graph = diagram_graph(ht.load(EXAMPLES / "transport" / "experiment2.yaml"))
+    messages = edges_of(graph, "message")
+    assert len(messages) > image.STUBS_AFTER
+    edges, notes = image._plan(Layout(graph), graph)
+    stubs = [e for e in edges if e.message]
+    groups = {(u, d["message"]) for u, _v, d in messages}
+    assert len(stubs) == len(groups)
+    assert all(abs(e.pb[0] - e.pa[0]) == pytest.approx(18.0) and e.pb[1] == e.pa[1]
+               for e in stubs)
+    texts = [" ".join(e.lines) for e in stubs] + notes
+    assert any("ready → xr4000" in t for t in texts)
+    relay = diagram_graph(ht.load(EXAMPLES / "automata" / "relay.yaml"))
+    arcs = [e for e in image._plan(Layout(relay), relay)[0] if e.message]
+    assert len(arcs) == len(edges_of(relay, "message")) <= image.STUBS_AFTER

@@ -211,12 +211,49 @@ def _blocked(layout: Layout) -> list[Rect]:
     return out
 
 
+#: More message links than this and each sending mode gets short labelled stubs instead of
+#: arcs across the panels (a full protocol's dozens of arcs would cross every box)
+STUBS_AFTER = 12
+
+
+def _stubs(layout: Layout, graph: nx.MultiDiGraph, placer: Placer) -> list[_Edge]:
+    """One short dashed arrow per sending mode and message, out of the side that faces
+    the receivers, labelled ``message → receivers``."""
+    groups: dict[tuple[str, str], list[str]] = {}
+    for u, v, d in edges_of(graph, "message"):
+        who = graph.nodes[v].get("agent", v)
+        receivers = groups.setdefault((u, d["message"]), [])
+        if who not in receivers:
+            receivers.append(who)
+    panel_x = {p.node: p.x for p in layout.panels}
+    out: list[_Edge] = []
+    count: dict[str, int] = {}
+    for (u, message), receivers in groups.items():
+        box = layout.boxes[u]
+        k = count[u] = count.get(u, 0) + 1
+        mine = panel_x.get(graph.nodes[u].get("agent", ""), box.x)
+        right = sum(panel_x.get(r, 0.0) > mine for r in receivers) * 2 >= len(receivers)
+        x = box.x + box.w if right else box.x
+        y = box.y + box.h - 4.0 - 5.0 * (k - 1) % max(box.h - 8.0, 1.0)
+        tip = (x + 18.0 if right else x - 18.0, y)
+        text = f"{message} → {', '.join(receivers)}"
+        w, _h = text_size(_wrap(text, 24), SMALL_PT)
+        side = 1.0 if right else -1.0
+        spots = [(tip[0] + side * (w / 2 + 2), y + dy) for dy in
+                 (0.0, *(s * j * 8.0 for j in range(1, 10) for s in (1, -1)))]
+        lines, at = _place(placer, text, spots, _spiral(*spots[0]))
+        out.append(_Edge((x, y), tip, 0.0, True, lines, at))
+    return out
+
+
 def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str]]:
     """Every edge's geometry and label spot, and the labels that became footnotes."""
     placer = Placer(_blocked(layout))
     edges: list[_Edge] = []
     seen: dict[frozenset, int] = {}
-    for u, v, d in layout.transitions + edges_of(graph, "message"):
+    messages = edges_of(graph, "message")
+    stubs = len(messages) > STUBS_AFTER
+    for u, v, d in layout.transitions + ([] if stubs else messages):
         message = d["kind"] == "message"
         text = d["message"] if message else d["label"]
         k = seen.get(frozenset((u, v)), 0)
@@ -239,6 +276,8 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
         lines, at = _place(placer, text, _spots(pa, pb, rad, ts, 9.0),
                            _spots(pa, pb, rad, dense, 6.0))
         edges.append(_Edge(pa, pb, rad, message, lines, at))
+    if stubs:
+        edges += _stubs(layout, graph, placer)
     return edges, placer.notes
 
 
