@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib import patheffects, rc_context
+from matplotlib import rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -308,6 +308,18 @@ def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float]
     return fig, data
 
 
+def crossed(data: TimelineData, y: float, t0: float, t1: float) -> bool:
+    """Whether a message arrow passes height ``y`` between times ``t0`` and ``t1``."""
+    for a in data.arrows:
+        if a.lost or math.isnan(a.t_recv) or not min(a.y_send, a.y_recv) <= y <= \
+                max(a.y_send, a.y_recv) or a.y_send == a.y_recv:
+            continue
+        t = a.t_send + (y - a.y_send) / (a.y_recv - a.y_send) * (a.t_recv - a.t_send)
+        if t0 <= t <= t1:
+            return True
+    return False
+
+
 def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int) -> None:
     t0, t1 = data.span
     width = max(t1 - t0, 1e-9)
@@ -327,11 +339,15 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
         size = 6.5 if lane.top else 8.0
         lo, hi = max(b.start, t0), min(b.end, t1)
         if (hi - lo) * px_per_s > len(b.label) * size * 0.62 * fig.dpi / 72 + 4:
-            # over the message arrows, outlined in the bar's colour: an arrow passing
-            # under a mode's name stops short of its letters instead of striking them out
+            # over the message arrows, on a patch of the bar's colour where an arrow
+            # crosses the name: it stops short of the letters instead of striking them out
+            half = len(b.label) * size * 0.62 * fig.dpi / 72 / px_per_s / 2
+            mid = (lo + hi) / 2
+            backing = {"boxstyle": "square,pad=0.05", "fc": b.color, "ec": "none"} \
+                if crossed(data, lane.y, mid - half, mid + half) else None
             ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
                     color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label",
-                    path_effects=[patheffects.withStroke(linewidth=3, foreground=b.color)])
+                    bbox=backing)
     if data.marks:  # ticks across the lower edge of the lane, all in one collection
         lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
                        for m in data.marks])
