@@ -128,6 +128,13 @@ def _load_trace(path: str, instance: int) -> Trace:
     return trace
 
 
+def _check_size(size: list[float] | None) -> None:
+    """``--size W H`` of a figure view: inches, each between 1 and 50."""
+    if size and not all(math.isfinite(v) and 1.0 <= v <= 50.0 for v in size):
+        raise UsageError(f"--size {size[0]:g} {size[1]:g}: width and height must be between "
+                         "1 and 50 inches")
+
+
 def _figure_output(path: str | None, fmt: str | None, stem: str) -> str:
     """The file a figure view writes: ``-o`` as given (its extension must be a figure's and
     agree with ``--format``), else ``<stem>.<format>`` (png by default)."""
@@ -183,11 +190,8 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     if args.output:
         write_atomic(Path(args.output), out)
         print(f"wrote {args.output}")
-    elif isinstance(out, str):
-        sys.stdout.write(out)
-    else:  # PNG or PDF bytes, piped on
-        sys.stdout.flush()
-        sys.stdout.buffer.write(out)
+    else:
+        sys.stdout.write(out if isinstance(out, str) else out.decode())
     return EXIT_OK
 
 
@@ -226,9 +230,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
         if lo_hi and not (all(math.isfinite(v) for v in lo_hi) and lo_hi[0] < lo_hi[1]):
             raise UsageError(f"--{name} {lo_hi[0]:g} {lo_hi[1]:g}: need two finite numbers, "
                              "the first smaller")
-    if args.size and not all(math.isfinite(v) and 1.0 <= v <= 50.0 for v in args.size):
-        raise UsageError(f"--size {args.size[0]:g} {args.size[1]:g}: width and height must "
-                         "be between 1 and 50 inches")
+    _check_size(args.size)
     trace = _load_trace(args.trace, args.instance)
     write_trajectories(trace, args.output, instance=args.instance,
                        xlim=tuple(args.xlim) if args.xlim else None,
@@ -250,9 +252,7 @@ def cmd_animate(args: argparse.Namespace) -> int:
         raise UsageError(f"--fps must be at least 1, got {args.fps}")
     if args.speed is not None and not (math.isfinite(args.speed) and args.speed > 0):
         raise UsageError(f"--speed must be a positive number, got {args.speed:g}")
-    if args.size and not all(math.isfinite(v) and 1.0 <= v <= 50.0 for v in args.size):
-        raise UsageError(f"--size {args.size[0]:g} {args.size[1]:g}: width and height must "
-                         "be between 1 and 50 inches")
+    _check_size(args.size)
     if not (math.isfinite(args.dpi) and 20 <= args.dpi <= 600):
         raise UsageError(f"--dpi must be between 20 and 600, got {args.dpi:g}")
     trace = _load_trace(args.trace, args.instance)
@@ -278,20 +278,16 @@ def cmd_sequence(args: argparse.Namespace) -> int:
 
 
 def cmd_run_report(args: argparse.Namespace) -> int:
-    """``hybridteam report RUN_FOLDER``: the HTML page of a run (a study folder gets the
-    study's report, see :mod:`.sweep`)."""
+    """``hybridteam report RUN_FOLDER``: the HTML page of a run, for a folder that holds a
+    ``trace.json`` (others get the study's report, see :mod:`.sweep`)."""
     from hybridteam.export.report import write_report
 
     folder = Path(args.folder)
-    if not folder.is_dir():
-        raise UsageError(f"{folder}: no such folder (give a folder written by "
-                         "'hybridteam run -o FOLDER')")
     if args.output is not None:
         _suffix(args.output, (".html", ".htm"), "report")
-    for name in ("trace.json", "summary.json"):
-        if not (folder / name).is_file():
-            raise UsageError(f"{folder}: no {name}; is it a folder written by "
-                             "'hybridteam run -o FOLDER'?")
+    if not (folder / "summary.json").is_file():
+        raise UsageError(f"{folder}: no summary.json; is it a folder written by "
+                         "'hybridteam run -o FOLDER'?")
     trace = _load_trace(str(folder / "trace.json"), args.instance)
     try:
         summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))

@@ -181,8 +181,8 @@ class CAgent:
     streams: list = field(default_factory=list)  # list[streams.CStream]
     # parameters written as expressions of the others: (column, expression), in order
     derived_params: tuple = ()
-    # per list of candidate transitions (by identity): their source modes, as an array
-    source_cache: dict = field(default_factory=dict, repr=False, compare=False)
+    # the source mode of every transition, by index (a gather finds which can fire)
+    transition_sources: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
 
     @property
     def limited(self) -> bool:

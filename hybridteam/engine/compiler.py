@@ -106,14 +106,15 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
                 col.fail((*agent.where, n), f"name '{n}' is both a {seen[n]} and a {kind}")
             seen[n] = kind
     extra = extra_symbols or {}
-    defaults, derived = _derived(agent, params, param_index, extra, col)
+    param_syms = {**extra, **symbols({}, {}, param_index)}
+    defaults, derived = _derived(agent, params, param_index, param_syms, col)
     return _Names(plant, state_index, var_index, params, param_index,
                   {**extra, **symbols(state_index, var_index, param_index)},
-                  {**extra, **symbols({}, {}, param_index)}, defaults, derived)
+                  param_syms, defaults, derived)
 
 
 def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str, int],
-             extra: dict, col: Collector
+             param_syms: dict, col: Collector
              ) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
     """Default values of every parameter, and the agent's parameters written as
     expressions (``ack_timeout: 2 * latency + 0.05``).
@@ -125,14 +126,14 @@ def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str
     """
     values = np.zeros((1, len(params)))
     derived: list[tuple[int, Expression]] = []
-    readable: dict[str, int] = {}
+    readable: set[str] = set()  # the parameters declared so far
     ctx = Ctx(np.zeros((1, 0)), np.zeros((1, 0)), values, np.zeros(1))
     for name, value in params.items():
         j = param_index[name]
         if isinstance(value, str):
             where = (*agent.where, "parameters", name)
-            expr = col.expr(value, {**extra, **symbols({}, {}, param_index)}, where)
-            later = sorted((expr.names - set(readable)) & set(params)) if expr else []
+            expr = col.expr(value, param_syms, where)
+            later = sorted((expr.names - readable) & set(params)) if expr else []
             if later:
                 col.fail(where, f"parameter '{name}' reads '{later[0]}', which is not "
                          "declared above it", "a parameter may read the team's parameters "
@@ -142,7 +143,7 @@ def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str
                 derived.append((j, expr))
         else:
             values[0, j] = float(value)
-        readable[name] = j
+        readable.add(name)
     return values[0], tuple(derived)
 
 
@@ -243,6 +244,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         drivers=drivers, state_index=names.state, var_index=names.variables,
         param_index=names.param_index,
         param_defaults=names.defaults, derived_params=names.derived,
+        transition_sources=np.array([ct.source for ct in transitions], np.intp),
         init_state=init_state, init_vars=init_vars, lower=lower, upper=upper,
         watches=watches(modes, transitions, CONTINUOUS_NAMES | frozenset(names.state)),
         eventless=[ct.index for ct in transitions if ct.on is None],

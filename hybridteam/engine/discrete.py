@@ -98,7 +98,7 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
     enabled: dict[int, np.ndarray] = {}
     # one gather says which candidates' sources are active anywhere, so the loop below
     # visits only those (most of an agent's transitions leave modes it is not in)
-    act = st.active[idx][:, _sources(ag, candidates)]
+    act = st.active[idx][:, ag.transition_sources[candidates]]
     for c in np.flatnonzero(act.any(axis=0)).tolist():
         j = candidates[c]
         tr = ag.transitions[j]
@@ -127,15 +127,6 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
         fire(ens, ag, st, j, idx[e], reason, _rows(msg, np.flatnonzero(e)))
         fired |= e
     return fired
-
-
-def _sources(ag: CAgent, candidates: list[int]) -> np.ndarray:
-    """The source modes of a list of transitions, computed once per list."""
-    hit = ag.source_cache.get(id(candidates))
-    if hit is None or hit[0] is not candidates:
-        hit = ag.source_cache[id(candidates)] = (
-            candidates, np.array([ag.transitions[j].source for j in candidates], np.intp))
-    return hit[1]
 
 
 def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,

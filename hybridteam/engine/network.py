@@ -70,12 +70,12 @@ def check_network(team: Team) -> list[ModelError]:
             errors.append(ModelError((*net.where, "rate_limits", agent),
                                      f"unknown agent '{agent}'", hint=did_you_mean(agent, names),
                                      at_key=True))
-    defaults = {name: np.array([float(v)]) for name, v in team.parameters.items()}
+    defaults = default_parameters(team)
     for link in [net.default, *net.links.values()]:
         for what in ("latency", "jitter", "loss"):
             text = getattr(link, what)
             try:  # the team's own values must give a sensible setting (studies may not)
-                require(_evaluate(text, defaults, 1), (*link.where, what),
+                require(evaluate_setting(text, defaults, 1), (*link.where, what),
                         f"the link's {what}", str(text), low=0.0,
                         high=1.0 if what == "loss" else np.inf)
             except ExpressionError as exc:
@@ -211,13 +211,19 @@ def _link(spec, team_params: dict[str, np.ndarray], n: int
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A link's latency, jitter and loss per instance, each checked for its range."""
     return tuple(  # type: ignore[return-value]
-        require(_evaluate(getattr(spec, what), team_params, n), (*spec.where, what),
+        require(evaluate_setting(getattr(spec, what), team_params, n), (*spec.where, what),
                 f"the link's {what}", str(getattr(spec, what)), low=0.0,
                 high=1.0 if what == "loss" else np.inf)
         for what in ("latency", "jitter", "loss"))
 
 
-def _evaluate(text: str | float, team_params: dict[str, np.ndarray], n: int) -> np.ndarray:
+def default_parameters(team: Team) -> dict[str, np.ndarray]:
+    """The team's parameters at their declared values, as one instance of settings."""
+    return {name: np.array([float(v)]) for name, v in team.parameters.items()}
+
+
+def evaluate_setting(text: str | float, team_params: dict[str, np.ndarray], n: int
+                     ) -> np.ndarray:
     """A link setting per instance (numbers broadcast; expressions over team parameters)."""
     if not isinstance(text, str):
         return np.full(n, float(text))

@@ -28,6 +28,7 @@ from hybridteam.export.scene import (
     flow_agents,
     payload_names,
     payload_outline,
+    payload_shape,
     planar_agents,
     pose,
     scene_extent,
@@ -272,10 +273,9 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
 
 def _payloads(ax: Any, trace: Trace, instance: int) -> tuple[Any, list[Any]]:
     """One outline per payload, moved to its pose at every frame."""
-    shapes = trace.meta.get("payload_shapes", {}) or {}
     items = []
     for k, name in enumerate(payload_names(trace)):
-        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        shape = payload_shape(trace, name)
         patch = ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, visible=False,
                                      facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.55,
                                      edgecolor="#333333", linewidth=0.8, zorder=4.5,

@@ -30,6 +30,21 @@ def loss_text(data: TimelineData) -> str:
     return " — " + ", ".join(parts) if parts else ""
 
 
+def time_at(t_send: float, t_recv: float, y_send: float, y_recv: float, y: float) -> float:
+    """When an arrow from (t_send, y_send) to (t_recv, y_recv) is at height ``y`` (clipped
+    to its ends; its middle when it is flat)."""
+    frac = (y - y_send) / (y_recv - y_send) if y_recv != y_send else 0.5
+    return t_send + min(max(frac, 0.0), 1.0) * (t_recv - t_send)
+
+
+def crossed(data: TimelineData, y: float, t0: float, t1: float) -> bool:
+    """Whether a delivered message's arrow passes height ``y`` between ``t0`` and ``t1``."""
+    return any(t0 <= time_at(a.t_send, a.t_recv, a.y_send, a.y_recv, y) <= t1
+               for a in data.arrows
+               if not (a.lost or math.isnan(a.t_recv)) and a.y_send != a.y_recv
+               and min(a.y_send, a.y_recv) <= y <= max(a.y_send, a.y_recv))
+
+
 def gap_centres(data: TimelineData) -> list[float]:
     """The middle of each white gap between two lanes (lanes are stacked downwards)."""
     lanes = sorted(data.lanes, key=lambda lane: -lane.y)
@@ -82,8 +97,7 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
         # crosses it (never on a bar, where it would cover a mode's name)
         y = min(gaps, key=lambda g: abs(g - (y_send + y_recv) / 2)) if gaps else \
             (y_send + y_recv) / 2
-        frac = (y - y_send) / (y_recv - y_send) if y_recv != y_send else 0.5
-        x = t_send + min(max(frac, 0.0), 1.0) * (t_recv - t_send) + 0.6 * char_width
+        x = time_at(t_send, t_recv, y_send, y_recv, y) + 0.6 * char_width
         text = f"{' + '.join(types)} {latency_text(t_recv - t_send)}"
         if x >= free_from.get(y, -math.inf):
             free_from[y] = x + (len(text) + 1) * char_width

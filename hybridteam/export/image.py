@@ -34,7 +34,6 @@ from hybridteam.export.layout import (
     TITLE,
     Box,
     Layout,
-    _text_width,
     _wrap,
 )
 from hybridteam.export.render import state_title, to_dot
@@ -204,8 +203,7 @@ def _blocked(layout: Layout) -> list[Rect]:
     out: list[Rect] = [(PAD, PAD, PAD + 200.0, PAD + TITLE)]  # the team's title
     for node, b in layout.boxes.items():
         if is_composite(layout.graph, node):
-            w = _text_width([state_title(layout.graph, node)], NAME_PT) + 2 * PAD
-            out.append((b.x, b.y, b.x + w, b.y + TITLE))
+            out.append((b.x, b.y, b.x + b.title_w, b.y + TITLE))
         else:
             out.append((b.x, b.y, b.x + b.w, b.y + b.h))
     return out

@@ -55,6 +55,7 @@ class Box:
     gaps: list[float] = field(default_factory=list)  # below each row: room for edge labels
     row_gaps: list[float] = field(default_factory=list)  # between the boxes of each row
     lines: list[str] = field(default_factory=list)
+    title_w: float = 0.0  # a composite's title bar: the width its name needs
 
 
 class Layout:
@@ -92,9 +93,10 @@ class Layout:
                         _text_width(box.lines, SMALL_PT), 44.0) + 2 * PAD
             box.h = NAME_PT * 1.5 + len(box.lines) * SMALL_PT * 1.3 + PAD
             return box
+        box.title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
         kids = [self.measure(c) for c in children(self.graph, node)]
         if not kids:  # an agent without modes (possible when built in Python): an empty box
-            box.w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
+            box.w = box.title_w
             box.h = TITLE + 2 * PAD
             return box
         if data.get("mode_kind") == "and":
@@ -110,8 +112,7 @@ class Layout:
             widest = max(k.w for k in kids)
             inner_w = max(inner_w, widest + 2 * (_text_width(labels, SMALL_PT) + 6))
             inner_h = sum(max(k.h for k in row) for row in box.rows) + sum(box.gaps[:-1])
-        title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
-        box.w = max(inner_w + 2 * PAD + 14.0, title_w)  # 14: room for the initial dot
+        box.w = max(inner_w + 2 * PAD + 14.0, box.title_w)  # 14: room for the initial dot
         box.h = inner_h + TITLE + 2 * PAD
         return box
 

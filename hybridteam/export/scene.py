@@ -58,7 +58,6 @@ def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
     return out
 
 
-
 # ---------------------------------------------------------------------- world and payloads
 def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
     """Walls, obstacles and labelled regions, under everything else."""
@@ -126,15 +125,10 @@ def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, floa
         xy = pose(trace, a, instance)[:, :2]
         r = float((agent_meta(trace, a).get("footprint") or {}).get("radius") or 0.0)
         pts += [xy - r, xy + r]
-    shapes = trace.meta.get("payload_shapes", {}) or {}
     for name in payload_names(trace):
         p = pose(trace, name, instance)
         p = p[np.isfinite(p).all(axis=1)]
-        corners = payload_outline(shapes.get(name, {"kind": "box", "width": 0.0,
-                                                    "depth": 0.0}), 0.0, 0.0, 0.0)
-        c, s = np.cos(p[:, 2])[:, None], np.sin(p[:, 2])[:, None]
-        pts += [np.stack([p[:, 0:1] + c * cx - s * cy, p[:, 1:2] + s * cx + c * cy],
-                         -1).reshape(-1, 2) for cx, cy in corners]
+        pts.append(payload_outline(payload_shape(trace, name), *p.T).reshape(-1, 2))
     xy = np.concatenate(pts) if pts else np.zeros((0, 2))
     xy = xy[np.isfinite(xy).all(axis=1)]
     if len(xy) == 0:
@@ -145,15 +139,23 @@ def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, floa
     return (float(x0 - pad_x), float(x1 + pad_x), float(y0 - pad_y), float(y1 + pad_y))
 
 
-def payload_outline(shape: dict[str, Any], x: float, y: float, th: float) -> np.ndarray:
-    """Corners of a payload shape at a pose (a bar is a thin rectangle)."""
+def payload_shape(trace: Trace, name: str) -> dict[str, Any]:
+    """A payload's shape from the trace (a 0.3 m box where the trace does not say)."""
+    shapes = trace.meta.get("payload_shapes", {}) or {}
+    return shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+
+
+def payload_outline(shape: dict[str, Any], x: Any, y: Any, th: Any) -> np.ndarray:
+    """Corners of a payload shape at a pose, ``(4, 2)``, or at K poses given as arrays,
+    ``(K, 4, 2)`` (a bar is a thin rectangle)."""
     if shape.get("kind") == "bar":
         w, d = float(shape["length"]), float(shape.get("width", shape["length"] * 0.04))
     else:
         w, d = float(shape["width"]), float(shape["depth"])
-    corners = np.array([[-w, -d], [w, -d], [w, d], [-w, d]]) / 2
-    c, s = math.cos(th), math.sin(th)
-    return corners @ np.array([[c, s], [-s, c]]) + [x, y]
+    cx, cy = np.array([-w, w, w, -w]) / 2, np.array([-d, -d, d, d]) / 2
+    x, y, th = (np.asarray(v, float)[..., None] for v in (x, y, th))
+    c, s = np.cos(th), np.sin(th)
+    return np.stack([cx * c - cy * s + x, cx * s + cy * c + y], -1)
 
 
 def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
@@ -174,14 +176,13 @@ def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.ra
 
 
 def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> None:
-    shapes = trace.meta.get("payload_shapes", {}) or {}
     for k, name in enumerate(payload_names(trace)):
         p = pose(trace, name, instance)
         ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
-        shape = shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+        shape = payload_shape(trace, name)
         size = [float(v) for key, v in shape.items() if key in ("width", "depth", "length")]
         ok = moved(p, ok, 0.15 * min(size or [0.3]))
-        polys = [payload_outline(shape, *p[i]) for i in ok]
+        polys = payload_outline(shape, *p[ok].T)
         color = PALETTE[(k + 5) % len(PALETTE)]
         ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
                                          alpha=0.35, linewidths=0.6, zorder=3,

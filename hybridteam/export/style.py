@@ -19,11 +19,11 @@ PALETTE = (
     "#BCBD22", "#1F3A93", "#8B0000",
 )
 COPY_TINTS = (0.45, 0.7)  # how much white a protocol state's copy of a role body mixes in
-FINAL = "#7F7F7F"
 #: Final modes: muted tones, one per final mode (an Arrived and a Stuck must not look alike),
-#: still set apart from the palette's bright colours
+#: still set apart from the palette's bright colours; the first is ``FINAL``
 FINALS = ("#7F7F7F", "#3B3B3B", "#A89F91", "#5F7A8A", "#8C6D62", "#6B8E6B", "#B5B5B5",
           "#4F4F6F")
+FINAL = FINALS[0]
 HALO = [patheffects.withStroke(linewidth=2.5, foreground="white")]  # text over drawings
 FONT = "DejaVu Sans"
 

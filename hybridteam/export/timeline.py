@@ -29,7 +29,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from hybridteam.errors import did_you_mean
-from hybridteam.export.arrows import draw_messages, loss_text
+from hybridteam.export.arrows import crossed, draw_messages, loss_text
 from hybridteam.export.figures import DATA_FORMATS, figure_format, save_figure
 from hybridteam.export.legend import legend_handles
 from hybridteam.export.style import FONT, team_mode_colors, text_color
@@ -308,18 +308,6 @@ def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float]
     return fig, data
 
 
-def crossed(data: TimelineData, y: float, t0: float, t1: float) -> bool:
-    """Whether a message arrow passes height ``y`` between times ``t0`` and ``t1``."""
-    for a in data.arrows:
-        if a.lost or math.isnan(a.t_recv) or not min(a.y_send, a.y_recv) <= y <= \
-                max(a.y_send, a.y_recv) or a.y_send == a.y_recv:
-            continue
-        t = a.t_send + (y - a.y_send) / (a.y_recv - a.y_send) * (a.t_recv - a.t_send)
-        if t0 <= t <= t1:
-            return True
-    return False
-
-
 def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int) -> None:
     t0, t1 = data.span
     width = max(t1 - t0, 1e-9)
@@ -338,10 +326,11 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
         lane = data.lanes[b.lane]
         size = 6.5 if lane.top else 8.0
         lo, hi = max(b.start, t0), min(b.end, t1)
-        if (hi - lo) * px_per_s > len(b.label) * size * 0.62 * fig.dpi / 72 + 4:
+        text_px = len(b.label) * size * 0.62 * fig.dpi / 72  # the name's width, about
+        if (hi - lo) * px_per_s > text_px + 4:
             # over the message arrows, on a patch of the bar's colour where an arrow
             # crosses the name: it stops short of the letters instead of striking them out
-            half = len(b.label) * size * 0.62 * fig.dpi / 72 / px_per_s / 2
+            half = text_px / px_per_s / 2
             mid = (lo + hi) / 2
             backing = {"boxstyle": "square,pad=0.05", "fc": b.color, "ec": "none"} \
                 if crossed(data, lane.y, mid - half, mid + half) else None

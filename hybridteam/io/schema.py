@@ -16,6 +16,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
+AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of this agent's "
+                    "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated "
+                    "per run")
 PositiveFloat = Annotated[float, Field(gt=0)]
 
 
@@ -164,10 +167,8 @@ class AgentSchema(Strict):
         None, description="with 'model': overrides of its manipulator (null removes it)")
     footprint: dict[str, Any] | None = Field(
         None, description="with 'model': overrides of its footprint, e.g. {radius: 0.4}")
-    parameters: dict[str, ExprOrNumber] = Field(
-        default_factory=dict,
-        description="numbers, or expressions of the team's parameters and of this agent's "
-        "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated per run")
+    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict,
+                                                description=AGENT_PARAMETERS)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     history: Literal["none", "shallow", "deep"] = "none"
@@ -391,10 +392,8 @@ class OperatorSchema(Strict):
     """The automaton of an agent with no plant (a human operator)."""
 
     description: str | None = None
-    parameters: dict[str, ExprOrNumber] = Field(
-        default_factory=dict,
-        description="numbers, or expressions of the team's parameters and of this agent's "
-        "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated per run")
+    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict,
+                                                description=AGENT_PARAMETERS)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     modes: dict[str, ModeSchema]

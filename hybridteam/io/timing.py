@@ -15,7 +15,7 @@ import re
 import numpy as np
 
 from hybridteam.engine.compiled import CAgent, CTeam, Ctx
-from hybridteam.engine.network import _evaluate
+from hybridteam.engine.network import default_parameters, evaluate_setting
 from hybridteam.errors import ModelError
 from hybridteam.model import Team
 
@@ -37,19 +37,16 @@ def _context(ca: CAgent) -> Ctx:
                ca.param_defaults[None, :], np.zeros(1))
 
 
-def _params(team: Team) -> dict[str, np.ndarray]:
-    return {k: np.array([float(v)]) for k, v in team.parameters.items()}
-
-
 def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
     """Acknowledged messages whose timeout is no longer than a round trip to a receiver
     (latency and jitter, there and back, with the team's own values): every one would be
     resent, and after its retries reported undeliverable, though nothing is lost."""
-    params, net = _params(team), team.network
+    params, net = default_parameters(team), team.network
 
     def way(s: str, r: str) -> float:
         spec = net.links.get((s, r), net.default)
-        return float(_evaluate(spec.latency, params, 1)[0] + _evaluate(spec.jitter, params, 1)[0])
+        return float(evaluate_setting(spec.latency, params, 1)[0]
+                     + evaluate_setting(spec.jitter, params, 1)[0])
 
     out: list[ModelError] = []
     for agent, ca in zip(team.agents, cteam.agents, strict=True):
@@ -129,7 +126,7 @@ def rate_limits(team: Team, cteam: CTeam) -> list[ModelError]:
     limits = team.network.rate_limits
     if not limits:
         return []
-    params, net = _params(team), team.network
+    params, net = default_parameters(team), team.network
     index = {a.name: k for k, a in enumerate(team.agents)}
     out: list[ModelError] = []
     for receiver, per_socket in limits.items():
@@ -148,7 +145,7 @@ def rate_limits(team: Team, cteam: CTeam) -> list[ModelError]:
             total = sum(incoming.values())
             if total <= float(limit) + 1e-9:
                 continue
-            jitter = max(float(_evaluate(net.links.get((s, receiver), net.default).jitter,
+            jitter = max(float(evaluate_setting(net.links.get((s, receiver), net.default).jitter,
                                          params, 1)[0]) for s in incoming)
             what = ", ".join(f"{s} {r:g}" for s, r in incoming.items())
             lost = 100 * (1 - float(limit) / total)

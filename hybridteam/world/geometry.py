@@ -22,6 +22,17 @@ import numpy as np
 _EPS = 1e-12
 
 
+def relative_pose(x: np.ndarray, y: np.ndarray, theta: np.ndarray, ref_x: np.ndarray,
+                  ref_y: np.ndarray, ref_theta: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A pose in a reference pose's frame: how far ahead of and left of the reference the
+    point is, and the heading difference in [-pi, pi) (a follower's place relative to its
+    leader, say)."""
+    c, s = np.cos(ref_theta), np.sin(ref_theta)
+    dx, dy = x - ref_x, y - ref_y
+    return c * dx + s * dy, -s * dx + c * dy, (theta - ref_theta + np.pi) % (2 * np.pi) - np.pi
+
+
 def as_segments(segments: np.ndarray | list) -> np.ndarray:
     """Walls as a float array of shape (m, 4); one segment may be given as (4,)."""
     seg = np.asarray(segments, dtype=float)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybridteam.library import LawContext, law
+from hybridteam.world.geometry import relative_pose
 
 
 @law("formation.follow", plants=("unicycle",),
@@ -34,10 +35,9 @@ def follow(ctx: LawContext) -> np.ndarray:
     ahead, left, phi = ctx["ahead"], ctx["left"], ctx["phi"]
     on = ctx["capture"] > 0
     if on.any():
-        dx, dy = x - est["x"], y - est["y"]
-        kept = ctx.capture("station", who, {
-            "ahead": c * dx + s * dy, "left": -s * dx + c * dy,
-            "phi": np.angle(np.exp(1j * (th - lth)))}, on & ok)
+        here = relative_pose(x, y, th, est["x"], est["y"], lth)
+        kept = ctx.capture("station", who, dict(zip(("ahead", "left", "phi"), here,
+                                                    strict=True)), on & ok)
         use = on & np.isfinite(kept["ahead"])
         ahead, left, phi = (np.where(use, kept[k], g) for k, g in
                             (("ahead", ahead), ("left", left), ("phi", phi)))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybridteam.library import LawContext, law
+from hybridteam.world.geometry import relative_pose
 
 from .leader import LeaderState, arm_terms, leader_estimate, stack_inputs, wrap
 
@@ -110,11 +111,9 @@ def _station(ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.nda
     on = ctx["capture"] > 0
     if not on.any():
         return given
-    c, s = np.cos(lead.theta), np.sin(lead.theta)
-    dx, dy = ctx["x"] - lead.x, ctx["y"] - lead.y
-    kept = ctx.capture("station", lead.who, {
-        "ahead": c * dx + s * dy, "left": -s * dx + c * dy,
-        "phi": wrap(ctx["theta"] - lead.theta)}, on & lead.ok)
+    here = relative_pose(ctx["x"], ctx["y"], ctx["theta"], lead.x, lead.y, lead.theta)
+    kept = ctx.capture("station", lead.who, dict(zip(("ahead", "left", "phi"), here,
+                                                     strict=True)), on & lead.ok)
     use = on & np.isfinite(kept["ahead"])
     return tuple(np.where(use, kept[k], g)  # type: ignore[return-value]
                  for k, g in zip(("ahead", "left", "phi"), given, strict=True))
