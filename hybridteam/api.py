@@ -18,6 +18,7 @@ import numpy as np
 from hybridteam.engine.compiler import compile_team
 from hybridteam.engine.simulator import Simulator
 from hybridteam.model import Team
+from hybridteam.requirements.check import RequirementSet, compile_requirements
 from hybridteam.trace import Table, Trace
 
 
@@ -130,6 +131,8 @@ class Run(Trace):
             per.append({"instance": i, "outcome": o["outcome"], "t_end": o["t"],
                         "message": o["message"], "transitions": int(counts[i]),
                         "messages": int(msgs[i]), **o.get("stats", {})})
+            if "requirements" in o:
+                per[-1]["requirements"] = o["requirements"]
             if isinstance(seeds, list):  # per-instance seeds: say which one each ran with
                 per[-1]["seed"] = seeds[i]
         tally = self.tally()
@@ -165,10 +168,28 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     """
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
+    requirements = compile_requirements(cteam)
     sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
                     progress=progress, max_memory=max_memory, max_periods=max_periods,
-                    max_wall=max_wall)
-    return Run.of(sim.run())
+                    max_wall=max_wall, snapshots=bool(requirements),
+                    observe=requirements.observers(cteam))
+    run = Run.of(sim.run())
+    if requirements:
+        check_requirements(run, requirements, sim)
+    return run
+
+
+def check_requirements(run: Run, requirements: RequirementSet, sim: Simulator) -> None:
+    """Add each instance's requirement verdicts to its outcome (``summary.json`` and the
+    trace carry them), reading parameters as the simulator set them per instance."""
+    params = {}
+    for st in sim.ensemble.states:
+        names = sorted(st.ca.param_index, key=st.ca.param_index.__getitem__)
+        params[st.ca.name] = (names, st.p)
+    snapshots = sim.ensemble.rec.merged_snapshots()
+    for outcome, verdicts in zip(run.diagnostics, requirements.check(run, params, snapshots),
+                                 strict=True):
+        outcome["requirements"] = verdicts
 
 
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,
@@ -185,13 +206,18 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
     overrides = dict(overrides or {})
     seed = team.simulation.seed if seed is None else seed
     cteam = compile_team(team)
-    if accelerate and team.world:
+    if accelerate and team.world and not team.requirements:  # fast paths check no formulas
         from hybridteam.engine.batch import batch_rows
 
         rows = batch_rows(cteam, n, overrides, seed)
         if rows is not None:
             return rows
-    run = Run.of(Simulator(cteam, n, seed=seed, overrides=overrides).run())
+    requirements = compile_requirements(cteam)
+    sim = Simulator(cteam, n, seed=seed, overrides=overrides, snapshots=bool(requirements),
+                    observe=requirements.observers(cteam))
+    run = Run.of(sim.run())
+    if requirements:
+        check_requirements(run, requirements, sim)
     return [{k: v for k, v in row.items() if k not in _COUNTS}
             for row in run.summary()["instances"]]
 

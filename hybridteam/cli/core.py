@@ -213,7 +213,8 @@ def _write_run(out: Path, team, run, summary: dict, views: bool) -> list[str]:
         raise SystemExit(EXIT_INTERRUPTED) from None
 
 
-_BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "messages"})
+_BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "messages",
+                    "requirements"})
 
 
 def _fmt(value) -> str:
@@ -239,6 +240,10 @@ def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
             print("      " + ", ".join(f"{k} {_fmt(v)}" for k, v in stats.items()))
     if summary["n"] > 10:
         print(f"  ... {summary['n'] - 10} more in summary.json")
+    from hybridteam.requirements.report import verdict_lines
+
+    for line in verdict_lines(summary["instances"]):
+        print(line)
     files = ["trace.json", "modes.csv", "transitions.csv", "messages.csv", "samples.csv",
              *views, "summary.json"]
     print(f"wrote {out}/ ({', '.join(files)})")

@@ -147,8 +147,11 @@ class Watch:
 
     atom: Atom
     mode: int  # the mode that owns the guard or invariant (``t_in_mode`` is measured from it)
-    owner: Expression  # the guard or invariant the atom belongs to
+    owner: Expression | None  # the guard or invariant the atom belongs to
     invariant: bool
+    #: a requirement's comparison: its crossings are located (and the run stops there, so
+    #: the state at the crossing is recorded) though no guard depends on it
+    observer: bool = False
 
 
 @dataclass

@@ -182,7 +182,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
         x, t = points[k + 1]
         for w, watch in enumerate(watches):
             cols = np.flatnonzero(flips[k, w])
-            if cols.size == 0:
+            if cols.size == 0 or watch.observer:  # a requirement's crossing always matters
                 continue
             shared = np.zeros(cols.size, bool)
             for v, other in enumerate(watches):

@@ -33,6 +33,8 @@ class Recorder:
         self.sample_times = sample_times
         self.samples = {a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
                         for a in cteam.agents}
+        #: None, or (instances, t, {series: values}) at every instant (``snapshots=True``)
+        self.snapshots: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] | None = None
 
     def add_series(self, series: dict[str, tuple[str, ...]]) -> None:
         """Sample series besides the agents' states (a payload's pose, from the world)."""
@@ -60,6 +62,24 @@ class Recorder:
         ids = np.full(len(instances), -1, np.int64) if msg_id is None else msg_id.copy()
         self._messages.append((instances.copy(), seq.copy(), sender, receiver, socket, kind,
                                t_send.copy(), t_recv.copy(), status, reason, ids))
+
+    def snapshot(self, instances: np.ndarray, t: np.ndarray,
+                 values: dict[str, np.ndarray]) -> None:
+        assert self.snapshots is not None
+        if instances.size and values:
+            self.snapshots.append((instances.copy(), t.copy(),
+                                   {k: np.array(v, dtype=float) for k, v in values.items()}))
+
+    def merged_snapshots(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per series: (instances, times, values), in the order they were taken."""
+        out: dict[str, list] = {}
+        for inst, t, values in self.snapshots or []:
+            for name, v in values.items():
+                out.setdefault(name, []).append((inst, t, v.reshape(len(inst), -1)))
+        return {name: (np.concatenate([p[0] for p in parts]),
+                       np.concatenate([p[1] for p in parts]),
+                       np.concatenate([p[2] for p in parts]))
+                for name, parts in out.items()}
 
     def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
         ok = k < len(self.sample_times)

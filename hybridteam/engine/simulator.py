@@ -15,6 +15,7 @@ The state lives in an :class:`~.ensemble.Ensemble`; this module is only the loop
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Mapping, Sequence
 
@@ -23,7 +24,7 @@ import numpy as np
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
-from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import derivative, sample_laws
@@ -44,7 +45,14 @@ class Simulator:
                  duration: float | None = None,
                  overrides: Mapping[str, float | Sequence[float]] | None = None,
                  progress: Progress | None = None, max_memory: float | None = None,
-                 max_periods: float | None = None, max_wall: float | None = None) -> None:
+                 max_periods: float | None = None, max_wall: float | None = None,
+                 snapshots: bool = False,
+                 observe: Mapping[int, Sequence[Watch]] | None = None) -> None:
+        """``snapshots``: also keep every agent's state and the world's series at every
+        instant the run stops at (events, crossings, law ticks), exact where samples are
+        interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
+        ``observe``: extra watched comparisons per agent index (a requirement's), whose
+        crossings the run stops at so that a snapshot holds the state there."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -52,7 +60,13 @@ class Simulator:
             raise ValueError(f"duration must be a finite number >= 0, got {t_end}")
         check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
                      max_periods)
+        if observe:
+            cteam = dataclasses.replace(cteam, agents=[
+                dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
+                for ca in cteam.agents])
         self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {})
+        if snapshots:
+            self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
@@ -119,6 +133,9 @@ class Simulator:
                 discrete = np.union1d(discrete, raised)
             discrete = discrete[~ens.done[discrete]]
         discrete_phase(ens, discrete)
+        if ens.rec.snapshots is not None:
+            ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
+            ens.rec.snapshot(idx, ens.t[idx], ens.world.sample(idx))
         live = idx[~ens.done[idx]]
         changed = live[ens.changed[live]] if not entering else live
         for a, st in enumerate(ens.states):

@@ -27,12 +27,14 @@ import numpy as np
 from matplotlib import rc_context
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from hybridteam.errors import did_you_mean
 from hybridteam.export.arrows import crossed, draw_messages, loss_text
 from hybridteam.export.figures import DATA_FORMATS, figure_format, save_figure
 from hybridteam.export.legend import legend_handles
 from hybridteam.export.style import FONT, team_mode_colors, text_color
+from hybridteam.export.verdicts import VIOLATION_COLOR, draw_violations
 from hybridteam.trace import Table, Trace, write_atomic
 
 MAIN_HEIGHT, TOP_HEIGHT, GAP = 0.8, 0.35, 0.35
@@ -343,6 +345,7 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
         ax.vlines([m.t for m in data.marks], lo, lo + 0.22, colors="black", linewidth=0.7,
                   gid="transitions")
     draw_messages(ax, data, 7 * 0.62 * fig.dpi / 72 / px_per_s)
+    violated = draw_violations(ax, trace, instance, (t0, t1))
     pad = 0.0 if data.window else 0.01 * width
     ax.set_xlim(t0 - pad, t1 + pad)
     first, last = data.lanes[0], data.lanes[-1]
@@ -357,6 +360,9 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
     ax.set_title(title + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else
                           loss_text(data)))
     handles, heads = legend_handles(data.legend)
+    if violated:
+        handles.append(Line2D([], [], color=VIOLATION_COLOR, linestyle="--",
+                              label="requirement violated"))
     if handles:
         box = ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                         fontsize=8, frameon=False, ncol=1 + len(handles) // 30,

@@ -34,6 +34,7 @@ from hybridteam.expr.language import (
     FUNCTIONS,
     MAX_DEPTH,
     MAX_LENGTH,
+    REQUIREMENT_ONLY,
     Atom,
     Expression,
     ExpressionError,
@@ -233,6 +234,8 @@ class _Compiler:
                 paren = self.source.find("(", self.pos(node.func)[1])
                 return 1, paren, paren + 1, "only functions such as sin(x) can be called", None
             name, n = node.func.id, len(node.args)
+            if name in REQUIREMENT_ONLY:
+                return 1, *self.pos(node.func), _requirement_only(name), None
             if name not in FUNCTIONS:
                 hint = _FUNCTION_HINTS.get(name) or did_you_mean(name, FUNCTIONS)
                 return 1, *self.pos(node.func), f"unknown function '{name}'", hint
@@ -241,6 +244,9 @@ class _Compiler:
                 return (1, start, end, f"wrong number of arguments ({n}) in call to {name}",
                         f"usage: {spec.usage}")
             return None
+        if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) \
+                and node.value.id in REQUIREMENT_ONLY:
+            return 0, *self.pos(node.value), _requirement_only(node.value.id), None
         if isinstance(node, ast.Attribute | ast.Subscript):
             start, end = self._token_after(node, node.value, "." if isinstance(
                 node, ast.Attribute) else "[")
@@ -366,6 +372,11 @@ class _Compiler:
             raise self.error("must be a condition, e.g. 'x >= 5', not a number" if condition
                              else "must be a number, not a condition", *self.pos(tree))
         return tree, result
+
+
+def _requirement_only(name: str) -> str:
+    return (f"'{name}' belongs to requirement formulas (a team's requirements:), not to "
+            "guards, invariants, inputs or flows")
 
 
 def compile_expression(source: str, symbols: Mapping[str, Getter], *,

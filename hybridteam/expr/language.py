@@ -70,6 +70,9 @@ FUNCTIONS: Mapping[str, _Function] = MappingProxyType({
                       "clip(x, lo, hi)")})
 CONSTANTS: Mapping[str, float] = MappingProxyType({"pi": math.pi, "inf": math.inf})
 _BOOL_NAMES = {"true": True, "false": False}
+#: names only requirement formulas know (temporal operators and mode signals)
+REQUIREMENT_ONLY = frozenset({"always", "eventually", "until", "implies", "in_mode", "in_role",
+                              "count_in_mode", "count_in_role", "received", "sent"})
 _FUNCTION_HINTS = {"pow": "use ** for powers", "ln": "did you mean 'log'?", "mod": "use a % b"}
 _BINOPS: dict[type, tuple[str, Any]] = {
     ast.Add: ("+", np.add), ast.Sub: ("-", np.subtract), ast.Mult: ("*", np.multiply),

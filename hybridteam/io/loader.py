@@ -51,6 +51,7 @@ from hybridteam.model import (
     NetworkSpec,
     PlantSpec,
     Raise,
+    Requirement,
     ScenarioEvent,
     Send,
     Simulation,
@@ -59,6 +60,7 @@ from hybridteam.model import (
     WorldSpec,
     Zeno,
 )
+from hybridteam.requirements.check import compile_requirements
 
 if TYPE_CHECKING:
     from hybridteam.robots.presets import RobotPreset
@@ -115,6 +117,7 @@ def _load_team(doc: Document) -> Loaded:
         if comp.errors:
             raise ModelErrors(comp.errors)
         cteam = compile_team(team)
+        compile_requirements(cteam)
     except ModelErrors as exc:
         raise InputErrors([locate(e, doc.positions, doc.filename, others)
                            for e in exc.errors]) from None
@@ -204,8 +207,20 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 messages=_messages(doc, comp), world=world,
                 folder=str(Path(filename).resolve().parent),
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
-                            doc.end.when if doc.end else "all", ("end",)))
+                            doc.end.when if doc.end else "all", ("end",)),
+                requirements=_requirements(doc))
     return team, comp
+
+
+def _requirements(doc: TeamFile) -> tuple[Requirement, ...]:
+    out = []
+    for name, entry in doc.requirements.items():
+        if isinstance(entry, str):
+            out.append(Requirement(name, entry, None, ("requirements", name)))
+        else:
+            out.append(Requirement(name, entry.formula, entry.description,
+                                   ("requirements", name, "formula")))
+    return tuple(out)
 
 
 def _messages(doc: TeamFile, comp: Composer) -> dict[str, MessageSpec]:

@@ -13,6 +13,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from hybridteam.io.reqschema import RequirementEntry
+
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
@@ -348,6 +350,9 @@ class TeamFile(Strict):
     messages: dict[str, MessageDeclSchema] = Field(
         default_factory=dict, description="the team's own message types (fields, ack:, "
         "priority); a protocol's are declared in the protocol")
+    requirements: dict[str, RequirementEntry] = Field(
+        default_factory=dict, description="named temporal-logic formulas checked on every "
+        "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
 
     @field_validator("agents")
     @classmethod
@@ -361,6 +366,12 @@ class TeamFile(Strict):
     @classmethod
     def _param_names(cls, v: dict[str, Any]) -> dict[str, Any]:
         check_names(v, "parameter")
+        return v
+
+    @field_validator("requirements")
+    @classmethod
+    def _requirement_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "requirement")
         return v
 
 

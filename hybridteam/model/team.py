@@ -138,6 +138,17 @@ class WorldSpec:
 
 
 @dataclass(frozen=True)
+class Requirement:
+    """A named requirement: a Signal Temporal Logic formula checked on every run (see
+    :mod:`hybridteam.requirements`). ``formula`` is text, compiled when the team is."""
+
+    name: str
+    formula: str
+    description: str | None = None
+    where: DocPath = ()
+
+
+@dataclass(frozen=True)
 class Team:
     """Agents that run in parallel, with shared parameters and a simulation setup."""
 
@@ -153,6 +164,7 @@ class Team:
     #: the folder of the team file: ``module:function`` laws are looked for there first
     folder: str | None = None
     end: EndRule = field(default_factory=EndRule)
+    requirements: tuple[Requirement, ...] = ()
 
     def __repr__(self) -> str:
         names = ", ".join(a.name for a in self.agents)

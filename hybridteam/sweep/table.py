@@ -97,8 +97,10 @@ def aggregate(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
         by_setting.setdefault(int(plan.setting_of(r)), []).append(j)
     axes = [a.name for a in study.axes]
     metrics = list(study.metrics)
+    reqs = requirement_names(runs)
     columns = ["factor", "value", *axes, "runs", *names, "success_rate",
-               *[f"mean_{m}" for m in metrics]]
+               *[f"mean_{m}" for m in metrics],
+               *[c for r in reqs for c in (f"{r}_satisfied", f"{r}_min_robustness")]]
     rows = []
     for s in plan.settings:
         mine = by_setting.get(s.index, [])
@@ -113,8 +115,18 @@ def aggregate(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
             values = [float(runs[f"metric_{m}"][j]) for j in good]
             values = [v for v in values if not math.isnan(v)]
             row[f"mean_{m}"] = math.fsum(values) / len(values) if values else math.nan
+        for r in reqs:  # over every run of the setting, successful or not
+            ok = [runs[f"req_{r}_ok"][j] for j in mine]
+            rho = [runs[f"req_{r}_rho"][j] for j in mine]
+            row[f"{r}_satisfied"] = math.fsum(ok) / len(ok) if ok else math.nan
+            row[f"{r}_min_robustness"] = min(rho) if rho else math.nan
         rows.append(row)
     return ResultTable(columns, rows)
+
+
+def requirement_names(runs: dict[str, list[Any]]) -> list[str]:
+    """The requirements whose verdicts the runs carry (``req_<name>_ok`` columns)."""
+    return [c[4:-3] for c in runs if c.startswith("req_") and c.endswith("_ok")]
 
 
 def _number(v: float) -> int | float:
@@ -132,6 +144,8 @@ def run_table(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
     names = {m: m if m.removeprefix("metric_") in columns else m.removeprefix("metric_")
              for m in metrics}  # a metric named like a column (t_end) keeps its prefix
     columns += list(names.values())
+    reqs = [c for r in requirement_names(runs) for c in (f"req_{r}_ok", f"req_{r}_rho")]
+    columns += reqs
     rows = []
     for j, r in enumerate(runs.get("run", [])):
         s = plan.settings[int(plan.setting_of(r))]
@@ -139,6 +153,7 @@ def run_table(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
         row.update({name: _number(v) for name, v in s.axes})
         row.update({c: runs[c][j] for c in RUN_COLUMNS[2:]})
         row.update({names[m]: float(runs[m][j]) for m in metrics})
+        row.update({c: float(runs[c][j]) for c in reqs})
         rows.append(row)
     return ResultTable(columns, rows)
 

@@ -82,6 +82,20 @@ def run_chunk(team: Team, task: Task) -> dict[str, list[Any]]:
     }
     for key in task.metrics:
         cols[f"metric_{key}"] = [metric_value(p.get(key)) for p in per]
+    cols.update(requirement_columns(per))
+    return cols
+
+
+def requirement_columns(per: list[dict[str, Any]]) -> dict[str, list[float]]:
+    """``req_<name>_ok`` (1 where the requirement held) and ``req_<name>_rho`` (its
+    robustness) per run, for the team's requirements."""
+    from hybridteam.requirements.report import robustness_value
+
+    cols: dict[str, list[float]] = {}
+    for name in (per[0].get("requirements") or {}) if per else ():
+        cols[f"req_{name}_ok"] = [float(p["requirements"][name]["satisfied"]) for p in per]
+        cols[f"req_{name}_rho"] = [robustness_value(p["requirements"][name]["robustness"])
+                                   for p in per]
     return cols
 
 
