@@ -7,6 +7,7 @@ and exits with status 2, never a traceback, and writes nothing.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -53,3 +54,50 @@ def load_team_or_report(path: str, warnings: bool = False):
     for w in loaded.warnings if warnings else ():
         print(f"{w} (warning)", file=sys.stderr)
     return loaded.model
+
+
+INCOMPLETE = "INCOMPLETE"
+
+
+def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[str]:
+    """Write a run's folder; ``summary.json`` last. Until it is written the folder holds an
+    ``INCOMPLETE`` file saying so, which stays if writing fails or is interrupted: a folder
+    is complete (``summary.json``, no ``INCOMPLETE``) or says it is not."""
+    from hybridteam.trace import write_atomic
+
+    marker = out / INCOMPLETE
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").unlink(missing_ok=True)
+        write_atomic(marker, "hybridteam run was writing this folder and did not finish: "
+                     "its files may be partial or stale (summary.json is written last)\n")
+        run.to_json(out / "trace.json")
+        run.write_csv(out)
+        written: list[str] = []
+        failed = None
+        if views:
+            from hybridteam.export.runviews import write_run_views
+
+            try:
+                written = write_run_views(team, run, out)
+            except OSError:
+                raise
+            except Exception as exc:  # a view that cannot be drawn: the data still stands
+                failed = f"{type(exc).__name__}: {exc}"
+                summary["views_error"] = failed
+        write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+        marker.unlink()
+        if failed is not None:
+            raise UsageError(f"drawing the views failed ({failed}); {out}/ has the trace, "
+                             "the tables and summary.json (--no-views skips the views)")
+        return written
+    except OSError as exc:
+        target = getattr(exc, "filename2", None) or exc.filename  # a rename's target
+        where = f" {target}" if target else ""
+        raise UsageError(f"cannot write{where}: {exc.strerror or exc}"
+                         + ("" if not marker.exists() else
+                            f"; {out}/ is incomplete ({INCOMPLETE} marks it)")) from None
+    except KeyboardInterrupt:
+        print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
+              f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None

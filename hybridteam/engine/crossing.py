@@ -155,7 +155,9 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
             later |= best_lo[rows] <= lo[known]
             keep = np.ones(cand.size, bool)
             keep[np.flatnonzero(known)[later]] = False
-            hi[known] = np.minimum(hi[known], best_lo[rows])
+            # (the bracket is not cut at best_lo: each row's result must not depend on which
+            # atoms other instances searched first, so an instance of an ensemble and a single
+            # run agree bit for bit)
             cand, lo, hi, truth_lo = cand[keep], lo[keep], hi[keep], truth_lo[keep]
             if cand.size == 0:
                 continue

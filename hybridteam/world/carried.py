@@ -241,10 +241,17 @@ class CarriedPayload(WorldComponent):
         return self.arm[idx, self.agents.index(agent)]
 
     def sample_series(self) -> dict[str, tuple[str, ...]]:
-        return {self.values["name"]: ("x", "y", "theta")}
+        """The pose, and ``<name>_grasp``: each grasp's offset (m) while it holds, 0 while
+        not, one column per grasping robot — what requirements such as
+        ``always(box_grasp.labmate < 0.15)`` read."""
+        names = [self.team.agents[a].name for a in self.agents]
+        cols = tuple(n if names.count(n) == 1 else f"{n}_{k}" for k, n in enumerate(names))
+        return {self.values["name"]: ("x", "y", "theta"), f"{self.values['name']}_grasp": cols}
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
-        return {self.values["name"]: self.pose[idx]}
+        size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
+        return {self.values["name"]: self.pose[idx],
+                f"{self.values['name']}_grasp": np.where(self.engaged[idx], size, 0.0)}
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"max_grasp_offset": [float(v) for v in self.max_offset[i]]}

@@ -1,0 +1,121 @@
+"""A falsification's folder: ``falsify.json`` (every simulation, resumable), the
+convergence plot, and the replay of the best candidate as an ordinary run folder."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import shlex
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridteam.falsify.search import Generation, Search, Vary
+from hybridteam.trace import write_atomic
+
+FORMAT, VERSION = "hybridteam.falsify", 1
+RECORD = "falsify.json"
+
+
+def digest(team_text: str, settings: dict[str, Any]) -> str:
+    """What a resumed search must share with the one it continues (not the budget)."""
+    blob = json.dumps(settings, sort_keys=True) + "\0" + team_text
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def read_record(out: Path, key: str) -> list[Generation] | str:
+    """The generations of an earlier search with the same settings; a problem (text) if
+    the folder holds something else; [] for a new folder."""
+    path = out / RECORD
+    if not path.exists():
+        if any(out.glob("*")) and not (out / "replay").exists():
+            return f"output '{out}' is not empty and holds no falsification"
+        return []
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return f"{path}: unreadable ({exc})"
+    if data.get("format") != FORMAT or data.get("digest") != key:
+        return (f"output '{out}' holds a different search (other team, requirement, ranges, "
+                "method or seeds); use another folder")
+    return [Generation.from_json(g) for g in data.get("generations", [])]
+
+
+def replay_args(team_path: str, search: Search, i: int, out: Path) -> list[str]:
+    """``hybridteam run`` arguments that replay simulation ``i`` exactly (values in repr,
+    the shortest text that reads back as the same float)."""
+    x, seeds, _, _ = search.flat()
+    args = ["hybridteam", "run", team_path, "--seed", str(int(seeds[i]))]
+    for v, value in zip(search.varies, x[i].tolist(), strict=True):
+        args += ["--set", f"{v.key}={value!r}"]
+    return [*args, "-o", str(out / "replay")]
+
+
+def write_record(out: Path, key: str, settings: dict[str, Any], search: Search,
+                 extra: dict[str, Any] | None = None) -> None:
+    x, seeds, rho, outcomes = search.flat()
+    best = search.best() if len(rho) else None
+    data: dict[str, Any] = {
+        "format": FORMAT, "version": VERSION, "digest": key, **settings,
+        "simulations": search.evaluations,
+        "falsified_after": search.first_falsified(),
+        "best": None if best is None else {
+            "values": {v.key: float(x[best, j]) for j, v in enumerate(search.varies)},
+            "seed": int(seeds[best]), "robustness": _json(float(rho[best])),
+            "outcome": outcomes[best], "simulation": best + 1},
+        **(extra or {}),
+        "generations": [g.to_json() for g in search.generations]}
+    write_atomic(out / RECORD, json.dumps(data, indent=1) + "\n")
+
+
+def _json(r: float) -> float | str:
+    return r if math.isfinite(r) else ("inf" if r > 0 else "-inf")
+
+
+def write_convergence(out: Path, search: Search, title: str) -> Path:
+    """Best robustness so far against simulations, each simulation a dot; the zero line
+    is where the requirement breaks."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from hybridteam.export.figures import save_figure
+
+    rho = search.flat()[2]
+    k = np.arange(1, len(rho) + 1)
+    fig = Figure(figsize=(7.0, 4.0), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    finite = np.isfinite(rho)
+    ax.plot(k[finite], rho[finite], ".", color="#9E9E9E", markersize=4, label="each simulation")
+    best = np.minimum.accumulate(rho)
+    ok = np.isfinite(best)
+    ax.step(k[ok], best[ok], where="post", color="#1565C0", linewidth=1.8,
+            label="best so far")
+    ax.axhline(0.0, color="#C62828", linestyle="--", linewidth=1.0, label="violated below")
+    first = search.first_falsified()
+    if first is not None:
+        ax.axvline(first, color="#C62828", linewidth=0.8, alpha=0.5)
+        ax.annotate(f"first violation: simulation {first}", (first, 0), xytext=(6, 8),
+                    textcoords="offset points", fontsize=8, color="#C62828")
+    ax.set_xlabel("simulations")
+    ax.set_ylabel("robustness")
+    ax.set_title(title, fontsize=10)
+    ax.grid(color="#EEEEEE")
+    ax.legend(fontsize=8, loc="upper right", frameon=False)
+    path = out / "convergence.png"
+    save_figure(fig, path)
+    return path
+
+
+def command_line(args: list[str]) -> str:
+    return " ".join(shlex.quote(a) for a in args)
+
+
+def settings_of(requirement: str, formula: str, varies: list[Vary], seeds: int, base_seed: int,
+                method: str, population: int, search_seed: int) -> dict[str, Any]:
+    return {"requirement": requirement, "formula": formula,
+            "vary": [{"key": v.key, "lo": v.lo, "hi": v.hi} for v in varies],
+            "seeds": seeds, "base_seed": base_seed, "method": method,
+            "population": population, "search_seed": search_seed}
