@@ -206,7 +206,7 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
     overrides = dict(overrides or {})
     seed = team.simulation.seed if seed is None else seed
     cteam = compile_team(team)
-    if accelerate and team.world and not team.requirements:  # fast paths check no formulas
+    if accelerate and team.world:  # a batch path keeps no trace: requirements go unchecked
         from hybridteam.engine.batch import batch_rows
 
         rows = batch_rows(cteam, n, overrides, seed)

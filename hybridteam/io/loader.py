@@ -113,6 +113,7 @@ def _load_team(doc: Document) -> Loaded:
     except ProtocolErrors as exc:
         raise InputErrors(exc.errors) from None
     others = {InFile(p.filename): p.positions for p in comp.cache.values()}
+    others.update(comp.requirement_files)
     try:
         if comp.errors:
             raise ModelErrors(comp.errors)
@@ -144,7 +145,15 @@ def _validated(doc: Document, schema: type[BaseModel]) -> BaseModel:
 FILE_KINDS = (
     FileKind("team", lambda: TeamFile, _load_team, marks=("agents", "team")),
     FileKind("protocol", lambda: ProtocolFile, _load_protocol, marks=("protocol",)),
+    FileKind("requirements", lambda: _requirements_schema(), lambda doc: Loaded(
+        "requirements", _validated(doc, _requirements_schema())), marks=("requirements",)),
 )
+
+
+def _requirements_schema() -> type[BaseModel]:
+    from hybridteam.io.reqschema import RequirementsFile
+
+    return RequirementsFile
 
 
 def load_team_file(source: str | os.PathLike) -> Loaded:
@@ -208,19 +217,52 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 folder=str(Path(filename).resolve().parent),
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
                             doc.end.when if doc.end else "all", ("end",)),
-                requirements=_requirements(doc))
+                requirements=_requirements(doc, filename, comp))
     return team, comp
 
 
-def _requirements(doc: TeamFile) -> tuple[Requirement, ...]:
+def _requirements(doc: TeamFile, filename: str, comp: Composer) -> tuple[Requirement, ...]:
+    """The team's requirements: those of its ``requirements_from`` files, then its own."""
+    out: list[Requirement] = []
+    for k, ref in enumerate(doc.requirements_from):
+        where = ("requirements_from", k)
+        loaded = load_requirement_file(Path(filename).resolve().parent / ref, where)
+        if isinstance(loaded, ModelError):
+            comp.errors.append(loaded)
+            continue
+        other, positions = loaded
+        tag = InFile(str(Path(filename).resolve().parent / ref))
+        comp.requirement_files[tag] = positions
+        out += _entries(other.requirements, (tag, "requirements"))
+    seen = {r.name: r for r in out}
+    for r in _entries(doc.requirements, ("requirements",)):
+        if r.name in seen:
+            comp.errors.append(ModelError(r.where[:2], f"requirement '{r.name}' is also in "
+                                          f"{seen[r.name].where[0]}", at_key=True))
+        out.append(r)
+    return tuple(out)
+
+
+def _entries(entries: dict, where: DocPath) -> list[Requirement]:
     out = []
-    for name, entry in doc.requirements.items():
+    for name, entry in entries.items():
         if isinstance(entry, str):
-            out.append(Requirement(name, entry, None, ("requirements", name)))
+            out.append(Requirement(name, entry, None, (*where, name)))
         else:
             out.append(Requirement(name, entry.formula, entry.description,
-                                   ("requirements", name, "formula")))
-    return tuple(out)
+                                   (*where, name, "formula")))
+    return out
+
+
+def load_requirement_file(path: Path, where: DocPath):
+    """``(RequirementsFile, positions)``, or a :class:`ModelError` at ``where`` (the
+    include) for a file that cannot be read; errors inside it raise located."""
+    from hybridteam.io.reqschema import RequirementsFile
+
+    if not path.is_file():
+        return ModelError(where, f"no requirement file '{path}'")
+    doc = read_document(path)
+    return _validated(doc, RequirementsFile), doc.positions
 
 
 def _messages(doc: TeamFile, comp: Composer) -> dict[str, MessageSpec]:

@@ -87,6 +87,8 @@ class Composer:
     def __init__(self, base: Path, mode_builder) -> None:
         self.base = base
         self.cache: dict[str, Protocol] = {}
+        #: the positions of requirement files the team includes (their errors are located)
+        self.requirement_files: dict[InFile, Positions] = {}
         self.build_mode = mode_builder
         self.used: dict[str, Protocol] = {}
         self.errors: list[ModelError] = []

@@ -3,7 +3,7 @@ the team, see :mod:`hybridteam.requirements`)."""
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -20,3 +20,14 @@ class RequirementSchema(BaseModel):
 
 
 RequirementEntry = Annotated[str | RequirementSchema, Field(union_mode="left_to_right")]
+
+
+class RequirementsFile(BaseModel):
+    """A file of requirements a team includes (``requirements_from: [FILE]``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["requirements"] = "requirements"
+    description: str | None = None
+    requirements: dict[str, RequirementEntry] = Field(
+        description="named temporal-logic formulas, as in a team's requirements:")

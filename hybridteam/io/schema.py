@@ -350,6 +350,9 @@ class TeamFile(Strict):
     messages: dict[str, MessageDeclSchema] = Field(
         default_factory=dict, description="the team's own message types (fields, ack:, "
         "priority); a protocol's are declared in the protocol")
+    requirements_from: list[str] = Field(
+        default_factory=list, description="requirement files (kind: requirements) whose "
+        "formulas this team checks too, relative to this file")
     requirements: dict[str, RequirementEntry] = Field(
         default_factory=dict, description="named temporal-logic formulas checked on every "
         "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")

@@ -104,6 +104,7 @@ class LadderCorridor(WorldComponent):
         self.path = np.zeros((2, n))
         self.corner_path = np.zeros((2, n))
         self.max_offset = np.zeros((2, n))
+        self.offset = np.zeros_like(self.max_offset)  # each robot's, at the last step
         self.best = np.full(n, np.inf)
         self.improved_at = np.zeros(n, np.int64)
         self.tips = np.full((2, n, 2), np.nan)
@@ -145,6 +146,7 @@ class LadderCorridor(WorldComponent):
                                          self.frame.width_out)
         # the referee: a broken link, arrival, no progress
         self.max_offset[:, idx] = np.maximum(self.max_offset[:, idx], no)
+        self.offset[:, idx] = no
         broken = (no > self.olim[:, idx]).any(axis=0)
         if broken.any():
             bad = idx[broken]
@@ -198,13 +200,16 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ results
     def sample_series(self) -> dict[str, tuple[str, ...]]:
-        return {"ladder": ("x", "y", "theta")}
+        """The ladder's pose, and ``ladder_offset``: each robot's spring offset at the last
+        step (the link breaks past ``olim``), which requirements read."""
+        names = (str(self.values["front"]), str(self.values["rear"]))
+        return {"ladder": ("x", "y", "theta"), "ladder_offset": names}
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
         a, b = self.tips[0, idx], self.tips[1, idx]
         c = 0.5 * (a + b)
         th = np.arctan2(a[:, 1] - b[:, 1], a[:, 0] - b[:, 0])
-        return {"ladder": np.column_stack([c, th])}
+        return {"ladder": np.column_stack([c, th]), "ladder_offset": self.offset[:, idx].T}
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),
