@@ -75,19 +75,19 @@ def _window_min(t: np.ndarray, rho: np.ndarray, a: float, b: float) -> np.ndarra
             half = 1 << (len(table) - 1)
             prev = table[-1]
             table.append(np.minimum(prev[:, :-half], prev[:, half:]))
-        l, h = lo[rows], hi[rows]
-        span = h - l
-        got = np.full(l.shape, np.inf)
+        start, stop = lo[rows], hi[rows]
+        span = stop - start
+        got = np.full(start.shape, np.inf)
         ok = span > 0
-        level = np.zeros(l.shape, np.intp)
+        level = np.zeros(start.shape, np.intp)
         level[ok] = np.floor(np.log2(span[ok])).astype(np.intp)
         for j, tab in enumerate(table):
             sel = ok & (level == j)
             if not sel.any():
                 continue
-            rr, cc = np.nonzero(sel)
-            left = tab[rr, l[sel]]
-            right = tab[rr, h[sel] - (1 << j)]
+            rr = np.nonzero(sel)[0]
+            left = tab[rr, start[sel]]
+            right = tab[rr, stop[sel] - (1 << j)]
             got[sel] = np.minimum(left, right)
         out[rows] = got
     out[~np.isfinite(t)] = np.nan
