@@ -79,31 +79,50 @@ def write_convergence(out: Path, search: Search, title: str) -> Path:
     is where the requirement breaks."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     from hybridteam.export.figures import save_figure
 
     rho = search.flat()[2]
     k = np.arange(1, len(rho) + 1)
-    fig = Figure(figsize=(7.0, 4.0), dpi=110)
+    fig = Figure(figsize=(8.5, 4.0), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    finite = np.isfinite(rho)
-    ax.plot(k[finite], rho[finite], ".", color="#9E9E9E", markersize=4, label="each simulation")
-    best = np.minimum.accumulate(rho)
-    ok = np.isfinite(best)
-    ax.step(k[ok], best[ok], where="post", color="#1565C0", linewidth=1.8,
-            label="best so far")
+    finite = rho[np.isfinite(rho)]
+    lo = min(float(finite.min()), 0.0) if finite.size else -1.0
+    hi = max(float(finite.max()), 0.0) if finite.size else 1.0
+    span = (hi - lo) or 1.0
+    top, bottom = hi + 0.12 * span, lo - 0.12 * span  # where Boolean verdicts (+-inf) sit
+    shown = np.clip(rho, bottom, top)
+    fin = np.isfinite(rho)
+    if fin.any():
+        ax.plot(k[fin], rho[fin], ".", color="#9E9E9E", markersize=4, label="each simulation")
+    for mask, y, marker, text in ((rho == np.inf, top, "^", "held by a Boolean (+inf)"),
+                                  (rho == -np.inf, bottom, "v", "broken by a Boolean (-inf)")):
+        if mask.any():
+            ax.plot(k[mask], np.full(mask.sum(), y), marker, color="#9E9E9E", markersize=4,
+                    label=text)
+    best = np.minimum.accumulate(shown)
+    ax.step(k, best, where="post", color="#1565C0", linewidth=1.8, label="best so far")
+    ax.set_xlim(0.5, max(len(rho), 1) + 0.5)
+    ax.set_ylim(bottom - 0.05 * span, top + 0.05 * span)
+    if not np.isfinite(rho).all():  # name the rows where the Boolean verdicts sit
+        ticks = [t for t in ax.get_yticks() if lo - 1e-12 <= t <= hi + 1e-12] \
+            if finite.size else [0.0]
+        ax.set_yticks([bottom, *ticks, top],
+                      ["-inf", *(f"{t:g}" for t in ticks), "+inf"])
     ax.axhline(0.0, color="#C62828", linestyle="--", linewidth=1.0, label="violated below")
     first = search.first_falsified()
     if first is not None:
         ax.axvline(first, color="#C62828", linewidth=0.8, alpha=0.5)
         ax.annotate(f"first violation: simulation {first}", (first, 0), xytext=(6, 8),
                     textcoords="offset points", fontsize=8, color="#C62828")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("simulations")
     ax.set_ylabel("robustness")
     ax.set_title(title, fontsize=10)
     ax.grid(color="#EEEEEE")
-    ax.legend(fontsize=8, loc="upper right", frameon=False)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     path = out / "convergence.png"
     save_figure(fig, path)
     return path
