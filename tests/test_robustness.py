@@ -144,12 +144,13 @@ def _brute(t: np.ndarray, phi: np.ndarray, psi: np.ndarray, a: float, b: float) 
 def test_irregular_padded_grids_against_the_definitions(monkeypatch):
     monkeypatch.setattr(R, "_CHUNK_BYTES", 4000)  # several row chunks per call
     rng = np.random.default_rng(7)
-    for _ in range(12):
+    for case in range(24):
         n, k = 5, int(rng.integers(1, 70))
         t = np.cumsum(rng.choice([0.25, 0.5, 1.0, 3.0], (n, k)), axis=1)
         for r in range(n):
             t[r, int(rng.integers(1, k + 1)):] = INF
-        phi, psi = (rng.choice([-2.0, -1.0, 0.0, 1.5, INF, -INF], (n, k)) for _ in "ab")
+        values = [-2.0, -1.0, 0.0, 1.5, INF, -INF] if case % 2 else [INF, -INF]  # Boolean
+        phi, psi = (rng.choice(values, (n, k)) for _ in "ab")
         a = float(rng.choice([0.0, 0.25, 1.0, 2.0]))
         b = a + float(rng.choice([0.0, 0.5, 1.0, 4.0, 20.0, INF]))
         want = _brute(t, phi, psi, a, b)

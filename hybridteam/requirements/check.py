@@ -57,7 +57,7 @@ class RequirementSet:
         sig = Signals(run, params, self.events, snapshots)
         out: list[dict[str, dict]] = [{} for _ in range(run.n)]
         for req in self.requirements:
-            rho = req.formula.rho(sig)[:, 0]
+            rho = req.formula.rho0(sig)
             for i in range(run.n):
                 out[i][req.name] = verdict(req.formula, sig, i, float(rho[i]))
         return out

@@ -37,6 +37,10 @@ class Node:
     def _rho(self, sig: Any) -> np.ndarray:  # pragma: no cover - every subclass has one
         raise NotImplementedError
 
+    def rho0(self, sig: Any) -> np.ndarray:
+        """Robustness at t = 0 only, per instance: a requirement's value."""
+        return self.rho(sig)[:, 0]
+
     def blame(self, sig: Any, i: int, k: int) -> tuple[float, str]:
         """(time, sub-formula) that first makes this node fail at grid point ``k`` of
         instance ``i`` (where its robustness is negative)."""
@@ -44,7 +48,9 @@ class Node:
 
 
 def _full(sig: Any, value: Any) -> np.ndarray:
-    return np.broadcast_to(np.asarray(value, dtype=float), sig.shape).astype(float)
+    """``value`` as floats of the grid's shape (no copy when it already is one)."""
+    value = np.asarray(value, dtype=float)
+    return value if value.shape == sig.shape else np.broadcast_to(value, sig.shape)
 
 
 @dataclass(eq=False)
@@ -78,8 +84,10 @@ class Predicate(Node):
             if self.op in ("==", "!="):
                 return np.where((a == b) == (self.op == "=="), INF, -INF)
             out = b - a if self.op in ("<", "<=") else a - b
-        # inf - inf (two unbounded sides) has no margin: count it as the boundary
-        return np.where(np.isnan(out) & ~np.isnan(a) & ~np.isnan(b), 0.0, out)
+            if np.isinf(a).any() and np.isinf(b).any():
+                # inf - inf (two unbounded sides) has no margin: count it as the boundary
+                out = np.where(np.isnan(out) & ~np.isnan(a) & ~np.isnan(b), 0.0, out)
+        return out
 
 
 @dataclass(eq=False)
@@ -125,12 +133,25 @@ class Temporal(Node):
                               & np.isfinite(t))
 
 
+    def _whole_run(self, sig: Any, op: Any, identity: float) -> np.ndarray | None:
+        """At t = 0, a window ``[0, inf)`` is the whole run: one reduction per row (the
+        value :func:`.robustness.always` would give there, without the other points)."""
+        if self.lo != 0 or self.hi != INF:
+            return None
+        body = self.children[0].rho(sig)
+        return op.reduce(np.where(np.isfinite(sig.t), body, identity), axis=1)
+
+
 @dataclass(eq=False)
 class Always(Temporal):
     def _rho(self, sig: Any) -> np.ndarray:
         from hybridteam.requirements import robustness as R
 
         return R.always(sig.t, self.children[0].rho(sig), self.lo, self.hi)
+
+    def rho0(self, sig: Any) -> np.ndarray:
+        whole = self._whole_run(sig, np.minimum, INF)
+        return super().rho0(sig) if whole is None else whole
 
     def blame(self, sig: Any, i: int, k: int) -> tuple[float, str]:
         """The first failing point in the window. Where the failure starts between two
@@ -157,6 +178,10 @@ class Eventually(Temporal):
         from hybridteam.requirements import robustness as R
 
         return R.eventually(sig.t, self.children[0].rho(sig), self.lo, self.hi)
+
+    def rho0(self, sig: Any) -> np.ndarray:
+        whole = self._whole_run(sig, np.maximum, -INF)
+        return super().rho0(sig) if whole is None else whole
 
     def blame(self, sig: Any, i: int, k: int) -> tuple[float, str]:
         """Never held within the window: the failure is certain at the window's end (or

@@ -80,9 +80,38 @@ def _window(t: np.ndarray, rho: np.ndarray, a: float, b: float, op: Reduce,
     a, b = _check_window(a, b)
     t, (rho,) = _check_signals(t, rho)
     lo, hi, valid = _bounds(t, a, b, rho.shape[0])
-    out = _range_reduce(_blank(rho, valid, identity), lo, hi, op, identity)
+    x = _blank(rho, valid, identity)
+    if np.isinf(x).all():  # a Boolean signal (+-inf): count the deciding values instead
+        out = _count_reduce(x, None if a == 0 else lo, hi, identity)
+    elif math.isinf(b):  # every window runs to the row's end: one suffix scan, O(K) a row
+        out = _suffix_reduce(x, lo, op, identity)
+    else:
+        out = _range_reduce(x, lo, hi, op, identity)
     out[~valid] = np.nan
     return out
+
+
+def _count_reduce(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray, identity: float
+                  ) -> np.ndarray:
+    """min (``identity`` +inf) or max (-inf) over ``x[r, lo:hi]`` when every value is
+    +-inf: the window holds the other infinity iff it counts one; one prefix sum a row.
+    ``lo`` None: each window starts at its own point."""
+    n, k = x.shape
+    counts = np.zeros((n, k + 1), np.int64)
+    np.cumsum(x != identity, axis=1, out=counts[:, 1:])
+    before = counts[:, :k] if lo is None else np.take_along_axis(
+        counts, np.broadcast_to(lo, (n, k)), 1)
+    decided = np.take_along_axis(counts, np.broadcast_to(hi, (n, k)), 1) > before
+    return np.where(decided, -identity, identity)
+
+
+def _suffix_reduce(x: np.ndarray, lo: np.ndarray, op: Reduce, identity: float
+                   ) -> np.ndarray:
+    """``op`` over ``x[r, lo:]`` per point (pads already hold ``identity``)."""
+    n, k = x.shape
+    suffix = np.full((n, k + 1), identity)
+    suffix[:, :k] = op.accumulate(x[:, ::-1], axis=1)[:, ::-1]
+    return np.take_along_axis(suffix, np.broadcast_to(lo, (n, k)), axis=1)
 
 
 def _check_window(a: float, b: float) -> tuple[float, float]:
@@ -139,7 +168,10 @@ def _bounds(t: np.ndarray, a: float, b: float, n: int
         return (np.broadcast_to(lo, shape), np.broadcast_to(hi, shape),
                 np.broadcast_to(valid, shape))
     length = valid.sum(axis=1, keepdims=True)  # pads get empty windows [length, length)
-    lo = np.minimum(_count_before(t, t + a, strict=True), length)
+    if a == 0:  # on a strictly increasing row, t_i's own index is where [t_i, ...) starts
+        lo = np.minimum(np.arange(t.shape[1]), length)
+    else:
+        lo = np.minimum(_count_before(t, t + a, strict=True), length)
     hi = (np.minimum(_count_before(t, t + b, strict=False), length) if math.isfinite(b)
           else np.broadcast_to(length, t.shape))
     return lo, hi, valid

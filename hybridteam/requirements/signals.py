@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from hybridteam.requirements.grid import Grid
+
 
 class Signals:
     """Signals of ``run`` (a :class:`~hybridteam.trace.Trace`) on per-instance grids."""
@@ -36,27 +38,18 @@ class Signals:
         self._snaps = dict(snapshots or {})
         snap_inst, snap_t = _instants(self._snaps)
         n = run.n
-        ends = [float(o["t"]) for o in run.diagnostics] if hasattr(run, "diagnostics") \
-            else [float(o["t"]) for o in run.outcomes]
-        self.t_end = np.asarray(ends)
-        st = run.sample_times
+        outcomes = run.diagnostics if hasattr(run, "diagnostics") else run.outcomes
+        self.t_end = np.array([float(o["t"]) for o in outcomes])
         tr, ms = run.transitions, run.messages
         wanted = np.isin(ms["type"], list(events)) if len(ms) else np.zeros(0, bool)
-        grids = []
-        for i in range(n):
-            parts = [st[st <= ends[i]], tr["t"][tr["instance"] == i], [0.0, ends[i]]]
-            mine = wanted & (ms["instance"] == i)
-            if mine.any():
-                parts += [ms["t_send"][mine], ms["t_recv"][mine]]
-            if snap_t.size:
-                parts.append(snap_t[snap_inst == i])
-            g = np.unique(np.concatenate([np.asarray(p, float) for p in parts]))
-            grids.append(g[np.isfinite(g) & (g <= ends[i])])
-        width = max(len(g) for g in grids)
-        self.t = np.full((n, width), np.inf)
-        for i, g in enumerate(grids):
-            self.t[i, : len(g)] = g
-        self.grids = grids
+        inst = [tr["instance"], np.arange(n), np.arange(n), snap_inst,
+                ms["instance"][wanted], ms["instance"][wanted]]
+        times = [tr["t"], np.zeros(n), self.t_end, snap_t,
+                 ms["t_send"][wanted], ms["t_recv"][wanted]]
+        self.grid = Grid(run.sample_times, self.t_end,
+                         np.concatenate([np.asarray(x, np.intp) for x in inst]),
+                         np.concatenate([np.asarray(x, float) for x in times]))
+        self.t = self.grid.t
         self.shape = self.t.shape
         self.memo: dict[Any, np.ndarray] = {}
 
@@ -68,22 +61,17 @@ class Signals:
     def _sampled(self, key: str, j: int) -> np.ndarray:
         memo = ("sampled", key, j)
         if memo not in self.memo:
-            st, values = self.run.sample_times, self.run.samples[key][:, :, j]
+            g = self.grid
+            values = g.place(self.run.samples[key][:, :, j].T, np.nan)
             snap = self._snaps.get(key)
-            out = np.full(self.shape, np.nan)
-            for i, g in enumerate(self.grids):
-                ok = ~np.isnan(values[:, i])
-                times, vals = st[ok], values[ok, i]
-                if snap is not None:  # exact states at instants; the last one at a time wins
-                    mine = np.flatnonzero(snap[0] == i)[::-1]
-                    times = np.concatenate([snap[1][mine], times])
-                    vals = np.concatenate([snap[2][mine, j], vals])
-                    order = np.argsort(times, kind="stable")
-                    times, first = np.unique(times[order], return_index=True)
-                    vals = vals[order][first]
-                if times.size:
-                    out[i, : len(g)] = np.interp(g, times, vals)
-            self.memo[memo] = out
+            if snap is not None:  # exact states at instants; the last one at a time wins
+                pos = g.locate(snap[0], snap[1])
+                flat = np.where(pos >= 0, snap[0] * self.shape[1] + pos, -1)[::-1]
+                _, last = np.unique(flat, return_index=True)
+                last = last[flat[last] >= 0]
+                rows, cols = np.divmod(flat[last], self.shape[1])
+                values[rows, cols] = snap[2][::-1][last, j]
+            self.memo[memo] = g.interpolate(~np.isnan(values), values)
         return self.memo[memo]
 
     def state(self, agent: str, j: int) -> np.ndarray:
@@ -111,20 +99,15 @@ class Signals:
         paths = self._paths(agent)
         wanted = [paths[m] for m in modes]
         rows = (iv["agent"] == agent) & np.isin(iv["mode"], wanted)
-        out = np.zeros(self.shape, bool)
         inst, start, end = iv["instance"][rows], iv["start"][rows], iv["end"][rows]
-        for i, g in enumerate(self.grids):
-            sel = inst == i
-            if not sel.any():
-                continue
-            lo = np.searchsorted(g, start[sel], "left")
-            last = end[sel] >= self.t_end[i]  # the run's end belongs to the last stay
-            hi = np.where(last, np.searchsorted(g, end[sel], "right"),
-                          np.searchsorted(g, end[sel], "left"))
-            mark = np.zeros(len(g) + 1, int)
-            np.add.at(mark, lo, 1)
-            np.add.at(mark, hi, -1)
-            out[i, : len(g)] = np.cumsum(mark[:-1]) > 0
+        last = end >= self.t_end[inst]  # the run's end belongs to the last stay
+        lo = self.grid.search(inst, start, "left")
+        hi = np.where(last, self.grid.search(inst, end, "right"),
+                      self.grid.search(inst, end, "left"))
+        w = self.shape[1] + 1
+        mark = (np.bincount(inst * w + lo, minlength=self.n * w)
+                - np.bincount(inst * w + hi, minlength=self.n * w)).reshape(self.n, w)
+        out = np.cumsum(mark, axis=1)[:, :-1] > 0
         self.memo[memo] = out
         return out
 
@@ -149,13 +132,8 @@ class Signals:
             times = ms["t_send"]
         out = np.zeros(self.shape, bool)
         inst = ms["instance"][rows]
-        times = times[rows]
-        for i, g in enumerate(self.grids):
-            at = times[inst == i]
-            k = np.searchsorted(g, at)
-            ok = k < len(g)
-            k = k[ok][g[k[ok]] == at[ok]]
-            out[i, k] = True
+        pos = self.grid.locate(inst, times[rows])
+        out[inst[pos >= 0], pos[pos >= 0]] = True
         self.memo[memo] = out
         return out
 
