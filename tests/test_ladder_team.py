@@ -157,3 +157,23 @@ def test_bad_world_input_is_located(tmp_path, capsys, old, new, message):
     assert message in err
     assert err.startswith(f"{bad}:")
     assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_clearance_requirement_is_the_ladders_distance_to_the_walls():
+    """The sample's ``clear_of_walls`` robustness is the smallest distance between the
+    ladder (its length through the sampled centre and heading) and any wall, computed
+    here from the trace with end-to-segment distances."""
+    run = simulate(load(SAMPLE))
+    verdict = run.summary()["instances"][0]["requirements"]["clear_of_walls"]
+    lad = run.samples["ladder"][:, 0]
+    lad = lad[~np.isnan(lad[:, 0])]
+    half = 225.0 * np.c_[np.cos(lad[:, 2]), np.sin(lad[:, 2])]
+    ends = (lad[:, :2] - half, lad[:, :2] + half)
+    walls = corridor_with_turn().walls
+    gaps = [point_segment_distances(e, walls)[0].min(axis=1) for e in ends]
+    for corner in (walls[:, :2], walls[:, 2:]):  # a wall's end nearest the ladder's middle
+        bars = np.hstack(ends)
+        gaps.append(point_segment_distances(corner, bars)[0].min(axis=0))
+    want = np.minimum.reduce(gaps).min()
+    assert verdict["satisfied"] and 0 < want < 30
+    assert verdict["robustness"] == pytest.approx(want, abs=1e-9)

@@ -7,6 +7,7 @@ screenshot is not blank. Where Chromium is absent that test skips.
 
 from __future__ import annotations
 
+import math
 import re
 import shutil
 import subprocess
@@ -16,7 +17,7 @@ from PIL import Image
 
 from hybridteam.cli import main
 from hybridteam.export.report import SECTIONS
-from tests.conftest import FIXTURES
+from tests.conftest import EXAMPLES, FIXTURES
 
 TEAM = FIXTURES / "acceptance" / "corridor_carry.yaml"
 
@@ -74,3 +75,21 @@ def test_the_report_renders_in_headless_chromium(report, tmp_path):
     with Image.open(shot) as im:
         colours = im.convert("RGB").resize((300, 1000)).getcolors(maxcolors=1 << 16)
     assert colours is not None and len(colours) > 50  # drawn figures, not a blank page
+
+
+def test_the_report_lists_requirement_verdicts(tmp_path):
+    """The thermostat holds its comfort band; ``x <= 21.9`` fails on the first heating:
+    from 19 towards 30 at rate K = 0.1, x = 30 - 11 exp(-K t) reaches 21.9 at
+    t = ln(11/8.1)/K."""
+    text = (EXAMPLES / "automata" / "thermostat.yaml").read_text()
+    team = tmp_path / "thermostat.yaml"
+    team.write_text(text + "  tight: always(x <= 21.9)\n")
+    out = tmp_path / "run"
+    assert main(["run", str(team), "-o", str(out), "--progress", "none", "--no-views",
+                 "--report"]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "<section id='requirements'>" in page
+    rows = re.findall(r"<tr><td>0</td><td>(\w+)</td><td class='(\w+)'>([^<]*)", page)
+    assert [(name, cls) for name, cls, _ in rows] == [("comfort", "ok"), ("tight", "bad")]
+    t = float(re.search(r"violated at t = ([0-9.e+-]+)", page).group(1))
+    assert t == pytest.approx(math.log(11 / 8.1) / 0.1, abs=1e-5)

@@ -3,7 +3,8 @@
 Everything is inline — SVG as markup, the animation as a data URI, no script, no font or
 stylesheet from elsewhere — so the page opens from a mail attachment or an offline laptop
 exactly as it was written. Sections: the summary (outcome per instance, with the
-statistics world components report), the state diagram, the timeline, the trajectories,
+statistics world components report), the requirement verdicts when the team states
+requirements, the state diagram, the timeline, the trajectories,
 the animation, and the message sequence chart as Mermaid source (rendering Mermaid needs a
 JavaScript library, which an offline page cannot fetch; the source is readable, and pastes
 into any Mermaid viewer).
@@ -52,7 +53,7 @@ def _cell(value: Any) -> str:
 
 def _summary(summary: dict[str, Any]) -> str:
     rows = summary.get("instances", [])
-    keys = [k for k in (rows[0] if rows else {}) if k != "instance"]
+    keys = [k for k in (rows[0] if rows else {}) if k not in ("instance", "requirements")]
     head = "".join(f"<th>{html.escape(k)}</th>" for k in ["instance", *keys])
     body = []
     for row in rows:
@@ -65,6 +66,27 @@ def _summary(summary: dict[str, Any]) -> str:
     facts = (f"<p>{summary.get('n', len(rows))} instance(s), seed {summary.get('seed')}, "
              f"{summary.get('duration')} s simulated at most — {html.escape(tally)}</p>")
     return facts + f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _requirements(summary: dict[str, Any]) -> str:
+    """The requirement verdicts (a section only when the team states requirements): one
+    row per instance and requirement, a violation with its time and failing part."""
+    rows = [r for r in summary.get("instances", []) if r.get("requirements")]
+    if not rows:
+        return ""
+    body = []
+    for row in rows:
+        for name, v in row["requirements"].items():
+            held = bool(v["satisfied"])
+            what = ("holds" if held else
+                    f"violated at t = {_cell(v.get('violated_at'))} by "
+                    f"<code>{html.escape(str(v.get('failed')))}</code>")
+            body.append(f"<tr><td>{row.get('instance', '')}</td><td>{html.escape(name)}</td>"
+                        f"<td class='{'ok' if held else 'bad'}'>{what}</td>"
+                        f"<td>{_cell(v.get('robustness'))}</td></tr>")
+    return ("<section id='requirements'><h2>Requirements</h2><table><tr><th>instance</th>"
+            "<th>requirement</th><th>verdict</th><th>robustness</th></tr>"
+            + "".join(body) + "</table></section>")
 
 
 def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any],
@@ -82,7 +104,7 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
     folder = Path(folder)
     team = html.escape(str(trace.meta.get("team", folder.name)))
     parts = [f"<h1>{team}</h1>", f"<section id='summary'><h2>Summary</h2>"
-             f"{_summary(summary)}</section>"]
+             f"{_summary(summary)}</section>", _requirements(summary)]
     with tempfile.TemporaryDirectory() as tmp:
         scratch = Path(tmp)
         diagram = folder / "modes.svg"

@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybridteam.library import BatchRequest, WorldAccess, WorldComponent, world_component
-from hybridteam.world.geometry import corridor_with_turn
+from hybridteam.world.geometry import corridor_with_turn, segment_segment_distances
 
 from . import law
 from .frame import CornerFrame
@@ -203,13 +203,20 @@ class LadderCorridor(WorldComponent):
         """The ladder's pose, and ``ladder_offset``: each robot's spring offset at the last
         step (the link breaks past ``olim``), which requirements read."""
         names = (str(self.values["front"]), str(self.values["rear"]))
-        return {"ladder": ("x", "y", "theta"), "ladder_offset": names}
+        return {"ladder": ("x", "y", "theta"), "ladder_offset": names,
+                "ladder_clearance": ("walls",)}
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """Also ``ladder_clearance.walls``: the distance from the ladder (a segment of its
+        length through its centre) to the nearest wall, 0 when they touch."""
         a, b = self.tips[0, idx], self.tips[1, idx]
         c = 0.5 * (a + b)
         th = np.arctan2(a[:, 1] - b[:, 1], a[:, 0] - b[:, 0])
-        return {"ladder": np.column_stack([c, th]), "ladder_offset": self.offset[:, idx].T}
+        half = 0.5 * self.length[idx, None] * np.column_stack([np.cos(th), np.sin(th)])
+        bar = np.hstack([c - half, c + half])
+        gap = segment_segment_distances(bar, self.corridor.walls).min(axis=1)
+        return {"ladder": np.column_stack([c, th]), "ladder_offset": self.offset[:, idx].T,
+                "ladder_clearance": gap[:, None]}
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),
