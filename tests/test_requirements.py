@@ -197,3 +197,29 @@ def test_run_prints_a_verdict_per_requirement_and_writes_it(tmp_path, capsys):
     assert "requirement upper: VIOLATED at t=3.06031211 by x <= 21.9" in out
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["instances"][0]["requirements"]["upper"]["satisfied"] is False
+
+
+def test_a_discrete_variable_is_read_after_each_instant():
+    """The bouncing ball counts its impacts in ``bounces``; ``bounces <= 3`` first fails at
+    the fourth impact: t1 = sqrt(2 h0 / g), then each flight 2 e^j v1 / g longer."""
+    import dataclasses
+
+    from hybridteam import load
+    from hybridteam.model import Requirement
+
+    ball = load(EXAMPLES / "automata" / "bouncing_ball.yaml")
+    reqs = (Requirement("few", "always(bounces <= 3)", None, ("requirements", "few")),
+            Requirement("counted", "eventually(ball.bounces >= 10)", None,
+                        ("requirements", "counted")))
+    run = simulate(dataclasses.replace(ball, requirements=reqs), duration=2.0)
+    g, e, v1 = 9.81, 0.7, math.sqrt(2 * 9.81)
+    impacts = [math.sqrt(2 / g)]
+    for j in range(1, 12):
+        impacts.append(impacts[-1] + 2 * e**j * v1 / g)
+    few = verdicts(run)["few"]
+    assert few["satisfied"] is False and few["robustness"] == -1.0
+    assert few["violated_at"] == pytest.approx(impacts[3], abs=1e-8)
+    assert few["failed"] == "bounces <= 3"
+    counted = verdicts(run)["counted"]  # the most bounces by t = 2, minus 10
+    assert sum(t < 2.0 for t in impacts) == 4
+    assert counted["satisfied"] is False and counted["robustness"] == 4 - 10

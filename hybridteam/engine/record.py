@@ -144,6 +144,11 @@ class Recorder:
         return self._transition_table(), self._interval_table(), self._message_table()
 
 
+def variables_key(agent: str) -> str:
+    """The snapshot series of an agent's discrete variables ('#' is in no model name)."""
+    return f"{agent}#variables"
+
+
 def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
     if not cols["instance"]:
         return Table(names)

@@ -31,7 +31,7 @@ from hybridteam.engine.drivers import derivative, sample_laws
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.numerics import step_floor, stop_broken_states, stop_collapsed_steps
 from hybridteam.engine.outcomes import check_instances
-from hybridteam.engine.record import trace_meta
+from hybridteam.engine.record import trace_meta, variables_key
 from hybridteam.engine.step import AgentStep, state_at, take_step
 from hybridteam.trace import Trace
 
@@ -135,6 +135,8 @@ class Simulator:
         discrete_phase(ens, discrete)
         if ens.rec.snapshots is not None:
             ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
+            ens.rec.snapshot(idx, ens.t[idx], {variables_key(st.ca.name): st.v[idx]
+                                               for st in ens.states if st.v.shape[1]})
             ens.rec.snapshot(idx, ens.t[idx], ens.world.sample(idx))
         live = idx[~ens.done[idx]]
         changed = live[ens.changed[live]] if not entering else live

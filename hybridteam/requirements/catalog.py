@@ -68,10 +68,21 @@ class Catalog:
                 syms[p] = lambda s, p=p, a=one: s.param(a, p)
             for j, x in enumerate(names.state):
                 syms[x] = lambda s, j=j, a=one: s.state(a, j)
+            for j, v in enumerate(names.variables):
+                syms[v] = lambda s, j=j, a=one: s.variable(a, j)
         return syms
 
+    def is_variable(self, text: str) -> bool:
+        """Whether ``agent.name`` (or a bare name in a one-agent team) is a discrete
+        variable: a signal that jumps at instants rather than moving continuously."""
+        head, _, tail = text.rpartition(".")
+        if not head:
+            head = self.single() or ""
+        return head in self.agents and tail in self.agents[head].variables
+
     def bare_hint(self, name: str) -> str | None:
-        owners = [a for a, n in self.agents.items() if name in n.state or name in n.params]
+        owners = [a for a, n in self.agents.items()
+                  if name in n.state or name in n.params or name in n.variables]
         if owners:
             return f"name the agent: {owners[0]}.{name}"
         return did_you_mean(name, [*self.agents, *self.team_params, "t"])
@@ -87,11 +98,10 @@ class Catalog:
             if tail in names.params:
                 return (lambda s: s.param(head, tail)), ("", None)
             if tail in names.variables:
-                return None, (f"'{text}' is a variable: variables are not recorded in a "
-                              "trace, so requirements cannot read them yet",
-                              "read a state or a mode instead, e.g. in_mode(...)")
-            return None, (f"agent '{head}' has no state or parameter '{tail}'",
-                          did_you_mean(tail, [*names.state, *names.params])
+                j = names.variables.index(tail)
+                return (lambda s: s.variable(head, j)), ("", None)
+            return None, (f"agent '{head}' has no state, parameter or variable '{tail}'",
+                          did_you_mean(tail, [*names.state, *names.params, *names.variables])
                           or f"its states: {', '.join(names.state) or 'none'}")
         if head in self.series:
             cols = self.series[head]

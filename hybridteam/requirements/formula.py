@@ -170,12 +170,20 @@ class _FormulaCompiler(_Compiler):
                                      continuous=self._continuous(a, b)))
         return _F(preds[0] if len(preds) == 1 else N.And(self.text(node), preds))
 
-    @staticmethod
-    def _continuous(*operands: ast.expr) -> bool:
+    def _continuous(self, *operands: ast.expr) -> bool:
         """Whether a comparison's margin moves continuously between grid points: not when
-        an operand counts modes or roles (counts jump at transition instants)."""
-        return not any(isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
-                       and n.func.id in SIGNAL_FUNCTIONS for o in operands for n in ast.walk(o))
+        an operand counts modes or roles or reads a discrete variable (they jump at
+        instants)."""
+        for n in (n for o in operands for n in ast.walk(o)):
+            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) \
+                    and n.func.id in SIGNAL_FUNCTIONS:
+                return False
+            name = (f"{n.value.id}.{n.attr}" if isinstance(n, ast.Attribute)
+                    and isinstance(n.value, ast.Name) else n.id if isinstance(n, ast.Name)
+                    else None)
+            if name is not None and self.catalog.is_variable(name):
+                return False
+        return True
 
     def _temporal(self, node: ast.Call, name: str) -> _C:
         args = [self.cond(a, f"{name}()") for a in node.args]

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridteam.engine.record import variables_key
 from hybridteam.requirements.grid import Grid
 
 
@@ -72,6 +73,29 @@ class Signals:
                 rows, cols = np.divmod(flat[last], self.shape[1])
                 values[rows, cols] = snap[2][::-1][last, j]
             self.memo[memo] = g.interpolate(~np.isnan(values), values)
+        return self.memo[memo]
+
+    def variable(self, agent: str, j: int) -> np.ndarray:
+        """A discrete variable: piecewise constant, right-continuous: at each grid point
+        the value after the last instant at or before it (variables change only at
+        instants, and the engine records them after each)."""
+        memo = ("variable", agent, j)
+        if memo not in self.memo:
+            inst, t, values = self._snaps[variables_key(agent)]
+            g, w = self.grid, self.shape[1]
+            pos = g.locate(inst, t)
+            flat = np.where(pos >= 0, inst * w + pos, -1)[::-1]
+            _, last = np.unique(flat, return_index=True)  # the last record at an instant
+            last = last[flat[last] >= 0]
+            rows, cols = np.divmod(flat[last], w)
+            known = np.zeros(self.shape, bool)
+            known[rows, cols] = True
+            out = np.full(self.shape, np.nan)
+            out[rows, cols] = values[::-1][last, j]
+            idx = np.maximum.accumulate(np.where(known, np.arange(w), 0), axis=1)
+            out = np.take_along_axis(out, idx, axis=1)
+            out[~np.isfinite(self.t)] = np.nan
+            self.memo[memo] = out
         return self.memo[memo]
 
     def state(self, agent: str, j: int) -> np.ndarray:
