@@ -96,17 +96,17 @@ def test_engine_ensemble_equals_the_batch_stepper_instance_by_instance():
     batch = summaries(team, 12, overrides_for(pairs))
     # the batch path keeps no trace, so only the engine checks the sample's requirement;
     # its robustness is the smallest margin to the offset limit the batch path measured
-    verdicts = [row.pop("requirements")["no_link_break"] for row in engine]
+    verdicts = [row.pop("requirements") for row in engine]
     assert all("requirements" not in row for row in batch)
     assert_same_rows(engine, batch)
-    for i, (verdict, row) in enumerate(zip(verdicts, batch, strict=True)):
+    for i, (both, row) in enumerate(zip(verdicts, batch, strict=True)):
+        verdict = both["no_link_break"]
         margin = min(pairs.robot["olim"][k][i] - row["max_offset"][k] for k in (0, 1))
         assert verdict["robustness"] == pytest.approx(margin, abs=1e-9)
         assert verdict["satisfied"] == (row["outcome"] != "link_break")
     assert len({r["outcome"] for r in engine}) >= 2  # the comparison covers several endings
     single = summaries(team, 1, overrides_for(pairs.take(slice(5, 6))), accelerate=False)
-    verdict = {"no_link_break": verdicts[5]}
-    assert_same_rows(single, [{**engine[5], "instance": 0, "requirements": verdict}])
+    assert_same_rows(single, [{**engine[5], "instance": 0, "requirements": verdicts[5]}])
 
 
 def test_batch_path_declines_teams_it_does_not_compute(tmp_path):
