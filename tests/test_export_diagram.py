@@ -8,6 +8,7 @@ every transition with the right endpoints.
 from __future__ import annotations
 
 import io
+import itertools
 import re
 import shutil
 import sys
@@ -16,6 +17,7 @@ from collections import Counter
 from pathlib import Path
 
 import matplotlib.image as mpimg
+import numpy as np
 import pydot
 import pytest
 
@@ -494,3 +496,55 @@ def test_many_message_links_become_labelled_stubs_at_their_senders():
     relay = diagram_graph(ht.load(EXAMPLES / "automata" / "relay.yaml"))
     arcs = [e for e in image._plan(Layout(relay), relay)[0] if e.message]
     assert len(arcs) == len(edges_of(relay, "message")) <= image.STUBS_AFTER
+
+
+def _drawn_points(edge, n: int = 240) -> np.ndarray:
+    """Points along an edge as drawn: its arc, or its routed polyline."""
+    from hybridteam.export.route import along, bezier
+
+    ts = tuple(np.linspace(0.0, 1.0, n))
+    if edge.path is not None:
+        return np.array([p for p, _d in along(edge.path, ts)])
+    return np.array([bezier(edge.pa, edge.pb, edge.rad, t) for t in ts])
+
+
+@pytest.mark.parametrize("path", ["transport/experiment1.yaml", "transport/experiment2.yaml",
+                                  "transport/experiment3.yaml", "protocols/handover.yaml"])
+def test_built_in_full_diagram_has_no_edge_through_a_mode(path):
+    """No edge of the built-in full diagram passes through a mode box other than its two
+    ends, their containers and what they hold (each edge sampled at 240 points against
+    the boxes shrunk by 1 pt); the edges that no arc could clear are routed."""
+    from hybridteam.export import image
+    from hybridteam.export.layout import Layout
+    from hybridteam.export.route import inside, unrelated
+
+    graph = diagram_graph(ht.load(EXAMPLES / path))
+    layout = Layout(graph)
+    edges, _notes = image._plan(layout, graph)
+    messages = edges_of(graph, "message")
+    drawn = layout.transitions + ([] if len(messages) > image.STUBS_AFTER else messages)
+    through = []
+    for (u, v, _d), edge in zip(drawn, edges, strict=False):
+        if edge.loop:
+            continue
+        boxes = [(b.x + 1, b.y + 1, b.x + b.w - 1, b.y + b.h - 1)
+                 for b in unrelated(layout, u, v)]
+        if inside(_drawn_points(edge), boxes).any():
+            through.append((u, v))
+    assert through == []
+    assert any(e.path is not None for e in edges)  # some needed a route
+
+
+def test_a_route_goes_around_a_box_in_its_way():
+    from hybridteam.export.route import MARGIN, inside, route
+
+    box = (40.0, 0.0, 60.0, 80.0)
+    path = route((0.0, 40.0), (100.0, 40.0), [box], (0.0, -20.0, 100.0, 120.0))
+    assert path is not None and path[0] == (0.0, 40.0) and path[-1] == (100.0, 40.0)
+    seg = np.linspace(0, 1, 50)[:, None]
+    points = np.concatenate([np.asarray(a) + seg * (np.asarray(b) - np.asarray(a))
+                             for a, b in itertools.pairwise(path)])
+    assert not inside(points, [box], MARGIN - 1.0).any()
+    assert len(path) <= 8  # pulled straight: two bends a corner, not a 5 pt staircase
+    assert route((0.0, 40.0), (100.0, 40.0), [(30.0, -30.0, 70.0, 130.0)],
+                 (0.0, -20.0, 100.0, 120.0)) is None  # a wall across the bounds

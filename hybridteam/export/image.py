@@ -24,6 +24,7 @@ import networkx as nx
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, FancyArrowPatch, FancyBboxPatch
+from matplotlib.path import Path as MplPath
 
 from hybridteam.export.diagram import edges_of, initial_child, is_composite
 from hybridteam.export.labels import Placer, Rect, text_size
@@ -37,6 +38,7 @@ from hybridteam.export.layout import (
     _wrap,
 )
 from hybridteam.export.render import state_title, to_dot
+from hybridteam.export.route import along, bend, bezier, ends, rounded, route_edge
 from hybridteam.export.style import FONT, text_color
 
 EDGE, MESSAGE = "#333333", "#777777"
@@ -92,65 +94,6 @@ def _label(ax, x: float, y: float, lines: list[str], color: str, **kw) -> None:
           **kw)
 
 
-def _clip(box: Box, toward: tuple[float, float]) -> tuple[float, float]:
-    """Where the segment from the box's centre to ``toward`` leaves the box."""
-    cx, cy = box.x + box.w / 2, box.y + box.h / 2
-    dx, dy = toward[0] - cx, toward[1] - cy
-    t = min(box.w / 2 / abs(dx) if dx else float("inf"), box.h / 2 / abs(dy) if dy else
-            float("inf"))
-    t = min(t, 1.0)
-    return cx + dx * t, cy + dy * t
-
-
-def _ends(layout: Layout, u: str, v: str) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Both ends of an edge on the boxes' borders; a composite that holds the other end is
-    left from (or entered at) its title bar instead."""
-    bu, bv = layout.boxes[u], layout.boxes[v]
-    centre = {n: (b.x + b.w / 2, b.y + b.h / 2) for n, b in ((u, bu), (v, bv))}
-    if u in layout.up[v]:
-        centre[u] = (bu.x + bu.w / 2, bu.y + TITLE / 2)
-        return centre[u], _clip(bv, centre[u])
-    if v in layout.up[u]:
-        centre[v] = (bv.x + bv.w / 2, bv.y + TITLE / 2)
-        return _clip(bu, centre[v]), centre[v]
-    return _clip(bu, centre[v]), _clip(bv, centre[u])
-
-
-def _bezier(pa, pb, rad: float, t: float) -> tuple[float, float]:
-    """Point at ``t`` of matplotlib's arc3 curve from ``pa`` to ``pb``: its control point is
-    the chord's middle moved by rad * (-dy, dx) in these data coordinates (y points down)."""
-    dx, dy = pb[0] - pa[0], pb[1] - pa[1]
-    cx, cy = (pa[0] + pb[0]) / 2 - rad * dy, (pa[1] + pb[1]) / 2 + rad * dx
-    return ((1 - t) ** 2 * pa[0] + 2 * t * (1 - t) * cx + t * t * pb[0],
-            (1 - t) ** 2 * pa[1] + 2 * t * (1 - t) * cy + t * t * pb[1])
-
-
-def _bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool) -> float:
-    """The first curvature (from gentle to strong, either side) whose curve stays clear of
-    boxes unrelated to the two ends: an edge skipping a layer must not cross a mode.
-
-    The bulge is capped (messages span panels: a strong bend would leave the picture).
-    """
-    related = set(layout.up[u]) | set(layout.up[v])
-    obstacles = [b for n, b in layout.boxes.items()
-                 if n not in related and u not in layout.up[n] and v not in layout.up[n]]
-    chord = max(((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2) ** 0.5, 1.0)
-    cap = min(0.35, 200.0 / chord) if message else 160.0 / chord
-    steps = [base] + [sign * (base + d) for d in (0.25, 0.5, 0.8, 1.1) for sign in (1, -1)]
-    best, fewest = base, None
-    for rad in [r for r in steps if abs(r) <= max(cap, base)]:
-        hits = 0
-        for k in range(1, 20):
-            x, y = _bezier(pa, pb, rad, k / 20)
-            hits += sum(b.x - 2 < x < b.x + b.w + 2 and b.y - 2 < y < b.y + b.h + 2
-                        for b in obstacles)
-        if hits == 0:
-            return rad
-        if fewest is None or hits < fewest:
-            best, fewest = rad, hits
-    return best
-
-
 @dataclass
 class _Edge:
     """An edge ready to draw: its ends and bend, its label's text and centre."""
@@ -162,17 +105,24 @@ class _Edge:
     lines: list[str]
     at: tuple[float, float]
     loop: bool = False
+    path: list[tuple[float, float]] | None = None  # a routed polyline instead of an arc
 
 
-def _spots(pa, pb, rad: float, ts: tuple[float, ...], step: float
-           ) -> list[tuple[float, float]]:
-    """Candidate label centres: points of the curve at ``ts``, then beside it either side."""
+def _spots(pa, pb, rad: float, ts: tuple[float, ...], step: float,
+           path: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
+    """Candidate label centres: points of the curve (or the routed ``path``) at ``ts``,
+    then beside it either side."""
+    if path is not None:
+        marks = along(path, ts)
+    else:
+        marks = []
+        for t in ts:
+            x, y = bezier(pa, pb, rad, t)
+            x2, y2 = bezier(pa, pb, rad, min(t + 0.01, 1.0))
+            marks.append(((x, y), (x2 - x, y2 - y)))
     out = []
     for k in (0, 1, -1, 2, -2, 3, -3):
-        for t in ts:
-            x, y = _bezier(pa, pb, rad, t)
-            x2, y2 = _bezier(pa, pb, rad, min(t + 0.01, 1.0))
-            tx, ty = x2 - x, y2 - y
+        for (x, y), (tx, ty) in marks:
             norm = max((tx * tx + ty * ty) ** 0.5, 1e-9)
             out.append((x - ty / norm * k * step, y + tx / norm * k * step))
     return out
@@ -267,13 +217,15 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
             lines, at = _place(placer, text, spots, more)
             edges.append(_Edge((x, cy - 5), (x, cy + 5), rad, False, lines, at, loop=True))
             continue
-        pa, pb = _ends(layout, u, v)
-        rad = _bend(layout, u, v, pa, pb, (0.18 if message else 0.12) + 0.18 * k, message)
+        pa, pb = ends(layout, u, v)
+        rad, hits = bend(layout, u, v, pa, pb, (0.18 if message else 0.12) + 0.18 * k,
+                          message)
+        path = route_edge(layout, u, v, pa, pb) if hits else None
         ts = (0.7, 0.6, 0.8, 0.5) if message else (0.5, 0.4, 0.6, 0.3, 0.7, 0.22, 0.78)
         dense = tuple(k / 20 for k in range(1, 20))
-        lines, at = _place(placer, text, _spots(pa, pb, rad, ts, 9.0),
-                           _spots(pa, pb, rad, dense, 6.0))
-        edges.append(_Edge(pa, pb, rad, message, lines, at))
+        lines, at = _place(placer, text, _spots(pa, pb, rad, ts, 9.0, path),
+                           _spots(pa, pb, rad, dense, 6.0, path))
+        edges.append(_Edge(pa, pb, rad, message, lines, at, path=path))
     if stubs:
         edges += _stubs(layout, graph, placer)
     return edges, placer.notes
@@ -281,11 +233,17 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
 
 def _draw_edge(ax, edge: _Edge) -> None:
     color = MESSAGE if edge.message else EDGE
-    ax.add_patch(FancyArrowPatch(edge.pa, edge.pb, connectionstyle=f"arc3,rad={edge.rad}",
-                                 arrowstyle="-|>", mutation_scale=8 if edge.loop else 9,
-                                 lw=1.0, color=color, shrinkA=0 if edge.loop else 1,
-                                 shrinkB=0 if edge.loop else 1, zorder=4,
-                                 ls="--" if edge.message else "-"))
+    style = {"arrowstyle": "-|>", "mutation_scale": 8 if edge.loop else 9, "lw": 1.0,
+             "color": color, "zorder": 4, "ls": "--" if edge.message else "-"}
+    if edge.path is not None:
+        verts, codes = rounded(edge.path)
+        ax.add_patch(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1,
+                                     **style))
+    else:
+        ax.add_patch(FancyArrowPatch(edge.pa, edge.pb,
+                                     connectionstyle=f"arc3,rad={edge.rad}",
+                                     shrinkA=0 if edge.loop else 1,
+                                     shrinkB=0 if edge.loop else 1, **style))
     _label(ax, *edge.at, edge.lines, color, fontstyle="italic" if edge.message else "normal")
 
 
