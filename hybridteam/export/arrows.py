@@ -11,6 +11,8 @@ import itertools
 import math
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from hybridteam.export.style import HALO
 
 if TYPE_CHECKING:
@@ -37,12 +39,26 @@ def time_at(t_send: float, t_recv: float, y_send: float, y_recv: float, y: float
     return t_send + min(max(frac, 0.0), 1.0) * (t_recv - t_send)
 
 
-def crossed(data: TimelineData, y: float, t0: float, t1: float) -> bool:
-    """Whether a delivered message's arrow passes height ``y`` between ``t0`` and ``t1``."""
-    return any(t0 <= time_at(a.t_send, a.t_recv, a.y_send, a.y_recv, y) <= t1
-               for a in data.arrows
-               if not (a.lost or math.isnan(a.t_recv)) and a.y_send != a.y_recv
-               and min(a.y_send, a.y_recv) <= y <= max(a.y_send, a.y_recv))
+class Crossings:
+    """Which delivered message arrows pass a height within a time span. The arrows are
+    gathered once per timeline, then each mode name asks with numpy instead of a loop over
+    every arrow (a close-up asks it for every name it draws)."""
+
+    def __init__(self, data: TimelineData) -> None:
+        keep = [a for a in data.arrows
+                if not (a.lost or math.isnan(a.t_recv)) and a.y_send != a.y_recv]
+        cols = np.array([(a.t_send, a.t_recv, a.y_send, a.y_recv) for a in keep],
+                        float).reshape(-1, 4)
+        self.ts, self.tr, self.ys, self.yr = cols.T
+
+    def __call__(self, y: float, t0: float, t1: float) -> bool:
+        """Whether an arrow passes height ``y`` between ``t0`` and ``t1``."""
+        span = (np.minimum(self.ys, self.yr) <= y) & (y <= np.maximum(self.ys, self.yr))
+        if not span.any():
+            return False
+        ts, tr, ys, yr = self.ts[span], self.tr[span], self.ys[span], self.yr[span]
+        t = ts + np.clip((y - ys) / (yr - ys), 0.0, 1.0) * (tr - ts)  # as time_at does
+        return bool(((t0 <= t) & (t <= t1)).any())
 
 
 def gap_centres(data: TimelineData) -> list[float]:

@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from hybridteam.errors import did_you_mean
-from hybridteam.export.arrows import crossed, draw_messages, loss_text
+from hybridteam.export.arrows import Crossings, draw_messages, loss_text
 from hybridteam.export.figures import DATA_FORMATS, figure_format, save_figure
 from hybridteam.export.legend import legend_handles
 from hybridteam.export.style import FONT, team_mode_colors, text_color
@@ -324,6 +324,7 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
                        gid=f"bars:{lane_i}")
     # labels where they fit: estimate from the axes width in pixels
     px_per_s = ax.get_position().width * fig.get_figwidth() * fig.dpi / width
+    crossed = Crossings(data)
     for b in data.bars:
         lane = data.lanes[b.lane]
         size = 6.5 if lane.top else 8.0
@@ -334,11 +335,11 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
             # crosses the name: it stops short of the letters instead of striking them out
             half = text_px / px_per_s / 2
             mid = (lo + hi) / 2
-            backing = {"boxstyle": "square,pad=0.05", "fc": b.color, "ec": "none"} \
-                if crossed(data, lane.y, mid - half, mid + half) else None
+            backing = {"bbox": {"boxstyle": "square,pad=0.05", "fc": b.color, "ec": "none"}
+                       } if crossed(lane.y, mid - half, mid + half) else {}
             ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
                     color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label",
-                    bbox=backing)
+                    **backing)
     if data.marks:  # ticks across the lower edge of the lane, all in one collection
         lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
                        for m in data.marks])
