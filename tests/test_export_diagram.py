@@ -512,26 +512,31 @@ def _drawn_points(edge, n: int = 240) -> np.ndarray:
                                   "transport/experiment3.yaml", "protocols/handover.yaml"])
 def test_built_in_full_diagram_has_no_edge_through_a_mode(path):
     """No edge of the built-in full diagram passes through a mode box other than its two
-    ends, their containers and what they hold (each edge sampled at 240 points against
-    the boxes shrunk by 1 pt); the edges that no arc could clear are routed."""
+    ends, their containers and what they hold, nor leaves the composite holding both ends
+    (each edge sampled at 240 points, boxes shrunk or grown by 1 pt); the edges that no
+    arc could keep so are routed."""
     from hybridteam.export import image
     from hybridteam.export.layout import Layout
-    from hybridteam.export.route import inside, unrelated
+    from hybridteam.export.route import container, inside, unrelated
 
     graph = diagram_graph(ht.load(EXAMPLES / path))
     layout = Layout(graph)
     edges, _notes = image._plan(layout, graph)
     messages = edges_of(graph, "message")
     drawn = layout.transitions + ([] if len(messages) > image.STUBS_AFTER else messages)
-    through = []
+    through, out = [], []
     for (u, v, _d), edge in zip(drawn, edges, strict=False):
         if edge.loop:
             continue
         boxes = [(b.x + 1, b.y + 1, b.x + b.w - 1, b.y + b.h - 1)
                  for b in unrelated(layout, u, v)]
-        if inside(_drawn_points(edge), boxes).any():
+        points = _drawn_points(edge)
+        if inside(points, boxes).any():
             through.append((u, v))
-    assert through == []
+        box = container(layout, u, v)
+        if box is not None and not inside(points, [box], 1.0).all():
+            out.append((u, v))  # it leaves the composite that holds both its ends
+    assert through == [] and out == []
     assert any(e.path is not None for e in edges)  # some needed a route
 
 

@@ -191,12 +191,13 @@ def unrelated(layout: Layout, u: str, v: str) -> list[Box]:
 def bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool
           ) -> tuple[float, int]:
     """The first curvature (from gentle to strong, either side) whose curve stays clear of
-    boxes unrelated to the two ends, and how many of its sample points still hit one (0
-    when clear; the edge is then routed instead).
+    boxes unrelated to the two ends and inside the box holding both, and how many of its
+    sample points still break that (0 when none; the edge is then routed instead).
 
     The bulge is capped (messages span panels: a strong bend would leave the picture).
     """
     rects = [(b.x, b.y, b.x + b.w, b.y + b.h) for b in unrelated(layout, u, v)]
+    box = container(layout, u, v)
     chord = max(((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2) ** 0.5, 1.0)
     cap = min(0.35, 200.0 / chord) if message else 160.0 / chord
     steps = [base] + [sign * (base + d) for d in (0.25, 0.5, 0.8, 1.1) for sign in (1, -1)]
@@ -204,11 +205,22 @@ def bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool
     for rad in [r for r in steps if abs(r) <= max(cap, base)]:
         points = [bezier(pa, pb, rad, k / 64) for k in range(1, 64)]
         hits = int(inside(points, rects, 2.0).sum())
+        if box is not None:
+            hits += int((~inside(points, [box], -2.0)).sum())
         if hits == 0:
             return rad, 0
         if fewest is None or hits < fewest:
             best, fewest = rad, hits
     return best, fewest or 0
+
+
+def container(layout: Layout, u: str, v: str) -> Rect | None:
+    """The innermost box holding both ends of an edge (None between agents' panels)."""
+    common = next((n for n in layout.up[u] if n in layout.up[v]), None)
+    if common is None:
+        return None
+    b = layout.boxes[common]
+    return (b.x, b.y, b.x + b.w, b.y + b.h)
 
 
 def route_edge(layout: Layout, u: str, v: str, pa, pb) -> list[tuple[float, float]] | None:
