@@ -247,6 +247,10 @@ def timeline_data(trace: Trace, instance: int = 0,
         kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
         lane_of = mode_lanes(meta.get("modes", []))
         mine = iv.where(agent=name)
+        if window is not None:  # a close-up: only the stays it shows (numpy, not a loop)
+            st, en = np.asarray(mine["start"], float), np.asarray(mine["end"], float)
+            mine = mine.filter(((st < window[1]) & (en > window[0]))
+                               | ((window[0] <= st) & (st == en) & (en <= window[1])))
         mine = mine.filter(np.lexsort((mine["depth"], mine["start"])))
         for mode, depth, start, end in zip(mine["mode"].tolist(), mine["depth"].tolist(),
                                            mine["start"].tolist(), mine["end"].tolist(),
@@ -261,6 +265,9 @@ def timeline_data(trace: Trace, instance: int = 0,
             if rows:
                 used.add((name, mode))
         regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
+        if window is not None:
+            at = np.asarray(mine_tr["t"], float)
+            mine_tr = mine_tr.filter((window[0] <= at) & (at <= window[1]))
         marks += [Mark(index[(name, region_of(common_ancestor(a, b), regions), False)], t, a, b)
                   for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
                                      mine_tr["target"].tolist(), strict=True)
@@ -277,6 +284,12 @@ def timeline_data(trace: Trace, instance: int = 0,
     on_data = (msgs["socket"].astype(str) == "data") if len(msgs) else np.zeros(0, bool)
     lost, dropped = int(np.sum(gone & ~on_data)), int(np.sum(gone & on_data))
     ys = {lane.agent: lane.y for lane in lanes if not lane.top and not lane.region}
+    if len(msgs):  # the copies an arrow may be drawn for, found with numpy (see below)
+        sent = np.asarray(msgs["t_send"], float)
+        got = np.where(gone, np.nan, np.asarray(msgs["t_recv"], float))
+        msgs = msgs.filter((((window[0] <= sent) & (sent <= window[1]))
+                            | ((window[0] <= got) & (got <= window[1])))
+                           if window is not None else gone & ~on_data)
     for m in msgs:
         if m.sender not in ys or m.receiver not in ys:
             continue
