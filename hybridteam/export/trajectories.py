@@ -133,7 +133,10 @@ def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
             out.append((row.t, row.step, row.agent, row.target,
                         role(row.agent, row.target) if by_role else None))
     order = {a: k for k, a in enumerate(agents)}
-    out.sort(key=lambda r: (r[0], r[1], order[r[2]]))
+    if out:  # by time, step, then team order; stable, as a sort on that key would be
+        rank = np.lexsort(([order[r[2]] for r in out], [r[1] for r in out],
+                           [r[0] for r in out]))
+        out = [out[k] for k in rank]
     return _numbered(out) if by_role else [(*r[:4], k) for k, r in enumerate(out, 1)]
 
 
@@ -210,11 +213,13 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     changes = mode_changes(trace, instance, agents, modes)
     stride = max(1, math.ceil(len(changes) / MAX_NUMBERS))
     at = np.full((len(changes), 2), np.nan)
+    who = np.array([c[2] for c in changes], dtype=object)
+    when = np.array([c[0] for c in changes], dtype=float)
     for a in agents:  # positions at the change times, one interpolation per agent
-        rows = [k for k, c in enumerate(changes) if c[2] == a]
+        rows = np.flatnonzero(who == a)
         valid = ~np.isnan(poses[a][:, 0])
-        if rows and valid.any():
-            ts = [changes[k][0] for k in rows]
+        if rows.size and valid.any():
+            ts = when[rows]
             at[rows] = np.c_[np.interp(ts, times[valid], poses[a][valid, 0]),
                              np.interp(ts, times[valid], poses[a][valid, 1])]
     placed: list[tuple[float, float]] = []
