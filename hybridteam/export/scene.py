@@ -123,17 +123,23 @@ def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, floa
             pts.append(np.asarray(entry["points"], float).reshape(-1, 2))
     for a in planar_agents(trace):
         xy = pose(trace, a, instance)[:, :2]
+        xy = xy[np.isfinite(xy).all(axis=1)]
         r = float((agent_meta(trace, a).get("footprint") or {}).get("radius") or 0.0)
-        pts += [xy - r, xy + r]
+        if len(xy):  # rounding is monotone: min(x - r) is min(x) - r, exactly
+            pts += [xy.min(axis=0)[None] - r, xy.max(axis=0)[None] + r]
     for name in payload_names(trace):
         p = pose(trace, name, instance)
         p = p[np.isfinite(p).all(axis=1)]
         pts.append(payload_outline(payload_shape(trace, name), *p.T).reshape(-1, 2))
-    xy = np.concatenate(pts) if pts else np.zeros((0, 2))
-    xy = xy[np.isfinite(xy).all(axis=1)]
-    if len(xy) == 0:
+    lows, highs = [], []
+    for piece in pts:  # each piece's corners: no copy of every point into one array
+        piece = piece[np.isfinite(piece).all(axis=1)]
+        if len(piece):
+            lows.append(piece.min(axis=0))
+            highs.append(piece.max(axis=0))
+    if not lows:
         return (-1.0, 1.0, -1.0, 1.0)
-    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    (x0, y0), (x1, y1) = np.min(lows, axis=0), np.max(highs, axis=0)
     span = max(x1 - x0, y1 - y0, 1e-9)
     pad_x, pad_y = max(0.04 * (x1 - x0), 0.005 * span), max(0.04 * (y1 - y0), 0.005 * span)
     return (float(x0 - pad_x), float(x1 + pad_x), float(y0 - pad_y), float(y1 + pad_y))
