@@ -179,14 +179,13 @@ def end_time(trace: Trace, instance: int) -> float:
     return t if t > 0 else float(trace.meta.get("duration") or 1.0)
 
 
-def _phase_changes(trace: Trace, instance: int, agent: str,
-                   window: tuple[float, float]) -> bool:
-    """Whether more than one top-level mode of ``agent`` is active within ``window``."""
-    iv = pick(trace.intervals, instance).where(agent=agent)
-    top = {m for m, d, s, e in zip(iv["mode"].tolist(), iv["depth"].tolist(),
-                                   iv["start"].tolist(), iv["end"].tolist(), strict=True)
-           if d == 1 and s <= window[1] and e >= window[0]}
-    return len(top) > 1
+def _phase_changes(intervals: Table, agent: str, window: tuple[float, float]) -> bool:
+    """Whether more than one top-level mode of ``agent`` is active within ``window``
+    (``intervals``: one instance's)."""
+    iv = intervals.where(agent=agent)
+    shown = ((np.asarray(iv["depth"]) == 1) & (np.asarray(iv["start"], float) <= window[1])
+             & (np.asarray(iv["end"], float) >= window[0]))
+    return len(set(np.asarray(iv["mode"])[shown].tolist())) > 1
 
 
 def common_ancestor(a: str, b: str) -> str:
@@ -214,6 +213,7 @@ def timeline_data(trace: Trace, instance: int = 0,
     colors = team_colors(trace.meta["agents"])
     agents = select_agents(trace, agents)
     cursor = 0.0
+    iv = pick(trace.intervals, instance)
     for meta in agents:
         modes = meta.get("modes", [])
         lane_of = mode_lanes(modes)
@@ -225,7 +225,7 @@ def timeline_data(trace: Trace, instance: int = 0,
             composite &= sum(m["depth"] == 1 and not (m["final"] and m["kind"] == "leaf")
                              for m in modes) > 1
             if window is not None:  # a close-up: only if the phase changes within it
-                composite &= _phase_changes(trace, instance, meta["name"], window)
+                composite &= _phase_changes(iv, meta["name"], window)
         elif not top:
             composite = False
         rows = [("", True)] * composite + [("", False)] + [(r, False) for r in regions]
@@ -237,7 +237,7 @@ def timeline_data(trace: Trace, instance: int = 0,
             lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, is_top))
             cursor -= h + GAP
 
-    iv, tr = pick(trace.intervals, instance), pick(trace.transitions, instance)
+    tr = pick(trace.transitions, instance)
     bars: list[Bar] = []
     marks: list[Mark] = []
     legend: dict[str, dict[str, str]] = {}  # agent -> {mode path: colour}
