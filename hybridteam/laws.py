@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hybridteam.engine.arrays import spread
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 from hybridteam.libraries import broken_note, load_libraries
 
@@ -53,7 +54,7 @@ class LawContext:
     def __getitem__(self, name: str) -> np.ndarray:
         """A binding parameter, state component, agent parameter or variable, by name."""
         if name in self._params:
-            return np.broadcast_to(self._params[name], (self.size,))
+            return spread(self._params[name], (self.size,))
         if name in self._xnames:
             return self._ctx.x[:, self._xnames[name]]
         if name in self._pnames:

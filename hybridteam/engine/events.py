@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from hybridteam.engine.arrays import spread
+
 SCENARIO, MESSAGE, LOCAL, TIMER = 0, 1, 2, 3
 
 
@@ -43,7 +45,7 @@ class EventQueue:
         """Queue one event per instance in ``idx`` at times ``t``; returns their seq numbers."""
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
-        for i, ti, s in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
+        for i, ti, s in zip(idx.tolist(), spread(t, idx.shape).tolist(),
                             seqs.tolist(), strict=True):
             heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, 0.0, agent, s, name, payload))
         self.next[idx] = np.minimum(self.next[idx], t)
@@ -54,8 +56,8 @@ class EventQueue:
         """Queue one event per instance in ``idx``, each with its own payload (and rank)."""
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
-        ranks = np.broadcast_to(np.asarray(rank, float), idx.shape).tolist()
-        for i, ti, r, s, payload in zip(idx.tolist(), np.broadcast_to(t, idx.shape).tolist(),
+        ranks = spread(np.asarray(rank, float), idx.shape).tolist()
+        for i, ti, r, s, payload in zip(idx.tolist(), spread(t, idx.shape).tolist(),
                                         ranks, seqs.tolist(), payloads, strict=True):
             heapq.heappush(self.heaps.setdefault(i, []),
                            (ti, kind, r, agent, s, name, payload))

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.engine.arrays import floats, spread
 from hybridteam.engine.values import require
 from hybridteam.errors import DocPath
 from hybridteam.expr import Expression
@@ -81,8 +82,7 @@ class InboxView:
         """The chosen sender per instance: the given one, else the most recent (-1: none)."""
         if sender is None:
             return self.box.latest[type_][self.idx]
-        return np.broadcast_to(np.asarray(sender), self.box.latest[type_][self.idx].shape
-                               ).astype(np.intp)
+        return spread(sender, self.box.latest[type_][self.idx].shape).astype(np.intp)
 
     def field(self, type_: str, name: str, sender: np.ndarray | None = None) -> np.ndarray:
         """A field of the chosen sender's latest copy (NaN where nothing has arrived)."""
@@ -123,11 +123,13 @@ class Streams:
             return
         t = ens.t[idx]
         for a, mine in enumerate(self.streams):
+            if not mine:
+                continue
             st = ens.states[a]
+            active = st.active[idx]
             for s, cs in enumerate(mine):
                 due = self.due[a][s]
-                on = st.active[np.ix_(idx, cs.modes)].any(axis=1) if cs.modes else \
-                    np.ones(idx.size, bool)
+                on = active[:, cs.modes].any(axis=1) if cs.modes else np.ones(idx.size, bool)
                 was = np.isfinite(due[idx])
                 due[idx[~on]] = np.inf
                 start = on & ~was
@@ -137,10 +139,9 @@ class Streams:
                     sub = idx[send]
                     ctx = st.ctx(sub, ens.t[sub])
                     ctx.u = st.u[sub]
-                    fields = {f: np.broadcast_to(e(ctx), sub.shape).astype(float)
-                              for f, e in cs.fields.items()}
+                    fields = {f: floats(e(ctx), sub.shape) for f, e in cs.fields.items()}
                     ens.network.send(sub, ens.t[sub], a, None, cs.socket, cs.message, fields)
-                    period = require(np.broadcast_to(cs.period(ctx), sub.shape),
+                    period = require(spread(cs.period(ctx), sub.shape),
                                      (*cs.where, "rate"), "1 / rate", cs.rate_text,
                                      low=0.0, open_low=True, instances=sub)
                     due[sub] = ens.t[sub] + period
