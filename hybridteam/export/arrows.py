@@ -12,8 +12,9 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matplotlib.collections import PolyCollection
 
-from hybridteam.export.style import HALO
+from hybridteam.export.style import HALO, text_color
 
 if TYPE_CHECKING:
     from hybridteam.export.timeline import TimelineData
@@ -59,6 +60,41 @@ class Crossings:
         ts, tr, ys, yr = self.ts[span], self.tr[span], self.ys[span], self.yr[span]
         t = ts + np.clip((y - ys) / (yr - ys), 0.0, 1.0) * (tr - ts)  # as time_at does
         return bool(((t0 <= t) & (t <= t1)).any())
+
+
+def draw_mode_names(ax: Any, fig: Any, data: TimelineData, px_per_s: float) -> None:
+    """Each stay's mode name where it fits in its bar (``px_per_s``: pixels per second).
+    Where a message arrow crosses a name, a patch of the bar's colour goes under the name,
+    over the arrow, so the arrow stops short of the letters instead of striking them out;
+    the patches are one collection (a text's own bbox would cost a layout per name)."""
+    t0, t1 = data.span
+    first, last = data.lanes[0], data.lanes[-1]
+    y_span = (first.y + first.height / 2 + 0.2) - (last.y - last.height / 2 - 0.2)
+    px_per_y = ax.get_position().height * fig.get_figheight() * fig.dpi / y_span
+    crossed = Crossings(data)
+    backings: list[np.ndarray] = []
+    backing_colors: list[str] = []
+    for b in data.bars:
+        lane = data.lanes[b.lane]
+        size = 6.5 if lane.top else 8.0
+        lo, hi = max(b.start, t0), min(b.end, t1)
+        text_px = len(b.label) * size * 0.62 * fig.dpi / 72  # the name's width, about
+        if (hi - lo) * px_per_s > text_px + 4:
+            half = text_px / px_per_s / 2
+            mid = (lo + hi) / 2
+            if crossed(lane.y, mid - half, mid + half):
+                # over the message arrows, on a patch of the bar's colour where an arrow
+                # crosses the name: it stops short of the letters instead of striking them
+                # out (all patches one collection: a bbox per text costs a layout each)
+                h = 0.62 * size * fig.dpi / 72 / px_per_y
+                backings.append(np.array([(mid - half, lane.y - h), (mid + half, lane.y - h),
+                                          (mid + half, lane.y + h), (mid - half, lane.y + h)]))
+                backing_colors.append(b.color)
+            ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
+                    color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label")
+    if backings:
+        ax.add_collection(PolyCollection(backings, facecolors=backing_colors,
+                                         edgecolors="none", zorder=5, gid="mode-backings"))
 
 
 def gap_centres(data: TimelineData) -> list[float]:

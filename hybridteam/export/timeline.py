@@ -30,10 +30,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from hybridteam.errors import did_you_mean
-from hybridteam.export.arrows import Crossings, draw_messages, loss_text
+from hybridteam.export.arrows import draw_messages, draw_mode_names, loss_text
 from hybridteam.export.figures import DATA_FORMATS, figure_format, save_figure
 from hybridteam.export.legend import legend_handles
-from hybridteam.export.style import FONT, team_mode_colors, text_color
+from hybridteam.export.style import FONT, team_mode_colors
 from hybridteam.export.verdicts import VIOLATION_COLOR, draw_violations
 from hybridteam.trace import Table, Trace, write_atomic
 
@@ -337,22 +337,7 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
                        gid=f"bars:{lane_i}")
     # labels where they fit: estimate from the axes width in pixels
     px_per_s = ax.get_position().width * fig.get_figwidth() * fig.dpi / width
-    crossed = Crossings(data)
-    for b in data.bars:
-        lane = data.lanes[b.lane]
-        size = 6.5 if lane.top else 8.0
-        lo, hi = max(b.start, t0), min(b.end, t1)
-        text_px = len(b.label) * size * 0.62 * fig.dpi / 72  # the name's width, about
-        if (hi - lo) * px_per_s > text_px + 4:
-            # over the message arrows, on a patch of the bar's colour where an arrow
-            # crosses the name: it stops short of the letters instead of striking them out
-            half = text_px / px_per_s / 2
-            mid = (lo + hi) / 2
-            backing = {"bbox": {"boxstyle": "square,pad=0.05", "fc": b.color, "ec": "none"}
-                       } if crossed(lane.y, mid - half, mid + half) else {}
-            ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
-                    color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label",
-                    **backing)
+    draw_mode_names(ax, fig, data, px_per_s)
     if data.marks:  # ticks across the lower edge of the lane, all in one collection
         lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
                        for m in data.marks])
