@@ -143,3 +143,44 @@ def test_a_folder_holding_another_search_is_refused(team_file, tmp_path, capsys)
     capsys.readouterr()
     assert main([*base, "--vary", "thermostat.high=21:22.5"]) == 2
     assert "holds a different search" in capsys.readouterr().err
+
+
+def _search(team_file, out, *extra):
+    return main(["falsify", str(team_file), "-r", "upper", "--vary", "thermostat.high=21:23",
+                 "--seeds", "3", "--budget", "24", "--population", "8", "--keep-going",
+                 "--no-replay", "-o", str(out), *extra])
+
+
+def _record(out) -> dict:
+    record = json.loads((out / "falsify.json").read_text())
+    return {k: v for k, v in record.items() if k not in ("executor", "wall_seconds", "replay")}
+
+
+def test_workers_and_a_dask_cluster_give_the_same_search(team_file, tmp_path, capsys):
+    """Each generation split over two processes, or over a Dask cluster, is the same
+    ensemble evaluated elsewhere: the same candidates, seeds and robustness, bit for bit."""
+    assert _search(team_file, tmp_path / "one", "--progress", "none") == 0
+    assert _search(team_file, tmp_path / "pool", "--progress", "none", "--workers", "2") == 0
+    reference = _record(tmp_path / "one")
+    assert _record(tmp_path / "pool") == reference
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        assert _search(team_file, tmp_path / "dask", "--progress", "none", "--scheduler",
+                       cluster.scheduler_address) == 0
+    assert _record(tmp_path / "dask") == reference
+
+
+def test_progress_is_reported_in_lines_when_not_on_a_terminal(team_file, tmp_path, capsys,
+                                                              monkeypatch):
+    import functools
+
+    from hybridteam import progress
+
+    # lines start after a grace period (short work stays quiet); this search is short
+    monkeypatch.setattr(progress, "LogProgress",
+                        functools.partial(progress.LogProgress, grace=0.0))
+    assert _search(team_file, tmp_path / "log", "--progress", "auto") == 0
+    err = capsys.readouterr().err  # pytest's capture is not a terminal: lines, not a bar
+    lines = [s for s in err.splitlines() if "falsify upper:" in s]
+    assert lines and all("sims" in s for s in lines) and "\r" not in err
