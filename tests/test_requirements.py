@@ -223,3 +223,56 @@ def test_a_discrete_variable_is_read_after_each_instant():
     counted = verdicts(run)["counted"]  # the most bounces by t = 2, minus 10
     assert sum(t < 2.0 for t in impacts) == 4
     assert counted["satisfied"] is False and counted["robustness"] == 4 - 10
+
+
+def test_a_study_tables_satisfaction_and_minimum_robustness(tmp_path):
+    """A study of the thermostat over ``high``: ``always(x <= 22.1)`` has robustness
+    22.1 - high in every run (the heater stops exactly at high), so each setting's
+    satisfaction rate is 1 or 0 and its minimum robustness is 22.1 - high."""
+    import csv
+
+    from hybridteam.sweep.run import run_study
+    from hybridteam.sweep.study import load_study
+
+    (tmp_path / "thermostat.yaml").write_text(
+        THERMOSTAT + "  upper: always(x <= 22.1)\n")
+    (tmp_path / "study.yaml").write_text(textwrap.dedent("""\
+        kind: study
+        team: thermostat.yaml
+        duration: 10.0
+        population: {size: 2}
+        factors:
+          thermostat.high: [21.0, 22.05, 22.3]
+        repetitions: 2
+        """))
+    result = run_study(load_study(tmp_path / "study.yaml"), tmp_path / "out")
+    rows = {float(r["value"]): r for r in result.table.rows}
+    for high, want_ok in ((21.0, 1.0), (22.05, 1.0), (22.3, 0.0)):
+        row = rows[high]
+        assert row["runs"] == 4 and row["upper_satisfied"] == want_ok
+        assert row["upper_min_robustness"] == pytest.approx(22.1 - high, abs=1e-9)
+    with open(tmp_path / "out" / "runs.csv") as f:
+        runs = list(csv.DictReader(f))
+    assert len(runs) == 12 and {"req_upper_ok", "req_upper_rho"} <= set(runs[0])
+    for r in runs:
+        rho = float(r["req_upper_rho"])
+        assert r["factor"] == "thermostat.high"
+        assert rho == pytest.approx(22.1 - float(r["value"]), abs=1e-9)
+        assert float(r["req_upper_ok"]) == (rho >= 0)
+
+
+def test_the_timeline_marks_a_violation_at_its_time(team_from_yaml, tmp_path):
+    """The tightened band fails first at ln(11/8.1)/K: the timeline draws a dashed line
+    there, labelled with the requirement, and lists it in the legend."""
+    from hybridteam.export.timeline import timeline_figure
+
+    run = simulate(thermostat(team_from_yaml, "tight: always(x <= 21.9)"))
+    fig, _data = timeline_figure(run)
+    ax = fig.axes[0]
+    marks = [line for line in ax.lines if line.get_linestyle() == "--"]
+    assert len(marks) == 1
+    assert marks[0].get_xdata()[0] == pytest.approx(math.log(11 / 8.1) / K, abs=1e-8)
+    assert any(t.get_text().strip() == "tight" for t in ax.texts)
+    legend = ax.get_legend()
+    assert legend is not None and "requirement violated" in [
+        t.get_text() for t in legend.get_texts()]
