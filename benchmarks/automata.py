@@ -29,8 +29,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def load(name: str) -> ht.Team:
     """An example of ``examples/automata`` without its requirements."""
-    return dataclasses.replace(load(name),
+    return dataclasses.replace(ht.load(ROOT / "examples" / "automata" / name),
                                requirements=())
+
+
 G, E, H0 = 9.81, 0.7, 1.0
 K = 0.1
 
