@@ -177,3 +177,19 @@ def test_clearance_requirement_is_the_ladders_distance_to_the_walls():
     want = np.minimum.reduce(gaps).min()
     assert verdict["satisfied"] and 0 < want < 30
     assert verdict["robustness"] == pytest.approx(want, abs=1e-9)
+
+
+def test_clearance_is_published_only_when_asked(tmp_path, capsys):
+    """Without ``clearance: true`` the corridor computes no clearance series (it costs a
+    fifth of an engine run), so a requirement reading it is an unknown signal; a setting
+    that is not a switch is a located error."""
+    text = SAMPLE.read_text()
+    off = tmp_path / "off.yaml"
+    off.write_text(text.replace("      clearance: true", "      clearance: false"))
+    assert main(["validate", str(off)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown signal 'ladder_clearance.walls'" in err and "off.yaml:" in err
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("      clearance: true", "      clearance: 1"))
+    assert main(["validate", str(bad)]) == 2
+    assert "with.clearance: expected true or false, got 1.0" in capsys.readouterr().err

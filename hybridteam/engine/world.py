@@ -58,8 +58,9 @@ def check_world(team: Team) -> list[ModelError]:
                     errors.append(ModelError(where, f"expected a number or an expression, "
                                              f"got {value!r}"))
             elif type(value) is not type(default):
-                errors.append(ModelError(where, f"expected a {type(default).__name__}, "
-                                         f"got {value!r}"))
+                kind = {bool: "true or false", str: "a string", list: "a list"}.get(
+                    type(default), f"a {type(default).__name__}")
+                errors.append(ModelError(where, f"expected {kind}, got {value!r}"))
         if len(errors) == before:  # the component's own checks, on well-typed settings
             errors += [ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint,
                                   at_key=e.at_key) for e in cls.check(team, spec.values)]

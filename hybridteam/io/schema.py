@@ -301,7 +301,7 @@ class WorldSchema(Strict):
     """A world component: ``{use: ladder.corridor, with: {length: 450}}``."""
 
     use: str = Field(description="registered name of the component")
-    with_: dict[str, float | str | list[Any]] = Field(
+    with_: dict[str, bool | float | str | list[Any]] = Field(
         default_factory=dict, alias="with",
         description="settings: numbers or expressions of team parameters, or literals")
 
