@@ -7,14 +7,16 @@ On that grid:
 
 - states and world series are piecewise linear between samples (held after the last
   sample, up to the run's end);
-- modes, roles and counts are piecewise constant, right-continuous: at a transition
-  instant the configuration is the one after it (a mode entered and left within one
-  instant is not seen);
+- modes, roles, counts and discrete variables are piecewise constant, right-continuous:
+  at a transition instant the configuration is the one after it (a mode entered and left,
+  or a value set and reset, within one instant is not seen);
 - ``received``/``sent`` hold exactly at the instants of the messages;
 - parameters are constant per instance (after a study's overrides).
 
 Arrays are ``(n, K)`` with ``K`` the longest grid; shorter grids are padded with ``inf``
-times, which the temporal operators ignore.
+times, which the temporal operators ignore. The grids of a whole ensemble are built and
+searched at once (:mod:`.grid`): a loop over a thousand instances would cost more than
+the monitoring itself.
 """
 
 from __future__ import annotations
