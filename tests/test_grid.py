@@ -54,3 +54,12 @@ def test_interpolation_is_linear_between_data_and_held_beyond():
     values = np.array([[2.0, np.nan, 4.0, 8.0, np.nan]])
     out = grid.interpolate(~np.isnan(values), values)
     assert out.tolist() == [[2.0, 2.5, 4.0, 8.0, 8.0]]
+
+
+def test_the_last_record_at_a_grid_point_wins():
+    grid = Grid(np.array([0.0, 1.0]), np.array([1.0, 1.0]), np.array([1]), np.array([0.5]))
+    # records in the order taken: two at (0, 1.0), two at (1, 0.5), one off the grid
+    rows, cols, which = grid.last_records(np.array([0, 1, 0, 1, 1]),
+                                          np.array([1.0, 0.5, 1.0, 0.5, 0.7]))
+    got = sorted(zip(rows.tolist(), cols.tolist(), which.tolist(), strict=True))
+    assert got == [(0, 1, 2), (1, 1, 3)]

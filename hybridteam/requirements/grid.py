@@ -87,6 +87,20 @@ class Grid:
         ok[ok] = self.t[inst[ok], pos[ok]] == np.asarray(times, float)[ok]
         return np.where(ok, pos, -1)
 
+    def last_records(self, instances: np.ndarray, times: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where records ``(instance, time)`` (in the order they were taken) fall on the
+        grid: ``(rows, cols, which)``, one per grid point that has any, ``which`` the
+        index of the last record there (records off the grid are left out)."""
+        inst = np.asarray(instances, np.intp)
+        pos = self.locate(inst, times)
+        w = self.shape[1]
+        flat = np.where(pos >= 0, inst * w + pos, -1)[::-1]
+        _, first = np.unique(flat, return_index=True)  # first from the end: the last taken
+        first = first[flat[first] >= 0]
+        rows, cols = np.divmod(flat[first], w)
+        return rows, cols, len(flat) - 1 - first
+
     def interpolate(self, data: np.ndarray, values: np.ndarray) -> np.ndarray:
         """``values`` given where ``data`` is true, linear in between (``np.interp``'s
         formula), held before the first and after the last data point of a row; NaN on

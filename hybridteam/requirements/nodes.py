@@ -132,7 +132,6 @@ class Temporal(Node):
         return np.flatnonzero((t >= t[k] + self.lo) & (t <= t[k] + self.hi)
                               & np.isfinite(t))
 
-
     def _whole_run(self, sig: Any, op: Any, identity: float) -> np.ndarray | None:
         """At t = 0, a window ``[0, inf)`` is the whole run: one reduction per row (the
         value :func:`.robustness.always` would give there, without the other points)."""

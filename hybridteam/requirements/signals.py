@@ -68,12 +68,8 @@ class Signals:
             values = g.place(self.run.samples[key][:, :, j].T, np.nan)
             snap = self._snaps.get(key)
             if snap is not None:  # exact states at instants; the last one at a time wins
-                pos = g.locate(snap[0], snap[1])
-                flat = np.where(pos >= 0, snap[0] * self.shape[1] + pos, -1)[::-1]
-                _, last = np.unique(flat, return_index=True)
-                last = last[flat[last] >= 0]
-                rows, cols = np.divmod(flat[last], self.shape[1])
-                values[rows, cols] = snap[2][::-1][last, j]
+                rows, cols, which = g.last_records(snap[0], snap[1])
+                values[rows, cols] = snap[2][which, j]
             self.memo[memo] = g.interpolate(~np.isnan(values), values)
         return self.memo[memo]
 
@@ -84,17 +80,12 @@ class Signals:
         memo = ("variable", agent, j)
         if memo not in self.memo:
             inst, t, values = self._snaps[variables_key(agent)]
-            g, w = self.grid, self.shape[1]
-            pos = g.locate(inst, t)
-            flat = np.where(pos >= 0, inst * w + pos, -1)[::-1]
-            _, last = np.unique(flat, return_index=True)  # the last record at an instant
-            last = last[flat[last] >= 0]
-            rows, cols = np.divmod(flat[last], w)
+            rows, cols, which = self.grid.last_records(inst, t)
             known = np.zeros(self.shape, bool)
             known[rows, cols] = True
             out = np.full(self.shape, np.nan)
-            out[rows, cols] = values[::-1][last, j]
-            idx = np.maximum.accumulate(np.where(known, np.arange(w), 0), axis=1)
+            out[rows, cols] = values[which, j]
+            idx = np.maximum.accumulate(np.where(known, np.arange(self.shape[1]), 0), axis=1)
             out = np.take_along_axis(out, idx, axis=1)
             out[~np.isfinite(self.t)] = np.nan
             self.memo[memo] = out
