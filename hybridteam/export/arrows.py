@@ -33,11 +33,13 @@ def loss_text(data: TimelineData) -> str:
     return " — " + ", ".join(parts) if parts else ""
 
 
-def time_at(t_send: float, t_recv: float, y_send: float, y_recv: float, y: float) -> float:
+def time_at(t_send: Any, t_recv: Any, y_send: Any, y_recv: Any, y: float) -> Any:
     """When an arrow from (t_send, y_send) to (t_recv, y_recv) is at height ``y`` (clipped
-    to its ends; its middle when it is flat)."""
-    frac = (y - y_send) / (y_recv - y_send) if y_recv != y_send else 0.5
-    return t_send + min(max(frac, 0.0), 1.0) * (t_recv - t_send)
+    to its ends; its middle when it is flat). Numbers, or arrays of arrows."""
+    rise = np.subtract(y_recv, y_send)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(rise != 0, (y - np.asarray(y_send)) / rise, 0.5)
+    return t_send + np.clip(frac, 0.0, 1.0) * np.subtract(t_recv, t_send)
 
 
 class Crossings:
@@ -57,8 +59,7 @@ class Crossings:
         span = (np.minimum(self.ys, self.yr) <= y) & (y <= np.maximum(self.ys, self.yr))
         if not span.any():
             return False
-        ts, tr, ys, yr = self.ts[span], self.tr[span], self.ys[span], self.yr[span]
-        t = ts + np.clip((y - ys) / (yr - ys), 0.0, 1.0) * (tr - ts)  # as time_at does
+        t = time_at(self.ts[span], self.tr[span], self.ys[span], self.yr[span], y)
         return bool(((t0 <= t) & (t <= t1)).any())
 
 

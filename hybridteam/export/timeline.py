@@ -255,9 +255,6 @@ def timeline_data(trace: Trace, instance: int = 0,
         for mode, depth, start, end in zip(mine["mode"].tolist(), mine["depth"].tolist(),
                                            mine["start"].tolist(), mine["end"].tolist(),
                                            strict=True):
-            if window is not None and not ((start < window[1] and end > window[0])
-                                           or window[0] <= start == end <= window[1]):
-                continue
             color, label = colors.get(mode, "#BBBBBB"), mode.rsplit(".", 1)[-1]
             rows = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
             rows += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
@@ -270,8 +267,7 @@ def timeline_data(trace: Trace, instance: int = 0,
             mine_tr = mine_tr.filter((window[0] <= at) & (at <= window[1]))
         marks += [Mark(index[(name, region_of(common_ancestor(a, b), regions), False)], t, a, b)
                   for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
-                                     mine_tr["target"].tolist(), strict=True)
-                  if window is None or window[0] <= t <= window[1]]
+                                     mine_tr["target"].tolist(), strict=True)]
         for path in kinds:  # the legend follows the agent's model order, not the run
             if (name, path) in used:
                 legend.setdefault(name, {})[path] = colors.get(path, "#BBBBBB")
@@ -284,7 +280,9 @@ def timeline_data(trace: Trace, instance: int = 0,
     on_data = (msgs["socket"].astype(str) == "data") if len(msgs) else np.zeros(0, bool)
     lost, dropped = int(np.sum(gone & ~on_data)), int(np.sum(gone & on_data))
     ys = {lane.agent: lane.y for lane in lanes if not lane.top and not lane.region}
-    if len(msgs):  # the copies an arrow may be drawn for, found with numpy (see below)
+    if len(msgs):  # the copies with an arrow: sent or received inside a close-up's window;
+        # with no window only lost control messages are marked (a stream to a rate-limited
+        # receiver drops thousands of copies, which would hide the lanes)
         sent = np.asarray(msgs["t_send"], float)
         got = np.where(gone, np.nan, np.asarray(msgs["t_recv"], float))
         msgs = msgs.filter((((window[0] <= sent) & (sent <= window[1]))
@@ -295,14 +293,8 @@ def timeline_data(trace: Trace, instance: int = 0,
             continue
         is_lost = m.status == "lost"
         t_recv = math.nan if is_lost or m.t_recv is None else float(m.t_recv)
-        inside = (window[0] <= m.t_send <= window[1] or window[0] <= t_recv <= window[1]
-                  ) if window is not None else is_lost and m.socket != "data"
-        # no window: only lost control messages are marked (a stream to a rate-limited
-        # receiver drops thousands of copies, which would hide the lanes)
-        if inside:
-            arrows.append(Arrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv, m.type,
-                                t_recv - m.t_send, is_lost, m.sender, m.receiver,
-                                str(m.socket)))
+        arrows.append(Arrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv, m.type,
+                            t_recv - m.t_send, is_lost, m.sender, m.receiver, str(m.socket)))
     span = window if window is not None else (0.0, end_time(trace, instance))
     return TimelineData(lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped,
                         legend=legend)
