@@ -88,15 +88,15 @@ def write_convergence(out: Path, search: Search, title: str) -> Path:
     fig = Figure(figsize=(8.5, 4.0), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    finite = rho[np.isfinite(rho)]
+    fin = np.isfinite(rho)
+    finite = rho[fin]
     lo = min(float(finite.min()), 0.0) if finite.size else -1.0
     hi = max(float(finite.max()), 0.0) if finite.size else 1.0
     span = (hi - lo) or 1.0
     top, bottom = hi + 0.12 * span, lo - 0.12 * span  # where Boolean verdicts (+-inf) sit
     shown = np.clip(rho, bottom, top)
-    fin = np.isfinite(rho)
-    if fin.any():
-        ax.plot(k[fin], rho[fin], ".", color="#9E9E9E", markersize=4, label="each simulation")
+    if finite.size:
+        ax.plot(k[fin], finite, ".", color="#9E9E9E", markersize=4, label="each simulation")
     for mask, y, marker, text in ((rho == np.inf, top, "^", "held by a Boolean (+inf)"),
                                   (rho == -np.inf, bottom, "v", "broken by a Boolean (-inf)")):
         if mask.any():
@@ -106,7 +106,7 @@ def write_convergence(out: Path, search: Search, title: str) -> Path:
     ax.step(k, best, where="post", color="#1565C0", linewidth=1.8, label="best so far")
     ax.set_xlim(0.5, max(len(rho), 1) + 0.5)
     ax.set_ylim(bottom - 0.05 * span, top + 0.05 * span)
-    if not np.isfinite(rho).all():  # name the rows where the Boolean verdicts sit
+    if not fin.all():  # name the rows where the Boolean verdicts sit
         ticks = [t for t in ax.get_yticks() if lo - 1e-12 <= t <= hi + 1e-12] \
             if finite.size else [0.0]
         ax.set_yticks([bottom, *ticks, top],
