@@ -14,6 +14,27 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
+#: The hysteresis thermostat, with an open requirements: section to append to. It
+#: heats as x' = K (30 - x) from 19 and cools as x' = -K x, switching at 22 and 18,
+#: so its first switch is at ln(11/8)/K and the room stays in [18, 22].
+THERMOSTAT = """
+team: thermostat
+agents:
+  thermostat:
+    plant: {kind: flow, state: {x: 19.0}}
+    parameters: {K: 0.1, low: 18.0, high: 22.0}
+    initial: Heat
+    modes:
+      Heat:
+        flow: {x: K * (30 - x)}
+        transitions: [{to: Cool, guard: x >= high}]
+      Cool:
+        flow: {x: -K * x}
+        transitions: [{to: Heat, guard: x <= low}]
+simulation: {duration: 30, sample_period: 0.1}
+requirements:
+"""
+
 
 @pytest.fixture
 def team_from_yaml(tmp_path):

@@ -17,26 +17,10 @@ from hybridteam import load
 from hybridteam.cli import main
 from hybridteam.falsify.evaluate import Evaluator
 from hybridteam.falsify.search import Vary, run_search
+from tests.conftest import THERMOSTAT
 
-TEAM = """
-team: thermostat
-agents:
-  thermostat:
-    plant: {kind: flow, state: {x: 19.0}}
-    parameters: {K: 0.1, low: 18.0, high: 22.0}
-    initial: Heat
-    modes:
-      Heat:
-        flow: {x: K * (30 - x)}
-        transitions: [{to: Cool, guard: x >= high}]
-      Cool:
-        flow: {x: -K * x}
-        transitions: [{to: Heat, guard: x <= low}]
-simulation: {duration: 15, sample_period: 0.1}
-requirements:
-  upper: always(x <= 22.1)
-  heats: eventually(in_mode(Heat))
-"""
+TEAM = THERMOSTAT.replace("duration: 30,", "duration: 15,") + (
+    "  upper: always(x <= 22.1)\n  heats: eventually(in_mode(Heat))\n")
 
 
 @pytest.fixture

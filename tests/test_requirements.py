@@ -17,25 +17,7 @@ import pytest
 from hybridteam import simulate
 from hybridteam.cli import main
 from hybridteam.io.filekind import InputErrors
-from tests.conftest import EXAMPLES
-
-THERMOSTAT = """
-team: thermostat
-agents:
-  thermostat:
-    plant: {kind: flow, state: {x: 19.0}}
-    parameters: {K: 0.1, low: 18.0, high: 22.0}
-    initial: Heat
-    modes:
-      Heat:
-        flow: {x: K * (30 - x)}
-        transitions: [{to: Cool, guard: x >= high}]
-      Cool:
-        flow: {x: -K * x}
-        transitions: [{to: Heat, guard: x <= low}]
-simulation: {duration: 30, sample_period: 0.1}
-requirements:
-"""
+from tests.conftest import EXAMPLES, THERMOSTAT
 
 K = 0.1
 FIRST_SWITCH = math.log(11 / 8) / K

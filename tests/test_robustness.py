@@ -86,6 +86,45 @@ def test_until_by_hand():
         == [[7, 7, 7, -INF, -INF]]
 
 
+def test_a_sine_on_nine_points_to_1e_12():
+    t = np.linspace(0.0, 2 * math.pi, 9)  # contains pi/2 (index 2) and pi (index 4)
+    rho = (0.5 - np.sin(t))[None, :]
+    assert R.always(t, rho, 0, math.pi)[0, 0] == pytest.approx(-0.5, abs=1e-12)
+    # from pi/2 the window [pi/2, 3pi/2] peaks at 0.5 - sin(3pi/2) = 1.5
+    assert R.eventually(t, rho, 0, math.pi)[0, 2] == pytest.approx(1.5, abs=1e-12)
+    # [a, b] with a > 0: from 0, the points pi .. 3pi/2 (indices 4..6)
+    assert R.always(t, rho, math.pi, 1.5 * math.pi)[0, 0] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_windows_are_cut_at_the_end_and_empty_windows_are_identities():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    rho = np.array([[3.0, -1.0, 2.0, 5.0]])
+    assert R.always(t, rho, 0, 1).tolist() == [[-1.0, -1.0, 2.0, 5.0]]
+    assert R.eventually(t, rho, 1, 2).tolist() == [[2.0, 5.0, 5.0, -math.inf]]
+    assert R.always(t, rho, 2, math.inf).tolist() == [[2.0, 5.0, math.inf, math.inf]]
+
+
+def test_until_by_hand_with_phi_failing_inside_the_window():
+    # phi must hold from i up to (not at) the point where psi is taken
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    phi = np.array([[1.0, 2.0, -3.0, 4.0]])
+    psi = np.array([[-5.0, -1.0, 6.0, 0.5]])
+    # at 0, window [1, 3]: j=1: min(-1, 1) = -1; j=2: min(6, 1, 2) = 1; j=3: min(.5, -3) = -3
+    assert R.until(t, phi, psi, 1, 3)[0, 0] == 1.0
+    # at 0, window [0, inf): j=0 gives psi_0 = -5, the best is again j=2: 1
+    assert R.until(t, phi, psi, 0, math.inf)[0, 0] == 1.0
+    # at 2: j=2 is psi_2 = 6 with nothing before it
+    assert R.until(t, phi, psi, 0, 1)[0, 2] == 6.0
+
+
+def test_padding_and_rows_with_their_own_grids():
+    t = np.array([[0.0, 0.5, 1.0, 4.0], [0.0, 2.0, np.inf, np.inf]])
+    rho = np.array([[1.0, -2.0, 3.0, 0.0], [4.0, -1.0, 7.0, 7.0]])
+    got = R.always(t, rho, 0, 1)
+    assert got[0].tolist() == [-2.0, -2.0, 3.0, 0.0]
+    assert got[1, :2].tolist() == [4.0, -1.0] and np.isnan(got[1, 2:]).all()
+
+
 def test_padded_rows_match_their_unpadded_grids():
     t = np.array([[0.0, 1.0, 2.0, 3.0, 4.0], [0.0, 0.5, 2.0, INF, INF]])
     rho = np.array([[1.0, -2.0, 3.0, 0.5, 2.0], [4.0, -1.0, 7.0, np.nan, -1e300]])
@@ -215,7 +254,9 @@ def test_random_formulas_agree_with_rtamt(data):
     rtamt = pytest.importorskip("rtamt")
     period = data.draw(st.sampled_from([1.0, 0.5]))
     k = data.draw(st.integers(5, 40))
-    values = st.lists(st.integers(-200, 200).map(lambda v: v / 100), min_size=k, max_size=k)
+    value = st.one_of(st.integers(-200, 200).map(lambda v: v / 100),
+                      st.floats(-2, 2).map(lambda v: round(v, 3)))
+    values = st.lists(value, min_size=k, max_size=k)
     x, y = np.array(data.draw(values)), np.array(data.draw(values))
     formula = data.draw(_formulas(period, 3))
     t = np.arange(k) * period
