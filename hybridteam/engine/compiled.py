@@ -86,6 +86,7 @@ class CPolicy:
     timeout: Expression | None = None
     retries: Expression | None = None
     where: DocPath = ()  # the ``ack:`` declaration (its values are checked when sent)
+    dedupe: bool = True  # receivers act on a message once
 
     @property
     def acknowledged(self) -> bool:
@@ -186,6 +187,9 @@ class CAgent:
     derived_params: tuple = ()
     # the source mode of every transition, by index (a gather finds which can fire)
     transition_sources: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
+    #: every name the agent's expressions read (state, variables, parameters, ``t``, the
+    #: team's names): analyses that recompile part of a guard (``hybridteam verify``) use it
+    symbols: dict = field(default_factory=dict)
 
     @property
     def limited(self) -> bool:

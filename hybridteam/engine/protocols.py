@@ -80,6 +80,7 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
             pol.timeout = own.expr(spec.ack.timeout, syms, (*spec.ack.where, "timeout"))
             pol.retries = own.expr(spec.ack.retries, syms, (*spec.ack.where, "retries"))
             pol.where = spec.ack.where
+            pol.dedupe = spec.ack.dedupe
         ca.policies[name] = pol
         for err in own.errors:
             what = {"timeout": "ack timeout", "retries": "ack retries"}.get(

@@ -116,6 +116,8 @@ class Reliable:
         ens.network.send(one, np.array([t]), msg.receiver, msg.sender, msg.socket, ACK,
                          {"id": np.array([float(msg.msg_id)])}, note="ack")
         key4 = (i, msg.receiver, msg.sender, msg.msg_id)
+        if not ens.cteam.agents[msg.sender].policies[msg.type].dedupe:
+            return None
         if key4 in self.seen:
             return "duplicate"
         self.seen.add(key4)

@@ -194,7 +194,8 @@ class Composer:
 def message_spec(name: str, m: MessageDeclSchema, protocol: str, where: DocPath
                  ) -> MessageSpec:
     """The model of a declared message type, a protocol's or (``protocol`` "") a team's."""
-    ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries, (*where, "ack"))
+    ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries, (*where, "ack"),
+                                               m.ack.dedupe)
     return MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority, protocol, where)
 
 

@@ -311,6 +311,8 @@ class AckSchema(Strict):
 
     timeout: ExprOrNumber = 0.1
     retries: ExprOrNumber = 3
+    dedupe: bool = Field(True, description="act on a message once (false: on every copy, "
+                         "a resend after a lost ack included)")
 
 
 class MessageDeclSchema(Strict):

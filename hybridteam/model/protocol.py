@@ -18,11 +18,13 @@ from hybridteam.errors import DocPath
 class AckPolicy:
     """Reliable delivery: resend after ``timeout`` seconds without an acknowledgement, at
     most ``retries`` times; then the sender gets the local event ``<type>_undeliverable``.
-    Both are numbers or expressions of the sender's parameters."""
+    Both are numbers or expressions of the sender's parameters. ``dedupe``: a receiver acts
+    on a message once (False: on every copy, retransmissions included)."""
 
     timeout: str | float = 0.1
     retries: str | float = 3
     where: DocPath = ()
+    dedupe: bool = True
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,73 @@
+"""Verification: states per second and the full check time of the role protocol.
+
+Teams of 2, 3 and 4 robots and the operator: the first robot leads, every other follows
+it and asks for the leadership once, then the leader resigns (the scenario's events, in
+that order, at moments of the explorer's choosing). Each is verified with 0 and 1 losses
+(any order), every property of ``examples/protocols/roles_verify.yaml`` (one leader, each
+request answered) and deadlock; a check that reaches ``--max-states`` says "bounded".
+
+    python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+from hybridteam import load
+from hybridteam.verify import Options, verify
+
+NAMES = "abcdefgh"
+
+
+def team_text(robots: int) -> str:
+    """``robots`` robots on the role protocol, the operator, and their requirements."""
+    lines = [f"team: roles_{robots}", "agents:"]
+    for k in range(robots):
+        name = NAMES[k]
+        lines += [f"  {name}:",
+                  f"    plant: {{kind: unicycle, state: {{x: {-k}, y: 0, theta: 0}}}}"]
+        if k:
+            lines.append("    variables: {leader: id_a}")
+        lines += ["    modes:", "      Transport:", "        protocol: role_assignment",
+                  f"        initial: {'Lead' if k == 0 else 'Follow'}", "        roles:",
+                  "          lead: {inputs: {v: 0.1, omega: 0}}",
+                  "          follow: {inputs: {v: 0.1, omega: 0}}"]
+    lines += ["  operator:", "    operator: role_assignment", "scenario:"]
+    lines += [f"  - {{at: {k}, agent: {NAMES[k]}, raise: want_lead}}" for k in range(1, robots)]
+    lines += [f"  - {{at: {robots}, agent: a, raise: resign}}", "requirements:",
+              "  one_leader: always(count_in_role(lead) <= 1)"]
+    lines += [f"  {NAMES[k]}_answered: always(implies(in_mode({NAMES[k]}, Requesting), "
+              f"eventually(in_role({NAMES[k]}, lead) or in_mode({NAMES[k]}, Follow) or "
+              f"in_mode({NAMES[k]}, Operated))))" for k in range(1, robots)]
+    lines += ["simulation:", "  duration: 10"]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4])
+    ap.add_argument("--losses", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--max-states", type=int, default=1_000_000)
+    args = ap.parse_args()
+    print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
+          f"{'states/s':>9}  verdict")
+    with tempfile.TemporaryDirectory() as tmp:
+        for robots in args.robots:
+            path = Path(tmp) / f"roles_{robots}.yaml"
+            path.write_text(team_text(robots))
+            team = load(path)
+            for losses in args.losses:
+                r = verify(team, Options(losses=losses, max_states=args.max_states))
+                g = r.graph
+                bad = [v.prop.name for v in r.violated]
+                word = ("VIOLATED: " + ", ".join(bad)) if bad else (
+                    "all hold" if g.exhaustive else "none violated (bounded)")
+                print(f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
+                      f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f}  {word}",
+                      flush=True)
+
+
+if __name__ == "__main__":
+    main()

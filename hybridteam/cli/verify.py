@@ -1,0 +1,141 @@
+"""``hybridteam verify TEAM.yaml [-p NAME] [--losses K] [--order any|fifo] -o OUT``.
+
+Explores every behaviour of the team's discrete skeleton (message orders, losses, timeouts)
+and checks its properties: the team's requirements that have a meaning without a clock,
+and ``deadlock``. Prints what the skeleton abstracts, progress (states/s, frontier), one
+verdict line per property and, for each violation, the shortest counterexample as a
+message sequence; writes ``OUT/verify.json``. Exit status: 0 when every property checked
+holds, 1 on a violation, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from hybridteam.cli.common import (
+    EXIT_OK,
+    EXIT_USAGE,
+    UsageError,
+    load_team_or_report,
+    output_folder,
+)
+from hybridteam.progress import MODES
+
+EXIT_VIOLATED = 1
+
+
+def register(sub) -> dict:
+    ve = sub.add_parser(
+        "verify", help="check a team's protocol logic under every message order and loss",
+        description="Explores the team's discrete skeleton exhaustively (every message order, "
+        "loss up to --losses, timeout and guard over time or state) and checks its "
+        "requirements of the forms always(phi) and always(implies(phi, eventually(psi))), "
+        "and deadlock. Exit 0: every property holds; 1: a violation; 2: bad input.")
+    ve.add_argument("team", metavar="TEAM.yaml")
+    ve.add_argument("--property", "-p", action="append", default=None, metavar="NAME",
+                    help="check only this property (a requirement's name, or deadlock); "
+                    "repeat for more (default: all)")
+    ve.add_argument("--losses", type=int, default=2, metavar="K",
+                    help="copies the network may lose on one path (default 2)")
+    ve.add_argument("--duplicates", type=int, default=0, metavar="D",
+                    help="copies the network may duplicate on one path (default 0)")
+    ve.add_argument("--order", choices=("any", "fifo"), default="any",
+                    help="any: any copy in flight may arrive next (default); fifo: in "
+                    "sending order on each link")
+    ve.add_argument("--ack-timing", choices=("bounded", "any"), default="bounded",
+                    help="bounded: an ack timeout expires only once every copy and ack of "
+                    "its message has arrived or been lost (ack timeouts exceed the round "
+                    "trip; default); any: at any moment")
+    ve.add_argument("--timeouts", choices=("any", "long"), default="any",
+                    help="any: an after: timeout may expire at any moment (default); long: "
+                    "only once nothing is in flight or unacknowledged")
+    ve.add_argument("--max-states", type=int, default=2_000_000, metavar="N",
+                    help="stop exploring beyond N states; verdicts then say 'bounded' "
+                    "(default 2,000,000)")
+    ve.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    ve.add_argument("--progress", choices=MODES, default="auto",
+                    help="auto (a line every few seconds), log, bar (the same lines) or none")
+    return {"verify": cmd_verify}
+
+
+def _check(args) -> None:
+    for name in ("losses", "duplicates"):
+        if getattr(args, name) < 0:
+            raise UsageError(f"--{name} must be 0 or more, got {getattr(args, name)}")
+    if args.max_states < 1:
+        raise UsageError(f"--max-states must be at least 1, got {args.max_states}")
+
+
+def cmd_verify(args) -> int:
+    from hybridteam.verify import Options, verify
+    from hybridteam.verify.abstraction import skeleton
+    from hybridteam.verify.properties import properties
+
+    _check(args)
+    out = output_folder(args.output)
+    team = load_team_or_report(args.team)
+    if team is None:
+        return EXIT_USAGE
+    if args.property:
+        from hybridteam.engine.compiler import compile_team
+
+        known = [p.name for p in properties(skeleton(compile_team(team)))]
+        for name in args.property:
+            if name not in known:
+                from hybridteam.errors import did_you_mean
+
+                hint = did_you_mean(name, known)
+                raise UsageError(f"--property: '{name}' is not a property of "
+                                 f"{args.team} (its properties: {', '.join(known)})"
+                                 + (f"; {hint}" if hint else ""))
+    opts = Options(losses=args.losses, duplicates=args.duplicates, order=args.order,
+                   max_states=args.max_states, ack_timing=args.ack_timing,
+                   timeouts=args.timeouts)
+    report = verify(team, opts, args.property, _progress(args.progress))
+    _print(report, args.team)
+    out.mkdir(parents=True, exist_ok=True)
+    from hybridteam.trace import write_atomic
+
+    write_atomic(out / "verify.json", json.dumps(report.summary(), indent=1) + "\n")
+    print(f"wrote {out / 'verify.json'}")
+    return EXIT_VIOLATED if report.violated else EXIT_OK
+
+
+def _progress(mode: str):
+    if mode == "none":
+        return None
+    state = {"last": 0.0}
+
+    def show(states: int, frontier: int, depth: int, seconds: float) -> None:
+        now = time.perf_counter()
+        if now - state["last"] < 5.0 and frontier:
+            return
+        state["last"] = now
+        rate = states / seconds if seconds > 0 else 0.0
+        print(f"hybridteam: verify: {states:,} states, frontier {frontier:,}, depth {depth}, "
+              f"{rate:,.0f} states/s, {seconds:.1f} s", file=sys.stderr, flush=True)
+    return show
+
+
+def _print(report, path: str) -> None:
+    g = report.graph
+    print(f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
+          f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
+          f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
+          f"order {report.options.order})")
+    for note in report.skeleton.notes:
+        print(f"  abstracted: {note}")
+    for v in report.verdicts:
+        word = {None: "NOT CHECKED", True: "holds" if g.exhaustive else "holds (bounded)",
+                False: "VIOLATED"}[v.holds]
+        print(f"{v.prop.name}: {word}" + (f" ({v.message})" if v.message else ""))
+        if v.holds is False:
+            for line in report.counterexample(v):
+                print(f"  {line}")
+            more = report.configurations(v)[1:]
+            if more and v.prop.kind != "response":
+                print(f"  {len(more)} other violating configuration(s) (all in verify.json):")
+                for text in more[:5]:
+                    print(f"    {text}")

@@ -1,0 +1,276 @@
+"""What ``hybridteam verify`` checks, and the checks on an explored state graph.
+
+Properties come from the team's ``requirements:`` (the requirements language) where their
+shape has a meaning without a clock:
+
+- ``always(phi)``, phi without temporal operators: an *invariant*, checked on every
+  reachable state (``always(count_in_role(lead) <= 1)``);
+- ``always(implies(phi, eventually(psi)))``: a *response* (phi leads to psi): from every
+  reachable state where phi holds, every path reaches psi — no path ends, and no cycle
+  runs, through states where psi is false;
+
+plus the built-in ``deadlock``: a state where nothing can happen any more (no copy in
+flight, no timer, no time-driven transition) while some agent waits for a message (it is
+not final, not an operator, and only a message or an event of its own could move it), not
+every agent is final (whatever the team's end rule says: a run that ends while a robot
+still waits for its partner's message is the handshake's deadlock), and no operator has
+taken command.
+
+Other formulas (timed windows, nested operators, states or time) are listed as not
+checkable, with the reason. Formulas are evaluated with the requirements' own compiled
+trees (:mod:`hybridteam.requirements.nodes`) on the states' modes and discrete variables.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from hybridteam.errors import ModelErrors
+from hybridteam.requirements import nodes as N
+from hybridteam.requirements.check import compile_requirements
+from hybridteam.verify.abstraction import Skeleton
+from hybridteam.verify.explore import Graph
+
+
+class Unsupported(Exception):
+    """A formula reads a signal the skeleton does not keep."""
+
+
+@dataclass
+class Property:
+    name: str
+    kind: str  # "invariant" | "response" | "deadlock" | "skipped"
+    text: str
+    phi: N.Node | None = None
+    psi: N.Node | None = None
+    reason: str = ""
+
+
+@dataclass
+class Verdict:
+    prop: Property
+    holds: bool | None  # None: not checked
+    state: int = -1  # the violating state (invariant, deadlock) or the response's trigger
+    lasso: list[int] | None = None  # response: from the trigger through psi-false states
+    loops: bool = False  # the lasso ends in a cycle (else in a dead end)
+    message: str = ""
+    others: list[int] = field(default_factory=list)  # more violations, one per configuration
+
+
+class States:
+    """The signals a formula reads, over explored states (shape ``(S, 1)``)."""
+
+    def __init__(self, sk: Skeleton, g: Graph, rows: list[int]) -> None:
+        self.sk = sk
+        self.shape = (len(rows), 1)
+        self.memo: dict = {}
+        self._active = []
+        self._vars = []
+        for a, ca in enumerate(sk.cteam.agents):
+            m = len(ca.modes)
+            raw = [g.states[k].agents[a] for k in rows]
+            act = np.frombuffer(b"".join(r[0][:m] for r in raw), np.uint8)
+            self._active.append(act.reshape(len(rows), m).astype(bool))
+            cols = sk.discrete_vars[a]
+            self._vars.append(np.array([r[1] for r in raw], float).reshape(len(rows),
+                                                                            len(cols)))
+        self.names = {ca.name: a for a, ca in enumerate(sk.cteam.agents)}
+
+    @property
+    def t(self):
+        raise Unsupported("it reads time")
+
+    def in_modes(self, agent: str, modes: list[int]) -> np.ndarray:
+        return self._active[self.names[agent]][:, modes].any(axis=1)[:, None]
+
+    def variable(self, agent: str, j: int) -> np.ndarray:
+        a = self.names[agent]
+        cols = self.sk.discrete_vars[a]
+        if j not in cols:
+            raise Unsupported(f"it reads {agent}.{self._var_name(a, j)}, which is computed "
+                              "from time or state")
+        return self._vars[a][:, cols.index(j)][:, None]
+
+    def _var_name(self, a: int, j: int) -> str:
+        return next(n for n, k in self.sk.original.agents[a].var_index.items() if k == j)
+
+    def param(self, agent: str, name: str) -> np.ndarray:
+        ca = self.sk.original.agents[self.names[agent]]
+        return np.full(self.shape, ca.param_defaults[ca.param_index[name]])
+
+    def team_param(self, name: str) -> np.ndarray:
+        ca = self.sk.original.agents[0]
+        return np.full(self.shape, ca.param_defaults[ca.param_index[name]])
+
+    def state(self, agent: str, j: int):
+        raise Unsupported(f"it reads {agent}'s plant state")
+
+    def series(self, name: str, j: int):
+        raise Unsupported(f"it reads the world series '{name}'")
+
+    def event(self, kind: str, agent: str | None, message: str):
+        raise Unsupported(f"it reads {kind}() message events")
+
+
+_OPS = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
+        "==": np.equal, "!=": np.not_equal}
+
+
+def truth(node: N.Node, sig: States) -> np.ndarray:
+    """Whether a temporal-free formula holds in each state (exact, not robustness: a
+    strict comparison at its boundary is false)."""
+    n = sig.shape[0]
+    if isinstance(node, N.Const):
+        return np.full(n, bool(node.value))
+    if isinstance(node, N.Flag):
+        return np.broadcast_to(node.get(sig), sig.shape)[:, 0].astype(bool)  # type: ignore
+    if isinstance(node, N.Predicate):
+        a = np.broadcast_to(np.asarray(node.lhs(sig), float), sig.shape)  # type: ignore
+        b = np.broadcast_to(np.asarray(node.rhs(sig), float), sig.shape)  # type: ignore
+        return _OPS[node.op](a, b)[:, 0]
+    if isinstance(node, N.Not):
+        return ~truth(node.children[0], sig)
+    if isinstance(node, N.And):
+        return np.logical_and.reduce([truth(c, sig) for c in node.children])
+    if isinstance(node, N.Or):
+        return np.logical_or.reduce([truth(c, sig) for c in node.children])
+    if isinstance(node, N.Implies):
+        return ~truth(node.children[0], sig) | truth(node.children[1], sig)
+    raise Unsupported("it has a temporal operator inside")
+
+
+def _temporal_free(node: N.Node) -> bool:
+    return not isinstance(node, N.Temporal) and all(_temporal_free(c) for c in node.children)
+
+
+def _unbounded(node: N.Node) -> bool:
+    return node.lo == 0 and math.isinf(node.hi)  # type: ignore[attr-defined]
+
+
+def properties(sk: Skeleton) -> list[Property]:
+    """The team's requirements, classified, then ``deadlock``."""
+    try:
+        reqs = compile_requirements(sk.original).requirements
+    except ModelErrors:  # the loader reports these; a team that loads compiles them
+        reqs = []
+    out = []
+    for r in reqs:
+        f = r.formula
+        p = Property(r.name, "skipped", r.text)
+        if isinstance(f, N.Always) and _unbounded(f):
+            body = f.children[0]
+            if _temporal_free(body):
+                p.kind, p.phi = "invariant", body
+            elif isinstance(body, N.Implies) and _temporal_free(body.children[0]) \
+                    and isinstance(body.children[1], N.Eventually) \
+                    and _unbounded(body.children[1]) \
+                    and _temporal_free(body.children[1].children[0]):
+                p.kind, p.phi, p.psi = "response", body.children[0], \
+                    body.children[1].children[0]
+        if p.kind == "skipped":
+            p.reason = "verify checks always(phi) and always(implies(phi, eventually(psi))) " \
+                       "with phi, psi free of temporal operators; timed windows need a clock"
+        out.append(p)
+    out.append(Property("deadlock", "deadlock", "nothing can happen while an agent waits for "
+                        "a message"))
+    return out
+
+
+def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
+    rows = list(range(len(g.states)))
+    sig = States(sk, g, rows)
+    out = []
+    for p in props:
+        try:
+            if p.kind == "invariant":
+                out.append(_invariant(p, truth(p.phi, sig)))  # type: ignore[arg-type]
+            elif p.kind == "response":
+                out.append(_response(p, g, truth(p.phi, sig), truth(p.psi, sig)))  # type: ignore
+            elif p.kind == "deadlock":
+                out.append(_deadlock(p, sk, g, sig))
+            else:
+                out.append(Verdict(p, None, message=p.reason))
+        except Unsupported as exc:
+            out.append(Verdict(p, None, message=f"not checkable: {exc}"))
+    return out
+
+
+def _invariant(p: Property, ok: np.ndarray) -> Verdict:
+    bad = np.flatnonzero(~ok)
+    if not bad.size:
+        return Verdict(p, True)
+    return Verdict(p, False, int(bad[0]), others=bad[1:].tolist())  # breadth-first: shortest
+
+
+def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdict:
+    """phi leads to psi: no phi state starts a psi-free path into a dead end or a cycle."""
+    waiting = np.flatnonzero(~psi)
+    sub = nx.DiGraph()
+    sub.add_nodes_from(waiting.tolist())
+    sub.add_edges_from((k, j) for k in waiting.tolist() for j in g.succ[k] if not psi[j])
+    dead = {k for k in waiting.tolist() if not g.succ[k] and k not in g.cut}
+    cyclic = set()
+    for comp in nx.strongly_connected_components(sub):
+        if len(comp) > 1:
+            cyclic |= comp
+    bad = dead | cyclic
+    if not bad:
+        return Verdict(p, True)
+    reach = set(bad)
+    for k in bad:
+        reach |= nx.ancestors(sub, k)
+    starts = sorted(k for k in reach if phi[k])
+    if not starts:
+        return Verdict(p, True)
+    start = starts[0]
+    targets = {k for k in bad if k == start or nx.has_path(sub, start, k)}
+    lengths = nx.single_source_shortest_path(sub, start)
+    end = min(targets, key=lambda k: (len(lengths[k]), k))
+    lasso = lengths[end]
+    loops = end in cyclic
+    if loops:
+        back = next(iter(nx.find_cycle(sub.subgraph(cyclic), end)))
+        lasso = [*lasso, back[1]] if back[1] != end else lasso
+    return Verdict(p, False, start, lasso, loops)
+
+
+def _deadlock(p: Property, sk: Skeleton, g: Graph, sig: States) -> Verdict:
+    terminal = [k for k in range(len(g.states)) if not g.succ[k] and k not in g.cut]
+    if not terminal:
+        return Verdict(p, True)
+    team = sk.original.team
+    agents = sk.cteam.agents
+    rows = np.array(terminal)
+    blocked = np.zeros(rows.size, bool)
+    all_final = np.ones(rows.size, bool)
+    commanded = np.zeros(rows.size, bool)
+    for a, ca in enumerate(agents):
+        act = sig._active[a][rows]
+        final = (~act[:, ca.leaves] | ca.final[ca.leaves]).all(axis=1)
+        if team.agents[a].operator:
+            initial = np.zeros(len(ca.modes), bool)
+            m = 0
+            while True:
+                initial[m] = True
+                if ca.modes[m].kind != "or":
+                    break
+                m = ca.modes[m].initial
+            commanded |= (act[:, ca.leaves] != initial[ca.leaves]).any(axis=1)
+            continue
+        all_final &= final
+        for r in range(len(terminal)):
+            if final[r]:
+                continue
+            waits = {ca.transitions[j].on for m in np.flatnonzero(act[r])
+                     for j in ca.modes[m].outgoing if ca.transitions[j].on}
+            if waits and not waits & (sk.inputs[a] | {e for b, e in sk.world_events
+                                                      if b == a}):
+                blocked[r] = True
+    bad = rows[blocked & ~all_final & ~commanded]
+    if not bad.size:
+        return Verdict(p, True)
+    return Verdict(p, False, int(bad[0]), others=bad[1:].tolist())
