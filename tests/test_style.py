@@ -34,3 +34,15 @@ def test_ruff_is_clean():
         pytest.skip("ruff is not installed (it comes with the [test] extra)")
     proc = subprocess.run([ruff, "check", str(ROOT)], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_every_framework_package_is_installed():
+    """A package missing from pyproject's list works in an editable install and is absent
+    from a wheel (``hybridteam verify`` was, once)."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+                 ["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts)
+             for p in (ROOT / "hybridteam").rglob("__init__.py")}
+    assert found <= listed, sorted(found - listed)
