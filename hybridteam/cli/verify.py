@@ -69,31 +69,24 @@ def _check(args) -> None:
 
 
 def cmd_verify(args) -> int:
-    from hybridteam.verify import Options, verify
-    from hybridteam.verify.abstraction import skeleton
-    from hybridteam.verify.properties import properties
+    from hybridteam.errors import did_you_mean
+    from hybridteam.verify import Options, UnknownProperty, verify
 
     _check(args)
     out = output_folder(args.output)
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
-    if args.property:
-        from hybridteam.engine.compiler import compile_team
-
-        known = [p.name for p in properties(skeleton(compile_team(team)))]
-        for name in args.property:
-            if name not in known:
-                from hybridteam.errors import did_you_mean
-
-                hint = did_you_mean(name, known)
-                raise UsageError(f"--property: '{name}' is not a property of "
-                                 f"{args.team} (its properties: {', '.join(known)})"
-                                 + (f"; {hint}" if hint else ""))
     opts = Options(losses=args.losses, duplicates=args.duplicates, order=args.order,
                    max_states=args.max_states, ack_timing=args.ack_timing,
                    timeouts=args.timeouts)
-    report = verify(team, opts, args.property, _progress(args.progress))
+    try:
+        report = verify(team, opts, args.property, _progress(args.progress))
+    except UnknownProperty as exc:
+        hint = did_you_mean(exc.name, exc.known)
+        raise UsageError(f"--property: '{exc.name}' is not a property of {args.team} (its "
+                         f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint
+                                                                    else "")) from None
     _print(report, args.team)
     out.mkdir(parents=True, exist_ok=True)
     from hybridteam.trace import write_atomic

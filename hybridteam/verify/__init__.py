@@ -16,7 +16,15 @@ from hybridteam.verify.explore import Graph, Options, Progress, explore
 from hybridteam.verify.paths import describe, leaves
 from hybridteam.verify.properties import Verdict, check, properties
 
-__all__ = ["Options", "Report", "verify"]
+__all__ = ["Options", "Report", "UnknownProperty", "verify"]
+
+
+class UnknownProperty(ValueError):
+    """``only`` names a property the team does not have (checked before exploring)."""
+
+    def __init__(self, name: str, known: list[str]) -> None:
+        super().__init__(name)
+        self.name, self.known = name, known
 
 
 @dataclass
@@ -40,14 +48,14 @@ class Report:
         return path
 
     def counterexample(self, v: Verdict) -> list[str]:
-        lines = describe(self.skeleton, self.graph, self.path(v))
-        if v.prop.kind == "response":
-            k = len(self.graph.path(v.state)) - 1
-            lines.insert(k + 1 + _mode_lines(lines, k), f"     --- {v.prop.name}: "
-                         f"'{v.prop.phi.source}' holds here; "  # type: ignore[union-attr]
-                         "from here on the answer never comes ---")
-            lines.append("     (then round this cycle again and again)" if v.loops else
-                         "     (then nothing can happen any more)")
+        if v.prop.kind != "response":
+            return describe(self.skeleton, self.graph, self.path(v))
+        mark = (len(self.graph.path(v.state)) - 1,
+                f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore
+                "from here on the answer never comes ---")
+        lines = describe(self.skeleton, self.graph, self.path(v), mark)
+        lines.append("     (then round this cycle again and again)" if v.loops else
+                     "     (then nothing can happen any more)")
         return lines
 
     def configurations(self, v: Verdict) -> list[str]:
@@ -82,19 +90,6 @@ class Report:
         }
 
 
-def _mode_lines(lines: list[str], steps: int) -> int:
-    """How many indented mode-change lines the first ``steps`` steps printed."""
-    count, seen = 0, 0
-    for line in lines[1:]:
-        if line.startswith("       "):
-            count += 1
-        else:
-            seen += 1
-            if seen > steps:
-                break
-    return count
-
-
 def _word(v: Verdict, exhaustive: bool) -> str:
     if v.holds is None:
         return "not checked"
@@ -120,6 +115,10 @@ def verify(team, options: Options | None = None, only: list[str] | None = None,
     sk = skeleton(cteam, raises)
     props = properties(sk)
     if only:
+        known = [p.name for p in props]
+        unknown = [name for name in only if name not in known]
+        if unknown:
+            raise UnknownProperty(unknown[0], known)
         props = [p for p in props if p.name in only]
     g = explore(sk, opts, progress)
     return Report(sk, g, check(props, sk, g), opts)

@@ -68,31 +68,15 @@ def active_of(s: State, a: int, modes: int) -> np.ndarray:
 
 
 def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
-    out: list[tuple] = []
     quiet = _invisible(s, opts, sk.hears)
     if quiet is not None:  # an ample set: only what can happen to that copy
-        out = [("deliver", quiet)]
-        if s.losses < opts.losses:
-            out.append(("lose", quiet))
-        if s.dups < opts.duplicates:
-            out.append(("dup", quiet))
-        return out
+        return _fates(s, opts, quiet)
+    out: list[tuple] = []
     tried: set = set()
-    links: set = set()
-    for k, c in enumerate(s.inflight):
-        if opts.order == "fifo":
-            link = (c.sender, c.receiver, c.socket)
-            if link in links:
-                continue
-            links.add(link)
-        if c in tried:  # identical copies have identical successors
-            continue
-        tried.add(c)
-        out.append(("deliver", k))
-        if s.losses < opts.losses:
-            out.append(("lose", k))
-        if s.dups < opts.duplicates:
-            out.append(("dup", k))
+    for k, c in _arrivals(s, opts):
+        if c not in tried:  # identical copies have identical successors
+            tried.add(c)
+            out += _fates(s, opts, k)
     for k, e in enumerate(s.outbox):
         if opts.ack_timing == "any" or not _in_flight(s, e):
             out.append(("timer", k))
@@ -113,6 +97,30 @@ def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
     return out
 
 
+def _arrivals(s: State, opts: Options):
+    """(position, copy) of the copies that may arrive next: all of them, or in fifo order
+    the oldest on each link."""
+    links: set = set()
+    for k, c in enumerate(s.inflight):
+        if opts.order == "fifo":
+            link = (c.sender, c.receiver, c.socket)
+            if link in links:
+                continue
+            links.add(link)
+        yield k, c
+
+
+def _fates(s: State, opts: Options, k: int) -> list[tuple]:
+    """What may happen to copy ``k``: it arrives, or (within the bounds) is lost or
+    duplicated."""
+    out = [("deliver", k)]
+    if s.losses < opts.losses:
+        out.append(("lose", k))
+    if s.dups < opts.duplicates:
+        out.append(("dup", k))
+    return out
+
+
 def _invisible(s: State, opts: Options, hears: list[set[str]]) -> int | None:
     """A copy whose arrival no agent's modes see: an ack, a copy the receiver's duplicate
     filter withholds (it only answers with an ack), or a copy of a type its receiver has no
@@ -123,13 +131,7 @@ def _invisible(s: State, opts: Options, hears: list[set[str]]) -> int | None:
     if opts.ack_timing != "bounded":
         return None
     seen = set(s.seen)
-    links: set = set()
-    for k, c in enumerate(s.inflight):
-        if opts.order == "fifo":
-            link = (c.sender, c.receiver, c.socket)
-            if link in links:
-                continue
-            links.add(link)
+    for k, c in _arrivals(s, opts):
         if c.type == ACK or (c.msg_id >= 0 and (c.receiver, c.sender, c.msg_id) in seen) \
                 or c.type not in hears[c.receiver]:
             return k

@@ -5,10 +5,8 @@ from __future__ import annotations
 
 from itertools import pairwise
 
-import numpy as np
-
 from hybridteam.verify.abstraction import Skeleton
-from hybridteam.verify.explore import Graph
+from hybridteam.verify.explore import Graph, active_of
 from hybridteam.verify.machine import State
 
 
@@ -46,7 +44,7 @@ def step_text(sk: Skeleton, parent: State, choice: tuple) -> str:
 def leaves(sk: Skeleton, s: State) -> list[list[str]]:
     out = []
     for a, ca in enumerate(sk.original.agents):
-        act = np.frombuffer(s.agents[a][0][: len(ca.modes)], np.uint8).astype(bool)
+        act = active_of(s, a, len(ca.modes))
         out.append([ca.modes[m].path for m in ca.leaves.tolist() if act[m]])
     return out
 
@@ -60,13 +58,19 @@ def changes(sk: Skeleton, before: State, after: State) -> list[str]:
     return out
 
 
-def describe(sk: Skeleton, g: Graph, path: list[int]) -> list[str]:
-    """One line per step (with its mode changes indented below)."""
+def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | None = None
+             ) -> list[str]:
+    """One line per step (with its mode changes indented below); ``mark`` = (k, text)
+    puts a line of text after step k (0: before the first)."""
     lines = ["initial: " + "; ".join(f"{ca.name} in {', '.join(modes)}" for ca, modes in
                                      zip(sk.original.agents, leaves(sk, g.states[path[0]]),
                                          strict=True))]
+    if mark is not None and mark[0] == 0:
+        lines.append(mark[1])
     for k, (a, b) in enumerate(pairwise(path), start=1):
         choice = g.edge_how.get((a, b), ("?",))
         lines.append(f"{k:3d}. " + step_text(sk, g.states[a], choice))
         lines += [f"       {c}" for c in changes(sk, g.states[a], g.states[b])]
+        if mark is not None and mark[0] == k:
+            lines.append(mark[1])
     return lines
