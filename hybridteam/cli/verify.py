@@ -4,8 +4,13 @@ Explores every behaviour of the team's discrete skeleton (message orders, losses
 and checks its properties: the team's requirements that have a meaning without a clock,
 and ``deadlock``. Prints what the skeleton abstracts, progress (states/s, frontier), one
 verdict line per property and, for each violation, the shortest counterexample as a
-message sequence; writes ``OUT/verify.json``. Exit status: 0 when every property checked
-holds, 1 on a violation, 2 on bad input.
+message sequence. Each counterexample is replayed in the simulator (a scripted network
+loses and delivers exactly the path's copies at moments that respect every timeout); a
+reproduced one is written as an ordinary run (``OUT/<property>/trace.json``, timeline and
+sequence chart), one the simulator cannot follow is reported as spurious, with the reason.
+Writes ``OUT/verify.json``. Exit status: 0 when every property checked holds, 1 on a
+violation a run reproduces (or any violation with ``--no-replay``), 2 on bad input, 3 when
+the only violations are spurious (the skeleton's, not the simulator's).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from hybridteam.cli.common import (
 from hybridteam.progress import MODES
 
 EXIT_VIOLATED = 1
+EXIT_SPURIOUS = 3
 
 
 def register(sub) -> dict:
@@ -32,7 +38,8 @@ def register(sub) -> dict:
         description="Explores the team's discrete skeleton exhaustively (every message order, "
         "loss up to --losses, timeout and guard over time or state) and checks its "
         "requirements of the forms always(phi) and always(implies(phi, eventually(psi))), "
-        "and deadlock. Exit 0: every property holds; 1: a violation; 2: bad input.")
+        "and deadlock; replays each counterexample in the simulator. Exit 0: every property "
+        "holds; 1: a violation a run reproduces; 2: bad input; 3: only spurious violations.")
     ve.add_argument("team", metavar="TEAM.yaml")
     ve.add_argument("--property", "-p", action="append", default=None, metavar="NAME",
                     help="check only this property (a requirement's name, or deadlock); "
@@ -54,6 +61,8 @@ def register(sub) -> dict:
     ve.add_argument("--max-states", type=int, default=2_000_000, metavar="N",
                     help="stop exploring beyond N states; verdicts then say 'bounded' "
                     "(default 2,000,000)")
+    ve.add_argument("--no-replay", action="store_true",
+                    help="do not replay counterexamples in the simulator")
     ve.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     ve.add_argument("--progress", choices=MODES, default="auto",
                     help="auto (a line every few seconds), log, bar (the same lines) or none")
@@ -81,19 +90,46 @@ def cmd_verify(args) -> int:
                    max_states=args.max_states, ack_timing=args.ack_timing,
                    timeouts=args.timeouts)
     try:
-        report = verify(team, opts, args.property, _progress(args.progress))
+        report = verify(team, opts, args.property, _progress(args.progress), replay=False)
     except UnknownProperty as exc:
         hint = did_you_mean(exc.name, exc.known)
         raise UsageError(f"--property: '{exc.name}' is not a property of {args.team} (its "
                          f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint
                                                                     else "")) from None
-    _print(report, args.team)
+    if not args.no_replay:
+        for v in report.violated:
+            if args.progress != "none":
+                print(f"hybridteam: verify: replaying {v.prop.name}'s counterexample in the "
+                      "simulator", file=sys.stderr, flush=True)
+            report.replay(v)
     out.mkdir(parents=True, exist_ok=True)
+    files = {v.prop.name: _write_run(report, v, out) for v in report.reproduced}
+    _print(report, args.team, files)
     from hybridteam.trace import write_atomic
 
-    write_atomic(out / "verify.json", json.dumps(report.summary(), indent=1) + "\n")
+    summary = report.summary()
+    for name, written in files.items():
+        summary["properties"][name]["replay"]["files"] = written
+    write_atomic(out / "verify.json", json.dumps(summary, indent=1) + "\n")
     print(f"wrote {out / 'verify.json'}")
-    return EXIT_VIOLATED if report.violated else EXIT_OK
+    if not report.violated:
+        return EXIT_OK
+    return EXIT_VIOLATED if report.reproduced or args.no_replay else EXIT_SPURIOUS
+
+
+def _write_run(report, v, out) -> list[str]:
+    """A reproduced counterexample as an ordinary run: trace, timeline, sequence chart."""
+    from hybridteam.export.sequence import sequence_chart
+    from hybridteam.export.timeline import write_timeline
+    from hybridteam.trace import write_atomic
+
+    run = report.replays[v.prop.name][1].run
+    folder = out / v.prop.name
+    folder.mkdir(parents=True, exist_ok=True)
+    run.to_json(folder / "trace.json")
+    write_timeline(run, folder / "timeline.png")
+    write_atomic(folder / "sequence.mmd", sequence_chart(run, "mermaid"))
+    return [str(folder / name) for name in ("trace.json", "timeline.png", "sequence.mmd")]
 
 
 def _progress(mode: str):
@@ -112,7 +148,7 @@ def _progress(mode: str):
     return show
 
 
-def _print(report, path: str) -> None:
+def _print(report, path: str, files: dict[str, list[str]]) -> None:
     g = report.graph
     print(f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
           f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
@@ -125,8 +161,16 @@ def _print(report, path: str) -> None:
                 False: "VIOLATED"}[v.holds]
         print(f"{v.prop.name}: {word}" + (f" ({v.message})" if v.message else ""))
         if v.holds is False:
+            if v.prop.name in report.replays:
+                _, r, tried = report.replays[v.prop.name]
+                print(f"  replayed in the simulator: {r.verdict.upper()}: {r.reason}"
+                      + (f" (the shortest of {tried} counterexamples tried)" if tried > 1
+                         and r.reproduced else f" ({tried} counterexamples tried)"
+                         if tried > 1 else ""))
             for line in report.counterexample(v):
                 print(f"  {line}")
+            if v.prop.name in files:
+                print(f"  the run: {', '.join(files[v.prop.name])}")
             more = report.configurations(v)[1:]
             if more and v.prop.kind != "response":
                 print(f"  {len(more)} other violating configuration(s) (all in verify.json):")

@@ -112,6 +112,10 @@ class Network:
             for socket, rate in per_socket.items():
                 self.limits[(self.names.index(agent), socket)] = float(rate)
         self.last_accept: dict[tuple[int, str], np.ndarray] = {}
+        #: a replay's script (:class:`hybridteam.verify.replay.Script`): when set, it decides
+        #: the fate and arrival times of every copy but the streams' instead of the links
+        #: (single runs only)
+        self.script: Any = None
 
     # ------------------------------------------------------------------ sending
     def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | np.ndarray | None,
@@ -123,6 +127,10 @@ class Network:
         seq = self.count[sender][idx].copy()
         self.count[sender][idx] += 1
         ids = np.full(idx.size, -1, np.int64) if msg_id is None else msg_id
+        if self.script is not None and type_ not in self.script.streams:
+            self._scripted(t, sender, to, socket, type_, fields, int(seq[0]), int(ids[0]),
+                           note, 0.0 if rank is None else float(rank[0]))
+            return
         if to is None:
             receivers = [(r, np.ones(idx.size, bool)) for r in range(len(self.names))
                          if r != sender]
@@ -160,6 +168,29 @@ class Network:
                                 strict=True))]
                 self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads,
                                      rank=0.0 if rank is None else rank[mine][ok])
+
+    def _scripted(self, t: np.ndarray, sender: int, to, socket: str, type_: str,
+                  fields: dict[str, np.ndarray], seq: int, msg_id: int, note: str,
+                  rank: float) -> None:
+        """A send in a replay (one instance): each copy arrives at the times the script
+        gives it (several for a duplicated copy, +inf: still in flight when the run ends),
+        or is lost when it gives none."""
+        target = int(to[0]) if isinstance(to, np.ndarray) else to
+        receivers = [r for r in range(len(self.names)) if r != sender] \
+            if target is None or target < 0 else [target]
+        one = np.array([0])
+        values = {f: float(v[0]) for f, v in fields.items()}
+        for r in receivers:
+            times = self.script.arrivals(sender, r, type_)
+            if not times:
+                self.rec.message(one, np.array([seq]), sender, r, socket, type_, t[:1],
+                                 np.array([np.nan]), "lost", "loss (replay)",
+                                 np.array([msg_id]))
+            for when in times:
+                msg = Message(sender, r, seq, float(t[0]), socket, type_, dict(values), msg_id,
+                              note)
+                self.queue.push_each(one, np.array([when]), MESSAGE, r, type_, [msg],
+                                     rank=rank)
 
     # ------------------------------------------------------------------ receiving
     def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message],

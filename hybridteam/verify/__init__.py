@@ -9,12 +9,15 @@ reading of the model. :func:`verify` returns a :class:`Report`.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 from hybridteam.verify.abstraction import Skeleton, skeleton
 from hybridteam.verify.explore import Graph, Options, Progress, explore
 from hybridteam.verify.paths import describe, leaves
 from hybridteam.verify.properties import Verdict, check, properties
+from hybridteam.verify.replay import Context, Replay
+from hybridteam.verify.replay import replay as replay_path
 
 __all__ = ["Options", "Report", "UnknownProperty", "verify"]
 
@@ -34,26 +37,73 @@ class Report:
     verdicts: list[Verdict]
     options: Options
     notes: list[str] = field(default_factory=list)
+    team: object = None
+    #: property name -> (the violating state shown, its replay, candidates tried)
+    replays: dict[str, tuple[int, Replay, int]] = field(default_factory=dict)
+    _context: Context | None = None
 
     @property
     def violated(self) -> list[Verdict]:
+        """Properties violated in the skeleton."""
         return [v for v in self.verdicts if v.holds is False]
 
-    def path(self, v: Verdict) -> list[int]:
-        """The counterexample's states: a shortest path to the violation, and for a
-        response the continuation through states where the answer never comes."""
-        path = self.graph.path(v.state)
-        if v.lasso:
+    @property
+    def reproduced(self) -> list[Verdict]:
+        """Violations whose counterexample a run of the simulator shows."""
+        return [v for v in self.violated
+                if v.prop.name in self.replays and self.replays[v.prop.name][1].reproduced]
+
+    def path(self, v: Verdict, state: int | None = None) -> list[int]:
+        """The counterexample's states: a shortest path to the violation (``state``, by
+        default the replayed one), and for a response the continuation through states
+        where the answer never comes."""
+        if state is None:
+            state = self.replays[v.prop.name][0] if v.prop.name in self.replays else v.state
+        path = self.graph.path(state)
+        if v.lasso and state == v.state:
             path = path + v.lasso[1:]
         return path
 
+    def replay(self, v: Verdict, seconds: float = 120.0, tries: int = 1000) -> Replay:
+        """Replay a counterexample of ``v`` in the simulator (:mod:`.replay`): the
+        shortest first, then the shortest paths to the other violating states, in
+        breadth-first order, skipping those that start like a path the simulator could
+        not follow, until one is reproduced (or ``tries`` paths or ``seconds`` are
+        spent). The replayed one becomes the counterexample shown."""
+        start = time.perf_counter()
+        if self._context is None:
+            self._context = Context(self.team, self.skeleton, self.graph,
+                                    self.options.order == "fifo")
+        failed: set[tuple[int, ...]] = set()
+        first: Replay | None = None
+        tried = 0
+        for k in [v.state, *(v.others if v.prop.kind != "response" else [])]:
+            path = self.path(v, k)
+            if any(tuple(path[: j + 1]) in failed for j in range(len(path))):
+                continue
+            if tried >= tries or time.perf_counter() - start > seconds:
+                break
+            tried += 1
+            r = replay_path(self._context, path, v.prop.kind, v.prop.name, v.loops)
+            first = first or r
+            if r.reproduced:
+                self.replays[v.prop.name] = (k, r, tried)
+                return r
+            if r.stop >= 0:
+                failed.add(tuple(path[: r.stop + 1]))
+        assert first is not None
+        self.replays[v.prop.name] = (v.state, first, tried)
+        return first
+
     def counterexample(self, v: Verdict) -> list[str]:
+        """The counterexample in words, each step at the moment its replay gave it."""
+        times = self.replays[v.prop.name][1].times if v.prop.name in self.replays else None
         if v.prop.kind != "response":
-            return describe(self.skeleton, self.graph, self.path(v))
+            return describe(self.skeleton, self.graph, self.path(v), times=times)
         mark = (len(self.graph.path(v.state)) - 1,
                 f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore
                 "from here on the answer never comes ---")
-        lines = describe(self.skeleton, self.graph, self.path(v), mark)
+        lines = describe(self.skeleton, self.graph, self.path(v), mark, times)
         lines.append("     (then round this cycle again and again)" if v.loops else
                      "     (then nothing can happen any more)")
         return lines
@@ -85,22 +135,32 @@ class Report:
                 "kind": v.prop.kind, "formula": v.prop.text,
                 "verdict": _word(v, g.exhaustive), "message": v.message,
                 **({"counterexample": self.counterexample(v),
-                    "configurations": self.configurations(v)} if v.holds is False else {})}
+                    "configurations": self.configurations(v)} if v.holds is False else {}),
+                **({"replay": self._replay_summary(v)} if v.prop.name in self.replays
+                   else {})}
                 for v in self.verdicts},
         }
+
+
+    def _replay_summary(self, v: Verdict) -> dict:
+        _, r, tried = self.replays[v.prop.name]
+        return {"verdict": r.verdict, "reason": r.reason, "paths_tried": tried,
+                "times": r.times}
 
 
 def _word(v: Verdict, exhaustive: bool) -> str:
     if v.holds is None:
         return "not checked"
     if v.holds is False:
-        return "violated"
+        return "violated"  # in the skeleton; the replay says whether a run shows it
     return "holds" if exhaustive else "holds so far (bounded)"
 
 
 def verify(team, options: Options | None = None, only: list[str] | None = None,
-           progress: Progress | None = None) -> Report:
-    """Explore ``team``'s skeleton and check its properties (``only``: these names)."""
+           progress: Progress | None = None, replay: bool = True) -> Report:
+    """Explore ``team``'s skeleton and check its properties (``only``: these names); with
+    ``replay``, replay each violation's counterexample in the simulator
+    (:meth:`Report.replay`)."""
     import numpy as np
 
     from hybridteam.engine.compiler import compile_team
@@ -121,4 +181,8 @@ def verify(team, options: Options | None = None, only: list[str] | None = None,
             raise UnknownProperty(unknown[0], known)
         props = [p for p in props if p.name in only]
     g = explore(sk, opts, progress)
-    return Report(sk, g, check(props, sk, g), opts)
+    report = Report(sk, g, check(props, sk, g), opts, team=team)
+    if replay:
+        for v in report.violated:
+            report.replay(v)
+    return report

@@ -87,8 +87,11 @@ class Result:
 class Machine:
     """Computes successors of skeleton states in batches on one engine ensemble."""
 
-    def __init__(self, sk: Skeleton, capacity: int = 1024, fifo: bool = False) -> None:
-        self.sk, self.capacity, self.fifo = sk, capacity, fifo
+    def __init__(self, sk: Skeleton, capacity: int = 1024, fifo: bool = False,
+                 raw: bool = False) -> None:
+        """``raw``: successors keep the engine's own message ids and the copies' sending
+        order (no canonical form), so a replay can follow each copy along a path."""
+        self.sk, self.capacity, self.fifo, self.raw = sk, capacity, fifo, raw
         self.cteam = sk.cteam
         ens = Ensemble(sk.cteam, capacity, 0, 1.0, {})
         null = _NullRecorder()
@@ -144,6 +147,9 @@ class Machine:
             st.v[0, self.sk.inst_col[a]] = 0
             st.activate(0, idx, ens.t)
             st.enter_default(0, idx, ens.t)
+        #: the delays of the after: timeouts the initial modes armed (a replay needs them)
+        self.armed0 = [st.deadline[0].copy() for st in ens.states]
+        for st in ens.states:
             st.deadline[:1] = -np.inf
         discrete_phase(ens, idx)
         per_out, per_seen = self._by_instance()
@@ -196,7 +202,7 @@ class Machine:
                 rest = s.inflight[: choice[1]] + s.inflight[choice[1] + 1:]
                 nxt = s._replace(inflight=rest, losses=s.losses + 1) if kind == "lose" else \
                     s._replace(inflight=(*s.inflight, c), dups=s.dups + 1)
-                results[i] = Result(self.canonical(nxt), False, 0)
+                results[i] = Result(self._finish(nxt), False, 0)
                 continue
             engine.append(i)
             if kind == "deliver":
@@ -311,12 +317,16 @@ class Machine:
                 inflight.append(Copy(m.sender, m.receiver, m.socket, m.type, m.msg_id,
                                      self._exact(m.type, m.fields)))
         cursor = parent.cursor + (1 if choice is not None and choice[0] == "scenario" else 0)
+        ids = tuple(int(n[i]) for n in ens.reliable.next_id) if self.raw else ()
         nxt = State(tuple(agents), tuple(inflight), tuple(outbox), tuple(seen), cursor,
-                    parent.losses, parent.dups, ())
-        return Result(self.canonical(nxt), bool(ens.done[i]),
+                    parent.losses, parent.dups, ids)
+        return Result(self._finish(nxt), bool(ens.done[i]),
                       int(self.sk.oracle.reads[i]))
 
     # ------------------------------------------------------------------ canonical form
+    def _finish(self, s: State) -> State:
+        return s if self.raw else self.canonical(s)
+
     def canonical(self, s: State) -> State:
         """Drop what can no longer matter and renumber message ids per sender."""
         waiting = {(e.sender, e.msg_id): set(e.waiting) for e in s.outbox}

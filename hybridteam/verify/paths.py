@@ -58,10 +58,11 @@ def changes(sk: Skeleton, before: State, after: State) -> list[str]:
     return out
 
 
-def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | None = None
-             ) -> list[str]:
+def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | None = None,
+             times: list[float] | None = None) -> list[str]:
     """One line per step (with its mode changes indented below); ``mark`` = (k, text)
-    puts a line of text after step k (0: before the first)."""
+    puts a line of text after step k (0: before the first); ``times``: the moments a
+    replay gave the steps, shown before each."""
     lines = ["initial: " + "; ".join(f"{ca.name} in {', '.join(modes)}" for ca, modes in
                                      zip(sk.original.agents, leaves(sk, g.states[path[0]]),
                                          strict=True))]
@@ -69,7 +70,8 @@ def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | No
         lines.append(mark[1])
     for k, (a, b) in enumerate(pairwise(path), start=1):
         choice = g.edge_how.get((a, b), ("?",))
-        lines.append(f"{k:3d}. " + step_text(sk, g.states[a], choice))
+        at = f"t={times[k]:.6f} s  " if times and k < len(times) else ""
+        lines.append(f"{k:3d}. {at}" + step_text(sk, g.states[a], choice))
         lines += [f"       {c}" for c in changes(sk, g.states[a], g.states[b])]
         if mark is not None and mark[0] == k:
             lines.append(mark[1])
