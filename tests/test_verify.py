@@ -55,6 +55,25 @@ def verdicts(report) -> dict:
     return {v.prop.name: v for v in report.verdicts}
 
 
+def replayed(report, name: str):
+    """The run that replays property ``name``'s counterexample (it must reproduce it)."""
+    _, r, _ = report.replays[name]
+    assert r.reproduced, r.reason
+    return r.run
+
+
+def together(run, mode: str) -> set[str]:
+    """The agents that are in ``mode`` at one moment with another agent in it (read from
+    the trace's mode intervals, not from the replay's own verdict)."""
+    iv = [r for r in run.intervals if r.mode == mode and r.end > r.start]
+    out = set()
+    for x in iv:
+        for y in iv:
+            if x.agent != y.agent and x.start < y.end and y.start < x.end:
+                out |= {x.agent, y.agent}
+    return out
+
+
 def final_modes(report, v) -> dict[str, list[str]]:
     """Each agent's active leaves in the violating state."""
     sk = report.skeleton
@@ -97,6 +116,7 @@ def test_mutant_leader_stays_lead_after_granting(tmp_path):
     text = "\n".join(report.counterexample(v))
     assert "b -> a: request #0 (priority=0) arrives" in text
     assert "a -> b: grant #0 arrives" in text
+    assert together(replayed(report, "one_leader"), "Transport.Lead") == {"a", "b"}
 
 
 def test_mutant_requester_leads_when_it_asks(tmp_path):
@@ -104,9 +124,12 @@ def test_mutant_requester_leads_when_it_asks(tmp_path):
     report = verify(roles_team(tmp_path, "b", bad), Options(losses=0))
     v = verdicts(report)["one_leader"]
     assert v.holds is False
-    assert report.counterexample(v)[1:] == [
-        "  1. scenario: b raises want_lead",
+    assert report.counterexample(v)[1:] == [  # replayed a millisecond into the run
+        "  1. t=0.001000 s  scenario: b raises want_lead",
         "       b: Transport.Follow -> Transport.Lead"]
+    run = replayed(report, "one_leader")
+    assert together(run, "Transport.Lead") == {"a", "b"}
+    assert [r.t for r in run.transitions if r.cause == "event:want_lead"] == [0.001]
 
 
 def test_mutant_offer_confirmed_to_every_acceptor(tmp_path):
@@ -121,6 +144,7 @@ def test_mutant_offer_confirmed_to_every_acceptor(tmp_path):
     text = "\n".join(report.counterexample(v))
     assert text.count("confirm #") >= 2 and "a -> operator: offer" not in text.split(
         "confirm")[-1]
+    assert together(replayed(report, "one_leader"), "Transport.Lead") == {"b", "c"}
 
 
 def test_mutant_min_hold_deny_removed(tmp_path):
@@ -139,6 +163,20 @@ def test_mutant_min_hold_deny_removed(tmp_path):
     text = "\n".join(report.counterexample(v))
     assert "Transport.Requesting -> Transport.Operated (after answer_timeout)" in text
     assert "deny" not in text and " lost" not in text
+    # the shortest path is spurious (a robot that never changed role always grants: its
+    # min-hold guard reads the initial last_change = -1e9), so the replay goes on to the
+    # next one, where the second requester asks the new leader within min_hold
+    run = replayed(report, "no_operator")
+    assert report.replays["no_operator"][2] >= 2
+    ms = run.messages
+    assert not [r for r in ms if r.reason == "loss (replay)"]  # nothing lost
+    operated = [r for r in run.transitions if r.target == "Transport.Operated"]
+    granted = [r for r in run.transitions if r.cause == "message:grant"]
+    assert operated and granted
+    # the answer timeout (1 s) expired after the request had been ignored: exactly then
+    request = max(r.t_recv for r in ms if r.type == "request" and r.status == "delivered")
+    assert operated[0].t >= request and [r.target for r in run.transitions
+                                         if r.agent == "operator"][-1] == "Command"
 
 
 def test_mutant_duplicate_suppression_off(tmp_path):
@@ -159,6 +197,15 @@ def test_mutant_duplicate_suppression_off(tmp_path):
     text = "\n".join(report.counterexample(v))
     assert "ack arrives" in text and "is lost" in text and "accept #" in text
     assert "reject" in text
+    run = replayed(report, "leadership_restored")
+    ms = run.messages
+    lost = [r for r in ms if r.reason == "loss (replay)"]
+    assert [(r.sender, r.receiver, r.type) for r in lost] == [("a", "b", "ack")]
+    accepts = [r for r in ms if r.type == "accept" and r.status == "delivered"]
+    assert len(accepts) == 2 and accepts[1].reason == "retransmission"
+    # nobody leads from the resignation to the end of the run, and no operator came
+    assert not [r for r in run.modes if r.mode == "Transport.Lead" and r.end > 0.001]
+    assert "Command" not in {r.mode for r in run.modes if r.agent == "operator"}
 
 
 # -- the docking handshake --------------------------------------------------------------
@@ -186,6 +233,14 @@ def test_plain_datagram_handshake_deadlocks_when_ready_is_lost(tmp_path):
     assert carried.holds is False
     text = "\n".join(report.counterexample(carried))
     assert "is lost" in text and ("docked" in text or "ready" in text)
+    # the replay: the engine's own run, plant and world and all, with that one copy lost
+    run = replayed(report, "deadlock")
+    lost = [(r.sender, r.type) for r in run.messages if r.reason == "loss (replay)"]
+    assert lost == [("xr4000", "docked")]
+    wait = [r for r in run.modes if r.agent == "xr4000" and r.mode == "Dock.Wait"]
+    assert len(wait) == 1 and wait[0].end == run.meta["duration"] == 55.0
+    assert replayed(report, "carried").diagnostics[0]["requirements"]["carried"][
+        "satisfied"] is False
 
 
 def test_acknowledged_handshake_survives_a_loss(tmp_path):
@@ -294,3 +349,88 @@ def test_a_bounded_exploration_has_no_false_dead_ends():
                     Options(losses=1, max_states=3000))
     assert not report.graph.exhaustive and report.graph.cut
     assert not report.violated
+
+
+# -- replay: counterexamples as runs ------------------------------------------------------
+
+FAR = """team: far
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Drive
+    modes:
+      Drive:
+        inputs: {v: 0.5, omega: 0}
+        transitions:
+          - {to: Far, guard: x > 100}
+      Far:
+        final: true
+requirements:
+  stays_near: always(not in_mode(robot, Far))
+simulation: {duration: 10.0}
+"""
+
+
+def test_a_path_the_simulator_cannot_follow_is_spurious(tmp_path, capsys):
+    """At 0.5 m/s the robot is 5 m out when the 10 s run ends: the skeleton, which knows
+    nothing of x, reaches Far; the run never does. The verdict says so, at which step and
+    why, and the command exits 3 (only spurious violations)."""
+    path = tmp_path / "far.yaml"
+    path.write_text(FAR)
+    report = verify(load(path), Options(losses=0))
+    v = verdicts(report)["stays_near"]
+    assert v.holds is False
+    _, r, tried = report.replays["stays_near"]
+    assert not r.reproduced and r.verdict == "spurious (abstraction)" and tried == 1
+    assert r.reason == "step 1 (robot: Drive -> Far ('x > 100')) does not happen in the " \
+        "run after t=0 s"
+    out = tmp_path / "out"
+    assert main(["verify", str(path), "-o", str(out), "--progress", "none"]) == 3
+    printed = capsys.readouterr().out
+    assert "replayed in the simulator: SPURIOUS (ABSTRACTION): step 1" in printed
+    summary = json.loads((out / "verify.json").read_text())
+    assert summary["properties"]["stays_near"]["replay"]["verdict"] == \
+        "spurious (abstraction)"
+    assert not (out / "stays_near").exists()
+    assert main(["verify", str(path), "-o", str(out), "--progress", "none",
+                 "--no-replay"]) == 1
+
+
+def test_a_replay_is_deterministic_and_written_as_a_run(tmp_path, capsys):
+    """The same counterexample gives the same run, bit for bit; the command writes it as
+    an ordinary run (trace, timeline, sequence chart) that loads back."""
+    from hybridteam.trace import Trace
+
+    reject = "        - {on: accept, do: [{send: reject, to: sender}]}"
+    bad = mutate(reject, reject.replace("{send: reject", "{send: confirm"))
+    team = roles_team(tmp_path, "a", bad)
+    one = verify(team, Options(losses=0))
+    two = verify(team, Options(losses=0))
+    assert replayed(one, "one_leader").to_json() == replayed(two, "one_leader").to_json()
+    out = tmp_path / "out"
+    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "0", "-o", str(out),
+                 "--progress", "none"]) == 1
+    assert "REPRODUCED" in capsys.readouterr().out
+    trace = Trace.load(out / "one_leader" / "trace.json")
+    assert together(trace, "Transport.Lead") == {"b", "c"}
+    assert (out / "one_leader" / "timeline.png").stat().st_size > 10_000
+    assert "confirm" in (out / "one_leader" / "sequence.mmd").read_text()
+    summary = json.loads((out / "verify.json").read_text())
+    assert summary["properties"]["one_leader"]["replay"]["files"][0].endswith("trace.json")
+
+
+def test_schedule_earliest_moments_and_contradictions():
+    """Hand-computed simple temporal networks: steps 1 ms apart, a timeout of 0.1 s from
+    step 0 to step 3, and an ack that must come within 0.05 s of step 1 pushes step 1 to
+    0.05 s; a timeout that would have to expire before its own step is named."""
+    from hybridteam.verify.schedule import Bound, solve
+
+    chain = [Bound(k - 1, k, 1e-3, float("inf"), f"order {k}") for k in (1, 2, 3)]
+    assert solve(3, chain) == [0.0, 0.001, 0.002, 0.003]
+    timer = Bound(0, 3, 0.1, 0.1, "timer")
+    assert solve(3, [*chain, timer]) == [0.0, 0.001, 0.002, 0.1]
+    ack = Bound(1, 3, float("-inf"), 0.05, "ack before its timeout")
+    assert solve(3, [*chain, timer, ack]) == [0.0, 0.05, 0.051, 0.1]
+    early = Bound(0, 2, float("-inf"), 0.0015, "step 2 early")
+    why = solve(3, [*chain, Bound(0, 1, 0.1, 0.1, "timer at 1"), early])
+    assert isinstance(why, str) and "timer at 1" in why and "step 2 early" in why
