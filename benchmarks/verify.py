@@ -5,8 +5,11 @@ it and asks for the leadership once, then the leader resigns (the scenario's eve
 that order, at moments of the explorer's choosing). Each is verified with 0 and 1 losses
 (any order), every property of ``examples/protocols/roles_verify.yaml`` (one leader, each
 request answered) and deadlock; a check that reaches ``--max-states`` says "bounded".
+``--scenario request`` keeps only the second robot's request, ``resign`` only the
+resignation (each protocol exchange alone, e.g. three robots with two losses).
 
     python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
+        [--scenario all|request|resign]
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ from hybridteam.verify import Options, verify
 NAMES = "abcdefgh"
 
 
-def team_text(robots: int) -> str:
-    """``robots`` robots on the role protocol, the operator, and their requirements."""
+def team_text(robots: int, scenario: str = "all") -> str:
+    """``robots`` robots on the role protocol, the operator, and their requirements;
+    ``scenario``: every request and the resignation, only the first request, or only
+    the resignation."""
     lines = [f"team: roles_{robots}", "agents:"]
     for k in range(robots):
         name = NAMES[k]
@@ -35,8 +40,11 @@ def team_text(robots: int) -> str:
                   "          lead: {inputs: {v: 0.1, omega: 0}}",
                   "          follow: {inputs: {v: 0.1, omega: 0}}"]
     lines += ["  operator:", "    operator: role_assignment", "scenario:"]
-    lines += [f"  - {{at: {k}, agent: {NAMES[k]}, raise: want_lead}}" for k in range(1, robots)]
-    lines += [f"  - {{at: {robots}, agent: a, raise: resign}}", "requirements:",
+    asking = {"all": range(1, robots), "request": range(1, 2), "resign": range(0)}[scenario]
+    lines += [f"  - {{at: {k}, agent: {NAMES[k]}, raise: want_lead}}" for k in asking]
+    if scenario != "request":
+        lines.append(f"  - {{at: {robots}, agent: a, raise: resign}}")
+    lines += ["requirements:",
               "  one_leader: always(count_in_role(lead) <= 1)"]
     lines += [f"  {NAMES[k]}_answered: always(implies(in_mode({NAMES[k]}, Requesting), "
               f"eventually(in_role({NAMES[k]}, lead) or in_mode({NAMES[k]}, Follow) or "
@@ -50,16 +58,18 @@ def main() -> None:
     ap.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4])
     ap.add_argument("--losses", type=int, nargs="+", default=[0, 1])
     ap.add_argument("--max-states", type=int, default=1_000_000)
+    ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
     args = ap.parse_args()
     print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
           f"{'states/s':>9}  verdict")
     with tempfile.TemporaryDirectory() as tmp:
         for robots in args.robots:
             path = Path(tmp) / f"roles_{robots}.yaml"
-            path.write_text(team_text(robots))
+            path.write_text(team_text(robots, args.scenario))
             team = load(path)
             for losses in args.losses:
-                r = verify(team, Options(losses=losses, max_states=args.max_states))
+                r = verify(team, Options(losses=losses, max_states=args.max_states),
+                           replay=False)
                 g = r.graph
                 bad = [v.prop.name for v in r.violated]
                 word = ("VIOLATED: " + ", ".join(bad)) if bad else (

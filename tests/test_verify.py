@@ -434,3 +434,50 @@ def test_schedule_earliest_moments_and_contradictions():
     early = Bound(0, 2, float("-inf"), 0.0015, "step 2 early")
     why = solve(3, [*chain, Bound(0, 1, 0.1, 0.1, "timer at 1"), early])
     assert isinstance(why, str) and "timer at 1" in why and "step 2 early" in why
+
+
+GO = """team: go
+agents:
+  leader:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Wait
+    modes:
+      Wait:
+        inputs: {v: 0, omega: 0}
+        transitions:
+          - {to: Drive, after: 2.0, do: [{send: go, to: follower}]}
+      Drive:
+        inputs: {v: 0.5, omega: 0}
+        transitions:
+          - {to: Done, guard: x > 3}
+      Done:
+        final: true
+  follower:
+    plant: {kind: unicycle, state: {x: -1, y: 0, theta: 0}}
+    initial: Wait
+    modes:
+      Wait:
+        transitions:
+          - {to: Drive, on: go}
+      Drive:
+        inputs: {v: 0.5, omega: 0}
+      Done:
+        final: true
+simulation: {duration: 20}
+"""
+
+
+def test_a_lost_go_replays_to_the_engines_own_deadlock(tmp_path):
+    """A plain datagram 'go', lost: the leader drives 3 m at 0.5 m/s after waiting 2 s, so
+    its guard fires at t = 8 s (measured in the run), and the run stops there with the
+    follower waiting — the engine's own deadlock outcome. The replay's last step is at
+    the run's end, where the team's end rule closed every mode interval."""
+    path = tmp_path / "go.yaml"
+    path.write_text(GO)
+    report = verify(load(path), Options(losses=1))
+    run = replayed(report, "deadlock")
+    _, r, _ = report.replays["deadlock"]
+    assert abs(r.times[-1] - 8.0) < 1e-6 and r.times[1] == 2.0
+    assert run.diagnostics[0]["outcome"] == "deadlock"
+    assert [(m.sender, m.type) for m in run.messages if m.reason == "loss (replay)"] == \
+        [("leader", "go")]

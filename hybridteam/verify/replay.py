@@ -406,10 +406,22 @@ def _nth(steps: list[Step], step: Step, link: tuple, j: int) -> int:
 
 
 def _active_at(run, t: float) -> frozenset:
+    """The (agent, mode) pairs active just after ``t``. At the run's end (the team's end
+    rule may stop it at ``t``, closing every interval there) each agent's last entered
+    mode per depth: the interval closed last among those entered last."""
     rows = run.modes
-    mask = (rows["start"] <= t + _TOL) & (rows["end"] > t + _TOL)
-    return frozenset(zip(rows["agent"][mask].tolist(), rows["mode"][mask].tolist(),
-                         strict=True))
+    last = float(run.diagnostics[0]["t"])
+    if t < last - _TOL:
+        mask = (rows["start"] <= t + _TOL) & (rows["end"] > t + _TOL)
+        return frozenset(zip(rows["agent"][mask].tolist(), rows["mode"][mask].tolist(),
+                             strict=True))
+    best: dict[tuple, tuple] = {}
+    for k, r in enumerate(rows):
+        if r.start <= t + _TOL and r.end >= last - _TOL:
+            key = (r.agent, r.depth)
+            if key not in best or (r.start, k) >= best[key][:2]:
+                best[key] = (r.start, k, r.mode)
+    return frozenset((a, m) for (a, _), (_, _, m) in best.items())
 
 
 def _measured(sk: Skeleton, s: Step) -> bool:
@@ -501,14 +513,18 @@ def _final(r: Replayer, steps: list[Step], times: list[float], kind: str, name: 
             row = later[0]
             return Replay(False, f"the run goes on: at t={row.t:.4g} s {row.agent}: "
                           f"{row.source} -> {row.target} ({row.cause})", steps, times, run)
-        return Replay(True, f"nothing happens from t={end:.4g} s to the end of the run "
-                      f"(t={run.meta['duration']:g} s)", steps, times, run)
+        out = run.diagnostics[0]
+        why = "" if out["outcome"] == "ok" and out["t"] >= run.meta["duration"] else \
+            f": {out['message']}"
+        return Replay(True, f"nothing happens from t={end:.6g} s to the end of the run "
+                      f"(t={out['t']:.6g} s{why})", steps, times, run)
     verdict = run.diagnostics[0].get("requirements", {}).get(name, {})
     if verdict.get("satisfied", True):
         return Replay(False, f"the run follows the path, but its trace satisfies {name} "
                       f"(robustness {verdict.get('robustness')})", steps, times, run)
     if kind == "response":
         return Replay(True, f"the run's trace violates {name}: the answer has not come by "
-                      f"the end of the run (t={run.meta['duration']:.6g} s)", steps, times, run)
+                      f"the end of the run (t={run.diagnostics[0]['t']:.6g} s)", steps, times,
+                      run)
     return Replay(True, f"the run's trace violates {name} at "
                   f"t={float(verdict.get('violated_at', end)):.6g} s", steps, times, run)
