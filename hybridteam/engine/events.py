@@ -54,6 +54,17 @@ class EventQueue:
     def push_each(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
                   payloads: Sequence[Any], rank: np.ndarray | float = 0.0) -> None:
         """Queue one event per instance in ``idx``, each with its own payload (and rank)."""
+        if idx.size == 1:  # a single run's or one instance's event: no broadcasting
+            i = int(idx[0])
+            s = int(self.seq[i])
+            self.seq[i] = s + 1
+            ti = float(np.asarray(t).reshape(-1)[0])
+            heapq.heappush(self.heaps.setdefault(i, []), (
+                ti, kind, float(np.asarray(rank).reshape(-1)[0]), agent, s, name,
+                payloads[0]))
+            if ti < self.next[i]:
+                self.next[i] = ti
+            return
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
         ranks = spread(np.asarray(rank, float), idx.shape).tolist()

@@ -131,6 +131,9 @@ class Network:
             self._scripted(t, sender, to, socket, type_, fields, int(seq[0]), int(ids[0]),
                            note, 0.0 if rank is None else float(rank[0]))
             return
+        if idx.size == 1:
+            self._send_one(idx, t, sender, to, socket, type_, fields, seq, ids, note, rank)
+            return
         if to is None:
             receivers = [(r, np.ones(idx.size, bool)) for r in range(len(self.names))
                          if r != sender]
@@ -168,6 +171,34 @@ class Network:
                                 strict=True))]
                 self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads,
                                      rank=0.0 if rank is None else rank[mine][ok])
+
+    def _send_one(self, idx: np.ndarray, t: np.ndarray, sender: int, to, socket: str,
+                  type_: str, fields: dict[str, np.ndarray], seq: np.ndarray,
+                  ids: np.ndarray, note: str, rank: np.ndarray | None) -> None:
+        """:meth:`send` for one instance (a single run's every message): the same draws and
+        arithmetic on scalars, without the masks and broadcasts an ensemble needs."""
+        i = int(idx[0])
+        ts = float(t[0]) if np.ndim(t) else float(t)
+        target = int(to[0]) if isinstance(to, np.ndarray) else to
+        receivers = [r for r in range(len(self.names)) if r != sender] \
+            if target is None or target < 0 else [target]
+        values = {f: v[0].item() for f, v in fields.items()}
+        key = self.keys[i: i + 1]
+        k = seq[:1]
+        r_rank = 0.0 if rank is None else float(rank[0])
+        for r in receivers:
+            latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r),
+                                                                      self.default))
+            if loss > 0.0 and uniform(key, sender, r, k, LOSS)[0] < loss:
+                self.rec.message(idx, k, sender, r, socket, type_, np.array([ts]),
+                                 np.array([np.nan]), "lost",
+                                 "loss" + (f" ({note})" if note else ""), ids[:1])
+                continue
+            u = float(uniform(key, sender, r, k, JITTER)[0]) if jitter > 0.0 else 0.0
+            msg = Message(sender, r, int(k[0]), ts, socket, type_, dict(values), int(ids[0]),
+                          note)
+            self.queue.push_each(idx, np.array([ts + latency + jitter * u]), MESSAGE, r,
+                                 type_, [msg], rank=r_rank)
 
     def _scripted(self, t: np.ndarray, sender: int, to, socket: str, type_: str,
                   fields: dict[str, np.ndarray], seq: int, msg_id: int, note: str,

@@ -101,6 +101,7 @@ class Machine:
         ens.network.links = {}
         ens.network.limits = {}
         self.ens = ens
+        self._interned: dict = {}  # one object per distinct agent entry and copy
         self.fields = self._fields()
         self.hist = [np.array([m.index for m in ca.modes if self._restorable(ca, m.index)],
                               np.intp) for ca in sk.cteam.agents]
@@ -231,12 +232,13 @@ class Machine:
         if engine:
             discrete_phase(ens, np.array(engine, np.intp))
             per_out, per_seen = self._by_instance()
-            for i in engine:
+            rows = self._agents(np.array(engine, np.intp))
+            for i, agents in zip(engine, rows, strict=True):
                 s, choice, _ = jobs[i]
                 kept = s.outbox if touched[i] < 0 else \
                     s.outbox[: touched[i]] + s.outbox[touched[i] + 1:]
                 results[i] = self._read(i, s, choice, kept + tuple(per_out.get(i, ())),
-                                        s.seen + tuple(per_seen.get(i, ())))
+                                        s.seen + tuple(per_seen.get(i, ())), agents)
         return results  # type: ignore[return-value]
 
     def _put(self, i: int, s: State, sender: int, msg_id: int) -> int:
@@ -298,27 +300,42 @@ class Machine:
         drop = self.sk.abstract_fields
         return tuple(sorted((f, v) for f, v in fields.items() if (type_, f) not in drop))
 
-    def _read(self, i: int, parent: State, choice: tuple | None, outbox=(), seen=()
-              ) -> Result:
-        ens = self.ens
-        agents = []
-        for a, st in enumerate(ens.states):
+    def _agents(self, rows: np.ndarray) -> list[tuple]:
+        """Each listed instance's agents entry: per agent, its configuration bytes (active
+        modes, then the restorable last children as int16) and discrete variables. Read
+        for the whole batch at once; equal entries are one object (states share most of
+        them, and the explorer holds millions of states)."""
+        per_agent = []
+        for a, st in enumerate(self.ens.states):
             h = self.hist[a]
-            raw = st.active[i].astype(np.uint8).tobytes()
+            raw = st.active[rows].astype(np.uint8)
             if h.size:
-                raw += st.last[i, h].astype(np.int16).tobytes()
-            agents.append((raw, tuple(st.v[i, self.sk.discrete_vars[a]].tolist())))
+                last = np.ascontiguousarray(st.last[np.ix_(rows, h)].astype(np.int16))
+                raw = np.concatenate([raw, last.view(np.uint8)], axis=1)
+            cols = self.sk.discrete_vars[a]
+            values = st.v[np.ix_(rows, cols)].tolist() if cols else [[]] * rows.size
+            intern = self._interned
+            per_agent.append([intern.setdefault(e, e) for e in zip(
+                (r.tobytes() for r in raw), map(tuple, values), strict=True)])
+        return list(zip(*per_agent, strict=True))
+
+    def _read(self, i: int, parent: State, choice: tuple | None, outbox=(), seen=(),
+              agents: tuple | None = None) -> Result:
+        ens = self.ens
+        if agents is None:
+            agents = self._agents(np.array([i]))[0]
         inflight = list(parent.inflight)
         if choice is not None and choice[0] == "deliver":
             del inflight[choice[1]]
         for ev in sorted(ens.queue.heaps.get(i, []), key=lambda e: e[:5]):
             if ev[1] == MESSAGE:
                 m = ev[6]
-                inflight.append(Copy(m.sender, m.receiver, m.socket, m.type, m.msg_id,
-                                     self._exact(m.type, m.fields)))
+                c = Copy(m.sender, m.receiver, m.socket, m.type, m.msg_id,
+                         self._exact(m.type, m.fields))
+                inflight.append(self._interned.setdefault(c, c))
         cursor = parent.cursor + (1 if choice is not None and choice[0] == "scenario" else 0)
         ids = tuple(int(n[i]) for n in ens.reliable.next_id) if self.raw else ()
-        nxt = State(tuple(agents), tuple(inflight), tuple(outbox), tuple(seen), cursor,
+        nxt = State(agents, tuple(inflight), tuple(outbox), tuple(seen), cursor,
                     parent.losses, parent.dups, ids)
         return Result(self._finish(nxt), bool(ens.done[i]),
                       int(self.sk.oracle.reads[i]))
@@ -329,16 +346,16 @@ class Machine:
 
     def canonical(self, s: State) -> State:
         """Drop what can no longer matter and renumber message ids per sender."""
-        waiting = {(e.sender, e.msg_id): set(e.waiting) for e in s.outbox}
+        waiting = {(e.sender, e.msg_id): e.waiting for e in s.outbox}
         flying = {(c.sender, c.receiver, c.msg_id) for c in s.inflight if c.type != ACK}
-        seen = sorted({(r, snd, k) for r, snd, k in s.seen
-                       if (snd, r, k) in flying or r in waiting.get((snd, k), ())})
+        seen = sorted([(r, snd, k) for r, snd, k in s.seen
+                       if (snd, r, k) in flying or r in waiting.get((snd, k), ())])
         inflight = [c for c in s.inflight if c.type != ACK or
-                    c.sender in waiting.get((c.receiver, int(dict(c.fields)["id"])), ())]
+                    c.sender in waiting.get((c.receiver, _ack_id(c)), ())]
         live: dict[int, set[int]] = {}
         for c in inflight:
             if c.type == ACK:
-                live.setdefault(c.receiver, set()).add(int(dict(c.fields)["id"]))
+                live.setdefault(c.receiver, set()).add(_ack_id(c))
             elif c.msg_id >= 0:
                 live.setdefault(c.sender, set()).add(c.msg_id)
         for e in s.outbox:
@@ -346,17 +363,19 @@ class Machine:
         for _, snd, k in seen:
             live.setdefault(snd, set()).add(k)
         counts = tuple(len(live.get(a, ())) for a in range(len(self.cteam.agents)))
-        order = (lambda c: (c.sender, c.receiver, c.socket)) if self.fifo else None
+        order = _link if self.fifo else None
         if all(max(ks) == len(ks) - 1 for ks in live.values()):  # ids are 0.. already
             return s._replace(next_ids=counts, inflight=tuple(sorted(inflight, key=order)),
                               outbox=tuple(sorted(s.outbox)), seen=tuple(seen))
         new = {a: {k: j for j, k in enumerate(sorted(ks))} for a, ks in live.items()}
+        intern = self._interned
 
         def copy(c: Copy) -> Copy:
             if c.type == ACK:
-                k = new[c.receiver][int(dict(c.fields)["id"])]
-                return c._replace(fields=(("id", float(k)),))
-            return c._replace(msg_id=new[c.sender][c.msg_id]) if c.msg_id >= 0 else c
+                c = c._replace(fields=(("id", float(new[c.receiver][_ack_id(c)])),))
+            elif c.msg_id >= 0:
+                c = c._replace(msg_id=new[c.sender][c.msg_id])
+            return intern.setdefault(c, c)
 
         # in fifo order per-link order matters, not the interleaving of links (stable sort)
         return s._replace(
@@ -364,3 +383,12 @@ class Machine:
             inflight=tuple(sorted((copy(c) for c in inflight), key=order)),
             outbox=tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in s.outbox)),
             seen=tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)))
+
+
+def _ack_id(c: Copy) -> int:
+    """The message id an ack copy acknowledges (its only field)."""
+    return int(c.fields[0][1])
+
+
+def _link(c: Copy) -> tuple:
+    return c.sender, c.receiver, c.socket
