@@ -15,6 +15,7 @@ resignation (each protocol exchange alone, e.g. three robots with two losses).
 from __future__ import annotations
 
 import argparse
+import resource
 import tempfile
 from pathlib import Path
 
@@ -61,7 +62,7 @@ def main() -> None:
     ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
     args = ap.parse_args()
     print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
-          f"{'states/s':>9}  verdict")
+          f"{'states/s':>9} {'peak MB':>8}  verdict")
     with tempfile.TemporaryDirectory() as tmp:
         for robots in args.robots:
             path = Path(tmp) / f"roles_{robots}.yaml"
@@ -74,9 +75,10 @@ def main() -> None:
                 bad = [v.prop.name for v in r.violated]
                 word = ("VIOLATED: " + ", ".join(bad)) if bad else (
                     "all hold" if g.exhaustive else "none violated (bounded)")
+                peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # so far
                 print(f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
-                      f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f}  {word}",
-                      flush=True)
+                      f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f}  "
+                      f"{word}", flush=True)
 
 
 if __name__ == "__main__":

@@ -349,6 +349,7 @@ def test_a_bounded_exploration_has_no_false_dead_ends():
                     Options(losses=1, max_states=3000))
     assert not report.graph.exhaustive and report.graph.cut
     assert not report.violated
+    assert report.summary()["properties"]["one_leader"]["verdict"] == "holds (bounded)"
 
 
 # -- replay: counterexamples as runs ------------------------------------------------------

@@ -153,7 +153,7 @@ def _word(v: Verdict, exhaustive: bool) -> str:
         return "not checked"
     if v.holds is False:
         return "violated"  # in the skeleton; the replay says whether a run shows it
-    return "holds" if exhaustive else "holds so far (bounded)"
+    return "holds" if exhaustive else "holds (bounded)"  # as the command prints it
 
 
 def verify(team, options: Options | None = None, only: list[str] | None = None,
