@@ -101,7 +101,7 @@ def cmd_verify(args) -> int:
             if args.progress != "none":
                 print(f"hybridteam: verify: replaying {v.prop.name}'s counterexample in the "
                       "simulator", file=sys.stderr, flush=True)
-            report.replay(v)
+            report.replay(v, progress=_replay_progress(v.prop.name, args.progress))
     out.mkdir(parents=True, exist_ok=True)
     files = {v.prop.name: _write_run(report, v, out) for v in report.reproduced}
     _print(report, args.team, files)
@@ -145,6 +145,20 @@ def _progress(mode: str):
         rate = states / seconds if seconds > 0 else 0.0
         print(f"hybridteam: verify: {states:,} states, frontier {frontier:,}, depth {depth}, "
               f"{rate:,.0f} states/s, {seconds:.1f} s", file=sys.stderr, flush=True)
+    return show
+
+
+def _replay_progress(name: str, mode: str):
+    """A line every 5 s while a property's counterexamples are being replayed."""
+    if mode == "none":
+        return None
+    state = {"last": 0.0}
+
+    def show(tried: int, seconds: float) -> None:
+        if seconds - state["last"] >= 5.0:
+            state["last"] = seconds
+            print(f"hybridteam: verify: {name}: {tried} counterexample(s) replayed, none "
+                  f"reproduced yet, {seconds:.0f} s", file=sys.stderr, flush=True)
     return show
 
 

@@ -10,6 +10,7 @@ reading of the model. :func:`verify` returns a :class:`Report`.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hybridteam.verify.abstraction import Skeleton, skeleton
@@ -64,22 +65,25 @@ class Report:
             path = path + v.lasso[1:]
         return path
 
-    def replay(self, v: Verdict, seconds: float = 120.0, tries: int = 1000) -> Replay:
+    def replay(self, v: Verdict, seconds: float = 120.0, tries: int = 1000,
+               progress: Callable[[int, float], None] | None = None) -> Replay:
         """Replay a counterexample of ``v`` in the simulator (:mod:`.replay`): the
         shortest first, then the shortest paths to the other violating states, in
         breadth-first order, skipping those that start like a path the simulator could
         not follow, until one is reproduced (or ``tries`` paths or ``seconds`` are
-        spent). The replayed one becomes the counterexample shown."""
+        spent). The replayed one becomes the counterexample shown. ``progress`` gets
+        (paths tried, seconds) after each path not reproduced."""
         start = time.perf_counter()
         if self._context is None:
             self._context = Context(self.team, self.skeleton, self.graph,
                                     self.options.order == "fifo")
-        failed: set[tuple[int, ...]] = set()
+        failed: set[int] = set()  # last states of prefixes that failed (a breadth-first
+        # tree's path to a state is unique, so its last state names a prefix)
         first: Replay | None = None
         tried = 0
         for k in [v.state, *(v.others if v.prop.kind != "response" else [])]:
             path = self.path(v, k)
-            if any(tuple(path[: j + 1]) in failed for j in range(len(path))):
+            if not failed.isdisjoint(path):
                 continue
             if tried >= tries or time.perf_counter() - start > seconds:
                 break
@@ -90,7 +94,9 @@ class Report:
                 self.replays[v.prop.name] = (k, r, tried)
                 return r
             if r.stop >= 0:
-                failed.add(tuple(path[: r.stop + 1]))
+                failed.add(path[r.stop])
+            if progress is not None:
+                progress(tried, time.perf_counter() - start)
         assert first is not None
         self.replays[v.prop.name] = (v.state, first, tried)
         return first

@@ -443,11 +443,25 @@ class Context:
         self.team, self.sk, self.g = team, sk, g
         self.cteam = compile_team(team)
         self.machine = Machine(sk, 1, fifo=fifo, raw=True)
+        self.timed: dict[tuple, object] = {}  # path -> its schedule, or why it has none
 
 
 def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = False
            ) -> Replay:
     """Schedule ``path`` in time and check that the run violates property ``name``."""
+    key = tuple(path)
+    if key not in ctx.timed:  # two properties often share a counterexample
+        ctx.timed[key] = _timed(ctx, path)
+    found = ctx.timed[key]
+    if isinstance(found, Replay):
+        return found
+    r, times, gap = found
+    return _final(r, r.steps, times, kind, name, float(ctx.team.simulation.duration),
+                  loops, gap)
+
+
+def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float], float]:
+    """The moments at which the run follows ``path``, or why it cannot."""
     team, sk = ctx.team, ctx.sk
     steps = follow(sk, ctx.g, path, ctx.machine)
     r = Replayer(team, ctx.cteam, sk, steps)
@@ -486,7 +500,7 @@ def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = Fa
             continue
         bad = r.diverges(r.run(times, times[-1] + gap / 2), times)
         if bad is None:
-            return _final(r, steps, times, kind, name, horizon, loops, gap)
+            return r, times, gap
         k, why = bad
         if not first:
             first, first_k = f"the run cannot follow step {k} ({steps[k].text}): {why}", k
