@@ -13,6 +13,7 @@ from hybridteam import load
 from hybridteam.api import simulate
 from hybridteam.cli import main
 from hybridteam.verify import Options, verify
+from hybridteam.verify.machine import Machine
 from hybridteam.verify.paths import leaves
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -84,6 +85,11 @@ def final_modes(report, v) -> dict[str, list[str]]:
 def test_the_role_protocol_holds_with_a_request_and_a_lost_copy(tmp_path):
     report = verify(roles_team(tmp_path, "b"), Options(losses=1))
     assert report.graph.exhaustive
+    # states are canonical: the form is idempotent, with no duplicate filter entry twice
+    # (a retransmission's filter entry is in the parent and read back from the engine)
+    m = Machine(report.skeleton)
+    for s in report.graph.states:
+        assert len(set(s.seen)) == len(s.seen) and m.canonical(s) == s
     assert {n: v.holds for n, v in verdicts(report).items()} == {
         "one_leader": True, "b_answered": True, "c_answered": True, "deadlock": True}
 

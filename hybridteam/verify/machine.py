@@ -348,8 +348,8 @@ class Machine:
         """Drop what can no longer matter and renumber message ids per sender."""
         waiting = {(e.sender, e.msg_id): e.waiting for e in s.outbox}
         flying = {(c.sender, c.receiver, c.msg_id) for c in s.inflight if c.type != ACK}
-        seen = sorted([(r, snd, k) for r, snd, k in s.seen
-                       if (snd, r, k) in flying or r in waiting.get((snd, k), ())])
+        seen = sorted({(r, snd, k) for r, snd, k in s.seen  # a set: the parent's entries
+                       if (snd, r, k) in flying or r in waiting.get((snd, k), ())})
         inflight = [c for c in s.inflight if c.type != ACK or
                     c.sender in waiting.get((c.receiver, _ack_id(c)), ())]
         live: dict[int, set[int]] = {}
