@@ -9,7 +9,7 @@ request answered) and deadlock; a check that reaches ``--max-states`` says "boun
 resignation (each protocol exchange alone, e.g. three robots with two losses).
 
     python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
-        [--scenario all|request|resign]
+        [--scenario all|request|resign] [--timeouts any|own|long]
 """
 
 from __future__ import annotations
@@ -60,6 +60,7 @@ def main() -> None:
     ap.add_argument("--losses", type=int, nargs="+", default=[0, 1])
     ap.add_argument("--max-states", type=int, default=1_000_000)
     ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
+    ap.add_argument("--timeouts", choices=("any", "own", "long"), default="any")
     args = ap.parse_args()
     print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
           f"{'states/s':>9} {'peak MB':>8}  verdict")
@@ -69,8 +70,8 @@ def main() -> None:
             path.write_text(team_text(robots, args.scenario))
             team = load(path)
             for losses in args.losses:
-                r = verify(team, Options(losses=losses, max_states=args.max_states),
-                           replay=False)
+                r = verify(team, Options(losses=losses, max_states=args.max_states,
+                                         timeouts=args.timeouts), replay=False)
                 g = r.graph
                 bad = [v.prop.name for v in r.violated]
                 word = ("VIOLATED: " + ", ".join(bad)) if bad else (

@@ -55,9 +55,12 @@ def register(sub) -> dict:
                     help="bounded: an ack timeout expires only once every copy and ack of "
                     "its message has arrived or been lost (ack timeouts exceed the round "
                     "trip; default); any: at any moment")
-    ve.add_argument("--timeouts", choices=("any", "long"), default="any",
-                    help="any: an after: timeout may expire at any moment (default); long: "
-                    "only once nothing is in flight or unacknowledged")
+    ve.add_argument("--timeouts", choices=("any", "own", "long"), default="any",
+                    help="any: an after: timeout may expire at any moment (default); own: "
+                    "only once the agent's own messages are settled (none of its copies but "
+                    "acks in flight, nothing awaiting acks); long: only once nothing at all "
+                    "is in flight or unacknowledged. own and long are timing assumptions: "
+                    "they leave behaviours out")
     ve.add_argument("--max-states", type=int, default=2_000_000, metavar="N",
                     help="stop exploring beyond N states; verdicts then say 'bounded' "
                     "(default 2,000,000)")

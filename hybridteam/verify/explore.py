@@ -34,9 +34,12 @@ class Options:
     #: every ack of it has arrived or been lost (true when the ack timeout exceeds the round
     #: trip, as the protocols' do); "any": at any moment (a full over-approximation)
     ack_timing: str = "bounded"
-    #: "any": an ``after:`` timeout may expire at any moment; "long": only once the network
-    #: is quiet (nothing in flight, nothing unacknowledged) — timeouts that exceed every
-    #: message exchange, as the protocols' answer timeouts are meant to
+    #: "any": an ``after:`` timeout may expire at any moment; "own": only once the agent's
+    #: own messages are settled (none of its copies but acks in flight, nothing in its
+    #: outbox) — timeouts that exceed the agent's own exchanges; "long": only once the
+    #: whole network is quiet (nothing in flight, nothing unacknowledged) — timeouts that
+    #: exceed every message exchange. "own" and "long" leave out behaviours ("any" does
+    #: not): a check under them holds under that timing assumption
     timeouts: str = "any"
 
 
@@ -88,7 +91,8 @@ def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
     for a, js in enumerate(sk.time_driven):
         for j in js:
             tr = agents[a].transitions[j]
-            if acts[a][tr.source] and (opts.timeouts == "any" or tr.after is None or quiet):
+            if acts[a][tr.source] and (opts.timeouts == "any" or tr.after is None or (
+                    quiet if opts.timeouts == "long" else _settled(s, a))):
                 out.append(("time", a, j))
     for a, event in sk.world_events:
         ca = agents[a]
@@ -136,6 +140,13 @@ def _invisible(s: State, opts: Options, hears: list[set[str]]) -> int | None:
                 or c.type not in hears[c.receiver]:
             return k
     return None
+
+
+def _settled(s: State, a: int) -> bool:
+    """Whether agent ``a``'s own messages are settled: none of its copies but acks in
+    flight, nothing of it awaiting acks."""
+    return not any(c.sender == a and c.type != ACK for c in s.inflight) and \
+        not any(e.sender == a for e in s.outbox)
 
 
 def _in_flight(s: State, e) -> bool:
