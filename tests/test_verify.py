@@ -218,6 +218,14 @@ def test_mutant_duplicate_suppression_off(tmp_path):
     # nobody leads from the resignation to the end of the run, and no operator came
     assert not [r for r in run.modes if r.mode == "Transport.Lead" and r.end > 0.001]
     assert "Command" not in {r.mode for r in run.modes if r.agent == "operator"}
+    # the same mistake through a network that duplicates a copy (no loss): the replay
+    # delivers the one accept twice, same sequence number, no retransmission
+    dup = verify(roles_team(tmp_path, "a", bad, extra=restored, without_c=True),
+                 Options(losses=0, duplicates=1))
+    run = replayed(dup, "leadership_restored")
+    accepts = [r for r in run.messages if r.type == "accept" and r.status == "delivered"]
+    assert len(accepts) == 2 and accepts[0].seq == accepts[1].seq
+    assert accepts[0].reason == accepts[1].reason == ""
 
 
 # -- the docking handshake --------------------------------------------------------------

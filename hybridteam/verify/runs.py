@@ -116,9 +116,13 @@ class Replayer:
             expected[t] += s.sends
         got: dict[float, Counter] = {t: Counter() for t in moments}
         end = times[-1] + TOL
+        copies = set()  # a duplicated copy has a row per arrival: one send
         for row in run.messages:
             if row.type in self.streams or row.t_send > end:
                 continue
+            if (row.sender, row.receiver, row.seq) in copies:
+                continue
+            copies.add((row.sender, row.receiver, row.seq))
             at = next((t for t in moments if abs(row.t_send - t) <= TOL), None)
             if at is None:
                 return [(_step_at(times, row.t_send), f"at t={row.t_send:.6g} s "
