@@ -359,6 +359,7 @@ def test_fifo_order_keeps_the_verdicts(tmp_path):
     bad = mutate(GRANT, GRANT.replace("        - to: Follow\n          on:", "        - on:"))
     report = verify(roles_team(tmp_path, "b", bad), fifo)
     assert verdicts(report)["one_leader"].holds is False
+    assert together(replayed(report, "one_leader"), "Transport.Lead") == {"a", "b"}
 
 
 def test_a_bounded_exploration_has_no_false_dead_ends():
