@@ -112,7 +112,7 @@ class Network:
             for socket, rate in per_socket.items():
                 self.limits[(self.names.index(agent), socket)] = float(rate)
         self.last_accept: dict[tuple[int, str], np.ndarray] = {}
-        #: a replay's script (:class:`hybridteam.verify.replay.Script`): when set, it decides
+        #: a replay's script (:class:`hybridteam.verify.runs.Script`): when set, it decides
         #: the fate and arrival times of every copy but the streams' instead of the links
         #: (single runs only)
         self.script: Any = None
@@ -179,14 +179,11 @@ class Network:
         arithmetic on scalars, without the masks and broadcasts an ensemble needs."""
         i = int(idx[0])
         ts = float(t[0]) if np.ndim(t) else float(t)
-        target = int(to[0]) if isinstance(to, np.ndarray) else to
-        receivers = [r for r in range(len(self.names)) if r != sender] \
-            if target is None or target < 0 else [target]
         values = {f: v[0].item() for f, v in fields.items()}
         key = self.keys[i: i + 1]
         k = seq[:1]
         r_rank = 0.0 if rank is None else float(rank[0])
-        for r in receivers:
+        for r in self._receivers_of_one(sender, to):
             latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r),
                                                                       self.default))
             if loss > 0.0 and uniform(key, sender, r, k, LOSS)[0] < loss:
@@ -200,18 +197,22 @@ class Network:
             self.queue.push_each(idx, np.array([ts + latency + jitter * u]), MESSAGE, r,
                                  type_, [msg], rank=r_rank)
 
+    def _receivers_of_one(self, sender: int, to) -> list[int]:
+        """The receivers of a send in one instance (``to`` as :meth:`send` takes it)."""
+        target = int(to[0]) if isinstance(to, np.ndarray) else to
+        if target is None or target < 0:
+            return [r for r in range(len(self.names)) if r != sender]
+        return [target]
+
     def _scripted(self, t: np.ndarray, sender: int, to, socket: str, type_: str,
                   fields: dict[str, np.ndarray], seq: int, msg_id: int, note: str,
                   rank: float) -> None:
         """A send in a replay (one instance): each copy arrives at the times the script
         gives it (several for a duplicated copy, +inf: still in flight when the run ends),
         or is lost when it gives none."""
-        target = int(to[0]) if isinstance(to, np.ndarray) else to
-        receivers = [r for r in range(len(self.names)) if r != sender] \
-            if target is None or target < 0 else [target]
         one = np.array([0])
         values = {f: float(v[0]) for f, v in fields.items()}
-        for r in receivers:
+        for r in self._receivers_of_one(sender, to):
             times = self.script.arrivals(sender, r, type_)
             if not times:
                 self.rec.message(one, np.array([seq]), sender, r, socket, type_, t[:1],

@@ -77,13 +77,16 @@ def _measured(sk: Skeleton, s: Step) -> bool:
 
 
 class Context:
-    """What every replay of one report shares: the team, compiled, and a raw machine."""
+    """What every replay of one report shares: the team and its requirements, compiled,
+    and a raw machine."""
 
     def __init__(self, team, sk: Skeleton, g: Graph, fifo: bool) -> None:
         from hybridteam.engine.compiler import compile_team
+        from hybridteam.requirements.check import compile_requirements
 
         self.team, self.sk, self.g = team, sk, g
         self.cteam = compile_team(team)
+        self.requirements = compile_requirements(self.cteam)
         self.machine = Machine(sk, 1, fifo=fifo, raw=True)
         self.timed: dict[tuple, object] = {}  # path -> its schedule, or why it has none
 
@@ -106,7 +109,7 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
     """The moments at which the run follows ``path``, or why it cannot."""
     team, sk = ctx.team, ctx.sk
     steps = follow(sk, ctx.g, path, ctx.machine)
-    r = Replayer(team, ctx.cteam, sk, steps)
+    r = Replayer(team, ctx.cteam, ctx.requirements, steps)
     horizon = float(team.simulation.duration)
     n = len(steps) - 1
     gap = next((g for g in GAPS if not isinstance(solve(n, bounds(sk, steps, g)), str)), 0.0)

@@ -13,7 +13,6 @@ import dataclasses
 import math
 from collections import Counter
 
-from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.steps import Step
 
 TOL = 1e-9  # seconds: moments this close are one (the engine adds the same floats)
@@ -38,27 +37,22 @@ class Script:
 class Replayer:
     """Runs the simulator on a schedule of the path's steps and compares the run."""
 
-    def __init__(self, team, cteam, sk: Skeleton, steps: list[Step]) -> None:
-        self.team, self.cteam, self.sk, self.steps = team, cteam, sk, steps
+    def __init__(self, team, cteam, reqs, steps: list[Step]) -> None:
+        """``reqs``: the team's compiled requirements (a replay's scenario leaves them as
+        they are)."""
+        self.team, self.cteam, self.reqs, self.steps = team, cteam, reqs, steps
         self.names = [ca.name for ca in self.cteam.agents]
         self.streams = {s.message for ca in self.cteam.agents for s in ca.streams}
+        #: how many times each copy the path sends exists (twice once duplicated)
+        self.copies: Counter = Counter(c for s in steps for c in s.copies)
+        self.copies.update(s.key for s in steps[1:] if s.kind == "dup")
 
     def run(self, times: list[float], duration: float):
         """The run with steps 1..len(times)-1 at ``times`` (a :class:`~hybridteam.api.Run`
         with its requirement verdicts)."""
         from hybridteam.api import Run, check_requirements
         from hybridteam.engine.simulator import Simulator
-        from hybridteam.requirements.check import compile_requirements
 
-        plan: dict[tuple, list[float]] = {}
-        copies: Counter = Counter()
-        for s in self.steps:
-            for link, k in s.sends.items():
-                for j in range(k):
-                    copies[(*link, _nth(self.steps, s, link, j))] = 1
-        for s in self.steps[1:]:
-            if s.kind == "dup":
-                copies[s.key] += 1
         delivered: dict[tuple, list[float]] = {}
         lost: Counter = Counter()
         for s, t in zip(self.steps[1:], times[1:], strict=False):
@@ -66,14 +60,15 @@ class Replayer:
                 delivered.setdefault(s.key, []).append(t)
             elif s.kind == "lose":
                 lost[s.key] += 1
-        for key, n in copies.items():
+        plan: dict[tuple, list[float]] = {}
+        for key, n in self.copies.items():
             got = delivered.get(key, [])
             plan[key] = got + [math.inf] * (n - len(got) - lost[key])
         scenario = [(t, s.agent, s.event) for s, t in zip(self.steps[1:], times[1:],
                                                           strict=False)
                     if s.kind == "scenario"]
         cteam = dataclasses.replace(self.cteam, scenario=scenario)
-        reqs = compile_requirements(cteam)
+        reqs = self.reqs
         sim = Simulator(cteam, 1, seed=self.team.simulation.seed, duration=duration,
                         snapshots=bool(reqs), observe=reqs.observers(cteam))
         sim.ensemble.network.script = Script(self.names, self.streams, plan)
@@ -158,16 +153,6 @@ class Replayer:
 def _step_at(times: list[float], t: float) -> int:
     """The first step at or after moment ``t``."""
     return next((j for j, tj in enumerate(times) if tj >= t - TOL), len(times) - 1)
-
-
-def _nth(steps: list[Step], step: Step, link: tuple, j: int) -> int:
-    """The sequence number of the ``j``-th copy on ``link`` that ``step`` sends."""
-    before = 0
-    for s in steps:
-        if s is step:
-            return before + j
-        before += s.sends.get(link, 0)
-    raise ValueError("step not in steps")
 
 
 def _active_at(run, t: float) -> frozenset:

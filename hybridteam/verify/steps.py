@@ -30,7 +30,7 @@ class Step:
     kind: str  # initial, deliver, lose, dup, timer, scenario, world, time
     text: str
     active: frozenset  # (agent name, mode path) of every active mode after the step
-    sends: Counter  # (sender, receiver, type) of the control copies the step sends
+    copies: tuple  # identities (sender, receiver, type, n) of the control copies it sends
     outbox: dict = field(default_factory=dict)  # (sender, id) -> ack timeout, after it
     armed: tuple = ()  # (agent, transition, delay) of the after: timeouts it arms
     key: tuple | None = None  # deliver/lose/dup: (sender, receiver, type, n) of the copy
@@ -40,6 +40,11 @@ class Step:
     entry: tuple | None = None  # timer: (sender, id) of the message
     sent_at: int = -1  # timer: the step that last sent the message
     timeout: float = 0.0  # timer: the message's ack timeout
+
+    @property
+    def sends(self) -> Counter:
+        """(sender, receiver, type) of the copies it sends, counted."""
+        return Counter(c[:3] for c in self.copies)
 
 
 def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
@@ -51,14 +56,15 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
     count: Counter = Counter()
     ident: list[tuple] = []
 
-    def keys(copies) -> Counter:
-        sends: Counter = Counter()
+    def keys(copies) -> tuple:
+        """Identities for newly sent copies: the n-th copy of its type on its link."""
+        new = []
         for c in copies:
             link = (names[c.sender], names[c.receiver], c.type)
-            ident.append((*link, count[link]))
+            new.append((*link, count[link]))
             count[link] += 1
-            sends[link] += 1
-        return sends
+        ident.extend(new)
+        return tuple(new)
 
     steps = [Step("initial", "initial", _active(sk, raw), keys(raw.inflight),
                   _outbox(raw), _armed(m, m.armed0))]
@@ -66,7 +72,7 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
     for a, b in pairwise(path):
         choice = g.edge_how[(a, b)]
         rc, nxt = _match(m, raw, g.states[a], choice, g.states[b])
-        step = Step(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), Counter(),
+        step = Step(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
                     _outbox(nxt))
         if rc[0] in ("deliver", "lose", "dup"):
             step.key = ident[rc[1]]
@@ -84,12 +90,12 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
             step.agent = rc[1]
             step.transition = rc[2] if rc[0] == "time" else -1
         if rc[0] not in ("lose", "dup"):
-            step.sends = keys(nxt.inflight[len(ident):])
+            step.copies = keys(nxt.inflight[len(ident):])
             step.armed = _armed(m)
         for e in nxt.outbox:  # a new acknowledged message: its timer starts here
             if (e.sender, e.msg_id) not in sent_at:
                 sent_at[(e.sender, e.msg_id)] = len(steps)
-        if step.entry is not None and step.sends:  # resent: the timer starts again
+        if step.entry is not None and step.copies:  # resent: the timer starts again
             sent_at[step.entry] = len(steps)
         steps.append(step)
         raw = nxt
@@ -174,7 +180,7 @@ def bounds(sk: Skeleton, steps: list[Step], gap: float) -> list[Bound]:
     for k in range(n + 1):  # timers the path does not take must not expire while armed
         for entry, timeout in steps[k].outbox.items():
             if k and entry in steps[k - 1].outbox and not (
-                    steps[k].entry == entry and steps[k].sends):
+                    steps[k].entry == entry and steps[k].copies):
                 continue  # armed earlier
             e = next((j for j in range(k + 1, n + 1) if entry not in steps[j].outbox
                       or steps[j].entry == entry), None)
