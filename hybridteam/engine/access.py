@@ -101,10 +101,10 @@ class EnsembleAccess(WorldAccess):
                              f"{', '.join(self.state_names(a)) or 'empty'} (no x and y)")
         x, y, th = cols
         s = self._ens.states[a].x
+        if th is not None:
+            return s[idx][:, [x, y, th]]
         out = np.zeros((len(idx), 3))
         out[:, 0], out[:, 1] = s[idx, x], s[idx, y]
-        if th is not None:
-            out[:, 2] = s[idx, th]
         return out
 
     def variable_names(self, agent: Agent) -> tuple[str, ...]:

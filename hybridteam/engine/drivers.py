@@ -15,6 +15,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
+from hybridteam.engine.arrays import distinct
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
 from hybridteam.engine.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError
@@ -64,7 +65,7 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
     drv = st.driver[idx]
-    groups = [(int(d), np.flatnonzero(drv == d)) for d in np.unique(drv)]
+    groups = [(d, np.flatnonzero(drv == d)) for d in distinct(drv)] if drv.size else []
     v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
@@ -107,7 +108,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
     due |= fresh
     if not due.any():
         return
-    for d in np.unique(st.driver[due]).tolist():  # the drivers in charge, in index order
+    for d in distinct(st.driver[due]):  # the drivers in charge, in index order
         D = ca.drivers[d]
         mine = due & (st.driver == d)
         if D.kind == "continuous":

@@ -23,6 +23,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
+from hybridteam.engine.arrays import union
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
@@ -130,7 +131,7 @@ class Simulator:
         if ens.world.any:  # components see the state first; events they raise run now
             raised = ens.world.update(self.access, idx)
             if raised.size:
-                discrete = np.union1d(discrete, raised)
+                discrete = union(discrete, raised)
             discrete = discrete[~ens.done[discrete]]
         discrete_phase(ens, discrete)
         if ens.rec.snapshots is not None:
@@ -141,8 +142,13 @@ class Simulator:
         live = idx[~ens.done[idx]]
         changed = live[ens.changed[live]] if not entering else live
         for a, st in enumerate(ens.states):
-            if live.size:
-                ens.timer[a][live] = st.next_timer(live, ens.t[live])
+            if live.size and st.after_slots.size:
+                # the earliest deadline ahead changes only with the configuration or once
+                # it is reached: elsewhere the stored one is still the earliest ahead
+                due = live[ens.t[live] >= ens.timer[a][live]]
+                due = union(due, changed)
+                if due.size:
+                    ens.timer[a][due] = st.next_timer(due, ens.t[due])
             if changed.size:
                 st.update_drivers(changed)
                 if st.ca.plant.kind == "flow":
@@ -153,7 +159,7 @@ class Simulator:
             sample_laws(ens, a, live, changed)
         ens.streams.update(live)
         if crossed is not None and crossed.size:
-            changed = np.union1d(changed, crossed[~ens.done[crossed]])
+            changed = union(changed, crossed[~ens.done[crossed]])
         check_instances(ens, changed)
 
     # ------------------------------------------------------------------ one iteration

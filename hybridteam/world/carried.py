@@ -39,7 +39,7 @@ from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
-from hybridteam.world.sensors import cast
+from hybridteam.world.sensors import Targets, cast_at
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -140,6 +140,8 @@ class CarriedPayload(WorldComponent):
         self.arm = np.full((n, k, 3), np.nan)        # robot frame, and relative angle
         self.rel0 = np.zeros((n, k))
         self.max_offset = np.zeros((n, k))
+        self._one_size: bool | None = None  # whether every instance's outline is one size
+        self._outlines: dict[tuple[float, float], Targets] = {}
 
     def _robot_points(self, world: WorldAccess, idx: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -200,7 +202,7 @@ class CarriedPayload(WorldComponent):
                 pose[rows, 1] = pts[rows, j, 1] - (sn * bx + cs * by)
             elif held.size > 1:
                 eq = equilibrium(pts[rows][:, held], self.body[held], self.spring[held])
-                pose[rows] = np.c_[eq.x, eq.y, eq.theta]
+                pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
         self.pose[idx] = pose
         self.rest[idx] = pose
         self.engaged[idx] = on
@@ -273,20 +275,30 @@ class CarriedPayload(WorldComponent):
         (a loop over the distinct sizes, usually one, never over instances).
         """
         pose = self.pose[idx]
-        ox, oy = _to_body(origins[..., 0], origins[..., 1], pose)
-        dx, dy = _to_body(directions[..., 0], directions[..., 1], pose, move=False)
-        o, d = np.stack([ox, oy], -1), np.stack([dx, dy], -1)
+        o, d = np.empty(origins.shape), np.empty(directions.shape)
+        o[..., 0], o[..., 1] = _to_body(origins[..., 0], origins[..., 1], pose)
+        d[..., 0], d[..., 1] = _to_body(directions[..., 0], directions[..., 1], pose,
+                                        move=False)
         hw, hd = self.half_extents(idx)
+        if self._one_size is None:
+            every = self.half_extents(np.arange(self.n))
+            self._one_size = all(bool(np.all(h == h[0])) for h in every)
+        if self._one_size and hw.size:  # every instance's payload has one size (usual)
+            return cast_at(o, d, self._outline(float(hw[0]), float(hd[0])), max_range)
         out = np.full(origins.shape[:2], float(max_range))
-        same = hw.size == 0 or (np.all(hw == hw[0]) and np.all(hd == hd[0]))
-        sizes = [(hw[0], hd[0])] if same and hw.size else \
-            np.unique(np.stack([hw, hd], 1), axis=0)
-        for w, h in sizes:
+        for w, h in np.unique(np.stack([hw, hd], 1), axis=0):
             rows = (hw == w) & (hd == h)
-            edges = [[-w, 0.0, w, 0.0]] if h == 0 else \
-                [[-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]]
-            out[rows] = cast(o[rows], d[rows], edges, None, max_range)
+            out[rows] = cast_at(o[rows], d[rows], self._outline(w, h), max_range)
         return out
+
+    def _outline(self, w: float, h: float) -> Targets:
+        """The outline of a ``2w x 2h`` box (a bar when ``h`` is 0) in the body frame,
+        prepared for casting once per size."""
+        key = (float(w), float(h))
+        if key not in self._outlines:
+            self._outlines[key] = Targets.of([[-w, 0.0, w, 0.0]] if h == 0 else [
+                [-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]])
+        return self._outlines[key]
 
     def gap(self, idx: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
         """Distance from the outline to the nearest of ``segments`` ``(s, 4)`` and

@@ -44,7 +44,7 @@ from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import MODES, box_sdf, name_hit, robot_overlaps
 from hybridteam.world.component import WorldComponent, settings_error, world_component
-from hybridteam.world.sensors import RangeRing, cast, clearance
+from hybridteam.world.sensors import RangeRing, Targets, _as_circles, cast_at, clearance
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -230,6 +230,7 @@ class Obstacles(WorldComponent):
         self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
             parsed["boxes"]
         self.segments = np.concatenate([self.walls, _box_edges(self.boxes)])
+        self.targets = Targets.of(self.segments, _as_circles(self.circles, n))  # they stay
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
         self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
@@ -277,7 +278,7 @@ class Obstacles(WorldComponent):
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
         every payload's outline: ``(m, count)``."""
         origins, directions = ring.rays(self._poses(a, idx))
-        dist = cast(origins, directions, self.segments, self.circles, ring.max_range)
+        dist = cast_at(origins, directions, self.targets, ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
         dist = dist.reshape(idx.size, ring.count, ring.rays_per_beam).min(axis=2)
@@ -320,14 +321,16 @@ class Obstacles(WorldComponent):
                 gap = np.minimum(gap, box_sdf(pts, self.boxes))
             gap = gap.reshape(len(self.planar), idx.size) - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
-            for r, a in enumerate(self.planar):
+            for r, a in enumerate(self.planar) if (gap < 0).any() else ():
                 for k in np.flatnonzero(gap[r] < 0).tolist():
                     what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
                     who = self.team.agents[a].name
                     hits.append((int(idx[k]), who, f"robot '{who}' hit {what}, its footprint "
                                  f"overlapping it by {-gap[r, k]:.3g}"))
             overlap = robot_overlaps(points, self.radius)
-            for k, r1, r2 in zip(*np.nonzero(np.triu(overlap > 0, 1)), strict=True):
+            touch = overlap > 0
+            for k, r1, r2 in zip(*np.nonzero(np.triu(touch, 1)) if touch.any() else (),
+                                 strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
                 hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
                              f"'{names[1]}' collided, their footprints overlapping by "

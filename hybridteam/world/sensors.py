@@ -194,17 +194,39 @@ def cast(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray | lis
     if o.ndim != 3 or o.shape[2] != 2 or d.shape != o.shape:
         raise ValueError(f"origins and directions must both have shape (m, k, 2), got "
                          f"{o.shape} and {d.shape}")
+    return cast_at(o, d, Targets.of(segments, _as_circles(circles, o.shape[0])), max_range)
+
+
+@dataclass(frozen=True)
+class Targets:
+    """What rays are cast against, prepared once: a component whose walls do not move
+    builds it at its start rather than at every reading (the per-segment columns cost as
+    much as the casting itself on a handful of rays)."""
+
+    segments: tuple[np.ndarray, ...]  # the kernel's per-segment columns (:func:`_prepare`)
+    circles: np.ndarray  # (c, 3) shared or (m, c, 3) per instance
+
+    @classmethod
+    def of(cls, segments: np.ndarray | list | None, circles: np.ndarray | None = None
+           ) -> Targets:
+        seg = np.zeros((0, 4)) if segments is None else as_segments(segments)
+        return cls(_prepare(seg), np.zeros((0, 3)) if circles is None else circles)
+
+
+def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
+            max_range: float | np.ndarray = np.inf) -> np.ndarray:
+    """:func:`cast` on float arrays ``(m, k, 2)`` already checked, against prepared
+    ``targets``: the same distances, bit for bit."""
     m, k, _ = o.shape
-    seg = np.zeros((0, 4)) if segments is None else as_segments(segments)
-    circ = _as_circles(circles, m)
+    circ = targets.circles
     norm = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1])
     if np.any(norm == 0.0) or not np.all(np.isfinite(norm)):
         raise ValueError("ray directions must be finite and non-zero")
     ox, oy = o[..., 0].ravel(), o[..., 1].ravel()
     ux, uy = (d[..., 0] / norm).ravel(), (d[..., 1] / norm).ravel()
     out = np.full(m * k, np.inf)
-    prepared = _prepare(seg)
-    n_seg, n_circ = seg.shape[0], circ.shape[-2]
+    prepared = targets.segments
+    n_seg, n_circ = prepared[0].size, circ.shape[-2]
     if circ.ndim == 3 and n_circ:
         owner = np.repeat(np.arange(m), k)  # instance of each flattened ray
     step = max(1, min(m * k, _BLOCK // max(1, n_seg, n_circ)))
@@ -296,9 +318,12 @@ class RangeRing:
             raise ValueError(f"poses must have shape (m, 3) [x, y, theta], got {p.shape}")
         cos, sin = np.cos(p[:, 2])[:, None], np.sin(p[:, 2])[:, None]
         lx, ly, dx, dy = self._local
-        origins = np.stack([p[:, 0:1] + (cos * lx - sin * ly),
-                            p[:, 1:2] + (sin * lx + cos * ly)], axis=-1)
-        directions = np.stack([cos * dx - sin * dy, sin * dx + cos * dy], axis=-1)
+        shape = (p.shape[0], lx.shape[1], 2)
+        origins, directions = np.empty(shape), np.empty(shape)
+        origins[..., 0] = p[:, 0:1] + (cos * lx - sin * ly)
+        origins[..., 1] = p[:, 1:2] + (sin * lx + cos * ly)
+        directions[..., 0] = cos * dx - sin * dy
+        directions[..., 1] = sin * dx + cos * dy
         return origins, directions
 
     def read(self, poses: np.ndarray, segments: np.ndarray | list | None,
