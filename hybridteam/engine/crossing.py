@@ -37,17 +37,19 @@ Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 
 def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
-                t: np.ndarray) -> np.ndarray:
-    """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx."""
+                t: np.ndarray, full: bool = False) -> np.ndarray:
+    """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx
+    (``full``: they are every instance, in order, so gathers can be views)."""
     st = ens.states[a]
     out = np.empty((len(st.ca.watches), idx.size), bool)
-    v, p = st.v[idx], st.p[idx]
+    sel = slice(None) if full else idx
+    v, p = st.v[sel], st.p[sel]
     ctx: Ctx | None = None
     mode = -1
     for w, watch in enumerate(st.ca.watches):
         if watch.mode != mode:
             mode = watch.mode
-            ctx = Ctx(x, v, p, t, t - st.entry[idx, mode])
+            ctx = Ctx(x, v, p, t, t - st.entry[sel, mode])
         out[w] = watch.atom.truth(ctx)  # assignment broadcasts scalars
     return out
 
@@ -94,9 +96,11 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     st = ens.states[a]
     h, t0 = ens.h[idx], ens.t0[idx]
     t1 = t0 + h
-    end = watch_truth(ens, a, idx, x_end, t1)
-    watched = st.watched[:, idx]  # (nw, m)
-    truths = [st.truth[:, idx]]
+    full = idx.size == ens.n  # idx is every instance (the live ones, sorted)
+    end = watch_truth(ens, a, idx, x_end, t1, full)
+    sel = slice(None) if full else idx
+    watched = st.watched[:, sel]  # (nw, m)
+    truths = [st.truth[:, sel]]
     checks = thetas.size - 2
     if not watched.any() or (checks == 0 and not (watched & (end != truths[0])).any()):
         return end, None
