@@ -89,6 +89,7 @@ class EnsembleAccess(WorldAccess):
         cols = list(range(st.x.shape[1])) if names is None else \
             [self._column(a, st.ca.state_index, n, "state") for n in names]
         st.x[np.ix_(np.asarray(idx, np.intp), cols)] = values
+        self._ens.reconfigured[idx] = True  # watched truths are read afresh there
 
     def has_pose(self, agent: Agent) -> bool:
         return self._pose_cols[self.agent(agent)] is not None

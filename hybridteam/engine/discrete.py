@@ -30,12 +30,20 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     """Run micro-steps for instances ``idx`` (all at their current time) until quiescent."""
     ens.micro[idx] = 0
     active = idx
+    # instances whose last micro-step only consumed an event that changed nothing the
+    # urgent guards read (no transition fired): their urgent transitions are still all
+    # disabled, so they are not evaluated again (guards reading stream estimates excepted)
+    quiet = np.zeros(ens.n, bool)
+    recheck = any(st.eventless_estimates for st in ens.states)
     while active.size:
         fired = np.zeros(ens.n, bool)
+        took = np.zeros(ens.n, bool)  # a transition fired
+        urgent = active[~quiet[active]] if not recheck else active
         for ag, st in zip(ens.cteam.agents, ens.states, strict=True):
             if ag.eventless:
-                sel = active[~ens.done[active]]
+                sel = urgent[~ens.done[urgent]]
                 fired[sel] |= select_and_fire(ens, ag, st, sel, ag.eventless, None)
+        took |= fired
         rest = active[~fired[active] & ~ens.done[active]]
         if rest.size:
             for (kind, agent, name), members in ens.queue.pop_due(rest, ens.t).items():
@@ -49,17 +57,21 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                                           [p for (_, p), ok in zip(members, live, strict=True)
                                            if ok])
                     continue
+                # an event nobody waits for is dropped, as in statecharts
+                waiting = ag.triggered.get(name, [])
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
                     keep = ens.network.receive(inst, ens.t[inst], payloads,
                                                screen=ens.screen) & ~ens.done[inst]
                     inst = inst[keep]
-                    msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
+                    if waiting:
+                        msg = message_fields([p for p, k in zip(payloads, keep, strict=True)
+                                              if k])
                 else:
                     inst = inst[~ens.done[inst]]
-                # an event nobody waits for is dropped, as in statecharts
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
-                select_and_fire(ens, ag, st, inst, ag.triggered.get(name, []), cause, msg)
+                took[inst] |= select_and_fire(ens, ag, st, inst, waiting, cause, msg)
+        quiet = fired & ~took
         stepped = active[fired[active]]
         ens.changed[stepped] = True
         ens.micro[stepped] += 1
@@ -158,6 +170,7 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
             on = sub[st.active[sub, b]]
             st.deadline[on, slot_b] = st.deadline[on, slot_a]
     ens.rec.transition(ag.index, j, sub, ens.t[sub], ens.micro[sub], cause)
+    ens.reconfigured[sub] = True
     ens.last_fired[sub] = ag.index * 1_000_000 + j
     _zeno_window(ens, ag, st, sub)
 

@@ -43,9 +43,12 @@ class Ensemble:
 
     Clocks: ``t`` (now), ``t0`` and ``h`` (start and length of the step being taken),
     ``h_rk`` (each instance's next Runge–Kutta step size, NaN until first needed).
-    Discrete bookkeeping: ``done`` and ``outcomes``, ``changed`` (configuration changed at
-    this instant), ``micro`` (superdense index), ``last_fired`` (for Zeno messages),
-    ``timer[a]`` (agent ``a``'s next ``after:`` deadline), the Zeno rings. Outputs:
+    Discrete bookkeeping: ``done`` and ``outcomes``, ``changed`` (something happened at
+    this instant: an event was consumed or a transition fired), ``reconfigured`` (a
+    transition fired, or a world component set the state: what the drivers, watched
+    truths, timers and streams depend on), ``micro`` (superdense index), ``last_fired``
+    (for Zeno messages), ``timer[a]`` (agent ``a``'s next ``after:`` deadline), the Zeno
+    rings. Outputs:
     ``sample_times``, ``out_k`` (next sample per instance), ``rec``.
     """
 
@@ -61,6 +64,7 @@ class Ensemble:
         self.h = np.zeros(n)
         self.done = np.zeros(n, bool)
         self.changed = np.zeros(n, bool)
+        self.reconfigured = np.zeros(n, bool)
         self.micro = np.zeros(n, np.int64)
         self.last_fired = np.full(n, -1, np.int64)
         self.outcomes: list[dict | None] = [None] * n

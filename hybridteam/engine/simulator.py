@@ -126,6 +126,7 @@ class Simulator:
         ens = self.ensemble
         if not entering:
             ens.changed[idx] = False
+            ens.reconfigured[idx] = False
         if discrete is None:
             discrete = idx
         if ens.world.any:  # components see the state first; events they raise run now
@@ -141,23 +142,26 @@ class Simulator:
             ens.rec.snapshot(idx, ens.t[idx], ens.world.sample(idx))
         live = idx[~ens.done[idx]]
         changed = live[ens.changed[live]] if not entering else live
+        # an event consumed without a transition changes no mode, variable or state: what
+        # depends on those is refreshed only where the configuration changed
+        config = live[ens.reconfigured[live]] if not entering else live
         for a, st in enumerate(ens.states):
             if live.size and st.after_slots.size:
                 # the earliest deadline ahead changes only with the configuration or once
                 # it is reached: elsewhere the stored one is still the earliest ahead
                 due = live[ens.t[live] >= ens.timer[a][live]]
-                due = union(due, changed)
+                due = union(due, config)
                 if due.size:
                     ens.timer[a][due] = st.next_timer(due, ens.t[due])
-            if changed.size:
-                st.update_drivers(changed)
+            if config.size:
+                st.update_drivers(config)
                 if st.ca.plant.kind == "flow":
-                    st.rk[changed] = True
-                if st.ca.watches:
-                    st.truth[:, changed] = watch_truth(ens, a, changed, st.x[changed],
-                                                       ens.t[changed])
-            sample_laws(ens, a, live, changed)
-        ens.streams.update(live)
+                    st.rk[config] = True
+            fresh = changed if st.watch_estimates else config
+            if st.ca.watches and fresh.size:
+                st.truth[:, fresh] = watch_truth(ens, a, fresh, st.x[fresh], ens.t[fresh])
+            sample_laws(ens, a, live, changed)  # a mode entered now re-samples on news
+        ens.streams.update(live, config)
         if crossed is not None and crossed.size:
             changed = union(changed, crossed[~ens.done[crossed]])
         check_instances(ens, changed)

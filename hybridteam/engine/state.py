@@ -46,6 +46,14 @@ class AgentState:
         self.after_slots = np.array([ca.transitions[j].after_slot for j in ca.after], np.intp)
         self.after_sources = np.array([ca.transitions[j].source for j in ca.after], np.intp)
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
+        #: whether a watched atom may read stream estimates (``est_*``), which a message
+        #: changes without any transition: its truths are then refreshed after every event
+        self.watch_estimates = any("est_" in w.atom.source for w in ca.watches)
+        #: whether an urgent transition's guard reads stream estimates (see discrete_phase)
+        self.eventless_estimates = any(
+            ca.transitions[j].guard is not None and
+            any(n.startswith("est_") for n in ca.transitions[j].guard.names)
+            for j in ca.eventless)
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods

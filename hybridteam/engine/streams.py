@@ -115,26 +115,33 @@ class Streams:
     def any(self) -> bool:
         return any(self.streams)
 
-    def update(self, idx: np.ndarray) -> None:
+    def update(self, idx: np.ndarray, config: np.ndarray | None = None) -> None:
         """After an instant: start streams whose modes were entered (first copy now), stop
-        those whose modes were left, and send every copy that is due."""
+        those whose modes were left, and send every copy that is due. ``config``: the
+        instances of ``idx`` whose configuration may have changed (None: any); elsewhere
+        a stream is on exactly where its next copy is due at a finite time."""
         ens = self.ens
         if idx.size == 0 or not self.any:
             return
         t = ens.t[idx]
+        steady = config is not None and config.size == 0
         for a, mine in enumerate(self.streams):
             if not mine:
                 continue
             st = ens.states[a]
-            active = st.active[idx]
+            active = None if steady else st.active[idx]
             for s, cs in enumerate(mine):
                 due = self.due[a][s]
-                on = active[:, cs.modes].any(axis=1) if cs.modes else np.ones(idx.size, bool)
-                was = np.isfinite(due[idx])
-                due[idx[~on]] = np.inf
-                start = on & ~was
-                due[idx[start]] = t[start]
-                send = on & (t >= due[idx])
+                if steady:  # on where due is finite, and t >= inf never holds
+                    send = t >= due[idx]
+                else:
+                    on = active[:, cs.modes].any(axis=1) if cs.modes else \
+                        np.ones(idx.size, bool)
+                    was = np.isfinite(due[idx])
+                    due[idx[~on]] = np.inf
+                    start = on & ~was
+                    due[idx[start]] = t[start]
+                    send = on & (t >= due[idx])
                 if send.any():
                     sub = idx[send]
                     ctx = st.ctx(sub, ens.t[sub])

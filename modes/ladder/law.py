@@ -75,6 +75,21 @@ def search_windows(path_x: Array, path_y: Array, window: int) -> tuple[Array, Ar
             np.lib.stride_tricks.sliding_window_view(path_y, size))
 
 
+class Guide:
+    """One robot's guide paths for a batch, in the corner frame and padded for the search:
+    the same for every period of a run, so a caller that keeps it (the engine law does)
+    prepares them once instead of at every period, with the same values."""
+
+    __slots__ = ("base", "fpath", "path_x", "path_y", "windows")
+
+    def __init__(self, path: Array, frame: CornerFrame, window: int) -> None:
+        self.fpath = frame.to_frame(path)
+        n, count, _ = self.fpath.shape
+        self.path_x, self.path_y = pad_paths(self.fpath, window)
+        self.windows = search_windows(self.path_x, self.path_y, window)
+        self.base = np.arange(n) * (count + 2 * window)
+
+
 def nearest_on_path(x: Array, y: Array, windows: tuple[Array, Array], base: Array,
                     idx: Array, window: int, last: int) -> Array:
     """Index of the guide-path point nearest the robot, searched within ``idx +- window``.
@@ -246,7 +261,8 @@ def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
 
 def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray,
          params: dict[str, np.ndarray], corridor: Corridor, *, window: int = 8,
-         frame: CornerFrame | None = None) -> tuple[np.ndarray, np.ndarray]:
+         frame: CornerFrame | None = None, guide: Guide | None = None
+         ) -> tuple[np.ndarray, np.ndarray]:
     """One control period of one robot of each of n pairs: ``(displacement (n, 2), idx)``.
 
     World coordinates: ``own``/``partner`` are ``(n, 2)`` start-of-period positions,
@@ -255,17 +271,17 @@ def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray
     ``lookahead``, ``olim``, ``orsp``, ``kc``, ``kr``, ``sc``, ``sc_partner``, ``radius``,
     ``ladder_margin`` and, if some ``kr`` is nonzero, ``goal_heading`` ``(n, 2)`` (unit,
     from the partner's goal to this robot's). Returns the displacement and the new index.
+    ``guide``: ``path`` prepared (:class:`Guide`, same ``frame`` and ``window``), if kept.
     """
     frame = frame or CornerFrame.of(corridor)
     prm = {k: np.asarray(v) for k, v in params.items()}
-    n, count, _ = path.shape
+    count = path.shape[1]
     last = count - 1
     x, y = frame.to_frame(own).T
     px, py = frame.to_frame(partner).T
-    fpath = frame.to_frame(path)
-    path_x, path_y = pad_paths(fpath, window)
-    windows = search_windows(path_x, path_y, window)
-    base = np.arange(n) * (count + 2 * window)
+    guide = guide or Guide(path, frame, window)
+    fpath, path_x, path_y = guide.fpath, guide.path_x, guide.path_y
+    windows, base = guide.windows, guide.base
     share = prm["sc_partner"] / (prm["sc"] + prm["sc_partner"])
     pshare = prm["sc"] / (prm["sc"] + prm["sc_partner"])
     ox, oy, dist = spring_offsets(x, y, px, py, prm["length"], share)
