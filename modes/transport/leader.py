@@ -69,7 +69,11 @@ def leader_estimate(ctx: LawContext) -> LeaderState:
     omega = fields.get("omega", np.zeros(ctx.size))
 
     def clean(a: np.ndarray) -> np.ndarray:
-        return np.where(ok, np.nan_to_num(np.asarray(a, dtype=float)), 0.0)
+        a = np.asarray(a, dtype=float)
+        out = np.where(ok, a, 0.0)
+        if np.isfinite(out).all():  # as nan_to_num would give, without its cost
+            return out
+        return np.where(ok, np.nan_to_num(a), 0.0)
 
     return LeaderState(ok, who, clean(x), clean(y), clean(th), clean(v), clean(vx),
                        clean(vy), clean(omega))
