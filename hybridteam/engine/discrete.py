@@ -32,9 +32,10 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     active = idx
     # instances whose last micro-step only consumed an event that changed nothing the
     # urgent guards read (no transition fired): their urgent transitions are still all
-    # disabled, so they are not evaluated again (guards reading stream estimates excepted)
+    # disabled, so they are not evaluated again (unless a guard may change on its own:
+    # AgentState.urgent_volatile)
     quiet = np.zeros(ens.n, bool)
-    recheck = any(st.eventless_estimates for st in ens.states)
+    recheck = any(st.urgent_volatile for st in ens.states)
     while active.size:
         fired = np.zeros(ens.n, bool)
         took = np.zeros(ens.n, bool)  # a transition fired

@@ -49,11 +49,10 @@ class AgentState:
         #: whether a watched atom may read stream estimates (``est_*``), which a message
         #: changes without any transition: its truths are then refreshed after every event
         self.watch_estimates = any("est_" in w.atom.source for w in ca.watches)
-        #: whether an urgent transition's guard reads stream estimates (see discrete_phase)
-        self.eventless_estimates = any(
-            ca.transitions[j].guard is not None and
-            any(n.startswith("est_") for n in ca.transitions[j].guard.names)
-            for j in ca.eventless)
+        #: whether an urgent guard may change its answer while no transition fires (see
+        #: discrete_phase): it reads stream estimates, or it is not a plain expression (the
+        #: verifier's skeleton answers free comparisons from its oracle)
+        self.urgent_volatile = any(_volatile(ca.transitions[j].guard) for j in ca.eventless)
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
@@ -169,3 +168,11 @@ class AgentState:
         """Active leaf modes of instance ``i`` (for messages)."""
         ca = self.ca
         return [ca.modes[m].path for m in ca.leaves if self.active[i, m]]
+
+
+def _volatile(guard) -> bool:
+    """Whether a guard can change truth without a transition (see ``urgent_volatile``)."""
+    if guard is None:
+        return False
+    names = getattr(guard, "names", None)
+    return names is None or any(n.startswith("est_") for n in names)
