@@ -160,7 +160,9 @@ class Simulator:
             fresh = changed if st.watch_estimates else config
             if st.ca.watches and fresh.size:
                 st.truth[:, fresh] = watch_truth(ens, a, fresh, st.x[fresh], ens.t[fresh])
-            sample_laws(ens, a, live, changed)  # a mode entered now re-samples on news
+            # changed, not config: a law whose mode was entered at this instant samples
+            # again when a copy arrives later in the instant (it may read the copy)
+            sample_laws(ens, a, live, changed)
         ens.streams.update(live, config)
         if crossed is not None and crossed.size:
             changed = union(changed, crossed[~ens.done[crossed]])

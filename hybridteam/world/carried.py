@@ -271,7 +271,7 @@ class CarriedPayload(WorldComponent):
         """Where rays ``(m, R, 2)`` of instances ``idx`` meet the outline: ``(m, R)``.
 
         Cast in the body frame, where the outline is one set of segments for every
-        instance of a size, so one :func:`~hybridteam.world.sensors.cast` serves them all
+        instance of a size, so one :func:`~hybridteam.world.sensors.cast_at` serves them all
         (a loop over the distinct sizes, usually one, never over instances).
         """
         pose = self.pose[idx]

@@ -44,7 +44,7 @@ from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import MODES, box_sdf, name_hit, robot_overlaps
 from hybridteam.world.component import WorldComponent, settings_error, world_component
-from hybridteam.world.sensors import RangeRing, Targets, _as_circles, cast_at, clearance
+from hybridteam.world.sensors import RangeRing, Targets, cast_at, clearance
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -230,7 +230,7 @@ class Obstacles(WorldComponent):
         self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
             parsed["boxes"]
         self.segments = np.concatenate([self.walls, _box_edges(self.boxes)])
-        self.targets = Targets.of(self.segments, _as_circles(self.circles, n))  # they stay
+        self.targets = Targets.of(self.segments, self.circles, n)  # walls do not move
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
         self.raises = tuple(dict.fromkeys(r.event for r in self.rules))

@@ -194,7 +194,7 @@ def cast(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray | lis
     if o.ndim != 3 or o.shape[2] != 2 or d.shape != o.shape:
         raise ValueError(f"origins and directions must both have shape (m, k, 2), got "
                          f"{o.shape} and {d.shape}")
-    return cast_at(o, d, Targets.of(segments, _as_circles(circles, o.shape[0])), max_range)
+    return cast_at(o, d, Targets.of(segments, circles, o.shape[0]), max_range)
 
 
 @dataclass(frozen=True)
@@ -207,10 +207,11 @@ class Targets:
     circles: np.ndarray  # (c, 3) shared or (m, c, 3) per instance
 
     @classmethod
-    def of(cls, segments: np.ndarray | list | None, circles: np.ndarray | None = None
-           ) -> Targets:
+    def of(cls, segments: np.ndarray | list | None, circles: np.ndarray | list | None = None,
+           m: int = 0) -> Targets:
+        """Walls and circles as :func:`cast` takes them (circles per instance: ``m``)."""
         seg = np.zeros((0, 4)) if segments is None else as_segments(segments)
-        return cls(_prepare(seg), np.zeros((0, 3)) if circles is None else circles)
+        return cls(_prepare(seg), _as_circles(circles, m))
 
 
 def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
