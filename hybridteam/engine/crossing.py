@@ -292,7 +292,8 @@ class _Segment:
         _, g = _illinois(dense, lo.copy(), hi.copy(), truth_lo, tol)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
-        slope = (dense(everyone, b_)[1] - dense(everyone, a_)[1]) / (b_ - a_)
+        both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
+        slope = (both[: rows.size] - both[rows.size:]) / (b_ - a_)  # rows are independent
         m_g = exact(everyone, g)[1]
         with np.errstate(all="ignore"):
             g1 = g - m_g / slope
@@ -307,8 +308,8 @@ class _Segment:
                 break
             a_ = np.maximum(span_lo[todo], guess[todo] - width[todo])
             b_ = np.minimum(span_hi[todo], guess[todo] + width[todo])
-            ta, ma = exact(todo, a_)
-            tb, mb = exact(todo, b_)
+            tt, mm = exact(np.concatenate([todo, todo]), np.concatenate([a_, b_]))  # one step
+            ta, tb, ma, mb = tt[: todo.size], tt[todo.size:], mm[: todo.size], mm[todo.size:]
             ok = (ta == truth_lo[todo]) & (tb != truth_lo[todo])
             sel = todo[ok]
             new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]
