@@ -219,3 +219,30 @@ def test_obstacles_are_drawn_as_grey_shapes_in_the_trajectory_plot():
                                     for p in shapes)
     (walls,) = [c for c in ax.collections if c.get_gid() == "obstacle-walls"]
     np.testing.assert_allclose(walls.get_segments()[0], [[2, -1], [2, 1]])
+
+
+def test_a_reading_skips_the_static_scene_only_where_it_is_out_of_range_bit_for_bit():
+    """A detect rule's reading does not cast against walls, posts and boxes where this
+    instant's centre clearance puts all of them beyond the ring's hull plus range; what it
+    reads there must be exactly what the full cast reads (max_range), everywhere else the
+    cast itself. Poses at random, and on the edge: 0.3 + 2.0 from the wall, facing it."""
+    import hybridteam.world.obstacles as obstacles_module
+
+    rng = np.random.default_rng(7)
+    n = 3000
+    sim = Simulator(compile_team(load(IR_WALL)), n, duration=0.0)
+    sim.run()
+    ens = sim.ensemble
+    (obs,) = [c for c in ens.world.components if isinstance(c, Obstacles)]
+    x, y, th = rng.uniform(-4, 5, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)
+    x[:4], y[:4], th[:4] = [-0.3, -0.3 - 1e-12, -0.3 + 1e-12, -0.3 - 1e-6], 0.0, 0.0
+    ens.states[0].x[:, 0], ens.states[0].x[:, 1], ens.states[0].x[:, 2] = x, y, th
+    idx = np.arange(n)
+    reach = obs._measure(sim.access, idx)[0]
+    ring = obs.rings[(0, "ir")]
+    short = obs.read(0, ring, idx, reach)
+    np.testing.assert_array_equal(short, obs.read(0, ring, idx))
+    far = reach - ring.mount_radius > ring.max_range + obstacles_module._SLACK * 10
+    assert n / 10 < far.sum() < n * 9 / 10  # both ways were taken
+    assert (short[far] == ring.max_range).all()
+    assert short[0, 0] == ring.max_range and short[3, 0] == ring.max_range  # on the edge

@@ -49,6 +49,10 @@ from hybridteam.world.sensors import RangeRing, Targets, cast_at, clearance
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
 
+#: Rounding allowance (relative to coordinates and range) of the test that lets a reading
+#: skip casting against static obstacles beyond the ring's range (``Obstacles.read``)
+_SLACK = 1e-9
+
 _RULE_KEYS = ("agent", "sensor", "beams", "sector", "below", "raise", "ring")
 
 
@@ -274,11 +278,29 @@ class Obstacles(WorldComponent):
             return None
         return self.rings.setdefault((a, sensor), preset.ring(sensor))
 
-    def read(self, a: int, ring: RangeRing, idx: np.ndarray) -> np.ndarray:
+    def read(self, a: int, ring: RangeRing, idx: np.ndarray,
+             reach: np.ndarray | None = None) -> np.ndarray:
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
-        every payload's outline: ``(m, count)``."""
-        origins, directions = ring.rays(self._poses(a, idx))
-        dist = cast_at(origins, directions, self.targets, ring.max_range)
+        every payload's outline: ``(m, count)``.
+
+        ``reach``: where the robot's centre is known to be farther than this from every
+        static obstacle (this instant's clearances), no ray can meet one within the ring's
+        range (a ray leaves the ring's mount circle), so those rows read ``max_range`` from
+        the static scene without casting — what the cast would give, since it clips there.
+        """
+        poses = self._poses(a, idx)
+        origins, directions = ring.rays(poses)
+        near = None
+        if reach is not None:
+            slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)
+            near = reach - ring.mount_radius <= ring.max_range + slack
+        if near is None or near.all():
+            dist = cast_at(origins, directions, self.targets, ring.max_range)
+        else:
+            dist = np.full(origins.shape[:2], float(ring.max_range))
+            if near.any():
+                dist[near] = cast_at(origins[near], directions[near], self.targets,
+                                     ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
         dist = dist.reshape(idx.size, ring.count, ring.rays_per_beam).min(axis=2)
@@ -298,28 +320,33 @@ class Obstacles(WorldComponent):
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         for p in self.late:
             p.settle(world, idx)
-        self._measure(world, idx)
+        reach = self._measure(world, idx)
         readings: dict[tuple[int, str], np.ndarray] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
             if key not in readings:
-                readings[key] = self.read(rule.agent, self.rings[key], idx)
+                readings[key] = self.read(rule.agent, self.rings[key], idx,
+                                          reach.get(rule.agent))
             near = readings[key][:, rule.beams].min(axis=1) < rule.below
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
             if rising.any():
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
-    def _measure(self, world: WorldAccess, idx: np.ndarray) -> None:
-        """Running minima of the robots' and the payloads' clearances, and collisions."""
+    def _measure(self, world: WorldAccess, idx: np.ndarray) -> dict[int, np.ndarray]:
+        """Running minima of the robots' and the payloads' clearances, and collisions.
+        Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
         hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
+        reach: dict[int, np.ndarray] = {}
         if self.planar:
             points = np.stack([self._poses(a, idx)[:, :2] for a in self.planar])  # (R, m, 2)
             pts = points.reshape(-1, 2)
             gap = clearance(pts, 0.0, self.walls, self.circles)
             if len(self.boxes):
                 gap = np.minimum(gap, box_sdf(pts, self.boxes))
-            gap = gap.reshape(len(self.planar), idx.size) - self.radius[:, None]
+            gap = gap.reshape(len(self.planar), idx.size)
+            reach = dict(zip(self.planar, gap, strict=True))
+            gap = gap - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
             for r, a in enumerate(self.planar) if (gap < 0).any() else ():
                 for k in np.flatnonzero(gap[r] < 0).tolist():
@@ -343,6 +370,7 @@ class Obstacles(WorldComponent):
                              f"payload '{p.values['name']}' hit an obstacle"))
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
+        return reach
 
     def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str]]) -> None:
         for i, who, what in hits:
