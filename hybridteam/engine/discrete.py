@@ -38,13 +38,12 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     recheck = any(st.urgent_volatile for st in ens.states)
     while active.size:
         fired = np.zeros(ens.n, bool)
-        took = np.zeros(ens.n, bool)  # a transition fired
         urgent = active[~quiet[active]] if not recheck else active
         for ag, st in zip(ens.cteam.agents, ens.states, strict=True):
             if ag.eventless:
                 sel = urgent[~ens.done[urgent]]
                 fired[sel] |= select_and_fire(ens, ag, st, sel, ag.eventless, None)
-        took |= fired
+        took = fired.copy()  # where a transition fired (events consumed join fired below)
         rest = active[~fired[active] & ~ens.done[active]]
         if rest.size:
             for (kind, agent, name), members in ens.queue.pop_due(rest, ens.t).items():

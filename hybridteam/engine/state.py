@@ -48,7 +48,8 @@ class AgentState:
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
         #: whether a watched atom may read stream estimates (``est_*``), which a message
         #: changes without any transition: its truths are then refreshed after every event
-        self.watch_estimates = any("est_" in w.atom.source for w in ca.watches)
+        self.watch_estimates = any(_reads_estimates(w.atom if w.owner is None else w.owner)
+                                   for w in ca.watches)
         #: whether an urgent guard may change its answer while no transition fires (see
         #: discrete_phase): it reads stream estimates, or it is not a plain expression (the
         #: verifier's skeleton answers free comparisons from its oracle)
@@ -171,8 +172,17 @@ class AgentState:
 
 
 def _volatile(guard) -> bool:
-    """Whether a guard can change truth without a transition (see ``urgent_volatile``)."""
+    """Whether a guard can change truth without a transition (see ``urgent_volatile``):
+    it reads stream estimates, or it is not a compiled expression (no ``names``)."""
     if guard is None:
         return False
-    names = getattr(guard, "names", None)
-    return names is None or any(n.startswith("est_") for n in names)
+    return getattr(guard, "names", None) is None or _reads_estimates(guard)
+
+
+def _reads_estimates(expr) -> bool:
+    """Whether an expression (its names) or an atom (its text, a superset) reads stream
+    estimates (``est_*``), which a copy's arrival changes."""
+    names = getattr(expr, "names", None)
+    if names is not None:
+        return any(n.startswith("est_") for n in names)
+    return "est_" in expr.source
