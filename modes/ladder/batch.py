@@ -64,7 +64,8 @@ def rows(request: BatchRequest) -> list[dict[str, Any]] | None:
         approach=one["approach"] if one["approach"] > 0 else None,
         alpha_inset=one["alpha_inset"], window=int(windows[0]), arrive_tol=one["arrive_tol"],
         stuck_window=int(one["stuck_window"]), stuck_tol=one["stuck_tol"],
-        max_steps=int(np.floor(request.duration)))
+        max_steps=int(np.floor(request.duration)), correction=str(v["correction"]),
+        update=str(v["update"]))
     start = np.stack([np.stack([r.initial["x"], r.initial["y"]], axis=-1) for r in robots])
     pairs = Pairs(np.asarray(v["length"], float).copy(),
                   {k: np.stack([r.params[k] for r in robots]) for k in ROBOT_FIELDS})

@@ -34,7 +34,8 @@ def carry(ctx: LawContext) -> np.ndarray:
     move, nearest = law.step(own, ctx.sense("partner"), path,
                              ctx.recall("nearest", 0.0).astype(np.int64), params,
                              ctx.sense("corridor"), window=window, frame=frame,
-                             guide=_guide(path, frame, window))
+                             guide=_guide(path, frame, window),
+                             correction=ctx.sense("correction"))
     ctx.keep("nearest", nearest)
     return np.column_stack([move, np.zeros(ctx.size)])
 

@@ -32,7 +32,10 @@ OUTCOMES = ("running", "success", "stuck", "link_broken")
 #: Safety distance of the skip tests in `_run` (far above rounding at corridor scale).
 _SLACK = 1e-6
 
-_PAIR = ("length", "best", "improved_at", "outcome", "steps", "corner_steps")
+_PAIR = ("length", "best", "improved_at", "outcome", "steps", "corner_steps", "cracked")
+
+#: Robot rows moving first and second in each period, by ``Settings.update``.
+ORDERS = {"synchronous": None, "front_first": (0, 1), "rear_first": (1, 0)}
 _ROBOT = ("x", "y", "idx", "base", "gx", "gy", "path", "corner_path", "max_offset", "v_max",
           "ahead", "share", "coef", "orsp", "olim", "kr", "radius", "margin", "hx", "hy")
 
@@ -85,6 +88,7 @@ def _initial(pairs: Pairs, start: np.ndarray, goal: np.ndarray,
         "length": pairs.length.astype(float).copy(), "best": np.full(n, np.inf),
         "improved_at": np.zeros(n, dtype=np.int64), "outcome": np.zeros(n, dtype=np.int8),
         "steps": np.zeros(n, dtype=np.int64), "corner_steps": np.zeros(n, dtype=np.int64),
+        "cracked": np.zeros(n, dtype=bool),
         "x": start[..., 0].copy(), "y": start[..., 1].copy(),
         "idx": np.zeros((2, n), dtype=np.int64),
         "base": np.arange(2 * n, dtype=np.int64).reshape(2, n) * (
@@ -111,8 +115,7 @@ def simulate(pairs: Pairs, corridor: Corridor | None = None, settings: Settings 
     corridor = corridor or corridor_with_turn()
     settings = settings or Settings()
     pairs.check()
-    if settings.window < 1 or settings.path_points < 2:
-        raise ValueError("settings need window >= 1 and path_points >= 2")
+    settings.check()
     scene = build(pairs, corridor, settings, start)
     frame = CornerFrame.of(corridor)
     window, last = settings.window, settings.path_points - 1
@@ -158,19 +161,15 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
     have finished to compact them (returns ``(step, live mask)``). Updates in place."""
     length, best, improved_at = work["length"], work["best"], work["improved_at"]
     outcome, steps, corner_steps = work["outcome"], work["steps"], work["corner_steps"]
-    x, y, idx, base, gx, gy = (work[k] for k in ("x", "y", "idx", "base", "gx", "gy"))
+    x, y, idx, gx, gy = (work[k] for k in ("x", "y", "idx", "gx", "gy"))
     path, corner_path, max_offset = work["path"], work["corner_path"], work["max_offset"]
-    v_max, ahead, share, coef = work["v_max"], work["ahead"], work["share"], work["coef"]
-    orsp, olim, kr, radius, margin = (work[k] for k in ("orsp", "olim", "kr", "radius",
-                                                          "margin"))
-    hx, hy = work["hx"], work["hy"]
+    share, olim, cracked = work["share"], work["olim"], work["cracked"]
     w_in, w_out = frame.width_in, frame.width_out
     stuck_tol, arrive_tol = settings.stuck_tol, settings.arrive_tol
     stuck_window, max_steps = settings.stuck_window, settings.max_steps
-    rotate = (kr != 0.0) if np.count_nonzero(kr) else None
-    half_length = 0.5 * length
-    reach = radius + v_max + _SLACK
-    far_ladder = -margin - _SLACK
+    motion = _motion_of(work, path_x, path_y, windows, frame, window, last,
+                        settings.correction)
+    order = ORDERS[settings.update]
     m = length.size
     live = np.ones(m, dtype=bool)
     dead = None
@@ -191,7 +190,7 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
         np.copyto(best, progress, where=better)
         np.copyto(improved_at, step, where=better)
         broken = no > olim
-        broken = broken[0] | broken[1]
+        broken = broken[0] | broken[1] | cracked
         arrived = dgoal <= arrive_tol
         arrived = arrived[0] & arrived[1]
         ended = broken | arrived
@@ -212,6 +211,60 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
             if 4 * alive <= 3 * m:
                 return step, live
         # Move every live pair one period.
+        mx, my, nearest = motion(x, y, ox, oy, no, ax, ay, dist, dgoal)
+        if dead is not None:
+            np.copyto(mx, 0.0, where=dead)
+            np.copyto(my, 0.0, where=dead)
+        if order is not None:
+            first, second = order
+            x1 = x.copy()
+            y1 = y.copy()
+            x1[first] += mx[first]
+            y1[first] += my[first]
+            ox1, oy1, dist1 = law.spring_offsets(x1, y1, x1[::-1], y1[::-1], length, share)
+            no1 = law.norm(ox1, oy1)
+            np.maximum(max_offset, no1, out=max_offset)
+            between = no1 > olim
+            cracked |= between[0] | between[1]
+            mx1, my1, _ = motion(x1, y1, ox1, oy1, no1, x1 + ox1, y1 + oy1, dist1,
+                                 law.norm(gx - x1, gy - y1))
+            mx[second] = mx1[second]
+            my[second] = my1[second]
+            if dead is not None:
+                np.copyto(mx, 0.0, where=dead)
+                np.copyto(my, 0.0, where=dead)
+        # A ladder with both ends beyond y = 0 (or x = 0) misses the corner square.
+        xa, ya, xb, yb = ax[0], ay[0], ax[1], ay[1]
+        corner = ~(((ya > 0.0) & (yb > 0.0)) | ((xa > 0.0) & (xb > 0.0)))
+        if np.count_nonzero(corner):
+            corner &= in_corner(xa, ya, xb, yb, w_in, w_out)
+        if dead is not None:
+            corner &= live
+        moved = law.norm(mx, my)
+        x += mx
+        y += my
+        np.copyto(idx, nearest)
+        path += moved
+        np.add(corner_path, moved, out=corner_path, where=corner)
+        np.add(corner_steps, 1, out=corner_steps, where=corner)
+        step += 1
+
+
+def _motion_of(work: dict[str, np.ndarray], path_x: np.ndarray, path_y: np.ndarray,
+               windows: tuple[np.ndarray, np.ndarray], frame: CornerFrame, window: int,
+               last: int, correction: str):
+    """The law for both robots of the working pairs, as a function of their positions
+    (and what the judge already computed from them): ``(mx, my, nearest)``."""
+    idx, base, hx, hy = work["idx"], work["base"], work["hx"], work["hy"]
+    v_max, ahead, coef, orsp = work["v_max"], work["ahead"], work["coef"], work["orsp"]
+    kr, radius, margin = work["kr"], work["radius"], work["margin"]
+    w_in, w_out = frame.width_in, frame.width_out
+    rotate = (kr != 0.0) if np.count_nonzero(kr) else None
+    half_length = 0.5 * work["length"]
+    reach = radius + v_max + _SLACK
+    far_ladder = -margin - _SLACK
+
+    def motion(x, y, ox, oy, no, ax, ay, dist, dgoal):
         nearest = law.nearest_on_path(x, y, windows, base, idx, window, last)
         tx, ty = law.target_vector(x, y, path_x, path_y, base, nearest, ahead, last, window)
         rx = ry = None
@@ -220,7 +273,7 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
                                          half_length)
         cx, cy = law.correction_vector(ox, oy, no, orsp, coef)
         mx, my = law.combine(tx, ty, rx, ry, law.arrival_factor(dgoal, v_max), cx, cy, v_max,
-                             rotate)
+                             rotate, correction)
         # The wall rules, skipped where they provably change nothing: a ladder with all
         # x (or all y) below -margin is farther than that from the inside of the turn; a
         # robot farther than radius + v_max from a wall cannot reach it in one step. The
@@ -234,20 +287,6 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
         d_inner = law.inner_wall_distance(x, y)
         if np.count_nonzero(d_inner < reach):
             mx, my = law.avoid_inner_walls(x, y, mx, my, radius, d_inner)
-        # A ladder with both ends beyond y = 0 (or x = 0) misses the corner square.
-        xa, ya, xb, yb = ax[0], ay[0], ax[1], ay[1]
-        corner = ~(((ya > 0.0) & (yb > 0.0)) | ((xa > 0.0) & (xb > 0.0)))
-        if np.count_nonzero(corner):
-            corner &= in_corner(xa, ya, xb, yb, w_in, w_out)
-        if dead is not None:
-            np.copyto(mx, 0.0, where=dead)
-            np.copyto(my, 0.0, where=dead)
-            corner &= live
-        moved = law.norm(mx, my)
-        x += mx
-        y += my
-        np.copyto(idx, nearest)
-        path += moved
-        np.add(corner_path, moved, out=corner_path, where=corner)
-        np.add(corner_steps, 1, out=corner_steps, where=corner)
-        step += 1
+        return mx, my, nearest
+
+    return motion

@@ -165,11 +165,20 @@ def correction_vector(ox: Array, oy: Array, no: Array, orsp: Array,
 
 
 def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, cx: Array,
-            cy: Array, v_max: Array, rotate: Array | None) -> tuple[Array, Array]:
+            cy: Array, v_max: Array, rotate: Array | None,
+            correction: str = "scaled") -> tuple[Array, Array]:
     """Motion vector ``v_max * CLAMP(g * unit(t + r) + c)`` (Sec. 3.2.2).
 
     Where ``rotate`` is false (k_r = 0) the target vector, already a unit vector, is used
     as it is; ``rotate`` None means false everywhere. ``g`` is :func:`arrival_factor`.
+
+    ``correction`` names the reading of how ``v_max`` enters (``ladder`` README, "Readings
+    of Section 3"): ``scaled`` is the printed formula, where the correction vector is a
+    fraction of the robot's speed (the paper's reason for normalizing ``t + r``: ``|c|``
+    must be able to match it); ``distance`` takes ``c`` as a distance per step, added to
+    the step ``v_max * unit(t + r)`` and the sum clamped at ``v_max`` (Fig. 6 draws ``c``
+    as a displacement); ``capped`` takes ``v_max`` only as the cap "the largest distance it
+    can cover in one step", the step being ``unit(t + r) + c`` clamped at ``v_max``.
     """
     if rotate is not None:
         sx = tx + rx
@@ -177,10 +186,21 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
         ns = np.maximum(norm(sx, sy), TINY)
         tx = np.where(rotate, sx / ns, tx)
         ty = np.where(rotate, sy / ns, ty)
-    sx = g * tx + cx
-    sy = g * ty + cy
-    cl = np.maximum(norm(sx, sy), 1.0)
-    return v_max * (sx / cl), v_max * (sy / cl)
+    if correction == "scaled":
+        sx = g * tx + cx
+        sy = g * ty + cy
+        cl = np.maximum(norm(sx, sy), 1.0)
+        return v_max * (sx / cl), v_max * (sy / cl)
+    if correction == "distance":
+        sx = v_max * (g * tx) + cx
+        sy = v_max * (g * ty) + cy
+    elif correction == "capped":
+        sx = g * tx + cx
+        sy = g * ty + cy
+    else:
+        raise ValueError(f"unknown correction reading '{correction}'")
+    cl = np.maximum(norm(sx, sy) / v_max, 1.0)
+    return sx / cl, sy / cl
 
 
 def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array) -> Array:
@@ -261,8 +281,8 @@ def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
 
 def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray,
          params: dict[str, np.ndarray], corridor: Corridor, *, window: int = 8,
-         frame: CornerFrame | None = None, guide: Guide | None = None
-         ) -> tuple[np.ndarray, np.ndarray]:
+         frame: CornerFrame | None = None, guide: Guide | None = None,
+         correction: str = "scaled") -> tuple[np.ndarray, np.ndarray]:
     """One control period of one robot of each of n pairs: ``(displacement (n, 2), idx)``.
 
     World coordinates: ``own``/``partner`` are ``(n, 2)`` start-of-period positions,
@@ -272,6 +292,7 @@ def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray
     ``ladder_margin`` and, if some ``kr`` is nonzero, ``goal_heading`` ``(n, 2)`` (unit,
     from the partner's goal to this robot's). Returns the displacement and the new index.
     ``guide``: ``path`` prepared (:class:`Guide`, same ``frame`` and ``window``), if kept.
+    ``correction``: how ``v_max`` enters (:func:`combine`).
     """
     frame = frame or CornerFrame.of(corridor)
     prm = {k: np.asarray(v) for k, v in params.items()}
@@ -302,7 +323,8 @@ def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray
     no = norm(ox, oy)
     cx, cy = correction_vector(ox, oy, no, prm["orsp"],
                                correction_coefficient(prm["kc"], prm["olim"], prm["orsp"]))
-    mx, my = combine(tx, ty, rx, ry, arrival_factor(dgoal, v_max), cx, cy, v_max, rotate)
+    mx, my = combine(tx, ty, rx, ry, arrival_factor(dgoal, v_max), cx, cy, v_max, rotate,
+                     correction)
     clear = ladder_clearance(x + ox, y + oy, px + pox, py + poy)
     mx, my = avoid_ladder_collision(mx, my, clear, prm["ladder_margin"])
     mx, my = avoid_walls(x, y, mx, my, prm["radius"], frame.width_in, frame.width_out)

@@ -12,6 +12,11 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
+#: Readings of how v_max enters the motion vector (see ``law.combine``).
+CORRECTIONS = ("scaled", "distance", "capped")
+#: Readings of the step: both robots on the same state, or one after the other.
+UPDATES = ("synchronous", "front_first", "rear_first")
+
 #: Per-robot fields, in the order random populations are drawn and arrays are stacked.
 ROBOT_FIELDS = ("v_max", "lookahead", "alpha", "olim", "orsp", "kc", "kr", "sc", "radius",
                 "ladder_margin")
@@ -55,6 +60,18 @@ class Settings:
     stuck_window: int = 200      # no progress for this many steps: stuck
     stuck_tol: float = 1.0       # progress = the sum of goal distances drops by more than this
     max_steps: int = 50_000      # hard stop, reported as stuck
+    # Readings of Section 3 where the paper admits more than one (README, "Readings"):
+    correction: str = "scaled"   # how v_max enters 3.2.2: scaled | distance | capped
+    update: str = "synchronous"  # who moves first in a step: synchronous | front_first | rear_first
+
+    def check(self) -> None:
+        """Raise ValueError for settings the stepper cannot run with."""
+        if self.window < 1 or self.path_points < 2:
+            raise ValueError("settings need window >= 1 and path_points >= 2")
+        for name, allowed in (("correction", CORRECTIONS), ("update", UPDATES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"unknown {name} reading '{getattr(self, name)}' "
+                                 f"(one of {', '.join(allowed)})")
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ def _nearest(px: list[float], py: list[float], x: float, y: float, idx: int, win
 def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], tips: list,
             dist: float, dgoal: list[float], nearest: list[int], paths: list,
             robots: tuple[Robot, Robot], length: float, heading: list, w_in: float,
-            w_out: float) -> tuple[float, float]:
+            w_out: float, correction: str) -> tuple[float, float]:
     """Motion vector of robot i (0 front, 1 rear) for this period, in the corner frame."""
     j = 1 - i
     rb = robots[i]
@@ -71,9 +71,15 @@ def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], ti
     cx, cy = k * o[i][0], k * o[i][1]
     # Combine and clamp (Sec. 3.2.2), with the arrival factor.
     g = min(dgoal[i] / rb.v_max, 1.0)
-    sx, sy = g * tx + cx, g * ty + cy
-    cl = max(_norm(sx, sy), 1.0)
-    mx, my = rb.v_max * (sx / cl), rb.v_max * (sy / cl)
+    if correction == "scaled":         # the printed formula
+        sx, sy = g * tx + cx, g * ty + cy
+        cl = max(_norm(sx, sy), 1.0)
+        mx, my = rb.v_max * (sx / cl), rb.v_max * (sy / cl)
+    else:                              # c a distance per step, or v_max only a cap
+        scale = rb.v_max if correction == "distance" else 1.0
+        sx, sy = scale * (g * tx) + cx, scale * (g * ty) + cy
+        cl = max(_norm(sx, sy) / rb.v_max, 1.0)
+        mx, my = sx / cl, sy / cl
     # Ladder-wall avoidance (Fig. 7b): the inside of the turn is x, y >= 0.
     (ax, ay), (bx, by) = tips[i], tips[j]
     da = _norm(min(ax, 0.0), min(ay, 0.0))
@@ -99,6 +105,20 @@ def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], ti
     return mx, my
 
 
+def _ladder(x: list[float], y: list[float], share: list[float],
+            length: float) -> tuple[list, list[float], list, float]:
+    """Offset vectors, their lengths, the ladder's ends and the robots' distance (Sec. 2)."""
+    o, no, tips = [], [], []
+    for i in range(2):
+        dx, dy = x[i] - x[1 - i], y[i] - y[1 - i]
+        dist = _norm(dx, dy)      # the same for both robots
+        f = share[i] * ((length - dist) / dist)
+        o.append((f * dx, f * dy))
+        no.append(_norm(f * dx, f * dy))
+        tips.append((x[i] + f * dx, y[i] + f * dy))
+    return o, no, tips, dist
+
+
 def _meets_corner(a: tuple[float, float], b: tuple[float, float], w_in: float,
                   w_out: float) -> bool:
     (ax, ay), (bx, by) = a, b
@@ -115,6 +135,7 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
     """Run one pair to success, stuck or a broken link; a :class:`Result` with n = 1."""
     corridor = corridor or corridor_with_turn()
     settings = settings or Settings()
+    settings.check()
     scene = build(Pairs.of(scenario), corridor, settings)
     frame = CornerFrame.of(corridor)
     start = frame.to_frame(scene.start[:, 0]).tolist()
@@ -136,15 +157,10 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
     path_len, corner_len, max_off = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
     best, improved_at, corner_steps, step = math.inf, 0, 0, 0
     trajectory, tip_trace = [], []
+    cracked = False      # a link broke between the two moves of a sequential step
     while True:
-        o, no, tips = [], [], []
+        o, no, tips, dist = _ladder(x, y, share, length)
         for i in range(2):
-            dx, dy = x[i] - x[1 - i], y[i] - y[1 - i]
-            dist = _norm(dx, dy)      # the same for both robots
-            f = share[i] * ((length - dist) / dist)
-            o.append((f * dx, f * dy))
-            no.append(_norm(f * dx, f * dy))
-            tips.append((x[i] + f * dx, y[i] + f * dy))
             max_off[i] = max(max_off[i], no[i])
         if record:
             trajectory.append([(x[0], y[0]), (x[1], y[1])])
@@ -153,7 +169,7 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
         progress = dgoal[0] + dgoal[1]
         if progress < best - settings.stuck_tol:
             best, improved_at = progress, step
-        if no[0] > robots[0].olim or no[1] > robots[1].olim:
+        if cracked or no[0] > robots[0].olim or no[1] > robots[1].olim:
             outcome = LINK_BROKEN
             break
         if dgoal[0] <= settings.arrive_tol and dgoal[1] <= settings.arrive_tol:
@@ -165,7 +181,20 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
         nearest = [_nearest(*paths[i], x[i], y[i], idx[i], settings.window,
                             settings.path_points - 1) for i in range(2)]
         move = [_motion(i, x, y, o, no, tips, dist, dgoal, nearest, paths, robots, length,
-                        heading, w_in, w_out) for i in range(2)]
+                        heading, w_in, w_out, settings.correction) for i in range(2)]
+        if settings.update != "synchronous":   # the second robot sees the first one moved
+            first = 0 if settings.update == "front_first" else 1
+            second = 1 - first
+            x1, y1 = list(x), list(y)
+            x1[first] += move[first][0]
+            y1[first] += move[first][1]
+            o1, no1, tips1, dist1 = _ladder(x1, y1, share, length)
+            for i in range(2):
+                max_off[i] = max(max_off[i], no1[i])
+            cracked = no1[0] > robots[0].olim or no1[1] > robots[1].olim
+            move[second] = _motion(second, x1, y1, o1, no1, tips1, dist1, dgoal, nearest,
+                                   paths, robots, length, heading, w_in, w_out,
+                                   settings.correction)
         corner = _meets_corner(tips[0], tips[1], w_in, w_out)
         for i in range(2):
             moved = _norm(move[i][0], move[i][1])

@@ -24,17 +24,26 @@ run through the engine reproduces the vectorized stepper (the tests compare them
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
-from hybridteam.library import BatchRequest, WorldAccess, WorldComponent, world_component
+from hybridteam.library import (
+    BatchRequest,
+    ModelError,
+    Team,
+    WorldAccess,
+    WorldComponent,
+    world_component,
+)
 from hybridteam.world.geometry import corridor_with_turn, segment_segment_distances
 
 from . import law
 from .frame import CornerFrame
 from .guide import guide_paths
 from .kernel import in_corner
+from .params import CORRECTIONS, UPDATES
 
 #: Corridor settings: one corridor for the whole ensemble.
 _CORRIDOR = ("width_in", "width_out", "outer_leg_in", "outer_leg_out")
@@ -50,8 +59,16 @@ class LadderCorridor(WorldComponent):
         "width_in": 200.0, "width_out": 200.0, "outer_leg_in": 1200.0, "outer_leg_out": 1200.0,
         "length": 450.0, "goal_gap": 70.0, "path_points": 160.0, "tension": 0.0,
         "approach": 0.0, "alpha_inset": 0.0, "arrive_tol": 0.5, "stuck_window": 200.0,
-        "stuck_tol": 1.0, "clearance": False,
+        "stuck_tol": 1.0, "clearance": False, "correction": "scaled", "update": "synchronous",
     }
+
+    @classmethod
+    def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
+        """The readings of Section 3 (``correction``, ``update``) must be known names."""
+        return [ModelError((name,), f"expected one of {', '.join(allowed)}, got "
+                           f"{values[name]!r}")
+                for name, allowed in (("correction", CORRECTIONS), ("update", UPDATES))
+                if name in values and values[name] not in allowed]
 
     @classmethod
     def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:
@@ -69,6 +86,12 @@ class LadderCorridor(WorldComponent):
                 raise ValueError(f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
                                  f"of the team (agents: {', '.join(names)})")
         self.robots = (world.agent(v["front"]), world.agent(v["rear"]))
+        self.correction = _reading(v, "correction", CORRECTIONS)
+        if _reading(v, "update", UPDATES) != "synchronous":
+            raise ValueError(
+                f"ladder.corridor: update '{v['update']}' moves one robot after the other "
+                "within a step, which only the vectorized stepper does (plain ladder teams in "
+                "studies and hybridteam.api.summaries); the engine moves both robots at once")
         dims = {}
         for key in (*_CORRIDOR, "path_points", "approach", "tension", "alpha_inset"):
             if np.ptp(v[key]) != 0:
@@ -176,7 +199,7 @@ class LadderCorridor(WorldComponent):
     # ------------------------------------------------------------------ what robots sense
     def senses(self) -> tuple[str, ...]:
         return ("partner", "path", "goal_heading", "length", "sc_partner", "corridor",
-                "frame")
+                "frame", "correction")
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> Any:
         if agent not in self.robots:
@@ -196,6 +219,8 @@ class LadderCorridor(WorldComponent):
             return self.corridor
         if name == "frame":
             return self.frame
+        if name == "correction":
+            return self.correction
         raise KeyError(name)
 
     # ------------------------------------------------------------------ results
@@ -242,3 +267,12 @@ class LadderCorridor(WorldComponent):
                       for r, a in enumerate(self.robots)}
         return {"world": world, "payloads": ["ladder"], "payload_shapes": {"ladder": shape},
                 "footprints": footprints}
+
+
+def _reading(values: dict[str, Any], name: str, allowed: tuple[str, ...]) -> str:
+    """The component's ``name`` setting, one of ``allowed`` (a reading of Section 3)."""
+    value = values[name]
+    if value not in allowed:
+        raise ValueError(f"ladder.corridor: '{name}' must be one of {', '.join(allowed)}, "
+                         f"not '{value}'")
+    return str(value)
