@@ -9,7 +9,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hybridteam.modes.ladder import Pairs, Robot, Scenario, Settings, random_pairs, reference
+from hybridteam.modes.ladder import (
+    Pairs,
+    Robot,
+    Scenario,
+    Settings,
+    random_pairs,
+    reference,
+    sample_run,
+)
 from hybridteam.modes.ladder import simulate as kernel
 
 from hybridteam.cli import main
@@ -120,3 +128,20 @@ def test_readings_are_checked(tmp_path, capsys):
     assert main(["run", str(seq), "-o", str(tmp_path / "o")]) == 2
     assert "only the vectorized stepper" in capsys.readouterr().err
     assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_engine_runs_the_distance_reading_as_the_stepper_does(tmp_path):
+    """The sample team with ``correction: distance`` through the engine (the law reads the
+    reading from the corridor) gives the stepper's run under the same reading."""
+    from hybridteam.api import load, simulate
+
+    team = tmp_path / "distance.yaml"
+    team.write_text(SAMPLE.read_text().replace("      goal_gap: 70 ", "      correction: "
+                                               "distance\n      goal_gap: 70 ", 1))
+    row = simulate(load(team)).summary()["instances"][0]
+    k = kernel(Pairs.of(sample_run()), settings=Settings(correction="distance"))
+    printed = kernel(Pairs.of(sample_run()))
+    assert row["outcome"] == "success"
+    assert row["steps"] == k.steps[0] != printed.steps[0]
+    assert row["steps_in_corner"] == k.corner_steps[0]
+    np.testing.assert_allclose(row["max_offset"], k.max_offset[0], rtol=1e-9)
