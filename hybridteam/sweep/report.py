@@ -75,7 +75,11 @@ def plot_factor(table: ResultTable, factor: str, axes: list[str]):
         label = ", ".join(f"{a} = {v}" for a, v in zip(axes, point, strict=True)) or None
         ax.plot([x for x, _ in xy], [100 * y for _, y in xy], marker="o", label=label)
     if not numeric:
-        ax.set_xticks(range(len(labels)), labels)
+        # Category labels (value pairs) overlap once their total width passes the axis:
+        # tilt them then, right-aligned under their ticks.
+        crowded = sum(len(str(v)) for v in labels) > 60
+        ax.set_xticks(range(len(labels)), labels, rotation=35 if crowded else 0,
+                      ha="right" if crowded else "center")
     ax.set_xlabel(factor)
     ax.set_ylabel("success rate (%)")
     ax.set_ylim(-3, 103)
@@ -83,6 +87,7 @@ def plot_factor(table: ResultTable, factor: str, axes: list[str]):
     if axes:
         ax.legend(fontsize="small")
     ax.set_title(f"success rate against {factor}")
+    fig.tight_layout()
     return fig
 
 
