@@ -126,7 +126,9 @@ def test_readings_are_checked(tmp_path, capsys):
     seq.write_text(text.replace("      goal_gap: 70 ", "      update: rear_first\n"
                                 "      goal_gap: 70 ", 1))
     assert main(["run", str(seq), "-o", str(tmp_path / "o")]) == 2
-    assert "only the vectorized stepper" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.startswith(f"{seq}:19:") and "with.update: 'rear_first' moves one robot" in err
+    assert "only the vectorized stepper" in err
     assert not (tmp_path / "o" / "summary.json").exists()
 
 

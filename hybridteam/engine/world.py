@@ -97,6 +97,7 @@ class World:
 
     def __init__(self, team: Team, n: int, team_params: Mapping[str, np.ndarray]) -> None:
         self.components: list[WorldComponent] = []
+        self.specs = team.world
         for spec in team.world:
             cls = lookup(spec.use)
             self.components.append(cls(team, n, component_values(cls, spec.values,
@@ -112,8 +113,16 @@ class World:
         return any(c.raises for c in self.components)
 
     def start(self, access: EnsembleAccess) -> None:
-        for c in self.components:
-            c.start(access)
+        """Start every component; a component's ValueError (a setting it cannot run with,
+        found only now that agents and states are known) is located at its entry."""
+        for c, spec in zip(self.components, self.specs, strict=True):
+            try:
+                c.start(access)
+            except ModelError as exc:  # its path is inside the component's settings
+                raise ModelError((*spec.where, "with", *exc.path), exc.message,
+                                 hint=exc.hint, at_key=exc.at_key) from None
+            except ValueError as exc:
+                raise ModelError(spec.where, str(exc)) from None
 
     def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
         """Run every component on the live instances of ``idx``; returns the instances

@@ -79,7 +79,12 @@ class WorldComponent:
         """Called once, after every agent's initial state is set and before the first
         instant; agents' states may be read (and, for placements, written) here. The
         ``world`` stays valid for the whole run: a component may keep it for
-        :meth:`sense`."""
+        :meth:`sense`.
+
+        A setting it cannot run with, found only now, is an error at the setting's line:
+        raise :class:`~hybridteam.errors.ModelError` with the path inside ``with:``
+        (``ModelError(("update",), ...)``); any other ValueError is reported at the
+        component's entry in the team file."""
 
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         """React to the state of the live instances ``idx`` at their current time: end

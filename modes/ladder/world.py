@@ -88,10 +88,10 @@ class LadderCorridor(WorldComponent):
         self.robots = (world.agent(v["front"]), world.agent(v["rear"]))
         self.correction = _reading(v, "correction", CORRECTIONS)
         if _reading(v, "update", UPDATES) != "synchronous":
-            raise ValueError(
-                f"ladder.corridor: update '{v['update']}' moves one robot after the other "
-                "within a step, which only the vectorized stepper does (plain ladder teams in "
-                "studies and hybridteam.api.summaries); the engine moves both robots at once")
+            raise ModelError(("update",), (
+                f"'{v['update']}' moves one robot after the other within a step, which only "
+                "the vectorized stepper does (plain ladder teams in studies and "
+                "hybridteam.api.summaries); the engine moves both robots at once"))
         dims = {}
         for key in (*_CORRIDOR, "path_points", "approach", "tension", "alpha_inset"):
             if np.ptp(v[key]) != 0:
