@@ -147,3 +147,17 @@ def test_engine_runs_the_distance_reading_as_the_stepper_does(tmp_path):
     assert row["steps"] == k.steps[0] != printed.steps[0]
     assert row["steps_in_corner"] == k.corner_steps[0]
     np.testing.assert_allclose(row["max_offset"], k.max_offset[0], rtol=1e-9)
+
+
+def test_an_error_found_when_the_run_starts_is_located(tmp_path, capsys):
+    """The corridor finds an unknown robot only when the run starts (agents are known
+    then); the message still names the file and the component's line."""
+    text = SAMPLE.read_text()
+    head, rest = text.split("requirements:", 1)
+    bad = tmp_path / "bad.yaml"   # no requirements (they would name R2's offset first)
+    bad.write_text(head.replace("      rear: R2", "      rear: R3") + "simulation:"
+                   + rest.split("simulation:", 1)[1])
+    assert main(["run", str(bad), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"{bad}:14:") and "world[0]: ladder.corridor: rear robot 'R3'" in err
+
