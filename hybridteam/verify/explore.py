@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import gc
 import time
+from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -22,6 +23,7 @@ import numpy as np
 from hybridteam.engine.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.machine import Machine, State
+from hybridteam.verify.store import Edges, Store
 
 
 @dataclass
@@ -46,13 +48,14 @@ class Options:
 
 @dataclass
 class Graph:
-    """The explored state graph: states by index, BFS tree, edges, terminal states."""
+    """The explored state graph: states by number (:class:`~.store.Store`), the BFS tree
+    (each state's parent and the choice that first reached it), the edges
+    (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
-    states: list[State]
-    parent: list[int]
-    how: list[tuple | None]  # the choice that first reached each state
-    succ: list[list[int]]
-    edge_how: dict = field(default_factory=dict)  # (from, to) -> the choice of that edge
+    states: Store
+    parent: array
+    how: array  # the first choice's number in ``edges.choices``
+    edges: Edges
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
     exhaustive: bool = True
@@ -62,9 +65,21 @@ class Graph:
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""
         out = [k]
-        while self.parent[out[-1]] >= 0:
+        while self.parent[out[-1]] != NONE:
             out.append(self.parent[out[-1]])
         return out[::-1]
+
+    def succ(self, k: int) -> list[int]:
+        """``k``'s successors (each once, in the order first reached)."""
+        return self.edges.successors(k)
+
+    def edge_choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
+        """The choice that leads from ``a`` to ``b`` (the first one tried)."""
+        return self.edges.choice(a, b, default)
+
+
+#: ``Graph.parent`` of the initial state.
+NONE = 0xFFFFFFFF
 
 
 def active_of(s: State, a: int, modes: int) -> np.ndarray:
@@ -182,49 +197,75 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
 def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     start = time.perf_counter()
     m = Machine(sk, opts.batch, fifo=opts.order == "fifo")
-    init = m.initial()
-    g = Graph([init], [-1], [None], [[]])
-    index = {init: 0}
+    store = Store(len(sk.cteam.agents))
+    g = Graph(store, array("I", [NONE]), array("I", [0]), Edges())
+    store.add(store.find(m.initial())[0])
+    g.how[0] = g.edges.choices.of(())
     frontier = [0]
     depth = 0
     last = start
     while frontier:
-        jobs = [(sid, ch, ()) for sid in frontier for ch in choices(m, sk, g.states[sid], opts)]
         nxt: list[int] = []
-        pos = 0
-        while pos < len(jobs):
-            chunk = jobs[pos: pos + opts.batch]
-            pos += len(chunk)
-            results = m.run([(g.states[sid], ch, tape) for sid, ch, tape in chunk])
-            for (sid, ch, tape), r in zip(chunk, results, strict=True):
+        retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
+        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, opts.batch):
+            results = m.run([(state, ch, tape) for _, state, ch, tape in chunk])
+            for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
                 for k in range(len(tape), r.reads):  # the other answers still to try
-                    jobs.append((sid, ch, tape + (False,) * (k - len(tape)) + (True,)))
+                    retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
-                tid = index.get(r.state)
+                key, tid = store.find(r.state)
                 if tid is None:
-                    if len(g.states) >= opts.max_states:
+                    if len(store) >= opts.max_states:
                         g.exhaustive = False
                         g.cut.add(sid)  # not a dead end: its successors are unknown
                         continue
-                    tid = len(g.states)
-                    index[r.state] = tid
-                    g.states.append(r.state)
+                    tid = store.add(key)
                     g.parent.append(sid)
-                    g.how.append(ch)
-                    g.succ.append([])
+                    g.how.append(g.edges.choices.of(ch))
                     nxt.append(tid)
                 if r.zeno:
                     g.zeno.add(tid)
-                if tid != sid and (sid, tid) not in g.edge_how:
-                    g.succ[sid].append(tid)
-                    g.edge_how[(sid, tid)] = ch
+                if tid != sid:
+                    g.edges.add(sid, tid, ch)
             now = time.perf_counter()
             if progress is not None and now - last >= 1.0:
-                progress(len(g.states), len(nxt), depth, now - start)
+                progress(len(store), len(nxt), depth, now - start)
                 last = now
         frontier = nxt
         depth += 1
+    g.edges.freeze(len(store))
     g.seconds = time.perf_counter() - start
     if progress is not None:
-        progress(len(g.states), 0, depth, g.seconds)
+        progress(len(store), 0, depth, g.seconds)
     return g
+
+
+def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
+    """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
+    is decoded once, and only the states of the chunk at work are held decoded."""
+    for sid in frontier:
+        state = store[sid]
+        for ch in choices(m, sk, state, opts):
+            yield sid, state, ch, ()
+
+
+def _chunks(jobs, retries: list, size: int):
+    """Chunks of ``size`` jobs: the level's, then the retries the chunks append (in the
+    order a single list of jobs growing at its end would give)."""
+    chunk: list = []
+    for job in jobs:
+        chunk.append(job)
+        if len(chunk) == size:
+            yield chunk
+            chunk = []
+    done = 0
+    while True:
+        take = retries[done: done + size - len(chunk)]
+        done += len(take)
+        chunk += take
+        if not chunk:
+            return
+        if len(chunk) == size or done == len(retries):
+            yield chunk
+            chunk = []
+

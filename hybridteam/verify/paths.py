@@ -69,7 +69,7 @@ def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | No
     if mark is not None and mark[0] == 0:
         lines.append(mark[1])
     for k, (a, b) in enumerate(pairwise(path), start=1):
-        choice = g.edge_how.get((a, b), ("?",))
+        choice = g.edge_choice(a, b, ("?",))
         at = f"t={times[k]:.6f} s  " if times and k < len(times) else ""
         lines.append(f"{k:3d}. {at}" + step_text(sk, g.states[a], choice))
         lines += [f"       {c}" for c in changes(sk, g.states[a], g.states[b])]

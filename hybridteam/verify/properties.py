@@ -28,12 +28,15 @@ from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from hybridteam.errors import ModelErrors
 from hybridteam.requirements import nodes as N
 from hybridteam.requirements.check import compile_requirements
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.explore import Graph
+from hybridteam.verify.store import UINT
 
 
 class Unsupported(Exception):
@@ -64,20 +67,26 @@ class Verdict:
 class States:
     """The signals a formula reads, over explored states (shape ``(S, 1)``)."""
 
-    def __init__(self, sk: Skeleton, g: Graph, rows: list[int]) -> None:
+    def __init__(self, sk: Skeleton, g: Graph) -> None:
+        """Every explored state's active modes and discrete variables, per agent: from
+        the few distinct agent parts the store keeps, spread over the states."""
         self.sk = sk
-        self.shape = (len(rows), 1)
+        n = len(g.states)
+        self.shape = (n, 1)
         self.memo: dict = {}
         self._active = []
         self._vars = []
+        values = g.states.parts.values
+        count = len(sk.cteam.agents)
+        nums = np.frombuffer(g.states.agent_parts, UINT).reshape(n, count)
         for a, ca in enumerate(sk.cteam.agents):
             m = len(ca.modes)
-            raw = [g.states[k].agents[a] for k in rows]
-            act = np.frombuffer(b"".join(r[0][:m] for r in raw), np.uint8)
-            self._active.append(act.reshape(len(rows), m).astype(bool))
+            used, inverse = np.unique(nums[:, a], return_inverse=True)
+            act = np.array([np.frombuffer(values[u][0][:m], np.uint8) for u in used.tolist()])
+            self._active.append(act.astype(bool).reshape(used.size, m)[inverse])
             cols = sk.discrete_vars[a]
-            self._vars.append(np.array([r[1] for r in raw], float).reshape(len(rows),
-                                                                            len(cols)))
+            var = np.array([values[u][1] for u in used.tolist()], float)
+            self._vars.append(var.reshape(used.size, len(cols))[inverse])
         self.names = {ca.name: a for a, ca in enumerate(sk.cteam.agents)}
 
     @property
@@ -181,8 +190,7 @@ def properties(sk: Skeleton) -> list[Property]:
 
 
 def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
-    rows = list(range(len(g.states)))
-    sig = States(sk, g, rows)
+    sig = States(sk, g)
     out = []
     for p in props:
         try:
@@ -207,39 +215,71 @@ def _invariant(p: Property, ok: np.ndarray) -> Verdict:
 
 
 def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdict:
-    """phi leads to psi: no phi state starts a psi-free path into a dead end or a cycle."""
-    waiting = np.flatnonzero(~psi)
-    sub = nx.DiGraph()
-    sub.add_nodes_from(waiting.tolist())
-    sub.add_edges_from((k, j) for k in waiting.tolist() for j in g.succ[k] if not psi[j])
-    dead = {k for k in waiting.tolist() if not g.succ[k] and k not in g.cut}
-    cyclic = set()
-    for comp in nx.strongly_connected_components(sub):
-        if len(comp) > 1:
-            cyclic |= comp
+    """phi leads to psi: no phi state starts a psi-free path into a dead end or a cycle.
+
+    The whole graph is searched with sparse arrays (scipy: strongly connected components,
+    then what reaches a bad state); only a violation's lasso is traced with networkx, on
+    the states that reach a bad one."""
+    n = len(g.states)
+    indptr, indices = g.edges.csr()
+    src = np.repeat(np.arange(n), np.diff(indptr))
+    keep = ~psi[src] & ~psi[indices]           # edges between psi-false states
+    sub = csr_matrix((np.ones(int(keep.sum()), np.int8), (src[keep], indices[keep])),
+                     shape=(n, n))
+    waiting = ~psi
+    cut = np.zeros(n, bool)
+    cut[list(g.cut)] = True
+    dead = waiting & (g.edges.out_degree() == 0) & ~cut
+    _, label = connected_components(sub, directed=True, connection="strong")
+    size = np.bincount(label, minlength=1)
+    cyclic = waiting & (size[label] > 1)
     bad = dead | cyclic
-    if not bad:
+    if not bad.any():
         return Verdict(p, True)
-    reach = set(bad)
-    for k in bad:
-        reach |= nx.ancestors(sub, k)
-    starts = sorted(k for k in reach if phi[k])
-    if not starts:
+    reach = _reaching(sub, bad)
+    starts = np.flatnonzero(reach & phi)
+    if not starts.size:
         return Verdict(p, True)
-    start = starts[0]
+    return _lasso(p, g, psi, reach, set(np.flatnonzero(dead).tolist()),
+                  set(np.flatnonzero(cyclic).tolist()), int(starts[0]))
+
+
+def _reaching(sub: csr_matrix, bad: np.ndarray) -> np.ndarray:
+    """The states with a path in ``sub`` to a ``bad`` one (those included)."""
+    reach = bad.copy()
+    back = sub.T.tocsr()
+    frontier = np.flatnonzero(bad)
+    while frontier.size:
+        rows = back[frontier]
+        new = np.unique(rows.indices)
+        new = new[~reach[new]]
+        reach[new] = True
+        frontier = new
+    return reach
+
+
+def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[int],
+           cyclic: set[int], start: int) -> Verdict:
+    """The shortest psi-free path from ``start`` into a dead end or a cycle."""
+    sub = nx.DiGraph()
+    nodes = np.flatnonzero(reach).tolist()
+    sub.add_nodes_from(nodes)
+    sub.add_edges_from((k, j) for k in nodes for j in g.succ(k) if reach[j] and not psi[j])
+    bad = (dead | cyclic) & set(nodes)
     targets = {k for k in bad if k == start or nx.has_path(sub, start, k)}
     lengths = nx.single_source_shortest_path(sub, start)
     end = min(targets, key=lambda k: (len(lengths[k]), k))
     lasso = lengths[end]
     loops = end in cyclic
     if loops:
-        back = next(iter(nx.find_cycle(sub.subgraph(cyclic), end)))
+        back = next(iter(nx.find_cycle(sub.subgraph(cyclic & set(nodes)), end)))
         lasso = [*lasso, back[1]] if back[1] != end else lasso
     return Verdict(p, False, start, lasso, loops)
 
 
 def _deadlock(p: Property, sk: Skeleton, g: Graph, sig: States) -> Verdict:
-    terminal = [k for k in range(len(g.states)) if not g.succ[k] and k not in g.cut]
+    terminal = [k for k in np.flatnonzero(g.edges.out_degree() == 0).tolist()
+                if k not in g.cut]
     if not terminal:
         return Verdict(p, True)
     team = sk.original.team

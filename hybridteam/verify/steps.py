@@ -70,7 +70,7 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
                   _outbox(raw), _armed(m, m.armed0))]
     sent_at = {(e.sender, e.msg_id): 0 for e in raw.outbox}
     for a, b in pairwise(path):
-        choice = g.edge_how[(a, b)]
+        choice = g.edge_choice(a, b)
         rc, nxt = _match(m, raw, g.states[a], choice, g.states[b])
         step = Step(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
                     _outbox(nxt))

@@ -1,0 +1,238 @@
+"""Explored states and edges, stored compactly: what lets the explorer hold millions.
+
+A skeleton state is a tuple of parts (each agent's configuration and variables, the copies
+in flight, the outbox entries, the seen ids, a few counters), and very few distinct parts
+occur across millions of states. :class:`Store` numbers each distinct part once and keeps a
+state as the bytes of its part numbers (about 50 bytes, against about 1.2 kB for the
+tuples; two bytes a number while there are fewer than 65,535 parts), decoding a state only
+when it is asked for. :class:`Edges` keeps the graph's
+edges as three integer arrays (source, target, choice number) and answers successors from
+a compressed sparse row view built once exploring is done.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Iterator
+
+import numpy as np
+
+from hybridteam.verify.machine import State
+
+#: The integer arrays' numpy type (``array("I")`` items are 4 bytes wherever we run).
+UINT = np.dtype(f"u{array('I').itemsize}")
+
+
+class Parts:
+    """Distinct hashable values, numbered in order of first appearance."""
+
+    __slots__ = ("number", "values")
+
+    def __init__(self) -> None:
+        self.number: dict = {}
+        self.values: list = []
+
+    def of(self, value) -> int:
+        k = self.number.get(value)
+        if k is None:
+            k = self.number[value] = len(self.values)
+            self.values.append(value)
+        return k
+
+
+#: An empty slot of :class:`Keys`' table.
+EMPTY = 0xFFFFFFFF
+
+
+class Keys:
+    """Distinct byte strings, numbered in order of arrival, in one buffer.
+
+    A dict of bytes objects costs about 180 bytes a key beyond the key's own bytes (the
+    object's header, the entry, the number as an int object); here a key costs its bytes,
+    an 8-byte end offset, its hash's low 32 bits and two to four 4-byte slots of an
+    open-addressing table (linear probing on Python's hash of the key), about 75 bytes in
+    all for a state's key."""
+
+    def __init__(self) -> None:
+        self.buf = bytearray()
+        self.ends = array("Q")
+        self.prints = array("I")  # each key's hash, low 32 bits: most probes stop there
+        self.slots = array("I", [EMPTY]) * 1024
+        self.mask = 1023
+
+    def __len__(self) -> int:
+        return len(self.ends)
+
+    def __getitem__(self, k: int) -> bytes:
+        return bytes(self.buf[self.ends[k - 1] if k else 0: self.ends[k]])
+
+    def get(self, key: bytes) -> int | None:
+        """``key``'s number, or None."""
+        slots, mask, buf, ends, prints = self.slots, self.mask, self.buf, self.ends, self.prints
+        h = hash(key)
+        fp = h & EMPTY
+        i = h & mask
+        while True:
+            k = slots[i]
+            if k == EMPTY:
+                return None
+            if prints[k] == fp and buf[ends[k - 1] if k else 0: ends[k]] == key:
+                return k
+            i = (i + 1) & mask
+
+    def add(self, key: bytes) -> int:
+        """Number a key that :meth:`get` did not find."""
+        k = len(self.ends)
+        if 2 * (k + 1) > self.mask + 1:
+            self._grow()
+        h = hash(key)
+        self._place(h, k)
+        self.prints.append(h & EMPTY)
+        self.buf += key
+        self.ends.append(len(self.buf))
+        return k
+
+    def _place(self, h: int, k: int) -> None:
+        slots, mask = self.slots, self.mask
+        i = h & mask
+        while slots[i] != EMPTY:
+            i = (i + 1) & mask
+        slots[i] = k
+
+    def _grow(self) -> None:
+        self.slots = array("I", [EMPTY]) * (2 * (self.mask + 1))
+        self.mask = 2 * self.mask + 1
+        for k, fp in enumerate(self.prints):  # the slot comes from the hash's low bits
+            self._place(fp, k)
+
+
+class Store:
+    """States by number: each kept once as the bytes of its parts' numbers.
+
+    Layout of a state's numbers: the agents' parts (one each), then the copies in flight,
+    the outbox entries and the seen triples (each a count, then the parts), then cursor,
+    losses, duplicates and the agents' next message ids."""
+
+    def __init__(self, agents: int) -> None:
+        self.agents = agents
+        self.parts = Parts()
+        self.keys = Keys()
+        self.agent_parts = array("I")  # state k's agent a: agent_parts[k * agents + a]
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def key(self, s: State) -> bytes:
+        of = self.parts.of
+        nums = [of(p) for p in s.agents]
+        for group in (s.inflight, s.outbox, s.seen):
+            nums.append(len(group))
+            nums += [of(p) for p in group]
+        nums += (s.cursor, s.losses, s.dups, *s.next_ids)
+        if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
+            return b"H" + array("H", nums).tobytes()
+        return b"I" + array("I", nums).tobytes()
+
+    def find(self, s: State) -> tuple[bytes, int | None]:
+        """``s``'s key and its number, or None if it is not stored."""
+        key = self.key(s)
+        return key, self.keys.get(key)
+
+    def add(self, key: bytes) -> int:
+        """Store the state of ``key`` (from :meth:`find`); its new number."""
+        k = self.keys.add(key)
+        self.agent_parts.extend(_numbers(key)[: self.agents].tolist())
+        return k
+
+    def __getitem__(self, k: int) -> State:
+        if not -len(self.keys) <= k < len(self.keys):
+            raise IndexError(k)
+        nums = _numbers(self.keys[k])
+        values = self.parts.values
+        a = self.agents
+        agents = tuple(values[n] for n in nums[:a])
+        pos, groups = a, []
+        for _ in range(3):
+            count = nums[pos]
+            groups.append(tuple(values[n] for n in nums[pos + 1: pos + 1 + count]))
+            pos += 1 + count
+        cursor, losses, dups = nums[pos: pos + 3]
+        return State(agents, groups[0], groups[1], groups[2], cursor, losses, dups,
+                     tuple(nums[pos + 3:]))
+
+    def __iter__(self) -> Iterator[State]:
+        return (self[k] for k in range(len(self.keys)))
+
+    def agent_values(self, a: int) -> list:
+        """Agent ``a``'s part (configuration bytes, variable values) in every state."""
+        values = self.parts.values
+        return [values[n] for n in self.agent_parts[a:: self.agents]]
+
+
+def _numbers(key: bytes) -> array:
+    """A key's numbers (its first byte names their width)."""
+    nums = array(chr(key[0]))
+    nums.frombytes(key[1:])
+    return nums
+
+
+class Edges:
+    """The graph's edges (no self-loops) as integer arrays, and successors by state.
+
+    Edges are added while exploring; :meth:`freeze` builds the sparse-row view that
+    :meth:`successors`, :meth:`out_degree` and :meth:`choice` read. Of several choices
+    between the same two states the first one added is the edge's choice."""
+
+    def __init__(self) -> None:
+        self.src = array("I")
+        self.dst = array("I")
+        self.how = array("I")
+        self.choices = Parts()
+        self._row: np.ndarray | None = None
+        self._dst: np.ndarray | None = None
+        self._how: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.src)
+
+    def add(self, a: int, b: int, choice: tuple) -> None:
+        self.src.append(a)
+        self.dst.append(b)
+        self.how.append(self.choices.of(choice))
+        self._row = None
+
+    def freeze(self, states: int) -> None:
+        src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
+        order = np.argsort(src, kind="stable")  # a state's edges in the order added
+        self._dst = (np.frombuffer(self.dst, UINT)[order] if len(self.dst)
+                     else np.zeros(0, UINT)).astype(np.int64)
+        self._how = np.frombuffer(self.how, UINT)[order] if len(self.how) else np.zeros(0, UINT)
+        self._row = np.zeros(states + 1, np.int64)
+        np.cumsum(np.bincount(src, minlength=states), out=self._row[1:])
+
+    def _ready(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._row is None:
+            raise RuntimeError("edges are not frozen (call freeze after exploring)")
+        return self._row, self._dst, self._how  # type: ignore[return-value]
+
+    def successors(self, k: int) -> list[int]:
+        """``k``'s successors, in the order their edges were added, each once."""
+        row, dst, _ = self._ready()
+        return list(dict.fromkeys(dst[row[k]: row[k + 1]].tolist()))
+
+    def out_degree(self) -> np.ndarray:
+        row, _, _ = self._ready()
+        return np.diff(row)
+
+    def csr(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(indptr, indices)`` of the successor lists (duplicates possible)."""
+        row, dst, _ = self._ready()
+        return row, dst
+
+    def choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
+        """The choice of edge ``a -> b`` (the first added), or ``default``."""
+        row, dst, how = self._ready()
+        hits = np.flatnonzero(dst[row[a]: row[a + 1]] == b)
+        if not hits.size:
+            return default
+        return self.choices.values[int(how[row[a] + hits[0]])]
