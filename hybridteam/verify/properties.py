@@ -64,21 +64,28 @@ class Verdict:
     others: list[int] = field(default_factory=list)  # more violations, one per configuration
 
 
+#: Every state (:class:`States` rows).
+_ALL = slice(None)
+#: States whose signals are spread at once when formulas are evaluated: the arrays of
+#: a block, not of millions of states, are held at a time.
+BLOCK = 1 << 20
+
+
 class States:
     """The signals a formula reads, over explored states (shape ``(S, 1)``)."""
 
-    def __init__(self, sk: Skeleton, g: Graph) -> None:
-        """Every explored state's active modes and discrete variables, per agent: from
-        the few distinct agent parts the store keeps, spread over the states."""
+    def __init__(self, sk: Skeleton, g: Graph, rows: slice | np.ndarray = _ALL) -> None:
+        """Explored states' (``rows``: these) active modes and discrete variables, per
+        agent: from the few distinct agent parts the store keeps, spread over the states."""
         self.sk = sk
-        n = len(g.states)
+        count = len(sk.cteam.agents)
+        nums = np.frombuffer(g.states.agent_parts, UINT).reshape(len(g.states), count)[rows]
+        n = nums.shape[0]
         self.shape = (n, 1)
         self.memo: dict = {}
         self._active = []
         self._vars = []
         values = g.states.parts.values
-        count = len(sk.cteam.agents)
-        nums = np.frombuffer(g.states.agent_parts, UINT).reshape(n, count)
         for a, ca in enumerate(sk.cteam.agents):
             m = len(ca.modes)
             used, inverse = np.unique(nums[:, a], return_inverse=True)
@@ -190,21 +197,28 @@ def properties(sk: Skeleton) -> list[Property]:
 
 
 def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
-    sig = States(sk, g)
     out = []
     for p in props:
         try:
             if p.kind == "invariant":
-                out.append(_invariant(p, truth(p.phi, sig)))  # type: ignore[arg-type]
+                out.append(_invariant(p, _truths(p.phi, sk, g)))  # type: ignore[arg-type]
             elif p.kind == "response":
-                out.append(_response(p, g, truth(p.phi, sig), truth(p.psi, sig)))  # type: ignore
+                out.append(_response(p, g, _truths(p.phi, sk, g),  # type: ignore[arg-type]
+                                     _truths(p.psi, sk, g)))  # type: ignore[arg-type]
             elif p.kind == "deadlock":
-                out.append(_deadlock(p, sk, g, sig))
+                out.append(_deadlock(p, sk, g))
             else:
                 out.append(Verdict(p, None, message=p.reason))
         except Unsupported as exc:
             out.append(Verdict(p, None, message=f"not checkable: {exc}"))
     return out
+
+
+def _truths(node: N.Node, sk: Skeleton, g: Graph) -> np.ndarray:
+    """:func:`truth` in every explored state, evaluated block by block."""
+    n = len(g.states)
+    return np.concatenate([truth(node, States(sk, g, slice(k, min(k + BLOCK, n))))
+                           for k in range(0, n, BLOCK)] or [np.zeros(0, bool)])
 
 
 def _invariant(p: Property, ok: np.ndarray) -> Verdict:
@@ -277,7 +291,7 @@ def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[
     return Verdict(p, False, start, lasso, loops)
 
 
-def _deadlock(p: Property, sk: Skeleton, g: Graph, sig: States) -> Verdict:
+def _deadlock(p: Property, sk: Skeleton, g: Graph) -> Verdict:
     terminal = [k for k in np.flatnonzero(g.edges.out_degree() == 0).tolist()
                 if k not in g.cut]
     if not terminal:
@@ -285,11 +299,12 @@ def _deadlock(p: Property, sk: Skeleton, g: Graph, sig: States) -> Verdict:
     team = sk.original.team
     agents = sk.cteam.agents
     rows = np.array(terminal)
+    sig = States(sk, g, rows)
     blocked = np.zeros(rows.size, bool)
     all_final = np.ones(rows.size, bool)
     commanded = np.zeros(rows.size, bool)
     for a, ca in enumerate(agents):
-        act = sig._active[a][rows]
+        act = sig._active[a]
         final = (~act[:, ca.leaves] | ca.final[ca.leaves]).all(axis=1)
         if team.agents[a].operator:
             initial = np.zeros(len(ca.modes), bool)
