@@ -6,7 +6,9 @@ that order, at moments of the explorer's choosing). Each is verified with 0 and 
 (any order), every property of ``examples/protocols/roles_verify.yaml`` (one leader, each
 request answered) and deadlock; a check that reaches ``--max-states`` says "bounded".
 ``--scenario request`` keeps only the second robot's request, ``resign`` only the
-resignation (each protocol exchange alone, e.g. three robots with two losses).
+resignation (each protocol exchange alone, e.g. three robots with two losses). Each
+check runs in a process of its own, so "peak MB" is that check's; "B/state" is the peak's
+growth during the check per state explored.
 
     python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
         [--scenario all|request|resign] [--timeouts any|own|long]
@@ -16,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 import resource
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -54,6 +58,25 @@ def team_text(robots: int, scenario: str = "all") -> str:
     return "\n".join(lines) + "\n"
 
 
+def one(robots: int, losses: int, args: argparse.Namespace) -> str:
+    """One check, in this process: its table row (peak memory is this process's)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"roles_{robots}.yaml"
+        path.write_text(team_text(robots, args.scenario))
+        team = load(path)
+        base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
+        r = verify(team, Options(losses=losses, max_states=args.max_states,
+                                 timeouts=args.timeouts), replay=False)
+    g = r.graph
+    bad = [v.prop.name for v in r.violated]
+    word = ("VIOLATED: " + ", ".join(bad)) if bad else (
+        "all hold" if g.exhaustive else "none violated (bounded)")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return (f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
+            f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f} "
+            f"{(peak - base) * 1048576 / len(g.states):>8,.0f}  {word}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4])
@@ -61,25 +84,20 @@ def main() -> None:
     ap.add_argument("--max-states", type=int, default=1_000_000)
     ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
     ap.add_argument("--timeouts", choices=("any", "own", "long"), default="any")
+    ap.add_argument("--one", type=int, nargs=2, help=argparse.SUPPRESS)  # robots, losses
     args = ap.parse_args()
+    if args.one:
+        print(one(*args.one, args), flush=True)
+        return
     print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
-          f"{'states/s':>9} {'peak MB':>8}  verdict")
-    with tempfile.TemporaryDirectory() as tmp:
-        for robots in args.robots:
-            path = Path(tmp) / f"roles_{robots}.yaml"
-            path.write_text(team_text(robots, args.scenario))
-            team = load(path)
-            for losses in args.losses:
-                r = verify(team, Options(losses=losses, max_states=args.max_states,
-                                         timeouts=args.timeouts), replay=False)
-                g = r.graph
-                bad = [v.prop.name for v in r.violated]
-                word = ("VIOLATED: " + ", ".join(bad)) if bad else (
-                    "all hold" if g.exhaustive else "none violated (bounded)")
-                peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # so far
-                print(f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
-                      f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f}  "
-                      f"{word}", flush=True)
+          f"{'states/s':>9} {'peak MB':>8} {'B/state':>8}  verdict", flush=True)
+    # each check in a process of its own, so its peak memory is its own
+    rest = ["--max-states", str(args.max_states), "--scenario", args.scenario,
+            "--timeouts", args.timeouts]
+    for robots in args.robots:
+        for losses in args.losses:
+            subprocess.run([sys.executable, __file__, "--one", str(robots), str(losses),
+                            *rest], check=True)
 
 
 if __name__ == "__main__":
