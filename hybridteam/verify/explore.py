@@ -6,8 +6,9 @@ each link with ``order="fifo"``), lose one (up to ``losses`` per path), duplicat
 next scenario event (in the scenario's order, each once), raise an event a world component
 declares, or fire a time-driven transition. A choice that makes a free comparison decide
 is tried with every answer. Successors come from the engine in batches
-(:class:`~.machine.Machine`); states are hashed, so each is expanded once, and the graph
-(edges without self-loops) is kept for the liveness checks.
+(:class:`~.machine.Machine`); states are stored compactly and found again by their key
+(:mod:`.store`), so each is expanded once, and the graph (edges without self-loops) is
+kept for the liveness checks.
 """
 
 from __future__ import annotations
