@@ -40,7 +40,8 @@ def test_states_decode_to_what_was_stored():
         store.add(key)
     assert [store[k] for k in range(2)] == states and list(store) == states
     assert store.find(states[1])[1] == 1
-    assert store.agent_values(1) == [(b"\x00\x01", ()), (b"\x01\x01", ())]
+    # agents' part numbers by state (the first state's copy and seen triple are parts 2, 3)
+    assert store.agent_parts.tolist() == [0, 1, 0, 4]
     with pytest.raises(IndexError):
         store[2]
 

@@ -163,11 +163,6 @@ class Store:
     def __iter__(self) -> Iterator[State]:
         return (self[k] for k in range(len(self.keys)))
 
-    def agent_values(self, a: int) -> list:
-        """Agent ``a``'s part (configuration bytes, variable values) in every state."""
-        values = self.parts.values
-        return [values[n] for n in self.agent_parts[a:: self.agents]]
-
 
 def _numbers(key: bytes) -> array:
     """A key's numbers (its first byte names their width)."""

@@ -2,7 +2,9 @@
 
 Each iteration judges the state every live pair has reached (link broken, arrived,
 stuck), then moves the others one control period, with :mod:`.law` evaluated for both
-robots on the same start-of-period state (synchronous update). A pair that has finished
+robots on the same start-of-period state (synchronous update; ``Settings.update`` may
+instead move one robot and then evaluate the other on the state it left, a link broken in
+between breaking). A pair that has finished
 is frozen: its motion is zero from then on, and it leaves the working arrays when a
 quarter of them have finished (compacting on every finish would cost more than it saves).
 
@@ -33,11 +35,11 @@ OUTCOMES = ("running", "success", "stuck", "link_broken")
 _SLACK = 1e-6
 
 _PAIR = ("length", "best", "improved_at", "outcome", "steps", "corner_steps", "cracked")
+_ROBOT = ("x", "y", "idx", "base", "gx", "gy", "path", "corner_path", "max_offset", "v_max",
+          "ahead", "share", "coef", "orsp", "olim", "kr", "radius", "margin", "hx", "hy")
 
 #: Robot rows moving first and second in each period, by ``Settings.update``.
 ORDERS = {"synchronous": None, "front_first": (0, 1), "rear_first": (1, 0)}
-_ROBOT = ("x", "y", "idx", "base", "gx", "gy", "path", "corner_path", "max_offset", "v_max",
-          "ahead", "share", "coef", "orsp", "olim", "kr", "radius", "margin", "hx", "hy")
 
 
 @dataclass
