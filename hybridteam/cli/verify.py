@@ -10,7 +10,8 @@ reproduced one is written as an ordinary run (``OUT/<property>/trace.json``, tim
 sequence chart), one the simulator cannot follow is reported as spurious, with the reason.
 Writes ``OUT/verify.json``. Exit status: 0 when every property checked holds, 1 on a
 violation a run reproduces (or any violation with ``--no-replay``), 2 on bad input, 3 when
-the only violations are spurious (the skeleton's, not the simulator's).
+the only violations are spurious (the skeleton's, not the simulator's), 4 when ``--spin``
+was asked and SPIN's verdict differs from ours on some property.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from hybridteam.progress import MODES
 
 EXIT_VIOLATED = 1
 EXIT_SPURIOUS = 3
+EXIT_SPIN_DISAGREES = 4
 
 
 def register(sub) -> dict:
@@ -66,6 +68,11 @@ def register(sub) -> dict:
                     "(default 2,000,000)")
     ve.add_argument("--no-replay", action="store_true",
                     help="do not replay counterexamples in the simulator")
+    ve.add_argument("--spin", action="store_true",
+                    help="a second opinion: export the explored skeleton as Promela "
+                         "(OUT/spin/skeleton.pml) and have SPIN check each invariant and "
+                         "response property on it; needs 'spin' and a C compiler (skipped "
+                         "with a note otherwise); exit 4 if SPIN disagrees with a verdict")
     ve.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     ve.add_argument("--progress", choices=MODES, default="auto",
                     help="auto (a line every few seconds), log, bar (the same lines) or none")
@@ -113,11 +120,33 @@ def cmd_verify(args) -> int:
     summary = report.summary()
     for name, written in files.items():
         summary["properties"][name]["replay"]["files"] = written
+    disagree = False
+    if args.spin:
+        summary["spin"], disagree = _spin(report, out)
     write_atomic(out / "verify.json", json.dumps(summary, indent=1) + "\n")
     print(f"wrote {out / 'verify.json'}")
+    if disagree:
+        return EXIT_SPIN_DISAGREES
     if not report.violated:
         return EXIT_OK
     return EXIT_VIOLATED if report.reproduced or args.no_replay else EXIT_SPURIOUS
+
+
+def _spin(report, out) -> tuple[dict, bool]:
+    """SPIN's opinion per compared property, printed; and whether it disagrees anywhere."""
+    from hybridteam.verify import spin
+
+    try:
+        opinions = spin.cross_check(report, out / "spin")
+    except RuntimeError as exc:
+        print(f"spin: skipped: {exc}")
+        return {"skipped": str(exc)}, False
+    for o in opinions:
+        word = ("agrees" if o.agrees else "DISAGREES" if o.spin is not None else
+                "no verdict") + f" ({'holds' if o.ours else 'violated'})"
+        print(f"spin: {o.name}: {word}" + (f": {o.note}" if o.note else ""))
+    return ({o.name: {"ours": o.ours, "spin": o.spin, "agrees": o.agrees, "note": o.note}
+             for o in opinions}, any(o.spin is not None and not o.agrees for o in opinions))
 
 
 def _write_run(report, v, out) -> list[str]:

@@ -201,10 +201,10 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     for p in props:
         try:
             if p.kind == "invariant":
-                out.append(_invariant(p, _truths(p.phi, sk, g)))  # type: ignore[arg-type]
+                out.append(_invariant(p, truths(p.phi, sk, g)))  # type: ignore[arg-type]
             elif p.kind == "response":
-                out.append(_response(p, g, _truths(p.phi, sk, g),  # type: ignore[arg-type]
-                                     _truths(p.psi, sk, g)))  # type: ignore[arg-type]
+                out.append(_response(p, g, truths(p.phi, sk, g),  # type: ignore[arg-type]
+                                     truths(p.psi, sk, g)))  # type: ignore[arg-type]
             elif p.kind == "deadlock":
                 out.append(_deadlock(p, sk, g))
             else:
@@ -214,7 +214,7 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     return out
 
 
-def _truths(node: N.Node, sk: Skeleton, g: Graph) -> np.ndarray:
+def truths(node: N.Node, sk: Skeleton, g: Graph) -> np.ndarray:
     """:func:`truth` in every explored state, evaluated block by block."""
     n = len(g.states)
     return np.concatenate([truth(node, States(sk, g, slice(k, min(k + BLOCK, n))))
