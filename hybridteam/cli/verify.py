@@ -176,8 +176,22 @@ def _progress(mode: str):
         state["last"] = now
         rate = states / seconds if seconds > 0 else 0.0
         print(f"hybridteam: verify: {states:,} states, frontier {frontier:,}, depth {depth}, "
-              f"{rate:,.0f} states/s, {seconds:.1f} s", file=sys.stderr, flush=True)
+              f"{rate:,.0f} states/s, {seconds:.1f} s{_memory()}", file=sys.stderr,
+              flush=True)
     return show
+
+
+def _memory() -> str:
+    """``, 1.2 GB in memory`` (this process's resident size), where the system tells it:
+    a long check's memory is what decides whether it can finish."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return ""
+    import os
+
+    return f", {pages * os.sysconf('SC_PAGE_SIZE') / 1e9:.1f} GB in memory"
 
 
 def _replay_progress(name: str, mode: str):
