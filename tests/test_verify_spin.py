@@ -12,7 +12,7 @@ from hybridteam.cli import main
 from hybridteam.verify import Options, spin, verify
 from tests.test_verify import GRANT, mutate, roles_team
 
-pytestmark = pytest.mark.skipif(spin.missing() is not None,
+needs_spin = pytest.mark.skipif(spin.missing() is not None,
                                 reason=f"SPIN cannot run here: {spin.missing()}")
 
 RESTORED = ("  leadership_restored: always(implies(count_in_role(lead) == 0, eventually("
@@ -23,6 +23,7 @@ def opinions(report, tmp_path) -> dict[str, spin.Opinion]:
     return {o.name: o for o in spin.cross_check(report, tmp_path / "spin")}
 
 
+@needs_spin
 def test_spin_agrees_that_the_role_protocol_holds(tmp_path):
     report = verify(roles_team(tmp_path, "a", extra=RESTORED, without_c=True),
                     Options(losses=1), replay=False)
@@ -32,6 +33,7 @@ def test_spin_agrees_that_the_role_protocol_holds(tmp_path):
     assert "deadlock" not in got  # not a temporal property: not compared
 
 
+@needs_spin
 def test_spin_finds_the_mutants_violations_too(tmp_path):
     # the leader stays Lead after granting: two leaders (an invariant)
     stays = mutate(GRANT, GRANT.replace("        - to: Follow\n          on:", "        - on:"))
@@ -51,6 +53,7 @@ def test_spin_finds_the_mutants_violations_too(tmp_path):
     assert all(o.agrees for o in got.values())
 
 
+@needs_spin
 def test_cli_spin_flag_reports_agreement(tmp_path, capsys):
     team = tmp_path / "team.yaml"
     roles_team(tmp_path, "b", without_c=True)  # writes team.yaml beside its protocol
@@ -63,3 +66,16 @@ def test_cli_spin_flag_reports_agreement(tmp_path, capsys):
     assert data["spin"]["one_leader"] == {"ours": True, "spin": True, "agrees": True,
                                           "note": ""}
     assert (tmp_path / "o" / "spin" / "skeleton.pml").is_file()
+
+
+def test_cli_spin_without_spin_says_why_and_goes_on(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(spin, "TOOLS", ("no-such-model-checker",))
+    team = tmp_path / "team.yaml"
+    roles_team(tmp_path, "b", without_c=True)
+    code = main(["verify", str(team), "--losses", "0", "--spin", "-o", str(tmp_path / "o"),
+                 "--progress", "none"])
+    assert code == 0  # the verdicts stand; only the second opinion is missing
+    assert "spin: skipped: 'no-such-model-checker' not found on PATH" in capsys.readouterr().out
+    data = json.loads((tmp_path / "o" / "verify.json").read_text())
+    assert data["spin"] == {"skipped": "'no-such-model-checker' not found on PATH"}
+
