@@ -1,6 +1,7 @@
 """SPIN's second opinion on verify's verdicts (``--spin``): it agrees on the correct role
-protocol and on two mutants, one breaking an invariant and one a response property. The
-tests skip where SPIN or a C compiler is missing (``.ci/run`` installs SPIN where it can)."""
+protocol and on two mutants, one breaking an invariant and one a response property. Those
+tests skip where SPIN or a C compiler is missing (``.ci/run`` installs SPIN where it can);
+what verify does without SPIN is tested everywhere."""
 
 from __future__ import annotations
 
