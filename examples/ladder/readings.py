@@ -54,11 +54,9 @@ def with_reading(study, correction: str, update: str, margin: float | None):
     return replace(study, team=replace(study.team, world=world), fixed=fixed)
 
 
-def study_table(folder: Path) -> list[str]:
-    """Markdown rows: factor value, success per length, failures at 240 and 480."""
-    import csv
-
-    rows = list(csv.DictReader((folder / "results.csv").open()))
+def study_table(rows: list[dict]) -> list[str]:
+    """Markdown rows of a study's result rows: factor value, success per length, failures
+    at the shortest and longest ladder, corner steps at the shortest."""
     lengths = sorted({float(r["ladder_length"]) for r in rows})
     values = list(dict.fromkeys(r["value"] for r in rows))
     out = ["| value | " + " | ".join(f"{x:g}" for x in lengths)
@@ -68,10 +66,10 @@ def study_table(folder: Path) -> list[str]:
     for v in values:
         by = {float(r["ladder_length"]): r for r in rows if r["value"] == v}
         first, last = by[lengths[0]], by[lengths[-1]]
-        out.append(f"| {v} | " + " | ".join(by[x]["success"] for x in lengths)
+        out.append(f"| {v} | " + " | ".join(str(by[x]["success"]) for x in lengths)
                    + f" | {first['stuck']} / {first['link_broken']}"
                    f" | {last['stuck']} / {last['link_broken']}"
-                   f" | {float(first['mean_steps_in_corner'] or 'nan'):.0f} |")
+                   f" | {first['mean_steps_in_corner']:.0f} |")
     return out
 
 
@@ -104,9 +102,10 @@ def main(argv: list[str] | None = None) -> int:
         for name in args.only:
             folder = out / name / study_name
             print(f"{name}: {study_name} -> {folder}", file=sys.stderr, flush=True)
-            run_study(with_reading(study, *READINGS[name]), folder, workers=args.workers,
-                      progress="auto")
-            lines += ["", f"## {study.name}, reading {name}", "", *study_table(folder)]
+            done = run_study(with_reading(study, *READINGS[name]), folder,
+                             workers=args.workers, progress="auto")
+            lines += ["", f"## {study.name}, reading {name}", "",
+                      *study_table(done.table.rows)]
     out.mkdir(parents=True, exist_ok=True)
     (out / "readings.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -17,6 +17,7 @@ was asked and SPIN's verdict differs from ours on some property.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -189,8 +190,6 @@ def _memory() -> str:
             pages = int(f.read().split()[1])
     except (OSError, ValueError, IndexError):
         return ""
-    import os
-
     return f", {pages * os.sysconf('SC_PAGE_SIZE') / 1e9:.1f} GB in memory"
 
 

@@ -50,12 +50,11 @@ class Options:
 @dataclass
 class Graph:
     """The explored state graph: states by number (:class:`~.store.Store`), the BFS tree
-    (each state's parent and the choice that first reached it), the edges
-    (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
+    (each state's parent; the choice that first reached it is the edge's, from the
+    parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
     states: Store
     parent: array
-    how: array  # the first choice's number in ``edges.choices``
     edges: Edges
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
@@ -199,9 +198,8 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     start = time.perf_counter()
     m = Machine(sk, opts.batch, fifo=opts.order == "fifo")
     store = Store(len(sk.cteam.agents))
-    g = Graph(store, array("I", [NONE]), array("I", [0]), Edges())
+    g = Graph(store, array("I", [NONE]), Edges())
     store.add(store.find(m.initial())[0])
-    g.how[0] = g.edges.choices.of(())
     frontier = [0]
     depth = 0
     last = start
@@ -222,7 +220,6 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
                         continue
                     tid = store.add(key)
                     g.parent.append(sid)
-                    g.how.append(g.edges.choices.of(ch))
                     nxt.append(tid)
                 if r.zeno:
                     g.zeno.add(tid)

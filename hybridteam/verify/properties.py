@@ -274,19 +274,19 @@ def _reaching(sub: csr_matrix, bad: np.ndarray) -> np.ndarray:
 
 def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[int],
            cyclic: set[int], start: int) -> Verdict:
-    """The shortest psi-free path from ``start`` into a dead end or a cycle."""
+    """The shortest psi-free path from ``start`` into a dead end or a cycle (``reach``
+    holds every dead and cyclic state: the backward search starts from them)."""
     sub = nx.DiGraph()
     nodes = np.flatnonzero(reach).tolist()
     sub.add_nodes_from(nodes)
     sub.add_edges_from((k, j) for k in nodes for j in g.succ(k) if reach[j] and not psi[j])
-    bad = (dead | cyclic) & set(nodes)
-    targets = {k for k in bad if k == start or nx.has_path(sub, start, k)}
+    targets = {k for k in dead | cyclic if k == start or nx.has_path(sub, start, k)}
     lengths = nx.single_source_shortest_path(sub, start)
     end = min(targets, key=lambda k: (len(lengths[k]), k))
     lasso = lengths[end]
     loops = end in cyclic
     if loops:
-        back = next(iter(nx.find_cycle(sub.subgraph(cyclic & set(nodes)), end)))
+        back = next(iter(nx.find_cycle(sub.subgraph(cyclic), end)))
         lasso = [*lasso, back[1]] if back[1] != end else lasso
     return Verdict(p, False, start, lasso, loops)
 

@@ -5,9 +5,9 @@ in flight, the outbox entries, the seen ids, a few counters), and very few disti
 occur across millions of states. :class:`Store` numbers each distinct part once and keeps a
 state as the bytes of its part numbers (about 50 bytes, against about 1.2 kB for the
 tuples; two bytes a number while there are fewer than 65,535 parts), decoding a state only
-when it is asked for. :class:`Edges` keeps the graph's
-edges as three integer arrays (source, target, choice number) and answers successors from
-a compressed sparse row view built once exploring is done.
+when it is asked for. :class:`Edges` keeps the graph's edges as three integer arrays
+(source, target, choice number) and answers successors from a compressed sparse row view
+built once exploring is done.
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class Store:
     def __getitem__(self, k: int) -> State:
         if not -len(self.keys) <= k < len(self.keys):
             raise IndexError(k)
-        nums = _numbers(self.keys[k])
+        nums = _numbers(self.keys[k % len(self.keys)])
         values = self.parts.values
         a = self.agents
         agents = tuple(values[n] for n in nums[:a])

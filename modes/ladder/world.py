@@ -86,8 +86,11 @@ class LadderCorridor(WorldComponent):
                 raise ValueError(f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
                                  f"of the team (agents: {', '.join(names)})")
         self.robots = (world.agent(v["front"]), world.agent(v["rear"]))
-        self.correction = _reading(v, "correction", CORRECTIONS)
-        if _reading(v, "update", UPDATES) != "synchronous":
+        problems = self.check(self.team, v)  # teams built in Python skip validate
+        if problems:
+            raise problems[0]
+        self.correction = str(v["correction"])
+        if v["update"] != "synchronous":
             raise ModelError(("update",), (
                 f"'{v['update']}' moves one robot after the other within a step, which only "
                 "the vectorized stepper does (plain ladder teams in studies and "
@@ -267,12 +270,3 @@ class LadderCorridor(WorldComponent):
                       for r, a in enumerate(self.robots)}
         return {"world": world, "payloads": ["ladder"], "payload_shapes": {"ladder": shape},
                 "footprints": footprints}
-
-
-def _reading(values: dict[str, Any], name: str, allowed: tuple[str, ...]) -> str:
-    """The component's ``name`` setting, one of ``allowed`` (a reading of Section 3)."""
-    value = values[name]
-    if value not in allowed:
-        raise ValueError(f"ladder.corridor: '{name}' must be one of {', '.join(allowed)}, "
-                         f"not '{value}'")
-    return str(value)
