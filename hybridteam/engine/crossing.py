@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.dynamics import rk
+from hybridteam.engine.arrays import every, filled, some, where_true
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.step import AgentStep, state_at
@@ -64,10 +65,9 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
     crossed, and the true states computed at trial times ({agent: {(row, tau): x}}) so
     the engine need not integrate to the crossing again. Updates nothing.
     """
-    best = np.full(idx.size, np.inf)
-    best_lo = np.full(idx.size, np.inf)
-    checks = ens.settings.crossing_checks
-    thetas = np.array([0.0] + [(k + 1) / (checks + 1) for k in range(checks)] + [1.0])
+    best = filled(idx.size, np.inf)
+    best_lo = filled(idx.size, np.inf)
+    thetas = ens.thetas
     end_truths: list[np.ndarray | None] = []
     cache: dict[int, dict] = {}
     for a, st in enumerate(ens.states):
@@ -75,7 +75,7 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
             end_truths.append(None)
             continue
         end, flips = _flips(ens, a, idx, x_end[a], steps[a], thetas)
-        end_truths.append(end)
+        end_truths.append(end)  # None: no atom watched, nothing to refresh
         if flips is None:
             continue
         seg = _search(ens, a, idx, steps[a], thetas, *flips, best, best_lo)
@@ -85,24 +85,31 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
 
 
 def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
-           thetas: np.ndarray) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+           thetas: np.ndarray
+           ) -> tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
     """Agent ``a``'s atom truths at the step's end, and — where some watched atom flipped
     in a way that can matter — which sub-intervals of the step it flipped in and the truths
     at their ends: ``(relevant (K, nw, m), truths (K + 1, nw, m))``, else None.
 
     Atoms are evaluated at the step's ends and at ``crossing_checks`` interior points (all
     instances' checkpoints in one batch, off the dense output or the exact arc).
+
+    Where no atom is watched in any of these instances, none is evaluated and the truths
+    returned are None: an atom's stored truth is read only where it is watched, and it is
+    evaluated afresh whenever a transition makes it watched (``Simulator._instant``).
     """
     st = ens.states[a]
-    h, t0 = ens.h[idx], ens.t0[idx]
-    t1 = t0 + h
     full = idx.size == ens.n  # idx is every instance (the live ones, sorted)
-    end = watch_truth(ens, a, idx, x_end, t1, full)
     sel = slice(None) if full else idx
     watched = st.watched[:, sel]  # (nw, m)
+    if not some(watched):
+        return None, None
+    h, t0 = ens.h[idx], ens.t0[idx]
+    t1 = t0 + h
+    end = watch_truth(ens, a, idx, x_end, t1, full)
     truths = [st.truth[:, sel]]
     checks = thetas.size - 2
-    if not watched.any() or (checks == 0 and not (watched & (end != truths[0])).any()):
+    if checks == 0 and not some(watched & (end != truths[0])):
         return end, None
     points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
     if checks:
@@ -120,7 +127,7 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     truths.append(end)
     flips = np.stack([watched & (truths[k] != truths[k - 1])
                       for k in range(1, len(truths))])  # (K, nw, m)
-    if not flips.any():
+    if not some(flips):
         return end, None
     return end, (_relevant(ens, a, idx, flips, points), np.stack(truths))
 
@@ -137,10 +144,10 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
     # atoms in order of their first sub-interval: the earliest crossing is found first and
     # later atoms only need one probe to show they do not cross before it
     order = sorted(range(relevant.shape[1]),
-                   key=lambda w: float(first[w][has[w]].min()) if has[w].any() else 9.0)
+                   key=lambda w: float(first[w][has[w]].min()) if some(has[w]) else 9.0)
     seg: _Segment | None = None
     for w in order:
-        cand = np.flatnonzero(has[w])
+        cand = where_true(has[w])
         if cand.size == 0:
             continue
         if seg is None:
@@ -150,7 +157,7 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
         hi = thetas[k + 1] * h[cand]
         truth_lo = truths[k, w, cand]
         known = np.isfinite(best[cand])
-        if known.any():
+        if some(known):
             # crossing later than the best so far (original truth still at best_lo)?
             rows = cand[known]
             probe = np.minimum(best_lo[rows], hi[known])
@@ -158,7 +165,7 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
             later = dense(np.arange(rows.size), probe)[0] == truth_lo[known]
             later |= best_lo[rows] <= lo[known]
             keep = np.ones(cand.size, bool)
-            keep[np.flatnonzero(known)[later]] = False
+            keep[where_true(known)[later]] = False
             # (the bracket is not cut at best_lo: each row's result must not depend on which
             # atoms other instances searched first, so an instance of an ensemble and a single
             # run agree bit for bit)
@@ -187,7 +194,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
     for k in range(flips.shape[0]):
         x, t = points[k + 1]
         for w, watch in enumerate(watches):
-            cols = np.flatnonzero(flips[k, w])
+            cols = where_true(flips[k, w])
             if cols.size == 0 or watch.observer:  # a requirement's crossing always matters
                 continue
             shared = np.zeros(cols.size, bool)
@@ -219,7 +226,7 @@ class _Segment:
         self.t0 = ens.t0[idx]
         self.tol = np.maximum(ens.settings.event_tol,
                               4 * np.finfo(float).eps * np.abs(self.t0 + ens.h[idx]))
-        self.has_rk = bool(step.rk.any())
+        self.has_rk = some(step.rk)
         self.true_states: dict[tuple[int, float], np.ndarray] = {}
 
     def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
@@ -237,7 +244,7 @@ class _Segment:
         v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
         entry = st.entry[sub, watch.mode]
         is_rk = self.step.rk[rows]
-        any_rk = self.has_rk and bool(is_rk.any())
+        any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a
         derivs: dict[bytes, object] = {}
 
@@ -248,7 +255,7 @@ class _Segment:
                 return state_at(ens, a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
             out = np.empty((pos.size, x0.shape[1]))
             flow = is_rk[pos]
-            if (~flow).any():
+            if not every(flow):
                 ex = pos[~flow]
                 out[~flow] = plant.propagate(x0[ex], u[ex], tau[~flow])
             fp = pos[flow]
@@ -284,7 +291,7 @@ class _Segment:
         """
         tol = self.tol[rows]
         exact = self.evaluator(w, rows, dense=False)
-        if not self.has_rk or not self.step.rk[rows].any():
+        if not self.has_rk or not some(self.step.rk[rows]):
             return _illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
         dense = self.evaluator(w, rows, dense=True)
@@ -299,8 +306,8 @@ class _Segment:
             g1 = g - m_g / slope
         guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
         new_lo, new_hi = span_lo.copy(), span_hi.copy()
-        m_lo = np.full(rows.size, np.nan)
-        m_hi = np.full(rows.size, np.nan)
+        m_lo = filled(rows.size, np.nan)
+        m_hi = filled(rows.size, np.nan)
         todo = np.arange(rows.size)
         width = 0.5 * tol
         for _ in range(6):
@@ -331,8 +338,8 @@ def _illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     """
     size = lo.size
     everyone = np.arange(size)
-    if m_lo is None or np.isnan(m_lo).any():
-        need = everyone if m_lo is None else np.flatnonzero(np.isnan(m_lo))
+    if m_lo is None or some(np.isnan(m_lo)):
+        need = everyone if m_lo is None else where_true(np.isnan(m_lo))
         m_lo = np.empty(size) if m_lo is None else m_lo
         m_hi = np.empty(size) if m_hi is None else m_hi
         m_lo[need] = ev(need, lo[need])[1]
@@ -342,7 +349,7 @@ def _illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
     slow = np.zeros(size, np.int8)  # rounds in a row that did not halve the bracket
     for _ in range(MAX_ITER):
-        open_ = np.flatnonzero(hi - lo > tol)
+        open_ = where_true(hi - lo > tol)
         if open_.size == 0:
             break
         a_, b_, fa, fb, tl = lo[open_], hi[open_], ma[open_], mb[open_], tol[open_]

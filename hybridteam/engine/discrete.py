@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.engine.arrays import some, where_true
 from hybridteam.engine.compiled import REPLY
 from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
 from hybridteam.engine.values import require
@@ -111,17 +112,17 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
     # one gather says which candidates' sources are active anywhere, so the loop below
     # visits only those (most of an agent's transitions leave modes it is not in)
     act = st.active[idx][:, ag.transition_sources[candidates]]
-    for c in np.flatnonzero(act.any(axis=0)).tolist():
+    for c in where_true(act.any(axis=0)).tolist():
         j = candidates[c]
         tr = ag.transitions[j]
         e = act[:, c].copy()
         if tr.after is not None:
             e &= t >= st.deadline[idx, tr.after_slot]
-        if tr.guard is not None and e.any():
+        if tr.guard is not None and some(e):
             sub = idx[e]
-            ctx = st.ctx(sub, ens.t[sub], tr.source, _rows(msg, np.flatnonzero(e)))
+            ctx = st.ctx(sub, ens.t[sub], tr.source, _rows(msg, where_true(e)))
             e[e] = np.broadcast_to(tr.guard(ctx), sub.shape)
-        if e.any():
+        if some(e):
             enabled[j] = e
     if not enabled:
         return fired
@@ -131,12 +132,12 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
         for k in ag.transitions[j].conflicts.tolist():
             if k in chosen:
                 e = e & ~chosen[k]
-        if e.any():
+        if some(e):
             chosen[j] = e
     for j, e in chosen.items():
         tr = ag.transitions[j]
         reason = cause or ("after" if tr.after is not None else "guard")
-        fire(ens, ag, st, j, idx[e], reason, _rows(msg, np.flatnonzero(e)))
+        fire(ens, ag, st, j, idx[e], reason, _rows(msg, where_true(e)))
         fired |= e
     return fired
 

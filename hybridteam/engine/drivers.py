@@ -15,7 +15,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
-from hybridteam.engine.arrays import distinct
+from hybridteam.engine.arrays import distinct, every, some, where_true
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
 from hybridteam.engine.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError
@@ -65,7 +65,7 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
     drv = st.driver[idx]
-    groups = [(d, np.flatnonzero(drv == d)) for d in distinct(drv)] if drv.size else []
+    groups = [(d, where_true(drv == d)) for d in distinct(drv)] if drv.size else []
     v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
@@ -106,7 +106,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
     fresh = np.zeros(ens.n, bool)
     fresh[changed] = True
     due |= fresh
-    if not due.any():
+    if not some(due):
         return
     for d in distinct(st.driver[due]):  # the drivers in charge, in index order
         D = ca.drivers[d]
@@ -118,15 +118,15 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
             # re-sample on a tick, or when the law's mode was (re)entered just now
             entered = fresh & (st.entry[:, D.owner] == ens.t)
             mine &= entered | (ens.t >= st.next_tick)
-            if not mine.any():
+            if not some(mine):
                 continue
-        everyone = bool(mine.all())
-        rows = slice(None) if everyone else np.flatnonzero(mine)
+        everyone = every(mine)
+        rows = slice(None) if everyone else where_true(mine)
         t = ens.t[rows]
         ctx = st.ctx(rows, t, D.owner)
         u = evaluate_driver(ca, D, ctx)
         st.u[rows] = u
-        if not np.isfinite(u).all():
+        if not every(np.isfinite(u)):
             where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
             stop_broken_inputs(ens, a, where, u)
         if D.kind == "sampled":

@@ -72,6 +72,9 @@ class Ensemble:
         self.timer = [np.full(n, np.inf) for _ in cteam.agents]
         self.h_rk = np.full(n, np.nan)
         self.max_step = self.settings.max_step or np.inf
+        checks = self.settings.crossing_checks
+        #: where in a step atoms are checked for flips, as fractions of it (both ends too)
+        self.thetas = np.array([0.0, *((k + 1) / (checks + 1) for k in range(checks)), 1.0])
         zk = self.settings.zeno.max_transitions
         self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
         self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]

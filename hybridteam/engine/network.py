@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybridteam.engine.arrays import some
 from hybridteam.engine.events import MESSAGE
 from hybridteam.engine.randomness import instance_keys, uniform
 from hybridteam.engine.values import require
@@ -143,7 +144,7 @@ class Network:
         else:
             receivers = [(to, np.ones(idx.size, bool))]
         for r, mine in receivers:
-            if not mine.any():
+            if not some(mine):
                 continue
             inst, ts, k, ids_r = idx[mine], t[mine], seq[mine], ids[mine]
             latency, jitter, loss = (a[inst] for a in self.links.get((sender, r),
@@ -152,17 +153,17 @@ class Network:
             # a draw is a pure function of (key, link, counter): where the link cannot lose
             # or delay a copy its outcome is known without hashing (lost: u < 0 is false;
             # jitter 0 * u is 0 for every u in [0, 1)), so the draws are skipped
-            lost = uniform(key, sender, r, k, LOSS) < loss if loss.any() else \
+            lost = uniform(key, sender, r, k, LOSS) < loss if some(loss) else \
                 np.zeros(inst.size, bool)
-            u_jit = uniform(key, sender, r, k, JITTER) if jitter.any() else \
+            u_jit = uniform(key, sender, r, k, JITTER) if some(jitter) else \
                 np.zeros(inst.size)
             t_recv = ts + latency + jitter * u_jit
-            if lost.any():
+            if some(lost):
                 self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],
                                  np.full(int(lost.sum()), np.nan), "lost",
                                  "loss" + (f" ({note})" if note else ""), ids_r[lost])
             ok = ~lost
-            if ok.any():
+            if some(ok):
                 values = {f: v[mine][ok].tolist() for f, v in fields.items()}
                 payloads = [Message(sender, r, kj, tj, socket, type_,
                                     {f: vs[j] for f, vs in values.items()}, idj, note)

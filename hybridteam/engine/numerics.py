@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.engine.arrays import every, some
+
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.step import AgentStep
@@ -64,8 +66,8 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
     start, or the state a step produced, is not a finite number; they stay at the step's
     start (their last finite state). Runge–Kutta results that are not finite were already
     rejected (a smaller step may do), so what is left here is beyond any step size."""
-    if all(np.isfinite(xe).all() for xe in x_end) and not any(
-            s.start_bad is not None and s.start_bad.any() for s in steps):
+    if all(every(np.isfinite(xe)) for xe in x_end) and not any(
+            s.start_bad is not None and some(s.start_bad) for s in steps):
         return  # the usual case, in a few reductions
     accepted = ens.h[sel] > 0
     bad = np.zeros(idx.size, bool)
@@ -77,7 +79,7 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
             _report_state(ens, a, int(idx[r]), step, r, x_end[a][r], float(t1[idx[r]]),
                           bool(start[r]))
         bad |= rows
-    if bad.any():
+    if some(bad):
         back = idx[bad]
         t1[back] = ens.t[back]
         ens.h[back] = 0.0

@@ -23,7 +23,7 @@ import numpy as np
 
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
-from hybridteam.engine.arrays import union
+from hybridteam.engine.arrays import every, filled, some, union, where_true
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
@@ -80,7 +80,7 @@ class Simulator:
             self._initialize()
             last_report = -1.0
             steps = 0
-            while not ens.done.all():
+            while not every(ens.done):
                 self._step()
                 steps += 1
                 if self.progress is not None or steps % 64 == 0:
@@ -173,7 +173,7 @@ class Simulator:
         """Advance every live instance to its next instant (or as far as its error control
         allows), stop it at the first located crossing, then run the instants reached."""
         ens = self.ensemble
-        idx = np.flatnonzero(~ens.done)
+        idx = where_true(~ens.done)
         # with every instance live (the usual case) gathers are views, not copies
         full = idx.size == ens.n
         sel: slice | np.ndarray = slice(None) if full else idx
@@ -185,7 +185,7 @@ class Simulator:
         moved = [take_step(ens, a, idx, sel, h, err) for a in range(len(ens.states))]
         x_end = [xe for xe, _ in moved]
         steps = [s for _, s in moved]
-        if any_rk[sel].any():
+        if some(any_rk[sel]):
             self._control_step_size(idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
@@ -215,8 +215,8 @@ class Simulator:
             np.minimum(t_next, ens.timer[a], out=t_next)
             any_rk |= st.rk
         any_rk &= live
-        if any_rk.any():
-            self._initial_rk_steps(np.flatnonzero(any_rk & np.isnan(ens.h_rk)))
+        if some(any_rk):
+            self._initial_rk_steps(where_true(any_rk & np.isnan(ens.h_rk)))
             t_rk = t + np.minimum(ens.h_rk, ens.max_step)
             t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
             limited = any_rk & (t_rk < t_next)
@@ -239,14 +239,14 @@ class Simulator:
         grow = rows_rk & ~reject & limited[sel]
         upd = reject | grow
         ens.h_rk[idx[upd]] = new_h[upd]
-        if reject.any():
+        if some(reject):
             # a derivative that is not a number at the start is a numerical error, not a
             # step too large: stop_broken_states reports it
             hopeless = np.zeros(idx.size, bool)
             for s in steps:
                 if s.start_bad is not None:
                     hopeless |= s.start_bad
-            dead = stop_collapsed_steps(ens, idx, steps, np.flatnonzero(reject & ~hopeless))
+            dead = stop_collapsed_steps(ens, idx, steps, where_true(reject & ~hopeless))
             reject[dead] = True  # (already) taken back: nothing of the step is kept
             back = idx[reject]
             t1[back] = ens.t[back]
@@ -263,21 +263,21 @@ class Simulator:
         ens = self.ensemble
         accepted = ens.h[sel] > 0
         cache: dict = {}
-        if accepted.any():
+        if some(accepted):
             tau, end_truths, cache = find_crossings(ens, idx, x_end, steps)
         else:
-            tau, end_truths = np.full(idx.size, np.inf), [None] * len(ens.states)
+            tau, end_truths = filled(idx.size, np.inf), [None] * len(ens.states)
         crossing = np.isfinite(tau) & accepted
-        if crossing.any():
-            rows = np.flatnonzero(crossing)
+        if some(crossing):
+            rows = where_true(crossing)
             for a in range(len(ens.states)):
                 known = cache.get(a, {})
                 hits = [known.get((r, tt)) for r, tt in zip(rows.tolist(), tau[rows].tolist(),
                                                             strict=True)]
                 miss = np.array([x is None for x in hits], bool)
-                for k in np.flatnonzero(~miss).tolist():
+                for k in where_true(~miss).tolist():
                     x_end[a][rows[k]] = hits[k]
-                if miss.any():
+                if some(miss):
                     r = rows[miss]
                     x_end[a][r] = state_at(ens, a, idx[r], tau[r], steps[a], rows=r)
             t1[idx[rows]] = ens.t[idx[rows]] + tau[rows]
@@ -297,7 +297,7 @@ class Simulator:
         moved = idx[crossing]
         for a, st in enumerate(ens.states):
             if end_truths[a] is not None:
-                if plain.all() and full:
+                if full and every(plain):
                     st.truth = end_truths[a]
                 else:
                     st.truth[:, idx[plain]] = end_truths[a][:, plain]
@@ -317,7 +317,7 @@ class Simulator:
         ens = self.ensemble
         h = np.full(idx.size, np.inf)
         for a, st in enumerate(ens.states):
-            rows = np.flatnonzero(st.rk[idx])
+            rows = where_true(st.rk[idx])
             if rows.size == 0:
                 continue
             sub = idx[rows]
@@ -344,7 +344,7 @@ class Simulator:
         first = ens.out_k[idx]
         last = np.searchsorted(ens.sample_times, t1, side="left")  # samples < t1
         count = np.maximum(last - first, 0)
-        if not count.any():
+        if not some(count):
             return
         rows = np.repeat(np.arange(idx.size), count)
         k = np.repeat(first, count) + (np.arange(rows.size) - np.repeat(np.cumsum(count) - count,

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.dynamics import rk
+from hybridteam.engine.arrays import some, where_true
 from hybridteam.engine.drivers import derivative
 
 if TYPE_CHECKING:
@@ -51,13 +52,13 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     st = ens.states[a]
     x0, u, is_rk = st.x[sel], st.u[sel], st.rk[sel]
     step = AgentStep(x0, u, is_rk)
-    if not is_rk.any():
+    if not some(is_rk):
         return st.ca.plant.propagate(x0, u, h), step
     xe = np.empty_like(x0)
     ex = ~is_rk
-    if ex.any():
+    if some(ex):
         xe[ex] = st.ca.plant.propagate(x0[ex], u[ex], h[ex])
-    r = np.flatnonzero(is_rk)
+    r = where_true(is_rk)
     sub = idx[r]
     s = rk.step(derivative(ens, a, sub), ens.t[sub], x0[r], h[r], ens.settings.rtol,
                 ens.settings.atol)
@@ -85,13 +86,13 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
         rows = np.arange(idx.size)
     x0, u, is_rk = step.x0[rows], step.u[rows], step.rk[rows]
     plant = ens.states[a].ca.plant
-    if not is_rk.any():
+    if not some(is_rk):
         return plant.propagate(x0, u, tau)
     out = np.empty_like(x0)
     ex = ~is_rk
-    if ex.any():
+    if some(ex):
         out[ex] = plant.propagate(x0[ex], u[ex], tau[ex])
-    r = np.flatnonzero(is_rk)
+    r = where_true(is_rk)
     if dense:
         s = step.rk_step
         assert s is not None and step.rk_pos is not None

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.arrays import floats, spread
+from hybridteam.engine.arrays import floats, some, spread
 from hybridteam.engine.values import require
 from hybridteam.errors import DocPath
 from hybridteam.expr import Expression
@@ -142,7 +142,7 @@ class Streams:
                     start = on & ~was
                     due[idx[start]] = t[start]
                     send = on & (t >= due[idx])
-                if send.any():
+                if some(send):
                     sub = idx[send]
                     ctx = st.ctx(sub, ens.t[sub])
                     ctx.u = st.u[sub]
