@@ -35,7 +35,8 @@ def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
             u[:, j] = e(ctx)
     else:
         u = _call_law(ca, drv, ctx, m)
-    return saturate(u, ca.lower, ca.upper) if ca.limited else u
+    bounds = ca.bounds
+    return u if bounds is None else saturate(u, *bounds)
 
 
 
@@ -101,11 +102,17 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
     ca = st.ca
     if not ca.plant.input_names or live.size == 0:
         return
-    due = np.zeros(ens.n, bool)
-    due[live] = ens.t[live] >= st.next_tick[live]
-    fresh = np.zeros(ens.n, bool)
-    fresh[changed] = True
-    due |= fresh
+    t_all = ens.t
+    if live.size == ens.n:
+        due = t_all >= st.next_tick
+    else:
+        due = np.zeros(ens.n, bool)
+        due[live] = t_all[live] >= st.next_tick[live]
+    fresh: np.ndarray | None = None
+    if changed.size:
+        fresh = np.zeros(ens.n, bool)
+        fresh[changed] = True
+        due |= fresh
     if not some(due):
         return
     for d in distinct(st.driver[due]):  # the drivers in charge, in index order
@@ -114,15 +121,16 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         if D.kind == "continuous":
             st.next_tick[mine] = np.inf
             continue
-        if D.kind == "sampled":
-            # re-sample on a tick, or when the law's mode was (re)entered just now
-            entered = fresh & (st.entry[:, D.owner] == ens.t)
-            mine &= entered | (ens.t >= st.next_tick)
+        if D.kind == "sampled" and fresh is not None:
+            # re-sample on a tick, or when the law's mode was (re)entered just now (without
+            # fresh instances, ``due`` holds only ticks)
+            entered = fresh & (st.entry[:, D.owner] == t_all)
+            mine &= entered | (t_all >= st.next_tick)
             if not some(mine):
                 continue
         everyone = every(mine)
         rows = slice(None) if everyone else where_true(mine)
-        t = ens.t[rows]
+        t = t_all[rows]
         ctx = st.ctx(rows, t, D.owner)
         u = evaluate_driver(ca, D, ctx)
         st.u[rows] = u
@@ -132,7 +140,9 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         if D.kind == "sampled":
             k = np.floor(t / D.period) + 1
             nxt = k * D.period
-            st.next_tick[rows] = np.where(nxt <= t, (k + 1) * D.period, nxt)
+            late = nxt <= t  # round-off put the k-th tick at or before t: the next one
+            if some(late):
+                nxt[late] = (k[late] + 1) * D.period
+            st.next_tick[rows] = nxt
         else:
             st.next_tick[rows] = np.inf
-
