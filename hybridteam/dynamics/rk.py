@@ -123,10 +123,11 @@ class Step:
         if rows is not None:
             F, x0 = F[:, rows], x0[rows]
         x = np.asarray(theta, dtype=float)[:, None]
-        y = np.zeros_like(x0)
+        factors = (x, 1 - x)
+        y = np.zeros(x0.shape)
         for i, coef in enumerate(reversed(F)):
-            y = y + coef
-            y = y * (x if i % 2 == 0 else (1 - x))
+            y += coef
+            y *= factors[i % 2]
         return x0 + y
 
 

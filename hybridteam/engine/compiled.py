@@ -9,7 +9,6 @@ the declarations; nothing here refers to YAML.
 from __future__ import annotations
 
 import functools
-
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -13,6 +13,10 @@ event time is as accurate as a step, not as the interpolant.
 The search keeps a bracket ``[a, b]`` with the atom's original truth at ``a`` and the flipped
 truth at ``b`` and returns ``b``: the state handed to the discrete phase is always on the new
 side of the boundary, within ``event_tol`` seconds of the crossing.
+
+All of this runs inside :meth:`Simulator.run <hybridteam.engine.simulator.Simulator.run>`,
+which ignores floating-point errors for the whole run (a secant through equal margins is
+NaN, and is replaced): the search sets no error state of its own, a cost per trial.
 """
 
 from __future__ import annotations
@@ -302,8 +306,7 @@ class _Segment:
         both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
         slope = (both[: rows.size] - both[rows.size:]) / (b_ - a_)  # rows are independent
         m_g = exact(everyone, g)[1]
-        with np.errstate(all="ignore"):
-            g1 = g - m_g / slope
+        g1 = g - m_g / slope
         guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
         new_lo, new_hi = span_lo.copy(), span_hi.copy()
         m_lo = filled(rows.size, np.nan)
@@ -352,26 +355,26 @@ def _illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         open_ = where_true(hi - lo > tol)
         if open_.size == 0:
             break
-        a_, b_, fa, fb, tl = lo[open_], hi[open_], ma[open_], mb[open_], tol[open_]
+        # while every bracket is open (a single run's one bracket, mostly), views, not copies
+        k: slice | np.ndarray = slice(None) if open_.size == size else open_
+        a_, b_, fa, fb, tl = lo[k], hi[k], ma[k], mb[k], tol[k]
         width = b_ - a_
-        with np.errstate(all="ignore"):
-            c = b_ - fb * width / (fb - fa)
-        c = np.where(np.isfinite(c) & (slow[open_] < 3), c, 0.5 * (a_ + b_))
-        c = np.clip(c, a_ + 0.5 * tl, b_ - 0.5 * tl)
+        c = b_ - fb * width / (fb - fa)  # (the run ignores floating-point errors)
+        c = np.where(np.isfinite(c) & (slow[k] < 3), c, 0.5 * (a_ + b_))
+        c = np.minimum(np.maximum(c, a_ + 0.5 * tl), b_ - 0.5 * tl)  # np.clip's values
         tc, mc = ev(open_, c)
-        to_lo = tc == truth0[open_]  # c has the original truth: it becomes the new lo
-        lo[open_] = np.where(to_lo, c, a_)
-        hi[open_] = np.where(to_lo, b_, c)
-        slow[open_] = np.where(hi[open_] - lo[open_] > 0.5 * width, slow[open_] + 1, 0)
-        survivor = np.where(to_lo, 1, -1).astype(np.int8)
-        again = kept[open_] == survivor
+        to_lo = tc == truth0[k]  # c has the original truth: it becomes the new lo
+        scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
+        new_lo, new_hi = np.where(to_lo, c, a_), np.where(to_lo, b_, c)
+        slow[k] = np.where(new_hi - new_lo > 0.5 * width, slow[k] + 1, 0)
+        survivor = np.where(to_lo, np.int8(1), np.int8(-1))
+        again = kept[k] == survivor
         # Anderson–Björck: the end that survives again has its value scaled by
         # 1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next
         # secant across the root instead of creeping from one side as regula falsi does
-        with np.errstate(all="ignore"):
-            scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
         scale = np.where(np.isfinite(scale) & (scale > 0), scale, 0.5)
-        ma[open_] = np.where(to_lo, mc, np.where(again, scale * fa, fa))
-        mb[open_] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
-        kept[open_] = survivor
+        new_ma = np.where(to_lo, mc, np.where(again, scale * fa, fa))
+        mb[k] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
+        ma[k], lo[k], hi[k] = new_ma, new_lo, new_hi
+        kept[k] = survivor
     return lo, hi

@@ -66,29 +66,30 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
     drv = st.driver[idx]
-    groups = [(d, where_true(drv == d)) for d in distinct(drv)] if drv.size else []
     v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
+    # what does not change from one stage to the next is gathered once, per driver group
+    groups = []
+    for d in (distinct(drv) if drv.size else []):
+        D = ca.drivers[d]
+        rows = where_true(drv == d)
+        sel: slice | np.ndarray = slice(None) if rows.size == drv.size else rows
+        groups.append((D, sel, v[sel], p[sel], entry[sel, D.owner] if D.owner >= 0 else None,
+                       None if st.inbox is None else st.inbox.view(idx[sel])))
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
-        out = np.zeros_like(xx)
-        for d, rows in groups:
-            D = ca.drivers[d]
-            whole = rows.size == xx.shape[0]
-            sel = slice(None) if whole else rows
+        out = np.zeros(xx.shape)
+        for D, sel, v_g, p_g, entered, e in groups:
             tr = tt[sel]
-            t_in = tr - entry[sel, D.owner] if D.owner >= 0 else tr
-            ctx = Ctx(xx[sel], v[sel], p[sel], tr, t_in,
-                      e=None if st.inbox is None else st.inbox.view(idx[sel]))
+            ctx = Ctx(xx[sel], v_g, p_g, tr, tr if entered is None else tr - entered, e=e)
             if D.kind == "flow":
-                for j, e in enumerate(D.flow):  # type: ignore[arg-type]
-                    if e is not None:
-                        out[sel, j] = e(ctx)
+                for j, expr in enumerate(D.flow):  # type: ignore[arg-type]
+                    if expr is not None:
+                        out[sel, j] = expr(ctx)
             elif plant.input_names:
                 out[sel] = plant.derivative(ctx.x, evaluate_driver(ca, D, ctx))
         return out
 
     return f
-
 
 
 def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) -> None:
