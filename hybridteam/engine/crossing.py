@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.dynamics import rk
-from hybridteam.engine.arrays import every, filled, some, where_true
+from hybridteam.engine.arrays import every, filled, some, spread, where_true
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.step import AgentStep, state_at
@@ -211,7 +211,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
             sub = idx[rows]
             ctx = Ctx(x[rows], st.v[sub], st.p[sub], t[rows],
                       t[rows] - st.entry[sub, watch.mode])
-            value = np.broadcast_to(watch.owner(ctx), rows.shape)
+            value = spread(watch.owner(ctx), rows.shape)
             keep[k, w, rows[value if watch.invariant else ~value]] = False
     return keep
 
@@ -277,8 +277,8 @@ class _Segment:
             t = t0[pos] + tau
             ctx = Ctx(state(pos, tau), v[pos], p[pos], t, t - entry[pos])
             truth, margin = atom.truth_and_margin(ctx)
-            return (np.broadcast_to(truth, tau.shape),
-                    np.array(np.broadcast_to(margin, tau.shape), dtype=float))
+            # (read only: the search copies what it keeps)
+            return spread(truth, tau.shape), spread(np.asarray(margin, dtype=float), tau.shape)
 
         return ev
 

@@ -69,6 +69,9 @@ class Simulator:
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
+        #: whether any agent can ever flow under an integrated law (else no step is
+        #: limited by error control, and the step's end is the next scheduled instant)
+        self.may_flow = any(d.needs_rk for ca in cteam.agents for d in ca.drivers)
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
 
@@ -177,7 +180,7 @@ class Simulator:
         # with every instance live (the usual case) gathers are views, not copies
         full = idx.size == ens.n
         sel: slice | np.ndarray = slice(None) if full else idx
-        t1, any_rk, limited = self._step_end()
+        t1, any_rk, limited = self._step_end(full)
         ens.t0 = ens.t.copy()
         ens.h = t1 - ens.t
         h = ens.h[sel]
@@ -199,29 +202,34 @@ class Simulator:
         ens.t = t1
         self._arrive(idx, sel, tn, crossing, end_truths, full)
 
-    def _step_end(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _step_end(self, full: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where each instance's step ends: its next scheduled instant, or sooner where an
         agent flows and the error control asks for a shorter step. Returns ``(t1, any_rk,
         limited)``: whether some agent of the instance flows, and whether its step size
-        (rather than a scheduled instant) set ``t1``."""
+        (rather than a scheduled instant) set ``t1``. ``full``: every instance is live."""
         ens = self.ensemble
         live = ~ens.done
         t = ens.t
         t_next = np.minimum(ens.queue.next, ens.t_end)
-        np.minimum(t_next, ens.streams.next, out=t_next)
+        if ens.streams.any:
+            np.minimum(t_next, ens.streams.next, out=t_next)
         any_rk = np.zeros(ens.n, bool)
         for a, st in enumerate(ens.states):
             np.minimum(t_next, st.next_tick, out=t_next)
             np.minimum(t_next, ens.timer[a], out=t_next)
-            any_rk |= st.rk
-        any_rk &= live
-        if some(any_rk):
+            if self.may_flow:
+                any_rk |= st.rk
+        if self.may_flow:
+            any_rk &= live
+        if self.may_flow and some(any_rk):
             self._initial_rk_steps(where_true(any_rk & np.isnan(ens.h_rk)))
             t_rk = t + np.minimum(ens.h_rk, ens.max_step)
             t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
             limited = any_rk & (t_rk < t_next)
         else:
             t1, limited = t_next, any_rk
+        if full:
+            return np.maximum(t1, t), any_rk, limited
         return np.where(live, np.maximum(t1, t), t), any_rk, limited
 
     def _control_step_size(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
@@ -288,15 +296,18 @@ class Simulator:
         """After the step: refresh watched truths, run the instants the step reached
         (events, deadlines, crossings, law ticks), record samples, end finished runs."""
         ens = self.ensemble
-        at = crossing | (tn >= ens.t_end) | (tn >= ens.queue.next[sel])
-        tick = tn >= ens.streams.next[sel]
+        ending = tn >= ens.t_end
+        at = crossing | ending | (tn >= ens.queue.next[sel])
+        tick = tn >= ens.streams.next[sel] if ens.streams.any else np.zeros(tn.size, bool)
         for a, st in enumerate(ens.states):
             at |= tn >= ens.timer[a][sel]
             tick |= tn >= st.next_tick[sel]
-        plain = (ens.h[sel] > 0) & ~crossing
         moved = idx[crossing]
+        plain = None
         for a, st in enumerate(ens.states):
             if end_truths[a] is not None:
+                if plain is None:
+                    plain = (ens.h[sel] > 0) & ~crossing
                 if full and every(plain):
                     st.truth = end_truths[a]
                 else:
@@ -307,7 +318,9 @@ class Simulator:
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
         self._record_samples(idx)
-        ended = idx[(ens.t[sel] >= ens.t_end) & ~ens.done[sel]]
+        if not some(ending):  # (the discrete phase moves no clock: ens.t[sel] is tn)
+            return
+        ended = idx[ending & ~ens.done[sel]]
         if ended.size:
             ens.finish(ended, "ok", lambda i: f"reached the end of the run at t={ens.when(i)}")
 
@@ -341,11 +354,11 @@ class Simulator:
         by :meth:`_record_samples`.
         """
         ens = self.ensemble
+        if not some(ens.next_out[idx] < t1):  # the next sample of each is not before t1
+            return
         first = ens.out_k[idx]
         last = np.searchsorted(ens.sample_times, t1, side="left")  # samples < t1
         count = np.maximum(last - first, 0)
-        if not some(count):
-            return
         rows = np.repeat(np.arange(idx.size), count)
         k = np.repeat(first, count) + (np.arange(rows.size) - np.repeat(np.cumsum(count) - count,
                                                                          count))
