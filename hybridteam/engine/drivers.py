@@ -116,9 +116,12 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         due |= fresh
     if not some(due):
         return
-    for d in distinct(st.driver[due]):  # the drivers in charge, in index order
+    one = st.driver[0]
+    # the drivers in charge, in index order (one, usually, everywhere: no gathering then)
+    single = every(st.driver == one)
+    for d in [int(one)] if single else distinct(st.driver[due]):
         D = ca.drivers[d]
-        mine = due & (st.driver == d)
+        mine = due.copy() if single else due & (st.driver == d)
         if D.kind == "continuous":
             st.next_tick[mine] = np.inf
             continue

@@ -128,8 +128,9 @@ class Simulator:
         """
         ens = self.ensemble
         if not entering:
-            ens.changed[idx] = False
-            ens.reconfigured[idx] = False
+            every_one = slice(None) if idx.size == ens.n else idx  # a slice writes faster
+            ens.changed[every_one] = False
+            ens.reconfigured[every_one] = False
         if discrete is None:
             discrete = idx
         if ens.world.any:  # components see the state first; events they raise run now
@@ -144,15 +145,20 @@ class Simulator:
                                                for st in ens.states if st.v.shape[1]})
             ens.rec.snapshot(idx, ens.t[idx], ens.world.sample(idx))
         live = idx[~ens.done[idx]]
-        changed = live[ens.changed[live]] if not entering else live
+        # (with every instance live, whole-array masks instead of gathers: same indices)
+        whole = live.size == ens.n
+        changed = live if entering else where_true(ens.changed) if whole else \
+            live[ens.changed[live]]
         # an event consumed without a transition changes no mode, variable or state: what
         # depends on those is refreshed only where the configuration changed
-        config = live[ens.reconfigured[live]] if not entering else live
+        config = live if entering else where_true(ens.reconfigured) if whole else \
+            live[ens.reconfigured[live]]
         for a, st in enumerate(ens.states):
             if live.size and st.after_slots.size:
                 # the earliest deadline ahead changes only with the configuration or once
                 # it is reached: elsewhere the stored one is still the earliest ahead
-                due = live[ens.t[live] >= ens.timer[a][live]]
+                due = where_true(ens.t >= ens.timer[a]) if whole else \
+                    live[ens.t[live] >= ens.timer[a][live]]
                 due = union(due, config)
                 if due.size:
                     ens.timer[a][due] = st.next_timer(due, ens.t[due])
@@ -354,7 +360,8 @@ class Simulator:
         by :meth:`_record_samples`.
         """
         ens = self.ensemble
-        if not some(ens.next_out[idx] < t1):  # the next sample of each is not before t1
+        upcoming = ens.next_out if idx.size == ens.n else ens.next_out[idx]
+        if not some(upcoming < t1):  # the next sample of each is not before t1
             return
         first = ens.out_k[idx]
         last = np.searchsorted(ens.sample_times, t1, side="left")  # samples < t1
@@ -373,7 +380,8 @@ class Simulator:
 
     def _record_samples(self, idx: np.ndarray) -> None:
         ens = self.ensemble
-        due = idx[ens.t[idx] >= ens.next_out[idx]]
+        due = where_true(ens.t >= ens.next_out) if idx.size == ens.n else \
+            idx[ens.t[idx] >= ens.next_out[idx]]
         if due.size == 0:
             return
         k = ens.out_k[due]
