@@ -69,9 +69,10 @@ class Simulator:
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
-        #: whether any agent can ever flow under an integrated law (else no step is
-        #: limited by error control, and the step's end is the next scheduled instant)
-        self.may_flow = any(d.needs_rk for ca in cteam.agents for d in ca.drivers)
+        #: whether any agent can ever be integrated (a flow plant, or an integrated law):
+        #: else no step is limited by error control, and it ends at the next instant due
+        self.may_flow = any(ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers)
+                            for ca in cteam.agents)
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
 
