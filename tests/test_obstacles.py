@@ -246,3 +246,34 @@ def test_a_reading_skips_the_static_scene_only_where_it_is_out_of_range_bit_for_
     assert n / 10 < far.sum() < n * 9 / 10  # both ways were taken
     assert (short[far] == ring.max_range).all()
     assert short[0, 0] == ring.max_range and short[3, 0] == ring.max_range  # on the edge
+
+
+def test_a_rule_reads_only_its_beams_and_they_read_as_in_the_whole_ring():
+    """Detect rules cast only the beams they read (a front-IR rule reads 3 of 24): each of
+    those beams, cones of three rays included, must read exactly what it reads when the
+    whole ring is cast, wherever the robot stands."""
+    from hybridteam.world.sensors import RangeRing
+
+    rng = np.random.default_rng(11)
+    n = 500
+    sim = Simulator(compile_team(load(IR_WALL)), n, duration=0.0)
+    sim.run()
+    ens = sim.ensemble
+    (obs,) = [c for c in ens.world.components if isinstance(c, Obstacles)]
+    st = ens.states[0]
+    st.x[:, 0], st.x[:, 1] = rng.uniform(-3, 4, n), rng.uniform(-3, 3, n)
+    st.x[:, 2] = rng.uniform(-math.pi, math.pi, n)
+    idx = np.arange(n)
+    line = obs.rings[(0, "ir")]
+    cone = RangeRing(count=8, max_range=2.0, mount_radius=0.3, half_angle=0.2,
+                     rays_per_beam=3)
+    for ring in (line, cone):
+        whole = obs.read(0, ring, idx)
+        assert (whole < ring.max_range).any() and (whole == ring.max_range).any()
+        for beams in (np.array([0]), np.array([1, 3]), np.arange(ring.count)[::-2]):
+            beams = np.sort(beams)
+            np.testing.assert_array_equal(obs.read(0, ring, idx, beams=beams), whole[:, beams])
+    # the rules' own bookkeeping: each rule's columns among its ring's beams read
+    for rule, columns in zip(obs.rules, obs.rule_columns, strict=True):
+        np.testing.assert_array_equal(obs.read_beams[(rule.agent, rule.sensor)][columns],
+                                      rule.beams)

@@ -238,6 +238,14 @@ class Obstacles(WorldComponent):
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
         self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
+        # the beams the rules read, per ring: only those are cast at each instant (a rule on
+        # the front IR reads 3 of 24 beams), and where each rule's beams are among them
+        self.read_beams: dict[tuple[int, str], np.ndarray] = {}
+        for rule in self.rules:
+            key = (rule.agent, rule.sensor)
+            self.read_beams[key] = np.union1d(self.read_beams.get(key, rule.beams), rule.beams)
+        self.rule_columns = [np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams)
+                             for r in self.rules]
         self.planar = [a for a, agent in enumerate(team.agents) if _planar(agent)]
         given = parsed["radius"]
         self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
@@ -279,9 +287,10 @@ class Obstacles(WorldComponent):
         return self.rings.setdefault((a, sensor), preset.ring(sensor))
 
     def read(self, a: int, ring: RangeRing, idx: np.ndarray,
-             reach: np.ndarray | None = None) -> np.ndarray:
+             reach: np.ndarray | None = None, beams: np.ndarray | None = None) -> np.ndarray:
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
-        every payload's outline: ``(m, count)``.
+        every payload's outline: ``(m, count)``, or ``(m, len(beams))`` for those beams only
+        (each ray is cast on its own: a beam reads the same whichever others are cast).
 
         ``reach``: where the robot's centre is known to be farther than this from every
         static obstacle (this instant's clearances), no ray can meet one within the ring's
@@ -290,6 +299,10 @@ class Obstacles(WorldComponent):
         """
         poses = self._poses(a, idx)
         origins, directions = ring.rays(poses)
+        count = ring.count
+        if beams is not None and beams.size < count:
+            rays = (beams[:, None] * ring.rays_per_beam + np.arange(ring.rays_per_beam)).ravel()
+            origins, directions, count = origins[:, rays], directions[:, rays], beams.size
         near = None
         if reach is not None:
             slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)
@@ -303,7 +316,7 @@ class Obstacles(WorldComponent):
                                      ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
-        dist = dist.reshape(idx.size, ring.count, ring.rays_per_beam).min(axis=2)
+        dist = dist.reshape(idx.size, count, ring.rays_per_beam).min(axis=2)
         return np.maximum(dist, ring.min_range)
 
     def senses(self) -> tuple[str, ...]:
@@ -326,8 +339,8 @@ class Obstacles(WorldComponent):
             key = (rule.agent, rule.sensor)
             if key not in readings:
                 readings[key] = self.read(rule.agent, self.rings[key], idx,
-                                          reach.get(rule.agent))
-            near = readings[key][:, rule.beams].min(axis=1) < rule.below
+                                          reach.get(rule.agent), self.read_beams[key])
+            near = readings[key][:, self.rule_columns[r]].min(axis=1) < rule.below
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
             if rising.any():
