@@ -345,8 +345,9 @@ def _illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         need = everyone if m_lo is None else where_true(np.isnan(m_lo))
         m_lo = np.empty(size) if m_lo is None else m_lo
         m_hi = np.empty(size) if m_hi is None else m_hi
-        m_lo[need] = ev(need, lo[need])[1]
-        m_hi[need] = ev(need, hi[need])[1]
+        # both ends in one evaluation (rows are independent: the same values as two)
+        ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
+        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
     ma, mb = m_lo, m_hi
     assert mb is not None
     kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
