@@ -29,6 +29,15 @@ def run_sim(team, n=1, duration=0.0, overrides=None) -> Ensemble:
     return sim.ensemble
 
 
+def started_ir_wall(n: int) -> tuple[Simulator, Obstacles]:
+    """``n`` instances of the IR wall fixture, started (run for no time), and their
+    obstacles component: poses may then be set and readings taken directly."""
+    sim = Simulator(compile_team(load(IR_WALL)), n, duration=0.0)
+    sim.run()
+    (obs,) = [c for c in sim.ensemble.world.components if isinstance(c, Obstacles)]
+    return sim, obs
+
+
 def with_preset(team, **models):
     """``team`` with robot models attached to the named agents (as ``model:`` would)."""
     agents = tuple(dataclasses.replace(a, preset=resolve(models[a.name]))
@@ -230,10 +239,8 @@ def test_a_reading_skips_the_static_scene_only_where_it_is_out_of_range_bit_for_
 
     rng = np.random.default_rng(7)
     n = 3000
-    sim = Simulator(compile_team(load(IR_WALL)), n, duration=0.0)
-    sim.run()
+    sim, obs = started_ir_wall(n)
     ens = sim.ensemble
-    (obs,) = [c for c in ens.world.components if isinstance(c, Obstacles)]
     x, y, th = rng.uniform(-4, 5, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)
     x[:4], y[:4], th[:4] = [-0.3, -0.3 - 1e-12, -0.3 + 1e-12, -0.3 - 1e-6], 0.0, 0.0
     ens.states[0].x[:, 0], ens.states[0].x[:, 1], ens.states[0].x[:, 2] = x, y, th
@@ -256,11 +263,8 @@ def test_a_rule_reads_only_its_beams_and_they_read_as_in_the_whole_ring():
 
     rng = np.random.default_rng(11)
     n = 500
-    sim = Simulator(compile_team(load(IR_WALL)), n, duration=0.0)
-    sim.run()
-    ens = sim.ensemble
-    (obs,) = [c for c in ens.world.components if isinstance(c, Obstacles)]
-    st = ens.states[0]
+    sim, obs = started_ir_wall(n)
+    st = sim.ensemble.states[0]
     st.x[:, 0], st.x[:, 1] = rng.uniform(-3, 4, n), rng.uniform(-3, 3, n)
     st.x[:, 2] = rng.uniform(-math.pi, math.pi, n)
     idx = np.arange(n)

@@ -77,6 +77,13 @@ class Graph:
         """The choice that leads from ``a`` to ``b`` (the first one tried)."""
         return self.edges.choice(a, b, default)
 
+    def terminal(self) -> np.ndarray:
+        """Which states are dead ends: no successor, and none refused by the bound (a cut
+        state's successors are unknown, not absent)."""
+        out = self.edges.out_degree() == 0
+        out[list(self.cut)] = False
+        return out
+
 
 #: ``Graph.parent`` of the initial state.
 NONE = 0xFFFFFFFF

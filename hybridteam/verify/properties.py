@@ -241,9 +241,7 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
     sub = csr_matrix((np.ones(int(keep.sum()), np.int8), (src[keep], indices[keep])),
                      shape=(n, n))
     waiting = ~psi
-    cut = np.zeros(n, bool)
-    cut[list(g.cut)] = True
-    dead = waiting & (g.edges.out_degree() == 0) & ~cut
+    dead = waiting & g.terminal()
     _, label = connected_components(sub, directed=True, connection="strong")
     size = np.bincount(label, minlength=1)
     cyclic = waiting & (size[label] > 1)
@@ -292,13 +290,11 @@ def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[
 
 
 def _deadlock(p: Property, sk: Skeleton, g: Graph) -> Verdict:
-    terminal = [k for k in np.flatnonzero(g.edges.out_degree() == 0).tolist()
-                if k not in g.cut]
-    if not terminal:
+    rows = np.flatnonzero(g.terminal())
+    if not rows.size:
         return Verdict(p, True)
     team = sk.original.team
     agents = sk.cteam.agents
-    rows = np.array(terminal)
     sig = States(sk, g, rows)
     blocked = np.zeros(rows.size, bool)
     all_final = np.ones(rows.size, bool)
@@ -317,7 +313,7 @@ def _deadlock(p: Property, sk: Skeleton, g: Graph) -> Verdict:
             commanded |= (act[:, ca.leaves] != initial[ca.leaves]).any(axis=1)
             continue
         all_final &= final
-        for r in range(len(terminal)):
+        for r in range(rows.size):
             if final[r]:
                 continue
             waits = {ca.transitions[j].on for m in np.flatnonzero(act[r])
