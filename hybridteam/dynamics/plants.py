@@ -55,9 +55,8 @@ class Unicycle(Plant):
         """
         v, w = u[:, 0], u[:, 1]
         half = 0.5 * w * h
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ratio = np.sin(half) / half
-        ratio[half == 0] = 1.0
+        ratio = np.ones(half.shape)  # the limit, kept where half is 0: no division there,
+        np.divide(np.sin(half), half, out=ratio, where=half != 0)  # so no error state
         chord = v * h * ratio
         mid = x[:, 2] + half
         out = np.empty_like(x)

@@ -261,9 +261,8 @@ class Network:
 
     def record(self, i: int, msg: Message, t_recv: float, status: str, reason: str) -> None:
         """One copy's row in the trace's message table."""
-        self.rec.message(np.array([i]), np.array([msg.seq]), msg.sender, msg.receiver,
-                         msg.socket, msg.type, np.array([msg.t_send]), np.array([t_recv]),
-                         status, reason, np.array([msg.msg_id]))
+        self.rec.message_row(i, msg.seq, msg.sender, msg.receiver, msg.socket, msg.type,
+                             msg.t_send, t_recv, status, reason, msg.msg_id)
 
     def close(self, pending: list[tuple[int, Any]]) -> None:
         """Copies still in flight when the run ends: recorded as lost, reason 'run ended'."""

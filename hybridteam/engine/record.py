@@ -63,6 +63,14 @@ class Recorder:
         self._messages.append((instances.copy(), seq.copy(), sender, receiver, socket, kind,
                                t_send.copy(), t_recv.copy(), status, reason, ids))
 
+    def message_row(self, i: int, seq: int, sender: int, receiver: int, socket: str,
+                    kind: str, t_send: float, t_recv: float, status: str, reason: str,
+                    msg_id: int) -> None:
+        """:meth:`message` for one copy, from plain numbers: every arrival is recorded
+        alone, and five one-element arrays cost more than the rest of its receipt."""
+        self._messages.append(([i], [seq], sender, receiver, socket, kind, [t_send],
+                               [t_recv], status, reason, [msg_id]))
+
     def snapshot(self, instances: np.ndarray, t: np.ndarray,
                  values: dict[str, np.ndarray]) -> None:
         assert self.snapshots is not None
