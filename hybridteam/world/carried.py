@@ -142,13 +142,18 @@ class CarriedPayload(WorldComponent):
         self.max_offset = np.zeros((n, k))
         self._one_size: bool | None = None  # whether every instance's outline is one size
         self._outlines: dict[tuple[float, float], Targets] = {}
+        self._held_by_code: dict[int, np.ndarray] = {}
 
     def _robot_points(self, world: WorldAccess, idx: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
-        poses = np.stack([world.pose(a, idx) for a in self.agents], axis=1)  # (m, k, 3)
+        poses = np.empty((idx.size, len(self.agents), 3))  # (m, k, 3); np.stack's values
+        for k, a in enumerate(self.agents):
+            poses[:, k] = world.pose(a, idx)
         c, s = np.cos(poses[..., 2]), np.sin(poses[..., 2])
         mx, my = self.mount[:, 0], self.mount[:, 1]
-        pts = np.stack([poses[..., 0] + c * mx - s * my, poses[..., 1] + s * mx + c * my], -1)
+        pts = np.empty((*poses.shape[:2], 2))
+        pts[..., 0] = poses[..., 0] + c * mx - s * my
+        pts[..., 1] = poses[..., 1] + s * mx + c * my
         return pts, poses[..., 2]
 
     def start(self, world: WorldAccess) -> None:
@@ -188,11 +193,11 @@ class CarriedPayload(WorldComponent):
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ (1 << np.arange(k))
-        codes = [int(code[0])] if code.size and np.all(code == code[0]) else \
-            np.unique(code).tolist()
+        codes = [int(code[0])] if code.size and np.count_nonzero(code != code[0]) == 0 \
+            else np.unique(code).tolist()
         for c in codes:
             rows = code == c
-            held = np.flatnonzero((c >> np.arange(k)) & 1)
+            held = self._held(c)
             if held.size == 1:      # no torque: keep the angle, follow the grasp point
                 (j,) = held
                 th = pose[rows, 2]
@@ -211,9 +216,19 @@ class CarriedPayload(WorldComponent):
         c, s = np.cos(heading), np.sin(heading)
         ox, oy = offsets[..., 0], offsets[..., 1]
         rel = pose[:, 2:3] - heading - self.rel0[idx]
-        self.arm[idx] = np.stack([c * ox + s * oy, -s * ox + c * oy,
-                                  np.arctan2(np.sin(rel), np.cos(rel))], -1)
+        arm = np.empty((*offsets.shape[:2], 3))
+        arm[..., 0], arm[..., 1] = c * ox + s * oy, -s * ox + c * oy
+        arm[..., 2] = np.arctan2(np.sin(rel), np.cos(rel))
+        self.arm[idx] = arm
         return heading
+
+    def _held(self, code: int) -> np.ndarray:
+        """Indices of the grasps that hold under engagement ``code`` (bit k: grasp k),
+        kept: there are a handful of codes, and each instant asks for one."""
+        if code not in self._held_by_code:
+            bits = (code >> np.arange(len(self.agents))) & 1
+            self._held_by_code[code] = np.flatnonzero(bits)
+        return self._held_by_code[code]
 
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         self.settle(world, idx)
@@ -276,9 +291,12 @@ class CarriedPayload(WorldComponent):
         """
         pose = self.pose[idx]
         o, d = np.empty(origins.shape), np.empty(directions.shape)
-        o[..., 0], o[..., 1] = _to_body(origins[..., 0], origins[..., 1], pose)
-        d[..., 0], d[..., 1] = _to_body(directions[..., 0], directions[..., 1], pose,
-                                        move=False)
+        # _to_body's arithmetic, one rotation for the origins and the directions
+        c, s = np.cos(pose[:, 2:3]), np.sin(pose[:, 2:3])
+        dx, dy = origins[..., 0] - pose[:, 0:1], origins[..., 1] - pose[:, 1:2]
+        o[..., 0], o[..., 1] = c * dx + s * dy, -s * dx + c * dy
+        dx, dy = directions[..., 0], directions[..., 1]
+        d[..., 0], d[..., 1] = c * dx + s * dy, -s * dx + c * dy
         hw, hd = self.half_extents(idx)
         if self._one_size is None:
             every = self.half_extents(np.arange(self.n))

@@ -307,11 +307,11 @@ class Obstacles(WorldComponent):
         if reach is not None:
             slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)
             near = reach - ring.mount_radius <= ring.max_range + slack
-        if near is None or near.all():
+        if near is None or np.count_nonzero(near) == near.size:  # (not .all(): 4x the cost)
             dist = cast_at(origins, directions, self.targets, ring.max_range)
         else:
             dist = np.full(origins.shape[:2], float(ring.max_range))
-            if near.any():
+            if np.count_nonzero(near):
                 dist[near] = cast_at(origins[near], directions[near], self.targets,
                                      ring.max_range)
         for p in self.payloads:
@@ -343,7 +343,7 @@ class Obstacles(WorldComponent):
             near = readings[key][:, self.rule_columns[r]].min(axis=1) < rule.below
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
-            if rising.any():
+            if np.count_nonzero(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
     def _measure(self, world: WorldAccess, idx: np.ndarray) -> dict[int, np.ndarray]:
@@ -352,7 +352,9 @@ class Obstacles(WorldComponent):
         hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
         reach: dict[int, np.ndarray] = {}
         if self.planar:
-            points = np.stack([self._poses(a, idx)[:, :2] for a in self.planar])  # (R, m, 2)
+            points = np.empty((len(self.planar), idx.size, 2))  # (R, m, 2)
+            for r, a in enumerate(self.planar):
+                points[r] = self._poses(a, idx)[:, :2]
             pts = points.reshape(-1, 2)
             gap = clearance(pts, 0.0, self.walls, self.circles)
             if len(self.boxes):
@@ -361,7 +363,7 @@ class Obstacles(WorldComponent):
             reach = dict(zip(self.planar, gap, strict=True))
             gap = gap - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
-            for r, a in enumerate(self.planar) if (gap < 0).any() else ():
+            for r, a in enumerate(self.planar) if np.count_nonzero(gap < 0) else ():
                 for k in np.flatnonzero(gap[r] < 0).tolist():
                     what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
                     who = self.team.agents[a].name
@@ -369,8 +371,8 @@ class Obstacles(WorldComponent):
                                  f"overlapping it by {-gap[r, k]:.3g}"))
             overlap = robot_overlaps(points, self.radius)
             touch = overlap > 0
-            for k, r1, r2 in zip(*np.nonzero(np.triu(touch, 1)) if touch.any() else (),
-                                 strict=True):
+            pairs = np.nonzero(np.triu(touch, 1)) if np.count_nonzero(touch) else ()
+            for k, r1, r2 in zip(*pairs, strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
                 hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
                              f"'{names[1]}' collided, their footprints overlapping by "

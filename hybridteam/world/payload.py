@@ -94,8 +94,10 @@ def world_points(x: np.ndarray, y: np.ndarray, theta: np.ndarray,
     b = np.asarray(body_points, dtype=float)
     c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
     bx, by = b[..., 0], b[..., 1]
-    return np.stack([c * bx - s * by + np.asarray(x)[:, None],
-                     s * bx + c * by + np.asarray(y)[:, None]], axis=-1)
+    first = c * bx - s * by + np.asarray(x)[:, None]
+    out = np.empty((*first.shape, 2))  # np.stack's values, without its checks
+    out[..., 0], out[..., 1] = first, s * bx + c * by + np.asarray(y)[:, None]
+    return out
 
 
 def spring_energy(robot_points: np.ndarray, body_points: np.ndarray, springs: np.ndarray,

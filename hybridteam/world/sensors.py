@@ -126,9 +126,10 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
     slack += size
     hit &= np.less_equal(sn, slack, out=test)                             # s <= 1
     hit &= np.logical_not(parallel, out=test)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # non-hits -> inf
-        dist = np.divide(tn, size, out=tn)
-    np.copyto(dist, np.inf, where=np.logical_not(hit, out=test))
+    # divided only where it hits (|u x e| > 0 there, and t is bounded by the geometry),
+    # so no error state is needed (a context costs about 2 µs a call)
+    dist = np.divide(tn, size, out=tn, where=hit)
+    np.copyto(dist, np.inf, where=np.logical_not(hit, out=test))  # non-hits -> inf
     rows, cols = np.nonzero(parallel)
     if rows.size:
         pwx, pwy, pux, puy = wx[rows, cols], wy[rows, cols], ux[rows, 0], uy[rows, 0]
@@ -171,8 +172,7 @@ def _circle_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
     np.copyto(disc, 0.0, where=miss)
     disc = np.sqrt(disc, out=disc)
     disc -= b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        np.divide(c, disc, out=t)
+    np.divide(c, disc, out=t, where=ahead)  # -b > 0 there: disc > 0, no error state
     np.copyto(t, np.inf, where=miss)
     np.copyto(t, 0.0, where=np.less_equal(c, 0.0, out=test))
     return t.min(axis=1)
@@ -221,7 +221,8 @@ def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
     m, k, _ = o.shape
     circ = targets.circles
     norm = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1])
-    if np.any(norm == 0.0) or not np.all(np.isfinite(norm)):
+    fine = (norm > 0.0) & (norm < np.inf)  # NaN fails both (np.any/np.all: 10x the cost)
+    if np.count_nonzero(fine) != fine.size:
         raise ValueError("ray directions must be finite and non-zero")
     ox, oy = o[..., 0].ravel(), o[..., 1].ravel()
     ux, uy = (d[..., 0] / norm).ravel(), (d[..., 1] / norm).ravel()
