@@ -100,7 +100,11 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
 
     Where no atom is watched in any of these instances, none is evaluated and the truths
     returned are None: an atom's stored truth is read only where it is watched, and it is
-    evaluated afresh whenever a transition makes it watched (``Simulator._instant``).
+    evaluated afresh whenever a transition makes it watched (``Simulator._instant``). For
+    the same reason only the instances with some atom watched are evaluated; the others
+    keep their stored truths (an ensemble whose members left their guarded modes at
+    different times pays for those still in one). Rows are independent, so an evaluated
+    row's truths do not depend on which others are evaluated with it.
     """
     st = ens.states[a]
     full = idx.size == ens.n  # idx is every instance (the live ones, sorted)
@@ -108,32 +112,47 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     watched = st.watched[:, sel]  # (nw, m)
     if not some(watched):
         return None, None
+    m = idx.size
     h, t0 = ens.h[idx], ens.t0[idx]
     t1 = t0 + h
-    end = watch_truth(ens, a, idx, x_end, t1, full)
-    truths = [st.truth[:, sel]]
+    start = st.truth[:, sel]
+    pos = where_true(np.logical_or.reduce(watched, axis=0))  # rows with some atom watched
+    part = pos.size < m
+    if part:
+        end = start.copy()
+        end[:, pos] = watch_truth(ens, a, idx[pos], x_end[pos], t1[pos])
+    else:
+        end = watch_truth(ens, a, idx, x_end, t1, full)
+    truths = [start]
     checks = thetas.size - 2
-    if checks == 0 and not some(watched & (end != truths[0])):
+    if checks == 0 and not some(watched & (end != start)):
         return end, None
     points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
     if checks:
-        m = idx.size
-        rows = np.tile(np.arange(m), checks)
-        tau = np.repeat(thetas[1:-1], m) * h[rows]
+        k = pos.size
+        rows = np.concatenate([pos] * checks)
+        tau = thetas[1:-1].repeat(k) * h[rows]
         x_all = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
         t_all = t0[rows] + tau
         tr_all = watch_truth(ens, a, idx[rows], x_all, t_all)
         for c in range(checks):
-            part = slice(c * m, (c + 1) * m)
-            points.append((x_all[part], t_all[part]))
-            truths.append(tr_all[:, part])
+            span = slice(c * k, (c + 1) * k)
+            if part:  # rows not evaluated stay at the start: no flip there, never read
+                x_c, t_c, tr_c = step.x0.copy(), t0.copy(), start.copy()
+                x_c[pos], t_c[pos], tr_c[:, pos] = x_all[span], t_all[span], tr_all[:, span]
+                points.append((x_c, t_c))
+                truths.append(tr_c)
+            else:
+                points.append((x_all[span], t_all[span]))
+                truths.append(tr_all[:, span])
     points.append((x_end, t1))
     truths.append(end)
-    flips = np.stack([watched & (truths[k] != truths[k - 1])
-                      for k in range(1, len(truths))])  # (K, nw, m)
+    all_truths = np.stack(truths)  # (K + 1, nw, m)
+    flips = all_truths[1:] != all_truths[:-1]
+    flips &= watched
     if not some(flips):
         return end, None
-    return end, (_relevant(ens, a, idx, flips, points), np.stack(truths))
+    return end, (_relevant(ens, a, idx, flips, points), all_truths)
 
 
 def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,
