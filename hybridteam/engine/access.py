@@ -102,6 +102,8 @@ class EnsembleAccess(WorldAccess):
                              f"{', '.join(self.state_names(a)) or 'empty'} (no x and y)")
         x, y, th = cols
         s = self._ens.states[a].x
+        if cols == (0, 1, 2):  # a unicycle's or a holonomic base's state: one gather
+            return s[idx, :3]
         if th is not None:
             return s[idx][:, [x, y, th]]
         out = np.zeros((len(idx), 3))

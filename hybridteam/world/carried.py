@@ -143,6 +143,7 @@ class CarriedPayload(WorldComponent):
         self._one_size: bool | None = None  # whether every instance's outline is one size
         self._outlines: dict[tuple[float, float], Targets] = {}
         self._held_by_code: dict[int, np.ndarray] = {}
+        self._halves: tuple[np.ndarray, np.ndarray] | None = None
 
     def _robot_points(self, world: WorldAccess, idx: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -276,10 +277,11 @@ class CarriedPayload(WorldComponent):
     # ------------------------------------------------------------------ the outline
     def half_extents(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Half length and half width per instance (a bar is a segment: no width)."""
-        v = self.values
-        if v["shape"] == "bar":
-            return v["length"][idx] / 2.0, np.zeros(idx.size)
-        return v["width"][idx] / 2.0, v["depth"][idx] / 2.0
+        if self._halves is None:  # every instance's, once: asked at every instant
+            v = self.values
+            self._halves = (v["length"] / 2.0, np.zeros(self.n)) if v["shape"] == "bar" \
+                else (v["width"] / 2.0, v["depth"] / 2.0)
+        return self._halves[0][idx], self._halves[1][idx]
 
     def ray_hits(self, idx: np.ndarray, origins: np.ndarray, directions: np.ndarray,
                  max_range: float) -> np.ndarray:
