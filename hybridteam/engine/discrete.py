@@ -36,7 +36,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     # disabled, so they are not evaluated again (unless a guard may change on its own:
     # AgentState.urgent_volatile)
     quiet = np.zeros(ens.n, bool)
-    recheck = any(st.urgent_volatile for st in ens.states)
+    recheck = ens.urgent_volatile
     while active.size:
         fired = np.zeros(ens.n, bool)
         urgent = active[~quiet[active]] if not recheck else active

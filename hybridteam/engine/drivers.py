@@ -135,7 +135,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         everyone = every(mine)
         rows = slice(None) if everyone else where_true(mine)
         t = t_all[rows]
-        ctx = st.ctx(rows, t, D.owner)
+        ctx = st.ctx(rows, t, D.owner, law=D.inputs is None)
         u = evaluate_driver(ca, D, ctx)
         st.u[rows] = u
         if not every(np.isfinite(u)):

@@ -69,6 +69,8 @@ class Ensemble:
         self.last_fired = np.full(n, -1, np.int64)
         self.outcomes: list[dict | None] = [None] * n
         self.states = [AgentState(a, n) for a in cteam.agents]
+        #: whether some agent's eventless guard can change truth without a transition
+        self.urgent_volatile = any(st.urgent_volatile for st in self.states)
         self.timer = [np.full(n, np.inf) for _ in cteam.agents]
         self.h_rk = np.full(n, np.nan)
         self.max_step = self.settings.max_step or np.inf

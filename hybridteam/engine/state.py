@@ -59,11 +59,13 @@ class AgentState:
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
-            m: dict[str, np.ndarray] | None = None) -> Ctx:
-        """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted)."""
+            m: dict[str, np.ndarray] | None = None, law: bool = True) -> Ctx:
+        """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted);
+        ``law`` false: no world view, which only a law reads (not an expression)."""
         t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
         e = self.inbox.view(idx) if self.inbox is not None else None
-        w = AgentView(self.world, self.ca.index, idx, self.memory, self.x.shape[0])
+        w = AgentView(self.world, self.ca.index, idx, self.memory, self.x.shape[0]) \
+            if law else None
         return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m, e, w)
 
     # ----------------------------------------------------------------- configuration
