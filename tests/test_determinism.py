@@ -102,3 +102,43 @@ def test_run_outcome_of_an_ensemble_says_how_to_read_it():
         _ = run.outcome
     assert run.outcomes == ["ok", "ok"]
     assert run.instance(1).outcome == "ok"
+
+
+RING = """
+team: ring
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    parameters: {speed: 0.5, turn: 0.2, radius: 3.0}
+    initial: Circle
+    modes:
+      Circle:
+        inputs: {v: speed, omega: turn}
+        period: 0.1
+        transitions:
+          - {to: Out, guard: x*x + y*y >= radius*radius}
+      Out:
+        inputs: {v: 0.2 * speed, omega: 0.0}
+        period: 0.1
+simulation: {duration: 12.0, sample_period: 0.5}
+"""
+
+
+def test_members_leaving_a_guarded_mode_at_different_times_equal_single_runs(team_from_yaml):
+    """Once some members have left the guarded mode, the crossing checks evaluate only the
+    members still in it: each member's run is its single run, bit for bit, and leaves the
+    ring when the closed-form arc says (chord 2 (v/w) sin(w t / 2) = radius)."""
+    team = team_from_yaml(RING)
+    speed = np.linspace(0.4, 0.8, 9)
+    turn = np.linspace(0.05, 0.25, 9)[::-1]
+    ens = ht.simulate(team, n=9, overrides={"robot.speed": speed, "robot.turn": turn})
+    left = []
+    for i in range(9):
+        single = ht.simulate(team, overrides={"robot.speed": speed[i], "robot.turn": turn[i]})
+        member = ens.instance(i)
+        np.testing.assert_array_equal(single.transitions["t"], member.transitions["t"])
+        np.testing.assert_array_equal(single.samples["robot"], member.samples["robot"])
+        left.append(member.transitions["t"][-1])
+    exact = 2.0 / turn * np.arcsin(3.0 * turn / (2.0 * speed))
+    assert len(set(np.round(exact, 1))) == 9  # they leave at nine different times
+    np.testing.assert_allclose(left, exact, rtol=0, atol=1e-9)
