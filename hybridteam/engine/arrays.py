@@ -30,7 +30,11 @@ def floats(value: Any, shape: tuple[int, ...]) -> np.ndarray:
     a = np.asarray(value, dtype=float)
     if a.shape == shape:
         return a.copy()
-    return np.full(shape, a) if a.ndim == 0 else np.broadcast_to(a, shape).copy()
+    if a.ndim == 0:  # np.full without its wrapper
+        out = np.empty(shape)
+        out.fill(a)
+        return out
+    return np.broadcast_to(a, shape).copy()
 
 
 try:  # the C function behind np.count_nonzero's array-function dispatch (same counts)

@@ -59,9 +59,9 @@ class AgentState:
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
-            m: dict[str, np.ndarray] | None = None, law: bool = True) -> Ctx:
+            m: dict[str, np.ndarray] | None = None, law: bool = False) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted);
-        ``law`` false: no world view, which only a law reads (not an expression)."""
+        with the agent's world view only for a ``law`` (no expression reads one)."""
         t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
         e = self.inbox.view(idx) if self.inbox is not None else None
         w = AgentView(self.world, self.ca.index, idx, self.memory, self.x.shape[0]) \
