@@ -15,6 +15,7 @@ import inspect
 import textwrap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -26,13 +27,18 @@ from hybridteam.libraries import broken_note, load_libraries
 class LawContext:
     """What a law sees for the ``m`` instances it is evaluated on."""
 
-    __slots__ = ("_ctx", "_params", "_pnames", "_vnames", "_xnames", "agent", "inputs")
+    __slots__ = ("_ctx", "_params", "_pnames", "_values", "_vnames", "_xnames", "agent",
+                 "inputs")
 
-    def __init__(self, ctx, params: Mapping[str, np.ndarray], agent: str,
+    def __init__(self, ctx, params: Mapping[str, Callable[[Any], Any]], agent: str,
                  state_names: Mapping[str, int], var_names: Mapping[str, int],
                  param_names: Mapping[str, int], inputs: tuple[str, ...]) -> None:
+        """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
+        the law first reads each (a law reads some of them in some modes, and each is
+        evaluated at most once per call)."""
         self._ctx, self._params, self.agent, self.inputs = ctx, params, agent, inputs
         self._xnames, self._vnames, self._pnames = state_names, var_names, param_names
+        self._values: dict[str, np.ndarray] = {}
 
     @property
     def t(self) -> np.ndarray:
@@ -54,7 +60,9 @@ class LawContext:
     def __getitem__(self, name: str) -> np.ndarray:
         """A binding parameter, state component, agent parameter or variable, by name."""
         if name in self._params:
-            return spread(self._params[name], (self.size,))
+            if name not in self._values:
+                self._values[name] = spread(self._params[name](self._ctx), (self.size,))
+            return self._values[name]
         if name in self._xnames:
             return self._ctx.x[:, self._xnames[name]]
         if name in self._pnames:

@@ -20,9 +20,18 @@ import numpy as np
 
 
 def spread(value: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` with ``shape``: itself when it has it, else broadcast (a read-only view)."""
+    """``value`` with ``shape``: itself when it has it, else broadcast (read-only). One
+    number is filled into a new read-only array, not viewed through ``np.broadcast_to``:
+    the same values, without its Python-level checks."""
     a = np.asarray(value)
-    return a if a.shape == shape else np.broadcast_to(a, shape)
+    if a.shape == shape:
+        return a
+    if a.ndim == 0:
+        out = np.empty(shape, a.dtype)
+        out.fill(a)
+        out.flags.writeable = False
+        return out
+    return np.broadcast_to(a, shape)
 
 
 def floats(value: Any, shape: tuple[int, ...]) -> np.ndarray:

@@ -221,8 +221,7 @@ class CAgent:
         return x, v
 
     def law_context(self, ctx: Ctx, driver: Driver) -> LawContext:
-        params = {k: e(ctx) for k, e in driver.params.items()}
-        return LawContext(ctx, params, self.name, self.state_index, self.var_index,
+        return LawContext(ctx, driver.params, self.name, self.state_index, self.var_index,
                           self.param_index, self.plant.input_names)
 
 
