@@ -58,8 +58,10 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             e = col.expr(text, syms, (*mode.where, "inputs", name))
             exprs_in.append(e)  # type: ignore[arg-type]
         period = mode.input_period
+        held = bool(period) and all(e is not None and e.names <= params.keys()
+                                    for e in exprs_in)
         return Driver("sampled" if period else "continuous", idx, period=period or 0.0,
-                      inputs=exprs_in)
+                      inputs=exprs_in, held=held)
     if mode.law is not None:
         b = mode.law
         if plant.kind == "flow":

@@ -58,6 +58,9 @@ class Driver:
     law: LawSpec | None = None
     params: dict[str, Expression] = field(default_factory=dict)
     inputs: list[Expression] | None = None  # expression inputs (``inputs:`` in a mode)
+    #: sampled expression inputs of parameters alone: every tick gives the values its mode
+    #: was entered with, so a tick that enters nothing need not evaluate them again
+    held: bool = False
     flow: list[Expression | None] | None = None  # one per state component (None: 0)
     where: DocPath = ()  # the law binding (a law that fails is reported there)
 

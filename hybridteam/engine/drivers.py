@@ -135,12 +135,15 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         everyone = every(mine)
         rows = slice(None) if everyone else where_true(mine)
         t = t_all[rows]
-        ctx = st.ctx(rows, t, D.owner, law=D.inputs is None)
-        u = evaluate_driver(ca, D, ctx)
-        st.u[rows] = u
-        if not every(np.isfinite(u)):
-            where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
-            stop_broken_inputs(ens, a, where, u)
+        # (nothing entered at this instant: held inputs are still what their modes' entries
+        # gave; only the next ticks are scheduled)
+        if not (D.held and fresh is None):
+            ctx = st.ctx(rows, t, D.owner, law=D.inputs is None)
+            u = evaluate_driver(ca, D, ctx)
+            st.u[rows] = u
+            if not every(np.isfinite(u)):
+                where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
+                stop_broken_inputs(ens, a, where, u)
         if D.kind == "sampled":
             k = np.floor(t / D.period) + 1
             nxt = k * D.period
