@@ -102,6 +102,9 @@ class World:
             cls = lookup(spec.use)
             self.components.append(cls(team, n, component_values(cls, spec.values,
                                                                  team_params, n, spec.where)))
+        #: which component answers each name a robot senses (the first that lists it),
+        #: learnt at the first reading: a law reads several at every tick
+        self._senses: dict[str, WorldComponent] = {}
 
     @property
     def any(self) -> bool:
@@ -140,8 +143,12 @@ class World:
         return np.unique(np.concatenate([*raised, pushed]))
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        c = self._senses.get(name)
+        if c is not None:
+            return c.sense(agent, idx, name)
         for c in self.components:
             if name in c.senses():
+                self._senses[name] = c
                 return c.sense(agent, idx, name)
         known = sorted({s for c in self.components for s in c.senses()})
         raise KeyError(f"no world component lets a robot sense '{name}'"
@@ -173,15 +180,19 @@ class World:
 class AgentView:
     """One agent's window on the world and its law memory, for instances ``idx``."""
 
-    __slots__ = ("agent", "idx", "memory", "n", "world")
+    __slots__ = ("_instances", "agent", "idx", "memory", "n", "world")
 
     def __init__(self, world: World | None, agent: int, idx: np.ndarray | slice,
                  memory: dict[str, np.ndarray], n: int) -> None:
         self.world, self.agent, self.idx, self.memory, self.n = world, agent, idx, memory, n
+        self._instances: np.ndarray | None = None
 
     def instances(self) -> np.ndarray:
-        return np.arange(self.n)[self.idx] if isinstance(self.idx, slice) else \
-            np.asarray(self.idx, np.intp)
+        """The instances' indices (computed once: a law senses several things a tick)."""
+        if self._instances is None:
+            self._instances = np.arange(self.n)[self.idx] if isinstance(self.idx, slice) \
+                else np.asarray(self.idx, np.intp)
+        return self._instances
 
     def sense(self, name: str) -> np.ndarray:
         if self.world is None:

@@ -47,15 +47,19 @@ class CornerFrame:
         """World vectors ``(..., 2)`` (directions, displacements) in frame coordinates."""
         v = np.asarray(vectors, dtype=float)
         ax, ay = self.axes
-        return np.stack([v[..., 0] * ax[0] + v[..., 1] * ax[1],
-                         v[..., 0] * ay[0] + v[..., 1] * ay[1]], axis=-1)
+        out = np.empty((*v.shape[:-1], 2))  # np.stack's values, without its checks
+        out[..., 0] = v[..., 0] * ax[0] + v[..., 1] * ax[1]
+        out[..., 1] = v[..., 0] * ay[0] + v[..., 1] * ay[1]
+        return out
 
     def vectors_to_world(self, vectors: np.ndarray) -> np.ndarray:
         """Frame vectors ``(..., 2)`` (displacements) in world coordinates."""
         v = np.asarray(vectors, dtype=float)
         ax, ay = self.axes
-        return np.stack([v[..., 0] * ax[0] + v[..., 1] * ay[0],
-                         v[..., 0] * ax[1] + v[..., 1] * ay[1]], axis=-1)
+        out = np.empty((*v.shape[:-1], 2))
+        out[..., 0] = v[..., 0] * ax[0] + v[..., 1] * ay[0]
+        out[..., 1] = v[..., 0] * ax[1] + v[..., 1] * ay[1]
+        return out
 
     def to_world(self, points: np.ndarray) -> np.ndarray:
         """Frame points ``(..., 2)`` in world coordinates."""

@@ -149,13 +149,18 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
-        pos = np.stack([world.pose(a, idx)[:, :2] for a in self.robots])     # (2, m, 2)
-        fx, fy = np.moveaxis(self.frame.to_frame(pos), -1, 0)                 # (2, m) each
+        pos = np.empty((len(self.robots), idx.size, 2))                      # (2, m, 2)
+        for r, a in enumerate(self.robots):
+            pos[r] = world.pose(a, idx)[:, :2]
+        in_frame = self.frame.to_frame(pos)
+        fx, fy = in_frame[..., 0], in_frame[..., 1]                           # (2, m) each
         ox, oy, _ = law.spring_offsets(fx, fy, fx[::-1], fy[::-1], self.length[idx],
                                        self.share[:, idx])
         no = law.norm(ox, oy)
         ax, ay = fx + ox, fy + oy
-        self.tips[:, idx] = self.frame.to_world(np.stack([ax, ay], axis=-1))
+        tips = np.empty((*ax.shape, 2))
+        tips[..., 0], tips[..., 1] = ax, ay
+        self.tips[:, idx] = self.frame.to_world(tips)
         # statistics of the step that led here
         prev = self.prev[:, idx]
         moved = ~np.isnan(prev[0, :, 0])
