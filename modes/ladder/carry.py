@@ -37,7 +37,9 @@ def carry(ctx: LawContext) -> np.ndarray:
                              guide=_guide(path, frame, window),
                              correction=ctx.sense("correction"))
     ctx.keep("nearest", nearest)
-    return np.column_stack([move, np.zeros(ctx.size)])
+    u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
+    u[:, :2] = move
+    return u
 
 
 #: Guides prepared lately: (frame, window, path, guide), newest last. A run's robots ask

@@ -328,4 +328,6 @@ def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray
     clear = ladder_clearance(x + ox, y + oy, px + pox, py + poy)
     mx, my = avoid_ladder_collision(mx, my, clear, prm["ladder_margin"])
     mx, my = avoid_walls(x, y, mx, my, prm["radius"], frame.width_in, frame.width_out)
-    return frame.vectors_to_world(np.stack([mx, my], axis=-1)), nearest
+    move = np.empty((*mx.shape, 2))  # np.stack's values, without its checks
+    move[..., 0], move[..., 1] = mx, my
+    return frame.vectors_to_world(move), nearest
