@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.arrays import spread
+from hybridteam.arrays import spread
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 from hybridteam.libraries import broken_note, load_libraries
 

@@ -89,7 +89,7 @@ def _under(name: str, *prefixes: str) -> bool:
 
 
 LOWEST = ("hybridteam.errors", "hybridteam.model", "hybridteam.expr", "hybridteam.dynamics",
-          "hybridteam.trace")
+          "hybridteam.trace", "hybridteam.arrays")
 ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridteam.sweep",
                 "hybridteam.api", "hybridteam.kinds")
 #: What a mode library may import of hybridteam.
@@ -124,7 +124,8 @@ def violations(imports: list[Import]) -> list[str]:
                                                   "hybridteam.cli", "hybridteam.export"):
             report(imp, "io never imports sweep, kinds, cli or export")
         if _under(m, *LOWEST) and not imp.type_only and not _under(t, *LOWEST):
-            report(imp, "model, expr, dynamics, trace and errors import nothing above them")
+            report(imp, "model, expr, dynamics, trace, arrays and errors import nothing above "
+                        "them")
     return list(bad.values())
 
 

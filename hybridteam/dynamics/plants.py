@@ -44,7 +44,9 @@ class Unicycle(Plant):
 
     def derivative(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         th = x[:, 2]
-        return np.stack([u[:, 0] * np.cos(th), u[:, 0] * np.sin(th), u[:, 1]], axis=1)
+        out = np.empty((x.shape[0], 3))  # np.stack's values, without its checks
+        out[:, 0], out[:, 1], out[:, 2] = u[:, 0] * np.cos(th), u[:, 0] * np.sin(th), u[:, 1]
+        return out
 
     def propagate(self, x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
         """Exact arc: chord length ``v h sin(a)/a`` (a = omega h / 2) along the mid-arc heading.

@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.arrays import every, filled, some, spread, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.arrays import every, filled, some, spread, where_true
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.step import AgentStep, state_at

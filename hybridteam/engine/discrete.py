@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.arrays import some, where_true
+from hybridteam.arrays import some, where_true
 from hybridteam.engine.compiled import REPLY
 from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
 from hybridteam.engine.values import require

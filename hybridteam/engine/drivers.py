@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.arrays import distinct, every, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
-from hybridteam.engine.arrays import distinct, every, some, where_true
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
 from hybridteam.engine.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.arrays import spread
+from hybridteam.arrays import spread
 
 SCENARIO, MESSAGE, LOCAL, TIMER = 0, 1, 2, 3
 

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.engine.arrays import some
+from hybridteam.arrays import filled, some
 from hybridteam.engine.events import MESSAGE
 from hybridteam.engine.randomness import instance_keys, uniform
 from hybridteam.engine.values import require
@@ -127,7 +127,7 @@ class Network:
         a negative index broadcasts). ``rank`` orders same-instant arrivals (lower first)."""
         seq = self.count[sender][idx].copy()
         self.count[sender][idx] += 1
-        ids = np.full(idx.size, -1, np.int64) if msg_id is None else msg_id
+        ids = filled(idx.size, -1, np.int64) if msg_id is None else msg_id
         if self.script is not None and type_ not in self.script.streams:
             self._scripted(t, sender, to, socket, type_, fields, int(seq[0]), int(ids[0]),
                            note, 0.0 if rank is None else float(rank[0]))

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.arrays import every, some
+from hybridteam.arrays import every, some
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble

@@ -21,9 +21,9 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from hybridteam.arrays import every, filled, some, union, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
-from hybridteam.engine.arrays import every, filled, some, union, where_true
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth

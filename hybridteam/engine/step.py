@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.arrays import some, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.arrays import some, where_true
 from hybridteam.engine.drivers import derivative
 
 if TYPE_CHECKING:

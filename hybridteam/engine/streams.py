@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.arrays import floats, some, spread
+from hybridteam.arrays import filled, floats, some, spread, where_true
 from hybridteam.engine.values import require
 from hybridteam.errors import DocPath
 from hybridteam.expr import Expression
@@ -96,8 +96,8 @@ class InboxView:
     def _gather(self, per_sender: np.ndarray, who: np.ndarray, missing: float) -> np.ndarray:
         """``per_sender[instance, who]`` for these instances; ``missing`` where who < 0."""
         table = per_sender[self.idx]
-        out = np.full(who.shape, missing)
-        rows = np.flatnonzero(who >= 0)
+        out = filled(who.shape, missing)
+        rows = where_true(who >= 0)
         out[rows] = table[rows, who[rows]]
         return out
 
@@ -152,7 +152,7 @@ class Streams:
                                      (*cs.where, "rate"), "1 / rate", cs.rate_text,
                                      low=0.0, open_low=True, instances=sub)
                     due[sub] = ens.t[sub] + period
-        nxt = np.full(idx.size, np.inf)
+        nxt = filled(idx.size, np.inf)
         for per_agent in self.due:
             for due in per_agent:
                 np.minimum(nxt, due[idx], out=nxt)

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from hybridteam.arrays import every, filled, some
 from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
@@ -194,8 +195,8 @@ class CarriedPayload(WorldComponent):
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ (1 << np.arange(k))
-        codes = [int(code[0])] if code.size and np.count_nonzero(code != code[0]) == 0 \
-            else np.unique(code).tolist()
+        codes = [int(code[0])] if code.size and every(code == code[0]) else \
+            np.unique(code).tolist()
         for c in codes:
             rows = code == c
             held = self._held(c)
@@ -239,7 +240,7 @@ class CarriedPayload(WorldComponent):
                                         self.max_offset[idx])
         over = (size > self.limit) & on
         bad = over.any(axis=1)
-        if bad.any():
+        if some(bad):
             names = [self.team.agents[a].name for a in self.agents]
             rows = dict(zip(idx[bad].tolist(), over[bad], strict=True))
             sizes = dict(zip(idx[bad].tolist(), size[bad], strict=True))
@@ -325,7 +326,7 @@ class CarriedPayload(WorldComponent):
         ``circles`` ``(c, 3)``: ``(m,)``, 0 where they meet or overlap, inf if none."""
         pose = self.pose[idx]
         hw, hd = (h[:, None] for h in self.half_extents(idx))
-        out = np.full(idx.size, np.inf)
+        out = filled(idx.size, np.inf)
         if len(segments):
             s = np.asarray(segments, float)[None]
             ax, ay = _to_body(s[..., 0], s[..., 1], pose)

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from hybridteam.arrays import every, filled, some, where_true
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
@@ -307,11 +308,11 @@ class Obstacles(WorldComponent):
         if reach is not None:
             slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)
             near = reach - ring.mount_radius <= ring.max_range + slack
-        if near is None or np.count_nonzero(near) == near.size:  # (not .all(): 4x the cost)
+        if near is None or every(near):
             dist = cast_at(origins, directions, self.targets, ring.max_range)
         else:
-            dist = np.full(origins.shape[:2], float(ring.max_range))
-            if np.count_nonzero(near):
+            dist = filled(origins.shape[:2], float(ring.max_range))
+            if some(near):
                 dist[near] = cast_at(origins[near], directions[near], self.targets,
                                      ring.max_range)
         for p in self.payloads:
@@ -343,7 +344,7 @@ class Obstacles(WorldComponent):
             near = readings[key][:, self.rule_columns[r]].min(axis=1) < rule.below
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
-            if np.count_nonzero(rising):
+            if some(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
     def _measure(self, world: WorldAccess, idx: np.ndarray) -> dict[int, np.ndarray]:
@@ -363,7 +364,7 @@ class Obstacles(WorldComponent):
             reach = dict(zip(self.planar, gap, strict=True))
             gap = gap - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
-            for r, a in enumerate(self.planar) if np.count_nonzero(gap < 0) else ():
+            for r, a in enumerate(self.planar) if some(gap < 0) else ():
                 for k in np.flatnonzero(gap[r] < 0).tolist():
                     what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
                     who = self.team.agents[a].name
@@ -371,7 +372,7 @@ class Obstacles(WorldComponent):
                                  f"overlapping it by {-gap[r, k]:.3g}"))
             overlap = robot_overlaps(points, self.radius)
             touch = overlap > 0
-            pairs = np.nonzero(np.triu(touch, 1)) if np.count_nonzero(touch) else ()
+            pairs = np.nonzero(np.triu(touch, 1)) if some(touch) else ()
             for k, r1, r2 in zip(*pairs, strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
                 hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
@@ -380,7 +381,7 @@ class Obstacles(WorldComponent):
         for p in self.payloads:
             gap = self._payload_gap(p, idx)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
-            for k in np.flatnonzero(gap <= 0).tolist():
+            for k in where_true(gap <= 0).tolist():
                 hits.append((int(idx[k]), p.values["name"],
                              f"payload '{p.values['name']}' hit an obstacle"))
         if hits and self.values["on_collision"] != "ignore":

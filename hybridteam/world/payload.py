@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from hybridteam.arrays import some
+
 
 class Equilibrium(NamedTuple):
     """Pose of n payloads and the offsets of their grasps."""
@@ -65,7 +67,7 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     n, k, _ = r.shape
     b = np.broadcast_to(np.asarray(body_points, dtype=float), (n, k, 2))
     w = np.broadcast_to(np.asarray(springs, dtype=float), (n, k))
-    if np.any(w <= 0):
+    if some(w <= 0):
         raise ValueError("spring constants must be positive")
     total = w[:, 0]
     for i in range(1, k):
@@ -84,7 +86,8 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     y = rcy - (s * bcx + c * bcy)
     gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]
     gy = s[:, None] * b[..., 0] + c[:, None] * b[..., 1] + y[:, None]
-    offsets = np.stack([r[..., 0] - gx, r[..., 1] - gy], axis=-1)
+    offsets = np.empty((*gx.shape, 2))  # np.stack's values, without its checks
+    offsets[..., 0], offsets[..., 1] = r[..., 0] - gx, r[..., 1] - gy
     return Equilibrium(x, y, theta, offsets)
 
 

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hybridteam.arrays import every, filled
 from hybridteam.world.geometry import as_segments, point_segment_distance, polygon_edges
 
 __all__ = ["RangeRing", "cast", "clearance", "detect", "polygon_edges"]
@@ -221,12 +222,12 @@ def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
     m, k, _ = o.shape
     circ = targets.circles
     norm = np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1])
-    fine = (norm > 0.0) & (norm < np.inf)  # NaN fails both (np.any/np.all: 10x the cost)
-    if np.count_nonzero(fine) != fine.size:
+    fine = (norm > 0.0) & (norm < np.inf)  # NaN fails both
+    if not every(fine):
         raise ValueError("ray directions must be finite and non-zero")
     ox, oy = o[..., 0].ravel(), o[..., 1].ravel()
     ux, uy = (d[..., 0] / norm).ravel(), (d[..., 1] / norm).ravel()
-    out = np.full(m * k, np.inf)
+    out = filled(m * k, np.inf)
     prepared = targets.segments
     n_seg, n_circ = prepared[0].size, circ.shape[-2]
     if circ.ndim == 3 and n_circ:
@@ -373,7 +374,7 @@ def clearance(poses: np.ndarray, radius: float | np.ndarray,
     if p.ndim != 2 or p.shape[1] < 2:
         raise ValueError(f"poses must have shape (m, 2) or (m, 3), got {p.shape}")
     m = p.shape[0]
-    gap = np.full(m, np.inf)
+    gap = filled(m, np.inf)
     seg = np.zeros((0, 4)) if segments is None else as_segments(segments)
     if seg.shape[0]:
         gap, _ = point_segment_distance(p[:, :2], seg)

@@ -1,4 +1,4 @@
-"""Small array helpers for the engine's hot path.
+"""Small array helpers for the hot paths of the engine and the world components.
 
 ``np.broadcast_to`` costs several microseconds of Python-level checks per call, which the
 engine pays tens of thousands of times in a single run for values that already have the
@@ -67,8 +67,9 @@ def where_true(a: np.ndarray) -> np.ndarray:
     return a.nonzero()[0]
 
 
-def filled(size: int, value: float, dtype: type = float) -> np.ndarray:
-    """A new 1-D array of ``size`` copies of ``value``: ``np.full``, without its wrapper."""
+def filled(size: int | tuple[int, ...], value: float, dtype: type = float) -> np.ndarray:
+    """A new array of ``size`` (a length or a shape) copies of ``value``: ``np.full``,
+    without its wrapper."""
     out = np.empty(size, dtype)
     out.fill(value)
     return out
