@@ -302,8 +302,8 @@ class CarriedPayload(WorldComponent):
         d[..., 0], d[..., 1] = c * dx + s * dy, -s * dx + c * dy
         hw, hd = self.half_extents(idx)
         if self._one_size is None:
-            every = self.half_extents(np.arange(self.n))
-            self._one_size = all(bool(np.all(h == h[0])) for h in every)
+            extents = self.half_extents(np.arange(self.n))
+            self._one_size = all(every(h == h[0]) for h in extents)
         if self._one_size and hw.size:  # every instance's payload has one size (usual)
             return cast_at(o, d, self._outline(float(hw[0]), float(hd[0])), max_range)
         out = np.full(origins.shape[:2], float(max_range))
