@@ -209,6 +209,17 @@ class CAgent:
             return None
         return self.lower.reshape(1, -1), self.upper.reshape(1, -1)
 
+    @functools.cached_property
+    def invariant_modes(self) -> list[CMode]:
+        """The modes that declare an invariant (checked at every instant: a team's
+        protocols give its agents dozens of modes, a few of them with one)."""
+        return [m for m in self.modes if m.invariant is not None]
+
+    @functools.cached_property
+    def final_leaves(self) -> np.ndarray:
+        """Which leaf modes are final, in the order of ``leaves``."""
+        return self.final[self.leaves]
+
     def initial_values(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Initial plant state ``(n, d)`` and variables ``(n, V)`` for parameters ``p``
         ``(n, P)``: their expressions read parameters only (the engine starts a run with

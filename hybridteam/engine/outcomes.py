@@ -27,9 +27,7 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
         return
     for st in ens.states:
         ca = st.ca
-        for m in ca.modes:
-            if m.invariant is None:
-                continue
+        for m in ca.invariant_modes:
             sel = idx[st.active[idx, m.index] & ~ens.done[idx]]
             if sel.size == 0:
                 continue
@@ -51,7 +49,7 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
         ca = st.ca
         act = st.active[idx]
         leaf_act = act[:, ca.leaves]
-        final = (~leaf_act | ca.final[ca.leaves]).all(axis=1)
+        final = (~leaf_act | ca.final_leaves).all(axis=1)
         all_final &= final
         if a in cteam.ending:
             ends = ends | final if cteam.end_any else ends & final
