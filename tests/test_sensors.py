@@ -282,3 +282,31 @@ def test_bad_arrays_are_refused():
         cast(*ray(0.0, 0.0, 1.0, 0.0), ROOM, np.zeros((2, 1, 3)))
     with pytest.raises(ValueError, match="poses"):
         RangeRing(count=4, max_range=1.0).read(np.zeros(3), ROOM)
+
+
+def test_a_cast_reads_nothing_a_previous_cast_of_the_same_shape_left_behind():
+    """Casts of one shape share this thread's scratch arrays: a cast after another, on a
+    different scene, gives what it gives in a fresh thread (fresh scratch), bit for bit:
+    walls and circles, rays that hit and rays that read the maximum range."""
+    import threading
+
+    rng = np.random.default_rng(11)
+
+    def scene(seed: int):
+        r = np.random.default_rng(seed)
+        o = r.uniform(-3, 3, (4, 6, 2))
+        ang = r.uniform(-np.pi, np.pi, (4, 6))
+        d = np.stack([np.cos(ang), np.sin(ang)], -1)
+        seg = r.uniform(-4, 4, (5, 4))
+        circ = np.c_[r.uniform(-3, 3, (3, 2)), r.uniform(0.1, 1.0, 3)]
+        return o, d, seg, circ
+
+    first, second = scene(int(rng.integers(1 << 30))), scene(int(rng.integers(1 << 30)))
+    cast(*first, max_range=5.0)
+    after = cast(*second, max_range=5.0)
+    fresh: list[np.ndarray] = []
+    worker = threading.Thread(target=lambda: fresh.append(cast(*second, max_range=5.0)))
+    worker.start()
+    worker.join()
+    np.testing.assert_array_equal(after, fresh[0])
+    assert np.any(after < 5.0) and np.any(after == 5.0)  # some rays hit, some read max

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,20 +66,44 @@ def _as_circles(circles: np.ndarray | list | None, m: int) -> np.ndarray:
 
 
 class _Scratch:
-    """Scratch arrays reused by every block of one :func:`cast` call.
+    """Scratch arrays reused by every block of one :func:`cast` call, and by later calls
+    with the same block shape in this thread (:func:`_scratch`).
 
     Allocating the kernels' ten temporaries afresh for each block makes glibc hand the freed
     heap top back to the kernel and fault it in again on the next block: three times slower
-    on small batches. Views are contiguous ``(rows, cols)`` windows of flat buffers.
+    on small batches. Views are contiguous ``(rows, cols)`` windows of flat buffers, kept
+    per shape: a single run casts the same few shapes thousands of times, and building ten
+    views costs as much as a third of a small cast. The kernels write every element they
+    read, so what a previous call left in them never shows.
     """
 
     def __init__(self, rows: int, cols: int) -> None:
         self.floats = np.empty((7, rows * cols))
         self.flags = np.empty((3, rows * cols), dtype=bool)
+        self._views: dict[tuple[int, int], list[np.ndarray]] = {}
 
     def views(self, rows: int, cols: int) -> list[np.ndarray]:
-        n = rows * cols
-        return [a[:n].reshape(rows, cols) for a in (*self.floats, *self.flags)]
+        got = self._views.get((rows, cols))
+        if got is None:
+            n = rows * cols
+            got = self._views[(rows, cols)] = [a[:n].reshape(rows, cols)
+                                               for a in (*self.floats, *self.flags)]
+        return got
+
+
+_kept = threading.local()
+
+
+def _scratch(rows: int, cols: int) -> _Scratch:
+    """This thread's scratch for blocks of ``rows`` rays by ``cols`` obstacles (a handful
+    of shapes per run; the oldest are dropped past 16)."""
+    kept: dict[tuple[int, int], _Scratch] = _kept.__dict__.setdefault("by_shape", {})
+    got = kept.get((rows, cols))
+    if got is None:
+        if len(kept) >= 16:
+            del kept[next(iter(kept))]
+        got = kept[(rows, cols)] = _Scratch(rows, cols)
+    return got
 
 
 def _prepare(seg: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -233,7 +258,7 @@ def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
     if circ.ndim == 3 and n_circ:
         owner = np.repeat(np.arange(m), k)  # instance of each flattened ray
     step = max(1, min(m * k, _BLOCK // max(1, n_seg, n_circ)))
-    scratch = _Scratch(step, max(1, n_seg, n_circ))
+    scratch = _scratch(step, max(1, n_seg, n_circ))
     for start in range(0, m * k, step):
         rays = slice(start, start + step)
         args = (ox[rays], oy[rays], ux[rays], uy[rays])
