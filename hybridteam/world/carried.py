@@ -40,7 +40,7 @@ from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
-from hybridteam.world.sensors import Targets, cast_at
+from hybridteam.world.raycast import Targets, cast_at
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -289,7 +289,7 @@ class CarriedPayload(WorldComponent):
         """Where rays ``(m, R, 2)`` of instances ``idx`` meet the outline: ``(m, R)``.
 
         Cast in the body frame, where the outline is one set of segments for every
-        instance of a size, so one :func:`~hybridteam.world.sensors.cast_at` serves them all
+        instance of a size, so one :func:`~hybridteam.world.raycast.cast_at` serves them all
         (a loop over the distinct sizes, usually one, never over instances).
         """
         pose = self.pose[idx]

@@ -45,7 +45,8 @@ from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import MODES, box_sdf, name_hit, robot_overlaps
 from hybridteam.world.component import WorldComponent, settings_error, world_component
-from hybridteam.world.sensors import RangeRing, Targets, cast_at, clearance
+from hybridteam.world.raycast import Targets, cast_at
+from hybridteam.world.sensors import RangeRing, clearance
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
