@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 import shutil
-import subprocess
 import sys
 import textwrap
 
@@ -390,22 +388,3 @@ def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, cap
     assert lines[-1].startswith(f"hybridteam: {study.name}: {total:,}/{total:,} runs (100%)")
     assert len(lines) >= 2 and any("ETA" in x for x in lines[:-1])
     assert (tmp_path / "out" / "results.csv").read_bytes() == reference[1]
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
-def test_a_worker_restores_glibc_malloc_thresholds_only_where_they_were_set():
-    """A Dask nanny's MALLOC_TRIM_THRESHOLD_ turns glibc's adaptive thresholds off (a
-    ladder chunk then costs twice the CPU); the worker fixes them once, only then."""
-    code = "from hybridteam.sweep.worker import restore_malloc as r; print(r(), r())"
-
-    def tuned(**env: str) -> str:
-        clean = {k: v for k, v in os.environ.items()
-                 if k not in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_",
-                              "HYBRIDTEAM_KEEP_MALLOC")}
-        done = subprocess.run([sys.executable, "-c", code], env={**clean, **env},
-                              capture_output=True, text=True, check=True)
-        return done.stdout.strip()
-
-    assert tuned() == "False False"
-    assert tuned(MALLOC_TRIM_THRESHOLD_="65536") == "True True"
-    assert tuned(MALLOC_TRIM_THRESHOLD_="65536", HYBRIDTEAM_KEEP_MALLOC="1") == "False False"

@@ -8,55 +8,16 @@ worker needs only ``hybridteam`` installed, not the study's folder.
 from __future__ import annotations
 
 import math
-import os
-import sys
 from typing import Any
 
 import numpy as np
 
 from hybridteam.model import Team
 from hybridteam.sweep.plan import Task
+from hybridteam.sweep.tuning import profiler_paused, restore_malloc
 
 #: Columns of a chunk's per-run rows, besides one ``metric_<key>`` column per metric.
 RUN_COLUMNS = ("run", "setting", "member", "repetition", "seed", "outcome", "t_end")
-
-
-#: glibc's malloc parameters (mallopt) and the values its adaptive thresholds reach on
-#: 64-bit Linux: blocks up to 32 MiB from the heap, the heap trimmed past 64 MiB free
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-_MMAP_MAX, _TRIM_AT = 32 << 20, 64 << 20
-_tuned: bool | None = None
-
-
-def restore_malloc() -> bool:
-    """Give glibc back its adaptive behaviour where the environment turned it off.
-
-    A Dask nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``; setting any malloc
-    threshold turns off glibc's adaptive mmap threshold, so every numpy temporary over
-    128 KiB is mapped and unmapped and the heap top trimmed again and again: measured here,
-    a ladder chunk cost 2.9 s of CPU in such a worker and 1.4 s in a plain process. Fixing
-    the thresholds at the values adaptation reaches (32 MiB, trim past 64 MiB) restores the
-    plain process's speed (1.2–1.3 s). Once per process, only when such a variable is set,
-    never with ``HYBRIDTEAM_KEEP_MALLOC=1``, and a no-op where there is no glibc. Returns
-    whether it changed anything.
-    """
-    global _tuned
-    if _tuned is not None:
-        return _tuned
-    _tuned = False
-    env = os.environ
-    if env.get("HYBRIDTEAM_KEEP_MALLOC") or not sys.platform.startswith("linux") or not any(
-            k in env for k in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_")):
-        return _tuned
-    try:
-        import ctypes
-
-        mallopt = ctypes.CDLL("libc.so.6").mallopt
-    except (OSError, AttributeError):  # not glibc (musl): nothing to restore
-        return _tuned
-    _tuned = bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_MAX)) and \
-        bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_AT))
-    return _tuned
 
 
 def run_chunk(team: Team, task: Task) -> dict[str, list[Any]]:
@@ -69,7 +30,9 @@ def run_chunk(team: Team, task: Task) -> dict[str, list[Any]]:
 
     restore_malloc()
     chunk = task.chunk
-    per = summaries(team, chunk.size, task.overrides, task.seeds, accelerate=task.accelerate)
+    with profiler_paused():
+        per = summaries(team, chunk.size, task.overrides, task.seeds,
+                        accelerate=task.accelerate)
     runs = np.arange(chunk.start, chunk.stop)
     cols: dict[str, list[Any]] = {
         "run": runs.tolist(),
