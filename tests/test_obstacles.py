@@ -281,3 +281,52 @@ def test_a_rule_reads_only_its_beams_and_they_read_as_in_the_whole_ring():
     for rule, columns in zip(obs.rules, obs.rule_columns, strict=True):
         np.testing.assert_array_equal(obs.read_beams[(rule.agent, rule.sensor)][columns],
                                       rule.beams)
+
+
+def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_fire(
+        tmp_path):
+    """A rule casts only where the floor (centre clearance from the static scene and from
+    every payload's outline, less the hull) is below its threshold. The floor must bound
+    every beam of the whole ring from below, and the rule's instances must see exactly what
+    casting everywhere gives. Poses at random around a wall, a post, a box and a resting
+    payload turned 30 degrees, some on the payload itself."""
+    text = IR_WALL.read_text().replace("world:\n", """world:
+  - use: payload
+    with:
+      name: crate
+      width: 0.6
+      depth: 0.3
+      pose: [-1.5, -0.5, 0.5235987755982988]
+      grasps: [{agent: B, point: [0, 0], engaged: holding}]
+""", 1).replace("below: 0.255", "below: 0.6").replace("beams: [0]", "beams: [0, 1]").replace(
+        "simulation:", """  B:
+    plant: {kind: holonomic, state: {x: 5, y: 5, theta: 0}}
+    variables: {holding: 0}
+    modes: {Wait: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
+simulation:""")
+    n = 4000
+    sim = Simulator(compile_team(variant(tmp_path, text)), n, duration=0.0)
+    sim.run()
+    (obs,) = [c for c in sim.ensemble.world.components if isinstance(c, Obstacles)]
+    rng = np.random.default_rng(3)
+    st = sim.ensemble.states[0]
+    st.x[:, 0], st.x[:, 1] = rng.uniform(-3.5, 3.5, n), rng.uniform(-3, 3, n)
+    st.x[:, 2] = rng.uniform(-math.pi, math.pi, n)
+    st.x[:20, 0], st.x[:20, 1] = -1.5, -0.5  # the centre on the payload
+    idx = np.arange(n)
+    reach = obs._measure(sim.access, idx)[0]
+    key = (0, "ir")
+    ring = obs.rings[key]
+    whole = obs.read(0, ring, idx)
+    floor = obs.floor(0, ring, idx, reach)
+    assert (floor <= whole.min(axis=1)).all()
+    readings, rows = obs._rule_readings(key, idx, reach)
+    assert rows is not None and n / 10 < rows.size < n * 9 / 10  # both ways were taken
+    np.testing.assert_array_equal(readings, whole[rows][:, obs.read_beams[key]])
+    (rule,) = obs.rules
+    skipped = np.setdiff1d(idx, rows)
+    assert (whole[skipped][:, rule.beams].min(axis=1) >= rule.below).all()
+    # and each instance's rule state after an update is what casting everywhere says
+    obs.near[:] = False
+    obs.update(sim.access, idx)
+    np.testing.assert_array_equal(obs.near[0], whole[:, rule.beams].min(axis=1) < rule.below)

@@ -321,6 +321,13 @@ class CarriedPayload(WorldComponent):
                 [-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]])
         return self._outlines[key]
 
+    def outline_distance(self, idx: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Distance from world points ``(m, 2)`` (or poses) of instances ``idx`` to the
+        payload's outline, 0 inside it: no ray from a point meets the outline nearer."""
+        x, y = _to_body(points[:, 0], points[:, 1], self.pose[idx])
+        hw, hd = self.half_extents(idx)
+        return _point_box(x, y, hw, hd)
+
     def gap(self, idx: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
         """Distance from the outline to the nearest of ``segments`` ``(s, 4)`` and
         ``circles`` ``(c, 3)``: ``(m,)``, 0 where they meet or overlap, inf if none."""

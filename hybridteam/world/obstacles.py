@@ -8,6 +8,11 @@ and, at every instant, casts the range rings of the robots that need them
 (:class:`~hybridteam.world.sensors.RangeRing`) against those obstacles *and* the outline
 of every ``payload`` component's payload (a resting box is what the Dock's IR approaches).
 
+A rule's ring is cast only where something is near enough to fire one of its rules: the
+robot's clearance from the static scene and from the payloads' outlines bounds every beam
+from below (:meth:`Obstacles.floor`), and where that bound is past every threshold the
+rules read nothing near without casting.
+
 Nothing is excluded from what a ring sees, not even the payload its own robot carries (a
 simple rule is a predictable one): a ``detect`` rule picks the beams that look away from
 the payload. Other robots are not obstacles here.
@@ -87,6 +92,10 @@ class Obstacles(WorldComponent):
         for rule in self.rules:
             key = (rule.agent, rule.sensor)
             self.read_beams[key] = np.union1d(self.read_beams.get(key, rule.beams), rule.beams)
+        #: per (agent, sensor): the highest threshold of its rules (readings at least that
+        #: far fire none)
+        self.below = {key: max(r.below for r in self.rules if (r.agent, r.sensor) == key)
+                      for key in self.read_beams}
         self.rule_columns = [np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams)
                              for r in self.rules]
         self.planar = [a for a, agent in enumerate(team.agents) if planar(agent)]
@@ -177,17 +186,55 @@ class Obstacles(WorldComponent):
         for p in self.late:
             p.settle(world, idx)
         reach = self._measure(world, idx)
-        readings: dict[tuple[int, str], np.ndarray] = {}
+        readings: dict[tuple[int, str], tuple[np.ndarray, np.ndarray | None]] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
             if key not in readings:
-                readings[key] = self.read(rule.agent, self.rings[key], idx,
-                                          reach.get(rule.agent), self.read_beams[key])
-            near = readings[key][:, self.rule_columns[r]].min(axis=1) < rule.below
+                readings[key] = self._rule_readings(key, idx, reach.get(rule.agent))
+            dist, rows = readings[key]
+            near = dist[:, self.rule_columns[r]].min(axis=1) < rule.below
+            if rows is not None:  # the others read no nearer than any rule's threshold
+                near, seen = np.zeros(idx.size, bool), near
+                near[rows] = seen
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
             if some(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
+
+    def _rule_readings(self, key: tuple[int, str], idx: np.ndarray, reach: np.ndarray | None
+                       ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The beams the rules of ``key`` read, for the instances of ``idx`` where some rule
+        may see something: ``(readings, rows)``, rows None for all of ``idx``. Where the
+        :meth:`floor` is at least every rule's threshold no rule can fire, and what a cast
+        would give is not needed (most of experiment 3's sonar instants: the Scout is far
+        from everything)."""
+        a, ring = key[0], self.rings[key]
+        if reach is not None:
+            may = self.floor(a, ring, idx, reach) < self.below[key]
+            if not every(may):
+                rows = where_true(may)
+                if rows.size == 0:
+                    return np.empty((0, self.read_beams[key].size)), rows
+                return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key]), rows
+        return self.read(a, ring, idx, reach, self.read_beams[key]), None
+
+    def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
+              ) -> np.ndarray:
+        """A lower bound on every beam of ``ring`` on robot ``a`` in instances ``idx``,
+        given its centre's clearance ``reach`` from the static obstacles: ``(m,)``.
+
+        The rays start within ``mount_radius`` of the centre, so none meets a static
+        obstacle nearer than ``reach`` minus that, nor a payload nearer than the centre's
+        distance to its outline minus that (less a rounding allowance); readings are then
+        clipped to ``[min_range, max_range]``.
+        """
+        pose = self._poses(a, idx)
+        near = reach
+        for p in self.payloads:
+            near = np.minimum(near, p.outline_distance(idx, pose))
+        slack = _SLACK * (1.0 + np.abs(pose[:, 0]) + np.abs(pose[:, 1]) + ring.max_range)
+        return np.maximum(np.minimum(near - ring.mount_radius - slack, ring.max_range),
+                          ring.min_range)
 
     def _measure(self, world: WorldAccess, idx: np.ndarray) -> dict[int, np.ndarray]:
         """Running minima of the robots' and the payloads' clearances, and collisions.
