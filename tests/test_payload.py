@@ -82,6 +82,14 @@ def test_equilibrium_is_batch_independent_and_broadcasts():
         np.testing.assert_array_equal(a, b)
     same = equilibrium(robots, body, np.ones(3))
     assert same.offsets.shape == (37, 3, 2)
+    # without offsets (the payload component places the grasps itself): the same pose,
+    # bit for bit, and offsets that placing the grasps gives
+    bare = equilibrium(robots, body, springs, offsets=False)
+    for a, b in zip(eq[:3], bare[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert bare.offsets.shape == (37, 0, 2)
+    np.testing.assert_array_equal(robots - world_points(bare.x, bare.y, bare.theta, body),
+                                  eq.offsets)
 
 
 def test_equilibrium_rejects_bad_input():

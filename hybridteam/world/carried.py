@@ -145,6 +145,7 @@ class CarriedPayload(WorldComponent):
         self._outlines: dict[tuple[float, float], Targets] = {}
         self._held_by_code: dict[int, np.ndarray] = {}
         self._halves: tuple[np.ndarray, np.ndarray] | None = None
+        self._bits = 1 << np.arange(k)  # grasp j holds: bit j of an engagement code
 
     def _robot_points(self, world: WorldAccess, idx: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -190,15 +191,22 @@ class CarriedPayload(WorldComponent):
         are grouped by which grasps hold, one equilibrium per group present (at most 2^k,
         usually one), so the work stays vectorized over the ensemble.
         """
+        return self._settle(world, idx)[0]
+
+    def _settle(self, world: WorldAccess, idx: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`settle`, returning the headings, the offsets ``(m, k, 2)`` and which grasps
+        hold ``(m, k)`` (what :meth:`update` checks next, without gathering them again)."""
         pts, heading = self._robot_points(world, idx)
         on = self._engagement(world, idx)
         pose = self.rest[idx]
         k = len(self.agents)
-        code = on @ (1 << np.arange(k))
+        code = on @ self._bits
         codes = [int(code[0])] if code.size and every(code == code[0]) else \
             np.unique(code).tolist()
         for c in codes:
-            rows = code == c
+            # every row under one code (the usual case): whole arrays, not masked copies
+            rows: slice | np.ndarray = slice(None) if len(codes) == 1 else code == c
             held = self._held(c)
             if held.size == 1:      # no torque: keep the angle, follow the grasp point
                 (j,) = held
@@ -207,8 +215,12 @@ class CarriedPayload(WorldComponent):
                 bx, by = self.body[j]
                 pose[rows, 0] = pts[rows, j, 0] - (cs * bx - sn * by)
                 pose[rows, 1] = pts[rows, j, 1] - (sn * bx + cs * by)
+            elif held.size == k:
+                eq = equilibrium(pts[rows], self.body, self.spring, offsets=False)
+                pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
             elif held.size > 1:
-                eq = equilibrium(pts[rows][:, held], self.body[held], self.spring[held])
+                eq = equilibrium(pts[rows][:, held], self.body[held], self.spring[held],
+                                 offsets=False)
                 pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
         self.pose[idx] = pose
         self.rest[idx] = pose
@@ -222,7 +234,7 @@ class CarriedPayload(WorldComponent):
         arm[..., 0], arm[..., 1] = c * ox + s * oy, -s * ox + c * oy
         arm[..., 2] = np.arctan2(np.sin(rel), np.cos(rel))
         self.arm[idx] = arm
-        return heading
+        return heading, offsets, on
 
     def _held(self, code: int) -> np.ndarray:
         """Indices of the grasps that hold under engagement ``code`` (bit k: grasp k),
@@ -233,9 +245,8 @@ class CarriedPayload(WorldComponent):
         return self._held_by_code[code]
 
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
-        self.settle(world, idx)
-        size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
-        on = self.engaged[idx]
+        _, offsets, on = self._settle(world, idx)
+        size = np.hypot(offsets[..., 0], offsets[..., 1])
         self.max_offset[idx] = np.where(on, np.maximum(self.max_offset[idx], size),
                                         self.max_offset[idx])
         over = (size > self.limit) & on

@@ -53,13 +53,15 @@ def _weighted_sum(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 
 def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
-                springs: np.ndarray) -> Equilibrium:
+                springs: np.ndarray, offsets: bool = True) -> Equilibrium:
     """Quasi-static pose of n payloads held at k grasps by springs.
 
     ``robot_points`` is ``(n, k, 2)``; ``body_points`` is ``(k, 2)`` (one body for all) or
     ``(n, k, 2)``; ``springs`` is ``(n, k)`` or ``(k,)``, all positive. When the body's
     orientation is undetermined (every cross-covariance term zero, e.g. all robots on one
-    point) the angle is 0.
+    point) the angle is 0. With ``offsets`` false the result's offsets are an empty
+    ``(n, 0, 2)`` array: a caller that places the body's points itself (the payload
+    component, at every instant) does not pay for them twice.
     """
     r = np.asarray(robot_points, dtype=float)
     if r.ndim != 3 or r.shape[2] != 2:
@@ -84,6 +86,8 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     c, s = np.cos(theta), np.sin(theta)
     x = rcx - (c * bcx - s * bcy)
     y = rcy - (s * bcx + c * bcy)
+    if not offsets:
+        return Equilibrium(x, y, theta, np.empty((n, 0, 2)))
     gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]
     gy = s[:, None] * b[..., 0] + c[:, None] * b[..., 1] + y[:, None]
     offsets = np.empty((*gx.shape, 2))  # np.stack's values, without its checks
