@@ -83,3 +83,21 @@ def test_a_dask_worker_pauses_its_profiler_for_a_chunk_and_resumes_it():
             distributed.Client(cluster) as client:
         paused, inside, after = client.submit(_inside_and_after, pure=False).result()
     assert (paused, inside, after) == (True, False, True)
+
+
+def test_a_chunk_ending_as_its_worker_closes_is_not_turned_into_an_error(monkeypatch):
+    """The sampler is resumed on the worker's event loop; a loop that is closing refuses
+    callbacks (RuntimeError), and the chunk's result must still come back."""
+    import types
+
+    class Loop:
+        def add_callback(self, fn):
+            raise RuntimeError("Event loop is closed")
+
+    worker = types.SimpleNamespace(periodic_callbacks={"profile": _Sampler()}, loop=Loop())
+    fake = types.SimpleNamespace(get_worker=lambda: worker)
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    monkeypatch.delenv("HYBRIDTEAM_KEEP_PROFILER", raising=False)
+    with profiler_paused() as paused:
+        assert paused  # a profiler was found: pausing it was asked for
+    assert tuning._pausing == 0

@@ -118,7 +118,10 @@ def _dask_sampler() -> tuple[Any, Callable[[Callable[[], None]], None]]:
             finally:
                 done.set()
 
-        worker.loop.add_callback(call)  # (thread-safe; the callback is not)
+        try:
+            worker.loop.add_callback(call)  # (thread-safe; the callback is not)
+        except RuntimeError:  # the worker's loop is closing: nothing left to pause
+            return
         done.wait(1.0)
 
     return sampler, run_on_loop
