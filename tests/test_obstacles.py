@@ -51,6 +51,24 @@ def variant(tmp_path, text: str, name: str = "team.yaml"):
     return load(path)
 
 
+def ir_wall_with_payload(name: str, width: float, depth: float, pose: list[float]) -> str:
+    """The IR wall fixture's text with a resting payload (its grasp, by a robot B standing
+    far away at (5, 5), is not engaged)."""
+    return IR_WALL.read_text().replace("world:\n", f"""world:
+  - use: payload
+    with:
+      name: {name}
+      width: {width}
+      depth: {depth}
+      pose: {pose}
+      grasps: [{{agent: B, point: [0, 0], engaged: holding}}]
+""", 1).replace("simulation:", """  B:
+    plant: {kind: holonomic, state: {x: 5, y: 5, theta: 0}}
+    variables: {holding: 0}
+    modes: {Wait: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
+simulation:""")
+
+
 def test_readings_against_a_wall_a_post_and_a_box_turn_with_the_robot():
     """Beams ahead, left, behind, right from a hull of 0.3 (see the fixture): 1.7 to the
     wall, 0.7 to the post, nothing behind (max_range 2), 0.8 to the box; turned by 90
@@ -80,19 +98,7 @@ def test_a_resting_payload_is_an_obstacle_and_its_clearance_is_measured(tmp_path
     """A 0.4 box turned 45 degrees rests at (1, 0) (its grasp is not engaged): R's front
     beam meets its corner at x = 1 - 0.2 sqrt 2; the corner on the other side is
     2 - (1 + 0.2 sqrt 2) from the wall. B, far away with no footprint, is a point."""
-    text = IR_WALL.read_text().replace("world:\n", """world:
-  - use: payload
-    with:
-      name: box
-      width: 0.4
-      depth: 0.4
-      pose: [1, 0, 0.7853981633974483]
-      grasps: [{agent: B, point: [0, 0], engaged: holding}]
-""", 1).replace("simulation:", """  B:
-    plant: {kind: holonomic, state: {x: 5, y: 5, theta: 0}}
-    variables: {holding: 0}
-    modes: {Wait: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
-simulation:""")
+    text = ir_wall_with_payload("box", 0.4, 0.4, [1, 0, 0.7853981633974483])
     # listed after the payload in one team and before it in the other: the same result
     first = variant(tmp_path, text, "payload_first.yaml")
     spec = first.world
@@ -290,20 +296,9 @@ def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_
     every beam of the whole ring from below, and the rule's instances must see exactly what
     casting everywhere gives. Poses at random around a wall, a post, a box and a resting
     payload turned 30 degrees, some on the payload itself."""
-    text = IR_WALL.read_text().replace("world:\n", """world:
-  - use: payload
-    with:
-      name: crate
-      width: 0.6
-      depth: 0.3
-      pose: [-1.5, -0.5, 0.5235987755982988]
-      grasps: [{agent: B, point: [0, 0], engaged: holding}]
-""", 1).replace("below: 0.255", "below: 0.6").replace("beams: [0]", "beams: [0, 1]").replace(
-        "simulation:", """  B:
-    plant: {kind: holonomic, state: {x: 5, y: 5, theta: 0}}
-    variables: {holding: 0}
-    modes: {Wait: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
-simulation:""")
+    text = ir_wall_with_payload("crate", 0.6, 0.3, [-1.5, -0.5, 0.5235987755982988]
+                                ).replace("below: 0.255", "below: 0.6").replace(
+                                    "beams: [0]", "beams: [0, 1]")
     n = 4000
     sim = Simulator(compile_team(variant(tmp_path, text)), n, duration=0.0)
     sim.run()

@@ -215,12 +215,10 @@ class CarriedPayload(WorldComponent):
                 bx, by = self.body[j]
                 pose[rows, 0] = pts[rows, j, 0] - (cs * bx - sn * by)
                 pose[rows, 1] = pts[rows, j, 1] - (sn * bx + cs * by)
-            elif held.size == k:
-                eq = equilibrium(pts[rows], self.body, self.spring, offsets=False)
-                pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
             elif held.size > 1:
-                eq = equilibrium(pts[rows][:, held], self.body[held], self.spring[held],
-                                 offsets=False)
+                some_of = slice(None) if held.size == k else held  # all: views, not copies
+                eq = equilibrium(pts[rows][:, some_of], self.body[some_of],
+                                 self.spring[some_of], offsets=False)
                 pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
         self.pose[idx] = pose
         self.rest[idx] = pose
