@@ -80,6 +80,31 @@ ROWS = [None] + [_row(A[s, :s]) for s in range(1, N_STAGES)]
 B_TERMS, E3_TERMS, E5_TERMS = _row(B), _row(E3), _row(E5)
 EXTRA_ROWS = [_row(a[:s]) for s, a in enumerate(A_EXTRA, start=N_STAGES + 1)]
 D_TERMS = [_row(row) for row in D]
+
+
+def _sums_table() -> tuple[list[np.ndarray], int]:
+    """Column ``j`` of every stage sum a step needs, for :func:`step`'s running sums.
+
+    Rows: the stage inputs ``A[s, :s]`` (s = 1 .. 11, row ``s - 1``), then the solution
+    weights ``B`` and the error weights ``E5``, ``E3``. Every one of these sums ends at or
+    before ``k[11]`` and row ``s - 1`` of ``A`` ends exactly at ``k[s - 1]`` (checked here),
+    so adding ``column[j] * k[j]`` into the rows that are still open, for ``j = 0, 1, ...``,
+    performs the very additions :func:`combine` performs, in its order: the same bits.
+    """
+    rows = [A[s, :s] for s in range(1, N_STAGES)] + [B_TERMS.ravel(), E5_TERMS.ravel(),
+                                                     E3_TERMS.ravel()]
+    assert all(r.size == s and r[-1] != 0 for s, r in enumerate(rows[: N_STAGES - 1], 1))
+    assert all(r.size <= N_STAGES for r in rows)
+    table = np.zeros((len(rows), N_STAGES))
+    for i, r in enumerate(rows):
+        table[i, : r.size] = r
+    # column j feeds the stage rows s - 1 >= j and the three weight rows
+    return [table[j:, j, None, None].copy() for j in range(N_STAGES)], len(rows)
+
+
+SUM_COLUMNS, N_SUMS = _sums_table()
+B_SUM, E5_SUM, E3_SUM = N_SUMS - 3, N_SUMS - 2, N_SUMS - 1
+C_COLUMN = C[:, None]
 ERROR_ORDER = 7
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -92,7 +117,7 @@ class Step:
     __slots__ = ("_F", "err", "f", "h", "k", "t0", "x0", "x1")
 
     def __init__(self, f: Derivative, t0: np.ndarray, x0: np.ndarray, x1: np.ndarray,
-                 k: np.ndarray, h: np.ndarray, err: np.ndarray) -> None:
+                 k: np.ndarray, h: np.ndarray, err: np.ndarray | None) -> None:
         self.f, self.t0, self.x0, self.x1, self.k, self.h, self.err = f, t0, x0, x1, k, h, err
         self._F: np.ndarray | None = None
 
@@ -120,7 +145,7 @@ class Step:
         """State at ``t0 + theta*h`` (theta in [0, 1], one per row), 7th order accurate;
         ``rows`` selects instances of this step."""
         F, x0 = self._coefficients(), self.x0
-        if rows is not None:
+        if rows is not None and not (rows.size == 1 == x0.shape[0]):  # (the one row: as is)
             F, x0 = F[:, rows], x0[rows]
         x = np.asarray(theta, dtype=float)[:, None]
         factors = (x, 1 - x)
@@ -132,22 +157,35 @@ class Step:
 
 
 def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float,
-         atol: float, f0: np.ndarray | None = None) -> Step:
+         atol: float, f0: np.ndarray | None = None, estimate: bool = True) -> Step:
     """Attempt one DOP853 step of size ``h`` (per instance) from ``(t, x)``.
 
-    ``err`` is each instance's scaled error norm (accept where ``err <= 1``).
+    ``err`` is each instance's scaled error norm (accept where ``err <= 1``); with
+    ``estimate=False`` it is not computed (None) — a crossing search that integrates to a
+    trial point only wants the state there, which is the same either way.
+
+    The stage sums are kept running (``sums``): once ``k[j]`` is known, its term is added
+    to every sum that uses it, one array operation for all of them (see
+    :func:`_sums_table`). At the handful of instances a single run has, numpy's cost is
+    per call, and this needs a third of the calls of summing each stage afresh; the
+    additions, and so the bits, are those of :func:`combine`.
     """
     m, d = x.shape
     k = np.empty((N_STAGES + 1, m, d))
     k[0] = f(t, x) if f0 is None else f0
     hc = h[:, None]
+    ts = t + C_COLUMN * h  # every stage's time at once (each element as t + C[s] * h)
+    sums = SUM_COLUMNS[0] * k[0]
     for s in range(1, N_STAGES):
-        k[s] = f(t + C[s] * h, x + hc * combine(ROWS[s], k))
-    x1 = x + hc * combine(B_TERMS, k)
+        k[s] = f(ts[s], x + hc * sums[s - 1])
+        sums[s:] += SUM_COLUMNS[s] * k[s]
+    x1 = x + hc * sums[B_SUM]
     k[N_STAGES] = f(t + h, x1)
+    if not estimate:
+        return Step(f, t, x, x1, k, h, None)
     scale = atol + rtol * np.maximum(np.abs(x), np.abs(x1))
-    err5 = combine(E5_TERMS, k) / scale
-    err3 = combine(E3_TERMS, k) / scale
+    err5 = sums[E5_SUM] / scale
+    err3 = sums[E3_SUM] / scale
     e5 = np.sum(err5 * err5, axis=1)
     e3 = np.sum(err3 * err3, axis=1)
     denom = e5 + 0.01 * e3

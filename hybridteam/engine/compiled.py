@@ -68,6 +68,16 @@ class Driver:
     def needs_rk(self) -> bool:
         return self.kind in ("continuous", "flow")
 
+    @functools.cached_property
+    def reads_t_in(self) -> bool:
+        """Whether evaluating this driver may read ``t_in_mode``: a law may (it is Python);
+        expressions do only if they name it. The integrator asks a dozen times a step, and
+        need not compute the time in mode for a flow such as ``K * (30 - x)``."""
+        exprs = self.flow if self.kind == "flow" else self.inputs
+        if self.law is not None or exprs is None:
+            return self.kind != "zero"
+        return any(e is not None and "t_in_mode" in e.names for e in exprs)
+
 
 @dataclass
 class CAction:

@@ -73,14 +73,18 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
         D = ca.drivers[d]
         rows = where_true(drv == d)
         sel: slice | np.ndarray = slice(None) if rows.size == drv.size else rows
-        groups.append((D, sel, v[sel], p[sel], entry[sel, D.owner] if D.owner >= 0 else None,
+        entered = entry[sel, D.owner] if D.owner >= 0 and D.reads_t_in else None
+        groups.append((D, sel, v[sel], p[sel], entered,
                        None if st.inbox is None else st.inbox.view(idx[sel])))
+    whole = len(groups) == 1 and isinstance(groups[0][1], slice)
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
         out = np.zeros(xx.shape)
         for D, sel, v_g, p_g, entered, e in groups:
-            tr = tt[sel]
-            ctx = Ctx(xx[sel], v_g, p_g, tr, tr if entered is None else tr - entered, e=e)
+            # (one group of every row, the common case: the arrays themselves, not views)
+            tr, xr = (tt, xx) if whole else (tt[sel], xx[sel])
+            # (t_in_mode is t where nothing reads it)
+            ctx = Ctx(xr, v_g, p_g, tr, None if entered is None else tr - entered, e=e)
             if D.kind == "flow":
                 for j, expr in enumerate(D.flow):  # type: ignore[arg-type]
                     if expr is not None:

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import some, where_true
+from hybridteam.arrays import every, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.drivers import derivative
 
@@ -84,7 +84,14 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
     """
     if rows is None:
         rows = np.arange(idx.size)
-    x0, u, is_rk = step.x0[rows], step.u[rows], step.rk[rows]
+    is_rk = step.rk[rows]
+    if dense and every(is_rk):  # every row flows (a flow mode's search): no sorting out
+        s = step.rk_step
+        assert s is not None and step.rk_pos is not None
+        pos = step.rk_pos[rows]
+        h = s.h[pos]
+        return s.dense(tau / np.where(h > 0, h, 1.0), pos)
+    x0, u = step.x0[rows], step.u[rows]
     plant = ens.states[a].ca.plant
     if not some(is_rk):
         return plant.propagate(x0, u, tau)
@@ -101,6 +108,6 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
     else:
         sub = idx[r]
         s = rk.step(derivative(ens, a, sub), ens.t0[sub], x0[r], tau[r], ens.settings.rtol,
-                    ens.settings.atol)
+                    ens.settings.atol, estimate=False)
         out[r] = s.x1
     return out
