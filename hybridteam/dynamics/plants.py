@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hybridteam.arrays import filled
+
 
 @dataclass(frozen=True)
 class Plant:
@@ -55,16 +57,16 @@ class Unicycle(Plant):
         point for any nonzero ``a`` (for tiny ``a``, ``sin(a)`` rounds to ``a`` itself) and is
         set to its limit 1 at ``a = 0``, so there is no branch on small turn rates.
         """
-        v, w = u[:, 0], u[:, 1]
+        v, w, th = u[:, 0], u[:, 1], x[:, 2]
         half = 0.5 * w * h
-        ratio = np.ones(half.shape)  # the limit, kept where half is 0: no division there,
-        np.divide(np.sin(half), half, out=ratio, where=half != 0)  # so no error state
+        ratio = filled(half.shape[0], 1.0)  # the limit, kept where half is 0: no division
+        np.divide(np.sin(half), half, out=ratio, where=half != 0)  # there, so no error state
         chord = v * h * ratio
-        mid = x[:, 2] + half
+        mid = th + half
         out = np.empty_like(x)
         out[:, 0] = x[:, 0] + chord * np.cos(mid)
         out[:, 1] = x[:, 1] + chord * np.sin(mid)
-        out[:, 2] = x[:, 2] + w * h
+        out[:, 2] = th + w * h
         return out
 
 

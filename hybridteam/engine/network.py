@@ -136,13 +136,13 @@ class Network:
             self._send_one(idx, t, sender, to, socket, type_, fields, seq, ids, note, rank)
             return
         if to is None:
-            receivers = [(r, np.ones(idx.size, bool)) for r in range(len(self.names))
+            receivers = [(r, filled(idx.size, True, bool)) for r in range(len(self.names))
                          if r != sender]
         elif isinstance(to, np.ndarray):
             receivers = [(r, (to == r) | (to < 0)) for r in range(len(self.names))
                          if r != sender]
         else:
-            receivers = [(to, np.ones(idx.size, bool))]
+            receivers = [(to, filled(idx.size, True, bool))]
         for r, mine in receivers:
             if not some(mine):
                 continue
@@ -236,7 +236,7 @@ class Network:
         (the protocol layer) sees each copy that got through and may withhold it from the
         receiver's modes, returning the reason (an acknowledgement, a duplicate).
         """
-        keep = np.ones(inst.size, bool)
+        keep = filled(inst.size, True, bool)
         for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
             key = (msg.receiver, msg.socket)
             if key not in self.limits:

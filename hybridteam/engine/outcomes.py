@@ -16,6 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.arrays import filled
+
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
 
@@ -41,9 +43,9 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
     if idx.size == 0:
         return
     cteam = ens.cteam
-    all_final = np.ones(idx.size, bool)
-    ends = np.zeros(idx.size, bool) if cteam.end_any else np.ones(idx.size, bool)
-    waiting = np.ones(idx.size, bool)
+    all_final = filled(idx.size, True, bool)
+    ends = np.zeros(idx.size, bool) if cteam.end_any else filled(idx.size, True, bool)
+    waiting = filled(idx.size, True, bool)
     someone_waits = np.zeros(idx.size, bool)
     for a, st in enumerate(ens.states):
         ca = st.ca

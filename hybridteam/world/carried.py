@@ -175,7 +175,7 @@ class CarriedPayload(WorldComponent):
 
     def _engagement(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """Which grasps hold in instances ``idx``: ``(m, k)`` bool."""
-        on = np.ones((idx.size, len(self.agents)), bool)
+        on = filled((idx.size, len(self.agents)), True, bool)
         for k, name in enumerate(self.engaged_by):
             if name is not None:
                 on[:, k] = world.variable(self.agents[k], name, idx) > 0.5
