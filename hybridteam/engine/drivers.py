@@ -120,10 +120,9 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         due |= fresh
     if not some(due):
         return
-    one = st.driver[0]
     # the drivers in charge, in index order (one, usually, everywhere: no gathering then)
-    single = every(st.driver == one)
-    for d in [int(one)] if single else distinct(st.driver[due]):
+    single = st.single_driver >= 0
+    for d in [st.single_driver] if single else distinct(st.driver[due]):
         D = ca.drivers[d]
         mine = due.copy() if single else due & (st.driver == d)
         if D.kind == "continuous":

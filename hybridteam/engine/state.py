@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hybridteam.arrays import every
 from hybridteam.engine.compiled import CAgent, Ctx
 from hybridteam.engine.values import require
 from hybridteam.engine.world import AgentView
@@ -39,6 +40,9 @@ class AgentState:
         self.entry = np.zeros((n, m_count))
         self.deadline = np.full((n, max(len(ca.after), 1)), np.inf)
         self.driver = np.zeros(n, np.intp)
+        #: the driver every instance is under, -1 where they differ (kept by
+        #: update_drivers: sampling laws asks at every instant, drivers change at switches)
+        self.single_driver = 0
         self.rk = np.zeros(n, bool)
         self.next_tick = np.full(n, np.inf)
         self.truth = np.zeros((len(ca.watches), n), bool)
@@ -149,6 +153,8 @@ class AgentState:
             sel = self.active[idx, m] & (drv == 0)
             drv[sel] = ca.modes[m].driver
         self.driver[idx] = drv
+        first = self.driver[0]
+        self.single_driver = int(first) if every(self.driver == first) else -1
         needs = np.array([d.needs_rk for d in ca.drivers], bool)
         self.rk[idx] = needs[drv]
         if self.watch_modes.size:
