@@ -44,6 +44,18 @@ def _textbook_step(f, t, x, h, rtol, atol):
     return x1, k, np.abs(h) * e5 / np.sqrt(denom * d)
 
 
+def _textbook_dense_coefficients(f, t, x, h, x1, k):
+    """The continuous extension's coefficients, each extra stage and row summed afresh."""
+    m, d = x.shape
+    kk = np.concatenate([k, np.empty((len(rk.C_EXTRA), m, d))])
+    for s, (a, c) in enumerate(zip(rk.A_EXTRA, rk.C_EXTRA, strict=True)):
+        j = rk.N_STAGES + 1 + s
+        kk[j] = f(t + c * h, x + h[:, None] * _seq(a[:j], kk))
+    dy = x1 - x
+    rows = [dy, h[:, None] * kk[0] - dy, 2 * dy - h[:, None] * (kk[rk.N_STAGES] + kk[0])]
+    return np.stack(rows + [h[:, None] * _seq(r, kk) for r in rk.D])
+
+
 def test_running_sums_give_the_textbook_step_bit_for_bit():
     rng = np.random.default_rng(5)
     m = 9
@@ -55,6 +67,8 @@ def test_running_sums_give_the_textbook_step_bit_for_bit():
     assert np.array_equal(got.x1, x1)
     assert np.array_equal(got.k, k)
     assert np.array_equal(got.err, err)
+    coefficients = _textbook_dense_coefficients(_f, t, x, h, x1, k)
+    assert np.array_equal(got._coefficients(), coefficients)
     # each instance is its own: the same row stepped alone gives the same bits
     for i in (0, 4, 8):
         alone = rk.step(_f, t[i:i + 1], x[i:i + 1], h[i:i + 1], 1e-10, 1e-12)

@@ -103,6 +103,30 @@ def _sums_table() -> tuple[list[np.ndarray], int]:
 
 
 SUM_COLUMNS, N_SUMS = _sums_table()
+
+
+def _dense_table() -> tuple[np.ndarray, list[np.ndarray]]:
+    """The dense output's seven sums (extra stages 13, 14, 15, then the rows of ``D``):
+    their coefficients of the step's stages 0..12, shaped (7, 13, 1, 1), and the column of
+    each extra stage ``13 + s`` over the sums after its own (rows ``s + 1 ..``).
+
+    Stage ``13 + s`` ends at ``k[12 + s]`` and every ``D`` row at ``k[15]`` (checked), so
+    summing stages 0..12 at once and then adding each extra stage's term performs the
+    additions of :func:`combine`, in its order.
+    """
+    rows = [r.ravel() for r in EXTRA_ROWS] + [r.ravel() for r in D_TERMS]
+    assert all(r.size == N_STAGES + 1 + s for s, r in enumerate(rows[: len(C_EXTRA)]))
+    assert all(r.size == N_STAGES + 1 + len(C_EXTRA) for r in rows[len(C_EXTRA):])
+    table = np.zeros((len(rows), N_STAGES + 1 + len(C_EXTRA)))
+    for i, r in enumerate(rows):
+        table[i, : r.size] = r
+    start = table[:, : N_STAGES + 1, None, None].copy()
+    columns = [table[s + 1:, N_STAGES + 1 + s, None, None].copy()
+               for s in range(len(C_EXTRA))]
+    return start, columns
+
+
+DENSE_START, DENSE_COLUMNS = _dense_table()
 B_SUM, E5_SUM, E3_SUM = N_SUMS - 3, N_SUMS - 2, N_SUMS - 1
 C_COLUMN = C[:, None]
 ERROR_ORDER = 7
@@ -122,22 +146,29 @@ class Step:
         self._F: np.ndarray | None = None
 
     def _coefficients(self) -> np.ndarray:
-        """The interpolant's coefficients (3 more stages, computed once, when first needed)."""
+        """The interpolant's coefficients (3 more stages, computed once, when first needed).
+
+        Its seven sums (the three stages' inputs, the four coefficient rows) all start with
+        the step's 13 stages: their terms are summed for all seven in one running sum,
+        then each new stage's term is added to the sums still open (see
+        :func:`_dense_table`): the additions of summing each afresh, in the same order.
+        """
         if self._F is None:
             m, d = self.x0.shape
             k = np.empty((_c.N_STAGES_EXTENDED, m, d))
             k[: N_STAGES + 1] = self.k
             hc = self.h[:, None]
-            for s, (row, c) in enumerate(zip(EXTRA_ROWS, C_EXTRA, strict=True),
-                                         start=N_STAGES + 1):
-                k[s] = self.f(self.t0 + c * self.h, self.x0 + hc * combine(row, k))
+            first = N_STAGES + 1
+            sums = np.add.accumulate(DENSE_START * self.k, axis=1)[:, -1]  # (7, m, d)
+            for s, c in enumerate(C_EXTRA):
+                k[first + s] = self.f(self.t0 + c * self.h, self.x0 + hc * sums[s])
+                sums[s + 1:] += DENSE_COLUMNS[s] * k[first + s]
             F = np.empty((_c.INTERPOLATOR_POWER, m, d))
             dy = self.x1 - self.x0
             F[0] = dy
             F[1] = hc * k[0] - dy
             F[2] = 2 * dy - hc * (k[N_STAGES] + k[0])
-            for p, terms in enumerate(D_TERMS):
-                F[3 + p] = hc * combine(terms, k)
+            F[3:] = hc * sums[len(C_EXTRA):]
             self._F = F
         return self._F
 
