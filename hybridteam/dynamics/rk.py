@@ -59,24 +59,14 @@ E5 = _c.E5
 D = _c.D
 A_EXTRA = _c.A[N_STAGES + 1:]
 C_EXTRA = _c.C[N_STAGES + 1:]
+
+
 def _row(coefs: np.ndarray) -> np.ndarray:
     """Coefficients up to the last nonzero one, shaped to broadcast over (stage, m, d)."""
     nz = np.flatnonzero(coefs)
     return np.asarray(coefs[: nz[-1] + 1], dtype=float)[:, None, None]
 
 
-def combine(row: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """``sum_j c_j k[j]``, accumulated strictly in stage order for every element.
-
-    Not ``einsum``/``tensordot``/``sum``: their summation order depends on the array sizes
-    (pairwise or blocked sums), so an instance's result would change in the last bits —
-    which adaptive step-size control amplifies — with the number of its neighbours in the
-    ensemble. ``add.accumulate`` is a running sum by definition: always sequential.
-    """
-    return np.add.accumulate(row * k[: row.shape[0]], axis=0)[-1]
-
-
-ROWS = [None] + [_row(A[s, :s]) for s in range(1, N_STAGES)]
 B_TERMS, E3_TERMS, E5_TERMS = _row(B), _row(E3), _row(E5)
 EXTRA_ROWS = [_row(a[:s]) for s, a in enumerate(A_EXTRA, start=N_STAGES + 1)]
 D_TERMS = [_row(row) for row in D]
@@ -85,11 +75,18 @@ D_TERMS = [_row(row) for row in D]
 def _sums_table() -> tuple[list[np.ndarray], int]:
     """Column ``j`` of every stage sum a step needs, for :func:`step`'s running sums.
 
+    Every sum ``sum_j c_j k[j]`` of the method is accumulated strictly in stage order, for
+    every element. Not ``einsum``/``tensordot``/``sum``: their summation order depends on
+    the array sizes (pairwise or blocked sums), so an instance's result would change in
+    the last bits — which adaptive step-size control amplifies — with the number of its
+    neighbours in the ensemble.
+
     Rows: the stage inputs ``A[s, :s]`` (s = 1 .. 11, row ``s - 1``), then the solution
     weights ``B`` and the error weights ``E5``, ``E3``. Every one of these sums ends at or
     before ``k[11]`` and row ``s - 1`` of ``A`` ends exactly at ``k[s - 1]`` (checked here),
     so adding ``column[j] * k[j]`` into the rows that are still open, for ``j = 0, 1, ...``,
-    performs the very additions :func:`combine` performs, in its order: the same bits.
+    adds each sum's terms one at a time from ``j = 0`` up to its last nonzero coefficient
+    (zero coefficients inside included): the textbook sum, with its bits.
     """
     rows = [A[s, :s] for s in range(1, N_STAGES)] + [B_TERMS.ravel(), E5_TERMS.ravel(),
                                                      E3_TERMS.ravel()]
@@ -103,6 +100,8 @@ def _sums_table() -> tuple[list[np.ndarray], int]:
 
 
 SUM_COLUMNS, N_SUMS = _sums_table()
+B_SUM, E5_SUM, E3_SUM = N_SUMS - 3, N_SUMS - 2, N_SUMS - 1
+C_COLUMN = C[:, None]
 
 
 def _dense_table() -> tuple[np.ndarray, list[np.ndarray]]:
@@ -111,8 +110,9 @@ def _dense_table() -> tuple[np.ndarray, list[np.ndarray]]:
     each extra stage ``13 + s`` over the sums after its own (rows ``s + 1 ..``).
 
     Stage ``13 + s`` ends at ``k[12 + s]`` and every ``D`` row at ``k[15]`` (checked), so
-    summing stages 0..12 at once and then adding each extra stage's term performs the
-    additions of :func:`combine`, in its order.
+    summing stages 0..12 at once (``add.accumulate``: a running sum by definition) and
+    then adding each extra stage's term adds each sum's terms in stage order, as
+    :func:`_sums_table` explains.
     """
     rows = [r.ravel() for r in EXTRA_ROWS] + [r.ravel() for r in D_TERMS]
     assert all(r.size == N_STAGES + 1 + s for s, r in enumerate(rows[: len(C_EXTRA)]))
@@ -127,8 +127,6 @@ def _dense_table() -> tuple[np.ndarray, list[np.ndarray]]:
 
 
 DENSE_START, DENSE_COLUMNS = _dense_table()
-B_SUM, E5_SUM, E3_SUM = N_SUMS - 3, N_SUMS - 2, N_SUMS - 1
-C_COLUMN = C[:, None]
 ERROR_ORDER = 7
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -199,7 +197,7 @@ def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float
     to every sum that uses it, one array operation for all of them (see
     :func:`_sums_table`). At the handful of instances a single run has, numpy's cost is
     per call, and this needs a third of the calls of summing each stage afresh; the
-    additions, and so the bits, are those of :func:`combine`.
+    additions, and so the bits, are those of the textbook sums.
     """
     m, d = x.shape
     k = np.empty((N_STAGES + 1, m, d))
