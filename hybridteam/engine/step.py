@@ -86,11 +86,7 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
         rows = np.arange(idx.size)
     is_rk = step.rk[rows]
     if dense and every(is_rk):  # every row flows (a flow mode's search): no sorting out
-        s = step.rk_step
-        assert s is not None and step.rk_pos is not None
-        pos = step.rk_pos[rows]
-        h = s.h[pos]
-        return s.dense(tau / np.where(h > 0, h, 1.0), pos)
+        return _dense(step, rows, tau)
     x0, u = step.x0[rows], step.u[rows]
     plant = ens.states[a].ca.plant
     if not some(is_rk):
@@ -101,13 +97,20 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
         out[ex] = plant.propagate(x0[ex], u[ex], tau[ex])
     r = where_true(is_rk)
     if dense:
-        s = step.rk_step
-        assert s is not None and step.rk_pos is not None
-        pos = step.rk_pos[rows[r]]
-        out[r] = s.dense(tau[r] / np.where(s.h[pos] > 0, s.h[pos], 1.0), pos)
+        out[r] = _dense(step, rows[r], tau[r])
     else:
         sub = idx[r]
         s = rk.step(derivative(ens, a, sub), ens.t0[sub], x0[r], tau[r], ens.settings.rtol,
                     ens.settings.atol, estimate=False)
         out[r] = s.x1
     return out
+
+
+def _dense(step: AgentStep, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """States of the flowing ``rows`` of the step, ``tau`` after its start, off its dense
+    output (a zero-length step reads its start)."""
+    s = step.rk_step
+    assert s is not None and step.rk_pos is not None
+    pos = step.rk_pos[rows]
+    h = s.h[pos]
+    return s.dense(tau / np.where(h > 0, h, 1.0), pos)
