@@ -190,3 +190,26 @@ def test_invariant_crossed_before_any_guard_is_stuck(team_from_yaml):
     run = ht.simulate(team)
     assert run.outcome == "stuck"
     assert run.diagnostics[0]["t"] == pytest.approx(1.0, abs=1e-11)
+
+
+def test_a_located_flow_crossing_costs_two_true_steps(monkeypatch):
+    """Each thermostat switch is located with one Newton step from the dense-output guess
+    and one step confirming the bracket around it, which is final: the bracket is at most
+    event_tol wide also after rounding (the search used to pay a third step to halve a
+    bracket 1.0001 event_tol wide). True steps are the engine's ``estimate=False`` ones."""
+    from hybridteam.dynamics import rk
+    calls = {"true": 0}
+    step = rk.step
+
+    def counted(*args, estimate=True, **kwargs):
+        calls["true"] += not estimate
+        return step(*args, estimate=estimate, **kwargs)
+
+    monkeypatch.setattr(rk, "step", counted)
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "thermostat.yaml"), duration=151.0)
+    switches = guard_times(run)
+    assert switches.size == 50
+    assert np.max(np.abs(switches - thermostat_switches(50))) < 1e-8
+    # 52 crossings located: the 50 guards', and at the first and the last switch the
+    # invariant's comparison too (x <= high, x >= low), which flips there within rounding
+    assert calls["true"] == 2 * 52

@@ -331,7 +331,11 @@ class _Segment:
         m_lo = filled(rows.size, np.nan)
         m_hi = filled(rows.size, np.nan)
         todo = np.arange(rows.size)
-        width = 0.5 * tol
+        # half a tolerance either side of the guess, less the rounding of guess -/+ width:
+        # a first bracket that confirms is then at most tol wide, final without a third
+        # true step (at tol = 1e-12 and guesses of order 1, rounding alone made it
+        # 1.0001 tol, and the search paid one more step to halve it)
+        width = 0.5 * tol - np.spacing(np.abs(guess) + tol)
         for _ in range(6):
             if todo.size == 0:
                 break
