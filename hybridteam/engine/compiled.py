@@ -205,6 +205,14 @@ class CAgent:
     #: team's names): analyses that recompile part of a guard (``hybridteam verify``) use it
     symbols: dict = field(default_factory=dict)
 
+    @functools.cached_property
+    def lone_watches(self) -> list[bool]:
+        """Per watched atom: whether it is the only atom its guard or invariant watches.
+        Its flip then decides alone, and the truths at the end of a sub-interval it flips
+        in tell whether the flip matters (``crossing._relevant``); an atom with siblings
+        may flip together with one, and only the state at the crossing can tell."""
+        return [sum(o.owner is w.owner for o in self.watches) == 1 for w in self.watches]
+
     @property
     def limited(self) -> bool:
         """Whether any input has a finite actuator limit."""

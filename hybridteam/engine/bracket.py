@@ -1,0 +1,236 @@
+"""One step's motion for a crossing search, and the bracket narrowing on it.
+
+:class:`Segment` holds an agent's motion over the current step for the instances being
+searched (dense output, start states, the derivative of the flowing ones) and answers what
+:mod:`.crossing` asks of a trial time: an atom's truth and margin, off the dense output or
+as accurate as a step, the state there, whether a crossing there matters.
+:func:`illinois` narrows a bracket to the event tolerance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hybridteam.arrays import every, filled, some, spread, where_true
+from hybridteam.dynamics import rk
+from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.drivers import derivative
+from hybridteam.engine.step import AgentStep, state_at
+
+if TYPE_CHECKING:
+    from hybridteam.engine.ensemble import Ensemble
+
+MAX_ITER = 200
+
+Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
+
+
+class Segment:
+    """Agent ``a``'s motion over the current step, for the instances being searched.
+
+    Built once per step and agent: the dense-output coefficients and the derivative of the
+    flowing instances are prepared once, so each trial point costs a handful of array
+    operations.
+    """
+
+    def __init__(self, ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep) -> None:
+        self.ens, self.a, self.idx, self.step = ens, a, idx, step
+        self.st = ens.states[a]
+        self.t0 = ens.t0[idx]
+        self.tol = np.maximum(ens.settings.event_tol,
+                              4 * np.finfo(float).eps * np.abs(self.t0 + ens.h[idx]))
+        self.has_rk = some(step.rk)
+        self.true_states: dict[tuple[int, float], np.ndarray] = {}
+
+    def evaluator(self, w: int, rows: np.ndarray, dense: bool) -> Evaluator:
+        """``ev(pos, tau) -> (truth, margin)`` for the candidates ``rows[pos]``.
+
+        Everything a trial point needs is gathered once per search: start states and
+        inputs (kinematic plants), dense-output coefficients, or the derivative of the
+        flowing instances; true states computed here are remembered so the engine does not
+        integrate to the crossing a second time.
+        """
+        st, sub = self.st, self.idx[rows]
+        watch = st.ca.watches[w]
+        atom, plant = watch.atom, st.ca.plant
+        x0, u = self.step.x0[rows], self.step.u[rows]
+        v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
+        entry = st.entry[sub, watch.mode]
+        is_rk = self.step.rk[rows]
+        any_rk = self.has_rk and some(is_rk)
+        ens, a = self.ens, self.a
+        derivs: dict[bytes, object] = {}
+
+        def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
+            if not any_rk:
+                return plant.propagate(x0[pos], u[pos], tau)
+            if dense:
+                return state_at(ens, a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
+            out = np.empty((pos.size, x0.shape[1]))
+            flow = is_rk[pos]
+            if not every(flow):
+                ex = pos[~flow]
+                out[~flow] = plant.propagate(x0[ex], u[ex], tau[~flow])
+            fp = pos[flow]
+            key = fp.tobytes()
+            if key not in derivs:
+                derivs[key] = derivative(ens, a, sub[fp])
+            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
+                           ens.settings.rtol, ens.settings.atol, estimate=False)
+            out[flow] = step.x1
+            for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
+                self.true_states[(r, tt)] = x
+            return out
+
+        def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            t = t0[pos] + tau
+            ctx = Ctx(state(pos, tau), v[pos], p[pos], t, t - entry[pos])
+            truth, margin = atom.truth_and_margin(ctx)
+            # (read only: the search copies what it keeps)
+            return spread(truth, tau.shape), spread(np.asarray(margin, dtype=float), tau.shape)
+
+        return ev
+
+    def matters(self, w: int, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Whether atom ``w``'s crossing at ``tau`` (just past it) matters for ``rows``: its
+        guard is true there, or its invariant false; a requirement's always does.
+
+        :func:`_relevant` rules out most flips that do not matter before any search, from
+        the truths at the end of the sub-interval; not those that share their sub-interval
+        with another atom of the same guard. A ball's apex (``v < 0`` flips while ``h <= 0``
+        is false) shares one with the impact when a step spans both: without this the run
+        would stop at every apex for nothing.
+        """
+        watch = self.st.ca.watches[w]
+        if watch.observer or watch.owner is None:
+            return np.ones(rows.size, bool)
+        sub = self.idx[rows]
+        t = self.t0[rows] + tau
+        ctx = Ctx(self.true_state(rows, tau), self.st.v[sub], self.st.p[sub], t,
+                  t - self.st.entry[sub, watch.mode])
+        value = spread(watch.owner(ctx), rows.shape)
+        return ~value if watch.invariant else value
+
+    def true_state(self, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """The state ``tau`` after the step start for ``rows`` (as accurate as a step), from
+        the trial points' states where the search computed it; the others are kept."""
+        known = [self.true_states.get(key) for key in zip(rows.tolist(), tau.tolist(),
+                                                          strict=True)]
+        miss = np.array([x is None for x in known], bool)
+        out = np.empty((rows.size, self.step.x0.shape[1]))
+        for i in where_true(~miss).tolist():
+            out[i] = known[i]
+        if some(miss):
+            r = rows[miss]
+            x = state_at(self.ens, self.a, self.idx[r], tau[miss], self.step, rows=r)
+            out[miss] = x
+            for key, xi in zip(zip(r.tolist(), tau[miss].tolist(), strict=True), x,
+                               strict=True):
+                self.true_states[key] = xi
+        return out
+
+    def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+               truth_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
+
+        Kinematic plants are searched directly on their closed form. For Runge–Kutta
+        flows the search first runs on the step's dense output (no derivative evaluations).
+        The interpolant's error is smooth, so one Newton correction from the *true* margin
+        at that estimate (slope from the interpolant) lands within the tolerance; two true
+        steps confirm the bracket. Where they do not, the bracket is widened a
+        thousandfold at a time until confirmed, and finished on true steps.
+        """
+        tol = self.tol[rows]
+        exact = self.evaluator(w, rows, dense=False)
+        if not self.has_rk or not some(self.step.rk[rows]):
+            return illinois(exact, lo, hi, truth_lo, tol)
+        span_lo, span_hi = lo.copy(), hi.copy()
+        dense = self.evaluator(w, rows, dense=True)
+        everyone = np.arange(rows.size)
+        _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol)
+        d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
+        a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
+        both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
+        slope = (both[: rows.size] - both[rows.size:]) / (b_ - a_)  # rows are independent
+        m_g = exact(everyone, g)[1]
+        g1 = g - m_g / slope
+        guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
+        new_lo, new_hi = span_lo.copy(), span_hi.copy()
+        m_lo = filled(rows.size, np.nan)
+        m_hi = filled(rows.size, np.nan)
+        todo = np.arange(rows.size)
+        # half a tolerance either side of the guess, less the rounding of guess -/+ width:
+        # a first bracket that confirms is then at most tol wide, final without a third
+        # true step (at tol = 1e-12 and guesses of order 1, rounding alone made it
+        # 1.0001 tol, and the search paid one more step to halve it)
+        width = 0.5 * tol - np.spacing(np.abs(guess) + tol)
+        for _ in range(6):
+            if todo.size == 0:
+                break
+            a_ = np.maximum(span_lo[todo], guess[todo] - width[todo])
+            b_ = np.minimum(span_hi[todo], guess[todo] + width[todo])
+            tt, mm = exact(np.concatenate([todo, todo]), np.concatenate([a_, b_]))  # one step
+            ta, tb, ma, mb = tt[: todo.size], tt[todo.size:], mm[: todo.size], mm[todo.size:]
+            ok = (ta == truth_lo[todo]) & (tb != truth_lo[todo])
+            sel = todo[ok]
+            new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]
+            todo = todo[~ok]
+            width = width * 1000.0
+        return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
+
+
+def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
+              tol: np.ndarray, m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it.
+
+    Regula falsi with the Anderson–Björck correction. Trial points are kept at least half
+    a tolerance inside the bracket: when the crossing sits at an end (a strict comparison
+    starting exactly on its boundary, or a margin of 1e-12 at one end) the next trial
+    collapses the bracket at once instead of crawling. A bisection replaces the secant
+    whenever three rounds failed to halve the bracket, which bounds the worst case.
+    """
+    size = lo.size
+    everyone = np.arange(size)
+    if m_lo is None or some(np.isnan(m_lo)):
+        need = everyone if m_lo is None else where_true(np.isnan(m_lo))
+        m_lo = np.empty(size) if m_lo is None else m_lo
+        m_hi = np.empty(size) if m_hi is None else m_hi
+        # both ends in one evaluation (rows are independent: the same values as two)
+        ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
+        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
+    ma, mb = m_lo, m_hi
+    assert mb is not None
+    kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
+    slow = np.zeros(size, np.int8)  # rounds in a row that did not halve the bracket
+    for _ in range(MAX_ITER):
+        open_ = where_true(hi - lo > tol)
+        if open_.size == 0:
+            break
+        # while every bracket is open (a single run's one bracket, mostly), views, not copies
+        k: slice | np.ndarray = slice(None) if open_.size == size else open_
+        a_, b_, fa, fb, tl = lo[k], hi[k], ma[k], mb[k], tol[k]
+        width = b_ - a_
+        c = b_ - fb * width / (fb - fa)  # (the run ignores floating-point errors)
+        c = np.where(np.isfinite(c) & (slow[k] < 3), c, 0.5 * (a_ + b_))
+        c = np.minimum(np.maximum(c, a_ + 0.5 * tl), b_ - 0.5 * tl)  # np.clip's values
+        tc, mc = ev(open_, c)
+        to_lo = tc == truth0[k]  # c has the original truth: it becomes the new lo
+        scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
+        new_lo, new_hi = np.where(to_lo, c, a_), np.where(to_lo, b_, c)
+        slow[k] = np.where(new_hi - new_lo > 0.5 * width, slow[k] + 1, 0)
+        survivor = np.where(to_lo, np.int8(1), np.int8(-1))
+        again = kept[k] == survivor
+        # Anderson–Björck: the end that survives again has its value scaled by
+        # 1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next
+        # secant across the root instead of creeping from one side as regula falsi does
+        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 0.5)
+        new_ma = np.where(to_lo, mc, np.where(again, scale * fa, fa))
+        mb[k] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
+        ma[k], lo[k], hi[k] = new_ma, new_lo, new_hi
+        kept[k] = survivor
+    return lo, hi
