@@ -99,7 +99,7 @@ class Segment:
         """Whether atom ``w``'s crossing at ``tau`` (just past it) matters for ``rows``: its
         guard is true there, or its invariant false; a requirement's always does.
 
-        :func:`_relevant` rules out most flips that do not matter before any search, from
+        ``crossing._relevant`` rules out most flips that do not matter before any search, from
         the truths at the end of the sub-interval; not those that share their sub-interval
         with another atom of the same guard. A ball's apex (``v < 0`` flips while ``h <= 0``
         is false) shares one with the impact when a step spans both: without this the run
