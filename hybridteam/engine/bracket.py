@@ -117,7 +117,8 @@ class Segment:
 
     def true_state(self, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The state ``tau`` after the step start for ``rows`` (as accurate as a step), from
-        the trial points' states where the search computed it; the others are kept."""
+        the trial points' states where the search computed it; the others are computed and
+        kept."""
         known = [self.true_states.get(key) for key in zip(rows.tolist(), tau.tolist(),
                                                           strict=True)]
         miss = np.array([x is None for x in known], bool)

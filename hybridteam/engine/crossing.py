@@ -54,20 +54,22 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
 
 
 def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[AgentStep]) -> tuple[np.ndarray, list[np.ndarray | None], dict]:
+                   steps: list[AgentStep]
+                   ) -> tuple[np.ndarray, list[np.ndarray | None], dict[int, Segment]]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
     Returns ``inf`` where nothing relevant crossed, and each agent's atom truths at the end
     of the step (None for agents without watched atoms), which stay valid where nothing
-    crossed, and the true states computed at trial times ({agent: {(row, tau): x}}) so
-    the engine need not integrate to the crossing again. Updates nothing.
+    crossed, and each searched agent's :class:`Segment`, whose
+    :meth:`~Segment.true_state` reads the states its trial points computed, so the engine
+    need not integrate to the crossing again. Updates nothing.
     """
     best = filled(idx.size, np.inf)
     best_lo = filled(idx.size, np.inf)
     thetas = ens.thetas
     end_truths: list[np.ndarray | None] = []
-    cache: dict[int, dict] = {}
+    searched: dict[int, Segment] = {}
     for a, st in enumerate(ens.states):
         if not st.ca.watches:
             end_truths.append(None)
@@ -78,8 +80,8 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
             continue
         seg = _search(ens, a, idx, steps[a], thetas, *flips, best, best_lo)
         if seg is not None:
-            cache[a] = seg.true_states
-    return best, end_truths, cache
+            searched[a] = seg
+    return best, end_truths, searched
 
 
 def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,

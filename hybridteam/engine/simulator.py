@@ -277,24 +277,18 @@ class Simulator:
         agent's atom truths at the step's end (valid where nothing crossed)."""
         ens = self.ensemble
         accepted = ens.h[sel] > 0
-        cache: dict = {}
+        searched: dict = {}
         if some(accepted):
-            tau, end_truths, cache = find_crossings(ens, idx, x_end, steps)
+            tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
         else:
             tau, end_truths = filled(idx.size, np.inf), [None] * len(ens.states)
         crossing = np.isfinite(tau) & accepted
         if some(crossing):
             rows = where_true(crossing)
             for a in range(len(ens.states)):
-                known = cache.get(a, {})
-                hits = [known.get((r, tt)) for r, tt in zip(rows.tolist(), tau[rows].tolist(),
-                                                            strict=True)]
-                miss = np.array([x is None for x in hits], bool)
-                for k in where_true(~miss).tolist():
-                    x_end[a][rows[k]] = hits[k]
-                if some(miss):
-                    r = rows[miss]
-                    x_end[a][r] = state_at(ens, a, idx[r], tau[r], steps[a], rows=r)
+                seg = searched.get(a)  # its search has the states at its trial points
+                x_end[a][rows] = seg.true_state(rows, tau[rows]) if seg is not None else \
+                    state_at(ens, a, idx[rows], tau[rows], steps[a], rows=rows)
             t1[idx[rows]] = ens.t[idx[rows]] + tau[rows]
         return crossing, end_truths
 
