@@ -22,8 +22,20 @@ from hybridteam.engine.step import AgentStep, state_at
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.state import AgentState
 
 MAX_ITER = 200
+
+
+def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.ndarray
+                  ) -> np.ndarray:
+    """Whether the guard that atom ``w`` of ``st``'s agent belongs to is true (its
+    invariant false) at states ``x`` and times ``t`` of instances ``sub``: where a flip of
+    the atom there can matter."""
+    watch = st.ca.watches[w]
+    ctx = Ctx(x, st.v[sub], st.p[sub], t, t - st.entry[sub, watch.mode])
+    value = spread(watch.owner(ctx), sub.shape)
+    return ~value if watch.invariant else value
 
 Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
@@ -108,12 +120,8 @@ class Segment:
         watch = self.st.ca.watches[w]
         if watch.observer or watch.owner is None:
             return np.ones(rows.size, bool)
-        sub = self.idx[rows]
-        t = self.t0[rows] + tau
-        ctx = Ctx(self.true_state(rows, tau), self.st.v[sub], self.st.p[sub], t,
-                  t - self.st.entry[sub, watch.mode])
-        value = spread(watch.owner(ctx), rows.shape)
-        return ~value if watch.invariant else value
+        return owner_matters(self.st, w, self.idx[rows], self.true_state(rows, tau),
+                             self.t0[rows] + tau)
 
     def true_state(self, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The state ``tau`` after the step start for ``rows`` (as accurate as a step), from

@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, filled, some, spread, where_true
-from hybridteam.engine.bracket import Segment
+from hybridteam.arrays import every, filled, some, where_true
+from hybridteam.engine.bracket import Segment, owner_matters
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.step import AgentStep, state_at
 
@@ -281,9 +281,5 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
             rows = cols[~shared]
             if rows.size == 0:
                 continue
-            sub = idx[rows]
-            ctx = Ctx(x[rows], st.v[sub], st.p[sub], t[rows],
-                      t[rows] - st.entry[sub, watch.mode])
-            value = spread(watch.owner(ctx), rows.shape)
-            keep[k, w, rows[value if watch.invariant else ~value]] = False
+            keep[k, w, rows[~owner_matters(st, w, idx[rows], x[rows], t[rows])]] = False
     return keep
