@@ -52,9 +52,9 @@ class Segment:
     def __init__(self, ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep) -> None:
         self.ens, self.a, self.idx, self.step = ens, a, idx, step
         self.st = ens.states[a]
-        self.t0 = ens.t0[idx]
+        self.t0, self.h = ens.t0[idx], ens.h[idx]
         self.tol = np.maximum(ens.settings.event_tol,
-                              4 * np.finfo(float).eps * np.abs(self.t0 + ens.h[idx]))
+                              4 * np.finfo(float).eps * np.abs(self.t0 + self.h))
         self.has_rk = some(step.rk)
         self.true_states: dict[tuple[int, float], np.ndarray] = {}
 

@@ -196,12 +196,11 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
     ``lo``, with truth ``truth_lo`` there; None: from the sub-interval's start), lowering
     ``best`` and ``best_lo`` where it is earlier and matters. Returns the rows where it did
     not matter, their sub-intervals and crossing times (None if none)."""
-    h = seg.ens.h[seg.idx]
     # a lone atom's flip searched from its sub-interval's start was judged by _relevant
     judged = lo is None and seg.st.ca.lone_watches[w]
     if lo is None:
-        lo, truth_lo = thetas[k] * h[cand], truths[k, w, cand]
-    hi = thetas[k + 1] * h[cand]
+        lo, truth_lo = thetas[k] * seg.h[cand], truths[k, w, cand]
+    hi = thetas[k + 1] * seg.h[cand]
     known = np.isfinite(best[cand])
     if some(known):
         # crossing later than the best so far (original truth still at best_lo)?
