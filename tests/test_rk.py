@@ -86,6 +86,28 @@ def test_a_step_without_its_error_estimate_lands_on_the_same_state():
     assert np.array_equal(bare.dense(theta), full.dense(theta))
 
 
+def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit(monkeypatch):
+    """A single run's search reads one or two states off the dense output, computed on
+    Python floats; they must be the array loop's bits (ends of the step included)."""
+    rng = np.random.default_rng(8)
+    m = 3
+    s = rk.step(_f, rng.uniform(0, 1, m), rng.normal(size=(m, 2)), rng.uniform(0.01, 0.3, m),
+                1e-10, 1e-12)
+    queries = []
+    for _ in range(300):
+        every_row = rng.uniform() < 0.2  # rows None: one theta per instance
+        k = m if every_row else int(rng.integers(1, 5))
+        theta = rng.uniform(0, 1, k)
+        theta[rng.uniform(size=k) < 0.2] = 0.0
+        theta[rng.uniform(size=k) < 0.2] = 1.0
+        queries.append((theta, None if every_row else rng.integers(0, m, k)))
+    small = [s.dense(theta, rows) for theta, rows in queries]
+    monkeypatch.setattr(rk, "SMALL_DENSE", 0)  # every query through the array loop
+    big = [s.dense(theta, rows) for theta, rows in queries]
+    for a, b in zip(small, big, strict=True):
+        assert a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
 def test_steps_of_linear_decay_converge_at_the_method_s_order():
     """x' = -2x from 1: the step's local error is O(h^9) and the dense output's O(h^8), so
     halving h divides them by about 512 and 256 (at least 2^8.5 and 2^7.5 here); at

@@ -4,12 +4,11 @@
 searched (dense output, start states, the derivative of the flowing ones) and answers what
 :mod:`.crossing` asks of a trial time: an atom's truth and margin, off the dense output or
 as accurate as a step, the state there, whether a crossing there matters.
-:func:`illinois` narrows a bracket to the event tolerance.
+:func:`~hybridteam.engine.illinois.illinois` narrows a bracket to the event tolerance.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,13 +17,12 @@ from hybridteam.arrays import every, filled, some, spread, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
+from hybridteam.engine.illinois import Evaluator, illinois
 from hybridteam.engine.step import AgentStep, state_at
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
-
-MAX_ITER = 200
 
 
 def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.ndarray
@@ -36,9 +34,6 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     ctx = Ctx(x, st.v[sub], st.p[sub], t, t - st.entry[sub, watch.mode])
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
-
-Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
-"""``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
 
 
 class Segment:
@@ -76,11 +71,27 @@ class Segment:
         any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a
         derivs: dict[bytes, object] = {}
+        # one candidate (a single run's search): its trial points need no gathering
+        alone = rows.size == 1
+        rk_step = self.step.rk_step
+        all_rk = any_rk and every(is_rk)
+        if dense and all_rk:  # state_at's dense read, its lookups done once
+            assert rk_step is not None and self.step.rk_pos is not None
+            at = self.step.rk_pos[rows]
+            span = rk_step.h[at]
+            span = np.where(span > 0, span, 1.0)  # (a zero-length step reads its start)
+
+            def flowing(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
+                if alone and pos.size == 1:
+                    return rk_step.dense(tau / span, at)
+                return rk_step.dense(tau / span[pos], at[pos])
 
         def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
             if not any_rk:
                 return plant.propagate(x0[pos], u[pos], tau)
             if dense:
+                if all_rk:
+                    return flowing(pos, tau)
                 return state_at(ens, a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
             out = np.empty((pos.size, x0.shape[1]))
             flow = is_rk[pos]
@@ -99,8 +110,12 @@ class Segment:
             return out
 
         def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            t = t0[pos] + tau
-            ctx = Ctx(state(pos, tau), v[pos], p[pos], t, t - entry[pos])
+            if alone and pos.size == 1:
+                t = t0 + tau
+                ctx = Ctx(state(pos, tau), v, p, t, t - entry)
+            else:
+                t = t0[pos] + tau
+                ctx = Ctx(state(pos, tau), v[pos], p[pos], t, t - entry[pos])
             truth, margin = atom.truth_and_margin(ctx)
             # (read only: the search copies what it keeps)
             return spread(truth, tau.shape), spread(np.asarray(margin, dtype=float), tau.shape)
@@ -190,56 +205,3 @@ class Segment:
             todo = todo[~ok]
             width = width * 1000.0
         return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
-
-
-def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
-              tol: np.ndarray, m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it.
-
-    Regula falsi with the Anderson–Björck correction. Trial points are kept at least half
-    a tolerance inside the bracket: when the crossing sits at an end (a strict comparison
-    starting exactly on its boundary, or a margin of 1e-12 at one end) the next trial
-    collapses the bracket at once instead of crawling. A bisection replaces the secant
-    whenever three rounds failed to halve the bracket, which bounds the worst case.
-    """
-    size = lo.size
-    everyone = np.arange(size)
-    if m_lo is None or some(np.isnan(m_lo)):
-        need = everyone if m_lo is None else where_true(np.isnan(m_lo))
-        m_lo = np.empty(size) if m_lo is None else m_lo
-        m_hi = np.empty(size) if m_hi is None else m_hi
-        # both ends in one evaluation (rows are independent: the same values as two)
-        ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
-        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
-    ma, mb = m_lo, m_hi
-    assert mb is not None
-    kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
-    slow = np.zeros(size, np.int8)  # rounds in a row that did not halve the bracket
-    for _ in range(MAX_ITER):
-        open_ = where_true(hi - lo > tol)
-        if open_.size == 0:
-            break
-        # while every bracket is open (a single run's one bracket, mostly), views, not copies
-        k: slice | np.ndarray = slice(None) if open_.size == size else open_
-        a_, b_, fa, fb, tl = lo[k], hi[k], ma[k], mb[k], tol[k]
-        width = b_ - a_
-        c = b_ - fb * width / (fb - fa)  # (the run ignores floating-point errors)
-        c = np.where(np.isfinite(c) & (slow[k] < 3), c, 0.5 * (a_ + b_))
-        c = np.minimum(np.maximum(c, a_ + 0.5 * tl), b_ - 0.5 * tl)  # np.clip's values
-        tc, mc = ev(open_, c)
-        to_lo = tc == truth0[k]  # c has the original truth: it becomes the new lo
-        scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
-        new_lo, new_hi = np.where(to_lo, c, a_), np.where(to_lo, b_, c)
-        slow[k] = np.where(new_hi - new_lo > 0.5 * width, slow[k] + 1, 0)
-        survivor = np.where(to_lo, np.int8(1), np.int8(-1))
-        again = kept[k] == survivor
-        # Anderson–Björck: the end that survives again has its value scaled by
-        # 1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next
-        # secant across the root instead of creeping from one side as regula falsi does
-        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 0.5)
-        new_ma = np.where(to_lo, mc, np.where(again, scale * fa, fa))
-        mb[k] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
-        ma[k], lo[k], hi[k] = new_ma, new_lo, new_hi
-        kept[k] = survivor
-    return lo, hi

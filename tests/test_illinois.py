@@ -1,0 +1,80 @@
+"""The crossing search's bracket narrowing: a single bracket finished on Python floats gives
+the bits the array rounds give, and every bracket closes on the analytic root."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hybridteam.engine.illinois import illinois
+
+
+def _cubic(root: np.ndarray, slope: np.ndarray, curve: np.ndarray, flat: np.ndarray):
+    """``ev`` of the atom ``m(t) > 0`` with ``m(t) = slope (t - root) + curve (t - root)^2
+    + flat (t - root)^3``, per row: one root in the brackets drawn below (``slope`` > 0 and
+    the other terms too small to add one), so its crossing is known."""
+    def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = tau - root[pos]
+        margin = slope[pos] * d + curve[pos] * d * d + flat[pos] * d * d * d
+        return margin > 0, margin
+    return ev
+
+
+problems = st.lists(
+    st.tuples(st.floats(0.0, 10.0), st.floats(1e-6, 5.0), st.floats(0.0, 0.99),
+              st.floats(-0.2, 0.2), st.floats(-0.1, 0.1), st.sampled_from([1e-12, 1e-9, 1e-6])),
+    min_size=1, max_size=5)
+
+
+def _arrays(rows):
+    start, span, where, curve, flat, tol = (np.array(c, dtype=float) for c in zip(*rows,
+                                                                                  strict=True))
+    lo, hi = start, start + span
+    root = lo + where * span
+    slope = np.ones_like(lo)
+    # keep the quadratic and cubic terms from adding roots within the bracket
+    curve, flat = curve / np.maximum(span, 1.0), flat / np.maximum(span, 1.0) ** 2
+    return lo, hi, root, slope, curve, flat, tol
+
+
+@settings(max_examples=200, deadline=None)
+@given(problems)
+def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None:
+    lo, hi, root, slope, curve, flat, tol = _arrays(rows)
+    ev = _cubic(root, slope, curve, flat)
+    truth0 = np.zeros(lo.size, bool)
+    with np.errstate(all="ignore"):  # as the run is: secants through equal margins are NaN
+        _compare_paths(ev, lo, hi, truth0, tol)
+
+
+def _compare_paths(ev, lo, hi, truth0, tol) -> None:
+    for i in range(lo.size):
+        one = [np.array([v[i]]) for v in (lo, hi)]
+        fast = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), one[0].copy(),
+                        one[1].copy(), truth0[:1], tol[i:i + 1])
+        slow = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), one[0].copy(),
+                        one[1].copy(), truth0[:1], tol[i:i + 1], scalar=False)
+        assert fast[0].tobytes() == slow[0].tobytes()
+        assert fast[1].tobytes() == slow[1].tobytes()
+
+
+@settings(max_examples=200, deadline=None)
+@given(problems)
+def test_brackets_close_on_the_root_and_equal_their_single_runs(rows) -> None:
+    lo, hi, root, slope, curve, flat, tol = _arrays(rows)
+    ev = _cubic(root, slope, curve, flat)
+    truth0 = np.zeros(lo.size, bool)
+    with np.errstate(all="ignore"):
+        a, b = illinois(ev, lo.copy(), hi.copy(), truth0, tol)
+    assert np.all(b - a <= tol)
+    # the ends keep their truths, so the root (up to the margin's rounding) lies between
+    assert not ev(np.arange(lo.size), a)[0].any()
+    assert ev(np.arange(lo.size), b)[0].all()
+    fuzz = 8 * np.finfo(float).eps * (1 + np.abs(root))
+    assert np.all((a <= root + fuzz) & (root - fuzz <= b))
+    for i in range(lo.size):  # a row's result does not depend on the others
+        with np.errstate(all="ignore"):
+            one = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), lo[i:i + 1].copy(),
+                           hi[i:i + 1].copy(), truth0[:1], tol[i:i + 1])
+        assert (one[0][0], one[1][0]) == (a[i], b[i])
