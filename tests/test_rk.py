@@ -86,38 +86,6 @@ def test_a_step_without_its_error_estimate_lands_on_the_same_state():
     assert np.array_equal(bare.dense(theta), full.dense(theta))
 
 
-def test_a_small_step_on_floats_equals_the_array_loop_bit_for_bit(monkeypatch):
-    """A single run's step of a small flow keeps its running sums on Python floats; state,
-    stages and error must be the array loop's bits, for every small size, and where the
-    derivative is infinite (NaN from inf times a zero coefficient)."""
-    # a derivative that is infinite at stage 1 alone: every later sum has a zero
-    # coefficient there, and 0 * inf makes it NaN (a loop that skipped zeros would not)
-    t_spike, h_spike = np.array([0.3]), np.array([0.2])
-    at = t_spike + rk.C_COLUMN[1] * h_spike
-
-    def spike(t: np.ndarray, x: np.ndarray) -> np.ndarray:
-        return np.where((t == at)[:, None], np.inf, np.ones_like(x))
-
-    rng = np.random.default_rng(9)
-    cases = []
-    for m, d in ((1, 1), (1, 2), (2, 2), (4, 2), (1, 8), (8, 1)):
-        field = _f if d == 2 else (lambda t, x: np.cos(x) * t[:, None] - x ** 3)
-        for _ in range(5):
-            cases.append((field, rng.uniform(0, 2, m), rng.normal(size=(m, d)),
-                          rng.uniform(1e-3, 0.5, m)))
-    cases.append((spike, t_spike, np.array([[0.5, 1.0]]), h_spike))
-
-    def run(small: int) -> list[rk.Step]:
-        monkeypatch.setattr(rk, "SMALL_STEP", small)
-        with np.errstate(all="ignore"):
-            return [rk.step(f, t, x, h, 1e-10, 1e-12) for f, t, x, h in cases]
-
-    for a, b in zip(run(8), run(0), strict=True):
-        for name in ("x1", "k", "err"):
-            assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
-    assert np.isnan(run(8)[-1].x1).all()  # the spike reached the new state
-
-
 def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit(monkeypatch):
     """A single run's search reads one or two states off the dense output, computed on
     Python floats; they must be the array loop's bits (ends of the step included)."""

@@ -100,11 +100,6 @@ def _sums_table() -> tuple[list[np.ndarray], int]:
 
 
 SUM_COLUMNS, N_SUMS = _sums_table()
-SUM_LISTS = [column.ravel().tolist() for column in SUM_COLUMNS]
-#: Largest number of state values (instances x components) whose step's running sums are
-#: kept on Python floats (:func:`_stages_small`): about 60 array operations of about 1 µs
-#: each, whatever their size, against some 200 float operations per value.
-SMALL_STEP = 8
 B_SUM, E5_SUM, E3_SUM = N_SUMS - 3, N_SUMS - 2, N_SUMS - 1
 C_COLUMN = C[:, None]
 
@@ -242,54 +237,25 @@ def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float
     m, d = x.shape
     k = np.empty((N_STAGES + 1, m, d))
     k[0] = f(t, x) if f0 is None else f0
+    hc = h[:, None]
     ts = t + C_COLUMN * h  # every stage's time at once (each element as t + C[s] * h)
-    if m * d <= SMALL_STEP:
-        x1, e5_sum, e3_sum = _stages_small(f, ts, x, h, k)
-    else:
-        hc = h[:, None]
-        sums = SUM_COLUMNS[0] * k[0]
-        for s in range(1, N_STAGES):
-            k[s] = f(ts[s], x + hc * sums[s - 1])
-            sums[s:] += SUM_COLUMNS[s] * k[s]
-        x1 = x + hc * sums[B_SUM]
-        e5_sum, e3_sum = sums[E5_SUM], sums[E3_SUM]
+    sums = SUM_COLUMNS[0] * k[0]
+    for s in range(1, N_STAGES):
+        k[s] = f(ts[s], x + hc * sums[s - 1])
+        sums[s:] += SUM_COLUMNS[s] * k[s]
+    x1 = x + hc * sums[B_SUM]
     k[N_STAGES] = f(t + h, x1)
     if not estimate:
         return Step(f, t, x, x1, k, h, None)
     scale = atol + rtol * np.maximum(np.abs(x), np.abs(x1))
-    err5 = e5_sum / scale
-    err3 = e3_sum / scale
+    err5 = sums[E5_SUM] / scale
+    err3 = sums[E3_SUM] / scale
     e5 = np.sum(err5 * err5, axis=1)
     e3 = np.sum(err3 * err3, axis=1)
     denom = e5 + 0.01 * e3
     with np.errstate(invalid="ignore", divide="ignore"):
         err = np.where(denom > 0, np.abs(h) * e5 / np.sqrt(denom * max(d, 1)), 0.0)
     return Step(f, t, x, x1, k, h, err)
-
-
-def _stages_small(f: Derivative, ts: np.ndarray, x: np.ndarray, h: np.ndarray,
-                  k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`step`'s stage loop for a few values, its running sums on Python floats:
-    fills ``k[1:N_STAGES]`` and returns the new state and the two error sums.
-
-    Element by element, the array loop's operations in its order (``x + h * sum``, each
-    term ``column * k`` rounded and then added, zero coefficients included), so the
-    same bits; the derivative still gets and gives arrays.
-    """
-    m, d = x.shape
-    flat_x = x.ravel().tolist()
-    flat_h = np.repeat(h, d).tolist()
-    k0 = k[0].ravel().tolist()
-    sums = [[c * v for v in k0] for c in SUM_LISTS[0]]
-    for s in range(1, N_STAGES):
-        stage_x = [xq + hq * sq for xq, hq, sq in zip(flat_x, flat_h, sums[s - 1], strict=True)]
-        k[s] = f(ts[s], np.array(stage_x).reshape(m, d))
-        ks = k[s].ravel().tolist()
-        for j, c in enumerate(SUM_LISTS[s], start=s):
-            sums[j] = [a + c * v for a, v in zip(sums[j], ks, strict=True)]
-    x1 = [xq + hq * sq for xq, hq, sq in zip(flat_x, flat_h, sums[B_SUM], strict=True)]
-    return (np.array(x1).reshape(m, d), np.array(sums[E5_SUM]).reshape(m, d),
-            np.array(sums[E3_SUM]).reshape(m, d))
 
 
 def next_step_size(h: np.ndarray, err: np.ndarray) -> np.ndarray:
