@@ -38,25 +38,24 @@ def _arrays(rows):
     return lo, hi, root, slope, curve, flat, tol
 
 
+def _alone(ev, i: int, lo, hi, truth0, tol, **options) -> tuple[float, float]:
+    """Bracket ``i`` narrowed on its own (the evaluator still sees its row ``i``)."""
+    with np.errstate(all="ignore"):  # as the run is: secants through equal margins are NaN
+        a, b = illinois(lambda p, t: ev(np.full(p.size, i), t), lo[i:i + 1].copy(),
+                        hi[i:i + 1].copy(), truth0[i:i + 1], tol[i:i + 1], **options)
+    return a[0], b[0]
+
+
 @settings(max_examples=200, deadline=None)
 @given(problems)
 def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None:
     lo, hi, root, slope, curve, flat, tol = _arrays(rows)
     ev = _cubic(root, slope, curve, flat)
     truth0 = np.zeros(lo.size, bool)
-    with np.errstate(all="ignore"):  # as the run is: secants through equal margins are NaN
-        _compare_paths(ev, lo, hi, truth0, tol)
-
-
-def _compare_paths(ev, lo, hi, truth0, tol) -> None:
     for i in range(lo.size):
-        one = [np.array([v[i]]) for v in (lo, hi)]
-        fast = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), one[0].copy(),
-                        one[1].copy(), truth0[:1], tol[i:i + 1])
-        slow = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), one[0].copy(),
-                        one[1].copy(), truth0[:1], tol[i:i + 1], scalar=False)
-        assert fast[0].tobytes() == slow[0].tobytes()
-        assert fast[1].tobytes() == slow[1].tobytes()
+        fast = _alone(ev, i, lo, hi, truth0, tol)
+        slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
+        assert np.array(fast).tobytes() == np.array(slow).tobytes()
 
 
 @settings(max_examples=200, deadline=None)
@@ -74,7 +73,4 @@ def test_brackets_close_on_the_root_and_equal_their_single_runs(rows) -> None:
     fuzz = 8 * np.finfo(float).eps * (1 + np.abs(root))
     assert np.all((a <= root + fuzz) & (root - fuzz <= b))
     for i in range(lo.size):  # a row's result does not depend on the others
-        with np.errstate(all="ignore"):
-            one = illinois(lambda p, t, i=i: ev(np.full(p.size, i), t), lo[i:i + 1].copy(),
-                           hi[i:i + 1].copy(), truth0[:1], tol[i:i + 1])
-        assert (one[0][0], one[1][0]) == (a[i], b[i])
+        assert _alone(ev, i, lo, hi, truth0, tol) == (a[i], b[i])

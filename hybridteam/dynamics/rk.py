@@ -145,7 +145,8 @@ class Step:
                  k: np.ndarray, h: np.ndarray, err: np.ndarray | None) -> None:
         self.f, self.t0, self.x0, self.x1, self.k, self.h, self.err = f, t0, x0, x1, k, h, err
         self._F: np.ndarray | None = None
-        self._small: dict[int, list[tuple[float, list[float]]]] | None = None
+        # per row read on floats: its start values and coefficients, last first
+        self._small: dict[int, list[tuple[float, list[float]]]] = {}
 
     def _coefficients(self) -> np.ndarray:
         """The interpolant's coefficients (3 more stages, computed once, when first needed).
@@ -199,13 +200,11 @@ class Step:
     def _dense_small(self, theta: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
         """:meth:`dense` element by element: ``y = 0; y += coef; y *= factor`` from the
         last coefficient, then ``x0 + y``, as the array loop does it."""
-        if self._small is None:
-            self._small = {}
         table = self._small
         picks = range(theta.size) if rows is None else rows.tolist()
         out = []
         for r, th in zip(picks, theta.tolist(), strict=True):
-            if r not in table:  # the row's start values and coefficients, last first
+            if r not in table:
                 F = self._coefficients()
                 table[r] = list(zip(self.x0[r].tolist(), F[::-1, r].T.tolist(), strict=True))
             factors = (th, 1 - th)

@@ -18,7 +18,7 @@ from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.illinois import Evaluator, illinois
-from hybridteam.engine.step import AgentStep, state_at
+from hybridteam.engine.step import AgentStep, dense_reader, state_at
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
@@ -73,25 +73,15 @@ class Segment:
         derivs: dict[bytes, object] = {}
         # one candidate (a single run's search): its trial points need no gathering
         alone = rows.size == 1
-        rk_step = self.step.rk_step
-        all_rk = any_rk and every(is_rk)
-        if dense and all_rk:  # state_at's dense read, its lookups done once
-            assert rk_step is not None and self.step.rk_pos is not None
-            at = self.step.rk_pos[rows]
-            span = rk_step.h[at]
-            span = np.where(span > 0, span, 1.0)  # (a zero-length step reads its start)
-
-            def flowing(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
-                if alone and pos.size == 1:
-                    return rk_step.dense(tau / span, at)
-                return rk_step.dense(tau / span[pos], at[pos])
+        # state_at's dense read, its lookups done once
+        flowing = dense_reader(self.step, rows) if dense and any_rk and every(is_rk) else None
 
         def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
             if not any_rk:
                 return plant.propagate(x0[pos], u[pos], tau)
             if dense:
-                if all_rk:
-                    return flowing(pos, tau)
+                if flowing is not None:
+                    return flowing(tau, None if alone and pos.size == 1 else pos)
                 return state_at(ens, a, sub[pos], tau, self.step, rows=rows[pos], dense=True)
             out = np.empty((pos.size, x0.shape[1]))
             flow = is_rk[pos]

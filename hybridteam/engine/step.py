@@ -10,6 +10,7 @@ flow, and the Runge–Kutta step with its dense output.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -108,9 +109,25 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
 
 def _dense(step: AgentStep, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """States of the flowing ``rows`` of the step, ``tau`` after its start, off its dense
-    output (a zero-length step reads its start)."""
+    output."""
+    return dense_reader(step, rows)(tau)
+
+
+def dense_reader(step: AgentStep, rows: np.ndarray
+                 ) -> Callable[[np.ndarray, np.ndarray | None], np.ndarray]:
+    """``read(tau, pos=None)``: states of the flowing ``rows[pos]`` (all ``rows`` when None)
+    of the step, ``tau`` after its start, off its dense output (a zero-length step reads
+    its start). The rows' places in the step and their step sizes are looked up once, for
+    a crossing search that reads the same rows at many trial points."""
     s = step.rk_step
     assert s is not None and step.rk_pos is not None
-    pos = step.rk_pos[rows]
-    h = s.h[pos]
-    return s.dense(tau / np.where(h > 0, h, 1.0), pos)
+    at = step.rk_pos[rows]
+    h = s.h[at]
+    span = np.where(h > 0, h, 1.0)
+
+    def read(tau: np.ndarray, pos: np.ndarray | None = None) -> np.ndarray:
+        if pos is None:
+            return s.dense(tau / span, at)
+        return s.dense(tau / span[pos], at[pos])
+
+    return read
