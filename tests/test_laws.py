@@ -9,10 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import hybridteam as ht
 from hybridteam import laws, libraries
-from hybridteam.dynamics.plants import Holonomic, Unicycle
+from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
 from hybridteam.errors import ModelError
 from hybridteam.io.filekind import InputErrors
 
@@ -32,6 +34,26 @@ def test_unicycle_arc_is_exact_for_any_step():
     # two half steps equal one full step (the flow property of an exact solution)
     half = p.propagate(p.propagate(x0, u, h / 2), u, h / 2)
     np.testing.assert_allclose(half, got, atol=1e-13)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64),
+                         min_size=6, max_size=6), min_size=1, max_size=FEW_ARCS))
+def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
+    """A few rows (a single run's step) are moved on Python floats; with enough copies
+    they take the array path. Both must give the same bits, also for zero turn rates,
+    zero steps, inf and NaN."""
+    p = Unicycle()
+    vals = np.array(rows)
+    x, u, h = vals[:, :3], vals[:, 3:5], np.abs(vals[:, 5])
+    pad = FEW_ARCS + 1  # enough extra rows for the array path
+    with np.errstate(all="ignore"):
+        few = p.propagate(x, u, h)
+        many = p.propagate(np.vstack([x, np.repeat(x[:1], pad, axis=0)]),
+                           np.vstack([u, np.repeat(u[:1], pad, axis=0)]),
+                           np.concatenate([h, np.repeat(h[:1], pad)]))
+    assert few.shape == x.shape
+    assert few.tobytes() == many[:len(rows)].tobytes()
 
 
 def test_holonomic_moves_in_world_frame():

@@ -57,6 +57,8 @@ class Unicycle(Plant):
         point for any nonzero ``a`` (for tiny ``a``, ``sin(a)`` rounds to ``a`` itself) and is
         set to its limit 1 at ``a = 0``, so there is no branch on small turn rates.
         """
+        if x.shape[0] <= FEW_ARCS:
+            return _arcs_few(x, u, h)
         v, w, th = u[:, 0], u[:, 1], x[:, 2]
         half = 0.5 * w * h
         ratio = filled(half.shape[0], 1.0)  # the limit, kept where half is 0: no division
@@ -68,6 +70,30 @@ class Unicycle(Plant):
         out[:, 1] = x[:, 1] + chord * np.sin(mid)
         out[:, 2] = th + w * h
         return out
+
+
+#: up to this many rows, :meth:`Unicycle.propagate` runs on Python floats (:func:`_arcs_few`)
+FEW_ARCS = 4
+
+
+def _arcs_few(x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """:meth:`Unicycle.propagate` for a few rows (a single run's step, or its crossing
+    checks), on Python floats.
+
+    The array version makes about twenty numpy calls, each costing its dispatch (about
+    1 µs) whatever the number of rows. Here the same IEEE operations run in the same order
+    on floats, and the sines and cosines are numpy's own (``np.sin`` of a float runs the
+    array loop), so each row has the array version's bits.
+    """
+    out = []
+    for (px, py, th), (v, w), hh in zip(x.tolist(), u.tolist(), h.tolist(), strict=True):
+        half = 0.5 * w * hh
+        ratio = float(np.sin(half)) / half if half != 0 else 1.0
+        chord = v * hh * ratio
+        mid = th + half
+        out.append([px + chord * float(np.cos(mid)), py + chord * float(np.sin(mid)),
+                    th + w * hh])
+    return np.array(out, dtype=float).reshape(-1, 3)
 
 
 class Holonomic(Plant):

@@ -215,19 +215,13 @@ class Simulator:
         limited)``: whether some agent of the instance flows, and whether its step size
         (rather than a scheduled instant) set ``t1``. ``full``: every instance is live."""
         ens = self.ensemble
-        live = ~ens.done
         t = ens.t
-        t_next = np.minimum(ens.queue.next, ens.t_end)
-        if ens.streams.any:
-            np.minimum(t_next, ens.streams.next, out=t_next)
+        t_next = np.minimum.reduce(ens.instants, axis=0)  # the earliest instant scheduled
         any_rk = np.zeros(ens.n, bool)
-        for a, st in enumerate(ens.states):
-            np.minimum(t_next, st.next_tick, out=t_next)
-            np.minimum(t_next, ens.timer[a], out=t_next)
-            if self.may_flow:
-                any_rk |= st.rk
         if self.may_flow:
-            any_rk &= live
+            for st in ens.states:
+                any_rk |= st.rk
+            any_rk &= ~ens.done
         if self.may_flow and some(any_rk):
             self._initial_rk_steps(where_true(any_rk & np.isnan(ens.h_rk)))
             t_rk = t + np.minimum(ens.h_rk, ens.max_step)
@@ -237,7 +231,7 @@ class Simulator:
             t1, limited = t_next, any_rk
         if full:
             return np.maximum(t1, t), any_rk, limited
-        return np.where(live, np.maximum(t1, t), t), any_rk, limited
+        return np.where(ens.done, t, np.maximum(t1, t)), any_rk, limited
 
     def _control_step_size(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
                            any_rk: np.ndarray, limited: np.ndarray, err: np.ndarray,
@@ -298,11 +292,11 @@ class Simulator:
         (events, deadlines, crossings, law ticks), record samples, end finished runs."""
         ens = self.ensemble
         ending = tn >= ens.t_end
-        at = crossing | ending | (tn >= ens.queue.next[sel])
-        tick = tn >= ens.streams.next[sel] if ens.streams.any else np.zeros(tn.size, bool)
-        for a, st in enumerate(ens.states):
-            at |= tn >= ens.timer[a][sel]
-            tick |= tn >= st.next_tick[sel]
+        # reached an instant of some source: at or after the earliest of them (fmin skips a
+        # NaN, which no time reaches); the end of the run is one of the ``at`` sources
+        at = tn >= np.fmin.reduce(ens.instants_at[:, sel], axis=0)
+        at |= crossing
+        tick = tn >= np.fmin.reduce(ens.instants_tick[:, sel], axis=0)
         moved = idx[crossing]
         plain = None
         for a, st in enumerate(ens.states):
