@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 import hybridteam as ht
 from hybridteam import laws, libraries
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
+from hybridteam.engine.drivers import next_ticks
 from hybridteam.errors import ModelError
 from hybridteam.io.filekind import InputErrors
 
@@ -223,3 +224,27 @@ def test_the_laws_command_lists_parameters_and_docs(capsys):
     assert out.startswith("formation.follow  (unicycle)\n")
     assert "with: ahead=" in out and "reads from the agent:" in out
     assert main(["laws", "nosuch"]) == 2
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(min_value=0.0, max_value=1e9), min_size=1, max_size=4),
+       st.floats(min_value=1e-6, max_value=10.0))
+def test_a_few_next_ticks_on_floats_have_the_array_versions_bits(times, period):
+    """A single run's next law tick is computed on Python floats, an ensemble's on arrays:
+    the same bits, each tick strictly after its time and at most one period later."""
+    t = np.array(times)
+    few = next_ticks(t, period)
+    many = next_ticks(np.concatenate([t, np.zeros(5)]), period)[:t.size]
+    assert few.tobytes() == many.tobytes()
+    assert np.all(few > t)
+    assert np.all(few - t <= period * (1 + 1e-9) + 1e-9 * t)
+    k = np.round(few / period)
+    np.testing.assert_allclose(few, k * period, rtol=1e-15)
+
+
+def test_next_ticks_on_exact_multiples_and_round_off():
+    # ticks are k * 0.1 in floating point: a time on tick 2 (0.2) moves to tick 3, which is
+    # 3 * 0.1 = 0.30000000000000004; 0.3 / 0.1 = 2.9999999999999996 floors to 2, so 0.3,
+    # just before tick 3, also moves to it
+    assert next_ticks(np.array([0.0, 0.2, 0.3]), 0.1).tolist() == [
+        0.1, 0.30000000000000004, 0.30000000000000004]

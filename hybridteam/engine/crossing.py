@@ -55,18 +55,18 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
 
 def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
                    steps: list[AgentStep]
-                   ) -> tuple[np.ndarray, list[np.ndarray | None], dict[int, Segment]]:
+                   ) -> tuple[np.ndarray | None, list[np.ndarray | None], dict[int, Segment]]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
-    Returns ``inf`` where nothing relevant crossed, and each agent's atom truths at the end
+    Returns ``inf`` where nothing relevant crossed (None when no atom flipped at all, so
+    nothing was searched), and each agent's atom truths at the end
     of the step (None for agents without watched atoms), which stay valid where nothing
     crossed, and each searched agent's :class:`Segment`, whose
     :meth:`~Segment.true_state` reads the states its trial points computed, so the engine
     need not integrate to the crossing again. Updates nothing.
     """
-    best = filled(idx.size, np.inf)
-    best_lo = filled(idx.size, np.inf)
+    best = best_lo = None  # made when some atom flipped (most steps: none did)
     thetas = ens.thetas
     end_truths: list[np.ndarray | None] = []
     searched: dict[int, Segment] = {}
@@ -78,6 +78,8 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
         end_truths.append(end)  # None: no atom watched, nothing to refresh
         if flips is None:
             continue
+        if best is None or best_lo is None:
+            best, best_lo = filled(idx.size, np.inf), filled(idx.size, np.inf)
         seg = _search(ens, a, idx, steps[a], thetas, *flips, best, best_lo)
         if seg is not None:
             searched[a] = seg
@@ -114,41 +116,69 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     start = st.truth[:, sel]
     pos = where_true(np.logical_or.reduce(watched, axis=0))  # rows with some atom watched
     part = pos.size < m
-    if part:
-        end = start.copy()
-        end[:, pos] = watch_truth(ens, a, idx[pos], x_end[pos], t1[pos])
-    else:
-        end = watch_truth(ens, a, idx, x_end, t1, full)
-    truths = [start]
     checks = thetas.size - 2
-    if checks == 0 and not some(watched & (end != start)):
-        return end, None
-    points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
-    if checks:
-        k = pos.size
-        rows = np.concatenate([pos] * checks)
-        tau = thetas[1:-1].repeat(k) * h[rows]
-        x_all = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
-        t_all = t0[rows] + tau
-        tr_all = watch_truth(ens, a, idx[rows], x_all, t_all)
-        for c in range(checks):
-            span = slice(c * k, (c + 1) * k)
-            if part:  # rows not evaluated stay at the start: no flip there, never read
-                x_c, t_c, tr_c = step.x0.copy(), t0.copy(), start.copy()
-                x_c[pos], t_c[pos], tr_c[:, pos] = x_all[span], t_all[span], tr_all[:, span]
-                points.append((x_c, t_c))
-                truths.append(tr_c)
-            else:
-                points.append((x_all[span], t_all[span]))
-                truths.append(tr_all[:, span])
-    points.append((x_end, t1))
-    truths.append(end)
-    all_truths = np.stack(truths)  # (K + 1, nw, m)
-    flips = all_truths[1:] != all_truths[:-1]
+    if checks == 0:
+        if part:
+            end = start.copy()
+            end[:, pos] = watch_truth(ens, a, idx[pos], x_end[pos], t1[pos])
+        else:
+            end = watch_truth(ens, a, idx, x_end, t1, full)
+        if not some(watched & (end != start)):
+            return end, None
+        all_truths = np.stack([start, end])
+        x_checks = t_checks = None
+    else:
+        all_truths, x_checks, t_checks = _check_truths(ens, a, idx, x_end, step, thetas,
+                                                       pos, part, start, h, t0, t1)
+        end = all_truths[-1]
+    flips = all_truths[1:] != all_truths[:-1]  # (K, nw, m)
     flips &= watched
     if not some(flips):
         return end, None
+    points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
+    for c in range(checks):
+        span = slice(c * pos.size, (c + 1) * pos.size)
+        if part:  # rows not evaluated stay at the start: no flip there, never read
+            x_c, t_c = step.x0.copy(), t0.copy()
+            x_c[pos], t_c[pos] = x_checks[span], t_checks[span]
+            points.append((x_c, t_c))
+        else:
+            points.append((x_checks[span], t_checks[span]))
+    points.append((x_end, t1))
     return end, (_relevant(ens, a, idx, flips, points), all_truths)
+
+
+def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
+                  step: AgentStep, thetas: np.ndarray, pos: np.ndarray, part: bool,
+                  start: np.ndarray, h: np.ndarray, t0: np.ndarray, t1: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Atom truths at the step's start (``start``), its interior checkpoints and its end:
+    ``(K + 1, nw, m)``, with the checkpoints' states and times (rows ``pos`` of each, in
+    checkpoint order). The checkpoints and the end are evaluated in one batch: rows are
+    independent, so each row's truths are what it gets alone, for one evaluation of the
+    atoms instead of two (at a single run's size each array operation costs its dispatch,
+    about 1 µs, for one number). Rows not in ``pos`` keep their start truths."""
+    k, checks = pos.size, thetas.size - 2
+    rows = np.concatenate([pos] * checks)
+    tau = thetas[1:-1].repeat(k) * h[rows]
+    x_checks = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
+    t_checks = t0[rows] + tau
+    n_ck = rows.size
+    xs = np.empty((n_ck + k, x_end.shape[1]))
+    xs[:n_ck], xs[n_ck:] = x_checks, x_end[pos] if part else x_end
+    ts = np.empty(n_ck + k)
+    ts[:n_ck], ts[n_ck:] = t_checks, t1[pos] if part else t1
+    truths = watch_truth(ens, a, np.concatenate([idx[pos] if part else idx] * (checks + 1)),
+                         xs, ts)
+    nw = truths.shape[0]
+    out = np.empty((checks + 2, nw, idx.size), bool)
+    out[0] = start
+    if part:
+        out[1:] = start
+        out[1:, :, pos] = truths.reshape(nw, checks + 1, k).transpose(1, 0, 2)
+    else:
+        out[1:] = truths.reshape(nw, checks + 1, k).transpose(1, 0, 2)
+    return out, x_checks, t_checks
 
 
 def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,

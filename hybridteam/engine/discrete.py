@@ -29,6 +29,8 @@ if TYPE_CHECKING:
 
 def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
     """Run micro-steps for instances ``idx`` (all at their current time) until quiescent."""
+    if idx.size == 0:  # (a law's tick only: nothing may fire, no event is due)
+        return
     ens.micro[idx] = 0
     active = idx
     # instances whose last micro-step only consumed an event that changed nothing the

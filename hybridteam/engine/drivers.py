@@ -8,6 +8,7 @@ checked for shape and saturated to the actuator limits.
 
 from __future__ import annotations
 
+import math
 import os
 from typing import TYPE_CHECKING
 
@@ -96,6 +97,31 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     return f
 
 
+def next_ticks(t: np.ndarray, period: float) -> np.ndarray:
+    """The first tick ``k * period`` strictly after each time of ``t`` (``k`` whole).
+
+    For a few times (a single run's) this is computed on Python floats: the array version's
+    five operations cost their dispatch, about 1 µs each, for one number. ``math.floor`` of
+    a finite float is that float's integer value, exactly, so both give the same bits."""
+    if t.size <= 4:
+        out = []
+        for ti in t.tolist():
+            q = ti / period
+            if not math.isfinite(q):
+                break  # math.floor refuses inf and NaN: the array version answers
+            k = float(math.floor(q)) + 1.0
+            nxt = k * period
+            out.append(nxt if nxt > ti else (k + 1.0) * period)
+        else:
+            return np.array(out)
+    k = np.floor(t / period) + 1
+    nxt = k * period
+    late = nxt <= t  # round-off put the k-th tick at or before t: the next one
+    if some(late):
+        nxt[late] = (k[late] + 1) * period
+    return nxt
+
+
 def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) -> None:
     """Evaluate held (sampled) inputs at ticks and where the law's mode was just entered.
 
@@ -148,11 +174,6 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
                 where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
                 stop_broken_inputs(ens, a, where, u)
         if D.kind == "sampled":
-            k = np.floor(t / D.period) + 1
-            nxt = k * D.period
-            late = nxt <= t  # round-off put the k-th tick at or before t: the next one
-            if some(late):
-                nxt[late] = (k[late] + 1) * D.period
-            st.next_tick[rows] = nxt
+            st.next_tick[rows] = next_ticks(t, D.period)
         else:
             st.next_tick[rows] = np.inf

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.arrays import every, filled, some, union, where_true
+from hybridteam.arrays import every, some, union, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
@@ -271,11 +271,11 @@ class Simulator:
         agent's atom truths at the step's end (valid where nothing crossed)."""
         ens = self.ensemble
         accepted = ens.h[sel] > 0
-        searched: dict = {}
-        if some(accepted):
-            tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
-        else:
-            tau, end_truths = filled(idx.size, np.inf), [None] * len(ens.states)
+        if not some(accepted):
+            return np.zeros(idx.size, bool), [None] * len(ens.states)
+        tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
+        if tau is None:  # no atom flipped inside the step: nothing was searched
+            return np.zeros(idx.size, bool), end_truths
         crossing = np.isfinite(tau) & accepted
         if some(crossing):
             rows = where_true(crossing)
