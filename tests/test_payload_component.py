@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from hybridteam.api import load, simulate
 from hybridteam.engine.compiler import compile_team
@@ -139,3 +141,80 @@ def test_an_engaged_grasp_must_name_a_variable_of_its_agent(tmp_path):
     with pytest.raises(ValueError, match=r"payload: grasps\[0\]\.engaged: agent 'A' has no "
                                          r"variable 'hodling' \(its variables: holding\)"):
         simulate(load(path))
+
+
+THREE_GRASPS = """
+kind: team
+team: three-grasps
+world:
+  - use: payload
+    with:
+      name: box
+      width: 2
+      depth: 0.4
+      pose: [0.3, -0.2, 0.4]
+      grasps:
+        - {agent: A, point: [1, 0], mount: [0.2, 0.05], spring: 1, engaged: holding}
+        - {agent: B, point: [-1, 0.1], mount: [-0.1, 0.0], spring: 3, engaged: holding}
+        - {agent: C, point: [0.2, 0.2], spring: 0.7GRASP_C}
+agents:
+  A:
+    plant: {kind: unicycle, state: {x: 2, y: 0, theta: 0}}
+    variables: {holding: 0}
+    modes: {Stay: {inputs: {v: 0, omega: 0}, period: 0.1}}
+  B:
+    plant: {kind: holonomic, state: {x: -0.5, y: 0, theta: 0}}
+    variables: {holding: 0}
+    modes: {Stay: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
+  C:
+    plant: {kind: holonomic, state: {x: 0, y: 1, theta: 0}}
+    variables: {holding: 0}
+    modes: {Stay: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
+"""
+
+
+@pytest.fixture(scope="module", params=["", ", engaged: holding"],
+                ids=["C always holds", "C engages"])
+def three_grasps(tmp_path_factory, request):
+    path = tmp_path_factory.mktemp("settle") / "three.yaml"
+    path.write_text(THREE_GRASPS.replace("GRASP_C", request.param))
+    sim = Simulator(compile_team(load(path)), 4, duration=1.0)
+    (box,) = [c for c in sim.ensemble.world.components if isinstance(c, CarriedPayload)]
+    return sim, box
+
+
+_KEPT = ("pose", "rest", "engaged", "offset", "arm")
+
+
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data())
+def test_one_instance_settles_on_floats_to_the_array_versions_bits(three_grasps, data):
+    """A single run settles its payload on Python floats (settle_one), an ensemble on
+    arrays: every number the component keeps or returns is the same, bit for bit, for
+    every engagement (none held: at rest; one: no torque; two or three: the spring
+    equilibrium), with grasps that always hold and grasps engaged by a variable."""
+    sim, box = three_grasps
+    ens, world = sim.ensemble, sim.access
+    coords = st.floats(-50, 50, allow_nan=False)
+    for s in ens.states:
+        s.x[:, :3] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
+                                        max_size=4))
+    for s in ens.states:
+        s.v[:, 0] = data.draw(st.lists(st.sampled_from([0.0, 1.0]), min_size=4, max_size=4))
+    box.rest[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
+                                     max_size=4))
+    box.rel0[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
+                                     max_size=4))
+    before = {k: getattr(box, k).copy() for k in _KEPT}
+    together = box._settle(world, np.arange(4))
+    kept = {k: getattr(box, k).copy() for k in _KEPT}
+    for k in _KEPT:
+        getattr(box, k)[:] = before[k]
+    for i in range(4):
+        alone = box._settle(world, np.array([i]))
+        for got, want in zip(alone, together, strict=True):
+            assert got.shape == want[i:i + 1].shape
+            assert got.tobytes() == want[i:i + 1].tobytes()
+    for k in _KEPT:
+        assert getattr(box, k).tobytes() == kept[k].tobytes(), k

@@ -41,6 +41,7 @@ from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
 from hybridteam.world.raycast import Targets, cast_at
+from hybridteam.world.settle_one import settle_one
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -197,6 +198,8 @@ class CarriedPayload(WorldComponent):
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`settle`, returning the headings, the offsets ``(m, k, 2)`` and which grasps
         hold ``(m, k)`` (what :meth:`update` checks next, without gathering them again)."""
+        if idx.size == 1:  # a single run's instant: the same numbers, on floats
+            return settle_one(self, world, idx)
         pts, heading = self._robot_points(world, idx)
         on = self._engagement(world, idx)
         pose = self.rest[idx]
