@@ -249,11 +249,14 @@ def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float
     scale = atol + rtol * np.maximum(np.abs(x), np.abs(x1))
     err5 = sums[E5_SUM] / scale
     err3 = sums[E3_SUM] / scale
-    e5 = np.sum(err5 * err5, axis=1)
-    e3 = np.sum(err3 * err3, axis=1)
+    # np.sum's own reduction without its Python-level wrapper (about 5 µs a call), and the
+    # norm divided only where its denominator is positive (0 elsewhere), so no error state
+    # is needed (a context costs about 3 µs): the same values, at a single run's size
+    e5 = np.add.reduce(err5 * err5, axis=1)
+    e3 = np.add.reduce(err3 * err3, axis=1)
     denom = e5 + 0.01 * e3
-    with np.errstate(invalid="ignore", divide="ignore"):
-        err = np.where(denom > 0, np.abs(h) * e5 / np.sqrt(denom * max(d, 1)), 0.0)
+    err = np.zeros(m)
+    np.divide(np.abs(h) * e5, np.sqrt(denom * max(d, 1)), out=err, where=denom > 0)
     return Step(f, t, x, x1, k, h, err)
 
 
@@ -264,7 +267,8 @@ def next_step_size(h: np.ndarray, err: np.ndarray) -> np.ndarray:
     """
     with np.errstate(divide="ignore"):
         factor = np.where(err == 0, MAX_FACTOR, SAFETY * err ** (-1.0 / (ERROR_ORDER + 1)))
-    factor = np.clip(factor, MIN_FACTOR, MAX_FACTOR)
+    # np.clip's values (NaN stays NaN) without its Python-level wrapper
+    factor = np.minimum(np.maximum(factor, MIN_FACTOR), MAX_FACTOR)
     factor = np.where(err > 1, np.minimum(factor, 1.0), factor)
     return h * factor
 
