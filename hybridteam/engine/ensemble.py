@@ -16,6 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from hybridteam.arrays import some
 from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.network import Message, Network
@@ -69,6 +70,11 @@ class Ensemble:
         self.last_fired = np.full(n, -1, np.int64)
         self.outcomes: list[dict | None] = [None] * n
         self.states = [AgentState(a, n) for a in cteam.agents]
+        #: whether a run can end before its duration by the end rule or a deadlock: not
+        #: without final modes (the end rule then holds nowhere, when some agent ends runs)
+        #: nor without triggered transitions (a deadlock is someone waiting for an event)
+        self.may_end_early = (not cteam.end_any and not cteam.ending) or any(
+            some(ca.final_leaves) or some(ca.has_triggered) for ca in cteam.agents)
         #: whether some agent's eventless guard can change truth without a transition
         self.urgent_volatile = any(st.urgent_volatile for st in self.states)
         self.h_rk = np.full(n, np.nan)

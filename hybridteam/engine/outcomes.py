@@ -39,6 +39,8 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
                 ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (
                     f"agent '{ca.name}' in mode '{m.path}' at t={ens.when(i)}: invariant "
                     f"'{m.invariant_text}' is false and no transition out is enabled"))
+    if not ens.may_end_early:
+        return
     idx = idx[~ens.done[idx]]
     if idx.size == 0:
         return
@@ -51,12 +53,12 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
         ca = st.ca
         act = st.active[idx]
         leaf_act = act[:, ca.leaves]
-        final = (~leaf_act | ca.final_leaves).all(axis=1)
+        final = np.logical_and.reduce(~leaf_act | ca.final_leaves, axis=1)
         all_final &= final
         if a in cteam.ending:
             ends = ends | final if cteam.end_any else ends & final
-        eventless = (act & ca.has_eventless).any(axis=1)
-        trig = (act & ca.has_triggered).any(axis=1)
+        eventless = np.logical_or.reduce(act & ca.has_eventless, axis=1)
+        trig = np.logical_or.reduce(act & ca.has_triggered, axis=1)
         waiting &= final | (~eventless & trig & ~np.isfinite(ens.timer[a][idx]))
         someone_waits |= ~final & trig
     fin = idx[ends]

@@ -171,7 +171,7 @@ class AgentState:
         # one gather for every ``after:`` transition (not a loop over them)
         d = self.deadline[idx][:, self.after_slots]
         live = self.active[idx][:, self.after_sources] & (d > t[:, None])
-        return np.where(live, d, np.inf).min(axis=1)
+        return np.minimum.reduce(np.where(live, d, np.inf), axis=1)
 
     def leaf_paths(self, i: int) -> list[str]:
         """Active leaf modes of instance ``i`` (for messages)."""

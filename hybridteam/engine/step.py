@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, some, where_true
+from hybridteam.arrays import every, filled, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.drivers import derivative
 
@@ -65,11 +65,12 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
                 ens.settings.atol)
     xe[r] = s.x1
     mine = np.zeros(idx.size)
-    mine[r] = np.where(np.isfinite(s.x1).all(axis=1) & ~np.isnan(s.err), s.err, np.inf)
+    mine[r] = np.where(np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s.err),
+                       s.err, np.inf)
     np.maximum(err, mine, out=err)
     start_bad = np.zeros(idx.size, bool)
-    start_bad[r] = ~np.isfinite(s.k[0]).all(axis=1)
-    pos = np.full(idx.size, -1, np.intp)
+    start_bad[r] = ~np.logical_and.reduce(np.isfinite(s.k[0]), axis=1)
+    pos = filled(idx.size, -1, np.intp)
     pos[r] = np.arange(r.size)
     step.rk_step, step.rk_pos, step.err, step.start_bad = s, pos, mine, start_bad
     return xe, step
