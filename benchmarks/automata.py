@@ -3,7 +3,10 @@
 For the bouncing ball (20 impacts) and the hysteresis thermostat (50 switches), run
 hybridteam at its default settings, then solve_ivp with events (RK45 and DOP853, restarted
 at each event as hybrid systems require) over a ladder of tolerances, and compare against
-the cheapest solve_ivp configuration that is at least as accurate as hybridteam.
+the cheapest solve_ivp configuration that is at least as accurate as hybridteam. The ratio
+judged is from hybridteam and every matched configuration timed in turn (best of several
+rounds each, against the fastest of them): the table's timings are seconds apart, and a
+noisy machine drifts between them.
 Budgets: issue 2 asked for no slower than solve_ivp at the same accuracy (ratio <= 1); the
 single-run speed issue for within 3x. The engine is timed from a loaded team, as solve_ivp
 from its defined right-hand side: reading and checking the YAML file is timed apart.
@@ -52,6 +55,10 @@ def thermostat_exact(k: int) -> np.ndarray:
     for j in range(1, k):
         t.append(t[-1] + (math.log(22 / 18) if j % 2 else math.log(12 / 8)) / K)
     return np.array(t)
+
+
+#: rounds of hybridteam and the fastest matched solve_ivp timed in turn, for the ratio
+INTERLEAVED = 9
 
 
 def best_of(fn, repeat: int = 3) -> tuple[float, np.ndarray]:
@@ -128,7 +135,7 @@ def compare(name: str, exact: np.ndarray, our_fn, scipy_fn) -> float:
     print(f"\n{name}: {len(exact)} events")
     print(f"  {'method':<22}{'rtol':>8}{'max |dt| (s)':>16}{'wall (ms)':>12}")
     print(f"  {'hybridteam (default)':<22}{'1e-10':>8}{err_ours:>16.2e}{1e3 * t_ours:>12.1f}")
-    matched = math.inf
+    matched, configs = math.inf, []
     for method in ("RK45", "DOP853"):
         for rtol in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13):
             wall, got_s = best_of(lambda m=method, r=rtol: scipy_fn(m, r))
@@ -136,16 +143,27 @@ def compare(name: str, exact: np.ndarray, our_fn, scipy_fn) -> float:
             mark = ""
             if err <= err_ours:
                 matched = min(matched, wall)
+                configs.append((method, rtol))
                 mark = "  <= our error"
             print(f"  {'solve_ivp ' + method:<22}{rtol:>8.0e}{err:>16.2e}{1e3 * wall:>12.1f}{mark}")
-    if math.isfinite(matched):
-        ratio = t_ours / matched
-        print(f"  ratio hybridteam / fastest solve_ivp at matched accuracy: {ratio:.2f} "
-              f"(budget 3: {'met' if ratio <= 3 else 'NOT met'}; issue 2's 1: "
-              f"{'met' if ratio <= 1 else 'NOT met'})")
-    else:
-        ratio = 0.0
+    if not configs:
         print("  no solve_ivp configuration reached hybridteam's accuracy (ratio: n/a)")
+        return 0.0
+    print(f"  ratio to the fastest matched, from the table: {t_ours / matched:.2f}")
+    # the table's timings are seconds apart, and this machine's speed drifts by 2x within a
+    # minute: the ratio judged is from hybridteam and every matched configuration timed in
+    # turn, best of each, against the fastest of them
+    ours_best, theirs = math.inf, dict.fromkeys(configs, math.inf)
+    for _ in range(INTERLEAVED):
+        ours_best = min(ours_best, best_of(our_fn, 1)[0])
+        for c in configs:
+            theirs[c] = min(theirs[c], best_of(lambda c=c: scipy_fn(*c), 1)[0])
+    (method, rtol), best = min(theirs.items(), key=lambda kv: kv[1])
+    ratio = ours_best / best
+    print(f"  ratio hybridteam / fastest matched solve_ivp ({method} rtol={rtol:.0e}), timed "
+          f"in turn, best of {INTERLEAVED} each ({1e3 * ours_best:.1f} / {1e3 * best:.1f} ms): "
+          f"{ratio:.2f} (budget 3: {'met' if ratio <= 3 else 'NOT met'}; issue 2's 1: "
+          f"{'met' if ratio <= 1 else 'NOT met'})")
     return ratio
 
 
