@@ -167,6 +167,9 @@ class Watch:
     #: a requirement's comparison: its crossings are located (and the run stops there, so
     #: the state at the crossing is recorded) though no guard depends on it
     observer: bool = False
+    #: the atom is a conjunct of its guard: where it is false, so is the guard, and a flip
+    #: of it to false cannot enable the transition
+    conjunct: bool = False
 
 
 @dataclass

@@ -212,7 +212,8 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
         w, cand, k, lo, truth_lo = todo.popleft()
         if seg is None:
             seg = Segment(ens, a, idx, step)
-        dropped = _locate_atom(seg, w, cand, k, lo, truth_lo, thetas, truths, best, best_lo)
+        dropped = _locate_atom(seg, w, cand, k, lo, truth_lo, thetas, relevant, truths, best,
+                               best_lo)
         if dropped is not None:
             _search_on(ens, a, seg, w, *dropped, relevant, truths, todo)
     return seg
@@ -220,14 +221,16 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
 
 def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
                  lo: np.ndarray | None, truth_lo: np.ndarray | None, thetas: np.ndarray,
-                 truths: np.ndarray, best: np.ndarray, best_lo: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+                 relevant: np.ndarray, truths: np.ndarray, best: np.ndarray,
+                 best_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Locate atom ``w``'s first flip in sub-interval ``k`` of each row of ``cand`` (from
     ``lo``, with truth ``truth_lo`` there; None: from the sub-interval's start), lowering
     ``best`` and ``best_lo`` where it is earlier and matters. Returns the rows where it did
-    not matter, their sub-intervals and crossing times (None if none)."""
+    not matter, their sub-intervals and crossing times (None if none; NaN where the flip
+    was known not to matter without locating it, see :func:`_foregone`)."""
     # a lone atom's flip searched from its sub-interval's start was judged by _relevant
     judged = lo is None and seg.st.ca.lone_watches[w]
+    from_start = lo is None
     if lo is None:
         lo, truth_lo = thetas[k] * seg.h[cand], truths[k, w, cand]
     hi = thetas[k + 1] * seg.h[cand]
@@ -247,14 +250,49 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
         cand, k, lo, hi, truth_lo = cand[keep], k[keep], lo[keep], hi[keep], truth_lo[keep]
         if cand.size == 0:
             return None
-    tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
-    matters = np.ones(cand.size, bool) if judged else seg.matters(w, cand, tau)
+    skip = _foregone(seg, w, cand, k, truth_lo, relevant) if from_start and not judged \
+        else None
+    if skip is not None and some(skip):
+        tau_lo, tau = filled(cand.size, np.nan), filled(cand.size, np.nan)
+        matters = np.zeros(cand.size, bool)
+        go = where_true(~skip)
+        if go.size:
+            tau_lo[go], tau[go] = seg.locate(w, cand[go], lo[go], hi[go], truth_lo[go])
+            matters[go] = seg.matters(w, cand[go], tau[go])
+    else:
+        tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
+        matters = np.ones(cand.size, bool) if judged else seg.matters(w, cand, tau)
     better = matters & (tau < best[cand])
     best[cand[better]] = tau[better]
     best_lo[cand[better]] = tau_lo[better]
     if every(matters):
         return None
     return cand[~matters], k[~matters], tau[~matters]
+
+
+def _foregone(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray, truth_lo: np.ndarray,
+              relevant: np.ndarray) -> np.ndarray | None:
+    """Rows of ``cand`` whose flip of atom ``w`` in sub-interval ``k`` need not be located:
+    what locating it would lead to is already known.
+
+    The atom is a conjunct of its guard and flips to false: just past the flip the guard
+    is false, so the crossing does not matter (as :meth:`Segment.matters` would find). A
+    crossing that does not matter is searched past (:func:`_search_on`): the atom's later
+    sub-intervals, which need no crossing time, and the rest of this one for each watched
+    atom whose truth just past it differs from its truth at the sub-interval's end. That
+    rest is empty where every other watched atom of the row is searched in this
+    sub-interval from its start anyway: the atom itself is false at the sub-interval's end
+    as just past the flip (it is searched from the start because its truths at the ends
+    differ).
+    The flips just after a bounce (``h <= 0`` turning false a picosecond after the impact
+    was located on its far side) are such flips: the search then costs one location a
+    bounce, not two. The run's results are those of locating them."""
+    watch = seg.st.ca.watches[w]
+    if not watch.conjunct or watch.invariant or watch.observer:
+        return None
+    others = relevant[k, :, cand] | ~seg.st.watched[:, seg.idx[cand]].T  # (rows, atoms)
+    others[:, w] = True
+    return truth_lo & np.logical_and.reduce(others, axis=1)
 
 
 def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k: np.ndarray,
@@ -273,6 +311,11 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
     again = where_true(later.any(axis=0))
     if again.size:
         todo.append((w, rows[again], np.argmax(later[:, again], axis=0), None, None))
+    found = ~np.isnan(tau)  # (NaN: not located, nothing ahead; see _foregone)
+    if not every(found):
+        rows, k, tau = rows[found], k[found], tau[found]
+        if rows.size == 0:
+            return
     st = ens.states[a]
     sub = seg.idx[rows]
     now = watch_truth(ens, a, sub, seg.true_state(rows, tau), seg.t0[rows] + tau)

@@ -247,7 +247,8 @@ def watches(modes: list[CMode], transitions: list[CTransition],
             return
         for atom in expr.atoms:
             if free_names(atom.source, condition=True) & dynamic:
-                found.append(Watch(atom, mode, expr, invariant))
+                found.append(Watch(atom, mode, expr, invariant,
+                                   conjunct=any(atom is c for c in expr.conjuncts)))
 
     for ct in transitions:
         if ct.on is None:

@@ -59,6 +59,7 @@ class _Compiler:
         self.source, self.symbols = source, symbols
         self.names: set[str] = set()
         self.atoms: list[Atom] = []
+        self.node_atoms: dict[int, list[Atom]] = {}  # a comparison node's atoms (by id)
 
     def error(self, message: str, start: int, end: int | None = None,
               hint: str | None = None) -> ExpressionError:
@@ -324,6 +325,7 @@ class _Compiler:
         operands = [node.left, *node.comparators]
         values = [self.typed(o, False, "a comparison") for o in operands]
         ops = [_CMPOPS[type(op)] for op in node.ops]
+        first_atom = len(self.atoms)
         for i, (sym, ufunc) in enumerate(ops):
             if sym not in ("==", "!="):  # a chain 0 < x < 1 yields the atoms 0 < x and x < 1
                 start = self.pos(node if i == 0 else operands[i])[0]
@@ -337,6 +339,7 @@ class _Compiler:
                     lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),
                     lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(
                         u, f(ctx), g(ctx), less)))
+        self.node_atoms[id(node)] = self.atoms[first_atom:]
         if len(ops) == 1:
             return _apply(ops[0][1], values, True)
         if all(v.const for v in values):
@@ -379,12 +382,23 @@ def _requirement_only(name: str) -> str:
             "guards, invariants, inputs or flows")
 
 
+def _conjuncts(node: ast.expr, node_atoms: Mapping[int, list[Atom]]) -> list[Atom]:
+    """The atoms of ``node`` that are conjuncts of it (through ``and`` only, a chain
+    ``0 < x < 1`` being one too): where one is false, so is the whole condition."""
+    if isinstance(node, ast.BoolOp) and isinstance(node.op, ast.And):
+        return [a for v in node.values for a in _conjuncts(v, node_atoms)]
+    if isinstance(node, ast.Compare):
+        return list(node_atoms.get(id(node), ()))
+    return []
+
+
 def compile_expression(source: str, symbols: Mapping[str, Getter], *,
                        condition: bool = False) -> Expression:
     """Compile `source` once into a vectorized callable over the engine's context."""
     comp = _Compiler(source, symbols)
-    result = comp.run(0, condition)[1]
-    return Expression(source, result.fn, frozenset(comp.names), condition, tuple(comp.atoms))
+    tree, result = comp.run(0, condition)
+    return Expression(source, result.fn, frozenset(comp.names), condition, tuple(comp.atoms),
+                      tuple(_conjuncts(tree, comp.node_atoms)) if condition else ())
 
 
 def free_names(source: str, *, condition: bool = False) -> frozenset[str]:

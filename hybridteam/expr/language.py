@@ -131,12 +131,16 @@ def _truth_and_margin(ufunc: Any, a: Any, b: Any, less: bool) -> tuple[Any, Any]
 class Expression:
     """A compiled expression; calling it evaluates the closure tree on an engine context."""
 
-    __slots__ = ("_fn", "atoms", "is_condition", "names", "source")
+    __slots__ = ("_fn", "atoms", "conjuncts", "is_condition", "names", "source")
 
     def __init__(self, source: str, fn: Callable[[Any], Any], names: frozenset[str],
-                 is_condition: bool, atoms: tuple[Atom, ...]) -> None:
+                 is_condition: bool, atoms: tuple[Atom, ...],
+                 conjuncts: tuple[Atom, ...] = ()) -> None:
+        """``conjuncts``: the atoms that are conjuncts of a condition (where one is false,
+        so is the condition; a crossing search uses it to skip flips that cannot
+        matter)."""
         self.source, self._fn, self.names = source, fn, names
-        self.is_condition, self.atoms = is_condition, atoms
+        self.is_condition, self.atoms, self.conjuncts = is_condition, atoms, conjuncts
 
     def __call__(self, ctx: Any) -> np.ndarray | float | bool:
         return self._fn(ctx)
