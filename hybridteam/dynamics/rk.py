@@ -139,11 +139,15 @@ SMALL_DENSE = 8
 class Step:
     """One attempted step: the new state, its stages (for dense output), the error norm."""
 
-    __slots__ = ("_F", "_small", "err", "f", "h", "k", "t0", "x0", "x1")
+    __slots__ = ("_F", "_last", "_small", "err", "f", "h", "k", "t0", "x0", "x1")
 
     def __init__(self, f: Derivative, t0: np.ndarray, x0: np.ndarray, x1: np.ndarray,
-                 k: np.ndarray, h: np.ndarray, err: np.ndarray | None) -> None:
+                 k: np.ndarray, h: np.ndarray, err: np.ndarray | None,
+                 last_stage: bool = True) -> None:
+        """``last_stage`` false: ``k[N_STAGES]`` (the derivative at the new state, which
+        only the error estimate and the dense output read) is not computed yet."""
         self.f, self.t0, self.x0, self.x1, self.k, self.h, self.err = f, t0, x0, x1, k, h, err
+        self._last = last_stage
         self._F: np.ndarray | None = None
         # per row read on floats: its start values and coefficients, last first
         self._small: dict[int, list[tuple[float, list[float]]]] = {}
@@ -157,6 +161,9 @@ class Step:
         :func:`_dense_table`): the additions of summing each afresh, in the same order.
         """
         if self._F is None:
+            if not self._last:
+                self.k[N_STAGES] = self.f(self.t0 + self.h, self.x1)
+                self._last = True
             m, d = self.x0.shape
             k = np.empty((_c.N_STAGES_EXTENDED, m, d))
             k[: N_STAGES + 1] = self.k
@@ -224,8 +231,9 @@ def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float
     """Attempt one DOP853 step of size ``h`` (per instance) from ``(t, x)``.
 
     ``err`` is each instance's scaled error norm (accept where ``err <= 1``); with
-    ``estimate=False`` it is not computed (None) — a crossing search that integrates to a
-    trial point only wants the state there, which is the same either way.
+    ``estimate=False`` it is not computed (None), nor the derivative at the new state until
+    the dense output asks for it — a crossing search that integrates to a trial point only
+    wants the state there, which is the same either way.
 
     The stage sums are kept running (``sums``): once ``k[j]`` is known, its term is added
     to every sum that uses it, one array operation for all of them (see
@@ -243,9 +251,9 @@ def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float
         k[s] = f(ts[s], x + hc * sums[s - 1])
         sums[s:] += SUM_COLUMNS[s] * k[s]
     x1 = x + hc * sums[B_SUM]
+    if not estimate:  # (a trial point: its stages past the new state are read if ever)
+        return Step(f, t, x, x1, k, h, None, last_stage=False)
     k[N_STAGES] = f(t + h, x1)
-    if not estimate:
-        return Step(f, t, x, x1, k, h, None)
     scale = atol + rtol * np.maximum(np.abs(x), np.abs(x1))
     err5 = sums[E5_SUM] / scale
     err3 = sums[E3_SUM] / scale

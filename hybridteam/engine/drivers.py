@@ -66,6 +66,7 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
     st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
+    fixed_names = ca.var_index.keys() | ca.param_index.keys()  # constant over a step
     drv = st.driver[idx]
     v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
     # what does not change from one stage to the next is gathered once, per driver group
@@ -75,21 +76,27 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
         rows = where_true(drv == d)
         sel: slice | np.ndarray = slice(None) if rows.size == drv.size else rows
         entered = entry[sel, D.owner] if D.owner >= 0 and D.reads_t_in else None
-        groups.append((D, sel, v[sel], p[sel], entered,
-                       None if st.inbox is None else st.inbox.view(idx[sel])))
+        v_g, p_g = v[sel], p[sel]
+        flows = []  # (column, expression or None, its value where it reads no state or time)
+        for j, expr in enumerate(D.flow or ()):
+            if expr is not None:
+                fixed = expr.names <= fixed_names  # the same at every stage: evaluated once
+                flows.append((j, None if fixed else expr,
+                              expr(Ctx(None, v_g, p_g, None)) if fixed else None))  # type: ignore[arg-type]
+        groups.append((D, sel, v_g, p_g, entered,
+                       None if st.inbox is None else st.inbox.view(idx[sel]), flows))
     whole = len(groups) == 1 and isinstance(groups[0][1], slice)
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:
         out = np.zeros(xx.shape)
-        for D, sel, v_g, p_g, entered, e in groups:
+        for D, sel, v_g, p_g, entered, e, flows in groups:
             # (one group of every row, the common case: the arrays themselves, not views)
             tr, xr = (tt, xx) if whole else (tt[sel], xx[sel])
             # (t_in_mode is t where nothing reads it)
             ctx = Ctx(xr, v_g, p_g, tr, None if entered is None else tr - entered, e=e)
             if D.kind == "flow":
-                for j, expr in enumerate(D.flow):  # type: ignore[arg-type]
-                    if expr is not None:
-                        out[sel, j] = expr(ctx)
+                for j, expr, value in flows:
+                    out[sel, j] = value if expr is None else expr(ctx)
             elif plant.input_names:
                 out[sel] = plant.derivative(ctx.x, evaluate_driver(ca, D, ctx))
         return out
