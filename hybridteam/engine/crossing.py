@@ -60,9 +60,9 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
     Returns ``inf`` where nothing relevant crossed (None when no atom flipped at all, so
-    nothing was searched), and each agent's atom truths at the end
-    of the step (None for agents without watched atoms), which stay valid where nothing
-    crossed, and each searched agent's :class:`Segment`, whose
+    nothing was searched), each agent's atom truths at the end of the step (None for
+    agents without watched atoms), which stay valid where nothing crossed, and each
+    searched agent's :class:`Segment`, whose
     :meth:`~Segment.true_state` reads the states its trial points computed, so the engine
     need not integrate to the crossing again. Updates nothing.
     """
