@@ -55,6 +55,11 @@ def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
                            np.concatenate([h, np.repeat(h[:1], pad)]))
     assert few.shape == x.shape
     assert few.tobytes() == many[:len(rows)].tobytes()
+    # one step for every row (a number, as callers may pass it) moves them alike
+    with np.errstate(all="ignore"):
+        one_h = p.propagate(x, u, float(h[0]))
+        each = p.propagate(x, u, np.full(len(rows), h[0]))
+    assert one_h.tobytes() == each.tobytes()
 
 
 def test_holonomic_moves_in_world_frame():

@@ -85,8 +85,10 @@ def _arcs_few(x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
     on floats, and the sines and cosines are numpy's own (``np.sin`` of a float runs the
     array loop), so each row has the array version's bits.
     """
+    steps = np.asarray(h, dtype=float)  # one step for every row, or one per row
+    hs = steps.tolist() if steps.ndim else [float(steps)] * x.shape[0]
     out = []
-    for (px, py, th), (v, w), hh in zip(x.tolist(), u.tolist(), h.tolist(), strict=True):
+    for (px, py, th), (v, w), hh in zip(x.tolist(), u.tolist(), hs, strict=True):
         half = 0.5 * w * hh
         ratio = float(np.sin(half)) / half if half != 0 else 1.0
         chord = v * hh * ratio
