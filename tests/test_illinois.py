@@ -27,15 +27,17 @@ problems = st.lists(
     min_size=1, max_size=5)
 
 
-def _arrays(rows):
+def _problem(rows):
+    """The drawn brackets as ``(ev, lo, hi, truth0, tol, root)``: a cubic's crossing in
+    each, original truth false at ``lo``."""
     start, span, where, curve, flat, tol = (np.array(c, dtype=float) for c in zip(*rows,
                                                                                   strict=True))
     lo, hi = start, start + span
     root = lo + where * span
-    slope = np.ones_like(lo)
     # keep the quadratic and cubic terms from adding roots within the bracket
     curve, flat = curve / np.maximum(span, 1.0), flat / np.maximum(span, 1.0) ** 2
-    return lo, hi, root, slope, curve, flat, tol
+    ev = _cubic(root, np.ones_like(lo), curve, flat)
+    return ev, lo, hi, np.zeros(lo.size, bool), tol, root
 
 
 def _alone(ev, i: int, lo, hi, truth0, tol, **options) -> tuple[float, float]:
@@ -49,9 +51,7 @@ def _alone(ev, i: int, lo, hi, truth0, tol, **options) -> tuple[float, float]:
 @settings(max_examples=200, deadline=None)
 @given(problems)
 def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None:
-    lo, hi, root, slope, curve, flat, tol = _arrays(rows)
-    ev = _cubic(root, slope, curve, flat)
-    truth0 = np.zeros(lo.size, bool)
+    ev, lo, hi, truth0, tol, _ = _problem(rows)
     for i in range(lo.size):
         fast = _alone(ev, i, lo, hi, truth0, tol)
         slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
@@ -61,9 +61,7 @@ def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None
 @settings(max_examples=200, deadline=None)
 @given(problems)
 def test_brackets_close_on_the_root_and_equal_their_single_runs(rows) -> None:
-    lo, hi, root, slope, curve, flat, tol = _arrays(rows)
-    ev = _cubic(root, slope, curve, flat)
-    truth0 = np.zeros(lo.size, bool)
+    ev, lo, hi, truth0, tol, root = _problem(rows)
     with np.errstate(all="ignore"):
         a, b = illinois(ev, lo.copy(), hi.copy(), truth0, tol)
     assert np.all(b - a <= tol)
