@@ -27,18 +27,22 @@ from hybridteam.libraries import broken_note, load_libraries
 class LawContext:
     """What a law sees for the ``m`` instances it is evaluated on."""
 
-    __slots__ = ("_ctx", "_params", "_pnames", "_values", "_vnames", "_xnames", "agent",
-                 "inputs")
+    __slots__ = ("_ctx", "_params", "_pnames", "_tables", "_values", "_vnames", "_xnames",
+                 "agent", "inputs")
 
     def __init__(self, ctx, params: Mapping[str, Callable[[Any], Any]], agent: str,
                  state_names: Mapping[str, int], var_names: Mapping[str, int],
-                 param_names: Mapping[str, int], inputs: tuple[str, ...]) -> None:
+                 param_names: Mapping[str, int], inputs: tuple[str, ...],
+                 tables: dict[tuple[str, ...], np.ndarray | None] | None = None) -> None:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
         the law first reads each (a law reads some of them in some modes, and each is
-        evaluated at most once per call)."""
+        evaluated at most once per call). ``tables``: where :meth:`table` keeps the
+        columns of the names it was asked for, kept by the caller from one call to the
+        next (the names' meaning is fixed for a binding)."""
         self._ctx, self._params, self.agent, self.inputs = ctx, params, agent, inputs
         self._xnames, self._vnames, self._pnames = state_names, var_names, param_names
         self._values: dict[str, np.ndarray] = {}
+        self._tables = {} if tables is None else tables
 
     @property
     def t(self) -> np.ndarray:
@@ -70,6 +74,33 @@ class LawContext:
         if name in self._vnames:
             return self._ctx.v[:, self._vnames[name]]
         raise KeyError(f"law for agent '{self.agent}' asked for unknown name '{name}'")
+
+    def table(self, names: tuple[str, ...]) -> np.ndarray:
+        """Several names at once, shape (m, k): column j is ``self[names[j]]`` as floats.
+
+        A law reading many agent parameters (the ladder robots read nine) gets them in one
+        gather instead of one lookup and one array each; names that are not all agent
+        parameters are read one by one, with :meth:`__getitem__`'s precedence.
+        """
+        try:
+            cols = self._tables[names]
+        except KeyError:
+            cols = self._tables[names] = self._columns(names)
+        if cols is not None:
+            return self._ctx.p[:, cols]
+        out = np.empty((self.size, len(names)))
+        for j, n in enumerate(names):
+            out[:, j] = self[n]
+        return out
+
+    def _columns(self, names: tuple[str, ...]) -> np.ndarray | None:
+        """The parameter columns of ``names`` if every one is an agent parameter that no
+        binding parameter or state component hides, else None."""
+        p = self._pnames
+        if self._params.keys().isdisjoint(names) and self._xnames.keys().isdisjoint(names) \
+                and p.keys() >= set(names):
+            return np.array([p[n] for n in names], np.intp)
+        return None
 
     def estimate(self, message: str, sender: np.ndarray | int | None = None,
                  extrapolate: bool = False) -> Estimate:

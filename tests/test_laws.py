@@ -253,3 +253,30 @@ def test_next_ticks_on_exact_multiples_and_round_off():
     # just before tick 3, also moves to it
     assert next_ticks(np.array([0.0, 0.2, 0.3]), 0.1).tolist() == [
         0.1, 0.30000000000000004, 0.30000000000000004]
+
+
+def test_a_table_of_names_is_their_columns_with_item_precedence():
+    """``ctx.table(names)`` is ``ctx[name]`` for each name, side by side: one gather when
+    all are agent parameters, else name by name with the same precedence (a binding
+    parameter hides an agent parameter of its name, state comes before parameters)."""
+    from hybridteam.engine.compiled import Ctx
+    x = np.array([[1.0, 2.0], [3.0, 4.0]])
+    p = np.array([[10.0, 20.0, 30.0], [11.0, 21.0, 31.0]])
+    v = np.array([[7.0], [8.0]])
+    ctx = Ctx(x, v, p, np.zeros(2))
+    tables: dict = {}
+
+    def law_ctx(binding):
+        return laws.LawContext(ctx, binding, "r", {"x": 0, "y": 1}, {"mode_v": 0},
+                               {"a": 0, "b": 1, "x": 2}, ("v",), tables)
+
+    got = law_ctx({}).table(("b", "a"))
+    assert got.tolist() == [[20.0, 10.0], [21.0, 11.0]]
+    assert tables[("b", "a")].tolist() == [1, 0]  # kept for the binding's next call
+    assert law_ctx({}).table(("b", "a")).tolist() == got.tolist()
+    # "x" is a state component before it is a parameter; "a" is hidden by the binding
+    mixed = law_ctx({"a": lambda c: np.full(2, -1.0)}).table(("a", "x", "mode_v", "b"))
+    assert mixed.tolist() == [[-1.0, 1.0, 7.0, 20.0], [-1.0, 3.0, 8.0, 21.0]]
+    assert tables[("a", "x", "mode_v", "b")] is None
+    with pytest.raises(KeyError, match="unknown name 'nope'"):
+        law_ctx({}).table(("a", "nope"))

@@ -63,6 +63,8 @@ class Driver:
     held: bool = False
     flow: list[Expression | None] | None = None  # one per state component (None: 0)
     where: DocPath = ()  # the law binding (a law that fails is reported there)
+    #: the law's parameter columns by the names it reads at once (LawContext.table)
+    tables: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def needs_rk(self) -> bool:
@@ -257,7 +259,7 @@ class CAgent:
 
     def law_context(self, ctx: Ctx, driver: Driver) -> LawContext:
         return LawContext(ctx, driver.params, self.name, self.state_index, self.var_index,
-                          self.param_index, self.plant.input_names)
+                          self.param_index, self.plant.input_names, driver.tables)
 
 
 @dataclass

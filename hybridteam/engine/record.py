@@ -90,6 +90,10 @@ class Recorder:
                 for name, parts in out.items()}
 
     def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
+        if k.size == 1:  # a single run's sample: no masks
+            if k[0] < len(self.sample_times):
+                self.samples[agent][k[0], instances[0]] = x[0]
+            return
         ok = k < len(self.sample_times)
         self.samples[agent][k[ok], instances[ok]] = x[ok]
 

@@ -207,5 +207,7 @@ class AgentView:
         return store[self.idx].copy()
 
     def keep(self, name: str, values: np.ndarray) -> None:
-        store = self.memory.setdefault(name, np.full(self.n, np.nan))
+        store = self.memory.get(name)
+        if store is None:
+            store = self.memory[name] = np.full(self.n, np.nan)
         store[self.idx] = values

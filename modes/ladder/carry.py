@@ -16,7 +16,7 @@ import numpy as np
 from hybridteam.library import LawContext
 from hybridteam.library import law as register
 
-from . import law
+from . import law, law_one
 
 #: The robot's own parameters the law reads (the paper's table, Sec. 4).
 ROBOT = ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladder_margin")
@@ -25,36 +25,79 @@ ROBOT = ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladd
 @register("ladder.carry", plants=("holonomic",), params={"window": 16.0})
 def carry(ctx: LawContext) -> np.ndarray:
     """Target, rotation and correction vectors, clamped, then the wall rules (Sec. 3.2)."""
-    params = {k: np.asarray(ctx[k], dtype=float) for k in ROBOT}
-    params.update(length=ctx.sense("length"), sc_partner=ctx.sense("sc_partner"),
-                  goal_heading=ctx.sense("goal_heading"))
-    own = ctx.state[:, :2]
+    table = ctx.table(ROBOT)
     window = int(ctx["window"][0]) if ctx.size else 16
-    path, frame = ctx.sense("path"), ctx.sense("frame")
-    move, nearest = law.step(own, ctx.sense("partner"), path,
-                             ctx.recall("nearest", 0.0).astype(np.int64), params,
-                             ctx.sense("corridor"), window=window, frame=frame,
-                             guide=_guide(path, frame, window),
-                             correction=ctx.sense("correction"))
-    ctx.keep("nearest", nearest)
+    frame = ctx.sense("frame")
+    path, guide = _guide(ctx, frame, window)
+    own, partner = ctx.state[:, :2], ctx.sense("partner")
+    length, sc_partner = ctx.sense("length"), ctx.sense("sc_partner")
+    correction = ctx.sense("correction")
+    idx = ctx.recall("nearest", 0.0).astype(np.int64)
     u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
+    if 0 < ctx.size <= FEW:
+        try:
+            nearest = _few(ctx, u, own, partner, guide, idx, table, length, sc_partner,
+                           frame, window, correction)
+        except law_one.Diverged:
+            pass  # the arrays' inf and NaN, from the array version below
+        else:
+            ctx.keep("nearest", nearest)
+            return u
+    params = {k: table[:, j] for j, k in enumerate(ROBOT)}
+    params.update(length=length, sc_partner=sc_partner)
+    if (params["kr"] != 0.0).any():  # the goal heading matters only to the rotation vector
+        params["goal_heading"] = ctx.sense("goal_heading")
+    move, nearest = law.step(own, partner, path, idx, params, ctx.sense("corridor"),
+                             window=window, frame=frame, guide=guide, correction=correction)
+    ctx.keep("nearest", nearest)
     u[:, :2] = move
     return u
 
 
-#: Guides prepared lately: (frame, window, path, guide), newest last. A run's robots ask
-#: for the same few paths at every period; comparing a path costs far less than preparing
-#: it (the frame is kept alive with its entry, so ``is`` cannot match a new one by chance).
+#: Up to this many instances the law runs on floats, row by row (:mod:`.law_one`).
+FEW = 4
+
+
+def _few(ctx: LawContext, u: np.ndarray, own: np.ndarray, partner: np.ndarray,
+         guide: law.Guide, idx: np.ndarray, table: np.ndarray, length: np.ndarray,
+         sc_partner: np.ndarray, frame, window: int, correction: str) -> np.ndarray:
+    """:func:`.law.step` for a few rows on floats, written into ``u``; the new indices.
+    ``table`` holds the robot parameters (columns :data:`ROBOT`)."""
+    nearest = np.empty(u.shape[0])
+    rows = table.tolist()
+    heading = ctx.sense("goal_heading").tolist() if any(r[_KR] != 0.0 for r in rows) \
+        else None
+    for i, (row, ell, scp) in enumerate(zip(rows, length.tolist(), sc_partner.tolist(),
+                                            strict=True)):
+        p = dict(zip(ROBOT, row, strict=True))
+        p["length"], p["sc_partner"] = ell, scp
+        if heading is not None:
+            p["hx"], p["hy"] = heading[i]
+        u[i, 0], u[i, 1], nearest[i] = law_one.step_one(
+            tuple(own[i].tolist()), tuple(partner[i].tolist()), guide, i, int(idx[i]), p,
+            frame, window, correction)
+    return nearest
+
+
+_KR = ROBOT.index("kr")
+
+#: Guides prepared lately: (frame, window, robot and instances, path, guide), newest last.
+#: A robot's guide paths are the corridor component's, built once at the start of a run
+#: (whose frame is kept alive with its entry, so ``is`` cannot match a new one by chance):
+#: the same robot and instances of the same run have the same paths, and the law prepares
+#: them once instead of at every period.
 _GUIDES: list[tuple] = []
 
 
-def _guide(path: np.ndarray, frame, window: int) -> law.Guide:
-    """The prepared guide of ``path`` (equal paths, frame and window: the same guide)."""
+def _guide(ctx: LawContext, frame, window: int) -> tuple[np.ndarray, law.Guide]:
+    """The guide paths of this robot's instances, and their prepared guide."""
+    key = (ctx.agent, ctx.instances.tobytes())
     for entry in reversed(_GUIDES):
-        f, w, p, guide = entry
-        if f is frame and w == window and p.shape == path.shape and np.array_equal(p, path):
-            return guide
+        f, w, k, path, guide = entry
+        if f is frame and w == window and k == key:
+            return path, guide
+    path = ctx.sense("path")
     guide = law.Guide(path, frame, window)
-    _GUIDES.append((frame, window, path.copy(), guide))
+    _GUIDES.append((frame, window, key, path, guide))
     del _GUIDES[:-8]
-    return guide
+    return path, guide

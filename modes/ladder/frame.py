@@ -18,6 +18,7 @@ are not walls, and within the corridor its finite walls coincide with these line
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -38,6 +39,15 @@ class CornerFrame:
         axes = np.asarray(corridor.inner_normals, dtype=float)
         return cls(np.asarray(corridor.inner_vertex, dtype=float).copy(), axes.copy(),
                    float(corridor.width_in), float(corridor.width_out))
+
+    @cached_property
+    def floats(self) -> tuple[float, float, float, float, float, float]:
+        """``(o0, o1, a0, a1, b0, b1)``: the origin and the x and y axes as Python floats,
+        for the law's one-row twin (:mod:`.law_one`), which would otherwise convert them
+        at every period."""
+        (a0, a1), (b0, b1) = self.axes.tolist()
+        o0, o1 = self.origin.tolist()
+        return o0, o1, a0, a1, b0, b1
 
     def to_frame(self, points: np.ndarray) -> np.ndarray:
         """World points ``(..., 2)`` in frame coordinates."""

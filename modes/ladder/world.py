@@ -44,6 +44,10 @@ from .frame import CornerFrame
 from .guide import guide_paths
 from .kernel import in_corner
 from .params import CORRECTIONS, UPDATES
+from .world_one import update_few
+
+#: Up to this many instances an instant runs on floats (:mod:`.world_one`).
+FEW = 4
 
 #: Corridor settings: one corridor for the whole ensemble.
 _CORRIDOR = ("width_in", "width_out", "outer_leg_in", "outer_leg_out")
@@ -149,6 +153,8 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        if idx.size <= FEW:  # a single run's instant: on floats, the same bits
+            return update_few(self, world, idx)
         pos = np.empty((len(self.robots), idx.size, 2))                      # (2, m, 2)
         for r, a in enumerate(self.robots):
             pos[r] = world.pose(a, idx)[:, :2]
@@ -180,11 +186,7 @@ class LadderCorridor(WorldComponent):
         self.offset[:, idx] = no
         broken = (no > self.olim[:, idx]).any(axis=0)
         if broken.any():
-            bad = idx[broken]
-            world.finish(bad, "link_broken", lambda i: (
-                f"a ladder link broke at step {self.steps[i]}: offsets "
-                f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
-                f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"))
+            self.fail(world, idx[broken])
         gx, gy = self.goal[:, idx, 0], self.goal[:, idx, 1]
         dgoal = law.norm(gx - pos[..., 0], gy - pos[..., 1])
         progress = dgoal[0] + dgoal[1]
@@ -200,6 +202,13 @@ class LadderCorridor(WorldComponent):
                 for a in self.robots:
                     world.raise_event(idx[mask], a, event)
 
+    def fail(self, world: WorldAccess, bad: np.ndarray) -> None:
+        """End instances ``bad`` with outcome ``link_broken``."""
+        world.finish(bad, "link_broken", lambda i: (
+            f"a ladder link broke at step {self.steps[i]}: offsets "
+            f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
+            f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"))
+
     def _offsets(self, i: int) -> np.ndarray:
         d = self.tips[:, i] - self.prev[:, i]
         return np.hypot(d[:, 0], d[:, 1])
@@ -214,7 +223,7 @@ class LadderCorridor(WorldComponent):
             raise KeyError(f"ladder.corridor: agent {agent} does not hold the ladder")
         row = self.robots.index(agent)
         if name == "partner":
-            return self.prev[1 - row, idx].copy()
+            return self.prev[1 - row, idx]  # advanced indexing: a copy
         if name == "path":
             return self.paths[row, idx]
         if name == "goal_heading":
@@ -245,16 +254,27 @@ class LadderCorridor(WorldComponent):
         """With ``clearance: true`` also ``ladder_clearance.walls``: the distance from the
         ladder (a segment of its length through its centre) to the nearest wall, 0 when
         they touch. Off by default: at every step it costs a fifth of an engine run."""
+        if idx.size == 1 and FEW >= 1 and not self.values["clearance"]:
+            return self._sample_one(int(idx[0]))
         a, b = self.tips[0, idx], self.tips[1, idx]
         c = 0.5 * (a + b)
         th = np.arctan2(a[:, 1] - b[:, 1], a[:, 0] - b[:, 0])
-        out = {"ladder": np.column_stack([c, th]), "ladder_offset": self.offset[:, idx].T}
+        pose = np.empty((idx.size, 3))  # np.column_stack's values, without its checks
+        pose[:, :2], pose[:, 2] = c, th
+        out = {"ladder": pose, "ladder_offset": self.offset[:, idx].T}
         if self.values["clearance"]:
             half = 0.5 * self.length[idx, None] * np.column_stack([np.cos(th), np.sin(th)])
             bar = np.hstack([c - half, c + half])
             out["ladder_clearance"] = segment_segment_distances(
                 bar, self.corridor.walls).min(axis=1)[:, None]
         return out
+
+    def _sample_one(self, i: int) -> dict[str, np.ndarray]:
+        """:meth:`sample` of one instance on floats (the same operations, the same bits)."""
+        (ax, ay), (bx, by) = self.tips[:, i].tolist()
+        th = np.arctan2(ay - by, ax - bx)
+        pose = np.array([[0.5 * (ax + bx), 0.5 * (ay + by), th]])
+        return {"ladder": pose, "ladder_offset": np.array([self.offset[:, i].tolist()])}
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),

@@ -1,0 +1,113 @@
+"""The corridor's instant for a few instances on Python floats: ``LadderCorridor.update``'s
+numbers, row by row.
+
+A single run updates one instance at every step, and the array version's ~90 numpy calls
+then cost their dispatch for one number each. This twin does the same IEEE operations in
+the same order (the rules are :mod:`.law_one`'s), keeps the same statistics and calls the
+world (``finish``, ``raise_event``) with the same arguments in the same order, so a run's
+trace has the array version's bits (``tests/test_ladder_law_one.py``). Anyone editing
+``LadderCorridor.update`` or :func:`.kernel.in_corner` must edit this twin too.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .law_one import _max, _min, _norm
+
+if TYPE_CHECKING:
+    from hybridteam.library import WorldAccess
+
+    from .world import LadderCorridor
+
+
+def in_corner(ax: float, ay: float, bx: float, by: float, width_in: float,
+              width_out: float) -> bool:
+    """:func:`.kernel.in_corner` of one ladder."""
+    overlap = (_min(ax, bx) <= 0.0 and _max(ax, bx) >= -width_in
+               and _min(ay, by) <= 0.0 and _max(ay, by) >= -width_out)
+    dx = bx - ax
+    dy = by - ay
+    s = dx * (-0.5 * width_out - ay) - dy * (-0.5 * width_in - ax)
+    return overlap and abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx)
+
+
+def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> None:
+    """``c.update(world, idx)`` for a few instances, on floats."""
+    frame = c.frame
+    o0, o1, a0, a1, b0, b1 = frame.floats
+    poses = [world.pose(a, idx)[:, :2].tolist() for a in c.robots]
+    broken, arrived, stuck = [], [], []
+    for j, i in enumerate(idx.tolist()):
+        pos = [poses[0][j], poses[1][j]]
+        # to_frame: (p - origin) on the axes
+        f = [((p[0] - o0) * a0 + (p[1] - o1) * a1, (p[0] - o0) * b0 + (p[1] - o1) * b1)
+             for p in pos]
+        length = float(c.length[i])
+        tips, no = [], []
+        for r in (0, 1):
+            dx, dy = f[r][0] - f[1 - r][0], f[r][1] - f[1 - r][1]
+            dist = _norm(dx, dy)
+            k = float(c.share[r, i]) * ((length - dist) / dist)
+            ox, oy = k * dx, k * dy
+            no.append(_norm(ox, oy))
+            tips.append((f[r][0] + ox, f[r][1] + oy))
+        for r in (0, 1):  # to_world: the tip on the axes, plus the origin
+            tx, ty = tips[r]
+            c.tips[r, i, 0] = (tx * a0 + ty * b0) + o0
+            c.tips[r, i, 1] = (tx * a1 + ty * b1) + o1
+        _statistics(c, i, pos)
+        c.was_corner[i] = in_corner(*tips[0], *tips[1], frame.width_in, frame.width_out)
+        for r in (0, 1):
+            c.max_offset[r, i] = _max(float(c.max_offset[r, i]), no[r])
+            c.offset[r, i] = no[r]
+        bad = no[0] > float(c.olim[0, i]) or no[1] > float(c.olim[1, i])
+        broken.append(bad)
+        came, stalled = _referee(c, i, pos, bad)
+        arrived.append(came)
+        stuck.append(stalled)
+    _judge(c, world, idx, broken, arrived, stuck)
+
+
+def _statistics(c: LadderCorridor, i: int, pos: list) -> None:
+    """Path lengths and step counts of the step that led here; ``prev`` becomes ``pos``."""
+    prev = c.prev[:, i].tolist()
+    if not math.isnan(prev[0][0]):
+        corner = bool(c.was_corner[i])
+        for r in (0, 1):
+            dist = _norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
+            c.path[r, i] += dist
+            c.corner_path[r, i] += dist if corner else 0.0
+        c.steps[i] += 1
+        c.corner_steps[i] += corner
+    c.prev[:, i] = pos
+
+
+def _referee(c: LadderCorridor, i: int, pos: list, bad: bool) -> tuple[bool, bool]:
+    """Progress toward the goals: (arrived, stuck) of instance ``i``."""
+    d = [_norm(float(c.goal[r, i, 0]) - pos[r][0], float(c.goal[r, i, 1]) - pos[r][1])
+         for r in (0, 1)]
+    progress = d[0] + d[1]
+    step = int(c.steps[i])
+    if progress < float(c.best[i]) - float(c.values["stuck_tol"][i]):
+        c.best[i] = progress
+        c.improved_at[i] = step
+    tol = float(c.values["arrive_tol"][i])
+    came = d[0] <= tol and d[1] <= tol and not bad
+    stalled = (not bad and not came
+               and int(c.improved_at[i]) <= step - float(c.values["stuck_window"][i]))
+    return came, stalled
+
+
+def _judge(c: LadderCorridor, world: WorldAccess, idx: np.ndarray, broken: list,
+           arrived: list, stuck: list) -> None:
+    """The world calls of the array version, in its order: broken links, then events."""
+    if any(broken):
+        c.fail(world, idx[np.array(broken)])
+    for event, mask in (("arrived", arrived), ("stuck", stuck)):
+        if any(mask):
+            for a in c.robots:
+                world.raise_event(idx[np.array(mask)], a, event)
