@@ -27,11 +27,9 @@ def carry(ctx: LawContext) -> np.ndarray:
     """Target, rotation and correction vectors, clamped, then the wall rules (Sec. 3.2)."""
     table = ctx.table(ROBOT)
     window = int(ctx["window"][0]) if ctx.size else 16
-    frame = ctx.sense("frame")
+    partner, length, sc_partner, frame, correction = ctx.sense("period")
     path, guide = _guide(ctx, frame, window)
-    own, partner = ctx.state[:, :2], ctx.sense("partner")
-    length, sc_partner = ctx.sense("length"), ctx.sense("sc_partner")
-    correction = ctx.sense("correction")
+    own = ctx.state[:, :2]
     idx = ctx.recall("nearest", 0.0).astype(np.int64)
     u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
     if 0 < ctx.size <= FEW:

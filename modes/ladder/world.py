@@ -13,8 +13,10 @@ instant it
    lengths in total and in the corner, the largest offsets.
 
 What a robot may sense (``ctx.sense``): ``partner`` (the other end's robot, as the ladder
-tells it), ``path`` (its guide path), ``goal_heading``, ``length``, ``sc_partner`` and the
-``corridor`` map. Guide paths are built once, at the start, from the robots' initial
+tells it), ``path`` (its guide path), ``goal_heading``, ``length``, ``sc_partner``, the
+``corridor`` map, its ``frame`` and the ``correction`` reading; ``period`` is the tuple
+``(partner, length, sc_partner, frame, correction)``, what the law reads at every period,
+in one call. Guide paths are built once, at the start, from the robots' initial
 positions, their ``alpha`` parameters and the goals this component places (``goal_gap``
 before the exit on the centre line, the rear robot one ladder length behind).
 
@@ -216,12 +218,15 @@ class LadderCorridor(WorldComponent):
     # ------------------------------------------------------------------ what robots sense
     def senses(self) -> tuple[str, ...]:
         return ("partner", "path", "goal_heading", "length", "sc_partner", "corridor",
-                "frame", "correction")
+                "frame", "correction", "period")
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> Any:
         if agent not in self.robots:
             raise KeyError(f"ladder.corridor: agent {agent} does not hold the ladder")
         row = self.robots.index(agent)
+        if name == "period":  # what the law reads at every period, in one call
+            return (self.prev[1 - row, idx], self.length[idx], self.sc[1 - row, idx],
+                    self.frame, self.correction)
         if name == "partner":
             return self.prev[1 - row, idx]  # advanced indexing: a copy
         if name == "path":
