@@ -75,6 +75,10 @@ class Simulator:
                             for ca in cteam.agents)
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
+        #: the world's series the last instant's snapshot took: ``(idx, values)``. The
+        #: samples recorded right after it, at the same time and before any world update,
+        #: read the same values (a clearance series costs as much as the rest of a run).
+        self._world_snapshot: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
@@ -144,7 +148,9 @@ class Simulator:
             ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
             ens.rec.snapshot(idx, ens.t[idx], {variables_key(st.ca.name): st.v[idx]
                                                for st in ens.states if st.v.shape[1]})
-            ens.rec.snapshot(idx, ens.t[idx], ens.world.sample(idx))
+            world = ens.world.sample(idx)
+            ens.rec.snapshot(idx, ens.t[idx], world)
+            self._world_snapshot = (idx, world)
         live = idx[~ens.done[idx]]
         # (with every instance live, whole-array masks instead of gathers: same indices)
         whole = live.size == ens.n
@@ -369,6 +375,7 @@ class Simulator:
 
     def _record_samples(self, idx: np.ndarray) -> None:
         ens = self.ensemble
+        taken, self._world_snapshot = self._world_snapshot, None
         due = where_true(ens.t >= ens.next_out) if idx.size == ens.n else \
             idx[ens.t[idx] >= ens.next_out[idx]]
         if due.size == 0:
@@ -376,7 +383,9 @@ class Simulator:
         k = ens.out_k[due]
         for st in ens.states:
             ens.rec.sample(k, due, st.ca.name, st.x[due])
-        for name, values in ens.world.sample(due).items():
+        world = taken[1] if taken is not None and taken[0].shape == due.shape \
+            and every(taken[0] == due) else ens.world.sample(due)
+        for name, values in world.items():
             ens.rec.sample(k, due, name, values)
         ens.out_k[due] += 1
         ens.next_out[due] = ens.sample_after[ens.out_k[due]]
