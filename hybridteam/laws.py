@@ -37,8 +37,9 @@ class LawContext:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
         the law first reads each (a law reads some of them in some modes, and each is
         evaluated at most once per call). ``tables``: where :meth:`table` keeps the
-        columns of the names it was asked for, kept by the caller from one call to the
-        next (the names' meaning is fixed for a binding)."""
+        columns of the names it was asked for, and constant binding parameters their
+        values, kept by the caller from one call to the next (the names' meaning is fixed
+        for a binding)."""
         self._ctx, self._params, self.agent, self.inputs = ctx, params, agent, inputs
         self._xnames, self._vnames, self._pnames = state_names, var_names, param_names
         self._values: dict[str, np.ndarray] = {}
@@ -65,7 +66,7 @@ class LawContext:
         """A binding parameter, state component, agent parameter or variable, by name."""
         if name in self._params:
             if name not in self._values:
-                self._values[name] = spread(self._params[name](self._ctx), (self.size,))
+                self._values[name] = self._binding(name)
             return self._values[name]
         if name in self._xnames:
             return self._ctx.x[:, self._xnames[name]]
@@ -92,6 +93,19 @@ class LawContext:
         for j, n in enumerate(names):
             out[:, j] = self[n]
         return out
+
+    def _binding(self, name: str) -> np.ndarray:
+        """Binding parameter ``name``'s values. One that reads no name (a number, the
+        law's default) is the same read-only array at every call of this size, kept with
+        the binding's tables under ``(name, size)``."""
+        expr = self._params[name]
+        if getattr(expr, "names", None) != frozenset():
+            return spread(expr(self._ctx), (self.size,))
+        key = (name, self.size)
+        kept = self._tables.get(key)
+        if kept is None:
+            kept = self._tables[key] = spread(expr(self._ctx), (self.size,))
+        return kept
 
     def _columns(self, names: tuple[str, ...]) -> np.ndarray | None:
         """The parameter columns of ``names`` if every one is an agent parameter that no

@@ -280,3 +280,31 @@ def test_a_table_of_names_is_their_columns_with_item_precedence():
     assert tables[("a", "x", "mode_v", "b")] is None
     with pytest.raises(KeyError, match="unknown name 'nope'"):
         law_ctx({}).table(("a", "nope"))
+
+
+def test_a_constant_binding_parameter_is_evaluated_once_per_size():
+    """A binding parameter reading no name (``window: 16``) has the same values at every
+    call: the binding keeps them (read-only) per size; one reading a name is evaluated at
+    every call, from that call's rows."""
+    from hybridteam.engine.compiled import Ctx
+    from hybridteam.expr.compiler import compile_expression
+
+    calls = []
+    symbols = {"a": lambda c: c.p[:, 0]}
+    const = compile_expression("2 * 8", {})
+    varying = compile_expression("a + 1", symbols)
+    counted = {"window": lambda c: calls.append(1) or const(c)}
+    tables: dict = {}
+    for rows in ([[1.0]], [[2.0]], [[3.0], [4.0]]):
+        p = np.array(rows)
+        ctx = Ctx(np.zeros((len(rows), 2)), np.zeros((len(rows), 0)), p, np.zeros(len(rows)))
+        law_ctx = laws.LawContext(ctx, {"window": const, "shift": varying}, "r", {}, {},
+                                  {"a": 0}, (), tables)
+        assert law_ctx["window"].tolist() == [16.0] * len(rows)
+        assert not law_ctx["window"].flags.writeable
+        assert law_ctx["shift"].tolist() == [r[0] + 1 for r in rows]
+    assert set(tables) == {("window", 1), ("window", 2)}
+    # a callable without recorded names (a plain function) is evaluated at every call
+    for _ in range(2):
+        laws.LawContext(ctx, counted, "r", {}, {}, {"a": 0}, (), tables)["window"]
+    assert len(calls) == 2
