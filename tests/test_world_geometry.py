@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
 from hybridteam.world import (
@@ -198,3 +200,24 @@ def test_longest_ladder_equal_widths_is_two_root_two():
     assert longest_ladder(200, 200, 28) == pytest.approx(486.489, abs=1e-3)
     with pytest.raises(ValueError):
         longest_ladder(200, 200, 101)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(1, 4), st.integers(1, 6), st.integers(0, 2**32 - 1))
+def test_segment_distances_are_each_ends_own(n, m, seed):
+    """segment_segment_distances casts each set's ends against the other set in one call;
+    every distance must be the one :func:`point_segment_distances` gives that end alone
+    (bit for bit, degenerate segments, shared and zero coordinates included)."""
+    rng = np.random.default_rng(seed)
+    pts = np.round(rng.uniform(-3, 3, (n + m, 4)), 1)  # shared coordinates are likely
+    pts[rng.random(pts.shape) < 0.2] = 0.0
+    a, b = pts[:n].copy(), pts[n:].copy()
+    if seed % 3 == 0:
+        a[0, 2:] = a[0, :2]  # a degenerate segment
+    got = segment_segment_distances(a, b)
+    ends = [point_segment_distances(a[:, 0:2], b)[0], point_segment_distances(a[:, 2:4], b)[0],
+            point_segment_distances(b[:, 0:2], a)[0].T,
+            point_segment_distances(b[:, 2:4], a)[0].T]
+    dist = np.minimum(np.minimum(ends[0], ends[1]), np.minimum(ends[2], ends[3]))
+    expected = np.where(segments_intersect(a, b), 0.0, dist)
+    assert got.tobytes() == expected.tobytes()

@@ -50,8 +50,15 @@ def point_segment_distances(points: np.ndarray, segments: np.ndarray
     The closest point is the projection clamped to the segment; a degenerate segment
     (both ends equal) is treated as a point.
     """
-    p = np.asarray(points, dtype=float).reshape(-1, 2)
-    seg = as_segments(segments)
+    dist, cx, cy = _closest(np.asarray(points, dtype=float).reshape(-1, 2),
+                            as_segments(segments))
+    return dist, np.stack([cx, cy], axis=-1)
+
+
+def _closest(p: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`point_segment_distances` of float points ``(n, 2)`` and segments ``(m, 4)``:
+    distances and the closest points' coordinates, each ``(n, m)``. Elementwise, so a
+    point's distances are the same whichever other points are given with it."""
     ax, ay = seg[:, 0], seg[:, 1]
     dx, dy = seg[:, 2] - ax, seg[:, 3] - ay
     dd = dx * dx + dy * dy
@@ -64,7 +71,7 @@ def point_segment_distances(points: np.ndarray, segments: np.ndarray
     cy = ay + t * dy
     ex = p[:, 0:1] - cx
     ey = p[:, 1:2] - cy
-    return np.sqrt(ex * ex + ey * ey), np.stack([cx, cy], axis=-1)
+    return np.sqrt(ex * ex + ey * ey), cx, cy
 
 
 def point_segment_distance(points: np.ndarray, segments: np.ndarray
@@ -122,11 +129,12 @@ def segment_segment_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     a = as_segments(a)
     b = as_segments(b)
-    da0, _ = point_segment_distances(a[:, 0:2], b)
-    da1, _ = point_segment_distances(a[:, 2:4], b)
-    db0, _ = point_segment_distances(b[:, 0:2], a)
-    db1, _ = point_segment_distances(b[:, 2:4], a)
-    dist = np.minimum(np.minimum(da0, da1), np.minimum(db0.T, db1.T))
+    n, m = len(a), len(b)
+    # each segment's two ends against the other set, in one call per side (elementwise:
+    # the distances :func:`point_segment_distances` gives each end alone)
+    da = _closest(np.concatenate([a[:, 0:2], a[:, 2:4]]), b)[0]
+    db = _closest(np.concatenate([b[:, 0:2], b[:, 2:4]]), a)[0]
+    dist = np.minimum(np.minimum(da[:n], da[n:]), np.minimum(db[:m].T, db[m:].T))
     return np.where(segments_intersect(a, b), 0.0, dist)
 
 

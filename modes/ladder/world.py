@@ -258,7 +258,8 @@ class LadderCorridor(WorldComponent):
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
         """With ``clearance: true`` also ``ladder_clearance.walls``: the distance from the
         ladder (a segment of its length through its centre) to the nearest wall, 0 when
-        they touch. Off by default: at every step it costs a fifth of an engine run."""
+        they touch. Off by default: at every step it costs more than the rest of an
+        engine run."""
         if idx.size == 1 and FEW >= 1 and not self.values["clearance"]:
             return self._sample_one(int(idx[0]))
         a, b = self.tips[0, idx], self.tips[1, idx]
