@@ -136,3 +136,37 @@ def test_engine_runs_are_the_same_without_the_twins(tmp_path, monkeypatch, case)
         assert outcomes == ["ok", "stuck", "link_broken"]
     elif case == "sample":
         assert outcomes == ["success"]
+
+
+def test_the_corridor_twin_declines_coinciding_robots_and_changes_nothing():
+    """Two robots at one point make the springs' equilibrium divide by zero: numpy gives
+    inf and NaN, floats would raise. The twin then returns False before writing anything,
+    and the array version runs (a run cannot start that way: see the next test)."""
+    from hybridteam.modes.ladder.world_one import update_few
+
+    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.simulator import Simulator
+
+    sim = Simulator(compile_team(load(SAMPLE)), duration=1.0)
+    sim._initialize()
+    corridor = sim.ensemble.world.components[0]
+    before = {k: getattr(corridor, k).copy() for k in ("tips", "prev", "steps", "path")}
+
+    class Together:
+        def pose(self, a, idx):
+            return np.array([[100.0, 70.0, 0.0]])
+
+    assert update_few(corridor, Together(), np.array([0])) is False
+    for k, v in before.items():
+        assert getattr(corridor, k).tobytes() == v.tobytes(), k
+
+
+def test_robots_starting_at_one_point_are_refused_at_the_corridor(tmp_path, capsys):
+    from hybridteam.cli import main
+    path = tmp_path / "together.yaml"
+    path.write_text(SAMPLE.read_text().replace("y: start_gap + length", "y: start_gap"))
+    assert main(["run", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "together.yaml:14:" in err and "world[0]" in err
+    assert "start at the same point (100, 70)" in err
+    assert not (tmp_path / "out").exists()

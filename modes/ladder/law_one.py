@@ -49,7 +49,18 @@ def _norm(x: float, y: float) -> float:
     return math.sqrt(x * x + y * y)
 
 
-def _to_frame(frame: CornerFrame, x: float, y: float) -> tuple[float, float]:
+def spring_offsets(x: float, y: float, px: float, py: float, length: float,
+                   share: float) -> tuple[float, float, float]:
+    """:func:`.law.spring_offsets` of one robot: its offset ``o`` and the robots' distance.
+    Raises ZeroDivisionError where the robots coincide (numpy gives inf and NaN)."""
+    dx = x - px
+    dy = y - py
+    dist = _norm(dx, dy)
+    f = share * ((length - dist) / dist)
+    return f * dx, f * dy, dist
+
+
+def to_frame(frame: CornerFrame, x: float, y: float) -> tuple[float, float]:
     """:meth:`.CornerFrame.to_frame` of one point."""
     o0, o1, a0, a1, b0, b1 = frame.floats
     vx, vy = x - o0, y - o1
@@ -80,20 +91,13 @@ def step_one(own: tuple[float, float], partner: tuple[float, float], guide: Guid
 
 
 def _step(own, partner, guide, row, idx, p, frame, window, correction):
-    x, y = _to_frame(frame, *own)
-    px, py = _to_frame(frame, *partner)
+    x, y = to_frame(frame, *own)
+    px, py = to_frame(frame, *partner)
     sc, scp, length = p["sc"], p["sc_partner"], p["length"]
     share = scp / (sc + scp)
     pshare = sc / (sc + scp)
-    # spring_offsets, both ways (the partner's distance is the same number)
-    dx, dy = x - px, y - py
-    dist = _norm(dx, dy)
-    f = share * ((length - dist) / dist)
-    ox, oy = f * dx, f * dy
-    qx, qy = px - x, py - y
-    pdist = _norm(qx, qy)
-    f = pshare * ((length - pdist) / pdist)
-    pox, poy = f * qx, f * qy
+    ox, oy, dist = spring_offsets(x, y, px, py, length, share)
+    pox, poy, _ = spring_offsets(px, py, x, y, length, pshare)
     v_max = p["v_max"]
     if not abs(p["lookahead"]) < 2.0 ** 63:  # astype(np.int64) has no number for it
         raise ValueError("lookahead out of the int64 range")

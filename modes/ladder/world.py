@@ -114,6 +114,13 @@ class LadderCorridor(WorldComponent):
                          self.corridor.leg_point("out", v["goal_gap"] + length)])  # (2, n, 2)
         everyone = np.arange(n)
         start = np.stack([world.pose(a, everyone)[:, :2] for a in self.robots])
+        same = np.flatnonzero((start[0] == start[1]).all(axis=1))
+        if same.size:  # the springs' equilibrium divides by the robots' distance
+            i = int(same[0])
+            raise ValueError(f"ladder.corridor: the front and rear robots ('{v['front']}', "
+                             f"'{v['rear']}') start at the same point "
+                             f"({start[0, i, 0]:g}, {start[0, i, 1]:g}) in instance {i}: the "
+                             "ladder between them has no direction")
         param = self._robot_params(world)
         self.paths = np.stack([
             guide_paths(self.corridor, start[r], goal[r], param["alpha"][r],
@@ -155,8 +162,8 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
-        if idx.size <= FEW:  # a single run's instant: on floats, the same bits
-            return update_few(self, world, idx)
+        if idx.size <= FEW and update_few(self, world, idx):
+            return  # a single run's instant: on floats, the same bits
         pos = np.empty((len(self.robots), idx.size, 2))                      # (2, m, 2)
         for r, a in enumerate(self.robots):
             pos[r] = world.pose(a, idx)[:, :2]

@@ -3,10 +3,12 @@ numbers, row by row.
 
 A single run updates one instance at every step, and the array version's ~90 numpy calls
 then cost their dispatch for one number each. This twin does the same IEEE operations in
-the same order (the rules are :mod:`.law_one`'s), keeps the same statistics and calls the
-world (``finish``, ``raise_event``) with the same arguments in the same order, so a run's
-trace has the array version's bits (``tests/test_ladder_law_one.py``). Anyone editing
-``LadderCorridor.update`` or :func:`.kernel.in_corner` must edit this twin too.
+the same order (the rules and the one-row helpers are :mod:`.law_one`'s), keeps the same
+statistics and calls the world (``finish``, ``raise_event``) with the same arguments in
+the same order, so a run's trace has the array version's bits
+(``tests/test_ladder_law_one.py``). Where two robots coincide it declines, and the array
+version runs. Anyone editing ``LadderCorridor.update`` or :func:`.kernel.in_corner` must
+edit this twin too.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .law_one import _max, _min, _norm
+from .law_one import _max, _min, _norm, spring_offsets, to_frame, to_world_vector
 
 if TYPE_CHECKING:
     from hybridteam.library import WorldAccess
@@ -35,30 +37,32 @@ def in_corner(ax: float, ay: float, bx: float, by: float, width_in: float,
     return overlap and abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx)
 
 
-def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> None:
-    """``c.update(world, idx)`` for a few instances, on floats."""
+def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:
+    """``c.update(world, idx)`` for a few instances, on floats. Returns False, having
+    changed nothing, where two robots coincide (numpy's inf and NaN offsets, which floats
+    would raise on): the caller then takes the array version."""
     frame = c.frame
-    o0, o1, a0, a1, b0, b1 = frame.floats
     poses = [world.pose(a, idx)[:, :2].tolist() for a in c.robots]
+    rows = []
+    try:  # every row's ladder first, so that nothing is written if one cannot be had
+        for j, i in enumerate(idx.tolist()):
+            pos = [poses[0][j], poses[1][j]]
+            f = [to_frame(frame, *p) for p in pos]
+            length = float(c.length[i])
+            tips, no = [], []
+            for r in (0, 1):
+                ox, oy, _ = spring_offsets(*f[r], *f[1 - r], length, float(c.share[r, i]))
+                no.append(_norm(ox, oy))
+                tips.append((f[r][0] + ox, f[r][1] + oy))
+            rows.append((i, pos, tips, no))
+    except ZeroDivisionError:
+        return False
+    o0, o1 = frame.floats[:2]
     broken, arrived, stuck = [], [], []
-    for j, i in enumerate(idx.tolist()):
-        pos = [poses[0][j], poses[1][j]]
-        # to_frame: (p - origin) on the axes
-        f = [((p[0] - o0) * a0 + (p[1] - o1) * a1, (p[0] - o0) * b0 + (p[1] - o1) * b1)
-             for p in pos]
-        length = float(c.length[i])
-        tips, no = [], []
-        for r in (0, 1):
-            dx, dy = f[r][0] - f[1 - r][0], f[r][1] - f[1 - r][1]
-            dist = _norm(dx, dy)
-            k = float(c.share[r, i]) * ((length - dist) / dist)
-            ox, oy = k * dx, k * dy
-            no.append(_norm(ox, oy))
-            tips.append((f[r][0] + ox, f[r][1] + oy))
+    for i, pos, tips, no in rows:
         for r in (0, 1):  # to_world: the tip on the axes, plus the origin
-            tx, ty = tips[r]
-            c.tips[r, i, 0] = (tx * a0 + ty * b0) + o0
-            c.tips[r, i, 1] = (tx * a1 + ty * b1) + o1
+            tx, ty = to_world_vector(frame, *tips[r])
+            c.tips[r, i, 0], c.tips[r, i, 1] = tx + o0, ty + o1
         _statistics(c, i, pos)
         c.was_corner[i] = in_corner(*tips[0], *tips[1], frame.width_in, frame.width_out)
         for r in (0, 1):
@@ -70,6 +74,7 @@ def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> None:
         arrived.append(came)
         stuck.append(stalled)
     _judge(c, world, idx, broken, arrived, stuck)
+    return True
 
 
 def _statistics(c: LadderCorridor, i: int, pos: list) -> None:
