@@ -139,7 +139,8 @@ class Obstacles(WorldComponent):
         return self.rings.setdefault((a, sensor), preset.ring(sensor))
 
     def read(self, a: int, ring: RangeRing, idx: np.ndarray,
-             reach: np.ndarray | None = None, beams: np.ndarray | None = None) -> np.ndarray:
+             reach: np.ndarray | None = None, beams: np.ndarray | None = None,
+             horizon: float | None = None) -> np.ndarray:
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
         every payload's outline: ``(m, count)``, or ``(m, len(beams))`` for those beams only
         (each ray is cast on its own: a beam reads the same whichever others are cast).
@@ -148,6 +149,9 @@ class Obstacles(WorldComponent):
         static obstacle (this instant's clearances), no ray can meet one within the ring's
         range (a ray leaves the ring's mount circle), so those rows read ``max_range`` from
         the static scene without casting — what the cast would give, since it clips there.
+        ``horizon`` (below ``max_range``) moves that bound nearer, for a reader that only
+        asks whether a beam reads below it (the detect rules): rows whose static obstacles
+        are all beyond it read as if there were none, which answers that question alike.
         """
         poses = self._poses(a, idx)
         origins, directions = ring.rays(poses)
@@ -158,7 +162,8 @@ class Obstacles(WorldComponent):
         near = None
         if reach is not None:
             slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)
-            near = reach - ring.mount_radius <= ring.max_range + slack
+            far = ring.max_range if horizon is None else min(horizon, ring.max_range)
+            near = reach - ring.mount_radius <= far + slack
         if near is None or every(near):
             dist = cast_at(origins, directions, self.targets, ring.max_range)
         else:
@@ -207,7 +212,9 @@ class Obstacles(WorldComponent):
         may see something: ``(readings, rows)``, rows None for all of ``idx``. Where the
         :meth:`floor` is at least every rule's threshold no rule can fire, and what a cast
         would give is not needed (most of experiment 3's sonar instants: the Scout is far
-        from everything)."""
+        from everything). Elsewhere the static obstacles are cast against only where one is
+        within that threshold (``horizon``): a carried box keeps the floor low, but the
+        robot is mostly far from every static obstacle (experiment 2's XR4000)."""
         a, ring = key[0], self.rings[key]
         if reach is not None:
             may = self.floor(a, ring, idx, reach) < self.below[key]
@@ -215,8 +222,9 @@ class Obstacles(WorldComponent):
                 rows = where_true(may)
                 if rows.size == 0:
                     return np.empty((0, self.read_beams[key].size)), rows
-                return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key]), rows
-        return self.read(a, ring, idx, reach, self.read_beams[key]), None
+                return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key],
+                                 self.below[key]), rows
+        return self.read(a, ring, idx, reach, self.read_beams[key], self.below[key]), None
 
     def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
               ) -> np.ndarray:
