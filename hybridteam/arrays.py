@@ -67,6 +67,17 @@ def where_true(a: np.ndarray) -> np.ndarray:
     return a.nonzero()[0]
 
 
+def gather(a: np.ndarray, idx: np.ndarray | slice) -> np.ndarray:
+    """``a[idx]`` along the first axis, for an integer index array or a slice (not a mask).
+
+    For an index array this is ``a.take(idx, 0)``: the same copy, but numpy 2 sets up a
+    general index iterator for ``a[idx]`` on an array of two or more dimensions, which
+    costs four times as much (2.4 against 0.6 µs for one row; 14 against 3 µs for 500
+    rows of five). A slice gives the view ``a[idx]`` gives.
+    """
+    return a[idx] if isinstance(idx, slice) else a.take(idx, 0)
+
+
 def filled(size: int | tuple[int, ...], value: float, dtype: type = float) -> np.ndarray:
     """A new array of ``size`` (a length or a shape) copies of ``value``: ``np.full``,
     without its wrapper."""

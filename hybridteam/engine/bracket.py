@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, filled, some, spread, where_true
+from hybridteam.arrays import every, filled, gather, some, spread, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.drivers import derivative
@@ -31,7 +31,7 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     invariant false) at states ``x`` and times ``t`` of instances ``sub``: where a flip of
     the atom there can matter."""
     watch = st.ca.watches[w]
-    ctx = Ctx(x, st.v[sub], st.p[sub], t, t - st.entry[sub, watch.mode])
+    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - gather(st.entry[:, watch.mode], sub))
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
 
@@ -64,9 +64,9 @@ class Segment:
         st, sub = self.st, self.idx[rows]
         watch = st.ca.watches[w]
         atom, plant = watch.atom, st.ca.plant
-        x0, u = self.step.x0[rows], self.step.u[rows]
-        v, p, t0 = st.v[sub], st.p[sub], self.t0[rows]
-        entry = st.entry[sub, watch.mode]
+        x0, u = gather(self.step.x0, rows), gather(self.step.u, rows)
+        v, p, t0 = gather(st.v, sub), gather(st.p, sub), self.t0[rows]
+        entry = gather(st.entry[:, watch.mode], sub)
         is_rk = self.step.rk[rows]
         any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, filled, some, where_true
+from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.engine.bracket import Segment, owner_matters
 from hybridteam.engine.compiled import Ctx
 from hybridteam.engine.step import AgentStep, state_at
@@ -42,13 +42,13 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     st = ens.states[a]
     out = np.empty((len(st.ca.watches), idx.size), bool)
     sel = slice(None) if full else idx
-    v, p = st.v[sel], st.p[sel]
+    v, p = gather(st.v, sel), gather(st.p, sel)
     ctx: Ctx | None = None
     mode = -1
     for w, watch in enumerate(st.ca.watches):
         if watch.mode != mode:
             mode = watch.mode
-            ctx = Ctx(x, v, p, t, t - st.entry[sel, mode])
+            ctx = Ctx(x, v, p, t, t - gather(st.entry[:, mode], sel))
         out[w] = watch.atom.truth(ctx)  # assignment broadcasts scalars
     return out
 

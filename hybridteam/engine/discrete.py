@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import some, spread, where_true
+from hybridteam.arrays import gather, some, spread, where_true
 from hybridteam.engine.compiled import REPLY
 from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
 from hybridteam.engine.values import require
@@ -113,13 +113,13 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
     enabled: dict[int, np.ndarray] = {}
     # one gather says which candidates' sources are active anywhere, so the loop below
     # visits only those (most of an agent's transitions leave modes it is not in)
-    act = st.active[idx][:, ag.transition_sources[candidates]]
+    act = gather(st.active, idx).take(ag.transition_sources[candidates], 1)
     for c in where_true(np.logical_or.reduce(act, axis=0)).tolist():
         j = candidates[c]
         tr = ag.transitions[j]
         e = act[:, c].copy()
         if tr.after is not None:
-            e &= t >= st.deadline[idx, tr.after_slot]
+            e &= t >= gather(st.deadline[:, tr.after_slot], idx)
         if tr.guard is not None and some(e):
             sub = idx[e]
             ctx = st.ctx(sub, ens.t[sub], tr.source, _rows(msg, where_true(e)))

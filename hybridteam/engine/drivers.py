@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import distinct, every, some, where_true
+from hybridteam.arrays import distinct, every, gather, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
@@ -68,7 +68,7 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     ca, plant = st.ca, st.ca.plant
     fixed_names = ca.var_index.keys() | ca.param_index.keys()  # constant over a step
     drv = st.driver[idx]
-    v, p, entry = st.v[idx], st.p[idx], st.entry[idx]
+    v, p, entry = gather(st.v, idx), gather(st.p, idx), gather(st.entry, idx)
     # what does not change from one stage to the next is gathered once, per driver group
     groups = []
     for d in (distinct(drv) if drv.size else []):

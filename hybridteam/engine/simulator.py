@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.arrays import every, some, union, where_true
+from hybridteam.arrays import every, gather, some, union, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
@@ -175,7 +175,8 @@ class Simulator:
                     st.rk[config] = True
             fresh = changed if st.watch_estimates else config
             if st.ca.watches and fresh.size:
-                st.truth[:, fresh] = watch_truth(ens, a, fresh, st.x[fresh], ens.t[fresh])
+                st.truth[:, fresh] = watch_truth(ens, a, fresh, gather(st.x, fresh),
+                                                 ens.t[fresh])
             # changed, not config: a law whose mode was entered at this instant samples
             # again when a copy arrives later in the instant (it may read the copy)
             sample_laws(ens, a, live, changed)
@@ -314,7 +315,8 @@ class Simulator:
                 else:
                     st.truth[:, idx[plain]] = end_truths[a][:, plain]
             if st.ca.watches and moved.size:
-                st.truth[:, moved] = watch_truth(ens, a, moved, st.x[moved], ens.t[moved])
+                st.truth[:, moved] = watch_truth(ens, a, moved, gather(st.x, moved),
+                                                 ens.t[moved])
         events = idx[at | tick]
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
@@ -382,7 +384,7 @@ class Simulator:
             return
         k = ens.out_k[due]
         for st in ens.states:
-            ens.rec.sample(k, due, st.ca.name, st.x[due])
+            ens.rec.sample(k, due, st.ca.name, gather(st.x, due))
         world = taken[1] if taken is not None and taken[0].shape == due.shape \
             and every(taken[0] == due) else ens.world.sample(due)
         for name, values in world.items():

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every
+from hybridteam.arrays import every, gather
 from hybridteam.engine.compiled import CAgent, Ctx
 from hybridteam.engine.values import require
 from hybridteam.engine.world import AgentView
@@ -61,16 +61,22 @@ class AgentState:
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
+        #: every instance's index, read-only: what a law's world view gives as its
+        #: instances when it runs on all of them (most ticks), without building it
+        self.everyone = np.arange(n)
+        self.everyone.flags.writeable = False
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
             m: dict[str, np.ndarray] | None = None, law: bool = False) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted);
         with the agent's world view only for a ``law`` (no expression reads one)."""
-        t_in = t - self.entry[idx, owner] if owner is not None and owner >= 0 else t
+        t_in = t - gather(self.entry[:, owner], idx) if owner is not None and owner >= 0 \
+            else t
         e = self.inbox.view(idx) if self.inbox is not None else None
-        w = AgentView(self.world, self.ca.index, idx, self.memory, self.x.shape[0]) \
+        w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) \
             if law else None
-        return Ctx(self.x[idx], self.v[idx], self.p[idx], t, t_in, m, e, w)
+        return Ctx(gather(self.x, idx), gather(self.v, idx), gather(self.p, idx), t, t_in, m,
+                   e, w)
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:

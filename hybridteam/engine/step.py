@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, filled, some, where_true
+from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.drivers import derivative
 
@@ -51,7 +51,7 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     them: a slice when all are live), and its step record; RK error estimates are folded
     into ``err`` (the largest over agents decides acceptance; NaN counts as largest)."""
     st = ens.states[a]
-    x0, u, is_rk = st.x[sel], st.u[sel], st.rk[sel]
+    x0, u, is_rk = gather(st.x, sel), gather(st.u, sel), st.rk[sel]
     step = AgentStep(x0, u, is_rk)
     if not some(is_rk):
         return st.ca.plant.propagate(x0, u, h), step
@@ -89,7 +89,7 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
     is_rk = step.rk[rows]
     if dense and every(is_rk):  # every row flows (a flow mode's search): no sorting out
         return _dense(step, rows, tau)
-    x0, u = step.x0[rows], step.u[rows]
+    x0, u = gather(step.x0, rows), gather(step.u, rows)
     plant = ens.states[a].ca.plant
     if not some(is_rk):
         return plant.propagate(x0, u, tau)

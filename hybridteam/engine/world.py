@@ -180,18 +180,23 @@ class World:
 class AgentView:
     """One agent's window on the world and its law memory, for instances ``idx``."""
 
-    __slots__ = ("_instances", "agent", "idx", "memory", "n", "world")
+    __slots__ = ("_instances", "agent", "everyone", "idx", "memory", "n", "world")
 
     def __init__(self, world: World | None, agent: int, idx: np.ndarray | slice,
-                 memory: dict[str, np.ndarray], n: int) -> None:
-        self.world, self.agent, self.idx, self.memory, self.n = world, agent, idx, memory, n
+                 memory: dict[str, np.ndarray], everyone: np.ndarray) -> None:
+        """``everyone``: every instance's index (read-only), the agent state's."""
+        self.world, self.agent, self.idx, self.memory = world, agent, idx, memory
+        self.everyone, self.n = everyone, everyone.size
         self._instances: np.ndarray | None = None
 
     def instances(self) -> np.ndarray:
         """The instances' indices (computed once: a law senses several things a tick)."""
         if self._instances is None:
-            self._instances = np.arange(self.n)[self.idx] if isinstance(self.idx, slice) \
-                else np.asarray(self.idx, np.intp)
+            idx = self.idx
+            if isinstance(idx, slice):  # (a view: everyone is read-only)
+                self._instances = self.everyone[idx]
+            else:
+                self._instances = np.asarray(idx, np.intp)
         return self._instances
 
     def sense(self, name: str) -> np.ndarray:

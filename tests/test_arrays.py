@@ -1,0 +1,39 @@
+"""The engine's array helpers give what the numpy expressions they stand for give."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hybridteam.arrays import gather
+
+
+@settings(max_examples=150, deadline=None)
+@given(n=st.integers(1, 40), width=st.integers(0, 4), depth=st.integers(1, 3),
+       picks=st.lists(st.integers(-40, 39), max_size=30), seed=st.integers(0, 2**32 - 1))
+def test_gather_equals_fancy_indexing(n: int, width: int, depth: int, picks: list[int],
+                                      seed: int) -> None:
+    shape = (n,) + (width,) * (depth - 1)
+    a = np.random.default_rng(seed).normal(size=shape)
+    idx = np.array([p % n - (n if p < 0 else 0) for p in picks], np.intp)
+    got = gather(a, idx)
+    want = a[idx]
+    assert got.shape == want.shape and got.dtype == want.dtype
+    assert got.tobytes() == want.tobytes()
+    got[...] = 7.0  # a copy, as fancy indexing gives: the source is untouched
+    assert a[idx].tobytes() == want.tobytes()
+
+
+def test_gather_of_a_slice_is_the_view_basic_indexing_gives() -> None:
+    a = np.arange(12.0).reshape(4, 3)
+    v = gather(a, slice(1, 3))
+    assert np.shares_memory(v, a) and v.tolist() == a[1:3].tolist()
+
+
+def test_gather_reads_strided_columns_and_refuses_rows_out_of_range() -> None:
+    a = np.arange(12.0).reshape(4, 3)
+    assert gather(a[:, 1], np.array([3, 0])).tolist() == [10.0, 1.0]  # strided rows
+    with pytest.raises(IndexError):
+        gather(a, np.array([4]))
