@@ -88,7 +88,7 @@ class LawContext:
         except KeyError:
             cols = self._tables[names] = self._columns(names)
         if cols is not None:
-            return self._ctx.p[:, cols]
+            return self._ctx.p.take(cols, 1)  # p[:, cols], without numpy 2's index iterator
         out = np.empty((self.size, len(names)))
         for j, n in enumerate(names):
             out[:, j] = self[n]

@@ -31,7 +31,7 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     invariant false) at states ``x`` and times ``t`` of instances ``sub``: where a flip of
     the atom there can matter."""
     watch = st.ca.watches[w]
-    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - gather(st.entry[:, watch.mode], sub))
+    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub])
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
 
@@ -66,7 +66,7 @@ class Segment:
         atom, plant = watch.atom, st.ca.plant
         x0, u = gather(self.step.x0, rows), gather(self.step.u, rows)
         v, p, t0 = gather(st.v, sub), gather(st.p, sub), self.t0[rows]
-        entry = gather(st.entry[:, watch.mode], sub)
+        entry = st.entry[:, watch.mode][sub]
         is_rk = self.step.rk[rows]
         any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a

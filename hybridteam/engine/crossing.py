@@ -48,7 +48,7 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     for w, watch in enumerate(st.ca.watches):
         if watch.mode != mode:
             mode = watch.mode
-            ctx = Ctx(x, v, p, t, t - gather(st.entry[:, mode], sel))
+            ctx = Ctx(x, v, p, t, t - st.entry[:, mode][sel])
         out[w] = watch.atom.truth(ctx)  # assignment broadcasts scalars
     return out
 

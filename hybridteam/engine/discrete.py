@@ -119,7 +119,7 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
         tr = ag.transitions[j]
         e = act[:, c].copy()
         if tr.after is not None:
-            e &= t >= gather(st.deadline[:, tr.after_slot], idx)
+            e &= t >= st.deadline[:, tr.after_slot][idx]
         if tr.guard is not None and some(e):
             sub = idx[e]
             ctx = st.ctx(sub, ens.t[sub], tr.source, _rows(msg, where_true(e)))
