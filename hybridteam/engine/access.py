@@ -103,11 +103,11 @@ class EnsembleAccess(WorldAccess):
         x, y, th = cols
         s = self._ens.states[a].x
         if cols == (0, 1, 2):  # a unicycle's or a holonomic base's state: one gather
-            return s[idx, :3]
+            return s.take(idx, 0)[:, :3]  # s[idx, :3] (see arrays.gather)
         if th is not None:
-            return s[idx][:, [x, y, th]]
+            return s.take(idx, 0).take([x, y, th], 1)
         out = np.zeros((len(idx), 3))
-        out[:, 0], out[:, 1] = s[idx, x], s[idx, y]
+        out[:, 0], out[:, 1] = s[:, x][idx], s[:, y][idx]
         return out
 
     def variable_names(self, agent: Agent) -> tuple[str, ...]:
@@ -116,7 +116,7 @@ class EnsembleAccess(WorldAccess):
     def variable(self, agent: Agent, name: str, idx: np.ndarray) -> np.ndarray:
         a = self.agent(agent)
         st = self._ens.states[a]
-        return st.v[idx, self._column(a, st.ca.var_index, name, "variable")]
+        return st.v[:, self._column(a, st.ca.var_index, name, "variable")][idx]
 
     def parameter_names(self, agent: Agent) -> tuple[str, ...]:
         return tuple(self._ens.cteam.agents[self.agent(agent)].param_index)
@@ -125,7 +125,7 @@ class EnsembleAccess(WorldAccess):
         a = self.agent(agent)
         st = self._ens.states[a]
         col = self._column(a, st.ca.param_index, name, "parameter")
-        return st.p[:, col].copy() if idx is None else st.p[idx, col]
+        return st.p[:, col].copy() if idx is None else st.p[:, col][idx]
 
     def _column(self, a: int, index: dict[str, int], name: str, what: str) -> int:
         if name in index:

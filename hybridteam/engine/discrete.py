@@ -156,10 +156,10 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
             kind, col = act.target  # type: ignore[misc]
             value = np.broadcast_to(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
             if kind == "x":
-                st.x[sub, col] = value
+                st.x[:, col][sub] = value
                 ctx.x[:, col] = value
             else:
-                st.v[sub, col] = value
+                st.v[:, col][sub] = value
                 ctx.v[:, col] = value
         elif act.kind == "raise":
             ens.queue.push(sub, ens.t[sub], LOCAL, ag.index, act.name)
@@ -167,11 +167,11 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
             _send(ens, ag, act, sub, ctx, msg)
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
-            st.last[sub, b] = tr.carry_map[st.last[sub, a]]  # type: ignore[index]
+            st.last[:, b][sub] = tr.carry_map[st.last[:, a][sub]]  # type: ignore[index]
         st.enter_path(tr.entry_path, sub, ens.t, deep=bool(tr.carry))
         for b, slot_a, slot_b in tr.carry_timers:
-            on = sub[st.active[sub, b]]
-            st.deadline[on, slot_b] = st.deadline[on, slot_a]
+            on = sub[st.active[:, b][sub]]
+            st.deadline[:, slot_b][on] = st.deadline[:, slot_a][on]
     ens.rec.transition(ag.index, j, sub, ens.t[sub], ens.micro[sub], cause)
     ens.reconfigured[sub] = True
     ens.last_fired[sub] = ag.index * 1_000_000 + j

@@ -75,7 +75,7 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
         D = ca.drivers[d]
         rows = where_true(drv == d)
         sel: slice | np.ndarray = slice(None) if rows.size == drv.size else rows
-        entered = entry[sel, D.owner] if D.owner >= 0 and D.reads_t_in else None
+        entered = entry[:, D.owner][sel] if D.owner >= 0 and D.reads_t_in else None
         v_g, p_g = v[sel], p[sel]
         flows = []  # (column, expression or None, its value where it reads no state or time)
         for j, expr in enumerate(D.flow or ()):

@@ -30,7 +30,7 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
     for st in ens.states:
         ca = st.ca
         for m in ca.invariant_modes:
-            sel = idx[st.active[idx, m.index] & ~ens.done[idx]]
+            sel = idx[st.active[:, m.index][idx] & ~ens.done[idx]]
             if sel.size == 0:
                 continue
             ok = np.broadcast_to(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
@@ -98,7 +98,7 @@ def final_outcomes(ens: Ensemble, idx: np.ndarray) -> dict[str, np.ndarray]:
     for st in (ens.states[a] for a in ens.cteam.ending):
         for m, name in enumerate(st.ca.outcome):
             if name is not None:
-                hit = ~named & st.active[idx, m]
+                hit = ~named & st.active[:, m][idx]
                 kind[hit] = name
                 named |= hit
     return {k: idx[kind == k] for k in dict.fromkeys(kind.tolist())}

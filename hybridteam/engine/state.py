@@ -84,23 +84,23 @@ class AgentState:
         """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time array)."""
         ca = self.ca
         for m in ca.modes[root].subtree:
-            sel = idx[self.active[idx, m]]
+            sel = idx[self.active[:, m][idx]]
             if sel.size == 0:
                 continue
             if m != 0:
-                rec.interval(ca.index, m, sel, self.entry[sel, m], t[sel])
+                rec.interval(ca.index, m, sel, self.entry[:, m][sel], t[sel])
             if ca.modes[m].kind == "or":
-                self.last[sel, m] = self.child[sel, m]
-                self.child[sel, m] = -1
-            self.active[sel, m] = False
+                self.last[:, m][sel] = self.child[:, m][sel]
+                self.child[:, m][sel] = -1
+            self.active[:, m][sel] = False
 
     def activate(self, m: int, idx: np.ndarray, t: np.ndarray) -> None:
         ca = self.ca
-        self.active[idx, m] = True
-        self.entry[idx, m] = t[idx]
+        self.active[:, m][idx] = True
+        self.entry[:, m][idx] = t[idx]
         parent = ca.modes[m].parent
         if parent >= 0 and ca.modes[parent].kind == "or":
-            self.child[idx, parent] = m
+            self.child[:, parent][idx] = m
         for j in ca.modes[m].outgoing:
             tr = ca.transitions[j]
             if tr.after is not None:
@@ -108,7 +108,7 @@ class AgentState:
                 delay = require(np.broadcast_to(tr.after(ctx), idx.shape),
                                 (*tr.origin, "after"), "the delay", tr.after.source, low=0.0,
                                 instances=idx)
-                self.deadline[idx, tr.after_slot] = t[idx] + delay
+                self.deadline[:, tr.after_slot][idx] = t[idx] + delay
 
     def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
         """Complete the entry of an already-activated mode: initial children, or history."""
@@ -126,7 +126,7 @@ class AgentState:
                 self.activate(mode.initial, idx, t)
                 self.enter_default(mode.initial, idx, t, False)
                 return
-            choice = self.last[idx, m]
+            choice = self.last[:, m][idx]
             choice = np.where(choice < 0, mode.initial, choice)
             for c in mode.children:
                 sub = idx[choice == c]
@@ -157,7 +157,7 @@ class AgentState:
         ca = self.ca
         drv = np.zeros(idx.size, np.intp)
         for m in ca.driver_modes:
-            sel = self.active[idx, m] & (drv == 0)
+            sel = self.active[:, m][idx] & (drv == 0)
             drv[sel] = ca.modes[m].driver
         self.driver[idx] = drv
         first = self.driver[0]
@@ -165,7 +165,7 @@ class AgentState:
         needs = np.array([d.needs_rk for d in ca.drivers], bool)
         self.rk[idx] = needs[drv]
         if self.watch_modes.size:
-            self.watched[:, idx] = self.active[np.ix_(idx, self.watch_modes)].T
+            self.watched[:, idx] = self.active.take(idx, 0).take(self.watch_modes, 1).T
 
     def next_timer(self, idx: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Earliest ``after:`` deadline still ahead of ``t`` among active transitions.
@@ -176,8 +176,9 @@ class AgentState:
         if not self.after_slots.size:
             return np.full(idx.size, np.inf)
         # one gather for every ``after:`` transition (not a loop over them)
-        d = self.deadline[idx][:, self.after_slots]
-        live = self.active[idx][:, self.after_sources] & (d > t[:, None])
+        # (take: a[idx][:, cols] without numpy 2's general index iterator, see gather)
+        d = self.deadline.take(idx, 0).take(self.after_slots, 1)
+        live = self.active.take(idx, 0).take(self.after_sources, 1) & (d > t[:, None])
         return np.minimum.reduce(np.where(live, d, np.inf), axis=1)
 
     def leaf_paths(self, i: int) -> list[str]:
