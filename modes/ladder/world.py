@@ -231,21 +231,22 @@ class LadderCorridor(WorldComponent):
         if agent not in self.robots:
             raise KeyError(f"ladder.corridor: agent {agent} does not hold the ladder")
         row = self.robots.index(agent)
-        # (take: the copy a[k, idx] gives; numpy 2's indexing with an integer and an array
-        # costs four times as much)
+        # a robot's row, then its instances: the copy a[k, idx] gives (numpy 2 indexes an
+        # integer and an array together four times slower; take is the faster for rows of
+        # arrays, plain indexing for rows of numbers)
         if name == "period":  # what the law reads at every period, in one call
             return (self.prev[1 - row].take(idx, 0), self.length[idx],
                     self.sc[1 - row][idx], self.frame, self.correction)
         if name == "partner":
             return self.prev[1 - row].take(idx, 0)
         if name == "path":
-            return self.paths[row, idx]
+            return self.paths[row].take(idx, 0)
         if name == "goal_heading":
-            return self.heading[row, idx]
+            return self.heading[row].take(idx, 0)
         if name == "length":
             return self.length[idx]
         if name == "sc_partner":
-            return self.sc[1 - row, idx]
+            return self.sc[1 - row][idx]
         if name == "corridor":
             return self.corridor
         if name == "frame":
