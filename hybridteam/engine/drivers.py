@@ -157,7 +157,8 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
     single = st.single_driver >= 0
     for d in [st.single_driver] if single else distinct(st.driver[due]):
         D = ca.drivers[d]
-        mine = due.copy() if single else due & (st.driver == d)
+        # (a copy only where it may be narrowed below: to the instances just entered)
+        mine = (due if fresh is None else due.copy()) if single else due & (st.driver == d)
         if D.kind == "continuous":
             st.next_tick[mine] = np.inf
             continue

@@ -33,6 +33,7 @@ from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.numerics import step_floor, stop_broken_states, stop_collapsed_steps
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import trace_meta, variables_key
+from hybridteam.engine.schedule import earliest
 from hybridteam.engine.step import AgentStep, state_at, take_step
 from hybridteam.trace import Trace
 
@@ -79,6 +80,11 @@ class Simulator:
         #: samples recorded right after it, at the same time and before any world update,
         #: read the same values (a clearance series costs as much as the rest of a run).
         self._world_snapshot: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
+        #: no instance (a flag per instance, read-only), and no index: what a step where
+        #: nothing flows or crossed has for its flowing rows and its crossed instances
+        self._no_rows = np.zeros(self.ensemble.n, bool)
+        self._no_rows.flags.writeable = False
+        self._no_index = np.empty(0, np.intp)
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
@@ -132,7 +138,12 @@ class Simulator:
         happened (a transition, an event, a located crossing).
         """
         ens = self.ensemble
-        if not entering:
+        # only law ticks or stream copies reached, and no component that could raise an
+        # event or move a state: nothing fires, no mode, variable or state changes, so no
+        # instance is marked changed or reconfigured (their flags are not read)
+        ticks_only = not entering and discrete is not None and discrete.size == 0 \
+            and not ens.world.any
+        if not entering and not ticks_only:
             every_one = slice(None) if idx.size == ens.n else idx  # a slice writes faster
             ens.changed[every_one] = False
             ens.reconfigured[every_one] = False
@@ -151,22 +162,30 @@ class Simulator:
             world = ens.world.sample(idx)
             ens.rec.snapshot(idx, ens.t[idx], world)
             self._world_snapshot = (idx, world)
-        live = idx[~ens.done[idx]]
+        live = idx if not some(ens.done) else idx[~ens.done[idx]]
         # (with every instance live, whole-array masks instead of gathers: same indices)
         whole = live.size == ens.n
-        changed = live if entering else where_true(ens.changed) if whole else \
-            live[ens.changed[live]]
+        # no transition fired and no event was consumed where nothing was due to fire
+        # (``discrete`` is empty): nothing changed there
+        quiet = not entering and discrete.size == 0
+        changed = live if entering else self._no_index if quiet else \
+            where_true(ens.changed) if whole else live[ens.changed[live]]
         # an event consumed without a transition changes no mode, variable or state: what
-        # depends on those is refreshed only where the configuration changed
-        config = live if entering else where_true(ens.reconfigured) if whole else \
-            live[ens.reconfigured[live]]
+        # depends on those is refreshed only where the configuration changed (a component
+        # may have moved a state)
+        config = live if entering else self._no_index if ticks_only else \
+            where_true(ens.reconfigured) if whole else live[ens.reconfigured[live]]
         for a, st in enumerate(ens.states):
             if live.size and st.after_slots.size:
                 # the earliest deadline ahead changes only with the configuration or once
-                # it is reached: elsewhere the stored one is still the earliest ahead
-                due = where_true(ens.t >= ens.timer[a]) if whole else \
-                    live[ens.t[live] >= ens.timer[a][live]]
-                due = union(due, config)
+                # it is reached: elsewhere the stored one is still the earliest ahead (and
+                # where nothing was due to fire, no deadline was reached)
+                if quiet:
+                    due = config
+                else:
+                    due = where_true(ens.t >= ens.timer[a]) if whole else \
+                        live[ens.t[live] >= ens.timer[a][live]]
+                    due = union(due, config)
                 if due.size:
                     ens.timer[a][due] = st.next_timer(due, ens.t[due])
             if config.size:
@@ -194,15 +213,16 @@ class Simulator:
         # with every instance live (the usual case) gathers are views, not copies
         full = idx.size == ens.n
         sel: slice | np.ndarray = slice(None) if full else idx
-        t1, any_rk, limited = self._step_end(full)
-        ens.t0 = ens.t.copy()
+        t1, any_rk, limited, reach = self._step_end(full)
+        ens.t0 = ens.t  # (ens.t is replaced at the step's end, never written in place)
         ens.h = t1 - ens.t
         h = ens.h[sel]
-        err = np.zeros(idx.size)
+        err = np.zeros(idx.size) if self.may_flow else None
         moved = [take_step(ens, a, idx, sel, h, err) for a in range(len(ens.states))]
         x_end = [xe for xe, _ in moved]
         steps = [s for _, s in moved]
-        if some(any_rk[sel]):
+        if self.may_flow and some(any_rk[sel]):
+            assert err is not None
             self._control_step_size(idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
@@ -214,22 +234,28 @@ class Simulator:
             else:
                 st.x[idx] = x_end[a]
         ens.t = t1
-        self._arrive(idx, sel, tn, crossing, end_truths, full)
+        self._arrive(idx, sel, tn, crossing, end_truths, full, reach)
 
-    def _step_end(self, full: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _step_end(self, full: bool
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """Where each instance's step ends: its next scheduled instant, or sooner where an
         agent flows and the error control asks for a shorter step. Returns ``(t1, any_rk,
-        limited)``: whether some agent of the instance flows, and whether its step size
-        (rather than a scheduled instant) set ``t1``. ``full``: every instance is live."""
+        limited, reach)``: whether some agent of the instance flows, whether its step size
+        (rather than a scheduled instant) set ``t1``, and the earliest instants of each
+        kind, ``at`` and ``tick`` (:func:`.schedule.earliest`; the step reached a kind
+        where it ends at or after its earliest). ``full``: every instance is live."""
         ens = self.ensemble
         t = ens.t
-        t_next = np.minimum.reduce(ens.instants, axis=0)  # the earliest instant scheduled
+        t_next, first_at, first_tick = earliest(ens.instants, ens.instants_at.shape[0])
+        if not self.may_flow:
+            t1 = np.maximum(t_next, t) if full else np.where(ens.done, t,
+                                                             np.maximum(t_next, t))
+            return t1, self._no_rows, self._no_rows, (first_at, first_tick)
         any_rk = np.zeros(ens.n, bool)
-        if self.may_flow:
-            for st in ens.states:
-                any_rk |= st.rk
-            any_rk &= ~ens.done
-        if self.may_flow and some(any_rk):
+        for st in ens.states:
+            any_rk |= st.rk
+        any_rk &= ~ens.done
+        if some(any_rk):
             self._initial_rk_steps(where_true(any_rk & np.isnan(ens.h_rk)))
             t_rk = t + np.minimum(ens.h_rk, ens.max_step)
             t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
@@ -237,8 +263,8 @@ class Simulator:
         else:
             t1, limited = t_next, any_rk
         if full:
-            return np.maximum(t1, t), any_rk, limited
-        return np.where(ens.done, t, np.maximum(t1, t)), any_rk, limited
+            return np.maximum(t1, t), any_rk, limited, (first_at, first_tick)
+        return np.where(ens.done, t, np.maximum(t1, t)), any_rk, limited, (first_at, first_tick)
 
     def _control_step_size(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
                            any_rk: np.ndarray, limited: np.ndarray, err: np.ndarray,
@@ -272,17 +298,18 @@ class Simulator:
 
     def _locate(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
                 x_end: list[np.ndarray], steps: list[AgentStep]
-                ) -> tuple[np.ndarray, list[np.ndarray | None]]:
+                ) -> tuple[np.ndarray | None, list[np.ndarray | None]]:
         """Stop instances at their first located guard or invariant crossing inside the
-        step: ``t1`` and ``x_end`` move back to it. Returns which rows crossed and each
-        agent's atom truths at the step's end (valid where nothing crossed)."""
+        step: ``t1`` and ``x_end`` move back to it. Returns which rows crossed (None: none
+        was searched for) and each agent's atom truths at the step's end (valid where
+        nothing crossed)."""
         ens = self.ensemble
         accepted = ens.h[sel] > 0
         if not some(accepted):
-            return np.zeros(idx.size, bool), [None] * len(ens.states)
+            return None, [None] * len(ens.states)
         tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
         if tau is None:  # no atom flipped inside the step: nothing was searched
-            return np.zeros(idx.size, bool), end_truths
+            return None, end_truths
         crossing = np.isfinite(tau) & accepted
         if some(crossing):
             rows = where_true(crossing)
@@ -294,22 +321,28 @@ class Simulator:
         return crossing, end_truths
 
     def _arrive(self, idx: np.ndarray, sel: slice | np.ndarray, tn: np.ndarray,
-                crossing: np.ndarray, end_truths: list[np.ndarray | None], full: bool) -> None:
+                crossing: np.ndarray | None, end_truths: list[np.ndarray | None],
+                full: bool, reach: tuple[np.ndarray, np.ndarray]) -> None:
         """After the step: refresh watched truths, run the instants the step reached
-        (events, deadlines, crossings, law ticks), record samples, end finished runs."""
+        (events, deadlines, crossings, law ticks), record samples, end finished runs.
+        ``reach``: the earliest ``at`` and ``tick`` instants of every instance."""
         ens = self.ensemble
         ending = tn >= ens.t_end
-        # reached an instant of some source: at or after the earliest of them (fmin skips a
-        # NaN, which no time reaches); the end of the run is one of the ``at`` sources
-        at = tn >= np.fmin.reduce(ens.instants_at[:, sel], axis=0)
-        at |= crossing
-        tick = tn >= np.fmin.reduce(ens.instants_tick[:, sel], axis=0)
-        moved = idx[crossing]
+        # reached an instant of some source: at or after the earliest of them (a NaN
+        # source, which no time reaches, was skipped); the end of the run is an ``at`` one
+        first_at, first_tick = reach
+        at = tn >= first_at[sel]
+        if crossing is not None:
+            at |= crossing
+        tick = tn >= first_tick[sel]
+        moved = idx[crossing] if crossing is not None else self._no_index
         plain = None
         for a, st in enumerate(ens.states):
             if end_truths[a] is not None:
                 if plain is None:
-                    plain = (ens.h[sel] > 0) & ~crossing
+                    plain = ens.h[sel] > 0
+                    if crossing is not None:
+                        plain &= ~crossing
                 if full and every(plain):
                     st.truth = end_truths[a]
                 else:

@@ -46,10 +46,11 @@ class AgentStep:
 
 
 def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
-              h: np.ndarray, err: np.ndarray) -> tuple[np.ndarray, AgentStep]:
+              h: np.ndarray, err: np.ndarray | None) -> tuple[np.ndarray, AgentStep]:
     """Agent ``a``'s states at the end of the step for instances ``idx`` (``sel`` selects
     them: a slice when all are live), and its step record; RK error estimates are folded
-    into ``err`` (the largest over agents decides acceptance; NaN counts as largest)."""
+    into ``err`` (the largest over agents decides acceptance; NaN counts as largest; None
+    where no agent of the team can flow)."""
     st = ens.states[a]
     x0, u, is_rk = gather(st.x, sel), gather(st.u, sel), st.rk[sel]
     step = AgentStep(x0, u, is_rk)
@@ -67,6 +68,7 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     mine = np.zeros(idx.size)
     mine[r] = np.where(np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s.err),
                        s.err, np.inf)
+    assert err is not None, "a flowing row in a team the simulator found no flow in"
     np.maximum(err, mine, out=err)
     start_bad = np.zeros(idx.size, bool)
     start_bad[r] = ~np.logical_and.reduce(np.isfinite(s.k[0]), axis=1)
