@@ -227,14 +227,18 @@ class Simulator:
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
         tn = t1[sel]
-        self._interpolate_samples(idx, tn, steps)
+        # an output sample is due inside the step or at its end (after the instant, which
+        # moves no clock and no sample): else neither looks for one
+        sampling = some((ens.next_out if full else ens.next_out[idx]) <= tn)
+        if sampling:
+            self._interpolate_samples(idx, tn, steps)
         for a, st in enumerate(ens.states):
             if full:
                 st.x = x_end[a]
             else:
                 st.x[idx] = x_end[a]
         ens.t = t1
-        self._arrive(idx, sel, tn, crossing, end_truths, full, reach)
+        self._arrive(idx, sel, tn, crossing, end_truths, full, reach, sampling)
 
     def _step_end(self, full: bool
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
@@ -322,10 +326,11 @@ class Simulator:
 
     def _arrive(self, idx: np.ndarray, sel: slice | np.ndarray, tn: np.ndarray,
                 crossing: np.ndarray | None, end_truths: list[np.ndarray | None],
-                full: bool, reach: tuple[np.ndarray, np.ndarray]) -> None:
+                full: bool, reach: tuple[np.ndarray, np.ndarray], sampling: bool) -> None:
         """After the step: refresh watched truths, run the instants the step reached
         (events, deadlines, crossings, law ticks), record samples, end finished runs.
-        ``reach``: the earliest ``at`` and ``tick`` instants of every instance."""
+        ``reach``: the earliest ``at`` and ``tick`` instants of every instance;
+        ``sampling``: whether an output sample may be due at the step's end."""
         ens = self.ensemble
         ending = tn >= ens.t_end
         # reached an instant of some source: at or after the earliest of them (a NaN
@@ -353,7 +358,10 @@ class Simulator:
         events = idx[at | tick]
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
-        self._record_samples(idx)
+        if sampling:
+            self._record_samples(idx)
+        else:
+            self._world_snapshot = None  # (taken at this instant: no later sample reads it)
         if not some(ending):  # (the discrete phase moves no clock: ens.t[sel] is tn)
             return
         ended = idx[ending & ~ens.done[sel]]
