@@ -153,7 +153,8 @@ class Simulator:
             raised = ens.world.update(self.access, idx)
             if raised.size:
                 discrete = union(discrete, raised)
-            discrete = discrete[~ens.done[discrete]]
+            if discrete.size:
+                discrete = discrete[~ens.done[discrete]]
         discrete_phase(ens, discrete)
         if ens.rec.snapshots is not None:
             ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
