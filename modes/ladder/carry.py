@@ -30,17 +30,18 @@ def carry(ctx: LawContext) -> np.ndarray:
     partner, length, sc_partner, frame, correction = ctx.sense("period")
     path, guide = _guide(ctx, frame, window)
     own = ctx.state[:, :2]
-    idx = ctx.recall("nearest", 0.0).astype(np.int64)
-    u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
+    kept = ctx.recall("nearest", 0.0)
     if 0 < ctx.size <= FEW:
         try:
-            nearest = _few(ctx, u, own, partner, guide, idx, table, length, sc_partner,
-                           frame, window, correction)
+            u, nearest = _few(ctx, own, partner, guide, kept, table, length, sc_partner,
+                              frame, window, correction)
         except law_one.Diverged:
             pass  # the arrays' inf and NaN, from the array version below
         else:
             ctx.keep("nearest", nearest)
             return u
+    idx = kept.astype(np.int64)
+    u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
     params = {k: table[:, j] for j, k in enumerate(ROBOT)}
     params.update(length=length, sc_partner=sc_partner)
     if (params["kr"] != 0.0).any():  # the goal heading matters only to the rotation vector
@@ -56,28 +57,36 @@ def carry(ctx: LawContext) -> np.ndarray:
 FEW = 4
 
 
-def _few(ctx: LawContext, u: np.ndarray, own: np.ndarray, partner: np.ndarray,
-         guide: law.Guide, idx: np.ndarray, table: np.ndarray, length: np.ndarray,
-         sc_partner: np.ndarray, frame, window: int, correction: str) -> np.ndarray:
-    """:func:`.law.step` for a few rows on floats, written into ``u``; the new indices.
-    ``table`` holds the robot parameters (columns :data:`ROBOT`)."""
-    nearest = np.empty(u.shape[0])
+def _few(ctx: LawContext, own: np.ndarray, partner: np.ndarray, guide: law.Guide,
+         kept: np.ndarray, table: np.ndarray, length: np.ndarray, sc_partner: np.ndarray,
+         frame, window: int, correction: str) -> tuple[np.ndarray, list[float]]:
+    """:func:`.law.step` for a few rows on floats: the inputs ``(m, 3)`` (no turning) and
+    the new indices. ``table`` holds the robot parameters (columns :data:`ROBOT`),
+    ``kept`` the indices kept last period. Every array is read once, as a list."""
     rows = table.tolist()
     heading = ctx.sense("goal_heading").tolist() if any(r[_KR] != 0.0 for r in rows) \
         else None
-    for i, (row, ell, scp) in enumerate(zip(rows, length.tolist(), sc_partner.tolist(),
-                                            strict=True)):
+    u, nearest = [], []
+    for i, (row, ell, scp, xy, pxy, k) in enumerate(zip(
+            rows, length.tolist(), sc_partner.tolist(), own.tolist(), partner.tolist(),
+            kept.tolist(), strict=True)):
         p = dict(zip(ROBOT, row, strict=True))
         p["length"], p["sc_partner"] = ell, scp
         if heading is not None:
             p["hx"], p["hy"] = heading[i]
-        u[i, 0], u[i, 1], nearest[i] = law_one.step_one(
-            tuple(own[i].tolist()), tuple(partner[i].tolist()), guide, i, int(idx[i]), p,
-            frame, window, correction)
-    return nearest
+        if not -_INDEX_RANGE < k < _INDEX_RANGE:  # (NaN too) astype's own conversion
+            raise law_one.Diverged(f"kept index {k}")
+        # the index kept as a float, toward zero as astype(np.int64) converts it
+        dx, dy, near = law_one.step_one(tuple(xy), tuple(pxy), guide, i, int(k), p, frame,
+                                        window, correction)
+        u.append((dx, dy, 0.0))
+        nearest.append(near)
+    return np.array(u, dtype=float), nearest
 
 
 _KR = ROBOT.index("kr")
+#: kept indices beyond this (or NaN) are left to the array version's conversion
+_INDEX_RANGE = 2.0**62
 
 #: Guides prepared lately: (frame, window, robot and instances, path, guide), newest last.
 #: A robot's guide paths are the corridor component's, built once at the start of a run
