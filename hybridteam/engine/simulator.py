@@ -22,19 +22,19 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from hybridteam.arrays import every, gather, some, union, where_true
-from hybridteam.dynamics import rk
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
-from hybridteam.engine.drivers import derivative, sample_laws
+from hybridteam.engine.drivers import sample_laws
 from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.numerics import step_floor, stop_broken_states, stop_collapsed_steps
+from hybridteam.engine.numerics import stop_broken_states
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.record import trace_meta, variables_key
 from hybridteam.engine.schedule import earliest
 from hybridteam.engine.step import AgentStep, state_at, take_step
+from hybridteam.engine.stepsize import control_step_size, initial_step_sizes
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
@@ -224,7 +224,7 @@ class Simulator:
         steps = [s for _, s in moved]
         if self.may_flow and some(any_rk[sel]):
             assert err is not None
-            self._control_step_size(idx, sel, t1, any_rk, limited, err, x_end, steps)
+            control_step_size(ens, idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
         tn = t1[sel]
@@ -261,7 +261,7 @@ class Simulator:
             any_rk |= st.rk
         any_rk &= ~ens.done
         if some(any_rk):
-            self._initial_rk_steps(where_true(any_rk & np.isnan(ens.h_rk)))
+            initial_step_sizes(ens, where_true(any_rk & np.isnan(ens.h_rk)))
             t_rk = t + np.minimum(ens.h_rk, ens.max_step)
             t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
             limited = any_rk & (t_rk < t_next)
@@ -270,36 +270,6 @@ class Simulator:
         if full:
             return np.maximum(t1, t), any_rk, limited, (first_at, first_tick)
         return np.where(ens.done, t, np.maximum(t1, t)), any_rk, limited, (first_at, first_tick)
-
-    def _control_step_size(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
-                           any_rk: np.ndarray, limited: np.ndarray, err: np.ndarray,
-                           x_end: list[np.ndarray], steps: list[AgentStep]) -> None:
-        """Runge–Kutta error control: a rejected step is taken back (the instance stays
-        where it was, ``h`` = 0) and retried smaller; an accepted step that the error
-        control limited proposes the next size. A step size that collapses ends the
-        instance (``stiff``, :mod:`.numerics`)."""
-        ens = self.ensemble
-        rows_rk = any_rk[sel]
-        h = ens.h[sel]
-        new_h = rk.next_step_size(h, err)
-        reject = rows_rk & (err > 1)
-        grow = rows_rk & ~reject & limited[sel]
-        upd = reject | grow
-        ens.h_rk[idx[upd]] = new_h[upd]
-        if some(reject):
-            # a derivative that is not a number at the start is a numerical error, not a
-            # step too large: stop_broken_states reports it
-            hopeless = np.zeros(idx.size, bool)
-            for s in steps:
-                if s.start_bad is not None:
-                    hopeless |= s.start_bad
-            dead = stop_collapsed_steps(ens, idx, steps, where_true(reject & ~hopeless))
-            reject[dead] = True  # (already) taken back: nothing of the step is kept
-            back = idx[reject]
-            t1[back] = ens.t[back]
-            ens.h[back] = 0.0
-            for a in range(len(ens.states)):
-                x_end[a][reject] = steps[a].x0[reject]
 
     def _locate(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
                 x_end: list[np.ndarray], steps: list[AgentStep]
@@ -368,25 +338,6 @@ class Simulator:
         ended = idx[ending & ~ens.done[sel]]
         if ended.size:
             ens.finish(ended, "ok", lambda i: f"reached the end of the run at t={ens.when(i)}")
-
-    def _initial_rk_steps(self, idx: np.ndarray) -> None:
-        if idx.size == 0:
-            return
-        ens = self.ensemble
-        h = np.full(idx.size, np.inf)
-        for a, st in enumerate(ens.states):
-            rows = where_true(st.rk[idx])
-            if rows.size == 0:
-                continue
-            sub = idx[rows]
-            h0 = rk.initial_step_size(derivative(ens, a, sub), ens.t[sub], st.x[sub],
-                                      ens.settings.rtol, ens.settings.atol,
-                                      min(ens.max_step, ens.t_end or 1.0))
-            # a derivative that is not a number gives no estimate: take the smallest
-            # step, whose first stage reports it (numerical_error)
-            h0 = np.where(h0 > 0, h0, step_floor(ens, ens.t[sub]))
-            h[rows] = np.minimum(h[rows], h0)
-        ens.h_rk[idx] = h
 
     # ------------------------------------------------------------------ outputs
     def _interpolate_samples(self, idx: np.ndarray, t1: np.ndarray,
