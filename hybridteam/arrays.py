@@ -14,6 +14,7 @@ calls, and :func:`filled` is ``np.full`` (about 1.3 µs) as an ``empty`` and a `
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -60,6 +61,15 @@ def some(a: np.ndarray) -> bool:
 def every(a: np.ndarray) -> bool:
     """Whether every element of ``a`` is true (nonzero): ``a.all()``, without its wrapper."""
     return _count(a) == a.size
+
+
+def all_finite(x: np.ndarray) -> bool:
+    """Whether every element of ``x`` is a finite number. A single run's few numbers are
+    checked on floats: ``np.isfinite`` and a count cost their dispatch, about 1 µs, for
+    three numbers (``math.isfinite`` gives the same answer)."""
+    if x.size <= 12:
+        return all(map(math.isfinite, x.ravel().tolist()))
+    return every(np.isfinite(x))
 
 
 def where_true(a: np.ndarray) -> np.ndarray:

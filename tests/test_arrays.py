@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.arrays import gather
+from hybridteam.arrays import all_finite, gather
 
 
 @settings(max_examples=150, deadline=None)
@@ -37,3 +37,12 @@ def test_gather_reads_a_transposed_view_and_refuses_rows_out_of_range() -> None:
     assert gather(a.T, np.array([2, 0])).tolist() == [a[:, 2].tolist(), a[:, 0].tolist()]
     with pytest.raises(IndexError):
         gather(a, np.array([4]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(st.one_of(st.floats(), st.sampled_from([np.inf, -np.inf, np.nan, 0.0])),
+                       min_size=0, max_size=30), width=st.integers(1, 3))
+def test_all_finite_equals_isfinite_all(values: list[float], width: int) -> None:
+    """On floats for a few numbers (a single run's), on arrays beyond: the same answer."""
+    x = np.array(values[: len(values) // width * width], float).reshape(-1, width)
+    assert all_finite(x) == bool(np.isfinite(x).all())

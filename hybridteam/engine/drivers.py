@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import distinct, every, gather, some, where_true
+from hybridteam.arrays import all_finite, distinct, every, gather, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
@@ -178,7 +178,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
             ctx = st.ctx(rows, t, D.owner, law=D.inputs is None)
             u = evaluate_driver(ca, D, ctx)
             st.u[rows] = u
-            if not every(np.isfinite(u)):
+            if not all_finite(u):
                 where = np.arange(ens.n)[rows] if isinstance(rows, slice) else rows
                 stop_broken_inputs(ens, a, where, u)
         if D.kind == "sampled":

@@ -16,12 +16,11 @@ below what floating point can resolve at the current time.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, some
+from hybridteam.arrays import all_finite, some
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
@@ -67,7 +66,7 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
     start, or the state a step produced, is not a finite number; they stay at the step's
     start (their last finite state). Runge–Kutta results that are not finite were already
     rejected (a smaller step may do), so what is left here is beyond any step size."""
-    if all(_finite(xe) for xe in x_end) and not any(
+    if all(all_finite(xe) for xe in x_end) and not any(
             s.start_bad is not None and some(s.start_bad) for s in steps):
         return  # the usual case, in a few reductions
     accepted = ens.h[sel] > 0
@@ -86,15 +85,6 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
         ens.h[back] = 0.0
         for a in range(len(ens.states)):
             x_end[a][bad] = steps[a].x0[bad]
-
-
-def _finite(x: np.ndarray) -> bool:
-    """Whether every element of ``x`` is a finite number. A single run's few numbers are
-    checked on floats: ``np.isfinite`` and a count cost their dispatch, about 1 µs, for
-    three numbers."""
-    if x.size <= 12:
-        return all(map(math.isfinite, x.ravel().tolist()))
-    return every(np.isfinite(x))
 
 
 def _report_state(ens: Ensemble, a: int, i: int, step: AgentStep, r: int, x: np.ndarray,

@@ -91,11 +91,15 @@ class Recorder:
 
     def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
         if k.size == 1:  # a single run's sample: no masks
-            if k[0] < len(self.sample_times):
-                self.samples[agent][k[0], instances[0]] = x[0]
+            self.sample_one(int(k[0]), int(instances[0]), agent, x[0])
             return
         ok = k < len(self.sample_times)
         self.samples[agent][k[ok], instances[ok]] = x[ok]
+
+    def sample_one(self, k: int, instance: int, agent: str, row: np.ndarray) -> None:
+        """Sample ``k`` of one instance (none past the last sample time)."""
+        if k < len(self.sample_times):
+            self.samples[agent][k, instance] = row
 
     # assembly ---------------------------------------------------------------------------
     def _transition_table(self) -> Table:

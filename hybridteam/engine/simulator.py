@@ -375,13 +375,23 @@ class Simulator:
             idx[ens.t[idx] >= ens.next_out[idx]]
         if due.size == 0:
             return
-        k = ens.out_k[due]
-        for st in ens.states:
-            ens.rec.sample(k, due, st.ca.name, gather(st.x, due))
         world = taken[1] if taken is not None and taken[0].shape == due.shape \
             and every(taken[0] == due) else ens.world.sample(due)
+        if due.size == 1:  # a single run's sample: its row by Python ints, no index arrays
+            i = int(due[0])
+            k = int(ens.out_k[i])
+            for st in ens.states:
+                ens.rec.sample_one(k, i, st.ca.name, st.x[i])
+            for name, values in world.items():
+                ens.rec.sample_one(k, i, name, values[0])
+            ens.out_k[i] = k + 1
+            ens.next_out[i] = ens.sample_after[k + 1]
+            return
+        ks = ens.out_k[due]
+        for st in ens.states:
+            ens.rec.sample(ks, due, st.ca.name, gather(st.x, due))
         for name, values in world.items():
-            ens.rec.sample(k, due, name, values)
+            ens.rec.sample(ks, due, name, values)
         ens.out_k[due] += 1
         ens.next_out[due] = ens.sample_after[ens.out_k[due]]
 
