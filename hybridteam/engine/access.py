@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hybridteam.arrays import some
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.events import LOCAL
 from hybridteam.errors import did_you_mean
@@ -44,7 +45,15 @@ class EnsembleAccess(WorldAccess):
         return view
 
     def live(self, idx: np.ndarray) -> np.ndarray:
-        return idx[~self._ens.done[idx]]
+        """The instances of ``idx`` not ended. Where none has ended anywhere (a single run's
+        every instant), ``idx`` itself, read-only: a component cannot write the engine's
+        index through it."""
+        done = self._ens.done
+        if some(done):
+            return idx[~done[idx]]
+        view = idx.view()
+        view.flags.writeable = False
+        return view
 
     def finish(self, idx: np.ndarray, outcome: str, message: Message) -> None:
         text = message if callable(message) else (lambda i, m=message: m)
