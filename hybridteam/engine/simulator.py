@@ -31,6 +31,7 @@ from hybridteam.engine.drivers import sample_laws
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.numerics import stop_broken_states
 from hybridteam.engine.outcomes import check_instances
+from hybridteam.engine.outputs import interpolate_samples, record_samples
 from hybridteam.engine.record import trace_meta, variables_key
 from hybridteam.engine.schedule import earliest
 from hybridteam.engine.step import AgentStep, state_at, take_step
@@ -123,7 +124,8 @@ class Simulator:
                     ens.rec.initial(ca.index, leaf, sel, ens.t[sel])
         ens.changed[:] = True
         self._instant(everyone, entering=True)
-        self._record_samples(everyone)
+        record_samples(ens, everyone, self._world_snapshot)
+        self._world_snapshot = None
 
     def _instant(self, idx: np.ndarray, entering: bool = False,
                  crossed: np.ndarray | None = None,
@@ -232,7 +234,7 @@ class Simulator:
         # moves no clock and no sample): else neither looks for one
         sampling = some((ens.next_out if full else ens.next_out[idx]) <= tn)
         if sampling:
-            self._interpolate_samples(idx, tn, steps)
+            interpolate_samples(ens, idx, tn, steps)
         for a, st in enumerate(ens.states):
             if full:
                 st.x = x_end[a]
@@ -330,70 +332,14 @@ class Simulator:
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
         if sampling:
-            self._record_samples(idx)
-        else:
-            self._world_snapshot = None  # (taken at this instant: no later sample reads it)
+            record_samples(ens, idx, self._world_snapshot)
+        # (a snapshot is read by the samples right after its instant, never later)
+        self._world_snapshot = None
         if not some(ending):  # (the discrete phase moves no clock: ens.t[sel] is tn)
             return
         ended = idx[ending & ~ens.done[sel]]
         if ended.size:
             ens.finish(ended, "ok", lambda i: f"reached the end of the run at t={ens.when(i)}")
-
-    # ------------------------------------------------------------------ outputs
-    def _interpolate_samples(self, idx: np.ndarray, t1: np.ndarray,
-                             steps: list[AgentStep]) -> None:
-        """Record output samples that fall strictly inside this step, without stopping there.
-
-        Outputs do not constrain the integrator: flows are read off the step's dense
-        output, kinematic plants off their exact arcs, all samples of a step in one call.
-        Samples exactly at the step's end are taken after that instant's discrete steps,
-        by :meth:`_record_samples`.
-        """
-        ens = self.ensemble
-        upcoming = ens.next_out if idx.size == ens.n else ens.next_out[idx]
-        if not some(upcoming < t1):  # the next sample of each is not before t1
-            return
-        first = ens.out_k[idx]
-        last = np.searchsorted(ens.sample_times, t1, side="left")  # samples < t1
-        count = np.maximum(last - first, 0)
-        rows = np.repeat(np.arange(idx.size), count)
-        k = np.repeat(first, count) + (np.arange(rows.size) - np.repeat(np.cumsum(count) - count,
-                                                                         count))
-        due = idx[rows]
-        tau = ens.sample_times[k] - ens.t0[due]
-        for a, st in enumerate(ens.states):
-            x = state_at(ens, a, due, tau, steps[a], rows=rows, dense=True)
-            ens.rec.sample(k, due, st.ca.name, x)
-        moved = idx[count > 0]
-        ens.out_k[moved] = last[count > 0]
-        ens.next_out[moved] = ens.sample_after[ens.out_k[moved]]
-
-    def _record_samples(self, idx: np.ndarray) -> None:
-        ens = self.ensemble
-        taken, self._world_snapshot = self._world_snapshot, None
-        due = where_true(ens.t >= ens.next_out) if idx.size == ens.n else \
-            idx[ens.t[idx] >= ens.next_out[idx]]
-        if due.size == 0:
-            return
-        world = taken[1] if taken is not None and taken[0].shape == due.shape \
-            and every(taken[0] == due) else ens.world.sample(due)
-        if due.size == 1:  # a single run's sample: its row by Python ints, no index arrays
-            i = int(due[0])
-            k = int(ens.out_k[i])
-            for st in ens.states:
-                ens.rec.sample_one(k, i, st.ca.name, st.x[i])
-            for name, values in world.items():
-                ens.rec.sample_one(k, i, name, values[0])
-            ens.out_k[i] = k + 1
-            ens.next_out[i] = ens.sample_after[k + 1]
-            return
-        ks = ens.out_k[due]
-        for st in ens.states:
-            ens.rec.sample(ks, due, st.ca.name, gather(st.x, due))
-        for name, values in world.items():
-            ens.rec.sample(ks, due, name, values)
-        ens.out_k[due] += 1
-        ens.next_out[due] = ens.sample_after[ens.out_k[due]]
 
     def _close(self) -> Trace:
         ens = self.ensemble
