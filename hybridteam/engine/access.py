@@ -13,7 +13,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridteam.arrays import some
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.events import LOCAL
 from hybridteam.errors import did_you_mean
@@ -48,9 +47,9 @@ class EnsembleAccess(WorldAccess):
         """The instances of ``idx`` not ended. Where none has ended anywhere (a single run's
         every instant), ``idx`` itself, read-only: a component cannot write the engine's
         index through it."""
-        done = self._ens.done
-        if some(done):
-            return idx[~done[idx]]
+        live = self._ens.live(idx)
+        if live is not idx:
+            return live
         view = idx.view()
         view.flags.writeable = False
         return view

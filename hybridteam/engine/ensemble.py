@@ -144,6 +144,11 @@ class Ensemble:
             inbox.deliver(i, msg)
         return why
 
+    def live(self, idx: np.ndarray) -> np.ndarray:
+        """The instances of ``idx`` not ended: ``idx`` itself where none has ended anywhere
+        (a single run's every instant), without filtering it."""
+        return idx if not some(self.done) else idx[~self.done[idx]]
+
     # ------------------------------------------------------------------ outcomes
     def finish(self, idx: np.ndarray, kind: str, message: Callable[[int], str]) -> None:
         """End instances ``idx`` (those not ended already) with outcome ``kind``."""

@@ -155,8 +155,7 @@ class Simulator:
             raised = ens.world.update(self.access, idx)
             if raised.size:
                 discrete = union(discrete, raised)
-            if discrete.size:
-                discrete = discrete[~ens.done[discrete]]
+            discrete = ens.live(discrete)
         discrete_phase(ens, discrete)
         if ens.rec.snapshots is not None:
             ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
@@ -165,7 +164,7 @@ class Simulator:
             world = ens.world.sample(idx)
             ens.rec.snapshot(idx, ens.t[idx], world)
             self._world_snapshot = (idx, world)
-        live = idx if not some(ens.done) else idx[~ens.done[idx]]
+        live = ens.live(idx)
         # (with every instance live, whole-array masks instead of gathers: same indices)
         whole = live.size == ens.n
         # no transition fired and no event was consumed where nothing was due to fire
@@ -255,23 +254,21 @@ class Simulator:
         t = ens.t
         t_next, first_at, first_tick = earliest(ens.instants, ens.instants_at.shape[0])
         if not self.may_flow:
-            t1 = np.maximum(t_next, t) if full else np.where(ens.done, t,
-                                                             np.maximum(t_next, t))
-            return t1, self._no_rows, self._no_rows, (first_at, first_tick)
-        any_rk = np.zeros(ens.n, bool)
-        for st in ens.states:
-            any_rk |= st.rk
-        any_rk &= ~ens.done
-        if some(any_rk):
-            initial_step_sizes(ens, where_true(any_rk & np.isnan(ens.h_rk)))
-            t_rk = t + np.minimum(ens.h_rk, ens.max_step)
-            t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
-            limited = any_rk & (t_rk < t_next)
+            t1, any_rk, limited = t_next, self._no_rows, self._no_rows
         else:
-            t1, limited = t_next, any_rk
-        if full:
-            return np.maximum(t1, t), any_rk, limited, (first_at, first_tick)
-        return np.where(ens.done, t, np.maximum(t1, t)), any_rk, limited, (first_at, first_tick)
+            any_rk = np.zeros(ens.n, bool)
+            for st in ens.states:
+                any_rk |= st.rk
+            any_rk &= ~ens.done
+            if some(any_rk):
+                initial_step_sizes(ens, where_true(any_rk & np.isnan(ens.h_rk)))
+                t_rk = t + np.minimum(ens.h_rk, ens.max_step)
+                t1 = np.where(any_rk, np.minimum(t_next, t_rk), t_next)
+                limited = any_rk & (t_rk < t_next)
+            else:
+                t1, limited = t_next, any_rk
+        t1 = np.maximum(t1, t) if full else np.where(ens.done, t, np.maximum(t1, t))
+        return t1, any_rk, limited, (first_at, first_tick)
 
     def _locate(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
                 x_end: list[np.ndarray], steps: list[AgentStep]
