@@ -35,17 +35,31 @@ class Ctx:
     world components and its law memory (an :class:`~.world.AgentView`), where laws run.
     """
 
-    __slots__ = ("e", "m", "p", "t", "t_in", "u", "v", "w", "x")
+    __slots__ = ("_since", "_t_in", "e", "m", "p", "t", "u", "v", "w", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
                  t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
-                 e=None, w=None) -> None:
+                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None
+                 ) -> None:
+        """``since``: instead of ``t_in``, the entry times it is computed from when first
+        read, ``(column, rows)``: ``t - column[rows]``. A law or an ``inputs:``
+        expression rarely reads the time in its mode, and computing it costs two numpy
+        calls at every tick; its caller consumes the context before any entry time
+        changes."""
         self.x, self.v, self.p, self.t = x, v, p, t
-        self.t_in = t if t_in is None else t_in
+        self._t_in = t if t_in is None and since is None else t_in
+        self._since = since
         self.m = m
         self.e = e
         self.w = w
         self.u: np.ndarray | None = None
+
+    @property
+    def t_in(self) -> np.ndarray:
+        if self._t_in is None:
+            column, rows = self._since  # type: ignore[misc]
+            self._t_in = self.t - column[rows]
+        return self._t_in
 
 
 @dataclass

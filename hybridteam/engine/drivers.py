@@ -175,7 +175,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         # (nothing entered at this instant: held inputs are still what their modes' entries
         # gave; only the next ticks are scheduled)
         if not (D.held and fresh is None):
-            ctx = st.ctx(rows, t, D.owner, law=D.inputs is None)
+            ctx = st.ctx(rows, t, D.owner, law=D.inputs is None, lazy=True)
             u = evaluate_driver(ca, D, ctx)
             st.u[rows] = u
             if not all_finite(u):

@@ -67,17 +67,22 @@ class AgentState:
         self.everyone.flags.writeable = False
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
-            m: dict[str, np.ndarray] | None = None, law: bool = False) -> Ctx:
+            m: dict[str, np.ndarray] | None = None, law: bool = False,
+            lazy: bool = False) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted);
-        with the agent's world view only for a ``law`` (no expression reads one)."""
+        with the agent's world view only for a ``law`` (no expression reads one). ``lazy``:
+        the time in the mode is computed where it is read (:class:`.Ctx`'s ``since``), for
+        a caller that is done with the context before any mode is entered."""
         # (a column, then the rows: numpy 2 indexes an integer and an array together through
         # its general index iterator, four times slower)
-        t_in = t - self.entry[:, owner][idx] if owner is not None and owner >= 0 else t
+        timed = owner is not None and owner >= 0
+        since = (self.entry[:, owner], idx) if timed and lazy else None
+        t_in = t - self.entry[:, owner][idx] if timed and not lazy else None
         e = self.inbox.view(idx) if self.inbox is not None else None
         w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) \
             if law else None
         return Ctx(gather(self.x, idx), gather(self.v, idx), gather(self.p, idx), t, t_in, m,
-                   e, w)
+                   e, w, since)
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:

@@ -25,22 +25,17 @@ ROBOT = ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladd
 @register("ladder.carry", plants=("holonomic",), params={"window": 16.0})
 def carry(ctx: LawContext) -> np.ndarray:
     """Target, rotation and correction vectors, clamped, then the wall rules (Sec. 3.2)."""
-    table = ctx.table(ROBOT)
     window = int(ctx["window"][0]) if ctx.size else 16
-    partner, length, sc_partner, frame, correction = ctx.sense("period")
-    path, guide = _guide(ctx, frame, window)
-    own = ctx.state[:, :2]
-    kept = ctx.recall("nearest", 0.0)
     if 0 < ctx.size <= FEW:
         try:
-            u, nearest = _few(ctx, own, partner, guide, kept, table, length, sc_partner,
-                              frame, window, correction)
+            return _few(ctx, window)
         except law_one.Diverged:
             pass  # the arrays' inf and NaN, from the array version below
-        else:
-            ctx.keep("nearest", nearest)
-            return u
-    idx = kept.astype(np.int64)
+    partner, length, sc_partner, frame, correction = ctx.sense("period")
+    path, guide, _ = _prepared(ctx, frame, window)
+    table = ctx.table(ROBOT)
+    own = ctx.state[:, :2]
+    idx = ctx.recall("nearest", 0.0).astype(np.int64)
     u = np.zeros((ctx.size, 3))  # vx, vy and no turning: np.column_stack's values
     params = {k: table[:, j] for j, k in enumerate(ROBOT)}
     params.update(length=length, sc_partner=sc_partner)
@@ -57,54 +52,59 @@ def carry(ctx: LawContext) -> np.ndarray:
 FEW = 4
 
 
-def _few(ctx: LawContext, own: np.ndarray, partner: np.ndarray, guide: law.Guide,
-         kept: np.ndarray, table: np.ndarray, length: np.ndarray, sc_partner: np.ndarray,
-         frame, window: int, correction: str) -> tuple[np.ndarray, list[float]]:
-    """:func:`.law.step` for a few rows on floats: the inputs ``(m, 3)`` (no turning) and
-    the new indices. ``table`` holds the robot parameters (columns :data:`ROBOT`),
-    ``kept`` the indices kept last period. Every array is read once, as a list."""
-    rows = table.tolist()
-    heading = ctx.sense("goal_heading").tolist() if any(r[_KR] != 0.0 for r in rows) \
+def _few(ctx: LawContext, window: int) -> np.ndarray:
+    """:func:`.law.step` for a few rows on floats: the inputs ``(m, 3)`` (no turning);
+    the new indices are kept. Every array is read once, as a list; nothing is kept where a
+    row raises :class:`.law_one.Diverged` (the caller then takes the array version)."""
+    partner, length, sc_partner, frame, correction = ctx.sense("period")
+    _, guide, robots = _prepared(ctx, frame, window)
+    heading = ctx.sense("goal_heading").tolist() if any(r["kr"] != 0.0 for r in robots) \
         else None
     u, nearest = [], []
-    for i, (row, ell, scp, xy, pxy, k) in enumerate(zip(
-            rows, length.tolist(), sc_partner.tolist(), own.tolist(), partner.tolist(),
-            kept.tolist(), strict=True)):
-        p = dict(zip(ROBOT, row, strict=True))
+    for i, (robot, ell, scp, xy, pxy, k) in enumerate(zip(
+            robots, length.tolist(), sc_partner.tolist(), ctx.state.tolist(),
+            partner.tolist(), ctx.recall("nearest", 0.0).tolist(), strict=True)):
+        p = dict(robot)
         p["length"], p["sc_partner"] = ell, scp
         if heading is not None:
             p["hx"], p["hy"] = heading[i]
         if not -_INDEX_RANGE < k < _INDEX_RANGE:  # (NaN too) astype's own conversion
             raise law_one.Diverged(f"kept index {k}")
         # the index kept as a float, toward zero as astype(np.int64) converts it
-        dx, dy, near = law_one.step_one(tuple(xy), tuple(pxy), guide, i, int(k), p, frame,
-                                        window, correction)
+        dx, dy, near = law_one.step_one((xy[0], xy[1]), tuple(pxy), guide, i, int(k), p,
+                                        frame, window, correction)
         u.append((dx, dy, 0.0))
         nearest.append(near)
-    return np.array(u, dtype=float), nearest
+    ctx.keep("nearest", nearest)
+    return np.array(u, dtype=float)
 
 
 _KR = ROBOT.index("kr")
 #: kept indices beyond this (or NaN) are left to the array version's conversion
 _INDEX_RANGE = 2.0**62
 
-#: Guides prepared lately: (frame, window, robot and instances, path, guide), newest last.
-#: A robot's guide paths are the corridor component's, built once at the start of a run
-#: (whose frame is kept alive with its entry, so ``is`` cannot match a new one by chance):
-#: the same robot and instances of the same run have the same paths, and the law prepares
-#: them once instead of at every period.
+#: Guides prepared lately: (frame, window, robot and instances, path, guide, robots),
+#: newest last. A robot's guide paths are the corridor component's, built once at the start
+#: of a run (whose frame is kept alive with its entry, so ``is`` cannot match a new one by
+#: chance): the same robot and instances of the same run have the same paths, and the law
+#: prepares them once instead of at every period. So are the robots' parameters (``robots``,
+#: one dict of :data:`ROBOT` per instance, for the float version): an agent parameter is a
+#: constant of its instance for the whole run.
 _GUIDES: list[tuple] = []
 
 
-def _guide(ctx: LawContext, frame, window: int) -> tuple[np.ndarray, law.Guide]:
-    """The guide paths of this robot's instances, and their prepared guide."""
+def _prepared(ctx: LawContext, frame, window: int
+              ) -> tuple[np.ndarray, law.Guide, list[dict[str, float]]]:
+    """The guide paths of this robot's instances, their prepared guide, and the robot's
+    parameters per instance."""
     key = (ctx.agent, ctx.instances.tobytes())
     for entry in reversed(_GUIDES):
-        f, w, k, path, guide = entry
+        f, w, k, path, guide, robots = entry
         if f is frame and w == window and k == key:
-            return path, guide
+            return path, guide, robots
     path = ctx.sense("path")
     guide = law.Guide(path, frame, window)
-    _GUIDES.append((frame, window, key, path, guide))
+    robots = [dict(zip(ROBOT, row, strict=True)) for row in ctx.table(ROBOT).tolist()]
+    _GUIDES.append((frame, window, key, path, guide, robots))
     del _GUIDES[:-8]
-    return path, guide
+    return path, guide, robots
