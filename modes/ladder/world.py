@@ -147,6 +147,8 @@ class LadderCorridor(WorldComponent):
         self.best = np.full(n, np.inf)
         self.improved_at = np.zeros(n, np.int64)
         self.tips = np.full((2, n, 2), np.nan)
+        #: each instance's constants for the float instant (:func:`.world_one.constants`)
+        self.constants: dict[int, Any] = {}
 
     def _robot_params(self, world: WorldAccess) -> dict[str, np.ndarray]:
         out = {}

@@ -14,7 +14,7 @@ edit this twin too.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -42,68 +42,98 @@ def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:
     changed nothing, where two robots coincide (numpy's inf and NaN offsets, which floats
     would raise on): the caller then takes the array version."""
     frame = c.frame
-    poses = [world.pose(a, idx)[:, :2].tolist() for a in c.robots]
+    poses = [world.pose(a, idx).tolist() for a in c.robots]
     rows = []
     try:  # every row's ladder first, so that nothing is written if one cannot be had
         for j, i in enumerate(idx.tolist()):
-            pos = [poses[0][j], poses[1][j]]
+            k = constants(c, i)
+            pos = [poses[0][j][:2], poses[1][j][:2]]
             f = [to_frame(frame, *p) for p in pos]
-            length = float(c.length[i])
             tips, no = [], []
             for r in (0, 1):
-                ox, oy, _ = spring_offsets(*f[r], *f[1 - r], length, float(c.share[r, i]))
+                ox, oy, _ = spring_offsets(*f[r], *f[1 - r], k.length, k.share[r])
                 no.append(_norm(ox, oy))
                 tips.append((f[r][0] + ox, f[r][1] + oy))
-            rows.append((i, pos, tips, no))
+            rows.append((i, k, pos, tips, no))
     except ZeroDivisionError:
         return False
     o0, o1 = frame.floats[:2]
     broken, arrived, stuck = [], [], []
-    for i, pos, tips, no in rows:
+    for i, k, pos, tips, no in rows:
+        # (element by element: a numpy element write costs less than a row's from a list)
         for r in (0, 1):  # to_world: the tip on the axes, plus the origin
             tx, ty = to_world_vector(frame, *tips[r])
             c.tips[r, i, 0], c.tips[r, i, 1] = tx + o0, ty + o1
-        _statistics(c, i, pos)
+        steps = _statistics(c, i, pos)
         c.was_corner[i] = in_corner(*tips[0], *tips[1], frame.width_in, frame.width_out)
         for r in (0, 1):
-            c.max_offset[r, i] = _max(float(c.max_offset[r, i]), no[r])
+            c.max_offset[r, i] = _max(c.max_offset.item(r, i), no[r])
             c.offset[r, i] = no[r]
-        bad = no[0] > float(c.olim[0, i]) or no[1] > float(c.olim[1, i])
+        bad = no[0] > k.olim[0] or no[1] > k.olim[1]
         broken.append(bad)
-        came, stalled = _referee(c, i, pos, bad)
+        came, stalled = _referee(c, i, k, pos, bad, steps)
         arrived.append(came)
         stuck.append(stalled)
     _judge(c, world, idx, broken, arrived, stuck)
     return True
 
 
-def _statistics(c: LadderCorridor, i: int, pos: list) -> None:
-    """Path lengths and step counts of the step that led here; ``prev`` becomes ``pos``."""
+class Constants(NamedTuple):
+    """What the corridor's instant reads of instance ``i`` that a run never changes."""
+
+    length: float
+    share: tuple[float, float]
+    olim: tuple[float, float]
+    goal: tuple[tuple[float, float], tuple[float, float]]
+    arrive_tol: float
+    stuck_tol: float
+    stuck_window: float
+
+
+def constants(c: LadderCorridor, i: int) -> Constants:
+    """Instance ``i``'s :class:`Constants`, read from the component's arrays at its first
+    instant and kept with the component (``c.constants``): one read instead of a dozen
+    numpy element reads at every step."""
+    k = c.constants.get(i)
+    if k is None:
+        v = c.values
+        k = c.constants[i] = Constants(
+            float(c.length[i]), tuple(c.share[:, i].tolist()), tuple(c.olim[:, i].tolist()),
+            tuple(tuple(g) for g in c.goal[:, i].tolist()), float(v["arrive_tol"][i]),
+            float(v["stuck_tol"][i]), float(v["stuck_window"][i]))
+    return k
+
+
+def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
+    """Path lengths and step counts of the step that led here; ``prev`` becomes ``pos``.
+    Returns the step count."""
     prev = c.prev[:, i].tolist()
+    steps = c.steps.item(i)
     if not math.isnan(prev[0][0]):
-        corner = bool(c.was_corner[i])
+        corner = c.was_corner.item(i)
         for r in (0, 1):
             dist = _norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
-            c.path[r, i] += dist
-            c.corner_path[r, i] += dist if corner else 0.0
-        c.steps[i] += 1
-        c.corner_steps[i] += corner
+            c.path[r, i] = c.path.item(r, i) + dist
+            c.corner_path[r, i] = c.corner_path.item(r, i) + (dist if corner else 0.0)
+        steps += 1
+        c.steps[i] = steps
+        c.corner_steps[i] = c.corner_steps.item(i) + corner
     c.prev[:, i] = pos
+    return steps
 
 
-def _referee(c: LadderCorridor, i: int, pos: list, bad: bool) -> tuple[bool, bool]:
-    """Progress toward the goals: (arrived, stuck) of instance ``i``."""
-    d = [_norm(float(c.goal[r, i, 0]) - pos[r][0], float(c.goal[r, i, 1]) - pos[r][1])
-         for r in (0, 1)]
+def _referee(c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool,
+             step: int) -> tuple[bool, bool]:
+    """Progress toward the goals: (arrived, stuck) of instance ``i`` at step ``step``."""
+    d = [_norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
     progress = d[0] + d[1]
-    step = int(c.steps[i])
-    if progress < float(c.best[i]) - float(c.values["stuck_tol"][i]):
+    improved_at = c.improved_at.item(i)
+    if progress < c.best.item(i) - k.stuck_tol:
         c.best[i] = progress
-        c.improved_at[i] = step
-    tol = float(c.values["arrive_tol"][i])
+        c.improved_at[i] = improved_at = step
+    tol = k.arrive_tol
     came = d[0] <= tol and d[1] <= tol and not bad
-    stalled = (not bad and not came
-               and int(c.improved_at[i]) <= step - float(c.values["stuck_window"][i]))
+    stalled = not bad and not came and improved_at <= step - k.stuck_window
     return came, stalled
 
 
