@@ -58,8 +58,8 @@ def record_samples(ens: Ensemble, idx: np.ndarray,
     world = taken[1] if taken is not None and taken[0].shape == due.shape \
         and every(taken[0] == due) else ens.world.sample(due)
     if due.size == 1:  # a single run's sample: its row by Python ints, no index arrays
-        i = int(due[0])
-        k = int(ens.out_k[i])
+        i = due.item(0)
+        k = ens.out_k.item(i)
         for st in ens.states:
             ens.rec.sample_one(k, i, st.ca.name, st.x[i])
         for name, values in world.items():

@@ -119,7 +119,7 @@ def _step(own, partner, guide, row, idx, p, frame, window, correction):
 
 def _follow(x, y, guide, row, idx, lookahead, window):
     """``nearest_on_path``, ``target_vector`` and the distance to the goal."""
-    base = int(guide.base[row])
+    base = guide.base.item(row)  # (item: a Python number without a numpy scalar between)
     ex = guide.windows[0][base + idx] - x
     ey = guide.windows[1][base + idx] - y
     ex *= ex
@@ -128,11 +128,10 @@ def _follow(x, y, guide, row, idx, lookahead, window):
     last = guide.fpath.shape[1] - 1
     nearest = min(max(idx + int(ex.argmin()) - window, 0), last)
     flat = base + window + min(nearest + max(lookahead, 1), last)
-    vx = float(guide.path_x[flat]) - x
-    vy = float(guide.path_y[flat]) - y
+    vx = guide.path_x.item(flat) - x
+    vy = guide.path_y.item(flat) - y
     dq = _max(_norm(vx, vy), TINY)
-    goal = guide.fpath[row, last]
-    dgoal = _norm(float(goal[0]) - x, float(goal[1]) - y)
+    dgoal = _norm(guide.fpath.item(row, last, 0) - x, guide.fpath.item(row, last, 1) - y)
     return nearest, vx / dq, vy / dq, dgoal
 
 
