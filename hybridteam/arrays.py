@@ -58,6 +58,11 @@ def some(a: np.ndarray) -> bool:
     return _count(a) > 0
 
 
+def count_true(a: np.ndarray) -> int:
+    """How many elements of ``a`` are true (nonzero): ``np.count_nonzero(a)``."""
+    return _count(a)
+
+
 def every(a: np.ndarray) -> bool:
     """Whether every element of ``a`` is true (nonzero): ``a.all()``, without its wrapper."""
     return _count(a) == a.size

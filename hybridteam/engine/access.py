@@ -19,6 +19,10 @@ from hybridteam.errors import did_you_mean
 from hybridteam.world.access import Agent, Message, WorldAccess
 from hybridteam.world.component import WorldComponent
 
+#: no instance: what :meth:`EnsembleAccess.take_raised` gives where none raised (read-only)
+_NO_INDEX = np.empty(0, np.intp)
+_NO_INDEX.flags.writeable = False
+
 
 class EnsembleAccess(WorldAccess):
     """:class:`WorldAccess` over one :class:`Ensemble`."""
@@ -67,7 +71,7 @@ class EnsembleAccess(WorldAccess):
     def take_raised(self) -> np.ndarray:
         """Instances where events were raised since the last call (for the engine)."""
         if not self._raised:
-            return np.empty(0, np.intp)
+            return _NO_INDEX
         out = np.unique(np.concatenate(self._raised))
         self._raised.clear()
         return out

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import all_finite, distinct, every, gather, some, where_true
+from hybridteam.arrays import all_finite, count_true, distinct, every, gather, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compiled import CAgent, Ctx, Driver
@@ -151,7 +151,8 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         fresh = np.zeros(ens.n, bool)
         fresh[changed] = True
         due |= fresh
-    if not some(due):
+    n_due = count_true(due)  # (once: with one driver and no entry, also whether all are due)
+    if n_due == 0:
         return
     # the drivers in charge, in index order (one, usually, everywhere: no gathering then)
     single = st.single_driver >= 0
@@ -169,7 +170,7 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
             mine &= entered | (t_all >= st.next_tick)
             if not some(mine):
                 continue
-        everyone = every(mine)
+        everyone = n_due == ens.n if mine is due else every(mine)
         rows = slice(None) if everyone else where_true(mine)
         t = t_all[rows]
         # (nothing entered at this instant: held inputs are still what their modes' entries

@@ -38,7 +38,8 @@ def earliest(instants: np.ndarray, n_at: int
         first.append(_minimum(col))
         first_at.append(_fmin(col, 0, n_at))
         first_tick.append(_fmin(col, n_at, len(col)))
-    return np.array(first), np.array(first_at), np.array(first_tick)
+    out = np.array(first + first_at + first_tick).reshape(3, -1)  # one array, three rows
+    return out[0], out[1], out[2]
 
 
 def _minimum(col: list[float]) -> float:

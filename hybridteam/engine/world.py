@@ -209,7 +209,8 @@ class AgentView:
         store = self.memory.get(name)
         if store is None:
             store = self.memory[name] = np.full(self.n, float(initial))
-        return store[self.idx].copy()
+        kept = store[self.idx]  # a copy where idx is an index array; a view for a slice
+        return kept.copy() if isinstance(self.idx, slice) else kept
 
     def keep(self, name: str, values: np.ndarray) -> None:
         store = self.memory.get(name)

@@ -137,6 +137,8 @@ class LadderCorridor(WorldComponent):
         self.radius = param["radius"]
         # statistics and referee state, per instance (robot ones (2, n))
         self.prev = np.full((2, n, 2), np.nan)
+        #: each robot's partner's row of ``prev`` and of ``sc`` (views, made once)
+        self.partner_prev, self.partner_sc = (self.prev[1], self.prev[0]), (sc[1], sc[0])
         self.was_corner = np.zeros(n, bool)
         self.steps = np.zeros(n, np.int64)
         self.corner_steps = np.zeros(n, np.int64)
@@ -237,8 +239,8 @@ class LadderCorridor(WorldComponent):
         # integer and an array together four times slower; take is the faster for rows of
         # arrays, plain indexing for rows of numbers)
         if name == "period":  # what the law reads at every period, in one call
-            return (self.prev[1 - row].take(idx, 0), self.length[idx],
-                    self.sc[1 - row][idx], self.frame, self.correction)
+            return (self.partner_prev[row].take(idx, 0), self.length[idx],
+                    self.partner_sc[row][idx], self.frame, self.correction)
         if name == "partner":
             return self.prev[1 - row].take(idx, 0)
         if name == "path":
@@ -291,8 +293,9 @@ class LadderCorridor(WorldComponent):
         """:meth:`sample` of one instance on floats (the same operations, the same bits)."""
         (ax, ay), (bx, by) = self.tips[:, i].tolist()
         th = np.arctan2(ay - by, ax - bx)
-        pose = np.array([[0.5 * (ax + bx), 0.5 * (ay + by), th]])
-        return {"ladder": pose, "ladder_offset": np.array([self.offset[:, i].tolist()])}
+        row = np.array([[0.5 * (ax + bx), 0.5 * (ay + by), th, self.offset.item(0, i),
+                         self.offset.item(1, i)]])  # one array for both series
+        return {"ladder": row[:, :3], "ladder_offset": row[:, 3:]}
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),
