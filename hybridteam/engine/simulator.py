@@ -75,6 +75,9 @@ class Simulator:
         #: else no step is limited by error control, and it ends at the next instant due
         self.may_flow = any(ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers)
                             for ca in cteam.agents)
+        #: whether any agent watches a guard or invariant atom: else no step is searched
+        #: for crossings (a law-only team like the ladder's)
+        self.may_cross = any(st.ca.watches for st in self.ensemble.states)
         self.access = EnsembleAccess(self.ensemble)
         self.progress = progress
         #: the world's series the last instant's snapshot took: ``(idx, values)``. The
@@ -227,7 +230,8 @@ class Simulator:
             assert err is not None
             control_step_size(ens, idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
-        crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
+        crossing, end_truths = self._locate(idx, sel, t1, x_end, steps) if self.may_cross \
+            else (None, [None] * len(ens.states))
         tn = t1[sel]
         # an output sample is due inside the step or at its end (after the instant, which
         # moves no clock and no sample): else neither looks for one
