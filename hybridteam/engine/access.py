@@ -52,7 +52,7 @@ class EnsembleAccess(WorldAccess):
         every instant), ``idx`` itself, read-only: a component cannot write the engine's
         index through it."""
         live = self._ens.live(idx)
-        if live is not idx:
+        if live is not idx or live is self._ens.everyone:  # (everyone is read-only)
             return live
         view = idx.view()
         view.flags.writeable = False

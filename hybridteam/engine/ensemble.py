@@ -64,6 +64,9 @@ class Ensemble:
         self.t0 = np.zeros(n)
         self.h = np.zeros(n)
         self.done = np.zeros(n, bool)
+        #: every instance's index, read-only: the live instances while none has ended
+        self.everyone = np.arange(n)
+        self.everyone.flags.writeable = False
         self.changed = np.zeros(n, bool)
         self.reconfigured = np.zeros(n, bool)
         self.micro = np.zeros(n, np.int64)

@@ -214,7 +214,7 @@ class Simulator:
         """Advance every live instance to its next instant (or as far as its error control
         allows), stop it at the first located crossing, then run the instants reached."""
         ens = self.ensemble
-        idx = where_true(~ens.done)
+        idx = where_true(~ens.done) if some(ens.done) else ens.everyone
         # with every instance live (the usual case) gathers are views, not copies
         full = idx.size == ens.n
         sel: slice | np.ndarray = slice(None) if full else idx
