@@ -54,7 +54,7 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     st = ens.states[a]
     x0, u, is_rk = gather(st.x, sel), gather(st.u, sel), st.rk[sel]
     step = AgentStep(x0, u, is_rk)
-    if not some(is_rk):
+    if err is None or not some(is_rk):  # (None: no agent of the team can flow)
         return st.ca.plant.propagate(x0, u, h), step
     xe = np.empty_like(x0)
     ex = ~is_rk
