@@ -112,6 +112,33 @@ def test_continuous_law_is_integrated_accurately(team_from_yaml, userlaws):
     np.testing.assert_allclose(theta, np.exp(-0.5 * run.sample_times), rtol=1e-9)
 
 
+def test_sampled_inputs_read_the_time_in_their_mode_at_each_tick(team_from_yaml):
+    """``vx = 0.5 t_in_mode`` sampled every 0.5 s in Accelerate (2 s), then 1 m/s in
+    Cruise (1 s), then Accelerate again from zero: held speeds 0, 0.25, 0.5, 0.75 give
+    x(2) = 0.5 * 1.5 = 0.75, Cruise adds 1, and the second Accelerate starts at speed 0
+    (its time in the mode restarts at t = 3)."""
+    team = team_from_yaml("""
+        team: ramp
+        agents:
+          rover:
+            plant: {kind: holonomic, state: {x: 0, y: 0, theta: 0}}
+            initial: Accelerate
+            modes:
+              Accelerate:
+                inputs: {vx: 0.5 * t_in_mode, vy: 0, omega: 0}
+                period: 0.5
+                transitions: [{to: Cruise, after: 2}]
+              Cruise:
+                inputs: {vx: 1, vy: 0, omega: 0}
+                period: 0.5
+                transitions: [{to: Accelerate, after: 1}]
+        simulation: {duration: 5, sample_period: 0.5}
+        """)
+    run = ht.simulate(team)
+    assert run.samples["rover"][:, 0, 0].tolist() == [
+        0.0, 0.0, 0.125, 0.375, 0.75, 1.25, 1.75, 1.75, 1.875, 2.125, 2.5]
+
+
 def test_holonomic_inputs_and_limits_saturate(team_from_yaml):
     team = make(team_from_yaml, "inputs: {vx: 3.0, vy: -0.5, omega: 0.1}\n        period: 0.5",
                 kind="holonomic", limits="{vx: [-1, 1], vy: [-1, 1]}")
