@@ -19,6 +19,10 @@ from typing import Any
 
 import numpy as np
 
+#: no instance: an empty index, read-only, shared where an engine step has none to give
+NO_INDEX = np.empty(0, np.intp)
+NO_INDEX.flags.writeable = False
+
 
 def spread(value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """``value`` with ``shape``: itself when it has it, else broadcast (read-only). One

@@ -13,15 +13,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hybridteam.arrays import NO_INDEX
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.events import LOCAL
 from hybridteam.errors import did_you_mean
 from hybridteam.world.access import Agent, Message, WorldAccess
 from hybridteam.world.component import WorldComponent
-
-#: no instance: what :meth:`EnsembleAccess.take_raised` gives where none raised (read-only)
-_NO_INDEX = np.empty(0, np.intp)
-_NO_INDEX.flags.writeable = False
 
 
 class EnsembleAccess(WorldAccess):
@@ -71,7 +68,7 @@ class EnsembleAccess(WorldAccess):
     def take_raised(self) -> np.ndarray:
         """Instances where events were raised since the last call (for the engine)."""
         if not self._raised:
-            return _NO_INDEX
+            return NO_INDEX
         out = np.unique(np.concatenate(self._raised))
         self._raised.clear()
         return out

@@ -72,7 +72,7 @@ class Ensemble:
         self.micro = np.zeros(n, np.int64)
         self.last_fired = np.full(n, -1, np.int64)
         self.outcomes: list[dict | None] = [None] * n
-        self.states = [AgentState(a, n) for a in cteam.agents]
+        self.states = [AgentState(a, self.everyone) for a in cteam.agents]
         #: whether a run can end before its duration by the end rule or a deadlock: not
         #: without final modes (the end rule then holds nowhere, when some agent ends runs)
         #: nor without triggered transitions (a deadlock is someone waiting for an event)

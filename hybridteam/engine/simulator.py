@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.arrays import every, gather, some, union, where_true
+from hybridteam.arrays import NO_INDEX, every, gather, some, union, where_true
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.compiled import CTeam, Watch
@@ -84,11 +84,10 @@ class Simulator:
         #: samples recorded right after it, at the same time and before any world update,
         #: read the same values (a clearance series costs as much as the rest of a run).
         self._world_snapshot: tuple[np.ndarray, dict[str, np.ndarray]] | None = None
-        #: no instance (a flag per instance, read-only), and no index: what a step where
-        #: nothing flows or crossed has for its flowing rows and its crossed instances
+        #: no instance (a flag per instance, read-only): what a step where nothing flows
+        #: has for its flowing rows
         self._no_rows = np.zeros(self.ensemble.n, bool)
         self._no_rows.flags.writeable = False
-        self._no_index = np.empty(0, np.intp)
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
@@ -173,12 +172,12 @@ class Simulator:
         # no transition fired and no event was consumed where nothing was due to fire
         # (``discrete`` is empty): nothing changed there
         quiet = not entering and discrete.size == 0
-        changed = live if entering else self._no_index if quiet else \
+        changed = live if entering else NO_INDEX if quiet else \
             where_true(ens.changed) if whole else live[ens.changed[live]]
         # an event consumed without a transition changes no mode, variable or state: what
         # depends on those is refreshed only where the configuration changed (a component
         # may have moved a state)
-        config = live if entering else self._no_index if ticks_only else \
+        config = live if entering else NO_INDEX if ticks_only else \
             where_true(ens.reconfigured) if whole else live[ens.reconfigured[live]]
         for a, st in enumerate(ens.states):
             if live.size and st.after_slots.size:
@@ -214,7 +213,7 @@ class Simulator:
         """Advance every live instance to its next instant (or as far as its error control
         allows), stop it at the first located crossing, then run the instants reached."""
         ens = self.ensemble
-        idx = where_true(~ens.done) if some(ens.done) else ens.everyone
+        idx = ens.live(ens.everyone)  # (everyone itself while none has ended)
         # with every instance live (the usual case) gathers are views, not copies
         full = idx.size == ens.n
         sel: slice | np.ndarray = slice(None) if full else idx
@@ -230,8 +229,7 @@ class Simulator:
             assert err is not None
             control_step_size(ens, idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
-        crossing, end_truths = self._locate(idx, sel, t1, x_end, steps) if self.may_cross \
-            else (None, [None] * len(ens.states))
+        crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
         tn = t1[sel]
         # an output sample is due inside the step or at its end (after the instant, which
         # moves no clock and no sample): else neither looks for one
@@ -282,8 +280,8 @@ class Simulator:
         was searched for) and each agent's atom truths at the step's end (valid where
         nothing crossed)."""
         ens = self.ensemble
-        accepted = ens.h[sel] > 0
-        if not some(accepted):
+        accepted = ens.h[sel] > 0 if self.may_cross else None  # (else: no atom to search)
+        if accepted is None or not some(accepted):
             return None, [None] * len(ens.states)
         tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
         if tau is None:  # no atom flipped inside the step: nothing was searched
@@ -314,7 +312,7 @@ class Simulator:
         if crossing is not None:
             at |= crossing
         tick = tn >= first_tick[sel]
-        moved = idx[crossing] if crossing is not None else self._no_index
+        moved = idx[crossing] if crossing is not None else NO_INDEX
         plain = None
         for a, st in enumerate(ens.states):
             if end_truths[a] is not None:

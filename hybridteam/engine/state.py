@@ -27,7 +27,9 @@ if TYPE_CHECKING:
 class AgentState:
     """Arrays of one agent over the ensemble (leading axis: instance)."""
 
-    def __init__(self, ca: CAgent, n: int) -> None:
+    def __init__(self, ca: CAgent, everyone: np.ndarray) -> None:
+        """``everyone``: the ensemble's read-only index of every instance."""
+        n = everyone.size
         self.ca = ca
         m_count = len(ca.modes)
         self.x = np.zeros((n, len(ca.plant.state_names)))
@@ -63,8 +65,7 @@ class AgentState:
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
         #: every instance's index, read-only: what a law's world view gives as its
         #: instances when it runs on all of them (most ticks), without building it
-        self.everyone = np.arange(n)
-        self.everyone.flags.writeable = False
+        self.everyone = everyone
 
     def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
             m: dict[str, np.ndarray] | None = None, law: bool = False,

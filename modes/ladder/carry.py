@@ -79,7 +79,6 @@ def _few(ctx: LawContext, window: int) -> np.ndarray:
     return np.array(u, dtype=float)
 
 
-_KR = ROBOT.index("kr")
 #: kept indices beyond this (or NaN) are left to the array version's conversion
 _INDEX_RANGE = 2.0**62
 

@@ -242,7 +242,7 @@ class LadderCorridor(WorldComponent):
             return (self.partner_prev[row].take(idx, 0), self.length[idx],
                     self.partner_sc[row][idx], self.frame, self.correction)
         if name == "partner":
-            return self.prev[1 - row].take(idx, 0)
+            return self.partner_prev[row].take(idx, 0)
         if name == "path":
             return self.paths[row].take(idx, 0)
         if name == "goal_heading":
@@ -250,7 +250,7 @@ class LadderCorridor(WorldComponent):
         if name == "length":
             return self.length[idx]
         if name == "sc_partner":
-            return self.sc[1 - row][idx]
+            return self.partner_sc[row][idx]
         if name == "corridor":
             return self.corridor
         if name == "frame":
