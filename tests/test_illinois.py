@@ -1,4 +1,4 @@
-"""The crossing search's bracket narrowing: a single bracket finished on Python floats gives
+"""The crossing search's bracket narrowing: a few brackets finished on Python floats give
 the bits the array rounds give, and every bracket closes on the analytic root."""
 
 from __future__ import annotations
@@ -56,6 +56,18 @@ def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None
         fast = _alone(ev, i, lo, hi, truth0, tol)
         slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
         assert np.array(fast).tobytes() == np.array(slow).tobytes()
+
+
+@settings(max_examples=200, deadline=None)
+@given(problems)
+def test_few_brackets_on_floats_equal_the_array_rounds_bit_for_bit(rows) -> None:
+    """Several brackets finished together on floats (an ensemble's few crossings in one
+    step): each closes in its own number of rounds, while the others go on."""
+    ev, lo, hi, truth0, tol, _ = _problem(rows)
+    with np.errstate(all="ignore"):
+        fast = illinois(ev, lo.copy(), hi.copy(), truth0, tol)
+        slow = illinois(ev, lo.copy(), hi.copy(), truth0, tol, scalar=False)
+    assert np.array(fast).tobytes() == np.array(slow).tobytes()
 
 
 @settings(max_examples=200, deadline=None)

@@ -3,10 +3,12 @@
 :func:`illinois` narrows many brackets at once, one array operation per step of the
 method for all of them. A single run has one bracket, and there numpy's cost is per call
 (about 1 µs, 3 µs for ``np.where``), not per element: the fifty-odd array operations of a
-round cost far more than the trial point itself. So the last open bracket is finished by
-:func:`_finish_one` on Python floats, the same operations in the same order on the same
-IEEE doubles: the same bits as the array rounds would give (``tests/test_illinois.py`` compares
-the two on random brackets), so a single run still equals its ensemble member.
+round cost far more than the trial points themselves. So once only a few brackets are open
+(a single run's one, the handful an ensemble's instances cross in one step), they are
+finished by :func:`_finish_few` on Python floats, the same operations in the same order on
+the same IEEE doubles: the same bits as the array rounds would give
+(``tests/test_illinois.py`` compares the two on random brackets), so a single run still
+equals its ensemble member.
 """
 
 from __future__ import annotations
@@ -19,6 +21,10 @@ import numpy as np
 from hybridteam.arrays import some, where_true
 
 MAX_ITER = 200
+#: Up to this many open brackets, :func:`illinois` finishes them on Python floats
+#: (:func:`_finish_few`): a round of array operations costs about fifty dispatches
+#: whatever the number of brackets, a bracket's round on floats a few microseconds.
+FEW = 16
 
 Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
@@ -54,9 +60,8 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         open_ = where_true(hi - lo > tol)
         if open_.size == 0:
             break
-        if open_.size == 1 and scalar:
-            _finish_one(ev, int(open_[0]), lo, hi, ma, mb, truth0, tol, kept, slow,
-                        MAX_ITER - done)
+        if open_.size <= FEW and scalar:
+            _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done)
             break
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
         k: slice | np.ndarray = slice(None) if open_.size == size else open_
@@ -83,45 +88,56 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     return lo, hi
 
 
-def _finish_one(ev: Evaluator, i: int, lo: np.ndarray, hi: np.ndarray, ma: np.ndarray,
-                mb: np.ndarray, truth0: np.ndarray, tol: np.ndarray, kept: np.ndarray,
-                slow: np.ndarray, rounds: int) -> None:
-    """The rounds of :func:`illinois` for bracket ``i`` alone, on Python floats (at most
-    ``rounds`` of them); writes its final ends into ``lo`` and ``hi``.
+def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+                ma: np.ndarray, mb: np.ndarray, truth0: np.ndarray, tol: np.ndarray,
+                kept: np.ndarray, slow: np.ndarray, rounds: int) -> None:
+    """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
+    Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
+    ``hi``. The trial points of one round are evaluated in one call, as the array round
+    evaluates them.
 
     Each line is the array round's for one element. Where numpy divides by zero (inf or
     NaN, replaced by the round), Python raises, so those quotients are NaN here;
     ``np.maximum``/``np.minimum`` return their second argument on ties, and so do the
-    conditionals that stand for them (the same bits, ``-0.0`` included).
+    conditionals that stand for them (the same bits, ``-0.0`` included). A bracket that
+    closes leaves the next rounds, as it leaves the array rounds' open brackets.
     """
-    a, b, fa, fb = float(lo[i]), float(hi[i]), float(ma[i]), float(mb[i])
-    tl, t0 = float(tol[i]), bool(truth0[i])
-    survived, sl = int(kept[i]), int(slow[i])
-    pos = np.array([i])
+    rows = brackets.tolist()
+    a_s, b_s = lo[brackets].tolist(), hi[brackets].tolist()
+    fa_s, fb_s = ma[brackets].tolist(), mb[brackets].tolist()
+    tls, t0s = tol[brackets].tolist(), truth0[brackets].tolist()
+    survived_s, sl_s = kept[brackets].tolist(), slow[brackets].tolist()
+    going = list(range(len(rows)))
     for _ in range(rounds):
-        if not b - a > tl:
+        going = [j for j in going if b_s[j] - a_s[j] > tls[j]]
+        if not going:
             break
-        width = b - a
-        den = fb - fa
-        c = b - fb * width / den if den != 0.0 else math.nan
-        if not (math.isfinite(c) and sl < 3):
-            c = 0.5 * (a + b)
-        low, high = a + 0.5 * tl, b - 0.5 * tl
-        c = c if c > low else low
-        c = c if c < high else high
-        tc, mc_ = ev(pos, np.array([c]))
-        to_lo, mc = bool(tc[0]) == t0, float(mc_[0])
-        end = fa if to_lo else fb
-        scale = 1 - mc / end if end != 0.0 else math.nan
-        new_lo, new_hi = (c, b) if to_lo else (a, c)
-        sl = sl + 1 if new_hi - new_lo > 0.5 * width else 0
-        survivor = 1 if to_lo else -1
-        again = survived == survivor
-        if not (math.isfinite(scale) and scale > 0):
-            scale = 0.5
-        if to_lo:
-            fa, fb = mc, (scale * fb if again else fb)
-        else:
-            fa, fb = (scale * fa if again else fa), mc
-        a, b, survived = new_lo, new_hi, survivor
-    lo[i], hi[i] = a, b
+        cs = []
+        for j in going:
+            a, b, fa, fb, tl = a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j]
+            den = fb - fa
+            c = b - fb * (b - a) / den if den != 0.0 else math.nan
+            if not (math.isfinite(c) and sl_s[j] < 3):
+                c = 0.5 * (a + b)
+            low, high = a + 0.5 * tl, b - 0.5 * tl
+            c = c if c > low else low
+            cs.append(c if c < high else high)
+        tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
+        for j, c, tcj, mc in zip(going, cs, tc.tolist(), mc_.tolist(), strict=True):
+            a, b, fa, fb = a_s[j], b_s[j], fa_s[j], fb_s[j]
+            width = b - a
+            to_lo = tcj == t0s[j]
+            end = fa if to_lo else fb
+            scale = 1 - mc / end if end != 0.0 else math.nan
+            new_lo, new_hi = (c, b) if to_lo else (a, c)
+            sl_s[j] = sl_s[j] + 1 if new_hi - new_lo > 0.5 * width else 0
+            survivor = 1 if to_lo else -1
+            again = survived_s[j] == survivor
+            if not (math.isfinite(scale) and scale > 0):
+                scale = 0.5
+            if to_lo:
+                fa_s[j], fb_s[j] = mc, (scale * fb if again else fb)
+            else:
+                fa_s[j], fb_s[j] = (scale * fa if again else fa), mc
+            a_s[j], b_s[j], survived_s[j] = new_lo, new_hi, survivor
+    lo[brackets], hi[brackets] = a_s, b_s
