@@ -73,7 +73,7 @@ class Unicycle(Plant):
 
 
 #: up to this many rows, :meth:`Unicycle.propagate` runs on Python floats (:func:`_arcs_few`)
-FEW_ARCS = 4
+FEW_ARCS = 8
 
 
 def _arcs_few(x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
