@@ -57,7 +57,7 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
     style = "round,pad=0,rounding_size=7"
     if is_composite(layout.graph, box.node):
         shade = ("#FFFFFF", "#F4F4F4", "#EAEAEA", "#E0E0E0")[min(depth, 3)]
-        ax.add_patch(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=shade,
+        ax.add_artist(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=shade,
                                     ec="#444444", lw=1.0, ls="--" if dashed else "-"))
         _text(ax, box.x + PAD, box.y + 4, state_title(layout.graph, box.node), fontsize=NAME_PT,
               fontweight="bold", va="top", ha="left", color="#222222")
@@ -65,8 +65,8 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
         if first:
             kid = layout.boxes[first]
             cy = kid.y + min(kid.h / 2, 12.0)
-            ax.add_patch(Circle((kid.x - 12, cy), 3.0, fc="black", ec="black"))
-            ax.add_patch(FancyArrowPatch((kid.x - 9, cy), (kid.x, cy), arrowstyle="-|>",
+            ax.add_artist(Circle((kid.x - 12, cy), 3.0, fc="black", ec="black"))
+            ax.add_artist(FancyArrowPatch((kid.x - 9, cy), (kid.x, cy), arrowstyle="-|>",
                                          mutation_scale=7, lw=0.9, color="black"))
         for row in box.rows:
             for kid in row:
@@ -74,10 +74,10 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
         return
     color = data["color"]
     ink = text_color(color)
-    ax.add_patch(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=color,
+    ax.add_artist(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=color,
                                 ec="#222222", lw=1.0, ls="--" if dashed else "-"))
     if data["final"]:
-        ax.add_patch(FancyBboxPatch((box.x + 2.5, box.y + 2.5), box.w - 5, box.h - 5,
+        ax.add_artist(FancyBboxPatch((box.x + 2.5, box.y + 2.5), box.w - 5, box.h - 5,
                                     boxstyle="round,pad=0,rounding_size=5", fc="none",
                                     ec="#222222", lw=0.8))
     _text(ax, box.x + box.w / 2, box.y + PAD / 2 + 1, data["name"], fontsize=NAME_PT,
@@ -237,10 +237,10 @@ def _draw_edge(ax, edge: _Edge) -> None:
              "color": color, "zorder": 4, "ls": "--" if edge.message else "-"}
     if edge.path is not None:
         verts, codes = rounded(edge.path)
-        ax.add_patch(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1,
+        ax.add_artist(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1,
                                      **style))
     else:
-        ax.add_patch(FancyArrowPatch(edge.pa, edge.pb,
+        ax.add_artist(FancyArrowPatch(edge.pa, edge.pb,
                                      connectionstyle=f"arc3,rad={edge.rad}",
                                      shrinkA=0 if edge.loop else 1,
                                      shrinkB=0 if edge.loop else 1, **style))

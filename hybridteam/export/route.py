@@ -36,18 +36,26 @@ def inside(points: np.ndarray, rects: list[Rect], grow: float = 0.0) -> np.ndarr
     return hit.any(axis=1)
 
 
-def _clear(a: Point, b: Point, rects: list[Rect], grow: float) -> bool:
-    """Whether the segment a-b stays out of every grown rectangle (touching its border is
-    allowed only at a distance: the rectangles are grown)."""
-    if not rects:
-        return True
+def _grown_edges(rects: list[Rect], grow: float) -> np.ndarray:
+    """The four sides of every rectangle grown by ``grow``: ``(4 r, 4)`` segments."""
     r = np.asarray(rects, float)
     x0, y0, x1, y1 = r[:, 0] - grow, r[:, 1] - grow, r[:, 2] + grow, r[:, 3] + grow
-    edges = np.concatenate([np.c_[x0, y0, x1, y0], np.c_[x1, y0, x1, y1],
-                            np.c_[x1, y1, x0, y1], np.c_[x0, y1, x0, y0]])
-    if segments_intersect(np.array([[a[0], a[1], b[0], b[1]]]), edges).any():
-        return False
-    return not inside(np.array([a, b]), rects, grow).any()
+    return np.concatenate([np.c_[x0, y0, x1, y0], np.c_[x1, y0, x1, y1],
+                           np.c_[x1, y1, x0, y1], np.c_[x0, y1, x0, y0]])
+
+
+def _clear_to(a: Point, ends: list[Point], rects: list[Rect], grow: float,
+              edges: np.ndarray) -> np.ndarray:
+    """Whether each segment from ``a`` to one of ``ends`` stays out of every grown
+    rectangle (touching its border is allowed only at a distance: the rectangles are
+    grown); ``edges`` are their sides (:func:`_grown_edges`). Every segment is tested in
+    one batch, each as it would be alone."""
+    if not rects:
+        return np.ones(len(ends), bool)
+    segs = np.array([[a[0], a[1], b[0], b[1]] for b in ends], float).reshape(-1, 4)
+    crossed = segments_intersect(segs, edges).any(axis=1)
+    return ~crossed & ~inside(np.array([a]), rects, grow)[0] & \
+        ~inside(np.array(ends, float), rects, grow)
 
 
 def route(pa: Point, pb: Point, obstacles: list[Rect], bounds: Rect) -> list[Point] | None:
@@ -99,13 +107,18 @@ def _grid_graph(ny: int, nx: int, free: np.ndarray, dx: float, dy: float) -> coo
 
 
 def _straighten(path: list[Point], obstacles: list[Rect]) -> list[Point]:
-    """Keep a grid point only where the straight segment past it would hit an obstacle."""
+    """Keep a grid point only where the straight segment past it would hit an obstacle:
+    from each kept point, on to the farthest later point it sees (all of them tested in
+    one batch), or the next one."""
+    grow = MARGIN - 0.5
+    edges = _grown_edges(obstacles, grow) if obstacles else np.zeros((0, 4))
     out = [path[0]]
     i = 0
     while i < len(path) - 1:
-        j = len(path) - 1
-        while j > i + 1 and not _clear(path[i], path[j], obstacles, MARGIN - 0.5):
-            j -= 1
+        later = path[i + 2:]
+        seen = np.flatnonzero(_clear_to(path[i], later, obstacles, grow, edges)) \
+            if later else np.zeros(0, int)
+        j = i + 2 + int(seen[-1]) if seen.size else i + 1
         out.append(path[j])
         i = j
     return out
