@@ -109,13 +109,15 @@ def filled(size: int | tuple[int, ...], value: float, dtype: type = float) -> np
 
 
 def distinct(values: np.ndarray) -> list[int]:
-    """The sorted distinct values of a non-empty integer array, as ``np.unique(values)``
-    gives them; one comparison instead of a sort when they are all equal (the usual case:
-    every instance under one driver), as ``np.unique`` costs tens of microseconds."""
+    """The sorted distinct values of a non-empty array of small non-negative integers
+    (indices: the drivers of an ensemble's instances), as ``np.unique(values)`` gives them;
+    one comparison when they are all equal (the usual case: every instance under one
+    driver), else a count per value, not ``np.unique``'s sort (6 against 33 µs for a
+    thousand)."""
     first = values[0]
     if every(values == first):
         return [int(first)]
-    return np.unique(values).tolist()
+    return np.flatnonzero(np.bincount(values)).tolist()
 
 
 def union(a: np.ndarray, b: np.ndarray) -> np.ndarray:

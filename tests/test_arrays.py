@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.arrays import all_finite, gather
+from hybridteam.arrays import all_finite, distinct, gather
 
 
 @settings(max_examples=150, deadline=None)
@@ -46,3 +46,12 @@ def test_all_finite_equals_isfinite_all(values: list[float], width: int) -> None
     """On floats for a few numbers (a single run's), on arrays beyond: the same answer."""
     x = np.array(values[: len(values) // width * width], float).reshape(-1, width)
     assert all_finite(x) == bool(np.isfinite(x).all())
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(st.integers(0, 12), min_size=1, max_size=300))
+def test_distinct_equals_unique(values: list[int]) -> None:
+    """The drivers an ensemble's instances are under, counted rather than sorted."""
+    v = np.array(values, np.intp)
+    got = distinct(v)
+    assert got == np.unique(v).tolist() and all(type(d) is int for d in got)
