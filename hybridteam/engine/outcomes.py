@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import filled
+from hybridteam.arrays import filled, spread
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
@@ -33,7 +33,7 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
             sel = idx[st.active[:, m.index][idx] & ~ens.done[idx]]
             if sel.size == 0:
                 continue
-            ok = np.broadcast_to(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
+            ok = spread(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
             bad = sel[~ok]
             if bad.size:
                 ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (

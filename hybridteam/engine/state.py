@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, gather
+from hybridteam.arrays import every, gather, spread
 from hybridteam.engine.compiled import CAgent, Ctx
 from hybridteam.engine.values import require
 from hybridteam.engine.world import AgentView
@@ -111,7 +111,7 @@ class AgentState:
             tr = ca.transitions[j]
             if tr.after is not None:
                 ctx = self.ctx(idx, t[idx])
-                delay = require(np.broadcast_to(tr.after(ctx), idx.shape),
+                delay = require(spread(tr.after(ctx), idx.shape),
                                 (*tr.origin, "after"), "the delay", tr.after.source, low=0.0,
                                 instances=idx)
                 self.deadline[:, tr.after_slot][idx] = t[idx] + delay

@@ -115,9 +115,12 @@ def arm_terms(ctx: LawContext) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def stack_inputs(ctx: LawContext, values: Mapping[str, np.ndarray]) -> np.ndarray:
     """Plant inputs ``(m, k)`` from named columns, in the plant's input order (by name, so
-    no law depends on that order)."""
-    return np.stack([np.broadcast_to(values[name], (ctx.size,)) for name in ctx.inputs],
-                    axis=1).astype(float)
+    no law depends on that order). A column may be a scalar: assignment broadcasts it (the
+    values ``np.stack`` of ``broadcast_to`` columns gave, at a third of the calls)."""
+    out = np.empty((ctx.size, len(ctx.inputs)))
+    for j, name in enumerate(ctx.inputs):
+        out[:, j] = values[name]
+    return out
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
