@@ -55,3 +55,15 @@ def test_distinct_equals_unique(values: list[int]) -> None:
     v = np.array(values, np.intp)
     got = distinct(v)
     assert got == np.unique(v).tolist() and all(type(d) is int for d in got)
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(st.one_of(st.floats(), st.sampled_from([0.0, -0.0, 1e-300, np.inf])),
+                       min_size=1, max_size=20))
+def test_dead_reckonings_sinc_equals_numpys_bit_for_bit(values: list[float]) -> None:
+    """The arc's sin(a/2)/(a/2) factor, written out without np.sinc's wrapper."""
+    from hybridteam.laws import _sinc
+
+    x = np.array(values, float)
+    with np.errstate(all="ignore"):
+        assert _sinc(x).tobytes() == np.sinc(x).tobytes()

@@ -350,12 +350,12 @@ class CarriedPayload(WorldComponent):
             s = np.asarray(segments, float)[None]
             ax, ay = _to_body(s[..., 0], s[..., 1], pose)
             bx, by = _to_body(s[..., 2], s[..., 3], pose)
-            out = np.minimum(out, _segment_box(ax, ay, bx, by, hw, hd).min(axis=1))
+            out = np.minimum(out, np.minimum.reduce(_segment_box(ax, ay, bx, by, hw, hd), axis=1))
         if len(circles):
             c = np.asarray(circles, float)[None]
             cx, cy = _to_body(c[..., 0], c[..., 1], pose)
-            out = np.minimum(out, np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2],
-                                             0.0).min(axis=1))
+            out = np.minimum(out, np.minimum.reduce(
+                np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2], 0.0), axis=1))
         return out
 
     def meta(self) -> dict[str, Any]:

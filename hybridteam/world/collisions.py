@@ -19,6 +19,8 @@ to cross a thin wall between two instants is not seen at all.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 MODES = ("outcome", "warn", "ignore")
@@ -34,8 +36,17 @@ def robot_overlaps(points: np.ndarray, radius: np.ndarray) -> np.ndarray:
     dist = np.hypot(d[..., 0], d[..., 1])                           # (R, R, m)
     reach = radius[:, None] + radius[None, :]
     overlap = (reach[..., None] - dist).transpose(2, 0, 1)          # (m, R, R)
-    solid = (radius[:, None] > 0) & (radius[None, :] > 0) & ~np.eye(len(radius), dtype=bool)
+    solid = (radius[:, None] > 0) & (radius[None, :] > 0) & _others(len(radius))
     return np.where(solid[None], overlap, -np.inf)
+
+
+@functools.lru_cache(maxsize=16)
+def _others(count: int) -> np.ndarray:
+    """``(count, count)``: True off the diagonal (every pair of two different robots);
+    read-only, built once per team size rather than at every instant."""
+    out = ~np.eye(count, dtype=bool)
+    out.flags.writeable = False
+    return out
 
 
 def box_sdf(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -47,7 +58,7 @@ def box_sdf(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     qx = np.abs(c * dx + s * dy) - boxes[:, 2] / 2.0
     qy = np.abs(-s * dx + c * dy) - boxes[:, 3] / 2.0
     outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-    return (outside + np.minimum(np.maximum(qx, qy), 0.0)).min(axis=1)
+    return np.minimum.reduce(outside + np.minimum(np.maximum(qx, qy), 0.0), axis=1)
 
 
 def name_hit(point: np.ndarray, walls: np.ndarray, circles: np.ndarray,

@@ -173,7 +173,7 @@ class Obstacles(WorldComponent):
                                      ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
-        dist = dist.reshape(idx.size, count, ring.rays_per_beam).min(axis=2)
+        dist = np.minimum.reduce(dist.reshape(idx.size, count, ring.rays_per_beam), axis=2)
         return np.maximum(dist, ring.min_range)
 
     def senses(self) -> tuple[str, ...]:
@@ -197,7 +197,7 @@ class Obstacles(WorldComponent):
             if key not in readings:
                 readings[key] = self._rule_readings(key, idx, reach.get(rule.agent))
             dist, rows = readings[key]
-            near = dist[:, self.rule_columns[r]].min(axis=1) < rule.below
+            near = np.minimum.reduce(dist[:, self.rule_columns[r]], axis=1) < rule.below
             if rows is not None:  # the others read no nearer than any rule's threshold
                 near, seen = np.zeros(idx.size, bool), near
                 near[rows] = seen

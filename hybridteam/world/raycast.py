@@ -166,7 +166,9 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
         off_line = np.abs(pwx * puy - pwy * pux)         # the start's distance from it
         touch = (off_line <= slack) & (far >= -slack)
         dist[rows, cols] = np.where(touch, near, np.inf)
-    return np.maximum(dist.min(axis=1), 0.0)  # a start just behind the ray's origin reads 0
+    # a start just behind the ray's origin reads 0 (np.minimum.reduce: ndarray.min's own
+    # reduction, without its Python-level wrapper)
+    return np.maximum(np.minimum.reduce(dist, axis=1), 0.0)
 
 
 def _circle_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
@@ -199,7 +201,7 @@ def _circle_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
     np.divide(c, disc, out=t, where=ahead)  # -b > 0 there: disc > 0, no error state
     np.copyto(t, np.inf, where=miss)
     np.copyto(t, 0.0, where=np.less_equal(c, 0.0, out=test))
-    return t.min(axis=1)
+    return np.minimum.reduce(t, axis=1)
 
 
 def cast(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray | list | None,

@@ -160,5 +160,5 @@ def clearance(poses: np.ndarray, radius: float | np.ndarray,
         dx = p[:, 0:1] - c[..., 0]
         dy = p[:, 1:2] - c[..., 1]
         d = np.sqrt(dx * dx + dy * dy) - c[..., 2]
-        gap = np.minimum(gap, np.where(np.isnan(d), np.inf, d).min(axis=1))
+        gap = np.minimum(gap, np.minimum.reduce(np.where(np.isnan(d), np.inf, d), axis=1))
     return gap - np.asarray(radius, dtype=float)
