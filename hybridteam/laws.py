@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.arrays import spread
+from hybridteam.arrays import sinc, spread
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 from hybridteam.libraries import broken_note, load_libraries
 
@@ -207,14 +207,6 @@ class Estimate:
         return self.fields[name]
 
 
-def _sinc(x: np.ndarray) -> np.ndarray:
-    """``np.sinc`` (``sin(pi x) / (pi x)``, 1 at 0) by its own operations, without its
-    Python-level checks: ``y = pi x``, the machine epsilon where that is 0, ``sin(y) / y``."""
-    y = np.pi * x
-    y = np.where(y, y, np.finfo(float).eps)
-    return np.sin(y) / y
-
-
 def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndarray]:
     """A pose copy moved on by ``age`` seconds under the velocity it was sent with.
 
@@ -239,7 +231,7 @@ def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndar
     if "v" in f:
         a = w * age
         # exact arc: chord length v*age*sinc(a/2), along the mean heading
-        chord = f["v"] * age * _sinc(a / (2 * np.pi))
+        chord = f["v"] * age * sinc(a / (2 * np.pi))
         mid = th0 + a / 2
         arc = (f["x"] + chord * np.cos(mid), f["y"] + chord * np.sin(mid))
     if {"vx", "vy"} <= set(f):
