@@ -1,0 +1,44 @@
+"""A data stream's copies are due at ``start + k / rate``, counted from its start.
+
+Adding ``1 / rate`` to the last copy's time drifts by a rounding per copy, which set a
+20 Hz stream started at 0 a femtosecond beside a 20 Hz law's ticks: two instants where
+the model has one. The expected send times here are computed independently, as ``k``
+times the period (the float of a law's ``k``-th tick at that period).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hybridteam as ht
+from tests.test_protocols import team
+
+
+def sends(run, sender):
+    m = run.messages
+    rows = (m["sender"] == sender) & (m["type"] == "state") & (m["receiver"] == "operator")
+    return m["t_send"][rows]
+
+
+@pytest.mark.parametrize("rate", [20, 7, 3])
+def test_copies_are_counted_from_the_start_not_summed(team_from_yaml, rate):
+    run = ht.simulate(team(team_from_yaml, rate=rate, duration=6.0))
+    period = 1 / rate
+    got = sends(run, "r1")
+    k = np.arange(got.size, dtype=float)
+    assert got.size == int(6.0 * rate) + 1  # at 0, then every period up to the end
+    np.testing.assert_array_equal(got, k * period)  # bit for bit
+    # what summing would give: it drifts away from k * period as copies accumulate
+    summed = np.cumsum(np.r_[0.0, np.full(got.size - 1, period)])
+    assert np.any(summed != got)
+
+
+def test_a_20_hz_stream_shares_the_instants_of_20_hz_laws(team_from_yaml):
+    """Every robot runs its law at 20 Hz and streams its state at 20 Hz from t = 0: each
+    copy leaves at a law tick, none a hair beside one."""
+    run = ht.simulate(team(team_from_yaml, rate=20, duration=3.0))
+    ticks = np.arange(61) * 0.05
+    for sender in ("r1", "r2", "r3"):
+        got = sends(run, sender)
+        assert np.isin(got, ticks).all(), got[~np.isin(got, ticks)]
