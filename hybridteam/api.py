@@ -196,7 +196,8 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
               seed: int | Sequence[int] | None = None, *,
               accelerate: bool = True) -> list[dict[str, Any]]:
     """Per-instance results of ``n`` runs (outcome, end time and the world's statistics),
-    without keeping a trace: what a parameter study needs.
+    without keeping a trace: what a parameter study needs. The runs record no output
+    samples unless the team's requirements are checked (they read them).
 
     When ``accelerate`` is true, every world component with a batch fast path
     (:meth:`~hybridteam.library.WorldComponent.batch`) is offered the runs, in declaration
@@ -213,8 +214,9 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
         if rows is not None:
             return rows
     requirements = compile_requirements(cteam)
+    # rows need no output samples (only requirement checks read them)
     sim = Simulator(cteam, n, seed=seed, overrides=overrides, snapshots=bool(requirements),
-                    observe=requirements.observers(cteam))
+                    observe=requirements.observers(cteam), samples=bool(requirements))
     run = Run.of(sim.run())
     if requirements:
         check_requirements(run, requirements, sim)

@@ -54,7 +54,8 @@ class Ensemble:
     """
 
     def __init__(self, cteam: CTeam, n: int, seed: int | Sequence[int], t_end: float,
-                 overrides: Mapping[str, float | Sequence[float]]) -> None:
+                 overrides: Mapping[str, float | Sequence[float]],
+                 samples: bool = True) -> None:
         self.cteam = cteam
         self.n = n
         self.seed = seed_value(seed, n)  # one int, or a list: one seed per instance
@@ -88,10 +89,12 @@ class Ensemble:
         zk = self.settings.zeno.max_transitions
         self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
         self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]
-        self.sample_times = output_times(t_end, self.settings.output_period())
+        # (no samples: none is ever due, and the trace has none)
+        self.sample_times = output_times(t_end, self.settings.output_period()) if samples \
+            else np.zeros(0)
         self.sample_after = np.append(self.sample_times, np.inf)
         self.out_k = np.zeros(n, np.intp)
-        self.next_out = np.full(n, self.sample_times[0])
+        self.next_out = np.full(n, self.sample_after[0])
         self.rec = Recorder(cteam, n, self.sample_times)
         self.queue = EventQueue(n, cteam.scenario)
         apply_overrides([st.ca for st in self.states], [st.p for st in self.states], n,

@@ -50,12 +50,17 @@ class Simulator:
                  progress: Progress | None = None, max_memory: float | None = None,
                  max_periods: float | None = None, max_wall: float | None = None,
                  snapshots: bool = False,
-                 observe: Mapping[int, Sequence[Watch]] | None = None) -> None:
+                 observe: Mapping[int, Sequence[Watch]] | None = None,
+                 samples: bool = True) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
         ``observe``: extra watched comparisons per agent index (a requirement's), whose
-        crossings the run stops at so that a snapshot holds the state there."""
+        crossings the run stops at so that a snapshot holds the state there.
+        ``samples`` false: no output samples (the trace has none). Samples are only
+        recorded, never read by the run, so outcomes, transitions and the world's
+        statistics are the same; a study's rows need none, and interpolating and
+        recording them cost a sixth of the ladder's sample run."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -67,7 +72,7 @@ class Simulator:
             cteam = dataclasses.replace(cteam, agents=[
                 dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
                 for ca in cteam.agents])
-        self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {})
+        self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples)
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
