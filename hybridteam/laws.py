@@ -131,7 +131,7 @@ class LawContext:
             raise KeyError(f"law for agent '{self.agent}' asked for stream '{message}', "
                            "which no protocol of this team sends")
         who = view.sender(message, None if sender is None else np.asarray(sender))
-        fields = {f: view.field(message, f, who) for f in view.box.fields[message]}
+        fields = view.fields(message, who)
         age = self.t - view.sent(message, who)
         if extrapolate:
             fields = _dead_reckon(fields, np.where(np.isfinite(age), age, 0.0))

@@ -1,4 +1,5 @@
-"""A data stream's copies are due at ``start + k / rate``, counted from its start.
+"""A data stream's copies are due at ``start + k / rate``, counted from its start; a
+law's estimate reads the newest copy.
 
 Adding ``1 / rate`` to the last copy's time drifts by a rounding per copy, which set a
 20 Hz stream started at 0 a femtosecond beside a 20 Hz law's ticks: two instants where
@@ -12,6 +13,8 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
+from hybridteam.engine.network import Message
+from hybridteam.engine.streams import Inbox
 from tests.test_protocols import team
 
 
@@ -42,3 +45,19 @@ def test_a_20_hz_stream_shares_the_instants_of_20_hz_laws(team_from_yaml):
     for sender in ("r1", "r2", "r3"):
         got = sends(run, sender)
         assert np.isin(got, ticks).all(), got[~np.isin(got, ticks)]
+
+
+def test_a_laws_estimate_reads_every_field_of_the_chosen_copy():
+    """``InboxView.fields`` (one gather for all fields, what ``ctx.estimate`` reads) gives
+    each field of the chosen sender's newest copy, NaN where none has arrived."""
+    box = Inbox(n=3, agents=3, fields={"state": ["x", "y", "theta"]})
+    box.deliver(0, Message(1, 0, 0, 0.1, "data", "state", {"x": 1.0, "y": 2.0, "theta": 3.0}))
+    box.deliver(0, Message(1, 0, 1, 0.2, "data", "state", {"x": 4.0, "y": 5.0}))
+    box.deliver(2, Message(2, 0, 0, 0.1, "data", "state", {"x": 7.0, "y": 8.0, "theta": 9.0}))
+    view = box.view(np.arange(3))
+    got = view.fields("state", view.sender("state", np.array([1, 1, 2])))
+    np.testing.assert_array_equal(got["x"], [4.0, np.nan, 7.0])
+    np.testing.assert_array_equal(got["y"], [5.0, np.nan, 8.0])
+    np.testing.assert_array_equal(got["theta"], [np.nan, np.nan, 9.0])  # not in the newest
+    latest = view.fields("state", view.sender("state"))  # the most recent sender, if any
+    np.testing.assert_array_equal(latest["x"], [4.0, np.nan, 7.0])
