@@ -16,15 +16,23 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import filled, spread
+from hybridteam.arrays import every, filled, some, spread
 
 if TYPE_CHECKING:
     from hybridteam.engine.ensemble import Ensemble
 
 
-def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
+def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = None
+                    ) -> None:
     """Invariants (``stuck``), the end rule (a final mode's outcome, else ``ok``), nothing
-    can happen (``deadlock``)."""
+    can happen (``deadlock``), for the instances ``idx`` where something happened.
+
+    ``config``: the instances whose configuration (active modes) changed at this instant
+    (None: any of ``idx``). The end rule reads only the active modes, so it can newly hold
+    only there: elsewhere it was false when the configuration last changed, or the
+    instance would have ended then. A deadlock needs nothing pending, which a running
+    stream or a component that raises events rules out: where neither check can fire,
+    the modes are not read at all (most of a streaming team's instants)."""
     if idx.size == 0:
         return
     for st in ens.states:
@@ -44,6 +52,19 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
     idx = idx[~ens.done[idx]]
     if idx.size == 0:
         return
+    # periodic stream sends are pending messages too: a robot that still talks is not stalled
+    pending = ens.queue.pending(idx) | np.isfinite(ens.streams.next[idx]) | ens.world.raises
+    if config is None:
+        ending = filled(idx.size, True, bool)
+    else:
+        ending = np.zeros(ens.n, bool)
+        ending[config] = True
+        ending = ending[idx]
+    look = ending | ~pending
+    if not some(look):
+        return
+    if not every(look):
+        idx, pending, ending = idx[look], pending[look], ending[look]
     cteam = ens.cteam
     all_final = filled(idx.size, True, bool)
     ends = np.zeros(idx.size, bool) if cteam.end_any else filled(idx.size, True, bool)
@@ -61,13 +82,11 @@ def check_instances(ens: Ensemble, idx: np.ndarray) -> None:
         trig = np.logical_or.reduce(act & ca.has_triggered, axis=1)
         waiting &= final | (~eventless & trig & ~np.isfinite(ens.timer[a][idx]))
         someone_waits |= ~final & trig
-    fin = idx[ends]
+    fin = idx[ends & ending]
     if fin.size:
         text = _end_text(ens)
         for kind, group in final_outcomes(ens, fin).items():
             ens.finish(group, kind, lambda i: text)
-    # periodic stream sends are pending messages too: a robot that still talks is not stalled
-    pending = ens.queue.pending(idx) | np.isfinite(ens.streams.next[idx]) | ens.world.raises
     stalled = idx[~all_final & waiting & someone_waits & ~pending]
     if stalled.size:
         ens.finish(stalled, "deadlock", lambda i: deadlock_text(ens, i))

@@ -211,7 +211,7 @@ class Simulator:
         ens.streams.update(live, config)
         if crossed is not None and crossed.size:
             changed = union(changed, crossed[~ens.done[crossed]])
-        check_instances(ens, changed)
+        check_instances(ens, changed, None if entering else config)
 
     # ------------------------------------------------------------------ one iteration
     def _step(self) -> None:
