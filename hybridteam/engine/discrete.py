@@ -48,6 +48,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                 fired[sel] |= select_and_fire(ens, ag, st, sel, ag.eventless, None)
         took = fired.copy()  # where a transition fired (events consumed join fired below)
         rest = active[~fired[active] & ~ens.done[active]]
+        inert: list[int] = []  # instances whose event this micro-step nobody waited for
         if rest.size:
             for (kind, agent, name), members in ens.queue.pop_due(rest, ens.t).items():
                 inst = np.array([i for i, _ in members], np.intp)
@@ -70,10 +71,14 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                     if waiting:
                         msg = message_fields([p for p, k in zip(payloads, keep, strict=True)
                                               if k])
+                    elif not recheck and len(members) <= FEW_INERT:
+                        inert += [i for i, _ in members]
                 else:
                     inst = inst[~ens.done[inst]]
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
                 took[inst] |= select_and_fire(ens, ag, st, inst, waiting, cause, msg)
+            for i in inert:
+                _more_inert(ens, i)
         quiet = fired & ~took
         stepped = active[fired[active]]
         ens.changed[stepped] = True
@@ -84,6 +89,38 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                 f"{ens.settings.zeno.max_steps_per_instant} discrete steps at "
                 f"t={ens.when(i)} without time advancing; last: {ens.last_step_text(i)}"))
         active = stepped[~ens.done[stepped]]
+
+
+#: Up to this many instances, messages nobody waits for are taken a run at a time
+#: (:func:`_more_inert`); more take their micro-steps in rounds, one array pass each.
+FEW_INERT = 4
+
+
+def _more_inert(ens: Ensemble, i: int) -> None:
+    """Instance ``i`` just consumed a message nobody waits for: take its next due events
+    now while they are such messages too, each a micro-step of its own.
+
+    What the next rounds of :func:`discrete_phase` would do for ``i``, without the rounds:
+    a message nobody waits for fires no transition, so ``i`` is quiet and (no urgent guard
+    reading stream estimates) its urgent transitions are not evaluated again; the round
+    pops its next due event, delivers it (rate limits, the protocol's screen, the record)
+    and counts a micro-step. So the same messages are delivered in the same order, and
+    the count stops where the Zeno limit would end the instance. A streaming team's
+    arrival instants (a copy from each teammate at once) take one round, not one per copy.
+    """
+    limit = ens.settings.zeno.max_steps_per_instant
+    t = float(ens.t[i])
+    one = np.array([i])
+    agents = ens.cteam.agents
+    taken = 0
+    # (the round that consumed the first one counts its micro-step: taken + 1 of them)
+    while int(ens.micro[i]) + taken + 1 < limit and not ens.done[i]:
+        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].triggered.get(name))
+        if got is None:
+            break
+        ens.network.receive(one, ens.t[one], [got[1]], screen=ens.screen)
+        taken += 1
+    ens.micro[i] += taken
 
 
 def message_fields(messages: list) -> dict[str, np.ndarray]:

@@ -11,7 +11,7 @@ depend on its neighbours in an ensemble.
 from __future__ import annotations
 
 import heapq
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -94,19 +94,40 @@ class EventQueue:
         due = idx[self.next[idx] <= t[idx]]
         groups: dict[tuple[int, int, str], list[tuple[int, Any]]] = {}
         for i in due.tolist():
-            c = int(self.cursor[i])
-            heap = self.heaps.get(i)
-            scn = self.scenario[c] if c < len(self.scenario) else None
-            head = heap[0] if heap else None
-            use_scn = scn is not None and scn[0] <= t[i] and (
-                head is None or (scn[0], SCENARIO, 0.0, scn[1]) <= head[:4])
-            if use_scn:
+            scn, _ = self._first(i, t[i])
+            if scn is not None:
                 self.cursor[i] += 1
                 key, payload = (SCENARIO, scn[1], scn[2]), None
             else:
-                ev = heapq.heappop(heap)  # type: ignore[arg-type]
+                ev = heapq.heappop(self.heaps[i])
                 key, payload = (ev[1], ev[3], ev[5]), ev[6]
             groups.setdefault(key, []).append((i, payload))
         if due.size:
             self._refresh(due)
         return groups
+
+    def _first(self, i: int, t: float) -> tuple[tuple | None, tuple | None]:
+        """Instance ``i``'s first event, which is due: ``(scenario event, None)`` when the
+        scenario's comes first, else ``(None, heap head)``."""
+        c = int(self.cursor[i])
+        heap = self.heaps.get(i)
+        scn = self.scenario[c] if c < len(self.scenario) else None
+        head = heap[0] if heap else None
+        if scn is not None and scn[0] <= t and (
+                head is None or (scn[0], SCENARIO, 0.0, scn[1]) <= head[:4]):
+            return scn, None
+        return None, head
+
+    def pop_message(self, i: int, t: float, inert: Callable[[int, str], bool]
+                    ) -> tuple[int, Any] | None:
+        """Pop instance ``i``'s first due event if it is a message for which ``inert(agent,
+        type)`` holds: ``(agent, payload)``, else None (nothing is popped). The event
+        :meth:`pop_due` would pop next for ``i``, by the same rule."""
+        if not self.next[i] <= t:
+            return None
+        scn, head = self._first(i, t)
+        if scn is not None or head is None or head[1] != MESSAGE or not inert(head[3], head[5]):
+            return None
+        ev = heapq.heappop(self.heaps[i])
+        self._refresh(np.array([i]))
+        return ev[3], ev[6]
