@@ -89,6 +89,10 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                 f"{ens.settings.zeno.max_steps_per_instant} discrete steps at "
                 f"t={ens.when(i)} without time advancing; last: {ens.last_step_text(i)}"))
         active = stepped[~ens.done[stepped]]
+        if not recheck and active.size:
+            # a quiet instance with no event left due would only find that out next round
+            # (its urgent transitions are not evaluated again): it is quiescent now
+            active = active[~(quiet[active] & (ens.queue.next[active] > ens.t[active]))]
 
 
 #: Up to this many instances, messages nobody waits for are taken a run at a time
