@@ -310,3 +310,19 @@ def test_a_cast_reads_nothing_a_previous_cast_of_the_same_shape_left_behind():
     worker.join()
     np.testing.assert_array_equal(after, fresh[0])
     assert np.any(after < 5.0) and np.any(after == 5.0)  # some rays hit, some read max
+
+
+@given(st.lists(st.integers(0, 15), min_size=1, max_size=16, unique=True),
+       st.floats(-50, 50), st.floats(-50, 50), st.floats(-10, 10))
+@settings(max_examples=100, deadline=None)
+def test_the_rays_of_some_beams_are_those_beams_rays(beams, x, y, theta):
+    """Casting only the beams a rule reads gives those beams' rays of the whole ring, bit
+    for bit (a cone's sub-rays included, in the order the beams are given)."""
+    ring = RangeRing(16, 3.0, 0.05, 0.2, 0.1, half_angle=0.2, rays_per_beam=3)
+    poses = np.array([[x, y, theta], [y, x, -theta]])
+    b = np.array(beams)
+    rays = (b[:, None] * 3 + np.arange(3)).ravel()
+    whole_o, whole_d = ring.rays(poses)
+    some_o, some_d = ring.rays(poses, b)
+    np.testing.assert_array_equal(some_o, whole_o[:, rays])
+    np.testing.assert_array_equal(some_d, whole_d[:, rays])

@@ -61,3 +61,48 @@ def test_a_laws_estimate_reads_every_field_of_the_chosen_copy():
     np.testing.assert_array_equal(got["theta"], [np.nan, np.nan, 9.0])  # not in the newest
     latest = view.fields("state", view.sender("state"))  # the most recent sender, if any
     np.testing.assert_array_equal(latest["x"], [4.0, np.nan, 7.0])
+
+
+RATE_PROTOCOL = """\
+kind: protocol
+protocol: beacon
+streams:
+  - {message: ping, rate: hz, fields: {x: x}}
+region:
+  roles: [go]
+  initial: Going
+  modes:
+    Going: {role: go}
+"""
+
+RATE_TEAM = """\
+team: beacon
+network: {latency: 0.01}
+agents:
+  r:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {hz: 10}
+    modes:
+      Run:
+        protocol: beacon.yaml
+        roles: {go: {inputs: {v: 0, omega: 0}, period: 0.1}}
+        transitions: [{after: 1.0, guard: hz == 10, do: [hz = 20]}]
+  s:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    modes:
+      Idle: {inputs: {v: 0, omega: 0}, period: 0.1}
+simulation: {duration: 2.0}
+"""
+
+
+def test_a_rate_that_changes_counts_again_from_the_change(tmp_path):
+    """``rate: hz`` reads a variable, 10 until t = 1 s, then 20: copies at k * 0.1 up to
+    1.0 s (that one already at the new rate, which the transition at 1.0 s set first),
+    then one new period on and counted from there, 1.0 + k * 0.05."""
+    (tmp_path / "beacon.yaml").write_text(RATE_PROTOCOL)
+    (tmp_path / "team.yaml").write_text(RATE_TEAM)
+    run = ht.simulate(ht.load(tmp_path / "team.yaml"))
+    m = run.messages
+    got = m["t_send"][(m["sender"] == "r") & (m["receiver"] == "s")]
+    want = np.r_[np.arange(11) * 0.1, 1.0 + np.arange(1, 21) * 0.05]
+    np.testing.assert_array_equal(got, want)

@@ -108,7 +108,8 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
         if rate is None or any(v is None for v in fields.values()):
             continue
         ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
-                                  modes, where=s.where, rate_text=str(s.rate)))
+                                  modes, where=s.where, rate_text=str(s.rate),
+                                  fixed_rate=rate.names <= ca.param_index.keys()))
 
 
 VELOCITY_NAMES = ("vel_x", "vel_y", "vel_theta", "vel_forward")

@@ -41,6 +41,7 @@ class CStream:
     modes: list[int]  # indices of the modes it is sent in; empty: always
     where: DocPath = ()  # the declaration (its ``rate`` is checked where it is evaluated)
     rate_text: str = ""
+    fixed_rate: bool = False  # the rate reads only parameters: one period per instance
 
 
 class Inbox:
@@ -133,6 +134,7 @@ class Streams:
         #: ``start + copies * period`` is then one multiplication and one addition)
         self.start = [[np.full(ens.n, np.nan) for _ in mine] for mine in streams]
         self.copies = [[np.zeros(ens.n) for _ in mine] for mine in streams]
+        self.periods = [[np.full(ens.n, np.nan) for _ in mine] for mine in streams]
         self.next = np.full(ens.n, np.inf)
 
     @property
@@ -174,14 +176,33 @@ class Streams:
                     ctx.u = st.u[sub]
                     fields = {f: floats(e(ctx), sub.shape) for f, e in cs.fields.items()}
                     ens.network.send(sub, ens.t[sub], a, None, cs.socket, cs.message, fields)
-                    period = require(spread(cs.period(ctx), sub.shape),
-                                     (*cs.where, "rate"), "1 / rate", cs.rate_text,
-                                     low=0.0, open_low=True, instances=sub)
-                    copies = self.copies[a][s]
-                    copies[sub] += 1.0
-                    due[sub] = self.start[a][s][sub] + copies[sub] * period
+                    self._next_copy(a, s, cs, sub, ctx)
         nxt = filled(idx.size, np.inf)
         for per_agent in self.due:
             for due in per_agent:
                 np.minimum(nxt, due[idx], out=nxt)
         self.next[idx] = nxt
+
+    def _next_copy(self, a: int, s: int, cs: CStream, sub: np.ndarray, ctx) -> None:
+        """Schedule the copy after the ones instances ``sub`` just sent: copy ``k`` is due
+        at ``start + k * period``.
+
+        A rate that reads only parameters is evaluated (and checked) at an instance's first
+        copy and kept. One that reads variables or the state is evaluated at every copy;
+        where it changed, the count starts again from this copy, so the next is one new
+        period on (as adding the period did).
+        """
+        kept = self.periods[a][s]
+        period = kept[sub]
+        if not cs.fixed_rate or some(np.isnan(period)):
+            period = require(spread(cs.period(ctx), sub.shape), (*cs.where, "rate"),
+                             "1 / rate", cs.rate_text, low=0.0, open_low=True, instances=sub)
+            new = ~(period == kept[sub])  # (NaN: the first copy)
+            if some(new):
+                moved = sub[new]
+                self.start[a][s][moved] = self.ens.t[moved]
+                self.copies[a][s][moved] = 0.0
+                kept[moved] = period[new]
+        copies = self.copies[a][s]
+        copies[sub] += 1.0
+        self.due[a][s][sub] = self.start[a][s][sub] + copies[sub] * period

@@ -154,11 +154,12 @@ class Obstacles(WorldComponent):
         are all beyond it read as if there were none, which answers that question alike.
         """
         poses = self._poses(a, idx)
-        origins, directions = ring.rays(poses)
-        count = ring.count
-        if beams is not None and beams.size < count:
-            rays = (beams[:, None] * ring.rays_per_beam + np.arange(ring.rays_per_beam)).ravel()
-            origins, directions, count = origins[:, rays], directions[:, rays], beams.size
+        if beams is not None and beams.size < ring.count:  # (only the rays read)
+            origins, directions = ring.rays(poses, beams)
+            count = beams.size
+        else:
+            origins, directions = ring.rays(poses)
+            count = ring.count
         near = None
         if reach is not None:
             slack = _SLACK * (1.0 + np.abs(poses[:, 0]) + np.abs(poses[:, 1]) + ring.max_range)

@@ -86,17 +86,33 @@ class RangeRing:
         diff = (self.angles - center + math.pi) % (2.0 * math.pi) - math.pi
         return np.flatnonzero(np.abs(diff) <= half_width + 1e-12)
 
-    def rays(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World origins and unit directions of every sub-ray: two ``(m, count * rays, 2)``.
+    @functools.cached_property
+    def _beam_subsets(self) -> dict[bytes, tuple[np.ndarray, ...]]:
+        return {}
+
+    def _local_of(self, beams: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:attr:`_local`'s columns of the sub-rays of ``beams`` (kept per set of beams)."""
+        key = beams.tobytes()
+        got = self._beam_subsets.get(key)
+        if got is None:
+            rays = (beams[:, None] * self.rays_per_beam + np.arange(self.rays_per_beam)).ravel()
+            got = self._beam_subsets[key] = tuple(c[:, rays] for c in self._local)
+        return got
+
+    def rays(self, poses: np.ndarray, beams: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """World origins and unit directions of every sub-ray: two ``(m, count * rays, 2)``;
+        of the sub-rays of ``beams`` (beam indices, in that order) only, if given.
 
         The rotation into the world uses one cosine and one sine per pose and only ``+ *``
-        per ray, so a ray does not depend on the other poses in the batch.
+        per ray, so a ray does not depend on the other poses in the batch, nor on the
+        other beams cast with it.
         """
         p = np.asarray(poses, dtype=float)
         if p.ndim != 2 or p.shape[1] < 3:
             raise ValueError(f"poses must have shape (m, 3) [x, y, theta], got {p.shape}")
         cos, sin = np.cos(p[:, 2])[:, None], np.sin(p[:, 2])[:, None]
-        lx, ly, dx, dy = self._local
+        lx, ly, dx, dy = self._local if beams is None else self._local_of(beams)
         shape = (p.shape[0], lx.shape[1], 2)
         origins, directions = np.empty(shape), np.empty(shape)
         origins[..., 0] = p[:, 0:1] + (cos * lx - sin * ly)
