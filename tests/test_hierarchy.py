@@ -225,8 +225,8 @@ def test_messages_and_local_events_in_superdense_time(team_from_yaml):
                     ("b", "a", "pong", 1.0, 1.0, "delivered")]
 
 
-def test_deadlock_when_everyone_waits_and_nothing_is_pending(team_from_yaml):
-    team = team_from_yaml("""
+#: a asks b (who waits only for go) at 0.5 s, then waits for a grant that never comes
+STALLED = """\
         team: stalled
         agents:
           a:
@@ -242,7 +242,11 @@ def test_deadlock_when_everyone_waits_and_nothing_is_pending(team_from_yaml):
             modes:
               Busy: {transitions: [{to: Done, on: go}]}
               Done: {final: true}
-    """)
+"""
+
+
+def test_deadlock_when_everyone_waits_and_nothing_is_pending(team_from_yaml):
+    team = team_from_yaml(STALLED)
     run = ht.simulate(team)
     assert run.outcome == "deadlock"
     assert run.diagnostics[0]["t"] == 0.5
@@ -255,24 +259,7 @@ def test_deadlock_found_where_only_a_dropped_message_arrives(team_from_yaml):
     """With 0.03 s of latency the request is in flight from 0.5 s: nothing stalls until it
     arrives at 0.53 s and is dropped (b waits for go). No mode changes at that instant, yet
     nothing is pending any more: the run deadlocks there, not later."""
-    team = team_from_yaml("""
-        team: stalled
-        network: {latency: 0.03}
-        agents:
-          a:
-            plant: {kind: flow, state: {c: 0}}
-            initial: Ask
-            modes:
-              Ask: {transitions: [{to: Waiting, after: 0.5, do: [{send: request}]}]}
-              Waiting: {transitions: [{to: Done, on: grant}]}
-              Done: {final: true}
-          b:
-            plant: {kind: flow, state: {c: 0}}
-            initial: Busy
-            modes:
-              Busy: {transitions: [{to: Done, on: go}]}
-              Done: {final: true}
-    """)
+    team = team_from_yaml(STALLED + "        network: {latency: 0.03}\n")
     run = ht.simulate(team)
     assert run.outcome == "deadlock"
     assert run.diagnostics[0]["t"] == 0.5 + 0.03

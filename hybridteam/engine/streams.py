@@ -93,20 +93,18 @@ class InboxView:
     def fields(self, type_: str, who: np.ndarray) -> dict[str, np.ndarray]:
         """Every field of the latest copies from senders ``who`` (as :meth:`sender` gives
         them): :meth:`field` of each, gathered in one pass (a law reads them all)."""
-        table = self.box.values[type_][self.idx]  # (m, agents, fields)
-        out = filled((len(self.box.index[type_]), who.size), np.nan)
-        rows = where_true(who >= 0)
-        out[:, rows] = table[rows, who[rows]].T
-        return {f: out[j] for f, j in self.box.index[type_].items()}
+        every_field = self._gather(self.box.values[type_], who, np.nan)  # (m, fields)
+        return {f: every_field[:, j] for f, j in self.box.index[type_].items()}
 
     def sent(self, type_: str, sender: np.ndarray | None = None) -> np.ndarray:
         """Send time of the chosen sender's latest copy (-inf where nothing has arrived)."""
         return self._gather(self.box.sent[type_], self.sender(type_, sender), -np.inf)
 
     def _gather(self, per_sender: np.ndarray, who: np.ndarray, missing: float) -> np.ndarray:
-        """``per_sender[instance, who]`` for these instances; ``missing`` where who < 0."""
+        """``per_sender[instance, who]`` for these instances (with any trailing axes, such as
+        a copy's fields); ``missing`` where who < 0."""
         table = per_sender[self.idx]
-        out = filled(who.shape, missing)
+        out = filled((*who.shape, *per_sender.shape[2:]), missing)
         rows = where_true(who >= 0)
         out[rows] = table[rows, who[rows]]
         return out
