@@ -165,8 +165,7 @@ class Streams:
                     due[idx[~on]] = np.inf
                     start = on & ~was
                     due[idx[start]] = t[start]
-                    self.start[a][s][idx[start]] = t[start]
-                    self.copies[a][s][idx[start]] = 0.0
+                    self._count_from(a, s, idx[start], t[start])
                     send = on & (t >= due[idx])
                 if some(send):
                     sub = idx[send]
@@ -180,6 +179,11 @@ class Streams:
             for due in per_agent:
                 np.minimum(nxt, due[idx], out=nxt)
         self.next[idx] = nxt
+
+    def _count_from(self, a: int, s: int, rows: np.ndarray, t: np.ndarray) -> None:
+        """Count stream ``s`` of agent ``a``'s copies afresh from ``t`` in ``rows``."""
+        self.start[a][s][rows] = t
+        self.copies[a][s][rows] = 0.0
 
     def _next_copy(self, a: int, s: int, cs: CStream, sub: np.ndarray, ctx) -> None:
         """Schedule the copy after the ones instances ``sub`` just sent: copy ``k`` is due
@@ -198,8 +202,7 @@ class Streams:
             new = ~(period == kept[sub])  # (NaN: the first copy)
             if some(new):
                 moved = sub[new]
-                self.start[a][s][moved] = self.ens.t[moved]
-                self.copies[a][s][moved] = 0.0
+                self._count_from(a, s, moved, self.ens.t[moved])
                 kept[moved] = period[new]
         copies = self.copies[a][s]
         copies[sub] += 1.0
