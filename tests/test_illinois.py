@@ -27,16 +27,21 @@ problems = st.lists(
     min_size=1, max_size=5)
 
 
+def _coefficients(rows) -> tuple[np.ndarray, np.ndarray]:
+    """The drawn cubics' quadratic and cubic coefficients, kept from adding roots within
+    the brackets."""
+    _, span, _, curve, flat, _ = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
+    return curve / np.maximum(span, 1.0), flat / np.maximum(span, 1.0) ** 2
+
+
 def _problem(rows):
     """The drawn brackets as ``(ev, lo, hi, truth0, tol, root)``: a cubic's crossing in
     each, original truth false at ``lo``."""
-    start, span, where, curve, flat, tol = (np.array(c, dtype=float) for c in zip(*rows,
-                                                                                  strict=True))
+    start, span, where, _, _, tol = (np.array(c, dtype=float) for c in zip(*rows,
+                                                                           strict=True))
     lo, hi = start, start + span
     root = lo + where * span
-    # keep the quadratic and cubic terms from adding roots within the bracket
-    curve, flat = curve / np.maximum(span, 1.0), flat / np.maximum(span, 1.0) ** 2
-    ev = _cubic(root, np.ones_like(lo), curve, flat)
+    ev = _cubic(root, np.ones_like(lo), *_coefficients(rows))
     return ev, lo, hi, np.zeros(lo.size, bool), tol, root
 
 
@@ -54,6 +59,23 @@ def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None
     ev, lo, hi, truth0, tol, _ = _problem(rows)
     for i in range(lo.size):
         fast = _alone(ev, i, lo, hi, truth0, tol)
+        slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
+        assert np.array(fast).tobytes() == np.array(slow).tobytes()
+
+
+@settings(max_examples=200, deadline=None)
+@given(problems)
+def test_one_bracket_evaluated_on_floats_gives_the_same_bits(rows) -> None:
+    """``one``: the evaluator of a single run's bracket on Python floats, the same
+    arithmetic as the array ``ev``; the bracket closes on the same bits."""
+    ev, lo, hi, truth0, tol, root = _problem(rows)
+    slope, curve, flat = 1.0, *(c.tolist() for c in _coefficients(rows))
+    for i in range(lo.size):
+        def one(tau: float, i=i) -> tuple[bool, float]:
+            d = tau - float(root[i])
+            margin = slope * d + curve[i] * d * d + flat[i] * d * d * d
+            return margin > 0, margin
+        fast = _alone(ev, i, lo, hi, truth0, tol, one=one)
         slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
         assert np.array(fast).tobytes() == np.array(slow).tobytes()
 

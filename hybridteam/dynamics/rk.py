@@ -205,25 +205,28 @@ class Step:
         return x0 + y
 
     def _dense_small(self, theta: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-        """:meth:`dense` element by element: ``y = 0; y += coef; y *= factor`` from the
-        last coefficient, then ``x0 + y``, as the array loop does it."""
-        table = self._small
+        """:meth:`dense` on Python floats (:meth:`dense_row` for each value)."""
         picks = range(theta.size) if rows is None else rows.tolist()
-        out = []
-        for r, th in zip(picks, theta.tolist(), strict=True):
-            if r not in table:
-                F = self._coefficients()
-                table[r] = list(zip(self.x0[r].tolist(), F[::-1, r].T.tolist(), strict=True))
-            factors = (th, 1 - th)
-            row = []
-            for x0_j, coefs in table[r]:
-                y = 0.0
-                for i, coef in enumerate(coefs):
-                    y += coef
-                    y *= factors[i % 2]
-                row.append(x0_j + y)
-            out.append(row)
+        out = [self.dense_row(th, r) for r, th in zip(picks, theta.tolist(), strict=True)]
         return np.array(out, dtype=float).reshape(theta.size, self.x0.shape[1])
+
+    def dense_row(self, theta: float, r: int) -> list[float]:
+        """Row ``r``'s state at ``t0 + theta*h`` as a list of floats: :meth:`dense` element
+        by element, ``y = 0; y += coef; y *= factor`` from the last coefficient, then
+        ``x0 + y``, as the array loop does it (the same bits)."""
+        table = self._small
+        if r not in table:
+            F = self._coefficients()
+            table[r] = list(zip(self.x0[r].tolist(), F[::-1, r].T.tolist(), strict=True))
+        factors = (theta, 1 - theta)
+        out = []
+        for x0_j, coefs in table[r]:
+            y = 0.0
+            for i, coef in enumerate(coefs):
+                y += coef
+                y *= factors[i % 2]
+            out.append(x0_j + y)
+        return out
 
 
 def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float,

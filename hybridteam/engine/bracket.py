@@ -15,9 +15,9 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, spread, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.compiled import Ctx, Row
 from hybridteam.engine.drivers import derivative
-from hybridteam.engine.illinois import Evaluator, illinois
+from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois
 from hybridteam.engine.step import AgentStep, dense_reader, state_at
 
 if TYPE_CHECKING:
@@ -112,6 +112,36 @@ class Segment:
 
         return ev
 
+    def dense_one(self, w: int, rows: np.ndarray) -> OneEvaluator | None:
+        """``one(tau) -> (truth, margin)`` of atom ``w`` on the dense output, on Python
+        floats, for a search with one candidate (``rows``, a single run's) whose row flows
+        and whose atom has a float form (:attr:`~hybridteam.expr.Atom.row`); else None.
+
+        The same operations as :meth:`evaluator`'s dense ``ev`` (``theta = tau / h``, the
+        interpolant row by row, ``t = t0 + tau``, the atom's comparison and difference)
+        on the same doubles: the same bits, without the dozen numpy calls per trial point
+        that cost a single run's search more than the arithmetic."""
+        st = self.st
+        watch = st.ca.watches[w]
+        s = self.step.rk_step
+        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]]:
+            return None
+        at = int(self.step.rk_pos[rows[0]])  # type: ignore[index]
+        h = float(s.h[at])
+        span = h if h > 0 else 1.0  # (as dense_reader's: a zero-length step reads its start)
+        sub = int(self.idx[rows[0]])
+        t0, entered = float(self.t0[rows[0]]), float(st.entry[sub, watch.mode])
+        row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), t0, t0)
+        both, dense = watch.atom.row, s.dense_row
+
+        def one(tau: float) -> tuple[bool, float]:
+            row.x = dense(tau / span, at)
+            row.t = t = t0 + tau
+            row.t_in = t - entered
+            return both(row)
+
+        return one
+
     def matters(self, w: int, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Whether atom ``w``'s crossing at ``tau`` (just past it) matters for ``rows``: its
         guard is true there, or its invariant false; a requirement's always does.
@@ -164,11 +194,15 @@ class Segment:
             return illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
         dense = self.evaluator(w, rows, dense=True)
+        one = self.dense_one(w, rows)
         everyone = np.arange(rows.size)
-        _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol)
+        _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
-        both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
+        if one is not None:
+            both = np.array([one(float(b_[0]))[1], one(float(a_[0]))[1]])
+        else:
+            both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
         slope = (both[: rows.size] - both[rows.size:]) / (b_ - a_)  # rows are independent
         m_g = exact(everyone, g)[1]
         g1 = g - m_g / slope

@@ -62,6 +62,19 @@ class Ctx:
         return self._t_in
 
 
+class Row:
+    """One instance's context on Python floats, for :attr:`hybridteam.expr.Atom.row`:
+    ``x`` its state, ``v`` its variables, ``p`` its parameters (lists), ``t`` the time
+    and ``t_in`` the time in the owning mode. What a single run's crossing search reads
+    at each of its trial points, without a numpy call."""
+
+    __slots__ = ("p", "t", "t_in", "v", "x")
+
+    def __init__(self, x: list[float], v: list[float], p: list[float], t: float,
+                 t_in: float) -> None:
+        self.x, self.v, self.p, self.t, self.t_in = x, v, p, t, t_in
+
+
 @dataclass
 class Driver:
     """What moves the plant in a mode: a sampled or continuous law, a flow, or nothing."""

@@ -14,7 +14,7 @@ equals its ensemble member.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -28,11 +28,15 @@ FEW = 16
 
 Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
+OneEvaluator = Callable[[float], tuple[bool, float]]
+"""``one(tau) -> (truth, margin)``: an :data:`Evaluator` of a search with one candidate,
+on Python floats, giving the bits ``ev`` gives (see ``bracket.Segment.dense_one``)."""
 
 
 def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
              tol: np.ndarray, m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None,
-             *, scalar: bool = True) -> tuple[np.ndarray, np.ndarray]:
+             *, scalar: bool = True, one: OneEvaluator | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
     """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it
     (``lo`` and ``hi`` are updated in place).
 
@@ -42,6 +46,8 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     collapses the bracket at once instead of crawling. A bisection replaces the secant
     whenever three rounds failed to halve the bracket, which bounds the worst case.
     ``scalar=False`` keeps the array rounds to the end (for the tests that compare).
+    ``one``, for a search with one bracket, evaluates it on floats (the same bits as
+    ``ev``).
     """
     size = lo.size
     everyone = np.arange(size)
@@ -49,9 +55,11 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         need = everyone if m_lo is None else where_true(np.isnan(m_lo))
         m_lo = np.empty(size) if m_lo is None else m_lo
         m_hi = np.empty(size) if m_hi is None else m_hi
-        # both ends in one evaluation (rows are independent: the same values as two)
-        ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
-        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
+        if one is not None and size == 1:
+            m_lo[0], m_hi[0] = one(float(lo[0]))[1], one(float(hi[0]))[1]
+        else:  # both ends in one evaluation (rows are independent: the same values as two)
+            ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
+            m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
     ma, mb = m_lo, m_hi
     assert mb is not None
     kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
@@ -61,7 +69,8 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         if open_.size == 0:
             break
         if open_.size <= FEW and scalar:
-            _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done)
+            _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done,
+                        one if size == 1 else None)
             break
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
         k: slice | np.ndarray = slice(None) if open_.size == size else open_
@@ -90,7 +99,8 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
 
 def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                 ma: np.ndarray, mb: np.ndarray, truth0: np.ndarray, tol: np.ndarray,
-                kept: np.ndarray, slow: np.ndarray, rounds: int) -> None:
+                kept: np.ndarray, slow: np.ndarray, rounds: int,
+                one: OneEvaluator | None = None) -> None:
     """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
     Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
     ``hi``. The trial points of one round are evaluated in one call, as the array round
@@ -122,8 +132,13 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
             low, high = a + 0.5 * tl, b - 0.5 * tl
             c = c if c > low else low
             cs.append(c if c < high else high)
-        tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
-        for j, c, tcj, mc in zip(going, cs, tc.tolist(), mc_.tolist(), strict=True):
+        if one is not None:  # (the search's one bracket)
+            tcj, mcj = one(cs[0])
+            results: Iterable = ((tcj,), (mcj,))
+        else:
+            tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
+            results = (tc.tolist(), mc_.tolist())
+        for j, c, tcj, mc in zip(going, cs, *results, strict=True):
             a, b, fa, fb = a_s[j], b_s[j], fa_s[j], fb_s[j]
             width = b - a
             to_lo = tcj == t0s[j]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from hybridteam.errors import DocPath, ModelError
 from hybridteam.expr import Expression, ExpressionError, compile_expression
+from hybridteam.expr.language import Reader
 
 
 class Collector:
@@ -33,15 +34,15 @@ class Collector:
 
 def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]):
     syms = {
-        "t": lambda c: c.t,
-        "t_in_mode": lambda c: c.t_in,
+        "t": Reader(lambda c: c.t, lambda r: r.t),
+        "t_in_mode": Reader(lambda c: c.t_in, lambda r: r.t_in),
     }
     for name, j in state.items():
-        syms[name] = lambda c, j=j: c.x[:, j]
+        syms[name] = Reader(lambda c, j=j: c.x[:, j], lambda r, j=j: r.x[j])
     for name, j in variables.items():
-        syms[name] = lambda c, j=j: c.v[:, j]
+        syms[name] = Reader(lambda c, j=j: c.v[:, j], lambda r, j=j: r.v[j])
     for name, j in params.items():
-        syms[name] = lambda c, j=j: c.p[:, j]
+        syms[name] = Reader(lambda c, j=j: c.p[:, j], lambda r, j=j: r.p[j])
     return syms
 
 

@@ -34,16 +34,19 @@ from hybridteam.expr.language import (
     FUNCTIONS,
     MAX_DEPTH,
     MAX_LENGTH,
+    ON_FLOATS,
     REQUIREMENT_ONLY,
     Atom,
     Expression,
     ExpressionError,
     Getter,
+    Reader,
     _apply,
     _const,
     _fold_left,
     _Problem,
     _truth_and_margin,
+    row_truth_and_margin,
 )
 
 
@@ -299,7 +302,10 @@ class _Compiler:
     def name(self, name: str, start: int, end: int) -> _C:
         if self.symbols is not None and name in self.symbols:  # symbols win over constants
             self.names.add(name)
-            return _C(self.symbols[name], False)
+            sym = self.symbols[name]
+            if isinstance(sym, Reader):
+                return _C(sym.get, False, row=sym.row)
+            return _C(sym, False)
         if name in CONSTANTS or name in _BOOL_NAMES:
             return _const(CONSTANTS.get(name, _BOOL_NAMES.get(name)), name in _BOOL_NAMES)
         if self.symbols is None:  # free_names(): any other name is a free number
@@ -333,12 +339,16 @@ class _Compiler:
                 f, g = values[i].fn, values[i + 1].fn
                 hi, lo = (g, f) if sym in ("<", "<=") else (f, g)
                 less = sym in ("<", "<=")
+                fr, gr = values[i].row, values[i + 1].row
                 self.atoms.append(Atom(
                     self._balanced(start, end), sym,
                     lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),
                     lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),
                     lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(
-                        u, f(ctx), g(ctx), less)))
+                        u, f(ctx), g(ctx), less),
+                    None if fr is None or gr is None else (
+                        lambda r, op=ON_FLOATS[ufunc], f=fr, g=gr, less=less:
+                        row_truth_and_margin(op, f(r), g(r), less))))
         self.node_atoms[id(node)] = self.atoms[first_atom:]
         if len(ops) == 1:
             return _apply(ops[0][1], values, True)

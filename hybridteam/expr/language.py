@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ast
 import math
+import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -112,6 +113,11 @@ class Atom:
     _margin: Callable[[Any], Any] = field(repr=False)
     _truth: Callable[[Any], Any] = field(repr=False)
     _both: Callable[[Any], Any] = field(repr=False)
+    #: ``(truth, margin)`` of one instance on Python floats, where both operands are
+    #: arithmetic of names and numbers (see :data:`ON_FLOATS`); None otherwise. A crossing
+    #: search of a single run evaluates the atom dozens of times on one number, where each
+    #: numpy call costs its dispatch; these are the same IEEE operations, so the same bits.
+    row: Callable[[Any], tuple[bool, float]] | None = field(default=None, repr=False)
 
     def margin(self, ctx: Any) -> np.ndarray | float:
         return self._margin(ctx)
@@ -126,6 +132,26 @@ class Atom:
 
 def _truth_and_margin(ufunc: Any, a: Any, b: Any, less: bool) -> tuple[Any, Any]:
     return ufunc(a, b), (np.subtract(b, a) if less else np.subtract(a, b))
+
+
+def _divide(a: float, b: float) -> float:
+    """``a / b`` as numpy divides: by zero it gives inf or NaN where Python raises."""
+    return a / b if b else float(np.true_divide(a, b))
+
+
+#: The ufuncs whose Python-float counterparts give the same IEEE result (one rounding of
+#: the exact operation), so an expression built of them alone can be evaluated on one
+#: instance's floats with the bits of its array evaluation (:attr:`Atom.row`).
+ON_FLOATS: Mapping[Any, Callable[..., Any]] = MappingProxyType({
+    np.add: operator.add, np.subtract: operator.sub, np.multiply: operator.mul,
+    np.true_divide: _divide, np.negative: operator.neg, np.less: operator.lt,
+    np.less_equal: operator.le, np.greater: operator.gt, np.greater_equal: operator.ge})
+
+
+def row_truth_and_margin(op: Callable[[float, float], bool], a: float, b: float,
+                         less: bool) -> tuple[bool, float]:
+    """:func:`_truth_and_margin` on floats."""
+    return op(a, b), (b - a if less else a - b)
 
 
 class Expression:
@@ -149,13 +175,27 @@ class Expression:
         return f"Expression({self.source!r})"
 
 
+class Reader:
+    """A symbol's getter of the engine's context, with its reader of one instance's floats
+    (``row``: what :attr:`Atom.row` closures read). A symbol table may hold these or bare
+    getters; names read through bare getters give no float form."""
+
+    __slots__ = ("get", "row")
+
+    def __init__(self, get: Getter, row: Callable[[Any], float]) -> None:
+        self.get, self.row = get, row
+
+
 class _C:
-    """A compiled node: its closure, its static type and, if constant-folded, its value."""
+    """A compiled node: its closure, its static type and, if constant-folded, its value;
+    ``row``, where the node is arithmetic of names and numbers, its closure on one
+    instance's floats (see :attr:`Atom.row`)."""
 
-    __slots__ = ("cond", "fn", "value")
+    __slots__ = ("cond", "fn", "row", "value")
 
-    def __init__(self, fn: Callable[[Any], Any], cond: bool, value: Any = _NOVALUE) -> None:
-        self.fn, self.cond, self.value = fn, cond, value
+    def __init__(self, fn: Callable[[Any], Any], cond: bool, value: Any = _NOVALUE,
+                 row: Callable[[Any], float] | None = None) -> None:
+        self.fn, self.cond, self.value, self.row = fn, cond, value, row
 
     @property
     def const(self) -> bool:
@@ -163,7 +203,24 @@ class _C:
 
 
 def _const(value: Any, cond: bool) -> _C:
-    return _C(lambda ctx: value, cond, value)
+    number = not cond and isinstance(value, int | float | np.floating)
+    return _C(lambda ctx: value, cond, value,
+              (lambda r, c=float(value): c) if number else None)
+
+
+def _row_apply(impl: Callable[..., Any], args: list[_C]) -> Callable[[Any], float] | None:
+    """The float closure of ``impl`` applied to ``args``, where it has one."""
+    op = ON_FLOATS.get(impl)
+    rows = [a.row for a in args]
+    if op is None or None in rows:
+        return None
+    if len(rows) == 1:
+        (f,) = rows
+        return lambda r: op(f(r))
+    if len(rows) == 2:
+        f, g = rows
+        return lambda r: op(f(r), g(r))
+    return None
 
 
 def _apply(impl: Callable[..., Any], args: list[_C], cond: bool) -> _C:
@@ -171,17 +228,17 @@ def _apply(impl: Callable[..., Any], args: list[_C], cond: bool) -> _C:
     if all(a.const for a in args):
         with np.errstate(all="ignore"):
             return _const(impl(*(a.value for a in args)), cond)
-    fns = [a.fn for a in args]
+    fns, row = [a.fn for a in args], _row_apply(impl, args)
     if len(args) == 1:
         (f,) = fns
-        return _C(lambda ctx: impl(f(ctx)), cond)
+        return _C(lambda ctx: impl(f(ctx)), cond, row=row)
     if len(args) == 2:  # the hot case: inline constants instead of calling their closures
         (f, g), (a, b) = fns, args
         if b.const:
-            return _C(lambda ctx, c=b.value: impl(f(ctx), c), cond)
+            return _C(lambda ctx, c=b.value: impl(f(ctx), c), cond, row=row)
         if a.const:
-            return _C(lambda ctx, c=a.value: impl(c, g(ctx)), cond)
-        return _C(lambda ctx: impl(f(ctx), g(ctx)), cond)
+            return _C(lambda ctx, c=a.value: impl(c, g(ctx)), cond, row=row)
+        return _C(lambda ctx: impl(f(ctx), g(ctx)), cond, row=row)
     return _C(lambda ctx: impl(*[f(ctx) for f in fns]), cond)
 
 
@@ -199,4 +256,19 @@ def _fold_left(first: _C, steps: list[tuple[Any, _C]], cond: bool) -> _C:
         for u, g in rest:
             value = u(value, g(ctx))
         return value
-    return _C(fn, cond)
+    return _C(fn, cond, row=_row_fold(first, steps))
+
+
+def _row_fold(first: _C, steps: list[tuple[Any, _C]]) -> Callable[[Any], float] | None:
+    """:func:`_fold_left`'s loop on one instance's floats, where every step has one."""
+    ops = [ON_FLOATS.get(u) for u, _ in steps]
+    if first.row is None or None in ops or any(a.row is None for _, a in steps):
+        return None
+    r0, rest = first.row, tuple((op, a.row) for op, (_, a) in zip(ops, steps, strict=True))
+
+    def row(r: Any) -> float:
+        value = r0(r)
+        for op, g in rest:
+            value = op(value, g(r))
+        return value
+    return row

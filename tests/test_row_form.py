@@ -1,0 +1,111 @@
+"""Atoms on one instance's Python floats (``Atom.row``): a single run's crossing search
+evaluates them there instead of on one-element arrays, and must get the same bits."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import hybridteam as ht
+from hybridteam.engine import bracket
+from hybridteam.engine.compiled import Ctx, Row
+from hybridteam.engine.scope import symbols
+from hybridteam.expr.compiler import compile_expression
+from tests.conftest import EXAMPLES
+
+SYMS = symbols({"x": 0, "y": 1}, {"n": 0}, {"k": 0})
+
+names = st.sampled_from(["x", "y", "n", "k", "t", "t_in_mode"])
+numbers = st.sampled_from(["0", "0.0", "1", "2.5", "1e-300", "1e308", "3"])
+arithmetic = st.recursive(
+    names | numbers,
+    lambda inner: st.one_of(
+        st.tuples(inner, st.sampled_from(["+", "-", "*", "/"]), inner).map(
+            lambda p: f"({p[0]} {p[1]} {p[2]})"),
+        inner.map(lambda e: f"-{e}"),
+        st.lists(inner, min_size=3, max_size=4).map(" - ".join)),  # a chain: one fold
+    max_leaves=8)
+values = st.sampled_from([0.0, -0.0, 1.0, -2.5, 1e-310, 3e300, -3e300, np.inf, -np.inf,
+                          np.nan, 0.1, 7.0])
+
+
+@settings(max_examples=300, deadline=None)
+@given(arithmetic, st.sampled_from(["<", "<=", ">", ">="]), arithmetic,
+       st.lists(values, min_size=6, max_size=6))
+def test_an_atom_on_floats_gives_the_bits_of_its_array_evaluation(lhs, op, rhs, vals):
+    (atom,) = compile_expression(f"{lhs} {op} {rhs}", SYMS, condition=True).atoms
+    assert atom.row is not None
+    x, y, n, k, t, t_in = vals
+    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]),
+              np.array([t_in]))
+    with np.errstate(all="ignore"):
+        truth, margin = atom.truth_and_margin(ctx)
+        r_truth, r_margin = atom.row(Row([x, y], [n], [k], t, t_in))
+    assert type(r_truth) is bool and type(r_margin) is float
+    assert r_truth == bool(np.asarray(truth).reshape(-1)[0])
+    assert np.float64(r_margin).tobytes() == np.asarray(margin, float).reshape(-1)[0].tobytes()
+
+
+@pytest.mark.parametrize("source", ["sin(x) < 1", "x ** 2 < 1", "x % 2 < 1", "abs(x) < 1",
+                                    "max(x, y) < 1"])
+def test_atoms_with_other_operations_have_no_float_form(source):
+    """Functions, powers and remainders may round differently on floats than numpy's
+    array loops do: they keep the array evaluation."""
+    (atom,) = compile_expression(source, SYMS, condition=True).atoms
+    assert atom.row is None
+
+
+def test_names_without_a_reader_give_no_float_form():
+    syms = {**SYMS, "w": lambda c: c.x[:, 0]}  # a bare getter, as message fields are
+    (atom,) = compile_expression("w + x < 1", syms, condition=True).atoms
+    assert atom.row is None
+
+
+SWING = """
+team: swing
+parameters: {k: 0.75}
+agents:
+  a:
+    plant: {kind: flow, state: {x: 0.0}}
+    initial: Out
+    modes:
+      Out:
+        flow: {x: 1 + 0.5 * x}
+        transitions: [{to: Back, guard: t_in_mode + x >= k}]
+      Back:
+        flow: {x: -x}
+        transitions: [{to: Out, guard: x - t_in_mode / 4 <= 0.1 * t / 3}]
+simulation: {duration: 6.0, sample_period: 0.5}
+"""
+
+
+@pytest.mark.parametrize(("name", "duration"), [("bouncing_ball.yaml", 3.0),
+                                                ("thermostat.yaml", 60.0),
+                                                ("water_tanks.yaml", None), ("swing", None)])
+def test_the_float_search_changes_no_bit_of_a_run(monkeypatch, team_from_yaml, name,
+                                                  duration):
+    """A single run's search on floats against the same search on one-element arrays
+    (``dense_one`` refused): byte-identical traces. The swing's guards read the time, the
+    time in the mode (entered at other times than 0), parameters and quotients."""
+    if name == "swing":
+        team = team_from_yaml(SWING)
+    else:
+        team = dataclasses.replace(ht.load(EXAMPLES / "automata" / name), requirements=())
+    fast = ht.simulate(team, duration=duration)
+    if name == "swing":
+        assert len(fast.transitions) > 8
+    used = []
+    dense_one = bracket.Segment.dense_one
+
+    def refused(self, w, rows):
+        used.append(dense_one(self, w, rows) is not None)
+        return None
+
+    monkeypatch.setattr(bracket.Segment, "dense_one", refused)
+    slow = ht.simulate(team, duration=duration)
+    assert any(used)
+    assert fast.to_json() == slow.to_json()
