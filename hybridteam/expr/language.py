@@ -116,7 +116,8 @@ class Atom:
     #: ``(truth, margin)`` of one instance on Python floats, where both operands are
     #: arithmetic of names and numbers (see :data:`ON_FLOATS`); None otherwise. A crossing
     #: search of a single run evaluates the atom dozens of times on one number, where each
-    #: numpy call costs its dispatch; these are the same IEEE operations, so the same bits.
+    #: numpy call costs its dispatch; these are the same IEEE operations, so the same bits
+    #: (a NaN's sign may differ, which no comparison or test for NaN sees).
     row: Callable[[Any], tuple[bool, float]] | None = field(default=None, repr=False)
 
     def margin(self, ctx: Any) -> np.ndarray | float:
