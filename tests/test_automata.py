@@ -237,6 +237,29 @@ def test_the_ball_stops_only_at_its_impacts():
     assert stops == {0.0, end, *impacts.tolist()}
 
 
+def test_flips_that_do_not_matter_are_judged_on_the_dense_output(monkeypatch):
+    """The apex (``v < 0`` flips while ``h <= 0`` is false) shares its sub-interval with
+    the impact, so it is searched; its guard is false on the dense output there, as at the
+    checkpoints, so it is not located on true steps: the run's only true steps are the two
+    of each impact (the old search paid two more at every apex, 76 in all). The impacts
+    still match the closed form."""
+    from hybridteam.dynamics import rk
+    calls = {"true": 0}
+    step = rk.step
+
+    def counted(*args, estimate=True, **kwargs):
+        calls["true"] += not estimate
+        return step(*args, estimate=estimate, **kwargs)
+
+    monkeypatch.setattr(rk, "step", counted)
+    end = float(np.mean(ball_impacts(21)[-2:]))  # between the 20th and 21st impacts
+    run = ht.simulate(ht.load(EXAMPLES / "automata" / "bouncing_ball.yaml"), duration=end)
+    impacts = guard_times(run)
+    assert impacts.size == 20
+    assert np.max(np.abs(impacts - ball_impacts(20))) < 1e-9
+    assert calls["true"] == 2 * 20
+
+
 def test_balls_dropped_from_several_heights_equal_single_runs_and_the_closed_form():
     """The search past crossings that do not matter starts each crossing's bracket from
     one place whatever the other instances do, so an ensemble's members equal single runs

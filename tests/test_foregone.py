@@ -36,16 +36,23 @@ def test_the_conjuncts_of_a_condition(source, conjuncts):
 
 
 def _run(team, monkeypatch, skip: bool, n: int = 1):
-    """The run, and how many crossings its searches located."""
+    """The run, and how many crossings its searches located (judged, or located directly:
+    a located crossing that ``judge`` passes on to ``locate`` counts once)."""
     located = []
-    locate = bracket.Segment.locate
+    locate, judge = bracket.Segment.locate, bracket.Segment.judge
 
-    def counted(self, w, rows, *args):
+    def counted(self, w, rows, *args, g=None):
+        if g is None:
+            located.append(rows.size)
+        return locate(self, w, rows, *args, g=g)
+
+    def counted_judge(self, w, rows, *args):
         located.append(rows.size)
-        return locate(self, w, rows, *args)
+        return judge(self, w, rows, *args)
 
     with monkeypatch.context() as m:
         m.setattr(bracket.Segment, "locate", counted)
+        m.setattr(bracket.Segment, "judge", counted_judge)
         if not skip:
             m.setattr(crossing, "_foregone", lambda *args: None)
         run = ht.simulate(team, n=n, seed=list(range(n)) if n > 1 else None,

@@ -177,8 +177,68 @@ class Segment:
                 self.true_states[key] = xi
         return out
 
+    def judge(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+              truth_lo: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Locate atom ``w``'s crossing for ``rows`` where it matters: ``(tau_lo, tau,
+        matters, x)``, with ``x`` the state just past each crossing that does not matter
+        (where the search goes on from; NaN where it matters).
+
+        Whether a flip matters is judged first on the step's dense output, as the truths
+        at the checkpoints that found the flip were. A flip whose guard is false there
+        (invariant true) does not matter, and its place on the dense output is where the
+        search goes on: locating it on true steps (two Runge–Kutta steps) would only
+        move that place by the interpolant's error. Every other flip is located on true
+        steps, from the same dense estimate, and judged again on the true state. (A ball's
+        apex shares its sub-interval with the impact and is such a flip; so are most
+        flips that do not matter, the others being ruled out before any search.)
+        Kinematic rows and requirements' atoms (whose crossings always matter) are
+        located directly. Rows are independent: each gets what it gets alone.
+        """
+        watch = self.st.ca.watches[w]
+        n, d = rows.size, self.step.x0.shape[1]
+        tau_lo, tau = np.empty(n), np.empty(n)
+        matters = np.ones(n, bool)
+        x = np.full((n, d), np.nan)
+        flows = self.step.rk[rows] if self.has_rk else np.zeros(n, bool)
+        if watch.observer or watch.owner is None:
+            flows = np.zeros(n, bool)
+        if not every(flows):
+            ex = where_true(~flows)
+            tau_lo[ex], tau[ex] = self.locate(w, rows[ex], lo[ex], hi[ex], truth_lo[ex])
+            matters[ex] = self.matters(w, rows[ex], tau[ex])
+            self._fill_true(x, ex, rows, tau, matters)
+        fl = where_true(flows)
+        if fl.size == 0:
+            return tau_lo, tau, matters, x
+        r = rows[fl]
+        d_lo, d_hi = illinois(self.evaluator(w, r, dense=True), lo[fl].copy(), hi[fl].copy(),
+                              truth_lo[fl], self.tol[r], one=self.dense_one(w, r))
+        x_d = dense_reader(self.step, r)(d_hi)
+        on_dense = owner_matters(self.st, w, self.idx[r], x_d, self.t0[r] + d_hi)
+        out = where_true(~on_dense)  # judged on the dense output: not located further
+        tau_lo[fl[out]], tau[fl[out]], x[fl[out]] = d_lo[out], d_hi[out], x_d[out]
+        matters[fl[out]] = False
+        go = where_true(on_dense)
+        if go.size:
+            at = fl[go]
+            tau_lo[at], tau[at] = self.locate(w, rows[at], lo[at], hi[at], truth_lo[at],
+                                              g=d_hi[go])
+            matters[at] = self.matters(w, rows[at], tau[at])
+            self._fill_true(x, at, rows, tau, matters)
+        return tau_lo, tau, matters, x
+
+    def _fill_true(self, x: np.ndarray, at: np.ndarray, rows: np.ndarray, tau: np.ndarray,
+                   matters: np.ndarray) -> None:
+        """Fill ``x[at]`` with the true states ``tau`` after the start where the located
+        crossing does not matter (the trial points computed them)."""
+        need = at[~matters[at]]
+        if need.size:
+            x[need] = self.true_state(rows[need], tau[need])
+
     def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-               truth_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               truth_lo: np.ndarray, g: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
 
         Kinematic plants are searched directly on their closed form. For Runge–Kutta
@@ -186,7 +246,8 @@ class Segment:
         The interpolant's error is smooth, so one Newton correction from the *true* margin
         at that estimate (slope from the interpolant) lands within the tolerance; two true
         steps confirm the bracket. Where they do not, the bracket is widened a
-        thousandfold at a time until confirmed, and finished on true steps.
+        thousandfold at a time until confirmed, and finished on true steps. ``g``: the
+        dense output's crossing where :meth:`judge` found it already.
         """
         tol = self.tol[rows]
         exact = self.evaluator(w, rows, dense=False)
@@ -196,7 +257,8 @@ class Segment:
         dense = self.evaluator(w, rows, dense=True)
         one = self.dense_one(w, rows)
         everyone = np.arange(rows.size)
-        _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
+        if g is None:
+            _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
         if one is not None:

@@ -222,12 +222,14 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
 def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
                  lo: np.ndarray | None, truth_lo: np.ndarray | None, thetas: np.ndarray,
                  relevant: np.ndarray, truths: np.ndarray, best: np.ndarray,
-                 best_lo: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+                 best_lo: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Locate atom ``w``'s first flip in sub-interval ``k`` of each row of ``cand`` (from
     ``lo``, with truth ``truth_lo`` there; None: from the sub-interval's start), lowering
     ``best`` and ``best_lo`` where it is earlier and matters. Returns the rows where it did
-    not matter, their sub-intervals and crossing times (None if none; NaN where the flip
-    was known not to matter without locating it, see :func:`_foregone`)."""
+    not matter, their sub-intervals, crossing times and the states just past them (see
+    :meth:`Segment.judge`; None if none; NaN where the flip was known not to matter
+    without locating it, see :func:`_foregone`)."""
     # a lone atom's flip searched from its sub-interval's start was judged by _relevant
     judged = lo is None and seg.st.ca.lone_watches[w]
     from_start = lo is None
@@ -252,22 +254,26 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
             return None
     skip = _foregone(seg, w, cand, k, truth_lo, relevant) if from_start and not judged \
         else None
-    if skip is not None and some(skip):
+    if judged:
+        tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
+        matters, past = np.ones(cand.size, bool), None
+    elif skip is not None and some(skip):
         tau_lo, tau = filled(cand.size, np.nan), filled(cand.size, np.nan)
         matters = np.zeros(cand.size, bool)
+        past = np.full((cand.size, seg.step.x0.shape[1]), np.nan)
         go = where_true(~skip)
         if go.size:
-            tau_lo[go], tau[go] = seg.locate(w, cand[go], lo[go], hi[go], truth_lo[go])
-            matters[go] = seg.matters(w, cand[go], tau[go])
+            tau_lo[go], tau[go], matters[go], past[go] = seg.judge(w, cand[go], lo[go],
+                                                                   hi[go], truth_lo[go])
     else:
-        tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
-        matters = np.ones(cand.size, bool) if judged else seg.matters(w, cand, tau)
+        tau_lo, tau, matters, past = seg.judge(w, cand, lo, hi, truth_lo)
     better = matters & (tau < best[cand])
     best[cand[better]] = tau[better]
     best_lo[cand[better]] = tau_lo[better]
     if every(matters):
         return None
-    return cand[~matters], k[~matters], tau[~matters]
+    assert past is not None
+    return cand[~matters], k[~matters], tau[~matters], past[~matters]
 
 
 def _foregone(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray, truth_lo: np.ndarray,
@@ -296,9 +302,11 @@ def _foregone(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray, truth_lo: n
 
 
 def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k: np.ndarray,
-               tau: np.ndarray, relevant: np.ndarray, truths: np.ndarray, todo: deque) -> None:
+               tau: np.ndarray, past: np.ndarray, relevant: np.ndarray, truths: np.ndarray,
+               todo: deque) -> None:
     """Queue what is left to search past atom ``w``'s crossings at ``tau`` that did not
-    matter (rows ``rows``, in their sub-intervals ``k``), as :func:`_search` describes.
+    matter (rows ``rows``, in their sub-intervals ``k``, states ``past`` there), as
+    :func:`_search` describes.
 
     Another atom whose sub-interval is searched from its start anyway is not searched
     again from ``tau``: that search finds its first flip, and goes on from there if the
@@ -313,12 +321,12 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
         todo.append((w, rows[again], np.argmax(later[:, again], axis=0), None, None))
     found = ~np.isnan(tau)  # (NaN: not located, nothing ahead; see _foregone)
     if not every(found):
-        rows, k, tau = rows[found], k[found], tau[found]
+        rows, k, tau, past = rows[found], k[found], tau[found], past[found]
         if rows.size == 0:
             return
     st = ens.states[a]
     sub = seg.idx[rows]
-    now = watch_truth(ens, a, sub, seg.true_state(rows, tau), seg.t0[rows] + tau)
+    now = watch_truth(ens, a, sub, past, seg.t0[rows] + tau)
     for v in range(now.shape[0]):
         ahead = (now[v] != truths[k + 1, v, rows]) & st.watched[v, sub]
         if v != w:
