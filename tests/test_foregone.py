@@ -41,10 +41,10 @@ def _run(team, monkeypatch, skip: bool, n: int = 1):
     located = []
     locate, judge = bracket.Segment.locate, bracket.Segment.judge
 
-    def counted(self, w, rows, *args, g=None):
-        if g is None:
+    def counted(self, w, rows, *args, on_dense=None):
+        if on_dense is None:
             located.append(rows.size)
-        return locate(self, w, rows, *args, g=g)
+        return locate(self, w, rows, *args, on_dense=on_dense)
 
     def counted_judge(self, w, rows, *args):
         located.append(rows.size)

@@ -223,7 +223,7 @@ class Segment:
         if go.size:
             at = fl[go]
             tau_lo[at], tau[at] = self.locate(w, rows[at], lo[at], hi[at], truth_lo[at],
-                                              g=d_hi[go])
+                                              on_dense=(d_lo[go], d_hi[go]))
             matters[at] = self.matters(w, rows[at], tau[at])
             self._fill_true(x, at, rows, tau, matters)
         return tau_lo, tau, matters, x
@@ -237,17 +237,22 @@ class Segment:
             x[need] = self.true_state(rows[need], tau[need])
 
     def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-               truth_lo: np.ndarray, g: np.ndarray | None = None
+               truth_lo: np.ndarray,
+               on_dense: tuple[np.ndarray, np.ndarray] | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
 
         Kinematic plants are searched directly on their closed form. For Runge–Kutta
-        flows the search first runs on the step's dense output (no derivative evaluations).
-        The interpolant's error is smooth, so one Newton correction from the *true* margin
-        at that estimate (slope from the interpolant) lands within the tolerance; two true
-        steps confirm the bracket. Where they do not, the bracket is widened a
-        thousandfold at a time until confirmed, and finished on true steps. ``g``: the
-        dense output's crossing where :meth:`judge` found it already.
+        flows the search first runs on the step's dense output (no derivative evaluations),
+        to a bracket at most a tolerance wide (``on_dense``, where :meth:`judge` found it
+        already) whose upper end is ``g``. One true step then computes the states at ``g``
+        and half a tolerance either side of the bracket's middle: where those two confirm
+        the bracket (the interpolant was that accurate, as a polynomial flow's is), it is
+        final. Elsewhere, the interpolant's error being smooth, one Newton correction from
+        the true margin at ``g`` (slope from the interpolant) lands within the tolerance,
+        and a second true step confirms the bracket around it. Where that does not, the
+        bracket is widened a thousandfold at a time until confirmed, and finished on true
+        steps.
         """
         tol = self.tol[rows]
         exact = self.evaluator(w, rows, dense=False)
@@ -256,27 +261,35 @@ class Segment:
         span_lo, span_hi = lo.copy(), hi.copy()
         dense = self.evaluator(w, rows, dense=True)
         one = self.dense_one(w, rows)
-        everyone = np.arange(rows.size)
-        if g is None:
-            _, g = illinois(dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
+        n = rows.size
+        everyone = np.arange(n)
+        g_lo, g = on_dense if on_dense is not None else illinois(
+            dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
+        mid = 0.5 * (g_lo + g)
+        # half a tolerance either side of a guess, less the rounding of guess -/+ width: a
+        # bracket that confirms is then at most tol wide, final without another true step
+        # (at tol = 1e-12 and guesses of order 1, rounding alone made it 1.0001 tol, and
+        # the search paid one more step to halve it)
+        width = 0.5 * tol - np.spacing(np.abs(mid) + tol)
+        a_, b_ = np.maximum(span_lo, mid - width), np.minimum(span_hi, mid + width)
+        tt, mm = exact(np.concatenate([everyone] * 3), np.concatenate([g, a_, b_]))  # one step
+        ok = (tt[n: 2 * n] == truth_lo) & (tt[2 * n:] != truth_lo)
+        new_lo, new_hi = span_lo.copy(), span_hi.copy()
+        m_lo, m_hi = filled(n, np.nan), filled(n, np.nan)
+        new_lo[ok], new_hi[ok], m_lo[ok], m_hi[ok] = a_[ok], b_[ok], mm[n: 2 * n][ok], \
+            mm[2 * n:][ok]
+        todo = where_true(~ok)
+        if todo.size == 0:
+            return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
         d = np.maximum(1e-6 * (span_hi - span_lo), 8 * tol)
         a_, b_ = np.maximum(span_lo, g - d), np.minimum(span_hi, g + d)
         if one is not None:
             both = np.array([one(float(b_[0]))[1], one(float(a_[0]))[1]])
         else:
             both = dense(np.concatenate([everyone, everyone]), np.concatenate([b_, a_]))[1]
-        slope = (both[: rows.size] - both[rows.size:]) / (b_ - a_)  # rows are independent
-        m_g = exact(everyone, g)[1]
-        g1 = g - m_g / slope
+        slope = (both[:n] - both[n:]) / (b_ - a_)  # rows are independent
+        g1 = g - mm[:n] / slope
         guess = np.where(np.isfinite(g1) & (g1 > span_lo) & (g1 < span_hi), g1, g)
-        new_lo, new_hi = span_lo.copy(), span_hi.copy()
-        m_lo = filled(rows.size, np.nan)
-        m_hi = filled(rows.size, np.nan)
-        todo = np.arange(rows.size)
-        # half a tolerance either side of the guess, less the rounding of guess -/+ width:
-        # a first bracket that confirms is then at most tol wide, final without a third
-        # true step (at tol = 1e-12 and guesses of order 1, rounding alone made it
-        # 1.0001 tol, and the search paid one more step to halve it)
         width = 0.5 * tol - np.spacing(np.abs(guess) + tol)
         for _ in range(6):
             if todo.size == 0:
