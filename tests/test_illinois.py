@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.engine.illinois import illinois
+from hybridteam.engine.illinois import illinois, illinois_one
 
 
 def _cubic(root: np.ndarray, slope: np.ndarray, curve: np.ndarray, flat: np.ndarray):
@@ -67,7 +67,8 @@ def test_one_bracket_on_floats_equals_the_array_rounds_bit_for_bit(rows) -> None
 @given(problems)
 def test_one_bracket_evaluated_on_floats_gives_the_same_bits(rows) -> None:
     """``one``: the evaluator of a single run's bracket on Python floats, the same
-    arithmetic as the array ``ev``; the bracket closes on the same bits."""
+    arithmetic as the array ``ev``; the bracket closes on the same bits, through
+    ``illinois`` or on floats throughout (``illinois_one``)."""
     ev, lo, hi, truth0, tol, root = _problem(rows)
     slope, curve, flat = 1.0, *(c.tolist() for c in _coefficients(rows))
     for i in range(lo.size):
@@ -78,6 +79,8 @@ def test_one_bracket_evaluated_on_floats_gives_the_same_bits(rows) -> None:
         fast = _alone(ev, i, lo, hi, truth0, tol, one=one)
         slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
         assert np.array(fast).tobytes() == np.array(slow).tobytes()
+        alone = illinois_one(one, float(lo[i]), float(hi[i]), False, float(tol[i]))
+        assert np.array(alone).tobytes() == np.array(slow).tobytes()
 
 
 @settings(max_examples=200, deadline=None)

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 import hybridteam as ht
 from hybridteam.engine import bracket
-from hybridteam.engine.compiled import Ctx, Row
+from hybridteam.engine.compiled import CAgent, Ctx, Row
 from hybridteam.engine.scope import symbols
 from hybridteam.expr.compiler import compile_expression
 from tests.conftest import EXAMPLES
@@ -54,6 +54,29 @@ def test_an_atom_on_floats_gives_the_bits_of_its_array_evaluation(lhs, op, rhs, 
         assert np.float64(r_margin).tobytes() == expected.tobytes()
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(arithmetic, st.sampled_from(["<", "<=", ">", ">=", "==", "!="]),
+                          arithmetic), min_size=1, max_size=4),
+       st.lists(st.sampled_from(["and", "or", "and not"]), min_size=3, max_size=3),
+       st.lists(values, min_size=6, max_size=6))
+def test_a_condition_on_floats_gives_its_array_truth(comparisons, words, vals):
+    """Guards and invariants (comparisons joined by and, or, not; ``true``) on floats,
+    as a crossing search judges a flip's guard."""
+    parts = [f"{lhs} {op} {rhs}" for lhs, op, rhs in comparisons]
+    source = parts[0]
+    for word, part in zip(words, parts[1:], strict=False):
+        source = f"({source}) {word} ({part})"
+    expr = compile_expression(f"true and ({source})", SYMS, condition=True)
+    assert expr.row is not None
+    x, y, n, k, t, t_in = vals
+    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]),
+              np.array([t_in]))
+    with np.errstate(all="ignore"):
+        expected = bool(np.asarray(expr(ctx)).reshape(-1)[0])
+    got = expr.row(Row([x, y], [n], [k], t, t_in))
+    assert type(got) is bool and got == expected
+
+
 @pytest.mark.parametrize("source", ["sin(x) < 1", "x ** 2 < 1", "x % 2 < 1", "abs(x) < 1",
                                     "max(x, y) < 1"])
 def test_atoms_with_other_operations_have_no_float_form(source):
@@ -92,9 +115,10 @@ simulation: {duration: 6.0, sample_period: 0.5}
                                                 ("water_tanks.yaml", None), ("swing", None)])
 def test_the_float_search_changes_no_bit_of_a_run(monkeypatch, team_from_yaml, name,
                                                   duration):
-    """A single run's search on floats against the same search on one-element arrays
-    (``dense_one`` refused): byte-identical traces. The swing's guards read the time, the
-    time in the mode (entered at other times than 0), parameters and quotients."""
+    """A single run's search on floats (checkpoints, dense search, judgement) against the
+    same search on one-element arrays (the float forms refused): byte-identical traces.
+    The swing's guards read the time, the time in the mode (entered at other times than
+    0), parameters and quotients."""
     if name == "swing":
         team = team_from_yaml(SWING)
     else:
@@ -103,13 +127,14 @@ def test_the_float_search_changes_no_bit_of_a_run(monkeypatch, team_from_yaml, n
     if name == "swing":
         assert len(fast.transitions) > 8
     used = []
-    dense_one = bracket.Segment.dense_one
+    one = bracket.Segment._one
 
     def refused(self, w, rows):
-        used.append(dense_one(self, w, rows) is not None)
+        used.append(one(self, w, rows) is not None)
         return None
 
-    monkeypatch.setattr(bracket.Segment, "dense_one", refused)
+    monkeypatch.setattr(bracket.Segment, "_one", refused)
+    monkeypatch.setattr(CAgent, "row_watches", property(lambda self: False))
     slow = ht.simulate(team, duration=duration)
     assert any(used)
     assert fast.to_json() == slow.to_json()

@@ -17,7 +17,7 @@ from hybridteam.arrays import every, filled, gather, some, spread, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx, Row
 from hybridteam.engine.drivers import derivative
-from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois
+from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois, illinois_one
 from hybridteam.engine.step import AgentStep, dense_reader, state_at
 
 if TYPE_CHECKING:
@@ -112,35 +112,27 @@ class Segment:
 
         return ev
 
+    def _one(self, w: int, rows: np.ndarray) -> _One | None:
+        """What a float search of atom ``w`` reads for a search with one candidate
+        (``rows``, a single run's) whose row flows and whose atom has a float form
+        (:attr:`~hybridteam.expr.Atom.row`); else None."""
+        watch = self.st.ca.watches[w]
+        s = self.step.rk_step
+        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]]:
+            return None
+        return _One(self, watch, s, int(self.step.rk_pos[rows[0]]),  # type: ignore[index]
+                    int(rows[0]))
+
     def dense_one(self, w: int, rows: np.ndarray) -> OneEvaluator | None:
         """``one(tau) -> (truth, margin)`` of atom ``w`` on the dense output, on Python
-        floats, for a search with one candidate (``rows``, a single run's) whose row flows
-        and whose atom has a float form (:attr:`~hybridteam.expr.Atom.row`); else None.
+        floats, where :meth:`_one` allows (else None).
 
         The same operations as :meth:`evaluator`'s dense ``ev`` (``theta = tau / h``, the
         interpolant row by row, ``t = t0 + tau``, the atom's comparison and difference)
         on the same doubles: the same bits, without the dozen numpy calls per trial point
         that cost a single run's search more than the arithmetic."""
-        st = self.st
-        watch = st.ca.watches[w]
-        s = self.step.rk_step
-        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]]:
-            return None
-        at = int(self.step.rk_pos[rows[0]])  # type: ignore[index]
-        h = float(s.h[at])
-        span = h if h > 0 else 1.0  # (as dense_reader's: a zero-length step reads its start)
-        sub = int(self.idx[rows[0]])
-        t0, entered = float(self.t0[rows[0]]), float(st.entry[sub, watch.mode])
-        row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), t0, t0)
-        both, dense = watch.atom.row, s.dense_row
-
-        def one(tau: float) -> tuple[bool, float]:
-            row.x = dense(tau / span, at)
-            row.t = t = t0 + tau
-            row.t_in = t - entered
-            return both(row)
-
-        return one
+        one = self._one(w, rows)
+        return None if one is None else one.atom
 
     def matters(self, w: int, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Whether atom ``w``'s crossing at ``tau`` (just past it) matters for ``rows``: its
@@ -196,6 +188,11 @@ class Segment:
         located directly. Rows are independent: each gets what it gets alone.
         """
         watch = self.st.ca.watches[w]
+        if rows.size == 1 and not watch.observer and watch.owner is not None \
+                and watch.owner.row is not None:
+            one = self._one(w, rows)
+            if one is not None:
+                return self._judge_one(one, w, rows, lo, hi, truth_lo)
         n, d = rows.size, self.step.x0.shape[1]
         tau_lo, tau = np.empty(n), np.empty(n)
         matters = np.ones(n, bool)
@@ -226,6 +223,25 @@ class Segment:
                                               on_dense=(d_lo[go], d_hi[go]))
             matters[at] = self.matters(w, rows[at], tau[at])
             self._fill_true(x, at, rows, tau, matters)
+        return tau_lo, tau, matters, x
+
+    def _judge_one(self, one: _One, w: int, rows: np.ndarray, lo: np.ndarray,
+                   hi: np.ndarray, truth_lo: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`judge` for a single run's one flowing candidate whose atom and guard (or
+        invariant) have float forms: the dense search and the judgement on floats, the
+        same operations as the array version's on the same doubles (the same bits)."""
+        a, b = illinois_one(one.atom, float(lo[0]), float(hi[0]), bool(truth_lo[0]),
+                            float(self.tol[rows[0]]))
+        row = one.at_tau(b)
+        watch = one.watch
+        if bool(watch.owner.row(row)) == watch.invariant:  # does not matter on the dense output
+            return np.array([a]), np.array([b]), np.zeros(1, bool), np.array([row.x], float)
+        tau_lo, tau = self.locate(w, rows, lo, hi, truth_lo,
+                                  on_dense=(np.array([a]), np.array([b])))
+        matters = self.matters(w, rows, tau)
+        x = np.full((1, self.step.x0.shape[1]), np.nan)
+        self._fill_true(x, np.zeros(1, np.intp), rows, tau, matters)
         return tau_lo, tau, matters, x
 
     def _fill_true(self, x: np.ndarray, at: np.ndarray, rows: np.ndarray, tau: np.ndarray,
@@ -304,3 +320,29 @@ class Segment:
             todo = todo[~ok]
             width = width * 1000.0
         return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
+
+
+class _One:
+    """A single run's flowing row, read on Python floats: its dense output, its context
+    (:class:`~hybridteam.engine.compiled.Row`) and one watched atom's float form."""
+
+    __slots__ = ("at", "dense", "entered", "row", "span", "t0", "watch")
+
+    def __init__(self, seg: Segment, watch, s: rk.Step, at: int, r: int) -> None:
+        sub = int(seg.idx[r])
+        h = float(s.h[at])
+        self.watch, self.at, self.dense = watch, at, s.dense_row
+        self.span = h if h > 0 else 1.0  # (as dense_reader's: a zero-length step reads its start)
+        self.t0, self.entered = float(seg.t0[r]), float(seg.st.entry[sub, watch.mode])
+        self.row = Row([], seg.st.v[sub].tolist(), seg.st.p[sub].tolist(), self.t0, self.t0)
+
+    def at_tau(self, tau: float) -> Row:
+        """The row's context ``tau`` after the step start, off the dense output."""
+        row = self.row
+        row.x = self.dense(tau / self.span, self.at)
+        row.t = t = self.t0 + tau
+        row.t_in = t - self.entered
+        return row
+
+    def atom(self, tau: float) -> tuple[bool, float]:
+        return self.watch.atom.row(self.at_tau(tau))

@@ -245,6 +245,12 @@ class CAgent:
         may flip together with one, and only the state at the crossing can tell."""
         return [sum(o.owner is w.owner for o in self.watches) == 1 for w in self.watches]
 
+    @functools.cached_property
+    def row_watches(self) -> bool:
+        """Whether every watched atom has a float form (:attr:`~hybridteam.expr.Atom.row`),
+        so a single run's checkpoints can be judged on floats."""
+        return bool(self.watches) and all(w.atom.row is not None for w in self.watches)
+
     @property
     def limited(self) -> bool:
         """Whether any input has a finite actuator limit."""

@@ -28,7 +28,7 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.engine.bracket import Segment, owner_matters
-from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.compiled import Ctx, Row
 from hybridteam.engine.step import AgentStep, state_at
 
 if TYPE_CHECKING:
@@ -159,6 +159,9 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     atoms instead of two (at a single run's size each array operation costs its dispatch,
     about 1 µs, for one number). Rows not in ``pos`` keep their start truths."""
     k, checks = pos.size, thetas.size - 2
+    if idx.size == 1 and ens.states[a].ca.row_watches and step.rk_step is not None \
+            and step.rk[0]:
+        return _check_truths_one(ens, a, idx, x_end, step, thetas, start, h, t0, t1)
     rows = np.concatenate([pos] * checks)
     tau = thetas[1:-1].repeat(k) * h[rows]
     x_checks = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
@@ -179,6 +182,49 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     else:
         out[1:] = truths.reshape(nw, checks + 1, k).transpose(1, 0, 2)
     return out, x_checks, t_checks
+
+
+def _check_truths_one(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
+                      step: AgentStep, thetas: np.ndarray, start: np.ndarray, h: np.ndarray,
+                      t0: np.ndarray, t1: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_check_truths` for a single run's one flowing row whose atoms all have a float
+    form: the checkpoints' states off the dense output row by row, and every atom's truth
+    there and at the end, on Python floats. The operations of the array version (``tau =
+    theta h``, ``theta = tau / h`` for the interpolant, ``t = t0 + tau``, the atom's
+    comparison) on the same doubles: the same truths, states and times."""
+    st = ens.states[a]
+    s = step.rk_step
+    assert s is not None and step.rk_pos is not None
+    at = int(step.rk_pos[0])
+    span = float(s.h[at])
+    span = span if span > 0 else 1.0  # (as dense_reader's)
+    hh, t_start, sub = float(h[0]), float(t0[0]), int(idx[0])
+    entry = st.entry[sub].tolist()
+    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), t_start, t_start)
+    watches = [(w.atom.row, entry[w.mode]) for w in st.ca.watches]
+    xs, ts, truths = [], [], []
+    points = [(float(th) * hh, None) for th in thetas[1:-1].tolist()]
+    points.append((None, float(t1[0])))
+    for tau, t_end in points:
+        if t_end is None:
+            row.x = s.dense_row(tau / span, at)
+            row.t = t = t_start + tau
+            xs.append(row.x)
+            ts.append(t)
+        else:
+            row.x, row.t = x_end[0].tolist(), t_end
+        truths.append([both(_at(row, entered))[0] for both, entered in watches])
+    out = np.empty((thetas.size, len(watches), 1), bool)
+    out[0] = start
+    out[1:, :, 0] = truths
+    return out, np.array(xs, dtype=float).reshape(len(xs), -1), np.array(ts, dtype=float)
+
+
+def _at(row: Row, entered: float) -> Row:
+    """``row`` with the time in the mode entered at ``entered``."""
+    row.t_in = row.t - entered
+    return row
 
 
 def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,

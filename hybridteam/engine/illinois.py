@@ -104,13 +104,9 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
     """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
     Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
     ``hi``. The trial points of one round are evaluated in one call, as the array round
-    evaluates them.
-
-    Each line is the array round's for one element. Where numpy divides by zero (inf or
-    NaN, replaced by the round), Python raises, so those quotients are NaN here;
-    ``np.maximum``/``np.minimum`` return their second argument on ties, and so do the
-    conditionals that stand for them (the same bits, ``-0.0`` included). A bracket that
-    closes leaves the next rounds, as it leaves the array rounds' open brackets.
+    evaluates them; :func:`_trial` and :func:`_update` are the array round's lines for one
+    element (the same bits, ``-0.0`` included). A bracket that closes leaves the next
+    rounds, as it leaves the array rounds' open brackets.
     """
     rows = brackets.tolist()
     a_s, b_s = lo[brackets].tolist(), hi[brackets].tolist()
@@ -122,16 +118,7 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
         going = [j for j in going if b_s[j] - a_s[j] > tls[j]]
         if not going:
             break
-        cs = []
-        for j in going:
-            a, b, fa, fb, tl = a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j]
-            den = fb - fa
-            c = b - fb * (b - a) / den if den != 0.0 else math.nan
-            if not (math.isfinite(c) and sl_s[j] < 3):
-                c = 0.5 * (a + b)
-            low, high = a + 0.5 * tl, b - 0.5 * tl
-            c = c if c > low else low
-            cs.append(c if c < high else high)
+        cs = [_trial(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j]) for j in going]
         if one is not None:  # (the search's one bracket)
             tcj, mcj = one(cs[0])
             results: Iterable = ((tcj,), (mcj,))
@@ -139,20 +126,61 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
             tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
             results = (tc.tolist(), mc_.tolist())
         for j, c, tcj, mc in zip(going, cs, *results, strict=True):
-            a, b, fa, fb = a_s[j], b_s[j], fa_s[j], fb_s[j]
-            width = b - a
-            to_lo = tcj == t0s[j]
-            end = fa if to_lo else fb
-            scale = 1 - mc / end if end != 0.0 else math.nan
-            new_lo, new_hi = (c, b) if to_lo else (a, c)
-            sl_s[j] = sl_s[j] + 1 if new_hi - new_lo > 0.5 * width else 0
-            survivor = 1 if to_lo else -1
-            again = survived_s[j] == survivor
-            if not (math.isfinite(scale) and scale > 0):
-                scale = 0.5
-            if to_lo:
-                fa_s[j], fb_s[j] = mc, (scale * fb if again else fb)
-            else:
-                fa_s[j], fb_s[j] = (scale * fa if again else fa), mc
-            a_s[j], b_s[j], survived_s[j] = new_lo, new_hi, survivor
+            a_s[j], b_s[j], fa_s[j], fb_s[j], survived_s[j], sl_s[j] = _update(
+                a_s[j], b_s[j], fa_s[j], fb_s[j], c, tcj == t0s[j], mc, survived_s[j],
+                sl_s[j])
     lo[brackets], hi[brackets] = a_s, b_s
+
+
+def _trial(a: float, b: float, fa: float, fb: float, tol: float, slow: int) -> float:
+    """A round's trial point for one bracket on floats: the array round's secant, the
+    bisection after three slow rounds or where the secant is not a number, kept half a
+    tolerance inside (``np.maximum``/``np.minimum`` return their second argument on ties,
+    and so do these conditionals)."""
+    den = fb - fa
+    c = b - fb * (b - a) / den if den != 0.0 else math.nan
+    if not (math.isfinite(c) and slow < 3):
+        c = 0.5 * (a + b)
+    low, high = a + 0.5 * tol, b - 0.5 * tol
+    c = c if c > low else low
+    return c if c < high else high
+
+
+def _update(a: float, b: float, fa: float, fb: float, c: float, to_lo: bool, mc: float,
+            survived: int, slow: int) -> tuple[float, float, float, float, int, int]:
+    """One bracket after its trial point ``c`` (margin ``mc``; ``to_lo``: it has the
+    original truth): its ends, their values (Anderson–Björck's scaling of the end that
+    survives again), which end survived and how many rounds in a row failed to halve it.
+    Where numpy divides by zero (inf or NaN, replaced by the round), Python raises, so
+    that quotient is NaN here."""
+    width = b - a
+    end = fa if to_lo else fb
+    scale = 1 - mc / end if end != 0.0 else math.nan
+    new_lo, new_hi = (c, b) if to_lo else (a, c)
+    slow = slow + 1 if new_hi - new_lo > 0.5 * width else 0
+    survivor = 1 if to_lo else -1
+    again = survived == survivor
+    if not (math.isfinite(scale) and scale > 0):
+        scale = 0.5
+    if to_lo:
+        fa, fb = mc, (scale * fb if again else fb)
+    else:
+        fa, fb = (scale * fa if again else fa), mc
+    return new_lo, new_hi, fa, fb, survivor, slow
+
+
+def illinois_one(one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: float
+                 ) -> tuple[float, float]:
+    """:func:`illinois` for one bracket, on Python floats throughout (a single run's
+    search: the array set-up of :func:`illinois` costs more than its rounds). The same
+    rounds on the same doubles, so the same bits (``tests/test_illinois.py``)."""
+    fa, fb = one(lo)[1], one(hi)[1]
+    survived = slow = 0
+    for _ in range(MAX_ITER):
+        if not hi - lo > tol:
+            break
+        c = _trial(lo, hi, fa, fb, tol, slow)
+        tc, mc = one(c)
+        lo, hi, fa, fb, survived, slow = _update(lo, hi, fa, fb, c, tc == truth0, mc,
+                                                 survived, slow)
+    return lo, hi

@@ -408,7 +408,8 @@ def compile_expression(source: str, symbols: Mapping[str, Getter], *,
     comp = _Compiler(source, symbols)
     tree, result = comp.run(0, condition)
     return Expression(source, result.fn, frozenset(comp.names), condition, tuple(comp.atoms),
-                      tuple(_conjuncts(tree, comp.node_atoms)) if condition else ())
+                      tuple(_conjuncts(tree, comp.node_atoms)) if condition else (),
+                      result.row)
 
 
 def free_names(source: str, *, condition: bool = False) -> frozenset[str]:

@@ -136,8 +136,12 @@ def _truth_and_margin(ufunc: Any, a: Any, b: Any, less: bool) -> tuple[Any, Any]
 
 
 def _divide(a: float, b: float) -> float:
-    """``a / b`` as numpy divides: by zero it gives inf or NaN where Python raises."""
-    return a / b if b else float(np.true_divide(a, b))
+    """``a / b`` as numpy divides: by zero it gives inf or NaN (quietly, as a run's
+    arithmetic is) where Python raises."""
+    if b:
+        return a / b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.true_divide(a, b))
 
 
 #: The ufuncs whose Python-float counterparts give the same IEEE result (one rounding of
@@ -146,7 +150,9 @@ def _divide(a: float, b: float) -> float:
 ON_FLOATS: Mapping[Any, Callable[..., Any]] = MappingProxyType({
     np.add: operator.add, np.subtract: operator.sub, np.multiply: operator.mul,
     np.true_divide: _divide, np.negative: operator.neg, np.less: operator.lt,
-    np.less_equal: operator.le, np.greater: operator.gt, np.greater_equal: operator.ge})
+    np.less_equal: operator.le, np.greater: operator.gt, np.greater_equal: operator.ge,
+    np.equal: operator.eq, np.not_equal: operator.ne, np.logical_and: operator.and_,
+    np.logical_or: operator.or_, np.logical_not: operator.not_})
 
 
 def row_truth_and_margin(op: Callable[[float, float], bool], a: float, b: float,
@@ -158,16 +164,19 @@ def row_truth_and_margin(op: Callable[[float, float], bool], a: float, b: float,
 class Expression:
     """A compiled expression; calling it evaluates the closure tree on an engine context."""
 
-    __slots__ = ("_fn", "atoms", "conjuncts", "is_condition", "names", "source")
+    __slots__ = ("_fn", "atoms", "conjuncts", "is_condition", "names", "row", "source")
 
     def __init__(self, source: str, fn: Callable[[Any], Any], names: frozenset[str],
                  is_condition: bool, atoms: tuple[Atom, ...],
-                 conjuncts: tuple[Atom, ...] = ()) -> None:
+                 conjuncts: tuple[Atom, ...] = (),
+                 row: Callable[[Any], Any] | None = None) -> None:
         """``conjuncts``: the atoms that are conjuncts of a condition (where one is false,
         so is the condition; a crossing search uses it to skip flips that cannot
-        matter)."""
+        matter). ``row``: the expression on one instance's floats, where every part of it
+        has a float form (as :attr:`Atom.row`), else None."""
         self.source, self._fn, self.names = source, fn, names
         self.is_condition, self.atoms, self.conjuncts = is_condition, atoms, conjuncts
+        self.row = row
 
     def __call__(self, ctx: Any) -> np.ndarray | float | bool:
         return self._fn(ctx)
@@ -204,9 +213,13 @@ class _C:
 
 
 def _const(value: Any, cond: bool) -> _C:
-    number = not cond and isinstance(value, int | float | np.floating)
-    return _C(lambda ctx: value, cond, value,
-              (lambda r, c=float(value): c) if number else None)
+    if cond:
+        row = (lambda r, c=bool(value): c) if isinstance(value, bool | np.bool_) else None
+    elif isinstance(value, int | float | np.floating):
+        row = lambda r, c=float(value): c  # noqa: E731
+    else:
+        row = None
+    return _C(lambda ctx: value, cond, value, row)
 
 
 def _row_apply(impl: Callable[..., Any], args: list[_C]) -> Callable[[Any], float] | None:
