@@ -275,8 +275,9 @@ class Segment:
         if not self.has_rk or not some(self.step.rk[rows]):
             return illinois(exact, lo, hi, truth_lo, tol)
         span_lo, span_hi = lo.copy(), hi.copy()
-        dense = self.evaluator(w, rows, dense=True)
         one = self.dense_one(w, rows)
+        # (a single run's dense search runs on floats: no array evaluator to gather)
+        dense = self.evaluator(w, rows, dense=True) if one is None else _unused
         n = rows.size
         everyone = np.arange(n)
         g_lo, g = on_dense if on_dense is not None else illinois(
@@ -289,6 +290,10 @@ class Segment:
         width = 0.5 * tol - np.spacing(np.abs(mid) + tol)
         a_, b_ = np.maximum(span_lo, mid - width), np.minimum(span_hi, mid + width)
         tt, mm = exact(np.concatenate([everyone] * 3), np.concatenate([g, a_, b_]))  # one step
+        if n == 1:  # a single run's bracket that confirms is final (what illinois returns)
+            _, t_a, t_b = tt.tolist()
+            if t_a == truth_lo[0] and t_b != truth_lo[0] and not b_[0] - a_[0] > tol[0]:
+                return a_, b_
         ok = (tt[n: 2 * n] == truth_lo) & (tt[2 * n:] != truth_lo)
         new_lo, new_hi = span_lo.copy(), span_hi.copy()
         m_lo, m_hi = filled(n, np.nan), filled(n, np.nan)
@@ -320,6 +325,11 @@ class Segment:
             todo = todo[~ok]
             width = width * 1000.0
         return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
+
+
+def _unused(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The array evaluator of a search that runs on floats: never called."""
+    raise AssertionError("a search with a float evaluator evaluated on arrays")
 
 
 class _One:
