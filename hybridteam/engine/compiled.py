@@ -246,6 +246,12 @@ class CAgent:
         return [sum(o.owner is w.owner for o in self.watches) == 1 for w in self.watches]
 
     @functools.cached_property
+    def fixed_names(self) -> frozenset[str]:
+        """The names that stay constant over an integration step (variables and
+        parameters): a flow expression of these alone is evaluated once per step."""
+        return frozenset(self.var_index) | frozenset(self.param_index)
+
+    @functools.cached_property
     def row_watches(self) -> bool:
         """Whether every watched atom has a float form (:attr:`~hybridteam.expr.Atom.row`),
         so a single run's checkpoints can be judged on floats."""

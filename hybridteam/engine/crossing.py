@@ -382,6 +382,32 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
             todo.append((v, rows[ahead], k[ahead], tau[ahead], now[v, ahead]))
 
 
+def _relevant_one(st, idx: np.ndarray, keep: np.ndarray,
+                  points: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """:func:`_relevant` for a single run whose guards and invariants have float forms:
+    the same judgements (a lone flip matters where its guard is true, its invariant false,
+    at the end of its sub-interval) on Python floats."""
+    watches = st.ca.watches
+    sub = int(idx[0])
+    entry = st.entry[sub].tolist()
+    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), 0.0, 0.0)
+    flips = keep[:, :, 0].tolist()
+    for k, flipped in enumerate(flips):
+        x, t = points[k + 1]
+        row.x, row.t = None, float(t[0])
+        for w, watch in enumerate(watches):
+            if not flipped[w] or watch.observer:
+                continue
+            if any(flipped[v] for v, other in enumerate(watches)
+                   if v != w and other.owner is watch.owner):
+                continue
+            if row.x is None:
+                row.x = x[0].tolist()
+            row.t_in = row.t - entry[watch.mode]
+            if bool(watch.owner.row(row)) == watch.invariant:  # (owner_matters on floats)
+                keep[k, w, 0] = False
+
+
 def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
               points: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """Keep only flips that can matter, so a run does not stop at every one of them.
@@ -394,6 +420,9 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
     st = ens.states[a]
     watches = st.ca.watches
     keep = flips.copy()
+    if idx.size == 1 and all(w.owner is None or w.owner.row is not None for w in watches):
+        _relevant_one(st, idx, keep, points)
+        return keep
     for k in range(flips.shape[0]):
         x, t = points[k + 1]
         for w, watch in enumerate(watches):

@@ -66,14 +66,16 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
     """``f(t, x)`` for agent ``a``'s instances ``idx`` under their current drivers."""
     st = ens.states[a]
     ca, plant = st.ca, st.ca.plant
-    fixed_names = ca.var_index.keys() | ca.param_index.keys()  # constant over a step
+    fixed_names = ca.fixed_names
     drv = st.driver[idx]
     v, p, entry = gather(st.v, idx), gather(st.p, idx), gather(st.entry, idx)
     # what does not change from one stage to the next is gathered once, per driver group
     groups = []
-    for d in (distinct(drv) if drv.size else []):
+    # (one instance, a single run's: its one driver, without sorting out groups)
+    drivers = [drv.item(0)] if drv.size == 1 else distinct(drv) if drv.size else []
+    for d in drivers:
         D = ca.drivers[d]
-        rows = where_true(drv == d)
+        rows = where_true(drv == d) if drv.size > 1 else drv
         sel: slice | np.ndarray = slice(None) if rows.size == drv.size else rows
         entered = entry[:, D.owner][sel] if D.owner >= 0 and D.reads_t_in else None
         v_g, p_g = v[sel], p[sel]
