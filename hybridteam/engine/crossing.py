@@ -40,6 +40,12 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx
     (``full``: they are every instance, in order, so gathers can be views)."""
     st = ens.states[a]
+    if idx.size == 1 and st.ca.row_watches:  # a single run's: on floats, the same truths
+        sub = int(idx[0])
+        row = Row(x[0].tolist(), st.v[sub].tolist(), st.p[sub].tolist(), float(t[0]), 0.0)
+        entry = st.entry[sub].tolist()
+        return np.array([[w.atom.row(_at(row, entry[w.mode]))[0]] for w in st.ca.watches],
+                        bool)
     out = np.empty((len(st.ca.watches), idx.size), bool)
     sel = slice(None) if full else idx
     v, p = gather(st.v, sel), gather(st.p, sel)

@@ -195,7 +195,7 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     for act in tr.actions:
         if act.kind == "assign":
             kind, col = act.target  # type: ignore[misc]
-            value = np.broadcast_to(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
+            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
             if kind == "x":
                 st.x[:, col][sub] = value
                 ctx.x[:, col] = value
@@ -223,7 +223,7 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
           msg: dict[str, np.ndarray] | None) -> None:
     """A ``send`` action: plain datagrams, or through the acknowledged layer when the
     message type's protocol asks for acks; priority ranks same-instant arrivals."""
-    fields = {k: np.broadcast_to(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
+    fields = {k: spread(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
     to: int | np.ndarray | None = act.to
     if act.to_expr is not None:
         to = np.rint(np.broadcast_to(act.to_expr(ctx), sub.shape)).astype(np.intp)
