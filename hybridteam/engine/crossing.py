@@ -28,7 +28,8 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.engine.bracket import Segment, owner_matters
-from hybridteam.engine.compiled import Ctx, Row
+from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.single import check_truths_one, relevant_one, truths_one
 from hybridteam.engine.step import AgentStep, state_at
 
 if TYPE_CHECKING:
@@ -41,11 +42,7 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     (``full``: they are every instance, in order, so gathers can be views)."""
     st = ens.states[a]
     if idx.size == 1 and st.ca.row_watches:  # a single run's: on floats, the same truths
-        sub = int(idx[0])
-        row = Row(x[0].tolist(), st.v[sub].tolist(), st.p[sub].tolist(), float(t[0]), 0.0)
-        entry = st.entry[sub].tolist()
-        return np.array([[w.atom.row(_at(row, entry[w.mode]))[0]] for w in st.ca.watches],
-                        bool)
+        return truths_one(st, int(idx[0]), x[0].tolist(), float(t[0]))
     out = np.empty((len(st.ca.watches), idx.size), bool)
     sel = slice(None) if full else idx
     v, p = gather(st.v, sel), gather(st.p, sel)
@@ -167,7 +164,7 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     k, checks = pos.size, thetas.size - 2
     if idx.size == 1 and ens.states[a].ca.row_watches and step.rk_step is not None \
             and step.rk[0]:
-        return _check_truths_one(ens, a, idx, x_end, step, thetas, start, h, t0, t1)
+        return check_truths_one(ens.states[a], idx, x_end, step, thetas, start, h, t0, t1)
     rows = np.concatenate([pos] * checks)
     tau = thetas[1:-1].repeat(k) * h[rows]
     x_checks = state_at(ens, a, idx[rows], tau, step, dense=True, rows=rows)
@@ -188,49 +185,6 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     else:
         out[1:] = truths.reshape(nw, checks + 1, k).transpose(1, 0, 2)
     return out, x_checks, t_checks
-
-
-def _check_truths_one(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
-                      step: AgentStep, thetas: np.ndarray, start: np.ndarray, h: np.ndarray,
-                      t0: np.ndarray, t1: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`_check_truths` for a single run's one flowing row whose atoms all have a float
-    form: the checkpoints' states off the dense output row by row, and every atom's truth
-    there and at the end, on Python floats. The operations of the array version (``tau =
-    theta h``, ``theta = tau / h`` for the interpolant, ``t = t0 + tau``, the atom's
-    comparison) on the same doubles: the same truths, states and times."""
-    st = ens.states[a]
-    s = step.rk_step
-    assert s is not None and step.rk_pos is not None
-    at = int(step.rk_pos[0])
-    span = float(s.h[at])
-    span = span if span > 0 else 1.0  # (as dense_reader's)
-    hh, t_start, sub = float(h[0]), float(t0[0]), int(idx[0])
-    entry = st.entry[sub].tolist()
-    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), t_start, t_start)
-    watches = [(w.atom.row, entry[w.mode]) for w in st.ca.watches]
-    xs, ts, truths = [], [], []
-    points = [(float(th) * hh, None) for th in thetas[1:-1].tolist()]
-    points.append((None, float(t1[0])))
-    for tau, t_end in points:
-        if t_end is None:
-            row.x = s.dense_row(tau / span, at)
-            row.t = t = t_start + tau
-            xs.append(row.x)
-            ts.append(t)
-        else:
-            row.x, row.t = x_end[0].tolist(), t_end
-        truths.append([both(_at(row, entered))[0] for both, entered in watches])
-    out = np.empty((thetas.size, len(watches), 1), bool)
-    out[0] = start
-    out[1:, :, 0] = truths
-    return out, np.array(xs, dtype=float).reshape(len(xs), -1), np.array(ts, dtype=float)
-
-
-def _at(row: Row, entered: float) -> Row:
-    """``row`` with the time in the mode entered at ``entered``."""
-    row.t_in = row.t - entered
-    return row
 
 
 def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,
@@ -388,32 +342,6 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
             todo.append((v, rows[ahead], k[ahead], tau[ahead], now[v, ahead]))
 
 
-def _relevant_one(st, idx: np.ndarray, keep: np.ndarray,
-                  points: list[tuple[np.ndarray, np.ndarray]]) -> None:
-    """:func:`_relevant` for a single run whose guards and invariants have float forms:
-    the same judgements (a lone flip matters where its guard is true, its invariant false,
-    at the end of its sub-interval) on Python floats."""
-    watches = st.ca.watches
-    sub = int(idx[0])
-    entry = st.entry[sub].tolist()
-    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), 0.0, 0.0)
-    flips = keep[:, :, 0].tolist()
-    for k, flipped in enumerate(flips):
-        x, t = points[k + 1]
-        row.x, row.t = None, float(t[0])
-        for w, watch in enumerate(watches):
-            if not flipped[w] or watch.observer:
-                continue
-            if any(flipped[v] for v, other in enumerate(watches)
-                   if v != w and other.owner is watch.owner):
-                continue
-            if row.x is None:
-                row.x = x[0].tolist()
-            row.t_in = row.t - entry[watch.mode]
-            if bool(watch.owner.row(row)) == watch.invariant:  # (owner_matters on floats)
-                keep[k, w, 0] = False
-
-
 def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
               points: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """Keep only flips that can matter, so a run does not stop at every one of them.
@@ -427,7 +355,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
     watches = st.ca.watches
     keep = flips.copy()
     if idx.size == 1 and all(w.owner is None or w.owner.row is not None for w in watches):
-        _relevant_one(st, idx, keep, points)
+        relevant_one(st, idx, keep, points)
         return keep
     for k in range(flips.shape[0]):
         x, t = points[k + 1]
