@@ -16,7 +16,12 @@ import hybridteam as ht
 from hybridteam.export import animate
 from hybridteam.export.animate import frame_times, write_animation
 from hybridteam.export.style import mode_colors
-from hybridteam.export.trajectories import trajectory_figure, write_trajectories
+from hybridteam.export.trajectories import (
+    MAX_NUMBERS,
+    MAX_STACK,
+    trajectory_figure,
+    write_trajectories,
+)
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
 from tests.conftest import EXAMPLES
 
@@ -68,6 +73,42 @@ def test_relay_paths_start_labels_and_numbered_mode_changes():
     offsets = sorted(t.xyann[1] for t in by_gid(ax.texts, "change") if t.get_text()[-1] == "R")
     assert offsets[0] < offsets[1]
     assert ax.get_aspect() == 1.0 and ax.get_title() == "" and fig.get_suptitle() == "relay"
+
+
+TILT = """
+team: tilt
+parameters: {g: 9.81}
+agents:
+  puck:
+    plant: {kind: flow, state: {x: 0.0, y: 1.5, vx: 1.2, vy: 0.0}}
+    parameters: {e: 0.75, slope: 0.15}
+    initial: Fly
+    modes:
+      Fly:
+        flow: {x: vx, y: vy, vx: 0, vy: -g}
+        transitions:
+          - to: Fly
+            guard: y <= slope * x and vy < slope * vx
+            do: ["vy = slope * vx - e * (vy - slope * vx)"]
+simulation: {duration: 20.0, sample_period: 0.02}
+"""
+
+
+def test_a_zeno_pile_up_of_changes_keeps_its_labels_on_the_plot(team_from_yaml):
+    """A puck bouncing down a tilted floor to its Zeno point: 154 changes, the last ones at
+    one spot. Every 2nd is numbered; at the pile-up three numbers and an ellipsis stand,
+    not a column of labels rising off the axes (which also collapsed the layout)."""
+    run = ht.simulate(team_from_yaml(TILT))
+    assert run.outcome == "zeno" and MAX_NUMBERS < len(run.transitions) <= 2 * MAX_NUMBERS
+    fig = trajectory_figure(run)
+    (ax,) = fig.axes
+    labels = by_gid(ax.texts, "change")
+    assert max(t.xyann[1] for t in labels) == 4 + 9 * MAX_STACK
+    assert [t.get_text() for t in labels].count("…") >= 1
+    assert len(labels) < 40
+    (note,) = [t.get_text() for t in ax.texts if t.get_text().startswith("numbers shown")]
+    assert note == ("numbers shown on every 2nd mode change; where changes crowd one spot, "
+                    "the first 3 and …")
 
 
 def test_selected_modes_restrict_the_numbering():

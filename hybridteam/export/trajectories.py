@@ -47,6 +47,9 @@ from hybridteam.export.timeline import (
 from hybridteam.trace import Table, Trace
 
 MAX_NUMBERS = 120  # beyond this, numbered labels only on every k-th change (legibility)
+#: labels of changes at one spot stack upwards; past this many, one "…" stands for the rest
+#: (a Zeno run's last bounces would otherwise stack a column of labels off the plot)
+MAX_STACK = 3
 LINESTYLES = ("solid", "dashed", "dashdot", "dotted")
 
 
@@ -224,12 +227,16 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                              np.interp(ts, times[valid], poses[a][valid, 1])]
     placed: list[tuple[float, float]] = []
     tol = 0.015 * max(extent, 1e-9)
+    crowded = False
     for k, ((_t, _step, a, _target, n), (x, y)) in enumerate(zip(changes, at, strict=True)):
         if k % stride == 0 and not np.isnan(x):  # labels at one spot stack upwards
             near = sum(abs(x - px) < tol and abs(y - py) < tol for px, py in placed)
             placed.append((x, y))
-            ax.annotate(f"{n}{letter[a]}", (x, y), xytext=(4, 4 + 9 * near),
-                        textcoords="offset points",
+            if near > MAX_STACK:
+                continue
+            crowded |= near == MAX_STACK
+            ax.annotate(f"{n}{letter[a]}" if near < MAX_STACK else "…", (x, y),
+                        xytext=(4, 4 + 9 * near), textcoords="offset points",
                         fontsize=7.5, color="#111111", path_effects=HALO, zorder=8,
                         gid="change")
     if len(at):
@@ -252,9 +259,18 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         else:
             ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                       fontsize=7.5, frameon=False)
-    if stride > 1:
-        ax.text(0.01, 0.01, f"numbers shown on every {stride}th mode change",
-                transform=ax.transAxes, fontsize=7, color="#666666")
+    notes = [f"numbers shown on every {_ordinal(stride)} mode change"] if stride > 1 else []
+    if crowded:
+        notes.append(f"where changes crowd one spot, the first {MAX_STACK} and …")
+    if notes:
+        ax.text(0.01, 0.01, "; ".join(notes), transform=ax.transAxes, fontsize=7,
+                color="#666666")
+
+
+def _ordinal(k: int) -> str:
+    """2nd, 3rd, 11th, 21st, ..."""
+    suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+    return f"{k}{suffix}"
 
 
 def wide(limits: tuple[float, float, float, float]) -> bool:
