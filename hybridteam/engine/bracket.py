@@ -18,6 +18,7 @@ from hybridteam.dynamics import rk
 from hybridteam.engine.compiled import Ctx, Row
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois, illinois_one
+from hybridteam.engine.single import DenseRow
 from hybridteam.engine.step import AgentStep, dense_reader, state_at
 
 if TYPE_CHECKING:
@@ -333,25 +334,21 @@ def _unused(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _One:
-    """A single run's flowing row, read on Python floats: its dense output, its context
-    (:class:`~hybridteam.engine.compiled.Row`) and one watched atom's float form."""
+    """A single run's flowing row on the dense output (:class:`~.single.DenseRow`) with one
+    watched atom, read on floats: the context timed in the atom's mode, and its truth and
+    margin."""
 
-    __slots__ = ("at", "dense", "entered", "row", "span", "t0", "watch")
+    __slots__ = ("entered", "reader", "watch")
 
     def __init__(self, seg: Segment, watch, s: rk.Step, at: int, r: int) -> None:
         sub = int(seg.idx[r])
-        h = float(s.h[at])
-        self.watch, self.at, self.dense = watch, at, s.dense_row
-        self.span = h if h > 0 else 1.0  # (as dense_reader's: a zero-length step reads its start)
-        self.t0, self.entered = float(seg.t0[r]), float(seg.st.entry[sub, watch.mode])
-        self.row = Row([], seg.st.v[sub].tolist(), seg.st.p[sub].tolist(), self.t0, self.t0)
+        self.watch, self.entered = watch, float(seg.st.entry[sub, watch.mode])
+        self.reader = DenseRow(seg.st, sub, s, at, float(seg.t0[r]))
 
     def at_tau(self, tau: float) -> Row:
         """The row's context ``tau`` after the step start, off the dense output."""
-        row = self.row
-        row.x = self.dense(tau / self.span, self.at)
-        row.t = t = self.t0 + tau
-        row.t_in = t - self.entered
+        row = self.reader.at_tau(tau)
+        row.t_in = row.t - self.entered
         return row
 
     def atom(self, tau: float) -> tuple[bool, float]:

@@ -257,6 +257,13 @@ class CAgent:
         so a single run's checkpoints can be judged on floats."""
         return bool(self.watches) and all(w.atom.row is not None for w in self.watches)
 
+    @functools.cached_property
+    def row_owners(self) -> bool:
+        """Whether every watched guard and invariant has a float form
+        (:attr:`~hybridteam.expr.Expression.row`), so a single run's flips can be judged
+        relevant on floats (a requirement's atoms have no owner and always matter)."""
+        return all(w.owner is None or w.owner.row is not None for w in self.watches)
+
     @property
     def limited(self) -> bool:
         """Whether any input has a finite actuator limit."""

@@ -354,7 +354,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
     st = ens.states[a]
     watches = st.ca.watches
     keep = flips.copy()
-    if idx.size == 1 and all(w.owner is None or w.owner.row is not None for w in watches):
+    if idx.size == 1 and st.ca.row_owners:
         relevant_one(st, idx, keep, points)
         return keep
     for k in range(flips.shape[0]):

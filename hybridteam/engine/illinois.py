@@ -14,7 +14,7 @@ equals its ensemble member.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -46,20 +46,22 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     collapses the bracket at once instead of crawling. A bisection replaces the secant
     whenever three rounds failed to halve the bracket, which bounds the worst case.
     ``scalar=False`` keeps the array rounds to the end (for the tests that compare).
-    ``one``, for a search with one bracket, evaluates it on floats (the same bits as
-    ``ev``).
+    ``one``, for a search with one bracket and no margins known, narrows it on floats
+    throughout (:func:`illinois_one`: the same bits).
     """
     size = lo.size
+    if one is not None and size == 1 and m_lo is None and scalar:
+        lo[0], hi[0] = illinois_one(one, float(lo[0]), float(hi[0]), bool(truth0[0]),
+                                    float(tol[0]))
+        return lo, hi
     everyone = np.arange(size)
     if m_lo is None or some(np.isnan(m_lo)):
         need = everyone if m_lo is None else where_true(np.isnan(m_lo))
         m_lo = np.empty(size) if m_lo is None else m_lo
         m_hi = np.empty(size) if m_hi is None else m_hi
-        if one is not None and size == 1:
-            m_lo[0], m_hi[0] = one(float(lo[0]))[1], one(float(hi[0]))[1]
-        else:  # both ends in one evaluation (rows are independent: the same values as two)
-            ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
-            m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
+        # both ends in one evaluation (rows are independent: the same values as two)
+        ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
+        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
     ma, mb = m_lo, m_hi
     assert mb is not None
     kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
@@ -69,8 +71,7 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         if open_.size == 0:
             break
         if open_.size <= FEW and scalar:
-            _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done,
-                        one if size == 1 else None)
+            _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done)
             break
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
         k: slice | np.ndarray = slice(None) if open_.size == size else open_
@@ -99,8 +100,7 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
 
 def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                 ma: np.ndarray, mb: np.ndarray, truth0: np.ndarray, tol: np.ndarray,
-                kept: np.ndarray, slow: np.ndarray, rounds: int,
-                one: OneEvaluator | None = None) -> None:
+                kept: np.ndarray, slow: np.ndarray, rounds: int) -> None:
     """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
     Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
     ``hi``. The trial points of one round are evaluated in one call, as the array round
@@ -119,13 +119,8 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
         if not going:
             break
         cs = [_trial(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j]) for j in going]
-        if one is not None:  # (the search's one bracket)
-            tcj, mcj = one(cs[0])
-            results: Iterable = ((tcj,), (mcj,))
-        else:
-            tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
-            results = (tc.tolist(), mc_.tolist())
-        for j, c, tcj, mc in zip(going, cs, *results, strict=True):
+        tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
+        for j, c, tcj, mc in zip(going, cs, tc.tolist(), mc_.tolist(), strict=True):
             a_s[j], b_s[j], fa_s[j], fb_s[j], survived_s[j], sl_s[j] = _update(
                 a_s[j], b_s[j], fa_s[j], fb_s[j], c, tcj == t0s[j], mc, survived_s[j],
                 sl_s[j])

@@ -18,15 +18,47 @@ from hybridteam.engine.compiled import Row
 from hybridteam.engine.step import AgentStep
 
 if TYPE_CHECKING:
+    from hybridteam.dynamics import rk
     from hybridteam.engine.state import AgentState
+
+
+def context_row(st: AgentState, sub: int, x: list[float], t: float) -> Row:
+    """Instance ``sub``'s context on floats at state ``x`` and time ``t`` (its time in a
+    mode is set by whoever reads one: :func:`_at`)."""
+    return Row(x, st.v[sub].tolist(), st.p[sub].tolist(), t, t)
+
+
+class DenseRow:
+    """A single run's flowing row on its step's dense output, read on floats:
+    :meth:`at_tau` is its context ``tau`` after the step start, with ``theta = tau / h``
+    for the interpolant and ``t = t0 + tau`` (what ``step.dense_reader`` and the array
+    search compute)."""
+
+    __slots__ = ("at", "dense", "row", "span", "t0")
+
+    def __init__(self, st: AgentState, sub: int, s: rk.Step, at: int, t0: float) -> None:
+        h = float(s.h[at])
+        self.span = h if h > 0 else 1.0  # (as dense_reader's: a zero-length step reads its start)
+        self.at, self.dense, self.t0 = at, s.dense_row, t0
+        self.row = context_row(st, sub, [], t0)
+
+    def at_tau(self, tau: float) -> Row:
+        row = self.row
+        row.x = self.dense(tau / self.span, self.at)
+        row.t = self.t0 + tau
+        return row
 
 
 def truths_one(st: AgentState, sub: int, x: list[float], t: float) -> np.ndarray:
     """Every watched atom's truth for instance ``sub`` at state ``x`` and time ``t``, as
     ``crossing.watch_truth`` gives them for one row: ``(atoms, 1)``."""
-    row = Row(x, st.v[sub].tolist(), st.p[sub].tolist(), t, 0.0)
-    entry = st.entry[sub].tolist()
-    return np.array([[w.atom.row(_at(row, entry[w.mode]))[0]] for w in st.ca.watches], bool)
+    return np.array(_truths(st, context_row(st, sub, x, t), st.entry[sub].tolist()),
+                    bool)[:, None]
+
+
+def _truths(st: AgentState, row: Row, entry: list[float]) -> list[bool]:
+    """Every watched atom's truth at ``row`` (each timed in its own mode)."""
+    return [w.atom.row(_at(row, entry[w.mode]))[0] for w in st.ca.watches]
 
 
 def check_truths_one(st: AgentState, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
@@ -39,26 +71,20 @@ def check_truths_one(st: AgentState, idx: np.ndarray, x_end: np.ndarray, step: A
     comparison) on the same doubles: the same truths, states and times."""
     s = step.rk_step
     assert s is not None and step.rk_pos is not None
-    at = int(step.rk_pos[0])
-    span = float(s.h[at])
-    span = span if span > 0 else 1.0  # (as dense_reader's)
-    hh, t_start, sub = float(h[0]), float(t0[0]), int(idx[0])
+    sub = int(idx[0])
     entry = st.entry[sub].tolist()
-    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), t_start, t_start)
-    watches = [(w.atom.row, entry[w.mode]) for w in st.ca.watches]
+    reader = DenseRow(st, sub, s, int(step.rk_pos[0]), float(t0[0]))
+    hh = float(h[0])
     xs, ts, truths = [], [], []
-    points = [(float(th) * hh, None) for th in thetas[1:-1].tolist()]
-    points.append((None, float(t1[0])))
-    for tau, t_end in points:
-        if t_end is None:
-            row.x = s.dense_row(tau / span, at)
-            row.t = t = t_start + tau
-            xs.append(row.x)
-            ts.append(t)
-        else:
-            row.x, row.t = x_end[0].tolist(), t_end
-        truths.append([both(_at(row, entered))[0] for both, entered in watches])
-    out = np.empty((thetas.size, len(watches), 1), bool)
+    for th in thetas[1:-1].tolist():
+        row = reader.at_tau(float(th) * hh)
+        xs.append(row.x)
+        ts.append(row.t)
+        truths.append(_truths(st, row, entry))
+    row = reader.row  # (the same context, now at the step's end)
+    row.x, row.t = x_end[0].tolist(), float(t1[0])
+    truths.append(_truths(st, row, entry))
+    out = np.empty((thetas.size, len(st.ca.watches), 1), bool)
     out[0] = start
     out[1:, :, 0] = truths
     return out, np.array(xs, dtype=float).reshape(len(xs), -1), np.array(ts, dtype=float)
@@ -78,7 +104,7 @@ def relevant_one(st: AgentState, idx: np.ndarray, keep: np.ndarray,
     watches = st.ca.watches
     sub = int(idx[0])
     entry = st.entry[sub].tolist()
-    row = Row([], st.v[sub].tolist(), st.p[sub].tolist(), 0.0, 0.0)
+    row = context_row(st, sub, [], 0.0)
     flips = keep[:, :, 0].tolist()  # (the flips as found: keep changes below)
     for k, flipped in enumerate(flips):
         x, t = points[k + 1]

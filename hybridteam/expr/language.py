@@ -198,8 +198,8 @@ class Reader:
 
 class _C:
     """A compiled node: its closure, its static type and, if constant-folded, its value;
-    ``row``, where the node is arithmetic of names and numbers, its closure on one
-    instance's floats (see :attr:`Atom.row`)."""
+    ``row``, where the node is built of names, numbers and the operations of
+    :data:`ON_FLOATS` alone, its closure on one instance's floats (see :attr:`Atom.row`)."""
 
     __slots__ = ("cond", "fn", "row", "value")
 
