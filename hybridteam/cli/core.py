@@ -82,7 +82,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
             print(f"{w} (warning)", file=sys.stderr)
         if loaded.warnings and args.strict:
             status = EXIT_USAGE
-        elif status == EXIT_OK:
+        else:  # every file gets its verdict, also after a failing one
             print(f"{name}: ok ({loaded.kind})")
     return status
 
