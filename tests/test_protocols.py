@@ -377,6 +377,31 @@ def test_unknown_protocol_is_located_with_a_suggestion(tmp_path, capsys):
     assert err.startswith(f"{bad}:{line}:")
 
 
+@pytest.mark.parametrize("wrong, where, message", [
+    ("with: {ahead: 1.0}}}", "with: {ahead: 1.0, gain: 2}}}",
+     "law.with.gain: law 'formation.follow' has no parameter 'gain'"),
+    ("use: formation.follow, period: 0.05, with: {ahead: 1.0}",
+     "use: transport.follow_holonomic, period: 0.05, with: {D: 1.0}",
+     "law.use: law 'transport.follow_holonomic' drives holonomic plants, not unicycle"),
+])
+def test_an_error_in_a_role_body_is_reported_once(tmp_path, capsys, wrong, where, message):
+    """Follow, Requesting and a third state all play ``follow``: the body is one place in
+    the file, compiled three times, and its mistake is one error."""
+    from tests.conftest import EXAMPLES
+
+    text = (EXAMPLES / "protocols" / "handover.yaml").read_text()
+    line = "          follow: {law: {use: formation.follow, period: 0.05, with: {ahead: 1.0}}}"
+    assert text.count(line) == 1 and wrong in line
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace(line, line.replace(wrong, where)))
+    assert main(["validate", str(bad)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    row = text.splitlines().index(line) + 1
+    assert len(err) == 1, err
+    assert err[0].startswith(f"{bad}:{row}:")
+    assert err[0].endswith(f"agents.xr4000.modes.Transport.roles.follow.{message}")
+
+
 def test_handover_example_runs_and_writes_its_views(tmp_path):
     from tests.conftest import EXAMPLES
 
