@@ -220,7 +220,9 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 def cmd_laws(args: argparse.Namespace) -> int:
     """Every registered law (installed libraries included): plants, parameters with their
-    defaults, the names it reads from the agent, and the first line of its docstring."""
+    defaults, the names it reads from the agent, and its docstring's first paragraph."""
+    import textwrap
+
     from hybridteam.laws import asked_names, registered, resolve
     from hybridteam.libraries import broken_note
 
@@ -234,8 +236,9 @@ def cmd_laws(args: argparse.Namespace) -> int:
         spec = resolve(name)
         plants = "/".join(spec.plants) if spec.plants else "any plant"
         print(f"{name}  ({plants})")
-        if spec.doc:
-            print(f"    {spec.doc.splitlines()[0]}")
+        if spec.summary:
+            print(textwrap.fill(spec.summary, 92, initial_indent="    ",
+                                subsequent_indent="    "))
         if spec.params:
             print("    with: " + ", ".join(f"{k}={v:g}" for k, v in spec.params.items()))
         reads = sorted(asked_names(spec.fn) - set(spec.params))
