@@ -255,6 +255,20 @@ def test_sweep_with_workers_uses_them_on_a_small_study(tmp_path, capsys):
     assert "(1 computed, in-process: one chunk to compute)" in capsys.readouterr().out
 
 
+def test_a_factor_may_set_a_network_setting(tmp_path, capsys):
+    """``network.loss`` as a factor's key: the handshake always completes at loss 0 and
+    never at loss 1 (both messages must arrive); a misspelt setting is located."""
+    path = _study(tmp_path, "population: {size: 2}\n"
+                  "factors:\n  loss: {key: network.loss, values: [0.0, 1.0]}\n")
+    table = run_study(load_study(path), tmp_path / "out").table
+    assert [(r["value"], r["runs"], r["success_rate"]) for r in table.rows] == \
+        [("0", 2, 1.0), ("1", 2, 0.0)]
+    path.write_text(path.read_text().replace("network.loss", "network.los"))
+    assert main(["validate", str(path)]) == 2
+    assert f"{path}:5:15: factors.loss.key: override 'network.los' names no network " \
+        "setting of team 'handshake'; did you mean 'network.loss'?" in capsys.readouterr().err
+
+
 # ------------------------------------------------------------------ resuming
 def test_interrupted_study_resumes_without_recomputing(study, reference, tmp_path):
     first = run_study(study, tmp_path, chunk=3, max_chunks=7)

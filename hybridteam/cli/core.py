@@ -40,8 +40,9 @@ def register(sub) -> dict:
     r.add_argument("--duration", type=float, default=None, help="simulated seconds")
     r.add_argument("-n", type=int, default=None, help="ensemble size (default 1)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=V[,V...]",
-                   help="override a parameter (agent.param or team param); a list gives "
-                        "one value per instance")
+                   help="override a parameter (agent.param or team param) or a network "
+                        "setting (network.latency, network.jitter, network.loss, "
+                        "network.links.A->B.loss); a list gives one value per instance")
     r.add_argument("--quiet", action="store_true", help="no progress or summary")
     r.add_argument("--progress", choices=MODES, default="auto",
                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
