@@ -55,7 +55,8 @@ class Run(Trace):
 
     @property
     def modes(self) -> Table:
-        """Time spent in each mode: one row per stay (``modes.csv``; also ``intervals``)."""
+        """The interval table, one row per stay in a mode (``modes.csv``): the same table
+        as ``intervals``, under the name of its file."""
         return self.intervals
 
     def to_pandas(self) -> dict[str, Any]:
