@@ -55,7 +55,8 @@ class Run(Trace):
 
     @property
     def modes(self) -> Table:
-        """Time spent in each mode: one row per stay (``modes.csv``; also ``intervals``)."""
+        """The interval table, one row per stay in a mode (``modes.csv``): the same table
+        as ``intervals``, under the name of its file."""
         return self.intervals
 
     def to_pandas(self) -> dict[str, Any]:
@@ -155,7 +156,8 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
              max_wall: float | None = None) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
-    ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``) to one value or
+    ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``, or a network
+    setting ``"network.jitter"``, see :mod:`hybridteam.engine.overrides`) to one value or
     to ``n`` values, one per instance — that is how an ensemble varies. ``seed`` defaults to
     the team's ``simulation.seed``; it may also be ``n`` seeds, one per instance, and
     instance ``i`` then draws exactly what a single run with ``seed[i]`` draws (how a

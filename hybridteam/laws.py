@@ -279,6 +279,12 @@ class LawSpec:
     params: dict[str, float] = field(default_factory=dict)
     doc: str = ""
 
+    @property
+    def summary(self) -> str:
+        """What the law does: its docstring's first paragraph on one line. A summary may
+        run over several lines of source; cutting at the first line ended mid-sentence."""
+        return " ".join(self.doc.split("\n\n", 1)[0].split())
+
 
 _REGISTRY: dict[str, LawSpec] = {}
 

@@ -91,6 +91,16 @@ agents:
     assert main(["validate", "--strict", str(model)]) == 2
 
 
+def test_validate_gives_every_file_its_verdict_after_a_failing_one(tmp_path, capsys):
+    """A file after a failing one is still checked and says so; the exit is the worst."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("team: b\nagents: 3\n")
+    assert main(["validate", THERMO, str(bad), THERMO]) == 2
+    captured = capsys.readouterr()
+    assert captured.out.splitlines() == [f"{THERMO}: ok (team)"] * 2
+    assert str(bad) in captured.err
+
+
 def test_schema_prints_json_schema(capsys):
     assert main(["schema", "team"]) == 0
     schema = json.loads(capsys.readouterr().out)

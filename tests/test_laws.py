@@ -258,6 +258,19 @@ def test_the_laws_command_lists_parameters_and_docs(capsys):
     assert main(["laws", "nosuch"]) == 2
 
 
+def test_the_laws_command_shows_whole_sentences(capsys):
+    """transport.match's summary runs over two source lines: both are shown, wrapped."""
+    from hybridteam.cli import main
+
+    assert main(["laws", "transport.match"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "transport.match  (unicycle)"
+    described = " ".join(line.strip() for line in lines[1:] if not line.startswith(
+        ("    with:", "    reads from")))
+    assert described == ("The Scout's Follow: the paper's u = (v̂_l, ω̂_l) with ``k_form`` = "
+                         "0; by default it also closes the loop on its place in the team.")
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.lists(st.floats(min_value=0.0, max_value=1e9), min_size=1, max_size=4),
        st.floats(min_value=1e-6, max_value=10.0))

@@ -253,3 +253,65 @@ def test_a_team_declares_its_own_acknowledged_message(team_from_yaml):
     assert [(t, g) for t, g in zip(tr["t"], tr["target"], strict=True)][-1] == (
         pytest.approx(1.02), "Heard")
     assert sorted(run.messages["type"].tolist()) == ["ack", "ping"]
+
+
+# ------------------------------------------------------------ network settings as overrides
+def _messages_equal(a, b) -> bool:
+    return list(a.messages["status"]) == list(b.messages["status"]) and np.array_equal(
+        a.messages["t_recv"], b.messages["t_recv"], equal_nan=True)
+
+
+def test_network_settings_are_override_keys(team_from_yaml, tmp_path):
+    """``network.jitter`` replaces the file's number per instance: a run with it set to 0
+    is the run of the same file saying ``jitter: 0``, and the other instance of the
+    ensemble is the file's own run."""
+    text = BEACON.format(period=0.05, jitter=0, loss=0, limits="{}", duration=2.0).replace(
+        "loss: p", "loss: 0.2")
+    jittery = team_from_yaml(text.replace("jitter: j", "jitter: 0.05"), "jittery.yaml")
+    calm = team_from_yaml(text.replace("jitter: j", "jitter: 0"), "calm.yaml")
+    own, still = ht.simulate(jittery, seed=3), ht.simulate(calm, seed=3)
+    assert not _messages_equal(own, still)  # the jitter matters in this team
+    assert _messages_equal(ht.simulate(jittery, seed=3, overrides={"network.jitter": 0}),
+                           still)
+    both = ht.simulate(jittery, n=2, seed=3, overrides={"network.jitter": [0.0, 0.05]})
+    assert _messages_equal(both.instance(0), still) and _messages_equal(both.instance(1), own)
+    sure = ht.simulate(jittery, seed=3, overrides={"network.loss": 0}).messages
+    assert set(sure["reason"]) <= {"", "run ended"} and "loss" in set(own.messages["reason"])
+    # the command line sets them with --set
+    from hybridteam.cli import main
+
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "jittery.yaml"), "-o", str(out), "--seed", "3",
+                 "--quiet", "--no-views", "--set", "network.jitter=0"]) == 0
+    assert _messages_equal(ht.Run.load(out / "trace.json"), still)
+
+
+def test_a_declared_links_settings_are_override_keys(team_from_yaml):
+    """A link the team declares: ``network.links.beacon->listener.latency`` (no jitter:
+    every copy takes exactly that long); a link it does not declare is no key."""
+    text = BEACON.format(period=0.25, jitter=0, loss=0, limits="{}", duration=2.0).replace(
+        "  rate_limits:", '  links: {"beacon -> listener": {latency: 0.3}}\n  rate_limits:')
+    team = team_from_yaml(text)
+    m = ht.simulate(team, overrides={"network.links.beacon->listener.latency": 0.2}
+                    ).messages.where(status="delivered")
+    assert len(m) == 7 and np.allclose(m["t_recv"] - m["t_send"], 0.2, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match=r"override 'network.links.listener->beacon.latency' "
+                       r"names no network setting; did you mean "
+                       r"'network.links.beacon->listener.latency'\?"):
+        ht.simulate(team, overrides={"network.links.listener->beacon.latency": 0.2})
+
+
+@pytest.mark.parametrize(("key", "value", "words"), [
+    ("network.jiter", 0.0, "override 'network.jiter' names no network setting; did you mean "
+     "'network.jitter'?"),
+    ("network.loss", 1.5, "override 'network.loss' is 1.5 in instance 0; it must be a number "
+     "in [0, 1]"),
+    ("network.latency", -0.1, "override 'network.latency' is -0.1 in instance 0; it must be "
+     "a number >= 0"),
+    ("jitter", 0.0, "override 'jitter' names no parameter; did you mean 'network.jitter'?"),
+])
+def test_bad_network_overrides_say_why(team_from_yaml, key, value, words):
+    team = beacon(team_from_yaml, duration=0.1)
+    with pytest.raises(ValueError) as err:
+        ht.simulate(team, overrides={key: value})
+    assert str(err.value) == words

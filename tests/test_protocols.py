@@ -377,6 +377,38 @@ def test_unknown_protocol_is_located_with_a_suggestion(tmp_path, capsys):
     assert err.startswith(f"{bad}:{line}:")
 
 
+FOLLOW = "          follow: {law: {use: formation.follow, period: 0.05, with: {ahead: 1.0}}}"
+LEAD = "          lead: {inputs: {v: speed, omega: 0}, period: 0.05}"
+
+
+@pytest.mark.parametrize("line, wrong, where, message", [
+    (FOLLOW, "with: {ahead: 1.0}}}", "with: {ahead: 1.0, gain: 2}}}",
+     "follow.law.with.gain: law 'formation.follow' has no parameter 'gain'"),
+    (FOLLOW, "use: formation.follow, period: 0.05, with: {ahead: 1.0}",
+     "use: transport.follow_holonomic, period: 0.05, with: {D: 1.0}",
+     "follow.law.use: law 'transport.follow_holonomic' drives holonomic plants, not unicycle"),
+    (LEAD, "omega: 0}", "omga: 0}",
+     "lead.inputs.omga: a unicycle plant has no input 'omga'; did you mean 'omega'?"),
+])
+def test_an_error_in_a_role_body_is_reported_once(tmp_path, capsys, line, wrong, where,
+                                                  message):
+    """Follow, Requesting and a third state all play ``follow`` (Lead and Offering play
+    ``lead``): the body is one place in the team file, compiled once per state, and its
+    mistake is one error, located in the body, not at the protocol's states."""
+    from tests.conftest import EXAMPLES
+
+    text = (EXAMPLES / "protocols" / "handover.yaml").read_text()
+    assert text.count(line) == 1 and wrong in line
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace(line, line.replace(wrong, where)))
+    assert main(["validate", str(bad)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    row = text.splitlines().index(line) + 1
+    assert len(err) == 1, err
+    assert err[0].startswith(f"{bad}:{row}:")
+    assert err[0].endswith(f"agents.xr4000.modes.Transport.roles.{message}")
+
+
 def test_handover_example_runs_and_writes_its_views(tmp_path):
     from tests.conftest import EXAMPLES
 

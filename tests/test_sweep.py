@@ -8,7 +8,9 @@ runs, chunks or executors shows up as a different table.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import json
 import math
 import shutil
 import sys
@@ -199,6 +201,72 @@ def test_parquet_and_csv_chunks_give_the_same_table(study, reference, tmp_path):
     run_study(study, tmp_path, chunk=8, fmt="parquet")
     assert {p.suffix for p in (tmp_path / "chunks").iterdir()} == {".parquet"}
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
+
+
+@pytest.mark.parametrize(("workers", "chunk"), [
+    (1, 500),  # one process: the study's size
+    (2, 4),    # 8 runs: two chunks of 4
+    (3, 3),    # ceil(8 / 3): chunks of 3, 3 and 2
+    (5, 1),    # ceil(8 / 5) = 2 makes only four chunks; one run each makes eight
+    (16, 1),   # more workers than runs: a run per chunk
+])
+def test_workers_asked_for_get_chunks_of_a_small_study(tmp_path, workers, chunk):
+    from hybridteam.sweep.plan import spread_chunk
+
+    study = load_study(_study(tmp_path, "population: {size: 4}\n"
+                              "factors:\n  p_loss: [0.0, 0.3]\n"))
+    assert (study.chunk, Plan(study).runs) == (500, 8)
+    assert spread_chunk(study, workers) == chunk
+    assert len(Plan(study, chunk).chunks) >= min(workers, 8)
+
+
+def test_a_study_cut_finely_enough_keeps_its_chunk_size(study):
+    """80 runs of two factors (48 and 32 runs): 27 chunks of 3 already feed 16 workers; at
+    500, two chunks feed two workers, and four workers get ceil(80 / 4) = 20 (3 + 2
+    chunks)."""
+    from hybridteam.sweep.plan import spread_chunk
+
+    assert spread_chunk(study, 16) == 3
+    wide = dataclasses.replace(study, chunk=500)
+    assert spread_chunk(wide, 2) == 500 and spread_chunk(wide, 4) == 20
+
+
+def test_sweep_with_workers_uses_them_on_a_small_study(tmp_path, capsys):
+    """--workers 2 on 8 runs of one factor: two chunks on two processes, the same table as
+    in this process; resuming without --workers keeps the folder's chunk size."""
+    path = _study(tmp_path, "duration: 3.0\npopulation: {size: 4}\n"
+                  "factors:\n  p_loss: [0.0, 0.3]\n")
+    assert main(["sweep", str(path), "-o", str(tmp_path / "pool"), "--workers", "2"]) == 0
+    assert "8 runs in 2 chunks (2 computed, 2 local processes)" in capsys.readouterr().out
+    assert json.loads((tmp_path / "pool" / "study.json").read_text())["chunk"] == 4
+    run_study(load_study(path), tmp_path / "alone")
+    assert (tmp_path / "pool" / "results.csv").read_bytes() == \
+        (tmp_path / "alone" / "results.csv").read_bytes()
+    half = run_study(load_study(path), tmp_path / "half", workers=2, max_chunks=1)
+    assert half.plan.chunk == 4 and not half.complete
+    rest = run_study(load_study(path), tmp_path / "half")
+    assert rest.plan.chunk == 4 and rest.reused == half.computed and rest.executor == \
+        "in-process"
+    assert (tmp_path / "half" / "results.csv").read_bytes() == \
+        (tmp_path / "alone" / "results.csv").read_bytes()
+    # a --chunk that makes one chunk: the output says why the workers were not used
+    assert main(["sweep", str(path), "-o", str(tmp_path / "one"), "--workers", "2",
+                 "--chunk", "8"]) == 0
+    assert "(1 computed, in-process: one chunk to compute)" in capsys.readouterr().out
+
+
+def test_a_factor_may_set_a_network_setting(tmp_path, capsys):
+    """``network.loss`` as a factor's key: the handshake always completes at loss 0 and
+    never at loss 1 (both messages must arrive); a misspelt setting is located."""
+    path = _study(tmp_path, "population: {size: 2}\n"
+                  "factors:\n  loss: {key: network.loss, values: [0.0, 1.0]}\n")
+    table = run_study(load_study(path), tmp_path / "out").table
+    assert [(r["value"], r["runs"], r["success_rate"]) for r in table.rows] == \
+        [("0", 2, 1.0), ("1", 2, 0.0)]
+    path.write_text(path.read_text().replace("network.loss", "network.los"))
+    assert main(["validate", str(path)]) == 2
+    assert f"{path}:5:15: factors.loss.key: override 'network.los' names no network " \
+        "setting of team 'handshake'; did you mean 'network.loss'?" in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ resuming

@@ -40,8 +40,9 @@ def register(sub) -> dict:
     r.add_argument("--duration", type=float, default=None, help="simulated seconds")
     r.add_argument("-n", type=int, default=None, help="ensemble size (default 1)")
     r.add_argument("--set", action="append", default=[], metavar="KEY=V[,V...]",
-                   help="override a parameter (agent.param or team param); a list gives "
-                        "one value per instance")
+                   help="override a parameter (agent.param or team param) or a network "
+                        "setting (network.latency, network.jitter, network.loss, "
+                        "network.links.A->B.loss); a list gives one value per instance")
     r.add_argument("--quiet", action="store_true", help="no progress or summary")
     r.add_argument("--progress", choices=MODES, default="auto",
                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
@@ -82,7 +83,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
             print(f"{w} (warning)", file=sys.stderr)
         if loaded.warnings and args.strict:
             status = EXIT_USAGE
-        elif status == EXIT_OK:
+        else:  # every file gets its verdict, also after a failing one
             print(f"{name}: ok ({loaded.kind})")
     return status
 
@@ -220,7 +221,9 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 def cmd_laws(args: argparse.Namespace) -> int:
     """Every registered law (installed libraries included): plants, parameters with their
-    defaults, the names it reads from the agent, and the first line of its docstring."""
+    defaults, the names it reads from the agent, and its docstring's first paragraph."""
+    import textwrap
+
     from hybridteam.laws import asked_names, registered, resolve
     from hybridteam.libraries import broken_note
 
@@ -234,8 +237,9 @@ def cmd_laws(args: argparse.Namespace) -> int:
         spec = resolve(name)
         plants = "/".join(spec.plants) if spec.plants else "any plant"
         print(f"{name}  ({plants})")
-        if spec.doc:
-            print(f"    {spec.doc.splitlines()[0]}")
+        if spec.summary:
+            print(textwrap.fill(spec.summary, 92, initial_indent="    ",
+                                subsequent_indent="    "))
         if spec.params:
             print("    with: " + ", ".join(f"{k}={v:g}" for k, v in spec.params.items()))
         reads = sorted(asked_names(spec.fn) - set(spec.params))

@@ -38,8 +38,8 @@ def register(sub) -> dict:
     fa.add_argument("--requirement", "-r", required=True, metavar="NAME",
                     help="a requirement of the team (its requirements: section)")
     fa.add_argument("--vary", action="append", default=[], metavar="KEY=LO:HI",
-                    help="an override key (team parameter or agent.parameter) and its range; "
-                    "repeat for more")
+                    help="an override key (team parameter, agent.parameter or a network "
+                    "setting: network.loss, ...) and its range; repeat for more")
     fa.add_argument("--seeds", type=int, default=1, metavar="N",
                     help="also search the run's seed among N seeds from the team's (default 1: "
                     "the team's seed only)")

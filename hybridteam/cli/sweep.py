@@ -34,7 +34,9 @@ def register(sub) -> dict:
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 "
                             "(needs hybridteam[dask])")
     sw.add_argument("--chunk", type=int, default=None, metavar="K",
-                    help="runs per ensemble chunk (default: the study's, else 500)")
+                    help="runs per ensemble chunk (default: the one an interrupted study "
+                    "was run with, else the study's (500 unless it says), made smaller "
+                    "where that leaves some of --workers N without a chunk)")
     sw.add_argument("--quiet", action="store_true", help="no progress or summary")
     sw.add_argument("--progress", choices=MODES, default="auto",
                     help="auto (a bar on a terminal, lines otherwise), bar, log or none")

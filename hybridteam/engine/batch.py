@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from hybridteam.engine.compiled import CAgent, CTeam, Ctx
-from hybridteam.engine.overrides import parameter_matrices
+from hybridteam.engine.overrides import parameter_matrices, split_overrides
 from hybridteam.engine.randomness import seed_value
 from hybridteam.engine.world import component_values
 from hybridteam.world.component import WorldComponent, lookup
@@ -32,6 +32,8 @@ def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
     """Rows from the first world component whose fast path accepts the team, else None."""
     classes = [lookup(spec.use) for spec in cteam.team.world]
     if not any(offers_batch(cls) for cls in classes):
+        return None
+    if split_overrides(cteam.agents, overrides)[1]:  # a request carries no network settings
         return None
     mats = parameter_matrices(cteam.agents, n, overrides)
     shapes = tuple(_shape(ca, p, n) for ca, p in zip(cteam.agents, mats, strict=True))

@@ -26,36 +26,37 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
     """The driver a mode declares (None: it declares none); ``folder`` is where the team
     file lives, where ``module:function`` laws are looked for first."""
     declared = [k for k in ("law", "inputs", "flow") if getattr(mode, k) is not None]
+    at = mode.body or mode.where  # a role's body, where a protocol's mode plays the role
     if len(declared) > 1:
-        col.fail(mode.where, f"mode '{mode.name}' declares both '{declared[0]}' and "
+        col.fail(at, f"mode '{mode.name}' declares both '{declared[0]}' and "
                  f"'{declared[1]}'; a mode has one way to drive its plant")
         return None
     if mode.flow is not None:
         if plant.kind != "flow":
-            col.fail((*mode.where, "flow"), f"'flow' needs a flow plant; this agent is a "
+            col.fail((*at, "flow"), f"'flow' needs a flow plant; this agent is a "
                      f"{plant.kind} (give 'law' or 'inputs' instead)")
             return None
         exprs: list[Expression | None] = [None] * len(plant.state_names)
         for name, text in mode.flow.items():
             if name not in plant.state_names:
-                col.fail((*mode.where, "flow", name), f"unknown state '{name}'",
+                col.fail((*at, "flow", name), f"unknown state '{name}'",
                          did_you_mean(name, plant.state_names))
                 continue
             exprs[plant.state_names.index(name)] = col.expr(text, syms,
-                                                            (*mode.where, "flow", name))
+                                                            (*at, "flow", name))
         return Driver("flow", idx, flow=exprs)
     if mode.inputs is not None:
         if plant.kind == "flow":
-            col.fail((*mode.where, "inputs"), "a flow plant has no inputs; use 'flow'")
+            col.fail((*at, "inputs"), "a flow plant has no inputs; use 'flow'")
             return None
         exprs_in: list[Expression] = []
         for name in mode.inputs:
             if name not in plant.input_names:
-                col.fail((*mode.where, "inputs", name), f"a {plant.kind} plant has no input "
+                col.fail((*at, "inputs", name), f"a {plant.kind} plant has no input "
                          f"'{name}'", did_you_mean(name, plant.input_names))
         for name in plant.input_names:
             text = mode.inputs.get(name, 0.0)
-            e = col.expr(text, syms, (*mode.where, "inputs", name))
+            e = col.expr(text, syms, (*at, "inputs", name))
             exprs_in.append(e)  # type: ignore[arg-type]
         period = mode.input_period
         held = bool(period) and all(e is not None and e.names <= params.keys()

@@ -182,19 +182,20 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
     for idx, (path, mode, parent, depth) in enumerate(flat):
         kind = "leaf" if not mode.children else ("and" if mode.parallel else "or")
         initial = -1
+        at = mode.body or mode.where  # a role's body gives a protocol mode its submodes
         if kind == "or":
             kids = [c.name for c in mode.children]
             init_name = mode.initial or (kids[0] if len(kids) == 1 else None)
             if init_name is None:
-                col.fail((*mode.where, "initial"), f"mode '{path or agent.name}' has "
+                col.fail((*at, "initial"), f"mode '{path or agent.name}' has "
                          f"{len(kids)} children and no 'initial'")
             elif init_name not in kids:
-                col.fail((*mode.where, "initial"), f"unknown initial mode '{init_name}'",
+                col.fail((*at, "initial"), f"unknown initial mode '{init_name}'",
                          did_you_mean(init_name, kids))
             else:
                 initial = children[idx][kids.index(init_name)]
         elif mode.initial is not None and kind == "and":
-            col.fail((*mode.where, "initial"), "a parallel mode enters all its regions; "
+            col.fail((*at, "initial"), "a parallel mode enters all its regions; "
                      "it has no 'initial'")
         driver = compile_driver(mode, idx, names.plant, names.syms, col, names.params,
                                 folder, names.variables)

@@ -20,7 +20,7 @@ from hybridteam.arrays import some
 from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.network import Message, Network
-from hybridteam.engine.overrides import apply_overrides
+from hybridteam.engine.overrides import apply_overrides, split_overrides
 from hybridteam.engine.protocols import stream_fields
 from hybridteam.engine.randomness import seed_value
 from hybridteam.engine.record import Recorder
@@ -97,10 +97,12 @@ class Ensemble:
         self.next_out = np.full(n, self.sample_after[0])
         self.rec = Recorder(cteam, n, self.sample_times)
         self.queue = EventQueue(n, cteam.scenario)
+        overrides, medium = split_overrides(cteam.agents, overrides)
         apply_overrides([st.ca for st in self.states], [st.p for st in self.states], n,
-                        overrides)
+                        overrides, cteam.team.network)
         params = self.team_params()
-        self.network = Network(cteam.team, n, self.seed, params, self.queue, self.rec)
+        self.network = Network(cteam.team, n, self.seed, params, self.queue, self.rec,
+                               medium)
         self.reliable = Reliable(self)
         self.streams = Streams(self, [ca.streams for ca in cteam.agents])
         self.world = World(cteam.team, n, params)

@@ -19,13 +19,20 @@ instance), so an ensemble can also pack runs that a study gives different seeds.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hybridteam.arrays import filled, some
 from hybridteam.engine.events import MESSAGE
+from hybridteam.engine.overrides import (
+    LINK_SETTINGS,
+    Link,
+    key_problem,
+    network_targets,
+    override_values,
+)
 from hybridteam.engine.randomness import instance_keys, uniform
 from hybridteam.engine.values import require
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
@@ -91,7 +98,10 @@ class Network:
     """The medium of one simulation: per-link arrays over the ensemble, and counters."""
 
     def __init__(self, team: Team, n: int, seed: int | Sequence[int],
-                 team_params: dict[str, np.ndarray], queue, recorder: Recorder) -> None:
+                 team_params: dict[str, np.ndarray], queue, recorder: Recorder,
+                 settings: Mapping[str, Any] | None = None) -> None:
+        """``settings``: network override keys (``network.jitter``, ...) and their values,
+        which replace what the team's ``network:`` block says (ValueError for a bad one)."""
         errors = check_network(team)
         if errors:
             raise ModelErrors(errors)
@@ -103,10 +113,11 @@ class Network:
         self.count = [np.zeros(n, np.int64) for _ in range(count)]
         net = team.network
         index = {name: k for k, name in enumerate(self.names)}
+        given = _given(team, settings or {}, n)
         # the default link once, and the links the team names: not one per pair of agents
-        self.default = _link(net.default, team_params, n)
+        self.default = _link(net.default, team_params, n, given.get(None, {}))
         self.links: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {
-            (index[s], index[r]): _link(spec, team_params, n)
+            (index[s], index[r]): _link(spec, team_params, n, given.get((s, r), {}))
             for (s, r), spec in net.links.items() if s != r}
         self.limits: dict[tuple[int, str], float] = {}
         for agent, per_socket in net.rate_limits.items():
@@ -270,14 +281,37 @@ class Network:
             self.record(i, msg, np.nan, "lost", "run ended")
 
 
-def _link(spec, team_params: dict[str, np.ndarray], n: int
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A link's latency, jitter and loss per instance, each checked for its range."""
+def _link(spec, team_params: dict[str, np.ndarray], n: int,
+          given: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A link's latency, jitter and loss per instance (``given``: overridden ones), each
+    checked for its range."""
     return tuple(  # type: ignore[return-value]
+        given[what] if what in given else
         require(evaluate_setting(getattr(spec, what), team_params, n), (*spec.where, what),
                 f"the link's {what}", str(getattr(spec, what)), low=0.0,
                 high=1.0 if what == "loss" else np.inf)
-        for what in ("latency", "jitter", "loss"))
+        for what in LINK_SETTINGS)
+
+
+def _given(team: Team, settings: Mapping[str, Any], n: int
+           ) -> dict[Link, dict[str, np.ndarray]]:
+    """Overridden settings per link, each ``n`` values checked for its range; ValueError
+    names a key that is no setting, or a value out of range, as an override (not at the
+    file's line, which it replaces)."""
+    targets = network_targets(team.network)
+    out: dict[Link, dict[str, np.ndarray]] = {}
+    for key, value in settings.items():
+        if key not in targets:
+            raise ValueError(key_problem((), key, team.network))
+        link, what = targets[key]
+        values = np.broadcast_to(override_values(key, value, n), (n,)).copy()
+        try:
+            require(values, (), f"override '{key}'", "", low=0.0,
+                    high=1.0 if what == "loss" else np.inf)
+        except ModelError as exc:
+            raise ValueError(exc.message) from None
+        out.setdefault(link, {})[what] = values
+    return out
 
 
 def default_parameters(team: Team) -> dict[str, np.ndarray]:

@@ -15,21 +15,35 @@ from hybridteam.expr.language import Reader
 
 
 class Collector:
-    """Collects every error of a model instead of stopping at the first."""
+    """Collects every error of a model instead of stopping at the first, once per place.
+
+    One place in a file can be compiled several times: a protocol's role body (its law,
+    inputs and transitions) is compiled once for every region state that plays the role
+    (Follow, Requesting, ... all play ``follow``). Its mistake is one mistake, so an error
+    already collected at the same place with the same text is not collected again.
+    """
 
     def __init__(self) -> None:
         self.errors: list[ModelError] = []
+        self._seen: set[tuple] = set()
+
+    def add(self, err: ModelError) -> None:
+        """Collect ``err`` unless the same error at the same place is already collected."""
+        key = (err.path, err.offset, str(err))
+        if key not in self._seen:
+            self._seen.add(key)
+            self.errors.append(err)
 
     def expr(self, text: str | float, symbols, where: DocPath, *, condition: bool = False
              ) -> Expression | None:
         try:
             return compile_expression(str(text), symbols, condition=condition)
         except ExpressionError as exc:
-            self.errors.append(ModelError(where, exc.message, offset=exc.offset, hint=exc.hint))
+            self.add(ModelError(where, exc.message, offset=exc.offset, hint=exc.hint))
             return None
 
     def fail(self, where: DocPath, message: str, hint: str | None = None) -> None:
-        self.errors.append(ModelError(where, message, hint=hint))
+        self.add(ModelError(where, message, hint=hint))
 
 
 def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]):

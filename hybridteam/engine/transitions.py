@@ -186,12 +186,11 @@ def _compile_actions(tr: Transition, syms: dict, state_index: dict[str, int],
                 lhs = act.text.split("=")[0].strip(" +-*/%")
                 if lhs in syms and lhs not in targets:
                     what = "time" if lhs in CONTINUOUS_NAMES else "a parameter"
-                    col.errors.append(ModelError(awhere, f"'{lhs}' is {what} and cannot be "
-                                                 "assigned; assign variables or plant state",
-                                                 offset=exc.offset))
+                    col.add(ModelError(awhere, f"'{lhs}' is {what} and cannot be "
+                                       "assigned; assign variables or plant state",
+                                       offset=exc.offset))
                 else:
-                    col.errors.append(ModelError(awhere, exc.message, offset=exc.offset,
-                                                 hint=exc.hint))
+                    col.add(ModelError(awhere, exc.message, offset=exc.offset, hint=exc.hint))
                 continue
             target = ("x", state_index[name]) if name in state_index else ("v", var_index[name])
             actions.append(CAction("assign", target=target, expr=e))

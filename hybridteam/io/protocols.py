@@ -146,7 +146,7 @@ class Composer:
             children.append(dataclasses.replace(
                 mine, transitions=own.transitions + mine.transitions, where=rwhere,
                 invariant=mine.invariant or own.invariant, final=own.final,
-                outcome=own.outcome, role=rspec.role))
+                outcome=own.outcome, role=rspec.role, body=bwhere))
         self._add_agent_parts(proto, agent_extra, where)
         host = self.build_mode(name, spec.model_copy(update={"protocol": None, "roles": None}),
                                where)

@@ -105,6 +105,10 @@ class Mode:
     role: str | None = None  # a protocol region's mode: the role it plays (lead, follow, ...)
     transitions: tuple[Transition, ...] = ()
     where: DocPath = ()
+    #: a protocol region's mode that plays a role: where the agent's body for the role is
+    #: (its law, inputs or flow and its submodes come from there, so their errors are
+    #: located there, not at the protocol's mode); () when the mode is its own body
+    body: DocPath = ()
 
     @property
     def is_leaf(self) -> bool:

@@ -152,6 +152,33 @@ class Plan:
                     self.study.accelerate)
 
 
+def spread_chunk(study: Study, workers: int) -> int:
+    """The study's chunk size, or a smaller one where it would leave asked-for workers idle.
+
+    A chunk is what an executor hands to a worker, so a study of 8 runs cut at 500 is one
+    chunk and runs in one process however many workers were asked for. Where the study's
+    size makes fewer chunks than ``workers``, this is an even share, ceil(runs / workers),
+    or the largest size below it that makes at least ``workers`` chunks (a chunk never
+    mixes two factors' runs, so each factor is cut on its own; one run per chunk for fewer
+    runs than workers): no worker idle, chunks as large as that allows for the batch
+    simulator.
+    """
+    size = study.chunk
+    if workers <= 1:
+        return size
+    groups = [c.size for c in Plan(study, max(1, run_count(study))).chunks]
+
+    def count(k: int) -> int:
+        return sum(-(-g // k) for g in groups)
+
+    if count(size) >= workers:
+        return size
+    size = min(size, -(-sum(groups) // workers))  # ceil(runs / workers): even shares
+    while size > 1 and count(size) < workers:  # at most once: floor(runs / workers) does
+        size -= 1
+    return size
+
+
 def _settings(study: Study) -> list[Setting]:
     axis_points = list(itertools.product(*[[(a.name, a.keys, v) for v in a.values]
                                            for a in study.axes]))

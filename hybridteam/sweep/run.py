@@ -19,7 +19,7 @@ from typing import Any
 
 from hybridteam.model import Team
 from hybridteam.progress import reporter
-from hybridteam.sweep.plan import Chunk, Plan, Task
+from hybridteam.sweep.plan import Chunk, Plan, Task, spread_chunk
 from hybridteam.sweep.store import (
     FORMAT,
     StudyError,
@@ -27,6 +27,7 @@ from hybridteam.sweep.store import (
     discard_chunk,
     finished_chunks,
     open_folder,
+    recorded_chunk,
     versions,
     write_chunk,
     write_record,
@@ -70,13 +71,17 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     ``max_chunks`` stops after computing that many chunks (the table is then not written):
     what an interruption does, on purpose — tests use it to check resuming.
     ``fmt`` forces the chunk file format ('parquet' or 'csv'; default: Parquet if pyarrow
-    is installed).
+    is installed). Without ``chunk``, a resumed study keeps the chunk size it was run
+    with, and a new one takes the study's, made smaller where it would leave some of
+    ``workers`` without a chunk (:func:`~hybridteam.sweep.plan.spread_chunk`).
     """
     out = Path(out)
     if workers is not None and workers < 1:
         raise StudyError(f"workers must be at least 1, got {workers}")
     if (scheduler is not None or client is not None) and workers not in (None, 1):
         raise StudyError("give either a number of local workers or a Dask scheduler, not both")
+    if chunk is None:
+        chunk = recorded_chunk(out) or spread_chunk(study, workers or 1)
     plan = Plan(study, chunk)
     record = {"format": FORMAT, "study": str(study.path), "team": str(study.team_path),
               "name": study.name, "digest": study.digest, "chunk": plan.chunk,
@@ -146,7 +151,8 @@ def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
     if scheduler is not None or client is not None:
         return _dask(team, tasks, scheduler, client)
     if workers is None or workers == 1 or len(todo) == 1:
-        return ((t.chunk, run_chunk(team, t)) for t in tasks), "in-process", lambda: None
+        why = "" if workers in (None, 1) else ": one chunk to compute"  # --chunk, or resumed
+        return ((t.chunk, run_chunk(team, t)) for t in tasks), f"in-process{why}", lambda: None
     return _pool(team, list(tasks), workers)
 
 
@@ -154,7 +160,8 @@ def _pool(team: Team, tasks: list[Task], workers: int
           ) -> tuple[Results, str, Callable[[], None]]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)))
+    used = min(workers, len(tasks))
+    pool = ProcessPoolExecutor(max_workers=used)
     futures = {pool.submit(run_chunk, team, t): t.chunk for t in tasks}
 
     def results() -> Results:
@@ -164,7 +171,8 @@ def _pool(team: Team, tasks: list[Task], workers: int
     def close() -> None:  # on an interruption or a failure: drop what has not started
         pool.shutdown(wait=True, cancel_futures=True)
 
-    return results(), f"{workers} local processes", close
+    why = f" ({len(tasks)} chunks to compute)" if used < workers else ""
+    return results(), f"{used} local processes{why}", close
 
 
 def _dask(team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any

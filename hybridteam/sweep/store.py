@@ -187,6 +187,21 @@ def open_folder(out: Path, record: dict[str, Any]) -> dict[str, Any] | None:
     return old
 
 
+def recorded_chunk(out: Path) -> int | None:
+    """The chunk size the study in ``out`` was run with, or None (no readable record).
+
+    Resuming without ``--chunk`` goes on with it: the chunk size a first run chose for its
+    workers must not make the same command with other workers refuse the folder.
+    """
+    try:
+        old = json.loads((out / "study.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    chunk = old.get("chunk") if isinstance(old, dict) else None
+    return chunk if isinstance(chunk, int) and not isinstance(chunk, bool) and chunk >= 1 \
+        else None
+
+
 def write_record(out: Path, record: dict[str, Any]) -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "study.json", json.dumps(record, indent=2) + "\n")

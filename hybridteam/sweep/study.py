@@ -298,7 +298,7 @@ def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[Source
                 uses.append((key, base, True))
     errors: list[SourceError] = []
     for key, where, at_key in uses:
-        problem = key_problem(cteam.agents, key)
+        problem = key_problem(cteam.agents, key, cteam.team.network)
         if problem is not None:
             head, _, hint = problem.partition("; ")  # "...; did you mean 'x'?"
             errors.append(positions.error(where, f"{head} of team '{study.team.name}'"
