@@ -32,7 +32,8 @@ Statistics, per instance, minimized over the run's instants: ``min_clearance`` (
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
-obstacles, 0 when they touch or overlap).
+obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
+series, at every instant, for requirements (:meth:`Obstacles.sample_series`).
 """
 
 from __future__ import annotations
@@ -48,7 +49,12 @@ from hybridteam.errors import ModelError
 from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import box_sdf, name_hit, robot_overlaps
-from hybridteam.world.component import WorldComponent, settings_error, world_component
+from hybridteam.world.component import (
+    WorldComponent,
+    lookup,
+    settings_error,
+    world_component,
+)
 from hybridteam.world.obstacle_settings import Rule, parse_settings, planar
 from hybridteam.world.raycast import Targets, cast_at
 from hybridteam.world.sensors import RangeRing, clearance
@@ -67,12 +73,17 @@ class Obstacles(WorldComponent):
 
     params: ClassVar[dict[str, Any]] = {
         "walls": [], "circles": [], "boxes": [], "detect": [], "radius": [],
-        "on_collision": "outcome",
+        "on_collision": "outcome", "clearance": False,
     }
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
-        return parse_settings(team, values)[1]
+        parsed, problems = parse_settings(team, values)
+        if values.get("clearance") and not problems and not any(
+                len(parsed[key]) for key in ("walls", "circles", "boxes")):
+            problems.append(ModelError(("clearance",), "there is no wall, circle or box to "
+                                       "measure a clearance from"))
+        return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         super().__init__(team, n, values)
@@ -106,6 +117,11 @@ class Obstacles(WorldComponent):
             preset = getattr(agent, "preset", None)
             names |= set(preset.rings()) if preset is not None else set()
         self.sensors = tuple(sorted(names))  # what laws may sense (asked at every tick)
+        #: the payloads' names, known before the start (the trace's series are declared
+        #: before the components start)
+        kinds = [(spec, lookup(spec.use)) for spec in team.world]
+        self.payload_names = [str(spec.values.get("name", cls.params["name"]))
+                              for spec, cls in kinds if issubclass(cls, CarriedPayload)]
         self.payloads: list[CarriedPayload] = []
         self.late: list[CarriedPayload] = []
         self.sensing: set[int] = set()  # agents with a pose, once the run has started
@@ -251,14 +267,7 @@ class Obstacles(WorldComponent):
         hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
         reach: dict[int, np.ndarray] = {}
         if self.planar:
-            points = np.empty((len(self.planar), idx.size, 2))  # (R, m, 2)
-            for r, a in enumerate(self.planar):
-                points[r] = self._poses(a, idx)[:, :2]
-            pts = points.reshape(-1, 2)
-            gap = clearance(pts, 0.0, self.walls, self.circles)
-            if len(self.boxes):
-                gap = np.minimum(gap, box_sdf(pts, self.boxes))
-            gap = gap.reshape(len(self.planar), idx.size)
+            points, gap = self._centre_gaps(idx)
             reach = dict(zip(self.planar, gap, strict=True))
             gap = gap - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
@@ -286,6 +295,18 @@ class Obstacles(WorldComponent):
             self._collide(world, hits)
         return reach
 
+    def _centre_gaps(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The planar robots' centres ``(R, m, 2)`` in instances ``idx`` and each centre's
+        distance to the nearest static obstacle ``(R, m)`` (negative inside a box)."""
+        points = np.empty((len(self.planar), idx.size, 2))  # (R, m, 2)
+        for r, a in enumerate(self.planar):
+            points[r] = self._poses(a, idx)[:, :2]
+        pts = points.reshape(-1, 2)
+        gap = clearance(pts, 0.0, self.walls, self.circles)
+        if len(self.boxes):
+            gap = np.minimum(gap, box_sdf(pts, self.boxes))
+        return points, gap.reshape(len(self.planar), idx.size)
+
     def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str]]) -> None:
         for i, who, what in hits:
             text = f"{what} at t={float(world.t[i])!r}"
@@ -302,6 +323,38 @@ class Obstacles(WorldComponent):
         return gap
 
     # ------------------------------------------------------------------ results
+    def sample_series(self) -> dict[str, tuple[str, ...]]:
+        """With ``clearance: true``: ``robot_clearance``, a column per planar robot (its
+        footprint's gap to the nearest static obstacle, negative when overlapping), and
+        ``payload_clearance``, a column per payload (its outline's gap, 0 when touching) —
+        the instants' values of what ``min_clearance`` and ``payload_clearance`` summarise,
+        as series requirements read (``always(payload_clearance.beam > 0.05)``). Off by
+        default: the trace and every snapshot would carry them for runs that never read
+        them."""
+        if not self.values["clearance"]:
+            return {}
+        out = {}
+        if self.planar:
+            out["robot_clearance"] = tuple(self.team.agents[a].name for a in self.planar)
+        if self.payload_names:
+            out["payload_clearance"] = tuple(self.payload_names)
+        return out
+
+    def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The :meth:`sample_series` at the current state of instances ``idx``: the robots'
+        poses as they are now, the payloads where they last settled (as their pose series)."""
+        if not self.values["clearance"]:
+            return {}
+        out = {}
+        if self.planar:
+            out["robot_clearance"] = (self._centre_gaps(idx)[1] - self.radius[:, None]).T
+        if self.payloads:
+            gaps = np.empty((idx.size, len(self.payloads)))
+            for k, p in enumerate(self.payloads):
+                gaps[:, k] = self._payload_gap(p, idx)
+            out["payload_clearance"] = gaps
+        return out
+
     def summary(self, i: int) -> dict[str, Any]:
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":

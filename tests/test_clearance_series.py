@@ -1,0 +1,102 @@
+"""Clearances as series (``obstacles`` with ``clearance: true``): what requirements read.
+
+The scene, by hand: a wall along x = 2 (y from -2 to 1); a 0.6 x 0.4 box resting at
+(1, 0) turned by 45 degrees, so its rightmost corner is at x = 1 + (0.3 + 0.2) / sqrt 2
+and its clearance is 1 - 0.5 / sqrt 2 = 0.646447 throughout; robot A (footprint 0.2)
+drives at 0.1 m/s from (0, -1.5) towards the wall, so its clearance is 1.8 - 0.1 t.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import hybridteam as ht
+from hybridteam.cli import main
+
+SCENE = """\
+team: clear
+agents:
+  A:
+    plant: {{kind: holonomic, state: {{x: 0, y: -1.5, theta: 0}}}}
+    variables: {{holding: 0}}
+    modes:
+      Go: {{inputs: {{vx: 0.1, vy: 0, omega: 0}}, period: 0.1}}
+world:
+  - use: payload
+    with:
+      name: box
+      width: 0.6
+      depth: 0.4
+      pose: [1.0, 0.0, 0.7853981633974483]
+      grasps: [{{agent: A, point: [-0.3, 0], engaged: holding}}]
+  - use: obstacles
+    with:
+      walls: [[2, -2, 2, 1]]
+      radius: [[A, 0.2]]
+{clearance}
+{requirements}
+simulation: {{duration: 5, sample_period: 0.5}}
+"""
+
+REQUIREMENTS = """\
+requirements:
+  box_clear: always(payload_clearance.box > 0.6)
+  robot_clear: always(robot_clearance.A > 1.5)"""
+
+BOX_GAP = 1.0 - 0.5 / math.sqrt(2.0)
+
+
+def scene(team_from_yaml, clearance: bool = True, requirements: str = REQUIREMENTS):
+    return team_from_yaml(SCENE.format(
+        clearance="      clearance: true" if clearance else "", requirements=requirements))
+
+
+def test_the_series_are_the_hand_computed_clearances(team_from_yaml):
+    run = ht.simulate(scene(team_from_yaml))
+    t = run.sample_times
+    np.testing.assert_allclose(run.samples["robot_clearance"][:, 0, 0], 1.8 - 0.1 * t,
+                               atol=1e-12)
+    np.testing.assert_allclose(run.samples["payload_clearance"][:, 0, 0], BOX_GAP, atol=1e-12)
+    assert run.meta["series"]["robot_clearance"] == ["A"]
+    assert run.meta["series"]["payload_clearance"] == ["box"]
+
+
+def test_requirements_on_them_hold_or_fail_by_the_hand_computed_margins(team_from_yaml):
+    verdicts = ht.simulate(scene(team_from_yaml)).summary()["instances"][0]["requirements"]
+    assert verdicts["box_clear"]["satisfied"]
+    assert verdicts["box_clear"]["robustness"] == pytest.approx(BOX_GAP - 0.6, abs=1e-12)
+    robot = verdicts["robot_clear"]
+    assert not robot["satisfied"]
+    assert robot["robustness"] == pytest.approx(1.3 - 1.5, abs=1e-12)  # at the end, t = 5
+    assert robot["violated_at"] == pytest.approx(3.0, abs=1e-9)        # 1.8 - 0.1 t = 1.5
+
+
+def test_an_ensemble_instance_equals_its_single_run(team_from_yaml):
+    team = scene(team_from_yaml)
+    both = ht.simulate(team, n=2)  # arrays, where a single run takes its float paths
+    one = ht.simulate(team)
+    for key in ("robot_clearance", "payload_clearance"):
+        np.testing.assert_array_equal(both.samples[key][:, 1], one.samples[key][:, 0])
+
+
+def test_without_the_setting_there_is_no_series_and_a_requirement_on_it_is_refused(
+        team_from_yaml, tmp_path, capsys):
+    run = ht.simulate(scene(team_from_yaml, clearance=False, requirements=""))
+    assert "robot_clearance" not in run.samples and "payload_clearance" not in run.samples
+    path = tmp_path / "off.yaml"
+    path.write_text(SCENE.format(clearance="", requirements=REQUIREMENTS))
+    assert main(["validate", str(path)]) == 2
+    assert "unknown signal 'payload_clearance.box'" in capsys.readouterr().err
+
+
+def test_clearance_with_nothing_to_measure_from_is_a_located_error(tmp_path, capsys):
+    path = tmp_path / "empty.yaml"
+    path.write_text(SCENE.format(clearance="      clearance: true", requirements="")
+                    .replace("walls: [[2, -2, 2, 1]]", "walls: []"))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"{path}:20:18: world[1].with.clearance: there is no wall, circle "
+                          "or box to measure a clearance from"), err
