@@ -100,3 +100,44 @@ def test_clearance_with_nothing_to_measure_from_is_a_located_error(tmp_path, cap
     err = capsys.readouterr().err
     assert err.startswith(f"{path}:20:18: world[1].with.clearance: there is no wall, circle "
                           "or box to measure a clearance from"), err
+
+
+# ---------------------------------------------------------------------- swept obstacles
+SWEPT = SCENE.replace("walls: [[2, -2, 2, 1]]", 'walls: [[wall_x, -2, "wall_x", 1]]') \
+    .replace("team: clear\n", "team: clear\nparameters: {{wall_x: 2.0}}\n")
+
+
+def test_a_wall_may_be_an_expression_of_team_parameters_and_an_ensemble_sweeps_it(
+        team_from_yaml):
+    """Instance k has its wall at x = wall_x[k]: each instance's clearances are the hand
+    computed ones for its wall, and equal its single run's bit for bit."""
+    team = team_from_yaml(SWEPT.format(clearance="      clearance: true", requirements=""))
+    walls = [2.0, 2.5, 2.0]
+    run = ht.simulate(team, n=3, overrides={"wall_x": walls})
+    t = run.sample_times
+    for k, x in enumerate(walls):
+        np.testing.assert_allclose(run.samples["robot_clearance"][:, k, 0],
+                                   x - 0.2 - 0.1 * t, atol=1e-12)
+        np.testing.assert_allclose(run.samples["payload_clearance"][:, k, 0],
+                                   BOX_GAP + (x - 2.0), atol=1e-12)
+        one = ht.simulate(team, overrides={"wall_x": [x]})
+        for key in ("robot_clearance", "payload_clearance", "A", "box"):
+            np.testing.assert_array_equal(run.samples[key][:, k], one.samples[key][:, 0])
+    assert run.meta["world"]["obstacles"][0]["points"] == [[2.0, -2.0], [2.0, 1.0]]
+
+
+def test_a_bad_expression_in_a_wall_is_located_where_it_is_written(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text(SWEPT.format(clearance="", requirements="")
+                    .replace('"wall_x", 1]]', '"wall_y", 1]]'))
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"{path}:19:29: world[1].with.walls[0][2]: unknown name "
+                          "'wall_y'"), err
+
+
+def test_an_expression_of_a_circle_radius_is_checked_once_it_has_a_value(team_from_yaml):
+    text = SWEPT.format(clearance="", requirements="").replace(
+        "radius: [[A, 0.2]]", 'radius: [[A, 0.2]]\n      circles: [[5, 5, "wall_x - 2"]]')
+    with pytest.raises(ValueError, match=r"circles\[0\]: a circle's radius must be positive"):
+        ht.simulate(team_from_yaml(text))
