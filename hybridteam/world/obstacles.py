@@ -172,9 +172,9 @@ class Obstacles(WorldComponent):
         """
         if scene is None and self.scene_of is not None:  # each instance its own obstacles
             out = np.empty((idx.size, ring.count if beams is None else beams.size))
-            for scene, rows in self._by_scene(idx):
+            for own, rows in self._by_scene(idx):
                 out[rows] = self.read(a, ring, idx[rows], None if reach is None else
-                                      reach[rows], beams, horizon, scene)
+                                      reach[rows], beams, horizon, own)
             return out
         scene = self.scenes[0] if scene is None else scene
         poses = self._poses(a, idx)
