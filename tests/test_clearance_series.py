@@ -141,3 +141,22 @@ def test_an_expression_of_a_circle_radius_is_checked_once_it_has_a_value(team_fr
         "radius: [[A, 0.2]]", 'radius: [[A, 0.2]]\n      circles: [[5, 5, "wall_x - 2"]]')
     with pytest.raises(ValueError, match=r"circles\[0\]: a circle's radius must be positive"):
         ht.simulate(team_from_yaml(text))
+
+
+def test_a_study_over_the_wall_tabulates_the_requirements_on_the_series(tmp_path):
+    """By hand: the box's clearance is BOX_GAP + (wall_x - 2), the requirement's margin
+    that less 0.6."""
+    import csv
+
+    (tmp_path / "team.yaml").write_text(SWEPT.format(clearance="      clearance: true",
+                                                     requirements=REQUIREMENTS))
+    (tmp_path / "study.yaml").write_text("kind: study\nteam: team.yaml\n"
+                                         "factors: {wall_x: [1.9, 2.2]}\n")
+    assert main(["sweep", str(tmp_path / "study.yaml"), "-o", str(tmp_path / "out"),
+                 "--progress", "none"]) == 0
+    with open(tmp_path / "out" / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["box_clear_satisfied"]) for r in rows] == [0.0, 1.0]
+    for row, x in zip(rows, (1.9, 2.2), strict=True):
+        assert float(row["box_clear_min_robustness"]) == pytest.approx(
+            BOX_GAP + (x - 2.0) - 0.6, abs=1e-12)
