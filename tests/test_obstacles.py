@@ -251,7 +251,7 @@ def test_a_reading_skips_the_static_scene_only_where_it_is_out_of_range_bit_for_
     x[:4], y[:4], th[:4] = [-0.3, -0.3 - 1e-12, -0.3 + 1e-12, -0.3 - 1e-6], 0.0, 0.0
     ens.states[0].x[:, 0], ens.states[0].x[:, 1], ens.states[0].x[:, 2] = x, y, th
     idx = np.arange(n)
-    reach = obs._measure(sim.access, idx)[0]
+    reach = obs._measure(sim.access, idx, obs.scenes[0])[0]
     ring = obs.rings[(0, "ir")]
     short = obs.read(0, ring, idx, reach)
     np.testing.assert_array_equal(short, obs.read(0, ring, idx))
@@ -311,13 +311,13 @@ def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_
     st.x[:, 2] = rng.uniform(-math.pi, math.pi, n)
     st.x[:20, 0], st.x[:20, 1] = -1.5, -0.5  # the centre on the payload
     idx = np.arange(n)
-    reach = obs._measure(sim.access, idx)[0]
+    reach = obs._measure(sim.access, idx, obs.scenes[0])[0]
     key = (0, "ir")
     ring = obs.rings[key]
     whole = obs.read(0, ring, idx)
     floor = obs.floor(0, ring, idx, reach)
     assert (floor <= whole.min(axis=1)).all()
-    readings, rows = obs._rule_readings(key, idx, reach)
+    readings, rows = obs._rule_readings(key, idx, obs.scenes[0], reach)
     assert rows is not None and n / 10 < rows.size < n * 9 / 10  # both ways were taken
     (rule,) = obs.rules
     exact = whole[rows][:, obs.read_beams[key]]

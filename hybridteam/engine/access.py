@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hybridteam.arrays import NO_INDEX
+from hybridteam.arrays import NO_INDEX, every
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.events import LOCAL
 from hybridteam.errors import did_you_mean
@@ -66,7 +66,8 @@ class EnsembleAccess(WorldAccess):
             self._raised.append(idx)
 
     def take_raised(self) -> np.ndarray:
-        """Instances where events were raised since the last call (for the engine)."""
+        """Instances where events were raised or variables written since the last call:
+        their discrete phase runs now (for the engine)."""
         if not self._raised:
             return NO_INDEX
         out = np.unique(np.concatenate(self._raised))
@@ -126,6 +127,30 @@ class EnsembleAccess(WorldAccess):
         a = self.agent(agent)
         st = self._ens.states[a]
         return st.v[:, self._column(a, st.ca.var_index, name, "variable")][idx]
+
+    def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
+                     values: np.ndarray | float) -> None:
+        """What :func:`~hybridteam.engine.discrete.fire` does for an assignment: the rows'
+        values as floats, and the instances marked changed and reconfigured (their watched
+        truths are read afresh); they are remembered with the raised events, so their
+        discrete phase runs at this instant."""
+        a = self.agent(agent)
+        st = self._ens.states[a]
+        col = self._column(a, st.ca.var_index, name, "variable")
+        idx = np.asarray(idx, np.intp)
+        value = np.broadcast_to(np.asarray(values, float), idx.shape)
+        live = ~self._ens.done[idx]
+        if not every(live):
+            idx, value = idx[live], value[live]
+        if not every(np.isfinite(value)):
+            k = int(np.flatnonzero(~np.isfinite(value))[0])
+            raise ValueError(f"set_variable: '{self.agents[a]}.{name}' would be {value[k]} "
+                             f"in instance {int(idx[k])}; a variable is a finite number")
+        if idx.size:
+            st.v[:, col][idx] = value
+            self._ens.changed[idx] = True
+            self._ens.reconfigured[idx] = True
+            self._raised.append(idx)
 
     def parameter_names(self, agent: Agent) -> tuple[str, ...]:
         return tuple(self._ens.cteam.agents[self.agent(agent)].param_index)

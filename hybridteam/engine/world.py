@@ -2,7 +2,9 @@
 
 :class:`World` instantiates the components a team lists under ``world:``, evaluates their
 numeric settings per instance (expressions of team parameters, so an ensemble can sweep
-a ladder's length), and calls them at every instant before laws are sampled.
+a ladder's length) and the numbers inside the list settings a component names in
+``per_instance`` (the obstacles' walls, so a study can sweep a door's width), and calls
+them at every instant before laws are sampled.
 :class:`AgentView` is what a law's context carries: the component readings its robot may
 sense, and the law's own memory (per-instance values a discrete-time controller keeps
 from one period to the next, such as how far along its guide path it is).
@@ -47,6 +49,10 @@ def check_world(team: Team) -> list[ModelError]:
                                          hint=did_you_mean(key, list(cls.params)), at_key=True))
                 continue
             default = cls.params[key]
+            if key in cls.per_instance and isinstance(value, list):
+                errors += [ModelError((*where, *at), exc.message, offset=exc.offset,
+                                      hint=exc.hint)
+                           for at, exc in _nested_errors(value, symbols)]
             if _numeric(default):
                 if isinstance(value, str):
                     try:
@@ -65,6 +71,32 @@ def check_world(team: Team) -> list[ModelError]:
             errors += [ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint,
                                   at_key=e.at_key) for e in cls.check(team, spec.values)]
     return errors
+
+
+def _nested_errors(value: Any, symbols: Mapping[str, Any], at: tuple[int, ...] = ()
+                   ) -> list[tuple[tuple[int, ...], ExpressionError]]:
+    """Expressions inside a list setting that do not compile, with their places in it."""
+    if isinstance(value, str):
+        try:
+            compile_expression(value, symbols)
+        except ExpressionError as exc:
+            return [(at, exc)]
+        return []
+    if isinstance(value, list):
+        return [e for k, v in enumerate(value) for e in _nested_errors(v, symbols, (*at, k))]
+    return []
+
+
+def _nested_values(value: Any, symbols: Mapping[str, Any], n: int, where: DocPath) -> Any:
+    """A list setting with every expression inside it evaluated per instance: ``(n,)``
+    arrays where the file has text, the literal numbers and everything else as they are."""
+    if isinstance(value, str):
+        got = np.broadcast_to(np.asarray(compile_expression(value, symbols)(None), float),
+                              (n,)).copy()
+        return require(got, where, "the expression", value)
+    if isinstance(value, list):
+        return [_nested_values(v, symbols, n, (*where, k)) for k, v in enumerate(value)]
+    return value
 
 
 def _numeric(value: Any) -> bool:
@@ -87,6 +119,8 @@ def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
                 value = compile_expression(value, symbols)(None)
             value = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
             out[key] = require(value, (*where, "with", key), f"setting '{key}'", text)
+        elif key in cls.per_instance:
+            out[key] = _nested_values(value, symbols, n, (*where, "with", key))
         else:
             out[key] = value
     return out

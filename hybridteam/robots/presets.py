@@ -296,7 +296,8 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
 
     Raises :class:`~hybridteam.errors.ModelError` (one problem) or
     :class:`~hybridteam.errors.ModelErrors` with paths relative to the override mapping:
-    an unknown model, an unknown sensor (a new one needs its ``kind``), an unknown field.
+    an unknown model, an unknown sensor or a manipulator the model lacks (a new one needs
+    its ``kind``), an unknown field.
     """
     presets = _raw(source)
     if name not in presets:
@@ -314,6 +315,11 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
                 hint = did_you_mean(str(sensor), known) or "a new sensor needs its 'kind'"
                 raise ModelError(("sensors", sensor), f"{name} has no sensor {sensor!r}",
                                  hint=hint, at_key=True)
+    arm = overrides.get("manipulator")
+    if isinstance(arm, Mapping) and not base.get("manipulator") and "kind" not in arm:
+        raise ModelError(("manipulator",), f"{name} has no manipulator",
+                         hint="a new one needs its 'kind' (compliant_arm, forklift or "
+                         "spring_link), spring and limit", at_key=True)
     merged = deep_merge(base, overrides)
     try:
         return RobotPreset.model_validate(merged)

@@ -97,6 +97,17 @@ class WorldAccess:
         """The agent's variable ``name`` in instances ``idx``: ``(m,)``."""
         raise NotImplementedError
 
+    def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
+                     values: np.ndarray | float) -> None:
+        """Write the agent's variable ``name`` in instances ``idx`` (``values``: ``(m,)`` or
+        one number), as a transition's assignment ``name = ...`` writes it: per instance,
+        as a float, those instances only (ended ones are skipped). The agents' discrete
+        phase runs at this instant in those instances, so a guard reading the variable
+        (``battery <= 0.2``) is taken now; a transition that assigns the variable at this
+        instant writes after the component. ValueError for a value that is not a finite
+        number. A battery draining ``battery`` is the recipe (``docs/extending.md``)."""
+        raise NotImplementedError
+
     def parameter_names(self, agent: Agent) -> tuple[str, ...]:
         """The agent's parameters, team parameters included."""
         raise NotImplementedError

@@ -69,6 +69,27 @@ def grasp_defaults(agent: Agent | None) -> dict[str, Any]:
             "limit": float(arm.limit)}
 
 
+def _unarmed(agent: Agent, grasp: Mapping[str, Any], at: tuple[Any, ...]) -> list[ModelError]:
+    """A grasp of a robot whose model has no manipulator (a Scout) must say how it holds.
+
+    Defaulting it to the free grasp (spring 1, no limit) would let a Scout carry a beam
+    that can never drop and make a grasp requirement meaningless, so it is refused unless
+    the grasp gives its ``spring`` and ``limit``. A robot declared without a model keeps
+    the free defaults: it claims no hardware, and an idealized hold is what it models.
+    """
+    preset = getattr(agent, "preset", None)
+    if preset is None or preset.manipulator is not None:
+        return []
+    missing = [key for key in ("spring", "limit") if key not in grasp]
+    if not missing:
+        return []
+    return [ModelError(at, f"robot '{agent.name}' has no manipulator in its model to take "
+                       f"the grasp's {' and '.join(missing)} from",
+                       hint="give them in the grasp (spring: 400, limit: 0.1), or give the "
+                       "robot a manipulator (manipulator: {kind: spring_link, spring: 400, "
+                       "limit: 0.1})")]
+
+
 @world_component("payload")
 class CarriedPayload(WorldComponent):
     """A rigid box or bar held by springs at k grasps (see the module docstring)."""
@@ -113,6 +134,8 @@ class CarriedPayload(WorldComponent):
                 if key in g and not (_number(g[key]) and g[key] > 0):
                     problems.append(ModelError((*at, key), f"expected a positive number, "
                                                f"got {g[key]!r}"))
+            if g["agent"] in names:
+                problems += _unarmed(team.agents[names.index(g["agent"])], g, at)
             if "engaged" in g and not (isinstance(g["engaged"], str)
                                        and g["engaged"].isidentifier()):
                 problems.append(ModelError((*at, "engaged"), "expected the name of one of the "

@@ -46,6 +46,12 @@ class WorldComponent:
     #: Local events the component may raise in agents. While it may, an agent waiting for
     #: one is not deadlocked (the component is a pending source of events).
     raises: ClassVar[tuple[str, ...]] = ()
+    #: List settings whose numbers may be written as expressions of team parameters
+    #: (``walls: [[2, "-door / 2", 2, -1]]``): each such expression reaches the component
+    #: as an ``(n,)`` array, its value in every instance, so a study can sweep it; the
+    #: numbers written as numbers stay plain floats. ``hybridteam validate`` checks the
+    #: expressions where they are written.
+    per_instance: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:

@@ -38,16 +38,29 @@ def _number(v: Any) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
-def _rows(values: Any, size: int, key: str, form: str, problems: list[ModelError]
+def _entry(v: Any) -> bool:
+    """A number of a geometry row: a number, an expression of team parameters (as written)
+    or its values per instance (as the engine hands them over)."""
+    return _number(v) or isinstance(v, str | np.ndarray)
+
+
+def _rows(values: Any, size: int, key: str, form: str, problems: list[ModelError], n: int
           ) -> np.ndarray:
-    """A list of ``size``-number rows as a float array ``(r, size)``; problems recorded."""
+    """A list of ``size``-number rows as a float array ``(n, r, size)``, one geometry per
+    instance; problems recorded. An expression not evaluated yet (``validate``) is NaN:
+    what is checked of its value is checked once it has one."""
     rows = []
     for k, row in enumerate(values or []):
-        if isinstance(row, list) and len(row) == size and all(map(_number, row)):
+        if isinstance(row, list) and len(row) == size and all(map(_entry, row)):
             rows.append(row)
         else:
-            problems.append(ModelError((key, k), f"expected {form}, got {row!r}"))
-    return np.array(rows, float).reshape(-1, size)
+            problems.append(ModelError((key, k), f"expected {form} (numbers or expressions "
+                                       f"of team parameters), got {row!r}"))
+    out = np.empty((n, len(rows), size))
+    for k, row in enumerate(rows):
+        for j, v in enumerate(row):
+            out[:, k, j] = np.nan if isinstance(v, str) else v
+    return out
 
 
 def planar(agent: Agent) -> bool:
@@ -105,26 +118,28 @@ def _beams(ring: RangeRing, rule: Mapping[str, Any], at: tuple) -> np.ndarray | 
     return np.arange(ring.count)
 
 
-def parse_settings(team: Team, values: Mapping[str, Any]
+def parse_settings(team: Team, values: Mapping[str, Any], n: int = 1
                    ) -> tuple[dict[str, Any], list[ModelError]]:
-    """Geometry, rules, inline rings and radii from the settings, and every problem."""
+    """Geometry (``(n, r, size)`` arrays: walls, circles, boxes in every one of ``n``
+    instances), rules, inline rings and radii from the settings, and every problem."""
     problems: list[ModelError] = []
     names = [a.name for a in team.agents]
     out: dict[str, Any] = {
-        "walls": _rows(values.get("walls"), 4, "walls", "[x0, y0, x1, y1]", problems),
-        "circles": _rows(values.get("circles"), 3, "circles", "[x, y, r]", problems),
+        "walls": _rows(values.get("walls"), 4, "walls", "[x0, y0, x1, y1]", problems, n),
+        "circles": _rows(values.get("circles"), 3, "circles", "[x, y, r]", problems, n),
         "boxes": _rows(values.get("boxes"), 5, "boxes",
-                       "[cx, cy, width, depth, theta_deg]", problems),
+                       "[cx, cy, width, depth, theta_deg]", problems, n),
         "rules": [], "rings": {}, "radius": {}}
     mode = values.get("on_collision", "outcome")
     if mode not in MODES:
         problems.append(ModelError(("on_collision",), f"expected one of {', '.join(MODES)}, "
                                    f"got {mode!r}", hint=did_you_mean(str(mode), MODES)))
-    for k in np.flatnonzero(out["circles"][:, 2] <= 0):
+    circles, boxes = out["circles"], out["boxes"]
+    for k in np.flatnonzero((circles[..., 2] <= 0).any(axis=0)):
         problems.append(ModelError(("circles", int(k)), "a circle's radius must be positive"))
-    for k in np.flatnonzero((out["boxes"][:, 2] <= 0) | (out["boxes"][:, 3] <= 0)):
+    for k in np.flatnonzero(((boxes[..., 2] <= 0) | (boxes[..., 3] <= 0)).any(axis=0)):
         problems.append(ModelError(("boxes", int(k)), "a box's width and depth must be positive"))
-    out["boxes"][:, 4] = np.radians(out["boxes"][:, 4])
+    boxes[..., 4] = np.radians(boxes[..., 4])
     for k, row in enumerate(values.get("radius") or []):
         if not (isinstance(row, list) and len(row) == 2 and _number(row[1]) and row[1] >= 0):
             problems.append(ModelError(("radius", k), f"expected [agent, radius >= 0], got "

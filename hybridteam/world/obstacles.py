@@ -32,14 +32,15 @@ Statistics, per instance, minimized over the run's instants: ``min_clearance`` (
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
-obstacles, 0 when they touch or overlap).
+obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
+series, at every instant, for requirements (:meth:`Obstacles.sample_series`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -48,7 +49,12 @@ from hybridteam.errors import ModelError
 from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import box_sdf, name_hit, robot_overlaps
-from hybridteam.world.component import WorldComponent, settings_error, world_component
+from hybridteam.world.component import (
+    WorldComponent,
+    lookup,
+    settings_error,
+    world_component,
+)
 from hybridteam.world.obstacle_settings import Rule, parse_settings, planar
 from hybridteam.world.raycast import Targets, cast_at
 from hybridteam.world.sensors import RangeRing, clearance
@@ -67,22 +73,27 @@ class Obstacles(WorldComponent):
 
     params: ClassVar[dict[str, Any]] = {
         "walls": [], "circles": [], "boxes": [], "detect": [], "radius": [],
-        "on_collision": "outcome",
+        "on_collision": "outcome", "clearance": False,
     }
+    #: a door's jambs may be expressions of team parameters (a study sweeps its width)
+    per_instance: ClassVar[tuple[str, ...]] = ("walls", "circles", "boxes")
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
-        return parse_settings(team, values)[1]
+        parsed, problems = parse_settings(team, values)
+        if values.get("clearance") and not problems and not any(
+                parsed[key].shape[1] for key in ("walls", "circles", "boxes")):
+            problems.append(ModelError(("clearance",), "there is no wall, circle or box to "
+                                       "measure a clearance from"))
+        return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
         super().__init__(team, n, values)
-        parsed, problems = parse_settings(team, values)
+        parsed, problems = parse_settings(team, values, n)
         if problems:
             raise settings_error("obstacles", problems)
-        self.walls, self.circles, self.boxes = parsed["walls"], parsed["circles"], \
-            parsed["boxes"]
-        self.segments = np.concatenate([self.walls, _box_edges(self.boxes)])
-        self.targets = Targets.of(self.segments, self.circles, n)  # walls do not move
+        self.scenes, self.scene_of = _scenes(parsed["walls"], parsed["circles"],
+                                             parsed["boxes"])
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
         self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
@@ -106,6 +117,11 @@ class Obstacles(WorldComponent):
             preset = getattr(agent, "preset", None)
             names |= set(preset.rings()) if preset is not None else set()
         self.sensors = tuple(sorted(names))  # what laws may sense (asked at every tick)
+        #: the payloads' names, known before the start (the trace's series are declared
+        #: before the components start)
+        kinds = [(spec, lookup(spec.use)) for spec in team.world]
+        self.payload_names = [str(spec.values.get("name", cls.params["name"]))
+                              for spec, cls in kinds if issubclass(cls, CarriedPayload)]
         self.payloads: list[CarriedPayload] = []
         self.late: list[CarriedPayload] = []
         self.sensing: set[int] = set()  # agents with a pose, once the run has started
@@ -140,7 +156,7 @@ class Obstacles(WorldComponent):
 
     def read(self, a: int, ring: RangeRing, idx: np.ndarray,
              reach: np.ndarray | None = None, beams: np.ndarray | None = None,
-             horizon: float | None = None) -> np.ndarray:
+             horizon: float | None = None, scene: Scene | None = None) -> np.ndarray:
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
         every payload's outline: ``(m, count)``, or ``(m, len(beams))`` for those beams only
         (each ray is cast on its own: a beam reads the same whichever others are cast).
@@ -152,7 +168,15 @@ class Obstacles(WorldComponent):
         ``horizon`` (below ``max_range``) moves that bound nearer, for a reader that only
         asks whether a beam reads below it (the detect rules): rows whose static obstacles
         are all beyond it read as if there were none, which answers that question alike.
+        ``scene``: the obstacles every instance of ``idx`` has (None: each its own).
         """
+        if scene is None and self.scene_of is not None:  # each instance its own obstacles
+            out = np.empty((idx.size, ring.count if beams is None else beams.size))
+            for own, rows in self._by_scene(idx):
+                out[rows] = self.read(a, ring, idx[rows], None if reach is None else
+                                      reach[rows], beams, horizon, own)
+            return out
+        scene = self.scenes[0] if scene is None else scene
         poses = self._poses(a, idx)
         if beams is not None and beams.size < ring.count:  # (only the rays read)
             origins, directions = ring.rays(poses, beams)
@@ -166,11 +190,11 @@ class Obstacles(WorldComponent):
             far = ring.max_range if horizon is None else min(horizon, ring.max_range)
             near = reach - ring.mount_radius <= far + slack
         if near is None or every(near):
-            dist = cast_at(origins, directions, self.targets, ring.max_range)
+            dist = cast_at(origins, directions, scene.targets, ring.max_range)
         else:
             dist = filled(origins.shape[:2], float(ring.max_range))
             if some(near):
-                dist[near] = cast_at(origins[near], directions[near], self.targets,
+                dist[near] = cast_at(origins[near], directions[near], scene.targets,
                                      ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
@@ -191,12 +215,26 @@ class Obstacles(WorldComponent):
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         for p in self.late:
             p.settle(world, idx)
-        reach = self._measure(world, idx)
+        if self.scene_of is None:
+            self._update(world, idx, self.scenes[0])
+        else:
+            for scene, rows in self._by_scene(idx):
+                self._update(world, idx[rows], scene)
+
+    def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
+        """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
+        an ensemble whose obstacles differ between instances (a swept door width)."""
+        codes = self.scene_of[idx]
+        return [(self.scenes[c], where_true(codes == c)) for c in np.unique(codes).tolist()]
+
+    def _update(self, world: WorldAccess, idx: np.ndarray, scene: Scene) -> None:
+        """:meth:`update` of instances ``idx``, which share ``scene``."""
+        reach = self._measure(world, idx, scene)
         readings: dict[tuple[int, str], tuple[np.ndarray, np.ndarray | None]] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
             if key not in readings:
-                readings[key] = self._rule_readings(key, idx, reach.get(rule.agent))
+                readings[key] = self._rule_readings(key, idx, scene, reach.get(rule.agent))
             dist, rows = readings[key]
             near = np.minimum.reduce(dist[:, self.rule_columns[r]], axis=1) < rule.below
             if rows is not None:  # the others read no nearer than any rule's threshold
@@ -207,8 +245,8 @@ class Obstacles(WorldComponent):
             if some(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
-    def _rule_readings(self, key: tuple[int, str], idx: np.ndarray, reach: np.ndarray | None
-                       ) -> tuple[np.ndarray, np.ndarray | None]:
+    def _rule_readings(self, key: tuple[int, str], idx: np.ndarray, scene: Scene,
+                       reach: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         """The beams the rules of ``key`` read, for the instances of ``idx`` where some rule
         may see something: ``(readings, rows)``, rows None for all of ``idx``. Where the
         :meth:`floor` is at least every rule's threshold no rule can fire, and what a cast
@@ -224,8 +262,9 @@ class Obstacles(WorldComponent):
                 if rows.size == 0:
                     return np.empty((0, self.read_beams[key].size)), rows
                 return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key],
-                                 self.below[key]), rows
-        return self.read(a, ring, idx, reach, self.read_beams[key], self.below[key]), None
+                                 self.below[key], scene), rows
+        return self.read(a, ring, idx, reach, self.read_beams[key], self.below[key],
+                         scene), None
 
     def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
               ) -> np.ndarray:
@@ -245,26 +284,20 @@ class Obstacles(WorldComponent):
         return np.maximum(np.minimum(near - ring.mount_radius - slack, ring.max_range),
                           ring.min_range)
 
-    def _measure(self, world: WorldAccess, idx: np.ndarray) -> dict[int, np.ndarray]:
+    def _measure(self, world: WorldAccess, idx: np.ndarray, scene: Scene
+                 ) -> dict[int, np.ndarray]:
         """Running minima of the robots' and the payloads' clearances, and collisions.
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
         hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
         reach: dict[int, np.ndarray] = {}
         if self.planar:
-            points = np.empty((len(self.planar), idx.size, 2))  # (R, m, 2)
-            for r, a in enumerate(self.planar):
-                points[r] = self._poses(a, idx)[:, :2]
-            pts = points.reshape(-1, 2)
-            gap = clearance(pts, 0.0, self.walls, self.circles)
-            if len(self.boxes):
-                gap = np.minimum(gap, box_sdf(pts, self.boxes))
-            gap = gap.reshape(len(self.planar), idx.size)
+            points, gap = self._centre_gaps(idx, scene)
             reach = dict(zip(self.planar, gap, strict=True))
             gap = gap - self.radius[:, None]
             self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
             for r, a in enumerate(self.planar) if some(gap < 0) else ():
                 for k in np.flatnonzero(gap[r] < 0).tolist():
-                    what = name_hit(points[r, k], self.walls, self.circles, self.boxes)
+                    what = name_hit(points[r, k], scene.walls, scene.circles, scene.boxes)
                     who = self.team.agents[a].name
                     hits.append((int(idx[k]), who, f"robot '{who}' hit {what}, its footprint "
                                  f"overlapping it by {-gap[r, k]:.3g}"))
@@ -277,7 +310,7 @@ class Obstacles(WorldComponent):
                              f"'{names[1]}' collided, their footprints overlapping by "
                              f"{overlap[k, r1, r2]:.3g}"))
         for p in self.payloads:
-            gap = self._payload_gap(p, idx)
+            gap = self._payload_gap(p, idx, scene)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
             for k in where_true(gap <= 0).tolist():
                 hits.append((int(idx[k]), p.values["name"],
@@ -285,6 +318,18 @@ class Obstacles(WorldComponent):
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
+
+    def _centre_gaps(self, idx: np.ndarray, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        """The planar robots' centres ``(R, m, 2)`` in instances ``idx`` and each centre's
+        distance to the nearest obstacle of ``scene`` ``(R, m)`` (negative inside a box)."""
+        points = np.empty((len(self.planar), idx.size, 2))  # (R, m, 2)
+        for r, a in enumerate(self.planar):
+            points[r] = self._poses(a, idx)[:, :2]
+        pts = points.reshape(-1, 2)
+        gap = clearance(pts, 0.0, scene.walls, scene.circles)
+        if len(scene.boxes):
+            gap = np.minimum(gap, box_sdf(pts, scene.boxes))
+        return points, gap.reshape(len(self.planar), idx.size)
 
     def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str]]) -> None:
         for i, who, what in hits:
@@ -294,14 +339,51 @@ class Obstacles(WorldComponent):
             else:
                 self.collisions[i].setdefault(who, text)
 
-    def _payload_gap(self, p: CarriedPayload, idx: np.ndarray) -> np.ndarray:
-        """Gap between payload ``p``'s outline and the static obstacles (0 if they meet)."""
-        gap = p.gap(idx, self.segments, self.circles)
-        if len(self.boxes):  # a payload wholly inside an obstacle box meets no edge
-            gap = np.where(box_sdf(p.pose[idx, :2], self.boxes) <= 0.0, 0.0, gap)
+    def _payload_gap(self, p: CarriedPayload, idx: np.ndarray, scene: Scene) -> np.ndarray:
+        """Gap between payload ``p``'s outline and the obstacles of ``scene`` (0 if they
+        meet)."""
+        gap = p.gap(idx, scene.segments, scene.circles)
+        if len(scene.boxes):  # a payload wholly inside an obstacle box meets no edge
+            gap = np.where(box_sdf(p.pose[idx, :2], scene.boxes) <= 0.0, 0.0, gap)
         return gap
 
     # ------------------------------------------------------------------ results
+    def sample_series(self) -> dict[str, tuple[str, ...]]:
+        """With ``clearance: true``: ``robot_clearance``, a column per planar robot (its
+        footprint's gap to the nearest static obstacle, negative when overlapping), and
+        ``payload_clearance``, a column per payload (its outline's gap, 0 when touching) —
+        the instants' values of what ``min_clearance`` and ``payload_clearance`` summarise,
+        as series requirements read (``always(payload_clearance.beam > 0.05)``). Off by
+        default: the trace and every snapshot would carry them for runs that never read
+        them."""
+        if not self.values["clearance"]:
+            return {}
+        out = {}
+        if self.planar:
+            out["robot_clearance"] = tuple(self.team.agents[a].name for a in self.planar)
+        if self.payload_names:
+            out["payload_clearance"] = tuple(self.payload_names)
+        return out
+
+    def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The :meth:`sample_series` at the current state of instances ``idx``: the robots'
+        poses as they are now, the payloads where they last settled (as their pose series)."""
+        if not self.values["clearance"]:
+            return {}
+        robots = np.empty((idx.size, len(self.planar)))
+        payloads = np.empty((idx.size, len(self.payloads)))
+        for scene, rows in [(self.scenes[0], slice(None))] if self.scene_of is None else \
+                self._by_scene(idx):
+            if self.planar:
+                robots[rows] = (self._centre_gaps(idx[rows], scene)[1]
+                                - self.radius[:, None]).T
+            for k, p in enumerate(self.payloads):
+                payloads[rows, k] = self._payload_gap(p, idx[rows], scene)
+        out = {"robot_clearance": robots} if self.planar else {}
+        if self.payloads:
+            out["payload_clearance"] = payloads
+        return out
+
     def summary(self, i: int) -> dict[str, Any]:
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":
@@ -311,14 +393,50 @@ class Obstacles(WorldComponent):
         return out
 
     def meta(self) -> dict[str, Any]:
+        """What the views draw: the obstacles of instance 0 (where a study varies them,
+        its other instances' differ), and the robots' footprints."""
+        first = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
         obstacles = [{"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
-                     for w in self.walls]
+                     for w in first.walls]
         obstacles += [{"kind": "circle", "x": float(x), "y": float(y), "r": float(r)}
-                      for x, y, r in self.circles]
-        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in self.boxes]
+                      for x, y, r in first.circles]
+        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in first.boxes]
         footprints = {self.team.agents[a].name: {"radius": float(r)}
                       for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
         return {"world": {"obstacles": obstacles}, "footprints": footprints}
+
+
+class Scene(NamedTuple):
+    """The static obstacles of one instance (of all of them, unless a study varies them):
+    walls ``(w, 4)``, circles ``(c, 3)``, boxes ``(b, 5)`` (theta in radians), every edge
+    as segments ``(s, 4)``, and those prepared for casting (built once: walls do not
+    move)."""
+
+    walls: np.ndarray
+    circles: np.ndarray
+    boxes: np.ndarray
+    segments: np.ndarray
+    targets: Targets
+
+    @classmethod
+    def of(cls, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> Scene:
+        segments = np.concatenate([walls, _box_edges(boxes)])
+        return cls(walls, circles, boxes, segments, Targets.of(segments, circles))
+
+
+def _scenes(walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray
+            ) -> tuple[list[Scene], np.ndarray | None]:
+    """The distinct scenes of instances whose geometry is ``(n, r, size)`` arrays, and the
+    scene of each instance — None when all share one (the usual case, and every single
+    run's: then nothing is grouped at any instant)."""
+    n = walls.shape[0]
+    flat = np.concatenate([walls.reshape(n, -1), circles.reshape(n, -1),
+                           boxes.reshape(n, -1)], axis=1)
+    if n <= 1 or every(flat == flat[0]):
+        return [Scene.of(walls[0], circles[0], boxes[0])], None
+    _, first, scene_of = np.unique(flat, axis=0, return_index=True, return_inverse=True)
+    return [Scene.of(walls[i], circles[i], boxes[i]) for i in first.tolist()], \
+        scene_of.ravel().astype(np.intp)
 
 
 def _footprint(agent: Agent) -> float:
