@@ -61,7 +61,8 @@ def test_relay_paths_start_labels_and_numbered_mode_changes():
     end_x = runner_x[~np.isnan(runner_x)][-1]
     samples = run.samples["runner"][:, 0, 0]
     assert end_x == samples[~np.isnan(samples)][-1] == pytest.approx(5.0, abs=1e-9)
-    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0R"]
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: anchor",
+                                                                       "0R: runner"]
     numbers = [t.get_text() for t in by_gid(ax.texts, "change")]
     leaf_changes = [r for r in run.transitions if r.cause != "init"]  # all modes are leaves
     assert len(numbers) == len(leaf_changes) == 4
@@ -109,6 +110,32 @@ def test_a_zeno_pile_up_of_changes_keeps_its_labels_on_the_plot(team_from_yaml):
     (note,) = [t.get_text() for t in ax.texts if t.get_text().startswith("numbers shown")]
     assert note == ("numbers shown on every 2nd mode change; where changes crowd one spot, "
                     "the first 3 and …")
+
+
+SCOUTS = """
+    team: scouts
+    agents:
+      xr4000:
+        plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      scout1:
+        plant: {kind: unicycle, state: {x: 0, y: 1, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      scout2:
+        plant: {kind: unicycle, state: {x: 0, y: 2, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+    simulation: {duration: 2}
+"""
+
+
+def test_start_labels_name_the_robot_where_initials_clash(team_from_yaml):
+    """Two Scouts get the letters S and SC (the numbered changes use them): each start
+    label also names its robot, at that robot's start."""
+    run = ht.simulate(team_from_yaml(SCOUTS))
+    (ax,) = trajectory_figure(run).axes
+    starts = {t.get_text(): tuple(t.xy) for t in by_gid(ax.texts, "start")}
+    assert starts == {"0X: xr4000": (0.0, 0.0), "0S: scout1": (0.0, 1.0),
+                      "0SC: scout2": (0.0, 2.0)}
 
 
 def test_selected_modes_restrict_the_numbering():
@@ -176,7 +203,7 @@ def test_world_payload_and_footprints_are_drawn(tmp_path):
     corners = payload.get_paths()[0].vertices[:4]
     assert np.ptp(corners[:, 1]) == pytest.approx(1.4)
     assert corners[:, 0].mean() == pytest.approx(0.0) and corners[:, 1].mean() == 0.5
-    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0B"]
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: alpha", "0B: beta"]
     assert [t.get_text() for t in by_gid(ax.texts, "change")] == ["1B", "2A"]
     gif = write_animation(trace, tmp_path / "carry.gif", fps=10, duration=0.5)
     with Image.open(gif) as im:

@@ -310,3 +310,31 @@ def test_the_legend_is_grouped_by_robot_with_short_names(team_from_yaml):
     assert bold == ["xr4000", "labmate", "operator"]
     assert labels[:labels.index("labmate")] == ["xr4000", "Lead", "Follow"]
     assert "Transport.Lead" not in labels
+
+
+BLINK = """
+    team: blink
+    agents:
+      a:
+        plant: {kind: flow, state: {c: 0}}
+        initial: Wait
+        modes:
+          Wait: {transitions: [{to: Pass, after: 1}]}
+          Pass: {transitions: [{to: Hold, after: 0}]}
+          Hold: {transitions: [{to: Done, after: 2}]}
+          Done: {final: true}
+    simulation: {duration: 5}
+"""
+
+
+def test_a_mode_entered_and_left_at_once_is_not_in_the_legend(team_from_yaml):
+    """Pass is entered at t = 1 and left at t = 1: no stay a reader could find, so the
+    legend leaves it out; Done, reached as the run ends at t = 3, is zero-long too but is
+    where the run ended, and stays in."""
+    run = ht.simulate(team_from_yaml(BLINK))
+    assert [(r.mode, r.start, r.end) for r in run.intervals] == [
+        ("Wait", 0.0, 1.0), ("Pass", 1.0, 1.0), ("Hold", 1.0, 3.0), ("Done", 3.0, 3.0)]
+    fig, data = timeline_figure(run)
+    legend = fig.axes[0].get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == ["Wait", "Hold", "Done"]
+    assert list(data.legend["a"]) == ["Wait", "Hold", "Done"]

@@ -241,7 +241,11 @@ def timeline_data(trace: Trace, instance: int = 0,
     bars: list[Bar] = []
     marks: list[Mark] = []
     legend: dict[str, dict[str, str]] = {}  # agent -> {mode path: colour}
+    # modes the legend names: a stay entered and left at the same instant is a sliver no
+    # reader can find, so its mode is named only if it also stays somewhere (a final mode
+    # reached as the run ends is zero-length too, and named)
     used: set[tuple[str, str]] = set()
+    t_end = end_time(trace, instance)
     for meta in agents:
         name = meta["name"]
         kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
@@ -259,7 +263,7 @@ def timeline_data(trace: Trace, instance: int = 0,
             rows = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
             rows += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
             bars += [Bar(index[row], mode, label, start, end, color) for row in rows]
-            if rows:
+            if rows and (end > start or end >= t_end):  # not entered and left at once
                 used.add((name, mode))
         regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
         if window is not None:

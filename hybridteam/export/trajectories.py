@@ -79,6 +79,12 @@ def letters(names: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def start_label(name: str, letter: str) -> str:
+    """A robot's start: ``0S: scout2``. The letter is what the numbered changes use; two
+    Scouts' letters (``S``, ``SC``) say which is which only next to the name."""
+    return f"0{letter}" if letter == name.upper() else f"0{letter}: {name}"
+
+
 def nice_step(span: float, count: int = 10) -> float:
     """A round spacing (1, 2, 2.5, 5 x 10^k) giving about ``count`` footprints per run."""
     raw = max(span, 1e-9) / count
@@ -208,7 +214,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         if valid.any():
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)
-            ax.annotate(f"0{letter[a]}", (x0, y0), xytext=(-6, -12), textcoords="offset points",
+            ax.annotate(start_label(a, letter[a]), (x0, y0), xytext=(-6, -12),
+                        textcoords="offset points",
                         fontsize=8, fontweight="bold", color=color, path_effects=HALO,
                         zorder=7, gid="start")
     draw_guides(ax, trace.meta.get("world"), instance, agents)
