@@ -335,3 +335,69 @@ def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
     capsys.readouterr()
     assert main(["animate", str(trace), "-o", str(gif), "--speed", "0"]) == 2
     assert "--speed must be a positive number, got 0" in capsys.readouterr().err
+
+
+CRASH = """
+    team: crash
+    agents:
+      a:
+        plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+      b:
+        plant: {{kind: unicycle, state: {{x: 3.0, y: {b_y}, theta: 3.141592653589793}}}}
+        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+    world:
+      - use: obstacles
+        with:
+          walls: {walls}
+          radius: [[a, 0.25], [b, 0.25]]
+          on_collision: warn
+    simulation: {{duration: 4.0}}
+"""
+
+
+def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml,
+                                                                        tmp_path):
+    """Robot a drives at 1 m/s into the wall x = 2 (b kept away at y = 5): its 0.25 m disk
+    first overlaps the wall at the tick t = 1.8 s, at x = 1.8. The run goes on through the
+    wall; the trajectories mark that spot with its time, the animation from 1.8 s on, and
+    the report shows the trajectories with the mark."""
+    from hybridteam.export.report import write_report
+
+    run = ht.simulate(team_from_yaml(CRASH.format(b_y=5.0, walls="[[2.0, -1.0, 2.0, 1.0]]")))
+    assert run.outcome == "ok" and len(run.diagnostics[0]["stats"]["collisions"]) == 1
+    (ax,) = trajectory_figure(run).axes
+    (mark,) = by_gid(ax.lines, "collisions")
+    np.testing.assert_allclose(mark.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    (label,) = by_gid(ax.texts, "collision-label")
+    assert label.get_text() == "1.8 s" and label.xy == pytest.approx((1.8, 0.0), abs=1e-12)
+    box = ax.get_legend() or ax.get_figure().legends[0]  # beside a tall scene, below a wide
+    legend = [t.get_text() for t in box.get_texts()]
+    assert "first collision of each robot or payload, its time" in legend
+    _fig, update, _trails, moving = animate._build(run, 0)
+    (crash,) = [a for a in moving if a.get_gid() == "collisions"]
+    update(1.75)
+    assert len(crash.get_xydata()) == 0
+    update(1.85)
+    np.testing.assert_allclose(crash.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    page = write_report(tmp_path, run, run.summary(), animation=False)
+    assert 'id="collisions"' in page.read_text(encoding="utf-8")
+
+
+def test_two_robots_that_meet_are_marked_where_their_disks_touch(team_from_yaml):
+    """Head on from 3 m apart at 1 m/s each, 0.25 m disks: at the first tick after they
+    touch, t = 1.3 s, a is at x = 1.3 and b at 1.7; the mark is between them, at 1.5."""
+    run = ht.simulate(team_from_yaml(CRASH.format(b_y=0.0, walls="[]")))
+    (ax,) = trajectory_figure(run).axes
+    (mark,) = by_gid(ax.lines, "collisions")
+    np.testing.assert_allclose(mark.get_xydata(), [[1.5, 0.0]], atol=1e-12)
+    assert [t.get_text() for t in by_gid(ax.texts, "collision-label")] == ["1.3 s"]
+
+
+def test_marks_that_appear_mid_run_keep_their_colour_in_a_gif():
+    """A GIF's frames share the first frame's palette; the red of a lost message or a
+    collision, absent from the first frame, is kept in it all the same."""
+    first = Image.new("RGB", (20, 20), "white")
+    palette = animate._palette(first).getpalette()
+    entries = [tuple(palette[k : k + 3]) for k in range(0, len(palette), 3)]
+    assert (204, 0, 0) in entries and len(entries) <= 256

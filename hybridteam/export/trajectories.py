@@ -25,6 +25,8 @@ from matplotlib.patches import Patch
 
 from hybridteam.export.figures import save_figure
 from hybridteam.export.scene import (
+    COLLISION_MARK,
+    collision_marks,
     draw_guides,
     draw_payloads,
     draw_world,
@@ -248,6 +250,14 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                         gid="change")
     if len(at):
         ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
+    hits = collision_marks(trace, instance)
+    if hits:  # over the paths and the change numbers: the thing a reader must not miss
+        ax.plot([h[1] for h in hits], [h[2] for h in hits], zorder=9, gid="collisions",
+                **COLLISION_MARK)
+        for t, x, y, _who in hits:
+            ax.annotate(f"{t:.3g} s", (x, y), xytext=(6, -11), textcoords="offset points",
+                        fontsize=7.5, color=COLLISION_MARK["color"], path_effects=HALO,
+                        zorder=9, gid="collision-label")
     x0, x1, y0, y1 = limits or scene_extent(trace, instance)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
@@ -259,7 +269,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     if agents:
         # "best" scans every plotted point: fine for a short run, seconds for a long one
         # outside the plot, never over a path or a wall: below a wide scene, beside a tall one
-        handles = _legend(ax, trace, every, bool(len(at)))
+        handles = _legend(ax, trace, every, bool(len(at)), bool(hits))
         if wide(limits or scene_extent(trace, instance)):  # the layout makes room below
             ax.figure.legend(handles=handles, loc="outside lower center", fontsize=7.5,
                              frameon=False, ncol=3)
@@ -285,10 +295,11 @@ def wide(limits: tuple[float, float, float, float]) -> bool:
     return (limits[3] - limits[2]) < 0.6 * (limits[1] - limits[0])
 
 
-def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
+def _legend(ax: Any, trace: Trace, every: float, changes: bool, hits: bool) -> list[Any]:
     """Robots and guide paths as drawn, then what the marks mean: the start (0X), the
-    numbered mode changes (1X: the first, by robot X), footprints and payload snapshots
-    (every so many seconds), obstacles and walls — each only if the plot has it."""
+    numbered mode changes (1X: the first, by robot X), collisions, footprints and payload
+    snapshots (every so many seconds), obstacles and walls — each only if the plot has
+    it."""
     handles, _ = ax.get_legend_handles_labels()
     grey = "#555555"
     handles.append(Line2D([], [], marker="s", color=grey, linestyle="none", markersize=4,
@@ -296,6 +307,9 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
     if changes:
         handles.append(Line2D([], [], marker="o", color="#111111", linestyle="none",
                               markersize=3, label="nX: n-th mode change, by robot X"))
+    if hits:
+        handles.append(Line2D([], [], **{**COLLISION_MARK, "markersize": 9},
+                              label="first collision of each robot or payload, its time"))
     sized = [bool((agent_meta(trace, a).get("footprint") or {}).get("radius"))
              for a in planar_agents(trace)]
     if any(sized):
