@@ -138,6 +138,23 @@ def test_start_labels_name_the_robot_where_initials_clash(team_from_yaml):
                       "0SC: scout2": (0.0, 2.0)}
 
 
+def test_robots_starting_on_the_lower_edge_get_room_for_their_start_labels():
+    """The hand-over's robots start at y = 0, the lowest point of a flat scene: the plot
+    reaches 18 pt below it (the start labels' depth under their start, 12 pt down), so no
+    axis strikes through them; with --ylim the user's limits stay."""
+    run = ht.simulate(ht.load(EXAMPLES / "protocols" / "handover.yaml"))
+    fig = trajectory_figure(run)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    starts = by_gid(ax.texts, "start")
+    assert [t.xy[1] for t in starts] == [0.0, 0.0]
+    bottom = ax.get_window_extent().y0
+    renderer = fig.canvas.get_renderer()
+    assert all(t.get_window_extent(renderer).y0 > bottom for t in starts)
+    fixed = trajectory_figure(run, ylim=(-0.1, 1.0)).axes[0]
+    assert fixed.get_ylim() == (-0.1, 1.0)
+
+
 def test_selected_modes_restrict_the_numbering():
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "unicycle_square.yaml"))
     fig = trajectory_figure(run, modes=["Turn"])

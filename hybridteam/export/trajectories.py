@@ -410,11 +410,13 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
     """
     planar, flows = planar_agents(trace), flow_agents(trace)
     limits = None
+    width = size[0] if size else 8.0
     if planar:
         x0, x1, y0, y1 = scene_extent(trace, instance)
         limits = (*(xlim or (x0, x1)), *(ylim or (y0, y1)))
+        if ylim is None:
+            limits = room_below_starts(trace, instance, limits, width - 1.2)
     aspect = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-12) if limits else 0.5
-    width = size[0] if size else 8.0
     # the planar axes' width: the figure's, less the y labels and a legend at the side
     axes_w = width - 1.2 - (0.0 if limits is None or wide(limits) else 2.4)
     legend_h = 0.0 if limits is None or not wide(limits) else 0.55  # three rows below
@@ -441,6 +443,26 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
         fig.suptitle(title)
         fig.set_layout_engine("constrained")
     return fig
+
+
+def room_below_starts(trace: Trace, instance: int, limits: tuple[float, float, float, float],
+                      axes_w: float) -> tuple[float, float, float, float]:
+    """``limits`` with the bottom lowered where a start label (12 pt under its start, about
+    18 pt to its lower edge) would cross the plot's lower edge, and the axis strike through
+    it: robots that start on the scene's lowest line (a flat scene's). ``axes_w``: the
+    plot's width in inches, which at equal aspect sets the points per metre."""
+    x0, x1, y0, y1 = limits
+    firsts = []
+    for a in planar_agents(trace):
+        y = pose(trace, a, instance)[:, 1]
+        if (~np.isnan(y)).any():
+            firsts.append(float(y[~np.isnan(y)][0]))
+    if not firsts:
+        return limits
+    side = axes_w * 72.0  # points across the plot; at most 1.6 times that tall
+    per_pt = max((x1 - x0) / side, (y1 - y0) / (1.6 * side))
+    below = min(firsts) - 18.0 * per_pt
+    return (x0, x1, min(y0, below), y1)
 
 
 def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0,
