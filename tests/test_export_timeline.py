@@ -369,6 +369,19 @@ def test_nearly_parallel_arrows_share_one_label_content_first():
     assert found[0].arrows == [ack, accept]
 
 
+def test_labels_claim_spots_new_kinds_first_then_repeats_then_acks():
+    """Send order: an ack, an offer, its repeat, an accept. The offer and the accept are
+    new kinds and claim first (in send order), then the repeat; the ack comes last."""
+    from hybridteam.export.arrows import bundles, label_order
+    from hybridteam.export.timeline import Arrow
+
+    sent = [Arrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
+            for t, kind in ((1.0, "ack"), (2.0, "offer"), (3.0, "offer"), (4.0, "accept"))]
+    order = [(b.types, new) for b, new in label_order(bundles(sent, 0.01))]
+    assert order == [(["offer"], True), (["accept"], True), (["offer"], False),
+                     (["ack"], True)]
+
+
 def test_every_message_kind_of_a_jittery_hand_over_is_labelled(team_from_yaml):
     """With jitter an ack and a reply sent together arrive milliseconds apart; the close-up
     of the resignation still names offer, accept, confirm and announce (the hand-over's

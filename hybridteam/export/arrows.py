@@ -161,16 +161,16 @@ def bundles(arrows: list[Arrow], tolerance: float) -> list[Bundle]:
     return out
 
 
-def label_order(found: list[Bundle]) -> list[Bundle]:
-    """The order labels claim their spots: a bundle that brings a message kind no earlier
-    bundle carried first (so every kind in the close-up is named), then the other content
-    (a retransmitted copy), acks last; each group in send order."""
+def label_order(found: list[Bundle]) -> list[tuple[Bundle, bool]]:
+    """The order labels claim their spots, each bundle with whether it brings a message
+    kind no earlier bundle carried: those first (so every kind in the close-up is named),
+    then the other content (a retransmitted copy), acks last; each group in send order."""
     first: dict[str, int] = {}
     for k, b in enumerate(found):
         for t in b.types:
             first.setdefault(t, k)
     news = set(first.values())
-    return [b for _, b in sorted(enumerate(found), key=lambda kb: (
+    return [(b, k in news) for k, b in sorted(enumerate(found), key=lambda kb: (
         not kb[1].content, kb[0] not in news, kb[0]))]
 
 
@@ -185,10 +185,12 @@ class Rows:
         self.span = data.span
         self.taken: dict[float, list[tuple[float, float]]] = {}
 
-    def spots(self, b: Bundle, width: float) -> list[tuple[float, float]]:
+    def spots(self, b: Bundle, width: float, edge: bool = False
+              ) -> list[tuple[float, float]]:
         """Where ``b``'s label may start (time, row): beside the bundle where it crosses
-        each gap it spans, right of it then left, the gap nearest its middle first;
-        spots inside the window before those that run out of it."""
+        each gap it spans, right of it then left, the gap nearest its middle first; inside
+        the window, and with ``edge`` (the first of a kind) then the spots it runs out of,
+        where it is cut at the window's edge rather than left out."""
         a = b.arrows[0]
         lo, hi = sorted((a.y_send, a.y_recv))
         rows = [g for g in self.gaps if lo <= g <= hi] or (
@@ -205,7 +207,7 @@ class Rows:
                 beside[1].append((min(cross) - 0.6 * self.char - width, y))
             out += beside[0] + beside[1]
         inside = [s for s in out if self.span[0] <= s[0] and s[0] + width <= self.span[1]]
-        return inside + [s for s in out if s not in inside]
+        return inside + [s for s in out if s not in inside] * edge
 
     def claim(self, spots: list[tuple[float, float]], width: float
               ) -> tuple[float, float] | None:
@@ -259,10 +261,10 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
                                 "color": "#BBBBBB" if faint else "#333333",
                                 "linewidth": 0.5 if faint else 0.9})
     rows = Rows(data, char_width)
-    for b in label_order(bundles(delivered, 2 * char_width)):
+    for b, new in label_order(bundles(delivered, 2 * char_width)):
         text = b.text()
         width = len(text) * char_width
-        at = rows.claim(rows.spots(b, width), width)
+        at = rows.claim(rows.spots(b, width, new), width)
         if at is not None:
             ax.text(*at, text, fontsize=7, ha="left", va="center", zorder=7,
                     path_effects=HALO, clip_on=True, gid="message-label")
