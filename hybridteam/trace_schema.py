@@ -43,6 +43,20 @@ class AgentMeta(_Model):
     footprint: dict[str, Any] | None = None
 
 
+class CollisionMark(_Model):
+    """Where and when a robot, pair or payload first collided (drawn by the views)."""
+
+    instance: Count
+    who: str
+    t: Finite
+    x: Finite
+    y: Finite
+
+
+class WorldMeta(_Model):
+    collisions: list[CollisionMark] = Field(default_factory=list)
+
+
 class Meta(_Model):
     team: str
     n: Annotated[int, Field(ge=1)]
@@ -50,7 +64,7 @@ class Meta(_Model):
     duration: Annotated[float, Field(ge=0, allow_inf_nan=False)]
     agents: list[AgentMeta] = Field(min_length=1)
     series: dict[str, list[str]] = Field(default_factory=dict)
-    world: dict[str, Any] | None = None
+    world: WorldMeta | None = None
     payloads: list[str] | None = None
 
 

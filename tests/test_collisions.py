@@ -65,6 +65,16 @@ def test_warn_lists_collisions_and_ignore_keeps_only_clearances(team_from_yaml):
     assert ignored.diagnostics[0]["stats"]["min_clearance"][0] < 0  # it went through
 
 
+def test_where_and_when_each_first_collision_was_is_kept_for_the_views(team_from_yaml):
+    """Robot a's disk first overlaps the wall at the tick t = 1.8 s, its centre at
+    (1.8, 0): recorded under warn and under outcome, not under ignore."""
+    for mode in ("warn", "outcome"):
+        (mark,) = ht.simulate(team(team_from_yaml, mode)).meta["world"]["collisions"]
+        assert mark == {"instance": 0, "who": "a", "t": pytest.approx(1.8, abs=1e-12),
+                        "x": pytest.approx(1.8, abs=1e-12), "y": 0.0}
+    assert "collisions" not in ht.simulate(team(team_from_yaml, "ignore")).meta["world"]
+
+
 def test_an_unknown_collision_mode_is_a_located_error(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
 

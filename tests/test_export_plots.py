@@ -61,7 +61,8 @@ def test_relay_paths_start_labels_and_numbered_mode_changes():
     end_x = runner_x[~np.isnan(runner_x)][-1]
     samples = run.samples["runner"][:, 0, 0]
     assert end_x == samples[~np.isnan(samples)][-1] == pytest.approx(5.0, abs=1e-9)
-    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0R"]
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: anchor",
+                                                                       "0R: runner"]
     numbers = [t.get_text() for t in by_gid(ax.texts, "change")]
     leaf_changes = [r for r in run.transitions if r.cause != "init"]  # all modes are leaves
     assert len(numbers) == len(leaf_changes) == 4
@@ -109,6 +110,49 @@ def test_a_zeno_pile_up_of_changes_keeps_its_labels_on_the_plot(team_from_yaml):
     (note,) = [t.get_text() for t in ax.texts if t.get_text().startswith("numbers shown")]
     assert note == ("numbers shown on every 2nd mode change; where changes crowd one spot, "
                     "the first 3 and …")
+
+
+SCOUTS = """
+    team: scouts
+    agents:
+      xr4000:
+        plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      scout1:
+        plant: {kind: unicycle, state: {x: 0, y: 1, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      scout2:
+        plant: {kind: unicycle, state: {x: 0, y: 2, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+    simulation: {duration: 2}
+"""
+
+
+def test_start_labels_name_the_robot_where_initials_clash(team_from_yaml):
+    """Two Scouts get the letters S and SC (the numbered changes use them): each start
+    label also names its robot, at that robot's start."""
+    run = ht.simulate(team_from_yaml(SCOUTS))
+    (ax,) = trajectory_figure(run).axes
+    starts = {t.get_text(): tuple(t.xy) for t in by_gid(ax.texts, "start")}
+    assert starts == {"0X: xr4000": (0.0, 0.0), "0S: scout1": (0.0, 1.0),
+                      "0SC: scout2": (0.0, 2.0)}
+
+
+def test_robots_starting_on_the_lower_edge_get_room_for_their_start_labels():
+    """The hand-over's robots start at y = 0, the lowest point of a flat scene: the plot
+    reaches 18 pt below it (the start labels' depth under their start, 12 pt down), so no
+    axis strikes through them; with --ylim the user's limits stay."""
+    run = ht.simulate(ht.load(EXAMPLES / "protocols" / "handover.yaml"))
+    fig = trajectory_figure(run)
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    starts = by_gid(ax.texts, "start")
+    assert [t.xy[1] for t in starts] == [0.0, 0.0]
+    bottom = ax.get_window_extent().y0
+    renderer = fig.canvas.get_renderer()
+    assert all(t.get_window_extent(renderer).y0 > bottom for t in starts)
+    fixed = trajectory_figure(run, ylim=(-0.1, 1.0)).axes[0]
+    assert fixed.get_ylim() == (-0.1, 1.0)
 
 
 def test_selected_modes_restrict_the_numbering():
@@ -176,7 +220,7 @@ def test_world_payload_and_footprints_are_drawn(tmp_path):
     corners = payload.get_paths()[0].vertices[:4]
     assert np.ptp(corners[:, 1]) == pytest.approx(1.4)
     assert corners[:, 0].mean() == pytest.approx(0.0) and corners[:, 1].mean() == 0.5
-    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A", "0B"]
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: alpha", "0B: beta"]
     assert [t.get_text() for t in by_gid(ax.texts, "change")] == ["1B", "2A"]
     gif = write_animation(trace, tmp_path / "carry.gif", fps=10, duration=0.5)
     with Image.open(gif) as im:
@@ -308,3 +352,69 @@ def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
     capsys.readouterr()
     assert main(["animate", str(trace), "-o", str(gif), "--speed", "0"]) == 2
     assert "--speed must be a positive number, got 0" in capsys.readouterr().err
+
+
+CRASH = """
+    team: crash
+    agents:
+      a:
+        plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+      b:
+        plant: {{kind: unicycle, state: {{x: 3.0, y: {b_y}, theta: 3.141592653589793}}}}
+        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
+    world:
+      - use: obstacles
+        with:
+          walls: {walls}
+          radius: [[a, 0.25], [b, 0.25]]
+          on_collision: warn
+    simulation: {{duration: 4.0}}
+"""
+
+
+def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml,
+                                                                        tmp_path):
+    """Robot a drives at 1 m/s into the wall x = 2 (b kept away at y = 5): its 0.25 m disk
+    first overlaps the wall at the tick t = 1.8 s, at x = 1.8. The run goes on through the
+    wall; the trajectories mark that spot with its time, the animation from 1.8 s on, and
+    the report shows the trajectories with the mark."""
+    from hybridteam.export.report import write_report
+
+    run = ht.simulate(team_from_yaml(CRASH.format(b_y=5.0, walls="[[2.0, -1.0, 2.0, 1.0]]")))
+    assert run.outcome == "ok" and len(run.diagnostics[0]["stats"]["collisions"]) == 1
+    (ax,) = trajectory_figure(run).axes
+    (mark,) = by_gid(ax.lines, "collisions")
+    np.testing.assert_allclose(mark.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    (label,) = by_gid(ax.texts, "collision-label")
+    assert label.get_text() == "1.8 s" and label.xy == pytest.approx((1.8, 0.0), abs=1e-12)
+    box = ax.get_legend() or ax.get_figure().legends[0]  # beside a tall scene, below a wide
+    legend = [t.get_text() for t in box.get_texts()]
+    assert "first collision of each robot or payload, its time" in legend
+    _fig, update, _trails, moving = animate._build(run, 0)
+    (crash,) = [a for a in moving if a.get_gid() == "collisions"]
+    update(1.75)
+    assert len(crash.get_xydata()) == 0
+    update(1.85)
+    np.testing.assert_allclose(crash.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    page = write_report(tmp_path, run, run.summary(), animation=False)
+    assert 'id="collisions"' in page.read_text(encoding="utf-8")
+
+
+def test_two_robots_that_meet_are_marked_where_their_disks_touch(team_from_yaml):
+    """Head on from 3 m apart at 1 m/s each, 0.25 m disks: at the first tick after they
+    touch, t = 1.3 s, a is at x = 1.3 and b at 1.7; the mark is between them, at 1.5."""
+    run = ht.simulate(team_from_yaml(CRASH.format(b_y=0.0, walls="[]")))
+    (ax,) = trajectory_figure(run).axes
+    (mark,) = by_gid(ax.lines, "collisions")
+    np.testing.assert_allclose(mark.get_xydata(), [[1.5, 0.0]], atol=1e-12)
+    assert [t.get_text() for t in by_gid(ax.texts, "collision-label")] == ["1.3 s"]
+
+
+def test_marks_that_appear_mid_run_keep_their_colour_in_a_gif():
+    """A GIF's frames share the first frame's palette; the red of a lost message or a
+    collision, absent from the first frame, is kept in it all the same."""
+    first = Image.new("RGB", (20, 20), "white")
+    palette = animate._palette(first).getpalette()
+    entries = [tuple(palette[k : k + 3]) for k in range(0, len(palette), 3)]
+    assert (204, 0, 0) in entries and len(entries) <= 256

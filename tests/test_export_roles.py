@@ -8,6 +8,8 @@ acceptance of an offer; a leader becomes a follower on a request, or, offering (
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 import hybridteam as ht
@@ -15,7 +17,7 @@ from hybridteam.cli import main
 from hybridteam.export.diagram import diagram_graph, edges_of
 from hybridteam.export.render import render
 from hybridteam.export.roles import roles_view
-from tests.conftest import EXAMPLES
+from tests.conftest import EXAMPLES, FIXTURES
 
 EXPERIMENT2 = EXAMPLES / "transport" / "experiment2.yaml"
 
@@ -109,3 +111,36 @@ def test_protocol_copies_are_tints_of_their_role_and_24_modes_get_24_colours():
     assert colors["T.Requesting"] != colors["T.Accepting"]
     many = team_mode_colors([[(f"M{k}", False) for k in range(24)]])
     assert len(set(many.values())) == 24
+
+
+def test_three_robots_stack_in_rows_and_a_repeated_footnote_is_said_once():
+    """The corridor team's roles view: three robots of 486, 416 and 408 pt side by side
+    (with 80 pt between) made a diagram 1,486 pt wide; past ROW_WIDTH they wrap, here one
+    robot a row, each row below the last. The three robots' Lead/Follow edges do not fit
+    their label and carry the same footnote: one note, marked (1) on each edge."""
+    from hybridteam.export.image import diagram_figure
+    from hybridteam.export.layout import PANEL_GAP, ROW_WIDTH, Layout
+
+    graph = roles_view(diagram_graph(ht.load(FIXTURES / "acceptance" / "corridor_carry.yaml")))
+    layout = Layout(graph)
+    widths = [p.w + p.loop for p in layout.panels]
+    assert widths[0] + PANEL_GAP + widths[1] > ROW_WIDTH
+    xs = [p.x for p in layout.panels]
+    assert xs == [xs[0]] * 3
+    for upper, lower in itertools.pairwise(layout.panels):
+        assert lower.y == upper.y + upper.h + PANEL_GAP
+    assert layout.width <= max(widths) + 2 * 8.0 + PANEL_GAP / 2 < ROW_WIDTH
+    texts = diagram_figure(graph, dpi=72.0).axes[0].texts
+    (notes,) = [t.get_text() for t in texts if t.get_gid() == "footnotes"]
+    assert notes == "(1) want_lead … grant, offer … confirm"
+    assert [t.get_text() for t in texts if t.get_gid() == "edge-label"].count("(1)") == 3
+
+
+def test_two_robots_that_fit_a_page_stay_side_by_side():
+    """The hand-over's two robots (396 and 404 pt, 80 pt apart: 880 pt) fit one row."""
+    from hybridteam.export.layout import PANEL_GAP, Layout
+
+    layout = Layout(roles_view(diagram_graph(ht.load(EXAMPLES / "protocols" /
+                                                     "handover.yaml"))))
+    first, second = layout.panels
+    assert first.y == second.y and second.x == first.x + first.w + first.loop + PANEL_GAP

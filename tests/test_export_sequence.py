@@ -120,3 +120,19 @@ def test_unknown_format_and_latency_text():
     assert latency(1.0, 1.0) == "" and latency(1.0, math.nan) == ""
     assert latency(0.0, 0.25) == "+250 ms" and latency(0.0, 1.5) == "+1.5 s"
     assert latency(0.0, 0.0004) == "+0.4 ms"
+
+
+def test_a_lost_retransmission_says_so_once():
+    """The network records a resent copy it lost as ``loss (retransmission)``: the label
+    names the retransmission and the loss once each, not ``(lost: loss (retransmission))
+    (retransmission)``; a lost ack's bracketed note is its type, already named."""
+    trace = synthetic()  # rows: an ack, then req at 1.0, 2.0 and 2.5 s, then others
+    msgs = trace.messages
+    msgs.columns["status"] = np.array(["lost", "delivered", "lost", "lost", "delivered",
+                                       "delivered"], dtype=object)
+    msgs.columns["reason"] = np.array(["loss (ack)", "", "dropped by link",
+                                       "loss (retransmission)", "", ""], dtype=object)
+    msgs.columns["t_recv"] = np.array([math.nan, 1.03, math.nan, math.nan, 0.5, 0.1])
+    labels = [label for *_, label in arrows(sequence_chart(trace), MERMAID_ARROW)]
+    assert labels == ["req @ 1.000 s (+30 ms)", "req @ 2.000 s (lost: dropped by link)",
+                      "req @ 2.500 s (retransmission, lost: loss)", "ack @ 2.600 s (lost: loss)"]

@@ -211,6 +211,7 @@ def test_a_lost_message_is_a_red_x_at_its_send_time(tmp_path):
     assert "1 message lost" in fig.axes[0].get_title()
     write_timeline(run, tmp_path / "t.png", data_path=tmp_path / "t.json")
     arrows = json.loads((tmp_path / "t.json").read_text())["arrows"]
+    anchor_y = next(lane.y for lane in data.lanes if lane.agent == "anchor")  # no close-up
     assert arrows == [{"y_send": anchor_y, "y_recv": data.arrows[0].y_recv,
                        "t_send": msgs["t_send"][1], "t_recv": None, "type": "done",
                        "latency": None, "lost": True, "sender": "anchor",
@@ -310,3 +311,99 @@ def test_the_legend_is_grouped_by_robot_with_short_names(team_from_yaml):
     assert bold == ["xr4000", "labmate", "operator"]
     assert labels[:labels.index("labmate")] == ["xr4000", "Lead", "Follow"]
     assert "Transport.Lead" not in labels
+
+
+BLINK = """
+    team: blink
+    agents:
+      a:
+        plant: {kind: flow, state: {c: 0}}
+        initial: Wait
+        modes:
+          Wait: {transitions: [{to: Pass, after: 1}]}
+          Pass: {transitions: [{to: Hold, after: 0}]}
+          Hold: {transitions: [{to: Done, after: 2}]}
+          Done: {final: true}
+    simulation: {duration: 5}
+"""
+
+
+def test_a_mode_entered_and_left_at_once_is_not_in_the_legend(team_from_yaml):
+    """Pass is entered at t = 1 and left at t = 1: no stay a reader could find, so the
+    legend leaves it out; Done, reached as the run ends at t = 3, is zero-long too but is
+    where the run ended, and stays in."""
+    run = ht.simulate(team_from_yaml(BLINK))
+    assert [(r.mode, r.start, r.end) for r in run.intervals] == [
+        ("Wait", 0.0, 1.0), ("Pass", 1.0, 1.0), ("Hold", 1.0, 3.0), ("Done", 3.0, 3.0)]
+    fig, data = timeline_figure(run)
+    legend = fig.axes[0].get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == ["Wait", "Hold", "Done"]
+    assert list(data.legend["a"]) == ["Wait", "Hold", "Done"]
+
+
+def jittery_handover(team_from_yaml):
+    """The hand-over example with 80 ms latency, 10 ms jitter and, after the request at
+    3 s, a resignation at 5 s: offer, accept, confirm and announce, each acknowledged."""
+    text = (EXAMPLES / "protocols" / "handover.yaml").read_text()
+    text = text.replace("  latency: 0.03\n", "  latency: 0.08\n  jitter: 0.01\n")
+    text = text.replace("raise: want_lead}\n", "raise: want_lead}\n"
+                        "  - {at: 5.0, agent: labmate, raise: resign}\n")
+    assert "jitter" in text and "resign" in text
+    return ht.simulate(team_from_yaml(text))
+
+
+def test_nearly_parallel_arrows_share_one_label_content_first():
+    """An accept and an ack leave xr4000 at one instant and arrive 2 ms apart: one label,
+    the content named first, the latencies as a range; a message the other way, or one
+    sent a label's width later, is labelled on its own."""
+    from hybridteam.export.arrows import bundles
+    from hybridteam.export.timeline import Arrow
+
+    ack = Arrow(0.0, -1.0, 5.0, 5.080, "ack", 0.080, False)
+    accept = Arrow(0.0, -1.0, 5.0, 5.082, "accept", 0.082, False)
+    back = Arrow(-1.0, 0.0, 5.0, 5.085, "offer", 0.085, False)
+    later = Arrow(0.0, -1.0, 5.02, 5.101, "ack", 0.081, False)
+    found = bundles([ack, accept, back, later], tolerance=0.005)
+    assert [b.text() for b in found] == ["accept + ack +80–82 ms", "offer +85 ms",
+                                         "ack +81 ms"]
+    assert found[0].arrows == [ack, accept]
+
+
+def test_labels_claim_spots_new_kinds_first_then_repeats_then_acks():
+    """Send order: an ack, an offer, its repeat, an accept. The offer and the accept are
+    new kinds and claim first (in send order), then the repeat; the ack comes last."""
+    from hybridteam.export.arrows import bundles, label_order
+    from hybridteam.export.timeline import Arrow
+
+    sent = [Arrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
+            for t, kind in ((1.0, "ack"), (2.0, "offer"), (3.0, "offer"), (4.0, "accept"))]
+    order = [(b.types, new) for b, new in label_order(bundles(sent, 0.01))]
+    assert order == [(["offer"], True), (["accept"], True), (["offer"], False),
+                     (["ack"], True)]
+
+
+def test_every_message_kind_of_a_jittery_hand_over_is_labelled(team_from_yaml):
+    """With jitter an ack and a reply sent together arrive milliseconds apart; the close-up
+    of the resignation still names offer, accept, confirm and announce (the hand-over's
+    messages), every label in a white gap between lanes and clear of every other."""
+    run = jittery_handover(team_from_yaml)
+    window = (4.95, 5.6)
+    msgs = run.messages
+    sent = (msgs["socket"].astype(str) == "control") & (msgs["t_send"] >= window[0]) & (
+        msgs["t_send"] <= window[1])
+    kinds = set(msgs["type"][sent].tolist())
+    assert kinds == {"offer", "accept", "confirm", "announce", "ack"}
+    fig, data = timeline_figure(run, window=window)
+    renderer = fig.canvas.get_renderer()
+    ax = fig.axes[0]
+    labels = [t for t in ax.texts if t.get_gid() == "message-label"]
+    named = {name for t in labels for name in t.get_text().rsplit(" +", 1)[0].split(" + ")}
+    assert named == kinds
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b)
+    bands = [(lane.y - lane.height / 2, lane.y + lane.height / 2) for lane in data.lanes]
+    for t in labels:
+        y = t.get_position()[1]
+        assert not any(lo <= y <= hi for lo, hi in bands)

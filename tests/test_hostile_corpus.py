@@ -285,6 +285,9 @@ CASES: dict[str, Case] = {
                                ["transitions.instance: 7 is not an instance of 0..0"]),
     "trace_short_column": Case({}, ["timeline", "{short}", "-o", "p.png"], 2,
                                ["transitions: column 't'"]),
+    "trace_bad_collision_mark": Case({}, ["plot", "{bad_collision}", "-o", "p.png"], 2,
+                                     ["meta.world.collisions[0].t: Input should be a valid "
+                                      "number"]),
     "window_infinite": Case({}, ["timeline", "{good}", "--window", "0", "inf", "-o", "p.png"],
                             2, ["times must be finite numbers"]),
     # --- user code: located at the binding ----------------------------------------------
@@ -339,6 +342,8 @@ def traces(tmp_path_factory) -> dict[str, Path]:
     variant("inf_t", lambda d: d["samples"]["t"].__setitem__(2, 1e999))
     variant("bad_instance", lambda d: d["transitions"]["instance"].__setitem__(0, 7))
     variant("short", lambda d: d["transitions"]["t"].pop())
+    variant("bad_collision", lambda d: d["meta"].__setitem__("world", {"collisions": [
+        {"instance": 0, "who": "r", "t": "soon", "x": 0.0, "y": 0.0}]}))
     return out
 
 

@@ -46,9 +46,29 @@ def test_report_writes_the_page_of_a_run_folder(report, tmp_path, capsys):
     assert main(["report", str(report.parent), "-o", str(page), "--no-animation"]) == 0
     assert capsys.readouterr().out == f"wrote {page}\n"
     text = page.read_text(encoding="utf-8")
-    assert "<section id='timeline'>" in text and "<section id='animation'>" not in text
+    assert "<section id='timeline'>" in text and "data:image/gif" not in text
+    animation = text[text.index("<section id='animation'>"):]
+    assert animation[:animation.index("</section>")].endswith(
+        "<p>Skipped (<code>--no-animation</code>); <code>hybridteam animate trace.json</code> "
+        "draws it.</p>")
     assert main(["report", str(report.parent), "-o", str(tmp_path / "page.pdf")]) == 2
     assert "a report is written as .html or .htm" in capsys.readouterr().err
+
+
+def test_run_report_without_the_animation(tmp_path, capsys):
+    """``run --report --no-animation``: the page says the animation was skipped; without
+    --report the flag would do nothing, and is refused."""
+    out = tmp_path / "run"
+    assert main(["run", str(EXAMPLES / "automata" / "thermostat.yaml"), "-o", str(out),
+                 "--progress", "none", "--no-views", "--report", "--no-animation"]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "Skipped (<code>--no-animation</code>)" in page and "data:image/gif" not in page
+    capsys.readouterr()
+    assert main(["run", str(EXAMPLES / "automata" / "thermostat.yaml"), "-o",
+                 str(tmp_path / "other"), "--no-animation"]) == 2
+    err = capsys.readouterr().err
+    assert "--no-animation leaves the animation out of the report: give it with --report" in err
+    assert "Traceback" not in err and not (tmp_path / "other").exists()
 
 
 def test_a_folder_that_is_not_a_run_or_a_study_is_refused(tmp_path, capsys):

@@ -107,14 +107,14 @@ def test_experiment2_timeline_reproduces_fig10():
     assert t_c - t_b == pytest.approx(latency, abs=1e-9)  # paper: "approximately 0.03 s"
     assert t_b - t_a == pytest.approx(latency, abs=1e-9)
     # the drawn close-up (two robots): the request; the grant and the request's ack on one
-    # arrow t_b -> t_c; at t_c the announce and the grant's ack; one label per arrow, and the
-    # 20 Hz pose stream faint and unlabelled
+    # arrow t_b -> t_c; at t_c the announce and the grant's ack; one label per arrow, the
+    # message named before the ack, and the 20 Hz pose stream faint and unlabelled
     fig, data = timeline_figure(run, window=(t_a - 0.02, t_c + 0.02),
                                 agents=["xr4000", "labmate"])
     assert [lane.agent for lane in data.lanes if not lane.top] == ["xr4000", "labmate"]
     texts = fig.axes[0].texts
     labels = sorted(t.get_text() for t in texts if t.get_gid() == "message-label")
-    assert labels == ["ack + announce +30 ms", "ack + grant +30 ms", "request +30 ms"]
+    assert labels == ["announce + ack +30 ms", "grant + ack +30 ms", "request +30 ms"]
     grant = [t for t in texts if t.get_gid() == "message" and t.xyann[0] == pytest.approx(t_b)]
     assert [(a.xyann[0], a.xy[0]) for a in grant] == [(pytest.approx(t_b), pytest.approx(t_c))]
     assert [t for t in texts if t.get_gid() == "data-message"]

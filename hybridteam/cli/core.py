@@ -51,6 +51,8 @@ def register(sub) -> dict:
     r.add_argument("--report", action="store_true",
                    help="also write report.html: every view and the summary on one "
                    "self-contained page (see 'hybridteam report')")
+    r.add_argument("--no-animation", action="store_true",
+                   help="with --report: leave the animation out (most of the report's time)")
     r.add_argument("--max-memory", type=float, default=None, metavar="GB",
                    help="refuse runs needing more memory (default 4 GB)")
     r.add_argument("--max-periods", type=float, default=None, metavar="N",
@@ -123,6 +125,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise UsageError(f"{flag} must be a finite number > 0, got {value}")
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    if args.no_animation and not args.report:
+        raise UsageError("--no-animation leaves the animation out of the report: give it "
+                         "with --report")
     out = output_folder(args.output)
     if (out / "study.json").exists():
         raise UsageError(f"output '{out}' holds a study's results; give the run a folder of "
@@ -160,7 +165,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.report:
         from hybridteam.export.report import write_report
 
-        write_report(out, run, summary)
+        write_report(out, run, summary, animation=not args.no_animation)
         views.append("report.html")
     if not args.quiet:
         _print_summary(summary, out, views)

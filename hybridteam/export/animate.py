@@ -23,6 +23,8 @@ from matplotlib.patches import Circle, Polygon
 from PIL import Image
 
 from hybridteam.export.scene import (
+    COLLISION_MARK,
+    collision_marks,
     draw_guides,
     draw_world,
     flow_agents,
@@ -40,6 +42,9 @@ from hybridteam.trace import Trace, temp_path
 
 MAX_FRAMES = 300
 FORMATS = (".gif", ".mp4")
+#: colours of marks that may first appear after the first frame (lost messages, collisions):
+#: a GIF's palette is the first frame's, which would show them in the nearest other colour
+RESERVED = ("#CC0000",)
 
 
 class _Mode:
@@ -133,14 +138,25 @@ class _CanvasGifWriter(PillowWriter):
     def grab_frame(self, **savefig_kwargs: Any) -> None:
         image = Image.fromarray(np.ascontiguousarray(_canvas_rgb(self.fig)))
         if not self._images:
-            self._images.append(image.quantize(colors=255, method=Image.Quantize.MEDIANCUT))
-        else:
-            self._images.append(image.quantize(palette=self._images[0],
-                                               dither=Image.Dither.NONE))
+            self._palette = _palette(image)
+        self._images.append(image.quantize(palette=self._palette, dither=Image.Dither.NONE))
 
     def finish(self) -> None:
         self._images[0].save(self.outfile, save_all=True, append_images=self._images[1:],
                              duration=int(1000 / self.fps), loop=0, optimize=False)
+
+
+def _palette(first: Image.Image) -> Image.Image:
+    """The palette of every frame: the first frame's colours (median cut) and the
+    :data:`RESERVED` ones."""
+    size = 255 - len(RESERVED)
+    colours = first.quantize(colors=size, method=Image.Quantize.MEDIANCUT).getpalette() or []
+    colours = (colours[: 3 * size] + [0] * 3 * size)[: 3 * size]
+    for c in RESERVED:
+        colours += [int(c[k : k + 2], 16) for k in (1, 3, 5)]
+    out = Image.new("P", (1, 1))
+    out.putpalette(colours)
+    return out
 
 
 class _CanvasFFMpegWriter(FFMpegWriter):
@@ -224,7 +240,8 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
     """Walls, obstacles and guide paths; per robot its path to come (faint), its trail, its
     footprint at true size with a heading line; the payloads at their poses; control
     messages as lines from sender to receiver while in flight (and ``linger`` seconds after
-    they were sent, so a 30 ms message is seen at all), lost ones dashed red."""
+    they were sent, so a 30 ms message is seen at all), lost ones dashed red; a red star
+    where a robot or payload collided, from that moment on."""
     world = trace.meta.get("world")
     draw_world(ax, world)
     draw_guides(ax, world, instance, agents)
@@ -245,6 +262,8 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
         robots.append((p, last, r, trail, body, head))
     loads = _payloads(ax, trace, instance)
     flashes = _messages(ax, trace, instance, agents, poses, linger)
+    hits = np.array([h[:3] for h in collision_marks(trace, instance)], float).reshape(-1, 3)
+    crashes = ax.plot([], [], zorder=9, gid="collisions", **COLLISION_MARK)[0]
     done = [0] * len(robots)  # trail drawn up to this sample
     ax.set_xlim(limits[0], limits[1])
     ax.set_ylim(limits[2], limits[3])
@@ -266,8 +285,10 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
             head.set_data([x, x + r * 1.4 * np.cos(th)], [y, y + r * 1.4 * np.sin(th)])
         for fn in (loads[0], flashes[0]):
             fn(t, k)
+        seen = hits[hits[:, 0] <= t]  # each collision marked from when it happens on
+        crashes.set_data(seen[:, 1], seen[:, 2])
 
-    moving = [x for r in robots for x in r[4:]] + loads[1] + flashes[1]
+    moving = [x for r in robots for x in r[4:]] + loads[1] + flashes[1] + [crashes]
     return update, [r[3] for r in robots], moving
 
 

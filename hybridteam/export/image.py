@@ -2,13 +2,13 @@
 
 When Graphviz's ``dot`` is on the PATH it lays out the DOT text of :mod:`.render` (the best
 result). Nothing in hybridteam may require it, so without it (or if it fails) a small
-built-in layout draws the same diagram with matplotlib: one panel per agent side by side,
-composites as labelled boxes holding their children, children stacked in layers found by a
-breadth-first walk from the initial mode (so the default path reads top to bottom),
-parallel regions side by side with dashed borders, messages as dashed arrows between
-panels (:mod:`.layout`). Edge labels are placed clear of boxes and of each other, or
-become footnotes under the diagram (:mod:`.labels`). It is deterministic: same graph, same
-picture.
+built-in layout draws the same diagram with matplotlib: one panel per agent, side by side
+in rows no wider than a page, composites as labelled boxes holding their children, children
+stacked in layers found by a breadth-first walk from the initial mode (so the default path
+reads top to bottom), parallel regions side by side with dashed borders, messages as
+dashed arrows between panels (:mod:`.layout`). Edge labels are placed clear of boxes and
+of each other, or become footnotes under the diagram (:mod:`.labels`). It is
+deterministic: same graph, same picture.
 """
 
 from __future__ import annotations

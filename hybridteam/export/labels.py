@@ -48,6 +48,9 @@ class Placer:
         return None
 
     def footnote(self, text: str) -> str:
-        """The marker of a new footnote holding ``text``."""
-        self.notes.append(text)
-        return f"({len(self.notes)})"
+        """The marker of the footnote holding ``text``: a text already noted keeps its
+        number (three robots playing one protocol have the same handshake edge, and three
+        identical notes under a diagram read as three different ones)."""
+        if text not in self.notes:
+            self.notes.append(text)
+        return f"({self.notes.index(text) + 1})"

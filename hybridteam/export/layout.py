@@ -2,8 +2,8 @@
 
 Composites are labelled boxes holding their children, children stacked in layers found by a
 breadth-first walk from the initial mode (so the default path reads top to bottom),
-parallel regions side by side, agents in panels side by side. Units are points, y points
-down. Deterministic: the same graph gives the same layout.
+parallel regions side by side, agents in panels side by side, in rows no wider than a page.
+Units are points, y points down. Deterministic: the same graph gives the same layout.
 """
 
 from __future__ import annotations
@@ -28,6 +28,10 @@ NAME_PT, SMALL_PT = 8.0, 6.5  # font sizes; layout units are points
 GAP_X, GAP_Y, PAD, TITLE = 26.0, 34.0, 8.0, 15.0
 ROW_MAX = 4  # boxes per row before a layer wraps
 PANEL_GAP, WRAP = 80.0, 34
+#: agents' panels go side by side up to this width (points), then wrap into a new row: three
+#: robots side by side made a diagram 1,500 pt wide, whose text a page (the report's column
+#: is 1,150 px, about 860 pt) shrank past reading
+ROW_WIDTH = 900.0
 
 
 def _text_width(lines: list[str], size: float) -> float:
@@ -59,7 +63,7 @@ class Box:
 
 
 class Layout:
-    """Sizes and positions of every mode box of a team, agents side by side."""
+    """Sizes and positions of every mode box of a team, agents side by side in rows."""
 
     def __init__(self, graph: nx.MultiDiGraph) -> None:
         self.graph = graph
@@ -71,12 +75,19 @@ class Layout:
                 self.loops.setdefault(u, []).append(d["label"])
         self.up = {n: ancestors(graph, n) for n in graph.nodes}
         self.panels = [self.measure(a) for a in agents(graph)]
-        x = PAD
-        for panel in self.panels:
-            self.place(panel, x, PAD + TITLE)
-            x += panel.w + panel.loop + PANEL_GAP
-        self.width = max(x - PANEL_GAP + PAD, 240.0)
-        self.height = max(p.h for p in self.panels) + 2 * PAD + TITLE
+        x, y, row_h, right = PAD, PAD + TITLE, 0.0, PAD
+        for panel in self.panels:  # side by side, a new row where a page would end
+            w = panel.w + panel.loop
+            if x > PAD and x + w > ROW_WIDTH:
+                x, y, row_h = PAD, y + row_h + PANEL_GAP, 0.0
+            self.place(panel, x, y)
+            right, row_h = max(right, x + w), max(row_h, panel.h)
+            x += w + PANEL_GAP
+        # rows: a lane beside the widest panel, where a message from the first row to the
+        # third passes the second (routes stay inside the picture)
+        lane = PANEL_GAP / 2 if y > PAD + TITLE else 0.0
+        self.width = max(right + PAD + lane, 240.0)
+        self.height = y + row_h + PAD
 
     # -------------------------------------------------------------- sizes
     def measure(self, node: str) -> Box:

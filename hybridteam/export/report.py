@@ -95,7 +95,8 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
     """Write ``report.html`` (or ``output``) for the run folder ``folder`` from its trace
     and summary (``trace.json``, ``summary.json``, as ``hybridteam run`` writes them). The
     state diagram and an animation already in the folder are used; the other views are
-    drawn now, for ``instance``."""
+    drawn now, for ``instance``. ``animation=False`` leaves the animation out (drawing it
+    is most of the page's time) and says so in its section."""
     from hybridteam.export.animate import write_animation
     from hybridteam.export.sequence import sequence_chart
     from hybridteam.export.timeline import write_timeline
@@ -126,6 +127,10 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
             uri = "data:image/gif;base64," + base64.b64encode(gif.read_bytes()).decode()
             parts.append("<section id='animation'><h2>Animation</h2><div class='figure'>"
                          f"<img alt='animation of the run' src='{uri}'></div></section>")
+        else:  # say so, or a reader looks for it
+            parts.append("<section id='animation'><h2>Animation</h2><p>Skipped "
+                         "(<code>--no-animation</code>); <code>hybridteam animate "
+                         "trace.json</code> draws it.</p></section>")
     chart = sequence_chart(trace, "mermaid", instance=instance, sockets=("control",))
     parts.append("<section id='sequence'><h2>Message sequence chart</h2><p>Mermaid source "
                  "(control messages; paste into a Mermaid viewer to draw it):</p>"

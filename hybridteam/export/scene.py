@@ -104,6 +104,22 @@ def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
                 gid=f"guide:{entry['agent']}")
 
 
+#: how a collision is marked, in the trajectories and the animation alike
+COLLISION_MARK = {"marker": "*", "markersize": 13, "color": "#CC0000",
+                  "markeredgecolor": "white", "markeredgewidth": 0.8, "linestyle": "none"}
+
+
+def collision_marks(trace: Trace, instance: int) -> list[tuple[float, float, float, str]]:
+    """(t, x, y, who) of where each robot, pair of robots or payload first collided in
+    ``instance``, in time order (``world.collisions``, recorded by the obstacles component
+    under ``on_collision: warn`` or ``outcome``): a run told to go on through collisions
+    shows where they were, not only a list in the summary."""
+    found = [(float(c["t"]), float(c["x"]), float(c["y"]), str(c["who"]))
+             for c in (trace.meta.get("world") or {}).get("collisions", []) or []
+             if c.get("instance", instance) == instance]
+    return sorted(found)
+
+
 def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, float]:
     """(x0, x1, y0, y1) of everything the planar plot draws: walls, obstacles, regions,
     guide paths, the robots' paths with their footprints, and the payloads' outlines. The

@@ -66,13 +66,26 @@ def arrows(trace: Trace, instance: int = 0,
         if late:
             label += f" ({late})"
         lost = r.status == "lost"
-        reason = str(r.reason or "")
-        if lost:
-            label += f" (lost: {reason})" if reason else " (lost)"
-        if "retransmi" in reason:
-            label += " (retransmission)"
+        notes = copy_notes(str(r.reason or ""), lost)
+        if notes:
+            label += f" ({notes})"
         out.append(Arrow(str(r.sender), str(r.receiver), label, lost))
     return out
+
+
+def copy_notes(reason: str, lost: bool) -> str:
+    """What a label says of a copy besides its type, time and latency, once each:
+    ``retransmission, lost: loss`` for a resent copy the network lost.
+
+    The network records a lost copy's reason as its cause with the copy's own note in
+    brackets (``loss (retransmission)``), a delivered one's as the note alone; a label
+    that printed both the reason and the note said "retransmission" twice.
+    """
+    cause, _, note = reason.partition(" (") if lost else ("", "", reason)
+    parts = ["retransmission"] if "retransmi" in note else []
+    if lost:
+        parts.append(f"lost: {cause}" if cause else "lost")
+    return ", ".join(parts)
 
 
 def _participants(trace: Trace, found: list[Arrow]) -> list[str]:

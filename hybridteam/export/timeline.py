@@ -38,6 +38,8 @@ from hybridteam.export.verdicts import VIOLATION_COLOR, draw_violations
 from hybridteam.trace import Table, Trace, write_atomic
 
 MAIN_HEIGHT, TOP_HEIGHT, GAP = 0.8, 0.35, 0.35
+#: a close-up's gaps between lanes hold two rows of message labels (see :mod:`.arrows`)
+CLOSE_GAP = 0.7
 
 
 @dataclass(frozen=True)
@@ -97,6 +99,7 @@ class TimelineData:
     lost: int = 0  # lost control messages of the instance (summarised without a window)
     dropped: int = 0  # lost data copies (a stream's; counted, marked only in a close-up)
     legend: dict[str, dict[str, str]] = field(default_factory=dict)  # agent -> path -> colour
+    gap: float = GAP  # between lanes
 
     def to_json_dict(self) -> dict[str, Any]:
         """Plain lists of dicts; NaN (a lost message's receipt) becomes null."""
@@ -213,6 +216,7 @@ def timeline_data(trace: Trace, instance: int = 0,
     colors = team_colors(trace.meta["agents"])
     agents = select_agents(trace, agents)
     cursor = 0.0
+    gap = GAP if window is None else CLOSE_GAP
     iv = pick(trace.intervals, instance)
     for meta in agents:
         modes = meta.get("modes", [])
@@ -235,13 +239,17 @@ def timeline_data(trace: Trace, instance: int = 0,
                      f"{meta['name']} / {region}" if region else meta["name"])
             index[(meta["name"], region, is_top)] = len(lanes)
             lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, is_top))
-            cursor -= h + GAP
+            cursor -= h + gap
 
     tr = pick(trace.transitions, instance)
     bars: list[Bar] = []
     marks: list[Mark] = []
     legend: dict[str, dict[str, str]] = {}  # agent -> {mode path: colour}
+    # modes the legend names: a stay entered and left at the same instant is a sliver no
+    # reader can find, so its mode is named only if it also stays somewhere (a final mode
+    # reached as the run ends is zero-length too, and named)
     used: set[tuple[str, str]] = set()
+    t_end = end_time(trace, instance)
     for meta in agents:
         name = meta["name"]
         kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
@@ -259,7 +267,7 @@ def timeline_data(trace: Trace, instance: int = 0,
             rows = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
             rows += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
             bars += [Bar(index[row], mode, label, start, end, color) for row in rows]
-            if rows:
+            if rows and (end > start or end >= t_end):  # not entered and left at once
                 used.add((name, mode))
         regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
         if window is not None:
@@ -297,7 +305,7 @@ def timeline_data(trace: Trace, instance: int = 0,
                             t_recv - m.t_send, is_lost, m.sender, m.receiver, str(m.socket)))
     span = window if window is not None else (0.0, end_time(trace, instance))
     return TimelineData(lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped,
-                        legend=legend)
+                        legend=legend, gap=gap)
 
 
 # ---------------------------------------------------------------------- drawing
@@ -306,7 +314,7 @@ def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float]
                     ) -> tuple[Figure, TimelineData]:
     """The timeline as a matplotlib figure (Agg canvas) and the data it shows."""
     data = timeline_data(trace, instance, window, agents, top)
-    extent = sum(lane.height + GAP for lane in data.lanes)
+    extent = sum(lane.height + data.gap for lane in data.lanes)
     with rc_context({"font.family": FONT}):
         fig = Figure(figsize=(11.0, 1.4 + 0.55 * extent), dpi=100)
         FigureCanvasAgg(fig)

@@ -25,6 +25,8 @@ from matplotlib.patches import Patch
 
 from hybridteam.export.figures import save_figure
 from hybridteam.export.scene import (
+    COLLISION_MARK,
+    collision_marks,
     draw_guides,
     draw_payloads,
     draw_world,
@@ -77,6 +79,12 @@ def letters(names: Sequence[str]) -> dict[str, str]:
             k += 1
         out[name] = name[:k].upper()
     return out
+
+
+def start_label(name: str, letter: str) -> str:
+    """A robot's start: ``0S: scout2``. The letter is what the numbered changes use; two
+    Scouts' letters (``S``, ``SC``) say which is which only next to the name."""
+    return f"0{letter}" if letter == name.upper() else f"0{letter}: {name}"
 
 
 def nice_step(span: float, count: int = 10) -> float:
@@ -208,7 +216,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         if valid.any():
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)
-            ax.annotate(f"0{letter[a]}", (x0, y0), xytext=(-6, -12), textcoords="offset points",
+            ax.annotate(start_label(a, letter[a]), (x0, y0), xytext=(-6, -12),
+                        textcoords="offset points",
                         fontsize=8, fontweight="bold", color=color, path_effects=HALO,
                         zorder=7, gid="start")
     draw_guides(ax, trace.meta.get("world"), instance, agents)
@@ -241,6 +250,14 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                         gid="change")
     if len(at):
         ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
+    hits = collision_marks(trace, instance)
+    if hits:  # over the paths and the change numbers: the thing a reader must not miss
+        ax.plot([h[1] for h in hits], [h[2] for h in hits], zorder=9, gid="collisions",
+                **COLLISION_MARK)
+        for t, x, y, _who in hits:
+            ax.annotate(f"{t:.3g} s", (x, y), xytext=(6, -11), textcoords="offset points",
+                        fontsize=7.5, color=COLLISION_MARK["color"], path_effects=HALO,
+                        zorder=9, gid="collision-label")
     x0, x1, y0, y1 = limits or scene_extent(trace, instance)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
@@ -252,7 +269,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     if agents:
         # "best" scans every plotted point: fine for a short run, seconds for a long one
         # outside the plot, never over a path or a wall: below a wide scene, beside a tall one
-        handles = _legend(ax, trace, every, bool(len(at)))
+        handles = _legend(ax, trace, every, bool(len(at)), bool(hits))
         if wide(limits or scene_extent(trace, instance)):  # the layout makes room below
             ax.figure.legend(handles=handles, loc="outside lower center", fontsize=7.5,
                              frameon=False, ncol=3)
@@ -278,10 +295,11 @@ def wide(limits: tuple[float, float, float, float]) -> bool:
     return (limits[3] - limits[2]) < 0.6 * (limits[1] - limits[0])
 
 
-def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
+def _legend(ax: Any, trace: Trace, every: float, changes: bool, hits: bool) -> list[Any]:
     """Robots and guide paths as drawn, then what the marks mean: the start (0X), the
-    numbered mode changes (1X: the first, by robot X), footprints and payload snapshots
-    (every so many seconds), obstacles and walls — each only if the plot has it."""
+    numbered mode changes (1X: the first, by robot X), collisions, footprints and payload
+    snapshots (every so many seconds), obstacles and walls — each only if the plot has
+    it."""
     handles, _ = ax.get_legend_handles_labels()
     grey = "#555555"
     handles.append(Line2D([], [], marker="s", color=grey, linestyle="none", markersize=4,
@@ -289,6 +307,9 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool) -> list[Any]:
     if changes:
         handles.append(Line2D([], [], marker="o", color="#111111", linestyle="none",
                               markersize=3, label="nX: n-th mode change, by robot X"))
+    if hits:
+        handles.append(Line2D([], [], **{**COLLISION_MARK, "markersize": 9},
+                              label="first collision of each robot or payload, its time"))
     sized = [bool((agent_meta(trace, a).get("footprint") or {}).get("radius"))
              for a in planar_agents(trace)]
     if any(sized):
@@ -389,11 +410,13 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
     """
     planar, flows = planar_agents(trace), flow_agents(trace)
     limits = None
+    width = size[0] if size else 8.0
     if planar:
         x0, x1, y0, y1 = scene_extent(trace, instance)
         limits = (*(xlim or (x0, x1)), *(ylim or (y0, y1)))
+        if ylim is None:
+            limits = room_below_starts(trace, instance, limits, width - 1.2)
     aspect = (limits[3] - limits[2]) / max(limits[1] - limits[0], 1e-12) if limits else 0.5
-    width = size[0] if size else 8.0
     # the planar axes' width: the figure's, less the y labels and a legend at the side
     axes_w = width - 1.2 - (0.0 if limits is None or wide(limits) else 2.4)
     legend_h = 0.0 if limits is None or not wide(limits) else 0.55  # three rows below
@@ -420,6 +443,26 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
         fig.suptitle(title)
         fig.set_layout_engine("constrained")
     return fig
+
+
+def room_below_starts(trace: Trace, instance: int, limits: tuple[float, float, float, float],
+                      axes_w: float) -> tuple[float, float, float, float]:
+    """``limits`` with the bottom lowered where a start label (12 pt under its start, about
+    18 pt to its lower edge) would cross the plot's lower edge, and the axis strike through
+    it: robots that start on the scene's lowest line (a flat scene's). ``axes_w``: the
+    plot's width in inches, which at equal aspect sets the points per metre."""
+    x0, x1, y0, y1 = limits
+    firsts = []
+    for a in planar_agents(trace):
+        y = pose(trace, a, instance)[:, 1]
+        if (~np.isnan(y)).any():
+            firsts.append(float(y[~np.isnan(y)][0]))
+    if not firsts:
+        return limits
+    side = axes_w * 72.0  # points across the plot; at most 1.6 times that tall
+    per_pt = max((x1 - x0) / side, (y1 - y0) / (1.6 * side))
+    below = min(firsts) - 18.0 * per_pt
+    return (x0, x1, min(y0, below), y1)
 
 
 def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0,

@@ -9,7 +9,8 @@ gaps it already keeps statistics of; an overlap is a collision, handled by its
 - ``outcome`` (default): the instance ends with outcome ``collision`` and a message naming
   who hit what, when and by how much;
 - ``warn``: the run goes on, and ``summary.json`` lists each robot's first collision
-  (``collisions``);
+  (``collisions``); the trace records where and when (``meta.world.collisions``, also
+  under ``outcome``) for the views to mark;
 - ``ignore``: only the clearance statistics.
 
 Like every judgment of a world component it is made at the run's instants (law ticks,

@@ -117,7 +117,8 @@ class WorldComponent:
         return {}
 
     def meta(self) -> dict[str, Any]:
-        """Trace metadata for views: ``world`` (walls, regions, obstacles, paths),
+        """Trace metadata for views: ``world`` (walls, regions, obstacles, paths;
+        per-instance entries carry their ``instance``, as paths and collisions do),
         ``payloads``, ``payload_shapes``, agent ``footprint``s."""
         return {}
 

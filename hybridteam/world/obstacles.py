@@ -128,8 +128,10 @@ class Obstacles(WorldComponent):
         self.near = np.zeros((len(self.rules), n), bool)
         self.min_clear = np.full((len(self.planar), n), np.inf)
         self.payload_clear = np.full(n, np.inf)
-        # on_collision: warn — each party's first collision, per instance
-        self.collisions: list[dict[str, str]] = [{} for _ in range(n)]
+        # each party's first collision per instance: its text (listed under warn) and
+        # where and when it happened (marked by the views, under warn and outcome)
+        self.collisions: list[dict[str, tuple[str, float, float, float]]] = [
+            {} for _ in range(n)]
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -288,7 +290,7 @@ class Obstacles(WorldComponent):
                  ) -> dict[int, np.ndarray]:
         """Running minima of the robots' and the payloads' clearances, and collisions.
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
-        hits: list[tuple[int, str, str]] = []  # (instance, who, what happened)
+        hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
         if self.planar:
             points, gap = self._centre_gaps(idx, scene)
@@ -300,21 +302,24 @@ class Obstacles(WorldComponent):
                     what = name_hit(points[r, k], scene.walls, scene.circles, scene.boxes)
                     who = self.team.agents[a].name
                     hits.append((int(idx[k]), who, f"robot '{who}' hit {what}, its footprint "
-                                 f"overlapping it by {-gap[r, k]:.3g}"))
+                                 f"overlapping it by {-gap[r, k]:.3g}", points[r, k]))
             overlap = robot_overlaps(points, self.radius)
             touch = overlap > 0
             pairs = np.nonzero(np.triu(touch, 1)) if some(touch) else ()
             for k, r1, r2 in zip(*pairs, strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
+                r_1, r_2 = self.radius[r1], self.radius[r2]  # where the disks meet
+                contact = points[r1, k] + (points[r2, k] - points[r1, k]) * r_1 / (r_1 + r_2)
                 hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
                              f"'{names[1]}' collided, their footprints overlapping by "
-                             f"{overlap[k, r1, r2]:.3g}"))
+                             f"{overlap[k, r1, r2]:.3g}", contact))
         for p in self.payloads:
             gap = self._payload_gap(p, idx, scene)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
             for k in where_true(gap <= 0).tolist():
                 hits.append((int(idx[k]), p.values["name"],
-                             f"payload '{p.values['name']}' hit an obstacle"))
+                             f"payload '{p.values['name']}' hit an obstacle",
+                             p.pose[idx[k], :2]))
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
@@ -331,13 +336,14 @@ class Obstacles(WorldComponent):
             gap = np.minimum(gap, box_sdf(pts, scene.boxes))
         return points, gap.reshape(len(self.planar), idx.size)
 
-    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str]]) -> None:
-        for i, who, what in hits:
-            text = f"{what} at t={float(world.t[i])!r}"
+    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str, np.ndarray]]
+                 ) -> None:
+        for i, who, what, (x, y) in hits:
+            t = float(world.t[i])
+            text = f"{what} at t={t!r}"
+            self.collisions[i].setdefault(who, (text, t, float(x), float(y)))
             if self.values["on_collision"] == "outcome":
                 world.finish(np.array([i]), "collision", text)
-            else:
-                self.collisions[i].setdefault(who, text)
 
     def _payload_gap(self, p: CarriedPayload, idx: np.ndarray, scene: Scene) -> np.ndarray:
         """Gap between payload ``p``'s outline and the obstacles of ``scene`` (0 if they
@@ -387,7 +393,7 @@ class Obstacles(WorldComponent):
     def summary(self, i: int) -> dict[str, Any]:
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":
-            out["collisions"] = list(self.collisions[i].values())
+            out["collisions"] = [text for text, *_ in self.collisions[i].values()]
         if self.payloads:
             out["payload_clearance"] = _finite(self.payload_clear[i])
         return out
@@ -403,7 +409,13 @@ class Obstacles(WorldComponent):
         obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in first.boxes]
         footprints = {self.team.agents[a].name: {"radius": float(r)}
                       for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
-        return {"world": {"obstacles": obstacles}, "footprints": footprints}
+        world: dict[str, Any] = {"obstacles": obstacles}
+        marks = [{"instance": i, "who": who, "t": t, "x": x, "y": y}
+                 for i, first in enumerate(self.collisions)
+                 for who, (_text, t, x, y) in first.items()]
+        if marks:  # where each party first collided, for the views to mark
+            world["collisions"] = marks
+        return {"world": world, "footprints": footprints}
 
 
 class Scene(NamedTuple):
