@@ -401,18 +401,18 @@ class Obstacles(WorldComponent):
     def meta(self) -> dict[str, Any]:
         """What the views draw: the obstacles of instance 0 (where a study varies them,
         its other instances' differ), and the robots' footprints."""
-        first = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
         obstacles = [{"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
-                     for w in first.walls]
+                     for w in scene.walls]
         obstacles += [{"kind": "circle", "x": float(x), "y": float(y), "r": float(r)}
-                      for x, y, r in first.circles]
-        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in first.boxes]
+                      for x, y, r in scene.circles]
+        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in scene.boxes]
         footprints = {self.team.agents[a].name: {"radius": float(r)}
                       for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
         world: dict[str, Any] = {"obstacles": obstacles}
         marks = [{"instance": i, "who": who, "t": t, "x": x, "y": y}
-                 for i, first in enumerate(self.collisions)
-                 for who, (_text, t, x, y) in first.items()]
+                 for i, firsts in enumerate(self.collisions)
+                 for who, (_text, t, x, y) in firsts.items()]
         if marks:  # where each party first collided, for the views to mark
             world["collisions"] = marks
         return {"world": world, "footprints": footprints}
