@@ -58,6 +58,24 @@ def one_line(text: str) -> str:
     return _LINE_BREAKS.sub(" ", text)
 
 
+def mermaid_text(text: str) -> str:
+    """Text a model or a trace names, inert in any Mermaid diagram: on one line, no ``;``
+    (ends a statement) or ``#`` (opens an entity, ``#lt;``), no ``%%`` (a comment, or with
+    ``{`` an ``%%{init: …}%%`` directive that reconfigures the renderer) and no ``<`` that
+    could open an HTML tag (Mermaid draws labels as HTML)."""
+    text = one_line(text).replace(";", "\uff1b").replace("#", "\uff03")
+    text = re.sub(r"%+", "%", text)
+    return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
+
+
+def plantuml_text(text: str) -> str:
+    """Text a model or a trace names, inert in any PlantUML diagram: on one line (no
+    ``!include`` or ``@enduml`` of its own), no ``<`` that opens a Creole tag (``<img:…>``
+    reads a file or a URL) and no ``[[`` link (a ``javascript:`` URL in the SVG)."""
+    text = re.sub(r"<(?=[A-Za-z/!?&$])", "< ", one_line(text))
+    return text.replace("[[", "[ [")
+
+
 def dot_quote(text: str) -> str:
     """A Graphviz double-quoted string: any id or label, newlines as centred line breaks."""
     text = text.replace("\\", "\\\\").replace('"', '\\"').replace("\r\n", "\n")
@@ -309,9 +327,10 @@ class _Mermaid(_StateText):
     """
 
     def label(self, text: str) -> str:
-        text = one_line(text).replace(":", "\u2236").replace(";", "\uff1b")
-        text = text.replace("#", "\uff03").replace('"', "'").replace("%%", "%")
-        return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
+        return mermaid_text(text).replace(":", "\u2236").replace('"', "'")
+
+    def name(self, text: str) -> str:
+        return self.label(text)
 
     def message(self, u: str, v: str, data: dict) -> str:
         return self.arrow(u, v, f"{data['message']} (message)")
@@ -344,6 +363,12 @@ class _PlantUML(_StateText):
 
     def fill(self, color: str) -> str:
         return f" {color}"
+
+    def label(self, text: str) -> str:
+        return plantuml_text(text)
+
+    def name(self, text: str) -> str:
+        return plantuml_text(text).replace('"', "'")
 
     def comment(self, text: str) -> str:
         return f"    ' {text}"

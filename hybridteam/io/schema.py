@@ -13,9 +13,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from hybridteam.errors import printable
 from hybridteam.io.reqschema import RequirementEntry
 
-NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")  # \Z: '$' would let "a\n" through
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
 AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of this agent's "
@@ -33,6 +34,24 @@ def check_names(names, what: str) -> None:
             raise ValueError(f"{what} name {name!r} may not start with '__'")
 
 
+def check_title(text: str, what: str) -> str:
+    """A free-text name (a team's, a protocol's) without control characters: it titles
+    diagrams and plots and the terminal's summary, where an escape sequence would act."""
+    if printable(text) != text:
+        raise ValueError(f"{what} name {text!r} has control characters; write it as "
+                         "plain text")
+    return text
+
+
+def check_name(name: str | None, what: str) -> str | None:
+    """One name (None: not given) checked as :func:`check_names` does. Message types,
+    events, sockets and agents named in actions reach the diagrams, the sequence chart and
+    the terminal as they are written, so they are names, never markup or control text."""
+    if name is not None:
+        check_names([name], what)
+    return name
+
+
 class Strict(BaseModel):
     """Unknown keys are errors, and so are NaN and infinite numbers: no setting of a file
     means anything with them (leave a limit out to have none)."""
@@ -48,11 +67,31 @@ class SendSchema(Strict):
     socket: str = Field("control", description="socket name, e.g. control or data")
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
+    @field_validator("send")
+    @classmethod
+    def _message_name(cls, v: str) -> str:
+        return check_name(v, "message")
+
+    @field_validator("to")
+    @classmethod
+    def _agent_name(cls, v: str | None) -> str | None:
+        return check_name(v, "agent")
+
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
+
 
 class RaiseSchema(Strict):
     """Raise a local event in the same agent (handled later in the same instant)."""
 
     raise_: str = Field(alias="raise", description="event name")
+
+    @field_validator("raise_")
+    @classmethod
+    def _event_name(cls, v: str) -> str:
+        return check_name(v, "event")
 
 
 ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_to_right")]
@@ -70,6 +109,11 @@ class TransitionSchema(Strict):
                                    description="'var = expr' assignments/resets, send, raise")
     priority: int = 0
     description: str | None = None
+
+    @field_validator("on")
+    @classmethod
+    def _trigger_name(cls, v: str | None) -> str | None:
+        return check_name(v, "message or event")
 
     @field_validator("after")
     @classmethod
@@ -255,6 +299,16 @@ class ScenarioSchema(Strict):
     agent: str
     raise_: str = Field(alias="raise")
 
+    @field_validator("agent")
+    @classmethod
+    def _agent_name(cls, v: str) -> str:
+        return check_name(v, "agent")
+
+    @field_validator("raise_")
+    @classmethod
+    def _event_name(cls, v: str) -> str:
+        return check_name(v, "event")
+
 
 class LinkSchema(Strict):
     """Delay and loss on a link; numbers, or expressions of team parameters."""
@@ -324,6 +378,11 @@ class MessageDeclSchema(Strict):
     ack: AckSchema | None = None
     priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
 
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
+
 
 class EndSchema(Strict):
     """When a run ends before its duration: ``{agents: [labmate, xr4000], when: all}``."""
@@ -359,6 +418,11 @@ class TeamFile(Strict):
         default_factory=dict, description="named temporal-logic formulas checked on every "
         "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
 
+    @field_validator("team")
+    @classmethod
+    def _team_name(cls, v: str) -> str:
+        return check_title(v, "team")
+
     @field_validator("agents")
     @classmethod
     def _agent_names(cls, v: dict[str, Any]) -> dict[str, Any]:
@@ -379,6 +443,12 @@ class TeamFile(Strict):
         check_names(v, "requirement")
         return v
 
+    @field_validator("messages")
+    @classmethod
+    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "message")
+        return v
+
 
 class StreamDeclSchema(Strict):
     """A periodic data message, e.g. a leader's pose at 20 Hz while in Lead."""
@@ -389,6 +459,16 @@ class StreamDeclSchema(Strict):
                                      description="modes it is sent in (default: always)")
     socket: str = "data"
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
+
+    @field_validator("message")
+    @classmethod
+    def _message_name(cls, v: str) -> str:
+        return check_name(v, "message")
+
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
 
 
 class RegionModeSchema(ModeSchema):
@@ -427,3 +507,14 @@ class ProtocolFile(Strict):
     streams: list[StreamDeclSchema] = Field(default_factory=list)
     region: RegionSchema | None = None
     operator: OperatorSchema | None = None
+
+    @field_validator("protocol")
+    @classmethod
+    def _protocol_name(cls, v: str) -> str:
+        return check_title(v, "protocol")
+
+    @field_validator("messages")
+    @classmethod
+    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "message")
+        return v
