@@ -229,6 +229,40 @@ def test_other_names_in_actions_are_identifiers(tmp_path, capsys, old, new, wher
                                        "digits and _, not starting with a digit\n")
 
 
+PROTOCOL = """\
+kind: protocol
+protocol: p
+messages:
+  hello: {fields: [x]}
+region:
+  roles: [go]
+  initial: Going
+  modes:
+    Going: {role: go}
+"""
+
+
+@pytest.mark.parametrize("old, new, where, what", [
+    ("roles: [go]", 'roles: ["<b>go"]', "6:10", "region.roles: role name '<b>go'"),
+    ("    Going:", '    "Going<br>":', "9:5", "region.modes: mode name 'Going<br>'"),
+    ("fields: [x]", 'fields: ["x%%{"]', "4:19", "messages.hello.fields: field name 'x%%{'"),
+    ("  hello:", '  "hello<i>":', "4:3", "messages: message name 'hello<i>'"),
+])
+def test_names_a_protocol_declares_are_identifiers(tmp_path, capsys, old, new, where, what):
+    """Roles, region modes and message fields were not checked at all before."""
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(PROTOCOL.replace(old, new))
+    assert main(["validate", str(protocol)]) == 2
+    assert capsys.readouterr().err == (f"{protocol}:{where}: {what} is not valid: use "
+                                       "letters, digits and _, not starting with a digit\n")
+
+
+def test_the_protocol_of_the_case_above_is_valid(tmp_path, capsys):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(PROTOCOL)
+    assert main(["validate", str(protocol)]) == 0
+
+
 # --- diagrams: what a trace or a team names is inert text -----------------------------
 
 MERMAID_TAG = re.compile(r"<[A-Za-z/!?]")

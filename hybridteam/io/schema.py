@@ -153,6 +153,12 @@ class ModeSchema(Strict):
     roles: dict[str, ModeSchema] | None = Field(
         None, description="with 'protocol': what each role (e.g. lead, follow) does")
 
+    @field_validator("roles")
+    @classmethod
+    def _role_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
+        check_names(v or (), "role")
+        return v
+
     @field_validator("modes")
     @classmethod
     def _mode_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -383,6 +389,12 @@ class MessageDeclSchema(Strict):
     def _socket_name(cls, v: str) -> str:
         return check_name(v, "socket")
 
+    @field_validator("fields")
+    @classmethod
+    def _field_names(cls, v: list[str]) -> list[str]:
+        check_names(v, "field")
+        return v
+
 
 class EndSchema(Strict):
     """When a run ends before its duration: ``{agents: [labmate, xr4000], when: all}``."""
@@ -392,6 +404,12 @@ class EndSchema(Strict):
         description="agents whose final modes end the run (default: all but operators)")
     when: Literal["all", "any"] = Field(
         "all", description="all: when every one of them is final; any: when the first is")
+
+    @field_validator("agents")
+    @classmethod
+    def _agent_names(cls, v: list[str] | None) -> list[str] | None:
+        check_names(v or (), "agent")
+        return v
 
 
 class TeamFile(Strict):
@@ -465,6 +483,12 @@ class StreamDeclSchema(Strict):
     def _message_name(cls, v: str) -> str:
         return check_name(v, "message")
 
+    @field_validator("while_")
+    @classmethod
+    def _mode_names(cls, v: list[str] | None) -> list[str] | None:
+        check_names(v or (), "mode")
+        return v
+
     @field_validator("socket")
     @classmethod
     def _socket_name(cls, v: str) -> str:
@@ -477,11 +501,28 @@ class RegionModeSchema(ModeSchema):
 
     role: str | None = None
 
+    @field_validator("role")
+    @classmethod
+    def _role_name(cls, v: str | None) -> str | None:
+        return check_name(v, "role")
+
 
 class RegionSchema(Strict):
     roles: list[str] = Field(default_factory=list)
     initial: str | None = None
     modes: dict[str, RegionModeSchema]
+
+    @field_validator("roles")
+    @classmethod
+    def _role_names(cls, v: list[str]) -> list[str]:
+        check_names(v, "role")
+        return v
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "mode")
+        return v
 
 
 class OperatorSchema(Strict):
@@ -493,6 +534,18 @@ class OperatorSchema(Strict):
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     modes: dict[str, ModeSchema]
+
+    @field_validator("parameters", "variables")
+    @classmethod
+    def _names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "parameter/variable")
+        return v
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "mode")
+        return v
 
 
 class ProtocolFile(Strict):
