@@ -14,6 +14,7 @@ import json
 import sys
 import warnings
 from pathlib import Path
+from typing import TextIO
 
 from hybridteam.errors import printable
 
@@ -29,7 +30,8 @@ def say(message: object) -> None:
     print(printable(str(message)), file=sys.stderr)
 
 
-def show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+def show_warning(message: Warning | str, category: type[Warning], filename: str,
+                 lineno: int, file: TextIO | None = None, line: str | None = None) -> None:
     """:func:`warnings.showwarning` for the command line: a library's warning (matplotlib's
     "Glyph 27 (\\x1b) missing from font", quoting a name) printed with :func:`say`'s
     escapes."""

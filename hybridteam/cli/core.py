@@ -22,7 +22,7 @@ from hybridteam.cli.common import (
     say,
     write_run_folder,
 )
-from hybridteam.errors import ModelError
+from hybridteam.errors import ModelError, printable
 from hybridteam.progress import MODES, reporter
 
 
@@ -83,7 +83,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         if loaded.warnings and args.strict:
             status = EXIT_USAGE
         elif status == EXIT_OK:
-            print(f"{name}: ok ({loaded.kind})")
+            print(printable(f"{name}: ok ({loaded.kind})"))  # a name a glob may have found
     return status
 
 

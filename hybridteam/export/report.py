@@ -45,9 +45,9 @@ pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; 
 """
 
 
-# an SVG document: optional XML prolog, comments and doctype, then the <svg> element
-_SVG_START = re.compile(rb"\s*(<\?xml[^>]*>\s*)?(<!--.*?-->\s*)*(<!DOCTYPE[^>]*>\s*)?"
-                        rb"(<!--.*?-->\s*)*<svg[\s>]", re.DOTALL)
+# an SVG document starts with markup and opens its <svg> element within its prolog (XML
+# declaration, doctype, comments such as Graphviz's title, which may quote a team name)
+_SVG_START, _SVG_ELEMENT = re.compile(rb"(\xef\xbb\xbf)?\s*<"), re.compile(rb"<svg[\s>]")
 _GIF_START = (b"GIF87a", b"GIF89a")
 
 
@@ -58,7 +58,8 @@ class NotAnImage(ValueError):
 def _image(path: Path, kind: str) -> bytes:
     """The bytes of the folder's image ``path`` (``svg`` or ``gif``), checked to be one."""
     data = path.read_bytes()
-    ok = _SVG_START.match(data[:4096]) if kind == "svg" else data[:6] in _GIF_START
+    ok = (_SVG_START.match(data) and _SVG_ELEMENT.search(data, 0, 8192)) if kind == "svg" \
+        else data[:6] in _GIF_START
     if not ok:
         what = "an SVG image (<svg> markup)" if kind == "svg" else "a GIF image"
         raise NotAnImage(f"{path}: not {what}; it is left out of the report, not copied "
