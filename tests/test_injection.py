@@ -379,6 +379,16 @@ def test_a_file_name_with_control_characters_is_shown_escaped(tmp_path, capsys,
                                        "file or directory\n")
 
 
+def test_a_bad_argument_is_shown_escaped(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["timeline", "t.json", "\x1b]0;PWNED\x07"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1] == ("hybridteam: error: unrecognized arguments: "
+                                    "\\x1b]0;PWNED\\x07")
+    assert not CONTROL.search(err)
+
+
 def test_validate_shows_a_file_name_s_control_characters_escaped(tmp_path, capsys,
                                                                  monkeypatch):
     """``hybridteam validate *.yaml`` in a folder handed over: a file's name is not run."""
