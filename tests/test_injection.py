@@ -190,8 +190,8 @@ def test_a_folder_image_that_is_another_file_is_not_copied_in(run_folder, tmp_pa
     (folder / name).symlink_to(secret)
     assert main(["report", str(folder)]) == 2
     err = capsys.readouterr().err
-    assert err == f"hybridteam: error: {folder / name}: not {kind}; it is left out of the " \
-                  "report, not copied into it\n"
+    assert err == f"hybridteam: error: {folder / name}: not {kind}; refusing to copy it " \
+                  "into the report\n"
     assert not (folder / "report.html").exists()
 
 

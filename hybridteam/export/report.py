@@ -47,7 +47,7 @@ pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; 
 
 # an SVG document starts with markup and opens its <svg> element within its prolog (XML
 # declaration, doctype, comments such as Graphviz's title, which may quote a team name)
-_SVG_START, _SVG_ELEMENT = re.compile(rb"(\xef\xbb\xbf)?\s*<"), re.compile(rb"<svg[\s>]")
+_SVG_START, _SVG_ELEMENT = re.compile(rb"(\xef\xbb\xbf)?\s*<"), re.compile(rb"<svg[\s/>]")
 _GIF_START = (b"GIF87a", b"GIF89a")
 
 
@@ -62,8 +62,7 @@ def _image(path: Path, kind: str) -> bytes:
         else data[:6] in _GIF_START
     if not ok:
         what = "an SVG image (<svg> markup)" if kind == "svg" else "a GIF image"
-        raise NotAnImage(f"{path}: not {what}; it is left out of the report, not copied "
-                         "into it")
+        raise NotAnImage(f"{path}: not {what}; refusing to copy it into the report")
     return data
 
 
@@ -128,7 +127,8 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
     """Write ``report.html`` (or ``output``) for the run folder ``folder`` from its trace
     and summary (``trace.json``, ``summary.json``, as ``hybridteam run`` writes them). The
     state diagram and an animation already in the folder are used; the other views are
-    drawn now, for ``instance``."""
+    drawn now, for ``instance``. Raises :class:`NotAnImage` for a folder's ``modes.svg``
+    or ``run.gif`` that is not that image (nothing is written)."""
     from hybridteam.export.animate import write_animation
     from hybridteam.export.sequence import sequence_chart
     from hybridteam.export.timeline import write_timeline
