@@ -368,7 +368,8 @@ def test_a_team_name_with_control_characters_is_refused(tmp_path, capsys):
     team.write_text(PING.replace("team: ping", 'team: "t\\e[2J\\rx"'))
     assert main(["validate", str(team)]) == 2
     assert capsys.readouterr().err == (f"{team}:1:7: team: team name 't\\x1b[2J\\rx' has "
-                                       "control characters; write it as plain text\n")
+                                       "control characters or lone surrogates; write it as "
+                                       "plain text\n")
 
 
 def test_a_file_name_with_control_characters_is_shown_escaped(tmp_path, capsys,

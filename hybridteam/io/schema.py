@@ -38,8 +38,8 @@ def check_title(text: str, what: str) -> str:
     """A free-text name (a team's, a protocol's) without control characters: it titles
     diagrams and plots and the terminal's summary, where an escape sequence would act."""
     if printable(text) != text:
-        raise ValueError(f"{what} name {text!r} has control characters; write it as "
-                         "plain text")
+        raise ValueError(f"{what} name {text!r} has control characters or lone "
+                         "surrogates; write it as plain text")
     return text
 
 
