@@ -283,6 +283,7 @@ def test_the_protocol_of_the_case_above_is_valid(tmp_path, capsys):
 # --- diagrams: what a trace or a team names is inert text -----------------------------
 
 MERMAID_TAG = re.compile(r"<[A-Za-z/!?]")
+CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")  # what a terminal acts on
 
 
 def hostile_trace(run_folder: Path, kind: str, name: str) -> Trace:
@@ -297,7 +298,9 @@ def hostile_trace(run_folder: Path, kind: str, name: str) -> Trace:
 
 
 def mermaid_is_ours(text: str) -> None:
-    """A sequence chart's Mermaid: our statements only, no directive, no tag."""
+    """A sequence chart's Mermaid: our statements only, no directive, no tag, nothing a
+    terminal it is printed on would act on."""
+    assert not CONTROL.search(text), text
     assert "%%" not in text  # a sequence chart writes no comment, so none is ours
     assert not MERMAID_TAG.search(text), text
     lines = text.splitlines()
@@ -308,6 +311,7 @@ def mermaid_is_ours(text: str) -> None:
 
 
 def plantuml_is_ours(text: str) -> None:
+    assert not CONTROL.search(text), text
     assert not re.search(r"<[A-Za-z/!?&$]|\[\[", text), text
     lines = text.splitlines()
     assert lines[:2] == ["@startuml", "hide footbox"] and lines[-1] == "@enduml"
@@ -317,6 +321,7 @@ def plantuml_is_ours(text: str) -> None:
 @pytest.mark.parametrize("name", [
     "%%{init: {'theme': 'dark'}}%%", "%%%{init: {'securityLevel': 'loose'}}%%%",
     "<img src=x onerror=alert(1)>", "</pre><script>alert(1)</script>", "a;b#lt;c\nd",
+    "\x1b]0;PWNED\x07\x1b[31mred",
 ])
 def test_a_trace_s_message_names_are_inert_in_the_sequence_chart(run_folder, name):
     trace = hostile_trace(run_folder, "type", name)
@@ -349,9 +354,6 @@ def test_a_team_name_is_inert_in_state_diagram_text(tmp_path, capsys):
 
 
 # --- the terminal: control characters are shown, not run ------------------------------
-
-CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f]")
-
 
 def test_an_error_quoting_a_name_escapes_its_control_characters(tmp_path, capsys):
     team = tmp_path / "team.yaml"

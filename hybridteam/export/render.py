@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import networkx as nx
 
-from hybridteam.errors import did_you_mean
+from hybridteam.errors import did_you_mean, printable
 from hybridteam.export.diagram import (
     agents,
     ancestors,
@@ -61,9 +61,10 @@ def one_line(text: str) -> str:
 def mermaid_text(text: str) -> str:
     """Text a model or a trace names, inert in any Mermaid diagram: on one line, no ``;``
     (ends a statement) or ``#`` (opens an entity, ``#lt;``), no ``%%`` (a comment, or with
-    ``{`` an ``%%{init: …}%%`` directive that reconfigures the renderer) and no ``<`` that
-    could open an HTML tag (Mermaid draws labels as HTML)."""
-    text = one_line(text).replace(";", "\uff1b").replace("#", "\uff03")
+    ``{`` an ``%%{init: …}%%`` directive that reconfigures the renderer), no ``<`` that
+    could open an HTML tag (Mermaid draws labels as HTML) and no control character (the
+    text may be printed on a terminal)."""
+    text = printable(one_line(text)).replace(";", "\uff1b").replace("#", "\uff03")
     text = re.sub(r"%+", "%", text)
     return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
 
@@ -71,8 +72,9 @@ def mermaid_text(text: str) -> str:
 def plantuml_text(text: str) -> str:
     """Text a model or a trace names, inert in any PlantUML diagram: on one line (no
     ``!include`` or ``@enduml`` of its own), no ``<`` that opens a Creole tag (``<img:…>``
-    reads a file or a URL) and no ``[[`` link (a ``javascript:`` URL in the SVG)."""
-    text = re.sub(r"<(?=[A-Za-z/!?&$])", "< ", one_line(text))
+    reads a file or a URL), no ``[[`` link (a ``javascript:`` URL in the SVG) and no
+    control character (the text may be printed on a terminal)."""
+    text = re.sub(r"<(?=[A-Za-z/!?&$])", "< ", printable(one_line(text)))
     return text.replace("[[", "[ [")
 
 
