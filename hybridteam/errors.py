@@ -9,9 +9,24 @@ built in Python keep the path alone.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Iterable
 
 DocPath = tuple[str | int, ...]
+
+# what a terminal acts on instead of showing: C0 and C1 controls but tab and newline (ESC
+# starts colour codes and OSC window-title sequences, BEL rings, CR overwrites the line),
+# DEL, the bidirectional overrides that reorder what is shown, and lone surrogates (which
+# cannot be written out at all)
+_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u202a-\u202e"
+                      "\u2066-\u2069\ud800-\udfff]")
+
+
+def printable(text: str) -> str:
+    """``text`` safe to print to a terminal: every control character shown as its Python
+    escape (``\\x1b``, ``\\u202e``), so a name read from a file can say anything but
+    can neither recolour, retitle nor rewrite the terminal it is printed on."""
+    return _CONTROL.sub(lambda m: ascii(m.group())[1:-1], text)
 
 
 def closest(name: str, candidates: Iterable[str]) -> str | None:

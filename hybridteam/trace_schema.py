@@ -156,16 +156,42 @@ class TraceFile(BaseModel):
         return self
 
 
-def check_trace(data: Any) -> str | None:
-    """The first problem of a parsed ``trace.json`` (``"samples.t[3]: ..."``), or None."""
+def first_problem(model: type[BaseModel], data: Any, what: str) -> tuple[tuple, str] | None:
+    """The first problem of ``data`` read as ``model``: its path in the file (JSON keys and
+    indices) and ``"samples.t[3]: ..."``; None when it fits. ``what`` names the file's kind
+    in the message for data that is not even a JSON object."""
     try:
-        TraceFile.model_validate(data)
+        model.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
-        where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in err["loc"])
+        path = _in_data(err["loc"], data)
+        where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path)
         where = where.lstrip(".") or "the file"
         message = err["msg"].removeprefix("Value error, ")
         if err["type"] == "model_type":
-            message = "expected a JSON object of a hybridteam trace"
-        return f"{where}: {message}" if err["loc"] else message
+            message = f"expected a JSON object of {what}"
+        return path, (f"{where}: {message}" if err["loc"] else message)
     return None
+
+
+def _in_data(loc: tuple, data: Any) -> tuple:
+    """The segments of a pydantic ``loc`` that are keys and indices of ``data`` (or a key
+    missing from an object): without the names of union members pydantic inserts
+    (``seed.int``), which the file does not have."""
+    path = []
+    for seg in loc:
+        in_dict = isinstance(data, dict) and isinstance(seg, str) and seg in data
+        in_list = isinstance(data, list) and type(seg) is int and 0 <= seg < len(data)
+        if in_dict or in_list:
+            data = data[seg]
+            path.append(seg)
+        elif isinstance(data, dict):  # a required key the object lacks: the path ends here
+            path.append(seg)
+            break
+    return tuple(path)
+
+
+def check_trace(data: Any) -> str | None:
+    """The first problem of a parsed ``trace.json`` (``"samples.t[3]: ..."``), or None."""
+    problem = first_problem(TraceFile, data, "a hybridteam trace")
+    return None if problem is None else problem[1]

@@ -9,10 +9,19 @@ errors and run folders through :mod:`.common`. Groups never import each other.
 from __future__ import annotations
 
 import sys
+import warnings
 from collections.abc import Sequence
 
 from hybridteam.cli import core, falsify, sweep, verify, views
-from hybridteam.cli.common import EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, Parser, UsageError
+from hybridteam.cli.common import (
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    Parser,
+    UsageError,
+    say,
+    show_warning,
+)
 
 __all__ = ["main"]
 
@@ -27,12 +36,18 @@ def _parser() -> tuple[Parser, dict]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    with warnings.catch_warnings():  # restores the caller's showwarning (tests call main)
+        warnings.showwarning = show_warning
+        return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     parser, commands = _parser()
     args = parser.parse_args(argv)
     try:
         return commands[args.command](args)
     except UsageError as exc:
-        print(f"hybridteam: error: {exc}", file=sys.stderr)
+        say(f"hybridteam: error: {exc}")
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("hybridteam: interrupted; nothing written", file=sys.stderr)
@@ -41,5 +56,5 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.close()
         return EXIT_OK
     except OSError as exc:  # standard output full or closed, and the like: one line
-        print(f"hybridteam: error: cannot write: {exc.strerror or exc}", file=sys.stderr)
+        say(f"hybridteam: error: cannot write: {exc.strerror or exc}")
         return EXIT_USAGE

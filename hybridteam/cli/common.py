@@ -1,7 +1,10 @@
 """What every command shares: exit codes, usage errors, the parser class, error printing.
 
 Bad input of any kind — YAML, schema, model, arguments — prints located messages to stderr
-and exits with status 2, never a traceback, and writes nothing.
+and exits with status 2, never a traceback, and writes nothing. Every message and warning
+goes to the terminal through :func:`say` (libraries' warnings through :func:`show_warning`),
+which shows control characters as escapes: a message quotes names from files anyone can
+hand over, and a name must not recolour, retitle or rewrite the terminal.
 """
 
 from __future__ import annotations
@@ -9,7 +12,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
+from typing import TextIO
+
+from hybridteam.errors import printable
 
 EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
 
@@ -18,12 +25,26 @@ class UsageError(Exception):
     """A bad argument: printed as one line, exit status 2."""
 
 
+def say(message: object) -> None:
+    """Print an error, a warning or a note to stderr, its control characters escaped."""
+    print(printable(str(message)), file=sys.stderr)
+
+
+def show_warning(message: Warning | str, category: type[Warning], filename: str,
+                 lineno: int, file: TextIO | None = None, line: str | None = None) -> None:
+    """:func:`warnings.showwarning` for the command line: a library's warning (matplotlib's
+    "Glyph 27 (\\x1b) missing from font", quoting a name) printed with :func:`say`'s
+    escapes."""
+    text = warnings.formatwarning(message, category, filename, lineno, line)
+    (file or sys.stderr).write(printable(text))
+
+
 class Parser(argparse.ArgumentParser):
     """argparse, with its error exit routed through our exit code."""
 
     def error(self, message: str) -> None:  # argparse would print usage + exit 2 too
         self.print_usage(sys.stderr)
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        say(f"{self.prog}: error: {message}")
         raise SystemExit(EXIT_USAGE)
 
 
@@ -38,7 +59,7 @@ def output_folder(name: str) -> Path:
 def print_errors(exc) -> None:
     """Each located error of an :class:`~hybridteam.io.filekind.InputErrors`, one a line."""
     for err in exc.errors:
-        print(err, file=sys.stderr)
+        say(err)
 
 
 def load_team_or_report(path: str, warnings: bool = False):
@@ -52,7 +73,7 @@ def load_team_or_report(path: str, warnings: bool = False):
         print_errors(exc)
         return None
     for w in loaded.warnings if warnings else ():
-        print(f"{w} (warning)", file=sys.stderr)
+        say(f"{w} (warning)")
     return loaded.model
 
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -20,9 +19,10 @@ from hybridteam.cli.common import (
     load_team_or_report,
     output_folder,
     print_errors,
+    say,
     write_run_folder,
 )
-from hybridteam.errors import ModelError
+from hybridteam.errors import ModelError, printable
 from hybridteam.progress import MODES, reporter
 
 
@@ -82,11 +82,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
             status = EXIT_USAGE
             continue
         for w in loaded.warnings:
-            print(f"{w} (warning)", file=sys.stderr)
+            say(f"{w} (warning)")
         if loaded.warnings and args.strict:
             status = EXIT_USAGE
         else:  # every file gets its verdict, also after a failing one
-            print(f"{name}: ok ({loaded.kind})")
+            print(printable(f"{name}: ok ({loaded.kind})"))  # a name a glob may have found
     return status
 
 
@@ -152,7 +152,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ModelError as exc:  # a value out of range in some instance: at its line
         from hybridteam.io.loader import locate_in_file
 
-        print(locate_in_file(exc, args.team), file=sys.stderr)
+        say(locate_in_file(exc, args.team))
         return EXIT_USAGE
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
@@ -251,5 +251,5 @@ def cmd_laws(args: argparse.Namespace) -> int:
         if reads:
             print("    reads from the agent: " + ", ".join(reads))
     if (note := broken_note()) is not None:
-        print(f"hybridteam: warning: {note}", file=sys.stderr)
+        say(f"hybridteam: warning: {note}")
     return EXIT_OK

@@ -18,6 +18,7 @@ from hybridteam.cli.common import (
     UsageError,
     output_folder,
     print_errors,
+    say,
 )
 from hybridteam.progress import MODES
 
@@ -84,7 +85,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
               "run the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
     for warning in result.warnings:
-        print(f"hybridteam: warning: {warning}", file=sys.stderr)
+        say(f"hybridteam: warning: {warning}")
     if not args.quiet:
         plan = result.plan
         tally: dict[str, int] = {}

@@ -277,10 +277,44 @@ def cmd_sequence(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _load_summary(path: Path) -> dict:
+    """A run folder's ``summary.json``, checked against its format; or a one-line error at
+    the file, line and column of its first bad field (a file anyone can hand over)."""
+    from hybridteam.summary_schema import check_summary
+
+    try:
+        text = path.read_text(encoding="utf-8")
+        summary = json.loads(text)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UsageError(f"{path}: cannot read: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
+    except RecursionError:
+        raise UsageError(f"{path}: not a run summary (nested too deeply)") from None
+    problem = check_summary(summary)
+    if problem is None:
+        return summary
+    where, message = problem
+    raise UsageError(f"{path}{_json_position(text, where)}: not a run summary: {message}")
+
+
+def _json_position(text: str, where: tuple) -> str:
+    """``:line:column`` of the value at ``where`` in a JSON document (JSON is YAML, whose
+    reader keeps positions), or nothing when the text cannot be read that way."""
+    from hybridteam.io.yamlpos import SourceError, load_yaml
+
+    try:
+        _, positions = load_yaml(text)
+    except (SourceError, RecursionError):
+        return ""
+    mark = positions.value(where) or positions.nearest(where)[1]
+    return f":{mark.line}:{mark.column}"
+
+
 def cmd_run_report(args: argparse.Namespace) -> int:
     """``hybridteam report RUN_FOLDER``: the HTML page of a run, for a folder that holds a
     ``trace.json`` (others get the study's report, see :mod:`.sweep`)."""
-    from hybridteam.export.report import write_report
+    from hybridteam.export.report import NotAnImage, write_report
 
     folder = Path(args.folder)
     if args.output is not None:
@@ -289,13 +323,11 @@ def cmd_run_report(args: argparse.Namespace) -> int:
         raise UsageError(f"{folder}: no summary.json; is it a folder written by "
                          "'hybridteam run -o FOLDER'?")
     trace = _load_trace(str(folder / "trace.json"), args.instance)
+    summary = _load_summary(folder / "summary.json")
     try:
-        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise UsageError(f"{folder / 'summary.json'}: cannot read: {exc}") from None
-    if not isinstance(summary, dict):
-        raise UsageError(f"{folder / 'summary.json'}: not a run summary")
-    out = write_report(folder, trace, summary, args.output, instance=args.instance,
-                       animation=not args.no_animation)
+        out = write_report(folder, trace, summary, args.output, instance=args.instance,
+                           animation=not args.no_animation)
+    except NotAnImage as exc:
+        raise UsageError(str(exc)) from None
     print(f"wrote {out}")
     return EXIT_OK

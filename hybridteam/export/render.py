@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import networkx as nx
 
-from hybridteam.errors import did_you_mean
+from hybridteam.errors import did_you_mean, printable
 from hybridteam.export.diagram import (
     agents,
     ancestors,
@@ -56,6 +56,26 @@ def one_line(text: str) -> str:
     """``text`` with every line break (all that a parser may end a line at) a space: what a
     model names cannot start a line of its own in a text export (no injected statements)."""
     return _LINE_BREAKS.sub(" ", text)
+
+
+def mermaid_text(text: str) -> str:
+    """Text a model or a trace names, inert in any Mermaid diagram: on one line, no ``;``
+    (ends a statement) or ``#`` (opens an entity, ``#lt;``), no ``%%`` (a comment, or with
+    ``{`` an ``%%{init: …}%%`` directive that reconfigures the renderer), no ``<`` that
+    could open an HTML tag (Mermaid draws labels as HTML) and no control character (the
+    text may be printed on a terminal)."""
+    text = printable(one_line(text)).replace(";", "\uff1b").replace("#", "\uff03")
+    text = re.sub(r"%+", "%", text)
+    return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
+
+
+def plantuml_text(text: str) -> str:
+    """Text a model or a trace names, inert in any PlantUML diagram: on one line (no
+    ``!include`` or ``@enduml`` of its own), no ``<`` that opens a Creole tag (``<img:…>``
+    reads a file or a URL), no ``[[`` link (a ``javascript:`` URL in the SVG) and no
+    control character (the text may be printed on a terminal)."""
+    text = re.sub(r"<(?=[A-Za-z/!?&$])", "< ", printable(one_line(text)))
+    return text.replace("[[", "[ [")
 
 
 def dot_quote(text: str) -> str:
@@ -309,9 +329,10 @@ class _Mermaid(_StateText):
     """
 
     def label(self, text: str) -> str:
-        text = one_line(text).replace(":", "\u2236").replace(";", "\uff1b")
-        text = text.replace("#", "\uff03").replace('"', "'").replace("%%", "%")
-        return re.sub(r"<(?=[A-Za-z/!?])", "< ", text)
+        return mermaid_text(text).replace(":", "\u2236").replace('"', "'")
+
+    def name(self, text: str) -> str:
+        return self.label(text)
 
     def message(self, u: str, v: str, data: dict) -> str:
         return self.arrow(u, v, f"{data['message']} (message)")
@@ -344,6 +365,12 @@ class _PlantUML(_StateText):
 
     def fill(self, color: str) -> str:
         return f" {color}"
+
+    def label(self, text: str) -> str:
+        return plantuml_text(text)
+
+    def name(self, text: str) -> str:
+        return plantuml_text(text).replace('"', "'")
 
     def comment(self, text: str) -> str:
         return f"    ' {text}"

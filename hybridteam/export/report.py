@@ -1,6 +1,6 @@
 """One self-contained HTML page for a run folder: what a reader opens first.
 
-Everything is inline — SVG as markup, the animation as a data URI, no script, no font or
+Everything is inline — figures and the animation as data URIs, no script, no font or
 stylesheet from elsewhere — so the page opens from a mail attachment or an offline laptop
 exactly as it was written. Sections: the summary (outcome per instance, with the
 statistics world components report), the requirement verdicts when the team states
@@ -8,6 +8,14 @@ requirements, the state diagram, the timeline, the trajectories,
 the animation, and the message sequence chart as Mermaid source (rendering Mermaid needs a
 JavaScript library, which an offline page cannot fetch; the source is readable, and pastes
 into any Mermaid viewer).
+
+A run folder is a file anyone can hand over, so nothing read from it reaches the page as
+markup: every value of ``summary.json`` and the trace is escaped, and every figure —
+the folder's ``modes.svg`` as much as the views drawn now — is an ``<img>`` of a data
+URI, never inline SVG. A browser runs no script and fetches nothing for an image, so
+whatever markup a hostile ``modes.svg`` carries is inert by construction, with no
+sanitizer to get wrong. A file that is not the image it is named as (``modes.svg`` or
+``run.gif`` linked to a private file) is refused rather than copied into the page.
 """
 
 from __future__ import annotations
@@ -37,13 +45,36 @@ pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; 
 """
 
 
-def _svg(path: Path) -> str:
-    """An SVG file's markup, without its XML prolog and doctype (inline in HTML)."""
-    text = path.read_text(encoding="utf-8")
-    return re.sub(r"^\s*(<\?xml[^>]*>\s*)?(<!DOCTYPE[^>]*>\s*)?", "", text)
+# an SVG document starts with markup and opens its <svg> element within its prolog (XML
+# declaration, doctype, comments such as Graphviz's title, which may quote a team name)
+_SVG_START, _SVG_ELEMENT = re.compile(rb"(\xef\xbb\xbf)?\s*<"), re.compile(rb"<svg[\s/>]")
+_GIF_START = (b"GIF87a", b"GIF89a")
+
+
+class NotAnImage(ValueError):
+    """A file of the run folder is not the image its name says (the message names it)."""
+
+
+def _image(path: Path, kind: str) -> bytes:
+    """The bytes of the folder's image ``path`` (``svg`` or ``gif``), checked to be one."""
+    data = path.read_bytes()
+    ok = (_SVG_START.match(data) and _SVG_ELEMENT.search(data, 0, 8192)) if kind == "svg" \
+        else data[:6] in _GIF_START
+    if not ok:
+        what = "an SVG image (<svg> markup)" if kind == "svg" else "a GIF image"
+        raise NotAnImage(f"{path}: not {what}; refusing to copy it into the report")
+    return data
+
+
+def _figure(data: bytes, kind: str, alt: str) -> str:
+    """An image as an ``<img>`` of a data URI: inert whatever the file holds."""
+    mime = {"svg": "svg+xml", "gif": "gif"}[kind]
+    uri = f"data:image/{mime};base64," + base64.b64encode(data).decode("ascii")
+    return f"<div class='figure'><img alt='{html.escape(alt)}' src='{uri}'></div>"
 
 
 def _cell(value: Any) -> str:
+    """A value read back from ``summary.json``, as text of the page (always escaped)."""
     if isinstance(value, float):
         return f"{value:.6g}"
     if isinstance(value, list):
@@ -58,13 +89,14 @@ def _summary(summary: dict[str, Any]) -> str:
     body = []
     for row in rows:
         cls = "ok" if row.get("outcome") in ("ok", "success") else "bad"
-        cells = [f"<td>{row.get('instance', '')}</td>"]
+        cells = [f"<td>{_cell(row.get('instance', ''))}</td>"]
         cells += [f"<td class='{cls}'>{_cell(row[k])}</td>" if k == "outcome" else
                   f"<td>{_cell(row.get(k, ''))}</td>" for k in keys]
         body.append("<tr>" + "".join(cells) + "</tr>")
     tally = ", ".join(f"{k}: {v}" for k, v in (summary.get("outcomes") or {}).items())
-    facts = (f"<p>{summary.get('n', len(rows))} instance(s), seed {summary.get('seed')}, "
-             f"{summary.get('duration')} s simulated at most — {html.escape(tally)}</p>")
+    facts = (f"<p>{_cell(summary.get('n', len(rows)))} instance(s), seed "
+             f"{_cell(summary.get('seed'))}, {_cell(summary.get('duration'))} s simulated "
+             f"at most — {html.escape(tally)}</p>")
     return facts + f"<table><tr>{head}</tr>{''.join(body)}</table>"
 
 
@@ -81,7 +113,7 @@ def _requirements(summary: dict[str, Any]) -> str:
             what = ("holds" if held else
                     f"violated at t = {_cell(v.get('violated_at'))} by "
                     f"<code>{html.escape(str(v.get('failed')))}</code>")
-            body.append(f"<tr><td>{row.get('instance', '')}</td><td>{html.escape(name)}</td>"
+            body.append(f"<tr><td>{_cell(row.get('instance', ''))}</td><td>{html.escape(name)}</td>"
                         f"<td class='{'ok' if held else 'bad'}'>{what}</td>"
                         f"<td>{_cell(v.get('robustness'))}</td></tr>")
     return ("<section id='requirements'><h2>Requirements</h2><table><tr><th>instance</th>"
@@ -96,7 +128,8 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
     and summary (``trace.json``, ``summary.json``, as ``hybridteam run`` writes them). The
     state diagram and an animation already in the folder are used; the other views are
     drawn now, for ``instance``. ``animation=False`` leaves the animation out (drawing it
-    is most of the page's time) and says so in its section."""
+    is most of the page's time) and says so in its section. Raises :class:`NotAnImage` for
+    a folder's ``modes.svg`` or ``run.gif`` that is not that image (nothing is written)."""
     from hybridteam.export.animate import write_animation
     from hybridteam.export.sequence import sequence_chart
     from hybridteam.export.timeline import write_timeline
@@ -109,24 +142,26 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
     with tempfile.TemporaryDirectory() as tmp:
         scratch = Path(tmp)
         diagram = folder / "modes.svg"
-        parts.append("<section id='diagram'><h2>State diagram</h2><div class='figure'>" +
-                     (_svg(diagram) if diagram.is_file() else
+        parts.append("<section id='diagram'><h2>State diagram</h2>" +
+                     (_figure(_image(diagram, "svg"), "svg", "state diagram")
+                      if diagram.is_file() else
                       "<p>(no modes.svg in the folder: run without --no-views)</p>") +
-                     "</div></section>")
+                     "</section>")
         write_timeline(trace, scratch / "timeline.svg", instance=instance)
-        parts.append("<section id='timeline'><h2>Timeline</h2><div class='figure'>" +
-                     _svg(scratch / "timeline.svg") + "</div></section>")
+        parts.append("<section id='timeline'><h2>Timeline</h2>" +
+                     _figure((scratch / "timeline.svg").read_bytes(), "svg", "mode timeline")
+                     + "</section>")
         write_trajectories(trace, scratch / "trajectories.svg", instance=instance)
-        parts.append("<section id='trajectories'><h2>Trajectories</h2><div class='figure'>"
-                     + _svg(scratch / "trajectories.svg") + "</div></section>")
+        parts.append("<section id='trajectories'><h2>Trajectories</h2>" +
+                     _figure((scratch / "trajectories.svg").read_bytes(), "svg",
+                             "trajectories") + "</section>")
         if animation:
             gif = folder / "run.gif"
-            if not gif.is_file():
-                gif = write_animation(trace, scratch / "run.gif", instance=instance, fps=10,
-                                      dpi=80)
-            uri = "data:image/gif;base64," + base64.b64encode(gif.read_bytes()).decode()
-            parts.append("<section id='animation'><h2>Animation</h2><div class='figure'>"
-                         f"<img alt='animation of the run' src='{uri}'></div></section>")
+            data = (_image(gif, "gif") if gif.is_file() else
+                    write_animation(trace, scratch / "run.gif", instance=instance, fps=10,
+                                    dpi=80).read_bytes())
+            parts.append("<section id='animation'><h2>Animation</h2>" +
+                         _figure(data, "gif", "animation of the run") + "</section>")
         else:  # say so, or a reader looks for it
             parts.append("<section id='animation'><h2>Animation</h2><p>Skipped "
                          "(<code>--no-animation</code>); <code>hybridteam animate "

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybridteam.errors import did_you_mean
-from hybridteam.export.render import one_line
+from hybridteam.export.render import mermaid_text, plantuml_text
 from hybridteam.trace import Trace
 
 FORMATS = ("mermaid", "plantuml")
@@ -116,8 +116,11 @@ def _ident(name: str) -> str:
 
 
 def _mermaid_text(text: str) -> str:
-    """Mermaid ends a message at ``;`` or a newline and reads ``#...;`` as an entity."""
-    return one_line(text).replace(";", ",").replace("#", "\uff03")
+    """Names and labels as Mermaid text: what a trace names (a message type, an agent, a
+    loss reason) is read from a file and may carry a directive or a tag; the text is made
+    inert (:func:`~hybridteam.export.render.mermaid_text`). A ``;`` would end the message,
+    so it becomes a comma."""
+    return mermaid_text(text.replace(";", ","))
 
 
 def _mermaid(names: list[str], found: list[Arrow]) -> str:
@@ -139,11 +142,11 @@ def _plantuml(names: list[str], found: list[Arrow]) -> str:
     lines = ["@startuml", "hide footbox"]
     for n in names:
         ident = _ident(n)
-        shown = one_line(n).replace('"', "'")
+        shown = plantuml_text(n).replace('"', "'")
         lines.append(f'participant "{shown}" as {ident}' if ident != n else f"participant {n}")
     for a in found:
         arrow = "->x" if a.lost else "->"
-        label = one_line(a.label)
+        label = plantuml_text(a.label)
         lines.append(f"{_ident(a.sender)} {arrow} {_ident(a.receiver)} : {label}")
     if not found:
         lines.append(f"note over {', '.join(_span(names))} : no messages")

@@ -262,6 +262,13 @@ def load_requirement_file(path: Path, where: DocPath):
     if not path.is_file():
         return ModelError(where, f"no requirement file '{path}'")
     doc = read_document(path)
+    data = doc.data
+    if not (data.get("kind") == "requirements" or ("kind" not in data and "requirements" in data)):
+        # any other YAML mapping (a private file reached through a link, say) would be
+        # reported key by key, its lines printed back: refuse it whole, quoting nothing
+        return ModelError(where, f"'{path}' is not a requirements document (expected "
+                          "'kind: requirements' and a 'requirements:' mapping of named "
+                          "formulas)")
     return _validated(doc, RequirementsFile), doc.positions
 
 

@@ -13,9 +13,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from hybridteam.errors import printable
 from hybridteam.io.reqschema import RequirementEntry
 
-NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")  # \Z: '$' would let "a\n" through
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
 AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of this agent's "
@@ -33,6 +34,24 @@ def check_names(names, what: str) -> None:
             raise ValueError(f"{what} name {name!r} may not start with '__'")
 
 
+def check_title(text: str, what: str) -> str:
+    """A free-text name (a team's, a protocol's) without control characters: it titles
+    diagrams and plots and the terminal's summary, where an escape sequence would act."""
+    if printable(text) != text:
+        raise ValueError(f"{what} name {text!r} has control characters or lone "
+                         "surrogates; write it as plain text")
+    return text
+
+
+def check_name(name: str | None, what: str) -> str | None:
+    """One name (None: not given) checked as :func:`check_names` does. Message types,
+    events, sockets and agents named in actions reach the diagrams, the sequence chart and
+    the terminal as they are written, so they are names, never markup or control text."""
+    if name is not None:
+        check_names([name], what)
+    return name
+
+
 class Strict(BaseModel):
     """Unknown keys are errors, and so are NaN and infinite numbers: no setting of a file
     means anything with them (leave a limit out to have none)."""
@@ -48,11 +67,31 @@ class SendSchema(Strict):
     socket: str = Field("control", description="socket name, e.g. control or data")
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
+    @field_validator("send")
+    @classmethod
+    def _message_name(cls, v: str) -> str:
+        return check_name(v, "message")
+
+    @field_validator("to")
+    @classmethod
+    def _agent_name(cls, v: str | None) -> str | None:
+        return check_name(v, "agent")
+
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
+
 
 class RaiseSchema(Strict):
     """Raise a local event in the same agent (handled later in the same instant)."""
 
     raise_: str = Field(alias="raise", description="event name")
+
+    @field_validator("raise_")
+    @classmethod
+    def _event_name(cls, v: str) -> str:
+        return check_name(v, "event")
 
 
 ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_to_right")]
@@ -70,6 +109,11 @@ class TransitionSchema(Strict):
                                    description="'var = expr' assignments/resets, send, raise")
     priority: int = 0
     description: str | None = None
+
+    @field_validator("on")
+    @classmethod
+    def _trigger_name(cls, v: str | None) -> str | None:
+        return check_name(v, "message or event")
 
     @field_validator("after")
     @classmethod
@@ -108,6 +152,12 @@ class ModeSchema(Strict):
         None, description="a protocol (name or file) whose role region this mode becomes")
     roles: dict[str, ModeSchema] | None = Field(
         None, description="with 'protocol': what each role (e.g. lead, follow) does")
+
+    @field_validator("roles")
+    @classmethod
+    def _role_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
+        check_names(v or (), "role")
+        return v
 
     @field_validator("modes")
     @classmethod
@@ -255,6 +305,16 @@ class ScenarioSchema(Strict):
     agent: str
     raise_: str = Field(alias="raise")
 
+    @field_validator("agent")
+    @classmethod
+    def _agent_name(cls, v: str) -> str:
+        return check_name(v, "agent")
+
+    @field_validator("raise_")
+    @classmethod
+    def _event_name(cls, v: str) -> str:
+        return check_name(v, "event")
+
 
 class LinkSchema(Strict):
     """Delay and loss on a link; numbers, or expressions of team parameters."""
@@ -324,6 +384,17 @@ class MessageDeclSchema(Strict):
     ack: AckSchema | None = None
     priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
 
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
+
+    @field_validator("fields")
+    @classmethod
+    def _field_names(cls, v: list[str]) -> list[str]:
+        check_names(v, "field")
+        return v
+
 
 class EndSchema(Strict):
     """When a run ends before its duration: ``{agents: [labmate, xr4000], when: all}``."""
@@ -333,6 +404,12 @@ class EndSchema(Strict):
         description="agents whose final modes end the run (default: all but operators)")
     when: Literal["all", "any"] = Field(
         "all", description="all: when every one of them is final; any: when the first is")
+
+    @field_validator("agents")
+    @classmethod
+    def _agent_names(cls, v: list[str] | None) -> list[str] | None:
+        check_names(v or (), "agent")
+        return v
 
 
 class TeamFile(Strict):
@@ -359,6 +436,11 @@ class TeamFile(Strict):
         default_factory=dict, description="named temporal-logic formulas checked on every "
         "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
 
+    @field_validator("team")
+    @classmethod
+    def _team_name(cls, v: str) -> str:
+        return check_title(v, "team")
+
     @field_validator("agents")
     @classmethod
     def _agent_names(cls, v: dict[str, Any]) -> dict[str, Any]:
@@ -379,6 +461,12 @@ class TeamFile(Strict):
         check_names(v, "requirement")
         return v
 
+    @field_validator("messages")
+    @classmethod
+    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "message")
+        return v
+
 
 class StreamDeclSchema(Strict):
     """A periodic data message, e.g. a leader's pose at 20 Hz while in Lead."""
@@ -390,6 +478,22 @@ class StreamDeclSchema(Strict):
     socket: str = "data"
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
+    @field_validator("message")
+    @classmethod
+    def _message_name(cls, v: str) -> str:
+        return check_name(v, "message")
+
+    @field_validator("while_")
+    @classmethod
+    def _mode_names(cls, v: list[str] | None) -> list[str] | None:
+        check_names(v or (), "mode")
+        return v
+
+    @field_validator("socket")
+    @classmethod
+    def _socket_name(cls, v: str) -> str:
+        return check_name(v, "socket")
+
 
 class RegionModeSchema(ModeSchema):
     """A mode of a protocol's role region; ``role`` names the slot whose behaviour (law,
@@ -397,11 +501,28 @@ class RegionModeSchema(ModeSchema):
 
     role: str | None = None
 
+    @field_validator("role")
+    @classmethod
+    def _role_name(cls, v: str | None) -> str | None:
+        return check_name(v, "role")
+
 
 class RegionSchema(Strict):
     roles: list[str] = Field(default_factory=list)
     initial: str | None = None
     modes: dict[str, RegionModeSchema]
+
+    @field_validator("roles")
+    @classmethod
+    def _role_names(cls, v: list[str]) -> list[str]:
+        check_names(v, "role")
+        return v
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "mode")
+        return v
 
 
 class OperatorSchema(Strict):
@@ -413,6 +534,18 @@ class OperatorSchema(Strict):
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     modes: dict[str, ModeSchema]
+
+    @field_validator("parameters", "variables")
+    @classmethod
+    def _names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "parameter/variable")
+        return v
+
+    @field_validator("modes")
+    @classmethod
+    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "mode")
+        return v
 
 
 class ProtocolFile(Strict):
@@ -427,3 +560,14 @@ class ProtocolFile(Strict):
     streams: list[StreamDeclSchema] = Field(default_factory=list)
     region: RegionSchema | None = None
     operator: OperatorSchema | None = None
+
+    @field_validator("protocol")
+    @classmethod
+    def _protocol_name(cls, v: str) -> str:
+        return check_title(v, "protocol")
+
+    @field_validator("messages")
+    @classmethod
+    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
+        check_names(v, "message")
+        return v

@@ -16,6 +16,8 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
+from hybridteam.errors import printable
+
 Path = tuple[str | int, ...]
 
 #: Values a document may expand to through aliases before we call it an alias bomb.
@@ -80,9 +82,13 @@ class SourceError(Exception):
         super().__init__(str(self))
 
     def __str__(self) -> str:
+        """``file:line:column: path: message``, printable: a name quoted from the file
+        (or the file's own name) shows its control characters as escapes, never runs them
+        on the terminal."""
         numbers = [n for n in (self.line, self.column) if n is not None] if self.line else []
         where = ":".join([self.file, *map(str, numbers)])
-        return ": ".join([where, *([format_path(self.path)] if self.path else []), self.message])
+        return printable(": ".join([where, *([format_path(self.path)] if self.path else []),
+                                    self.message]))
 
     def __reduce__(self) -> tuple[Any, ...]:
         # Exceptions pickle via their args; ours has keyword-ish state (multiprocessing needs it).
