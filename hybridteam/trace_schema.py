@@ -144,14 +144,21 @@ class TraceFile(BaseModel):
 
 def check_trace(data: Any) -> str | None:
     """The first problem of a parsed ``trace.json`` (``"samples.t[3]: ..."``), or None."""
+    return first_problem(TraceFile, data, "a hybridteam trace")
+
+
+def first_problem(model: type[BaseModel], data: Any, what: str) -> str | None:
+    """The first problem of parsed JSON ``data`` read back as ``model``, with the path of
+    its field (``"generations[0].x: ..."``), or None. ``what`` names the file's kind when
+    it is not even an object."""
     try:
-        TraceFile.model_validate(data)
+        model.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
         where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in err["loc"])
         where = where.lstrip(".") or "the file"
         message = err["msg"].removeprefix("Value error, ")
         if err["type"] == "model_type":
-            message = "expected a JSON object of a hybridteam trace"
+            message = f"expected a JSON object of {what}"
         return f"{where}: {message}" if err["loc"] else message
     return None
