@@ -168,3 +168,13 @@ def test_bad_bounds_are_usage_errors(tmp_path, capsys):
         assert main(["verify", str(tmp_path / "team.yaml"), "-o", str(tmp_path / "o"),
                      flag, value]) == 2
         assert words in capsys.readouterr().err
+
+
+def test_the_300_robot_team_runs_within_the_memory_limit(tmp_path):
+    # each instance's inboxes alone: 301 agents x 301 senders x 8 numbers x 8 bytes = 5.8 MB;
+    # the default batch of 2048 would take 11.9 GB (an allocation error, before the bound)
+    team = team_of(tmp_path, roles(300))
+    report = verify(team, Options(max_memory=1e9, max_states=2), replay=False)
+    g = report.graph
+    assert g.batch * 8 * 301 * 301 * 8 <= 0.5e9
+    assert len(g.states) == 2 and g.bound == "--max-states 2 reached"
