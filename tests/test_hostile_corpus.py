@@ -605,3 +605,26 @@ def test_a_scheduler_that_is_not_one_is_one_line_in_bounded_time(
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert f"the Dask scheduler at '{address}'" in err and words in err
     assert not (tmp_path / "fout").exists()  # nothing written
+
+
+def test_an_unroutable_scheduler_is_one_line_after_the_timeout(tmp_path, monkeypatch, capsys):
+    # the connection attempt times out as an unroutable address's does; the address is
+    # loopback all the same, so that nothing could leave the machine if it were tried
+    import socket
+
+    pytest.importorskip("dask.distributed")
+    asked = []
+
+    def unroutable(address, timeout=None):
+        asked.append((address, timeout))
+        raise TimeoutError("timed out")
+
+    monkeypatch.setattr(socket, "create_connection", unroutable)
+    (tmp_path / "team.yaml").write_text(REQUIRED)
+    monkeypatch.chdir(tmp_path)
+    assert main([*FALSIFY, "--scheduler", "tcp://127.0.0.1:8786"]) == 2
+    err = capsys.readouterr().err
+    assert err == "hybridteam: error: the Dask scheduler at 'tcp://127.0.0.1:8786' did not " \
+                  "answer as a Dask scheduler within 10 s (--connect-timeout S)\n"
+    assert asked == [(("127.0.0.1", 8786), 10.0)]  # the documented default
+    assert not (tmp_path / "fout").exists()

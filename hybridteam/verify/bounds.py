@@ -46,7 +46,8 @@ class Values:
         """Agent ``a``'s discrete variables in a batch of states (one row a state)."""
         for j, seen in enumerate(self.seen[a]):
             if len(seen) <= self.limit:
-                seen.update(np.unique(block[:, j]).tolist())
+                values = np.unique(block[:, j])
+                seen.update(values[~np.isnan(values)].tolist())  # NaN is not a new value
 
     def grown(self) -> str | None:
         """The reason to stop, naming the first variable past the bound; None if none is."""
