@@ -96,8 +96,10 @@ def test_a_counter_on_the_command_line_ends_with_the_variable_named(tmp_path, ca
                                         + "simulation: {duration: 10}\n")
     out = tmp_path / "out"
     assert main(["verify", str(tmp_path / "team.yaml"), "-o", str(out), "--progress",
-                 "none"]) == 0
-    printed = capsys.readouterr().out
+                 "log"]) == 0
+    printed, progress = capsys.readouterr()
+    # the progress stream says so as soon as exploring stops (before any replay)
+    assert "hybridteam: verify: stopped: variable 'n' of agent 'a'" in progress
     # the default bound: 257 values 0..256, one state each
     assert "skeleton of 257 states" in printed
     assert "bounded: not exhaustive" in printed

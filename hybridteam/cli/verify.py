@@ -124,6 +124,9 @@ def cmd_verify(args) -> int:
         raise UsageError(f"--property: '{exc.name}' is not a property of {args.team} (its "
                          f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint
                                                                     else "")) from None
+    if report.graph.bound is not None and args.progress != "none":  # before the replays
+        print(f"hybridteam: verify: stopped: {report.graph.bound}", file=sys.stderr,
+              flush=True)
     if not args.no_replay:
         for v in report.violated:
             if args.progress != "none":
