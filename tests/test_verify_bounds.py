@@ -155,8 +155,8 @@ def test_a_process_past_the_memory_limit_stops_and_says_so(tmp_path, monkeypatch
                         lambda: 5e9)
     report = verify(team_of(tmp_path, COUNTERS), Options(max_memory=4e9), replay=False)
     g = report.graph
-    assert g.bound == "this process holds 5.00 GB after 3 states, more than the limit " \
-                      "of 4.00 GB (--max-memory GB)"
+    assert g.bound == "this process reached the memory limit of 4 GB after 3 states " \
+                      "(5.000 GB resident; --max-memory GB raises it)"
     assert len(g.states) == 3 and not g.exhaustive
     assert g.cut == {0, 1, 2}  # the first level and its successors: none is a dead end
     assert not g.terminal().any()

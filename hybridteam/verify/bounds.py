@@ -66,8 +66,8 @@ def over_memory(resident: float | None, limit: float, states: int) -> str | None
     """The reason to stop when this process holds more than ``limit`` bytes."""
     if resident is None or resident <= limit:
         return None
-    return (f"this process holds {resident / 1e9:.2f} GB after {states:,} states, more than "
-            f"the limit of {limit / 1e9:.2f} GB (--max-memory GB)")
+    return (f"this process reached the memory limit of {limit / 1e9:g} GB after {states:,} "
+            f"states ({resident / 1e9:.3f} GB resident; --max-memory GB raises it)")
 
 
 def full(max_states: int) -> str:
