@@ -111,6 +111,17 @@ def test_cli_says_when_nothing_was_found(team_file, tmp_path, capsys):
     (["-r", "upper", "--vary", "thermostat.hihg=21:23"], "thermostat.hihg"),
     (["-r", "upper", "--vary", "thermostat.high=21:23", "--budget", "0"], "--budget"),
     (["-r", "upper"], "give at least one --vary"),
+    (["-r", "upper", "--vary", "thermostat.K=-1e308:1e308"],
+     "--vary 'thermostat.K=-1e308:1e308': the range is too wide (HI - LO is beyond the "
+     "largest number)"),
+    # 1e9 instances of 151 samples of one state (1.2 kB) and ~0.4 kB of arrays each
+    (["-r", "upper", "--vary", "thermostat.high=21:23", "--population", "1000000000"],
+     "--population 1,000,000,000: a generation runs as one ensemble, which would need "
+     "about 1,"),
+    (["-r", "upper", "--vary", "thermostat.high=21:23", "--scheduler", "tcp://[::nope"],
+     "the Dask scheduler at 'tcp://[::nope': not an address"),
+    (["-r", "upper", "--vary", "thermostat.high=21:23", "--connect-timeout", "0"],
+     "--connect-timeout must be a finite number > 0, got 0.0"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(team_file, tmp_path, capsys, args, words):
     code = main(["falsify", str(team_file), *args, "-o", str(tmp_path / "out")])
@@ -127,6 +138,46 @@ def test_a_folder_holding_another_search_is_refused(team_file, tmp_path, capsys)
     capsys.readouterr()
     assert main([*base, "--vary", "thermostat.high=21:22.5"]) == 2
     assert "holds a different search" in capsys.readouterr().err
+
+
+RESUME = ["-r", "upper", "--vary", "thermostat.high=21:22", "--budget", "16", "--population",
+          "8", "--method", "random", "--progress", "none", "--no-replay"]
+
+
+def _edit_generations(d, change):
+    change(d["generations"])
+    return d
+
+
+@pytest.mark.parametrize(("edit", "words"), [
+    (lambda d: [1, 2], "expected a JSON object of a search's record"),
+    (lambda d: _edit_generations(d, lambda g: g[0].__setitem__("x", "abc")),
+     "generations[0].x: Input should be a valid list"),
+    (lambda d: _edit_generations(d, lambda g: g[0]["robustness"].__setitem__(0, "nope")),
+     "generations[0].robustness[0]: expected a finite number, 'inf' or '-inf', got 'nope'"),
+    (lambda d: {**d, "generations": {"a": 1}}, "generations: Input should be a valid list"),
+    (lambda d: _edit_generations(d, lambda g: g[0]["seeds"].__setitem__(0, 10**30)),
+     "generations[0].seeds[0]: Input should be less than 9223372036854775808"),
+    (lambda d: _edit_generations(d, lambda g: g[1]["x"].__setitem__(0, [1.0, 2.0])),
+     "generations[1].x: a candidate has 2 value(s), the search varies 1 key(s)"),
+    (lambda d: _edit_generations(d, lambda g: g[0]["outcomes"].pop()),
+     "generations[0]: x, seeds, robustness and outcomes have 8, 8, 8 and 7 entries"),
+    (lambda d: {**d, "format": 3}, "format: Input should be a valid string"),
+])
+def test_a_replaced_or_edited_record_is_one_line_on_resume(team_file, tmp_path, capsys, edit,
+                                                           words):
+    out = tmp_path / "search"
+    assert main(["falsify", str(team_file), *RESUME, "-o", str(out)]) == 1
+    capsys.readouterr()
+    record = out / "falsify.json"
+    record.write_text(json.dumps(edit(json.loads(record.read_text()))))
+    before = record.read_text()
+    assert main(["falsify", str(team_file), *RESUME, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"hybridteam: error: {record}: cannot resume from it: {words}" + \
+        err[err.index(words) + len(words):]
+    assert len(err.strip().splitlines()) == 1
+    assert record.read_text() == before  # nothing rewritten
 
 
 def _search(team_file, out, *extra):

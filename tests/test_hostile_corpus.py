@@ -347,6 +347,74 @@ def traces(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
+# --- searches: verify, falsify and Dask (issue 43) ----------------------------------------
+
+COUNTER = """\
+team: counter
+agents:
+  a:
+    plant: {kind: flow, state: {x: 0.0}}
+    variables: {n: 0}
+    modes:
+      A:
+        transitions:
+          - {to: A, after: 1, do: [n = n + 1]}
+simulation: {duration: 10}
+"""
+
+
+def roles(k: int) -> str:
+    """A role team of ``k`` robots and the operator (its stream inboxes: k² per state)."""
+    robot = ("  r{i}:\n    plant: {{kind: unicycle, state: {{x: {i}, y: 0, theta: 0}}}}\n"
+             "    modes:\n      T:\n        protocol: role_assignment\n"
+             "        initial: {initial}\n        roles:\n"
+             "          lead: {{inputs: {{v: 0.1, omega: 0}}}}\n"
+             "          follow: {{inputs: {{v: 0.1, omega: 0}}}}\n")
+    return ("team: roles\nagents:\n" + "".join(
+        robot.format(i=i, initial="Lead" if i == 0 else "Follow") for i in range(k))
+        + "  operator:\n    operator: role_assignment\nsimulation: {duration: 2.0}\n")
+
+
+FALSIFY = ["falsify", "team.yaml", "-r", "low", "--vary", "c=0:1", "-o", "fout",
+           "--progress", "none", "--no-replay"]
+REQUIRED = flow("c") + "requirements:\n  low: always(x <= 100)\n"
+
+CASES.update({
+    "verify_team_too_big": Case({"team.yaml": roles(60)},
+                                ["verify", "team.yaml", "-o", "vout", "--max-memory", "0.0002"],
+                                2, ["verify would need about 2", "more than 50% of the limit "
+                                    "of 200 kB: raise the limit (--max-memory GB)"],
+                                absent=["vout"]),
+    "verify_max_values_zero": Case({"team.yaml": COUNTER},
+                                   ["verify", "team.yaml", "-o", "vout", "--max-values", "0"],
+                                   2, ["--max-values must be at least 1, got 0"]),
+    "falsify_population_1e9": Case({"team.yaml": REQUIRED},
+                                   [*FALSIFY, "--population", "1000000000"], 2,
+                                   ["--population 1,000,000,000: a generation runs as one "
+                                    "ensemble, which would need about"], absent=["fout"]),
+    "falsify_vary_overflows": Case({"team.yaml": REQUIRED},
+                                   [*FALSIFY[:5], "c=-1e308:1e308", *FALSIFY[6:]], 2,
+                                   ["the range is too wide"], absent=["fout"]),
+    "falsify_record_is_a_list": Case({"team.yaml": REQUIRED, "fout/falsify.json": "[1, 2]"},
+                                     FALSIFY, 2, ["fout/falsify.json: cannot resume from it: "
+                                                  "expected a JSON object"]),
+    "falsify_scheduler_malformed": Case({"team.yaml": REQUIRED},
+                                        [*FALSIFY, "--scheduler", "tcp://[::nope"], 2,
+                                        ["the Dask scheduler at 'tcp://[::nope': not an "
+                                         "address"], absent=["fout"]),
+    "sweep_scheduler_no_port": Case({"team.yaml": flow("c"), "s.yaml": study()},
+                                    ["sweep", "s.yaml", "-o", "sout", "--quiet", "--scheduler",
+                                     "127.0.0.1"], 2,
+                                    ["the Dask scheduler at '127.0.0.1': not an address "
+                                     "(missing port number"], absent=["sout"]),
+    "sweep_scheduler_port_out_of_range": Case({"team.yaml": flow("c"), "s.yaml": study()},
+                                              ["sweep", "s.yaml", "-o", "sout", "--quiet",
+                                               "--scheduler", "tcp://127.0.0.1:99999"], 2,
+                                              ["port 99999 is not a port number"],
+                                              absent=["sout"]),
+})
+
+
 class _Hang(Exception):
     pass
 
@@ -452,3 +520,116 @@ def test_a_failing_view_still_writes_the_summary(tmp_path, monkeypatch, capsys):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["views_error"] == "ValueError: cannot draw this"
     assert not (tmp_path / "out" / "INCOMPLETE").exists()
+
+
+def test_verify_of_an_unbounded_counter_ends_naming_the_variable(tmp_path, monkeypatch,
+                                                                  capsys):
+    (tmp_path / "team.yaml").write_text(COUNTER)
+    monkeypatch.chdir(tmp_path)
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(5)  # without the bound: one new state per level, about 40 minutes
+    try:
+        code = main(["verify", "team.yaml", "-o", "vout", "--progress", "none"])
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "stopped: variable 'n' of agent 'a' took more than 256 different values" in out
+
+
+@pytest.fixture
+def loopback_server():
+    """Start a TCP server on 127.0.0.1 that answers every connection with ``reply`` (None:
+    accepts and says nothing); returns its address. Closed at the end of the test."""
+    import socket
+    import threading
+
+    servers: list = []
+
+    def start(reply: bytes | None) -> str:
+        sock = socket.socket()
+        sock.bind(("127.0.0.1", 0))
+        sock.listen(8)
+        held: list = []
+
+        def serve():
+            while True:
+                try:
+                    conn, _ = sock.accept()
+                except OSError:
+                    return
+                held.append(conn)
+                if reply is not None:
+                    conn.sendall(reply)
+
+        threading.Thread(target=serve, daemon=True).start()
+        servers.append((sock, held))
+        return f"tcp://127.0.0.1:{sock.getsockname()[1]}"
+
+    yield start
+    for sock, held in servers:
+        sock.close()
+        for conn in held:
+            conn.close()
+
+
+def _closed_port() -> str:
+    import socket
+
+    with socket.socket() as sock:  # a port just freed: nothing listens there
+        sock.bind(("127.0.0.1", 0))
+        return f"tcp://127.0.0.1:{sock.getsockname()[1]}"
+
+
+@pytest.mark.parametrize("command", ["falsify", "sweep"])
+@pytest.mark.parametrize(("server", "words"), [
+    ("http", "answers, but not as a Dask scheduler (its first bytes b'HTTP/1.1' are no Dask "
+             "message)"),
+    ("silent", "did not answer as a Dask scheduler within 1 s (--connect-timeout S)"),
+    ("closed", "Connection refused"),
+])
+def test_a_scheduler_that_is_not_one_is_one_line_in_bounded_time(
+        command, server, words, tmp_path, monkeypatch, capsys, loopback_server):
+    pytest.importorskip("dask.distributed")
+    address = {"http": lambda: loopback_server(b"HTTP/1.1 200 OK\r\nContent-Length: 0\r\n\r\n"),
+               "silent": lambda: loopback_server(None), "closed": _closed_port}[server]()
+    (tmp_path / "team.yaml").write_text(REQUIRED if command == "falsify" else flow("c"))
+    (tmp_path / "s.yaml").write_text(study())
+    monkeypatch.chdir(tmp_path)
+    argv = FALSIFY if command == "falsify" else ["sweep", "s.yaml", "-o", "fout", "--quiet"]
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(5)
+    try:
+        code = main([*argv, "--scheduler", address, "--connect-timeout", "1"])
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert f"the Dask scheduler at '{address}'" in err and words in err
+    assert not (tmp_path / "fout").exists()  # nothing written
+
+
+def test_an_unroutable_scheduler_is_one_line_after_the_timeout(tmp_path, monkeypatch, capsys):
+    # the connection attempt times out as an unroutable address's does; the address is
+    # loopback all the same, so that nothing could leave the machine if it were tried
+    import socket
+
+    pytest.importorskip("dask.distributed")
+    asked = []
+
+    def unroutable(address, timeout=None):
+        asked.append((address, timeout))
+        raise TimeoutError("timed out")
+
+    monkeypatch.setattr(socket, "create_connection", unroutable)
+    (tmp_path / "team.yaml").write_text(REQUIRED)
+    monkeypatch.chdir(tmp_path)
+    assert main([*FALSIFY, "--scheduler", "tcp://127.0.0.1:8786"]) == 2
+    err = capsys.readouterr().err
+    assert err == "hybridteam: error: the Dask scheduler at 'tcp://127.0.0.1:8786' did not " \
+                  "answer as a Dask scheduler within 10 s (--connect-timeout S)\n"
+    assert asked == [(("127.0.0.1", 8786), 10.0)]  # the documented default
+    assert not (tmp_path / "fout").exists()

@@ -48,6 +48,21 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
+def add_connect_timeout(parser) -> None:
+    """``--connect-timeout S`` beside ``--scheduler`` (``sweep``, ``falsify``)."""
+    from hybridteam.sweep.cluster import DEFAULT_CONNECT_TIMEOUT
+
+    parser.add_argument("--connect-timeout", type=float, default=DEFAULT_CONNECT_TIMEOUT,
+                        metavar="S", help="seconds to reach the --scheduler and hear it "
+                        f"answer as a Dask scheduler (default {DEFAULT_CONNECT_TIMEOUT:g})")
+
+
+def check_connect_timeout(seconds: float) -> None:
+    """UsageError unless ``--connect-timeout`` is a finite number of seconds > 0."""
+    if not 0 < seconds < float("inf"):
+        raise UsageError(f"--connect-timeout must be a finite number > 0, got {seconds}")
+
+
 def output_folder(name: str) -> Path:
     """``-o``'s folder: new, or an existing folder (a file there is a usage error)."""
     out = Path(name)

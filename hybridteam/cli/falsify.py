@@ -19,6 +19,8 @@ from hybridteam.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
+    add_connect_timeout,
+    check_connect_timeout,
     load_team_or_report,
     output_folder,
     write_run_folder,
@@ -59,6 +61,7 @@ def register(sub) -> dict:
                        help="local worker processes (default 1: this process)")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="a Dask distributed cluster, e.g. tcp://host:8786")
+    add_connect_timeout(fa)
     fa.add_argument("--no-replay", action="store_true", help="do not write OUT/replay")
     fa.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     fa.add_argument("--progress", choices=MODES, default="auto",
@@ -84,6 +87,9 @@ def _varies(items: list[str]):
                              "p_loss=0:0.5")
         if not a < b:
             raise UsageError(f"--vary {item!r}: LO must be below HI")
+        if not math.isfinite(b - a):  # the search draws LO + (HI - LO) * u
+            raise UsageError(f"--vary {item!r}: the range is too wide (HI - LO is beyond "
+                             "the largest number)")
         out.append(Vary(key.strip(), a, b))
     keys = [v.key for v in out]
     if len(set(keys)) < len(keys):
@@ -102,6 +108,8 @@ def _check(args: argparse.Namespace, team, varies) -> None:
             raise UsageError(f"{flag} must be at least {least}, got {value}")
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers must be at least 1, got {args.workers}")
+    check_connect_timeout(args.connect_timeout)
+    _check_generation(team, args.population)
     names = [r.name for r in team.requirements]
     if args.requirement not in names:
         hint = did_you_mean(args.requirement, names)
@@ -116,11 +124,29 @@ def _check(args: argparse.Namespace, team, varies) -> None:
                 raise UsageError(f"--vary {v.key}={v.lo:g}:{v.hi:g}: {exc}") from None
 
 
+def _check_generation(team, population: int) -> None:
+    """A generation runs as one ensemble (and the optimiser keeps a row per candidate):
+    refuse a population whose ensemble exceeds the memory limit, before allocating it."""
+    from hybridteam.engine.budget import memory_estimate, memory_limit
+    from hybridteam.engine.compiler import compile_team
+
+    sim = team.simulation
+    nbytes, _ = memory_estimate(compile_team(team), population, sim.duration,
+                                sim.output_period())
+    limit = memory_limit()
+    if nbytes > limit:
+        raise UsageError(f"--population {population:,}: a generation runs as one ensemble, "
+                         f"which would need about {nbytes / 1e9:,.1f} GB of memory, more than "
+                         f"the limit of {limit / 1e9:,.1f} GB (HYBRIDTEAM_MAX_MEMORY_GB): give a "
+                         "smaller --population")
+
+
 def cmd_falsify(args: argparse.Namespace) -> int:
     from hybridteam.falsify import output as O
     from hybridteam.falsify.evaluate import Evaluator
     from hybridteam.falsify.search import run_search
     from hybridteam.progress import reporter
+    from hybridteam.sweep.store import StudyError
 
     varies = _varies(args.vary)
     out = output_folder(args.output)
@@ -136,6 +162,13 @@ def cmd_falsify(args: argparse.Namespace) -> int:
     record = O.read_record(out, key) if out.exists() else []
     if isinstance(record, str):
         raise UsageError(record)
+    # connect first: a scheduler that cannot be reached leaves no folder behind
+    try:
+        evaluator = Evaluator(team, args.requirement, [v.key for v in varies],
+                              workers=args.workers, scheduler=args.scheduler,
+                              connect_timeout=args.connect_timeout)
+    except StudyError as exc:  # the scheduler cannot be reached
+        raise UsageError(str(exc)) from None
     out.mkdir(parents=True, exist_ok=True)
     shown = reporter(args.progress, args.budget, f"falsify {args.requirement}", "sim")
     best = [math.inf]
@@ -148,8 +181,6 @@ def cmd_falsify(args: argparse.Namespace) -> int:
             if hasattr(shown, "set_postfix_str"):
                 shown.set_postfix_str(f"best robustness {best[0]:.4g}")
 
-    evaluator = Evaluator(team, args.requirement, [v.key for v in varies],
-                          workers=args.workers, scheduler=args.scheduler)
     try:
         search = run_search(varies, args.seeds, team.simulation.seed, evaluator,
                             budget=args.budget, method=args.method,

@@ -16,6 +16,8 @@ from hybridteam.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
+    add_connect_timeout,
+    check_connect_timeout,
     output_folder,
     print_errors,
     say,
@@ -34,6 +36,7 @@ def register(sub) -> dict:
     where.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="run on a Dask distributed cluster, e.g. tcp://host:8786 "
                             "(needs hybridteam[dask])")
+    add_connect_timeout(sw)
     sw.add_argument("--chunk", type=int, default=None, metavar="K",
                     help="runs per ensemble chunk (default: the one an interrupted study "
                     "was run with, else the study's (500 unless it says), made smaller "
@@ -68,6 +71,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise UsageError(f"--workers must be at least 1, got {args.workers}")
     if args.chunk is not None and args.chunk < 1:
         raise UsageError(f"--chunk must be at least 1, got {args.chunk}")
+    check_connect_timeout(args.connect_timeout)
     out = output_folder(args.output)
     try:
         study = load_study(args.study)
@@ -77,7 +81,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     show = "none" if args.quiet else args.progress
     try:
         result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
-                           chunk=args.chunk, progress=show)
+                           chunk=args.chunk, progress=show,
+                           connect_timeout=args.connect_timeout)
     except StudyError as exc:
         raise UsageError(str(exc)) from None
     except KeyboardInterrupt:

@@ -17,7 +17,7 @@ was asked and SPIN's verdict differs from ours on some property.
 from __future__ import annotations
 
 import json
-import os
+import math
 import sys
 import time
 
@@ -29,6 +29,7 @@ from hybridteam.cli.common import (
     output_folder,
 )
 from hybridteam.progress import MODES
+from hybridteam.verify.bounds import DEFAULT_MAX_VALUES
 
 EXIT_VIOLATED = 1
 EXIT_SPURIOUS = 3
@@ -67,6 +68,14 @@ def register(sub) -> dict:
     ve.add_argument("--max-states", type=int, default=2_000_000, metavar="N",
                     help="stop exploring beyond N states; verdicts then say 'bounded' "
                     "(default 2,000,000)")
+    ve.add_argument("--max-memory", type=float, default=None, metavar="GB",
+                    help="stop exploring when this process holds more memory, and take the "
+                    "engine's states in batches that fit in half of it (default 4 GB, as "
+                    "for run; a team whose single state does not fit is refused)")
+    ve.add_argument("--max-values", type=int, default=DEFAULT_MAX_VALUES, metavar="N",
+                    help="stop exploring once a discrete variable has taken more than N "
+                    "different values: a variable that keeps growing (a counter) makes the "
+                    f"skeleton infinite (default {DEFAULT_MAX_VALUES})")
     ve.add_argument("--no-replay", action="store_true",
                     help="do not replay counterexamples in the simulator")
     ve.add_argument("--spin", action="store_true",
@@ -86,9 +95,14 @@ def _check(args) -> None:
             raise UsageError(f"--{name} must be 0 or more, got {getattr(args, name)}")
     if args.max_states < 1:
         raise UsageError(f"--max-states must be at least 1, got {args.max_states}")
+    if args.max_values < 1:
+        raise UsageError(f"--max-values must be at least 1, got {args.max_values}")
+    if args.max_memory is not None and not 0 < args.max_memory < math.inf:
+        raise UsageError(f"--max-memory must be a finite number > 0, got {args.max_memory}")
 
 
 def cmd_verify(args) -> int:
+    from hybridteam.engine.budget import ResourceError
     from hybridteam.errors import did_you_mean
     from hybridteam.verify import Options, UnknownProperty, verify
 
@@ -99,14 +113,20 @@ def cmd_verify(args) -> int:
         return EXIT_USAGE
     opts = Options(losses=args.losses, duplicates=args.duplicates, order=args.order,
                    max_states=args.max_states, ack_timing=args.ack_timing,
-                   timeouts=args.timeouts)
+                   timeouts=args.timeouts, max_values=args.max_values,
+                   max_memory=None if args.max_memory is None else args.max_memory * 1e9)
     try:
         report = verify(team, opts, args.property, _progress(args.progress), replay=False)
+    except ResourceError as exc:  # refused before anything was allocated
+        raise UsageError(str(exc)) from None
     except UnknownProperty as exc:
         hint = did_you_mean(exc.name, exc.known)
         raise UsageError(f"--property: '{exc.name}' is not a property of {args.team} (its "
                          f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint
                                                                     else "")) from None
+    if report.graph.bound is not None and args.progress != "none":  # before the replays
+        print(f"hybridteam: verify: stopped: {report.graph.bound}", file=sys.stderr,
+              flush=True)
     if not args.no_replay:
         for v in report.violated:
             if args.progress != "none":
@@ -185,12 +205,10 @@ def _progress(mode: str):
 def _memory() -> str:
     """``, 1.2 GB in memory`` (this process's resident size), where the system tells it:
     a long check's memory is what decides whether it can finish."""
-    try:
-        with open("/proc/self/statm") as f:
-            pages = int(f.read().split()[1])
-    except (OSError, ValueError, IndexError):
-        return ""
-    return f", {pages * os.sysconf('SC_PAGE_SIZE') / 1e9:.1f} GB in memory"
+    from hybridteam.engine.budget import resident_bytes
+
+    resident = resident_bytes()
+    return "" if resident is None else f", {resident / 1e9:.1f} GB in memory"
 
 
 def _replay_progress(name: str, mode: str):
@@ -213,6 +231,8 @@ def _print(report, path: str, files: dict[str, list[str]]) -> None:
           f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
           f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
           f"order {report.options.order})")
+    if g.bound is not None:
+        print(f"  stopped: {g.bound}")
     for note in report.skeleton.notes:
         print(f"  abstracted: {note}")
     for v in report.verdicts:

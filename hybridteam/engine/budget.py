@@ -25,6 +25,7 @@ import os
 import time
 
 from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.protocols import stream_fields
 
 DEFAULT_MAX_MEMORY = 4e9
 DEFAULT_MAX_PERIODS = 1e8
@@ -44,18 +45,68 @@ def _size(nbytes: float) -> str:
     return f"{nbytes / 1e3:.3g} kB"
 
 
+def memory_limit(max_memory: float | None = None) -> float:
+    """The memory limit in bytes: ``max_memory`` if given, else ``HYBRIDTEAM_MAX_MEMORY_GB``,
+    else the default (4 GB)."""
+    if max_memory is not None:
+        return max_memory
+    env = os.environ.get("HYBRIDTEAM_MAX_MEMORY_GB")
+    return float(env) * 1e9 if env else DEFAULT_MAX_MEMORY
+
+
+def resident_bytes() -> float | None:
+    """This process's resident memory in bytes, where the system tells it (Linux's
+    ``/proc``; None elsewhere): what a search that grows as it goes is bounded by."""
+    try:
+        with open("/proc/self/statm") as f:
+            pages = int(f.read().split()[1])
+    except (OSError, ValueError, IndexError):
+        return None
+    return float(pages * os.sysconf("SC_PAGE_SIZE"))
+
+
 def memory_estimate(cteam: CTeam, n: int, t_end: float, dt: float) -> tuple[float, float]:
     """``(bytes, samples)``: memory of a run (the sampled trace dominates; per-instance
-    arrays of every agent and mode count too) and its number of output samples."""
+    arrays of every agent and mode count too, and each agent's stream inbox, which holds
+    a copy per sender: agents squared, what a team of hundreds pays) and its number of
+    output samples."""
     samples = math.floor(t_end / dt + 1e-9) + 2
     values = sum(len(ca.plant.state_names) for ca in cteam.agents) + 3 * len(cteam.team.world)
-    per_instance = 0
+    per_instance = _inbox_values(cteam)
     for ca in cteam.agents:
         m = len(ca.modes)
         per_instance += (len(ca.plant.state_names) * 2 + len(ca.plant.input_names)
                          + len(ca.var_index) + len(ca.param_index) + 4 * m
                          + len(ca.after) + 2 * len(ca.watches) + 40)
     return 8.0 * n * (samples * values + per_instance), float(samples)
+
+
+def instances_within(cteam: CTeam, wanted: int, max_memory: float, what: str,
+                     share: float = 1.0) -> int:
+    """How many instances of ``cteam`` (at most ``wanted``) fit in ``share`` of
+    ``max_memory`` bytes, by :func:`memory_estimate` of a zero-length run; ResourceError,
+    naming ``what`` needs them, if not even one does. A search that loads its candidates
+    into an ensemble (``verify``'s batches) takes fewer at a time instead of allocating
+    what it cannot hold."""
+    one = memory_estimate(cteam, 1, 0.0, 1.0)[0]
+    room = share * max_memory
+    if one > room:
+        part = "" if share == 1.0 else f"{share:.0%} of "
+        raise ResourceError(
+            f"{what} would need about {_size(one)} of memory for the engine's arrays of a "
+            f"single instance of this team ({len(cteam.agents):,} agents; stream inboxes "
+            f"grow with the square of the agents), more than {part}the limit of "
+            f"{_size(max_memory)}: raise the limit (--max-memory GB)")
+    return max(1, min(wanted, int(room // one)))
+
+
+def _inbox_values(cteam: CTeam) -> int:
+    """Numbers per instance in the agents' stream inboxes (:class:`~.streams.Inbox`): per
+    receiving agent, per stream type and sender, its fields and the send time."""
+    if not any(ca.streams for ca in cteam.agents):
+        return 0
+    k = len(cteam.agents)
+    return k * k * sum(len(fs) + 1 for fs in stream_fields(cteam.team).values())
 
 
 def _fastest_period(cteam: CTeam) -> float:
@@ -68,9 +119,7 @@ def _fastest_period(cteam: CTeam) -> float:
 def check_budget(cteam: CTeam, n: int, t_end: float, dt: float,
                  max_memory: float | None = None, max_periods: float | None = None) -> None:
     """ResourceError if the run would need more memory or control periods than allowed."""
-    if max_memory is None:
-        env = os.environ.get("HYBRIDTEAM_MAX_MEMORY_GB")
-        max_memory = float(env) * 1e9 if env else DEFAULT_MAX_MEMORY
+    max_memory = memory_limit(max_memory)
     if max_periods is None:
         max_periods = DEFAULT_MAX_PERIODS
     nbytes, samples = memory_estimate(cteam, n, t_end, dt)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from hybridteam.model import Team
+from hybridteam.sweep.cluster import DEFAULT_CONNECT_TIMEOUT, connect
 from hybridteam.sweep.plan import Chunk, Task
 from hybridteam.sweep.worker import run_chunk
 
@@ -21,7 +22,8 @@ class Evaluator:
     """``evaluator(x, seeds) -> (robustness, outcomes)`` for a requirement of ``team``."""
 
     def __init__(self, team: Team, requirement: str, keys: list[str], *,
-                 workers: int | None = None, scheduler: str | None = None) -> None:
+                 workers: int | None = None, scheduler: str | None = None,
+                 connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> None:
         self.team, self.requirement, self.keys = team, requirement, keys
         self.workers = workers or 1
         self.where = "in-process"
@@ -29,9 +31,7 @@ class Evaluator:
         self._client: Any = None
         self._shared: Any = team
         if scheduler is not None:
-            from dask.distributed import Client
-
-            self._client = Client(scheduler, timeout="10s")
+            self._client = connect(scheduler, connect_timeout)
             self._shared = self._client.scatter(team, broadcast=True)
             self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
             self.where = f"Dask at {self._client.scheduler.address}"

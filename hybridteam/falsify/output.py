@@ -8,12 +8,14 @@ import json
 import math
 import shlex
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
 from hybridteam.falsify.search import Generation, Search, Vary
 from hybridteam.trace import write_atomic
+from hybridteam.trace_schema import first_problem
 
 FORMAT, VERSION = "hybridteam.falsify", 1
 RECORD = "falsify.json"
@@ -35,12 +37,70 @@ def read_record(out: Path, key: str) -> list[Generation] | str:
         return []
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, RecursionError) as exc:
         return f"{path}: unreadable ({exc})"
+    problem = first_problem(Record, data, "a search's record")
+    if problem is not None:  # replaced or edited: nothing of it is used
+        return f"{path}: cannot resume from it: {problem[1]}"
     if data.get("format") != FORMAT or data.get("digest") != key:
         return (f"output '{out}' holds a different search (other team, requirement, ranges, "
                 "method or seeds); use another folder")
     return [Generation.from_json(g) for g in data.get("generations", [])]
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+
+
+def _robustness(value: Any) -> Any:
+    """A finite number, or ``"inf"``/``"-inf"`` (a Boolean verdict, as :func:`_json`
+    writes it)."""
+    ok = value in ("inf", "-inf") if isinstance(value, str) else (
+        isinstance(value, int | float) and not isinstance(value, bool)
+        and math.isfinite(value))
+    if not ok:
+        raise ValueError(f"expected a finite number, 'inf' or '-inf', got {value!r:.40}")
+    return value
+
+
+Robustness = Annotated[Any, AfterValidator(_robustness)]
+
+
+class GenerationRecord(BaseModel):
+    """One generation as :meth:`Generation.to_json` writes it: every list one entry per
+    candidate, each candidate one value per searched key."""
+
+    x: list[list[Finite]] = Field(min_length=1)
+    seeds: list[Annotated[int, Field(ge=0, lt=2**63)]]
+    robustness: list[Robustness]
+    outcomes: list[str]
+
+    @model_validator(mode="after")
+    def _one_entry_per_candidate(self) -> GenerationRecord:
+        if not len(self.x) == len(self.seeds) == len(self.robustness) == len(self.outcomes):
+            raise ValueError(f"x, seeds, robustness and outcomes have {len(self.x)}, "
+                             f"{len(self.seeds)}, {len(self.robustness)} and "
+                             f"{len(self.outcomes)} entries; expected one per candidate")
+        return self
+
+
+class Record(BaseModel):
+    """What a resumed search reads of ``falsify.json`` (the rest is written for readers)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    format: str
+    digest: str
+    vary: list[dict[str, Any]]
+    generations: list[GenerationRecord] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _a_value_per_key(self) -> Record:
+        for k, g in enumerate(self.generations):
+            for row in g.x:
+                if len(row) != len(self.vary):
+                    raise ValueError(f"generations[{k}].x: a candidate has {len(row)} "
+                                     f"value(s), the search varies {len(self.vary)} key(s)")
+        return self
 
 
 def replay_args(team_path: str, search: Search, i: int, out: Path) -> list[str]:

@@ -19,6 +19,7 @@ from typing import Any
 
 from hybridteam.model import Team
 from hybridteam.progress import reporter
+from hybridteam.sweep.cluster import DEFAULT_CONNECT_TIMEOUT, connect
 from hybridteam.sweep.plan import Chunk, Plan, Task, spread_chunk
 from hybridteam.sweep.store import (
     FORMAT,
@@ -65,8 +66,11 @@ class Outcome:
 def run_study(study: Study, out: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, client: Any = None, chunk: int | None = None,
               progress: bool | str = False, max_chunks: int | None = None,
-              fmt: str | None = None) -> Outcome:
+              fmt: str | None = None,
+              connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> Outcome:
     """Run ``study`` into folder ``out`` and write its table; resume if ``out`` holds part.
+
+    ``connect_timeout``: seconds to reach ``scheduler`` (:func:`~.cluster.connect`).
 
     ``max_chunks`` stops after computing that many chunks (the table is then not written):
     what an interruption does, on purpose — tests use it to check resuming.
@@ -111,7 +115,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     start = time.perf_counter()
     if todo:  # connect first: a scheduler that cannot be reached leaves no folder behind
         results, result.executor, close = _executor(study.team, plan, todo, workers,
-                                                    scheduler, client)
+                                                    scheduler, client, connect_timeout)
         bar = None
         try:
             write_record(out, {**record, "status": "running"})
@@ -144,12 +148,12 @@ def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool | str):
 
 
 def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
-              scheduler: str | None, client: Any
+              scheduler: str | None, client: Any, connect_timeout: float
               ) -> tuple[Results, str, Callable[[], None]]:
     """(chunk results as they finish, a description, what to call when done)."""
     tasks = (plan.task(c) for c in todo)
     if scheduler is not None or client is not None:
-        return _dask(team, tasks, scheduler, client)
+        return _dask(team, tasks, scheduler, client, connect_timeout)
     if workers is None or workers == 1 or len(todo) == 1:
         why = "" if workers in (None, 1) else ": one chunk to compute"  # --chunk, or resumed
         return ((t.chunk, run_chunk(team, t)) for t in tasks), f"in-process{why}", lambda: None
@@ -175,19 +179,16 @@ def _pool(team: Team, tasks: list[Task], workers: int
     return results(), f"{used} local processes{why}", close
 
 
-def _dask(team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any
-          ) -> tuple[Results, str, Callable[[], None]]:
+def _dask(team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any,
+          connect_timeout: float) -> tuple[Results, str, Callable[[], None]]:
     try:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import as_completed
     except ImportError:
         raise StudyError("running on a Dask cluster needs dask.distributed: "
                          "pip install 'hybridteam[dask]'") from None
     own = client is None
     if own:
-        try:
-            client = Client(scheduler, timeout="10s")
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        client = connect(str(scheduler), connect_timeout)
     shared = client.scatter(team, broadcast=True)
     futures = {client.submit(run_chunk, shared, t, pure=False): t.chunk for t in tasks}
 

@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from hybridteam.engine.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
 from hybridteam.verify.explore import Graph, Options, Progress, explore
 from hybridteam.verify.paths import describe, leaves
@@ -130,10 +131,12 @@ class Report:
         g = self.graph
         return {
             "states": len(g.states), "transitions": g.transitions,
-            "exhaustive": g.exhaustive, "seconds": round(g.seconds, 3),
+            "exhaustive": g.exhaustive, "bound": g.bound, "seconds": round(g.seconds, 3),
             "options": {"losses": self.options.losses,
                         "duplicates": self.options.duplicates,
                         "order": self.options.order, "max_states": self.options.max_states,
+                        "max_values": self.options.max_values,
+                        "max_memory": memory_limit(self.options.max_memory),
                         "ack_timing": self.options.ack_timing,
                         "timeouts": self.options.timeouts},
             "abstracted": self.skeleton.notes,

@@ -21,8 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hybridteam.engine.budget import instances_within, memory_limit, resident_bytes
 from hybridteam.engine.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
+from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, State
 from hybridteam.verify.store import Edges, Store
 
@@ -45,6 +47,10 @@ class Options:
     #: exceed every message exchange. "own" and "long" leave out behaviours ("any" does
     #: not): a check under them holds under that timing assumption
     timeouts: str = "any"
+    #: bytes this process may hold (None: run's limit, ``HYBRIDTEAM_MAX_MEMORY_GB`` or 4 GB)
+    max_memory: float | None = None
+    #: distinct values a discrete variable may take before the skeleton is judged infinite
+    max_values: int = DEFAULT_MAX_VALUES
 
 
 @dataclass
@@ -59,6 +65,8 @@ class Graph:
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
     exhaustive: bool = True
+    bound: str | None = None  # why the exploration stopped short (:mod:`.bounds`)
+    batch: int = 0  # states and choices the engine took at a time
     seconds: float = 0.0
     transitions: int = 0
 
@@ -203,17 +211,22 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
 
 def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     start = time.perf_counter()
-    m = Machine(sk, opts.batch, fifo=opts.order == "fifo")
+    limit = memory_limit(opts.max_memory)
+    # the engine's arrays take at most half the limit; the states, the rest (bounds.py)
+    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5)
+    m = Machine(sk, batch, fifo=opts.order == "fifo")
+    m.values = values = Values(sk, opts.max_values)
     store = Store(len(sk.cteam.agents))
-    g = Graph(store, array("I", [NONE]), Edges())
+    g = Graph(store, array("I", [NONE]), Edges(), batch=batch)
     store.add(store.find(m.initial())[0])
     frontier = [0]
     depth = 0
     last = start
-    while frontier:
+    stopped = False
+    while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
-        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, opts.batch):
+        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, batch):
             results = m.run([(state, ch, tape) for _, state, ch, tape in chunk])
             for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
                 for k in range(len(tape), r.reads):  # the other answers still to try
@@ -223,6 +236,7 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
+                        g.bound = g.bound or full(opts.max_states)
                         g.cut.add(sid)  # not a dead end: its successors are unknown
                         continue
                     tid = store.add(key)
@@ -236,6 +250,14 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
             if progress is not None and now - last >= 1.0:
                 progress(len(store), len(nxt), depth, now - start)
                 last = now
+            stop = over_memory(resident_bytes(), limit, len(store))
+            if stop is not None:  # this level's states may be half expanded: all are cut
+                stopped = _stop(g, stop, frontier, nxt)
+                break
+        else:
+            stop = values.grown()
+            if stop is not None:
+                stopped = _stop(g, stop, nxt)
         frontier = nxt
         depth += 1
     g.edges.freeze(len(store))
@@ -243,6 +265,16 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     if progress is not None:
         progress(len(store), 0, depth, g.seconds)
     return g
+
+
+def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
+    """End the exploration for ``reason`` (True); the states not (fully) expanded are cut:
+    their successors are unknown, not absent."""
+    g.exhaustive = False
+    g.bound = reason if g.bound is None else f"{g.bound}; {reason}"
+    for states in unexpanded:
+        g.cut.update(states)
+    return True
 
 
 def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):

@@ -29,6 +29,7 @@ from hybridteam.engine.events import LOCAL, MESSAGE, SCENARIO, TIMER
 from hybridteam.engine.network import Message
 from hybridteam.engine.reliable import ACK, _Pending
 from hybridteam.verify.abstraction import Skeleton
+from hybridteam.verify.bounds import Values
 
 
 class Copy(NamedTuple):
@@ -102,6 +103,8 @@ class Machine:
         ens.network.limits = {}
         self.ens = ens
         self._interned: dict = {}  # one object per distinct agent entry and copy
+        #: where the explorer counts the discrete variables' values (:mod:`.bounds`)
+        self.values: Values | None = None
         self.fields = self._fields()
         self.hist = [np.array([m.index for m in ca.modes if self._restorable(ca, m.index)],
                               np.intp) for ca in sk.cteam.agents]
@@ -313,7 +316,13 @@ class Machine:
                 last = np.ascontiguousarray(st.last[np.ix_(rows, h)].astype(np.int16))
                 raw = np.concatenate([raw, last.view(np.uint8)], axis=1)
             cols = self.sk.discrete_vars[a]
-            values = st.v[np.ix_(rows, cols)].tolist() if cols else [[]] * rows.size
+            if cols:
+                block = st.v[np.ix_(rows, cols)]
+                if self.values is not None:
+                    self.values.add(a, block)
+                values = block.tolist()
+            else:
+                values = [[]] * rows.size
             intern = self._interned
             per_agent.append([intern.setdefault(e, e) for e in zip(
                 (r.tobytes() for r in raw), map(tuple, values), strict=True)])

@@ -14,8 +14,8 @@ model of a hundred thousand states still compiles in seconds; a step picks one s
 nondeterministically in one atomic statement. A dead end is a blocked process, which
 SPIN's LTL semantics extends by stuttering, as ours reads it (no answer ever comes).
 ``deadlock`` is not compared (it is a classification of dead ends, not a temporal
-property); neither is an exploration cut short by ``--max-states`` (SPIN would read the
-cut states as dead ends).
+property); neither is an exploration cut short by a bound (:mod:`.bounds`: SPIN would read
+the cut states as dead ends).
 """
 
 from __future__ import annotations
@@ -118,8 +118,8 @@ def cross_check(report, folder: Path, timeout: float = 600.0) -> list[Opinion]:
     if why:
         raise RuntimeError(why)
     if not report.graph.exhaustive:
-        raise RuntimeError("the exploration stopped at --max-states: SPIN would read the "
-                           "states cut off as dead ends")
+        raise RuntimeError(f"the exploration stopped ({report.graph.bound}): SPIN would "
+                           "read the states cut off as dead ends")
     folder.mkdir(parents=True, exist_ok=True)
     promela, arrays = model(report)
     (folder / "skeleton.pml").write_text(promela)
