@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import re
 import xml.etree.ElementTree as ET
 
@@ -397,8 +398,10 @@ def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from
     assert len(crash.get_xydata()) == 0
     update(1.85)
     np.testing.assert_allclose(crash.get_xydata(), [[1.8, 0.0]], atol=1e-12)
-    page = write_report(tmp_path, run, run.summary(), animation=False)
-    assert 'id="collisions"' in page.read_text(encoding="utf-8")
+    page = write_report(tmp_path, run, run.summary(), animation=False).read_text("utf-8")
+    figure = page.split("<section id='trajectories'>", 1)[1].split("</section>", 1)[0]
+    uri = re.search(r"src='data:image/svg\+xml;base64,([^']+)'", figure)
+    assert uri is not None and b'id="collisions"' in base64.b64decode(uri.group(1))
 
 
 def test_two_robots_that_meet_are_marked_where_their_disks_touch(team_from_yaml):

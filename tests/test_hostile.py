@@ -11,6 +11,7 @@ import pytest
 import hybridteam as ht
 from hybridteam.export.diagram import diagram_graph
 from hybridteam.export.render import render
+from hybridteam.io.filekind import InputErrors
 
 TWO_MODES = """
 team: {name}
@@ -32,7 +33,14 @@ simulation: {{duration: 2.0}}
 def test_a_team_name_cannot_inject_lines_into_text_exports(team_from_yaml, fmt, brk):
     """A line break in the team's name is a space in Mermaid and PlantUML: the file is the
     one a name with a space gives, so it parses to the same diagram. DOT quotes the name
-    (a line break becomes the escape ``\\n`` of a two-line label): no line of its own."""
+    (a line break becomes the escape ``\\n`` of a two-line label): no line of its own. A
+    carriage return, which a terminal acts on (it overwrites the line), is refused where the
+    name is written."""
+    if brk == "\\r":
+        with pytest.raises(InputErrors, match=r"team\.yaml:2:7: team: team name .* has "
+                           "control characters"):
+            team_from_yaml(TWO_MODES.format(name=f'"evil{brk}    Injected --> Other"'))
+        return
     evil = team_from_yaml(TWO_MODES.format(name=f'"evil{brk}    Injected --> Other"'))
     plain = team_from_yaml(TWO_MODES.format(name='"evil     Injected --> Other"'), "p.yaml")
     got, expected = render(diagram_graph(evil), fmt), render(diagram_graph(plain), fmt)
