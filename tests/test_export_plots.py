@@ -421,3 +421,41 @@ def test_marks_that_appear_mid_run_keep_their_colour_in_a_gif():
     palette = animate._palette(first).getpalette()
     entries = [tuple(palette[k : k + 3]) for k in range(0, len(palette), 3)]
     assert (204, 0, 0) in entries and len(entries) <= 256
+
+
+CONVOY = """
+    team: convoy
+    agents:
+      scout_rear:
+        plant: {kind: unicycle, state: {x: -1.2, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      scout_front:
+        plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      xr4000:
+        plant: {kind: unicycle, state: {x: 1.2, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+    world:
+      - use: obstacles
+        with:
+          walls: [[3, 0.6, 3, 4], [3, -0.6, 3, -4]]
+    simulation: {duration: 8.0}
+"""
+
+
+def test_start_labels_of_robots_side_by_side_do_not_overprint(team_from_yaml):
+    """Three robots 1.2 m apart on one line, in a scene 8 m tall: each start label names its
+    robot ('0S: scout_rear', ...) and is longer than the gap between starts, so the labels
+    are stacked in rows where they would meet: no two drawn labels' boxes overlap."""
+    run = ht.simulate(team_from_yaml(CONVOY))
+    fig = trajectory_figure(run)
+    ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    fig.draw_without_rendering()
+    labels = by_gid(ax.texts, "start")
+    assert sorted(t.get_text().split(": ")[1] for t in labels) == \
+        ["scout_front", "scout_rear", "xr4000"]
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not a.overlaps(b), (a, b)

@@ -87,6 +87,35 @@ def start_label(name: str, letter: str) -> str:
     return f"0{letter}" if letter == name.upper() else f"0{letter}: {name}"
 
 
+START_ROW = 10.0  # points between stacked start labels (8 pt bold text)
+
+
+def start_rows(ax: Any, starts: Sequence[tuple[float, float, str, str]]) -> list[int]:
+    """The row under its start each start label takes (0: 12 pt below it), so that labels
+    of robots starting side by side, which name their robots now and are long, do not
+    overprint each other: a label moves a row down while it would overlap one placed
+    before it. Sizes are estimated before layout, from the axes' share of the figure at
+    equal aspect (about 0.6 em per character of 8 pt bold)."""
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    box = ax.get_position()
+    w_in, h_in = ax.get_figure().get_size_inches()
+    per_pt = max((x1 - x0) / max(box.width * w_in * 72.0, 1.0),
+                 (y1 - y0) / max(box.height * h_in * 72.0, 1.0))  # metres per point
+    placed: list[tuple[float, float, float]] = []  # left, right, top (points)
+    rows = []
+    for x, y, text, _color in starts:
+        left = x / per_pt - 6.0
+        right = left + 0.6 * 8.0 * len(text)
+        row = 0
+        while any(left < r and lo < right and abs(y / per_pt - 12.0 - START_ROW * row - top)
+                  < START_ROW for lo, r, top in placed):
+            row += 1
+        placed.append((left, right, y / per_pt - 12.0 - START_ROW * row))
+        rows.append(row)
+    return rows
+
+
 def nice_step(span: float, count: int = 10) -> float:
     """A round spacing (1, 2, 2.5, 5 x 10^k) giving about ``count`` footprints per run."""
     raw = max(span, 1e-9) / count
@@ -185,6 +214,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     every = every or nice_step(end_time(trace, instance), 10)
     letter = letters(agents)
     all_idx = np.zeros(0, int)
+    starts: list[tuple[float, float, str, str]] = []  # x, y, label, colour
     for k, a in enumerate(agents):
         p, color = poses[a], PALETTE[k % len(PALETTE)]
         valid = ~np.isnan(p[:, 0])
@@ -216,10 +246,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         if valid.any():
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)
-            ax.annotate(start_label(a, letter[a]), (x0, y0), xytext=(-6, -12),
-                        textcoords="offset points",
-                        fontsize=8, fontweight="bold", color=color, path_effects=HALO,
-                        zorder=7, gid="start")
+            starts.append((float(x0), float(y0), start_label(a, letter[a]), color))
     draw_guides(ax, trace.meta.get("world"), instance, agents)
     draw_payloads(ax, trace, instance, all_idx)
     changes = mode_changes(trace, instance, agents, modes)
@@ -262,6 +289,10 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal", adjustable="box")  # the limits stay: the box takes the shape
+    for (x, y, text, color), row in zip(starts, start_rows(ax, starts), strict=True):
+        ax.annotate(text, (x, y), xytext=(-6, -12 - START_ROW * row),
+                    textcoords="offset points", fontsize=8, fontweight="bold", color=color,
+                    path_effects=HALO, zorder=7, gid="start")
     ax.grid(color="#E0E0E0", linewidth=0.6)
     unit = (trace.meta.get("world") or {}).get("units", "m")
     ax.set_xlabel(f"x ({unit})" if unit else "x")
