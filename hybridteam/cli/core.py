@@ -142,7 +142,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                        overrides=overrides, progress=None if shown is None else progress,
                        max_memory=None if args.max_memory is None else args.max_memory * 1e9,
                        max_periods=args.max_periods,
-                       max_wall=None if args.max_wall is None else args.max_wall * 3600)
+                       max_wall=None if args.max_wall is None else args.max_wall * 3600,
+                       written=True)
     except ModelError as exc:  # a value out of range in some instance: at its line
         from hybridteam.io.loader import locate_in_file
 
