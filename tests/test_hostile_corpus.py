@@ -587,6 +587,12 @@ def test_a_crowd_is_run_without_views_and_says_so(tmp_path, monkeypatch, capsys)
     assert summary["views_skipped"].startswith("no views drawn: the team has 101 agents")
     assert not (tmp_path / "out" / "timeline.png").exists()
     assert not (tmp_path / "out" / "INCOMPLETE").exists()
+    # the timeline command draws as many lanes at most, and chosen ones
+    assert main(["timeline", "out/trace.json", "-o", "t.png"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: out/trace.json: a timeline draws up to 100 agents' lanes, and "
+        "this trace has 101; choose some with --agents A,B")
+    assert main(["timeline", "out/trace.json", "-o", "t.png", "--agents", "r0,r100"]) == 0
 
 
 def test_a_trace_larger_than_the_limit_is_refused(traces, monkeypatch, capsys):

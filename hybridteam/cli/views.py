@@ -214,6 +214,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
 
 
 def cmd_timeline(args: argparse.Namespace) -> int:
+    from hybridteam.export.runviews import MAX_VIEW_AGENTS
     from hybridteam.export.timeline import select_agents, write_timeline
 
     args.output = _figure_output(args.output, args.format, "timeline")
@@ -229,9 +230,13 @@ def cmd_timeline(args: argparse.Namespace) -> int:
     if args.agents is not None and not agents:
         raise UsageError("--agents: name at least one agent")
     try:
-        select_agents(trace, agents)
+        lanes = len(select_agents(trace, agents))
     except ValueError as exc:
         raise UsageError(f"--agents: {exc}") from None
+    if lanes > MAX_VIEW_AGENTS:  # an image too tall to draw in reasonable time, or at all
+        raise UsageError(f"{args.trace}: a timeline draws up to {MAX_VIEW_AGENTS} agents' "
+                         f"lanes, and {'--agents names' if agents else 'this trace has'} "
+                         f"{lanes:,}; choose some with --agents A,B")
     write_timeline(trace, args.output, instance=args.instance,
                    window=tuple(args.window) if args.window else None, data_path=args.data,
                    agents=agents, top=args.top)

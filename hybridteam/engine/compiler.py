@@ -217,7 +217,7 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             col.fail((*mode.where, "final"), "only leaf modes can be final")
         if kind == "leaf" and mode.history != "none":
             col.fail((*mode.where, "history"), f"mode '{path or agent.name}' has no modes to "
-                     f"remember: 'history' restores a composite mode's last active child; "
+                     "remember: 'history' restores a composite mode's last active child; "
                      "remove it, or give the mode 'modes'")
     check_parallel_drivers(modes, col, flat)
     for m in reversed(modes):

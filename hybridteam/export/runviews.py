@@ -7,9 +7,10 @@ from pathlib import Path
 
 from hybridteam.trace import write_atomic
 
-#: ``hybridteam run`` draws its views for teams of up to this many agents. A timeline
-#: draws a lane per agent (a thousand lanes took 45 s of CPU for one image, and past
-#: some thousands the image is too tall to allocate) and no reader follows a hundred.
+#: ``hybridteam run`` draws its views for teams of up to this many agents, and
+#: ``hybridteam timeline`` as many lanes. A timeline draws a lane per agent (a thousand
+#: lanes took 45 s of CPU for one image, and past some thousands the image is too tall to
+#: allocate) and no reader follows a hundred.
 MAX_VIEW_AGENTS = 100
 
 
