@@ -369,6 +369,9 @@ CASES: dict[str, Case] = {
                                      RUN, 2, ["team.yaml:1:7: team: U+D800 (a lone surrogate "
                                               "escape) cannot be written as UTF-8"],
                                      absent=["out"]),
+    "trace_lone_surrogate": Case({}, ["sequence", "{surrogate}"], 2,
+                                 ["not a valid hybridteam trace: meta.agents[0].name: U+DC00 "
+                                  "(a lone surrogate escape) is not text"]),
     "lone_surrogate_agent_name": Case({"team.yaml": robot().replace("  r:", '  "r\\udc00":')},
                                       ["validate", "team.yaml"], 2,
                                       ["team.yaml:3:3: agents: U+DC00 (a lone surrogate"]),
@@ -395,6 +398,7 @@ def traces(tmp_path_factory) -> dict[str, Path]:
     variant("inf_t", lambda d: d["samples"]["t"].__setitem__(2, 1e999))
     variant("bad_instance", lambda d: d["transitions"]["instance"].__setitem__(0, 7))
     variant("short", lambda d: d["transitions"]["t"].pop())
+    variant("surrogate", lambda d: d["meta"]["agents"][0].__setitem__("name", "r\udc00"))
     return out
 
 
@@ -634,3 +638,12 @@ def test_a_library_that_exits_at_import_ends_no_unrelated_command(tmp_path, monk
     assert main(["validate", "team.yaml"]) == 2
     assert "team.yaml:6:23: agents.r.modes.Go.law.use: unknown law 'quit.law' (mode library " \
            "'quitter' failed to import (quitter.laws: SystemExit: 7))" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["lots", "nan", "-1"])
+def test_a_bad_file_size_limit_is_one_line(value, traces, monkeypatch, capsys):
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", value)
+    assert main(["sequence", str(traces["good"])]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        f"trace.json: cannot read file: HYBRIDTEAM_MAX_TRACE_MB={value!r} must be a number of "
+        "megabytes > 0")

@@ -8,10 +8,26 @@ environment variable, and everything else is refused before a byte is read.
 
 from __future__ import annotations
 
+import math
 import os
 import stat
 
 from hybridteam.io.yamlpos import SourceError
+
+
+def _limit(name: str, env: str, default: float) -> float:
+    """Megabytes to read: ``env``'s value if set, else ``default``."""
+    text = os.environ.get(env)
+    if not text:
+        return default
+    try:
+        limit = float(text)
+    except ValueError:
+        limit = math.nan
+    if not 0 < limit < math.inf:
+        raise SourceError(name, message=f"cannot read file: {env}={text!r} must be a "
+                          "number of megabytes > 0")
+    return limit
 
 
 def read_regular(path: str | os.PathLike[str], name: str, *, limit_mb: float, env: str,
@@ -28,7 +44,7 @@ def read_regular(path: str | os.PathLike[str], name: str, *, limit_mb: float, en
     if not stat.S_ISREG(info.st_mode):
         kind = "a FIFO" if stat.S_ISFIFO(info.st_mode) else "a device or socket"
         raise SourceError(name, message=f"cannot read file: it is {kind}, not a regular file")
-    limit = float(os.environ.get(env) or limit_mb)
+    limit = _limit(name, env, limit_mb)
     too_large = SourceError(name, message=f"file is {info.st_size / 1e6:.1f} MB; {what} are "
                             f"read up to {limit:g} MB (set {env} to read larger ones)")
     if info.st_size > limit * 1e6:

@@ -168,7 +168,7 @@ class _Builder:
     def scalar(self, node: ScalarNode, path: Path) -> Any:
         """Type a scalar: our plain-scalar rules, or an explicit standard tag like ``!!str``."""
         raw, tag = node.value, node.tag
-        lone = _SURROGATE.search(raw)
+        lone = LONE_SURROGATE.search(raw)
         if lone:  # "\ud800" in double quotes: no UTF-8 file, SVG or trace can hold it
             raise self.fail(node.start_mark, path, f"U+{ord(lone.group()):04X} (a lone "
                             "surrogate escape) cannot be written as UTF-8; names and text "
@@ -304,7 +304,7 @@ def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Com
 
 
 #: a UTF-16 surrogate on its own: YAML's "\ud800" escape gives one, and it is no character
-_SURROGATE = re.compile("[\ud800-\udfff]")
+LONE_SURROGATE = re.compile("[\ud800-\udfff]")
 
 #: Model files larger than this are refused (``HYBRIDTEAM_MAX_FILE_MB`` raises it): a team
 #: of a hundred robots is some 50 kB, and reading YAML costs seconds per megabyte.
