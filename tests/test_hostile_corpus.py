@@ -647,3 +647,28 @@ def test_a_bad_file_size_limit_is_one_line(value, traces, monkeypatch, capsys):
     assert capsys.readouterr().err.strip().endswith(
         f"trace.json: cannot read file: HYBRIDTEAM_MAX_TRACE_MB={value!r} must be a number of "
         "megabytes > 0")
+
+
+def test_running_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
+    """Within --max-memory by the estimate but beyond what the machine has: one line, not an
+    ArrayMemoryError traceback; while writing, the folder keeps its INCOMPLETE marker."""
+    (tmp_path / "team.yaml").write_text(robot())
+    monkeypatch.chdir(tmp_path)
+
+    def no_memory(*args, **kwargs):  # numpy's ArrayMemoryError is a MemoryError
+        raise MemoryError("Unable to allocate 7.28 TiB for an array")
+
+    with monkeypatch.context() as m:
+        m.setattr("hybridteam.engine.simulator.Simulator.run", no_memory)
+        assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: the run ran out of memory (the machine has less than the memory "
+        "limit the estimate was checked against): lower --max-memory GB, shorten the run or "
+        "the ensemble")
+    monkeypatch.setattr("hybridteam.trace.Trace.write_csv", no_memory)
+    assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: ran out of memory writing out/: it is incomplete (INCOMPLETE marks "
+        "it); raise simulation.sample_period or shorten the run")
+    assert (tmp_path / "out" / "INCOMPLETE").exists()
+    assert not (tmp_path / "out" / "summary.json").exists()

@@ -110,6 +110,10 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         raise UsageError(f"cannot write{where}: {exc.strerror or exc}"
                          + ("" if not marker.exists() else
                             f"; {out}/ is incomplete ({INCOMPLETE} marks it)")) from None
+    except MemoryError:
+        raise UsageError(f"ran out of memory writing {out}/: it is incomplete ({INCOMPLETE} "
+                         "marks it); raise simulation.sample_period or shorten the run") \
+            from None
     except KeyboardInterrupt:
         print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
               f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)

@@ -151,6 +151,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
+    except MemoryError:  # within --max-memory by the estimate, beyond what the machine has
+        raise UsageError("the run ran out of memory (the machine has less than the memory "
+                         "limit the estimate was checked against): lower --max-memory GB, "
+                         "shorten the run or the ensemble") from None
     finally:
         if shown is not None:
             shown.close()
