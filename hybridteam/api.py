@@ -153,7 +153,7 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
              overrides: Mapping[str, float | Sequence[float]] | None = None,
              progress: Callable[[float], None] | None = None, *,
              max_memory: float | None = None, max_periods: float | None = None,
-             max_wall: float | None = None) -> Run:
+             max_wall: float | None = None, written: bool = False) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``, or a network
@@ -166,7 +166,8 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     bytes (default 4 GB) or ``max_periods`` control periods per instance (default 1e8)
     raises :class:`~hybridteam.engine.budget.ResourceError` before allocating anything;
     one whose pace projects more than ``max_wall`` seconds (default 24 h) raises it once it
-    has run a few seconds.
+    has run a few seconds. ``written``: the caller will write the run's files
+    (``trace.json``, ``samples.csv``), whose rows then count in the memory estimate.
     """
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
@@ -174,7 +175,7 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
                     progress=progress, max_memory=max_memory, max_periods=max_periods,
                     max_wall=max_wall, snapshots=bool(requirements),
-                    observe=requirements.observers(cteam))
+                    observe=requirements.observers(cteam), written=written)
     run = Run.of(sim.run())
     if requirements:
         check_requirements(run, requirements, sim)

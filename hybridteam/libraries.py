@@ -25,7 +25,10 @@ def load_libraries() -> None:
     for ep in metadata.entry_points(group="hybridteam.libraries"):
         try:
             ep.load()
-        except Exception as exc:  # a broken library must not break unrelated models
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # a broken library must not break unrelated models,
+            # not even one that calls sys.exit() (SystemExit) at import
             _BROKEN[ep.name] = f"{ep.value}: {type(exc).__name__}: {exc}"
 
 

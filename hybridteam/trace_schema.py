@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from hybridteam.io.yamlcompose import LONE_SURROGATE
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -156,6 +157,28 @@ class TraceFile(BaseModel):
         return self
 
 
+def _lone_surrogate(data: Any, where: str = "") -> str | None:
+    """Where a string (or key) of ``data`` holds a lone surrogate (JSON's ``"\\ud800"``
+    escape gives one; no SVG, PNG label or terminal can hold it), as
+    ``"meta.agents[0].name: U+D800 ..."``; or None. Lists of numbers are not walked: a
+    column is numbers or strings (the schema checks which) and samples are numbers."""
+    if isinstance(data, str):
+        lone = LONE_SURROGATE.search(data)
+        return None if lone is None else (
+            f"{where.lstrip('.') or 'the file'}: U+{ord(lone.group()):04X} (a lone surrogate "
+            "escape) is not text")
+    if isinstance(data, dict):
+        for key, value in data.items():
+            found = _lone_surrogate(key, where) or _lone_surrogate(value, f"{where}.{key}")
+            if found:
+                return found
+    elif isinstance(data, list) and data and not isinstance(data[0], int | float):
+        for i, value in enumerate(data):
+            if found := _lone_surrogate(value, f"{where}[{i}]"):
+                return found
+    return None
+
+
 def first_problem(model: type[BaseModel], data: Any, what: str) -> tuple[tuple, str] | None:
     """The first problem of ``data`` read as ``model``: its path in the file (JSON keys and
     indices) and ``"samples.t[3]: ..."``; None when it fits. ``what`` names the file's kind
@@ -193,5 +216,7 @@ def _in_data(loc: tuple, data: Any) -> tuple:
 
 def check_trace(data: Any) -> str | None:
     """The first problem of a parsed ``trace.json`` (``"samples.t[3]: ..."``), or None."""
+    if found := _lone_surrogate(data):
+        return found
     problem = first_problem(TraceFile, data, "a hybridteam trace")
     return None if problem is None else problem[1]

@@ -178,9 +178,10 @@ CASES: dict[str, Case] = {
     "loss_above_one": Case({"team.yaml": net(loss="1.5")}, RUN, 2,
                            ["team.yaml:3:33: network.loss: a loss probability is at most 1, "
                             "got 1.5"]),
-    "negative_after_expression": Case({"team.yaml": net(after="d - 2")}, RUN, 2,
+    "negative_after_expression": Case({"team.yaml": net(after="d - 0.5")},
+                                      [*RUN, "--set", "d=0.25"], 2,
                                       ["team.yaml:13:28: agents.a.modes.A.transitions[0].after: "
-                                       "the delay 'd - 2' is -1.0 in instance 0; it must be a "
+                                       "the delay 'd - 0.5' is -0.25 in instance 0; it must be a "
                                        "number >= 0"]),
     "zero_ack_timeout": Case({"team.yaml": net(timeout="k - 0.2")}, RUN, 2,
                              ["messages.ping.ack.timeout: the ack timeout 'k - 0.2' is 0.0"]),
@@ -319,6 +320,64 @@ CASES: dict[str, Case] = {
                              ["validate", "team.yaml"], 2,
                              ["team.yaml:6:22: agents.r.modes.Go.protocol: unknown protocol "
                               "'nowhere.yaml'"]),
+    # --- round two (issue 43): resources ------------------------------------------------
+    "zeno_ring_1e9": Case({"team.yaml": robot(extra=", zeno: {max_transitions: 1000000000}")},
+                          RUN, 2, ["about 8 GB of memory (1 instance(s) of 1 agent(s) "
+                                   "remembering their last 1,000,000,000 transition times "
+                                   "(simulation.zeno.max_transitions))", "--max-memory GB"]),
+    "sample_period_1e-7_written": Case(
+        {"team.yaml": robot(extra=", sample_period: 1e-7")}, RUN, 2,
+        ["about 14.5 GB of memory (20,000,002 output samples of 1 instance(s), every 1e-07 s "
+         "over 2 s, written as trace.json and samples.csv)", "--max-memory GB"],
+        absent=["out"]),
+    "trace_is_dev_zero": Case({}, ["timeline", "/dev/zero", "-o", "p.png"], 2,
+                              ["/dev/zero: cannot read file: it is a device or socket, not a "
+                               "regular file"], absent=["p.png"]),
+    "trace_is_dev_urandom": Case({}, ["sequence", "/dev/urandom"], 2,
+                                 ["/dev/urandom: cannot read file: it is a device or socket"]),
+    # --- round two: what validate accepts, run must accept --------------------------------
+    "requirement_constant_nan": Case({"team.yaml": flow("c") + "requirements:\n  r1: always(x > "
+                                      "sqrt(-1))\n"}, ["validate", "team.yaml"], 2,
+                                     ["team.yaml:12:18: requirements.r1: 'sqrt(-1)' is not a "
+                                      "number (nan): a comparison with it has no margin"]),
+    "requirement_runtime_nan": Case({"team.yaml": flow("c") + "requirements:\n  r1: always("
+                                     "sqrt(1.5 - x) >= 0)\n"}, RUN, 0,
+                                    ['"robustness": "nan"'], "ok"),
+    "window_one_over_zero": Case({"team.yaml": flow("c") + "requirements:\n  r1: always[0, "
+                                  "1/0](x > 0)\n"}, ["validate", "team.yaml"], 2,
+                                 ["requirements.r1: window bounds must be numbers; this one "
+                                  "is inf; an endless window is written inf"]),
+    "after_sqrt_negative": Case({"team.yaml": net(after="sqrt(-1)")}, ["validate", "team.yaml"],
+                                2, ["team.yaml:13:28: agents.a.modes.A.transitions[0].after: "
+                                    "the delay 'sqrt(-1)' is nan; it must be a number >= 0"]),
+    "after_negative_parameter": Case({"team.yaml": net(after="d - 2")},
+                                     ["validate", "team.yaml"], 2,
+                                     ["transitions[0].after: the delay 'd - 2' is -1.0; it "
+                                      "must be a number >= 0"]),
+    "event_tol_1e300": Case({"team.yaml": robot(extra=", event_tol: 1e300")},
+                            ["validate", "team.yaml"], 2,
+                            ["team.yaml:7:40: simulation.event_tol: must be <= 0.001, got "
+                             "1e+300"]),
+    "history_on_a_leaf": Case({"team.yaml": robot("inputs: {v: 0.1, omega: 0}, period: 0.1, "
+                                                  "history: deep")},
+                              ["validate", "team.yaml"], 2,
+                              ["team.yaml:6:62: agents.r.modes.Go.history: mode 'Go' has no "
+                               "modes to remember"]),
+    "diagram_mermaid_into_png": Case({"team.yaml": robot()},
+                                     ["diagram", "team.yaml", "-f", "mermaid", "-o", "x.png"], 2,
+                                     ["-o x.png says png but -f says mermaid; name the file "
+                                      ".mmd or .mermaid, or drop -f"], absent=["x.png"]),
+    # --- round two: text that is no Unicode -----------------------------------------------
+    "lone_surrogate_team_name": Case({"team.yaml": robot().replace("team: r", 'team: "\\ud800"')},
+                                     RUN, 2, ["team.yaml:1:7: team: U+D800 (a lone surrogate "
+                                              "escape) cannot be written as UTF-8"],
+                                     absent=["out"]),
+    "trace_lone_surrogate": Case({}, ["sequence", "{surrogate}"], 2,
+                                 ["not a valid hybridteam trace: meta.agents[0].name: U+DC00 "
+                                  "(a lone surrogate escape) is not text"]),
+    "lone_surrogate_agent_name": Case({"team.yaml": robot().replace("  r:", '  "r\\udc00":')},
+                                      ["validate", "team.yaml"], 2,
+                                      ["team.yaml:3:3: agents: U+DC00 (a lone surrogate"]),
 }
 
 
@@ -344,6 +403,7 @@ def traces(tmp_path_factory) -> dict[str, Path]:
     variant("short", lambda d: d["transitions"]["t"].pop())
     variant("bad_collision", lambda d: d["meta"].__setitem__("world", {"collisions": [
         {"instance": 0, "who": "r", "t": "soon", "x": 0.0, "y": 0.0}]}))
+    variant("surrogate", lambda d: d["meta"]["agents"][0].__setitem__("name", "r\udc00"))
     return out
 
 
@@ -519,7 +579,172 @@ def test_a_failing_view_still_writes_the_summary(tmp_path, monkeypatch, capsys):
     assert "drawing the views failed (ValueError: cannot draw this); out/ has the trace" in err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["views_error"] == "ValueError: cannot draw this"
+    # the data stands, the views do not: the folder says it is incomplete (issue 43)
+    assert "drawing the views failed (ValueError: cannot draw this)" in \
+        (tmp_path / "out" / "INCOMPLETE").read_text()
+
+
+# --- round two (issue 43): a team of thousands, bounded files, broken libraries ----------
+
+def _crowd(agents: int, links: str = "", acked: bool = False) -> str:
+    """A team of ``agents`` unicycles; with ``acked`` the first one sends an acknowledged
+    'ping' (ack timeout 0.3 s) on entering its second mode."""
+    lines = ["team: crowd", f"network: {{latency: 0.1{links}}}"]
+    if acked:
+        lines.append("messages: {ping: {ack: {timeout: 0.3, retries: 1}}}")
+    lines.append("agents:")
+    for i in range(agents):
+        body = ("{A: {transitions: [{to: B, after: 1, do: [{send: ping}]}]}, B: {}}"
+                if acked and i == 0 else "{Go: {inputs: {v: 0.1, omega: 0}, period: 0.5}}")
+        lines += [f"  r{i}:", "    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}",
+                  *(["    initial: A"] if acked and i == 0 else []), f"    modes: {body}"]
+    return "\n".join([*lines, "simulation: {duration: 1.0}", ""])
+
+
+def test_round_trips_are_not_evaluated_per_pair_of_agents(tmp_path, monkeypatch):
+    """A 5,000-agent team took minutes to validate: the ack-timeout warning evaluated the
+    round trip of every pair of agents (25 million link settings), senders or not. Now
+    only senders of acknowledged messages are looked at, and a link's settings once."""
+    import hybridteam as ht
+    from hybridteam.io import timing
+
+    calls = []
+    real = timing.evaluate_setting
+
+    def counted(*args):
+        calls.append(args)
+        return real(*args)
+
+    monkeypatch.setattr(timing, "evaluate_setting", counted)
+    (tmp_path / "crowd.yaml").write_text(_crowd(60))
+    ht.load(tmp_path / "crowd.yaml")
+    assert calls == []  # nobody sends an acknowledged message (before: 4 * 60 * 59)
+    # r0 sends ping; its link to r2 is slow one way (0.3 s), the others 0.1 s each way:
+    # the worst round trip is r0 -> r2 -> r0, 0.3 + 0.1 = 0.4 s, longer than the 0.3 s
+    # ack timeout; the default link and the one link are evaluated once each
+    (tmp_path / "crowd.yaml").write_text(
+        _crowd(60, ", links: {r0->r2: {latency: 0.3}}", acked=True))
+    ht.load(tmp_path / "crowd.yaml")
+    assert len(calls) == 4  # latency and jitter of two links
+    from hybridteam.io.loader import load_team_file
+
+    warnings = [str(w) for w in load_team_file(tmp_path / "crowd.yaml").warnings]
+    assert any("agent 'r0' resends ping after 0.3 s without an acknowledgement, but a "
+               "round trip to 'r2' takes up to 0.4 s" in w for w in warnings), warnings
+
+
+def test_agents_share_the_team_symbol_table(tmp_path):
+    """Every agent can read ``id_<agent>`` of every other: one name per agent. Copying that
+    table into each agent's own made compiling a team of thousands quadratic; each agent's
+    table now chains its own names to the one team table."""
+    import hybridteam as ht
+    from hybridteam.engine.compiler import compile_team
+
+    (tmp_path / "crowd.yaml").write_text(_crowd(30))
+    cteam = compile_team(ht.load(tmp_path / "crowd.yaml"))
+    tables = [ca.symbols.maps[-1] for ca in cteam.agents]  # type: ignore[attr-defined]
+    assert all(t is tables[0] for t in tables)
+    assert len(tables[0]) == 30 and "id_r29" in cteam.agents[0].symbols
+    assert "x" in cteam.agents[0].symbols and "x" not in tables[0]
+
+
+def test_a_crowd_is_run_without_views_and_says_so(tmp_path, monkeypatch, capsys):
+    """Drawing a timeline of a thousand lanes took 45 s of CPU, and of 5,000 failed to
+    allocate the image: beyond 100 agents ``run`` writes the data, says why there are no
+    views, and the folder is complete."""
+    from hybridteam.export.runviews import MAX_VIEW_AGENTS
+
+    (tmp_path / "crowd.yaml").write_text(_crowd(MAX_VIEW_AGENTS + 1))
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "crowd.yaml", "-o", "out", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "hybridteam: note: no views drawn: the team has 101 agents and views are drawn " \
+           "for up to 100; draw some of them with 'hybridteam timeline TRACE --agents A,B'" in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["views_skipped"].startswith("no views drawn: the team has 101 agents")
+    assert not (tmp_path / "out" / "timeline.png").exists()
     assert not (tmp_path / "out" / "INCOMPLETE").exists()
+    # the timeline command draws as many lanes at most, and chosen ones
+    assert main(["timeline", "out/trace.json", "-o", "t.png"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: out/trace.json: a timeline draws up to 100 agents' lanes, and "
+        "this trace has 101; choose some with --agents A,B")
+    assert main(["timeline", "out/trace.json", "-o", "t.png", "--agents", "r0,r100"]) == 0
+
+
+def test_a_trace_larger_than_the_limit_is_refused(traces, monkeypatch, capsys):
+    size = traces["good"].stat().st_size
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", str(size / 2e6))
+    assert main(["sequence", str(traces["good"])]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        f"trace.json: file is {size / 1e6:.1f} MB; traces are read up to {size / 2e6:g} MB "
+        "(set HYBRIDTEAM_MAX_TRACE_MB to read larger ones)")
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", str(size / 1e6))
+    assert main(["sequence", str(traces["good"])]) == 0
+
+
+def test_a_library_that_exits_at_import_ends_no_unrelated_command(tmp_path, monkeypatch,
+                                                                  capsys):
+    """A library calling sys.exit(7) at import made ``run`` of a team that does not use it,
+    and ``laws``, exit 7 without a word. It is a broken library like any other: named,
+    with its error, where one of its names is used."""
+    from importlib import metadata
+
+    from hybridteam import libraries
+
+    class Exits:
+        name, value = "quitter", "quitter.laws"
+
+        def load(self):
+            raise SystemExit(7)
+
+    monkeypatch.setattr(metadata, "entry_points", lambda group: [Exits()])
+    monkeypatch.setattr(libraries, "_LOADED", False)
+    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "team.yaml").write_text(robot())
+    assert main(["run", "team.yaml", "-o", "out", "--quiet", "--no-views"]) == 0
+    assert main(["laws"]) == 0
+    assert "mode library 'quitter' failed to import (quitter.laws: SystemExit: 7)" in \
+        capsys.readouterr().err
+    (tmp_path / "team.yaml").write_text(robot("law: {use: quit.law}"))
+    assert main(["validate", "team.yaml"]) == 2
+    assert "team.yaml:6:23: agents.r.modes.Go.law.use: unknown law 'quit.law' (mode library " \
+           "'quitter' failed to import (quitter.laws: SystemExit: 7))" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["lots", "nan", "-1"])
+def test_a_bad_file_size_limit_is_one_line(value, traces, monkeypatch, capsys):
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", value)
+    assert main(["sequence", str(traces["good"])]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        f"trace.json: cannot read file: HYBRIDTEAM_MAX_TRACE_MB={value!r} must be a number of "
+        "megabytes > 0")
+
+
+def test_running_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
+    """Within --max-memory by the estimate but beyond what the machine has: one line, not an
+    ArrayMemoryError traceback; while writing, the folder keeps its INCOMPLETE marker."""
+    (tmp_path / "team.yaml").write_text(robot())
+    monkeypatch.chdir(tmp_path)
+
+    def no_memory(*args, **kwargs):  # numpy's ArrayMemoryError is a MemoryError
+        raise MemoryError("Unable to allocate 7.28 TiB for an array")
+
+    with monkeypatch.context() as m:
+        m.setattr("hybridteam.engine.simulator.Simulator.run", no_memory)
+        assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: the run ran out of memory (the machine has less than the memory "
+        "limit the estimate was checked against): lower --max-memory GB, shorten the run or "
+        "the ensemble")
+    monkeypatch.setattr("hybridteam.trace.Trace.write_csv", no_memory)
+    assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "hybridteam: error: ran out of memory writing out/: it is incomplete (INCOMPLETE marks "
+        "it); raise simulation.sample_period or shorten the run")
+    assert (tmp_path / "out" / "INCOMPLETE").exists()
+    assert not (tmp_path / "out" / "summary.json").exists()
 
 
 def test_verify_of_an_unbounded_counter_ends_naming_the_variable(tmp_path, monkeypatch,

@@ -97,8 +97,9 @@ INCOMPLETE = "INCOMPLETE"
 
 def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[str]:
     """Write a run's folder; ``summary.json`` last. Until it is written the folder holds an
-    ``INCOMPLETE`` file saying so, which stays if writing fails or is interrupted: a folder
-    is complete (``summary.json``, no ``INCOMPLETE``) or says it is not."""
+    ``INCOMPLETE`` file saying so, which stays if writing fails or is interrupted, or if a
+    view cannot be drawn (``summary.json`` is then written too, with ``views_error``): a
+    folder is complete (``summary.json``, no ``INCOMPLETE``) or says it is not."""
     from hybridteam.trace import write_atomic
 
     marker = out / INCOMPLETE
@@ -111,21 +112,33 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         run.write_csv(out)
         written: list[str] = []
         failed = None
+        skipped = None
         if views:
-            from hybridteam.export.runviews import write_run_views
+            from hybridteam.export.runviews import views_skipped, write_run_views
 
-            try:
-                written = write_run_views(team, run, out)
-            except OSError:
-                raise
-            except Exception as exc:  # a view that cannot be drawn: the data still stands
-                failed = f"{type(exc).__name__}: {exc}"
-                summary["views_error"] = failed
+            skipped = views_skipped(team)
+            if skipped is not None:
+                summary["views_skipped"] = skipped
+            else:
+                try:
+                    written = write_run_views(team, run, out)
+                except OSError:
+                    raise
+                except Exception as exc:  # a view that cannot be drawn: the data stands
+                    failed = f"{type(exc).__name__}: {exc}"
+                    summary["views_error"] = failed
         write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-        marker.unlink()
+        if failed is None:
+            marker.unlink()
+        else:  # the data stands, the views do not: the folder still says it is incomplete
+            write_atomic(marker, f"drawing the views failed ({failed}): the trace, the tables "
+                         "and summary.json are complete, the views are not\n")
+        if skipped is not None:
+            print(f"hybridteam: note: {skipped}", file=sys.stderr)
         if failed is not None:
             raise UsageError(f"drawing the views failed ({failed}); {out}/ has the trace, "
-                             "the tables and summary.json (--no-views skips the views)")
+                             f"the tables and summary.json, not the views ({INCOMPLETE} says "
+                             "so; --no-views skips the views)")
         return written
     except OSError as exc:
         target = getattr(exc, "filename2", None) or exc.filename  # a rename's target
@@ -133,6 +146,10 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         raise UsageError(f"cannot write{where}: {exc.strerror or exc}"
                          + ("" if not marker.exists() else
                             f"; {out}/ is incomplete ({INCOMPLETE} marks it)")) from None
+    except MemoryError:
+        raise UsageError(f"ran out of memory writing {out}/: it is incomplete ({INCOMPLETE} "
+                         "marks it); raise simulation.sample_period or shorten the run") \
+            from None
     except KeyboardInterrupt:
         print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
               f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)

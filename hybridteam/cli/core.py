@@ -148,7 +148,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                        overrides=overrides, progress=None if shown is None else progress,
                        max_memory=None if args.max_memory is None else args.max_memory * 1e9,
                        max_periods=args.max_periods,
-                       max_wall=None if args.max_wall is None else args.max_wall * 3600)
+                       max_wall=None if args.max_wall is None else args.max_wall * 3600,
+                       written=True)
     except ModelError as exc:  # a value out of range in some instance: at its line
         from hybridteam.io.loader import locate_in_file
 
@@ -156,6 +157,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
+    except MemoryError:  # within --max-memory by the estimate, beyond what the machine has
+        raise UsageError("the run ran out of memory (the machine has less than the memory "
+                         "limit the estimate was checked against): lower --max-memory GB, "
+                         "shorten the run or the ensemble") from None
     finally:
         if shown is not None:
             shown.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -102,18 +103,30 @@ DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "
                    ".pdf": "pdf"}
 
 
+#: Trace files are read up to this size (``HYBRIDTEAM_MAX_TRACE_MB`` raises it): a run
+#: within the default memory limit writes a few hundred megabytes at most, and reading
+#: one costs about twice its size in memory.
+MAX_TRACE_MB = 500.0
+
+
 def _load_trace(path: str, instance: int) -> Trace:
-    """A trace file, checked against the trace format; or a one-line error naming it."""
+    """A trace file, checked against the trace format; or a one-line error naming it.
+    Only a regular file of a bounded size is read (not a FIFO, not ``/dev/zero``)."""
+    from hybridteam.io.files import read_regular
+    from hybridteam.io.yamlpos import SourceError
     from hybridteam.trace_schema import check_trace
 
+    if os.path.isdir(path):
+        raise UsageError(f"{path}: is a directory, not a trace file")
+    if not os.path.lexists(path):
+        raise UsageError(f"{path}: no such file")
     try:
-        with open(path, encoding="utf-8") as fh:
-            data = json.load(fh)
-    except FileNotFoundError:
-        raise UsageError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise UsageError(f"{path}: is a directory, not a trace file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        raw = read_regular(path, path, limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
+                           what="traces")
+        data = json.loads(raw.decode("utf-8"))
+    except SourceError as exc:
+        raise UsageError(str(exc)) from None
+    except UnicodeDecodeError as exc:
         raise UsageError(f"{path}: cannot read: {exc}") from None
     except json.JSONDecodeError as exc:
         raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
@@ -159,8 +172,13 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     from hybridteam.export.render import RENDERERS, render
 
     fmt = args.format
+    suffix = Path(args.output).suffix.lower() if args.output else ""
+    if fmt is not None and DIAGRAM_FORMATS.get(suffix, fmt) != fmt:  # no Mermaid in a .png
+        names = " or ".join(s for s, f in DIAGRAM_FORMATS.items() if f == fmt) or "for it"
+        raise UsageError(f"-o {args.output} says {DIAGRAM_FORMATS[suffix]} but -f says {fmt}; "
+                         f"name the file {names}, or drop -f (the format is then taken from "
+                         "the file's name)")
     if fmt is None and args.output:
-        suffix = Path(args.output).suffix.lower()
         if suffix not in DIAGRAM_FORMATS:  # never DOT text in a file named otherwise
             raise UsageError(f"-o {args.output}: cannot tell the format from "
                              f"'{suffix or '(no extension)'}'; name the file "
@@ -196,6 +214,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
 
 
 def cmd_timeline(args: argparse.Namespace) -> int:
+    from hybridteam.export.runviews import MAX_VIEW_AGENTS
     from hybridteam.export.timeline import select_agents, write_timeline
 
     args.output = _figure_output(args.output, args.format, "timeline")
@@ -211,9 +230,13 @@ def cmd_timeline(args: argparse.Namespace) -> int:
     if args.agents is not None and not agents:
         raise UsageError("--agents: name at least one agent")
     try:
-        select_agents(trace, agents)
+        lanes = len(select_agents(trace, agents))
     except ValueError as exc:
         raise UsageError(f"--agents: {exc}") from None
+    if lanes > MAX_VIEW_AGENTS:  # an image too tall to draw in reasonable time, or at all
+        raise UsageError(f"{args.trace}: a timeline draws up to {MAX_VIEW_AGENTS} agents' "
+                         f"lanes, and {'--agents names' if agents else 'this trace has'} "
+                         f"{lanes:,}; choose some with --agents A,B")
     write_timeline(trace, args.output, instance=args.instance,
                    window=tuple(args.window) if args.window else None, data_path=args.data,
                    agents=agents, top=args.top)

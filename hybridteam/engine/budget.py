@@ -65,20 +65,34 @@ def resident_bytes() -> float | None:
     return float(pages * os.sysconf("SC_PAGE_SIZE"))
 
 
-def memory_estimate(cteam: CTeam, n: int, t_end: float, dt: float) -> tuple[float, float]:
+#: bytes the trace's writers hold per output row (one sample time of one instance) while
+#: ``trace.json`` and ``samples.csv`` are written, and per value in the row: the rows are
+#: Python lists of floats and their text (measured: 478, 667 and 939 bytes for rows of 1,
+#: 3 and 6 values, written with ``samples.csv``, which costs more than ``trace.json``)
+WRITE_ROW_BYTES, WRITE_VALUE_BYTES = 400, 100
+
+
+def memory_estimate(cteam: CTeam, n: int, t_end: float, dt: float, written: bool = False
+                    ) -> tuple[float, float]:
     """``(bytes, samples)``: memory of a run (the sampled trace dominates; per-instance
-    arrays of every agent and mode count too, and each agent's stream inbox, which holds
+    arrays of every agent and mode count too, each agent's ring of its last
+    ``zeno.max_transitions`` transition times, and each agent's stream inbox, which holds
     a copy per sender: agents squared, what a team of hundreds pays) and its number of
-    output samples."""
+    output samples. With ``written``, the writing of the trace's files counts too
+    (``hybridteam run``)."""
     samples = math.floor(t_end / dt + 1e-9) + 2
     values = sum(len(ca.plant.state_names) for ca in cteam.agents) + 3 * len(cteam.team.world)
+    ring = cteam.team.simulation.zeno.max_transitions
     per_instance = _inbox_values(cteam)
     for ca in cteam.agents:
         m = len(ca.modes)
         per_instance += (len(ca.plant.state_names) * 2 + len(ca.plant.input_names)
                          + len(ca.var_index) + len(ca.param_index) + 4 * m
-                         + len(ca.after) + 2 * len(ca.watches) + 40)
-    return 8.0 * n * (samples * values + per_instance), float(samples)
+                         + len(ca.after) + 2 * len(ca.watches) + 40 + ring)
+    nbytes = 8.0 * n * (samples * values + per_instance)
+    if written:
+        nbytes += n * samples * (WRITE_ROW_BYTES + WRITE_VALUE_BYTES * values)
+    return nbytes, float(samples)
 
 
 def instances_within(cteam: CTeam, wanted: int, max_memory: float, what: str,
@@ -117,18 +131,28 @@ def _fastest_period(cteam: CTeam) -> float:
 
 
 def check_budget(cteam: CTeam, n: int, t_end: float, dt: float,
-                 max_memory: float | None = None, max_periods: float | None = None) -> None:
-    """ResourceError if the run would need more memory or control periods than allowed."""
+                 max_memory: float | None = None, max_periods: float | None = None,
+                 written: bool = False) -> None:
+    """ResourceError if the run would need more memory or control periods than allowed
+    (``written``: counting the writing of its trace, see :func:`memory_estimate`)."""
     max_memory = memory_limit(max_memory)
     if max_periods is None:
         max_periods = DEFAULT_MAX_PERIODS
-    nbytes, samples = memory_estimate(cteam, n, t_end, dt)
+    nbytes, samples = memory_estimate(cteam, n, t_end, dt, written)
     if nbytes > max_memory:
+        ring = cteam.team.simulation.zeno.max_transitions
+        if 8.0 * n * len(cteam.agents) * ring > nbytes / 2:  # the Zeno check's rings
+            what = (f"{n:,} instance(s) of {len(cteam.agents):,} agent(s) remembering their "
+                    f"last {ring:,} transition times (simulation.zeno.max_transitions)")
+            lower = "lower simulation.zeno.max_transitions, shorten the ensemble"
+        else:
+            what = (f"{samples:,.0f} output samples of {n:,} instance(s), every {dt:g} s over "
+                    f"{t_end:g} s" + (", written as trace.json and samples.csv"
+                                      if written else ""))
+            lower = "raise simulation.sample_period, shorten the run or the ensemble"
         raise ResourceError(
-            f"this run would need about {_size(nbytes)} of memory ({samples:,.0f} output "
-            f"samples of {n:,} instance(s), every {dt:g} s over {t_end:g} s), more than the "
-            f"limit of {_size(max_memory)}: raise simulation.sample_period, shorten the run "
-            "or the ensemble, or raise the limit (--max-memory GB)")
+            f"this run would need about {_size(nbytes)} of memory ({what}), more than the "
+            f"limit of {_size(max_memory)}: {lower}, or raise the limit (--max-memory GB)")
     fastest = _fastest_period(cteam)
     periods = t_end / fastest
     if periods > max_periods:

@@ -9,6 +9,7 @@ the declarations; nothing here refers to YAML.
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -235,7 +236,7 @@ class CAgent:
     transition_sources: np.ndarray = field(default_factory=lambda: np.zeros(0, np.intp))
     #: every name the agent's expressions read (state, variables, parameters, ``t``, the
     #: team's names): analyses that recompile part of a guard (``hybridteam verify``) use it
-    symbols: dict = field(default_factory=dict)
+    symbols: Mapping = field(default_factory=dict)
 
     @functools.cached_property
     def lone_watches(self) -> list[bool]:

@@ -10,6 +10,8 @@ values and limits, its mode tree with drivers (:mod:`.bindings`), and its transi
 
 from __future__ import annotations
 
+from collections import ChainMap
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,12 +24,14 @@ from hybridteam.engine.compiled import (
     CAgent,
     CMode,
     CTeam,
+    CTransition,
     Ctx,
     Driver,
 )
 from hybridteam.engine.protocols import attach, check_messages, team_symbols
 from hybridteam.engine.scope import Collector, resolve_mode, symbols
 from hybridteam.engine.transitions import compile_transitions, group_triggered, watches
+from hybridteam.engine.values import transition_delay
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import Expression
 from hybridteam.model import Agent, Mode, Send, Team
@@ -77,8 +81,8 @@ class _Names:
     variables: dict[str, int]
     params: dict[str, float | str]  # team parameters, then the agent's (which override them)
     param_index: dict[str, int]
-    syms: dict  # every name an expression of the agent may use
-    param_syms: dict  # parameters only (initial values are evaluated before anything runs)
+    syms: Mapping  # every name an expression of the agent may use
+    param_syms: Mapping  # parameters only (initial values are evaluated before anything runs)
     defaults: np.ndarray  # every parameter's value, derived ones evaluated on the defaults
     derived: tuple[tuple[int, Expression], ...]  # (column, expression) of derived ones
 
@@ -105,16 +109,18 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
             elif n in seen and not (seen[n] == "parameter" and kind == "parameter"):
                 col.fail((*agent.where, n), f"name '{n}' is both a {seen[n]} and a {kind}")
             seen[n] = kind
+    # the agent's own names over the team's (``id_<agent>``: one per agent), chained, not
+    # copied: a copy per agent made a team of thousands quadratic to compile
     extra = extra_symbols or {}
-    param_syms = {**extra, **symbols({}, {}, param_index)}
+    param_syms = ChainMap(symbols({}, {}, param_index), extra)
     defaults, derived = _derived(agent, params, param_index, param_syms, col)
     return _Names(plant, state_index, var_index, params, param_index,
-                  {**extra, **symbols(state_index, var_index, param_index)},
+                  ChainMap(symbols(state_index, var_index, param_index), extra),
                   param_syms, defaults, derived)
 
 
 def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str, int],
-             param_syms: dict, col: Collector
+             param_syms: Mapping, col: Collector
              ) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
     """Default values of every parameter, and the agent's parameters written as
     expressions (``ack_timeout: 2 * latency + 0.05``).
@@ -210,6 +216,10 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
                            str(mode.invariant or ""), role=mode.role))
         if mode.final and mode.children:
             col.fail((*mode.where, "final"), "only leaf modes can be final")
+        if kind == "leaf" and mode.history != "none":
+            col.fail((*mode.where, "history"), f"mode '{path or agent.name}' has no modes to "
+                     "remember: 'history' restores a composite mode's last active child; "
+                     "remove it, or give the mode 'modes'")
     check_parallel_drivers(modes, col, flat)
     for m in reversed(modes):
         sub = [m.index]
@@ -217,6 +227,20 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             sub.extend(modes[c].subtree.tolist())
         m.subtree = np.array(sorted(sub), dtype=np.intp)
     return modes, drivers
+
+
+def _check_delays(transitions: list[CTransition], names: _Names, col: Collector) -> None:
+    """``after:`` delays of parameters alone, checked on the agent's own values as entering
+    the mode checks them (a delay reading the state or the time is checked there only)."""
+    ctx = Ctx(np.zeros((1, len(names.state))), np.zeros((1, len(names.variables))),
+              names.defaults[None, :], np.zeros(1))
+    for ct in transitions:
+        if ct.after is None or not ct.after.names <= names.param_index.keys():
+            continue
+        try:
+            transition_delay(ct, ctx, np.zeros(1, np.intp))
+        except ModelError as exc:
+            col.errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
 
 
 def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
@@ -234,6 +258,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
     transitions = compile_transitions(flat, modes, paths, names.syms, names.state,
                                       names.variables, agent_names, agent.name,
                                       message_fields, col)
+    _check_delays(transitions, names, col)
     if col.errors:
         raise ModelErrors(col.errors)
     has_eventless = np.zeros(len(modes), bool)

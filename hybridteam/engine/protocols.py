@@ -10,6 +10,8 @@ in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral veloci
 
 from __future__ import annotations
 
+from collections import ChainMap
+
 import numpy as np
 
 from hybridteam.dynamics.plants import Plant
@@ -89,8 +91,9 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
                      f"evaluated for it: {err.message}", "give the agent that parameter "
                      f"(parameters:), or make it a member of the protocol that declares "
                      f"'{name}'" + (f" ({spec.protocol})" if spec.protocol else ""))
-    usyms = {**syms, **velocity_symbols(ca.plant),
-             **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)}}
+    usyms = ChainMap({**velocity_symbols(ca.plant),
+                      **{f"u_{n}": (lambda c, j=j: c.u[:, j])
+                         for j, n in enumerate(ca.plant.input_names)}}, syms)
     for s in agent.streams:
         modes = []
         for k, name in enumerate(s.while_):

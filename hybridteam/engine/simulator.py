@@ -51,7 +51,7 @@ class Simulator:
                  max_periods: float | None = None, max_wall: float | None = None,
                  snapshots: bool = False,
                  observe: Mapping[int, Sequence[Watch]] | None = None,
-                 samples: bool = True) -> None:
+                 samples: bool = True, written: bool = False) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -60,14 +60,16 @@ class Simulator:
         ``samples`` false: no output samples (the trace has none). Samples are only
         recorded, never read by the run, so outcomes, transitions and the world's
         statistics are the same; a study's rows need none, and interpolating and
-        recording them cost a sixth of the ladder's sample run."""
+        recording them cost a sixth of the ladder's sample run. ``written``: the caller
+        writes the trace's files (``hybridteam run``), whose rows count in the memory
+        estimate."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
         if not 0 <= t_end < math.inf:
             raise ValueError(f"duration must be a finite number >= 0, got {t_end}")
         check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
-                     max_periods)
+                     max_periods, written)
         if observe:
             cteam = dataclasses.replace(cteam, agents=[
                 dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])

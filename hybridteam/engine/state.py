@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.arrays import every, gather, spread
+from hybridteam.arrays import every, gather
 from hybridteam.engine.compiled import CAgent, Ctx
-from hybridteam.engine.values import require
+from hybridteam.engine.values import transition_delay
 from hybridteam.engine.world import AgentView
 
 if TYPE_CHECKING:
@@ -110,10 +110,7 @@ class AgentState:
         for j in ca.modes[m].outgoing:
             tr = ca.transitions[j]
             if tr.after is not None:
-                ctx = self.ctx(idx, t[idx])
-                delay = require(spread(tr.after(ctx), idx.shape),
-                                (*tr.origin, "after"), "the delay", tr.after.source, low=0.0,
-                                instances=idx)
+                delay = transition_delay(tr, self.ctx(idx, t[idx]), idx)
                 self.deadline[:, tr.after_slot][idx] = t[idx] + delay
 
     def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:

@@ -10,6 +10,8 @@ locates their sign changes).
 
 from __future__ import annotations
 
+from collections import ChainMap
+
 import numpy as np
 
 from hybridteam.engine.compiled import (
@@ -45,7 +47,7 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
         for tr in mode.transitions:
             tsyms = syms
             if tr.on is not None and message_fields and tr.on in message_fields:
-                tsyms = {**syms, **message_symbols(message_fields[tr.on])}
+                tsyms = ChainMap(message_symbols(message_fields[tr.on]), syms)
             ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
                                      agent_names, agent_name, col)
             if ct is not None:

@@ -12,9 +12,15 @@ before they were sent.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from hybridteam.arrays import spread
 from hybridteam.errors import DocPath, ModelError
+
+if TYPE_CHECKING:
+    from hybridteam.engine.compiled import CTransition, Ctx
 
 
 def require(values: np.ndarray, where: DocPath, what: str, source: str, *,
@@ -35,3 +41,13 @@ def require(values: np.ndarray, where: DocPath, what: str, source: str, *,
         (low == -np.inf, high == np.inf), f"a number in [{low:g}, {high:g}]")
     text = f"'{source}' " if source and source != repr(bad) else ""
     raise ModelError(where, f"{what} {text}is {bad} in instance {i}; it must be {bound}")
+
+
+def transition_delay(tr: CTransition, ctx: Ctx, instances: np.ndarray) -> np.ndarray:
+    """The ``after:`` delay of ``tr`` for ``instances`` (evaluated in ``ctx``, one row
+    each): a :class:`ModelError` unless each is a finite number >= 0. Entering the mode
+    checks it per instance; validation checks a delay of parameters alone on the team's
+    own values with this same check, so ``validate`` refuses what ``run`` refuses."""
+    return require(spread(tr.after(ctx), instances.shape),  # type: ignore[misc]
+                   (*tr.origin, "after"), "the delay", tr.after.source,  # type: ignore[union-attr]
+                   low=0.0, instances=instances)

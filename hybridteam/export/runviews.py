@@ -7,6 +7,22 @@ from pathlib import Path
 
 from hybridteam.trace import write_atomic
 
+#: ``hybridteam run`` draws its views for teams of up to this many agents, and
+#: ``hybridteam timeline`` as many lanes. A timeline draws a lane per agent (a thousand
+#: lanes took 45 s of CPU for one image, and past some thousands the image is too tall to
+#: allocate) and no reader follows a hundred.
+MAX_VIEW_AGENTS = 100
+
+
+def views_skipped(team) -> str | None:
+    """Why ``hybridteam run`` draws no views of ``team`` (too many agents), or None."""
+    n = len(team.agents)
+    if n <= MAX_VIEW_AGENTS:
+        return None
+    return (f"no views drawn: the team has {n:,} agents and views are drawn for up to "
+            f"{MAX_VIEW_AGENTS}; draw some of them with 'hybridteam timeline TRACE --agents "
+            "A,B' or 'hybridteam diagram MODEL --agent A'")
+
 
 def write_run_views(team, run, out: Path) -> list[str]:
     """The views ``hybridteam run`` writes beside the trace (instance 0 of an ensemble)."""

@@ -23,6 +23,9 @@ AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of thi
                     "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated "
                     "per run")
 PositiveFloat = Annotated[float, Field(gt=0)]
+#: the coarsest ``simulation.event_tol``: crossings located more coarsely than a millisecond
+#: would move a team's transitions by whole control periods
+MAX_EVENT_TOL = 1e-3
 
 
 def check_names(names, what: str) -> None:
@@ -293,7 +296,8 @@ class SimulationSchema(Strict):
     min_step: PositiveFloat | None = Field(
         None, description="smallest integrator step before a run ends 'stiff' "
                           "(default: duration * 1e-6)")
-    event_tol: PositiveFloat = 1e-12
+    event_tol: Annotated[float, Field(gt=0, le=MAX_EVENT_TOL)] = Field(
+        1e-12, description="seconds within which a guard's crossing is located (at most 1e-3)")
     crossing_checks: Annotated[int, Field(ge=0, le=32)] = 2
     zeno: ZenoSchema = Field(default_factory=ZenoSchema)
 

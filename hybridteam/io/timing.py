@@ -42,26 +42,43 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
     (latency and jitter, there and back, with the team's own values): every one would be
     resent, and after its retries reported undeliverable, though nothing is lost."""
     params, net = default_parameters(team), team.network
+    ways: dict[int, float] = {}  # one way's latency and jitter, by link settings
 
     def way(s: str, r: str) -> float:
         spec = net.links.get((s, r), net.default)
-        return float(evaluate_setting(spec.latency, params, 1)[0]
-                     + evaluate_setting(spec.jitter, params, 1)[0])
+        if id(spec) not in ways:
+            ways[id(spec)] = float(evaluate_setting(spec.latency, params, 1)[0]
+                                   + evaluate_setting(spec.jitter, params, 1)[0])
+        return ways[id(spec)]
 
+    linked: dict[str, set[str]] = {}  # the agents each agent has a link of its own with
+    for s, r in net.links:
+        linked.setdefault(s, set()).add(r)
+        linked.setdefault(r, set()).add(s)
+    agents = [a.name for a in team.agents]
+    order = {name: k for k, name in enumerate(agents)}
     out: list[ModelError] = []
     for agent, ca in zip(team.agents, cteam.agents, strict=True):
         ctx = _context(ca)
-        trips = {other.name: way(agent.name, other.name) + way(other.name, agent.name)
-                 for other in team.agents if other.name != agent.name}
+        timeouts = [(name, _value(pol.timeout, ctx)) for name, pol in ca.policies.items()
+                    if pol.timeout is not None]
+        if not timeouts:
+            continue
+        # every other agent without a link of its own with this one is reached over the
+        # default link both ways: the first of them stands for all (a team of thousands
+        # would otherwise cost a round trip per pair)
+        own = linked.get(agent.name, set())
+        plain = next((o for o in agents if o != agent.name and o not in own), None)
+        others = sorted((own - {agent.name}) | ({plain} if plain else set()),
+                        key=lambda o: order.get(o, len(agents)))
+        trips = {o: way(agent.name, o) + way(o, agent.name) for o in others if o in order}
         if not trips:
             continue
         worst = max(trips, key=trips.get)  # type: ignore[arg-type]
         short: dict[float, list[str]] = {}  # timeout -> the messages resent that soon
-        for name, pol in ca.policies.items():
-            if pol.timeout is not None:
-                timeout = _value(pol.timeout, ctx)
-                if timeout <= trips[worst]:
-                    short.setdefault(timeout, []).append(name)
+        for name, timeout in timeouts:
+            if timeout <= trips[worst]:
+                short.setdefault(timeout, []).append(name)
         for timeout, names in short.items():
             out.append(ModelError(agent.where, f"agent '{agent.name}' resends "
                                   f"{', '.join(names)} after {timeout:g} s without an "

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import codecs
 import os
-import stat
+import re
 from typing import Any
 
 import yaml
@@ -26,6 +26,7 @@ try:
 except ImportError:  # PyYAML built without libyaml
     CParser = None  # type: ignore[assignment,misc]
 
+from hybridteam.io.files import read_regular
 from hybridteam.io.yamlpos import (
     _BOOL,
     _FLOAT,
@@ -167,6 +168,11 @@ class _Builder:
     def scalar(self, node: ScalarNode, path: Path) -> Any:
         """Type a scalar: our plain-scalar rules, or an explicit standard tag like ``!!str``."""
         raw, tag = node.value, node.tag
+        lone = LONE_SURROGATE.search(raw)
+        if lone:  # "\ud800" in double quotes: no UTF-8 file, SVG or trace can hold it
+            raise self.fail(node.start_mark, path, f"U+{ord(lone.group()):04X} (a lone "
+                            "surrogate escape) cannot be written as UTF-8; names and text "
+                            "must be valid Unicode")
         if tag in (_PLAIN, _STD + "str"):
             return self.plain(raw, node, path) if tag == _PLAIN else raw
         kinds = {"null": type(None), "bool": bool, "int": int, "float": float}
@@ -297,6 +303,9 @@ def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Com
         raise SourceError(filename, None, None, (), f"invalid YAML: {exc}") from None
 
 
+#: a UTF-16 surrogate on its own: YAML's "\ud800" escape gives one, and it is no character
+LONE_SURROGATE = re.compile("[\ud800-\udfff]")
+
 #: Model files larger than this are refused (``HYBRIDTEAM_MAX_FILE_MB`` raises it): a team
 #: of a hundred robots is some 50 kB, and reading YAML costs seconds per megabyte.
 MAX_FILE_MB = 1.0
@@ -305,25 +314,8 @@ MAX_FILE_MB = 1.0
 def _read(path: os.PathLike[str], name: str) -> bytes:
     """A model file's bytes; only regular files of a sensible size (a FIFO would block
     forever, a device or a huge file would not end either)."""
-    try:
-        info = os.stat(path)
-    except OSError as exc:
-        raise SourceError(name, message=f"cannot read file: {exc.strerror or exc}") from None
-    if stat.S_ISDIR(info.st_mode):
-        raise SourceError(name, message="cannot read file: it is a directory")
-    if not stat.S_ISREG(info.st_mode):
-        kind = "a FIFO" if stat.S_ISFIFO(info.st_mode) else "a device or socket"
-        raise SourceError(name, message=f"cannot read file: it is {kind}, not a regular file")
-    limit = float(os.environ.get("HYBRIDTEAM_MAX_FILE_MB") or MAX_FILE_MB)
-    if info.st_size > limit * 1e6:
-        raise SourceError(name, message=f"file is {info.st_size / 1e6:.1f} MB; model files "
-                          f"are read up to {limit:g} MB (set HYBRIDTEAM_MAX_FILE_MB to "
-                          "read larger ones)")
-    try:
-        with open(path, "rb") as handle:
-            return handle.read()
-    except OSError as exc:
-        raise SourceError(name, message=f"cannot read file: {exc.strerror or exc}") from None
+    return read_regular(path, name, limit_mb=MAX_FILE_MB, env="HYBRIDTEAM_MAX_FILE_MB",
+                        what="model files")
 
 
 def load(

@@ -65,7 +65,9 @@ class RequirementSet:
 
 def verdict(formula: Node, sig: Signals, i: int, rho: float) -> dict[str, Any]:
     """``satisfied``, ``robustness`` (``"inf"``/``"-inf"`` where a Boolean decided it, as
-    JSON has no infinities), and for a violation ``violated_at`` and ``failed``."""
+    JSON has no infinities; ``"nan"`` where a signal was not a number, as ``sqrt(-1)``
+    is not, which satisfies nothing), and for a violation ``violated_at`` and
+    ``failed``."""
     out: dict[str, Any] = {"satisfied": rho >= 0, "robustness": json_number(rho)}
     if rho < 0:
         t, failed = formula.blame(sig, i, 0)
@@ -74,8 +76,12 @@ def verdict(formula: Node, sig: Signals, i: int, rho: float) -> dict[str, Any]:
 
 
 def json_number(x: float) -> float | str:
+    """``x`` as JSON can hold it: the infinities and NaN as the strings ``"inf"``,
+    ``"-inf"`` and ``"nan"`` (JSON has no such numbers)."""
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
+    if math.isnan(x):
+        return "nan"
     return x
 
 

@@ -159,6 +159,10 @@ class _FormulaCompiler(_Compiler):
     def _compare_formula(self, node: ast.Compare) -> _C:
         operands = [node.left, *node.comparators]
         values = [self.typed(o, False, "a comparison") for o in operands]
+        for o, v in zip(operands, values, strict=True):
+            if v.const and isinstance(v.value, float) and math.isnan(v.value):  # no margin
+                raise self.error(f"'{self.text(o)}' is not a number (nan): a comparison "
+                                 "with it has no margin", *self.pos(o))
         preds: list[N.Node] = []
         for i, op in enumerate(node.ops):
             a, b = operands[i], operands[i + 1]
@@ -207,7 +211,13 @@ class _FormulaCompiler(_Compiler):
             c = self.typed(e, False, "a window bound")
             if not c.const:
                 raise self.error("window bounds must be numbers", *self.pos(e), usage)
-            bounds.append(float(c.value))
+            value = float(c.value)
+            written_inf = isinstance(e, ast.Name) and e.id == "inf"
+            if not math.isfinite(value) and not written_inf:  # 1/0, 1e999: not a number
+                raise self.error(f"window bounds must be numbers; this one is {value:g}",
+                                 *self.pos(e), "an endless window is written inf, e.g. "
+                                 "always[0, inf](x < 1)")
+            bounds.append(value)
         lo, hi = bounds
         if not (math.isfinite(lo) and lo >= 0) or math.isnan(hi) or hi < lo:
             raise self.error(f"bad window [{lo:g}, {hi:g}]" + (

@@ -9,8 +9,11 @@ from typing import Any
 
 
 def robustness_value(v: Any) -> float:
-    """A verdict's robustness as a float (``"inf"``/``"-inf"`` as written in JSON)."""
-    return float(v) if not isinstance(v, str) else (math.inf if v == "inf" else -math.inf)
+    """A verdict's robustness as a float (``"inf"``/``"-inf"``/``"nan"`` as written in
+    JSON)."""
+    if not isinstance(v, str):
+        return float(v)
+    return {"inf": math.inf, "nan": math.nan}.get(v, -math.inf)
 
 
 def _num(x: float) -> str:
@@ -30,12 +33,15 @@ def verdict_lines(instances: Sequence[dict[str, Any]]) -> list[str]:
         if len(vs) == 1:
             if w["satisfied"]:
                 lines.append(f"requirement {name}: holds (robustness {rho})")
+            elif "violated_at" not in w:  # a NaN robustness: a signal was not a number
+                lines.append(f"requirement {name}: does not hold (robustness {rho}: a value "
+                             "it compares is not a number)")
             else:
                 lines.append(f"requirement {name}: VIOLATED at t={w['violated_at']:.9g} by "
                              f"{w['failed']} (robustness {rho})")
             continue
         text = f"requirement {name}: holds in {held} of {len(vs)}, min robustness {rho}"
-        if not w["satisfied"]:
+        if not w["satisfied"] and "violated_at" in w:
             text += (f" (instance {worst}: violated at t={w['violated_at']:.9g} by "
                      f"{w['failed']})")
         lines.append(text)
