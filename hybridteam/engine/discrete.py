@@ -5,9 +5,12 @@ until it is quiescent. In each micro-step, if any urgent transition (guard and/o
 no trigger) is enabled in some agent, every agent takes its enabled urgent transitions;
 otherwise the first pending event (scenario, message, local) is dispatched. Within an agent,
 transitions are considered in precedence order (higher ``priority``, then outer before inner,
-then declaration order) and a transition is blocked by any higher-precedence transition that
-fires and exits an overlapping part of the mode tree, so parallel regions step together while
-an outer transition pre-empts everything inside it.
+then declaration order) and a transition is blocked by a higher-precedence one that fires
+and conflicts with it (:func:`.transitions.conflict`): one on the same mode, one whose exit
+set overlaps its own, or one that exits its source. So parallel regions step together, and
+an outer transition that leaves its mode pre-empts everything inside it. A transition
+without a target exits nothing: it blocks, and is blocked by, only transitions that leave
+its source (or share it); one inside it on the same event fires too, after it.
 """
 
 from __future__ import annotations

@@ -116,17 +116,24 @@ class AgentState:
                                 instances=idx)
                 self.deadline[:, tr.after_slot][idx] = t[idx] + delay
 
-    def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
-        """Complete the entry of an already-activated mode: initial children, or history."""
+    def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False,
+                      restore: bool = False) -> None:
+        """Complete the entry of an already-activated mode: initial children, or history
+        (``deep``: the whole remembered configuration below; ``restore``: this mode's own
+        remembered child, as a shallow history of a parallel parent asks)."""
         if idx.size == 0:
             return
         mode = self.ca.modes[m]
         if mode.kind == "and":
+            # history on a parallel mode is its regions' history: every region is active
+            # whenever the mode is, so what is remembered is each region's configuration
+            # (shallow: each region's active child; deep: everything below)
             for r in mode.children:
                 self.activate(r, idx, t)
-                self.enter_default(r, idx, t, deep)
+                self.enter_default(r, idx, t, deep or mode.history == "deep",
+                                   restore or mode.history == "shallow")
         elif mode.kind == "or":
-            restore = deep or mode.history != "none"
+            restore = restore or deep or mode.history != "none"
             deeper = deep or mode.history == "deep"
             if not restore:
                 self.activate(mode.initial, idx, t)

@@ -56,11 +56,12 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
         ct.index = order
         transitions.append(ct)
     after_slot = 0
+    exits = [frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
+             for ct in transitions]
     for ct in transitions:
-        sub_j = set(modes[ct.exit_root].subtree.tolist())
         ct.conflicts = np.array(
             [o.index for o in transitions[: ct.index]
-             if sub_j & set(modes[o.exit_root].subtree.tolist())], dtype=np.intp)
+             if conflict(ct, exits[ct.index], o, exits[o.index])], dtype=np.intp)
         modes[ct.source].outgoing.append(ct.index)
         if ct.after is not None:
             ct.after_slot = after_slot
@@ -68,6 +69,17 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     for ct in transitions:
         _role_carry(ct, modes, transitions)
     return transitions
+
+
+def conflict(a: CTransition, exit_a: frozenset[int], b: CTransition,
+              exit_b: frozenset[int]) -> bool:
+    """Whether ``a`` and ``b`` cannot both fire in one micro-step (the one of higher
+    precedence blocks the other): they are declared on the same mode (at most one
+    transition per source), their exit sets overlap, or one exits the other's source. A
+    transition without a target exits nothing, so it is blocked only by a transition that
+    leaves its source (or one on the same source), never by one elsewhere inside it."""
+    return (a.source == b.source or bool(exit_a & exit_b) or a.source in exit_b
+            or b.source in exit_a)
 
 
 def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransition]) -> None:
@@ -125,6 +137,26 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
     return out
 
 
+def _domain(modes: list[CMode], anc_s: list[int], anc_t: list[int], src: int,
+            tgt: int) -> int:
+    """The mode a transition stays inside (SCXML's transition domain): the innermost
+    OR-mode that properly contains its source and target, -1 if only leaving the root
+    would do.
+
+    The source is left even when the target is inside it (a self-transition exits and
+    re-enters). A parallel mode is no domain: its regions are all active together, so a
+    transition between two of its regions, or from a region to itself or one of its
+    descendants, leaves the whole parallel mode and enters it again (its other regions
+    by default), as SCXML does.
+    """
+    common = next(a for a in anc_s if a in anc_t)
+    if common in (src, tgt):
+        common = modes[common].parent
+    while common >= 0 and modes[common].kind == "and":
+        common = modes[common].parent
+    return common
+
+
 def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
                         state_index, var_index, agent_names, agent_name: str,
                         col: Collector) -> CTransition | None:
@@ -139,22 +171,18 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
                      did_you_mean(tr.target, [p.rsplit('.', 1)[-1] for p in paths if p]
                                    + [p for p in paths if p]))
         return None
-    anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
-    common = next(a for a in anc_s if a in anc_t)
-    if common in (src, tgt):
-        common = modes[common].parent
-    if common < 0 and internal:
+    if internal and src == 0:
         col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
         return None
-    if common < 0:
-        col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
-        return None
-    if modes[common].kind == "and":
-        col.fail((*tr.where, "to"), f"transition from '{modes[src].path}' to "
-                 f"'{modes[tgt].path}' crosses parallel regions of '{modes[common].path}'")
-        return None
-    exit_root = anc_s[anc_s.index(common) - 1]
-    entry_path = list(reversed(anc_t[: anc_t.index(common)]))
+    exit_root, entry_path = src, [src]
+    if not internal:
+        anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
+        common = _domain(modes, anc_s, anc_t, src, tgt)
+        if common < 0:
+            col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
+            return None
+        exit_root = anc_s[anc_s.index(common) - 1]
+        entry_path = list(reversed(anc_t[: anc_t.index(common)]))
     guard = None
     if tr.guard is not None:
         guard = col.expr(tr.guard, syms, (*tr.where, "guard"), condition=True)
