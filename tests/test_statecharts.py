@@ -179,3 +179,207 @@ def test_a_region_to_itself_leaves_and_reenters_the_parallel_mode(team_from_yaml
     assert leaves_from(run, 1.5) == back
     assert ("P", 0.0, 1.5) in {(r.mode, r.start, r.end) for r in run.intervals}
 
+
+
+def test_entry_and_exit_actions_run_in_statechart_order(team_from_yaml):
+    """Each action appends a digit to n. Entering: outermost first, regions in document
+    order (P 1, R1 2, a 3, R2 4, c 5). Leaving P for Q: innermost first, regions in
+    reverse order (c 8, R2 9, a 6, R1 7, P 0), the transition's own action (1), then Q's
+    entry (2)."""
+    team = team_from_yaml("""
+        team: order
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: P
+            modes:
+              P:
+                parallel: true
+                entry: ["n = n * 10 + 1"]
+                exit: ["n = n * 10"]
+                transitions: [{to: Q, on: go, do: ["n = n * 10 + 1"]}]
+                modes:
+                  R1:
+                    initial: a
+                    entry: ["n = n * 10 + 2"]
+                    exit: ["n = n * 10 + 7"]
+                    modes:
+                      a: {entry: ["n = n * 10 + 3"], exit: ["n = n * 10 + 6"]}
+                  R2:
+                    initial: c
+                    entry: ["n = n * 10 + 4"]
+                    exit: ["n = n * 10 + 9"]
+                    modes:
+                      c: {entry: ["n = n * 10 + 5"], exit: ["n = n * 10 + 8"]}
+              Q: {entry: ["n = n * 10 + 2"], transitions: [{to: P, on: never}]}
+        scenario: [{at: 1, agent: a, raise: go}]
+        simulation: {duration: 2, sample_period: 0.5}
+    """)
+    run = ht.simulate(team)
+    values = run.samples["a"][:, 0, 0]
+    assert values[0] == 12345.0
+    assert counter(run) == 123458967012.0
+
+
+def test_entry_actions_run_before_the_modes_delays_are_armed(team_from_yaml):
+    """B's entry sets its own delay: 'after: d' reads the d just assigned (2, not 0)."""
+    team = team_from_yaml("""
+        team: entry_delay
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            variables: {d: 0}
+            initial: A
+            modes:
+              A: {transitions: [{to: B, after: 1}]}
+              B:
+                entry: ["d = 2", {raise: hello}]
+                transitions: [{to: C, after: d}, {to: B, on: hello, guard: d > 5}]
+              C: {final: true}
+    """)
+    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C")]
+
+
+def test_an_internal_transition_runs_no_entry_or_exit_actions(team_from_yaml):
+    team = team_from_yaml("""
+        team: internal_actions
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: S
+            modes:
+              S:
+                entry: ["n = n + 1"]
+                exit: ["n = n + 100"]
+                transitions: [{on: tick, do: ["n = n + 10"]}, {to: S, on: again}]
+        scenario: [{at: 1, agent: a, raise: tick}, {at: 2, agent: a, raise: again}]
+        simulation: {duration: 3, sample_period: 0.5}
+    """)
+    # 1 on entry; +10 at t=1 (internal); at 2 the self-transition exits (+100), enters (+1)
+    assert counter(ht.simulate(team)) == 112.0
+
+
+IN_MODE = """
+    team: in_mode
+    agents:
+      a:
+        plant: {{kind: flow, state: {{n: 0}}}}
+        initial: P
+        modes:
+          P:
+            parallel: true
+            modes:
+              R1:
+                initial: a
+                modes:
+                  a: {{transitions: [{{to: b, after: 1}}]}}
+                  b: {{}}
+              R2:
+                initial: c
+                modes:
+                  c: {{transitions: [{{to: d, on: go, guard: "{guard}"}}]}}
+                  d: {{}}
+    scenario: [{{at: 0.5, agent: a, raise: go}}, {{at: 1.5, agent: a, raise: go}}]
+    simulation: {{duration: 2}}
+"""
+
+
+@pytest.mark.parametrize(("guard", "when"), [
+    ("in_mode(R1.b)", 1.5), ("in_mode(b)", 1.5), ("not in_mode(P.R1.b)", 0.5),
+    ("in_mode(R1) and n == 0", 0.5)])
+def test_in_mode_reads_the_agents_own_configuration(team_from_yaml, guard, when):
+    run = ht.simulate(team_from_yaml(IN_MODE.format(guard=guard)))
+    assert (when, 0, "P.R2.c", "P.R2.d") in steps(run)
+    assert len([s for s in steps(run) if s[2] == "P.R2.c"]) == 1
+
+
+@pytest.mark.parametrize(("guard", "message"), [
+    ("in_mode(R1.x)", "agent 'a' has no mode 'R1.x'"),
+    ("in_mode(other.b)", "agent 'a' has no mode 'other.b'"),
+    ("in_mode(b, c)", r"in_mode\(\) takes one mode name"),
+    ("in_mode(1)", r"in_mode\(\) takes one mode name"),
+    ("in_mode(b) + 1 > 0", "'\\+' needs a number, but this is a condition")])
+def test_in_mode_with_a_wrong_argument_is_a_located_error(team_from_yaml, guard, message):
+    from hybridteam.io.filekind import InputErrors
+    with pytest.raises(InputErrors, match=r"team\.yaml:19:\d+: .*guard: " + message):
+        team_from_yaml(IN_MODE.format(guard=guard))
+
+
+def test_in_mode_stays_out_of_flows(team_from_yaml):
+    from hybridteam.io.filekind import InputErrors
+    with pytest.raises(InputErrors, match="belongs to requirement formulas"):
+        team_from_yaml(IN_MODE.format(guard="n == 0").replace(
+            "b: {}", "b: {flow: {n: in_mode(a)}}"))
+
+
+DOOR = """
+    team: door
+    agents:
+      door:
+        plant: {kind: flow, state: {n: 0}}
+        variables: {opened: 0}
+        initial: Closed
+        modes:
+          Closed:
+            entry: [{raise: locked}]
+            transitions: [{to: Open, on: push}]
+          Open:
+            initial: Moving
+            entry: ["opened = opened + 1"]
+            exit: [{send: closed}]
+            transitions: [{to: Closed, on: pull}]
+            modes:
+              Moving:
+                exit: ["n = 0"]
+                transitions: [{to: Still, after: 1}]
+              Still: {}
+"""
+
+
+def test_diagrams_show_entry_and_exit_actions(team_from_yaml):
+    from hybridteam.export.diagram import diagram_graph
+    from hybridteam.export.render import render
+
+    graph = diagram_graph(team_from_yaml(DOOR))
+    node = graph.nodes
+    assert node["door/Closed"]["behaviour"] == ["entry / raise locked"]
+    assert node["door/Open"]["behaviour"] == ["entry / opened = opened + 1",
+                                              "exit / send closed"]
+    assert node["door/Open.Still"]["behaviour"] == []
+    dot = render(graph, "dot")
+    assert 'label="Closed\\nentry / raise locked"' in dot
+    assert 'label="Open\\nentry / opened = opened + 1\\nexit / send closed"' in dot
+    mermaid = render(graph, "mermaid").splitlines()
+    assert "        door__Open : exit / send closed" in mermaid
+    assert "            door__Open__Moving : exit / n = 0" in mermaid
+
+
+def test_the_built_in_image_draws_actions_inside_their_boxes(team_from_yaml):
+    """A leaf's actions are lines of its box; a composite's follow its title in the title
+    bar, which is measured to hold them."""
+    from hybridteam.export.diagram import diagram_graph
+    from hybridteam.export.image import diagram_figure
+    from hybridteam.export.layout import Layout
+
+    graph = diagram_graph(team_from_yaml(DOOR))
+    fig = diagram_figure(graph, dpi=72.0)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    texts = {t.get_text(): t.get_window_extent(renderer) for t in fig.axes[0].texts}
+    layout = Layout(graph)
+    closed, moving = layout.boxes["door/Closed"], layout.boxes["door/Open.Moving"]
+    assert "entry / raise locked" in closed.lines and "exit / n = 0" in moving.lines
+    caption = "entry / opened = opened + 1   exit / send closed"
+    title, actions = texts["Open"], texts[caption]
+    assert actions.x0 > title.x1  # after the title, on its line
+    assert abs(actions.y1 - title.y1) < title.height
+    # the title bar is measured for both, so the caption ends inside the composite's box
+    # (data units are the layout's points)
+    box = layout.boxes["door/Open"]
+    right = fig.axes[0].transData.inverted().transform((actions.x1, actions.y1))[0]
+    assert box.x + _title_width(layout, "Open") < right < box.x + box.title_w <= box.x + box.w
+
+
+def _title_width(layout, name: str) -> float:
+    from hybridteam.export.layout import NAME_PT, _text_width
+    return _text_width([name], NAME_PT)

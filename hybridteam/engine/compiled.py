@@ -35,12 +35,12 @@ class Ctx:
     world components and its law memory (an :class:`~.world.AgentView`), where laws run.
     """
 
-    __slots__ = ("_since", "_t_in", "e", "m", "p", "t", "u", "v", "w", "x")
+    __slots__ = ("_since", "_t_in", "e", "m", "p", "q", "t", "u", "v", "w", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
                  t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
-                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None
-                 ) -> None:
+                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None,
+                 q: tuple[np.ndarray, np.ndarray | slice] | None = None) -> None:
         """``since``: instead of ``t_in``, the entry times it is computed from when first
         read, ``(column, rows)``: ``t - column[rows]``. A law or an ``inputs:``
         expression rarely reads the time in its mode, and computing it costs two numpy
@@ -53,6 +53,14 @@ class Ctx:
         self.e = e
         self.w = w
         self.u: np.ndarray | None = None
+        #: the agent's configuration and these instances' rows in it, ``(active, rows)``,
+        #: where a guard may read it (``in_mode``): read through :meth:`in_mode` only
+        self.q = q
+
+    def in_mode(self, m: int) -> np.ndarray:
+        """Whether mode ``m`` is active in each of these instances."""
+        active, rows = self.q  # type: ignore[misc]
+        return active[:, m][rows]
 
     @property
     def t_in(self) -> np.ndarray:
@@ -183,6 +191,8 @@ class CMode:
     subtree: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     outgoing: list[int] = field(default_factory=list)
     role: str | None = None  # the protocol role this mode plays (views number role changes)
+    on_entry: list[CAction] = field(default_factory=list)  # run each time it is entered
+    on_exit: list[CAction] = field(default_factory=list)  # run each time it is exited
 
 
 @dataclass
@@ -236,6 +246,9 @@ class CAgent:
     #: every name the agent's expressions read (state, variables, parameters, ``t``, the
     #: team's names): analyses that recompile part of a guard (``hybridteam verify``) use it
     symbols: dict = field(default_factory=dict)
+    #: whether some mode has entry or exit actions (without, entering and exiting look
+    #: for none)
+    mode_actions: bool = False
 
     @functools.cached_property
     def lone_watches(self) -> list[bool]:

@@ -27,7 +27,12 @@ from hybridteam.engine.compiled import (
 )
 from hybridteam.engine.protocols import attach, check_messages, team_symbols
 from hybridteam.engine.scope import Collector, resolve_mode, symbols
-from hybridteam.engine.transitions import compile_transitions, group_triggered, watches
+from hybridteam.engine.transitions import (
+    compile_actions,
+    compile_transitions,
+    group_triggered,
+    watches,
+)
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import Expression
 from hybridteam.model import Agent, Mode, Send, Team
@@ -233,6 +238,11 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
     transitions = compile_transitions(flat, modes, paths, names.syms, names.state,
                                       names.variables, agent_names, agent.name,
                                       message_fields, col)
+    for (_p, mode, _q, _d), cm in zip(flat, modes, strict=True):
+        cm.on_entry = compile_actions(mode.on_entry, (*mode.where, "entry"), names.syms,
+                                      names.state, names.variables, agent_names, col)
+        cm.on_exit = compile_actions(mode.on_exit, (*mode.where, "exit"), names.syms,
+                                     names.state, names.variables, agent_names, col)
     if col.errors:
         raise ModelErrors(col.errors)
     has_eventless = np.zeros(len(modes), bool)
@@ -257,6 +267,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         final=np.array([m.final for m in modes], bool),
         outcome=[mode.outcome for _p, mode, _q, _d in flat],
         leaves=np.array([m.index for m in modes if m.kind == "leaf"], dtype=np.intp),
+        mode_actions=any(m.on_entry or m.on_exit for m in modes),
     )
     if team is not None:
         attach(ca, team, names.syms, paths, col)

@@ -20,12 +20,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import gather, some, spread, where_true
-from hybridteam.engine.compiled import REPLY
-from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
-from hybridteam.engine.values import require
+from hybridteam.engine.actions import exit_actions, run_actions
+from hybridteam.engine.events import MESSAGE, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CAction, CAgent, Ctx
+    from hybridteam.engine.compiled import CAgent
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
 
@@ -190,25 +189,16 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
 
 def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
          cause: str, msg: dict[str, np.ndarray] | None = None) -> None:
-    """Exit, act, enter — for transition ``j`` in instances ``sub``."""
+    """Exit (innermost first, with the modes' exit actions), act, enter (outermost first,
+    with their entry actions) — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
-    ctx = st.ctx(sub, ens.t[sub], tr.source, msg)
     if not tr.internal:
+        if ag.mode_actions:
+            exit_actions(ens, ag, st, tr.exit_root, sub)
         st.exit(tr.exit_root, sub, ens.t, ens.rec)
-    for act in tr.actions:
-        if act.kind == "assign":
-            kind, col = act.target  # type: ignore[misc]
-            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
-            if kind == "x":
-                st.x[:, col][sub] = value
-                ctx.x[:, col] = value
-            else:
-                st.v[:, col][sub] = value
-                ctx.v[:, col] = value
-        elif act.kind == "raise":
-            ens.queue.push(sub, ens.t[sub], LOCAL, ag.index, act.name)
-        else:
-            _send(ens, ag, act, sub, ctx, msg)
+    if tr.actions:
+        run_actions(ens, ag, st, tr.actions, sub, st.ctx(sub, ens.t[sub], tr.source, msg),
+                    msg)
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
             st.last[:, b][sub] = tr.carry_map[st.last[:, a][sub]]  # type: ignore[index]
@@ -220,35 +210,6 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     ens.reconfigured[sub] = True
     ens.last_fired[sub] = ag.index * 1_000_000 + j
     _zeno_window(ens, ag, st, sub)
-
-
-def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
-          msg: dict[str, np.ndarray] | None) -> None:
-    """A ``send`` action: plain datagrams, or through the acknowledged layer when the
-    message type's protocol asks for acks; priority ranks same-instant arrivals."""
-    fields = {k: spread(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
-    to: int | np.ndarray | None = act.to
-    if act.to_expr is not None:
-        to = np.rint(np.broadcast_to(act.to_expr(ctx), sub.shape)).astype(np.intp)
-    elif to == REPLY:
-        to = msg["sender"].astype(np.intp) if msg is not None else None
-    policy = ag.policies.get(act.name)
-    rank = None
-    if policy is not None and policy.priority is not None:
-        rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
-    if policy is not None and policy.acknowledged:
-        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore
-                          (*policy.where, "timeout"), "the ack timeout",
-                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore
-                          instances=sub)
-        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore
-                          (*policy.where, "retries"), "the number of retries",
-                          policy.retries.source, low=0.0, instances=sub)  # type: ignore
-        ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
-                          rank)
-    else:
-        ens.network.send(sub, ens.t[sub], ag.index, to, act.socket, act.name, fields,
-                         rank=rank)
 
 
 def _zeno_window(ens: Ensemble, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:

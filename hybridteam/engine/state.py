@@ -9,6 +9,7 @@ exiting act on a whole index array of instances at once, so a transition taken b
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -63,6 +64,9 @@ class AgentState:
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
+        #: runs a mode's entry actions, ``entered(mode, instances)``: set by the ensemble
+        #: where the agent has some (:func:`.actions.entry_actions`)
+        self.entered: Callable[[int, np.ndarray], None] | None = None
         #: every instance's index, read-only: what a law's world view gives as its
         #: instances when it runs on all of them (most ticks), without building it
         self.everyone = everyone
@@ -83,7 +87,7 @@ class AgentState:
         w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) \
             if law else None
         return Ctx(gather(self.x, idx), gather(self.v, idx), gather(self.p, idx), t, t_in, m,
-                   e, w, since)
+                   e, w, since, (self.active, idx))
 
     # ----------------------------------------------------------------- configuration
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:
@@ -107,6 +111,8 @@ class AgentState:
         parent = ca.modes[m].parent
         if parent >= 0 and ca.modes[parent].kind == "or":
             self.child[:, parent][idx] = m
+        if self.entered is not None and ca.modes[m].on_entry:
+            self.entered(m, idx)
         for j in ca.modes[m].outgoing:
             tr = ca.transitions[j]
             if tr.after is not None:

@@ -21,15 +21,16 @@ from hybridteam.engine.compiled import (
     Watch,
 )
 from hybridteam.engine.scope import Collector, message_symbols, resolve_mode
-from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import (
     Expression,
     ExpressionError,
+    ModeTest,
     compile_assignment,
     compile_expression,
     free_names,
 )
-from hybridteam.model import Assign, Mode, Raise, Send, Transition
+from hybridteam.model import Action, Assign, Mode, Raise, Send, Transition
 
 
 def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMode],
@@ -41,6 +42,7 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     outer before inner, then declaration order; with conflicts, ``after`` slots, the modes'
     ``outgoing`` lists and role carries filled in."""
     decl: list[tuple[int, int, int, CTransition]] = []
+    syms = {**syms, "in_mode": mode_test(paths, agent_name)}  # what guards read
     for idx, (_path, mode, _parent, depth) in enumerate(flat):
         for tr in mode.transitions:
             tsyms = syms
@@ -69,6 +71,26 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     for ct in transitions:
         _role_carry(ct, modes, transitions)
     return transitions
+
+
+def mode_test(paths: list[str], agent_name: str) -> ModeTest:
+    """``in_mode(Name)`` in a guard: whether a mode of the same agent is active, named as a
+    transition's target is (a unique name or a dotted path). Another agent's modes are not
+    readable: agents learn of each other through messages."""
+    def resolve(name: str):
+        m, matches = resolve_mode(name, paths)
+        if m is None:
+            if matches:
+                raise ExpressionError(f"mode name '{name}' is ambiguous: "
+                                      f"{', '.join(matches)}; write its dotted path")
+            raise ExpressionError(
+                f"agent '{agent_name}' has no mode '{name}'", hint=did_you_mean(
+                    name, [p.rsplit('.', 1)[-1] for p in paths if p] + [p for p in paths if p])
+                or "in_mode reads the agent's own modes; another agent's are known only "
+                "through its messages")
+        return lambda c, m=m: c.in_mode(m)
+
+    return ModeTest(resolve)
 
 
 def conflict(a: CTransition, exit_a: frozenset[int], b: CTransition,
@@ -189,7 +211,8 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     after = None
     if tr.after is not None:
         after = col.expr(tr.after, syms, (*tr.where, "after"))
-    actions = _compile_actions(tr, syms, state_index, var_index, agent_names, col)
+    actions = compile_actions(tr.actions, (*tr.where, "do"), syms, state_index, var_index,
+                              agent_names, col)
     return CTransition(
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
@@ -198,15 +221,15 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     )
 
 
-def _compile_actions(tr: Transition, syms: dict, state_index: dict[str, int],
-                     var_index: dict[str, int], agent_names: list[str],
-                     col: Collector) -> list[CAction]:
-    """A transition's ``do:`` list: assignments (to variables or plant state: a reset),
-    raised local events and sends."""
+def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: dict,
+                    state_index: dict[str, int], var_index: dict[str, int],
+                    agent_names: list[str], col: Collector) -> list[CAction]:
+    """A transition's ``do:`` list, or a mode's ``entry:`` or ``exit:`` list (``where``):
+    assignments (to variables or plant state: a reset), raised local events and sends."""
     actions: list[CAction] = []
     targets = list(state_index) + list(var_index)
-    for k, act in enumerate(tr.actions):
-        awhere = act.where or (*tr.where, "do", k)
+    for k, act in enumerate(declared):
+        awhere = act.where or (*where, k)
         if isinstance(act, Assign):
             try:
                 name, e = compile_assignment(act.text, syms, targets)

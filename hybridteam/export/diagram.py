@@ -70,6 +70,12 @@ def action_text(action: Assign | Send | Raise, compact: bool = False) -> str:
     return text
 
 
+def behaviour_lines(mode: Mode) -> list[str]:
+    """A mode's entry and exit actions as UML writes them: ``entry / a; b``, ``exit / c``."""
+    return [f"{word} / " + "; ".join(action_text(a, compact=True) for a in acts)
+            for word, acts in (("entry", mode.on_entry), ("exit", mode.on_exit)) if acts]
+
+
 def transition_label(tr: Transition) -> str:
     """UML-style ``trigger after(d) [guard] / actions``, as short as the transition allows."""
     parts = []
@@ -124,6 +130,7 @@ def _add_modes(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode],
             mode_kind=cm.kind, region=parent.kind == "and", initial=parent.initial == cm.index,
             final=cm.final, history=cm.history, dynamics=dynamics_text(declared[cm.index]),
             invariant=cm.invariant_text, color=colors[cm.path], role=cm.role or "",
+            behaviour=behaviour_lines(declared[cm.index]),
             protocol=protocol_of(declared[cm.index].where),
         )
         _link(graph, mode_id(agent.name, parent.path), node, kind="contains")
@@ -210,6 +217,8 @@ def diagram_graph(team: Team, agents: list[str] | None = None,
         for _n, d in graph.nodes(data=True):
             if d.get("dynamics"):
                 d["dynamics"] = elide(d["dynamics"])
+            if d.get("behaviour"):
+                d["behaviour"] = [elide(line) for line in d["behaviour"]]
         for _u, _v, d in graph.edges(data=True):
             if d.get("kind") == "transition":
                 d["label"] = elide(d["label"])

@@ -41,6 +41,7 @@ from hybridteam.io.schema import (
 )
 from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import (
+    Action,
     Agent,
     Assign,
     EndRule,
@@ -375,19 +376,25 @@ def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
         law=law, inputs=None if spec.inputs is None else dict(spec.inputs),
         input_period=spec.period, flow=None if spec.flow is None else dict(spec.flow),
         invariant=spec.invariant, final=spec.final, outcome=spec.outcome,
-        transitions=transitions, where=where,
+        transitions=transitions, where=where, on_entry=_actions(spec.entry, (*where, "entry")),
+        on_exit=_actions(spec.exit, (*where, "exit")),
     )
 
 
-def _transition(spec, where: DocPath) -> Transition:
-    actions = []
-    for k, act in enumerate(spec.do):
-        awhere = (*where, "do", k)
+def _actions(specs: list, where: DocPath) -> tuple[Action, ...]:
+    """A list of actions (a transition's ``do:``, a mode's ``entry:`` or ``exit:``)."""
+    actions: list[Action] = []
+    for k, act in enumerate(specs):
+        awhere = (*where, k)
         if isinstance(act, str):
             actions.append(Assign(act, awhere))
         elif isinstance(act, SendSchema):
             actions.append(Send(act.send, act.to, act.socket, dict(act.fields), awhere))
         elif isinstance(act, RaiseSchema):
             actions.append(Raise(act.raise_, awhere))
-    return Transition(spec.to, spec.on, spec.after, spec.guard, tuple(actions), spec.priority,
-                      where)
+    return tuple(actions)
+
+
+def _transition(spec, where: DocPath) -> Transition:
+    return Transition(spec.to, spec.on, spec.after, spec.guard,
+                      _actions(spec.do, (*where, "do")), spec.priority, where)

@@ -104,6 +104,10 @@ class ModeSchema(Strict):
     outcome: str | None = Field(
         None, description="a final mode's run outcome, e.g. 'success' (default: 'ok')")
     transitions: list[TransitionSchema] = Field(default_factory=list)
+    entry: list[ActionSchema] = Field(
+        default_factory=list, description="actions each time the mode is entered (as 'do')")
+    exit: list[ActionSchema] = Field(
+        default_factory=list, description="actions each time the mode is exited (as 'do')")
     protocol: str | None = Field(
         None, description="a protocol (name or file) whose role region this mode becomes")
     roles: dict[str, ModeSchema] | None = Field(

@@ -105,6 +105,10 @@ class Mode:
     role: str | None = None  # a protocol region's mode: the role it plays (lead, follow, ...)
     transitions: tuple[Transition, ...] = ()
     where: DocPath = ()
+    #: actions (as a transition's ``do:``) run each time the mode is entered / exited: a
+    #: transition exits innermost first, runs its own actions, enters outermost first
+    on_entry: tuple[Action, ...] = ()
+    on_exit: tuple[Action, ...] = ()
 
     @property
     def is_leaf(self) -> bool:
