@@ -383,3 +383,161 @@ def test_the_built_in_image_draws_actions_inside_their_boxes(team_from_yaml):
 def _title_width(layout, name: str) -> float:
     from hybridteam.export.layout import NAME_PT, _text_width
     return _text_width([name], NAME_PT)
+
+
+DEEP_INITIAL = """
+    team: deep_initial
+    agents:
+      a:
+        plant: {{kind: flow, state: {{n: 0}}}}
+        initial: {top}
+        modes:
+          S:
+            initial: {initial}
+            {history}
+            transitions: [{{to: Out, on: leave}}]
+            modes:
+              A:
+                initial: a1
+                modes:
+                  a1: {{transitions: [{{to: a2, after: 1}}]}}
+                  a2: {{}}
+              P:
+                parallel: true
+                modes:
+                  R1: {{initial: x1, modes: {{x1: {{}}, x2: {{}}}}}}
+                  R2: {{initial: y1, modes: {{y1: {{}}, y2: {{}}}}}}
+          Out: {{transitions: [{{to: S, on: back}}]}}
+    scenario: [{{at: 2, agent: a, raise: leave}}, {{at: 3, agent: a, raise: back}}]
+    simulation: {{duration: 4}}
+"""
+
+
+@pytest.mark.parametrize(("initial", "start"), [
+    ("A", ["S.A.a1"]), ("a2", ["S.A.a2"]), ("A.a2", ["S.A.a2"]),
+    ("x2", ["S.P.R1.x2", "S.P.R2.y1"]), ("P.R2.y2", ["S.P.R1.x1", "S.P.R2.y2"])])
+def test_initial_may_name_a_deeper_descendant(team_from_yaml, initial, start):
+    """The way down is entered, a parallel mode on it enters its other regions by default;
+    re-entering S by a transition takes the same way."""
+    run = ht.simulate(team_from_yaml(DEEP_INITIAL.format(top="S", initial=initial,
+                                                         history="")))
+    assert leaves_from(run, 0.0) == start
+    assert leaves_from(run, 3.0) == start
+
+
+@pytest.mark.parametrize(("history", "back"), [
+    # nothing remembered yet at t=0 (S was never left): the history default; at t=3 S's
+    # remembered child A is restored, and below it A's initial a1 (shallow history)
+    ("history: {kind: shallow, default: a2}", ["S.A.a1"]),
+    ("history: {kind: deep, default: a2}", ["S.A.a2"]),
+    ("history: shallow", ["S.A.a1"])])
+def test_a_history_default_is_entered_while_nothing_is_remembered(team_from_yaml, history,
+                                                                  back):
+    team = team_from_yaml(DEEP_INITIAL.format(top="Out", initial="P", history=history)
+                          .replace("{at: 2, agent: a, raise: leave}",
+                                   "{at: 0.5, agent: a, raise: back}, "
+                                   "{at: 2, agent: a, raise: leave}"))
+    run = ht.simulate(team)
+    first = ["S.P.R1.x1", "S.P.R2.y1"] if history == "history: shallow" else ["S.A.a2"]
+    assert leaves_from(run, 0.5) == first
+    if history != "history: shallow":
+        assert leaves_from(run, 3.0) == back
+
+
+def test_several_targets_enter_one_mode_in_each_region(team_from_yaml):
+    team = team_from_yaml("""
+        team: fork
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: Idle
+            modes:
+              Idle: {transitions: [{to: [R2.y2, R1.x2], on: go, do: ["n = n * 10 + 3"]}]}
+              P:
+                parallel: true
+                modes:
+                  R1:
+                    initial: x1
+                    modes:
+                      x1: {}
+                      x2: {entry: ["n = n * 10 + 1"]}
+                  R2:
+                    initial: y1
+                    modes:
+                      y1: {}
+                      y2: {entry: ["n = n * 10 + 2"]}
+                  R3: {initial: z1, modes: {z1: {}, z2: {}}}
+        scenario: [{at: 1, agent: a, raise: go}]
+        simulation: {duration: 2, sample_period: 0.5}
+    """)
+    run = ht.simulate(team)
+    assert steps(run) == [(1.0, 0, "Idle", "P.R2.y2")]  # (the record names the first)
+    assert leaves_from(run, 1.0) == ["P.R1.x2", "P.R2.y2", "P.R3.z1"]
+    assert counter(run) == 312.0  # the transition's action, then entries in document order
+
+
+@pytest.mark.parametrize(("to", "message"), [
+    ("[R1.x2, R1.x1]", "targets 'P.R1.x2' and 'P.R1.x1' are not in different regions"),
+    ("[P, R1.x1]", "targets 'P' and 'P.R1.x1' are not in different regions"),
+    ("[R1.x2, nowhere]", "unknown mode 'nowhere'"),
+    ("[]", "at least 1 item")])
+def test_several_targets_in_one_region_are_refused(team_from_yaml, to, message):
+    from hybridteam.io.filekind import InputErrors
+    with pytest.raises(InputErrors, match=message):
+        team_from_yaml(f"""
+            team: bad_fork
+            agents:
+              a:
+                plant: {{kind: flow, state: {{n: 0}}}}
+                initial: Idle
+                modes:
+                  Idle: {{transitions: [{{to: {to}, on: go}}]}}
+                  P:
+                    parallel: true
+                    modes:
+                      R1: {{initial: x1, modes: {{x1: {{}}, x2: {{}}}}}}
+                      R2: {{initial: y1, modes: {{y1: {{}}, y2: {{}}}}}}
+        """)
+
+
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("initial", "Out", "unknown initial mode 'Out'"),
+    ("initial", "zz", "unknown initial mode 'zz'"),
+    ("history", "{kind: deep, default: y9}", "unknown history default 'y9'")])
+def test_an_initial_or_history_default_outside_the_mode_is_refused(team_from_yaml, key, value,
+                                                                  message):
+    from hybridteam.io.filekind import InputErrors
+    text = DEEP_INITIAL.format(top="S", initial="A", history="")
+    text = text.replace("initial: A\n", f"{key}: {value}\n" + (
+        "            initial: A\n" if key == "history" else ""))
+    with pytest.raises(InputErrors, match=message):
+        team_from_yaml(text)
+
+
+def test_a_history_default_on_a_parallel_mode_is_refused(team_from_yaml):
+    from hybridteam.io.filekind import InputErrors
+    text = PARALLEL_HISTORY.format(kind="{kind: shallow, default: R1.b}")
+    with pytest.raises(InputErrors, match=r"team\.yaml:10:43: .*history\.default: a history "
+                       "default .*give it to a region"):
+        team_from_yaml(text)
+
+
+def test_a_transition_with_several_targets_is_drawn_to_each(team_from_yaml):
+    from hybridteam.export.diagram import diagram_graph, edges_of
+
+    team = team_from_yaml("""
+        team: fork
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: Idle
+            modes:
+              Idle: {transitions: [{to: [R1.x2, R2.y2], on: go}]}
+              P:
+                parallel: true
+                modes:
+                  R1: {initial: x1, modes: {x1: {}, x2: {}}}
+                  R2: {initial: y1, modes: {y1: {}, y2: {}}}
+    """)
+    assert [(u, v, d["label"]) for u, v, d in edges_of(diagram_graph(team), "transition")] \
+        == [("a/Idle", "a/P.R1.x2", "go"), ("a/Idle", "a/P.R2.y2", "go")]

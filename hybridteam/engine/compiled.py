@@ -144,6 +144,17 @@ class CPolicy:
         return self.timeout is not None
 
 
+@dataclass(frozen=True)
+class Entry:
+    """How a transition (or a default entry) enters modes: ``first`` is activated, then
+    each mode in ``marks`` on the way down (a parallel mode's other regions by default)
+    until each of ``targets``, which completes its own entry (initial child or history)."""
+
+    first: int
+    marks: frozenset[int]
+    targets: frozenset[int]
+
+
 @dataclass
 class CTransition:
     index: int  # position in precedence order
@@ -171,6 +182,8 @@ class CTransition:
     carry: list[tuple[int, int]] = field(default_factory=list)
     carry_map: np.ndarray | None = None
     carry_timers: list[tuple[int, int, int]] = field(default_factory=list)
+    entry: Entry | None = None  # how it enters (None: internal)
+    targets: list[int] = field(default_factory=list)  # every target (``target``: the first)
 
 
 @dataclass
@@ -191,6 +204,10 @@ class CMode:
     subtree: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     outgoing: list[int] = field(default_factory=list)
     role: str | None = None  # the protocol role this mode plays (views number role changes)
+    #: an OR mode's default entry (its ``initial``, possibly a deeper descendant) and, with
+    #: a history default, where a history entry goes while nothing is remembered
+    default: Entry | None = None
+    history_default: Entry | None = None
     on_entry: list[CAction] = field(default_factory=list)  # run each time it is entered
     on_exit: list[CAction] = field(default_factory=list)  # run each time it is exited
 

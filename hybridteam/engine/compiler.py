@@ -30,6 +30,7 @@ from hybridteam.engine.scope import Collector, resolve_mode, symbols
 from hybridteam.engine.transitions import (
     compile_actions,
     compile_transitions,
+    entry_to,
     group_triggered,
     watches,
 )
@@ -184,6 +185,8 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
     """The mode tree in pre-order with initial children, drivers and invariants."""
     modes: list[CMode] = []
     drivers: list[Driver] = [Driver("zero", -1)]
+    deeper: dict[int, int] = {}  # an 'initial' naming a deeper descendant, by mode
+    history_default: dict[int, int] = {}
     for idx, (path, mode, parent, depth) in enumerate(flat):
         kind = "leaf" if not mode.children else ("and" if mode.parallel else "or")
         initial = -1
@@ -193,14 +196,23 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             if init_name is None:
                 col.fail((*mode.where, "initial"), f"mode '{path or agent.name}' has "
                          f"{len(kids)} children and no 'initial'")
-            elif init_name not in kids:
-                col.fail((*mode.where, "initial"), f"unknown initial mode '{init_name}'",
-                         did_you_mean(init_name, kids))
-            else:
+            elif init_name in kids:
                 initial = children[idx][kids.index(init_name)]
+            else:
+                deeper[idx] = _descendant(init_name, idx, flat, (*mode.where, "initial"),
+                                          "initial mode", col)
+            if mode.history_default is not None:
+                history_default[idx] = _descendant(
+                    mode.history_default, idx, flat, (*mode.where, "history", "default"),
+                    "history default", col)
         elif mode.initial is not None and kind == "and":
             col.fail((*mode.where, "initial"), "a parallel mode enters all its regions; "
                      "it has no 'initial'")
+        if mode.history_default is not None and kind != "or":
+            col.fail((*mode.where, "history", "default"), "a history default is where a "
+                     "composite enters one of its children while nothing is remembered; "
+                     + ("a parallel mode enters all its regions: give it to a region"
+                        if kind == "and" else "this mode has no children"))
         driver = compile_driver(mode, idx, names.plant, names.syms, col, names.params,
                                 folder, names.variables)
         if driver is not None:
@@ -214,6 +226,13 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
                            str(mode.invariant or ""), role=mode.role))
         if mode.final and mode.children:
             col.fail((*mode.where, "final"), "only leaf modes can be final")
+    for m in modes:
+        target = deeper.get(m.index, m.initial)
+        if target >= 0:
+            m.default = entry_to(modes, m.index, [target])
+            m.initial = m.default.first
+        if history_default.get(m.index, -1) >= 0:
+            m.history_default = entry_to(modes, m.index, [history_default[m.index]])
     check_parallel_drivers(modes, col, flat)
     for m in reversed(modes):
         sub = [m.index]
@@ -221,6 +240,24 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             sub.extend(modes[c].subtree.tolist())
         m.subtree = np.array(sorted(sub), dtype=np.intp)
     return modes, drivers
+
+
+def _descendant(name: str, idx: int, flat: list[tuple[str, Mode, int, int]],
+                where: tuple, what: str, col: Collector) -> int:
+    """The descendant of mode ``idx`` that ``name`` names (a unique name or a dotted path
+    below the mode), -1 with an error collected if none or several do."""
+    path = flat[idx][0]
+    prefix = f"{path}." if path else ""
+    below = [p[len(prefix):] if i != idx and p.startswith(prefix) else ""
+             for i, (p, _m, _q, _d) in enumerate(flat)]
+    found, matches = resolve_mode(name, below)
+    if found is None:
+        col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its "
+                 "dotted path" if matches else f"unknown {what} '{name}'",
+                 None if matches else did_you_mean(
+                     name, [p.rsplit(".", 1)[-1] for p in below if p] + [p for p in below if p]))
+        return -1
+    return found
 
 
 def compile_agent(agent: Agent, index: int, team_params: dict[str, float],

@@ -202,7 +202,7 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
             st.last[:, b][sub] = tr.carry_map[st.last[:, a][sub]]  # type: ignore[index]
-        st.enter_path(tr.entry_path, sub, ens.t, deep=bool(tr.carry))
+        st.enter(tr.entry, sub, ens.t, deep=bool(tr.carry))  # type: ignore[arg-type]
         for b, slot_a, slot_b in tr.carry_timers:
             on = sub[st.active[:, b][sub]]
             st.deadline[:, slot_b][on] = st.deadline[:, slot_a][on]

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import every, gather, spread
-from hybridteam.engine.compiled import CAgent, Ctx
+from hybridteam.engine.compiled import CAgent, Ctx, Entry
 from hybridteam.engine.values import require
 from hybridteam.engine.world import AgentView
 
@@ -142,33 +142,40 @@ class AgentState:
             restore = restore or deep or mode.history != "none"
             deeper = deep or mode.history == "deep"
             if not restore:
-                self.activate(mode.initial, idx, t)
-                self.enter_default(mode.initial, idx, t, False)
+                self.enter(mode.default, idx, t)  # type: ignore[arg-type]
                 return
             choice = self.last[:, m][idx]
-            choice = np.where(choice < 0, mode.initial, choice)
+            fresh = mode.history_default or mode.default
+            if fresh.targets == {mode.initial}:  # type: ignore[union-attr]
+                # nothing remembered: the initial child (below it nothing is either)
+                choice = np.where(choice < 0, mode.initial, choice)
+            elif (choice < 0).any():  # a deeper default, or the history's own
+                self.enter(fresh, idx[choice < 0], t)  # type: ignore[arg-type]
             for c in mode.children:
                 sub = idx[choice == c]
                 if sub.size:
                     self.activate(c, sub, t)
                     self.enter_default(c, sub, t, deeper)
 
-    def enter_path(self, path: list[int], idx: np.ndarray, t: np.ndarray,
-                   deep: bool = False) -> None:
-        """Enter along ``path`` (outermost first) to its last mode, then complete its entry
-        (by deep history when ``deep``).
+    def enter(self, entry: Entry, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
+        """Enter as ``entry`` says: its first mode, then down through its marked modes, in
+        document order (a parallel mode's unmarked regions by default), to its targets,
+        which complete their entry (by deep history when ``deep``)."""
+        self.activate(entry.first, idx, t)
+        self._enter_below(entry.first, entry, idx, t, deep)
 
-        Parallel modes crossed on the way enter their other regions by default.
-        """
-        ca = self.ca
-        for k, m in enumerate(path):
-            self.activate(m, idx, t)
-            if k + 1 < len(path) and ca.modes[m].kind == "and":
-                for r in ca.modes[m].children:
-                    if r != path[k + 1]:
-                        self.activate(r, idx, t)
-                        self.enter_default(r, idx, t)
-        self.enter_default(path[-1], idx, t, deep)
+    def _enter_below(self, m: int, entry: Entry, idx: np.ndarray, t: np.ndarray,
+                     deep: bool) -> None:
+        if m in entry.targets:
+            self.enter_default(m, idx, t, deep)
+            return
+        for c in self.ca.modes[m].children:  # an OR mode has one marked child
+            if c in entry.marks:
+                self.activate(c, idx, t)
+                self._enter_below(c, entry, idx, t, deep)
+            elif self.ca.modes[m].kind == "and":
+                self.activate(c, idx, t)
+                self.enter_default(c, idx, t)
 
     def update_drivers(self, idx: np.ndarray) -> None:
         """After a configuration change: which driver (law/flow) is in charge — the deepest

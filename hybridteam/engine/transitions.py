@@ -18,6 +18,7 @@ from hybridteam.engine.compiled import (
     CAction,
     CMode,
     CTransition,
+    Entry,
     Watch,
 )
 from hybridteam.engine.scope import Collector, message_symbols, resolve_mode
@@ -159,52 +160,90 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
     return out
 
 
-def _domain(modes: list[CMode], anc_s: list[int], anc_t: list[int], src: int,
-            tgt: int) -> int:
+def domain(modes: list[CMode], ends: list[int]) -> int:
     """The mode a transition stays inside (SCXML's transition domain): the innermost
-    OR-mode that properly contains its source and target, -1 if only leaving the root
-    would do.
+    OR-mode that properly contains its source and targets (``ends``: the source first),
+    -1 if only leaving the root would do.
 
-    The source is left even when the target is inside it (a self-transition exits and
+    The source is left even when a target is inside it (a self-transition exits and
     re-enters). A parallel mode is no domain: its regions are all active together, so a
     transition between two of its regions, or from a region to itself or one of its
     descendants, leaves the whole parallel mode and enters it again (its other regions
     by default), as SCXML does.
     """
-    common = next(a for a in anc_s if a in anc_t)
-    if common in (src, tgt):
+    chains = [_ancestors(modes, e) for e in ends]
+    common = next(a for a in chains[0] if all(a in c for c in chains[1:]))
+    if common in ends:
         common = modes[common].parent
     while common >= 0 and modes[common].kind == "and":
         common = modes[common].parent
     return common
 
 
+def entry_to(modes: list[CMode], top: int, targets: list[int]) -> Entry:
+    """How to enter ``targets`` from inside ``top`` (a transition's domain, or a mode
+    whose ``initial`` or history default names a descendant): the modes on the way,
+    entered outermost first, parallel modes on the way entering their other regions by
+    default."""
+    marks: set[int] = set()
+    first = -1
+    for t in targets:
+        m = t
+        while m != top:
+            marks.add(m)
+            first, m = m, modes[m].parent
+    return Entry(first, frozenset(marks), frozenset(targets))
+
+
+def _apart(modes: list[CMode], targets: list[int], tr: Transition, col: Collector) -> bool:
+    """Several targets must lie in different regions of a parallel mode (each region
+    gets at most one), as SCXML requires of a legal configuration."""
+    for k, b in enumerate(targets):
+        for a in targets[:k]:
+            chain_a, chain_b = _ancestors(modes, a), _ancestors(modes, b)
+            common = next(m for m in chain_a if m in chain_b)
+            if common in (a, b) or modes[common].kind != "and":
+                col.fail((*tr.where, "to", k), f"targets '{modes[a].path}' and "
+                         f"'{modes[b].path}' are not in different regions of a parallel "
+                         "mode; a transition enters one mode per region")
+                return False
+    return True
+
+
 def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
                         state_index, var_index, agent_names, agent_name: str,
                         col: Collector) -> CTransition | None:
     internal = tr.target is None
-    tgt, matches = (src, []) if internal else resolve_mode(tr.target, paths, paths[src])
-    if tgt is None:
-        if matches:
-            col.fail((*tr.where, "to"), f"mode name '{tr.target}' is ambiguous: "
-                     f"{', '.join(matches)}; write its dotted path")
-        else:
-            col.fail((*tr.where, "to"), f"unknown mode '{tr.target}'",
-                     did_you_mean(tr.target, [p.rsplit('.', 1)[-1] for p in paths if p]
-                                   + [p for p in paths if p]))
-        return None
     if internal and src == 0:
         col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
         return None
-    exit_root, entry_path = src, [src]
+    targets: list[int] = []
+    for k, name in enumerate(tr.targets):
+        where = (*tr.where, "to", k) if tr.more_targets else (*tr.where, "to")
+        tgt, matches = resolve_mode(name, paths, paths[src])
+        if tgt is None:
+            if matches:
+                col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; "
+                         "write its dotted path")
+            else:
+                col.fail(where, f"unknown mode '{name}'",
+                         did_you_mean(name, [p.rsplit('.', 1)[-1] for p in paths if p]
+                                      + [p for p in paths if p]))
+            return None
+        targets.append(tgt)
+    if not _apart(modes, targets, tr, col):
+        return None
+    tgt = targets[0] if targets else src
+    exit_root, entry_path, entry = src, [src], None
     if not internal:
-        anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
-        common = _domain(modes, anc_s, anc_t, src, tgt)
+        common = domain(modes, [src, *targets])
         if common < 0:
             col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
             return None
+        anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
         exit_root = anc_s[anc_s.index(common) - 1]
         entry_path = list(reversed(anc_t[: anc_t.index(common)]))
+        entry = entry_to(modes, common, targets)
     guard = None
     if tr.guard is not None:
         guard = col.expr(tr.guard, syms, (*tr.where, "guard"), condition=True)
@@ -215,8 +254,10 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
                               agent_names, col)
     return CTransition(
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
+        entry=entry, targets=targets,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
-        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
+        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> "
+        f"{', '.join(modes[t].path for t in targets) or modes[src].path}",
         guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
     )
 

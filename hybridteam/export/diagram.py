@@ -144,14 +144,15 @@ def _add_transitions(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode]
             ct = agent.transitions[rank[k]]
             if ct.source != idx:  # the compiler's ordering rule changed: fail loudly
                 raise RuntimeError("declared and compiled transitions disagree")
-            _link(
-                graph, mode_id(agent.name, agent.modes[ct.source].path),
-                mode_id(agent.name, agent.modes[ct.target].path),
-                kind="transition", agent=agent.name, trigger=tr.on or "",
-                after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
-                actions=[action_text(a) for a in tr.actions], priority=tr.priority,
-                label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
-            )
+            for target in ct.targets or [ct.target]:  # several: one arrow to each
+                _link(
+                    graph, mode_id(agent.name, agent.modes[ct.source].path),
+                    mode_id(agent.name, agent.modes[target].path),
+                    kind="transition", agent=agent.name, trigger=tr.on or "",
+                    after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
+                    actions=[action_text(a) for a in tr.actions], priority=tr.priority,
+                    label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
+                )
             k += 1
 
 

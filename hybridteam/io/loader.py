@@ -371,8 +371,11 @@ def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
                              where=(*where, "law"))
     transitions = tuple(_transition(t, (*where, "transitions", k))
                         for k, t in enumerate(spec.transitions))
+    history, history_default = (spec.history, None) if isinstance(spec.history, str) \
+        else (spec.history.kind, spec.history.default)
     return Mode(
-        name, children, initial=spec.initial, parallel=spec.parallel, history=spec.history,
+        name, children, initial=spec.initial, parallel=spec.parallel, history=history,
+        history_default=history_default,
         law=law, inputs=None if spec.inputs is None else dict(spec.inputs),
         input_period=spec.period, flow=None if spec.flow is None else dict(spec.flow),
         invariant=spec.invariant, final=spec.final, outcome=spec.outcome,
@@ -396,5 +399,7 @@ def _actions(specs: list, where: DocPath) -> tuple[Action, ...]:
 
 
 def _transition(spec, where: DocPath) -> Transition:
-    return Transition(spec.to, spec.on, spec.after, spec.guard,
-                      _actions(spec.do, (*where, "do")), spec.priority, where)
+    targets = [spec.to] if isinstance(spec.to, str) else spec.to or [None]
+    return Transition(targets[0], spec.on, spec.after, spec.guard,
+                      _actions(spec.do, (*where, "do")), spec.priority, where,
+                      more_targets=tuple(targets[1:]))

@@ -61,8 +61,9 @@ ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_
 class TransitionSchema(Strict):
     """A guarded switch from the enclosing mode to ``to``."""
 
-    to: str | None = Field(None, description="target mode: a unique name or a dotted path "
-                           "(none: an internal transition, actions only)")
+    to: str | Annotated[list[str], Field(min_length=1)] | None = Field(
+        None, description="target mode: a unique name or a dotted path, or a list of "
+        "targets in different parallel regions (none: an internal transition, actions only)")
     on: str | None = Field(None, description="message type or local event that triggers it")
     after: ExprOrNumber | None = Field(None, description="seconds in the source mode")
     guard: str | None = Field(None, description="condition, e.g. 'x >= 22'")
@@ -87,12 +88,21 @@ class LawSchema(Strict):
     with_: dict[str, ExprOrNumber] = Field(default_factory=dict, alias="with")
 
 
+class HistorySchema(Strict):
+    """History with a default: where an entry goes while nothing is remembered yet."""
+
+    kind: Literal["shallow", "deep"]
+    default: str = Field(description="a descendant (name or dotted path below the mode) "
+                         "entered while nothing is remembered (instead of 'initial')")
+
+
 class ModeSchema(Strict):
     """A mode: a leaf, an OR-composite (``modes`` + ``initial``) or parallel regions."""
 
     description: str | None = None
-    initial: str | None = None
-    history: Literal["none", "shallow", "deep"] = "none"
+    initial: str | None = Field(None, description="the child (or a deeper descendant, by "
+                                "name or dotted path below this mode) entered by default")
+    history: Literal["none", "shallow", "deep"] | HistorySchema = "none"
     parallel: bool = False
     modes: dict[str, ModeSchema] | None = None
     law: str | LawSchema | None = None

@@ -4,9 +4,9 @@ These classes say *what* a behaviour is; they hold expression text, not compiled
 model can be built in Python, loaded from YAML, printed back or drawn without running anything.
 :mod:`hybridteam.engine.compiled` turns them into vectorized callables.
 
-A mode is a leaf, an OR-composite (``children`` with an ``initial`` child, optionally with
-``history``) or an AND-composite (``parallel=True``: every child is a region that runs at the
-same time). Transitions are declared on their source mode.
+A mode is a leaf, an OR-composite (``children`` with an ``initial`` child or deeper
+descendant, optionally with ``history``) or an AND-composite (``parallel=True``: every child
+is a region that runs at the same time). Transitions are declared on their source mode.
 """
 
 from __future__ import annotations
@@ -84,6 +84,14 @@ class Transition:
     actions: tuple[Action, ...] = ()
     priority: int = 0
     where: DocPath = ()
+    #: further targets (``to: [A.x, B.y]``), one in each of other parallel regions: the
+    #: transition enters all of them at once (its ``target`` is the first)
+    more_targets: tuple[str, ...] = ()
+
+    @property
+    def targets(self) -> tuple[str, ...]:
+        """Every target, in the order written (none for a transition without ``to``)."""
+        return () if self.target is None else (self.target, *self.more_targets)
 
 
 @dataclass(frozen=True)
@@ -95,6 +103,9 @@ class Mode:
     initial: str | None = None
     parallel: bool = False
     history: History = "none"
+    #: the descendant a history entry goes to while nothing is remembered (default: the
+    #: ``initial`` one), as an SCXML ``<history>``'s own transition
+    history_default: str | None = None
     law: LawBinding | None = None
     inputs: dict[str, str | float] | None = None
     input_period: float | None = None
