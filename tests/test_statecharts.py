@@ -541,3 +541,112 @@ def test_a_transition_with_several_targets_is_drawn_to_each(team_from_yaml):
     """)
     assert [(u, v, d["label"]) for u, v, d in edges_of(diagram_graph(team), "transition")] \
         == [("a/Idle", "a/P.R1.x2", "go"), ("a/Idle", "a/P.R2.y2", "go")]
+
+
+NESTED_EVENT = """
+    team: nested_event
+    {semantics}
+    agents:
+      a:
+        plant: {{kind: flow, state: {{n: 0}}}}
+        initial: S
+        modes:
+          S:
+            initial: a
+            transitions: [{{on: go, {outer}do: ["n = n * 10 + 1"]}}]
+            modes:
+              a: {{transitions: [{{to: b, on: go, do: ["n = n * 10 + 2"]}}]}}
+              b: {{}}
+          T: {{}}
+    scenario: [{{at: 1, agent: a, raise: go}}]
+    simulation: {{duration: 2}}
+"""
+
+
+@pytest.mark.parametrize(("semantics", "outer", "fired", "n"), [
+    ("", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
+    ("semantics: {priority: outer_first}", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
+    ("semantics: {priority: inner_first}", "to: T, ", [(1.0, 0, "S.a", "S.b")], 2.0),
+    # without a target the outer one exits nothing: outer first, both fire (outer's action
+    # first); inner first, the inner one is chosen for the active leaf, as in SCXML
+    ("", "", [(1.0, 0, "S", "S"), (1.0, 0, "S.a", "S.b")], 12.0),
+    ("semantics: {priority: inner_first}", "", [(1.0, 0, "S.a", "S.b")], 2.0)])
+def test_the_priority_rule_picks_outer_or_inner_transitions(team_from_yaml, semantics, outer,
+                                                           fired, n):
+    run = ht.simulate(team_from_yaml(NESTED_EVENT.format(semantics=semantics, outer=outer)))
+    assert steps(run) == fired
+    assert counter(run) == n
+
+
+def test_inner_first_lets_the_inner_urgent_transition_go_before_the_outer(team_from_yaml):
+    team = team_from_yaml("""
+        team: urgent
+        semantics: {priority: inner_first}
+        agents:
+          a:
+            plant: {kind: flow, state: {c: 0}}
+            initial: Outer
+            modes:
+              Outer:
+                initial: Inner1
+                transitions: [{to: Other, after: 1.0}]
+                modes:
+                  Inner1: {transitions: [{to: Inner2, after: 1.0}]}
+                  Inner2: {}
+              Other: {final: true}
+    """)
+    # the inner one at (1, 0); Outer's delay, counted from 0, still holds at (1, 1)
+    assert steps(ht.simulate(team)) == [(1.0, 0, "Outer.Inner1", "Outer.Inner2"),
+                                        (1.0, 1, "Outer", "Other")]
+
+
+REGIONS_RACE = """
+    team: race
+    {semantics}
+    agents:
+      a:
+        plant: {{kind: flow, state: {{n: 0}}}}
+        initial: P
+        modes:
+          P:
+            parallel: true
+            modes:
+              R1:
+                initial: a
+                modes:
+                  a: {r1}
+              R2:
+                initial: c
+                modes:
+                  c: {r2}
+          X: {{}}
+          Y: {{}}
+    scenario: [{{at: 1, agent: a, raise: go}}]
+    simulation: {{duration: 2}}
+"""
+LEAF_X = "{transitions: [{to: X, on: go}]}"
+LEAF_Y = "{transitions: [{to: Y, on: go}]}"
+DEEP_X = "{initial: a1, modes: {a1: {transitions: [{to: X, on: go}]}}}"
+DEEP_Y = "{initial: c1, modes: {c1: {transitions: [{to: Y, on: go}]}}}"
+
+
+@pytest.mark.parametrize(("rule", "r1", "r2", "winner"), [
+    # both leave P: one fires. Outer first: the shallower source; at equal depth the
+    # region written first. Inner first: the region written first (SCXML's document order:
+    # neither source is inside the other), whatever the depths.
+    ("outer_first", LEAF_X, LEAF_Y, "X"), ("outer_first", DEEP_X, LEAF_Y, "Y"),
+    ("outer_first", LEAF_X, DEEP_Y, "X"),
+    ("inner_first", LEAF_X, LEAF_Y, "X"), ("inner_first", DEEP_X, LEAF_Y, "X"),
+    ("inner_first", LEAF_X, DEEP_Y, "X")])
+def test_between_regions_the_rules_differ_only_in_depth(team_from_yaml, rule, r1, r2, winner):
+    run = ht.simulate(team_from_yaml(REGIONS_RACE.format(
+        semantics=f"semantics: {{priority: {rule}}}", r1=r1, r2=r2)))
+    assert [s[3] for s in steps(run)] == [winner]
+
+
+def test_an_unknown_priority_rule_is_a_located_error(team_from_yaml):
+    from hybridteam.io.filekind import InputErrors
+    with pytest.raises(InputErrors, match=r"team\.yaml:3:\d+: semantics\.priority: .*"
+                       "expected one of 'outer_first', 'inner_first', got 'scxml'"):
+        team_from_yaml(NESTED_EVENT.format(semantics="semantics: {priority: scxml}",
+                                           outer=""))

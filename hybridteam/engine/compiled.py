@@ -182,6 +182,7 @@ class CTransition:
     carry: list[tuple[int, int]] = field(default_factory=list)
     carry_map: np.ndarray | None = None
     carry_timers: list[tuple[int, int, int]] = field(default_factory=list)
+    declared: int = -1  # position among the agent's transitions as declared (pre-order)
     entry: Entry | None = None  # how it enters (None: internal)
     targets: list[int] = field(default_factory=list)  # every target (``target``: the first)
 

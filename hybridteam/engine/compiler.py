@@ -274,7 +274,8 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
                             team.folder if team is not None else None)
     transitions = compile_transitions(flat, modes, paths, names.syms, names.state,
                                       names.variables, agent_names, agent.name,
-                                      message_fields, col)
+                                      message_fields, col, inner_first=team is not None
+                                      and team.priority_rule == "inner_first")
     for (_p, mode, _q, _d), cm in zip(flat, modes, strict=True):
         cm.on_entry = compile_actions(mode.on_entry, (*mode.where, "entry"), names.syms,
                                       names.state, names.variables, agent_names, col)

@@ -38,11 +38,18 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
                         paths: list[str], syms: dict, state_index: dict[str, int],
                         var_index: dict[str, int], agent_names: list[str], agent_name: str,
                         message_fields: dict[str, set[str]] | None,
-                        col: Collector) -> list[CTransition]:
+                        col: Collector, inner_first: bool = False) -> list[CTransition]:
     """Every transition of an agent, in precedence order: higher ``priority`` first, then
-    outer before inner, then declaration order; with conflicts, ``after`` slots, the modes'
-    ``outgoing`` lists and role carries filled in."""
-    decl: list[tuple[int, int, int, CTransition]] = []
+    outer before inner (``inner_first``: inner before outer, SCXML's rule), then
+    declaration order; with conflicts, ``after`` slots, the modes' ``outgoing`` lists and
+    role carries filled in.
+
+    Inner first orders sources in post-order (a mode after every mode inside it, disjoint
+    subtrees in document order), so between regions the one written first wins, and a
+    transition is also blocked by one that fired from inside its source, as SCXML selects
+    at most one transition per active leaf, the innermost.
+    """
+    decl: list[tuple[int, tuple[int, int], int, CTransition]] = []
     syms = {**syms, "in_mode": mode_test(paths, agent_name)}  # what guards read
     for idx, (_path, mode, _parent, depth) in enumerate(flat):
         for tr in mode.transitions:
@@ -52,7 +59,9 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
             ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
                                      agent_names, agent_name, col)
             if ct is not None:
-                decl.append((-tr.priority, depth, len(decl), ct))
+                ct.declared = len(decl)
+                level = (int(modes[idx].subtree[-1]), -depth) if inner_first else (depth, 0)
+                decl.append((-tr.priority, level, len(decl), ct))
     decl.sort(key=lambda item: item[:3])
     transitions: list[CTransition] = []
     for order, (_, _, _, ct) in enumerate(decl):
@@ -61,10 +70,15 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     after_slot = 0
     exits = [frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
              for ct in transitions]
+    inside = [frozenset(modes[ct.source].subtree.tolist()) for ct in transitions] \
+        if inner_first else None
     for ct in transitions:
         ct.conflicts = np.array(
             [o.index for o in transitions[: ct.index]
-             if conflict(ct, exits[ct.index], o, exits[o.index])], dtype=np.intp)
+             if conflict(ct, exits[ct.index], o, exits[o.index])
+             or (inside is not None and (o.source in inside[ct.index]
+                                         or ct.source in inside[o.index]))],
+            dtype=np.intp)
         modes[ct.source].outgoing.append(ct.index)
         if ct.after is not None:
             ct.after_slot = after_slot

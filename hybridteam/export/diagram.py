@@ -102,20 +102,12 @@ def _declared(root: Mode) -> list[Mode]:
     return [m for _, m in root.walk()]
 
 
-def _precedence(agent: CAgent, declared: list[Mode]) -> list[int]:
-    """Compiled index of each declared transition, in declaration order.
-
-    The compiler sorts transitions by (-priority, depth, declaration order); redoing that sort
-    maps declarations back onto the compiled transitions, whose targets are resolved.
-    """
-    keys = []
-    for idx, mode in enumerate(declared):
-        for tr in mode.transitions:
-            keys.append((-tr.priority, agent.modes[idx].depth, len(keys)))
-    order = sorted(range(len(keys)), key=lambda k: keys[k])
-    rank = [0] * len(keys)
-    for position, k in enumerate(order):
-        rank[k] = position
+def _precedence(agent: CAgent) -> list[int]:
+    """Compiled index of each declared transition, in declaration order (the compiler
+    sorts them by precedence, whose targets it resolves)."""
+    rank = [0] * len(agent.transitions)
+    for ct in agent.transitions:
+        rank[ct.declared] = ct.index
     return rank
 
 
@@ -137,7 +129,7 @@ def _add_modes(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode],
 
 
 def _add_transitions(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode]) -> None:
-    rank = _precedence(agent, declared)
+    rank = _precedence(agent)
     k = 0
     for idx, mode in enumerate(declared):
         for tr in mode.transitions:

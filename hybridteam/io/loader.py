@@ -218,7 +218,8 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 folder=str(Path(filename).resolve().parent),
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
                             doc.end.when if doc.end else "all", ("end",)),
-                requirements=_requirements(doc, filename, comp))
+                requirements=_requirements(doc, filename, comp),
+                priority_rule=doc.semantics.priority)
     return team, comp
 
 

@@ -349,6 +349,15 @@ class EndSchema(Strict):
         "all", description="all: when every one of them is final; any: when the first is")
 
 
+class SemanticsSchema(Strict):
+    """Choices of the discrete semantics that statechart tools make differently."""
+
+    priority: Literal["outer_first", "inner_first"] = Field(
+        "outer_first", description="which of two enabled nested transitions fires: "
+        "outer_first (Stateflow's: the outer one) or inner_first (SCXML's: the inner one; "
+        "between regions, document order)")
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -363,6 +372,7 @@ class TeamFile(Strict):
     world: list[WorldSchema] = Field(
         default_factory=list, description="world components: payloads, corridors, sensors")
     end: EndSchema | None = Field(None, description="when a run ends before its duration")
+    semantics: SemanticsSchema = Field(default_factory=SemanticsSchema)
     messages: dict[str, MessageDeclSchema] = Field(
         default_factory=dict, description="the team's own message types (fields, ack:, "
         "priority); a protocol's are declared in the protocol")
