@@ -135,8 +135,10 @@ REFUSED = {
                  r":3:3: an internal transition into its own source's children"),
     "two initials": (f'{HEAD} initial="a b">\n<state id="a"/>\n<state id="b"/></scxml>\n',
                      r":1:1: <scxml> names 2 initial states"),
-    "bad id": (f'{HEAD}>\n<state id="a-b"/></scxml>\n',
-               r":2:1: <state> id 'a-b' is not a mode name"),
+    "same name": (f'{HEAD}>\n<state id="a-b"/>\n<state id="a_b"/></scxml>\n',
+                  r":3:1: <state> id 'a_b' reads as mode name 'a_b', as 'a-b' does"),
+    "same id": (f'{HEAD}>\n<state id="a"/>\n<state id="a"/></scxml>\n',
+                r":3:1: <state> id 'a' is used twice"),
     "bad cond": (f'{HEAD}>\n<state id="a">\n  <transition event="e" cond="x.length > 1" '
                  'target="a"/>\n</state></scxml>\n', r":3:3: .*guard: "),
 }
@@ -289,3 +291,25 @@ def test_a_chart_is_read_as_any_model_file_is(tmp_path, monkeypatch):
     path.write_bytes(b"\xff\xfe<scxml/>")
     with pytest.raises(InputErrors, match=r"chart\.scxml"):
         load_team(path)
+
+
+def test_ids_that_are_not_names_are_read_with_underscores(tmp_path):
+    """SCION's history1: ids such as 'b1.2' are the modes 'b1_2'; its history default and
+    the targets that name them follow."""
+    team = load_team(chart(tmp_path, f"""
+        {HEAD} initial="a">
+          <state id="a"><transition target="h" event="t1"/></state>
+          <state id="b" initial="b1">
+            <history id="h" type="deep"><transition target="b1.2"/></history>
+            <state id="b1" initial="b1.1">
+              <state id="b1.1"/>
+              <state id="b1.2"><transition event="t2" target="b1.3"/></state>
+              <state id="b1.3"><transition event="t3" target="a"/></state>
+            </state>
+          </state>
+        </scxml>
+    """))
+    assert team.priority_rule == "inner_first"  # a chart means SCXML's rule
+    run = ht.simulate(with_events(team, (1, "t1"), (2, "t2"), (3, "t3"), (4, "t1")))
+    assert [leaves_from(run, t) for t in (0.0, 1.0, 2.0, 3.0, 4.0)] == [
+        ["a"], ["b.b1.b1_2"], ["b.b1.b1_3"], ["a"], ["b.b1.b1_3"]]

@@ -169,15 +169,45 @@ REGION_SELF = """
 
 
 @pytest.mark.parametrize(("target", "back"), [
-    ("R1", ["P.R1.a", "P.R2.c"]), ("R1.b", ["P.R1.b", "P.R2.c"])])
-def test_a_region_to_itself_leaves_and_reenters_the_parallel_mode(team_from_yaml, target,
-                                                                  back):
-    """SCXML's transition domain skips parallel modes: the whole of P is exited and entered
-    again, R2 by default."""
+    ("R1", ["P.R1.a", "P.R2.c"]), ("R1.b", ["P.R1.b", "P.R2.c"]), ("R2.d", ["P.R1.a", "P.R2.d"])])
+def test_a_region_to_itself_leaves_and_reenters_every_region(team_from_yaml, target, back):
+    """The transition's domain is the parallel mode P: both regions are left and entered
+    again (R2 by default), P itself stays active (one interval of it, to the end)."""
     run = ht.simulate(team_from_yaml(REGION_SELF.format(target=target)))
     assert steps(run)[2] == (1.5, 0, "P.R1", f"P.{target}")
     assert leaves_from(run, 1.5) == back
-    assert ("P", 0.0, 1.5) in {(r.mode, r.start, r.end) for r in run.intervals}
+    closed = {(r.mode, r.start, r.end) for r in run.intervals}
+    assert ("P.R2.d", 1.0, 1.5) in closed and ("P.R2", 0.0, 1.5) in closed
+    assert [(r.start, r.end) for r in run.intervals if r.mode == "P"] == [(0.0, 2.0)]
+
+
+def test_a_parallel_domain_runs_its_regions_exit_and_entry_actions_not_its_own(
+        team_from_yaml):
+    """SCION's more-parallel/test10b: x counts P's and a's entries and exits; a -> a
+    leaves and re-enters a, not P: x = 2 (entering P, a), then 4."""
+    team = team_from_yaml("""
+        team: domain_actions
+        agents:
+          a:
+            plant: {kind: flow, state: {x: 0}}
+            initial: P
+            modes:
+              P:
+                parallel: true
+                entry: ["x = x + 1"]
+                exit: ["x = x + 1"]
+                modes:
+                  a:
+                    entry: ["x = x + 1"]
+                    exit: ["x = x + 1"]
+                    transitions: [{to: a, on: t1, guard: x == 2}]
+                  b: {}
+        scenario: [{at: 1, agent: a, raise: t1}]
+        simulation: {duration: 2, sample_period: 0.5}
+    """)
+    run = ht.simulate(team)
+    assert steps(run) == [(1.0, 0, "P.a", "P.a")]
+    assert counter(run) == 4.0
 
 
 

@@ -46,10 +46,11 @@ def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction
 
 
 def exit_actions(ens: Ensemble, ag: CAgent, st: AgentState, root: int,
-                 sub: np.ndarray) -> None:
-    """The exit actions of the active modes of ``root``'s subtree (about to be exited),
-    innermost first."""
-    for m in ag.modes[root].subtree[::-1].tolist():
+                 sub: np.ndarray, inside: bool = False) -> None:
+    """The exit actions of the active modes of ``root``'s subtree (about to be exited;
+    ``inside``: below ``root`` only), innermost first."""
+    modes = ag.modes[root].subtree[1:] if inside else ag.modes[root].subtree
+    for m in modes[::-1].tolist():
         mode = ag.modes[m]
         if mode.on_exit:
             sel = sub[st.active[:, m][sub]]

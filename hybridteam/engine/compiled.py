@@ -153,6 +153,8 @@ class Entry:
     first: int
     marks: frozenset[int]
     targets: frozenset[int]
+    #: ``first`` is a parallel domain that stays active: only its regions are entered
+    active_first: bool = False
 
 
 @dataclass
@@ -185,6 +187,8 @@ class CTransition:
     declared: int = -1  # position among the agent's transitions as declared (pre-order)
     entry: Entry | None = None  # how it enters (None: internal)
     targets: list[int] = field(default_factory=list)  # every target (``target``: the first)
+    #: the exit root is a parallel domain: its regions are exited, not the mode itself
+    exit_inside: bool = False
 
 
 @dataclass

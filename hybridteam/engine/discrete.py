@@ -194,8 +194,8 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     tr = ag.transitions[j]
     if not tr.internal:
         if ag.mode_actions:
-            exit_actions(ens, ag, st, tr.exit_root, sub)
-        st.exit(tr.exit_root, sub, ens.t, ens.rec)
+            exit_actions(ens, ag, st, tr.exit_root, sub, tr.exit_inside)
+        st.exit(tr.exit_root, sub, ens.t, ens.rec, tr.exit_inside)
     if tr.actions:
         run_actions(ens, ag, st, tr.actions, sub, st.ctx(sub, ens.t[sub], tr.source, msg),
                     msg)

@@ -90,10 +90,12 @@ class AgentState:
                    e, w, since, (self.active, idx))
 
     # ----------------------------------------------------------------- configuration
-    def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:
-        """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time array)."""
+    def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder,
+             inside: bool = False) -> None:
+        """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time
+        array); ``inside``: only below ``root`` (a parallel domain stays active)."""
         ca = self.ca
-        for m in ca.modes[root].subtree:
+        for m in ca.modes[root].subtree[1:] if inside else ca.modes[root].subtree:
             sel = idx[self.active[:, m][idx]]
             if sel.size == 0:
                 continue
@@ -161,7 +163,8 @@ class AgentState:
         """Enter as ``entry`` says: its first mode, then down through its marked modes, in
         document order (a parallel mode's unmarked regions by default), to its targets,
         which complete their entry (by deep history when ``deep``)."""
-        self.activate(entry.first, idx, t)
+        if not entry.active_first:
+            self.activate(entry.first, idx, t)
         self._enter_below(entry.first, entry, idx, t, deep)
 
     def _enter_below(self, m: int, entry: Entry, idx: np.ndarray, t: np.ndarray,

@@ -10,6 +10,8 @@ locates their sign changes).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from hybridteam.engine.compiled import (
@@ -69,7 +71,7 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
         transitions.append(ct)
     after_slot = 0
     exits = [frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
-             for ct in transitions]
+             - ({ct.exit_root} if ct.exit_inside else set()) for ct in transitions]
     inside = [frozenset(modes[ct.source].subtree.tolist()) for ct in transitions] \
         if inner_first else None
     for ct in transitions:
@@ -175,21 +177,19 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
 
 
 def domain(modes: list[CMode], ends: list[int]) -> int:
-    """The mode a transition stays inside (SCXML's transition domain): the innermost
-    OR-mode that properly contains its source and targets (``ends``: the source first),
-    -1 if only leaving the root would do.
+    """The mode a transition stays inside (its domain, as SCION and the issue's SCXML
+    reading take it): the innermost mode that properly contains its source and targets
+    (``ends``: the source first), -1 if only leaving the root would do.
 
     The source is left even when a target is inside it (a self-transition exits and
-    re-enters). A parallel mode is no domain: its regions are all active together, so a
-    transition between two of its regions, or from a region to itself or one of its
-    descendants, leaves the whole parallel mode and enters it again (its other regions
-    by default), as SCXML does.
+    re-enters). A parallel domain — a transition between two of its regions, or from a
+    region to itself or one of its descendants — stays active: every one of its regions
+    is left and entered again (those without a target by default), the parallel mode's
+    own entry and exit actions do not run.
     """
     chains = [_ancestors(modes, e) for e in ends]
     common = next(a for a in chains[0] if all(a in c for c in chains[1:]))
     if common in ends:
-        common = modes[common].parent
-    while common >= 0 and modes[common].kind == "and":
         common = modes[common].parent
     return common
 
@@ -248,16 +248,21 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     if not _apart(modes, targets, tr, col):
         return None
     tgt = targets[0] if targets else src
-    exit_root, entry_path, entry = src, [src], None
+    exit_root, entry_path, entry, inside = src, [src], None, False
     if not internal:
         common = domain(modes, [src, *targets])
         if common < 0:
             col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
             return None
         anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
-        exit_root = anc_s[anc_s.index(common) - 1]
         entry_path = list(reversed(anc_t[: anc_t.index(common)]))
-        entry = entry_to(modes, common, targets)
+        if modes[common].kind == "and":  # every region is left; the parallel mode stays
+            exit_root, inside = common, True
+            entry = dataclasses.replace(entry_to(modes, modes[common].parent, targets),
+                                        active_first=True)
+        else:
+            exit_root = anc_s[anc_s.index(common) - 1]
+            entry = entry_to(modes, common, targets)
     guard = None
     if tr.guard is not None:
         guard = col.expr(tr.guard, syms, (*tr.where, "guard"), condition=True)
@@ -268,7 +273,7 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
                               agent_names, col)
     return CTransition(
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
-        entry=entry, targets=targets,
+        entry=entry, targets=targets, exit_inside=inside,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
         depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> "
         f"{', '.join(modes[t].path for t in targets) or modes[src].path}",

@@ -145,7 +145,9 @@ def read_chart(source: str | os.PathLike, agent: str | None = None) -> Document:
         agent = reader.agent(root, ("agents", name))
     except SourceError as exc:
         raise InputErrors([exc]) from None
-    data = {"team": name, "agents": {name: {"plant": {"kind": "none"}, **agent}}}
+    # an SCXML chart means SCXML's priority rule (innermost first, document order)
+    data = {"team": name, "semantics": {"priority": "inner_first"},
+            "agents": {name: {"plant": {"kind": "none"}, **agent}}}
     reader.marks.setdefault((), Mark(1, 1))
     for path in (("team",), ("agents",), ("agents", name), ("agents", name, "plant")):
         reader.marks.setdefault(path, root.mark)
@@ -159,8 +161,12 @@ class ChartReader:
     def __init__(self, filename: str) -> None:
         self.filename = filename
         self.marks: dict[tuple, Mark] = {}
-        self.history_of: dict[str, str] = {}  # a <history> id -> its parent's id
+        self.history_of: dict[str, str] = {}  # a <history>'s mode name -> its parent's
         self.with_history: set[str] = set()
+        #: each state's id -> its mode name: the id itself, or with every character a
+        #: name cannot have as '_' (SCXML ids such as 'b1.2' are common)
+        self.names: dict[str, str] = {}
+        self.ids: dict[str, str] = {}  # the other way
 
     def fail(self, el: Element, message: str) -> SourceError:
         return SourceError(self.filename, *_at(el.mark), (), message)
@@ -175,8 +181,8 @@ class ChartReader:
             if el.tag == "datamodel" and el.ns == SCXML_NS:
                 for data in el.children:
                     self._check(data, ("data",))
-                    variables[self._id(data)] = self._number(data)
-                    self.marks[(*path, "variables", self._id(data))] = data.mark
+                    variables[self._variable(data)] = self._number(data)
+                    self.marks[(*path, "variables", self._variable(data))] = data.mark
             elif el.tag not in _STATES:
                 self._check(el, (*_STATES, "datamodel"))
         if variables:
@@ -191,9 +197,11 @@ class ChartReader:
 
     # ------------------------------------------------------------------ states
     def _histories(self, el: Element) -> None:
-        """Map every <history> to its parent first: transitions may target one before it
-        is met in document order."""
+        """Name every state and map every <history> to its parent first: transitions may
+        target one before it is met in document order."""
         for child in el.children:
+            if child.ns == SCXML_NS and child.tag in (*_STATES, "history"):
+                self._name(child)
             if child.tag == "history" and child.ns == SCXML_NS:
                 if el.tag not in ("state", "parallel"):
                     raise self.fail(child, "a <history> belongs in a <state> or <parallel>")
@@ -285,7 +293,7 @@ class ChartReader:
             raise self.fail(el, f"{el.name} names {len(names)} initial states; the subset "
                             "takes one (a deeper one enters the regions on the way by default)")
         if names:
-            return names[0]
+            return self.ref(names[0])
         if len(kids) > 1 and el.tag != "parallel":
             return next(iter(kids))
         return None
@@ -305,7 +313,7 @@ class ChartReader:
             raise self.fail(default[0], "a history's default transition names one target "
                             "(without content, in this subset)")
         self.marks[(*path, "kind")] = self.marks[(*path, "default")] = default[0].mark
-        return {"kind": kind, "default": targets[0]}
+        return {"kind": kind, "default": self.ref(targets[0])}
 
     # ------------------------------------------------------------------ transitions
     def _transitions(self, el: Element, source: Element, path: tuple) -> list[tuple]:
@@ -316,9 +324,10 @@ class ChartReader:
             raise self.fail(el, f"attribute '{sorted(unknown)[0]}' of <transition> is "
                             "outside the subset")
         tr: dict[str, Any] = {}
-        targets = [self.history_of.get(t, t) for t in el.attrs.get("target", "").split()]
-        for t, written in zip(targets, el.attrs.get("target", "").split(), strict=True):
-            if t == written and t in self.with_history:
+        written = [self.ref(t) for t in el.attrs.get("target", "").split()]
+        targets = [self.history_of.get(t, t) for t in written]
+        for t, w in zip(targets, written, strict=True):
+            if t == w and t in self.with_history:
                 raise self.fail(el, f"target '{t}' has a <history>: in hybridteam every "
                                 "entry of it restores, so target the history instead")
         if targets:
@@ -330,7 +339,7 @@ class ChartReader:
             raise self.fail(el, "an internal transition into its own source's children "
                             "(the source stays active) is outside the subset")
         if "cond" in el.attrs:
-            tr["guard"] = expression(el.attrs["cond"])
+            tr["guard"] = expression(el.attrs["cond"], self.ref)
         if "ht:after" in el.attrs:
             tr["after"] = _value(el.attrs["ht:after"])
         if "ht:priority" in el.attrs:
@@ -369,7 +378,7 @@ class ChartReader:
                         raise self.fail(child, "an <assign> takes 'location' and 'expr' "
                                         "(in this subset)")
                     out.append(f"{child.attrs['location']} = "
-                               f"{expression(child.attrs['expr'])}")
+                               f"{expression(child.attrs['expr'], self.ref)}")
                 else:
                     if set(child.attrs) != {"event"}:
                         raise self.fail(child, "a <raise> takes 'event'")
@@ -423,12 +432,30 @@ class ChartReader:
         raise self.fail(el, f"{el.name} is not supported: {reason}")
 
     def _id(self, el: Element) -> str:
-        name = el.attrs.get("id")
-        if name is None:
-            name = f"{el.tag}_{el.mark.line}_{el.mark.column}"
+        """A state's mode name (see :attr:`names`)."""
+        return self.names[el.attrs.get("id", f"{el.tag}_{el.mark.line}_{el.mark.column}")]
+
+    def _name(self, el: Element) -> None:
+        given = el.attrs.get("id", f"{el.tag}_{el.mark.line}_{el.mark.column}")
+        name = re.sub(r"\W", "_", given, flags=re.ASCII)
+        if not _ID.match(name):
+            name = f"s{name}"
+        if given in self.names or name.startswith("__") or name in self.ids:
+            other = self.ids.get(name, given)
+            raise self.fail(el, f"{el.name} id '{given}' " + (
+                "is used twice" if other == given else
+                f"reads as mode name '{name}', as '{other}' does"))
+        self.names[given], self.ids[name] = name, given
+
+    def ref(self, given: str) -> str:
+        """The mode name of a state's id where the chart refers to one."""
+        return self.names.get(given, given)
+
+    def _variable(self, el: Element) -> str:
+        name = el.attrs.get("id", "")
         if not _ID.match(name) or name.startswith("__"):
-            raise self.fail(el, f"{el.name} id '{name}' is not a mode name (letters, digits "
-                            "and _, not starting with a digit)")
+            raise self.fail(el, f"<data> id '{name}' is not a variable name (letters, "
+                            "digits and _, not starting with a digit)")
         return name
 
     def _number(self, el: Element) -> Any:
@@ -465,14 +492,14 @@ def _float(text: str) -> float | None:
         return None
 
 
-_IN = re.compile(r"""\bIn\(\s*(['"])([A-Za-z_][A-Za-z0-9_]*)\1\s*\)""")
+_IN = re.compile(r"""\bIn\(\s*(['"])([^'"]+)\1\s*\)""")
 
 
-def expression(text: str) -> str:
+def expression(text: str, ref=lambda name: name) -> str:
     """An SCXML condition or value in hybridteam's language: ``In('s')`` is
     ``in_mode(s)``; ``&&``, ``||``, ``!``, ``===``/``!==`` are ``and``, ``or``, ``not``,
     ``==``/``!=``. What then does not compile is reported where it is used."""
-    out = _IN.sub(r"in_mode(\2)", text)
+    out = _IN.sub(lambda m: f"in_mode({ref(m[2])})", text)
     out = out.replace("===", "==").replace("!==", "!=").replace("&&", " and ")
     out = out.replace("||", " or ")
     out = re.sub(r"!(?!=)", " not ", out)
