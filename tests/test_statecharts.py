@@ -267,7 +267,9 @@ def test_entry_actions_run_before_the_modes_delays_are_armed(team_from_yaml):
                 transitions: [{to: C, after: d}, {to: B, on: hello, guard: d > 5}]
               C: {final: true}
     """)
-    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C")]
+    # at 2 'foo' is not foo.bar; at 4 'foobar' is not foo.*; at 5 'foo.barn' is
+    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C"),
+                                        (5.0, 0, "C", "D")]
 
 
 def test_an_internal_transition_runs_no_entry_or_exit_actions(team_from_yaml):
@@ -680,3 +682,29 @@ def test_an_unknown_priority_rule_is_a_located_error(team_from_yaml):
                        "expected one of 'outer_first', 'inner_first', got 'scxml'"):
         team_from_yaml(NESTED_EVENT.format(semantics="semantics: {priority: scxml}",
                                            outer=""))
+
+
+def test_a_transition_on_an_event_name_is_woken_by_its_dotted_descendants(team_from_yaml):
+    """As SCXML's event descriptors: 'on: foo' takes foo and foo.bar.bat, not foobar."""
+    team = team_from_yaml("""
+        team: prefixes
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: A
+            modes:
+              A: {transitions: [{to: B, on: foo}]}
+              B: {transitions: [{to: C, on: foo.bar}]}
+              C: {transitions: [{to: D, on: foo}]}
+              D: {}
+        scenario:
+          - {at: 1, agent: a, raise: foo.bar.bat}
+          - {at: 2, agent: a, raise: foo}
+          - {at: 3, agent: a, raise: foo.bar}
+          - {at: 4, agent: a, raise: foobar}
+          - {at: 5, agent: a, raise: foo.barn}
+        simulation: {duration: 6}
+    """)
+    # at 2 'foo' is not foo.bar; at 4 'foobar' is not foo.*; at 5 'foo.barn' is
+    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C"),
+                                        (5.0, 0, "C", "D")]

@@ -271,6 +271,22 @@ class CAgent:
     #: whether some mode has entry or exit actions (without, entering and exiting look
     #: for none)
     mode_actions: bool = False
+    #: the transitions a dotted event wakes (see :meth:`waiting`), found once per name
+    prefixed: dict[str, list[int]] = field(default_factory=dict, repr=False)
+
+    def waiting(self, event: str) -> list[int]:
+        """The transitions an event triggers, in precedence order: those ``on`` its name
+        and, for a dotted name, ``on`` each of its prefixes (``on: error`` is woken by
+        ``error.io``, not by ``errors``), as SCXML's event descriptors match."""
+        if "." not in event:
+            return self.triggered.get(event, [])
+        found = self.prefixed.get(event)
+        if found is None:
+            parts = event.split(".")
+            found = sorted({j for k in range(1, len(parts) + 1)
+                            for j in self.triggered.get(".".join(parts[:k]), [])})
+            self.prefixed[event] = found
+        return found
 
     @functools.cached_property
     def lone_watches(self) -> list[bool]:

@@ -64,7 +64,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                                            if ok])
                     continue
                 # an event nobody waits for is dropped, as in statecharts
-                waiting = ag.triggered.get(name, [])
+                waiting = ag.waiting(name)
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
                     keep = ens.network.receive(inst, ens.t[inst], payloads,
@@ -121,7 +121,7 @@ def _more_inert(ens: Ensemble, i: int) -> None:
     taken = 0
     # (the round that consumed the first one counts its micro-step: taken + 1 of them)
     while int(ens.micro[i]) + taken + 1 < limit and not ens.done[i]:
-        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].triggered.get(name))
+        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].waiting(name))
         if got is None:
             break
         ens.network.receive(one, ens.t[one], [got[1]], screen=ens.screen)
