@@ -130,9 +130,9 @@ REFUSED = {
                        '  <state id="a"/>\n</state>\n<state id="q">\n'
                        '  <transition event="e" target="p"/>\n</state></scxml>\n',
                        r":7:3: target 'p' has a <history>"),
-    "internal": (f'{HEAD}>\n<state id="p">\n  <transition event="e" type="internal" '
-                 'target="b"/>\n  <state id="a"/>\n  <state id="b"/>\n</state></scxml>\n',
-                 r":3:3: an internal transition into its own source's children"),
+    "type": (f'{HEAD}>\n<state id="p">\n  <transition event="e" type="local" '
+             'target="b"/>\n  <state id="a"/>\n  <state id="b"/>\n</state></scxml>\n',
+             r":3:3: a transition's type is 'external' or 'internal'"),
     "two initials": (f'{HEAD} initial="a b">\n<state id="a"/>\n<state id="b"/></scxml>\n',
                      r":1:1: <scxml> names 2 initial states"),
     "same name": (f'{HEAD}>\n<state id="a-b"/>\n<state id="a_b"/></scxml>\n',
@@ -313,3 +313,22 @@ def test_ids_that_are_not_names_are_read_with_underscores(tmp_path):
     run = ht.simulate(with_events(team, (1, "t1"), (2, "t2"), (3, "t3"), (4, "t1")))
     assert [leaves_from(run, t) for t in (0.0, 1.0, 2.0, 3.0, 4.0)] == [
         ["a"], ["b.b1.b1_2"], ["b.b1.b1_3"], ["a"], ["b.b1.b1_3"]]
+
+
+def test_an_internal_transition_into_its_children_is_a_local_one_both_ways(tmp_path):
+    team = load_team(chart(tmp_path, f"""
+        {HEAD} initial="s">
+          <datamodel><data id="x" expr="0"/></datamodel>
+          <state id="s" initial="a">
+            <onentry><assign location="x" expr="x + 1"/></onentry>
+            <transition event="go" type="internal" target="b"/>
+            <state id="a"/>
+            <state id="b"/>
+          </state>
+        </scxml>
+    """))
+    assert team.agents[0].root.children[0].transitions[0].local
+    text = agent_chart(team.agents[0])
+    assert '<transition event="go" target="b" type="internal"/>' in text
+    run = ht.simulate(with_events(team, (1, "go")))
+    assert [(r.start, r.end) for r in run.intervals if r.mode == "s"] == [(0.0, 1.0)]

@@ -706,3 +706,44 @@ def test_a_transition_on_an_event_name_is_woken_by_its_dotted_descendants(team_f
     # at 2 'foo' is not foo.bar; at 4 'foobar' is not foo.*; at 5 'foo.barn' is
     assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C"),
                                         (5.0, 0, "C", "D")]
+
+
+LOCAL = """
+    team: local
+    agents:
+      a:
+        plant: {{kind: flow, state: {{n: 0}}}}
+        initial: S
+        modes:
+          S:
+            initial: a1
+            entry: ["n = n * 10 + 1"]
+            exit: ["n = n * 10 + 2"]
+            transitions: [{{to: a2, on: go{local}}}]
+            modes:
+              a1: {{exit: ["n = n * 10 + 3"]}}
+              a2: {{entry: ["n = n * 10 + 4"]}}
+    scenario: [{{at: 1, agent: a, raise: go}}]
+    simulation: {{duration: 2, sample_period: 0.5}}
+"""
+
+
+@pytest.mark.parametrize(("local", "n", "s_intervals"), [
+    # external: a1 (3), S (2) exit; S (1), a2 (4) enter
+    # (the run ends at 1: nothing is left to wait for)
+    ("", 13214.0, [(0.0, 1.0), (1.0, 1.0)]),
+    # local: S is neither left nor entered: a1 exits (3), a2 enters (4)
+    (", local: true", 134.0, [(0.0, 1.0)])])
+def test_a_local_transition_stays_in_its_source(team_from_yaml, local, n, s_intervals):
+    run = ht.simulate(team_from_yaml(LOCAL.format(local=local)))
+    assert steps(run) == [(1.0, 0, "S", "S.a2")]
+    assert counter(run) == n
+    assert [(r.start, r.end) for r in run.intervals if r.mode == "S"] == s_intervals
+
+
+def test_a_local_transition_must_target_inside_its_source(team_from_yaml):
+    from hybridteam.io.filekind import InputErrors
+    text = LOCAL.format(local=", local: true").replace("to: a2", "to: S")
+    with pytest.raises(InputErrors, match=r"team\.yaml:12:\d+: .*local: a local transition "
+                       "stays inside its source: its targets must be modes inside 'S'"):
+        team_from_yaml(text)

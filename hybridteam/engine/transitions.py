@@ -249,14 +249,19 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         return None
     tgt = targets[0] if targets else src
     exit_root, entry_path, entry, inside = src, [src], None, False
+    if tr.local and (internal or not all(
+            t != src and src in _ancestors(modes, t) for t in targets)):
+        col.fail((*tr.where, "local"), "a local transition stays inside its source: its "
+                 f"targets must be modes inside '{modes[src].path}'")
+        return None
     if not internal:
-        common = domain(modes, [src, *targets])
+        common = src if tr.local else domain(modes, [src, *targets])
         if common < 0:
             col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
             return None
         anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
         entry_path = list(reversed(anc_t[: anc_t.index(common)]))
-        if modes[common].kind == "and":  # every region is left; the parallel mode stays
+        if tr.local or modes[common].kind == "and":  # the domain stays; below it is left
             exit_root, inside = common, True
             entry = dataclasses.replace(entry_to(modes, modes[common].parent, targets),
                                         active_first=True)

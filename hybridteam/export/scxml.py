@@ -150,6 +150,8 @@ def _transition(tr: Transition, pad: str, histories: set[str]) -> list[str]:
         # a mode with history restores on every entry: SCXML says so by the history's id
         ids = [_last(t) + ("_history" if _last(t) in histories else "") for t in tr.targets]
         attrs += f" target={quoteattr(' '.join(ids))}"
+    if tr.local:
+        attrs += ' type="internal"'
     if tr.after is not None:
         attrs += f" ht:after={quoteattr(_text(tr.after))}"
     if tr.priority:

@@ -403,4 +403,4 @@ def _transition(spec, where: DocPath) -> Transition:
     targets = [spec.to] if isinstance(spec.to, str) else spec.to or [None]
     return Transition(targets[0], spec.on, spec.after, spec.guard,
                       _actions(spec.do, (*where, "do")), spec.priority, where,
-                      more_targets=tuple(targets[1:]))
+                      more_targets=tuple(targets[1:]), local=spec.local)

@@ -70,6 +70,8 @@ class TransitionSchema(Strict):
     do: list[ActionSchema] = Field(default_factory=list,
                                    description="'var = expr' assignments/resets, send, raise")
     priority: int = 0
+    local: bool = Field(False, description="a transition from a composite to modes inside "
+                        "it that does not leave it (UML's local, SCXML's type='internal')")
     description: str | None = None
 
     @field_validator("after")

@@ -10,7 +10,7 @@ chart's lines. The core subset is read:
   the history enters its parent, which then restores on every entry);
 - ``<transition event cond target type>``: several events give one transition each,
   ``foo.*`` means ``foo``; several targets enter one mode per region; ``type="internal"``
-  is taken where it means what an external one does (not into the source's own children);
+  into the source's own children is a local transition (the source is not left);
 - ``<onentry>``/``<onexit>`` and a transition's content: ``<assign location expr>``,
   ``<raise event>`` (``<log>`` is dropped: it changes nothing);
 - a numeric datamodel, ``<data id expr>``, as the agent's variables; conditions and
@@ -336,8 +336,7 @@ class ChartReader:
             raise self.fail(el, "a transition's type is 'external' or 'internal'")
         if el.attrs.get("type") == "internal" and targets and source.tag == "state" and all(
                 self._inside(t, source) for t in targets):
-            raise self.fail(el, "an internal transition into its own source's children "
-                            "(the source stays active) is outside the subset")
+            tr["local"] = True  # into its own children without leaving: a local one
         if "cond" in el.attrs:
             tr["guard"] = expression(el.attrs["cond"], self.ref)
         if "ht:after" in el.attrs:

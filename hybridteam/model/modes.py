@@ -87,6 +87,9 @@ class Transition:
     #: further targets (``to: [A.x, B.y]``), one in each of other parallel regions: the
     #: transition enters all of them at once (its ``target`` is the first)
     more_targets: tuple[str, ...] = ()
+    #: a transition from a composite to modes inside it that stays in it: its source is
+    #: neither exited nor entered again (UML's local transition, SCXML's type="internal")
+    local: bool = False
 
     @property
     def targets(self) -> tuple[str, ...]:
