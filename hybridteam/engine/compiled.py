@@ -153,7 +153,8 @@ class Entry:
     first: int
     marks: frozenset[int]
     targets: frozenset[int]
-    #: ``first`` is a parallel domain that stays active: only its regions are entered
+    #: ``first`` is a domain that stays active (a parallel mode, or a local transition's
+    #: source): only what is below it is entered
     active_first: bool = False
 
 
@@ -187,7 +188,8 @@ class CTransition:
     declared: int = -1  # position among the agent's transitions as declared (pre-order)
     entry: Entry | None = None  # how it enters (None: internal)
     targets: list[int] = field(default_factory=list)  # every target (``target``: the first)
-    #: the exit root is a parallel domain: its regions are exited, not the mode itself
+    #: the exit root is a domain that stays active (a parallel mode, or a local
+    #: transition's source): what is below it is exited, not the mode itself
     exit_inside: bool = False
 
 

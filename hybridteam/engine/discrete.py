@@ -3,14 +3,19 @@
 At an instant ``t`` an instance takes micro-steps ``(t, 0), (t, 1), ...`` (superdense time)
 until it is quiescent. In each micro-step, if any urgent transition (guard and/or ``after``,
 no trigger) is enabled in some agent, every agent takes its enabled urgent transitions;
-otherwise the first pending event (scenario, message, local) is dispatched. Within an agent,
-transitions are considered in precedence order (higher ``priority``, then outer before inner,
-then declaration order) and a transition is blocked by a higher-precedence one that fires
+otherwise the first pending event (scenario, message, local) is dispatched (it wakes the
+transitions on its name and, if dotted, on its prefixes: :meth:`.CAgent.waiting`). Within an
+agent, transitions are considered in precedence order (higher ``priority``, then by the
+team's rule outer before inner or, ``inner_first``, inner before outer, then declaration
+order: :func:`.transitions.compile_transitions`) and a transition is blocked by a
+higher-precedence one that fires
 and conflicts with it (:func:`.transitions.conflict`): one on the same mode, one whose exit
 set overlaps its own, or one that exits its source. So parallel regions step together, and
 an outer transition that leaves its mode pre-empts everything inside it. A transition
 without a target exits nothing: it blocks, and is blocked by, only transitions that leave
-its source (or share it); one inside it on the same event fires too, after it.
+its source (or share it); under the default rule one inside it on the same event fires
+too, after it (under ``inner_first`` one fired from inside a source blocks it, as SCXML
+takes one transition per active leaf).
 """
 
 from __future__ import annotations

@@ -93,7 +93,7 @@ class AgentState:
     def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder,
              inside: bool = False) -> None:
         """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time
-        array); ``inside``: only below ``root`` (a parallel domain stays active)."""
+        array); ``inside``: only below ``root`` (a domain that stays active)."""
         ca = self.ca
         for m in ca.modes[root].subtree[1:] if inside else ca.modes[root].subtree:
             sel = idx[self.active[:, m][idx]]

@@ -177,9 +177,10 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
 
 
 def domain(modes: list[CMode], ends: list[int]) -> int:
-    """The mode a transition stays inside (its domain, as SCION and the issue's SCXML
-    reading take it): the innermost mode that properly contains its source and targets
-    (``ends``: the source first), -1 if only leaving the root would do.
+    """The mode a transition stays inside (its domain): the innermost mode that properly
+    contains its source and targets (``ends``: the source first), -1 if only leaving the
+    root would do. Unlike the W3C recommendation's, it may be a parallel mode, as SCION's
+    fixtures have it (``more-parallel/test10b``).
 
     The source is left even when a target is inside it (a self-transition exits and
     re-enters). A parallel domain — a transition between two of its regions, or from a
