@@ -37,7 +37,7 @@ from xml.parsers import expat
 
 from hybridteam.io.filekind import Document, InputErrors
 from hybridteam.io.yamlcompose import read_text
-from hybridteam.io.yamlpos import Mark, Positions, SourceError
+from hybridteam.io.yamlpos import MAX_DEPTH, Mark, Positions, SourceError
 
 SCXML_NS = "http://www.w3.org/2005/07/scxml"
 HT_NS = "urn:hybridteam:scxml"
@@ -100,6 +100,9 @@ def parse(text: str, filename: str) -> Element:
             a_ns, _, a_name = key.rpartition(" ")
             plain[f"ht:{a_name}" if a_ns == HT_NS else a_name] = value
         el = Element(ns or SCXML_NS, tag, plain, here())
+        if len(stack) >= MAX_DEPTH:
+            raise SourceError(filename, *_at(el.mark), (), f"elements are nested more than "
+                              f"{MAX_DEPTH} deep: far beyond any chart, refused")
         (stack[-1].children if stack else root).append(el)
         stack.append(el)
 
