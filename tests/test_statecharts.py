@@ -747,3 +747,28 @@ def test_a_local_transition_must_target_inside_its_source(team_from_yaml):
     with pytest.raises(InputErrors, match=r"team\.yaml:12:\d+: .*local: a local transition "
                        "stays inside its source: its targets must be modes inside 'S'"):
         team_from_yaml(text)
+
+
+def test_modes_entered_by_several_targets_or_a_deep_initial_are_reachable(team_from_yaml):
+    from hybridteam.io.check import check_team
+
+    team = team_from_yaml("""
+        team: reach
+        agents:
+          a:
+            plant: {kind: flow, state: {n: 0}}
+            initial: Idle
+            modes:
+              Idle: {transitions: [{to: [R1.x2, R2.y2], on: go}]}
+              P:
+                parallel: true
+                transitions: [{to: Q, on: back}]
+                modes:
+                  R1: {initial: x1, modes: {x1: {}, x2: {}}}
+                  R2: {initial: y1, modes: {y1: {}, y2: {}}}
+              Q:
+                initial: q2
+                modes:
+                  Q1: {initial: q1, modes: {q1: {}, q2: {}}}
+    """)
+    assert [w.message for w in check_team(team) if "unreachable" in w.message] == []
