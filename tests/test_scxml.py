@@ -139,6 +139,9 @@ REFUSED = {
                   r":3:1: <state> id 'a_b' reads as mode name 'a_b', as 'a-b' does"),
     "same id": (f'{HEAD}>\n<state id="a"/>\n<state id="a"/></scxml>\n',
                 r":3:1: <state> id 'a' is used twice"),
+    "two histories": (f'{HEAD}>\n<state id="p">\n  <history id="h1"/>\n'
+                      '  <history id="h2" type="deep"/>\n  <state id="a"/>\n</state>'
+                      '</scxml>\n', r":4:3: a second <history> in one state"),
     "deep": (f'{HEAD}>\n' + '<state>' * 300 + '</state>' * 300 + '</scxml>\n',
              r":2:1394: elements are nested more than 200 deep"),
     "bad cond": (f'{HEAD}>\n<state id="a">\n  <transition event="e" cond="x.length > 1" '

@@ -249,6 +249,9 @@ class ChartReader:
                 mode.setdefault(key, []).extend(
                     self._content(child, (*path, key), len(mode.get(key, []))))
             elif child.tag == "history":
+                if "history" in mode:
+                    raise self.fail(child, "a second <history> in one state: hybridteam "
+                                    "keeps one history per mode")
                 mode["history"] = self._history(child, el, (*path, "history"))
         self._mode_attrs(el, mode, path)
         kids = self._modes(el, (*path, "modes"))
