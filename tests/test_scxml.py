@@ -337,3 +337,19 @@ def test_an_internal_transition_into_its_children_is_a_local_one_both_ways(tmp_p
     assert '<transition event="go" target="b" type="internal"/>' in text
     run = ht.simulate(with_events(team, (1, "go")))
     assert [(r.start, r.end) for r in run.intervals if r.mode == "s"] == [(0.0, 1.0)]
+
+
+def test_a_chart_of_an_outer_first_team_runs_alone_under_its_rule(tmp_path):
+    """The relay is an outer_first team (the default): its agents' charts say so, and a
+    chart read alone takes that rule, not SCXML's."""
+    team = load_team(EXAMPLES / "automata" / "relay.yaml")
+    text = agent_chart(team.agent("anchor"), team.priority_rule)
+    assert 'ht:priority="outer_first"' in text
+    assert "ht:priority" not in agent_chart(team.agent("anchor"), "inner_first").split(">")[1]
+    path = tmp_path / "anchor.scxml"
+    path.write_text(text)
+    assert read_chart(path).data["semantics"] == {"priority": "outer_first"}
+    path.write_text(text.replace('ht:priority="outer_first"', 'ht:priority="sideways"'))
+    with pytest.raises(InputErrors, match=r"anchor\.scxml:2:1: semantics\.priority: "
+                       "expected one of 'outer_first', 'inner_first', got 'sideways'"):
+        load_team(path)

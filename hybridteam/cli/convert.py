@@ -68,7 +68,7 @@ def _to_chart(source: Path, args) -> str:
         raise UsageError(f"no agent '{name}' in team '{team.name}' (agents: "
                          f"{', '.join(names)})")
     try:
-        return agent_chart(team.agent(name))
+        return agent_chart(team.agent(name), team.priority_rule)
     except NotExpressible as exc:
         raise UsageError(f"cannot write an SCXML chart: {exc}") from None
 

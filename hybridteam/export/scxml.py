@@ -32,13 +32,16 @@ class NotExpressible(ValueError):
     """An agent that an SCXML chart cannot carry, with the reason."""
 
 
-def agent_chart(agent: Agent) -> str:
-    """The SCXML text of ``agent``'s behaviour (raises :class:`NotExpressible`)."""
+def agent_chart(agent: Agent, priority_rule: str = "inner_first") -> str:
+    """The SCXML text of ``agent``'s behaviour (raises :class:`NotExpressible`);
+    ``priority_rule``: its team's, written as ``ht:priority`` unless it is SCXML's own
+    (``inner_first``), so the chart alone runs as the agent did."""
     _expressible(agent)
     root = agent.root
+    rule = "" if priority_rule == "inner_first" else f" ht:priority={quoteattr(priority_rule)}"
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            f'<scxml xmlns="{SCXML_NS}" xmlns:ht="{HT_NS}" version="1.0" '
-           f'name={quoteattr(agent.name)}{_initial_attr(root)}>']
+           f'name={quoteattr(agent.name)}{_initial_attr(root)}{rule}>']
     if agent.variables:
         out.append("  <datamodel>")
         out += [f"    <data id={quoteattr(n)} expr={quoteattr(_text(v))}/>"

@@ -19,7 +19,8 @@ chart's lines. The core subset is read:
 - hybridteam's own extensions in the ``urn:hybridteam:scxml`` namespace (written by
   ``hybridteam convert``): a mode's ``ht:invariant``, ``ht:outcome``, ``<ht:flow>``,
   ``<ht:inputs>``, ``<ht:law>``; a transition's ``ht:after``, ``ht:priority``;
-  ``<ht:send>``.
+  ``<ht:send>``; the chart's ``ht:priority`` (its team's priority rule, where that is not
+  SCXML's ``inner_first``).
 
 Everything else — ``<script>``, ``<invoke>``, ``<send>``, ``<if>``, ``<foreach>``,
 ``<cancel>``, ``<donedata>``, other namespaces — is refused with the element named at its
@@ -148,10 +149,13 @@ def read_chart(source: str | os.PathLike, agent: str | None = None) -> Document:
         agent = reader.agent(root, ("agents", name))
     except SourceError as exc:
         raise InputErrors([exc]) from None
-    # an SCXML chart means SCXML's priority rule (innermost first, document order)
-    data = {"team": name, "semantics": {"priority": "inner_first"},
+    # an SCXML chart means SCXML's priority rule (innermost first, document order),
+    # unless it says it came from a team of another (ht:priority)
+    data = {"team": name, "semantics": {"priority": root.attrs.get("ht:priority",
+                                                                   "inner_first")},
             "agents": {name: {"plant": {"kind": "none"}, **agent}}}
     reader.marks.setdefault((), Mark(1, 1))
+    reader.marks[("semantics",)] = reader.marks[("semantics", "priority")] = root.mark
     for path in (("team",), ("agents",), ("agents", name), ("agents", name, "plant")):
         reader.marks.setdefault(path, root.mark)
     return Document(filename, data, Positions.of_marks(filename, text, reader.marks))
