@@ -32,7 +32,8 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     invariant false) at states ``x`` and times ``t`` of instances ``sub``: where a flip of
     the atom there can matter."""
     watch = st.ca.watches[w]
-    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub])
+    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub],
+              q=(st.active, sub))
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
 

@@ -36,12 +36,12 @@ class Ctx:
     world components and its law memory (an :class:`~.world.AgentView`), where laws run.
     """
 
-    __slots__ = ("_since", "_t_in", "e", "m", "p", "t", "u", "v", "w", "x")
+    __slots__ = ("_since", "_t_in", "e", "m", "p", "q", "t", "u", "v", "w", "x")
 
     def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
                  t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
-                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None
-                 ) -> None:
+                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None,
+                 q: tuple[np.ndarray, np.ndarray | slice] | None = None) -> None:
         """``since``: instead of ``t_in``, the entry times it is computed from when first
         read, ``(column, rows)``: ``t - column[rows]``. A law or an ``inputs:``
         expression rarely reads the time in its mode, and computing it costs two numpy
@@ -54,6 +54,14 @@ class Ctx:
         self.e = e
         self.w = w
         self.u: np.ndarray | None = None
+        #: the agent's configuration and these instances' rows in it, ``(active, rows)``,
+        #: where a guard may read it (``in_mode``): read through :meth:`in_mode` only
+        self.q = q
+
+    def in_mode(self, m: int) -> np.ndarray:
+        """Whether mode ``m`` is active in each of these instances."""
+        active, rows = self.q  # type: ignore[misc]
+        return active[:, m][rows]
 
     @property
     def t_in(self) -> np.ndarray:
@@ -137,6 +145,20 @@ class CPolicy:
         return self.timeout is not None
 
 
+@dataclass(frozen=True)
+class Entry:
+    """How a transition (or a default entry) enters modes: ``first`` is activated, then
+    each mode in ``marks`` on the way down (a parallel mode's other regions by default)
+    until each of ``targets``, which completes its own entry (initial child or history)."""
+
+    first: int
+    marks: frozenset[int]
+    targets: frozenset[int]
+    #: ``first`` is a domain that stays active (a parallel mode, or a local transition's
+    #: source): only what is below it is entered
+    active_first: bool = False
+
+
 @dataclass
 class CTransition:
     index: int  # position in precedence order
@@ -164,6 +186,12 @@ class CTransition:
     carry: list[tuple[int, int]] = field(default_factory=list)
     carry_map: np.ndarray | None = None
     carry_timers: list[tuple[int, int, int]] = field(default_factory=list)
+    declared: int = -1  # position among the agent's transitions as declared (pre-order)
+    entry: Entry | None = None  # how it enters (None: internal)
+    targets: list[int] = field(default_factory=list)  # every target (``target``: the first)
+    #: the exit root is a domain that stays active (a parallel mode, or a local
+    #: transition's source): what is below it is exited, not the mode itself
+    exit_inside: bool = False
 
 
 @dataclass
@@ -184,6 +212,12 @@ class CMode:
     subtree: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     outgoing: list[int] = field(default_factory=list)
     role: str | None = None  # the protocol role this mode plays (views number role changes)
+    #: an OR mode's default entry (its ``initial``, possibly a deeper descendant) and, with
+    #: a history default, where a history entry goes while nothing is remembered
+    default: Entry | None = None
+    history_default: Entry | None = None
+    on_entry: list[CAction] = field(default_factory=list)  # run each time it is entered
+    on_exit: list[CAction] = field(default_factory=list)  # run each time it is exited
 
 
 @dataclass
@@ -237,6 +271,25 @@ class CAgent:
     #: every name the agent's expressions read (state, variables, parameters, ``t``, the
     #: team's names): analyses that recompile part of a guard (``hybridteam verify``) use it
     symbols: Mapping = field(default_factory=dict)
+    #: whether some mode has entry or exit actions (without, entering and exiting look
+    #: for none)
+    mode_actions: bool = False
+    #: the transitions a dotted event wakes (see :meth:`waiting`), found once per name
+    prefixed: dict[str, list[int]] = field(default_factory=dict, repr=False)
+
+    def waiting(self, event: str) -> list[int]:
+        """The transitions an event triggers, in precedence order: those ``on`` its name
+        and, for a dotted name, ``on`` each of its prefixes (``on: error`` is woken by
+        ``error.io``, not by ``errors``), as SCXML's event descriptors match."""
+        if "." not in event:
+            return self.triggered.get(event, [])
+        found = self.prefixed.get(event)
+        if found is None:
+            parts = event.split(".")
+            found = sorted({j for k in range(1, len(parts) + 1)
+                            for j in self.triggered.get(".".join(parts[:k]), [])})
+            self.prefixed[event] = found
+        return found
 
     @functools.cached_property
     def lone_watches(self) -> list[bool]:

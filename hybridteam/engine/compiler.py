@@ -30,7 +30,13 @@ from hybridteam.engine.compiled import (
 )
 from hybridteam.engine.protocols import attach, check_messages, team_symbols
 from hybridteam.engine.scope import Collector, resolve_mode, symbols
-from hybridteam.engine.transitions import compile_transitions, group_triggered, watches
+from hybridteam.engine.transitions import (
+    compile_actions,
+    compile_transitions,
+    entry_to,
+    group_triggered,
+    watches,
+)
 from hybridteam.engine.values import transition_delay
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import Expression
@@ -185,6 +191,8 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
     """The mode tree in pre-order with initial children, drivers and invariants."""
     modes: list[CMode] = []
     drivers: list[Driver] = [Driver("zero", -1)]
+    deeper: dict[int, int] = {}  # an 'initial' naming a deeper descendant, by mode
+    history_default: dict[int, int] = {}
     for idx, (path, mode, parent, depth) in enumerate(flat):
         kind = "leaf" if not mode.children else ("and" if mode.parallel else "or")
         initial = -1
@@ -195,14 +203,23 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             if init_name is None:
                 col.fail((*at, "initial"), f"mode '{path or agent.name}' has "
                          f"{len(kids)} children and no 'initial'")
-            elif init_name not in kids:
-                col.fail((*at, "initial"), f"unknown initial mode '{init_name}'",
-                         did_you_mean(init_name, kids))
-            else:
+            elif init_name in kids:
                 initial = children[idx][kids.index(init_name)]
+            else:
+                deeper[idx] = _descendant(init_name, idx, flat, (*at, "initial"),
+                                          "initial mode", col)
+            if mode.history_default is not None:
+                history_default[idx] = _descendant(
+                    mode.history_default, idx, flat, (*mode.where, "history", "default"),
+                    "history default", col)
         elif mode.initial is not None and kind == "and":
             col.fail((*at, "initial"), "a parallel mode enters all its regions; "
                      "it has no 'initial'")
+        if mode.history_default is not None and kind != "or":
+            col.fail((*mode.where, "history", "default"), "a history default is where a "
+                     "composite enters one of its children while nothing is remembered; "
+                     + ("a parallel mode enters all its regions: give it to a region"
+                        if kind == "and" else "this mode has no children"))
         driver = compile_driver(mode, idx, names.plant, names.syms, col, names.params,
                                 folder, names.variables)
         if driver is not None:
@@ -220,6 +237,13 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             col.fail((*mode.where, "history"), f"mode '{path or agent.name}' has no modes to "
                      "remember: 'history' restores a composite mode's last active child; "
                      "remove it, or give the mode 'modes'")
+    for m in modes:
+        target = deeper.get(m.index, m.initial)
+        if target >= 0:
+            m.default = entry_to(modes, m.index, [target])
+            m.initial = m.default.first
+        if history_default.get(m.index, -1) >= 0:
+            m.history_default = entry_to(modes, m.index, [history_default[m.index]])
     check_parallel_drivers(modes, col, flat)
     for m in reversed(modes):
         sub = [m.index]
@@ -243,6 +267,24 @@ def _check_delays(transitions: list[CTransition], names: _Names, col: Collector)
             col.errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
 
 
+def _descendant(name: str, idx: int, flat: list[tuple[str, Mode, int, int]],
+                where: tuple, what: str, col: Collector) -> int:
+    """The descendant of mode ``idx`` that ``name`` names (a unique name or a dotted path
+    below the mode), -1 with an error collected if none or several do."""
+    path = flat[idx][0]
+    prefix = f"{path}." if path else ""
+    below = [p[len(prefix):] if i != idx and p.startswith(prefix) else ""
+             for i, (p, _m, _q, _d) in enumerate(flat)]
+    found, matches = resolve_mode(name, below)
+    if found is None:
+        col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its "
+                 "dotted path" if matches else f"unknown {what} '{name}'",
+                 None if matches else did_you_mean(
+                     name, [p.rsplit(".", 1)[-1] for p in below if p] + [p for p in below if p]))
+        return -1
+    return found
+
+
 def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
                   agent_names: list[str],
                   message_fields: dict[str, set[str]] | None = None,
@@ -257,7 +299,13 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
                             team.folder if team is not None else None)
     transitions = compile_transitions(flat, modes, paths, names.syms, names.state,
                                       names.variables, agent_names, agent.name,
-                                      message_fields, col)
+                                      message_fields, col, inner_first=team is not None
+                                      and team.priority_rule == "inner_first")
+    for (_p, mode, _q, _d), cm in zip(flat, modes, strict=True):
+        cm.on_entry = compile_actions(mode.on_entry, (*mode.where, "entry"), names.syms,
+                                      names.state, names.variables, agent_names, col)
+        cm.on_exit = compile_actions(mode.on_exit, (*mode.where, "exit"), names.syms,
+                                     names.state, names.variables, agent_names, col)
     _check_delays(transitions, names, col)
     if col.errors:
         raise ModelErrors(col.errors)
@@ -283,6 +331,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
         final=np.array([m.final for m in modes], bool),
         outcome=[mode.outcome for _p, mode, _q, _d in flat],
         leaves=np.array([m.index for m in modes if m.kind == "leaf"], dtype=np.intp),
+        mode_actions=any(m.on_entry or m.on_exit for m in modes),
     )
     if team is not None:
         attach(ca, team, names.syms, paths, col)

@@ -3,11 +3,19 @@
 At an instant ``t`` an instance takes micro-steps ``(t, 0), (t, 1), ...`` (superdense time)
 until it is quiescent. In each micro-step, if any urgent transition (guard and/or ``after``,
 no trigger) is enabled in some agent, every agent takes its enabled urgent transitions;
-otherwise the first pending event (scenario, message, local) is dispatched. Within an agent,
-transitions are considered in precedence order (higher ``priority``, then outer before inner,
-then declaration order) and a transition is blocked by any higher-precedence transition that
-fires and exits an overlapping part of the mode tree, so parallel regions step together while
-an outer transition pre-empts everything inside it.
+otherwise the first pending event (scenario, message, local) is dispatched (it wakes the
+transitions on its name and, if dotted, on its prefixes: :meth:`.CAgent.waiting`). Within an
+agent, transitions are considered in precedence order (higher ``priority``, then by the
+team's rule outer before inner or, ``inner_first``, inner before outer, then declaration
+order: :func:`.transitions.compile_transitions`) and a transition is blocked by a
+higher-precedence one that fires
+and conflicts with it (:func:`.transitions.conflict`): one on the same mode, one whose exit
+set overlaps its own, or one that exits its source. So parallel regions step together, and
+an outer transition that leaves its mode pre-empts everything inside it. A transition
+without a target exits nothing: it blocks, and is blocked by, only transitions that leave
+its source (or share it); under the default rule one inside it on the same event fires
+too, after it (under ``inner_first`` one fired from inside a source blocks it, as SCXML
+takes one transition per active leaf).
 """
 
 from __future__ import annotations
@@ -17,12 +25,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import gather, some, spread, where_true
-from hybridteam.engine.compiled import REPLY
-from hybridteam.engine.events import LOCAL, MESSAGE, TIMER
-from hybridteam.engine.values import require
+from hybridteam.engine.actions import exit_actions, run_actions
+from hybridteam.engine.events import MESSAGE, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CAction, CAgent, Ctx
+    from hybridteam.engine.compiled import CAgent
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
 
@@ -62,7 +69,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                                            if ok])
                     continue
                 # an event nobody waits for is dropped, as in statecharts
-                waiting = ag.triggered.get(name, [])
+                waiting = ag.waiting(name)
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
                     keep = ens.network.receive(inst, ens.t[inst], payloads,
@@ -119,7 +126,7 @@ def _more_inert(ens: Ensemble, i: int) -> None:
     taken = 0
     # (the round that consumed the first one counts its micro-step: taken + 1 of them)
     while int(ens.micro[i]) + taken + 1 < limit and not ens.done[i]:
-        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].triggered.get(name))
+        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].waiting(name))
         if got is None:
             break
         ens.network.receive(one, ens.t[one], [got[1]], screen=ens.screen)
@@ -187,29 +194,20 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
 
 def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
          cause: str, msg: dict[str, np.ndarray] | None = None) -> None:
-    """Exit, act, enter — for transition ``j`` in instances ``sub``."""
+    """Exit (innermost first, with the modes' exit actions), act, enter (outermost first,
+    with their entry actions) — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
-    ctx = st.ctx(sub, ens.t[sub], tr.source, msg)
     if not tr.internal:
-        st.exit(tr.exit_root, sub, ens.t, ens.rec)
-    for act in tr.actions:
-        if act.kind == "assign":
-            kind, col = act.target  # type: ignore[misc]
-            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
-            if kind == "x":
-                st.x[:, col][sub] = value
-                ctx.x[:, col] = value
-            else:
-                st.v[:, col][sub] = value
-                ctx.v[:, col] = value
-        elif act.kind == "raise":
-            ens.queue.push(sub, ens.t[sub], LOCAL, ag.index, act.name)
-        else:
-            _send(ens, ag, act, sub, ctx, msg)
+        if ag.mode_actions:
+            exit_actions(ens, ag, st, tr.exit_root, sub, tr.exit_inside)
+        st.exit(tr.exit_root, sub, ens.t, ens.rec, tr.exit_inside)
+    if tr.actions:
+        run_actions(ens, ag, st, tr.actions, sub, st.ctx(sub, ens.t[sub], tr.source, msg),
+                    msg)
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
             st.last[:, b][sub] = tr.carry_map[st.last[:, a][sub]]  # type: ignore[index]
-        st.enter_path(tr.entry_path, sub, ens.t, deep=bool(tr.carry))
+        st.enter(tr.entry, sub, ens.t, deep=bool(tr.carry))  # type: ignore[arg-type]
         for b, slot_a, slot_b in tr.carry_timers:
             on = sub[st.active[:, b][sub]]
             st.deadline[:, slot_b][on] = st.deadline[:, slot_a][on]
@@ -217,35 +215,6 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
     ens.reconfigured[sub] = True
     ens.last_fired[sub] = ag.index * 1_000_000 + j
     _zeno_window(ens, ag, st, sub)
-
-
-def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
-          msg: dict[str, np.ndarray] | None) -> None:
-    """A ``send`` action: plain datagrams, or through the acknowledged layer when the
-    message type's protocol asks for acks; priority ranks same-instant arrivals."""
-    fields = {k: spread(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
-    to: int | np.ndarray | None = act.to
-    if act.to_expr is not None:
-        to = np.rint(np.broadcast_to(act.to_expr(ctx), sub.shape)).astype(np.intp)
-    elif to == REPLY:
-        to = msg["sender"].astype(np.intp) if msg is not None else None
-    policy = ag.policies.get(act.name)
-    rank = None
-    if policy is not None and policy.priority is not None:
-        rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
-    if policy is not None and policy.acknowledged:
-        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore
-                          (*policy.where, "timeout"), "the ack timeout",
-                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore
-                          instances=sub)
-        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore
-                          (*policy.where, "retries"), "the number of retries",
-                          policy.retries.source, low=0.0, instances=sub)  # type: ignore
-        ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
-                          rank)
-    else:
-        ens.network.send(sub, ens.t[sub], ag.index, to, act.socket, act.name, fields,
-                         rank=rank)
 
 
 def _zeno_window(ens: Ensemble, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:

@@ -12,11 +12,13 @@ World components never see this object; they get a :class:`~.access.EnsembleAcce
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 from hybridteam.arrays import some
+from hybridteam.engine.actions import entry_actions
 from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.network import Message, Network
@@ -74,6 +76,9 @@ class Ensemble:
         self.last_fired = np.full(n, -1, np.int64)
         self.outcomes: list[dict | None] = [None] * n
         self.states = [AgentState(a, self.everyone) for a in cteam.agents]
+        for a, st in zip(cteam.agents, self.states, strict=True):
+            if a.mode_actions:
+                st.entered = functools.partial(entry_actions, self, a, st)
         #: whether a run can end before its duration by the end rule or a deadlock: not
         #: without final modes (the end rule then holds nowhere, when some agent ends runs)
         #: nor without triggered transitions (a deadlock is someone waiting for an event)

@@ -9,12 +9,13 @@ exiting act on a whole index array of instances at once, so a transition taken b
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hybridteam.arrays import every, gather
-from hybridteam.engine.compiled import CAgent, Ctx
+from hybridteam.engine.compiled import CAgent, Ctx, Entry
 from hybridteam.engine.values import transition_delay
 from hybridteam.engine.world import AgentView
 
@@ -63,6 +64,9 @@ class AgentState:
         self.inbox: Inbox | None = None  # stream estimates, when the team has streams
         self.world: World | None = None  # the team's world components, if any
         self.memory: dict[str, np.ndarray] = {}  # what laws keep between periods
+        #: runs a mode's entry actions, ``entered(mode, instances)``: set by the ensemble
+        #: where the agent has some (:func:`.actions.entry_actions`)
+        self.entered: Callable[[int, np.ndarray], None] | None = None
         #: every instance's index, read-only: what a law's world view gives as its
         #: instances when it runs on all of them (most ticks), without building it
         self.everyone = everyone
@@ -83,13 +87,15 @@ class AgentState:
         w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) \
             if law else None
         return Ctx(gather(self.x, idx), gather(self.v, idx), gather(self.p, idx), t, t_in, m,
-                   e, w, since)
+                   e, w, since, (self.active, idx))
 
     # ----------------------------------------------------------------- configuration
-    def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder) -> None:
-        """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time array)."""
+    def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder,
+             inside: bool = False) -> None:
+        """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time
+        array); ``inside``: only below ``root`` (a domain that stays active)."""
         ca = self.ca
-        for m in ca.modes[root].subtree:
+        for m in ca.modes[root].subtree[1:] if inside else ca.modes[root].subtree:
             sel = idx[self.active[:, m][idx]]
             if sel.size == 0:
                 continue
@@ -107,52 +113,69 @@ class AgentState:
         parent = ca.modes[m].parent
         if parent >= 0 and ca.modes[parent].kind == "or":
             self.child[:, parent][idx] = m
+        if self.entered is not None and ca.modes[m].on_entry:
+            self.entered(m, idx)
         for j in ca.modes[m].outgoing:
             tr = ca.transitions[j]
             if tr.after is not None:
                 delay = transition_delay(tr, self.ctx(idx, t[idx]), idx)
                 self.deadline[:, tr.after_slot][idx] = t[idx] + delay
 
-    def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
-        """Complete the entry of an already-activated mode: initial children, or history."""
+    def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False,
+                      restore: bool = False) -> None:
+        """Complete the entry of an already-activated mode: initial children, or history
+        (``deep``: the whole remembered configuration below; ``restore``: this mode's own
+        remembered child, as a shallow history of a parallel parent asks)."""
         if idx.size == 0:
             return
         mode = self.ca.modes[m]
         if mode.kind == "and":
+            # history on a parallel mode is its regions' history: every region is active
+            # whenever the mode is, so what is remembered is each region's configuration
+            # (shallow: each region's active child; deep: everything below)
             for r in mode.children:
                 self.activate(r, idx, t)
-                self.enter_default(r, idx, t, deep)
+                self.enter_default(r, idx, t, deep or mode.history == "deep",
+                                   restore or mode.history == "shallow")
         elif mode.kind == "or":
-            restore = deep or mode.history != "none"
+            restore = restore or deep or mode.history != "none"
             deeper = deep or mode.history == "deep"
             if not restore:
-                self.activate(mode.initial, idx, t)
-                self.enter_default(mode.initial, idx, t, False)
+                self.enter(mode.default, idx, t)  # type: ignore[arg-type]
                 return
             choice = self.last[:, m][idx]
-            choice = np.where(choice < 0, mode.initial, choice)
+            fresh = mode.history_default or mode.default
+            if fresh.targets == {mode.initial}:  # type: ignore[union-attr]
+                # nothing remembered: the initial child (below it nothing is either)
+                choice = np.where(choice < 0, mode.initial, choice)
+            elif (choice < 0).any():  # a deeper default, or the history's own
+                self.enter(fresh, idx[choice < 0], t)  # type: ignore[arg-type]
             for c in mode.children:
                 sub = idx[choice == c]
                 if sub.size:
                     self.activate(c, sub, t)
                     self.enter_default(c, sub, t, deeper)
 
-    def enter_path(self, path: list[int], idx: np.ndarray, t: np.ndarray,
-                   deep: bool = False) -> None:
-        """Enter along ``path`` (outermost first) to its last mode, then complete its entry
-        (by deep history when ``deep``).
+    def enter(self, entry: Entry, idx: np.ndarray, t: np.ndarray, deep: bool = False) -> None:
+        """Enter as ``entry`` says: its first mode, then down through its marked modes, in
+        document order (a parallel mode's unmarked regions by default), to its targets,
+        which complete their entry (by deep history when ``deep``)."""
+        if not entry.active_first:
+            self.activate(entry.first, idx, t)
+        self._enter_below(entry.first, entry, idx, t, deep)
 
-        Parallel modes crossed on the way enter their other regions by default.
-        """
-        ca = self.ca
-        for k, m in enumerate(path):
-            self.activate(m, idx, t)
-            if k + 1 < len(path) and ca.modes[m].kind == "and":
-                for r in ca.modes[m].children:
-                    if r != path[k + 1]:
-                        self.activate(r, idx, t)
-                        self.enter_default(r, idx, t)
-        self.enter_default(path[-1], idx, t, deep)
+    def _enter_below(self, m: int, entry: Entry, idx: np.ndarray, t: np.ndarray,
+                     deep: bool) -> None:
+        if m in entry.targets:
+            self.enter_default(m, idx, t, deep)
+            return
+        for c in self.ca.modes[m].children:  # an OR mode has one marked child
+            if c in entry.marks:
+                self.activate(c, idx, t)
+                self._enter_below(c, entry, idx, t, deep)
+            elif self.ca.modes[m].kind == "and":
+                self.activate(c, idx, t)
+                self.enter_default(c, idx, t)
 
     def update_drivers(self, idx: np.ndarray) -> None:
         """After a configuration change: which driver (law/flow) is in charge — the deepest

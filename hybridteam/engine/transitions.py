@@ -10,6 +10,7 @@ locates their sign changes).
 
 from __future__ import annotations
 
+import dataclasses
 from collections import ChainMap
 
 import numpy as np
@@ -20,29 +21,39 @@ from hybridteam.engine.compiled import (
     CAction,
     CMode,
     CTransition,
+    Entry,
     Watch,
 )
 from hybridteam.engine.scope import Collector, message_symbols, resolve_mode
-from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import (
     Expression,
     ExpressionError,
+    ModeTest,
     compile_assignment,
     compile_expression,
     free_names,
 )
-from hybridteam.model import Assign, Mode, Raise, Send, Transition
+from hybridteam.model import Action, Assign, Mode, Raise, Send, Transition
 
 
 def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMode],
                         paths: list[str], syms: dict, state_index: dict[str, int],
                         var_index: dict[str, int], agent_names: list[str], agent_name: str,
                         message_fields: dict[str, set[str]] | None,
-                        col: Collector) -> list[CTransition]:
+                        col: Collector, inner_first: bool = False) -> list[CTransition]:
     """Every transition of an agent, in precedence order: higher ``priority`` first, then
-    outer before inner, then declaration order; with conflicts, ``after`` slots, the modes'
-    ``outgoing`` lists and role carries filled in."""
-    decl: list[tuple[int, int, int, CTransition]] = []
+    outer before inner (``inner_first``: inner before outer, SCXML's rule), then
+    declaration order; with conflicts, ``after`` slots, the modes' ``outgoing`` lists and
+    role carries filled in.
+
+    Inner first orders sources in post-order (a mode after every mode inside it, disjoint
+    subtrees in document order), so between regions the one written first wins, and a
+    transition is also blocked by one that fired from inside its source, as SCXML selects
+    at most one transition per active leaf, the innermost.
+    """
+    decl: list[tuple[int, tuple[int, int], int, CTransition]] = []
+    syms = {**syms, "in_mode": mode_test(paths, agent_name)}  # what guards read
     for idx, (_path, mode, _parent, depth) in enumerate(flat):
         for tr in mode.transitions:
             tsyms = syms
@@ -51,18 +62,26 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
             ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
                                      agent_names, agent_name, col)
             if ct is not None:
-                decl.append((-tr.priority, depth, len(decl), ct))
+                ct.declared = len(decl)
+                level = (int(modes[idx].subtree[-1]), -depth) if inner_first else (depth, 0)
+                decl.append((-tr.priority, level, len(decl), ct))
     decl.sort(key=lambda item: item[:3])
     transitions: list[CTransition] = []
     for order, (_, _, _, ct) in enumerate(decl):
         ct.index = order
         transitions.append(ct)
     after_slot = 0
+    exits = [frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
+             - ({ct.exit_root} if ct.exit_inside else set()) for ct in transitions]
+    inside = [frozenset(modes[ct.source].subtree.tolist()) for ct in transitions] \
+        if inner_first else None
     for ct in transitions:
-        sub_j = set(modes[ct.exit_root].subtree.tolist())
         ct.conflicts = np.array(
             [o.index for o in transitions[: ct.index]
-             if sub_j & set(modes[o.exit_root].subtree.tolist())], dtype=np.intp)
+             if conflict(ct, exits[ct.index], o, exits[o.index])
+             or (inside is not None and (o.source in inside[ct.index]
+                                         or ct.source in inside[o.index]))],
+            dtype=np.intp)
         modes[ct.source].outgoing.append(ct.index)
         if ct.after is not None:
             ct.after_slot = after_slot
@@ -70,6 +89,37 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     for ct in transitions:
         _role_carry(ct, modes, transitions)
     return transitions
+
+
+def mode_test(paths: list[str], agent_name: str) -> ModeTest:
+    """``in_mode(Name)`` in a guard: whether a mode of the same agent is active, named as a
+    transition's target is (a unique name or a dotted path). Another agent's modes are not
+    readable: agents learn of each other through messages."""
+    def resolve(name: str):
+        m, matches = resolve_mode(name, paths)
+        if m is None:
+            if matches:
+                raise ExpressionError(f"mode name '{name}' is ambiguous: "
+                                      f"{', '.join(matches)}; write its dotted path")
+            raise ExpressionError(
+                f"agent '{agent_name}' has no mode '{name}'", hint=did_you_mean(
+                    name, [p.rsplit('.', 1)[-1] for p in paths if p] + [p for p in paths if p])
+                or "in_mode reads the agent's own modes; another agent's are known only "
+                "through its messages")
+        return lambda c, m=m: c.in_mode(m)
+
+    return ModeTest(resolve)
+
+
+def conflict(a: CTransition, exit_a: frozenset[int], b: CTransition,
+              exit_b: frozenset[int]) -> bool:
+    """Whether ``a`` and ``b`` cannot both fire in one micro-step (the one of higher
+    precedence blocks the other): they are declared on the same mode (at most one
+    transition per source), their exit sets overlap, or one exits the other's source. A
+    transition without a target exits nothing, so it is blocked only by a transition that
+    leaves its source (or one on the same source), never by one elsewhere inside it."""
+    return (a.source == b.source or bool(exit_a & exit_b) or a.source in exit_b
+            or b.source in exit_a)
 
 
 def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransition]) -> None:
@@ -127,60 +177,126 @@ def _ancestors(modes: list[CMode], i: int) -> list[int]:
     return out
 
 
+def domain(modes: list[CMode], ends: list[int]) -> int:
+    """The mode a transition stays inside (its domain): the innermost mode that properly
+    contains its source and targets (``ends``: the source first), -1 if only leaving the
+    root would do. Unlike the W3C recommendation's, it may be a parallel mode, as SCION's
+    fixtures have it (``more-parallel/test10b``).
+
+    The source is left even when a target is inside it (a self-transition exits and
+    re-enters). A parallel domain — a transition between two of its regions, or from a
+    region to itself or one of its descendants — stays active: every one of its regions
+    is left and entered again (those without a target by default), the parallel mode's
+    own entry and exit actions do not run.
+    """
+    chains = [_ancestors(modes, e) for e in ends]
+    common = next(a for a in chains[0] if all(a in c for c in chains[1:]))
+    if common in ends:
+        common = modes[common].parent
+    return common
+
+
+def entry_to(modes: list[CMode], top: int, targets: list[int]) -> Entry:
+    """How to enter ``targets`` from inside ``top`` (a transition's domain, or a mode
+    whose ``initial`` or history default names a descendant): the modes on the way,
+    entered outermost first, parallel modes on the way entering their other regions by
+    default."""
+    marks: set[int] = set()
+    first = -1
+    for t in targets:
+        m = t
+        while m != top:
+            marks.add(m)
+            first, m = m, modes[m].parent
+    return Entry(first, frozenset(marks), frozenset(targets))
+
+
+def _apart(modes: list[CMode], targets: list[int], tr: Transition, col: Collector) -> bool:
+    """Several targets must lie in different regions of a parallel mode (each region
+    gets at most one), as SCXML requires of a legal configuration."""
+    for k, b in enumerate(targets):
+        for a in targets[:k]:
+            chain_a, chain_b = _ancestors(modes, a), _ancestors(modes, b)
+            common = next(m for m in chain_a if m in chain_b)
+            if common in (a, b) or modes[common].kind != "and":
+                col.fail((*tr.where, "to", k), f"targets '{modes[a].path}' and "
+                         f"'{modes[b].path}' are not in different regions of a parallel "
+                         "mode; a transition enters one mode per region")
+                return False
+    return True
+
+
 def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
                         state_index, var_index, agent_names, agent_name: str,
                         col: Collector) -> CTransition | None:
     internal = tr.target is None
-    tgt, matches = (src, []) if internal else resolve_mode(tr.target, paths, paths[src])
-    if tgt is None:
-        if matches:
-            col.fail((*tr.where, "to"), f"mode name '{tr.target}' is ambiguous: "
-                     f"{', '.join(matches)}; write its dotted path")
-        else:
-            col.fail((*tr.where, "to"), f"unknown mode '{tr.target}'",
-                     did_you_mean(tr.target, [p.rsplit('.', 1)[-1] for p in paths if p]
-                                   + [p for p in paths if p]))
-        return None
-    anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
-    common = next(a for a in anc_s if a in anc_t)
-    if common in (src, tgt):
-        common = modes[common].parent
-    if common < 0 and internal:
+    if internal and src == 0:
         col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
         return None
-    if common < 0:
-        col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
+    targets: list[int] = []
+    for k, name in enumerate(tr.targets):
+        where = (*tr.where, "to", k) if tr.more_targets else (*tr.where, "to")
+        tgt, matches = resolve_mode(name, paths, paths[src])
+        if tgt is None:
+            if matches:
+                col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; "
+                         "write its dotted path")
+            else:
+                col.fail(where, f"unknown mode '{name}'",
+                         did_you_mean(name, [p.rsplit('.', 1)[-1] for p in paths if p]
+                                      + [p for p in paths if p]))
+            return None
+        targets.append(tgt)
+    if not _apart(modes, targets, tr, col):
         return None
-    if modes[common].kind == "and":
-        col.fail((*tr.where, "to"), f"transition from '{modes[src].path}' to "
-                 f"'{modes[tgt].path}' crosses parallel regions of '{modes[common].path}'")
+    tgt = targets[0] if targets else src
+    exit_root, entry_path, entry, inside = src, [src], None, False
+    if tr.local and (internal or not all(
+            t != src and src in _ancestors(modes, t) for t in targets)):
+        col.fail((*tr.where, "local"), "a local transition stays inside its source: its "
+                 f"targets must be modes inside '{modes[src].path}'")
         return None
-    exit_root = anc_s[anc_s.index(common) - 1]
-    entry_path = list(reversed(anc_t[: anc_t.index(common)]))
+    if not internal:
+        common = src if tr.local else domain(modes, [src, *targets])
+        if common < 0:
+            col.fail((*tr.where, "to"), "a transition cannot leave the agent's root mode")
+            return None
+        anc_s, anc_t = _ancestors(modes, src), _ancestors(modes, tgt)
+        entry_path = list(reversed(anc_t[: anc_t.index(common)]))
+        if tr.local or modes[common].kind == "and":  # the domain stays; below it is left
+            exit_root, inside = common, True
+            entry = dataclasses.replace(entry_to(modes, modes[common].parent, targets),
+                                        active_first=True)
+        else:
+            exit_root = anc_s[anc_s.index(common) - 1]
+            entry = entry_to(modes, common, targets)
     guard = None
     if tr.guard is not None:
         guard = col.expr(tr.guard, syms, (*tr.where, "guard"), condition=True)
     after = None
     if tr.after is not None:
         after = col.expr(tr.after, syms, (*tr.where, "after"))
-    actions = _compile_actions(tr, syms, state_index, var_index, agent_names, col)
+    actions = compile_actions(tr.actions, (*tr.where, "do"), syms, state_index, var_index,
+                              agent_names, col)
     return CTransition(
         index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
+        entry=entry, targets=targets, exit_inside=inside,
         on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
-        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> {modes[tgt].path}",
+        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> "
+        f"{', '.join(modes[t].path for t in targets) or modes[src].path}",
         guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
     )
 
 
-def _compile_actions(tr: Transition, syms: dict, state_index: dict[str, int],
-                     var_index: dict[str, int], agent_names: list[str],
-                     col: Collector) -> list[CAction]:
-    """A transition's ``do:`` list: assignments (to variables or plant state: a reset),
-    raised local events and sends."""
+def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: dict,
+                    state_index: dict[str, int], var_index: dict[str, int],
+                    agent_names: list[str], col: Collector) -> list[CAction]:
+    """A transition's ``do:`` list, or a mode's ``entry:`` or ``exit:`` list (``where``):
+    assignments (to variables or plant state: a reset), raised local events and sends."""
     actions: list[CAction] = []
     targets = list(state_index) + list(var_index)
-    for k, act in enumerate(tr.actions):
-        awhere = act.where or (*tr.where, "do", k)
+    for k, act in enumerate(declared):
+        awhere = act.where or (*where, k)
         if isinstance(act, Assign):
             try:
                 name, e = compile_assignment(act.text, syms, targets)

@@ -70,6 +70,12 @@ def action_text(action: Assign | Send | Raise, compact: bool = False) -> str:
     return text
 
 
+def behaviour_lines(mode: Mode) -> list[str]:
+    """A mode's entry and exit actions as UML writes them: ``entry / a; b``, ``exit / c``."""
+    return [f"{word} / " + "; ".join(action_text(a, compact=True) for a in acts)
+            for word, acts in (("entry", mode.on_entry), ("exit", mode.on_exit)) if acts]
+
+
 def transition_label(tr: Transition) -> str:
     """UML-style ``trigger after(d) [guard] / actions``, as short as the transition allows."""
     parts = []
@@ -96,20 +102,12 @@ def _declared(root: Mode) -> list[Mode]:
     return [m for _, m in root.walk()]
 
 
-def _precedence(agent: CAgent, declared: list[Mode]) -> list[int]:
-    """Compiled index of each declared transition, in declaration order.
-
-    The compiler sorts transitions by (-priority, depth, declaration order); redoing that sort
-    maps declarations back onto the compiled transitions, whose targets are resolved.
-    """
-    keys = []
-    for idx, mode in enumerate(declared):
-        for tr in mode.transitions:
-            keys.append((-tr.priority, agent.modes[idx].depth, len(keys)))
-    order = sorted(range(len(keys)), key=lambda k: keys[k])
-    rank = [0] * len(keys)
-    for position, k in enumerate(order):
-        rank[k] = position
+def _precedence(agent: CAgent) -> list[int]:
+    """Compiled index of each declared transition, in declaration order (the compiler
+    sorts them by precedence, whose targets it resolves)."""
+    rank = [0] * len(agent.transitions)
+    for ct in agent.transitions:
+        rank[ct.declared] = ct.index
     return rank
 
 
@@ -124,27 +122,29 @@ def _add_modes(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode],
             mode_kind=cm.kind, region=parent.kind == "and", initial=parent.initial == cm.index,
             final=cm.final, history=cm.history, dynamics=dynamics_text(declared[cm.index]),
             invariant=cm.invariant_text, color=colors[cm.path], role=cm.role or "",
+            behaviour=behaviour_lines(declared[cm.index]),
             protocol=protocol_of(declared[cm.index].where),
         )
         _link(graph, mode_id(agent.name, parent.path), node, kind="contains")
 
 
 def _add_transitions(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode]) -> None:
-    rank = _precedence(agent, declared)
+    rank = _precedence(agent)
     k = 0
     for idx, mode in enumerate(declared):
         for tr in mode.transitions:
             ct = agent.transitions[rank[k]]
             if ct.source != idx:  # the compiler's ordering rule changed: fail loudly
                 raise RuntimeError("declared and compiled transitions disagree")
-            _link(
-                graph, mode_id(agent.name, agent.modes[ct.source].path),
-                mode_id(agent.name, agent.modes[ct.target].path),
-                kind="transition", agent=agent.name, trigger=tr.on or "",
-                after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
-                actions=[action_text(a) for a in tr.actions], priority=tr.priority,
-                label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
-            )
+            for target in ct.targets or [ct.target]:  # several: one arrow to each
+                _link(
+                    graph, mode_id(agent.name, agent.modes[ct.source].path),
+                    mode_id(agent.name, agent.modes[target].path),
+                    kind="transition", agent=agent.name, trigger=tr.on or "",
+                    after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
+                    actions=[action_text(a) for a in tr.actions], priority=tr.priority,
+                    label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
+                )
             k += 1
 
 
@@ -210,6 +210,8 @@ def diagram_graph(team: Team, agents: list[str] | None = None,
         for _n, d in graph.nodes(data=True):
             if d.get("dynamics"):
                 d["dynamics"] = elide(d["dynamics"])
+            if d.get("behaviour"):
+                d["behaviour"] = [elide(line) for line in d["behaviour"]]
         for _u, _v, d in graph.edges(data=True):
             if d.get("kind") == "transition":
                 d["label"] = elide(d["label"])

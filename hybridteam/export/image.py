@@ -29,13 +29,16 @@ from matplotlib.path import Path as MplPath
 from hybridteam.export.diagram import edges_of, initial_child, is_composite
 from hybridteam.export.labels import Placer, Rect, text_size
 from hybridteam.export.layout import (
+    CAPTION_GAP,
     NAME_PT,
     PAD,
     SMALL_PT,
     TITLE,
     Box,
     Layout,
+    _text_width,
     _wrap,
+    behaviour_caption,
 )
 from hybridteam.export.render import state_title, to_dot
 from hybridteam.export.route import along, bend, bezier, ends, rounded, route_edge
@@ -59,8 +62,13 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
         shade = ("#FFFFFF", "#F4F4F4", "#EAEAEA", "#E0E0E0")[min(depth, 3)]
         ax.add_artist(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=shade,
                                     ec="#444444", lw=1.0, ls="--" if dashed else "-"))
-        _text(ax, box.x + PAD, box.y + 4, state_title(layout.graph, box.node), fontsize=NAME_PT,
+        title = state_title(layout.graph, box.node)
+        _text(ax, box.x + PAD, box.y + 4, title, fontsize=NAME_PT,
               fontweight="bold", va="top", ha="left", color="#222222")
+        if behaviour_caption(layout.graph, box.node):
+            _text(ax, box.x + PAD + _text_width([title], NAME_PT) + CAPTION_GAP, box.y + 5,
+                  behaviour_caption(layout.graph, box.node), fontsize=SMALL_PT, va="top",
+                  ha="left", color="#222222")
         first = initial_child(layout.graph, box.node)
         if first:
             kid = layout.boxes[first]

@@ -45,6 +45,15 @@ def _wrap(text: str, width: int = WRAP) -> list[str]:
     return textwrap.wrap(text, width, break_on_hyphens=False) if text else []
 
 
+def behaviour_caption(graph: nx.MultiDiGraph, node: str) -> str:
+    """A composite's entry and exit actions, on one line after its title in the title bar
+    (its children fill the box below)."""
+    return "   ".join(graph.nodes[node].get("behaviour", ()))
+
+
+CAPTION_GAP = 8.0  # between a composite's title and its entry/exit actions (points)
+
+
 @dataclass
 class Box:
     """A mode's rectangle (points, y downwards); ``rows`` hold a composite's children."""
@@ -99,12 +108,16 @@ class Layout:
             box.loop = 26.0 + _text_width(labels, SMALL_PT)
         if not is_composite(self.graph, node):
             box.lines = _wrap(data["dynamics"]) + _wrap(
-                f"inv: {data['invariant']}" if data["invariant"] else "")
+                f"inv: {data['invariant']}" if data["invariant"] else "") + [
+                line for text in data["behaviour"] for line in _wrap(text)]
             box.w = max(_text_width([data["name"]], NAME_PT) * 1.1,
                         _text_width(box.lines, SMALL_PT), 44.0) + 2 * PAD
             box.h = NAME_PT * 1.5 + len(box.lines) * SMALL_PT * 1.3 + PAD
             return box
         box.title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
+        if behaviour_caption(self.graph, node):
+            box.title_w += _text_width([behaviour_caption(self.graph, node)], SMALL_PT) \
+                + CAPTION_GAP
         kids = [self.measure(c) for c in children(self.graph, node)]
         if not kids:  # an agent without modes (possible when built in Python): an empty box
             box.w = box.title_w

@@ -115,6 +115,7 @@ def _dot_block(graph: nx.MultiDiGraph, node: str, depth: int, out: list[str]) ->
         lines = [data["name"], data["dynamics"]]
         if data["invariant"]:
             lines.append(f"inv: {data['invariant']}")
+        lines += data["behaviour"]
         color = data["color"]
         extra = {"peripheries": 2} if data["final"] else {}
         style = "rounded,filled" + (",dashed" if data["region"] else "")
@@ -123,7 +124,7 @@ def _dot_block(graph: nx.MultiDiGraph, node: str, depth: int, out: list[str]) ->
         return
     style = "rounded,dashed" if data.get("region") else "rounded"
     out.append(f"{pad}subgraph {dot_quote('cluster_' + node)} {{")
-    title = state_title(graph, node)
+    title = "\n".join([state_title(graph, node), *data.get("behaviour", ())])
     out.append(f"{pad}  graph {_attrs(label=title, style=style, color='#444444')};")
     if initial_child(graph, node):
         out.append(_node(pseudo_id(node), pad + "  ", shape="point", width=0.12, label="",
@@ -260,7 +261,8 @@ class _StateText:
         data = self.graph.nodes[node]
         decl = f'{pad}state "{self.name(data["name"])}" as {self.ids[node]}'
         self.lines.append(decl + self.fill(data["color"]))
-        for text in (data["dynamics"], data["invariant"] and f"inv {data['invariant']}"):
+        for text in (data["dynamics"], data["invariant"] and f"inv {data['invariant']}",
+                     *data["behaviour"]):
             if text:
                 self.lines.append(f"{pad}{self.ids[node]} : {self.label(text)}")
 
@@ -299,6 +301,8 @@ class _StateText:
                 if graph.nodes[child]["final"]:
                     self.lines.append(inner + self.arrow(child, "[*]", ""))
         self.lines.append(pad + "}")
+        for text in graph.nodes[node].get("behaviour", ()):  # a composite's entry/exit
+            self.lines.append(f"{pad}{self.ids[node]} : {self.label(text)}")
 
     def body(self) -> None:
         for agent in agents(self.graph):

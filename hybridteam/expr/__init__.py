@@ -12,7 +12,8 @@ from hybridteam.expr.language import (
     Expression,
     ExpressionError,
     Getter,
+    ModeTest,
 )
 
-__all__ = ["CONSTANTS", "FUNCTIONS", "Atom", "Expression", "ExpressionError", "Getter",
+__all__ = ["CONSTANTS", "FUNCTIONS", "Atom", "Expression", "ExpressionError", "Getter", "ModeTest",
            "compile_assignment", "compile_expression", "free_names"]

@@ -40,6 +40,7 @@ from hybridteam.expr.language import (
     Expression,
     ExpressionError,
     Getter,
+    ModeTest,
     Reader,
     _apply,
     _const,
@@ -187,7 +188,11 @@ class _Compiler:
                     start = self.pos(node)[0]
                     problems.append((0, start, start + 1, _DEEP, None))
                     continue
-                problems.extend(filter(None, [self._problem(node)]))
+                problem = self._problem(node)
+                if problem is not None:
+                    problems.append(problem)
+                elif _is_mode_test(node):  # its argument is a mode's name, not an expression
+                    continue
             for child in ast.iter_child_nodes(node):
                 if not isinstance(child, _IGNORED):  # a left-leaning chain a+b+c counts once
                     flat = isinstance(node, ast.BinOp) and child is node.left
@@ -238,6 +243,11 @@ class _Compiler:
                 paren = self.source.find("(", self.pos(node.func)[1])
                 return 1, paren, paren + 1, "only functions such as sin(x) can be called", None
             name, n = node.func.id, len(node.args)
+            if name == "in_mode" and self._mode_tests():
+                if n != 1 or node.keywords or _dotted(node.args[0]) is None:
+                    return (1, start, end, "in_mode() takes one mode name",
+                            "e.g. in_mode(Climb) or in_mode(Arm.Up)")
+                return None
             if name in REQUIREMENT_ONLY:
                 return 1, *self.pos(node.func), _requirement_only(name), None
             if name not in FUNCTIONS:
@@ -294,10 +304,27 @@ class _Compiler:
             return _fold_left(values[0], [(ufunc, v) for v in values[1:]], True)
         if isinstance(node, ast.Compare):
             return self._compare(node)
+        if _is_mode_test(node):
+            return self._mode_test(node.args[0])
         if isinstance(node, ast.Call):
             args = [self.typed(a, False, f"{node.func.id}()") for a in node.args]
             return _apply(FUNCTIONS[node.func.id].impl, args, False)
         raise self.error("unsupported expression", *self.pos(node))  # unreachable after _check
+
+    def _mode_tests(self) -> bool:
+        """Whether ``in_mode(...)`` may be called here: the symbol table offers it (a
+        guard's), or there is none (:func:`free_names` validates any guard)."""
+        return self.symbols is None or isinstance(self.symbols.get("in_mode"), ModeTest)
+
+    def _mode_test(self, arg: ast.expr) -> _C:
+        """``in_mode(Name)``: a condition read from the agent's configuration."""
+        if self.symbols is None:
+            return _C(lambda ctx: False, True)
+        start, end = self.pos(arg)
+        try:
+            return _C(self.symbols["in_mode"].resolve(_dotted(arg)), True)
+        except ExpressionError as exc:
+            raise self.error(exc.message, start, end, exc.hint) from None
 
     def name(self, name: str, start: int, end: int) -> _C:
         if self.symbols is not None and name in self.symbols:  # symbols win over constants
@@ -385,6 +412,23 @@ class _Compiler:
             raise self.error("must be a condition, e.g. 'x >= 5', not a number" if condition
                              else "must be a number, not a condition", *self.pos(tree))
         return tree, result
+
+
+def _is_mode_test(node: ast.AST) -> bool:
+    return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+        and node.func.id == "in_mode" and len(node.args) == 1 and not node.keywords \
+        and _dotted(node.args[0]) is not None
+
+
+def _dotted(node: ast.expr) -> str | None:
+    """``Arm.Up`` as text, if ``node`` is a name or a dotted chain of names."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return None
+    return ".".join([node.id, *reversed(parts)])
 
 
 def _requirement_only(name: str) -> str:

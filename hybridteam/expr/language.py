@@ -196,6 +196,20 @@ class Reader:
         self.get, self.row = get, row
 
 
+class ModeTest:
+    """The symbol table's entry ``in_mode``, where a guard may ask whether a mode of its
+    own agent is active (SCXML's ``In()``): ``resolve(name)`` takes the mode's name as
+    written (``Up`` or ``Arm.Up``) and gives the getter of a condition, or raises
+    :class:`ExpressionError` (at offset 0 of the name) when no such mode is known. The
+    language knows only that the argument is a dotted name; which modes exist is the
+    engine's business."""
+
+    __slots__ = ("resolve",)
+
+    def __init__(self, resolve: Callable[[str], Getter]) -> None:
+        self.resolve = resolve
+
+
 class _C:
     """A compiled node: its closure, its static type and, if constant-folded, its value;
     ``row``, where the node is built of names, numbers and the operations of

@@ -28,13 +28,17 @@ def mode_graph(ca: CAgent) -> nx.DiGraph:
             g.add_edge(m.index, m.parent, kind="ancestor")
         if m.kind == "or":
             g.add_edge(m.index, m.initial, kind="initial")
+            for entry in (m.default, m.history_default):  # a deeper initial or default
+                if entry is not None:
+                    g.add_edges_from(((m.index, k) for k in entry.marks), kind="initial")
             if m.history != "none":
                 pass  # history only restores children that were reachable before
         elif m.kind == "and":
             for r in m.children:
                 g.add_edge(m.index, r, kind="region")
     for tr in ca.transitions:
-        g.add_edge(tr.source, tr.target, kind="transition")
+        g.add_edges_from(((tr.source, t) for t in tr.targets or [tr.target]),
+                         kind="transition")
     return g
 
 

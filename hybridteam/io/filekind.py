@@ -59,8 +59,13 @@ class FileKind:
 
 
 def read_document(source: str | os.PathLike) -> Document:
-    """Parse a YAML file; raise :class:`InputErrors` on any problem reading it."""
+    """Parse a YAML file (an ``.scxml`` chart: a team of one agent, see
+    :mod:`hybridteam.io.scxml`); raise :class:`InputErrors` on any problem reading it."""
     filename = str(source)
+    if filename.lower().endswith(".scxml"):
+        from hybridteam.io.scxml import read_chart
+
+        return read_chart(source)
     try:
         data, positions = load_yaml(Path(source), filename=filename)
     except SourceError as exc:

@@ -41,6 +41,7 @@ from hybridteam.io.schema import (
 )
 from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import (
+    Action,
     Agent,
     Assign,
     EndRule,
@@ -217,7 +218,8 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 folder=str(Path(filename).resolve().parent),
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
                             doc.end.when if doc.end else "all", ("end",)),
-                requirements=_requirements(doc, filename, comp))
+                requirements=_requirements(doc, filename, comp),
+                priority_rule=doc.semantics.priority)
     return team, comp
 
 
@@ -377,24 +379,35 @@ def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
                              where=(*where, "law"))
     transitions = tuple(_transition(t, (*where, "transitions", k))
                         for k, t in enumerate(spec.transitions))
+    history, history_default = (spec.history, None) if isinstance(spec.history, str) \
+        else (spec.history.kind, spec.history.default)
     return Mode(
-        name, children, initial=spec.initial, parallel=spec.parallel, history=spec.history,
+        name, children, initial=spec.initial, parallel=spec.parallel, history=history,
+        history_default=history_default,
         law=law, inputs=None if spec.inputs is None else dict(spec.inputs),
         input_period=spec.period, flow=None if spec.flow is None else dict(spec.flow),
         invariant=spec.invariant, final=spec.final, outcome=spec.outcome,
-        transitions=transitions, where=where,
+        transitions=transitions, where=where, on_entry=_actions(spec.entry, (*where, "entry")),
+        on_exit=_actions(spec.exit, (*where, "exit")),
     )
 
 
-def _transition(spec, where: DocPath) -> Transition:
-    actions = []
-    for k, act in enumerate(spec.do):
-        awhere = (*where, "do", k)
+def _actions(specs: list, where: DocPath) -> tuple[Action, ...]:
+    """A list of actions (a transition's ``do:``, a mode's ``entry:`` or ``exit:``)."""
+    actions: list[Action] = []
+    for k, act in enumerate(specs):
+        awhere = (*where, k)
         if isinstance(act, str):
             actions.append(Assign(act, awhere))
         elif isinstance(act, SendSchema):
             actions.append(Send(act.send, act.to, act.socket, dict(act.fields), awhere))
         elif isinstance(act, RaiseSchema):
             actions.append(Raise(act.raise_, awhere))
-    return Transition(spec.to, spec.on, spec.after, spec.guard, tuple(actions), spec.priority,
-                      where)
+    return tuple(actions)
+
+
+def _transition(spec, where: DocPath) -> Transition:
+    targets = [spec.to] if isinstance(spec.to, str) else spec.to or [None]
+    return Transition(targets[0], spec.on, spec.after, spec.guard,
+                      _actions(spec.do, (*where, "do")), spec.priority, where,
+                      more_targets=tuple(targets[1:]), local=spec.local)

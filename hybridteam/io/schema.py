@@ -103,14 +103,17 @@ ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_
 class TransitionSchema(Strict):
     """A guarded switch from the enclosing mode to ``to``."""
 
-    to: str | None = Field(None, description="target mode: a unique name or a dotted path "
-                           "(none: an internal transition, actions only)")
+    to: str | Annotated[list[str], Field(min_length=1)] | None = Field(
+        None, description="target mode: a unique name or a dotted path, or a list of "
+        "targets in different parallel regions (none: an internal transition, actions only)")
     on: str | None = Field(None, description="message type or local event that triggers it")
     after: ExprOrNumber | None = Field(None, description="seconds in the source mode")
     guard: str | None = Field(None, description="condition, e.g. 'x >= 22'")
     do: list[ActionSchema] = Field(default_factory=list,
                                    description="'var = expr' assignments/resets, send, raise")
     priority: int = 0
+    local: bool = Field(False, description="a transition from a composite to modes inside "
+                        "it that does not leave it (UML's local, SCXML's type='internal')")
     description: str | None = None
 
     @field_validator("on")
@@ -134,12 +137,21 @@ class LawSchema(Strict):
     with_: dict[str, ExprOrNumber] = Field(default_factory=dict, alias="with")
 
 
+class HistorySchema(Strict):
+    """History with a default: where an entry goes while nothing is remembered yet."""
+
+    kind: Literal["shallow", "deep"]
+    default: str = Field(description="a descendant (name or dotted path below the mode) "
+                         "entered while nothing is remembered (instead of 'initial')")
+
+
 class ModeSchema(Strict):
     """A mode: a leaf, an OR-composite (``modes`` + ``initial``) or parallel regions."""
 
     description: str | None = None
-    initial: str | None = None
-    history: Literal["none", "shallow", "deep"] = "none"
+    initial: str | None = Field(None, description="the child (or a deeper descendant, by "
+                                "name or dotted path below this mode) entered by default")
+    history: Literal["none", "shallow", "deep"] | HistorySchema = "none"
     parallel: bool = False
     modes: dict[str, ModeSchema] | None = None
     law: str | LawSchema | None = None
@@ -151,6 +163,10 @@ class ModeSchema(Strict):
     outcome: str | None = Field(
         None, description="a final mode's run outcome, e.g. 'success' (default: 'ok')")
     transitions: list[TransitionSchema] = Field(default_factory=list)
+    entry: list[ActionSchema] = Field(
+        default_factory=list, description="actions each time the mode is entered (as 'do')")
+    exit: list[ActionSchema] = Field(
+        default_factory=list, description="actions each time the mode is exited (as 'do')")
     protocol: str | None = Field(
         None, description="a protocol (name or file) whose role region this mode becomes")
     roles: dict[str, ModeSchema] | None = Field(
@@ -416,6 +432,15 @@ class EndSchema(Strict):
         return v
 
 
+class SemanticsSchema(Strict):
+    """Choices of the discrete semantics that statechart tools make differently."""
+
+    priority: Literal["outer_first", "inner_first"] = Field(
+        "outer_first", description="which of two enabled nested transitions fires: "
+        "outer_first (Stateflow's: the outer one) or inner_first (SCXML's: the inner one; "
+        "between regions, document order)")
+
+
 class TeamFile(Strict):
     """A team: agents that run in parallel, shared parameters, a simulation setup."""
 
@@ -430,6 +455,7 @@ class TeamFile(Strict):
     world: list[WorldSchema] = Field(
         default_factory=list, description="world components: payloads, corridors, sensors")
     end: EndSchema | None = Field(None, description="when a run ends before its duration")
+    semantics: SemanticsSchema = Field(default_factory=SemanticsSchema)
     messages: dict[str, MessageDeclSchema] = Field(
         default_factory=dict, description="the team's own message types (fields, ack:, "
         "priority); a protocol's are declared in the protocol")

@@ -318,6 +318,12 @@ def _read(path: os.PathLike[str], name: str) -> bytes:
                         what="model files")
 
 
+def read_text(path: os.PathLike[str], name: str) -> str:
+    """A model file's text, read as a YAML file is (a regular file within the size limit,
+    UTF-8); :class:`SourceError` otherwise. Other formats (SCXML charts) read it so."""
+    return _decode(_read(path, name), name)
+
+
 def load(
     source: str | bytes | os.PathLike[str], *, filename: str | None = None
 ) -> tuple[Any, Positions]:

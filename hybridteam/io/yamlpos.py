@@ -126,6 +126,13 @@ class Positions:
         self._lines = lines
         self._entries = entries
 
+    @classmethod
+    def of_marks(cls, filename: str, text: str, marks: dict[Path, Mark]) -> Positions:
+        """Positions of a document built from another format (an SCXML chart): each path
+        at its mark (its key too), no scalar offsets (an error points at the element)."""
+        return cls(filename, _Lines(text),
+                   {path: _Entry(mark, mark, None) for path, mark in marks.items()})
+
     def value(self, path: Path) -> Mark | None:
         entry = self._entries.get(tuple(path))
         return entry.value if entry else None

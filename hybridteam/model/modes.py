@@ -4,9 +4,9 @@ These classes say *what* a behaviour is; they hold expression text, not compiled
 model can be built in Python, loaded from YAML, printed back or drawn without running anything.
 :mod:`hybridteam.engine.compiled` turns them into vectorized callables.
 
-A mode is a leaf, an OR-composite (``children`` with an ``initial`` child, optionally with
-``history``) or an AND-composite (``parallel=True``: every child is a region that runs at the
-same time). Transitions are declared on their source mode.
+A mode is a leaf, an OR-composite (``children`` with an ``initial`` child or deeper
+descendant, optionally with ``history``) or an AND-composite (``parallel=True``: every child
+is a region that runs at the same time). Transitions are declared on their source mode.
 """
 
 from __future__ import annotations
@@ -84,6 +84,17 @@ class Transition:
     actions: tuple[Action, ...] = ()
     priority: int = 0
     where: DocPath = ()
+    #: further targets (``to: [A.x, B.y]``), one in each of other parallel regions: the
+    #: transition enters all of them at once (its ``target`` is the first)
+    more_targets: tuple[str, ...] = ()
+    #: a transition from a composite to modes inside it that stays in it: its source is
+    #: neither exited nor entered again (UML's local transition, SCXML's type="internal")
+    local: bool = False
+
+    @property
+    def targets(self) -> tuple[str, ...]:
+        """Every target, in the order written (none for a transition without ``to``)."""
+        return () if self.target is None else (self.target, *self.more_targets)
 
 
 @dataclass(frozen=True)
@@ -95,6 +106,9 @@ class Mode:
     initial: str | None = None
     parallel: bool = False
     history: History = "none"
+    #: the descendant a history entry goes to while nothing is remembered (default: the
+    #: ``initial`` one), as an SCXML ``<history>``'s own transition
+    history_default: str | None = None
     law: LawBinding | None = None
     inputs: dict[str, str | float] | None = None
     input_period: float | None = None
@@ -109,6 +123,10 @@ class Mode:
     #: (its law, inputs or flow and its submodes come from there, so their errors are
     #: located there, not at the protocol's mode); () when the mode is its own body
     body: DocPath = ()
+    #: actions (as a transition's ``do:``) run each time the mode is entered / exited: a
+    #: transition exits innermost first, runs its own actions, enters outermost first
+    on_entry: tuple[Action, ...] = ()
+    on_exit: tuple[Action, ...] = ()
 
     @property
     def is_leaf(self) -> bool:

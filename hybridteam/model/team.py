@@ -165,6 +165,9 @@ class Team:
     folder: str | None = None
     end: EndRule = field(default_factory=EndRule)
     requirements: tuple[Requirement, ...] = ()
+    #: which of two enabled nested transitions fires first: ``outer_first`` (Stateflow's)
+    #: or ``inner_first`` (SCXML's: the innermost source; between regions, document order)
+    priority_rule: str = "outer_first"
 
     def __repr__(self) -> str:
         names = ", ".join(a.name for a in self.agents)

@@ -139,10 +139,14 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
     while changed:
         changed = False
         for a, ca in enumerate(cteam.agents):
-            for tr in ca.transitions:
-                known = _discrete_names(ca, abstract[a]) | _message_names(tr.on, fields,
+            # a transition's actions (which may read its message), then the modes' entry
+            # and exit actions (which read no message)
+            lists = [(tr.on, tr.actions) for tr in ca.transitions] + [
+                (None, acts) for m in ca.modes for acts in (m.on_entry, m.on_exit) if acts]
+            for on, actions in lists:
+                known = _discrete_names(ca, abstract[a]) | _message_names(on, fields,
                                                                           afields)
-                for act in tr.actions:
+                for act in actions:
                     if act.kind == "assign" and act.target[0] == "v":  # type: ignore[index]
                         name = var_name[a][act.target[1]]  # type: ignore[index]
                         if name not in abstract[a] and not act.expr.names <= known:  # type: ignore

@@ -127,7 +127,7 @@ def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
                 out.append(("time", a, j))
     for a, event in sk.world_events:
         ca = agents[a]
-        if any(acts[a][ca.transitions[j].source] for j in ca.triggered.get(event, [])):
+        if any(acts[a][ca.transitions[j].source] for j in ca.waiting(event)):
             out.append(("world", a, event))
     return out
 
