@@ -114,10 +114,11 @@ def test_cli_says_when_nothing_was_found(team_file, tmp_path, capsys):
     (["-r", "upper", "--vary", "thermostat.K=-1e308:1e308"],
      "--vary 'thermostat.K=-1e308:1e308': the range is too wide (HI - LO is beyond the "
      "largest number)"),
-    # 1e9 instances of 151 samples of one state (1.2 kB) and ~0.4 kB of arrays each
+    # 1e9 instances of 151 samples of one state (1.2 kB), the Zeno check's ring of 100
+    # transition times (0.8 kB) and ~0.4 kB of other arrays each
     (["-r", "upper", "--vary", "thermostat.high=21:23", "--population", "1000000000"],
      "--population 1,000,000,000: a generation runs as one ensemble, which would need "
-     "about 1,"),
+     "about 2,"),
     (["-r", "upper", "--vary", "thermostat.high=21:23", "--scheduler", "tcp://[::nope"],
      "the Dask scheduler at 'tcp://[::nope': not an address"),
     (["-r", "upper", "--vary", "thermostat.high=21:23", "--connect-timeout", "0"],

@@ -236,14 +236,17 @@ def test_a_message_name_that_is_not_an_identifier_is_refused(tmp_path, capsys, y
      "agents.a.modes.A.transitions[0].do[0].socket: socket name '%%{x}%%'"),
     ("{send: ping}", '{raise: "a<b"}', "10:46",
      "agents.a.modes.A.transitions[0].do[0].raise: event name 'a<b'"),
+    ("{send: ping}", '{raise: "a..b"}', "10:46",  # dotted event names join names
+     "agents.a.modes.A.transitions[0].do[0].raise: event name 'a..b'"),
 ])
 def test_other_names_in_actions_are_identifiers(tmp_path, capsys, old, new, where, what):
     """A trailing newline included: ``$`` in the name pattern used to let ``go\\n`` by."""
     team = tmp_path / "team.yaml"
     team.write_text(PING.replace(old, new))
     assert main(["validate", str(team)]) == 2
+    dots = " (names may be joined by dots: error.io)" if "event name" in what else ""
     assert capsys.readouterr().err == (f"{team}:{where}: {what} is not valid: use letters, "
-                                       "digits and _, not starting with a digit\n")
+                                       f"digits and _, not starting with a digit{dots}\n")
 
 
 PROTOCOL = """\

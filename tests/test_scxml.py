@@ -184,6 +184,8 @@ NOT_EXPRESSIBLE = {
     **{(e, a): "protocol" for e in ("experiment1", "experiment2", "experiment3")
        for a in ("xr4000", "labmate")},
     ("experiment3", "scout"): "protocol",
+    **{("beam", a): "protocol" for a in ("xr4000", "scout_a", "scout_b")},
+    ("beam", "operator"): "operator",
     **{(e, "operator"): "operator" for e in ("experiment1", "experiment2", "experiment3")},
 }
 

@@ -17,6 +17,9 @@ from hybridteam.errors import printable
 from hybridteam.io.reqschema import RequirementEntry
 
 NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")  # \Z: '$' would let "a\n" through
+#: an event's name: names joined by dots (``error.io``), which wake transitions ``on`` each
+#: prefix as SCXML's event descriptors do; no other character, as for names
+EVENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
 AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of this agent's "
@@ -35,6 +38,16 @@ def check_names(names, what: str) -> None:
                              "not starting with a digit")
         if name.startswith("__"):
             raise ValueError(f"{what} name {name!r} may not start with '__'")
+
+
+def check_event(name: str | None, what: str) -> str | None:
+    """An event's name (None: not given): names joined by dots, checked as names are."""
+    if name is not None and (not isinstance(name, str) or not EVENT.match(name)):
+        raise ValueError(f"{what} name {name!r} is not valid: use letters, digits and _, "
+                         "not starting with a digit (names may be joined by dots: error.io)")
+    if isinstance(name, str) and name.startswith("__"):
+        raise ValueError(f"{what} name {name!r} may not start with '__'")
+    return name
 
 
 def check_title(text: str, what: str) -> str:
@@ -94,7 +107,7 @@ class RaiseSchema(Strict):
     @field_validator("raise_")
     @classmethod
     def _event_name(cls, v: str) -> str:
-        return check_name(v, "event")
+        return check_event(v, "event")
 
 
 ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_to_right")]
@@ -119,7 +132,7 @@ class TransitionSchema(Strict):
     @field_validator("on")
     @classmethod
     def _trigger_name(cls, v: str | None) -> str | None:
-        return check_name(v, "message or event")
+        return check_event(v, "message or event")
 
     @field_validator("after")
     @classmethod
@@ -333,7 +346,7 @@ class ScenarioSchema(Strict):
     @field_validator("raise_")
     @classmethod
     def _event_name(cls, v: str) -> str:
-        return check_name(v, "event")
+        return check_event(v, "event")
 
 
 class LinkSchema(Strict):
