@@ -724,6 +724,23 @@ def test_a_bad_file_size_limit_is_one_line(value, traces, monkeypatch, capsys):
         "megabytes > 0")
 
 
+@pytest.mark.parametrize("command", ["run", "verify", "falsify"])
+@pytest.mark.parametrize("value", ["lots", "nan", "-1", "inf"])
+def test_a_bad_memory_limit_in_the_environment_is_one_line(command, value, tmp_path,
+                                                            monkeypatch, capsys):
+    """``HYBRIDTEAM_MAX_MEMORY_GB=lots`` was a ValueError traceback in falsify and a raw
+    'could not convert' elsewhere; infinity would have been no limit at all."""
+    (tmp_path / "team.yaml").write_text(REQUIRED)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HYBRIDTEAM_MAX_MEMORY_GB", value)
+    argv = {"run": ["run", "team.yaml", "-o", "fout", "--quiet"],
+            "verify": ["verify", "team.yaml", "-o", "fout"], "falsify": FALSIFY}[command]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (f"hybridteam: error: HYBRIDTEAM_MAX_MEMORY_GB={value!r} "
+                                       "must be a number of gigabytes > 0\n")
+    assert not (tmp_path / "fout").exists()
+
+
 def test_running_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
     """Within --max-memory by the estimate but beyond what the machine has: one line, not an
     ArrayMemoryError traceback; while writing, the folder keeps its INCOMPLETE marker."""

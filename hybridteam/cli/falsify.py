@@ -127,13 +127,16 @@ def _check(args: argparse.Namespace, team, varies) -> None:
 def _check_generation(team, population: int) -> None:
     """A generation runs as one ensemble (and the optimiser keeps a row per candidate):
     refuse a population whose ensemble exceeds the memory limit, before allocating it."""
-    from hybridteam.engine.budget import memory_estimate, memory_limit
+    from hybridteam.engine.budget import ResourceError, memory_estimate, memory_limit
     from hybridteam.engine.compiler import compile_team
 
     sim = team.simulation
     nbytes, _ = memory_estimate(compile_team(team), population, sim.duration,
                                 sim.output_period())
-    limit = memory_limit()
+    try:
+        limit = memory_limit()
+    except ResourceError as exc:
+        raise UsageError(str(exc)) from None
     if nbytes > limit:
         raise UsageError(f"--population {population:,}: a generation runs as one ensemble, "
                          f"which would need about {nbytes / 1e9:,.1f} GB of memory, more than "

@@ -51,7 +51,16 @@ def memory_limit(max_memory: float | None = None) -> float:
     if max_memory is not None:
         return max_memory
     env = os.environ.get("HYBRIDTEAM_MAX_MEMORY_GB")
-    return float(env) * 1e9 if env else DEFAULT_MAX_MEMORY
+    if not env:
+        return DEFAULT_MAX_MEMORY
+    try:
+        limit = float(env)
+    except ValueError:
+        limit = math.nan
+    if not 0 < limit < math.inf:  # a typo must not become no limit, nor a traceback
+        raise ResourceError(f"HYBRIDTEAM_MAX_MEMORY_GB={env!r} must be a number of "
+                            "gigabytes > 0")
+    return limit * 1e9
 
 
 def resident_bytes() -> float | None:
