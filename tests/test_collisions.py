@@ -81,3 +81,25 @@ def test_an_unknown_collision_mode_is_a_located_error(team_from_yaml):
     with pytest.raises(InputErrors, match=r"world\[0\].with.on_collision: expected one of "
                                           r"outcome, warn, ignore, got 'stopp'"):
         team(team_from_yaml, "stopp")
+
+
+def test_the_terminal_says_none_where_a_warned_run_had_no_collision(tmp_path, monkeypatch,
+                                                                    capsys):
+    """Under ``on_collision: warn`` the summary line ended in a bare 'collisions ' when
+    nothing was hit; it says 'collisions none'."""
+    from hybridteam.cli import main
+
+    (tmp_path / "team.yaml").write_text("""\
+team: clear
+agents:
+  r:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+world:
+  - use: obstacles
+    with: {walls: [[5, -1, 5, 1]], radius: [[r, 0.2]], on_collision: warn}
+simulation: {duration: 2.0}
+""")
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", "team.yaml", "-o", "out", "--no-views"]) == 0
+    assert "      min_clearance 3.8, collisions none\n" in capsys.readouterr().out

@@ -20,6 +20,7 @@ from hybridteam.export.style import mode_colors
 from hybridteam.export.trajectories import (
     MAX_NUMBERS,
     MAX_STACK,
+    collision_labels,
     trajectory_figure,
     write_trajectories,
 )
@@ -459,3 +460,43 @@ def test_start_labels_of_robots_side_by_side_do_not_overprint(team_from_yaml):
     for i, a in enumerate(boxes):
         for b in boxes[i + 1:]:
             assert not a.overlaps(b), (a, b)
+
+
+GATE = """
+    team: gate
+    agents:
+      lead:
+        plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+      tail:
+        plant: {kind: unicycle, state: {x: -1, y: 0, theta: 0}}
+        modes: {Go: {inputs: {v: 0.5, omega: 0}, period: 0.1}}
+    world:
+      - use: obstacles
+        with:
+          walls: [[2, 0.15, 2, 3], [2, -0.15, 2, -3]]
+          radius: [[lead, 0.2], [tail, 0.2]]
+          on_collision: warn
+    simulation: {duration: 8.0}
+"""
+
+
+def test_collisions_at_one_spot_share_one_label(team_from_yaml):
+    """Two 0.2 m robots, 1 m apart on y = 0, drive at 0.5 m/s through a 0.3 m gap: each
+    first overlaps the jamb (2, 0.15) at the tick where it is at x = 1.9 (distance
+    hypot(0.1, 0.15) = 0.180 < 0.2): the lead at 3.8 s, the tail at 5.8 s, both at
+    (1.9, 0). Two labels there hid each other (only '5.8 s' could be read); one label
+    names both."""
+    run = ht.simulate(team_from_yaml(GATE))
+    (ax,) = trajectory_figure(run).axes
+    (mark,) = by_gid(ax.lines, "collisions")
+    np.testing.assert_allclose(mark.get_xydata(), [[1.9, 0.0], [1.9, 0.0]], atol=1e-9)
+    (label,) = by_gid(ax.texts, "collision-label")
+    assert label.get_text() == "3.8 s lead, 5.8 s tail"
+
+
+def test_collision_labels_group_by_distance():
+    hits = [(1.0, 0.0, 0.0, "a"), (2.0, 0.05, 0.0, "b"), (3.0, 1.0, 0.0, "c")]
+    assert collision_labels(hits, 0.1) == [(0.0, 0.0, "1 s a, 2 s b"), (1.0, 0.0, "3 s")]
+    assert collision_labels(hits, 0.01) == [(0.0, 0.0, "1 s"), (0.05, 0.0, "2 s"),
+                                            (1.0, 0.0, "3 s")]

@@ -182,9 +182,10 @@ _BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "m
 
 
 def _fmt(value) -> str:
-    """A statistic for the terminal: numbers to 6 significant digits, lists joined by '/'."""
-    if isinstance(value, list):
-        return " / ".join(_fmt(v) for v in value)
+    """A statistic for the terminal: numbers to 6 significant digits, lists joined by '/'
+    ('none' for an empty one)."""
+    if isinstance(value, list):  # an empty one (no collisions) says so
+        return " / ".join(_fmt(v) for v in value) if value else "none"
     return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 

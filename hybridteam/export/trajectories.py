@@ -87,6 +87,24 @@ def start_label(name: str, letter: str) -> str:
     return f"0{letter}" if letter == name.upper() else f"0{letter}: {name}"
 
 
+def collision_labels(hits: Sequence[tuple[float, float, float, str]], near: float
+                     ) -> list[tuple[float, float, str]]:
+    """One label per spot where collisions happened: ``(x, y, "1.8 s")``, or where several
+    happened within ``near`` of the first one there (two robots clipping the same door
+    jamb, seconds apart), ``"3.8 s lead, 5.8 s tail"``, since labels drawn at one spot hide
+    each other. ``hits``: ``(t, x, y, who)`` in time order."""
+    spots: list[tuple[float, float, list[tuple[float, str]]]] = []
+    for t, x, y, who in hits:
+        for sx, sy, group in spots:
+            if math.hypot(x - sx, y - sy) <= near:
+                group.append((t, who))
+                break
+        else:
+            spots.append((x, y, [(t, who)]))
+    return [(x, y, f"{group[0][0]:.3g} s" if len(group) == 1 else
+             ", ".join(f"{t:.3g} s {who}" for t, who in group)) for x, y, group in spots]
+
+
 START_ROW = 10.0  # points between stacked start labels (8 pt bold text)
 
 
@@ -281,8 +299,9 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     if hits:  # over the paths and the change numbers: the thing a reader must not miss
         ax.plot([h[1] for h in hits], [h[2] for h in hits], zorder=9, gid="collisions",
                 **COLLISION_MARK)
-        for t, x, y, _who in hits:
-            ax.annotate(f"{t:.3g} s", (x, y), xytext=(6, -11), textcoords="offset points",
+        x0, x1, y0, y1 = limits or scene_extent(trace, instance)
+        for x, y, text in collision_labels(hits, 0.02 * max(x1 - x0, y1 - y0)):
+            ax.annotate(text, (x, y), xytext=(6, -11), textcoords="offset points",
                         fontsize=7.5, color=COLLISION_MARK["color"], path_effects=HALO,
                         zorder=9, gid="collision-label")
     x0, x1, y0, y1 = limits or scene_extent(trace, instance)
