@@ -525,3 +525,48 @@ def test_no_script_of_a_hostile_folder_runs_in_chromium(run_folder, tmp_path, ca
     assert dom.returncode == 0, dom.stderr[-2000:]
     assert "<title>ping — hybridteam run</title>" in dom.stdout  # the title we wrote
     assert "INJECTED" not in dom.stdout.split("</title>")[0]
+
+
+# --- a study folder read back into report.md --------------------------------------------
+
+def _study_folder(tmp_path, name, rows):
+    from hybridteam.sweep.store import FORMAT
+
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / "study.json").write_text(json.dumps({
+        "format": FORMAT, "status": "complete", "name": name,
+        "team": "t`](javascript:alert(1))", "runs": 4, "chunks": 1, "chunk": 4, "seed": 1,
+        "success": ["ok<img src=x onerror=alert(1)>"],
+        "versions": {"<script>alert(2)</script>": "1"}}))
+    (out / "results.csv").write_text(rows)
+    return out
+
+
+def test_a_study_report_carries_no_markup_from_the_folder(tmp_path, capsys):
+    """``report`` of a study folder wrote study.json's values and the folder's results.md
+    into report.md as they were: a Markdown renderer passes raw HTML through and turns
+    ``[x](javascript:…)`` into a link. Every value is now inert text."""
+    out = _study_folder(tmp_path, "<script>alert(1)</script>", (
+        "factor,value,runs,ok,success_rate\n"
+        "p,<script>alert(3)</script>,2,1,0.5\n"
+        "p,[x](javascript:alert(4)),2,2,1.0\n"))
+    (out / "results.md").write_text("<script>alert(5)</script>\n")
+    assert main(["report", str(out)]) == 0
+    report = (out / "report.md").read_text(encoding="utf-8")
+    ours = r"^!\[success rate against p\]\(plots/success_p\.png\)$"  # the plot's image
+    assert len(re.findall(ours, report, flags=re.M)) == 1
+    report = re.sub(ours, "", report, flags=re.M)
+    assert "<" not in report  # no tag of any kind
+    assert not re.search(r"(?<!\\)\]\(", report)  # no link: every ']' before '(' escaped
+    assert "alert(5)" not in report  # the folder's results.md is not copied in
+    assert "# &lt;script&gt;alert(1)&lt;/script&gt;" in report
+    assert "| p | \\[x\\](javascript:alert(4)) | 2 | 2 | 1 |" in report
+
+
+def test_a_results_file_without_its_columns_is_one_line(tmp_path, capsys):
+    out = _study_folder(tmp_path, "s", "a,b\n1,2\n")
+    assert main(["report", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().endswith("results.csv: cannot read (no 'factor' column: not a study's "
+                                "results)") and len(err.strip().splitlines()) == 1

@@ -78,6 +78,15 @@ def plantuml_text(text: str) -> str:
     return text.replace("[[", "[ [")
 
 
+def markdown_text(text: str) -> str:
+    """Text read back from a file, inert in Markdown (a study's ``report.md``): on one line,
+    HTML's ``&``, ``<`` and ``>`` as entities (renderers pass raw HTML through, a
+    ``<script>`` included), ``[``, ``]`` and backticks escaped (no link, image or code span
+    of its own), ``|`` escaped (a table cell's end) and no control character."""
+    text = re.sub(r"([\\`\[\]|])", r"\\\1", printable(one_line(text)))
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
 def dot_quote(text: str) -> str:
     """A Graphviz double-quoted string: any id or label, newlines as centred line breaks."""
     text = text.replace("\\", "\\\\").replace('"', '\\"').replace("\r\n", "\n")

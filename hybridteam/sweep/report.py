@@ -15,6 +15,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+from hybridteam.export.render import markdown_text
 from hybridteam.sweep.store import FORMAT, StudyError
 from hybridteam.sweep.table import ResultTable, read_results
 from hybridteam.trace import write_atomic
@@ -116,22 +117,29 @@ def write_report(out: str | Path) -> Path:
     out = Path(out)
     record, table = load_results(out)
     plots = write_plots(out, record, table)
-    versions = ", ".join(f"{k} {v}" for k, v in record.get("versions", {}).items())
+
+    def text(key: str, default: Any = "?") -> str:  # a value of study.json, made inert
+        return markdown_text(str(record.get(key, default)))
+
+    found = record.get("versions")
+    versions = ", ".join(markdown_text(f"{k} {v}")
+                         for k, v in (found.items() if isinstance(found, dict) else ()))
+    success = record.get("success", ["ok"])
     lines = [
-        f"# {record.get('name', 'study')}", "",
-        f"Team `{Path(record.get('team', '?')).name}`, {record.get('runs', '?')} runs in "
-        f"{record.get('chunks', '?')} chunks of at most {record.get('chunk', '?')}, study "
-        f"seed {record.get('seed', '?')}; success means outcome "
-        + " or ".join(f"`{s}`" for s in record.get("success", ["ok"])) + ".", "",
+        f"# {text('name', 'study')}", "",
+        f"Team {markdown_text(Path(str(record.get('team', '?'))).name)}, {text('runs')} runs "
+        f"in {text('chunks')} chunks of at most {text('chunk')}, study seed {text('seed')}; "
+        "success means outcome "
+        + " or ".join(markdown_text(str(s)) for s in (success if isinstance(success, list)
+                                                      else [success])) + ".", "",
         "Means are over the successful runs (– when there are none).", "",
         "## Results", "",
-        (out / "results.md").read_text(encoding="utf-8") if (out / "results.md").is_file()
-        else table.to_markdown(),
+        table.to_markdown(),  # from the results read back, not the folder's results.md as is
     ]
     if plots:
         lines += ["## Success rate against each factor", ""]
         for png in plots:
             factor = png.stem.removeprefix("success_")
-            lines += [f"![success rate against {factor}](plots/{png.name})", ""]
+            lines += [f"![success rate against {markdown_text(factor)}](plots/{png.name})", ""]
     lines += ["## Versions", "", versions or "not recorded", ""]
     return write_atomic(out / "report.md", "\n".join(lines))

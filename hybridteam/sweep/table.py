@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from hybridteam.export.render import markdown_text
 from hybridteam.sweep.plan import Plan
 from hybridteam.sweep.store import finished_chunks, read_chunk
 from hybridteam.sweep.worker import RUN_COLUMNS
@@ -43,7 +44,7 @@ class ResultTable:
         return buf.getvalue()
 
     def to_markdown(self) -> str:
-        lines = ["| " + " | ".join(self.columns) + " |",
+        lines = ["| " + " | ".join(_md_cell(c) for c in self.columns) + " |",
                  "|" + "|".join("---" if c in ("factor", "value") else "---:"
                                 for c in self.columns) + "|"]
         lines += ["| " + " | ".join(_md_cell(row[c]) for c in self.columns) + " |"
@@ -58,9 +59,11 @@ def _csv_cell(v: Any) -> str:
 
 
 def _md_cell(v: Any) -> str:
+    """A cell of ``results.md``: its values come from a folder anyone may hand over (a
+    factor's value, a column's name), so text is made inert (:func:`markdown_text`)."""
     if isinstance(v, float):
         return "–" if math.isnan(v) else f"{v:.4g}"
-    return str(v).replace("|", "\\|")
+    return markdown_text(str(v))
 
 
 def collect_runs(plan: Plan, out: Path) -> dict[str, list[Any]]:
@@ -173,6 +176,9 @@ def read_results(path: Path) -> ResultTable:
     if not rows:
         raise ValueError("empty file")
     columns = rows[0]
+    missing = [c for c in ("factor", "value", "runs", "success_rate") if c not in columns]
+    if missing:  # a results.csv of ours always has them; the report reads them
+        raise ValueError(f"no '{missing[0]}' column: not a study's results")
     out = []
     for cells in rows[1:]:
         if len(cells) != len(columns):
