@@ -195,6 +195,29 @@ def test_a_folder_image_that_is_another_file_is_not_copied_in(run_folder, tmp_pa
     assert not (folder / "report.html").exists()
 
 
+@pytest.mark.parametrize("name", ["modes.svg", "summary.json"])
+def test_a_folder_file_past_the_size_limit_is_refused_unread(run_folder, tmp_path, capsys,
+                                                             monkeypatch, name):
+    """A ``modes.svg`` or ``summary.json`` of gigabytes was read whole into memory: the
+    files of a run folder are read up to the traces' limit (HYBRIDTEAM_MAX_TRACE_MB)."""
+    folder = tmp_path / "run"
+    shutil.copytree(run_folder, folder)
+    if name == "modes.svg":
+        (folder / name).write_text('<svg xmlns="http://www.w3.org/2000/svg">'
+                                   + " " * 3_000_000 + "</svg>")
+    else:  # the same summary, padded with spaces after its JSON
+        (folder / name).write_text((folder / name).read_text() + " " * 3_000_000)
+    size = (folder / name).stat().st_size
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", "2")
+    assert main(["report", str(folder), "--no-animation"]) == 2
+    assert capsys.readouterr().err == (
+        f"hybridteam: error: {folder / name}: file is {size / 1e6:.1f} MB; files of a run "
+        "folder are read up to 2 MB (set HYBRIDTEAM_MAX_TRACE_MB to read larger ones)\n")
+    assert not (folder / "report.html").exists()
+    monkeypatch.setenv("HYBRIDTEAM_MAX_TRACE_MB", "4")  # the control: within the limit
+    assert main(["report", str(folder), "--no-animation"]) == 0
+
+
 def test_a_graphviz_diagram_whose_title_quotes_markup_is_still_an_image(run_folder,
                                                                         tmp_path):
     """Graphviz opens its SVG with comments naming the graph, which may hold ``-->``: the

@@ -106,13 +106,12 @@ DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "
 #: Trace files are read up to this size (``HYBRIDTEAM_MAX_TRACE_MB`` raises it): a run
 #: within the default memory limit writes a few hundred megabytes at most, and reading
 #: one costs about twice its size in memory.
-MAX_TRACE_MB = 500.0
 
 
 def _load_trace(path: str, instance: int) -> Trace:
     """A trace file, checked against the trace format; or a one-line error naming it.
     Only a regular file of a bounded size is read (not a FIFO, not ``/dev/zero``)."""
-    from hybridteam.io.files import read_regular
+    from hybridteam.io.files import MAX_TRACE_MB, read_regular
     from hybridteam.io.yamlpos import SourceError
     from hybridteam.trace_schema import check_trace
 
@@ -303,11 +302,16 @@ def cmd_sequence(args: argparse.Namespace) -> int:
 def _load_summary(path: Path) -> dict:
     """A run folder's ``summary.json``, checked against its format; or a one-line error at
     the file, line and column of its first bad field (a file anyone can hand over)."""
+    from hybridteam.io.files import MAX_TRACE_MB, read_regular
+    from hybridteam.io.yamlpos import SourceError
     from hybridteam.summary_schema import check_summary
 
-    try:
-        text = path.read_text(encoding="utf-8")
+    try:  # a regular file of a bounded size, as a trace (not a FIFO, not /dev/zero)
+        text = read_regular(path, str(path), limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
+                            what="files of a run folder").decode("utf-8")
         summary = json.loads(text)
+    except SourceError as exc:
+        raise UsageError(str(exc)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UsageError(f"{path}: cannot read: {exc}") from None
     except json.JSONDecodeError as exc:

@@ -56,8 +56,16 @@ class NotAnImage(ValueError):
 
 
 def _image(path: Path, kind: str) -> bytes:
-    """The bytes of the folder's image ``path`` (``svg`` or ``gif``), checked to be one."""
-    data = path.read_bytes()
+    """The bytes of the folder's image ``path`` (``svg`` or ``gif``), checked to be one: a
+    regular file of a bounded size (not a FIFO, not ``/dev/zero``), then its markup."""
+    from hybridteam.io.files import MAX_TRACE_MB, read_regular
+    from hybridteam.io.yamlpos import SourceError
+
+    try:
+        data = read_regular(path, str(path), limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
+                            what="files of a run folder")
+    except SourceError as exc:
+        raise NotAnImage(str(exc)) from None
     ok = (_SVG_START.match(data) and _SVG_ELEMENT.search(data, 0, 8192)) if kind == "svg" \
         else data[:6] in _GIF_START
     if not ok:

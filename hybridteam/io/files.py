@@ -14,6 +14,9 @@ import stat
 
 from hybridteam.io.yamlpos import SourceError
 
+#: megabytes of a trace, or of a file of a run folder, read back (HYBRIDTEAM_MAX_TRACE_MB)
+MAX_TRACE_MB = 500.0
+
 
 def _limit(name: str, env: str, default: float) -> float:
     """Megabytes to read: ``env``'s value if set, else ``default``."""
