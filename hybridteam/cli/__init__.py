@@ -2,8 +2,8 @@
 
 Each command group registers its own parsers and handlers — :mod:`.core` (validate, run,
 schema), :mod:`.views` (diagram, timeline, plot, animate, sequence), :mod:`.sweep` (sweep,
-report), :mod:`.falsify` (falsify), :mod:`.verify` (verify) — and shares exit codes,
-errors and run folders through :mod:`.common`. Groups never import each other.
+report), :mod:`.falsify` (falsify), :mod:`.verify` (verify), :mod:`.live` (live) — and
+shares exit codes, errors and run folders through :mod:`.common`. Groups never import each other.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-from hybridteam.cli import core, falsify, sweep, verify, views
+from hybridteam.cli import core, falsify, live, sweep, verify, views
 from hybridteam.cli.common import (
     EXIT_INTERRUPTED,
     EXIT_OK,
@@ -30,7 +30,7 @@ def _parser() -> tuple[Parser, dict]:
     p = Parser(prog="hybridteam", description="Teams of robots as hybrid systems.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
     commands: dict = {}
-    for group in (core, views, sweep, falsify, verify):
+    for group in (core, views, sweep, falsify, verify, live):
         commands.update(group.register(sub))
     return p, commands
 

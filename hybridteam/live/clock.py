@@ -1,0 +1,114 @@
+"""The wall clock and the wire outlet: the engine's two seams as a live process fills them.
+
+Run time is ``K`` times the wall seconds since the process started (``K``: the time scale,
+1 on robots; larger only for simulated plants, so tests need not wait). Before each step
+:class:`WallClock` sleeps until the engine's next scheduled instant is due, waking early
+for datagrams: each one this process hosts an addressee of becomes a message event at the
+run time it arrived (never before the engine's present), so the step ends there and the
+engine receives it as it receives a simulated copy. :class:`WireOutlet` puts every send
+of the hosted agents on the wire.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from collections.abc import Callable, Collection
+
+from hybridteam.engine.ensemble import Ensemble
+from hybridteam.engine.network import Message
+from hybridteam.engine.schedule import earliest
+from hybridteam.live.transport import Transport
+from hybridteam.live.wire import Codec, WireError
+
+log = logging.getLogger("hybridteam.live")
+
+#: The longest single wait (wall seconds): a stop request is seen within it.
+MAX_WAIT = 0.05
+
+
+class WallClock:
+    """Run time on the wall clock, arrivals from a transport (module docstring)."""
+
+    def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
+                 time_scale: float = 1.0,
+                 stop: Callable[[], str | None] = lambda: None) -> None:
+        """``stop``: asked while waiting; a reason (a signal's name) ends the run."""
+        self.codec, self.transport = codec, transport
+        self.here = sorted(here)
+        self.scale = time_scale
+        self.stop = stop
+        self.start()
+        self.received = 0
+        self.delivered = 0
+        self.dropped: Counter[str] = Counter()
+        #: how late each step started against its instant (run seconds), for the record
+        self.late_max = 0.0
+
+    def start(self) -> None:
+        """Run time 0 is now (called as the run starts)."""
+        self.mono0 = time.monotonic()
+        self.wall0 = time.time()  # the same instant on the wall clock (send times)
+
+    def now(self) -> float:
+        """The run time now."""
+        return (time.monotonic() - self.mono0) * self.scale
+
+    def advance(self, ens: Ensemble) -> None:
+        due = min(float(earliest(ens.instants, ens.instants_at.shape[0])[0][0]), ens.t_end)
+        while True:
+            if self._take(ens):
+                return
+            reason = self.stop()
+            if reason is not None:
+                log.info("stopping at t=%.3f: %s", float(ens.t[0]), reason)
+                ens.finish(ens.everyone, "stopped",
+                           lambda i, why=reason: f"stopped by {why} at t={ens.when(i)}")
+                return
+            now = self.now()
+            if now >= due:
+                self.late_max = max(self.late_max, now - due)
+                return
+            self.transport.wait(min((due - now) / self.scale, MAX_WAIT))
+
+    def _take(self, ens: Ensemble) -> bool:
+        """Queue every datagram waiting for the hosted agents; whether any was queued."""
+        queued = False
+        for data, arrived in self.transport.receive():
+            self.received += 1
+            try:
+                dg = self.codec.decode(data)
+            except WireError as exc:
+                self.dropped[exc.reason] += 1
+                log.debug("dropped a datagram (%s)", exc)
+                continue
+            t = max((arrived - self.mono0) * self.scale, float(ens.t[0]))
+            t_send = (dg.sent - self.wall0) * self.scale
+            for r in self.here:
+                if r != dg.sender and dg.to in (-1, r):
+                    ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
+                                                  dg.type, dict(dg.fields), dg.msg_id,
+                                                  dg.note), t, dg.rank)
+                    self.delivered += 1
+                    queued = True
+        return queued
+
+    def record(self) -> dict:
+        """What the trace's ``meta.live`` says of the clock and the wire."""
+        return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
+                "datagrams": {"received": self.received, "delivered": self.delivered,
+                              "dropped": dict(sorted(self.dropped.items()))},
+                "late_max": self.late_max}
+
+
+class WireOutlet:
+    """The network's outlet: each send of a hosted agent, encoded, to the transport."""
+
+    def __init__(self, codec: Codec, transport: Transport) -> None:
+        self.codec, self.transport = codec, transport
+        self.sent = 0
+
+    def send(self, msg: Message, rank: float) -> None:
+        self.transport.send(self.codec.encode(msg, rank, time.time()), msg.socket)
+        self.sent += 1
