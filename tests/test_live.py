@@ -1,0 +1,218 @@
+"""``hybridteam live``: agents of a team as processes over loopback UDP, on the wall clock.
+
+Every process and socket a test starts is stopped by the test, also when it fails (the
+``processes`` and ``udp`` fixtures' finalizers); ports are ephemeral ones on 127.0.0.1.
+"""
+
+from __future__ import annotations
+
+import json
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import hybridteam as ht
+from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.network import Message
+from hybridteam.live.wire import MAX_BYTES, Codec
+from hybridteam.trace import Trace
+
+TEAM = Path(__file__).parent / "fixtures" / "live" / "handshake.yaml"
+LOCAL = "127.0.0.1"
+TIMEOUT = 60  # wall seconds any process of a test may take, however loaded the machine
+
+
+@pytest.fixture
+def udp():
+    """``open()`` a UDP socket on a free loopback port; every one is closed afterwards."""
+    opened: list[socket.socket] = []
+
+    def open_() -> socket.socket:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        s.bind((LOCAL, 0))
+        opened.append(s)
+        return s
+
+    yield open_
+    for s in opened:
+        s.close()
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((LOCAL, 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def processes():
+    """``start(args)`` a ``hybridteam live`` process; every one is killed afterwards."""
+    started: list[subprocess.Popen] = []
+
+    def start(*args: str) -> subprocess.Popen:
+        proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", *args],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        if proc.poll() is None:
+            proc.kill()
+        proc.communicate(timeout=TIMEOUT)
+
+
+def wait_running(proc: subprocess.Popen) -> bytes:
+    """Block until ``proc`` logs that its run started (its port is bound by then)."""
+    seen = b""
+    end = time.monotonic() + TIMEOUT
+    while b"live (time scale" not in seen:
+        assert time.monotonic() < end and proc.poll() is None, seen.decode()
+        ready, _, _ = select.select([proc.stderr], [], [], 1.0)
+        if ready:
+            seen += proc.stderr.readline()
+    return seen
+
+
+def finish(proc: subprocess.Popen) -> None:
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 0, err.decode()
+
+
+def mode_sequences(trace) -> dict[str, list[tuple[str, str, str]]]:
+    """Each agent's transitions as (source, target, cause): the order, not the times."""
+    out: dict[str, list[tuple[str, str, str]]] = {}
+    for row in trace.transitions:
+        out.setdefault(row.agent, []).append((row.source, row.target, row.cause))
+    return out
+
+
+def simulated() -> dict[str, list[tuple[str, str, str]]]:
+    return mode_sequences(ht.simulate(ht.load(TEAM)))
+
+
+def hostile(codec: Codec) -> list[bytes]:
+    """Datagrams of no genuine sender: malformed, oversized, foreign, forged."""
+    genuine = json.loads(codec.encode(Message(0, 1, 10**6, 1.0, "control", "request",
+                                              {"need": 2.0}), 0.0, time.time()))
+    return [b"{not json", b" " * (MAX_BYTES + 1),
+            json.dumps({**genuine, "team": "another team"}).encode(),
+            json.dumps({**genuine, "ht": 2}).encode(),
+            json.dumps({**genuine, "from": "intruder"}).encode()]
+
+
+def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagrams(
+        tmp_path, processes, udp):
+    """Requester and granter in two processes over loopback (4x the wall clock): each
+    process's transitions are its agent's in ``hybridteam run``, in the same order, with
+    the same causes. Hostile datagrams sent at both ports during the run, and a replay of
+    the requester's own 'request' to the granter, are counted by reason and dropped."""
+    sniffer = udp()  # a peer of the requester: sees its datagrams, to replay one
+    bad = hostile(Codec(compile_team(ht.load(TEAM))))  # (ready before the run starts)
+    ports = {"requester": free_port(), "granter": free_port()}
+    granter = processes(str(TEAM), "--agent", "granter", "--listen",
+                        f"{LOCAL}:{ports['granter']}", "--peer",
+                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4",
+                        "-o", str(tmp_path / "granter"))
+    wait_running(granter)
+    requester = processes(str(TEAM), "--agent", "requester", "--listen",
+                          f"{LOCAL}:{ports['requester']}", "--peer",
+                          f"{LOCAL}:{ports['granter']}", "--peer",
+                          f"{LOCAL}:{sniffer.getsockname()[1]}", "--time-scale", "4",
+                          "-o", str(tmp_path / "requester"))
+    ready, _, _ = select.select([sniffer], [], [], TIMEOUT)
+    assert ready, "the requester sent nothing"
+    first = sniffer.recv(65535)  # the request, which the granter has had by now
+    assert json.loads(first)["type"] == "request"
+    sniffer.sendto(first, (LOCAL, ports["granter"]))
+    for data in bad:
+        for port in ports.values():
+            sniffer.sendto(data, (LOCAL, port))
+    finish(requester)
+    finish(granter)
+
+    expected = simulated()
+    for agent in ("requester", "granter"):
+        trace = Trace.load(tmp_path / agent / "trace.json")
+        assert mode_sequences(trace) == {agent: expected[agent]}
+        assert trace.outcomes[0]["outcome"] == "ok"
+        assert trace.outcomes[0]["message"] == f"'{agent}' reached a final mode (the end rule)"
+        live = trace.meta["live"]
+        assert live["agents"] == [agent]
+        want = {"foreign team": 1, "forged": 1, "malformed": 1, "oversized": 1, "version": 1}
+        if agent == "granter":
+            want["replayed"] = 1
+        assert live["datagrams"]["dropped"] == want
+        summary = json.loads((tmp_path / agent / "summary.json").read_text())
+        assert summary["live"]["datagrams"]["dropped"] == want
+    # each copy is recorded where it arrived, with both times on the run's clock
+    granter_msgs = Trace.load(tmp_path / "granter" / "trace.json").messages
+    assert granter_msgs["type"].tolist() == ["request", "done"]
+    assert granter_msgs["status"].tolist() == ["delivered", "delivered"]
+    assert (granter_msgs["t_recv"] >= granter_msgs["t_send"]).all()
+    assert granter_msgs["msg_id"].tolist() == [-1, 0]  # 'done' is acknowledged
+
+
+def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):
+    port = free_port()
+    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{port}", "--time-scale", "4", "-o", str(tmp_path / "both"))
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == simulated()
+    assert trace.outcomes[0]["outcome"] == "ok"
+    # request, grant, done and done's ack went out once each; the first three came back,
+    # the ack only at the instant the run ended (the granter sent it as it became final)
+    assert trace.meta["live"]["sent"] == 4
+    assert trace.meta["live"]["datagrams"] == {"received": 3, "delivered": 3, "dropped": {}}
+    assert trace.messages["type"].tolist() == ["request", "grant", "done"]
+
+
+def test_sigint_stops_the_run_with_its_trace_complete(tmp_path, processes):
+    """The granter alone waits for a request that never comes: SIGINT ends it cleanly,
+    and its trace says so."""
+    proc = processes(str(TEAM), "--agent", "granter", "--listen", f"{LOCAL}:{free_port()}",
+                     "--duration", "1000", "-o", str(tmp_path / "g"))
+    wait_running(proc)
+    proc.send_signal(signal.SIGINT)
+    finish(proc)
+    trace = Trace.load(tmp_path / "g" / "trace.json")
+    assert trace.outcomes[0]["outcome"] == "stopped"
+    assert trace.outcomes[0]["message"].startswith("stopped by SIGINT at t=")
+    assert mode_sequences(trace) == {"granter": [("", "Listening", "init")]}
+    assert json.loads((tmp_path / "g" / "summary.json").read_text())["outcome"] == "stopped"
+
+
+def test_a_taken_port_is_one_line_and_nothing_written(tmp_path, processes, udp):
+    taken = udp()
+    proc = processes(str(TEAM), "--agent", "granter", "--listen",
+                     f"{LOCAL}:{taken.getsockname()[1]}", "-o", str(tmp_path / "g"))
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 2
+    assert err.decode().strip() == (f"hybridteam: error: UDP port {LOCAL}:"
+                                     f"{taken.getsockname()[1]} is taken (another process "
+                                     "listens there)")
+    assert not (tmp_path / "g").exists()
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--agent", "nobody"], "--agent 'nobody' is not an agent of the team (its agents: "
+                            "requester, granter)"),
+    (["--agent", "granter", "--listen", "localhost"], "--listen must be HOST:PORT"),
+    (["--agent", "granter", "--time-scale", "0"], "--time-scale must be a finite number > 0"),
+])
+def test_bad_arguments_are_one_line(tmp_path, processes, args, message):
+    if "--listen" not in args:
+        args = [*args, "--listen", f"{LOCAL}:{free_port()}"]
+    proc = processes(str(TEAM), *args, "-o", str(tmp_path / "x"))
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 2
+    lines = err.decode().strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert not (tmp_path / "x").exists()
