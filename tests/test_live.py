@@ -216,3 +216,29 @@ def test_bad_arguments_are_one_line(tmp_path, processes, args, message):
     lines = err.decode().strip().splitlines()
     assert len(lines) == 1 and message in lines[0], lines
     assert not (tmp_path / "x").exists()
+
+
+def test_launch_runs_every_agent_and_merges_their_traces(tmp_path):
+    """``hybridteam launch``: one process per agent, started together; the merged trace
+    has every agent's transitions of ``hybridteam run``, in the same order, and is a trace
+    the views read."""
+    from hybridteam.trace_schema import check_trace
+
+    out = tmp_path / "launch"
+    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(TEAM),
+                           "--time-scale", "4", "-o", str(out)],
+                          capture_output=True, timeout=TIMEOUT * 2)
+    assert proc.returncode == 0, proc.stderr.decode()
+    data = json.loads((out / "trace.json").read_text())
+    assert check_trace(data) is None
+    merged = Trace.from_dict(data)
+    assert mode_sequences(merged) == simulated()
+    # the team's order of transitions too: the causal chain crosses the processes
+    sim = ht.simulate(ht.load(TEAM))
+    assert [(r.agent, r.target) for r in merged.transitions] == \
+        [(r.agent, r.target) for r in sim.transitions]
+    assert merged.outcomes[0]["outcome"] == "ok"
+    assert [p["agents"] for p in merged.meta["live"]["processes"]] == [["requester"],
+                                                                        ["granter"]]
+    for agent in ("requester", "granter"):
+        assert (out / "agents" / agent / "trace.json").exists()

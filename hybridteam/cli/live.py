@@ -46,9 +46,28 @@ def register(sub) -> dict:
     p.add_argument("--time-scale", type=float, default=1.0, metavar="K",
                    help="run time passes K times faster than the wall clock (simulated "
                         "plants only; default 1)")
-    p.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
-                   default="info", help="what is logged to stderr (default info)")
-    return {"live": cmd_live}
+    p.add_argument("--log-level", choices=LEVELS, default="info",
+                   help="what is logged to stderr (default info)")
+    p.add_argument("--ready", action="store_true",
+                   help="(for 'launch') once the port is bound and the team compiled, print "
+                        "'ready HOST:PORT' and start the run when stdin says 'go'")
+
+    la = sub.add_parser("launch", help="run every agent of a team live on this machine, "
+                        "one process each over loopback UDP, and merge their traces")
+    la.add_argument("team", metavar="TEAM.yaml")
+    la.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    la.add_argument("--transport", choices=("udp",), default="udp",
+                    help="how datagrams travel (udp: one loopback port per process)")
+    la.add_argument("--duration", type=float, default=None,
+                    help="run seconds (default: the team's simulation.duration)")
+    la.add_argument("--time-scale", type=float, default=1.0, metavar="K",
+                    help="run time passes K times faster than the wall clock (default 1)")
+    la.add_argument("--log-level", choices=LEVELS, default="info",
+                    help="what the processes log to OUT/agents/NAME/live.log (default info)")
+    return {"live": cmd_live, "launch": cmd_launch}
+
+
+LEVELS = ("debug", "info", "warning", "error")
 
 
 def address(text: str, flag: str) -> tuple[str, int]:
@@ -60,16 +79,21 @@ def address(text: str, flag: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def cmd_live(args: argparse.Namespace) -> int:
-    from hybridteam.live.hosting import HostingError
-    from hybridteam.live.run import run_live
-    from hybridteam.live.transport import TransportError, UdpTransport
-    from hybridteam.trace import write_atomic
-
+def check_clock(args: argparse.Namespace) -> None:
+    """UsageError for a ``--duration`` or ``--time-scale`` that is no clock setting."""
     if args.duration is not None and not 0 <= args.duration < math.inf:
         raise UsageError(f"--duration must be a finite number >= 0, got {args.duration}")
     if not 0 < args.time_scale < math.inf:
         raise UsageError(f"--time-scale must be a finite number > 0, got {args.time_scale}")
+
+
+def cmd_live(args: argparse.Namespace) -> int:
+    from hybridteam.live.hosting import HostingError
+    from hybridteam.live.run import LiveRun
+    from hybridteam.live.transport import TransportError, UdpTransport
+    from hybridteam.trace import write_atomic
+
+    check_clock(args)
     listen = address(args.listen, "--listen")
     peers = [address(p, "--peer") for p in args.peer]
     out = output_folder(args.output)
@@ -90,9 +114,15 @@ def cmd_live(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        trace = run_live(team, agents, transport, transport_name=args.transport,
-                         time_scale=args.time_scale, duration=args.duration,
-                         stop=lambda: stopped[0] if stopped else None)
+        live = LiveRun(team, agents, transport, transport_name=args.transport,
+                       time_scale=args.time_scale, duration=args.duration,
+                       stop=lambda: stopped[0] if stopped else None)
+        if args.ready:
+            host, port = transport.address
+            print(f"ready {host}:{port}", flush=True)
+            if sys.stdin.readline().strip() != "go":
+                raise UsageError("not started: stdin did not say 'go' (--ready)")
+        trace = live.run()
     except HostingError as exc:
         raise UsageError(str(exc)) from None
     finally:
@@ -115,3 +145,142 @@ def cmd_live(args: argparse.Namespace) -> int:
     say(f"{team.name}: {', '.join(agents)} {outcome['outcome']} at t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
+
+
+#: Wall seconds a launched process may take to start (import, compile, bind) and to end
+#: after its run's duration is up, however loaded the machine.
+START_TIMEOUT, END_MARGIN = 60.0, 30.0
+
+
+def cmd_launch(args: argparse.Namespace) -> int:
+    """Every agent of the team as a ``hybridteam live`` process on loopback: ports chosen
+    free, every process's clock started together (``--ready``), the end rule's processes
+    awaited and the others (operators) then stopped, the traces merged."""
+    import subprocess
+    import time
+
+    from hybridteam.engine.compiler import compile_team
+    from hybridteam.live.hosting import HostingError, hosted_team
+    from hybridteam.live.merge import merge_traces
+    from hybridteam.trace import Trace, write_atomic
+
+    check_clock(args)
+    out = output_folder(args.output)
+    team = load_team_or_report(args.team)
+    if team is None:
+        return EXIT_USAGE
+    full = compile_team(team)
+    names = [ca.name for ca in full.agents]
+    try:
+        hosted_team(full, names)
+    except HostingError as exc:
+        raise UsageError(str(exc)) from None
+    ending = [names[a] for a in full.ending]
+    ports = free_ports(len(names))
+    stopped: list[str] = []
+
+    def on_signal(signum: int, _frame) -> None:
+        stopped.append(signal.Signals(signum).name)
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    procs: dict[str, subprocess.Popen] = {}
+    try:
+        for name, port in zip(names, ports, strict=True):
+            folder = out / "agents" / name
+            folder.mkdir(parents=True, exist_ok=True)
+            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team, "--agent",
+                       name, "--listen", f"127.0.0.1:{port}", "--time-scale",
+                       repr(args.time_scale), "--log-level", args.log_level, "--ready",
+                       "-o", str(folder)]
+            command += [a for p in ports if p != port for a in ("--peer", f"127.0.0.1:{p}")]
+            if args.duration is not None:
+                command += ["--duration", repr(args.duration)]
+            with open(folder / "live.log", "wb") as logfile:
+                procs[name] = subprocess.Popen(command, stdin=subprocess.PIPE,
+                                               stdout=subprocess.PIPE, stderr=logfile)
+        for name, proc in procs.items():
+            if not _ready(proc, START_TIMEOUT):
+                raise UsageError(f"agent '{name}' did not start: "
+                                 f"{_last_line(out / 'agents' / name / 'live.log')}")
+        for proc in procs.values():  # every clock starts now
+            assert proc.stdin is not None
+            proc.stdin.write(b"go\n")
+            proc.stdin.close()
+        duration = full.team.simulation.duration if args.duration is None else args.duration
+        deadline = time.monotonic() + duration / args.time_scale + END_MARGIN
+        while any(p.poll() is None for p in procs.values()):
+            rule_done = all(procs[n].poll() is not None for n in ending) if ending else False
+            if stopped or rule_done or time.monotonic() > deadline:
+                for p in procs.values():
+                    if p.poll() is None:
+                        p.terminate()  # (SIGTERM: the run stops, its trace is written)
+                for p in procs.values():
+                    p.wait(timeout=END_MARGIN)
+                break
+            time.sleep(0.05)
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    failed = [n for n, p in procs.items() if p.returncode != 0]
+    if failed:
+        raise UsageError("; ".join(f"agent '{n}' failed: "
+                                   f"{_last_line(out / 'agents' / n / 'live.log')}"
+                                   for n in failed))
+    traces = [Trace.load(out / "agents" / n / "trace.json") for n in names]
+    merged = merge_traces(traces, ending)
+    outcome = merged.outcomes[0]
+    summary = {"team": team.name, "outcome": outcome["outcome"], "t_end": outcome["t"],
+               "message": outcome["message"], "transitions": len(merged.transitions),
+               "messages": len(merged.messages), "live": merged.meta["live"]}
+    try:
+        (out / "summary.json").unlink(missing_ok=True)
+        merged.to_json(out / "trace.json")
+        write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    except OSError as exc:
+        raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") \
+            from None
+    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
+        "(trace.json, summary.json, agents/NAME/)")
+    return EXIT_OK
+
+
+def free_ports(count: int) -> list[int]:
+    """``count`` distinct free UDP ports on loopback (bound together, then released)."""
+    import socket
+
+    held = []
+    try:
+        for _ in range(count):
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            held.append(s)
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in held]
+    finally:
+        for s in held:
+            s.close()
+
+
+def _ready(proc, timeout: float) -> bool:
+    """Whether ``proc`` printed its ready line within ``timeout`` wall seconds."""
+    import select
+    import time
+
+    end = time.monotonic() + timeout
+    while time.monotonic() < end and proc.poll() is None:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if ready:
+            return proc.stdout.readline().startswith(b"ready ")
+    return False
+
+
+def _last_line(log) -> str:
+    """The last line a launched process logged (its error), for one-line messages."""
+    try:
+        lines = log.read_text(errors="replace").strip().splitlines()
+    except OSError:
+        return "no log"
+    return lines[-1] if lines else "nothing logged"

@@ -29,33 +29,50 @@ from hybridteam.trace import Trace
 log = logging.getLogger("hybridteam.live")
 
 
-def run_live(team: Team, agents: Sequence[str], transport: Transport, *,
-             transport_name: str = "udp", time_scale: float = 1.0,
-             duration: float | None = None,
-             stop: Callable[[], str | None] = lambda: None) -> Trace:
-    """Run the agents named ``agents`` of ``team`` live until the end rule holds for
-    them, ``duration`` (run seconds; default the team's) passes, or ``stop`` gives a
-    reason; returns the process's trace. The transport is the caller's to close."""
-    full = compile_team(team)
-    codec = Codec(full)  # (the whole team's declarations: every process has the same)
-    cteam = hosted_team(full, agents)
-    here = sorted(ca.index for ca in full.agents if ca.name in agents)
-    clock = WallClock(codec, transport, here, time_scale, stop)
-    sim = Simulator(cteam, 1, duration=duration, clock=clock)
-    outlet = WireOutlet(codec, transport)
-    sim.ensemble.network.outlet = outlet
-    log.info("%s: running %s live (time scale %g, until t=%g)", team.name,
-             ", ".join(agents), time_scale, sim.ensemble.t_end)
-    clock.start()
-    trace = sim.run()
-    record = {"agents": [full.agents[a].name for a in here], "transport": transport_name,
-              "wire": VERSION, "digest": codec.digest, **clock.record(),
-              "sent": outlet.sent}
-    dropped = record["datagrams"]["dropped"]
-    if dropped:
-        log.warning("dropped %d datagram(s) not of this team: %s", sum(dropped.values()),
-                    ", ".join(f"{k} {v}" for k, v in dropped.items()))
-    return process_trace(trace, record)
+class LiveRun:
+    """One live process's run, built (the team compiled, the engine set up) apart from
+    being run, so that a launcher can start every process's clock together."""
+
+    def __init__(self, team: Team, agents: Sequence[str], transport: Transport, *,
+                 transport_name: str = "udp", time_scale: float = 1.0,
+                 duration: float | None = None,
+                 stop: Callable[[], str | None] = lambda: None) -> None:
+        """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
+        close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
+        waiting and ends the run when it gives a reason. HostingError for agents or a team
+        a live process cannot run."""
+        full = compile_team(team)
+        self.codec = Codec(full)  # (the whole team's declarations: every process's)
+        cteam = hosted_team(full, agents)
+        hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
+        self.here = [full.agents[a].name for a in hosted]
+        self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
+        self.clock = WallClock(self.codec, transport, hosted, time_scale, stop)
+        self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock)
+        self.outlet = WireOutlet(self.codec, transport)
+        self.sim.ensemble.network.outlet = self.outlet
+
+    def run(self) -> Trace:
+        """Run until the end rule holds for the agents here, the duration passes, or
+        ``stop`` gives a reason; returns the process's trace."""
+        log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
+                 ", ".join(self.here), self.time_scale, self.sim.ensemble.t_end)
+        self.clock.start()
+        trace = self.sim.run()
+        record = {"agents": self.here, "transport": self.transport_name, "wire": VERSION,
+                  "digest": self.codec.digest, **self.clock.record(),
+                  "sent": self.outlet.sent}
+        dropped = record["datagrams"]["dropped"]
+        if dropped:
+            log.warning("dropped %d datagram(s) not of this team: %s",
+                        sum(dropped.values()),
+                        ", ".join(f"{k} {v}" for k, v in dropped.items()))
+        return process_trace(trace, record)
+
+
+def run_live(team: Team, agents: Sequence[str], transport: Transport, **options) -> Trace:
+    """Build and run a :class:`LiveRun` (its options) at once; returns its trace."""
+    return LiveRun(team, agents, transport, **options).run()
 
 
 def process_trace(trace: Trace, record: dict) -> Trace:
