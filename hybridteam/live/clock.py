@@ -16,6 +16,8 @@ import time
 from collections import Counter
 from collections.abc import Callable, Collection
 
+import numpy as np
+
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.network import Message
 from hybridteam.engine.schedule import earliest
@@ -43,20 +45,31 @@ class WallClock:
         self.received = 0
         self.delivered = 0
         self.dropped: Counter[str] = Counter()
-        #: how late each step started against its instant (run seconds), for the record
-        self.late_max = 0.0
+        #: wall seconds each instant the loop slept for was taken late (the jitter of a
+        #: control period), and from each arrival to the end of the step that handled it
+        self.late: list[float] = []
+        self.reaction: list[float] = []
+        #: arrivals queued and not yet handled: (run time, time.monotonic() on arrival)
+        self._waiting: list[tuple[float, float]] = []
 
     def start(self) -> None:
         """Run time 0 is now (called as the run starts)."""
         self.mono0 = time.monotonic()
         self.wall0 = time.time()  # the same instant on the wall clock (send times)
+        self.cpu0 = time.process_time()
 
     def now(self) -> float:
         """The run time now."""
         return (time.monotonic() - self.mono0) * self.scale
 
     def advance(self, ens: Ensemble) -> None:
+        if self._waiting:  # the arrivals the steps since the last call have handled
+            handled = time.monotonic()
+            t = float(ens.t[0])
+            self.reaction += [handled - m for tau, m in self._waiting if tau <= t]
+            self._waiting = [(tau, m) for tau, m in self._waiting if tau > t]
         due = min(float(earliest(ens.instants, ens.instants_at.shape[0])[0][0]), ens.t_end)
+        slept = False
         while True:
             if self._take(ens):
                 return
@@ -68,9 +81,11 @@ class WallClock:
                 return
             now = self.now()
             if now >= due:
-                self.late_max = max(self.late_max, now - due)
+                if slept:
+                    self.late.append((now - due) / self.scale)
                 return
             self.transport.wait(min((due - now) / self.scale, MAX_WAIT))
+            slept = True
 
     def _take(self, ens: Ensemble) -> bool:
         """Queue every datagram waiting for the hosted agents; whether any was queued."""
@@ -91,6 +106,7 @@ class WallClock:
                                                   dg.type, dict(dg.fields), dg.msg_id,
                                                   dg.note), t, dg.rank)
                     self.delivered += 1
+                    self._waiting.append((t, arrived))
                     queued = True
         return queued
 
@@ -99,7 +115,18 @@ class WallClock:
         return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
                 "datagrams": {"received": self.received, "delivered": self.delivered,
                               "dropped": dict(sorted(self.dropped.items()))},
-                "late_max": self.late_max}
+                "wall_s": time.monotonic() - self.mono0,
+                "cpu_s": time.process_time() - self.cpu0,
+                "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}
+
+
+def _percentiles(seconds: list[float]) -> dict[str, float | int]:
+    """Count, median, 99th percentile and largest of durations, in milliseconds."""
+    if not seconds:
+        return {"count": 0}
+    ms = np.asarray(seconds) * 1e3
+    return {"count": int(ms.size), "p50": float(np.percentile(ms, 50)),
+            "p99": float(np.percentile(ms, 99)), "max": float(ms.max())}
 
 
 class WireOutlet:
