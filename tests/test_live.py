@@ -243,3 +243,46 @@ def test_launch_runs_every_agent_and_merges_their_traces(tmp_path):
                                                                         ["granter"]]
     for agent in ("requester", "granter"):
         assert (out / "agents" / agent / "trace.json").exists()
+
+
+HANDOVER = Path(__file__).parents[1] / "examples" / "protocols" / "handover.yaml"
+
+
+def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
+    """``launch`` of the handover team; the XR4000's process is killed (SIGKILL) as the
+    run starts, before the Labmate asks it for the lead at t = 3. The Labmate's request
+    goes unacknowledged, it calls the operator, who takes command: what the simulator
+    says of the same team whose XR4000 is silent (every copy it sends lost). The merged
+    trace has the two survivors and says which process left none, and why."""
+    psutil = pytest.importorskip("psutil", reason="finds launch's child processes")
+    muted = tmp_path / "muted.yaml"
+    muted.write_text(HANDOVER.read_text().replace(
+        "  latency: 0.03\n", "  latency: 0.03\n  links:\n    xr4000 -> labmate: {loss: 1}\n"
+        "    xr4000 -> operator: {loss: 1}\n"))
+    expected = mode_sequences(ht.simulate(ht.load(muted)))
+    assert expected["labmate"][-1] == ("Transport.Requesting", "Transport.Operated",
+                                       "event:request_undeliverable")
+    out = tmp_path / "launch"
+    launch = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "launch",
+                               str(HANDOVER), "--time-scale", "4", "-o", str(out)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        log = out / "agents" / "xr4000" / "live.log"
+        end = time.monotonic() + TIMEOUT
+        while not (log.exists() and b"live (time scale" in log.read_bytes()):
+            assert time.monotonic() < end and launch.poll() is None
+            time.sleep(0.01)
+        (victim,) = [c for c in psutil.Process(launch.pid).children()
+                     if "xr4000" in c.cmdline()]
+        victim.send_signal(signal.SIGKILL)
+        _, err = launch.communicate(timeout=TIMEOUT)
+    finally:
+        if launch.poll() is None:
+            launch.kill()
+            launch.communicate(timeout=TIMEOUT)
+    assert launch.returncode == 0, err.decode()
+    assert "agent 'xr4000' left no trace: killed by SIGKILL" in err.decode()
+    merged = Trace.load(out / "trace.json")
+    assert mode_sequences(merged) == {a: expected[a] for a in ("labmate", "operator")}
+    assert merged.meta["live"]["missing"] == {"xr4000": "killed by SIGKILL"}
+    assert merged.outcomes[0]["message"].endswith("; xr4000: no trace (killed by SIGKILL)")

@@ -225,13 +225,21 @@ def cmd_launch(args: argparse.Namespace) -> int:
                 proc.wait()
         for s, handler in previous.items():
             signal.signal(s, handler)
-    failed = [n for n, p in procs.items() if p.returncode != 0]
-    if failed:
-        raise UsageError("; ".join(f"agent '{n}' failed: "
-                                   f"{_last_line(out / 'agents' / n / 'live.log')}"
-                                   for n in failed))
-    traces = [Trace.load(out / "agents" / n / "trace.json") for n in names]
+    # a process that died (killed, crashed) left no trace: the team's trace is the others'
+    # (what its teammates did about its silence), and says which are missing and why
+    missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
+               for n, p in procs.items()
+               if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
+    for name, why in missing.items():
+        say(f"hybridteam: agent '{name}' left no trace: {why}")
+    if len(missing) == len(names):
+        raise UsageError("no agent's process left a trace")
+    traces = [Trace.load(out / "agents" / n / "trace.json") for n in names
+              if n not in missing]
     merged = merge_traces(traces, ending)
+    merged.meta["live"]["missing"] = missing
+    merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
+                                             for n, why in missing.items())
     outcome = merged.outcomes[0]
     summary = {"team": team.name, "outcome": outcome["outcome"], "t_end": outcome["t"],
                "message": outcome["message"], "transitions": len(merged.transitions),
@@ -275,6 +283,16 @@ def _ready(proc, timeout: float) -> bool:
         if ready:
             return proc.stdout.readline().startswith(b"ready ")
     return False
+
+
+def _exit_text(code: int | None, log) -> str:
+    """Why a launched process ended without its trace: its signal or status, last log line."""
+    if code is not None and code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}: {_last_line(log)}"
 
 
 def _last_line(log) -> str:
