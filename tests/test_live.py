@@ -286,3 +286,41 @@ def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
     assert mode_sequences(merged) == {a: expected[a] for a in ("labmate", "operator")}
     assert merged.meta["live"]["missing"] == {"xr4000": "killed by SIGKILL"}
     assert merged.outcomes[0]["message"].endswith("; xr4000: no trace (killed by SIGKILL)")
+
+
+def test_injected_loss_drops_what_arrives(tmp_path, processes):
+    """``--drop 1``: no datagram reaches an agent, so the requester asks and waits while
+    the granter listens, as the simulator has it with every copy lost; every datagram the
+    process sent came back to its socket and was dropped there, and counted."""
+    lossy = tmp_path / "lossy.yaml"
+    lossy.write_text(TEAM.read_text().replace("  latency: 0.01\n",
+                                              "  latency: 0.01\n  loss: 1\n"))
+    expected = mode_sequences(ht.simulate(ht.load(lossy)))
+    assert expected["requester"][-1][1] == "Asking"
+    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--duration", "2",
+                     "--drop", "1", "-o", str(tmp_path / "both"))
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == expected
+    live = trace.meta["live"]
+    assert live["sent"] == 1  # the request
+    assert live["injected"] == {"drop": 1.0, "delay": 0.0, "dropped": 1, "delayed": 0}
+    assert len(trace.messages) == 0
+
+
+def test_injected_delay_holds_each_arrival(tmp_path, processes):
+    """``--delay 0.25``: each copy reaches its agent at least 0.25 run seconds after it
+    was sent; the handshake is the simulator's all the same."""
+    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "--time-scale", "4", "--delay", "0.25",
+                     "-o", str(tmp_path / "both"))
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == simulated()
+    m = trace.messages
+    assert m["type"].tolist() == ["request", "grant", "done"]
+    assert (m["t_recv"] - m["t_send"] >= 0.25).all()
+    granting = trace.transitions.where(agent="granter", target="Granting")
+    assert granting["t"][0] >= 1.25  # the request left at 1.0
+    assert trace.meta["live"]["injected"]["delayed"] == 3

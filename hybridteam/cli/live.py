@@ -48,6 +48,7 @@ def register(sub) -> dict:
                         "plants only; default 1)")
     p.add_argument("--log-level", choices=LEVELS, default="info",
                    help="what is logged to stderr (default info)")
+    add_faults(p)
     p.add_argument("--ready", action="store_true",
                    help="(for 'launch') once the port is bound and the team compiled, print "
                         "'ready HOST:PORT' and start the run when stdin says 'go'")
@@ -64,10 +65,28 @@ def register(sub) -> dict:
                     help="run time passes K times faster than the wall clock (default 1)")
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
+    add_faults(la)
     return {"live": cmd_live, "launch": cmd_launch}
 
 
 LEVELS = ("debug", "info", "warning", "error")
+
+
+def add_faults(parser) -> None:
+    """``--drop``, ``--delay`` and ``--seed``: injected faults at the receiving socket."""
+    parser.add_argument("--drop", type=float, default=0.0, metavar="P",
+                        help="test aid: drop each arriving datagram with probability P")
+    parser.add_argument("--delay", type=float, default=0.0, metavar="D",
+                        help="test aid: hold each arriving datagram D run seconds more")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="the --drop draws' seed (default 0)")
+
+
+def fault_args(args: argparse.Namespace, k: int) -> list[str]:
+    """The fault options as ``live`` takes them, for ``launch``'s ``k``-th process (its
+    seed: ``--seed`` + k, so the processes' draws differ)."""
+    return ["--drop", repr(args.drop), "--delay", repr(args.delay), "--seed",
+            str(args.seed + k)]
 
 
 def address(text: str, flag: str) -> tuple[str, int]:
@@ -85,6 +104,10 @@ def check_clock(args: argparse.Namespace) -> None:
         raise UsageError(f"--duration must be a finite number >= 0, got {args.duration}")
     if not 0 < args.time_scale < math.inf:
         raise UsageError(f"--time-scale must be a finite number > 0, got {args.time_scale}")
+    if not 0 <= args.drop <= 1:
+        raise UsageError(f"--drop must be a probability from 0 to 1, got {args.drop}")
+    if not 0 <= args.delay < math.inf:
+        raise UsageError(f"--delay must be a finite number >= 0, got {args.delay}")
 
 
 def cmd_live(args: argparse.Namespace) -> int:
@@ -116,7 +139,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
-                       stop=lambda: stopped[0] if stopped else None)
+                       stop=lambda: stopped[0] if stopped else None, drop=args.drop,
+                       delay=args.delay, seed=args.seed)
         if args.ready:
             host, port = transport.address
             print(f"ready {host}:{port}", flush=True)
@@ -185,13 +209,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     procs: dict[str, subprocess.Popen] = {}
     try:
-        for name, port in zip(names, ports, strict=True):
+        for k, (name, port) in enumerate(zip(names, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
             command = [sys.executable, "-m", "hybridteam.cli", "live", args.team, "--agent",
                        name, "--listen", f"127.0.0.1:{port}", "--time-scale",
                        repr(args.time_scale), "--log-level", args.log_level, "--ready",
-                       "-o", str(folder)]
+                       *fault_args(args, k), "-o", str(folder)]
             command += [a for p in ports if p != port for a in ("--peer", f"127.0.0.1:{p}")]
             if args.duration is not None:
                 command += ["--duration", repr(args.duration)]

@@ -12,6 +12,7 @@ of the hosted agents on the wire.
 from __future__ import annotations
 
 import logging
+import random
 import time
 from collections import Counter
 from collections.abc import Callable, Collection
@@ -35,8 +36,12 @@ class WallClock:
 
     def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
                  time_scale: float = 1.0,
-                 stop: Callable[[], str | None] = lambda: None) -> None:
-        """``stop``: asked while waiting; a reason (a signal's name) ends the run."""
+                 stop: Callable[[], str | None] = lambda: None, *, drop: float = 0.0,
+                 delay: float = 0.0, seed: int = 0) -> None:
+        """``stop``: asked while waiting; a reason (a signal's name) ends the run.
+        ``drop`` and ``delay`` are test aids, not a network model: each datagram of the
+        team that arrives is dropped with probability ``drop`` (draws from ``seed``, in
+        arrival order) or held ``delay`` run seconds more."""
         self.codec, self.transport = codec, transport
         self.here = sorted(here)
         self.scale = time_scale
@@ -45,6 +50,9 @@ class WallClock:
         self.received = 0
         self.delivered = 0
         self.dropped: Counter[str] = Counter()
+        self.drop, self.delay = drop, delay
+        self.rng = random.Random(seed)
+        self.injected = {"dropped": 0, "delayed": 0}
         #: wall seconds each instant the loop slept for was taken late (the jitter of a
         #: control period), and from each arrival to the end of the step that handled it
         self.late: list[float] = []
@@ -98,7 +106,12 @@ class WallClock:
                 self.dropped[exc.reason] += 1
                 log.debug("dropped a datagram (%s)", exc)
                 continue
-            t = max((arrived - self.mono0) * self.scale, float(ens.t[0]))
+            if self.drop and self.rng.random() < self.drop:
+                self.injected["dropped"] += 1
+                continue
+            t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
+            if self.delay:
+                self.injected["delayed"] += 1
             t_send = (dg.sent - self.wall0) * self.scale
             for r in self.here:
                 if r != dg.sender and dg.to in (-1, r):
@@ -106,7 +119,7 @@ class WallClock:
                                                   dg.type, dict(dg.fields), dg.msg_id,
                                                   dg.note), t, dg.rank)
                     self.delivered += 1
-                    self._waiting.append((t, arrived))
+                    self._waiting.append((t, arrived + self.delay / self.scale))
                     queued = True
         return queued
 
@@ -115,6 +128,7 @@ class WallClock:
         return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
                 "datagrams": {"received": self.received, "delivered": self.delivered,
                               "dropped": dict(sorted(self.dropped.items()))},
+                "injected": {"drop": self.drop, "delay": self.delay, **self.injected},
                 "wall_s": time.monotonic() - self.mono0,
                 "cpu_s": time.process_time() - self.cpu0,
                 "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}

@@ -36,18 +36,21 @@ class LiveRun:
     def __init__(self, team: Team, agents: Sequence[str], transport: Transport, *,
                  transport_name: str = "udp", time_scale: float = 1.0,
                  duration: float | None = None,
-                 stop: Callable[[], str | None] = lambda: None) -> None:
+                 stop: Callable[[], str | None] = lambda: None, drop: float = 0.0,
+                 delay: float = 0.0, seed: int = 0) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
-        waiting and ends the run when it gives a reason. HostingError for agents or a team
-        a live process cannot run."""
+        waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``:
+        injected loss and delay at the receiving socket (:class:`.clock.WallClock`).
+        HostingError for agents or a team a live process cannot run."""
         full = compile_team(team)
         self.codec = Codec(full)  # (the whole team's declarations: every process's)
         cteam = hosted_team(full, agents)
         hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
         self.here = [full.agents[a].name for a in hosted]
         self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
-        self.clock = WallClock(self.codec, transport, hosted, time_scale, stop)
+        self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
+                               delay=delay, seed=seed)
         self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock)
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
