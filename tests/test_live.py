@@ -324,3 +324,17 @@ def test_injected_delay_holds_each_arrival(tmp_path, processes):
     granting = trace.transitions.where(agent="granter", target="Granting")
     assert granting["t"][0] >= 1.25  # the request left at 1.0
     assert trace.meta["live"]["injected"]["delayed"] == 3
+
+
+@pytest.mark.parametrize("command", [["live", "--agent", "labmate", "--listen", f"{LOCAL}:0"],
+                                     ["launch"]])
+def test_a_team_with_world_components_is_refused_in_one_line(tmp_path, command):
+    team = Path(__file__).parents[1] / "examples" / "transport" / "experiment1.yaml"
+    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", command[0], str(team),
+                           *command[1:], "-o", str(tmp_path / "out")],
+                          capture_output=True, timeout=TIMEOUT)
+    assert proc.returncode == 2
+    assert proc.stderr.decode().strip() == (
+        "hybridteam: error: the team has world components (payload, obstacles): they need "
+        "the world process, which live runs do not have yet")
+    assert not (tmp_path / "out").exists()
