@@ -55,6 +55,20 @@ def test_times_move_to_the_first_process_clock():
     assert merged.outcomes[0]["t"] == 2.5  # b's end, 1.5 on its clock
 
 
+def test_messages_bound_how_far_apart_the_clocks_are():
+    """Each process received one copy 0.25 run s (0.125 wall s at scale 2) after its send
+    time: b's clock is at most 0.125 s ahead of a's, and (from b to a) at most 0.125 s
+    behind."""
+    a = process("a", 100.0, [], [0, 0, 0])
+    b = process("b", 100.5, [], [0, 0, 0])
+    assert merge_traces([a, b]).meta["live"]["clock_bounds"] == [
+        {"from": ["a"], "to": ["b"], "offset_s": [-0.125, 0.125]}]
+    b.messages.columns["t_recv"][:] = 1.5  # b's copy from a: 1.0 run s, 0.5 wall s
+    a.messages.columns["status"][:] = "lost"  # and a received nothing from b
+    assert merge_traces([a, b]).meta["live"]["clock_bounds"] == [
+        {"from": ["a"], "to": ["b"], "offset_s": [None, 0.5]}]
+
+
 def test_the_first_outcome_of_the_end_rule_hosts_is_the_team_s():
     a = process("a", 0.0, [], [0, 0, 0], outcome="stopped")
     b = process("b", 0.0, [], [0, 0, 0], outcome="delivered")

@@ -62,9 +62,40 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = ()) -> Trace:
                         for tr, off in zip(traces, offsets, strict=True)], "t_recv")
     meta = {k: v for k, v in first.meta.items() if k != "live"}
     meta["live"] = {"processes": [tr.meta["live"] for tr in traces], "offsets": offsets,
-                    "wall_start": wall0}
+                    "wall_start": wall0, "clock_bounds": clock_bounds(traces)}
     return Trace(meta, [_outcome(traces, offsets, names, ending)], transitions, intervals,
                  messages, times, samples)
+
+
+def clock_bounds(traces: Sequence[Trace]) -> list[dict]:
+    """How far apart the processes' wall clocks can be, as their messages show.
+
+    A copy from process ``p`` to ``q`` is recorded by ``q`` with its send time read on
+    ``p``'s wall clock and its arrival on ``q``'s, so ``t_recv - t_send`` (over ``q``'s
+    time scale) is the latency plus how far ``q``'s clock is ahead of ``p``'s. Latencies
+    are not negative, so the least such difference bounds that lead from above, and the
+    least one the other way bounds it from below. Per pair of processes that exchanged
+    messages: ``offset_s`` = ``[lo, hi]`` (wall seconds, None where no message bounds it)
+    for ``q``'s clock minus ``p``'s. The merge assumes 0 (one machine's clock); across
+    machines these say by how much its times could be off."""
+    host = {a: k for k, tr in enumerate(traces) for a in tr.meta["live"]["agents"]}
+    least: dict[tuple[int, int], float] = {}
+    for q, tr in enumerate(traces):
+        m = tr.messages
+        ok = m["status"] == "delivered"
+        scale = tr.meta["live"]["time_scale"]
+        for sender, d in zip(m["sender"][ok].tolist(), (m["t_recv"] - m["t_send"])[ok].tolist(),
+                             strict=True):
+            p = host.get(sender)
+            if p is not None and p != q:
+                least[(p, q)] = min(least.get((p, q), float("inf")), d / scale)
+    out = []
+    for p, q in sorted({tuple(sorted(k)) for k in least}):
+        hi, lo = least.get((p, q)), least.get((q, p))
+        out.append({"from": traces[p].meta["live"]["agents"],
+                    "to": traces[q].meta["live"]["agents"],
+                    "offset_s": [None if lo is None else -lo, hi]})
+    return out
 
 
 def _shift(table: Table, offset: float, columns: tuple[str, ...]) -> Table:
