@@ -12,6 +12,7 @@ agent's samples are NaN: unknown here), every copy that reached a hosted agent, 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -51,7 +52,10 @@ class LiveRun:
         self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
         self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
                                delay=delay, seed=seed)
-        self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock)
+        # (no wall-time limit: a live run's pace is the wall clock's by design, and the
+        # simulator's limit would end a deployment of more than a day as too slow)
+        self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
+                             max_wall=math.inf)
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
