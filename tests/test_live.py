@@ -338,3 +338,25 @@ def test_a_team_with_world_components_is_refused_in_one_line(tmp_path, command):
         "hybridteam: error: the team has world components (payload, obstacles): they need "
         "the world process, which live runs do not have yet")
     assert not (tmp_path / "out").exists()
+
+
+def test_a_value_out_of_range_during_the_run_is_located_and_nothing_written(tmp_path,
+                                                                           processes):
+    """A delay that turns out negative as the run goes (the grant sets it): one line at
+    its place in the file, exit status 2, no folder; as ``hybridteam run`` says it."""
+    team = tmp_path / "negative.yaml"
+    team.write_text(TEAM.read_text().replace(
+        "    plant: {kind: flow, state: {x: 0}}\n    initial: Idle",
+        "    plant: {kind: flow, state: {x: 0}}\n    variables: {wait: 0.5}\n"
+        "    initial: Idle").replace(
+        'guard: "msg_amount >= 2"}', 'guard: "msg_amount >= 2", do: ["wait = msg_amount - 3"]}'
+    ).replace("Finished, after: 0.5,", "Finished, after: wait,"))
+    proc = processes(str(team), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--log-level", "warning",
+                     "-o", str(tmp_path / "out"))
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 2
+    assert err.decode().strip().splitlines() == [
+        f"{team}:16:53: agents.requester.modes.Granted.transitions[0].after: the delay "
+        "'wait' is -1.0 in instance 0; it must be a number >= 0"]
+    assert not (tmp_path / "out").exists()

@@ -111,6 +111,7 @@ def check_clock(args: argparse.Namespace) -> None:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
+    from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
     from hybridteam.live.run import LiveRun
     from hybridteam.live.transport import TransportError, UdpTransport
@@ -149,6 +150,11 @@ def cmd_live(args: argparse.Namespace) -> int:
         trace = live.run()
     except HostingError as exc:
         raise UsageError(str(exc)) from None
+    except ModelError as exc:  # a value out of range as the run goes: at its line
+        from hybridteam.io.loader import locate_in_file
+
+        say(locate_in_file(exc, args.team))
+        return EXIT_USAGE
     finally:
         transport.close()
         for s, handler in previous.items():
