@@ -39,8 +39,6 @@ def register(sub) -> dict:
                    help="this process's UDP address (default 127.0.0.1:47000)")
     p.add_argument("--peer", action="append", default=[], metavar="HOST:PORT",
                    help="another process's UDP address (repeat for several)")
-    p.add_argument("--broadcast", action="store_true",
-                   help="allow a LAN broadcast address among the peers")
     p.add_argument("--duration", type=float, default=None,
                    help="run seconds (default: the team's simulation.duration)")
     p.add_argument("--time-scale", type=float, default=1.0, metavar="K",
@@ -133,7 +131,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         stopped.append(signal.Signals(signum).name)
 
     try:
-        transport = UdpTransport(listen, peers, broadcast=args.broadcast)
+        transport = UdpTransport(listen, peers)
     except TransportError as exc:
         raise UsageError(str(exc)) from None
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}

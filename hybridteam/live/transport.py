@@ -49,16 +49,14 @@ class UdpTransport:
 
     The team's socket name travels inside the datagram, so one port serves ``data`` and
     ``control``. Sending to this process's own port is how agents sharing a process talk
-    (through the socket, as they would across machines). ``broadcast`` allows peers that
-    are a LAN's broadcast address (``SO_BROADCAST``)."""
+    (through the socket, as they would across machines). On a LAN, each machine's
+    process listens on its own address and names the others' as peers (broadcast and
+    multicast groups, which need no peer list, are not built yet)."""
 
     def __init__(self, listen: Address = ("127.0.0.1", 47000),
-                 peers: list[Address] | tuple[Address, ...] = (),
-                 broadcast: bool = False) -> None:
+                 peers: list[Address] | tuple[Address, ...] = ()) -> None:
         self.sock = sockets.socket(sockets.AF_INET, sockets.SOCK_DGRAM)
         try:
-            if broadcast:
-                self.sock.setsockopt(sockets.SOL_SOCKET, sockets.SO_BROADCAST, 1)
             self.sock.bind(listen)
         except OSError as exc:
             self.sock.close()
