@@ -360,3 +360,43 @@ def test_a_value_out_of_range_during_the_run_is_located_and_nothing_written(tmp_
         f"{team}:16:53: agents.requester.modes.Granted.transitions[0].after: the delay "
         "'wait' is -1.0 in instance 0; it must be a number >= 0"]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_scripted_loss_of_a_plain_grant_strands_the_requester(tmp_path, processes):
+    """``--drop-copy grant``: the one grant is lost. The requester waits in Asking for
+    good, as the simulator has it with the granter's copies lost (where it concludes a
+    deadlock: live, a copy may still come, so the run goes to its end)."""
+    lost = tmp_path / "lost.yaml"
+    lost.write_text(TEAM.read_text().replace(
+        "  latency: 0.01\n",
+        "  latency: 0.01\n  links:\n    granter -> requester: {loss: 1}\n"))
+    sim = ht.simulate(ht.load(lost))
+    assert sim.outcome == "deadlock"
+    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--duration", "3",
+                     "--drop-copy", "grant", "-o", str(tmp_path / "both"))
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == mode_sequences(sim)
+    assert mode_sequences(trace)["requester"][-1][1] == "Asking"
+    assert trace.meta["live"]["injected"]["scripted"] == 1
+    assert trace.messages["type"].tolist() == ["request"]
+
+
+def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
+    """The same loss with 'grant' acknowledged: its retransmission gets through, and the
+    handshake ends as the simulator's does without loss."""
+    acked = tmp_path / "acked.yaml"
+    acked.write_text(TEAM.read_text().replace(
+        "messages:\n", "messages:\n  grant: {ack: {timeout: 0.2, retries: 3}}\n"))
+    expected = mode_sequences(ht.simulate(ht.load(acked)))
+    proc = processes(str(acked), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "--time-scale", "4", "--drop-copy", "grant",
+                     "-o", str(tmp_path / "both"))
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == expected
+    grants = trace.messages.where(type="grant")
+    assert grants["reason"].tolist() == ["retransmission"]  # the first copy never arrived
+    assert grants["t_send"][0] >= 1.0 + 0.2  # sent again after the ack timeout
+    assert trace.meta["live"]["injected"]["scripted"] == 1

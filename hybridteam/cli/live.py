@@ -78,13 +78,27 @@ def add_faults(parser) -> None:
                         help="test aid: hold each arriving datagram D run seconds more")
     parser.add_argument("--seed", type=int, default=0,
                         help="the --drop draws' seed (default 0)")
+    parser.add_argument("--drop-copy", action="append", default=[], metavar="TYPE[:N]",
+                        help="test aid: drop the N-th copy (default 1st) of message TYPE "
+                             "that arrives for an agent here (repeat for several)")
 
 
 def fault_args(args: argparse.Namespace, k: int) -> list[str]:
     """The fault options as ``live`` takes them, for ``launch``'s ``k``-th process (its
     seed: ``--seed`` + k, so the processes' draws differ)."""
     return ["--drop", repr(args.drop), "--delay", repr(args.delay), "--seed",
-            str(args.seed + k)]
+            str(args.seed + k), *(a for c in args.drop_copy for a in ("--drop-copy", c))]
+
+
+def drop_copies(items: list[str]) -> dict[str, set[int]]:
+    """``--drop-copy TYPE[:N]`` options as ``{type: {n, ...}}``, or UsageError."""
+    out: dict[str, set[int]] = {}
+    for item in items:
+        name, sep, count = item.partition(":")
+        if not name.isidentifier() or (sep and not (count.isdigit() and int(count) >= 1)):
+            raise UsageError(f"--drop-copy must be TYPE or TYPE:N with N >= 1, got '{item}'")
+        out.setdefault(name, set()).add(int(count) if sep else 1)
+    return out
 
 
 def address(text: str, flag: str) -> tuple[str, int]:
@@ -106,6 +120,7 @@ def check_clock(args: argparse.Namespace) -> None:
         raise UsageError(f"--drop must be a probability from 0 to 1, got {args.drop}")
     if not 0 <= args.delay < math.inf:
         raise UsageError(f"--delay must be a finite number >= 0, got {args.delay}")
+    drop_copies(args.drop_copy)
 
 
 def cmd_live(args: argparse.Namespace) -> int:
@@ -139,7 +154,8 @@ def cmd_live(args: argparse.Namespace) -> int:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
-                       delay=args.delay, seed=args.seed)
+                       delay=args.delay, seed=args.seed,
+                       drop_copies=drop_copies(args.drop_copy))
         if args.ready:
             host, port = transport.address
             print(f"ready {host}:{port}", flush=True)
@@ -190,6 +206,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.engine.compiler import compile_team
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.merge import merge_traces
+    from hybridteam.live.run import check_drop_copies
     from hybridteam.trace import Trace, write_atomic
 
     check_clock(args)
@@ -201,6 +218,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     names = [ca.name for ca in full.agents]
     try:
         hosted_team(full, names)
+        check_drop_copies(full, drop_copies(args.drop_copy))
     except HostingError as exc:
         raise UsageError(str(exc)) from None
     ending = [names[a] for a in full.ending]

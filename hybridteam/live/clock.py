@@ -15,7 +15,7 @@ import logging
 import random
 import time
 from collections import Counter
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Mapping
 
 import numpy as np
 
@@ -37,11 +37,14 @@ class WallClock:
     def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
                  time_scale: float = 1.0,
                  stop: Callable[[], str | None] = lambda: None, *, drop: float = 0.0,
-                 delay: float = 0.0, seed: int = 0) -> None:
+                 delay: float = 0.0, seed: int = 0,
+                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
         """``stop``: asked while waiting; a reason (a signal's name) ends the run.
-        ``drop`` and ``delay`` are test aids, not a network model: each datagram of the
-        team that arrives is dropped with probability ``drop`` (draws from ``seed``, in
-        arrival order) or held ``delay`` run seconds more."""
+        ``drop``, ``delay`` and ``drop_copies`` are test aids, not a network model: each
+        datagram of the team that arrives is dropped with probability ``drop`` (draws
+        from ``seed``, in arrival order) or held ``delay`` run seconds more, and the
+        ``n``-th copy of a message type for an agent here (``n`` in ``drop_copies[type]``,
+        counting from 1) is dropped: a scripted loss, as a counterexample has one."""
         self.codec, self.transport = codec, transport
         self.here = sorted(here)
         self.scale = time_scale
@@ -52,7 +55,9 @@ class WallClock:
         self.dropped: Counter[str] = Counter()
         self.drop, self.delay = drop, delay
         self.rng = random.Random(seed)
-        self.injected = {"dropped": 0, "delayed": 0}
+        self.drop_copies = {k: frozenset(v) for k, v in (drop_copies or {}).items()}
+        self.copies: Counter[str] = Counter()  # copies of each type for agents here
+        self.injected = {"dropped": 0, "delayed": 0, "scripted": 0}
         #: wall seconds each instant the loop slept for was taken late (the jitter of a
         #: control period), and from each arrival to the end of the step that handled it
         self.late: list[float] = []
@@ -109,18 +114,25 @@ class WallClock:
             if self.drop and self.rng.random() < self.drop:
                 self.injected["dropped"] += 1
                 continue
+            receivers = [r for r in self.here if r != dg.sender and dg.to in (-1, r)]
+            if receivers and dg.type in self.drop_copies:
+                self.copies[dg.type] += 1
+                if self.copies[dg.type] in self.drop_copies[dg.type]:
+                    self.injected["scripted"] += 1
+                    log.info("dropped copy %d of '%s' (--drop-copy)", self.copies[dg.type],
+                             dg.type)
+                    continue
             t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
             if self.delay:
                 self.injected["delayed"] += 1
             t_send = (dg.sent - self.wall0) * self.scale
-            for r in self.here:
-                if r != dg.sender and dg.to in (-1, r):
-                    ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
-                                                  dg.type, dict(dg.fields), dg.msg_id,
-                                                  dg.note), t, dg.rank)
-                    self.delivered += 1
-                    self._waiting.append((t, arrived + self.delay / self.scale))
-                    queued = True
+            for r in receivers:
+                ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
+                                              dg.type, dict(dg.fields), dg.msg_id, dg.note),
+                                   t, dg.rank)
+                self.delivered += 1
+                self._waiting.append((t, arrived + self.delay / self.scale))
+                queued = True
         return queued
 
     def record(self) -> dict:
@@ -128,7 +140,10 @@ class WallClock:
         return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
                 "datagrams": {"received": self.received, "delivered": self.delivered,
                               "dropped": dict(sorted(self.dropped.items()))},
-                "injected": {"drop": self.drop, "delay": self.delay, **self.injected},
+                "injected": {"drop": self.drop, "delay": self.delay,
+                             "drop_copies": {k: sorted(v) for k, v in
+                                             sorted(self.drop_copies.items())},
+                             **self.injected},
                 "wall_s": time.monotonic() - self.mono0,
                 "cpu_s": time.process_time() - self.cpu0,
                 "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}

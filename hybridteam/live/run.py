@@ -13,17 +13,18 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
+from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.compiler import compile_team
 from hybridteam.engine.record import variables_key
 from hybridteam.engine.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
-from hybridteam.live.hosting import hosted_team
+from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
-from hybridteam.live.wire import VERSION, Codec
+from hybridteam.live.wire import VERSION, Codec, declarations
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -38,20 +39,23 @@ class LiveRun:
                  transport_name: str = "udp", time_scale: float = 1.0,
                  duration: float | None = None,
                  stop: Callable[[], str | None] = lambda: None, drop: float = 0.0,
-                 delay: float = 0.0, seed: int = 0) -> None:
+                 delay: float = 0.0, seed: int = 0,
+                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
-        waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``:
-        injected loss and delay at the receiving socket (:class:`.clock.WallClock`).
-        HostingError for agents or a team a live process cannot run."""
+        waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
+        ``drop_copies``: injected loss and delay at the receiving socket
+        (:class:`.clock.WallClock`). HostingError for agents or a team a live process
+        cannot run, or a ``drop_copies`` type the team does not declare."""
         full = compile_team(team)
         self.codec = Codec(full)  # (the whole team's declarations: every process's)
         cteam = hosted_team(full, agents)
+        check_drop_copies(full, drop_copies or {})
         hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
         self.here = [full.agents[a].name for a in hosted]
         self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
         self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
-                               delay=delay, seed=seed)
+                               delay=delay, seed=seed, drop_copies=drop_copies)
         # (no wall-time limit: a live run's pace is the wall clock's by design, and the
         # simulator's limit would end a deployment of more than a day as too slow)
         self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
@@ -75,6 +79,15 @@ class LiveRun:
                         sum(dropped.values()),
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
         return process_trace(trace, record)
+
+
+def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:
+    """HostingError for a scripted drop of a message type the team does not declare."""
+    types = declarations(cteam)
+    for name in drop_copies:
+        if name not in types:
+            raise HostingError(f"--drop-copy '{name}': the team has no message type "
+                               f"'{name}' (its types: {', '.join(types)})")
 
 
 def run_live(team: Team, agents: Sequence[str], transport: Transport, **options) -> Trace:
