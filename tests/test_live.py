@@ -259,12 +259,13 @@ def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
     muted.write_text(HANDOVER.read_text().replace(
         "  latency: 0.03\n", "  latency: 0.03\n  links:\n    xr4000 -> labmate: {loss: 1}\n"
         "    xr4000 -> operator: {loss: 1}\n"))
-    expected = mode_sequences(ht.simulate(ht.load(muted)))
+    expected = mode_sequences(ht.simulate(ht.load(muted), duration=4.0))
     assert expected["labmate"][-1] == ("Transport.Requesting", "Transport.Operated",
                                        "event:request_undeliverable")
     out = tmp_path / "launch"
     launch = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "launch",
-                               str(HANDOVER), "--time-scale", "4", "-o", str(out)],
+                               str(HANDOVER), "--time-scale", "4", "--duration", "4",
+                               "-o", str(out)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         log = out / "agents" / "xr4000" / "live.log"
@@ -305,7 +306,8 @@ def test_injected_loss_drops_what_arrives(tmp_path, processes):
     assert mode_sequences(trace) == expected
     live = trace.meta["live"]
     assert live["sent"] == 1  # the request
-    assert live["injected"] == {"drop": 1.0, "delay": 0.0, "dropped": 1, "delayed": 0}
+    assert live["injected"] == {"drop": 1.0, "delay": 0.0, "drop_copies": {}, "dropped": 1,
+                                "delayed": 0, "scripted": 0}
     assert len(trace.messages) == 0
 
 
