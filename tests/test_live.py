@@ -402,3 +402,20 @@ def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
     assert grants["reason"].tolist() == ["retransmission"]  # the first copy never arrived
     assert grants["t_send"][0] >= 1.0 + 0.2  # sent again after the ack timeout
     assert trace.meta["live"]["injected"]["scripted"] == 1
+
+
+def test_a_paused_process_takes_its_instants_late_and_says_so(tmp_path, processes):
+    """The process is stopped (SIGSTOP) from about 0.2 s to 1.4 s of the wall clock, over
+    the requester's first instant (1.0): it takes that instant late, by more than 0.3 s,
+    the record says so, and the handshake still ends as the simulator's."""
+    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
+                     f"{LOCAL}:{free_port()}", "-o", str(tmp_path / "both"))
+    wait_running(proc)
+    time.sleep(0.2)
+    proc.send_signal(signal.SIGSTOP)
+    time.sleep(1.2)
+    proc.send_signal(signal.SIGCONT)
+    finish(proc)
+    trace = Trace.load(tmp_path / "both" / "trace.json")
+    assert mode_sequences(trace) == simulated()
+    assert trace.meta["live"]["late_ms"]["max"] > 300
