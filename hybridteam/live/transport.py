@@ -18,6 +18,9 @@ from typing import Protocol
 #: Read buffer: a UDP datagram's largest size, so an oversized one is read whole (and
 #: dropped by the decoder) rather than truncated into something else.
 READ_BYTES = 65535
+#: The most datagrams one ``receive`` returns: a flood arriving faster than it is read
+#: must not hold the caller (the run's loop) in one call; the rest wait for the next.
+BATCH = 1024
 
 
 class TransportError(OSError):
@@ -32,7 +35,8 @@ class Transport(Protocol):
 
     def receive(self) -> list[tuple[bytes, float]]:
         """Every datagram waiting, each with its arrival time (``time.monotonic()``);
-        never blocks."""
+        never blocks. (A transport may return a bounded batch of them, as
+        :class:`UdpTransport` does under a flood: the rest come with the next call.)"""
 
     def wait(self, timeout: float) -> bool:
         """Block until a datagram is waiting or ``timeout`` seconds pass; True if one is."""
@@ -54,7 +58,7 @@ class UdpTransport:
     multicast groups, which need no peer list, are not built yet)."""
 
     def __init__(self, listen: Address = ("127.0.0.1", 47000),
-                 peers: list[Address] | tuple[Address, ...] = ()) -> None:
+                 peers: list[Address] | tuple[Address, ...] = (), batch: int = BATCH) -> None:
         self.sock = sockets.socket(sockets.AF_INET, sockets.SOCK_DGRAM)
         try:
             self.sock.bind(listen)
@@ -69,6 +73,7 @@ class UdpTransport:
         self.sock.setblocking(False)
         self.address: Address = self.sock.getsockname()
         self.peers = [*dict.fromkeys([*peers, self.address])]
+        self.batch = batch
         self.sent = 0
         self.send_errors = 0
         self.closed = False
@@ -83,14 +88,15 @@ class UdpTransport:
 
     def receive(self) -> list[tuple[bytes, float]]:
         out: list[tuple[bytes, float]] = []
-        while True:
+        for _ in range(self.batch):  # (errors count too: none can hold the caller)
             try:
                 data = self.sock.recv(READ_BYTES)
             except (BlockingIOError, InterruptedError):
-                return out
+                break
             except OSError:  # an earlier send's ICMP error reported here: nothing to read
                 continue
             out.append((data, time.monotonic()))
+        return out
 
     def wait(self, timeout: float) -> bool:
         if self.closed:
