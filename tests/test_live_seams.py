@@ -99,3 +99,52 @@ def test_a_remote_agent_is_inert():
     assert outlet.sent == []
     assert trace.transitions.where(agent="requester")["target"].tolist() == ["Idle"]
     assert trace.outcomes[0]["t"] == 6.0
+
+
+BEACON = """\
+kind: protocol
+protocol: beacon
+streams:
+  - {message: ping, rate: 10, fields: {x: x}}
+region:
+  roles: [go]
+  initial: Going
+  modes:
+    Going: {role: go}
+"""
+
+WATCHED = """\
+team: watched
+network: {latency: 0.01}
+agents:
+  r:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    modes:
+      Run:
+        protocol: beacon.yaml
+        roles: {go: {inputs: {v: 1, omega: 0}, period: 0.1}}
+  s:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Waiting
+    modes:
+      Waiting: {transitions: [{to: Seen, guard: "est_ping_x > 0.5"}]}
+      Seen: {final: true}
+simulation: {duration: 2.0}
+"""
+
+
+def test_an_agent_without_streams_reads_a_remote_agent_s_stream(tmp_path, team_from_yaml):
+    """The watcher streams nothing and its streaming teammate is remote, so no agent here
+    streams; the copies that arrive still update its estimates, and its guard on them
+    holds at the first copy past x = 0.5 (x = 0.6, sent at 0.6, arriving at 0.65)."""
+    (tmp_path / "beacon.yaml").write_text(BEACON)
+    team = team_from_yaml(WATCHED)
+    cteam = hosted_team(compile_team(team), ["s"])
+    pings = [(0.05 + 0.1 * k, Message(0, -1, k, 0.1 * k, "data", "ping", {"x": 0.1 * k}))
+             for k in range(10)]
+    for _, msg in pings:
+        msg.receiver = 1
+    sim = Simulator(cteam, 1, clock=ScriptedClock(pings))
+    sim.ensemble.network.outlet = Collect()
+    trace = sim.run()
+    assert trace.transitions.where(agent="s", target="Seen")["t"].tolist() == [0.05 + 0.1 * 6]
