@@ -22,6 +22,7 @@ from hybridteam.engine.compiler import compile_team
 from hybridteam.engine.network import Message
 from hybridteam.live.wire import MAX_BYTES, Codec
 from hybridteam.trace import Trace
+from hybridteam.trace_schema import check_trace
 
 TEAM = Path(__file__).parent / "fixtures" / "live" / "handshake.yaml"
 LOCAL = "127.0.0.1"
@@ -139,7 +140,9 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
 
     expected = simulated()
     for agent in ("requester", "granter"):
-        trace = Trace.load(tmp_path / agent / "trace.json")
+        data = json.loads((tmp_path / agent / "trace.json").read_text())
+        assert check_trace(data) is None  # an ordinary trace: the views read it
+        trace = Trace.from_dict(data)
         assert mode_sequences(trace) == {agent: expected[agent]}
         assert trace.outcomes[0]["outcome"] == "ok"
         assert trace.outcomes[0]["message"] == f"'{agent}' reached a final mode (the end rule)"
@@ -222,8 +225,6 @@ def test_launch_runs_every_agent_and_merges_their_traces(tmp_path):
     """``hybridteam launch``: one process per agent, started together; the merged trace
     has every agent's transitions of ``hybridteam run``, in the same order, and is a trace
     the views read."""
-    from hybridteam.trace_schema import check_trace
-
     out = tmp_path / "launch"
     proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(TEAM),
                            "--time-scale", "4", "-o", str(out)],
