@@ -222,6 +222,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
     except HostingError as exc:
         raise UsageError(str(exc)) from None
     ending = [names[a] for a in full.ending]
+    # (summary.json is written last: an older one must not make a failed launch's folder
+    # look complete)
+    (out / "summary.json").unlink(missing_ok=True)
     ports = free_ports(len(names))
     stopped: list[str] = []
 
@@ -291,7 +294,6 @@ def cmd_launch(args: argparse.Namespace) -> int:
                "message": outcome["message"], "transitions": len(merged.transitions),
                "messages": len(merged.messages), "live": merged.meta["live"]}
     try:
-        (out / "summary.json").unlink(missing_ok=True)
         merged.to_json(out / "trace.json")
         write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     except OSError as exc:
