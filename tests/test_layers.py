@@ -91,9 +91,28 @@ def _under(name: str, *prefixes: str) -> bool:
 LOWEST = ("hybridteam.errors", "hybridteam.model", "hybridteam.expr", "hybridteam.dynamics",
           "hybridteam.trace", "hybridteam.arrays")
 ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridteam.sweep",
-                "hybridteam.api", "hybridteam.kinds")
+                "hybridteam.api", "hybridteam.kinds", "hybridteam.live")
 #: What a mode library may import of hybridteam.
 LIBRARY_API = ("hybridteam.library", "hybridteam.world.geometry")
+
+
+def _private(dotted: str) -> bool:
+    """Whether a dotted name has a private part (``_name``, not ``__init__``)."""
+    return any(p.startswith("_") and not p.startswith("__") for p in dotted.split("."))
+
+
+def private_attributes(folder: Path, package: str) -> list[str]:
+    """``module:line`` of every private attribute read on anything but ``self`` or
+    ``cls`` in the package (the live runtime reaches the engine's objects through their
+    public names only)."""
+    found = []
+    for path in sorted(folder.rglob("*.py")):
+        module = _dotted(path, folder, package)
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.Attribute) and _private(node.attr) and not (
+                    isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+                found.append(f"{module}:{node.lineno} reads .{node.attr}")
+    return found
 
 
 def violations(imports: list[Import]) -> list[str]:
@@ -119,7 +138,9 @@ def violations(imports: list[Import]) -> list[str]:
         if _under(m, "hybridteam.world") and _under(t, "hybridteam.engine", *ABOVE_ENGINE):
             report(imp, "world components see the engine only through WorldAccess")
         if _under(m, "hybridteam.engine") and _under(t, *ABOVE_ENGINE):
-            report(imp, "the engine never imports io, export, cli, sweep, api or kinds")
+            report(imp, "the engine never imports io, export, cli, sweep, api, kinds or live")
+        if _under(m, "hybridteam.live") and _under(t, "hybridteam.engine") and _private(t):
+            report(imp, "the live runtime uses no private engine name")
         if _under(m, "hybridteam.io") and _under(t, "hybridteam.sweep", "hybridteam.kinds",
                                                   "hybridteam.cli", "hybridteam.export"):
             report(imp, "io never imports sweep, kinds, cli or export")
@@ -133,6 +154,17 @@ def test_the_source_keeps_its_layers():
     found = all_imports(ROOT / "hybridteam", ROOT / "modes")
     assert len(found) > 300  # the walk saw the code base, not an empty folder
     assert violations(found) == []
+
+
+def test_the_live_runtime_reads_no_private_name(tmp_path):
+    """hybridteam.live reaches the engine's objects through public names only; the check
+    sees a planted private read."""
+    assert private_attributes(ROOT / "hybridteam" / "live", "hybridteam.live") == []
+    planted = tmp_path / "live"
+    planted.mkdir()
+    (planted / "clock.py").write_text("def f(ens):\n    return ens.network._given\n")
+    assert private_attributes(planted, "hybridteam.live") == [
+        "hybridteam.live.clock:2 reads ._given"]
 
 
 def test_each_rule_catches_a_broken_import(tmp_path):
@@ -151,6 +183,8 @@ def test_each_rule_catches_a_broken_import(tmp_path):
         framework / "model" / "team.py": "import hybridteam.engine\n",
         framework / "engine" / "state.py": "from ..export import style\n",
         framework / "api.py": "from hybridteam.modes.ladder import simulate\n",
+        framework / "engine" / "step.py": "from hybridteam.live.wire import Codec\n",
+        framework / "live" / "run.py": "from hybridteam.engine.network import _given\n",
     }
     for path, line in planted.items():
         path.write_text(path.read_text() + line)
@@ -159,7 +193,8 @@ def test_each_rule_catches_a_broken_import(tmp_path):
     expected = [
         "hybridteam.modes.ladder.world:", "hybridteam.modes.transport.laws:",
         "hybridteam.world.carried:", "hybridteam.io.loader:", "hybridteam.model.team:",
-        "hybridteam.engine.state:", "hybridteam.api:"]
+        "hybridteam.engine.state:", "hybridteam.api:", "hybridteam.engine.step:",
+        "hybridteam.live.run:"]
     for prefix in expected:
         assert any(b.startswith(prefix) for b in bad), (prefix, bad)
     assert any("state:" in b and "imports hybridteam.export " in b for b in bad)  # relative

@@ -114,8 +114,10 @@ class Ensemble:
         for st in self.states:
             st.world = self.world
         self.rec.add_series(self.world.sample_series())
-        if self.streams.any:
-            fields = stream_fields(cteam.team)
+        # every agent has an inbox when the team declares streams (in a live process the
+        # streaming agents may all be elsewhere, and their copies still arrive here)
+        fields = stream_fields(cteam.team)
+        if fields:
             for st in self.states:
                 st.inbox = Inbox(n, len(cteam.agents), fields)
         self._gather_instants()

@@ -20,7 +20,7 @@ instance), so an ensemble can also pack runs that a study gives different seeds.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -61,6 +61,17 @@ class Message:
         self.sender, self.receiver, self.seq, self.t_send = sender, receiver, seq, t_send
         self.socket, self.type, self.fields = socket, type_, fields
         self.msg_id, self.note = msg_id, note
+
+
+class Outlet(Protocol):
+    """Where a live run's sends go instead of the simulated medium (:mod:`hybridteam.live`).
+
+    Every send of the run (data and control messages, acks, retransmissions, stream
+    copies) is handed over once, as the :class:`Message` it is, with ``receiver`` the
+    addressee (-1: every other agent) and ``rank`` its same-instant order. The outlet puts
+    it on the wire; what arrives comes back through :meth:`Network.arrive`."""
+
+    def send(self, msg: Message, rank: float) -> None: ...
 
 
 def check_network(team: Team) -> list[ModelError]:
@@ -128,6 +139,9 @@ class Network:
         #: the fate and arrival times of every copy but the streams' instead of the links
         #: (single runs only)
         self.script: Any = None
+        #: a live run's outlet (:class:`Outlet`): when set, every send goes to it instead
+        #: of the links (single runs only), and nothing is known to be in flight
+        self.outlet: Outlet | None = None
 
     # ------------------------------------------------------------------ sending
     def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | np.ndarray | None,
@@ -139,6 +153,13 @@ class Network:
         seq = self.count[sender][idx].copy()
         self.count[sender][idx] += 1
         ids = filled(idx.size, -1, np.int64) if msg_id is None else msg_id
+        if self.outlet is not None:
+            target = int(to[0]) if isinstance(to, np.ndarray) else -1 if to is None else to
+            self.outlet.send(Message(sender, max(target, -1), int(seq[0]), float(t[0]),
+                                     socket, type_, {f: float(v[0]) for f, v in fields.items()},
+                                     int(ids[0]), note),
+                             0.0 if rank is None else float(rank[0]))
+            return
         if self.script is not None and type_ not in self.script.streams:
             self._scripted(t, sender, to, socket, type_, fields, int(seq[0]), int(ids[0]),
                            note, 0.0 if rank is None else float(rank[0]))
@@ -237,6 +258,13 @@ class Network:
                                      rank=rank)
 
     # ------------------------------------------------------------------ receiving
+    def arrive(self, i: int, msg: Message, t: float, rank: float = 0.0) -> None:
+        """A copy that came from outside the run (a live run's transport) reaches
+        ``msg.receiver`` of instance ``i`` at time ``t``: queued as a message event, to be
+        received (rate limits, the protocol's screen, the record) as a simulated one is."""
+        self.queue.push_each(np.array([i]), np.array([t]), MESSAGE, msg.receiver, msg.type,
+                             [msg], rank=rank)
+
     def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message],
                 screen: Callable[[int, Message, float], str | None] | None = None
                 ) -> np.ndarray:

@@ -6,7 +6,8 @@ operators, which stand by forever) are all in final modes — or, with ``when: a
 of them is — and the outcome is the first named by their final modes, else ``ok``.
 ``deadlock``: nothing is pending (no
 event, message, timer, stream) and every agent either is final or waits for a trigger, so no
-discrete step can ever happen again. Each outcome carries a message naming agents, modes,
+discrete step can ever happen again (never concluded in a live run, where a datagram may
+still arrive). Each outcome carries a message naming agents, modes,
 guards or triggers, and the time.
 """
 
@@ -54,6 +55,8 @@ def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = 
         return
     # periodic stream sends are pending messages too: a robot that still talks is not stalled
     pending = ens.queue.pending(idx) | np.isfinite(ens.streams.next[idx]) | ens.world.raises
+    if ens.network.outlet is not None:  # live: a datagram may always still arrive
+        pending = filled(idx.size, True, bool)
     if config is None:
         ending = filled(idx.size, True, bool)
     else:

@@ -24,6 +24,7 @@ import numpy as np
 from hybridteam.arrays import NO_INDEX, every, gather, some, union, where_true
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
+from hybridteam.engine.clock import Clock
 from hybridteam.engine.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
@@ -51,7 +52,8 @@ class Simulator:
                  max_periods: float | None = None, max_wall: float | None = None,
                  snapshots: bool = False,
                  observe: Mapping[int, Sequence[Watch]] | None = None,
-                 samples: bool = True, written: bool = False) -> None:
+                 samples: bool = True, written: bool = False,
+                 clock: Clock | None = None) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -62,7 +64,9 @@ class Simulator:
         statistics are the same; a study's rows need none, and interpolating and
         recording them cost a sixth of the ladder's sample run. ``written``: the caller
         writes the trace's files (``hybridteam run``), whose rows count in the memory
-        estimate."""
+        estimate.
+        ``clock``: a live run's clock (:mod:`.clock`), asked before every step; None (a
+        simulation) advances at once."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -78,6 +82,7 @@ class Simulator:
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
+        self.clock = clock
         #: whether any agent can ever be integrated (a flow plant, or an integrated law):
         #: else no step is limited by error control, and it ends at the next instant due
         self.may_flow = any(ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers)
@@ -104,7 +109,12 @@ class Simulator:
             self._initialize()
             last_report = -1.0
             steps = 0
+            clock = self.clock
             while not every(ens.done):
+                if clock is not None:
+                    clock.advance(ens)
+                    if every(ens.done):  # the clock ended the run (a signal, the wall)
+                        break
                 self._step()
                 steps += 1
                 if self.progress is not None or steps % 64 == 0:

@@ -1,0 +1,170 @@
+"""The wall clock and the wire outlet: the engine's two seams as a live process fills them.
+
+Run time is ``K`` times the wall seconds since the process started (``K``: the time scale,
+1 on robots; larger only for simulated plants, so tests need not wait). Before each step
+:class:`WallClock` sleeps until the engine's next scheduled instant is due, waking early
+for datagrams: each one this process hosts an addressee of becomes a message event at the
+run time it arrived (never before the engine's present), so the step ends there and the
+engine receives it as it receives a simulated copy. :class:`WireOutlet` puts every send
+of the hosted agents on the wire.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import time
+from collections import Counter
+from collections.abc import Callable, Collection, Mapping
+
+import numpy as np
+
+from hybridteam.engine.ensemble import Ensemble
+from hybridteam.engine.network import Message
+from hybridteam.engine.schedule import earliest
+from hybridteam.live.transport import Transport
+from hybridteam.live.wire import Codec, WireError
+
+log = logging.getLogger("hybridteam.live")
+
+#: The longest single wait (wall seconds): a stop request is seen within it.
+MAX_WAIT = 0.05
+
+
+class WallClock:
+    """Run time on the wall clock, arrivals from a transport (module docstring)."""
+
+    def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
+                 time_scale: float = 1.0,
+                 stop: Callable[[], str | None] = lambda: None, *, drop: float = 0.0,
+                 delay: float = 0.0, seed: int = 0,
+                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
+        """``stop``: asked while waiting; a reason (a signal's name) ends the run.
+        ``drop``, ``delay`` and ``drop_copies`` are test aids, not a network model: each
+        datagram of the team that arrives is dropped with probability ``drop`` (draws
+        from ``seed``, in arrival order) or held ``delay`` run seconds more, and the
+        ``n``-th copy of a message type for an agent here (``n`` in ``drop_copies[type]``,
+        counting from 1) is dropped: a scripted loss, as a counterexample has one."""
+        self.codec, self.transport = codec, transport
+        self.here = sorted(here)
+        self.scale = time_scale
+        self.stop = stop
+        self.start()
+        self.received = 0
+        self.delivered = 0
+        self.dropped: Counter[str] = Counter()
+        self.drop, self.delay = drop, delay
+        self.rng = random.Random(seed)
+        self.drop_copies = {k: frozenset(v) for k, v in (drop_copies or {}).items()}
+        self.copies: Counter[str] = Counter()  # copies of each type for agents here
+        self.injected = {"dropped": 0, "delayed": 0, "scripted": 0}
+        #: wall seconds each instant the loop slept for was taken late (the jitter of a
+        #: control period), and from each arrival to the end of the step that handled it
+        self.late: list[float] = []
+        self.reaction: list[float] = []
+        #: arrivals queued and not yet handled: (run time, time.monotonic() on arrival)
+        self._waiting: list[tuple[float, float]] = []
+
+    def start(self) -> None:
+        """Run time 0 is now (called as the run starts)."""
+        self.mono0 = time.monotonic()
+        self.wall0 = time.time()  # the same instant on the wall clock (send times)
+        self.cpu0 = time.process_time()
+
+    def now(self) -> float:
+        """The run time now."""
+        return (time.monotonic() - self.mono0) * self.scale
+
+    def advance(self, ens: Ensemble) -> None:
+        if self._waiting:  # the arrivals the steps since the last call have handled
+            handled = time.monotonic()
+            t = float(ens.t[0])
+            self.reaction += [handled - m for tau, m in self._waiting if tau <= t]
+            self._waiting = [(tau, m) for tau, m in self._waiting if tau > t]
+        due = min(float(earliest(ens.instants, ens.instants_at.shape[0])[0][0]), ens.t_end)
+        slept = False
+        while True:
+            if self._take(ens):
+                return
+            reason = self.stop()
+            if reason is not None:
+                log.info("stopping at t=%.3f: %s", float(ens.t[0]), reason)
+                ens.finish(ens.everyone, "stopped",
+                           lambda i, why=reason: f"stopped by {why} at t={ens.when(i)}")
+                return
+            now = self.now()
+            if now >= due:
+                if slept:
+                    self.late.append((now - due) / self.scale)
+                return
+            self.transport.wait(min((due - now) / self.scale, MAX_WAIT))
+            slept = True
+
+    def _take(self, ens: Ensemble) -> bool:
+        """Queue every datagram waiting for the hosted agents; whether any was queued."""
+        queued = False
+        for data, arrived in self.transport.receive():
+            self.received += 1
+            try:
+                dg = self.codec.decode(data)
+            except WireError as exc:
+                self.dropped[exc.reason] += 1
+                log.debug("dropped a datagram (%s)", exc)
+                continue
+            if self.drop and self.rng.random() < self.drop:
+                self.injected["dropped"] += 1
+                continue
+            receivers = [r for r in self.here if r != dg.sender and dg.to in (-1, r)]
+            if receivers and dg.type in self.drop_copies:
+                self.copies[dg.type] += 1
+                if self.copies[dg.type] in self.drop_copies[dg.type]:
+                    self.injected["scripted"] += 1
+                    log.info("dropped copy %d of '%s' (--drop-copy)", self.copies[dg.type],
+                             dg.type)
+                    continue
+            t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
+            if self.delay:
+                self.injected["delayed"] += 1
+            t_send = (dg.sent - self.wall0) * self.scale
+            for r in receivers:
+                ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
+                                              dg.type, dict(dg.fields), dg.msg_id, dg.note),
+                                   t, dg.rank)
+                self.delivered += 1
+                self._waiting.append((t, arrived + self.delay / self.scale))
+                queued = True
+        return queued
+
+    def record(self) -> dict:
+        """What the trace's ``meta.live`` says of the clock and the wire."""
+        return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
+                "datagrams": {"received": self.received, "delivered": self.delivered,
+                              "dropped": dict(sorted(self.dropped.items()))},
+                "injected": {"drop": self.drop, "delay": self.delay,
+                             "drop_copies": {k: sorted(v) for k, v in
+                                             sorted(self.drop_copies.items())},
+                             **self.injected},
+                "wall_s": time.monotonic() - self.mono0,
+                "cpu_s": time.process_time() - self.cpu0,
+                "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}
+
+
+def _percentiles(seconds: list[float]) -> dict[str, float | int]:
+    """Count, median, 99th percentile and largest of durations, in milliseconds."""
+    if not seconds:
+        return {"count": 0}
+    ms = np.asarray(seconds) * 1e3
+    return {"count": int(ms.size), "p50": float(np.percentile(ms, 50)),
+            "p99": float(np.percentile(ms, 99)), "max": float(ms.max())}
+
+
+class WireOutlet:
+    """The network's outlet: each send of a hosted agent, encoded, to the transport."""
+
+    def __init__(self, codec: Codec, transport: Transport) -> None:
+        self.codec, self.transport = codec, transport
+        self.sent = 0
+
+    def send(self, msg: Message, rank: float) -> None:
+        self.transport.send(self.codec.encode(msg, rank, time.time()), msg.socket)
+        self.sent += 1

@@ -1,0 +1,111 @@
+"""One live process's run: the hosted agents of a team, on the wall clock, over a
+transport (docs/live.md).
+
+The engine's ordinary :class:`~hybridteam.engine.simulator.Simulator` runs one instance of
+the team as this process hosts it (:mod:`.hosting`), with the wall clock as its clock and
+the wire as its network's outlet (:mod:`.clock`). Its trace is the ordinary format, kept
+to what this process knows: the hosted agents' modes, transitions and samples (a remote
+agent's samples are NaN: unknown here), every copy that reached a hosted agent, and
+``meta.live``: the agents here, the transport, the clock and the datagrams counted.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable, Collection, Mapping, Sequence
+
+import numpy as np
+
+from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.record import variables_key
+from hybridteam.engine.simulator import Simulator
+from hybridteam.live.clock import WallClock, WireOutlet
+from hybridteam.live.hosting import HostingError, hosted_team
+from hybridteam.live.transport import Transport
+from hybridteam.live.wire import VERSION, Codec, declarations
+from hybridteam.model import Team
+from hybridteam.trace import Trace
+
+log = logging.getLogger("hybridteam.live")
+
+
+class LiveRun:
+    """One live process's run, built (the team compiled, the engine set up) apart from
+    being run, so that a launcher can start every process's clock together."""
+
+    def __init__(self, team: Team, agents: Sequence[str], transport: Transport, *,
+                 transport_name: str = "udp", time_scale: float = 1.0,
+                 duration: float | None = None,
+                 stop: Callable[[], str | None] = lambda: None, drop: float = 0.0,
+                 delay: float = 0.0, seed: int = 0,
+                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
+        """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
+        close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
+        waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
+        ``drop_copies``: injected loss and delay at the receiving socket
+        (:class:`.clock.WallClock`). HostingError for agents or a team a live process
+        cannot run, or a ``drop_copies`` type the team does not declare."""
+        full = compile_team(team)
+        self.codec = Codec(full)  # (the whole team's declarations: every process's)
+        cteam = hosted_team(full, agents)
+        check_drop_copies(full, drop_copies or {})
+        hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
+        self.here = [full.agents[a].name for a in hosted]
+        self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
+        self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
+                               delay=delay, seed=seed, drop_copies=drop_copies)
+        # (no wall-time limit: a live run's pace is the wall clock's by design, and the
+        # simulator's limit would end a deployment of more than a day as too slow)
+        self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
+                             max_wall=math.inf)
+        self.outlet = WireOutlet(self.codec, transport)
+        self.sim.ensemble.network.outlet = self.outlet
+
+    def run(self) -> Trace:
+        """Run until the end rule holds for the agents here, the duration passes, or
+        ``stop`` gives a reason; returns the process's trace."""
+        log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
+                 ", ".join(self.here), self.time_scale, self.sim.ensemble.t_end)
+        self.clock.start()
+        trace = self.sim.run()
+        record = {"agents": self.here, "transport": self.transport_name, "wire": VERSION,
+                  "digest": self.codec.digest, **self.clock.record(),
+                  "sent": self.outlet.sent}
+        dropped = record["datagrams"]["dropped"]
+        if dropped:
+            log.warning("dropped %d datagram(s) not of this team: %s",
+                        sum(dropped.values()),
+                        ", ".join(f"{k} {v}" for k, v in dropped.items()))
+        return process_trace(trace, record)
+
+
+def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:
+    """HostingError for a scripted drop of a message type the team does not declare."""
+    types = declarations(cteam)
+    for name in drop_copies:
+        if name not in types:
+            raise HostingError(f"--drop-copy '{name}': the team has no message type "
+                               f"'{name}' (its types: {', '.join(types)})")
+
+
+def run_live(team: Team, agents: Sequence[str], transport: Transport, **options) -> Trace:
+    """Build and run a :class:`LiveRun` (its options) at once; returns its trace."""
+    return LiveRun(team, agents, transport, **options).run()
+
+
+def process_trace(trace: Trace, record: dict) -> Trace:
+    """The trace kept to what the process hosting ``record['agents']`` knows."""
+    here = set(record["agents"])
+    transitions = trace.transitions.filter(np.isin(trace.transitions["agent"], list(here)))
+    intervals = trace.intervals.filter(np.isin(trace.intervals["agent"], list(here)))
+    samples = dict(trace.samples)
+    for name in trace.agents:
+        if name not in here:
+            for key in (name, variables_key(name)):
+                if key in samples:
+                    samples[key] = np.full_like(samples[key], np.nan)
+    meta = {**trace.meta, "live": record}
+    return Trace(meta, trace.outcomes, transitions, intervals, trace.messages,
+                 trace.sample_times, samples)

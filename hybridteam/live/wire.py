@@ -1,0 +1,193 @@
+"""The wire format of a live team: one datagram per message, JSON, versioned.
+
+Every datagram names the wire version, the team (its name and a digest of its message
+declarations), the sender, the sender's datagram number, the message type, the addressee,
+the socket, the fields, the acknowledged layer's id and note, the same-instant rank and
+the send time on the sender's wall clock (the table is in docs/live.md).
+
+Datagrams come from a network anyone can write to, so :class:`Codec.decode` trusts
+nothing: a datagram that is too large, not JSON, of another version or team, with a key
+missing or extra, a sender or addressee not in the team, a message type or field the team
+does not declare, a value of the wrong kind (a field that is not a finite number), or a
+sequence number already seen from its sender raises one :class:`WireError` naming the
+reason, which the receiver counts and drops. Nothing in a datagram is evaluated: it is
+parsed by :func:`json.loads` into plain values and checked key by key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass
+
+from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.network import Message
+from hybridteam.engine.reliable import ACK
+
+#: The wire version this code speaks; a receiver refuses every other.
+VERSION = 1
+#: The largest datagram accepted (bytes): one message is a few hundred.
+MAX_BYTES = 8192
+KEYS = frozenset({"ht", "team", "digest", "from", "seq", "type", "to", "socket", "fields",
+                  "id", "note", "rank", "sent"})
+NOTES = frozenset({"", "retransmission", "ack"})
+#: Why a datagram was dropped: the reasons :class:`WireError` carries, in this order.
+REASONS = ("oversized", "malformed", "version", "foreign team", "forged", "replayed")
+
+
+class WireError(ValueError):
+    """A datagram that is not one of this team's: ``reason`` is one of :data:`REASONS`."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class Datagram:
+    """A checked datagram: agents as the team's indices (``to`` -1: every other agent)."""
+
+    sender: int
+    to: int
+    seq: int
+    type: str
+    socket: str
+    fields: dict[str, float]
+    msg_id: int
+    note: str
+    rank: float
+    sent: float
+
+
+def declarations(cteam: CTeam) -> dict[str, dict[str, list[str]]]:
+    """Every message type the team's agents can send: its sockets and field names (the
+    union over the sends and streams of that type), and the acknowledged layer's ``ack``."""
+    found: dict[str, tuple[set[str], set[str]]] = {ACK: ({"control", "data"}, {"id"})}
+    for ca in cteam.agents:
+        for tr in ca.transitions:
+            for act in tr.actions:
+                if act.kind == "send":
+                    sockets, fields = found.setdefault(act.name, (set(), set()))
+                    sockets.add(act.socket)
+                    fields.update(act.fields)
+        for cs in ca.streams:
+            sockets, fields = found.setdefault(cs.message, (set(), set()))
+            sockets.add(cs.socket)
+            fields.update(cs.fields)
+    return {name: {"sockets": sorted(s), "fields": sorted(f)}
+            for name, (s, f) in sorted(found.items())}
+
+
+class Codec:
+    """Encodes this team's messages and decodes (checks) datagrams that claim to be."""
+
+    def __init__(self, cteam: CTeam) -> None:
+        self.team = cteam.team.name
+        self.agents = [ca.name for ca in cteam.agents]
+        self.index = {name: a for a, name in enumerate(self.agents)}
+        self.messages = declarations(cteam)
+        canonical = json.dumps({"agents": self.agents, "messages": self.messages},
+                               sort_keys=True, separators=(",", ":"))
+        self.digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]
+        self._sockets = {k: frozenset(v["sockets"]) for k, v in self.messages.items()}
+        self._fields = {k: frozenset(v["fields"]) for k, v in self.messages.items()}
+        #: the last sequence number accepted from each sender (replays are refused)
+        self.last_seq: dict[int, int] = {}
+
+    # ------------------------------------------------------------------ sending
+    def encode(self, msg: Message, rank: float, sent: float) -> bytes:
+        """One datagram for ``msg`` (``msg.receiver`` -1: every other agent), sent at wall
+        time ``sent``."""
+        return json.dumps({
+            "ht": VERSION, "team": self.team, "digest": self.digest,
+            "from": self.agents[msg.sender], "seq": msg.seq, "type": msg.type,
+            "to": None if msg.receiver < 0 else self.agents[msg.receiver],
+            "socket": msg.socket, "fields": msg.fields, "id": msg.msg_id, "note": msg.note,
+            "rank": rank, "sent": sent,
+        }, separators=(",", ":"), allow_nan=False).encode()
+
+    # ------------------------------------------------------------------ receiving
+    def decode(self, data: bytes) -> Datagram:
+        """The checked datagram, or :class:`WireError`; a datagram accepted advances its
+        sender's sequence number (a later copy of it is a replay)."""
+        if len(data) > MAX_BYTES:
+            raise WireError("oversized", f"{len(data)} bytes (at most {MAX_BYTES})")
+        try:
+            obj = json.loads(data.decode("utf-8"), parse_constant=_no_constant)
+        except (ValueError, RecursionError) as exc:  # (UnicodeDecodeError is a ValueError)
+            raise WireError("malformed", f"not a JSON datagram ({type(exc).__name__})") \
+                from None
+        if not isinstance(obj, dict):
+            raise WireError("malformed", "not a JSON object")
+        if _integer(obj.get("ht")) is None or obj.get("ht") != VERSION:
+            raise WireError("version", f"wire version {_show(obj.get('ht'))}, this is "
+                                       f"{VERSION}")
+        if obj.keys() != KEYS:
+            raise WireError("malformed", "keys " + ", ".join(sorted(
+                str(k) for k in obj.keys() ^ KEYS)[:4]) + " missing or not expected")
+        if obj["team"] != self.team or obj["digest"] != self.digest:
+            raise WireError("foreign team", f"team {_show(obj['team'])} "
+                                            f"{_show(obj['digest'])}")
+        sender = self._agent(obj["from"], "sender")
+        to = -1 if obj["to"] is None else self._agent(obj["to"], "addressee")
+        if to == sender:
+            raise WireError("forged", "a message to its own sender")
+        seq = _integer(obj["seq"])
+        if seq is None or seq < 0:
+            raise WireError("forged", f"sequence number {_show(obj['seq'])}")
+        type_ = obj["type"]
+        if not isinstance(type_, str) or type_ not in self.messages:
+            raise WireError("forged", f"message type {_show(type_)} is not the team's")
+        if not isinstance(obj["socket"], str) or obj["socket"] not in self._sockets[type_]:
+            raise WireError("forged", f"socket {_show(obj['socket'])} for {type_}")
+        fields = obj["fields"]
+        if not isinstance(fields, dict) or not fields.keys() <= self._fields[type_]:
+            raise WireError("forged", f"fields of {type_} that the team does not declare")
+        values = {k: _number(v, f"field {k}") for k, v in fields.items()}
+        msg_id = _integer(obj["id"])
+        if msg_id is None or msg_id < -1:
+            raise WireError("forged", f"message id {_show(obj['id'])}")
+        if not isinstance(obj["note"], str) or obj["note"] not in NOTES:
+            raise WireError("forged", f"note {_show(obj['note'])}")
+        rank, sent = _number(obj["rank"], "rank"), _number(obj["sent"], "send time")
+        if seq <= self.last_seq.get(sender, -1):
+            raise WireError("replayed", f"sequence number {seq} of '{self.agents[sender]}' "
+                                        "already seen")
+        self.last_seq[sender] = seq
+        return Datagram(sender, to, seq, type_, obj["socket"], values, msg_id, obj["note"],
+                        rank, sent)
+
+    def _agent(self, name: object, what: str) -> int:
+        if not isinstance(name, str) or name not in self.index:
+            raise WireError("forged", f"{what} {_show(name)} is not an agent of the team")
+        return self.index[name]
+
+
+def _no_constant(name: str) -> float:
+    """``json.loads``'s hook for ``NaN`` and ``Infinity``: refused (not numbers here)."""
+    raise ValueError(f"{name} is not allowed")
+
+
+def _integer(value: object) -> int | None:
+    """``value`` if it is an int (not a bool), else None."""
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def _number(value: object, what: str) -> float:
+    """A finite number (int or float, not a bool) as a float, else :class:`WireError`."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise WireError("forged", f"{what} is not a number")
+    try:
+        out = float(value)
+    except OverflowError:  # an integer beyond any float
+        raise WireError("forged", f"{what} is out of range") from None
+    if not math.isfinite(out):
+        raise WireError("forged", f"{what} is not finite")
+    return out
+
+
+def _show(value: object) -> str:
+    """A short, printable picture of a value from a datagram (for log lines)."""
+    text = ascii(value)
+    return text[:40] + ("..." if len(text) > 40 else "")
