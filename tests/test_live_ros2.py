@@ -111,9 +111,13 @@ def test_deploy_settings_checked_where_they_are():
         with pytest.raises(ModelError, match="seconds > 0") as e:
             PlantDeploy.from_mapping({"cmd_vel": "/c", "odom": "/o", "timeout": bad}, where)
         assert e.value.path == (*where, "timeout")
-    with pytest.raises(ModelError, match="topic or frame name") as e:
-        PlantDeploy.from_mapping({"cmd_vel": "/c", "odom": 3}, where)
-    assert e.value.path == (*where, "odom")
+    for bad in (3, "", "scout1/odom", "/scout 1/odom", "/scout1//odom", "/a__b", "/2nd/odom"):
+        with pytest.raises(ModelError, match="topic's full name") as e:
+            PlantDeploy.from_mapping({"cmd_vel": "/c", "odom": bad}, where)
+        assert e.value.path == (*where, "odom")
+    with pytest.raises(ModelError, match="frame name") as e:
+        PlantDeploy.from_mapping({"cmd_vel": "/c", "odom": "/o", "frame": ""}, where)
+    assert e.value.path == (*where, "frame")
 
 
 def test_bad_sockets_and_namespaces_refused_before_any_ros():
@@ -121,7 +125,7 @@ def test_bad_sockets_and_namespaces_refused_before_any_ros():
         Ros2Transport("t", "a", ["data", "radio"])
     with pytest.raises(ValueError, match="no socket"):
         Ros2Transport("t", "a", [])
-    for ns in ("hybridteam", "/2x", "/a__b", "/a b", "/"):
+    for ns in ("hybridteam", "/2x", "/a__b", "/a b", "/", "/a//b"):
         with pytest.raises(ValueError, match="not a ROS namespace"):
             Ros2Transport("t", "a", ["data"], namespace=ns)
 
@@ -294,7 +298,9 @@ def test_plant_reads_the_robots_pose_and_scan_and_drives_it(ros, team):
         assert scan.stamp == 13.0
 
         assert until(lambda: plant._cmd.get_subscription_count() == 1)
+        # one at a time: the command writer keeps only the newest, as a driver wants it
         plant.command({"v": 0.5, "omega": -0.25})
+        assert until(lambda: len(robot.twists) == 1)
         plant.command({"vx": 0.3, "vy": -0.2, "omega": 0.1})
         assert until(lambda: len(robot.twists) == 2)
         assert [twist(t) for t in robot.twists] == [

@@ -114,7 +114,7 @@ def ros_modules() -> SimpleNamespace:
 
 
 _NOT_IN_NAME = re.compile(r"[^A-Za-z0-9]+")
-_NAMESPACE = re.compile(r"(/[A-Za-z]([A-Za-z0-9]|_(?!_))*)+/?")
+_NAMESPACE = re.compile(r"(/[A-Za-z_]([A-Za-z0-9]|_(?!_))*)+/?")
 
 
 def ros_name(name: str) -> str:

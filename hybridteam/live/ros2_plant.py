@@ -12,6 +12,9 @@ mapping (the team file's ``deploy:`` section, one entry per agent)::
     frame: odom                # optional, default "odom": the frame poses must be given in
     timeout: 2.0               # optional, default 2 s: how long odometry may be silent
 
+Topics are given by their full names (a relative name would resolve against the plant's own
+node, ``/hybridteam/<team>/<agent>_plant``, not where the robot's driver publishes).
+
 **Commands.** The input keeps the plant's names: a unicycle's ``v`` and ``omega`` become
 ``linear.x`` and ``angular.z``, a holonomic base's ``vx``, ``vy`` and ``omega`` become
 ``linear.x``, ``linear.y`` and ``angular.z`` (body frame, m/s and rad/s, as REP 103 and the
@@ -42,6 +45,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import threading
 import time
 from collections.abc import Mapping
@@ -51,7 +55,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from hybridteam.errors import DocPath, ModelError, did_you_mean
-from hybridteam.live.ros2 import SpunNode, ros_name
+from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 
 __all__ = ["PlantDeploy", "PlantSilent", "Pose", "Ros2Plant", "Scan", "clipped_ranges", "yaw"]
 
@@ -63,6 +67,9 @@ TWIST_FIELDS = {"v": ("linear", "x"), "vx": ("linear", "x"), "vy": ("linear", "y
 
 #: seconds :meth:`Ros2Plant.close` waits for reliable drivers to acknowledge the stop
 STOP_ACK_WAIT = 0.5
+
+#: a topic's full name: relative ones would resolve against the plant node's namespace
+_TOPIC = re.compile(r"(/[A-Za-z_]([A-Za-z0-9]|_(?!_))*)+")
 
 _KEYS = ("cmd_vel", "odom", "scan", "frame", "timeout")
 
@@ -92,17 +99,22 @@ class PlantDeploy:
                 raise ModelError(path, f"missing {key!r}: the robot's "
                                  + ("Twist command topic" if key == "cmd_vel"
                                     else "Odometry topic"))
-        for key in ("cmd_vel", "odom", "scan", "frame"):
+        for key in ("cmd_vel", "odom", "scan"):
             value = config.get(key)
-            if key in config and (not isinstance(value, str) or not value):
-                raise ModelError((*path, key), f"expected a topic or frame name, got {value!r}")
+            if key in config and not (isinstance(value, str) and _TOPIC.fullmatch(value)):
+                raise ModelError((*path, key), f"expected a topic's full name (/name/name..., "
+                                 "each name letters, digits and single underscores, not "
+                                 f"starting with a digit), got {value!r}")
+        frame = config.get("frame", "odom")
+        if not (isinstance(frame, str) and frame):
+            raise ModelError((*path, "frame"), f"expected a frame name, got {frame!r}")
         timeout = config.get("timeout", 2.0)
         if (isinstance(timeout, bool) or not isinstance(timeout, int | float)
                 or not 0 < timeout < math.inf):
             raise ModelError((*path, "timeout"),
                              f"expected a number of seconds > 0, got {timeout!r}")
-        return cls(config["cmd_vel"], config["odom"], config.get("scan"),
-                   config.get("frame", "odom"), float(timeout))
+        return cls(config["cmd_vel"], config["odom"], config.get("scan"), frame,
+                   float(timeout))
 
 
 class Pose(NamedTuple):
@@ -186,14 +198,15 @@ class Ros2Plant:
 
     def __init__(self, agent: str, deploy: Mapping[str, Any] | PlantDeploy, *,
                  domain_id: int | None = None, context: Any = None,
-                 namespace: str = "/hybridteam") -> None:
+                 team: str | None = None) -> None:
         self.agent = agent
         self.deploy = d = (deploy if isinstance(deploy, PlantDeploy)
                            else PlantDeploy.from_mapping(deploy, ("deploy", agent)))
         self.dropped = {"frame": 0, "invalid": 0}  # odometry messages refused, by reason
         self._foreign_frames: set[str] = set()
         self._pose, self._scan = _Latest(), _Latest()
-        self._spun = SpunNode(f"{ros_name(agent)}_plant", namespace, domain_id=domain_id,
+        where = DEFAULT_NAMESPACE + (f"/{ros_name(team)}" if team is not None else "")
+        self._spun = SpunNode(f"{ros_name(agent)}_plant", where, domain_id=domain_id,
                               context=context)
         try:
             from geometry_msgs.msg import Twist
