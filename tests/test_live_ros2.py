@@ -18,7 +18,7 @@ import time
 import pytest
 
 from hybridteam.errors import ModelError
-from hybridteam.live.ros2 import SOCKET_QOS, Ros2Transport, ros_modules, ros_name
+from hybridteam.live.ros2 import SOCKET_DEPTH, Ros2Transport, ros_modules, ros_name
 from hybridteam.live.ros2_plant import PlantDeploy, PlantSilent, clipped_ranges, yaw
 
 # rclpy's type descriptions import lark, which imports sre_parse (deprecated in Python 3.11)
@@ -120,7 +120,7 @@ def test_deploy_settings_checked_where_they_are():
     assert e.value.path == (*where, "frame")
 
 
-def test_bad_sockets_and_namespaces_refused_before_any_ros():
+def test_bad_sockets_namespaces_and_domains_refused_before_any_ros():
     with pytest.raises(ValueError, match="unknown socket 'radio'"):
         Ros2Transport("t", "a", ["data", "radio"])
     with pytest.raises(ValueError, match="no socket"):
@@ -128,6 +128,9 @@ def test_bad_sockets_and_namespaces_refused_before_any_ros():
     for ns in ("hybridteam", "/2x", "/a__b", "/a b", "/", "/a//b"):
         with pytest.raises(ValueError, match="not a ROS namespace"):
             Ros2Transport("t", "a", ["data"], namespace=ns)
+    for domain in (-1, 233, True, 1.5):
+        with pytest.raises(ValueError, match=r"domain id must be an integer in 0\.\.232"):
+            Ros2Transport("t", "a", ["data"], domain_id=domain)
 
 
 def test_without_rclpy_one_error_says_what_to_install(monkeypatch):
@@ -190,7 +193,7 @@ def test_each_socket_has_its_documented_qos(ros, team):
     observer = ros.create_node("observer", context=ctx)
     try:
         for socket, depth in (("data", 8), ("control", 64)):
-            assert SOCKET_QOS[socket].depth == depth
+            assert SOCKET_DEPTH[socket] == depth
             topic = a.topics[socket]
             # what the graph announces to every other participant
             def ends(topic=topic):

@@ -19,7 +19,7 @@ wire, but rclpy holds a ``byte[]`` field as a list of one-byte ``bytes`` objects
 object made and checked per byte, each way), a ``uint8[]`` field as one ``array.array``
 filled from the datagram in one copy.
 
-**Quality of service** (:data:`SOCKET_QOS`), both sockets best-effort and volatile:
+**Quality of service** (:func:`socket_qos`), both sockets best-effort and volatile:
 
 - ``data`` (streams): keep the last 8. A stream sample is superseded by the next one; a
   lost sample is what the model's streams already expect, and resending a stale one would
@@ -55,18 +55,17 @@ import re
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from types import SimpleNamespace
 from typing import Any
 
 __all__ = [
     "DEFAULT_NAMESPACE",
-    "SOCKET_QOS",
+    "SOCKET_DEPTH",
     "Ros2Transport",
-    "SocketQoS",
     "SpunNode",
     "ros_modules",
     "ros_name",
+    "socket_qos",
 ]
 
 log = logging.getLogger(__name__)
@@ -74,28 +73,19 @@ log = logging.getLogger(__name__)
 DEFAULT_NAMESPACE = "/hybridteam"
 
 
-@dataclass(frozen=True)
-class SocketQoS:
-    """The DDS quality of service of one team socket (see the module's docstring)."""
-
-    depth: int  # keep-last history, on the writer and the reader
-    reliable: bool = False
-    transient_local: bool = False
-
-    def profile(self, ros: SimpleNamespace) -> Any:
-        """This as an ``rclpy.qos.QoSProfile``."""
-        q = ros.qos
-        return q.QoSProfile(
-            history=q.HistoryPolicy.KEEP_LAST, depth=self.depth,
-            reliability=(q.ReliabilityPolicy.RELIABLE if self.reliable
-                         else q.ReliabilityPolicy.BEST_EFFORT),
-            durability=(q.DurabilityPolicy.TRANSIENT_LOCAL if self.transient_local
-                        else q.DurabilityPolicy.VOLATILE))
+#: Keep-last history of each team socket, on its writers and readers: streams keep few (the
+#: newest sample supersedes the rest), control more (a burst must not be overwritten).
+#: Both are best-effort and volatile (see the module's docstring for why).
+SOCKET_DEPTH: dict[str, int] = {"data": 8, "control": 64}
 
 
-#: The team's sockets and their QoS: streams and control, both best-effort (the team's
-#: acknowledged layer is the reliability of control messages), control with a deeper history.
-SOCKET_QOS: dict[str, SocketQoS] = {"data": SocketQoS(depth=8), "control": SocketQoS(depth=64)}
+def socket_qos(socket: str, ros: SimpleNamespace) -> Any:
+    """The ``rclpy.qos.QoSProfile`` of a team socket: best-effort, volatile, keep-last
+    :data:`SOCKET_DEPTH`."""
+    q = ros.qos
+    return q.QoSProfile(history=q.HistoryPolicy.KEEP_LAST, depth=SOCKET_DEPTH[socket],
+                        reliability=q.ReliabilityPolicy.BEST_EFFORT,
+                        durability=q.DurabilityPolicy.VOLATILE)
 
 
 def ros_modules() -> SimpleNamespace:
@@ -136,9 +126,10 @@ class SpunNode:
 
     def __init__(self, name: str, namespace: str, *, domain_id: int | None = None,
                  context: Any = None) -> None:
-        self.ros = ros = ros_modules()
-        if domain_id is not None and not (isinstance(domain_id, int) and 0 <= domain_id <= 232):
+        if domain_id is not None and (isinstance(domain_id, bool) or not isinstance(domain_id, int)
+                                      or not 0 <= domain_id <= 232):
             raise ValueError(f"ROS domain id must be an integer in 0..232, got {domain_id!r}")
+        self.ros = ros = ros_modules()
         self._owns_context = context is None
         if context is None:
             context = ros.rclpy.Context()
@@ -195,10 +186,10 @@ class Ros2Transport:
     def __init__(self, team: str, agent: str, sockets: Sequence[str], *,
                  domain_id: int | None = None, namespace: str = DEFAULT_NAMESPACE,
                  context: Any = None) -> None:
-        unknown = [s for s in sockets if s not in SOCKET_QOS]
+        unknown = [s for s in sockets if s not in SOCKET_DEPTH]
         if unknown or not sockets:
             raise ValueError(f"ros2 transport: unknown socket {unknown[0]!r}; the team's "
-                             f"sockets are {', '.join(SOCKET_QOS)}" if unknown else
+                             f"sockets are {', '.join(SOCKET_DEPTH)}" if unknown else
                              "ros2 transport: no socket to carry")
         if not _NAMESPACE.fullmatch(namespace):
             raise ValueError(f"ros2 transport: namespace {namespace!r} is not a ROS namespace "
@@ -215,12 +206,12 @@ class Ros2Transport:
         node, ros = self._spun.node, self._spun.ros
         try:
             self._publishers = {
-                s: node.create_publisher(self._Datagram, topic, SOCKET_QOS[s].profile(ros))
+                s: node.create_publisher(self._Datagram, topic, socket_qos(s, ros))
                 for s, topic in self.topics.items()}
             self._own = self._own_gids()
             self._subscriptions = [
                 node.create_subscription(self._Datagram, topic, self._on_datagram,
-                                         SOCKET_QOS[s].profile(ros))
+                                         socket_qos(s, ros))
                 for s, topic in self.topics.items()]
         except Exception:
             self._spun.close()
