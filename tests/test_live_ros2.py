@@ -326,7 +326,8 @@ def test_plant_says_when_no_odometry_arrives(ros, team):
     ns = f"/{ros_name(team)}/scout1"
     with Ros2Plant("scout1", deploy(ns, timeout=0.2), domain_id=DOMAIN) as plant:
         t0 = time.monotonic()
-        with pytest.raises(PlantSilent, match=f"no odometry on {ns}/odom within 0.2 s"):
+        with pytest.raises(PlantSilent, match=f"no odometry on {ns}/odom within 0.2 s; is the "
+                                              "robot's driver running"):
             plant.pose()
         assert time.monotonic() - t0 >= 0.2
     # odometry in another frame than the deploy setting's is no pose: dropped, and said

@@ -280,12 +280,12 @@ class Ros2Plant:
         wait = self.deploy.timeout if timeout is None else timeout
         pose = self._pose.get(wait)
         if pose is None:
-            frames = (f"; {self.dropped['frame']} arrived in frame "
-                      f"{', '.join(map(repr, sorted(self._foreign_frames)))}, not "
-                      f"{self.deploy.frame!r}" if self.dropped["frame"] else "")
+            why = (f"{self.dropped['frame']} arrived in frame "
+                   f"{', '.join(map(repr, sorted(self._foreign_frames)))}, not "
+                   f"{self.deploy.frame!r}" if self.dropped["frame"] else
+                   "is the robot's driver running, on this ROS_DOMAIN_ID?")
             raise PlantSilent(f"{self.agent}: no odometry on {self.deploy.odom} within "
-                              f"{wait:g} s{frames} (is the robot's driver running, on this "
-                              "ROS_DOMAIN_ID?)")
+                              f"{wait:g} s; {why}")
         return pose
 
     def scan(self, timeout: float | None = None) -> Scan:
