@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
 import threading
 import time
@@ -229,6 +230,21 @@ def test_close_is_clean_and_idempotent(ros, team):
     assert ctx.ok()
     ctx.try_shutdown()
     assert set(threading.enumerate()) == before
+
+
+def test_ctrl_c_is_the_runtimes_and_leaves_the_transport_open(ros, team):
+    """rclpy's own SIGINT handler would shut the context down under the live runtime while
+    it still writes its trace: a transport's own context does not install it."""
+    a, b = pair(team, ("control",))
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # the interrupt comes first
+        a.send(b"after ctrl-c", "control")
+        assert [p for p, _ in collect(b, 1)] == [b"after ctrl-c"]
+    finally:
+        a.close()
+        b.close()
 
 
 # -- the robot plant against a fake robot ---------------------------------------------------

@@ -45,7 +45,10 @@ agents in one process, each with its own transport, still hear each other.
 A delivery is stamped with ``time.monotonic()`` in that thread, as it arrives, and wakes
 :meth:`Ros2Transport.wait`. Unless a context is handed in, a transport initialises rclpy in
 a context of its own (on ``domain_id``, else ``ROS_DOMAIN_ID``, else 0) and shuts it down
-on :meth:`~Ros2Transport.close`, which is idempotent and leaves no thread behind.
+on :meth:`~Ros2Transport.close`, which is idempotent and leaves no thread behind. rclpy
+installs its SIGINT handler (which shuts every context down) only for its default context,
+never used here: Ctrl-C stays a ``KeyboardInterrupt`` of the live runtime's, the transport
+still open while the runtime completes its trace.
 """
 
 from __future__ import annotations
@@ -133,7 +136,9 @@ class SpunNode:
         self._owns_context = context is None
         if context is None:
             context = ros.rclpy.Context()
-            ros.rclpy.init(context=context, domain_id=domain_id)
+            # no args: our command line is not ROS's to read; and rclpy installs no
+            # signal handler for a context not its default one, so Ctrl-C stays ours
+            ros.rclpy.init(args=[], context=context, domain_id=domain_id)
         self.context = context
         self._closed = False
         self._lock = threading.Lock()
