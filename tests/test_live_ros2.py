@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -163,6 +164,40 @@ def test_two_transports_exchange_datagrams_but_not_their_own(ros, team):
     finally:
         a.close()
         b.close()
+
+
+ECHO = """
+import sys
+from hybridteam.live.ros2 import Ros2Transport
+team, domain = sys.argv[1], int(sys.argv[2])
+with Ros2Transport(team, "echo", ["control"], domain_id=domain) as echo:
+    while echo.peers("control") < 1:
+        echo.wait(0.01)
+    print("ready", flush=True)
+    if not echo.wait(10.0):
+        sys.exit("echo: nothing arrived")
+    for payload, _ in echo.receive():
+        echo.send(b"echo:" + payload, "control")
+    sys.stdin.read()  # open until the test has its answer
+"""
+
+
+def test_agents_in_two_processes_hear_each_other(ros, team):
+    proc = subprocess.Popen([sys.executable, "-c", ECHO, team, str(DOMAIN)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    a = Ros2Transport(team, "a", ["control"], domain_id=DOMAIN)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        assert until(lambda: a.peers("control") == 1)
+        a.send(b"\x01ping", "control")
+        assert [p for p, _ in collect(a, 1)] == [b"echo:\x01ping"]
+    finally:
+        a.close()
+        try:
+            proc.communicate(timeout=15)
+        finally:
+            proc.kill()  # a no-op once it has exited
+    assert proc.returncode == 0
 
 
 def test_wait_times_out_or_wakes_on_arrival(ros, team):

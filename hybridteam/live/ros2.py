@@ -214,10 +214,10 @@ class Ros2Transport:
                 s: node.create_publisher(self._Datagram, topic, socket_qos(s, ros))
                 for s, topic in self.topics.items()}
             self._own = self._own_gids()
-            self._subscriptions = [
-                node.create_subscription(self._Datagram, topic, self._on_datagram,
-                                         socket_qos(s, ros))
-                for s, topic in self.topics.items()]
+            self._subscriptions = {
+                s: node.create_subscription(self._Datagram, topic, self._on_datagram,
+                                            socket_qos(s, ros))
+                for s, topic in self.topics.items()}
         except Exception:
             self._spun.close()
             raise
@@ -273,9 +273,12 @@ class Ros2Transport:
         return self._arrived.wait(max(timeout, 0.0))
 
     def peers(self, socket: str) -> int:
-        """How many other subscriptions this transport's ``socket`` publisher has matched:
-        discovery is asynchronous, and a launcher waits for its agents to see each other."""
-        return self._publishers[socket].get_subscription_count() - 1  # less our own
+        """How many other transports on ``socket`` this one is matched with both ways (its
+        writer with their readers, its reader with their writers). Discovery is asynchronous
+        and each side matches on its own; until a reader has matched a writer it drops that
+        writer's datagrams, so a launcher waits for this before its agents start talking."""
+        return min(self._publishers[socket].get_subscription_count(),
+                   self._subscriptions[socket].get_publisher_count()) - 1  # less our own
 
     def close(self) -> None:
         """Stop receiving, destroy the node, shut an own rclpy context down. Idempotent."""
