@@ -267,6 +267,45 @@ def test_close_is_clean_and_idempotent(ros, team):
     assert set(threading.enumerate()) == before
 
 
+def test_oversized_datagrams_and_storms_are_dropped_and_counted(ros, team):
+    """Anyone on the domain may publish on a team's topic: a datagram too large for UDP, and
+    datagrams beyond what may wait, are dropped and counted, as a UDP socket drops them."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import UInt8MultiArray
+
+    b = Ros2Transport(team, "b", ["control"], domain_id=DOMAIN, max_waiting=3)
+    ctx = ros.Context()
+    ros.init(context=ctx, domain_id=DOMAIN)
+    stranger = ros.create_node("stranger", context=ctx)
+    try:
+        topic = b.topics["control"]
+        qos = QoSProfile(depth=64, reliability=ReliabilityPolicy.BEST_EFFORT)
+        pub = stranger.create_publisher(UInt8MultiArray, topic, qos)
+        stranger.create_subscription(UInt8MultiArray, topic, lambda _msg: None, qos)
+        assert until(lambda: b.peers("control") == 1 and pub.get_subscription_count() == 2)
+
+        def publish(payload: bytes) -> None:
+            msg = UInt8MultiArray()
+            msg.data = payload
+            pub.publish(msg)
+
+        publish(bytes(65508))  # one byte more than a UDP datagram carries
+        assert until(lambda: b.dropped["oversized"] == 1)
+        publish(bytes(65507))
+        assert [len(p) for p, _ in collect(b, 1)] == [65507]
+        for i in range(5):
+            publish(b"storm %d" % i)
+            time.sleep(0.005)
+        assert until(lambda: b.dropped["overflow"] == 2)
+        assert [p for p, _ in b.receive()] == [b"storm 0", b"storm 1", b"storm 2"]
+        with pytest.raises(ValueError, match="65508 bytes; at most 65507"):
+            b.send(bytes(65508), "control")
+    finally:
+        b.close()
+        stranger.destroy_node()
+        ctx.try_shutdown()
+
+
 def test_ctrl_c_is_the_runtimes_and_leaves_the_transport_open(ros, team):
     """rclpy's own SIGINT handler would shut the context down under the live runtime while
     it still writes its trace: a transport's own context does not install it."""

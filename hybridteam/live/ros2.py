@@ -39,6 +39,11 @@ filled from the datagram in one copy.
 publisher sent it (its gid), and the transport drops those of its own publishers, so two
 agents in one process, each with its own transport, still hear each other.
 
+**Storms.** A datagram larger than a UDP datagram (:data:`MAX_DATAGRAM`), or arriving while
+:data:`MAX_WAITING` wait to be taken, is dropped and counted (``dropped``), as a UDP socket
+would: anyone on the domain can publish on the team's topics, and the runtime must keep
+running whatever they send; what is not dropped here the wire format checks.
+
 **Threads and shutdown.** Each transport has its own node, under the node namespace
 ``<namespace>/<team>`` and named after the agent (``ros2 node list`` shows
 ``/hybridteam/T/scout1``), spun by a ``SingleThreadedExecutor`` in one background thread.
@@ -63,6 +68,8 @@ from typing import Any
 
 __all__ = [
     "DEFAULT_NAMESPACE",
+    "MAX_DATAGRAM",
+    "MAX_WAITING",
     "SOCKET_DEPTH",
     "Ros2Transport",
     "SpunNode",
@@ -80,6 +87,15 @@ DEFAULT_NAMESPACE = "/hybridteam"
 #: newest sample supersedes the rest), control more (a burst must not be overwritten).
 #: Both are best-effort and volatile (see the module's docstring for why).
 SOCKET_DEPTH: dict[str, int] = {"data": 8, "control": 64}
+
+
+#: The largest datagram carried, in bytes: a UDP datagram's payload, so that the team runs
+#: alike over either transport (ROS would carry megabytes from anyone on the topic).
+MAX_DATAGRAM = 65507
+
+#: Datagrams kept for :meth:`Ros2Transport.receive` at most; more are dropped and counted,
+#: as a full socket buffer drops them, so a storm cannot grow the process without bound.
+MAX_WAITING = 4096
 
 
 def socket_qos(socket: str, ros: SimpleNamespace) -> Any:
@@ -190,7 +206,7 @@ class Ros2Transport:
 
     def __init__(self, team: str, agent: str, sockets: Sequence[str], *,
                  domain_id: int | None = None, namespace: str = DEFAULT_NAMESPACE,
-                 context: Any = None) -> None:
+                 context: Any = None, max_waiting: int = MAX_WAITING) -> None:
         unknown = [s for s in sockets if s not in SOCKET_DEPTH]
         if unknown or not sockets:
             raise ValueError(f"ros2 transport: unknown socket {unknown[0]!r}; the team's "
@@ -206,6 +222,10 @@ class Ros2Transport:
                               domain_id=domain_id, context=context)
         self._Datagram = self._spun.ros.Datagram
         self._waiting: list[tuple[bytes, float]] = []
+        self._max_waiting = max_waiting
+        #: datagrams dropped here, by reason: larger than a UDP datagram, or arriving while
+        #: ``max_waiting`` were waiting (a storm the runtime does not drain in time)
+        self.dropped = {"oversized": 0, "overflow": 0}
         self._lock = threading.Lock()
         self._arrived = threading.Event()
         node, ros = self._spun.node, self._spun.ros
@@ -243,7 +263,13 @@ class Ros2Transport:
         gid = info.get("publisher_gid")
         if gid is not None and gid["data"] in self._own:
             return
+        if len(msg.data) > MAX_DATAGRAM:
+            self.dropped["oversized"] += 1
+            return
         with self._lock:
+            if len(self._waiting) >= self._max_waiting:
+                self.dropped["overflow"] += 1
+                return
             self._waiting.append((bytes(msg.data), arrived))
             self._arrived.set()
 
@@ -256,6 +282,9 @@ class Ros2Transport:
         except KeyError:
             raise ValueError(f"ros2 transport: no socket {socket!r}; this transport carries "
                              f"{', '.join(self._publishers)}") from None
+        if len(payload) > MAX_DATAGRAM:
+            raise ValueError(f"ros2 transport: a datagram of {len(payload)} bytes; at most "
+                             f"{MAX_DATAGRAM}, as over UDP")
         msg = self._Datagram()
         msg.data = payload
         publisher.publish(msg)
