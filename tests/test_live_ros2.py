@@ -429,3 +429,46 @@ def test_plant_says_when_no_odometry_arrives(ros, team):
                 plant.pose(timeout=0.1)
     finally:
         robot.close()
+
+
+HANDSHAKE = os.path.join(os.path.dirname(__file__), "fixtures", "live", "handshake.yaml")
+
+
+def test_launch_over_ros2_shakes_hands_as_the_simulation_does(ros, tmp_path):
+    """``hybridteam launch --transport ros2``: one process per agent, their datagrams on
+    ROS 2 topics; every agent's transitions, and the team's order of them across the two
+    processes, are those of ``hybridteam run`` of the same file, as over UDP."""
+    import hybridteam as ht
+    from hybridteam.trace import Trace
+
+    out = tmp_path / "launch"
+    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", HANDSHAKE,
+                           "--transport", "ros2", "--time-scale", "4", "-o", str(out)],
+                          capture_output=True, timeout=180)
+    assert proc.returncode == 0, proc.stderr.decode()
+    merged = Trace.load(out / "trace.json")
+    sim = ht.simulate(ht.load(HANDSHAKE))
+    for agent in ("requester", "granter"):
+        assert [(r.source, r.target, r.cause) for r in merged.transitions if r.agent == agent] \
+            == [(r.source, r.target, r.cause) for r in sim.transitions if r.agent == agent]
+    assert [(r.agent, r.target) for r in merged.transitions if r.cause != "init"] == \
+        [(r.agent, r.target) for r in sim.transitions if r.cause != "init"]
+    assert merged.outcomes[0]["outcome"] == "ok"
+    assert {p["transport"] for p in merged.meta["live"]["processes"]} == {"ros2"}
+
+
+def test_waiting_for_teammates_that_never_come_is_one_line(monkeypatch):
+    """A process told to wait for more ROS 2 teammates than discovery finds says so in one
+    line once the start timeout passes (a transport here that never matches anyone)."""
+    from hybridteam.cli import live
+    from hybridteam.cli.common import UsageError
+
+    class Alone:
+        def peers(self, socket):
+            return 0
+
+    monkeypatch.setattr(live, "START_TIMEOUT", 0.05)
+    with pytest.raises(UsageError, match=r"^--ros-peers 2: only 0 found within 0.05 s "
+                       r"\(same --domain-id\?\)$"):
+        live.wait_for_peers(Alone(), 2)
+    live.wait_for_peers(Alone(), 0)  # nobody to wait for: at once

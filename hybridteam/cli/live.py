@@ -12,6 +12,7 @@ import argparse
 import json
 import logging
 import math
+import os
 import signal
 import sys
 
@@ -33,8 +34,14 @@ def register(sub) -> dict:
     p.add_argument("--agent", action="append", required=True, metavar="NAME",
                    help="an agent this process runs (repeat for several)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
-    p.add_argument("--transport", choices=("udp",), default="udp",
-                   help="how datagrams travel (udp: one port per process)")
+    p.add_argument("--transport", choices=TRANSPORTS, default="udp",
+                   help="how datagrams travel (udp: one port per process; ros2: ROS 2 "
+                        "topics, with the [ros] extra)")
+    p.add_argument("--domain-id", type=int, default=None, metavar="N",
+                   help="(ros2) the ROS domain (default: ROS_DOMAIN_ID, else 0)")
+    p.add_argument("--ros-peers", type=int, default=0, metavar="N",
+                   help="(ros2) before starting, wait until N other processes' transports "
+                        "are matched (ROS discovery is asynchronous; 'launch' sets it)")
     p.add_argument("--listen", default="127.0.0.1:47000", metavar="HOST:PORT",
                    help="this process's UDP address (default 127.0.0.1:47000)")
     p.add_argument("--peer", action="append", default=[], metavar="HOST:PORT",
@@ -55,8 +62,12 @@ def register(sub) -> dict:
                         "one process each over loopback UDP, and merge their traces")
     la.add_argument("team", metavar="TEAM.yaml")
     la.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
-    la.add_argument("--transport", choices=("udp",), default="udp",
-                    help="how datagrams travel (udp: one loopback port per process)")
+    la.add_argument("--transport", choices=TRANSPORTS, default="udp",
+                    help="how datagrams travel (udp: one loopback port per process; ros2: "
+                         "ROS 2 topics, with the [ros] extra)")
+    la.add_argument("--domain-id", type=int, default=None, metavar="N",
+                    help="(ros2) the ROS domain the processes share (default: one chosen "
+                         "from this process's id, so launches do not hear each other)")
     la.add_argument("--duration", type=float, default=None,
                     help="run seconds (default: the team's simulation.duration)")
     la.add_argument("--time-scale", type=float, default=1.0, metavar="K",
@@ -68,6 +79,7 @@ def register(sub) -> dict:
 
 
 LEVELS = ("debug", "info", "warning", "error")
+TRANSPORTS = ("udp", "ros2")
 
 
 def add_faults(parser) -> None:
@@ -127,7 +139,6 @@ def cmd_live(args: argparse.Namespace) -> int:
     from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
     from hybridteam.live.run import LiveRun
-    from hybridteam.live.transport import TransportError, UdpTransport
     from hybridteam.trace import write_atomic
 
     check_clock(args)
@@ -145,10 +156,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     def on_signal(signum: int, _frame) -> None:
         stopped.append(signal.Signals(signum).name)
 
-    try:
-        transport = UdpTransport(listen, peers)
-    except TransportError as exc:
-        raise UsageError(str(exc)) from None
+    transport = open_transport(args, team.name, agents, listen, peers)
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
@@ -156,9 +164,11 @@ def cmd_live(args: argparse.Namespace) -> int:
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=drop_copies(args.drop_copy))
+        if args.transport == "ros2":
+            wait_for_peers(transport, args.ros_peers)
         if args.ready:
-            host, port = transport.address
-            print(f"ready {host}:{port}", flush=True)
+            print("ready " + ("ros2" if args.transport == "ros2" else
+                              "{}:{}".format(*transport.address)), flush=True)
             if sys.stdin.readline().strip() != "go":
                 raise UsageError("not started: stdin did not say 'go' (--ready)")
         trace = live.run()
@@ -189,6 +199,41 @@ def cmd_live(args: argparse.Namespace) -> int:
     say(f"{team.name}: {', '.join(agents)} {outcome['outcome']} at t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
+
+
+def open_transport(args: argparse.Namespace, team: str, agents: list[str],
+                   listen: tuple[str, int], peers: list[tuple[str, int]]):
+    """The transport ``--transport`` names, or a one-line error: a taken port, a ROS 2
+    transport without rclpy (the [ros] extra), a bad domain."""
+    from hybridteam.live.transport import TransportError, UdpTransport
+
+    if args.transport == "udp":
+        try:
+            return UdpTransport(listen, peers)
+        except TransportError as exc:
+            raise UsageError(str(exc)) from None
+    try:
+        from hybridteam.live.ros2 import Ros2Transport
+
+        return Ros2Transport(team, "_".join(agents), ("data", "control"),
+                             domain_id=args.domain_id)
+    except (ImportError, ValueError) as exc:
+        raise UsageError(f"--transport ros2: {exc}") from None
+
+
+def wait_for_peers(transport, count: int) -> None:
+    """Block until the ROS 2 transport is matched with ``count`` others on both sockets:
+    until a reader has matched a writer it drops that writer's datagrams, so agents that
+    started talking before discovery ended would lose their first messages."""
+    import time
+
+    end = time.monotonic() + START_TIMEOUT
+    while any(transport.peers(s) < count for s in ("data", "control")):
+        if time.monotonic() > end:
+            raise UsageError(f"--ros-peers {count}: only "
+                             f"{min(transport.peers(s) for s in ('data', 'control'))} "
+                             f"found within {START_TIMEOUT:g} s (same --domain-id?)")
+        time.sleep(0.02)
 
 
 #: Wall seconds a launched process may take to start (import, compile, bind) and to end
@@ -225,7 +270,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
     # (summary.json is written last: an older one must not make a failed launch's folder
     # look complete)
     (out / "summary.json").unlink(missing_ok=True)
-    ports = free_ports(len(names))
+    ports = free_ports(len(names)) if args.transport == "udp" else [0] * len(names)
+    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
@@ -238,10 +284,15 @@ def cmd_launch(args: argparse.Namespace) -> int:
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
             command = [sys.executable, "-m", "hybridteam.cli", "live", args.team, "--agent",
-                       name, "--listen", f"127.0.0.1:{port}", "--time-scale",
-                       repr(args.time_scale), "--log-level", args.log_level, "--ready",
-                       *fault_args(args, k), "-o", str(folder)]
-            command += [a for p in ports if p != port for a in ("--peer", f"127.0.0.1:{p}")]
+                       name, "--time-scale", repr(args.time_scale), "--log-level",
+                       args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
+                       "--transport", args.transport]
+            if args.transport == "udp":
+                command += ["--listen", f"127.0.0.1:{port}"]
+                command += [a for p in ports if p != port
+                            for a in ("--peer", f"127.0.0.1:{p}")]
+            else:  # every process in one domain, each waiting for all the others
+                command += ["--domain-id", str(domain), "--ros-peers", str(len(names) - 1)]
             if args.duration is not None:
                 command += ["--duration", repr(args.duration)]
             with open(folder / "live.log", "wb") as logfile:
