@@ -185,14 +185,21 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
 def check_requirements(run: Run, requirements: RequirementSet, sim: Simulator) -> None:
     """Add each instance's requirement verdicts to its outcome (``summary.json`` and the
     trace carry them), reading parameters as the simulator set them per instance."""
+    snapshots = sim.ensemble.rec.merged_snapshots()
+    for outcome, verdicts in zip(run.diagnostics,
+                                 requirements.check(run, parameters(sim), snapshots),
+                                 strict=True):
+        outcome["requirements"] = verdicts
+
+
+def parameters(sim: Simulator) -> dict[str, tuple[list[str], np.ndarray]]:
+    """Per agent, its parameter names and their values per instance (one row each), as
+    the simulator set them (after overrides): what requirement checks read."""
     params = {}
     for st in sim.ensemble.states:
         names = sorted(st.ca.param_index, key=st.ca.param_index.__getitem__)
         params[st.ca.name] = (names, st.p)
-    snapshots = sim.ensemble.rec.merged_snapshots()
-    for outcome, verdicts in zip(run.diagnostics, requirements.check(run, params, snapshots),
-                                 strict=True):
-        outcome["requirements"] = verdicts
+    return params
 
 
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,

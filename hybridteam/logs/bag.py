@@ -1,0 +1,483 @@
+"""A rosbag2 as a run: the ordinary trace of a team, read from a log.
+
+Topics are those ``export`` writes (:mod:`.topics`), or those a mapping file names. What
+becomes what:
+
+- samples: an agent's ``/A/state`` (exact), else its pose (``PoseStamped``, or the pose of
+  an ``Odometry``; theta is the yaw, unwrapped so it turns continuously), else its
+  odometry; payloads' poses and world series the same way; commands (``Twist``) as the
+  series ``A.cmd`` of the plant's inputs. Each topic keeps its own stamps: the trace's
+  sample times are all of them, and an agent has no value (NaN) at another's times
+  (requirement checks interpolate over those, as between any two samples);
+- transitions from ``/A/mode`` (JSON with at least ``target``, or a bare mode path), stays
+  in modes from ``/A/stays`` or, when a log has none, from the transitions (a stay
+  continues while the modes entered keep it as their prefix);
+- team messages from ``/A/messages`` with their times.
+
+Times are seconds after the log's first stamp (the exported run's ``t = 0`` is stamp 0, so
+a round trip keeps its times). Anything wrong — another team's agents, a missing topic,
+stamps going back, a message that does not decode, a cut-short file — is one
+:class:`~hybridteam.logs.LogError` naming the file, topic and time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hybridteam.logs import LogError, require_rosbags
+from hybridteam.logs.export import PLANAR
+from hybridteam.logs.topics import (
+    ARRAY,
+    CLOCK,
+    CLOCK_TYPE,
+    ODOM,
+    POSE,
+    RUN,
+    STRING,
+    TWIST,
+    AgentTopics,
+    Topics,
+    command_series,
+    payload_topic,
+    series_topic,
+)
+from hybridteam.model import Team
+from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table
+
+#: what each kind of topic may be
+SAMPLED = {"state": (ARRAY,), "pose": (POSE, ODOM), "odom": (ODOM, POSE), "cmd": (TWIST,)}
+EVENTS = {"modes": (STRING,), "stays": (STRING,), "messages": (STRING,)}
+
+
+@dataclass
+class _Topic:
+    """One topic's messages as read: ``(ns, decoded)`` in bag order, and its type."""
+
+    name: str
+    msgtype: str
+    records: list[tuple[int, Any]] = field(default_factory=list)
+
+
+def read_bag(path: str | os.PathLike, team: Team, topics: Topics | None = None) -> Any:
+    """The :class:`~hybridteam.api.Run` a rosbag2 (a folder, or one ``.mcap``/``.db3``
+    file) records of ``team``; ``topics`` from a mapping file (default: export's names)."""
+    require_rosbags()
+    from hybridteam.api import Run
+    from hybridteam.logs.team import team_frame
+    from hybridteam.trace_schema import check_trace
+
+    path = Path(path)
+    meta, _params = team_frame(team)
+    bag = _read(path)
+    return _Reading(path, team, meta, bag, topics).run(Run, check_trace)
+
+
+def _read(path: Path) -> dict[str, _Topic]:
+    """Every message of the bag, decoded, by topic; a :class:`LogError` for a file that is
+    not a bag, is cut short or holds a message that does not decode."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import Stores, get_typestore
+
+    if not path.exists():
+        raise LogError(f"{path}: no such file or folder")
+    typestore = get_typestore(Stores.ROS2_HUMBLE)
+    out: dict[str, _Topic] = {}
+    topic, ns = None, None
+    try:
+        with Reader(path) as reader:
+            known = [c for c in reader.connections if c.msgtype in typestore.types]
+            for conn, ns, raw in reader.messages(connections=known):
+                topic = conn.topic
+                entry = out.setdefault(topic, _Topic(topic, conn.msgtype))
+                if entry.msgtype != conn.msgtype:
+                    raise LogError(f"{path}: topic {topic} at {_at(ns)}: type {conn.msgtype} "
+                                   f"after {entry.msgtype}")
+                entry.records.append((ns, typestore.deserialize_cdr(raw, conn.msgtype)))
+    except LogError:
+        raise
+    except Exception as exc:  # rosbags' errors, and whatever a damaged file raises in it
+        where = "" if topic is None else f" (topic {topic} at {_at(ns)})"
+        reason = str(exc) or type(exc).__name__
+        raise LogError(f"{path}: not a readable rosbag2 or cut short{where}: {reason}") \
+            from None
+    return out
+
+
+def _at(ns: int | None) -> str:
+    return "an unknown time" if ns is None else f"stamp {ns} ns"
+
+
+class _Reading:
+    """One bag read against one team (kept together: every error names the file)."""
+
+    def __init__(self, path: Path, team: Team, meta: dict[str, Any],
+                 bag: dict[str, _Topic], topics: Topics | None) -> None:
+        self.path, self.team, self.bag = path, team, bag
+        self.outcome: dict[str, Any] | None = None
+        if RUN in bag and bag[RUN].records:
+            meta = self._recorded_meta(meta)
+        self.meta = meta
+        self.agents = [a["name"] for a in meta["agents"]]
+        payloads = list(meta.get("payloads") or [])
+        if topics is None:
+            self._same_team()
+            topics = Topics.default(self.agents, payloads)
+        else:
+            self._mapped_present(topics)
+        self.topics = topics
+        self.t0 = min((ns for t in bag.values() for ns in self._stamps(t)), default=0)
+
+    # -- where times come from -------------------------------------------------------------
+    def _stamps(self, topic: _Topic) -> list[int]:
+        """The topic's times in ns: a message's header stamp where it has one, else the
+        bag's."""
+        return [_header_ns(msg, ns) for ns, msg in topic.records]
+
+    def _t(self, ns: int) -> float:
+        return (ns - self.t0) / 1e9
+
+    def fail(self, topic: str, ns: int | None, message: str) -> LogError:
+        when = "" if ns is None else f" at t={self._t(ns):.9g} s"
+        return LogError(f"{self.path}: topic {topic}{when}: {message}")
+
+    # -- which team ------------------------------------------------------------------------
+    def _recorded_meta(self, meta: dict[str, Any]) -> dict[str, Any]:
+        """The header an exported bag carries, when it is this team's (exact round trip)."""
+        ns, msg = self.bag[RUN].records[0]
+        try:
+            data = json.loads(msg.data)
+            recorded, outcome = data["meta"], data["outcome"]
+            team_name = recorded["team"]
+            names = [a["name"] for a in recorded["agents"]]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise self.fail(RUN, ns, f"not the header of a hybridteam run ({exc})") from None
+        if team_name != self.team.name or sorted(names) != sorted(
+                a["name"] for a in meta["agents"]):
+            raise self.fail(RUN, ns, f"the log records team '{team_name}' (agents "
+                            f"{', '.join(names)}), not '{self.team.name}' (agents "
+                            f"{', '.join(a['name'] for a in meta['agents'])})")
+        self.outcome = dict(outcome, instance=0)
+        return dict(recorded, n=1)
+
+    def _same_team(self) -> None:
+        """Export's names: a topic ``/X/pose`` (and the like) of an agent ``X`` the team does
+        not have says the log is another team's."""
+        kinds = {t.rsplit("/", 1)[-1] for t in AgentTopics.default("_").__dict__.values()}
+        for name, topic in self.bag.items():
+            parts = name.strip("/").split("/")
+            if len(parts) == 2 and parts[1] in kinds and parts[0] not in self.agents \
+                    and parts[0] != "hybridteam":
+                ns = topic.records[0][0] if topic.records else None
+                raise self.fail(name, ns, f"agent '{parts[0]}' is not in team "
+                                f"'{self.team.name}' (agents: {', '.join(self.agents)}): "
+                                "a log of another team? (--map names the topics of a log "
+                                "whose names differ)")
+
+    def _mapped_present(self, topics: Topics) -> None:
+        for agent, at in topics.agents.items():
+            for key, name in at.__dict__.items():
+                if name is not None and name not in self.bag:
+                    raise LogError(f"{self.path}: topic {name} ({agent}'s {key} in the "
+                                   "mapping) is not in the log")
+        for payload, name in topics.payloads.items():
+            if name not in self.bag:
+                raise LogError(f"{self.path}: topic {name} ({payload}'s pose in the "
+                               "mapping) is not in the log")
+
+    def _topic(self, name: str | None, kinds: tuple[str, ...]) -> _Topic | None:
+        if name is None or name not in self.bag:
+            return None
+        topic = self.bag[name]
+        if topic.msgtype not in kinds:
+            ns = topic.records[0][0] if topic.records else None
+            raise self.fail(name, ns, f"has type {topic.msgtype}, expected "
+                            f"{' or '.join(kinds)}")
+        return topic
+
+    # -- samples ---------------------------------------------------------------------------
+    def _series_of(self, topic: _Topic, names: list[str], planar: bool
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """``(times, values)`` of a sampled topic; times strictly increasing."""
+        stamps = self._stamps(topic)
+        for k in range(1, len(stamps)):
+            if stamps[k] <= stamps[k - 1]:
+                raise self.fail(topic.name, stamps[k], "stamps go back or repeat (the "
+                                f"previous one is t={self._t(stamps[k - 1]):.9g} s): "
+                                "samples must be in time order")
+        rows = []
+        for (ns, msg), stamp_ns in zip(topic.records, stamps, strict=True):
+            if topic.msgtype == ARRAY:
+                labels = msg.layout.dim[0].label.split(",") if msg.layout.dim else []
+                if labels != names or len(msg.data) != len(names):
+                    raise self.fail(topic.name, stamp_ns, f"holds {','.join(labels) or '?'} "
+                                    f"({len(msg.data)} values), expected {','.join(names)}")
+                rows.append(np.asarray(msg.data, float))
+            elif topic.msgtype == TWIST:
+                rows.append(_command(msg, names))
+            else:
+                pose = msg.pose.pose if topic.msgtype == ODOM else msg.pose
+                q = pose.orientation
+                yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+                rows.append(np.array([pose.position.x, pose.position.y, yaw]))
+            del ns
+        values = np.array(rows, float).reshape(len(rows), -1)
+        if planar and len(rows) and topic.msgtype in (POSE, ODOM):
+            values[:, 2] = np.unwrap(values[:, 2])
+        return np.array([self._t(s) for s in stamps]), values
+
+    def samples(self) -> tuple[np.ndarray, dict[str, tuple[np.ndarray, np.ndarray]]]:
+        found: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for agent in self.meta["agents"]:
+            name, names = agent["name"], list(agent["state"])
+            at = self.topics.agents.get(name)
+            if not names or at is None:
+                continue
+            planar = agent["plant"] in PLANAR and names[:3] == ["x", "y", "theta"]
+            state = self._topic(at.state, SAMPLED["state"])
+            pose = (self._topic(at.pose, SAMPLED["pose"])
+                    or self._topic(at.odom, SAMPLED["odom"])) if planar else None
+            if state is None and pose is None:
+                wanted = [t for t in (at.state, *((at.pose, at.odom) if planar else ()))
+                          if t is not None]
+                raise LogError(f"{self.path}: no topic {' or '.join(wanted) or '(none mapped)'}"
+                               f" in the log: agent '{name}' has no samples")
+            if state is not None:
+                found[name] = self._series_of(state, names, planar)
+            else:
+                assert pose is not None
+                t, v = self._series_of(pose, names[:3], planar)
+                full = np.full((len(t), len(names)), np.nan)
+                full[:, :3] = v
+                found[name] = (t, full)
+            cmd = self._topic(at.cmd, SAMPLED["cmd"])
+            key = command_series(name)
+            if cmd is not None and agent["inputs"]:
+                found[key] = self._series_of(cmd, list(agent["inputs"]), False)
+                self.meta.setdefault("series", {})[key] = list(agent["inputs"])
+        for sname, cols in self.meta.get("series", {}).items():
+            if sname in found:
+                continue
+            topic = self._topic(series_topic(sname), (ARRAY,))
+            if topic is not None:
+                found[sname] = self._series_of(topic, list(cols), False)
+                continue
+            pname = self.topics.payloads.get(sname, payload_topic(sname))
+            pose = self._topic(pname, (POSE, ODOM))
+            if pose is not None and list(cols)[:3] == ["x", "y", "theta"]:
+                t, v = self._series_of(pose, ["x", "y", "theta"], True)
+                full = np.full((len(t), len(cols)), np.nan)
+                full[:, :3] = v
+                found[sname] = (t, full)
+        every = [t for t, _ in found.values()]
+        clock = self._topic(CLOCK, (CLOCK_TYPE,)) if self.outcome is not None else None
+        if clock is not None:  # an exported run's sample grid (see export)
+            every.append(np.array([self._t(_clock_ns(msg)) for _, msg in clock.records]))
+        times = np.unique(np.concatenate(every or [np.zeros(0)]))
+        return times, found
+
+    # -- events ----------------------------------------------------------------------------
+    def _json(self, topic: _Topic) -> Iterable[tuple[int, Any]]:
+        last = None
+        for ns, msg in topic.records:
+            if last is not None and ns < last:
+                raise self.fail(topic.name, ns, "stamps go back (the previous one is "
+                                f"t={self._t(last):.9g} s): messages must be in time order")
+            last = ns
+            text = msg.data
+            try:
+                data = json.loads(text)
+            except ValueError:
+                data = text.strip()  # a bare mode path
+            yield ns, data
+
+    def transitions(self) -> list[dict[str, Any]]:
+        rows = []
+        for agent in self.meta["agents"]:
+            name = agent["name"]
+            at = self.topics.agents.get(name)
+            topic = self._topic(at.modes if at else None, EVENTS["modes"])
+            if topic is None:
+                continue
+            paths = {m["path"] for m in agent["modes"]}
+            previous = ""
+            for ns, data in self._json(topic):
+                if isinstance(data, str):
+                    data = {"target": data}
+                try:
+                    target = data["target"]
+                    row = {"instance": 0, "agent": name,
+                           "t": _number(data.get("t"), self._t(ns)),
+                           "step": int(data.get("step", 0)),
+                           "source": str(data.get("source", previous)), "target": target,
+                           "cause": str(data.get("cause", "log")),
+                           "guard": str(data.get("guard", "")), "_row": data.get("row")}
+                except (KeyError, TypeError, ValueError, AttributeError) as exc:
+                    raise self.fail(topic.name, ns, f"not a mode change ({exc}): expected "
+                                    "JSON with a 'target' mode, or a mode path") from None
+                if target not in paths:
+                    raise self.fail(topic.name, ns, f"'{target}' is not a mode of agent "
+                                    f"'{name}'")
+                previous = target
+                rows.append(row)
+        return _ordered(rows, ("t",))
+
+    def intervals(self, transitions: list[dict[str, Any]], t_end: float
+                  ) -> list[dict[str, Any]]:
+        rows = []
+        for agent in self.meta["agents"]:
+            name = agent["name"]
+            at = self.topics.agents.get(name)
+            topic = self._topic(at.stays if at else None, EVENTS["stays"])
+            if topic is None:
+                rows += _stays_from(name, agent, [r for r in transitions if r["agent"] == name],
+                                    t_end)
+                continue
+            for ns, data in self._json(topic):
+                try:
+                    rows.append({"instance": 0, "agent": name, "mode": str(data["mode"]),
+                                 "depth": int(data["depth"]),
+                                 "start": _number(data["start"], None),
+                                 "end": _number(data["end"], None), "_row": data.get("row")})
+                except (KeyError, TypeError, ValueError) as exc:
+                    raise self.fail(topic.name, ns, f"not a stay in a mode ({exc})") from None
+        return _ordered(rows, ("start", "depth"))
+
+    def messages(self) -> list[dict[str, Any]]:
+        rows = []
+        for agent in self.meta["agents"]:
+            name = agent["name"]
+            at = self.topics.agents.get(name)
+            topic = self._topic(at.messages if at else None, EVENTS["messages"])
+            if topic is None:
+                continue
+            for ns, data in self._json(topic):
+                try:
+                    t_recv = _number(data.get("t_recv"), math.nan, nullable=True)
+                    row = {"instance": 0, "seq": int(data.get("seq", 0)),
+                           "sender": str(data.get("sender", name)),
+                           "receiver": str(data["receiver"]),
+                           "socket": str(data.get("socket", "control")),
+                           "type": str(data["type"]),
+                           "t_send": _number(data.get("t_send"), self._t(ns)),
+                           "t_recv": t_recv,
+                           "status": str(data.get("status", "sent" if math.isnan(t_recv)
+                                                  else "delivered")),
+                           "reason": str(data.get("reason", "")),
+                           "msg_id": int(data.get("msg_id", -1)), "_row": data.get("row")}
+                except (KeyError, TypeError, ValueError, AttributeError) as exc:
+                    raise self.fail(topic.name, ns, f"not a team message ({exc}): expected "
+                                    "JSON with 'receiver' and 'type'") from None
+                for role in ("sender", "receiver"):
+                    if row[role] not in self.agents:
+                        raise self.fail(topic.name, ns, f"{role} '{row[role]}' is not in "
+                                        f"team '{self.team.name}' (agents: "
+                                        f"{', '.join(self.agents)})")
+                rows.append(row)
+        return _ordered(rows, ("t_send",))
+
+    # -- the run ---------------------------------------------------------------------------
+    def run(self, run_type: type, check_trace) -> Any:
+        times, found = self.samples()
+        transitions = self.transitions()
+        messages = self.messages()
+        ends = [*times.tolist(), *(r["t"] for r in transitions),
+                *(r["t_send"] for r in messages)]
+        t_end = max(ends, default=0.0)
+        intervals = self.intervals(transitions, t_end)
+        samples = {}
+        columns = {a["name"]: len(a["state"]) for a in self.meta["agents"]}
+        columns.update({k: len(v) for k, v in self.meta.get("series", {}).items()})
+        for key, d in columns.items():
+            arr = np.full((len(times), 1, d), np.nan)
+            if key in found:
+                t, v = found[key]
+                arr[np.searchsorted(times, t), 0, :] = v
+            samples[key] = arr
+        meta = self.meta
+        if self.outcome is None:
+            meta = dict(meta, duration=t_end)
+        outcome = self.outcome or {"instance": 0, "outcome": "log", "t": t_end,
+                                   "message": "imported from a rosbag2 log"}
+        run = run_type(meta, [outcome],
+                       _table(TRANSITION_COLUMNS, transitions),
+                       _table(INTERVAL_COLUMNS, intervals),
+                       _table(MESSAGE_COLUMNS, messages), times, samples)
+        problem = check_trace(run.to_dict())
+        if problem is not None:
+            raise LogError(f"{self.path}: the log does not make a valid trace: {problem}")
+        return run
+
+
+def _header_ns(msg: Any, ns: int) -> int:
+    header = getattr(msg, "header", None)
+    if header is None:
+        return ns
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _clock_ns(msg: Any) -> int:
+    return int(msg.clock.sec) * 1_000_000_000 + int(msg.clock.nanosec)
+
+
+def _command(msg: Any, inputs: list[str]) -> np.ndarray:
+    """A ``Twist`` as the plant's inputs, as export writes them."""
+    by_name = {"v": msg.linear.x, "vx": msg.linear.x, "vy": msg.linear.y,
+               "omega": msg.angular.z}
+    return np.array([by_name.get(n, math.nan) for n in inputs], float)
+
+
+def _number(value: Any, default: float | None, nullable: bool = False) -> float:
+    if value is None:
+        if default is None and not nullable:
+            raise ValueError("a time is missing")
+        return math.nan if default is None else default
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"{value!r} is not a number")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{value!r} is not a finite time")
+    return value
+
+
+def _ordered(rows: list[dict[str, Any]], keys: tuple[str, ...]) -> list[dict[str, Any]]:
+    """Rows in their trace order when every one says where it was (an exported run), else
+    in time order (stable: agents in the team's order)."""
+    if rows and all(isinstance(r["_row"], int) for r in rows):
+        return sorted(rows, key=lambda r: r["_row"])
+    return sorted(rows, key=lambda r: tuple(r[k] for k in keys))
+
+
+def _table(columns: tuple[str, ...], rows: list[dict[str, Any]]) -> Table:
+    return Table(columns, {c: [r[c] for r in rows] for c in columns})
+
+
+def _stays_from(name: str, agent: dict[str, Any], transitions: list[dict[str, Any]],
+                t_end: float) -> list[dict[str, Any]]:
+    """Stays in modes from mode changes alone: after a change to ``A.B.C`` the agent is in
+    ``A``, ``A.B`` and ``A.B.C``; a stay continues while the modes entered keep it."""
+    depth = {m["path"]: m["depth"] for m in agent["modes"]}
+    open_: list[tuple[str, float]] = []
+    out = []
+    for tr in sorted(transitions, key=lambda r: r["t"]):
+        parts = tr["target"].split(".")
+        chain = [".".join(parts[: i + 1]) for i in range(len(parts))]
+        chain = [p for p in chain if p in depth]
+        keep = 0
+        while keep < min(len(open_), len(chain)) and open_[keep][0] == chain[keep]:
+            keep += 1
+        for mode, start in open_[keep:]:
+            out.append({"instance": 0, "agent": name, "mode": mode, "depth": depth[mode],
+                        "start": start, "end": tr["t"], "_row": None})
+        open_ = open_[:keep] + [(p, tr["t"]) for p in chain[keep:]]
+    for mode, start in open_:
+        out.append({"instance": 0, "agent": name, "mode": mode, "depth": depth[mode],
+                    "start": start, "end": t_end, "_row": None})
+    return out
