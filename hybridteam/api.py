@@ -72,6 +72,23 @@ class Run(Trace):
 
         return samples_frame(self, wide)
 
+    def to_bag(self, path: str | os.PathLike, format: str | None = None,
+               instance: int = 0) -> Any:
+        """Write instance ``instance`` as a rosbag2 (``run.mcap``, ``run.db3`` or a bag
+        folder; see docs/logs.md). Needs ``pip install 'hybridteam[logs]'``."""
+        from hybridteam.logs.export import write_bag
+
+        return write_bag(self, path, format, instance)
+
+    @classmethod
+    def from_bag(cls, path: str | os.PathLike, team: Team,
+                 mapping: str | os.PathLike | None = None) -> Run:
+        """The run a rosbag2 recorded of ``team`` (topics as ``mapping`` names them, by
+        default those :meth:`to_bag` writes)."""
+        from hybridteam.logs.bag import read_bag
+
+        return read_bag(path, team, mapping)
+
     def __repr__(self) -> str:
         counts = f"{len(self.transitions)} transitions, {len(self.messages)} messages"
         if self.n == 1:
@@ -200,6 +217,16 @@ def parameters(sim: Simulator) -> dict[str, tuple[list[str], np.ndarray]]:
         names = sorted(st.ca.param_index, key=st.ca.param_index.__getitem__)
         params[st.ca.name] = (names, st.p)
     return params
+
+
+def check(run: Trace, team: Team) -> Table:
+    """``team``'s requirements evaluated on a recorded ``run`` (a log read with
+    :meth:`Run.from_bag`, or a trace): a row per instance and requirement with
+    ``satisfied``, ``robustness``, ``violated_at`` and ``failed`` (see
+    :mod:`hybridteam.logs.check`)."""
+    from hybridteam.logs.check import check_run, verdict_table
+
+    return verdict_table(check_run(run, team))
 
 
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,

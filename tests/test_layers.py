@@ -91,7 +91,7 @@ def _under(name: str, *prefixes: str) -> bool:
 LOWEST = ("hybridteam.errors", "hybridteam.model", "hybridteam.expr", "hybridteam.dynamics",
           "hybridteam.trace", "hybridteam.arrays")
 ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridteam.sweep",
-                "hybridteam.api", "hybridteam.kinds")
+                "hybridteam.api", "hybridteam.kinds", "hybridteam.logs")
 #: What a mode library may import of hybridteam.
 LIBRARY_API = ("hybridteam.library", "hybridteam.world.geometry")
 
@@ -119,7 +119,7 @@ def violations(imports: list[Import]) -> list[str]:
         if _under(m, "hybridteam.world") and _under(t, "hybridteam.engine", *ABOVE_ENGINE):
             report(imp, "world components see the engine only through WorldAccess")
         if _under(m, "hybridteam.engine") and _under(t, *ABOVE_ENGINE):
-            report(imp, "the engine never imports io, export, cli, sweep, api or kinds")
+            report(imp, "the engine never imports io, export, cli, sweep, api, kinds or logs")
         if _under(m, "hybridteam.io") and _under(t, "hybridteam.sweep", "hybridteam.kinds",
                                                   "hybridteam.cli", "hybridteam.export"):
             report(imp, "io never imports sweep, kinds, cli or export")

@@ -66,16 +66,24 @@ class _Topic:
     records: list[tuple[int, Any]] = field(default_factory=list)
 
 
-def read_bag(path: str | os.PathLike, team: Team, topics: Topics | None = None) -> Any:
+def read_bag(path: str | os.PathLike, team: Team,
+             mapping: str | os.PathLike | None = None) -> Any:
     """The :class:`~hybridteam.api.Run` a rosbag2 (a folder, or one ``.mcap``/``.db3``
-    file) records of ``team``; ``topics`` from a mapping file (default: export's names)."""
+    file) records of ``team``; topics as a ``mapping`` file names them (default: export's
+    names). Raises :class:`LogError`, or :class:`~hybridteam.io.filekind.InputErrors` for
+    a bad mapping file."""
     require_rosbags()
     from hybridteam.api import Run
     from hybridteam.logs.team import team_frame
+    from hybridteam.logs.topics import load_mapping
     from hybridteam.trace_schema import check_trace
 
     path = Path(path)
     meta, _params = team_frame(team)
+    topics = None
+    if mapping is not None:
+        topics = load_mapping(mapping, [a["name"] for a in meta["agents"]],
+                              list(meta.get("payloads") or []))
     bag = _read(path)
     return _Reading(path, team, meta, bag, topics).run(Run, check_trace)
 
