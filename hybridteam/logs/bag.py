@@ -130,6 +130,7 @@ class _Reading:
                  bag: dict[str, _Topic], topics: Topics | None) -> None:
         self.path, self.team, self.bag = path, team, bag
         self.outcome: dict[str, Any] | None = None
+        self.t0 = min((ns for t in bag.values() for ns in self._stamps(t)), default=0)
         if RUN in bag and bag[RUN].records:
             meta = self._recorded_meta(meta)
         self.meta = meta
@@ -141,7 +142,6 @@ class _Reading:
         else:
             self._mapped_present(topics)
         self.topics = topics
-        self.t0 = min((ns for t in bag.values() for ns in self._stamps(t)), default=0)
 
     # -- where times come from -------------------------------------------------------------
     def _stamps(self, topic: _Topic) -> list[int]:
