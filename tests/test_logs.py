@@ -306,6 +306,20 @@ def test_check_command_on_a_run_that_holds(tmp_path, capsys):
     assert lines == verdict_lines(summary)
 
 
+def test_check_refuses_a_requirement_on_variables(tmp_path, capsys):
+    """A recording has no discrete variables: a requirement reading one is refused."""
+    text = (EXAMPLES / "automata" / "unicycle_square.yaml").read_text()
+    team_file = tmp_path / "square.yaml"
+    team_file.write_text(text.replace("simulation:", "requirements:\n  few_sides: "
+                                      "always(sides <= 4)\nsimulation:"))
+    team = ht.load(team_file)
+    bag = ht.simulate(team, duration=1.0).to_bag(tmp_path / "run.mcap")
+    err = _one_line_error(capsys, main(["check", str(bag), "--team", str(team_file)]))
+    assert err == (f"hybridteam: error: {bag}: requirement few_sides: reads the discrete "
+                   "variables of agent 'robot', which a recording does not have (variables are not "
+                   "logged)")
+
+
 # ---------------------------------------------------------------------- bad input
 def _one_line_error(capsys, code: int) -> str:
     err = capsys.readouterr().err.strip()

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from hybridteam.engine.record import variables_key
 from hybridteam.logs import LogError
 from hybridteam.model import Team
 from hybridteam.trace import Table
 
+VARIABLES = variables_key("")  # the suffix of an agent's variables in a run's snapshots
 VERDICT_COLUMNS = ("instance", "requirement", "satisfied", "robustness", "violated_at",
                    "failed")
 
@@ -39,9 +41,11 @@ def check_run(run: Any, team: Team) -> list[dict[str, dict[str, Any]]]:
         try:
             verdicts = one.check(run, params)
         except KeyError as exc:  # the discrete variables a simulation snapshots
-            raise LogError(f"requirement {req.name}: reads {exc.args[0]!r}, which a "
-                           "recording does not have (discrete variables are not logged)") \
-                from None
+            key = str(exc.args[0])
+            what = f"the discrete variables of agent '{key.removesuffix(VARIABLES)}'" \
+                if key.endswith(VARIABLES) else repr(key)
+            raise LogError(f"requirement {req.name}: reads {what}, which a recording does "
+                           "not have (variables are not logged)") from None
         for i, v in enumerate(verdicts):
             out[i].update(v)
     return out
