@@ -25,7 +25,8 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,7 @@ import numpy as np
 from hybridteam.logs import LogError, require_rosbags
 from hybridteam.logs.export import PLANAR
 from hybridteam.logs.topics import (
+    AGENT_KINDS,
     ARRAY,
     CLOCK,
     CLOCK_TYPE,
@@ -43,7 +45,6 @@ from hybridteam.logs.topics import (
     RUN,
     STRING,
     TWIST,
-    AgentTopics,
     Topics,
     command_series,
     payload_topic,
@@ -84,64 +85,124 @@ def read_bag(path: str | os.PathLike, team: Team,
     if mapping is not None:
         topics = load_mapping(mapping, [a["name"] for a in meta["agents"]],
                               list(meta.get("payloads") or []))
-    bag = _read(path)
-    return _Reading(path, team, meta, bag, topics).run(Run, check_trace)
+    with _BagFile(path) as bag:
+        reading = _Reading(path, team, meta, bag.types, bag.read([RUN]).get(RUN), topics)
+        reading.load(bag.read(reading.wanted()))
+    return reading.run(Run, check_trace)
 
 
-def _read(path: Path) -> dict[str, _Topic]:
-    """Every message of the bag, decoded, by topic; a :class:`LogError` for a file that is
-    not a bag, is cut short or holds a message that does not decode."""
-    from rosbags.rosbag2 import Reader
-    from rosbags.typesys import Stores, get_typestore
+class _BagFile:
+    """An open rosbag2 whose topics are read on demand (a robot's log holds images and
+    scans that a trace has no place for: they are never decoded). Whatever a file that is
+    not a bag, is cut short or holds a message that does not decode raises in ``rosbags``
+    becomes one :class:`LogError`."""
 
-    if not path.exists():
-        raise LogError(f"{path}: no such file or folder")
-    typestore = get_typestore(Stores.ROS2_HUMBLE)
-    out: dict[str, _Topic] = {}
-    topic, ns = None, None
-    try:
-        with Reader(path) as reader:
-            known = [c for c in reader.connections if c.msgtype in typestore.types]
-            for conn, ns, raw in reader.messages(connections=known):
-                topic = conn.topic
-                entry = out.setdefault(topic, _Topic(topic, conn.msgtype))
-                if entry.msgtype != conn.msgtype:
-                    raise LogError(f"{path}: topic {topic} at {_at(ns)}: type {conn.msgtype} "
-                                   f"after {entry.msgtype}")
-                entry.records.append((ns, typestore.deserialize_cdr(raw, conn.msgtype)))
-    except LogError:
-        raise
-    except Exception as exc:  # rosbags' errors, and whatever a damaged file raises in it
-        where = "" if topic is None else f" (topic {topic} at {_at(ns)})"
-        reason = str(exc) or type(exc).__name__
-        raise LogError(f"{path}: not a readable rosbag2 or cut short{where}: {reason}") \
-            from None
-    return out
+    def __init__(self, path: Path) -> None:
+        self.path = path
 
+    def __enter__(self) -> _BagFile:
+        from rosbags.rosbag2 import Reader
+        from rosbags.typesys import Stores, get_typestore
 
-def _at(ns: int | None) -> str:
-    return "an unknown time" if ns is None else f"stamp {ns} ns"
+        if not self.path.exists():
+            raise LogError(f"{self.path}: no such file or folder")
+        self.typestore = get_typestore(Stores.ROS2_HUMBLE)
+        with self._damaged():
+            self.reader = Reader(self.path)
+            self.reader.open()
+        self.connections = list(self.reader.connections)
+        self.types: dict[str, str] = {}
+        for conn in self.connections:
+            if self.types.setdefault(conn.topic, conn.msgtype) != conn.msgtype:
+                self.__exit__()
+                raise LogError(f"{self.path}: topic {conn.topic} has two types, "
+                               f"{self.types[conn.topic]} and {conn.msgtype}")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with suppress(Exception):  # closing a damaged file: the error that matters is raised
+            self.reader.close()
+
+    def read(self, names: Iterable[str]) -> dict[str, _Topic]:
+        """The messages of the named topics present, decoded, in bag order (a topic of a
+        type this reader does not know has none)."""
+        wanted = set(names) & set(self.types)
+        out = {name: _Topic(name, self.types[name]) for name in wanted}
+        conns = [c for c in self.connections
+                 if c.topic in wanted and c.msgtype in self.typestore.types]
+        if not conns:
+            return out
+        where: list[Any] = [None, None]
+        with self._damaged(where):
+            for conn, ns, raw in self.reader.messages(connections=conns):
+                where[:] = [conn.topic, ns]
+                out[conn.topic].records.append(
+                    (ns, self.typestore.deserialize_cdr(raw, conn.msgtype)))
+        return out
+
+    @contextmanager
+    def _damaged(self, where: list[Any] | None = None) -> Iterator[None]:
+        """Any error of ``rosbags`` reading a damaged file as one :class:`LogError`;
+        ``where``: the topic and stamp last read."""
+        try:
+            yield
+        except LogError:
+            raise
+        except Exception as exc:  # rosbags' errors, whatever a damaged file raises in it
+            at = "" if not where or where[0] is None else \
+                f" (after topic {where[0]} at stamp {where[1]} ns)"
+            reason = str(exc) or type(exc).__name__
+            raise LogError(f"{self.path}: not a readable rosbag2 or cut short{at}: "
+                           f"{reason}") from None
 
 
 class _Reading:
     """One bag read against one team (kept together: every error names the file)."""
 
-    def __init__(self, path: Path, team: Team, meta: dict[str, Any],
-                 bag: dict[str, _Topic], topics: Topics | None) -> None:
-        self.path, self.team, self.bag = path, team, bag
+    def __init__(self, path: Path, team: Team, meta: dict[str, Any], types: dict[str, str],
+                 header: _Topic | None, topics: Topics | None) -> None:
+        self.path, self.team, self.types = path, team, types
+        self.bag: dict[str, _Topic] = {}
         self.outcome: dict[str, Any] | None = None
-        self.t0 = min((ns for t in bag.values() for ns in self._stamps(t)), default=0)
-        if RUN in bag and bag[RUN].records:
+        self.t0 = 0
+        if header is not None and header.records:
+            self.bag[RUN] = header
+            self.t0 = header.records[0][0]  # export writes it first, at the log's start
             meta = self._recorded_meta(meta)
         self.meta = meta
         self.agents = [a["name"] for a in meta["agents"]]
-        payloads = list(meta.get("payloads") or [])
         if topics is None:
-            self._same_team()
-            topics = Topics.default(self.agents, payloads)
+            topics = Topics.default(self.agents, list(meta.get("payloads") or []))
         else:
             self._mapped_present(topics)
         self.topics = topics
+        self.mapped = topics.mapped
+
+    def wanted(self) -> list[str]:
+        """The topics this team's trace is made of (and, with export's names, those of
+        agents the team does not have, to name them)."""
+        names = [CLOCK, *self.topics.payloads.values()]
+        for at in self.topics.agents.values():
+            names += [t for t in at.__dict__.values() if t is not None]
+        names += [series_topic(s) for s in self.meta.get("series", {})]
+        if not self.mapped:
+            names += [t for t in self.types if self._foreign(t)]
+        return names
+
+    def load(self, bag: dict[str, _Topic]) -> None:
+        self.bag.update(bag)
+        self.t0 = min((ns for t in self.bag.values() for ns in self._stamps(t)),
+                      default=self.t0)
+        if not self.mapped:
+            self._same_team()
+
+    def _foreign(self, topic: str) -> str | None:
+        """The agent ``X`` a topic ``/X/pose`` (any of export's kinds) names, when the team
+        has no such agent."""
+        parts = topic.strip("/").split("/")
+        if len(parts) == 2 and parts[1] in AGENT_KINDS and parts[0] not in self.agents:
+            return parts[0]
+        return None
 
     # -- where times come from -------------------------------------------------------------
     def _stamps(self, topic: _Topic) -> list[int]:
@@ -178,13 +239,11 @@ class _Reading:
     def _same_team(self) -> None:
         """Export's names: a topic ``/X/pose`` (and the like) of an agent ``X`` the team does
         not have says the log is another team's."""
-        kinds = {t.rsplit("/", 1)[-1] for t in AgentTopics.default("_").__dict__.values()}
         for name, topic in self.bag.items():
-            parts = name.strip("/").split("/")
-            if len(parts) == 2 and parts[1] in kinds and parts[0] not in self.agents \
-                    and parts[0] != "hybridteam":
-                ns = topic.records[0][0] if topic.records else None
-                raise self.fail(name, ns, f"agent '{parts[0]}' is not in team "
+            agent = self._foreign(name)
+            if agent is not None:
+                ns = self._stamps(topic)[0] if topic.records else None
+                raise self.fail(name, ns, f"agent '{agent}' is not in team "
                                 f"'{self.team.name}' (agents: {', '.join(self.agents)}): "
                                 "a log of another team? (--map names the topics of a log "
                                 "whose names differ)")
@@ -192,11 +251,11 @@ class _Reading:
     def _mapped_present(self, topics: Topics) -> None:
         for agent, at in topics.agents.items():
             for key, name in at.__dict__.items():
-                if name is not None and name not in self.bag:
+                if name is not None and name not in self.types:
                     raise LogError(f"{self.path}: topic {name} ({agent}'s {key} in the "
                                    "mapping) is not in the log")
         for payload, name in topics.payloads.items():
-            if name not in self.bag:
+            if name not in self.types:
                 raise LogError(f"{self.path}: topic {name} ({payload}'s pose in the "
                                "mapping) is not in the log")
 
@@ -221,9 +280,9 @@ class _Reading:
                                 f"previous one is t={self._t(stamps[k - 1]):.9g} s): "
                                 "samples must be in time order")
         rows = []
-        for (ns, msg), stamp_ns in zip(topic.records, stamps, strict=True):
-            if topic.msgtype == ARRAY:
-                labels = msg.layout.dim[0].label.split(",") if msg.layout.dim else []
+        for (_, msg), stamp_ns in zip(topic.records, stamps, strict=True):
+            if topic.msgtype == ARRAY:  # labelled as export does, or unlabelled
+                labels = msg.layout.dim[0].label.split(",") if msg.layout.dim else names
                 if labels != names or len(msg.data) != len(names):
                     raise self.fail(topic.name, stamp_ns, f"holds {','.join(labels) or '?'} "
                                     f"({len(msg.data)} values), expected {','.join(names)}")
@@ -235,7 +294,6 @@ class _Reading:
                 q = pose.orientation
                 yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
                 rows.append(np.array([pose.position.x, pose.position.y, yaw]))
-            del ns
         values = np.array(rows, float).reshape(len(rows), -1)
         if planar and len(rows) and topic.msgtype in (POSE, ODOM):
             values[:, 2] = np.unwrap(values[:, 2])
@@ -255,8 +313,12 @@ class _Reading:
             if state is None and pose is None:
                 wanted = [t for t in (at.state, *((at.pose, at.odom) if planar else ()))
                           if t is not None]
-                raise LogError(f"{self.path}: no topic {' or '.join(wanted) or '(none mapped)'}"
-                               f" in the log: agent '{name}' has no samples")
+                if not wanted:
+                    raise LogError(f"{self.path}: the mapping names no "
+                                   f"{'state, pose or odom' if planar else 'state'} topic "
+                                   f"of agent '{name}': it has no samples")
+                raise LogError(f"{self.path}: no topic {' or '.join(wanted)} in the log: "
+                               f"agent '{name}' has no samples")
             if state is not None:
                 found[name] = self._series_of(state, names, planar)
             else:

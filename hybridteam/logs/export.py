@@ -100,7 +100,7 @@ def write_bag(trace: Trace, path: str | os.PathLike, fmt: str | None = None,
         raise LogError(f"{path} is a folder, not a file")
     run = (trace if isinstance(trace, Run) else Run.of(trace)).instance(instance)
     typestore = get_typestore(Stores.ROS2_HUMBLE)
-    records = sorted(_records(run, typestore), key=lambda r: r[1])
+    records = sorted(_Messages(run, typestore).records(), key=lambda r: r[1])
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     bag = tmp / path.stem
@@ -122,133 +122,148 @@ def write_bag(trace: Trace, path: str | os.PathLike, fmt: str | None = None,
     return path
 
 
-def _records(run: Any, ts: Any) -> Iterator[tuple[str, int, str, Any]]:
-    """Every message of the bag: ``(topic, stamp, type, message)``, per topic in time order."""
-    T = ts.types
-    meta = run.meta
-    times = run.sample_times
-    ns = [stamp(t) for t in times.tolist()]
+Record = tuple[str, int, str, Any]  # (topic, stamp in ns, message type, message)
 
-    def header(k: int, frame: str) -> Any:
-        sec, nsec = divmod(ns[k], 1_000_000_000)
-        return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec, nsec),
-                                        frame_id=frame)
 
-    def string(data: dict) -> Any:
-        return T[STRING](data=json.dumps(data, separators=(",", ":"), allow_nan=False))
+class _Messages:
+    """The messages of one instance of a run, built with the typestore's classes."""
 
-    def array(names: list[str], values: np.ndarray) -> Any:
+    def __init__(self, run: Any, typestore: Any) -> None:
+        self.run, self.T = run, typestore.types
+        self.times = run.sample_times
+        self.ns = [stamp(t) for t in self.times.tolist()]
+        self.transforms: dict[int, list[Any]] = {}  # sample -> /tf entries
+
+    # -- message builders ------------------------------------------------------------------
+    def header(self, k: int, frame: str = MAP_FRAME) -> Any:
+        sec, nsec = divmod(self.ns[k], 1_000_000_000)
+        return self.T["std_msgs/msg/Header"](
+            stamp=self.T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+            frame_id=frame)
+
+    def string(self, data: dict) -> Any:
+        return self.T[STRING](data=json.dumps(data, separators=(",", ":"), allow_nan=False))
+
+    def array(self, names: list[str], values: np.ndarray) -> Any:
+        T = self.T
         dim = T["std_msgs/msg/MultiArrayDimension"](label=",".join(names), size=len(names),
                                                     stride=len(names))
         return T[ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0),
                         data=np.asarray(values, dtype=np.float64))
 
-    def pose(x: float, y: float, th: float) -> Any:
-        return T["geometry_msgs/msg/Pose"](
-            position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
-            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2),
-                                                          w=math.cos(th / 2)))
+    def vector(self, x: float, y: float, z: float = 0.0) -> Any:
+        return self.T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
 
-    def vector(x: float, y: float, z: float) -> Any:
-        return T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
+    def quaternion(self, th: float) -> Any:
+        """A rotation by ``th`` about z."""
+        return self.T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2),
+                                                      w=math.cos(th / 2))
 
-    yield RUN, 0, STRING, string({"meta": meta, "outcome": run.diagnostics[0]})
-    for k, n in enumerate(ns):  # the sample grid, also where no value was recorded
-        yield CLOCK, n, CLOCK_TYPE, T[CLOCK_TYPE](clock=header(k, "").stamp)
-    transforms: dict[int, list[Any]] = {}
-    for agent in meta["agents"]:
+    def pose(self, x: float, y: float, th: float) -> Any:
+        return self.T["geometry_msgs/msg/Pose"](
+            position=self.T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+            orientation=self.quaternion(th))
+
+    def add_transform(self, k: int, child: str, x: float, y: float, th: float) -> None:
+        """``map -> child`` at sample ``k``, sent on ``/tf`` with the others of that time."""
+        self.transforms.setdefault(k, []).append(self.T["geometry_msgs/msg/TransformStamped"](
+            header=self.header(k), child_frame_id=child,
+            transform=self.T["geometry_msgs/msg/Transform"](translation=self.vector(x, y),
+                                                            rotation=self.quaternion(th))))
+
+    # -- the bag's contents ----------------------------------------------------------------
+    def records(self) -> Iterator[Record]:
+        """Every message of the bag, per topic in time order."""
+        run, meta = self.run, self.run.meta
+        yield RUN, 0, STRING, self.string({"meta": meta, "outcome": run.diagnostics[0]})
+        for k, ns in enumerate(self.ns):  # the sample grid, also where no value was recorded
+            yield CLOCK, ns, CLOCK_TYPE, self.T[CLOCK_TYPE](clock=self.header(k).stamp)
+        for agent in meta["agents"]:
+            yield from self.agent(agent)
+        payloads = meta.get("payloads") or []
+        for name, cols in meta.get("series", {}).items():
+            values, have = self.sampled(name)
+            for k in have:
+                yield series_topic(name), self.ns[k], ARRAY, self.array(list(cols), values[k])
+            if name in payloads and list(cols)[:3] == ["x", "y", "theta"]:
+                for k in have:
+                    x, y, th = values[k, :3].tolist()
+                    yield payload_topic(name), self.ns[k], POSE, self.T[POSE](
+                        header=self.header(k), pose=self.pose(x, y, th))
+                    self.add_transform(k, name, x, y, th)
+        for k in sorted(self.transforms):
+            yield TF, self.ns[k], TF_TYPE, self.T[TF_TYPE](transforms=self.transforms[k])
+
+    def sampled(self, key: str) -> tuple[np.ndarray, np.ndarray]:
+        """A series' values (samples x columns) and the samples where it has them."""
+        values = self.run.samples[key][:, 0, :]
+        return values, np.flatnonzero(~np.isnan(values).any(axis=1))
+
+    def agent(self, agent: dict[str, Any]) -> Iterator[Record]:
         name, names = agent["name"], list(agent["state"])
         topics = AgentTopics.default(name)
-        values = run.samples[name][:, 0, :]
-        have = ~np.isnan(values).any(axis=1)
+        values, have = self.sampled(name)
         if names:
-            for k in np.flatnonzero(have):
-                yield topics.state, ns[k], ARRAY, array(names, values[k])
+            for k in have:
+                yield topics.state, self.ns[k], ARRAY, self.array(names, values[k])
         if agent["plant"] in PLANAR and names[:3] == ["x", "y", "theta"]:
-            yield from _planar(name, topics, values, have, times, ns, header, pose, vector,
-                               T, transforms)
-        if command_series(name) in meta.get("series", {}):
-            yield from _commands(name, agent, run, ns, vector, T)
-        yield from _json_rows(run.transitions, name, "agent", topics.modes, "t", string,
-                              ("t", "step", "source", "target", "cause", "guard"))
-        yield from _json_rows(run.intervals, name, "agent", topics.stays, "start", string,
-                              ("mode", "depth", "start", "end"))
-        yield from _json_rows(run.messages, name, "sender", topics.messages, "t_send", string,
-                              ("seq", "sender", "receiver", "socket", "type", "t_send",
-                               "t_recv", "status", "reason", "msg_id"))
-    for sname, cols in meta.get("series", {}).items():
-        values = run.samples[sname][:, 0, :]
-        have = ~np.isnan(values).any(axis=1)
-        for k in np.flatnonzero(have):
-            yield series_topic(sname), ns[k], ARRAY, array(list(cols), values[k])
-        if sname in (meta.get("payloads") or []) and list(cols)[:3] == ["x", "y", "theta"]:
-            for k in np.flatnonzero(have):
-                x, y, th = values[k, :3].tolist()
-                yield payload_topic(sname), ns[k], POSE, T[POSE](
-                    header=header(k, MAP_FRAME), pose=pose(x, y, th))
-                transforms.setdefault(k, []).append(_transform(
-                    T, header(k, MAP_FRAME), sname, x, y, th, vector))
-    for k in sorted(transforms):
-        yield TF, ns[k], TF_TYPE, T[TF_TYPE](transforms=transforms[k])
+            yield from self.planar(name, topics, values, have)
+        if command_series(name) in self.run.meta.get("series", {}):
+            yield from self.commands(name, agent["inputs"], topics.cmd)
+        run = self.run
+        yield from self.rows(run.transitions, name, "agent", topics.modes, "t",
+                             ("t", "step", "source", "target", "cause", "guard"))
+        yield from self.rows(run.intervals, name, "agent", topics.stays, "start",
+                             ("mode", "depth", "start", "end"))
+        yield from self.rows(run.messages, name, "sender", topics.messages, "t_send",
+                             ("seq", "sender", "receiver", "socket", "type", "t_send",
+                              "t_recv", "status", "reason", "msg_id"))
 
-
-def _planar(name, topics, values, have, times, ns, header, pose, vector, T, transforms):
-    """Pose, odometry and the ``/tf`` entry of a planar robot at each of its samples."""
-    ks = np.flatnonzero(have)
-    for j, k in enumerate(ks):
-        x, y, th = values[k, :3].tolist()
-        nxt = ks[j + 1] if j + 1 < len(ks) else (ks[j - 1] if j > 0 else k)
-        dt = float(times[nxt] - times[k])
-        if dt == 0:
-            vx = vy = wz = 0.0
-        else:  # the velocity held over the next period, in the body frame
-            dx, dy, dth = ((values[nxt, :3] - values[k, :3]) / dt).tolist()
-            vx, vy, wz = math.cos(th) * dx + math.sin(th) * dy, \
-                -math.sin(th) * dx + math.cos(th) * dy, dth
-        p = pose(x, y, th)
-        yield topics.pose, ns[k], POSE, T[POSE](header=header(k, MAP_FRAME), pose=p)
+    def planar(self, name: str, topics: AgentTopics, values: np.ndarray, have: np.ndarray
+               ) -> Iterator[Record]:
+        """Pose, odometry and the ``/tf`` entry of a planar robot at each of its samples;
+        the odometry's velocity is the one held to the next sample, in the body frame."""
+        T = self.T
         zero = np.zeros(36)
-        yield topics.odom, ns[k], ODOM, T[ODOM](
-            header=header(k, MAP_FRAME), child_frame_id=base_frame(name),
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=p, covariance=zero),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                twist=T[TWIST](linear=vector(vx, vy, 0.0), angular=vector(0.0, 0.0, wz)),
-                covariance=zero))
-        transforms.setdefault(k, []).append(_transform(T, header(k, MAP_FRAME),
-                                                       base_frame(name), x, y, th, vector))
+        for j, k in enumerate(have):
+            x, y, th = values[k, :3].tolist()
+            nxt = have[j + 1] if j + 1 < len(have) else (have[j - 1] if j > 0 else k)
+            dt = float(self.times[nxt] - self.times[k])
+            vx = vy = wz = 0.0
+            if dt != 0:
+                dx, dy, wz = ((values[nxt, :3] - values[k, :3]) / dt).tolist()
+                vx = math.cos(th) * dx + math.sin(th) * dy
+                vy = -math.sin(th) * dx + math.cos(th) * dy
+            pose = self.pose(x, y, th)
+            yield topics.pose, self.ns[k], POSE, T[POSE](header=self.header(k), pose=pose)
+            yield topics.odom, self.ns[k], ODOM, T[ODOM](
+                header=self.header(k), child_frame_id=base_frame(name),
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=T[TWIST](linear=self.vector(vx, vy), angular=self.vector(0.0, 0.0,
+                                                                                   wz)),
+                    covariance=zero))
+            self.add_transform(k, base_frame(name), x, y, th)
 
+    def commands(self, name: str, inputs: list[str], topic: str) -> Iterator[Record]:
+        """A unicycle's ``(v, omega)``, a holonomic base's ``(vx, vy, omega)`` (in the map
+        frame, as the model has them) as ``Twist``, each sample where the trace has one."""
+        values, have = self.sampled(command_series(name))
+        for k in have:
+            u = dict(zip(inputs, values[k].tolist(), strict=False))
+            yield topic, self.ns[k], TWIST, self.T[TWIST](
+                linear=self.vector(u.get("v", u.get("vx", 0.0)), u.get("vy", 0.0)),
+                angular=self.vector(0.0, 0.0, u.get("omega", 0.0)))
 
-def _transform(T, head, child: str, x: float, y: float, th: float, vector) -> Any:
-    return T["geometry_msgs/msg/TransformStamped"](
-        header=head, child_frame_id=child,
-        transform=T["geometry_msgs/msg/Transform"](
-            translation=vector(x, y, 0.0),
-            rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2),
-                                                       w=math.cos(th / 2))))
-
-
-def _commands(name: str, agent: dict, run: Any, ns: list[int], vector, T):
-    """``/A/cmd_vel``: a unicycle's ``(v, omega)``, a holonomic base's ``(vx, vy, omega)``
-    (as the model has them, in the map frame), each sample where the trace has one."""
-    values = run.samples[command_series(name)][:, 0, :]
-    inputs = list(agent["inputs"])
-    topic = AgentTopics.default(name).cmd
-    for k in np.flatnonzero(~np.isnan(values).any(axis=1)):
-        u = dict(zip(inputs, values[k].tolist(), strict=False))
-        yield topic, ns[k], TWIST, T[TWIST](
-            linear=vector(u.get("v", u.get("vx", 0.0)), u.get("vy", 0.0), 0.0),
-            angular=vector(0.0, 0.0, u.get("omega", 0.0)))
-
-
-def _json_rows(table: Any, name: str, column: str, topic: str, time: str, string,
-               fields: tuple[str, ...]) -> Iterator[tuple[str, int, str, Any]]:
-    """The rows of ``table`` that belong to ``name``, as compact JSON in time order, each
-    with its ``row`` (its place in the trace's table, so import restores the order)."""
-    rows = np.flatnonzero(table[column] == name)
-    order = sorted(rows.tolist(), key=lambda r: (float(table[time][r]), r))
-    for r in order:
-        data: dict[str, Any] = {"row": r}
-        for f in fields:
-            v = table[f][r].item() if hasattr(table[f][r], "item") else table[f][r]
-            data[f] = None if isinstance(v, float) and math.isnan(v) else v
-        yield topic, stamp(float(table[time][r])), STRING, string(data)
+    def rows(self, table: Any, name: str, column: str, topic: str, time: str,
+             fields: tuple[str, ...]) -> Iterator[Record]:
+        """The rows of ``table`` that belong to ``name``, as compact JSON in time order,
+        each with its ``row`` (its place in the trace's table: import restores the order)."""
+        rows = np.flatnonzero(table[column] == name).tolist()
+        for r in sorted(rows, key=lambda r: (float(table[time][r]), r)):
+            data: dict[str, Any] = {"row": r}
+            for f in fields:
+                v = table[f][r]
+                v = v.item() if isinstance(v, np.generic) else v
+                data[f] = None if isinstance(v, float) and math.isnan(v) else v
+            yield topic, stamp(float(table[time][r])), STRING, self.string(data)

@@ -42,8 +42,10 @@ TWIST = "geometry_msgs/msg/Twist"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 
-#: The kinds of topic an agent has, in the mapping file's words.
+#: The kinds of topic an agent has, in the mapping file's words ...
 AGENT_KEYS = ("state", "pose", "odom", "cmd", "modes", "stays", "messages")
+#: ... and the last part of their names as export writes them (``/A/cmd_vel``)
+AGENT_KINDS = ("state", "pose", "odom", "cmd_vel", "mode", "stays", "messages")
 
 
 def base_frame(agent: str) -> str:
@@ -78,8 +80,7 @@ class AgentTopics:
 
     @classmethod
     def default(cls, agent: str) -> AgentTopics:
-        return cls(f"/{agent}/state", f"/{agent}/pose", f"/{agent}/odom", f"/{agent}/cmd_vel",
-                   f"/{agent}/mode", f"/{agent}/stays", f"/{agent}/messages")
+        return cls(*(f"/{agent}/{kind}" for kind in AGENT_KINDS))
 
 
 @dataclass(frozen=True)
