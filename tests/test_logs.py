@@ -196,7 +196,7 @@ CHANGES = {30 * i: "Drive" for i in range(4)} | {30 * i + 20: "Turn" for i in ra
 
 
 def write_square_bag(path: Path, pose_topic: str = "/amcl_pose", swap: int | None = None,
-                     modes_topic: str = "/fsm") -> Path:
+                     modes_topic: str = "/fsm", changes: dict[int, str] = CHANGES) -> Path:
     """A hand-made log: poses (header stamps) and commands at 10 Hz for 12 s, the mode at
     each change; ``swap``: two poses' header stamps out of order (the bag's own receive
     stamps stay in order, as a recorder's do)."""
@@ -210,9 +210,9 @@ def write_square_bag(path: Path, pose_topic: str = "/amcl_pose", swap: int | Non
         mode_c = w.add_connection(modes_topic, "std_msgs/msg/String", typestore=TS)
         for k, ns in enumerate(received):
             x, y, th, v, om = square_pose(k)
-            if k in CHANGES:
+            if k in changes:
                 w.write(mode_c, ns, TS.serialize_cdr(T["std_msgs/msg/String"](
-                    data=CHANGES[k]), "std_msgs/msg/String"))
+                    data=changes[k]), "std_msgs/msg/String"))
             sec, nsec = divmod(stamps[k], 1_000_000_000)
             msg = T["geometry_msgs/msg/PoseStamped"](
                 header=T["std_msgs/msg/Header"](
@@ -382,6 +382,25 @@ def test_stamps_that_go_back(square, tmp_path, capsys):
                                         "--map", str(mapping), "-o", str(out)]))
     assert err.startswith(f"hybridteam: error: {bag}: topic /amcl_pose at t=5 s: stamps go "
                           "back or repeat (the previous one is t=5.1 s)")
+    assert not out.exists()
+
+
+def test_messages_that_are_not_what_their_topic_holds(square, tmp_path, capsys):
+    team_file, mapping, bag = square
+    out = tmp_path / "t.json"
+    mapping.write_text(MAPPING.replace("pose: /amcl_pose", "pose: /cmd_vel"))
+    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
+                                        "--map", str(mapping), "-o", str(out)]))
+    assert err == (f"hybridteam: error: {bag}: topic /cmd_vel at t=0 s: has type "
+                   "geometry_msgs/msg/Twist, expected geometry_msgs/msg/PoseStamped or "
+                   "nav_msgs/msg/Odometry")
+    # a mode the team does not have, logged at t = 2 s (where the robot starts turning)
+    spun = write_square_bag(tmp_path / "spun", changes=CHANGES | {20: "Spin"})
+    mapping.write_text(MAPPING)
+    err = _one_line_error(capsys, main(["import", str(spun), "--team", str(team_file),
+                                        "--map", str(mapping), "-o", str(out)]))
+    assert err == (f"hybridteam: error: {spun}: topic /fsm at t=2 s: 'Spin' is not a mode "
+                   "of agent 'robot'")
     assert not out.exists()
 
 
