@@ -80,6 +80,17 @@ def test_sqlite_and_folder_bags_round_trip(name, tmp_path):
         assert (tmp_path / name / "metadata.yaml").is_file()
 
 
+def test_one_instance_of_an_ensemble(tmp_path):
+    team = ht.load(EXAMPLES / "automata" / "thermostat.yaml")
+    run = ht.simulate(team, n=3, duration=2.0, seed=[1, 2, 3])
+    back = ht.Run.from_bag(run.to_bag(tmp_path / "i1.mcap", instance=1), team)
+    one = run.instance(1)
+    assert back.meta["seed"] == 2
+    for key in ("meta", "outcomes", "transitions", "intervals", "messages"):
+        assert back.to_dict()[key] == one.to_dict()[key], key
+    assert np.array_equal(back.samples["thermostat"], one.samples["thermostat"])
+
+
 def test_experiment2_bag_has_the_documented_topics_and_values(tmp_path):
     team = ht.load(EXPERIMENT2)
     run = ht.simulate(team, duration=2.0)
