@@ -367,6 +367,27 @@ def test_a_bag_of_another_team(square, tmp_path, capsys):
     assert not out.exists()
 
 
+def test_other_topics_of_a_log_of_this_team_are_left_alone(square, tmp_path):
+    """A topic named like an agent's (``/camera/state``) is another team's only when the
+    team's own agents have no samples: a log of this team may hold more."""
+    team_file, _mapping, _bag = square
+    bag = write_square_bag(tmp_path / "robot_bag", pose_topic="/robot/pose",
+                           modes_topic="/robot/mode")
+    with Writer(tmp_path / "with_camera", version=9) as w:
+        with Reader(bag) as r:
+            conns = {c.topic: w.add_connection(c.topic, c.msgtype, typestore=TS)
+                     for c in r.connections}
+            for conn, ns, data in r.messages():
+                w.write(conns[conn.topic], ns, data)
+        cam = w.add_connection("/camera/state", "std_msgs/msg/Float64MultiArray",
+                               typestore=TS)
+        w.write(cam, START_NS, TS.serialize_cdr(T["std_msgs/msg/Float64MultiArray"](
+            layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
+            data=np.zeros(2)), "std_msgs/msg/Float64MultiArray"))
+    run = ht.Run.from_bag(tmp_path / "with_camera", ht.load(team_file))
+    assert len(run.sample_times) == 121 and len(run.transitions) == 8
+
+
 def test_a_missing_topic(square, tmp_path, capsys):
     team_file, mapping, bag = square
     out = tmp_path / "t.json"

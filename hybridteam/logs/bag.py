@@ -193,8 +193,6 @@ class _Reading:
         self.bag.update(bag)
         self.t0 = min((ns for t in self.bag.values() for ns in self._stamps(t)),
                       default=self.t0)
-        if not self.mapped:
-            self._same_team()
 
     def _foreign(self, topic: str) -> str | None:
         """The agent ``X`` a topic ``/X/pose`` (any of export's kinds) names, when the team
@@ -237,8 +235,9 @@ class _Reading:
         return dict(recorded, n=1)
 
     def _same_team(self) -> None:
-        """Export's names: a topic ``/X/pose`` (and the like) of an agent ``X`` the team does
-        not have says the log is another team's."""
+        """Export's names, and an agent of the team without samples: a topic ``/X/pose``
+        (and the like) of an agent ``X`` the team does not have says the log is another
+        team's (other topics of a log that has the team's are left alone)."""
         for name, topic in self.bag.items():
             agent = self._foreign(name)
             if agent is not None:
@@ -311,6 +310,8 @@ class _Reading:
             pose = (self._topic(at.pose, SAMPLED["pose"])
                     or self._topic(at.odom, SAMPLED["odom"])) if planar else None
             if state is None and pose is None:
+                if not self.mapped:
+                    self._same_team()
                 wanted = [t for t in (at.state, *((at.pose, at.odom) if planar else ()))
                           if t is not None]
                 if not wanted:
