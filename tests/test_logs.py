@@ -278,6 +278,10 @@ def test_a_hand_made_log_imports_as_samples_modes_and_commands(square):
     assert [(r.mode, r.start, r.end) for r in stays][:3] == [
         ("Drive", 0.0, 2.0), ("Turn", 2.0, 3.0), ("Drive", 3.0, 5.0)]
     assert (stays["mode"][-1], stays["end"][-1]) == ("Turn", 12.0)
+    # an imported log exported and imported again is the same trace, commands included
+    team = ht.load(team_file)
+    again = ht.Run.from_bag(run.to_bag(bag.parent / "again.mcap"), team)
+    assert again.to_dict() == run.to_dict()
 
 
 def test_check_on_a_hand_made_log(square):

@@ -330,7 +330,8 @@ class _Reading:
                 found[name] = (t, full)
             cmd = self._topic(at.cmd, SAMPLED["cmd"])
             key = command_series(name)
-            if cmd is not None and agent["inputs"]:
+            exact = series_topic(key) in self.bag  # an exported log's commands, exactly
+            if cmd is not None and agent["inputs"] and not exact:
                 found[key] = self._series_of(cmd, list(agent["inputs"]), False)
                 self.meta.setdefault("series", {})[key] = list(agent["inputs"])
         for sname, cols in self.meta.get("series", {}).items():
