@@ -85,7 +85,7 @@ def write_bag(trace: Trace, path: str | os.PathLike, fmt: str | None = None,
     """Write instance ``instance`` of ``trace`` as a rosbag2 at ``path`` (see
     :func:`bag_format`); returns ``path``. A folder bag is never written over."""
     require_rosbags()
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
     from rosbags.typesys import Stores, get_typestore
 
     from hybridteam.api import Run
@@ -117,6 +117,8 @@ def write_bag(trace: Trace, path: str | os.PathLike, fmt: str | None = None,
             os.replace(next(p for p in bag.iterdir() if p.name != "metadata.yaml"), path)
         else:
             os.replace(bag, path)
+    except WriterError as exc:
+        raise LogError(f"cannot write {path}: {exc}") from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return path
