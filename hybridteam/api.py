@@ -72,6 +72,23 @@ class Run(Trace):
 
         return samples_frame(self, wide)
 
+    def to_bag(self, path: str | os.PathLike, format: str | None = None,
+               instance: int = 0) -> Any:
+        """Write instance ``instance`` as a rosbag2 (``run.mcap``, ``run.db3`` or a bag
+        folder; see docs/logs.md). Needs ``pip install 'hybridteam[logs]'``."""
+        from hybridteam.logs.export import write_bag
+
+        return write_bag(self, path, format, instance)
+
+    @classmethod
+    def from_bag(cls, path: str | os.PathLike, team: Team,
+                 mapping: str | os.PathLike | None = None) -> Run:
+        """The run a rosbag2 recorded of ``team`` (topics as ``mapping`` names them, by
+        default those :meth:`to_bag` writes)."""
+        from hybridteam.logs.bag import read_bag
+
+        return read_bag(path, team, mapping)
+
     def __repr__(self) -> str:
         counts = f"{len(self.transitions)} transitions, {len(self.messages)} messages"
         if self.n == 1:
@@ -185,14 +202,31 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
 def check_requirements(run: Run, requirements: RequirementSet, sim: Simulator) -> None:
     """Add each instance's requirement verdicts to its outcome (``summary.json`` and the
     trace carry them), reading parameters as the simulator set them per instance."""
+    snapshots = sim.ensemble.rec.merged_snapshots()
+    for outcome, verdicts in zip(run.diagnostics,
+                                 requirements.check(run, parameters(sim), snapshots),
+                                 strict=True):
+        outcome["requirements"] = verdicts
+
+
+def parameters(sim: Simulator) -> dict[str, tuple[list[str], np.ndarray]]:
+    """Per agent, its parameter names and their values per instance (one row each), as
+    the simulator set them (after overrides): what requirement checks read."""
     params = {}
     for st in sim.ensemble.states:
         names = sorted(st.ca.param_index, key=st.ca.param_index.__getitem__)
         params[st.ca.name] = (names, st.p)
-    snapshots = sim.ensemble.rec.merged_snapshots()
-    for outcome, verdicts in zip(run.diagnostics, requirements.check(run, params, snapshots),
-                                 strict=True):
-        outcome["requirements"] = verdicts
+    return params
+
+
+def check(run: Trace, team: Team) -> Table:
+    """``team``'s requirements evaluated on a recorded ``run`` (a log read with
+    :meth:`Run.from_bag`, or a trace): a row per instance and requirement with
+    ``satisfied``, ``robustness``, ``violated_at`` and ``failed`` (see
+    :mod:`hybridteam.logs.check`)."""
+    from hybridteam.logs.check import check_run, verdict_table
+
+    return verdict_table(check_run(run, team))
 
 
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,

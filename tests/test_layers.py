@@ -91,7 +91,8 @@ def _under(name: str, *prefixes: str) -> bool:
 LOWEST = ("hybridteam.errors", "hybridteam.model", "hybridteam.expr", "hybridteam.dynamics",
           "hybridteam.trace", "hybridteam.arrays")
 ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridteam.sweep",
-                "hybridteam.api", "hybridteam.kinds", "hybridteam.live")
+                "hybridteam.api", "hybridteam.kinds", "hybridteam.live",
+                "hybridteam.logs")
 #: What a mode library may import of hybridteam.
 LIBRARY_API = ("hybridteam.library", "hybridteam.world.geometry")
 
@@ -138,7 +139,7 @@ def violations(imports: list[Import]) -> list[str]:
         if _under(m, "hybridteam.world") and _under(t, "hybridteam.engine", *ABOVE_ENGINE):
             report(imp, "world components see the engine only through WorldAccess")
         if _under(m, "hybridteam.engine") and _under(t, *ABOVE_ENGINE):
-            report(imp, "the engine never imports io, export, cli, sweep, api, kinds or live")
+            report(imp, "the engine never imports io, export, cli, sweep, api, kinds, live or logs")
         if _under(m, "hybridteam.live") and _under(t, "hybridteam.engine") and _private(t):
             report(imp, "the live runtime uses no private engine name")
         if _under(m, "hybridteam.io") and _under(t, "hybridteam.sweep", "hybridteam.kinds",

@@ -3,8 +3,9 @@
 Each command group registers its own parsers and handlers — :mod:`.core` (validate, run,
 schema), :mod:`.views` (diagram, timeline, plot, animate, sequence), :mod:`.sweep` (sweep,
 report), :mod:`.falsify` (falsify), :mod:`.verify` (verify), :mod:`.convert`
-(convert: SCXML in and out), :mod:`.live` (live, launch) — and shares exit codes,
-errors and run folders through :mod:`.common`. Groups never import each other.
+(convert: SCXML in and out), :mod:`.live` (live, launch), :mod:`.logs` (export, import,
+check: rosbag2 logs) — and shares exit codes, errors and run folders through
+:mod:`.common`. Groups never import each other.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-from hybridteam.cli import convert, core, falsify, live, sweep, verify, views
+from hybridteam.cli import convert, core, falsify, live, logs, sweep, verify, views
 from hybridteam.cli.common import (
     EXIT_INTERRUPTED,
     EXIT_OK,
@@ -31,7 +32,7 @@ def _parser() -> tuple[Parser, dict]:
     p = Parser(prog="hybridteam", description="Teams of robots as hybrid systems.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
     commands: dict = {}
-    for group in (core, views, sweep, falsify, verify, convert, live):
+    for group in (core, views, sweep, falsify, verify, convert, live, logs):
         commands.update(group.register(sub))
     return p, commands
 

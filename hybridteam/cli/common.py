@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from hybridteam.errors import printable
+
+if TYPE_CHECKING:
+    from hybridteam.trace import Trace
 
 EXIT_OK, EXIT_USAGE, EXIT_INTERRUPTED = 0, 2, 130
 
@@ -154,3 +158,37 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
               f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)
         raise SystemExit(EXIT_INTERRUPTED) from None
+
+
+def load_trace(path: str, instance: int = 0) -> Trace:
+    """A trace file, checked against the trace format; or a one-line error naming it
+    (:class:`UsageError`). The views and ``check`` read traces through this.
+    Only a regular file of a bounded size is read (not a FIFO, not ``/dev/zero``)."""
+    from hybridteam.io.files import MAX_TRACE_MB, read_regular
+    from hybridteam.io.yamlpos import SourceError
+    from hybridteam.trace import Trace
+    from hybridteam.trace_schema import check_trace
+
+    if os.path.isdir(path):
+        raise UsageError(f"{path}: is a directory, not a trace file")
+    if not os.path.lexists(path):
+        raise UsageError(f"{path}: no such file")
+    try:
+        raw = read_regular(path, path, limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
+                           what="traces")
+        data = json.loads(raw.decode("utf-8"))
+    except SourceError as exc:
+        raise UsageError(str(exc)) from None
+    except UnicodeDecodeError as exc:
+        raise UsageError(f"{path}: cannot read: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
+    except RecursionError:
+        raise UsageError(f"{path}: not a hybridteam trace (nested too deeply)") from None
+    problem = check_trace(data)
+    if problem is not None:
+        raise UsageError(f"{path}: not a valid hybridteam trace: {problem}")
+    trace = Trace.from_dict(data)
+    if not 0 <= instance < trace.n:
+        raise UsageError(f"--instance {instance}: the trace has instances 0..{trace.n - 1}")
+    return trace

@@ -9,12 +9,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
 
 from hybridteam.cli.common import EXIT_OK, EXIT_USAGE, UsageError, load_team_or_report
-from hybridteam.trace import Trace, write_atomic
+from hybridteam.cli.common import load_trace as _load_trace
+from hybridteam.trace import write_atomic
 
 
 def register(sub) -> dict:
@@ -101,43 +101,6 @@ IMAGE = (".png", ".svg", ".pdf")
 DIAGRAM_FORMATS = {".dot": "dot", ".gv": "dot", ".mmd": "mermaid", ".mermaid": "mermaid",
                    ".puml": "plantuml", ".plantuml": "plantuml", ".svg": "svg", ".png": "png",
                    ".pdf": "pdf"}
-
-
-#: Trace files are read up to this size (``HYBRIDTEAM_MAX_TRACE_MB`` raises it): a run
-#: within the default memory limit writes a few hundred megabytes at most, and reading
-#: one costs about twice its size in memory.
-
-
-def _load_trace(path: str, instance: int) -> Trace:
-    """A trace file, checked against the trace format; or a one-line error naming it.
-    Only a regular file of a bounded size is read (not a FIFO, not ``/dev/zero``)."""
-    from hybridteam.io.files import MAX_TRACE_MB, read_regular
-    from hybridteam.io.yamlpos import SourceError
-    from hybridteam.trace_schema import check_trace
-
-    if os.path.isdir(path):
-        raise UsageError(f"{path}: is a directory, not a trace file")
-    if not os.path.lexists(path):
-        raise UsageError(f"{path}: no such file")
-    try:
-        raw = read_regular(path, path, limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
-                           what="traces")
-        data = json.loads(raw.decode("utf-8"))
-    except SourceError as exc:
-        raise UsageError(str(exc)) from None
-    except UnicodeDecodeError as exc:
-        raise UsageError(f"{path}: cannot read: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
-    except RecursionError:
-        raise UsageError(f"{path}: not a hybridteam trace (nested too deeply)") from None
-    problem = check_trace(data)
-    if problem is not None:
-        raise UsageError(f"{path}: not a valid hybridteam trace: {problem}")
-    trace = Trace.from_dict(data)
-    if not 0 <= instance < trace.n:
-        raise UsageError(f"--instance {instance}: the trace has instances 0..{trace.n - 1}")
-    return trace
 
 
 def _check_size(size: list[float] | None) -> None:

@@ -14,7 +14,9 @@ import stat
 
 from hybridteam.io.yamlpos import SourceError
 
-#: megabytes of a trace, or of a file of a run folder, read back (HYBRIDTEAM_MAX_TRACE_MB)
+#: megabytes of a trace, or of a file of a run folder, read back (HYBRIDTEAM_MAX_TRACE_MB
+#: raises it): a run within the default memory limit writes a few hundred megabytes at
+#: most, and reading one costs about twice its size in memory
 MAX_TRACE_MB = 500.0
 
 
