@@ -25,9 +25,10 @@ def cteam():
     return compile_team(ht.load(TEAM))
 
 
-def request(codec: Codec, seq: int = 0, **change) -> bytes:
-    """A genuine 'request' of the requester, with ``change`` written over its keys."""
-    data = json.loads(codec.encode(Message(REQUESTER, GRANTER, seq, 1.0, "control",
+def request(codec: Codec, number: int = 0, /, **change) -> bytes:
+    """A genuine 'request' of the requester with sequence number ``number``, then
+    ``change`` written over its keys (``seq=`` among them: a key, not the number)."""
+    data = json.loads(codec.encode(Message(REQUESTER, GRANTER, number, 1.0, "control",
                                            "request", {"need": 2.0}), -0.0, 1.5e9))
     data.update(change)
     return json.dumps(data).encode()
@@ -55,12 +56,12 @@ def test_a_datagram_round_trips(cteam):
 
 def test_a_replayed_sequence_number_is_refused(cteam):
     codec = Codec(cteam)
-    codec.decode(request(codec, seq=4))
+    codec.decode(request(codec, 4))
     for seq in (4, 3, 0):
         with pytest.raises(WireError) as err:
-            codec.decode(request(codec, seq=seq))
+            codec.decode(request(codec, seq))
         assert err.value.reason == "replayed"
-    assert codec.decode(request(codec, seq=5)).seq == 5  # later numbers still pass
+    assert codec.decode(request(codec, 5)).seq == 5  # later numbers still pass
 
 
 @pytest.mark.parametrize(("change", "reason"), [
