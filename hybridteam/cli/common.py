@@ -15,7 +15,7 @@ import os
 import sys
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from hybridteam.errors import printable
 
@@ -160,23 +160,19 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         raise SystemExit(EXIT_INTERRUPTED) from None
 
 
-def load_trace(path: str, instance: int = 0) -> Trace:
-    """A trace file, checked against the trace format; or a one-line error naming it
-    (:class:`UsageError`). The views and ``check`` read traces through this.
-    Only a regular file of a bounded size is read (not a FIFO, not ``/dev/zero``)."""
+def read_json(path: str | os.PathLike[str], files: str, kind: str) -> tuple[str, Any]:
+    """The text and the data of a JSON file handed over (a trace, a run's summary), or one
+    :class:`UsageError` naming it: only a regular file of a bounded size is read (not a
+    FIFO, not ``/dev/zero``; ``HYBRIDTEAM_MAX_TRACE_MB``), as UTF-8, as JSON. ``files``
+    names such files in the size message ("traces"), ``kind`` the document ("a run
+    summary")."""
     from hybridteam.io.files import MAX_TRACE_MB, read_regular
     from hybridteam.io.yamlpos import SourceError
-    from hybridteam.trace import Trace
-    from hybridteam.trace_schema import check_trace
 
-    if os.path.isdir(path):
-        raise UsageError(f"{path}: is a directory, not a trace file")
-    if not os.path.lexists(path):
-        raise UsageError(f"{path}: no such file")
     try:
-        raw = read_regular(path, path, limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
-                           what="traces")
-        data = json.loads(raw.decode("utf-8"))
+        text = read_regular(path, str(path), limit_mb=MAX_TRACE_MB,
+                            env="HYBRIDTEAM_MAX_TRACE_MB", what=files).decode("utf-8")
+        return text, json.loads(text)
     except SourceError as exc:
         raise UsageError(str(exc)) from None
     except UnicodeDecodeError as exc:
@@ -184,7 +180,20 @@ def load_trace(path: str, instance: int = 0) -> Trace:
     except json.JSONDecodeError as exc:
         raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
     except RecursionError:
-        raise UsageError(f"{path}: not a hybridteam trace (nested too deeply)") from None
+        raise UsageError(f"{path}: not {kind} (nested too deeply)") from None
+
+
+def load_trace(path: str, instance: int = 0) -> Trace:
+    """A trace file, checked against the trace format; or a one-line error naming it
+    (:class:`UsageError`). The views and ``check`` read traces through this."""
+    from hybridteam.trace import Trace
+    from hybridteam.trace_schema import check_trace
+
+    if os.path.isdir(path):
+        raise UsageError(f"{path}: is a directory, not a trace file")
+    if not os.path.lexists(path):
+        raise UsageError(f"{path}: no such file")
+    _text, data = read_json(path, "traces", "a hybridteam trace")
     problem = check_trace(data)
     if problem is not None:
         raise UsageError(f"{path}: not a valid hybridteam trace: {problem}")

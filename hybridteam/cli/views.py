@@ -7,12 +7,17 @@ import matplotlib. Every bad argument or unreadable trace is a one-line error, e
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
-from hybridteam.cli.common import EXIT_OK, EXIT_USAGE, UsageError, load_team_or_report
+from hybridteam.cli.common import (
+    EXIT_OK,
+    EXIT_USAGE,
+    UsageError,
+    load_team_or_report,
+    read_json,
+)
 from hybridteam.cli.common import load_trace as _load_trace
 from hybridteam.trace import write_atomic
 
@@ -265,22 +270,9 @@ def cmd_sequence(args: argparse.Namespace) -> int:
 def _load_summary(path: Path) -> dict:
     """A run folder's ``summary.json``, checked against its format; or a one-line error at
     the file, line and column of its first bad field (a file anyone can hand over)."""
-    from hybridteam.io.files import MAX_TRACE_MB, read_regular
-    from hybridteam.io.yamlpos import SourceError
     from hybridteam.summary_schema import check_summary
 
-    try:  # a regular file of a bounded size, as a trace (not a FIFO, not /dev/zero)
-        text = read_regular(path, str(path), limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
-                            what="files of a run folder").decode("utf-8")
-        summary = json.loads(text)
-    except SourceError as exc:
-        raise UsageError(str(exc)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UsageError(f"{path}: cannot read: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise UsageError(f"{path}:{exc.lineno}:{exc.colno}: not a JSON file: {exc.msg}") from None
-    except RecursionError:
-        raise UsageError(f"{path}: not a run summary (nested too deeply)") from None
+    text, summary = read_json(path, "files of a run folder", "a run summary")
     problem = check_summary(summary)
     if problem is None:
         return summary

@@ -244,7 +244,7 @@ class _Compiler:
                 return 1, paren, paren + 1, "only functions such as sin(x) can be called", None
             name, n = node.func.id, len(node.args)
             if name == "in_mode" and self._mode_tests():
-                if n != 1 or node.keywords or _dotted(node.args[0]) is None:
+                if n != 1 or node.keywords or dotted_name(node.args[0]) is None:
                     return (1, start, end, "in_mode() takes one mode name",
                             "e.g. in_mode(Climb) or in_mode(Arm.Up)")
                 return None
@@ -322,7 +322,7 @@ class _Compiler:
             return _C(lambda ctx: False, True)
         start, end = self.pos(arg)
         try:
-            return _C(self.symbols["in_mode"].resolve(_dotted(arg)), True)
+            return _C(self.symbols["in_mode"].resolve(dotted_name(arg)), True)
         except ExpressionError as exc:
             raise self.error(exc.message, start, end, exc.hint) from None
 
@@ -417,11 +417,12 @@ class _Compiler:
 def _is_mode_test(node: ast.AST) -> bool:
     return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
         and node.func.id == "in_mode" and len(node.args) == 1 and not node.keywords \
-        and _dotted(node.args[0]) is not None
+        and dotted_name(node.args[0]) is not None
 
 
-def _dotted(node: ast.expr) -> str | None:
-    """``Arm.Up`` as text, if ``node`` is a name or a dotted chain of names."""
+def dotted_name(node: ast.expr) -> str | None:
+    """``Arm.Up`` as text, if ``node`` is a name or a dotted chain of names (a mode's path
+    in ``in_mode(...)`` here and in the requirements' formulas); else None."""
     parts = []
     while isinstance(node, ast.Attribute):
         parts.append(node.attr)

@@ -23,7 +23,7 @@ import ast
 import math
 from typing import Any
 
-from hybridteam.expr.compiler import _Compiler
+from hybridteam.expr.compiler import _Compiler, dotted_name
 from hybridteam.expr.language import _C, ExpressionError, _Problem
 from hybridteam.requirements import nodes as N
 from hybridteam.requirements.catalog import Catalog
@@ -47,17 +47,6 @@ class _F(_C):
     def __init__(self, node: N.Node) -> None:
         super().__init__(lambda ctx: None, True)
         self.node = node
-
-
-def _dotted(node: ast.expr) -> str | None:
-    """``Transport.Lead`` (nested Attribute of Names) as text, else None."""
-    parts = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if not isinstance(node, ast.Name):
-        return None
-    return ".".join([node.id, *reversed(parts)])
 
 
 class _FormulaCompiler(_Compiler):
@@ -106,10 +95,10 @@ class _FormulaCompiler(_Compiler):
                                            f"in call to {name}", f"usage: {usage}")
         usage, agent_first, _ = SIGNAL_FUNCTIONS[name]
         ok = n == 1 or (agent_first and n == 2)
-        if ok and all(_dotted(a) is not None for a in node.args):
+        if ok and all(dotted_name(a) is not None for a in node.args):
             return None
         if ok:
-            bad = next(a for a in node.args if _dotted(a) is None)
+            bad = next(a for a in node.args if dotted_name(a) is None)
             return (1, *self.pos(bad), f"{name}() takes names, not expressions",
                     f"usage: {usage}")
         return 1, start, end, f"wrong number of arguments ({n}) in call to {name}", \
@@ -225,7 +214,7 @@ class _FormulaCompiler(_Compiler):
         return lo, hi
 
     def _signal(self, node: ast.Attribute) -> Any:
-        text = _dotted(node)
+        text = dotted_name(node)
         getter, problem = self.catalog.dotted(text or "")
         if getter is None:
             raise self.error(problem[0], *self.pos(node), problem[1])
@@ -233,7 +222,7 @@ class _FormulaCompiler(_Compiler):
 
     def _signal_function(self, node: ast.Call, name: str) -> _C:
         _, _, is_cond = SIGNAL_FUNCTIONS[name]
-        args = [(_dotted(a) or "", *self.pos(a)) for a in node.args]
+        args = [(dotted_name(a) or "", *self.pos(a)) for a in node.args]
         getter, problem = self.catalog.function(name, args)
         if getter is None:
             start, end, message, hint = problem
