@@ -13,7 +13,9 @@ process uses (:mod:`hybridteam.live`), so there is one interpreter of the team:
   :meth:`~hybridteam.engine.network.Network.arrive`, at its logged receive time, in the
   log's order; the engine then receives it as it receives a simulated copy (rate limits,
   acknowledgements, duplicates, triggered transitions);
-- scenario events are the team's (a live process delivers the team's scenario too).
+- scenario events as logged: the team's scenario, each event at the time the log shows
+  its agent taking it (a transition caused by ``event:NAME``, matched in order), and at
+  the team's time where the log shows none (an event no transition took leaves no trace).
 
 So each agent's run depends on its own logged arrivals only: its teammates' behaviour
 reaches it as the log says it did, and one run of all agents is each agent replayed alone.
@@ -194,6 +196,8 @@ def conformance(run: Trace, team: Team, instance: int = 0,
         cteam = hosted_team(full, names)
     except HostingError as exc:
         raise LogError(f"cannot replay: {exc}") from None
+    cteam = dataclasses.replace(cteam, scenario=logged_scenario(run, instance, cteam.scenario,
+                                                                 names))
     copies, waiting = logged_copies(run, instance, names)
     clock = ReplayClock(copies)
     seed = run.meta.get("seed", team.simulation.seed)
@@ -226,6 +230,25 @@ def replay_duration(run: Trace, instance: int) -> float:
     if isinstance(t, (int, float)) and math.isfinite(t) and t > 0:
         return float(t)
     return float(run.meta["duration"])
+
+
+def logged_scenario(run: Trace, instance: int, scenario: list[tuple[float, int, str]],
+                    names: list[str]) -> list[tuple[float, int, str]]:
+    """The team's scenario events at the times the log has them taken (module docstring)."""
+    taken: dict[tuple[int, str], list[float]] = defaultdict(list)
+    for k, name in enumerate(names):
+        for t, _source, _target, cause, _guard in _transitions(run, instance, name):
+            if not cause.startswith("event:"):
+                continue
+            seen = taken[(k, cause.removeprefix("event:"))]
+            if not seen or seen[-1] != t:  # (one event taken in parallel regions: once)
+                seen.append(t)
+    out = []
+    for t, agent, event in scenario:
+        times = taken.get((agent, event))
+        out.append((times.pop(0) if times else t, agent, event))
+    out.sort(key=lambda s: (s[0], s[1]))
+    return out
 
 
 def logged_copies(run: Trace, instance: int, names: list[str]
