@@ -48,6 +48,7 @@ from hybridteam.engine.network import Message
 from hybridteam.engine.reliable import ACK
 from hybridteam.engine.simulator import Simulator
 from hybridteam.live.hosting import HostingError, hosted_team
+from hybridteam.live.wire import declarations
 from hybridteam.logs import LogError
 from hybridteam.logs.export import PLANAR
 from hybridteam.model import Team
@@ -198,7 +199,7 @@ def conformance(run: Trace, team: Team, instance: int = 0,
         raise LogError(f"cannot replay: {exc}") from None
     cteam = dataclasses.replace(cteam, scenario=logged_scenario(run, instance, cteam.scenario,
                                                                  names))
-    copies, waiting = logged_copies(run, instance, names)
+    copies, waiting = logged_copies(run, instance, names, declarations(full))
     clock = ReplayClock(copies)
     seed = run.meta.get("seed", team.simulation.seed)
     sim = Simulator(cteam, 1, seed=seed if isinstance(seed, int) else seed[instance],
@@ -251,11 +252,13 @@ def logged_scenario(run: Trace, instance: int, scenario: list[tuple[float, int, 
     return out
 
 
-def logged_copies(run: Trace, instance: int, names: list[str]
+def logged_copies(run: Trace, instance: int, names: list[str],
+                  types: dict[str, dict[str, list[str]]]
                   ) -> tuple[list[tuple[float, Message]], dict[tuple[int, int], list[Message]]]:
     """Every copy the log has reaching its receiver (a finite receive time), as a
-    :class:`Message` with no fields yet, in the log's order; and the same copies by
-    (sender index, sequence number), for the outlet to fill in."""
+    :class:`Message` in the log's order, its fields (``types``: the team's declarations)
+    unknown (NaN) until the sender's model sends it; and the same copies by (sender index,
+    sequence number), for the outlet to fill in."""
     m = run.messages
     index = {name: k for k, name in enumerate(names)}
     copies: list[tuple[float, Message]] = []
@@ -268,7 +271,8 @@ def logged_copies(run: Trace, instance: int, names: list[str]
         type_ = str(m["type"][row])
         note = str(m["reason"][row]) if m["status"][row] == "delivered" else ""
         # an acknowledgement whose message the model never sent acknowledges nothing
-        fields: dict[str, float] = {"id": -1.0} if type_ == ACK else {}
+        fields = {f: -1.0 if type_ == ACK else math.nan
+                  for f in types.get(type_, {}).get("fields", ())}
         msg = Message(sender, receiver, int(m["seq"][row]), float(m["t_send"][row]),
                       str(m["socket"][row]), type_, fields, int(m["msg_id"][row]), note)
         copies.append((t_recv, msg))
