@@ -205,3 +205,18 @@ def test_the_python_table(handover):
     assert table["agent"].tolist() == ["xr4000", "labmate", "operator"]
     assert table["matched"].tolist() == [2, 3, 1]
     assert table["diverges_at"].tolist() == [None, None, None]
+
+
+def test_a_stricter_team_names_the_guard_that_did_not_hold(tmp_path):
+    """The handshake's run checked against the same team asking for ``amount >= 3`` (the
+    granter grants the 2 asked for): the requester's model does not take the grant that
+    the log has it take at 1 + 0.01 + 0.01 s (request after 1 s, 10 ms each way), and
+    the report names the model's guard."""
+    run = ht.simulate(ht.load(HANDSHAKE))
+    stricter = tmp_path / "stricter.yaml"
+    stricter.write_text(HANDSHAKE.read_text().replace("msg_amount >= 2", "msg_amount >= 3"))
+    first = conformance(run, ht.load(stricter)).first
+    assert first is not None and first.agent == "requester"
+    assert first.t == pytest.approx(1.02, abs=1e-12)
+    assert (first.expected, first.observed) == ("Asking", "Granted")
+    assert first.why.endswith("the model's guard msg_amount >= 3 did not hold")

@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from hybridteam.engine.compiled import CAgent
 from hybridteam.engine.compiler import compile_team
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.network import Message
@@ -207,8 +208,8 @@ def conformance(run: Trace, team: Team, instance: int = 0,
     sim.ensemble.network.outlet = Recorder(waiting)
     model = sim.run()
     arrivals = copies_by_receiver(copies, names)
-    agents = [compare_agent(run, instance, model, name, arrivals.get(name, []), tolerance)
-              for name in names]
+    agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance)
+              for ca in full.agents]
     return Conformance(agents, tolerance, model)
 
 
@@ -296,9 +297,10 @@ def _transitions(trace: Trace, instance: int, agent: str) -> list[tuple]:
              str(tr["cause"][k]), str(tr["guard"][k])) for k in rows]
 
 
-def compare_agent(run: Trace, instance: int, model: Trace, agent: str,
+def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
                   arrivals: list[tuple[float, Message]], tolerance: float) -> AgentConformance:
     """One agent's mode sequence, shifts, pose deviation and first divergence."""
+    agent = ca.name
     logged = _transitions(run, instance, agent)
     expected = _transitions(model, 0, agent)
     names = model.agents
@@ -310,21 +312,22 @@ def compare_agent(run: Trace, instance: int, model: Trace, agent: str,
         if lg is not None and md is not None and lg[1:3] == md[1:3]:
             shift = lg[0] - md[0]
             if abs(shift) > tolerance:
-                divergence = _diverged(agent, md, lg, names, arrivals,
+                divergence = _diverged(ca, md, lg, names, arrivals,
                                        f"{shift:+.6g} s from the model's time")
                 break
             shifts.append((md[0], shift, md[2]))
             continue
-        divergence = _diverged(agent, md, lg, names, arrivals, "")
+        divergence = _diverged(ca, md, lg, names, arrivals, "")
         break
     return AgentConformance(agent, len(logged), len(expected), shifts,
                             pose_deviation(run, instance, model, agent), divergence)
 
 
-def _diverged(agent: str, md: tuple | None, lg: tuple | None, names: list[str],
+def _diverged(ca: CAgent, md: tuple | None, lg: tuple | None, names: list[str],
               arrivals: list[tuple[float, Message]], note: str) -> Divergence:
     """The divergence at the earlier of the model's transition ``md`` and the log's
     ``lg`` (either may be missing): there one side has moved and the other not yet."""
+    agent = ca.name
     if md is not None and (lg is None or md[0] <= lg[0]):
         t, model_mode = md[0], md[2]
         log_mode = md[1] if lg is None else lg[1]
@@ -346,7 +349,27 @@ def _diverged(agent: str, md: tuple | None, lg: tuple | None, names: list[str],
             why += f" comes {note}"
         else:
             why += f"; the model's next is {md[1]} -> {md[2]} at t={md[0]:.6g}"
+        if md is None or lg[1:3] != md[1:3]:
+            why += _model_side(ca, lg)
     return Divergence(t, agent, model_mode or "(none)", log_mode or "(none)", why)
+
+
+def _model_side(ca: CAgent, lg: tuple) -> str:
+    """What the model has for the log's transition ``lg`` that it did not take: its own
+    transitions between the same modes on the same message or event, and their guards."""
+    trigger = lg[3].split(":", 1)[1] if lg[3].startswith(("message:", "event:")) else None
+    paths = [m.path for m in ca.modes]
+    def within(path: str, mode: str) -> bool:  # a transition of a parent, into a parent
+        return mode == path or mode.startswith(path + ".")
+
+    same = [tr for tr in ca.transitions if not tr.internal and
+            within(paths[tr.source], lg[1]) and within(paths[tr.target], lg[2])]
+    if not same:
+        return f"; the model has no transition {lg[1]} -> {lg[2]}"
+    guarded = [tr.guard_text for tr in same if tr.on == trigger and tr.guard_text]
+    if guarded:
+        return "; the model's guard " + " or ".join(guarded) + " did not hold"
+    return ""
 
 
 def _plain_cause(tr: tuple) -> str:
