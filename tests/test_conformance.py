@@ -180,7 +180,7 @@ def test_an_exported_bag_conforms_like_its_trace(handover, tmp_path, capsys):
 def test_a_trace_of_another_team_is_one_line_and_exit_2(handover, tmp_path, capsys):
     """Bad input: a run of another team (by name, or one whose agents are not the team's)
     is refused in one line, exit 2, with no report."""
-    _team, run = handover
+    team, run = handover
     path = tmp_path / "handover.json"
     run.to_json(path)
     assert main(["check", str(path), "--team", str(HANDSHAKE), "--conformance"]) == 2
@@ -193,6 +193,11 @@ def test_a_trace_of_another_team_is_one_line_and_exit_2(handover, tmp_path, caps
     with pytest.raises(LogError, match=r"^the run's agents \(xr4000, labmate, operator\) "
                        r"are not team 'live handshake''s \(requester, granter\)$"):
         conformance(renamed, ht.load(HANDSHAKE))
+    m = dict(run.messages.columns)
+    m["sender"] = np.where(m["sender"] == "labmate", "intruder", m["sender"])
+    with pytest.raises(LogError, match=r"^message at t=0.03 s: 'intruder' is not an agent of "
+                       r"the team: a log of another team\?$"):
+        conformance(edited(run, messages=Table(run.messages.names, m)), team)
     assert main(["check", str(path), "--team", str(HANDOVER), "--tolerance", "1"]) == 2
     assert "--tolerance 1.0: a number of seconds >= 0, with --conformance" in \
         capsys.readouterr().err

@@ -174,6 +174,7 @@ class Recorder:
 
     def __init__(self, waiting: dict[tuple[int, int], list[Message]]) -> None:
         self.waiting = waiting
+        #: every send of the model, in order (the model's side of the messages)
         self.sent: list[Message] = []
 
     def send(self, msg: Message, rank: float) -> None:
@@ -268,7 +269,12 @@ def logged_copies(run: Trace, instance: int, names: list[str],
         t_recv = float(m["t_recv"][row])
         if int(m["instance"][row]) != instance or not math.isfinite(t_recv):
             continue
-        sender, receiver = index[str(m["sender"][row])], index[str(m["receiver"][row])]
+        who = str(m["sender"][row]), str(m["receiver"][row])
+        for name in who:
+            if name not in index:
+                raise LogError(f"message at t={t_recv:g} s: '{name}' is not an agent of the "
+                               "team: a log of another team?")
+        sender, receiver = index[who[0]], index[who[1]]
         type_ = str(m["type"][row])
         note = str(m["reason"][row]) if m["status"][row] == "delivered" else ""
         # an acknowledgement whose message the model never sent acknowledges nothing
