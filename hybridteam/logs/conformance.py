@@ -6,8 +6,8 @@ process uses (:mod:`hybridteam.live`), so there is one interpreter of the team:
 
 - every agent is hosted (:func:`~hybridteam.live.hosting.hosted_team`: the same refusal of
   what a live process cannot run, world components);
-- the network's outlet (:class:`Recorder`) takes every send of the model and keeps it out
-  of the medium: what an agent receives is what the log says reached it, and nothing else;
+- the network's outlet (:class:`ReplayOutlet`) takes every send of the model and keeps it
+  out of the medium: what an agent receives is what the log says reached it, nothing else;
 - a scripted clock on simulated time (:class:`ReplayClock`) queues each copy the log
   records as received (delivered, or turned away by a rate limit) with
   :meth:`~hybridteam.engine.network.Network.arrive`, at its logged receive time, in the
@@ -168,7 +168,7 @@ class ReplayClock:
             ens.network.arrive(0, msg, t, float(rank))
 
 
-class Recorder:
+class ReplayOutlet:
     """The network's outlet in a replay: keeps the model's sends out of the medium, and
     gives each logged copy of a message the fields the sender's model sent it with."""
 
@@ -206,7 +206,7 @@ def conformance(run: Trace, team: Team, instance: int = 0,
     seed = run.meta.get("seed", team.simulation.seed)
     sim = Simulator(cteam, 1, seed=seed if isinstance(seed, int) else seed[instance],
                     duration=replay_duration(run, instance), clock=clock)
-    sim.ensemble.network.outlet = Recorder(waiting)
+    sim.ensemble.network.outlet = ReplayOutlet(waiting)
     model = sim.run()
     arrivals = copies_by_receiver(copies, names)
     agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance)
