@@ -225,3 +225,50 @@ def test_a_stricter_team_names_the_guard_that_did_not_hold(tmp_path):
     assert first.t == pytest.approx(1.02, abs=1e-12)
     assert (first.expected, first.observed) == ("Asking", "Granted")
     assert first.why.endswith("the model's guard msg_amount >= 3 did not hold")
+
+
+def square_log(tmp_path: Path, drop: int | None = None) -> tuple[ht.Team, Trace]:
+    """test_logs' hand-made log: a unicycle driving a 1 m square (each side 2 s at
+    0.5 m/s, a quarter turn in place in 1 s), poses at 10 Hz, read with its team;
+    ``drop``: that pose sample left out (irregular sample times)."""
+    pytest.importorskip("rosbags", reason="the log is a rosbag2 (hybridteam[logs])")
+    from tests.test_logs import MAPPING, SQUARE_TEAM, write_square_bag
+
+    (tmp_path / "square.yaml").write_text(SQUARE_TEAM)
+    (tmp_path / "map.yaml").write_text(MAPPING)
+    team = ht.load(tmp_path / "square.yaml")
+    run = ht.Run.from_bag(write_square_bag(tmp_path / "bag"), team, tmp_path / "map.yaml")
+    if drop is not None:
+        keep = np.arange(run.sample_times.size) != drop
+        run = Trace(run.meta, run.diagnostics, run.transitions, run.intervals, run.messages,
+                    run.sample_times[keep], {k: v[keep] for k, v in run.samples.items()})
+    return team, run
+
+
+def test_a_hand_made_square_log_conforms_with_the_pose_deviation_of_its_closed_form(
+        tmp_path):
+    """The square's log against the team describing it (timed Drive and Turn modes, the
+    model driven by its own inputs): every mode change at the model's time, exactly (the
+    log's stamps are k/10 s; the model's after: 2 and 1 s add up to the same floats). The
+    log's times are a regular 0.1 s grid, so the model is sampled on it and read there,
+    and the closed form (straight sides at constant speed, turns in place) is what the
+    model integrates: the deviation is float rounding, under 1e-9 m. The model's change
+    at t = 12, the log's last instant, is not in the log and is no divergence."""
+    team, run = square_log(tmp_path)
+    result = conformance(run, team)
+    assert result.conformant, result.lines()
+    (robot,) = result.agents
+    assert (robot.logged, robot.model, robot.matched) == (8, 9, 8)
+    assert [s for _, s, _ in robot.shifts] == [0.0] * 8
+    assert robot.max_pose_deviation <= 1e-9
+
+
+def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
+    """One pose of the square's log left out (t = 0.5 s): its times are no regular grid,
+    so the model keeps its own samples (every 12 / 500 = 0.024 s) and is read linearly
+    between them. The largest deviation is then the interpolation's across a corner: the
+    robot reaches (1, 0) at t = 2 between model samples at 1.992 and 2.016 s, so the
+    model's line there is 0.5 m/s * 0.008 s * 0.016 s / 0.024 s = 1/375 m short."""
+    team, run = square_log(tmp_path, drop=5)
+    (robot,) = conformance(run, team).agents
+    assert robot.max_pose_deviation == pytest.approx(1 / 375, abs=1e-9)

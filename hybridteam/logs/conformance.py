@@ -28,9 +28,12 @@ field). Plants are driven by the model's own laws, not by logged commands.
 The comparison, per agent: the mode sequence (each logged transition against the model's
 in order, from the initial mode on), the time shift of each matched transition (log minus
 model: positive when the robot was late), and for planar robots the largest distance of a
-logged pose from the model's trajectory at the logged sample times. The first divergence
+logged pose from the model's at the logged sample times (the model sampled on the log's
+grid when its times are one, else read linearly between the model's samples). The first
+divergence
 is the earliest moment, over agents, where the two disagree: another transition, one
-missing on either side, or a matched one more than ``tolerance`` seconds apart.
+missing on either side, or a matched one more than ``tolerance`` seconds apart; a model
+transition at the recording's last instant, which the log cannot show, is none.
 """
 
 from __future__ import annotations
@@ -193,6 +196,10 @@ def conformance(run: Trace, team: Team, instance: int = 0,
     check_same_team(run, team)
     if not 0 <= instance < run.n:
         raise LogError(f"instance {instance}: the run has instances 0..{run.n - 1}")
+    period = regular_period(run.sample_times)
+    if period is not None:  # the model sampled where the log is (samples change no run)
+        team = dataclasses.replace(team, simulation=dataclasses.replace(
+            team.simulation, sample_period=period))
     full = compile_team(team)
     names = [ca.name for ca in full.agents]
     try:
@@ -203,14 +210,15 @@ def conformance(run: Trace, team: Team, instance: int = 0,
                                                                  names))
     copies, waiting = logged_copies(run, instance, names, declarations(full))
     clock = ReplayClock(copies)
+    end = replay_duration(run, instance)
     seed = run.meta.get("seed", team.simulation.seed)
     sim = Simulator(cteam, 1, seed=seed if isinstance(seed, int) else seed[instance],
-                    duration=replay_duration(run, instance), clock=clock)
+                    duration=end, clock=clock)
     sim.ensemble.network.outlet = ReplayOutlet(waiting)
     model = sim.run()
     arrivals = copies_by_receiver(copies, names)
-    agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance)
-              for ca in full.agents]
+    agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance,
+                            end) for ca in full.agents]
     return Conformance(agents, tolerance, model)
 
 
@@ -222,6 +230,15 @@ def check_same_team(run: Trace, team: Team) -> None:
     if run.agents != names:
         raise LogError(f"the run's agents ({', '.join(run.agents)}) are not team "
                        f"'{team.name}''s ({', '.join(names)})")
+
+
+def regular_period(times: np.ndarray) -> float | None:
+    """The period of sample times ``0, P, 2 P, ...`` (to 1 ns), else None."""
+    if times.size < 2 or abs(times[0]) > 1e-9:
+        return None
+    period = float(times[-1] - times[0]) / (times.size - 1)
+    grid = np.arange(times.size) * period
+    return period if period > 0 and float(np.max(np.abs(times - grid))) <= 1e-9 else None
 
 
 def replay_duration(run: Trace, instance: int) -> float:
@@ -304,8 +321,10 @@ def _transitions(trace: Trace, instance: int, agent: str) -> list[tuple]:
 
 
 def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
-                  arrivals: list[tuple[float, Message]], tolerance: float) -> AgentConformance:
-    """One agent's mode sequence, shifts, pose deviation and first divergence."""
+                  arrivals: list[tuple[float, Message]], tolerance: float, end: float
+                  ) -> AgentConformance:
+    """One agent's mode sequence, shifts, pose deviation and first divergence; ``end``:
+    when the recording ends."""
     agent = ca.name
     logged = _transitions(run, instance, agent)
     expected = _transitions(model, 0, agent)
@@ -315,6 +334,8 @@ def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
     for k in range(max(len(logged), len(expected))):
         lg = logged[k] if k < len(logged) else None
         md = expected[k] if k < len(expected) else None
+        if lg is None and md is not None and md[0] >= end:
+            break  # at the recording's last instant: what the robot did is not in it
         if lg is not None and md is not None and lg[1:3] == md[1:3]:
             shift = lg[0] - md[0]
             if abs(shift) > tolerance:
