@@ -29,11 +29,11 @@ The comparison, per agent: the mode sequence (each logged transition against the
 in order, from the initial mode on), the time shift of each matched transition (log minus
 model: positive when the robot was late), and for planar robots the largest distance of a
 logged pose from the model's at the logged sample times (the model sampled on the log's
-grid when its times are one, else read linearly between the model's samples). The first
-divergence
-is the earliest moment, over agents, where the two disagree: another transition, one
-missing on either side, or a matched one more than ``tolerance`` seconds apart; a model
-transition at the recording's last instant, which the log cannot show, is none.
+grid when its times are one, else read linearly between the model's samples). The
+first divergence is the earliest moment, over agents, where the two disagree: another
+transition, one missing on either side, or a matched one more than ``tolerance`` seconds
+apart; a model transition at the recording's last instant, which the log cannot show,
+is none.
 """
 
 from __future__ import annotations
