@@ -27,7 +27,6 @@ HANDOVER = ROOT / "examples" / "protocols" / "handover.yaml"
 HANDSHAKE = ROOT / "tests" / "fixtures" / "live" / "handshake.yaml"
 TIMEOUT = 120  # wall seconds the launch may take, however loaded the machine
 # the handover's moments: the Labmate asks at 3 s; request and grant take 30 ms each
-REQUESTED = 3.0
 GRANTED = 3.0 + 0.03 + 0.03
 
 
@@ -272,3 +271,35 @@ def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
     team, run = square_log(tmp_path, drop=5)
     (robot,) = conformance(run, team).agents
     assert robot.max_pose_deviation == pytest.approx(1 / 375, abs=1e-9)
+
+
+def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
+    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone), run
+    with a mutated role-assignment protocol (an offer taken as leadership without waiting
+    for the confirmation), checked against the team with the real one: the Labmate
+    diverges at the offer's arrival, 3 + 0.03 s, where the model accepts and waits
+    (Accepting) and the log leads; the report names the offer. The XR4000, given the
+    log's arrivals (no acceptance ever comes), does in the model what it did in the log."""
+    original = (ROOT / "protocols" / "role_assignment.yaml").read_text()
+    taken = ("        - to: Accepting\n          on: offer\n"
+             "          do: [{send: accept, to: sender}]\n")
+    assert taken in original
+    (tmp_path / "mutated.yaml").write_text(original.replace(taken, (
+        "        - to: Lead\n          on: offer\n          do: [leader = -1, last_change "
+        "= t, {send: announce, fields: {old: msg_sender}}]\n")))
+    team_text = HANDOVER.read_text().replace("{at: 3.0, agent: labmate, raise: want_lead}",
+                                             "{at: 3.0, agent: xr4000, raise: resign}")
+    (tmp_path / "resign.yaml").write_text(team_text)
+    (tmp_path / "mutant.yaml").write_text(
+        team_text.replace("protocol: role_assignment", "protocol: ./mutated.yaml")
+        .replace("operator: role_assignment", "operator: ./mutated.yaml"))
+    run = ht.simulate(ht.load(tmp_path / "mutant.yaml"))
+    result = conformance(run, ht.load(tmp_path / "resign.yaml"))
+    first = result.first
+    assert first is not None and first.agent == "labmate"
+    assert first.t == pytest.approx(3.0 + 0.03, abs=1e-12)
+    assert first.expected == "Transport.Accepting"
+    assert "message:offer; the log has 'offer' from xr4000 sent at t=3, reaching labmate" \
+        in first.why
+    assert "the log's next is Transport.Follow -> Transport.Lead" in first.why
+    assert next(a for a in result.agents if a.agent == "xr4000").divergence is None
