@@ -190,7 +190,7 @@ def test_a_trace_of_another_team_is_one_line_and_exit_2(handover, tmp_path, caps
     renamed = Trace({**run.meta, "team": "live handshake"}, run.diagnostics, run.transitions,
                     run.intervals, run.messages, run.sample_times, run.samples)
     with pytest.raises(LogError, match=r"^the run's agents \(xr4000, labmate, operator\) "
-                       r"are not team 'live handshake''s \(requester, granter\)$"):
+                       r"are not those of team 'live handshake' \(requester, granter\)$"):
         conformance(renamed, ht.load(HANDSHAKE))
     m = dict(run.messages.columns)
     m["sender"] = np.where(m["sender"] == "labmate", "intruder", m["sender"])

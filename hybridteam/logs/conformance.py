@@ -228,8 +228,8 @@ def check_same_team(run: Trace, team: Team) -> None:
         raise LogError(f"a run of team '{run.meta.get('team')}', not '{team.name}'")
     names = [a.name for a in team.agents]
     if run.agents != names:
-        raise LogError(f"the run's agents ({', '.join(run.agents)}) are not team "
-                       f"'{team.name}''s ({', '.join(names)})")
+        raise LogError(f"the run's agents ({', '.join(run.agents)}) are not those of team "
+                       f"'{team.name}' ({', '.join(names)})")
 
 
 def regular_period(times: np.ndarray) -> float | None:
