@@ -4,7 +4,7 @@ Agents with plants (unicycle, holonomic, flows), hierarchical modes with control
 guarded transitions and messages, simulated as ensembles with exact events.
 """
 
-from hybridteam.api import Run, check, load, simulate
+from hybridteam.api import Run, check, conformance, load, simulate
 from hybridteam.model import Team
 
 __version__ = "0.1.0"
@@ -18,4 +18,4 @@ def _notebook() -> None:
 
 
 _notebook()
-__all__ = ["Run", "Team", "__version__", "check", "load", "simulate"]
+__all__ = ["Run", "Team", "__version__", "check", "conformance", "load", "simulate"]

@@ -229,6 +229,16 @@ def check(run: Trace, team: Team) -> Table:
     return verdict_table(check_run(run, team))
 
 
+def conformance(run: Trace, team: Team, tolerance: float = 0.1) -> Table:
+    """How a recorded ``run`` conforms to ``team``: what the log says arrived replayed into
+    the model and compared, a row per agent (transitions logged, in the model, matched, the
+    largest time shift, the largest pose deviation, and where it first diverges; see
+    :mod:`hybridteam.logs.conformance`). ``tolerance``: seconds a transition may be off."""
+    from hybridteam.logs.conformance import conformance as replayed
+
+    return replayed(run, team, tolerance=tolerance).table()
+
+
 def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,
               seed: int | Sequence[int] | None = None, *,
               accelerate: bool = True) -> list[dict[str, Any]]:

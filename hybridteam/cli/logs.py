@@ -22,7 +22,8 @@ from hybridteam.cli.common import (
     say,
 )
 
-#: ``check``'s exit status when a requirement is violated (0: all hold, 2: bad input)
+#: ``check``'s exit status when a requirement is violated, or with ``--conformance`` the
+#: run diverges from the model (0: all hold / conformant, 2: bad input)
 EXIT_VIOLATED = 1
 
 
@@ -52,6 +53,13 @@ def register(sub) -> dict:
     c.add_argument("--team", required=True, metavar="TEAM.yaml")
     c.add_argument("--map", default=None, metavar="MAPPING.yaml",
                    help="for a rosbag2: which topic holds what (see import)")
+    c.add_argument("--conformance", action="store_true",
+                   help="instead of the requirements: replay what the log says arrived "
+                   "into the team and compare modes, transition times and poses (exit 0: "
+                   "conformant, 1: divergent)")
+    c.add_argument("--tolerance", type=float, default=None, metavar="SECONDS",
+                   help="with --conformance: how far a transition may be from the model's "
+                   "time (default 0.1)")
     return {"export": cmd_export, "import": cmd_import, "check": cmd_check}
 
 
@@ -112,6 +120,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     from hybridteam.logs.check import check_run
     from hybridteam.requirements.report import verdict_lines
 
+    if args.tolerance is not None and not (args.conformance and args.tolerance >= 0):
+        raise UsageError(f"--tolerance {args.tolerance}: a number of seconds >= 0, with "
+                         "--conformance")
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
@@ -126,6 +137,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         run = _read_log(args.log, team, args.map)
         if run is None:
             return EXIT_USAGE
+    if args.conformance:
+        return _conformance(args, run, team)
     try:
         verdicts = check_run(run, team)
     except LogError as exc:
@@ -137,3 +150,18 @@ def cmd_check(args: argparse.Namespace) -> int:
         print(line)
     held = all(v["satisfied"] for per in verdicts for v in per.values())
     return EXIT_OK if held else EXIT_VIOLATED
+
+
+def _conformance(args: argparse.Namespace, run, team) -> int:
+    """``check --conformance``: the summary per agent and the first divergence."""
+    from hybridteam.logs import LogError
+    from hybridteam.logs.conformance import DEFAULT_TOLERANCE, conformance
+
+    tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
+    try:
+        result = conformance(run, team, tolerance=tolerance)
+    except LogError as exc:
+        raise UsageError(f"{args.log}: {exc}") from None
+    for line in result.lines():
+        print(line)
+    return EXIT_OK if result.conformant else EXIT_VIOLATED

@@ -1,5 +1,6 @@
 """Robot logs in and out: a run as a rosbag2 (:mod:`.export`), a rosbag2 as a run
-(:mod:`.bag`), and a team's requirements checked on either (:mod:`.check`).
+(:mod:`.bag`), a team's requirements checked on either (:mod:`.check`), and either
+replayed into its team and compared with it (:mod:`.conformance`).
 
 The bag format is handled by ``rosbags`` (pure Python, no ROS installation), an optional
 dependency: ``pip install 'hybridteam[logs]'``. Topic names, message types, frames and the
