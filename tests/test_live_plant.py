@@ -1,0 +1,94 @@
+"""The engine's plant seam (engine/plant.py), without ROS or the wall clock: a scripted
+robot that ignores its commands and moves at 0.3 m/s, where the model says 0.5 m/s, so
+every time and pose is known by hand and differs from what integrating the model gives."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hybridteam as ht
+from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.simulator import Simulator
+
+TEAM = Path(__file__).parent / "fixtures" / "live" / "drive.yaml"
+SPEED = 0.3  # the scripted robot's, m/s (the model commands 0.5)
+
+
+class ScriptedRobot:
+    """A plant that records its commands and is at ``(SPEED t, 0, 0)`` at run time t."""
+
+    def __init__(self) -> None:
+        self.commands: list[tuple[float, list[float]]] = []
+
+    def command(self, inputs: np.ndarray, t: float) -> None:
+        self.commands.append((t, inputs.tolist()))
+
+    def state(self, t: float) -> np.ndarray:
+        return np.array([SPEED * t, 0.0, 0.0])
+
+
+def stops(trace) -> list[tuple[float, str]]:
+    return [(float(t), s) for t, s in zip(trace.transitions["t"], trace.transitions["target"],
+                                          strict=True)]
+
+
+def test_the_integrated_plant_is_the_default():
+    """Without plants the engine integrates: x = 0.5 t reaches 1 at t = 2, located."""
+    trace = Simulator(compile_team(ht.load(TEAM)), 1).run()
+    assert stops(trace) == [(0.0, "Forward"), (2.0, "Stopped")]
+
+
+def test_an_external_plant_is_commanded_and_read_and_its_guard_sampled():
+    """The robot's x = 0.3 t passes 1 at t = 10/3, between the control ticks 3.3 and 3.4
+    (the output samples, every 0.25 s, are instants too: 3.25, 3.5): the guard, sampled,
+    fires at 3.4, not at 10/3 (no zero-crossing to locate) nor at 2.0 (the model's
+    arc). Every instant commands the held inputs, 0.5 m/s until the stop's zero; the
+    trace's samples are the robot's poses, 0.3 t, not the model's 0.5 t."""
+    robot = ScriptedRobot()
+    trace = Simulator(compile_team(ht.load(TEAM)), 1, plants={0: robot}).run()
+    (t0, first), (t1, last) = stops(trace)
+    assert (t0, first, last) == (0.0, "Forward", "Stopped")
+    assert t1 == pytest.approx(3.4, abs=1e-12)
+    assert trace.outcomes[0]["outcome"] == "ok"
+    times = [t for t, _ in robot.commands]
+    ticks = [0.1 * k for k in range(35)]
+    for tick in ticks:  # a command at every control tick up to the stop
+        assert min(abs(t - tick) for t in times) < 1e-12
+    assert all(u == [0.5, 0.0] for t, u in robot.commands[:-1])
+    assert robot.commands[-1][1] == [0.0, 0.0]
+    assert robot.commands[-1][0] == pytest.approx(3.4, abs=1e-12)
+    sampled = trace.sample_times <= t1
+    x = trace.samples["robot"][sampled, 0, 0]
+    assert trace.sample_times[sampled].tolist() == [0.25 * k for k in range(14)]
+    np.testing.assert_allclose(x, SPEED * trace.sample_times[sampled], rtol=0, atol=1e-12)
+
+
+def test_the_robot_starts_where_it_is():
+    """The initial state is the plant's reading, not the file's (x = 0): a robot already
+    at x = 1.2 stops at the first instant, t = 0."""
+
+    class Ahead(ScriptedRobot):
+        def state(self, t: float) -> np.ndarray:
+            return np.array([1.2, 0.0, 0.0])
+
+    trace = Simulator(compile_team(ht.load(TEAM)), 1, plants={0: Ahead()}).run()
+    assert stops(trace)[-1] == (0.0, "Stopped")
+
+
+def test_external_plants_drive_one_run_with_held_inputs(team_from_yaml):
+    cteam = compile_team(ht.load(TEAM))
+    with pytest.raises(ValueError, match="single run"):
+        Simulator(cteam, 2, plants={0: ScriptedRobot()})
+    flow = team_from_yaml("""\
+        team: f
+        agents:
+          b:
+            plant: {kind: flow, state: {h: 1.0}}
+            modes:
+              Fall: {flow: {h: -1}}
+        """)
+    with pytest.raises(ValueError, match="held inputs"):
+        Simulator(compile_team(flow), 1, plants={0: ScriptedRobot()})
