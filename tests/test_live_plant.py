@@ -92,3 +92,20 @@ def test_external_plants_drive_one_run_with_held_inputs(team_from_yaml):
         """)
     with pytest.raises(ValueError, match="held inputs"):
         Simulator(compile_team(flow), 1, plants={0: ScriptedRobot()})
+
+
+def test_the_deploy_section_is_read_and_simulation_ignores_it(team_from_yaml):
+    """The fixture's deploy: entry is the robot's settings (defaults filled in); the same
+    team without it simulates to the same trace."""
+    from hybridteam.model.deploy import PlantDeploy
+
+    team = ht.load(TEAM)
+    assert team.deploy == {"robot": PlantDeploy("/drive/robot/cmd_vel", "/drive/robot/odom",
+                                                None, "odom", 2.0)}
+    text = TEAM.read_text()
+    bare = team_from_yaml(text[:text.index("\ndeploy:")])
+    assert bare.deploy == {}
+    with_deploy = Simulator(compile_team(team), 1).run()
+    without = Simulator(compile_team(bare), 1).run()
+    assert with_deploy.samples["robot"].tobytes() == without.samples["robot"].tobytes()
+    assert stops(with_deploy) == stops(without)
