@@ -109,3 +109,48 @@ def test_the_deploy_section_is_read_and_simulation_ignores_it(team_from_yaml):
     without = Simulator(compile_team(bare), 1).run()
     assert with_deploy.samples["robot"].tobytes() == without.samples["robot"].tobytes()
     assert stops(with_deploy) == stops(without)
+
+
+@pytest.mark.parametrize(("deploy", "args", "message"), [
+    (False, [], "--plant ros2: agent 'robot' has no entry in the team file's deploy: "
+                "section (its robot's cmd_vel and odom topics)"),
+    (True, ["--time-scale", "2"], "--plant ros2: a robot moves on the wall clock; "
+                                  "--time-scale must be 1, got 2"),
+    (True, [], "--plant ros2: the ros2 transport and plant need rclpy: "
+               "pip install 'hybridteam[ros]'"),
+])
+def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy, args,
+                                          message):
+    """Each before any run or file: one line, exit 2 (rclpy made unimportable here, so
+    the last holds wherever the test runs)."""
+    import sys
+
+    from hybridteam.cli import main
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    text = TEAM.read_text()
+    team = tmp_path / "drive.yaml"
+    team.write_text(text if deploy else text[:text.index("\ndeploy:")] + "\n")
+    out = tmp_path / "out"
+    status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
+                   "127.0.0.1:0", "-o", str(out), *args])
+    assert status == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"hybridteam: error: {message}"]
+    assert not out.exists()
+
+
+def test_a_holonomic_agent_is_not_driven_as_a_twist(tmp_path, capsys):
+    """Its (vx, vy) are world-frame, a Twist's body-frame: refused, before any ROS."""
+    from hybridteam.cli import main
+
+    text = TEAM.read_text().replace("kind: unicycle", "kind: holonomic").replace(
+        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
+        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}")
+    team = tmp_path / "omni.yaml"
+    team.write_text(text)
+    status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
+                   "127.0.0.1:0", "-o", str(tmp_path / "out")])
+    assert status == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "has a holonomic plant; a robot over ROS 2 drives a unicycle" \
+        in err[0], err

@@ -235,7 +235,8 @@ class Simulator:
             # changed, not config: a law whose mode was entered at this instant samples
             # again when a copy arrives later in the instant (it may read the copy)
             sample_laws(ens, a, live, changed)
-        if self.plants is not None and live.size:  # commands out: the held inputs
+        # commands out: the held inputs (not once the run has ended, by broken inputs too)
+        if self.plants is not None and not ens.done[0]:
             t = float(ens.t[0])
             for a, plant in self.plants.items():
                 plant.command(ens.states[a].u[0].copy(), t)

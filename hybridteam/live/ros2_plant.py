@@ -48,7 +48,8 @@ import numpy as np
 from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 from hybridteam.model.deploy import PlantDeploy
 
-__all__ = ["PlantDeploy", "PlantSilent", "Pose", "Ros2Plant", "Scan", "clipped_ranges", "yaw"]
+__all__ = ["PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant", "Scan",
+           "clipped_ranges", "yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -255,3 +256,37 @@ class Ros2Plant:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class RobotPlant:
+    """A :class:`Ros2Plant` as an agent's external plant in the engine
+    (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
+    latest odometry pose in wherever the engine needs the agent's state.
+
+    Only a unicycle agent is driven so: its inputs ``(v, omega)`` are body-frame, as a
+    Twist's are, and its state ``(x, y, theta)`` is an odometry pose. A holonomic agent's
+    ``(vx, vy)`` are world-frame (:mod:`hybridteam.dynamics.plants`) and would need turning
+    into the body frame first; it is refused rather than driven wrongly.
+    """
+
+    def __init__(self, robot: Ros2Plant, kind: str) -> None:
+        self.check(robot.agent, kind)
+        self.robot = robot
+
+    @staticmethod
+    def check(agent: str, kind: str) -> None:
+        """ValueError unless agent ``agent``'s plant ``kind`` is one a robot drives."""
+        if kind != "unicycle":
+            raise ValueError(f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
+                             "drives a unicycle agent (v, omega as a Twist; x, y, theta "
+                             "from odometry)")
+
+    def command(self, inputs: np.ndarray, t: float) -> None:
+        v, omega = inputs.tolist()
+        self.robot.command({"v": v, "omega": omega})
+
+    def state(self, t: float) -> np.ndarray:
+        """The latest pose (:meth:`Ros2Plant.pose`: :class:`PlantSilent` when odometry has
+        been silent for the deploy setting's timeout)."""
+        pose = self.robot.pose()
+        return np.array([pose.x, pose.y, pose.theta])
