@@ -57,6 +57,7 @@ class UnicycleRobot:
         self.poses: list[tuple[float, float, float, float]] = []
         self.x = self.y = self.theta = 0.0
         self.v = self.omega = 0.0
+        self.silent = False  # set: it stops publishing odometry (its driver hangs)
         self.lock = threading.Lock()
         self._Odometry = Odometry
         self.pub = self.node.create_publisher(Odometry, f"{ns}/odom", 10)
@@ -86,6 +87,8 @@ class UnicycleRobot:
             self.x += v / w * (math.sin(th) - math.sin(self.theta))
             self.y -= v / w * (math.cos(th) - math.cos(self.theta))
             self.theta = th
+        if self.silent:
+            return
         msg = self._Odometry()
         msg.header.frame_id = "odom"
         wall = time.time()
@@ -103,6 +106,23 @@ class UnicycleRobot:
         self.ctx.try_shutdown()
 
 
+def team_file(tmp_path, ns: str, timeout: float) -> Path:
+    """drive.yaml, its deploy: entry for the robot at ``ns``."""
+    text = TEAM.read_text()
+    team = tmp_path / "drive.yaml"
+    team.write_text(text[:text.index("\ndeploy:")] + "\ndeploy:\n  robot: {cmd_vel: "
+                    f"{ns}/cmd_vel, odom: {ns}/odom, timeout: {timeout}}}\n")
+    return team
+
+
+def run_live(team: Path, out: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "hybridteam.cli", "live", str(team), "--agent", "robot",
+         "--plant", "ros2", "--transport", "udp", "--listen", "127.0.0.1:0",
+         "--domain-id", str(DOMAIN), "-o", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
 def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
     """Forward at 0.5 m/s until the robot's odometry says x >= 1, then stop (drive.yaml):
     the agent reaches its final mode; the guard fires no earlier than the first odometry
@@ -112,18 +132,11 @@ def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
     delivery; the robot is driven at 0.5 m/s, and the last Twist is zero; every sample
     of the trace is a pose the robot published."""
     ns = f"/{ros_name(f't{os.getpid()}_plant')}/robot"
-    text = TEAM.read_text()
-    team = tmp_path / "drive.yaml"
-    team.write_text(text[:text.index("\ndeploy:")] + "\ndeploy:\n  robot: {cmd_vel: "
-                    f"{ns}/cmd_vel, odom: {ns}/odom, timeout: 5.0}}\n")
+    team = team_file(tmp_path, ns, 5.0)
     robot = UnicycleRobot(ros, ns)
     out = tmp_path / "out"
     try:
-        done = subprocess.run(
-            [sys.executable, "-m", "hybridteam.cli", "live", str(team), "--agent", "robot",
-             "--plant", "ros2", "--transport", "udp", "--listen", "127.0.0.1:0",
-             "--domain-id", str(DOMAIN), "-o", str(out)],
-            cwd=ROOT, capture_output=True, text=True, timeout=60)
+        done = run_live(team, out)
         time.sleep(0.1)  # (the stop's Twist has been acknowledged; let the robot log it)
     finally:
         robot.close()
@@ -158,3 +171,35 @@ def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
 
 def every_step_forward(x: np.ndarray) -> bool:
     return bool(np.all(np.diff(x) >= 0))
+
+
+def test_a_robot_falling_silent_stops_the_run_with_its_trace(ros, tmp_path):
+    """The robot's odometry stops 0.5 s after its first Twist (its driver hangs), long
+    before x reaches 1; with a 0.5 s timeout the run ends 'stopped', saying why, its
+    trace and summary written, and the robot is sent a zero Twist."""
+    ns = f"/{ros_name(f't{os.getpid()}_silent')}/robot"
+    robot = UnicycleRobot(ros, ns)
+    out = tmp_path / "out"
+
+    def hang() -> None:
+        while not robot.twists:
+            time.sleep(0.005)
+        time.sleep(0.5)
+        robot.silent = True
+
+    hanging = threading.Thread(target=hang, daemon=True)
+    hanging.start()
+    try:
+        done = run_live(team_file(tmp_path, ns, 0.5), out)
+        time.sleep(0.1)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    outcome = trace.outcomes[0]
+    assert outcome["outcome"] == "stopped"
+    assert f"robot: no odometry on {ns}/odom within 0.5 s" in outcome["message"]
+    assert outcome["t"] < 2.0  # (x = 0.5 t would have reached 1 at t = 2)
+    assert "Stopped" not in trace.transitions["target"].tolist()
+    assert json.loads((out / "summary.json").read_text())["outcome"] == "stopped"
+    assert robot.twists[-1][:2] == (0.0, 0.0)

@@ -15,6 +15,7 @@ import math
 import os
 import signal
 import sys
+from collections.abc import Callable
 
 from hybridteam.cli.common import (
     EXIT_OK,
@@ -142,7 +143,6 @@ def check_clock(args: argparse.Namespace) -> None:
 def cmd_live(args: argparse.Namespace) -> int:
     from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
-    from hybridteam.live.ros2_plant import PlantSilent
     from hybridteam.live.run import LiveRun
     from hybridteam.trace import write_atomic
 
@@ -163,7 +163,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     transport = open_transport(args, team.name, agents, listen, peers)
     try:
-        plants = open_plants(args, team, agents)
+        plants = open_plants(args, team, agents, on_silent=stopped.append)
     except BaseException:
         transport.close()
         raise
@@ -190,8 +190,6 @@ def cmd_live(args: argparse.Namespace) -> int:
 
         say(locate_in_file(exc, args.team))
         return EXIT_USAGE
-    except PlantSilent as exc:  # (a robot's odometry went silent for its timeout)
-        raise UsageError(f"--plant ros2: {exc}") from None
     finally:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
@@ -236,12 +234,20 @@ def open_transport(args: argparse.Namespace, team: str, agents: list[str],
         raise UsageError(f"--transport ros2: {exc}") from None
 
 
-def open_plants(args: argparse.Namespace, team, agents: list[str]) -> dict:
+#: Wall seconds ``--plant ros2`` waits at least for a robot's first odometry (ROS
+#: discovery: the robot's driver is found asynchronously, within a second or two).
+FIRST_ODOMETRY = 10.0
+
+
+def open_plants(args: argparse.Namespace, team, agents: list[str],
+                on_silent: Callable[[str], None]) -> dict:
     """The hosted agents' external plants ``--plant`` names, by agent: none for ``sim``
     (the engine integrates them); for ``ros2`` each agent's robot through its ``deploy:``
-    entry, once its first odometry has arrived. A one-line UsageError for an agent with
+    entry, once its first odometry has arrived (``on_silent``: told why when a robot's
+    odometry falls silent later, to stop the run). A one-line UsageError for an agent with
     no entry or not a unicycle, a time scale (a robot keeps the wall clock's pace),
-    rclpy missing, or a robot that says nothing."""
+    rclpy missing, or a robot that says nothing at the start (within its timeout, and
+    at least FIRST_ODOMETRY)."""
     if args.plant == "sim":
         return {}
     if args.time_scale != 1:
@@ -262,8 +268,11 @@ def open_plants(args: argparse.Namespace, team, agents: list[str]) -> dict:
         for name in agents:
             robot = Ros2Plant(name, team.deploy[name], domain_id=args.domain_id,
                               team=team.name)
-            plants[name] = RobotPlant(robot, team.agent(name).plant.kind)
-            robot.pose()  # (the first odometry, before the clock starts)
+            plants[name] = RobotPlant(robot, team.agent(name).plant.kind, on_silent)
+            # the first odometry, before the clock starts (finding the robot's driver on
+            # the domain can take longer than the silence its timeout allows later)
+            robot.pose(max(robot.deploy.timeout, FIRST_ODOMETRY))
+            plants[name].state(0.0)
     except BaseException as exc:
         for plant in plants.values():
             plant.robot.close()

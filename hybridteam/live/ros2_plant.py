@@ -40,7 +40,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -267,11 +267,19 @@ class RobotPlant:
     Twist's are, and its state ``(x, y, theta)`` is an odometry pose. A holonomic agent's
     ``(vx, vy)`` are world-frame (:mod:`hybridteam.dynamics.plants`) and would need turning
     into the body frame first; it is refused rather than driven wrongly.
+
+    A robot whose odometry falls silent for its ``timeout`` ends the run rather than
+    breaking it: ``on_silent`` is told why (a live run's stop request: the run ends at its
+    next wait, ``stopped``, its trace complete) and the last pose stands until then.
     """
 
-    def __init__(self, robot: Ros2Plant, kind: str) -> None:
+    def __init__(self, robot: Ros2Plant, kind: str,
+                 on_silent: Callable[[str], None] | None = None) -> None:
         self.check(robot.agent, kind)
         self.robot = robot
+        self.on_silent = on_silent
+        self.last: np.ndarray | None = None  # the last pose read
+        self.silent = False
 
     @staticmethod
     def check(agent: str, kind: str) -> None:
@@ -286,7 +294,20 @@ class RobotPlant:
         self.robot.command({"v": v, "omega": omega})
 
     def state(self, t: float) -> np.ndarray:
-        """The latest pose (:meth:`Ros2Plant.pose`: :class:`PlantSilent` when odometry has
-        been silent for the deploy setting's timeout)."""
-        pose = self.robot.pose()
-        return np.array([pose.x, pose.y, pose.theta])
+        """The latest pose (:meth:`Ros2Plant.pose`). Once odometry has been silent for
+        the deploy setting's timeout, the last pose, ``on_silent`` told why (once); without
+        ``on_silent``, or before any pose, :class:`PlantSilent`."""
+        if self.silent:
+            assert self.last is not None
+            return self.last
+        try:
+            pose = self.robot.pose()
+        except PlantSilent as exc:
+            if self.on_silent is None or self.last is None:
+                raise
+            self.silent = True
+            log.warning("%s", exc)
+            self.on_silent(str(exc))
+            return self.last
+        self.last = np.array([pose.x, pose.y, pose.theta])
+        return self.last
