@@ -1,6 +1,8 @@
 """The engine's plant seam (engine/plant.py), without ROS or the wall clock: a scripted
 robot that ignores its commands and moves at 0.3 m/s, where the model says 0.5 m/s, so
-every time and pose is known by hand and differs from what integrating the model gives."""
+every time and pose is known by hand and differs from what integrating the model gives.
+Also the team file's deploy: section as the model reads it, and what ``hybridteam live
+--plant ros2`` refuses before any ROS (the run against a robot: test_live_robot.py)."""
 
 from __future__ import annotations
 
