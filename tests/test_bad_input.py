@@ -62,6 +62,10 @@ CORPUS = {
     "period_without_inputs.yaml": (16, "modes.Cool", "'period' samples 'inputs'"),
     "message_declared_twice.yaml": (4, "messages.request",
                                     "already declared by protocol 'role_assignment'"),
+    "deploy_unknown_agent.yaml": (22, "deploy.thermo", "did you mean 'thermostat'"),
+    "deploy_relative_topic.yaml": (24, "deploy.thermostat.odom",
+                                   "expected a topic's full name"),
+    "deploy_unknown_setting.yaml": (25, "deploy.thermostat.frmae", "did you mean 'frame'"),
 }
 
 

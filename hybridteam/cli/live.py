@@ -15,6 +15,7 @@ import math
 import os
 import signal
 import sys
+from collections.abc import Callable
 
 from hybridteam.cli.common import (
     EXIT_OK,
@@ -29,7 +30,7 @@ from hybridteam.cli.common import (
 def register(sub) -> dict:
     """Add the ``live`` subcommand; returns its handler by name."""
     p = sub.add_parser("live", help="run agents of a team live: real UDP datagrams, the "
-                       "wall clock, simulated plants (docs/live.md)")
+                       "wall clock, simulated plants or robots over ROS 2 (docs/live.md)")
     p.add_argument("team", metavar="TEAM.yaml")
     p.add_argument("--agent", action="append", required=True, metavar="NAME",
                    help="an agent this process runs (repeat for several)")
@@ -37,6 +38,9 @@ def register(sub) -> dict:
     p.add_argument("--transport", choices=TRANSPORTS, default="udp",
                    help="how datagrams travel (udp: one port per process; ros2: ROS 2 "
                         "topics, with the [ros] extra)")
+    p.add_argument("--plant", choices=PLANTS, default="sim",
+                   help="what moves the hosted agents (sim: their plants integrated here; "
+                        "ros2: their robots, through the team file's deploy: topics)")
     p.add_argument("--domain-id", type=int, default=None, metavar="N",
                    help="(ros2) the ROS domain (default: ROS_DOMAIN_ID, else 0)")
     p.add_argument("--ros-peers", type=int, default=0, metavar="N",
@@ -80,6 +84,7 @@ def register(sub) -> dict:
 
 LEVELS = ("debug", "info", "warning", "error")
 TRANSPORTS = ("udp", "ros2")
+PLANTS = ("sim", "ros2")
 
 
 def add_faults(parser) -> None:
@@ -157,13 +162,19 @@ def cmd_live(args: argparse.Namespace) -> int:
         stopped.append(signal.Signals(signum).name)
 
     transport = open_transport(args, team.name, agents, listen, peers)
+    try:
+        plants = open_plants(args, team, agents, on_silent=stopped.append)
+    except BaseException:
+        transport.close()
+        raise
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
-                       drop_copies=drop_copies(args.drop_copy))
+                       drop_copies=drop_copies(args.drop_copy), plants=plants,
+                       plant_name=args.plant)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:
@@ -180,6 +191,8 @@ def cmd_live(args: argparse.Namespace) -> int:
         say(locate_in_file(exc, args.team))
         return EXIT_USAGE
     finally:
+        for plant in plants.values():  # (each robot is stopped: a zero Twist)
+            plant.robot.close()
         transport.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -219,6 +232,54 @@ def open_transport(args: argparse.Namespace, team: str, agents: list[str],
                              domain_id=args.domain_id)
     except (ImportError, ValueError) as exc:
         raise UsageError(f"--transport ros2: {exc}") from None
+
+
+#: Wall seconds ``--plant ros2`` waits at least for a robot's first odometry (ROS
+#: discovery: the robot's driver is found asynchronously, within a second or two).
+FIRST_ODOMETRY = 10.0
+
+
+def open_plants(args: argparse.Namespace, team, agents: list[str],
+                on_silent: Callable[[str], None]) -> dict:
+    """The hosted agents' external plants ``--plant`` names, by agent: none for ``sim``
+    (the engine integrates them); for ``ros2`` each agent's robot through its ``deploy:``
+    entry, once its first odometry has arrived (``on_silent``: told why when a robot's
+    odometry falls silent later, to stop the run). A one-line UsageError for an agent with
+    no entry or not a unicycle, a time scale (a robot keeps the wall clock's pace),
+    rclpy missing, or a robot that says nothing at the start (within its timeout, and
+    at least FIRST_ODOMETRY)."""
+    if args.plant == "sim":
+        return {}
+    if args.time_scale != 1:
+        raise UsageError(f"--plant ros2: a robot moves on the wall clock; --time-scale "
+                         f"must be 1, got {args.time_scale:g}")
+    from hybridteam.live.ros2_plant import PlantSilent, RobotPlant, Ros2Plant
+
+    for name in agents:
+        if name not in team.deploy:
+            raise UsageError(f"--plant ros2: agent '{name}' has no entry in the team file's "
+                             "deploy: section (its robot's cmd_vel and odom topics)")
+        try:
+            RobotPlant.check(name, team.agent(name).plant.kind)
+        except ValueError as exc:
+            raise UsageError(f"--plant ros2: {exc}") from None
+    plants: dict = {}
+    try:
+        for name in agents:
+            robot = Ros2Plant(name, team.deploy[name], domain_id=args.domain_id,
+                              team=team.name)
+            plants[name] = RobotPlant(robot, team.agent(name).plant.kind, on_silent)
+            # the first odometry, before the clock starts (finding the robot's driver on
+            # the domain can take longer than the silence its timeout allows later)
+            robot.pose(max(robot.deploy.timeout, FIRST_ODOMETRY))
+            plants[name].state(0.0)
+    except BaseException as exc:
+        for plant in plants.values():
+            plant.robot.close()
+        if isinstance(exc, ImportError | ValueError | PlantSilent):
+            raise UsageError(f"--plant ros2: {exc}") from None
+        raise
+    return plants
 
 
 def wait_for_peers(transport, count: int) -> None:

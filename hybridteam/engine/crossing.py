@@ -22,6 +22,7 @@ NaN, and is replaced): the search sets no error state of its own, a cost per tri
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Container
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,7 +58,7 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
 
 
 def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[AgentStep]
+                   steps: list[AgentStep], sampled: Container[int] = ()
                    ) -> tuple[np.ndarray | None, list[np.ndarray | None], dict[int, Segment]]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
@@ -68,13 +69,16 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
     searched agent's :class:`Segment`, whose
     :meth:`~Segment.true_state` reads the states its trial points computed, so the engine
     need not integrate to the crossing again. Updates nothing.
+
+    ``sampled``: agents whose plant is external (:mod:`.plant`), which have no arc to
+    search: skipped here (truths None), their atoms sampled by the simulator instead.
     """
     best = best_lo = None  # made when some atom flipped (most steps: none did)
     thetas = ens.thetas
     end_truths: list[np.ndarray | None] = []
     searched: dict[int, Segment] = {}
     for a, st in enumerate(ens.states):
-        if not st.ca.watches:
+        if not st.ca.watches or a in sampled:
             end_truths.append(None)
             continue
         end, flips = _flips(ens, a, idx, x_end[a], steps[a], thetas)

@@ -57,7 +57,10 @@ class Ensemble:
 
     def __init__(self, cteam: CTeam, n: int, seed: int | Sequence[int], t_end: float,
                  overrides: Mapping[str, float | Sequence[float]],
-                 samples: bool = True) -> None:
+                 samples: bool = True, sample_instants: bool = False) -> None:
+        """``sample_instants``: the output samples are scheduled instants too (a step ends
+        at each), for an agent whose state is read, not integrated (:mod:`.plant`): a
+        sample inside a step would be read off an arc the engine does not have."""
         self.cteam = cteam
         self.n = n
         self.seed = seed_value(seed, n)  # one int, or a list: one seed per instance
@@ -120,19 +123,20 @@ class Ensemble:
         if fields:
             for st in self.states:
                 st.inbox = Inbox(n, len(cteam.agents), fields)
-        self._gather_instants()
+        self._gather_instants(sample_instants)
 
-    def _gather_instants(self) -> None:
+    def _gather_instants(self, sample_instants: bool) -> None:
         """Put every source of scheduled instants in one array, ``instants`` (one row per
         source, every row a view its owner keeps writing in place): the event queue's next
         event, the end of the run, each agent's next ``after:`` deadline (rows ``at``:
         instants where transitions may fire), the streams' next copy and each agent's next
-        law tick (rows ``tick``). The simulator asks for the earliest of them at every
-        step, and which kind was reached; with them in one array that is one reduction
-        each, not two array operations per source (at a single run's size, each costs its
-        dispatch, about 1 µs, for one number)."""
+        law tick (rows ``tick``), and the next output sample where ``sample_instants``
+        (a ``tick`` row: nothing fires there). The simulator asks for the earliest of them
+        at every step, and which kind was reached; with them in one array that is one
+        reduction each, not two array operations per source (at a single run's size, each
+        costs its dispatch, about 1 µs, for one number)."""
         k = len(self.states)
-        rows = np.empty((3 + 2 * k, self.n))
+        rows = np.empty((3 + 2 * k + sample_instants, self.n))
         rows[0], rows[1], rows[2:2 + k] = self.queue.next, self.t_end, np.inf
         rows[2 + k] = self.streams.next
         for a, st in enumerate(self.states):
@@ -143,6 +147,9 @@ class Ensemble:
         self.timer = list(rows[2:2 + k])
         for a, st in enumerate(self.states):
             st.next_tick = rows[3 + k + a]
+        if sample_instants:
+            rows[-1] = self.next_out
+            self.next_out = rows[-1]
 
     def team_params(self) -> dict[str, np.ndarray]:
         """Team parameters per instance (after overrides), as every agent sees them."""

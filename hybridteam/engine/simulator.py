@@ -33,6 +33,7 @@ from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.numerics import stop_broken_states
 from hybridteam.engine.outcomes import check_instances
 from hybridteam.engine.outputs import interpolate_samples, record_samples
+from hybridteam.engine.plant import ExternalPlant, check_external
 from hybridteam.engine.record import trace_meta, variables_key
 from hybridteam.engine.schedule import earliest
 from hybridteam.engine.step import AgentStep, state_at, take_step
@@ -53,7 +54,8 @@ class Simulator:
                  snapshots: bool = False,
                  observe: Mapping[int, Sequence[Watch]] | None = None,
                  samples: bool = True, written: bool = False,
-                 clock: Clock | None = None) -> None:
+                 clock: Clock | None = None,
+                 plants: Mapping[int, ExternalPlant] | None = None) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -66,7 +68,10 @@ class Simulator:
         writes the trace's files (``hybridteam run``), whose rows count in the memory
         estimate.
         ``clock``: a live run's clock (:mod:`.clock`), asked before every step; None (a
-        simulation) advances at once."""
+        simulation) advances at once.
+        ``plants``: external plants by agent index (:mod:`.plant`; a single run only):
+        those agents' plants are commanded and read, not integrated, their guards
+        sampled at every instant; None (a simulation): every plant is integrated."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -74,15 +79,22 @@ class Simulator:
             raise ValueError(f"duration must be a finite number >= 0, got {t_end}")
         check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
                      max_periods, written)
+        if plants:
+            if n != 1:
+                raise ValueError(f"external plants drive a single run, not n={n}")
+            check_external(cteam, plants)
         if observe:
             cteam = dataclasses.replace(cteam, agents=[
                 dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
                 for ca in cteam.agents])
-        self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples)
+        self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples,
+                                 sample_instants=bool(plants))
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
         self.clock = clock
+        #: external plants by agent index (None: every plant is integrated)
+        self.plants = dict(plants) if plants else None
         #: whether any agent can ever be integrated (a flow plant, or an integrated law):
         #: else no step is limited by error control, and it ends at the next instant due
         self.may_flow = any(ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers)
@@ -132,6 +144,9 @@ class Simulator:
         everyone = np.arange(ens.n)
         for st in ens.states:
             st.x[:], st.v[:] = st.ca.initial_values(st.p)
+        if self.plants is not None:  # (the robot is where it is, whatever the file says)
+            for a, plant in self.plants.items():
+                ens.states[a].x[0] = plant.state(0.0)
         ens.world.start(self.access)
         for st in ens.states:
             ca = st.ca
@@ -220,6 +235,11 @@ class Simulator:
             # changed, not config: a law whose mode was entered at this instant samples
             # again when a copy arrives later in the instant (it may read the copy)
             sample_laws(ens, a, live, changed)
+        # commands out: the held inputs (not once the run has ended, by broken inputs too)
+        if self.plants is not None and not ens.done[0]:
+            t = float(ens.t[0])
+            for a, plant in self.plants.items():
+                plant.command(ens.states[a].u[0].copy(), t)
         ens.streams.update(live, config)
         if crossed is not None and crossed.size:
             changed = union(changed, crossed[~ens.done[crossed]])
@@ -247,6 +267,8 @@ class Simulator:
             control_step_size(ens, idx, sel, t1, any_rk, limited, err, x_end, steps)
         stop_broken_states(ens, idx, sel, t1, x_end, steps)
         crossing, end_truths = self._locate(idx, sel, t1, x_end, steps)
+        if self.plants is not None:
+            crossing = self._read_plants(idx, t1, x_end, crossing, end_truths)
         tn = t1[sel]
         # an output sample is due inside the step or at its end (after the instant, which
         # moves no clock and no sample): else neither looks for one
@@ -300,7 +322,8 @@ class Simulator:
         accepted = ens.h[sel] > 0 if self.may_cross else None  # (else: no atom to search)
         if accepted is None or not some(accepted):
             return None, [None] * len(ens.states)
-        tau, end_truths, searched = find_crossings(ens, idx, x_end, steps)
+        tau, end_truths, searched = find_crossings(ens, idx, x_end, steps,
+                                                   self.plants or ())
         if tau is None:  # no atom flipped inside the step: nothing was searched
             return None, end_truths
         crossing = np.isfinite(tau) & accepted
@@ -312,6 +335,29 @@ class Simulator:
                     state_at(ens, a, idx[rows], tau[rows], steps[a], rows=rows)
             t1[idx[rows]] = ens.t[idx[rows]] + tau[rows]
         return crossing, end_truths
+
+    def _read_plants(self, idx: np.ndarray, t1: np.ndarray, x_end: list[np.ndarray],
+                     crossing: np.ndarray | None, end_truths: list[np.ndarray | None]
+                     ) -> np.ndarray | None:
+        """Poses in: each external plant's state at the step's end replaces the
+        integrated one in ``x_end``, and its watched atoms are sampled there (:mod:`.plant`;
+        the search skipped them): a flip of a watched atom is a crossing at the step's
+        end. Returns the rows that crossed (``crossing``, widened)."""
+        assert self.plants is not None
+        ens = self.ensemble
+        t = float(t1[0])
+        for a, plant in self.plants.items():
+            x_end[a] = np.array(plant.state(t), dtype=float).reshape(1, -1)
+            st = ens.states[a]
+            if not st.ca.watches:
+                continue
+            truth = watch_truth(ens, a, idx, x_end[a], t1[idx])
+            end_truths[a] = truth
+            flipped = np.logical_or.reduce((truth != st.truth[:, idx]) & st.watched[:, idx],
+                                           axis=0)
+            if some(flipped):
+                crossing = flipped if crossing is None else crossing | flipped
+        return crossing
 
     def _arrive(self, idx: np.ndarray, sel: slice | np.ndarray, tn: np.ndarray,
                 crossing: np.ndarray | None, end_truths: list[np.ndarray | None],

@@ -61,6 +61,7 @@ from hybridteam.model import (
     WorldSpec,
     Zeno,
 )
+from hybridteam.model.deploy import PlantDeploy
 from hybridteam.requirements.check import compile_requirements
 
 if TYPE_CHECKING:
@@ -219,8 +220,25 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
                             doc.end.when if doc.end else "all", ("end",)),
                 requirements=_requirements(doc, filename, comp),
-                priority_rule=doc.semantics.priority)
+                priority_rule=doc.semantics.priority, deploy=_deploy(doc, comp))
     return team, comp
+
+
+def _deploy(doc: TeamFile, comp: Composer) -> dict[str, PlantDeploy]:
+    """The ``deploy:`` section's settings per agent; a setting that is not one, or an
+    entry for an agent the team does not have, is a located error."""
+    out = {}
+    for name, config in doc.deploy.items():
+        where = ("deploy", name)
+        if name not in doc.agents:
+            comp.errors.append(ModelError(where, f"'{name}' is not an agent of the team",
+                                          hint=did_you_mean(name, doc.agents), at_key=True))
+            continue
+        try:
+            out[name] = PlantDeploy.from_mapping(config, where)
+        except ModelError as exc:
+            comp.errors.append(exc)
+    return out
 
 
 def _requirements(doc: TeamFile, filename: str, comp: Composer) -> tuple[Requirement, ...]:

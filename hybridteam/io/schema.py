@@ -478,6 +478,10 @@ class TeamFile(Strict):
     requirements: dict[str, RequirementEntry] = Field(
         default_factory=dict, description="named temporal-logic formulas checked on every "
         "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
+    deploy: dict[str, Any] = Field(
+        default_factory=dict, description="per agent, where its robot is over ROS 2 "
+        "(hybridteam live --plant ros2): {cmd_vel: /r1/cmd_vel, odom: /r1/odom, scan, "
+        "frame, timeout}; simulation ignores it")
 
     @field_validator("team")
     @classmethod

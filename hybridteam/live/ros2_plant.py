@@ -3,17 +3,10 @@
 A live agent whose plant is a real robot (or a robot simulator) does not integrate its
 kinematics: it publishes the law's input as a ``geometry_msgs/msg/Twist`` and reads its
 state back from the robot's ``nav_msgs/msg/Odometry``, its range readings from a
-``sensor_msgs/msg/LaserScan``. What to talk to is one agent's ``deploy`` settings, a
-mapping (the team file's ``deploy:`` section, one entry per agent)::
-
-    cmd_vel: /scout1/cmd_vel   # required: where Twist commands are published
-    odom: /scout1/odom         # required: where Odometry is read
-    scan: /scout1/scan         # optional: where LaserScan is read
-    frame: odom                # optional, default "odom": the frame poses must be given in
-    timeout: 2.0               # optional, default 2 s: how long odometry may be silent
-
-Topics are given by their full names (a relative name would resolve against the plant's own
-node, ``/hybridteam/<team>/<agent>_plant``, not where the robot's driver publishes).
+``sensor_msgs/msg/LaserScan``. What to talk to is one agent's ``deploy`` settings
+(:class:`~hybridteam.model.deploy.PlantDeploy`: the team file's ``deploy:`` section, one
+entry per agent: its ``cmd_vel``, ``odom`` and ``scan`` topics, its odometry ``frame`` and
+how long odometry may be ``timeout`` silent).
 
 **Commands.** The input keeps the plant's names: a unicycle's ``v`` and ``omega`` become
 ``linear.x`` and ``angular.z``, a holonomic base's ``vx``, ``vy`` and ``omega`` become
@@ -45,19 +38,18 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 import threading
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
+from hybridteam.model.deploy import PlantDeploy
 
-__all__ = ["PlantDeploy", "PlantSilent", "Pose", "Ros2Plant", "Scan", "clipped_ranges", "yaw"]
+__all__ = ["PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant", "Scan",
+           "clipped_ranges", "yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -67,55 +59,6 @@ TWIST_FIELDS = {"v": ("linear", "x"), "vx": ("linear", "x"), "vy": ("linear", "y
 
 #: seconds :meth:`Ros2Plant.close` waits for reliable drivers to acknowledge the stop
 STOP_ACK_WAIT = 0.5
-
-#: a topic's full name: relative ones would resolve against the plant node's namespace
-_TOPIC = re.compile(r"(/[A-Za-z_]([A-Za-z0-9]|_(?!_))*)+")
-
-_KEYS = ("cmd_vel", "odom", "scan", "frame", "timeout")
-
-
-@dataclass(frozen=True)
-class PlantDeploy:
-    """One agent's ``deploy`` settings: the robot's topics and frame (module docstring)."""
-
-    cmd_vel: str
-    odom: str
-    scan: str | None = None
-    frame: str = "odom"
-    timeout: float = 2.0
-
-    @classmethod
-    def from_mapping(cls, config: Mapping[str, Any], path: DocPath = ()) -> PlantDeploy:
-        """Checked settings, or a :class:`ModelError` at ``path`` + the offending key (the
-        YAML layer turns it into file:line:column)."""
-        if not isinstance(config, Mapping):
-            raise ModelError(path, "expected a mapping of cmd_vel, odom, scan, frame, timeout")
-        for key in config:
-            if key not in _KEYS:
-                raise ModelError((*path, key), f"unknown deploy setting {key!r}",
-                                 hint=did_you_mean(str(key), _KEYS), at_key=True)
-        for key in ("cmd_vel", "odom"):
-            if key not in config:
-                raise ModelError(path, f"missing {key!r}: the robot's "
-                                 + ("Twist command topic" if key == "cmd_vel"
-                                    else "Odometry topic"))
-        for key in ("cmd_vel", "odom", "scan"):
-            value = config.get(key)
-            if key in config and not (isinstance(value, str) and _TOPIC.fullmatch(value)):
-                raise ModelError((*path, key), f"expected a topic's full name (/name/name..., "
-                                 "each name letters, digits and single underscores, not "
-                                 f"starting with a digit), got {value!r}")
-        frame = config.get("frame", "odom")
-        if not (isinstance(frame, str) and frame):
-            raise ModelError((*path, "frame"), f"expected a frame name, got {frame!r}")
-        timeout = config.get("timeout", 2.0)
-        if (isinstance(timeout, bool) or not isinstance(timeout, int | float)
-                or not 0 < timeout < math.inf):
-            raise ModelError((*path, "timeout"),
-                             f"expected a number of seconds > 0, got {timeout!r}")
-        return cls(config["cmd_vel"], config["odom"], config.get("scan"), frame,
-                   float(timeout))
-
 
 class Pose(NamedTuple):
     """A robot's pose from odometry: ``stamp`` is the message's (the robot's clock, in
@@ -313,3 +256,58 @@ class Ros2Plant:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class RobotPlant:
+    """A :class:`Ros2Plant` as an agent's external plant in the engine
+    (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
+    latest odometry pose in wherever the engine needs the agent's state.
+
+    Only a unicycle agent is driven so: its inputs ``(v, omega)`` are body-frame, as a
+    Twist's are, and its state ``(x, y, theta)`` is an odometry pose. A holonomic agent's
+    ``(vx, vy)`` are world-frame (:mod:`hybridteam.dynamics.plants`) and would need turning
+    into the body frame first; it is refused rather than driven wrongly.
+
+    A robot whose odometry falls silent for its ``timeout`` ends the run rather than
+    breaking it: ``on_silent`` is told why (a live run's stop request: the run ends at its
+    next wait, ``stopped``, its trace complete) and the last pose stands until then.
+    """
+
+    def __init__(self, robot: Ros2Plant, kind: str,
+                 on_silent: Callable[[str], None] | None = None) -> None:
+        self.check(robot.agent, kind)
+        self.robot = robot
+        self.on_silent = on_silent
+        self.last: np.ndarray | None = None  # the last pose read
+        self.silent = False
+
+    @staticmethod
+    def check(agent: str, kind: str) -> None:
+        """ValueError unless agent ``agent``'s plant ``kind`` is one a robot drives."""
+        if kind != "unicycle":
+            raise ValueError(f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
+                             "drives a unicycle agent (v, omega as a Twist; x, y, theta "
+                             "from odometry)")
+
+    def command(self, inputs: np.ndarray, t: float) -> None:
+        v, omega = inputs.tolist()
+        self.robot.command({"v": v, "omega": omega})
+
+    def state(self, t: float) -> np.ndarray:
+        """The latest pose (:meth:`Ros2Plant.pose`). Once odometry has been silent for
+        the deploy setting's timeout, the last pose, ``on_silent`` told why (once); without
+        ``on_silent``, or before any pose, :class:`PlantSilent`."""
+        if self.silent:
+            assert self.last is not None
+            return self.last
+        try:
+            pose = self.robot.pose()
+        except PlantSilent as exc:
+            if self.on_silent is None or self.last is None:
+                raise
+            self.silent = True
+            log.warning("%s", exc)
+            self.on_silent(str(exc))
+            return self.last
+        self.last = np.array([pose.x, pose.y, pose.theta])
+        return self.last

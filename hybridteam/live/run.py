@@ -19,6 +19,7 @@ import numpy as np
 
 from hybridteam.engine.compiled import CTeam
 from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.plant import ExternalPlant
 from hybridteam.engine.record import variables_key
 from hybridteam.engine.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
@@ -40,13 +41,19 @@ class LiveRun:
                  duration: float | None = None,
                  stop: Callable[[], str | None] = lambda: None, drop: float = 0.0,
                  delay: float = 0.0, seed: int = 0,
-                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
+                 drop_copies: Mapping[str, Collection[int]] | None = None,
+                 plants: Mapping[str, ExternalPlant] | None = None,
+                 plant_name: str = "sim") -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
         ``drop_copies``: injected loss and delay at the receiving socket
         (:class:`.clock.WallClock`). HostingError for agents or a team a live process
-        cannot run, or a ``drop_copies`` type the team does not declare."""
+        cannot run, or a ``drop_copies`` type the team does not declare. ``plants``: by
+        hosted agent's name, an external plant (a robot, :mod:`hybridteam.engine.plant`;
+        the caller's to close) in place of the integrated one, ``plant_name`` what the
+        trace calls them; HostingError for one of an agent not here, or one the engine
+        cannot drive."""
         full = compile_team(team)
         self.codec = Codec(full)  # (the whole team's declarations: every process's)
         cteam = hosted_team(full, agents)
@@ -56,10 +63,20 @@ class LiveRun:
         self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
         self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
                                delay=delay, seed=seed, drop_copies=drop_copies)
-        # (no wall-time limit: a live run's pace is the wall clock's by design, and the
-        # simulator's limit would end a deployment of more than a day as too slow)
-        self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
-                             max_wall=math.inf)
+        external = {}
+        index = {ca.name: ca.index for ca in full.agents}
+        for name, plant in (plants or {}).items():
+            if name not in self.here:
+                raise HostingError(f"a plant for '{name}', which this process does not host")
+            external[index[name]] = plant
+        self.plant_name = plant_name
+        try:
+            # (no wall-time limit: a live run's pace is the wall clock's by design, and the
+            # simulator's limit would end a deployment of more than a day as too slow)
+            self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
+                                 max_wall=math.inf, plants=external or None)
+        except ValueError as exc:  # (an external plant the engine cannot drive)
+            raise HostingError(str(exc)) from None
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
@@ -70,7 +87,8 @@ class LiveRun:
                  ", ".join(self.here), self.time_scale, self.sim.ensemble.t_end)
         self.clock.start()
         trace = self.sim.run()
-        record = {"agents": self.here, "transport": self.transport_name, "wire": VERSION,
+        record = {"agents": self.here, "transport": self.transport_name,
+                  "plant": self.plant_name, "wire": VERSION,
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent}
         dropped = record["datagrams"]["dropped"]

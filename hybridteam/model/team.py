@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from hybridteam.errors import DocPath
+from hybridteam.model.deploy import PlantDeploy
 from hybridteam.model.modes import Mode
 from hybridteam.model.protocol import MessageSpec, StreamSpec
 
@@ -168,6 +169,9 @@ class Team:
     #: which of two enabled nested transitions fires first: ``outer_first`` (Stateflow's)
     #: or ``inner_first`` (SCXML's: the innermost source; between regions, document order)
     priority_rule: str = "outer_first"
+    #: per agent name, where its robot is over ROS 2 (the ``deploy:`` section; live runs
+    #: with ``--plant ros2`` read it, simulation ignores it)
+    deploy: dict[str, PlantDeploy] = field(default_factory=dict)
 
     def __repr__(self) -> str:
         names = ", ".join(a.name for a in self.agents)

@@ -1,0 +1,205 @@
+"""``hybridteam live --plant ros2``: one agent drives a robot over ROS 2 (a fake one here,
+a thread integrating a unicycle from the Twists it receives and publishing Odometry at
+50 Hz), with no teammates over UDP. Skips where rclpy cannot be imported (the ``ros``
+extra: CPython 3.11 wheels for Linux x86_64); run it with an interpreter that has them."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybridteam.live.ros2 import ros_name
+from hybridteam.trace import Trace
+
+pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
+
+ROOT = Path(__file__).resolve().parents[1]
+TEAM = ROOT / "tests" / "fixtures" / "live" / "drive.yaml"
+DOMAIN = 1 + (os.getpid() + 50) % 100  # (not test_live_ros2's: its own domain)
+ODOM_PERIOD = 0.02  # the fake robot's: 50 Hz
+CONTROL_PERIOD = 0.1  # the team's law period (drive.yaml)
+NO_RCLPY = "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 " \
+           "on Linux x86_64)"
+
+
+@pytest.fixture
+def ros(monkeypatch):
+    rclpy = pytest.importorskip("rclpy", reason=NO_RCLPY, exc_type=ImportError)
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    return rclpy
+
+
+class UnicycleRobot:
+    """A robot's driver: every ``ODOM_PERIOD`` s it moves its unicycle under the last
+    Twist received (exactly: an arc at constant v, omega) and publishes its pose as
+    Odometry in frame ``odom``. Keeps every Twist with its ``time.time()`` of arrival and
+    every published pose ``(x, y, theta, time.time())``."""
+
+    def __init__(self, ros, ns: str) -> None:
+        from geometry_msgs.msg import Twist
+        from nav_msgs.msg import Odometry
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.ctx = ros.Context()
+        ros.init(context=self.ctx, domain_id=DOMAIN)
+        self.node = ros.create_node("unicycle_robot", context=self.ctx)
+        self.twists: list[tuple[float, float, float]] = []  # (v, omega, wall time)
+        self.poses: list[tuple[float, float, float, float]] = []
+        self.x = self.y = self.theta = 0.0
+        self.v = self.omega = 0.0
+        self.silent = False  # set: it stops publishing odometry (its driver hangs)
+        self.lock = threading.Lock()
+        self._Odometry = Odometry
+        self.pub = self.node.create_publisher(Odometry, f"{ns}/odom", 10)
+        self.node.create_subscription(Twist, f"{ns}/cmd_vel", self._on_twist, 10)
+        self.last = time.monotonic()
+        self.node.create_timer(ODOM_PERIOD, self._tick)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin)
+        self.thread.start()
+
+    def _on_twist(self, msg) -> None:
+        with self.lock:
+            self.v, self.omega = msg.linear.x, msg.angular.z
+            self.twists.append((self.v, self.omega, time.time()))
+
+    def _tick(self) -> None:
+        now = time.monotonic()
+        dt, self.last = now - self.last, now
+        with self.lock:
+            v, w = self.v, self.omega
+        if w == 0.0:
+            self.x += v * math.cos(self.theta) * dt
+            self.y += v * math.sin(self.theta) * dt
+        else:
+            th = self.theta + w * dt
+            self.x += v / w * (math.sin(th) - math.sin(self.theta))
+            self.y -= v / w * (math.cos(th) - math.cos(self.theta))
+            self.theta = th
+        if self.silent:
+            return
+        msg = self._Odometry()
+        msg.header.frame_id = "odom"
+        wall = time.time()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(wall), int(wall % 1 * 1e9)
+        msg.pose.pose.position.x, msg.pose.pose.position.y = self.x, self.y
+        q = msg.pose.pose.orientation
+        q.z, q.w = math.sin(self.theta / 2), math.cos(self.theta / 2)
+        self.pub.publish(msg)
+        self.poses.append((self.x, self.y, self.theta, wall))
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.thread.join()
+        self.node.destroy_node()
+        self.ctx.try_shutdown()
+
+
+def team_file(tmp_path, ns: str, timeout: float) -> Path:
+    """drive.yaml, its deploy: entry for the robot at ``ns``."""
+    text = TEAM.read_text()
+    team = tmp_path / "drive.yaml"
+    team.write_text(text[:text.index("\ndeploy:")] + "\ndeploy:\n  robot: {cmd_vel: "
+                    f"{ns}/cmd_vel, odom: {ns}/odom, timeout: {timeout}}}\n")
+    return team
+
+
+def run_live(team: Path, out: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "hybridteam.cli", "live", str(team), "--agent", "robot",
+         "--plant", "ros2", "--transport", "udp", "--listen", "127.0.0.1:0",
+         "--domain-id", str(DOMAIN), "-o", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
+def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
+    """Forward at 0.5 m/s until the robot's odometry says x >= 1, then stop (drive.yaml):
+    the agent reaches its final mode; the guard fires no earlier than the first odometry
+    with x >= 1 was published, and no later than one control period (the next tick
+    that samples it) after the robot's x passed 1.0 plus one odometry period (the
+    reading's age), plus how late the loop woke (measured, in the trace) and 10 ms for
+    delivery; the robot is driven at 0.5 m/s, and the last Twist is zero; every sample
+    of the trace is a pose the robot published."""
+    ns = f"/{ros_name(f't{os.getpid()}_plant')}/robot"
+    team = team_file(tmp_path, ns, 5.0)
+    robot = UnicycleRobot(ros, ns)
+    out = tmp_path / "out"
+    try:
+        done = run_live(team, out)
+        time.sleep(0.1)  # (the stop's Twist has been acknowledged; let the robot log it)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "ok" and summary["live"]["plant"] == "ros2"
+    trace = Trace.load(out / "trace.json")
+    fired = [float(t) for t, target in zip(trace.transitions["t"],
+                                           trace.transitions["target"], strict=True)
+             if target == "Stopped"]
+    assert len(fired) == 1
+    live = trace.meta["live"]
+    fired_wall = live["wall_start"] + fired[0]
+    # where the robot's x passed 1.0: between the last published pose before and the
+    # first at or past it (the robot moves at 0.5 m/s then), on the wall clock
+    k = next(i for i, p in enumerate(robot.poses) if p[0] >= 1.0)
+    (x0, _, _, w0), (x1, _, _, w1) = robot.poses[k - 1], robot.poses[k]
+    crossed = w0 + (1.0 - x0) / (x1 - x0) * (w1 - w0)
+    assert fired_wall >= w1 - 1e-3  # (the wall clocks of two threads: a millisecond)
+    late = live["late_ms"].get("max", 0.0) / 1e3
+    assert fired_wall - crossed <= CONTROL_PERIOD + ODOM_PERIOD + late + 0.01
+    speeds = [v for v, _, _ in robot.twists]
+    assert speeds[0] == 0.5 and speeds[-1] == 0.0
+    assert all(w == 0.0 for _, w, _ in robot.twists)
+    assert set(speeds) == {0.5, 0.0}
+    x = trace.samples["robot"][:, 0, 0]
+    published = {p[0] for p in robot.poses}
+    recorded = x[~np.isnan(x)]
+    assert recorded.size >= 2 and all(value in published for value in recorded)
+    assert recorded[0] == 0.0 and every_step_forward(recorded)
+
+
+def every_step_forward(x: np.ndarray) -> bool:
+    return bool(np.all(np.diff(x) >= 0))
+
+
+def test_a_robot_falling_silent_stops_the_run_with_its_trace(ros, tmp_path):
+    """The robot's odometry stops 0.5 s after its first Twist (its driver hangs), long
+    before x reaches 1; with a 0.5 s timeout the run ends 'stopped', saying why, its
+    trace and summary written, and the robot is sent a zero Twist."""
+    ns = f"/{ros_name(f't{os.getpid()}_silent')}/robot"
+    robot = UnicycleRobot(ros, ns)
+    out = tmp_path / "out"
+
+    def hang() -> None:
+        while not robot.twists:
+            time.sleep(0.005)
+        time.sleep(0.5)
+        robot.silent = True
+
+    hanging = threading.Thread(target=hang, daemon=True)
+    hanging.start()
+    try:
+        done = run_live(team_file(tmp_path, ns, 0.5), out)
+        time.sleep(0.1)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    outcome = trace.outcomes[0]
+    assert outcome["outcome"] == "stopped"
+    assert f"robot: no odometry on {ns}/odom within 0.5 s" in outcome["message"]
+    assert outcome["t"] < 2.0  # (x = 0.5 t would have reached 1 at t = 2)
+    assert "Stopped" not in trace.transitions["target"].tolist()
+    assert json.loads((out / "summary.json").read_text())["outcome"] == "stopped"
+    assert robot.twists[-1][:2] == (0.0, 0.0)
