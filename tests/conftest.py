@@ -47,3 +47,17 @@ def team_from_yaml(tmp_path):
         return load(path)
 
     return make
+
+
+NO_RCLPY = "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 " \
+           "on Linux x86_64)"
+
+
+@pytest.fixture
+def ros(monkeypatch):
+    """rclpy, with discovery kept on this machine and Fast DDS; skips, saying why, where
+    rclpy cannot be imported (the ros extra's wheels are for CPython 3.11 on Linux x86_64)."""
+    rclpy = pytest.importorskip("rclpy", reason=NO_RCLPY, exc_type=ImportError)
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    return rclpy

@@ -26,6 +26,7 @@ from hybridteam.export.trajectories import (
 )
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
 from tests.conftest import EXAMPLES
+from tests.test_collisions import TEAM as COLLISION_TEAM
 
 AUTOMATA = sorted((EXAMPLES / "automata").glob("*.yaml"))
 NUMBERED = re.compile(r"^([1-9]\d*)([A-Z]+)$")
@@ -356,23 +357,8 @@ def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
     assert "--speed must be a positive number, got 0" in capsys.readouterr().err
 
 
-CRASH = """
-    team: crash
-    agents:
-      a:
-        plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
-        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
-      b:
-        plant: {{kind: unicycle, state: {{x: 3.0, y: {b_y}, theta: 3.141592653589793}}}}
-        modes: {{Go: {{inputs: {{v: 1.0, omega: 0}}, period: 0.1}}}}
-    world:
-      - use: obstacles
-        with:
-          walls: {walls}
-          radius: [[a, 0.25], [b, 0.25]]
-          on_collision: warn
-    simulation: {{duration: 4.0}}
-"""
+# two robots, b kept at y = b_y, through walls, told to go on (the collision tests' team)
+CRASH = COLLISION_TEAM.replace("on_collision: {mode}", "on_collision: warn")
 
 
 def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml,

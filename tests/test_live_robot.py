@@ -27,18 +27,6 @@ TEAM = ROOT / "tests" / "fixtures" / "live" / "drive.yaml"
 DOMAIN = 1 + (os.getpid() + 50) % 100  # (not test_live_ros2's: its own domain)
 ODOM_PERIOD = 0.02  # the fake robot's: 50 Hz
 CONTROL_PERIOD = 0.1  # the team's law period (drive.yaml)
-NO_RCLPY = "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 " \
-           "on Linux x86_64)"
-
-
-@pytest.fixture
-def ros(monkeypatch):
-    rclpy = pytest.importorskip("rclpy", reason=NO_RCLPY, exc_type=ImportError)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    return rclpy
-
-
 class UnicycleRobot:
     """A robot's driver: every ``ODOM_PERIOD`` s it moves its unicycle under the last
     Twist received (exactly: an arc at constant v, omega) and publishes its pose as

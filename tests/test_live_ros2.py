@@ -27,19 +27,6 @@ from hybridteam.live.ros2_plant import PlantDeploy, PlantSilent, clipped_ranges,
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 
 DOMAIN = 1 + os.getpid() % 100  # 1..100: valid ROS domain ids on Linux
-NO_RCLPY = "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 " \
-           "on Linux x86_64)"
-
-
-@pytest.fixture
-def ros(monkeypatch):
-    """rclpy, discovery kept on loopback; skips where rclpy cannot be imported."""
-    rclpy = pytest.importorskip("rclpy", reason=NO_RCLPY, exc_type=ImportError)
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    return rclpy
-
-
 @pytest.fixture
 def team(request):
     return f"t{os.getpid()}_{request.node.name}"
