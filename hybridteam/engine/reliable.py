@@ -31,7 +31,7 @@ ACK = "ack"
 
 
 @dataclass
-class _Pending:
+class Pending:
     type: str
     socket: str
     fields: dict[str, np.ndarray]  # one value per instance (length-1 arrays)
@@ -47,7 +47,7 @@ class Reliable:
     def __init__(self, ens: Ensemble) -> None:
         self.ens = ens
         self.next_id = [np.zeros(ens.n, np.int64) for _ in ens.cteam.agents]
-        self.outbox: dict[tuple[int, int, int], _Pending] = {}  # (instance, sender, id)
+        self.outbox: dict[tuple[int, int, int], Pending] = {}  # (instance, sender, id)
         self.seen: set[tuple[int, int, int, int]] = set()  # (instance, receiver, sender, id)
 
     def send(self, idx: np.ndarray, sender: int, to: int | np.ndarray | None, socket: str,
@@ -68,7 +68,7 @@ class Reliable:
         for j, i in enumerate(idx.tolist()):
             tgt = int(targets[j])
             waiting = {tgt} if tgt >= 0 else {r for r in range(count) if r != sender}
-            self.outbox[(i, sender, int(ids[j]))] = _Pending(
+            self.outbox[(i, sender, int(ids[j]))] = Pending(
                 type_, socket, {f: v[j : j + 1].copy() for f, v in fields.items()}, waiting,
                 int(retries[j]), float(timeout[j]), float(ranks[j]))
         ens.network.send(idx, ens.t[idx], sender, to, socket, type_, fields, msg_id=ids,

@@ -27,7 +27,7 @@ from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.events import LOCAL, MESSAGE, SCENARIO, TIMER
 from hybridteam.engine.network import Message
-from hybridteam.engine.reliable import ACK, _Pending
+from hybridteam.engine.reliable import ACK, Pending
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import Values
 
@@ -249,7 +249,7 @@ class Machine:
         position in the parent's outbox, or -1 when there is none."""
         for k, e in enumerate(s.outbox):
             if e.sender == sender and e.msg_id == msg_id:
-                self.ens.reliable.outbox[(i, sender, msg_id)] = _Pending(
+                self.ens.reliable.outbox[(i, sender, msg_id)] = Pending(
                     e.type, e.socket, {f: np.array([v]) for f, v in self._all_fields(e)},
                     set(e.waiting), e.retries_left, e.timeout, e.rank)
                 return k

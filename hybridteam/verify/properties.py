@@ -103,6 +103,10 @@ class States:
     def in_modes(self, agent: str, modes: list[int]) -> np.ndarray:
         return self._active[self.names[agent]][:, modes].any(axis=1)[:, None]
 
+    def active(self, a: int) -> np.ndarray:
+        """Agent ``a``'s active modes in each state ``(states, modes)``, as booleans."""
+        return self._active[a]
+
     def variable(self, agent: str, j: int) -> np.ndarray:
         a = self.names[agent]
         cols = self.sk.discrete_vars[a]
@@ -300,7 +304,7 @@ def _deadlock(p: Property, sk: Skeleton, g: Graph) -> Verdict:
     all_final = np.ones(rows.size, bool)
     commanded = np.zeros(rows.size, bool)
     for a, ca in enumerate(agents):
-        act = sig._active[a]
+        act = sig.active(a)
         final = (~act[:, ca.leaves] | ca.final[ca.leaves]).all(axis=1)
         if team.agents[a].operator:
             initial = np.zeros(len(ca.modes), bool)
