@@ -672,6 +672,13 @@ def test_a_crowd_is_run_without_views_and_says_so(tmp_path, monkeypatch, capsys)
         "hybridteam: error: out/trace.json: a timeline draws up to 100 agents' lanes, and "
         "this trace has 101; choose some with --agents A,B")
     assert main(["timeline", "out/trace.json", "-o", "t.png", "--agents", "r0,r100"]) == 0
+    # nor a report, which draws the same views (with or without the run's own views)
+    for extra in ([], ["--no-views"]):
+        assert main(["run", "crowd.yaml", "-o", "rep", "--quiet", "--report", *extra]) == 0
+        assert "hybridteam: note: no report.html: the team has 101 agents and a report " \
+               "draws its views for up to 100" in capsys.readouterr().err
+        assert not (tmp_path / "rep" / "report.html").exists()
+        assert (tmp_path / "rep" / "summary.json").exists()
 
 
 def test_a_trace_larger_than_the_limit_is_refused(traces, monkeypatch, capsys):

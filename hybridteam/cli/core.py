@@ -169,9 +169,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     views = write_run_folder(out, team, run, summary, views=not args.no_views)
     if args.report:
         from hybridteam.export.report import write_report
+        from hybridteam.export.runviews import MAX_VIEW_AGENTS
 
-        write_report(out, run, summary, animation=not args.no_animation)
-        views.append("report.html")
+        if len(team.agents) > MAX_VIEW_AGENTS:  # the report draws the run's views too
+            say(f"hybridteam: note: no report.html: the team has {len(team.agents):,} agents "
+                f"and a report draws its views for up to {MAX_VIEW_AGENTS}")
+        else:
+            write_report(out, run, summary, animation=not args.no_animation)
+            views.append("report.html")
     if not args.quiet:
         _print_summary(summary, out, views)
     return EXIT_OK
