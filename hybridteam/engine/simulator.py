@@ -57,7 +57,8 @@ class Simulator:
                  samples: bool = True, written: bool = False,
                  clock: Clock | None = None,
                  plants: Mapping[int, ExternalPlant] | None = None,
-                 world: Callable[..., World] = World) -> None:
+                 world: Callable[..., World] = World, sample_instants: bool = False
+                 ) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -75,7 +76,9 @@ class Simulator:
         those agents' plants are commanded and read, not integrated, their guards
         sampled at every instant; None (a simulation): every plant is integrated.
         ``world``: the world seam (:class:`.world.World`, the components run here; a live
-        process's agents read the world process instead, :mod:`hybridteam.live.world`)."""
+        process's agents read the world process instead, :mod:`hybridteam.live.world`).
+        ``sample_instants``: the output samples are instants (the world's series read
+        there, as a live world process records them; external plants imply it)."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -92,7 +95,8 @@ class Simulator:
                 dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
                 for ca in cteam.agents])
         self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples,
-                                 sample_instants=bool(plants), world=world)
+                                 sample_instants=bool(plants) or sample_instants,
+                                 world=world)
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall

@@ -59,10 +59,10 @@ class LiveRun:
         runs the world components on the poses the agents' processes send
         (:mod:`.world`)."""
         full = compile_team(team)
-        if world and (agents or not team.world):
-            raise HostingError("the world process hosts no agent, and runs a team's world "
-                               "components: " + ("--world with --agent" if agents else
-                                                 "this team declares none"))
+        if world and agents:
+            raise HostingError("--world: the world process hosts no agent")
+        if world and not team.world:
+            raise HostingError("--world: this team declares no world components")
         # (the whole team's declarations: every process's)
         self.codec = Codec(full)
         cteam = hosted_team(full, agents)
@@ -85,6 +85,9 @@ class LiveRun:
             self.link = WorldLink(self.codec, transport, hosted, host=world)
             self.clock.world = self.link
             seam["world"] = world_seam(WorldHost if world else WorldReadings, self.link)
+            # (the world process records the world's series at its output samples: they
+            # are instants there, the components run on the latest poses)
+            seam["sample_instants"] = world
         self.world_process = world
         self.transport = transport
         try:
