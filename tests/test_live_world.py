@@ -77,6 +77,9 @@ def test_world_datagrams_round_trip(cteam):
     (READING, WORLD_INDEX, LABMATE, {"event.at_box": 1.0}, "forged"),  # not its event
     (READING, WORLD_INDEX, XR4000, {"lidar.0": 1.0}, "forged"),  # no component's sense
     (READING, WORLD_INDEX, XR4000, {"ir.x": 1.0}, "forged"),
+    (READING, WORLD_INDEX, XR4000, {"ir.\u00b2": 1.0}, "forged"),  # (a digit, not 0-9)
+    (READING, WORLD_INDEX, XR4000, {"ir.0": 1.0, "ir.2": 1.0}, "forged"),  # ir.1 missing
+    (READING, WORLD_INDEX, XR4000, {"ir": 1.0, "ir.0": 1.0}, "forged"),
 ])
 def test_world_datagrams_are_checked_field_by_field(cteam, kind, sender, to, fields, reason):
     codec = codec_of(cteam)

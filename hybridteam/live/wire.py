@@ -214,6 +214,8 @@ class Codec:
             if not self._world_field(kind, agent, key):
                 raise WireError("forged", f"field {_show(key)} of a {kind} for "
                                           f"'{self.agents[agent]}'")
+        if kind == READING:
+            _check_vectors(fields)
         values = {k: _number(v, f"field {k}") for k, v in fields.items()}
         rank, sent = _number(obj["rank"], "rank"), _number(obj["sent"], "send time")
         key = (kind, sender)  # (its own numbering: a process counts its poses apart)
@@ -234,12 +236,26 @@ class Codec:
             return tail in self.events[agent]
         if head == "outcome":
             return tail.isidentifier()
-        return head in self.senses and (tail == "" or tail.isdigit())
+        return head in self.senses and (tail == "" or (tail.isascii() and tail.isdigit()))
 
     def _agent(self, name: object, what: str) -> int:
         if not isinstance(name, str) or name not in self.index:
             raise WireError("forged", f"{what} {_show(name)} is not an agent of the team")
         return self.index[name]
+
+
+def _check_vectors(fields: dict) -> None:
+    """A reading's sensed names are each one number (``name``) or a whole vector
+    (``name.0`` ... ``name.k``, no index missing), else :class:`WireError`."""
+    indices: dict[str, list[int]] = {}
+    for key in fields:
+        head, dot, tail = key.partition(".")
+        if head not in ("event", "outcome"):
+            indices.setdefault(head, []).append(int(tail) if dot else -1)
+    for name, got in indices.items():
+        if sorted(got) != ([-1] if -1 in got else list(range(len(got)))):
+            raise WireError("forged", f"reading of {_show(name)} is not one number or a "
+                                      "whole vector")
 
 
 def _no_constant(name: str) -> float:
