@@ -187,6 +187,8 @@ def test_an_agent_with_no_world_process_is_one_line(team, monkeypatch):
     (EXPERIMENT2, ["--world", "--agent", "labmate"], "give the agents this process runs "
                                                      "(--agent NAME) or --world, not both"),
     (HANDSHAKE, ["--world"], "--world: this team declares no world components"),
+    (EXPERIMENT2, ["--world", "--plant", "ros2"], "--world hosts no agent: --plant is for "
+                                                  "the agents' processes"),
 ])
 def test_world_process_arguments_are_one_line(tmp_path, team_file, args, message):
     proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "live", str(team_file),
@@ -228,3 +230,36 @@ def test_experiment2_launched_live_hands_over_as_the_simulation_does(tmp_path, t
     box = live.samples["box"]
     assert np.isfinite(box[: np.searchsorted(live.sample_times, 40.0)]).all()
     assert (out / "agents" / "@world" / "trace.json").exists()
+
+
+def agent_process_given(team, cteam, fields: dict[str, float]) -> Trace:
+    """The Labmate's process (in this one) whose first reading from a stand-in world
+    process carries ``fields``; run for 0.5 run seconds."""
+    transport = UdpTransport(("127.0.0.1", 0))
+    world = UdpTransport(("127.0.0.1", 0), [transport.address])
+    try:
+        live = LiveRun(team, ["labmate"], transport, duration=0.5, time_scale=5)
+        world.send(live.codec.encode_world(READING, WORLD_INDEX, LABMATE, 0, {
+            "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0, **fields}, 0.0), "data")
+        return live.run()
+    finally:
+        transport.close()
+        world.close()
+
+
+def test_an_event_in_a_reading_is_raised_in_its_agent_at_its_arrival(team, cteam):
+    """``docked`` takes the Labmate from Idle to Align (experiment 2's file): raised by
+    the first reading, at run time 0, where the process takes it."""
+    trace = agent_process_given(team, cteam, {"event.docked": 1.0})
+    rows = trace.transitions.where(agent="labmate")
+    assert rows["target"].tolist() == ["Dock.Idle", "Dock.Align"]
+    assert rows["t"][1] == pytest.approx(0.0, abs=1e-9)
+    assert trace.outcomes[0]["outcome"] == "ok"  # (ended at the duration)
+
+
+def test_an_outcome_in_a_reading_ends_the_agents_run(team, cteam):
+    trace = agent_process_given(team, cteam, {"outcome.link_broken": 1.0})
+    outcome = trace.outcomes[0]
+    assert (outcome["outcome"], outcome["t"]) == ("link_broken", pytest.approx(0.0,
+                                                                               abs=1e-9))
+    assert "the world process concluded 'link_broken'" in outcome["message"]

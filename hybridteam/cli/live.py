@@ -163,8 +163,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     agents = list(dict.fromkeys(args.agent))
     if args.world and args.plant != "sim":
-        raise UsageError("--world runs the world components for simulated plants; "
-                         "--plant ros2 has no world process (a robot's surroundings are real)")
+        raise UsageError("--world hosts no agent: --plant is for the agents' processes")
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
