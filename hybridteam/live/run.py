@@ -7,6 +7,9 @@ the wire as its network's outlet (:mod:`.clock`). Its trace is the ordinary form
 to what this process knows: the hosted agents' modes, transitions and samples (a remote
 agent's samples are NaN: unknown here), every copy that reached a hosted agent, and
 ``meta.live``: the agents here, the transport, the clock and the datagrams counted.
+For a team with world components the engine's world seam is filled by :mod:`.world`: in
+the world process (``world=True``, no agent here) the components run on the poses
+received; in an agent's process its agents read the world process.
 """
 
 from __future__ import annotations
@@ -126,14 +129,14 @@ class LiveRun:
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
         return process_trace(trace, record)
 
-
     def await_world(self) -> None:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
         reading of every hosted agent, which its laws read from their first tick; what
         else arrives meanwhile is handed to the clock to be taken first. HostingError if
         none comes (no world process runs)."""
-        peek = Codec(self.full, self.codec.senses)  # (the run's codec
-        kept: list[tuple[bytes, float]] = []                          # sees them later)
+        # (a codec of its own: the run's must see these datagrams first when it takes them)
+        peek = Codec(self.full, self.codec.senses)
+        kept: list[tuple[bytes, float]] = []
         end = time.monotonic() + FIRST_READING
         waiting = set(self.link.here)
         while waiting:
