@@ -84,3 +84,37 @@ def test_traces_of_different_runs_are_refused():
         merge_traces([a, b])
     with pytest.raises(MergeError, match="hosted by two"):
         merge_traces([a, process("a", 0.0, [], [0, 0, 0])])
+
+
+def world_process(wall_start: float, box: list[float], outcome: str = "ok") -> Trace:
+    """The world process's trace (no agent here, scale 2): the world's series ``box`` at
+    0, 1, 2, its meta the world's (what views draw), every agent's samples NaN."""
+    tr = process("a", wall_start, [], [np.nan] * 3, outcome=outcome)
+    samples = {"a": np.full((3, 1, 1), np.nan), "b": np.full((3, 1, 1), np.nan),
+               "box": np.array(box, float).reshape(3, 1, 1)}
+    meta = {**tr.meta, "obstacles": {"circles": [[0.0, 0.0, 1.0]]},
+            "live": {**tr.meta["live"], "agents": [], "world": True}}
+    return Trace(meta, tr.outcomes, tr.transitions, tr.intervals,
+                 tr.messages.filter(np.zeros(1, bool)), tr.sample_times, samples)
+
+
+def test_the_world_series_and_meta_come_from_the_world_process():
+    """The world process started 0.5 wall s after a's (1.0 run s at scale 2): its box
+    series, read at the common times 0, 1, 2, is its own at -1 (none), 0 and 1; the
+    meta the views draw the world from is its."""
+    a = process("a", 100.0, [(0.0, "A0")], [0.0, 10.0, 20.0])
+    b = process("b", 100.0, [(0.0, "B0")], [1.0, 2.0, 3.0])
+    world = world_process(100.5, [3.0, 4.0, 5.0])
+    merged = merge_traces([a, b, world], ending=["a"])
+    np.testing.assert_array_equal(merged.samples["box"][:, 0, 0], [np.nan, 3.0, 4.0])
+    np.testing.assert_array_equal(merged.samples["a"][:, 0, 0], [0.0, 10.0, 20.0])
+    assert merged.meta["obstacles"] == {"circles": [[0.0, 0.0, 1.0]]}
+
+
+def test_a_run_whose_end_rule_processes_left_no_trace_merges_with_the_world_process():
+    """No process hosts the rule's agent (its process died): every process decides, the
+    world process (which hosts none) among them, and its outcome is the team's."""
+    b = process("b", 100.0, [(0.0, "B0")], [1.0, 2.0, 3.0])
+    world = world_process(100.0, [3.0, 4.0, 5.0], outcome="link_broken")
+    merged = merge_traces([b, world], ending=["a"])
+    assert merged.outcomes[0]["outcome"] == "link_broken"

@@ -32,8 +32,11 @@ def register(sub) -> dict:
     p = sub.add_parser("live", help="run agents of a team live: real UDP datagrams, the "
                        "wall clock, simulated plants or robots over ROS 2 (docs/live.md)")
     p.add_argument("team", metavar="TEAM.yaml")
-    p.add_argument("--agent", action="append", required=True, metavar="NAME",
+    p.add_argument("--agent", action="append", default=[], metavar="NAME",
                    help="an agent this process runs (repeat for several)")
+    p.add_argument("--world", action="store_true",
+                   help="this process is the team's world process: it hosts no agent and "
+                        "runs the world components on the poses the agents send")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     p.add_argument("--transport", choices=TRANSPORTS, default="udp",
                    help="how datagrams travel (udp: one port per process; ros2: ROS 2 "
@@ -147,6 +150,9 @@ def cmd_live(args: argparse.Namespace) -> int:
     from hybridteam.trace import write_atomic
 
     check_clock(args)
+    if bool(args.agent) == args.world:
+        raise UsageError("give the agents this process runs (--agent NAME) or --world, "
+                         "not both")
     listen = address(args.listen, "--listen")
     peers = [address(p, "--peer") for p in args.peer]
     out = output_folder(args.output)
@@ -156,12 +162,14 @@ def cmd_live(args: argparse.Namespace) -> int:
     if team is None:
         return EXIT_USAGE
     agents = list(dict.fromkeys(args.agent))
+    if args.world and args.plant != "sim":
+        raise UsageError("--world hosts no agent: --plant is for the agents' processes")
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
         stopped.append(signal.Signals(signum).name)
 
-    transport = open_transport(args, team.name, agents, listen, peers)
+    transport = open_transport(args, team.name, agents or ["world"], listen, peers)
     try:
         plants = open_plants(args, team, agents, on_silent=stopped.append)
     except BaseException:
@@ -174,7 +182,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=drop_copies(args.drop_copy), plants=plants,
-                       plant_name=args.plant)
+                       plant_name=args.plant, world=args.world)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:
@@ -209,7 +217,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") \
             from None
-    say(f"{team.name}: {', '.join(agents)} {outcome['outcome']} at t={outcome['t']:.6g}: "
+    say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
+        f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
 
@@ -297,6 +306,10 @@ def wait_for_peers(transport, count: int) -> None:
         time.sleep(0.02)
 
 
+#: The world process's folder under ``OUT/agents/`` (no agent can be named so: names
+#: are identifiers).
+WORLD_PROCESS = "@world"
+
 #: Wall seconds a launched process may take to start (import, compile, bind) and to end
 #: after its run's duration is up, however loaded the machine.
 START_TIMEOUT, END_MARGIN = 60.0, 30.0
@@ -328,10 +341,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     except HostingError as exc:
         raise UsageError(str(exc)) from None
     ending = [names[a] for a in full.ending]
+    # the processes: one per agent, and the world process when the team has components
+    hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
     # (summary.json is written last: an older one must not make a failed launch's folder
     # look complete)
     (out / "summary.json").unlink(missing_ok=True)
-    ports = free_ports(len(names)) if args.transport == "udp" else [0] * len(names)
+    ports = free_ports(len(hosts)) if args.transport == "udp" else [0] * len(hosts)
     domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
     stopped: list[str] = []
 
@@ -341,11 +356,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     procs: dict[str, subprocess.Popen] = {}
     try:
-        for k, (name, port) in enumerate(zip(names, ports, strict=True)):
+        for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
-            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team, "--agent",
-                       name, "--time-scale", repr(args.time_scale), "--log-level",
+            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
+                       *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
+                       "--time-scale", repr(args.time_scale), "--log-level",
                        args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
                        "--transport", args.transport]
             if args.transport == "udp":
@@ -353,7 +369,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
                 command += [a for p in ports if p != port
                             for a in ("--peer", f"127.0.0.1:{p}")]
             else:  # every process in one domain, each waiting for all the others
-                command += ["--domain-id", str(domain), "--ros-peers", str(len(names) - 1)]
+                command += ["--domain-id", str(domain), "--ros-peers", str(len(hosts) - 1)]
             if args.duration is not None:
                 command += ["--duration", repr(args.duration)]
             with open(folder / "live.log", "wb") as logfile:
@@ -393,9 +409,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
                if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
-    if len(missing) == len(names):
+    if all(n in missing for n in names):
         raise UsageError("no agent's process left a trace")
-    traces = [Trace.load(out / "agents" / n / "trace.json") for n in names
+    traces = [Trace.load(out / "agents" / n / "trace.json") for n in hosts
               if n not in missing]
     merged = merge_traces(traces, ending)
     merged.meta["live"]["missing"] = missing

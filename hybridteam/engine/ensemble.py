@@ -57,10 +57,13 @@ class Ensemble:
 
     def __init__(self, cteam: CTeam, n: int, seed: int | Sequence[int], t_end: float,
                  overrides: Mapping[str, float | Sequence[float]],
-                 samples: bool = True, sample_instants: bool = False) -> None:
+                 samples: bool = True, sample_instants: bool = False,
+                 world: Callable[..., World] = World) -> None:
         """``sample_instants``: the output samples are scheduled instants too (a step ends
         at each), for an agent whose state is read, not integrated (:mod:`.plant`): a
-        sample inside a step would be read off an arc the engine does not have."""
+        sample inside a step would be read off an arc the engine does not have.
+        ``world``: the world seam, :class:`World` (the components run here) or a subclass
+        a live process fills it with (:mod:`hybridteam.live.world`)."""
         self.cteam = cteam
         self.n = n
         self.seed = seed_value(seed, n)  # one int, or a list: one seed per instance
@@ -113,7 +116,7 @@ class Ensemble:
                                medium)
         self.reliable = Reliable(self)
         self.streams = Streams(self, [ca.streams for ca in cteam.agents])
-        self.world = World(cteam.team, n, params)
+        self.world = world(cteam.team, n, params)
         for st in self.states:
             st.world = self.world
         self.rec.add_series(self.world.sample_series())

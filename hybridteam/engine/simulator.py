@@ -38,6 +38,7 @@ from hybridteam.engine.record import trace_meta, variables_key
 from hybridteam.engine.schedule import earliest
 from hybridteam.engine.step import AgentStep, state_at, take_step
 from hybridteam.engine.stepsize import control_step_size, initial_step_sizes
+from hybridteam.engine.world import World
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
@@ -55,7 +56,9 @@ class Simulator:
                  observe: Mapping[int, Sequence[Watch]] | None = None,
                  samples: bool = True, written: bool = False,
                  clock: Clock | None = None,
-                 plants: Mapping[int, ExternalPlant] | None = None) -> None:
+                 plants: Mapping[int, ExternalPlant] | None = None,
+                 world: Callable[..., World] = World, sample_instants: bool = False
+                 ) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -71,7 +74,11 @@ class Simulator:
         simulation) advances at once.
         ``plants``: external plants by agent index (:mod:`.plant`; a single run only):
         those agents' plants are commanded and read, not integrated, their guards
-        sampled at every instant; None (a simulation): every plant is integrated."""
+        sampled at every instant; None (a simulation): every plant is integrated.
+        ``world``: the world seam (:class:`.world.World`, the components run here; a live
+        process's agents read the world process instead, :mod:`hybridteam.live.world`).
+        ``sample_instants``: the output samples are instants (the world's series read
+        there, as a live world process records them; external plants imply it)."""
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
@@ -88,7 +95,8 @@ class Simulator:
                 dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
                 for ca in cteam.agents])
         self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples,
-                                 sample_instants=bool(plants))
+                                 sample_instants=bool(plants) or sample_instants,
+                                 world=world)
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall

@@ -16,14 +16,19 @@ import random
 import time
 from collections import Counter
 from collections.abc import Callable, Collection, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hybridteam.engine.ensemble import Ensemble
+from hybridteam.engine.events import LOCAL
 from hybridteam.engine.network import Message
 from hybridteam.engine.schedule import earliest
 from hybridteam.live.transport import Transport
-from hybridteam.live.wire import Codec, WireError
+from hybridteam.live.wire import POSE, READING, Codec, WireError
+
+if TYPE_CHECKING:
+    from hybridteam.live.world import WorldLink
 
 log = logging.getLogger("hybridteam.live")
 
@@ -64,6 +69,10 @@ class WallClock:
         self.reaction: list[float] = []
         #: arrivals queued and not yet handled: (run time, time.monotonic() on arrival)
         self._waiting: list[tuple[float, float]] = []
+        #: the world kinds' traffic (:mod:`.world`), for a team with world components
+        self.world: WorldLink | None = None
+        #: datagrams read before the run started (:meth:`backlog`), taken first
+        self._backlog: list[tuple[bytes, float]] = []
 
     def start(self) -> None:
         """Run time 0 is now (called as the run starts)."""
@@ -103,7 +112,8 @@ class WallClock:
     def _take(self, ens: Ensemble) -> bool:
         """Queue every datagram waiting for the hosted agents; whether any was queued."""
         queued = False
-        for data, arrived in self.transport.receive():
+        arrivals, self._backlog = self._backlog + self.transport.receive(), []
+        for data, arrived in arrivals:
             self.received += 1
             try:
                 dg = self.codec.decode(data)
@@ -113,6 +123,9 @@ class WallClock:
                 continue
             if self.drop and self.rng.random() < self.drop:
                 self.injected["dropped"] += 1
+                continue
+            if dg.type in (POSE, READING):
+                queued = self._world(ens, dg, arrived) or queued
                 continue
             receivers = [r for r in self.here if r != dg.sender and dg.to in (-1, r)]
             if receivers and dg.type in self.drop_copies:
@@ -134,6 +147,32 @@ class WallClock:
                 self._waiting.append((t, arrived + self.delay / self.scale))
                 queued = True
         return queued
+
+    def _world(self, ens: Ensemble, dg, arrived: float) -> bool:
+        """A pose or a reading (:mod:`.world`): a pose arriving at the world process is
+        an instant there; a reading's events are raised in their agent at its arrival, and
+        its outcome ends the run. Whether the run must take an instant now."""
+        got = self.world.take(dg) if self.world is not None else None
+        if got is None:
+            return False
+        self.delivered += 1
+        t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
+        events, outcome = got
+        if outcome is not None:
+            ens.finish(ens.everyone, outcome, lambda i: f"the world process concluded "
+                                                        f"'{outcome}' at t={ens.when(i)}")
+            return True
+        names = [POSE] if dg.type == POSE else events
+        agent = dg.sender if dg.type == POSE else dg.to
+        for name in names:
+            ens.queue.push(np.array([0]), np.array([t]), LOCAL, agent, name)
+            self._waiting.append((t, arrived + self.delay / self.scale))
+        return bool(names)
+
+    def backlog(self, datagrams: list[tuple[bytes, float]]) -> None:
+        """Datagrams read from the transport before the run started (while waiting for
+        the world process's first reading), to be taken before any newer."""
+        self._backlog = [*datagrams, *self._backlog]
 
     def record(self) -> dict:
         """What the trace's ``meta.live`` says of the clock and the wire."""

@@ -31,10 +31,6 @@ def hosted_team(cteam: CTeam, here: Collection[str]) -> CTeam:
         if name not in names:
             raise HostingError(f"--agent '{name}' is not an agent of the team (its agents: "
                                f"{', '.join(names)})")
-    if cteam.team.world:
-        raise HostingError("the team has world components (" + ", ".join(
-            w.use for w in cteam.team.world) + "): they need the world process, which "
-            "live runs do not have yet")
     hosted = {names.index(name) for name in here}
     ending = [a for a in cteam.ending if a in hosted]
     team = cteam.team

@@ -49,10 +49,14 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = ()) -> Trace:
     offsets = [(tr.meta["live"]["wall_start"] - wall0) * tr.meta["live"]["time_scale"]
                for tr in traces]
     times = first.sample_times
-    samples = {k: np.full_like(v, np.nan) for k, v in first.samples.items()}
+    # (the world's series are the world process's: the agents' processes have none)
+    world = next((tr for tr in traces if tr.meta["live"].get("world")), None)
+    samples = {k: np.full((times.size, *v.shape[1:]), np.nan)
+               for tr in traces for k, v in tr.samples.items()}
     for tr, off in zip(traces, offsets, strict=True):
         for key, values in tr.samples.items():
-            if key.split("#")[0] in tr.meta["live"]["agents"]:
+            if key.split("#")[0] in tr.meta["live"]["agents"] or \
+                    (tr is world and key.split("#")[0] not in names):
                 samples[key] = _resampled(tr.sample_times + off, values, times)
     transitions = _concat([_shift(tr.transitions, off, ("t",))
                            for tr, off in zip(traces, offsets, strict=True)], "t")
@@ -60,7 +64,7 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = ()) -> Trace:
                          for tr, off in zip(traces, offsets, strict=True)], "start")
     messages = _concat([_shift(tr.messages, off, ("t_send", "t_recv"))
                         for tr, off in zip(traces, offsets, strict=True)], "t_recv")
-    meta = {k: v for k, v in first.meta.items() if k != "live"}
+    meta = {k: v for k, v in (world or first).meta.items() if k != "live"}
     meta["live"] = {"processes": [tr.meta["live"] for tr in traces], "offsets": offsets,
                     "wall_start": wall0, "clock_bounds": clock_bounds(traces)}
     return Trace(meta, [_outcome(traces, offsets, names, ending)], transitions, intervals,
@@ -130,7 +134,7 @@ def _outcome(traces: Sequence[Trace], offsets: list[float], names: list[str],
     ends = [(tr.outcomes[0], off, tr.meta["live"]["agents"])
             for tr, off in zip(traces, offsets, strict=True)]
     deciding = [e for e in ends if set(e[2]) & set(ending)] or ends
-    deciding.sort(key=lambda e: min(names.index(a) for a in e[2]))
+    deciding.sort(key=lambda e: min((names.index(a) for a in e[2]), default=len(names)))
     kind = next((o["outcome"] for o, _, _ in deciding if o["outcome"] != "ok"), "ok")
     t = max(o["t"] + off for o, off, _ in deciding)
     parts = [f"{', '.join(agents)}: {o['outcome']} at t={o['t'] + off:.6g} ({o['message']})"

@@ -7,12 +7,16 @@ the wire as its network's outlet (:mod:`.clock`). Its trace is the ordinary form
 to what this process knows: the hosted agents' modes, transitions and samples (a remote
 agent's samples are NaN: unknown here), every copy that reached a hosted agent, and
 ``meta.live``: the agents here, the transport, the clock and the datagrams counted.
+For a team with world components the engine's world seam is filled by :mod:`.world`: in
+the world process (``world=True``, no agent here) the components run on the poses
+received; in an agent's process its agents read the world process.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
@@ -25,7 +29,8 @@ from hybridteam.engine.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
-from hybridteam.live.wire import VERSION, Codec, declarations
+from hybridteam.live.wire import READING, VERSION, Codec, WireError, declarations
+from hybridteam.live.world import WorldHost, WorldLink, WorldReadings, world_seam
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -43,7 +48,7 @@ class LiveRun:
                  delay: float = 0.0, seed: int = 0,
                  drop_copies: Mapping[str, Collection[int]] | None = None,
                  plants: Mapping[str, ExternalPlant] | None = None,
-                 plant_name: str = "sim") -> None:
+                 plant_name: str = "sim", world: bool = False) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
@@ -53,9 +58,16 @@ class LiveRun:
         hosted agent's name, an external plant (a robot, :mod:`hybridteam.engine.plant`;
         the caller's to close) in place of the integrated one, ``plant_name`` what the
         trace calls them; HostingError for one of an agent not here, or one the engine
-        cannot drive."""
+        cannot drive. ``world``: this is the team's world process (``agents`` empty): it
+        runs the world components on the poses the agents' processes send
+        (:mod:`.world`)."""
         full = compile_team(team)
-        self.codec = Codec(full)  # (the whole team's declarations: every process's)
+        if world and agents:
+            raise HostingError("--world: the world process hosts no agent")
+        if world and not team.world:
+            raise HostingError("--world: this team declares no world components")
+        # (the whole team's declarations: every process's)
+        self.codec = Codec(full)
         cteam = hosted_team(full, agents)
         check_drop_copies(full, drop_copies or {})
         hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
@@ -70,13 +82,28 @@ class LiveRun:
                 raise HostingError(f"a plant for '{name}', which this process does not host")
             external[index[name]] = plant
         self.plant_name = plant_name
+        seam: dict = {}
+        self.link: WorldLink | None = None
+        if team.world:
+            self.link = WorldLink(self.codec, transport, hosted, host=world)
+            self.clock.world = self.link
+            seam["world"] = world_seam(WorldHost if world else WorldReadings, self.link)
+            # (the world process records the world's series at its output samples: they
+            # are instants there, the components run on the latest poses)
+            seam["sample_instants"] = world
+        self.world_process = world
+        self.transport = transport
         try:
             # (no wall-time limit: a live run's pace is the wall clock's by design, and the
             # simulator's limit would end a deployment of more than a day as too slow)
             self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
-                                 max_wall=math.inf, plants=external or None)
+                                 max_wall=math.inf, plants=external or None, **seam)
         except ValueError as exc:  # (an external plant the engine cannot drive)
             raise HostingError(str(exc)) from None
+        # (what a reading may carry: the names the team's components let robots sense)
+        self.codec.senses = frozenset(name for c in self.sim.ensemble.world.components
+                                      for name in c.senses())
+        self.full = full
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
@@ -84,19 +111,58 @@ class LiveRun:
         """Run until the end rule holds for the agents here, the duration passes, or
         ``stop`` gives a reason; returns the process's trace."""
         log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
-                 ", ".join(self.here), self.time_scale, self.sim.ensemble.t_end)
+                 "the world" if self.world_process else ", ".join(self.here),
+                 self.time_scale, self.sim.ensemble.t_end)
+        if self.link is not None and not self.world_process and self.here:
+            self.await_world()
         self.clock.start()
         trace = self.sim.run()
         record = {"agents": self.here, "transport": self.transport_name,
                   "plant": self.plant_name, "wire": VERSION,
                   "digest": self.codec.digest, **self.clock.record(),
-                  "sent": self.outlet.sent}
+                  "sent": self.outlet.sent, "world": self.world_process,
+                  **({"world_sent": self.link.sent} if self.link is not None else {})}
         dropped = record["datagrams"]["dropped"]
         if dropped:
             log.warning("dropped %d datagram(s) not of this team: %s",
                         sum(dropped.values()),
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
         return process_trace(trace, record)
+
+    def await_world(self) -> None:
+        """Wait (at most FIRST_READING wall seconds) for the world process's first
+        reading of every hosted agent, which its laws read from their first tick; what
+        else arrives meanwhile is handed to the clock to be taken first. HostingError if
+        none comes (no world process runs)."""
+        # (a codec of its own: the run's must see these datagrams first when it takes them)
+        peek = Codec(self.full, self.codec.senses)
+        kept: list[tuple[bytes, float]] = []
+        end = time.monotonic() + FIRST_READING
+        waiting = set(self.link.here)
+        while waiting:
+            if time.monotonic() > end:
+                raise HostingError(f"no reading from the world process within "
+                                   f"{FIRST_READING:g} s: a team with world components "
+                                   "needs one ('hybridteam live TEAM.yaml --world')")
+            if self.clock.stop() is not None:
+                break
+            self.transport.wait(0.05)
+            for data, arrived in self.transport.receive():
+                kept.append((data, arrived))
+                try:
+                    dg = peek.decode(data)
+                except WireError:
+                    continue
+                if dg.type == READING and dg.to in waiting:
+                    # (read now: the laws' first tick comes before the clock takes the
+                    # backlog, which raises the reading's events, if any, at run time 0)
+                    self.link.take(dg)
+                    waiting.discard(dg.to)
+        self.clock.backlog(kept)
+
+
+#: Wall seconds an agent's process waits for the world process's first reading.
+FIRST_READING = 30.0
 
 
 def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:

@@ -12,6 +12,11 @@ does not declare, a value of the wrong kind (a field that is not a finite number
 sequence number already seen from its sender raises one :class:`WireError` naming the
 reason, which the receiver counts and drops. Nothing in a datagram is evaluated: it is
 parsed by :func:`json.loads` into plain values and checked key by key.
+
+Version 2 adds the world process's two kinds (docs/live.md, *The world process*): an
+agent's ``@pose`` to the world process (its plant state and variables by name) and the
+world process's ``@world`` to one agent (what it senses, events raised for it, an outcome
+concluded), with ``@world`` as their other end; no team name can begin with ``@``.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from hybridteam.engine.network import Message
 from hybridteam.engine.reliable import ACK
 
 #: The wire version this code speaks; a receiver refuses every other.
-VERSION = 1
+VERSION = 2
 #: The largest datagram accepted (bytes): one message is a few hundred.
 MAX_BYTES = 8192
 KEYS = frozenset({"ht", "team", "digest", "from", "seq", "type", "to", "socket", "fields",
@@ -34,6 +39,10 @@ KEYS = frozenset({"ht", "team", "digest", "from", "seq", "type", "to", "socket",
 NOTES = frozenset({"", "retransmission", "ack"})
 #: Why a datagram was dropped: the reasons :class:`WireError` carries, in this order.
 REASONS = ("oversized", "malformed", "version", "foreign team", "forged", "replayed")
+#: The world process's name on the wire, and its index in a :class:`Datagram`.
+WORLD, WORLD_INDEX = "@world", -2
+#: The world kinds: an agent's pose to the world process, the world's reading for an agent.
+POSE, READING = "@pose", "@world"
 
 
 class WireError(ValueError):
@@ -82,8 +91,16 @@ def declarations(cteam: CTeam) -> dict[str, dict[str, list[str]]]:
 class Codec:
     """Encodes this team's messages and decodes (checks) datagrams that claim to be."""
 
-    def __init__(self, cteam: CTeam) -> None:
+    def __init__(self, cteam: CTeam, senses: frozenset[str] = frozenset()) -> None:
+        """``senses``: the names the team's world components let a robot sense (what a
+        reading may carry)."""
         self.team = cteam.team.name
+        #: what each agent's pose may carry (plant state and variables), the events each
+        #: may be raised, and the names a reading may carry
+        self.pose_names = [frozenset(ca.state_index) | frozenset(ca.var_index)
+                           for ca in cteam.agents]
+        self.events = [frozenset(ca.triggered) for ca in cteam.agents]
+        self.senses = senses
         self.agents = [ca.name for ca in cteam.agents]
         self.index = {name: a for a, name in enumerate(self.agents)}
         self.messages = declarations(cteam)
@@ -93,7 +110,7 @@ class Codec:
         self._sockets = {k: frozenset(v["sockets"]) for k, v in self.messages.items()}
         self._fields = {k: frozenset(v["fields"]) for k, v in self.messages.items()}
         #: the last sequence number accepted from each sender (replays are refused)
-        self.last_seq: dict[int, int] = {}
+        self.last_seq: dict[int | tuple[str, int], int] = {}
 
     # ------------------------------------------------------------------ sending
     def encode(self, msg: Message, rank: float, sent: float) -> bytes:
@@ -105,6 +122,18 @@ class Codec:
             "to": None if msg.receiver < 0 else self.agents[msg.receiver],
             "socket": msg.socket, "fields": msg.fields, "id": msg.msg_id, "note": msg.note,
             "rank": rank, "sent": sent,
+        }, separators=(",", ":"), allow_nan=False).encode()
+
+    def encode_world(self, kind: str, sender: int, to: int, seq: int,
+                     fields: dict[str, float], sent: float) -> bytes:
+        """One datagram of a world kind: ``POSE`` from agent ``sender`` (``to`` is
+        WORLD_INDEX), or ``READING`` from the world process (``sender`` WORLD_INDEX) to
+        agent ``to``."""
+        name = {WORLD_INDEX: WORLD, **dict(enumerate(self.agents))}
+        return json.dumps({
+            "ht": VERSION, "team": self.team, "digest": self.digest, "from": name[sender],
+            "seq": seq, "type": kind, "to": name[to], "socket": "data", "fields": fields,
+            "id": -1, "note": "", "rank": 0.0, "sent": sent,
         }, separators=(",", ":"), allow_nan=False).encode()
 
     # ------------------------------------------------------------------ receiving
@@ -129,6 +158,9 @@ class Codec:
         if obj["team"] != self.team or obj["digest"] != self.digest:
             raise WireError("foreign team", f"team {_show(obj['team'])} "
                                             f"{_show(obj['digest'])}")
+        type_ = obj["type"]
+        if type_ in (POSE, READING):
+            return self._decode_world(obj, type_)
         sender = self._agent(obj["from"], "sender")
         to = -1 if obj["to"] is None else self._agent(obj["to"], "addressee")
         if to == sender:
@@ -136,7 +168,6 @@ class Codec:
         seq = _integer(obj["seq"])
         if seq is None or seq < 0:
             raise WireError("forged", f"sequence number {_show(obj['seq'])}")
-        type_ = obj["type"]
         if not isinstance(type_, str) or type_ not in self.messages:
             raise WireError("forged", f"message type {_show(type_)} is not the team's")
         if not isinstance(obj["socket"], str) or obj["socket"] not in self._sockets[type_]:
@@ -158,10 +189,73 @@ class Codec:
         return Datagram(sender, to, seq, type_, obj["socket"], values, msg_id, obj["note"],
                         rank, sent)
 
+    def _decode_world(self, obj: dict, kind: str) -> Datagram:
+        """A pose (an agent's, for the world process) or a reading (the world process's,
+        for one agent), checked field by field against what the team has."""
+        if kind == POSE:
+            sender, to = self._agent(obj["from"], "sender"), obj["to"]
+            if to != WORLD:
+                raise WireError("forged", f"a pose to {_show(to)}, not {WORLD}")
+        else:
+            sender, to = obj["from"], self._agent(obj["to"], "addressee")
+            if sender != WORLD:
+                raise WireError("forged", f"a reading from {_show(sender)}, not {WORLD}")
+            sender = WORLD_INDEX
+        seq = _integer(obj["seq"])
+        if seq is None or seq < 0:
+            raise WireError("forged", f"sequence number {_show(obj['seq'])}")
+        if obj["socket"] != "data" or obj["id"] != -1 or obj["note"] != "":
+            raise WireError("forged", f"socket, id or note of a {kind}")
+        fields = obj["fields"]
+        if not isinstance(fields, dict):
+            raise WireError("forged", f"fields of a {kind} that are not an object")
+        agent = sender if kind == POSE else to
+        for key in fields:
+            if not self._world_field(kind, agent, key):
+                raise WireError("forged", f"field {_show(key)} of a {kind} for "
+                                          f"'{self.agents[agent]}'")
+        if kind == READING:
+            _check_vectors(fields)
+        values = {k: _number(v, f"field {k}") for k, v in fields.items()}
+        rank, sent = _number(obj["rank"], "rank"), _number(obj["sent"], "send time")
+        key = (kind, sender)  # (its own numbering: a process counts its poses apart)
+        if seq <= self.last_seq.get(key, -1):
+            raise WireError("replayed", f"{kind} {seq} already seen")
+        self.last_seq[key] = seq
+        return Datagram(sender, WORLD_INDEX if kind == POSE else to, seq, kind, "data",
+                        values, -1, "", rank, sent)
+
+    def _world_field(self, kind: str, agent: int, key: object) -> bool:
+        """Whether ``key`` may be a field of a ``kind`` datagram about ``agent``."""
+        if not isinstance(key, str):
+            return False
+        if kind == POSE:
+            return key in self.pose_names[agent]
+        head, _, tail = key.partition(".")
+        if head == "event":
+            return tail in self.events[agent]
+        if head == "outcome":
+            return tail.isidentifier()
+        return head in self.senses and (tail == "" or (tail.isascii() and tail.isdigit()))
+
     def _agent(self, name: object, what: str) -> int:
         if not isinstance(name, str) or name not in self.index:
             raise WireError("forged", f"{what} {_show(name)} is not an agent of the team")
         return self.index[name]
+
+
+def _check_vectors(fields: dict) -> None:
+    """A reading's sensed names are each one number (``name``) or a whole vector
+    (``name.0`` ... ``name.k``, no index missing), else :class:`WireError`."""
+    indices: dict[str, list[int]] = {}
+    for key in fields:
+        head, dot, tail = key.partition(".")
+        if head not in ("event", "outcome"):
+            indices.setdefault(head, []).append(int(tail) if dot else -1)
+    for name, got in indices.items():
+        if sorted(got) != ([-1] if -1 in got else list(range(len(got)))):
+            raise WireError("forged", f"reading of {_show(name)} is not one number or a "
+                                      "whole vector")
 
 
 def _no_constant(name: str) -> float:
