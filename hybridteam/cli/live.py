@@ -147,7 +147,6 @@ def cmd_live(args: argparse.Namespace) -> int:
     from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
     from hybridteam.live.run import LiveRun
-    from hybridteam.trace import write_atomic
 
     check_clock(args)
     if bool(args.agent) == args.world:
@@ -209,14 +208,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "summary.json").unlink(missing_ok=True)
-        trace.to_json(out / "trace.json")
-        write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
-    except OSError as exc:
-        raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") \
-            from None
+    write_folder(out, trace, summary)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
@@ -326,7 +318,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies
-    from hybridteam.trace import Trace, write_atomic
+    from hybridteam.trace import Trace
 
     check_clock(args)
     out = output_folder(args.output)
@@ -421,15 +413,26 @@ def cmd_launch(args: argparse.Namespace) -> int:
     summary = {"team": team.name, "outcome": outcome["outcome"], "t_end": outcome["t"],
                "message": outcome["message"], "transitions": len(merged.transitions),
                "messages": len(merged.messages), "live": merged.meta["live"]}
+    write_folder(out, merged, summary)
+    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
+        "(trace.json, summary.json, agents/NAME/)")
+    return EXIT_OK
+
+
+def write_folder(out, trace, summary: dict) -> None:
+    """A live run's ``trace.json``, then its ``summary.json`` (last, and any older one
+    removed first: a folder without it is not complete), or one line naming what could
+    not be written. ``live`` and ``launch`` both end so."""
+    from hybridteam.trace import write_atomic
+
     try:
-        merged.to_json(out / "trace.json")
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "summary.json").unlink(missing_ok=True)
+        trace.to_json(out / "trace.json")
         write_atomic(out / "summary.json", json.dumps(summary, indent=2) + "\n")
     except OSError as exc:
         raise UsageError(f"cannot write {exc.filename or out}: {exc.strerror or exc}") \
             from None
-    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
-        "(trace.json, summary.json, agents/NAME/)")
-    return EXIT_OK
 
 
 def free_ports(count: int) -> list[int]:
