@@ -273,13 +273,10 @@ def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
     assert robot.max_pose_deviation == pytest.approx(1 / 375, abs=1e-9)
 
 
-def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
-    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone), run
-    with a mutated role-assignment protocol (an offer taken as leadership without waiting
-    for the confirmation), checked against the team with the real one: the Labmate
-    diverges at the offer's arrival, 3 + 0.03 s, where the model accepts and waits
-    (Accepting) and the log leads; the report names the offer. The XR4000, given the
-    log's arrivals (no acceptance ever comes), does in the model what it did in the log."""
+def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:
+    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone)
+    (``resign.yaml``), and the same team running a mutated role-assignment protocol, an
+    offer taken as leadership without waiting for the confirmation (``mutant.yaml``)."""
     original = (ROOT / "protocols" / "role_assignment.yaml").read_text()
     taken = ("        - to: Accepting\n          on: offer\n"
              "          do: [{send: accept, to: sender}]\n")
@@ -293,8 +290,19 @@ def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
     (tmp_path / "mutant.yaml").write_text(
         team_text.replace("protocol: role_assignment", "protocol: ./mutated.yaml")
         .replace("operator: role_assignment", "operator: ./mutated.yaml"))
-    run = ht.simulate(ht.load(tmp_path / "mutant.yaml"))
-    result = conformance(run, ht.load(tmp_path / "resign.yaml"))
+    return tmp_path / "resign.yaml", tmp_path / "mutant.yaml"
+
+
+def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
+    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone), run
+    with a mutated role-assignment protocol (an offer taken as leadership without waiting
+    for the confirmation), checked against the team with the real one: the Labmate
+    diverges at the offer's arrival, 3 + 0.03 s, where the model accepts and waits
+    (Accepting) and the log leads; the report names the offer. The XR4000, given the
+    log's arrivals (no acceptance ever comes), does in the model what it did in the log."""
+    resign, mutant = mutated_handover(tmp_path)
+    run = ht.simulate(ht.load(mutant))
+    result = conformance(run, ht.load(resign))
     first = result.first
     assert first is not None and first.agent == "labmate"
     assert first.t == pytest.approx(3.0 + 0.03, abs=1e-12)
