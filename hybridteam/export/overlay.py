@@ -104,10 +104,13 @@ def overlay_timeline_figure(result: Conformance, window: tuple[float, float] | N
         fig = Figure(figsize=(11.0, 1.7 + 0.55 * extent), dpi=100)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        marked = _mark_divergence(ax, data, result)
+        top = _mark_divergence(ax, data, result)
         entry = [Line2D([], [], color=DIVERGENCE_COLOR, linewidth=2.0,
-                        label="first divergence")] if marked else []
+                        label="first divergence")] if top is not None else []
         draw_timeline(fig, ax, data, result.log, result.instance, entry)
+        if top is not None:  # room for the label above the first agent's lanes
+            low, high = ax.get_ylim()
+            ax.set_ylim(low, max(high, top + 0.3))
         ax.set_title(f"{result.log.meta.get('team', '')} — log against model\n"
                      f"{_verdict(result)}", fontsize=10)
     return fig, data
@@ -122,15 +125,15 @@ def _verdict(result: Conformance) -> str:
             f"{first.expected}, log in {first.observed}")
 
 
-def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> bool:
+def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> float | None:
     """A line across the diverging agent's lanes at the first divergence, labelled
-    ``t=…: model X, log Y`` beside it (to its left near the right edge); whether it was
-    drawn (the legend then says what it is)."""
+    ``t=…: model X, log Y`` above them (to its left near the right edge); the top of the
+    line, where the label sits, or None when nothing is drawn."""
     first = result.first
     t0, t1 = data.span
     mine = [lane for lane in data.lanes if lane.agent == (first and first.agent)]
     if first is None or not t0 <= first.t <= t1 or not mine:  # --agents, --window
-        return False
+        return None
     top = max(lane.y + lane.height / 2 for lane in mine) + 0.1
     bottom = min(lane.y - lane.height / 2 for lane in mine) - 0.1
     ax.plot([first.t, first.t], [bottom, top], color=DIVERGENCE_COLOR, linewidth=2.0,
@@ -142,7 +145,7 @@ def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> bool:
                 ha="right" if right else "left", va="bottom", fontsize=8,
                 fontweight="bold", color=DIVERGENCE_COLOR, zorder=10,
                 gid="divergence-label", path_effects=HALO)
-    return True
+    return top
 
 
 def write_overlay_timeline(result: Conformance, path: str | os.PathLike,
