@@ -44,7 +44,8 @@ def register(sub) -> dict:
     i.add_argument("-o", "--output", required=True, metavar="trace.json")
     i.add_argument("--map", default=None, metavar="MAPPING.yaml",
                    help="which topic holds what, per agent (default: the names export "
-                   "writes)")
+                   "writes, and a deployed robot's odom and cmd_vel from the team's "
+                   "deploy: section)")
 
     c = sub.add_parser("check", help="evaluate a team's requirements on a log or a trace "
                        "(exit 0: all hold, 1: one is violated, 2: bad input)")
