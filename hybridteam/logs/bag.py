@@ -72,8 +72,9 @@ def read_bag(path: str | os.PathLike, team: Team,
              mapping: str | os.PathLike | None = None) -> Any:
     """The :class:`~hybridteam.api.Run` a rosbag2 (a folder, or one ``.mcap``/``.db3``
     file) records of ``team``; topics as a ``mapping`` file names them (default: export's
-    names, and the ``deploy:`` section's odometry and command topics of an agent it has). Raises :class:`LogError`, or :class:`~hybridteam.io.filekind.InputErrors` for
-    a bad mapping file."""
+    names, and the ``deploy:`` section's odometry and command topics of an agent it has).
+    Raises :class:`LogError`, or :class:`~hybridteam.io.filekind.InputErrors` for a bad
+    mapping file."""
     require_rosbags()
     from hybridteam.api import Run
     from hybridteam.logs.team import team_frame
