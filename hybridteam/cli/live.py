@@ -61,6 +61,10 @@ def register(sub) -> dict:
     p.add_argument("--log-level", choices=LEVELS, default="info",
                    help="what is logged to stderr (default info)")
     add_faults(p)
+    p.add_argument("--wire-team", default=None, metavar="TEAM.yaml",
+                   help="test aid: speak this team file's wire identity while running "
+                        "TEAM.yaml, a drifted copy of it (same name, agents and messages): "
+                        "a robot whose code differs from the model")
     p.add_argument("--ready", action="store_true",
                    help="(for 'launch') once the port is bound and the team compiled, print "
                         "'ready HOST:PORT' and start the run when stdin says 'go'")
@@ -82,7 +86,27 @@ def register(sub) -> dict:
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
+    la.add_argument("--agent-team", action="append", default=[], metavar="NAME=FILE.yaml",
+                    help="test aid: agent NAME's process runs FILE.yaml (a drifted copy of "
+                         "the team) while speaking the team's wire (live --wire-team); "
+                         "repeat for several")
     return {"live": cmd_live, "launch": cmd_launch}
+
+
+def agent_teams(items: list[str], names: list[str]) -> dict[str, str]:
+    """``--agent-team NAME=FILE.yaml`` options as ``{agent: file}``, or UsageError."""
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep or not path:
+            raise UsageError(f"--agent-team must be NAME=FILE.yaml, got '{item}'")
+        if name not in names:
+            raise UsageError(f"--agent-team {item}: no agent '{name}' in the team (agents: "
+                             f"{', '.join(names)})")
+        if name in out:
+            raise UsageError(f"--agent-team: agent '{name}' is given twice")
+        out[name] = path
+    return out
 
 
 LEVELS = ("debug", "info", "warning", "error")
@@ -160,6 +184,11 @@ def cmd_live(args: argparse.Namespace) -> int:
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
+    wire_team = None
+    if args.wire_team is not None:
+        wire_team = load_team_or_report(args.wire_team)
+        if wire_team is None:
+            return EXIT_USAGE
     agents = list(dict.fromkeys(args.agent))
     if args.world and args.plant != "sim":
         raise UsageError("--world hosts no agent: --plant is for the agents' processes")
@@ -181,7 +210,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=drop_copies(args.drop_copy), plants=plants,
-                       plant_name=args.plant, world=args.world)
+                       plant_name=args.plant, world=args.world, wire_team=wire_team)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:
@@ -318,6 +347,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies
+    from hybridteam.live.wire import wire_mismatch
     from hybridteam.trace import Trace
 
     check_clock(args)
@@ -332,6 +362,14 @@ def cmd_launch(args: argparse.Namespace) -> int:
         check_drop_copies(full, drop_copies(args.drop_copy))
     except HostingError as exc:
         raise UsageError(str(exc)) from None
+    drifted = agent_teams(args.agent_team, names)
+    for name, path in drifted.items():  # refused here, not as a process that fails to start
+        other = load_team_or_report(path)
+        if other is None:
+            return EXIT_USAGE
+        why = wire_mismatch(compile_team(other), full)
+        if why is not None:
+            raise UsageError(f"--agent-team {name}={path}: {why}")
     ending = [names[a] for a in full.ending]
     # the processes: one per agent, and the world process when the team has components
     hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
@@ -351,7 +389,9 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
-            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
+            command = [sys.executable, "-m", "hybridteam.cli", "live",
+                       *([drifted[name], "--wire-team", args.team] if name in drifted
+                         else [args.team]),
                        *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
                        "--time-scale", repr(args.time_scale), "--log-level",
                        args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
