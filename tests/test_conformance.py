@@ -332,6 +332,7 @@ def test_a_live_agent_running_a_mutated_protocol_diverges_at_its_first_offer(tmp
     assert proc.returncode == 0, proc.stderr.decode()
     merged = out / "trace.json"
     trace = Trace.load(merged)
+    assert not trace.meta["live"]["missing"], proc.stderr.decode()  # every process's trace
     offers = [r for r in trace.messages if r.type == "offer" and r.receiver == "labmate"
               and r.status == "delivered"]
     arrival = min(r.t_recv for r in offers)

@@ -204,6 +204,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         transport.close()
         raise
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    trace = None
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
@@ -230,14 +231,19 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        if trace is None:  # (after a run, not until its folder is written, below)
+            for s, handler in previous.items():
+                signal.signal(s, handler)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    write_folder(out, trace, summary)
+    try:  # a SIGTERM now (launch stopping the others as the run ends) must not kill it
+        write_folder(out, trace, summary)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
@@ -389,6 +395,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
+            (folder / "summary.json").unlink(missing_ok=True)  # (an older run's)
             command = [sys.executable, "-m", "hybridteam.cli", "live",
                        *([drifted[name], "--wire-team", args.team] if name in drifted
                          else [args.team]),
@@ -435,10 +442,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     # a process that died (killed, crashed) left no trace: the team's trace is the others'
-    # (what its teammates did about its silence), and says which are missing and why
+    # (what its teammates did about its silence), and says which are missing and why. One
+    # whose folder is complete (summary.json, written last) left its trace, whatever its
+    # exit status: the SIGTERM above can reach a process that has ended its run and
+    # written its folder, as it exits
     missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
                for n, p in procs.items()
-               if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
+               if not (out / "agents" / n / "summary.json").exists()}
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
     if all(n in missing for n in names):
