@@ -273,13 +273,10 @@ def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
     assert robot.max_pose_deviation == pytest.approx(1 / 375, abs=1e-9)
 
 
-def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
-    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone), run
-    with a mutated role-assignment protocol (an offer taken as leadership without waiting
-    for the confirmation), checked against the team with the real one: the Labmate
-    diverges at the offer's arrival, 3 + 0.03 s, where the model accepts and waits
-    (Accepting) and the log leads; the report names the offer. The XR4000, given the
-    log's arrivals (no acceptance ever comes), does in the model what it did in the log."""
+def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:
+    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone)
+    (``resign.yaml``), and the same team running a mutated role-assignment protocol, an
+    offer taken as leadership without waiting for the confirmation (``mutant.yaml``)."""
     original = (ROOT / "protocols" / "role_assignment.yaml").read_text()
     taken = ("        - to: Accepting\n          on: offer\n"
              "          do: [{send: accept, to: sender}]\n")
@@ -293,8 +290,19 @@ def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
     (tmp_path / "mutant.yaml").write_text(
         team_text.replace("protocol: role_assignment", "protocol: ./mutated.yaml")
         .replace("operator: role_assignment", "operator: ./mutated.yaml"))
-    run = ht.simulate(ht.load(tmp_path / "mutant.yaml"))
-    result = conformance(run, ht.load(tmp_path / "resign.yaml"))
+    return tmp_path / "resign.yaml", tmp_path / "mutant.yaml"
+
+
+def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
+    """The handover team with the XR4000 resigning at t = 3 (an offer to everyone), run
+    with a mutated role-assignment protocol (an offer taken as leadership without waiting
+    for the confirmation), checked against the team with the real one: the Labmate
+    diverges at the offer's arrival, 3 + 0.03 s, where the model accepts and waits
+    (Accepting) and the log leads; the report names the offer. The XR4000, given the
+    log's arrivals (no acceptance ever comes), does in the model what it did in the log."""
+    resign, mutant = mutated_handover(tmp_path)
+    run = ht.simulate(ht.load(mutant))
+    result = conformance(run, ht.load(resign))
     first = result.first
     assert first is not None and first.agent == "labmate"
     assert first.t == pytest.approx(3.0 + 0.03, abs=1e-12)
@@ -303,3 +311,66 @@ def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
         in first.why
     assert "the log's next is Transport.Follow -> Transport.Lead" in first.why
     assert next(a for a in result.agents if a.agent == "xr4000").divergence is None
+
+
+def test_a_live_agent_running_a_mutated_protocol_diverges_at_its_first_offer(tmp_path,
+                                                                             capsys):
+    """The acceptance's live run: ``launch`` of the resigning handover team with the
+    Labmate's process running the mutated protocol (``--agent-team``), speaking the
+    team's wire (``live --wire-team``). Checked against the team, the first divergence
+    is the Labmate's, at the logged arrival of the XR4000's first offer, where the model
+    accepts and the robot leads; the report names the offer. Nothing here is a wall-clock
+    margin: the time asserted is the one the merged trace records for that arrival. At
+    time scale 1 (and run to t = 4, past the offer at t = 3) a process that starts late
+    shifts its initial mode by its wall-clock start offset in run seconds, which stays
+    within the default 0.1 s tolerance for offsets up to 100 ms, a loaded machine's."""
+    resign, mutant = mutated_handover(tmp_path)
+    out = tmp_path / "live"
+    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(resign),
+                           "--agent-team", f"labmate={mutant}", "--duration", "4",
+                           "-o", str(out)], capture_output=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stderr.decode()
+    merged = out / "trace.json"
+    trace = Trace.load(merged)
+    assert not trace.meta["live"]["missing"], proc.stderr.decode()  # every process's trace
+    offers = [r for r in trace.messages if r.type == "offer" and r.receiver == "labmate"
+              and r.status == "delivered"]
+    arrival = min(r.t_recv for r in offers)
+    assert main(["check", str(merged), "--team", str(resign), "--conformance"]) == 1
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith(f"DIVERGENT: first divergence at t={arrival:.6g} s, agent "
+                           "labmate: the model is in Transport.Accepting, the log in "
+                           "Transport.Follow (the model's transition Transport.Follow -> "
+                           "Transport.Accepting (message:offer; the log has 'offer' from "
+                           "xr4000"), last
+    assert "the log's next is Transport.Follow -> Transport.Lead" in last
+    first = conformance(trace, ht.load(resign)).first
+    assert (first.agent, first.t) == ("labmate", arrival)
+
+
+def test_a_wire_team_that_is_not_the_same_team_is_refused(tmp_path, capsys):
+    """``live MUTATED --wire-team TEAM``: a file with another message (or other agents,
+    or another name) cannot speak the team's wire: one line, exit 2, nothing written;
+    ``launch --agent-team`` refuses it before starting a process."""
+    resign, mutant = mutated_handover(tmp_path)
+    (tmp_path / "other_protocol.yaml").write_text(
+        (tmp_path / "mutated.yaml").read_text().replace("send: announce", "send: announce2"))
+    other = tmp_path / "other.yaml"
+    other.write_text(mutant.read_text().replace("./mutated.yaml", "./other_protocol.yaml"))
+    out = tmp_path / "out"
+    code = main(["live", str(other), "--agent", "labmate", "--wire-team", str(resign),
+                 "--listen", "127.0.0.1:0", "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert err.endswith("--wire-team: message 'announce2' is not one the wire team declares")
+    assert not out.exists()
+    renamed = tmp_path / "renamed.yaml"
+    renamed.write_text(mutant.read_text().replace("team: handover", "team: handover2"))
+    code = main(["launch", str(resign), "--agent-team", f"labmate={renamed}", "-o",
+                 str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err == (f"hybridteam: error: --agent-team labmate={renamed}: the "
+                                 "team is 'handover2', the wire team 'handover'"), err
+    assert main(["launch", str(resign), "--agent-team", "labmat=x.yaml", "-o",
+                 str(out)]) == 2
+    assert "no agent 'labmat' in the team" in capsys.readouterr().err

@@ -21,6 +21,7 @@ from rosbags.typesys import Stores, get_typestore
 
 import hybridteam as ht
 from hybridteam.cli import main
+from hybridteam.cli.common import load_trace
 from hybridteam.kinds import load as load_kind
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -282,6 +283,78 @@ def test_a_hand_made_log_imports_as_samples_modes_and_commands(square):
     team = ht.load(team_file)
     again = ht.Run.from_bag(run.to_bag(bag.parent / "again.mcap"), team)
     assert again.to_dict() == run.to_dict()
+
+
+DEPLOY = """\
+deploy:
+  robot: {cmd_vel: /scout1/cmd_vel, odom: /scout1/odom}
+"""
+
+
+def write_deployed_bag(path: Path) -> Path:
+    """The square driven by a robot whose driver publishes where the team's ``deploy:``
+    says: ``Odometry`` on /scout1/odom and ``Twist`` on /scout1/cmd_vel, at 10 Hz; the
+    mode changes on export's /robot/mode."""
+    with Writer(path, version=9) as w:
+        odom_c = w.add_connection("/scout1/odom", "nav_msgs/msg/Odometry", typestore=TS)
+        cmd_c = w.add_connection("/scout1/cmd_vel", "geometry_msgs/msg/Twist", typestore=TS)
+        mode_c = w.add_connection("/robot/mode", "std_msgs/msg/String", typestore=TS)
+        for k in range(121):
+            ns = START_NS + k * 100_000_000
+            x, y, th, v, om = square_pose(k)
+            if k in CHANGES:
+                w.write(mode_c, ns, TS.serialize_cdr(T["std_msgs/msg/String"](
+                    data=CHANGES[k]), "std_msgs/msg/String"))
+            sec, nsec = divmod(ns, 1_000_000_000)
+            zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+            odom = T["nav_msgs/msg/Odometry"](
+                header=T["std_msgs/msg/Header"](
+                    stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                    frame_id="odom"),
+                child_frame_id="base_link",
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                    pose=T["geometry_msgs/msg/Pose"](
+                        position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                        orientation=T["geometry_msgs/msg/Quaternion"](
+                            x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2))),
+                    covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
+                    covariance=np.zeros(36)))
+            w.write(odom_c, ns, TS.serialize_cdr(odom, "nav_msgs/msg/Odometry"))
+            twist = T["geometry_msgs/msg/Twist"](
+                linear=T["geometry_msgs/msg/Vector3"](x=v, y=0.0, z=0.0),
+                angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om))
+            w.write(cmd_c, ns, TS.serialize_cdr(twist, "geometry_msgs/msg/Twist"))
+    return path
+
+
+def test_import_takes_a_deployed_robots_topics_from_the_team_file(tmp_path, capsys):
+    """No mapping file: the robot's odometry and commands are on the topics the team's
+    ``deploy:`` section names (/scout1/odom, /scout1/cmd_vel, which export's names would
+    take for an agent 'scout1' of another team); its mode changes on export's
+    /robot/mode. The trace has the square's poses and commands exactly as logged, and
+    its mode changes. A mapping file still decides: one naming only the odometry (as the
+    pose) and the modes gives the same poses and no commands."""
+    team_file = tmp_path / "square.yaml"
+    team_file.write_text(SQUARE_TEAM + DEPLOY)
+    bag = write_deployed_bag(tmp_path / "deployed")
+    out = tmp_path / "trace.json"
+    assert main(["import", str(bag), "--team", str(team_file), "-o", str(out)]) == 0
+    capsys.readouterr()
+    run = ht.Run.of(load_trace(str(out)))
+    assert run.sample_times.tolist() == [k / 10 for k in range(121)]
+    x, y, _th = run.samples["robot"][:, 0, :].T
+    assert x.tolist() == [square_pose(k)[0] for k in range(121)]
+    assert y.tolist() == [square_pose(k)[1] for k in range(121)]
+    cmd = run.samples["robot.cmd"][:, 0, :]
+    assert cmd[5].tolist() == [0.5, 0.0] and cmd[25].tolist() == [0.0, math.pi / 2]
+    assert run.transitions["t"].tolist() == [0.0, 2.0, 3.0, 5.0, 6.0, 8.0, 9.0, 11.0]
+    mapping = tmp_path / "map.yaml"
+    mapping.write_text("agents:\n  robot:\n    pose: /scout1/odom\n    modes: /robot/mode\n")
+    mapped = ht.Run.from_bag(bag, ht.load(team_file), mapping)
+    assert mapped.samples["robot"][:, 0, :2].tolist() == run.samples["robot"][:, 0, :2].tolist()
+    assert "robot.cmd" not in mapped.samples
 
 
 def test_check_on_a_hand_made_log(square):

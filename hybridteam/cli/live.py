@@ -61,6 +61,10 @@ def register(sub) -> dict:
     p.add_argument("--log-level", choices=LEVELS, default="info",
                    help="what is logged to stderr (default info)")
     add_faults(p)
+    p.add_argument("--wire-team", default=None, metavar="TEAM.yaml",
+                   help="test aid: speak this team file's wire identity while running "
+                        "TEAM.yaml, a drifted copy of it (same name, agents and messages): "
+                        "a robot whose code differs from the model")
     p.add_argument("--ready", action="store_true",
                    help="(for 'launch') once the port is bound and the team compiled, print "
                         "'ready HOST:PORT' and start the run when stdin says 'go'")
@@ -82,7 +86,27 @@ def register(sub) -> dict:
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
+    la.add_argument("--agent-team", action="append", default=[], metavar="NAME=FILE.yaml",
+                    help="test aid: agent NAME's process runs FILE.yaml (a drifted copy of "
+                         "the team) while speaking the team's wire (live --wire-team); "
+                         "repeat for several")
     return {"live": cmd_live, "launch": cmd_launch}
+
+
+def agent_teams(items: list[str], names: list[str]) -> dict[str, str]:
+    """``--agent-team NAME=FILE.yaml`` options as ``{agent: file}``, or UsageError."""
+    out: dict[str, str] = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep or not path:
+            raise UsageError(f"--agent-team must be NAME=FILE.yaml, got '{item}'")
+        if name not in names:
+            raise UsageError(f"--agent-team {item}: no agent '{name}' in the team (agents: "
+                             f"{', '.join(names)})")
+        if name in out:
+            raise UsageError(f"--agent-team: agent '{name}' is given twice")
+        out[name] = path
+    return out
 
 
 LEVELS = ("debug", "info", "warning", "error")
@@ -160,6 +184,11 @@ def cmd_live(args: argparse.Namespace) -> int:
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
+    wire_team = None
+    if args.wire_team is not None:
+        wire_team = load_team_or_report(args.wire_team)
+        if wire_team is None:
+            return EXIT_USAGE
     agents = list(dict.fromkeys(args.agent))
     if args.world and args.plant != "sim":
         raise UsageError("--world hosts no agent: --plant is for the agents' processes")
@@ -175,13 +204,14 @@ def cmd_live(args: argparse.Namespace) -> int:
         transport.close()
         raise
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    trace = None
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=drop_copies(args.drop_copy), plants=plants,
-                       plant_name=args.plant, world=args.world)
+                       plant_name=args.plant, world=args.world, wire_team=wire_team)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:
@@ -201,14 +231,19 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        if trace is None:  # (after a run, not until its folder is written, below)
+            for s, handler in previous.items():
+                signal.signal(s, handler)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    write_folder(out, trace, summary)
+    try:  # a SIGTERM now (launch stopping the others as the run ends) must not kill it
+        write_folder(out, trace, summary)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
@@ -318,6 +353,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies
+    from hybridteam.live.wire import wire_mismatch
     from hybridteam.trace import Trace
 
     check_clock(args)
@@ -332,6 +368,14 @@ def cmd_launch(args: argparse.Namespace) -> int:
         check_drop_copies(full, drop_copies(args.drop_copy))
     except HostingError as exc:
         raise UsageError(str(exc)) from None
+    drifted = agent_teams(args.agent_team, names)
+    for name, path in drifted.items():  # refused here, not as a process that fails to start
+        other = load_team_or_report(path)
+        if other is None:
+            return EXIT_USAGE
+        why = wire_mismatch(compile_team(other), full)
+        if why is not None:
+            raise UsageError(f"--agent-team {name}={path}: {why}")
     ending = [names[a] for a in full.ending]
     # the processes: one per agent, and the world process when the team has components
     hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
@@ -351,7 +395,10 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
-            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
+            (folder / "summary.json").unlink(missing_ok=True)  # (an older run's)
+            command = [sys.executable, "-m", "hybridteam.cli", "live",
+                       *([drifted[name], "--wire-team", args.team] if name in drifted
+                         else [args.team]),
                        *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
                        "--time-scale", repr(args.time_scale), "--log-level",
                        args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
@@ -395,10 +442,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     # a process that died (killed, crashed) left no trace: the team's trace is the others'
-    # (what its teammates did about its silence), and says which are missing and why
+    # (what its teammates did about its silence), and says which are missing and why. One
+    # whose folder is complete (summary.json, written last) left its trace, whatever its
+    # exit status: the SIGTERM above can reach a process that has ended its run and
+    # written its folder, as it exits
     missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
                for n, p in procs.items()
-               if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
+               if not (out / "agents" / n / "summary.json").exists()}
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
     if all(n in missing for n in names):

@@ -44,7 +44,8 @@ def register(sub) -> dict:
     i.add_argument("-o", "--output", required=True, metavar="trace.json")
     i.add_argument("--map", default=None, metavar="MAPPING.yaml",
                    help="which topic holds what, per agent (default: the names export "
-                   "writes)")
+                   "writes, and a deployed robot's odom and cmd_vel from the team's "
+                   "deploy: section)")
 
     c = sub.add_parser("check", help="evaluate a team's requirements on a log or a trace "
                        "(exit 0: all hold, 1: one is violated, 2: bad input)")
@@ -96,6 +97,48 @@ def _read_log(path: str, team, mapping: str | None):
         raise UsageError(str(exc)) from None
 
 
+def read_recording(path: str, team, mapping: str | None, instance: int = 0):
+    """The run a rosbag2 or a ``trace.json`` records of ``team`` (``check`` and the
+    views' ``--against`` read it so); None after printing a bad mapping file's errors,
+    a :class:`UsageError` for any other bad input."""
+    if path.lower().endswith(".json") and not os.path.isdir(path):
+        if mapping is not None:
+            raise UsageError("--map names the topics of a rosbag2; a trace has no topics")
+        run = load_trace(path, instance)
+        if run.meta["team"] != team.name:
+            raise UsageError(f"{path}: a run of team '{run.meta['team']}', not "
+                             f"'{team.name}'")
+        return run
+    run = _read_log(path, team, mapping)
+    if run is not None and not 0 <= instance < run.n:
+        raise UsageError(f"--instance {instance}: the log has instances 0..{run.n - 1}")
+    return run
+
+
+def replayed(path: str, team_path: str, mapping: str | None, tolerance: float | None,
+             instance: int = 0):
+    """The conformance of a recording to a team file (the views' ``--against``): None
+    after printing a bad team or mapping file's errors."""
+    team = load_team_or_report(team_path)
+    if team is None:
+        return None
+    run = read_recording(path, team, mapping, instance)
+    return None if run is None else conformance_of(path, run, team, tolerance, instance)
+
+
+def conformance_of(path: str, run, team, tolerance: float | None, instance: int = 0):
+    """The run replayed into its team and compared (``tolerance``: None for the default);
+    a team a replay cannot run is a :class:`UsageError` naming ``path``."""
+    from hybridteam.logs import LogError
+    from hybridteam.logs.conformance import DEFAULT_TOLERANCE, conformance
+
+    try:
+        return conformance(run, team, instance,
+                           DEFAULT_TOLERANCE if tolerance is None else tolerance)
+    except LogError as exc:
+        raise UsageError(f"{path}: {exc}") from None
+
+
 def cmd_import(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.is_dir():
@@ -126,17 +169,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
-    if args.log.lower().endswith(".json") and not os.path.isdir(args.log):
-        if args.map is not None:
-            raise UsageError("--map names the topics of a rosbag2; a trace has no topics")
-        run = load_trace(args.log)
-        if run.meta["team"] != team.name:
-            raise UsageError(f"{args.log}: a run of team '{run.meta['team']}', not "
-                             f"'{team.name}'")
-    else:
-        run = _read_log(args.log, team, args.map)
-        if run is None:
-            return EXIT_USAGE
+    run = read_recording(args.log, team, args.map)
+    if run is None:
+        return EXIT_USAGE
     if args.conformance:
         return _conformance(args, run, team)
     try:
@@ -154,14 +189,7 @@ def cmd_check(args: argparse.Namespace) -> int:
 
 def _conformance(args: argparse.Namespace, run, team) -> int:
     """``check --conformance``: the summary per agent and the first divergence."""
-    from hybridteam.logs import LogError
-    from hybridteam.logs.conformance import DEFAULT_TOLERANCE, conformance
-
-    tolerance = DEFAULT_TOLERANCE if args.tolerance is None else args.tolerance
-    try:
-        result = conformance(run, team, tolerance=tolerance)
-    except LogError as exc:
-        raise UsageError(f"{args.log}: {exc}") from None
+    result = conformance_of(args.log, run, team, args.tolerance)
     for line in result.lines():
         print(line)
     return EXIT_OK if result.conformant else EXIT_VIOLATED

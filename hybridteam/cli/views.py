@@ -57,6 +57,8 @@ def register(sub) -> dict:
                      "(default: only for agents with more than one top-level mode)")
     top.add_argument("--no-top", dest="top", action="store_false",
                      help="no rows of top-level modes")
+    _against_parser(tl, "its mode bars under the log's, per agent, the first divergence "
+                    "marked")
 
     pl = _trace_parser(sub, "plot", "draw the trajectories of a run")
     pl.add_argument("-f", "--format", choices=("png", "svg", "pdf"), default=None,
@@ -70,6 +72,7 @@ def register(sub) -> dict:
     pl.add_argument("--size", nargs=2, type=float, metavar=("W", "H"),
                     help="figure width and height in inches (default: 8 wide, as tall as "
                     "the scene asks)")
+    _against_parser(pl, "its paths dashed over the log's, the largest deviation marked")
 
     an = _trace_parser(sub, "animate", "animate a run (GIF; MP4 when ffmpeg is installed)")
     an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
@@ -100,6 +103,39 @@ def _trace_parser(sub, name: str, help: str):
     p.add_argument("trace", metavar="trace.json")
     p.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
     return p
+
+
+def _against_parser(p, what: str) -> None:
+    """``--against TEAM.yaml`` (with ``--map`` and ``--tolerance`` as ``check`` takes
+    them): the view of a recording with its model's replay drawn over it."""
+    p.add_argument("--against", default=None, metavar="TEAM.yaml",
+                   help=f"replay the recording into this team, as check --conformance does, "
+                   f"and draw the model's replay: {what} (the recording may then be a "
+                   "rosbag2: folder, .mcap or .db3)")
+    p.add_argument("--map", default=None, metavar="MAPPING.yaml",
+                   help="with --against, for a rosbag2: which topic holds what (see import)")
+    p.add_argument("--tolerance", type=float, default=None, metavar="SECONDS",
+                   help="with --against: how far a transition may be from the model's time "
+                   "(default 0.1)")
+
+
+def _replay(args: argparse.Namespace):
+    """The conformance of the recording to ``--against``'s team; None when the team or
+    mapping file was bad (its errors printed)."""
+    from hybridteam.cli.logs import replayed
+
+    return replayed(args.trace, args.against, args.map, args.tolerance, args.instance)
+
+
+def _check_against(args: argparse.Namespace) -> None:
+    """``--map`` and ``--tolerance`` only with ``--against``; a tolerance of seconds >= 0."""
+    for name in ("map", "tolerance"):
+        if getattr(args, name) is not None and args.against is None:
+            raise UsageError(f"--{name} goes with --against TEAM.yaml (the model to draw "
+                             "over the recording)")
+    if args.tolerance is not None and not (math.isfinite(args.tolerance)
+                                           and args.tolerance >= 0):
+        raise UsageError(f"--tolerance {args.tolerance:g}: a number of seconds >= 0")
 
 
 IMAGE = (".png", ".svg", ".pdf")
@@ -192,7 +228,15 @@ def cmd_timeline(args: argparse.Namespace) -> int:
                          "finite numbers")
     if args.window and not args.window[0] < args.window[1]:
         raise UsageError(f"--window {args.window[0]:g} {args.window[1]:g}: T0 must be < T1")
-    trace = _load_trace(args.trace, args.instance)
+    _check_against(args)
+    if args.against is not None and args.data:
+        raise UsageError("--data writes a run's own timeline; drop it with --against")
+    result = None
+    if args.against is not None:
+        result = _replay(args)
+        if result is None:
+            return EXIT_USAGE
+    trace = _load_trace(args.trace, args.instance) if result is None else result.log
     agents = [a.strip() for a in args.agents.split(",") if a.strip()] if args.agents else None
     if args.agents is not None and not agents:
         raise UsageError("--agents: name at least one agent")
@@ -204,9 +248,13 @@ def cmd_timeline(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.trace}: a timeline draws up to {MAX_VIEW_AGENTS} agents' "
                          f"lanes, and {'--agents names' if agents else 'this trace has'} "
                          f"{lanes:,}; choose some with --agents A,B")
-    write_timeline(trace, args.output, instance=args.instance,
-                   window=tuple(args.window) if args.window else None, data_path=args.data,
-                   agents=agents, top=args.top)
+    window = tuple(args.window) if args.window else None
+    if result is not None:
+        result.write_timeline(args.output, window=window, agents=agents, top=args.top)
+        print(f"wrote {args.output}")
+        return EXIT_OK
+    write_timeline(trace, args.output, instance=args.instance, window=window,
+                   data_path=args.data, agents=agents, top=args.top)
     print(f"wrote {args.output}" + (f" and {args.data}" if args.data else ""))
     return EXIT_OK
 
@@ -221,11 +269,18 @@ def cmd_plot(args: argparse.Namespace) -> int:
             raise UsageError(f"--{name} {lo_hi[0]:g} {lo_hi[1]:g}: need two finite numbers, "
                              "the first smaller")
     _check_size(args.size)
-    trace = _load_trace(args.trace, args.instance)
-    write_trajectories(trace, args.output, instance=args.instance,
-                       xlim=tuple(args.xlim) if args.xlim else None,
-                       ylim=tuple(args.ylim) if args.ylim else None,
-                       size=tuple(args.size) if args.size else None)
+    _check_against(args)
+    limits = {"xlim": tuple(args.xlim) if args.xlim else None,
+              "ylim": tuple(args.ylim) if args.ylim else None,
+              "size": tuple(args.size) if args.size else None}
+    if args.against is not None:
+        result = _replay(args)
+        if result is None:
+            return EXIT_USAGE
+        result.write_plot(args.output, **limits)
+    else:
+        trace = _load_trace(args.trace, args.instance)
+        write_trajectories(trace, args.output, instance=args.instance, **limits)
     print(f"wrote {args.output}")
     return EXIT_OK
 

@@ -18,6 +18,7 @@ import json
 import math
 import os
 from collections import defaultdict
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from itertools import takewhile
 from pathlib import Path
@@ -319,11 +320,14 @@ def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float]
         fig = Figure(figsize=(11.0, 1.4 + 0.55 * extent), dpi=100)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        _draw(fig, ax, data, trace, instance)
+        draw_timeline(fig, ax, data, trace, instance)
     return fig, data
 
 
-def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int) -> None:
+def draw_timeline(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int,
+                  extra: Sequence[Any] = ()) -> None:
+    """Draw ``data`` on ``ax``; ``extra``: legend entries of what a caller draws on top
+    (an overlay's marks), after the timeline's own."""
     t0, t1 = data.span
     width = max(t1 - t0, 1e-9)
     groups: dict[tuple[int, str], list[tuple[float, float]]] = defaultdict(list)
@@ -362,6 +366,7 @@ def _draw(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int)
     if violated:
         handles.append(Line2D([], [], color=VIOLATION_COLOR, linestyle="--",
                               label="requirement violated"))
+    handles += extra
     if handles:
         box = ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                         fontsize=8, frameon=False, ncol=1 + len(handles) // 30,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -221,7 +221,11 @@ def _numbered(changes: list) -> list[tuple[float, int, str, str, int]]:
 # ---------------------------------------------------------------------- planar
 def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                 modes: Sequence[str] | None,
-                limits: tuple[float, float, float, float] | None = None) -> None:
+                limits: tuple[float, float, float, float] | None = None,
+                overlay: Callable[[Any], None] | None = None) -> None:
+    """The planar robots' paths, poses, mode changes and world on ``ax``. ``overlay``:
+    what another view draws on the plane (a model's paths over a log's), called before
+    the legend is made, which lists its artists that have labels after the robots."""
     agents = planar_agents(trace)
     times = trace.sample_times
     draw_world(ax, trace.meta.get("world"))
@@ -304,6 +308,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             ax.annotate(text, (x, y), xytext=(6, -11), textcoords="offset points",
                         fontsize=7.5, color=COLLISION_MARK["color"], path_effects=HALO,
                         zorder=9, gid="collision-label")
+    if overlay is not None:
+        overlay(ax)
     x0, x1, y0, y1 = limits or scene_extent(trace, instance)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
@@ -449,14 +455,16 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
                       modes: Sequence[str] | None = None,
                       xlim: tuple[float, float] | None = None,
                       ylim: tuple[float, float] | None = None,
-                      size: tuple[float, float] | None = None) -> Figure:
+                      size: tuple[float, float] | None = None,
+                      overlay: Callable[[Any], None] | None = None) -> Figure:
     """Planar agents in one equal-aspect plot; flow agents one time plot each below it.
 
     ``every``: seconds between drawn footprints (default: about ten along the run);
     ``modes``: the mode paths whose changes are numbered (default: every leaf transition);
     ``xlim``, ``ylim``: the planar plot's limits (default: the scene, see
     :func:`~.scene.scene_extent`); ``size``: the figure's width and height in inches
-    (default: 8 wide, as tall as the scene's shape asks).
+    (default: 8 wide, as tall as the scene's shape asks); ``overlay``: drawn on the
+    planar plot before its legend (see :func:`draw_planar`).
     """
     planar, flows = planar_agents(trace), flow_agents(trace)
     limits = None
@@ -480,7 +488,8 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
         grid = fig.add_gridspec(max(len(heights), 1), 1, height_ratios=heights or [1])
         row = 0
         if planar:
-            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes, limits)
+            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes, limits,
+                        overlay)
             row = 1
         for k, agent in enumerate(flows):
             ax = fig.add_subplot(grid[row + k])

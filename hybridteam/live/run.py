@@ -29,7 +29,14 @@ from hybridteam.engine.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
-from hybridteam.live.wire import READING, VERSION, Codec, WireError, declarations
+from hybridteam.live.wire import (
+    READING,
+    VERSION,
+    Codec,
+    WireError,
+    declarations,
+    wire_mismatch,
+)
 from hybridteam.live.world import WorldHost, WorldLink, WorldReadings, world_seam
 from hybridteam.model import Team
 from hybridteam.trace import Trace
@@ -48,7 +55,8 @@ class LiveRun:
                  delay: float = 0.0, seed: int = 0,
                  drop_copies: Mapping[str, Collection[int]] | None = None,
                  plants: Mapping[str, ExternalPlant] | None = None,
-                 plant_name: str = "sim", world: bool = False) -> None:
+                 plant_name: str = "sim", world: bool = False,
+                 wire_team: Team | None = None) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
@@ -60,14 +68,19 @@ class LiveRun:
         trace calls them; HostingError for one of an agent not here, or one the engine
         cannot drive. ``world``: this is the team's world process (``agents`` empty): it
         runs the world components on the poses the agents' processes send
-        (:mod:`.world`)."""
+        (:mod:`.world`). ``wire_team``: a test aid, the team whose wire identity this
+        process speaks while it runs ``team`` (a drifted copy of it: the same name,
+        agents and messages, :func:`~.wire.wire_mismatch`; HostingError otherwise)."""
         full = compile_team(team)
+        self.wire = None if wire_team is None else compile_team(wire_team)
+        if self.wire is not None and (why := wire_mismatch(full, self.wire)) is not None:
+            raise HostingError(f"--wire-team: {why}")
         if world and agents:
             raise HostingError("--world: the world process hosts no agent")
         if world and not team.world:
             raise HostingError("--world: this team declares no world components")
         # (the whole team's declarations: every process's)
-        self.codec = Codec(full)
+        self.codec = Codec(full, wire=self.wire)
         cteam = hosted_team(full, agents)
         check_drop_copies(full, drop_copies or {})
         hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
@@ -135,7 +148,7 @@ class LiveRun:
         else arrives meanwhile is handed to the clock to be taken first. HostingError if
         none comes (no world process runs)."""
         # (a codec of its own: the run's must see these datagrams first when it takes them)
-        peek = Codec(self.full, self.codec.senses)
+        peek = Codec(self.full, self.codec.senses, self.wire)
         kept: list[tuple[bytes, float]] = []
         end = time.monotonic() + FIRST_READING
         waiting = set(self.link.here)

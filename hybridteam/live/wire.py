@@ -88,13 +88,41 @@ def declarations(cteam: CTeam) -> dict[str, dict[str, list[str]]]:
             for name, (s, f) in sorted(found.items())}
 
 
+def wire_mismatch(cteam: CTeam, wire: CTeam) -> str | None:
+    """Why a process running ``cteam`` cannot speak ``wire``'s identity, or None: it must
+    have the same team name and agents (in order), and every message it can send must be
+    declared by ``wire`` with the same sockets and fields (it may send fewer: a drifted
+    protocol that no longer sends ``accept`` still speaks the team's wire)."""
+    if cteam.team.name != wire.team.name:
+        return f"the team is '{cteam.team.name}', the wire team '{wire.team.name}'"
+    mine, theirs = [ca.name for ca in cteam.agents], [ca.name for ca in wire.agents]
+    if mine != theirs:
+        return (f"the agents are {', '.join(mine)}, the wire team's "
+                f"{', '.join(theirs)}")
+    known = declarations(wire)
+    for name, decl in declarations(cteam).items():
+        if name not in known:
+            return f"message '{name}' is not one the wire team declares"
+        if decl != known[name]:
+            return (f"message '{name}' has sockets {', '.join(decl['sockets'])} and fields "
+                    f"{', '.join(decl['fields']) or '(none)'}; the wire team's has "
+                    f"{', '.join(known[name]['sockets'])} and "
+                    f"{', '.join(known[name]['fields']) or '(none)'}")
+    return None
+
+
 class Codec:
     """Encodes this team's messages and decodes (checks) datagrams that claim to be."""
 
-    def __init__(self, cteam: CTeam, senses: frozenset[str] = frozenset()) -> None:
+    def __init__(self, cteam: CTeam, senses: frozenset[str] = frozenset(),
+                 wire: CTeam | None = None) -> None:
         """``senses``: the names the team's world components let a robot sense (what a
-        reading may carry)."""
-        self.team = cteam.team.name
+        reading may carry). ``wire``: a test aid, the team whose identity (name, agents,
+        message declarations, digest) this codec speaks and accepts instead of
+        ``cteam``'s, as a robot whose code drifted from its model does (check
+        :func:`wire_mismatch` first)."""
+        identity = cteam if wire is None else wire
+        self.team = identity.team.name
         #: what each agent's pose may carry (plant state and variables), the events each
         #: may be raised, and the names a reading may carry
         self.pose_names = [frozenset(ca.state_index) | frozenset(ca.var_index)
@@ -103,7 +131,7 @@ class Codec:
         self.senses = senses
         self.agents = [ca.name for ca in cteam.agents]
         self.index = {name: a for a, name in enumerate(self.agents)}
-        self.messages = declarations(cteam)
+        self.messages = declarations(identity)
         canonical = json.dumps({"agents": self.agents, "messages": self.messages},
                                sort_keys=True, separators=(",", ":"))
         self.digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]

@@ -1,7 +1,8 @@
 """A rosbag2 as a run: the ordinary trace of a team, read from a log.
 
-Topics are those ``export`` writes (:mod:`.topics`), or those a mapping file names. What
-becomes what:
+Topics are those ``export`` writes (:mod:`.topics`) — with a deployed robot's odometry and
+commands where the team's ``deploy:`` section names them — or those a mapping file names.
+What becomes what:
 
 - samples: an agent's ``/A/state`` (exact), else its pose (``PoseStamped``, or the pose of
   an ``Odometry``; theta is the yaw, unwrapped so it turns continuously), else its
@@ -71,8 +72,9 @@ def read_bag(path: str | os.PathLike, team: Team,
              mapping: str | os.PathLike | None = None) -> Any:
     """The :class:`~hybridteam.api.Run` a rosbag2 (a folder, or one ``.mcap``/``.db3``
     file) records of ``team``; topics as a ``mapping`` file names them (default: export's
-    names). Raises :class:`LogError`, or :class:`~hybridteam.io.filekind.InputErrors` for
-    a bad mapping file."""
+    names, and the ``deploy:`` section's odometry and command topics of an agent it has).
+    Raises :class:`LogError`, or :class:`~hybridteam.io.filekind.InputErrors` for a bad
+    mapping file."""
     require_rosbags()
     from hybridteam.api import Run
     from hybridteam.logs.team import team_frame
@@ -171,11 +173,13 @@ class _Reading:
             meta = self._recorded_meta(meta)
         self.meta = meta
         self.agents = [a["name"] for a in meta["agents"]]
-        if topics is None:
-            topics = Topics.default(self.agents, list(meta.get("payloads") or []))
+        if topics is None:  # export's names, a deployed robot's own where it has them
+            topics = Topics.default(self.agents, list(meta.get("payloads") or []),
+                                    team.deploy)
         else:
             self._mapped_present(topics)
         self.topics = topics
+        self.own = topics.names()
         self.mapped = topics.mapped
 
     def wanted(self) -> list[str]:
@@ -198,6 +202,8 @@ class _Reading:
         """The agent ``X`` a topic ``/X/pose`` (any of export's kinds) names, when the team
         has no such agent."""
         parts = topic.strip("/").split("/")
+        if topic in self.own:  # a deployed robot's (/scout1/odom of agent robot)
+            return None
         if len(parts) == 2 and parts[1] in AGENT_KINDS and parts[0] not in self.agents:
             return parts[0]
         return None

@@ -40,7 +40,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from collections import defaultdict
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -104,11 +106,14 @@ class AgentConformance:
 
 @dataclasses.dataclass(frozen=True)
 class Conformance:
-    """The comparison of a recorded run with its model's replay (``model``)."""
+    """The comparison of instance ``instance`` of a recorded run (``log``) with its
+    model's replay (``model``, one instance)."""
 
     agents: list[AgentConformance]
     tolerance: float
     model: Trace
+    log: Trace
+    instance: int = 0
 
     @property
     def first(self) -> Divergence | None:
@@ -152,6 +157,25 @@ class Conformance:
         else:
             out.append(f"DIVERGENT: {first.line()}")
         return out
+
+    def deviation(self, agent: str) -> PoseDeviation | None:
+        """Where ``agent``'s logged position is farthest from the model's (planar robots)."""
+        return largest_deviation(self.log, self.instance, self.model, agent)
+
+    def write_timeline(self, path: str | os.PathLike, **kw: Any) -> Path:
+        """The log's mode bars and the model's, per agent, the first divergence marked
+        (:func:`hybridteam.export.overlay.write_overlay_timeline`; ``kw``: ``window``,
+        ``agents``, ``top`` as for a timeline)."""
+        from hybridteam.export.overlay import write_overlay_timeline
+
+        return write_overlay_timeline(self, path, **kw)
+
+    def write_plot(self, path: str | os.PathLike, **kw: Any) -> Path:
+        """The model's paths over the log's, the largest deviation marked
+        (:func:`hybridteam.export.overlay.write_overlay_plot`; ``kw`` as for a plot)."""
+        from hybridteam.export.overlay import write_overlay_plot
+
+        return write_overlay_plot(self, path, **kw)
 
 
 class ReplayClock:
@@ -219,7 +243,7 @@ def conformance(run: Trace, team: Team, instance: int = 0,
     arrivals = copies_by_receiver(copies, names)
     agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance,
                             end) for ca in full.agents]
-    return Conformance(agents, tolerance, model)
+    return Conformance(agents, tolerance, model, run, instance)
 
 
 def check_same_team(run: Trace, team: Team) -> None:
@@ -417,10 +441,29 @@ def _cause(tr: tuple, agent: str, names: list[str], arrivals: list[tuple[float, 
     return text + ")"
 
 
+@dataclasses.dataclass(frozen=True)
+class PoseDeviation:
+    """Where a logged position is farthest from the model's: at time ``t`` the log has the
+    robot at ``logged`` and the model at ``model`` (x, y), ``distance`` apart (m)."""
+
+    distance: float
+    t: float
+    logged: tuple[float, float]
+    model: tuple[float, float]
+
+
 def pose_deviation(run: Trace, instance: int, model: Trace, agent: str) -> float | None:
     """For a planar robot, the largest distance (m) of a logged position from the model's
     trajectory (linear between its samples) at the logged sample times the model covers;
     None for another agent or no such sample."""
+    worst = largest_deviation(run, instance, model, agent)
+    return None if worst is None else worst.distance
+
+
+def largest_deviation(run: Trace, instance: int, model: Trace, agent: str
+                      ) -> PoseDeviation | None:
+    """The logged sample of :func:`pose_deviation`: its time and both positions there
+    (the first such sample where several are as far), for a view to mark it."""
     info = next(a for a in run.meta["agents"] if a["name"] == agent)
     if info["plant"] not in PLANAR or info["state"][:2] != ["x", "y"] or \
             agent not in run.samples or agent not in model.samples:
@@ -437,4 +480,9 @@ def pose_deviation(run: Trace, instance: int, model: Trace, agent: str) -> float
         return None
     x = np.interp(at[ok], times, mine[have, 0])
     y = np.interp(at[ok], times, mine[have, 1])
-    return float(np.max(np.hypot(logged[ok, 0] - x, logged[ok, 1] - y)))
+    distance = np.hypot(logged[ok, 0] - x, logged[ok, 1] - y)
+    k = int(np.argmax(distance))
+    row = np.flatnonzero(ok)[k]
+    return PoseDeviation(float(distance[k]), float(at[row]),
+                         (float(logged[row, 0]), float(logged[row, 1])),
+                         (float(x[k]), float(y[k])))

@@ -25,9 +25,12 @@ publishes its clock).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 from pydantic import BaseModel, ConfigDict, ValidationError
+
+from hybridteam.model.deploy import PlantDeploy
 
 RUN = "/hybridteam/run"
 TF = "/tf"
@@ -92,9 +95,21 @@ class Topics:
     mapped: bool = False  # from a mapping file: a named topic must be in the bag
 
     @classmethod
-    def default(cls, agents: list[str], payloads: list[str]) -> Topics:
-        return cls({a: AgentTopics.default(a) for a in agents},
+    def default(cls, agents: list[str], payloads: list[str],
+                deploy: Mapping[str, PlantDeploy] | None = None) -> Topics:
+        """Export's names; an agent with ``deploy:`` settings (the team file's, which a
+        live run drives its robot through) has its robot's odometry and command topics
+        from them, as its robot's log records them."""
+        deploy = deploy or {}
+        return cls({a: replace(AgentTopics.default(a), odom=deploy[a].odom,
+                               cmd=deploy[a].cmd_vel) if a in deploy
+                    else AgentTopics.default(a) for a in agents},
                    {p: payload_topic(p) for p in payloads})
+
+    def names(self) -> set[str]:
+        """Every topic these name."""
+        return {t for at in self.agents.values() for t in at.__dict__.values()
+                if t is not None} | set(self.payloads.values())
 
 
 class _AgentMapping(BaseModel):
