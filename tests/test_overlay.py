@@ -87,7 +87,7 @@ def test_the_timeline_draws_the_logs_and_the_models_bars_and_the_first_divergenc
     y0, y1 = sorted(line.get_ydata())
     assert y0 < lanes[1].y - lanes[1].height / 2 and y1 > lanes[0].y + lanes[0].height / 2
     (label,) = [t for t in ax.texts if t.get_gid() == "divergence-label"]
-    assert label.get_text() == "t=3.03 s: model Accepting, log Follow"
+    assert label.get_text() == "t=3.03 s: model Accepting, log Lead"
     assert "first divergence" in [t.get_text() for t in ax.get_legend().get_texts()]
     assert "first divergence at t=3.03 s, labmate" in ax.get_title()
 

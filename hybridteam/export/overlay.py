@@ -144,7 +144,9 @@ def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> float 
                 xytext=(-4 if right else 4, 1), textcoords="offset points",
                 ha="right" if right else "left", va="bottom", fontsize=8,
                 fontweight="bold", color=DIVERGENCE_COLOR, zorder=10,
-                gid="divergence-label", path_effects=HALO)
+                gid="divergence-label",  # (a box: message arrows cross this height)
+                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
+                      "alpha": 0.9})
     return top
 
 

@@ -381,7 +381,9 @@ def _diverged(ca: CAgent, md: tuple | None, lg: tuple | None, names: list[str],
     agent = ca.name
     if md is not None and (lg is None or md[0] <= lg[0]):
         t, model_mode = md[0], md[2]
-        log_mode = md[1] if lg is None else lg[1]
+        # both leave the same mode at this instant for different ones: the log's target
+        # is what it did instead; otherwise, at t, the log is still in its source
+        log_mode = md[1] if lg is None else lg[2] if lg[0] == md[0] else lg[1]
         why = "the model's transition " + _cause(md, agent, names, arrivals)
         if lg is None:
             why += "; the log has no further transition"
