@@ -10,12 +10,17 @@ file says how), so a cross-reference finds one target.
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).parent))  # apiref, the reference's own extension
+HERE = Path(__file__).parent
+sys.path.insert(0, str(HERE))  # apiref, the reference's own extension
+# every build generates the module pages afresh: a page left by a module that has moved
+# would be a page no table of contents includes
+shutil.rmtree(HERE / "_generated", ignore_errors=True)
 
-from apiref import Reexports
+from apiref import Reexports  # noqa: E402 (found through the path set above)
 
 project = "hybridteam"
 author = "the hybridteam authors"
