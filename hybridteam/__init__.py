@@ -13,6 +13,7 @@ uses, not for the simulator. Runs and teams show themselves in Jupyter through t
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
@@ -35,11 +36,16 @@ if TYPE_CHECKING:  # what type checkers and editors see: the same names, eagerly
 
 
 def __getattr__(name: str) -> Any:
-    """Import a public name's module on first use and keep the name here."""
+    """Import a public name's module on first use and keep the name here; a subpackage or
+    module (``hybridteam.sweep``) is imported when first asked for, as it was reachable
+    before the package was lazy."""
     home = _HOMES.get(name)
-    if home is None:
+    if home is not None:
+        value = getattr(importlib.import_module(home), name)
+    elif name.isidentifier() and not name.startswith("_") and importlib.util.find_spec(f"{__name__}.{name}"):
+        value = importlib.import_module(f"{__name__}.{name}")
+    else:
         raise AttributeError(f"module 'hybridteam' has no attribute {name!r}")
-    value = getattr(importlib.import_module(home), name)
     globals()[name] = value
     return value
 

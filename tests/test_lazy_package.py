@@ -53,6 +53,9 @@ assert (Run, check, conformance, load, simulate) == (
 assert Team is model.Team and ht.Team is Team and ht.__version__ == "0.1.0"
 run = ht.simulate(ht.load("examples/automata/thermostat.yaml"), duration=10.0)
 assert isinstance(run, ht.Run)
+import sys
+assert "hybridteam.sweep" not in sys.modules
+assert ht.sweep.restrict is sys.modules["hybridteam.sweep"].restrict  # a subpackage, on use
 switch = run.transitions["t"][1]  # row 0 enters Heat at t = 0
 assert abs(switch - math.log(11 / 8) / 0.1) < 1e-9, switch
 """
