@@ -101,6 +101,18 @@ def test_on_collision_has_a_yaml_example_that_loads(tmp_path):
     assert yaml.safe_load(example)[0]["with"]["on_collision"] == "warn"
 
 
+def test_the_tour_python_block_runs_as_written(monkeypatch):
+    """The README's Python block, run from the repository root: a hundred thermostats,
+    each heating rate its own instance, all ending ``ok`` at the file's 160 s."""
+    (block,) = [body for lang, body in BLOCK.findall(README) if lang == "python"]
+    monkeypatch.chdir(ROOT)
+    space: dict = {}
+    exec(compile(block, "README.md", "exec"), space)
+    run = space["run"]
+    assert run.n == 100 and run.outcomes == ["ok"] * 100
+    assert {o["t"] for o in run.diagnostics} == {160.0}
+
+
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
