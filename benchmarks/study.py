@@ -2,10 +2,11 @@
 
 The seven study files of ``examples/ladder`` (lookahead, alpha, kc, orsp, kr, speed,
 springs; population S of 100 pairs, ladder lengths 240..480) run one after the other, as
-the README's loop runs them, through :func:`hybridteam.sweep.run_study` on a local process
-pool — the whole path a user takes: planning, chunk tasks shipped to workers, the ladder's
-vectorized stepper, chunk files, the results table. A robot-step is one control period of
-one robot, so a run of ``s`` steps is ``2 s`` robot-steps. Budget (issue 7): all seven on
+the loop in ``examples/ladder/README.md`` runs them, through
+:func:`hybridteam.sweep.run_study` on a local process pool — the whole path a user takes:
+planning, chunk tasks shipped to workers, the ladder's vectorized stepper, chunk files,
+the results table. A robot-step is one control period of one robot, so a run of ``s``
+steps is ``2 s`` robot-steps. Budget (issue 7): all seven on
 2 local workers within 60 s on this 2-core machine.
 
 ``--serial`` also runs them in this process, for the speed-up of the pool. The machine is

@@ -246,6 +246,8 @@ def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndar
     return out
 
 
+#: What ``@law`` registers: a function of the :class:`LawContext` of ``m`` instances that
+#: returns their plant inputs, shape ``(m, k)``: one column per input of the plant.
 LawFunction = Callable[[LawContext], np.ndarray]
 
 

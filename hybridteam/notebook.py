@@ -1,16 +1,15 @@
 """How teams and runs show themselves in Jupyter.
 
 A :class:`~hybridteam.api.Run` displays its outcomes as a table and its first instance's
-timeline inline; a :class:`~hybridteam.model.Team` displays its state diagram. The model
-layer knows nothing of drawing, so the team's display is registered with IPython from
-here, when hybridteam is imported inside IPython (:func:`enable`).
+timeline inline; a :class:`~hybridteam.model.Team` displays its state diagram. Both reach
+this module through their own ``_repr_html_`` methods, which Jupyter calls; nothing is
+registered with IPython, and nothing here is imported until a notebook shows an object.
 """
 
 from __future__ import annotations
 
 import base64
 import html
-import sys
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -48,14 +47,3 @@ def team_html(team: Team) -> str:
 
     svg = render(roles_view(diagram_graph(team)), "svg")
     return f"<p><b>{html.escape(repr(team))}</b></p>{svg}"
-
-
-def enable() -> None:
-    """Register the team display with the running IPython, if there is one."""
-    ipython = sys.modules.get("IPython")
-    shell = ipython.get_ipython() if ipython is not None else None  # type: ignore[attr-defined]
-    if shell is None:
-        return
-    from hybridteam.model import Team
-
-    shell.display_formatter.formatters["text/html"].for_type(Team, team_html)

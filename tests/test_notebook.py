@@ -38,9 +38,7 @@ def test_runs_and_teams_show_themselves(team_from_yaml):
                          "transitions, 0 messages>")
     page = run._repr_html_()
     assert "<td>ok</td>" in page and 'src="data:image/png;base64,' in page
-    from hybridteam.notebook import team_html
-
-    assert "<svg" in team_html(team)
+    assert "<svg" in team._repr_html_()
     assert run.modes is run.intervals
 
 

@@ -64,7 +64,7 @@ NOT_EXPRESSED = {
     "targetless-transition/test3": "attribute access is not allowed",
 }
 
-#: In scope, expressed, passing: the figures README.md states.
+#: In scope, expressed, passing: the figures docs/scxml.md states.
 COUNTS = (111, 97, 97)
 
 #: Keeps a fixture's run going to its end (its delay is never reached).

@@ -1,4 +1,4 @@
-"""``hybridteam falsify TEAM.yaml --requirement NAME --vary KEY=LO:HI ... -o OUT``.
+"""``hybridteam falsify TEAM.yaml --requirement NAME --vary KEY=LO:HI [...] -o OUT``.
 
 Searches override values (and seeds) for a run that violates a requirement, each
 generation simulated as one ensemble; writes ``OUT/falsify.json`` (resumable: run the same

@@ -350,7 +350,7 @@ def _json_position(text: str, where: tuple) -> str:
 
 def cmd_run_report(args: argparse.Namespace) -> int:
     """``hybridteam report RUN_FOLDER``: the HTML page of a run, for a folder that holds a
-    ``trace.json`` (others get the study's report, see :mod:`.sweep`)."""
+    ``trace.json`` (others get the study's report, see :mod:`~hybridteam.cli.sweep`)."""
     from hybridteam.export.report import NotAnImage, write_report
 
     folder = Path(args.folder)

@@ -2,8 +2,8 @@
 
 Every mode of an agent has an index (pre-order, the root is 0); every transition has its
 guard and actions as numpy callables, its exit root and entry path resolved, and its
-conflicts with higher-precedence transitions precomputed. :mod:`.compiler` builds these from
-the declarations; nothing here refers to YAML.
+conflicts with higher-precedence transitions precomputed. :mod:`~hybridteam.engine.compiler` builds
+these from the declarations; nothing here refers to YAML.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Compiling what protocols add to agents: message policies, streams, estimate names.
 
-Kept apart from :mod:`.compiler` (modes and transitions): a team without protocols never
-touches this, and the names a protocol introduces are defined in one place —
+Kept apart from :mod:`~hybridteam.engine.compiler` (modes and transitions): a team without
+protocols never touches this, and the names a protocol introduces are defined in one place —
 ``est_<type>_<field>``, ``est_<type>_age``, ``est_<type>_sender`` for stream estimates,
 ``id_<agent>`` for agent indices (what ``msg_sender`` and ``to: <expression>`` use), and,
 in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral velocities

@@ -466,7 +466,7 @@ def free_names(source: str, *, condition: bool = False) -> frozenset[str]:
 
 def compile_assignment(source: str, symbols: Mapping[str, Getter],
                        targets: Collection[str]) -> tuple[str, Expression]:
-    """Compile ``target = expr`` or ``target op= expr`` (op in + - * / % **)."""
+    """Compile ``target = expr`` or ``target op= expr`` (op in ``+ - * / % **``)."""
     comp = _Compiler(source, symbols)
     match = _ASSIGN_RE.match(source)
     if not match:

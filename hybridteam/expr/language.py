@@ -1,10 +1,9 @@
 """The expression language: its types, functions and constants, and compiled results.
 
-Model files are data and may come from anyone, so user text never reaches eval/exec/compile:
-it is only given to ``ast.parse``, the tree is checked against a small whitelist, and what
-passes is turned once into a tree of closures over numpy ufuncs (:mod:`.compiler`). Values
-are arrays over the ensemble axis (or scalars that broadcast), so nothing loops over
-instances.
+Model files are data and may come from anyone, so user text never reaches eval/exec/compile: it is
+only given to ``ast.parse``, the tree is checked against a small whitelist, and what passes is
+turned once into a tree of closures over numpy ufuncs (:mod:`~hybridteam.expr.compiler`). Values are
+arrays over the ensemble axis (or scalars that broadcast), so nothing loops over instances.
 
 Two static types exist, *number* and *condition*; mixing them is a compile-time error, which
 catches ``x and y`` or ``(x > 0) + 1`` before a simulation runs. Ordering comparisons are

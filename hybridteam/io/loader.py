@@ -1,11 +1,11 @@
 """YAML files -> validated model declarations, with every error located in the file.
 
-Loading runs three gates, each reporting *all* its problems with ``file:line:column``:
-YAML syntax (:mod:`.yamlpos`), the schema (:mod:`.schema`, pydantic), and the model itself
-(names, expressions, laws — by compiling it). The semantic checker (:mod:`.check`) adds
-warnings for unreachable modes and dead ends. Nothing is run before all gates pass.
-Team and protocol files are file kinds (:data:`FILE_KINDS`); :mod:`hybridteam.kinds`
-dispatches any file to its kind.
+Loading runs three gates, each reporting *all* its problems with ``file:line:column``: YAML syntax
+(:mod:`~hybridteam.io.yamlpos`), the schema (:mod:`~hybridteam.io.schema`, pydantic), and the model
+itself (names, expressions, laws — by compiling it). The semantic checker
+(:mod:`~hybridteam.io.check`) adds warnings for unreachable modes and dead ends. Nothing is run
+before all gates pass. Team and protocol files are file kinds (:data:`FILE_KINDS`);
+:mod:`hybridteam.kinds` dispatches any file to its kind.
 """
 
 from __future__ import annotations

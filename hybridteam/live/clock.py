@@ -69,7 +69,8 @@ class WallClock:
         self.reaction: list[float] = []
         #: arrivals queued and not yet handled: (run time, time.monotonic() on arrival)
         self._waiting: list[tuple[float, float]] = []
-        #: the world kinds' traffic (:mod:`.world`), for a team with world components
+        #: the world kinds' traffic (:mod:`~hybridteam.live.world`), for a team with world
+        #: components
         self.world: WorldLink | None = None
         #: datagrams read before the run started (:meth:`backlog`), taken first
         self._backlog: list[tuple[bytes, float]] = []
@@ -149,9 +150,9 @@ class WallClock:
         return queued
 
     def _world(self, ens: Ensemble, dg, arrived: float) -> bool:
-        """A pose or a reading (:mod:`.world`): a pose arriving at the world process is
-        an instant there; a reading's events are raised in their agent at its arrival, and
-        its outcome ends the run. Whether the run must take an instant now."""
+        """A pose or a reading (:mod:`~hybridteam.live.world`): a pose arriving at the world
+        process is an instant there; a reading's events are raised in their agent at its
+        arrival, and its outcome ends the run. Whether the run must take an instant now."""
         got = self.world.take(dg) if self.world is not None else None
         if got is None:
             return False

@@ -1,15 +1,15 @@
 """One live process's run: the hosted agents of a team, on the wall clock, over a
 transport (docs/live.md).
 
-The engine's ordinary :class:`~hybridteam.engine.simulator.Simulator` runs one instance of
-the team as this process hosts it (:mod:`.hosting`), with the wall clock as its clock and
-the wire as its network's outlet (:mod:`.clock`). Its trace is the ordinary format, kept
-to what this process knows: the hosted agents' modes, transitions and samples (a remote
-agent's samples are NaN: unknown here), every copy that reached a hosted agent, and
-``meta.live``: the agents here, the transport, the clock and the datagrams counted.
-For a team with world components the engine's world seam is filled by :mod:`.world`: in
-the world process (``world=True``, no agent here) the components run on the poses
-received; in an agent's process its agents read the world process.
+The engine's ordinary :class:`~hybridteam.engine.simulator.Simulator` runs one instance of the team
+as this process hosts it (:mod:`~hybridteam.live.hosting`), with the wall clock as its clock and the
+wire as its network's outlet (:mod:`~hybridteam.live.clock`). Its trace is the ordinary format, kept
+to what this process knows: the hosted agents' modes, transitions and samples (a remote agent's
+samples are NaN: unknown here), every copy that reached a hosted agent, and ``meta.live``: the
+agents here, the transport, the clock and the datagrams counted. For a team with world components
+the engine's world seam is filled by :mod:`~hybridteam.live.world`: in the world process
+(``world=True``, no agent here) the components run on the poses received; in an agent's process its
+agents read the world process.
 """
 
 from __future__ import annotations
@@ -68,9 +68,10 @@ class LiveRun:
         trace calls them; HostingError for one of an agent not here, or one the engine
         cannot drive. ``world``: this is the team's world process (``agents`` empty): it
         runs the world components on the poses the agents' processes send
-        (:mod:`.world`). ``wire_team``: a test aid, the team whose wire identity this
-        process speaks while it runs ``team`` (a drifted copy of it: the same name,
-        agents and messages, :func:`~.wire.wire_mismatch`; HostingError otherwise)."""
+        (:mod:`~hybridteam.live.world`). ``wire_team``: a test aid, the team whose wire
+        identity this process speaks while it runs ``team`` (a drifted copy of it: the
+        same name, agents and messages, :func:`~hybridteam.live.wire.wire_mismatch`;
+        HostingError otherwise)."""
         full = compile_team(team)
         self.wire = None if wire_team is None else compile_team(wire_team)
         if self.wire is not None and (why := wire_mismatch(full, self.wire)) is not None:

@@ -1,10 +1,10 @@
 """Transports: how a live process's datagrams reach its teammates' processes.
 
-Every transport has the :class:`Transport` shape: the engine's outlet hands it encoded
-datagrams (:mod:`.wire`) with the team's socket name, and the wall clock
-(:mod:`.clock`) asks it for what arrived, with arrival times on ``time.monotonic()``, or
-waits on it until something does. :class:`UdpTransport` is the paper's medium: UDP
-datagrams on a LAN or on loopback; ROS 2 topics are another implementation.
+Every transport has the :class:`Transport` shape: the engine's outlet hands it encoded datagrams
+(:mod:`~hybridteam.live.wire`) with the team's socket name, and the wall clock
+(:mod:`~hybridteam.live.clock`) asks it for what arrived, with arrival times on
+``time.monotonic()``, or waits on it until something does. :class:`UdpTransport` is the paper's
+medium: UDP datagrams on a LAN or on loopback; ROS 2 topics are another implementation.
 """
 
 from __future__ import annotations

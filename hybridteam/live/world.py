@@ -13,8 +13,8 @@ own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
 * :class:`WorldReadings` is an agent process's world: it runs no component; it sends the
   hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading.
 
-:class:`WorldLink` is what the wall clock (:mod:`.clock`) hands the datagrams of the two
-kinds to, and what both sides send through.
+:class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the datagrams of
+the two kinds to, and what both sides send through.
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
-"""Robot logs in and out: a run as a rosbag2 (:mod:`.export`), a rosbag2 as a run
-(:mod:`.bag`), a team's requirements checked on either (:mod:`.check`), and either
-replayed into its team and compared with it (:mod:`.conformance`).
+"""Robot logs in and out: a run as a rosbag2 (:mod:`~hybridteam.logs.export`), a rosbag2 as a run
+(:mod:`~hybridteam.logs.bag`), a team's requirements checked on either
+(:mod:`~hybridteam.logs.check`), and either replayed into its team and compared with it
+(:mod:`~hybridteam.logs.conformance`).
 
-The bag format is handled by ``rosbags`` (pure Python, no ROS installation), an optional
-dependency: ``pip install 'hybridteam[logs]'``. Topic names, message types, frames and the
-time epoch are documented in ``docs/logs.md`` and defined once in :mod:`.topics`.
+The bag format is handled by ``rosbags`` (pure Python, no ROS installation), an optional dependency:
+``pip install 'hybridteam[logs]'``. Topic names, message types, frames and the time epoch are
+documented in ``docs/logs.md`` and defined once in :mod:`~hybridteam.logs.topics`.
 """
 
 from __future__ import annotations

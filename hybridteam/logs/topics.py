@@ -4,9 +4,9 @@ that tells ``import`` where a robot's own log keeps them.
 One place defines the names, so that export and import agree (a run exported and imported
 back is the same run) and ``docs/logs.md`` has one list to describe. Per agent ``A``:
 
-==================  ===============================  ====================================
-topic               type                             holds
-==================  ===============================  ====================================
+==================  ==================================  =================================
+topic               type                                holds
+==================  ==================================  =================================
 ``/A/state``        ``std_msgs/msg/Float64MultiArray``  the state vector, exact (labels)
 ``/A/pose``         ``geometry_msgs/msg/PoseStamped``   planar pose in ``map``
 ``/A/odom``         ``nav_msgs/msg/Odometry``           pose and body-frame velocity
@@ -14,7 +14,7 @@ topic               type                             holds
 ``/A/mode``         ``std_msgs/msg/String``             each transition, compact JSON
 ``/A/stays``        ``std_msgs/msg/String``             each stay in a mode, compact JSON
 ``/A/messages``     ``std_msgs/msg/String``             each team message A sent, JSON
-==================  ===============================  ====================================
+==================  ==================================  =================================
 
 and ``/payloads/P/pose`` (PoseStamped), ``/hybridteam/series/S`` (Float64MultiArray, a
 world series), ``/hybridteam/run`` (String: the trace's meta and outcome, once), ``/tf``

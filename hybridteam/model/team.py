@@ -178,6 +178,13 @@ class Team:
         return (f"<Team {self.name!r}: {len(self.agents)} agent(s) ({names}), "
                 f"{self.simulation.duration:g} s>")
 
+    def _repr_html_(self) -> str:
+        """In Jupyter: the team's state diagram, drawn inline. Drawing lives above the
+        model, so it is imported here, when a notebook asks, and never at import."""
+        from hybridteam.notebook import team_html
+
+        return team_html(self)
+
     def agent(self, name: str) -> Agent:
         for a in self.agents:
             if a.name == name:

@@ -1,10 +1,10 @@
 """Study files -> a validated :class:`Study`, every mistake located in the file.
 
-Three gates, like a team file's: YAML syntax, the schema (:mod:`.schema`), then what needs
-the team — the team file must load, every override key must name a parameter (checked by
-building the simulator with it, since the engine is what knows), factor values must have
-one number per key, and each metric must be a per-instance summary key. Everything is
-checked before a single run starts: a typo must not surface an hour into a study.
+Three gates, like a team file's: YAML syntax, the schema (:mod:`~hybridteam.sweep.schema`), then
+what needs the team — the team file must load, every override key must name a parameter (checked by
+building the simulator with it, since the engine is what knows), factor values must have one number
+per key, and each metric must be a per-instance summary key. Everything is checked before a single
+run starts: a typo must not surface an hour into a study.
 """
 
 from __future__ import annotations

@@ -12,17 +12,16 @@ scripted network (:attr:`~hybridteam.engine.network.Network.script`):
   after the message was last sent, an ``after:`` timeout or a guard over time or state
   fires when the run makes it true, a world component raises its event when it does.
 
-Moments come from a simple temporal network (:mod:`.schedule`): steps in the path's order,
-as early as possible, each ack timeout and ``after:`` timeout the path takes exactly when
-the engine would expire it, and none it does not take expiring while armed. A guard over
-time or state, or a world event, is measured: the run up to the step before shows when it
-fires, and that moment is fixed. The run must then agree with the path — the same mode
-configuration after every step, the same control messages sent at every step, nothing
-else in between; where it does not at a step the replay controls, that step is tried
-later (:data:`DELAYS` after the one before: a guard may need time to pass). Once it agrees,
-the run is checked for the violation itself: the requirement's verdict on the trace, or
-for ``deadlock`` that nothing happens any more. A path the simulator cannot follow, or
-whose run does not violate the property, is *spurious*: the skeleton over-approximates
+Moments come from a simple temporal network (:mod:`~hybridteam.verify.schedule`): steps in the
+path's order, as early as possible, each ack timeout and ``after:`` timeout the path takes exactly
+when the engine would expire it, and none it does not take expiring while armed. A guard over time
+or state, or a world event, is measured: the run up to the step before shows when it fires, and that
+moment is fixed. The run must then agree with the path — the same mode configuration after every
+step, the same control messages sent at every step, nothing else in between; where it does not at a
+step the replay controls, that step is tried later (:data:`DELAYS` after the one before: a guard may
+need time to pass). Once it agrees, the run is checked for the violation itself: the requirement's
+verdict on the trace, or for ``deadlock`` that nothing happens any more. A path the simulator cannot
+follow, or whose run does not violate the property, is *spurious*: the skeleton over-approximates
 timing, and the replay says at which step and why.
 """
 

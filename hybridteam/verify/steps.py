@@ -1,10 +1,10 @@
-"""A skeleton path as steps a replay can schedule and check (:mod:`.replay`).
+"""A skeleton path as steps a replay can schedule and check (:mod:`~hybridteam.verify.replay`).
 
 :func:`follow` re-runs the path on a raw machine (the engine's own message ids, copies in
 sending order) to give every copy an identity — the n-th copy of its type on its link —
 and to note what each step arms: acknowledged messages (with their ack timeouts) and
 ``after:`` timeouts (with their delays). :func:`bounds` turns that into the timing the
-engine imposes (:mod:`.schedule`).
+engine imposes (:mod:`~hybridteam.verify.schedule`).
 """
 
 from __future__ import annotations
@@ -162,8 +162,8 @@ def _match(m: Machine, raw: State, parent: State, choice: tuple, child: State
 
 
 def bounds(sk: Skeleton, steps: list[Step], gap: float) -> list[Bound]:
-    """The timing the engine imposes on the path (see :mod:`.schedule`), with ``gap``
-    between consecutive steps."""
+    """The timing the engine imposes on the path (see :mod:`~hybridteam.verify.schedule`), with
+    ``gap`` between consecutive steps."""
     names = [ca.name for ca in sk.original.agents]
     n = len(steps) - 1
     out = []

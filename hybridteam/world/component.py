@@ -119,7 +119,7 @@ class WorldComponent:
     def meta(self) -> dict[str, Any]:
         """Trace metadata for views: ``world`` (walls, regions, obstacles, paths;
         per-instance entries carry their ``instance``, as paths and collisions do),
-        ``payloads``, ``payload_shapes``, agent ``footprint``s."""
+        ``payloads``, ``payload_shapes``, agents' ``footprint``."""
         return {}
 
 

@@ -4,7 +4,7 @@ A payload is a rigid body with k grasp points ``b_i`` (body coordinates). Each g
 joined to a robot point ``r_i`` by a spring of constant ``sc_i`` (a force sensor that
 gives a little, as on RIKEN's omni robots). The robots move much more slowly than the
 springs settle, so we take the body to be in quasi-static equilibrium: its pose
-``(p, R)`` minimizes the spring energy
+``(p, R)`` minimizes the spring energy::
 
     E(p, R) = sum_i sc_i |R b_i + p - r_i|^2 ,
 
@@ -117,7 +117,7 @@ def spring_energy(robot_points: np.ndarray, body_points: np.ndarray, springs: np
 
 
 def two_grasp_slack(limit_a: float, limit_b: float, spring_a: float, spring_b: float) -> float:
-    """Largest |D - length| a bar held at both ends can take before a link breaks.
+    """Largest ``|D - length|`` a bar held at both ends can take before a link breaks.
 
     With two grasps the bar lies on the line through the robots and the springs share the
     mismatch ``|D - length|`` in inverse proportion to their constants:
