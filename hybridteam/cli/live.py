@@ -82,6 +82,10 @@ def register(sub) -> dict:
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
+    la.add_argument("--losses-from", default=None, metavar="COUNTEREXAMPLE",
+                    help="test aid: lose live the copies a 'hybridteam verify' "
+                         "counterexample loses (its folder, VERIFY_OUT/PROPERTY): each one "
+                         "dropped at its receiver's process, as --drop-copy TYPE:N")
     return {"live": cmd_live, "launch": cmd_launch}
 
 
@@ -175,6 +179,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         transport.close()
         raise
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    trace = None
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
@@ -201,18 +206,27 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        if trace is None:
+            restore_signals(previous)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    write_folder(out, trace, summary)
+    try:
+        write_folder(out, trace, summary)
+    finally:  # (a SIGTERM while writing, as launch stops its processes, waits for it)
+        restore_signals(previous)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
+
+
+def restore_signals(previous: dict) -> None:
+    """The signal handlers as they were before ``live`` set its own."""
+    for s, handler in previous.items():
+        signal.signal(s, handler)
 
 
 def open_transport(args: argparse.Namespace, team: str, agents: list[str],
@@ -332,6 +346,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
         check_drop_copies(full, drop_copies(args.drop_copy))
     except HostingError as exc:
         raise UsageError(str(exc)) from None
+    scripted = losses_from(args.losses_from, full) if args.losses_from else {}
     ending = [names[a] for a in full.ending]
     # the processes: one per agent, and the world process when the team has components
     hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
@@ -351,10 +366,14 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
+            (folder / "summary.json").unlink(missing_ok=True)  # (an older run's)
             command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
                        *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
                        "--time-scale", repr(args.time_scale), "--log-level",
-                       args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
+                       args.log_level, "--ready", *fault_args(args, k),
+                       *(a for t, ns in sorted(scripted.get(name, {}).items())
+                         for n in sorted(ns) for a in ("--drop-copy", f"{t}:{n}")),
+                       "-o", str(folder),
                        "--transport", args.transport]
             if args.transport == "udp":
                 command += ["--listen", f"127.0.0.1:{port}"]
@@ -395,10 +414,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     # a process that died (killed, crashed) left no trace: the team's trace is the others'
-    # (what its teammates did about its silence), and says which are missing and why
+    # (what its teammates did about its silence), and says which are missing and why; one
+    # whose folder is complete (summary.json, written last) left its trace, even if the
+    # SIGTERM that stops the others came before it had exited
     missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
                for n, p in procs.items()
-               if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
+               if not (out / "agents" / n / "summary.json").exists()}
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
     if all(n in missing for n in names):
@@ -407,6 +428,11 @@ def cmd_launch(args: argparse.Namespace) -> int:
               if n not in missing]
     merged = merge_traces(traces, ending)
     merged.meta["live"]["missing"] = missing
+    if args.losses_from:
+        merged.meta["live"]["losses_from"] = {
+            "counterexample": args.losses_from,
+            "drops": {a: {t: sorted(ns) for t, ns in sorted(d.items())}
+                      for a, d in sorted(scripted.items())}}
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
                                              for n, why in missing.items())
     outcome = merged.outcomes[0]
@@ -417,6 +443,36 @@ def cmd_launch(args: argparse.Namespace) -> int:
     say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
         "(trace.json, summary.json, agents/NAME/)")
     return EXIT_OK
+
+
+def losses_from(path: str, cteam) -> dict[str, dict[str, set[int]]]:
+    """``--losses-from``: the copies the counterexample at ``path`` loses, as the scripted
+    drops of each receiving agent's process (:mod:`hybridteam.live.counterexample`), each
+    said on stderr; or one UsageError: not a counterexample verify wrote, a property that
+    holds, another team's, losses a live run cannot script."""
+    from hybridteam.cli.common import load_trace, read_json
+    from hybridteam.live.counterexample import (
+        CounterexampleError,
+        check_verdict,
+        drops_by_agent,
+        locate,
+        losses,
+    )
+
+    trace_path, summary_path, name = locate(path)
+    try:
+        if not summary_path.is_file():
+            raise CounterexampleError("not a counterexample 'hybridteam verify' wrote (no "
+                                      f"{summary_path}; give VERIFY_OUT/PROPERTY)")
+        check_verdict(read_json(summary_path, "verify summaries", "a verify summary")[1],
+                      name, summary_path)
+        found = losses(load_trace(str(trace_path)), cteam)
+    except (CounterexampleError, UsageError) as exc:
+        raise UsageError(f"--losses-from {path}: {exc}") from None
+    for loss in found:
+        say(f"hybridteam: launch: {loss.text} is dropped at {loss.receiver}'s process "
+            f"(--drop-copy {loss.type}:{loss.copy})")
+    return drops_by_agent(found)
 
 
 def write_folder(out, trace, summary: dict) -> None:
