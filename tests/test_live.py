@@ -369,7 +369,11 @@ def test_a_scripted_loss_of_a_plain_grant_strands_the_requester(tmp_path, proces
     assert mode_sequences(trace) == mode_sequences(sim)
     assert mode_sequences(trace)["requester"][-1][1] == "Asking"
     assert trace.meta["live"]["injected"]["scripted"] == 1
-    assert trace.messages["type"].tolist() == ["request"]
+    # the grant is in the trace as the copy lost on its way (as a replay shows its loss)
+    assert trace.messages["type"].tolist() == ["request", "grant"]
+    grant = trace.messages.where(type="grant")
+    assert (grant["status"].tolist(), grant["reason"].tolist()) == (
+        ["lost"], ["loss (scripted)"])
 
 
 def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
@@ -385,9 +389,12 @@ def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == expected
-    grants = trace.messages.where(type="grant")
+    grants = trace.messages.where(type="grant", status="delivered")
     assert grants["reason"].tolist() == ["retransmission"]  # the first copy never arrived
     assert grants["t_send"][0] >= 1.0 + 0.2  # sent again after the ack timeout
+    lost = trace.messages.where(type="grant", status="lost")
+    assert lost["reason"].tolist() == ["loss (scripted)"]
+    assert lost["msg_id"].tolist() == grants["msg_id"].tolist()  # the same message
     assert trace.meta["live"]["injected"]["scripted"] == 1
 
 
