@@ -25,7 +25,7 @@ import pytest
 import hybridteam as ht
 from hybridteam.cli import main
 from hybridteam.engine.compiler import compile_team
-from hybridteam.live.counterexample import CounterexampleError, drops_by_agent, losses
+from hybridteam.live.counterexample import CounterexampleError, drops, losses
 from hybridteam.trace import Trace
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +73,8 @@ def launch(team: Path, out: Path, *args: str) -> Trace:
                            "--time-scale", "4", "-o", str(out), *args],
                           capture_output=True, timeout=TIMEOUT)
     assert proc.returncode == 0, proc.stderr.decode()
-    assert b"docked (copy 1 of 'docked' to labmate" in proc.stderr  # said what it drops
+    assert b"xr4000 -> labmate: docked sent at t=11.25 s is dropped at labmate's process " \
+           b"(--drop-copy docked:1)" in proc.stderr  # (said what it drops)
     return Trace.load(out / "trace.json")
 
 
@@ -164,13 +165,16 @@ LOST = ("lost", "loss (replay)")
 DELIVERED = ("delivered", "")
 
 
-def test_each_lost_copy_is_numbered_among_its_types_copies_to_its_receiver(found):
+def test_each_lost_copy_is_numbered_among_its_types_datagrams_to_its_process(found):
     """Hand-counted: the Labmate is sent 'docked' at 1.0 and 2.0 (the second lost: copy
-    2; the streams' copies in between do not count, nor does a 'docked' to another agent)
-    and 'ready' once (lost: copy 1); the XR4000's first 'ack' from the Labmate is lost
-    (copy 1), two 'docked' sent by the XR4000 at one moment are numbered by sequence."""
+    2; the streams' copies in between do not count, nor does a 'docked' to another
+    process's agent), 'ready' once (lost: copy 1), and two 'docked' by the XR4000 at one
+    moment, numbered by its sequence (the one lost: copy 3); the XR4000's first 'ack'
+    from the Labmate is lost (copy 1 at its process). A process hosting the Labmate and
+    the operator counts the 'docked' to the operator too; a datagram lost to both of its
+    agents is one drop."""
     cteam = compile_team(ht.load(EXPERIMENT2))
-    trace = counterexample_with(found, [
+    rows = [
         ("xr4000", "labmate", "docked", 3, 1.0, *DELIVERED),
         ("xr4000", "labmate", "state", 4, 1.5, *LOST),  # (a stream: not a scripted loss)
         ("xr4000", "operator", "docked", 5, 1.6, *DELIVERED),
@@ -180,13 +184,22 @@ def test_each_lost_copy_is_numbered_among_its_types_copies_to_its_receiver(found
         ("xr4000", "labmate", "ready", 7, 3.0, *LOST),
         ("xr4000", "labmate", "docked", 9, 4.0, *DELIVERED),
         ("xr4000", "labmate", "docked", 8, 4.0, *LOST),
-    ])
-    found_losses = losses(trace, cteam)
-    assert [(x.receiver, x.type, x.copy) for x in found_losses] == [
-        ("labmate", "docked", 2), ("xr4000", "ack", 1), ("labmate", "ready", 1),
-        ("labmate", "docked", 3)]
-    assert drops_by_agent(found_losses) == {"labmate": {"docked": {2, 3}, "ready": {1}},
-                                            "xr4000": {"ack": {1}}}
+        ("xr4000", "labmate", "docked", 10, 5.0, *LOST),  # (a broadcast, lost to both)
+        ("xr4000", "operator", "docked", 10, 5.0, *LOST),
+    ]
+    trace = counterexample_with(found, rows)
+    labmate = losses(trace, cteam, ["labmate"])
+    assert [(x.sender, x.receivers, x.type, x.copy) for x in labmate] == [
+        ("xr4000", ("labmate",), "docked", 2), ("xr4000", ("labmate",), "ready", 1),
+        ("xr4000", ("labmate",), "docked", 3), ("xr4000", ("labmate",), "docked", 5)]
+    assert drops(labmate) == {"docked": {2, 3, 5}, "ready": {1}}
+    assert drops(losses(trace, cteam, ["xr4000"])) == {"ack": {1}}
+    assert drops(losses(trace, cteam, ["operator"])) == {"docked": {2}}
+    both = losses(trace, cteam, ["operator", "labmate"])
+    assert drops(both) == {"docked": {3, 4, 6}, "ready": {1}}
+    assert both[-1].receivers == ("labmate", "operator")
+    assert both[-1].text == "xr4000 -> labmate, operator: docked sent at t=5 s is dropped " \
+                            "at labmate, operator's process (--drop-copy docked:6)"
 
 
 @pytest.mark.parametrize(("rows", "message"), [
@@ -196,20 +209,27 @@ def test_each_lost_copy_is_numbered_among_its_types_copies_to_its_receiver(found
      "datagram, not duplicate one"),
     ([("xr4000", "labmate", "docked", 3, 1.0, *LOST),
       ("operator", "labmate", "docked", 0, 1.0, *DELIVERED)],
-     "another sender's 'docked' to labmate was sent at the same moment (t=1 s)"),
+     "xr4000 -> labmate: docked is lost, and operator's 'docked' to labmate was sent at "
+     "the same moment (t=1 s): which of them arrives first live"),
     ([("xr4000", "labmate", "undock", 3, 1.0, *LOST)],
      "it loses a copy of 'undock', a type this team does not declare"),
+    ([("xr4000", "labmate", "docked", 3, 1.0, *LOST),
+      ("xr4000", "operator", "docked", 3, 1.0, *DELIVERED)],
+     "xr4000 -> labmate: docked is lost, and reaches operator in the same process: a "
+     "process drops a datagram for all its agents"),
 ])
 def test_losses_a_live_run_cannot_script_are_refused(found, rows, message):
     with pytest.raises(CounterexampleError, match=re.escape(message)):
-        losses(counterexample_with(found, rows), compile_team(ht.load(EXPERIMENT2)))
+        losses(counterexample_with(found, rows), compile_team(ht.load(EXPERIMENT2)),
+               ["labmate", "operator"])
 
 
 # ------------------------------------------------------------------ bad input
-def refused(args: list[str], capsys, tmp_path: Path) -> str:
-    """``launch`` with ``args``: exit 2, one line, nothing written or started."""
+def refused(args: list[str], capsys, tmp_path: Path, command: str = "launch") -> str:
+    """``launch`` (or ``live``) with ``args``: exit 2, one line, nothing written or
+    started."""
     out = tmp_path / "out"
-    assert main(["launch", *args, "--time-scale", "4", "-o", str(out)]) == 2
+    assert main([command, *args, "--time-scale", "4", "-o", str(out)]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1, lines
     assert not out.exists()
@@ -223,6 +243,9 @@ def test_bad_counterexamples_are_one_line_and_start_nothing(found, tmp_path, cap
                    tmp_path)
     assert "a counterexample of team 'experiment2' (agents xr4000, labmate, operator), " \
            "not of this team 'live handshake' (agents requester, granter)" in line
+    assert line == refused([str(HANDSHAKE), "--agent", "requester", "--listen",
+                            "127.0.0.1:0", "--losses-from", str(found / "deadlock")],
+                           capsys, tmp_path, "live")
     # a property that holds: verify wrote no counterexample of it
     line = refused([plain, "--losses-from", str(found / "docked_first")], capsys, tmp_path)
     assert "'docked_first' holds" in line and "no counterexample to replay" in line
@@ -254,3 +277,27 @@ def test_bad_counterexamples_are_one_line_and_start_nothing(found, tmp_path, cap
     line = refused([plain, "--losses-from", str(spurious / "deadlock")], capsys, tmp_path)
     assert "docked sent at t=11.25 s is duplicated: a live run can drop a datagram, not " \
            "duplicate one" in line
+
+
+# ------------------------------------------------------------------ one process: live
+@pytest.mark.slow
+def test_live_drops_the_counterexample_losses_of_its_agents(tmp_path):
+    """``live --losses-from``: verify's counterexample of the small handshake (its
+    request lost: the requester waits in Asking for good) in one process hosting both
+    agents: the request is dropped there, as the counterexample loses it."""
+    out = tmp_path / "verify"
+    assert main(["verify", str(HANDSHAKE), "--losses", "1", "-o", str(out), "--progress",
+                 "none"]) == 1
+    cex = json.loads((out / "verify.json").read_text())["properties"]["deadlock"]
+    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "live", str(HANDSHAKE),
+                           "--agent", "requester", "--agent", "granter", "--listen",
+                           "127.0.0.1:0", "--time-scale", "8", "--duration", "3",
+                           "--losses-from", str(out / "deadlock"), "-o",
+                           str(tmp_path / "live")], capture_output=True, timeout=TIMEOUT)
+    assert proc.returncode == 0, proc.stderr.decode()
+    trace = Trace.load(tmp_path / "live" / "trace.json")
+    assert trace.meta["live"]["injected"]["drop_copies"] == {"request": [1]}
+    assert (trace.messages["type"].tolist(), trace.messages["status"].tolist(),
+            trace.messages["reason"].tolist()) == (["request"], ["lost"], ["loss (scripted)"])
+    assert configuration(trace) == cex["configurations"][0] == \
+        "requester in Asking; granter in Listening"

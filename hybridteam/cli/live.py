@@ -82,10 +82,6 @@ def register(sub) -> dict:
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
-    la.add_argument("--losses-from", default=None, metavar="COUNTEREXAMPLE",
-                    help="test aid: lose live the copies a 'hybridteam verify' "
-                         "counterexample loses (its folder, VERIFY_OUT/PROPERTY): each one "
-                         "dropped at its receiver's process, as --drop-copy TYPE:N")
     return {"live": cmd_live, "launch": cmd_launch}
 
 
@@ -105,11 +101,16 @@ def add_faults(parser) -> None:
     parser.add_argument("--drop-copy", action="append", default=[], metavar="TYPE[:N]",
                         help="test aid: drop the N-th copy (default 1st) of message TYPE "
                              "that arrives for an agent here (repeat for several)")
+    parser.add_argument("--losses-from", default=None, metavar="COUNTEREXAMPLE",
+                        help="test aid: lose live the copies a 'hybridteam verify' "
+                             "counterexample loses (its folder, VERIFY_OUT/PROPERTY), each "
+                             "dropped at its receiver's process as --drop-copy TYPE:N")
 
 
 def fault_args(args: argparse.Namespace, k: int) -> list[str]:
     """The fault options as ``live`` takes them, for ``launch``'s ``k``-th process (its
-    seed: ``--seed`` + k, so the processes' draws differ)."""
+    seed: ``--seed`` + k, so the processes' draws differ; ``--losses-from`` becomes each
+    process's own ``--drop-copy`` options)."""
     return ["--drop", repr(args.drop), "--delay", repr(args.delay), "--seed",
             str(args.seed + k), *(a for c in args.drop_copy for a in ("--drop-copy", c))]
 
@@ -167,6 +168,12 @@ def cmd_live(args: argparse.Namespace) -> int:
     agents = list(dict.fromkeys(args.agent))
     if args.world and args.plant != "sim":
         raise UsageError("--world hosts no agent: --plant is for the agents' processes")
+    copies = drop_copies(args.drop_copy)
+    if args.losses_from:  # (this process's share of the counterexample's losses)
+        from hybridteam.engine.compiler import compile_team
+
+        for kind, ns in losses_from(args.losses_from, compile_team(team), [agents])[0].items():
+            copies.setdefault(kind, set()).update(ns)
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
@@ -185,7 +192,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                        time_scale=args.time_scale, duration=args.duration,
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
-                       drop_copies=drop_copies(args.drop_copy), plants=plants,
+                       drop_copies=copies, plants=plants,
                        plant_name=args.plant, world=args.world)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
@@ -346,7 +353,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         check_drop_copies(full, drop_copies(args.drop_copy))
     except HostingError as exc:
         raise UsageError(str(exc)) from None
-    scripted = losses_from(args.losses_from, full) if args.losses_from else {}
+    scripted = dict(zip(names, losses_from(args.losses_from, full, [[n] for n in names]),
+                        strict=True)) if args.losses_from else {}
     ending = [names[a] for a in full.ending]
     # the processes: one per agent, and the world process when the team has components
     hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
@@ -432,7 +440,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
         merged.meta["live"]["losses_from"] = {
             "counterexample": args.losses_from,
             "drops": {a: {t: sorted(ns) for t, ns in sorted(d.items())}
-                      for a, d in sorted(scripted.items())}}
+                      for a, d in scripted.items() if d}}
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
                                              for n, why in missing.items())
     outcome = merged.outcomes[0]
@@ -445,16 +453,18 @@ def cmd_launch(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def losses_from(path: str, cteam) -> dict[str, dict[str, set[int]]]:
+def losses_from(path: str, cteam, processes: list[list[str]]
+                ) -> list[dict[str, set[int]]]:
     """``--losses-from``: the copies the counterexample at ``path`` loses, as the scripted
-    drops of each receiving agent's process (:mod:`hybridteam.live.counterexample`), each
-    said on stderr; or one UsageError: not a counterexample verify wrote, a property that
-    holds, another team's, losses a live run cannot script."""
+    drops (``{type: {n}}``) of each of ``processes`` (the agents of each;
+    :mod:`hybridteam.live.counterexample`), each drop said on stderr; or one UsageError:
+    not a counterexample verify wrote, a property that holds, another team's, losses a
+    live run cannot script."""
     from hybridteam.cli.common import load_trace, read_json
     from hybridteam.live.counterexample import (
         CounterexampleError,
         check_verdict,
-        drops_by_agent,
+        drops,
         locate,
         losses,
     )
@@ -466,13 +476,13 @@ def losses_from(path: str, cteam) -> dict[str, dict[str, set[int]]]:
                                       f"{summary_path}; give VERIFY_OUT/PROPERTY)")
         check_verdict(read_json(summary_path, "verify summaries", "a verify summary")[1],
                       name, summary_path)
-        found = losses(load_trace(str(trace_path)), cteam)
+        trace = load_trace(str(trace_path))
+        found = [losses(trace, cteam, agents) for agents in processes]
     except (CounterexampleError, UsageError) as exc:
         raise UsageError(f"--losses-from {path}: {exc}") from None
-    for loss in found:
-        say(f"hybridteam: launch: {loss.text} is dropped at {loss.receiver}'s process "
-            f"(--drop-copy {loss.type}:{loss.copy})")
-    return drops_by_agent(found)
+    for loss in (loss for each in found for loss in each):
+        say(f"hybridteam: {loss.text}")
+    return [drops(each) for each in found]
 
 
 def write_folder(out, trace, summary: dict) -> None:

@@ -3,21 +3,21 @@
 ``hybridteam verify`` writes, for each violation a run of the simulator reproduces, that
 run as ``OUT/<property>/trace.json`` beside ``OUT/verify.json``: its message table has a
 row for every copy the path sends, and the copies the path loses are ``lost`` with the
-reason ``loss (replay)``. A live process drops "the ``n``-th copy of a message type that
-arrives for an agent here" (``--drop-copy TYPE:N``, :class:`.clock.WallClock`), so each
-lost copy becomes, at its receiver's process, the number it has among the copies of its
-type that receiver is sent, counted in the order they were sent (on one machine's
-loopback, the order they arrive). ``hybridteam launch --losses-from`` gives each agent's
-process the drops of the copies lost on their way to it: the live team meets exactly the
-losses the counterexample names, and nothing but a loss is scripted (the moments are the
-live run's own).
+reason ``loss (replay)``. A live process drops "the ``n``-th datagram of a message type
+that arrives for an agent here" (``--drop-copy TYPE:N``, :class:`.clock.WallClock`), so
+each lost copy becomes, at its receiver's process, the number its datagram has among
+those of its type that reach the process, counted in the order they were sent (on one
+machine's loopback, the order they arrive). ``--losses-from`` gives each process the drops
+of the copies lost on their way to its agents (``launch``: one agent each): the live team
+meets exactly the losses the counterexample names, and nothing but a loss is scripted
+(the moments are the live run's own).
 
 Nothing here reads a file: the command reads ``verify.json`` and the trace with the
 checks every file handed over gets, and hands them here.
 """
-
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,19 +35,22 @@ class CounterexampleError(ValueError):
 
 @dataclass(frozen=True)
 class Loss:
-    """One copy the counterexample loses: the ``copy``-th of its ``type`` sent to
-    ``receiver`` (counting from 1)."""
+    """One datagram the counterexample loses on its way to a process's agents: the
+    ``copy``-th of its ``type`` that reaches the agents ``process`` hosts (counting from
+    1), sent by ``sender`` to ``receivers`` (those of them it was lost to)."""
 
     sender: str
-    receiver: str
+    receivers: tuple[str, ...]
     type: str
     copy: int
     t_send: float
+    process: tuple[str, ...]
 
     @property
     def text(self) -> str:
-        return f"{self.sender} -> {self.receiver}: {self.type} (copy {self.copy} of " \
-               f"'{self.type}' to {self.receiver}, sent at t={self.t_send:.6g} s)"
+        return f"{self.sender} -> {', '.join(self.receivers)}: {self.type} sent at " \
+               f"t={self.t_send:.6g} s is dropped at {', '.join(self.process)}'s process " \
+               f"(--drop-copy {self.type}:{self.copy})"
 
 
 def locate(path: str | Path) -> tuple[Path, Path, str | None]:
@@ -98,13 +101,18 @@ def _reproduced(verdict: dict) -> bool:
     return isinstance(replay, dict) and replay.get("verdict") == "reproduced"
 
 
-def losses(trace: Trace, cteam: CTeam) -> list[Loss]:
-    """The copies the counterexample's run ``trace`` loses, each with its number among
-    the copies of its type sent to its receiver; CounterexampleError for a run of another
-    team, or one whose losses a live run cannot script: a copy the path duplicates (a live
-    run drops datagrams, it does not make them), a type the team does not declare, or a
-    lost copy whose number is not defined (another sender's copy of the type sent to the
-    same receiver at the same moment: which arrives first is the network's choice)."""
+def losses(trace: Trace, cteam: CTeam, here: Collection[str]) -> list[Loss]:
+    """The datagrams the counterexample's run ``trace`` loses on their way to the agents
+    ``here`` (one live process's), each numbered among the datagrams of its type that
+    reach an agent here, in the order they were sent, as :class:`.clock.WallClock` counts
+    them (a datagram: one send, whatever the number of its receivers here).
+
+    CounterexampleError for a run of another team, or one whose losses a live run cannot
+    script: a copy the path duplicates (a live run drops datagrams, it does not make
+    them), a type the team does not declare, a datagram lost to one agent here and not to
+    another (the process drops it for all of them), or a lost datagram whose number is
+    not defined (another sender's datagram of the type sent to this process at the same
+    moment: which arrives first is the network's choice)."""
     names = [ca.name for ca in cteam.agents]
     theirs = [a["name"] for a in trace.meta.get("agents", [])]
     if trace.meta.get("team") != cteam.team.name or theirs != names:
@@ -114,37 +122,51 @@ def losses(trace: Trace, cteam: CTeam) -> list[Loss]:
             f"{', '.join(names)})")
     streams = {cs.message for ca in cteam.agents for cs in ca.streams}
     rows = [r for r in trace.messages if r.type not in streams]
-    sent: dict[tuple[str, str, int], int] = {}
+    datagrams: dict[tuple[str, int], list] = {}  # (sender, seq) -> its copies here
+    seen: set[tuple[str, str, int]] = set()
     for r in rows:
         key = (r.sender, r.receiver, int(r.seq))
-        sent[key] = sent.get(key, 0) + 1
-        if sent[key] > 1:
+        if key in seen:
             raise CounterexampleError(
                 f"{r.sender} -> {r.receiver}: {r.type} sent at t={r.t_send:.6g} s is "
                 "duplicated: a live run can drop a datagram, not duplicate one")
+        seen.add(key)
+        if r.receiver in here:
+            datagrams.setdefault((r.sender, int(r.seq)), []).append(r)
     declared = declarations(cteam)
+    process = tuple(n for n in names if n in here)
     out = []
-    for lost in (r for r in rows if r.status == "lost" and r.reason == REPLAY_LOSS):
-        if lost.type not in declared:
-            raise CounterexampleError(f"it loses a copy of '{lost.type}', a type this team "
-                                      f"does not declare (its types: {', '.join(declared)})")
-        same = [r for r in rows if r.receiver == lost.receiver and r.type == lost.type]
-        if any(r.t_send == lost.t_send and r.sender != lost.sender for r in same):
+    for (sender, seq), copies in datagrams.items():
+        lost = [r.receiver for r in copies if r.status == "lost" and r.reason == REPLAY_LOSS]
+        if not lost:
+            continue
+        kind, t_send = copies[0].type, copies[0].t_send
+        if len(lost) < len(copies):
             raise CounterexampleError(
-                f"{lost.sender} -> {lost.receiver}: {lost.type} is lost, and another "
-                f"sender's '{lost.type}' to {lost.receiver} was sent at the same moment "
-                f"(t={lost.t_send:.6g} s): which is which copy live is not defined")
+                f"{sender} -> {', '.join(lost)}: {kind} is lost, and reaches "
+                f"{', '.join(r.receiver for r in copies if r.receiver not in lost)} in the "
+                "same process: a process drops a datagram for all its agents")
+        if kind not in declared:
+            raise CounterexampleError(f"it loses a copy of '{kind}', a type this team "
+                                      f"does not declare (its types: {', '.join(declared)})")
+        same = [(s, q, c[0].t_send) for (s, q), c in datagrams.items() if c[0].type == kind]
+        tied = next(((s, q) for s, q, t in same if t == t_send and s != sender), None)
+        if tied is not None:
+            raise CounterexampleError(
+                f"{sender} -> {', '.join(lost)}: {kind} is lost, and {tied[0]}'s '{kind}' "
+                f"to {', '.join(r.receiver for r in datagrams[tied])} was sent at the same "
+                f"moment (t={t_send:.6g} s): which of them arrives first live, and so "
+                "which copy is lost, is not defined")
         # (sent earlier, or at the same moment by the same sender, numbered before it)
-        before = sum(1 for r in same if r.t_send < lost.t_send or (
-            r.t_send == lost.t_send and r.sender == lost.sender and r.seq < lost.seq))
-        out.append(Loss(lost.sender, lost.receiver, lost.type, before + 1,
-                        float(lost.t_send)))
+        before = sum(1 for s, q, t in same
+                     if t < t_send or (t == t_send and s == sender and q < seq))
+        out.append(Loss(sender, tuple(lost), kind, before + 1, float(t_send), process))
     return out
 
 
-def drops_by_agent(found: list[Loss]) -> dict[str, dict[str, set[int]]]:
-    """The losses as each receiving agent's scripted drops: ``{agent: {type: {n}}}``."""
-    out: dict[str, dict[str, set[int]]] = {}
+def drops(found: list[Loss]) -> dict[str, set[int]]:
+    """The losses as a process's scripted drops, ``{type: {n, ...}}`` (``--drop-copy``)."""
+    out: dict[str, set[int]] = {}
     for loss in found:
-        out.setdefault(loss.receiver, {}).setdefault(loss.type, set()).add(loss.copy)
+        out.setdefault(loss.type, set()).add(loss.copy)
     return out
