@@ -134,7 +134,7 @@ def test_the_acknowledged_handshake_docks_through_the_same_loss(found, tmp_path)
     assert align["t"][0] >= wait + ACK_TIMEOUT - 1e-3
     # then everything goes as simulated without loss: the docking completes, the Labmate
     # leads, the XR4000 meets the obstacle, asks for the leadership and gets it
-    sim = ht.simulate(ht.load(team))
+    sim = ht.simulate(ht.load(team), duration=ACKED_END)
     for agent in ("xr4000", "labmate", "operator"):
         ours = trace.transitions.where(agent=agent)
         theirs = sim.transitions.filter((sim.transitions["agent"] == agent) &
