@@ -78,6 +78,17 @@ def launch(team: Path, out: Path, *args: str) -> Trace:
     return Trace.load(out / "trace.json")
 
 
+def lifted(trace: Trace) -> None:
+    """The XR4000 lifted its end (and sent 'docked') once: what the rest depends on. A
+    machine so loaded that the processes fall seconds behind the wall clock (the world
+    process first: it runs every component) reaches the box late or never; said so."""
+    wait = trace.transitions.where(agent="xr4000", target="Dock.Wait")
+    behind = {",".join(p["agents"]) or "@world": round(p["reaction_ms"].get("p99", 0))
+              for p in trace.meta["live"]["processes"]}
+    assert len(wait) == 1, f"the XR4000 did not lift its end (at t=11.25 s simulated): " \
+                           f"the processes fell behind (arrival to reaction p99, ms: {behind})"
+
+
 def configuration(trace: Trace) -> str:
     """The agents' leaf modes at the end, as verify words a configuration."""
     return "; ".join(f"{a} in {trace.transitions.where(agent=a)['target'][-1]}"
@@ -101,6 +112,7 @@ def test_the_plain_handshake_deadlocks_live_as_the_counterexample_says(found, tm
     trace = launch(experiment2(tmp_path, False), tmp_path / "live", "--losses-from",
                    str(found / "deadlock"), "--duration", str(PLAIN_END))
     assert trace.meta["live"]["losses_from"]["drops"] == {"labmate": {"docked": [1]}}
+    lifted(trace)
     assert scripted(trace) == {"xr4000": 0, "labmate": 1, "operator": 0, "@world": 0}
     # the one docked copy the XR4000 sent is lost on its way to the Labmate
     docked = trace.messages.where(type="docked")
@@ -121,6 +133,7 @@ def test_the_acknowledged_handshake_docks_through_the_same_loss(found, tmp_path)
     team = experiment2(tmp_path, True)
     trace = launch(team, tmp_path / "live", "--losses-from", str(found / "deadlock"),
                    "--duration", str(ACKED_END))
+    lifted(trace)
     assert scripted(trace) == {"xr4000": 0, "labmate": 1, "operator": 0, "@world": 0}
     docked = trace.messages.where(type="docked")
     lost, got = docked.where(status="lost"), docked.where(status="delivered")
