@@ -103,6 +103,10 @@ def scripted(trace: Trace) -> dict[str, int]:
 
 @pytest.mark.slow
 def test_the_plain_handshake_deadlocks_live_as_the_counterexample_says(found, tmp_path):
+    """The counterexample verify found (the XR4000's 'docked' lost), launched live over
+    UDP at time scale 4 with that loss scripted at the Labmate's process: the copy is
+    lost, and the team stays in the counterexample's deadlocked configuration with no
+    transition after it (to the end of the run, 4.75 run seconds later)."""
     summary = json.loads((found / "verify.json").read_text())["properties"]["deadlock"]
     assert summary["verdict"] == "violated" and summary["replay"]["verdict"] == "reproduced"
     lost = Trace.load(found / "deadlock" / "trace.json").messages.where(status="lost",
@@ -130,6 +134,10 @@ def test_the_plain_handshake_deadlocks_live_as_the_counterexample_says(found, tm
 
 @pytest.mark.slow
 def test_the_acknowledged_handshake_docks_through_the_same_loss(found, tmp_path):
+    """The same counterexample against experiment 2 as it is (docked and ready
+    acknowledged): the same copy is dropped, the XR4000 sends 'docked' again after the
+    ack timeout, the Labmate docks on it, and the team changes modes as the simulation
+    without loss does, the leadership hand-over at the obstacle included."""
     team = experiment2(tmp_path, True)
     trace = launch(team, tmp_path / "live", "--losses-from", str(found / "deadlock"),
                    "--duration", str(ACKED_END))
