@@ -192,6 +192,40 @@ def test_sigint_stops_the_run_with_its_trace_complete(tmp_path, processes):
     assert json.loads((tmp_path / "g" / "summary.json").read_text())["outcome"] == "stopped"
 
 
+def test_a_sigterm_while_the_folder_is_written_waits_for_it(tmp_path, monkeypatch):
+    """``launch`` stops its other processes with SIGTERM as soon as the end rule's have
+    ended, which may be while one of them is writing its folder: live's own handler is
+    still the one then (the signal is noted, the folder completed), and the caller's is
+    back once it is written."""
+    from hybridteam.cli import live as live_cli
+    from hybridteam.cli import main
+
+    write = live_cli.write_folder
+    during: list[object] = []
+
+    def write_signalled(out, trace, summary) -> None:
+        during.append(signal.getsignal(signal.SIGTERM))
+        signal.raise_signal(signal.SIGTERM)  # (with the caller's handler: it would be told)
+        write(out, trace, summary)
+
+    told: list[int] = []
+
+    def caller(signum, _frame) -> None:
+        told.append(signum)
+
+    monkeypatch.setattr(live_cli, "write_folder", write_signalled)
+    previous = signal.signal(signal.SIGTERM, caller)
+    try:
+        assert main(["live", str(TEAM), "--agent", "requester", "--agent", "granter",
+                     "--listen", f"{LOCAL}:0", "--time-scale", "8", "--duration", "0.5",
+                     "-o", str(tmp_path / "both")]) == 0
+        assert signal.getsignal(signal.SIGTERM) is caller
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert told == [] and during and during[0] is not caller
+    assert (tmp_path / "both" / "summary.json").exists()
+
+
 def test_a_taken_port_is_one_line_and_nothing_written(tmp_path, processes, udp):
     taken = udp()
     proc = processes(str(TEAM), "--agent", "granter", "--listen",
@@ -369,7 +403,11 @@ def test_a_scripted_loss_of_a_plain_grant_strands_the_requester(tmp_path, proces
     assert mode_sequences(trace) == mode_sequences(sim)
     assert mode_sequences(trace)["requester"][-1][1] == "Asking"
     assert trace.meta["live"]["injected"]["scripted"] == 1
-    assert trace.messages["type"].tolist() == ["request"]
+    # the grant is in the trace as the copy lost on its way (as a replay shows its loss)
+    assert trace.messages["type"].tolist() == ["request", "grant"]
+    grant = trace.messages.where(type="grant")
+    assert (grant["status"].tolist(), grant["reason"].tolist()) == (
+        ["lost"], ["loss (scripted)"])
 
 
 def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
@@ -385,9 +423,12 @@ def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == expected
-    grants = trace.messages.where(type="grant")
+    grants = trace.messages.where(type="grant", status="delivered")
     assert grants["reason"].tolist() == ["retransmission"]  # the first copy never arrived
     assert grants["t_send"][0] >= 1.0 + 0.2  # sent again after the ack timeout
+    lost = trace.messages.where(type="grant", status="lost")
+    assert lost["reason"].tolist() == ["loss (scripted)"]
+    assert lost["msg_id"].tolist() == grants["msg_id"].tolist()  # the same message
     assert trace.meta["live"]["injected"]["scripted"] == 1
 
 

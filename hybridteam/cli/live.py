@@ -125,11 +125,16 @@ def add_faults(parser) -> None:
     parser.add_argument("--drop-copy", action="append", default=[], metavar="TYPE[:N]",
                         help="test aid: drop the N-th copy (default 1st) of message TYPE "
                              "that arrives for an agent here (repeat for several)")
+    parser.add_argument("--losses-from", default=None, metavar="COUNTEREXAMPLE",
+                        help="test aid: lose live the copies a 'hybridteam verify' "
+                             "counterexample loses (its folder, VERIFY_OUT/PROPERTY), each "
+                             "dropped at its receiver's process as --drop-copy TYPE:N")
 
 
 def fault_args(args: argparse.Namespace, k: int) -> list[str]:
     """The fault options as ``live`` takes them, for ``launch``'s ``k``-th process (its
-    seed: ``--seed`` + k, so the processes' draws differ)."""
+    seed: ``--seed`` + k, so the processes' draws differ; ``--losses-from`` becomes each
+    process's own ``--drop-copy`` options)."""
     return ["--drop", repr(args.drop), "--delay", repr(args.delay), "--seed",
             str(args.seed + k), *(a for c in args.drop_copy for a in ("--drop-copy", c))]
 
@@ -192,6 +197,12 @@ def cmd_live(args: argparse.Namespace) -> int:
     agents = list(dict.fromkeys(args.agent))
     if args.world and args.plant != "sim":
         raise UsageError("--world hosts no agent: --plant is for the agents' processes")
+    copies = drop_copies(args.drop_copy)
+    if args.losses_from:  # (this process's share of the counterexample's losses)
+        from hybridteam.engine.compiler import compile_team
+
+        for kind, ns in losses_from(args.losses_from, compile_team(team), [agents])[0].items():
+            copies.setdefault(kind, set()).update(ns)
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
@@ -210,7 +221,7 @@ def cmd_live(args: argparse.Namespace) -> int:
                        time_scale=args.time_scale, duration=args.duration,
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
-                       drop_copies=drop_copies(args.drop_copy), plants=plants,
+                       drop_copies=copies, plants=plants,
                        plant_name=args.plant, world=args.world, wire_team=wire_team)
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
@@ -231,23 +242,27 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        if trace is None:  # (after a run, not until its folder is written, below)
-            for s, handler in previous.items():
-                signal.signal(s, handler)
+        if trace is None:
+            restore_signals(previous)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    try:  # a SIGTERM now (launch stopping the others as the run ends) must not kill it
+    try:
         write_folder(out, trace, summary)
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+    finally:  # (a SIGTERM while writing, as launch stops its processes, waits for it)
+        restore_signals(previous)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
+
+
+def restore_signals(previous: dict) -> None:
+    """The signal handlers as they were before ``live`` set its own."""
+    for s, handler in previous.items():
+        signal.signal(s, handler)
 
 
 def open_transport(args: argparse.Namespace, team: str, agents: list[str],
@@ -376,6 +391,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         why = wire_mismatch(compile_team(other), full)
         if why is not None:
             raise UsageError(f"--agent-team {name}={path}: {why}")
+    scripted = dict(zip(names, losses_from(args.losses_from, full, [[n] for n in names]),
+                        strict=True)) if args.losses_from else {}
     ending = [names[a] for a in full.ending]
     # the processes: one per agent, and the world process when the team has components
     hosts = [*names, *([WORLD_PROCESS] if team.world else [])]
@@ -401,7 +418,10 @@ def cmd_launch(args: argparse.Namespace) -> int:
                          else [args.team]),
                        *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
                        "--time-scale", repr(args.time_scale), "--log-level",
-                       args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
+                       args.log_level, "--ready", *fault_args(args, k),
+                       *(a for t, ns in sorted(scripted.get(name, {}).items())
+                         for n in sorted(ns) for a in ("--drop-copy", f"{t}:{n}")),
+                       "-o", str(folder),
                        "--transport", args.transport]
             if args.transport == "udp":
                 command += ["--listen", f"127.0.0.1:{port}"]
@@ -457,6 +477,11 @@ def cmd_launch(args: argparse.Namespace) -> int:
               if n not in missing]
     merged = merge_traces(traces, ending)
     merged.meta["live"]["missing"] = missing
+    if args.losses_from:
+        merged.meta["live"]["losses_from"] = {
+            "counterexample": args.losses_from,
+            "drops": {a: {t: sorted(ns) for t, ns in sorted(d.items())}
+                      for a, d in scripted.items() if d}}
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
                                              for n, why in missing.items())
     outcome = merged.outcomes[0]
@@ -467,6 +492,38 @@ def cmd_launch(args: argparse.Namespace) -> int:
     say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
         "(trace.json, summary.json, agents/NAME/)")
     return EXIT_OK
+
+
+def losses_from(path: str, cteam, processes: list[list[str]]
+                ) -> list[dict[str, set[int]]]:
+    """``--losses-from``: the copies the counterexample at ``path`` loses, as the scripted
+    drops (``{type: {n}}``) of each of ``processes`` (the agents of each;
+    :mod:`hybridteam.live.counterexample`), each drop said on stderr; or one UsageError:
+    not a counterexample verify wrote, a property that holds, another team's, losses a
+    live run cannot script."""
+    from hybridteam.cli.common import load_trace, read_json
+    from hybridteam.live.counterexample import (
+        CounterexampleError,
+        check_verdict,
+        drops,
+        locate,
+        losses,
+    )
+
+    trace_path, summary_path, name = locate(path)
+    try:
+        if not summary_path.is_file():
+            raise CounterexampleError("not a counterexample 'hybridteam verify' wrote (no "
+                                      f"{summary_path}; give VERIFY_OUT/PROPERTY)")
+        check_verdict(read_json(summary_path, "verify summaries", "a verify summary")[1],
+                      name, summary_path)
+        trace = load_trace(str(trace_path))
+        found = [losses(trace, cteam, agents) for agents in processes]
+    except (CounterexampleError, UsageError) as exc:
+        raise UsageError(f"--losses-from {path}: {exc}") from None
+    for loss in (loss for each in found for loss in each):
+        say(f"hybridteam: {loss.text}")
+    return [drops(each) for each in found]
 
 
 def write_folder(out, trace, summary: dict) -> None:

@@ -35,6 +35,9 @@ log = logging.getLogger("hybridteam.live")
 #: The longest single wait (wall seconds): a stop request is seen within it.
 MAX_WAIT = 0.05
 
+#: The reason a copy dropped by ``--drop-copy`` has in the trace's message table.
+SCRIPTED_LOSS = "loss (scripted)"
+
 
 class WallClock:
     """Run time on the wall clock, arrivals from a transport (module docstring)."""
@@ -135,6 +138,13 @@ class WallClock:
                     self.injected["scripted"] += 1
                     log.info("dropped copy %d of '%s' (--drop-copy)", self.copies[dg.type],
                              dg.type)
+                    # (in the trace as the simulator records a copy lost on its way, so
+                    # the run shows the loss it was given, as a counterexample's run does)
+                    for r in receivers:
+                        ens.network.record(0, Message(
+                            dg.sender, r, dg.seq, (dg.sent - self.wall0) * self.scale,
+                            dg.socket, dg.type, dict(dg.fields), dg.msg_id, dg.note),
+                            float("nan"), "lost", SCRIPTED_LOSS)
                     continue
             t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
             if self.delay:
