@@ -25,6 +25,7 @@ from hybridteam.cli.common import (
     output_folder,
     say,
 )
+from hybridteam.cli.udp import add_udp_options, check_udp_flags, udp_settings
 
 
 def register(sub) -> dict:
@@ -49,10 +50,7 @@ def register(sub) -> dict:
     p.add_argument("--ros-peers", type=int, default=0, metavar="N",
                    help="(ros2) before starting, wait until N other processes' transports "
                         "are matched (ROS discovery is asynchronous; 'launch' sets it)")
-    p.add_argument("--listen", default="127.0.0.1:47000", metavar="HOST:PORT",
-                   help="this process's UDP address (default 127.0.0.1:47000)")
-    p.add_argument("--peer", action="append", default=[], metavar="HOST:PORT",
-                   help="another process's UDP address (repeat for several)")
+    add_udp_options(p)
     p.add_argument("--duration", type=float, default=None,
                    help="run seconds (default: the team's simulation.duration)")
     p.add_argument("--time-scale", type=float, default=1.0, metavar="K",
@@ -121,15 +119,6 @@ def drop_copies(items: list[str]) -> dict[str, set[int]]:
     return out
 
 
-def address(text: str, flag: str) -> tuple[str, int]:
-    """``HOST:PORT`` as a socket address, or UsageError naming the flag."""
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise UsageError(f"{flag} must be HOST:PORT with a port from 0 to 65535, got "
-                         f"'{text}'")
-    return host, int(port)
-
-
 def check_clock(args: argparse.Namespace) -> None:
     """UsageError for a ``--duration`` or ``--time-scale`` that is no clock setting."""
     if args.duration is not None and not 0 <= args.duration < math.inf:
@@ -152,8 +141,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     if bool(args.agent) == args.world:
         raise UsageError("give the agents this process runs (--agent NAME) or --world, "
                          "not both")
-    listen = address(args.listen, "--listen")
-    peers = [address(p, "--peer") for p in args.peer]
+    check_udp_flags(args)
     out = output_folder(args.output)
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
@@ -168,7 +156,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     def on_signal(signum: int, _frame) -> None:
         stopped.append(signal.Signals(signum).name)
 
-    transport = open_transport(args, team.name, agents or ["world"], listen, peers)
+    transport = open_transport(args, team, agents)
     try:
         plants = open_plants(args, team, agents, on_silent=stopped.append)
     except BaseException:
@@ -215,21 +203,22 @@ def cmd_live(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def open_transport(args: argparse.Namespace, team: str, agents: list[str],
-                   listen: tuple[str, int], peers: list[tuple[str, int]]):
+def open_transport(args: argparse.Namespace, team, agents: list[str]):
     """The transport ``--transport`` names, or a one-line error: a taken port, a ROS 2
-    transport without rclpy (the [ros] extra), a bad domain."""
+    transport without rclpy (the [ros] extra), a bad domain. UDP's addresses are the
+    flags' over the team file's (:mod:`.udp`)."""
     from hybridteam.live.transport import TransportError, UdpTransport
 
     if args.transport == "udp":
+        udp = udp_settings(args, team, agents)
         try:
-            return UdpTransport(listen, peers)
+            return UdpTransport(udp.listen, udp.peers, mode=udp.mode, interface=udp.interface)
         except TransportError as exc:
             raise UsageError(str(exc)) from None
     try:
         from hybridteam.live.ros2 import Ros2Transport
 
-        return Ros2Transport(team, "_".join(agents), ("data", "control"),
+        return Ros2Transport(team.name, "_".join(agents or ["world"]), ("data", "control"),
                              domain_id=args.domain_id)
     except (ImportError, ValueError) as exc:
         raise UsageError(f"--transport ros2: {exc}") from None
