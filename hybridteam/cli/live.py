@@ -58,6 +58,10 @@ def register(sub) -> dict:
                         "plants only; default 1)")
     p.add_argument("--log-level", choices=LEVELS, default="info",
                    help="what is logged to stderr (default info)")
+    p.add_argument("--world-timeout", type=float, default=None, metavar="S",
+                   help="wall seconds of silence after which an agent's process stops (no "
+                        "reading from the world process for a pose) and the world process "
+                        "logs an agent's (no pose; it holds the last). Default 5")
     add_faults(p)
     p.add_argument("--ready", action="store_true",
                    help="(for 'launch') once the port is bound and the team compiled, print "
@@ -142,6 +146,9 @@ def cmd_live(args: argparse.Namespace) -> int:
         raise UsageError("give the agents this process runs (--agent NAME) or --world, "
                          "not both")
     check_udp_flags(args)
+    if args.world_timeout is not None and not 0 < args.world_timeout < math.inf:
+        raise UsageError(f"--world-timeout must be a finite number > 0, got "
+                         f"{args.world_timeout}")
     out = output_folder(args.output)
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
@@ -169,7 +176,9 @@ def cmd_live(args: argparse.Namespace) -> int:
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=drop_copies(args.drop_copy), plants=plants,
-                       plant_name=args.plant, world=args.world)
+                       plant_name=args.plant, world=args.world,
+                       **({"world_timeout": args.world_timeout}
+                          if args.world_timeout is not None else {}))
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:

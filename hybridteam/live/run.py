@@ -30,7 +30,7 @@ from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import READING, VERSION, Codec, WireError, declarations
-from hybridteam.live.world import WorldHost, WorldLink, WorldReadings, world_seam
+from hybridteam.live.world import SILENCE, WorldHost, WorldLink, WorldReadings, world_seam
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -48,7 +48,8 @@ class LiveRun:
                  delay: float = 0.0, seed: int = 0,
                  drop_copies: Mapping[str, Collection[int]] | None = None,
                  plants: Mapping[str, ExternalPlant] | None = None,
-                 plant_name: str = "sim", world: bool = False) -> None:
+                 plant_name: str = "sim", world: bool = False,
+                 world_timeout: float = SILENCE) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
@@ -60,7 +61,9 @@ class LiveRun:
         trace calls them; HostingError for one of an agent not here, or one the engine
         cannot drive. ``world``: this is the team's world process (``agents`` empty): it
         runs the world components on the poses the agents' processes send
-        (:mod:`.world`)."""
+        (:mod:`.world`). ``world_timeout``: wall seconds of silence after which an agent's
+        process stops its run (no reading for a pose sent), and the world process logs
+        and records an agent's (no pose)."""
         full = compile_team(team)
         if world and agents:
             raise HostingError("--world: the world process hosts no agent")
@@ -85,8 +88,12 @@ class LiveRun:
         seam: dict = {}
         self.link: WorldLink | None = None
         if team.world:
-            self.link = WorldLink(self.codec, transport, hosted, host=world)
+            self.link = WorldLink(self.codec, transport, hosted, host=world,
+                                  timeout=world_timeout)
             self.clock.world = self.link
+            if not world:  # (a silent world process stops the run as a signal does)
+                link = self.link
+                self.clock.stop = lambda: stop() or link.world_silent()
             seam["world"] = world_seam(WorldHost if world else WorldReadings, self.link)
             # (the world process records the world's series at its output samples: they
             # are instants there, the components run on the latest poses)
@@ -117,11 +124,13 @@ class LiveRun:
             self.await_world()
         self.clock.start()
         trace = self.sim.run()
+        world_host = self.link is not None and self.world_process
         record = {"agents": self.here, "transport": self.transport_name,
                   "plant": self.plant_name, "wire": VERSION,
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
-                  **({"world_sent": self.link.sent} if self.link is not None else {})}
+                  **({"world_sent": self.link.sent} if self.link is not None else {}),
+                  **({"world_silent": self.link.silence_record()} if world_host else {})}
         dropped = record["datagrams"]["dropped"]
         if dropped:
             log.warning("dropped %d datagram(s) not of this team: %s",
