@@ -1,5 +1,6 @@
 """``hybridteam live``: agents of a team as one process over real datagrams, on the wall
-clock (docs/live.md).
+clock (docs/live.md); ``launch``: every process of a team on this machine; ``merge``: the
+processes' traces as one team trace.
 
 The process writes its folder's ``trace.json`` and ``summary.json`` (last) when its run
 ends: by the end rule, at ``--duration``, or on SIGINT/SIGTERM, which stop the run at its
@@ -84,7 +85,14 @@ def register(sub) -> dict:
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
-    return {"live": cmd_live, "launch": cmd_launch}
+
+    me = sub.add_parser("merge", help="merge the traces of one live run's processes "
+                        "(their folders, or trace files) into the team's trace, as launch "
+                        "does")
+    me.add_argument("traces", nargs="+", metavar="FOLDER_OR_TRACE",
+                    help="a process's output folder (its trace.json) or trace file")
+    me.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    return {"live": cmd_live, "launch": cmd_launch, "merge": cmd_merge}
 
 
 LEVELS = ("debug", "info", "warning", "error")
@@ -314,7 +322,6 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
     from hybridteam.engine.compiler import compile_team
     from hybridteam.live.hosting import HostingError, hosted_team
-    from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies
     from hybridteam.trace import Trace
 
@@ -403,17 +410,70 @@ def cmd_launch(args: argparse.Namespace) -> int:
         raise UsageError("no agent's process left a trace")
     traces = [Trace.load(out / "agents" / n / "trace.json") for n in hosts
               if n not in missing]
+    outcome = write_merged(out, traces, ending, missing)
+    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
+        "(trace.json, summary.json, agents/NAME/)")
+    return EXIT_OK
+
+
+def write_merged(out, traces: list, ending: list[str], missing: dict[str, str]) -> dict:
+    """The team trace of a live run's process traces (:mod:`hybridteam.live.merge`),
+    written to ``out`` with its summary (:func:`write_folder`); ``missing``: the agents
+    whose process left no trace, and why. ``launch`` and ``merge`` both end so. The
+    traces are taken in the team's order (a process by its first agent, the world
+    process last), whichever order they come in. Returns the team's outcome."""
+    from hybridteam.live.merge import merge_traces
+
+    order = {a: k for k, a in enumerate(traces[0].agents)}
+    traces = sorted(traces, key=lambda tr: min(
+        (order.get(a, len(order)) for a in tr.meta["live"]["agents"]), default=len(order)))
     merged = merge_traces(traces, ending)
     merged.meta["live"]["missing"] = missing
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
                                              for n, why in missing.items())
     outcome = merged.outcomes[0]
-    summary = {"team": team.name, "outcome": outcome["outcome"], "t_end": outcome["t"],
-               "message": outcome["message"], "transitions": len(merged.transitions),
-               "messages": len(merged.messages), "live": merged.meta["live"]}
+    summary = {"team": merged.meta["team"], "outcome": outcome["outcome"],
+               "t_end": outcome["t"], "message": outcome["message"],
+               "transitions": len(merged.transitions), "messages": len(merged.messages),
+               "live": merged.meta["live"]}
     write_folder(out, merged, summary)
-    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
-        "(trace.json, summary.json, agents/NAME/)")
+    return outcome
+
+
+def cmd_merge(args: argparse.Namespace) -> int:
+    """The folders (or trace files) of one live run's processes, started by hand or on
+    several machines, merged as ``launch`` merges its own: one line, exit 2, and nothing
+    written for a trace that cannot be read, is not a live process's, or is not of the
+    same run as the others."""
+    from pathlib import Path
+
+    from hybridteam.cli.common import load_trace
+    from hybridteam.live.merge import MergeError, process_problem
+
+    out = output_folder(args.output)
+    traces, read = [], set()
+    for given in args.traces:
+        path = Path(given) / "trace.json" if Path(given).is_dir() else Path(given)
+        if path.resolve() == (out / "trace.json").resolve():
+            raise UsageError(f"{given}: is the output's own trace (-o {args.output}); "
+                             "merge into another folder")
+        if path.resolve() in read:
+            raise UsageError(f"{given}: given twice")
+        read.add(path.resolve())
+        trace = load_trace(str(path))
+        problem = process_problem(trace)
+        if problem is not None:
+            raise UsageError(f"{path}: {problem}")
+        traces.append(trace)
+    first = traces[0]
+    hosted = {a for tr in traces for a in tr.meta["live"]["agents"]}
+    missing = {a: "no trace given" for a in first.agents if a not in hosted}
+    try:
+        outcome = write_merged(out, traces, first.meta["live"].get("ending", []), missing)
+    except MergeError as exc:
+        raise UsageError(f"cannot merge: {exc}") from None
+    say(f"{first.meta['team']}: {outcome['outcome']} at t={outcome['t']:.6g}; merged "
+        f"{len(traces)} process trace(s); wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
 
 

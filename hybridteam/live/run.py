@@ -125,7 +125,9 @@ class LiveRun:
         self.clock.start()
         trace = self.sim.run()
         world_host = self.link is not None and self.world_process
-        record = {"agents": self.here, "transport": self.transport_name,
+        record = {"agents": self.here,
+                  "ending": [self.full.agents[a].name for a in self.full.ending],
+                  "transport": self.transport_name,
                   "plant": self.plant_name, "wire": VERSION,
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
