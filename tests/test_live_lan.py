@@ -106,7 +106,7 @@ def test_the_deploy_addresses_are_read_and_simulation_ignores_them(tmp_path):
 
 @pytest.mark.parametrize(("deploy", "line", "where", "message"), [
     ("  udp: {multicast: '10.0.0.1:47000'}\n", 26, "deploy.udp.multicast",
-     "multicast: '10.0.0.1' is not a multicast group"),
+     "'10.0.0.1' is not a multicast group (224.0.0.0 to 239.255.255.255"),
     ("  udp: {peers: ['127.0.0.1:1'], broadcast: '127.255.255.255:2'}\n", 26, "deploy.udp",
      "give exactly one of peers, multicast, broadcast (got peers, broadcast)"),
     ("  udp: {broadcast: '192.168.1.255:47000', interface: 0.0.0.0}\n", 26,
@@ -141,7 +141,7 @@ def test_a_bad_deploy_address_is_one_located_error(tmp_path, capsys, deploy, lin
      "--multicast: every process shares the group's port; --listen and --peer are for "
      "listing peers instead"),
     (["--multicast", "239.255.71.2"], "--multicast must be HOST:PORT"),
-    (["--multicast", "10.0.0.1:47000"], "multicast: '10.0.0.1' is not a multicast group"),
+    (["--multicast", "10.0.0.1:47000"], "UDP multicast: '10.0.0.1' is not a multicast group"),
     (["--broadcast", "10.1.2.255:47000"],
      "cannot listen on UDP broadcast 10.1.2.255:47000: Cannot assign requested address"),
     (["--interface", "0.0.0.0"], "--interface is where a multicast group is joined"),

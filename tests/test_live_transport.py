@@ -125,9 +125,9 @@ def test_a_group_port_held_without_sharing_is_one_line(transports):
 
 
 @pytest.mark.parametrize(("mode", "host", "interface", "message"), [
-    ("multicast", "10.1.2.3", LOCAL, "multicast: '10.1.2.3' is not a multicast group"),
-    ("multicast", "robots.local", LOCAL, "multicast: 'robots.local' is not an IPv4 address"),
-    ("broadcast", "::1", LOCAL, "broadcast: '::1' is not an IPv4 address"),
+    ("multicast", "10.1.2.3", LOCAL, "UDP multicast: '10.1.2.3' is not a multicast group"),
+    ("multicast", "robots.local", LOCAL, "UDP multicast: 'robots.local' is not an IPv4 address"),
+    ("broadcast", "::1", LOCAL, "UDP broadcast: '::1' is not an IPv4 address"),
     ("multicast", GROUP, "eth9", f"cannot join UDP multicast {GROUP}:0 on interface eth9: "
                                  "not an IPv4 address"),
 ])

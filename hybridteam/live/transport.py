@@ -83,7 +83,7 @@ class UdpTransport:
         host, port = listen
         problem = group_problem(mode, host) if mode != "unicast" else None
         if problem is not None:
-            raise TransportError(problem)
+            raise TransportError(f"UDP {mode}: {problem}")
         self.sock = sockets.socket(sockets.AF_INET, sockets.SOCK_DGRAM)
         try:
             if mode != "unicast":  # (several processes of one machine share the port)

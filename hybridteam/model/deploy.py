@@ -68,10 +68,10 @@ def group_problem(mode: str, host: str) -> str | None:
     try:
         address = ipaddress.IPv4Address(host)
     except ValueError:
-        return f"{mode}: '{host}' is not an IPv4 address"
+        return f"'{host}' is not an IPv4 address"
     if mode == "multicast" and not address.is_multicast:
-        return (f"multicast: '{host}' is not a multicast group (224.0.0.0 to "
-                "239.255.255.255; 239.x.x.x for a LAN's own)")
+        return (f"'{host}' is not a multicast group (224.0.0.0 to 239.255.255.255; "
+                "239.x.x.x for a LAN's own)")
     return None
 
 
