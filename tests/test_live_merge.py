@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hybridteam.live.merge import MergeError, merge_traces
+from hybridteam.live.merge import MergeError, clock_error, merge_traces
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
 
 AGENTS = [{"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []}
@@ -73,6 +73,17 @@ def test_messages_bound_how_far_apart_the_clocks_are():
     a.messages.columns["status"][:] = "lost"  # and a received nothing from b
     assert merge_traces([a, b]).meta["live"]["clock_bounds"] == [
         {"from": ["a"], "to": ["b"], "offset_s": [None, 0.5]}]
+
+
+def test_the_merge_s_clock_error_is_the_widest_bound_both_ways():
+    """Offsets within [-0.125, 0.125] and [0.2, 0.3] (0 is not even in it: the merge's
+    one clock is off by 0.2 to 0.3 s there): at most 0.3 s; a pair bounded one way only
+    bounds nothing."""
+    bounds = [{"offset_s": [-0.125, 0.125]}, {"offset_s": [None, 0.5]},
+              {"offset_s": [0.2, 0.3]}]
+    assert clock_error(bounds) == 0.3
+    assert clock_error(bounds[1:2]) is None
+    assert clock_error([]) is None
 
 
 def test_the_first_outcome_of_the_end_rule_hosts_is_the_team_s():
@@ -151,7 +162,12 @@ def test_merging_a_launch_s_folders_gives_the_launch_s_own_trace(launched, tmp_p
     done = cli("merge", str(agents / "granter"), str(agents / "requester" / "trace.json"),
                "-o", str(tmp_path / "m"))
     assert done.returncode == 0, done.stderr.decode()
-    assert done.stderr.decode().startswith("live handshake: ok at t=")
+    line = done.stderr.decode().strip()
+    assert line.startswith("live handshake: ok at t=") and "\n" not in line
+    bounds = json.loads((tmp_path / "m" / "trace.json").read_text())["meta"]["live"][
+        "clock_bounds"]
+    lo, hi = bounds[0]["offset_s"]  # (request and grant crossed both ways)
+    assert f"within {max(abs(lo), abs(hi)):.3g} s (meta.live.clock_bounds)" in line
     for name in ("trace.json", "summary.json"):
         assert json.loads((tmp_path / "m" / name).read_text()) == \
             json.loads((launched / name).read_text()), name

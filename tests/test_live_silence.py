@@ -19,6 +19,7 @@ from hybridteam.live.run import LiveRun
 from hybridteam.live.transport import UdpTransport
 from hybridteam.live.wire import POSE, READING, WORLD_INDEX, Codec
 from hybridteam.trace import Trace
+from tests.test_live import free_port
 from tests.test_live_world import EXPERIMENT2, LABMATE, TIMEOUT, XR4000, cteam, host, team
 
 __all__ = ["cteam", "team"]  # (the fixtures, imported to be used here)
@@ -33,9 +34,7 @@ def test_an_agent_whose_world_process_falls_silent_stops_with_its_trace(tmp_path
     (2.5 run seconds at time scale 5) after its first pose, sent at run time 0 or later;
     without the rule it would run its whole --duration (200 run seconds)."""
     world = UdpTransport(("127.0.0.1", 0))
-    agent = UdpTransport(("127.0.0.1", 0))
-    port = agent.address[1]
-    agent.close()  # (the port the process will listen on)
+    port = free_port()  # (the process's)
     out = tmp_path / "labmate"
     proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", str(EXPERIMENT2),
                              "--agent", "labmate", "--listen", f"127.0.0.1:{port}", "--peer",

@@ -410,18 +410,18 @@ def cmd_launch(args: argparse.Namespace) -> int:
         raise UsageError("no agent's process left a trace")
     traces = [Trace.load(out / "agents" / n / "trace.json") for n in hosts
               if n not in missing]
-    outcome = write_merged(out, traces, ending, missing)
+    outcome = write_merged(out, traces, ending, missing).outcomes[0]
     say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
         "(trace.json, summary.json, agents/NAME/)")
     return EXIT_OK
 
 
-def write_merged(out, traces: list, ending: list[str], missing: dict[str, str]) -> dict:
+def write_merged(out, traces: list, ending: list[str], missing: dict[str, str]):
     """The team trace of a live run's process traces (:mod:`hybridteam.live.merge`),
     written to ``out`` with its summary (:func:`write_folder`); ``missing``: the agents
     whose process left no trace, and why. ``launch`` and ``merge`` both end so. The
     traces are taken in the team's order (a process by its first agent, the world
-    process last), whichever order they come in. Returns the team's outcome."""
+    process last), whichever order they come in. Returns the team's trace."""
     from hybridteam.live.merge import merge_traces
 
     order = {a: k for k, a in enumerate(traces[0].agents)}
@@ -437,7 +437,7 @@ def write_merged(out, traces: list, ending: list[str], missing: dict[str, str]) 
                "transitions": len(merged.transitions), "messages": len(merged.messages),
                "live": merged.meta["live"]}
     write_folder(out, merged, summary)
-    return outcome
+    return merged
 
 
 def cmd_merge(args: argparse.Namespace) -> int:
@@ -448,7 +448,7 @@ def cmd_merge(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hybridteam.cli.common import load_trace
-    from hybridteam.live.merge import MergeError, process_problem
+    from hybridteam.live.merge import MergeError, clock_error, process_problem
 
     out = output_folder(args.output)
     traces, read = [], set()
@@ -469,11 +469,15 @@ def cmd_merge(args: argparse.Namespace) -> int:
     hosted = {a for tr in traces for a in tr.meta["live"]["agents"]}
     missing = {a: "no trace given" for a in first.agents if a not in hosted}
     try:
-        outcome = write_merged(out, traces, first.meta["live"].get("ending", []), missing)
+        merged = write_merged(out, traces, first.meta["live"].get("ending", []), missing)
     except MergeError as exc:
         raise UsageError(f"cannot merge: {exc}") from None
+    outcome, error = merged.outcomes[0], clock_error(merged.meta["live"]["clock_bounds"])
     say(f"{first.meta['team']}: {outcome['outcome']} at t={outcome['t']:.6g}; merged "
-        f"{len(traces)} process trace(s); wrote {out}/ (trace.json, summary.json)")
+        f"{len(traces)} process trace(s) on one clock, "
+        + ("no message bounds their clocks' offsets" if error is None else
+           f"their clocks' offsets bounded by their messages within {error:.3g} s")
+        + f" (meta.live.clock_bounds); wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
 
 

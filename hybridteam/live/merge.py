@@ -135,6 +135,16 @@ def clock_bounds(traces: Sequence[Trace]) -> list[dict]:
     return out
 
 
+def clock_error(bounds: Sequence[dict]) -> float | None:
+    """The most two processes' merged times can be off, as :func:`clock_bounds` bounds
+    their clocks: the merge takes them for one clock (offset 0), and a pair's offset lies
+    in its ``offset_s``, so it is off by at most the larger end's size. The largest over
+    the pairs bounded both ways; None if no pair is."""
+    ends = [max(abs(lo), abs(hi)) for lo, hi in (b["offset_s"] for b in bounds)
+            if lo is not None and hi is not None]
+    return max(ends) if ends else None
+
+
 def _shift(table: Table, offset: float, columns: tuple[str, ...]) -> Table:
     data = dict(table.columns)
     for c in columns:
