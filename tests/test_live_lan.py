@@ -7,12 +7,14 @@ Every process a test starts is stopped by it (test_live's ``processes`` fixture)
 
 from __future__ import annotations
 
+import argparse
 import socket
 
 import pytest
 
 import hybridteam as ht
 from hybridteam.cli import main
+from hybridteam.cli.udp import UdpSettings, add_udp_options, check_udp_flags, udp_settings
 from hybridteam.live.transport import TransportError, UdpTransport
 from hybridteam.model.deploy import UdpDeploy
 from hybridteam.trace import Trace
@@ -179,3 +181,43 @@ def test_agents_of_one_process_listening_apart_in_the_file_is_one_line(tmp_path,
     assert err.decode().strip() == (
         "hybridteam: error: the agents here listen on different addresses in the team "
         "file's deploy: (requester: 127.0.0.1:1, granter: 127.0.0.1:2); give --listen")
+
+
+def settings(team, agents: list[str], *flags: str) -> UdpSettings:
+    """What ``hybridteam live`` would open for ``flags`` (its own parser)."""
+    parser = argparse.ArgumentParser()
+    add_udp_options(parser)
+    args = parser.parse_args(list(flags))
+    check_udp_flags(args)
+    return udp_settings(args, team, agents)
+
+
+def test_flags_replace_what_they_name_in_the_file(tmp_path):
+    peers = "  udp: {peers: ['10.0.0.1:47000', '10.0.0.2:47000']}\n"
+    listen = "  requester: {listen: '10.0.0.1:47000'}\n  granter: {listen: '10.0.0.2:47000'}\n"
+    team = ht.load(with_deploy(tmp_path, peers + listen))
+    file_peers = (("10.0.0.1", 47000), ("10.0.0.2", 47000))
+    assert settings(team, ["granter"]) == UdpSettings("unicast", ("10.0.0.2", 47000),
+                                                      file_peers)
+    # --listen replaces the agent's address only; --peer the file's peers only
+    assert settings(team, ["granter"], "--listen", "127.0.0.1:5") == \
+        UdpSettings("unicast", ("127.0.0.1", 5), file_peers)
+    assert settings(team, ["granter"], "--peer", "127.0.0.1:6") == \
+        UdpSettings("unicast", ("10.0.0.2", 47000), (("127.0.0.1", 6),))
+    # a group flag replaces the file's udp as a whole
+    assert settings(team, ["granter"], "--broadcast", "127.255.255.255:7") == \
+        UdpSettings("broadcast", ("127.255.255.255", 7))
+    # the world process (no agent) has no listen in the file: the default
+    assert settings(team, []) == UdpSettings("unicast", ("127.0.0.1", 47000), file_peers)
+    group = ht.load(with_deploy(tmp_path, "  udp: {multicast: '239.1.1.1:9', "
+                                          "interface: 0.0.0.0}\n" + listen))
+    assert settings(group, ["granter"]) == \
+        UdpSettings("multicast", ("239.1.1.1", 9), interface="0.0.0.0")
+    assert settings(group, ["granter"], "--interface", "127.0.0.1") == \
+        UdpSettings("multicast", ("239.1.1.1", 9), interface="127.0.0.1")
+    # --listen leaves the file's group: this process is on its own port, no peer
+    assert settings(group, ["granter"], "--listen", "127.0.0.1:5") == \
+        UdpSettings("unicast", ("127.0.0.1", 5))
+    # nothing anywhere: loopback's default port, no peer
+    assert settings(ht.load(TEAM), ["granter"]) == UdpSettings("unicast",
+                                                               ("127.0.0.1", 47000))
