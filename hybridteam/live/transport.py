@@ -163,4 +163,5 @@ def _start_error(exc: OSError, mode: str, host: str, port: int,
     if mode == "multicast" and exc.errno in (errno.EADDRNOTAVAIL, errno.ENODEV, errno.EINVAL):
         return TransportError(f"cannot join {where} on interface {interface}: "
                               f"{exc.strerror or exc}")
+    where = f"UDP {mode} {host}:{port}" if mode != "unicast" else f"UDP {host}:{port}"
     return TransportError(f"cannot listen on {where}: {exc.strerror or exc}")
