@@ -3,10 +3,16 @@ whose answers are known: times moved to the first process's clock, samples read 
 
 from __future__ import annotations
 
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from hybridteam.live.merge import MergeError, merge_traces
+from hybridteam.live.merge import MergeError, clock_error, merge_traces
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
 
 AGENTS = [{"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []}
@@ -69,6 +75,17 @@ def test_messages_bound_how_far_apart_the_clocks_are():
         {"from": ["a"], "to": ["b"], "offset_s": [None, 0.5]}]
 
 
+def test_the_merge_s_clock_error_is_the_widest_bound_both_ways():
+    """Offsets within [-0.125, 0.125] and [0.2, 0.3] (0 is not even in it: the merge's
+    one clock is off by 0.2 to 0.3 s there): at most 0.3 s; a pair bounded one way only
+    bounds nothing."""
+    bounds = [{"offset_s": [-0.125, 0.125]}, {"offset_s": [None, 0.5]},
+              {"offset_s": [0.2, 0.3]}]
+    assert clock_error(bounds) == 0.3
+    assert clock_error(bounds[1:2]) is None
+    assert clock_error([]) is None
+
+
 def test_the_first_outcome_of_the_end_rule_hosts_is_the_team_s():
     a = process("a", 0.0, [], [0, 0, 0], outcome="stopped")
     b = process("b", 0.0, [], [0, 0, 0], outcome="delivered")
@@ -118,3 +135,95 @@ def test_a_run_whose_end_rule_processes_left_no_trace_merges_with_the_world_proc
     world = world_process(100.0, [3.0, 4.0, 5.0], outcome="link_broken")
     merged = merge_traces([b, world], ending=["a"])
     assert merged.outcomes[0]["outcome"] == "link_broken"
+
+
+# ---------------------------------------------------------------- hybridteam merge
+HANDSHAKE = Path(__file__).parent / "fixtures" / "live" / "handshake.yaml"
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hybridteam.cli", *args],
+                          capture_output=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def launched(tmp_path_factory) -> Path:
+    """A launch of the handshake team: its merged trace and each process's folder."""
+    out = tmp_path_factory.mktemp("launch") / "out"
+    done = cli("launch", str(HANDSHAKE), "--time-scale", "4", "-o", str(out))
+    assert done.returncode == 0, done.stderr.decode()
+    return out
+
+
+def test_merging_a_launch_s_folders_gives_the_launch_s_own_trace(launched, tmp_path):
+    """The processes' folders, given in another order than the team's: the merged trace
+    and summary are the launch's, key for key (launch merges through the same code)."""
+    agents = launched / "agents"
+    done = cli("merge", str(agents / "granter"), str(agents / "requester" / "trace.json"),
+               "-o", str(tmp_path / "m"))
+    assert done.returncode == 0, done.stderr.decode()
+    line = done.stderr.decode().strip()
+    assert line.startswith("live handshake: ok at t=") and "\n" not in line
+    bounds = json.loads((tmp_path / "m" / "trace.json").read_text())["meta"]["live"][
+        "clock_bounds"]
+    lo, hi = bounds[0]["offset_s"]  # (request and grant crossed both ways)
+    assert f"within {max(abs(lo), abs(hi)):.3g} s (meta.live.clock_bounds)" in line
+    for name in ("trace.json", "summary.json"):
+        assert json.loads((tmp_path / "m" / name).read_text()) == \
+            json.loads((launched / name).read_text()), name
+    # the end rule came from the processes' records: each process knows the team's
+    assert Trace.load(agents / "granter" / "trace.json").meta["live"]["ending"] == \
+        ["requester", "granter"]
+
+
+def test_a_merge_missing_a_process_says_which(launched, tmp_path):
+    done = cli("merge", str(launched / "agents" / "requester"), "-o", str(tmp_path / "m"))
+    assert done.returncode == 0, done.stderr.decode()
+    merged = Trace.load(tmp_path / "m" / "trace.json")
+    assert merged.meta["live"]["missing"] == {"granter": "no trace given"}
+    assert merged.outcomes[0]["message"].endswith("; granter: no trace (no trace given)")
+    assert set(merged.transitions["agent"].tolist()) == {"requester"}
+
+
+def edited(launched: Path, tmp_path: Path, change) -> str:
+    """The requester's trace with ``change`` applied to its JSON, as a file."""
+    data = json.loads((launched / "agents" / "requester" / "trace.json").read_text())
+    change(data)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda d, t: [str(t / "nowhere")], "nowhere: no such file"),
+    (lambda d, t: [str(t)], "trace.json: no such file"),
+    (lambda d, t: [str(d / "agents" / "granter"), str(d / "agents" / "granter")],
+     "granter: given twice"),
+    (lambda d, t: [edited(d, t, lambda j: j["meta"].pop("live"))],
+     "edited.json: not a live process's trace (no meta.live)"),
+    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(wall_start="noon"))],
+     "edited.json: meta.live.wall_start is not a finite number"),
+    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(time_scale=0))],
+     "edited.json: meta.live.time_scale is not a finite number > 0"),
+    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(agents=["intruder"]))],
+     "edited.json: meta.live.agents is not a list of the team's agents"),
+    (lambda d, t: [str(d / "agents" / "granter"),
+                   edited(d, t, lambda j: j["meta"]["live"].update(digest="0" * 16))],
+     "cannot merge: the traces are not the processes of one live team"),
+    (lambda d, t: [str(d / "agents" / "granter"),
+                   edited(d, t, lambda j: j["meta"]["live"].update(agents=["granter"]))],
+     "cannot merge: an agent is hosted by two of the processes"),
+    (lambda d, t: [str(d / "agents" / "granter"), str(t / "out")],
+     "is the output's own trace (-o"),
+])
+def test_bad_merge_input_is_one_line_and_nothing_written(launched, tmp_path, make, message):
+    (tmp_path / "out").mkdir()
+    if message.startswith("is the output"):
+        shutil.copy(launched / "agents" / "requester" / "trace.json", tmp_path / "out")
+    before = sorted(p.name for p in (tmp_path / "out").iterdir())
+    done = cli("merge", *make(launched, tmp_path), "-o", str(tmp_path / "out"))
+    assert done.returncode == 2
+    lines = done.stderr.decode().strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert lines[0].startswith("hybridteam: error: ")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == before

@@ -77,3 +77,61 @@ def test_close_is_idempotent(transports):
     t.close()
     t.close()
     assert t.wait(0.0) is False
+
+
+# ---------------------------------------------------------------- groups (no peer lists)
+GROUP = "239.255.71.1"  # (administratively scoped: a LAN's own; joined on loopback here)
+BROADCAST = "127.255.255.255"
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((LOCAL, 0))
+        return s.getsockname()[1]
+
+
+def group_or_skip(transports, mode: str, address: tuple[str, int]) -> UdpTransport:
+    """A transport in ``mode``, or a skip saying the kernel's reason where it refuses."""
+    try:
+        return transports(address, mode=mode)
+    except TransportError as exc:
+        pytest.skip(f"the kernel refuses UDP {mode} on loopback here: {exc}")
+
+
+@pytest.mark.parametrize(("mode", "host"), [("multicast", GROUP), ("broadcast", BROADCAST)])
+def test_a_group_reaches_every_member_without_a_peer_list(transports, mode, host):
+    """Two transports share one port of the group (SO_REUSEPORT), neither lists the other:
+    each datagram reaches both, its sender's looped back (as a unicast sender's own copy
+    comes back: the receiver skips its own agents' copies)."""
+    port = free_port()
+    a = group_or_skip(transports, mode, (host, port))
+    b = group_or_skip(transports, mode, (host, port))
+    assert a.address == b.address == (host, port) and a.peers == [(host, port)]
+    a.send(b"from a", "data")
+    b.send(b"from b", "control")
+    assert sorted(drain(a, 2)) == [b"from a", b"from b"]
+    assert sorted(drain(b, 2)) == [b"from a", b"from b"]
+    assert a.send_errors == b.send_errors == 0
+
+
+def test_a_group_port_held_without_sharing_is_one_line(transports):
+    port = free_port()
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as holder:
+        holder.bind(("", port))  # (every address, not sharing: as a foreign program may)
+        with pytest.raises(TransportError) as err:
+            transports((GROUP, port), mode="multicast")
+    assert str(err.value) == (f"UDP multicast {GROUP}:{port} is taken (another process "
+                              "listens there without sharing the port)")
+
+
+@pytest.mark.parametrize(("mode", "host", "interface", "message"), [
+    ("multicast", "10.1.2.3", LOCAL, "UDP multicast: '10.1.2.3' is not a multicast group"),
+    ("multicast", "robots.local", LOCAL, "UDP multicast: 'robots.local' is not an IPv4 address"),
+    ("broadcast", "::1", LOCAL, "UDP broadcast: '::1' is not an IPv4 address"),
+    ("multicast", GROUP, "eth9", f"cannot join UDP multicast {GROUP}:0 on interface eth9: "
+                                 "not an IPv4 address"),
+])
+def test_a_bad_group_or_interface_is_one_line(transports, mode, host, interface, message):
+    with pytest.raises(TransportError) as err:
+        transports((host, 0), mode=mode, interface=interface)
+    assert str(err.value).startswith(message) and "\n" not in str(err.value)

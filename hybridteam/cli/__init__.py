@@ -3,7 +3,7 @@
 Each command group registers its own parsers and handlers — :mod:`.core` (validate, run,
 schema), :mod:`.views` (diagram, timeline, plot, animate, sequence), :mod:`.sweep` (sweep,
 report), :mod:`.falsify` (falsify), :mod:`.verify` (verify), :mod:`.convert`
-(convert: SCXML in and out), :mod:`.live` (live, launch), :mod:`.logs` (export, import,
+(convert: SCXML in and out), :mod:`.live` (live, launch, merge), :mod:`.logs` (export, import,
 check: rosbag2 logs) — and shares exit codes, errors and run folders through
 :mod:`.common`. Groups never import each other.
 """

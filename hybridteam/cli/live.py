@@ -1,5 +1,6 @@
 """``hybridteam live``: agents of a team as one process over real datagrams, on the wall
-clock (docs/live.md).
+clock (docs/live.md); ``launch``: every process of a team on this machine; ``merge``: the
+processes' traces as one team trace.
 
 The process writes its folder's ``trace.json`` and ``summary.json`` (last) when its run
 ends: by the end rule, at ``--duration``, or on SIGINT/SIGTERM, which stop the run at its
@@ -25,6 +26,7 @@ from hybridteam.cli.common import (
     output_folder,
     say,
 )
+from hybridteam.cli.udp import add_udp_options, check_udp_flags, udp_settings
 
 
 def register(sub) -> dict:
@@ -49,10 +51,7 @@ def register(sub) -> dict:
     p.add_argument("--ros-peers", type=int, default=0, metavar="N",
                    help="(ros2) before starting, wait until N other processes' transports "
                         "are matched (ROS discovery is asynchronous; 'launch' sets it)")
-    p.add_argument("--listen", default="127.0.0.1:47000", metavar="HOST:PORT",
-                   help="this process's UDP address (default 127.0.0.1:47000)")
-    p.add_argument("--peer", action="append", default=[], metavar="HOST:PORT",
-                   help="another process's UDP address (repeat for several)")
+    add_udp_options(p)
     p.add_argument("--duration", type=float, default=None,
                    help="run seconds (default: the team's simulation.duration)")
     p.add_argument("--time-scale", type=float, default=1.0, metavar="K",
@@ -60,6 +59,10 @@ def register(sub) -> dict:
                         "plants only; default 1)")
     p.add_argument("--log-level", choices=LEVELS, default="info",
                    help="what is logged to stderr (default info)")
+    p.add_argument("--world-timeout", type=float, default=None, metavar="S",
+                   help="wall seconds of silence after which an agent's process stops (no "
+                        "reading from the world process for a pose) and the world process "
+                        "logs an agent's (no pose; it holds the last). Default 5")
     add_faults(p)
     p.add_argument("--wire-team", default=None, metavar="TEAM.yaml",
                    help="test aid: speak this team file's wire identity while running "
@@ -90,7 +93,14 @@ def register(sub) -> dict:
                     help="test aid: agent NAME's process runs FILE.yaml (a drifted copy of "
                          "the team) while speaking the team's wire (live --wire-team); "
                          "repeat for several")
-    return {"live": cmd_live, "launch": cmd_launch}
+
+    me = sub.add_parser("merge", help="merge the traces of one live run's processes "
+                        "(their folders, or trace files) into the team's trace, as launch "
+                        "does")
+    me.add_argument("traces", nargs="+", metavar="FOLDER_OR_TRACE",
+                    help="a process's output folder (its trace.json) or trace file")
+    me.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    return {"live": cmd_live, "launch": cmd_launch, "merge": cmd_merge}
 
 
 def agent_teams(items: list[str], names: list[str]) -> dict[str, str]:
@@ -150,15 +160,6 @@ def drop_copies(items: list[str]) -> dict[str, set[int]]:
     return out
 
 
-def address(text: str, flag: str) -> tuple[str, int]:
-    """``HOST:PORT`` as a socket address, or UsageError naming the flag."""
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise UsageError(f"{flag} must be HOST:PORT with a port from 0 to 65535, got "
-                         f"'{text}'")
-    return host, int(port)
-
-
 def check_clock(args: argparse.Namespace) -> None:
     """UsageError for a ``--duration`` or ``--time-scale`` that is no clock setting."""
     if args.duration is not None and not 0 <= args.duration < math.inf:
@@ -181,8 +182,10 @@ def cmd_live(args: argparse.Namespace) -> int:
     if bool(args.agent) == args.world:
         raise UsageError("give the agents this process runs (--agent NAME) or --world, "
                          "not both")
-    listen = address(args.listen, "--listen")
-    peers = [address(p, "--peer") for p in args.peer]
+    check_udp_flags(args)
+    if args.world_timeout is not None and not 0 < args.world_timeout < math.inf:
+        raise UsageError(f"--world-timeout must be a finite number > 0, got "
+                         f"{args.world_timeout}")
     out = output_folder(args.output)
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s: %(message)s")
@@ -208,7 +211,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     def on_signal(signum: int, _frame) -> None:
         stopped.append(signal.Signals(signum).name)
 
-    transport = open_transport(args, team.name, agents or ["world"], listen, peers)
+    transport = open_transport(args, team, agents)
     try:
         plants = open_plants(args, team, agents, on_silent=stopped.append)
     except BaseException:
@@ -222,7 +225,9 @@ def cmd_live(args: argparse.Namespace) -> int:
                        stop=lambda: stopped[0] if stopped else None, drop=args.drop,
                        delay=args.delay, seed=args.seed,
                        drop_copies=copies, plants=plants,
-                       plant_name=args.plant, world=args.world, wire_team=wire_team)
+                       plant_name=args.plant, world=args.world, wire_team=wire_team,
+                       **({"world_timeout": args.world_timeout}
+                          if args.world_timeout is not None else {}))
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
         if args.ready:
@@ -265,21 +270,23 @@ def restore_signals(previous: dict) -> None:
         signal.signal(s, handler)
 
 
-def open_transport(args: argparse.Namespace, team: str, agents: list[str],
-                   listen: tuple[str, int], peers: list[tuple[str, int]]):
+
+def open_transport(args: argparse.Namespace, team, agents: list[str]):
     """The transport ``--transport`` names, or a one-line error: a taken port, a ROS 2
-    transport without rclpy (the [ros] extra), a bad domain."""
+    transport without rclpy (the [ros] extra), a bad domain. UDP's addresses are the
+    flags' over the team file's (:mod:`.udp`)."""
     from hybridteam.live.transport import TransportError, UdpTransport
 
     if args.transport == "udp":
+        udp = udp_settings(args, team, agents)
         try:
-            return UdpTransport(listen, peers)
+            return UdpTransport(udp.listen, udp.peers, mode=udp.mode, interface=udp.interface)
         except TransportError as exc:
             raise UsageError(str(exc)) from None
     try:
         from hybridteam.live.ros2 import Ros2Transport
 
-        return Ros2Transport(team, "_".join(agents), ("data", "control"),
+        return Ros2Transport(team.name, "_".join(agents or ["world"]), ("data", "control"),
                              domain_id=args.domain_id)
     except (ImportError, ValueError) as exc:
         raise UsageError(f"--transport ros2: {exc}") from None
@@ -366,7 +373,6 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
     from hybridteam.engine.compiler import compile_team
     from hybridteam.live.hosting import HostingError, hosted_team
-    from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies
     from hybridteam.live.wire import wire_mismatch
     from hybridteam.trace import Trace
@@ -475,22 +481,81 @@ def cmd_launch(args: argparse.Namespace) -> int:
         raise UsageError("no agent's process left a trace")
     traces = [Trace.load(out / "agents" / n / "trace.json") for n in hosts
               if n not in missing]
+    losses = {} if not args.losses_from else {"losses_from": {
+        "counterexample": args.losses_from,
+        "drops": {a: {t: sorted(ns) for t, ns in sorted(d.items())}
+                  for a, d in scripted.items() if d}}}
+    outcome = write_merged(out, traces, ending, missing, losses).outcomes[0]
+    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
+        "(trace.json, summary.json, agents/NAME/)")
+    return EXIT_OK
+
+
+def write_merged(out, traces: list, ending: list[str], missing: dict[str, str],
+                 live: dict | None = None):
+    """The team trace of a live run's process traces (:mod:`hybridteam.live.merge`),
+    written to ``out`` with its summary (:func:`write_folder`); ``missing``: the agents
+    whose process left no trace, and why; ``live``: more of ``meta.live`` (launch's
+    ``losses_from``). ``launch`` and ``merge`` both end so. The
+    traces are taken in the team's order (a process by its first agent, the world
+    process last), whichever order they come in. Returns the team's trace."""
+    from hybridteam.live.merge import merge_traces
+
+    order = {a: k for k, a in enumerate(traces[0].agents)}
+    traces = sorted(traces, key=lambda tr: min(
+        (order.get(a, len(order)) for a in tr.meta["live"]["agents"]), default=len(order)))
     merged = merge_traces(traces, ending)
     merged.meta["live"]["missing"] = missing
-    if args.losses_from:
-        merged.meta["live"]["losses_from"] = {
-            "counterexample": args.losses_from,
-            "drops": {a: {t: sorted(ns) for t, ns in sorted(d.items())}
-                      for a, d in scripted.items() if d}}
+    merged.meta["live"].update(live or {})
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
                                              for n, why in missing.items())
     outcome = merged.outcomes[0]
-    summary = {"team": team.name, "outcome": outcome["outcome"], "t_end": outcome["t"],
-               "message": outcome["message"], "transitions": len(merged.transitions),
-               "messages": len(merged.messages), "live": merged.meta["live"]}
+    summary = {"team": merged.meta["team"], "outcome": outcome["outcome"],
+               "t_end": outcome["t"], "message": outcome["message"],
+               "transitions": len(merged.transitions), "messages": len(merged.messages),
+               "live": merged.meta["live"]}
     write_folder(out, merged, summary)
-    say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
-        "(trace.json, summary.json, agents/NAME/)")
+    return merged
+
+
+def cmd_merge(args: argparse.Namespace) -> int:
+    """The folders (or trace files) of one live run's processes, started by hand or on
+    several machines, merged as ``launch`` merges its own: one line, exit 2, and nothing
+    written for a trace that cannot be read, is not a live process's, or is not of the
+    same run as the others."""
+    from pathlib import Path
+
+    from hybridteam.cli.common import load_trace
+    from hybridteam.live.merge import MergeError, clock_error, process_problem
+
+    out = output_folder(args.output)
+    traces, read = [], set()
+    for given in args.traces:
+        path = Path(given) / "trace.json" if Path(given).is_dir() else Path(given)
+        if path.resolve() == (out / "trace.json").resolve():
+            raise UsageError(f"{given}: is the output's own trace (-o {args.output}); "
+                             "merge into another folder")
+        if path.resolve() in read:
+            raise UsageError(f"{given}: given twice")
+        read.add(path.resolve())
+        trace = load_trace(str(path))
+        problem = process_problem(trace)
+        if problem is not None:
+            raise UsageError(f"{path}: {problem}")
+        traces.append(trace)
+    first = traces[0]
+    hosted = {a for tr in traces for a in tr.meta["live"]["agents"]}
+    missing = {a: "no trace given" for a in first.agents if a not in hosted}
+    try:
+        merged = write_merged(out, traces, first.meta["live"].get("ending", []), missing)
+    except MergeError as exc:
+        raise UsageError(f"cannot merge: {exc}") from None
+    outcome, error = merged.outcomes[0], clock_error(merged.meta["live"]["clock_bounds"])
+    say(f"{first.meta['team']}: {outcome['outcome']} at t={outcome['t']:.6g}; merged "
+        f"{len(traces)} process trace(s) on one clock, "
+        + ("no message bounds their clocks' offsets" if error is None else
+           f"their clocks' offsets bounded by their messages within {error:.3g} s")
+        + f" (meta.live.clock_bounds); wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
 
 

@@ -61,7 +61,7 @@ from hybridteam.model import (
     WorldSpec,
     Zeno,
 )
-from hybridteam.model.deploy import PlantDeploy
+from hybridteam.model.deploy import UDP, PlantDeploy, UdpDeploy, agent_deploy
 from hybridteam.requirements.check import compile_requirements
 
 if TYPE_CHECKING:
@@ -213,6 +213,7 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     )
     world = tuple(WorldSpec(w.use, dict(w.with_), ("world", k))
                   for k, w in enumerate(doc.world))
+    robots, udp = _deploy(doc, comp)
     team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
                 source=Path(filename).name, network=network,
                 messages=_messages(doc, comp), world=world,
@@ -220,25 +221,36 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
                 end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
                             doc.end.when if doc.end else "all", ("end",)),
                 requirements=_requirements(doc, filename, comp),
-                priority_rule=doc.semantics.priority, deploy=_deploy(doc, comp))
+                priority_rule=doc.semantics.priority, deploy=robots, udp=udp)
     return team, comp
 
 
-def _deploy(doc: TeamFile, comp: Composer) -> dict[str, PlantDeploy]:
-    """The ``deploy:`` section's settings per agent; a setting that is not one, or an
-    entry for an agent the team does not have, is a located error."""
-    out = {}
+def _deploy(doc: TeamFile, comp: Composer) -> tuple[dict[str, PlantDeploy], UdpDeploy]:
+    """The ``deploy:`` section: the agents' robots, and the team's UDP addressing (its
+    ``udp`` key and the agents' ``listen``); a setting that is not one, or an entry for
+    an agent the team does not have, is a located error."""
+    robots, listen, udp = {}, {}, UdpDeploy()
     for name, config in doc.deploy.items():
         where = ("deploy", name)
-        if name not in doc.agents:
-            comp.errors.append(ModelError(where, f"'{name}' is not an agent of the team",
-                                          hint=did_you_mean(name, doc.agents), at_key=True))
-            continue
         try:
-            out[name] = PlantDeploy.from_mapping(config, where)
+            if name == UDP:
+                udp = UdpDeploy.from_mapping(config, where)
+                continue
+            if name not in doc.agents:
+                comp.errors.append(ModelError(
+                    where, f"'{name}' is not an agent of the team (nor '{UDP}', the team's "
+                    "UDP addressing)", hint=did_you_mean(name, [*doc.agents, UDP]),
+                    at_key=True))
+                continue
+            robot, address = agent_deploy(config, where)
         except ModelError as exc:
             comp.errors.append(exc)
-    return out
+            continue
+        if robot is not None:
+            robots[name] = robot
+        if address is not None:
+            listen[name] = address
+    return robots, dataclasses.replace(udp, listen=listen)
 
 
 def _requirements(doc: TeamFile, filename: str, comp: Composer) -> tuple[Requirement, ...]:

@@ -479,9 +479,11 @@ class TeamFile(Strict):
         default_factory=dict, description="named temporal-logic formulas checked on every "
         "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
     deploy: dict[str, Any] = Field(
-        default_factory=dict, description="per agent, where its robot is over ROS 2 "
-        "(hybridteam live --plant ros2): {cmd_vel: /r1/cmd_vel, odom: /r1/odom, scan, "
-        "frame, timeout}; simulation ignores it")
+        default_factory=dict, description="where the team runs live: per agent, its "
+        "process's UDP address and its robot over ROS 2 (hybridteam live --plant ros2): "
+        "{listen: HOST:PORT, cmd_vel: /r1/cmd_vel, odom: /r1/odom, scan, frame, timeout}; "
+        "and udp: {peers: [HOST:PORT, ...]} or {multicast: GROUP:PORT, interface} or "
+        "{broadcast: ADDR:PORT}; simulation ignores it")
 
     @field_validator("team")
     @classmethod

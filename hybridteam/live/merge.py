@@ -1,4 +1,5 @@
-"""One team trace from the traces of a live team's processes (``hybridteam launch``).
+"""One team trace from the traces of a live team's processes (``hybridteam launch``, and
+``hybridteam merge`` for the folders of processes started by hand or on other machines).
 
 Each process records on its own clock: run time 0 is its start, ``meta.live.wall_start``
 on the wall clock. The merged trace puts every row on the clock of the process that
@@ -11,11 +12,16 @@ samples come from the process that hosts it.
 
 The merged outcome is the team's end as its processes saw it: the end rule's hosts each
 ended (by the rule, or otherwise: the first such outcome in agent order is the team's),
-at the latest of their ends; every process's own outcome is in the message.
+at the latest of their ends; every process's own outcome is in the message. Each process
+records the rule's agents (``meta.live.ending``), so a merge needs no team file.
+
+Traces are read back from files anyone may have edited: :func:`process_problem` checks
+what the merge reads of a process's ``meta.live`` before anything is merged.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -30,6 +36,29 @@ class MergeError(ValueError):
     """Traces that are not the processes of one live run (one line)."""
 
 
+def process_problem(trace: Trace) -> str | None:
+    """Why ``trace`` (a checked trace file) is not one live process's, as the merge reads
+    it: a single run with ``meta.live`` saying its agents, its team's digest, its
+    wall-clock start and time scale. None if it is."""
+    live = trace.meta.get("live")
+    if trace.n != 1 or not isinstance(live, dict):
+        return "not a live process's trace (no meta.live)"
+    agents, names = live.get("agents"), trace.agents
+    if not (isinstance(agents, list) and all(a in names for a in agents)):
+        return "meta.live.agents is not a list of the team's agents"
+    if not isinstance(live.get("digest"), str):
+        return "meta.live.digest is not the team's digest"
+    for key, least in (("wall_start", -math.inf), ("time_scale", 0.0)):
+        value = live.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float) or \
+                not least < value < math.inf:
+            return f"meta.live.{key} is not a finite number" + (" > 0" if least == 0 else "")
+    ending = live.get("ending", [])
+    if not (isinstance(ending, list) and all(a in names for a in ending)):
+        return "meta.live.ending is not a list of the team's agents"
+    return None
+
+
 def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = ()) -> Trace:
     """The team trace of one live run's process traces; ``ending``: the agents of the
     team's end rule (their processes' outcomes make the team's)."""
@@ -38,7 +67,11 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = ()) -> Trace:
     first = traces[0]
     names = first.agents
     for tr in traces:
-        if "live" not in tr.meta or tr.agents != names or tr.n != 1 or \
+        problem = process_problem(tr)
+        if problem is not None:
+            raise MergeError(problem)
+    for tr in traces:
+        if tr.agents != names or \
                 tr.meta["team"] != first.meta["team"] or \
                 tr.meta["live"]["digest"] != first.meta["live"]["digest"]:
             raise MergeError("the traces are not the processes of one live team")
@@ -100,6 +133,16 @@ def clock_bounds(traces: Sequence[Trace]) -> list[dict]:
                     "to": traces[q].meta["live"]["agents"],
                     "offset_s": [None if lo is None else -lo, hi]})
     return out
+
+
+def clock_error(bounds: Sequence[dict]) -> float | None:
+    """The most two processes' merged times can be off, as :func:`clock_bounds` bounds
+    their clocks: the merge takes them for one clock (offset 0), and a pair's offset lies
+    in its ``offset_s``, so it is off by at most the larger end's size. The largest over
+    the pairs bounded both ways; None if no pair is."""
+    ends = [max(abs(lo), abs(hi)) for lo, hi in (b["offset_s"] for b in bounds)
+            if lo is not None and hi is not None]
+    return max(ends) if ends else None
 
 
 def _shift(table: Table, offset: float, columns: tuple[str, ...]) -> Table:

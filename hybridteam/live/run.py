@@ -37,7 +37,7 @@ from hybridteam.live.wire import (
     declarations,
     wire_mismatch,
 )
-from hybridteam.live.world import WorldHost, WorldLink, WorldReadings, world_seam
+from hybridteam.live.world import SILENCE, WorldHost, WorldLink, WorldReadings, world_seam
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -56,7 +56,8 @@ class LiveRun:
                  drop_copies: Mapping[str, Collection[int]] | None = None,
                  plants: Mapping[str, ExternalPlant] | None = None,
                  plant_name: str = "sim", world: bool = False,
-                 wire_team: Team | None = None) -> None:
+                 wire_team: Team | None = None,
+                 world_timeout: float = SILENCE) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
@@ -71,7 +72,9 @@ class LiveRun:
         (:mod:`~hybridteam.live.world`). ``wire_team``: a test aid, the team whose wire
         identity this process speaks while it runs ``team`` (a drifted copy of it: the
         same name, agents and messages, :func:`~hybridteam.live.wire.wire_mismatch`;
-        HostingError otherwise)."""
+        HostingError otherwise). ``world_timeout``: wall seconds of silence after which an
+        agent's process stops its run (no reading for a pose sent), and the world process
+        logs and records an agent's (no pose)."""
         full = compile_team(team)
         self.wire = None if wire_team is None else compile_team(wire_team)
         if self.wire is not None and (why := wire_mismatch(full, self.wire)) is not None:
@@ -99,8 +102,12 @@ class LiveRun:
         seam: dict = {}
         self.link: WorldLink | None = None
         if team.world:
-            self.link = WorldLink(self.codec, transport, hosted, host=world)
+            self.link = WorldLink(self.codec, transport, hosted, host=world,
+                                  timeout=world_timeout)
             self.clock.world = self.link
+            if not world:  # (a silent world process stops the run as a signal does)
+                link = self.link
+                self.clock.stop = lambda: stop() or link.world_silent()
             seam["world"] = world_seam(WorldHost if world else WorldReadings, self.link)
             # (the world process records the world's series at its output samples: they
             # are instants there, the components run on the latest poses)
@@ -131,11 +138,15 @@ class LiveRun:
             self.await_world()
         self.clock.start()
         trace = self.sim.run()
-        record = {"agents": self.here, "transport": self.transport_name,
+        world_host = self.link is not None and self.world_process
+        record = {"agents": self.here,
+                  "ending": [self.full.agents[a].name for a in self.full.ending],
+                  "transport": self.transport_name,
                   "plant": self.plant_name, "wire": VERSION,
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
-                  **({"world_sent": self.link.sent} if self.link is not None else {})}
+                  **({"world_sent": self.link.sent} if self.link is not None else {}),
+                  **({"world_silent": self.link.silence_record()} if world_host else {})}
         dropped = record["datagrams"]["dropped"]
         if dropped:
             log.warning("dropped %d datagram(s) not of this team: %s",

@@ -13,8 +13,12 @@ own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
 * :class:`WorldReadings` is an agent process's world: it runs no component; it sends the
   hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading.
 
-:class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the datagrams of
-the two kinds to, and what both sides send through.
+:class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the
+datagrams of the two kinds to, and what both sides send through. It also watches the other
+side fall silent (``timeout`` wall seconds, :data:`SILENCE` unless told): an agent's process
+whose pose goes that long unanswered stops its run (:meth:`WorldLink.world_silent`); the
+world process holds a silent agent's last pose, as it holds every pose between two, logs the
+silence and records it (:meth:`WorldLink.watch`), and goes on with the others.
 """
 
 from __future__ import annotations
@@ -36,15 +40,29 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("hybridteam.live")
 
+#: Wall seconds the other side may be silent before it is taken for gone: longer than the
+#: two-second pause of a process the team must ride out, short enough for an operator.
+SILENCE = 5.0
+
 
 class WorldLink:
     """The world kinds' traffic of one process: what arrived, and the sending."""
 
     def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
-                 host: bool) -> None:
-        """``here``: the hosted agents' indices; ``host``: this is the world process."""
+                 host: bool, timeout: float = SILENCE) -> None:
+        """``here``: the hosted agents' indices; ``host``: this is the world process;
+        ``timeout``: wall seconds of silence after which the other side is gone."""
         self.codec, self.transport = codec, transport
         self.here, self.host = sorted(here), host
+        self.timeout = timeout
+        #: (world process) per agent, when its last pose arrived (``time.monotonic()``)
+        #: and at which run time; the silences seen, and the open one of each agent
+        self.heard: dict[int, float] = {}
+        self.heard_t: dict[int, float] = {}
+        self.silences: list[dict[str, Any]] = []
+        self.silent: dict[int, dict[str, Any]] = {}
+        #: (agents' process) when the first pose since the last reading was sent
+        self.asked: float | None = None
         self.seq = 0
         #: (world process) each agent's last pose, and the agents to answer at the next
         #: instant (every one at the start: their first readings)
@@ -55,6 +73,8 @@ class WorldLink:
         self.sent = 0
 
     def send(self, kind: str, sender: int, to: int, fields: dict[str, float]) -> None:
+        if kind == POSE and self.asked is None:
+            self.asked = time.monotonic()
         self.transport.send(self.codec.encode_world(kind, sender, to, self.seq, fields,
                                                     time.time()), "data")
         self.seq += 1
@@ -69,9 +89,11 @@ class WorldLink:
                 return None
             self.poses[dg.sender] = dg.fields
             self.pending.add(dg.sender)
+            self.heard[dg.sender] = time.monotonic()
             return [], None
         if self.host or dg.to not in self.here:
             return None
+        self.asked = None
         sensed: dict[str, list[tuple[int, float]]] = {}
         events, outcome = [], None
         for key, value in dg.fields.items():
@@ -90,6 +112,45 @@ class WorldLink:
                 reading[name] = np.asarray([v for _, v in sorted(items)], float)
         return events, outcome
 
+    def world_silent(self) -> str | None:
+        """(agents' process) Why the run must stop, if a pose sent has gone unanswered
+        for ``timeout`` wall seconds (the world process is gone, or cut off); else None."""
+        if self.asked is None or time.monotonic() - self.asked <= self.timeout:
+            return None
+        why = (f"the world process's silence (no reading within {self.timeout:g} s of "
+               "a pose sent)")
+        log.warning("%s", why)
+        return why
+
+    def watch(self, t: float) -> None:
+        """(world process, at each instant, run time ``t``) Note each agent that has sent
+        no pose for ``timeout`` wall seconds (since the world's start, before its first),
+        and each silent one heard again: logged, and kept in :attr:`silences` (run times:
+        its last pose, when the silence was noticed, when it was heard again or None).
+        Nothing else changes: its last pose is held, as between any two."""
+        now = time.monotonic()
+        for a, name in enumerate(self.codec.agents):
+            last = self.heard.setdefault(a, now)
+            if a in self.poses:
+                self.heard_t[a] = t
+            gap = self.silent.get(a)
+            if gap is not None and last > gap["mono"]:
+                gap["to"] = t
+                del gap["mono"], self.silent[a]
+                log.info("agent '%s' heard again at t=%.3f", name, t)
+            elif gap is None and now - last > self.timeout:
+                since = self.heard_t.get(a)
+                gap = {"agent": name, "from": since, "noticed": t, "to": None, "mono": now}
+                self.silent[a] = gap
+                self.silences.append(gap)
+                log.warning("agent '%s' silent for %g s (%s): the world holds its last "
+                            "pose", name, self.timeout, "no pose yet" if since is None
+                            else f"last pose at t={since:.3f}")
+
+    def silence_record(self) -> list[dict[str, Any]]:
+        """The silences seen, for the trace's ``meta.live``."""
+        return [{k: v for k, v in gap.items() if k != "mono"} for gap in self.silences]
+
 
 class WorldHost(World):
     """The world process's world: the components on the poses received (module
@@ -99,6 +160,7 @@ class WorldHost(World):
 
     def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
         link = self.link
+        link.watch(float(access.t[idx[0]]))
         for a, fields in link.poses.items():
             names = access.state_names(a)
             state = [n for n in names if n in fields]

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from hybridteam.errors import DocPath
-from hybridteam.model.deploy import PlantDeploy
+from hybridteam.model.deploy import PlantDeploy, UdpDeploy
 from hybridteam.model.modes import Mode
 from hybridteam.model.protocol import MessageSpec, StreamSpec
 
@@ -172,6 +172,9 @@ class Team:
     #: per agent name, where its robot is over ROS 2 (the ``deploy:`` section; live runs
     #: with ``--plant ros2`` read it, simulation ignores it)
     deploy: dict[str, PlantDeploy] = field(default_factory=dict)
+    #: the team's UDP addressing in ``deploy:`` (its ``udp`` key, the agents' ``listen``;
+    #: ``hybridteam live`` reads it, simulation ignores it)
+    udp: UdpDeploy = field(default_factory=UdpDeploy)
 
     def __repr__(self) -> str:
         names = ", ".join(a.name for a in self.agents)
