@@ -126,6 +126,8 @@ def test_the_world_series_and_meta_come_from_the_world_process():
     np.testing.assert_array_equal(merged.samples["box"][:, 0, 0], [np.nan, 3.0, 4.0])
     np.testing.assert_array_equal(merged.samples["a"][:, 0, 0], [0.0, 10.0, 20.0])
     assert merged.meta["obstacles"] == {"circles": [[0.0, 0.0, 1.0]]}
+    # every process's own end is in the message, the world process's by that name
+    assert merged.outcomes[0]["message"].split("; ")[2].startswith("the world: ok at t=")
 
 
 def test_a_run_whose_end_rule_processes_left_no_trace_merges_with_the_world_process():
