@@ -180,6 +180,7 @@ def _outcome(traces: Sequence[Trace], offsets: list[float], names: list[str],
     deciding.sort(key=lambda e: min((names.index(a) for a in e[2]), default=len(names)))
     kind = next((o["outcome"] for o, _, _ in deciding if o["outcome"] != "ok"), "ok")
     t = max(o["t"] + off for o, off, _ in deciding)
-    parts = [f"{', '.join(agents) or 'the world'}: {o['outcome']} at t={o['t'] + off:.6g} ({o['message']})"
+    parts = [f"{', '.join(agents) or 'the world'}: {o['outcome']} at "
+             f"t={o['t'] + off:.6g} ({o['message']})"
              for o, off, agents in ends]
     return {"instance": 0, "outcome": kind, "t": t, "message": "; ".join(parts)}
