@@ -575,15 +575,15 @@ def alignment_text(live: dict) -> str:
             "no message bounds their clocks' offsets" if error is None else
             f"their clocks' offsets bounded by their messages within {error:.3g} s") + \
             " (meta.live.clock_bounds)"
-    processes, errors = live["processes"], live["clock_errors_s"]
-    reference = processes[live["clock_reference"]]["agents"]
-    known = [e for e in errors if e is not None]
+    processes, errors, ref = live["processes"], live["clock_errors_s"], live["clock_reference"]
+    known = [e for k, e in enumerate(errors) if e is not None and k != ref]
     unknown = [", ".join(p["agents"]) or "the world" for p, e in
                zip(processes, errors, strict=True) if e is None]
-    return (f"on {', '.join(reference) or 'the world'}'s clock, the others' aligned by "
-            f"their messages within {max(known):.3g} s" + (
-                f", {'; '.join(unknown)} not (no messages both ways: wall clock taken, "
-                "error unknown)" if unknown else "") + " (meta.live.clock_errors_s)")
+    return (f"on {', '.join(processes[ref]['agents']) or 'the world'}'s clock, " + (
+        f"the others' aligned by their messages within {max(known):.3g} s" if known else
+        "no other's aligned by messages") + (
+        f", {'; '.join(unknown)} not (no messages both ways: wall clock taken, error "
+        "unknown)" if unknown else "") + " (meta.live.clock_errors_s)")
 
 
 def losses_from(path: str, cteam, processes: list[list[str]]

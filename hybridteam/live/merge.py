@@ -130,10 +130,15 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
         reference, clock, errors = aligned_clocks(traces)
     else:
         reference, clock, errors = 0, [0.0] * len(traces), [0.0] * len(traces)
-    wall0 = min(tr.meta["live"]["wall_start"] - d for tr, d in zip(traces, clock, strict=True))
+    # (the starts, near 2e9 s, relative to the earliest before the clocks' offsets are
+    # taken: their differences are exact, an offset's microseconds are not rounded away)
+    earliest = min(tr.meta["live"]["wall_start"] for tr in traces)
+    starts = [tr.meta["live"]["wall_start"] - earliest - d
+              for tr, d in zip(traces, clock, strict=True)]
+    origin = min(starts)
+    wall0 = earliest + origin
     scales = [tr.meta["live"]["time_scale"] for tr in traces]
-    offsets = [(tr.meta["live"]["wall_start"] - d - wall0) * k
-               for tr, d, k in zip(traces, clock, scales, strict=True)]
+    offsets = [(start - origin) * k for start, k in zip(starts, scales, strict=True)]
     times = first.sample_times
     # (the world's series are the world process's: the agents' processes have none)
     world = next((tr for tr in traces if tr.meta["live"].get("world")), None)
