@@ -51,8 +51,9 @@ half-widths are least (Dijkstra's shortest path): its ``d_k`` is the sum of the 
 along it, its error bound the sum of the half-widths. The reference is the process that
 reaches the most others so (the first such, in the order given). A process with no such
 path keeps ``d_k = 0`` (its wall clock taken for the reference's) and its error is unknown
-(None); so does a pair whose bounds contradict each other (``lo > hi``: a clock stepped or
-drifted during the run), which bounds nothing. A process's rows are then within ``K e_q``
+(None). A pair whose bounds contradict each other (``lo > hi``: a clock stepped or drifted
+during the run) links nothing. ``"wall"`` records every error as 0 (one clock, its
+assumption). A process's rows are then within ``K e_q``
 run seconds of where the reference's clock puts them (``e_q``: its error bound), two
 processes' rows within ``K (e_p + e_q)`` of each other; the origin's own error moves every
 row alike.
@@ -191,7 +192,7 @@ def _tightest_paths(edges: dict[int, list[tuple[int, float, float]]], start: int
                     ) -> dict[int, tuple[float, float]]:
     """Every process reachable from ``start``: ``(error, offset)`` along the path whose
     summed half-widths (``error``) are least, ``offset`` its summed midpoints (Dijkstra;
-    ties go to the lower process index, so the answer does not depend on float noise)."""
+    equal errors go to the lower process index: one answer for one input)."""
     done: dict[int, tuple[float, float]] = {}
     heap = [(0.0, start, 0.0)]
     while heap:
