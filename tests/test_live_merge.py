@@ -1,5 +1,6 @@
 """Merging a live run's process traces (hybridteam/live/merge.py), on hand-made traces
-whose answers are known: times moved to the first process's clock, samples read there."""
+whose answers are known: times moved to the first process's clock, samples read there,
+and clocks skewed by known amounts aligned from messages of known latencies."""
 
 from __future__ import annotations
 
