@@ -100,6 +100,12 @@ def register(sub) -> dict:
     me.add_argument("traces", nargs="+", metavar="FOLDER_OR_TRACE",
                     help="a process's output folder (its trace.json) or trace file")
     me.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
+    me.add_argument("--align", choices=("messages", "wall"), default="messages",
+                    help="how the processes' clocks are aligned (messages: each clock's "
+                         "offset estimated from the messages' send and receive times, "
+                         "assuming latencies alike both ways, for processes on several "
+                         "machines; wall: one machine's wall clock, as launch does). Default "
+                         "messages")
     return {"live": cmd_live, "launch": cmd_launch, "merge": cmd_merge}
 
 
@@ -492,11 +498,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
 
 
 def write_merged(out, traces: list, ending: list[str], missing: dict[str, str],
-                 live: dict | None = None):
+                 live: dict | None = None, align: str = "wall"):
     """The team trace of a live run's process traces (:mod:`hybridteam.live.merge`),
     written to ``out`` with its summary (:func:`write_folder`); ``missing``: the agents
     whose process left no trace, and why; ``live``: more of ``meta.live`` (launch's
-    ``losses_from``). ``launch`` and ``merge`` both end so. The
+    ``losses_from``); ``align``: how the clocks are aligned (``launch``: one machine's
+    wall clock). ``launch`` and ``merge`` both end so. The
     traces are taken in the team's order (a process by its first agent, the world
     process last), whichever order they come in. Returns the team's trace."""
     from hybridteam.live.merge import merge_traces
@@ -504,7 +511,7 @@ def write_merged(out, traces: list, ending: list[str], missing: dict[str, str],
     order = {a: k for k, a in enumerate(traces[0].agents)}
     traces = sorted(traces, key=lambda tr: min(
         (order.get(a, len(order)) for a in tr.meta["live"]["agents"]), default=len(order)))
-    merged = merge_traces(traces, ending)
+    merged = merge_traces(traces, ending, align)
     merged.meta["live"]["missing"] = missing
     merged.meta["live"].update(live or {})
     merged.outcomes[0]["message"] += "".join(f"; {n}: no trace ({why})"
@@ -526,7 +533,7 @@ def cmd_merge(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from hybridteam.cli.common import load_trace
-    from hybridteam.live.merge import MergeError, clock_error, process_problem
+    from hybridteam.live.merge import MergeError, process_problem
 
     out = output_folder(args.output)
     traces, read = [], set()
@@ -547,16 +554,36 @@ def cmd_merge(args: argparse.Namespace) -> int:
     hosted = {a for tr in traces for a in tr.meta["live"]["agents"]}
     missing = {a: "no trace given" for a in first.agents if a not in hosted}
     try:
-        merged = write_merged(out, traces, first.meta["live"].get("ending", []), missing)
+        merged = write_merged(out, traces, first.meta["live"].get("ending", []), missing,
+                              align=args.align)
     except MergeError as exc:
         raise UsageError(f"cannot merge: {exc}") from None
-    outcome, error = merged.outcomes[0], clock_error(merged.meta["live"]["clock_bounds"])
-    say(f"{first.meta['team']}: {outcome['outcome']} at t={outcome['t']:.6g}; merged "
-        f"{len(traces)} process trace(s) on one clock, "
-        + ("no message bounds their clocks' offsets" if error is None else
-           f"their clocks' offsets bounded by their messages within {error:.3g} s")
-        + f" (meta.live.clock_bounds); wrote {out}/ (trace.json, summary.json)")
+    say(f"{first.meta['team']}: {merged.outcomes[0]['outcome']} at "
+        f"t={merged.outcomes[0]['t']:.6g}; merged {len(traces)} process trace(s) "
+        f"{alignment_text(merged.meta['live'])}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
+
+
+def alignment_text(live: dict) -> str:
+    """How a merged trace's clocks were aligned and by how much its times could be off
+    (its ``meta.live``), as ``merge`` says it."""
+    from hybridteam.live.merge import clock_error
+
+    if live["align"] == "wall":
+        error = clock_error(live["clock_bounds"])
+        return "on one wall clock, " + (
+            "no message bounds their clocks' offsets" if error is None else
+            f"their clocks' offsets bounded by their messages within {error:.3g} s") + \
+            " (meta.live.clock_bounds)"
+    processes, errors, ref = live["processes"], live["clock_errors_s"], live["clock_reference"]
+    known = [e for k, e in enumerate(errors) if e is not None and k != ref]
+    unknown = [", ".join(p["agents"]) or "the world" for p, e in
+               zip(processes, errors, strict=True) if e is None]
+    return (f"on {', '.join(processes[ref]['agents']) or 'the world'}'s clock, " + (
+        f"the others' aligned by their messages within {max(known):.3g} s" if known else
+        "no other's aligned by messages") + (
+        f", {'; '.join(unknown)} not (no messages both ways: wall clock taken, error "
+        "unknown)" if unknown else "") + " (meta.live.clock_errors_s)")
 
 
 def losses_from(path: str, cteam, processes: list[list[str]]
