@@ -9,6 +9,7 @@ parallel runs and earlier tests are not heard.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -442,6 +443,41 @@ def test_launch_over_ros2_shakes_hands_as_the_simulation_does(ros, tmp_path):
         [(r.agent, r.target) for r in sim.transitions if r.cause != "init"]
     assert merged.outcomes[0]["outcome"] == "ok"
     assert {p["transport"] for p in merged.meta["live"]["processes"]} == {"ros2"}
+
+
+def test_experiment2_launched_over_ros2_hands_over_as_the_simulation_does(ros, tmp_path):
+    """The issue's acceptance over ``ros2``: the world process, the robots and the
+    operator, each a process whose team datagrams and world poses and readings travel on
+    ROS 2 topics, end ``success``, each agent's modes those of ``hybridteam run`` with the
+    latency measured in this run, every transition within two control periods
+    (:func:`tests.test_live_world.launched_as_simulated`, the UDP test's check). Its own
+    domain (101..200: apart from the other ROS tests' 1..100)."""
+    import hybridteam as ht
+    from tests.test_live_world import EXPERIMENT2, launched_as_simulated
+
+    launched_as_simulated(tmp_path / "launch", ht.load(EXPERIMENT2),
+                          ["--transport", "ros2", "--domain-id", str(101 + os.getpid() % 100)])
+    merged = json.loads((tmp_path / "launch" / "summary.json").read_text())
+    processes = merged["live"]["processes"]
+    assert {p["transport"] for p in processes} == {"ros2"}
+    assert [p["world"] for p in processes].count(True) == 1  # (the world process's too)
+
+
+def test_a_process_stopped_after_writing_its_folder_left_its_trace(tmp_path):
+    """launch stops the processes still running once the end rule's have ended; one that
+    had ended too and written its folder may get that SIGTERM while it tears its ROS 2
+    nodes down. Its folder is complete (summary.json, written last, is there): its trace
+    counts. One killed before it wrote, or that exited with an error, left none."""
+    from hybridteam.cli.live import left_no_trace
+
+    for name, files in {"done": ("trace.json", "summary.json", "live.log"),
+                        "cut": ("trace.json", "live.log"), "broke": ("live.log",)}.items():
+        (tmp_path / name).mkdir()
+        for f in files:
+            (tmp_path / name / f).write_text("{}" if f.endswith(".json") else "boom\n")
+    assert left_no_trace({"done": -signal.SIGTERM, "cut": -signal.SIGTERM, "broke": 2},
+                         tmp_path) == {"cut": "killed by SIGTERM",
+                                       "broke": "exit status 2: boom"}
 
 
 def test_waiting_for_teammates_that_never_come_is_one_line(monkeypatch):

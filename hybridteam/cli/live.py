@@ -351,6 +351,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
+            # (an older run's: what says the process completed its folder, see left_no_trace)
+            (folder / "summary.json").unlink(missing_ok=True)
             command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
                        *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
                        "--time-scale", repr(args.time_scale), "--log-level",
@@ -396,9 +398,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
             signal.signal(s, handler)
     # a process that died (killed, crashed) left no trace: the team's trace is the others'
     # (what its teammates did about its silence), and says which are missing and why
-    missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
-               for n, p in procs.items()
-               if p.returncode != 0 or not (out / "agents" / n / "trace.json").exists()}
+    missing = left_no_trace({n: p.returncode for n, p in procs.items()}, out / "agents")
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
     if all(n in missing for n in names):
@@ -417,6 +417,16 @@ def cmd_launch(args: argparse.Namespace) -> int:
     say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
         "(trace.json, summary.json, agents/NAME/)")
     return EXIT_OK
+
+
+def left_no_trace(codes: dict[str, int | None], agents) -> dict[str, str]:
+    """The launched processes (by folder name under ``agents``, with their exit codes)
+    that left no complete folder, each with why. A folder is complete once its
+    ``summary.json`` is there (written last): a process whose run had ended and whose
+    folder was written may still be stopped by launch's SIGTERM as it exits (a ROS 2
+    process takes a while to tear its nodes down), and its trace is the run's all the same."""
+    return {n: _exit_text(code, agents / n / "live.log") for n, code in codes.items()
+            if not (agents / n / "summary.json").exists()}
 
 
 def write_folder(out, trace, summary: dict) -> None:
