@@ -156,3 +156,91 @@ def test_a_holonomic_agent_is_not_driven_as_a_twist(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "has a holonomic plant; a robot over ROS 2 drives a unicycle" \
         in err[0], err
+
+
+# ---------------------------------------------------------------------- launch --plant ros2
+EXPERIMENT2 = Path(__file__).parents[1] / "examples" / "transport" / "experiment2.yaml"
+
+
+def launch_args(*argv: str):
+    """``hybridteam launch`` arguments as its parser reads them."""
+    import argparse
+
+    from hybridteam.cli import live
+
+    parser = argparse.ArgumentParser()
+    live.register(parser.add_subparsers(dest="command"))
+    return parser.parse_args(["launch", *argv])
+
+
+def test_launch_passes_the_plant_to_the_robots_processes(tmp_path):
+    """Experiment 2 with the Labmate's robot in deploy: (not the XR4000's, nor the
+    operator's): only the Labmate's process drives a robot; the world process and the
+    others simulate. Over UDP the robot's domain is ROS_DOMAIN_ID's unless given; over
+    ros2 every process shares the given one."""
+    from hybridteam.cli.live import WORLD_PROCESS, launched_robots, process_command
+
+    team_file = tmp_path / "e2.yaml"
+    team_file.write_text(EXPERIMENT2.read_text().replace(  # (its requirements: not here)
+        "requirements_from: [requirements.yaml]\n", "").replace(
+        "\nsimulation:", "\ndeploy:\n  labmate: {cmd_vel: /labmate/cmd_vel, "
+        "odom: /labmate/odom}\n\nsimulation:"))
+    team = ht.load(team_file)
+    hosts = ["xr4000", "labmate", "operator", WORLD_PROCESS]
+    ports = [47001, 47002, 47003, 47004]
+
+    def commands(*argv: str, domain=None) -> dict[str, list[str]]:
+        args = launch_args(str(team_file), "-o", str(tmp_path / "out"), *argv)
+        robots = launched_robots(args, team)
+        return {name: process_command(args, name, k, ports, domain, tmp_path / name, robots)
+                for k, name in enumerate(hosts)}
+
+    def option(command: list[str], flag: str) -> list[str]:
+        return [command[i + 1] for i, a in enumerate(command) if a == flag]
+
+    udp = commands("--plant", "ros2")
+    assert {n: option(c, "--plant") for n, c in udp.items()} == {
+        "xr4000": [], "labmate": ["ros2"], "operator": [], WORLD_PROCESS: []}
+    assert all(option(c, "--domain-id") == [] for c in udp.values())
+    assert option(udp["labmate"], "--listen") == ["127.0.0.1:47002"]
+    assert option(udp["labmate"], "--peer") == ["127.0.0.1:47001", "127.0.0.1:47003",
+                                                "127.0.0.1:47004"]
+    assert option(udp["labmate"], "--time-scale") == ["1.0"]
+    # a domain given: the robot's process drives there; the others talk over UDP
+    udp7 = commands("--plant", "ros2", domain=7)
+    assert {n: option(c, "--domain-id") for n, c in udp7.items()} == {
+        "xr4000": [], "labmate": ["7"], "operator": [], WORLD_PROCESS: []}
+    ros = commands("--plant", "ros2", "--transport", "ros2", domain=7)
+    assert all(option(c, "--domain-id") == ["7"] and option(c, "--ros-peers") == ["3"]
+               for c in ros.values())
+    assert {n: option(c, "--plant") for n, c in ros.items()} == {
+        n: option(c, "--plant") for n, c in udp.items()}
+    # without --plant ros2 nobody drives a robot, deploy: or not
+    assert all(option(c, "--plant") == [] for c in commands().values())
+
+
+def test_launch_domain_is_the_robots_unless_given():
+    from hybridteam.cli.live import launch_domain
+
+    assert launch_domain(launch_args("t.yaml", "-o", "o", "--domain-id", "9"), ["a"]) == 9
+    assert launch_domain(launch_args("t.yaml", "-o", "o"), ["a"]) is None  # ROS_DOMAIN_ID
+    assert 1 <= launch_domain(launch_args("t.yaml", "-o", "o"), []) <= 100
+
+
+@pytest.mark.parametrize(("deploy", "args", "message"), [
+    (True, ["--time-scale", "4"], "--plant ros2: a robot moves on the wall clock; "
+                                  "--time-scale must be 1, got 4"),
+    (False, [], "--plant ros2: the team file's deploy: section names no agent's robot "
+                "(its cmd_vel and odom topics)"),
+])
+def test_launch_plant_ros2_refusals_are_one_line(tmp_path, capsys, deploy, args, message):
+    from hybridteam.cli import main
+
+    text = TEAM.read_text()
+    team = tmp_path / "drive.yaml"
+    team.write_text(text if deploy else text[:text.index("\ndeploy:")] + "\n")
+    out = tmp_path / "out"
+    status = main(["launch", str(team), "--plant", "ros2", "-o", str(out), *args])
+    assert status == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"hybridteam: error: {message}"]
+    assert not out.exists()

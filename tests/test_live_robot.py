@@ -191,3 +191,27 @@ def test_a_robot_falling_silent_stops_the_run_with_its_trace(ros, tmp_path):
     assert "Stopped" not in trace.transitions["target"].tolist()
     assert json.loads((out / "summary.json").read_text())["outcome"] == "stopped"
     assert robot.twists[-1][:2] == (0.0, 0.0)
+
+
+def test_launch_drives_the_deployed_robot(ros, tmp_path):
+    """``hybridteam launch --plant ros2``: the agent's process launch starts drives the
+    robot of its deploy: entry, in the given domain, to its final mode (the first Twist
+    0.5 m/s, the last zero), and the merged trace says its plant was the robot."""
+    ns = f"/{ros_name(f't{os.getpid()}_launch')}/robot"
+    team = team_file(tmp_path, ns, 5.0)
+    robot = UnicycleRobot(ros, ns)
+    out = tmp_path / "out"
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "hybridteam.cli", "launch", str(team), "--plant", "ros2",
+             "--domain-id", str(DOMAIN), "-o", str(out)],
+            cwd=ROOT, capture_output=True, text=True, timeout=60)
+        time.sleep(0.1)  # (as above: the stop's Twist logged)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    assert trace.transitions["target"].tolist() == ["Forward", "Stopped"]
+    assert [p["plant"] for p in trace.meta["live"]["processes"]] == ["ros2"]
+    assert robot.twists[0][:2] == (0.5, 0.0) and robot.twists[-1][:2] == (0.0, 0.0)
+    assert max(p[0] for p in robot.poses) >= 1.0  # (the robot, not a model, got there)

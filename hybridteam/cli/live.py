@@ -73,12 +73,17 @@ def register(sub) -> dict:
                     help="how datagrams travel (udp: one loopback port per process; ros2: "
                          "ROS 2 topics, with the [ros] extra)")
     la.add_argument("--domain-id", type=int, default=None, metavar="N",
-                    help="(ros2) the ROS domain the processes share (default: one chosen "
-                         "from this process's id, so launches do not hear each other)")
+                    help="(ros2) the ROS domain the processes share (default: with "
+                         "--plant ros2 ROS_DOMAIN_ID, the robots'; else one chosen from "
+                         "this process's id, so launches do not hear each other)")
     la.add_argument("--duration", type=float, default=None,
                     help="run seconds (default: the team's simulation.duration)")
     la.add_argument("--time-scale", type=float, default=1.0, metavar="K",
                     help="run time passes K times faster than the wall clock (default 1)")
+    la.add_argument("--plant", choices=PLANTS, default="sim",
+                    help="what moves the agents (sim: their plants integrated in their "
+                         "processes; ros2: the robots of the team file's deploy: section, "
+                         "at time scale 1; the other agents simulated)")
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
@@ -251,9 +256,7 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
     at least FIRST_ODOMETRY)."""
     if args.plant == "sim":
         return {}
-    if args.time_scale != 1:
-        raise UsageError(f"--plant ros2: a robot moves on the wall clock; --time-scale "
-                         f"must be 1, got {args.time_scale:g}")
+    check_robot_clock(args)
     from hybridteam.live.ros2_plant import PlantSilent, RobotPlant, Ros2Plant
 
     for name in agents:
@@ -281,6 +284,14 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
             raise UsageError(f"--plant ros2: {exc}") from None
         raise
     return plants
+
+
+def check_robot_clock(args: argparse.Namespace) -> None:
+    """UsageError for ``--plant ros2`` with a time scale: a robot keeps the wall clock's
+    pace (``live`` and ``launch`` alike)."""
+    if args.plant == "ros2" and args.time_scale != 1:
+        raise UsageError(f"--plant ros2: a robot moves on the wall clock; --time-scale "
+                         f"must be 1, got {args.time_scale:g}")
 
 
 def wait_for_peers(transport, count: int) -> None:
@@ -321,10 +332,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.trace import Trace
 
     check_clock(args)
+    check_robot_clock(args)
     out = output_folder(args.output)
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
+    robots = launched_robots(args, team)
     full = compile_team(team)
     names = [ca.name for ca in full.agents]
     try:
@@ -339,7 +352,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     # look complete)
     (out / "summary.json").unlink(missing_ok=True)
     ports = free_ports(len(hosts)) if args.transport == "udp" else [0] * len(hosts)
-    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
+    domain = launch_domain(args, robots)
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
@@ -348,24 +361,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     procs: dict[str, subprocess.Popen] = {}
     try:
-        for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
+        for k, name in enumerate(hosts):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
             # (an older run's: what says the process completed its folder, see left_no_trace)
             (folder / "summary.json").unlink(missing_ok=True)
-            command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
-                       *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
-                       "--time-scale", repr(args.time_scale), "--log-level",
-                       args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
-                       "--transport", args.transport]
-            if args.transport == "udp":
-                command += ["--listen", f"127.0.0.1:{port}"]
-                command += [a for p in ports if p != port
-                            for a in ("--peer", f"127.0.0.1:{p}")]
-            else:  # every process in one domain, each waiting for all the others
-                command += ["--domain-id", str(domain), "--ros-peers", str(len(hosts) - 1)]
-            if args.duration is not None:
-                command += ["--duration", repr(args.duration)]
+            command = process_command(args, name, k, ports, domain, folder, robots)
             with open(folder / "live.log", "wb") as logfile:
                 procs[name] = subprocess.Popen(command, stdin=subprocess.PIPE,
                                                stdout=subprocess.PIPE, stderr=logfile)
@@ -417,6 +418,61 @@ def cmd_launch(args: argparse.Namespace) -> int:
     say(f"{team.name}: {outcome['outcome']} at t={outcome['t']:.6g}; wrote {out}/ "
         "(trace.json, summary.json, agents/NAME/)")
     return EXIT_OK
+
+
+def launched_robots(args: argparse.Namespace, team) -> list[str]:
+    """The agents ``launch --plant ros2`` drives as robots: those with a ``deploy:`` entry
+    (none for ``--plant sim``). A one-line UsageError if there is none, or one a robot
+    cannot drive, before any process starts."""
+    if args.plant == "sim":
+        return []
+    from hybridteam.live.ros2_plant import RobotPlant
+
+    robots = [a.name for a in team.agents if a.name in team.deploy]
+    if not robots:
+        raise UsageError("--plant ros2: the team file's deploy: section names no agent's "
+                         "robot (its cmd_vel and odom topics)")
+    for name in robots:
+        try:
+            RobotPlant.check(name, team.agent(name).plant.kind)
+        except ValueError as exc:
+            raise UsageError(f"--plant ros2: {exc}") from None
+    return robots
+
+
+def launch_domain(args: argparse.Namespace, robots: list[str]) -> int | None:
+    """The ROS domain launch's processes share: ``--domain-id``; else, with robots, none
+    given (each process's ``ROS_DOMAIN_ID``, else 0: where the robots' drivers are); else
+    one chosen from this process's id, so that launches do not hear each other."""
+    if args.domain_id is not None:
+        return args.domain_id
+    return None if robots else 1 + os.getpid() % 100
+
+
+def process_command(args: argparse.Namespace, name: str, k: int, ports: list[int],
+                    domain: int | None, folder, robots: list[str]) -> list[str]:
+    """The ``hybridteam live`` command line of launch's ``k``-th process, hosting agent
+    ``name`` (or the world process): its clock, faults and folder; its UDP port and peers,
+    or how many others to wait for on ROS 2; the ROS domain (:func:`launch_domain`) where
+    it talks or drives over ROS 2; ``--plant ros2`` for an agent in ``robots``."""
+    command = [sys.executable, "-m", "hybridteam.cli", "live", args.team,
+               *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
+               "--time-scale", repr(args.time_scale), "--log-level",
+               args.log_level, "--ready", *fault_args(args, k), "-o", str(folder),
+               "--transport", args.transport]
+    if name in robots:
+        command += ["--plant", "ros2"]
+    if args.transport == "udp":
+        port = ports[k]
+        command += ["--listen", f"127.0.0.1:{port}"]
+        command += [a for p in ports if p != port for a in ("--peer", f"127.0.0.1:{p}")]
+    else:  # every process in one domain, each waiting for all the others
+        command += ["--ros-peers", str(len(ports) - 1)]
+    if domain is not None and (args.transport == "ros2" or name in robots):
+        command += ["--domain-id", str(domain)]
+    if args.duration is not None:
+        command += ["--duration", repr(args.duration)]
+    return command
 
 
 def left_no_trace(codes: dict[str, int | None], agents) -> dict[str, str]:
