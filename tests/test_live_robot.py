@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hybridteam.library import LawContext, law
 from hybridteam.live.ros2 import ros_name
 from hybridteam.trace import Trace
 
@@ -33,10 +34,12 @@ class UnicycleRobot:
     Odometry in frame ``odom``. Keeps every Twist with its ``time.time()`` of arrival and
     every published pose ``(x, y, theta, time.time())``."""
 
-    def __init__(self, ros, ns: str) -> None:
+    def __init__(self, ros, ns: str, scan: dict | None = None) -> None:
+        """``scan``: LaserScan fields it publishes on ``ns/scan`` with every pose."""
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import LaserScan
 
         self.ctx = ros.Context()
         ros.init(context=self.ctx, domain_id=DOMAIN)
@@ -49,6 +52,11 @@ class UnicycleRobot:
         self.lock = threading.Lock()
         self._Odometry = Odometry
         self.pub = self.node.create_publisher(Odometry, f"{ns}/odom", 10)
+        self.scan = None
+        if scan is not None:
+            self.scan = LaserScan(**scan)
+            self.scan.header.frame_id = "base_link"
+            self.scan_pub = self.node.create_publisher(LaserScan, f"{ns}/scan", 10)
         self.node.create_subscription(Twist, f"{ns}/cmd_vel", self._on_twist, 10)
         self.last = time.monotonic()
         self.node.create_timer(ODOM_PERIOD, self._tick)
@@ -86,6 +94,8 @@ class UnicycleRobot:
         q.z, q.w = math.sin(self.theta / 2), math.cos(self.theta / 2)
         self.pub.publish(msg)
         self.poses.append((self.x, self.y, self.theta, wall))
+        if self.scan is not None:
+            self.scan_pub.publish(self.scan)
 
     def close(self) -> None:
         self.executor.shutdown()
@@ -215,3 +225,75 @@ def test_launch_drives_the_deployed_robot(ros, tmp_path):
     assert [p["plant"] for p in trace.meta["live"]["processes"]] == ["ros2"]
     assert robot.twists[0][:2] == (0.5, 0.0) and robot.twists[-1][:2] == (0.0, 0.0)
     assert max(p[0] for p in robot.poses) >= 1.0  # (the robot, not a model, got there)
+
+
+@law("tests.laser_ring_keep", plants=("unicycle",))
+def laser_ring_keep(ctx: LawContext) -> np.ndarray:
+    """Stand still and keep what the ring ``ir`` reads at each tick, beam by beam."""
+    r = ctx.sense("ir")
+    for k in range(r.shape[1]):
+        ctx.keep(f"ir{k}", r[:, k])
+    return np.zeros((r.shape[0], 2))
+
+
+LASER_TEAM = """
+team: laser
+world:
+  - use: obstacles
+    with:
+      detect:
+        - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, min_range: 0.04,
+           mount_radius: 0.2}, beams: [0], below: 0.01, raise: near}
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look:
+        law: {use: tests.laser_ring_keep, period: 0.1}
+        transitions: [{to: Seen, on: near}]
+      Seen: {law: {use: tests.laser_ring_keep, period: 0.1}}
+simulation: {duration: 0.5, sample_period: 0.1}
+deploy:
+  robot: {cmd_vel: NS/cmd_vel, odom: NS/odom, scan: NS/scan, timeout: 5.0}
+"""
+
+
+def test_a_robots_laser_is_what_its_law_reads_of_its_ring(ros, tmp_path):
+    """A robot's LaserScan (8 beams every 45 degrees from 0) reaches its agent's law as
+    the ring ``ir`` reads (4 beams on a 0.2 hull, 0.04..2.5 m): beams 0, 2, 4, 6 of the
+    scan less 0.2, clipped: 1.0 -> 0.8, inf (no echo, read 8.0) -> 2.5, 3.0 -> 2.5,
+    0.1 -> 0.04; not the 1.0 on every beam the (stand-in) world process says."""
+    import hybridteam as ht
+    from hybridteam.live.ros2_plant import RobotPlant, Ros2Plant
+    from hybridteam.live.run import LiveRun
+    from hybridteam.live.transport import UdpTransport
+    from hybridteam.live.wire import READING, WORLD_INDEX
+
+    ns = f"/{ros_name(f't{os.getpid()}_laser')}/robot"
+    path = tmp_path / "laser.yaml"
+    path.write_text(LASER_TEAM.replace("NS", ns))
+    team = ht.load(path)
+    robot = UnicycleRobot(ros, ns, scan={
+        "angle_min": 0.0, "angle_increment": math.pi / 4, "range_min": 0.05,
+        "range_max": 8.0, "ranges": [1.0, 2.0, math.inf, 0.1, 3.0, 4.0, 0.1, 1.5]})
+    transport = UdpTransport(("127.0.0.1", 0))
+    world = UdpTransport(("127.0.0.1", 0), [transport.address])
+    laser = Ros2Plant("robot", team.deploy["robot"], domain_id=DOMAIN, team=team.name)
+    try:
+        laser.pose(5.0)
+        laser.scan(5.0)
+        live = LiveRun(team, ["robot"], transport, plants={
+            "robot": RobotPlant(laser, "unicycle")}, plant_name="ros2")
+        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
+            f"ir.{k}": 1.0 for k in range(4)}, 0.0), "data")
+        trace = live.run()
+    finally:
+        laser.close()
+        transport.close()
+        world.close()
+        robot.close()
+    memory = live.sim.ensemble.states[0].memory
+    got = [float(memory[f"ir{k}"][0]) for k in range(4)]
+    assert got == pytest.approx([1.0 - 0.2, 2.5, 2.5, 0.04])  # (float32 ranges: 1e-6)
+    assert trace.outcomes[0]["outcome"] == "ok"

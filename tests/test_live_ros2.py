@@ -22,7 +22,15 @@ import pytest
 
 from hybridteam.errors import ModelError
 from hybridteam.live.ros2 import SOCKET_DEPTH, Ros2Transport, ros_modules, ros_name
-from hybridteam.live.ros2_plant import PlantDeploy, PlantSilent, clipped_ranges, yaw
+from hybridteam.live.ros2_plant import (
+    PlantDeploy,
+    PlantSilent,
+    Scan,
+    clipped_ranges,
+    ring_ranges,
+    yaw,
+)
+from hybridteam.world.sensors import RangeRing
 
 # rclpy's type descriptions import lark, which imports sre_parse (deprecated in Python 3.11)
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
@@ -85,6 +93,75 @@ def test_yaw_of_hand_computed_quaternions():
 def test_scan_ranges_read_as_the_models_range_sensors():
     raw = [1.5, math.inf, math.nan, -math.inf, 0.05, 12.0, 0.1, 10.0]
     assert clipped_ranges(raw, 0.1, 10.0) == (1.5, 10.0, 10.0, 0.1, 0.1, 10.0, 0.1, 10.0)
+
+
+def scan_of(ranges, angle_min: float, increment: float) -> Scan:
+    return Scan(tuple(ranges), angle_min, increment, 0.0, 100.0, 0.0, 0.0)
+
+
+def test_a_laser_scan_read_as_a_range_ring_by_hand():
+    """Each ray of the ring reads the scan beam along its direction, less the mount
+    radius (the laser at the centre, the sensor on the hull on that line), clipped to the
+    ring's range; a direction the scan does not cover reads max_range."""
+    ring = RangeRing(count=4, max_range=2.5, min_range=0.04, mount_radius=0.2)
+    # 8 beams every 45 degrees from 0: the ring's (0, 90, 180, 270) are beams 0, 2, 4, 6
+    full = scan_of([1.0, 2.0, 4.0, 0.1, 3.0, 4.0, 0.1, 1.5], 0.0, math.pi / 4)
+    assert ring_ranges(full, ring).tolist() == pytest.approx(
+        [1.0 - 0.2, 2.5, 2.5, 0.04])  # 4.0 - 0.2 and 3.0 - 0.2 past 2.5; 0.1 - 0.2 below 0.04
+    # a front laser (-45, 0, 45 degrees): the ring's sides and back are not covered
+    front = scan_of([0.5, 0.3, 0.9], -math.pi / 4, math.pi / 4)
+    assert ring_ranges(front, RangeRing(count=4, max_range=2.0)).tolist() == pytest.approx(
+        [0.3, 2.0, 2.0, 2.0])
+    # clockwise beams (a negative increment): 180, 90, 0, -90 degrees
+    clockwise = scan_of([1.0, 2.0, 3.0, 4.0], math.pi, -math.pi / 2)
+    assert ring_ranges(clockwise, RangeRing(count=4, max_range=10.0)).tolist() == \
+        pytest.approx([3.0, 2.0, 1.0, 4.0])
+    # a sonar cone (rays at -0.3, 0, 0.3 rad) over beams every 0.1 rad from -0.5: beams
+    # 2, 5 and 8; it reads the nearest echo, less its mount radius
+    ranges = [5.0] * 11
+    ranges[2], ranges[5], ranges[8] = 0.7, 1.2, 0.9
+    cone = RangeRing(count=1, max_range=3.0, mount_radius=0.1, half_angle=0.3,
+                     rays_per_beam=3)
+    assert ring_ranges(scan_of(ranges, -0.5, 0.1), cone).tolist() == pytest.approx([0.6])
+    assert ring_ranges(scan_of([], 0.0, 0.1), ring).tolist() == [2.5] * 4  # nothing seen
+
+
+def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest():
+    """In an agent's process, a robot with a laser reads its ring from it
+    (experiment 2's XR4000: IR, 24 beams on its 0.33 hull, 0.5 range); its other senses,
+    and every other agent's, are the world process's reading."""
+    import numpy as np
+
+    import hybridteam as ht
+    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.simulator import Simulator
+    from hybridteam.live.wire import READING, WORLD_INDEX, Codec
+    from hybridteam.live.world import WorldLink, WorldReadings, world_seam
+    from tests.test_live_world import EXPERIMENT2, XR4000, Sent
+
+    class Laser:
+        def __init__(self, scan):
+            self.scan = scan
+
+        def ranges(self, ring):
+            return ring_ranges(self.scan, ring)
+
+    cteam = compile_team(ht.load(EXPERIMENT2))
+    link = WorldLink(Codec(cteam, frozenset({"arm", "payload", "ir", "sonar"})), Sent(),
+                     [XR4000], host=False)
+    world = Simulator(cteam, 1, world=world_seam(WorldReadings, link)).ensemble.world
+    link.take(link.codec.decode(link.codec.encode_world(
+        READING, WORLD_INDEX, XR4000, 0,
+        {**{f"ir.{k}": 0.45 for k in range(24)}, "arm.0": 0.1, "arm.1": 0.2, "arm.2": 0.3},
+        1.0)))
+    # a laser every 15 degrees: 0.5 m ahead, 0.4 m at 15 degrees, 3 m elsewhere
+    world.lasers = {XR4000: Laser(scan_of([0.5, 0.4] + [3.0] * 22, 0.0, math.radians(15)))}
+    ir = world.sense(XR4000, np.array([0]), "ir")
+    assert ir.shape == (1, 24)
+    assert ir[0, :3].tolist() == pytest.approx([0.5 - 0.33, 0.4 - 0.33, 0.5])
+    assert world.sense(XR4000, np.array([0]), "arm").tolist() == [[0.1, 0.2, 0.3]]
+    world.lasers = {}
+    assert world.sense(XR4000, np.array([0]), "ir")[0, 0] == 0.45
 
 
 def test_deploy_settings_checked_where_they_are():

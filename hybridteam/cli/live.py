@@ -277,6 +277,8 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
             # the domain can take longer than the silence its timeout allows later)
             robot.pose(max(robot.deploy.timeout, FIRST_ODOMETRY))
             plants[name].state(0.0)
+            if robot.deploy.scan is not None:  # (and its laser's, which laws read)
+                robot.scan(max(robot.deploy.timeout, FIRST_ODOMETRY))
     except BaseException as exc:
         for plant in plants.values():
             plant.robot.close()

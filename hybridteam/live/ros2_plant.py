@@ -30,12 +30,26 @@ dropped for their frame.
 range sensors are: ``+inf`` (no echo, REP 117) and NaN (no valid reading) read as
 ``range_max``, ``-inf`` (an object closer than the sensor can see) as ``range_min``.
 
+**The laser as the model's range rings.** A law reads its robot's range ring ``ir`` with
+``ctx.sense("ir")`` (:mod:`hybridteam.world.obstacles`); with a ``scan`` topic, the agent
+reads the ring from the robot's laser instead of the world process's ray casting
+(:meth:`RobotPlant.ranges`, :func:`ring_ranges`): each of the ring's rays reads the scan
+beam nearest its direction, less the ring's mount radius, the nearest of a cone's rays,
+clipped to the ring's ``[min_range, max_range]``. The scan is taken in the robot's base
+frame: the laser at its centre, facing its heading, so a ray of a sensor on the hull
+(``mount_radius`` out, looking radially) lies on the laser's beam of the same direction
+and reads that beam less the mount radius; a cone's off-centre rays are read the same
+way (exact on its centre line). A direction the scan does not cover (farther than half
+an increment from every beam) reads ``max_range``, nothing seen, as the ring reads where
+nothing is in range.
+
 Odometry and scans are read best-effort (heard from reliable and best-effort publishers
 alike), keeping the last 5: only the latest matters.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
@@ -47,9 +61,10 @@ import numpy as np
 
 from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 from hybridteam.model.deploy import PlantDeploy
+from hybridteam.world.sensors import RangeRing
 
 __all__ = ["PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant", "Scan",
-           "clipped_ranges", "yaw"]
+           "clipped_ranges", "ring_ranges", "yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +118,31 @@ def clipped_ranges(ranges: Any, range_min: float, range_max: float) -> tuple[flo
     values = np.asarray(ranges, dtype=float)
     values = np.where(np.isnan(values), range_max, values)
     return tuple(np.clip(values, range_min, range_max).tolist())
+
+
+@functools.lru_cache(maxsize=64)
+def _beams_of(ring: RangeRing, angle_min: float, increment: float, count: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """For each ray of ``ring`` ``(count, rays_per_beam)``: the scan beam nearest its
+    direction, and whether that beam is within half an increment of it (the scan covers
+    it). A scan's geometry does not change between its messages: computed once per ring."""
+    beams = angle_min + increment * np.arange(count)
+    diff = np.abs((ring.ray_angles[..., None] - beams + math.pi) % (2.0 * math.pi) - math.pi)
+    nearest = diff.argmin(axis=-1)
+    gap = np.take_along_axis(diff, nearest[..., None], axis=-1)[..., 0]
+    return nearest, gap <= abs(increment) / 2.0 + 1e-9
+
+
+def ring_ranges(scan: Scan, ring: RangeRing) -> np.ndarray:
+    """The readings ``(count,)`` of range ring ``ring`` taken from the laser ``scan``
+    (module docstring, *The laser as the model's range rings*)."""
+    if not scan.ranges:
+        return np.full(ring.count, float(ring.max_range))
+    nearest, covered = _beams_of(ring, scan.angle_min, scan.angle_increment,
+                                 len(scan.ranges))
+    rays = np.where(covered, np.asarray(scan.ranges)[nearest] - ring.mount_radius,
+                    ring.max_range)
+    return np.clip(rays.min(axis=1), ring.min_range, ring.max_range)
 
 
 def _seconds(stamp: Any) -> float:
@@ -280,6 +320,8 @@ class RobotPlant:
         self.on_silent = on_silent
         self.last: np.ndarray | None = None  # the last pose read
         self.silent = False
+        self.last_scan: Scan | None = None  # the last scan read
+        self.scan_silent = False
 
     @staticmethod
     def check(agent: str, kind: str) -> None:
@@ -311,3 +353,23 @@ class RobotPlant:
             return self.last
         self.last = np.array([pose.x, pose.y, pose.theta])
         return self.last
+
+    def ranges(self, ring: RangeRing) -> np.ndarray | None:
+        """What range ring ``ring`` reads, from the robot's laser (:func:`ring_ranges`);
+        None without a ``scan`` topic (the ring is then the world process's). A laser
+        silent for the deploy setting's timeout is as silent odometry: ``on_silent`` told
+        why (once), the last scan read from then on; without ``on_silent``, or before any
+        scan, :class:`PlantSilent`."""
+        if self.robot.deploy.scan is None:
+            return None
+        if not self.scan_silent:
+            try:
+                self.last_scan = self.robot.scan()
+            except PlantSilent as exc:
+                if self.on_silent is None or self.last_scan is None:
+                    raise
+                self.scan_silent = True
+                log.warning("%s", exc)
+                self.on_silent(str(exc))
+        assert self.last_scan is not None
+        return ring_ranges(self.last_scan, ring)

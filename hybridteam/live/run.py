@@ -103,6 +103,9 @@ class LiveRun:
         # (what a reading may carry: the names the team's components let robots sense)
         self.codec.senses = frozenset(name for c in self.sim.ensemble.world.components
                                       for name in c.senses())
+        if isinstance(self.sim.ensemble.world, WorldReadings):  # robots' lasers: rings
+            self.sim.ensemble.world.lasers = {
+                a: plant for a, plant in external.items() if hasattr(plant, "ranges")}
         self.full = full
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet

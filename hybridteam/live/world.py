@@ -29,6 +29,8 @@ import numpy as np
 from hybridteam.engine.world import World
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import POSE, READING, WORLD_INDEX, Codec, Datagram
+from hybridteam.world.obstacles import Obstacles
+from hybridteam.world.sensors import RangeRing
 
 if TYPE_CHECKING:
     from hybridteam.engine.access import EnsembleAccess
@@ -165,9 +167,14 @@ class _Told:
 
 
 class WorldReadings(World):
-    """An agent process's world: the world process's readings (module docstring)."""
+    """An agent process's world: the world process's readings (module docstring), and
+    the lasers of the hosted robots that have one, read as their range rings."""
 
     link: WorldLink  # (set by :func:`world_seam`)
+    #: by hosted agent's index, a robot whose laser its range rings are read from: an
+    #: object whose ``ranges(ring)`` gives what the ring reads, or None without a laser
+    #: (:meth:`hybridteam.live.ros2_plant.RobotPlant.ranges`); set by the live run
+    lasers: Mapping[int, Any] = {}
 
     @property
     def any(self) -> bool:
@@ -191,10 +198,24 @@ class WorldReadings(World):
         return access.take_raised()
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        laser = self.lasers.get(agent)
+        if laser is not None:
+            ring = self.ring(agent, name)
+            ranges = None if ring is None else laser.ranges(ring)
+            if ranges is not None:
+                return np.broadcast_to(ranges, (len(idx), ring.count)).copy()
         reading = self.link.readings.get(agent, {}).get(name)
         if reading is None:
             raise KeyError(f"the world process gave agent {agent} no reading of '{name}'")
         return np.broadcast_to(reading, (len(idx), *reading.shape)).copy()
+
+    def ring(self, agent: int, name: str) -> RangeRing | None:
+        """Agent ``agent``'s range ring ``name`` as the team's obstacles declare it (a
+        detect rule's, or its robot model's), or None."""
+        for c in self.components:
+            if isinstance(c, Obstacles):
+                return c.ring(agent, name)
+        return None
 
     def sample_series(self) -> dict[str, tuple[str, ...]]:
         return {}  # (the world's series are the world process's records)
