@@ -141,21 +141,88 @@ def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy,
     assert not out.exists()
 
 
-def test_a_holonomic_agent_is_not_driven_as_a_twist(tmp_path, capsys):
-    """Its (vx, vy) are world-frame, a Twist's body-frame: refused, before any ROS."""
+def test_a_holonomic_command_is_turned_into_the_body_frame_by_hand():
+    """v_body = R(-yaw) v_world: facing +x nothing turns; facing +y, world +x is the
+    robot's right (body -y) and world +y its front; heading atan2(3, 4) (cos 0.8, sin
+    0.6): world (2, 1) is body (0.8 * 2 + 0.6 * 1, -0.6 * 2 + 0.8 * 1) = (2.2, -0.4)."""
+    import math
+
+    from hybridteam.live.ros2_plant import body_velocity
+
+    assert body_velocity(0.5, -0.2, 0.0) == (0.5, -0.2)
+    assert body_velocity(1.0, 0.0, math.pi / 2) == pytest.approx((0.0, -1.0), abs=1e-15)
+    assert body_velocity(0.0, 1.0, math.pi / 2) == pytest.approx((1.0, 0.0), abs=1e-15)
+    assert body_velocity(2.0, 1.0, math.atan2(3, 4)) == pytest.approx((2.2, -0.4),
+                                                                       abs=1e-15)
+    assert body_velocity(1.0, 0.0, math.radians(30)) == pytest.approx(
+        (math.sqrt(3) / 2, -0.5), abs=1e-15)
+
+
+class Commanded:
+    """A Ros2Plant stand-in: at a fixed pose, keeping the Twist fields it is given."""
+
+    agent = "robot"
+
+    def __init__(self, theta: float) -> None:
+        from hybridteam.live.ros2_plant import Pose
+
+        self.at = Pose(1.0, 2.0, theta, 0.0, 0.0)
+        self.sent: list[dict[str, float]] = []
+
+    def pose(self, timeout=None):
+        return self.at
+
+    def command(self, inputs):
+        self.sent.append(inputs)
+
+
+def test_a_holonomic_agent_is_driven_in_its_body_frame():
+    """The held inputs (vx, vy, omega) of a holonomic agent go out as a Twist turned by
+    the yaw of the pose read (a robot facing +y told to go +x world moves to its right);
+    a unicycle's (v, omega) go out as they are."""
+    import math
+
+    from hybridteam.live.ros2_plant import RobotPlant
+
+    robot = Commanded(math.pi / 2)
+    plant = RobotPlant(robot, "holonomic")
+    plant.command(np.array([0.5, 0.0, 0.25]), 0.0)  # (reads the pose first)
+    plant.state(0.1)
+    plant.command(np.array([0.3, 0.4, 0.0]), 0.1)
+    assert [sorted(c) for c in robot.sent] == [["omega", "vx", "vy"]] * 2
+    assert [[c["vx"], c["vy"], c["omega"]] for c in robot.sent] == [
+        pytest.approx([0.0, -0.5, 0.25], abs=1e-15), pytest.approx([0.4, -0.3, 0.0],
+                                                                   abs=1e-15)]
+    unicycle = Commanded(math.pi / 2)
+    RobotPlant(unicycle, "unicycle").command(np.array([0.5, 0.25]), 0.0)
+    assert unicycle.sent == [{"v": 0.5, "omega": 0.25}]
+
+
+def test_an_agent_a_robot_cannot_drive_is_refused(tmp_path, capsys):
+    """A flow plant has no velocity to send as a Twist: one line, before any ROS."""
     from hybridteam.cli import main
 
-    text = TEAM.read_text().replace("kind: unicycle", "kind: holonomic").replace(
-        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
-        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}")
-    team = tmp_path / "omni.yaml"
-    team.write_text(text)
+    team = tmp_path / "flow.yaml"
+    team.write_text("""
+team: flow
+agents:
+  robot:
+    plant: {kind: flow, state: {x: 0.0}}
+    initial: Grow
+    modes:
+      Grow: {flow: {x: "1"}}
+simulation: {duration: 1.0}
+deploy:
+  robot: {cmd_vel: /robot/cmd_vel, odom: /robot/odom}
+""")
     status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
                    "127.0.0.1:0", "-o", str(tmp_path / "out")])
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "has a holonomic plant; a robot over ROS 2 drives a unicycle" \
-        in err[0], err
+    assert err == ["hybridteam: error: --plant ros2: agent 'robot' has a flow plant; a robot "
+                   "over ROS 2 drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+                   "omega), as a Twist, its x, y, theta from odometry"]
+    assert not (tmp_path / "out").exists()
 
 
 # ---------------------------------------------------------------------- launch --plant ros2

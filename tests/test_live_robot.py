@@ -34,8 +34,12 @@ class UnicycleRobot:
     Odometry in frame ``odom``. Keeps every Twist with its ``time.time()`` of arrival and
     every published pose ``(x, y, theta, time.time())``."""
 
-    def __init__(self, ros, ns: str, scan: dict | None = None) -> None:
-        """``scan``: LaserScan fields it publishes on ``ns/scan`` with every pose."""
+    def __init__(self, ros, ns: str, scan: dict | None = None, *, theta: float = 0.0,
+                 holonomic: bool = False) -> None:
+        """``scan``: LaserScan fields it publishes on ``ns/scan`` with every pose;
+        ``theta``: its heading at the start; ``holonomic``: a base that also moves
+        sideways (the Twist's linear.y, kept in ``lateral``), for a heading fixed while
+        it moves (angular.z zero)."""
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rclpy.executors import SingleThreadedExecutor
@@ -46,8 +50,11 @@ class UnicycleRobot:
         self.node = ros.create_node("unicycle_robot", context=self.ctx)
         self.twists: list[tuple[float, float, float]] = []  # (v, omega, wall time)
         self.poses: list[tuple[float, float, float, float]] = []
-        self.x = self.y = self.theta = 0.0
-        self.v = self.omega = 0.0
+        self.x = self.y = 0.0
+        self.theta = theta
+        self.v = self.vy = self.omega = 0.0
+        self.holonomic = holonomic
+        self.lateral: list[float] = []  # (holonomic) each Twist's linear.y
         self.silent = False  # set: it stops publishing odometry (its driver hangs)
         self.lock = threading.Lock()
         self._Odometry = Odometry
@@ -67,15 +74,21 @@ class UnicycleRobot:
 
     def _on_twist(self, msg) -> None:
         with self.lock:
-            self.v, self.omega = msg.linear.x, msg.angular.z
+            self.v, self.vy, self.omega = msg.linear.x, msg.linear.y, msg.angular.z
             self.twists.append((self.v, self.omega, time.time()))
+            self.lateral.append(self.vy)
 
     def _tick(self) -> None:
         now = time.monotonic()
         dt, self.last = now - self.last, now
         with self.lock:
-            v, w = self.v, self.omega
-        if w == 0.0:
+            v, vy, w = self.v, self.vy, self.omega
+        if self.holonomic:  # (its heading fixed: the body frame's axes in the world)
+            assert w == 0.0
+            c, s = math.cos(self.theta), math.sin(self.theta)
+            self.x += (c * v - s * vy) * dt
+            self.y += (s * v + c * vy) * dt
+        elif w == 0.0:
             self.x += v * math.cos(self.theta) * dt
             self.y += v * math.sin(self.theta) * dt
         else:
@@ -225,6 +238,33 @@ def test_launch_drives_the_deployed_robot(ros, tmp_path):
     assert [p["plant"] for p in trace.meta["live"]["processes"]] == ["ros2"]
     assert robot.twists[0][:2] == (0.5, 0.0) and robot.twists[-1][:2] == (0.0, 0.0)
     assert max(p[0] for p in robot.poses) >= 1.0  # (the robot, not a model, got there)
+
+
+def test_a_holonomic_agent_drives_its_robot_in_the_world_frame(ros, tmp_path):
+    """drive.yaml as a holonomic base: vx = 0.5 (world frame) until x >= 1. The robot
+    faces +y (odometry heading pi/2), so the Twist is (0, -0.5) in its frame, and it
+    moves along world +x, y staying 0, to the final mode; sent as it was (linear.x 0.5),
+    it would move along +y and never reach x = 1."""
+    ns = f"/{ros_name(f't{os.getpid()}_omni')}/robot"
+    team = team_file(tmp_path, ns, 5.0)
+    team.write_text(team.read_text().replace("kind: unicycle", "kind: holonomic").replace(
+        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
+        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}"))
+    robot = UnicycleRobot(ros, ns, theta=math.pi / 2, holonomic=True)
+    out = tmp_path / "out"
+    try:
+        done = run_live(team, out)
+        time.sleep(0.1)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    assert trace.transitions["target"].tolist() == ["Forward", "Stopped"]
+    assert robot.twists[0][0] == pytest.approx(0.0, abs=1e-15)
+    assert robot.lateral[0] == -0.5
+    assert robot.twists[-1][:2] == (0.0, 0.0) and robot.lateral[-1] == 0.0
+    x, y, _, _ = robot.poses[-1]
+    assert x >= 1.0 and abs(y) < 1e-9
 
 
 @law("tests.laser_ring_keep", plants=("unicycle",))

@@ -10,8 +10,9 @@ how long odometry may be ``timeout`` silent).
 
 **Commands.** The input keeps the plant's names: a unicycle's ``v`` and ``omega`` become
 ``linear.x`` and ``angular.z``, a holonomic base's ``vx``, ``vy`` and ``omega`` become
-``linear.x``, ``linear.y`` and ``angular.z`` (body frame, m/s and rad/s, as REP 103 and the
-model both have them). A non-finite input is refused rather than sent to a motor driver.
+``linear.x``, ``linear.y`` and ``angular.z`` (body frame, m/s and rad/s, as REP 103 has
+them: :class:`RobotPlant` turns a holonomic model's world-frame velocity into the body
+frame before it comes here). A non-finite input is refused rather than sent to a motor driver.
 :meth:`Ros2Plant.close` publishes a zero Twist first: a robot whose agent stops must not
 keep driving on its last command. Commands go out reliable, keeping the last one only (a
 reliable writer is heard by reliable and best-effort drivers alike; an older command is
@@ -63,8 +64,8 @@ from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 from hybridteam.model.deploy import PlantDeploy
 from hybridteam.world.sensors import RangeRing
 
-__all__ = ["PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant", "Scan",
-           "clipped_ranges", "ring_ranges", "yaw"]
+__all__ = ["ROBOT_KINDS", "PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant",
+           "Scan", "body_velocity", "clipped_ranges", "ring_ranges", "yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -298,15 +299,31 @@ class Ros2Plant:
         self.close()
 
 
+#: the plants a robot over ROS 2 drives: their inputs make a Twist, their state a pose
+ROBOT_KINDS = ("unicycle", "holonomic")
+
+
+def body_velocity(vx: float, vy: float, yaw: float) -> tuple[float, float]:
+    """World-frame velocity ``(vx, vy)`` in the frame of a robot heading ``yaw``:
+    ``R(-yaw) (vx, vy)``, what a Twist's ``linear.x``, ``linear.y`` are."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * vx + s * vy, -s * vx + c * vy
+
+
 class RobotPlant:
     """A :class:`Ros2Plant` as an agent's external plant in the engine
     (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
     latest odometry pose in wherever the engine needs the agent's state.
 
-    Only a unicycle agent is driven so: its inputs ``(v, omega)`` are body-frame, as a
-    Twist's are, and its state ``(x, y, theta)`` is an odometry pose. A holonomic agent's
-    ``(vx, vy)`` are world-frame (:mod:`hybridteam.dynamics.plants`) and would need turning
-    into the body frame first; it is refused rather than driven wrongly.
+    A unicycle agent's inputs ``(v, omega)`` are body-frame, as a Twist's are, and go out
+    as they are. A holonomic agent's ``(vx, vy)`` are world-frame
+    (:mod:`hybridteam.dynamics.plants`): they are turned into the body frame by the yaw of
+    the pose the engine last read (:func:`body_velocity`), the one its law computed them
+    from; ``omega`` is the same in both frames. Between two instants the robot holds that
+    body-frame Twist, so while it turns (``omega`` not zero) its world-frame velocity
+    turns with it, by at most ``omega`` times the time to the next instant, where the
+    model's keeps its direction. Both kinds' state ``(x, y, theta)`` is an odometry pose;
+    other plants are refused.
 
     A robot whose odometry falls silent for its ``timeout`` ends the run rather than
     breaking it: ``on_silent`` is told why (a live run's stop request: the run ends at its
@@ -316,7 +333,7 @@ class RobotPlant:
     def __init__(self, robot: Ros2Plant, kind: str,
                  on_silent: Callable[[str], None] | None = None) -> None:
         self.check(robot.agent, kind)
-        self.robot = robot
+        self.robot, self.kind = robot, kind
         self.on_silent = on_silent
         self.last: np.ndarray | None = None  # the last pose read
         self.silent = False
@@ -326,14 +343,20 @@ class RobotPlant:
     @staticmethod
     def check(agent: str, kind: str) -> None:
         """ValueError unless agent ``agent``'s plant ``kind`` is one a robot drives."""
-        if kind != "unicycle":
+        if kind not in ROBOT_KINDS:
             raise ValueError(f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
-                             "drives a unicycle agent (v, omega as a Twist; x, y, theta "
-                             "from odometry)")
+                             "drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+                             "omega), as a Twist, its x, y, theta from odometry")
 
     def command(self, inputs: np.ndarray, t: float) -> None:
-        v, omega = inputs.tolist()
-        self.robot.command({"v": v, "omega": omega})
+        if self.kind == "unicycle":
+            v, omega = inputs.tolist()
+            self.robot.command({"v": v, "omega": omega})
+            return
+        vx, vy, omega = inputs.tolist()
+        pose = self.last if self.last is not None else self.state(t)
+        bx, by = body_velocity(vx, vy, float(pose[2]))
+        self.robot.command({"vx": bx, "vy": by, "omega": omega})
 
     def state(self, t: float) -> np.ndarray:
         """The latest pose (:meth:`Ros2Plant.pose`). Once odometry has been silent for
