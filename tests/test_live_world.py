@@ -183,6 +183,46 @@ def test_an_agent_with_no_world_process_is_one_line(team, monkeypatch):
         transport.close()
 
 
+def test_an_agent_whose_first_reading_was_lost_asks_again(team, cteam, monkeypatch):
+    """The world process answers every pose. An agent process still without its first
+    reading after ASK_AGAIN sends a pose of no field (where the agent is is not known
+    before its run starts) and keeps asking: a stand-in world process whose first reading
+    was lost answers the ask, and the agent's run goes on (before, it waited the whole
+    FIRST_READING out and stopped)."""
+    import threading
+
+    monkeypatch.setattr(live_run, "FIRST_READING", 2.0)
+    world = UdpTransport(("127.0.0.1", 0))
+    transport = UdpTransport(("127.0.0.1", 0), [world.address])
+    world.peers.append(transport.address)
+    asks: list[dict[str, float]] = []
+    done = threading.Event()
+    live = LiveRun(team, ["labmate"], transport, duration=0.2, time_scale=5)
+    codec = codec_of(cteam)
+
+    def stand_in() -> None:
+        while not done.is_set() and not asks:
+            world.wait(0.02)
+            for data, _ in world.receive():
+                dg = codec.decode(data)
+                if dg.type == POSE and dg.sender == LABMATE:
+                    asks.append(dg.fields)
+                    world.send(live.codec.encode_world(READING, WORLD_INDEX, LABMATE, 0, {
+                        "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0}, 0.0), "data")
+
+    thread = threading.Thread(target=stand_in)
+    thread.start()
+    try:
+        trace = live.run()
+    finally:
+        done.set()
+        thread.join()
+        transport.close()
+        world.close()
+    assert asks == [{}]
+    assert trace.outcomes[0]["outcome"] == "ok"  # (ended at its duration)
+
+
 @pytest.mark.parametrize(("team_file", "args", "message"), [
     (EXPERIMENT2, ["--world", "--agent", "labmate"], "give the agents this process runs "
                                                      "(--agent NAME) or --world, not both"),

@@ -29,7 +29,15 @@ from hybridteam.engine.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
-from hybridteam.live.wire import READING, VERSION, Codec, WireError, declarations
+from hybridteam.live.wire import (
+    POSE,
+    READING,
+    VERSION,
+    WORLD_INDEX,
+    Codec,
+    WireError,
+    declarations,
+)
 from hybridteam.live.world import WorldHost, WorldLink, WorldReadings, world_seam
 from hybridteam.model import Team
 from hybridteam.trace import Trace
@@ -134,16 +142,26 @@ class LiveRun:
 
     def await_world(self) -> None:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
-        reading of every hosted agent, which its laws read from their first tick; what
-        else arrives meanwhile is handed to the clock to be taken first. HostingError if
-        none comes (no world process runs)."""
+        reading of every hosted agent, which its laws read from their first tick, asking
+        again every ASK_AGAIN seconds; what else arrives meanwhile is handed to the clock
+        to be taken first. HostingError if none comes (no world process runs)."""
         # (a codec of its own: the run's must see these datagrams first when it takes them)
         peek = Codec(self.full, self.codec.senses)
         kept: list[tuple[bytes, float]] = []
         end = time.monotonic() + FIRST_READING
+        ask = time.monotonic() + ASK_AGAIN
         waiting = set(self.link.here)
         while waiting:
-            if time.monotonic() > end:
+            now = time.monotonic()
+            if now >= ask:
+                # the world process's first reading lost (a datagram, best-effort), or sent
+                # before this process could hear it: it answers every pose, and one with no
+                # field asks without saying where the agent is (its state is set only once
+                # its run starts)
+                for a in sorted(waiting):
+                    self.link.send(POSE, a, WORLD_INDEX, {})
+                ask = now + ASK_AGAIN
+            if now > end:
                 raise HostingError(f"no reading from the world process within "
                                    f"{FIRST_READING:g} s: a team with world components "
                                    "needs one ('hybridteam live TEAM.yaml --world')")
@@ -166,6 +184,9 @@ class LiveRun:
 
 #: Wall seconds an agent's process waits for the world process's first reading.
 FIRST_READING = 30.0
+
+#: Wall seconds between an agent process's asks for its first reading while it waits.
+ASK_AGAIN = 0.1
 
 
 def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:
