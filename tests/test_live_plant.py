@@ -311,3 +311,35 @@ def test_launch_plant_ros2_refusals_are_one_line(tmp_path, capsys, deploy, args,
     assert status == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"hybridteam: error: {message}"]
     assert not out.exists()
+
+
+def test_a_sigterm_while_the_folder_is_written_is_the_live_process_s(tmp_path, monkeypatch):
+    """launch stops the processes still running once the end rule's have ended; one whose
+    run has just ended may get that SIGTERM as it writes its folder. Its handler is still
+    the live process's then (the run is over: nothing to stop), not the caller's (a real
+    process's default, which would kill it with its folder half-written); the caller's is
+    back once ``live`` returns."""
+    import os
+    import signal
+
+    from hybridteam.cli import live, main
+
+    caller: list[int] = []
+    previous = signal.signal(signal.SIGTERM, lambda signum, _frame: caller.append(signum))
+    written = live.write_folder
+
+    def sigterm_then_write(out, trace, summary) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+        written(out, trace, summary)
+
+    monkeypatch.setattr(live, "write_folder", sigterm_then_write)
+    try:
+        status = main(["live", str(TEAM), "--agent", "robot", "--listen", "127.0.0.1:0",
+                       "--duration", "0.1", "--time-scale", "10", "-o", str(tmp_path / "o")])
+        assert status == 0
+        assert caller == []  # (the live process's handler took it)
+        assert (tmp_path / "o" / "summary.json").exists()
+        os.kill(os.getpid(), signal.SIGTERM)  # the caller's own again
+        assert caller == [signal.SIGTERM]
+    finally:
+        signal.signal(signal.SIGTERM, previous)

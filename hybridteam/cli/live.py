@@ -149,6 +149,21 @@ def check_clock(args: argparse.Namespace) -> None:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
+    """:func:`live_process`, the caller's SIGINT and SIGTERM handlers restored once it has
+    ended: only after its folder is written, so that a SIGTERM after its run ends (launch
+    stopping the processes still running once the end rule's have ended, as this one
+    closes its transport and writes) stops nothing but is noted."""
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return live_process(args)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def live_process(args: argparse.Namespace) -> int:
+    """``hybridteam live``: its handlers of SIGINT and SIGTERM stop the run at its next
+    wait (:func:`cmd_live` restores the caller's)."""
     from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
     from hybridteam.live.run import LiveRun
@@ -179,7 +194,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     except BaseException:
         transport.close()
         raise
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, on_signal)
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
@@ -206,8 +222,6 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
