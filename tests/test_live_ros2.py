@@ -126,42 +126,63 @@ def test_a_laser_scan_read_as_a_range_ring_by_hand():
     assert ring_ranges(scan_of([], 0.0, 0.1), ring).tolist() == [2.5] * 4  # nothing seen
 
 
-def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest():
-    """In an agent's process, a robot with a laser reads its ring from it
-    (experiment 2's XR4000: IR, 24 beams on its 0.33 hull, 0.5 range); its other senses,
-    and every other agent's, are the world process's reading."""
+RINGS_TEAM = """
+team: rings
+world:
+  - use: obstacles
+    with:
+      detect:
+        - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, mount_radius: 0.2},
+           below: 0.1, raise: near}
+        - {agent: other, sensor: ir, ring: {count: 4, max_range: 2.5}, below: 0.1,
+           raise: near}
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look: {inputs: {v: 0, omega: 0}, period: 0.1, transitions: [{to: Look, on: near}]}
+  other:
+    plant: {kind: unicycle, state: {x: 5.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look: {inputs: {v: 0, omega: 0}, period: 0.1, transitions: [{to: Look, on: near}]}
+simulation: {duration: 1}
+"""
+
+
+def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest(team_from_yaml):
+    """In a process hosting both agents, the robot with a laser reads its ring ``ir`` (4
+    beams on a 0.2 hull, 2.5 range) from it; without a laser (no scan topic: None), and
+    for the other agent, the ring is the world process's reading."""
     import numpy as np
 
-    import hybridteam as ht
     from hybridteam.engine.compiler import compile_team
     from hybridteam.engine.simulator import Simulator
     from hybridteam.live.wire import READING, WORLD_INDEX, Codec
     from hybridteam.live.world import WorldLink, WorldReadings, world_seam
-    from tests.test_live_world import EXPERIMENT2, XR4000, Sent
+    from tests.test_live_world import Sent
 
     class Laser:
         def __init__(self, scan):
             self.scan = scan
 
         def ranges(self, ring):
-            return ring_ranges(self.scan, ring)
+            return None if self.scan is None else ring_ranges(self.scan, ring)
 
-    cteam = compile_team(ht.load(EXPERIMENT2))
-    link = WorldLink(Codec(cteam, frozenset({"arm", "payload", "ir", "sonar"})), Sent(),
-                     [XR4000], host=False)
+    cteam = compile_team(team_from_yaml(RINGS_TEAM))
+    link = WorldLink(Codec(cteam, frozenset({"ir"})), Sent(), [0, 1], host=False)
     world = Simulator(cteam, 1, world=world_seam(WorldReadings, link)).ensemble.world
-    link.take(link.codec.decode(link.codec.encode_world(
-        READING, WORLD_INDEX, XR4000, 0,
-        {**{f"ir.{k}": 0.45 for k in range(24)}, "arm.0": 0.1, "arm.1": 0.2, "arm.2": 0.3},
-        1.0)))
-    # a laser every 15 degrees: 0.5 m ahead, 0.4 m at 15 degrees, 3 m elsewhere
-    world.lasers = {XR4000: Laser(scan_of([0.5, 0.4] + [3.0] * 22, 0.0, math.radians(15)))}
-    ir = world.sense(XR4000, np.array([0]), "ir")
-    assert ir.shape == (1, 24)
-    assert ir[0, :3].tolist() == pytest.approx([0.5 - 0.33, 0.4 - 0.33, 0.5])
-    assert world.sense(XR4000, np.array([0]), "arm").tolist() == [[0.1, 0.2, 0.3]]
-    world.lasers = {}
-    assert world.sense(XR4000, np.array([0]), "ir")[0, 0] == 0.45
+    for a in (0, 1):
+        link.take(link.codec.decode(link.codec.encode_world(
+            READING, WORLD_INDEX, a, a, {f"ir.{k}": 1.5 + a for k in range(4)}, 1.0)))
+    # a laser every 90 degrees from 0: 0.5, 3, 0.9, 0.25
+    world.lasers = {0: Laser(scan_of([0.5, 3.0, 0.9, 0.25], 0.0, math.pi / 2))}
+    idx = np.array([0])
+    assert world.sense(0, idx, "ir").tolist() == [pytest.approx([0.3, 2.5, 0.7, 0.05])]
+    assert world.sense(1, idx, "ir").tolist() == [[2.5] * 4]  # (the world's: 1.5 + 1)
+    world.lasers = {0: Laser(None)}
+    assert world.sense(0, idx, "ir").tolist() == [[1.5] * 4]
 
 
 def test_deploy_settings_checked_where_they_are():
