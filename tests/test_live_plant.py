@@ -164,7 +164,9 @@ class Commanded:
     agent = "robot"
 
     def __init__(self, theta: float) -> None:
-        from hybridteam.live.ros2_plant import Pose
+        from hybridteam.live.ros2_plant import PlantDeploy, Pose
+
+        self.deploy = PlantDeploy("/robot/cmd_vel", "/robot/odom")
 
         self.at = Pose(1.0, 2.0, theta, 0.0, 0.0)
         self.sent: list[dict[str, float]] = []
@@ -343,3 +345,73 @@ def test_a_sigterm_while_the_folder_is_written_is_the_live_process_s(tmp_path, m
         assert caller == [signal.SIGTERM]
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+LASER_TEAM = """
+team: laser
+world:
+  - use: obstacles
+    with:
+      detect:
+        - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, mount_radius: 0.2},
+           beams: [0], below: 0.3, raise: near}
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look: {inputs: {v: 0, omega: 0}, period: 0.1, transitions: [{to: Seen, on: near}]}
+      Seen: {inputs: {v: 0, omega: 0}, period: 0.1}
+simulation: {duration: 1.0, sample_period: 0.1}
+"""
+
+
+class ScannedRobot:
+    """A robot standing still whose laser (4 beams every 90 degrees from ahead) reads 1 m
+    ahead until run time 0.42, then 0.4 m: what its ring's front beam reads is 0.8, then
+    0.2 (less its 0.2 mount radius)."""
+
+    laser = True
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def command(self, inputs: np.ndarray, t: float) -> None:
+        pass
+
+    def state(self, t: float) -> np.ndarray:
+        self.t = t
+        return np.zeros(3)
+
+    def ranges(self, ring):
+        import math
+
+        from hybridteam.live.ros2_plant import Scan, ring_ranges
+
+        ahead = 1.0 if self.t < 0.42 else 0.4
+        return ring_ranges(Scan((ahead, 3.0, 3.0, 3.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0,
+                                0.0), ring)
+
+
+def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
+    """The rule 'front beam below 0.3 raises near' runs in the robot's process on its
+    laser: near is raised at the first instant its laser reads 0.2 ahead (run time 0.5,
+    the first control tick or sample past 0.42), and the world process's raising of near
+    at the start (its model says otherwise) is not taken."""
+    from hybridteam.live.run import LiveRun
+    from hybridteam.live.transport import UdpTransport
+    from hybridteam.live.wire import READING, WORLD_INDEX
+
+    team = team_from_yaml(LASER_TEAM)
+    transport = UdpTransport(("127.0.0.1", 0))
+    world = UdpTransport(("127.0.0.1", 0), [transport.address])
+    try:
+        live = LiveRun(team, ["robot"], transport, duration=1.0, time_scale=5,
+                       plants={"robot": ScannedRobot()}, plant_name="ros2")
+        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
+            **{f"ir.{k}": 0.1 for k in range(4)}, "event.near": 1.0}, 0.0), "data")
+        trace = live.run()
+    finally:
+        transport.close()
+        world.close()
+    assert stops(trace) == [(0.0, "Look"), (pytest.approx(0.5, abs=1e-9), "Seen")]

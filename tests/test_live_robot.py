@@ -283,7 +283,7 @@ world:
     with:
       detect:
         - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, min_range: 0.04,
-           mount_radius: 0.2}, beams: [0], below: 0.01, raise: near}
+           mount_radius: 0.2}, beams: [0], below: 0.9, raise: near}
 agents:
   robot:
     plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
@@ -303,7 +303,8 @@ def test_a_robots_laser_is_what_its_law_reads_of_its_ring(ros, tmp_path):
     """A robot's LaserScan (8 beams every 45 degrees from 0) reaches its agent's law as
     the ring ``ir`` reads (4 beams on a 0.2 hull, 0.04..2.5 m): beams 0, 2, 4, 6 of the
     scan less 0.2, clipped: 1.0 -> 0.8, inf (no echo, read 8.0) -> 2.5, 3.0 -> 2.5,
-    0.1 -> 0.04; not the 1.0 on every beam the (stand-in) world process says."""
+    0.1 -> 0.04; not the 1.0 on every beam the (stand-in) world process says. Its
+    detect rule (the front beam below 0.9) reads it too: near at the first instant."""
     import hybridteam as ht
     from hybridteam.live.ros2_plant import RobotPlant, Ros2Plant
     from hybridteam.live.run import LiveRun
@@ -337,3 +338,5 @@ def test_a_robots_laser_is_what_its_law_reads_of_its_ring(ros, tmp_path):
     got = [float(memory[f"ir{k}"][0]) for k in range(4)]
     assert got == pytest.approx([1.0 - 0.2, 2.5, 2.5, 0.04])  # (float32 ranges: 1e-6)
     assert trace.outcomes[0]["outcome"] == "ok"
+    rows = trace.transitions
+    assert rows["target"].tolist() == ["Look", "Seen"] and rows["t"].tolist() == [0.0, 0.0]

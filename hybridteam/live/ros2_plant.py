@@ -42,7 +42,8 @@ frame: the laser at its centre, facing its heading, so a ray of a sensor on the 
 and reads that beam less the mount radius; a cone's off-centre rays are read the same
 way (exact on its centre line). A direction the scan does not cover (farther than half
 an increment from every beam) reads ``max_range``, nothing seen, as the ring reads where
-nothing is in range.
+nothing is in range. The robot's detect rules run on these readings in its agent's
+process (:meth:`hybridteam.live.world.WorldReadings.detect_on_lasers`).
 
 Odometry and scans are read best-effort (heard from reliable and best-effort publishers
 alike), keeping the last 5: only the latest matters.
@@ -339,6 +340,8 @@ class RobotPlant:
         self.silent = False
         self.last_scan: Scan | None = None  # the last scan read
         self.scan_silent = False
+        #: whether the robot has a laser (a scan topic) its agent's range rings are read from
+        self.laser = robot.deploy.scan is not None
 
     @staticmethod
     def check(agent: str, kind: str) -> None:

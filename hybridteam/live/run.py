@@ -113,7 +113,7 @@ class LiveRun:
                                       for name in c.senses())
         if isinstance(self.sim.ensemble.world, WorldReadings):  # robots' lasers: rings
             self.sim.ensemble.world.lasers = {
-                a: plant for a, plant in external.items() if hasattr(plant, "ranges")}
+                a: plant for a, plant in external.items() if getattr(plant, "laser", False)}
         self.full = full
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet

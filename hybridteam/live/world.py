@@ -11,7 +11,9 @@ own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
   its agent: what it senses now, the events components raised for it, an outcome they
   concluded (that one goes to every agent).
 * :class:`WorldReadings` is an agent process's world: it runs no component; it sends the
-  hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading.
+  hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading,
+  except for a robot with a laser (``--plant ros2`` with a ``scan`` topic): its range
+  rings are read from the laser, and its detect rules run on them here.
 
 :class:`WorldLink` is what the wall clock (:mod:`.clock`) hands the datagrams of the two
 kinds to, and what both sides send through.
@@ -30,7 +32,7 @@ from hybridteam.engine.world import World
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import POSE, READING, WORLD_INDEX, Codec, Datagram
 from hybridteam.world.obstacles import Obstacles
-from hybridteam.world.sensors import RangeRing
+from hybridteam.world.sensors import RangeRing, detect
 
 if TYPE_CHECKING:
     from hybridteam.engine.access import EnsembleAccess
@@ -54,6 +56,9 @@ class WorldLink:
         self.pending: set[int] = set(range(len(codec.agents))) if host else set()
         #: (agents' process) the last reading per hosted agent: sensed name -> values
         self.readings: dict[int, dict[str, np.ndarray]] = {}
+        #: (agents' process) (agent, event) its process raises itself (a robot's detect
+        #: rules on its laser): the world process's raising of them is not taken
+        self.local: set[tuple[int, str]] = set()
         self.sent = 0
 
     def send(self, kind: str, sender: int, to: int, fields: dict[str, float]) -> None:
@@ -79,7 +84,8 @@ class WorldLink:
         for key, value in dg.fields.items():
             head, _, tail = key.partition(".")
             if head == "event":
-                events.append(tail)
+                if (dg.to, tail) not in self.local:
+                    events.append(tail)
             elif head == "outcome":
                 outcome = tail
             else:
@@ -175,6 +181,9 @@ class WorldReadings(World):
     #: object whose ``ranges(ring)`` gives what the ring reads, or None without a laser
     #: (:meth:`hybridteam.live.ros2_plant.RobotPlant.ranges`); set by the live run
     lasers: Mapping[int, Any] = {}
+    #: (rule, its ring, whether its beams read near at the last instant) for each detect
+    #: rule of a robot with a laser, found at the first instant
+    laser_rules: list[list[Any]] | None = None
 
     @property
     def any(self) -> bool:
@@ -195,7 +204,30 @@ class WorldReadings(World):
                            for n in access.variable_names(a)})
             if fields:
                 self.link.send(POSE, a, WORLD_INDEX, fields)
+        if self.lasers:
+            self.detect_on_lasers(access, idx)
         return access.take_raised()
+
+    def detect_on_lasers(self, access: EnsembleAccess, idx: np.ndarray) -> None:
+        """The detect rules of the robots with a laser, here, on what the laser reads as
+        the rule's ring, as the obstacles component runs them on its ray casting: the
+        rule's event raised when the nearest of its beams drops below its threshold (on
+        the rising edge; nothing counts as seen before the first instant). The world
+        process still runs them on the model; its raising of them is not taken here
+        (:attr:`WorldLink.local`)."""
+        if self.laser_rules is None:
+            self.laser_rules = [
+                [rule, self.ring(rule.agent, rule.sensor), False]
+                for c in self.components if isinstance(c, Obstacles)
+                for rule in c.rules if rule.agent in self.lasers]
+            self.link.local = {(rule.agent, rule.event) for rule, _, _ in self.laser_rules}
+        for entry in self.laser_rules:
+            rule, ring, seen = entry
+            ranges = self.lasers[rule.agent].ranges(ring)
+            near = bool(detect(ranges[None, :], rule.below, rule.beams)[0])
+            if near and not seen:
+                access.raise_event(idx, rule.agent, rule.event)
+            entry[2] = near
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         laser = self.lasers.get(agent)
