@@ -263,11 +263,12 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
                 on_silent: Callable[[str], None]) -> dict:
     """The hosted agents' external plants ``--plant`` names, by agent: none for ``sim``
     (the engine integrates them); for ``ros2`` each agent's robot through its ``deploy:``
-    entry, once its first odometry has arrived (``on_silent``: told why when a robot's
-    odometry falls silent later, to stop the run). A one-line UsageError for an agent with
-    no entry or not a unicycle, a time scale (a robot keeps the wall clock's pace),
-    rclpy missing, or a robot that says nothing at the start (within its timeout, and
-    at least FIRST_ODOMETRY)."""
+    entry, once its first odometry (and scan, with a scan topic) has arrived
+    (``on_silent``: told why when a robot's odometry or laser falls silent later, to stop
+    the run). A one-line UsageError for an agent with no entry or whose plant a robot
+    cannot drive (neither unicycle nor holonomic), a time scale (a robot keeps the wall
+    clock's pace), rclpy missing, or a robot that says nothing at the start (within its
+    timeout, and at least FIRST_ODOMETRY)."""
     if args.plant == "sim":
         return {}
     check_robot_clock(args)
