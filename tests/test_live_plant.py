@@ -415,3 +415,41 @@ def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
         transport.close()
         world.close()
     assert stops(trace) == [(0.0, "Look"), (pytest.approx(0.5, abs=1e-9), "Seen")]
+
+
+def test_a_laser_falling_silent_stops_the_run_with_the_last_scan_standing():
+    """As silent odometry: the laser's silence is told once (the live run then stops),
+    the last scan read stands meanwhile and is not waited for again; with nobody to tell,
+    or before any scan, it is an error."""
+    import math
+
+    from hybridteam.live.ros2_plant import PlantDeploy, PlantSilent, RobotPlant, Scan
+    from hybridteam.world.sensors import RangeRing
+
+    class GoesSilent:
+        agent = "robot"
+        deploy = PlantDeploy("/robot/cmd_vel", "/robot/odom", "/robot/scan")
+
+        def __init__(self, scans: int) -> None:
+            self.scans, self.asked = scans, 0
+
+        def scan(self, timeout=None):
+            self.asked += 1
+            if self.asked > self.scans:
+                raise PlantSilent("robot: no laser scan on /robot/scan within 2 s")
+            return Scan((1.0, 2.0, 3.0, 4.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0, 0.0)
+
+    ring = RangeRing(count=4, max_range=5.0)
+    told: list[str] = []
+    robot = GoesSilent(1)
+    plant = RobotPlant(robot, "unicycle", on_silent=told.append)
+    assert plant.laser
+    assert [plant.ranges(ring).tolist() for _ in range(3)] == [[1.0, 2.0, 3.0, 4.0]] * 3
+    assert told == ["robot: no laser scan on /robot/scan within 2 s"]
+    assert robot.asked == 2  # (silent once: not waited for again)
+    with pytest.raises(PlantSilent):
+        RobotPlant(GoesSilent(0), "unicycle", on_silent=told.append).ranges(ring)
+    with pytest.raises(PlantSilent):
+        unheard = RobotPlant(GoesSilent(1), "unicycle")
+        unheard.ranges(ring)
+        unheard.ranges(ring)
