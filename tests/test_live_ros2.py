@@ -177,11 +177,11 @@ def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest(team_fr
         link.take(link.codec.decode(link.codec.encode_world(
             READING, WORLD_INDEX, a, a, {f"ir.{k}": 1.5 + a for k in range(4)}, 1.0)))
     # a laser every 90 degrees from 0: 0.5, 3, 0.9, 0.25
-    world.lasers = {0: Laser(scan_of([0.5, 3.0, 0.9, 0.25], 0.0, math.pi / 2))}
+    world.read_lasers({0: Laser(scan_of([0.5, 3.0, 0.9, 0.25], 0.0, math.pi / 2))})
     idx = np.array([0])
     assert world.sense(0, idx, "ir").tolist() == [pytest.approx([0.3, 2.5, 0.7, 0.05])]
     assert world.sense(1, idx, "ir").tolist() == [[2.5] * 4]  # (the world's: 1.5 + 1)
-    world.lasers = {0: Laser(None)}
+    world.read_lasers({0: Laser(None)})
     assert world.sense(0, idx, "ir").tolist() == [[1.5] * 4]
 
 

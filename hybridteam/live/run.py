@@ -112,8 +112,8 @@ class LiveRun:
         self.codec.senses = frozenset(name for c in self.sim.ensemble.world.components
                                       for name in c.senses())
         if isinstance(self.sim.ensemble.world, WorldReadings):  # robots' lasers: rings
-            self.sim.ensemble.world.lasers = {
-                a: plant for a, plant in external.items() if getattr(plant, "laser", False)}
+            self.sim.ensemble.world.read_lasers(
+                {a: plant for a, plant in external.items() if getattr(plant, "laser", False)})
         self.full = full
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet

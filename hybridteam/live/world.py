@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -177,13 +177,12 @@ class WorldReadings(World):
     the lasers of the hosted robots that have one, read as their range rings."""
 
     link: WorldLink  # (set by :func:`world_seam`)
-    #: by hosted agent's index, a robot whose laser its range rings are read from: an
-    #: object whose ``ranges(ring)`` gives what the ring reads, or None without a laser
-    #: (:meth:`hybridteam.live.ros2_plant.RobotPlant.ranges`); set by the live run
+    #: by hosted agent's index, a robot whose laser its range rings are read from
+    #: (:meth:`read_lasers`)
     lasers: Mapping[int, Any] = {}
     #: (rule, its ring, whether its beams read near at the last instant) for each detect
-    #: rule of a robot with a laser, found at the first instant
-    laser_rules: list[list[Any]] | None = None
+    #: rule of a robot with a laser
+    laser_rules: Sequence[list[Any]] = ()
 
     @property
     def any(self) -> bool:
@@ -204,23 +203,28 @@ class WorldReadings(World):
                            for n in access.variable_names(a)})
             if fields:
                 self.link.send(POSE, a, WORLD_INDEX, fields)
-        if self.lasers:
+        if self.laser_rules:
             self.detect_on_lasers(access, idx)
         return access.take_raised()
 
-    def detect_on_lasers(self, access: EnsembleAccess, idx: np.ndarray) -> None:
-        """The detect rules of the robots with a laser, here, on what the laser reads as
-        the rule's ring, as the obstacles component runs them on its ray casting: the
-        rule's event raised when the nearest of its beams drops below its threshold (on
-        the rising edge; nothing counts as seen before the first instant). The world
-        process still runs them on the model; its raising of them is not taken here
+    def read_lasers(self, lasers: Mapping[int, Any]) -> None:
+        """Read the range rings of the robots ``lasers`` names (by agent index: an object
+        whose ``ranges(ring)`` gives what ``ring`` reads of its laser,
+        :meth:`hybridteam.live.ros2_plant.RobotPlant.ranges`) from their lasers, and run
+        their detect rules on those readings here (:meth:`detect_on_lasers`); the world
+        process's raising of those rules' events for them is not taken
         (:attr:`WorldLink.local`)."""
-        if self.laser_rules is None:
-            self.laser_rules = [
-                [rule, self.ring(rule.agent, rule.sensor), False]
-                for c in self.components if isinstance(c, Obstacles)
-                for rule in c.rules if rule.agent in self.lasers]
-            self.link.local = {(rule.agent, rule.event) for rule, _, _ in self.laser_rules}
+        self.lasers = dict(lasers)
+        self.laser_rules = [[rule, self.ring(rule.agent, rule.sensor), False]
+                            for c in self.components if isinstance(c, Obstacles)
+                            for rule in c.rules if rule.agent in self.lasers]
+        self.link.local = {(rule.agent, rule.event) for rule, _, _ in self.laser_rules}
+
+    def detect_on_lasers(self, access: EnsembleAccess, idx: np.ndarray) -> None:
+        """The detect rules of the robots with a laser, on what the laser reads as the
+        rule's ring, as the obstacles component runs them on its ray casting: the rule's
+        event raised when the nearest of its beams drops below its threshold (on the
+        rising edge; nothing counts as seen before the first instant)."""
         for entry in self.laser_rules:
             rule, ring, seen = entry
             ranges = self.lasers[rule.agent].ranges(ring)
