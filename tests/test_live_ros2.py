@@ -306,6 +306,26 @@ def test_wait_times_out_or_wakes_on_arrival(ros, team):
         b.close()
 
 
+def test_a_burst_on_either_socket_is_kept_while_the_reader_is_busy(ros, team):
+    """40 datagrams published while the reader's executor is held up (its callback waits
+    on the transport's lock, as a loaded machine holds it up) all reach ``receive``, in
+    order, on either socket: the topic's history is shared by every sender and kind (an
+    instant's streams and world poses from every teammate at once), as a UDP socket's
+    buffer is, and a burst that outgrows it would lose the oldest."""
+    for socket in ("data", "control"):
+        a, b = pair(f"{team}_{socket}", [socket])
+        try:
+            burst = [f"{socket} {k}".encode() for k in range(40)]
+            with b._lock:  # (the executor's first callback waits here)
+                for payload in burst:
+                    a.send(payload, socket)
+                time.sleep(0.3)  # (every one delivered to the reader's history)
+            assert [p for p, _ in collect(b, 40)] == burst, socket
+        finally:
+            a.close()
+            b.close()
+
+
 def test_each_socket_has_its_documented_qos(ros, team):
     from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
@@ -314,7 +334,7 @@ def test_each_socket_has_its_documented_qos(ros, team):
     ros.init(context=ctx, domain_id=DOMAIN)
     observer = ros.create_node("observer", context=ctx)
     try:
-        for socket, depth in (("data", 8), ("control", 64)):
+        for socket, depth in (("data", 64), ("control", 64)):
             assert SOCKET_DEPTH[socket] == depth
             topic = a.topics[socket]
             # what the graph announces to every other participant
