@@ -141,18 +141,315 @@ def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy,
     assert not out.exists()
 
 
-def test_a_holonomic_agent_is_not_driven_as_a_twist(tmp_path, capsys):
-    """Its (vx, vy) are world-frame, a Twist's body-frame: refused, before any ROS."""
+def test_a_holonomic_command_is_turned_into_the_body_frame_by_hand():
+    """v_body = R(-yaw) v_world: facing +x nothing turns; facing +y, world +x is the
+    robot's right (body -y) and world +y its front; heading atan2(3, 4) (cos 0.8, sin
+    0.6): world (2, 1) is body (0.8 * 2 + 0.6 * 1, -0.6 * 2 + 0.8 * 1) = (2.2, -0.4)."""
+    import math
+
+    from hybridteam.live.ros2_plant import body_velocity
+
+    assert body_velocity(0.5, -0.2, 0.0) == (0.5, -0.2)
+    assert body_velocity(1.0, 0.0, math.pi / 2) == pytest.approx((0.0, -1.0), abs=1e-15)
+    assert body_velocity(0.0, 1.0, math.pi / 2) == pytest.approx((1.0, 0.0), abs=1e-15)
+    assert body_velocity(2.0, 1.0, math.atan2(3, 4)) == pytest.approx((2.2, -0.4),
+                                                                       abs=1e-15)
+    assert body_velocity(1.0, 0.0, math.radians(30)) == pytest.approx(
+        (math.sqrt(3) / 2, -0.5), abs=1e-15)
+
+
+class Commanded:
+    """A Ros2Plant stand-in: at a fixed pose, keeping the Twist fields it is given."""
+
+    agent = "robot"
+
+    def __init__(self, theta: float) -> None:
+        from hybridteam.live.ros2_plant import PlantDeploy, Pose
+
+        self.deploy = PlantDeploy("/robot/cmd_vel", "/robot/odom")
+
+        self.at = Pose(1.0, 2.0, theta, 0.0, 0.0)
+        self.sent: list[dict[str, float]] = []
+
+    def pose(self, timeout=None):
+        return self.at
+
+    def command(self, inputs):
+        self.sent.append(inputs)
+
+
+def test_a_holonomic_agent_is_driven_in_its_body_frame():
+    """The held inputs (vx, vy, omega) of a holonomic agent go out as a Twist turned by
+    the yaw of the pose read (a robot facing +y told to go +x world moves to its right);
+    a unicycle's (v, omega) go out as they are."""
+    import math
+
+    from hybridteam.live.ros2_plant import RobotPlant
+
+    robot = Commanded(math.pi / 2)
+    plant = RobotPlant(robot, "holonomic")
+    plant.command(np.array([0.5, 0.0, 0.25]), 0.0)  # (reads the pose first)
+    plant.state(0.1)
+    plant.command(np.array([0.3, 0.4, 0.0]), 0.1)
+    assert [sorted(c) for c in robot.sent] == [["omega", "vx", "vy"]] * 2
+    assert [[c["vx"], c["vy"], c["omega"]] for c in robot.sent] == [
+        pytest.approx([0.0, -0.5, 0.25], abs=1e-15), pytest.approx([0.4, -0.3, 0.0],
+                                                                   abs=1e-15)]
+    unicycle = Commanded(math.pi / 2)
+    RobotPlant(unicycle, "unicycle").command(np.array([0.5, 0.25]), 0.0)
+    assert unicycle.sent == [{"v": 0.5, "omega": 0.25}]
+
+
+def test_an_agent_a_robot_cannot_drive_is_refused(tmp_path, capsys):
+    """A flow plant has no velocity to send as a Twist: one line, before any ROS."""
     from hybridteam.cli import main
 
-    text = TEAM.read_text().replace("kind: unicycle", "kind: holonomic").replace(
-        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
-        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}")
-    team = tmp_path / "omni.yaml"
-    team.write_text(text)
+    team = tmp_path / "flow.yaml"
+    team.write_text("""
+team: flow
+agents:
+  robot:
+    plant: {kind: flow, state: {x: 0.0}}
+    initial: Grow
+    modes:
+      Grow: {flow: {x: "1"}}
+simulation: {duration: 1.0}
+deploy:
+  robot: {cmd_vel: /robot/cmd_vel, odom: /robot/odom}
+""")
     status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
                    "127.0.0.1:0", "-o", str(tmp_path / "out")])
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "has a holonomic plant; a robot over ROS 2 drives a unicycle" \
-        in err[0], err
+    assert err == ["hybridteam: error: --plant ros2: agent 'robot' has a flow plant; a robot "
+                   "over ROS 2 drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+                   "omega), as a Twist, its x, y, theta from odometry"]
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------- launch --plant ros2
+EXPERIMENT2 = Path(__file__).parents[1] / "examples" / "transport" / "experiment2.yaml"
+
+
+def launch_args(*argv: str):
+    """``hybridteam launch`` arguments as its parser reads them."""
+    import argparse
+
+    from hybridteam.cli import live
+
+    parser = argparse.ArgumentParser()
+    live.register(parser.add_subparsers(dest="command"))
+    return parser.parse_args(["launch", *argv])
+
+
+def test_launch_passes_the_plant_to_the_robots_processes(tmp_path):
+    """Experiment 2 with the Labmate's robot in deploy: (not the XR4000's, nor the
+    operator's): only the Labmate's process drives a robot; the world process and the
+    others simulate. Over UDP the robot's domain is ROS_DOMAIN_ID's unless given; over
+    ros2 every process shares the given one."""
+    from hybridteam.cli.live import WORLD_PROCESS, launched_robots, process_command
+
+    team_file = tmp_path / "e2.yaml"
+    team_file.write_text(EXPERIMENT2.read_text().replace(  # (its requirements: not here)
+        "requirements_from: [requirements.yaml]\n", "").replace(
+        "\nsimulation:", "\ndeploy:\n  labmate: {cmd_vel: /labmate/cmd_vel, "
+        "odom: /labmate/odom}\n\nsimulation:"))
+    team = ht.load(team_file)
+    hosts = ["xr4000", "labmate", "operator", WORLD_PROCESS]
+    ports = [47001, 47002, 47003, 47004]
+
+    def commands(*argv: str, domain=None) -> dict[str, list[str]]:
+        args = launch_args(str(team_file), "-o", str(tmp_path / "out"), *argv)
+        robots = launched_robots(args, team)
+        return {name: process_command(args, name, k, ports, domain, tmp_path / name, robots)
+                for k, name in enumerate(hosts)}
+
+    def option(command: list[str], flag: str) -> list[str]:
+        return [command[i + 1] for i, a in enumerate(command) if a == flag]
+
+    udp = commands("--plant", "ros2")
+    assert {n: option(c, "--plant") for n, c in udp.items()} == {
+        "xr4000": [], "labmate": ["ros2"], "operator": [], WORLD_PROCESS: []}
+    assert all(option(c, "--domain-id") == [] for c in udp.values())
+    assert option(udp["labmate"], "--listen") == ["127.0.0.1:47002"]
+    assert option(udp["labmate"], "--peer") == ["127.0.0.1:47001", "127.0.0.1:47003",
+                                                "127.0.0.1:47004"]
+    assert option(udp["labmate"], "--time-scale") == ["1.0"]
+    # a domain given: the robot's process drives there; the others talk over UDP
+    udp7 = commands("--plant", "ros2", domain=7)
+    assert {n: option(c, "--domain-id") for n, c in udp7.items()} == {
+        "xr4000": [], "labmate": ["7"], "operator": [], WORLD_PROCESS: []}
+    ros = commands("--plant", "ros2", "--transport", "ros2", domain=7)
+    assert all(option(c, "--domain-id") == ["7"] and option(c, "--ros-peers") == ["3"]
+               for c in ros.values())
+    assert {n: option(c, "--plant") for n, c in ros.items()} == {
+        n: option(c, "--plant") for n, c in udp.items()}
+    # without --plant ros2 nobody drives a robot, deploy: or not
+    assert all(option(c, "--plant") == [] for c in commands().values())
+
+
+def test_launch_domain_is_the_robots_unless_given():
+    from hybridteam.cli.live import launch_domain
+
+    assert launch_domain(launch_args("t.yaml", "-o", "o", "--domain-id", "9"), ["a"]) == 9
+    assert launch_domain(launch_args("t.yaml", "-o", "o"), ["a"]) is None  # ROS_DOMAIN_ID
+    assert 1 <= launch_domain(launch_args("t.yaml", "-o", "o"), []) <= 100
+
+
+@pytest.mark.parametrize(("deploy", "args", "message"), [
+    (True, ["--time-scale", "4"], "--plant ros2: a robot moves on the wall clock; "
+                                  "--time-scale must be 1, got 4"),
+    (False, [], "--plant ros2: the team file's deploy: section names no agent's robot "
+                "(its cmd_vel and odom topics)"),
+])
+def test_launch_plant_ros2_refusals_are_one_line(tmp_path, capsys, deploy, args, message):
+    from hybridteam.cli import main
+
+    text = TEAM.read_text()
+    team = tmp_path / "drive.yaml"
+    team.write_text(text if deploy else text[:text.index("\ndeploy:")] + "\n")
+    out = tmp_path / "out"
+    status = main(["launch", str(team), "--plant", "ros2", "-o", str(out), *args])
+    assert status == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"hybridteam: error: {message}"]
+    assert not out.exists()
+
+
+def test_a_sigterm_while_the_folder_is_written_is_the_live_process_s(tmp_path, monkeypatch):
+    """launch stops the processes still running once the end rule's have ended; one whose
+    run has just ended may get that SIGTERM as it writes its folder. Its handler is still
+    the live process's then (the run is over: nothing to stop), not the caller's (a real
+    process's default, which would kill it with its folder half-written); the caller's is
+    back once ``live`` returns."""
+    import os
+    import signal
+
+    from hybridteam.cli import live, main
+
+    caller: list[int] = []
+    previous = signal.signal(signal.SIGTERM, lambda signum, _frame: caller.append(signum))
+    written = live.write_folder
+
+    def sigterm_then_write(out, trace, summary) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+        written(out, trace, summary)
+
+    monkeypatch.setattr(live, "write_folder", sigterm_then_write)
+    try:
+        status = main(["live", str(TEAM), "--agent", "robot", "--listen", "127.0.0.1:0",
+                       "--duration", "0.1", "--time-scale", "10", "-o", str(tmp_path / "o")])
+        assert status == 0
+        assert caller == []  # (the live process's handler took it)
+        assert (tmp_path / "o" / "summary.json").exists()
+        os.kill(os.getpid(), signal.SIGTERM)  # the caller's own again
+        assert caller == [signal.SIGTERM]
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+LASER_TEAM = """
+team: laser
+world:
+  - use: obstacles
+    with:
+      detect:
+        - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, mount_radius: 0.2},
+           beams: [0], below: 0.3, raise: near}
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look: {inputs: {v: 0, omega: 0}, period: 0.1, transitions: [{to: Seen, on: near}]}
+      Seen: {inputs: {v: 0, omega: 0}, period: 0.1}
+simulation: {duration: 1.0, sample_period: 0.1}
+"""
+
+
+class ScannedRobot:
+    """A robot standing still whose laser (4 beams every 90 degrees from ahead) reads 1 m
+    ahead until run time 0.42, then 0.4 m: what its ring's front beam reads is 0.8, then
+    0.2 (less its 0.2 mount radius)."""
+
+    laser = True
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def command(self, inputs: np.ndarray, t: float) -> None:
+        pass
+
+    def state(self, t: float) -> np.ndarray:
+        self.t = t
+        return np.zeros(3)
+
+    def ranges(self, ring):
+        import math
+
+        from hybridteam.live.ros2_plant import Scan, ring_ranges
+
+        ahead = 1.0 if self.t < 0.42 else 0.4
+        return ring_ranges(Scan((ahead, 3.0, 3.0, 3.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0,
+                                0.0), ring)
+
+
+def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
+    """The rule 'front beam below 0.3 raises near' runs in the robot's process on its
+    laser: near is raised at the first instant its laser reads 0.2 ahead (run time 0.5,
+    the first control tick or sample past 0.42), and the world process's raising of near
+    at the start (its model says otherwise) is not taken."""
+    from hybridteam.live.run import LiveRun
+    from hybridteam.live.transport import UdpTransport
+    from hybridteam.live.wire import READING, WORLD_INDEX
+
+    team = team_from_yaml(LASER_TEAM)
+    transport = UdpTransport(("127.0.0.1", 0))
+    world = UdpTransport(("127.0.0.1", 0), [transport.address])
+    try:
+        live = LiveRun(team, ["robot"], transport, duration=1.0, time_scale=5,
+                       plants={"robot": ScannedRobot()}, plant_name="ros2")
+        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
+            **{f"ir.{k}": 0.1 for k in range(4)}, "event.near": 1.0}, 0.0), "data")
+        trace = live.run()
+    finally:
+        transport.close()
+        world.close()
+    assert stops(trace) == [(0.0, "Look"), (pytest.approx(0.5, abs=1e-9), "Seen")]
+
+
+def test_a_laser_falling_silent_stops_the_run_with_the_last_scan_standing():
+    """As silent odometry: the laser's silence is told once (the live run then stops),
+    the last scan read stands meanwhile and is not waited for again; with nobody to tell,
+    or before any scan, it is an error."""
+    import math
+
+    from hybridteam.live.ros2_plant import PlantDeploy, PlantSilent, RobotPlant, Scan
+    from hybridteam.world.sensors import RangeRing
+
+    class GoesSilent:
+        agent = "robot"
+        deploy = PlantDeploy("/robot/cmd_vel", "/robot/odom", "/robot/scan")
+
+        def __init__(self, scans: int) -> None:
+            self.scans, self.asked = scans, 0
+
+        def scan(self, timeout=None):
+            self.asked += 1
+            if self.asked > self.scans:
+                raise PlantSilent("robot: no laser scan on /robot/scan within 2 s")
+            return Scan((1.0, 2.0, 3.0, 4.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0, 0.0)
+
+    ring = RangeRing(count=4, max_range=5.0)
+    told: list[str] = []
+    robot = GoesSilent(1)
+    plant = RobotPlant(robot, "unicycle", on_silent=told.append)
+    assert plant.laser
+    assert [plant.ranges(ring).tolist() for _ in range(3)] == [[1.0, 2.0, 3.0, 4.0]] * 3
+    assert told == ["robot: no laser scan on /robot/scan within 2 s"]
+    assert robot.asked == 2  # (silent once: not waited for again)
+    with pytest.raises(PlantSilent):
+        RobotPlant(GoesSilent(0), "unicycle", on_silent=told.append).ranges(ring)
+    with pytest.raises(PlantSilent):
+        unheard = RobotPlant(GoesSilent(1), "unicycle")
+        unheard.ranges(ring)
+        unheard.ranges(ring)

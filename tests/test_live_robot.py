@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hybridteam.library import LawContext, law
 from hybridteam.live.ros2 import ros_name
 from hybridteam.trace import Trace
 
@@ -33,22 +34,36 @@ class UnicycleRobot:
     Odometry in frame ``odom``. Keeps every Twist with its ``time.time()`` of arrival and
     every published pose ``(x, y, theta, time.time())``."""
 
-    def __init__(self, ros, ns: str) -> None:
+    def __init__(self, ros, ns: str, scan: dict | None = None, *, theta: float = 0.0,
+                 holonomic: bool = False) -> None:
+        """``scan``: LaserScan fields it publishes on ``ns/scan`` with every pose;
+        ``theta``: its heading at the start; ``holonomic``: a base that also moves
+        sideways (the Twist's linear.y, kept in ``lateral``), for a heading fixed while
+        it moves (angular.z zero)."""
         from geometry_msgs.msg import Twist
         from nav_msgs.msg import Odometry
         from rclpy.executors import SingleThreadedExecutor
+        from sensor_msgs.msg import LaserScan
 
         self.ctx = ros.Context()
         ros.init(context=self.ctx, domain_id=DOMAIN)
         self.node = ros.create_node("unicycle_robot", context=self.ctx)
         self.twists: list[tuple[float, float, float]] = []  # (v, omega, wall time)
         self.poses: list[tuple[float, float, float, float]] = []
-        self.x = self.y = self.theta = 0.0
-        self.v = self.omega = 0.0
+        self.x = self.y = 0.0
+        self.theta = theta
+        self.v = self.vy = self.omega = 0.0
+        self.holonomic = holonomic
+        self.lateral: list[float] = []  # (holonomic) each Twist's linear.y
         self.silent = False  # set: it stops publishing odometry (its driver hangs)
         self.lock = threading.Lock()
         self._Odometry = Odometry
         self.pub = self.node.create_publisher(Odometry, f"{ns}/odom", 10)
+        self.scan = None
+        if scan is not None:
+            self.scan = LaserScan(**scan)
+            self.scan.header.frame_id = "base_link"
+            self.scan_pub = self.node.create_publisher(LaserScan, f"{ns}/scan", 10)
         self.node.create_subscription(Twist, f"{ns}/cmd_vel", self._on_twist, 10)
         self.last = time.monotonic()
         self.node.create_timer(ODOM_PERIOD, self._tick)
@@ -59,15 +74,21 @@ class UnicycleRobot:
 
     def _on_twist(self, msg) -> None:
         with self.lock:
-            self.v, self.omega = msg.linear.x, msg.angular.z
+            self.v, self.vy, self.omega = msg.linear.x, msg.linear.y, msg.angular.z
             self.twists.append((self.v, self.omega, time.time()))
+            self.lateral.append(self.vy)
 
     def _tick(self) -> None:
         now = time.monotonic()
         dt, self.last = now - self.last, now
         with self.lock:
-            v, w = self.v, self.omega
-        if w == 0.0:
+            v, vy, w = self.v, self.vy, self.omega
+        if self.holonomic:  # (its heading fixed: the body frame's axes in the world)
+            assert w == 0.0
+            c, s = math.cos(self.theta), math.sin(self.theta)
+            self.x += (c * v - s * vy) * dt
+            self.y += (s * v + c * vy) * dt
+        elif w == 0.0:
             self.x += v * math.cos(self.theta) * dt
             self.y += v * math.sin(self.theta) * dt
         else:
@@ -86,6 +107,8 @@ class UnicycleRobot:
         q.z, q.w = math.sin(self.theta / 2), math.cos(self.theta / 2)
         self.pub.publish(msg)
         self.poses.append((self.x, self.y, self.theta, wall))
+        if self.scan is not None:
+            self.scan_pub.publish(self.scan)
 
     def close(self) -> None:
         self.executor.shutdown()
@@ -191,3 +214,129 @@ def test_a_robot_falling_silent_stops_the_run_with_its_trace(ros, tmp_path):
     assert "Stopped" not in trace.transitions["target"].tolist()
     assert json.loads((out / "summary.json").read_text())["outcome"] == "stopped"
     assert robot.twists[-1][:2] == (0.0, 0.0)
+
+
+def test_launch_drives_the_deployed_robot(ros, tmp_path):
+    """``hybridteam launch --plant ros2``: the agent's process launch starts drives the
+    robot of its deploy: entry, in the given domain, to its final mode (the first Twist
+    0.5 m/s, the last zero), and the merged trace says its plant was the robot."""
+    ns = f"/{ros_name(f't{os.getpid()}_launch')}/robot"
+    team = team_file(tmp_path, ns, 5.0)
+    robot = UnicycleRobot(ros, ns)
+    out = tmp_path / "out"
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "hybridteam.cli", "launch", str(team), "--plant", "ros2",
+             "--domain-id", str(DOMAIN), "-o", str(out)],
+            cwd=ROOT, capture_output=True, text=True, timeout=60)
+        time.sleep(0.1)  # (as above: the stop's Twist logged)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    assert trace.transitions["target"].tolist() == ["Forward", "Stopped"]
+    assert [p["plant"] for p in trace.meta["live"]["processes"]] == ["ros2"]
+    assert robot.twists[0][:2] == (0.5, 0.0) and robot.twists[-1][:2] == (0.0, 0.0)
+    assert max(p[0] for p in robot.poses) >= 1.0  # (the robot, not a model, got there)
+
+
+def test_a_holonomic_agent_drives_its_robot_in_the_world_frame(ros, tmp_path):
+    """drive.yaml as a holonomic base: vx = 0.5 (world frame) until x >= 1. The robot
+    faces +y (odometry heading pi/2), so the Twist is (0, -0.5) in its frame, and it
+    moves along world +x, y staying 0, to the final mode; sent as it was (linear.x 0.5),
+    it would move along +y and never reach x = 1."""
+    ns = f"/{ros_name(f't{os.getpid()}_omni')}/robot"
+    team = team_file(tmp_path, ns, 5.0)
+    team.write_text(team.read_text().replace("kind: unicycle", "kind: holonomic").replace(
+        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
+        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}"))
+    robot = UnicycleRobot(ros, ns, theta=math.pi / 2, holonomic=True)
+    out = tmp_path / "out"
+    try:
+        done = run_live(team, out)
+        time.sleep(0.1)
+    finally:
+        robot.close()
+    assert done.returncode == 0, done.stderr
+    trace = Trace.load(out / "trace.json")
+    assert trace.transitions["target"].tolist() == ["Forward", "Stopped"]
+    assert robot.twists[0][0] == pytest.approx(0.0, abs=1e-15)
+    assert robot.lateral[0] == -0.5
+    assert robot.twists[-1][:2] == (0.0, 0.0) and robot.lateral[-1] == 0.0
+    x, y, _, _ = robot.poses[-1]
+    assert x >= 1.0 and abs(y) < 1e-9
+
+
+@law("tests.laser_ring_keep", plants=("unicycle",))
+def laser_ring_keep(ctx: LawContext) -> np.ndarray:
+    """Stand still and keep what the ring ``ir`` reads at each tick, beam by beam."""
+    r = ctx.sense("ir")
+    for k in range(r.shape[1]):
+        ctx.keep(f"ir{k}", r[:, k])
+    return np.zeros((r.shape[0], 2))
+
+
+LASER_TEAM = """
+team: laser
+world:
+  - use: obstacles
+    with:
+      detect:
+        - {agent: robot, sensor: ir, ring: {count: 4, max_range: 2.5, min_range: 0.04,
+           mount_radius: 0.2}, beams: [0], below: 0.9, raise: near}
+agents:
+  robot:
+    plant: {kind: unicycle, state: {x: 0.0, y: 0.0, theta: 0.0}}
+    initial: Look
+    modes:
+      Look:
+        law: {use: tests.laser_ring_keep, period: 0.1}
+        transitions: [{to: Seen, on: near}]
+      Seen: {law: {use: tests.laser_ring_keep, period: 0.1}}
+simulation: {duration: 0.5, sample_period: 0.1}
+deploy:
+  robot: {cmd_vel: NS/cmd_vel, odom: NS/odom, scan: NS/scan, timeout: 5.0}
+"""
+
+
+def test_a_robots_laser_is_what_its_law_reads_of_its_ring(ros, tmp_path):
+    """A robot's LaserScan (8 beams every 45 degrees from 0) reaches its agent's law as
+    the ring ``ir`` reads (4 beams on a 0.2 hull, 0.04..2.5 m): beams 0, 2, 4, 6 of the
+    scan less 0.2, clipped: 1.0 -> 0.8, inf (no echo, read 8.0) -> 2.5, 3.0 -> 2.5,
+    0.1 -> 0.04; not the 1.0 on every beam the (stand-in) world process says. Its
+    detect rule (the front beam below 0.9) reads it too: near at the first instant."""
+    import hybridteam as ht
+    from hybridteam.live.ros2_plant import RobotPlant, Ros2Plant
+    from hybridteam.live.run import LiveRun
+    from hybridteam.live.transport import UdpTransport
+    from hybridteam.live.wire import READING, WORLD_INDEX
+
+    ns = f"/{ros_name(f't{os.getpid()}_laser')}/robot"
+    path = tmp_path / "laser.yaml"
+    path.write_text(LASER_TEAM.replace("NS", ns))
+    team = ht.load(path)
+    robot = UnicycleRobot(ros, ns, scan={
+        "angle_min": 0.0, "angle_increment": math.pi / 4, "range_min": 0.05,
+        "range_max": 8.0, "ranges": [1.0, 2.0, math.inf, 0.1, 3.0, 4.0, 0.1, 1.5]})
+    transport = UdpTransport(("127.0.0.1", 0))
+    world = UdpTransport(("127.0.0.1", 0), [transport.address])
+    laser = Ros2Plant("robot", team.deploy["robot"], domain_id=DOMAIN, team=team.name)
+    try:
+        laser.pose(5.0)
+        laser.scan(5.0)
+        live = LiveRun(team, ["robot"], transport, plants={
+            "robot": RobotPlant(laser, "unicycle")}, plant_name="ros2")
+        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
+            f"ir.{k}": 1.0 for k in range(4)}, 0.0), "data")
+        trace = live.run()
+    finally:
+        laser.close()
+        transport.close()
+        world.close()
+        robot.close()
+    memory = live.sim.ensemble.states[0].memory
+    got = [float(memory[f"ir{k}"][0]) for k in range(4)]
+    assert got == pytest.approx([1.0 - 0.2, 2.5, 2.5, 0.04])  # (float32 ranges: 1e-6)
+    assert trace.outcomes[0]["outcome"] == "ok"
+    rows = trace.transitions
+    assert rows["target"].tolist() == ["Look", "Seen"] and rows["t"].tolist() == [0.0, 0.0]

@@ -183,6 +183,46 @@ def test_an_agent_with_no_world_process_is_one_line(team, monkeypatch):
         transport.close()
 
 
+def test_an_agent_whose_first_reading_was_lost_asks_again(team, cteam, monkeypatch):
+    """The world process answers every pose. An agent process still without its first
+    reading after ASK_AGAIN sends a pose of no field (where the agent is is not known
+    before its run starts) and keeps asking: a stand-in world process whose first reading
+    was lost answers the ask, and the agent's run goes on (before, it waited the whole
+    FIRST_READING out and stopped)."""
+    import threading
+
+    monkeypatch.setattr(live_run, "FIRST_READING", 2.0)
+    world = UdpTransport(("127.0.0.1", 0))
+    transport = UdpTransport(("127.0.0.1", 0), [world.address])
+    world.peers.append(transport.address)
+    asks: list[dict[str, float]] = []
+    done = threading.Event()
+    live = LiveRun(team, ["labmate"], transport, duration=0.2, time_scale=5)
+    codec = codec_of(cteam)
+
+    def stand_in() -> None:
+        while not done.is_set() and not asks:
+            world.wait(0.02)
+            for data, _ in world.receive():
+                dg = codec.decode(data)
+                if dg.type == POSE and dg.sender == LABMATE:
+                    asks.append(dg.fields)
+                    world.send(live.codec.encode_world(READING, WORLD_INDEX, LABMATE, 0, {
+                        "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0}, 0.0), "data")
+
+    thread = threading.Thread(target=stand_in)
+    thread.start()
+    try:
+        trace = live.run()
+    finally:
+        done.set()
+        thread.join()
+        transport.close()
+        world.close()
+    assert asks == [{}]
+    assert trace.outcomes[0]["outcome"] == "ok"  # (ended at its duration)
+
+
 @pytest.mark.parametrize(("team_file", "args", "message"), [
     (EXPERIMENT2, ["--world", "--agent", "labmate"], "give the agents this process runs "
                                                      "(--agent NAME) or --world, not both"),
@@ -202,14 +242,18 @@ def test_world_process_arguments_are_one_line(tmp_path, team_file, args, message
 
 # ---------------------------------------------------------------------- experiment 2
 def test_experiment2_launched_live_hands_over_as_the_simulation_does(tmp_path, team):
+    """The issue's acceptance over loopback UDP (:func:`launched_as_simulated`)."""
+    launched_as_simulated(tmp_path / "launch", team, [])
+
+
+def launched_as_simulated(out: Path, team, options: list[str]) -> None:
     """The issue's acceptance: the world process, three robots' and the operator's
-    processes over loopback UDP at time scale 4 end ``success``; every agent's mode
-    sequence is ``hybridteam run``'s with the latency set to the loopback latency measured
-    in this run, and every transition (the hand-overs among them) is within two control
-    periods (0.05 s) of the simulated one."""
-    out = tmp_path / "launch"
+    processes (``launch`` with ``options``, e.g. a transport) at time scale 4 end
+    ``success``; every agent's mode sequence is ``hybridteam run``'s with the latency set
+    to the latency measured in this run, and every transition (the hand-overs among them)
+    is within two control periods (0.05 s) of the simulated one."""
     proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch",
-                           str(EXPERIMENT2), "--time-scale", "4", "-o", str(out)],
+                           str(EXPERIMENT2), "--time-scale", "4", *options, "-o", str(out)],
                           capture_output=True, timeout=TIMEOUT * 3)
     assert proc.returncode == 0, proc.stderr.decode()
     data = json.loads((out / "trace.json").read_text())
@@ -218,7 +262,7 @@ def test_experiment2_launched_live_hands_over_as_the_simulation_does(tmp_path, t
     assert live.outcomes[0]["outcome"] == "success", live.outcomes[0]["message"]
     delivered = live.messages.where(status="delivered")
     latency = float(np.median(delivered["t_recv"] - delivered["t_send"]))
-    assert 0 <= latency < 0.02  # (loopback, in run seconds at time scale 4)
+    assert 0 <= latency < 0.02  # (on this machine, in run seconds at time scale 4)
     sim = ht.simulate(team, overrides={"network.latency": latency})
     for agent in ("xr4000", "labmate", "operator"):
         ours = live.transitions.where(agent=agent)

@@ -80,12 +80,17 @@ def register(sub) -> dict:
                     help="how datagrams travel (udp: one loopback port per process; ros2: "
                          "ROS 2 topics, with the [ros] extra)")
     la.add_argument("--domain-id", type=int, default=None, metavar="N",
-                    help="(ros2) the ROS domain the processes share (default: one chosen "
-                         "from this process's id, so launches do not hear each other)")
+                    help="(ros2) the ROS domain the processes share (default: with "
+                         "--plant ros2 ROS_DOMAIN_ID, the robots'; else one chosen from "
+                         "this process's id, so launches do not hear each other)")
     la.add_argument("--duration", type=float, default=None,
                     help="run seconds (default: the team's simulation.duration)")
     la.add_argument("--time-scale", type=float, default=1.0, metavar="K",
                     help="run time passes K times faster than the wall clock (default 1)")
+    la.add_argument("--plant", choices=PLANTS, default="sim",
+                    help="what moves the agents (sim: their plants integrated in their "
+                         "processes; ros2: the robots of the team file's deploy: section, "
+                         "at time scale 1; the other agents simulated)")
     la.add_argument("--log-level", choices=LEVELS, default="info",
                     help="what the processes log to OUT/agents/NAME/live.log (default info)")
     add_faults(la)
@@ -180,6 +185,21 @@ def check_clock(args: argparse.Namespace) -> None:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
+    """:func:`live_process`, the caller's SIGINT and SIGTERM handlers restored once it has
+    ended: only after its folder is written, so that a SIGTERM after its run ends (launch
+    stopping the processes still running once the end rule's have ended, as this one
+    closes its transport and writes) stops nothing but is noted."""
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return live_process(args)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def live_process(args: argparse.Namespace) -> int:
+    """``hybridteam live``: its handlers of SIGINT and SIGTERM stop the run at its next
+    wait (:func:`cmd_live` restores the caller's)."""
     from hybridteam.errors import ModelError
     from hybridteam.live.hosting import HostingError
     from hybridteam.live.run import LiveRun
@@ -223,8 +243,8 @@ def cmd_live(args: argparse.Namespace) -> int:
     except BaseException:
         transport.close()
         raise
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    trace = None
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, on_signal)
     try:
         live = LiveRun(team, agents, transport, transport_name=args.transport,
                        time_scale=args.time_scale, duration=args.duration,
@@ -253,28 +273,16 @@ def cmd_live(args: argparse.Namespace) -> int:
         for plant in plants.values():  # (each robot is stopped: a zero Twist)
             plant.robot.close()
         transport.close()
-        if trace is None:
-            restore_signals(previous)
     outcome = trace.outcomes[0]
     summary = {"team": team.name, "agents": agents, "outcome": outcome["outcome"],
                "t_end": outcome["t"], "message": outcome["message"],
                "transitions": len(trace.transitions), "messages": len(trace.messages),
                "live": trace.meta["live"]}
-    try:
-        write_folder(out, trace, summary)
-    finally:  # (a SIGTERM while writing, as launch stops its processes, waits for it)
-        restore_signals(previous)
+    write_folder(out, trace, summary)  # (cmd_live's caller's handlers back only after)
     say(f"{team.name}: {', '.join(agents) or 'the world'} {outcome['outcome']} at "
         f"t={outcome['t']:.6g}: "
         f"{outcome['message']}; wrote {out}/ (trace.json, summary.json)")
     return EXIT_OK
-
-
-def restore_signals(previous: dict) -> None:
-    """The signal handlers as they were before ``live`` set its own."""
-    for s, handler in previous.items():
-        signal.signal(s, handler)
-
 
 
 def open_transport(args: argparse.Namespace, team, agents: list[str]):
@@ -307,16 +315,15 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
                 on_silent: Callable[[str], None]) -> dict:
     """The hosted agents' external plants ``--plant`` names, by agent: none for ``sim``
     (the engine integrates them); for ``ros2`` each agent's robot through its ``deploy:``
-    entry, once its first odometry has arrived (``on_silent``: told why when a robot's
-    odometry falls silent later, to stop the run). A one-line UsageError for an agent with
-    no entry or not a unicycle, a time scale (a robot keeps the wall clock's pace),
-    rclpy missing, or a robot that says nothing at the start (within its timeout, and
-    at least FIRST_ODOMETRY)."""
+    entry, once its first odometry (and scan, with a scan topic) has arrived
+    (``on_silent``: told why when a robot's odometry or laser falls silent later, to stop
+    the run). A one-line UsageError for an agent with no entry or whose plant a robot
+    cannot drive (neither unicycle nor holonomic), a time scale (a robot keeps the wall
+    clock's pace), rclpy missing, or a robot that says nothing at the start (within its
+    timeout, and at least FIRST_ODOMETRY)."""
     if args.plant == "sim":
         return {}
-    if args.time_scale != 1:
-        raise UsageError(f"--plant ros2: a robot moves on the wall clock; --time-scale "
-                         f"must be 1, got {args.time_scale:g}")
+    check_robot_clock(args)
     from hybridteam.live.ros2_plant import PlantSilent, RobotPlant, Ros2Plant
 
     for name in agents:
@@ -337,6 +344,8 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
             # the domain can take longer than the silence its timeout allows later)
             robot.pose(max(robot.deploy.timeout, FIRST_ODOMETRY))
             plants[name].state(0.0)
+            if robot.deploy.scan is not None:  # (and its laser's, which laws read)
+                robot.scan(max(robot.deploy.timeout, FIRST_ODOMETRY))
     except BaseException as exc:
         for plant in plants.values():
             plant.robot.close()
@@ -344,6 +353,14 @@ def open_plants(args: argparse.Namespace, team, agents: list[str],
             raise UsageError(f"--plant ros2: {exc}") from None
         raise
     return plants
+
+
+def check_robot_clock(args: argparse.Namespace) -> None:
+    """UsageError for ``--plant ros2`` with a time scale: a robot keeps the wall clock's
+    pace (``live`` and ``launch`` alike)."""
+    if args.plant == "ros2" and args.time_scale != 1:
+        raise UsageError(f"--plant ros2: a robot moves on the wall clock; --time-scale "
+                         f"must be 1, got {args.time_scale:g}")
 
 
 def wait_for_peers(transport, count: int) -> None:
@@ -384,10 +401,12 @@ def cmd_launch(args: argparse.Namespace) -> int:
     from hybridteam.trace import Trace
 
     check_clock(args)
+    check_robot_clock(args)
     out = output_folder(args.output)
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
+    robots = launched_robots(args, team)
     full = compile_team(team)
     names = [ca.name for ca in full.agents]
     try:
@@ -412,7 +431,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     # look complete)
     (out / "summary.json").unlink(missing_ok=True)
     ports = free_ports(len(hosts)) if args.transport == "udp" else [0] * len(hosts)
-    domain = args.domain_id if args.domain_id is not None else 1 + os.getpid() % 100
+    domain = launch_domain(args, robots)
     stopped: list[str] = []
 
     def on_signal(signum: int, _frame) -> None:
@@ -421,28 +440,13 @@ def cmd_launch(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     procs: dict[str, subprocess.Popen] = {}
     try:
-        for k, (name, port) in enumerate(zip(hosts, ports, strict=True)):
+        for k, name in enumerate(hosts):
             folder = out / "agents" / name
             folder.mkdir(parents=True, exist_ok=True)
-            (folder / "summary.json").unlink(missing_ok=True)  # (an older run's)
-            command = [sys.executable, "-m", "hybridteam.cli", "live",
-                       *([drifted[name], "--wire-team", args.team] if name in drifted
-                         else [args.team]),
-                       *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
-                       "--time-scale", repr(args.time_scale), "--log-level",
-                       args.log_level, "--ready", *fault_args(args, k),
-                       *(a for t, ns in sorted(scripted.get(name, {}).items())
-                         for n in sorted(ns) for a in ("--drop-copy", f"{t}:{n}")),
-                       "-o", str(folder),
-                       "--transport", args.transport]
-            if args.transport == "udp":
-                command += ["--listen", f"127.0.0.1:{port}"]
-                command += [a for p in ports if p != port
-                            for a in ("--peer", f"127.0.0.1:{p}")]
-            else:  # every process in one domain, each waiting for all the others
-                command += ["--domain-id", str(domain), "--ros-peers", str(len(hosts) - 1)]
-            if args.duration is not None:
-                command += ["--duration", repr(args.duration)]
+            # (an older run's: what says the process completed its folder, see left_no_trace)
+            (folder / "summary.json").unlink(missing_ok=True)
+            command = process_command(args, name, k, ports, domain, folder, robots,
+                                      drifted.get(name), scripted.get(name, {}))
             with open(folder / "live.log", "wb") as logfile:
                 procs[name] = subprocess.Popen(command, stdin=subprocess.PIPE,
                                                stdout=subprocess.PIPE, stderr=logfile)
@@ -474,13 +478,8 @@ def cmd_launch(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     # a process that died (killed, crashed) left no trace: the team's trace is the others'
-    # (what its teammates did about its silence), and says which are missing and why. One
-    # whose folder is complete (summary.json, written last) left its trace, whatever its
-    # exit status: the SIGTERM above can reach a process that has ended its run and
-    # written its folder, as it exits
-    missing = {n: _exit_text(p.returncode, out / "agents" / n / "live.log")
-               for n, p in procs.items()
-               if not (out / "agents" / n / "summary.json").exists()}
+    # (what its teammates did about its silence), and says which are missing and why
+    missing = left_no_trace({n: p.returncode for n, p in procs.items()}, out / "agents")
     for name, why in missing.items():
         say(f"hybridteam: agent '{name}' left no trace: {why}")
     if all(n in missing for n in names):
@@ -616,6 +615,77 @@ def losses_from(path: str, cteam, processes: list[list[str]]
     for loss in (loss for each in found for loss in each):
         say(f"hybridteam: {loss.text}")
     return [drops(each) for each in found]
+
+
+def launched_robots(args: argparse.Namespace, team) -> list[str]:
+    """The agents ``launch --plant ros2`` drives as robots: those with a ``deploy:`` entry
+    (none for ``--plant sim``). A one-line UsageError if there is none, or one a robot
+    cannot drive, before any process starts."""
+    if args.plant == "sim":
+        return []
+    from hybridteam.live.ros2_plant import RobotPlant
+
+    robots = [a.name for a in team.agents if a.name in team.deploy]
+    if not robots:
+        raise UsageError("--plant ros2: the team file's deploy: section names no agent's "
+                         "robot (its cmd_vel and odom topics)")
+    for name in robots:
+        try:
+            RobotPlant.check(name, team.agent(name).plant.kind)
+        except ValueError as exc:
+            raise UsageError(f"--plant ros2: {exc}") from None
+    return robots
+
+
+def launch_domain(args: argparse.Namespace, robots: list[str]) -> int | None:
+    """The ROS domain launch's processes share: ``--domain-id``; else, with robots, none
+    given (each process's ``ROS_DOMAIN_ID``, else 0: where the robots' drivers are); else
+    one chosen from this process's id, so that launches do not hear each other."""
+    if args.domain_id is not None:
+        return args.domain_id
+    return None if robots else 1 + os.getpid() % 100
+
+
+def process_command(args: argparse.Namespace, name: str, k: int, ports: list[int],
+                    domain: int | None, folder, robots: list[str], drifted: str | None = None,
+                    drops: dict[str, set[int]] | None = None) -> list[str]:
+    """The ``hybridteam live`` command line of launch's ``k``-th process, hosting agent
+    ``name`` (or the world process): its clock, faults and folder; its UDP port and peers,
+    or how many others to wait for on ROS 2; the ROS domain (:func:`launch_domain`) where
+    it talks or drives over ROS 2; ``--plant ros2`` for an agent in ``robots``;
+    ``drifted``: the team file it runs instead (``--agent-team``, speaking the team's
+    wire); ``drops``: its scripted drops (``--losses-from``)."""
+    command = [sys.executable, "-m", "hybridteam.cli", "live",
+               *([drifted, "--wire-team", args.team] if drifted else [args.team]),
+               *(["--world"] if name == WORLD_PROCESS else ["--agent", name]),
+               "--time-scale", repr(args.time_scale), "--log-level",
+               args.log_level, "--ready", *fault_args(args, k),
+               *(a for t, ns in sorted((drops or {}).items())
+                 for n in sorted(ns) for a in ("--drop-copy", f"{t}:{n}")),
+               "-o", str(folder), "--transport", args.transport]
+    if name in robots:
+        command += ["--plant", "ros2"]
+    if args.transport == "udp":
+        port = ports[k]
+        command += ["--listen", f"127.0.0.1:{port}"]
+        command += [a for p in ports if p != port for a in ("--peer", f"127.0.0.1:{p}")]
+    else:  # every process in one domain, each waiting for all the others
+        command += ["--ros-peers", str(len(ports) - 1)]
+    if domain is not None and (args.transport == "ros2" or name in robots):
+        command += ["--domain-id", str(domain)]
+    if args.duration is not None:
+        command += ["--duration", repr(args.duration)]
+    return command
+
+
+def left_no_trace(codes: dict[str, int | None], agents) -> dict[str, str]:
+    """The launched processes (by folder name under ``agents``, with their exit codes)
+    that left no complete folder, each with why. A folder is complete once its
+    ``summary.json`` is there (written last): a process whose run had ended and whose
+    folder was written may still be stopped by launch's SIGTERM as it exits (a ROS 2
+    process takes a while to tear its nodes down), and its trace is the run's all the same."""
+    return {n: _exit_text(code, agents / n / "live.log") for n, code in codes.items()
+            if not (agents / n / "summary.json").exists()}
 
 
 def write_folder(out, trace, summary: dict) -> None:

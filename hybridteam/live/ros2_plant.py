@@ -10,8 +10,9 @@ how long odometry may be ``timeout`` silent).
 
 **Commands.** The input keeps the plant's names: a unicycle's ``v`` and ``omega`` become
 ``linear.x`` and ``angular.z``, a holonomic base's ``vx``, ``vy`` and ``omega`` become
-``linear.x``, ``linear.y`` and ``angular.z`` (body frame, m/s and rad/s, as REP 103 and the
-model both have them). A non-finite input is refused rather than sent to a motor driver.
+``linear.x``, ``linear.y`` and ``angular.z`` (body frame, m/s and rad/s, as REP 103 has
+them: :class:`RobotPlant` turns a holonomic model's world-frame velocity into the body
+frame before it comes here). A non-finite input is refused rather than sent to a motor driver.
 :meth:`Ros2Plant.close` publishes a zero Twist first: a robot whose agent stops must not
 keep driving on its last command. Commands go out reliable, keeping the last one only (a
 reliable writer is heard by reliable and best-effort drivers alike; an older command is
@@ -30,12 +31,27 @@ dropped for their frame.
 range sensors are: ``+inf`` (no echo, REP 117) and NaN (no valid reading) read as
 ``range_max``, ``-inf`` (an object closer than the sensor can see) as ``range_min``.
 
+**The laser as the model's range rings.** A law reads its robot's range ring ``ir`` with
+``ctx.sense("ir")`` (:mod:`hybridteam.world.obstacles`); with a ``scan`` topic, the agent
+reads the ring from the robot's laser instead of the world process's ray casting
+(:meth:`RobotPlant.ranges`, :func:`ring_ranges`): each of the ring's rays reads the scan
+beam nearest its direction, less the ring's mount radius, the nearest of a cone's rays,
+clipped to the ring's ``[min_range, max_range]``. The scan is taken in the robot's base
+frame: the laser at its centre, facing its heading, so a ray of a sensor on the hull
+(``mount_radius`` out, looking radially) lies on the laser's beam of the same direction
+and reads that beam less the mount radius; a cone's off-centre rays are read the same
+way (exact on its centre line). A direction the scan does not cover (farther than half
+an increment from every beam) reads ``max_range``, nothing seen, as the ring reads where
+nothing is in range. The robot's detect rules run on these readings in its agent's
+process (:meth:`hybridteam.live.world.WorldReadings.detect_on_lasers`).
+
 Odometry and scans are read best-effort (heard from reliable and best-effort publishers
 alike), keeping the last 5: only the latest matters.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import threading
@@ -47,9 +63,10 @@ import numpy as np
 
 from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 from hybridteam.model.deploy import PlantDeploy
+from hybridteam.world.sensors import RangeRing
 
-__all__ = ["PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant", "Scan",
-           "clipped_ranges", "yaw"]
+__all__ = ["ROBOT_KINDS", "PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant",
+           "Scan", "body_velocity", "clipped_ranges", "ring_ranges", "yaw"]
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +120,31 @@ def clipped_ranges(ranges: Any, range_min: float, range_max: float) -> tuple[flo
     values = np.asarray(ranges, dtype=float)
     values = np.where(np.isnan(values), range_max, values)
     return tuple(np.clip(values, range_min, range_max).tolist())
+
+
+@functools.lru_cache(maxsize=64)
+def _beams_of(ring: RangeRing, angle_min: float, increment: float, count: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """For each ray of ``ring`` ``(count, rays_per_beam)``: the scan beam nearest its
+    direction, and whether that beam is within half an increment of it (the scan covers
+    it). A scan's geometry does not change between its messages: computed once per ring."""
+    beams = angle_min + increment * np.arange(count)
+    diff = np.abs((ring.ray_angles[..., None] - beams + math.pi) % (2.0 * math.pi) - math.pi)
+    nearest = diff.argmin(axis=-1)
+    gap = np.take_along_axis(diff, nearest[..., None], axis=-1)[..., 0]
+    return nearest, gap <= abs(increment) / 2.0 + 1e-9
+
+
+def ring_ranges(scan: Scan, ring: RangeRing) -> np.ndarray:
+    """The readings ``(count,)`` of range ring ``ring`` taken from the laser ``scan``
+    (module docstring, *The laser as the model's range rings*)."""
+    if not scan.ranges:
+        return np.full(ring.count, float(ring.max_range))
+    nearest, covered = _beams_of(ring, scan.angle_min, scan.angle_increment,
+                                 len(scan.ranges))
+    rays = np.where(covered, np.asarray(scan.ranges)[nearest] - ring.mount_radius,
+                    ring.max_range)
+    return np.clip(rays.min(axis=1), ring.min_range, ring.max_range)
 
 
 def _seconds(stamp: Any) -> float:
@@ -258,15 +300,31 @@ class Ros2Plant:
         self.close()
 
 
+#: the plants a robot over ROS 2 drives: their inputs make a Twist, their state a pose
+ROBOT_KINDS = ("unicycle", "holonomic")
+
+
+def body_velocity(vx: float, vy: float, yaw: float) -> tuple[float, float]:
+    """World-frame velocity ``(vx, vy)`` in the frame of a robot heading ``yaw``:
+    ``R(-yaw) (vx, vy)``, what a Twist's ``linear.x``, ``linear.y`` are."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * vx + s * vy, -s * vx + c * vy
+
+
 class RobotPlant:
     """A :class:`Ros2Plant` as an agent's external plant in the engine
     (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
     latest odometry pose in wherever the engine needs the agent's state.
 
-    Only a unicycle agent is driven so: its inputs ``(v, omega)`` are body-frame, as a
-    Twist's are, and its state ``(x, y, theta)`` is an odometry pose. A holonomic agent's
-    ``(vx, vy)`` are world-frame (:mod:`hybridteam.dynamics.plants`) and would need turning
-    into the body frame first; it is refused rather than driven wrongly.
+    A unicycle agent's inputs ``(v, omega)`` are body-frame, as a Twist's are, and go out
+    as they are. A holonomic agent's ``(vx, vy)`` are world-frame
+    (:mod:`hybridteam.dynamics.plants`): they are turned into the body frame by the yaw of
+    the pose the engine last read (:func:`body_velocity`), the one its law computed them
+    from; ``omega`` is the same in both frames. Between two instants the robot holds that
+    body-frame Twist, so while it turns (``omega`` not zero) its world-frame velocity
+    turns with it, by at most ``omega`` times the time to the next instant, where the
+    model's keeps its direction. Both kinds' state ``(x, y, theta)`` is an odometry pose;
+    other plants are refused.
 
     A robot whose odometry falls silent for its ``timeout`` ends the run rather than
     breaking it: ``on_silent`` is told why (a live run's stop request: the run ends at its
@@ -276,22 +334,32 @@ class RobotPlant:
     def __init__(self, robot: Ros2Plant, kind: str,
                  on_silent: Callable[[str], None] | None = None) -> None:
         self.check(robot.agent, kind)
-        self.robot = robot
+        self.robot, self.kind = robot, kind
         self.on_silent = on_silent
         self.last: np.ndarray | None = None  # the last pose read
         self.silent = False
+        self.last_scan: Scan | None = None  # the last scan read
+        self.scan_silent = False
+        #: whether the robot has a laser (a scan topic) its agent's range rings are read from
+        self.laser = robot.deploy.scan is not None
 
     @staticmethod
     def check(agent: str, kind: str) -> None:
         """ValueError unless agent ``agent``'s plant ``kind`` is one a robot drives."""
-        if kind != "unicycle":
+        if kind not in ROBOT_KINDS:
             raise ValueError(f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
-                             "drives a unicycle agent (v, omega as a Twist; x, y, theta "
-                             "from odometry)")
+                             "drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+                             "omega), as a Twist, its x, y, theta from odometry")
 
     def command(self, inputs: np.ndarray, t: float) -> None:
-        v, omega = inputs.tolist()
-        self.robot.command({"v": v, "omega": omega})
+        if self.kind == "unicycle":
+            v, omega = inputs.tolist()
+            self.robot.command({"v": v, "omega": omega})
+            return
+        vx, vy, omega = inputs.tolist()
+        pose = self.last if self.last is not None else self.state(t)
+        bx, by = body_velocity(vx, vy, float(pose[2]))
+        self.robot.command({"vx": bx, "vy": by, "omega": omega})
 
     def state(self, t: float) -> np.ndarray:
         """The latest pose (:meth:`Ros2Plant.pose`). Once odometry has been silent for
@@ -311,3 +379,23 @@ class RobotPlant:
             return self.last
         self.last = np.array([pose.x, pose.y, pose.theta])
         return self.last
+
+    def ranges(self, ring: RangeRing) -> np.ndarray | None:
+        """What range ring ``ring`` reads, from the robot's laser (:func:`ring_ranges`);
+        None without a ``scan`` topic (the ring is then the world process's). A laser
+        silent for the deploy setting's timeout is as silent odometry: ``on_silent`` told
+        why (once), the last scan read from then on; without ``on_silent``, or before any
+        scan, :class:`PlantSilent`."""
+        if self.robot.deploy.scan is None:
+            return None
+        if not self.scan_silent:
+            try:
+                self.last_scan = self.robot.scan()
+            except PlantSilent as exc:
+                if self.on_silent is None or self.last_scan is None:
+                    raise
+                self.scan_silent = True
+                log.warning("%s", exc)
+                self.on_silent(str(exc))
+        assert self.last_scan is not None
+        return ring_ranges(self.last_scan, ring)

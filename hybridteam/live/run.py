@@ -30,8 +30,10 @@ from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import (
+    POSE,
     READING,
     VERSION,
+    WORLD_INDEX,
     Codec,
     WireError,
     declarations,
@@ -124,6 +126,9 @@ class LiveRun:
         # (what a reading may carry: the names the team's components let robots sense)
         self.codec.senses = frozenset(name for c in self.sim.ensemble.world.components
                                       for name in c.senses())
+        if isinstance(self.sim.ensemble.world, WorldReadings):  # robots' lasers: rings
+            self.sim.ensemble.world.read_lasers(
+                {a: plant for a, plant in external.items() if getattr(plant, "laser", False)})
         self.full = full
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
@@ -156,16 +161,26 @@ class LiveRun:
 
     def await_world(self) -> None:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
-        reading of every hosted agent, which its laws read from their first tick; what
-        else arrives meanwhile is handed to the clock to be taken first. HostingError if
-        none comes (no world process runs)."""
+        reading of every hosted agent, which its laws read from their first tick, asking
+        again every ASK_AGAIN seconds; what else arrives meanwhile is handed to the clock
+        to be taken first. HostingError if none comes (no world process runs)."""
         # (a codec of its own: the run's must see these datagrams first when it takes them)
         peek = Codec(self.full, self.codec.senses, self.wire)
         kept: list[tuple[bytes, float]] = []
         end = time.monotonic() + FIRST_READING
+        ask = time.monotonic() + ASK_AGAIN
         waiting = set(self.link.here)
         while waiting:
-            if time.monotonic() > end:
+            now = time.monotonic()
+            if now >= ask:
+                # the world process's first reading lost (a datagram, best-effort), or sent
+                # before this process could hear it: it answers every pose, and one with no
+                # field asks without saying where the agent is (its state is set only once
+                # its run starts)
+                for a in sorted(waiting):
+                    self.link.send(POSE, a, WORLD_INDEX, {})
+                ask = now + ASK_AGAIN
+            if now > end:
                 raise HostingError(f"no reading from the world process within "
                                    f"{FIRST_READING:g} s: a team with world components "
                                    "needs one ('hybridteam live TEAM.yaml --world')")
@@ -188,6 +203,9 @@ class LiveRun:
 
 #: Wall seconds an agent's process waits for the world process's first reading.
 FIRST_READING = 30.0
+
+#: Wall seconds between an agent process's asks for its first reading while it waits.
+ASK_AGAIN = 0.1
 
 
 def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:

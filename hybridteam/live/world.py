@@ -11,7 +11,9 @@ own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
   its agent: what it senses now, the events components raised for it, an outcome they
   concluded (that one goes to every agent).
 * :class:`WorldReadings` is an agent process's world: it runs no component; it sends the
-  hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading.
+  hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading,
+  except for a robot with a laser (``--plant ros2`` with a ``scan`` topic): its range
+  rings are read from the laser, and its detect rules run on them here.
 
 :class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the
 datagrams of the two kinds to, and what both sides send through. It also watches the other
@@ -25,7 +27,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,6 +35,8 @@ import numpy as np
 from hybridteam.engine.world import World
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import POSE, READING, WORLD_INDEX, Codec, Datagram
+from hybridteam.world.obstacles import Obstacles
+from hybridteam.world.sensors import RangeRing, detect
 
 if TYPE_CHECKING:
     from hybridteam.engine.access import EnsembleAccess
@@ -70,6 +74,9 @@ class WorldLink:
         self.pending: set[int] = set(range(len(codec.agents))) if host else set()
         #: (agents' process) the last reading per hosted agent: sensed name -> values
         self.readings: dict[int, dict[str, np.ndarray]] = {}
+        #: (agents' process) (agent, event) its process raises itself (a robot's detect
+        #: rules on its laser): the world process's raising of them is not taken
+        self.local: set[tuple[int, str]] = set()
         self.sent = 0
 
     def send(self, kind: str, sender: int, to: int, fields: dict[str, float]) -> None:
@@ -99,7 +106,8 @@ class WorldLink:
         for key, value in dg.fields.items():
             head, _, tail = key.partition(".")
             if head == "event":
-                events.append(tail)
+                if (dg.to, tail) not in self.local:
+                    events.append(tail)
             elif head == "outcome":
                 outcome = tail
             else:
@@ -227,9 +235,16 @@ class _Told:
 
 
 class WorldReadings(World):
-    """An agent process's world: the world process's readings (module docstring)."""
+    """An agent process's world: the world process's readings (module docstring), and
+    the lasers of the hosted robots that have one, read as their range rings."""
 
     link: WorldLink  # (set by :func:`world_seam`)
+    #: by hosted agent's index, a robot whose laser its range rings are read from
+    #: (:meth:`read_lasers`)
+    lasers: Mapping[int, Any] = {}
+    #: (rule, its ring, whether its beams read near at the last instant) for each detect
+    #: rule of a robot with a laser
+    laser_rules: Sequence[list[Any]] = ()
 
     @property
     def any(self) -> bool:
@@ -250,13 +265,55 @@ class WorldReadings(World):
                            for n in access.variable_names(a)})
             if fields:
                 self.link.send(POSE, a, WORLD_INDEX, fields)
+        if self.laser_rules:
+            self.detect_on_lasers(access, idx)
         return access.take_raised()
 
+    def read_lasers(self, lasers: Mapping[int, Any]) -> None:
+        """Read the range rings of the robots ``lasers`` names (by agent index: an object
+        whose ``ranges(ring)`` gives what ``ring`` reads of its laser,
+        :meth:`hybridteam.live.ros2_plant.RobotPlant.ranges`) from their lasers, and run
+        their detect rules on those readings here (:meth:`detect_on_lasers`); the world
+        process's raising of those rules' events for them is not taken
+        (:attr:`WorldLink.local`)."""
+        self.lasers = dict(lasers)
+        self.laser_rules = [[rule, self.ring(rule.agent, rule.sensor), False]
+                            for c in self.components if isinstance(c, Obstacles)
+                            for rule in c.rules if rule.agent in self.lasers]
+        self.link.local = {(rule.agent, rule.event) for rule, _, _ in self.laser_rules}
+
+    def detect_on_lasers(self, access: EnsembleAccess, idx: np.ndarray) -> None:
+        """The detect rules of the robots with a laser, on what the laser reads as the
+        rule's ring, as the obstacles component runs them on its ray casting: the rule's
+        event raised when the nearest of its beams drops below its threshold (on the
+        rising edge; nothing counts as seen before the first instant)."""
+        for entry in self.laser_rules:
+            rule, ring, seen = entry
+            ranges = self.lasers[rule.agent].ranges(ring)
+            near = bool(detect(ranges[None, :], rule.below, rule.beams)[0])
+            if near and not seen:
+                access.raise_event(idx, rule.agent, rule.event)
+            entry[2] = near
+
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        laser = self.lasers.get(agent)
+        if laser is not None:
+            ring = self.ring(agent, name)
+            ranges = None if ring is None else laser.ranges(ring)
+            if ranges is not None:
+                return np.broadcast_to(ranges, (len(idx), ring.count)).copy()
         reading = self.link.readings.get(agent, {}).get(name)
         if reading is None:
             raise KeyError(f"the world process gave agent {agent} no reading of '{name}'")
         return np.broadcast_to(reading, (len(idx), *reading.shape)).copy()
+
+    def ring(self, agent: int, name: str) -> RangeRing | None:
+        """Agent ``agent``'s range ring ``name`` as the team's obstacles declare it (a
+        detect rule's, or its robot model's), or None."""
+        for c in self.components:
+            if isinstance(c, Obstacles):
+                return c.ring(agent, name)
+        return None
 
     def sample_series(self) -> dict[str, tuple[str, ...]]:
         return {}  # (the world's series are the world process's records)

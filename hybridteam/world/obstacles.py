@@ -148,7 +148,9 @@ class Obstacles(WorldComponent):
     def _poses(self, a: int, idx: np.ndarray) -> np.ndarray:
         return self.world.pose(a, idx)
 
-    def _ring(self, a: int, sensor: str) -> RangeRing | None:
+    def ring(self, a: int, sensor: str) -> RangeRing | None:
+        """Agent ``a``'s ring ``sensor``: a detect rule's, else its robot model's; None if
+        it has none (a live robot's laser is read as this ring: hybridteam.live)."""
         if (a, sensor) in self.rings:
             return self.rings[(a, sensor)]
         preset = getattr(self.team.agents[a], "preset", None)
@@ -207,7 +209,7 @@ class Obstacles(WorldComponent):
         return self.sensors
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
-        ring = self._ring(agent, name) if agent in self.sensing else None
+        ring = self.ring(agent, name) if agent in self.sensing else None
         if ring is None:
             raise KeyError(f"obstacles: robot '{self.team.agents[agent].name}' has no range "
                            f"ring '{name}' (from its robot model or a detect rule's ring)")
