@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.simulator import Simulator
 from hybridteam.model import Team
 from hybridteam.requirements.check import RequirementSet, compile_requirements

@@ -640,7 +640,7 @@ def test_agents_share_the_team_symbol_table(tmp_path):
     table into each agent's own made compiling a team of thousands quadratic; each agent's
     table now chains its own names to the one team table."""
     import hybridteam as ht
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
 
     (tmp_path / "crowd.yaml").write_text(_crowd(30))
     cteam = compile_team(ht.load(tmp_path / "crowd.yaml"))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.simulator import Simulator
 
 TEAM = Path(__file__).parent / "fixtures" / "live" / "drive.yaml"

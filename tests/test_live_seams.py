@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.network import Message
 from hybridteam.engine.schedule import earliest
 from hybridteam.engine.simulator import Simulator

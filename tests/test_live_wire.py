@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.network import Message
 from hybridteam.live.wire import KEYS, MAX_BYTES, Codec, WireError, declarations
 

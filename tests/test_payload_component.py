@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hybridteam.api import load, simulate
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.simulator import Simulator
 from hybridteam.laws import LawContext, law
 from hybridteam.robots import resolve

@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 import hybridteam as ht
 from hybridteam.engine import bracket
-from hybridteam.engine.compiled import CAgent, Ctx, Row
-from hybridteam.engine.scope import symbols
+from hybridteam.engine.compile.compiled import CAgent, Ctx, Row
+from hybridteam.engine.compile.scope import symbols
 from hybridteam.expr.compiler import compile_expression
 from tests.conftest import EXAMPLES
 

@@ -314,7 +314,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     import subprocess
     import time
 
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.merge import merge_traces
     from hybridteam.live.run import check_drop_copies

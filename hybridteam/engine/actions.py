@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import spread
-from hybridteam.engine.compiled import REPLY
+from hybridteam.engine.compile.compiled import REPLY
+from hybridteam.engine.compile.values import require
 from hybridteam.engine.events import LOCAL
-from hybridteam.engine.values import require
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CAction, CAgent, Ctx
+    from hybridteam.engine.compile.compiled import CAction, CAgent, Ctx
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
 

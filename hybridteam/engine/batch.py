@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, CTeam, Ctx
+from hybridteam.engine.compile.compiled import CAgent, CTeam, Ctx
 from hybridteam.engine.overrides import parameter_matrices, split_overrides
 from hybridteam.engine.randomness import seed_value
 from hybridteam.engine.world import component_values

@@ -15,7 +15,7 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, spread, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.compiled import Ctx, Row
+from hybridteam.engine.compile.compiled import Ctx, Row
 from hybridteam.engine.drivers import derivative
 from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois, illinois_one
 from hybridteam.engine.single import DenseRow

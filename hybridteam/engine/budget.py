@@ -24,8 +24,8 @@ import math
 import os
 import time
 
-from hybridteam.engine.compiled import CTeam
-from hybridteam.engine.protocols import stream_fields
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.compile.protocols import stream_fields
 
 DEFAULT_MAX_MEMORY = 4e9
 DEFAULT_MAX_PERIODS = 1e8

@@ -29,7 +29,7 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.engine.bracket import Segment, owner_matters
-from hybridteam.engine.compiled import Ctx
+from hybridteam.engine.compile.compiled import Ctx
 from hybridteam.engine.single import check_truths_one, relevant_one, truths_one
 from hybridteam.engine.step import AgentStep, state_at
 

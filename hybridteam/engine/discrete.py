@@ -29,7 +29,7 @@ from hybridteam.engine.actions import exit_actions, run_actions
 from hybridteam.engine.events import MESSAGE, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CAgent
+    from hybridteam.engine.compile.compiled import CAgent
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.state import AgentState
 

@@ -17,7 +17,7 @@ import numpy as np
 from hybridteam.arrays import all_finite, count_true, distinct, every, gather, some, where_true
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
-from hybridteam.engine.compiled import CAgent, Ctx, Driver
+from hybridteam.engine.compile.compiled import CAgent, Ctx, Driver
 from hybridteam.engine.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError
 

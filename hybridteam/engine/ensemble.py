@@ -19,11 +19,11 @@ import numpy as np
 
 from hybridteam.arrays import some
 from hybridteam.engine.actions import entry_actions
-from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.compile.protocols import stream_fields
 from hybridteam.engine.events import EventQueue
 from hybridteam.engine.network import Message, Network
 from hybridteam.engine.overrides import apply_overrides, split_overrides
-from hybridteam.engine.protocols import stream_fields
 from hybridteam.engine.randomness import seed_value
 from hybridteam.engine.record import Recorder
 from hybridteam.engine.reliable import Reliable

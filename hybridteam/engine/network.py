@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from hybridteam.arrays import filled, some
+from hybridteam.engine.compile.values import require
 from hybridteam.engine.events import MESSAGE
 from hybridteam.engine.overrides import (
     LINK_SETTINGS,
@@ -34,7 +35,6 @@ from hybridteam.engine.overrides import (
     override_values,
 )
 from hybridteam.engine.randomness import instance_keys, uniform
-from hybridteam.engine.values import require
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.model import Team

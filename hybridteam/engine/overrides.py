@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, Ctx
+from hybridteam.engine.compile.compiled import CAgent, Ctx
 from hybridteam.errors import did_you_mean
 from hybridteam.model import NetworkSpec
 

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CTeam
+    from hybridteam.engine.compile.compiled import CTeam
 
 
 class ExternalPlant(Protocol):

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compile.compiled import CTeam
 from hybridteam.trace import (
     INTERVAL_COLUMNS,
     MESSAGE_COLUMNS,

@@ -25,7 +25,7 @@ from hybridteam.arrays import NO_INDEX, every, gather, some, union, where_true
 from hybridteam.engine.access import EnsembleAccess
 from hybridteam.engine.budget import Pace, check_budget
 from hybridteam.engine.clock import Clock
-from hybridteam.engine.compiled import CTeam, Watch
+from hybridteam.engine.compile.compiled import CTeam, Watch
 from hybridteam.engine.crossing import find_crossings, watch_truth
 from hybridteam.engine.discrete import discrete_phase
 from hybridteam.engine.drivers import sample_laws

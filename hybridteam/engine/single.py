@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.compiled import Row
+from hybridteam.engine.compile.compiled import Row
 from hybridteam.engine.step import AgentStep
 
 if TYPE_CHECKING:

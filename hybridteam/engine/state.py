@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import every, gather
-from hybridteam.engine.compiled import CAgent, Ctx, Entry
-from hybridteam.engine.values import transition_delay
+from hybridteam.engine.compile.compiled import CAgent, Ctx, Entry
+from hybridteam.engine.compile.values import transition_delay
 from hybridteam.engine.world import AgentView
 
 if TYPE_CHECKING:

@@ -15,33 +15,17 @@ Scout limited to 8 Hz really sees every third of 20 messages.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hybridteam.arrays import filled, floats, some, spread, where_true
-from hybridteam.engine.values import require
-from hybridteam.errors import DocPath
-from hybridteam.expr import Expression
+from hybridteam.engine.compile.values import require
 
 if TYPE_CHECKING:
+    from hybridteam.engine.compile.compiled import CStream
     from hybridteam.engine.ensemble import Ensemble
     from hybridteam.engine.network import Message
-
-
-@dataclass
-class CStream:
-    """A compiled stream of one sending agent."""
-
-    message: str
-    socket: str
-    period: Expression  # 1 / rate, an expression of the sender's parameters
-    fields: dict[str, Expression]
-    modes: list[int]  # indices of the modes it is sent in; empty: always
-    where: DocPath = ()  # the declaration (its ``rate`` is checked where it is evaluated)
-    rate_text: str = ""
-    fixed_rate: bool = False  # the rate reads only parameters: one period per instance
 
 
 class Inbox:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.engine.values import require
+from hybridteam.engine.compile.values import require
 from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.libraries import broken_note

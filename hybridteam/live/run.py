@@ -21,8 +21,8 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.engine.compiled import CTeam
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.plant import ExternalPlant
 from hybridteam.engine.record import variables_key
 from hybridteam.engine.simulator import Simulator

@@ -26,7 +26,7 @@ import json
 import math
 from dataclasses import dataclass
 
-from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compile.compiled import CTeam
 from hybridteam.engine.network import Message
 from hybridteam.engine.reliable import ACK
 

@@ -45,8 +45,8 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiled import CAgent
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.ensemble import Ensemble
 from hybridteam.engine.network import Message
 from hybridteam.engine.reliable import ACK

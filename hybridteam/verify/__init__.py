@@ -172,7 +172,7 @@ def verify(team, options: Options | None = None, only: list[str] | None = None,
     (:meth:`Report.replay`)."""
     import numpy as np
 
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
     from hybridteam.engine.world import World
 
     opts = options or Options()

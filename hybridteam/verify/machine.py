@@ -117,7 +117,7 @@ class Machine:
 
     # ------------------------------------------------------------------ setup
     def _fields(self) -> dict[str, list[str]]:
-        from hybridteam.engine.compiler import message_fields
+        from hybridteam.engine.compile.compiler import message_fields
 
         out = {k: sorted(v) for k, v in message_fields(self.cteam.team).items()}
         out[ACK] = ["id"]

@@ -81,7 +81,7 @@ class Context:
     and a raw machine."""
 
     def __init__(self, team, sk: Skeleton, g: Graph, fifo: bool) -> None:
-        from hybridteam.engine.compiler import compile_team
+        from hybridteam.engine.compile.compiler import compile_team
         from hybridteam.requirements.check import compile_requirements
 
         self.team, self.sk, self.g = team, sk, g

@@ -15,9 +15,8 @@ from collections import ChainMap
 import numpy as np
 
 from hybridteam.dynamics.plants import Plant
-from hybridteam.engine.compiled import CAgent, CPolicy
-from hybridteam.engine.scope import Collector, resolve_mode
-from hybridteam.engine.streams import CStream
+from hybridteam.engine.compile.compiled import CAgent, CPolicy, CStream
+from hybridteam.engine.compile.scope import Collector, resolve_mode
 from hybridteam.errors import ModelError, did_you_mean
 from hybridteam.model import Send, Team
 

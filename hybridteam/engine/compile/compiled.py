@@ -237,6 +237,20 @@ class Watch:
 
 
 @dataclass
+class CStream:
+    """A compiled stream of one sending agent."""
+
+    message: str
+    socket: str
+    period: Expression  # 1 / rate, an expression of the sender's parameters
+    fields: dict[str, Expression]
+    modes: list[int]  # indices of the modes it is sent in; empty: always
+    where: DocPath = ()  # the declaration (its ``rate`` is checked where it is evaluated)
+    rate_text: str = ""
+    fixed_rate: bool = False  # the rate reads only parameters: one period per instance
+
+
+@dataclass
 class CAgent:
     index: int
     name: str
@@ -263,7 +277,7 @@ class CAgent:
     leaves: np.ndarray
     outcome: list[str | None] = field(default_factory=list)  # per mode: a final's outcome
     policies: dict[str, CPolicy] = field(default_factory=dict)
-    streams: list = field(default_factory=list)  # list[streams.CStream]
+    streams: list[CStream] = field(default_factory=list)
     # parameters written as expressions of the others: (column, expression), in order
     derived_params: tuple = ()
     # the source mode of every transition, by index (a gather finds which can fire)

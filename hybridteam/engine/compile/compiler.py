@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybridteam.dynamics.plants import Plant, make_plant
-from hybridteam.engine.bindings import check_parallel_drivers, compile_driver
-from hybridteam.engine.compiled import (
+from hybridteam.engine.compile.bindings import check_parallel_drivers, compile_driver
+from hybridteam.engine.compile.compiled import (
     CONTINUOUS_NAMES,
     RESERVED,
     CAgent,
@@ -28,16 +28,16 @@ from hybridteam.engine.compiled import (
     Ctx,
     Driver,
 )
-from hybridteam.engine.protocols import attach, check_messages, team_symbols
-from hybridteam.engine.scope import Collector, resolve_mode, symbols
-from hybridteam.engine.transitions import (
+from hybridteam.engine.compile.protocols import attach, check_messages, team_symbols
+from hybridteam.engine.compile.scope import Collector, resolve_mode, symbols
+from hybridteam.engine.compile.transitions import (
     compile_actions,
     compile_transitions,
     entry_to,
     group_triggered,
     watches,
 )
-from hybridteam.engine.values import transition_delay
+from hybridteam.engine.compile.values import transition_delay
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import Expression
 from hybridteam.model import Agent, Mode, Send, Team

@@ -15,7 +15,7 @@ from collections import ChainMap
 
 import numpy as np
 
-from hybridteam.engine.compiled import (
+from hybridteam.engine.compile.compiled import (
     CONTINUOUS_NAMES,
     REPLY,
     CAction,
@@ -24,7 +24,7 @@ from hybridteam.engine.compiled import (
     Entry,
     Watch,
 )
-from hybridteam.engine.scope import Collector, message_symbols, resolve_mode
+from hybridteam.engine.compile.scope import Collector, message_symbols, resolve_mode
 from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import (
     Expression,

@@ -20,7 +20,7 @@ from hybridteam.arrays import spread
 from hybridteam.errors import DocPath, ModelError
 
 if TYPE_CHECKING:
-    from hybridteam.engine.compiled import CTransition, Ctx
+    from hybridteam.engine.compile.compiled import CTransition, Ctx
 
 
 def require(values: np.ndarray, where: DocPath, what: str, source: str, *,

@@ -10,14 +10,14 @@ from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 from hybridteam.dynamics.plants import Plant
-from hybridteam.engine.compiled import CMode, Driver
+from hybridteam.engine.compile.compiled import CMode, Driver
 from hybridteam.errors import did_you_mean
 from hybridteam.expr import Expression, compile_expression
 from hybridteam.laws import LawNotFound, asked_names, resolve
 from hybridteam.model import Mode
 
 if TYPE_CHECKING:
-    from hybridteam.engine.scope import Collector
+    from hybridteam.engine.compile.scope import Collector
 
 
 def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
