@@ -758,7 +758,7 @@ def test_running_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
         raise MemoryError("Unable to allocate 7.28 TiB for an array")
 
     with monkeypatch.context() as m:
-        m.setattr("hybridteam.engine.simulator.Simulator.run", no_memory)
+        m.setattr("hybridteam.engine.run.simulator.Simulator.run", no_memory)
         assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
     assert capsys.readouterr().err.strip() == (
         "hybridteam: error: the run ran out of memory (the machine has less than the memory "

@@ -145,7 +145,7 @@ def test_the_corridor_twin_declines_coinciding_robots_and_changes_nothing():
     from hybridteam.modes.ladder.world_one import update_few
 
     from hybridteam.engine.compile.compiler import compile_team
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.run.simulator import Simulator
 
     sim = Simulator(compile_team(load(SAMPLE)), duration=1.0)
     sim._initialize()

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import hybridteam as ht
 from hybridteam import laws, libraries
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
-from hybridteam.engine.drivers import next_ticks
+from hybridteam.engine.run.drivers import next_ticks
 from hybridteam.errors import ModelError
 from hybridteam.io.filekind import InputErrors
 

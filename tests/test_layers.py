@@ -187,16 +187,16 @@ def test_each_rule_catches_a_broken_import(tmp_path):
                     ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(ROOT / "modes", modes, ignore=shutil.ignore_patterns("__pycache__"))
     planted = {
-        modes / "ladder" / "world.py": "from hybridteam.engine.events import LOCAL\n",
+        modes / "ladder" / "world.py": "from hybridteam.engine.run.events import LOCAL\n",
         modes / "transport" / "laws.py": "from hybridteam.laws import law\n",
         framework / "world" / "carried.py": "if TYPE_CHECKING:\n"
-                                            "    from hybridteam.engine.ensemble import E\n",
+                                            "    from hybridteam.engine.run.ensemble import E\n",
         framework / "io" / "loader.py": "def f():\n    from hybridteam.sweep import study\n",
         framework / "model" / "team.py": "import hybridteam.engine\n",
-        framework / "engine" / "state.py": "from ..export import style\n",
+        framework / "engine" / "run" / "state.py": "from ...export import style\n",
         framework / "api.py": "from hybridteam.modes.ladder import simulate\n",
-        framework / "engine" / "step.py": "from hybridteam.live.wire import Codec\n",
-        framework / "live" / "run.py": "from hybridteam.engine.network import _given\n",
+        framework / "engine" / "run" / "step.py": "from hybridteam.live.wire import Codec\n",
+        framework / "live" / "run.py": "from hybridteam.engine.run.network import _given\n",
     }
     for path, line in planted.items():
         path.write_text(path.read_text() + line)
@@ -205,7 +205,7 @@ def test_each_rule_catches_a_broken_import(tmp_path):
     expected = [
         "hybridteam.modes.ladder.world:", "hybridteam.modes.transport.laws:",
         "hybridteam.world.carried:", "hybridteam.io.loader:", "hybridteam.model.team:",
-        "hybridteam.engine.state:", "hybridteam.api:", "hybridteam.engine.step:",
+        "hybridteam.engine.run.state:", "hybridteam.api:", "hybridteam.engine.run.step:",
         "hybridteam.live.run:"]
     for prefix in expected:
         assert any(b.startswith(prefix) for b in bad), (prefix, bad)

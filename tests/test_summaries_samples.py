@@ -16,7 +16,7 @@ import pytest
 
 from hybridteam.api import load, simulate, summaries
 from hybridteam.engine.compile.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.run.simulator import Simulator
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 COUNTS = {"message", "transitions", "messages"}

@@ -260,7 +260,7 @@ class Ros2Plant:
 
 class RobotPlant:
     """A :class:`Ros2Plant` as an agent's external plant in the engine
-    (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
+    (:mod:`hybridteam.engine.run.plant`): the held inputs out as a Twist at every instant, the
     latest odometry pose in wherever the engine needs the agent's state.
 
     Only a unicycle agent is driven so: its inputs ``(v, omega)`` are body-frame, as a

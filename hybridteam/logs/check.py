@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from hybridteam.engine.record import variables_key
+from hybridteam.engine.run.record import variables_key
 from hybridteam.logs import LogError
 from hybridteam.model import Team
 from hybridteam.trace import Table

@@ -2,7 +2,7 @@
 
 A path of the skeleton says in which order things happen, not when. The replay gives each
 step a moment and runs the ordinary simulator, plant, streams, world and all, with a
-scripted network (:attr:`~hybridteam.engine.network.Network.script`):
+scripted network (:attr:`~hybridteam.engine.run.network.Network.script`):
 
 - the copies the path delivers arrive at their step's moment, the copies it loses are
   lost, every other copy of a control message stays in flight until the run ends;

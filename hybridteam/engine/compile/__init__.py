@@ -19,7 +19,7 @@ them on the team's own values, the run side per instance, so ``validate`` refuse
 ``run`` refuses).
 
 One call crosses to the run side: :func:`~.compiler.compile_team` asks the network and the
-world (:func:`hybridteam.engine.network.check_network`,
-:func:`hybridteam.engine.world.check_world`) to check their own blocks of the team,
+world (:func:`hybridteam.engine.run.network.check_network`,
+:func:`hybridteam.engine.run.world.check_world`) to check their own blocks of the team,
 so each of those rules lives once, beside the code that applies it at run time.
 """

@@ -309,7 +309,7 @@ class CAgent:
     def lone_watches(self) -> list[bool]:
         """Per watched atom: whether it is the only atom its guard or invariant watches.
         Its flip then decides alone, and the truths at the end of a sub-interval it flips
-        in tell whether the flip matters (``crossing._relevant``); an atom with siblings
+        in tell whether the flip matters (``search._relevant``); an atom with siblings
         may flip together with one, and only the state at the crossing can tell."""
         return [sum(o.owner is w.owner for o in self.watches) == 1 for w in self.watches]
 

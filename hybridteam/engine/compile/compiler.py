@@ -345,8 +345,8 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
 
 def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
-    from hybridteam.engine.network import check_network
-    from hybridteam.engine.world import check_world
+    from hybridteam.engine.run.network import check_network
+    from hybridteam.engine.run.world import check_world
 
     errors: list[ModelError] = (check_network(team) + check_messages(team)
                                 + check_world(team))

@@ -3,9 +3,9 @@
 A transition is compiled once into a :class:`~.compiled.CTransition` whose mode indices,
 exit root and entry path are resolved, whose guard, delay and actions are numpy
 callables, and whose conflicts with higher-precedence transitions are precomputed, so the
-discrete phase (:mod:`.discrete`) only evaluates and fires. The atoms of urgent guards and
-invariants that can change while time flows are collected as watches (:mod:`.crossing`
-locates their sign changes).
+discrete phase (:mod:`hybridteam.engine.run.discrete`) only evaluates and fires. The atoms
+of urgent guards and invariants that can change while time flows are collected as watches
+(:mod:`hybridteam.engine.run.crossing` locates their sign changes).
 """
 
 from __future__ import annotations

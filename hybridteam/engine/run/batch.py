@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 
 from hybridteam.engine.compile.compiled import CAgent, CTeam, Ctx
-from hybridteam.engine.overrides import parameter_matrices, split_overrides
-from hybridteam.engine.randomness import seed_value
-from hybridteam.engine.world import component_values
+from hybridteam.engine.run.overrides import parameter_matrices, split_overrides
+from hybridteam.engine.run.randomness import seed_value
+from hybridteam.engine.run.world import component_values
 from hybridteam.world.component import WorldComponent, lookup
 from hybridteam.world.request import AgentShape, BatchRequest, ModeShape, TransitionShape
 

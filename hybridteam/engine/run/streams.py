@@ -24,8 +24,8 @@ from hybridteam.engine.compile.values import require
 
 if TYPE_CHECKING:
     from hybridteam.engine.compile.compiled import CStream
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.network import Message
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.network import Message
 
 
 class Inbox:
@@ -105,7 +105,7 @@ class Streams:
     each running the world and the discrete phase, where the model has one, and event
     times such as ``8.249999999999982`` where the model says 8.25. Counted from a start at
     0, copy ``k`` is due at ``k * period``, the very float of a law's ``k``-th tick at that
-    period (:func:`~hybridteam.engine.drivers.next_ticks`).
+    period (:func:`~hybridteam.engine.run.drivers.next_ticks`).
     """
 
     def __init__(self, ens: Ensemble, streams: list[list[CStream]]) -> None:

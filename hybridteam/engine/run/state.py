@@ -17,12 +17,12 @@ import numpy as np
 from hybridteam.arrays import every, gather
 from hybridteam.engine.compile.compiled import CAgent, Ctx, Entry
 from hybridteam.engine.compile.values import transition_delay
-from hybridteam.engine.world import AgentView
+from hybridteam.engine.run.world import AgentView
 
 if TYPE_CHECKING:
-    from hybridteam.engine.record import Recorder
-    from hybridteam.engine.streams import Inbox
-    from hybridteam.engine.world import World
+    from hybridteam.engine.run.record import Recorder
+    from hybridteam.engine.run.streams import Inbox
+    from hybridteam.engine.run.world import World
 
 
 class AgentState:

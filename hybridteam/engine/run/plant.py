@@ -16,6 +16,16 @@ at each step's end, that is at every instant the live loop takes (control ticks,
 deadlines, output samples, arrivals), and a flip there is taken as a crossing at that
 instant. A guard crossed between two instants fires at the next one, at most one control
 period (plus the age of the plant's reading) late.
+
+Implementing another plant: a class with :meth:`ExternalPlant.command` and
+:meth:`ExternalPlant.state`, passed as ``Simulator(cteam, 1, plants={agent_index: plant})``.
+``command`` receives the agent's held inputs in the plant's input order (a unicycle's
+``v, omega``) at every instant of the agent; ``state`` returns the agent's state in the
+plant's state order (a unicycle's ``x, y, theta``) whenever the engine needs it, and may
+block or raise to end the run. :func:`check_external` refuses an agent whose model
+integrates its plant (a ``flow:`` plant, a continuous law). The live implementation is
+:class:`hybridteam.live.ros2_plant.RobotPlant` (``hybridteam/live/ros2_plant.py``: a
+robot over ROS 2 Twist and Odometry topics).
 """
 
 from __future__ import annotations

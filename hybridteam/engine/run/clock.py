@@ -7,6 +7,15 @@ before each step it sleeps until the next scheduled instant is due, and wakes ea
 a datagram arrives, which it puts on the event queue (:meth:`.network.Network.arrive`) so
 that the step ends at the arrival. It may also end the run (a signal, the wall clock
 running out) with :meth:`.ensemble.Ensemble.finish`.
+
+Implementing another clock: a class with :meth:`Clock.advance`, passed as
+``Simulator(cteam, n, clock=...)``. It is called once before every step with the
+ensemble, whose next scheduled instant :func:`.schedule.earliest` gives; it may block
+until that instant is due, put whatever arrived meanwhile on the event queue at its
+arrival time (:meth:`.network.Network.arrive`, never earlier than the ensemble's present,
+so the step ends there), or end the run (:meth:`.ensemble.Ensemble.finish`). It must not
+move the ensemble's time itself: the step does. The live implementation is
+:class:`hybridteam.live.clock.WallClock` (``hybridteam/live/clock.py``).
 """
 
 from __future__ import annotations
@@ -14,7 +23,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 class Clock(Protocol):

@@ -30,7 +30,7 @@ Evaluator = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
 """``ev(positions, tau) -> (truth, margin)`` of one atom for some of a search's candidates."""
 OneEvaluator = Callable[[float], tuple[bool, float]]
 """``one(tau) -> (truth, margin)``: an :data:`Evaluator` of a search with one candidate,
-on Python floats, giving the bits ``ev`` gives (see ``bracket.Segment.dense_one``)."""
+on Python floats, giving the bits ``ev`` gives (see ``segment.Segment.dense_one``)."""
 
 
 def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,

@@ -14,8 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from hybridteam.arrays import NO_INDEX, every
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.events import LOCAL
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.events import LOCAL
 from hybridteam.errors import did_you_mean
 from hybridteam.world.access import Agent, Message, WorldAccess
 from hybridteam.world.component import WorldComponent
@@ -130,7 +130,7 @@ class EnsembleAccess(WorldAccess):
 
     def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
                      values: np.ndarray | float) -> None:
-        """What :func:`~hybridteam.engine.discrete.fire` does for an assignment: the rows'
+        """What :func:`~hybridteam.engine.run.discrete.fire` does for an assignment: the rows'
         values as floats, and the instances marked changed and reconfigured (their watched
         truths are read afresh); they are remembered with the raised events, so their
         discrete phase runs at this instant."""

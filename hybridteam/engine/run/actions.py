@@ -17,12 +17,12 @@ import numpy as np
 from hybridteam.arrays import spread
 from hybridteam.engine.compile.compiled import REPLY
 from hybridteam.engine.compile.values import require
-from hybridteam.engine.events import LOCAL
+from hybridteam.engine.run.events import LOCAL
 
 if TYPE_CHECKING:
     from hybridteam.engine.compile.compiled import CAction, CAgent, Ctx
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.state import AgentState
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.state import AgentState
 
 
 def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction],

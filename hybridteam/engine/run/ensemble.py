@@ -18,18 +18,18 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from hybridteam.arrays import some
-from hybridteam.engine.actions import entry_actions
 from hybridteam.engine.compile.compiled import CTeam
 from hybridteam.engine.compile.protocols import stream_fields
-from hybridteam.engine.events import EventQueue
-from hybridteam.engine.network import Message, Network
-from hybridteam.engine.overrides import apply_overrides, split_overrides
-from hybridteam.engine.randomness import seed_value
-from hybridteam.engine.record import Recorder
-from hybridteam.engine.reliable import Reliable
-from hybridteam.engine.state import AgentState
-from hybridteam.engine.streams import Inbox, Streams
-from hybridteam.engine.world import World
+from hybridteam.engine.run.actions import entry_actions
+from hybridteam.engine.run.events import EventQueue
+from hybridteam.engine.run.network import Message, Network
+from hybridteam.engine.run.overrides import apply_overrides, split_overrides
+from hybridteam.engine.run.randomness import seed_value
+from hybridteam.engine.run.record import Recorder
+from hybridteam.engine.run.reliable import Reliable
+from hybridteam.engine.run.state import AgentState
+from hybridteam.engine.run.streams import Inbox, Streams
+from hybridteam.engine.run.world import World
 
 
 def output_times(t_end: float, dt: float) -> np.ndarray:

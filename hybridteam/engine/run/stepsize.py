@@ -12,12 +12,12 @@ import numpy as np
 
 from hybridteam.arrays import some, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.drivers import derivative
-from hybridteam.engine.numerics import step_floor, stop_collapsed_steps
+from hybridteam.engine.run.drivers import derivative
+from hybridteam.engine.run.numerics import step_floor, stop_collapsed_steps
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.step import AgentStep
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.step import AgentStep
 
 
 def control_step_size(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,

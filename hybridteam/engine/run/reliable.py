@@ -1,6 +1,6 @@
 """Acknowledged control messages: sequence ids, acks, retransmission, duplicate suppression.
 
-The medium (:mod:`hybridteam.engine.network`) only offers datagrams that may be lost. A protocol
+The medium (:mod:`hybridteam.engine.run.network`) only offers datagrams that may be lost. A protocol
 that declares ``ack: {timeout, retries}`` for a message type gets, from this layer, what the
 architecture paper's control messages had: each message carries an id unique per sender;
 every receiver that gets a copy answers with an ``ack`` datagram (lossy too); the sender
@@ -21,11 +21,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.events import LOCAL, TIMER
+from hybridteam.engine.run.events import LOCAL, TIMER
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.network import Message
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.network import Message
 
 ACK = "ack"
 

@@ -24,7 +24,7 @@ from hybridteam.libraries import broken_note
 from hybridteam.world.component import WorldComponent, lookup, registered
 
 if TYPE_CHECKING:
-    from hybridteam.engine.access import EnsembleAccess
+    from hybridteam.engine.run.access import EnsembleAccess
     from hybridteam.model import Team
 
 

@@ -18,11 +18,11 @@ from hybridteam.arrays import all_finite, count_true, distinct, every, gather, s
 from hybridteam.dynamics import rk
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compile.compiled import CAgent, Ctx, Driver
-from hybridteam.engine.numerics import stop_broken_inputs
+from hybridteam.engine.run.numerics import stop_broken_inputs
 from hybridteam.errors import ModelError
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:

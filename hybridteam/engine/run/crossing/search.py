@@ -14,7 +14,7 @@ The search keeps a bracket ``[a, b]`` with the atom's original truth at ``a`` an
 truth at ``b`` and returns ``b``: the state handed to the discrete phase is always on the new
 side of the boundary, within ``event_tol`` seconds of the crossing.
 
-All of this runs inside :meth:`Simulator.run <hybridteam.engine.simulator.Simulator.run>`,
+All of this runs inside :meth:`Simulator.run <hybridteam.engine.run.simulator.Simulator.run>`,
 which ignores floating-point errors for the whole run (a secant through equal margins is
 NaN, and is replaced): the search sets no error state of its own, a cost per trial.
 """
@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
-from hybridteam.engine.bracket import Segment, owner_matters
 from hybridteam.engine.compile.compiled import Ctx
-from hybridteam.engine.single import check_truths_one, relevant_one, truths_one
-from hybridteam.engine.step import AgentStep, state_at
+from hybridteam.engine.run.crossing.floats import check_truths_one, relevant_one, truths_one
+from hybridteam.engine.run.crossing.segment import Segment, owner_matters
+from hybridteam.engine.run.step import AgentStep, state_at
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,

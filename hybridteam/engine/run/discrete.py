@@ -25,13 +25,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import gather, some, spread, where_true
-from hybridteam.engine.actions import exit_actions, run_actions
-from hybridteam.engine.events import MESSAGE, TIMER
+from hybridteam.engine.run.actions import exit_actions, run_actions
+from hybridteam.engine.run.events import MESSAGE, TIMER
 
 if TYPE_CHECKING:
     from hybridteam.engine.compile.compiled import CAgent
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.state import AgentState
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.state import AgentState
 
 
 def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:

@@ -2,9 +2,9 @@
 
 :class:`Segment` holds an agent's motion over the current step for the instances being
 searched (dense output, start states, the derivative of the flowing ones) and answers what
-:mod:`.crossing` asks of a trial time: an atom's truth and margin, off the dense output or
+:mod:`.search` asks of a trial time: an atom's truth and margin, off the dense output or
 as accurate as a step, the state there, whether a crossing there matters.
-:func:`~hybridteam.engine.illinois.illinois` narrows a bracket to the event tolerance.
+:func:`~.illinois.illinois` narrows a bracket to the event tolerance.
 """
 
 from __future__ import annotations
@@ -16,14 +16,14 @@ import numpy as np
 from hybridteam.arrays import every, filled, gather, some, spread, where_true
 from hybridteam.dynamics import rk
 from hybridteam.engine.compile.compiled import Ctx, Row
-from hybridteam.engine.drivers import derivative
-from hybridteam.engine.illinois import Evaluator, OneEvaluator, illinois, illinois_one
-from hybridteam.engine.single import DenseRow
-from hybridteam.engine.step import AgentStep, dense_reader, state_at
+from hybridteam.engine.run.crossing.floats import DenseRow
+from hybridteam.engine.run.crossing.illinois import Evaluator, OneEvaluator, illinois, illinois_one
+from hybridteam.engine.run.drivers import derivative
+from hybridteam.engine.run.step import AgentStep, dense_reader, state_at
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.state import AgentState
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.state import AgentState
 
 
 def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.ndarray
@@ -140,7 +140,7 @@ class Segment:
         """Whether atom ``w``'s crossing at ``tau`` (just past it) matters for ``rows``: its
         guard is true there, or its invariant false; a requirement's always does.
 
-        ``crossing._relevant`` rules out most flips that do not matter before any search, from
+        ``search._relevant`` rules out most flips that do not matter before any search, from
         the truths at the end of the sub-interval; not those that share their sub-interval
         with another atom of the same guard. A ball's apex (``v < 0`` flips while ``h <= 0``
         is false) shares one with the impact when a step spans both: without this the run
@@ -335,7 +335,7 @@ def _unused(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _One:
-    """A single run's flowing row on the dense output (:class:`~.single.DenseRow`) with one
+    """A single run's flowing row on the dense output (:class:`~.floats.DenseRow`) with one
     watched atom, read on floats: the context timed in the atom's mode, and its truth and
     margin."""
 

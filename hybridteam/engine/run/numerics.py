@@ -23,8 +23,8 @@ import numpy as np
 from hybridteam.arrays import all_finite, some
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
-    from hybridteam.engine.step import AgentStep
+    from hybridteam.engine.run.ensemble import Ensemble
+    from hybridteam.engine.run.step import AgentStep
 
 #: the default floor of the Runge–Kutta step, as a fraction of the run's duration
 MIN_STEP_FRACTION = 1e-6

@@ -20,7 +20,7 @@ import numpy as np
 from hybridteam.arrays import every, filled, some, spread
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = None

@@ -20,7 +20,7 @@ from hybridteam.trace import (
 )
 
 if TYPE_CHECKING:
-    from hybridteam.engine.world import World
+    from hybridteam.engine.run.world import World
 
 
 class Recorder:

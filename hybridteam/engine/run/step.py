@@ -18,10 +18,10 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.dynamics import rk
-from hybridteam.engine.drivers import derivative
+from hybridteam.engine.run.drivers import derivative
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 @dataclass(slots=True)

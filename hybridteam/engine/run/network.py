@@ -11,10 +11,20 @@ reason (``loss``, ``rate limit``, ``run ended``).
 Acknowledgements, retransmission and role assignment are protocol matters built on top of
 this medium; nothing here retries anything. Link settings are expressions of team
 parameters, evaluated per instance, so an ensemble can sweep latency or loss in one call.
-Random draws are counter-based (:mod:`hybridteam.engine.randomness`): a copy's fate depends
+Random draws are counter-based (:mod:`hybridteam.engine.run.randomness`): a copy's fate depends
 only on the seed, the link and the sender's own message number, so an ensemble instance
 draws exactly what the same single run draws. The seed may be one per instance (a key per
 instance), so an ensemble can also pack runs that a study gives different seeds.
+
+The network is the engine's seam for a real medium. Implementing another: a class with
+:meth:`Outlet.send`, set as the run's ``Network.outlet`` (``sim.ensemble.network``) before
+the run starts. Every send of the run is then handed to it, once, instead of being
+scheduled on the simulated links; each copy that comes back from the medium is put on the
+event queue with :meth:`Network.arrive` (by the clock seam, :mod:`.clock`, which is where
+a run waits), and from there it is received as a simulated copy is: rate limits, the
+acknowledged layer's screen, the record. The live implementation is
+:class:`hybridteam.live.clock.WireOutlet` (``hybridteam/live/clock.py``: each message
+encoded as one datagram, :mod:`hybridteam.live.wire`, on a transport).
 """
 
 from __future__ import annotations
@@ -26,21 +36,21 @@ import numpy as np
 
 from hybridteam.arrays import filled, some
 from hybridteam.engine.compile.values import require
-from hybridteam.engine.events import MESSAGE
-from hybridteam.engine.overrides import (
+from hybridteam.engine.run.events import MESSAGE
+from hybridteam.engine.run.overrides import (
     LINK_SETTINGS,
     Link,
     key_problem,
     network_targets,
     override_values,
 )
-from hybridteam.engine.randomness import instance_keys, uniform
+from hybridteam.engine.run.randomness import instance_keys, uniform
 from hybridteam.errors import ModelError, ModelErrors, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
 from hybridteam.model import Team
 
 if TYPE_CHECKING:
-    from hybridteam.engine.record import Recorder
+    from hybridteam.engine.run.record import Recorder
 
 LOSS, JITTER = 0, 1  # which draw of a copy
 

@@ -3,7 +3,7 @@
 A single run's search reads one row at each checkpoint and trial point, where each numpy
 call costs its dispatch (about 1 µs) for one number. Where every atom (and the guard or
 invariant judged) has a float form (:attr:`hybridteam.expr.Atom.row`,
-:attr:`hybridteam.expr.Expression.row`), these functions do what :mod:`.crossing`'s array
+:attr:`hybridteam.expr.Expression.row`), these functions do what :mod:`.search`'s array
 versions do with the same IEEE operations on the same doubles, so they give the same
 truths, states and times (``tests/test_row_form.py`` runs the examples both ways).
 """
@@ -15,11 +15,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.engine.compile.compiled import Row
-from hybridteam.engine.step import AgentStep
+from hybridteam.engine.run.step import AgentStep
 
 if TYPE_CHECKING:
     from hybridteam.dynamics import rk
-    from hybridteam.engine.state import AgentState
+    from hybridteam.engine.run.state import AgentState
 
 
 def context_row(st: AgentState, sub: int, x: list[float], t: float) -> Row:
@@ -51,7 +51,7 @@ class DenseRow:
 
 def truths_one(st: AgentState, sub: int, x: list[float], t: float) -> np.ndarray:
     """Every watched atom's truth for instance ``sub`` at state ``x`` and time ``t``, as
-    ``crossing.watch_truth`` gives them for one row: ``(atoms, 1)``."""
+    ``search.watch_truth`` gives them for one row: ``(atoms, 1)``."""
     return np.array(_truths(st, context_row(st, sub, x, t), st.entry[sub].tolist()),
                     bool)[:, None]
 

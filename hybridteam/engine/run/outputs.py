@@ -11,10 +11,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hybridteam.arrays import every, gather, some, where_true
-from hybridteam.engine.step import AgentStep, state_at
+from hybridteam.engine.run.step import AgentStep, state_at
 
 if TYPE_CHECKING:
-    from hybridteam.engine.ensemble import Ensemble
+    from hybridteam.engine.run.ensemble import Ensemble
 
 
 def interpolate_samples(ens: Ensemble, idx: np.ndarray, t1: np.ndarray,

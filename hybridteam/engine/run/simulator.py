@@ -22,23 +22,23 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 
 from hybridteam.arrays import NO_INDEX, every, gather, some, union, where_true
-from hybridteam.engine.access import EnsembleAccess
-from hybridteam.engine.budget import Pace, check_budget
-from hybridteam.engine.clock import Clock
 from hybridteam.engine.compile.compiled import CTeam, Watch
-from hybridteam.engine.crossing import find_crossings, watch_truth
-from hybridteam.engine.discrete import discrete_phase
-from hybridteam.engine.drivers import sample_laws
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.numerics import stop_broken_states
-from hybridteam.engine.outcomes import check_instances
-from hybridteam.engine.outputs import interpolate_samples, record_samples
-from hybridteam.engine.plant import ExternalPlant, check_external
-from hybridteam.engine.record import trace_meta, variables_key
-from hybridteam.engine.schedule import earliest
-from hybridteam.engine.step import AgentStep, state_at, take_step
-from hybridteam.engine.stepsize import control_step_size, initial_step_sizes
-from hybridteam.engine.world import World
+from hybridteam.engine.run.access import EnsembleAccess
+from hybridteam.engine.run.budget import Pace, check_budget
+from hybridteam.engine.run.clock import Clock
+from hybridteam.engine.run.crossing import find_crossings, watch_truth
+from hybridteam.engine.run.discrete import discrete_phase
+from hybridteam.engine.run.drivers import sample_laws
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.numerics import stop_broken_states
+from hybridteam.engine.run.outcomes import check_instances
+from hybridteam.engine.run.outputs import interpolate_samples, record_samples
+from hybridteam.engine.run.plant import ExternalPlant, check_external
+from hybridteam.engine.run.record import trace_meta, variables_key
+from hybridteam.engine.run.schedule import earliest
+from hybridteam.engine.run.step import AgentStep, state_at, take_step
+from hybridteam.engine.run.stepsize import control_step_size, initial_step_sizes
+from hybridteam.engine.run.world import World
 from hybridteam.trace import Trace
 
 Progress = Callable[[float], None]
