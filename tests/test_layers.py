@@ -95,6 +95,10 @@ ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridt
                 "hybridteam.logs")
 #: What a mode library may import of hybridteam.
 LIBRARY_API = ("hybridteam.library", "hybridteam.world.geometry")
+#: The engine's two sides (docs/design.md, "The engine's seams"), and the crossing search,
+#: entered through its package only.
+COMPILE, RUN = "hybridteam.engine.compile", "hybridteam.engine.run"
+CROSSING = "hybridteam.engine.run.crossing"
 
 
 #: packages above the engine that the engine's layer rule does not name (the engine may be
@@ -127,6 +131,9 @@ def private_attributes(folder: Path, package: str) -> list[str]:
 def violations(imports: list[Import]) -> list[str]:
     """Every broken rule, as ``module:line imports target (rule)``."""
     bad: dict[tuple[str, int, str], str] = {}  # one report per statement and rule
+    # the crossing search's own modules (each imports something, so each is an importer)
+    inside_crossing = {imp.module for imp in imports
+                       if _under(imp.module, CROSSING) and imp.module != CROSSING}
 
     def report(imp: Import, rule: str) -> None:
         bad.setdefault((imp.module, imp.line, rule),
@@ -148,6 +155,11 @@ def violations(imports: list[Import]) -> list[str]:
             report(imp, "world components see the engine only through WorldAccess")
         if _under(m, "hybridteam.engine") and _under(t, *ABOVE_ENGINE):
             report(imp, "the engine never imports io, export, cli, sweep, api, kinds, live or logs")
+        if _under(m, COMPILE) and _under(t, RUN):
+            report(imp, "the engine's compile side never imports its run side")
+        if _under(t, *inside_crossing) and not _under(m, CROSSING):
+            report(imp, "the crossing search is entered through hybridteam.engine.run.crossing "
+                        "only")
         if _under(m, *ABOVE_ENGINE, *SEARCHES) and _under(t, "hybridteam.engine") and \
                 _private(t):
             report(imp, "packages above the engine use no private engine name")
@@ -197,6 +209,9 @@ def test_each_rule_catches_a_broken_import(tmp_path):
         framework / "api.py": "from hybridteam.modes.ladder import simulate\n",
         framework / "engine" / "run" / "step.py": "from hybridteam.live.wire import Codec\n",
         framework / "live" / "run.py": "from hybridteam.engine.run.network import _given\n",
+        framework / "engine" / "compile" / "scope.py": "def f():\n"
+                                                       "    from ..run import state\n",
+        framework / "engine" / "run" / "outputs.py": "from .crossing.segment import Segment\n",
     }
     for path, line in planted.items():
         path.write_text(path.read_text() + line)
@@ -206,7 +221,8 @@ def test_each_rule_catches_a_broken_import(tmp_path):
         "hybridteam.modes.ladder.world:", "hybridteam.modes.transport.laws:",
         "hybridteam.world.carried:", "hybridteam.io.loader:", "hybridteam.model.team:",
         "hybridteam.engine.run.state:", "hybridteam.api:", "hybridteam.engine.run.step:",
-        "hybridteam.live.run:"]
+        "hybridteam.live.run:", "hybridteam.engine.compile.scope:",
+        "hybridteam.engine.run.outputs:"]
     for prefix in expected:
         assert any(b.startswith(prefix) for b in bad), (prefix, bad)
     assert any("state:" in b and "imports hybridteam.export " in b for b in bad)  # relative

@@ -13,13 +13,12 @@ four steps), :mod:`.scope` (the names an expression may read, and the error coll
 :mod:`.bindings` (what drives a mode's plant: law, ``inputs:`` or flow),
 :mod:`.transitions` (targets, exit and entry paths, guards, actions, precedence),
 :mod:`.protocols` (what protocols add: message policies, streams, estimate names),
-:mod:`.compiled` (the compiled structures and the expression context ``Ctx``) and
-:mod:`.values` (the range checks a model's evaluated values must pass: the compiler runs
-them on the team's own values, the run side per instance, so ``validate`` refuses what
-``run`` refuses).
+:mod:`.compiled` (the compiled structures and the expression context ``Ctx``),
+:mod:`.settings` (the ``network:`` and ``world:`` blocks' settings: checked here, evaluated
+per instance by the run side) and :mod:`.values` (the range checks a model's evaluated
+values must pass: the compiler runs them on the team's own values, the run side per
+instance, so ``validate`` refuses what ``run`` refuses).
 
-One call crosses to the run side: :func:`~.compiler.compile_team` asks the network and the
-world (:func:`hybridteam.engine.run.network.check_network`,
-:func:`hybridteam.engine.run.world.check_world`) to check their own blocks of the team,
-so each of those rules lives once, beside the code that applies it at run time.
+Nothing here imports the run side (``tests/test_layers.py``): what both sides need of a
+model's values (:mod:`.settings`, :mod:`.values`) lives here, and the run side imports it.
 """

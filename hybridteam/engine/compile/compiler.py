@@ -30,6 +30,7 @@ from hybridteam.engine.compile.compiled import (
 )
 from hybridteam.engine.compile.protocols import attach, check_messages, team_symbols
 from hybridteam.engine.compile.scope import Collector, resolve_mode, symbols
+from hybridteam.engine.compile.settings import check_network, check_world
 from hybridteam.engine.compile.transitions import (
     compile_actions,
     compile_transitions,
@@ -345,9 +346,6 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
 
 def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
-    from hybridteam.engine.run.network import check_network
-    from hybridteam.engine.run.world import check_world
-
     errors: list[ModelError] = (check_network(team) + check_messages(team)
                                 + check_world(team))
     fields = message_fields(team)

@@ -2,9 +2,10 @@
 
 Everything in a request is resolved here exactly as :class:`~.ensemble.Ensemble` resolves
 it for a run — parameter overrides (:mod:`.overrides`), component settings
-(:func:`~.world.component_values`), initial states from their expressions — so a fast path
-starts from the values the engine would have used. The team's shape is copied out of the
-compiled structures into plain frozen values; nothing of the engine leaks through.
+(:func:`~hybridteam.engine.compile.settings.component_values`), initial states from their
+expressions — so a fast path starts from the values the engine would have used. The
+team's shape is copied out of the compiled structures into plain frozen values; nothing of
+the engine leaks through.
 """
 
 from __future__ import annotations
@@ -15,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from hybridteam.engine.compile.compiled import CAgent, CTeam, Ctx
+from hybridteam.engine.compile.settings import component_values
 from hybridteam.engine.run.overrides import parameter_matrices, split_overrides
 from hybridteam.engine.run.randomness import seed_value
-from hybridteam.engine.run.world import component_values
 from hybridteam.world.component import WorldComponent, lookup
 from hybridteam.world.request import AgentShape, BatchRequest, ModeShape, TransitionShape
 

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from hybridteam.arrays import filled, some
+from hybridteam.engine.compile.settings import check_network, evaluate_setting
 from hybridteam.engine.compile.values import require
 from hybridteam.engine.run.events import MESSAGE
 from hybridteam.engine.run.overrides import (
@@ -45,8 +46,7 @@ from hybridteam.engine.run.overrides import (
     override_values,
 )
 from hybridteam.engine.run.randomness import instance_keys, uniform
-from hybridteam.errors import ModelError, ModelErrors, did_you_mean
-from hybridteam.expr import ExpressionError, compile_expression
+from hybridteam.errors import ModelError, ModelErrors
 from hybridteam.model import Team
 
 if TYPE_CHECKING:
@@ -82,37 +82,6 @@ class Outlet(Protocol):
     it on the wire; what arrives comes back through :meth:`Network.arrive`."""
 
     def send(self, msg: Message, rank: float) -> None: ...
-
-
-def check_network(team: Team) -> list[ModelError]:
-    """Problems in a team's ``network:`` block (unknown agents, bad expressions)."""
-    names = [a.name for a in team.agents]
-    errors: list[ModelError] = []
-    net = team.network
-    for (sender, receiver), link in net.links.items():
-        for who in (sender, receiver):
-            if who not in names:
-                errors.append(ModelError(link.where, f"unknown agent '{who}' in link",
-                                         hint=did_you_mean(who, names), at_key=True))
-    for agent in net.rate_limits:
-        if agent not in names:
-            errors.append(ModelError((*net.where, "rate_limits", agent),
-                                     f"unknown agent '{agent}'", hint=did_you_mean(agent, names),
-                                     at_key=True))
-    defaults = default_parameters(team)
-    for link in [net.default, *net.links.values()]:
-        for what in ("latency", "jitter", "loss"):
-            text = getattr(link, what)
-            try:  # the team's own values must give a sensible setting (studies may not)
-                require(evaluate_setting(text, defaults, 1), (*link.where, what),
-                        f"the link's {what}", str(text), low=0.0,
-                        high=1.0 if what == "loss" else np.inf)
-            except ExpressionError as exc:
-                errors.append(ModelError((*link.where, what), exc.message,
-                                         offset=exc.offset, hint=exc.hint))
-            except ModelError as exc:
-                errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
-    return errors
 
 
 class Network:
@@ -350,18 +319,3 @@ def _given(team: Team, settings: Mapping[str, Any], n: int
             raise ValueError(exc.message) from None
         out.setdefault(link, {})[what] = values
     return out
-
-
-def default_parameters(team: Team) -> dict[str, np.ndarray]:
-    """The team's parameters at their declared values, as one instance of settings."""
-    return {name: np.array([float(v)]) for name, v in team.parameters.items()}
-
-
-def evaluate_setting(text: str | float, team_params: dict[str, np.ndarray], n: int
-                     ) -> np.ndarray:
-    """A link setting per instance (numbers broadcast; expressions over team parameters)."""
-    if not isinstance(text, str):
-        return np.full(n, float(text))
-    symbols = {name: (lambda c, v=v: v) for name, v in team_params.items()}
-    return np.broadcast_to(np.asarray(compile_expression(text, symbols)(None), dtype=float),
-                           (n,)).copy()

@@ -17,113 +17,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.engine.compile.values import require
-from hybridteam.errors import DocPath, ModelError, did_you_mean
-from hybridteam.expr import ExpressionError, compile_expression
-from hybridteam.libraries import broken_note
-from hybridteam.world.component import WorldComponent, lookup, registered
+from hybridteam.engine.compile.settings import component_values
+from hybridteam.errors import ModelError
+from hybridteam.world.component import WorldComponent, lookup
 
 if TYPE_CHECKING:
     from hybridteam.engine.run.access import EnsembleAccess
     from hybridteam.model import Team
-
-
-def check_world(team: Team) -> list[ModelError]:
-    """Problems in a team's ``world:`` list: unknown components, settings, expressions."""
-    errors: list[ModelError] = []
-    symbols = {name: (lambda c: 0.0) for name in team.parameters}
-    for spec in team.world:
-        try:
-            cls = lookup(spec.use)
-        except KeyError:
-            note = broken_note()
-            errors.append(ModelError((*spec.where, "use"), f"unknown world component "
-                                     f"'{spec.use}'" + (f" ({note})" if note else ""),
-                                     hint=did_you_mean(spec.use, registered())))
-            continue
-        before = len(errors)
-        for key, value in spec.values.items():
-            where = (*spec.where, "with", key)
-            if key not in cls.params:
-                errors.append(ModelError(where, f"'{spec.use}' has no setting '{key}'",
-                                         hint=did_you_mean(key, list(cls.params)), at_key=True))
-                continue
-            default = cls.params[key]
-            if key in cls.per_instance and isinstance(value, list):
-                errors += [ModelError((*where, *at), exc.message, offset=exc.offset,
-                                      hint=exc.hint)
-                           for at, exc in _nested_errors(value, symbols)]
-            if _numeric(default):
-                if isinstance(value, str):
-                    try:
-                        compile_expression(value, symbols)
-                    except ExpressionError as exc:
-                        errors.append(ModelError(where, exc.message, offset=exc.offset,
-                                                 hint=exc.hint))
-                elif not _numeric(value):
-                    errors.append(ModelError(where, f"expected a number or an expression, "
-                                             f"got {value!r}"))
-            elif type(value) is not type(default):
-                kind = {bool: "true or false", str: "a string", list: "a list"}.get(
-                    type(default), f"a {type(default).__name__}")
-                errors.append(ModelError(where, f"expected {kind}, got {value!r}"))
-        if len(errors) == before:  # the component's own checks, on well-typed settings
-            errors += [ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint,
-                                  at_key=e.at_key) for e in cls.check(team, spec.values)]
-    return errors
-
-
-def _nested_errors(value: Any, symbols: Mapping[str, Any], at: tuple[int, ...] = ()
-                   ) -> list[tuple[tuple[int, ...], ExpressionError]]:
-    """Expressions inside a list setting that do not compile, with their places in it."""
-    if isinstance(value, str):
-        try:
-            compile_expression(value, symbols)
-        except ExpressionError as exc:
-            return [(at, exc)]
-        return []
-    if isinstance(value, list):
-        return [e for k, v in enumerate(value) for e in _nested_errors(v, symbols, (*at, k))]
-    return []
-
-
-def _nested_values(value: Any, symbols: Mapping[str, Any], n: int, where: DocPath) -> Any:
-    """A list setting with every expression inside it evaluated per instance: ``(n,)``
-    arrays where the file has text, the literal numbers and everything else as they are."""
-    if isinstance(value, str):
-        got = np.broadcast_to(np.asarray(compile_expression(value, symbols)(None), float),
-                              (n,)).copy()
-        return require(got, where, "the expression", value)
-    if isinstance(value, list):
-        return [_nested_values(v, symbols, n, (*where, k)) for k, v in enumerate(value)]
-    return value
-
-
-def _numeric(value: Any) -> bool:
-    """A number setting (evaluated per instance), as opposed to a literal; bools are not."""
-    return isinstance(value, float | int) and not isinstance(value, bool)
-
-
-def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
-                     team_params: Mapping[str, np.ndarray], n: int,
-                     where: DocPath = ()) -> dict[str, Any]:
-    """Settings with defaults filled in; numeric ones as (n,) arrays, one per instance,
-    each a finite number (a ModelError at ``where`` + ``with.<key>`` otherwise)."""
-    symbols = {k: (lambda c, v=v: v) for k, v in team_params.items()}
-    out: dict[str, Any] = {}
-    for key, default in cls.params.items():
-        value = given.get(key, default)
-        if _numeric(default):
-            text = str(value)
-            if isinstance(value, str):
-                value = compile_expression(value, symbols)(None)
-            value = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy()
-            out[key] = require(value, (*where, "with", key), f"setting '{key}'", text)
-        elif key in cls.per_instance:
-            out[key] = _nested_values(value, symbols, n, (*where, "with", key))
-        else:
-            out[key] = value
-    return out
 
 
 class World:
