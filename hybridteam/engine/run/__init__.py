@@ -3,13 +3,13 @@
 What enters: a compiled team (:mod:`hybridteam.engine.compile`), the number of instances,
 a seed (one, or one per instance), the run's duration and parameter overrides, and
 optionally the seams below. What leaves: a :class:`~hybridteam.trace.Trace` (outcomes,
-transitions, messages, samples), the same bits for the same model and seed. The compiled
-team is only read.
+transitions, messages, samples): in a simulation, the same bits for the same model and
+seed. The compiled team is only read.
 
 The entry point is :class:`~.simulator.Simulator` (``Simulator(cteam, n, seed=...).run()``);
 :func:`~.budget.check_budget` refuses a run that would not fit before anything is
 allocated, and :mod:`.batch` resolves a library's batch request exactly as a run would.
-The loop (:mod:`.simulator`) holds no state of its own: everything lives in one
+The loop (:mod:`.simulator`) keeps the run's state in one
 :class:`~.ensemble.Ensemble`, which the modules here act on —
 
 * one step of time: :mod:`.step` (an agent's motion over a step), :mod:`.drivers` (laws,
