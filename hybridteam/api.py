@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.model import Team
 from hybridteam.requirements.check import RequirementSet, compile_requirements
 from hybridteam.trace import Table, Trace
@@ -174,14 +174,14 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``, or a network
-    setting ``"network.jitter"``, see :mod:`hybridteam.engine.overrides`) to one value or
+    setting ``"network.jitter"``, see :mod:`hybridteam.engine.run.overrides`) to one value or
     to ``n`` values, one per instance — that is how an ensemble varies. ``seed`` defaults to
     the team's ``simulation.seed``; it may also be ``n`` seeds, one per instance, and
     instance ``i`` then draws exactly what a single run with ``seed[i]`` draws (how a
     parameter study packs runs with their own seeds into one ensemble). The trace's
     ``meta["seed"]`` is then that list. A run that would need more than ``max_memory``
     bytes (default 4 GB) or ``max_periods`` control periods per instance (default 1e8)
-    raises :class:`~hybridteam.engine.budget.ResourceError` before allocating anything;
+    raises :class:`~hybridteam.engine.run.budget.ResourceError` before allocating anything;
     one whose pace projects more than ``max_wall`` seconds (default 24 h) raises it once it
     has run a few seconds. ``written``: the caller will write the run's files
     (``trace.json``, ``samples.csv``), whose rows then count in the memory estimate.
@@ -255,7 +255,7 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
     seed = team.simulation.seed if seed is None else seed
     cteam = compile_team(team)
     if accelerate and team.world:  # a batch path keeps no trace: requirements go unchecked
-        from hybridteam.engine.batch import batch_rows
+        from hybridteam.engine.run.batch import batch_rows
 
         rows = batch_rows(cteam, n, overrides, seed)
         if rows is not None:

@@ -232,8 +232,8 @@ def test_the_ball_stops_only_at_its_impacts():
     located crossing tells. The run stops at the 20 impacts, its start and its end (it
     used to stop three times a bounce). The impacts still match the closed form, which
     also shows that the impact after an apex in the same sub-interval is not missed."""
-    from hybridteam.engine.compiler import compile_team
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.simulator import Simulator
 
     team = ht.load(EXAMPLES / "automata" / "bouncing_ball.yaml")
     end = float(np.mean(ball_impacts(21)[-2:]))  # between the 20th and 21st impacts

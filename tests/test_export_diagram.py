@@ -22,7 +22,7 @@ import pydot
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.export import image
 from hybridteam.export.diagram import diagram_graph, edges_of
 from hybridteam.export.render import RENDERERS, register, render

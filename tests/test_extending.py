@@ -80,8 +80,8 @@ import json, sys
 import numpy as np
 import hybridteam as ht
 from hybridteam.api import summaries
-from hybridteam.engine.batch import batch_rows
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.run.batch import batch_rows
+from hybridteam.engine.compile.compiler import compile_team
 
 team = ht.load(sys.argv[1])
 n = 24
@@ -121,8 +121,8 @@ def test_the_fast_path_declines_a_team_it_does_not_compute(site, tmp_path):
     path = tmp_path / "timed.yaml"
     path.write_text(text)
     script = ("import sys, hybridteam as ht\n"
-              "from hybridteam.engine.batch import batch_rows\n"
-              "from hybridteam.engine.compiler import compile_team\n"
+              "from hybridteam.engine.run.batch import batch_rows\n"
+              "from hybridteam.engine.compile.compiler import compile_team\n"
               "print(batch_rows(compile_team(ht.load(sys.argv[1])), 2, {}, 0))\n")
     proc = run(site, sys.executable, "-c", script, str(path))
     assert proc.returncode == 0, proc.stderr

@@ -1,7 +1,7 @@
 """Flips that need not be located: a conjunct of a guard turning false.
 
 Just past such a flip the guard is false, so the crossing cannot matter; where nothing
-else would be learnt from locating it, the search skips it (``crossing._foregone``). The
+else would be learnt from locating it, the search skips it (``search._foregone``). The
 run must be the one the search gives when it locates every flip, bit for bit.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine import bracket, crossing
+from hybridteam.engine.run.crossing import search, segment
 from hybridteam.expr.compiler import compile_expression
 
 BALL = Path(__file__).parents[1] / "examples" / "automata" / "bouncing_ball.yaml"
@@ -39,7 +39,7 @@ def _run(team, monkeypatch, skip: bool, n: int = 1):
     """The run, and how many crossings its searches located (judged, or located directly:
     a located crossing that ``judge`` passes on to ``locate`` counts once)."""
     located = []
-    locate, judge = bracket.Segment.locate, bracket.Segment.judge
+    locate, judge = segment.Segment.locate, segment.Segment.judge
 
     def counted(self, w, rows, *args, on_dense=None):
         if on_dense is None:
@@ -51,10 +51,10 @@ def _run(team, monkeypatch, skip: bool, n: int = 1):
         return judge(self, w, rows, *args)
 
     with monkeypatch.context() as m:
-        m.setattr(bracket.Segment, "locate", counted)
-        m.setattr(bracket.Segment, "judge", counted_judge)
+        m.setattr(segment.Segment, "locate", counted)
+        m.setattr(segment.Segment, "judge", counted_judge)
         if not skip:
-            m.setattr(crossing, "_foregone", lambda *args: None)
+            m.setattr(search, "_foregone", lambda *args: None)
         run = ht.simulate(team, n=n, seed=list(range(n)) if n > 1 else None,
                           overrides={"ball.e": [0.7, 0.75, 0.8, 0.85][:n]} if n > 1 else None)
     return run, sum(located)

@@ -640,7 +640,7 @@ def test_agents_share_the_team_symbol_table(tmp_path):
     table into each agent's own made compiling a team of thousands quadratic; each agent's
     table now chains its own names to the one team table."""
     import hybridteam as ht
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
 
     (tmp_path / "crowd.yaml").write_text(_crowd(30))
     cteam = compile_team(ht.load(tmp_path / "crowd.yaml"))
@@ -758,7 +758,7 @@ def test_running_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
         raise MemoryError("Unable to allocate 7.28 TiB for an array")
 
     with monkeypatch.context() as m:
-        m.setattr("hybridteam.engine.simulator.Simulator.run", no_memory)
+        m.setattr("hybridteam.engine.run.simulator.Simulator.run", no_memory)
         assert main(["run", "team.yaml", "-o", "out", "--quiet"]) == 2
     assert capsys.readouterr().err.strip() == (
         "hybridteam: error: the run ran out of memory (the machine has less than the memory "

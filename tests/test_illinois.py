@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.engine.illinois import illinois, illinois_one
+from hybridteam.engine.run.crossing.illinois import illinois, illinois_one
 
 
 def _cubic(root: np.ndarray, slope: np.ndarray, curve: np.ndarray, flat: np.ndarray):

@@ -90,7 +90,7 @@ def test_held_inputs_keep_their_values_and_inputs_of_time_or_variables_are_resam
     0.5 (0.1 t_j + 0.2 k_j), k_j the re-entries at or before t_j (2 s and 4 s): 1.125 + 0.8.
     Held turns at 0.3 throughout, its mode re-entered at 2 s and 4 s: 1.5."""
     import hybridteam as ht
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
 
     team = team_from_yaml(HELD)
     drivers = {d.owner: d for d in compile_team(team).agents[0].drivers if d.owner >= 0}

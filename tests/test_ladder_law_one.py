@@ -144,8 +144,8 @@ def test_the_corridor_twin_declines_coinciding_robots_and_changes_nothing():
     and the array version runs (a run cannot start that way: see the next test)."""
     from hybridteam.modes.ladder.world_one import update_few
 
-    from hybridteam.engine.compiler import compile_team
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.simulator import Simulator
 
     sim = Simulator(compile_team(load(SAMPLE)), duration=1.0)
     sim._initialize()

@@ -115,8 +115,8 @@ def test_batch_path_declines_teams_it_does_not_compute(tmp_path):
                                       "          - {to: Stuck, guard: t > 5000}")
     path = tmp_path / "guarded.yaml"
     path.write_text(text)
-    from hybridteam.engine.batch import batch_rows
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.batch import batch_rows
 
     assert batch_rows(compile_team(load(path)), 1, {}, 0) is None
     assert batch_rows(compile_team(load(SAMPLE)), 1, {}, 0) is not None

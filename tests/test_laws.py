@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import hybridteam as ht
 from hybridteam import laws, libraries
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
-from hybridteam.engine.drivers import next_ticks
+from hybridteam.engine.run.drivers import next_ticks
 from hybridteam.errors import ModelError
 from hybridteam.io.filekind import InputErrors
 
@@ -299,7 +299,7 @@ def test_a_table_of_names_is_their_columns_with_item_precedence():
     """``ctx.table(names)`` is ``ctx[name]`` for each name, side by side: one gather when
     all are agent parameters, else name by name with the same precedence (a binding
     parameter hides an agent parameter of its name, state comes before parameters)."""
-    from hybridteam.engine.compiled import Ctx
+    from hybridteam.engine.compile.compiled import Ctx
     x = np.array([[1.0, 2.0], [3.0, 4.0]])
     p = np.array([[10.0, 20.0, 30.0], [11.0, 21.0, 31.0]])
     v = np.array([[7.0], [8.0]])
@@ -326,7 +326,7 @@ def test_a_constant_binding_parameter_is_evaluated_once_per_size():
     """A binding parameter reading no name (``window: 16``) has the same values at every
     call: the binding keeps them (read-only) per size; one reading a name is evaluated at
     every call, from that call's rows."""
-    from hybridteam.engine.compiled import Ctx
+    from hybridteam.engine.compile.compiled import Ctx
     from hybridteam.expr.compiler import compile_expression
 
     calls = []

@@ -15,6 +15,8 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+from hybridteam.engine import INTERNAL_API
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -101,11 +103,10 @@ ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridt
 DISPLAY = frozenset({("hybridteam.model.team", "hybridteam.notebook")})
 #: What a mode library may import of hybridteam.
 LIBRARY_API = ("hybridteam.library", "hybridteam.world.geometry")
-
-
-#: packages above the engine that the engine's layer rule does not name (the engine may be
-#: asked for their work, never the other way round): they too use its public names only
-SEARCHES = ("hybridteam.verify", "hybridteam.falsify", "hybridteam.requirements")
+#: The engine's two sides (docs/design.md, "The engine's seams"), and the crossing search,
+#: entered through its package only.
+COMPILE, RUN = "hybridteam.engine.compile", "hybridteam.engine.run"
+CROSSING = "hybridteam.engine.run.crossing"
 #: a namedtuple's public API, whose names start with '_' so as not to clash with fields
 NAMEDTUPLE_API = frozenset({"_replace", "_asdict", "_fields", "_make", "_field_defaults"})
 
@@ -130,9 +131,21 @@ def private_attributes(folder: Path, package: str) -> list[str]:
     return found
 
 
+def _in_internal_api(target: str) -> bool:
+    """Whether an imported engine name is the engine's internal API: one of its packages,
+    a module listed in ``INTERNAL_API``, or a name that module lists."""
+    rest = target.removeprefix("hybridteam.engine").removeprefix(".")
+    module, _, name = rest.rpartition(".")
+    return rest in ("", "compile", "run") or rest in INTERNAL_API or \
+        name in INTERNAL_API.get(module, ())
+
+
 def violations(imports: list[Import]) -> list[str]:
     """Every broken rule, as ``module:line imports target (rule)``."""
     bad: dict[tuple[str, int, str], str] = {}  # one report per statement and rule
+    # the crossing search's own modules (each imports something, so each is an importer)
+    inside_crossing = {imp.module for imp in imports
+                       if _under(imp.module, CROSSING) and imp.module != CROSSING}
 
     def report(imp: Import, rule: str) -> None:
         bad.setdefault((imp.module, imp.line, rule),
@@ -154,9 +167,14 @@ def violations(imports: list[Import]) -> list[str]:
             report(imp, "world components see the engine only through WorldAccess")
         if _under(m, "hybridteam.engine") and _under(t, *ABOVE_ENGINE):
             report(imp, "the engine never imports io, export, cli, sweep, api, kinds, live or logs")
-        if _under(m, *ABOVE_ENGINE, *SEARCHES) and _under(t, "hybridteam.engine") and \
-                _private(t):
-            report(imp, "packages above the engine use no private engine name")
+        if _under(m, COMPILE) and _under(t, RUN):
+            report(imp, "the engine's compile side never imports its run side")
+        if _under(t, *inside_crossing) and not _under(m, CROSSING):
+            report(imp, "the crossing search is entered through hybridteam.engine.run.crossing "
+                        "only")
+        if not _under(m, "hybridteam.engine", "hybridteam.world") and \
+                _under(t, "hybridteam.engine") and not _in_internal_api(t):
+            report(imp, "code outside the engine imports only hybridteam.engine.INTERNAL_API")
         if _under(m, "hybridteam.io") and _under(t, "hybridteam.sweep", "hybridteam.kinds",
                                                   "hybridteam.cli", "hybridteam.export"):
             report(imp, "io never imports sweep, kinds, cli or export")
@@ -171,6 +189,20 @@ def test_the_source_keeps_its_layers():
     found = all_imports(ROOT / "hybridteam", ROOT / "modes")
     assert len(found) > 300  # the walk saw the code base, not an empty folder
     assert violations(found) == []
+
+
+def test_the_engine_internal_api_is_what_is_used_and_public():
+    """``INTERNAL_API`` lists public names that exist, each imported by some module outside
+    the engine: the list is the engine's surface as used, not a wish list that rots."""
+    import importlib
+
+    found = all_imports(ROOT / "hybridteam", ROOT / "modes")
+    used = {imp.target for imp in found if not _under(imp.module, "hybridteam.engine")}
+    for module, names in INTERNAL_API.items():
+        loaded = importlib.import_module(f"hybridteam.engine.{module}")
+        for name in names:
+            assert not _private(name) and hasattr(loaded, name), (module, name)
+            assert f"hybridteam.engine.{module}.{name}" in used, (module, name)
 
 
 def test_the_live_runtime_and_verify_read_no_private_name(tmp_path):
@@ -194,16 +226,20 @@ def test_each_rule_catches_a_broken_import(tmp_path):
                     ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(ROOT / "modes", modes, ignore=shutil.ignore_patterns("__pycache__"))
     planted = {
-        modes / "ladder" / "world.py": "from hybridteam.engine.events import LOCAL\n",
+        modes / "ladder" / "world.py": "from hybridteam.engine.run.events import LOCAL\n",
         modes / "transport" / "laws.py": "from hybridteam.laws import law\n",
         framework / "world" / "carried.py": "if TYPE_CHECKING:\n"
-                                            "    from hybridteam.engine.ensemble import E\n",
+                                            "    from hybridteam.engine.run.ensemble import E\n",
         framework / "io" / "loader.py": "def f():\n    from hybridteam.sweep import study\n",
         framework / "model" / "team.py": "import hybridteam.engine\n",
-        framework / "engine" / "state.py": "from ..export import style\n",
+        framework / "engine" / "run" / "state.py": "from ...export import style\n",
         framework / "api.py": "from hybridteam.modes.ladder import simulate\n",
-        framework / "engine" / "step.py": "from hybridteam.live.wire import Codec\n",
-        framework / "live" / "run.py": "from hybridteam.engine.network import _given\n",
+        framework / "engine" / "run" / "step.py": "from hybridteam.live.wire import Codec\n",
+        framework / "live" / "run.py": "from hybridteam.engine.run.network import _given\n",
+        framework / "engine" / "compile" / "scope.py": "def f():\n"
+                                                       "    from ..run import state\n",
+        framework / "engine" / "run" / "outputs.py": "from .crossing.segment import Segment\n",
+        framework / "notebook.py": "from hybridteam.engine.run.crossing import find_crossings\n",
     }
     for path, line in planted.items():
         path.write_text(path.read_text() + line)
@@ -212,8 +248,9 @@ def test_each_rule_catches_a_broken_import(tmp_path):
     expected = [
         "hybridteam.modes.ladder.world:", "hybridteam.modes.transport.laws:",
         "hybridteam.world.carried:", "hybridteam.io.loader:", "hybridteam.model.team:",
-        "hybridteam.engine.state:", "hybridteam.api:", "hybridteam.engine.step:",
-        "hybridteam.live.run:"]
+        "hybridteam.engine.run.state:", "hybridteam.api:", "hybridteam.engine.run.step:",
+        "hybridteam.live.run:", "hybridteam.engine.compile.scope:",
+        "hybridteam.engine.run.outputs:", "hybridteam.notebook:"]
     for prefix in expected:
         assert any(b.startswith(prefix) for b in bad), (prefix, bad)
     assert any("state:" in b and "imports hybridteam.export " in b for b in bad)  # relative

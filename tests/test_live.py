@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.network import Message
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.network import Message
 from hybridteam.live.wire import MAX_BYTES, Codec
 from hybridteam.trace import Trace
 from hybridteam.trace_schema import check_trace

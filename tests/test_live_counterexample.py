@@ -24,7 +24,7 @@ import pytest
 
 import hybridteam as ht
 from hybridteam.cli import main
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.live.counterexample import CounterexampleError, drops, losses
 from hybridteam.trace import Trace
 

@@ -1,4 +1,4 @@
-"""The engine's plant seam (engine/plant.py), without ROS or the wall clock: a scripted
+"""The engine's plant seam (engine/run/plant.py), without ROS or the wall clock: a scripted
 robot that ignores its commands and moves at 0.3 m/s, where the model says 0.5 m/s, so
 every time and pose is known by hand and differs from what integrating the model gives.
 Also the team file's deploy: section as the model reads it, and what ``hybridteam live
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 
 TEAM = Path(__file__).parent / "fixtures" / "live" / "drive.yaml"
 SPEED = 0.3  # the scripted robot's, m/s (the model commands 0.5)

@@ -157,8 +157,8 @@ def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest(team_fr
     for the other agent, the ring is the world process's reading."""
     import numpy as np
 
-    from hybridteam.engine.compiler import compile_team
-    from hybridteam.engine.simulator import Simulator
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.simulator import Simulator
     from hybridteam.live.wire import READING, WORLD_INDEX, Codec
     from hybridteam.live.world import WorldLink, WorldReadings, world_seam
     from tests.test_live_world import Sent

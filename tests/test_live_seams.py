@@ -7,10 +7,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.network import Message
-from hybridteam.engine.schedule import earliest
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.schedule import earliest
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live.hosting import hosted_team
 
 TEAM = Path(__file__).parent / "fixtures" / "live" / "handshake.yaml"

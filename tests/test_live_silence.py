@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.live import world as world_module
 from hybridteam.live.run import LiveRun
 from hybridteam.live.transport import UdpTransport

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live import run as live_run
 from hybridteam.live.hosting import HostingError
 from hybridteam.live.run import LiveRun

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from hybridteam.api import load, simulate
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.io.loader import InputErrors
 from hybridteam.laws import LawContext, law
 from hybridteam.robots import resolve

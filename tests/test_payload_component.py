@@ -11,8 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hybridteam.api import load, simulate
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.laws import LawContext, law
 from hybridteam.robots import resolve
 from hybridteam.world.carried import CarriedPayload

@@ -14,8 +14,8 @@ import textwrap
 import yaml
 
 import hybridteam as ht
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.overrides import key_problem
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.overrides import key_problem
 from hybridteam.trace import INTERVAL_COLUMNS
 from tests.conftest import EXAMPLES, ROOT
 

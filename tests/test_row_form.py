@@ -11,9 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hybridteam as ht
-from hybridteam.engine import bracket
-from hybridteam.engine.compiled import CAgent, Ctx, Row
-from hybridteam.engine.scope import symbols
+from hybridteam.engine.compile.compiled import CAgent, Ctx, Row
+from hybridteam.engine.compile.scope import symbols
+from hybridteam.engine.run.crossing import segment
 from hybridteam.expr.compiler import compile_expression
 from tests.conftest import EXAMPLES
 
@@ -127,13 +127,13 @@ def test_the_float_search_changes_no_bit_of_a_run(monkeypatch, team_from_yaml, n
     if name == "swing":
         assert len(fast.transitions) > 8
     used = []
-    one = bracket.Segment._one
+    one = segment.Segment._one
 
     def refused(self, w, rows):
         used.append(one(self, w, rows) is not None)
         return None
 
-    monkeypatch.setattr(bracket.Segment, "_one", refused)
+    monkeypatch.setattr(segment.Segment, "_one", refused)
     monkeypatch.setattr(CAgent, "row_watches", property(lambda self: False))
     slow = ht.simulate(team, duration=duration)
     assert any(used)

@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.engine.schedule import FEW, earliest
+from hybridteam.engine.run.schedule import FEW, earliest
 
 #: times as the engine schedules them, and the values where numpy's rules show: ties of
 #: zeros of both signs, infinities, NaN

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.network import Message
-from hybridteam.engine.streams import Inbox
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.streams import Inbox
 from tests.test_protocols import team
 
 

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from hybridteam.api import load, simulate, summaries
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 COUNTS = {"message", "transitions", "messages"}

@@ -14,8 +14,8 @@ import pytest
 import hybridteam as ht
 from hybridteam.cli import main
 from hybridteam.dynamics.plants import make_plant
-from hybridteam.engine.compiled import Ctx
-from hybridteam.engine.protocols import velocity_symbols
+from hybridteam.engine.compile.compiled import Ctx
+from hybridteam.engine.compile.protocols import velocity_symbols
 from hybridteam.export.trajectories import trajectory_figure
 from hybridteam.io.loader import InputErrors
 from hybridteam.laws import _dead_reckon, law

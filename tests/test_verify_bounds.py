@@ -12,8 +12,8 @@ from pathlib import Path
 
 from hybridteam import load
 from hybridteam.cli import main
-from hybridteam.engine.budget import memory_estimate
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.budget import memory_estimate
 from hybridteam.verify import Options, verify
 
 COUNTERS = """\

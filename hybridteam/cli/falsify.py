@@ -127,8 +127,8 @@ def _check(args: argparse.Namespace, team, varies) -> None:
 def _check_generation(team, population: int) -> None:
     """A generation runs as one ensemble (and the optimiser keeps a row per candidate):
     refuse a population whose ensemble exceeds the memory limit, before allocating it."""
-    from hybridteam.engine.budget import ResourceError, memory_estimate, memory_limit
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.budget import ResourceError, memory_estimate, memory_limit
 
     sim = team.simulation
     nbytes, _ = memory_estimate(compile_team(team), population, sim.duration,

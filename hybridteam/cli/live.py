@@ -228,7 +228,7 @@ def live_process(args: argparse.Namespace) -> int:
         raise UsageError("--world hosts no agent: --plant is for the agents' processes")
     copies = drop_copies(args.drop_copy)
     if args.losses_from:  # (this process's share of the counterexample's losses)
-        from hybridteam.engine.compiler import compile_team
+        from hybridteam.engine.compile.compiler import compile_team
 
         for kind, ns in losses_from(args.losses_from, compile_team(team), [agents])[0].items():
             copies.setdefault(kind, set()).update(ns)
@@ -394,7 +394,7 @@ def cmd_launch(args: argparse.Namespace) -> int:
     import subprocess
     import time
 
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
     from hybridteam.live.hosting import HostingError, hosted_team
     from hybridteam.live.run import check_drop_copies
     from hybridteam.live.wire import wire_mismatch

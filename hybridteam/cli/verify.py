@@ -102,7 +102,7 @@ def _check(args) -> None:
 
 
 def cmd_verify(args) -> int:
-    from hybridteam.engine.budget import ResourceError
+    from hybridteam.engine.run.budget import ResourceError
     from hybridteam.errors import did_you_mean
     from hybridteam.verify import Options, UnknownProperty, verify
 
@@ -205,7 +205,7 @@ def _progress(mode: str):
 def _memory() -> str:
     """``, 1.2 GB in memory`` (this process's resident size), where the system tells it:
     a long check's memory is what decides whether it can finish."""
-    from hybridteam.engine.budget import resident_bytes
+    from hybridteam.engine.run.budget import resident_bytes
 
     resident = resident_bytes()
     return "" if resident is None else f", {resident / 1e9:.1f} GB in memory"

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import networkx as nx
 
-from hybridteam.engine.compiled import CAgent
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiled import CAgent
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.export.style import team_mode_colors
 from hybridteam.io.protocols import InFile
 from hybridteam.model import Assign, Mode, Raise, Send, Team, Transition

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import networkx as nx
 
-from hybridteam.engine.compiled import CAgent, CTeam
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiled import CAgent, CTeam
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.errors import ModelError
 from hybridteam.io.protocols import InFile
 from hybridteam.io.timing import timing_warnings

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import BaseModel, ValidationError
 
-from hybridteam.engine.compiler import compile_team
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.errors import DocPath, ModelError, ModelErrors
 from hybridteam.io.errors import did_you_mean, located_errors
 from hybridteam.io.filekind import (

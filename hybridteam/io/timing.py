@@ -14,8 +14,8 @@ import re
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, CTeam, Ctx
-from hybridteam.engine.network import default_parameters, evaluate_setting
+from hybridteam.engine.compile.compiled import CAgent, CTeam, Ctx
+from hybridteam.engine.compile.settings import default_parameters, evaluate_setting
 from hybridteam.errors import ModelError
 from hybridteam.model import Team
 

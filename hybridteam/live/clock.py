@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.events import LOCAL
-from hybridteam.engine.network import Message
-from hybridteam.engine.schedule import earliest
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.events import LOCAL
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.schedule import earliest
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import POSE, READING, Codec, WireError
 

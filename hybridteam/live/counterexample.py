@@ -21,7 +21,7 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
-from hybridteam.engine.compiled import CTeam
+from hybridteam.engine.compile.compiled import CTeam
 from hybridteam.live.wire import declarations
 from hybridteam.trace import Trace
 

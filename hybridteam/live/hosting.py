@@ -17,7 +17,7 @@ from collections.abc import Collection
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, CTeam
+from hybridteam.engine.compile.compiled import CAgent, CTeam
 
 
 class HostingError(ValueError):

@@ -313,7 +313,7 @@ def body_velocity(vx: float, vy: float, yaw: float) -> tuple[float, float]:
 
 class RobotPlant:
     """A :class:`Ros2Plant` as an agent's external plant in the engine
-    (:mod:`hybridteam.engine.plant`): the held inputs out as a Twist at every instant, the
+    (:mod:`hybridteam.engine.run.plant`): the held inputs out as a Twist at every instant, the
     latest odometry pose in wherever the engine needs the agent's state.
 
     A unicycle agent's inputs ``(v, omega)`` are body-frame, as a Twist's are, and go out

@@ -1,15 +1,16 @@
 """One live process's run: the hosted agents of a team, on the wall clock, over a
 transport (docs/live.md).
 
-The engine's ordinary :class:`~hybridteam.engine.simulator.Simulator` runs one instance of the team
-as this process hosts it (:mod:`~hybridteam.live.hosting`), with the wall clock as its clock and the
-wire as its network's outlet (:mod:`~hybridteam.live.clock`). Its trace is the ordinary format, kept
-to what this process knows: the hosted agents' modes, transitions and samples (a remote agent's
-samples are NaN: unknown here), every copy that reached a hosted agent, and ``meta.live``: the
-agents here, the transport, the clock and the datagrams counted. For a team with world components
-the engine's world seam is filled by :mod:`~hybridteam.live.world`: in the world process
-(``world=True``, no agent here) the components run on the poses received; in an agent's process its
-agents read the world process.
+The engine's ordinary :class:`~hybridteam.engine.run.simulator.Simulator` runs one instance
+of the team as this process hosts it (:mod:`~hybridteam.live.hosting`), with the wall clock
+as its clock and the wire as its network's outlet (:mod:`~hybridteam.live.clock`). Its trace
+is the ordinary format, kept to what this process knows: the hosted agents' modes,
+transitions and samples (a remote agent's samples are NaN: unknown here), every copy that
+reached a hosted agent, and ``meta.live``: the agents here, the transport, the clock and the
+datagrams counted. For a team with world components the engine's world seam is filled by
+:mod:`~hybridteam.live.world`: in the world process (``world=True``, no agent here) the
+components run on the poses received; in an agent's process its agents read the world
+process.
 """
 
 from __future__ import annotations
@@ -21,11 +22,11 @@ from collections.abc import Callable, Collection, Mapping, Sequence
 
 import numpy as np
 
-from hybridteam.engine.compiled import CTeam
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.plant import ExternalPlant
-from hybridteam.engine.record import variables_key
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.plant import ExternalPlant
+from hybridteam.engine.run.record import variables_key
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live.clock import WallClock, WireOutlet
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
@@ -66,7 +67,7 @@ class LiveRun:
         ``drop_copies``: injected loss and delay at the receiving socket
         (:class:`.clock.WallClock`). HostingError for agents or a team a live process
         cannot run, or a ``drop_copies`` type the team does not declare. ``plants``: by
-        hosted agent's name, an external plant (a robot, :mod:`hybridteam.engine.plant`;
+        hosted agent's name, an external plant (a robot, :mod:`hybridteam.engine.run.plant`;
         the caller's to close) in place of the integrated one, ``plant_name`` what the
         trace calls them; HostingError for one of an agent not here, or one the engine
         cannot drive. ``world``: this is the team's world process (``agents`` empty): it

@@ -26,9 +26,9 @@ import json
 import math
 from dataclasses import dataclass
 
-from hybridteam.engine.compiled import CTeam
-from hybridteam.engine.network import Message
-from hybridteam.engine.reliable import ACK
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.reliable import ACK
 
 #: The wire version this code speaks; a receiver refuses every other.
 VERSION = 2

@@ -5,7 +5,7 @@ see) couple agents that live in different processes, so they run in a process of
 own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
 
 * :class:`WorldHost` is the world process's world: the team's own components
-  (:class:`~hybridteam.engine.world.World`), run by the engine at every instant as in a
+  (:class:`~hybridteam.engine.run.world.World`), run by the engine at every instant as in a
   simulation, on the poses and variables the agents' processes last sent (every agent is
   remote there). Each pose that arrives is an instant, and is answered with a reading for
   its agent: what it senses now, the events components raised for it, an outcome they
@@ -32,14 +32,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hybridteam.engine.world import World
+from hybridteam.engine.run.world import World
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import POSE, READING, WORLD_INDEX, Codec, Datagram
 from hybridteam.world.obstacles import Obstacles
 from hybridteam.world.sensors import RangeRing, detect
 
 if TYPE_CHECKING:
-    from hybridteam.engine.access import EnsembleAccess
+    from hybridteam.engine.run.access import EnsembleAccess
     from hybridteam.model import Team
 
 log = logging.getLogger("hybridteam.live")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from hybridteam.engine.record import variables_key
+from hybridteam.engine.run.record import variables_key
 from hybridteam.logs import LogError
 from hybridteam.model import Team
 from hybridteam.trace import Table
@@ -27,7 +27,7 @@ def check_run(run: Any, team: Team) -> list[dict[str, dict[str, Any]]]:
     """Per instance of ``run``: ``{requirement: verdict}`` as ``run`` records them
     (:func:`hybridteam.requirements.check.verdict`); a :class:`LogError` for a
     requirement the recording cannot answer."""
-    from hybridteam.engine.compiler import compile_team
+    from hybridteam.engine.compile.compiler import compile_team
     from hybridteam.logs.team import team_frame
     from hybridteam.requirements.check import RequirementSet, compile_requirements
 

@@ -10,7 +10,7 @@ process uses (:mod:`hybridteam.live`), so there is one interpreter of the team:
   out of the medium: what an agent receives is what the log says reached it, nothing else;
 - a scripted clock on simulated time (:class:`ReplayClock`) queues each copy the log
   records as received (delivered, or turned away by a rate limit) with
-  :meth:`~hybridteam.engine.network.Network.arrive`, at its logged receive time, in the
+  :meth:`~hybridteam.engine.run.network.Network.arrive`, at its logged receive time, in the
   log's order; the engine then receives it as it receives a simulated copy (rate limits,
   acknowledgements, duplicates, triggered transitions);
 - scenario events as logged: the team's scenario, each event at the time the log shows
@@ -47,12 +47,12 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.network import Message
-from hybridteam.engine.reliable import ACK
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiled import CAgent
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.reliable import ACK
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.wire import declarations
 from hybridteam.logs import LogError

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from hybridteam.api import parameters
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.simulator import Simulator
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.simulator import Simulator
 from hybridteam.model import Team
 
 

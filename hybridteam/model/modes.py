@@ -2,7 +2,7 @@
 
 These classes say *what* a behaviour is; they hold expression text, not compiled code, so a
 model can be built in Python, loaded from YAML, printed back or drawn without running anything.
-:mod:`hybridteam.engine.compiled` turns them into vectorized callables.
+:mod:`hybridteam.engine.compile.compiled` turns them into vectorized callables.
 
 A mode is a leaf, an OR-composite (``children`` with an ``initial`` child or deeper
 descendant, optionally with ``history``) or an AND-composite (``parallel=True``: every child

@@ -3,8 +3,8 @@
 A protocol (``kind: protocol`` file) adds to a team what the bare network lacks: which
 messages need an acknowledgement (and how long to wait, how often to retry), which messages
 are periodic data streams, and the transitions of a role region. These are plain
-declarations; the engine's :mod:`~hybridteam.engine.reliable` and
-:mod:`~hybridteam.engine.streams` give them behaviour.
+declarations; the engine's :mod:`~hybridteam.engine.run.reliable` and
+:mod:`~hybridteam.engine.run.streams` give them behaviour.
 """
 
 from __future__ import annotations

@@ -118,7 +118,7 @@ class Simulation:
     rtol: float = 1e-10
     atol: float = 1e-12
     max_step: float | None = None
-    min_step: float | None = None  # None: 1e-6 of the duration (engine/numerics.py)
+    min_step: float | None = None  # None: 1e-6 of the duration (engine/run/numerics.py)
     event_tol: float = 1e-12
     crossing_checks: int = 2
     zeno: Zeno = field(default_factory=Zeno)

@@ -12,8 +12,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from hybridteam.engine.compiler import message_fields
-from hybridteam.engine.scope import resolve_mode
+from hybridteam.engine.compile.compiler import message_fields
+from hybridteam.engine.compile.scope import resolve_mode
 from hybridteam.errors import did_you_mean
 
 Getter = Callable[[Any], Any]

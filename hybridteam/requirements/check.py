@@ -110,7 +110,7 @@ def _series(team: Any) -> dict[str, tuple[str, ...]]:
     """The world's sampled series (a payload's pose), from a one-instance world."""
     if not team.world:
         return {}
-    from hybridteam.engine.world import World
+    from hybridteam.engine.run.world import World
 
     params = {k: np.array([float(v)]) for k, v in team.parameters.items()}
     try:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.compiled import Watch
+from hybridteam.engine.compile.compiled import Watch
 from hybridteam.expr import Atom, ExpressionError
 from hybridteam.requirements import nodes as N
 from hybridteam.requirements.catalog import Catalog, Getter, Problem

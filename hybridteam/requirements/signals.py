@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.engine.record import variables_key
+from hybridteam.engine.run.record import variables_key
 from hybridteam.requirements.grid import Grid
 
 

@@ -16,9 +16,9 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from hybridteam.engine.compiled import CTeam
-from hybridteam.engine.compiler import compile_team
-from hybridteam.engine.overrides import key_problem
+from hybridteam.engine.compile.compiled import CTeam
+from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.overrides import key_problem
 from hybridteam.io.errors import located_errors
 from hybridteam.io.filekind import Document, FileKind, InputErrors, Loaded, read_document
 from hybridteam.io.loader import load_team

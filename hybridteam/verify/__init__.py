@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from hybridteam.engine.budget import memory_limit
+from hybridteam.engine.run.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
 from hybridteam.verify.explore import Graph, Options, Progress, explore
 from hybridteam.verify.paths import describe, leaves
@@ -172,8 +172,8 @@ def verify(team, options: Options | None = None, only: list[str] | None = None,
     (:meth:`Report.replay`)."""
     import numpy as np
 
-    from hybridteam.engine.compiler import compile_team
-    from hybridteam.engine.world import World
+    from hybridteam.engine.compile.compiler import compile_team
+    from hybridteam.engine.run.world import World
 
     opts = options or Options()
     cteam = compile_team(team)

@@ -25,9 +25,9 @@ from functools import cached_property
 
 import numpy as np
 
-from hybridteam.engine.compiled import CAgent, CTeam, CTransition
-from hybridteam.engine.compiler import message_fields
-from hybridteam.engine.scope import message_symbols
+from hybridteam.engine.compile.compiled import CAgent, CTeam, CTransition
+from hybridteam.engine.compile.compiler import message_fields
+from hybridteam.engine.compile.scope import message_symbols
 from hybridteam.expr import compile_expression
 from hybridteam.expr.compiler import free_names
 

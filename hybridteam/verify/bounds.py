@@ -8,7 +8,7 @@ successors unknown, not absent), and the verdicts say "holds (bounded)":
 - **states** (``--max-states``): the store is full;
 - **memory** (``--max-memory``, as ``run`` takes it): before anything is allocated, the
   engine arrays the explorer loads its states into are estimated with ``run``'s estimate
-  (:func:`~hybridteam.engine.budget.instances_within`), and a batch takes at most half the
+  (:func:`~hybridteam.engine.run.budget.instances_within`), and a batch takes at most half the
   limit (a team whose single instance does not fit is refused); while exploring, the
   process's resident memory is read after each batch, and beyond the limit the
   exploration stops;

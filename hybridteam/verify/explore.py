@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hybridteam.engine.budget import instances_within, memory_limit, resident_bytes
-from hybridteam.engine.reliable import ACK
+from hybridteam.engine.run.budget import instances_within, memory_limit, resident_bytes
+from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, State

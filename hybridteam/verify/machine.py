@@ -4,7 +4,7 @@ A skeleton state (:class:`State`) is plain hashable data: every agent's active m
 the history a later entry may restore), its discrete variables, the copies in flight, the
 acknowledged layer's outboxes and duplicate filters, how far the scenario has got, and how
 many losses and duplications the path has used. :class:`Machine` loads a batch of states
-into one engine :class:`~hybridteam.engine.ensemble.Ensemble` (one instance per state and
+into one engine :class:`~hybridteam.engine.run.ensemble.Ensemble` (one instance per state and
 choice), applies each choice as the engine would see it — a message arrives, a
 retransmission timer expires, a scenario event or a world event is raised, a time-driven
 transition fires — and runs the engine's own discrete phase to quiescence; then it reads
@@ -23,11 +23,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hybridteam.engine.discrete import discrete_phase
-from hybridteam.engine.ensemble import Ensemble
-from hybridteam.engine.events import LOCAL, MESSAGE, SCENARIO, TIMER
-from hybridteam.engine.network import Message
-from hybridteam.engine.reliable import ACK, Pending
+from hybridteam.engine.run.discrete import discrete_phase
+from hybridteam.engine.run.ensemble import Ensemble
+from hybridteam.engine.run.events import LOCAL, MESSAGE, SCENARIO, TIMER
+from hybridteam.engine.run.network import Message
+from hybridteam.engine.run.reliable import ACK, Pending
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import Values
 
@@ -117,7 +117,7 @@ class Machine:
 
     # ------------------------------------------------------------------ setup
     def _fields(self) -> dict[str, list[str]]:
-        from hybridteam.engine.compiler import message_fields
+        from hybridteam.engine.compile.compiler import message_fields
 
         out = {k: sorted(v) for k, v in message_fields(self.cteam.team).items()}
         out[ACK] = ["id"]

@@ -2,7 +2,7 @@
 
 A path of the skeleton says in which order things happen, not when. The replay gives each
 step a moment and runs the ordinary simulator, plant, streams, world and all, with a
-scripted network (:attr:`~hybridteam.engine.network.Network.script`):
+scripted network (:attr:`~hybridteam.engine.run.network.Network.script`):
 
 - the copies the path delivers arrive at their step's moment, the copies it loses are
   lost, every other copy of a control message stays in flight until the run ends;
@@ -80,7 +80,7 @@ class Context:
     and a raw machine."""
 
     def __init__(self, team, sk: Skeleton, g: Graph, fifo: bool) -> None:
-        from hybridteam.engine.compiler import compile_team
+        from hybridteam.engine.compile.compiler import compile_team
         from hybridteam.requirements.check import compile_requirements
 
         self.team, self.sk, self.g = team, sk, g

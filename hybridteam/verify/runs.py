@@ -1,6 +1,6 @@
 """Runs of the simulator on a scheduled path, and how they compare with it.
 
-:class:`Script` is the replay's network (:attr:`~hybridteam.engine.network.Network.script`):
+:class:`Script` is the replay's network (:attr:`~hybridteam.engine.run.network.Network.script`):
 each control copy's arrival times by its identity. :class:`Replayer` runs the team with a
 schedule (the path's scenario events at their moments, the script) and tells where a run
 leaves the path: another mode configuration after a step, another control message sent,
@@ -51,7 +51,7 @@ class Replayer:
         """The run with steps 1..len(times)-1 at ``times`` (a :class:`~hybridteam.api.Run`
         with its requirement verdicts)."""
         from hybridteam.api import Run, check_requirements
-        from hybridteam.engine.simulator import Simulator
+        from hybridteam.engine.run.simulator import Simulator
 
         delivered: dict[tuple, list[float]] = {}
         lost: Counter = Counter()
