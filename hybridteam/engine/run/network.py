@@ -18,11 +18,11 @@ instance), so an ensemble can also pack runs that a study gives different seeds.
 
 The network is the engine's seam for a real medium. Implementing another: a class with
 :meth:`Outlet.send`, set as the run's ``Network.outlet`` (``sim.ensemble.network``) before
-the run starts. Every send of the run is then handed to it, once, instead of being
-scheduled on the simulated links; each copy that comes back from the medium is put on the
-event queue with :meth:`Network.arrive` (by the clock seam, :mod:`.clock`, which is where
-a run waits), and from there it is received as a simulated copy is: rate limits, the
-acknowledged layer's screen, the record. The live implementation is
+the run starts. Every send of the run is then handed to it, once, instead of being scheduled
+on the simulated links; each copy that comes back from the medium is put on the event queue
+with :meth:`Network.arrive` (by the clock seam, :mod:`~hybridteam.engine.run.clock`, which
+is where a run waits), and from there it is received as a simulated copy is: rate limits,
+the acknowledged layer's screen, the record. The live implementation is
 :class:`hybridteam.live.clock.WireOutlet` (``hybridteam/live/clock.py``: each message
 encoded as one datagram, :mod:`hybridteam.live.wire`, on a transport).
 """

@@ -3,9 +3,10 @@
 A single run's search reads one row at each checkpoint and trial point, where each numpy
 call costs its dispatch (about 1 µs) for one number. Where every atom (and the guard or
 invariant judged) has a float form (:attr:`hybridteam.expr.Atom.row`,
-:attr:`hybridteam.expr.Expression.row`), these functions do what :mod:`.search`'s array
-versions do with the same IEEE operations on the same doubles, so they give the same
-truths, states and times (``tests/test_row_form.py`` runs the examples both ways).
+:attr:`hybridteam.expr.Expression.row`), these functions do what
+:mod:`~hybridteam.engine.run.crossing.search`'s array versions do with the same IEEE
+operations on the same doubles, so they give the same truths, states and times
+(``tests/test_row_form.py`` runs the examples both ways).
 """
 
 from __future__ import annotations

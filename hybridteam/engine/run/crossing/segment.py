@@ -2,9 +2,9 @@
 
 :class:`Segment` holds an agent's motion over the current step for the instances being
 searched (dense output, start states, the derivative of the flowing ones) and answers what
-:mod:`.search` asks of a trial time: an atom's truth and margin, off the dense output or
-as accurate as a step, the state there, whether a crossing there matters.
-:func:`~.illinois.illinois` narrows a bracket to the event tolerance.
+:mod:`~hybridteam.engine.run.crossing.search` asks of a trial time: an atom's truth and
+margin, off the dense output or as accurate as a step, the state there, whether a crossing
+there matters. :func:`~.illinois.illinois` narrows a bracket to the event tolerance.
 """
 
 from __future__ import annotations
