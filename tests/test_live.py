@@ -322,6 +322,13 @@ def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
     assert mode_sequences(merged) == {a: expected[a] for a in ("labmate", "operator")}
     assert merged.meta["live"]["missing"] == {"xr4000": "killed by SIGKILL"}
     assert merged.outcomes[0]["message"].endswith("; xr4000: no trace (killed by SIGKILL)")
+    # when (the bound): the Labmate asks at t = 3 (its own scenario event) and is
+    # operated once its request's copy and 3 resends, 0.1 s apart, went unacknowledged
+    # (t >= 3.4: a resend is never early), and within the answer timeout (1 s) plus one
+    # control period (0.05 s) of asking
+    (t_operated,) = [r.t for r in merged.transitions
+                     if r.agent == "labmate" and r.target == "Transport.Operated"]
+    assert 3.0 + 4 * 0.1 - 1e-9 <= t_operated <= 3.0 + 1.0 + 0.05
 
 
 def test_injected_loss_drops_what_arrives(tmp_path, processes):
