@@ -431,7 +431,7 @@ def test_a_log_without_commands_says_the_pose_check_was_not_possible(tmp_path, c
     assert main(["check", str(path), "--team", str(tmp_path / "team.yaml"),
                  "--conformance"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].split("  ")[-2:] == ["max pose deviation m (commands)", "(replay)"]
+    assert out[0].split("  ")[-2:] == ["max pose deviation m", "max replay deviation m"]
     assert out[1].split()[-2] == "-"
     assert out[2] == "robot: no pose check under commands: the log has no commands for it"
     assert out[3].startswith("conformant:")

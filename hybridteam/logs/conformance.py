@@ -158,7 +158,8 @@ class Conformance:
     def lines(self) -> list[str]:
         """The report ``hybridteam check --conformance`` prints."""
         head = ("agent", "transitions (log/model)", "matched", "max |shift| s",
-                "max pose deviation m (commands)", "(replay)")
+                "max pose deviation m",
+                "max replay deviation m")
         body = [(a.agent, f"{a.logged}/{a.model}", str(a.matched), f"{a.max_shift:.3g}",
                  _metres(a.max_pose_deviation), _metres(a.max_replay_deviation))
                 for a in self.agents]
