@@ -219,6 +219,9 @@ def test_the_python_table(handover):
     assert table["agent"].tolist() == ["xr4000", "labmate", "operator"]
     assert table["matched"].tolist() == [2, 3, 1]
     assert table["diverges_at"].tolist() == [None, None, None]
+    # no commands in a simulated trace: no pose check under them; the replay's, exactly 0
+    assert table["max_pose_deviation"].tolist() == [None, None, None]
+    assert table["max_replay_deviation"].tolist() == [0.0, 0.0, None]
 
 
 def test_a_stricter_team_names_the_guard_that_did_not_hold(tmp_path):
@@ -293,18 +296,19 @@ def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
 
 
 # ---------------------------------------------------------------------- poses under commands
-#: a unicycle whose model drives straight ahead at 0.5 m/s; ``{limits}``: its plant's limits
+#: a robot whose model drives straight ahead at 0.5 m/s (``{kind}``, ``{inputs}``: a unicycle's
+#: or a holonomic base's); ``{limits}``: its plant's limits
 STRAIGHT_TEAM = """\
 team: commanded-log
 agents:
   robot:
     plant:
-      kind: unicycle
+      kind: {kind}
       state: {{x: 0.0, y: 0.0, theta: 0.0}}{limits}
     initial: Drive
     modes:
       Drive:
-        inputs: {{v: 0.5, omega: 0}}
+        inputs: {inputs}
 simulation:
   duration: {end}
 """
@@ -312,19 +316,25 @@ V = 0.5  # m/s, the speed every log below is driven at
 H = 0.1  # s, the log's sample period (poses and commands)
 
 
-def commanded_log(tmp_path: Path, pose, command, end: float = 4.0, limits: str = ""
-                  ) -> tuple[ht.Team, Trace]:
+UNICYCLE = {"kind": "unicycle", "inputs": "{v: 0.5, omega: 0}"}
+HOLONOMIC = {"kind": "holonomic", "inputs": "{vx: 0.5, vy: 0, omega: 0}"}
+
+
+def commanded_log(tmp_path: Path, pose, command, end: float = 4.0, limits: str = "",
+                  plant: dict[str, str] = UNICYCLE) -> tuple[ht.Team, Trace]:
     """A hand-made log of a robot of :data:`STRAIGHT_TEAM`: its pose ``pose(t)`` (x, y,
-    theta) and the command it was given ``command(t)`` (v, omega), both logged at
-    t = k H from 0 to ``end``; its mode is the team's (the model's own run of it)."""
+    theta) and the command it was given ``command(t)`` (the plant's inputs: v, omega or
+    vx, vy, omega), both logged at t = k H from 0 to ``end``; its mode is the team's (the
+    model's own run of it)."""
     path = tmp_path / "team.yaml"
-    path.write_text(STRAIGHT_TEAM.format(limits=limits, end=end))
+    path.write_text(STRAIGHT_TEAM.format(limits=limits, end=end, **plant))
     team = ht.load(path)
     run = ht.simulate(team)
     times = np.arange(round(end / H) + 1) * H
     samples = {"robot": np.array([pose(t) for t in times], float)[:, None, :],
                "robot.cmd": np.array([command(t) for t in times], float)[:, None, :]}
-    meta = {**run.meta, "series": {**run.meta.get("series", {}), "robot.cmd": ["v", "omega"]}}
+    inputs = next(a["inputs"] for a in run.meta["agents"] if a["name"] == "robot")
+    meta = {**run.meta, "series": {**run.meta.get("series", {}), "robot.cmd": list(inputs)}}
     return team, Trace(meta, run.diagnostics, run.transitions, run.intervals, run.messages,
                        times, samples)
 
@@ -406,6 +416,23 @@ def test_a_slipping_robot_deviates_by_the_speed_it_lost(tmp_path):
     assert result.agents[0].max_replay_deviation == pytest.approx(0.56, abs=1e-9)
 
 
+def test_a_holonomic_base_drifting_sideways_deviates_by_its_drift(tmp_path):
+    """A holonomic base commanded (vx, vy, omega) = (0.3, 0.4, 0.5) in the world frame for
+    4 s: where its poses are the closed form (0.3 t, 0.4 t, 0.5 t) the deviation is float
+    rounding; where it makes only half the commanded vy (y = 0.2 t) it is 0.2 t, largest
+    at the end, 0.8 m, from (1.2, 0.8) logged to (1.2, 1.6) commanded."""
+    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.4 * t, 0.5 * t),
+                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    assert conformance(run, team).agents[0].max_pose_deviation <= 1e-12
+    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.2 * t, 0.5 * t),
+                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    worst = conformance(run, team).deviation("robot")
+    assert worst.distance == pytest.approx(0.8, abs=1e-12)
+    assert worst.t == pytest.approx(4.0, abs=1e-12)
+    assert worst.logged == pytest.approx((1.2, 0.8), abs=1e-12)
+    assert worst.model == pytest.approx((1.2, 1.6), abs=1e-12)
+
+
 def test_commands_beyond_the_limits_are_saturated_as_the_model_saturates_them(tmp_path):
     """The plant's ``limits: {v: [-0.5, 0.5]}`` and a log commanding 0.6 m/s of a robot
     moving at 0.5 m/s (its driver clips as the model does): the plant under the commands
@@ -435,6 +462,14 @@ def test_a_log_without_commands_says_the_pose_check_was_not_possible(tmp_path, c
     assert out[1].split()[-2] == "-"
     assert out[2] == "robot: no pose check under commands: the log has no commands for it"
     assert out[3].startswith("conformant:")
+    # commands logged only after the robot's last pose: nothing to start from
+    late = {"robot": run.samples["robot"].copy(), "robot.cmd": run.samples["robot.cmd"].copy()}
+    late["robot"][-1] = np.nan
+    late["robot.cmd"][:-1] = np.nan
+    (robot,) = conformance(Trace(run.meta, run.outcomes, run.transitions, run.intervals,
+                                 run.messages, run.sample_times, late), team).agents
+    assert (robot.max_pose_deviation, robot.no_pose_check) == (
+        None, "the log has no pose of it once commands are given")
 
 
 def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:
