@@ -232,7 +232,8 @@ def check(run: Trace, team: Team) -> Table:
 def conformance(run: Trace, team: Team, tolerance: float = 0.1) -> Table:
     """How a recorded ``run`` conforms to ``team``: what the log says arrived replayed into
     the model and compared, a row per agent (transitions logged, in the model, matched, the
-    largest time shift, the largest pose deviation, and where it first diverges; see
+    largest time shift, the largest pose deviation off the plant driven by the logged
+    commands and off the model's replay, and where it first diverges; see
     :mod:`hybridteam.logs.conformance`). ``tolerance``: seconds a transition may be off."""
     from hybridteam.logs.conformance import conformance as replayed
 

@@ -46,8 +46,9 @@ def edited(run: Trace, transitions: Table | None = None, messages: Table | None 
 def test_a_simulated_run_conforms_to_its_own_team(handover):
     """The same engine on the arrivals the run itself had: every transition at the same
     float (shift exactly 0: the copies are queued at the very times the simulation
-    computed), the same trajectory (pose deviation exactly 0), and the replay received
-    exactly the copies the log says arrived."""
+    computed), the same trajectory (replay deviation exactly 0), and the replay received
+    exactly the copies the log says arrived. A simulated trace records no commands, so
+    the pose check under commands is not possible, and the report says so per robot."""
     team, run = handover
     result = conformance(run, team)
     assert result.conformant and result.first is None
@@ -56,9 +57,18 @@ def test_a_simulated_run_conforms_to_its_own_team(handover):
     assert {a: (c.logged, c.model, c.matched) for a, c in by.items()} == \
         {"xr4000": (2, 2, 2), "labmate": (3, 3, 3), "operator": (1, 1, 1)}
     assert all(s == 0.0 for a in result.agents for _, s, _ in a.shifts)
-    assert by["xr4000"].max_pose_deviation == 0.0
-    assert by["labmate"].max_pose_deviation == 0.0
-    assert by["operator"].max_pose_deviation is None  # no plant
+    assert by["xr4000"].max_replay_deviation == 0.0
+    assert by["labmate"].max_replay_deviation == 0.0
+    assert by["operator"].max_replay_deviation is None  # no plant
+    assert [(a.agent, a.max_pose_deviation, a.no_pose_check) for a in result.agents] == [
+        ("xr4000", None, "the log has no commands for it"),
+        ("labmate", None, "the log has no commands for it"),
+        ("operator", None, "")]  # no plant: nothing to drive, nothing to say
+    lines = result.lines()
+    assert lines[-3:-1] == ["xr4000: no pose check under commands: the log has no "
+                            "commands for it",
+                            "labmate: no pose check under commands: the log has no "
+                            "commands for it"]
     got, want = result.model.messages, run.messages
     arrived = np.isfinite(want["t_recv"])
     for column in ("sender", "receiver", "type", "t_recv", "status"):
@@ -209,6 +219,9 @@ def test_the_python_table(handover):
     assert table["agent"].tolist() == ["xr4000", "labmate", "operator"]
     assert table["matched"].tolist() == [2, 3, 1]
     assert table["diverges_at"].tolist() == [None, None, None]
+    # no commands in a simulated trace: no pose check under them; the replay's, exactly 0
+    assert table["max_pose_deviation"].tolist() == [None, None, None]
+    assert table["max_replay_deviation"].tolist() == [0.0, 0.0, None]
 
 
 def test_a_stricter_team_names_the_guard_that_did_not_hold(tmp_path):
@@ -251,15 +264,24 @@ def test_a_hand_made_square_log_conforms_with_the_pose_deviation_of_its_closed_f
     log's stamps are k/10 s; the model's after: 2 and 1 s add up to the same floats). The
     log's times are a regular 0.1 s grid, so the model is sampled on it and read there,
     and the closed form (straight sides at constant speed, turns in place) is what the
-    model integrates: the deviation is float rounding, under 1e-9 m. The model's change
-    at t = 12, the log's last instant, is not in the log and is no divergence."""
+    model integrates: the replay's deviation is float rounding, under 1e-9 m. The logged
+    commands change on the log's sample grid (a side's last drive command at 1.9 s, the
+    turn's first at 2.0 s), so the plant held at each command from the first pose on is
+    the closed form too: the deviation under commands is float rounding as well. The
+    model's change at t = 12, the log's last instant, is not in the log and is no
+    divergence."""
     team, run = square_log(tmp_path)
     result = conformance(run, team)
     assert result.conformant, result.lines()
     (robot,) = result.agents
     assert (robot.logged, robot.model, robot.matched) == (8, 9, 8)
     assert [s for _, s, _ in robot.shifts] == [0.0] * 8
+    assert robot.max_replay_deviation <= 1e-9
     assert robot.max_pose_deviation <= 1e-9
+    path = result.agents[0].commanded
+    assert path.t.tolist() == run.sample_times.tolist()  # a step to every logged time
+    from tests.test_logs import square_pose
+    assert np.max(np.abs(path.xy - [square_pose(k)[:2] for k in range(121)])) <= 1e-9
 
 
 def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
@@ -270,7 +292,184 @@ def test_irregular_log_times_read_the_model_between_its_samples(tmp_path):
     model's line there is 0.5 m/s * 0.008 s * 0.016 s / 0.024 s = 1/375 m short."""
     team, run = square_log(tmp_path, drop=5)
     (robot,) = conformance(run, team).agents
-    assert robot.max_pose_deviation == pytest.approx(1 / 375, abs=1e-9)
+    assert robot.max_replay_deviation == pytest.approx(1 / 375, abs=1e-9)
+
+
+# ---------------------------------------------------------------------- poses under commands
+#: a robot whose model drives straight ahead at 0.5 m/s (``{kind}``, ``{inputs}``: a unicycle's
+#: or a holonomic base's); ``{limits}``: its plant's limits
+STRAIGHT_TEAM = """\
+team: commanded-log
+agents:
+  robot:
+    plant:
+      kind: {kind}
+      state: {{x: 0.0, y: 0.0, theta: 0.0}}{limits}
+    initial: Drive
+    modes:
+      Drive:
+        inputs: {inputs}
+simulation:
+  duration: {end}
+"""
+V = 0.5  # m/s, the speed every log below is driven at
+H = 0.1  # s, the log's sample period (poses and commands)
+
+
+UNICYCLE = {"kind": "unicycle", "inputs": "{v: 0.5, omega: 0}"}
+HOLONOMIC = {"kind": "holonomic", "inputs": "{vx: 0.5, vy: 0, omega: 0}"}
+
+
+def commanded_log(tmp_path: Path, pose, command, end: float = 4.0, limits: str = "",
+                  plant: dict[str, str] = UNICYCLE) -> tuple[ht.Team, Trace]:
+    """A hand-made log of a robot of :data:`STRAIGHT_TEAM`: its pose ``pose(t)`` (x, y,
+    theta) and the command it was given ``command(t)`` (the plant's inputs: v, omega or
+    vx, vy, omega), both logged at t = k H from 0 to ``end``; its mode is the team's (the
+    model's own run of it)."""
+    path = tmp_path / "team.yaml"
+    path.write_text(STRAIGHT_TEAM.format(limits=limits, end=end, **plant))
+    team = ht.load(path)
+    run = ht.simulate(team)
+    times = np.arange(round(end / H) + 1) * H
+    samples = {"robot": np.array([pose(t) for t in times], float)[:, None, :],
+               "robot.cmd": np.array([command(t) for t in times], float)[:, None, :]}
+    inputs = next(a["inputs"] for a in run.meta["agents"] if a["name"] == "robot")
+    meta = {**run.meta, "series": {**run.meta.get("series", {}), "robot.cmd": list(inputs)}}
+    return team, Trace(meta, run.diagnostics, run.transitions, run.intervals, run.messages,
+                       times, samples)
+
+
+def test_a_circle_driven_as_commanded_has_no_pose_deviation(tmp_path):
+    """A unicycle commanded (0.5 m/s, 0.25 rad/s), its poses from the closed form of the
+    circle it drives (radius R = v / omega = 2 m, from the origin heading along x:
+    x = R sin(omega t), y = R (1 - cos(omega t)), theta = omega t), logged every 0.1 s for
+    8 s: the plant under the logged commands is that circle, so the pose deviation is float
+    rounding. The team's model drives straight ahead: the replay's deviation is the
+    distance from the circle to the line, kept apart (at 8 s: (2 sin 2 - 4, 2 - 2 cos 2)),
+    largest there."""
+    omega, radius = 0.25, V / 0.25
+
+    def circle(t: float) -> tuple[float, float, float]:
+        return radius * np.sin(omega * t), radius * (1 - np.cos(omega * t)), omega * t
+
+    team, run = commanded_log(tmp_path, circle, lambda t: (V, omega), end=8.0)
+    result = conformance(run, team)
+    (robot,) = result.agents
+    assert robot.max_pose_deviation <= 1e-12
+    assert robot.max_replay_deviation == pytest.approx(
+        np.hypot(radius * np.sin(2.0) - 4.0, radius * (1 - np.cos(2.0))), abs=1e-9)
+    assert result.replay_deviation("robot").t == pytest.approx(8.0, abs=1e-12)
+
+
+def test_a_turn_between_samples_deviates_by_the_held_commands_closed_form(tmp_path):
+    """The robot drives along x at v, and its controller starts a quarter turn in place
+    (pi/2 rad/s for 1 s) at T1 = 1 + D s, D = 0.03 s after a sample, then drives along y.
+    The log samples the commands every H = 0.1 s, so it has the turn from 1.1 s to 2.0 s
+    and the drive again from 2.1 s: held, the plant drives H - D too long, then turns the
+    same quarter (10 samples of pi/2 rad/s), then drives H - D late. From 2.1 s on the two
+    are both on their last side: the model at (v (T1 + H - D), v (t - T1 - 1 - (H - D))),
+    the log at (v T1, v (t - T1 - 1)): apart by v (H - D) (1, -1), a distance of
+    sqrt(2) v (H - D) = 0.0495 m (|e_x - e_y| = 2 sin(pi/4) for a quarter turn). Before,
+    during the turn, they are v (H - D) apart along x."""
+    d = 0.03
+    t1 = 1.0 + d
+
+    def truth(t: float) -> tuple[float, float, float]:
+        if t < t1:
+            return V * t, 0.0, 0.0
+        if t < t1 + 1.0:
+            return V * t1, 0.0, np.pi / 2 * (t - t1)
+        return V * t1, V * (t - t1 - 1.0), np.pi / 2
+
+    def given(t: float) -> tuple[float, float]:
+        return (0.0, np.pi / 2) if t1 <= t < t1 + 1.0 else (V, 0.0)
+
+    team, run = commanded_log(tmp_path, truth, given)
+    result = conformance(run, team)
+    worst = result.deviation("robot")
+    lag = V * (H - d)
+    assert worst.distance == pytest.approx(np.sqrt(2) * lag, abs=1e-12)
+    assert worst.t >= 2.1 - 1e-9  # on the last side, where the offset is the largest
+    assert np.subtract(worst.model, worst.logged) == pytest.approx([lag, -lag], abs=1e-12)
+    path = result.agents[0].commanded
+    at = int(np.argmin(np.abs(path.t - 1.5)))  # in the turn: ahead along x only
+    assert path.xy[at] == pytest.approx([V * t1 + lag, 0.0], abs=1e-12)
+    assert result.agents[0].max_pose_deviation == worst.distance
+
+
+def test_a_slipping_robot_deviates_by_the_speed_it_lost(tmp_path):
+    """Wheel slip: the robot is commanded u = 0.4 m/s straight ahead for 4 s (slower than
+    its model's 0.5: an operator drives it) and its logged poses show it at 0.9 of that
+    (x = 0.9 u t): the plant under the commands is at u t, so the deviation grows as
+    0.1 u t and is largest at the end, 0.1 * 0.4 * 4 = 0.16 m, from (1.44, 0) logged to
+    (1.6, 0) commanded. The replay, driven by the model's own 0.5 m/s, is
+    (0.5 - 0.36) * 4 = 0.56 m off there: the other question."""
+    u = 0.4
+    team, run = commanded_log(tmp_path, lambda t: (0.9 * u * t, 0.0, 0.0),
+                              lambda t: (u, 0.0))
+    result = conformance(run, team)
+    worst = result.deviation("robot")
+    assert worst.distance == pytest.approx(0.1 * u * 4.0, abs=1e-12)
+    assert worst.t == pytest.approx(4.0, abs=1e-12)
+    assert worst.logged == pytest.approx((1.44, 0.0), abs=1e-12)
+    assert worst.model == pytest.approx((1.6, 0.0), abs=1e-12)
+    assert result.agents[0].max_replay_deviation == pytest.approx(0.56, abs=1e-9)
+
+
+def test_a_holonomic_base_drifting_sideways_deviates_by_its_drift(tmp_path):
+    """A holonomic base commanded (vx, vy, omega) = (0.3, 0.4, 0.5) in the world frame for
+    4 s: where its poses are the closed form (0.3 t, 0.4 t, 0.5 t) the deviation is float
+    rounding; where it makes only half the commanded vy (y = 0.2 t) it is 0.2 t, largest
+    at the end, 0.8 m, from (1.2, 0.8) logged to (1.2, 1.6) commanded."""
+    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.4 * t, 0.5 * t),
+                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    assert conformance(run, team).agents[0].max_pose_deviation <= 1e-12
+    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.2 * t, 0.5 * t),
+                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    worst = conformance(run, team).deviation("robot")
+    assert worst.distance == pytest.approx(0.8, abs=1e-12)
+    assert worst.t == pytest.approx(4.0, abs=1e-12)
+    assert worst.logged == pytest.approx((1.2, 0.8), abs=1e-12)
+    assert worst.model == pytest.approx((1.2, 1.6), abs=1e-12)
+
+
+def test_commands_beyond_the_limits_are_saturated_as_the_model_saturates_them(tmp_path):
+    """The plant's ``limits: {v: [-0.5, 0.5]}`` and a log commanding 0.6 m/s of a robot
+    moving at 0.5 m/s (its driver clips as the model does): the plant under the commands
+    moves at 0.5 m/s too, no deviation; unclipped it would be 0.1 m/s * 4 s = 0.4 m off."""
+    team, run = commanded_log(tmp_path, lambda t: (V * t, 0.0, 0.0), lambda t: (0.6, 0.0),
+                              limits="\n      limits: {v: [-0.5, 0.5]}")
+    assert conformance(run, team).agents[0].max_pose_deviation <= 1e-12
+
+
+def test_a_log_without_commands_says_the_pose_check_was_not_possible(tmp_path, capsys):
+    """Bad input that is no error: the robot's commands are not in the log. Its line
+    says the check under commands was not possible; the replay's deviation is still
+    reported and ``check --conformance`` exits as the mode comparison says (0)."""
+    team, run = commanded_log(tmp_path, lambda t: (V * t, 0.0, 0.0), lambda t: (V, 0.0))
+    bare = Trace({**run.meta, "series": {}}, run.outcomes, run.transitions, run.intervals,
+                 run.messages, run.sample_times, {"robot": run.samples["robot"]})
+    (robot,) = conformance(bare, team).agents
+    assert (robot.max_pose_deviation, robot.no_pose_check) == (
+        None, "the log has no commands for it")
+    assert robot.max_replay_deviation <= 1e-12
+    path = tmp_path / "bare.json"
+    bare.to_json(path)
+    assert main(["check", str(path), "--team", str(tmp_path / "team.yaml"),
+                 "--conformance"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split("  ")[-2:] == ["max pose deviation m", "max replay deviation m"]
+    assert out[1].split()[-2] == "-"
+    assert out[2] == "robot: no pose check under commands: the log has no commands for it"
+    assert out[3].startswith("conformant:")
+    # commands logged only after the robot's last pose: nothing to start from
+    late = {"robot": run.samples["robot"].copy(), "robot.cmd": run.samples["robot.cmd"].copy()}
+    late["robot"][-1] = np.nan
+    late["robot.cmd"][:-1] = np.nan
+    (robot,) = conformance(Trace(run.meta, run.outcomes, run.transitions, run.intervals,
+                                 run.messages, run.sample_times, late), team).agents
+    assert (robot.max_pose_deviation, robot.no_pose_check) == (
+        None, "the log has no pose of it once commands are given")
 
 
 def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:

@@ -105,7 +105,10 @@ def test_the_plot_draws_the_models_path_and_the_largest_deviation(tmp_path):
     """The square log with the pose at t = 1.5 s (0.75, 0) moved 0.2 m to (0.75, 0.2):
     the model's path, dashed, is the square's closed form at the log's samples (to float
     rounding), and the largest deviation is a segment from (0.75, 0.2) to (0.75, 0),
-    labelled 0.2 m at t=1.5 s; the legend names the model's path and the mark."""
+    labelled 0.2 m at t=1.5 s; the log has the square's commands, so the plant under
+    them is the same square, dotted, and its largest deviation is the same segment (its
+    label below the logged end, the replay's above); the legend names the paths and the
+    marks."""
     from tests.test_logs import square_pose
 
     team, run = square_log(tmp_path)
@@ -128,7 +131,19 @@ def test_the_plot_draws_the_models_path_and_the_largest_deviation(tmp_path):
     assert label.get_text() == "0.2 m at t=1.5 s"
     legend = ax.get_legend() or fig.legends[0]
     texts = [t.get_text() for t in legend.get_texts()]
-    assert texts[:3] == ["robot", "robot (model)", "largest deviation, log to model"]
+    assert texts[:5] == ["robot", "robot (model)", "robot (under logged commands)",
+                         "largest deviation, log to model",
+                         "largest deviation, log to logged commands"]
+    (plant,) = [a for a in ax.lines if a.get_gid() == "commanded-path:robot"]
+    assert np.max(np.abs(plant.get_xydata() - square)) <= 1e-9
+    assert plant.get_color() == logged.get_color()
+    assert plant.get_linestyle() != logged.get_linestyle()
+    (mark,) = [a for a in ax.lines if a.get_gid() == "commanded-deviation:robot"]
+    assert mark.get_xydata() == pytest.approx(np.array([[0.75, 0.2], [0.75, 0.0]]),
+                                              abs=1e-9)
+    (below,) = [t for t in ax.texts if t.get_gid() == "commanded-deviation-label:robot"]
+    assert below.get_text() == "0.2 m at t=1.5 s"
+    assert below.xyann[1] < 0 < label.xyann[1]  # the two labels do not overlap
 
 
 def test_no_deviation_no_mark(tmp_path):
@@ -142,6 +157,46 @@ def test_no_deviation_no_mark(tmp_path):
     marks = [a for a in overlay_plot_figure(result).axes[0].lines
              if a.get_gid() == "deviation:robot"]
     assert len(marks) == (worst.distance > 0)
+
+
+def test_the_plot_draws_the_plant_under_the_logged_commands_apart_from_the_model(tmp_path):
+    """test_conformance's turn between samples: the robot drives along x at 0.5 m/s,
+    turns a quarter in place from 1.03 s for 1 s and drives along y; its model drives
+    straight along x. The plant under the logged commands (dotted) turns 0.1 - 0.03 s
+    late: it ends at (0.5 * 1.1, 0.5 * (4 - 2.1)) = (0.55, 0.95), and its mark joins the
+    log to it where they are sqrt(2) * 0.5 * 0.07 m apart; the replay's (dashed) runs
+    along x to (2, 0) at t = 4, the log's farthest point from it being its end,
+    (0.515, 0.985). The plane covers all three."""
+    from tests.test_conformance import V, commanded_log
+
+    d, t1 = 0.03, 1.03
+
+    def truth(t: float) -> tuple[float, float, float]:
+        if t < t1:
+            return V * t, 0.0, 0.0
+        if t < t1 + 1.0:
+            return V * t1, 0.0, np.pi / 2 * (t - t1)
+        return V * t1, V * (t - t1 - 1.0), np.pi / 2
+
+    def given(t: float) -> tuple[float, float]:
+        return (0.0, np.pi / 2) if t1 <= t < t1 + 1.0 else (V, 0.0)
+
+    team, run = commanded_log(tmp_path, truth, given)
+    fig = overlay_plot_figure(conformance(run, team))
+    ax = fig.axes[0]
+    (plant,) = [a for a in ax.lines if a.get_gid() == "commanded-path:robot"]
+    assert plant.get_xydata()[-1] == pytest.approx([0.55, 0.95], abs=1e-12)
+    (mark,) = [a for a in ax.lines if a.get_gid() == "commanded-deviation:robot"]
+    (x0, y0), (x1, y1) = mark.get_xydata()
+    assert np.hypot(x1 - x0, y1 - y0) == pytest.approx(np.sqrt(2) * V * (0.1 - d), abs=1e-12)
+    (label,) = [t for t in ax.texts if t.get_gid() == "commanded-deviation-label:robot"]
+    assert label.get_text() == "0.0495 m at t=" + label.get_text().split("t=")[1]
+    (replay,) = [a for a in ax.lines if a.get_gid() == "deviation:robot"]
+    assert replay.get_xydata() == pytest.approx(np.array([[0.515, 0.985], [2.0, 0.0]]),
+                                                abs=1e-9)
+    x_lo, x_hi = ax.get_xlim()
+    y_lo, y_hi = ax.get_ylim()
+    assert x_lo <= 0.0 and x_hi >= 2.0 and y_lo <= 0.0 and y_hi >= 0.985
 
 
 # ---------------------------------------------------------------------- the commands

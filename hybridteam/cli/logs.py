@@ -56,7 +56,8 @@ def register(sub) -> dict:
                    help="for a rosbag2: which topic holds what (see import)")
     c.add_argument("--conformance", action="store_true",
                    help="instead of the requirements: replay what the log says arrived "
-                   "into the team and compare modes, transition times and poses (exit 0: "
+                   "into the team and compare modes, transition times and poses (off "
+                   "the plant under the logged commands, and off the replay) (exit 0: "
                    "conformant, 1: divergent)")
     c.add_argument("--tolerance", type=float, default=None, metavar="SECONDS",
                    help="with --conformance: how far a transition may be from the model's "

@@ -5,9 +5,10 @@ views show it. The timeline gives every agent two lanes, the log's modes above t
 (the replay conformance computes, :mod:`hybridteam.logs.conformance`), in the same colours,
 so a shifted or missing transition reads as bars that stop lining up; the first divergence
 is a line across that agent's two lanes, labelled with its time and both modes. The plot
-draws the model's paths dashed over the logged ones, and joins the two positions where they
-are farthest apart, labelled with the distance and the time: the number the conformance
-report gives.
+draws over the logged paths the model's replay (dashed) and, for a robot whose log has its
+commands, its plant driven by those commands (dotted, :mod:`hybridteam.logs.commanded`),
+and joins each to the log where they are farthest apart, labelled with the distance and
+the time: the two deviations the conformance report gives.
 
 Both are the ordinary views (:mod:`.timeline`, :mod:`.trajectories`) of the log with the
 model added, so everything else (colours, legend, requirement violations, the scene) is
@@ -39,12 +40,17 @@ from hybridteam.export.timeline import (
 from hybridteam.export.trajectories import trajectory_figure
 
 if TYPE_CHECKING:
+    from hybridteam.logs.commanded import PoseDeviation
     from hybridteam.logs.conformance import Conformance
 
 #: the first divergence's line and label (not the requirement violations' red)
 DIVERGENCE_COLOR = "#6A1B9A"
 #: the model's paths: dashed, over the logged ones in the same colour
 MODEL_STYLE = {"linestyle": (0, (4, 2.5)), "linewidth": 1.3, "alpha": 0.9}
+#: the plants under the logged commands: dotted, in the same colour
+COMMANDED_STYLE = {"linestyle": (0, (1, 1.6)), "linewidth": 1.6, "alpha": 0.95}
+#: the largest deviation from the plant under the logged commands (the replay's is purple)
+COMMANDED_COLOR = "#B71C1C"
 SIDES = ("log", "model")
 
 
@@ -167,43 +173,70 @@ def overlay_plot_figure(result: Conformance, xlim: tuple[float, float] | None = 
                         ylim: tuple[float, float] | None = None,
                         size: tuple[float, float] | None = None) -> Figure:
     """The log's trajectories (:func:`~.trajectories.trajectory_figure`) with each planar
-    robot's model path dashed over its own, and its largest deviation marked: a segment
-    from the logged position to the model's at that time, labelled with the distance.
-    The plane's limits (unless given) cover both the log's scene and the model's paths."""
+    robot's model path dashed and its plant under the logged commands dotted over its own
+    (where the log has its commands), and the largest deviation from each marked: a
+    segment from the logged position to the other's at that time, labelled with the
+    distance (the replay's label above its logged end, the commands' below). The plane's
+    limits (unless given) cover the log's scene, the model's paths and the commanded
+    ones."""
     log, model = result.log, result.model
     order = planar_agents(log)
     agents = [a for a in order if a in model.samples]
+    commanded = {a.agent: a.commanded for a in result.agents
+                 if a.agent in agents and a.commanded is not None}
     if agents and (xlim is None or ylim is None):
         lx0, lx1, ly0, ly1 = scene_extent(log, result.instance)
         mx0, mx1, my0, my1 = scene_extent(model, 0)
-        xlim = xlim or (min(lx0, mx0), max(lx1, mx1))
-        ylim = ylim or (min(ly0, my0), max(ly1, my1))
+        xs, ys = [lx0, lx1, mx0, mx1], [ly0, ly1, my0, my1]
+        for path in commanded.values():
+            xs += [float(path.xy[:, 0].min()), float(path.xy[:, 0].max())]
+            ys += [float(path.xy[:, 1].min()), float(path.xy[:, 1].max())]
+        xlim = xlim or (min(xs), max(xs))
+        ylim = ylim or (min(ys), max(ys))
 
     def draw_model(ax: Any) -> None:
-        marked = False
         for a in agents:
             color = PALETTE[order.index(a) % len(PALETTE)]
             p = pose(model, a, 0)
             ax.plot(p[:, 0], p[:, 1], color=color, zorder=4.5, gid=f"model-path:{a}",
                     label=f"{a} (model)", **MODEL_STYLE)
-        for a in agents:
-            worst = result.deviation(a)
-            if worst is None or worst.distance == 0:  # nothing to point at
-                continue
-            (x0, y0), (x1, y1) = worst.logged, worst.model
-            ax.plot([x0, x1], [y0, y1], color=DIVERGENCE_COLOR, linewidth=1.6, zorder=9,
-                    marker="o", markersize=3.5, gid=f"deviation:{a}",
-                    label="_" if marked else "largest deviation, log to model")
-            marked = True
-            ax.annotate(f"{worst.distance:.3g} m at t={worst.t:.4g} s", (x0, y0),
-                        xytext=(6, 6), textcoords="offset points", fontsize=7.5,
-                        fontweight="bold", color=DIVERGENCE_COLOR, path_effects=HALO,
-                        zorder=10, gid=f"deviation-label:{a}")
+            if a in commanded:
+                xy = commanded[a].xy
+                ax.plot(xy[:, 0], xy[:, 1], color=color, zorder=4.6,
+                        gid=f"commanded-path:{a}", label=f"{a} (under logged commands)",
+                        **COMMANDED_STYLE)
+        # the replay's segment wider, under the commands' one: where the two are the
+        # same segment (a logged pose off both), its colour still shows round the other
+        marks = (("deviation", result.replay_deviation, DIVERGENCE_COLOR, 3.2, 6,
+                  "largest deviation, log to model"),
+                 ("commanded-deviation", result.deviation, COMMANDED_COLOR, 1.4, -13,
+                  "largest deviation, log to logged commands"))
+        for gid, deviation, color, width, above, label in marks:
+            for k, a in enumerate(a for a in agents if _marked(deviation(a))):
+                worst = deviation(a)
+                (x0, y0), (x1, y1) = worst.logged, worst.model
+                ax.plot([x0, x1], [y0, y1], color=color, linewidth=width, zorder=9,
+                        marker="o", markersize=3.5, gid=f"{gid}:{a}",
+                        label="_" if k else label)
+                # at the segment's middle: inside the plane, where its ends may be at
+                # the edge (a label there would cross the frame)
+                ax.annotate(f"{worst.distance:.3g} m at t={worst.t:.4g} s",
+                            ((x0 + x1) / 2, (y0 + y1) / 2), xytext=(6, above),
+                            textcoords="offset points", fontsize=7.5, fontweight="bold",
+                            color=color, path_effects=HALO, zorder=10,
+                            gid=f"{gid}-label:{a}")
 
     fig = trajectory_figure(log, result.instance, xlim=xlim, ylim=ylim, size=size,
                             overlay=draw_model)
-    fig.suptitle(f"{log.meta.get('team', '')} — log (solid) against model (dashed)")
+    fig.suptitle(f"{log.meta.get('team', '')} — log (solid), model (dashed), plant under "
+                 "the logged commands (dotted)" if commanded else
+                 f"{log.meta.get('team', '')} — log (solid) against model (dashed)")
     return fig
+
+
+def _marked(worst: PoseDeviation | None) -> bool:
+    """Whether a deviation is drawn: one of exactly 0 has nothing to point at."""
+    return worst is not None and worst.distance > 0
 
 
 def write_overlay_plot(result: Conformance, path: str | os.PathLike,

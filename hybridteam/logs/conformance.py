@@ -27,13 +27,15 @@ field). Plants are driven by the model's own laws, not by logged commands.
 
 The comparison, per agent: the mode sequence (each logged transition against the model's
 in order, from the initial mode on), the time shift of each matched transition (log minus
-model: positive when the robot was late), and for planar robots the largest distance of a
-logged pose from the model's at the logged sample times (the model sampled on the log's
-grid when its times are one, else read linearly between the model's samples). The
-first divergence is the earliest moment, over agents, where the two disagree: another
-transition, one missing on either side, or a matched one more than ``tolerance`` seconds
-apart; a model transition at the recording's last instant, which the log cannot show,
-is none.
+model: positive when the robot was late), and for planar robots two pose deviations kept
+apart: the largest distance of a logged position from the robot's plant driven by the
+logged commands (:mod:`.commanded`: does the body move as its model says under what it
+was told?), and from the replay's trajectory at the logged sample times (the model
+sampled on the log's grid when its times are one, else read linearly between the model's
+samples: where would the model's own laws have taken it?). The first divergence is the
+earliest moment, over agents, where the two disagree: another transition, one missing on
+either side, or a matched one more than ``tolerance`` seconds apart; a model transition at
+the recording's last instant, which the log cannot show, is none.
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.wire import declarations
 from hybridteam.logs import LogError
+from hybridteam.logs.commanded import CommandedPath, NoPoseCheck, PoseDeviation, commanded_path
 from hybridteam.logs.export import PLANAR
 from hybridteam.model import Team
 from hybridteam.trace import Table, Trace
@@ -63,7 +66,7 @@ from hybridteam.trace import Table, Trace
 #: Seconds a matched transition may be early or late before it counts as a divergence
 DEFAULT_TOLERANCE = 0.1
 SUMMARY_COLUMNS = ("agent", "logged", "model", "matched", "max_shift", "max_pose_deviation",
-                   "diverges_at", "expected", "observed", "why")
+                   "max_replay_deviation", "diverges_at", "expected", "observed", "why")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,18 +89,29 @@ class Divergence:
 @dataclasses.dataclass(frozen=True)
 class AgentConformance:
     """One agent's comparison. ``shifts``: per matched transition (the initial mode
-    included), ``(model t, log t - model t, target)``."""
+    included), ``(model t, log t - model t, target)``; ``commanded``: its plant under the
+    logged commands (None without a kinematic plant, or when ``no_pose_check`` says why
+    the log does not allow it); ``max_replay_deviation``: the largest distance of a logged
+    position from the replay's (None without one)."""
 
     agent: str
     logged: int
     model: int
     shifts: list[tuple[float, float, str]]
-    max_pose_deviation: float | None
+    max_replay_deviation: float | None
     divergence: Divergence | None
+    commanded: CommandedPath | None = dataclasses.field(default=None, repr=False)
+    no_pose_check: str = ""
 
     @property
     def matched(self) -> int:
         return len(self.shifts)
+
+    @property
+    def max_pose_deviation(self) -> float | None:
+        """The largest distance (m) of a logged position from the plant driven by the
+        logged commands; None when there is no such check for this agent."""
+        return None if self.commanded is None else self.commanded.deviation.distance
 
     @property
     def max_shift(self) -> float:
@@ -133,6 +147,7 @@ class Conformance:
             for column, value in (("agent", a.agent), ("logged", a.logged), ("model", a.model),
                                   ("matched", a.matched), ("max_shift", a.max_shift),
                                   ("max_pose_deviation", a.max_pose_deviation),
+                                  ("max_replay_deviation", a.max_replay_deviation),
                                   ("diverges_at", None if d is None else d.t),
                                   ("expected", None if d is None else d.expected),
                                   ("observed", None if d is None else d.observed),
@@ -143,13 +158,16 @@ class Conformance:
     def lines(self) -> list[str]:
         """The report ``hybridteam check --conformance`` prints."""
         head = ("agent", "transitions (log/model)", "matched", "max |shift| s",
-                "max pose deviation m")
+                "max pose deviation m",
+                "max replay deviation m")
         body = [(a.agent, f"{a.logged}/{a.model}", str(a.matched), f"{a.max_shift:.3g}",
-                 "-" if a.max_pose_deviation is None else f"{a.max_pose_deviation:.3g}")
+                 _metres(a.max_pose_deviation), _metres(a.max_replay_deviation))
                 for a in self.agents]
         widths = [max(len(r[k]) for r in (head, *body)) for k in range(len(head))]
         out = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
                for r in (head, *body)]
+        out += [f"{a.agent}: no pose check under commands: {a.no_pose_check}"
+                for a in self.agents if a.no_pose_check]
         first = self.first
         if first is None:
             out.append(f"conformant: every agent's mode sequence is the model's, each "
@@ -159,8 +177,15 @@ class Conformance:
         return out
 
     def deviation(self, agent: str) -> PoseDeviation | None:
-        """Where ``agent``'s logged position is farthest from the model's (planar robots)."""
-        return largest_deviation(self.log, self.instance, self.model, agent)
+        """Where ``agent``'s logged position is farthest from its plant driven by the
+        logged commands (planar robots whose log has commands)."""
+        found = next(a.commanded for a in self.agents if a.agent == agent)
+        return None if found is None else found.deviation
+
+    def replay_deviation(self, agent: str) -> PoseDeviation | None:
+        """Where ``agent``'s logged position is farthest from the replay's (planar
+        robots)."""
+        return largest_replay_deviation(self.log, self.instance, self.model, agent)
 
     def write_timeline(self, path: str | os.PathLike, **kw: Any) -> Path:
         """The log's mode bars and the model's, per agent, the first divergence marked
@@ -370,8 +395,17 @@ def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
             continue
         divergence = _diverged(ca, md, lg, names, arrivals, "")
         break
+    try:
+        commanded, unchecked = commanded_path(run, instance, ca), ""
+    except NoPoseCheck as exc:
+        commanded, unchecked = None, str(exc)
     return AgentConformance(agent, len(logged), len(expected), shifts,
-                            pose_deviation(run, instance, model, agent), divergence)
+                            replay_deviation(run, instance, model, agent), divergence,
+                            commanded, unchecked)
+
+
+def _metres(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3g}"
 
 
 def _diverged(ca: CAgent, md: tuple | None, lg: tuple | None, names: list[str],
@@ -443,28 +477,17 @@ def _cause(tr: tuple, agent: str, names: list[str], arrivals: list[tuple[float, 
     return text + ")"
 
 
-@dataclasses.dataclass(frozen=True)
-class PoseDeviation:
-    """Where a logged position is farthest from the model's: at time ``t`` the log has the
-    robot at ``logged`` and the model at ``model`` (x, y), ``distance`` apart (m)."""
-
-    distance: float
-    t: float
-    logged: tuple[float, float]
-    model: tuple[float, float]
-
-
-def pose_deviation(run: Trace, instance: int, model: Trace, agent: str) -> float | None:
-    """For a planar robot, the largest distance (m) of a logged position from the model's
-    trajectory (linear between its samples) at the logged sample times the model covers;
-    None for another agent or no such sample."""
-    worst = largest_deviation(run, instance, model, agent)
+def replay_deviation(run: Trace, instance: int, model: Trace, agent: str) -> float | None:
+    """For a planar robot, the largest distance (m) of a logged position from the
+    replay's trajectory (linear between its samples) at the logged sample times the
+    model covers; None for another agent or no such sample."""
+    worst = largest_replay_deviation(run, instance, model, agent)
     return None if worst is None else worst.distance
 
 
-def largest_deviation(run: Trace, instance: int, model: Trace, agent: str
-                      ) -> PoseDeviation | None:
-    """The logged sample of :func:`pose_deviation`: its time and both positions there
+def largest_replay_deviation(run: Trace, instance: int, model: Trace, agent: str
+                             ) -> PoseDeviation | None:
+    """The logged sample of :func:`replay_deviation`: its time and both positions there
     (the first such sample where several are as far), for a view to mark it."""
     info = next(a for a in run.meta["agents"] if a["name"] == agent)
     if info["plant"] not in PLANAR or info["state"][:2] != ["x", "y"] or \
