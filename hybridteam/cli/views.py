@@ -72,7 +72,8 @@ def register(sub) -> dict:
     pl.add_argument("--size", nargs=2, type=float, metavar=("W", "H"),
                     help="figure width and height in inches (default: 8 wide, as tall as "
                     "the scene asks)")
-    _against_parser(pl, "its paths dashed over the log's, the largest deviation marked")
+    _against_parser(pl, "its replay's paths dashed over the log's and the plant under the "
+                    "logged commands dotted, both largest deviations marked")
 
     an = _trace_parser(sub, "animate", "animate a run (GIF; MP4 when ffmpeg is installed)")
     an.add_argument("--fps", type=int, default=20, help="frames per second (default 20)")
