@@ -59,6 +59,9 @@ CORPUS = {
     "bad_agent_name.yaml": (3, "agents", "'my thermostat' is not valid"),
     "no_initial_among_children.yaml": (4, "agents.thermostat.initial", "no 'initial'"),
     "law_and_flow_together.yaml": (16, "modes.Cool", "declares both"),
+    "law_parameter_shadows_state.yaml": (13, "law.with.x",
+                                         "binding parameter 'x' of law 'constant' has the "
+                                         "name of a state"),
     "period_without_inputs.yaml": (16, "modes.Cool", "'period' samples 'inputs'"),
     "message_declared_twice.yaml": (4, "messages.request",
                                     "already declared by protocol 'role_assignment'"),
@@ -97,6 +100,16 @@ def test_run_refuses_bad_input_and_writes_nothing(tmp_path, capsys):
     assert status == 2
     assert not out.exists()
     assert "unknown mode 'Col'" in capsys.readouterr().err
+
+
+def test_run_refuses_a_binding_parameter_named_as_a_state(tmp_path, capsys):
+    """``ctx['x']`` reads a binding parameter before a state: a ``with: {x: ...}`` would
+    hide the robot's position from the law, so it is refused where it is written."""
+    out = tmp_path / "out"
+    path = BAD / "law_parameter_shadows_state.yaml"
+    assert main(["run", str(path), "-o", str(out)]) == 2
+    assert not out.exists()
+    assert capsys.readouterr().err.startswith(f"{path}:13:29: ")
 
 
 def test_dangerous_guard_never_runs(tmp_path, monkeypatch, capsys):

@@ -88,6 +88,14 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             e = col.expr(text, syms, (*b.where, "with", name))
             if e is not None:
                 pexprs[name] = e
+        for name in sorted(pexprs.keys() & set(plant.state_names)):
+            # ctx[name] reads a binding parameter first: the law would never see the state
+            given = name in b.params
+            col.fail((*b.where, "with", name) if given else (*b.where, "use"),
+                     f"binding parameter '{name}' of law '{spec.name}' has the name of a "
+                     "state of this agent, so the law would read the parameter, never the "
+                     "state; " + ("rename the parameter" if given else
+                                   "the law cannot be bound to this plant"))
         known = {*pexprs, *plant.state_names, *params, *variables}
         for name in sorted(asked_names(spec.fn) - known):
             col.fail((*b.where, "use"), f"law '{spec.name}' reads ctx[{name!r}], which is no "
