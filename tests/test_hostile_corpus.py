@@ -699,7 +699,7 @@ def test_a_library_that_exits_at_import_ends_no_unrelated_command(tmp_path, monk
     with its error, where one of its names is used."""
     from importlib import metadata
 
-    from hybridteam import libraries
+    from hybridteam import discovery
 
     class Exits:
         name, value = "quitter", "quitter.laws"
@@ -708,8 +708,8 @@ def test_a_library_that_exits_at_import_ends_no_unrelated_command(tmp_path, monk
             raise SystemExit(7)
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [Exits()])
-    monkeypatch.setattr(libraries, "_LOADED", False)
-    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.setattr(discovery, "_LOADED", False)
+    monkeypatch.setattr(discovery, "_BROKEN", {})
     monkeypatch.chdir(tmp_path)
     (tmp_path / "team.yaml").write_text(robot())
     assert main(["run", "team.yaml", "-o", "out", "--quiet", "--no-views"]) == 0

@@ -240,8 +240,8 @@ def cmd_laws(args: argparse.Namespace) -> int:
     defaults, the names it reads from the agent, and its docstring's first paragraph."""
     import textwrap
 
+    from hybridteam.discovery import broken_note
     from hybridteam.laws import asked_names, registered, resolve
-    from hybridteam.libraries import broken_note
 
     names = [n for n in registered() if args.prefix is None or n.startswith(args.prefix)]
     if not names:
