@@ -357,12 +357,12 @@ def test_nearly_parallel_arrows_share_one_label_content_first():
     the content named first, the latencies as a range; a message the other way, or one
     sent a label's width later, is labelled on its own."""
     from hybridteam.export.arrows import bundles
-    from hybridteam.export.timeline import Arrow
+    from hybridteam.export.timeline import TimelineArrow
 
-    ack = Arrow(0.0, -1.0, 5.0, 5.080, "ack", 0.080, False)
-    accept = Arrow(0.0, -1.0, 5.0, 5.082, "accept", 0.082, False)
-    back = Arrow(-1.0, 0.0, 5.0, 5.085, "offer", 0.085, False)
-    later = Arrow(0.0, -1.0, 5.02, 5.101, "ack", 0.081, False)
+    ack = TimelineArrow(0.0, -1.0, 5.0, 5.080, "ack", 0.080, False)
+    accept = TimelineArrow(0.0, -1.0, 5.0, 5.082, "accept", 0.082, False)
+    back = TimelineArrow(-1.0, 0.0, 5.0, 5.085, "offer", 0.085, False)
+    later = TimelineArrow(0.0, -1.0, 5.02, 5.101, "ack", 0.081, False)
     found = bundles([ack, accept, back, later], tolerance=0.005)
     assert [b.text() for b in found] == ["accept + ack +80–82 ms", "offer +85 ms",
                                          "ack +81 ms"]
@@ -373,9 +373,9 @@ def test_labels_claim_spots_new_kinds_first_then_repeats_then_acks():
     """Send order: an ack, an offer, its repeat, an accept. The offer and the accept are
     new kinds and claim first (in send order), then the repeat; the ack comes last."""
     from hybridteam.export.arrows import bundles, label_order
-    from hybridteam.export.timeline import Arrow
+    from hybridteam.export.timeline import TimelineArrow
 
-    sent = [Arrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
+    sent = [TimelineArrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
             for t, kind in ((1.0, "ack"), (2.0, "offer"), (3.0, "offer"), (4.0, "accept"))]
     order = [(b.types, new) for b, new in label_order(bundles(sent, 0.01))]
     assert order == [(["offer"], True), (["accept"], True), (["offer"], False),
