@@ -22,7 +22,7 @@ from rosbags.typesys import Stores, get_typestore
 import hybridteam as ht
 from hybridteam.cli import main
 from hybridteam.cli.common import load_trace
-from hybridteam.kinds import load as load_kind
+from hybridteam.kinds import load_any
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -39,7 +39,7 @@ def _example_teams() -> list[Path]:
         if "extending" in path.parts:
             continue
         try:
-            loaded = load_kind(str(path))
+            loaded = load_any(str(path))
         except Exception:
             continue
         if loaded.kind == "team":

@@ -16,7 +16,7 @@ from hybridteam.export.scxml import NotExpressible, agent_chart
 from hybridteam.io.filekind import Document, InputErrors, read_document
 from hybridteam.io.loader import FILE_KINDS, load_team
 from hybridteam.io.scxml import merge_chart, read_chart
-from hybridteam.kinds import load as load_any
+from hybridteam.kinds import load_any
 from hybridteam.model import ScenarioEvent
 from tests.conftest import EXAMPLES
 

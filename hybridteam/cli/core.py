@@ -71,12 +71,12 @@ def register(sub) -> dict:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hybridteam.io.filekind import InputErrors
-    from hybridteam.kinds import load
+    from hybridteam.kinds import load_any
 
     status = EXIT_OK
     for name in args.files:
         try:
-            loaded = load(name)
+            loaded = load_any(name)
         except InputErrors as exc:
             print_errors(exc)
             status = EXIT_USAGE
