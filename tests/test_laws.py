@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hybridteam as ht
-from hybridteam import laws, libraries
+from hybridteam import discovery, laws
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
 from hybridteam.engine.run.drivers import next_ticks
 from hybridteam.errors import ModelError
@@ -181,8 +181,8 @@ def test_libraries_are_found_through_entry_points(monkeypatch):
         return [FakeEntryPoint()]
 
     monkeypatch.setattr(metadata, "entry_points", entry_points)
-    monkeypatch.setattr(libraries, "_LOADED", False)
-    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.setattr(discovery, "_LOADED", False)
+    monkeypatch.setattr(discovery, "_BROKEN", {})
     monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
     assert "thirdparty.spin" not in laws._REGISTRY
     assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
@@ -201,8 +201,8 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
             import conveyors_missing_dependency  # noqa: F401
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [BrokenEntryPoint()])
-    monkeypatch.setattr(libraries, "_LOADED", False)
-    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.setattr(discovery, "_LOADED", False)
+    monkeypatch.setattr(discovery, "_BROKEN", {})
     with pytest.raises(laws.LawNotFound) as exc:
         laws.resolve("conveyor.belt")
     assert str(exc.value) == (
