@@ -188,9 +188,9 @@ class Simulator:
         ticks_only = not entering and discrete is not None and discrete.size == 0 \
             and not ens.world.any
         if not entering and not ticks_only:
-            every_one = slice(None) if idx.size == ens.n else idx  # a slice writes faster
-            ens.changed[every_one] = False
-            ens.reconfigured[every_one] = False
+            instances = slice(None) if idx.size == ens.n else idx  # a slice writes faster
+            ens.changed[instances] = False
+            ens.reconfigured[instances] = False
         if discrete is None:
             discrete = idx
         if ens.world.any:  # components see the state first; events they raise run now
