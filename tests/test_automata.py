@@ -192,36 +192,21 @@ def test_invariant_crossed_before_any_guard_is_stuck(team_from_yaml):
     assert run.diagnostics[0]["t"] == pytest.approx(1.0, abs=1e-11)
 
 
-def _count_true_steps(monkeypatch) -> dict[str, int]:
-    """Counts the true steps (the engine's ``estimate=False`` Runge–Kutta steps) taken
-    from now on, in ``calls["true"]``."""
-    from hybridteam.dynamics import rk
-    calls = {"true": 0}
-    step = rk.step
-
-    def counted(*args, estimate=True, **kwargs):
-        calls["true"] += not estimate
-        return step(*args, estimate=estimate, **kwargs)
-
-    monkeypatch.setattr(rk, "step", counted)
-    return calls
-
-
-def test_a_located_flow_crossing_costs_two_true_steps(monkeypatch):
+def test_a_located_flow_crossing_costs_two_true_steps():
     """Each thermostat switch is located with one true step at the dense-output guess
     (its exponential flow is not followed to a tolerance by the interpolant, so the
     bracket around the dense crossing does not confirm), a Newton correction from there,
     and one step confirming the bracket around it, which is final: the bracket is at most
     event_tol wide also after rounding (the search used to pay a third step to halve a
     bracket 1.0001 event_tol wide)."""
-    calls = _count_true_steps(monkeypatch)
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "thermostat.yaml"), duration=151.0)
     switches = guard_times(run)
     assert switches.size == 50
     assert np.max(np.abs(switches - thermostat_switches(50))) < 1e-8
     # 52 crossings located: the 50 guards', and at the first and the last switch the
     # invariant's comparison too (x <= high, x >= low), which flips there within rounding
-    assert calls["true"] == 2 * 52
+    assert run.costs.located == 52
+    assert run.costs.true_steps == 2 * 52
 
 
 def test_the_ball_stops_only_at_its_impacts():
@@ -246,7 +231,7 @@ def test_the_ball_stops_only_at_its_impacts():
     assert stops == {0.0, end, *impacts.tolist()}
 
 
-def test_flips_that_do_not_matter_are_judged_on_the_dense_output(monkeypatch):
+def test_flips_that_do_not_matter_are_judged_on_the_dense_output():
     """The apex (``v < 0`` flips while ``h <= 0`` is false) shares its sub-interval with
     the impact, so it is searched; its guard is false on the dense output there, as at the
     checkpoints, so it is not located on true steps. The impact is: its flow is a
@@ -254,13 +239,12 @@ def test_flips_that_do_not_matter_are_judged_on_the_dense_output(monkeypatch):
     the dense output's crossing confirms the bracket. One true step per impact, then (the
     search paid two at every apex and two at every impact, 76 in all). The impacts still
     match the closed form."""
-    calls = _count_true_steps(monkeypatch)
     end = float(np.mean(ball_impacts(21)[-2:]))  # between the 20th and 21st impacts
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "bouncing_ball.yaml"), duration=end)
     impacts = guard_times(run)
     assert impacts.size == 20
     assert np.max(np.abs(impacts - ball_impacts(20))) < 1e-9
-    assert calls["true"] == 20
+    assert run.costs.true_steps == 20
 
 
 def test_balls_dropped_from_several_heights_equal_single_runs_and_the_closed_form():

@@ -1,8 +1,9 @@
 """Flips that need not be located: a conjunct of a guard turning false.
 
 Just past such a flip the guard is false, so the crossing cannot matter; where nothing
-else would be learnt from locating it, the search skips it (``search._foregone``). The
-run must be the one the search gives when it locates every flip, bit for bit.
+else would be learnt from locating it, the search skips it. The run must be the one the
+search gives when it locates every flip (``search.SKIP_FOREGONE`` false), bit for bit, and
+it must have located fewer (``Run.costs.located``).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import hybridteam as ht
-from hybridteam.engine.run.crossing import search, segment
+from hybridteam.engine.run.crossing import search
 from hybridteam.expr.compiler import compile_expression
 
 BALL = Path(__file__).parents[1] / "examples" / "automata" / "bouncing_ball.yaml"
@@ -36,28 +37,13 @@ def test_the_conjuncts_of_a_condition(source, conjuncts):
 
 
 def _run(team, monkeypatch, skip: bool, n: int = 1):
-    """The run, and how many crossings its searches located (judged, or located directly:
-    a located crossing that ``judge`` passes on to ``locate`` counts once)."""
-    located = []
-    locate, judge = segment.Segment.locate, segment.Segment.judge
-
-    def counted(self, w, rows, *args, on_dense=None):
-        if on_dense is None:
-            located.append(rows.size)
-        return locate(self, w, rows, *args, on_dense=on_dense)
-
-    def counted_judge(self, w, rows, *args):
-        located.append(rows.size)
-        return judge(self, w, rows, *args)
-
+    """The run, and how many flips its searches located, with foregone flips skipped or
+    located."""
     with monkeypatch.context() as m:
-        m.setattr(segment.Segment, "locate", counted)
-        m.setattr(segment.Segment, "judge", counted_judge)
-        if not skip:
-            m.setattr(search, "_foregone", lambda *args: None)
+        m.setattr(search, "SKIP_FOREGONE", skip)
         run = ht.simulate(team, n=n, seed=list(range(n)) if n > 1 else None,
                           overrides={"ball.e": [0.7, 0.75, 0.8, 0.85][:n]} if n > 1 else None)
-    return run, sum(located)
+    return run, run.costs.located
 
 
 @pytest.mark.parametrize("n", [1, 4])
@@ -68,9 +54,9 @@ def test_skipping_foregone_flips_changes_no_bit_of_the_run(monkeypatch, n):
     located fewer crossings."""
     team = dataclasses.replace(ht.load(BALL), requirements=())
     fast, fewer = _run(team, monkeypatch, skip=True, n=n)
-    full, every_one = _run(team, monkeypatch, skip=False, n=n)
+    full, located_all = _run(team, monkeypatch, skip=False, n=n)
     assert fast.to_json() == full.to_json()
-    assert fewer < every_one
+    assert fewer < located_all
 
 
 BOTH_TRUE = """
@@ -95,11 +81,11 @@ def test_conjuncts_turning_true_are_still_located(team_from_yaml, monkeypatch):
     is at x = 1, t = 1, found by locating both flips; only flips to false are skipped."""
     team = team_from_yaml(BOTH_TRUE)
     fast, fewer = _run(team, monkeypatch, skip=True)
-    full, every_one = _run(team, monkeypatch, skip=False)
+    full, located_all = _run(team, monkeypatch, skip=False)
     (done,) = fast.transitions.filter(fast.transitions["target"] == "Done")
     assert done.t == pytest.approx(1.0, abs=1e-9)
     assert fast.to_json() == full.to_json()
-    assert fewer == every_one == 2
+    assert fewer == located_all == 2
 
 
 def test_no_flip_is_skipped_while_another_watched_atom_is_not_searched(team_from_yaml,
@@ -113,6 +99,6 @@ def test_no_flip_is_skipped_while_another_watched_atom_is_not_searched(team_from
     team = team_from_yaml(text.replace(anchor, anchor + "          - {to: Fall, guard: h > 100}\n"))
     team = dataclasses.replace(team, requirements=())
     fast, fewer = _run(team, monkeypatch, skip=True)
-    full, every_one = _run(team, monkeypatch, skip=False)
+    full, located_all = _run(team, monkeypatch, skip=False)
     assert fast.to_json() == full.to_json()
-    assert fewer == every_one
+    assert fewer == located_all

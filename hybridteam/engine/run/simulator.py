@@ -26,6 +26,7 @@ from hybridteam.engine.compile.compiled import CTeam, Watch
 from hybridteam.engine.run.access import EnsembleAccess
 from hybridteam.engine.run.budget import Pace, check_budget
 from hybridteam.engine.run.clock import Clock
+from hybridteam.engine.run.costs import Costs
 from hybridteam.engine.run.crossing import find_crossings, watch_truth
 from hybridteam.engine.run.discrete import discrete_phase
 from hybridteam.engine.run.drivers import sample_laws
@@ -120,6 +121,12 @@ class Simulator:
         #: has for its flowing rows
         self._no_rows = np.zeros(self.ensemble.n, bool)
         self._no_rows.flags.writeable = False
+
+    @property
+    def costs(self) -> Costs:
+        """What the crossing search did so far (:class:`.costs.Costs`): true steps and
+        flips located, the counters a test reads instead of wrapping the search."""
+        return self.ensemble.costs
 
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
