@@ -38,7 +38,7 @@ if TYPE_CHECKING:
 
 #: Pass foregone flips without locating them (:func:`_foregone`). The public switch of
 #: that shortcut: False locates every flip, the reference the shortcut must give bit for
-#: bit (``tests/test_foregone.py`` compares the two and reads :class:`.costs.Costs`).
+#: bit (``tests/engine/test_foregone.py`` compares the two and reads :class:`.costs.Costs`).
 SKIP_FOREGONE = True
 
 
