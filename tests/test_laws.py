@@ -236,6 +236,22 @@ def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, t
     assert ht.simulate(team).samples["r"][-1, 0, 0] == pytest.approx(2.0)  # 0.5 m/s for 4 s
 
 
+def test_a_law_default_named_as_a_state_is_refused_at_the_binding(team_from_yaml, tmp_path):
+    """ctx['theta'] reads a binding parameter before the state: a law whose default is
+    called ``theta`` would never see its robot's heading on a unicycle, so binding it there
+    is an error at ``use`` (a ``with:`` key of that name is refused at the key, see
+    tests/io/test_bad_input.py)."""
+    (tmp_path / "steer.py").write_text(
+        "import numpy as np\nfrom hybridteam.library import law\n\n"
+        "@law('tests.steer', params={'theta': 0.0})\n"
+        "def steer(ctx):\n"
+        "    return np.column_stack([np.ones(ctx.size), -ctx['theta']])\n")
+    with pytest.raises(InputErrors, match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: "
+                       r"binding parameter 'theta' of law 'tests.steer' has the name of a "
+                       r"state of this agent.*cannot be bound to this plant"):
+        make(team_from_yaml, "law: {use: 'steer:steer', period: 0.1}")
+
+
 def test_a_registered_name_of_a_module_beside_the_team_gets_a_hint(team_from_yaml, tmp_path):
     """The module beside the team is not imported for a registry name (only installed
     libraries are), so the name is unknown: the message says how to name it."""
