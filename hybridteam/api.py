@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.costs import Costs
 from hybridteam.engine.run.simulator import Simulator
 from hybridteam.model import Team
 from hybridteam.requirements.check import RequirementSet, compile_requirements
@@ -28,6 +29,12 @@ class Run(Trace):
     For an ensemble (``n > 1``) every table has an ``instance`` column;
     :meth:`instance` gives the run of one instance as if it had been simulated alone.
     """
+
+    #: What the crossing search cost in the simulation that made this run (true steps,
+    #: flips located; :class:`~hybridteam.engine.run.costs.Costs`), as scipy's ``nfev``
+    #: tells a ``solve_ivp`` result's. None for a run read back or taken apart (its
+    #: instances): only :func:`simulate` counts. Not part of the trace or its files.
+    costs: Costs | None = None
 
     @property
     def outcomes(self) -> list[str]:  # type: ignore[override]
@@ -194,6 +201,7 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
                     max_wall=max_wall, snapshots=bool(requirements),
                     observe=requirements.observers(cteam), written=written)
     run = Run.of(sim.run())
+    run.costs = sim.costs
     if requirements:
         check_requirements(run, requirements, sim)
     return run

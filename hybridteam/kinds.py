@@ -1,4 +1,4 @@
-"""The file kinds hybridteam reads, and dispatch to them: ``load``, ``validate``, ``schema``.
+"""The file kinds hybridteam reads, and dispatch to them: ``load_any``, ``validate``, ``schema``.
 
 Each package that defines a kind of file declares it as a
 :class:`~hybridteam.io.filekind.FileKind` in a ``FILE_KINDS`` tuple — team and protocol
@@ -30,7 +30,7 @@ def kinds() -> dict[str, FileKind]:
     return out
 
 
-def load(source: str | os.PathLike) -> Loaded:
+def load_any(source: str | os.PathLike) -> Loaded:
     """Load and fully validate any hybridteam file (kind told from its keys); raises
     :class:`~hybridteam.io.filekind.InputErrors` with located messages."""
     doc = read_document(source)

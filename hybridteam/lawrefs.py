@@ -26,7 +26,7 @@ from importlib import metadata
 from pathlib import Path
 from types import ModuleType
 
-from hybridteam.libraries import load_libraries
+from hybridteam.discovery import load_libraries
 
 
 class RefusedReference(LookupError):

@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 
 from hybridteam.arrays import sinc, spread
+from hybridteam.discovery import broken_note, load_libraries
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
-from hybridteam.libraries import broken_note, load_libraries
 
 
 class LawContext:

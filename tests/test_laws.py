@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hybridteam as ht
-from hybridteam import laws, libraries
+from hybridteam import discovery, laws
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
 from hybridteam.engine.run.drivers import next_ticks
 from hybridteam.errors import ModelError
@@ -181,8 +181,8 @@ def test_libraries_are_found_through_entry_points(monkeypatch):
         return [FakeEntryPoint()]
 
     monkeypatch.setattr(metadata, "entry_points", entry_points)
-    monkeypatch.setattr(libraries, "_LOADED", False)
-    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.setattr(discovery, "_LOADED", False)
+    monkeypatch.setattr(discovery, "_BROKEN", {})
     monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
     assert "thirdparty.spin" not in laws._REGISTRY
     assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
@@ -201,8 +201,8 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
             import conveyors_missing_dependency  # noqa: F401
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [BrokenEntryPoint()])
-    monkeypatch.setattr(libraries, "_LOADED", False)
-    monkeypatch.setattr(libraries, "_BROKEN", {})
+    monkeypatch.setattr(discovery, "_LOADED", False)
+    monkeypatch.setattr(discovery, "_BROKEN", {})
     with pytest.raises(laws.LawNotFound) as exc:
         laws.resolve("conveyor.belt")
     assert str(exc.value) == (
@@ -234,6 +234,22 @@ def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, t
                            body="law: {use: 'reader:reader', period: 0.1}")
     team = team_from_yaml(text.replace("{k: 0.5}", "{k: 0.5, k_along: 0.5}"))
     assert ht.simulate(team).samples["r"][-1, 0, 0] == pytest.approx(2.0)  # 0.5 m/s for 4 s
+
+
+def test_a_law_default_named_as_a_state_is_refused_at_the_binding(team_from_yaml, tmp_path):
+    """ctx['theta'] reads a binding parameter before the state: a law whose default is
+    called ``theta`` would never see its robot's heading on a unicycle, so binding it there
+    is an error at ``use`` (a ``with:`` key of that name is refused at the key, see
+    tests/io/test_bad_input.py)."""
+    (tmp_path / "steer.py").write_text(
+        "import numpy as np\nfrom hybridteam.library import law\n\n"
+        "@law('tests.steer', params={'theta': 0.0})\n"
+        "def steer(ctx):\n"
+        "    return np.column_stack([np.ones(ctx.size), -ctx['theta']])\n")
+    with pytest.raises(InputErrors, match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: "
+                       r"binding parameter 'theta' of law 'tests.steer' has the name of a "
+                       r"state of this agent.*cannot be bound to this plant"):
+        make(team_from_yaml, "law: {use: 'steer:steer', period: 0.1}")
 
 
 def test_a_registered_name_of_a_module_beside_the_team_gets_a_hint(team_from_yaml, tmp_path):

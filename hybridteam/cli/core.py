@@ -71,12 +71,12 @@ def register(sub) -> dict:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hybridteam.io.filekind import InputErrors
-    from hybridteam.kinds import load
+    from hybridteam.kinds import load_any
 
     status = EXIT_OK
     for name in args.files:
         try:
-            loaded = load(name)
+            loaded = load_any(name)
         except InputErrors as exc:
             print_errors(exc)
             status = EXIT_USAGE
@@ -240,8 +240,8 @@ def cmd_laws(args: argparse.Namespace) -> int:
     defaults, the names it reads from the agent, and its docstring's first paragraph."""
     import textwrap
 
+    from hybridteam.discovery import broken_note
     from hybridteam.laws import asked_names, registered, resolve
-    from hybridteam.libraries import broken_note
 
     names = [n for n in registered() if args.prefix is None or n.startswith(args.prefix)]
     if not names:

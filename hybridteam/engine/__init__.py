@@ -33,6 +33,7 @@ INTERNAL_API: dict[str, frozenset[str]] = {
     "compile.settings": frozenset({"default_parameters", "evaluate_setting"}),
     # running it: the loop, its state, and what a run may not exceed
     "run.simulator": frozenset({"Simulator"}),
+    "run.costs": frozenset({"Costs"}),
     "run.ensemble": frozenset({"Ensemble"}),
     "run.budget": frozenset({"ResourceError", "instances_within", "memory_estimate",
                              "memory_limit", "resident_bytes"}),

@@ -19,10 +19,7 @@ from matplotlib.collections import PolyCollection
 from hybridteam.export.style import HALO, text_color
 
 if TYPE_CHECKING:
-    # a timeline's arrows are written timeline.Arrow: hybridteam.export.sequence has an
-    # Arrow of its own, and a bare name in a hint cannot say which (the API reference asks)
-    from hybridteam.export import timeline
-    from hybridteam.export.timeline import TimelineData
+    from hybridteam.export.timeline import TimelineArrow, TimelineData
 
 ACK = "ack"  # the reliable layer's acknowledgement: labelled after the messages it answers
 
@@ -125,7 +122,7 @@ class Bundle:
     the request it answers leave at one instant and, with jitter, arrive milliseconds
     apart — two nearly parallel arrows that would get two labels on one spot."""
 
-    arrows: list[timeline.Arrow]
+    arrows: list[TimelineArrow]
     types: list[str] = field(default_factory=list)
 
     @property
@@ -142,7 +139,7 @@ class Bundle:
         return f"{' + '.join(names)} {span}"
 
 
-def bundles(arrows: list[timeline.Arrow], tolerance: float) -> list[Bundle]:
+def bundles(arrows: list[TimelineArrow], tolerance: float) -> list[Bundle]:
     """Delivered control arrows grouped into :class:`Bundle` s, in send order: an arrow
     joins the first bundle between the same lanes whose first arrow left and arrived
     within ``tolerance`` seconds of it."""
@@ -236,7 +233,7 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
     """
     lost: list[tuple[float, float]] = []
     drawn: set[tuple[float, float, float, float]] = set()
-    delivered: list[timeline.Arrow] = []
+    delivered: list[TimelineArrow] = []
     faint_lost: list[tuple[float, float]] = []
     for a in data.arrows:
         if a.lost and a.socket == "data":

@@ -7,7 +7,7 @@ mode's flow, inputs, law, invariant and outcome, a transition's ``after`` and
 ``priority``, sends — in the ``urn:hybridteam:scxml`` namespace, which other tools ignore.
 The plant, parameters and robot model stay in the team file: ``hybridteam convert`` puts
 a chart back into a team, and the agent then behaves as before (the traces are the same
-byte for byte; ``tests/test_scxml.py`` checks every example agent).
+byte for byte; ``tests/io/test_scxml.py`` checks every example agent).
 
 Not every agent can be written: one whose modes come from a protocol (their messages'
 acknowledgements and streams belong to the protocol), a protocol's operator, or one whose

@@ -24,7 +24,7 @@ FORMATS = ("mermaid", "plantuml")
 
 
 @dataclass(frozen=True)
-class Arrow:
+class SequenceArrow:
     """One message as drawn: endpoints, label and whether it was lost."""
 
     sender: str
@@ -50,7 +50,7 @@ def latency(t_send: float, t_recv: float) -> str:
 
 
 def arrows(trace: Trace, instance: int = 0,
-           sockets: Iterable[str] | None = ("control",)) -> list[Arrow]:
+           sockets: Iterable[str] | None = ("control",)) -> list[SequenceArrow]:
     """The messages of one instance on the chosen sockets (None: all), in send order."""
     table = trace.messages
     if len(table) == 0:
@@ -69,7 +69,7 @@ def arrows(trace: Trace, instance: int = 0,
         notes = copy_notes(str(r.reason or ""), lost)
         if notes:
             label += f" ({notes})"
-        out.append(Arrow(str(r.sender), str(r.receiver), label, lost))
+        out.append(SequenceArrow(str(r.sender), str(r.receiver), label, lost))
     return out
 
 
@@ -88,7 +88,7 @@ def copy_notes(reason: str, lost: bool) -> str:
     return ", ".join(parts)
 
 
-def _participants(trace: Trace, found: list[Arrow]) -> list[str]:
+def _participants(trace: Trace, found: list[SequenceArrow]) -> list[str]:
     """Agents in the team's order, then anyone else a message names (e.g. a broadcast)."""
     names = list(trace.agents)
     for a in found:
@@ -123,7 +123,7 @@ def _mermaid_text(text: str) -> str:
     return mermaid_text(text.replace(";", ","))
 
 
-def _mermaid(names: list[str], found: list[Arrow]) -> str:
+def _mermaid(names: list[str], found: list[SequenceArrow]) -> str:
     lines = ["sequenceDiagram"]
     for n in names:
         ident = _ident(n)
@@ -138,7 +138,7 @@ def _mermaid(names: list[str], found: list[Arrow]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _plantuml(names: list[str], found: list[Arrow]) -> str:
+def _plantuml(names: list[str], found: list[SequenceArrow]) -> str:
     lines = ["@startuml", "hide footbox"]
     for n in names:
         ident = _ident(n)

@@ -66,15 +66,20 @@ class Bar:
 
 
 @dataclass(frozen=True)
-class Mark:
-    lane: int  # a transition tick
+class TransitionMark:
+    """A transition drawn as a tick on its lane at time ``t``."""
+
+    lane: int
     t: float
     source: str
     target: str
 
 
 @dataclass(frozen=True)
-class Arrow:
+class TimelineArrow:
+    """A message copy drawn from its sender's lane at send time to its receiver's at
+    receipt (a lost copy has no receipt)."""
+
     y_send: float
     y_recv: float
     t_send: float
@@ -93,8 +98,8 @@ class TimelineData:
 
     lanes: list[Lane]
     bars: list[Bar]
-    marks: list[Mark]
-    arrows: list[Arrow]
+    marks: list[TransitionMark]
+    arrows: list[TimelineArrow]
     span: tuple[float, float] = (0.0, 1.0)  # x limits
     window: tuple[float, float] | None = None
     lost: int = 0  # lost control messages of the instance (summarised without a window)
@@ -244,7 +249,7 @@ def timeline_data(trace: Trace, instance: int = 0,
 
     tr = pick(trace.transitions, instance)
     bars: list[Bar] = []
-    marks: list[Mark] = []
+    marks: list[TransitionMark] = []
     legend: dict[str, dict[str, str]] = {}  # agent -> {mode path: colour}
     # modes the legend names: a stay entered and left at the same instant is a sliver no
     # reader can find, so its mode is named only if it also stays somewhere (a final mode
@@ -274,14 +279,15 @@ def timeline_data(trace: Trace, instance: int = 0,
         if window is not None:
             at = np.asarray(mine_tr["t"], float)
             mine_tr = mine_tr.filter((window[0] <= at) & (at <= window[1]))
-        marks += [Mark(index[(name, region_of(common_ancestor(a, b), regions), False)], t, a, b)
+        marks += [TransitionMark(index[(name, region_of(common_ancestor(a, b), regions),
+                                        False)], t, a, b)
                   for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
                                      mine_tr["target"].tolist(), strict=True)]
         for path in kinds:  # the legend follows the agent's model order, not the run
             if (name, path) in used:
                 legend.setdefault(name, {})[path] = colors.get(path, "#BBBBBB")
 
-    arrows: list[Arrow] = []
+    arrows: list[TimelineArrow] = []
     msgs = pick(trace.messages, instance)
     if len(msgs):  # copies still in flight when the run ended were not lost by the network
         msgs = msgs.filter(msgs["reason"] != "run ended")
@@ -302,8 +308,9 @@ def timeline_data(trace: Trace, instance: int = 0,
             continue
         is_lost = m.status == "lost"
         t_recv = math.nan if is_lost or m.t_recv is None else float(m.t_recv)
-        arrows.append(Arrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv, m.type,
-                            t_recv - m.t_send, is_lost, m.sender, m.receiver, str(m.socket)))
+        arrows.append(TimelineArrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv,
+                                    m.type, t_recv - m.t_send, is_lost, m.sender, m.receiver,
+                                    str(m.socket)))
     span = window if window is not None else (0.0, end_time(trace, instance))
     return TimelineData(lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped,
                         legend=legend, gap=gap)

@@ -324,7 +324,7 @@ def read_text(path: os.PathLike[str], name: str) -> str:
     return _decode(_read(path, name), name)
 
 
-def load(
+def compose_yaml(
     source: str | bytes | os.PathLike[str], *, filename: str | None = None
 ) -> tuple[Any, Positions]:
     """The implementation of :func:`hybridteam.io.yamlpos.load_yaml` (see there)."""

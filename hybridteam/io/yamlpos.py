@@ -241,6 +241,6 @@ def load_yaml(
     strings are always treated as text, never guessed to be paths). Returns the plain data and
     its :class:`Positions`. Any problem raises :class:`SourceError` and nothing else.
     """
-    from hybridteam.io.yamlcompose import load
+    from hybridteam.io.yamlcompose import compose_yaml
 
-    return load(source, filename=filename)
+    return compose_yaml(source, filename=filename)

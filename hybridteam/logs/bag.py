@@ -89,7 +89,7 @@ def read_bag(path: str | os.PathLike, team: Team,
                               list(meta.get("payloads") or []))
     with _BagFile(path) as bag:
         reading = _Reading(path, team, meta, bag.types, bag.read([RUN]).get(RUN), topics)
-        reading.load(bag.read(reading.wanted()))
+        reading.add_topics(bag.read(reading.wanted()))
     return reading.run(Run, check_trace)
 
 
@@ -193,7 +193,9 @@ class _Reading:
             names += [t for t in self.types if self._foreign(t)]
         return names
 
-    def load(self, bag: dict[str, _Topic]) -> None:
+    def add_topics(self, bag: dict[str, _Topic]) -> None:
+        """Take in the topics read from the bag (the wanted ones); ``t0`` becomes the
+        earliest stamp among them."""
         self.bag.update(bag)
         self.t0 = min((ns for t in self.bag.values() for ns in self._stamps(t)),
                       default=self.t0)

@@ -44,7 +44,7 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
-class PlantSpec(Strict):
+class KinematicsSpec(Strict):
     """Kinematics and actuator saturation; an input without a limit is free."""
 
     kind: Literal["unicycle", "holonomic"]
@@ -172,7 +172,7 @@ class RobotPreset(Strict):
 
     description: str = ""
     length_unit: str = "m"
-    plant: PlantSpec
+    plant: KinematicsSpec
     footprint: FootprintSpec
     sensors: dict[str, Sensor] = Field(default_factory=dict)
     manipulator: Manipulator | None = None

@@ -47,7 +47,7 @@ Results = Iterator[tuple[Chunk, dict[str, list[Any]]]]
 
 
 @dataclass
-class Outcome:
+class StudyResult:
     """What :func:`run_study` did: chunks computed now and found done, and the table."""
 
     plan: Plan
@@ -67,7 +67,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, client: Any = None, chunk: int | None = None,
               progress: bool | str = False, max_chunks: int | None = None,
               fmt: str | None = None,
-              connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> Outcome:
+              connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> StudyResult:
     """Run ``study`` into folder ``out`` and write its table; resume if ``out`` holds part.
 
     ``connect_timeout``: seconds to reach ``scheduler`` (:func:`~.cluster.connect`).
@@ -98,7 +98,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     if unknown:
         raise StudyError(f"{out}: chunk file '{unknown[0]}' belongs to no chunk of this "
                          "study; use another output folder")
-    result = Outcome(plan)
+    result = StudyResult(plan)
     for c in plan.chunks:  # a chunk is reused only if it verifies; else it is run again
         if c.id in done and (why := chunk_problem(done[c.id], c.size)) is not None:
             result.warnings.append(f"{done[c.id]}: {why}; computing chunk {c.id} again")

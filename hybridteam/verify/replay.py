@@ -35,7 +35,7 @@ from hybridteam.verify.explore import Graph
 from hybridteam.verify.machine import Machine
 from hybridteam.verify.runs import TOL, Replayer
 from hybridteam.verify.schedule import GAPS, Bound, solve
-from hybridteam.verify.steps import Step, bounds, follow
+from hybridteam.verify.steps import PathStep, bounds, follow
 
 #: the least times tried between a step the replay controls and the step before, when the
 #: run does not follow the path with the earliest moment (seconds)
@@ -50,7 +50,7 @@ class Replay:
 
     reproduced: bool
     reason: str
-    steps: list[Step]
+    steps: list[PathStep]
     times: list[float] = field(default_factory=list)
     run: object = None
     stop: int = -1  # the step the run could not follow (-1: none, or the whole path)
@@ -65,7 +65,7 @@ class Replay:
                                                            strict=False)]
 
 
-def _measured(sk: Skeleton, s: Step) -> bool:
+def _measured(sk: Skeleton, s: PathStep) -> bool:
     """Whether a step happens when the run makes it happen (not when the replay says)."""
     if s.kind == "world":
         return True
@@ -157,7 +157,7 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
             del fixed[later]  # measured with the earlier schedule
 
 
-def _final(r: Replayer, steps: list[Step], times: list[float], kind: str, name: str,
+def _final(r: Replayer, steps: list[PathStep], times: list[float], kind: str, name: str,
            horizon: float, loops: bool, gap: float) -> Replay:
     """The whole path scheduled: run on (to the end of the team's run after a dead end,
     five steps' time after a cycle or an invariant's violation) and check the property."""

@@ -13,7 +13,7 @@ import dataclasses
 import math
 from collections import Counter
 
-from hybridteam.verify.steps import Step
+from hybridteam.verify.steps import PathStep
 
 TOL = 1e-9  # seconds: moments this close are one (the engine adds the same floats)
 
@@ -37,7 +37,7 @@ class Script:
 class Replayer:
     """Runs the simulator on a schedule of the path's steps and compares the run."""
 
-    def __init__(self, team, cteam, reqs, steps: list[Step]) -> None:
+    def __init__(self, team, cteam, reqs, steps: list[PathStep]) -> None:
         """``reqs``: the team's compiled requirements (a replay's scenario leaves them as
         they are)."""
         self.team, self.cteam, self.reqs, self.steps = team, cteam, reqs, steps
@@ -133,7 +133,7 @@ class Replayer:
                          f"{less or 'nothing more'}")]
         return []
 
-    def measure(self, times: list[float], step: Step, horizon: float) -> float | None:
+    def measure(self, times: list[float], step: PathStep, horizon: float) -> float | None:
         """When a guard over time or state, or a world event, fires after the steps before
         it (which are at ``times``): the first transition of its agent in that run, looked
         for in ever longer runs up to ``horizon``."""

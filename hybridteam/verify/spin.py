@@ -7,7 +7,7 @@ with its own algorithms (a never claim from the LTL formula, nested depth-first 
 for acceptance cycles), independently of ours (sparse strongly connected components,
 backward search). A disagreement means one of the two property checks is wrong. The
 exploration itself, shared by both, is what the simulator cross-checks (replays and
-``tests/test_verify.py``).
+``tests/verify/test_verify.py``).
 
 The graph is held in C arrays (declared in a ``c_decl``, defined in ``graph.c``), so a
 model of a hundred thousand states still compiles in seconds; a step picks one successor

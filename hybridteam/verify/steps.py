@@ -24,7 +24,7 @@ from hybridteam.verify.schedule import Bound
 
 
 @dataclass
-class Step:
+class PathStep:
     """One step of a path, with what a replay needs to schedule and to check it."""
 
     kind: str  # initial, deliver, lose, dup, timer, scenario, world, time
@@ -47,7 +47,7 @@ class Step:
         return Counter(c[:3] for c in self.copies)
 
 
-def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
+def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[PathStep]:
     """The steps of ``path`` with the identity of every copy (which send of its link and
     type it is), found by re-running the path with the engine's own message ids on ``m``
     (a raw machine of capacity 1)."""
@@ -66,13 +66,13 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[Step]:
         ident.extend(new)
         return tuple(new)
 
-    steps = [Step("initial", "initial", _active(sk, raw), keys(raw.inflight),
+    steps = [PathStep("initial", "initial", _active(sk, raw), keys(raw.inflight),
                   _outbox(raw), _armed(m, m.armed0))]
     sent_at = {(e.sender, e.msg_id): 0 for e in raw.outbox}
     for a, b in pairwise(path):
         choice = g.edge_choice(a, b)
         rc, nxt = _match(m, raw, g.states[a], choice, g.states[b])
-        step = Step(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
+        step = PathStep(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
                     _outbox(nxt))
         if rc[0] in ("deliver", "lose", "dup"):
             step.key = ident[rc[1]]
@@ -161,7 +161,7 @@ def _match(m: Machine, raw: State, parent: State, choice: tuple, child: State
     raise AssertionError(f"the path's step {choice} cannot be followed")  # a bug: say so
 
 
-def bounds(sk: Skeleton, steps: list[Step], gap: float) -> list[Bound]:
+def bounds(sk: Skeleton, steps: list[PathStep], gap: float) -> list[Bound]:
     """The timing the engine imposes on the path (see :mod:`~hybridteam.verify.schedule`), with
     ``gap`` between consecutive steps."""
     names = [ca.name for ca in sk.original.agents]

@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from hybridteam.discovery import load_libraries
 from hybridteam.errors import ModelError
-from hybridteam.libraries import load_libraries
 
 if TYPE_CHECKING:
     from hybridteam.model import Team

@@ -3,7 +3,7 @@
 Through the engine the law runs for one instance at a time in a single run, and at that
 size each of :func:`.law.step`'s numpy calls costs its dispatch (about a microsecond) for
 one number: some 80 of them a period. Here the same IEEE operations run in the same order
-on floats, so every result has the array version's bits (``tests/test_ladder_law_one.py``
+on floats, so every result has the array version's bits (``tests/modes/test_ladder_law_one.py``
 checks that on random rows). The rules that keep it so:
 
 - ``+ - * /`` and :func:`math.sqrt` are the same correctly rounded operations in Python

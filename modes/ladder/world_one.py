@@ -6,7 +6,7 @@ then cost their dispatch for one number each. This twin does the same IEEE opera
 the same order (the rules and the one-row helpers are :mod:`.law_one`'s), keeps the same
 statistics and calls the world (``finish``, ``raise_event``) with the same arguments in
 the same order, so a run's trace has the array version's bits
-(``tests/test_ladder_law_one.py``). Where two robots coincide it declines, and the array
+(``tests/modes/test_ladder_law_one.py``). Where two robots coincide it declines, and the array
 version runs. Anyone editing ``LadderCorridor.update`` or :func:`.kernel.in_corner` must
 edit this twin too.
 """

@@ -21,10 +21,14 @@ if TYPE_CHECKING:
 
 
 def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
-                   params: dict[str, float], folder: str | None = None,
+                   parameters: dict[str, float], folder: str | None = None,
                    variables: Iterable[str] = ()) -> Driver | None:
     """The driver a mode declares (None: it declares none); ``folder`` is where the team
-    file lives, where ``module:function`` laws are looked for first."""
+    file lives, where ``module:function`` laws are looked for first.
+
+    ``parameters`` are the agent's (team ones included); a law binding's ``with:`` values
+    and the law's defaults are its *binding parameters* (``params`` of the binding, the
+    law and the driver)."""
     declared = [k for k in ("law", "inputs", "flow") if getattr(mode, k) is not None]
     at = mode.body or mode.where  # a role's body, where a protocol's mode plays the role
     if len(declared) > 1:
@@ -59,7 +63,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             e = col.expr(text, syms, (*at, "inputs", name))
             exprs_in.append(e)  # type: ignore[arg-type]
         period = mode.input_period
-        held = bool(period) and all(e is not None and e.names <= params.keys()
+        held = bool(period) and all(e is not None and e.names <= parameters.keys()
                                     for e in exprs_in)
         return Driver("sampled" if period else "continuous", idx, period=period or 0.0,
                       inputs=exprs_in, held=held)
@@ -88,7 +92,15 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
             e = col.expr(text, syms, (*b.where, "with", name))
             if e is not None:
                 pexprs[name] = e
-        known = {*pexprs, *plant.state_names, *params, *variables}
+        for name in sorted(pexprs.keys() & set(plant.state_names)):
+            # ctx[name] reads a binding parameter first: the law would never see the state
+            given = name in b.params
+            col.fail((*b.where, "with", name) if given else (*b.where, "use"),
+                     f"binding parameter '{name}' of law '{spec.name}' has the name of a "
+                     "state of this agent, so the law would read the parameter, never the "
+                     "state; " + ("rename the parameter" if given else
+                                   "the law cannot be bound to this plant"))
+        known = {*pexprs, *plant.state_names, *parameters, *variables}
         for name in sorted(asked_names(spec.fn) - known):
             col.fail((*b.where, "use"), f"law '{spec.name}' reads ctx[{name!r}], which is no "
                      "binding parameter, state, parameter or variable of this agent; give "

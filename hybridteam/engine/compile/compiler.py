@@ -86,7 +86,7 @@ class _Names:
     plant: Plant
     state: dict[str, int]
     variables: dict[str, int]
-    params: dict[str, float | str]  # team parameters, then the agent's (which override them)
+    parameters: dict[str, float | str]  # team parameters, then the agent's (overriding them)
     param_index: dict[str, int]
     syms: Mapping  # every name an expression of the agent may use
     param_syms: Mapping  # parameters only (initial values are evaluated before anything runs)
@@ -104,8 +104,8 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
         raise ModelErrors(col.errors) from None
     state_index = {n: j for j, n in enumerate(plant.state_names)}
     var_index = {n: j for j, n in enumerate(agent.variables)}
-    params = {**team_params, **agent.parameters}
-    param_index = {n: j for j, n in enumerate(params)}
+    parameters = {**team_params, **agent.parameters}
+    param_index = {n: j for j, n in enumerate(parameters)}
     seen: dict[str, str] = {}
     for kind, names in (("state", state_index), ("variable", var_index),
                         ("parameter", agent.parameters)):
@@ -120,13 +120,13 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
     # copied: a copy per agent made a team of thousands quadratic to compile
     extra = extra_symbols or {}
     param_syms = ChainMap(symbols({}, {}, param_index), extra)
-    defaults, derived = _derived(agent, params, param_index, param_syms, col)
-    return _Names(plant, state_index, var_index, params, param_index,
+    defaults, derived = _derived(agent, parameters, param_index, param_syms, col)
+    return _Names(plant, state_index, var_index, parameters, param_index,
                   ChainMap(symbols(state_index, var_index, param_index), extra),
                   param_syms, defaults, derived)
 
 
-def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str, int],
+def _derived(agent: Agent, parameters: dict[str, float | str], param_index: dict[str, int],
              param_syms: Mapping, col: Collector
              ) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
     """Default values of every parameter, and the agent's parameters written as
@@ -137,16 +137,16 @@ def _derived(agent: Agent, params: dict[str, float | str], param_index: dict[str
     ensemble's overrides (see :func:`.overrides.apply_overrides`), unless it is overridden
     itself. Its default is the expression on the defaults.
     """
-    values = np.zeros((1, len(params)))
+    values = np.zeros((1, len(parameters)))
     derived: list[tuple[int, Expression]] = []
     readable: set[str] = set()  # the parameters declared so far
     ctx = Ctx(np.zeros((1, 0)), np.zeros((1, 0)), values, np.zeros(1))
-    for name, value in params.items():
+    for name, value in parameters.items():
         j = param_index[name]
         if isinstance(value, str):
             where = (*agent.where, "parameters", name)
             expr = col.expr(value, param_syms, where)
-            later = sorted((expr.names - readable) & set(params)) if expr else []
+            later = sorted((expr.names - readable) & set(parameters)) if expr else []
             if later:
                 col.fail(where, f"parameter '{name}' reads '{later[0]}', which is not "
                          "declared above it", "a parameter may read the team's parameters "
@@ -221,7 +221,7 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
                      "composite enters one of its children while nothing is remembered; "
                      + ("a parallel mode enters all its regions: give it to a region"
                         if kind == "and" else "this mode has no children"))
-        driver = compile_driver(mode, idx, names.plant, names.syms, col, names.params,
+        driver = compile_driver(mode, idx, names.plant, names.syms, col, names.parameters,
                                 folder, names.variables)
         if driver is not None:
             drivers.append(driver)

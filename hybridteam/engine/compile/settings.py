@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from hybridteam.discovery import broken_note
 from hybridteam.engine.compile.values import require
 from hybridteam.errors import DocPath, ModelError, did_you_mean
 from hybridteam.expr import ExpressionError, compile_expression
-from hybridteam.libraries import broken_note
 from hybridteam.world.component import WorldComponent, lookup, registered
 
 if TYPE_CHECKING:

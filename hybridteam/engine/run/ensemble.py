@@ -21,6 +21,7 @@ from hybridteam.arrays import some
 from hybridteam.engine.compile.compiled import CTeam
 from hybridteam.engine.compile.protocols import stream_fields
 from hybridteam.engine.run.actions import entry_actions
+from hybridteam.engine.run.costs import Costs
 from hybridteam.engine.run.events import EventQueue
 from hybridteam.engine.run.network import Message, Network
 from hybridteam.engine.run.overrides import apply_overrides, split_overrides
@@ -107,6 +108,7 @@ class Ensemble:
         self.out_k = np.zeros(n, np.intp)
         self.next_out = np.full(n, self.sample_after[0])
         self.rec = Recorder(cteam, n, self.sample_times)
+        self.costs = Costs()  # what the crossing search did, read after the run
         self.queue = EventQueue(n, cteam.scenario)
         overrides, medium = split_overrides(cteam.agents, overrides)
         apply_overrides([st.ca for st in self.states], [st.p for st in self.states], n,

@@ -11,7 +11,7 @@ reschedule them), so the three are read together at the start of the step.
 For a few instances (a single run's one) the three reductions cost their dispatch, a few
 microseconds each for one number, so they are computed on Python floats, by numpy's rules:
 ``np.minimum`` propagates a NaN, ``np.fmin`` skips it, so both give the same values
-(``tests/test_schedule.py`` compares them). A tie between ``0.0`` and ``-0.0`` may keep
+(``tests/engine/test_schedule.py`` compares them). A tie between ``0.0`` and ``-0.0`` may keep
 either sign (numpy's own reductions keep one or the other depending on the array's
 length); the engine only compares these times, or takes the larger of the earliest and
 the clock, which keeps the clock's zero on a tie, so no sign reaches a result.

@@ -26,6 +26,7 @@ from hybridteam.engine.compile.compiled import CTeam, Watch
 from hybridteam.engine.run.access import EnsembleAccess
 from hybridteam.engine.run.budget import Pace, check_budget
 from hybridteam.engine.run.clock import Clock
+from hybridteam.engine.run.costs import Costs
 from hybridteam.engine.run.crossing import find_crossings, watch_truth
 from hybridteam.engine.run.discrete import discrete_phase
 from hybridteam.engine.run.drivers import sample_laws
@@ -121,6 +122,12 @@ class Simulator:
         self._no_rows = np.zeros(self.ensemble.n, bool)
         self._no_rows.flags.writeable = False
 
+    @property
+    def costs(self) -> Costs:
+        """What the crossing search did so far (:class:`.costs.Costs`): true steps and
+        flips located, the counters a test reads instead of wrapping the search."""
+        return self.ensemble.costs
+
     # ------------------------------------------------------------------ the run
     def run(self) -> Trace:
         ens = self.ensemble
@@ -188,9 +195,9 @@ class Simulator:
         ticks_only = not entering and discrete is not None and discrete.size == 0 \
             and not ens.world.any
         if not entering and not ticks_only:
-            every_one = slice(None) if idx.size == ens.n else idx  # a slice writes faster
-            ens.changed[every_one] = False
-            ens.reconfigured[every_one] = False
+            instances = slice(None) if idx.size == ens.n else idx  # a slice writes faster
+            ens.changed[instances] = False
+            ens.reconfigured[instances] = False
         if discrete is None:
             discrete = idx
         if ens.world.any:  # components see the state first; events they raise run now

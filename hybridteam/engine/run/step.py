@@ -106,6 +106,7 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
         sub = idx[r]
         s = rk.step(derivative(ens, a, sub), ens.t0[sub], x0[r], tau[r], ens.settings.rtol,
                     ens.settings.atol, estimate=False)
+        ens.costs.true_steps += 1
         out[r] = s.x1
     return out
 

@@ -20,7 +20,7 @@ makes an atom watched and on an external plant's readings); the simulator
 * :mod:`.illinois` — the Illinois (modified regula falsi) narrowing of many brackets at
   once;
 * :mod:`.floats` — a single run's search on Python floats: the same operations on the
-  same doubles as the array version, cheaper for one row (``tests/test_row_form.py``
+  same doubles as the array version, cheaper for one row (``tests/engine/test_row_form.py``
   compares the two).
 """
 

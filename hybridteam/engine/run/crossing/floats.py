@@ -6,7 +6,7 @@ invariant judged) has a float form (:attr:`hybridteam.expr.Atom.row`,
 :attr:`hybridteam.expr.Expression.row`), these functions do what
 :mod:`~hybridteam.engine.run.crossing.search`'s array versions do with the same IEEE
 operations on the same doubles, so they give the same truths, states and times
-(``tests/test_row_form.py`` runs the examples both ways).
+(``tests/engine/test_row_form.py`` runs the examples both ways).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ round cost far more than the trial points themselves. So once only a few bracket
 (a single run's one, the handful an ensemble's instances cross in one step), they are
 finished by :func:`_finish_few` on Python floats, the same operations in the same order on
 the same IEEE doubles: the same bits as the array rounds would give
-(``tests/test_illinois.py`` compares the two on random brackets), so a single run still
+(``tests/engine/test_illinois.py`` compares the two on random brackets), so a single run still
 equals its ensemble member.
 """
 
@@ -168,7 +168,7 @@ def illinois_one(one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: flo
                  ) -> tuple[float, float]:
     """:func:`illinois` for one bracket, on Python floats throughout (a single run's
     search: the array set-up of :func:`illinois` costs more than its rounds). The same
-    rounds on the same doubles, so the same bits (``tests/test_illinois.py``)."""
+    rounds on the same doubles, so the same bits (``tests/engine/test_illinois.py``)."""
     fa, fb = one(lo)[1], one(hi)[1]
     survived = slow = 0
     for _ in range(MAX_ITER):

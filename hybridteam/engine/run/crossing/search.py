@@ -36,6 +36,11 @@ from hybridteam.engine.run.step import AgentStep, state_at
 if TYPE_CHECKING:
     from hybridteam.engine.run.ensemble import Ensemble
 
+#: Pass foregone flips without locating them (:func:`_foregone`). The public switch of
+#: that shortcut: False locates every flip, the reference the shortcut must give bit for
+#: bit (``tests/engine/test_foregone.py`` compares the two and reads :class:`.costs.Costs`).
+SKIP_FOREGONE = True
+
 
 def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
                 t: np.ndarray, full: bool = False) -> np.ndarray:
@@ -262,9 +267,11 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
         cand, k, lo, hi, truth_lo = cand[keep], k[keep], lo[keep], hi[keep], truth_lo[keep]
         if cand.size == 0:
             return None
-    skip = _foregone(seg, w, cand, k, truth_lo, relevant) if from_start and not judged \
-        else None
+    skip = _foregone(seg, w, cand, k, truth_lo, relevant) \
+        if SKIP_FOREGONE and from_start and not judged else None
+    costs = seg.ens.costs
     if judged:
+        costs.located += cand.size
         tau_lo, tau = seg.locate(w, cand, lo, hi, truth_lo)
         matters, past = np.ones(cand.size, bool), None
     elif skip is not None and some(skip):
@@ -272,10 +279,12 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
         matters = np.zeros(cand.size, bool)
         past = np.full((cand.size, seg.step.x0.shape[1]), np.nan)
         go = where_true(~skip)
+        costs.located += go.size
         if go.size:
             tau_lo[go], tau[go], matters[go], past[go] = seg.judge(w, cand[go], lo[go],
                                                                    hi[go], truth_lo[go])
     else:
+        costs.located += cand.size
         tau_lo, tau, matters, past = seg.judge(w, cand, lo, hi, truth_lo)
     better = matters & (tau < best[cand])
     best[cand[better]] = tau[better]

@@ -96,6 +96,7 @@ class Segment:
                 derivs[key] = derivative(ens, a, sub[fp])
             step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
                            ens.settings.rtol, ens.settings.atol, estimate=False)
+            ens.costs.true_steps += 1
             out[flow] = step.x1
             for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
                 self.true_states[(r, tt)] = x
