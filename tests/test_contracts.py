@@ -1,10 +1,12 @@
 """The typed contracts between the engine and a library: what a law context reads of the
-engine (``LawRows``), ``WorldAccess`` as an abstract base class, and the ``py.typed``
-marker that lets a library's type checker read them."""
+engine (``LawRows``), ``WorldAccess`` as an abstract base class, the scene description a
+world component gives the views, and the ``py.typed`` marker that lets a library's type
+checker read them."""
 
 from __future__ import annotations
 
 import inspect
+import json
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,10 +14,24 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import hybridteam
+import hybridteam as ht
 from hybridteam.engine.run.access import EnsembleAccess
+from hybridteam.export.scene import scene_of
 from hybridteam.laws import Estimate, LawContext
-from hybridteam.library import WorldAccess
+from hybridteam.library import (
+    BarShape,
+    BoxShape,
+    CircleObstacle,
+    CollisionMark,
+    Footprint,
+    GuidePath,
+    PolygonObstacle,
+    Region,
+    SceneDescription,
+    WallObstacle,
+    WorldAccess,
+)
+from hybridteam.trace import Trace
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -148,7 +164,94 @@ def test_the_package_ships_its_py_typed_marker():
     """PEP 561: the marker sits in the package and the build includes it as package data
     (a marker left out of package-data is not installed, and type checkers then ignore
     the package's annotations)."""
-    package = Path(hybridteam.__file__).parent
+    package = Path(ht.__file__).parent
     assert (package / "py.typed").is_file()
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert "py.typed" in config["tool"]["setuptools"]["package-data"]["hybridteam"]
+
+
+# ---------------------------------------------------------------------- scene description
+EXPERIMENT3 = ROOT / "examples" / "transport" / "experiment3.yaml"
+
+
+def test_the_scene_of_experiment3_is_what_its_yaml_declares(tmp_path):
+    """The world of experiment3.yaml, as its components describe it and as the views read
+    it back from the trace file: the one circle of ``circles: [[-4.6, -0.2, 0.15]]``, the
+    0.8 x 0.5 box of the payload, and the robots' preset footprints (presets.yaml:
+    labmate 0.35, xr4000 0.33, scout 0.2); no corridor walls, regions or guide paths."""
+    run = ht.simulate(ht.load(EXPERIMENT3), duration=0.5)
+    expected = SceneDescription(
+        obstacles=(CircleObstacle(-4.6, -0.2, 0.15),),
+        payloads={"box": BoxShape(width=0.8, depth=0.5)},
+        footprints={"xr4000": Footprint(0.33), "labmate": Footprint(0.35),
+                    "scout": Footprint(0.2)})
+    assert SceneDescription.from_meta(run.meta) == expected
+    run.to_json(tmp_path / "trace.json")
+    assert scene_of(Trace.load(tmp_path / "trace.json")) == expected
+
+
+def test_the_trajectory_plot_draws_the_described_obstacle():
+    """The views draw what the description says: one grey disk at (-4.6, -0.2) of radius
+    0.15 for the obstacle, the box's outline of 0.8 x 0.5 at its start pose."""
+    from matplotlib.patches import Circle
+
+    from hybridteam.export.trajectories import trajectory_figure
+
+    run = ht.simulate(ht.load(EXPERIMENT3), duration=0.5)
+    fig = trajectory_figure(run, instance=0)
+    (disk,) = [p for ax in fig.axes for p in ax.patches if p.get_gid() == "obstacle"]
+    assert isinstance(disk, Circle)
+    assert disk.center == pytest.approx((-4.6, -0.2)) and disk.radius == pytest.approx(0.15)
+    (box,) = [c for ax in fig.axes for c in ax.collections if c.get_gid() == "payload:box"]
+    corners = box.get_paths()[0].vertices[:4]  # the first outline: pose (0.85, 0, 0)
+    assert sorted(map(tuple, corners.round(9).tolist())) == \
+        [(0.45, -0.25), (0.45, 0.25), (1.25, -0.25), (1.25, 0.25)]
+
+
+def test_a_scene_description_keeps_the_trace_keys_and_reads_back():
+    """Each part serializes to the keys traces have always had (what hand-written and old
+    traces hold), and the trace form reads back to the same description."""
+    scene = SceneDescription(
+        walls=((0.0, 0.0, 1.0, 0.0),),
+        regions=(Region(((0.0, 0.0), (1.0, 0.0), (1.0, 1.0)), "corner"),),
+        obstacles=(WallObstacle((2.0, -1.0), (2.0, 1.0)), CircleObstacle(3.0, 0.5, 0.1),
+                   PolygonObstacle(((4.0, 0.0), (5.0, 0.0), (5.0, 1.0), (4.0, 1.0)))),
+        units="units",
+        paths=(GuidePath(0, "a", ((0.0, 0.0), (1.0, 1.0))),),
+        collisions=(CollisionMark(1, "a", 2.5, 0.25, 0.75),),
+        payloads={"beam": BarShape(2.0), "ladder": BarShape(3.0, 6.0)},
+        footprints={"a": Footprint(0.3)})
+    meta = scene.to_meta()
+    assert meta == {
+        "world": {
+            "walls": [[0.0, 0.0, 1.0, 0.0]],
+            "regions": [{"points": [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], "label": "corner"}],
+            "obstacles": [{"kind": "wall", "points": [[2.0, -1.0], [2.0, 1.0]]},
+                          {"kind": "circle", "x": 3.0, "y": 0.5, "r": 0.1},
+                          {"kind": "box",
+                           "points": [[4.0, 0.0], [5.0, 0.0], [5.0, 1.0], [4.0, 1.0]]}],
+            "units": "units",
+            "paths": [{"instance": 0, "agent": "a", "points": [[0.0, 0.0], [1.0, 1.0]]}],
+            "collisions": [{"instance": 1, "who": "a", "t": 2.5, "x": 0.25, "y": 0.75}]},
+        "payloads": ["beam", "ladder"],
+        "payload_shapes": {"beam": {"kind": "bar", "length": 2.0},
+                           "ladder": {"kind": "bar", "length": 3.0, "width": 6.0}},
+        "footprints": {"a": {"radius": 0.3}}}
+    assert SceneDescription.from_meta(json.loads(json.dumps(meta))) == scene
+    assert SceneDescription().to_meta() == {}  # a component that draws nothing adds nothing
+    # a guide path or mark without an instance is drawn in every instance
+    loose = SceneDescription.from_meta({"world": {"paths": [{"agent": "a", "points": [[0, 0]]}]}})
+    assert loose.paths_of(5) == loose.paths and loose.paths[0].instance is None
+
+
+def test_a_component_still_defining_meta_is_refused_at_registration():
+    """The untyped ``meta()`` dict is gone; a library still defining it would have its
+    drawing silently dropped, so registering it is an error that names the replacement."""
+    from hybridteam.library import WorldComponent, world_component
+
+    class Old(WorldComponent):
+        def meta(self) -> dict:
+            return {"world": {}}
+
+    with pytest.raises(TypeError, match=r"defines meta\(\).*describe\(\)"):
+        world_component("test.old_meta")(Old)
