@@ -15,7 +15,7 @@ import inspect
 import textwrap
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -24,14 +24,107 @@ from hybridteam.discovery import broken_note, load_libraries
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 
 
+class StreamInbox(Protocol):
+    """The latest copies of the data streams an agent received, for the rows a law runs
+    on: what :meth:`LawContext.estimate` reads. ``message`` is a stream's message type,
+    ``who`` one sender per row (an agent index; -1 where nothing has arrived)."""
+
+    def carries(self, message: str, /) -> bool:
+        """Whether some protocol of the team sends this stream (else a law asking for it
+        has a wrong name)."""
+        ...
+
+    def sender(self, message: str, sender: np.ndarray | None = None, /) -> np.ndarray:
+        """The chosen sender per row: ``sender`` where given, else the most recent one."""
+        ...
+
+    def fields(self, message: str, who: np.ndarray, /) -> dict[str, np.ndarray]:
+        """Every field of the latest copies from senders ``who``: name -> ``(m,)``."""
+        ...
+
+    def sent(self, message: str, sender: np.ndarray | None = None, /) -> np.ndarray:
+        """When the chosen sender's latest copy was sent (-inf where none arrived)."""
+        ...
+
+
+class LawWorld(Protocol):
+    """One agent's window on the world components and on its law's memory, for the rows a
+    law runs on: what :meth:`LawContext.sense`, :meth:`~LawContext.recall` and
+    :meth:`~LawContext.keep` read and write."""
+
+    def instances(self) -> np.ndarray:
+        """Which ensemble instances the rows are."""
+        ...
+
+    def sense(self, name: str, /) -> np.ndarray:
+        """What a world component lets this agent sense as ``name``: ``(m, ...)``."""
+        ...
+
+    def recall(self, name: str, initial: float, /) -> np.ndarray:
+        """The memory ``name`` per row (``initial`` where never kept)."""
+        ...
+
+    def keep(self, name: str, values: np.ndarray, /) -> None:
+        """Store the memory ``name`` for these rows."""
+        ...
+
+
+class LawRows(Protocol):
+    """The engine's side of a :class:`LawContext`: the ``m`` instances a law is evaluated
+    on, as the engine holds them. Every array has ``m`` rows; columns are addressed by
+    the name indexes the context is built with (a plant's state order, the agent's
+    parameters and variables). The engine's implementation is its expression context
+    (``hybridteam.engine.compile.compiled.Ctx``), which also evaluates binding parameters:
+    the context hands this same object to them."""
+
+    @property
+    def state(self) -> np.ndarray:
+        """Plant states ``(m, d)``."""
+        ...
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """Agent parameters, team parameters included, after a run's overrides ``(m, P)``."""
+        ...
+
+    @property
+    def variables(self) -> np.ndarray:
+        """Discrete variables ``(m, V)``."""
+        ...
+
+    @property
+    def time(self) -> np.ndarray:
+        """Time of each instance ``(m,)``."""
+        ...
+
+    @property
+    def time_in_mode(self) -> np.ndarray:
+        """Time since the law's mode was entered ``(m,)``."""
+        ...
+
+    @property
+    def streams(self) -> StreamInbox | None:
+        """The agent's received data streams (None for a team without data streams)."""
+        ...
+
+    @property
+    def world(self) -> LawWorld:
+        """The agent's world components and law memory."""
+        ...
+
+
 class LawContext:
-    """What a law sees for the ``m`` instances it is evaluated on."""
+    """What a law sees for the ``m`` instances it is evaluated on.
+
+    Built by the engine over a :class:`LawRows` (its view of those instances); a law
+    reads only the members below, which are the stable contract (``docs/extending.md``).
+    """
 
     __slots__ = ("_ctx", "_params", "_pnames", "_tables", "_values", "_vnames", "_xnames",
                  "agent", "inputs")
 
-    def __init__(self, ctx, params: Mapping[str, Callable[[Any], Any]], agent: str,
-                 state_names: Mapping[str, int], var_names: Mapping[str, int],
+    def __init__(self, ctx: LawRows, params: Mapping[str, Callable[[LawRows], Any]],
+                 agent: str, state_names: Mapping[str, int], var_names: Mapping[str, int],
                  param_names: Mapping[str, int], inputs: tuple[str, ...],
                  tables: dict[tuple[str, ...], np.ndarray | None] | None = None) -> None:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
@@ -47,20 +140,23 @@ class LawContext:
 
     @property
     def t(self) -> np.ndarray:
-        return self._ctx.t
+        """Time of each instance, shape (m,)."""
+        return self._ctx.time
 
     @property
     def t_in_mode(self) -> np.ndarray:
-        return self._ctx.t_in
+        """Time since the law's mode was entered, shape (m,)."""
+        return self._ctx.time_in_mode
 
     @property
     def state(self) -> np.ndarray:
         """Plant state, shape (m, d), columns in the plant's order (x, y, theta, ...)."""
-        return self._ctx.x
+        return self._ctx.state
 
     @property
     def size(self) -> int:
-        return self._ctx.x.shape[0]
+        """``m``: how many instances (rows) the law is evaluated on."""
+        return self._ctx.state.shape[0]
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A binding parameter, state component, agent parameter or variable, by name."""
@@ -69,11 +165,11 @@ class LawContext:
                 self._values[name] = self._binding(name)
             return self._values[name]
         if name in self._xnames:
-            return self._ctx.x[:, self._xnames[name]]
+            return self._ctx.state[:, self._xnames[name]]
         if name in self._pnames:
-            return self._ctx.p[:, self._pnames[name]]
+            return self._ctx.parameters[:, self._pnames[name]]
         if name in self._vnames:
-            return self._ctx.v[:, self._vnames[name]]
+            return self._ctx.variables[:, self._vnames[name]]
         raise KeyError(f"law for agent '{self.agent}' asked for unknown name '{name}'")
 
     def table(self, names: tuple[str, ...]) -> np.ndarray:
@@ -88,7 +184,8 @@ class LawContext:
         except KeyError:
             cols = self._tables[names] = self._columns(names)
         if cols is not None:
-            return self._ctx.p.take(cols, 1)  # p[:, cols], without numpy 2's index iterator
+            # parameters[:, cols], without numpy 2's index iterator
+            return self._ctx.parameters.take(cols, 1)
         out = np.empty((self.size, len(names)))
         for j, n in enumerate(names):
             out[:, j] = self[n]
@@ -126,8 +223,8 @@ class LawContext:
         all of them (the rule is in :func:`_dead_reckon`) — the paper's x̂_l for a leader
         whose last message is a few periods old.
         """
-        view = self._ctx.e
-        if view is None or message not in view.box.fields:
+        view = self._ctx.streams
+        if view is None or not view.carries(message):
             raise KeyError(f"law for agent '{self.agent}' asked for stream '{message}', "
                            "which no protocol of this team sends")
         who = view.sender(message, None if sender is None else np.asarray(sender))
@@ -140,21 +237,21 @@ class LawContext:
     @property
     def instances(self) -> np.ndarray:
         """Which ensemble instances these rows are (e.g. to key per-instance caches)."""
-        return self._ctx.w.instances()
+        return self._ctx.world.instances()
 
     def sense(self, name: str) -> np.ndarray:
         """What a world component lets this robot sense (a grasp offset, the ladder's ends),
         computed from the whole team's state at this instant; shape (m, ...)."""
-        return self._ctx.w.sense(name)
+        return self._ctx.world.sense(name)
 
     def recall(self, name: str, initial: float = 0.0) -> np.ndarray:
         """The law's memory ``name`` per instance (``initial`` before it was ever kept):
         the state of a discrete-time controller, kept from one period to the next."""
-        return self._ctx.w.recall(name, initial)
+        return self._ctx.world.recall(name, initial)
 
     def keep(self, name: str, values: np.ndarray) -> None:
         """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
-        self._ctx.w.keep(name, np.asarray(values, dtype=float))
+        self._ctx.world.keep(name, np.asarray(values, dtype=float))
 
     def capture(self, name: str, who: np.ndarray, fresh: Mapping[str, np.ndarray],
                 where: np.ndarray) -> dict[str, np.ndarray]:

@@ -21,8 +21,12 @@ engine and a library:
   engine resolves it (parameters after overrides, settings, initial states) and the
   team's shape as plain read-only values.
 
-The engine may change anything else between versions; these three and the registration
-decorators are kept stable and documented.
+A component says what the views draw of it (walls, obstacles, regions, guide paths,
+payload outlines, robots' footprints) with a :class:`SceneDescription` and its parts
+(:mod:`hybridteam.world.scene`).
+
+The engine may change anything else between versions; these three, the scene description
+and the registration decorators are kept stable and documented.
 """
 
 from __future__ import annotations
@@ -39,20 +43,42 @@ from hybridteam.world.request import (
     OneLaw,
     TransitionShape,
 )
+from hybridteam.world.scene import (
+    BarShape,
+    BoxShape,
+    CircleObstacle,
+    CollisionMark,
+    Footprint,
+    GuidePath,
+    PolygonObstacle,
+    Region,
+    SceneDescription,
+    WallObstacle,
+)
 
 __all__ = [
     "Agent",
     "AgentShape",
+    "BarShape",
     "BatchRequest",
+    "BoxShape",
+    "CircleObstacle",
+    "CollisionMark",
     "Estimate",
+    "Footprint",
+    "GuidePath",
     "LawContext",
     "LawFunction",
     "LawSpec",
     "ModeShape",
     "ModelError",
     "OneLaw",
+    "PolygonObstacle",
+    "Region",
+    "SceneDescription",
     "Team",
     "TransitionShape",
+    "WallObstacle",
     "WorldAccess",
     "WorldComponent",
     "law",

@@ -21,6 +21,7 @@ from hybridteam.cli.common import (
     EXIT_USAGE,
     Parser,
     UsageError,
+    library_logging,
     say,
     show_warning,
 )
@@ -47,7 +48,9 @@ def _main(argv: Sequence[str] | None) -> int:
     parser, commands = _parser()
     args = parser.parse_args(argv)
     try:
-        return commands[args.command](args)
+        # a live process logs at its --log-level (launch's is its processes', not its own)
+        with library_logging(args.log_level if args.command == "live" else None):
+            return commands[args.command](args)
     except UsageError as exc:
         say(f"hybridteam: error: {exc}")
         return EXIT_USAGE

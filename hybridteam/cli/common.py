@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -41,6 +44,43 @@ def show_warning(message: Warning | str, category: type[Warning], filename: str,
     escapes."""
     text = warnings.formatwarning(message, category, filename, lineno, line)
     (file or sys.stderr).write(printable(text))
+
+
+class _Stderr(logging.Handler):
+    """Records printed on the standard error of the moment (a test's capture included),
+    their control characters escaped as :func:`say` escapes them. Without a formatter a
+    record reads as the command line's own messages do: ``hybridteam: warning: ...``."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = self.format(record) if self.formatter is not None else \
+                f"hybridteam: {record.levelname.lower()}: {record.getMessage()}"
+            print(printable(text), file=sys.stderr)
+        except Exception:
+            self.handleError(record)  # logging's rule: a handler never raises
+
+
+@contextmanager
+def library_logging(level: str | None) -> Iterator[None]:
+    """The command line's one logging setup, for the duration of a command: what the
+    library logs (the ``hybridteam`` loggers) is printed on stderr. A command with a
+    ``--log-level`` (a live process) prints every record from that level with its time and
+    module; every other command prints warnings and errors as its own messages
+    (``hybridteam: warning: ...``). Undone when the command returns, so a program (or a
+    test) calling :func:`hybridteam.cli.main` keeps its own logging."""
+    logger = logging.getLogger("hybridteam")
+    handler = _Stderr()
+    if level is not None:
+        handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: "
+                                               "%(message)s"))
+    old = logger.level
+    logger.setLevel(logging.WARNING if level is None else level.upper())
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)
 
 
 class Parser(argparse.ArgumentParser):

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import math
 import os
 import signal
@@ -213,8 +212,6 @@ def live_process(args: argparse.Namespace) -> int:
         raise UsageError(f"--world-timeout must be a finite number > 0, got "
                          f"{args.world_timeout}")
     out = output_folder(args.output)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s: %(message)s")
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE

@@ -20,7 +20,6 @@ from hybridteam.cli.common import (
     check_connect_timeout,
     output_folder,
     print_errors,
-    say,
 )
 from hybridteam.progress import MODES
 
@@ -89,8 +88,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"hybridteam: interrupted; the finished chunks are kept in {out}/chunks — "
               "run the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
-    for warning in result.warnings:
-        say(f"hybridteam: warning: {warning}")
+    # result.warnings were logged as they arose, printed by main's library_logging
     if not args.quiet:
         plan = result.plan
         tally: dict[str, int] = {}

@@ -34,9 +34,10 @@ from hybridteam.export.scene import (
     planar_agents,
     pose,
     scene_extent,
+    scene_of,
 )
 from hybridteam.export.style import FONT, HALO, PALETTE
-from hybridteam.export.timeline import agent_meta, end_time, pick
+from hybridteam.export.timeline import end_time, pick
 from hybridteam.export.trajectories import draw_flow, main_lane_intervals
 from hybridteam.trace import Trace, temp_path
 
@@ -242,16 +243,17 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
     messages as lines from sender to receiver while in flight (and ``linger`` seconds after
     they were sent, so a 30 ms message is seen at all), lost ones dashed red; a red star
     where a robot or payload collided, from that moment on."""
-    world = trace.meta.get("world")
-    draw_world(ax, world)
-    draw_guides(ax, world, instance, agents)
+    scene = scene_of(trace)
+    draw_world(ax, scene)
+    draw_guides(ax, scene, instance, agents)
     poses = {a: pose(trace, a, instance) for a in agents}
     extent = max(limits[1] - limits[0], limits[3] - limits[2])
     robots = []
     for i, a in enumerate(agents):
         p, color = poses[a], PALETTE[i % len(PALETTE)]
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, alpha=0.25)  # where it will go
-        radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
+        foot = scene.footprints.get(a)
+        radius = foot.radius if foot else None
         r = float(radius) if radius else 0.02 * max(extent, 1e-9)
         trail = ax.plot([], [], color=color, linewidth=1.6, zorder=4)[0]
         body = ax.add_patch(Circle((np.nan, np.nan), r, facecolor=color, alpha=0.35,
@@ -269,7 +271,7 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
     ax.set_ylim(limits[2], limits[3])
     ax.set_aspect("equal", adjustable="box")
     ax.grid(color="#E0E0E0", linewidth=0.6)
-    unit = (world or {}).get("units", "m")
+    unit = scene.unit
     ax.set_xlabel(f"x ({unit})" if unit else "x")
     ax.set_ylabel(f"y ({unit})" if unit else "y")
 

@@ -1,8 +1,10 @@
 """The scene of a planar run: the world it moved in and the payloads it carried.
 
 Shared by the trajectory plot and the animation: what is a robot and what is a load in a
-trace, the walls, obstacles, regions and guide paths (``meta.world``), payload outlines at
-their poses, and the extent of all of it, which both views fit their axes to.
+trace, the walls, obstacles, regions and guide paths, payload outlines at their poses, and
+the extent of all of it, which both views fit their axes to. What is drawn of the world is
+the trace's typed :class:`~hybridteam.world.scene.SceneDescription` (:func:`scene_of`),
+which the world components described.
 """
 
 from __future__ import annotations
@@ -18,13 +20,25 @@ from matplotlib.patches import Circle, Polygon
 from hybridteam.export.style import PALETTE
 from hybridteam.export.timeline import agent_meta
 from hybridteam.trace import Trace
+from hybridteam.world.scene import (
+    DEFAULT_PAYLOAD_SHAPE,
+    CircleObstacle,
+    CollisionMark,
+    PayloadShape,
+    SceneDescription,
+    WallObstacle,
+)
 
 
 # ---------------------------------------------------------------------- what is what
+def scene_of(trace: Trace) -> SceneDescription:
+    """What the trace says the views draw of its world (its components' descriptions)."""
+    return SceneDescription.from_meta(trace.meta)
+
+
 def payload_names(trace: Trace) -> list[str]:
-    names = [p["name"] if isinstance(p, dict) else str(p)
-             for p in trace.meta.get("payloads", []) or []]
-    return [p for p in names if p in trace.samples]
+    """The payloads the trace has pose samples of, in declaration order."""
+    return [p for p in scene_of(trace).payloads if p in trace.samples]
 
 
 def planar_agents(trace: Trace) -> list[str]:
@@ -59,49 +73,47 @@ def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- world and payloads
-def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
+def draw_world(ax: Any, scene: SceneDescription) -> None:
     """Walls, obstacles and labelled regions, under everything else."""
-    if not world:
-        return
-    for region in world.get("regions", []) or []:
-        pts = np.asarray(region["points"] if isinstance(region, dict) else region, float)
+    for region in scene.regions:
+        pts = np.asarray(region.outline, float)
         ax.add_patch(Polygon(pts, closed=True, facecolor="#F2E6B8", edgecolor="#C8B46A",
                              alpha=0.6, zorder=0, gid="region"))
-        label = region.get("label") if isinstance(region, dict) else None
-        if label:
+        if region.label:
             cx, cy = pts.mean(axis=0)
-            ax.text(cx, cy, label, ha="center", va="center", fontsize=8, color="#7A6A2A",
-                    zorder=1, gid="region-label")
+            ax.text(cx, cy, region.label, ha="center", va="center", fontsize=8,
+                    color="#7A6A2A", zorder=1, gid="region-label")
     thin = []
-    for ob in world.get("obstacles", []) or []:
+    for ob in scene.obstacles or ():
         style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1.8,  # over the grid
                  "gid": "obstacle"}
-        if ob.get("kind") == "circle":
-            ax.add_patch(Circle((ob["x"], ob["y"]), ob["r"], **style))
-        elif ob.get("kind") == "wall":  # no thickness: a heavy grey stroke
-            thin.append(np.asarray(ob["points"], float))
+        if isinstance(ob, CircleObstacle):
+            ax.add_patch(Circle((ob.x, ob.y), ob.r, **style))
+        elif isinstance(ob, WallObstacle):  # no thickness: a heavy grey stroke
+            thin.append(np.asarray((ob.start, ob.end), float))
         else:
-            ax.add_patch(Polygon(np.asarray(ob["points"], float), closed=True, **style))
+            ax.add_patch(Polygon(np.asarray(ob.corners, float), closed=True, **style))
     if thin:
         ax.add_collection(LineCollection(thin, colors="#9A9A9A", linewidths=4.0, zorder=1.8,
                                          capstyle="round", gid="obstacle-walls"))
-    walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
+    walls = np.asarray(scene.walls, float).reshape(-1, 4)
     if len(walls):
         ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
                                          linewidths=2.5, zorder=2, gid="walls"))
 
 
-def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
+def draw_guides(ax: Any, scene: SceneDescription, instance: int,
                 agents: Sequence[str]) -> None:
-    """Planned paths (``world.paths``: instance, agent, points), dashed in the agent's colour."""
-    for entry in (world or {}).get("paths", []) or []:
-        if entry.get("instance", instance) != instance or entry.get("agent") not in agents:
+    """Planned paths of ``instance`` (:class:`~hybridteam.world.scene.GuidePath`), dashed
+    in the agent's colour."""
+    for entry in scene.paths_of(instance):
+        if entry.agent not in agents:
             continue
-        pts = np.asarray(entry["points"], float)
-        color = PALETTE[list(agents).index(entry["agent"]) % len(PALETTE)]
+        pts = np.asarray(entry.points, float)
+        color = PALETTE[list(agents).index(entry.agent) % len(PALETTE)]
         ax.plot(pts[:, 0], pts[:, 1], color=color, linewidth=0.9, linestyle=(0, (4, 3)),
-                alpha=0.8, zorder=3, label=f"{entry['agent']} guide path",
-                gid=f"guide:{entry['agent']}")
+                alpha=0.8, zorder=3, label=f"{entry.agent} guide path",
+                gid=f"guide:{entry.agent}")
 
 
 #: how a collision is marked, in the trajectories and the animation alike
@@ -114,10 +126,8 @@ def collision_marks(trace: Trace, instance: int) -> list[tuple[float, float, flo
     ``instance``, in time order (``world.collisions``, recorded by the obstacles component
     under ``on_collision: warn`` or ``outcome``): a run told to go on through collisions
     shows where they were, not only a list in the summary."""
-    found = [(float(c["t"]), float(c["x"]), float(c["y"]), str(c["who"]))
-             for c in (trace.meta.get("world") or {}).get("collisions", []) or []
-             if c.get("instance", instance) == instance]
-    return sorted(found)
+    marks: tuple[CollisionMark, ...] = scene_of(trace).collisions_of(instance)
+    return sorted((c.t, c.x, c.y, c.who) for c in marks)
 
 
 def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, float]:
@@ -125,22 +135,23 @@ def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, floa
     guide paths, the robots' paths with their footprints, and the payloads' outlines. The
     axes are fitted to it, so a narrow corridor fills the plot instead of a square around
     it (equal aspect would otherwise widen the shorter side to the figure's shape)."""
-    world = trace.meta.get("world") or {}
-    pts = [np.asarray(world.get("walls", []) or [], float).reshape(-1, 2)]
-    for ob in world.get("obstacles", []) or []:
-        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
-                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]) if ob.get("kind") ==
-                   "circle" else np.asarray(ob["points"], float).reshape(-1, 2))
-    for region in world.get("regions", []) or []:
-        pts.append(np.asarray(region["points"] if isinstance(region, dict) else region,
-                              float).reshape(-1, 2))
-    for entry in world.get("paths", []) or []:
-        if entry.get("instance", instance) == instance:
-            pts.append(np.asarray(entry["points"], float).reshape(-1, 2))
+    scene = scene_of(trace)
+    pts = [np.asarray(scene.walls, float).reshape(-1, 2)]
+    for ob in scene.obstacles or ():
+        if isinstance(ob, CircleObstacle):
+            pts.append(np.array([[ob.x - ob.r, ob.y - ob.r], [ob.x + ob.r, ob.y + ob.r]]))
+        else:
+            corners = (ob.start, ob.end) if isinstance(ob, WallObstacle) else ob.corners
+            pts.append(np.asarray(corners, float).reshape(-1, 2))
+    for region in scene.regions:
+        pts.append(np.asarray(region.outline, float).reshape(-1, 2))
+    for entry in scene.paths_of(instance):
+        pts.append(np.asarray(entry.points, float).reshape(-1, 2))
     for a in planar_agents(trace):
         xy = pose(trace, a, instance)[:, :2]
         xy = xy[np.isfinite(xy).all(axis=1)]
-        r = float((agent_meta(trace, a).get("footprint") or {}).get("radius") or 0.0)
+        foot = scene.footprints.get(a)
+        r = foot.radius if foot else 0.0
         if len(xy):  # rounding is monotone: min(x - r) is min(x) - r, exactly
             pts += [xy.min(axis=0)[None] - r, xy.max(axis=0)[None] + r]
     for name in payload_names(trace):
@@ -161,19 +172,15 @@ def scene_extent(trace: Trace, instance: int) -> tuple[float, float, float, floa
     return (float(x0 - pad_x), float(x1 + pad_x), float(y0 - pad_y), float(y1 + pad_y))
 
 
-def payload_shape(trace: Trace, name: str) -> dict[str, Any]:
+def payload_shape(trace: Trace, name: str) -> PayloadShape:
     """A payload's shape from the trace (a 0.3 m box where the trace does not say)."""
-    shapes = trace.meta.get("payload_shapes", {}) or {}
-    return shapes.get(name, {"kind": "box", "width": 0.3, "depth": 0.3})
+    return scene_of(trace).payloads.get(name, DEFAULT_PAYLOAD_SHAPE)
 
 
-def payload_outline(shape: dict[str, Any], x: Any, y: Any, th: Any) -> np.ndarray:
+def payload_outline(shape: PayloadShape, x: Any, y: Any, th: Any) -> np.ndarray:
     """Corners of a payload shape at a pose, ``(4, 2)``, or at K poses given as arrays,
     ``(K, 4, 2)`` (a bar is a thin rectangle)."""
-    if shape.get("kind") == "bar":
-        w, d = float(shape["length"]), float(shape.get("width", shape["length"] * 0.04))
-    else:
-        w, d = float(shape["width"]), float(shape["depth"])
+    w, d = shape.size
     cx, cy = np.array([-w, w, w, -w]) / 2, np.array([-d, -d, d, d]) / 2
     x, y, th = (np.asarray(v, float)[..., None] for v in (x, y, th))
     c, s = np.cos(th), np.sin(th)
@@ -202,8 +209,7 @@ def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> 
         p = pose(trace, name, instance)
         ok = indices[~np.isnan(p[indices, 0])] if len(indices) else indices
         shape = payload_shape(trace, name)
-        size = [float(v) for key, v in shape.items() if key in ("width", "depth", "length")]
-        ok = moved(p, ok, 0.15 * min(size or [0.3]))
+        ok = moved(p, ok, 0.15 * min(shape.measures))
         polys = payload_outline(shape, *p[ok].T)
         color = PALETTE[(k + 5) % len(PALETTE)]
         ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",

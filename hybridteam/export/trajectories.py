@@ -36,6 +36,7 @@ from hybridteam.export.scene import (
     planar_agents,
     pose,
     scene_extent,
+    scene_of,
 )
 from hybridteam.export.style import FONT, HALO, PALETTE
 from hybridteam.export.timeline import (
@@ -228,7 +229,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     the legend is made, which lists its artists that have labels after the robots."""
     agents = planar_agents(trace)
     times = trace.sample_times
-    draw_world(ax, trace.meta.get("world"))
+    scene = scene_of(trace)
+    draw_world(ax, scene)
     poses = {a: pose(trace, a, instance) for a in agents}
     pts = np.concatenate([p[:, :2] for p in poses.values()]) if poses else np.zeros((0, 2))
     pts = pts[~np.isnan(pts).any(axis=1)]
@@ -241,7 +243,8 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         p, color = poses[a], PALETTE[k % len(PALETTE)]
         valid = ~np.isnan(p[:, 0])
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=1.4, label=a, zorder=4, gid=f"path:{a}")
-        radius = (agent_meta(trace, a).get("footprint") or {}).get("radius")
+        foot = scene.footprints.get(a)
+        radius = foot.radius if foot else None
         idx = footprint_indices(times, valid, every)
         all_idx = np.union1d(all_idx, idx)
         idx = moved(p, idx, 0.25 * float(radius) if radius else 0.01 * extent)
@@ -269,7 +272,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)
             starts.append((float(x0), float(y0), start_label(a, letter[a]), color))
-    draw_guides(ax, trace.meta.get("world"), instance, agents)
+    draw_guides(ax, scene, instance, agents)
     draw_payloads(ax, trace, instance, all_idx)
     changes = mode_changes(trace, instance, agents, modes)
     stride = max(1, math.ceil(len(changes) / MAX_NUMBERS))
@@ -319,7 +322,7 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                     textcoords="offset points", fontsize=8, fontweight="bold", color=color,
                     path_effects=HALO, zorder=7, gid="start")
     ax.grid(color="#E0E0E0", linewidth=0.6)
-    unit = (trace.meta.get("world") or {}).get("units", "m")
+    unit = scene.unit
     ax.set_xlabel(f"x ({unit})" if unit else "x")
     ax.set_ylabel(f"y ({unit})" if unit else "y")
     if agents:
@@ -366,8 +369,8 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool, hits: bool) -> l
     if hits:
         handles.append(Line2D([], [], **{**COLLISION_MARK, "markersize": 9},
                               label="first collision of each robot or payload, its time"))
-    sized = [bool((agent_meta(trace, a).get("footprint") or {}).get("radius"))
-             for a in planar_agents(trace)]
+    scene = scene_of(trace)
+    sized = [a in scene.footprints for a in planar_agents(trace)]
     if any(sized):
         handles.append(Line2D([], [], marker="o", markerfacecolor="none", color=grey,
                               linestyle="none", markersize=7,
@@ -378,10 +381,9 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool, hits: bool) -> l
     for k, name in enumerate(payload_names(trace)):
         handles.append(Patch(facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.35,
                              edgecolor="#333333", label=f"{name}, every {every:g} s"))
-    world = trace.meta.get("world") or {}
-    if world.get("obstacles"):
+    if scene.obstacles:
         handles.append(Patch(facecolor="#9A9A9A", edgecolor=grey, label="obstacle"))
-    if len(world.get("walls", []) or []):
+    if scene.walls:
         handles.append(Line2D([], [], color="#222222", linewidth=2.5, label="wall"))
     return handles
 

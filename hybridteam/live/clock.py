@@ -30,7 +30,7 @@ from hybridteam.live.wire import POSE, READING, Codec, WireError
 if TYPE_CHECKING:
     from hybridteam.live.world import WorldLink
 
-log = logging.getLogger("hybridteam.live")
+log = logging.getLogger(__name__)
 
 #: The longest single wait (wall seconds): a stop request is seen within it.
 MAX_WAIT = 0.05

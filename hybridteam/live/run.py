@@ -44,7 +44,7 @@ from hybridteam.live.world import SILENCE, WorldHost, WorldLink, WorldReadings, 
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
-log = logging.getLogger("hybridteam.live")
+log = logging.getLogger(__name__)
 
 
 class LiveRun:

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.access import EnsembleAccess
     from hybridteam.model import Team
 
-log = logging.getLogger("hybridteam.live")
+log = logging.getLogger(__name__)
 
 #: Wall seconds the other side may be silent before it is taken for gone: longer than the
 #: two-second pause of a process the team must ride out, short enough for an operator.

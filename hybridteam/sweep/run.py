@@ -11,6 +11,7 @@ memory), so a resumed study and an uninterrupted one produce the same bytes.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -45,6 +46,8 @@ from hybridteam.sweep.worker import run_chunk
 
 Results = Iterator[tuple[Chunk, dict[str, list[Any]]]]
 
+log = logging.getLogger(__name__)
+
 
 @dataclass
 class StudyResult:
@@ -61,6 +64,12 @@ class StudyResult:
     @property
     def complete(self) -> bool:
         return self.table is not None
+
+    def warn(self, message: str) -> None:
+        """A problem found and worked round (a damaged chunk computed again): kept in
+        :attr:`warnings` for the caller and logged as a warning where the library speaks."""
+        self.warnings.append(message)
+        log.warning("%s", message)
 
 
 def run_study(study: Study, out: str | Path, *, workers: int | None = None,
@@ -101,14 +110,14 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     result = StudyResult(plan)
     for c in plan.chunks:  # a chunk is reused only if it verifies; else it is run again
         if c.id in done and (why := chunk_problem(done[c.id], c.size)) is not None:
-            result.warnings.append(f"{done[c.id]}: {why}; computing chunk {c.id} again")
+            result.warn(f"{done[c.id]}: {why}; computing chunk {c.id} again")
             discard_chunk(done.pop(c.id))
     result.reused = [c.id for c in plan.chunks if c.id in done]
     record["versions"] = versions()
     if old is not None and old.get("versions") not in (None, record["versions"]):
         record["earlier_versions"] = old.get("earlier_versions") or old["versions"]
-        result.warnings.append(f"{out}: resuming with other package versions than the "
-                               "chunks already there were computed with (see study.json)")
+        result.warn(f"{out}: resuming with other package versions than the chunks "
+                    "already there were computed with (see study.json)")
     todo = [c for c in plan.chunks if c.id not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]

@@ -14,6 +14,7 @@ index in the team (what :meth:`WorldComponent.sense` receives).
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
@@ -29,8 +30,15 @@ Message = str | Callable[[int], str]
 """An outcome's message: one text, or a function of the instance number."""
 
 
-class WorldAccess:
-    """The engine as a world component sees it (abstract; see the module docstring)."""
+class WorldAccess(ABC):
+    """The engine as a world component sees it (see the module docstring).
+
+    Abstract: every method is an :func:`~abc.abstractmethod`, so an implementation that
+    leaves one out fails when it is instantiated (``TypeError`` naming the method), not
+    when a component first calls it mid-run. The engine's implementation is
+    :class:`~hybridteam.engine.run.access.EnsembleAccess`; a test double declares this
+    class as its base and implements every method.
+    """
 
     #: Number of instances in the ensemble.
     n: int
@@ -39,64 +47,65 @@ class WorldAccess:
 
     # ------------------------------------------------------------------ time and runs
     @property
+    @abstractmethod
     def t(self) -> np.ndarray:
         """Current time of every instance, shape ``(n,)`` (read-only)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def live(self, idx: np.ndarray) -> np.ndarray:
         """The instances of ``idx`` that have not ended."""
-        raise NotImplementedError
 
+    @abstractmethod
     def finish(self, idx: np.ndarray, outcome: str, message: Message) -> None:
         """End instances ``idx`` now with ``outcome`` (``link_broken``, ...) and a message
         saying why (a text, or a function of the instance). Ended instances are skipped."""
-        raise NotImplementedError
 
+    @abstractmethod
     def raise_event(self, idx: np.ndarray, agent: Agent, event: str) -> None:
         """Raise local event ``event`` in ``agent`` for instances ``idx`` at their current
         time; the engine runs their discrete phase at this instant. List the event in the
         component's ``raises`` so an agent waiting for it is not declared deadlocked."""
-        raise NotImplementedError
 
     # ------------------------------------------------------------------ agents
+    @abstractmethod
     def agent(self, name: Agent) -> int:
         """Index of an agent (ValueError with a "did you mean" for an unknown name)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def state_names(self, agent: Agent) -> tuple[str, ...]:
         """Names of the agent's plant state, in column order of :meth:`state`."""
-        raise NotImplementedError
 
+    @abstractmethod
     def state(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
         """The agent's plant state in instances ``idx``: ``(m, d)`` (a copy)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def set_state(self, agent: Agent, idx: np.ndarray, values: np.ndarray,
                   names: Sequence[str] | None = None) -> None:
         """Place the agent: write state components ``names`` (all when None) in instances
         ``idx``. Meant for :meth:`WorldComponent.start` (initial placements); writing the
         state later bypasses the engine's crossing detection."""
-        raise NotImplementedError
 
+    @abstractmethod
     def has_pose(self, agent: Agent) -> bool:
         """Whether the agent's plant has a planar position (state components x and y)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def pose(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
         """``(m, 3)``: x, y and heading theta of the agent in instances ``idx``, found by
         name in its plant state (the one rule for every plant: unicycle, holonomic or a
         flow naming them); theta is 0 for a plant without a heading. ValueError when the
         plant has no x and y."""
-        raise NotImplementedError
 
+    @abstractmethod
     def variable_names(self, agent: Agent) -> tuple[str, ...]:
         """The agent's discrete variables (its own and those its protocols add)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def variable(self, agent: Agent, name: str, idx: np.ndarray) -> np.ndarray:
         """The agent's variable ``name`` in instances ``idx``: ``(m,)``."""
-        raise NotImplementedError
 
+    @abstractmethod
     def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
                      values: np.ndarray | float) -> None:
         """Write the agent's variable ``name`` in instances ``idx`` (``values``: ``(m,)`` or
@@ -106,22 +115,21 @@ class WorldAccess:
         (``battery <= 0.2``) is taken now; a transition that assigns the variable at this
         instant writes after the component. ValueError for a value that is not a finite
         number. A battery draining ``battery`` is the recipe (``docs/extending.md``)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def parameter_names(self, agent: Agent) -> tuple[str, ...]:
         """The agent's parameters, team parameters included."""
-        raise NotImplementedError
 
+    @abstractmethod
     def parameter(self, agent: Agent, name: str, idx: np.ndarray | None = None) -> np.ndarray:
         """The agent's parameter ``name`` (its own or the team's, after a run's overrides)
         in instances ``idx`` (all when None): ``(m,)``."""
-        raise NotImplementedError
 
     # ------------------------------------------------------------------ the world
+    @abstractmethod
     def components(self, kind: type | str | None = None) -> list[WorldComponent]:
         """The team's world components in declaration order (this one included), or those
         of one class (and its subclasses) or registered name."""
-        raise NotImplementedError
 
 
 def require_variable(world: WorldAccess, agent: Agent, name: str, setting: str) -> None:

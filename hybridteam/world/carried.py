@@ -41,6 +41,7 @@ from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
 from hybridteam.world.raycast import Targets, cast_at
+from hybridteam.world.scene import BarShape, BoxShape, PayloadShape, SceneDescription
 from hybridteam.world.settle_one import settle_one
 
 if TYPE_CHECKING:
@@ -381,12 +382,12 @@ class CarriedPayload(WorldComponent):
                 np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2], 0.0), axis=1))
         return out
 
-    def meta(self) -> dict[str, Any]:
+    def describe(self) -> SceneDescription:
+        """The payload's outline, drawn at its pose series (named as the payload)."""
         v = self.values
-        shape = ({"kind": "bar", "length": float(v["length"][0])} if v["shape"] == "bar" else
-                 {"kind": "box", "width": float(v["width"][0]),
-                  "depth": float(v["depth"][0])})
-        return {"payloads": [v["name"]], "payload_shapes": {v["name"]: shape}}
+        shape: PayloadShape = BarShape(float(v["length"][0])) if v["shape"] == "bar" else \
+            BoxShape(float(v["width"][0]), float(v["depth"][0]))
+        return SceneDescription(payloads={v["name"]: shape})
 
 
 def _to_body(x: np.ndarray, y: np.ndarray, pose: np.ndarray, move: bool = True

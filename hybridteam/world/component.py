@@ -26,6 +26,7 @@ import numpy as np
 
 from hybridteam.discovery import load_libraries
 from hybridteam.errors import ModelError
+from hybridteam.world.scene import SceneDescription
 
 if TYPE_CHECKING:
     from hybridteam.model import Team
@@ -116,11 +117,11 @@ class WorldComponent:
         """Statistics of instance ``i`` at the end of the run (for ``summary.json``)."""
         return {}
 
-    def meta(self) -> dict[str, Any]:
-        """Trace metadata for views: ``world`` (walls, regions, obstacles, paths;
-        per-instance entries carry their ``instance``, as paths and collisions do),
-        ``payloads``, ``payload_shapes``, agents' ``footprint``."""
-        return {}
+    def describe(self) -> SceneDescription:
+        """What the views draw of this component (walls, regions, obstacles, guide paths,
+        collision marks, payload outlines, robots' footprints), asked once at the end of
+        a run; see :mod:`hybridteam.world.scene`. Nothing, by default."""
+        return SceneDescription()
 
 
 def settings_error(component: str, problems: Sequence[ModelError]) -> ValueError:
@@ -136,6 +137,10 @@ def world_component(name: str):
     """Register a :class:`WorldComponent` subclass under ``name``."""
 
     def deco(cls: type[WorldComponent]) -> type[WorldComponent]:
+        if "meta" in vars(cls):  # the untyped form, which nothing reads any more
+            raise TypeError(f"world component '{name}' ({cls.__qualname__}) defines meta(); "
+                            "say what the views draw with describe() returning a "
+                            "SceneDescription instead (docs/extending.md)")
         cls.name = name
         _REGISTRY[name] = cls
         return cls

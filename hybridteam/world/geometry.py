@@ -3,8 +3,8 @@
 Everything here is domain-neutral (no robots, no ladders) and vectorized with numpy over
 a leading axis, because callers check an ensemble of bodies against the same walls at
 every step. Segments are rows ``[x0, y0, x1, y1]`` in arrays of shape ``(m, 4)``: that is
-also the format a trace stores under ``meta["world"]["walls"]`` for the trajectory plots,
-so a world can be drawn without translation.
+also how a :class:`~hybridteam.world.scene.SceneDescription` holds walls (and a trace
+stores them, under ``meta["world"]["walls"]``), so a world is drawn without translation.
 
 Only ``+ - * /``, ``sqrt`` and comparisons are used in the distance and intersection
 kernels, in the same order for every element, so a result never depends on how many
@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+
+from hybridteam.world.scene import Region, SceneDescription
 
 #: Relative tolerance of "touching" in the intersection tests (parallel, collinear).
 _EPS = 1e-12
@@ -239,13 +241,13 @@ class Corridor:
         inner = self.exit[1]
         return inner - a * self.direction_out + c * self.width_out * self.direction_in
 
-    def to_meta(self) -> dict:
-        """The trace/plot form: ``{"walls": [...], "regions": [...], "obstacles": []}``."""
-        return {
-            "walls": self.walls.tolist(),
-            "regions": [{"points": self.corner.tolist(), "label": "corner"}],
-            "obstacles": [],
-        }
+    def describe(self) -> SceneDescription:
+        """What the views draw of the corridor: its walls, and its corner as a region
+        labelled ``corner``; it has no obstacles besides its walls."""
+        return SceneDescription(
+            walls=tuple((a, b, c, d) for a, b, c, d in self.walls.tolist()),
+            regions=(Region(tuple((x, y) for x, y in self.corner.tolist()), "corner"),),
+            obstacles=())
 
 
 def corridor_with_turn(width_in: float = 200.0, width_out: float = 200.0,

@@ -57,6 +57,15 @@ from hybridteam.world.component import (
 )
 from hybridteam.world.obstacle_settings import Rule, parse_settings, planar
 from hybridteam.world.raycast import Targets, cast_at
+from hybridteam.world.scene import (
+    CircleObstacle,
+    CollisionMark,
+    Footprint,
+    Obstacle,
+    PolygonObstacle,
+    SceneDescription,
+    WallObstacle,
+)
 from hybridteam.world.sensors import RangeRing, clearance
 
 if TYPE_CHECKING:
@@ -400,24 +409,23 @@ class Obstacles(WorldComponent):
             out["payload_clearance"] = _finite(self.payload_clear[i])
         return out
 
-    def meta(self) -> dict[str, Any]:
+    def describe(self) -> SceneDescription:
         """What the views draw: the obstacles of instance 0 (where a study varies them,
-        its other instances' differ), and the robots' footprints."""
+        its other instances' differ), where each party first collided, and the robots'
+        footprints."""
         scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
-        obstacles = [{"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
-                     for w in scene.walls]
-        obstacles += [{"kind": "circle", "x": float(x), "y": float(y), "r": float(r)}
-                      for x, y, r in scene.circles]
-        obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in scene.boxes]
-        footprints = {self.team.agents[a].name: {"radius": float(r)}
+        obstacles: list[Obstacle] = [WallObstacle((w[0], w[1]), (w[2], w[3]))
+                                     for w in scene.walls.tolist()]
+        obstacles += [CircleObstacle(x, y, r) for x, y, r in scene.circles.tolist()]
+        obstacles += [PolygonObstacle(tuple((x, y) for x, y in _corners(b).tolist()))
+                      for b in scene.boxes]
+        footprints = {self.team.agents[a].name: Footprint(float(r))
                       for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
-        world: dict[str, Any] = {"obstacles": obstacles}
-        marks = [{"instance": i, "who": who, "t": t, "x": x, "y": y}
-                 for i, firsts in enumerate(self.collisions)
-                 for who, (_text, t, x, y) in firsts.items()]
-        if marks:  # where each party first collided, for the views to mark
-            world["collisions"] = marks
-        return {"world": world, "footprints": footprints}
+        marks = tuple(CollisionMark(i, who, t, x, y)
+                      for i, firsts in enumerate(self.collisions)
+                      for who, (_text, t, x, y) in firsts.items())
+        return SceneDescription(obstacles=tuple(obstacles), collisions=marks,
+                                footprints=footprints)
 
 
 class Scene(NamedTuple):

@@ -27,13 +27,18 @@ run through the engine reproduces the vectorized stepper (the tests compare them
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any, ClassVar
 
 import numpy as np
 
 from hybridteam.library import (
+    BarShape,
     BatchRequest,
+    Footprint,
+    GuidePath,
     ModelError,
+    SceneDescription,
     Team,
     WorldAccess,
     WorldComponent,
@@ -303,16 +308,16 @@ class LadderCorridor(WorldComponent):
                 "corner_path_length": [float(v) for v in self.corner_path[:, i]],
                 "max_offset": [float(v) for v in self.max_offset[:, i]]}
 
-    def meta(self) -> dict[str, Any]:
-        world = self.corridor.to_meta()
-        world["units"] = "units"  # the paper's corridor units; one time unit is one step
+    def describe(self) -> SceneDescription:
+        """The corridor in the paper's units (one time unit is one step), the guide
+        paths of the first instances, the ladder's outline and the robots' footprints."""
         shown = min(self.n, 8)  # guide paths of the first instances, for the plots
-        world["paths"] = [{"instance": i, "agent": self.team.agents[a].name,
-                           "points": self.paths[r, i].round(3).tolist()}
-                          for i in range(shown) for r, a in enumerate(self.robots)]
+        paths = tuple(GuidePath(i, self.team.agents[a].name,
+                                tuple((x, y) for x, y in self.paths[r, i].round(3).tolist()))
+                      for i in range(shown) for r, a in enumerate(self.robots))
         lengths = np.unique(self.length)
-        shape = {"kind": "bar", "length": float(lengths[0]), "width": 6.0}
-        footprints = {self.team.agents[a].name: {"radius": float(self.radius[r, 0])}
+        footprints = {self.team.agents[a].name: Footprint(float(self.radius[r, 0]))
                       for r, a in enumerate(self.robots)}
-        return {"world": world, "payloads": ["ladder"], "payload_shapes": {"ladder": shape},
-                "footprints": footprints}
+        return replace(self.corridor.describe(), units="units", paths=paths,
+                       payloads={"ladder": BarShape(float(lengths[0]), 6.0)},
+                       footprints=footprints)

@@ -176,14 +176,16 @@ def test_experiment2_animation_shows_the_box_in_every_frame_and_no_label_overlap
     """Every frame draws the box at its sampled pose (true size and heading); the texts of a
     frame (time, robot names, modes) never overlap, whatever the robots do."""
     from hybridteam.export import animate
-    from hybridteam.export.scene import payload_outline, pose
+    from hybridteam.export.scene import payload_outline, payload_shape, pose
+    from hybridteam.world.scene import BoxShape
 
     _team, run = _run("experiment2")
     times = animate.frame_times(run, 0, 10, None)
     fig, update, _trails, _moving = animate._build(run, 0, None, 100.0, 0.3)
     (box,) = [p for ax in fig.axes for p in ax.patches if p.get_gid() == "payload:box"]
     samples = pose(run, "box", 0)
-    shape = run.meta["payload_shapes"]["box"]
+    shape = payload_shape(run, "box")
+    assert shape == BoxShape(width=0.8, depth=0.5)  # as experiment2.yaml declares it
     renderer = fig.canvas.get_renderer()
     for t in times[::10]:
         update(float(t))

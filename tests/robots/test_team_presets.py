@@ -21,6 +21,7 @@ from hybridteam.io.loader import InputErrors
 from hybridteam.laws import _dead_reckon, law
 from hybridteam.robots import load_presets
 from hybridteam.world.component import WorldComponent, world_component
+from hybridteam.world.scene import Footprint, SceneDescription
 from tests.conftest import FIXTURES
 
 TWO_ROBOTS = """\
@@ -90,8 +91,8 @@ def test_a_models_footprint_is_drawn_unless_a_component_draws_one(team_from_yaml
 
     @world_component("test.draws_xr")
     class Draws(WorldComponent):
-        def meta(self):
-            return {"footprints": {"xr": {"radius": 0.9}}}
+        def describe(self) -> SceneDescription:
+            return SceneDescription(footprints={"xr": Footprint(0.9)})
 
     text = TWO_ROBOTS.rstrip(" ") + "    world: [{use: test.draws_xr}]\n"
     run = ht.simulate(team_from_yaml(text, "drawn.yaml"))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import logging
 import math
 import shutil
 import sys
@@ -308,6 +309,37 @@ def test_a_damaged_chunk_is_computed_again_on_resume(study, reference, tmp_path,
     (warning,) = [w for w in result.warnings if victim.name in w]
     assert warning.endswith(f"computing chunk {victim.stem} again")
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
+
+
+def test_a_resume_warning_goes_through_logging_and_the_cli_prints_it_once(
+        study, tmp_path, caplog, capsys):
+    """The library says it computes a damaged chunk again through its module logger (a
+    program sees it in its logging, not only in ``Outcome.warnings``); the command line
+    prints the same warning once, as its own ``hybridteam: warning:`` line."""
+
+    def damaged(out):
+        run_study(study, out, chunk=3, max_chunks=2)
+        done = finished_chunks(out)
+        victim = done[sorted(done)[1]]
+        victim.write_text("run,outcome\nnot,a,chunk\n")
+        return victim
+
+    victim = damaged(tmp_path / "api")
+    with caplog.at_level(logging.WARNING, logger="hybridteam"):
+        result = run_study(study, tmp_path / "api", chunk=3)
+    (record,) = [r for r in caplog.records if victim.name in r.getMessage()]
+    assert record.name == "hybridteam.sweep.run" and record.levelno == logging.WARNING
+    assert result.warnings == [record.getMessage()]
+    assert record.getMessage().endswith(f"computing chunk {victim.stem} again")
+
+    victim = damaged(tmp_path / "cli")
+    capsys.readouterr()
+    assert main(["sweep", str(STUDY), "-o", str(tmp_path / "cli"), "--chunk", "3",
+                 "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("hybridteam: warning:") == 1, err
+    assert f"hybridteam: warning: {victim}: " in err
+    assert f"computing chunk {victim.stem} again\n" in err
 
 
 def test_resuming_another_study_or_chunk_size_is_refused(study, tmp_path, capsys):

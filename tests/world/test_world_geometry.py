@@ -129,10 +129,13 @@ def test_default_corridor_is_the_papers():
     assert (x1 - x0, y1 - y0) == (200, 200)
     np.testing.assert_array_equal(c.inner_vertex, [200, 1000])
     assert c.walls.shape == (4, 4)
-    # The trace/plot format, JSON-ready.
-    meta = json.loads(json.dumps(c.to_meta()))
-    assert set(meta) == {"walls", "regions", "obstacles"}
-    assert meta["regions"][0]["label"] == "corner" and len(meta["walls"][0]) == 4
+    # What the views draw, and its trace form, JSON-ready.
+    scene = c.describe()
+    assert scene.walls == tuple(tuple(w) for w in c.walls.tolist())
+    assert scene.regions[0].label == "corner" and scene.obstacles == ()
+    meta = json.loads(json.dumps(scene.to_meta()))
+    assert set(meta) == {"world"} and set(meta["world"]) == {"walls", "regions", "obstacles"}
+    assert meta["world"]["regions"][0]["label"] == "corner" and len(meta["world"]["walls"][0]) == 4
     # Travel goes up the incoming leg, then right; the inner normals point into the walls.
     np.testing.assert_array_equal(c.direction_in, [0, 1])
     np.testing.assert_array_equal(c.direction_out, [1, 0])

@@ -25,6 +25,8 @@ import numpy as np
 from hybridteam.library import (
     BatchRequest,
     ModelError,
+    Region,
+    SceneDescription,
     Team,
     WorldAccess,
     WorldComponent,
@@ -97,11 +99,12 @@ class Station(WorldComponent):
     def summary(self, i: int) -> dict[str, Any]:
         return _stats(self.when[i], self.closest[i])
 
-    def meta(self) -> dict[str, Any]:
+    def describe(self) -> SceneDescription:
+        """The dock's circle, drawn as a labelled region."""
         x, y, r = (float(self.values[k][0]) for k in ("x", "y", "radius"))
-        ring = [[x + r * math.cos(a), y + r * math.sin(a)]
-                for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False)]
-        return {"world": {"regions": [{"points": ring, "label": "dock"}]}}
+        ring = tuple((x + r * math.cos(a), y + r * math.sin(a))
+                     for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False))
+        return SceneDescription(regions=(Region(ring, "dock"),))
 
     # ------------------------------------------------------------------ fast path
     @classmethod

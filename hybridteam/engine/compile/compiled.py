@@ -18,7 +18,7 @@ import numpy as np
 from hybridteam.dynamics.plants import Plant
 from hybridteam.errors import DocPath
 from hybridteam.expr import Atom, Expression
-from hybridteam.laws import LawContext, LawSpec
+from hybridteam.laws import LawContext, LawSpec, LawWorld, StreamInbox
 from hybridteam.model import Team
 
 REPLY = -1  # ``to: sender``: answer whoever sent the message that triggered the transition
@@ -32,9 +32,16 @@ class Ctx:
     ``x`` state (m, d), ``v`` variables (m, V), ``p`` parameters (m, P), ``t`` time (m,),
     ``t_in`` time since the owning mode was entered (m,), ``m`` the fields of the message
     that triggered the transition being evaluated (name -> (m,)), if any; ``e`` the agent's
-    stream estimates for these instances (an :class:`~.streams.InboxView`), ``u`` the held
-    inputs (m, k) where a stream's fields may read them; ``w`` the agent's view of the
-    world components and its law memory (an :class:`~.world.AgentView`), where laws run.
+    stream estimates for these instances (an
+    :class:`~hybridteam.engine.run.streams.InboxView`), ``u`` the held inputs (m, k) where a
+    stream's fields may read them; ``w`` the agent's view of the world components and its
+    law memory (an :class:`~hybridteam.engine.run.world.AgentView`), where laws run.
+
+    The one-letter slots are what compiled expressions read at every evaluation (kept
+    short and plain: they are the hottest attribute reads of the engine). A law reads the
+    same context through :class:`~hybridteam.laws.LawRows`, the typed contract with domain
+    names (``state``, ``parameters``, ``variables``, ``time``, ``time_in_mode``,
+    ``streams``, ``world``) that the properties below implement.
     """
 
     __slots__ = ("_since", "_t_in", "e", "m", "p", "q", "t", "u", "v", "w", "x")
@@ -70,6 +77,35 @@ class Ctx:
             column, rows = self._since  # type: ignore[misc]
             self._t_in = self.t - column[rows]
         return self._t_in
+
+    # ------------------------------------------------------------------ LawRows
+    @property
+    def state(self) -> np.ndarray:
+        return self.x
+
+    @property
+    def parameters(self) -> np.ndarray:
+        return self.p
+
+    @property
+    def variables(self) -> np.ndarray:
+        return self.v
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.t
+
+    @property
+    def time_in_mode(self) -> np.ndarray:
+        return self.t_in
+
+    @property
+    def streams(self) -> StreamInbox | None:
+        return self.e
+
+    @property
+    def world(self) -> LawWorld:
+        return self.w
 
 
 class Row:

@@ -18,6 +18,7 @@ from hybridteam.trace import (
     TRANSITION_COLUMNS,
     Table,
 )
+from hybridteam.world.scene import Footprint
 
 if TYPE_CHECKING:
     from hybridteam.engine.run.world import World
@@ -206,7 +207,7 @@ def trace_meta(cteam: CTeam, n: int, seed: int | list[int], t_end: float,
         if a["name"] in footprints:
             a["footprint"] = footprints[a["name"]]
         elif preset is not None:  # no component drew it: the robot model's disk
-            a["footprint"] = {"radius": preset.footprint.radius}
+            a["footprint"] = Footprint(preset.footprint.radius).to_meta()
     meta["series"] = {k: list(v) for k, v in world.sample_series().items()}
     meta.update(extra)
     return meta

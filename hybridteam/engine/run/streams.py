@@ -56,12 +56,17 @@ class Inbox:
 
 
 class InboxView:
-    """An inbox restricted to the instances a context is evaluated on."""
+    """An inbox restricted to the instances a context is evaluated on (a law's
+    :class:`~hybridteam.laws.StreamInbox`)."""
 
     __slots__ = ("box", "idx")
 
     def __init__(self, box: Inbox, idx: np.ndarray | slice) -> None:
         self.box, self.idx = box, idx
+
+    def carries(self, type_: str) -> bool:
+        """Whether some protocol of the team sends stream ``type_``."""
+        return type_ in self.box.fields
 
     def sender(self, type_: str, sender: np.ndarray | None = None) -> np.ndarray:
         """The chosen sender per instance: the given one, else the most recent (-1: none)."""

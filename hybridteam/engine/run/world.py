@@ -99,9 +99,12 @@ class World:
         return {k: v for c in self.components for k, v in c.summary(i).items()}
 
     def meta(self) -> dict[str, Any]:
+        """The components' scene descriptions in the trace's form, merged key by key in
+        declaration order as traces have always had them (a later component's ``world``
+        entry replaces an earlier one's of the same key; lists of payloads join)."""
         out: dict[str, Any] = {}
         for c in self.components:
-            for key, value in c.meta().items():
+            for key, value in c.describe().to_meta().items():
                 if isinstance(value, dict) and isinstance(out.get(key), dict):
                     out[key] = {**out[key], **value}
                 elif isinstance(value, list) and isinstance(out.get(key), list):
