@@ -23,11 +23,17 @@ engine and a library:
 
 The engine may change anything else between versions; these three and the registration
 decorators are kept stable and documented.
+
+A library that keeps a path on Python floats beside its array version (the ladder's law
+and corridor instant) takes it only while ``FLOAT_PATHS.on``, re-exported here from
+:mod:`hybridteam.floatpaths`: the public switch that runs everything on arrays, so the two
+versions can be compared through one documented setting.
 """
 
 from __future__ import annotations
 
 from hybridteam.errors import ModelError
+from hybridteam.floatpaths import FLOAT_PATHS as FLOAT_PATHS  # (a value: see the docstring)
 from hybridteam.laws import Estimate, LawContext, LawFunction, LawSpec, law
 from hybridteam.model import Agent, Team
 from hybridteam.world.access import WorldAccess, require_variable

@@ -19,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 
 from hybridteam.arrays import some, where_true
+from hybridteam.floatpaths import FLOAT_PATHS
 
 MAX_ITER = 200
 #: Up to this many open brackets, :func:`illinois` finishes them on Python floats
@@ -70,7 +71,7 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         open_ = where_true(hi - lo > tol)
         if open_.size == 0:
             break
-        if open_.size <= FEW and scalar:
+        if open_.size <= FEW and scalar and FLOAT_PATHS.on:
             _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done)
             break
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
