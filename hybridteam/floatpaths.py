@@ -1,4 +1,4 @@
-"""The public switch of the float paths: a single run's work on Python floats, or arrays only.
+"""The float paths: their public switch, and their float forms made from one definition.
 
 Where an array version costs a numpy dispatch (about 1 µs) per operation for one number, a
 single run takes a path on Python floats that gives the same bits (``docs/design.md``,
@@ -17,13 +17,24 @@ and the judgement of a flip, :attr:`hybridteam.expr.Atom.row`), the last few bra
 :func:`~hybridteam.engine.run.crossing.illinois.illinois`, a carried payload's settling
 and the ladder library's law and corridor instant. A hot path reads one attribute
 (:attr:`FloatPaths.on`), which costs about as much as a local comparison.
+
+:func:`float_form` makes a float path from the array version's own source, where the
+algorithm is written once over an operations namespace (the crossing search's bracket
+rounds): the second copy is generated, not written.
 """
 
 from __future__ import annotations
 
+import ast
+import inspect
+import math
 import os
-from collections.abc import Iterator
+import textwrap
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
 
 #: The environment variable that turns the float paths off for a whole process.
 ENV = "HYBRIDTEAM_FLOAT_PATHS"
@@ -53,3 +64,105 @@ class FloatPaths:
 OFF = frozenset({"off", "0", "false", "no"})
 #: The process's switch, on unless the environment says off.
 FLOAT_PATHS = FloatPaths(os.environ.get(ENV, "on").strip().lower() not in OFF)
+
+
+# ------------------------------------------------------------ one definition, two forms
+#: numpy's operations that :func:`float_form` writes out inline, as expressions with numpy's
+#: result on one element (``{0}``, ``{1}``: the arguments, each evaluated once):
+#: ``np.where`` evaluates only the branch taken; ``np.minimum``/``np.maximum`` give their
+#: second argument on ties (``-0.0`` against ``0.0``) and NaN if either is NaN (Python's
+#: ``min``/``max`` do not); a quotient by zero, where Python raises, is numpy's inf or NaN
+#: (:func:`_by_zero`, off the common path).
+INLINE = {
+    "where": "({1} if {0} else {2})",
+    "minimum": "({t0} if (({t0} := {0}) < ({t1} := {1}) or {t0} != {t0}) else {t1})",
+    "maximum": "({t0} if (({t0} := {0}) > ({t1} := {1}) or {t0} != {t0}) else {t1})",
+    "quotient": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
+}
+
+
+def _by_zero(a: float, zero: float) -> float:
+    """``a / zero`` as numpy divides a double by a (signed) zero: inf of the signs' product,
+    NaN for ``0 / 0`` and NaN."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.true_divide(a, zero))
+
+
+class _OnFloats(ast.NodeTransformer):
+    """Rewrites a function written over ``ops`` into its float form (:func:`float_form`)."""
+
+    def __init__(self, ops: str, names: Mapping[str, str]) -> None:
+        self.ops, self.names, self.temps = ops, names, 0
+
+    def _op(self, node: ast.AST) -> str | None:
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and \
+                node.value.id == self.ops:
+            return node.attr
+        return None
+
+    def visit_Call(self, node: ast.Call) -> ast.AST:
+        self.generic_visit(node)
+        name = self._op(node.func) if isinstance(node.func, ast.Attribute) else None
+        if name is None and isinstance(node.func, ast.Name) and \
+                node.func.id.startswith("_float_"):
+            name = node.func.id.removeprefix("_float_")  # (visited first: a plain op)
+        if name not in INLINE:
+            return node
+        temps = {}
+        for k in range(2):
+            self.temps += 1
+            temps[f"t{k}"] = f"_float_t{self.temps}"
+        args = [f"_float_arg{k}" for k in range(len(node.args))]
+        template = ast.parse(INLINE[name].format(*args, **temps), mode="eval").body
+        by_name = dict(zip(args, node.args, strict=True))
+
+        class Fill(ast.NodeTransformer):
+            def visit_Name(self, n: ast.Name) -> ast.AST:
+                return by_name.get(n.id, n)
+
+        return ast.copy_location(Fill().visit(template), node)
+
+    def visit_Attribute(self, node: ast.Attribute) -> ast.AST:
+        name = self._op(node)
+        if name is None:
+            return self.generic_visit(node)
+        if name not in self.names and name not in INLINE:
+            raise TypeError(f"float_form: no float form of {self.ops}.{name}")
+        return ast.copy_location(ast.Name(id=f"_float_{name}", ctx=ast.Load()), node)
+
+
+#: The operations :func:`float_form` calls (the others are written out: :data:`INLINE`).
+ON_FLOATS: Mapping[str, Callable[..., Any]] = {"finite": math.isfinite}
+
+
+def float_form(fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = ON_FLOATS
+               ) -> Callable[..., Any]:
+    """The float form of ``fn``, an algorithm written once over its first parameter, an
+    operations namespace (``ops.where``, ``ops.minimum``, ...) that is numpy's for arrays.
+
+    Generated from ``fn``'s own source, so a change to the algorithm is made once: the first
+    parameter is dropped, each ``ops.where(c, a, b)`` becomes ``a if c else b`` (one
+    element: only the branch taken is evaluated, without a call), ``ops.minimum``,
+    ``ops.maximum`` and ``ops.quotient`` are written out as :data:`INLINE` says, and each
+    other ``ops.NAME`` becomes a call of ``ops[NAME]``, a Python-float function with numpy's
+    result (``math.isfinite`` for ``np.isfinite``). Operators (``+ - *``, comparisons, ``&``
+    of truths) are the same IEEE operations on floats as on arrays, so both forms give the
+    same bits (a division is written ``ops.quotient``: Python's ``/`` raises on zero); the form's
+    line numbers are ``fn``'s, for tracebacks and profiles. Only the project's own source is
+    compiled here, once, at import; nothing read from a model file.
+    """
+    source = textwrap.dedent(inspect.getsource(fn))
+    tree = ast.parse(source)
+    ast.increment_lineno(tree, fn.__code__.co_firstlineno - 1)
+    (func,) = tree.body
+    assert isinstance(func, ast.FunctionDef)
+    func.decorator_list = []
+    ops_name = func.args.args.pop(0).arg
+    tree = ast.fix_missing_locations(_OnFloats(ops_name, ops).visit(tree))
+    namespace = dict(fn.__globals__)
+    namespace.update({f"_float_{name}": op for name, op in ops.items()})
+    namespace["_float_by_zero"] = _by_zero
+    exec(compile(tree, inspect.getsourcefile(fn) or "<float form>", "exec"), namespace)
+    made = namespace[func.name]
+    made.__name__ = made.__qualname__ = f"{fn.__name__}_on_floats"
+    return made
