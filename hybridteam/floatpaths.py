@@ -32,6 +32,7 @@ import os
 import textwrap
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -77,7 +78,7 @@ INLINE = {
     "where": "({1} if {0} else {2})",
     "minimum": "({t0} if (({t0} := {0}) < ({t1} := {1}) or {t0} != {t0}) else {t1})",
     "maximum": "({t0} if (({t0} := {0}) > ({t1} := {1}) or {t0} != {t0}) else {t1})",
-    "quotient": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
+    "true_divide": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
 }
 
 
@@ -131,17 +132,47 @@ class _OnFloats(ast.NodeTransformer):
         return ast.copy_location(ast.Name(id=f"_float_{name}", ctx=ast.Load()), node)
 
 
-#: The operations :func:`float_form` calls (the others are written out: :data:`INLINE`).
-ON_FLOATS: Mapping[str, Callable[..., Any]] = {"finite": math.isfinite}
+def _arctan2(y: float, x: float) -> float:
+    """``np.arctan2`` itself: its result is not correctly rounded, so ``math.atan2`` could
+    differ from it."""
+    return float(np.arctan2(y, x))
+
+
+#: The operations :func:`float_form` calls (the others are written out: :data:`INLINE`),
+#: each with numpy's result on one double.
+ON_FLOATS: Mapping[str, Callable[..., Any]] = MappingProxyType({
+    "isfinite": math.isfinite, "sqrt": math.sqrt, "arctan2": _arctan2})
+
+#: The operations namespace an algorithm written once takes (its parameter ``ops``):
+#: numpy itself for arrays; its float form has none.
+Ops = Any
+
+
+def _drop_ops(args: ast.arguments) -> None:
+    """Remove the parameter ``ops`` (and its default) from a signature."""
+    names = [a.arg for a in args.args]
+    if "ops" in names:
+        at = names.index("ops")
+        first_default = len(names) - len(args.defaults)
+        if at >= first_default:
+            del args.defaults[at - first_default]
+        del args.args[at]
+        return
+    names = [a.arg for a in args.kwonlyargs]
+    if "ops" not in names:
+        raise TypeError("float_form: the function has no parameter 'ops'")
+    at = names.index("ops")
+    del args.kwonlyargs[at], args.kw_defaults[at]
 
 
 def float_form(fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = ON_FLOATS
                ) -> Callable[..., Any]:
-    """The float form of ``fn``, an algorithm written once over its first parameter, an
-    operations namespace (``ops.where``, ``ops.minimum``, ...) that is numpy's for arrays.
+    """The float form of ``fn``, an algorithm written once over its parameter ``ops``, an
+    operations namespace (``ops.where``, ``ops.minimum``, ...) that is numpy itself for
+    arrays (as an argument, or as the parameter's default).
 
-    Generated from ``fn``'s own source, so a change to the algorithm is made once: the first
-    parameter is dropped, each ``ops.where(c, a, b)`` becomes ``a if c else b`` (one
+    Generated from ``fn``'s own source, so a change to the algorithm is made once: the
+    parameter ``ops`` is dropped, each ``ops.where(c, a, b)`` becomes ``a if c else b`` (one
     element: only the branch taken is evaluated, without a call), ``ops.minimum``,
     ``ops.maximum`` and ``ops.quotient`` are written out as :data:`INLINE` says, and each
     other ``ops.NAME`` becomes a call of ``ops[NAME]``, a Python-float function with numpy's
@@ -154,11 +185,12 @@ def float_form(fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = O
     source = textwrap.dedent(inspect.getsource(fn))
     tree = ast.parse(source)
     ast.increment_lineno(tree, fn.__code__.co_firstlineno - 1)
-    (func,) = tree.body
-    assert isinstance(func, ast.FunctionDef)
+    func = tree.body[0]
+    if not isinstance(func, ast.FunctionDef):
+        raise TypeError(f"float_form: {fn!r} is not a function defined with def")
     func.decorator_list = []
-    ops_name = func.args.args.pop(0).arg
-    tree = ast.fix_missing_locations(_OnFloats(ops_name, ops).visit(tree))
+    _drop_ops(func.args)
+    tree = ast.fix_missing_locations(_OnFloats("ops", ops).visit(tree))
     namespace = dict(fn.__globals__)
     namespace.update({f"_float_{name}": op for name, op in ops.items()})
     namespace["_float_by_zero"] = _by_zero

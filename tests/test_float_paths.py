@@ -5,12 +5,10 @@ generates from an algorithm written once over an operations namespace."""
 from __future__ import annotations
 
 import math
-import operator
 import os
 import struct
 import subprocess
 import sys
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -43,14 +41,12 @@ def test_the_environment_sets_the_process_switch(value, on):
 def _kernel(ops, a, b, c):
     """Every operation float_form writes out, each on the result of another (so ties of
     signed zeros, NaN and zero divisors reach them), as an algorithm is written once."""
-    q = ops.quotient(a - c, b)  # inf or NaN where b is 0
+    q = ops.true_divide(a - c, b)  # inf or NaN where b is 0
     low = ops.minimum(q, ops.maximum(a, c))
-    pick = ops.where(ops.finite(low) & (low > b), low, b - c)
+    pick = ops.where(ops.isfinite(low) & (low > b), low, b - c)
     return ops.where(a < c, ops.maximum(pick, -c), ops.minimum(-0.0 * a, pick))
 
 
-ARRAYS = SimpleNamespace(where=np.where, finite=np.isfinite, quotient=operator.truediv,
-                         minimum=np.minimum, maximum=np.maximum)
 _kernel_on_floats = float_form(_kernel)
 doubles = st.sampled_from([0.0, -0.0, 1.0, -1.0, 2.5, 1e-310, 1e308, -1e308, math.inf,
                            -math.inf, math.nan])
@@ -60,7 +56,7 @@ doubles = st.sampled_from([0.0, -0.0, 1.0, -1.0, 2.5, 1e-310, 1e308, -1e308, mat
 @given(doubles, doubles, doubles)
 def test_a_float_form_gives_the_array_versions_bits(a, b, c):
     with np.errstate(all="ignore"):
-        want = _kernel(ARRAYS, np.array([a]), np.array([b]), np.array([c]))[0]
+        want = _kernel(np, np.array([a]), np.array([b]), np.array([c]))[0]
     got = _kernel_on_floats(a, b, c)
     assert type(got) is float
     if math.isnan(want):  # (a NaN's sign follows the CPU's operand order: nothing reads it)
@@ -88,3 +84,27 @@ def test_an_operation_without_a_float_form_is_refused_at_import():
 
     with pytest.raises(TypeError, match=r"no float form of ops\.sin"):
         float_form(uses_sin)
+
+
+def test_ops_may_be_a_defaulted_or_keyword_parameter():
+    """Array callers keep their signature when ``ops`` defaults to numpy (the ladder's
+    law); the float form has no such parameter, wherever it was."""
+    def hyp(x, y, scale=2.0, ops=np):
+        return scale * ops.sqrt(x * x + y * y)
+
+    def clipped(x, *, ops=np, low=0.0):
+        return ops.maximum(x, low)
+
+    assert hyp(np.array([3.0]), np.array([4.0]))[0] == 10.0
+    assert float_form(hyp)(3.0, 4.0) == 10.0 and float_form(hyp)(3.0, 4.0, 1.0) == 5.0
+    assert float_form(clipped)(-1.0) == 0.0 and float_form(clipped)(-1.0, low=-2.0) == -1.0
+
+
+def test_a_function_without_ops_is_refused():
+    def plain(x):
+        return x
+
+    with pytest.raises(TypeError, match="no parameter 'ops'"):
+        float_form(plain)
+    with pytest.raises(TypeError, match="not a function defined with def"):
+        float_form(lambda x, ops: x)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridteam.library import Ops
 from hybridteam.world.geometry import Corridor
 
 from .frame import CornerFrame
@@ -43,16 +44,18 @@ def norm(x: Array, y: Array) -> Array:
 
 
 def spring_offsets(x: Array, y: Array, px: Array, py: Array, length: Array,
-                   share: Array) -> tuple[Array, Array, Array]:
+                   share: Array, ops: Ops = np) -> tuple[Array, Array, Array]:
     """Offset vector ``o`` (robot centre to its ladder end) and the robots' distance D.
 
     With two grasps the ladder lies on the line through the robots, and the ends sit
     ``|o_i| = sc_partner / (sc_i + sc_partner) * |D - length|`` from the robots (Sec. 2);
     ``share`` is that spring ratio. ``o`` points toward the partner when stretched.
+    Written once over ``ops`` (:func:`~hybridteam.floatpaths.float_form`: the float form
+    of one robot, :mod:`.law_one`'s, raises ZeroDivisionError where robots coincide).
     """
     dx = x - px
     dy = y - py
-    dist = norm(dx, dy)
+    dist = ops.sqrt(dx * dx + dy * dy)  # (norm's arithmetic)
     f = share * ((length - dist) / dist)
     return f * dx, f * dy, dist
 
@@ -203,24 +206,27 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
     return sx / cl, sy / cl
 
 
-def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array) -> Array:
+def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array, ops: Ops = np) -> Array:
     """Distance from the ladder ``a -> b`` to the inside of the turn; 0 if it enters it.
 
     The inside is the quadrant ``x, y >= 0``: the distance is the least of the ends'
     distances to it and the vertex's distance to the segment. A segment with both ends
-    outside enters it only by crossing the line ``x = 0`` at some ``y >= 0``.
+    outside enters it only by crossing the line ``x = 0`` at some ``y >= 0``. Written once
+    over ``ops`` (its float form is :mod:`.law_one`'s; norms as :func:`norm` computes them).
     """
-    da = norm(np.minimum(ax, 0.0), np.minimum(ay, 0.0))
-    db = norm(np.minimum(bx, 0.0), np.minimum(by, 0.0))
+    ex, ey = ops.minimum(ax, 0.0), ops.minimum(ay, 0.0)
+    da = ops.sqrt(ex * ex + ey * ey)
+    ex, ey = ops.minimum(bx, 0.0), ops.minimum(by, 0.0)
+    db = ops.sqrt(ex * ex + ey * ey)
     ux = bx - ax
     uy = by - ay
-    t = np.minimum(np.maximum(-(ax * ux + ay * uy) / np.maximum(ux * ux + uy * uy, TINY),
-                              0.0), 1.0)
-    dv = norm(ax + t * ux, ay + t * uy)
-    clear = np.minimum(np.minimum(da, db), dv)
+    t = ops.minimum(ops.maximum(-(ax * ux + ay * uy) / ops.maximum(ux * ux + uy * uy, TINY),
+                                0.0), 1.0)
+    ex, ey = ax + t * ux, ay + t * uy
+    dv = ops.sqrt(ex * ex + ey * ey)
+    clear = ops.minimum(ops.minimum(da, db), dv)
     crossing = ((ax < 0.0) != (bx < 0.0)) & ((ax * by - ay * bx) * (ax - bx) >= 0.0)
-    np.copyto(clear, 0.0, where=crossing)
-    return clear
+    return ops.where(crossing, 0.0, clear)
 
 
 def avoid_ladder_collision(mx: Array, my: Array, clearance: Array,

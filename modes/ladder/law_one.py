@@ -18,7 +18,10 @@ checks that on random rows). The rules that keep it so:
   non-finite lookahead), :class:`Diverged` is raised and the caller takes the array
   version for that row.
 
-Anyone editing :func:`.law.step` or the functions it calls must edit this twin too.
+:func:`.law.spring_offsets` and :func:`.law.ladder_clearance` are written once, over an
+operations namespace, and their float forms here are generated from that source
+(:func:`hybridteam.library.float_form`); anyone editing the rest of :func:`.law.step` or
+the functions it calls must edit this twin too.
 """
 
 from __future__ import annotations
@@ -27,6 +30,9 @@ import math
 
 import numpy as np
 
+from hybridteam.library import float_form
+
+from . import law
 from .frame import CornerFrame
 from .law import TINY, Guide
 
@@ -49,15 +55,12 @@ def _norm(x: float, y: float) -> float:
     return math.sqrt(x * x + y * y)
 
 
-def spring_offsets(x: float, y: float, px: float, py: float, length: float,
-                   share: float) -> tuple[float, float, float]:
-    """:func:`.law.spring_offsets` of one robot: its offset ``o`` and the robots' distance.
-    Raises ZeroDivisionError where the robots coincide (numpy gives inf and NaN)."""
-    dx = x - px
-    dy = y - py
-    dist = _norm(dx, dy)
-    f = share * ((length - dist) / dist)
-    return f * dx, f * dy, dist
+#: :func:`.law.spring_offsets` of one robot, generated from its source: its offset ``o``
+#: and the robots' distance. Raises ZeroDivisionError where the robots coincide (numpy
+#: gives inf and NaN).
+spring_offsets = float_form(law.spring_offsets)
+#: :func:`.law.ladder_clearance` of one ladder, generated from its source.
+clearance = float_form(law.ladder_clearance)
 
 
 def to_frame(frame: CornerFrame, x: float, y: float) -> tuple[float, float]:
@@ -110,7 +113,7 @@ def _step(own, partner, guide, row, idx, p, frame, window, correction):
     k = coef * _max(no - p["orsp"], 0.0) / _max(no, TINY)
     cx, cy = k * ox, k * oy
     mx, my = _combine(tx, ty, _min(dgoal / v_max, 1.0), cx, cy, v_max, correction)
-    if _clearance(x + ox, y + oy, px + pox, py + poy) < p["ladder_margin"]:
+    if clearance(x + ox, y + oy, px + pox, py + poy) < p["ladder_margin"]:
         mx, my = _min(mx, 0.0), _min(my, 0.0)
     mx, my = _avoid_walls(x, y, mx, my, p["radius"], frame)
     wx, wy = to_world_vector(frame, mx, my)
@@ -167,20 +170,6 @@ def _combine(tx, ty, g, cx, cy, v_max, correction):
         raise Diverged(f"unknown correction reading '{correction}'")
     cl = _max(_norm(sx, sy) / v_max, 1.0)
     return sx / cl, sy / cl
-
-
-def _clearance(ax, ay, bx, by):
-    """``ladder_clearance`` of one ladder."""
-    da = _norm(_min(ax, 0.0), _min(ay, 0.0))
-    db = _norm(_min(bx, 0.0), _min(by, 0.0))
-    ux = bx - ax
-    uy = by - ay
-    t = _min(_max(-(ax * ux + ay * uy) / _max(ux * ux + uy * uy, TINY), 0.0), 1.0)
-    dv = _norm(ax + t * ux, ay + t * uy)
-    clear = _min(_min(da, db), dv)
-    if ((ax < 0.0) != (bx < 0.0)) and (ax * by - ay * bx) * (ax - bx) >= 0.0:
-        return 0.0
-    return clear
 
 
 def _avoid_walls(x, y, mx, my, radius, frame):

@@ -7,8 +7,8 @@ the same order (the rules and the one-row helpers are :mod:`.law_one`'s), keeps 
 statistics and calls the world (``finish``, ``raise_event``) with the same arguments in
 the same order, so a run's trace has the array version's bits
 (``tests/test_ladder_law_one.py``). Where two robots coincide it declines, and the array
-version runs. Anyone editing ``LadderCorridor.update`` or :func:`.kernel.in_corner` must
-edit this twin too.
+version runs. Anyone editing ``LadderCorridor.update`` must edit this twin too (its
+:func:`.kernel.in_corner` is generated from the array version's source).
 """
 
 from __future__ import annotations
@@ -18,7 +18,10 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .law_one import _max, _min, _norm, spring_offsets, to_frame, to_world_vector
+from hybridteam.library import float_form
+
+from . import kernel
+from .law_one import _max, _norm, spring_offsets, to_frame, to_world_vector
 
 if TYPE_CHECKING:
     from hybridteam.library import WorldAccess
@@ -26,15 +29,8 @@ if TYPE_CHECKING:
     from .world import LadderCorridor
 
 
-def in_corner(ax: float, ay: float, bx: float, by: float, width_in: float,
-              width_out: float) -> bool:
-    """:func:`.kernel.in_corner` of one ladder."""
-    overlap = (_min(ax, bx) <= 0.0 and _max(ax, bx) >= -width_in
-               and _min(ay, by) <= 0.0 and _max(ay, by) >= -width_out)
-    dx = bx - ax
-    dy = by - ay
-    s = dx * (-0.5 * width_out - ay) - dy * (-0.5 * width_in - ax)
-    return overlap and abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx)
+#: :func:`.kernel.in_corner` of one ladder, generated from its source.
+in_corner = float_form(kernel.in_corner)
 
 
 def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:

@@ -6,8 +6,8 @@ method for all of them. A single run has one bracket, and there numpy's cost is 
 round cost far more than the trial points themselves. So once only a few brackets are open
 (a single run's one, the handful an ensemble's instances cross in one step), they are
 finished by :func:`_finish_few` on Python floats. A round is written once
-(:func:`_trial`, :func:`_update`, over an operations namespace: :data:`ON_ARRAYS` for the
-array rounds), and its float form is generated from that source
+(:func:`_trial`, :func:`_update`, over an operations namespace ``ops``: numpy itself for
+the array rounds), and its float form is generated from that source
 (:func:`~hybridteam.floatpaths.float_form`): the same operations in the same order on the
 same IEEE doubles, so the same bits as the array rounds would give
 (``tests/test_illinois.py`` compares the two on random brackets), and a single run still
@@ -16,14 +16,13 @@ equals its ensemble member. A change to the method is made in one place.
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from hybridteam.arrays import some, where_true
-from hybridteam.floatpaths import FLOAT_PATHS, float_form
+from hybridteam.floatpaths import FLOAT_PATHS, Ops, float_form
 
 MAX_ITER = 200
 #: Up to this many open brackets, :func:`illinois` finishes them on Python floats
@@ -81,10 +80,10 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
         k: slice | np.ndarray = slice(None) if open_.size == size else open_
         a_, b_, fa, fb = lo[k], hi[k], ma[k], mb[k]
-        c = _trial(ON_ARRAYS, a_, b_, fa, fb, tol[k], slow[k])
+        c = _trial(np, a_, b_, fa, fb, tol[k], slow[k])
         tc, mc = ev(open_, c)
         lo[k], hi[k], ma[k], mb[k], kept[k], slow[k] = _update(
-            ON_ARRAYS, a_, b_, fa, fb, c, tc == truth0[k], mc, kept[k], slow[k])
+            np, a_, b_, fa, fb, c, tc == truth0[k], mc, kept[k], slow[k])
     return lo, hi
 
 
@@ -118,29 +117,12 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
     lo[brackets], hi[brackets] = a_s, b_s
 
 
-class Ops(NamedTuple):
-    """The operations a round is written over (:func:`_trial`, :func:`_update`): numpy's
-    (:data:`ON_ARRAYS`) for the array rounds; for one bracket on Python floats the rounds
-    are generated from the same source (:func:`~hybridteam.floatpaths.float_form`, which
-    writes these out with numpy's results on one element). ``+ - * <`` and ``&`` are the
-    operators of either, so both forms give the same bits by construction."""
-
-    where: Callable[[Any, Any, Any], Any]
-    finite: Callable[[Any], Any]
-    quotient: Callable[[Any, Any], Any]
-    minimum: Callable[[Any, Any], Any]
-    maximum: Callable[[Any, Any], Any]
-
-
-ON_ARRAYS = Ops(np.where, np.isfinite, operator.truediv, np.minimum, np.maximum)
-
-
 def _trial(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, tol: Any, slow: Any) -> Any:
     """A round's trial points: the secant (the bisection after three slow rounds or where
     the secant is not a number), kept half a tolerance inside the bracket. (The run
     ignores floating-point errors: a secant through equal margins is NaN.)"""
-    c = b - ops.quotient(fb * (b - a), fb - fa)
-    c = ops.where(ops.finite(c) & (slow < 3), c, 0.5 * (a + b))
+    c = b - ops.true_divide(fb * (b - a), fb - fa)
+    c = ops.where(ops.isfinite(c) & (slow < 3), c, 0.5 * (a + b))
     return ops.minimum(ops.maximum(c, a + 0.5 * tol), b - 0.5 * tol)
 
 
@@ -154,12 +136,12 @@ def _update(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, c: Any, to_lo: Any, mc: 
     1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next secant
     across the root instead of creeping from one side as regula falsi does."""
     width = b - a
-    scale = ops.where(to_lo, 1 - ops.quotient(mc, fa), 1 - ops.quotient(mc, fb))
+    scale = ops.where(to_lo, 1 - ops.true_divide(mc, fa), 1 - ops.true_divide(mc, fb))
     new_lo, new_hi = ops.where(to_lo, c, a), ops.where(to_lo, b, c)
     slow = ops.where(new_hi - new_lo > 0.5 * width, slow + 1, 0)
     survivor = ops.where(to_lo, 1, -1)
     again = survived == survivor
-    scale = ops.where(ops.finite(scale) & (scale > 0), scale, 0.5)
+    scale = ops.where(ops.isfinite(scale) & (scale > 0), scale, 0.5)
     new_fa = ops.where(to_lo, mc, ops.where(again, scale * fa, fa))
     new_fb = ops.where(to_lo, ops.where(again, scale * fb, fb), mc)
     return new_lo, new_hi, new_fa, new_fb, survivor, slow
