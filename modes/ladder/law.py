@@ -124,18 +124,18 @@ def target_vector(x: Array, y: Array, path_x: Array, path_y: Array, base: Array,
     return vx / dq, vy / dq
 
 
-def arrival_factor(dgoal: Array, v_max: Array) -> Array:
+def arrival_factor(dgoal: Array, v_max: Array, ops: Ops = np) -> Array:
     """``min(1, distgoal / v_max)``: a robot takes no step past its goal.
 
     The paper does not say how a robot stops; this scales the target vector so the last
     step lands on the goal instead of oscillating around it.
     """
-    return np.minimum(dgoal / v_max, 1.0)
+    return ops.minimum(dgoal / v_max, 1.0)
 
 
 def rotation_vector(x: Array, y: Array, px: Array, py: Array, dist: Array, dgoal: Array,
                     heading_x: Array, heading_y: Array, kr: Array,
-                    half_length: Array) -> tuple[Array, Array]:
+                    half_length: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Rotation vector: perpendicular to the ladder, |r| = k_r * arclength / distgoal.
 
     ``arclength`` is the arc the ladder's end still has to sweep to reach the goal
@@ -145,8 +145,8 @@ def rotation_vector(x: Array, y: Array, px: Array, py: Array, dist: Array, dgoal
     """
     ux = (x - px) / dist
     uy = (y - py) / dist
-    dtheta = np.arctan2(ux * heading_y - uy * heading_x, ux * heading_x + uy * heading_y)
-    mag = kr * half_length * dtheta / np.maximum(dgoal, TINY)
+    dtheta = ops.arctan2(ux * heading_y - uy * heading_x, ux * heading_x + uy * heading_y)
+    mag = kr * half_length * dtheta / ops.maximum(dgoal, TINY)
     return -mag * uy, mag * ux
 
 
@@ -158,12 +158,12 @@ def correction_coefficient(kc: Array, olim: Array, orsp: Array) -> Array:
 
 
 def correction_vector(ox: Array, oy: Array, no: Array, orsp: Array,
-                      coef: Array) -> tuple[Array, Array]:
+                      coef: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Correction vector toward the ladder end, growing linearly once |o| passes ``orsp``.
 
     ``no`` is |o|; ``coef`` is ``k_c / (olim - orsp)``, so |c| = k_c at the offset limit.
     """
-    k = coef * np.maximum(no - orsp, 0.0) / np.maximum(no, TINY)
+    k = coef * ops.maximum(no - orsp, 0.0) / ops.maximum(no, TINY)
     return k * ox, k * oy
 
 
@@ -184,15 +184,28 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
     can cover in one step", the step being ``unit(t + r) + c`` clamped at ``v_max``.
     """
     if rotate is not None:
-        sx = tx + rx
-        sy = ty + ry
-        ns = np.maximum(norm(sx, sy), TINY)
-        tx = np.where(rotate, sx / ns, tx)
-        ty = np.where(rotate, sy / ns, ty)
+        sx, sy = unit_sum(tx, ty, rx, ry)
+        tx = np.where(rotate, sx, tx)
+        ty = np.where(rotate, sy, ty)
+    return clamp_motion(tx, ty, g, cx, cy, v_max, correction)
+
+
+def unit_sum(tx: Array, ty: Array, rx: Array, ry: Array, ops: Ops = np) -> tuple[Array, Array]:
+    """``unit(t + r)``: the target and rotation vectors' sum, normalized (:func:`combine`)."""
+    sx = tx + rx
+    sy = ty + ry
+    ns = ops.maximum(ops.sqrt(sx * sx + sy * sy), TINY)
+    return sx / ns, sy / ns
+
+
+def clamp_motion(tx: Array, ty: Array, g: Array, cx: Array, cy: Array, v_max: Array,
+                 correction: str, ops: Ops = np) -> tuple[Array, Array]:
+    """:func:`combine` after the rotation: the motion vector from the (unit) direction
+    ``t``, clamped as the ``correction`` reading says."""
     if correction == "scaled":
         sx = g * tx + cx
         sy = g * ty + cy
-        cl = np.maximum(norm(sx, sy), 1.0)
+        cl = ops.maximum(ops.sqrt(sx * sx + sy * sy), 1.0)
         return v_max * (sx / cl), v_max * (sy / cl)
     if correction == "distance":
         sx = v_max * (g * tx) + cx
@@ -202,7 +215,7 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
         sy = g * ty + cy
     else:
         raise ValueError(f"unknown correction reading '{correction}'")
-    cl = np.maximum(norm(sx, sy) / v_max, 1.0)
+    cl = ops.maximum(ops.sqrt(sx * sx + sy * sy) / v_max, 1.0)
     return sx / cl, sy / cl
 
 
@@ -230,18 +243,16 @@ def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array, ops: Ops = np) 
 
 
 def avoid_ladder_collision(mx: Array, my: Array, clearance: Array,
-                           margin: Array) -> tuple[Array, Array]:
+                           margin: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Fig. 7(b): near the inner walls, drop components toward them or away from the corner.
 
     In the incoming leg "away from the corner" is the direction into the outgoing leg's
     inner wall and vice versa, so both rules are one: drop the positive frame components.
     Every point of the ladder then moves away from (or along) the inside of the turn and
-    cannot enter it. Modifies ``mx``, ``my`` in place.
+    cannot enter it. Returns the new ``mx``, ``my``.
     """
     near = clearance < margin
-    np.copyto(mx, np.minimum(mx, 0.0), where=near)
-    np.copyto(my, np.minimum(my, 0.0), where=near)
-    return mx, my
+    return ops.where(near, ops.minimum(mx, 0.0), mx), ops.where(near, ops.minimum(my, 0.0), my)
 
 
 def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_in: float,
@@ -250,39 +261,38 @@ def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_i
 
     A wall is about to be hit when the step would bring the centre closer than ``radius``
     to the wall's tangent line at the nearest wall point. The outer walls come first, then
-    the inner walls (their nearest point, the vertex included). Modifies ``mx``, ``my``.
+    the inner walls (their nearest point, the vertex included). Returns the new ``mx``,
+    ``my``.
     """
     mx, my = avoid_outer_walls(x, y, mx, my, radius, width_in, width_out)
     return avoid_inner_walls(x, y, mx, my, radius, inner_wall_distance(x, y))
 
 
 def avoid_outer_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      width_in: float, width_out: float) -> tuple[Array, Array]:
+                      width_in: float, width_out: float, ops: Ops = np) -> tuple[Array, Array]:
     """The outer-wall half of :func:`avoid_walls` (walls ``x = -w_in``, ``y = -w_out``)."""
-    np.copyto(mx, 0.0, where=(mx < 0.0) & (x + width_in + mx < radius))
-    np.copyto(my, 0.0, where=(my < 0.0) & (y + width_out + my < radius))
-    return mx, my
+    return (ops.where((mx < 0.0) & (x + width_in + mx < radius), 0.0, mx),
+            ops.where((my < 0.0) & (y + width_out + my < radius), 0.0, my))
 
 
-def inner_wall_distance(x: Array, y: Array) -> Array:
+def inner_wall_distance(x: Array, y: Array, ops: Ops = np) -> Array:
     """Distance from a robot centre outside the turn's inside to the inner walls."""
-    return norm(np.minimum(x, 0.0), np.minimum(y, 0.0))
+    ex, ey = ops.minimum(x, 0.0), ops.minimum(y, 0.0)
+    return ops.sqrt(ex * ex + ey * ey)
 
 
 def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      d: Array) -> tuple[Array, Array]:
+                      d: Array, ops: Ops = np) -> tuple[Array, Array]:
     """The inner-wall half of :func:`avoid_walls`; ``d`` is :func:`inner_wall_distance`.
 
     The vector from the nearest inner-wall point to the centre is ``(min(x, 0), min(y, 0))``:
     across the wall beside a leg, radial near the vertex.
     """
-    nx = np.minimum(x, 0.0) / d
-    ny = np.minimum(y, 0.0) / d
+    nx = ops.minimum(x, 0.0) / d
+    ny = ops.minimum(y, 0.0) / d
     p = mx * nx + my * ny
-    np.copyto(p, 0.0, where=(p >= 0.0) | (d + p >= radius))
-    mx -= p * nx
-    my -= p * ny
-    return mx, my
+    p = ops.where((p >= 0.0) | (d + p >= radius), 0.0, p)
+    return mx - p * nx, my - p * ny
 
 
 def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray,
