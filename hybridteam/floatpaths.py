@@ -138,10 +138,22 @@ def _arctan2(y: float, x: float) -> float:
     return float(np.arctan2(y, x))
 
 
+def _cos(x: float) -> float:
+    """``np.cos`` itself (the array loop on one number; ``math.cos`` could differ)."""
+    return float(np.cos(x))
+
+
+def _sin(x: float) -> float:
+    """``np.sin`` itself."""
+    return float(np.sin(x))
+
+
 #: The operations :func:`float_form` calls (the others are written out: :data:`INLINE`),
-#: each with numpy's result on one double.
+#: each with numpy's result on one double: ``+ - * /`` and ``sqrt`` are correctly rounded
+#: in both; numpy's transcendental functions are called as they are.
 ON_FLOATS: Mapping[str, Callable[..., Any]] = MappingProxyType({
-    "isfinite": math.isfinite, "sqrt": math.sqrt, "arctan2": _arctan2})
+    "isfinite": math.isfinite, "sqrt": math.sqrt, "arctan2": _arctan2, "cos": _cos,
+    "sin": _sin})
 
 #: The operations namespace an algorithm written once takes (its parameter ``ops``):
 #: numpy itself for arrays; its float form has none.
