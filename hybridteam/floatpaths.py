@@ -192,9 +192,13 @@ def float_form(fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = O
     of truths) are the same IEEE operations on floats as on arrays, so both forms give the
     same bits (a division is written ``ops.quotient``: Python's ``/`` raises on zero); the form's
     line numbers are ``fn``'s, for tracebacks and profiles. Only the project's own source is
-    compiled here, once, at import; nothing read from a model file.
+    compiled here, once, at import; nothing read from a model file. ``fn`` must be defined
+    with ``def`` in a source file (TypeError otherwise).
     """
-    source = textwrap.dedent(inspect.getsource(fn))
+    try:
+        source = textwrap.dedent(inspect.getsource(fn))
+    except (OSError, TypeError) as exc:  # typed at a prompt, or shipped without sources
+        raise TypeError(f"float_form: the source of {fn!r} cannot be read: {exc}") from None
     tree = ast.parse(source)
     ast.increment_lineno(tree, fn.__code__.co_firstlineno - 1)
     func = tree.body[0]

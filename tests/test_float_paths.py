@@ -108,3 +108,7 @@ def test_a_function_without_ops_is_refused():
         float_form(plain)
     with pytest.raises(TypeError, match="not a function defined with def"):
         float_form(lambda x, ops: x)
+    made_at_a_prompt: dict = {}
+    exec("def f(x, ops):\n    return x\n", made_at_a_prompt)  # (no source file to read)
+    with pytest.raises(TypeError, match="cannot be read"):
+        float_form(made_at_a_prompt["f"])
