@@ -19,8 +19,10 @@ and the ladder library's law and corridor instant. A hot path reads one attribut
 (:attr:`FloatPaths.on`), which costs about as much as a local comparison.
 
 :func:`float_form` makes a float path from the array version's own source, where the
-algorithm is written once over an operations namespace (the crossing search's bracket
-rounds): the second copy is generated, not written.
+algorithm is written once over an operations namespace ``ops`` (numpy for arrays): the
+second copy is generated, not written. Made so: the Illinois rounds of the crossing
+search, a payload's spring equilibrium, and the ladder library's law after its
+nearest-point search and its corridor's corner test.
 """
 
 from __future__ import annotations
@@ -74,12 +76,12 @@ FLOAT_PATHS = FloatPaths(os.environ.get(ENV, "on").strip().lower() not in OFF)
 #: second argument on ties (``-0.0`` against ``0.0``) and NaN if either is NaN (Python's
 #: ``min``/``max`` do not); a quotient by zero, where Python raises, is numpy's inf or NaN
 #: (:func:`_by_zero`, off the common path).
-INLINE = {
+INLINE: Mapping[str, str] = MappingProxyType({
     "where": "({1} if {0} else {2})",
     "minimum": "({t0} if (({t0} := {0}) < ({t1} := {1}) or {t0} != {t0}) else {t1})",
     "maximum": "({t0} if (({t0} := {0}) > ({t1} := {1}) or {t0} != {t0}) else {t1})",
     "true_divide": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
-}
+})
 
 
 def _by_zero(a: float, zero: float) -> float:
@@ -89,47 +91,45 @@ def _by_zero(a: float, zero: float) -> float:
         return float(np.true_divide(a, zero))
 
 
+class _Fill(ast.NodeTransformer):
+    """An :data:`INLINE` template with its placeholder names replaced by argument nodes."""
+
+    def __init__(self, args: Mapping[str, ast.expr]) -> None:
+        self.args = args
+
+    def visit_Name(self, node: ast.Name) -> ast.AST:
+        return self.args.get(node.id, node)
+
+
 class _OnFloats(ast.NodeTransformer):
-    """Rewrites a function written over ``ops`` into its float form (:func:`float_form`)."""
+    """Rewrites a function written over ``ops`` into its float form (:func:`float_form`):
+    each ``ops.NAME`` becomes the name ``_float_NAME`` (bound to ``ops[NAME]`` in the
+    form's namespace), and a call of one of :data:`INLINE` its written-out expression."""
 
-    def __init__(self, ops: str, names: Mapping[str, str]) -> None:
-        self.ops, self.names, self.temps = ops, names, 0
+    def __init__(self, ops: str, known: Mapping[str, Callable[..., Any]]) -> None:
+        self.ops, self.known, self.temps = ops, known, 0
 
-    def _op(self, node: ast.AST) -> str | None:
-        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and \
-                node.value.id == self.ops:
-            return node.attr
-        return None
+    def visit_Attribute(self, node: ast.Attribute) -> ast.AST:
+        if not (isinstance(node.value, ast.Name) and node.value.id == self.ops):
+            return self.generic_visit(node)
+        if node.attr not in self.known and node.attr not in INLINE:
+            raise TypeError(f"float_form: no float form of {self.ops}.{node.attr}")
+        return ast.copy_location(ast.Name(id=f"_float_{node.attr}", ctx=ast.Load()), node)
 
     def visit_Call(self, node: ast.Call) -> ast.AST:
-        self.generic_visit(node)
-        name = self._op(node.func) if isinstance(node.func, ast.Attribute) else None
-        if name is None and isinstance(node.func, ast.Name) and \
-                node.func.id.startswith("_float_"):
-            name = node.func.id.removeprefix("_float_")  # (visited first: a plain op)
-        if name not in INLINE:
+        self.generic_visit(node)  # (the callee ops.NAME is now the name _float_NAME)
+        callee = node.func.id if isinstance(node.func, ast.Name) else ""
+        name = callee.removeprefix("_float_")
+        if name == callee or name not in INLINE:
             return node
         temps = {}
-        for k in range(2):
+        for k in range(2):  # walrus names of the form's own, one pair per site
             self.temps += 1
             temps[f"t{k}"] = f"_float_t{self.temps}"
         args = [f"_float_arg{k}" for k in range(len(node.args))]
         template = ast.parse(INLINE[name].format(*args, **temps), mode="eval").body
-        by_name = dict(zip(args, node.args, strict=True))
-
-        class Fill(ast.NodeTransformer):
-            def visit_Name(self, n: ast.Name) -> ast.AST:
-                return by_name.get(n.id, n)
-
-        return ast.copy_location(Fill().visit(template), node)
-
-    def visit_Attribute(self, node: ast.Attribute) -> ast.AST:
-        name = self._op(node)
-        if name is None:
-            return self.generic_visit(node)
-        if name not in self.names and name not in INLINE:
-            raise TypeError(f"float_form: no float form of {self.ops}.{name}")
-        return ast.copy_location(ast.Name(id=f"_float_{name}", ctx=ast.Load()), node)
+        filled = _Fill(dict(zip(args, node.args, strict=True))).visit(template)
+        return ast.copy_location(filled, node)
 
 
 def _arctan2(y: float, x: float) -> float:
