@@ -37,10 +37,16 @@ Array = np.ndarray
 TINY = 1e-300
 
 
-def norm(x: Array, y: Array) -> Array:
+def norm(x: Array, y: Array, ops: Ops = np) -> Array:
     """``sqrt(x^2 + y^2)``: plain arithmetic, so the scalar reference matches it bit for bit
     (and it is many times faster than ``np.hypot`` on large arrays)."""
-    return np.sqrt(x * x + y * y)
+    return ops.sqrt(x * x + y * y)
+
+
+def unit_vector(vx: Array, vy: Array, ops: Ops = np) -> tuple[Array, Array]:
+    """``v / max(|v|, TINY)``: a unit vector, or zero for a zero ``v``."""
+    dq = ops.maximum(ops.sqrt(vx * vx + vy * vy), TINY)
+    return vx / dq, vy / dq
 
 
 def spring_offsets(x: Array, y: Array, px: Array, py: Array, length: Array,
@@ -118,10 +124,7 @@ def target_vector(x: Array, y: Array, path_x: Array, path_y: Array, base: Array,
     moves on (the paper's population includes lookahead 0).
     """
     flat = base + window + np.minimum(nearest + ahead, last)
-    vx = path_x[flat] - x
-    vy = path_y[flat] - y
-    dq = np.maximum(norm(vx, vy), TINY)
-    return vx / dq, vy / dq
+    return unit_vector(path_x[flat] - x, path_y[flat] - y)
 
 
 def arrival_factor(dgoal: Array, v_max: Array, ops: Ops = np) -> Array:
@@ -184,18 +187,12 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
     can cover in one step", the step being ``unit(t + r) + c`` clamped at ``v_max``.
     """
     if rotate is not None:
-        sx, sy = unit_sum(tx, ty, rx, ry)
+        sx, sy = unit_vector(tx + rx, ty + ry)
         tx = np.where(rotate, sx, tx)
         ty = np.where(rotate, sy, ty)
     return clamp_motion(tx, ty, g, cx, cy, v_max, correction)
 
 
-def unit_sum(tx: Array, ty: Array, rx: Array, ry: Array, ops: Ops = np) -> tuple[Array, Array]:
-    """``unit(t + r)``: the target and rotation vectors' sum, normalized (:func:`combine`)."""
-    sx = tx + rx
-    sy = ty + ry
-    ns = ops.maximum(ops.sqrt(sx * sx + sy * sy), TINY)
-    return sx / ns, sy / ns
 
 
 def clamp_motion(tx: Array, ty: Array, g: Array, cx: Array, cy: Array, v_max: Array,

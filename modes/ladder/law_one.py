@@ -4,29 +4,28 @@ Through the engine the law runs for one instance at a time in a single run, and 
 size each of :func:`.law.step`'s numpy calls costs its dispatch (about a microsecond) for
 one number: some 80 of them a period.
 
-Every part of the law after the nearest-point search (the springs' offsets, the rotation,
-correction and arrival, the clamp, the wall rules, the ladder's clearance) is written once
-in :mod:`.law`, over an operations namespace ``ops`` that is numpy for arrays, and its
-float form here is generated from that source (:func:`hybridteam.library.float_form`: the
-same IEEE operations in the same order, ``np.minimum``/``np.maximum`` with numpy's ties and
-NaN, numpy's own ``arctan2``), so every result has the array version's bits
-(``tests/test_ladder_law_one.py`` checks that on random rows). Written by hand here, and
-to be edited with :func:`.law.step`: the frame changes (:meth:`.CornerFrame.to_frame` of
-one point), the nearest-point search (numpy's own arithmetic and ``argmin`` on the window
-row) and the order :func:`.law.step` calls the parts in. Where Python would raise and
-numpy would return inf or NaN (a division by zero, a non-finite lookahead),
-:class:`Diverged` is raised and the caller takes the array version for that row.
+Every part of the law after the nearest-point search (the springs' offsets, the target
+vector's normalization, the rotation, correction and arrival, the clamp, the wall rules,
+the ladder's clearance) is written once in :mod:`.law`, over an operations namespace
+``ops`` that is numpy for arrays, and its float form here is generated from that source
+(:func:`hybridteam.library.float_form`: the same IEEE operations in the same order,
+``np.minimum``/``np.maximum`` with numpy's ties and NaN, numpy's own ``arctan2``), so
+every result has the array version's bits (``tests/test_ladder_law_one.py`` checks that
+on random rows). Written by hand here, and to be edited with :func:`.law.step`: the frame
+changes (:meth:`.CornerFrame.to_frame` of one point), the nearest-point search (numpy's
+own arithmetic and ``argmin`` on the window row) and the order :func:`.law.step` calls
+the parts in. Where Python would raise and numpy would return inf or NaN (a division by
+zero, a non-finite lookahead), :class:`Diverged` is raised and the caller takes the
+array version for that row.
 """
 
 from __future__ import annotations
-
-import math
 
 from hybridteam.library import float_form
 
 from . import law
 from .frame import CornerFrame
-from .law import TINY, Guide
+from .law import Guide
 
 
 class Diverged(ArithmeticError):
@@ -34,12 +33,9 @@ class Diverged(ArithmeticError):
 
 
 def _max(a: float, b: float) -> float:
-    """``np.maximum(a, b)``: ``b`` on ties, NaN if either is NaN."""
+    """``np.maximum(a, b)``: ``b`` on ties, NaN if either is NaN (the corridor's largest
+    offset, :mod:`.world_one`)."""
     return a if (a > b or a != a) else b
-
-
-def _norm(x: float, y: float) -> float:
-    return math.sqrt(x * x + y * y)
 
 
 #: :func:`.law.spring_offsets` of one robot, generated from its source: its offset ``o``
@@ -52,7 +48,8 @@ clearance = float_form(law.ladder_clearance)
 #: division by zero raises, where a robot centre is in the turn's inside: :class:`Diverged`)
 arrival_factor = float_form(law.arrival_factor)
 rotation_vector = float_form(law.rotation_vector)
-unit_sum = float_form(law.unit_sum)
+norm = float_form(law.norm)
+unit_vector = float_form(law.unit_vector)
 correction_vector = float_form(law.correction_vector)
 clamp_motion = float_form(law.clamp_motion)
 avoid_ladder_collision = float_form(law.avoid_ladder_collision)
@@ -109,8 +106,8 @@ def _step(own, partner, guide, row, idx, p, frame, window, correction):
         hy = p["hx"] * b0 + p["hy"] * b1
         rx, ry = rotation_vector(x, y, px, py, dist, dgoal, hx, hy, p["kr"],
                                  0.5 * p["length"])
-        tx, ty = unit_sum(tx, ty, rx, ry)
-    no = _norm(ox, oy)
+        tx, ty = unit_vector(tx + rx, ty + ry)
+    no = norm(ox, oy)
     gap = p["olim"] - p["orsp"]
     coef = p["kc"] / gap if gap > 0.0 else 0.0  # (law.correction_coefficient)
     cx, cy = correction_vector(ox, oy, no, p["orsp"], coef)
@@ -134,8 +131,6 @@ def _follow(x, y, guide, row, idx, lookahead, window):
     last = guide.fpath.shape[1] - 1
     nearest = min(max(idx + int(ex.argmin()) - window, 0), last)
     flat = base + window + min(nearest + max(lookahead, 1), last)
-    vx = guide.path_x.item(flat) - x
-    vy = guide.path_y.item(flat) - y
-    dq = _max(_norm(vx, vy), TINY)
-    dgoal = _norm(guide.fpath.item(row, last, 0) - x, guide.fpath.item(row, last, 1) - y)
-    return nearest, vx / dq, vy / dq, dgoal
+    tx, ty = unit_vector(guide.path_x.item(flat) - x, guide.path_y.item(flat) - y)
+    dgoal = norm(guide.fpath.item(row, last, 0) - x, guide.fpath.item(row, last, 1) - y)
+    return nearest, tx, ty, dgoal

@@ -21,7 +21,7 @@ import numpy as np
 from hybridteam.library import float_form
 
 from . import kernel
-from .law_one import _max, _norm, spring_offsets, to_frame, to_world_vector
+from .law_one import _max, norm, spring_offsets, to_frame, to_world_vector
 
 if TYPE_CHECKING:
     from hybridteam.library import WorldAccess
@@ -48,7 +48,7 @@ def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:
             tips, no = [], []
             for r in (0, 1):
                 ox, oy, _ = spring_offsets(*f[r], *f[1 - r], k.length, k.share[r])
-                no.append(_norm(ox, oy))
+                no.append(norm(ox, oy))
                 tips.append((f[r][0] + ox, f[r][1] + oy))
             rows.append((i, k, pos, tips, no))
     except ZeroDivisionError:
@@ -108,7 +108,7 @@ def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
     if not math.isnan(prev[0][0]):
         corner = c.was_corner.item(i)
         for r in (0, 1):
-            dist = _norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
+            dist = norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
             c.path[r, i] = c.path.item(r, i) + dist
             c.corner_path[r, i] = c.corner_path.item(r, i) + (dist if corner else 0.0)
         steps += 1
@@ -121,7 +121,7 @@ def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
 def _referee(c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool,
              step: int) -> tuple[bool, bool]:
     """Progress toward the goals: (arrived, stuck) of instance ``i`` at step ``step``."""
-    d = [_norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
+    d = [norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
     progress = d[0] + d[1]
     improved_at = c.improved_at.item(i)
     if progress < c.best.item(i) - k.stuck_tol:
