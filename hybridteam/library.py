@@ -27,11 +27,20 @@ payload outlines, robots' footprints) with a :class:`SceneDescription` and its p
 
 The engine may change anything else between versions; these three, the scene description
 and the registration decorators are kept stable and documented.
+
+A library that keeps a path on Python floats beside its array version (the ladder's law
+and corridor instant) takes it only while ``FLOAT_PATHS.on``, re-exported here from
+:mod:`hybridteam.floatpaths`: the public switch that runs everything on arrays, so the two
+versions can be compared through one documented setting. It writes such a path once, over
+an operations namespace ``ops`` (:data:`Ops`: numpy for arrays), and has
+:func:`float_form` generate the float form from that source.
 """
 
 from __future__ import annotations
 
 from hybridteam.errors import ModelError
+from hybridteam.floatpaths import FLOAT_PATHS as FLOAT_PATHS  # (a value: see the docstring)
+from hybridteam.floatpaths import Ops, float_form
 from hybridteam.laws import Estimate, LawContext, LawFunction, LawSpec, law
 from hybridteam.model import Agent, Team
 from hybridteam.world.access import WorldAccess, require_variable
@@ -73,6 +82,7 @@ __all__ = [
     "ModeShape",
     "ModelError",
     "OneLaw",
+    "Ops",
     "PolygonObstacle",
     "Region",
     "SceneDescription",
@@ -81,6 +91,7 @@ __all__ = [
     "WallObstacle",
     "WorldAccess",
     "WorldComponent",
+    "float_form",
     "law",
     "require_variable",
     "settings_error",

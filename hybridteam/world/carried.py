@@ -37,6 +37,7 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, some
 from hybridteam.errors import ModelError, did_you_mean
+from hybridteam.floatpaths import FLOAT_PATHS
 from hybridteam.world.access import WorldAccess, require_variable
 from hybridteam.world.component import WorldComponent, settings_error, world_component
 from hybridteam.world.payload import equilibrium, world_points
@@ -222,7 +223,7 @@ class CarriedPayload(WorldComponent):
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`settle`, returning the headings, the offsets ``(m, k, 2)`` and which grasps
         hold ``(m, k)`` (what :meth:`update` checks next, without gathering them again)."""
-        if idx.size == 1:  # a single run's instant: the same numbers, on floats
+        if idx.size == 1 and FLOAT_PATHS.on:  # a single run's instant: the same numbers
             return settle_one(self, world, idx)
         pts, heading = self._robot_points(world, idx)
         on = self._engagement(world, idx)

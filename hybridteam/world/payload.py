@@ -19,11 +19,13 @@ depend on the size of the batch it is computed in.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from hybridteam.arrays import some
+from hybridteam.floatpaths import Ops
 
 
 class Equilibrium(NamedTuple):
@@ -44,12 +46,45 @@ def bar(length: float) -> np.ndarray:
     return np.array([[h, 0.0], [-h, 0.0]])
 
 
-def _weighted_sum(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """sum_i w[:, i] * v[:, i] in a fixed order (no reduction whose order depends on shape)."""
-    acc = weights[:, 0] * values[:, 0]
-    for i in range(1, values.shape[1]):
-        acc = acc + weights[:, i] * values[:, i]
+def weighted_sum(values: Sequence[Any], weights: Sequence[Any]) -> Any:
+    """sum_i w_i v_i, left to right (no reduction whose order depends on shape), of one
+    value per grasp: ``(n,)`` columns or one instance's floats alike."""
+    acc = weights[0] * values[0]
+    for w, v in zip(weights[1:], values[1:], strict=True):
+        acc = acc + w * v
     return acc
+
+
+def _weighted_sum(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """:func:`weighted_sum` of ``(n, k)`` arrays, column by column."""
+    k = values.shape[1]
+    return weighted_sum([values[:, i] for i in range(k)], [weights[:, i] for i in range(k)])
+
+
+def equilibrium_pose(rx: Sequence[Any], ry: Sequence[Any], bx: Sequence[Any],
+                     by: Sequence[Any], w: Sequence[Any], ops: Ops = np
+                     ) -> tuple[Any, Any, Any, Any, Any]:
+    """:func:`equilibrium`'s pose ``(x, y, theta)`` and ``cos theta``, ``sin theta``, from
+    one value per grasp of the robot points, body points and springs: ``(n,)`` columns with
+    ``ops`` numpy, or one payload's floats in the float form
+    (:func:`~hybridteam.floatpaths.float_form`, a single run's settling,
+    :mod:`~hybridteam.world.settle_one`): the algorithm is written once."""
+    total = w[0]
+    for wi in w[1:]:
+        total = total + wi
+    rcx = weighted_sum(rx, w) / total
+    rcy = weighted_sum(ry, w) / total
+    bcx = weighted_sum(bx, w) / total
+    bcy = weighted_sum(by, w) / total
+    crx, cry = [v - rcx for v in rx], [v - rcy for v in ry]
+    cbx, cby = [v - bcx for v in bx], [v - bcy for v in by]
+    dot = weighted_sum([a * b + c * d for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)],
+                       w)
+    cross = weighted_sum([a * d - c * b for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)],
+                         w)
+    theta = ops.arctan2(cross, dot)
+    c, s = ops.cos(theta), ops.sin(theta)
+    return rcx - (c * bcx - s * bcy), rcy - (s * bcx + c * bcy), theta, c, s
 
 
 def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
@@ -71,21 +106,8 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     w = np.broadcast_to(np.asarray(springs, dtype=float), (n, k))
     if some(w <= 0):
         raise ValueError("spring constants must be positive")
-    total = w[:, 0]
-    for i in range(1, k):
-        total = total + w[:, i]
-    rcx = _weighted_sum(r[..., 0], w) / total
-    rcy = _weighted_sum(r[..., 1], w) / total
-    bcx = _weighted_sum(b[..., 0], w) / total
-    bcy = _weighted_sum(b[..., 1], w) / total
-    rx, ry = r[..., 0] - rcx[:, None], r[..., 1] - rcy[:, None]
-    bx, by = b[..., 0] - bcx[:, None], b[..., 1] - bcy[:, None]
-    dot = _weighted_sum(bx * rx + by * ry, w)
-    cross = _weighted_sum(bx * ry - by * rx, w)
-    theta = np.arctan2(cross, dot)
-    c, s = np.cos(theta), np.sin(theta)
-    x = rcx - (c * bcx - s * bcy)
-    y = rcy - (s * bcx + c * bcy)
+    x, y, theta, c, s = equilibrium_pose(*([a[:, i] for i in range(k)] for a in (
+        r[..., 0], r[..., 1], b[..., 0], b[..., 1], w)))
     if not offsets:
         return Equilibrium(x, y, theta, np.empty((n, 0, 2)))
     gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]

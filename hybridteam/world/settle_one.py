@@ -9,7 +9,9 @@ Here the same IEEE operations run in the same order on Python floats (the array
 version's evaluation order, written out: ``a + b * c - d * e`` is ``(a + b*c) - d*e``),
 and the sines, cosines and arctangents are numpy's own (``np.sin`` of a float runs the
 array loop), so every number equals the array version's bit for bit; the tests compare
-the two.
+the two. The spring equilibrium is not written here: its float form is generated from
+:func:`~hybridteam.world.payload.equilibrium_pose`, the array version's own source.
+Anyone editing the rest of ``_settle`` must edit this twin too.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from hybridteam.floatpaths import float_form
+from hybridteam.world.payload import equilibrium_pose
 
 if TYPE_CHECKING:
     from hybridteam.world.access import WorldAccess
@@ -27,32 +32,18 @@ def _cos_sin(angle: float) -> tuple[float, float]:
     return float(np.cos(angle)), float(np.sin(angle))
 
 
-def _weighted(values: list[float], weights: list[float]) -> float:
-    """sum_i w_i v_i, left to right (payload._weighted_sum's order)."""
-    acc = weights[0] * values[0]
-    for w, v in zip(weights[1:], values[1:], strict=True):
-        acc = acc + w * v
-    return acc
+#: :func:`~hybridteam.world.payload.equilibrium_pose` of one payload, generated from its
+#: source (:func:`~hybridteam.floatpaths.float_form`)
+_pose_on_floats = float_form(equilibrium_pose)
 
 
 def equilibrium_one(pts: list[tuple[float, float]], body: list[tuple[float, float]],
                     springs: list[float]) -> tuple[float, float, float]:
     """:func:`~hybridteam.world.payload.equilibrium` of one payload (no offsets):
     ``(x, y, theta)``."""
-    total = springs[0]
-    for w in springs[1:]:
-        total = total + w
-    rcx = _weighted([p[0] for p in pts], springs) / total
-    rcy = _weighted([p[1] for p in pts], springs) / total
-    bcx = _weighted([b[0] for b in body], springs) / total
-    bcy = _weighted([b[1] for b in body], springs) / total
-    rx, ry = [p[0] - rcx for p in pts], [p[1] - rcy for p in pts]
-    bx, by = [b[0] - bcx for b in body], [b[1] - bcy for b in body]
-    dot = _weighted([bx[i] * rx[i] + by[i] * ry[i] for i in range(len(pts))], springs)
-    cross = _weighted([bx[i] * ry[i] - by[i] * rx[i] for i in range(len(pts))], springs)
-    theta = float(np.arctan2(cross, dot))
-    c, s = _cos_sin(theta)
-    return rcx - (c * bcx - s * bcy), rcy - (s * bcx + c * bcy), theta
+    x, y, theta, _, _ = _pose_on_floats([p[0] for p in pts], [p[1] for p in pts],
+                                        [b[0] for b in body], [b[1] for b in body], springs)
+    return x, y, theta
 
 
 def settle_one(payload: CarriedPayload, world: WorldAccess, idx: np.ndarray

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybridteam.library import LawContext
+from hybridteam.library import FLOAT_PATHS, LawContext
 from hybridteam.library import law as register
 
 from . import law, law_one
@@ -26,7 +26,7 @@ ROBOT = ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladd
 def carry(ctx: LawContext) -> np.ndarray:
     """Target, rotation and correction vectors, clamped, then the wall rules (Sec. 3.2)."""
     window = int(ctx["window"][0]) if ctx.size else 16
-    if 0 < ctx.size <= FEW:
+    if 0 < ctx.size <= FEW and FLOAT_PATHS.on:
         try:
             return _few(ctx, window)
         except law_one.Diverged:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hybridteam.library import Ops
 from hybridteam.world.geometry import Corridor, corridor_with_turn
 
 from . import law
@@ -63,18 +64,19 @@ class Result:
 
 
 def in_corner(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
-              width_in: float, width_out: float) -> np.ndarray:
+              width_in: float, width_out: float, ops: Ops = np) -> np.ndarray:
     """Whether the ladder ``a -> b`` meets the closed corner square (frame coordinates).
 
     Separating axes: the square's two axes (bounding boxes overlap) and the ladder's normal
-    (the square's centre is within its half-extent of the ladder's line).
+    (the square's centre is within its half-extent of the ladder's line). Written once over
+    ``ops``: its float form is the corridor's instant's for a few rows (:mod:`.world_one`).
     """
-    overlap = ((np.minimum(ax, bx) <= 0.0) & (np.maximum(ax, bx) >= -width_in)
-               & (np.minimum(ay, by) <= 0.0) & (np.maximum(ay, by) >= -width_out))
+    overlap = ((ops.minimum(ax, bx) <= 0.0) & (ops.maximum(ax, bx) >= -width_in)
+               & (ops.minimum(ay, by) <= 0.0) & (ops.maximum(ay, by) >= -width_out))
     dx = bx - ax
     dy = by - ay
     s = dx * (-0.5 * width_out - ay) - dy * (-0.5 * width_in - ax)
-    return overlap & (np.abs(s) <= 0.5 * width_in * np.abs(dy) + 0.5 * width_out * np.abs(dx))
+    return overlap & (abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx))
 
 
 def _initial(pairs: Pairs, start: np.ndarray, goal: np.ndarray,

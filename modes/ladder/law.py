@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hybridteam.library import Ops
 from hybridteam.world.geometry import Corridor
 
 from .frame import CornerFrame
@@ -36,23 +37,31 @@ Array = np.ndarray
 TINY = 1e-300
 
 
-def norm(x: Array, y: Array) -> Array:
+def norm(x: Array, y: Array, ops: Ops = np) -> Array:
     """``sqrt(x^2 + y^2)``: plain arithmetic, so the scalar reference matches it bit for bit
     (and it is many times faster than ``np.hypot`` on large arrays)."""
-    return np.sqrt(x * x + y * y)
+    return ops.sqrt(x * x + y * y)
+
+
+def unit_vector(vx: Array, vy: Array, ops: Ops = np) -> tuple[Array, Array]:
+    """``v / max(|v|, TINY)``: a unit vector, or zero for a zero ``v``."""
+    dq = ops.maximum(ops.sqrt(vx * vx + vy * vy), TINY)
+    return vx / dq, vy / dq
 
 
 def spring_offsets(x: Array, y: Array, px: Array, py: Array, length: Array,
-                   share: Array) -> tuple[Array, Array, Array]:
+                   share: Array, ops: Ops = np) -> tuple[Array, Array, Array]:
     """Offset vector ``o`` (robot centre to its ladder end) and the robots' distance D.
 
     With two grasps the ladder lies on the line through the robots, and the ends sit
     ``|o_i| = sc_partner / (sc_i + sc_partner) * |D - length|`` from the robots (Sec. 2);
     ``share`` is that spring ratio. ``o`` points toward the partner when stretched.
+    Written once over ``ops`` (:func:`~hybridteam.floatpaths.float_form`: the float form
+    of one robot, :mod:`.law_one`'s, raises ZeroDivisionError where robots coincide).
     """
     dx = x - px
     dy = y - py
-    dist = norm(dx, dy)
+    dist = ops.sqrt(dx * dx + dy * dy)  # (norm's arithmetic)
     f = share * ((length - dist) / dist)
     return f * dx, f * dy, dist
 
@@ -115,24 +124,21 @@ def target_vector(x: Array, y: Array, path_x: Array, path_y: Array, base: Array,
     moves on (the paper's population includes lookahead 0).
     """
     flat = base + window + np.minimum(nearest + ahead, last)
-    vx = path_x[flat] - x
-    vy = path_y[flat] - y
-    dq = np.maximum(norm(vx, vy), TINY)
-    return vx / dq, vy / dq
+    return unit_vector(path_x[flat] - x, path_y[flat] - y)
 
 
-def arrival_factor(dgoal: Array, v_max: Array) -> Array:
+def arrival_factor(dgoal: Array, v_max: Array, ops: Ops = np) -> Array:
     """``min(1, distgoal / v_max)``: a robot takes no step past its goal.
 
     The paper does not say how a robot stops; this scales the target vector so the last
     step lands on the goal instead of oscillating around it.
     """
-    return np.minimum(dgoal / v_max, 1.0)
+    return ops.minimum(dgoal / v_max, 1.0)
 
 
 def rotation_vector(x: Array, y: Array, px: Array, py: Array, dist: Array, dgoal: Array,
                     heading_x: Array, heading_y: Array, kr: Array,
-                    half_length: Array) -> tuple[Array, Array]:
+                    half_length: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Rotation vector: perpendicular to the ladder, |r| = k_r * arclength / distgoal.
 
     ``arclength`` is the arc the ladder's end still has to sweep to reach the goal
@@ -142,8 +148,8 @@ def rotation_vector(x: Array, y: Array, px: Array, py: Array, dist: Array, dgoal
     """
     ux = (x - px) / dist
     uy = (y - py) / dist
-    dtheta = np.arctan2(ux * heading_y - uy * heading_x, ux * heading_x + uy * heading_y)
-    mag = kr * half_length * dtheta / np.maximum(dgoal, TINY)
+    dtheta = ops.arctan2(ux * heading_y - uy * heading_x, ux * heading_x + uy * heading_y)
+    mag = kr * half_length * dtheta / ops.maximum(dgoal, TINY)
     return -mag * uy, mag * ux
 
 
@@ -155,12 +161,12 @@ def correction_coefficient(kc: Array, olim: Array, orsp: Array) -> Array:
 
 
 def correction_vector(ox: Array, oy: Array, no: Array, orsp: Array,
-                      coef: Array) -> tuple[Array, Array]:
+                      coef: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Correction vector toward the ladder end, growing linearly once |o| passes ``orsp``.
 
     ``no`` is |o|; ``coef`` is ``k_c / (olim - orsp)``, so |c| = k_c at the offset limit.
     """
-    k = coef * np.maximum(no - orsp, 0.0) / np.maximum(no, TINY)
+    k = coef * ops.maximum(no - orsp, 0.0) / ops.maximum(no, TINY)
     return k * ox, k * oy
 
 
@@ -181,15 +187,22 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
     can cover in one step", the step being ``unit(t + r) + c`` clamped at ``v_max``.
     """
     if rotate is not None:
-        sx = tx + rx
-        sy = ty + ry
-        ns = np.maximum(norm(sx, sy), TINY)
-        tx = np.where(rotate, sx / ns, tx)
-        ty = np.where(rotate, sy / ns, ty)
+        sx, sy = unit_vector(tx + rx, ty + ry)
+        tx = np.where(rotate, sx, tx)
+        ty = np.where(rotate, sy, ty)
+    return clamp_motion(tx, ty, g, cx, cy, v_max, correction)
+
+
+
+
+def clamp_motion(tx: Array, ty: Array, g: Array, cx: Array, cy: Array, v_max: Array,
+                 correction: str, ops: Ops = np) -> tuple[Array, Array]:
+    """:func:`combine` after the rotation: the motion vector from the (unit) direction
+    ``t``, clamped as the ``correction`` reading says."""
     if correction == "scaled":
         sx = g * tx + cx
         sy = g * ty + cy
-        cl = np.maximum(norm(sx, sy), 1.0)
+        cl = ops.maximum(ops.sqrt(sx * sx + sy * sy), 1.0)
         return v_max * (sx / cl), v_max * (sy / cl)
     if correction == "distance":
         sx = v_max * (g * tx) + cx
@@ -199,43 +212,44 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
         sy = g * ty + cy
     else:
         raise ValueError(f"unknown correction reading '{correction}'")
-    cl = np.maximum(norm(sx, sy) / v_max, 1.0)
+    cl = ops.maximum(ops.sqrt(sx * sx + sy * sy) / v_max, 1.0)
     return sx / cl, sy / cl
 
 
-def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array) -> Array:
+def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array, ops: Ops = np) -> Array:
     """Distance from the ladder ``a -> b`` to the inside of the turn; 0 if it enters it.
 
     The inside is the quadrant ``x, y >= 0``: the distance is the least of the ends'
     distances to it and the vertex's distance to the segment. A segment with both ends
-    outside enters it only by crossing the line ``x = 0`` at some ``y >= 0``.
+    outside enters it only by crossing the line ``x = 0`` at some ``y >= 0``. Written once
+    over ``ops`` (its float form is :mod:`.law_one`'s; norms as :func:`norm` computes them).
     """
-    da = norm(np.minimum(ax, 0.0), np.minimum(ay, 0.0))
-    db = norm(np.minimum(bx, 0.0), np.minimum(by, 0.0))
+    ex, ey = ops.minimum(ax, 0.0), ops.minimum(ay, 0.0)
+    da = ops.sqrt(ex * ex + ey * ey)
+    ex, ey = ops.minimum(bx, 0.0), ops.minimum(by, 0.0)
+    db = ops.sqrt(ex * ex + ey * ey)
     ux = bx - ax
     uy = by - ay
-    t = np.minimum(np.maximum(-(ax * ux + ay * uy) / np.maximum(ux * ux + uy * uy, TINY),
-                              0.0), 1.0)
-    dv = norm(ax + t * ux, ay + t * uy)
-    clear = np.minimum(np.minimum(da, db), dv)
+    t = ops.minimum(ops.maximum(-(ax * ux + ay * uy) / ops.maximum(ux * ux + uy * uy, TINY),
+                                0.0), 1.0)
+    ex, ey = ax + t * ux, ay + t * uy
+    dv = ops.sqrt(ex * ex + ey * ey)
+    clear = ops.minimum(ops.minimum(da, db), dv)
     crossing = ((ax < 0.0) != (bx < 0.0)) & ((ax * by - ay * bx) * (ax - bx) >= 0.0)
-    np.copyto(clear, 0.0, where=crossing)
-    return clear
+    return ops.where(crossing, 0.0, clear)
 
 
 def avoid_ladder_collision(mx: Array, my: Array, clearance: Array,
-                           margin: Array) -> tuple[Array, Array]:
+                           margin: Array, ops: Ops = np) -> tuple[Array, Array]:
     """Fig. 7(b): near the inner walls, drop components toward them or away from the corner.
 
     In the incoming leg "away from the corner" is the direction into the outgoing leg's
     inner wall and vice versa, so both rules are one: drop the positive frame components.
     Every point of the ladder then moves away from (or along) the inside of the turn and
-    cannot enter it. Modifies ``mx``, ``my`` in place.
+    cannot enter it. Returns the new ``mx``, ``my``.
     """
     near = clearance < margin
-    np.copyto(mx, np.minimum(mx, 0.0), where=near)
-    np.copyto(my, np.minimum(my, 0.0), where=near)
-    return mx, my
+    return ops.where(near, ops.minimum(mx, 0.0), mx), ops.where(near, ops.minimum(my, 0.0), my)
 
 
 def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_in: float,
@@ -244,39 +258,38 @@ def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_i
 
     A wall is about to be hit when the step would bring the centre closer than ``radius``
     to the wall's tangent line at the nearest wall point. The outer walls come first, then
-    the inner walls (their nearest point, the vertex included). Modifies ``mx``, ``my``.
+    the inner walls (their nearest point, the vertex included). Returns the new ``mx``,
+    ``my``.
     """
     mx, my = avoid_outer_walls(x, y, mx, my, radius, width_in, width_out)
     return avoid_inner_walls(x, y, mx, my, radius, inner_wall_distance(x, y))
 
 
 def avoid_outer_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      width_in: float, width_out: float) -> tuple[Array, Array]:
+                      width_in: float, width_out: float, ops: Ops = np) -> tuple[Array, Array]:
     """The outer-wall half of :func:`avoid_walls` (walls ``x = -w_in``, ``y = -w_out``)."""
-    np.copyto(mx, 0.0, where=(mx < 0.0) & (x + width_in + mx < radius))
-    np.copyto(my, 0.0, where=(my < 0.0) & (y + width_out + my < radius))
-    return mx, my
+    return (ops.where((mx < 0.0) & (x + width_in + mx < radius), 0.0, mx),
+            ops.where((my < 0.0) & (y + width_out + my < radius), 0.0, my))
 
 
-def inner_wall_distance(x: Array, y: Array) -> Array:
+def inner_wall_distance(x: Array, y: Array, ops: Ops = np) -> Array:
     """Distance from a robot centre outside the turn's inside to the inner walls."""
-    return norm(np.minimum(x, 0.0), np.minimum(y, 0.0))
+    ex, ey = ops.minimum(x, 0.0), ops.minimum(y, 0.0)
+    return ops.sqrt(ex * ex + ey * ey)
 
 
 def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      d: Array) -> tuple[Array, Array]:
+                      d: Array, ops: Ops = np) -> tuple[Array, Array]:
     """The inner-wall half of :func:`avoid_walls`; ``d`` is :func:`inner_wall_distance`.
 
     The vector from the nearest inner-wall point to the centre is ``(min(x, 0), min(y, 0))``:
     across the wall beside a leg, radial near the vertex.
     """
-    nx = np.minimum(x, 0.0) / d
-    ny = np.minimum(y, 0.0) / d
+    nx = ops.minimum(x, 0.0) / d
+    ny = ops.minimum(y, 0.0) / d
     p = mx * nx + my * ny
-    np.copyto(p, 0.0, where=(p >= 0.0) | (d + p >= radius))
-    mx -= p * nx
-    my -= p * ny
-    return mx, my
+    p = ops.where((p >= 0.0) | (d + p >= radius), 0.0, p)
+    return mx - p * nx, my - p * ny
 
 
 def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray,

@@ -2,62 +2,60 @@
 
 Through the engine the law runs for one instance at a time in a single run, and at that
 size each of :func:`.law.step`'s numpy calls costs its dispatch (about a microsecond) for
-one number: some 80 of them a period. Here the same IEEE operations run in the same order
-on floats, so every result has the array version's bits (``tests/modes/test_ladder_law_one.py``
-checks that on random rows). The rules that keep it so:
+one number: some 80 of them a period.
 
-- ``+ - * /`` and :func:`math.sqrt` are the same correctly rounded operations in Python
-  and numpy; sums and products keep the array version's grouping;
-- ``np.minimum``/``np.maximum`` return their second argument on ties (``-0.0`` against
-  ``0.0``) and propagate NaN; :func:`_min` and :func:`_max` do the same (Python's
-  ``min``/``max`` do not);
-- ``np.arctan2`` is called as it is (its result is not correctly rounded, so ``math.atan2``
-  could differ);
-- the nearest-point search runs numpy's own arithmetic and ``argmin`` on the window row;
-- where Python would raise and numpy would return inf or NaN (a division by zero, a
-  non-finite lookahead), :class:`Diverged` is raised and the caller takes the array
-  version for that row.
-
-Anyone editing :func:`.law.step` or the functions it calls must edit this twin too.
+Every part of the law after the nearest-point search (the springs' offsets, the target
+vector's normalization, the rotation, correction and arrival, the clamp, the wall rules,
+the ladder's clearance) is written once in :mod:`.law`, over an operations namespace
+``ops`` that is numpy for arrays, and its float form here is generated from that source
+(:func:`hybridteam.library.float_form`: the same IEEE operations in the same order,
+``np.minimum``/``np.maximum`` with numpy's ties and NaN, numpy's own ``arctan2``), so
+every result has the array version's bits (``tests/modes/test_ladder_law_one.py`` checks that
+on random rows). Written by hand here, and to be edited with :func:`.law.step`: the frame
+changes (:meth:`.CornerFrame.to_frame` of one point), the nearest-point search (numpy's
+own arithmetic and ``argmin`` on the window row) and the order :func:`.law.step` calls
+the parts in. Where Python would raise and numpy would return inf or NaN (a division by
+zero, a non-finite lookahead), :class:`Diverged` is raised and the caller takes the
+array version for that row.
 """
 
 from __future__ import annotations
 
-import math
+from hybridteam.library import float_form
 
-import numpy as np
-
+from . import law
 from .frame import CornerFrame
-from .law import TINY, Guide
+from .law import Guide
 
 
 class Diverged(ArithmeticError):
     """A row whose floats would raise where numpy's arrays return inf or NaN."""
 
 
-def _min(a: float, b: float) -> float:
-    """``np.minimum(a, b)``: ``b`` on ties, NaN if either is NaN."""
-    return a if (a < b or a != a) else b
-
-
 def _max(a: float, b: float) -> float:
-    """``np.maximum(a, b)``: ``b`` on ties, NaN if either is NaN."""
+    """``np.maximum(a, b)``: ``b`` on ties, NaN if either is NaN (the corridor's largest
+    offset, :mod:`.world_one`)."""
     return a if (a > b or a != a) else b
 
 
-def _norm(x: float, y: float) -> float:
-    return math.sqrt(x * x + y * y)
-
-
-def spring_offsets(x: float, y: float, px: float, py: float, length: float,
-                   share: float) -> tuple[float, float, float]:
-    """:func:`.law.spring_offsets` of one robot: its offset ``o`` and the robots' distance.
-    Raises ZeroDivisionError where the robots coincide (numpy gives inf and NaN)."""
-    dx = x - px
-    dy = y - py
-    dist = _norm(dx, dy)
-    f = share * ((length - dist) / dist)
-    return f * dx, f * dy, dist
+#: :func:`.law.spring_offsets` of one robot, generated from its source: its offset ``o``
+#: and the robots' distance. Raises ZeroDivisionError where the robots coincide (numpy
+#: gives inf and NaN).
+spring_offsets = float_form(law.spring_offsets)
+#: :func:`.law.ladder_clearance` of one ladder, generated from its source.
+clearance = float_form(law.ladder_clearance)
+#: The rest of :func:`.law.step`'s parts for one robot, generated from their sources (a
+#: division by zero raises, where a robot centre is in the turn's inside: :class:`Diverged`)
+arrival_factor = float_form(law.arrival_factor)
+rotation_vector = float_form(law.rotation_vector)
+norm = float_form(law.norm)
+unit_vector = float_form(law.unit_vector)
+correction_vector = float_form(law.correction_vector)
+clamp_motion = float_form(law.clamp_motion)
+avoid_ladder_collision = float_form(law.avoid_ladder_collision)
+avoid_outer_walls = float_form(law.avoid_outer_walls)
+inner_wall_distance = float_form(law.inner_wall_distance)
+avoid_inner_walls = float_form(law.avoid_inner_walls)
 
 
 def to_frame(frame: CornerFrame, x: float, y: float) -> tuple[float, float]:
@@ -103,16 +101,21 @@ def _step(own, partner, guide, row, idx, p, frame, window, correction):
         raise ValueError("lookahead out of the int64 range")
     nearest, tx, ty, dgoal = _follow(x, y, guide, row, idx, int(p["lookahead"]), window)
     if p["kr"] != 0.0:
-        tx, ty = _rotate(x, y, px, py, dist, dgoal, tx, ty, p, frame)
-    no = _norm(ox, oy)
+        _, _, a0, a1, b0, b1 = frame.floats  # (frame.vectors_to_frame of the goal heading)
+        hx = p["hx"] * a0 + p["hy"] * a1
+        hy = p["hx"] * b0 + p["hy"] * b1
+        rx, ry = rotation_vector(x, y, px, py, dist, dgoal, hx, hy, p["kr"],
+                                 0.5 * p["length"])
+        tx, ty = unit_vector(tx + rx, ty + ry)
+    no = norm(ox, oy)
     gap = p["olim"] - p["orsp"]
-    coef = p["kc"] / gap if gap > 0.0 else 0.0
-    k = coef * _max(no - p["orsp"], 0.0) / _max(no, TINY)
-    cx, cy = k * ox, k * oy
-    mx, my = _combine(tx, ty, _min(dgoal / v_max, 1.0), cx, cy, v_max, correction)
-    if _clearance(x + ox, y + oy, px + pox, py + poy) < p["ladder_margin"]:
-        mx, my = _min(mx, 0.0), _min(my, 0.0)
-    mx, my = _avoid_walls(x, y, mx, my, p["radius"], frame)
+    coef = p["kc"] / gap if gap > 0.0 else 0.0  # (law.correction_coefficient)
+    cx, cy = correction_vector(ox, oy, no, p["orsp"], coef)
+    mx, my = clamp_motion(tx, ty, arrival_factor(dgoal, v_max), cx, cy, v_max, correction)
+    mx, my = avoid_ladder_collision(mx, my, clearance(x + ox, y + oy, px + pox, py + poy),
+                                    p["ladder_margin"])
+    mx, my = avoid_outer_walls(x, y, mx, my, p["radius"], frame.width_in, frame.width_out)
+    mx, my = avoid_inner_walls(x, y, mx, my, p["radius"], inner_wall_distance(x, y))
     wx, wy = to_world_vector(frame, mx, my)
     return wx, wy, nearest
 
@@ -128,72 +131,6 @@ def _follow(x, y, guide, row, idx, lookahead, window):
     last = guide.fpath.shape[1] - 1
     nearest = min(max(idx + int(ex.argmin()) - window, 0), last)
     flat = base + window + min(nearest + max(lookahead, 1), last)
-    vx = guide.path_x.item(flat) - x
-    vy = guide.path_y.item(flat) - y
-    dq = _max(_norm(vx, vy), TINY)
-    dgoal = _norm(guide.fpath.item(row, last, 0) - x, guide.fpath.item(row, last, 1) - y)
-    return nearest, vx / dq, vy / dq, dgoal
-
-
-def _rotate(x, y, px, py, dist, dgoal, tx, ty, p, frame):
-    """``rotation_vector`` added to the target vector and normalized (``combine``)."""
-    _, _, a0, a1, b0, b1 = frame.floats
-    hx = p["hx"] * a0 + p["hy"] * a1
-    hy = p["hx"] * b0 + p["hy"] * b1
-    ux = (x - px) / dist
-    uy = (y - py) / dist
-    dtheta = float(np.arctan2(ux * hy - uy * hx, ux * hx + uy * hy))
-    mag = p["kr"] * (0.5 * p["length"]) * dtheta / _max(dgoal, TINY)
-    sx = tx + -mag * uy
-    sy = ty + mag * ux
-    ns = _max(_norm(sx, sy), TINY)
-    return sx / ns, sy / ns
-
-
-def _combine(tx, ty, g, cx, cy, v_max, correction):
-    """``combine`` after the rotation: the motion vector, clamped."""
-    if correction == "scaled":
-        sx = g * tx + cx
-        sy = g * ty + cy
-        cl = _max(_norm(sx, sy), 1.0)
-        return v_max * (sx / cl), v_max * (sy / cl)
-    if correction == "distance":
-        sx = v_max * (g * tx) + cx
-        sy = v_max * (g * ty) + cy
-    elif correction == "capped":
-        sx = g * tx + cx
-        sy = g * ty + cy
-    else:
-        raise Diverged(f"unknown correction reading '{correction}'")
-    cl = _max(_norm(sx, sy) / v_max, 1.0)
-    return sx / cl, sy / cl
-
-
-def _clearance(ax, ay, bx, by):
-    """``ladder_clearance`` of one ladder."""
-    da = _norm(_min(ax, 0.0), _min(ay, 0.0))
-    db = _norm(_min(bx, 0.0), _min(by, 0.0))
-    ux = bx - ax
-    uy = by - ay
-    t = _min(_max(-(ax * ux + ay * uy) / _max(ux * ux + uy * uy, TINY), 0.0), 1.0)
-    dv = _norm(ax + t * ux, ay + t * uy)
-    clear = _min(_min(da, db), dv)
-    if ((ax < 0.0) != (bx < 0.0)) and (ax * by - ay * bx) * (ax - bx) >= 0.0:
-        return 0.0
-    return clear
-
-
-def _avoid_walls(x, y, mx, my, radius, frame):
-    """``avoid_walls``: the outer walls, then the inner ones."""
-    if mx < 0.0 and x + frame.width_in + mx < radius:
-        mx = 0.0
-    if my < 0.0 and y + frame.width_out + my < radius:
-        my = 0.0
-    cx, cy = _min(x, 0.0), _min(y, 0.0)
-    d = _norm(cx, cy)
-    nx = cx / d
-    ny = cy / d
-    q = mx * nx + my * ny
-    if q >= 0.0 or d + q >= radius:
-        q = 0.0
-    return mx - q * nx, my - q * ny
+    tx, ty = unit_vector(guide.path_x.item(flat) - x, guide.path_y.item(flat) - y)
+    dgoal = norm(guide.fpath.item(row, last, 0) - x, guide.fpath.item(row, last, 1) - y)
+    return nearest, tx, ty, dgoal

@@ -33,6 +33,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from hybridteam.library import (
+    FLOAT_PATHS,
     BarShape,
     BatchRequest,
     Footprint,
@@ -171,7 +172,7 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
-        if idx.size <= FEW and update_few(self, world, idx):
+        if idx.size <= FEW and FLOAT_PATHS.on and update_few(self, world, idx):
             return  # a single run's instant: on floats, the same bits
         pos = np.empty((len(self.robots), idx.size, 2))                      # (2, m, 2)
         for r, a in enumerate(self.robots):
@@ -279,7 +280,7 @@ class LadderCorridor(WorldComponent):
         ladder (a segment of its length through its centre) to the nearest wall, 0 when
         they touch. Off by default: at every step it costs more than the rest of an
         engine run."""
-        if idx.size == 1 and FEW >= 1 and not self.values["clearance"]:
+        if idx.size == 1 and FEW >= 1 and FLOAT_PATHS.on and not self.values["clearance"]:
             return self._sample_one(int(idx[0]))
         a, b = self.tips[0, idx], self.tips[1, idx]
         c = 0.5 * (a + b)

@@ -7,8 +7,8 @@ the same order (the rules and the one-row helpers are :mod:`.law_one`'s), keeps 
 statistics and calls the world (``finish``, ``raise_event``) with the same arguments in
 the same order, so a run's trace has the array version's bits
 (``tests/modes/test_ladder_law_one.py``). Where two robots coincide it declines, and the array
-version runs. Anyone editing ``LadderCorridor.update`` or :func:`.kernel.in_corner` must
-edit this twin too.
+version runs. Anyone editing ``LadderCorridor.update`` must edit this twin too (its
+:func:`.kernel.in_corner` is generated from the array version's source).
 """
 
 from __future__ import annotations
@@ -18,7 +18,10 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from .law_one import _max, _min, _norm, spring_offsets, to_frame, to_world_vector
+from hybridteam.library import float_form
+
+from . import kernel
+from .law_one import _max, norm, spring_offsets, to_frame, to_world_vector
 
 if TYPE_CHECKING:
     from hybridteam.library import WorldAccess
@@ -26,15 +29,8 @@ if TYPE_CHECKING:
     from .world import LadderCorridor
 
 
-def in_corner(ax: float, ay: float, bx: float, by: float, width_in: float,
-              width_out: float) -> bool:
-    """:func:`.kernel.in_corner` of one ladder."""
-    overlap = (_min(ax, bx) <= 0.0 and _max(ax, bx) >= -width_in
-               and _min(ay, by) <= 0.0 and _max(ay, by) >= -width_out)
-    dx = bx - ax
-    dy = by - ay
-    s = dx * (-0.5 * width_out - ay) - dy * (-0.5 * width_in - ax)
-    return overlap and abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx)
+#: :func:`.kernel.in_corner` of one ladder, generated from its source.
+in_corner = float_form(kernel.in_corner)
 
 
 def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:
@@ -52,7 +48,7 @@ def update_few(c: LadderCorridor, world: WorldAccess, idx: np.ndarray) -> bool:
             tips, no = [], []
             for r in (0, 1):
                 ox, oy, _ = spring_offsets(*f[r], *f[1 - r], k.length, k.share[r])
-                no.append(_norm(ox, oy))
+                no.append(norm(ox, oy))
                 tips.append((f[r][0] + ox, f[r][1] + oy))
             rows.append((i, k, pos, tips, no))
     except ZeroDivisionError:
@@ -112,7 +108,7 @@ def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
     if not math.isnan(prev[0][0]):
         corner = c.was_corner.item(i)
         for r in (0, 1):
-            dist = _norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
+            dist = norm(pos[r][0] - prev[r][0], pos[r][1] - prev[r][1])
             c.path[r, i] = c.path.item(r, i) + dist
             c.corner_path[r, i] = c.corner_path.item(r, i) + (dist if corner else 0.0)
         steps += 1
@@ -125,7 +121,7 @@ def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
 def _referee(c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool,
              step: int) -> tuple[bool, bool]:
     """Progress toward the goals: (arrived, stuck) of instance ``i`` at step ``step``."""
-    d = [_norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
+    d = [norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
     progress = d[0] + d[1]
     improved_at = c.improved_at.item(i)
     if progress < c.best.item(i) - k.stuck_tol:

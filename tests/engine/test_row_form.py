@@ -11,10 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import hybridteam as ht
-from hybridteam.engine.compile.compiled import CAgent, Ctx, Row
+from hybridteam.engine.compile.compiled import Ctx, Row
+from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.compile.scope import symbols
-from hybridteam.engine.run.crossing import segment
 from hybridteam.expr.compiler import compile_expression
+from hybridteam.floatpaths import FLOAT_PATHS
 from tests.conftest import EXAMPLES
 
 SYMS = symbols({"x": 0, "y": 1}, {"n": 0}, {"k": 0})
@@ -113,28 +114,25 @@ simulation: {duration: 6.0, sample_period: 0.5}
 @pytest.mark.parametrize(("name", "duration"), [("bouncing_ball.yaml", 3.0),
                                                 ("thermostat.yaml", 60.0),
                                                 ("water_tanks.yaml", None), ("swing", None)])
-def test_the_float_search_changes_no_bit_of_a_run(monkeypatch, team_from_yaml, name,
-                                                  duration):
+def test_the_float_search_changes_no_bit_of_a_run(team_from_yaml, name, duration):
     """A single run's search on floats (checkpoints, dense search, judgement) against the
-    same search on one-element arrays (the float forms refused): byte-identical traces.
+    same search on one-element arrays (the public switch off): byte-identical traces.
     The swing's guards read the time, the time in the mode (entered at other times than
     0), parameters and quotients."""
     if name == "swing":
         team = team_from_yaml(SWING)
     else:
         team = dataclasses.replace(ht.load(EXAMPLES / "automata" / name), requirements=())
+    # every watched atom and guard has a float form: with the switch on, the search runs
+    # on floats (the switch is the only difference between the two runs)
+    agents = compile_team(team).agents
+    assert all(ca.row_watches and ca.row_owners for ca in agents if ca.watches)
+    assert any(ca.watches for ca in agents)
+    assert FLOAT_PATHS.on
     fast = ht.simulate(team, duration=duration)
     if name == "swing":
         assert len(fast.transitions) > 8
-    used = []
-    one = segment.Segment._one
-
-    def refused(self, w, rows):
-        used.append(one(self, w, rows) is not None)
-        return None
-
-    monkeypatch.setattr(segment.Segment, "_one", refused)
-    monkeypatch.setattr(CAgent, "row_watches", property(lambda self: False))
-    slow = ht.simulate(team, duration=duration)
-    assert any(used)
+    with FLOAT_PATHS.off():
+        slow = ht.simulate(team, duration=duration)
+    assert FLOAT_PATHS.on  # (restored)
     assert fast.to_json() == slow.to_json()

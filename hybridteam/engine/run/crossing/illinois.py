@@ -5,20 +5,24 @@ method for all of them. A single run has one bracket, and there numpy's cost is 
 (about 1 µs, 3 µs for ``np.where``), not per element: the fifty-odd array operations of a
 round cost far more than the trial points themselves. So once only a few brackets are open
 (a single run's one, the handful an ensemble's instances cross in one step), they are
-finished by :func:`_finish_few` on Python floats, the same operations in the same order on
-the same IEEE doubles: the same bits as the array rounds would give
-(``tests/engine/test_illinois.py`` compares the two on random brackets), so a single run still
-equals its ensemble member.
+finished by :func:`_finish_few` on Python floats. A round is written once
+(:func:`_trial`, :func:`_update`, over an operations namespace ``ops``: numpy itself for
+the array rounds), and its float form is generated from that source
+(:func:`~hybridteam.floatpaths.float_form`): the same operations in the same order on the
+same IEEE doubles, so the same bits as the array rounds would give
+(``tests/engine/test_illinois.py`` compares the two on random brackets), and a single run still
+equals its ensemble member. A change to the method is made in one place.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from hybridteam.arrays import some, where_true
+from hybridteam.floatpaths import FLOAT_PATHS, Ops, float_form
 
 MAX_ITER = 200
 #: Up to this many open brackets, :func:`illinois` finishes them on Python floats
@@ -70,31 +74,16 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         open_ = where_true(hi - lo > tol)
         if open_.size == 0:
             break
-        if open_.size <= FEW and scalar:
+        if open_.size <= FEW and scalar and FLOAT_PATHS.on:
             _finish_few(ev, open_, lo, hi, ma, mb, truth0, tol, kept, slow, MAX_ITER - done)
             break
         # while every bracket is open (a single run's one bracket, mostly), views, not copies
         k: slice | np.ndarray = slice(None) if open_.size == size else open_
-        a_, b_, fa, fb, tl = lo[k], hi[k], ma[k], mb[k], tol[k]
-        width = b_ - a_
-        c = b_ - fb * width / (fb - fa)  # (the run ignores floating-point errors)
-        c = np.where(np.isfinite(c) & (slow[k] < 3), c, 0.5 * (a_ + b_))
-        c = np.minimum(np.maximum(c, a_ + 0.5 * tl), b_ - 0.5 * tl)  # np.clip's values
+        a_, b_, fa, fb = lo[k], hi[k], ma[k], mb[k]
+        c = _trial(np, a_, b_, fa, fb, tol[k], slow[k])
         tc, mc = ev(open_, c)
-        to_lo = tc == truth0[k]  # c has the original truth: it becomes the new lo
-        scale = np.where(to_lo, 1 - mc / fa, 1 - mc / fb)
-        new_lo, new_hi = np.where(to_lo, c, a_), np.where(to_lo, b_, c)
-        slow[k] = np.where(new_hi - new_lo > 0.5 * width, slow[k] + 1, 0)
-        survivor = np.where(to_lo, np.int8(1), np.int8(-1))
-        again = kept[k] == survivor
-        # Anderson–Björck: the end that survives again has its value scaled by
-        # 1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next
-        # secant across the root instead of creeping from one side as regula falsi does
-        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 0.5)
-        new_ma = np.where(to_lo, mc, np.where(again, scale * fa, fa))
-        mb[k] = np.where(to_lo, np.where(again, scale * fb, fb), mc)
-        ma[k], lo[k], hi[k] = new_ma, new_lo, new_hi
-        kept[k] = survivor
+        lo[k], hi[k], ma[k], mb[k], kept[k], slow[k] = _update(
+            np, a_, b_, fa, fb, c, tc == truth0[k], mc, kept[k], slow[k])
     return lo, hi
 
 
@@ -104,9 +93,9 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
     """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
     Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
     ``hi``. The trial points of one round are evaluated in one call, as the array round
-    evaluates them; :func:`_trial` and :func:`_update` are the array round's lines for one
-    element (the same bits, ``-0.0`` included). A bracket that closes leaves the next
-    rounds, as it leaves the array rounds' open brackets.
+    evaluates them; each bracket's round is the float form of the array round's
+    :func:`_trial` and :func:`_update` (the same bits, ``-0.0`` included). A bracket that
+    closes leaves the next rounds, as it leaves the array rounds' open brackets.
     """
     rows = brackets.tolist()
     a_s, b_s = lo[brackets].tolist(), hi[brackets].tolist()
@@ -118,64 +107,65 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
         going = [j for j in going if b_s[j] - a_s[j] > tls[j]]
         if not going:
             break
-        cs = [_trial(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j]) for j in going]
+        cs = [_trial_on_floats(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j])
+              for j in going]
         tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
         for j, c, tcj, mc in zip(going, cs, tc.tolist(), mc_.tolist(), strict=True):
-            a_s[j], b_s[j], fa_s[j], fb_s[j], survived_s[j], sl_s[j] = _update(
+            a_s[j], b_s[j], fa_s[j], fb_s[j], survived_s[j], sl_s[j] = _update_on_floats(
                 a_s[j], b_s[j], fa_s[j], fb_s[j], c, tcj == t0s[j], mc, survived_s[j],
                 sl_s[j])
     lo[brackets], hi[brackets] = a_s, b_s
 
 
-def _trial(a: float, b: float, fa: float, fb: float, tol: float, slow: int) -> float:
-    """A round's trial point for one bracket on floats: the array round's secant, the
-    bisection after three slow rounds or where the secant is not a number, kept half a
-    tolerance inside (``np.maximum``/``np.minimum`` return their second argument on ties,
-    and so do these conditionals)."""
-    den = fb - fa
-    c = b - fb * (b - a) / den if den != 0.0 else math.nan
-    if not (math.isfinite(c) and slow < 3):
-        c = 0.5 * (a + b)
-    low, high = a + 0.5 * tol, b - 0.5 * tol
-    c = c if c > low else low
-    return c if c < high else high
+def _trial(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, tol: Any, slow: Any) -> Any:
+    """A round's trial points: the secant (the bisection after three slow rounds or where
+    the secant is not a number), kept half a tolerance inside the bracket. (The run
+    ignores floating-point errors: a secant through equal margins is NaN.)"""
+    c = b - ops.true_divide(fb * (b - a), fb - fa)
+    c = ops.where(ops.isfinite(c) & (slow < 3), c, 0.5 * (a + b))
+    return ops.minimum(ops.maximum(c, a + 0.5 * tol), b - 0.5 * tol)
 
 
-def _update(a: float, b: float, fa: float, fb: float, c: float, to_lo: bool, mc: float,
-            survived: int, slow: int) -> tuple[float, float, float, float, int, int]:
-    """One bracket after its trial point ``c`` (margin ``mc``; ``to_lo``: it has the
-    original truth): its ends, their values (Anderson–Björck's scaling of the end that
-    survives again), which end survived and how many rounds in a row failed to halve it.
-    Where numpy divides by zero (inf or NaN, replaced by the round), Python raises, so
-    that quotient is NaN here."""
+def _update(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, c: Any, to_lo: Any, mc: Any,
+            survived: Any, slow: Any) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """The brackets after their trial points ``c`` (margins ``mc``; ``to_lo``: ``c`` has
+    the original truth and becomes the new lo): their ends, the ends' values, which end
+    survived (+1 hi, -1 lo) and how many rounds in a row failed to halve each bracket.
+
+    Anderson–Björck: the end that survives again has its value scaled by
+    1 - f(c)/f(replaced end) (0.5 when that is not positive), which pulls the next secant
+    across the root instead of creeping from one side as regula falsi does."""
     width = b - a
-    end = fa if to_lo else fb
-    scale = 1 - mc / end if end != 0.0 else math.nan
-    new_lo, new_hi = (c, b) if to_lo else (a, c)
-    slow = slow + 1 if new_hi - new_lo > 0.5 * width else 0
-    survivor = 1 if to_lo else -1
+    scale = ops.where(to_lo, 1 - ops.true_divide(mc, fa), 1 - ops.true_divide(mc, fb))
+    new_lo, new_hi = ops.where(to_lo, c, a), ops.where(to_lo, b, c)
+    slow = ops.where(new_hi - new_lo > 0.5 * width, slow + 1, 0)
+    survivor = ops.where(to_lo, 1, -1)
     again = survived == survivor
-    if not (math.isfinite(scale) and scale > 0):
-        scale = 0.5
-    if to_lo:
-        fa, fb = mc, (scale * fb if again else fb)
-    else:
-        fa, fb = (scale * fa if again else fa), mc
-    return new_lo, new_hi, fa, fb, survivor, slow
+    scale = ops.where(ops.isfinite(scale) & (scale > 0), scale, 0.5)
+    new_fa = ops.where(to_lo, mc, ops.where(again, scale * fa, fa))
+    new_fb = ops.where(to_lo, ops.where(again, scale * fb, fb), mc)
+    return new_lo, new_hi, new_fa, new_fb, survivor, slow
+
+
+#: :func:`_trial` and :func:`_update` for one bracket on Python floats, generated from their
+#: source (:func:`~hybridteam.floatpaths.float_form`: numpy's operations written out as
+#: expressions, without a call each, which the array set-up of a round would cost more than)
+_trial_on_floats = float_form(_trial)
+_update_on_floats = float_form(_update)
 
 
 def illinois_one(one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: float
                  ) -> tuple[float, float]:
     """:func:`illinois` for one bracket, on Python floats throughout (a single run's
-    search: the array set-up of :func:`illinois` costs more than its rounds). The same
-    rounds on the same doubles, so the same bits (``tests/engine/test_illinois.py``)."""
+    search: the array set-up of :func:`illinois` costs more than its rounds). The float
+    form of the same rounds, so the same bits (``tests/engine/test_illinois.py``)."""
     fa, fb = one(lo)[1], one(hi)[1]
     survived = slow = 0
     for _ in range(MAX_ITER):
         if not hi - lo > tol:
             break
-        c = _trial(lo, hi, fa, fb, tol, slow)
+        c = _trial_on_floats(lo, hi, fa, fb, tol, slow)
         tc, mc = one(c)
-        lo, hi, fa, fb, survived, slow = _update(lo, hi, fa, fb, c, tc == truth0, mc,
-                                                 survived, slow)
+        lo, hi, fa, fb, survived, slow = _update_on_floats(lo, hi, fa, fb, c, tc == truth0,
+                                                           mc, survived, slow)
     return lo, hi

@@ -32,6 +32,7 @@ from hybridteam.engine.compile.compiled import Ctx
 from hybridteam.engine.run.crossing.floats import check_truths_one, relevant_one, truths_one
 from hybridteam.engine.run.crossing.segment import Segment, owner_matters
 from hybridteam.engine.run.step import AgentStep, state_at
+from hybridteam.floatpaths import FLOAT_PATHS
 
 if TYPE_CHECKING:
     from hybridteam.engine.run.ensemble import Ensemble
@@ -47,7 +48,7 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx
     (``full``: they are every instance, in order, so gathers can be views)."""
     st = ens.states[a]
-    if idx.size == 1 and st.ca.row_watches:  # a single run's: on floats, the same truths
+    if idx.size == 1 and st.ca.row_watches and FLOAT_PATHS.on:  # a single run's: on floats
         return truths_one(st, int(idx[0]), x[0].tolist(), float(t[0]))
     out = np.empty((len(st.ca.watches), idx.size), bool)
     sel = slice(None) if full else idx
@@ -172,7 +173,7 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     about 1 µs, for one number). Rows not in ``pos`` keep their start truths."""
     k, checks = pos.size, thetas.size - 2
     if idx.size == 1 and ens.states[a].ca.row_watches and step.rk_step is not None \
-            and step.rk[0]:
+            and step.rk[0] and FLOAT_PATHS.on:
         return check_truths_one(ens.states[a], idx, x_end, step, thetas, start, h, t0, t1)
     rows = np.concatenate([pos] * checks)
     tau = thetas[1:-1].repeat(k) * h[rows]
@@ -367,7 +368,7 @@ def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
     st = ens.states[a]
     watches = st.ca.watches
     keep = flips.copy()
-    if idx.size == 1 and st.ca.row_owners:
+    if idx.size == 1 and st.ca.row_owners and FLOAT_PATHS.on:
         relevant_one(st, idx, keep, points)
         return keep
     for k in range(flips.shape[0]):

@@ -20,6 +20,7 @@ from hybridteam.engine.run.crossing.floats import DenseRow
 from hybridteam.engine.run.crossing.illinois import Evaluator, OneEvaluator, illinois, illinois_one
 from hybridteam.engine.run.drivers import derivative
 from hybridteam.engine.run.step import AgentStep, dense_reader, state_at
+from hybridteam.floatpaths import FLOAT_PATHS
 
 if TYPE_CHECKING:
     from hybridteam.engine.run.ensemble import Ensemble
@@ -121,7 +122,8 @@ class Segment:
         (:attr:`~hybridteam.expr.Atom.row`); else None."""
         watch = self.st.ca.watches[w]
         s = self.step.rk_step
-        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]]:
+        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]] \
+                or not FLOAT_PATHS.on:
             return None
         return _One(self, watch, s, int(self.step.rk_pos[rows[0]]),  # type: ignore[index]
                     int(rows[0]))
