@@ -6,7 +6,7 @@ its nearest ancestor's, and an agent with none anywhere stands still (the "zero"
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING
 
 from hybridteam.dynamics.plants import Plant
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 
 def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
-                   params: dict[str, float], folder: str | None = None,
+                   params: Mapping[str, float | str], folder: str | None = None,
                    variables: Iterable[str] = ()) -> Driver | None:
     """The driver a mode declares (None: it declares none); ``folder`` is where the team
     file lives, where ``module:function`` laws are looked for first."""

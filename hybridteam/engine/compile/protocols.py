@@ -11,6 +11,7 @@ in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral veloci
 from __future__ import annotations
 
 from collections import ChainMap
+from collections.abc import MutableMapping
 
 import numpy as np
 
@@ -53,10 +54,12 @@ def check_messages(team: Team) -> list[ModelError]:
         for _, mode in agent.root.walk():
             for tr in mode.transitions:
                 for act in tr.actions:
-                    spec = team.messages.get(getattr(act, "message", ""))
+                    if not isinstance(act, Send):
+                        continue
+                    spec = team.messages.get(act.message)
                     if spec is None or not spec.fields:
                         continue
-                    for f in act.fields:  # type: ignore[attr-defined]
+                    for f in act.fields:
                         if f not in spec.fields:
                             errors.append(ModelError(
                                 (*act.where, "fields", f),
@@ -65,7 +68,7 @@ def check_messages(team: Team) -> list[ModelError]:
     return errors
 
 
-def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector) -> None:
+def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
     agent = team.agents[ca.index]
     sends = {act.message for _, mode in agent.root.walk() for tr in mode.transitions

@@ -118,9 +118,9 @@ def next_ticks(t: np.ndarray, period: float) -> np.ndarray:
             q = ti / period
             if not math.isfinite(q):
                 break  # math.floor refuses inf and NaN: the array version answers
-            k = float(math.floor(q)) + 1.0
-            nxt = k * period
-            out.append(nxt if nxt > ti else (k + 1.0) * period)
+            kf = float(math.floor(q)) + 1.0
+            tick = kf * period
+            out.append(tick if tick > ti else (kf + 1.0) * period)
         else:
             return np.array(out)
     k = np.floor(t / period) + 1

@@ -34,6 +34,7 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     watch = st.ca.watches[w]
     ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub],
               q=(st.active, sub))
+    assert watch.owner is not None  # (a requirement's observer has none and is not judged)
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
 
