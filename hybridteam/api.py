@@ -29,8 +29,8 @@ class Run(Trace):
     :meth:`instance` gives the run of one instance as if it had been simulated alone.
     """
 
-    @property
-    def outcomes(self) -> list[str]:  # type: ignore[override]
+    @property  # type: ignore[override]  # Trace's is the list of outcome records
+    def outcomes(self) -> list[str]:
         return [o["outcome"] for o in self._outcomes]
 
     @outcomes.setter

@@ -33,7 +33,8 @@ class LawContext:
     def __init__(self, ctx, params: Mapping[str, Callable[[Any], Any]], agent: str,
                  state_names: Mapping[str, int], var_names: Mapping[str, int],
                  param_names: Mapping[str, int], inputs: tuple[str, ...],
-                 tables: dict[tuple[str, ...], np.ndarray | None] | None = None) -> None:
+                 tables: dict[tuple[str | int, ...], np.ndarray | None] | None = None,
+                 ) -> None:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
         the law first reads each (a law reads some of them in some modes, and each is
         evaluated at most once per call). ``tables``: where :meth:`table` keeps the
@@ -347,10 +348,10 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         load_libraries()
     if reference not in _REGISTRY:
         note = broken_note()
-        module, _, function = reference.rpartition(".")
-        if module and is_beside(folder, module.split(".")[0]):  # a user module, unimported
+        prefix, _, function = reference.rpartition(".")
+        if prefix and is_beside(folder, prefix.split(".")[0]):  # a user module, unimported
             note = (f"a law in a module beside the team file is named by module:function, "
-                    f"e.g. '{module}:{function}'")
+                    f"e.g. '{prefix}:{function}'")
         raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
                           sorted(_REGISTRY))
     return _REGISTRY[reference]

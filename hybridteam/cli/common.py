@@ -15,7 +15,7 @@ import os
 import sys
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from hybridteam.errors import printable
 
@@ -46,7 +46,7 @@ def show_warning(message: Warning | str, category: type[Warning], filename: str,
 class Parser(argparse.ArgumentParser):
     """argparse, with its error exit routed through our exit code."""
 
-    def error(self, message: str) -> None:  # argparse would print usage + exit 2 too
+    def error(self, message: str) -> NoReturn:  # argparse would print usage + exit 2 too
         self.print_usage(sys.stderr)
         say(f"{self.prog}: error: {message}")
         raise SystemExit(EXIT_USAGE)

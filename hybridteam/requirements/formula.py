@@ -121,7 +121,9 @@ class _FormulaCompiler(_Compiler):
             return _C(self._signal(node), False)
         if isinstance(node, ast.Call):
             f = node.func
-            name = f.value.id if isinstance(f, ast.Subscript) else f.id  # type: ignore[union-attr]
+            head = f.value if isinstance(f, ast.Subscript) else f
+            assert isinstance(head, ast.Name)  # (the whitelist passed only these: F[0, 5](...))
+            name = head.id
             if name in TEMPORAL or name == "implies":
                 return self._temporal(node, name)
             if name in SIGNAL_FUNCTIONS:

@@ -41,6 +41,11 @@ class Node:
         """Robustness at t = 0 only, per instance: a requirement's value."""
         return self.rho(sig)[:, 0]
 
+    def is_boundary_continuous(self) -> bool:
+        """Whether a failure of this node can begin between grid points (see
+        :func:`_continuous`, defined after the node kinds it tells apart)."""
+        return _continuous(self)
+
     def blame(self, sig: Any, i: int, k: int) -> tuple[float, str]:
         """(time, sub-formula) that first makes this node fail at grid point ``k`` of
         instance ``i`` (where its robustness is negative)."""
@@ -208,5 +213,3 @@ def _continuous(node: Node) -> bool:
         return False
     return all(_continuous(c) for c in node.children)
 
-
-Node.is_boundary_continuous = lambda self: _continuous(self)  # type: ignore[attr-defined]

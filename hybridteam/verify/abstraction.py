@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -160,7 +161,7 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
     return abstract, afields
 
 
-def _compile_tree(source: str, syms: dict, known: set[str], oracle: Oracle,
+def _compile_tree(source: str, syms: Mapping, known: set[str], oracle: Oracle,
                   free: list[str]):
     """The guard's Boolean structure over its comparisons: exact ones compiled by the
     expression compiler against the agent's own symbols, free ones read from the oracle.

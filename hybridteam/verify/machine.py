@@ -276,8 +276,9 @@ class Machine:
             cols_v = self.sk.discrete_vars[a]
             st.v[:n] = 0.0
             if cols_v:
-                st.v[np.ix_(np.arange(n), cols_v)] = np.array([s.agents[a][1] for s in states],
-                                                              float).reshape(n, len(cols_v))
+                at = np.ix_(np.arange(n), np.asarray(cols_v, np.intp))
+                st.v[at] = np.array([s.agents[a][1] for s in states],
+                                    float).reshape(n, len(cols_v))
             st.v[:n, self.sk.inst_col[a]] = np.arange(n)
             st.deadline[:n] = -np.inf
             ens.reliable.next_id[a][:n] = [s.next_ids[a] if s.next_ids else 0
@@ -317,7 +318,7 @@ class Machine:
                 raw = np.concatenate([raw, last.view(np.uint8)], axis=1)
             cols = self.sk.discrete_vars[a]
             if cols:
-                block = st.v[np.ix_(rows, cols)]
+                block = st.v[np.ix_(rows, np.asarray(cols, np.intp))]
                 if self.values is not None:
                     self.values.add(a, block)
                 values = block.tolist()

@@ -101,7 +101,7 @@ class States:
         raise Unsupported("it reads time")
 
     def in_modes(self, agent: str, modes: list[int]) -> np.ndarray:
-        return self._active[self.names[agent]][:, modes].any(axis=1)[:, None]
+        return np.logical_or.reduce(self._active[self.names[agent]][:, modes], axis=1)[:, None]
 
     def active(self, a: int) -> np.ndarray:
         """Agent ``a``'s active modes in each state ``(states, modes)``, as booleans."""
@@ -278,7 +278,7 @@ def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[
            cyclic: set[int], start: int) -> Verdict:
     """The shortest psi-free path from ``start`` into a dead end or a cycle (``reach``
     holds every dead and cyclic state: the backward search starts from them)."""
-    sub = nx.DiGraph()
+    sub: nx.DiGraph[int] = nx.DiGraph()
     nodes = np.flatnonzero(reach).tolist()
     sub.add_nodes_from(nodes)
     sub.add_edges_from((k, j) for k in nodes for j in g.succ(k) if reach[j] and not psi[j])

@@ -137,7 +137,8 @@ class Obstacles(WorldComponent):
         self.world = world  # kept: sense() reads poses when a law asks
         everyone = world.components()
         mine = everyone.index(self)
-        self.payloads = world.components(CarriedPayload)
+        self.payloads = [c for c in world.components(CarriedPayload)
+                         if isinstance(c, CarriedPayload)]  # (all are: typed for the reader)
         # payloads listed after this component settle after it: settle them first here
         self.late = [c for c in self.payloads if everyone.index(c) > mine]
         self.sensing = {*self.planar, *(r.agent for r in self.rules)}
@@ -228,6 +229,7 @@ class Obstacles(WorldComponent):
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
         an ensemble whose obstacles differ between instances (a swept door width)."""
+        assert self.scene_of is not None  # (called only where the scenes differ)
         codes = self.scene_of[idx]
         return [(self.scenes[c], where_true(codes == c)) for c in np.unique(codes).tolist()]
 
