@@ -104,9 +104,9 @@ def overlay_timeline_figure(result: Conformance, window: tuple[float, float] | N
         fig = Figure(figsize=(11.0, 1.7 + 0.55 * extent), dpi=100)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        top = _mark_divergence(ax, data, result)
+        diverged = _mark_divergence(ax, data, result)
         entry = [Line2D([], [], color=DIVERGENCE_COLOR, linewidth=2.0,
-                        label="first divergence")] if top is not None else []
+                        label="first divergence")] if diverged is not None else []
         draw_timeline(fig, ax, data, result.log, result.instance, entry)
         if top is not None:  # room for the label above the first agent's lanes
             low, high = ax.get_ylim()
