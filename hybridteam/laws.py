@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hybridteam.arrays import sinc, spread
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
@@ -153,7 +154,7 @@ class LawContext:
         the state of a discrete-time controller, kept from one period to the next."""
         return self._ctx.w.recall(name, initial)
 
-    def keep(self, name: str, values: np.ndarray) -> None:
+    def keep(self, name: str, values: ArrayLike) -> None:
         """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
         self._ctx.w.keep(name, np.asarray(values, dtype=float))
 

@@ -45,7 +45,7 @@ class WorldComponent:
     params: ClassVar[Mapping[str, Any]] = {}
     #: Local events the component may raise in agents. While it may, an agent waiting for
     #: one is not deadlocked (the component is a pending source of events).
-    raises: tuple[str, ...] = ()  # (a class's, or an instance's from its settings)
+    raises: ClassVar[tuple[str, ...]] = ()
     #: List settings whose numbers may be written as expressions of team parameters
     #: (``walls: [[2, "-door / 2", 2, -1]]``): each such expression reaches the component
     #: as an ``(n,)`` array, its value in every instance, so a study can sweep it; the

@@ -96,7 +96,9 @@ class Obstacles(WorldComponent):
                                              parsed["boxes"])
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
-        self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
+        # (this component's events come from its settings: its instance's, where the base
+        # class declares a class's)
+        self.raises = tuple(dict.fromkeys(r.event for r in self.rules))  # type: ignore[misc]
         # the beams the rules read, per ring: only those are cast at each instant (a rule on
         # the front IR reads 3 of 24 beams), and where each rule's beams are among them
         self.read_beams: dict[tuple[int, str], np.ndarray] = {}
