@@ -408,8 +408,9 @@ class Obstacles(WorldComponent):
         """What the views draw: the obstacles of instance 0 (where a study varies them,
         its other instances' differ), and the robots' footprints."""
         scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
-        obstacles = [{"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
-                     for w in scene.walls]
+        obstacles: list[dict[str, Any]] = [
+            {"kind": "wall", "points": [w[:2].tolist(), w[2:].tolist()]}
+            for w in scene.walls]
         obstacles += [{"kind": "circle", "x": float(x), "y": float(y), "r": float(r)}
                       for x, y, r in scene.circles]
         obstacles += [{"kind": "box", "points": _corners(b).tolist()} for b in scene.boxes]
