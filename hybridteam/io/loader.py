@@ -364,7 +364,8 @@ def _plant(spec: AgentSchema, where: DocPath, errors: list[ModelError]
     p, pwhere = spec.plant, (*where, "plant")
     assert p is not None
     limits = {k: tuple(v) for k, v in p.limits.items()}
-    stand_in = PlantSpec(p.kind or "none", dict(p.state), limits, pwhere)  # type: ignore
+    # (the schema checked each limit is a [low, high] pair)
+    stand_in = PlantSpec(p.kind or "none", dict(p.state), limits, pwhere)  # type: ignore[arg-type]
     if spec.model is None:
         return stand_in, None
     # the sections the agent wrote, even as null (which removes the model's manipulator)

@@ -73,7 +73,7 @@ class Flag(Node):
     get: Callable[[Any], np.ndarray] | None = None
 
     def _rho(self, sig: Any) -> np.ndarray:
-        return np.where(np.broadcast_to(self.get(sig), sig.shape), INF, -INF)  # type: ignore
+        return np.where(np.broadcast_to(self.get(sig), sig.shape), INF, -INF)  # type: ignore[misc]  # (built with its getter)
 
 
 @dataclass(eq=False)

@@ -147,10 +147,10 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
             for on, actions in lists:
                 known = _discrete_names(ca, abstract[a]) | _message_names(on, fields,
                                                                           afields)
-                for act in actions:
+                for act in actions:  # (an assignment has its target and expression)
                     if act.kind == "assign" and act.target[0] == "v":  # type: ignore[index]
                         name = var_name[a][act.target[1]]  # type: ignore[index]
-                        if name not in abstract[a] and not act.expr.names <= known:  # type: ignore
+                        if name not in abstract[a] and not act.expr.names <= known:  # type: ignore[union-attr]
                             abstract[a].add(name)
                             changed = True
                     elif act.kind == "send":

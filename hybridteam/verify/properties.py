@@ -146,11 +146,12 @@ def truth(node: N.Node, sig: States) -> np.ndarray:
     n = sig.shape[0]
     if isinstance(node, N.Const):
         return np.full(n, bool(node.value))
+    # (a Flag is built with its getter, a Predicate with both sides)
     if isinstance(node, N.Flag):
-        return np.broadcast_to(node.get(sig), sig.shape)[:, 0].astype(bool)  # type: ignore
+        return np.broadcast_to(node.get(sig), sig.shape)[:, 0].astype(bool)  # type: ignore[misc]
     if isinstance(node, N.Predicate):
-        a = np.broadcast_to(np.asarray(node.lhs(sig), float), sig.shape)  # type: ignore
-        b = np.broadcast_to(np.asarray(node.rhs(sig), float), sig.shape)  # type: ignore
+        a = np.broadcast_to(np.asarray(node.lhs(sig), float), sig.shape)  # type: ignore[misc, type-var]
+        b = np.broadcast_to(np.asarray(node.rhs(sig), float), sig.shape)  # type: ignore[misc, type-var]
         return _OPS[node.op](a, b)[:, 0]
     if isinstance(node, N.Not):
         return ~truth(node.children[0], sig)

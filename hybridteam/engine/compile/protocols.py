@@ -109,10 +109,11 @@ def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: 
                 continue
             modes.append(m)
         rate = col.expr(s.rate, syms, (*s.where, "rate"))
-        fields = {f: col.expr(e, usyms, (*s.where, "fields", f)) for f, e in s.fields.items()}
-        if rate is None or any(v is None for v in fields.values()):
+        given = {f: col.expr(e, usyms, (*s.where, "fields", f)) for f, e in s.fields.items()}
+        fields = {f: e for f, e in given.items() if e is not None}
+        if rate is None or len(fields) < len(given):
             continue
-        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
+        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,
                                   modes, where=s.where, rate_text=str(s.rate),
                                   fixed_rate=rate.names <= ca.param_index.keys()))
 

@@ -82,13 +82,14 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.priority is not None:
         rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
     if policy is not None and policy.acknowledged:
-        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore
+        # (an acknowledged message's policy has its timeout and retries)
+        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore[misc]
                           (*policy.where, "timeout"), "the ack timeout",
-                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore
+                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore[union-attr]
                           instances=sub)
-        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore
+        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore[misc]
                           (*policy.where, "retries"), "the number of retries",
-                          policy.retries.source, low=0.0, instances=sub)  # type: ignore
+                          policy.retries.source, low=0.0, instances=sub)  # type: ignore[union-attr]
         ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
                           rank)
     else:

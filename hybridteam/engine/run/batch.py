@@ -64,12 +64,12 @@ def _shape(ca: CAgent, p: np.ndarray, n: int) -> AgentShape:
     modes, law_params = [], {}
     for m in ca.modes:
         drv = ca.drivers[m.driver] if m.driver >= 0 else None
-        law = drv.law.name if drv is not None and drv.law is not None and drv.inputs is None \
-            else None
-        if law is not None:
-            values = {k: np.full(n, float(v)) for k, v in drv.law.params.items()}  # type: ignore
+        spec = drv.law if drv is not None and drv.inputs is None else None
+        law = spec.name if spec is not None else None
+        if drv is not None and spec is not None:
+            values = {k: np.full(n, float(v)) for k, v in spec.params.items()}
             values.update({k: np.broadcast_to(np.asarray(e(start), float), (n,)).copy()
-                           for k, e in drv.params.items()})  # type: ignore[union-attr]
+                           for k, e in drv.params.items()})
             law_params[m.path] = values
         modes.append(ModeShape(
             path=m.path, kind=m.kind, parent=ca.modes[m.parent].path if m.parent >= 0 else None,

@@ -45,9 +45,9 @@ def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
     """The law's inputs, shape-checked. A law that fails or returns the wrong shape is a
     :class:`ModelError` at its binding, with what went wrong (``HYBRIDTEAM_DEBUG=1``
     re-raises the law's own exception instead, for its traceback)."""
-    name = drv.law.name  # type: ignore[union-attr]
+    name = drv.law.name  # type: ignore[union-attr]  # (called for a law's drivers only)
     try:
-        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
+        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore[union-attr]
     except Exception as exc:
         if os.environ.get("HYBRIDTEAM_DEBUG"):
             raise
