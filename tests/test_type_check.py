@@ -1,7 +1,8 @@
 """The type check's contract (issue 46): what mypy checks and how strictly is declared once,
 in pyproject.toml, and CI and the pre-commit hooks run exactly that.
 
-mypy itself runs in ``.ci/run`` (about 15 s cold, too slow for the suite); these tests pin
+mypy itself runs in ``.ci/run`` (half a minute without its cache, too slow for the suite;
+under a second with it); these tests pin
 the settings that make its verdict mean something, so loosening them is a visible change.
 """
 
