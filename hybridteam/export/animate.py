@@ -198,9 +198,9 @@ def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
     updates: list[Any] = []  # per panel: its update(t)
     trails: list[Any] = []  # artists that only grow (blitted onto the background)
     moving: list[Any] = []  # artists redrawn every frame
-    if planar:
+    if planar and limits is not None:  # (limits: the planar robots' scene)
         fn, trails, artists = _planar(fig.add_subplot(grid[0, 0]), trace, instance, planar,
-                                      limits, linger)  # type: ignore[arg-type]
+                                      limits, linger)
         updates.append(fn)
         moving += artists
     for k, agent in enumerate(flows):

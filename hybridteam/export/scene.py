@@ -87,8 +87,15 @@ def draw_world(ax: Any, world: dict[str, Any] | None) -> None:
                                          capstyle="round", gid="obstacle-walls"))
     walls = np.asarray(world.get("walls", []) or [], float).reshape(-1, 4)
     if len(walls):
-        ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",  # type: ignore[arg-type]  # an (n, k, 2) array
-                                         linewidths=2.5, zorder=2, gid="walls"))
+        ax.add_collection(
+            LineCollection(
+                walls.reshape(-1, 2, 2),  # type: ignore[arg-type]  # an (n, 2, 2) array
+                colors="#222222",
+                linewidths=2.5,
+                zorder=2,
+                gid="walls",
+            )
+        )
 
 
 def draw_guides(ax: Any, world: dict[str, Any] | None, instance: int,
@@ -206,7 +213,15 @@ def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> 
         ok = moved(p, ok, 0.15 * min(size or [0.3]))
         polys = payload_outline(shape, *p[ok].T)
         color = PALETTE[(k + 5) % len(PALETTE)]
-        ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",  # type: ignore[arg-type]  # an (n, k, 2) array
-                                         alpha=0.35, linewidths=0.6, zorder=3,
-                                         gid=f"payload:{name}"))
+        ax.add_collection(
+            PolyCollection(
+                polys,  # type: ignore[arg-type]  # an (n, k, 2) array
+                facecolors=color,
+                edgecolors="#333333",
+                alpha=0.35,
+                linewidths=0.6,
+                zorder=3,
+                gid=f"payload:{name}",
+            )
+        )
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, linestyle="dotted", zorder=3)

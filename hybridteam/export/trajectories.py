@@ -255,8 +255,15 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                 units="xy", offsets=xy, offset_transform=ax.transData, facecolors="none",
                 edgecolors=color, linewidths=0.8, zorder=5, gid=f"footprints:{a}"))
             heads = np.stack([xy, xy + float(radius) * heading], 1)
-            ax.add_collection(LineCollection(heads, colors=color, linewidths=1.0, zorder=5,  # type: ignore[arg-type]  # an (n, k, 2) array
-                                             gid=f"headings:{a}"))
+            ax.add_collection(
+                LineCollection(
+                    heads,  # type: ignore[arg-type]  # an (n, 2, 2) array
+                    colors=color,
+                    linewidths=1.0,
+                    zorder=5,
+                    gid=f"headings:{a}",
+                )
+            )
         else:
             # no footprint size known: a small pose triangle pointing along the heading, which
             # cannot be mistaken for a piece of path (a heading line could)
@@ -264,9 +271,17 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             side = np.c_[-heading[:, 1], heading[:, 0]]
             tri = np.stack([xy + size * heading, xy - 0.6 * size * heading + 0.55 * size * side,
                             xy - 0.6 * size * heading - 0.55 * size * side], 1)
-            ax.add_collection(PolyCollection(tri, facecolors=color, edgecolors="white",  # type: ignore[arg-type]  # an (n, k, 2) array
-                                             linewidths=0.4, alpha=0.9, zorder=5,
-                                             gid=f"footprints:{a}"))
+            ax.add_collection(
+                PolyCollection(
+                    tri,  # type: ignore[arg-type]  # an (n, 3, 2) array
+                    facecolors=color,
+                    edgecolors="white",
+                    linewidths=0.4,
+                    alpha=0.9,
+                    zorder=5,
+                    gid=f"footprints:{a}",
+                )
+            )
         if valid.any():
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)

@@ -196,9 +196,17 @@ def _differential_evolution(varies: list[Vary], seeds: int, base: int, drive: _D
 
     # (scipy-stubs types the scalar objective and tuple bounds: not vectorized=True's
     # objective of a population, nor the sequence of (low, high) pairs scipy documents)
-    differential_evolution(objective, bounds,  # type: ignore[arg-type]
-                           integrality=integrality if seeds > 1 else None,
-                           vectorized=True, updating="deferred",
-                           popsize=max(1, math.ceil(population / dims)), maxiter=10**6,
-                           tol=0, atol=0, seed=search_seed, polish=False,
-                           init="latinhypercube")
+    differential_evolution(
+        objective,  # type: ignore[arg-type]
+        bounds,  # type: ignore[arg-type]
+        integrality=integrality if seeds > 1 else None,
+        vectorized=True,
+        updating="deferred",
+        popsize=max(1, math.ceil(population / dims)),
+        maxiter=10**6,
+        tol=0,
+        atol=0,
+        seed=search_seed,
+        polish=False,
+        init="latinhypercube",
+    )

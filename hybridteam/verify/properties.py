@@ -206,10 +206,11 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     for p in props:
         try:
             if p.kind == "invariant":
-                out.append(_invariant(p, truths(p.phi, sk, g)))  # type: ignore[arg-type]
+                assert p.phi is not None  # (an invariant has its formula)
+                out.append(_invariant(p, truths(p.phi, sk, g)))
             elif p.kind == "response":
-                out.append(_response(p, g, truths(p.phi, sk, g),  # type: ignore[arg-type]
-                                     truths(p.psi, sk, g)))  # type: ignore[arg-type]
+                assert p.phi is not None and p.psi is not None  # (a response has both)
+                out.append(_response(p, g, truths(p.phi, sk, g), truths(p.psi, sk, g)))
             elif p.kind == "deadlock":
                 out.append(_deadlock(p, sk, g))
             else:

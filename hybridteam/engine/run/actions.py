@@ -82,14 +82,14 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.priority is not None:
         rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
     if policy is not None and policy.acknowledged:
-        # (an acknowledged message's policy has its timeout and retries)
-        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore[misc]
+        wait, tries = policy.timeout, policy.retries
+        assert wait is not None and tries is not None  # (an acknowledged message's policy)
+        timeout = require(np.broadcast_to(wait(ctx), sub.shape),
                           (*policy.where, "timeout"), "the ack timeout",
-                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore[union-attr]
-                          instances=sub)
-        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore[misc]
+                          wait.source, low=0.0, open_low=True, instances=sub)
+        retries = require(np.broadcast_to(tries(ctx), sub.shape),
                           (*policy.where, "retries"), "the number of retries",
-                          policy.retries.source, low=0.0, instances=sub)  # type: ignore[union-attr]
+                          tries.source, low=0.0, instances=sub)
         ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
                           rank)
     else:

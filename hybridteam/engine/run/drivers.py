@@ -83,8 +83,9 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
         for j, expr in enumerate(D.flow or ()):
             if expr is not None:
                 fixed = expr.names <= fixed_names  # the same at every stage: evaluated once
-                flows.append((j, None if fixed else expr,
-                              expr(Ctx(None, v_g, p_g, None)) if fixed else None))  # type: ignore[arg-type]
+                # (a fixed flow reads no state and no time: evaluated without them)
+                value = expr(Ctx(None, v_g, p_g, None)) if fixed else None  # type: ignore[arg-type]
+                flows.append((j, None if fixed else expr, value))
         groups.append((D, sel, v_g, p_g, entered,
                        None if st.inbox is None else st.inbox.view(idx[sel]), flows))
     whole = len(groups) == 1 and isinstance(groups[0][1], slice)

@@ -73,7 +73,7 @@ class Segment:
         is_rk = self.step.rk[rows]
         any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a
-        derivs: dict[bytes, object] = {}
+        derivs: dict[bytes, rk.Derivative] = {}
         # one candidate (a single run's search): its trial points need no gathering
         alone = rows.size == 1
         # state_at's dense read, its lookups done once
@@ -95,7 +95,7 @@ class Segment:
             key = fp.tobytes()
             if key not in derivs:
                 derivs[key] = derivative(ens, a, sub[fp])
-            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
+            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],
                            ens.settings.rtol, ens.settings.atol, estimate=False)
             out[flow] = step.x1
             for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
