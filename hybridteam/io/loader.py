@@ -15,7 +15,7 @@ import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
@@ -119,7 +119,7 @@ def _load_team(doc: Document) -> Loaded:
     checked), then the semantic checker's warnings."""
     document = _validated(doc, TeamFile)
     try:
-        team, comp = compose_team(document, doc.filename)  # type: ignore[arg-type]
+        team, comp = compose_team(document, doc.filename)
     except ProtocolErrors as exc:
         raise InputErrors(exc.errors) from None
     others = {InFile(p.filename): p.positions for p in comp.cache.values()}
@@ -143,7 +143,11 @@ def _load_protocol(doc: Document) -> Loaded:
     return Loaded("protocol", _validated(doc, ProtocolFile))
 
 
-def _validated(doc: Document, schema: type[BaseModel]) -> BaseModel:
+#: the schema a document is validated against, and so the model it gives
+_Schema = TypeVar("_Schema", bound=BaseModel)
+
+
+def _validated(doc: Document, schema: type[_Schema]) -> _Schema:
     try:
         return schema.model_validate(doc.data)
     except ValidationError as exc:

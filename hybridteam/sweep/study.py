@@ -25,7 +25,7 @@ from hybridteam.io.loader import load_team
 from hybridteam.io.yamlpos import Path as DocPath
 from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import Team
-from hybridteam.sweep.schema import AxisSchema, FactorSchema, FactorSpec, StudyFile
+from hybridteam.sweep.schema import AxisSchema, AxisSpec, FactorSchema, FactorSpec, StudyFile
 
 #: A factor value: one number for all the factor's keys, or one per key.
 FactorValue = float | tuple[float, ...]
@@ -194,8 +194,8 @@ def _keys(name: str, spec: object) -> tuple[str, ...]:
     return (name,)
 
 
-def _axis_values(spec: object) -> list[float]:
-    return spec.values if isinstance(spec, AxisSchema) else spec  # type: ignore[return-value]
+def _axis_values(spec: AxisSpec) -> list[float]:
+    return spec.values if isinstance(spec, AxisSchema) else spec
 
 
 def _factor(name: str, spec: FactorSpec, positions: Positions, errors: list[SourceError]

@@ -168,8 +168,8 @@ def _temporal_free(node: N.Node) -> bool:
     return not isinstance(node, N.Temporal) and all(_temporal_free(c) for c in node.children)
 
 
-def _unbounded(node: N.Node) -> bool:
-    return node.lo == 0 and math.isinf(node.hi)  # type: ignore[attr-defined]
+def _unbounded(node: N.Temporal) -> bool:
+    return node.lo == 0 and math.isinf(node.hi)
 
 
 def properties(sk: Skeleton) -> list[Property]:
