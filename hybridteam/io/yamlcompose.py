@@ -58,12 +58,12 @@ class _Hooks:
         # Untagged plain scalars get a marker tag; _Builder types them with YAML 1.2 rules.
         if kind is ScalarNode and implicit[0]:
             return _PLAIN
-        return super().resolve(kind, value, implicit)  # type: ignore[misc]
+        return super().resolve(kind, value, implicit)  # type: ignore[misc]  # (a mixin: the resolver's)
 
     def compose_node(self, parent: Node | None, index: Any) -> Node:
-        event = self.peek_event()  # type: ignore[attr-defined]
+        event = self.peek_event()  # type: ignore[attr-defined]  # (a mixin: the parser's)
         if isinstance(event, yaml.AliasEvent):
-            node = super().compose_node(parent, index)  # type: ignore[misc]
+            node = super().compose_node(parent, index)  # type: ignore[misc]  # (the composer's)
             self.alias_uses.append((event.anchor, event.start_mark, node))
             return node
         self.depth += 1
@@ -71,7 +71,7 @@ class _Hooks:
             message = f"the document is nested too deeply (more than {MAX_DEPTH} levels)"
             raise yaml.composer.ComposerError(None, None, message, event.start_mark)
         try:
-            return super().compose_node(parent, index)  # type: ignore[misc]
+            return super().compose_node(parent, index)  # type: ignore[misc]  # (the composer's)
         finally:
             self.depth -= 1
 

@@ -96,7 +96,7 @@ class Machine:
         self.cteam = sk.cteam
         ens = Ensemble(sk.cteam, capacity, 0, 1.0, {})
         null = _NullRecorder()
-        ens.rec = ens.network.rec = null  # type: ignore[assignment]
+        ens.rec = ens.network.rec = null  # type: ignore[assignment]  # (a recorder of nothing)
         one, zero = np.ones(capacity), np.zeros(capacity)
         ens.network.default = (one, zero, zero)  # sends land at t + 1: the explorer delivers
         ens.network.links = {}

@@ -57,7 +57,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
         for name in plant.input_names:
             text = mode.inputs.get(name, 0.0)
             e = col.expr(text, syms, (*at, "inputs", name))
-            exprs_in.append(e)  # type: ignore[arg-type]
+            exprs_in.append(e)  # type: ignore[arg-type]  # (None: col has the error; no run)
         period = mode.input_period
         held = bool(period) and all(e is not None and e.names <= params.keys()
                                     for e in exprs_in)

@@ -121,9 +121,11 @@ class Segment:
         (:attr:`~hybridteam.expr.Atom.row`); else None."""
         watch = self.st.ca.watches[w]
         s = self.step.rk_step
-        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]]:
+        pos = self.step.rk_pos  # (set with rk_step)
+        if rows.size != 1 or watch.atom.row is None or s is None or pos is None \
+                or not self.step.rk[rows[0]]:
             return None
-        return _One(self, watch, s, int(self.step.rk_pos[rows[0]]),  # type: ignore[index]
+        return _One(self, watch, s, int(pos[rows[0]]),
                     int(rows[0]))
 
     def dense_one(self, w: int, rows: np.ndarray) -> OneEvaluator | None:
