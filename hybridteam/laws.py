@@ -243,7 +243,7 @@ def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndar
         along = np.abs(lateral) <= 1e-9 * (1.0 + np.hypot(f["vx"], f["vy"]))
         arc = (np.where(along, arc[0], line[0]), np.where(along, arc[1], line[1]))
     if arc is not None or line is not None:
-        out["x"], out["y"] = arc if arc is not None else line  # type: ignore[misc]
+        out["x"], out["y"] = arc if arc is not None else line  # type: ignore[misc]  # (one is set)
     out["theta"] = th0 + w * age
     return out
 

@@ -85,7 +85,7 @@ class Predicate(Node):
 
     def _rho(self, sig: Any) -> np.ndarray:
         with np.errstate(all="ignore"):
-            a, b = _full(sig, self.lhs(sig)), _full(sig, self.rhs(sig))  # type: ignore[misc]
+            a, b = _full(sig, self.lhs(sig)), _full(sig, self.rhs(sig))  # type: ignore[misc]  # (built with both sides)
             if self.op in ("==", "!="):
                 return np.where((a == b) == (self.op == "=="), INF, -INF)
             out = b - a if self.op in ("<", "<=") else a - b

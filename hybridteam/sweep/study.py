@@ -112,7 +112,7 @@ def _load(document: Document) -> Study:
         team = with_duration(team, doc.duration)
     errors: list[SourceError] = []
     draws = tuple(Draw(name, tuple(d.keys or [name]), "uniform" if d.uniform else "integers",
-                       *(d.uniform or d.integers))  # type: ignore[misc]
+                       *(d.uniform or d.integers))  # type: ignore[misc]  # (the schema gives one)
                   for name, d in doc.population.draws.items())
     factors = tuple(_factor(name, spec, positions, errors)
                     for name, spec in doc.factors.items())

@@ -230,7 +230,7 @@ def skeleton(cteam: CTeam, world_raises: tuple[str, ...] = ()) -> Skeleton:
                     tree = _exact_tree(tr.guard)
                 guard = SkeletonGuard(tr.guard.source if tr.guard else "", tree, oracle,
                                       inst_col, a * 1_000_000 + tr.index if driven else None)
-                tr = dataclasses.replace(tr, guard=guard)  # type: ignore[arg-type]
+                tr = dataclasses.replace(tr, guard=guard)  # type: ignore[arg-type]  # (the skeleton's stand-in)
             new_transitions.append(tr)
         triggers = {tr.on for tr in ca.transitions if tr.on is not None}
         inputs.append({e for e in triggers if e not in messages and e not in raised

@@ -242,7 +242,7 @@ class Machine:
                     s.outbox[: touched[i]] + s.outbox[touched[i] + 1:]
                 results[i] = self._read(i, s, choice, kept + tuple(per_out.get(i, ())),
                                         s.seen + tuple(per_seen.get(i, ())), agents)
-        return results  # type: ignore[return-value]
+        return results  # type: ignore[return-value]  # (each job got its result)
 
     def _put(self, i: int, s: State, sender: int, msg_id: int) -> int:
         """Load the parent's outbox entry ``(sender, msg_id)`` into instance ``i``; its

@@ -183,7 +183,7 @@ def _initial_values(agent: Agent, names: _Names, col: Collector
         if lo > hi:
             col.fail((*where, "limits", n), f"lower limit {lo} exceeds upper {hi}")
         lower[plant.input_names.index(n)], upper[plant.input_names.index(n)] = lo, hi
-    return init_state, init_vars, lower, upper  # type: ignore[return-value]
+    return init_state, init_vars, lower, upper  # type: ignore[return-value]  # (None only beside an error in col)
 
 
 def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[int, list[int]],

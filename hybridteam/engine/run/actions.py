@@ -31,8 +31,8 @@ def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction
     the assignments; ``msg``: the triggering message's fields, if any)."""
     for act in actions:
         if act.kind == "assign":
-            kind, col = act.target  # type: ignore[misc]
-            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
+            kind, col = act.target  # type: ignore[misc]  # (an assignment has both)
+            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]  # (ditto)
             if kind == "x":
                 st.x[:, col][sub] = value
                 ctx.x[:, col] = value

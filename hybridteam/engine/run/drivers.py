@@ -47,7 +47,7 @@ def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
     re-raises the law's own exception instead, for its traceback)."""
     name = drv.law.name  # type: ignore[union-attr]  # (called for a law's drivers only)
     try:
-        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore[union-attr]
+        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore[union-attr]  # (ditto)
     except Exception as exc:
         if os.environ.get("HYBRIDTEAM_DEBUG"):
             raise
