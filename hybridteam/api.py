@@ -36,8 +36,8 @@ class Run(Trace):
     #: instances): only :func:`simulate` counts. Not part of the trace or its files.
     costs: Costs | None = None
 
-    @property
-    def outcomes(self) -> list[str]:  # type: ignore[override]
+    @property  # type: ignore[override]  # Trace's is the list of outcome records
+    def outcomes(self) -> list[str]:
         return [o["outcome"] for o in self._outcomes]
 
     @outcomes.setter

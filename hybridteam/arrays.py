@@ -112,7 +112,7 @@ def gather(a: np.ndarray, idx: np.ndarray | slice) -> np.ndarray:
 def filled(size: int | tuple[int, ...], value: float, dtype: type = float) -> np.ndarray:
     """A new array of ``size`` (a length or a shape) copies of ``value``: ``np.full``,
     without its wrapper."""
-    out = np.empty(size, dtype)
+    out: np.ndarray = np.empty(size, dtype)
     out.fill(value)
     return out
 

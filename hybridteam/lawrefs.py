@@ -70,8 +70,8 @@ def import_model_module(module_name: str, folder: str | None) -> ModuleType:
     if not all(p.isidentifier() for p in parts):
         raise RefusedReference(f"'{module_name}' is not a module name")
     found = _beside(folder, parts[0])
-    if found is not None:
-        return _load_beside(found, parts, folder)  # type: ignore[arg-type]
+    if found is not None and folder is not None:  # (found only in a folder given)
+        return _load_beside(found, parts, folder)
     for package in library_packages():
         if module_name == package or module_name.startswith(package + "."):
             return importlib.import_module(module_name)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from hybridteam.arrays import sinc, spread
 from hybridteam.discovery import broken_note, load_libraries
@@ -126,7 +127,8 @@ class LawContext:
     def __init__(self, ctx: LawRows, params: Mapping[str, Callable[[LawRows], Any]],
                  agent: str, state_names: Mapping[str, int], var_names: Mapping[str, int],
                  param_names: Mapping[str, int], inputs: tuple[str, ...],
-                 tables: dict[tuple[str, ...], np.ndarray | None] | None = None) -> None:
+                 tables: dict[tuple[str | int, ...], np.ndarray | None] | None = None,
+                 ) -> None:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
         the law first reads each (a law reads some of them in some modes, and each is
         evaluated at most once per call). ``tables``: where :meth:`table` keeps the
@@ -249,7 +251,7 @@ class LawContext:
         the state of a discrete-time controller, kept from one period to the next."""
         return self._ctx.world.recall(name, initial)
 
-    def keep(self, name: str, values: np.ndarray) -> None:
+    def keep(self, name: str, values: ArrayLike) -> None:
         """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
         self._ctx.world.keep(name, np.asarray(values, dtype=float))
 
@@ -338,7 +340,7 @@ def _dead_reckon(f: dict[str, np.ndarray], age: np.ndarray) -> dict[str, np.ndar
         along = np.abs(lateral) <= 1e-9 * (1.0 + np.hypot(f["vx"], f["vy"]))
         arc = (np.where(along, arc[0], line[0]), np.where(along, arc[1], line[1]))
     if arc is not None or line is not None:
-        out["x"], out["y"] = arc if arc is not None else line  # type: ignore[misc]
+        out["x"], out["y"] = arc if arc is not None else line  # type: ignore[misc]  # (one is set)
     out["theta"] = th0 + w * age
     return out
 
@@ -444,10 +446,10 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         load_libraries()
     if reference not in _REGISTRY:
         note = broken_note()
-        module, _, function = reference.rpartition(".")
-        if module and is_beside(folder, module.split(".")[0]):  # a user module, unimported
+        prefix, _, function = reference.rpartition(".")
+        if prefix and is_beside(folder, prefix.split(".")[0]):  # a user module, unimported
             note = (f"a law in a module beside the team file is named by module:function, "
-                    f"e.g. '{module}:{function}'")
+                    f"e.g. '{prefix}:{function}'")
         raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
                           sorted(_REGISTRY))
     return _REGISTRY[reference]

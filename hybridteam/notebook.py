@@ -46,4 +46,5 @@ def team_html(team: Team) -> str:
     from hybridteam.export.roles import roles_view
 
     svg = render(roles_view(diagram_graph(team)), "svg")
+    assert isinstance(svg, str)  # (svg is a text format)
     return f"<p><b>{html.escape(repr(team))}</b></p>{svg}"

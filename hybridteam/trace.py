@@ -39,7 +39,7 @@ _FLOAT_COLUMNS = {"t", "start", "end", "t_send", "t_recv"}
 def _row_type(names: tuple[str, ...]) -> type:
     """The row type of a table with these columns, made once: building a namedtuple
     class costs about 100 µs, a third of what a short run spends on its trace."""
-    return namedtuple("Row", names)  # type: ignore[misc]
+    return namedtuple("Row", names)
 
 
 class Table:
@@ -125,7 +125,9 @@ def _sample_list(values: np.ndarray) -> list:
     ``tolist`` (a large team's trace is millions of values)."""
     if not np.isnan(values).any():
         return values.tolist()
-    return np.where(np.isnan(values), None, values.astype(object)).tolist()
+    out = values.astype(object)
+    out[np.isnan(values)] = None
+    return out.tolist()
 
 
 def _none_to_nan(values: Any) -> Any:

@@ -126,9 +126,9 @@ class TraceFile(BaseModel):
     version: Literal[1]
     meta: Meta
     outcomes: list[Outcome]
-    transitions: Transitions  # type: ignore[valid-type]
-    intervals: Intervals  # type: ignore[valid-type]
-    messages: Messages  # type: ignore[valid-type]
+    transitions: Transitions  # type: ignore[valid-type]  # (a model _make builds)
+    intervals: Intervals  # type: ignore[valid-type]  # (a model _make builds)
+    messages: Messages  # type: ignore[valid-type]  # (a model _make builds)
     samples: Samples
 
     @model_validator(mode="after")

@@ -18,7 +18,7 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 from hybridteam.errors import printable
 
@@ -86,7 +86,7 @@ def library_logging(level: str | None) -> Iterator[None]:
 class Parser(argparse.ArgumentParser):
     """argparse, with its error exit routed through our exit code."""
 
-    def error(self, message: str) -> None:  # argparse would print usage + exit 2 too
+    def error(self, message: str) -> NoReturn:  # argparse would print usage + exit 2 too
         self.print_usage(sys.stderr)
         say(f"{self.prog}: error: {message}")
         raise SystemExit(EXIT_USAGE)

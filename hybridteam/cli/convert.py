@@ -90,7 +90,7 @@ def _from_chart(source: Path, args) -> str:
     chart_name = read_chart(source).data["team"]
     name = args.agent or (chart_name if chart_name in agents else
                           agents[0] if len(agents) == 1 else None)
-    if name not in agents:
+    if name is None or name not in agents:
         raise UsageError(f"choose the agent of '{args.into}' that takes the chart with "
                          f"--agent (agents: {', '.join(map(str, agents))})")
     chart = read_chart(source, name)

@@ -14,6 +14,7 @@ import argparse
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 from hybridteam.cli.common import (
     EXIT_OK,
@@ -204,7 +205,7 @@ def _finish(args, team, out: Path, key: str, settings: dict, search) -> int:
         raise UsageError("nothing was simulated")
     i = search.best()
     replay = O.replay_args(args.team, search, i, out)
-    extra = {"replay": O.command_line(replay)}
+    extra: dict[str, Any] = {"replay": O.command_line(replay)}
     rho = float(search.flat()[2][i])
     if not args.no_replay:
         extra["replayed_robustness"] = _replay(team, search, i, out, args.requirement)

@@ -80,6 +80,7 @@ def check_udp_flags(args: argparse.Namespace) -> None:
 def udp_settings(args: argparse.Namespace, team: Team, agents: list[str]) -> UdpSettings:
     """The flags over the team file's ``deploy:`` (module docstring), or UsageError."""
     udp = team.udp
+    group: tuple[str, int] | None
     if args.multicast is not None or args.broadcast is not None:
         mode = "multicast" if args.multicast is not None else "broadcast"
         group = address(args.multicast or args.broadcast, f"--{mode}")

@@ -11,6 +11,7 @@ engine integrates it with the Runge–Kutta scheme in :mod:`hybridteam.dynamics.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -135,7 +136,7 @@ class NoPlant(Plant):
         return x.copy()
 
 
-KINEMATICS: dict[str, type[Plant]] = {"unicycle": Unicycle, "holonomic": Holonomic}
+KINEMATICS: dict[str, Callable[[], Plant]] = {"unicycle": Unicycle, "holonomic": Holonomic}
 
 
 def make_plant(kind: str, state_names: tuple[str, ...] = ()) -> Plant:

@@ -95,6 +95,7 @@ def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fp
     with rc_context({"font.family": FONT}):
         fig, update, trails, moving = _build(trace, instance, size, dpi, linger)
         canvas = fig.canvas
+        assert isinstance(canvas, FigureCanvasAgg)  # (_build gives the figure one)
         for artist in [*trails, *moving]:
             artist.set_animated(True)  # left out of the background, drawn per frame
         canvas.draw()
@@ -121,7 +122,9 @@ def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fp
 
 
 def _canvas_rgb(fig: Figure) -> np.ndarray:
-    return np.asarray(fig.canvas.buffer_rgba())[..., :3]
+    canvas = fig.canvas
+    assert isinstance(canvas, FigureCanvasAgg)  # (the figures here are drawn by Agg)
+    return np.asarray(canvas.buffer_rgba())[..., :3]
 
 
 class _CanvasGifWriter(PillowWriter):
@@ -164,7 +167,10 @@ class _CanvasFFMpegWriter(FFMpegWriter):
     """FFMpegWriter piping the blitted canvas (raw RGBA, the writer's frame format)."""
 
     def grab_frame(self, **savefig_kwargs: Any) -> None:
-        self._proc.stdin.write(np.asarray(self.fig.canvas.buffer_rgba()).tobytes())
+        # (_proc: the ffmpeg process MovieWriter starts, not in matplotlib's stubs; the
+        # canvas is Agg's, whose buffer_rgba the base canvas type does not declare)
+        frame = np.asarray(self.fig.canvas.buffer_rgba())  # type: ignore[attr-defined]
+        self._proc.stdin.write(frame.tobytes())  # type: ignore[attr-defined]
 
 
 def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
@@ -190,10 +196,12 @@ def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
                             width_ratios=[width - panel_w, panel_w])
     panel = fig.add_subplot(grid[:, 1])
     panel.axis("off")
-    updates, trails, moving = [], [], []
-    if planar:
+    updates: list[Any] = []  # per panel: its update(t)
+    trails: list[Any] = []  # artists that only grow (blitted onto the background)
+    moving: list[Any] = []  # artists redrawn every frame
+    if planar and limits is not None:  # (limits: the planar robots' scene)
         fn, trails, artists = _planar(fig.add_subplot(grid[0, 0]), trace, instance, planar,
-                                      limits, linger)  # type: ignore[arg-type]
+                                      limits, linger)
         updates.append(fn)
         moving += artists
     for k, agent in enumerate(flows):

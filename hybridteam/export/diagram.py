@@ -220,7 +220,7 @@ def diagram_graph(team: Team, agents: list[str] | None = None,
 
 def _whole_graph(team: Team) -> nx.MultiDiGraph:
     cteam = compile_team(team)
-    graph = nx.MultiDiGraph(name=team.name)
+    graph: nx.MultiDiGraph = nx.MultiDiGraph(name=team.name)
     colors = team_mode_colors([(m.path, m.final, m.role) for m in a.modes[1:]]
                               for a in cteam.agents)
     for agent, spec in zip(cteam.agents, team.agents, strict=True):

@@ -18,6 +18,7 @@ import math
 import shutil
 import subprocess
 from dataclasses import dataclass
+from typing import Any
 
 import matplotlib as mpl
 import networkx as nx
@@ -241,8 +242,9 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
 
 def _draw_edge(ax, edge: _Edge) -> None:
     color = MESSAGE if edge.message else EDGE
-    style = {"arrowstyle": "-|>", "mutation_scale": 8 if edge.loop else 9, "lw": 1.0,
-             "color": color, "zorder": 4, "ls": "--" if edge.message else "-"}
+    style: dict[str, Any] = {"arrowstyle": "-|>", "mutation_scale": 8 if edge.loop else 9,
+                             "lw": 1.0, "color": color, "zorder": 4,
+                             "ls": "--" if edge.message else "-"}
     if edge.path is not None:
         verts, codes = rounded(edge.path)
         ax.add_artist(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1,

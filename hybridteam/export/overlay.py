@@ -110,9 +110,9 @@ def overlay_timeline_figure(result: Conformance, window: tuple[float, float] | N
         fig = Figure(figsize=(11.0, 1.7 + 0.55 * extent), dpi=100)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        top = _mark_divergence(ax, data, result)
+        diverged = _mark_divergence(ax, data, result)
         entry = [Line2D([], [], color=DIVERGENCE_COLOR, linewidth=2.0,
-                        label="first divergence")] if top is not None else []
+                        label="first divergence")] if diverged is not None else []
         draw_timeline(fig, ax, data, result.log, result.instance, entry)
         if top is not None:  # room for the label above the first agent's lanes
             low, high = ax.get_ylim()
@@ -212,8 +212,9 @@ def overlay_plot_figure(result: Conformance, xlim: tuple[float, float] | None = 
                  ("commanded-deviation", result.deviation, COMMANDED_COLOR, 1.4, -13,
                   "largest deviation, log to logged commands"))
         for gid, deviation, color, width, above, label in marks:
-            for k, a in enumerate(a for a in agents if _marked(deviation(a))):
-                worst = deviation(a)
+            marked = [(a, w) for a in agents
+                      if (w := deviation(a)) is not None and _marked(w)]
+            for k, (a, worst) in enumerate(marked):
                 (x0, y0), (x1, y1) = worst.logged, worst.model
                 ax.plot([x0, x1], [y0, y1], color=color, linewidth=width, zorder=9,
                         marker="o", markersize=3.5, gid=f"{gid}:{a}",

@@ -424,8 +424,9 @@ def _image(fmt: str) -> Renderer:
     def draw(graph: nx.MultiDiGraph) -> str | bytes:
         from hybridteam.export import image  # matplotlib loads only when an image is asked for
 
-        return {"svg": image.render_svg, "png": image.render_png,
-                "pdf": image.render_pdf}[fmt](graph)
+        renderers: dict[str, Renderer] = {"svg": image.render_svg, "png": image.render_png,
+                                          "pdf": image.render_pdf}
+        return renderers[fmt](graph)
 
     return draw
 

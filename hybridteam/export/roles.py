@@ -113,7 +113,7 @@ def _protocol_links(graph: nx.MultiDiGraph, hosts: set[str], hidden: set[str]
     return list(seen.values())
 
 
-def _host(graph: nx.MultiDiGraph, node: str, hosts: set[str]) -> str | None:
+def _host(graph: nx.MultiDiGraph, node: str | None, hosts: set[str]) -> str | None:
     while node is not None and node not in hosts:
         node = parent(graph, node)
     return node

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -25,7 +26,7 @@ STEP = 5.0  # grid spacing, points
 MARGIN = 6.0  # how far a route keeps from a box
 
 
-def inside(points: np.ndarray, rects: list[Rect], grow: float = 0.0) -> np.ndarray:
+def inside(points: ArrayLike, rects: list[Rect], grow: float = 0.0) -> np.ndarray:
     """Per point, whether it lies strictly inside any rectangle grown by ``grow``."""
     p = np.asarray(points, float).reshape(-1, 2)
     if not rects:
@@ -33,7 +34,7 @@ def inside(points: np.ndarray, rects: list[Rect], grow: float = 0.0) -> np.ndarr
     r = np.asarray(rects, float)
     x, y = p[:, :1], p[:, 1:]
     hit = (r[:, 0] - grow < x) & (x < r[:, 2] + grow) & (r[:, 1] - grow < y) & (y < r[:, 3] + grow)
-    return hit.any(axis=1)
+    return np.logical_or.reduce(hit, axis=1)
 
 
 def _grown_edges(rects: list[Rect], grow: float) -> np.ndarray:
@@ -72,7 +73,9 @@ def route(pa: Point, pb: Point, obstacles: list[Rect], bounds: Rect) -> list[Poi
     if start is None or goal is None:
         return None
     graph = _grid_graph(ny_, nx_, free, (x1 - x0) / nx_, (y1 - y0) / ny_)
-    dist, pred = dijkstra(graph, indices=start, return_predecessors=True)
+    # (scipy-stubs types indices as an array only; scipy documents one int as well)
+    dist, pred = dijkstra(graph, indices=start,  # type: ignore[call-overload]
+                          return_predecessors=True)
     if not math.isfinite(dist[goal]):
         return None
     cells = [goal]
@@ -141,7 +144,8 @@ def along(points: list[Point], ts: tuple[float, ...]) -> list[tuple[Point, Point
     return out
 
 
-def rounded(points: list[Point], radius: float = 6.0) -> tuple[list[Point], list[int]]:
+def rounded(points: list[Point], radius: float = 6.0
+            ) -> tuple[list[Point], list[np.uint8]]:
     """Vertices and matplotlib Path codes of the polyline with quadratic corners."""
     from matplotlib.path import Path
 

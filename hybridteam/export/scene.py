@@ -98,8 +98,15 @@ def draw_world(ax: Any, scene: SceneDescription) -> None:
                                          capstyle="round", gid="obstacle-walls"))
     walls = np.asarray(scene.walls, float).reshape(-1, 4)
     if len(walls):
-        ax.add_collection(LineCollection(walls.reshape(-1, 2, 2), colors="#222222",
-                                         linewidths=2.5, zorder=2, gid="walls"))
+        ax.add_collection(
+            LineCollection(
+                walls.reshape(-1, 2, 2),  # type: ignore[arg-type]  # an (n, 2, 2) array
+                colors="#222222",
+                linewidths=2.5,
+                zorder=2,
+                gid="walls",
+            )
+        )
 
 
 def draw_guides(ax: Any, scene: SceneDescription, instance: int,
@@ -117,7 +124,7 @@ def draw_guides(ax: Any, scene: SceneDescription, instance: int,
 
 
 #: how a collision is marked, in the trajectories and the animation alike
-COLLISION_MARK = {"marker": "*", "markersize": 13, "color": "#CC0000",
+COLLISION_MARK: dict[str, Any] = {"marker": "*", "markersize": 13, "color": "#CC0000",
                   "markeredgecolor": "white", "markeredgewidth": 0.8, "linestyle": "none"}
 
 
@@ -212,7 +219,15 @@ def draw_payloads(ax: Any, trace: Trace, instance: int, indices: np.ndarray) -> 
         ok = moved(p, ok, 0.15 * min(shape.measures))
         polys = payload_outline(shape, *p[ok].T)
         color = PALETTE[(k + 5) % len(PALETTE)]
-        ax.add_collection(PolyCollection(polys, facecolors=color, edgecolors="#333333",
-                                         alpha=0.35, linewidths=0.6, zorder=3,
-                                         gid=f"payload:{name}"))
+        ax.add_collection(
+            PolyCollection(
+                polys,  # type: ignore[arg-type]  # an (n, k, 2) array
+                facecolors=color,
+                edgecolors="#333333",
+                alpha=0.35,
+                linewidths=0.6,
+                zorder=3,
+                gid=f"payload:{name}",
+            )
+        )
         ax.plot(p[:, 0], p[:, 1], color=color, linewidth=0.8, linestyle="dotted", zorder=3)

@@ -220,11 +220,11 @@ def timeline_data(trace: Trace, instance: int = 0,
     lanes: list[Lane] = []
     index: dict[tuple[str, str, bool], int] = {}
     colors = team_colors(trace.meta["agents"])
-    agents = select_agents(trace, agents)
+    chosen = select_agents(trace, agents)
     cursor = 0.0
     gap = GAP if window is None else CLOSE_GAP
     iv = pick(trace.intervals, instance)
-    for meta in agents:
+    for meta in chosen:
         modes = meta.get("modes", [])
         lane_of = mode_lanes(modes)
         regions = sorted({r for r in lane_of.values() if r},
@@ -256,7 +256,7 @@ def timeline_data(trace: Trace, instance: int = 0,
     # reached as the run ends is zero-length too, and named)
     used: set[tuple[str, str]] = set()
     t_end = end_time(trace, instance)
-    for meta in agents:
+    for meta in chosen:
         name = meta["name"]
         kinds = {m["path"]: m["kind"] for m in meta.get("modes", [])}
         lane_of = mode_lanes(meta.get("modes", []))
@@ -270,16 +270,16 @@ def timeline_data(trace: Trace, instance: int = 0,
                                            mine["start"].tolist(), mine["end"].tolist(),
                                            strict=True):
             color, label = colors.get(mode, "#BBBBBB"), mode.rsplit(".", 1)[-1]
-            rows = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
-            rows += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
-            bars += [Bar(index[row], mode, label, start, end, color) for row in rows]
-            if rows and (end > start or end >= t_end):  # not entered and left at once
+            keys = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
+            keys += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
+            bars += [Bar(index[key], mode, label, start, end, color) for key in keys]
+            if keys and (end > start or end >= t_end):  # not entered and left at once
                 used.add((name, mode))
-        regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
+        lane_regions, mine_tr = set(lane_of.values()) - {""}, tr.where(agent=name)
         if window is not None:
             at = np.asarray(mine_tr["t"], float)
             mine_tr = mine_tr.filter((window[0] <= at) & (at <= window[1]))
-        marks += [TransitionMark(index[(name, region_of(common_ancestor(a, b), regions),
+        marks += [TransitionMark(index[(name, region_of(common_ancestor(a, b), lane_regions),
                                         False)], t, a, b)
                   for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
                                      mine_tr["target"].tolist(), strict=True)]

@@ -22,6 +22,7 @@ from matplotlib.collections import EllipseCollection, LineCollection, PolyCollec
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.typing import LineStyleType
 
 from hybridteam.export.figures import save_figure
 from hybridteam.export.scene import (
@@ -53,7 +54,7 @@ MAX_NUMBERS = 120  # beyond this, numbered labels only on every k-th change (leg
 #: labels of changes at one spot stack upwards; past this many, one "…" stands for the rest
 #: (a Zeno run's last bounces would otherwise stack a column of labels off the plot)
 MAX_STACK = 3
-LINESTYLES = ("solid", "dashed", "dashdot", "dotted")
+LINESTYLES: tuple[LineStyleType, ...] = ("solid", "dashed", "dashdot", "dotted")
 
 
 # ---------------------------------------------------------------------- what is what
@@ -204,7 +205,8 @@ def _numbered(changes: list) -> list[tuple[float, int, str, str, int]]:
     ``lead`` role starts number k, and the robot that gave it up (its change just before)
     shares k — so a request reads 1X (new leader) and 1L (old leader), not 1 and 2."""
     numbers = [0] * len(changes)
-    count, pending = 0, []
+    count = 0
+    pending: list[int] = []
     for k, (*_, new_role) in enumerate(changes):
         if new_role == "lead":
             count += 1
@@ -256,8 +258,15 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
                 units="xy", offsets=xy, offset_transform=ax.transData, facecolors="none",
                 edgecolors=color, linewidths=0.8, zorder=5, gid=f"footprints:{a}"))
             heads = np.stack([xy, xy + float(radius) * heading], 1)
-            ax.add_collection(LineCollection(heads, colors=color, linewidths=1.0, zorder=5,
-                                             gid=f"headings:{a}"))
+            ax.add_collection(
+                LineCollection(
+                    heads,  # type: ignore[arg-type]  # an (n, 2, 2) array
+                    colors=color,
+                    linewidths=1.0,
+                    zorder=5,
+                    gid=f"headings:{a}",
+                )
+            )
         else:
             # no footprint size known: a small pose triangle pointing along the heading, which
             # cannot be mistaken for a piece of path (a heading line could)
@@ -265,9 +274,17 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             side = np.c_[-heading[:, 1], heading[:, 0]]
             tri = np.stack([xy + size * heading, xy - 0.6 * size * heading + 0.55 * size * side,
                             xy - 0.6 * size * heading - 0.55 * size * side], 1)
-            ax.add_collection(PolyCollection(tri, facecolors=color, edgecolors="white",
-                                             linewidths=0.4, alpha=0.9, zorder=5,
-                                             gid=f"footprints:{a}"))
+            ax.add_collection(
+                PolyCollection(
+                    tri,  # type: ignore[arg-type]  # an (n, 3, 2) array
+                    facecolors=color,
+                    edgecolors="white",
+                    linewidths=0.4,
+                    alpha=0.9,
+                    zorder=5,
+                    gid=f"footprints:{a}",
+                )
+            )
         if valid.any():
             x0, y0 = p[np.flatnonzero(valid)[0], :2]
             ax.plot([x0], [y0], marker="s", color=color, markersize=5, zorder=6)

@@ -13,7 +13,7 @@ import re
 import unicodedata
 import warnings
 from collections.abc import Collection, Mapping
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -132,7 +132,7 @@ class _Compiler:
             return self.error("assignment is not allowed here", *at, "use '==' to compare")
         if body and not isinstance(body[0], ast.Expr):
             start = self.pos(body[0])[0]
-            end = start + len(re.match(r"\w*", self.source[start:]).group())
+            end = start + len(re.match(r"\w*", self.source[start:]).group())  # type: ignore[union-attr]  # \w* matches anywhere
             return self.error("statements are not allowed; write one expression such as "
                               "'x >= 5'", start, end)
         col = (exc.offset or 0) - 1  # 1-based characters within the (single) line
@@ -140,7 +140,7 @@ class _Compiler:
             return self.error("unexpected end of expression", self.base + len(text.rstrip()))
         length = 1
         if exc.end_lineno == exc.lineno and (exc.end_offset or 0) > (exc.offset or 0):
-            length = exc.end_offset - exc.offset
+            length = (exc.end_offset or 0) - (exc.offset or 0)
         hint = "use '==' to compare" if text[col] == "=" and text[col + 1:col + 2] != "=" else None
         return self.error(exc.msg, self.base + col, self.base + col + length, hint)
 
@@ -279,7 +279,7 @@ class _Compiler:
             if isinstance(node.value, bool):
                 return _const(node.value, True)
             try:
-                return _const(float(node.value), False)
+                return _const(float(node.value), False)  # type: ignore[arg-type]  # (_check: numbers)
             except OverflowError:  # an integer literal beyond the float range
                 return _const(math.inf, False)
         if isinstance(node, ast.UnaryOp):
@@ -307,8 +307,9 @@ class _Compiler:
         if _is_mode_test(node):
             return self._mode_test(node.args[0])
         if isinstance(node, ast.Call):
-            args = [self.typed(a, False, f"{node.func.id}()") for a in node.args]
-            return _apply(FUNCTIONS[node.func.id].impl, args, False)
+            name = node.func.id  # type: ignore[attr-defined]  # (_check: calls of names only)
+            args = [self.typed(a, False, f"{name}()") for a in node.args]
+            return _apply(FUNCTIONS[name].impl, args, False)
         raise self.error("unsupported expression", *self.pos(node))  # unreachable after _check
 
     def _mode_tests(self) -> bool:
@@ -322,7 +323,7 @@ class _Compiler:
             return _C(lambda ctx: False, True)
         start, end = self.pos(arg)
         try:
-            return _C(self.symbols["in_mode"].resolve(dotted_name(arg)), True)
+            return _C(self.symbols["in_mode"].resolve(dotted_name(arg)), True)  # type: ignore[attr-defined]  # a ModeTest
         except ExpressionError as exc:
             raise self.error(exc.message, start, end, exc.hint) from None
 
@@ -369,12 +370,12 @@ class _Compiler:
                 fr, gr = values[i].row, values[i + 1].row
                 self.atoms.append(Atom(
                     self._balanced(start, end), sym,
-                    lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),
-                    lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),
-                    lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(
+                    lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),  # type: ignore[misc]  # default-bound lambda
+                    lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),  # type: ignore[misc]  # default-bound lambda
+                    lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(  # type: ignore[misc]  # default-bound lambda
                         u, f(ctx), g(ctx), less),
                     None if fr is None or gr is None else (
-                        lambda r, op=ON_FLOATS[ufunc], f=fr, g=gr, less=less:
+                        lambda r, op=ON_FLOATS[ufunc], f=fr, g=gr, less=less:  # type: ignore[misc]  # default-bound lambda
                         row_truth_and_margin(op, f(r), g(r), less))))
         self.node_atoms[id(node)] = self.atoms[first_atom:]
         if len(ops) == 1:
@@ -414,7 +415,7 @@ class _Compiler:
         return tree, result
 
 
-def _is_mode_test(node: ast.AST) -> bool:
+def _is_mode_test(node: ast.AST) -> TypeGuard[ast.Call]:
     return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
         and node.func.id == "in_mode" and len(node.args) == 1 and not node.keywords \
         and dotted_name(node.args[0]) is not None

@@ -57,6 +57,7 @@ def _wrap(angle: Any) -> Any:
     return r - (r >= np.pi) * (2 * np.pi)
 
 
+_UNARY: dict[str, Callable[..., Any]]  # (numpy's functions and _wrap: no common type)
 _UNARY = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos,
           "atan": np.arctan, "sqrt": np.sqrt, "abs": np.abs, "exp": np.exp, "log": np.log,
           "floor": np.floor, "ceil": np.ceil, "sign": np.sign, "wrap": _wrap}
@@ -238,8 +239,8 @@ def _const(value: Any, cond: bool) -> _C:
 def _row_apply(impl: Callable[..., Any], args: list[_C]) -> Callable[[Any], float] | None:
     """The float closure of ``impl`` applied to ``args``, where it has one."""
     op = ON_FLOATS.get(impl)
-    rows = [a.row for a in args]
-    if op is None or None in rows:
+    rows = [a.row for a in args if a.row is not None]
+    if op is None or len(rows) < len(args):
         return None
     if len(rows) == 1:
         (f,) = rows
@@ -262,9 +263,9 @@ def _apply(impl: Callable[..., Any], args: list[_C], cond: bool) -> _C:
     if len(args) == 2:  # the hot case: inline constants instead of calling their closures
         (f, g), (a, b) = fns, args
         if b.const:
-            return _C(lambda ctx, c=b.value: impl(f(ctx), c), cond, row=row)
+            return _C(lambda ctx, c=b.value: impl(f(ctx), c), cond, row=row)  # type: ignore[misc]  # default-bound lambda
         if a.const:
-            return _C(lambda ctx, c=a.value: impl(c, g(ctx)), cond, row=row)
+            return _C(lambda ctx, c=a.value: impl(c, g(ctx)), cond, row=row)  # type: ignore[misc]  # default-bound lambda
         return _C(lambda ctx: impl(f(ctx), g(ctx)), cond, row=row)
     return _C(lambda ctx: impl(*[f(ctx) for f in fns]), cond)
 
@@ -296,6 +297,6 @@ def _row_fold(first: _C, steps: list[tuple[Any, _C]]) -> Callable[[Any], float] 
     def row(r: Any) -> float:
         value = r0(r)
         for op, g in rest:
-            value = op(value, g(r))
+            value = op(value, g(r))  # type: ignore[misc]  # (no None: checked above)
         return value
     return row

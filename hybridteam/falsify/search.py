@@ -194,8 +194,19 @@ def _differential_evolution(varies: list[Vary], seeds: int, base: int, drive: _D
         # an infinite robustness (a Boolean verdict) gives the optimiser no slope: clip it
         return np.clip(rho, -1e300, 1e300)
 
-    differential_evolution(objective, bounds, integrality=integrality if seeds > 1 else None,
-                           vectorized=True, updating="deferred",
-                           popsize=max(1, math.ceil(population / dims)), maxiter=10**6,
-                           tol=0, atol=0, seed=search_seed, polish=False,
-                           init="latinhypercube")
+    # (scipy-stubs types the scalar objective and tuple bounds: not vectorized=True's
+    # objective of a population, nor the sequence of (low, high) pairs scipy documents)
+    differential_evolution(
+        objective,  # type: ignore[arg-type]
+        bounds,  # type: ignore[arg-type]
+        integrality=integrality if seeds > 1 else None,
+        vectorized=True,
+        updating="deferred",
+        popsize=max(1, math.ceil(population / dims)),
+        maxiter=10**6,
+        tol=0,
+        atol=0,
+        seed=search_seed,
+        polish=False,
+        init="latinhypercube",
+    )

@@ -21,7 +21,7 @@ from hybridteam.model import Team
 
 def mode_graph(ca: CAgent) -> nx.DiGraph:
     """What-can-become-active graph of one compiled agent (nodes are mode indices)."""
-    g = nx.DiGraph()
+    g: nx.DiGraph[int] = nx.DiGraph()
     g.add_nodes_from(m.index for m in ca.modes)
     for m in ca.modes:
         if m.parent >= 0:

@@ -367,7 +367,7 @@ def located_errors(
         slot = (item.path, item.anchor, "expected", item.got)
         if slot not in merged:
             merged[slot] = item
-        elif item.expected not in merged[slot].expected.split(" or "):  # type: ignore[union-attr]
+        elif item.expected not in merged[slot].expected.split(" or "):  # type: ignore[union-attr]  # (None went above)
             merged[slot].expected = f"{merged[slot].expected} or {item.expected}"
             merged[slot].hint = merged[slot].hint or item.hint
     results: dict[tuple[Any, ...], SourceError] = {}

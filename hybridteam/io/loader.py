@@ -13,8 +13,9 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
@@ -68,8 +69,15 @@ if TYPE_CHECKING:
     from hybridteam.robots.presets import RobotPreset
 
 
+def _link_pair(key: str) -> tuple[str, str]:
+    """A ``network.links`` key, ``'sender->receiver'`` (the schema checked its form), as
+    its two names."""
+    sender, _, receiver = key.partition("->")
+    return sender.strip(), receiver.strip()
+
+
 def locate(err: ModelError, positions: Positions, filename: str,
-           elsewhere: dict[str, Positions] | None = None) -> SourceError:
+           elsewhere: Mapping[InFile, Positions] | None = None) -> SourceError:
     """A :class:`ModelError` (document path + offset) as a ``file:line:col`` error.
 
     A path starting with an :class:`InFile` tag lies in that file (a protocol's), found in
@@ -95,7 +103,7 @@ def locate_in_file(err: ModelError, team_file: str | os.PathLike) -> SourceError
     """A run-time :class:`ModelError` (a delay, rate or link setting out of range for some
     instance) located in the team file it came from, or in the protocol file its path
     names: the file is read again for its positions."""
-    elsewhere = {}
+    elsewhere: dict[InFile, Positions] = {}
     if err.path and isinstance(err.path[0], InFile):
         with contextlib.suppress(InputErrors):  # then it is located by its path alone
             elsewhere[err.path[0]] = read_document(str(err.path[0])).positions
@@ -111,7 +119,7 @@ def _load_team(doc: Document) -> Loaded:
     checked), then the semantic checker's warnings."""
     document = _validated(doc, TeamFile)
     try:
-        team, comp = compose_team(document, doc.filename)  # type: ignore[arg-type]
+        team, comp = compose_team(document, doc.filename)
     except ProtocolErrors as exc:
         raise InputErrors(exc.errors) from None
     others = {InFile(p.filename): p.positions for p in comp.cache.values()}
@@ -135,7 +143,11 @@ def _load_protocol(doc: Document) -> Loaded:
     return Loaded("protocol", _validated(doc, ProtocolFile))
 
 
-def _validated(doc: Document, schema: type[BaseModel]) -> BaseModel:
+#: the schema a document is validated against, and so the model it gives
+_Schema = TypeVar("_Schema", bound=BaseModel)
+
+
+def _validated(doc: Document, schema: type[_Schema]) -> _Schema:
     try:
         return schema.model_validate(doc.data)
     except ValidationError as exc:
@@ -206,7 +218,7 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
 
     network = NetworkSpec(
         default=link(net, ("network",)),
-        links={tuple(s.strip() for s in key.split("->", 1)): link(spec, ("network", "links", key))
+        links={_link_pair(key): link(spec, ("network", "links", key))
                for key, spec in net.links.items()},
         rate_limits={agent: dict(limits) for agent, limits in net.rate_limits.items()},
         where=("network",),
@@ -356,7 +368,8 @@ def _plant(spec: AgentSchema, where: DocPath, errors: list[ModelError]
     p, pwhere = spec.plant, (*where, "plant")
     assert p is not None
     limits = {k: tuple(v) for k, v in p.limits.items()}
-    stand_in = PlantSpec(p.kind or "none", dict(p.state), limits, pwhere)  # type: ignore
+    # (the schema checked each limit is a [low, high] pair)
+    stand_in = PlantSpec(p.kind or "none", dict(p.state), limits, pwhere)  # type: ignore[arg-type]
     if spec.model is None:
         return stand_in, None
     # the sections the agent wrote, even as null (which removes the model's manipulator)

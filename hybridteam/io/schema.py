@@ -9,7 +9,7 @@ which key is wrong. ``hybridteam schema`` prints these models as JSON Schema for
 from __future__ import annotations
 
 import re
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
@@ -31,6 +31,10 @@ PositiveFloat = Annotated[float, Field(gt=0)]
 MAX_EVENT_TOL = 1e-3
 
 
+#: a name's type as given: a name stays ``str``, an optional one ``str | None``
+_Name = TypeVar("_Name", bound=str | None)
+
+
 def check_names(names, what: str) -> None:
     for name in names:
         if not isinstance(name, str) or not NAME.match(name):
@@ -40,7 +44,7 @@ def check_names(names, what: str) -> None:
             raise ValueError(f"{what} name {name!r} may not start with '__'")
 
 
-def check_event(name: str | None, what: str) -> str | None:
+def check_event(name: _Name, what: str) -> _Name:
     """An event's name (None: not given): names joined by dots, checked as names are."""
     if name is not None and (not isinstance(name, str) or not EVENT.match(name)):
         raise ValueError(f"{what} name {name!r} is not valid: use letters, digits and _, "
@@ -59,7 +63,7 @@ def check_title(text: str, what: str) -> str:
     return text
 
 
-def check_name(name: str | None, what: str) -> str | None:
+def check_name(name: _Name, what: str) -> _Name:
     """One name (None: not given) checked as :func:`check_names` does. Message types,
     events, sockets and agents named in actions reach the diagrams, the sequence chart and
     the terminal as they are written, so they are names, never markup or control text."""

@@ -33,7 +33,7 @@ from __future__ import annotations
 import os
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Never
 from xml.parsers import expat
 
 from hybridteam.io.filekind import Document, InputErrors
@@ -86,7 +86,7 @@ def parse(text: str, filename: str) -> Element:
     def here() -> Mark:
         return Mark(parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
 
-    def refuse(*_args: Any) -> None:
+    def refuse(*_args: Any) -> Never:
         raise SourceError(filename, *_at(here()), (), "a DOCTYPE or entity declaration is "
                           "refused: an SCXML chart needs none, and entities can expand "
                           "without bound or read other files")
@@ -146,14 +146,14 @@ def read_chart(source: str | os.PathLike, agent: str | None = None) -> Document:
         name = agent or root.attrs.get("name") or Path(filename).stem.replace("-", "_")
         if not _ID.match(name):
             name = "chart"
-        agent = reader.agent(root, ("agents", name))
+        body = reader.agent(root, ("agents", name))
     except SourceError as exc:
         raise InputErrors([exc]) from None
     # an SCXML chart means SCXML's priority rule (innermost first, document order),
     # unless it says it came from a team of another (ht:priority)
     data = {"team": name, "semantics": {"priority": root.attrs.get("ht:priority",
                                                                    "inner_first")},
-            "agents": {name: {"plant": {"kind": "none"}, **agent}}}
+            "agents": {name: {"plant": {"kind": "none"}, **body}}}
     reader.marks.setdefault((), Mark(1, 1))
     reader.marks[("semantics",)] = reader.marks[("semantics", "priority")] = root.mark
     for path in (("team",), ("agents",), ("agents", name), ("agents", name, "plant")):

@@ -74,7 +74,7 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
         trips = {o: way(agent.name, o) + way(o, agent.name) for o in others if o in order}
         if not trips:
             continue
-        worst = max(trips, key=trips.get)  # type: ignore[arg-type]
+        worst = max(trips, key=trips.__getitem__)
         short: dict[float, list[str]] = {}  # timeout -> the messages resent that soon
         for name, timeout in timeouts:
             if timeout <= trips[worst]:

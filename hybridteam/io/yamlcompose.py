@@ -22,7 +22,8 @@ from yaml.resolver import BaseResolver
 from yaml.scanner import Scanner
 
 try:
-    from yaml.cyaml import CParser
+    # (types-PyYAML declares it in yaml._yaml, which yaml.cyaml imports it from)
+    from yaml.cyaml import CParser  # type: ignore[attr-defined]
 except ImportError:  # PyYAML built without libyaml
     CParser = None  # type: ignore[assignment,misc]
 
@@ -50,19 +51,19 @@ from hybridteam.io.yamlpos import (
 class _Hooks:
     """What our composers add to PyYAML's: no implicit typing, alias tracking, a depth cap."""
 
-    alias_uses: list[tuple[str, yaml.Mark, Node]]
+    alias_uses: list[tuple[str | None, Any, Node]]  # (anchor, its yaml or libyaml mark, node)
     depth: int
 
     def resolve(self, kind: type, value: Any, implicit: tuple[bool, bool]) -> str:
         # Untagged plain scalars get a marker tag; _Builder types them with YAML 1.2 rules.
         if kind is ScalarNode and implicit[0]:
             return _PLAIN
-        return super().resolve(kind, value, implicit)  # type: ignore[misc]
+        return super().resolve(kind, value, implicit)  # type: ignore[misc]  # (a mixin: the resolver's)
 
     def compose_node(self, parent: Node | None, index: Any) -> Node:
-        event = self.peek_event()  # type: ignore[attr-defined]
+        event = self.peek_event()  # type: ignore[attr-defined]  # (a mixin: the parser's)
         if isinstance(event, yaml.AliasEvent):
-            node = super().compose_node(parent, index)  # type: ignore[misc]
+            node = super().compose_node(parent, index)  # type: ignore[misc]  # (the composer's)
             self.alias_uses.append((event.anchor, event.start_mark, node))
             return node
         self.depth += 1
@@ -70,7 +71,7 @@ class _Hooks:
             message = f"the document is nested too deeply (more than {MAX_DEPTH} levels)"
             raise yaml.composer.ComposerError(None, None, message, event.start_mark)
         try:
-            return super().compose_node(parent, index)  # type: ignore[misc]
+            return super().compose_node(parent, index)  # type: ignore[misc]  # (the composer's)
         finally:
             self.depth -= 1
 
@@ -89,7 +90,7 @@ class _Composer(_Hooks, Reader, Scanner, Parser, Composer, BaseResolver):
 
 
 if CParser is not None:
-    class _FastComposer(_Hooks, Composer, CParser, BaseResolver):  # type: ignore[misc,valid-type]
+    class _FastComposer(_Hooks, Composer, CParser, BaseResolver):
         """The same composer on libyaml's parser: an order of magnitude faster on large
         files. Only for documents that parse: on any error the document is parsed again
         by :class:`_Composer`, whose messages are the ones tested."""
@@ -212,7 +213,7 @@ class _Builder:
         return match.end() if match else index
 
 
-def _check_aliases(root: Node, composer: _Composer, filename: str) -> None:
+def _check_aliases(root: Node, composer: _Hooks, filename: str) -> None:
     """Reject recursive aliases and alias bombs before expanding anything."""
     if not composer.alias_uses:
         return
@@ -278,7 +279,7 @@ def _syntax_message(exc: yaml.MarkedYAMLError) -> str:
     return problem
 
 
-def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Composer]:
+def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Hooks]:
     """Run PyYAML up to the node graph; every failure becomes a located SourceError."""
     if CParser is not None:
         try:
@@ -294,9 +295,9 @@ def _compose(text: str, filename: str, lines: _Lines) -> tuple[Node | None, _Com
         line, column = (mark.line + 1, mark.column + 1) if mark else (None, None)
         raise SourceError(filename, line, column, (), _syntax_message(exc)) from None
     except yaml.reader.ReaderError as exc:  # NUL was caught earlier; other control characters
-        mark = lines.mark(exc.position)
+        at = lines.mark(exc.position)
         message = f"special character U+{exc.character:04X} is not allowed in YAML"
-        raise SourceError(filename, mark.line, mark.column, (), message) from None
+        raise SourceError(filename, at.line, at.column, (), message) from None
     except RecursionError:  # only if the caller is already deep; MAX_DEPTH normally stops it
         raise SourceError(filename, message="the document is nested too deeply") from None
     except yaml.YAMLError as exc:  # unmarked PyYAML errors: still ours to report

@@ -102,8 +102,11 @@ class WallClock:
             reason = self.stop()
             if reason is not None:
                 log.info("stopping at t=%.3f: %s", float(ens.t[0]), reason)
-                ens.finish(ens.everyone, "stopped",
-                           lambda i, why=reason: f"stopped by {why} at t={ens.when(i)}")
+                ens.finish(
+                    ens.everyone,
+                    "stopped",
+                    lambda i, why=reason: f"stopped by {why} at t={ens.when(i)}",  # type: ignore[misc]  # default-bound lambda
+                )
                 return
             now = self.now()
             if now >= due:

@@ -152,7 +152,8 @@ class LiveRun:
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
                   **({"world_sent": self.link.sent} if self.link is not None else {}),
-                  **({"world_silent": self.link.silence_record()} if world_host else {})}
+                  **({"world_silent": self.link.silence_record()}
+                     if world_host and self.link is not None else {})}
         dropped = record["datagrams"]["dropped"]
         if dropped:
             log.warning("dropped %d datagram(s) not of this team: %s",
@@ -170,6 +171,7 @@ class LiveRun:
         kept: list[tuple[bytes, float]] = []
         end = time.monotonic() + FIRST_READING
         ask = time.monotonic() + ASK_AGAIN
+        assert self.link is not None  # (only a run with a world process waits for it)
         waiting = set(self.link.here)
         while waiting:
             now = time.monotonic()

@@ -179,7 +179,7 @@ class WorldHost(World):
                     access.set_variable(a, n, idx, np.array([fields[n]]))
         link.poses.clear()
         said = _Told(access)
-        raised = super().update(said, idx)
+        raised = super().update(said, idx)  # type: ignore[arg-type]  # a forwarding stand-in
         answer = link.pending | set(said.events)
         if said.outcome is not None:
             answer = set(range(len(link.codec.agents)))
@@ -300,7 +300,7 @@ class WorldReadings(World):
         if laser is not None:
             ring = self.ring(agent, name)
             ranges = None if ring is None else laser.ranges(ring)
-            if ranges is not None:
+            if ranges is not None and ring is not None:
                 return np.broadcast_to(ranges, (len(idx), ring.count)).copy()
         reading = self.link.readings.get(agent, {}).get(name)
         if reading is None:
@@ -325,7 +325,7 @@ class WorldReadings(World):
         return {}
 
 
-def world_seam(cls: type[World], link: WorldLink
+def world_seam(cls: type[WorldHost | WorldReadings], link: WorldLink
                ) -> Callable[[Team, int, Mapping[str, np.ndarray]], World]:
     """The engine's world seam filled with ``cls`` talking through ``link``."""
 

@@ -46,9 +46,9 @@ from hybridteam.logs.topics import (
     TF,
     TF_TYPE,
     TWIST,
-    AgentTopics,
     base_frame,
     command_series,
+    default_topic,
     payload_topic,
     series_topic,
 )
@@ -203,30 +203,31 @@ class _Messages:
 
     def agent(self, agent: dict[str, Any]) -> Iterator[Record]:
         name, names = agent["name"], list(agent["state"])
-        topics = AgentTopics.default(name)
         values, have = self.sampled(name)
         if names:
             for k in have:
-                yield topics.state, self.ns[k], ARRAY, self.array(names, values[k])
+                yield default_topic(name, "state"), self.ns[k], ARRAY, \
+                    self.array(names, values[k])
         if agent["plant"] in PLANAR and names[:3] == ["x", "y", "theta"]:
-            yield from self.planar(name, topics, values, have)
+            yield from self.planar(name, values, have)
         if command_series(name) in self.run.meta.get("series", {}):
-            yield from self.commands(name, agent["inputs"], topics.cmd)
+            yield from self.commands(name, agent["inputs"], default_topic(name, "cmd_vel"))
         run = self.run
-        yield from self.rows(run.transitions, name, "agent", topics.modes, "t",
+        yield from self.rows(run.transitions, name, "agent", default_topic(name, "mode"), "t",
                              ("t", "step", "source", "target", "cause", "guard"))
-        yield from self.rows(run.intervals, name, "agent", topics.stays, "start",
-                             ("mode", "depth", "start", "end"))
-        yield from self.rows(run.messages, name, "sender", topics.messages, "t_send",
+        yield from self.rows(run.intervals, name, "agent", default_topic(name, "stays"),
+                             "start", ("mode", "depth", "start", "end"))
+        yield from self.rows(run.messages, name, "sender", default_topic(name, "messages"),
+                             "t_send",
                              ("seq", "sender", "receiver", "socket", "type", "t_send",
                               "t_recv", "status", "reason", "msg_id"))
 
-    def planar(self, name: str, topics: AgentTopics, values: np.ndarray, have: np.ndarray
-               ) -> Iterator[Record]:
+    def planar(self, name: str, values: np.ndarray, have: np.ndarray) -> Iterator[Record]:
         """Pose, odometry and the ``/tf`` entry of a planar robot at each of its samples;
         the odometry's velocity is the one held to the next sample, in the body frame."""
         T = self.T
         zero = np.zeros(36)
+        pose_topic, odom_topic = default_topic(name, "pose"), default_topic(name, "odom")
         for j, k in enumerate(have):
             x, y, th = values[k, :3].tolist()
             nxt = have[j + 1] if j + 1 < len(have) else (have[j - 1] if j > 0 else k)
@@ -237,8 +238,8 @@ class _Messages:
                 vx = math.cos(th) * dx + math.sin(th) * dy
                 vy = -math.sin(th) * dx + math.cos(th) * dy
             pose = self.pose(x, y, th)
-            yield topics.pose, self.ns[k], POSE, T[POSE](header=self.header(k), pose=pose)
-            yield topics.odom, self.ns[k], ODOM, T[ODOM](
+            yield pose_topic, self.ns[k], POSE, T[POSE](header=self.header(k), pose=pose)
+            yield odom_topic, self.ns[k], ODOM, T[ODOM](
                 header=self.header(k), child_frame_id=base_frame(name),
                 pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero),
                 twist=T["geometry_msgs/msg/TwistWithCovariance"](

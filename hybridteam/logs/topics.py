@@ -51,6 +51,11 @@ AGENT_KEYS = ("state", "pose", "odom", "cmd", "modes", "stays", "messages")
 AGENT_KINDS = ("state", "pose", "odom", "cmd_vel", "mode", "stays", "messages")
 
 
+def default_topic(agent: str, kind: str) -> str:
+    """Export's name of an agent's topic of ``kind`` (one of :data:`AGENT_KINDS`)."""
+    return f"/{agent}/{kind}"
+
+
 def base_frame(agent: str) -> str:
     """An agent's body frame, child of ``map`` in ``/tf`` (``Odometry.child_frame_id``)."""
     return f"{agent}/base_link"
@@ -83,7 +88,7 @@ class AgentTopics:
 
     @classmethod
     def default(cls, agent: str) -> AgentTopics:
-        return cls(*(f"/{agent}/{kind}" for kind in AGENT_KINDS))
+        return cls(*(default_topic(agent, kind) for kind in AGENT_KINDS))
 
 
 @dataclass(frozen=True)

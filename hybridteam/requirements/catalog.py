@@ -60,16 +60,16 @@ class Catalog:
     def bare_symbols(self) -> dict[str, Getter]:
         syms: dict[str, Getter] = {"t": lambda s: s.t}
         for p in self.team_params:
-            syms[p] = lambda s, p=p: s.team_param(p)
+            syms[p] = lambda s, p=p: s.team_param(p)  # type: ignore[misc]  # default-bound lambda
         one = self.single()
         if one is not None:
             names = self.agents[one]
             for p in names.params:
-                syms[p] = lambda s, p=p, a=one: s.param(a, p)
+                syms[p] = lambda s, p=p, a=one: s.param(a, p)  # type: ignore[misc]  # default-bound lambda
             for j, x in enumerate(names.state):
-                syms[x] = lambda s, j=j, a=one: s.state(a, j)
+                syms[x] = lambda s, j=j, a=one: s.state(a, j)  # type: ignore[misc]  # default-bound lambda
             for j, v in enumerate(names.variables):
-                syms[v] = lambda s, j=j, a=one: s.variable(a, j)
+                syms[v] = lambda s, j=j, a=one: s.variable(a, j)  # type: ignore[misc]  # default-bound lambda
         return syms
 
     def is_variable(self, text: str) -> bool:

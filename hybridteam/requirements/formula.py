@@ -121,7 +121,9 @@ class _FormulaCompiler(_Compiler):
             return _C(self._signal(node), False)
         if isinstance(node, ast.Call):
             f = node.func
-            name = f.value.id if isinstance(f, ast.Subscript) else f.id  # type: ignore[union-attr]
+            head = f.value if isinstance(f, ast.Subscript) else f
+            assert isinstance(head, ast.Name)  # (the whitelist passed only these: F[0, 5](...))
+            name = head.id
             if name in TEMPORAL or name == "implies":
                 return self._temporal(node, name)
             if name in SIGNAL_FUNCTIONS:
@@ -129,7 +131,7 @@ class _FormulaCompiler(_Compiler):
         return super().compile(node)
 
     def name(self, name: str, start: int, end: int) -> _C:
-        if name in ("true", "false") and name not in self.symbols:  # type: ignore[operator]
+        if name in ("true", "false") and name not in self.symbols:  # type: ignore[operator]  # (given its symbols)
             return _F(N.Const(name, value=name == "true"))
         try:
             return super().name(name, start, end)
@@ -143,7 +145,7 @@ class _FormulaCompiler(_Compiler):
         return self._balanced(*self.pos(node))
 
     def cond(self, node: ast.expr, user: str) -> N.Node:
-        return self.typed(node, True, user).node  # type: ignore[attr-defined]
+        return self.typed(node, True, user).node  # type: ignore[attr-defined]  # (a condition: an _F)
 
     def _compare_formula(self, node: ast.Compare) -> _C:
         operands = [node.left, *node.comparators]
@@ -240,4 +242,4 @@ def compile_formula(source: str, catalog: Catalog) -> N.Node:
     if not result.cond:
         raise comp.error("a requirement must be a condition, e.g. 'always(x <= 22)', not a "
                          "number", *comp.pos(tree))
-    return result.node  # type: ignore[attr-defined]
+    return result.node  # type: ignore[attr-defined]  # (a condition: an _F)

@@ -12,6 +12,8 @@ instance's extras before it. Searches answer exactly (integer counts, no float o
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 
@@ -61,7 +63,8 @@ class Grid:
         np.put_along_axis(out, self.sample_pos, samples, axis=1)
         return out[:, :-1]
 
-    def search(self, instances: np.ndarray, times: np.ndarray, side: str = "left"
+    def search(self, instances: np.ndarray, times: np.ndarray,
+               side: Literal["left", "right"] = "left"
                ) -> np.ndarray:
         """Per query, ``np.searchsorted(row, time, side)`` on its instance's row."""
         inst = np.asarray(instances, np.intp)

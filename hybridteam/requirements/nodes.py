@@ -41,6 +41,11 @@ class Node:
         """Robustness at t = 0 only, per instance: a requirement's value."""
         return self.rho(sig)[:, 0]
 
+    def is_boundary_continuous(self) -> bool:
+        """Whether a failure of this node can begin between grid points (see
+        :func:`_continuous`, defined after the node kinds it tells apart)."""
+        return _continuous(self)
+
     def blame(self, sig: Any, i: int, k: int) -> tuple[float, str]:
         """(time, sub-formula) that first makes this node fail at grid point ``k`` of
         instance ``i`` (where its robustness is negative)."""
@@ -68,7 +73,7 @@ class Flag(Node):
     get: Callable[[Any], np.ndarray] | None = None
 
     def _rho(self, sig: Any) -> np.ndarray:
-        return np.where(np.broadcast_to(self.get(sig), sig.shape), INF, -INF)  # type: ignore
+        return np.where(np.broadcast_to(self.get(sig), sig.shape), INF, -INF)  # type: ignore[misc]  # (built with its getter)
 
 
 @dataclass(eq=False)
@@ -80,7 +85,7 @@ class Predicate(Node):
 
     def _rho(self, sig: Any) -> np.ndarray:
         with np.errstate(all="ignore"):
-            a, b = _full(sig, self.lhs(sig)), _full(sig, self.rhs(sig))  # type: ignore[misc]
+            a, b = _full(sig, self.lhs(sig)), _full(sig, self.rhs(sig))  # type: ignore[misc]  # (built with both sides)
             if self.op in ("==", "!="):
                 return np.where((a == b) == (self.op == "=="), INF, -INF)
             out = b - a if self.op in ("<", "<=") else a - b
@@ -208,5 +213,3 @@ def _continuous(node: Node) -> bool:
         return False
     return all(_continuous(c) for c in node.children)
 
-
-Node.is_boundary_continuous = lambda self: _continuous(self)  # type: ignore[attr-defined]

@@ -36,10 +36,10 @@ class _AgentCatalog(Catalog):
         syms: dict[str, Getter] = {"t": lambda c: c.t}
         for p, j in self.ca.param_index.items():
             if p in self.team_params or self.single() == self.agent:
-                syms[p] = lambda c, j=j: c.p[:, j]
+                syms[p] = lambda c, j=j: c.p[:, j]  # type: ignore[misc]  # default-bound lambda
         if self.single() == self.agent:
             for x, j in self.ca.state_index.items():
-                syms[x] = lambda c, j=j: c.x[:, j]
+                syms[x] = lambda c, j=j: c.x[:, j]  # type: ignore[misc]  # default-bound lambda
         return syms
 
     def dotted(self, text: str) -> tuple[Getter | None, Problem]:

@@ -34,13 +34,13 @@ any ``b``. Tables are built per chunk of rows so memory stays near ``_CHUNK_BYTE
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import numpy as np
 
 _CHUNK_BYTES = 48 << 20  # working memory per chunk of rows (tables, search keys)
 
-Reduce = Callable[..., np.ndarray]  # np.minimum or np.maximum
+Reduce = np.ufunc  # np.minimum or np.maximum
 
 
 def always(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf

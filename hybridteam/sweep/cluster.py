@@ -43,7 +43,7 @@ def connect(scheduler: str, timeout: float = DEFAULT_CONNECT_TIMEOUT) -> Any:
     except (TypeError, ValueError) as exc:
         raise StudyError(f"{where}: not an address ({exc}); expected e.g. "
                          "tcp://HOST:8786") from None
-    if host is not None:
+    if host is not None and port is not None:  # (dask gives a host a port or refuses it)
         _probe(where, host, int(port), timeout)
     try:
         return Client(scheduler, timeout=f"{timeout}s")

@@ -182,7 +182,8 @@ def spread_chunk(study: Study, workers: int) -> int:
 def _settings(study: Study) -> list[Setting]:
     axis_points = list(itertools.product(*[[(a.name, a.keys, v) for v in a.values]
                                            for a in study.axes]))
-    factor_values = [(f.name, f.keys, v) for f in study.factors for v in f.values] or \
+    factor_values: list[tuple[str, tuple[str, ...], FactorValue | None]] = [
+        (f.name, f.keys, v) for f in study.factors for v in f.values] or \
         [(BASE, (), None)]
     out: list[Setting] = []
     for name, keys, value in factor_values:

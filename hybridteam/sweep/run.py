@@ -151,7 +151,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
 def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool | str):
     """A progress reporter over the runs (``progress``: a mode of
     :mod:`hybridteam.progress`; True means a bar, False none)."""
-    mode = {True: "bar", False: "none"}.get(progress, progress)  # type: ignore[call-overload]
+    mode = progress if isinstance(progress, str) else "bar" if progress else "none"
     finished = sum(c.size for c in plan.chunks if c.id in done)
     return reporter(str(mode), plan.runs, name, "run", initial=finished)
 

@@ -25,7 +25,7 @@ from hybridteam.io.loader import load_team
 from hybridteam.io.yamlpos import Path as DocPath
 from hybridteam.io.yamlpos import Positions, SourceError
 from hybridteam.model import Team
-from hybridteam.sweep.schema import AxisSchema, FactorSchema, StudyFile
+from hybridteam.sweep.schema import AxisSchema, AxisSpec, FactorSchema, FactorSpec, StudyFile
 
 #: A factor value: one number for all the factor's keys, or one per key.
 FactorValue = float | tuple[float, ...]
@@ -112,7 +112,7 @@ def _load(document: Document) -> Study:
         team = with_duration(team, doc.duration)
     errors: list[SourceError] = []
     draws = tuple(Draw(name, tuple(d.keys or [name]), "uniform" if d.uniform else "integers",
-                       *(d.uniform or d.integers))  # type: ignore[misc]
+                       *(d.uniform or d.integers))  # type: ignore[misc]  # (the schema gives one)
                   for name, d in doc.population.draws.items())
     factors = tuple(_factor(name, spec, positions, errors)
                     for name, spec in doc.factors.items())
@@ -194,18 +194,18 @@ def _keys(name: str, spec: object) -> tuple[str, ...]:
     return (name,)
 
 
-def _axis_values(spec: object) -> list[float]:
-    return spec.values if isinstance(spec, AxisSchema) else spec  # type: ignore[return-value]
+def _axis_values(spec: AxisSpec) -> list[float]:
+    return spec.values if isinstance(spec, AxisSchema) else spec
 
 
-def _factor(name: str, spec: object, positions: Positions, errors: list[SourceError]
+def _factor(name: str, spec: FactorSpec, positions: Positions, errors: list[SourceError]
             ) -> Factor:
     keys = _keys(name, spec)
     raw = spec.values if isinstance(spec, FactorSchema) else spec
     where: DocPath = ("factors", name, "values") if isinstance(spec, FactorSchema) else \
         ("factors", name)
     values: list[FactorValue] = []
-    for k, v in enumerate(raw):  # type: ignore[arg-type]
+    for k, v in enumerate(raw):
         if isinstance(v, list):
             if len(v) != len(keys):
                 errors.append(positions.error((*where, k), f"a list value gives one number "
@@ -282,7 +282,8 @@ def _check_size(study: Study, positions: Positions) -> list[SourceError]:
 def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[SourceError]:
     """Each override key must name a parameter of the team (the engine's own rule)."""
     uses: list[tuple[str, DocPath, bool]] = []  # key, where it is written, at a mapping key
-    named = [("population", "set", key, (key,)) for key, _ in study.fixed]
+    named: list[tuple[str, str, str | None, tuple[str, ...]]] = [
+        ("population", "set", key, (key,)) for key, _ in study.fixed]
     named += [("population", "draws", d.name, d.keys) for d in study.draws]
     named += [(group, item.name, None, item.keys)
               for group, items in (("factors", study.factors), ("axes", study.axes))

@@ -107,8 +107,8 @@ class Report:
         times = self.replays[v.prop.name][1].times if v.prop.name in self.replays else None
         if v.prop.kind != "response":
             return describe(self.skeleton, self.graph, self.path(v), times=times)
-        mark = (len(self.graph.path(v.state)) - 1,
-                f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore
+        mark = (len(self.graph.path(v.state)) - 1,  # (a response property has its phi)
+                f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore[union-attr]
                 "from here on the answer never comes ---")
         lines = describe(self.skeleton, self.graph, self.path(v), mark, times)
         lines.append("     (then round this cycle again and again)" if v.loops else

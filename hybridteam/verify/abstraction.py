@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ast
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -146,10 +147,10 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
             for on, actions in lists:
                 known = _discrete_names(ca, abstract[a]) | _message_names(on, fields,
                                                                           afields)
-                for act in actions:
+                for act in actions:  # (an assignment has its target and expression)
                     if act.kind == "assign" and act.target[0] == "v":  # type: ignore[index]
                         name = var_name[a][act.target[1]]  # type: ignore[index]
-                        if name not in abstract[a] and not act.expr.names <= known:  # type: ignore
+                        if name not in abstract[a] and not act.expr.names <= known:  # type: ignore[union-attr]
                             abstract[a].add(name)
                             changed = True
                     elif act.kind == "send":
@@ -160,7 +161,7 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
     return abstract, afields
 
 
-def _compile_tree(source: str, syms: dict, known: set[str], oracle: Oracle,
+def _compile_tree(source: str, syms: Mapping, known: set[str], oracle: Oracle,
                   free: list[str]):
     """The guard's Boolean structure over its comparisons: exact ones compiled by the
     expression compiler against the agent's own symbols, free ones read from the oracle.
@@ -229,7 +230,7 @@ def skeleton(cteam: CTeam, world_raises: tuple[str, ...] = ()) -> Skeleton:
                     tree = _exact_tree(tr.guard)
                 guard = SkeletonGuard(tr.guard.source if tr.guard else "", tree, oracle,
                                       inst_col, a * 1_000_000 + tr.index if driven else None)
-                tr = dataclasses.replace(tr, guard=guard)  # type: ignore[arg-type]
+                tr = dataclasses.replace(tr, guard=guard)  # type: ignore[arg-type]  # (the skeleton's stand-in)
             new_transitions.append(tr)
         triggers = {tr.on for tr in ca.transitions if tr.on is not None}
         inputs.append({e for e in triggers if e not in messages and e not in raised

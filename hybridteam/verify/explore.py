@@ -18,6 +18,7 @@ import time
 from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 
@@ -80,6 +81,12 @@ class Graph:
     def succ(self, k: int) -> list[int]:
         """``k``'s successors (each once, in the order first reached)."""
         return self.edges.successors(k)
+
+    @overload
+    def edge_choice(self, a: int, b: int) -> tuple | None: ...
+
+    @overload
+    def edge_choice(self, a: int, b: int, default: tuple) -> tuple: ...
 
     def edge_choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
         """The choice that leads from ``a`` to ``b`` (the first one tried)."""

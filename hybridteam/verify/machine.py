@@ -96,7 +96,7 @@ class Machine:
         self.cteam = sk.cteam
         ens = Ensemble(sk.cteam, capacity, 0, 1.0, {})
         null = _NullRecorder()
-        ens.rec = ens.network.rec = null  # type: ignore[assignment]
+        ens.rec = ens.network.rec = null  # type: ignore[assignment]  # (a recorder of nothing)
         one, zero = np.ones(capacity), np.zeros(capacity)
         ens.network.default = (one, zero, zero)  # sends land at t + 1: the explorer delivers
         ens.network.links = {}
@@ -242,7 +242,7 @@ class Machine:
                     s.outbox[: touched[i]] + s.outbox[touched[i] + 1:]
                 results[i] = self._read(i, s, choice, kept + tuple(per_out.get(i, ())),
                                         s.seen + tuple(per_seen.get(i, ())), agents)
-        return results  # type: ignore[return-value]
+        return results  # type: ignore[return-value]  # (each job got its result)
 
     def _put(self, i: int, s: State, sender: int, msg_id: int) -> int:
         """Load the parent's outbox entry ``(sender, msg_id)`` into instance ``i``; its
@@ -276,8 +276,9 @@ class Machine:
             cols_v = self.sk.discrete_vars[a]
             st.v[:n] = 0.0
             if cols_v:
-                st.v[np.ix_(np.arange(n), cols_v)] = np.array([s.agents[a][1] for s in states],
-                                                              float).reshape(n, len(cols_v))
+                at = np.ix_(np.arange(n), np.asarray(cols_v, np.intp))
+                st.v[at] = np.array([s.agents[a][1] for s in states],
+                                    float).reshape(n, len(cols_v))
             st.v[:n, self.sk.inst_col[a]] = np.arange(n)
             st.deadline[:n] = -np.inf
             ens.reliable.next_id[a][:n] = [s.next_ids[a] if s.next_ids else 0
@@ -317,7 +318,7 @@ class Machine:
                 raw = np.concatenate([raw, last.view(np.uint8)], axis=1)
             cols = self.sk.discrete_vars[a]
             if cols:
-                block = st.v[np.ix_(rows, cols)]
+                block = st.v[np.ix_(rows, np.asarray(cols, np.intp))]
                 if self.values is not None:
                     self.values.add(a, block)
                 values = block.tolist()

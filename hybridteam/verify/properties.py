@@ -101,7 +101,7 @@ class States:
         raise Unsupported("it reads time")
 
     def in_modes(self, agent: str, modes: list[int]) -> np.ndarray:
-        return self._active[self.names[agent]][:, modes].any(axis=1)[:, None]
+        return np.logical_or.reduce(self._active[self.names[agent]][:, modes], axis=1)[:, None]
 
     def active(self, a: int) -> np.ndarray:
         """Agent ``a``'s active modes in each state ``(states, modes)``, as booleans."""
@@ -146,11 +146,12 @@ def truth(node: N.Node, sig: States) -> np.ndarray:
     n = sig.shape[0]
     if isinstance(node, N.Const):
         return np.full(n, bool(node.value))
+    # (a Flag is built with its getter, a Predicate with both sides)
     if isinstance(node, N.Flag):
-        return np.broadcast_to(node.get(sig), sig.shape)[:, 0].astype(bool)  # type: ignore
+        return np.broadcast_to(node.get(sig), sig.shape)[:, 0].astype(bool)  # type: ignore[misc]
     if isinstance(node, N.Predicate):
-        a = np.broadcast_to(np.asarray(node.lhs(sig), float), sig.shape)  # type: ignore
-        b = np.broadcast_to(np.asarray(node.rhs(sig), float), sig.shape)  # type: ignore
+        a = np.broadcast_to(np.asarray(node.lhs(sig), float), sig.shape)  # type: ignore[misc, type-var]
+        b = np.broadcast_to(np.asarray(node.rhs(sig), float), sig.shape)  # type: ignore[misc, type-var]
         return _OPS[node.op](a, b)[:, 0]
     if isinstance(node, N.Not):
         return ~truth(node.children[0], sig)
@@ -167,8 +168,8 @@ def _temporal_free(node: N.Node) -> bool:
     return not isinstance(node, N.Temporal) and all(_temporal_free(c) for c in node.children)
 
 
-def _unbounded(node: N.Node) -> bool:
-    return node.lo == 0 and math.isinf(node.hi)  # type: ignore[attr-defined]
+def _unbounded(node: N.Temporal) -> bool:
+    return node.lo == 0 and math.isinf(node.hi)
 
 
 def properties(sk: Skeleton) -> list[Property]:
@@ -205,10 +206,11 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     for p in props:
         try:
             if p.kind == "invariant":
-                out.append(_invariant(p, truths(p.phi, sk, g)))  # type: ignore[arg-type]
+                assert p.phi is not None  # (an invariant has its formula)
+                out.append(_invariant(p, truths(p.phi, sk, g)))
             elif p.kind == "response":
-                out.append(_response(p, g, truths(p.phi, sk, g),  # type: ignore[arg-type]
-                                     truths(p.psi, sk, g)))  # type: ignore[arg-type]
+                assert p.phi is not None and p.psi is not None  # (a response has both)
+                out.append(_response(p, g, truths(p.phi, sk, g), truths(p.psi, sk, g)))
             elif p.kind == "deadlock":
                 out.append(_deadlock(p, sk, g))
             else:
@@ -278,7 +280,7 @@ def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[
            cyclic: set[int], start: int) -> Verdict:
     """The shortest psi-free path from ``start`` into a dead end or a cycle (``reach``
     holds every dead and cyclic state: the backward search starts from them)."""
-    sub = nx.DiGraph()
+    sub: nx.DiGraph[int] = nx.DiGraph()
     nodes = np.flatnonzero(reach).tolist()
     sub.add_nodes_from(nodes)
     sub.add_edges_from((k, j) for k in nodes for j in g.succ(k) if reach[j] and not psi[j])

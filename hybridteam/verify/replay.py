@@ -87,7 +87,8 @@ class Context:
         self.cteam = compile_team(team)
         self.requirements = compile_requirements(self.cteam)
         self.machine = Machine(sk, 1, fifo=fifo, raw=True)
-        self.timed: dict[tuple, object] = {}  # path -> its schedule, or why it has none
+        # path -> its schedule (the replayer, its times and gap), or why it has none
+        self.timed: dict[tuple, Replay | tuple[Replayer, list[float], float]] = {}
 
 
 def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = False

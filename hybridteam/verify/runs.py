@@ -57,6 +57,7 @@ class Replayer:
         lost: Counter = Counter()
         for s, t in zip(self.steps[1:], times[1:], strict=False):
             if s.kind == "deliver":
+                assert s.key is not None  # (a delivery names its copy)
                 delivered.setdefault(s.key, []).append(t)
             elif s.kind == "lose":
                 lost[s.key] += 1

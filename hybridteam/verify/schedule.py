@@ -38,7 +38,7 @@ class Bound:
 
 def solve(n: int, bounds: list[Bound]) -> list[float] | str:
     """The earliest moments ``T_0 = 0, ..., T_n`` meeting ``bounds``, or why none do."""
-    g = nx.DiGraph()
+    g: nx.DiGraph[int] = nx.DiGraph()
     g.add_nodes_from(range(n + 1))
 
     def edge(u: int, v: int, w: float, why: str) -> None:

@@ -78,6 +78,7 @@ def model(report) -> tuple[str, str]:
         parts = [("ok", p.phi)] if p.kind == "invariant" else [("phi", p.phi), ("psi", p.psi)]
         for tag, node in parts:
             name = f"{tag}{k}"
+            assert node is not None  # (a property of two formulas has both)
             truth = truths(node, sk, g).astype(np.uint8)
             arrays.append(f"unsigned char {name}_at[{n}] = {{{_list(truth)}}};")
             declared.append(f"  extern unsigned char {name}_at[];")

@@ -71,6 +71,7 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[PathStep
     sent_at = {(e.sender, e.msg_id): 0 for e in raw.outbox}
     for a, b in pairwise(path):
         choice = g.edge_choice(a, b)
+        assert choice is not None, "a path follows the graph's edges"
         rc, nxt = _match(m, raw, g.states[a], choice, g.states[b])
         step = PathStep(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
                     _outbox(nxt))

@@ -206,9 +206,9 @@ class Edges:
         np.cumsum(np.bincount(src, minlength=states), out=self._row[1:])
 
     def _ready(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._row is None:
+        if self._row is None or self._dst is None or self._how is None:  # (set together)
             raise RuntimeError("edges are not frozen (call freeze after exploring)")
-        return self._row, self._dst, self._how  # type: ignore[return-value]
+        return self._row, self._dst, self._how
 
     def successors(self, k: int) -> list[int]:
         """``k``'s successors, in the order their edges were added, each once."""

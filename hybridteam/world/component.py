@@ -93,9 +93,10 @@ class WorldComponent:
         (``ModelError(("update",), ...)``); any other ValueError is reported at the
         component's entry in the team file."""
 
-    def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+    def update(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray | None:
         """React to the state of the live instances ``idx`` at their current time: end
-        instances, raise events, update what robots sense (through ``world``)."""
+        instances, raise events, update what robots sense (through ``world``). Returns None,
+        or the instances where it raised events (the engine reads either)."""
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         """What agent ``agent`` senses as ``name`` in instances ``idx`` (for its law)."""

@@ -135,9 +135,9 @@ def parse_settings(team: Team, values: Mapping[str, Any], n: int = 1
         problems.append(ModelError(("on_collision",), f"expected one of {', '.join(MODES)}, "
                                    f"got {mode!r}", hint=did_you_mean(str(mode), MODES)))
     circles, boxes = out["circles"], out["boxes"]
-    for k in np.flatnonzero((circles[..., 2] <= 0).any(axis=0)):
+    for k in np.flatnonzero((circles[..., 2] <= 0).any(axis=0)).tolist():
         problems.append(ModelError(("circles", int(k)), "a circle's radius must be positive"))
-    for k in np.flatnonzero(((boxes[..., 2] <= 0) | (boxes[..., 3] <= 0)).any(axis=0)):
+    for k in np.flatnonzero(((boxes[..., 2] <= 0) | (boxes[..., 3] <= 0)).any(axis=0)).tolist():
         problems.append(ModelError(("boxes", int(k)), "a box's width and depth must be positive"))
     boxes[..., 4] = np.radians(boxes[..., 4])
     for k, row in enumerate(values.get("radius") or []):

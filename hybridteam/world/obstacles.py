@@ -105,7 +105,9 @@ class Obstacles(WorldComponent):
                                              parsed["boxes"])
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
-        self.raises = tuple(dict.fromkeys(r.event for r in self.rules))
+        # (this component's events come from its settings: its instance's, where the base
+        # class declares a class's)
+        self.raises = tuple(dict.fromkeys(r.event for r in self.rules))  # type: ignore[misc]
         # the beams the rules read, per ring: only those are cast at each instant (a rule on
         # the front IR reads 3 of 24 beams), and where each rule's beams are among them
         self.read_beams: dict[tuple[int, str], np.ndarray] = {}
@@ -146,7 +148,8 @@ class Obstacles(WorldComponent):
         self.world = world  # kept: sense() reads poses when a law asks
         everyone = world.components()
         mine = everyone.index(self)
-        self.payloads = world.components(CarriedPayload)
+        self.payloads = [c for c in world.components(CarriedPayload)
+                         if isinstance(c, CarriedPayload)]  # (all are: typed for the reader)
         # payloads listed after this component settle after it: settle them first here
         self.late = [c for c in self.payloads if everyone.index(c) > mine]
         self.sensing = {*self.planar, *(r.agent for r in self.rules)}
@@ -237,6 +240,7 @@ class Obstacles(WorldComponent):
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
         an ensemble whose obstacles differ between instances (a swept door width)."""
+        assert self.scene_of is not None  # (called only where the scenes differ)
         codes = self.scene_of[idx]
         return [(self.scenes[c], where_true(codes == c)) for c in np.unique(codes).tolist()]
 

@@ -112,9 +112,9 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
         return Equilibrium(x, y, theta, np.empty((n, 0, 2)))
     gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]
     gy = s[:, None] * b[..., 0] + c[:, None] * b[..., 1] + y[:, None]
-    offsets = np.empty((*gx.shape, 2))  # np.stack's values, without its checks
-    offsets[..., 0], offsets[..., 1] = r[..., 0] - gx, r[..., 1] - gy
-    return Equilibrium(x, y, theta, offsets)
+    held = np.empty((*gx.shape, 2))  # np.stack's values, without its checks
+    held[..., 0], held[..., 1] = r[..., 0] - gx, r[..., 1] - gy
+    return Equilibrium(x, y, theta, held)
 
 
 def world_points(x: np.ndarray, y: np.ndarray, theta: np.ndarray,

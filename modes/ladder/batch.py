@@ -49,14 +49,16 @@ def rows(request: BatchRequest) -> list[dict[str, Any]] | None:
     if names != sorted([v["front"], v["rear"]]):
         return None
     robots = [request.agent(v["front"]), request.agent(v["rear"])]
-    plans = [_carrier(r) for r in robots]
-    if plans[0] is None or plans[1] is None or plans[0].ends != plans[1].ends:
+    front, rear = (_carrier(r) for r in robots)
+    if front is None or rear is None or front.ends != rear.ends:
         return None
+    plans = [front, rear]
     windows = np.concatenate([p.params.get("window", np.full(request.n, 16.0))
                               for p in plans])
-    one = {k: request.uniform(k) for k in _UNIFORM}
-    if np.ptp(windows) != 0 or None in one.values():
+    uniform = {k: request.uniform(k) for k in _UNIFORM}
+    if np.ptp(windows) != 0 or None in uniform.values():
         return None
+    one = {k: x for k, x in uniform.items() if x is not None}  # (all of them, now)
     corridor = corridor_with_turn(one["width_in"], one["width_out"], one["outer_leg_in"],
                                   one["outer_leg_out"], turn=v["turn"])
     settings = Settings(

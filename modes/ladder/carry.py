@@ -11,10 +11,13 @@ moves exactly by it: ``x + m * 1``.
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 from hybridteam.library import FLOAT_PATHS, LawContext
 from hybridteam.library import law as register
+from hybridteam.world.geometry import Corridor
 
 from . import law, law_one
 
@@ -41,7 +44,8 @@ def carry(ctx: LawContext) -> np.ndarray:
     params.update(length=length, sc_partner=sc_partner)
     if (params["kr"] != 0.0).any():  # the goal heading matters only to the rotation vector
         params["goal_heading"] = ctx.sense("goal_heading")
-    move, nearest = law.step(own, partner, path, idx, params, ctx.sense("corridor"),
+    corridor = cast(Corridor, ctx.sense("corridor"))  # (the component senses its corridor)
+    move, nearest = law.step(own, partner, path, idx, params, corridor,
                              window=window, frame=frame, guide=guide, correction=correction)
     ctx.keep("nearest", nearest)
     u[:, :2] = move

@@ -183,6 +183,7 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
         ax = x + ox
         ay = y + oy
         if frames is not None and len(frames) == step:
+            assert snap is not None  # (recorded with the frames)
             pos, tip = snap
             pos[:, act, 0], pos[:, act, 1], tip[:, act, 0], tip[:, act, 1] = x, y, ax, ay
             frames.append(snap.copy())

@@ -9,6 +9,7 @@ Section 4 sample run; :func:`random_pairs` draws the Section 4 population S.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -130,7 +131,8 @@ class Pairs:
     def scenario(self, i: int) -> Scenario:
         """Pair ``i`` as a scenario (for the scalar reference)."""
         def robot(row: int) -> Robot:
-            vals = {f.name: float(self.robot[f.name][row, i]) for f in fields(Robot)}
+            vals: dict[str, Any] = {f.name: float(self.robot[f.name][row, i])
+                                    for f in fields(Robot)}
             vals["lookahead"] = int(vals["lookahead"])
             return Robot(**vals)
         return Scenario(float(self.length[i]), robot(0), robot(1))

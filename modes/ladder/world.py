@@ -112,7 +112,9 @@ class LadderCorridor(WorldComponent):
             if np.ptp(v[key]) != 0:
                 raise ValueError(f"ladder.corridor: '{key}' must be the same in every instance")
             dims[key] = float(v[key][0])
-        self.corridor = corridor_with_turn(*(dims[k] for k in _CORRIDOR), turn=v["turn"])
+        self.corridor = corridor_with_turn(dims["width_in"], dims["width_out"],
+                                           dims["outer_leg_in"], dims["outer_leg_out"],
+                                           turn=v["turn"])
         self.frame = CornerFrame.of(self.corridor)
         n = self.n
         length = v["length"]

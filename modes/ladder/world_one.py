@@ -80,7 +80,7 @@ class Constants(NamedTuple):
     length: float
     share: tuple[float, float]
     olim: tuple[float, float]
-    goal: tuple[tuple[float, float], tuple[float, float]]
+    goal: tuple[tuple[float, ...], ...]  # (x, y) of each robot's goal
     arrive_tol: float
     stuck_tol: float
     stuck_window: float

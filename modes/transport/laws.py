@@ -115,7 +115,7 @@ def _station(ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.nda
     kept = ctx.capture("station", lead.who, dict(zip(("ahead", "left", "phi"), here,
                                                      strict=True)), on & lead.ok)
     use = on & np.isfinite(kept["ahead"])
-    return tuple(np.where(use, kept[k], g)  # type: ignore[return-value]
+    return tuple(np.where(use, kept[k], g)  # type: ignore[return-value]  # (three names, three)
                  for k, g in zip(("ahead", "left", "phi"), given, strict=True))
 
 

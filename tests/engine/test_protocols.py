@@ -386,7 +386,8 @@ LEAD = "          lead: {inputs: {v: speed, omega: 0}, period: 0.05}"
      "follow.law.with.gain: law 'formation.follow' has no parameter 'gain'"),
     (FOLLOW, "use: formation.follow, period: 0.05, with: {ahead: 1.0}",
      "use: transport.follow_holonomic, period: 0.05, with: {D: 1.0}",
-     "follow.law.use: law 'transport.follow_holonomic' drives holonomic plants, not unicycle"),
+     ("follow.law.use: law 'transport.follow_holonomic' drives holonomic plants, "
+      "not unicycle")),
     (LEAD, "omega: 0}", "omga: 0}",
      "lead.inputs.omga: a unicycle plant has no input 'omga'; did you mean 'omega'?"),
 ])

@@ -164,9 +164,8 @@ def test_mutant_min_hold_deny_removed(tmp_path):
     good = verify(roles_team(tmp_path, "bc", extra=NO_OPERATOR), opts)
     assert verdicts(good)["no_operator"].holds is True
     # with timeouts that exceed only each robot's own exchanges the mistake shows as well
-    own = verify(roles_team(tmp_path, "bc", mutate(
-        "        - on: request\n          do: [{send: deny, to: sender}]\n        - to: Offering",
-        "        - to: Offering"), extra=NO_OPERATOR), Options(losses=0, timeouts="own"))
+    own = verify(roles_team(tmp_path, "bc", mutate(deny, "        - to: Offering"),
+                            extra=NO_OPERATOR), Options(losses=0, timeouts="own"))
     assert verdicts(own)["no_operator"].holds is False
     replayed(own, "no_operator")
     report = verify(roles_team(tmp_path, "bc", bad, extra=NO_OPERATOR), opts)

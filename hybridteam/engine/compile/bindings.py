@@ -6,7 +6,7 @@ its nearest ancestor's, and an agent with none anywhere stands still (the "zero"
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING
 
 from hybridteam.dynamics.plants import Plant
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 
 def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
-                   parameters: dict[str, float], folder: str | None = None,
+                   parameters: Mapping[str, float | str], folder: str | None = None,
                    variables: Iterable[str] = ()) -> Driver | None:
     """The driver a mode declares (None: it declares none); ``folder`` is where the team
     file lives, where ``module:function`` laws are looked for first.
@@ -61,7 +61,7 @@ def compile_driver(mode: Mode, idx: int, plant: Plant, syms, col: Collector,
         for name in plant.input_names:
             text = mode.inputs.get(name, 0.0)
             e = col.expr(text, syms, (*at, "inputs", name))
-            exprs_in.append(e)  # type: ignore[arg-type]
+            exprs_in.append(e)  # type: ignore[arg-type]  # (None: col has the error; no run)
         period = mode.input_period
         held = bool(period) and all(e is not None and e.names <= parameters.keys()
                                     for e in exprs_in)

@@ -68,13 +68,13 @@ class Ctx:
 
     def in_mode(self, m: int) -> np.ndarray:
         """Whether mode ``m`` is active in each of these instances."""
-        active, rows = self.q  # type: ignore[misc]
+        active, rows = self.q  # type: ignore[misc]  # (a guard's context has its q)
         return active[:, m][rows]
 
     @property
     def t_in(self) -> np.ndarray:
         if self._t_in is None:
-            column, rows = self._since  # type: ignore[misc]
+            column, rows = self._since  # type: ignore[misc]  # (given where t_in is not)
             self._t_in = self.t - column[rows]
         return self._t_in
 

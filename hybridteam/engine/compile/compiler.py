@@ -11,7 +11,7 @@ values and limits, its mode tree with drivers (:mod:`.bindings`), and its transi
 from __future__ import annotations
 
 from collections import ChainMap
-from collections.abc import Mapping
+from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,7 +88,7 @@ class _Names:
     variables: dict[str, int]
     parameters: dict[str, float | str]  # team parameters, then the agent's (overriding them)
     param_index: dict[str, int]
-    syms: Mapping  # every name an expression of the agent may use
+    syms: MutableMapping  # every name an expression of the agent may use
     param_syms: Mapping  # parameters only (initial values are evaluated before anything runs)
     defaults: np.ndarray  # every parameter's value, derived ones evaluated on the defaults
     derived: tuple[tuple[int, Expression], ...]  # (column, expression) of derived ones
@@ -183,7 +183,7 @@ def _initial_values(agent: Agent, names: _Names, col: Collector
         if lo > hi:
             col.fail((*where, "limits", n), f"lower limit {lo} exceeds upper {hi}")
         lower[plant.input_names.index(n)], upper[plant.input_names.index(n)] = lo, hi
-    return init_state, init_vars, lower, upper  # type: ignore[return-value]
+    return init_state, init_vars, lower, upper  # type: ignore[return-value]  # (None only beside an error in col)
 
 
 def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[int, list[int]],

@@ -11,6 +11,7 @@ in a stream's fields, the held inputs ``u_<input>`` and the plant-neutral veloci
 from __future__ import annotations
 
 from collections import ChainMap
+from collections.abc import MutableMapping
 
 import numpy as np
 
@@ -53,10 +54,12 @@ def check_messages(team: Team) -> list[ModelError]:
         for _, mode in agent.root.walk():
             for tr in mode.transitions:
                 for act in tr.actions:
-                    spec = team.messages.get(getattr(act, "message", ""))
+                    if not isinstance(act, Send):
+                        continue
+                    spec = team.messages.get(act.message)
                     if spec is None or not spec.fields:
                         continue
-                    for f in act.fields:  # type: ignore[attr-defined]
+                    for f in act.fields:
                         if f not in spec.fields:
                             errors.append(ModelError(
                                 (*act.where, "fields", f),
@@ -65,7 +68,7 @@ def check_messages(team: Team) -> list[ModelError]:
     return errors
 
 
-def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector) -> None:
+def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
     agent = team.agents[ca.index]
     sends = {act.message for _, mode in agent.root.walk() for tr in mode.transitions
@@ -106,10 +109,11 @@ def attach(ca: CAgent, team: Team, syms: dict, paths: list[str], col: Collector)
                 continue
             modes.append(m)
         rate = col.expr(s.rate, syms, (*s.where, "rate"))
-        fields = {f: col.expr(e, usyms, (*s.where, "fields", f)) for f, e in s.fields.items()}
-        if rate is None or any(v is None for v in fields.values()):
+        given = {f: col.expr(e, usyms, (*s.where, "fields", f)) for f, e in s.fields.items()}
+        fields = {f: e for f, e in given.items() if e is not None}
+        if rate is None or len(fields) < len(given):
             continue
-        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,  # type: ignore
+        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,
                                   modes, where=s.where, rate_text=str(s.rate),
                                   fixed_rate=rate.names <= ca.param_index.keys()))
 

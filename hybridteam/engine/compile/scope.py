@@ -46,17 +46,21 @@ class Collector:
         self.add(ModelError(where, message, hint=hint))
 
 
-def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]):
+def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]
+            ) -> dict[str, Reader]:
+    """The readers of ``t``, ``t_in_mode`` and the agent's state, variables and parameters by
+    column. The lambdas bind their column as a default argument (a closure over the loop
+    variable would read the last column), which mypy cannot infer: hence the ignores."""
     syms = {
         "t": Reader(lambda c: c.t, lambda r: r.t),
         "t_in_mode": Reader(lambda c: c.t_in, lambda r: r.t_in),
     }
     for name, j in state.items():
-        syms[name] = Reader(lambda c, j=j: c.x[:, j], lambda r, j=j: r.x[j])
+        syms[name] = Reader(lambda c, j=j: c.x[:, j], lambda r, j=j: r.x[j])  # type: ignore[misc]  # default-bound lambda
     for name, j in variables.items():
-        syms[name] = Reader(lambda c, j=j: c.v[:, j], lambda r, j=j: r.v[j])
+        syms[name] = Reader(lambda c, j=j: c.v[:, j], lambda r, j=j: r.v[j])  # type: ignore[misc]  # default-bound lambda
     for name, j in params.items():
-        syms[name] = Reader(lambda c, j=j: c.p[:, j], lambda r, j=j: r.p[j])
+        syms[name] = Reader(lambda c, j=j: c.p[:, j], lambda r, j=j: r.p[j])  # type: ignore[misc]  # default-bound lambda
     return syms
 
 
@@ -65,7 +69,7 @@ def message_symbols(fields: set[str]) -> dict:
     agent's index), ``msg_sent`` (its send time) and ``msg_<field>`` for each field."""
     syms = {"msg_sender": lambda c: c.m["sender"], "msg_sent": lambda c: c.m["t_send"]}
     for f in sorted(fields):
-        syms[f"msg_{f}"] = lambda c, f=f: c.m[f]
+        syms[f"msg_{f}"] = lambda c, f=f: c.m[f]  # type: ignore[misc]  # default-bound lambda
     return syms
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import ChainMap
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -38,7 +39,7 @@ from hybridteam.model import Action, Assign, Mode, Raise, Send, Transition
 
 
 def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMode],
-                        paths: list[str], syms: dict, state_index: dict[str, int],
+                        paths: list[str], syms: Mapping, state_index: dict[str, int],
                         var_index: dict[str, int], agent_names: list[str], agent_name: str,
                         message_fields: dict[str, set[str]] | None,
                         col: Collector, inner_first: bool = False) -> list[CTransition]:
@@ -56,7 +57,7 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
     syms = {**syms, "in_mode": mode_test(paths, agent_name)}  # what guards read
     for idx, (_path, mode, _parent, depth) in enumerate(flat):
         for tr in mode.transitions:
-            tsyms = syms
+            tsyms: Mapping = syms
             if tr.on is not None and message_fields and tr.on in message_fields:
                 tsyms = ChainMap(message_symbols(message_fields[tr.on]), syms)
             ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
@@ -288,7 +289,7 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     )
 
 
-def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: dict,
+def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: Mapping,
                     state_index: dict[str, int], var_index: dict[str, int],
                     agent_names: list[str], col: Collector) -> list[CAction]:
     """A transition's ``do:`` list, or a mode's ``entry:`` or ``exit:`` list (``where``):
@@ -321,7 +322,7 @@ def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: dict,
     return actions
 
 
-def _compile_send(act: Send, awhere: tuple, syms: dict, agent_names: list[str],
+def _compile_send(act: Send, awhere: tuple, syms: Mapping, agent_names: list[str],
                   col: Collector) -> CAction | None:
     """A ``send`` action: to everyone, to a named agent, back to the triggering message's
     sender, or to an agent index given by an expression (negative: everyone)."""

@@ -48,6 +48,6 @@ def transition_delay(tr: CTransition, ctx: Ctx, instances: np.ndarray) -> np.nda
     each): a :class:`ModelError` unless each is a finite number >= 0. Entering the mode
     checks it per instance; validation checks a delay of parameters alone on the team's
     own values with this same check, so ``validate`` refuses what ``run`` refuses."""
-    return require(spread(tr.after(ctx), instances.shape),  # type: ignore[misc]
-                   (*tr.origin, "after"), "the delay", tr.after.source,  # type: ignore[union-attr]
+    return require(spread(tr.after(ctx), instances.shape),  # type: ignore[misc]  # (called for after: only)
+                   (*tr.origin, "after"), "the delay", tr.after.source,  # type: ignore[union-attr]  # (ditto)
                    low=0.0, instances=instances)

@@ -81,7 +81,7 @@ class EnsembleAccess(WorldAccess):
                 return int(name)
             raise ValueError(f"no agent {name} (the team has {len(self.agents)})")
         if name in self._index:
-            return self._index[name]  # type: ignore[index]
+            return self._index[name]
         hint = did_you_mean(str(name), self.agents)
         raise ValueError(f"unknown agent '{name}' (agents: {', '.join(self.agents)})"
                          + (f"; {hint}" if hint else ""))
@@ -98,7 +98,7 @@ class EnsembleAccess(WorldAccess):
         st = self._ens.states[a]
         cols = list(range(st.x.shape[1])) if names is None else \
             [self._column(a, st.ca.state_index, n, "state") for n in names]
-        st.x[np.ix_(np.asarray(idx, np.intp), cols)] = values
+        st.x[np.ix_(np.asarray(idx, np.intp), np.asarray(cols, np.intp))] = values
         self._ens.reconfigured[idx] = True  # watched truths are read afresh there
 
     def has_pose(self, agent: Agent) -> bool:

@@ -31,8 +31,8 @@ def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction
     the assignments; ``msg``: the triggering message's fields, if any)."""
     for act in actions:
         if act.kind == "assign":
-            kind, col = act.target  # type: ignore[misc]
-            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]
+            kind, col = act.target  # type: ignore[misc]  # (an assignment has both)
+            value = spread(act.expr(ctx), sub.shape).astype(float)  # type: ignore[misc]  # (ditto)
             if kind == "x":
                 st.x[:, col][sub] = value
                 ctx.x[:, col] = value
@@ -82,13 +82,14 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.priority is not None:
         rank = -np.broadcast_to(policy.priority(ctx), sub.shape).astype(float)
     if policy is not None and policy.acknowledged:
-        timeout = require(np.broadcast_to(policy.timeout(ctx), sub.shape),  # type: ignore
+        wait, tries = policy.timeout, policy.retries
+        assert wait is not None and tries is not None  # (an acknowledged message's policy)
+        timeout = require(np.broadcast_to(wait(ctx), sub.shape),
                           (*policy.where, "timeout"), "the ack timeout",
-                          policy.timeout.source, low=0.0, open_low=True,  # type: ignore
-                          instances=sub)
-        retries = require(np.broadcast_to(policy.retries(ctx), sub.shape),  # type: ignore
+                          wait.source, low=0.0, open_low=True, instances=sub)
+        retries = require(np.broadcast_to(tries(ctx), sub.shape),
                           (*policy.where, "retries"), "the number of retries",
-                          policy.retries.source, low=0.0, instances=sub)  # type: ignore
+                          tries.source, low=0.0, instances=sub)
         ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
                           rank)
     else:

@@ -25,7 +25,9 @@ from hybridteam.world.request import AgentShape, BatchRequest, ModeShape, Transi
 
 def offers_batch(cls: type[WorldComponent]) -> bool:
     """Whether a component class has a batch fast path at all (saves building requests)."""
-    return getattr(cls.batch, "__func__", None) is not WorldComponent.batch.__func__
+    # (a classmethod read off its class is a bound method: ``__func__`` is the function)
+    base = getattr(WorldComponent.batch, "__func__", None)
+    return getattr(cls.batch, "__func__", None) is not base
 
 
 def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
@@ -39,8 +41,8 @@ def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
     mats = parameter_matrices(cteam.agents, n, overrides)
     shapes = tuple(_shape(ca, p, n) for ca, p in zip(cteam.agents, mats, strict=True))
     first = cteam.agents[0] if cteam.agents else None
-    team_params = {k: mats[0][:, first.param_index[k]].copy()  # type: ignore[union-attr]
-                   for k in cteam.team.parameters}
+    team_params = {k: mats[0][:, first.param_index[k]].copy()
+                   for k in cteam.team.parameters} if first is not None else {}
     for k, (cls, spec) in enumerate(zip(classes, cteam.team.world, strict=True)):
         if not offers_batch(cls):
             continue
@@ -62,12 +64,12 @@ def _shape(ca: CAgent, p: np.ndarray, n: int) -> AgentShape:
     modes, law_params = [], {}
     for m in ca.modes:
         drv = ca.drivers[m.driver] if m.driver >= 0 else None
-        law = drv.law.name if drv is not None and drv.law is not None and drv.inputs is None \
-            else None
-        if law is not None:
-            values = {k: np.full(n, float(v)) for k, v in drv.law.params.items()}  # type: ignore
+        spec = drv.law if drv is not None and drv.inputs is None else None
+        law = spec.name if spec is not None else None
+        if drv is not None and spec is not None:
+            values = {k: np.full(n, float(v)) for k, v in spec.params.items()}
             values.update({k: np.broadcast_to(np.asarray(e(start), float), (n,)).copy()
-                           for k, e in drv.params.items()})  # type: ignore[union-attr]
+                           for k, e in drv.params.items()})
             law_params[m.path] = values
         modes.append(ModeShape(
             path=m.path, kind=m.kind, parent=ca.modes[m.parent].path if m.parent >= 0 else None,

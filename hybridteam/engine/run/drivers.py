@@ -45,9 +45,9 @@ def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
     """The law's inputs, shape-checked. A law that fails or returns the wrong shape is a
     :class:`ModelError` at its binding, with what went wrong (``HYBRIDTEAM_DEBUG=1``
     re-raises the law's own exception instead, for its traceback)."""
-    name = drv.law.name  # type: ignore[union-attr]
+    name = drv.law.name  # type: ignore[union-attr]  # (called for a law's drivers only)
     try:
-        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore
+        u = np.asarray(drv.law.fn(ca.law_context(ctx, drv)), dtype=float)  # type: ignore[union-attr]  # (ditto)
     except Exception as exc:
         if os.environ.get("HYBRIDTEAM_DEBUG"):
             raise
@@ -83,8 +83,9 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
         for j, expr in enumerate(D.flow or ()):
             if expr is not None:
                 fixed = expr.names <= fixed_names  # the same at every stage: evaluated once
-                flows.append((j, None if fixed else expr,
-                              expr(Ctx(None, v_g, p_g, None)) if fixed else None))  # type: ignore[arg-type]
+                # (a fixed flow reads no state and no time: evaluated without them)
+                value = expr(Ctx(None, v_g, p_g, None)) if fixed else None  # type: ignore[arg-type]
+                flows.append((j, None if fixed else expr, value))
         groups.append((D, sel, v_g, p_g, entered,
                        None if st.inbox is None else st.inbox.view(idx[sel]), flows))
     whole = len(groups) == 1 and isinstance(groups[0][1], slice)
@@ -118,9 +119,9 @@ def next_ticks(t: np.ndarray, period: float) -> np.ndarray:
             q = ti / period
             if not math.isfinite(q):
                 break  # math.floor refuses inf and NaN: the array version answers
-            k = float(math.floor(q)) + 1.0
-            nxt = k * period
-            out.append(nxt if nxt > ti else (k + 1.0) * period)
+            kf = float(math.floor(q)) + 1.0
+            tick = kf * period
+            out.append(tick if tick > ti else (kf + 1.0) * period)
         else:
             return np.array(out)
     k = np.floor(t / period) + 1

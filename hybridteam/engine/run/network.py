@@ -292,7 +292,7 @@ def _link(spec, team_params: dict[str, np.ndarray], n: int,
           given: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A link's latency, jitter and loss per instance (``given``: overridden ones), each
     checked for its range."""
-    return tuple(  # type: ignore[return-value]
+    return tuple(  # type: ignore[return-value]  # (three names, three arrays)
         given[what] if what in given else
         require(evaluate_setting(getattr(spec, what), team_params, n), (*spec.where, what),
                 f"the link's {what}", str(getattr(spec, what)), low=0.0,

@@ -116,7 +116,7 @@ def stop_collapsed_steps(ens: Ensemble, idx: np.ndarray, steps: list[AgentStep],
         a = int(np.argmax(errs))
         size = float(ens.h_rk[i])
         limit = float(step_floor(ens, ens.t[i:i + 1])[0])
-        ens.finish(np.array([i]), "stiff", lambda i, a=a, size=size, limit=limit: (
+        ens.finish(np.array([i]), "stiff", lambda i, a=a, size=size, limit=limit: (  # type: ignore[misc]  # default-bound lambda
             f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
             f"t={ens.when(i)}: the integrator's step size fell to {size:.3g} s, below "
             f"{limit:.3g} s ({_driver_text(ens, a, i, None)}): the flow changes too fast for "
@@ -134,6 +134,6 @@ def stop_broken_inputs(ens: Ensemble, a: int, rows: np.ndarray, u: np.ndarray) -
         i = int(rows[k])
         col = int(np.flatnonzero(~np.isfinite(u[k]))[0])
         value = u[k, col]
-        ens.finish(np.array([i]), "numerical_error", lambda i, col=col, value=value: (
+        ens.finish(np.array([i]), "numerical_error", lambda i, col=col, value=value: (  # type: ignore[misc]  # default-bound lambda
             f"agent '{ca.name}' in mode '{_leaf(ens, a, i)}' at t={ens.when(i)}: input "
             f"'{ca.plant.input_names[col]}' is {value} ({_driver_text(ens, a, i, None)})"))

@@ -42,10 +42,11 @@ def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = 
             sel = idx[st.active[:, m.index][idx] & ~ens.done[idx]]
             if sel.size == 0:
                 continue
+            assert m.invariant is not None  # (an invariant mode's)
             ok = spread(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
             bad = sel[~ok]
             if bad.size:
-                ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (
+                ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (  # type: ignore[misc]  # default-bound lambda
                     f"agent '{ca.name}' in mode '{m.path}' at t={ens.when(i)}: invariant "
                     f"'{m.invariant_text}' is false and no transition out is enabled"))
     if not ens.may_end_early:
@@ -130,8 +131,8 @@ def deadlock_text(ens: Ensemble, i: int) -> str:
     parts = []
     for st in ens.states:
         ca = st.ca
-        waits = sorted({ca.transitions[j].on for m in ca.modes if st.active[i, m.index]
-                        for j in m.outgoing if ca.transitions[j].on})
+        waits = sorted({on for m in ca.modes if st.active[i, m.index]
+                        for j in m.outgoing if (on := ca.transitions[j].on)})
         if waits:
             parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
                          f"{', '.join(waits)}")

@@ -393,15 +393,16 @@ class Simulator:
         moved = idx[crossing] if crossing is not None else NO_INDEX
         plain = None
         for a, st in enumerate(ens.states):
-            if end_truths[a] is not None:
+            truths = end_truths[a]
+            if truths is not None:
                 if plain is None:
                     plain = ens.h[sel] > 0
                     if crossing is not None:
                         plain &= ~crossing
                 if full and every(plain):
-                    st.truth = end_truths[a]
+                    st.truth = truths
                 else:
-                    st.truth[:, idx[plain]] = end_truths[a][:, plain]
+                    st.truth[:, idx[plain]] = truths[:, plain]
             if st.ca.watches and moved.size:
                 st.truth[:, moved] = watch_truth(ens, a, moved, gather(st.x, moved),
                                                  ens.t[moved])

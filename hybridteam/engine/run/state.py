@@ -141,15 +141,15 @@ class AgentState:
             restore = restore or deep or mode.history != "none"
             deeper = deep or mode.history == "deep"
             if not restore:
-                self.enter(mode.default, idx, t)  # type: ignore[arg-type]
+                self.enter(mode.default, idx, t)  # type: ignore[arg-type]  # (an 'or' mode has its default)
                 return
             choice = self.last[:, m][idx]
             fresh = mode.history_default or mode.default
-            if fresh.targets == {mode.initial}:  # type: ignore[union-attr]
+            if fresh.targets == {mode.initial}:  # type: ignore[union-attr]  # (ditto)
                 # nothing remembered: the initial child (below it nothing is either)
                 choice = np.where(choice < 0, mode.initial, choice)
             elif (choice < 0).any():  # a deeper default, or the history's own
-                self.enter(fresh, idx[choice < 0], t)  # type: ignore[arg-type]
+                self.enter(fresh, idx[choice < 0], t)  # type: ignore[arg-type]  # (ditto)
             for c in mode.children:
                 sub = idx[choice == c]
                 if sub.size:

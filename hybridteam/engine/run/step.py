@@ -10,14 +10,14 @@ flow, and the Runge–Kutta step with its dense output.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from hybridteam.arrays import every, filled, gather, some, where_true
 from hybridteam.dynamics import rk
+from hybridteam.dynamics.rk import Step as RKStep
 from hybridteam.engine.run.drivers import derivative
 
 if TYPE_CHECKING:
@@ -39,7 +39,7 @@ class AgentStep:
     x0: np.ndarray
     u: np.ndarray
     rk: np.ndarray
-    rk_step: rk.Step | None = None
+    rk_step: RKStep | None = None  # (``rk`` the field hides ``rk`` the module here)
     rk_pos: np.ndarray | None = None
     err: np.ndarray | None = None
     start_bad: np.ndarray | None = None
@@ -66,8 +66,10 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
                 ens.settings.atol)
     xe[r] = s.x1
     mine = np.zeros(idx.size)
-    mine[r] = np.where(np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s.err),
-                       s.err, np.inf)
+    s_err = s.err
+    assert s_err is not None, "rk.step estimates its error unless told not to"
+    mine[r] = np.where(np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s_err),
+                       s_err, np.inf)
     assert err is not None, "a flowing row in a team the simulator found no flow in"
     np.maximum(err, mine, out=err)
     start_bad = np.zeros(idx.size, bool)
@@ -117,8 +119,13 @@ def _dense(step: AgentStep, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return dense_reader(step, rows)(tau)
 
 
-def dense_reader(step: AgentStep, rows: np.ndarray
-                 ) -> Callable[[np.ndarray, np.ndarray | None], np.ndarray]:
+class DenseRead(Protocol):
+    """The reader :func:`dense_reader` returns: ``read(tau, pos=None)``."""
+
+    def __call__(self, tau: np.ndarray, pos: np.ndarray | None = None) -> np.ndarray: ...
+
+
+def dense_reader(step: AgentStep, rows: np.ndarray) -> DenseRead:
     """``read(tau, pos=None)``: states of the flowing ``rows[pos]`` (all ``rows`` when None)
     of the step, ``tau`` after its start, off its dense output (a zero-length step reads
     its start). The rows' places in the step and their step sizes are looked up once, for

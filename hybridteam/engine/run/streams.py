@@ -148,6 +148,7 @@ class Streams:
                 if steady:  # on where due is finite, and t >= inf never holds
                     send = t >= due[idx]
                 else:
+                    assert active is not None  # (None only when steady)
                     on = active[:, cs.modes].any(axis=1) if cs.modes else \
                         np.ones(idx.size, bool)
                     was = np.isfinite(due[idx])

@@ -64,7 +64,7 @@ class World:
     def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
         """Run every component on the live instances of ``idx``; returns the instances
         where events were raised (through the access, or returned by ``update``)."""
-        raised = []
+        raised: list[np.ndarray] = []
         for c in self.components:
             live = access.live(idx)
             if live.size:

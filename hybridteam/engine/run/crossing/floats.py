@@ -59,7 +59,7 @@ def truths_one(st: AgentState, sub: int, x: list[float], t: float) -> np.ndarray
 
 def _truths(st: AgentState, row: Row, entry: list[float]) -> list[bool]:
     """Every watched atom's truth at ``row`` (each timed in its own mode)."""
-    return [w.atom.row(_at(row, entry[w.mode]))[0] for w in st.ca.watches]
+    return [w.atom.row(_at(row, entry[w.mode]))[0] for w in st.ca.watches]  # type: ignore[misc]  # (row_watches: all have one)
 
 
 def check_truths_one(st: AgentState, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
@@ -119,5 +119,5 @@ def relevant_one(st: AgentState, idx: np.ndarray, keep: np.ndarray,
             if not read:
                 row.x, read = x[0].tolist(), True
             row.t_in = row.t - entry[watch.mode]
-            if bool(watch.owner.row(row)) == watch.invariant:  # (owner_matters on floats)
+            if bool(watch.owner.row(row)) == watch.invariant:  # type: ignore[union-attr, misc]  # (owner_matters on floats)
                 keep[k, w, 0] = False

@@ -139,7 +139,8 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
         if not some(watched & (end != start)):
             return end, None
         all_truths = np.stack([start, end])
-        x_checks = t_checks = None
+        x_checks: np.ndarray | None = None
+        t_checks: np.ndarray | None = None
     else:
         all_truths, x_checks, t_checks = _check_truths(ens, a, idx, x_end, step, thetas,
                                                        pos, part, start, h, t0, t1)
@@ -151,6 +152,7 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     points: list[tuple[np.ndarray, np.ndarray]] = [(step.x0, t0)]
     for c in range(checks):
         span = slice(c * pos.size, (c + 1) * pos.size)
+        assert x_checks is not None and t_checks is not None  # (checks > 0)
         if part:  # rows not evaluated stay at the start: no flip there, never read
             x_c, t_c = step.x0.copy(), t0.copy()
             x_c[pos], t_c[pos] = x_checks[span], t_checks[span]
@@ -212,7 +214,7 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
     its apex, in one sub-interval that starts with ``h <= 0`` already true).
     """
     first = np.argmax(relevant, axis=0)  # (nw, m): first relevant sub-interval
-    has = relevant.any(axis=0)
+    has = np.logical_or.reduce(relevant, axis=0)
     # atoms in order of their first sub-interval: the earliest crossing is found first and
     # later atoms only need one probe to show they do not cross before it
     order = sorted(range(relevant.shape[1]),
@@ -251,6 +253,7 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
     from_start = lo is None
     if lo is None:
         lo, truth_lo = thetas[k] * seg.h[cand], truths[k, w, cand]
+    assert truth_lo is not None  # (given with lo)
     hi = thetas[k + 1] * seg.h[cand]
     known = np.isfinite(best[cand])
     if some(known):
@@ -336,7 +339,7 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
     """
     later = relevant[:, w, rows].copy()  # (K, rows)
     later[np.arange(later.shape[0])[:, None] <= k] = False
-    again = where_true(later.any(axis=0))
+    again = where_true(np.logical_or.reduce(later, axis=0))
     if again.size:
         todo.append((w, rows[again], np.argmax(later[:, again], axis=0), None, None))
     found = ~np.isnan(tau)  # (NaN: not located, nothing ahead; see _foregone)

@@ -35,6 +35,7 @@ def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.
     watch = st.ca.watches[w]
     ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub],
               q=(st.active, sub))
+    assert watch.owner is not None  # (a requirement's observer has none and is not judged)
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
 
@@ -73,7 +74,7 @@ class Segment:
         is_rk = self.step.rk[rows]
         any_rk = self.has_rk and some(is_rk)
         ens, a = self.ens, self.a
-        derivs: dict[bytes, object] = {}
+        derivs: dict[bytes, rk.Derivative] = {}
         # one candidate (a single run's search): its trial points need no gathering
         alone = rows.size == 1
         # state_at's dense read, its lookups done once
@@ -95,7 +96,7 @@ class Segment:
             key = fp.tobytes()
             if key not in derivs:
                 derivs[key] = derivative(ens, a, sub[fp])
-            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],  # type: ignore[arg-type]
+            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],
                            ens.settings.rtol, ens.settings.atol, estimate=False)
             ens.costs.true_steps += 1
             out[flow] = step.x1
@@ -122,10 +123,11 @@ class Segment:
         (:attr:`~hybridteam.expr.Atom.row`); else None."""
         watch = self.st.ca.watches[w]
         s = self.step.rk_step
-        if rows.size != 1 or watch.atom.row is None or s is None or not self.step.rk[rows[0]] \
-                or not FLOAT_PATHS.on:
+        pos = self.step.rk_pos  # (set with rk_step)
+        if rows.size != 1 or watch.atom.row is None or s is None or pos is None \
+                or not self.step.rk[rows[0]] or not FLOAT_PATHS.on:
             return None
-        return _One(self, watch, s, int(self.step.rk_pos[rows[0]]),  # type: ignore[index]
+        return _One(self, watch, s, int(pos[rows[0]]),
                     int(rows[0]))
 
     def dense_one(self, w: int, rows: np.ndarray) -> OneEvaluator | None:
