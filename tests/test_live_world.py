@@ -115,11 +115,15 @@ def host(cteam):
     return sim, link, transport
 
 
-def readings(codec: Codec, transport: Sent) -> dict[int, dict[str, float]]:
+def readings(codec: Codec, transport: Sent, answers: dict[int, int] | None = None
+             ) -> dict[int, dict[str, float]]:
+    """The readings sent, by agent; ``answers`` gets the pose number each answers."""
     out = {}
     for payload in transport.payloads:
         dg = codec.decode(payload)
         out[dg.to] = dg.fields
+        if answers is not None:
+            answers[dg.to] = dg.msg_id
     transport.payloads.clear()
     return out
 
@@ -134,14 +138,17 @@ def test_the_world_process_runs_the_payload_on_the_poses_received(cteam):
     link.poses = {XR4000: {"x": x0, "y": y0, "theta": th0, "holding": 1.0},
                   LABMATE: {"holding": 0.0}}
     world.update(sim.access, idx)
-    first = readings(link.codec, transport)
+    answers: dict[int, int] = {}
+    first = readings(link.codec, transport, answers)
     assert set(first) == {0, 1, 2}  # the start: every agent's first reading
+    assert answers == {0: -1, 1: -1, 2: -1}  # (which no pose asked for)
     before = [first[XR4000][f"payload.{k}"] for k in range(3)]
     link.poses = {XR4000: {"x": x0 + 0.1, "y": y0 - 0.05, "theta": th0, "holding": 1.0}}
-    link.pending = {XR4000}
+    link.pending = {XR4000: 7}  # (the number of the pose that arrived)
     world.update(sim.access, idx)
-    after = readings(link.codec, transport)
+    after = readings(link.codec, transport, answers)
     assert set(after) == {XR4000}  # a pose is answered to its sender
+    assert answers[XR4000] == 7  # naming the pose it answers
     got = [after[XR4000][f"payload.{k}"] for k in range(3)]
     assert got == pytest.approx([before[0] + 0.1, before[1] - 0.05, before[2]], abs=1e-9)
     # the pose was written into the (remote) agent's state the components read

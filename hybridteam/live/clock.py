@@ -6,7 +6,9 @@ Run time is ``K`` times the wall seconds since the process started (``K``: the t
 for datagrams: each one this process hosts an addressee of becomes a message event at the
 run time it arrived (never before the engine's present), so the step ends there and the
 engine receives it as it receives a simulated copy. :class:`WireOutlet` puts every send
-of the hosted agents on the wire.
+of the hosted agents on the wire. Inside an instant, an agent's process waiting for the
+world process's answer to its poses takes arrivals the same way
+(:meth:`WallClock.take_until`).
 """
 
 from __future__ import annotations
@@ -77,6 +79,9 @@ class WallClock:
         self.world: WorldLink | None = None
         #: datagrams read before the run started (:meth:`backlog`), taken first
         self._backlog: list[tuple[bytes, float]] = []
+        #: whether a reading answering this instant's poses queued events at it
+        #: (:meth:`take_until`)
+        self._raised_now = False
 
     def start(self) -> None:
         """Run time 0 is now (called as the run starts)."""
@@ -112,6 +117,22 @@ class WallClock:
                 return
             self.transport.wait(min((due - now) / self.scale, MAX_WAIT))
             slept = True
+
+    def take_until(self, ens: Ensemble, done: Callable[[], bool], seconds: float) -> bool:
+        """Take arrivals as between instants until ``done()`` holds or ``seconds`` wall
+        seconds pass: an agent's process waiting, inside an instant, for the world
+        process's answer to its poses (:meth:`hybridteam.live.world.WorldLink.
+        await_answers`). A reading that answers them raises its events at this instant, as
+        the components' events are raised in a simulation; everything else arrives when
+        it arrives. Returns whether such a reading queued events."""
+        self._raised_now = False
+        end = time.monotonic() + seconds
+        while True:
+            self._take(ens)
+            left = end - time.monotonic()
+            if done() or ens.done[0] or left <= 0:
+                return self._raised_now
+            self.transport.wait(left)
 
     def _take(self, ens: Ensemble) -> bool:
         """Queue every datagram waiting for the hosted agents; whether any was queued."""
@@ -163,11 +184,16 @@ class WallClock:
         """A pose or a reading (:mod:`~hybridteam.live.world`): a pose arriving at the world
         process is an instant there; a reading's events are raised in their agent at its
         arrival, and its outcome ends the run. Whether the run must take an instant now."""
-        got = self.world.take(dg) if self.world is not None else None
+        if self.world is None:
+            return False
+        now = dg.type == READING and self.world.answers_now(dg)
+        got = self.world.take(dg)
         if got is None:
             return False
         self.delivered += 1
-        t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
+        t = float(ens.t[0]) if now else max((arrived - self.mono0) * self.scale,
+                                            float(ens.t[0]))
+        t += self.delay
         events, outcome = got
         if outcome is not None:
             ens.finish(ens.everyone, outcome, lambda i: f"the world process concluded "
@@ -178,12 +204,14 @@ class WallClock:
         for name in names:
             ens.queue.push(np.array([0]), np.array([t]), LOCAL, agent, name)
             self._waiting.append((t, arrived + self.delay / self.scale))
+        self._raised_now = self._raised_now or (now and bool(names))
         return bool(names)
 
     def backlog(self, datagrams: list[tuple[bytes, float]]) -> None:
-        """Datagrams read from the transport before the run started (while waiting for
-        the world process's first reading), to be taken before any newer."""
-        self._backlog = [*datagrams, *self._backlog]
+        """Datagrams read from the transport before the run's first instant (while
+        waiting for the world process's first reading), to be taken before any newer, as
+        arrived at run time 0: that instant's (its laws read the first readings there)."""
+        self._backlog = [*((data, self.mono0) for data, _ in datagrams), *self._backlog]
 
     def record(self) -> dict:
         """What the trace's ``meta.live`` says of the clock and the wire."""
@@ -196,10 +224,10 @@ class WallClock:
                              **self.injected},
                 "wall_s": time.monotonic() - self.mono0,
                 "cpu_s": time.process_time() - self.cpu0,
-                "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}
+                "late_ms": percentiles(self.late), "reaction_ms": percentiles(self.reaction)}
 
 
-def _percentiles(seconds: list[float]) -> dict[str, float | int]:
+def percentiles(seconds: list[float]) -> dict[str, float | int]:
     """Count, median, 99th percentile and largest of durations, in milliseconds."""
     if not seconds:
         return {"count": 0}

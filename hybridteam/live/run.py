@@ -27,7 +27,7 @@ from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.run.plant import ExternalPlant
 from hybridteam.engine.run.record import variables_key
 from hybridteam.engine.run.simulator import Simulator
-from hybridteam.live.clock import WallClock, WireOutlet
+from hybridteam.live.clock import WallClock, WireOutlet, percentiles
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import (
@@ -40,7 +40,14 @@ from hybridteam.live.wire import (
     declarations,
     wire_mismatch,
 )
-from hybridteam.live.world import SILENCE, WorldHost, WorldLink, WorldReadings, world_seam
+from hybridteam.live.world import (
+    ANSWER_WAIT,
+    SILENCE,
+    WorldHost,
+    WorldLink,
+    WorldReadings,
+    world_seam,
+)
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -131,6 +138,8 @@ class LiveRun:
             self.sim.ensemble.world.read_lasers(
                 {a: plant for a, plant in external.items() if getattr(plant, "laser", False)})
         self.full = full
+        if self.link is not None and not world:  # (laws read this instant's world)
+            self.answer_at_ticks(self.link, hosted)
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
@@ -140,9 +149,14 @@ class LiveRun:
         log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
                  "the world" if self.world_process else ", ".join(self.here),
                  self.time_scale, self.sim.ensemble.t_end)
-        if self.link is not None and not self.world_process and self.here:
-            self.await_world()
+        # run time 0 is now: launch starts every process together ('go'), the world's too,
+        # so each process's instants are at the same wall times as the others'
         self.clock.start()
+        if self.link is not None and not self.world_process and self.here \
+                and self.await_world() > ASK_AGAIN:
+            # (the world process was not up yet, started by hand after this one: the run
+            # starts at its first reading, not at a time zero long past)
+            self.clock.start()
         trace = self.sim.run()
         world_host = self.link is not None and self.world_process
         record = {"agents": self.here,
@@ -152,6 +166,8 @@ class LiveRun:
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
                   **({"world_sent": self.link.sent} if self.link is not None else {}),
+                  **(self.answers_record() if self.link is not None and not world_host
+                     else {}),
                   **({"world_silent": self.link.silence_record()} if world_host else {})}
         dropped = record["datagrams"]["dropped"]
         if dropped:
@@ -160,16 +176,38 @@ class LiveRun:
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
         return process_trace(trace, record)
 
-    def await_world(self) -> None:
+    def answer_at_ticks(self, link: WorldLink, hosted: Sequence[int]) -> None:
+        """Have ``link`` wait for the world process's answer at the instants where a
+        hosted agent's sampled law ticks, at most :data:`~hybridteam.live.world.
+        ANSWER_WAIT` of their control period (:mod:`~hybridteam.live.world`)."""
+        ens = self.sim.ensemble
+        states = [ens.states[a] for a in hosted
+                  if any(d.kind == "sampled" for d in self.full.agents[a].drivers)]
+        link.wait = ANSWER_WAIT * control_period(self.full, hosted) / self.time_scale
+        link.due = lambda: any(ens.t[0] >= st.next_tick[0] for st in states)
+        link.pump = lambda done, seconds: self.clock.take_until(ens, done, seconds)
+
+    def answers_record(self) -> dict:
+        """What ``meta.live`` says of an agent process's waits for the world process's
+        answers: the longest wait (wall ms), the instants whose answer did not come in
+        time (their laws read the latest reading), how long the answers that came took."""
+        link = self.link
+        assert link is not None
+        return {"world_wait_ms": link.wait * 1e3, "world_late": link.late,
+                "world_answer_ms": percentiles(link.answer_s)}
+
+    def await_world(self) -> float:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
         reading of every hosted agent, which its laws read from their first tick, asking
         again every ASK_AGAIN seconds; what else arrives meanwhile is handed to the clock
-        to be taken first. HostingError if none comes (no world process runs)."""
+        to be taken first. Returns the wall seconds waited; HostingError if none comes
+        (no world process runs)."""
         # (a codec of its own: the run's must see these datagrams first when it takes them)
         peek = Codec(self.full, self.codec.senses, self.wire)
         kept: list[tuple[bytes, float]] = []
-        end = time.monotonic() + FIRST_READING
-        ask = time.monotonic() + ASK_AGAIN
+        start = time.monotonic()
+        end = start + FIRST_READING
+        ask = start + ASK_AGAIN
         waiting = set(self.link.here)
         while waiting:
             now = time.monotonic()
@@ -199,7 +237,9 @@ class LiveRun:
                     # backlog, which raises the reading's events, if any, at run time 0)
                     self.link.take(dg)
                     waiting.discard(dg.to)
+        self.link.unanswered.clear()  # (a late answer to an ask is not the first instant's)
         self.clock.backlog(kept)
+        return time.monotonic() - start
 
 
 #: Wall seconds an agent's process waits for the world process's first reading.
@@ -207,6 +247,23 @@ FIRST_READING = 30.0
 
 #: Wall seconds between an agent process's asks for its first reading while it waits.
 ASK_AGAIN = 0.1
+
+
+def control_period(cteam: CTeam, hosted: Collection[int]) -> float:
+    """The hosted agents' control period (run seconds): their shortest sampled law period;
+    the team's where they sample none (an operator), :data:`DEFAULT_PERIOD` where no agent
+    does."""
+    for agents in ([cteam.agents[a] for a in hosted], cteam.agents):
+        periods = [d.period for ca in agents for d in ca.drivers
+                   if d.kind == "sampled" and d.period > 0]
+        if periods:
+            return min(periods)
+    return DEFAULT_PERIOD
+
+
+#: The control period of a team that samples no law (run seconds): 20 Hz, the rate of the
+#: paper's robots' laws.
+DEFAULT_PERIOD = 0.05
 
 
 def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:
