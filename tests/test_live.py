@@ -104,7 +104,7 @@ def hostile(codec: Codec) -> list[bytes]:
                                               {"need": 2.0}), 0.0, time.time()))
     return [b"{not json", b" " * (MAX_BYTES + 1),
             json.dumps({**genuine, "team": "another team"}).encode(),
-            json.dumps({**genuine, "ht": 3}).encode(),
+            json.dumps({**genuine, "ht": 2}).encode(),
             json.dumps({**genuine, "from": "intruder"}).encode()]
 
 

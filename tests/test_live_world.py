@@ -5,8 +5,11 @@ agents' reading of it, and experiment 2 launched live against ``hybridteam run``
 from __future__ import annotations
 
 import json
+import logging
 import subprocess
 import sys
+import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +93,20 @@ def test_world_datagrams_are_checked_field_by_field(cteam, kind, sender, to, fie
     with pytest.raises(WireError) as err:
         codec.decode(codec.encode_world(kind, sender, to, 0, fields, 1.0))
     assert err.value.reason == reason
+
+
+def test_a_reading_names_the_pose_it_answers_and_a_pose_names_none(cteam):
+    """Wire version 3: a reading's ``id`` is the number of the pose it answers (-1: none
+    asked for it); a pose answers nothing."""
+    codec = codec_of(cteam)
+    for answers in (-1, 0, 41):
+        assert codec.decode(codec.encode_world(READING, WORLD_INDEX, XR4000, answers + 1,
+                                               {}, 1.0, answers)).msg_id == answers
+    for kind, sender, to, answers in ((READING, WORLD_INDEX, XR4000, -2),
+                                      (POSE, XR4000, WORLD_INDEX, 3)):
+        with pytest.raises(WireError) as err:
+            codec.decode(codec.encode_world(kind, sender, to, 50, {}, 1.0, answers))
+        assert err.value.reason == "forged"
 
 
 def test_a_reading_from_an_agent_and_a_replayed_pose_are_refused(cteam):
@@ -228,6 +245,110 @@ def test_an_agent_whose_first_reading_was_lost_asks_again(team, cteam, monkeypat
         world.close()
     assert asks == [{}]
     assert trace.outcomes[0]["outcome"] == "ok"  # (ended at its duration)
+
+
+class StandIn:
+    """A stand-in world process on its own socket (a thread of the test), answering each
+    pose of the XR4000 that ``answer`` answers: with an IR ring reading the pose's x on
+    every beam, naming the pose it answers. Its first reading (the answer to the agent's
+    ask, a pose of no field) reads ``first`` on every beam."""
+
+    BEAMS = 8
+
+    def __init__(self, live: LiveRun, world: UdpTransport,
+                 answer: Callable[[dict[str, float]], bool], first: float) -> None:
+        self.live, self.world, self.answer, self.first = live, world, answer, first
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self.serve)
+        self.sent = 0
+
+    def serve(self) -> None:
+        codec = codec_of(self.live.full)
+        while not self.done.is_set():
+            self.world.wait(0.01)
+            for data, _ in self.world.receive():
+                dg = codec.decode(data)
+                if dg.type != POSE or dg.sender != XR4000:
+                    continue
+                if dg.fields and not self.answer(dg.fields):
+                    continue
+                x = dg.fields.get("x", self.first)
+                self.world.send(self.live.codec.encode_world(
+                    READING, WORLD_INDEX, XR4000, self.sent,
+                    {f"ir.{k}": x for k in range(self.BEAMS)}, 0.0, dg.seq), "data")
+                self.sent += 1
+
+
+def xr4000_reading(team, answer: Callable[[dict[str, float]], bool], first: float,
+                   monkeypatch) -> tuple[LiveRun, list[tuple[float, float, float]]]:
+    """The XR4000's process (in this one; experiment 2, its Approach law, which reads its
+    IR ring at every tick and drives it along x) against a :class:`StandIn` world, for 0.5
+    run seconds at time scale 5. Returns the run and, for each reading of the ring by the
+    law: the run time, the x the ring read, the XR4000's x then."""
+    world = UdpTransport(("127.0.0.1", 0))
+    transport = UdpTransport(("127.0.0.1", 0), [world.address])
+    world.peers.append(transport.address)
+    live = LiveRun(team, ["xr4000"], transport, duration=0.5, time_scale=5)
+    ens = live.sim.ensemble
+    column = list(ens.states[XR4000].ca.plant.state_names).index("x")
+    read: list[tuple[float, float, float]] = []
+    sense = ens.world.sense
+
+    def spy(agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        values = sense(agent, idx, name)
+        if name == "ir":
+            read.append((float(ens.t[0]), float(values[0, 0]),
+                         float(ens.states[XR4000].x[0, column])))
+        return values
+
+    monkeypatch.setattr(ens.world, "sense", spy)
+    stand_in = StandIn(live, world, answer, first)
+    stand_in.thread.start()
+    try:
+        live.run()
+    finally:
+        stand_in.done.set()
+        stand_in.thread.join()
+        transport.close()
+        world.close()
+    return live, read
+
+
+def test_a_law_reads_the_worlds_answer_to_its_own_instants_pose(team, monkeypatch):
+    """At each tick of the XR4000's Approach law the IR ring it reads is the stand-in
+    world's answer to the pose sent at that instant: the x the ring reads is the robot's x
+    then (moving 0.1 m/s * 0.05 s = 5 mm a tick, so the answer to the previous tick's pose
+    would read 5 mm off). The wait's bound is raised to 4 control periods so that a
+    loaded machine does not make answers late; a late one would be counted, and only a
+    counted one may read an older x."""
+    monkeypatch.setattr(live_run, "ANSWER_WAIT", 4.0)
+    live, read = xr4000_reading(team, lambda fields: True, 2.4, monkeypatch)
+    ticks = [(t, ring, x) for t, ring, x in read if t > 0]
+    assert len(ticks) >= 8  # (0.5 s of 20 Hz ticks)
+    assert len({x for _, _, x in ticks}) == len(ticks)  # (it moves at every tick)
+    older = [(t, ring, x) for t, ring, x in ticks if ring != x]
+    assert len(older) == live.link.late <= len(ticks) // 4, older
+    record = live.answers_record()
+    assert record["world_late"] == live.link.late
+    assert record["world_answer_ms"]["count"] == len(ticks) - live.link.late
+
+
+def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, monkeypatch,
+                                                                         caplog):
+    """A stand-in world that answers the first ask and no pose after: every tick's
+    answer is late; each is counted and the laws read the latest reading (the first,
+    x 2.0); one warning says so. The first tick waits its bound, the later ones do not
+    (the world process is behind), so the run keeps its pace."""
+    caplog.set_level(logging.WARNING, "hybridteam.live")
+    live, read = xr4000_reading(team, lambda fields: False, 2.0, monkeypatch)
+    ticks = [ring for t, ring, _ in read if t > 0]
+    assert len(ticks) >= 8
+    assert ticks == [2.0] * len(ticks)
+    assert live.link.late == len(ticks)
+    assert live.answers_record()["world_answer_ms"] == {"count": 0}
+    warned = [r for r in caplog.records if "did not come within" in r.getMessage()]
+    assert len(warned) == 1
+    assert live.link.wait == pytest.approx(0.5 * 0.05 / 5)  # (half a period, wall seconds)
 
 
 @pytest.mark.parametrize(("team_file", "args", "message"), [
