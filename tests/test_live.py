@@ -58,7 +58,8 @@ def processes():
 
     def start(*args: str) -> subprocess.Popen:
         proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", *args],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
         started.append(proc)
         return proc
 
@@ -79,6 +80,22 @@ def wait_running(proc: subprocess.Popen) -> bytes:
         if ready:
             seen += proc.stderr.readline()
     return seen
+
+
+def start_together(*procs: subprocess.Popen) -> None:
+    """Wait for each ``--ready`` process's ready line (its port bound, its team compiled),
+    then say ``go`` to every one, as ``launch`` does: their run clocks start together,
+    however late each process came up on a loaded machine."""
+    for proc in procs:
+        assert proc.stdout is not None
+        ready, _, _ = select.select([proc.stdout], [], [], TIMEOUT)
+        line = proc.stdout.readline() if ready else b""
+        assert line.startswith(b"ready "), (line, proc.stderr.read() if proc.poll() is not
+                                            None else b"")
+    for proc in procs:
+        assert proc.stdin is not None
+        proc.stdin.write(b"go\n")
+        proc.stdin.flush()  # (closed by ``communicate``)
 
 
 def finish(proc: subprocess.Popen) -> None:
@@ -110,7 +127,9 @@ def hostile(codec: Codec) -> list[bytes]:
 
 def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagrams(
         tmp_path, processes, udp):
-    """Requester and granter in two processes over loopback (4x the wall clock): each
+    """Requester and granter in two processes over loopback (4x the wall clock), their
+    clocks started together (``--ready``, then ``go``: the granter's 1.5 wall seconds run
+    from the requester's start, not from its own, however late the other came up): each
     process's transitions are its agent's in ``hybridteam run``, in the same order, with
     the same causes. Hostile datagrams sent at both ports during the run, and a replay of
     the requester's own 'request' to the granter, are counted by reason and dropped."""
@@ -119,14 +138,14 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     ports = {"requester": free_port(), "granter": free_port()}
     granter = processes(str(TEAM), "--agent", "granter", "--listen",
                         f"{LOCAL}:{ports['granter']}", "--peer",
-                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4",
+                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4", "--ready",
                         "-o", str(tmp_path / "granter"))
-    wait_running(granter)
     requester = processes(str(TEAM), "--agent", "requester", "--listen",
                           f"{LOCAL}:{ports['requester']}", "--peer",
                           f"{LOCAL}:{ports['granter']}", "--peer",
                           f"{LOCAL}:{sniffer.getsockname()[1]}", "--time-scale", "4",
-                          "-o", str(tmp_path / "requester"))
+                          "--ready", "-o", str(tmp_path / "requester"))
+    start_together(granter, requester)
     ready, _, _ = select.select([sniffer], [], [], TIMEOUT)
     assert ready, "the requester sent nothing"
     first = sniffer.recv(65535)  # the request, which the granter has had by now
