@@ -84,17 +84,18 @@ def wait_running(proc: subprocess.Popen) -> bytes:
 
 def start_together(*procs: subprocess.Popen) -> None:
     """Wait for each ``--ready`` process's ready line (its port bound, its team compiled),
-    then say ``go`` to every one, as ``launch`` does: their run clocks start together,
-    however late each process came up on a loaded machine."""
+    then say ``go WALL`` to every one, as ``launch`` does: their run clocks start at the
+    same wall time, however late each process came up on a loaded machine."""
     for proc in procs:
         assert proc.stdout is not None
         ready, _, _ = select.select([proc.stdout], [], [], TIMEOUT)
         line = proc.stdout.readline() if ready else b""
         assert line.startswith(b"ready "), (line, proc.stderr.read() if proc.poll() is not
                                             None else b"")
+    now = time.time()
     for proc in procs:
         assert proc.stdin is not None
-        proc.stdin.write(b"go\n")
+        proc.stdin.write(f"go {now!r}\n".encode())
         proc.stdin.flush()  # (closed by ``communicate``)
 
 
@@ -179,6 +180,28 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     assert granter_msgs["status"].tolist() == ["delivered", "delivered"]
     assert (granter_msgs["t_recv"] >= granter_msgs["t_send"]).all()
     assert granter_msgs["msg_id"].tolist() == [-1, 0]  # 'done' is acknowledged
+
+
+@pytest.mark.parametrize(("said", "start"), [
+    ("go\n", None), ("go 1000.25\n", 1000.25), ("go   1000.25  \n", 1000.25),
+    ("", "stdin did not say 'go'"), ("start\n", "stdin did not say 'go'"),
+    ("go 1000 1\n", "stdin did not say 'go'"),
+    ("go 939.75\n", "'go 939.75' is no wall time within 60 s of now"),
+    ("go nan\n", "'go nan' is no wall time"), ("go soon\n", "'go soon' is no wall time"),
+])
+def test_the_start_a_ready_process_is_given(monkeypatch, said, start):
+    """``--ready``'s ``go`` (the clock starts when it is read) or ``go WALL`` (run time 0
+    at that wall time, launch's for every process; within START_TIMEOUT, 60 s, of now,
+    here 1000 s); anything else is a usage error, before the run."""
+    from hybridteam.cli import live as live_cli
+    from hybridteam.cli.common import UsageError
+
+    monkeypatch.setattr(live_cli.time, "time", lambda: 1000.0)
+    if start is None or isinstance(start, float):
+        assert live_cli.go_time(said) == start
+        return
+    with pytest.raises(UsageError, match=start):
+        live_cli.go_time(said)
 
 
 def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):

@@ -337,9 +337,9 @@ def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, m
                                                                          caplog):
     """A stand-in world that answers the first ask and no pose after: every tick's
     answer is late; each is counted and the laws read the latest reading (the first,
-    x 2.0); one warning says so. The first tick waits its bound, the later ones do not
+    x 2.0); one logged line says so. The first tick waits its bound, the later ones do not
     (the world process is behind), so the run keeps its pace."""
-    caplog.set_level(logging.WARNING, "hybridteam.live")
+    caplog.set_level(logging.INFO, "hybridteam.live")
     live, read = xr4000_reading(team, lambda fields: False, 2.0, monkeypatch)
     ticks = [ring for t, ring, _ in read if t > 0]
     assert len(ticks) >= 8

@@ -83,10 +83,13 @@ class WallClock:
         #: (:meth:`take_until`)
         self._raised_now = False
 
-    def start(self) -> None:
-        """Run time 0 is now (called as the run starts)."""
-        self.mono0 = time.monotonic()
-        self.wall0 = time.time()  # the same instant on the wall clock (send times)
+    def start(self, at: float | None = None) -> None:
+        """Run time 0 is now (called as the run starts), or wall time ``at``
+        (``time.time()``: launch's one start of all its processes, which a process that
+        read it late is already past, and catches up with)."""
+        mono, wall = time.monotonic(), time.time()
+        self.wall0 = wall if at is None else at  # (on the wall clock: send times)
+        self.mono0 = mono - (wall - self.wall0)
         self.cpu0 = time.process_time()
 
     def now(self) -> float:

@@ -143,15 +143,16 @@ class LiveRun:
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
-    def run(self) -> Trace:
+    def run(self, start: float | None = None) -> Trace:
         """Run until the end rule holds for the agents here, the duration passes, or
-        ``stop`` gives a reason; returns the process's trace."""
+        ``stop`` gives a reason; returns the process's trace. ``start``: the wall time
+        (``time.time()``) of run time 0, launch's for all its processes (default now)."""
         log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
                  "the world" if self.world_process else ", ".join(self.here),
                  self.time_scale, self.sim.ensemble.t_end)
-        # run time 0 is now: launch starts every process together ('go'), the world's too,
-        # so each process's instants are at the same wall times as the others'
-        self.clock.start()
+        # run time 0 is launch's 'go' for all its processes, the world's too, so each
+        # process's instants are at the same wall times as the others'
+        self.clock.start(start)
         if self.link is not None and not self.world_process and self.here \
                 and self.await_world() > ASK_AGAIN:
             # (the world process was not up yet, started by hand after this one: the run
