@@ -141,6 +141,10 @@ class WallClock:
         """Queue every datagram waiting for the hosted agents; whether any was queued."""
         queued = False
         arrivals, self._backlog = self._backlog + self.transport.receive(), []
+        # (the world process answers every pose taken at once at one instant, the last's
+        # arrival: the instant cannot run before they are all taken, and one instant is
+        # one run of the components; a world process behind does not fall further behind)
+        last = max((arrived for _, arrived in arrivals), default=0.0)
         for data, arrived in arrivals:
             self.received += 1
             try:
@@ -153,7 +157,7 @@ class WallClock:
                 self.injected["dropped"] += 1
                 continue
             if dg.type in (POSE, READING):
-                queued = self._world(ens, dg, arrived) or queued
+                queued = self._world(ens, dg, arrived, last) or queued
                 continue
             receivers = [r for r in self.here if r != dg.sender and dg.to in (-1, r)]
             if receivers and dg.type in self.drop_copies:
@@ -183,10 +187,11 @@ class WallClock:
                 queued = True
         return queued
 
-    def _world(self, ens: Ensemble, dg, arrived: float) -> bool:
+    def _world(self, ens: Ensemble, dg, arrived: float, last: float) -> bool:
         """A pose or a reading (:mod:`~hybridteam.live.world`): a pose arriving at the world
-        process is an instant there; a reading's events are raised in their agent at its
-        arrival, and its outcome ends the run. Whether the run must take an instant now."""
+        process is an instant there (at ``last``, the arrival of the last datagram taken
+        with it); a reading's events are raised in their agent at its arrival, and its
+        outcome ends the run. Whether the run must take an instant now."""
         if self.world is None:
             return False
         now = dg.type == READING and self.world.answers_now(dg)
@@ -194,8 +199,8 @@ class WallClock:
         if got is None:
             return False
         self.delivered += 1
-        t = float(ens.t[0]) if now else max((arrived - self.mono0) * self.scale,
-                                            float(ens.t[0]))
+        at = last if dg.type == POSE else arrived
+        t = float(ens.t[0]) if now else max((at - self.mono0) * self.scale, float(ens.t[0]))
         t += self.delay
         events, outcome = got
         if outcome is not None:
