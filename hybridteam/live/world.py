@@ -194,13 +194,14 @@ class WorldLink:
         return raised
 
     def note_late(self) -> None:
+        """Count an instant whose laws read an older reading; log the first."""
         self.late += 1
         if self.late == 1:
             # (info, not a warning: on a loaded machine some answers are late in every run;
             # the count is the record)
             log.info("the world process's answer to a pose did not come within %.1f ms: "
-                        "the laws read the latest reading (each such instant is counted "
-                        "in meta.live.world_late)", self.wait * 1e3)
+                     "the laws read the latest reading (each such instant is counted in "
+                     "meta.live.world_late)", self.wait * 1e3)
 
     def world_silent(self) -> str | None:
         """(agents' process) Why the run must stop, if a pose sent has gone unanswered
