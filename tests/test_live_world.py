@@ -9,6 +9,7 @@ import logging
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import pytest
 
 import hybridteam as ht
 from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.network import Message
 from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live import run as live_run
 from hybridteam.live.hosting import HostingError
@@ -349,6 +351,32 @@ def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, m
     warned = [r for r in caplog.records if "did not come within" in r.getMessage()]
     assert len(warned) == 1
     assert live.link.wait == pytest.approx(0.5 * 0.05 / 5)  # (half a period, wall seconds)
+
+
+@pytest.mark.parametrize(("message", "ends"), [("ready", True), ("state", False)])
+def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team, message,
+                                                                           ends):
+    """While the XR4000's process waits for the world's answer, the Labmate's 'ready'
+    (a control message: its reply must not be held for the world) ends the wait at once,
+    queued for the next instant; a copy of the 'state' stream (20 Hz from each teammate)
+    does not, the wait runs to its bound."""
+    transport = UdpTransport(("127.0.0.1", 0))
+    labmate = UdpTransport(("127.0.0.1", 0), [transport.address])
+    try:
+        live = LiveRun(team, ["xr4000"], transport, duration=1.0)
+        socket, fields = {"ready": ("control", {}), "state": ("data", dict.fromkeys(
+            ("omega", "theta", "v", "vx", "vy", "x", "y"), 0.0))}[message]
+        labmate.send(live.codec.encode(Message(LABMATE, XR4000, 0, 0.0, socket, message,
+                                               fields), 0.0, time.time()), socket)
+        bound = 0.3 if ends else 0.1
+        start = time.monotonic()
+        live.clock.take_until(live.sim.ensemble, lambda: False, bound)
+        took = time.monotonic() - start
+    finally:
+        transport.close()
+        labmate.close()
+    assert live.clock.delivered == 1, live.clock.dropped  # (queued either way)
+    assert (took < bound) if ends else (took >= bound)
 
 
 @pytest.mark.parametrize(("team_file", "args", "message"), [

@@ -79,9 +79,12 @@ class WallClock:
         self.world: WorldLink | None = None
         #: datagrams read before the run started (:meth:`backlog`), taken first
         self._backlog: list[tuple[bytes, float]] = []
-        #: whether a reading answering this instant's poses queued events at it
-        #: (:meth:`take_until`)
+        #: whether a reading answering this instant's poses queued events at it, and
+        #: whether a message that is no stream's copy arrived for an agent here, while
+        #: waiting (:meth:`take_until`); the types only streams send (periodic copies)
         self._raised_now = False
+        self._message = False
+        self.streamed: frozenset[str] = frozenset()
 
     def start(self, at: float | None = None) -> None:
         """Run time 0 is now (called as the run starts), or wall time ``at``
@@ -127,13 +130,15 @@ class WallClock:
         process's answer to its poses (:meth:`hybridteam.live.world.WorldLink.
         await_answers`). A reading that answers them raises its events at this instant, as
         the components' events are raised in a simulation; everything else arrives when
-        it arrives. Returns whether such a reading queued events."""
-        self._raised_now = False
+        it arrives. A message for an agent here that is no stream's copy (:attr:`streamed`)
+        ends the wait too: its reply is not held for the world process (the instant's laws
+        read the latest reading instead). Returns whether such a reading queued events."""
+        self._raised_now = self._message = False
         end = time.monotonic() + seconds
         while True:
             self._take(ens)
             left = end - time.monotonic()
-            if done() or ens.done[0] or left <= 0:
+            if done() or self._message or ens.done[0] or left <= 0:
                 return self._raised_now
             self.transport.wait(left)
 
@@ -178,6 +183,8 @@ class WallClock:
             if self.delay:
                 self.injected["delayed"] += 1
             t_send = (dg.sent - self.wall0) * self.scale
+            if receivers and dg.type not in self.streamed:
+                self._message = True
             for r in receivers:
                 ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
                                               dg.type, dict(dg.fields), dg.msg_id, dg.note),

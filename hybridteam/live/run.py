@@ -185,6 +185,12 @@ class LiveRun:
         states = [ens.states[a] for a in hosted
                   if any(d.kind == "sampled" for d in self.full.agents[a].drivers)]
         link.wait = ANSWER_WAIT * control_period(self.full, hosted) / self.time_scale
+        # (a stream's periodic copies do not end a wait; a type also sent by transitions
+        # does, as every other message)
+        sent = {act.name for ca in self.full.agents for tr in ca.transitions
+                for act in tr.actions if act.kind == "send"}
+        self.clock.streamed = frozenset(cs.message for ca in self.full.agents
+                                        for cs in ca.streams) - sent
         link.due = lambda: any(ens.t[0] >= st.next_tick[0] for st in states)
         link.pump = lambda done, seconds: self.clock.take_until(ens, done, seconds)
 
