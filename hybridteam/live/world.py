@@ -21,10 +21,11 @@ Why wait: in a simulation the components run on this instant's state before any 
 samples, so a law reads the world as of its own instant. Live, without the wait, a law
 ticking at the instant its pose is sent reads the world's answer to the previous pose, a
 control period old (experiment 2's XR4000 docked up to two periods early). On loopback the
-answer takes about a millisecond. Only the ticks wait: at an instant a message arrives,
-the answer would delay every reply (each hop of a handshake), and a law whose mode that
-instant enters reads the answer to the last instant's pose; events the world raises for
-a pose of such an instant are raised where its reading arrives.
+answer takes about a millisecond. Only the ticks wait, and a message that is no stream's
+copy ends a wait (:meth:`~hybridteam.live.clock.WallClock.take_until`): waiting at a
+message's arrival would delay every reply (each hop of a handshake). A law whose mode such
+an instant enters reads the answer to the last instant's pose; events the world raises
+for a pose of such an instant are raised where its reading arrives.
 
 :class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the
 datagrams of the two kinds to, and what both sides send through. It also watches the other
