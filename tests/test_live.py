@@ -204,6 +204,19 @@ def test_the_start_a_ready_process_is_given(monkeypatch, said, start):
         live_cli.go_time(said)
 
 
+def test_a_clock_started_at_a_past_wall_time_is_that_far_into_its_run():
+    """``WallClock.start(at)``: run time 0 at wall time ``at`` (launch's ``go WALL``), so a
+    process that reads it 0.5 s late is 0.5 s (time scale 4: 2 run seconds) into its run,
+    and its send times count from ``at``."""
+    from hybridteam.live.clock import WallClock
+
+    clock = WallClock(Codec(compile_team(ht.load(TEAM))), None, [], time_scale=4)
+    at = time.time() - 0.5
+    clock.start(at)
+    assert clock.wall0 == at
+    assert 2.0 <= clock.now() < 2.0 + 4 * TIMEOUT
+
+
 def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):
     port = free_port()
     proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
