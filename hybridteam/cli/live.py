@@ -15,6 +15,7 @@ import math
 import os
 import signal
 import sys
+import time
 from collections.abc import Callable
 
 from hybridteam.cli.common import (
@@ -69,7 +70,8 @@ def register(sub) -> dict:
                         "a robot whose code differs from the model")
     p.add_argument("--ready", action="store_true",
                    help="(for 'launch') once the port is bound and the team compiled, print "
-                        "'ready HOST:PORT' and start the run when stdin says 'go'")
+                        "'ready HOST:PORT' and start the run when stdin says 'go' (or "
+                        "'go WALL': run time 0 at that time.time(), every process's)")
 
     la = sub.add_parser("launch", help="run every agent of a team live on this machine, "
                         "one process each over loopback UDP, and merge their traces")
@@ -253,12 +255,12 @@ def live_process(args: argparse.Namespace) -> int:
                           if args.world_timeout is not None else {}))
         if args.transport == "ros2":
             wait_for_peers(transport, args.ros_peers)
+        start = None  # (run time 0: now, or launch's wall time)
         if args.ready:
             print("ready " + ("ros2" if args.transport == "ros2" else
                               "{}:{}".format(*transport.address)), flush=True)
-            if sys.stdin.readline().strip() != "go":
-                raise UsageError("not started: stdin did not say 'go' (--ready)")
-        trace = live.run()
+            start = go_time(sys.stdin.readline())
+        trace = live.run(start)
     except HostingError as exc:
         raise UsageError(str(exc)) from None
     except ModelError as exc:  # a value out of range as the run goes: at its line
@@ -451,9 +453,10 @@ def cmd_launch(args: argparse.Namespace) -> int:
             if not _ready(proc, START_TIMEOUT):
                 raise UsageError(f"agent '{name}' did not start: "
                                  f"{_last_line(out / 'agents' / name / 'live.log')}")
-        for proc in procs.values():  # every clock starts now
+        now = time.time()
+        for proc in procs.values():  # every clock starts now (the same time 0 for all)
             assert proc.stdin is not None
-            proc.stdin.write(b"go\n")
+            proc.stdin.write(f"go {now!r}\n".encode())
             proc.stdin.close()
         duration = full.team.simulation.duration if args.duration is None else args.duration
         deadline = time.monotonic() + duration / args.time_scale + END_MARGIN
@@ -715,6 +718,25 @@ def free_ports(count: int) -> list[int]:
     finally:
         for s in held:
             s.close()
+
+
+def go_time(line: str) -> float | None:
+    """The start ``--ready`` was given on stdin: ``go`` (now: None) or ``go WALL`` (run time
+    0 at wall time WALL, ``time.time()`` on this machine, launch's one for every process);
+    UsageError for anything else."""
+    words = line.split()
+    if not words or words[0] != "go" or len(words) > 2:
+        raise UsageError("not started: stdin did not say 'go' (--ready)")
+    if len(words) == 1:
+        return None
+    try:
+        wall = float(words[1])
+    except ValueError:
+        wall = math.nan
+    if not abs(time.time() - wall) <= START_TIMEOUT:
+        raise UsageError(f"not started: 'go {words[1][:20]}' is no wall time within "
+                         f"{START_TIMEOUT:g} s of now (--ready)")
+    return wall
 
 
 def _ready(proc, timeout: float) -> bool:

@@ -6,7 +6,9 @@ Run time is ``K`` times the wall seconds since the process started (``K``: the t
 for datagrams: each one this process hosts an addressee of becomes a message event at the
 run time it arrived (never before the engine's present), so the step ends there and the
 engine receives it as it receives a simulated copy. :class:`WireOutlet` puts every send
-of the hosted agents on the wire.
+of the hosted agents on the wire. Inside an instant, an agent's process waiting for the
+world process's answer to its poses takes arrivals the same way
+(:meth:`WallClock.take_until`).
 """
 
 from __future__ import annotations
@@ -77,11 +79,20 @@ class WallClock:
         self.world: WorldLink | None = None
         #: datagrams read before the run started (:meth:`backlog`), taken first
         self._backlog: list[tuple[bytes, float]] = []
+        #: whether a reading answering this instant's poses queued events at it, and
+        #: whether a message that is no stream's copy arrived for an agent here, while
+        #: waiting (:meth:`take_until`); the types only streams send (periodic copies)
+        self._raised_now = False
+        self._message = False
+        self.streamed: frozenset[str] = frozenset()
 
-    def start(self) -> None:
-        """Run time 0 is now (called as the run starts)."""
-        self.mono0 = time.monotonic()
-        self.wall0 = time.time()  # the same instant on the wall clock (send times)
+    def start(self, at: float | None = None) -> None:
+        """Run time 0 is now (called as the run starts), or wall time ``at``
+        (``time.time()``: launch's one start of all its processes, which a process that
+        read it late is already past, and catches up with)."""
+        mono, wall = time.monotonic(), time.time()
+        self.wall0 = wall if at is None else at  # (on the wall clock: send times)
+        self.mono0 = mono - (wall - self.wall0)
         self.cpu0 = time.process_time()
 
     def now(self) -> float:
@@ -116,10 +127,32 @@ class WallClock:
             self.transport.wait(min((due - now) / self.scale, MAX_WAIT))
             slept = True
 
+    def take_until(self, ens: Ensemble, done: Callable[[], bool], seconds: float) -> bool:
+        """Take arrivals as between instants until ``done()`` holds or ``seconds`` wall
+        seconds pass: an agent's process waiting, inside an instant, for the world
+        process's answer to its poses (:meth:`hybridteam.live.world.WorldLink.
+        await_answers`). A reading that answers them raises its events at this instant, as
+        the components' events are raised in a simulation; everything else arrives when
+        it arrives. A message for an agent here that is no stream's copy (:attr:`streamed`)
+        ends the wait too: its reply is not held for the world process (the instant's laws
+        read the latest reading instead). Returns whether such a reading queued events."""
+        self._raised_now = self._message = False
+        end = time.monotonic() + seconds
+        while True:
+            self._take(ens)
+            left = end - time.monotonic()
+            if done() or self._message or ens.done[0] or left <= 0:
+                return self._raised_now
+            self.transport.wait(left)
+
     def _take(self, ens: Ensemble) -> bool:
         """Queue every datagram waiting for the hosted agents; whether any was queued."""
         queued = False
         arrivals, self._backlog = self._backlog + self.transport.receive(), []
+        # (the world process answers every pose taken at once at one instant, the last's
+        # arrival: the instant cannot run before they are all taken, and one instant is
+        # one run of the components; a world process behind does not fall further behind)
+        last = max((arrived for _, arrived in arrivals), default=0.0)
         for data, arrived in arrivals:
             self.received += 1
             try:
@@ -132,7 +165,7 @@ class WallClock:
                 self.injected["dropped"] += 1
                 continue
             if dg.type in (POSE, READING):
-                queued = self._world(ens, dg, arrived) or queued
+                queued = self._world(ens, dg, arrived, last) or queued
                 continue
             receivers = [r for r in self.here if r != dg.sender and dg.to in (-1, r)]
             if receivers and dg.type in self.drop_copies:
@@ -153,6 +186,8 @@ class WallClock:
             if self.delay:
                 self.injected["delayed"] += 1
             t_send = (dg.sent - self.wall0) * self.scale
+            if receivers and dg.type not in self.streamed:
+                self._message = True
             for r in receivers:
                 ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
                                               dg.type, dict(dg.fields), dg.msg_id, dg.note),
@@ -162,15 +197,21 @@ class WallClock:
                 queued = True
         return queued
 
-    def _world(self, ens: Ensemble, dg, arrived: float) -> bool:
+    def _world(self, ens: Ensemble, dg, arrived: float, last: float) -> bool:
         """A pose or a reading (:mod:`~hybridteam.live.world`): a pose arriving at the world
-        process is an instant there; a reading's events are raised in their agent at its
-        arrival, and its outcome ends the run. Whether the run must take an instant now."""
-        got = self.world.take(dg) if self.world is not None else None
+        process is an instant there (at ``last``, the arrival of the last datagram taken
+        with it); a reading's events are raised in their agent at its arrival, and its
+        outcome ends the run. Whether the run must take an instant now."""
+        if self.world is None:
+            return False
+        now = dg.type == READING and self.world.answers_now(dg)
+        got = self.world.take(dg)
         if got is None:
             return False
         self.delivered += 1
-        t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
+        at = last if dg.type == POSE else arrived
+        t = float(ens.t[0]) if now else max((at - self.mono0) * self.scale, float(ens.t[0]))
+        t += self.delay
         events, outcome = got
         if outcome is not None:
             ens.finish(ens.everyone, outcome, lambda i: f"the world process concluded "
@@ -181,12 +222,14 @@ class WallClock:
         for name in names:
             ens.queue.push(np.array([0]), np.array([t]), LOCAL, agent, name)
             self._waiting.append((t, arrived + self.delay / self.scale))
+        self._raised_now = self._raised_now or (now and bool(names))
         return bool(names)
 
     def backlog(self, datagrams: list[tuple[bytes, float]]) -> None:
-        """Datagrams read from the transport before the run started (while waiting for
-        the world process's first reading), to be taken before any newer."""
-        self._backlog = [*datagrams, *self._backlog]
+        """Datagrams read from the transport before the run's first instant (while
+        waiting for the world process's first reading), to be taken before any newer, as
+        arrived at run time 0: that instant's (its laws read the first readings there)."""
+        self._backlog = [*((data, self.mono0) for data, _ in datagrams), *self._backlog]
 
     def record(self) -> dict:
         """What the trace's ``meta.live`` says of the clock and the wire."""
@@ -199,10 +242,10 @@ class WallClock:
                              **self.injected},
                 "wall_s": time.monotonic() - self.mono0,
                 "cpu_s": time.process_time() - self.cpu0,
-                "late_ms": _percentiles(self.late), "reaction_ms": _percentiles(self.reaction)}
+                "late_ms": percentiles(self.late), "reaction_ms": percentiles(self.reaction)}
 
 
-def _percentiles(seconds: list[float]) -> dict[str, float | int]:
+def percentiles(seconds: list[float]) -> dict[str, float | int]:
     """Count, median, 99th percentile and largest of durations, in milliseconds."""
     if not seconds:
         return {"count": 0}

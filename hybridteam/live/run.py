@@ -27,7 +27,7 @@ from hybridteam.engine.compile.compiler import compile_team
 from hybridteam.engine.run.plant import ExternalPlant
 from hybridteam.engine.run.record import variables_key
 from hybridteam.engine.run.simulator import Simulator
-from hybridteam.live.clock import WallClock, WireOutlet
+from hybridteam.live.clock import WallClock, WireOutlet, percentiles
 from hybridteam.live.hosting import HostingError, hosted_team
 from hybridteam.live.transport import Transport
 from hybridteam.live.wire import (
@@ -40,7 +40,14 @@ from hybridteam.live.wire import (
     declarations,
     wire_mismatch,
 )
-from hybridteam.live.world import SILENCE, WorldHost, WorldLink, WorldReadings, world_seam
+from hybridteam.live.world import (
+    ANSWER_WAIT,
+    SILENCE,
+    WorldHost,
+    WorldLink,
+    WorldReadings,
+    world_seam,
+)
 from hybridteam.model import Team
 from hybridteam.trace import Trace
 
@@ -131,18 +138,26 @@ class LiveRun:
             self.sim.ensemble.world.read_lasers(
                 {a: plant for a, plant in external.items() if getattr(plant, "laser", False)})
         self.full = full
+        if self.link is not None and not world:  # (laws read this instant's world)
+            self.answer_at_ticks(self.link, hosted)
         self.outlet = WireOutlet(self.codec, transport)
         self.sim.ensemble.network.outlet = self.outlet
 
-    def run(self) -> Trace:
+    def run(self, start: float | None = None) -> Trace:
         """Run until the end rule holds for the agents here, the duration passes, or
-        ``stop`` gives a reason; returns the process's trace."""
+        ``stop`` gives a reason; returns the process's trace. ``start``: the wall time
+        (``time.time()``) of run time 0, launch's for all its processes (default now)."""
         log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
                  "the world" if self.world_process else ", ".join(self.here),
                  self.time_scale, self.sim.ensemble.t_end)
-        if self.link is not None and not self.world_process and self.here:
-            self.await_world()
-        self.clock.start()
+        # run time 0 is launch's 'go' for all its processes, the world's too, so each
+        # process's instants are at the same wall times as the others'
+        self.clock.start(start)
+        if self.link is not None and not self.world_process and self.here \
+                and self.await_world() > ASK_AGAIN:
+            # (the world process was not up yet, started by hand after this one: the run
+            # starts at its first reading, not at a time zero long past)
+            self.clock.start()
         trace = self.sim.run()
         world_host = self.link is not None and self.world_process
         record = {"agents": self.here,
@@ -152,6 +167,8 @@ class LiveRun:
                   "digest": self.codec.digest, **self.clock.record(),
                   "sent": self.outlet.sent, "world": self.world_process,
                   **({"world_sent": self.link.sent} if self.link is not None else {}),
+                  **(self.answers_record() if self.link is not None and not world_host
+                     else {}),
                   **({"world_silent": self.link.silence_record()}
                      if world_host and self.link is not None else {})}
         dropped = record["datagrams"]["dropped"]
@@ -161,16 +178,44 @@ class LiveRun:
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
         return process_trace(trace, record)
 
-    def await_world(self) -> None:
+    def answer_at_ticks(self, link: WorldLink, hosted: Sequence[int]) -> None:
+        """Have ``link`` wait for the world process's answer at the instants where a
+        hosted agent's sampled law ticks, at most :data:`~hybridteam.live.world.
+        ANSWER_WAIT` of their control period (:mod:`~hybridteam.live.world`)."""
+        ens = self.sim.ensemble
+        states = [ens.states[a] for a in hosted
+                  if any(d.kind == "sampled" for d in self.full.agents[a].drivers)]
+        link.wait = ANSWER_WAIT * control_period(self.full, hosted) / self.time_scale
+        # (a stream's periodic copies do not end a wait; a type also sent by transitions
+        # does, as every other message)
+        sent = {act.name for ca in self.full.agents for tr in ca.transitions
+                for act in tr.actions if act.kind == "send"}
+        self.clock.streamed = frozenset(cs.message for ca in self.full.agents
+                                        for cs in ca.streams) - sent
+        link.due = lambda: any(ens.t[0] >= st.next_tick[0] for st in states)
+        link.pump = lambda done, seconds: self.clock.take_until(ens, done, seconds)
+
+    def answers_record(self) -> dict:
+        """What ``meta.live`` says of an agent process's waits for the world process's
+        answers: the longest wait (wall ms), the instants whose answer did not come in
+        time (their laws read the latest reading), how long the answers that came took."""
+        link = self.link
+        assert link is not None
+        return {"world_wait_ms": link.wait * 1e3, "world_late": link.late,
+                "world_answer_ms": percentiles(link.answer_s)}
+
+    def await_world(self) -> float:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
         reading of every hosted agent, which its laws read from their first tick, asking
         again every ASK_AGAIN seconds; what else arrives meanwhile is handed to the clock
-        to be taken first. HostingError if none comes (no world process runs)."""
+        to be taken first. Returns the wall seconds waited; HostingError if none comes
+        (no world process runs)."""
         # (a codec of its own: the run's must see these datagrams first when it takes them)
         peek = Codec(self.full, self.codec.senses, self.wire)
         kept: list[tuple[bytes, float]] = []
-        end = time.monotonic() + FIRST_READING
-        ask = time.monotonic() + ASK_AGAIN
+        start = time.monotonic()
+        end = start + FIRST_READING
+        ask = start + ASK_AGAIN
         assert self.link is not None  # (only a run with a world process waits for it)
         waiting = set(self.link.here)
         while waiting:
@@ -201,7 +246,9 @@ class LiveRun:
                     # backlog, which raises the reading's events, if any, at run time 0)
                     self.link.take(dg)
                     waiting.discard(dg.to)
+        self.link.unanswered.clear()  # (a late answer to an ask is not the first instant's)
         self.clock.backlog(kept)
+        return time.monotonic() - start
 
 
 #: Wall seconds an agent's process waits for the world process's first reading.
@@ -209,6 +256,23 @@ FIRST_READING = 30.0
 
 #: Wall seconds between an agent process's asks for its first reading while it waits.
 ASK_AGAIN = 0.1
+
+
+def control_period(cteam: CTeam, hosted: Collection[int]) -> float:
+    """The hosted agents' control period (run seconds): their shortest sampled law period;
+    the team's where they sample none (an operator), :data:`DEFAULT_PERIOD` where no agent
+    does."""
+    for agents in ([cteam.agents[a] for a in hosted], cteam.agents):
+        periods = [d.period for ca in agents for d in ca.drivers
+                   if d.kind == "sampled" and d.period > 0]
+        if periods:
+            return min(periods)
+    return DEFAULT_PERIOD
+
+
+#: The control period of a team that samples no law (run seconds): 20 Hz, the rate of the
+#: paper's robots' laws.
+DEFAULT_PERIOD = 0.05
 
 
 def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:

@@ -17,6 +17,9 @@ Version 2 adds the world process's two kinds (docs/live.md, *The world process*)
 agent's ``@pose`` to the world process (its plant state and variables by name) and the
 world process's ``@world`` to one agent (what it senses, events raised for it, an outcome
 concluded), with ``@world`` as their other end; no team name can begin with ``@``.
+Version 3 numbers the answer: a reading's ``id`` is the sequence number of the pose it
+answers (-1: a reading no pose asked for), so that an agent's process can tell the world's
+answer to this instant's pose from an older one (docs/live.md, *What a law reads*).
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from hybridteam.engine.run.network import Message
 from hybridteam.engine.run.reliable import ACK
 
 #: The wire version this code speaks; a receiver refuses every other.
-VERSION = 2
+VERSION = 3
 #: The largest datagram accepted (bytes): one message is a few hundred.
 MAX_BYTES = 8192
 KEYS = frozenset({"ht", "team", "digest", "from", "seq", "type", "to", "socket", "fields",
@@ -55,7 +58,8 @@ class WireError(ValueError):
 
 @dataclass(frozen=True)
 class Datagram:
-    """A checked datagram: agents as the team's indices (``to`` -1: every other agent)."""
+    """A checked datagram: agents as the team's indices (``to`` -1: every other agent);
+    a reading's ``msg_id`` is the number of the pose it answers (-1: none)."""
 
     sender: int
     to: int
@@ -153,15 +157,15 @@ class Codec:
         }, separators=(",", ":"), allow_nan=False).encode()
 
     def encode_world(self, kind: str, sender: int, to: int, seq: int,
-                     fields: dict[str, float], sent: float) -> bytes:
+                     fields: dict[str, float], sent: float, answers: int = -1) -> bytes:
         """One datagram of a world kind: ``POSE`` from agent ``sender`` (``to`` is
         WORLD_INDEX), or ``READING`` from the world process (``sender`` WORLD_INDEX) to
-        agent ``to``."""
+        agent ``to``, answering the pose numbered ``answers`` (-1: none; its ``id``)."""
         name = {WORLD_INDEX: WORLD, **dict(enumerate(self.agents))}
         return json.dumps({
             "ht": VERSION, "team": self.team, "digest": self.digest, "from": name[sender],
             "seq": seq, "type": kind, "to": name[to], "socket": "data", "fields": fields,
-            "id": -1, "note": "", "rank": 0.0, "sent": sent,
+            "id": answers, "note": "", "rank": 0.0, "sent": sent,
         }, separators=(",", ":"), allow_nan=False).encode()
 
     # ------------------------------------------------------------------ receiving
@@ -232,7 +236,9 @@ class Codec:
         seq = _integer(obj["seq"])
         if seq is None or seq < 0:
             raise WireError("forged", f"sequence number {_show(obj['seq'])}")
-        if obj["socket"] != "data" or obj["id"] != -1 or obj["note"] != "":
+        answers = _integer(obj["id"])
+        if obj["socket"] != "data" or obj["note"] != "" or answers is None or answers < -1 \
+                or (kind == POSE and answers != -1):
             raise WireError("forged", f"socket, id or note of a {kind}")
         fields = obj["fields"]
         if not isinstance(fields, dict):
@@ -251,7 +257,7 @@ class Codec:
             raise WireError("replayed", f"{kind} {seq} already seen")
         self.last_seq[key] = seq
         return Datagram(sender, WORLD_INDEX if kind == POSE else to, seq, kind, "data",
-                        values, -1, "", rank, sent)
+                        values, answers, "", rank, sent)
 
     def _world_field(self, kind: str, agent: int, key: object) -> bool:
         """Whether ``key`` may be a field of a ``kind`` datagram about ``agent``."""

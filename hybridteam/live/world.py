@@ -13,7 +13,19 @@ own (``hybridteam live TEAM.yaml --world``; docs/live.md, *The world process*).
 * :class:`WorldReadings` is an agent process's world: it runs no component; it sends the
   hosted agents' poses at every instant and answers ``ctx.sense`` from the latest reading,
   except for a robot with a laser (``--plant ros2`` with a ``scan`` topic): its range
-  rings are read from the laser, and its detect rules run on them here.
+  rings are read from the laser, and its detect rules run on them here. At an instant
+  where a hosted agent's law ticks it first waits, at most :data:`ANSWER_WAIT` of a
+  control period, for the world process's reading that answers the poses just sent.
+
+Why wait: in a simulation the components run on this instant's state before any law
+samples, so a law reads the world as of its own instant. Live, without the wait, a law
+ticking at the instant its pose is sent reads the world's answer to the previous pose, a
+control period old (experiment 2's XR4000 docked up to two periods early). On loopback the
+answer takes about a millisecond. Only the ticks wait, and a message that is no stream's
+copy ends a wait (:meth:`~hybridteam.live.clock.WallClock.take_until`): waiting at a
+message's arrival would delay every reply (each hop of a handshake). A law whose mode such
+an instant enters reads the answer to the last instant's pose; events the world raises
+for a pose of such an instant are raised where its reading arrives.
 
 :class:`WorldLink` is what the wall clock (:mod:`~hybridteam.live.clock`) hands the
 datagrams of the two kinds to, and what both sides send through. It also watches the other
@@ -48,6 +60,11 @@ log = logging.getLogger(__name__)
 #: two-second pause of a process the team must ride out, short enough for an operator.
 SILENCE = 5.0
 
+#: The longest wait, as a fraction of the hosted agents' control period (their shortest
+#: law period, in wall seconds), for the world process's answer to an instant's poses:
+#: half a period leaves the other half for the instant itself before the next tick.
+ANSWER_WAIT = 0.5
+
 
 class WorldLink:
     """The world kinds' traffic of one process: what arrived, and the sending."""
@@ -69,9 +86,23 @@ class WorldLink:
         self.asked: float | None = None
         self.seq = 0
         #: (world process) each agent's last pose, and the agents to answer at the next
-        #: instant (every one at the start: their first readings)
+        #: instant with the number of the pose answered (every one at the start, -1:
+        #: their first readings)
         self.poses: dict[int, dict[str, float]] = {}
-        self.pending: set[int] = set(range(len(codec.agents))) if host else set()
+        self.pending: dict[int, int] = dict.fromkeys(range(len(codec.agents)), -1) \
+            if host else {}
+        #: (agents' process) per hosted agent, the number of its last pose not answered
+        #: yet; the longest wait for an instant's answers (wall seconds, 0: none), whether
+        #: this instant waits (a law ticks) and what waits (:meth:`await_answers`);
+        #: whether it is waiting now; the instants whose answer did not come in time, and
+        #: how long each answer that did took
+        self.unanswered: dict[int, int] = {}
+        self.wait = 0.0
+        self.due: Callable[[], bool] = lambda: True
+        self.pump: Callable[[Callable[[], bool], float], bool] | None = None
+        self.answering = False
+        self.late = 0
+        self.answer_s: list[float] = []
         #: (agents' process) the last reading per hosted agent: sensed name -> values
         self.readings: dict[int, dict[str, np.ndarray]] = {}
         #: (agents' process) (agent, event) its process raises itself (a robot's detect
@@ -79,11 +110,16 @@ class WorldLink:
         self.local: set[tuple[int, str]] = set()
         self.sent = 0
 
-    def send(self, kind: str, sender: int, to: int, fields: dict[str, float]) -> None:
-        if kind == POSE and self.asked is None:
-            self.asked = time.monotonic()
+    def send(self, kind: str, sender: int, to: int, fields: dict[str, float],
+             answers: int = -1) -> None:
+        """A pose (``sender`` an agent here) or a reading (to agent ``to``, answering its
+        pose numbered ``answers``, -1: none)."""
+        if kind == POSE:
+            if self.asked is None:
+                self.asked = time.monotonic()
+            self.unanswered[sender] = self.seq
         self.transport.send(self.codec.encode_world(kind, sender, to, self.seq, fields,
-                                                    time.time()), "data")
+                                                    time.time(), answers), "data")
         self.seq += 1
         self.sent += 1
 
@@ -95,12 +131,14 @@ class WorldLink:
             if not self.host:
                 return None
             self.poses[dg.sender] = dg.fields
-            self.pending.add(dg.sender)
+            self.pending[dg.sender] = dg.seq
             self.heard[dg.sender] = time.monotonic()
             return [], None
         if self.host or dg.to not in self.here:
             return None
         self.asked = None
+        if dg.msg_id >= self.unanswered.get(dg.to, dg.msg_id + 1):
+            del self.unanswered[dg.to]
         sensed: dict[str, list[tuple[int, float]]] = {}
         events, outcome = [], None
         for key, value in dg.fields.items():
@@ -119,6 +157,52 @@ class WorldLink:
             else:
                 reading[name] = np.asarray([v for _, v in sorted(items)], float)
         return events, outcome
+
+    def answers_now(self, dg: Datagram) -> bool:
+        """(agents' process) Whether reading ``dg`` answers a pose of the instant being
+        waited for (:meth:`await_answers`): its events are raised at that instant."""
+        return self.answering and dg.msg_id >= self.unanswered.get(dg.to, dg.msg_id + 1)
+
+    def overdue(self) -> bool:
+        """(agents' process) Whether a pose sent has gone unanswered longer than a wait:
+        the world process is behind (busy, paused), and waiting for it again would make
+        this process late too."""
+        return self.asked is not None and time.monotonic() - self.asked > self.wait
+
+    def await_answers(self, behind: bool) -> bool:
+        """(agents' process, at an instant, its poses just sent) Where :attr:`due` (a law
+        ticks), take arrivals until the world process has answered every pose sent, for
+        at most :attr:`wait` wall seconds (through :attr:`pump`, the clock's taking of
+        arrivals). An instant whose answer does not come in time is counted
+        (:attr:`late`; logged the first time) and its laws read the latest reading; so is
+        one that does not wait because the world process is ``behind``
+        (:meth:`overdue`). Returns whether answers raised events at this instant."""
+        if not self.unanswered or self.pump is None or self.wait <= 0 or not self.due():
+            return False
+        if behind:
+            self.note_late()
+            return False
+        start = time.monotonic()
+        self.answering = True
+        try:
+            raised = self.pump(lambda: not self.unanswered, self.wait)
+        finally:
+            self.answering = False
+        if self.unanswered:
+            self.note_late()
+        else:
+            self.answer_s.append(time.monotonic() - start)
+        return raised
+
+    def note_late(self) -> None:
+        """Count an instant whose laws read an older reading; log the first."""
+        self.late += 1
+        if self.late == 1:
+            # (info, not a warning: on a loaded machine some answers are late in every run;
+            # the count is the record)
+            log.info("the world process's answer to a pose did not come within %.1f ms: "
+                     "the laws read the latest reading (each such instant is counted in "
+                     "meta.live.world_late)", self.wait * 1e3)
 
     def world_silent(self) -> str | None:
         """(agents' process) Why the run must stop, if a pose sent has gone unanswered
@@ -180,7 +264,7 @@ class WorldHost(World):
         link.poses.clear()
         said = _Told(access)
         raised = super().update(said, idx)  # type: ignore[arg-type]  # a forwarding stand-in
-        answer = link.pending | set(said.events)
+        answer = set(link.pending) | set(said.events)
         if said.outcome is not None:
             answer = set(range(len(link.codec.agents)))
         for a in sorted(answer):
@@ -188,7 +272,7 @@ class WorldHost(World):
             fields.update({f"event.{e}": 1.0 for e in said.events.get(a, [])})
             if said.outcome is not None:
                 fields[f"outcome.{said.outcome}"] = 1.0
-            link.send(READING, WORLD_INDEX, a, fields)
+            link.send(READING, WORLD_INDEX, a, fields, link.pending.get(a, -1))
         link.pending.clear()
         return raised
 
@@ -258,16 +342,23 @@ class WorldReadings(World):
         """Nothing to start: the components run in the world process."""
 
     def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
-        for a in self.link.here:
+        """Send the hosted agents' poses and, where a law ticks, wait for the world
+        process's answer (:meth:`WorldLink.await_answers`); the instances where events
+        were raised now (by the answer, or by a laser's detect rules)."""
+        link = self.link
+        behind = link.overdue()
+        for a in link.here:
             fields = dict(zip(access.state_names(a),
                               access.state(a, idx)[0].tolist(), strict=True))
             fields.update({n: float(access.variable(a, n, idx)[0])
                            for n in access.variable_names(a)})
             if fields:
-                self.link.send(POSE, a, WORLD_INDEX, fields)
+                link.send(POSE, a, WORLD_INDEX, fields)
+        answered = link.await_answers(behind)
         if self.laser_rules:
             self.detect_on_lasers(access, idx)
-        return access.take_raised()
+        raised = access.take_raised()
+        return np.union1d(raised, idx) if answered else raised
 
     def read_lasers(self, lasers: Mapping[int, Any]) -> None:
         """Read the range rings of the robots ``lasers`` names (by agent index: an object

@@ -58,7 +58,8 @@ def processes():
 
     def start(*args: str) -> subprocess.Popen:
         proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", *args],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
         started.append(proc)
         return proc
 
@@ -79,6 +80,23 @@ def wait_running(proc: subprocess.Popen) -> bytes:
         if ready:
             seen += proc.stderr.readline()
     return seen
+
+
+def start_together(*procs: subprocess.Popen) -> None:
+    """Wait for each ``--ready`` process's ready line (its port bound, its team compiled),
+    then say ``go WALL`` to every one, as ``launch`` does: their run clocks start at the
+    same wall time, however late each process came up on a loaded machine."""
+    for proc in procs:
+        assert proc.stdout is not None
+        ready, _, _ = select.select([proc.stdout], [], [], TIMEOUT)
+        line = proc.stdout.readline() if ready else b""
+        assert line.startswith(b"ready "), (line, proc.stderr.read() if proc.poll() is not
+                                            None else b"")
+    now = time.time()
+    for proc in procs:
+        assert proc.stdin is not None
+        proc.stdin.write(f"go {now!r}\n".encode())
+        proc.stdin.flush()  # (closed by ``communicate``)
 
 
 def finish(proc: subprocess.Popen) -> None:
@@ -104,13 +122,15 @@ def hostile(codec: Codec) -> list[bytes]:
                                               {"need": 2.0}), 0.0, time.time()))
     return [b"{not json", b" " * (MAX_BYTES + 1),
             json.dumps({**genuine, "team": "another team"}).encode(),
-            json.dumps({**genuine, "ht": 3}).encode(),
+            json.dumps({**genuine, "ht": 2}).encode(),
             json.dumps({**genuine, "from": "intruder"}).encode()]
 
 
 def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagrams(
         tmp_path, processes, udp):
-    """Requester and granter in two processes over loopback (4x the wall clock): each
+    """Requester and granter in two processes over loopback (4x the wall clock), their
+    clocks started together (``--ready``, then ``go``: the granter's 1.5 wall seconds run
+    from the requester's start, not from its own, however late the other came up): each
     process's transitions are its agent's in ``hybridteam run``, in the same order, with
     the same causes. Hostile datagrams sent at both ports during the run, and a replay of
     the requester's own 'request' to the granter, are counted by reason and dropped."""
@@ -119,14 +139,14 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     ports = {"requester": free_port(), "granter": free_port()}
     granter = processes(str(TEAM), "--agent", "granter", "--listen",
                         f"{LOCAL}:{ports['granter']}", "--peer",
-                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4",
+                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4", "--ready",
                         "-o", str(tmp_path / "granter"))
-    wait_running(granter)
     requester = processes(str(TEAM), "--agent", "requester", "--listen",
                           f"{LOCAL}:{ports['requester']}", "--peer",
                           f"{LOCAL}:{ports['granter']}", "--peer",
                           f"{LOCAL}:{sniffer.getsockname()[1]}", "--time-scale", "4",
-                          "-o", str(tmp_path / "requester"))
+                          "--ready", "-o", str(tmp_path / "requester"))
+    start_together(granter, requester)
     ready, _, _ = select.select([sniffer], [], [], TIMEOUT)
     assert ready, "the requester sent nothing"
     first = sniffer.recv(65535)  # the request, which the granter has had by now
@@ -160,6 +180,41 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     assert granter_msgs["status"].tolist() == ["delivered", "delivered"]
     assert (granter_msgs["t_recv"] >= granter_msgs["t_send"]).all()
     assert granter_msgs["msg_id"].tolist() == [-1, 0]  # 'done' is acknowledged
+
+
+@pytest.mark.parametrize(("said", "start"), [
+    ("go\n", None), ("go 1000.25\n", 1000.25), ("go   1000.25  \n", 1000.25),
+    ("", "stdin did not say 'go'"), ("start\n", "stdin did not say 'go'"),
+    ("go 1000 1\n", "stdin did not say 'go'"),
+    ("go 939.75\n", "'go 939.75' is no wall time within 60 s of now"),
+    ("go nan\n", "'go nan' is no wall time"), ("go soon\n", "'go soon' is no wall time"),
+])
+def test_the_start_a_ready_process_is_given(monkeypatch, said, start):
+    """``--ready``'s ``go`` (the clock starts when it is read) or ``go WALL`` (run time 0
+    at that wall time, launch's for every process; within START_TIMEOUT, 60 s, of now,
+    here 1000 s); anything else is a usage error, before the run."""
+    from hybridteam.cli import live as live_cli
+    from hybridteam.cli.common import UsageError
+
+    monkeypatch.setattr(live_cli.time, "time", lambda: 1000.0)
+    if start is None or isinstance(start, float):
+        assert live_cli.go_time(said) == start
+        return
+    with pytest.raises(UsageError, match=start):
+        live_cli.go_time(said)
+
+
+def test_a_clock_started_at_a_past_wall_time_is_that_far_into_its_run():
+    """``WallClock.start(at)``: run time 0 at wall time ``at`` (launch's ``go WALL``), so a
+    process that reads it 0.5 s late is 0.5 s (time scale 4: 2 run seconds) into its run,
+    and its send times count from ``at``."""
+    from hybridteam.live.clock import WallClock
+
+    clock = WallClock(Codec(compile_team(ht.load(TEAM))), None, [], time_scale=4)
+    at = time.time() - 0.5
+    clock.start(at)
+    assert clock.wall0 == at
+    assert 2.0 <= clock.now() < 2.0 + 4 * TIMEOUT
 
 
 def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):

@@ -65,8 +65,8 @@ def test_a_replayed_sequence_number_is_refused(cteam):
 
 
 @pytest.mark.parametrize(("change", "reason"), [
-    ({"ht": 1}, "version"),  # the version before this one
-    ({"ht": 3}, "version"),
+    ({"ht": 2}, "version"),  # the version before this one
+    ({"ht": 4}, "version"),
     ({"ht": True}, "version"),  # a bool is not a version number
     ({"team": "another team"}, "foreign team"),
     ({"digest": "0" * 16}, "foreign team"),  # same name, other message declarations
@@ -100,7 +100,7 @@ def test_a_datagram_not_of_this_team_is_refused_with_its_reason(cteam, change, r
     (b"", "malformed"),
     (b"\xff\xfe", "malformed"),
     (b"[1, 2]", "malformed"),
-    (b'{"ht": 2}', "malformed"),
+    (b'{"ht": 3}', "malformed"),
     (b'{"ht": NaN}', "malformed"),
     (b"[" * 5000 + b"]" * 5000, "oversized"),
     (b"[" * 4000 + b"]" * 4000, "malformed"),  # deeper than the parser recurses

@@ -5,8 +5,12 @@ agents' reading of it, and experiment 2 launched live against ``hybridteam run``
 from __future__ import annotations
 
 import json
+import logging
 import subprocess
 import sys
+import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +18,7 @@ import pytest
 
 import hybridteam as ht
 from hybridteam.engine.compile.compiler import compile_team
+from hybridteam.engine.run.network import Message
 from hybridteam.engine.run.simulator import Simulator
 from hybridteam.live import run as live_run
 from hybridteam.live.hosting import HostingError
@@ -92,6 +97,20 @@ def test_world_datagrams_are_checked_field_by_field(cteam, kind, sender, to, fie
     assert err.value.reason == reason
 
 
+def test_a_reading_names_the_pose_it_answers_and_a_pose_names_none(cteam):
+    """Wire version 3: a reading's ``id`` is the number of the pose it answers (-1: none
+    asked for it); a pose answers nothing."""
+    codec = codec_of(cteam)
+    for answers in (-1, 0, 41):
+        assert codec.decode(codec.encode_world(READING, WORLD_INDEX, XR4000, answers + 1,
+                                               {}, 1.0, answers)).msg_id == answers
+    for kind, sender, to, answers in ((READING, WORLD_INDEX, XR4000, -2),
+                                      (POSE, XR4000, WORLD_INDEX, 3)):
+        with pytest.raises(WireError) as err:
+            codec.decode(codec.encode_world(kind, sender, to, 50, {}, 1.0, answers))
+        assert err.value.reason == "forged"
+
+
 def test_a_reading_from_an_agent_and_a_replayed_pose_are_refused(cteam):
     codec = codec_of(cteam)
     data = json.loads(codec.encode_world(READING, WORLD_INDEX, XR4000, 0, {}, 1.0))
@@ -115,11 +134,15 @@ def host(cteam):
     return sim, link, transport
 
 
-def readings(codec: Codec, transport: Sent) -> dict[int, dict[str, float]]:
+def readings(codec: Codec, transport: Sent, answers: dict[int, int] | None = None
+             ) -> dict[int, dict[str, float]]:
+    """The readings sent, by agent; ``answers`` gets the pose number each answers."""
     out = {}
     for payload in transport.payloads:
         dg = codec.decode(payload)
         out[dg.to] = dg.fields
+        if answers is not None:
+            answers[dg.to] = dg.msg_id
     transport.payloads.clear()
     return out
 
@@ -134,14 +157,17 @@ def test_the_world_process_runs_the_payload_on_the_poses_received(cteam):
     link.poses = {XR4000: {"x": x0, "y": y0, "theta": th0, "holding": 1.0},
                   LABMATE: {"holding": 0.0}}
     world.update(sim.access, idx)
-    first = readings(link.codec, transport)
+    answers: dict[int, int] = {}
+    first = readings(link.codec, transport, answers)
     assert set(first) == {0, 1, 2}  # the start: every agent's first reading
+    assert answers == {0: -1, 1: -1, 2: -1}  # (which no pose asked for)
     before = [first[XR4000][f"payload.{k}"] for k in range(3)]
     link.poses = {XR4000: {"x": x0 + 0.1, "y": y0 - 0.05, "theta": th0, "holding": 1.0}}
-    link.pending = {XR4000}
+    link.pending = {XR4000: 7}  # (the number of the pose that arrived)
     world.update(sim.access, idx)
-    after = readings(link.codec, transport)
+    after = readings(link.codec, transport, answers)
     assert set(after) == {XR4000}  # a pose is answered to its sender
+    assert answers[XR4000] == 7  # naming the pose it answers
     got = [after[XR4000][f"payload.{k}"] for k in range(3)]
     assert got == pytest.approx([before[0] + 0.1, before[1] - 0.05, before[2]], abs=1e-9)
     # the pose was written into the (remote) agent's state the components read
@@ -221,6 +247,136 @@ def test_an_agent_whose_first_reading_was_lost_asks_again(team, cteam, monkeypat
         world.close()
     assert asks == [{}]
     assert trace.outcomes[0]["outcome"] == "ok"  # (ended at its duration)
+
+
+class StandIn:
+    """A stand-in world process on its own socket (a thread of the test), answering each
+    pose of the XR4000 that ``answer`` answers: with an IR ring reading the pose's x on
+    every beam, naming the pose it answers. Its first reading (the answer to the agent's
+    ask, a pose of no field) reads ``first`` on every beam."""
+
+    BEAMS = 8
+
+    def __init__(self, live: LiveRun, world: UdpTransport,
+                 answer: Callable[[dict[str, float]], bool], first: float) -> None:
+        self.live, self.world, self.answer, self.first = live, world, answer, first
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self.serve)
+        self.sent = 0
+
+    def serve(self) -> None:
+        codec = codec_of(self.live.full)
+        while not self.done.is_set():
+            self.world.wait(0.01)
+            for data, _ in self.world.receive():
+                dg = codec.decode(data)
+                if dg.type != POSE or dg.sender != XR4000:
+                    continue
+                if dg.fields and not self.answer(dg.fields):
+                    continue
+                x = dg.fields.get("x", self.first)
+                self.world.send(self.live.codec.encode_world(
+                    READING, WORLD_INDEX, XR4000, self.sent,
+                    {f"ir.{k}": x for k in range(self.BEAMS)}, 0.0, dg.seq), "data")
+                self.sent += 1
+
+
+def xr4000_reading(team, answer: Callable[[dict[str, float]], bool], first: float,
+                   monkeypatch) -> tuple[LiveRun, list[tuple[float, float, float]]]:
+    """The XR4000's process (in this one; experiment 2, its Approach law, which reads its
+    IR ring at every tick and drives it along x) against a :class:`StandIn` world, for 0.5
+    run seconds at time scale 5. Returns the run and, for each reading of the ring by the
+    law: the run time, the x the ring read, the XR4000's x then."""
+    world = UdpTransport(("127.0.0.1", 0))
+    transport = UdpTransport(("127.0.0.1", 0), [world.address])
+    world.peers.append(transport.address)
+    live = LiveRun(team, ["xr4000"], transport, duration=0.5, time_scale=5)
+    ens = live.sim.ensemble
+    column = list(ens.states[XR4000].ca.plant.state_names).index("x")
+    read: list[tuple[float, float, float]] = []
+    sense = ens.world.sense
+
+    def spy(agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        values = sense(agent, idx, name)
+        if name == "ir":
+            read.append((float(ens.t[0]), float(values[0, 0]),
+                         float(ens.states[XR4000].x[0, column])))
+        return values
+
+    monkeypatch.setattr(ens.world, "sense", spy)
+    stand_in = StandIn(live, world, answer, first)
+    stand_in.thread.start()
+    try:
+        live.run()
+    finally:
+        stand_in.done.set()
+        stand_in.thread.join()
+        transport.close()
+        world.close()
+    return live, read
+
+
+def test_a_law_reads_the_worlds_answer_to_its_own_instants_pose(team, monkeypatch):
+    """At each tick of the XR4000's Approach law the IR ring it reads is the stand-in
+    world's answer to the pose sent at that instant: the x the ring reads is the robot's x
+    then (moving 0.1 m/s * 0.05 s = 5 mm a tick, so the answer to the previous tick's pose
+    would read 5 mm off). The wait's bound is raised to 4 control periods so that a
+    loaded machine does not make answers late; a late one would be counted, and only a
+    counted one may read an older x."""
+    monkeypatch.setattr(live_run, "ANSWER_WAIT", 4.0)
+    live, read = xr4000_reading(team, lambda fields: True, 2.4, monkeypatch)
+    ticks = [(t, ring, x) for t, ring, x in read if t > 0]
+    assert len(ticks) >= 8  # (0.5 s of 20 Hz ticks)
+    assert len({x for _, _, x in ticks}) == len(ticks)  # (it moves at every tick)
+    older = [(t, ring, x) for t, ring, x in ticks if ring != x]
+    assert len(older) == live.link.late <= len(ticks) // 4, older
+    record = live.answers_record()
+    assert record["world_late"] == live.link.late
+    assert record["world_answer_ms"]["count"] == len(ticks) - live.link.late
+
+
+def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, monkeypatch,
+                                                                         caplog):
+    """A stand-in world that answers the first ask and no pose after: every tick's
+    answer is late; each is counted and the laws read the latest reading (the first,
+    x 2.0); one logged line says so. The first tick waits its bound, the later ones do not
+    (the world process is behind), so the run keeps its pace."""
+    caplog.set_level(logging.INFO, "hybridteam.live")
+    live, read = xr4000_reading(team, lambda fields: False, 2.0, monkeypatch)
+    ticks = [ring for t, ring, _ in read if t > 0]
+    assert len(ticks) >= 8
+    assert ticks == [2.0] * len(ticks)
+    assert live.link.late == len(ticks)
+    assert live.answers_record()["world_answer_ms"] == {"count": 0}
+    warned = [r for r in caplog.records if "did not come within" in r.getMessage()]
+    assert len(warned) == 1
+    assert live.link.wait == pytest.approx(0.5 * 0.05 / 5)  # (half a period, wall seconds)
+
+
+@pytest.mark.parametrize(("message", "ends"), [("ready", True), ("state", False)])
+def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team, message,
+                                                                           ends):
+    """While the XR4000's process waits for the world's answer, the Labmate's 'ready'
+    (a control message: its reply must not be held for the world) ends the wait at once,
+    queued for the next instant; a copy of the 'state' stream (20 Hz from each teammate)
+    does not, the wait runs to its bound."""
+    transport = UdpTransport(("127.0.0.1", 0))
+    labmate = UdpTransport(("127.0.0.1", 0), [transport.address])
+    try:
+        live = LiveRun(team, ["xr4000"], transport, duration=1.0)
+        socket, fields = {"ready": ("control", {}), "state": ("data", dict.fromkeys(
+            ("omega", "theta", "v", "vx", "vy", "x", "y"), 0.0))}[message]
+        labmate.send(live.codec.encode(Message(LABMATE, XR4000, 0, 0.0, socket, message,
+                                               fields), 0.0, time.time()), socket)
+        bound = 0.3 if ends else 0.1
+        start = time.monotonic()
+        live.clock.take_until(live.sim.ensemble, lambda: False, bound)
+        took = time.monotonic() - start
+    finally:
+        transport.close()
+        labmate.close()
+    assert live.clock.delivered == 1, live.clock.dropped  # (queued either way)
+    assert (took < bound) if ends else (took >= bound)
 
 
 @pytest.mark.parametrize(("team_file", "args", "message"), [
