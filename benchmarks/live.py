@@ -1,20 +1,22 @@
 """A live team's cost and timeliness: CPU per agent, reaction to arrivals, clock jitter.
 
-Launches a team with ``hybridteam launch`` (one process per agent over loopback UDP, at
-the wall clock's own pace unless ``--time-scale`` says otherwise) and prints what each
-process recorded of its run (``meta.live``): CPU seconds over wall seconds of the run
-(start-up excluded), the wall time from a datagram's arrival to the end of the step that
-handled it (its mode change, when it causes one), and how late each instant the loop slept
-for was taken (the jitter of a control period). For a team with world components (e.g.
-``examples/transport/experiment2.yaml``) each agent's process also says how long the world
-process's answers to its ticks' poses took (p99) and how many ticks read an older reading
-because the answer came late (docs/live.md, *What a law reads*); the world process's row
-is ``@world``, apart from the agents' budgets (it stands in for the robots' physics). The
-default team is the protocol handover example (20 Hz laws and streams, the role protocol,
-an operator).
-Budgets (issue 44): per-agent CPU at most 5 % of one core; arrival to mode change p99 at
-most 5 ms; control-period jitter p99 at most 2 ms. A loaded machine (other processes on
-its cores) misses them for reasons not of this code: run it on a quiet one.
+Launches a team with ``hybridteam launch`` (one process per agent over loopback UDP, at the
+wall clock's own pace unless ``--time-scale`` says otherwise) and prints what each process
+recorded of its run (``meta.live``): CPU seconds over wall seconds of the run (start-up
+excluded), the wall time from the arrival of a datagram that can change a mode (a message
+that is no stream's copy, an event the world process raises) to the end of the step that
+handled it (its mode change, when it causes one; a stream's copy changes no mode and is not
+counted: it may wait for a tick's world answer, docs/live.md), and how late each instant the
+loop slept for was taken (the jitter of a control period). For a team with world components
+(e.g. ``examples/transport/experiment2.yaml``) each agent's process also says how long the
+world process's answers to its ticks' poses took (p99) and how many ticks read an older
+reading because the answer came late (docs/live.md, *What a law reads*); the world process's
+row is ``@world``, apart from the agents' budgets (it stands in for the robots' physics).
+The default team is the protocol handover example (20 Hz laws and streams, the role
+protocol, an operator). Budgets (issue 44): per-agent CPU at most 5 % of one core; arrival
+to mode change p99 at most 5 ms; control-period jitter p99 at most 2 ms. A loaded machine
+(other processes on its cores) misses them for reasons not of this code: run it on a quiet
+one.
 
     python benchmarks/live.py [TEAM.yaml] [--time-scale K]
 """

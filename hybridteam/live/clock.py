@@ -69,7 +69,9 @@ class WallClock:
         self.copies: Counter[str] = Counter()  # copies of each type for agents here
         self.injected = {"dropped": 0, "delayed": 0, "scripted": 0}
         #: wall seconds each instant the loop slept for was taken late (the jitter of a
-        #: control period), and from each arrival to the end of the step that handled it
+        #: control period), and from each arrival that can change a mode (a message that
+        #: is no stream's copy, an event the world raises) to the end of the step that
+        #: handled it
         self.late: list[float] = []
         self.reaction: list[float] = []
         #: arrivals queued and not yet handled: (run time, time.monotonic() on arrival)
@@ -186,14 +188,16 @@ class WallClock:
             if self.delay:
                 self.injected["delayed"] += 1
             t_send = (dg.sent - self.wall0) * self.scale
-            if receivers and dg.type not in self.streamed:
+            control = dg.type not in self.streamed
+            if receivers and control:
                 self._message = True
             for r in receivers:
                 ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
                                               dg.type, dict(dg.fields), dg.msg_id, dg.note),
                                    t, dg.rank)
                 self.delivered += 1
-                self._waiting.append((t, arrived + self.delay / self.scale))
+                if control:  # (a stream's copy changes no mode: it is not a reaction)
+                    self._waiting.append((t, arrived + self.delay / self.scale))
                 queued = True
         return queued
 
