@@ -407,7 +407,8 @@ def launched_as_simulated(out: Path, team, options: list[str]) -> None:
     processes (``launch`` with ``options``, e.g. a transport) at time scale 4 end
     ``success``; every agent's mode sequence is ``hybridteam run``'s with the latency set
     to the latency measured in this run, and every transition (the hand-overs among them)
-    is within two control periods (0.05 s) of the simulated one."""
+    is within two control periods (0.05 s) of the simulated one; every requirement's
+    verdict on the live run is the simulated run's."""
     proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch",
                            str(EXPERIMENT2), "--time-scale", "4", *options, "-o", str(out)],
                           capture_output=True, timeout=TIMEOUT * 3)
@@ -426,6 +427,14 @@ def launched_as_simulated(out: Path, team, options: list[str]) -> None:
         assert ours["target"].tolist() == theirs["target"].tolist(), agent
         assert ours["cause"].tolist() == theirs["cause"].tolist(), agent
         assert np.abs(ours["t"] - theirs["t"]).max() <= 2 * 0.05, agent
+    # the requirements (issue 45's acceptance: a live run checked against its team): where
+    # the runs agree, as above, each verdict is the simulated run's
+    from hybridteam.logs.check import check_run
+
+    verdicts = [{name: v["satisfied"] for name, v in check_run(run, team)[0].items()}
+                for run in (live, sim)]
+    assert verdicts[0] == verdicts[1] and set(verdicts[0]) == {
+        "box_carried", "steady_grasps", "one_leader", "no_takeover"}, verdicts
     # the box's pose is the world process's record, carried into the team's trace
     box = live.samples["box"]
     assert np.isfinite(box[: np.searchsorted(live.sample_times, 40.0)]).all()
