@@ -152,7 +152,9 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
                 samples[key] = _resampled(tr.sample_times + off, values, times)
     transitions = _concat([_shift(tr.transitions, off, ("t",))
                            for tr, off in zip(traces, offsets, strict=True)], "t")
-    intervals = _concat([_shift(tr.intervals, off, ("start", "end"))
+    outcome = _outcome(traces, offsets, names, ending)
+    intervals = _concat([_held(_shift(tr.intervals, off, ("start", "end")),
+                               tr.outcomes[0], off, outcome["t"])
                          for tr, off in zip(traces, offsets, strict=True)], "start")
     # a copy's send time was read on its sender's clock: moved by the sender's offset
     clock_of = {a: d for tr, d in zip(traces, clock, strict=True)
@@ -165,7 +167,7 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
                     "wall_start": wall0, "clock_bounds": clock_bounds(traces),
                     "align": align, "clock_reference": reference,
                     "clock_offsets_s": clock, "clock_errors_s": errors}
-    return Trace(meta, [_outcome(traces, offsets, names, ending)], transitions, intervals,
+    return Trace(meta, [outcome], transitions, intervals,
                  messages, times, samples)
 
 
@@ -251,6 +253,25 @@ def clock_error(bounds: Sequence[dict]) -> float | None:
     ends = [max(abs(lo), abs(hi)) for lo, hi in (b["offset_s"] for b in bounds)
             if lo is not None and hi is not None]
     return max(ends) if ends else None
+
+
+def _held(intervals: Table, ended: dict, offset: float, end: float) -> Table:
+    """A process's mode intervals, those still open at its own end held to the team's
+    ``end`` where its run ended by the end rule (its agents in their final modes, which
+    they never leave: the process stops recording, the agents stay), as a simulation's
+    last intervals reach its end. A process stopped, or ended otherwise, keeps its own."""
+    if ended["outcome"] != "ok" or not ended["t"] + offset < end:
+        return intervals
+    data = dict(intervals.columns)
+    last: dict[tuple, int] = {}  # per agent and depth, the latest interval: the open one
+    for k, key in enumerate(zip(data["instance"].tolist(), data["agent"].tolist(),
+                                data["depth"].tolist(), strict=True)):
+        if key not in last or data["start"][k] >= data["start"][last[key]]:
+            last[key] = k
+    open_ = np.zeros(len(data["end"]), bool)
+    open_[list(last.values())] = True
+    data["end"] = np.where(open_ & (data["end"] == ended["t"] + offset), end, data["end"])
+    return Table(intervals.names, data)
 
 
 def _shift(table: Table, offset: float, columns: tuple[str, ...]) -> Table:

@@ -407,3 +407,34 @@ def test_bad_merge_input_is_one_line_and_nothing_written(launched, tmp_path, mak
     assert len(lines) == 1 and message in lines[0], lines
     assert lines[0].startswith("hybridteam: error: ")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == before
+
+
+def with_intervals(tr: Trace, rows: list[tuple[str, float, float]]) -> Trace:
+    """``tr`` with its agent's mode intervals ``(mode, start, end)``, all at depth 1."""
+    agent = tr.meta["live"]["agents"][0]
+    table = Table(INTERVAL_COLUMNS, {
+        "instance": [0] * len(rows), "agent": [agent] * len(rows),
+        "mode": [m for m, _, _ in rows], "depth": [1] * len(rows),
+        "start": [s for _, s, _ in rows], "end": [e for _, _, e in rows]})
+    return Trace(tr.meta, tr.outcomes, tr.transitions, table, tr.messages,
+                 tr.sample_times, tr.samples)
+
+
+def test_a_final_mode_reached_early_is_held_to_the_teams_end():
+    """Both processes on one clock (same wall start). a's run ended by the end rule at
+    t = 1.5 in its final mode Parked (its process stopped recording there), b's at 2.0:
+    in the team's trace Parked lasts to 2.0, as in a simulation (a final mode is never
+    left), while Go, which ended at 1.5 by a transition, keeps its end. A process
+    stopped (not by the end rule) keeps its intervals as recorded."""
+    a = with_intervals(process("a", 100.0, [], [0.0, 1.0, 2.0], t_end=1.5),
+                       [("Go", 0.0, 1.5), ("Parked", 1.5, 1.5)])
+    b = with_intervals(process("b", 100.0, [], [0.0, 1.0, 2.0], t_end=2.0),
+                       [("Wait", 0.0, 2.0)])
+    merged = merge_traces([a, b], ending=["a", "b"])
+    ends = {m: e for m, e in zip(merged.intervals["mode"].tolist(),
+                                 merged.intervals["end"].tolist(), strict=True)}
+    assert ends == {"Go": 1.5, "Parked": 2.0, "Wait": 2.0}
+    stopped = with_intervals(process("a", 100.0, [], [0.0, 1.0, 2.0], outcome="stopped",
+                                     t_end=1.5), [("Go", 0.0, 1.5)])
+    merged = merge_traces([stopped, b], ending=["b"])
+    assert merged.intervals.where(agent="a")["end"].tolist() == [1.5]
