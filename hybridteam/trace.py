@@ -36,6 +36,13 @@ _FLOAT_COLUMNS = {"t", "start", "end", "t_send", "t_recv"}
 
 
 @functools.lru_cache(maxsize=64)
+def command_series(agent: str) -> str:
+    """The trace series holding the commands an agent's plant was given (its inputs, held
+    from one instant to the next): a robot log's ``Twist`` topic imported, or a live run's
+    robot (``--plant ros2``). ``meta.series`` names its columns, the plant's inputs."""
+    return f"{agent}.cmd"
+
+
 def _row_type(names: tuple[str, ...]) -> type:
     """The row type of a table with these columns, made once: building a namedtuple
     class costs about 100 µs, a third of what a short run spends on its trace."""

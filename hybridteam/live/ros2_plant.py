@@ -342,6 +342,10 @@ class RobotPlant:
         self.scan_silent = False
         #: whether the robot has a laser (a scan topic) its agent's range rings are read from
         self.laser = robot.deploy.scan is not None
+        #: every command given, ``(run time, the model's inputs)``: the trace's record of
+        #: what the robot was told (:func:`hybridteam.trace.command_series`), which a
+        #: conformance check drives the plant with
+        self.commands: list[tuple[float, np.ndarray]] = []
 
     @staticmethod
     def check(agent: str, kind: str) -> None:
@@ -352,6 +356,7 @@ class RobotPlant:
                              "omega), as a Twist, its x, y, theta from odometry")
 
     def command(self, inputs: np.ndarray, t: float) -> None:
+        self.commands.append((t, np.array(inputs, float)))
         if self.kind == "unicycle":
             v, omega = inputs.tolist()
             self.robot.command({"v": v, "omega": omega})

@@ -49,7 +49,7 @@ from hybridteam.live.world import (
     world_seam,
 )
 from hybridteam.model import Team
-from hybridteam.trace import Trace
+from hybridteam.trace import Trace, command_series
 
 log = logging.getLogger(__name__)
 
@@ -109,6 +109,8 @@ class LiveRun:
                 raise HostingError(f"a plant for '{name}', which this process does not host")
             external[index[name]] = plant
         self.plant_name = plant_name
+        #: the robots' plants by agent name: their commands go into the trace
+        self.robots = {name: plant for name, plant in (plants or {}).items()}
         seam: dict = {}
         self.link: WorldLink | None = None
         if team.world:
@@ -176,7 +178,8 @@ class LiveRun:
             log.warning("dropped %d datagram(s) not of this team: %s",
                         sum(dropped.values()),
                         ", ".join(f"{k} {v}" for k, v in dropped.items()))
-        return process_trace(trace, record)
+        return process_trace(trace, record, {
+            name: getattr(plant, "commands", []) for name, plant in self.robots.items()})
 
     def answer_at_ticks(self, link: WorldLink, hosted: Sequence[int]) -> None:
         """Have ``link`` wait for the world process's answer at the instants where a
@@ -289,8 +292,14 @@ def run_live(team: Team, agents: Sequence[str], transport: Transport, **options)
     return LiveRun(team, agents, transport, **options).run()
 
 
-def process_trace(trace: Trace, record: dict) -> Trace:
-    """The trace kept to what the process hosting ``record['agents']`` knows."""
+def process_trace(trace: Trace, record: dict,
+                  commands: Mapping[str, Sequence[tuple[float, np.ndarray]]] | None = None
+                  ) -> Trace:
+    """The trace kept to what the process hosting ``record['agents']`` knows; with
+    ``commands`` (by agent, a robot's commands as ``(run time, inputs)``), each robot's
+    series :func:`~hybridteam.trace.command_series`: at every sample time the command in
+    force (the last given at or before it; NaN before the first), as a robot log's
+    imported ``Twist`` topic is."""
     here = set(record["agents"])
     transitions = trace.transitions.filter(np.isin(trace.transitions["agent"], list(here)))
     intervals = trace.intervals.filter(np.isin(trace.intervals["agent"], list(here)))
@@ -301,5 +310,15 @@ def process_trace(trace: Trace, record: dict) -> Trace:
                 if key in samples:
                     samples[key] = np.full_like(samples[key], np.nan)
     meta = {**trace.meta, "live": record}
+    inputs = {a["name"]: a["inputs"] for a in trace.meta["agents"]}
+    for name, given in (commands or {}).items():
+        if not given:
+            continue
+        times = np.array([t for t, _ in given])
+        values = np.array([u for _, u in given])
+        k = np.searchsorted(times, trace.sample_times, side="right") - 1
+        held = np.where((k >= 0)[:, None], values[np.maximum(k, 0)], np.nan)
+        samples[command_series(name)] = held[:, None, :]
+        meta["series"] = {**meta.get("series", {}), command_series(name): inputs[name]}
     return Trace(meta, trace.outcomes, transitions, intervals, trace.messages,
                  trace.sample_times, samples)

@@ -47,12 +47,17 @@ from hybridteam.logs.topics import (
     STRING,
     TWIST,
     Topics,
-    command_series,
     payload_topic,
     series_topic,
 )
 from hybridteam.model import Team
-from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table
+from hybridteam.trace import (
+    INTERVAL_COLUMNS,
+    MESSAGE_COLUMNS,
+    TRANSITION_COLUMNS,
+    Table,
+    command_series,
+)
 
 #: what each kind of topic may be
 SAMPLED = {"state": (ARRAY,), "pose": (POSE, ODOM), "odom": (ODOM, POSE), "cmd": (TWIST,)}

@@ -28,8 +28,7 @@ import numpy as np
 from hybridteam.dynamics.plants import saturate
 from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.logs.export import PLANAR
-from hybridteam.logs.topics import command_series
-from hybridteam.trace import Trace
+from hybridteam.trace import Trace, command_series
 
 
 @dataclasses.dataclass(frozen=True)

@@ -47,12 +47,11 @@ from hybridteam.logs.topics import (
     TF_TYPE,
     TWIST,
     base_frame,
-    command_series,
     default_topic,
     payload_topic,
     series_topic,
 )
-from hybridteam.trace import Trace
+from hybridteam.trace import Trace, command_series
 
 #: ``-o`` names and the storage they mean: one MCAP or SQLite file, or a bag folder.
 SUFFIXES = {".mcap": "mcap", ".db3": "sqlite3"}

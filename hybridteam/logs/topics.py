@@ -69,11 +69,6 @@ def payload_topic(name: str) -> str:
     return f"/payloads/{name}/pose"
 
 
-def command_series(agent: str) -> str:
-    """The trace series holding an agent's logged commands (its plant's inputs)."""
-    return f"{agent}.cmd"
-
-
 @dataclass(frozen=True)
 class AgentTopics:
     """The topics of one agent; None: not in this log."""

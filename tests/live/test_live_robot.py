@@ -19,7 +19,7 @@ import pytest
 
 from hybridteam.library import LawContext, law
 from hybridteam.live.ros2 import ros_name
-from hybridteam.trace import Trace
+from hybridteam.trace import Trace, command_series
 
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 
@@ -178,6 +178,12 @@ def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
     recorded = x[~np.isnan(x)]
     assert recorded.size >= 2 and all(value in published for value in recorded)
     assert recorded[0] == 0.0 and every_step_forward(recorded)
+    # what the robot was told, in the trace as a log's commands are (conformance drives
+    # the plant with them): (0.5, 0) at every sample time before the stop, (0, 0) after
+    cmd = trace.samples[command_series("robot")][:, 0, :]
+    assert trace.meta["series"][command_series("robot")] == ["v", "omega"]
+    before = trace.sample_times <= fired[0] - 1e-9
+    assert (cmd[before] == [0.5, 0.0]).all() and (cmd[~before] == [0.0, 0.0]).all()
 
 
 def every_step_forward(x: np.ndarray) -> bool:
