@@ -11,7 +11,8 @@ of every ``payload`` component's payload (a resting box is what the Dock's IR ap
 A rule's ring is cast only where something is near enough to fire one of its rules: the
 robot's clearance from the static scene and from the payloads' outlines bounds every beam
 from below (:meth:`Obstacles.floor`), and where that bound is past every threshold the
-rules read nothing near without casting.
+rules read nothing near without casting; where the last reading saw something within
+every instance's threshold, the floor is skipped (it would rule out nothing).
 
 Nothing is excluded from what a ring sees, not even the payload its own robot carries (a
 simple rule is a predictable one): a ``detect`` rule picks the beams that look away from
@@ -118,6 +119,10 @@ class Obstacles(WorldComponent):
                       for key in self.read_beams}
         self.rule_columns = [np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams)
                              for r in self.rules]
+        #: per (agent, sensor): whether every instance its rules last read saw something
+        #: within their highest threshold (a carried box before the IR): then the floor
+        #: would rule out no instance and is not computed (:meth:`_rule_readings`)
+        self.within: dict[tuple[int, str], bool] = {}
         self.planar = [a for a, agent in enumerate(team.agents) if planar(agent)]
         given = parsed["radius"]
         self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
@@ -269,18 +274,25 @@ class Obstacles(WorldComponent):
         would give is not needed (most of experiment 3's sonar instants: the Scout is far
         from everything). Elsewhere the static obstacles are cast against only where one is
         within that threshold (``horizon``): a carried box keeps the floor low, but the
-        robot is mostly far from every static obstacle (experiment 2's XR4000)."""
-        a, ring = key[0], self.rings[key]
-        if reach is not None:
-            may = self.floor(a, ring, idx, reach) < self.below[key]
+        robot is mostly far from every static obstacle (experiment 2's XR4000).
+
+        Where every instance saw something within the threshold at the last reading (the
+        XR4000's IR on the box it carries, most of experiment 3), the floor is not asked:
+        it would rule out none, and the rules' verdicts are the same either way (a row the
+        floor rules out reads no nearer than the threshold when cast)."""
+        a, ring, below = key[0], self.rings[key], self.below[key]
+        if reach is not None and not self.within.get(key, False):
+            may = self.floor(a, ring, idx, reach) < below
             if not every(may):
+                self.within[key] = False
                 rows = where_true(may)
                 if rows.size == 0:
                     return np.empty((0, self.read_beams[key].size)), rows
                 return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key],
-                                 self.below[key], scene), rows
-        return self.read(a, ring, idx, reach, self.read_beams[key], self.below[key],
-                         scene), None
+                                 below, scene), rows
+        dist = self.read(a, ring, idx, reach, self.read_beams[key], below, scene)
+        self.within[key] = every(np.minimum.reduce(dist, axis=1) < below)
+        return dist, None
 
     def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
               ) -> np.ndarray:
