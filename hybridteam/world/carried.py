@@ -373,8 +373,8 @@ class CarriedPayload(WorldComponent):
         out = filled(idx.size, np.inf)
         if len(segments):
             s = np.asarray(segments, float)[None]
-            ax, ay = _to_body(s[..., 0], s[..., 1], pose)
-            bx, by = _to_body(s[..., 2], s[..., 3], pose)
+            ends_x, ends_y = _to_body(s[..., 0::2], s[..., 1::2], pose)  # both ends at once
+            ax, bx, ay, by = ends_x[..., 0], ends_x[..., 1], ends_y[..., 0], ends_y[..., 1]
             out = np.minimum(out, np.minimum.reduce(_segment_box(ax, ay, bx, by, hw, hd), axis=1))
         if len(circles):
             c = np.asarray(circles, float)[None]
@@ -416,19 +416,27 @@ def _segment_box(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
     of one of them: a segment end to the box, or a box corner to the segment.
     """
     dx, dy = bx - ax, by - ay
-    t0, t1 = np.zeros(np.broadcast(ax, hw).shape), np.ones(np.broadcast(ax, hw).shape)
+    # both slabs at once, on a leading axis (x, y); only whether t0 <= t1 is kept
+    p, d, h = np.stack((ax, ay)), np.stack((dx, dy)), np.stack((hw, hd))
     with np.errstate(divide="ignore", invalid="ignore"):
-        for p, d, h in ((ax, dx, hw), (ay, dy, hd)):
-            ta, tb = (-h - p) / d, (h - p) / d
-            inside, flat = np.abs(p) <= h, d == 0
-            t0 = np.maximum(t0, np.where(flat, np.where(inside, -np.inf, np.inf),
-                                         np.minimum(ta, tb)))
-            t1 = np.minimum(t1, np.where(flat, np.where(inside, np.inf, -np.inf),
-                                         np.maximum(ta, tb)))
+        ta, tb = (-h - p) / d, (h - p) / d
+    flat = d == 0  # parallel to the slab: inside it for every t, or for none
+    edge = np.where(np.abs(p) <= h, -np.inf, np.inf)
+    low = np.where(flat, edge, np.minimum(ta, tb))
+    high = np.where(flat, -edge, np.maximum(ta, tb))
+    t0 = np.maximum(np.maximum(low[0], low[1]), 0.0)
+    t1 = np.minimum(np.minimum(high[0], high[1]), 1.0)
     dist = np.minimum(_point_box(ax, ay, hw, hd), _point_box(bx, by, hw, hd))
     dd = dx * dx + dy * dy
-    for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-        cx, cy = sx * hw, sy * hd
-        t = np.clip(((cx - ax) * dx + (cy - ay) * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        dist = np.minimum(dist, np.hypot(ax + t * dx - cx, ay + t * dy - cy))
+    # the four corners at once, on a leading axis (the same arithmetic per element as one
+    # corner at a time: a single run's gap is a few elements, and the calls are its cost)
+    signs = _CORNERS.reshape((2, 4) + (1,) * t0.ndim)  # (t0: the broadcast shape)
+    cx, cy = signs[0] * hw, signs[1] * hd
+    t = np.clip(((cx - ax) * dx + (cy - ay) * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    dist = np.minimum(dist, np.minimum.reduce(np.hypot(ax + t * dx - cx, ay + t * dy - cy),
+                                              axis=0))
     return np.where(t0 <= t1, 0.0, dist)
+
+
+#: The signs of a box's corners ``(2, 4)``, x then y, in the order they were once taken
+_CORNERS = np.array([[-1, 1, 1, -1], [-1, -1, 1, 1]], float)

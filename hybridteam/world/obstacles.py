@@ -11,7 +11,8 @@ of every ``payload`` component's payload (a resting box is what the Dock's IR ap
 A rule's ring is cast only where something is near enough to fire one of its rules: the
 robot's clearance from the static scene and from the payloads' outlines bounds every beam
 from below (:meth:`Obstacles.floor`), and where that bound is past every threshold the
-rules read nothing near without casting.
+rules read nothing near without casting; where the last reading saw something within
+every instance's threshold, the floor is skipped (it would rule out nothing).
 
 Nothing is excluded from what a ring sees, not even the payload its own robot carries (a
 simple rule is a predictable one): a ``detect`` rule picks the beams that look away from
@@ -120,6 +121,10 @@ class Obstacles(WorldComponent):
                       for key in self.read_beams}
         self.rule_columns = [np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams)
                              for r in self.rules]
+        #: per (agent, sensor): whether every instance its rules last read saw something
+        #: within their highest threshold (a carried box before the IR): then the floor
+        #: would rule out no instance and is not computed (:meth:`_rule_readings`)
+        self.within: dict[tuple[int, str], bool] = {}
         self.planar = [a for a, agent in enumerate(team.agents) if planar(agent)]
         given = parsed["radius"]
         self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
@@ -143,6 +148,9 @@ class Obstacles(WorldComponent):
         # where and when it happened (marked by the views, under warn and outcome)
         self.collisions: list[dict[str, tuple[str, float, float, float]]] = [
             {} for _ in range(n)]
+        #: the clearances this instant's update measured, for :meth:`sample` at the same
+        #: instant: ``(idx, robot centres, payload poses, robot gaps, payload gaps)``
+        self._measured: _Measured | None = None
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -270,18 +278,25 @@ class Obstacles(WorldComponent):
         would give is not needed (most of experiment 3's sonar instants: the Scout is far
         from everything). Elsewhere the static obstacles are cast against only where one is
         within that threshold (``horizon``): a carried box keeps the floor low, but the
-        robot is mostly far from every static obstacle (experiment 2's XR4000)."""
-        a, ring = key[0], self.rings[key]
-        if reach is not None:
-            may = self.floor(a, ring, idx, reach) < self.below[key]
+        robot is mostly far from every static obstacle (experiment 2's XR4000).
+
+        Where every instance saw something within the threshold at the last reading (the
+        XR4000's IR on the box it carries, most of experiment 3), the floor is not asked:
+        it would rule out none, and the rules' verdicts are the same either way (a row the
+        floor rules out reads no nearer than the threshold when cast)."""
+        a, ring, below = key[0], self.rings[key], self.below[key]
+        if reach is not None and not self.within.get(key, False):
+            may = self.floor(a, ring, idx, reach) < below
             if not every(may):
+                self.within[key] = False
                 rows = where_true(may)
                 if rows.size == 0:
                     return np.empty((0, self.read_beams[key].size)), rows
                 return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key],
-                                 self.below[key], scene), rows
-        return self.read(a, ring, idx, reach, self.read_beams[key], self.below[key],
-                         scene), None
+                                 below, scene), rows
+        dist = self.read(a, ring, idx, reach, self.read_beams[key], below, scene)
+        self.within[key] = every(np.minimum.reduce(dist, axis=1) < below)
+        return dist, None
 
     def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
               ) -> np.ndarray:
@@ -307,6 +322,7 @@ class Obstacles(WorldComponent):
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
+        points, gap, payload_gaps = np.empty((0, idx.size, 2)), np.empty((0, idx.size)), []
         if self.planar:
             points, gap = self._centre_gaps(idx, scene)
             reach = dict(zip(self.planar, gap, strict=True))
@@ -328,13 +344,18 @@ class Obstacles(WorldComponent):
                 hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
                              f"'{names[1]}' collided, their footprints overlapping by "
                              f"{overlap[k, r1, r2]:.3g}", contact))
+        robot_gaps = gap
         for p in self.payloads:
             gap = self._payload_gap(p, idx, scene)
+            payload_gaps.append(gap)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
             for k in where_true(gap <= 0).tolist():
                 hits.append((int(idx[k]), p.values["name"],
                              f"payload '{p.values['name']}' hit an obstacle",
                              p.pose[idx[k], :2]))
+        if self.values["clearance"] and self.scene_of is None:  # (the series sample them)
+            self._measured = _Measured(idx.copy(), points, [p.pose[idx] for p in self.payloads],
+                                       robot_gaps, payload_gaps)
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
@@ -391,6 +412,9 @@ class Obstacles(WorldComponent):
         poses as they are now, the payloads where they last settled (as their pose series)."""
         if not self.values["clearance"]:
             return {}
+        measured = self._measured_at(idx)
+        if measured is not None:
+            return measured
         robots = np.empty((idx.size, len(self.planar)))
         payloads = np.empty((idx.size, len(self.payloads)))
         for scene, rows in [(self.scenes[0], slice(None))] if self.scene_of is None else \
@@ -403,6 +427,30 @@ class Obstacles(WorldComponent):
         out = {"robot_clearance": robots} if self.planar else {}
         if self.payloads:
             out["payload_clearance"] = payloads
+        return out
+
+    def _measured_at(self, idx: np.ndarray) -> dict[str, np.ndarray] | None:
+        """:meth:`sample`'s series from the gaps this instant's :meth:`update` measured,
+        where they still hold: the same instances, and every robot centre and payload pose
+        as it was then (the discrete phase between them may have moved a robot); None
+        otherwise. The gaps are functions of those alone (the scene does not move), so
+        reusing them gives the very numbers measuring again would, at the cost of a
+        comparison (the payload gaps are most of an instant's cost in the doorway team)."""
+        m = self._measured
+        if m is None or not _same(m.idx, idx):
+            return None
+        if self.planar:
+            points = np.empty_like(m.points)
+            for r, a in enumerate(self.planar):
+                points[r] = self._poses(a, idx)[:, :2]
+            if not _same(points, m.points):
+                return None
+        if not all(_same(p.pose[idx], pose)
+                   for p, pose in zip(self.payloads, m.payload_poses, strict=True)):
+            return None
+        out = {"robot_clearance": np.ascontiguousarray(m.robot_gaps.T)} if self.planar else {}
+        if self.payloads:
+            out["payload_clearance"] = np.stack(m.payload_gaps, axis=1)
         return out
 
     def summary(self, i: int) -> dict[str, Any]:
@@ -430,6 +478,18 @@ class Obstacles(WorldComponent):
                       for who, (_text, t, x, y) in firsts.items())
         return SceneDescription(obstacles=tuple(obstacles), collisions=marks,
                                 footprints=footprints)
+
+
+class _Measured(NamedTuple):
+    """What one instant's update measured (``Obstacles._measured``): for instances ``idx``,
+    the planar robots' centres ``(R, m, 2)`` and each payload's pose ``(m, 3)`` it measured
+    at, the robots' footprint gaps ``(R, m)`` and each payload's gap ``(m,)``."""
+
+    idx: np.ndarray
+    points: np.ndarray
+    payload_poses: list[np.ndarray]
+    robot_gaps: np.ndarray
+    payload_gaps: list[np.ndarray]
 
 
 class Scene(NamedTuple):
@@ -468,6 +528,11 @@ def _scenes(walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray
 def _footprint(agent: Agent) -> float:
     preset = getattr(agent, "preset", None)
     return float(preset.footprint.radius) if preset is not None else 0.0
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    """Bit for bit the same numbers (-0.0 is not 0.0 here: a gap could keep the sign)."""
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
 
 
 def _finite(v: float) -> float | None:

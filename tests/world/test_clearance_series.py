@@ -160,3 +160,50 @@ def test_a_study_over_the_wall_tabulates_the_requirements_on_the_series(tmp_path
     for row, x in zip(rows, (1.9, 2.2), strict=True):
         assert float(row["box_clear_min_robustness"]) == pytest.approx(
             BOX_GAP + (x - 2.0) - 0.6, abs=1e-12)
+
+
+# ---------------------------------------------------------------------- measured once
+def test_an_instant_measures_the_payload_gap_once(team_from_yaml, monkeypatch):
+    """The series sampled at an instant are the gaps its update measured (issue 48: the
+    doorway team measured every payload gap twice an instant); the numbers stay the
+    hand-computed ones."""
+    from hybridteam.world.carried import CarriedPayload
+    from hybridteam.world.obstacles import Obstacles
+    calls = {"update": 0, "gap": 0}
+    update, gap = Obstacles.update, CarriedPayload.gap
+
+    def counted_update(self, *args):
+        calls["update"] += 1
+        return update(self, *args)
+
+    def counted_gap(self, *args):
+        calls["gap"] += 1
+        return gap(self, *args)
+
+    monkeypatch.setattr(Obstacles, "update", counted_update)
+    monkeypatch.setattr(CarriedPayload, "gap", counted_gap)
+    run = ht.simulate(scene(team_from_yaml))
+    assert calls["update"] > 50 and calls["gap"] == calls["update"]
+    np.testing.assert_allclose(run.samples["payload_clearance"][:, 0, 0], BOX_GAP, atol=1e-12)
+
+
+def test_a_reset_between_the_update_and_the_sample_is_measured_afresh(team_from_yaml):
+    """At t = 1 a transition puts robot A at x = 1 (a reset, after the components ran):
+    the series at that instant read its new clearance, 2 - 1 - 0.2 = 0.8 (it stands still
+    from then on), so a requirement of more than 0.9 fails by 0.1, at the crossing of the
+    line between the instants t = 0.9 (1.8 - 0.09 = 1.71) and t = 1 (0.8). Had the sample
+    at t = 1 kept the update's 1.7, the crossing would lie between t = 1 and the next
+    instant, t = 1.1."""
+    text = SCENE.format(clearance="      clearance: true", requirements="""\
+requirements:
+  robot_clear: always(robot_clearance.A > 0.9)""").replace(
+        "    modes:\n      Go: {{inputs: {{vx: 0.1, vy: 0, omega: 0}}, period: 0.1}}".format(),
+        "    initial: Go\n    modes:\n      Go: {inputs: {vx: 0.1, vy: 0, omega: 0}, period: 0.1,\n"
+        "           transitions: [{to: Stay, after: 1.0, do: [x = 1.0]}]}\n"
+        "      Stay: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}")
+    verdict = ht.simulate(team_from_yaml(text)).summary()["instances"][0][
+        "requirements"]["robot_clear"]
+    assert not verdict["satisfied"]
+    assert verdict["violated_at"] == pytest.approx(0.9 + 0.1 * (1.71 - 0.9) / (1.71 - 0.8),
+                                                   abs=1e-9)
+    assert verdict["robustness"] == pytest.approx(0.8 - 0.9, abs=1e-12)
