@@ -34,8 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def load(name: str) -> ht.Team:
     """An example of ``examples/automata`` without its requirements."""
-    return dataclasses.replace(ht.load(ROOT / "examples" / "automata" / name),
-                               requirements=())
+    return dataclasses.replace(ht.load(ROOT / "examples" / "automata" / name), requirements=())
 
 
 G, E, H0 = 9.81, 0.7, 1.0
@@ -80,8 +79,7 @@ def scipy_ball(method: str, rtol: float, k: int = 20) -> np.ndarray:
     hit.terminal, hit.direction = True, -1
     t, y, out = 0.0, [H0, 0.0], []
     while len(out) < k:
-        sol = solve_ivp(f, (t, 10.0), y, method=method, events=hit, rtol=rtol,
-                        atol=rtol * 1e-2)
+        sol = solve_ivp(f, (t, 10.0), y, method=method, events=hit, rtol=rtol, atol=rtol * 1e-2)
         t = float(sol.t_events[0][0])
         ye = sol.y_events[0][0]
         out.append(t)
@@ -124,8 +122,10 @@ def loaded(path: str) -> ht.Team:
     """The example, loaded once; prints how long loading took (not in the comparison)."""
     t0 = time.perf_counter()
     team = load(path)
-    print(f"\n{path}: loaded and checked in {1e3 * (time.perf_counter() - t0):.1f} ms "
-          "(not counted below)")
+    print(
+        f"\n{path}: loaded and checked in {1e3 * (time.perf_counter() - t0):.1f} ms "
+        "(not counted below)"
+    )
     return team
 
 
@@ -160,10 +160,12 @@ def compare(name: str, exact: np.ndarray, our_fn, scipy_fn) -> float:
             theirs[c] = min(theirs[c], best_of(lambda c=c: scipy_fn(*c), 1)[0])
     (method, rtol), best = min(theirs.items(), key=lambda kv: kv[1])
     ratio = ours_best / best
-    print(f"  ratio hybridteam / fastest matched solve_ivp ({method} rtol={rtol:.0e}), timed "
-          f"in turn, best of {INTERLEAVED} each ({1e3 * ours_best:.1f} / {1e3 * best:.1f} ms): "
-          f"{ratio:.2f} (budget 3: {'met' if ratio <= 3 else 'NOT met'}; issue 2's 1: "
-          f"{'met' if ratio <= 1 else 'NOT met'})")
+    print(
+        f"  ratio hybridteam / fastest matched solve_ivp ({method} rtol={rtol:.0e}), timed "
+        f"in turn, best of {INTERLEAVED} each ({1e3 * ours_best:.1f} / {1e3 * best:.1f} ms): "
+        f"{ratio:.2f} (budget 3: {'met' if ratio <= 3 else 'NOT met'}; issue 2's 1: "
+        f"{'met' if ratio <= 1 else 'NOT met'})"
+    )
     return ratio
 
 
@@ -173,8 +175,9 @@ def ensemble_table(n: int = 100) -> None:
     team = load("thermostat.yaml")
     gains = np.linspace(0.08, 0.12, n)
     t0 = time.perf_counter()
-    run = ht.simulate(team, n=n, duration=151.0 * 0.1 / gains.min(),
-                      overrides={"thermostat.K": gains})
+    run = ht.simulate(
+        team, n=n, duration=151.0 * 0.1 / gains.min(), overrides={"thermostat.K": gains}
+    )
     ours = time.perf_counter() - t0
     keep = K
     errs_ours = []
@@ -187,18 +190,23 @@ def ensemble_table(n: int = 100) -> None:
         errs_ours.append(np.max(np.abs(got - exact[: len(got)])))
     check = time.perf_counter() - t0
     print(f"\nensemble: {n} thermostats (K from 0.08 to 0.12), 50 switches each")
-    print(f"  hybridteam, one ensemble call        {1e3 * ours:9.1f} ms   max |dt| "
-          f"{max(errs_ours):.2e}")
+    print(
+        f"  hybridteam, one ensemble call        {1e3 * ours:9.1f} ms   max |dt| "
+        f"{max(errs_ours):.2e}"
+    )
     for rtol in (1e-10, 1e-12):
         errs_scipy = []
         t0 = time.perf_counter()
         for k in gains:
             K = float(k)
-            errs_scipy.append(np.max(np.abs(scipy_thermostat("DOP853", rtol) -
-                                            thermostat_exact(50))))
+            errs_scipy.append(
+                np.max(np.abs(scipy_thermostat("DOP853", rtol) - thermostat_exact(50)))
+            )
         theirs = time.perf_counter() - t0
-        print(f"  solve_ivp DOP853 rtol={rtol:.0e}, loop {1e3 * theirs:9.1f} ms   max |dt| "
-              f"{max(errs_scipy):.2e}   ratio hybridteam/solve_ivp {ours / theirs:.2f}")
+        print(
+            f"  solve_ivp DOP853 rtol={rtol:.0e}, loop {1e3 * theirs:9.1f} ms   max |dt| "
+            f"{max(errs_scipy):.2e}   ratio hybridteam/solve_ivp {ours / theirs:.2f}"
+        )
     K = keep
     print(f"  (checking the ensemble's answers took {1e3 * check:.0f} ms, not counted)")
 
@@ -208,17 +216,24 @@ def ball_to_zeno() -> None:
     team = load("bouncing_ball.yaml")
     wall, run = best_of(lambda: ht.simulate(team, duration=5.0))
     t = run.diagnostics[0]["t"]
-    print(f"\nbouncing ball to t=5 s: outcome {run.outcome} at t={t:.12f} "
-          f"(Zeno time 2.558633965586, off by {abs(t - 2.558633965586):.1e} s), "
-          f"{len(run.transitions)} transitions, wall {wall:.3f} s (budget 1 s)")
+    print(
+        f"\nbouncing ball to t=5 s: outcome {run.outcome} at t={t:.12f} "
+        f"(Zeno time 2.558633965586, off by {abs(t - 2.558633965586):.1e} s), "
+        f"{len(run.transitions)} transitions, wall {wall:.3f} s (budget 1 s)"
+    )
 
 
 if __name__ == "__main__":
     ball_to_zeno()
     ball = loaded("bouncing_ball.yaml")
-    compare("bouncing ball", ball_exact(20),
-            lambda: ours(ball, 20, ball_exact(20)[-1] + 1e-4), scipy_ball)
+    compare(
+        "bouncing ball",
+        ball_exact(20),
+        lambda: ours(ball, 20, ball_exact(20)[-1] + 1e-4),
+        scipy_ball,
+    )
     thermostat = loaded("thermostat.yaml")
-    compare("thermostat", thermostat_exact(50),
-            lambda: ours(thermostat, 50, 151.0), scipy_thermostat)
+    compare(
+        "thermostat", thermostat_exact(50), lambda: ours(thermostat, 50, 151.0), scipy_thermostat
+    )
     ensemble_table(100)

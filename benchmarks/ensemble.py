@@ -74,18 +74,24 @@ def main() -> None:
         steps = n * duration / period
         rows.append((n, best, steps / best, best / n, len(run.transitions)))
     base = rows[0][3]
-    print(f"{'n':>6}{'wall (s)':>10}{'agent-steps/s':>16}{'s per instance':>16}"
-          f"{'per-instance gain':>19}{'transitions':>13}")
+    print(
+        f"{'n':>6}{'wall (s)':>10}{'agent-steps/s':>16}{'s per instance':>16}"
+        f"{'per-instance gain':>19}{'transitions':>13}"
+    )
     for n, wall, rate, per, ntr in rows:
         print(f"{n:>6}{wall:>10.3f}{rate:>16,.0f}{per:>16.5f}{base / per:>18.1f}x{ntr:>13}")
     n, wall, rate, per, _ = rows[-1]
-    print(f"\nbudget: per-instance gain at n=1000 >= 50x -> {base / per:.1f}x "
-          f"({'met' if base / per >= 50 else 'NOT met'}); "
-          f">= 2 M agent-steps/s -> {rate / 1e6:.2f} M ({'met' if rate >= 2e6 else 'NOT met'})")
+    print(
+        f"\nbudget: per-instance gain at n=1000 >= 50x -> {base / per:.1f}x "
+        f"({'met' if base / per >= 50 else 'NOT met'}); "
+        f">= 2 M agent-steps/s -> {rate / 1e6:.2f} M ({'met' if rate >= 2e6 else 'NOT met'})"
+    )
     one = 1e6 * rows[0][1] / (duration / period)
-    print(f"budget: n=1 <= 40 µs per agent-step -> {one:.0f} µs "
-          f"({'met' if one <= 40 else 'NOT met'}); n=1000 >= 3 M agent-steps/s -> "
-          f"{rate / 1e6:.2f} M ({'met' if rate >= 3e6 else 'NOT met'})")
+    print(
+        f"budget: n=1 <= 40 µs per agent-step -> {one:.0f} µs "
+        f"({'met' if one <= 40 else 'NOT met'}); n=1000 >= 3 M agent-steps/s -> "
+        f"{rate / 1e6:.2f} M ({'met' if rate >= 3e6 else 'NOT met'})"
+    )
 
 
 if __name__ == "__main__":

@@ -38,25 +38,31 @@ def main() -> None:
         ref_time += seconds
         ref_steps += 2 * int(res.steps[0])
     ref_rate = ref_steps / ref_time
-    print(f"scalar reference     {ref_rate / 1e6:8.3f} M robot-steps/s "
-          f"({ref_pairs} pairs one by one)")
+    print(
+        f"scalar reference     {ref_rate / 1e6:8.3f} M robot-steps/s ({ref_pairs} pairs one by one)"
+    )
     for n, repeats in ((1, 3), (100, 3), (1000, 2)):
         batch = pop.take(slice(0, n))
         seconds, res = best_of(repeats, lambda batch=batch: simulate(batch))
         rate = 2 * int(res.steps.sum()) / seconds
-        print(f"vectorized n = {n:5d} {rate / 1e6:8.3f} M robot-steps/s   "
-              f"x{rate / ref_rate:6.2f} the reference   ({seconds:.3f} s, "
-              f"{int(res.steps.max())} steps for the slowest pair)")
+        print(
+            f"vectorized n = {n:5d} {rate / 1e6:8.3f} M robot-steps/s   "
+            f"x{rate / ref_rate:6.2f} the reference   ({seconds:.3f} s, "
+            f"{int(res.steps.max())} steps for the slowest pair)"
+        )
     sample = Pairs.of(sample_run())
     seconds, res = best_of(5, lambda: simulate(sample))
     ref_seconds, _ = best_of(5, lambda: reference.run(sample_run()))
-    print(f"sample run (Sec. 4)  {seconds * 1e3:8.1f} ms vectorized, {ref_seconds * 1e3:.1f} ms "
-          f"reference ({int(res.steps[0])} steps)")
+    print(
+        f"sample run (Sec. 4)  {seconds * 1e3:8.1f} ms vectorized, {ref_seconds * 1e3:.1f} ms "
+        f"reference ({int(res.steps[0])} steps)"
+    )
     # the same run as a YAML team through the general engine (modes, events, world component)
     import tempfile
     from pathlib import Path
 
     from hybridteam.api import load, summaries
+
     sample_file = Path(__file__).resolve().parents[1] / "examples" / "ladder" / "sample.yaml"
     team = load(sample_file)
     eng_seconds, rows = best_of(3, lambda: summaries(team, 1, accelerate=False))
@@ -69,13 +75,16 @@ def main() -> None:
     # each, so a drift of the machine's speed between them does not enter it
     bare_seconds, vec_seconds = float("inf"), float("inf")
     for _ in range(7):
-        bare_seconds = min(bare_seconds, best_of(1, lambda: summaries(bare, 1,
-                                                                     accelerate=False))[0])
+        bare_seconds = min(
+            bare_seconds, best_of(1, lambda: summaries(bare, 1, accelerate=False))[0]
+        )
         vec_seconds = min(vec_seconds, best_of(1, lambda: simulate(sample))[0])
-    print(f"sample run, engine   {bare_seconds * 1e3:8.1f} ms ({rows[0]['steps']} steps; "
-          f"x{bare_seconds / vec_seconds:.2f} the vectorized stepper's {vec_seconds * 1e3:.1f} "
-          f"ms, timed in turn); with the sample's requirements checked "
-          f"{eng_seconds * 1e3:.1f} ms")
+    print(
+        f"sample run, engine   {bare_seconds * 1e3:8.1f} ms ({rows[0]['steps']} steps; "
+        f"x{bare_seconds / vec_seconds:.2f} the vectorized stepper's {vec_seconds * 1e3:.1f} "
+        f"ms, timed in turn); with the sample's requirements checked "
+        f"{eng_seconds * 1e3:.1f} ms"
+    )
 
 
 def _without_requirements(text: str) -> str:

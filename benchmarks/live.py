@@ -41,33 +41,62 @@ def main() -> None:
     parser.add_argument("--time-scale", type=float, default=1.0)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", args.team,
-                        "--time-scale", repr(args.time_scale), "--log-level", "warning",
-                        "-o", tmp], check=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "hybridteam.cli",
+                "launch",
+                args.team,
+                "--time-scale",
+                repr(args.time_scale),
+                "--log-level",
+                "warning",
+                "-o",
+                tmp,
+            ],
+            check=True,
+        )
         merged = json.loads((Path(tmp) / "trace.json").read_text())
-    print(f"{Path(args.team).name}, time scale {args.time_scale:g}: "
-          f"{merged['outcomes'][0]['outcome']}")
-    print(f"  {'agent':<12}{'CPU %':>8}{'reaction p99 ms':>17}{'(n)':>7}"
-          f"{'jitter p99 ms':>15}{'(n)':>7}{'answer p99 ms':>15}{'late':>7}")
+    print(
+        f"{Path(args.team).name}, time scale {args.time_scale:g}: "
+        f"{merged['outcomes'][0]['outcome']}"
+    )
+    print(
+        f"  {'agent':<12}{'CPU %':>8}{'reaction p99 ms':>17}{'(n)':>7}"
+        f"{'jitter p99 ms':>15}{'(n)':>7}{'answer p99 ms':>15}{'late':>7}"
+    )
     worst = [0.0, 0.0, 0.0]
     for p in merged["meta"]["live"]["processes"]:
         cpu = 100 * p["cpu_s"] / p["wall_s"]
         reaction, late = p["reaction_ms"], p["late_ms"]
-        answer = (f"{p['world_answer_ms'].get('p99', 0):15.3f}{p['world_late']:7d}"
-                  if "world_answer_ms" in p else "")
-        print(f"  {', '.join(p['agents']) or '@world':<12}{cpu:8.2f}"
-              f"{reaction.get('p99', 0):17.3f}{reaction['count']:7d}"
-              f"{late.get('p99', 0):15.3f}{late['count']:7d}{answer}")
+        answer = (
+            f"{p['world_answer_ms'].get('p99', 0):15.3f}{p['world_late']:7d}"
+            if "world_answer_ms" in p
+            else ""
+        )
+        print(
+            f"  {', '.join(p['agents']) or '@world':<12}{cpu:8.2f}"
+            f"{reaction.get('p99', 0):17.3f}{reaction['count']:7d}"
+            f"{late.get('p99', 0):15.3f}{late['count']:7d}{answer}"
+        )
         if p.get("world"):
             continue
-        worst = [max(worst[0], cpu), max(worst[1], reaction.get("p99", 0)),
-                 max(worst[2], late.get("p99", 0))]
-    for what, value, budget, unit in (("CPU per agent", worst[0], CPU, "%"),
-                                      ("arrival to mode change p99", worst[1], REACTION, "ms"),
-                                      ("control-period jitter p99", worst[2], JITTER, "ms")):
+        worst = [
+            max(worst[0], cpu),
+            max(worst[1], reaction.get("p99", 0)),
+            max(worst[2], late.get("p99", 0)),
+        ]
+    for what, value, budget, unit in (
+        ("CPU per agent", worst[0], CPU, "%"),
+        ("arrival to mode change p99", worst[1], REACTION, "ms"),
+        ("control-period jitter p99", worst[2], JITTER, "ms"),
+    ):
         verdict = "met" if value <= budget else "NOT met"
-        print(f"budget: {what} <= {budget:g} {unit} -> {value:.3g} {unit} ({verdict}; the "
-              "agents' processes)")
+        print(
+            f"budget: {what} <= {budget:g} {unit} -> {value:.3g} {unit} ({verdict}; the "
+            "agents' processes)"
+        )
 
 
 if __name__ == "__main__":

@@ -62,10 +62,11 @@ def main() -> None:
     args = parser.parse_args()
     trips = sorted(round_trips(args.count, args.size))
     p99 = trips[min(len(trips) - 1, int(0.99 * len(trips)))]
-    print(f"ros2 transport, loopback round trip of a {args.size}-byte datagram, "
-          f"{len(trips)} trips")
-    print(f"  p50 {statistics.median(trips) * 1e3:.3f} ms   p99 {p99 * 1e3:.3f} ms   "
-          f"max {trips[-1] * 1e3:.3f} ms")
+    print(f"ros2 transport, loopback round trip of a {args.size}-byte datagram, {len(trips)} trips")
+    print(
+        f"  p50 {statistics.median(trips) * 1e3:.3f} ms   p99 {p99 * 1e3:.3f} ms   "
+        f"max {trips[-1] * 1e3:.3f} ms"
+    )
 
 
 if __name__ == "__main__":

@@ -55,56 +55,78 @@ def interleaved(first, second, k: int = 5) -> tuple[float, float]:
 
 
 def with_requirements(team, **formulas: str):
-    reqs = tuple(Requirement(name, text, None, ("requirements", name))
-                 for name, text in formulas.items())
+    reqs = tuple(
+        Requirement(name, text, None, ("requirements", name)) for name, text in formulas.items()
+    )
     return dataclasses.replace(team, requirements=reqs)
 
 
 def monitor_cost() -> None:
-    print("1. monitor cost (same ensemble with and without requirements, best of 5, "
-          "alternating)")
+    print("1. monitor cost (same ensemble with and without requirements, best of 5, alternating)")
     thermo = ht.load(ROOT / "examples" / "automata" / "thermostat.yaml")
     plain = dataclasses.replace(thermo, requirements=())
-    checked = with_requirements(plain, comfort="always(x >= 17.9 and x <= 22.1)",
-                                heats="always(eventually[0, 20](in_mode(Heat)))")
+    checked = with_requirements(
+        plain,
+        comfort="always(x >= 17.9 and x <= 22.1)",
+        heats="always(eventually[0, 20](in_mode(Heat)))",
+    )
     gains = {"thermostat.K": np.linspace(0.08, 0.12, 1000)}
     handover = ht.load(ROOT / "examples" / "protocols" / "handover.yaml")
     lead = with_requirements(
-        handover, one_leader="always(count_in_role(lead) <= 1)",
+        handover,
+        one_leader="always(count_in_role(lead) <= 1)",
         answered="always(implies(sent(labmate, request), "
-                 "eventually[0, 0.5](received(labmate, grant))))",
-        gap="always(hypot(labmate.x - xr4000.x, labmate.y - xr4000.y) <= 1.5)")
-    cases = [("thermostat, its comfort", plain, thermo, 1000, gains),
-             ("thermostat, + heats", plain, checked, 1000, gains),
-             ("handover, n = 200, 8 s", handover, lead, 200, None)]
+        "eventually[0, 0.5](received(labmate, grant))))",
+        gap="always(hypot(labmate.x - xr4000.x, labmate.y - xr4000.y) <= 1.5)",
+    )
+    cases = [
+        ("thermostat, its comfort", plain, thermo, 1000, gains),
+        ("thermostat, + heats", plain, checked, 1000, gains),
+        ("handover, n = 200, 8 s", handover, lead, 200, None),
+    ]
     for label, a, b, n, over in cases:
         t_plain, t_checked = interleaved(
             lambda a=a, n=n, over=over: ht.simulate(a, n=n, overrides=over),
-            lambda b=b, n=n, over=over: ht.simulate(b, n=n, overrides=over))
+            lambda b=b, n=n, over=over: ht.simulate(b, n=n, overrides=over),
+        )
         extra = t_checked / t_plain - 1
-        print(f"   {label:30s} without {t_plain:7.3f} s   with {t_checked:7.3f} s   "
-              f"+{100 * extra:5.1f} %  (budget +20 %: {'met' if extra < 0.2 else 'MISSED'})")
+        print(
+            f"   {label:30s} without {t_plain:7.3f} s   with {t_checked:7.3f} s   "
+            f"+{100 * extra:5.1f} %  (budget +20 %: {'met' if extra < 0.2 else 'MISSED'})"
+        )
 
 
 def problems():
     thermo = ht.load(ROOT / "examples" / "automata" / "thermostat.yaml")
-    thermo = with_requirements(dataclasses.replace(thermo, requirements=()),
-                               upper="always(x <= 22.1)")
-    thermo = dataclasses.replace(thermo, simulation=dataclasses.replace(
-        thermo.simulation, duration=40.0))
+    thermo = with_requirements(
+        dataclasses.replace(thermo, requirements=()), upper="always(x <= 22.1)"
+    )
+    thermo = dataclasses.replace(
+        thermo, simulation=dataclasses.replace(thermo.simulation, duration=40.0)
+    )
     tanks = ht.load(ROOT / "examples" / "automata" / "water_tanks.yaml")
     tanks = with_requirements(tanks, full="always(x1 <= 4.3)")
     return [
-        ("thermostat", thermo, "upper",
-         [Vary("thermostat.high", 15.0, 22.15), Vary("thermostat.K", 0.01, 0.5)]),
-        ("water tanks", tanks, "full",
-         [Vary("w", 0.5, 1.0), Vary("v1", 0.3, 0.7), Vary("v2", 0.3, 0.7)]),
+        (
+            "thermostat",
+            thermo,
+            "upper",
+            [Vary("thermostat.high", 15.0, 22.15), Vary("thermostat.K", 0.01, 0.5)],
+        ),
+        (
+            "water tanks",
+            tanks,
+            "full",
+            [Vary("w", 0.5, 1.0), Vary("v1", 0.3, 0.7), Vary("v2", 0.3, 0.7)],
+        ),
     ]
 
 
 def guided_vs_random(seeds: int, budget: int) -> None:
-    print(f"\n2. simulations to the first violation, median over {seeds} search seeds "
-          f"(budget {budget}; a search that found nothing counts as {budget + 1})")
+    print(
+        f"\n2. simulations to the first violation, median over {seeds} search seeds "
+        f"(budget {budget}; a search that found nothing counts as {budget + 1})"
+    )
     for label, team, req, varies in problems():
         ev = Evaluator(team, req, [v.key for v in varies])
         medians = {}
@@ -112,16 +134,21 @@ def guided_vs_random(seeds: int, budget: int) -> None:
             found = []
             start = time.perf_counter()
             for s in range(seeds):
-                search = run_search(varies, 1, 0, ev, budget=budget, method=method,
-                                    population=20, search_seed=s)
+                search = run_search(
+                    varies, 1, 0, ev, budget=budget, method=method, population=20, search_seed=s
+                )
                 first = search.first_falsified()
                 found.append(first if first is not None else budget + 1)
             medians[method] = statistics.median(found)
-            print(f"   {label:12s} {method:6s}  median {medians[method]:6.1f}   "
-                  f"each: {found}   ({time.perf_counter() - start:.1f} s)")
+            print(
+                f"   {label:12s} {method:6s}  median {medians[method]:6.1f}   "
+                f"each: {found}   ({time.perf_counter() - start:.1f} s)"
+            )
         ratio = medians["random"] / medians["de"]
-        print(f"   {label:12s} guided needs {ratio:.1f}x fewer simulations than random "
-              f"({'met' if medians['de'] < medians['random'] else 'MISSED'})")
+        print(
+            f"   {label:12s} guided needs {ratio:.1f}x fewer simulations than random "
+            f"({'met' if medians['de'] < medians['random'] else 'MISSED'})"
+        )
 
 
 if __name__ == "__main__":

@@ -44,13 +44,13 @@ BUDGET_S = 60.0
 def cpu_seconds() -> float:
     """CPU time of this process and its finished children (the pool's workers, once shut
     down): the work done, which other load on a noisy machine does not inflate."""
-    me, kids = (resource.getrusage(who) for who in (resource.RUSAGE_SELF,
-                                                     resource.RUSAGE_CHILDREN))
+    me, kids = (resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def run_one(name: str, out: Path, workers: int | None, chunk: int | None,
-            scheduler: str | None = None) -> tuple[float, float, int, int, list[str]]:
+def run_one(
+    name: str, out: Path, workers: int | None, chunk: int | None, scheduler: str | None = None
+) -> tuple[float, float, int, int, list[str]]:
     """Run one study into ``out/<name>``: (wall s, CPU s here and in finished children,
     runs, robot-steps, results rows)."""
     study = load_study(LADDER / f"{name}.yaml")  # loading is not timed: it checks files
@@ -66,20 +66,26 @@ def run_one(name: str, out: Path, workers: int | None, chunk: int | None,
 
 def report(label: str, wall: float, runs: int, steps: int, cpu: float | None) -> None:
     verdict = "within" if wall <= BUDGET_S else "OVER"
-    print(f"{label}: {runs} runs in {wall:.2f} s — {runs / wall:,.0f} runs/s, "
-          f"{steps / wall / 1e6:.2f} M robot-steps/s ({steps / 1e6:.1f} M robot-steps); "
-          f"{verdict} the {BUDGET_S:.0f} s budget"
-          + (f"; {cpu:.1f} s CPU in this process and the pool's" if cpu is not None else ""))
+    print(
+        f"{label}: {runs} runs in {wall:.2f} s — {runs / wall:,.0f} runs/s, "
+        f"{steps / wall / 1e6:.2f} M robot-steps/s ({steps / 1e6:.1f} M robot-steps); "
+        f"{verdict} the {BUDGET_S:.0f} s budget"
+        + (f"; {cpu:.1f} s CPU in this process and the pool's" if cpu is not None else "")
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--serial", action="store_true", help="also run in this process")
     parser.add_argument("--all", action="store_true", help="also run all.yaml as one study")
-    parser.add_argument("--dask", action="store_true",
-                        help="also run on a Dask LocalCluster (2 workers with nannies)")
-    parser.add_argument("--chunk", type=int, default=None, help="runs per chunk (default "
-                        "the studies' 500)")
+    parser.add_argument(
+        "--dask",
+        action="store_true",
+        help="also run on a Dask LocalCluster (2 workers with nannies)",
+    )
+    parser.add_argument(
+        "--chunk", type=int, default=None, help="runs per chunk (default the studies' 500)"
+    )
     parser.add_argument("--keep", type=Path, default=None, help="keep outputs in this folder")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp, ExitStack() as stack:
@@ -94,8 +100,11 @@ def main() -> None:
         if args.dask:
             from dask.distributed import LocalCluster
 
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None))
+            cluster = stack.enter_context(
+                LocalCluster(
+                    n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+                )
+            )
             modes.append(("Dask, 2 workers", "dask", None, cluster.scheduler_address))
             print("Dask: a LocalCluster of 2 worker processes with nannies")
         walls = {label: 0.0 for label, *_ in modes}
@@ -105,28 +114,33 @@ def main() -> None:
         for name in FACTORS:
             line = []
             for label, folder, workers, scheduler in modes:
-                wall, cpu, n, k, got = run_one(name, out / folder, workers, args.chunk,
-                                               scheduler)
+                wall, cpu, n, k, got = run_one(name, out / folder, workers, args.chunk, scheduler)
                 walls[label] += wall
                 cpus[label] += cpu
                 line.append(f"{label} {wall:6.2f} s")
                 if label == "2 workers":
                     runs, steps, rows = runs + n, steps + k, rows + got
-                elif got != rows[-len(got):]:
+                elif got != rows[-len(got) :]:
                     raise SystemExit(f"{name}: {label} gave other results than the pool")
             print(f"  {name:10s} {n:6d} runs: " + ", ".join(line), flush=True)
         for label, *_ in modes:  # (Dask's CPU is spent in its workers: not counted here)
-            report(label, walls[label], runs, steps,
-                   None if label.startswith("Dask") else cpus[label])
+            report(
+                label, walls[label], runs, steps, None if label.startswith("Dask") else cpus[label]
+            )
         wall2 = walls["2 workers"]
         if args.serial:
             print(f"pool speed-up: x{walls['1 process'] / wall2:.2f}")
         if args.dask:
             wall_d = walls["Dask, 2 workers"]
-            print(f"Dask against the pool: x{wall2 / wall_d:.2f}"
-                  + (f"; against one process: x{walls['1 process'] / wall_d:.2f} (budget "
-                     f"1.7x: {'met' if walls['1 process'] / wall_d >= 1.7 else 'NOT met'})"
-                     if args.serial else ""))
+            print(
+                f"Dask against the pool: x{wall2 / wall_d:.2f}"
+                + (
+                    f"; against one process: x{walls['1 process'] / wall_d:.2f} (budget "
+                    f"1.7x: {'met' if walls['1 process'] / wall_d >= 1.7 else 'NOT met'})"
+                    if args.serial
+                    else ""
+                )
+            )
         if args.all:
             study = load_study(LADDER / "all.yaml")
             t0, c0 = time.perf_counter(), cpu_seconds()

@@ -68,9 +68,13 @@ print(json.dumps(out))
 def timed(base: str, files: list[Path], repeats: int) -> dict[str, list[float]]:
     """Best-of-``repeats`` wall time and end time of each file, under ``base`` ('' for this
     tree's code), in a process of its own."""
-    done = subprocess.run([sys.executable, "-c", TIMER, base, str(repeats),
-                           *map(str, files)], check=True, text=True, capture_output=True,
-                          cwd="/")
+    done = subprocess.run(
+        [sys.executable, "-c", TIMER, base, str(repeats), *map(str, files)],
+        check=True,
+        text=True,
+        capture_output=True,
+        cwd="/",
+    )
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -86,8 +90,7 @@ def team_files(folder: Path) -> dict[str, Path]:
     files["doorway"] = folder / "doorway.yaml"
     files["doorway"].write_text(text)
     files["doorway_no_jitter"] = folder / "doorway_no_jitter.yaml"
-    files["doorway_no_jitter"].write_text(text.replace("\n  jitter: 0.01\n",
-                                                       "\n  jitter: 0.0\n"))
+    files["doorway_no_jitter"].write_text(text.replace("\n  jitter: 0.01\n", "\n  jitter: 0.0\n"))
     return files
 
 
@@ -120,11 +123,15 @@ def main() -> None:
     if {"doorway", "doorway_no_jitter"} <= set(names):
         for label, kept in [("", now)] + ([(" (base)", before)] if base else []):
             # per simulated second: the two runs need not end at the same time
-            cost = [kept[str(every[n])][0] / kept[str(every[n])][1]
-                    for n in ("doorway", "doorway_no_jitter")]
+            cost = [
+                kept[str(every[n])][0] / kept[str(every[n])][1]
+                for n in ("doorway", "doorway_no_jitter")
+            ]
             ratio = cost[0] / cost[1]
-            print(f"jittered / jitter-free cost per simulated second{label}: {ratio:.2f}x"
-                  f" (budget 1.3x: {'met' if ratio <= 1.3 else 'NOT met'})")
+            print(
+                f"jittered / jitter-free cost per simulated second{label}: {ratio:.2f}x"
+                f" (budget 1.3x: {'met' if ratio <= 1.3 else 'NOT met'})"
+            )
 
 
 if __name__ == "__main__":

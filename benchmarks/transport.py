@@ -52,25 +52,34 @@ print(json.dumps(out))
 
 def interpreter_for(rev: str) -> Path:
     """A virtual environment with hybridteam as of ``rev`` installed (built once)."""
-    sha = subprocess.run(["git", "rev-parse", rev], cwd=ROOT, check=True, text=True,
-                         capture_output=True).stdout.strip()
+    sha = subprocess.run(
+        ["git", "rev-parse", rev], cwd=ROOT, check=True, text=True, capture_output=True
+    ).stdout.strip()
     home = ROOT / ".benchmarks" / f"hybridteam-{sha[:12]}"
     python = home / "venv" / "bin" / "python"
     if python.exists():
         return python
     print(f"building a venv for {rev} ({sha[:12]}) in {home} ...", file=sys.stderr)
     tree = home / "tree"
-    subprocess.run(["git", "worktree", "add", "--detach", "-f", str(tree), sha], cwd=ROOT,
-                   check=True, capture_output=True)
+    subprocess.run(
+        ["git", "worktree", "add", "--detach", "-f", str(tree), sha],
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+    )
     venv.create(home / "venv", with_pip=True)
-    subprocess.run([str(python), "-m", "pip", "install", "-q", str(tree)], check=True,
-                   cwd=home)
+    subprocess.run([str(python), "-m", "pip", "install", "-q", str(tree)], check=True, cwd=home)
     return python
 
 
 def timed(python: str, files: list[Path], repeats: int) -> dict[str, list[float]]:
-    done = subprocess.run([python, "-c", TIMER, str(repeats), *map(str, files)], check=True,
-                          text=True, capture_output=True, cwd="/")
+    done = subprocess.run(
+        [python, "-c", TIMER, str(repeats), *map(str, files)],
+        check=True,
+        text=True,
+        capture_output=True,
+        cwd="/",
+    )
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -109,8 +118,7 @@ def main() -> None:
             pair = [(now, sys.executable)] + ([(before, older)] if older else [])
             for kept, python in pair[::-1] if k % 2 else pair:
                 best_of(kept, timed(python, files, 1))
-    shipped = timed(sys.executable, [EXAMPLES / f"{name}.yaml" for name in names],
-                    args.repeats)
+    shipped = timed(sys.executable, [EXAMPLES / f"{name}.yaml" for name in names], args.repeats)
     head = f"{'experiment':<13}{'simulated (s)':>14}{'wall (s)':>10}{'x real time':>13}"
     if before:
         head += f"{'wall before':>13}{'speed-up':>10}"
@@ -125,12 +133,16 @@ def main() -> None:
     if "experiment2" in names:
         path = str(plain / "experiment2.yaml")
         wall, t_end = now[path]
-        verdict = [f"experiment 2 at {t_end / wall:.1f}x real time (budget 40x: "
-                   f"{'met' if t_end / wall >= 40 else 'NOT met'})"]
+        verdict = [
+            f"experiment 2 at {t_end / wall:.1f}x real time (budget 40x: "
+            f"{'met' if t_end / wall >= 40 else 'NOT met'})"
+        ]
         if before:
             gain = before[path][0] / wall
-            verdict.append(f"{gain:.2f}x faster than {args.before} (budget 4x: "
-                           f"{'met' if gain >= 4 else 'NOT met'})")
+            verdict.append(
+                f"{gain:.2f}x faster than {args.before} (budget 4x: "
+                f"{'met' if gain >= 4 else 'NOT met'})"
+            )
         print("\nbudget: " + "; ".join(verdict))
 
 

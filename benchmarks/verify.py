@@ -36,24 +36,33 @@ def team_text(robots: int, scenario: str = "all") -> str:
     lines = [f"team: roles_{robots}", "agents:"]
     for k in range(robots):
         name = NAMES[k]
-        lines += [f"  {name}:",
-                  f"    plant: {{kind: unicycle, state: {{x: {-k}, y: 0, theta: 0}}}}"]
+        lines += [
+            f"  {name}:",
+            f"    plant: {{kind: unicycle, state: {{x: {-k}, y: 0, theta: 0}}}}",
+        ]
         if k:
             lines.append("    variables: {leader: id_a}")
-        lines += ["    modes:", "      Transport:", "        protocol: role_assignment",
-                  f"        initial: {'Lead' if k == 0 else 'Follow'}", "        roles:",
-                  "          lead: {inputs: {v: 0.1, omega: 0}}",
-                  "          follow: {inputs: {v: 0.1, omega: 0}}"]
+        lines += [
+            "    modes:",
+            "      Transport:",
+            "        protocol: role_assignment",
+            f"        initial: {'Lead' if k == 0 else 'Follow'}",
+            "        roles:",
+            "          lead: {inputs: {v: 0.1, omega: 0}}",
+            "          follow: {inputs: {v: 0.1, omega: 0}}",
+        ]
     lines += ["  operator:", "    operator: role_assignment", "scenario:"]
     asking = {"all": range(1, robots), "request": range(1, 2), "resign": range(0)}[scenario]
     lines += [f"  - {{at: {k}, agent: {NAMES[k]}, raise: want_lead}}" for k in asking]
     if scenario != "request":
         lines.append(f"  - {{at: {robots}, agent: a, raise: resign}}")
-    lines += ["requirements:",
-              "  one_leader: always(count_in_role(lead) <= 1)"]
-    lines += [f"  {NAMES[k]}_answered: always(implies(in_mode({NAMES[k]}, Requesting), "
-              f"eventually(in_role({NAMES[k]}, lead) or in_mode({NAMES[k]}, Follow) or "
-              f"in_mode({NAMES[k]}, Operated))))" for k in range(1, robots)]
+    lines += ["requirements:", "  one_leader: always(count_in_role(lead) <= 1)"]
+    lines += [
+        f"  {NAMES[k]}_answered: always(implies(in_mode({NAMES[k]}, Requesting), "
+        f"eventually(in_role({NAMES[k]}, lead) or in_mode({NAMES[k]}, Follow) or "
+        f"in_mode({NAMES[k]}, Operated))))"
+        for k in range(1, robots)
+    ]
     lines += ["simulation:", "  duration: 10"]
     return "\n".join(lines) + "\n"
 
@@ -65,16 +74,24 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> str:
         path.write_text(team_text(robots, args.scenario))
         team = load(path)
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
-        r = verify(team, Options(losses=losses, max_states=args.max_states,
-                                 timeouts=args.timeouts), replay=False)
+        r = verify(
+            team,
+            Options(losses=losses, max_states=args.max_states, timeouts=args.timeouts),
+            replay=False,
+        )
     g = r.graph
     bad = [v.prop.name for v in r.violated]
-    word = ("VIOLATED: " + ", ".join(bad)) if bad else (
-        "all hold" if g.exhaustive else "none violated (bounded)")
+    word = (
+        ("VIOLATED: " + ", ".join(bad))
+        if bad
+        else ("all hold" if g.exhaustive else "none violated (bounded)")
+    )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    return (f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
-            f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f} "
-            f"{(peak - base) * 1048576 / len(g.states):>8,.0f}  {word}")
+    return (
+        f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
+        f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f} "
+        f"{(peak - base) * 1048576 / len(g.states):>8,.0f}  {word}"
+    )
 
 
 def main() -> None:
@@ -89,15 +106,25 @@ def main() -> None:
     if args.one:
         print(one(*args.one, args), flush=True)
         return
-    print(f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
-          f"{'states/s':>9} {'peak MB':>8} {'B/state':>8}  verdict", flush=True)
+    print(
+        f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
+        f"{'states/s':>9} {'peak MB':>8} {'B/state':>8}  verdict",
+        flush=True,
+    )
     # each check in a process of its own, so its peak memory is its own
-    rest = ["--max-states", str(args.max_states), "--scenario", args.scenario,
-            "--timeouts", args.timeouts]
+    rest = [
+        "--max-states",
+        str(args.max_states),
+        "--scenario",
+        args.scenario,
+        "--timeouts",
+        args.timeouts,
+    ]
     for robots in args.robots:
         for losses in args.losses:
-            subprocess.run([sys.executable, __file__, "--one", str(robots), str(losses),
-                            *rest], check=True)
+            subprocess.run(
+                [sys.executable, __file__, "--one", str(robots), str(losses), *rest], check=True
+            )
 
 
 if __name__ == "__main__":

@@ -37,10 +37,23 @@ def synthetic_trace(seed: int = 0) -> Trace:
     modes = [{"path": "Dock", "depth": 1, "kind": "or", "final": False}]
     modes += [{"path": p, "depth": 2, "kind": "leaf", "final": False} for p in CYCLE[:4]]
     modes += [{"path": "Transport", "depth": 1, "kind": "leaf", "final": False}]
-    meta = {"team": "views-benchmark", "n": 1, "seed": seed, "duration": DURATION,
-            "agents": [{"name": a, "plant": "unicycle", "state": ["x", "y", "theta"],
-                        "inputs": ["v", "omega"], "modes": modes,
-                        "footprint": {"radius": 0.3}} for a in AGENTS]}
+    meta = {
+        "team": "views-benchmark",
+        "n": 1,
+        "seed": seed,
+        "duration": DURATION,
+        "agents": [
+            {
+                "name": a,
+                "plant": "unicycle",
+                "state": ["x", "y", "theta"],
+                "inputs": ["v", "omega"],
+                "modes": modes,
+                "footprint": {"radius": 0.3},
+            }
+            for a in AGENTS
+        ],
+    }
     tr: dict[str, list] = {c: [] for c in TRANSITION_COLUMNS}
     iv: dict[str, list] = {c: [] for c in INTERVAL_COLUMNS}
     samples = {}
@@ -54,15 +67,17 @@ def synthetic_trace(seed: int = 0) -> Trace:
             tr_row = (0, agent, s, 0, source, leaf, "init" if j == 0 else "after", "")
             for col, v in zip(TRANSITION_COLUMNS, tr_row, strict=True):
                 tr[col].append(v)
-            for col, v in zip(INTERVAL_COLUMNS, (0, agent, leaf, leaf.count(".") + 1, s, e),
-                              strict=True):
+            for col, v in zip(
+                INTERVAL_COLUMNS, (0, agent, leaf, leaf.count(".") + 1, s, e), strict=True
+            ):
                 iv[col].append(v)
         docked = np.array([leaf.startswith("Dock") for leaf in leaves])
         first = np.flatnonzero(docked & ~np.r_[False, docked[:-1]])  # Dock entered
         last = np.flatnonzero(docked & ~np.r_[docked[1:], False])  # ... and left
         for a, b in zip(first, last, strict=True):
-            for col, v in zip(INTERVAL_COLUMNS, (0, agent, "Dock", 1, starts[a], ends[b]),
-                              strict=True):
+            for col, v in zip(
+                INTERVAL_COLUMNS, (0, agent, "Dock", 1, starts[a], ends[b]), strict=True
+            ):
                 iv[col].append(v)
         phase = times / DURATION * 2 * np.pi * 40
         x = 10 * np.cos(phase + k) + k
@@ -73,16 +88,29 @@ def synthetic_trace(seed: int = 0) -> Trace:
     latency = rng.uniform(0.01, 0.2, MESSAGES)
     lost = rng.random(MESSAGES) < 0.05
     senders = rng.integers(0, len(AGENTS), MESSAGES)
-    msgs = {"instance": np.zeros(MESSAGES, int), "seq": np.arange(MESSAGES),
-            "sender": [AGENTS[s] for s in senders],
-            "receiver": [AGENTS[(s + 1) % len(AGENTS)] for s in senders],
-            "socket": ["control"] * MESSAGES, "type": ["status"] * MESSAGES, "t_send": sent,
-            "t_recv": np.where(lost, np.nan, sent + latency),
-            "status": np.where(lost, "lost", "delivered"),
-            "reason": np.where(lost, "drop", ""), "msg_id": np.full(MESSAGES, -1)}
+    msgs = {
+        "instance": np.zeros(MESSAGES, int),
+        "seq": np.arange(MESSAGES),
+        "sender": [AGENTS[s] for s in senders],
+        "receiver": [AGENTS[(s + 1) % len(AGENTS)] for s in senders],
+        "socket": ["control"] * MESSAGES,
+        "type": ["status"] * MESSAGES,
+        "t_send": sent,
+        "t_recv": np.where(lost, np.nan, sent + latency),
+        "status": np.where(lost, "lost", "delivered"),
+        "reason": np.where(lost, "drop", ""),
+        "msg_id": np.full(MESSAGES, -1),
+    }
     outcomes = [{"instance": 0, "outcome": "ok", "t": DURATION, "message": ""}]
-    return Trace(meta, outcomes, Table(TRANSITION_COLUMNS, tr), Table(INTERVAL_COLUMNS, iv),
-                 Table(MESSAGE_COLUMNS, msgs), times, samples)
+    return Trace(
+        meta,
+        outcomes,
+        Table(TRANSITION_COLUMNS, tr),
+        Table(INTERVAL_COLUMNS, iv),
+        Table(MESSAGE_COLUMNS, msgs),
+        times,
+        samples,
+    )
 
 
 def timed(label: str, fn: Callable[[], object]) -> float:
@@ -98,17 +126,25 @@ def main() -> None:
     t0 = time.perf_counter()
     trace = synthetic_trace()
     build = time.perf_counter() - t0
-    print(f"trace: {len(trace.transitions)} transitions, {len(trace.intervals)} intervals, "
-          f"{sum(s.shape[0] for s in trace.samples.values())} samples, "
-          f"{len(trace.messages)} messages (built in {build:.2f} s)")
-    total = sum([
-        timed("timeline (png)", lambda: write_timeline(trace, out / "timeline.png")),
-        timed("close-up 100 s (png)",
-              lambda: write_timeline(trace, out / "closeup.png", window=(1000.0, 1100.0))),
-        timed("trajectories (png)", lambda: write_trajectories(trace, out / "paths.png")),
-        timed("animation, 100 frames (gif)",
-              lambda: write_animation(trace, out / "run.gif", fps=20, duration=5.0)),
-    ])
+    print(
+        f"trace: {len(trace.transitions)} transitions, {len(trace.intervals)} intervals, "
+        f"{sum(s.shape[0] for s in trace.samples.values())} samples, "
+        f"{len(trace.messages)} messages (built in {build:.2f} s)"
+    )
+    total = sum(
+        [
+            timed("timeline (png)", lambda: write_timeline(trace, out / "timeline.png")),
+            timed(
+                "close-up 100 s (png)",
+                lambda: write_timeline(trace, out / "closeup.png", window=(1000.0, 1100.0)),
+            ),
+            timed("trajectories (png)", lambda: write_trajectories(trace, out / "paths.png")),
+            timed(
+                "animation, 100 frames (gif)",
+                lambda: write_animation(trace, out / "run.gif", fps=20, duration=5.0),
+            ),
+        ]
+    )
     print(f"  {'total':<28} {total:7.3f} s   (files in {out})")
 
 

@@ -42,8 +42,11 @@ def __getattr__(name: str) -> Any:
     home = _HOMES.get(name)
     if home is not None:
         value = getattr(importlib.import_module(home), name)
-    elif name.isidentifier() and not name.startswith("_") and \
-            importlib.util.find_spec(f"{__name__}.{name}") is not None:
+    elif (
+        name.isidentifier()
+        and not name.startswith("_")
+        and importlib.util.find_spec(f"{__name__}.{name}") is not None
+    ):
         value = importlib.import_module(f"{__name__}.{name}")
     else:
         raise AttributeError(f"module 'hybridteam' has no attribute {name!r}")

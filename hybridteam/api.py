@@ -52,8 +52,9 @@ class Run(Trace):
     @property
     def outcome(self) -> str:
         if self.n != 1:
-            raise ValueError(f"this run has n={self.n} instances: use run.outcomes "
-                             "or run.instance(i).outcome")
+            raise ValueError(
+                f"this run has n={self.n} instances: use run.outcomes or run.instance(i).outcome"
+            )
         return self._outcomes[0]["outcome"]
 
     @property
@@ -79,8 +80,7 @@ class Run(Trace):
 
         return samples_frame(self, wide)
 
-    def to_bag(self, path: str | os.PathLike, format: str | None = None,
-               instance: int = 0) -> Any:
+    def to_bag(self, path: str | os.PathLike, format: str | None = None, instance: int = 0) -> Any:
         """Write instance ``instance`` as a rosbag2 (``run.mcap``, ``run.db3`` or a bag
         folder; see docs/logs.md). Needs ``pip install 'hybridteam[logs]'``."""
         from hybridteam.logs.export import write_bag
@@ -88,8 +88,9 @@ class Run(Trace):
         return write_bag(self, path, format, instance)
 
     @classmethod
-    def from_bag(cls, path: str | os.PathLike, team: Team,
-                 mapping: str | os.PathLike | None = None) -> Run:
+    def from_bag(
+        cls, path: str | os.PathLike, team: Team, mapping: str | os.PathLike | None = None
+    ) -> Run:
         """The run a rosbag2 recorded of ``team`` (topics as ``mapping`` names them, by
         default those :meth:`to_bag` writes)."""
         from hybridteam.logs.bag import read_bag
@@ -118,8 +119,15 @@ class Run(Trace):
     @classmethod
     def of(cls, trace: Trace) -> Run:
         """The run a simulator's trace records."""
-        return cls(trace.meta, trace.outcomes, trace.transitions, trace.intervals,
-                   trace.messages, trace.sample_times, trace.samples)
+        return cls(
+            trace.meta,
+            trace.outcomes,
+            trace.transitions,
+            trace.intervals,
+            trace.messages,
+            trace.sample_times,
+            trace.samples,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         d = super().to_dict()
@@ -140,29 +148,49 @@ class Run(Trace):
         if isinstance(meta.get("seed"), list):  # per-instance seeds: this instance's own
             meta["seed"] = meta["seed"][i]
         outcome = dict(self._outcomes[i], instance=0)
-        return Run(meta, [outcome], pick(self.transitions), pick(self.intervals),
-                   pick(self.messages), self.sample_times.copy(),
-                   {a: s[:, i : i + 1].copy() for a, s in self.samples.items()})
+        return Run(
+            meta,
+            [outcome],
+            pick(self.transitions),
+            pick(self.intervals),
+            pick(self.messages),
+            self.sample_times.copy(),
+            {a: s[:, i : i + 1].copy() for a, s in self.samples.items()},
+        )
 
     def summary(self) -> dict[str, Any]:
         """Counts per instance, for ``summary.json`` and the terminal."""
-        counts = np.bincount(np.asarray(self.transitions["instance"], dtype=np.int64),
-                             minlength=self.n)
-        msgs = np.bincount(np.asarray(self.messages["instance"], dtype=np.int64),
-                           minlength=self.n)
+        counts = np.bincount(
+            np.asarray(self.transitions["instance"], dtype=np.int64), minlength=self.n
+        )
+        msgs = np.bincount(np.asarray(self.messages["instance"], dtype=np.int64), minlength=self.n)
         seeds = self.meta["seed"]
         per = []
         for i, o in enumerate(self._outcomes):
-            per.append({"instance": i, "outcome": o["outcome"], "t_end": o["t"],
-                        "message": o["message"], "transitions": int(counts[i]),
-                        "messages": int(msgs[i]), **o.get("stats", {})})
+            per.append(
+                {
+                    "instance": i,
+                    "outcome": o["outcome"],
+                    "t_end": o["t"],
+                    "message": o["message"],
+                    "transitions": int(counts[i]),
+                    "messages": int(msgs[i]),
+                    **o.get("stats", {}),
+                }
+            )
             if "requirements" in o:
                 per[-1]["requirements"] = o["requirements"]
             if isinstance(seeds, list):  # per-instance seeds: say which one each ran with
                 per[-1]["seed"] = seeds[i]
         tally = self.tally()
-        return {"team": self.meta["team"], "n": self.n, "seed": self.meta["seed"],
-                "duration": self.meta["duration"], "outcomes": tally, "instances": per}
+        return {
+            "team": self.meta["team"],
+            "n": self.n,
+            "seed": self.meta["seed"],
+            "duration": self.meta["duration"],
+            "outcomes": tally,
+            "instances": per,
+        }
 
 
 def load(path: str | os.PathLike) -> Team:
@@ -172,12 +200,19 @@ def load(path: str | os.PathLike) -> Team:
     return load_team(path)
 
 
-def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
-             duration: float | None = None,
-             overrides: Mapping[str, float | Sequence[float]] | None = None,
-             progress: Callable[[float], None] | None = None, *,
-             max_memory: float | None = None, max_periods: float | None = None,
-             max_wall: float | None = None, written: bool = False) -> Run:
+def simulate(
+    team: Team,
+    seed: int | Sequence[int] | None = None,
+    n: int = 1,
+    duration: float | None = None,
+    overrides: Mapping[str, float | Sequence[float]] | None = None,
+    progress: Callable[[float], None] | None = None,
+    *,
+    max_memory: float | None = None,
+    max_periods: float | None = None,
+    max_wall: float | None = None,
+    written: bool = False,
+) -> Run:
     """Simulate ``n`` instances of ``team`` in lockstep and return the :class:`Run`.
 
     ``overrides`` maps ``"agent.param"`` (or a team parameter ``"param"``, or a network
@@ -196,10 +231,20 @@ def simulate(team: Team, seed: int | Sequence[int] | None = None, n: int = 1,
     cteam = compile_team(team)
     seed = team.simulation.seed if seed is None else seed
     requirements = compile_requirements(cteam)
-    sim = Simulator(cteam, n, seed=seed, duration=duration, overrides=overrides,
-                    progress=progress, max_memory=max_memory, max_periods=max_periods,
-                    max_wall=max_wall, snapshots=bool(requirements),
-                    observe=requirements.observers(cteam), written=written)
+    sim = Simulator(
+        cteam,
+        n,
+        seed=seed,
+        duration=duration,
+        overrides=overrides,
+        progress=progress,
+        max_memory=max_memory,
+        max_periods=max_periods,
+        max_wall=max_wall,
+        snapshots=bool(requirements),
+        observe=requirements.observers(cteam),
+        written=written,
+    )
     run = Run.of(sim.run())
     run.costs = sim.costs
     if requirements:
@@ -211,9 +256,9 @@ def check_requirements(run: Run, requirements: RequirementSet, sim: Simulator) -
     """Add each instance's requirement verdicts to its outcome (``summary.json`` and the
     trace carry them), reading parameters as the simulator set them per instance."""
     snapshots = sim.ensemble.rec.merged_snapshots()
-    for outcome, verdicts in zip(run.diagnostics,
-                                 requirements.check(run, parameters(sim), snapshots),
-                                 strict=True):
+    for outcome, verdicts in zip(
+        run.diagnostics, requirements.check(run, parameters(sim), snapshots), strict=True
+    ):
         outcome["requirements"] = verdicts
 
 
@@ -248,9 +293,14 @@ def conformance(run: Trace, team: Team, tolerance: float = 0.1) -> Table:
     return replayed(run, team, tolerance=tolerance).table()
 
 
-def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None,
-              seed: int | Sequence[int] | None = None, *,
-              accelerate: bool = True) -> list[dict[str, Any]]:
+def summaries(
+    team: Team,
+    n: int = 1,
+    overrides: Mapping[str, Any] | None = None,
+    seed: int | Sequence[int] | None = None,
+    *,
+    accelerate: bool = True,
+) -> list[dict[str, Any]]:
     """Per-instance results of ``n`` runs (outcome, end time and the world's statistics),
     without keeping a trace: what a parameter study needs. The runs record no output
     samples unless the team's requirements are checked (they read them).
@@ -271,13 +321,21 @@ def summaries(team: Team, n: int = 1, overrides: Mapping[str, Any] | None = None
             return rows
     requirements = compile_requirements(cteam)
     # rows need no output samples (only requirement checks read them)
-    sim = Simulator(cteam, n, seed=seed, overrides=overrides, snapshots=bool(requirements),
-                    observe=requirements.observers(cteam), samples=bool(requirements))
+    sim = Simulator(
+        cteam,
+        n,
+        seed=seed,
+        overrides=overrides,
+        snapshots=bool(requirements),
+        observe=requirements.observers(cteam),
+        samples=bool(requirements),
+    )
     run = Run.of(sim.run())
     if requirements:
         check_requirements(run, requirements, sim)
-    return [{k: v for k, v in row.items() if k not in _COUNTS}
-            for row in run.summary()["instances"]]
+    return [
+        {k: v for k, v in row.items() if k not in _COUNTS} for row in run.summary()["instances"]
+    ]
 
 
 _COUNTS = frozenset({"message", "transitions", "messages"})

@@ -44,5 +44,6 @@ def broken_note() -> str | None:
     failed = broken()
     if not failed:
         return None
-    return "; ".join(f"mode library '{name}' failed to import ({why})"
-                     for name, why in sorted(failed.items()))
+    return "; ".join(
+        f"mode library '{name}' failed to import ({why})" for name, why in sorted(failed.items())
+    )

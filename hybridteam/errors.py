@@ -18,8 +18,9 @@ DocPath = tuple[str | int, ...]
 # starts colour codes and OSC window-title sequences, BEL rings, CR overwrites the line),
 # DEL, the bidirectional overrides that reorder what is shown, and lone surrogates (which
 # cannot be written out at all)
-_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u202a-\u202e"
-                      "\u2066-\u2069\ud800-\udfff]")
+_CONTROL = re.compile(
+    "[\x00-\x08\x0b-\x1f\x7f-\x9f\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]"
+)
 
 
 def printable(text: str) -> str:
@@ -59,8 +60,15 @@ def render_path(path: DocPath) -> str:
 class ModelError(ValueError):
     """A problem in a model, located by its path in the document it came from."""
 
-    def __init__(self, path: DocPath, message: str, *, offset: int | None = None,
-                 hint: str | None = None, at_key: bool = False) -> None:
+    def __init__(
+        self,
+        path: DocPath,
+        message: str,
+        *,
+        offset: int | None = None,
+        hint: str | None = None,
+        at_key: bool = False,
+    ) -> None:
         self.path = tuple(path)
         self.at_key = at_key  # point at the key (a mode's name) rather than its value
         self.message = message

@@ -76,12 +76,14 @@ FLOAT_PATHS = FloatPaths(os.environ.get(ENV, "on").strip().lower() not in OFF)
 #: second argument on ties (``-0.0`` against ``0.0``) and NaN if either is NaN (Python's
 #: ``min``/``max`` do not); a quotient by zero, where Python raises, is numpy's inf or NaN
 #: (:func:`_by_zero`, off the common path).
-INLINE: Mapping[str, str] = MappingProxyType({
-    "where": "({1} if {0} else {2})",
-    "minimum": "({t0} if (({t0} := {0}) < ({t1} := {1}) or {t0} != {t0}) else {t1})",
-    "maximum": "({t0} if (({t0} := {0}) > ({t1} := {1}) or {t0} != {t0}) else {t1})",
-    "true_divide": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
-})
+INLINE: Mapping[str, str] = MappingProxyType(
+    {
+        "where": "({1} if {0} else {2})",
+        "minimum": "({t0} if (({t0} := {0}) < ({t1} := {1}) or {t0} != {t0}) else {t1})",
+        "maximum": "({t0} if (({t0} := {0}) > ({t1} := {1}) or {t0} != {t0}) else {t1})",
+        "true_divide": "({0} / {t0} if ({t0} := {1}) != 0.0 else _float_by_zero({0}, {t0}))",
+    }
+)
 
 
 def _by_zero(a: float, zero: float) -> float:
@@ -151,9 +153,9 @@ def _sin(x: float) -> float:
 #: The operations :func:`float_form` calls (the others are written out: :data:`INLINE`),
 #: each with numpy's result on one double: ``+ - * /`` and ``sqrt`` are correctly rounded
 #: in both; numpy's transcendental functions are called as they are.
-ON_FLOATS: Mapping[str, Callable[..., Any]] = MappingProxyType({
-    "isfinite": math.isfinite, "sqrt": math.sqrt, "arctan2": _arctan2, "cos": _cos,
-    "sin": _sin})
+ON_FLOATS: Mapping[str, Callable[..., Any]] = MappingProxyType(
+    {"isfinite": math.isfinite, "sqrt": math.sqrt, "arctan2": _arctan2, "cos": _cos, "sin": _sin}
+)
 
 #: The operations namespace an algorithm written once takes (its parameter ``ops``):
 #: numpy itself for arrays; its float form has none.
@@ -177,8 +179,9 @@ def _drop_ops(args: ast.arguments) -> None:
     del args.kwonlyargs[at], args.kw_defaults[at]
 
 
-def float_form(fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = ON_FLOATS
-               ) -> Callable[..., Any]:
+def float_form(
+    fn: Callable[..., Any], ops: Mapping[str, Callable[..., Any]] = ON_FLOATS
+) -> Callable[..., Any]:
     """The float form of ``fn``, an algorithm written once over its parameter ``ops``, an
     operations namespace (``ops.where``, ``ops.minimum``, ...) that is numpy itself for
     arrays (as an argument, or as the parameter's default).

@@ -41,12 +41,17 @@ def samples_frame(trace: Trace, wide: bool = False) -> pd.DataFrame:
     k, n = len(trace.sample_times), trace.n
     parts: list[dict[str, Any]] = []
     for name, cols in series:
-        values = trace.samples[name]                       # (K, n, d)
+        values = trace.samples[name]  # (K, n, d)
         for j, var in enumerate(cols):
-            parts.append({"instance": np.tile(np.arange(n), k),
-                          "t": np.repeat(trace.sample_times, n),
-                          "series": name, "variable": var,
-                          "value": values[:, :, j].reshape(-1)})
+            parts.append(
+                {
+                    "instance": np.tile(np.arange(n), k),
+                    "t": np.repeat(trace.sample_times, n),
+                    "series": name,
+                    "variable": var,
+                    "value": values[:, :, j].reshape(-1),
+                }
+            )
     if not parts:
         return pd.DataFrame(columns=["instance", "t", "series", "variable", "value"])
     tidy = pd.concat([pd.DataFrame(p) for p in parts], ignore_index=True)
@@ -54,8 +59,7 @@ def samples_frame(trace: Trace, wide: bool = False) -> pd.DataFrame:
     if not wide:
         return tidy
     tidy["column"] = tidy["series"] + "." + tidy["variable"]
-    out = tidy.pivot_table(index=["instance", "t"], columns="column", values="value",
-                           sort=False)
+    out = tidy.pivot_table(index=["instance", "t"], columns="column", values="value", sort=False)
     out.columns.name = None
     return out.reset_index()
 
@@ -65,10 +69,22 @@ def run_frames(trace: Trace) -> dict[str, pd.DataFrame]:
     ``samples`` (tidy) and ``outcomes`` (one row per instance)."""
     pd = pandas()
     records = getattr(trace, "diagnostics", trace.outcomes)  # a Run's outcomes are names
-    outcomes = pd.DataFrame([{"instance": o["instance"], "outcome": o["outcome"],
-                              "t_end": o["t"], "message": o["message"],
-                              **o.get("stats", {})} for o in records])
-    return {"modes": table_frame(trace.intervals),
-            "transitions": table_frame(trace.transitions),
-            "messages": table_frame(trace.messages),
-            "samples": samples_frame(trace), "outcomes": outcomes}
+    outcomes = pd.DataFrame(
+        [
+            {
+                "instance": o["instance"],
+                "outcome": o["outcome"],
+                "t_end": o["t"],
+                "message": o["message"],
+                **o.get("stats", {}),
+            }
+            for o in records
+        ]
+    )
+    return {
+        "modes": table_frame(trace.intervals),
+        "transitions": table_frame(trace.transitions),
+        "messages": table_frame(trace.messages),
+        "samples": samples_frame(trace),
+        "outcomes": outcomes,
+    }

@@ -41,8 +41,11 @@ def library_packages() -> list[str]:
     for ep in metadata.entry_points(group="hybridteam.libraries"):
         module = ep.value.split(":")[0].strip()
         loaded = sys.modules.get(module)
-        out.append(module if loaded is None or hasattr(loaded, "__path__")
-                   else module.rpartition(".")[0] or module)
+        out.append(
+            module
+            if loaded is None or hasattr(loaded, "__path__")
+            else module.rpartition(".")[0] or module
+        )
     return out
 
 
@@ -79,7 +82,8 @@ def import_model_module(module_name: str, folder: str | None) -> ModuleType:
     raise RefusedReference(
         f"module '{module_name}' is not {where} nor part of an installed mode library; "
         "a model names Python only there (put the module next to the team file, or "
-        "install it as a library)")
+        "install it as a library)"
+    )
 
 
 def _load_beside(path: Path, parts: list[str], folder: str) -> ModuleType:
@@ -91,8 +95,8 @@ def _load_beside(path: Path, parts: list[str], folder: str) -> ModuleType:
         if private not in sys.modules:
             package = path.name == "__init__.py"
             spec = importlib.util.spec_from_file_location(
-                private, path, submodule_search_locations=[str(path.parent)] if package
-                else None)
+                private, path, submodule_search_locations=[str(path.parent)] if package else None
+            )
             assert spec is not None and spec.loader is not None
             module = importlib.util.module_from_spec(spec)
             sys.modules[private] = module

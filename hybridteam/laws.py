@@ -121,14 +121,29 @@ class LawContext:
     reads only the members below, which are the stable contract (``docs/extending.md``).
     """
 
-    __slots__ = ("_ctx", "_params", "_pnames", "_tables", "_values", "_vnames", "_xnames",
-                 "agent", "inputs")
+    __slots__ = (
+        "_ctx",
+        "_params",
+        "_pnames",
+        "_tables",
+        "_values",
+        "_vnames",
+        "_xnames",
+        "agent",
+        "inputs",
+    )
 
-    def __init__(self, ctx: LawRows, params: Mapping[str, Callable[[LawRows], Any]],
-                 agent: str, state_names: Mapping[str, int], var_names: Mapping[str, int],
-                 param_names: Mapping[str, int], inputs: tuple[str, ...],
-                 tables: dict[tuple[str | int, ...], np.ndarray | None] | None = None,
-                 ) -> None:
+    def __init__(
+        self,
+        ctx: LawRows,
+        params: Mapping[str, Callable[[LawRows], Any]],
+        agent: str,
+        state_names: Mapping[str, int],
+        var_names: Mapping[str, int],
+        param_names: Mapping[str, int],
+        inputs: tuple[str, ...],
+        tables: dict[tuple[str | int, ...], np.ndarray | None] | None = None,
+    ) -> None:
         """``params``: the binding's parameters as expressions of ``ctx``, evaluated when
         the law first reads each (a law reads some of them in some modes, and each is
         evaluated at most once per call). ``tables``: where :meth:`table` keeps the
@@ -210,13 +225,17 @@ class LawContext:
         """The parameter columns of ``names`` if every one is an agent parameter that no
         binding parameter or state component hides, else None."""
         p = self._pnames
-        if self._params.keys().isdisjoint(names) and self._xnames.keys().isdisjoint(names) \
-                and p.keys() >= set(names):
+        if (
+            self._params.keys().isdisjoint(names)
+            and self._xnames.keys().isdisjoint(names)
+            and p.keys() >= set(names)
+        ):
             return np.array([p[n] for n in names], np.intp)
         return None
 
-    def estimate(self, message: str, sender: np.ndarray | int | None = None,
-                 extrapolate: bool = False) -> Estimate:
+    def estimate(
+        self, message: str, sender: np.ndarray | int | None = None, extrapolate: bool = False
+    ) -> Estimate:
         """The latest copy of a data stream (``message``) this agent received, per instance:
         from ``sender`` (an agent index, or one per instance), else the most recent sender.
 
@@ -227,8 +246,10 @@ class LawContext:
         """
         view = self._ctx.streams
         if view is None or not view.carries(message):
-            raise KeyError(f"law for agent '{self.agent}' asked for stream '{message}', "
-                           "which no protocol of this team sends")
+            raise KeyError(
+                f"law for agent '{self.agent}' asked for stream '{message}', "
+                "which no protocol of this team sends"
+            )
         who = view.sender(message, None if sender is None else np.asarray(sender))
         fields = view.fields(message, who)
         age = self.t - view.sent(message, who)
@@ -255,8 +276,9 @@ class LawContext:
         """Store the law's memory ``name`` for these instances (read back by :meth:`recall`)."""
         self._ctx.world.keep(name, np.asarray(values, dtype=float))
 
-    def capture(self, name: str, who: np.ndarray, fresh: Mapping[str, np.ndarray],
-                where: np.ndarray) -> dict[str, np.ndarray]:
+    def capture(
+        self, name: str, who: np.ndarray, fresh: Mapping[str, np.ndarray], where: np.ndarray
+    ) -> dict[str, np.ndarray]:
         """Values measured once per reference, kept until the reference changes.
 
         Where ``where`` holds and ``who`` (a teammate's index, say the leader) differs from
@@ -294,8 +316,7 @@ class Estimate:
 
     __slots__ = ("age", "fields", "sender")
 
-    def __init__(self, fields: dict[str, np.ndarray], age: np.ndarray,
-                 sender: np.ndarray) -> None:
+    def __init__(self, fields: dict[str, np.ndarray], age: np.ndarray, sender: np.ndarray) -> None:
         self.fields, self.age, self.sender = fields, age, sender
 
     @property
@@ -359,15 +380,19 @@ def asked_names(fn: LawFunction) -> frozenset[str]:
         tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
     except (OSError, TypeError, SyntaxError):
         return frozenset()
-    func = next((n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.Lambda)),
-                None)
+    func = next((n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.Lambda)), None)
     if func is None or not func.args.args:
         return frozenset()
     ctx = func.args.args[0].arg
     return frozenset(
-        n.slice.value for n in ast.walk(func)
-        if isinstance(n, ast.Subscript) and isinstance(n.value, ast.Name) and n.value.id == ctx
-        and isinstance(n.slice, ast.Constant) and isinstance(n.slice.value, str))
+        n.slice.value
+        for n in ast.walk(func)
+        if isinstance(n, ast.Subscript)
+        and isinstance(n.value, ast.Name)
+        and n.value.id == ctx
+        and isinstance(n.slice, ast.Constant)
+        and isinstance(n.slice.value, str)
+    )
 
 
 @dataclass(frozen=True)
@@ -390,8 +415,9 @@ class LawSpec:
 _REGISTRY: dict[str, LawSpec] = {}
 
 
-def law(name: str, *, plants: tuple[str, ...] | None = None,
-        params: Mapping[str, float] | None = None) -> Callable[[LawFunction], LawFunction]:
+def law(
+    name: str, *, plants: tuple[str, ...] | None = None, params: Mapping[str, float] | None = None
+) -> Callable[[LawFunction], LawFunction]:
     """Register ``fn`` under ``name``. ``params`` are defaults a mode binding may override."""
 
     def deco(fn: LawFunction) -> LawFunction:
@@ -430,17 +456,26 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         except RefusedReference as exc:
             raise LawNotFound(str(exc), []) from None
         except Exception as exc:  # an import error in user code is still a model error
-            raise LawNotFound(f"cannot import module '{module_name}': "
-                              f"{type(exc).__name__}: {exc}", []) from exc
+            raise LawNotFound(
+                f"cannot import module '{module_name}': {type(exc).__name__}: {exc}", []
+            ) from exc
         obj = getattr(module, attr, None)
         if obj is None:
-            raise LawNotFound(f"module '{module_name}' has no function '{attr}'",
-                              [n for n in dir(module) if not n.startswith("_")])
-        spec = obj if isinstance(obj, LawSpec) else \
-            next((s for s in _REGISTRY.values() if s.fn is obj), None)
+            raise LawNotFound(
+                f"module '{module_name}' has no function '{attr}'",
+                [n for n in dir(module) if not n.startswith("_")],
+            )
+        spec = (
+            obj
+            if isinstance(obj, LawSpec)
+            else next((s for s in _REGISTRY.values() if s.fn is obj), None)
+        )
         if spec is None:
-            raise LawNotFound(f"'{reference}' is not a registered law: decorate the function "
-                              "with @law(...) from hybridteam.library", [])
+            raise LawNotFound(
+                f"'{reference}' is not a registered law: decorate the function "
+                "with @law(...) from hybridteam.library",
+                [],
+            )
         return spec
     if reference not in _REGISTRY:
         load_libraries()
@@ -448,10 +483,13 @@ def resolve(reference: str, folder: str | None = None) -> LawSpec:
         note = broken_note()
         prefix, _, function = reference.rpartition(".")
         if prefix and is_beside(folder, prefix.split(".")[0]):  # a user module, unimported
-            note = (f"a law in a module beside the team file is named by module:function, "
-                    f"e.g. '{prefix}:{function}'")
-        raise LawNotFound(f"unknown law '{reference}'" + (f" ({note})" if note else ""),
-                          sorted(_REGISTRY))
+            note = (
+                f"a law in a module beside the team file is named by module:function, "
+                f"e.g. '{prefix}:{function}'"
+            )
+        raise LawNotFound(
+            f"unknown law '{reference}'" + (f" ({note})" if note else ""), sorted(_REGISTRY)
+        )
     return _REGISTRY[reference]
 
 
@@ -464,5 +502,8 @@ def zero(ctx: LawContext) -> np.ndarray:
 @law("constant")
 def constant(ctx: LawContext) -> np.ndarray:
     """Each input held at the binding parameter of the same name (missing ones are zero)."""
-    return np.stack([ctx.get(name, 0.0) for name in ctx.inputs], axis=1) if ctx.inputs else \
-        np.zeros((ctx.size, 0))
+    return (
+        np.stack([ctx.get(name, 0.0) for name in ctx.inputs], axis=1)
+        if ctx.inputs
+        else np.zeros((ctx.size, 0))
+    )

@@ -25,7 +25,8 @@ def run_html(run: Run, rows: int = 20) -> str:
     body = "".join(
         f"<tr><td>{o['instance']}</td><td>{html.escape(o['outcome'])}</td>"
         f"<td>{o['t']:g}</td><td>{html.escape(o['message'])}</td></tr>"
-        for o in run.diagnostics[:rows])
+        for o in run.diagnostics[:rows]
+    )
     more = f"<p>… {run.n - rows} more instances</p>" if run.n > rows else ""
     first = run.instance(0) if run.n > 1 else run
     fig, _ = timeline_figure(first, 0, None, None)
@@ -34,9 +35,11 @@ def run_html(run: Run, rows: int = 20) -> str:
     buf = BytesIO()
     fig.savefig(buf, format="png", dpi=80, bbox_inches="tight")
     image = base64.b64encode(buf.getvalue()).decode("ascii")
-    return (f"<p><b>{html.escape(repr(run))}</b></p><table><thead><tr>{head}</tr></thead>"
-            f"<tbody>{body}</tbody></table>{more}"
-            f'<img alt="timeline" src="data:image/png;base64,{image}"/>')
+    return (
+        f"<p><b>{html.escape(repr(run))}</b></p><table><thead><tr>{head}</tr></thead>"
+        f"<tbody>{body}</tbody></table>{more}"
+        f'<img alt="timeline" src="data:image/png;base64,{image}"/>'
+    )
 
 
 def team_html(team: Team) -> str:

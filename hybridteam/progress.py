@@ -20,9 +20,17 @@ MODES = ("auto", "bar", "log", "none")
 class LogProgress:
     """Progress as lines: ``hybridteam: alpha: 1,500/3,000 runs (50%), 4.2 s, ETA 4.1 s``."""
 
-    def __init__(self, total: float, desc: str, unit: str, initial: float = 0,
-                 file: TextIO | None = None, step: float = 0.1, seconds: float = 30.0,
-                 grace: float = 2.0) -> None:
+    def __init__(
+        self,
+        total: float,
+        desc: str,
+        unit: str,
+        initial: float = 0,
+        file: TextIO | None = None,
+        step: float = 0.1,
+        seconds: float = 30.0,
+        grace: float = 2.0,
+    ) -> None:
         self.total, self.desc, self.unit, self.n = total, desc, unit, initial
         self.file = file if file is not None else sys.stderr
         self.step, self.seconds, self.grace = step, seconds, grace
@@ -34,9 +42,13 @@ class LogProgress:
     def update(self, k: float = 1) -> None:
         self.n += k
         now = time.perf_counter()
-        if self.total and now - self.start >= self.grace and (
-                self.n - self.shown >= self.step * self.total
-                or now - self.shown_at >= self.seconds):
+        if (
+            self.total
+            and now - self.start >= self.grace
+            and (
+                self.n - self.shown >= self.step * self.total or now - self.shown_at >= self.seconds
+            )
+        ):
             self._line(now)
 
     def close(self) -> None:
@@ -50,10 +62,12 @@ class LogProgress:
         left = self.total - self.n
         eta = f", ETA {elapsed / done * left:.1f} s" if done > 0 and left > 0 else ""
         share = 100.0 * self.n / self.total if self.total else 100.0
-        count = f"{share:.0f}% simulated" if self.unit == "%" else \
-            f"{self.n:,.0f}/{self.total:,.0f} {self.unit}s ({share:.0f}%)"
-        print(f"hybridteam: {self.desc}: {count}, {elapsed:.1f} s{eta}", file=self.file,
-              flush=True)
+        count = (
+            f"{share:.0f}% simulated"
+            if self.unit == "%"
+            else f"{self.n:,.0f}/{self.total:,.0f} {self.unit}s ({share:.0f}%)"
+        )
+        print(f"hybridteam: {self.desc}: {count}, {elapsed:.1f} s{eta}", file=self.file, flush=True)
 
 
 def reporter(mode: str, total: float, desc: str, unit: str, initial: float = 0):
@@ -66,5 +80,13 @@ def reporter(mode: str, total: float, desc: str, unit: str, initial: float = 0):
         return LogProgress(total, desc, unit, initial)
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=initial, unit=unit, desc=desc, file=sys.stderr,
-                dynamic_ncols=True, smoothing=0.1, leave=False)
+    return tqdm(
+        total=total,
+        initial=initial,
+        unit=unit,
+        desc=desc,
+        file=sys.stderr,
+        dynamic_ncols=True,
+        smoothing=0.1,
+        leave=False,
+    )

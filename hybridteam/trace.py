@@ -29,8 +29,19 @@ VERSION = 1
 
 TRANSITION_COLUMNS = ("instance", "agent", "t", "step", "source", "target", "cause", "guard")
 INTERVAL_COLUMNS = ("instance", "agent", "mode", "depth", "start", "end")
-MESSAGE_COLUMNS = ("instance", "seq", "sender", "receiver", "socket", "type", "t_send",
-                   "t_recv", "status", "reason", "msg_id")
+MESSAGE_COLUMNS = (
+    "instance",
+    "seq",
+    "sender",
+    "receiver",
+    "socket",
+    "type",
+    "t_send",
+    "t_recv",
+    "status",
+    "reason",
+    "msg_id",
+)
 _INT_COLUMNS = {"instance", "step", "depth", "seq", "msg_id"}
 _FLOAT_COLUMNS = {"t", "start", "end", "t_send", "t_recv"}
 
@@ -107,8 +118,10 @@ class Table:
 
     def to_json_dict(self) -> dict[str, list]:
         # NaN (a lost message's arrival time) is not JSON: null, read back as NaN
-        return {n: _nan_to_none(c.tolist()) if c.dtype == float else c.tolist()
-                for n, c in self.columns.items()}
+        return {
+            n: _nan_to_none(c.tolist()) if c.dtype == float else c.tolist()
+            for n, c in self.columns.items()
+        }
 
     def to_csv(self) -> str:
         out = io.StringIO()
@@ -146,9 +159,16 @@ def _none_to_nan(values: Any) -> Any:
 class Trace:
     """Everything a run recorded, for ``n`` instances of one team."""
 
-    def __init__(self, meta: dict[str, Any], outcomes: list[dict[str, Any]],
-                 transitions: Table, intervals: Table, messages: Table,
-                 sample_times: np.ndarray, samples: dict[str, np.ndarray]) -> None:
+    def __init__(
+        self,
+        meta: dict[str, Any],
+        outcomes: list[dict[str, Any]],
+        transitions: Table,
+        intervals: Table,
+        messages: Table,
+        sample_times: np.ndarray,
+        samples: dict[str, np.ndarray],
+    ) -> None:
         self.meta = meta
         self.outcomes = outcomes
         self.transitions = transitions
@@ -201,14 +221,18 @@ class Trace:
             raise ValueError("not a hybridteam trace (missing format marker)")
         if data.get("version") != VERSION:
             raise ValueError(f"trace version {data.get('version')} is not supported")
-        samples = {a: np.asarray(_none_to_nan(v), dtype=float)
-                   for a, v in data["samples"]["agents"].items()}
+        samples = {
+            a: np.asarray(_none_to_nan(v), dtype=float)
+            for a, v in data["samples"]["agents"].items()
+        }
         return cls(
-            data["meta"], data["outcomes"],
+            data["meta"],
+            data["outcomes"],
             Table(TRANSITION_COLUMNS, data["transitions"]),
             Table(INTERVAL_COLUMNS, data["intervals"]),
             Table(MESSAGE_COLUMNS, data["messages"]),
-            np.asarray(data["samples"]["t"], dtype=float), samples,
+            np.asarray(data["samples"]["t"], dtype=float),
+            samples,
         )
 
     @classmethod
@@ -239,8 +263,11 @@ class Trace:
         """``modes.csv``, ``transitions.csv``, ``messages.csv`` and ``samples.csv``."""
         folder = Path(folder)
         written = []
-        for name, table in (("modes", self.intervals), ("transitions", self.transitions),
-                            ("messages", self.messages)):
+        for name, table in (
+            ("modes", self.intervals),
+            ("transitions", self.transitions),
+            ("messages", self.messages),
+        ):
             written.append(write_atomic(folder / f"{name}.csv", table.to_csv()))
         header, rows = self.samples_table()
         out = io.StringIO()

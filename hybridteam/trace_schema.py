@@ -100,13 +100,15 @@ class _Table(BaseModel):
         if len(set(lengths.values())) > 1:
             first = next(iter(lengths))
             other = next(k for k, v in lengths.items() if v != lengths[first])
-            raise ValueError(f"column '{other}' has {lengths[other]} rows, column '{first}' "
-                             f"{lengths[first]}")
+            raise ValueError(
+                f"column '{other}' has {lengths[other]} rows, column '{first}' {lengths[first]}"
+            )
         return self
 
 
-def _make(name: str, columns: tuple[str, ...], ints: tuple[str, ...],
-          floats: tuple[str, ...]) -> type[_Table]:
+def _make(
+    name: str, columns: tuple[str, ...], ints: tuple[str, ...], floats: tuple[str, ...]
+) -> type[_Table]:
     from pydantic import create_model
 
     return create_model(name, __base__=_Table, **_table(columns, ints, floats))
@@ -114,8 +116,7 @@ def _make(name: str, columns: tuple[str, ...], ints: tuple[str, ...],
 
 Transitions = _make("Transitions", TRANSITION_COLUMNS, ("instance", "step"), ("t",))
 Intervals = _make("Intervals", INTERVAL_COLUMNS, ("instance", "depth"), ("start", "end"))
-Messages = _make("Messages", MESSAGE_COLUMNS, ("instance", "seq", "msg_id"),
-                 ("t_send", "t_recv"))
+Messages = _make("Messages", MESSAGE_COLUMNS, ("instance", "seq", "msg_id"), ("t_send", "t_recv"))
 
 
 class TraceFile(BaseModel):
@@ -150,10 +151,11 @@ class TraceFile(BaseModel):
             d = columns.get(name)
             if d is None:
                 raise ValueError(f"samples.agents.{name}: not an agent or series of the run")
-            if len(rows) != k or any(len(r) != n or any(len(c) != d for c in r)
-                                     for r in rows):
-                raise ValueError(f"samples.agents.{name}: expected {k} x {n} x {d} values "
-                                 "(times x instances x columns)")
+            if len(rows) != k or any(len(r) != n or any(len(c) != d for c in r) for r in rows):
+                raise ValueError(
+                    f"samples.agents.{name}: expected {k} x {n} x {d} values "
+                    "(times x instances x columns)"
+                )
         return self
 
 
@@ -164,9 +166,14 @@ def _lone_surrogate(data: Any, where: str = "") -> str | None:
     column is numbers or strings (the schema checks which) and samples are numbers."""
     if isinstance(data, str):
         lone = LONE_SURROGATE.search(data)
-        return None if lone is None else (
-            f"{where.lstrip('.') or 'the file'}: U+{ord(lone.group()):04X} (a lone surrogate "
-            "escape) is not text")
+        return (
+            None
+            if lone is None
+            else (
+                f"{where.lstrip('.') or 'the file'}: U+{ord(lone.group()):04X} (a lone surrogate "
+                "escape) is not text"
+            )
+        )
     if isinstance(data, dict):
         for key, value in data.items():
             found = _lone_surrogate(key, where) or _lone_surrogate(value, f"{where}.{key}")

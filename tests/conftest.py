@@ -49,8 +49,10 @@ def team_from_yaml(tmp_path):
     return make
 
 
-NO_RCLPY = "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 " \
-           "on Linux x86_64)"
+NO_RCLPY = (
+    "rclpy cannot be imported (pip install 'hybridteam[ros]'; wheels for CPython 3.11 "
+    "on Linux x86_64)"
+)
 
 
 @pytest.fixture

@@ -21,12 +21,19 @@ apiref = importlib.import_module("apiref")  # the reference's extension, beside 
 def test_importing_the_cli_main_module_runs_nothing():
     """The reference's generator imports every module; ``python -m hybridteam.cli`` still
     runs the command."""
-    imported = subprocess.run([sys.executable, "-c", "import hybridteam.cli.__main__"],
-                              cwd=ROOT, capture_output=True, text=True)
+    imported = subprocess.run(
+        [sys.executable, "-c", "import hybridteam.cli.__main__"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert (imported.returncode, imported.stdout, imported.stderr) == (0, "", "")
-    run = subprocess.run([sys.executable, "-m", "hybridteam.cli", "validate",
-                          "examples/automata/thermostat.yaml"], cwd=ROOT, capture_output=True,
-                         text=True)
+    run = subprocess.run(
+        [sys.executable, "-m", "hybridteam.cli", "validate", "examples/automata/thermostat.yaml"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert run.returncode == 0 and "ok (team)" in run.stdout
 
 
@@ -61,5 +68,10 @@ def test_a_package_names_its_own_modules_relative_to_itself():
     """Inside the root package's page autosummary wants ``api.Run``, not the full name;
     ``__version__`` (a string) is no object to link."""
     assert apiref.Reexports()("hybridteam") == [
-        "api.Run", "model.team.Team", "api.check", "api.conformance", "api.load",
-        "api.simulate"]
+        "api.Run",
+        "model.team.Team",
+        "api.check",
+        "api.conformance",
+        "api.load",
+        "api.simulate",
+    ]

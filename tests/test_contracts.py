@@ -90,11 +90,24 @@ def test_a_law_context_reads_the_engine_through_the_domain_names_of_law_rows():
     """Anything with LawRows' domain-named members drives a LawContext: state,
     parameters and variables by column name, time, the time in mode, stream estimates,
     sensing and memory all come from the member of that name."""
-    rows = Rows(state=np.array([[1.0, 2.0], [3.0, 4.0]]), parameters=np.array([[10.0], [11.0]]),
-                variables=np.array([[0.0], [1.0]]), time=np.array([3.0, 4.0]),
-                time_in_mode=np.array([0.5, 1.5]), streams=Inbox(), world=Memory())
-    ctx = LawContext(rows, {"gain": lambda r: 2.0 * r.parameters[:, 0]}, "r",
-                     {"x": 0, "y": 1}, {"busy": 0}, {"k": 0}, ("v",))
+    rows = Rows(
+        state=np.array([[1.0, 2.0], [3.0, 4.0]]),
+        parameters=np.array([[10.0], [11.0]]),
+        variables=np.array([[0.0], [1.0]]),
+        time=np.array([3.0, 4.0]),
+        time_in_mode=np.array([0.5, 1.5]),
+        streams=Inbox(),
+        world=Memory(),
+    )
+    ctx = LawContext(
+        rows,
+        {"gain": lambda r: 2.0 * r.parameters[:, 0]},
+        "r",
+        {"x": 0, "y": 1},
+        {"busy": 0},
+        {"k": 0},
+        ("v",),
+    )
     assert ctx.size == 2
     assert ctx["y"].tolist() == [2.0, 4.0]
     assert ctx["k"].tolist() == [10.0, 11.0]
@@ -137,8 +150,7 @@ def test_world_access_is_an_abstract_base_class():
     members = {name for name, _ in inspect.getmembers(WorldAccess) if not name.startswith("_")}
     assert WorldAccess.__abstractmethods__ == members
 
-    body = {name: (lambda self, *args: None)
-            for name in WorldAccess.__abstractmethods__ - {"pose"}}
+    body = {name: (lambda self, *args: None) for name in WorldAccess.__abstractmethods__ - {"pose"}}
     no_pose = type("NoPose", (WorldAccess,), body)
     with pytest.raises(TypeError, match="pose"):
         no_pose()
@@ -185,8 +197,8 @@ def test_the_scene_of_experiment3_is_what_its_yaml_declares(tmp_path):
     expected = SceneDescription(
         obstacles=(CircleObstacle(-4.6, -0.2, 0.15),),
         payloads={"box": BoxShape(width=0.8, depth=0.5)},
-        footprints={"xr4000": Footprint(0.33), "labmate": Footprint(0.35),
-                    "scout": Footprint(0.2)})
+        footprints={"xr4000": Footprint(0.33), "labmate": Footprint(0.35), "scout": Footprint(0.2)},
+    )
     assert SceneDescription.from_meta(run.meta) == expected
     run.to_json(tmp_path / "trace.json")
     assert scene_of(Trace.load(tmp_path / "trace.json")) == expected
@@ -206,8 +218,12 @@ def test_the_trajectory_plot_draws_the_described_obstacle():
     assert disk.center == pytest.approx((-4.6, -0.2)) and disk.radius == pytest.approx(0.15)
     (box,) = [c for ax in fig.axes for c in ax.collections if c.get_gid() == "payload:box"]
     corners = box.get_paths()[0].vertices[:4]  # the first outline: pose (0.85, 0, 0)
-    assert sorted(map(tuple, corners.round(9).tolist())) == \
-        [(0.45, -0.25), (0.45, 0.25), (1.25, -0.25), (1.25, 0.25)]
+    assert sorted(map(tuple, corners.round(9).tolist())) == [
+        (0.45, -0.25),
+        (0.45, 0.25),
+        (1.25, -0.25),
+        (1.25, 0.25),
+    ]
 
 
 def test_a_scene_description_keeps_the_trace_keys_and_reads_back():
@@ -216,29 +232,38 @@ def test_a_scene_description_keeps_the_trace_keys_and_reads_back():
     scene = SceneDescription(
         walls=((0.0, 0.0, 1.0, 0.0),),
         regions=(Region(((0.0, 0.0), (1.0, 0.0), (1.0, 1.0)), "corner"),),
-        obstacles=(WallObstacle((2.0, -1.0), (2.0, 1.0)), CircleObstacle(3.0, 0.5, 0.1),
-                   PolygonObstacle(((4.0, 0.0), (5.0, 0.0), (5.0, 1.0), (4.0, 1.0)))),
+        obstacles=(
+            WallObstacle((2.0, -1.0), (2.0, 1.0)),
+            CircleObstacle(3.0, 0.5, 0.1),
+            PolygonObstacle(((4.0, 0.0), (5.0, 0.0), (5.0, 1.0), (4.0, 1.0))),
+        ),
         units="units",
         paths=(GuidePath(0, "a", ((0.0, 0.0), (1.0, 1.0))),),
         collisions=(CollisionMark(1, "a", 2.5, 0.25, 0.75),),
         payloads={"beam": BarShape(2.0), "ladder": BarShape(3.0, 6.0)},
-        footprints={"a": Footprint(0.3)})
+        footprints={"a": Footprint(0.3)},
+    )
     meta = scene.to_meta()
     assert meta == {
         "world": {
             "walls": [[0.0, 0.0, 1.0, 0.0]],
             "regions": [{"points": [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], "label": "corner"}],
-            "obstacles": [{"kind": "wall", "points": [[2.0, -1.0], [2.0, 1.0]]},
-                          {"kind": "circle", "x": 3.0, "y": 0.5, "r": 0.1},
-                          {"kind": "box",
-                           "points": [[4.0, 0.0], [5.0, 0.0], [5.0, 1.0], [4.0, 1.0]]}],
+            "obstacles": [
+                {"kind": "wall", "points": [[2.0, -1.0], [2.0, 1.0]]},
+                {"kind": "circle", "x": 3.0, "y": 0.5, "r": 0.1},
+                {"kind": "box", "points": [[4.0, 0.0], [5.0, 0.0], [5.0, 1.0], [4.0, 1.0]]},
+            ],
             "units": "units",
             "paths": [{"instance": 0, "agent": "a", "points": [[0.0, 0.0], [1.0, 1.0]]}],
-            "collisions": [{"instance": 1, "who": "a", "t": 2.5, "x": 0.25, "y": 0.75}]},
+            "collisions": [{"instance": 1, "who": "a", "t": 2.5, "x": 0.25, "y": 0.75}],
+        },
         "payloads": ["beam", "ladder"],
-        "payload_shapes": {"beam": {"kind": "bar", "length": 2.0},
-                           "ladder": {"kind": "bar", "length": 3.0, "width": 6.0}},
-        "footprints": {"a": {"radius": 0.3}}}
+        "payload_shapes": {
+            "beam": {"kind": "bar", "length": 2.0},
+            "ladder": {"kind": "bar", "length": 3.0, "width": 6.0},
+        },
+        "footprints": {"a": {"radius": 0.3}},
+    }
     assert SceneDescription.from_meta(json.loads(json.dumps(meta))) == scene
     assert SceneDescription().to_meta() == {}  # a component that draws nothing adds nothing
     # a guide path or mark without an instance is drawn in every instance

@@ -27,7 +27,7 @@ def recipes() -> dict[str, tuple[dict[str, str], list[str]]]:
         for _lang, body in BLOCK.findall(section):
             first, _, rest = body.partition("\n")
             if first.startswith("# file: "):
-                files[first[len("# file: "):].strip()] = rest
+                files[first[len("# file: ") :].strip()] = rest
             elif first.strip() == "# run this":
                 commands += [c for c in rest.splitlines() if c.strip()]
         if commands:

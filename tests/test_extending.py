@@ -27,12 +27,25 @@ def site(tmp_path_factory) -> Path:
     """The example library installed (pip, from a copy: no build files in the repo)."""
     root = tmp_path_factory.mktemp("extending")
     source = root / "src"
-    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns(
-        "__pycache__", "build", "*.egg-info", "out"))
+    shutil.copytree(
+        EXAMPLE, source, ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info", "out")
+    )
     target = root / "site"
-    proc = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-                           "--target", str(target), str(source)],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--target",
+            str(target),
+            str(source),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 0, proc.stderr
     assert (target / "hybridteam_docking" / "station.py").is_file()
     return target
@@ -46,17 +59,33 @@ def run(site: Path, *args: str, cwd: Path | None = None) -> subprocess.Completed
 def test_the_library_imports_only_the_public_api():
     for path in (EXAMPLE / "hybridteam_docking").glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
-            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                [node.module] if isinstance(node, ast.ImportFrom) and not node.level else []
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module]
+                if isinstance(node, ast.ImportFrom) and not node.level
+                else []
+            )
             for name in names:
-                assert not name or not name.startswith("hybridteam") or \
-                    name == "hybridteam.library", (path.name, name)
+                assert (
+                    not name or not name.startswith("hybridteam") or name == "hybridteam.library"
+                ), (path.name, name)
 
 
 def test_a_team_runs_on_the_installed_library(site, tmp_path):
     out = tmp_path / "out"
-    proc = run(site, sys.executable, "-m", "hybridteam.cli", "run", str(EXAMPLE / "team.yaml"),
-               "-o", str(out), "--quiet", "--no-views")
+    proc = run(
+        site,
+        sys.executable,
+        "-m",
+        "hybridteam.cli",
+        "run",
+        str(EXAMPLE / "team.yaml"),
+        "-o",
+        str(out),
+        "--quiet",
+        "--no-views",
+    )
     assert proc.returncode == 0, proc.stderr
     (row,) = json.loads((out / "summary.json").read_text())["instances"]
     assert row["outcome"] == "success"
@@ -70,8 +99,7 @@ def test_a_team_runs_on_the_installed_library(site, tmp_path):
     geometric = math.ceil(math.log(radius / d) / math.log(1 - gain * period))
     assert saturated + geometric == 69
     assert row["dock_time"][1] == pytest.approx((saturated + geometric) * period, abs=1e-12)
-    assert row["closest"][1] == pytest.approx(d * (1 - gain * period) ** geometric,
-                                              rel=1e-9)
+    assert row["closest"][1] == pytest.approx(d * (1 - gain * period) ** geometric, rel=1e-9)
     assert row["t_end"] == max(row["dock_time"])
 
 
@@ -108,8 +136,11 @@ def test_engine_and_batch_path_agree_instance_by_instance(site, tmp_path):
     for e, b in zip(engine, batch, strict=True):
         assert set(e) == set(b)
         assert e["t_end"] == pytest.approx(b["t_end"], abs=1e-12)
-        assert e["dock_time"] == pytest.approx(b["dock_time"], abs=1e-12) \
-            if None not in e["dock_time"] else e["dock_time"] == b["dock_time"]
+        assert (
+            e["dock_time"] == pytest.approx(b["dock_time"], abs=1e-12)
+            if None not in e["dock_time"]
+            else e["dock_time"] == b["dock_time"]
+        )
         assert e["closest"] == pytest.approx(b["closest"], rel=1e-12)
 
 
@@ -120,10 +151,12 @@ def test_the_fast_path_declines_a_team_it_does_not_compute(site, tmp_path):
     assert text != original
     path = tmp_path / "timed.yaml"
     path.write_text(text)
-    script = ("import sys, hybridteam as ht\n"
-              "from hybridteam.engine.run.batch import batch_rows\n"
-              "from hybridteam.engine.compile.compiler import compile_team\n"
-              "print(batch_rows(compile_team(ht.load(sys.argv[1])), 2, {}, 0))\n")
+    script = (
+        "import sys, hybridteam as ht\n"
+        "from hybridteam.engine.run.batch import batch_rows\n"
+        "from hybridteam.engine.compile.compiler import compile_team\n"
+        "print(batch_rows(compile_team(ht.load(sys.argv[1])), 2, {}, 0))\n"
+    )
     proc = run(site, sys.executable, "-c", script, str(path))
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "None"

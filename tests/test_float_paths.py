@@ -26,15 +26,21 @@ def test_off_is_a_block_and_restores_the_setting_after_an_error():
     assert FLOAT_PATHS.on
 
 
-@pytest.mark.parametrize(("value", "on"), [(None, True), ("off", False), (" OFF ", False),
-                                           ("0", False), ("on", True), ("1", True)])
+@pytest.mark.parametrize(
+    ("value", "on"),
+    [(None, True), ("off", False), (" OFF ", False), ("0", False), ("on", True), ("1", True)],
+)
 def test_the_environment_sets_the_process_switch(value, on):
     env = {k: v for k, v in os.environ.items() if k != ENV}
     if value is not None:
         env[ENV] = value
-    out = subprocess.run([sys.executable, "-c", "from hybridteam.library import FLOAT_PATHS;"
-                          "print(FLOAT_PATHS.on)"], env=env, capture_output=True, text=True,
-                         check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", "from hybridteam.library import FLOAT_PATHS;print(FLOAT_PATHS.on)"],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert out.stdout.strip() == str(on)
 
 
@@ -48,8 +54,9 @@ def _kernel(ops, a, b, c):
 
 
 _kernel_on_floats = float_form(_kernel)
-doubles = st.sampled_from([0.0, -0.0, 1.0, -1.0, 2.5, 1e-310, 1e308, -1e308, math.inf,
-                           -math.inf, math.nan])
+doubles = st.sampled_from(
+    [0.0, -0.0, 1.0, -1.0, 2.5, 1e-310, 1e308, -1e308, math.inf, -math.inf, math.nan]
+)
 
 
 @settings(max_examples=400, deadline=None)
@@ -68,13 +75,15 @@ def test_a_float_form_gives_the_array_versions_bits(a, b, c):
 def test_the_ties_are_numpys():
     """np.minimum/np.maximum give their second argument on ties of signed zeros (Python's
     min/max their first) and NaN from either side: written out, so do the float forms."""
+
     def pair(ops, a, b):
         return ops.minimum(a, b), ops.maximum(a, b)
 
     on_floats = float_form(pair)
     for a, b in [(0.0, -0.0), (-0.0, 0.0), (math.nan, 1.0), (1.0, math.nan)]:
-        assert struct.pack("2d", *on_floats(a, b)) == \
-            struct.pack("2d", np.minimum(a, b), np.maximum(a, b))
+        assert struct.pack("2d", *on_floats(a, b)) == struct.pack(
+            "2d", np.minimum(a, b), np.maximum(a, b)
+        )
     assert struct.pack("d", min(0.0, -0.0)) != struct.pack("d", np.minimum(0.0, -0.0))
 
 
@@ -89,6 +98,7 @@ def test_an_operation_without_a_float_form_is_refused_at_import():
 def test_ops_may_be_a_defaulted_or_keyword_parameter():
     """Array callers keep their signature when ``ops`` defaults to numpy (the ladder's
     law); the float form has no such parameter, wherever it was."""
+
     def hyp(x, y, scale=2.0, ops=np):
         return scale * ops.sqrt(x * x + y * y)
 

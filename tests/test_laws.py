@@ -27,19 +27,28 @@ def test_unicycle_arc_is_exact_for_any_step():
     h = np.array([1.7, 2.0, 3.0])
     got = p.propagate(x0, u, h)
     th = 0.3 + 0.5 * 1.7
-    np.testing.assert_allclose(got[0], [1 + 4 * (math.sin(th) - math.sin(0.3)),
-                                        2 - 4 * (math.cos(th) - math.cos(0.3)), th], atol=1e-14)
+    np.testing.assert_allclose(
+        got[0],
+        [1 + 4 * (math.sin(th) - math.sin(0.3)), 2 - 4 * (math.cos(th) - math.cos(0.3)), th],
+        atol=1e-14,
+    )
     np.testing.assert_allclose(got[1], [2.0, 0.0, 0.0], atol=0)
-    np.testing.assert_allclose(got[2], [3 * math.cos(1.0), 3 * math.sin(1.0), 1.0 + 3e-12],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        got[2], [3 * math.cos(1.0), 3 * math.sin(1.0), 1.0 + 3e-12], atol=1e-12
+    )
     # two half steps equal one full step (the flow property of an exact solution)
     half = p.propagate(p.propagate(x0, u, h / 2), u, h / 2)
     np.testing.assert_allclose(half, got, atol=1e-13)
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64),
-                         min_size=6, max_size=6), min_size=1, max_size=FEW_ARCS))
+@given(
+    st.lists(
+        st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=6, max_size=6),
+        min_size=1,
+        max_size=FEW_ARCS,
+    )
+)
 def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
     """A few rows (a single run's step) are moved on Python floats; with enough copies
     they take the array path. Both must give the same bits, also for zero turn rates,
@@ -50,11 +59,13 @@ def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
     pad = FEW_ARCS + 1  # enough extra rows for the array path
     with np.errstate(all="ignore"):
         few = p.propagate(x, u, h)
-        many = p.propagate(np.vstack([x, np.repeat(x[:1], pad, axis=0)]),
-                           np.vstack([u, np.repeat(u[:1], pad, axis=0)]),
-                           np.concatenate([h, np.repeat(h[:1], pad)]))
+        many = p.propagate(
+            np.vstack([x, np.repeat(x[:1], pad, axis=0)]),
+            np.vstack([u, np.repeat(u[:1], pad, axis=0)]),
+            np.concatenate([h, np.repeat(h[:1], pad)]),
+        )
     assert few.shape == x.shape
-    assert few.tobytes() == many[:len(rows)].tobytes()
+    assert few.tobytes() == many[: len(rows)].tobytes()
     # one step for every row (a number, as callers may pass it) moves them alike
     with np.errstate(all="ignore"):
         one_h = p.propagate(x, u, float(h[0]))
@@ -63,8 +74,9 @@ def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
 
 
 def test_holonomic_moves_in_world_frame():
-    got = Holonomic().propagate(np.array([[1.0, 1.0, 0.5]]), np.array([[0.2, -0.1, 0.3]]),
-                                np.array([2.0]))
+    got = Holonomic().propagate(
+        np.array([[1.0, 1.0, 0.5]]), np.array([[0.2, -0.1, 0.3]]), np.array([2.0])
+    )
     np.testing.assert_allclose(got, [[1.4, 0.8, 1.1]], atol=1e-15)
 
 
@@ -95,18 +107,19 @@ def userlaws(tmp_path):
 
 
 def test_user_law_by_module_function_reference(team_from_yaml, userlaws):
-    team = make(team_from_yaml, "law: {use: 'userlaws:circle', period: 0.1, "
-                                "with: {v: 2.0, w: 0.5}}")
+    team = make(
+        team_from_yaml, "law: {use: 'userlaws:circle', period: 0.1, with: {v: 2.0, w: 0.5}}"
+    )
     run = ht.simulate(team)
     final = run.samples["r"][-1, 0]
     th = 0.5 * 4.0
-    np.testing.assert_allclose(final, [4 * math.sin(th), 4 * (1 - math.cos(th)), th],
-                               atol=1e-12)
+    np.testing.assert_allclose(final, [4 * math.sin(th), 4 * (1 - math.cos(th)), th], atol=1e-12)
 
 
 def test_continuous_law_is_integrated_accurately(team_from_yaml, userlaws):
-    team = make(team_from_yaml, "law: {use: 'userlaws:heading_decay'}",
-                state="{x: 0, y: 0, theta: 1.0}")
+    team = make(
+        team_from_yaml, "law: {use: 'userlaws:heading_decay'}", state="{x: 0, y: 0, theta: 1.0}"
+    )
     run = ht.simulate(team)
     theta = run.samples["r"][:, 0, 2]
     np.testing.assert_allclose(theta, np.exp(-0.5 * run.sample_times), rtol=1e-9)
@@ -136,21 +149,38 @@ def test_sampled_inputs_read_the_time_in_their_mode_at_each_tick(team_from_yaml)
         """)
     run = ht.simulate(team)
     assert run.samples["rover"][:, 0, 0].tolist() == [
-        0.0, 0.0, 0.125, 0.375, 0.75, 1.25, 1.75, 1.75, 1.875, 2.125, 2.5]
+        0.0,
+        0.0,
+        0.125,
+        0.375,
+        0.75,
+        1.25,
+        1.75,
+        1.75,
+        1.875,
+        2.125,
+        2.5,
+    ]
 
 
 def test_holonomic_inputs_and_limits_saturate(team_from_yaml):
-    team = make(team_from_yaml, "inputs: {vx: 3.0, vy: -0.5, omega: 0.1}\n        period: 0.5",
-                kind="holonomic", limits="{vx: [-1, 1], vy: [-1, 1]}")
+    team = make(
+        team_from_yaml,
+        "inputs: {vx: 3.0, vy: -0.5, omega: 0.1}\n        period: 0.5",
+        kind="holonomic",
+        limits="{vx: [-1, 1], vy: [-1, 1]}",
+    )
     run = ht.simulate(team)
     np.testing.assert_allclose(run.samples["r"][-1, 0], [4.0, -2.0, 0.4], atol=1e-12)
 
 
 def test_law_with_wrong_output_shape_names_the_law(team_from_yaml, userlaws):
-    team = make(team_from_yaml, "law: {use: 'userlaws:wrong_shape', "
-                                "period: 0.1}")
-    with pytest.raises(ModelError, match=r"law 'userlaws\.wrong_shape' of agent 'r' returned "
-                       r"shape \(1,\), expected \(1, 2\)"):
+    team = make(team_from_yaml, "law: {use: 'userlaws:wrong_shape', period: 0.1}")
+    with pytest.raises(
+        ModelError,
+        match=r"law 'userlaws\.wrong_shape' of agent 'r' returned "
+        r"shape \(1,\), expected \(1, 2\)",
+    ):
         ht.simulate(team)
 
 
@@ -208,14 +238,20 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
     assert str(exc.value) == (
         "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
         "(conveyors.laws: ModuleNotFoundError: No module named "
-        "'conveyors_missing_dependency'))")
-    text = ("team: t\nagents:\n  a:\n    plant: {kind: unicycle, state: {x: 0, y: 0, "
-            "theta: 0}}\n    modes: {M: {}}\nworld:\n  - {use: conveyor.belt}\n")
+        "'conveyors_missing_dependency'))"
+    )
+    text = (
+        "team: t\nagents:\n  a:\n    plant: {kind: unicycle, state: {x: 0, y: 0, "
+        "theta: 0}}\n    modes: {M: {}}\nworld:\n  - {use: conveyor.belt}\n"
+    )
     path = tmp_path / "t.yaml"
     path.write_text(text)
-    with pytest.raises(InputErrors, match=r"t.yaml:7:11: world\[0\].use: unknown world component "
-                       r"'conveyor.belt' \(mode library 'conveyors' failed to import "
-                       r"\(conveyors.laws: ModuleNotFoundError"):
+    with pytest.raises(
+        InputErrors,
+        match=r"t.yaml:7:11: world\[0\].use: unknown world component "
+        r"'conveyor.belt' \(mode library 'conveyors' failed to import "
+        r"\(conveyors.laws: ModuleNotFoundError",
+    ):
         ht.load(path)
 
 
@@ -226,12 +262,20 @@ def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, t
         "import numpy as np\nfrom hybridteam.library import law\n\n"
         "@law('tests.reader', params={'gain': 1.0})\n"
         "def reader(ctx):\n"
-        "    return np.column_stack([ctx['gain'] * ctx['k_along'], ctx.get('w', 0.0)])\n")
-    with pytest.raises(InputErrors, match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: law "
-                       r"'tests.reader' reads ctx\['k_along'\], which is no binding parameter"):
+        "    return np.column_stack([ctx['gain'] * ctx['k_along'], ctx.get('w', 0.0)])\n"
+    )
+    with pytest.raises(
+        InputErrors,
+        match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: law "
+        r"'tests.reader' reads ctx\['k_along'\], which is no binding parameter",
+    ):
         make(team_from_yaml, "law: {use: 'reader:reader', period: 0.1}")
-    text = UNICYCLE.format(kind="unicycle", state="{x: 0, y: 0, theta: 0}", limits="{}",
-                           body="law: {use: 'reader:reader', period: 0.1}")
+    text = UNICYCLE.format(
+        kind="unicycle",
+        state="{x: 0, y: 0, theta: 0}",
+        limits="{}",
+        body="law: {use: 'reader:reader', period: 0.1}",
+    )
     team = team_from_yaml(text.replace("{k: 0.5}", "{k: 0.5, k_along: 0.5}"))
     assert ht.simulate(team).samples["r"][-1, 0, 0] == pytest.approx(2.0)  # 0.5 m/s for 4 s
 
@@ -245,10 +289,14 @@ def test_a_law_default_named_as_a_state_is_refused_at_the_binding(team_from_yaml
         "import numpy as np\nfrom hybridteam.library import law\n\n"
         "@law('tests.steer', params={'theta': 0.0})\n"
         "def steer(ctx):\n"
-        "    return np.column_stack([np.ones(ctx.size), -ctx['theta']])\n")
-    with pytest.raises(InputErrors, match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: "
-                       r"binding parameter 'theta' of law 'tests.steer' has the name of a "
-                       r"state of this agent.*cannot be bound to this plant"):
+        "    return np.column_stack([np.ones(ctx.size), -ctx['theta']])\n"
+    )
+    with pytest.raises(
+        InputErrors,
+        match=r"team.yaml:12:\d+: agents.r.modes.Go.law.use: "
+        r"binding parameter 'theta' of law 'tests.steer' has the name of a "
+        r"state of this agent.*cannot be bound to this plant",
+    ):
         make(team_from_yaml, "law: {use: 'steer:steer', period: 0.1}")
 
 
@@ -256,11 +304,14 @@ def test_a_registered_name_of_a_module_beside_the_team_gets_a_hint(team_from_yam
     """The module beside the team is not imported for a registry name (only installed
     libraries are), so the name is unknown: the message says how to name it."""
     (tmp_path / "beside.py").write_text(
-        "from hybridteam.library import law\n\n@law('beside.drive')\n"
-        "def drive(ctx):\n    pass\n")
-    with pytest.raises(InputErrors, match=r"unknown law 'beside.drive' \(a law in a module "
-                       r"beside the team file is named by module:function, e.g. "
-                       r"'beside:drive'\)"):
+        "from hybridteam.library import law\n\n@law('beside.drive')\ndef drive(ctx):\n    pass\n"
+    )
+    with pytest.raises(
+        InputErrors,
+        match=r"unknown law 'beside.drive' \(a law in a module "
+        r"beside the team file is named by module:function, e.g. "
+        r"'beside:drive'\)",
+    ):
         make(team_from_yaml, "law: {use: beside.drive, period: 0.1}")
 
 
@@ -281,21 +332,26 @@ def test_the_laws_command_shows_whole_sentences(capsys):
     assert main(["laws", "transport.match"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == "transport.match  (unicycle)"
-    described = " ".join(line.strip() for line in lines[1:] if not line.startswith(
-        ("    with:", "    reads from")))
-    assert described == ("The Scout's Follow: the paper's u = (v̂_l, ω̂_l) with ``k_form`` = "
-                         "0; by default it also closes the loop on its place in the team.")
+    described = " ".join(
+        line.strip() for line in lines[1:] if not line.startswith(("    with:", "    reads from"))
+    )
+    assert described == (
+        "The Scout's Follow: the paper's u = (v̂_l, ω̂_l) with ``k_form`` = "
+        "0; by default it also closes the loop on its place in the team."
+    )
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.floats(min_value=0.0, max_value=1e9), min_size=1, max_size=4),
-       st.floats(min_value=1e-6, max_value=10.0))
+@given(
+    st.lists(st.floats(min_value=0.0, max_value=1e9), min_size=1, max_size=4),
+    st.floats(min_value=1e-6, max_value=10.0),
+)
 def test_a_few_next_ticks_on_floats_have_the_array_versions_bits(times, period):
     """A single run's next law tick is computed on Python floats, an ensemble's on arrays:
     the same bits, each tick strictly after its time and at most one period later."""
     t = np.array(times)
     few = next_ticks(t, period)
-    many = next_ticks(np.concatenate([t, np.zeros(5)]), period)[:t.size]
+    many = next_ticks(np.concatenate([t, np.zeros(5)]), period)[: t.size]
     assert few.tobytes() == many.tobytes()
     assert np.all(few > t)
     assert np.all(few - t <= period * (1 + 1e-9) + 1e-9 * t)
@@ -308,7 +364,10 @@ def test_next_ticks_on_exact_multiples_and_round_off():
     # 3 * 0.1 = 0.30000000000000004; 0.3 / 0.1 = 2.9999999999999996 floors to 2, so 0.3,
     # just before tick 3, also moves to it
     assert next_ticks(np.array([0.0, 0.2, 0.3]), 0.1).tolist() == [
-        0.1, 0.30000000000000004, 0.30000000000000004]
+        0.1,
+        0.30000000000000004,
+        0.30000000000000004,
+    ]
 
 
 def test_a_table_of_names_is_their_columns_with_item_precedence():
@@ -316,6 +375,7 @@ def test_a_table_of_names_is_their_columns_with_item_precedence():
     all are agent parameters, else name by name with the same precedence (a binding
     parameter hides an agent parameter of its name, state comes before parameters)."""
     from hybridteam.engine.compile.compiled import Ctx
+
     x = np.array([[1.0, 2.0], [3.0, 4.0]])
     p = np.array([[10.0, 20.0, 30.0], [11.0, 21.0, 31.0]])
     v = np.array([[7.0], [8.0]])
@@ -323,8 +383,16 @@ def test_a_table_of_names_is_their_columns_with_item_precedence():
     tables: dict = {}
 
     def law_ctx(binding):
-        return laws.LawContext(ctx, binding, "r", {"x": 0, "y": 1}, {"mode_v": 0},
-                               {"a": 0, "b": 1, "x": 2}, ("v",), tables)
+        return laws.LawContext(
+            ctx,
+            binding,
+            "r",
+            {"x": 0, "y": 1},
+            {"mode_v": 0},
+            {"a": 0, "b": 1, "x": 2},
+            ("v",),
+            tables,
+        )
 
     got = law_ctx({}).table(("b", "a"))
     assert got.tolist() == [[20.0, 10.0], [21.0, 11.0]]
@@ -354,8 +422,9 @@ def test_a_constant_binding_parameter_is_evaluated_once_per_size():
     for rows in ([[1.0]], [[2.0]], [[3.0], [4.0]]):
         p = np.array(rows)
         ctx = Ctx(np.zeros((len(rows), 2)), np.zeros((len(rows), 0)), p, np.zeros(len(rows)))
-        law_ctx = laws.LawContext(ctx, {"window": const, "shift": varying}, "r", {}, {},
-                                  {"a": 0}, (), tables)
+        law_ctx = laws.LawContext(
+            ctx, {"window": const, "shift": varying}, "r", {}, {}, {"a": 0}, (), tables
+        )
         assert law_ctx["window"].tolist() == [16.0] * len(rows)
         assert not law_ctx["window"].flags.writeable
         assert law_ctx["shift"].tolist() == [r[0] + 1 for r in rows]

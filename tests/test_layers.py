@@ -38,7 +38,8 @@ def _dotted(path: Path, root: Path, package: str) -> str:
 def _type_checking(node: ast.If) -> bool:
     test = node.test
     return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
 
 
 def imports_of(path: Path, module: str, is_package: bool) -> list[Import]:
@@ -68,8 +69,11 @@ def imports_of(path: Path, module: str, is_package: bool) -> list[Import]:
                 target = node.module or ""
             # ``from pkg import sub`` may import a submodule: count pkg.sub as well
             found.append(Import(module, target, node.lineno, type_only))
-            found.extend(Import(module, f"{target}.{a.name}", node.lineno, type_only)
-                         for a in node.names if a.name != "*")
+            found.extend(
+                Import(module, f"{target}.{a.name}", node.lineno, type_only)
+                for a in node.names
+                if a.name != "*"
+            )
         else:
             visit(node, type_only)
 
@@ -90,11 +94,24 @@ def _under(name: str, *prefixes: str) -> bool:
     return any(name == p or name.startswith(p + ".") for p in prefixes)
 
 
-LOWEST = ("hybridteam.errors", "hybridteam.model", "hybridteam.expr", "hybridteam.dynamics",
-          "hybridteam.trace", "hybridteam.arrays")
-ABOVE_ENGINE = ("hybridteam.io", "hybridteam.export", "hybridteam.cli", "hybridteam.sweep",
-                "hybridteam.api", "hybridteam.kinds", "hybridteam.live",
-                "hybridteam.logs")
+LOWEST = (
+    "hybridteam.errors",
+    "hybridteam.model",
+    "hybridteam.expr",
+    "hybridteam.dynamics",
+    "hybridteam.trace",
+    "hybridteam.arrays",
+)
+ABOVE_ENGINE = (
+    "hybridteam.io",
+    "hybridteam.export",
+    "hybridteam.cli",
+    "hybridteam.sweep",
+    "hybridteam.api",
+    "hybridteam.kinds",
+    "hybridteam.live",
+    "hybridteam.logs",
+)
 #: The one call the lowest layers make upwards: a team's ``_repr_html_`` draws its state
 #: diagram through hybridteam.notebook when Jupyter asks for it (imported inside the method,
 #: so never at import: tests/test_lazy_package.py checks that loading the model does not
@@ -124,9 +141,12 @@ def private_attributes(folder: Path, package: str) -> list[str]:
     for path in sorted(folder.rglob("*.py")):
         module = _dotted(path, folder, package)
         for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-            if isinstance(node, ast.Attribute) and _private(node.attr) and \
-                    node.attr not in NAMEDTUPLE_API and not (
-                    isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
+            if (
+                isinstance(node, ast.Attribute)
+                and _private(node.attr)
+                and node.attr not in NAMEDTUPLE_API
+                and not (isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"))
+            ):
                 found.append(f"{module}:{node.lineno} reads .{node.attr}")
     return found
 
@@ -136,20 +156,25 @@ def _in_internal_api(target: str) -> bool:
     a module listed in ``INTERNAL_API``, or a name that module lists."""
     rest = target.removeprefix("hybridteam.engine").removeprefix(".")
     module, _, name = rest.rpartition(".")
-    return rest in ("", "compile", "run") or rest in INTERNAL_API or \
-        name in INTERNAL_API.get(module, ())
+    return (
+        rest in ("", "compile", "run")
+        or rest in INTERNAL_API
+        or name in INTERNAL_API.get(module, ())
+    )
 
 
 def violations(imports: list[Import]) -> list[str]:
     """Every broken rule, as ``module:line imports target (rule)``."""
     bad: dict[tuple[str, int, str], str] = {}  # one report per statement and rule
     # the crossing search's own modules (each imports something, so each is an importer)
-    inside_crossing = {imp.module for imp in imports
-                       if _under(imp.module, CROSSING) and imp.module != CROSSING}
+    inside_crossing = {
+        imp.module for imp in imports if _under(imp.module, CROSSING) and imp.module != CROSSING
+    }
 
     def report(imp: Import, rule: str) -> None:
-        bad.setdefault((imp.module, imp.line, rule),
-                       f"{imp.module}:{imp.line} imports {imp.target} ({rule})")
+        bad.setdefault(
+            (imp.module, imp.line, rule), f"{imp.module}:{imp.line} imports {imp.target} ({rule})"
+        )
 
     for imp in imports:
         m, t = imp.module, imp.target
@@ -158,8 +183,10 @@ def violations(imports: list[Import]) -> list[str]:
         if _under(m, "hybridteam.modes"):
             own = m.split(".")[:3]  # hybridteam.modes.<lib>
             if not (_under(t, *LIBRARY_API) or _under(t, ".".join(own))):
-                report(imp, "a mode library imports only hybridteam.library and "
-                            "hybridteam.world.geometry")
+                report(
+                    imp,
+                    "a mode library imports only hybridteam.library and hybridteam.world.geometry",
+                )
             continue
         if _under(t, "hybridteam.modes"):
             report(imp, "the framework never imports a mode library")
@@ -170,18 +197,26 @@ def violations(imports: list[Import]) -> list[str]:
         if _under(m, COMPILE) and _under(t, RUN):
             report(imp, "the engine's compile side never imports its run side")
         if _under(t, *inside_crossing) and not _under(m, CROSSING):
-            report(imp, "the crossing search is entered through hybridteam.engine.run.crossing "
-                        "only")
-        if not _under(m, "hybridteam.engine", "hybridteam.world") and \
-                _under(t, "hybridteam.engine") and not _in_internal_api(t):
+            report(
+                imp, "the crossing search is entered through hybridteam.engine.run.crossing only"
+            )
+        if (
+            not _under(m, "hybridteam.engine", "hybridteam.world")
+            and _under(t, "hybridteam.engine")
+            and not _in_internal_api(t)
+        ):
             report(imp, "code outside the engine imports only hybridteam.engine.INTERNAL_API")
-        if _under(m, "hybridteam.io") and _under(t, "hybridteam.sweep", "hybridteam.kinds",
-                                                  "hybridteam.cli", "hybridteam.export"):
+        if _under(m, "hybridteam.io") and _under(
+            t, "hybridteam.sweep", "hybridteam.kinds", "hybridteam.cli", "hybridteam.export"
+        ):
             report(imp, "io never imports sweep, kinds, cli or export")
-        if _under(m, *LOWEST) and not imp.type_only and not _under(t, *LOWEST) and \
-                not any(m == a and _under(t, b) for a, b in DISPLAY):
-            report(imp, "model, expr, dynamics, trace, arrays and errors import nothing above "
-                        "them")
+        if (
+            _under(m, *LOWEST)
+            and not imp.type_only
+            and not _under(t, *LOWEST)
+            and not any(m == a and _under(t, b) for a, b in DISPLAY)
+        ):
+            report(imp, "model, expr, dynamics, trace, arrays and errors import nothing above them")
     return list(bad.values())
 
 
@@ -215,29 +250,28 @@ def test_the_live_runtime_and_verify_read_no_private_name(tmp_path):
     planted.mkdir()
     (planted / "clock.py").write_text("def f(ens):\n    return ens.network._given\n")
     assert private_attributes(planted, "hybridteam.live") == [
-        "hybridteam.live.clock:2 reads ._given"]
+        "hybridteam.live.clock:2 reads ._given"
+    ]
 
 
 def test_each_rule_catches_a_broken_import(tmp_path):
     """A copy of the tree with one forbidden import per rule: each one is reported, at
     its line, and nothing else is."""
     framework, modes = tmp_path / "hybridteam", tmp_path / "modes"
-    shutil.copytree(ROOT / "hybridteam", framework,
-                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "hybridteam", framework, ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(ROOT / "modes", modes, ignore=shutil.ignore_patterns("__pycache__"))
     planted = {
         modes / "ladder" / "world.py": "from hybridteam.engine.run.events import LOCAL\n",
         modes / "transport" / "laws.py": "from hybridteam.laws import law\n",
         framework / "world" / "carried.py": "if TYPE_CHECKING:\n"
-                                            "    from hybridteam.engine.run.ensemble import E\n",
+        "    from hybridteam.engine.run.ensemble import E\n",
         framework / "io" / "loader.py": "def f():\n    from hybridteam.sweep import study\n",
         framework / "model" / "team.py": "import hybridteam.engine\n",
         framework / "engine" / "run" / "state.py": "from ...export import style\n",
         framework / "api.py": "from hybridteam.modes.ladder import simulate\n",
         framework / "engine" / "run" / "step.py": "from hybridteam.live.wire import Codec\n",
         framework / "live" / "run.py": "from hybridteam.engine.run.network import _given\n",
-        framework / "engine" / "compile" / "scope.py": "def f():\n"
-                                                       "    from ..run import state\n",
+        framework / "engine" / "compile" / "scope.py": "def f():\n    from ..run import state\n",
         framework / "engine" / "run" / "outputs.py": "from .crossing.segment import Segment\n",
         framework / "notebook.py": "from hybridteam.engine.run.crossing import find_crossings\n",
     }
@@ -246,11 +280,19 @@ def test_each_rule_catches_a_broken_import(tmp_path):
     bad = violations(all_imports(framework, modes))
     assert len(bad) == len(planted), bad
     expected = [
-        "hybridteam.modes.ladder.world:", "hybridteam.modes.transport.laws:",
-        "hybridteam.world.carried:", "hybridteam.io.loader:", "hybridteam.model.team:",
-        "hybridteam.engine.run.state:", "hybridteam.api:", "hybridteam.engine.run.step:",
-        "hybridteam.live.run:", "hybridteam.engine.compile.scope:",
-        "hybridteam.engine.run.outputs:", "hybridteam.notebook:"]
+        "hybridteam.modes.ladder.world:",
+        "hybridteam.modes.transport.laws:",
+        "hybridteam.world.carried:",
+        "hybridteam.io.loader:",
+        "hybridteam.model.team:",
+        "hybridteam.engine.run.state:",
+        "hybridteam.api:",
+        "hybridteam.engine.run.step:",
+        "hybridteam.live.run:",
+        "hybridteam.engine.compile.scope:",
+        "hybridteam.engine.run.outputs:",
+        "hybridteam.notebook:",
+    ]
     for prefix in expected:
         assert any(b.startswith(prefix) for b in bad), (prefix, bad)
     assert any("state:" in b and "imports hybridteam.export " in b for b in bad)  # relative

@@ -13,16 +13,27 @@ import sys
 from tests.conftest import ROOT
 
 #: modules a library never needs: the simulator, the API above it and its neighbours
-HEAVY = ("hybridteam.engine", "hybridteam.api", "hybridteam.io", "hybridteam.export",
-         "hybridteam.sweep", "hybridteam.cli", "hybridteam.notebook", "hybridteam.trace")
+HEAVY = (
+    "hybridteam.engine",
+    "hybridteam.api",
+    "hybridteam.io",
+    "hybridteam.export",
+    "hybridteam.sweep",
+    "hybridteam.cli",
+    "hybridteam.notebook",
+    "hybridteam.trace",
+)
 
 
 def loaded_after(code: str) -> list[str]:
     """The hybridteam modules a fresh interpreter holds after running ``code``."""
-    probe = (f"{code}\nimport json, sys\n"
-             "print(json.dumps(sorted(m for m in sys.modules if m.startswith('hybridteam'))))")
-    proc = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True,
-                          text=True, check=True)
+    probe = (
+        f"{code}\nimport json, sys\n"
+        "print(json.dumps(sorted(m for m in sys.modules if m.startswith('hybridteam'))))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, check=True
+    )
     return json.loads(proc.stdout.splitlines()[-1])
 
 
@@ -59,11 +70,14 @@ assert ht.sweep.restrict is sys.modules["hybridteam.sweep"].restrict  # a subpac
 switch = run.transitions["t"][1]  # row 0 enters Heat at t = 0
 assert abs(switch - math.log(11 / 8) / 0.1) < 1e-9, switch
 """
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                          text=True)
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    proc = subprocess.run([sys.executable, "-c", "import hybridteam as ht; ht.nothing"],
-                          cwd=ROOT, capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-c", "import hybridteam as ht; ht.nothing"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 1
     assert "module 'hybridteam' has no attribute 'nothing'" in proc.stderr
 
@@ -87,6 +101,5 @@ assert registered == [], registered
 assert "hybridteam.notebook" not in sys.modules
 assert "<svg" in team._repr_html_()
 """
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                          text=True)
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -34,8 +34,9 @@ def test_runs_and_teams_show_themselves(team_from_yaml):
     team = ht.load(NOTEBOOK.parent / "automata" / "thermostat.yaml")
     assert repr(team) == "<Team 'thermostat': 1 agent(s) (thermostat), 160 s>"
     run = ht.simulate(team, duration=10.0)
-    assert repr(run) == (f"<Run of 'thermostat': ok at t=10, {len(run.transitions)} "
-                         "transitions, 0 messages>")
+    assert repr(run) == (
+        f"<Run of 'thermostat': ok at t=10, {len(run.transitions)} transitions, 0 messages>"
+    )
     page = run._repr_html_()
     assert "<td>ok</td>" in page and 'src="data:image/png;base64,' in page
     assert "<svg" in team._repr_html_()
@@ -44,8 +45,12 @@ def test_runs_and_teams_show_themselves(team_from_yaml):
 
 def test_tables_become_data_frames(team_from_yaml):
     pd = pytest.importorskip("pandas")
-    run = ht.simulate(ht.load(NOTEBOOK.parent / "automata" / "thermostat.yaml"), n=2,
-                      duration=10.0, overrides={"thermostat.K": [0.1, 0.2]})
+    run = ht.simulate(
+        ht.load(NOTEBOOK.parent / "automata" / "thermostat.yaml"),
+        n=2,
+        duration=10.0,
+        overrides={"thermostat.K": [0.1, 0.2]},
+    )
     frames = run.to_pandas()
     assert set(frames) == {"modes", "transitions", "messages", "samples", "outcomes"}
     assert list(frames["transitions"].columns) == list(run.transitions.names)
@@ -55,6 +60,6 @@ def test_tables_become_data_frames(team_from_yaml):
     assert len(tidy) == 2 * len(run.sample_times)
     wide = run.samples_frame(wide=True)
     first = wide[wide["instance"] == 1].reset_index(drop=True)
-    pd.testing.assert_series_equal(first["thermostat.x"],
-                                   pd.Series(run.samples["thermostat"][:, 1, 0],
-                                             name="thermostat.x"))
+    pd.testing.assert_series_equal(
+        first["thermostat.x"], pd.Series(run.samples["thermostat"][:, 1, 0], name="thermostat.x")
+    )

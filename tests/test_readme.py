@@ -27,9 +27,9 @@ BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 def section(title: str, text: str = README) -> str:
     """The text under a heading, up to the next heading of any level."""
     start = text.index(f"{title}\n")
-    rest = text[start + len(title) + 1:]
+    rest = text[start + len(title) + 1 :]
     end = re.search(r"^#{2,3} ", rest, re.M)
-    return rest[:end.start()] if end else rest
+    return rest[: end.start()] if end else rest
 
 
 def test_quick_start_makes_a_virtual_environment_first():
@@ -37,8 +37,9 @@ def test_quick_start_makes_a_virtual_environment_first():
     quick = section("## Quick start")
     blocks = [body.strip() for lang, body in BLOCK.findall(quick) if lang == "bash"]
     assert blocks[0] == "python3 -m venv .venv && . .venv/bin/activate"
-    assert blocks[1] == ("pip install . && hybridteam run examples/automata/bouncing_ball.yaml"
-                         " -o out/ball")
+    assert blocks[1] == (
+        "pip install . && hybridteam run examples/automata/bouncing_ball.yaml -o out/ball"
+    )
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
     assert blocks[2] == ci == "pip install -e '.[test]' && python -m pytest"
     assert "about 4 minutes on a 2-core machine" in " ".join(quick.split())
@@ -56,34 +57,47 @@ def test_run_modes_is_described_as_the_interval_table():
 
 def test_network_section_names_the_cost_of_jitter_and_working_override_keys(tmp_path):
     """The keys the section names are override keys of a team with the link it names."""
-    text = " ".join(section("## Messages and the network",
-                            (DOCS / "modelling.md").read_text()).split())
+    text = " ".join(
+        section("## Messages and the network", (DOCS / "modelling.md").read_text()).split()
+    )
     assert "about three times as long" in text and "`--set network.jitter=0`" in text
     keys = sorted(set(re.findall(r"`(network\.[^`=\s]+)`", text)))
-    assert keys == ["network.jitter", "network.latency", "network.links.xr4000->labmate.latency",
-                    "network.loss"]
+    assert keys == [
+        "network.jitter",
+        "network.latency",
+        "network.links.xr4000->labmate.latency",
+        "network.loss",
+    ]
     team_file = tmp_path / "team.yaml"
-    team_file.write_text(textwrap.dedent("""\
+    team_file.write_text(
+        textwrap.dedent("""\
         team: pair
         network: {latency: 0.03, links: {"xr4000->labmate": {latency: 0.05}}}
         agents:
           xr4000: {plant: {kind: flow, state: {c: 0}}, modes: {A: {}}}
           labmate: {plant: {kind: flow, state: {c: 0}}, modes: {A: {}}}
-        """))
+        """)
+    )
     cteam = compile_team(ht.load(team_file))
     for key in keys:
         assert key_problem(cteam.agents, key, cteam.team.network) is None, key
-    assert key_problem(cteam.agents, "network.links.labmate->xr4000.latency",
-                       cteam.team.network) is not None
+    assert (
+        key_problem(cteam.agents, "network.links.labmate->xr4000.latency", cteam.team.network)
+        is not None
+    )
 
 
 def test_on_collision_has_a_yaml_example_that_loads(tmp_path):
     """The obstacles example, with its ``on_collision: warn``, inside a team of the robots
     it names: it validates and the component reads the setting."""
-    (example,) = [body for lang, body in BLOCK.findall((DOCS / "world.md").read_text())
-                  if lang == "yaml" and "on_collision:" in body]
+    (example,) = [
+        body
+        for lang, body in BLOCK.findall((DOCS / "world.md").read_text())
+        if lang == "yaml" and "on_collision:" in body
+    ]
     team_file = tmp_path / "team.yaml"
-    team_file.write_text(textwrap.dedent("""\
+    team_file.write_text(
+        textwrap.dedent("""\
         team: readme
         agents:
           xr4000:
@@ -94,7 +108,9 @@ def test_on_collision_has_a_yaml_example_that_loads(tmp_path):
             plant: {kind: unicycle, state: {x: 5, y: 0, theta: 0}}
             modes: {Stay: {}}
         world:
-        """) + example)
+        """)
+        + example
+    )
     team = ht.load(team_file)
     (obstacles,) = [w for w in team.world if w.use == "obstacles"]
     assert obstacles.values["on_collision"] == "warn"
@@ -134,8 +150,10 @@ def test_links_stay_inside_the_repository_and_lead_somewhere():
             resolved = (page.parent / path).resolve() if path else page
             assert resolved.is_relative_to(ROOT) and resolved.is_file(), f"{page.name}: {target}"
             if fragment:
-                slugs = {re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-")
-                         for h in re.findall(r"^#+ (.*)$", resolved.read_text(), re.M)}
+                slugs = {
+                    re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-")
+                    for h in re.findall(r"^#+ (.*)$", resolved.read_text(), re.M)
+                }
                 assert fragment in slugs, f"{page.name}: {target}"
             checked += 1
     assert checked > 20

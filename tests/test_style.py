@@ -22,9 +22,11 @@ def test_framework_never_imports_a_mode_library():
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.module:
                 names = [node.module]
-            offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names
-                          if n.startswith("hybridteam.modes.") or n == "modes"
-                          or n.startswith("modes.")]
+            offenders += [
+                f"{path.relative_to(ROOT)}: {n}"
+                for n in names
+                if n.startswith("hybridteam.modes.") or n == "modes" or n.startswith("modes.")
+            ]
     assert offenders == []
 
 
@@ -41,8 +43,11 @@ def test_every_framework_package_is_installed():
     from a wheel (``hybridteam verify`` was, once)."""
     import tomllib
 
-    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
-                 ["packages"])
-    found = {".".join(p.parent.relative_to(ROOT).parts)
-             for p in (ROOT / "hybridteam").rglob("__init__.py")}
+    listed = set(
+        tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    )
+    found = {
+        ".".join(p.parent.relative_to(ROOT).parts)
+        for p in (ROOT / "hybridteam").rglob("__init__.py")
+    }
     assert found <= listed, sorted(found - listed)

@@ -51,14 +51,19 @@ def _assigned(value: Any, name: str, facade: str) -> str | None:
     """``module.name`` of the (non-package) hybridteam module that binds ``name`` to
     ``value``, other than ``facade``; None if there is none."""
     for modname, module in sorted(sys.modules.items()):
-        if modname.startswith("hybridteam") and modname != facade and \
-                not hasattr(module, "__path__") and getattr(module, name, None) is value:
+        if (
+            modname.startswith("hybridteam")
+            and modname != facade
+            and not hasattr(module, "__path__")
+            and getattr(module, name, None) is value
+        ):
             return f"{modname}.{name}"
     return None
 
 
-def skip_field_aliases(app: Any, what: str, name: str, obj: Any, skip: bool,
-                       options: Any) -> bool | None:
+def skip_field_aliases(
+    app: Any, what: str, name: str, obj: Any, skip: bool, options: Any
+) -> bool | None:
     """A named tuple's fields are listed in its signature; their generated entries
     ("Alias for field number N") would only add a target per field name (``type``) for
     type annotations of the same word to collide with."""

@@ -35,7 +35,17 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 #: optional dependencies of optional packages (ROS 2, rosbag2, Dask, pandas, STL oracle):
 #: the reference documents those modules whether or not the extras are installed
-autodoc_mock_imports = ["rclpy", "std_msgs", "geometry_msgs", "nav_msgs", "sensor_msgs",
-                        "rosbags", "dask", "distributed", "pandas", "rtamt"]
+autodoc_mock_imports = [
+    "rclpy",
+    "std_msgs",
+    "geometry_msgs",
+    "nav_msgs",
+    "sensor_msgs",
+    "rosbags",
+    "dask",
+    "distributed",
+    "pandas",
+    "rtamt",
+]
 html_theme = "alabaster"
 autosummary_context = {"reexports": Reexports()}

@@ -33,8 +33,11 @@ def completed(run, i: int) -> tuple[bool, float]:
     one = run.instance(i)
     tr = one.transitions
     rows = list(zip(tr["t"], tr["agent"], tr["source"], tr["target"], strict=True))
-    leads = [a for _t, a, src, tg in rows  # who takes the lead, in order
-             if tg.startswith("Transport.Lead") and not src.startswith("Transport.Lead")]
+    leads = [
+        a
+        for _t, a, src, tg in rows  # who takes the lead, in order
+        if tg.startswith("Transport.Lead") and not src.startswith("Transport.Lead")
+    ]
     took_back = "xr4000" in leads and leads[-1] == "labmate"
     row = one.summary()["instances"][0]
     return row["outcome"] == "success" and took_back, row["t_end"]
@@ -44,16 +47,21 @@ def operator_took_over(run, i: int) -> bool:
     """Whether a robot gave up on an unacknowledged control message and the operator took
     command (the protocol's deadlock handling: a safe stop, not a success)."""
     tr = run.instance(i).transitions
-    return bool(np.any((np.asarray(tr["agent"]) == "operator")
-                       & (np.asarray(tr["target"]) == "Command")))
+    return bool(
+        np.any((np.asarray(tr["agent"]) == "operator") & (np.asarray(tr["target"]) == "Command"))
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=20, help="repetitions per loss level")
     ap.add_argument("--levels", type=float, nargs="+", default=[0, 0.1, 0.2, 0.3, 0.4, 0.5])
-    ap.add_argument("--retries", type=int, default=None,
-                    help="the robots' ack_retries (default: the protocol's 3)")
+    ap.add_argument(
+        "--retries",
+        type=int,
+        default=None,
+        help="the robots' ack_retries (default: the protocol's 3)",
+    )
     args = ap.parse_args()
     team = load(TEAM)
     loss = np.repeat(args.levels, args.runs)
@@ -66,8 +74,10 @@ def main() -> None:
     wall = time.perf_counter() - start
     retries = "" if args.retries is None else f", ack_retries {args.retries}"
     print(f"{len(loss)} runs of {TEAM.name}{retries} in one ensemble: {wall:.1f} s wall\n")
-    print("| message loss | runs | success | mean completion time (s) | outcomes | "
-          "operator took over |")
+    print(
+        "| message loss | runs | success | mean completion time (s) | outcomes | "
+        "operator took over |"
+    )
     print("|---:|---:|---:|---:|---|---:|")
     for p in args.levels:
         idx = np.flatnonzero(loss == p)
@@ -78,8 +88,10 @@ def main() -> None:
         counts = {o: outcomes.count(o) for o in sorted(set(outcomes))}
         mean = f"{np.mean(times):.2f}" if times else "—"
         operated = sum(operator_took_over(run, int(i)) for i in idx)
-        print(f"| {p:.0%} | {len(idx)} | {sum(success) / len(idx):.0%} | {mean} "
-              f"| {', '.join(f'{k} {v}' for k, v in counts.items())} | {operated} |")
+        print(
+            f"| {p:.0%} | {len(idx)} | {sum(success) / len(idx):.0%} | {mean} "
+            f"| {', '.join(f'{k} {v}' for k, v in counts.items())} | {operated} |"
+        )
 
 
 if __name__ == "__main__":

@@ -37,8 +37,14 @@ def say(message: object) -> None:
     print(printable(str(message)), file=sys.stderr)
 
 
-def show_warning(message: Warning | str, category: type[Warning], filename: str,
-                 lineno: int, file: TextIO | None = None, line: str | None = None) -> None:
+def show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: TextIO | None = None,
+    line: str | None = None,
+) -> None:
     """:func:`warnings.showwarning` for the command line: a library's warning (matplotlib's
     "Glyph 27 (\\x1b) missing from font", quoting a name) printed with :func:`say`'s
     escapes."""
@@ -53,8 +59,11 @@ class _Stderr(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
-            text = self.format(record) if self.formatter is not None else \
-                f"hybridteam: {record.levelname.lower()}: {record.getMessage()}"
+            text = (
+                self.format(record)
+                if self.formatter is not None
+                else f"hybridteam: {record.levelname.lower()}: {record.getMessage()}"
+            )
             print(printable(text), file=sys.stderr)
         except Exception:
             self.handleError(record)  # logging's rule: a handler never raises
@@ -71,8 +80,7 @@ def library_logging(level: str | None) -> Iterator[None]:
     logger = logging.getLogger("hybridteam")
     handler = _Stderr()
     if level is not None:
-        handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: "
-                                               "%(message)s"))
+        handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
     old = logger.level
     logger.setLevel(logging.WARNING if level is None else level.upper())
     logger.addHandler(handler)
@@ -96,9 +104,14 @@ def add_connect_timeout(parser) -> None:
     """``--connect-timeout S`` beside ``--scheduler`` (``sweep``, ``falsify``)."""
     from hybridteam.sweep.cluster import DEFAULT_CONNECT_TIMEOUT
 
-    parser.add_argument("--connect-timeout", type=float, default=DEFAULT_CONNECT_TIMEOUT,
-                        metavar="S", help="seconds to reach the --scheduler and hear it "
-                        f"answer as a Dask scheduler (default {DEFAULT_CONNECT_TIMEOUT:g})")
+    parser.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=DEFAULT_CONNECT_TIMEOUT,
+        metavar="S",
+        help="seconds to reach the --scheduler and hear it "
+        f"answer as a Dask scheduler (default {DEFAULT_CONNECT_TIMEOUT:g})",
+    )
 
 
 def check_connect_timeout(seconds: float) -> None:
@@ -150,8 +163,11 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
     try:
         out.mkdir(parents=True, exist_ok=True)
         (out / "summary.json").unlink(missing_ok=True)
-        write_atomic(marker, "hybridteam run was writing this folder and did not finish: "
-                     "its files may be partial or stale (summary.json is written last)\n")
+        write_atomic(
+            marker,
+            "hybridteam run was writing this folder and did not finish: "
+            "its files may be partial or stale (summary.json is written last)\n",
+        )
         run.to_json(out / "trace.json")
         run.write_csv(out)
         written: list[str] = []
@@ -175,28 +191,38 @@ def write_run_folder(out: Path, team, run, summary: dict, views: bool) -> list[s
         if failed is None:
             marker.unlink()
         else:  # the data stands, the views do not: the folder still says it is incomplete
-            write_atomic(marker, f"drawing the views failed ({failed}): the trace, the tables "
-                         "and summary.json are complete, the views are not\n")
+            write_atomic(
+                marker,
+                f"drawing the views failed ({failed}): the trace, the tables "
+                "and summary.json are complete, the views are not\n",
+            )
         if skipped is not None:
             print(f"hybridteam: note: {skipped}", file=sys.stderr)
         if failed is not None:
-            raise UsageError(f"drawing the views failed ({failed}); {out}/ has the trace, "
-                             f"the tables and summary.json, not the views ({INCOMPLETE} says "
-                             "so; --no-views skips the views)")
+            raise UsageError(
+                f"drawing the views failed ({failed}); {out}/ has the trace, "
+                f"the tables and summary.json, not the views ({INCOMPLETE} says "
+                "so; --no-views skips the views)"
+            )
         return written
     except OSError as exc:
         target = getattr(exc, "filename2", None) or exc.filename  # a rename's target
         where = f" {target}" if target else ""
-        raise UsageError(f"cannot write{where}: {exc.strerror or exc}"
-                         + ("" if not marker.exists() else
-                            f"; {out}/ is incomplete ({INCOMPLETE} marks it)")) from None
+        raise UsageError(
+            f"cannot write{where}: {exc.strerror or exc}"
+            + ("" if not marker.exists() else f"; {out}/ is incomplete ({INCOMPLETE} marks it)")
+        ) from None
     except MemoryError:
-        raise UsageError(f"ran out of memory writing {out}/: it is incomplete ({INCOMPLETE} "
-                         "marks it); raise simulation.sample_period or shorten the run") \
-            from None
+        raise UsageError(
+            f"ran out of memory writing {out}/: it is incomplete ({INCOMPLETE} "
+            "marks it); raise simulation.sample_period or shorten the run"
+        ) from None
     except KeyboardInterrupt:
-        print(f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
-              f"summary.json; {INCOMPLETE} marks it)", file=sys.stderr)
+        print(
+            f"hybridteam: interrupted while writing {out}/: it is incomplete (no "
+            f"summary.json; {INCOMPLETE} marks it)",
+            file=sys.stderr,
+        )
         raise SystemExit(EXIT_INTERRUPTED) from None
 
 
@@ -210,8 +236,9 @@ def read_json(path: str | os.PathLike[str], files: str, kind: str) -> tuple[str,
     from hybridteam.io.yamlpos import SourceError
 
     try:
-        text = read_regular(path, str(path), limit_mb=MAX_TRACE_MB,
-                            env="HYBRIDTEAM_MAX_TRACE_MB", what=files).decode("utf-8")
+        text = read_regular(
+            path, str(path), limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB", what=files
+        ).decode("utf-8")
         return text, json.loads(text)
     except SourceError as exc:
         raise UsageError(str(exc)) from None

@@ -18,16 +18,30 @@ from hybridteam.cli.common import EXIT_OK, EXIT_USAGE, UsageError, print_errors
 
 def register(sub) -> dict:
     """Add the ``convert`` subcommand; returns its handler by name."""
-    c = sub.add_parser("convert", help="an agent's behaviour to SCXML, or an SCXML chart "
-                       "to a team file")
+    c = sub.add_parser(
+        "convert", help="an agent's behaviour to SCXML, or an SCXML chart to a team file"
+    )
     c.add_argument("source", metavar="TEAM.yaml|CHART.scxml")
-    c.add_argument("-o", "--output", required=True, metavar="FILE",
-                   help="the .scxml chart or the .yaml team file to write")
-    c.add_argument("--agent", default=None, metavar="NAME",
-                   help="the agent to convert (or, with --into, to replace); default: the "
-                   "team's only agent, or the chart's name")
-    c.add_argument("--into", default=None, metavar="TEAM.yaml",
-                   help="with a chart: the team whose agent takes its behaviour")
+    c.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="FILE",
+        help="the .scxml chart or the .yaml team file to write",
+    )
+    c.add_argument(
+        "--agent",
+        default=None,
+        metavar="NAME",
+        help="the agent to convert (or, with --into, to replace); default: the "
+        "team's only agent, or the chart's name",
+    )
+    c.add_argument(
+        "--into",
+        default=None,
+        metavar="TEAM.yaml",
+        help="with a chart: the team whose agent takes its behaviour",
+    )
     return {"convert": convert}
 
 
@@ -37,11 +51,14 @@ def convert(args) -> int:
     source, out = Path(args.source), Path(args.output)
     chart = source.suffix.lower() == ".scxml"
     if out.suffix.lower() != (".yaml" if chart else ".scxml"):
-        raise UsageError(f"output '{out}' must end in {'.yaml' if chart else '.scxml'} "
-                         f"(converting {'a chart to a team' if chart else 'a team to a chart'})")
+        raise UsageError(
+            f"output '{out}' must end in {'.yaml' if chart else '.scxml'} "
+            f"(converting {'a chart to a team' if chart else 'a team to a chart'})"
+        )
     if args.into is not None and not chart:
-        raise UsageError("--into takes a chart's behaviour into a team: the source must be "
-                         "an .scxml chart")
+        raise UsageError(
+            "--into takes a chart's behaviour into a team: the source must be an .scxml chart"
+        )
     try:
         text = _from_chart(source, args) if chart else _to_chart(source, args)
     except InputErrors as exc:
@@ -62,11 +79,12 @@ def _to_chart(source: Path, args) -> str:
     names = [a.name for a in team.agents]
     name = args.agent or (names[0] if len(names) == 1 else None)
     if name is None:
-        raise UsageError(f"team '{team.name}' has {len(names)} agents ({', '.join(names)}); "
-                         "choose one with --agent")
+        raise UsageError(
+            f"team '{team.name}' has {len(names)} agents ({', '.join(names)}); "
+            "choose one with --agent"
+        )
     if name not in names:
-        raise UsageError(f"no agent '{name}' in team '{team.name}' (agents: "
-                         f"{', '.join(names)})")
+        raise UsageError(f"no agent '{name}' in team '{team.name}' (agents: {', '.join(names)})")
     try:
         return agent_chart(team.agent(name), team.priority_rule)
     except NotExpressible as exc:
@@ -82,17 +100,19 @@ def _from_chart(source: Path, args) -> str:
 
     if args.into is None:
         load_team_file(source)  # the chart alone, as a team of one agent without a plant
-        return yaml.safe_dump(read_document(source).data, sort_keys=False,
-                              allow_unicode=True)
+        return yaml.safe_dump(read_document(source).data, sort_keys=False, allow_unicode=True)
     load_team_file(args.into)  # the team as it is: its own errors are its file's
     team = read_document(args.into)
     agents = list(team.data["agents"])
     chart_name = read_chart(source).data["team"]
-    name = args.agent or (chart_name if chart_name in agents else
-                          agents[0] if len(agents) == 1 else None)
+    name = args.agent or (
+        chart_name if chart_name in agents else agents[0] if len(agents) == 1 else None
+    )
     if name is None or name not in agents:
-        raise UsageError(f"choose the agent of '{args.into}' that takes the chart with "
-                         f"--agent (agents: {', '.join(map(str, agents))})")
+        raise UsageError(
+            f"choose the agent of '{args.into}' that takes the chart with "
+            f"--agent (agents: {', '.join(map(str, agents))})"
+        )
     chart = read_chart(source, name)
     data = merge_chart(team.data, name, chart.data["agents"][name])
     # what is wrong now comes from the chart (the team loaded without it): located there

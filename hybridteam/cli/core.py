@@ -28,8 +28,11 @@ from hybridteam.progress import MODES, reporter
 
 def register(sub) -> dict:
     """Add the core subcommands; returns their handlers by name."""
-    v = sub.add_parser("validate", help="check files without running a simulation (Python "
-                       "modules beside a team file are imported: they are part of it)")
+    v = sub.add_parser(
+        "validate",
+        help="check files without running a simulation (Python "
+        "modules beside a team file are imported: they are part of it)",
+    )
     v.add_argument("files", nargs="+", metavar="FILE")
     v.add_argument("--strict", action="store_true", help="treat warnings as errors")
 
@@ -39,30 +42,67 @@ def register(sub) -> dict:
     r.add_argument("--seed", type=int, default=None, help="random seed (default: the file's)")
     r.add_argument("--duration", type=float, default=None, help="simulated seconds")
     r.add_argument("-n", type=int, default=None, help="ensemble size (default 1)")
-    r.add_argument("--set", action="append", default=[], metavar="KEY=V[,V...]",
-                   help="override a parameter (agent.param or team param) or a network "
-                        "setting (network.latency, network.jitter, network.loss, "
-                        "network.links.A->B.loss); a list gives one value per instance")
+    r.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=V[,V...]",
+        help="override a parameter (agent.param or team param) or a network "
+        "setting (network.latency, network.jitter, network.loss, "
+        "network.links.A->B.loss); a list gives one value per instance",
+    )
     r.add_argument("--quiet", action="store_true", help="no progress or summary")
-    r.add_argument("--progress", choices=MODES, default="auto",
-                   help="auto (a bar on a terminal, lines otherwise), bar, log or none")
-    r.add_argument("--no-views", action="store_true",
-                   help="skip the state diagram, timeline, trajectory and sequence views")
-    r.add_argument("--report", action="store_true",
-                   help="also write report.html: every view and the summary on one "
-                   "self-contained page (see 'hybridteam report')")
-    r.add_argument("--no-animation", action="store_true",
-                   help="with --report: leave the animation out (most of the report's time)")
-    r.add_argument("--max-memory", type=float, default=None, metavar="GB",
-                   help="refuse runs needing more memory (default 4 GB)")
-    r.add_argument("--max-periods", type=float, default=None, metavar="N",
-                   help="refuse runs of more control periods per instance (default 1e8)")
-    r.add_argument("--max-wall", type=float, default=None, metavar="HOURS",
-                   help="stop a run whose pace projects more wall time (default 24)")
+    r.add_argument(
+        "--progress",
+        choices=MODES,
+        default="auto",
+        help="auto (a bar on a terminal, lines otherwise), bar, log or none",
+    )
+    r.add_argument(
+        "--no-views",
+        action="store_true",
+        help="skip the state diagram, timeline, trajectory and sequence views",
+    )
+    r.add_argument(
+        "--report",
+        action="store_true",
+        help="also write report.html: every view and the summary on one "
+        "self-contained page (see 'hybridteam report')",
+    )
+    r.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="with --report: leave the animation out (most of the report's time)",
+    )
+    r.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GB",
+        help="refuse runs needing more memory (default 4 GB)",
+    )
+    r.add_argument(
+        "--max-periods",
+        type=float,
+        default=None,
+        metavar="N",
+        help="refuse runs of more control periods per instance (default 1e8)",
+    )
+    r.add_argument(
+        "--max-wall",
+        type=float,
+        default=None,
+        metavar="HOURS",
+        help="stop a run whose pace projects more wall time (default 24)",
+    )
 
     lw = sub.add_parser("laws", help="list the registered laws: parameters and what they do")
-    lw.add_argument("prefix", nargs="?", default=None,
-                    help="only laws whose name starts with this (e.g. transport)")
+    lw.add_argument(
+        "prefix",
+        nargs="?",
+        default=None,
+        help="only laws whose name starts with this (e.g. transport)",
+    )
 
     s = sub.add_parser("schema", help="print the JSON Schema of a file kind")
     s.add_argument("kind", nargs="?", default=None, help="file kind (default: all)")
@@ -90,8 +130,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     return status
 
 
-def _overrides(items: list[str], n: int | None
-               ) -> tuple[dict[str, list[float] | float], int]:
+def _overrides(items: list[str], n: int | None) -> tuple[dict[str, list[float] | float], int]:
     out: dict[str, list[float]] = {}
     size = n
     for item in items:
@@ -104,8 +143,7 @@ def _overrides(items: list[str], n: int | None
             raise UsageError(f"--set {item!r}: values must be numbers") from None
         if len(values) > 1:
             if size is not None and size != len(values):
-                raise UsageError(f"--set {key}: {len(values)} values for an ensemble of "
-                                 f"{size}")
+                raise UsageError(f"--set {key}: {len(values)} values for an ensemble of {size}")
             size = len(values)
         out[key.strip()] = values
     # one value stays one number (the engine broadcasts it): no list of -n copies
@@ -119,19 +157,24 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise UsageError(f"-n must be at least 1, got {args.n}")
     if args.duration is not None and not 0 <= args.duration < math.inf:
         raise UsageError(f"--duration must be a finite number >= 0, got {args.duration}")
-    for flag, value in (("--max-memory", args.max_memory), ("--max-periods", args.max_periods),
-                        ("--max-wall", args.max_wall)):
+    for flag, value in (
+        ("--max-memory", args.max_memory),
+        ("--max-periods", args.max_periods),
+        ("--max-wall", args.max_wall),
+    ):
         if value is not None and not 0 < value < math.inf:
             raise UsageError(f"{flag} must be a finite number > 0, got {value}")
     if args.seed is not None and args.seed < 0:
         raise UsageError(f"--seed must be >= 0, got {args.seed}")
     if args.no_animation and not args.report:
-        raise UsageError("--no-animation leaves the animation out of the report: give it "
-                         "with --report")
+        raise UsageError(
+            "--no-animation leaves the animation out of the report: give it with --report"
+        )
     out = output_folder(args.output)
     if (out / "study.json").exists():
-        raise UsageError(f"output '{out}' holds a study's results; give the run a folder of "
-                         "its own")
+        raise UsageError(
+            f"output '{out}' holds a study's results; give the run a folder of its own"
+        )
     team = load_team_or_report(args.team, warnings=not args.quiet)
     if team is None:
         return EXIT_USAGE
@@ -144,12 +187,18 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     try:
-        run = simulate(team, seed=args.seed, n=n, duration=args.duration,
-                       overrides=overrides, progress=None if shown is None else progress,
-                       max_memory=None if args.max_memory is None else args.max_memory * 1e9,
-                       max_periods=args.max_periods,
-                       max_wall=None if args.max_wall is None else args.max_wall * 3600,
-                       written=True)
+        run = simulate(
+            team,
+            seed=args.seed,
+            n=n,
+            duration=args.duration,
+            overrides=overrides,
+            progress=None if shown is None else progress,
+            max_memory=None if args.max_memory is None else args.max_memory * 1e9,
+            max_periods=args.max_periods,
+            max_wall=None if args.max_wall is None else args.max_wall * 3600,
+            written=True,
+        )
     except ModelError as exc:  # a value out of range in some instance: at its line
         from hybridteam.io.loader import locate_in_file
 
@@ -158,9 +207,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # overrides naming no parameter, and the like
         raise UsageError(str(exc)) from None
     except MemoryError:  # within --max-memory by the estimate, beyond what the machine has
-        raise UsageError("the run ran out of memory (the machine has less than the memory "
-                         "limit the estimate was checked against): lower --max-memory GB, "
-                         "shorten the run or the ensemble") from None
+        raise UsageError(
+            "the run ran out of memory (the machine has less than the memory "
+            "limit the estimate was checked against): lower --max-memory GB, "
+            "shorten the run or the ensemble"
+        ) from None
     finally:
         if shown is not None:
             shown.close()
@@ -172,8 +223,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         from hybridteam.export.runviews import MAX_VIEW_AGENTS
 
         if len(team.agents) > MAX_VIEW_AGENTS:  # the report draws the run's views too
-            say(f"hybridteam: note: no report.html: the team has {len(team.agents):,} agents "
-                f"and a report draws its views for up to {MAX_VIEW_AGENTS}")
+            say(
+                f"hybridteam: note: no report.html: the team has {len(team.agents):,} agents "
+                f"and a report draws its views for up to {MAX_VIEW_AGENTS}"
+            )
         else:
             write_report(out, run, summary, animation=not args.no_animation)
             views.append("report.html")
@@ -182,8 +235,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-_BASIC = frozenset({"instance", "outcome", "t_end", "message", "transitions", "messages",
-                    "requirements"})
+_BASIC = frozenset(
+    {"instance", "outcome", "t_end", "message", "transitions", "messages", "requirements"}
+)
 
 
 def _fmt(value) -> str:
@@ -197,14 +251,21 @@ def _fmt(value) -> str:
 def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
     tally = ", ".join(f"{k}: {v}" for k, v in sorted(summary["outcomes"].items()))
     ended = max(inst["t_end"] for inst in summary["instances"])
-    simulated = f"{summary['duration']:g} s simulated" if ended >= summary["duration"] else \
-        f"{ended:g} of {summary['duration']:g} s simulated"
-    print(f"{summary['team']}: {summary['n']} instance(s), {simulated} in "
-          f"{summary['wall_time_s']:.3f} s wall — {tally}")
+    simulated = (
+        f"{summary['duration']:g} s simulated"
+        if ended >= summary["duration"]
+        else f"{ended:g} of {summary['duration']:g} s simulated"
+    )
+    print(
+        f"{summary['team']}: {summary['n']} instance(s), {simulated} in "
+        f"{summary['wall_time_s']:.3f} s wall — {tally}"
+    )
     for inst in summary["instances"][:10]:
-        print(f"  [{inst['instance']}] {inst['outcome']} at t={inst['t_end']:.6g}: "
-              f"{inst['transitions']} transitions, {inst['messages']} messages"
-              + (f" — {inst['message']}" if inst["outcome"] != "ok" else ""))
+        print(
+            f"  [{inst['instance']}] {inst['outcome']} at t={inst['t_end']:.6g}: "
+            f"{inst['transitions']} transitions, {inst['messages']} messages"
+            + (f" — {inst['message']}" if inst["outcome"] != "ok" else "")
+        )
         stats = {k: v for k, v in inst.items() if k not in _BASIC}
         if stats:
             print("      " + ", ".join(f"{k} {_fmt(v)}" for k, v in stats.items()))
@@ -214,8 +275,15 @@ def _print_summary(summary: dict, out: Path, views: list[str]) -> None:
 
     for line in verdict_lines(summary["instances"]):
         print(line)
-    files = ["trace.json", "modes.csv", "transitions.csv", "messages.csv", "samples.csv",
-             *views, "summary.json"]
+    files = [
+        "trace.json",
+        "modes.csv",
+        "transitions.csv",
+        "messages.csv",
+        "samples.csv",
+        *views,
+        "summary.json",
+    ]
     print(f"wrote {out}/ ({', '.join(files)})")
 
 
@@ -227,8 +295,10 @@ def cmd_schema(args: argparse.Namespace) -> int:
         from hybridteam.errors import did_you_mean
 
         hint = did_you_mean(args.kind, known)
-        raise UsageError(f"unknown file kind '{args.kind}' (kinds: {', '.join(known)})"
-                         + (f"; {hint}" if hint else ""))
+        raise UsageError(
+            f"unknown file kind '{args.kind}' (kinds: {', '.join(known)})"
+            + (f"; {hint}" if hint else "")
+        )
     names = [args.kind] if args.kind else list(known)
     schemas = {k: known[k].schema().model_json_schema(by_alias=True) for k in names}
     print(json.dumps(schemas[names[0]] if args.kind else schemas, indent=2))
@@ -254,8 +324,7 @@ def cmd_laws(args: argparse.Namespace) -> int:
         plants = "/".join(spec.plants) if spec.plants else "any plant"
         print(f"{name}  ({plants})")
         if spec.summary:
-            print(textwrap.fill(spec.summary, 92, initial_indent="    ",
-                                subsequent_indent="    "))
+            print(textwrap.fill(spec.summary, 92, initial_indent="    ", subsequent_indent="    "))
         if spec.params:
             print("    with: " + ", ".join(f"{k}={v:g}" for k, v in spec.params.items()))
         reads = sorted(asked_names(spec.fn) - set(spec.params))

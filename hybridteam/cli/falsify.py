@@ -33,40 +33,87 @@ EXIT_NOT_FOUND = 1
 
 def register(sub) -> dict:
     fa = sub.add_parser(
-        "falsify", help="search parameters and seeds for a run that breaks a requirement",
+        "falsify",
+        help="search parameters and seeds for a run that breaks a requirement",
         description="Minimises a requirement's robustness over override values (and seeds); "
         "each generation runs as one ensemble. Exit 0: a violating run was found (replayed "
-        "in OUT/replay); 1: none within the budget; 2: bad input.")
+        "in OUT/replay); 1: none within the budget; 2: bad input.",
+    )
     fa.add_argument("team", metavar="TEAM.yaml")
-    fa.add_argument("--requirement", "-r", required=True, metavar="NAME",
-                    help="a requirement of the team (its requirements: section)")
-    fa.add_argument("--vary", action="append", default=[], metavar="KEY=LO:HI",
-                    help="an override key (team parameter, agent.parameter or a network "
-                    "setting: network.loss, ...) and its range; repeat for more")
-    fa.add_argument("--seeds", type=int, default=1, metavar="N",
-                    help="also search the run's seed among N seeds from the team's (default 1: "
-                    "the team's seed only)")
-    fa.add_argument("--budget", type=int, default=300, metavar="N",
-                    help="at most N simulations (default 300)")
-    fa.add_argument("--method", choices=("de", "random"), default="de",
-                    help="de: differential evolution, robustness-guided (default); random: "
-                    "uniform draws")
-    fa.add_argument("--population", type=int, default=20, metavar="P",
-                    help="candidates per generation, simulated as one ensemble (default 20)")
-    fa.add_argument("--search-seed", type=int, default=0, metavar="S",
-                    help="the search's own random seed (default 0)")
-    fa.add_argument("--keep-going", action="store_true",
-                    help="use the whole budget, not stopping at the first violation")
+    fa.add_argument(
+        "--requirement",
+        "-r",
+        required=True,
+        metavar="NAME",
+        help="a requirement of the team (its requirements: section)",
+    )
+    fa.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        metavar="KEY=LO:HI",
+        help="an override key (team parameter, agent.parameter or a network "
+        "setting: network.loss, ...) and its range; repeat for more",
+    )
+    fa.add_argument(
+        "--seeds",
+        type=int,
+        default=1,
+        metavar="N",
+        help="also search the run's seed among N seeds from the team's (default 1: "
+        "the team's seed only)",
+    )
+    fa.add_argument(
+        "--budget", type=int, default=300, metavar="N", help="at most N simulations (default 300)"
+    )
+    fa.add_argument(
+        "--method",
+        choices=("de", "random"),
+        default="de",
+        help="de: differential evolution, robustness-guided (default); random: uniform draws",
+    )
+    fa.add_argument(
+        "--population",
+        type=int,
+        default=20,
+        metavar="P",
+        help="candidates per generation, simulated as one ensemble (default 20)",
+    )
+    fa.add_argument(
+        "--search-seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help="the search's own random seed (default 0)",
+    )
+    fa.add_argument(
+        "--keep-going",
+        action="store_true",
+        help="use the whole budget, not stopping at the first violation",
+    )
     where = fa.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="local worker processes (default 1: this process)")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="a Dask distributed cluster, e.g. tcp://host:8786")
+    where.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default 1: this process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="a Dask distributed cluster, e.g. tcp://host:8786",
+    )
     add_connect_timeout(fa)
     fa.add_argument("--no-replay", action="store_true", help="do not write OUT/replay")
     fa.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
-    fa.add_argument("--progress", choices=MODES, default="auto",
-                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
+    fa.add_argument(
+        "--progress",
+        choices=MODES,
+        default="auto",
+        help="auto (a bar on a terminal, lines otherwise), bar, log or none",
+    )
     return {"falsify": cmd_falsify}
 
 
@@ -84,13 +131,13 @@ def _varies(items: list[str]):
         except ValueError:
             a = b = math.nan
         if not (eq and colon and key.strip()) or not (math.isfinite(a) and math.isfinite(b)):
-            raise UsageError(f"--vary {item!r}: expected KEY=LO:HI with numbers, e.g. "
-                             "p_loss=0:0.5")
+            raise UsageError(f"--vary {item!r}: expected KEY=LO:HI with numbers, e.g. p_loss=0:0.5")
         if not a < b:
             raise UsageError(f"--vary {item!r}: LO must be below HI")
         if not math.isfinite(b - a):  # the search draws LO + (HI - LO) * u
-            raise UsageError(f"--vary {item!r}: the range is too wide (HI - LO is beyond "
-                             "the largest number)")
+            raise UsageError(
+                f"--vary {item!r}: the range is too wide (HI - LO is beyond the largest number)"
+            )
         out.append(Vary(key.strip(), a, b))
     keys = [v.key for v in out]
     if len(set(keys)) < len(keys):
@@ -103,8 +150,11 @@ def _check(args: argparse.Namespace, team, varies) -> None:
     from hybridteam.api import simulate
     from hybridteam.errors import ModelError, did_you_mean
 
-    for flag, value, least in (("--budget", args.budget, 1), ("--population", args.population,
-                                                              2), ("--seeds", args.seeds, 1)):
+    for flag, value, least in (
+        ("--budget", args.budget, 1),
+        ("--population", args.population, 2),
+        ("--seeds", args.seeds, 1),
+    ):
         if value < least:
             raise UsageError(f"{flag} must be at least {least}, got {value}")
     if args.workers is not None and args.workers < 1:
@@ -114,9 +164,10 @@ def _check(args: argparse.Namespace, team, varies) -> None:
     names = [r.name for r in team.requirements]
     if args.requirement not in names:
         hint = did_you_mean(args.requirement, names)
-        raise UsageError(f"the team has no requirement '{args.requirement}'"
-                         + (f"; {hint}" if hint else f" (its requirements: "
-                            f"{', '.join(names) or 'none'})"))
+        raise UsageError(
+            f"the team has no requirement '{args.requirement}'"
+            + (f"; {hint}" if hint else f" (its requirements: {', '.join(names) or 'none'})")
+        )
     for v in varies:  # a zero-length run at each end of each range checks key and values
         for value in (v.lo, v.hi):
             try:
@@ -132,17 +183,18 @@ def _check_generation(team, population: int) -> None:
     from hybridteam.engine.run.budget import ResourceError, memory_estimate, memory_limit
 
     sim = team.simulation
-    nbytes, _ = memory_estimate(compile_team(team), population, sim.duration,
-                                sim.output_period())
+    nbytes, _ = memory_estimate(compile_team(team), population, sim.duration, sim.output_period())
     try:
         limit = memory_limit()
     except ResourceError as exc:
         raise UsageError(str(exc)) from None
     if nbytes > limit:
-        raise UsageError(f"--population {population:,}: a generation runs as one ensemble, "
-                         f"which would need about {nbytes / 1e9:,.1f} GB of memory, more than "
-                         f"the limit of {limit / 1e9:,.1f} GB (HYBRIDTEAM_MAX_MEMORY_GB): give a "
-                         "smaller --population")
+        raise UsageError(
+            f"--population {population:,}: a generation runs as one ensemble, "
+            f"which would need about {nbytes / 1e9:,.1f} GB of memory, more than "
+            f"the limit of {limit / 1e9:,.1f} GB (HYBRIDTEAM_MAX_MEMORY_GB): give a "
+            "smaller --population"
+        )
 
 
 def cmd_falsify(args: argparse.Namespace) -> int:
@@ -159,18 +211,30 @@ def cmd_falsify(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     _check(args, team, varies)
     formula = next(r.formula for r in team.requirements if r.name == args.requirement)
-    settings = O.settings_of(args.requirement, formula, varies, args.seeds,
-                             team.simulation.seed, args.method, args.population,
-                             args.search_seed)
+    settings = O.settings_of(
+        args.requirement,
+        formula,
+        varies,
+        args.seeds,
+        team.simulation.seed,
+        args.method,
+        args.population,
+        args.search_seed,
+    )
     key = O.digest(Path(args.team).read_text(encoding="utf-8"), settings)
     record = O.read_record(out, key) if out.exists() else []
     if isinstance(record, str):
         raise UsageError(record)
     # connect first: a scheduler that cannot be reached leaves no folder behind
     try:
-        evaluator = Evaluator(team, args.requirement, [v.key for v in varies],
-                              workers=args.workers, scheduler=args.scheduler,
-                              connect_timeout=args.connect_timeout)
+        evaluator = Evaluator(
+            team,
+            args.requirement,
+            [v.key for v in varies],
+            workers=args.workers,
+            scheduler=args.scheduler,
+            connect_timeout=args.connect_timeout,
+        )
     except StudyError as exc:  # the scheduler cannot be reached
         raise UsageError(str(exc)) from None
     out.mkdir(parents=True, exist_ok=True)
@@ -186,11 +250,19 @@ def cmd_falsify(args: argparse.Namespace) -> int:
                 shown.set_postfix_str(f"best robustness {best[0]:.4g}")
 
     try:
-        search = run_search(varies, args.seeds, team.simulation.seed, evaluator,
-                            budget=args.budget, method=args.method,
-                            population=args.population, search_seed=args.search_seed,
-                            record=record, on_generation=progress,
-                            stop_on_violation=not args.keep_going)
+        search = run_search(
+            varies,
+            args.seeds,
+            team.simulation.seed,
+            evaluator,
+            budget=args.budget,
+            method=args.method,
+            population=args.population,
+            search_seed=args.search_seed,
+            record=record,
+            on_generation=progress,
+            stop_on_violation=not args.keep_going,
+        )
     finally:
         evaluator.close()
         if shown is not None:
@@ -210,19 +282,26 @@ def _finish(args, team, out: Path, key: str, settings: dict, search) -> int:
     if not args.no_replay:
         extra["replayed_robustness"] = _replay(team, search, i, out, args.requirement)
     O.write_record(out, key, settings, search, extra)
-    title = (f"{team.name}: {args.requirement} ({args.method}, "
-             f"{search.evaluations} simulations)")
+    title = f"{team.name}: {args.requirement} ({args.method}, {search.evaluations} simulations)"
     O.write_convergence(out, search, title)
     first = search.first_falsified()
     x, seeds, _, outcomes = search.flat()
     values = ", ".join(f"{v.key}={x[i, j]:.6g}" for j, v in enumerate(search.varies))
-    verdict = (f"violated after {first} simulations" if first is not None else
-               f"not violated in {search.evaluations} simulations")
-    print(f"{args.requirement}: {verdict}; best robustness {rho:.6g} at {values}, seed "
-          f"{int(seeds[i])} (outcome {outcomes[i]})")
+    verdict = (
+        f"violated after {first} simulations"
+        if first is not None
+        else f"not violated in {search.evaluations} simulations"
+    )
+    print(
+        f"{args.requirement}: {verdict}; best robustness {rho:.6g} at {values}, seed "
+        f"{int(seeds[i])} (outcome {outcomes[i]})"
+    )
     print(f"replay: {extra['replay']}")
-    print(f"wrote {out}/ (falsify.json, convergence.png"
-          + ("" if args.no_replay else ", replay/") + ")")
+    print(
+        f"wrote {out}/ (falsify.json, convergence.png"
+        + ("" if args.no_replay else ", replay/")
+        + ")"
+    )
     return EXIT_OK if first is not None else EXIT_NOT_FOUND
 
 
@@ -240,6 +319,9 @@ def _replay(team, search, i: int, out: Path, requirement: str) -> float | str:
     value = run.diagnostics[0]["requirements"][requirement]["robustness"]
     searched = _json(float(search.flat()[2][i]))
     if value != searched:
-        print(f"hybridteam: note: the replay's robustness {value} differs from the search's "
-              f"{searched}", file=sys.stderr)
+        print(
+            f"hybridteam: note: the replay's robustness {value} differs from the search's "
+            f"{searched}",
+            file=sys.stderr,
+        )
     return value

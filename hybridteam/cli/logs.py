@@ -29,39 +29,70 @@ EXIT_VIOLATED = 1
 
 def register(sub) -> dict:
     """Add the log subcommands; returns their handlers by name."""
-    e = sub.add_parser("export", help="write a run as a rosbag2 (MCAP or SQLite) for "
-                       "Foxglove, PlotJuggler, RViz and ros2 bag")
+    e = sub.add_parser(
+        "export",
+        help="write a run as a rosbag2 (MCAP or SQLite) for "
+        "Foxglove, PlotJuggler, RViz and ros2 bag",
+    )
     e.add_argument("trace", metavar="TRACE", help="trace.json, or a run folder holding one")
-    e.add_argument("-o", "--output", required=True, metavar="OUT",
-                   help="run.mcap or run.db3 (one file), or a new folder (a rosbag2 folder)")
-    e.add_argument("--format", choices=("mcap", "sqlite3"), default=None,
-                   help="storage (default: from OUT's extension; mcap for a folder)")
+    e.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="OUT",
+        help="run.mcap or run.db3 (one file), or a new folder (a rosbag2 folder)",
+    )
+    e.add_argument(
+        "--format",
+        choices=("mcap", "sqlite3"),
+        default=None,
+        help="storage (default: from OUT's extension; mcap for a folder)",
+    )
     e.add_argument("--instance", type=int, default=0, help="ensemble instance (default 0)")
 
     i = sub.add_parser("import", help="read a rosbag2 recorded of a team as a trace")
     i.add_argument("log", metavar="LOG", help="a rosbag2 folder, or one .mcap or .db3 file")
     i.add_argument("--team", required=True, metavar="TEAM.yaml")
     i.add_argument("-o", "--output", required=True, metavar="trace.json")
-    i.add_argument("--map", default=None, metavar="MAPPING.yaml",
-                   help="which topic holds what, per agent (default: the names export "
-                   "writes, and a deployed robot's odom and cmd_vel from the team's "
-                   "deploy: section)")
+    i.add_argument(
+        "--map",
+        default=None,
+        metavar="MAPPING.yaml",
+        help="which topic holds what, per agent (default: the names export "
+        "writes, and a deployed robot's odom and cmd_vel from the team's "
+        "deploy: section)",
+    )
 
-    c = sub.add_parser("check", help="evaluate a team's requirements on a log or a trace "
-                       "(exit 0: all hold, 1: one is violated, 2: bad input)")
-    c.add_argument("log", metavar="LOG_OR_TRACE",
-                   help="a rosbag2 (folder, .mcap, .db3) or a trace.json")
+    c = sub.add_parser(
+        "check",
+        help="evaluate a team's requirements on a log or a trace "
+        "(exit 0: all hold, 1: one is violated, 2: bad input)",
+    )
+    c.add_argument(
+        "log", metavar="LOG_OR_TRACE", help="a rosbag2 (folder, .mcap, .db3) or a trace.json"
+    )
     c.add_argument("--team", required=True, metavar="TEAM.yaml")
-    c.add_argument("--map", default=None, metavar="MAPPING.yaml",
-                   help="for a rosbag2: which topic holds what (see import)")
-    c.add_argument("--conformance", action="store_true",
-                   help="instead of the requirements: replay what the log says arrived "
-                   "into the team and compare modes, transition times and poses (off "
-                   "the plant under the logged commands, and off the replay) (exit 0: "
-                   "conformant, 1: divergent)")
-    c.add_argument("--tolerance", type=float, default=None, metavar="SECONDS",
-                   help="with --conformance: how far a transition may be from the model's "
-                   "time (default 0.1)")
+    c.add_argument(
+        "--map",
+        default=None,
+        metavar="MAPPING.yaml",
+        help="for a rosbag2: which topic holds what (see import)",
+    )
+    c.add_argument(
+        "--conformance",
+        action="store_true",
+        help="instead of the requirements: replay what the log says arrived "
+        "into the team and compare modes, transition times and poses (off "
+        "the plant under the logged commands, and off the replay) (exit 0: "
+        "conformant, 1: divergent)",
+    )
+    c.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="with --conformance: how far a transition may be from the model's time (default 0.1)",
+    )
     return {"export": cmd_export, "import": cmd_import, "check": cmd_check}
 
 
@@ -107,8 +138,7 @@ def read_recording(path: str, team, mapping: str | None, instance: int = 0):
             raise UsageError("--map names the topics of a rosbag2; a trace has no topics")
         run = load_trace(path, instance)
         if run.meta["team"] != team.name:
-            raise UsageError(f"{path}: a run of team '{run.meta['team']}', not "
-                             f"'{team.name}'")
+            raise UsageError(f"{path}: a run of team '{run.meta['team']}', not '{team.name}'")
         return run
     run = _read_log(path, team, mapping)
     if run is not None and not 0 <= instance < run.n:
@@ -116,8 +146,9 @@ def read_recording(path: str, team, mapping: str | None, instance: int = 0):
     return run
 
 
-def replayed(path: str, team_path: str, mapping: str | None, tolerance: float | None,
-             instance: int = 0):
+def replayed(
+    path: str, team_path: str, mapping: str | None, tolerance: float | None, instance: int = 0
+):
     """The conformance of a recording to a team file (the views' ``--against``): None
     after printing a bad team or mapping file's errors."""
     team = load_team_or_report(team_path)
@@ -134,8 +165,9 @@ def conformance_of(path: str, run, team, tolerance: float | None, instance: int 
     from hybridteam.logs.conformance import DEFAULT_TOLERANCE, conformance
 
     try:
-        return conformance(run, team, instance,
-                           DEFAULT_TOLERANCE if tolerance is None else tolerance)
+        return conformance(
+            run, team, instance, DEFAULT_TOLERANCE if tolerance is None else tolerance
+        )
     except LogError as exc:
         raise UsageError(f"{path}: {exc}") from None
 
@@ -154,8 +186,10 @@ def cmd_import(args: argparse.Namespace) -> int:
         run.to_json(out)
     except OSError as exc:
         raise UsageError(f"cannot write {out}: {exc.strerror or exc}") from None
-    print(f"wrote {out} ({len(run.sample_times)} sample times, {len(run.transitions)} "
-          f"transitions, {len(run.messages)} messages)")
+    print(
+        f"wrote {out} ({len(run.sample_times)} sample times, {len(run.transitions)} "
+        f"transitions, {len(run.messages)} messages)"
+    )
     return EXIT_OK
 
 
@@ -165,8 +199,9 @@ def cmd_check(args: argparse.Namespace) -> int:
     from hybridteam.requirements.report import verdict_lines
 
     if args.tolerance is not None and not (args.conformance and args.tolerance >= 0):
-        raise UsageError(f"--tolerance {args.tolerance}: a number of seconds >= 0, with "
-                         "--conformance")
+        raise UsageError(
+            f"--tolerance {args.tolerance}: a number of seconds >= 0, with --conformance"
+        )
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE

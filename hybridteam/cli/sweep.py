@@ -30,33 +30,61 @@ def register(sub) -> dict:
     sw.add_argument("study", metavar="STUDY.yaml")
     sw.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     where = sw.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="local worker processes (default 1: this process)")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                       help="run on a Dask distributed cluster, e.g. tcp://host:8786 "
-                            "(needs hybridteam[dask])")
+    where.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default 1: this process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs hybridteam[dask])",
+    )
     add_connect_timeout(sw)
-    sw.add_argument("--chunk", type=int, default=None, metavar="K",
-                    help="runs per ensemble chunk (default: the one an interrupted study "
-                    "was run with, else the study's (500 unless it says), made smaller "
-                    "where that leaves some of --workers N without a chunk)")
+    sw.add_argument(
+        "--chunk",
+        type=int,
+        default=None,
+        metavar="K",
+        help="runs per ensemble chunk (default: the one an interrupted study "
+        "was run with, else the study's (500 unless it says), made smaller "
+        "where that leaves some of --workers N without a chunk)",
+    )
     sw.add_argument("--quiet", action="store_true", help="no progress or summary")
-    sw.add_argument("--progress", choices=MODES, default="auto",
-                    help="auto (a bar on a terminal, lines otherwise), bar, log or none")
+    sw.add_argument(
+        "--progress",
+        choices=MODES,
+        default="auto",
+        help="auto (a bar on a terminal, lines otherwise), bar, log or none",
+    )
 
-    rp = sub.add_parser("report", help="a run folder's HTML page, or a study's plots and "
-                        "report.md", description="For a folder written by 'hybridteam run "
-                        "-o FOLDER': one self-contained HTML page (summary, state diagram, "
-                        "timeline, trajectories, animation, sequence chart). For a study's "
-                        "output folder: its plots and report.md.")
+    rp = sub.add_parser(
+        "report",
+        help="a run folder's HTML page, or a study's plots and report.md",
+        description="For a folder written by 'hybridteam run "
+        "-o FOLDER': one self-contained HTML page (summary, state diagram, "
+        "timeline, trajectories, animation, sequence chart). For a study's "
+        "output folder: its plots and report.md.",
+    )
     rp.add_argument("folder", metavar="FOLDER", help="a run folder or a study's output folder")
-    rp.add_argument("-o", "--output", default=None, metavar="FILE",
-                    help="run folders: the page (default FOLDER/report.html)")
-    rp.add_argument("--instance", type=int, default=0,
-                    help="run folders: which instance (default 0)")
-    rp.add_argument("--no-animation", action="store_true",
-                    help="run folders: leave the animation out (drawn unless FOLDER has "
-                    "run.gif)")
+    rp.add_argument(
+        "-o",
+        "--output",
+        default=None,
+        metavar="FILE",
+        help="run folders: the page (default FOLDER/report.html)",
+    )
+    rp.add_argument(
+        "--instance", type=int, default=0, help="run folders: which instance (default 0)"
+    )
+    rp.add_argument(
+        "--no-animation",
+        action="store_true",
+        help="run folders: leave the animation out (drawn unless FOLDER has run.gif)",
+    )
     return {"sweep": cmd_sweep, "report": cmd_report}
 
 
@@ -79,14 +107,23 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     show = "none" if args.quiet else args.progress
     try:
-        result = run_study(study, out, workers=args.workers, scheduler=args.scheduler,
-                           chunk=args.chunk, progress=show,
-                           connect_timeout=args.connect_timeout)
+        result = run_study(
+            study,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            chunk=args.chunk,
+            progress=show,
+            connect_timeout=args.connect_timeout,
+        )
     except StudyError as exc:
         raise UsageError(str(exc)) from None
     except KeyboardInterrupt:
-        print(f"hybridteam: interrupted; the finished chunks are kept in {out}/chunks — "
-              "run the same command to resume", file=sys.stderr)
+        print(
+            f"hybridteam: interrupted; the finished chunks are kept in {out}/chunks — "
+            "run the same command to resume",
+            file=sys.stderr,
+        )
         return EXIT_INTERRUPTED
     # result.warnings were logged as they arose, printed by main's library_logging
     if not args.quiet:
@@ -94,17 +131,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         tally: dict[str, int] = {}
         assert result.table is not None
         for row in result.table.rows:
-            for name in result.table.columns[result.table.columns.index("runs") + 1:
-                                             result.table.columns.index("success_rate")]:
+            for name in result.table.columns[
+                result.table.columns.index("runs") + 1 : result.table.columns.index("success_rate")
+            ]:
                 tally[name] = tally.get(name, 0) + row[name]
         reused = f", {len(result.reused)} found done" if result.reused else ""
-        print(f"{study.name}: {plan.runs} runs in {len(plan.chunks)} chunks "
-              f"({len(result.computed)} computed{reused}"
-              + (f", {result.executor}" if result.computed else "")
-              + f") in {result.wall_s:.2f} s — "
-              + ", ".join(f"{k}: {v}" for k, v in tally.items()))
-        print(f"wrote {out}/ (results.csv, results.md, runs.csv, study.json, chunks/); "
-              f"'hybridteam report {out}' draws the plots")
+        print(
+            f"{study.name}: {plan.runs} runs in {len(plan.chunks)} chunks "
+            f"({len(result.computed)} computed{reused}"
+            + (f", {result.executor}" if result.computed else "")
+            + f") in {result.wall_s:.2f} s — "
+            + ", ".join(f"{k}: {v}" for k, v in tally.items())
+        )
+        print(
+            f"wrote {out}/ (results.csv, results.md, runs.csv, study.json, chunks/); "
+            f"'hybridteam report {out}' draws the plots"
+        )
     return EXIT_OK
 
 

@@ -27,20 +27,40 @@ DEFAULT_LISTEN: Address = (LOOPBACK, 47000)
 
 def add_udp_options(parser: argparse.ArgumentParser) -> None:
     """The UDP addressing flags of ``hybridteam live``."""
-    parser.add_argument("--listen", default=None, metavar="HOST:PORT",
-                        help="this process's UDP address (default: its agent's deploy: "
-                             "listen, else 127.0.0.1:47000)")
-    parser.add_argument("--peer", action="append", default=[], metavar="HOST:PORT",
-                        help="another process's UDP address (repeat for several)")
-    parser.add_argument("--multicast", default=None, metavar="GROUP:PORT",
-                        help="send to and hear a multicast group (e.g. 239.255.0.1:47000) "
-                             "instead of listing peers")
-    parser.add_argument("--broadcast", default=None, metavar="ADDR:PORT",
-                        help="send to and hear a broadcast address (e.g. "
-                             "192.168.1.255:47000, 127.255.255.255 on loopback)")
-    parser.add_argument("--interface", default=None, metavar="ADDR",
-                        help="(multicast) the IPv4 address of the interface the group is "
-                             "joined on (default 127.0.0.1; 0.0.0.0: the kernel's choice)")
+    parser.add_argument(
+        "--listen",
+        default=None,
+        metavar="HOST:PORT",
+        help="this process's UDP address (default: its agent's deploy: "
+        "listen, else 127.0.0.1:47000)",
+    )
+    parser.add_argument(
+        "--peer",
+        action="append",
+        default=[],
+        metavar="HOST:PORT",
+        help="another process's UDP address (repeat for several)",
+    )
+    parser.add_argument(
+        "--multicast",
+        default=None,
+        metavar="GROUP:PORT",
+        help="send to and hear a multicast group (e.g. 239.255.0.1:47000) instead of listing peers",
+    )
+    parser.add_argument(
+        "--broadcast",
+        default=None,
+        metavar="ADDR:PORT",
+        help="send to and hear a broadcast address (e.g. "
+        "192.168.1.255:47000, 127.255.255.255 on loopback)",
+    )
+    parser.add_argument(
+        "--interface",
+        default=None,
+        metavar="ADDR",
+        help="(multicast) the IPv4 address of the interface the group is "
+        "joined on (default 127.0.0.1; 0.0.0.0: the kernel's choice)",
+    )
 
 
 @dataclass(frozen=True)
@@ -73,8 +93,10 @@ def check_udp_flags(args: argparse.Namespace) -> None:
     if len(group) == 2:
         raise UsageError("give --multicast or --broadcast, not both")
     if group and (args.listen is not None or args.peer):
-        raise UsageError(f"{group[0]}: every process shares the group's port; --listen and "
-                         "--peer are for listing peers instead")
+        raise UsageError(
+            f"{group[0]}: every process shares the group's port; --listen and "
+            "--peer are for listing peers instead"
+        )
 
 
 def udp_settings(args: argparse.Namespace, team: Team, agents: list[str]) -> UdpSettings:
@@ -90,18 +112,26 @@ def udp_settings(args: argparse.Namespace, team: Team, agents: list[str]) -> Udp
         mode, group = "unicast", None
     interface = args.interface if args.interface is not None else udp.interface
     if args.interface is not None and mode != "multicast":
-        raise UsageError("--interface is where a multicast group is joined: it goes with "
-                         "--multicast (or the team file's deploy: udp: multicast)")
+        raise UsageError(
+            "--interface is where a multicast group is joined: it goes with "
+            "--multicast (or the team file's deploy: udp: multicast)"
+        )
     if group is not None:
         assert mode is not None
         return UdpSettings(mode, group, interface=interface)
-    peers = tuple(address(p, "--peer") for p in args.peer) if args.peer else \
-        (udp.peers if udp.mode == "peers" else ())
+    peers = (
+        tuple(address(p, "--peer") for p in args.peer)
+        if args.peer
+        else (udp.peers if udp.mode == "peers" else ())
+    )
     if args.listen is not None:
         return UdpSettings("unicast", address(args.listen, "--listen"), peers)
     given = {a: udp.listen[a] for a in agents if a in udp.listen}
     if len(set(given.values())) > 1:
-        raise UsageError("the agents here listen on different addresses in the team file's "
-                         "deploy: (" + ", ".join(f"{a}: {h}:{p}" for a, (h, p) in
-                                                 given.items()) + "); give --listen")
+        raise UsageError(
+            "the agents here listen on different addresses in the team file's "
+            "deploy: ("
+            + ", ".join(f"{a}: {h}:{p}" for a, (h, p) in given.items())
+            + "); give --listen"
+        )
     return UdpSettings("unicast", next(iter(given.values()), DEFAULT_LISTEN), peers)

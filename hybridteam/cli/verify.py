@@ -38,54 +38,106 @@ EXIT_SPIN_DISAGREES = 4
 
 def register(sub) -> dict:
     ve = sub.add_parser(
-        "verify", help="check a team's protocol logic under every message order and loss",
+        "verify",
+        help="check a team's protocol logic under every message order and loss",
         description="Explores the team's discrete skeleton exhaustively (every message order, "
         "loss up to --losses, timeout and guard over time or state) and checks its "
         "requirements of the forms always(phi) and always(implies(phi, eventually(psi))), "
         "and deadlock; replays each counterexample in the simulator. Exit 0: every property "
-        "holds; 1: a violation a run reproduces; 2: bad input; 3: only spurious violations.")
+        "holds; 1: a violation a run reproduces; 2: bad input; 3: only spurious violations.",
+    )
     ve.add_argument("team", metavar="TEAM.yaml")
-    ve.add_argument("--property", "-p", action="append", default=None, metavar="NAME",
-                    help="check only this property (a requirement's name, or deadlock); "
-                    "repeat for more (default: all)")
-    ve.add_argument("--losses", type=int, default=2, metavar="K",
-                    help="copies the network may lose on one path (default 2)")
-    ve.add_argument("--duplicates", type=int, default=0, metavar="D",
-                    help="copies the network may duplicate on one path (default 0)")
-    ve.add_argument("--order", choices=("any", "fifo"), default="any",
-                    help="any: any copy in flight may arrive next (default); fifo: in "
-                    "sending order on each link")
-    ve.add_argument("--ack-timing", choices=("bounded", "any"), default="bounded",
-                    help="bounded: an ack timeout expires only once every copy and ack of "
-                    "its message has arrived or been lost (ack timeouts exceed the round "
-                    "trip; default); any: at any moment")
-    ve.add_argument("--timeouts", choices=("any", "own", "long"), default="any",
-                    help="any: an after: timeout may expire at any moment (default); own: "
-                    "only once the agent's own messages are settled (none of its copies but "
-                    "acks in flight, nothing awaiting acks); long: only once nothing at all "
-                    "is in flight or unacknowledged. own and long are timing assumptions: "
-                    "they leave behaviours out")
-    ve.add_argument("--max-states", type=int, default=2_000_000, metavar="N",
-                    help="stop exploring beyond N states; verdicts then say 'bounded' "
-                    "(default 2,000,000)")
-    ve.add_argument("--max-memory", type=float, default=None, metavar="GB",
-                    help="stop exploring when this process holds more memory, and take the "
-                    "engine's states in batches that fit in half of it (default 4 GB, as "
-                    "for run; a team whose single state does not fit is refused)")
-    ve.add_argument("--max-values", type=int, default=DEFAULT_MAX_VALUES, metavar="N",
-                    help="stop exploring once a discrete variable has taken more than N "
-                    "different values: a variable that keeps growing (a counter) makes the "
-                    f"skeleton infinite (default {DEFAULT_MAX_VALUES})")
-    ve.add_argument("--no-replay", action="store_true",
-                    help="do not replay counterexamples in the simulator")
-    ve.add_argument("--spin", action="store_true",
-                    help="a second opinion: export the explored skeleton as Promela "
-                         "(OUT/spin/skeleton.pml) and have SPIN check each invariant and "
-                         "response property on it; needs 'spin' and a C compiler (skipped "
-                         "with a note otherwise); exit 4 if SPIN disagrees with a verdict")
+    ve.add_argument(
+        "--property",
+        "-p",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="check only this property (a requirement's name, or deadlock); "
+        "repeat for more (default: all)",
+    )
+    ve.add_argument(
+        "--losses",
+        type=int,
+        default=2,
+        metavar="K",
+        help="copies the network may lose on one path (default 2)",
+    )
+    ve.add_argument(
+        "--duplicates",
+        type=int,
+        default=0,
+        metavar="D",
+        help="copies the network may duplicate on one path (default 0)",
+    )
+    ve.add_argument(
+        "--order",
+        choices=("any", "fifo"),
+        default="any",
+        help="any: any copy in flight may arrive next (default); fifo: in "
+        "sending order on each link",
+    )
+    ve.add_argument(
+        "--ack-timing",
+        choices=("bounded", "any"),
+        default="bounded",
+        help="bounded: an ack timeout expires only once every copy and ack of "
+        "its message has arrived or been lost (ack timeouts exceed the round "
+        "trip; default); any: at any moment",
+    )
+    ve.add_argument(
+        "--timeouts",
+        choices=("any", "own", "long"),
+        default="any",
+        help="any: an after: timeout may expire at any moment (default); own: "
+        "only once the agent's own messages are settled (none of its copies but "
+        "acks in flight, nothing awaiting acks); long: only once nothing at all "
+        "is in flight or unacknowledged. own and long are timing assumptions: "
+        "they leave behaviours out",
+    )
+    ve.add_argument(
+        "--max-states",
+        type=int,
+        default=2_000_000,
+        metavar="N",
+        help="stop exploring beyond N states; verdicts then say 'bounded' (default 2,000,000)",
+    )
+    ve.add_argument(
+        "--max-memory",
+        type=float,
+        default=None,
+        metavar="GB",
+        help="stop exploring when this process holds more memory, and take the "
+        "engine's states in batches that fit in half of it (default 4 GB, as "
+        "for run; a team whose single state does not fit is refused)",
+    )
+    ve.add_argument(
+        "--max-values",
+        type=int,
+        default=DEFAULT_MAX_VALUES,
+        metavar="N",
+        help="stop exploring once a discrete variable has taken more than N "
+        "different values: a variable that keeps growing (a counter) makes the "
+        f"skeleton infinite (default {DEFAULT_MAX_VALUES})",
+    )
+    ve.add_argument(
+        "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
+    )
+    ve.add_argument(
+        "--spin",
+        action="store_true",
+        help="a second opinion: export the explored skeleton as Promela "
+        "(OUT/spin/skeleton.pml) and have SPIN check each invariant and "
+        "response property on it; needs 'spin' and a C compiler (skipped "
+        "with a note otherwise); exit 4 if SPIN disagrees with a verdict",
+    )
     ve.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
-    ve.add_argument("--progress", choices=MODES, default="auto",
-                    help="auto (a line every few seconds), log, bar (the same lines) or none")
+    ve.add_argument(
+        "--progress",
+        choices=MODES,
+        default="auto",
+        help="auto (a line every few seconds), log, bar (the same lines) or none",
+    )
     return {"verify": cmd_verify}
 
 
@@ -111,27 +163,37 @@ def cmd_verify(args) -> int:
     team = load_team_or_report(args.team)
     if team is None:
         return EXIT_USAGE
-    opts = Options(losses=args.losses, duplicates=args.duplicates, order=args.order,
-                   max_states=args.max_states, ack_timing=args.ack_timing,
-                   timeouts=args.timeouts, max_values=args.max_values,
-                   max_memory=None if args.max_memory is None else args.max_memory * 1e9)
+    opts = Options(
+        losses=args.losses,
+        duplicates=args.duplicates,
+        order=args.order,
+        max_states=args.max_states,
+        ack_timing=args.ack_timing,
+        timeouts=args.timeouts,
+        max_values=args.max_values,
+        max_memory=None if args.max_memory is None else args.max_memory * 1e9,
+    )
     try:
         report = verify(team, opts, args.property, _progress(args.progress), replay=False)
     except ResourceError as exc:  # refused before anything was allocated
         raise UsageError(str(exc)) from None
     except UnknownProperty as exc:
         hint = did_you_mean(exc.name, exc.known)
-        raise UsageError(f"--property: '{exc.name}' is not a property of {args.team} (its "
-                         f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint
-                                                                    else "")) from None
+        raise UsageError(
+            f"--property: '{exc.name}' is not a property of {args.team} (its "
+            f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint else "")
+        ) from None
     if report.graph.bound is not None and args.progress != "none":  # before the replays
-        print(f"hybridteam: verify: stopped: {report.graph.bound}", file=sys.stderr,
-              flush=True)
+        print(f"hybridteam: verify: stopped: {report.graph.bound}", file=sys.stderr, flush=True)
     if not args.no_replay:
         for v in report.violated:
             if args.progress != "none":
-                print(f"hybridteam: verify: replaying {v.prop.name}'s counterexample in the "
-                      "simulator", file=sys.stderr, flush=True)
+                print(
+                    f"hybridteam: verify: replaying {v.prop.name}'s counterexample in the "
+                    "simulator",
+                    file=sys.stderr,
+                    flush=True,
+                )
             report.replay(v, progress=_replay_progress(v.prop.name, args.progress))
     out.mkdir(parents=True, exist_ok=True)
     files = {v.prop.name: _write_run(report, v, out) for v in report.reproduced}
@@ -163,11 +225,17 @@ def _spin(report, out) -> tuple[dict, bool]:
         print(f"spin: skipped: {exc}")
         return {"skipped": str(exc)}, False
     for o in opinions:
-        word = ("agrees" if o.agrees else "DISAGREES" if o.spin is not None else
-                "no verdict") + f" ({'holds' if o.ours else 'violated'})"
+        word = (
+            "agrees" if o.agrees else "DISAGREES" if o.spin is not None else "no verdict"
+        ) + f" ({'holds' if o.ours else 'violated'})"
         print(f"spin: {o.name}: {word}" + (f": {o.note}" if o.note else ""))
-    return ({o.name: {"ours": o.ours, "spin": o.spin, "agrees": o.agrees, "note": o.note}
-             for o in opinions}, any(o.spin is not None and not o.agrees for o in opinions))
+    return (
+        {
+            o.name: {"ours": o.ours, "spin": o.spin, "agrees": o.agrees, "note": o.note}
+            for o in opinions
+        },
+        any(o.spin is not None and not o.agrees for o in opinions),
+    )
 
 
 def _write_run(report, v, out) -> list[str]:
@@ -196,9 +264,13 @@ def _progress(mode: str):
             return
         state["last"] = now
         rate = states / seconds if seconds > 0 else 0.0
-        print(f"hybridteam: verify: {states:,} states, frontier {frontier:,}, depth {depth}, "
-              f"{rate:,.0f} states/s, {seconds:.1f} s{_memory()}", file=sys.stderr,
-              flush=True)
+        print(
+            f"hybridteam: verify: {states:,} states, frontier {frontier:,}, depth {depth}, "
+            f"{rate:,.0f} states/s, {seconds:.1f} s{_memory()}",
+            file=sys.stderr,
+            flush=True,
+        )
+
     return show
 
 
@@ -220,32 +292,48 @@ def _replay_progress(name: str, mode: str):
     def show(tried: int, seconds: float) -> None:
         if seconds - state["last"] >= 5.0:
             state["last"] = seconds
-            print(f"hybridteam: verify: {name}: {tried} counterexample(s) replayed, none "
-                  f"reproduced yet, {seconds:.0f} s", file=sys.stderr, flush=True)
+            print(
+                f"hybridteam: verify: {name}: {tried} counterexample(s) replayed, none "
+                f"reproduced yet, {seconds:.0f} s",
+                file=sys.stderr,
+                flush=True,
+            )
+
     return show
 
 
 def _print(report, path: str, files: dict[str, list[str]]) -> None:
     g = report.graph
-    print(f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
-          f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
-          f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
-          f"order {report.options.order})")
+    print(
+        f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
+        f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
+        f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
+        f"order {report.options.order})"
+    )
     if g.bound is not None:
         print(f"  stopped: {g.bound}")
     for note in report.skeleton.notes:
         print(f"  abstracted: {note}")
     for v in report.verdicts:
-        word = {None: "NOT CHECKED", True: "holds" if g.exhaustive else "holds (bounded)",
-                False: "VIOLATED"}[v.holds]
+        word = {
+            None: "NOT CHECKED",
+            True: "holds" if g.exhaustive else "holds (bounded)",
+            False: "VIOLATED",
+        }[v.holds]
         print(f"{v.prop.name}: {word}" + (f" ({v.message})" if v.message else ""))
         if v.holds is False:
             if v.prop.name in report.replays:
                 _, r, tried = report.replays[v.prop.name]
-                print(f"  replayed in the simulator: {r.verdict.upper()}: {r.reason}"
-                      + (f" (the shortest of {tried} counterexamples tried)" if tried > 1
-                         and r.reproduced else f" ({tried} counterexamples tried)"
-                         if tried > 1 else ""))
+                print(
+                    f"  replayed in the simulator: {r.verdict.upper()}: {r.reason}"
+                    + (
+                        f" (the shortest of {tried} counterexamples tried)"
+                        if tried > 1 and r.reproduced
+                        else f" ({tried} counterexamples tried)"
+                        if tried > 1
+                        else ""
+                    )
+                )
             for line in report.counterexample(v):
                 print(f"  {line}")
             if v.prop.name in files:

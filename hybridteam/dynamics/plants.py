@@ -94,8 +94,7 @@ def _arcs_few(x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
         ratio = float(np.sin(half)) / half if half != 0 else 1.0
         chord = v * hh * ratio
         mid = th + half
-        out.append([px + chord * float(np.cos(mid)), py + chord * float(np.sin(mid)),
-                    th + w * hh])
+        out.append([px + chord * float(np.cos(mid)), py + chord * float(np.sin(mid)), th + w * hh])
     return np.array(out, dtype=float).reshape(-1, 3)
 
 

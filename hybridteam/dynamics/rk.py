@@ -32,8 +32,9 @@ def _dop853_tables() -> ModuleType:
     """
     spec = importlib.util.find_spec("scipy")
     if spec and spec.submodule_search_locations:
-        path = Path(spec.submodule_search_locations[0], "integrate", "_ivp",
-                    "dop853_coefficients.py")
+        path = Path(
+            spec.submodule_search_locations[0], "integrate", "_ivp", "dop853_coefficients.py"
+        )
         if path.is_file():
             mspec = importlib.util.spec_from_file_location("_hybridteam_dop853", path)
             if mspec and mspec.loader:
@@ -57,8 +58,8 @@ C = _c.C[:N_STAGES]
 E3 = _c.E3
 E5 = _c.E5
 D = _c.D
-A_EXTRA = _c.A[N_STAGES + 1:]
-C_EXTRA = _c.C[N_STAGES + 1:]
+A_EXTRA = _c.A[N_STAGES + 1 :]
+C_EXTRA = _c.C[N_STAGES + 1 :]
 
 
 def _row(coefs: np.ndarray) -> np.ndarray:
@@ -88,8 +89,11 @@ def _sums_table() -> tuple[list[np.ndarray], int]:
     adds each sum's terms one at a time from ``j = 0`` up to its last nonzero coefficient
     (zero coefficients inside included): the textbook sum, with its bits.
     """
-    rows = [A[s, :s] for s in range(1, N_STAGES)] + [B_TERMS.ravel(), E5_TERMS.ravel(),
-                                                     E3_TERMS.ravel()]
+    rows = [A[s, :s] for s in range(1, N_STAGES)] + [
+        B_TERMS.ravel(),
+        E5_TERMS.ravel(),
+        E3_TERMS.ravel(),
+    ]
     assert all(r.size == s and r[-1] != 0 for s, r in enumerate(rows[: N_STAGES - 1], 1))
     assert all(r.size <= N_STAGES for r in rows)
     table = np.zeros((len(rows), N_STAGES))
@@ -116,13 +120,12 @@ def _dense_table() -> tuple[np.ndarray, list[np.ndarray]]:
     """
     rows = [r.ravel() for r in EXTRA_ROWS] + [r.ravel() for r in D_TERMS]
     assert all(r.size == N_STAGES + 1 + s for s, r in enumerate(rows[: len(C_EXTRA)]))
-    assert all(r.size == N_STAGES + 1 + len(C_EXTRA) for r in rows[len(C_EXTRA):])
+    assert all(r.size == N_STAGES + 1 + len(C_EXTRA) for r in rows[len(C_EXTRA) :])
     table = np.zeros((len(rows), N_STAGES + 1 + len(C_EXTRA)))
     for i, r in enumerate(rows):
         table[i, : r.size] = r
     start = table[:, : N_STAGES + 1, None, None].copy()
-    columns = [table[s + 1:, N_STAGES + 1 + s, None, None].copy()
-               for s in range(len(C_EXTRA))]
+    columns = [table[s + 1 :, N_STAGES + 1 + s, None, None].copy() for s in range(len(C_EXTRA))]
     return start, columns
 
 
@@ -141,9 +144,17 @@ class Step:
 
     __slots__ = ("_F", "_last", "_small", "err", "f", "h", "k", "t0", "x0", "x1")
 
-    def __init__(self, f: Derivative, t0: np.ndarray, x0: np.ndarray, x1: np.ndarray,
-                 k: np.ndarray, h: np.ndarray, err: np.ndarray | None,
-                 last_stage: bool = True) -> None:
+    def __init__(
+        self,
+        f: Derivative,
+        t0: np.ndarray,
+        x0: np.ndarray,
+        x1: np.ndarray,
+        k: np.ndarray,
+        h: np.ndarray,
+        err: np.ndarray | None,
+        last_stage: bool = True,
+    ) -> None:
         """``last_stage`` false: ``k[N_STAGES]`` (the derivative at the new state, which
         only the error estimate and the dense output read) is not computed yet."""
         self.f, self.t0, self.x0, self.x1, self.k, self.h, self.err = f, t0, x0, x1, k, h, err
@@ -172,13 +183,13 @@ class Step:
             sums = np.add.accumulate(DENSE_START * self.k, axis=1)[:, -1]  # (7, m, d)
             for s, c in enumerate(C_EXTRA):
                 k[first + s] = self.f(self.t0 + c * self.h, self.x0 + hc * sums[s])
-                sums[s + 1:] += DENSE_COLUMNS[s] * k[first + s]
+                sums[s + 1 :] += DENSE_COLUMNS[s] * k[first + s]
             F = np.empty((_c.INTERPOLATOR_POWER, m, d))
             dy = self.x1 - self.x0
             F[0] = dy
             F[1] = hc * k[0] - dy
             F[2] = 2 * dy - hc * (k[N_STAGES] + k[0])
-            F[3:] = hc * sums[len(C_EXTRA):]
+            F[3:] = hc * sums[len(C_EXTRA) :]
             self._F = F
         return self._F
 
@@ -229,8 +240,16 @@ class Step:
         return out
 
 
-def step(f: Derivative, t: np.ndarray, x: np.ndarray, h: np.ndarray, rtol: float,
-         atol: float, f0: np.ndarray | None = None, estimate: bool = True) -> Step:
+def step(
+    f: Derivative,
+    t: np.ndarray,
+    x: np.ndarray,
+    h: np.ndarray,
+    rtol: float,
+    atol: float,
+    f0: np.ndarray | None = None,
+    estimate: bool = True,
+) -> Step:
     """Attempt one DOP853 step of size ``h`` (per instance) from ``(t, x)``.
 
     ``err`` is each instance's scaled error norm (accept where ``err <= 1``); with
@@ -284,8 +303,9 @@ def next_step_size(h: np.ndarray, err: np.ndarray) -> np.ndarray:
     return h * factor
 
 
-def initial_step_size(f: Derivative, t: np.ndarray, x: np.ndarray, rtol: float,
-                      atol: float, max_step: float) -> np.ndarray:
+def initial_step_size(
+    f: Derivative, t: np.ndarray, x: np.ndarray, rtol: float, atol: float, max_step: float
+) -> np.ndarray:
     """Hairer–Nørsett–Wanner's starting step estimate, per instance."""
     f0 = f(t, x)
     scale = atol + np.abs(x) * rtol
@@ -299,6 +319,9 @@ def initial_step_size(f: Derivative, t: np.ndarray, x: np.ndarray, rtol: float,
     f1 = f(t + h0, x1)
     d2 = np.sqrt(np.mean(((f1 - f0) / scale) ** 2, axis=1)) / h0
     big = np.maximum(d1, d2)
-    h1 = np.where(big <= 1e-15, np.maximum(1e-6, h0 * 1e-3),
-                  (0.01 / np.maximum(big, 1e-300)) ** (1 / (ERROR_ORDER + 1)))
+    h1 = np.where(
+        big <= 1e-15,
+        np.maximum(1e-6, h0 * 1e-3),
+        (0.01 / np.maximum(big, 1e-300)) ** (1 / (ERROR_ORDER + 1)),
+    )
     return np.minimum(np.minimum(100 * h0, h1), max_step)

@@ -35,8 +35,9 @@ INTERNAL_API: dict[str, frozenset[str]] = {
     "run.simulator": frozenset({"Simulator"}),
     "run.costs": frozenset({"Costs"}),
     "run.ensemble": frozenset({"Ensemble"}),
-    "run.budget": frozenset({"ResourceError", "instances_within", "memory_estimate",
-                             "memory_limit", "resident_bytes"}),
+    "run.budget": frozenset(
+        {"ResourceError", "instances_within", "memory_estimate", "memory_limit", "resident_bytes"}
+    ),
     "run.overrides": frozenset({"key_problem"}),
     "run.batch": frozenset({"batch_rows"}),
     "run.record": frozenset({"variables_key"}),

@@ -73,9 +73,16 @@ def frame_times(trace: Trace, instance: int, fps: float, duration: float | None)
     return np.linspace(t0, t1, int(np.clip(count, 2, MAX_FRAMES)))
 
 
-def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fps: int = 20,
-                    duration: float | None = None, speed: float | None = None,
-                    size: tuple[float, float] | None = None, dpi: float = 100.0) -> Path:
+def write_animation(
+    trace: Trace,
+    path: str | os.PathLike,
+    instance: int = 0,
+    fps: int = 20,
+    duration: float | None = None,
+    speed: float | None = None,
+    size: tuple[float, float] | None = None,
+    dpi: float = 100.0,
+) -> Path:
     """Write a .gif (Pillow) or .mp4 (ffmpeg) of the run; ``duration`` is the playback
     length in seconds, or ``speed`` simulated seconds per second of playback (default: a
     frame per sample, at most ``MAX_FRAMES``); ``size`` in inches and ``dpi`` set the
@@ -83,8 +90,10 @@ def write_animation(trace: Trace, path: str | os.PathLike, instance: int = 0, fp
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
-        raise ValueError(f"{path}: unsupported animation format {suffix or '(none)'}; "
-                         f"use one of {', '.join(FORMATS)}")
+        raise ValueError(
+            f"{path}: unsupported animation format {suffix or '(none)'}; "
+            f"use one of {', '.join(FORMATS)}"
+        )
     if suffix == ".mp4" and shutil.which("ffmpeg") is None:
         raise RuntimeError("ffmpeg is not installed; write a .gif instead")
     if speed is not None:
@@ -146,8 +155,14 @@ class _CanvasGifWriter(PillowWriter):
         self._images.append(image.quantize(palette=self._palette, dither=Image.Dither.NONE))
 
     def finish(self) -> None:
-        self._images[0].save(self.outfile, save_all=True, append_images=self._images[1:],
-                             duration=int(1000 / self.fps), loop=0, optimize=False)
+        self._images[0].save(
+            self.outfile,
+            save_all=True,
+            append_images=self._images[1:],
+            duration=int(1000 / self.fps),
+            loop=0,
+            optimize=False,
+        )
 
 
 def _palette(first: Image.Image) -> Image.Image:
@@ -173,9 +188,13 @@ class _CanvasFFMpegWriter(FFMpegWriter):
         self._proc.stdin.write(frame.tobytes())  # type: ignore[attr-defined]
 
 
-def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
-           dpi: float = 100.0, linger: float = 0.0
-           ) -> tuple[Figure, Any, list[Any], list[Any]]:
+def _build(
+    trace: Trace,
+    instance: int,
+    size: tuple[float, float] | None = None,
+    dpi: float = 100.0,
+    linger: float = 0.0,
+) -> tuple[Figure, Any, list[Any], list[Any]]:
     """The figure with its static parts drawn, a function moving it to time t, the artists
     that accumulate (trails: each frame adds the stretch since the previous one, so a frame
     costs the same late in a long run as early) and those redrawn every frame.
@@ -192,16 +211,21 @@ def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
     heights = ([max(plane_h, 1.6)] if planar else []) + [1.5] * len(flows)
     fig = Figure(figsize=(width, size[1] if size else 1.3 + max(sum(heights), 1.8)), dpi=dpi)
     FigureCanvasAgg(fig)
-    grid = fig.add_gridspec(max(len(heights), 1), 2, height_ratios=heights or [1],
-                            width_ratios=[width - panel_w, panel_w])
+    grid = fig.add_gridspec(
+        max(len(heights), 1),
+        2,
+        height_ratios=heights or [1],
+        width_ratios=[width - panel_w, panel_w],
+    )
     panel = fig.add_subplot(grid[:, 1])
     panel.axis("off")
     updates: list[Any] = []  # per panel: its update(t)
     trails: list[Any] = []  # artists that only grow (blitted onto the background)
     moving: list[Any] = []  # artists redrawn every frame
     if planar and limits is not None:  # (limits: the planar robots' scene)
-        fn, trails, artists = _planar(fig.add_subplot(grid[0, 0]), trace, instance, planar,
-                                      limits, linger)
+        fn, trails, artists = _planar(
+            fig.add_subplot(grid[0, 0]), trace, instance, planar, limits, linger
+        )
         updates.append(fn)
         moving += artists
     for k, agent in enumerate(flows):
@@ -209,19 +233,51 @@ def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
         fn, artists = _flow(ax, trace, instance, agent)
         updates.append(fn)
         moving += artists
-    stamp = panel.text(0.0, 1.0, "", ha="left", va="top", fontsize=10, family="monospace",
-                       transform=panel.transAxes, gid="time")
-    rows = [(a, PALETTE[i % len(PALETTE)], _Mode(trace, instance, a))
-            for i, a in enumerate(planar + [f for f in flows if f not in planar])]
+    stamp = panel.text(
+        0.0,
+        1.0,
+        "",
+        ha="left",
+        va="top",
+        fontsize=10,
+        family="monospace",
+        transform=panel.transAxes,
+        gid="time",
+    )
+    rows = [
+        (a, PALETTE[i % len(PALETTE)], _Mode(trace, instance, a))
+        for i, a in enumerate(planar + [f for f in flows if f not in planar])
+    ]
     lines = []
     tall = fig.get_figheight() * 0.85  # the panel's height in inches, about
     step = min(0.5 / tall, 0.85 / max(len(rows), 1))  # a row: name and mode, 0.5 in
     for k, (a, color, _mode) in enumerate(rows):  # fixed rows: texts cannot overlap
         y = 0.88 - k * step
-        panel.text(0.0, y, a, ha="left", va="top", fontsize=9, fontweight="bold",
-                   color=color, transform=panel.transAxes, gid="robot")
-        lines.append(panel.text(0.0, y - 0.42 * step, "", ha="left", va="top", fontsize=8,
-                                color="#222222", transform=panel.transAxes, gid="mode"))
+        panel.text(
+            0.0,
+            y,
+            a,
+            ha="left",
+            va="top",
+            fontsize=9,
+            fontweight="bold",
+            color=color,
+            transform=panel.transAxes,
+            gid="robot",
+        )
+        lines.append(
+            panel.text(
+                0.0,
+                y - 0.42 * step,
+                "",
+                ha="left",
+                va="top",
+                fontsize=8,
+                color="#222222",
+                transform=panel.transAxes,
+                gid="mode",
+            )
+        )
     fig.suptitle(str(trace.meta.get("team", "")), fontsize=11)
     fig.set_layout_engine("constrained")
     fig.canvas.draw()  # lay out once, then freeze: every frame keeps the same geometry
@@ -240,12 +296,17 @@ def _build(trace: Trace, instance: int, size: tuple[float, float] | None = None,
 
 def _fit(text: str, width: int) -> str:
     """A mode path cut from the left to ``width`` characters (the leaf matters most)."""
-    return text if len(text) <= width else "…" + text[-(width - 1):]
+    return text if len(text) <= width else "…" + text[-(width - 1) :]
 
 
-def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
-            limits: tuple[float, float, float, float], linger: float
-            ) -> tuple[Any, list[Any], list[Any]]:
+def _planar(
+    ax: Any,
+    trace: Trace,
+    instance: int,
+    agents: list[str],
+    limits: tuple[float, float, float, float],
+    linger: float,
+) -> tuple[Any, list[Any], list[Any]]:
     """Walls, obstacles and guide paths; per robot its path to come (faint), its trail, its
     footprint at true size with a heading line; the payloads at their poses; control
     messages as lines from sender to receiver while in flight (and ``linger`` seconds after
@@ -264,8 +325,17 @@ def _planar(ax: Any, trace: Trace, instance: int, agents: list[str],
         radius = foot.radius if foot else None
         r = float(radius) if radius else 0.02 * max(extent, 1e-9)
         trail = ax.plot([], [], color=color, linewidth=1.6, zorder=4)[0]
-        body = ax.add_patch(Circle((np.nan, np.nan), r, facecolor=color, alpha=0.35,
-                                   edgecolor=color, zorder=5, gid=f"robot:{a}"))
+        body = ax.add_patch(
+            Circle(
+                (np.nan, np.nan),
+                r,
+                facecolor=color,
+                alpha=0.35,
+                edgecolor=color,
+                zorder=5,
+                gid=f"robot:{a}",
+            )
+        )
         head = ax.plot([], [], color=color, linewidth=1.6, zorder=6)[0]
         valid = ~np.isnan(p[:, 0])
         last = np.maximum.accumulate(np.where(valid, np.arange(len(p)), -1))
@@ -307,10 +377,19 @@ def _payloads(ax: Any, trace: Trace, instance: int) -> tuple[Any, list[Any]]:
     items = []
     for k, name in enumerate(payload_names(trace)):
         shape = payload_shape(trace, name)
-        patch = ax.add_patch(Polygon(np.zeros((4, 2)), closed=True, visible=False,
-                                     facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.55,
-                                     edgecolor="#333333", linewidth=0.8, zorder=4.5,
-                                     gid=f"payload:{name}"))
+        patch = ax.add_patch(
+            Polygon(
+                np.zeros((4, 2)),
+                closed=True,
+                visible=False,
+                facecolor=PALETTE[(k + 5) % len(PALETTE)],
+                alpha=0.55,
+                edgecolor="#333333",
+                linewidth=0.8,
+                zorder=4.5,
+                gid=f"payload:{name}",
+            )
+        )
         items.append((pose(trace, name, instance), shape, patch))
 
     def update(t: float, k: int) -> None:
@@ -324,8 +403,14 @@ def _payloads(ax: Any, trace: Trace, instance: int) -> tuple[Any, list[Any]]:
     return update, [patch for _p, _s, patch in items]
 
 
-def _messages(ax: Any, trace: Trace, instance: int, agents: list[str],
-              poses: dict[str, np.ndarray], linger: float) -> tuple[Any, list[Any]]:
+def _messages(
+    ax: Any,
+    trace: Trace,
+    instance: int,
+    agents: list[str],
+    poses: dict[str, np.ndarray],
+    linger: float,
+) -> tuple[Any, list[Any]]:
     """Control messages between drawn robots: (t_send, t_shown_until, sender, receiver,
     lost) rows, drawn as one collection per frame."""
     msgs = pick(trace.messages, instance)
@@ -333,16 +418,22 @@ def _messages(ax: Any, trace: Trace, instance: int, agents: list[str],
     times = trace.sample_times
     if len(msgs):
         for m in msgs:
-            if m.socket == "data" or m.sender not in poses or m.receiver not in poses \
-                    or m.reason == "run ended":
+            if (
+                m.socket == "data"
+                or m.sender not in poses
+                or m.receiver not in poses
+                or m.reason == "run ended"
+            ):
                 continue
             lost = m.status == "lost"
             arrive = m.t_send if lost or m.t_recv is None else float(m.t_recv)
-            rows.append((float(m.t_send), max(arrive, m.t_send + linger), m.sender,
-                         m.receiver, lost))
+            rows.append(
+                (float(m.t_send), max(arrive, m.t_send + linger), m.sender, m.receiver, lost)
+            )
     sent = LineCollection([], colors="#222222", linewidths=1.0, zorder=8, gid="messages")
-    gone = LineCollection([], colors="#CC0000", linewidths=1.0, linestyles="dashed",
-                          zorder=8, gid="lost-messages")
+    gone = LineCollection(
+        [], colors="#CC0000", linewidths=1.0, linestyles="dashed", zorder=8, gid="lost-messages"
+    )
     ax.add_collection(sent)
     ax.add_collection(gone)
 
@@ -361,8 +452,17 @@ def _messages(ax: Any, trace: Trace, instance: int, agents: list[str],
 def _flow(ax: Any, trace: Trace, instance: int, agent: str) -> tuple[Any, list[Any]]:
     draw_flow(ax, trace, instance, agent)
     cursor = ax.axvline(0.0, color="#CC0000", linewidth=1.0, zorder=6)
-    label = ax.text(0.99, 0.95, "", transform=ax.transAxes, ha="right", va="top", fontsize=8,
-                    path_effects=HALO, zorder=7)
+    label = ax.text(
+        0.99,
+        0.95,
+        "",
+        transform=ax.transAxes,
+        ha="right",
+        va="top",
+        fontsize=8,
+        path_effects=HALO,
+        zorder=7,
+    )
     mode = _Mode(trace, instance, agent)
 
     def update(t: float, k: int) -> None:

@@ -32,8 +32,9 @@ def latency_text(latency: float) -> str:
 def loss_text(data: TimelineData) -> str:
     """`` — 2 messages lost (×), 2500 data copies dropped`` (empty when nothing was)."""
     parts = [f"{data.lost} message{'s' * (data.lost != 1)} lost (×)"] * bool(data.lost)
-    parts += [f"{data.dropped} data cop{'ies' if data.dropped != 1 else 'y'} dropped"
-              ] * bool(data.dropped)
+    parts += [f"{data.dropped} data cop{'ies' if data.dropped != 1 else 'y'} dropped"] * bool(
+        data.dropped
+    )
     return " — " + ", ".join(parts) if parts else ""
 
 
@@ -52,10 +53,12 @@ class Crossings:
     every arrow (a close-up asks it for every name it draws)."""
 
     def __init__(self, data: TimelineData) -> None:
-        keep = [a for a in data.arrows
-                if not (a.lost or math.isnan(a.t_recv)) and a.y_send != a.y_recv]
-        cols = np.array([(a.t_send, a.t_recv, a.y_send, a.y_recv) for a in keep],
-                        float).reshape(-1, 4)
+        keep = [
+            a for a in data.arrows if not (a.lost or math.isnan(a.t_recv)) and a.y_send != a.y_recv
+        ]
+        cols = np.array([(a.t_send, a.t_recv, a.y_send, a.y_recv) for a in keep], float).reshape(
+            -1, 4
+        )
         self.ts, self.tr, self.ys, self.yr = cols.T
 
     def __call__(self, y: float, t0: float, t1: float) -> bool:
@@ -92,21 +95,45 @@ def draw_mode_names(ax: Any, fig: Any, data: TimelineData, px_per_s: float) -> N
                 # crosses the name: it stops short of the letters instead of striking them
                 # out (all patches one collection: a bbox per text costs a layout each)
                 h = 0.62 * size * fig.dpi / 72 / px_per_y
-                backings.append(np.array([(mid - half, lane.y - h), (mid + half, lane.y - h),
-                                          (mid + half, lane.y + h), (mid - half, lane.y + h)]))
+                backings.append(
+                    np.array(
+                        [
+                            (mid - half, lane.y - h),
+                            (mid + half, lane.y - h),
+                            (mid + half, lane.y + h),
+                            (mid - half, lane.y + h),
+                        ]
+                    )
+                )
                 backing_colors.append(b.color)
-            ax.text((lo + hi) / 2, lane.y, b.label, ha="center", va="center", fontsize=size,
-                    color=text_color(b.color), clip_on=True, zorder=6, gid="mode-label")
+            ax.text(
+                (lo + hi) / 2,
+                lane.y,
+                b.label,
+                ha="center",
+                va="center",
+                fontsize=size,
+                color=text_color(b.color),
+                clip_on=True,
+                zorder=6,
+                gid="mode-label",
+            )
     if backings:
-        ax.add_collection(PolyCollection(backings, facecolors=backing_colors,
-                                         edgecolors="none", zorder=5, gid="mode-backings"))
+        ax.add_collection(
+            PolyCollection(
+                backings,
+                facecolors=backing_colors,
+                edgecolors="none",
+                zorder=5,
+                gid="mode-backings",
+            )
+        )
 
 
 def gap_centres(data: TimelineData) -> list[float]:
     """The middle of each white gap between two lanes (lanes are stacked downwards)."""
     lanes = sorted(data.lanes, key=lambda lane: -lane.y)
-    return [((a.y - a.height / 2) + (b.y + b.height / 2)) / 2
-            for a, b in itertools.pairwise(lanes)]
+    return [((a.y - a.height / 2) + (b.y + b.height / 2)) / 2 for a, b in itertools.pairwise(lanes)]
 
 
 def label_rows(data: TimelineData, centre: float) -> list[float]:
@@ -149,8 +176,7 @@ def bundles(arrows: list[TimelineArrow], tolerance: float) -> list[Bundle]:
         mine = open_.setdefault((a.y_send, a.y_recv), [])
         while mine and a.t_send - mine[0].arrows[0].t_send > tolerance:
             mine.pop(0)  # sorted by send time: bundles left behind stay closed
-        home = next((b for b in mine if abs(a.t_recv - b.arrows[0].t_recv) <= tolerance),
-                    None)
+        home = next((b for b in mine if abs(a.t_recv - b.arrows[0].t_recv) <= tolerance), None)
         if home is None:
             home = Bundle([])
             mine.append(home)
@@ -170,8 +196,12 @@ def label_order(found: list[Bundle]) -> list[tuple[Bundle, bool]]:
         for t in b.types:
             first.setdefault(t, k)
     news = set(first.values())
-    return [(b, k in news) for k, b in sorted(enumerate(found), key=lambda kb: (
-        not kb[1].content, kb[0] not in news, kb[0]))]
+    return [
+        (b, k in news)
+        for k, b in sorted(
+            enumerate(found), key=lambda kb: (not kb[1].content, kb[0] not in news, kb[0])
+        )
+    ]
 
 
 class Rows:
@@ -185,8 +215,7 @@ class Rows:
         self.span = data.span
         self.taken: dict[float, list[tuple[float, float]]] = {}
 
-    def spots(self, b: Bundle, width: float, edge: bool = False
-              ) -> list[tuple[float, float]]:
+    def spots(self, b: Bundle, width: float, edge: bool = False) -> list[tuple[float, float]]:
         """Where ``b``'s label may start (time, row): beside the bundle where it crosses
         each gap it spans, right of it then left, the gap nearest its middle first; inside
         the window, and with ``edge`` (the first of a kind) then the spots it runs out of,
@@ -194,23 +223,23 @@ class Rows:
         a = b.arrows[0]
         lo, hi = sorted((a.y_send, a.y_recv))
         rows = [g for g in self.gaps if lo <= g <= hi] or (
-            [min(self.gaps, key=lambda g: abs(g - (lo + hi) / 2))] if self.gaps
-            else [(lo + hi) / 2])
+            [min(self.gaps, key=lambda g: abs(g - (lo + hi) / 2))] if self.gaps else [(lo + hi) / 2]
+        )
         rows.sort(key=lambda g: abs(g - (lo + hi) / 2))
         out = []
         for gap in rows:
             beside: tuple[list[tuple[float, float]], ...] = ([], [])  # right, left
             for y in label_rows(self.data, gap):
-                cross = [float(time_at(c.t_send, c.t_recv, c.y_send, c.y_recv, y))
-                         for c in b.arrows]
+                cross = [
+                    float(time_at(c.t_send, c.t_recv, c.y_send, c.y_recv, y)) for c in b.arrows
+                ]
                 beside[0].append((max(cross) + 0.6 * self.char, y))
                 beside[1].append((min(cross) - 0.6 * self.char - width, y))
             out += beside[0] + beside[1]
         inside = [s for s in out if self.span[0] <= s[0] and s[0] + width <= self.span[1]]
         return inside + [s for s in out if s not in inside] * edge
 
-    def claim(self, spots: list[tuple[float, float]], width: float
-              ) -> tuple[float, float] | None:
+    def claim(self, spots: list[tuple[float, float]], width: float) -> tuple[float, float] | None:
         """The first of ``spots`` whose span (with a character's room) meets no label."""
         for x, y in spots:
             lo, hi = x - 0.5 * self.char, x + width + 0.5 * self.char
@@ -242,9 +271,16 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
         if a.lost:
             lost.append((a.t_send, a.y_send))
             if data.window:
-                ax.annotate(a.type, (a.t_send, a.y_send), xytext=(5, 6),
-                            textcoords="offset points", fontsize=7, color="#CC0000",
-                            path_effects=HALO, gid="lost-label")
+                ax.annotate(
+                    a.type,
+                    (a.t_send, a.y_send),
+                    xytext=(5, 6),
+                    textcoords="offset points",
+                    fontsize=7,
+                    color="#CC0000",
+                    path_effects=HALO,
+                    gid="lost-label",
+                )
             continue
         faint = a.socket == "data"
         key = (a.t_send, a.t_recv, a.y_send, a.y_recv)
@@ -254,23 +290,58 @@ def draw_messages(ax: Any, data: TimelineData, char_width: float) -> None:
                 continue
             drawn.add(key)
         # an annotation keeps its end points as data (xyann -> xy), exactly send -> receipt
-        ax.annotate("", xy=(a.t_recv, a.y_recv), xytext=(a.t_send, a.y_send),
-                    zorder=3 if faint else 4, gid="data-message" if faint else "message",
-                    arrowprops={"arrowstyle": "-|>", "mutation_scale": 6 if faint else 9,
-                                "shrinkA": 0, "shrinkB": 0,
-                                "color": "#BBBBBB" if faint else "#333333",
-                                "linewidth": 0.5 if faint else 0.9})
+        ax.annotate(
+            "",
+            xy=(a.t_recv, a.y_recv),
+            xytext=(a.t_send, a.y_send),
+            zorder=3 if faint else 4,
+            gid="data-message" if faint else "message",
+            arrowprops={
+                "arrowstyle": "-|>",
+                "mutation_scale": 6 if faint else 9,
+                "shrinkA": 0,
+                "shrinkB": 0,
+                "color": "#BBBBBB" if faint else "#333333",
+                "linewidth": 0.5 if faint else 0.9,
+            },
+        )
     rows = Rows(data, char_width)
     for b, new in label_order(bundles(delivered, 2 * char_width)):
         text = b.text()
         width = len(text) * char_width
         at = rows.claim(rows.spots(b, width, new), width)
         if at is not None:
-            ax.text(*at, text, fontsize=7, ha="left", va="center", zorder=7,
-                    path_effects=HALO, clip_on=True, gid="message-label")
+            ax.text(
+                *at,
+                text,
+                fontsize=7,
+                ha="left",
+                va="center",
+                zorder=7,
+                path_effects=HALO,
+                clip_on=True,
+                gid="message-label",
+            )
     if faint_lost:
-        ax.plot(*zip(*faint_lost, strict=True), linestyle="none", marker="x", color="#999999",
-                markersize=4, markeredgewidth=0.8, zorder=3, gid="data-lost")
+        ax.plot(
+            *zip(*faint_lost, strict=True),
+            linestyle="none",
+            marker="x",
+            color="#999999",
+            markersize=4,
+            markeredgewidth=0.8,
+            zorder=3,
+            gid="data-lost",
+        )
     if lost:
-        ax.plot(*zip(*lost, strict=True), linestyle="none", marker="X", color="#CC0000",
-                markersize=8, markeredgecolor="white", markeredgewidth=0.5, zorder=6, gid="lost")
+        ax.plot(
+            *zip(*lost, strict=True),
+            linestyle="none",
+            marker="X",
+            color="#CC0000",
+            markersize=8,
+            markeredgecolor="white",
+            markeredgewidth=0.5,
+            zorder=6,
+            gid="lost",
+        )

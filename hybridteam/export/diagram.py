@@ -72,8 +72,11 @@ def action_text(action: Assign | Send | Raise, compact: bool = False) -> str:
 
 def behaviour_lines(mode: Mode) -> list[str]:
     """A mode's entry and exit actions as UML writes them: ``entry / a; b``, ``exit / c``."""
-    return [f"{word} / " + "; ".join(action_text(a, compact=True) for a in acts)
-            for word, acts in (("entry", mode.on_entry), ("exit", mode.on_exit)) if acts]
+    return [
+        f"{word} / " + "; ".join(action_text(a, compact=True) for a in acts)
+        for word, acts in (("entry", mode.on_entry), ("exit", mode.on_exit))
+        if acts
+    ]
 
 
 def transition_label(tr: Transition) -> str:
@@ -111,17 +114,29 @@ def _precedence(agent: CAgent) -> list[int]:
     return rank
 
 
-def _add_modes(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode],
-               colors: dict[str, str]) -> None:
+def _add_modes(
+    graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode], colors: dict[str, str]
+) -> None:
     modes = agent.modes
     for cm in modes[1:]:
         parent = modes[cm.parent]
         node = mode_id(agent.name, cm.path)
         graph.add_node(
-            node, kind="mode", agent=agent.name, path=cm.path, name=cm.name, depth=cm.depth,
-            mode_kind=cm.kind, region=parent.kind == "and", initial=parent.initial == cm.index,
-            final=cm.final, history=cm.history, dynamics=dynamics_text(declared[cm.index]),
-            invariant=cm.invariant_text, color=colors[cm.path], role=cm.role or "",
+            node,
+            kind="mode",
+            agent=agent.name,
+            path=cm.path,
+            name=cm.name,
+            depth=cm.depth,
+            mode_kind=cm.kind,
+            region=parent.kind == "and",
+            initial=parent.initial == cm.index,
+            final=cm.final,
+            history=cm.history,
+            dynamics=dynamics_text(declared[cm.index]),
+            invariant=cm.invariant_text,
+            color=colors[cm.path],
+            role=cm.role or "",
             behaviour=behaviour_lines(declared[cm.index]),
             protocol=protocol_of(declared[cm.index].where),
         )
@@ -138,12 +153,19 @@ def _add_transitions(graph: nx.MultiDiGraph, agent: CAgent, declared: list[Mode]
                 raise RuntimeError("declared and compiled transitions disagree")
             for target in ct.targets or [ct.target]:  # several: one arrow to each
                 _link(
-                    graph, mode_id(agent.name, agent.modes[ct.source].path),
+                    graph,
+                    mode_id(agent.name, agent.modes[ct.source].path),
                     mode_id(agent.name, agent.modes[target].path),
-                    kind="transition", agent=agent.name, trigger=tr.on or "",
-                    after="" if tr.after is None else number(tr.after), guard=tr.guard or "",
-                    actions=[action_text(a) for a in tr.actions], priority=tr.priority,
-                    label=transition_label(tr), index=k, protocol=protocol_of(tr.where),
+                    kind="transition",
+                    agent=agent.name,
+                    trigger=tr.on or "",
+                    after="" if tr.after is None else number(tr.after),
+                    guard=tr.guard or "",
+                    actions=[action_text(a) for a in tr.actions],
+                    priority=tr.priority,
+                    label=transition_label(tr),
+                    index=k,
+                    protocol=protocol_of(tr.where),
                 )
             k += 1
 
@@ -172,9 +194,16 @@ def _add_messages(graph: nx.MultiDiGraph, team: Team, agents: list[CAgent]) -> N
                         if (source, node, act.message) in seen:
                             continue
                         seen.add((source, node, act.message))
-                        _link(graph, source, node, kind="message", message=act.message,
-                              socket=act.socket, label=act.message,
-                              protocol=protocol_of(tr.where))
+                        _link(
+                            graph,
+                            source,
+                            node,
+                            kind="message",
+                            message=act.message,
+                            socket=act.socket,
+                            label=act.message,
+                            protocol=protocol_of(tr.where),
+                        )
 
 
 #: Longest text a state box or an edge shows without ``details`` (characters); longer
@@ -187,8 +216,9 @@ def elide(text: str, limit: int = ELIDE) -> str:
     return text if len(text) <= limit else text[: limit - 1].rstrip() + "…"
 
 
-def diagram_graph(team: Team, agents: list[str] | None = None,
-                  details: bool = False) -> nx.MultiDiGraph:
+def diagram_graph(
+    team: Team, agents: list[str] | None = None, details: bool = False
+) -> nx.MultiDiGraph:
     """The team as one graph: agents, their mode trees, transitions and message links.
 
     ``agents``: only these agents (messages between them only); ``details``: every input
@@ -202,10 +232,12 @@ def diagram_graph(team: Team, agents: list[str] | None = None,
         names = [a.name for a in team.agents]
         for name in agents:
             if name not in names:
-                raise ValueError(f"no agent '{name}' in team '{team.name}' (agents: "
-                                 f"{', '.join(names)})")
-        graph.remove_nodes_from([n for n, d in list(graph.nodes(data=True))
-                                 if (d.get("agent") or n) not in agents])
+                raise ValueError(
+                    f"no agent '{name}' in team '{team.name}' (agents: {', '.join(names)})"
+                )
+        graph.remove_nodes_from(
+            [n for n, d in list(graph.nodes(data=True)) if (d.get("agent") or n) not in agents]
+        )
     if not details:
         for _n, d in graph.nodes(data=True):
             if d.get("dynamics"):
@@ -221,12 +253,14 @@ def diagram_graph(team: Team, agents: list[str] | None = None,
 def _whole_graph(team: Team) -> nx.MultiDiGraph:
     cteam = compile_team(team)
     graph: nx.MultiDiGraph = nx.MultiDiGraph(name=team.name)
-    colors = team_mode_colors([(m.path, m.final, m.role) for m in a.modes[1:]]
-                              for a in cteam.agents)
+    colors = team_mode_colors(
+        [(m.path, m.final, m.role) for m in a.modes[1:]] for a in cteam.agents
+    )
     for agent, spec in zip(cteam.agents, team.agents, strict=True):
         root = agent.modes[0]
-        graph.add_node(agent.name, kind="agent", label=agent.name, plant=agent.plant.kind,
-                       history=root.history)
+        graph.add_node(
+            agent.name, kind="agent", label=agent.name, plant=agent.plant.kind, history=root.history
+        )
         declared = _declared(spec.root)
         _add_modes(graph, agent, declared, colors)
         _add_transitions(graph, agent, declared)
@@ -291,4 +325,3 @@ def walk(graph: nx.MultiDiGraph, node: str) -> Iterator[str]:
     for child in children(graph, node):
         yield child
         yield from walk(graph, child)
-

@@ -22,8 +22,9 @@ DATA_FORMATS = {".csv": "csv", ".json": "json"}
 def figure_format(path: str | os.PathLike, formats: dict[str, str] = FIGURE_FORMATS) -> str:
     suffix = Path(path).suffix.lower()
     if suffix not in formats:
-        raise ValueError(f"{path}: unsupported format {suffix or '(none)'}; "
-                         f"use one of {', '.join(formats)}")
+        raise ValueError(
+            f"{path}: unsupported format {suffix or '(none)'}; use one of {', '.join(formats)}"
+        )
     return formats[suffix]
 
 
@@ -35,9 +36,12 @@ def save_figure(fig: Figure, path: str | os.PathLike, tight: bool = True) -> Pat
     path = Path(path)
     fmt = figure_format(path)
     buf = io.BytesIO()
-    metadata = {"svg": {"Date": None},
-                "pdf": {"CreationDate": None, "ModDate": None, "Producer": None}}.get(fmt)
+    metadata = {
+        "svg": {"Date": None},
+        "pdf": {"CreationDate": None, "ModDate": None, "Producer": None},
+    }.get(fmt)
     with rc_context({"svg.fonttype": "none", "svg.hashsalt": "hybridteam"}):
-        fig.savefig(buf, format=fmt, bbox_inches="tight" if tight else None, dpi=fig.dpi,
-                    metadata=metadata)
+        fig.savefig(
+            buf, format=fmt, bbox_inches="tight" if tight else None, dpi=fig.dpi, metadata=metadata
+        )
     return write_atomic(path, buf.getvalue())

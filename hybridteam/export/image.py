@@ -61,46 +61,127 @@ def _draw_box(ax, layout: Layout, box: Box, depth: int) -> None:
     style = "round,pad=0,rounding_size=7"
     if is_composite(layout.graph, box.node):
         shade = ("#FFFFFF", "#F4F4F4", "#EAEAEA", "#E0E0E0")[min(depth, 3)]
-        ax.add_artist(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=shade,
-                                    ec="#444444", lw=1.0, ls="--" if dashed else "-"))
+        ax.add_artist(
+            FancyBboxPatch(
+                (box.x, box.y),
+                box.w,
+                box.h,
+                boxstyle=style,
+                fc=shade,
+                ec="#444444",
+                lw=1.0,
+                ls="--" if dashed else "-",
+            )
+        )
         title = state_title(layout.graph, box.node)
-        _text(ax, box.x + PAD, box.y + 4, title, fontsize=NAME_PT,
-              fontweight="bold", va="top", ha="left", color="#222222")
+        _text(
+            ax,
+            box.x + PAD,
+            box.y + 4,
+            title,
+            fontsize=NAME_PT,
+            fontweight="bold",
+            va="top",
+            ha="left",
+            color="#222222",
+        )
         if behaviour_caption(layout.graph, box.node):
-            _text(ax, box.x + PAD + _text_width([title], NAME_PT) + CAPTION_GAP, box.y + 5,
-                  behaviour_caption(layout.graph, box.node), fontsize=SMALL_PT, va="top",
-                  ha="left", color="#222222")
+            _text(
+                ax,
+                box.x + PAD + _text_width([title], NAME_PT) + CAPTION_GAP,
+                box.y + 5,
+                behaviour_caption(layout.graph, box.node),
+                fontsize=SMALL_PT,
+                va="top",
+                ha="left",
+                color="#222222",
+            )
         first = initial_child(layout.graph, box.node)
         if first:
             kid = layout.boxes[first]
             cy = kid.y + min(kid.h / 2, 12.0)
             ax.add_artist(Circle((kid.x - 12, cy), 3.0, fc="black", ec="black"))
-            ax.add_artist(FancyArrowPatch((kid.x - 9, cy), (kid.x, cy), arrowstyle="-|>",
-                                         mutation_scale=7, lw=0.9, color="black"))
+            ax.add_artist(
+                FancyArrowPatch(
+                    (kid.x - 9, cy),
+                    (kid.x, cy),
+                    arrowstyle="-|>",
+                    mutation_scale=7,
+                    lw=0.9,
+                    color="black",
+                )
+            )
         for row in box.rows:
             for kid in row:
                 _draw_box(ax, layout, kid, depth + 1)
         return
     color = data["color"]
     ink = text_color(color)
-    ax.add_artist(FancyBboxPatch((box.x, box.y), box.w, box.h, boxstyle=style, fc=color,
-                                ec="#222222", lw=1.0, ls="--" if dashed else "-"))
+    ax.add_artist(
+        FancyBboxPatch(
+            (box.x, box.y),
+            box.w,
+            box.h,
+            boxstyle=style,
+            fc=color,
+            ec="#222222",
+            lw=1.0,
+            ls="--" if dashed else "-",
+        )
+    )
     if data["final"]:
-        ax.add_artist(FancyBboxPatch((box.x + 2.5, box.y + 2.5), box.w - 5, box.h - 5,
-                                    boxstyle="round,pad=0,rounding_size=5", fc="none",
-                                    ec="#222222", lw=0.8))
-    _text(ax, box.x + box.w / 2, box.y + PAD / 2 + 1, data["name"], fontsize=NAME_PT,
-          fontweight="bold", ha="center", va="top", color=ink)
+        ax.add_artist(
+            FancyBboxPatch(
+                (box.x + 2.5, box.y + 2.5),
+                box.w - 5,
+                box.h - 5,
+                boxstyle="round,pad=0,rounding_size=5",
+                fc="none",
+                ec="#222222",
+                lw=0.8,
+            )
+        )
+    _text(
+        ax,
+        box.x + box.w / 2,
+        box.y + PAD / 2 + 1,
+        data["name"],
+        fontsize=NAME_PT,
+        fontweight="bold",
+        ha="center",
+        va="top",
+        color=ink,
+    )
     if box.lines:
-        _text(ax, box.x + box.w / 2, box.y + PAD / 2 + NAME_PT * 1.45, "\n".join(box.lines),
-              fontsize=SMALL_PT, ha="center", va="top", color=ink, linespacing=1.15)
+        _text(
+            ax,
+            box.x + box.w / 2,
+            box.y + PAD / 2 + NAME_PT * 1.45,
+            "\n".join(box.lines),
+            fontsize=SMALL_PT,
+            ha="center",
+            va="top",
+            color=ink,
+            linespacing=1.15,
+        )
 
 
 def _label(ax, x: float, y: float, lines: list[str], color: str, **kw) -> None:
-    _text(ax, x, y, "\n".join(lines), fontsize=SMALL_PT, color=color, ha="center",
-          va="center", linespacing=1.1, zorder=5, gid="edge-label",
-          bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
-          **kw)
+    _text(
+        ax,
+        x,
+        y,
+        "\n".join(lines),
+        fontsize=SMALL_PT,
+        color=color,
+        ha="center",
+        va="center",
+        linespacing=1.1,
+        zorder=5,
+        gid="edge-label",
+        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85},
+        **kw,
+    )
 
 
 @dataclass
@@ -117,8 +198,14 @@ class _Edge:
     path: list[tuple[float, float]] | None = None  # a routed polyline instead of an arc
 
 
-def _spots(pa, pb, rad: float, ts: tuple[float, ...], step: float,
-           path: list[tuple[float, float]] | None = None) -> list[tuple[float, float]]:
+def _spots(
+    pa,
+    pb,
+    rad: float,
+    ts: tuple[float, ...],
+    step: float,
+    path: list[tuple[float, float]] | None = None,
+) -> list[tuple[float, float]]:
     """Candidate label centres: points of the curve (or the routed ``path``) at ``ts``,
     then beside it either side."""
     if path is not None:
@@ -137,8 +224,9 @@ def _spots(pa, pb, rad: float, ts: tuple[float, ...], step: float,
     return out
 
 
-def _place(placer: Placer, text: str, spots: list[tuple[float, float]],
-           more: list[tuple[float, float]]) -> tuple[list[str], tuple[float, float]]:
+def _place(
+    placer: Placer, text: str, spots: list[tuple[float, float]], more: list[tuple[float, float]]
+) -> tuple[list[str], tuple[float, float]]:
     """The label's lines and centre: at the first free spot, else a footnote marker at the
     first free one of ``spots`` and ``more`` (denser, further out), else at the first."""
     lines = _wrap(text, 24)
@@ -153,8 +241,11 @@ def _place(placer: Placer, text: str, spots: list[tuple[float, float]],
 
 def _spiral(x: float, y: float) -> list[tuple[float, float]]:
     """Spots on rings of growing radius around (x, y): somewhere near, a marker fits."""
-    return [(x + r * math.cos(a * math.pi / 8), y + r * math.sin(a * math.pi / 8))
-            for r in range(8, 400, 6) for a in range(16)]
+    return [
+        (x + r * math.cos(a * math.pi / 8), y + r * math.sin(a * math.pi / 8))
+        for r in range(8, 400, 6)
+        for a in range(16)
+    ]
 
 
 def _blocked(layout: Layout) -> list[Rect]:
@@ -196,8 +287,10 @@ def _stubs(layout: Layout, graph: nx.MultiDiGraph, placer: Placer) -> list[_Edge
         text = f"{message} → {', '.join(receivers)}"
         w, _h = text_size(_wrap(text, 24), SMALL_PT)
         side = 1.0 if right else -1.0
-        spots = [(tip[0] + side * (w / 2 + 2), y + dy) for dy in
-                 (0.0, *(s * j * 8.0 for j in range(1, 10) for s in (1, -1)))]
+        spots = [
+            (tip[0] + side * (w / 2 + 2), y + dy)
+            for dy in (0.0, *(s * j * 8.0 for j in range(1, 10) for s in (1, -1)))
+        ]
         lines, at = _place(placer, text, spots, _spiral(*spots[0]))
         out.append(_Edge((x, y), tip, 0.0, True, lines, at))
     return out
@@ -220,20 +313,22 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
             x, cy = box.x + box.w, box.y + min(box.h / 2, 14.0)
             rad = -2.6 - 1.2 * k
             w, _h = text_size(_wrap(text, 24), SMALL_PT)
-            spots = [(x - rad * 5 + 8 + w / 2, cy + dy) for dy in
-                     (10 * k, *(s * j * 9.0 for j in range(1, 12) for s in (1, -1)))]
+            spots = [
+                (x - rad * 5 + 8 + w / 2, cy + dy)
+                for dy in (10 * k, *(s * j * 9.0 for j in range(1, 12) for s in (1, -1)))
+            ]
             more = [(x - rad * 5 + 14, cy + s * j * 5.0) for j in range(1, 40) for s in (1, -1)]
             lines, at = _place(placer, text, spots, more)
             edges.append(_Edge((x, cy - 5), (x, cy + 5), rad, False, lines, at, loop=True))
             continue
         pa, pb = ends(layout, u, v)
-        rad, hits = bend(layout, u, v, pa, pb, (0.18 if message else 0.12) + 0.18 * k,
-                          message)
+        rad, hits = bend(layout, u, v, pa, pb, (0.18 if message else 0.12) + 0.18 * k, message)
         path = route_edge(layout, u, v, pa, pb) if hits else None
         ts = (0.7, 0.6, 0.8, 0.5) if message else (0.5, 0.4, 0.6, 0.3, 0.7, 0.22, 0.78)
         dense = tuple(k / 20 for k in range(1, 20))
-        lines, at = _place(placer, text, _spots(pa, pb, rad, ts, 9.0, path),
-                           _spots(pa, pb, rad, dense, 6.0, path))
+        lines, at = _place(
+            placer, text, _spots(pa, pb, rad, ts, 9.0, path), _spots(pa, pb, rad, dense, 6.0, path)
+        )
         edges.append(_Edge(pa, pb, rad, message, lines, at, path=path))
     if stubs:
         edges += _stubs(layout, graph, placer)
@@ -242,18 +337,28 @@ def _plan(layout: Layout, graph: nx.MultiDiGraph) -> tuple[list[_Edge], list[str
 
 def _draw_edge(ax, edge: _Edge) -> None:
     color = MESSAGE if edge.message else EDGE
-    style: dict[str, Any] = {"arrowstyle": "-|>", "mutation_scale": 8 if edge.loop else 9,
-                             "lw": 1.0, "color": color, "zorder": 4,
-                             "ls": "--" if edge.message else "-"}
+    style: dict[str, Any] = {
+        "arrowstyle": "-|>",
+        "mutation_scale": 8 if edge.loop else 9,
+        "lw": 1.0,
+        "color": color,
+        "zorder": 4,
+        "ls": "--" if edge.message else "-",
+    }
     if edge.path is not None:
         verts, codes = rounded(edge.path)
-        ax.add_artist(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1,
-                                     **style))
+        ax.add_artist(FancyArrowPatch(path=MplPath(verts, codes), shrinkA=0, shrinkB=1, **style))
     else:
-        ax.add_artist(FancyArrowPatch(edge.pa, edge.pb,
-                                     connectionstyle=f"arc3,rad={edge.rad}",
-                                     shrinkA=0 if edge.loop else 1,
-                                     shrinkB=0 if edge.loop else 1, **style))
+        ax.add_artist(
+            FancyArrowPatch(
+                edge.pa,
+                edge.pb,
+                connectionstyle=f"arc3,rad={edge.rad}",
+                shrinkA=0 if edge.loop else 1,
+                shrinkB=0 if edge.loop else 1,
+                **style,
+            )
+        )
     _label(ax, *edge.at, edge.lines, color, fontstyle="italic" if edge.message else "normal")
 
 
@@ -262,8 +367,7 @@ def diagram_figure(graph: nx.MultiDiGraph, dpi: float = 150.0) -> Figure:
     units, y down): boxes, edges, labels clear of each other, footnotes below."""
     layout = Layout(graph)
     edges, notes = _plan(layout, graph)
-    note_lines = [line for k, text in enumerate(notes, 1)
-                  for line in _wrap(f"({k}) {text}", 90)]
+    note_lines = [line for k, text in enumerate(notes, 1) for line in _wrap(f"({k}) {text}", 90)]
     w = layout.width
     h = layout.height + (len(note_lines) * SMALL_PT * 1.3 + 2 * PAD if note_lines else 0.0)
     dpi = min(dpi, 5800.0 * 72.0 / max(w, h))  # keep the image under ~6000 px a side
@@ -274,27 +378,52 @@ def diagram_figure(graph: nx.MultiDiGraph, dpi: float = 150.0) -> Figure:
     ax.set_ylim(h, 0)
     ax.set_aspect("equal")
     ax.axis("off")
-    _text(ax, PAD, PAD, f"team {graph.graph.get('name', '')}", fontsize=NAME_PT + 1,
-          fontweight="bold", va="top", ha="left")
+    _text(
+        ax,
+        PAD,
+        PAD,
+        f"team {graph.graph.get('name', '')}",
+        fontsize=NAME_PT + 1,
+        fontweight="bold",
+        va="top",
+        ha="left",
+    )
     for panel in layout.panels:
         _draw_box(ax, layout, panel, 0)
     for edge in edges:
         _draw_edge(ax, edge)
     if note_lines:
-        _text(ax, PAD, layout.height, "\n".join(note_lines), fontsize=SMALL_PT, va="top",
-              ha="left", color=EDGE, linespacing=1.15, gid="footnotes")
+        _text(
+            ax,
+            PAD,
+            layout.height,
+            "\n".join(note_lines),
+            fontsize=SMALL_PT,
+            va="top",
+            ha="left",
+            color=EDGE,
+            linespacing=1.15,
+            gid="footnotes",
+        )
     return fig
 
 
 def draw(graph: nx.MultiDiGraph, fmt: str, dpi: float = 150.0) -> bytes:
     """The built-in matplotlib drawing of the diagram graph as ``svg``/``png``/``pdf``."""
-    with mpl.rc_context({"svg.fonttype": "none", "font.family": FONT, "svg.hashsalt": "ht",
-                         "path.simplify": False}):
+    with mpl.rc_context(
+        {"svg.fonttype": "none", "font.family": FONT, "svg.hashsalt": "ht", "path.simplify": False}
+    ):
         fig = diagram_figure(graph, dpi)
         out = io.BytesIO()
         # "tight" grows the canvas to any label that reaches past the estimated layout
-        fig.savefig(out, format=fmt, dpi=fig.dpi, metadata=_metadata(fmt),
-                    bbox_inches="tight", pad_inches=0.08)
+        fig.savefig(
+            out,
+            format=fmt,
+            dpi=fig.dpi,
+            metadata=_metadata(fmt),
+            bbox_inches="tight",
+            pad_inches=0.08,
+        )
         fig.clear()
     return out.getvalue()
 
@@ -314,8 +443,13 @@ def via_dot(graph: nx.MultiDiGraph, fmt: str) -> bytes | None:
     if exe is None:
         return None
     try:
-        proc = subprocess.run([exe, f"-T{fmt}"], input=to_dot(graph).encode("utf-8"),
-                              capture_output=True, timeout=DOT_TIMEOUT, check=False)
+        proc = subprocess.run(
+            [exe, f"-T{fmt}"],
+            input=to_dot(graph).encode("utf-8"),
+            capture_output=True,
+            timeout=DOT_TIMEOUT,
+            check=False,
+        )
     except (OSError, subprocess.SubprocessError):
         return None
     return proc.stdout if proc.returncode == 0 and proc.stdout else None

@@ -37,8 +37,9 @@ class Placer:
     def free(self, r: Rect) -> bool:
         return not any(overlaps(r, o) for o in self.taken)
 
-    def place(self, spots: Iterable[tuple[float, float]], w: float, h: float
-              ) -> tuple[float, float] | None:
+    def place(
+        self, spots: Iterable[tuple[float, float]], w: float, h: float
+    ) -> tuple[float, float] | None:
         """The first of ``spots`` (centres) where a ``w`` x ``h`` box is free; taken."""
         for x, y in spots:
             r = (x - w / 2, y - h / 2, x + w / 2, y + h / 2)

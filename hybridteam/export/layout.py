@@ -107,17 +107,26 @@ class Layout:
             labels = [line for text in self.loops[node] for line in _wrap(text, 24)]
             box.loop = 26.0 + _text_width(labels, SMALL_PT)
         if not is_composite(self.graph, node):
-            box.lines = _wrap(data["dynamics"]) + _wrap(
-                f"inv: {data['invariant']}" if data["invariant"] else "") + [
-                line for text in data["behaviour"] for line in _wrap(text)]
-            box.w = max(_text_width([data["name"]], NAME_PT) * 1.1,
-                        _text_width(box.lines, SMALL_PT), 44.0) + 2 * PAD
+            box.lines = (
+                _wrap(data["dynamics"])
+                + _wrap(f"inv: {data['invariant']}" if data["invariant"] else "")
+                + [line for text in data["behaviour"] for line in _wrap(text)]
+            )
+            box.w = (
+                max(
+                    _text_width([data["name"]], NAME_PT) * 1.1,
+                    _text_width(box.lines, SMALL_PT),
+                    44.0,
+                )
+                + 2 * PAD
+            )
             box.h = NAME_PT * 1.5 + len(box.lines) * SMALL_PT * 1.3 + PAD
             return box
         box.title_w = _text_width([state_title(self.graph, node)], NAME_PT) + 2 * PAD
         if behaviour_caption(self.graph, node):
-            box.title_w += _text_width([behaviour_caption(self.graph, node)], SMALL_PT) \
-                + CAPTION_GAP
+            box.title_w += (
+                _text_width([behaviour_caption(self.graph, node)], SMALL_PT) + CAPTION_GAP
+            )
         kids = [self.measure(c) for c in children(self.graph, node)]
         if not kids:  # an agent without modes (possible when built in Python): an empty box
             box.w = box.title_w
@@ -130,8 +139,10 @@ class Layout:
         else:
             box.rows = self.layers(node, kids)
             box.gaps, box.row_gaps = self.label_room(node, box.rows)
-            inner_w = max(sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
-                          for row, gap in zip(box.rows, box.row_gaps, strict=True))
+            inner_w = max(
+                sum(k.w + k.loop for k in row) + gap * (len(row) - 1)
+                for row, gap in zip(box.rows, box.row_gaps, strict=True)
+            )
             labels = [line for text in self.sibling_labels(node) for line in _wrap(text, 24)]
             widest = max(k.w for k in kids)
             inner_w = max(inner_w, widest + 2 * (_text_width(labels, SMALL_PT) + 6))
@@ -197,7 +208,7 @@ class Layout:
         rows: list[list[Box]] = []
         for level in sorted(set(layer.values())):
             members = [k for k in kids if layer[k.node] == level]
-            rows += [members[i:i + ROW_MAX] for i in range(0, len(members), ROW_MAX)]
+            rows += [members[i : i + ROW_MAX] for i in range(0, len(members), ROW_MAX)]
         return rows
 
     # -------------------------------------------------------------- positions

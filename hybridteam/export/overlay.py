@@ -55,16 +55,21 @@ SIDES = ("log", "model")
 
 
 # ---------------------------------------------------------------------- timeline
-def overlay_timeline_data(result: Conformance, window: tuple[float, float] | None = None,
-                          agents: list[str] | None = None, top: bool | None = None
-                          ) -> TimelineData:
+def overlay_timeline_data(
+    result: Conformance,
+    window: tuple[float, float] | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> TimelineData:
     """The timeline of the log and of the model's replay, interleaved: per agent its
     lanes of the log, then the same lanes of the model (labelled ``A — log``,
     ``A — model``). Bars and transition ticks are each side's own; message arrows are
     the log's (the model's sends went nowhere: the replay gives each agent the log's
     arrivals)."""
-    sides = (timeline_data(result.log, result.instance, window, agents, top),
-             timeline_data(result.model, 0, window, agents, top))
+    sides = (
+        timeline_data(result.log, result.instance, window, agents, top),
+        timeline_data(result.model, 0, window, agents, top),
+    )
     lanes: list[Lane] = []
     moved: list[dict[int, int]] = [{}, {}]  # per side: its lane index -> the merged one
     cursor = 0.0
@@ -76,23 +81,53 @@ def overlay_timeline_data(result: Conformance, window: tuple[float, float] | Non
                 if lane.agent != name:
                     continue
                 moved[k][i] = len(lanes)
-                lanes.append(dataclasses.replace(lane, label=f"{lane.label} — {side}",
-                                                 y=cursor - lane.height / 2))
+                lanes.append(
+                    dataclasses.replace(
+                        lane, label=f"{lane.label} — {side}", y=cursor - lane.height / 2
+                    )
+                )
                 cursor -= lane.height + (gap if k == 1 and _last(data, i) else 0.12)
-    bars = [dataclasses.replace(b, lane=moved[k][b.lane])
-            for k, data in enumerate(sides) for b in data.bars]
-    marks = [dataclasses.replace(m, lane=moved[k][m.lane])
-             for k, data in enumerate(sides) for m in data.marks]
-    by_agent = {old.agent: lanes[moved[0][i]].y  # an arrow joins the log's main lanes
-                for i, old in enumerate(sides[0].lanes) if not old.top and not old.region}
-    arrows = [dataclasses.replace(a, y_send=by_agent[a.sender], y_recv=by_agent[a.receiver])
-              for a in sides[0].arrows]
-    legend = {a: {**sides[1].legend.get(a, {}), **sides[0].legend.get(a, {})} for a in names
-              if a in sides[0].legend or a in sides[1].legend}
-    span = window if window is not None else \
-        (0.0, max(end_time(result.log, result.instance), end_time(result.model, 0)))
-    return TimelineData(lanes, bars, marks, arrows, span, window, lost=sides[0].lost,
-                        dropped=sides[0].dropped, legend=legend, gap=gap)
+    bars = [
+        dataclasses.replace(b, lane=moved[k][b.lane])
+        for k, data in enumerate(sides)
+        for b in data.bars
+    ]
+    marks = [
+        dataclasses.replace(m, lane=moved[k][m.lane])
+        for k, data in enumerate(sides)
+        for m in data.marks
+    ]
+    by_agent = {
+        old.agent: lanes[moved[0][i]].y  # an arrow joins the log's main lanes
+        for i, old in enumerate(sides[0].lanes)
+        if not old.top and not old.region
+    }
+    arrows = [
+        dataclasses.replace(a, y_send=by_agent[a.sender], y_recv=by_agent[a.receiver])
+        for a in sides[0].arrows
+    ]
+    legend = {
+        a: {**sides[1].legend.get(a, {}), **sides[0].legend.get(a, {})}
+        for a in names
+        if a in sides[0].legend or a in sides[1].legend
+    }
+    span = (
+        window
+        if window is not None
+        else (0.0, max(end_time(result.log, result.instance), end_time(result.model, 0)))
+    )
+    return TimelineData(
+        lanes,
+        bars,
+        marks,
+        arrows,
+        span,
+        window,
+        lost=sides[0].lost,
+        dropped=sides[0].dropped,
+        legend=legend,
+        gap=gap,
+    )
 
 
 def _last(data: TimelineData, i: int) -> bool:
@@ -100,9 +135,12 @@ def _last(data: TimelineData, i: int) -> bool:
     return i + 1 == len(data.lanes) or data.lanes[i + 1].agent != data.lanes[i].agent
 
 
-def overlay_timeline_figure(result: Conformance, window: tuple[float, float] | None = None,
-                            agents: list[str] | None = None, top: bool | None = None
-                            ) -> tuple[Figure, TimelineData]:
+def overlay_timeline_figure(
+    result: Conformance,
+    window: tuple[float, float] | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> tuple[Figure, TimelineData]:
     """The overlaid timeline as a figure (Agg canvas), and the data it draws."""
     data = overlay_timeline_data(result, window, agents, top)
     extent = sum(lane.height + data.gap for lane in data.lanes)
@@ -111,24 +149,33 @@ def overlay_timeline_figure(result: Conformance, window: tuple[float, float] | N
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
         diverged = _mark_divergence(ax, data, result)
-        entry = [Line2D([], [], color=DIVERGENCE_COLOR, linewidth=2.0,
-                        label="first divergence")] if diverged is not None else []
+        entry = (
+            [Line2D([], [], color=DIVERGENCE_COLOR, linewidth=2.0, label="first divergence")]
+            if diverged is not None
+            else []
+        )
         draw_timeline(fig, ax, data, result.log, result.instance, entry)
         if top is not None:  # room for the label above the first agent's lanes
             low, high = ax.get_ylim()
             ax.set_ylim(low, max(high, top + 0.3))
-        ax.set_title(f"{result.log.meta.get('team', '')} — log against model\n"
-                     f"{_verdict(result)}", fontsize=10)
+        ax.set_title(
+            f"{result.log.meta.get('team', '')} — log against model\n{_verdict(result)}",
+            fontsize=10,
+        )
     return fig, data
 
 
 def _verdict(result: Conformance) -> str:
     first = result.first
     if first is None:
-        return (f"conformant: every mode sequence is the model's, each transition within "
-                f"{result.tolerance:g} s")
-    return (f"first divergence at t={first.t:.6g} s, {first.agent}: model in "
-            f"{first.expected}, log in {first.observed}")
+        return (
+            f"conformant: every mode sequence is the model's, each transition within "
+            f"{result.tolerance:g} s"
+        )
+    return (
+        f"first divergence at t={first.t:.6g} s, {first.agent}: model in "
+        f"{first.expected}, log in {first.observed}"
+    )
 
 
 def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> float | None:
@@ -142,23 +189,41 @@ def _mark_divergence(ax: Any, data: TimelineData, result: Conformance) -> float 
         return None
     top = max(lane.y + lane.height / 2 for lane in mine) + 0.1
     bottom = min(lane.y - lane.height / 2 for lane in mine) - 0.1
-    ax.plot([first.t, first.t], [bottom, top], color=DIVERGENCE_COLOR, linewidth=2.0,
-            zorder=9, gid="divergence", path_effects=HALO)
+    ax.plot(
+        [first.t, first.t],
+        [bottom, top],
+        color=DIVERGENCE_COLOR,
+        linewidth=2.0,
+        zorder=9,
+        gid="divergence",
+        path_effects=HALO,
+    )
     right = first.t > t0 + 0.6 * (t1 - t0)
     short = (first.expected.rsplit(".", 1)[-1], first.observed.rsplit(".", 1)[-1])
-    ax.annotate(f"t={first.t:.6g} s: model {short[0]}, log {short[1]}", (first.t, top),
-                xytext=(-4 if right else 4, 1), textcoords="offset points",
-                ha="right" if right else "left", va="bottom", fontsize=8,
-                fontweight="bold", color=DIVERGENCE_COLOR, zorder=10,
-                gid="divergence-label",  # (a box: message arrows cross this height)
-                bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none",
-                      "alpha": 0.9})
+    ax.annotate(
+        f"t={first.t:.6g} s: model {short[0]}, log {short[1]}",
+        (first.t, top),
+        xytext=(-4 if right else 4, 1),
+        textcoords="offset points",
+        ha="right" if right else "left",
+        va="bottom",
+        fontsize=8,
+        fontweight="bold",
+        color=DIVERGENCE_COLOR,
+        zorder=10,
+        gid="divergence-label",  # (a box: message arrows cross this height)
+        bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.9},
+    )
     return top
 
 
-def write_overlay_timeline(result: Conformance, path: str | os.PathLike,
-                           window: tuple[float, float] | None = None,
-                           agents: list[str] | None = None, top: bool | None = None) -> Path:
+def write_overlay_timeline(
+    result: Conformance,
+    path: str | os.PathLike,
+    window: tuple[float, float] | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> Path:
     """Write :func:`overlay_timeline_figure` (.png, .svg or .pdf by extension)."""
     figure_format(path)
     fig, _ = overlay_timeline_figure(result, window, agents, top)
@@ -169,9 +234,12 @@ def write_overlay_timeline(result: Conformance, path: str | os.PathLike,
 
 
 # ---------------------------------------------------------------------- plot
-def overlay_plot_figure(result: Conformance, xlim: tuple[float, float] | None = None,
-                        ylim: tuple[float, float] | None = None,
-                        size: tuple[float, float] | None = None) -> Figure:
+def overlay_plot_figure(
+    result: Conformance,
+    xlim: tuple[float, float] | None = None,
+    ylim: tuple[float, float] | None = None,
+    size: tuple[float, float] | None = None,
+) -> Figure:
     """The log's trajectories (:func:`~.trajectories.trajectory_figure`) with each planar
     robot's model path dashed and its plant under the logged commands dotted over its own
     (where the log has its commands), and the largest deviation from each marked: a
@@ -182,8 +250,9 @@ def overlay_plot_figure(result: Conformance, xlim: tuple[float, float] | None = 
     log, model = result.log, result.model
     order = planar_agents(log)
     agents = [a for a in order if a in model.samples]
-    commanded = {a.agent: a.commanded for a in result.agents
-                 if a.agent in agents and a.commanded is not None}
+    commanded = {
+        a.agent: a.commanded for a in result.agents if a.agent in agents and a.commanded is not None
+    }
     if agents and (xlim is None or ylim is None):
         lx0, lx1, ly0, ly1 = scene_extent(log, result.instance)
         mx0, mx1, my0, my1 = scene_extent(model, 0)
@@ -198,40 +267,85 @@ def overlay_plot_figure(result: Conformance, xlim: tuple[float, float] | None = 
         for a in agents:
             color = PALETTE[order.index(a) % len(PALETTE)]
             p = pose(model, a, 0)
-            ax.plot(p[:, 0], p[:, 1], color=color, zorder=4.5, gid=f"model-path:{a}",
-                    label=f"{a} (model)", **MODEL_STYLE)
+            ax.plot(
+                p[:, 0],
+                p[:, 1],
+                color=color,
+                zorder=4.5,
+                gid=f"model-path:{a}",
+                label=f"{a} (model)",
+                **MODEL_STYLE,
+            )
             if a in commanded:
                 xy = commanded[a].xy
-                ax.plot(xy[:, 0], xy[:, 1], color=color, zorder=4.6,
-                        gid=f"commanded-path:{a}", label=f"{a} (under logged commands)",
-                        **COMMANDED_STYLE)
+                ax.plot(
+                    xy[:, 0],
+                    xy[:, 1],
+                    color=color,
+                    zorder=4.6,
+                    gid=f"commanded-path:{a}",
+                    label=f"{a} (under logged commands)",
+                    **COMMANDED_STYLE,
+                )
         # the replay's segment wider, under the commands' one: where the two are the
         # same segment (a logged pose off both), its colour still shows round the other
-        marks = (("deviation", result.replay_deviation, DIVERGENCE_COLOR, 3.2, 6,
-                  "largest deviation, log to model"),
-                 ("commanded-deviation", result.deviation, COMMANDED_COLOR, 1.4, -13,
-                  "largest deviation, log to logged commands"))
+        marks = (
+            (
+                "deviation",
+                result.replay_deviation,
+                DIVERGENCE_COLOR,
+                3.2,
+                6,
+                "largest deviation, log to model",
+            ),
+            (
+                "commanded-deviation",
+                result.deviation,
+                COMMANDED_COLOR,
+                1.4,
+                -13,
+                "largest deviation, log to logged commands",
+            ),
+        )
         for gid, deviation, color, width, above, label in marks:
-            marked = [(a, w) for a in agents
-                      if (w := deviation(a)) is not None and _marked(w)]
+            marked = [(a, w) for a in agents if (w := deviation(a)) is not None and _marked(w)]
             for k, (a, worst) in enumerate(marked):
                 (x0, y0), (x1, y1) = worst.logged, worst.model
-                ax.plot([x0, x1], [y0, y1], color=color, linewidth=width, zorder=9,
-                        marker="o", markersize=3.5, gid=f"{gid}:{a}",
-                        label="_" if k else label)
+                ax.plot(
+                    [x0, x1],
+                    [y0, y1],
+                    color=color,
+                    linewidth=width,
+                    zorder=9,
+                    marker="o",
+                    markersize=3.5,
+                    gid=f"{gid}:{a}",
+                    label="_" if k else label,
+                )
                 # at the segment's middle: inside the plane, where its ends may be at
                 # the edge (a label there would cross the frame)
-                ax.annotate(f"{worst.distance:.3g} m at t={worst.t:.4g} s",
-                            ((x0 + x1) / 2, (y0 + y1) / 2), xytext=(6, above),
-                            textcoords="offset points", fontsize=7.5, fontweight="bold",
-                            color=color, path_effects=HALO, zorder=10,
-                            gid=f"{gid}-label:{a}")
+                ax.annotate(
+                    f"{worst.distance:.3g} m at t={worst.t:.4g} s",
+                    ((x0 + x1) / 2, (y0 + y1) / 2),
+                    xytext=(6, above),
+                    textcoords="offset points",
+                    fontsize=7.5,
+                    fontweight="bold",
+                    color=color,
+                    path_effects=HALO,
+                    zorder=10,
+                    gid=f"{gid}-label:{a}",
+                )
 
-    fig = trajectory_figure(log, result.instance, xlim=xlim, ylim=ylim, size=size,
-                            overlay=draw_model)
-    fig.suptitle(f"{log.meta.get('team', '')} — log (solid), model (dashed), plant under "
-                 "the logged commands (dotted)" if commanded else
-                 f"{log.meta.get('team', '')} — log (solid) against model (dashed)")
+    fig = trajectory_figure(
+        log, result.instance, xlim=xlim, ylim=ylim, size=size, overlay=draw_model
+    )
+    fig.suptitle(
+        f"{log.meta.get('team', '')} — log (solid), model (dashed), plant under "
+        "the logged commands (dotted)"
+        if commanded
+        else f"{log.meta.get('team', '')} — log (solid) against model (dashed)"
+    )
     return fig
 
 
@@ -240,10 +354,13 @@ def _marked(worst: PoseDeviation | None) -> bool:
     return worst is not None and worst.distance > 0
 
 
-def write_overlay_plot(result: Conformance, path: str | os.PathLike,
-                       xlim: tuple[float, float] | None = None,
-                       ylim: tuple[float, float] | None = None,
-                       size: tuple[float, float] | None = None) -> Path:
+def write_overlay_plot(
+    result: Conformance,
+    path: str | os.PathLike,
+    xlim: tuple[float, float] | None = None,
+    ylim: tuple[float, float] | None = None,
+    size: tuple[float, float] | None = None,
+) -> Path:
     """Write :func:`overlay_plot_figure` (.png, .svg or .pdf by extension)."""
     figure_format(path)
     fig = overlay_plot_figure(result, xlim, ylim, size)

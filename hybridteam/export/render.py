@@ -33,8 +33,25 @@ from hybridteam.export.style import FONT, text_color
 Renderer = Callable[[nx.MultiDiGraph], str | bytes]
 MESSAGE_COLOR = "#555555"
 # words Mermaid's or PlantUML's grammar reads as keywords where a state id is expected
-KEYWORDS = frozenset({"as", "class", "classdef", "default", "direction", "end", "hide", "left",
-                      "note", "of", "right", "scale", "skinparam", "state", "title"})
+KEYWORDS = frozenset(
+    {
+        "as",
+        "class",
+        "classdef",
+        "default",
+        "direction",
+        "end",
+        "hide",
+        "left",
+        "note",
+        "of",
+        "right",
+        "scale",
+        "skinparam",
+        "state",
+        "title",
+    }
+)
 
 
 def state_title(graph: nx.MultiDiGraph, node: str) -> str:
@@ -128,26 +145,53 @@ def _dot_block(graph: nx.MultiDiGraph, node: str, depth: int, out: list[str]) ->
         color = data["color"]
         extra = {"peripheries": 2} if data["final"] else {}
         style = "rounded,filled" + (",dashed" if data["region"] else "")
-        out.append(_node(node, pad, label="\n".join(x for x in lines if x), style=style,
-                         fillcolor=color, fontcolor=text_color(color), **extra))
+        out.append(
+            _node(
+                node,
+                pad,
+                label="\n".join(x for x in lines if x),
+                style=style,
+                fillcolor=color,
+                fontcolor=text_color(color),
+                **extra,
+            )
+        )
         return
     style = "rounded,dashed" if data.get("region") else "rounded"
     out.append(f"{pad}subgraph {dot_quote('cluster_' + node)} {{")
     title = "\n".join([state_title(graph, node), *data.get("behaviour", ())])
     out.append(f"{pad}  graph {_attrs(label=title, style=style, color='#444444')};")
     if initial_child(graph, node):
-        out.append(_node(pseudo_id(node), pad + "  ", shape="point", width=0.12, label="",
-                         style="filled", fillcolor="black"))
+        out.append(
+            _node(
+                pseudo_id(node),
+                pad + "  ",
+                shape="point",
+                width=0.12,
+                label="",
+                style="filled",
+                fillcolor="black",
+            )
+        )
     else:
-        out.append(_node(anchor_id(graph, node), pad + "  ", shape="point", width=0.01,
-                         label="", style="invis"))
+        out.append(
+            _node(
+                anchor_id(graph, node),
+                pad + "  ",
+                shape="point",
+                width=0.01,
+                label="",
+                style="invis",
+            )
+        )
     for child in children(graph, node):
         _dot_block(graph, child, depth + 1, out)
     out.append(f"{pad}}}")
 
 
-def _dot_edge(graph: nx.MultiDiGraph, u: str, v: str, tail: str | None = None,
-              **attrs: str | float | bool) -> str:
+def _dot_edge(
+    graph: nx.MultiDiGraph, u: str, v: str, tail: str | None = None, **attrs: str | float | bool
+) -> str:
     """An edge between two modes; clusters are reached through anchors and ltail/lhead.
 
     ``tail`` overrides the tail node (an initial pseudostate), which is never clipped.
@@ -165,11 +209,14 @@ def _dot_edge(graph: nx.MultiDiGraph, u: str, v: str, tail: str | None = None,
 def to_dot(graph: nx.MultiDiGraph) -> str:
     """Graphviz text: one cluster per agent and per composite mode, leaves as coloured boxes."""
     name = graph.graph.get("name", "team")
-    out = [f"digraph {dot_quote(name)} {{",
-           "  graph " + _attrs(compound=True, fontname=FONT, label=name, labelloc="t",
-                               newrank=True, nodesep=0.4) + ";",
-           f"  node {_attrs(fontname=FONT, fontsize=10, shape='box')};",
-           f"  edge {_attrs(fontname=FONT, fontsize=9)};"]
+    out = [
+        f"digraph {dot_quote(name)} {{",
+        "  graph "
+        + _attrs(compound=True, fontname=FONT, label=name, labelloc="t", newrank=True, nodesep=0.4)
+        + ";",
+        f"  node {_attrs(fontname=FONT, fontsize=10, shape='box')};",
+        f"  edge {_attrs(fontname=FONT, fontsize=9)};",
+    ]
     for agent in agents(graph):
         _dot_block(graph, agent, 1, out)
     for node in graph.nodes:
@@ -181,8 +228,18 @@ def to_dot(graph: nx.MultiDiGraph) -> str:
     for u, v, d in edges_of(graph, "message"):
         # constraint=false would keep messages from bending the ranks, but it trips
         # Graphviz's ranking with nested clusters ("trouble in init_rank"); newrank copes
-        out.append(_dot_edge(graph, u, v, label=d["message"], style="dashed", color=MESSAGE_COLOR,
-                             fontcolor=MESSAGE_COLOR, **{"class": "message"}))
+        out.append(
+            _dot_edge(
+                graph,
+                u,
+                v,
+                label=d["message"],
+                style="dashed",
+                color=MESSAGE_COLOR,
+                fontcolor=MESSAGE_COLOR,
+                **{"class": "message"},
+            )
+        )
     out.append("}")
     return "\n".join(out) + "\n"
 
@@ -239,8 +296,11 @@ class _StateText:
         self.local: dict[str | None, list[tuple]] = {}
         for u, v, d in edges_of(graph, "transition"):
             up = parent(graph, u)
-            owner = lca(graph, u, v) if self.nested_links else (
-                up if up is not None and up == parent(graph, v) else None)
+            owner = (
+                lca(graph, u, v)
+                if self.nested_links
+                else (up if up is not None and up == parent(graph, v) else None)
+            )
             self.local.setdefault(owner, []).append((u, v, d))
         self.lines: list[str] = []
 
@@ -270,8 +330,11 @@ class _StateText:
         data = self.graph.nodes[node]
         decl = f'{pad}state "{self.name(data["name"])}" as {self.ids[node]}'
         self.lines.append(decl + self.fill(data["color"]))
-        for text in (data["dynamics"], data["invariant"] and f"inv {data['invariant']}",
-                     *data["behaviour"]):
+        for text in (
+            data["dynamics"],
+            data["invariant"] and f"inv {data['invariant']}",
+            *data["behaviour"],
+        ):
             if text:
                 self.lines.append(f"{pad}{self.ids[node]} : {self.label(text)}")
 
@@ -351,8 +414,10 @@ class _Mermaid(_StateText):
         return self.arrow(u, v, f"{data['message']} (message)")
 
     def render(self) -> str:
-        self.lines = ["stateDiagram-v2",
-                      f"    %% team {self.label(self.graph.graph.get('name', ''))}"]
+        self.lines = [
+            "stateDiagram-v2",
+            f"    %% team {self.label(self.graph.graph.get('name', ''))}",
+        ]
         self.body()
         colors: dict[str, list[str]] = {}
         for node, data in self.graph.nodes(data=True):
@@ -399,9 +464,12 @@ class _PlantUML(_StateText):
         return node
 
     def render(self) -> str:
-        self.lines = ["@startuml", "hide empty description",
-                      f"skinparam defaultFontName {FONT}",
-                      f"title {self.label(self.graph.graph.get('name', ''))}"]
+        self.lines = [
+            "@startuml",
+            "hide empty description",
+            f"skinparam defaultFontName {FONT}",
+            f"title {self.label(self.graph.graph.get('name', ''))}",
+        ]
         self.body()
         self.lines.append("@enduml")
         return "\n".join(self.lines) + "\n"
@@ -424,16 +492,24 @@ def _image(fmt: str) -> Renderer:
     def draw(graph: nx.MultiDiGraph) -> str | bytes:
         from hybridteam.export import image  # matplotlib loads only when an image is asked for
 
-        renderers: dict[str, Renderer] = {"svg": image.render_svg, "png": image.render_png,
-                                          "pdf": image.render_pdf}
+        renderers: dict[str, Renderer] = {
+            "svg": image.render_svg,
+            "png": image.render_png,
+            "pdf": image.render_pdf,
+        }
         return renderers[fmt](graph)
 
     return draw
 
 
-RENDERERS: dict[str, Renderer] = {"dot": to_dot, "mermaid": to_mermaid, "plantuml": to_plantuml,
-                                  "svg": _image("svg"), "png": _image("png"),
-                                  "pdf": _image("pdf")}
+RENDERERS: dict[str, Renderer] = {
+    "dot": to_dot,
+    "mermaid": to_mermaid,
+    "plantuml": to_plantuml,
+    "svg": _image("svg"),
+    "png": _image("png"),
+    "pdf": _image("pdf"),
+}
 
 
 def register(name: str, fn: Renderer) -> None:
@@ -449,6 +525,7 @@ def render(graph: nx.MultiDiGraph, fmt: str) -> str | bytes:
     if fn is None:
         known = ", ".join(sorted(RENDERERS))
         hint = did_you_mean(fmt, RENDERERS)
-        raise ValueError(f"unknown diagram format {fmt!r} (known: {known})"
-                         + (f"; {hint}" if hint else ""))
+        raise ValueError(
+            f"unknown diagram format {fmt!r} (known: {known})" + (f"; {hint}" if hint else "")
+        )
     return fn(graph)

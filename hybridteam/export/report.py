@@ -62,12 +62,20 @@ def _image(path: Path, kind: str) -> bytes:
     from hybridteam.io.yamlpos import SourceError
 
     try:
-        data = read_regular(path, str(path), limit_mb=MAX_TRACE_MB, env="HYBRIDTEAM_MAX_TRACE_MB",
-                            what="files of a run folder")
+        data = read_regular(
+            path,
+            str(path),
+            limit_mb=MAX_TRACE_MB,
+            env="HYBRIDTEAM_MAX_TRACE_MB",
+            what="files of a run folder",
+        )
     except SourceError as exc:
         raise NotAnImage(str(exc)) from None
-    ok = (_SVG_START.match(data) and _SVG_ELEMENT.search(data, 0, 8192)) if kind == "svg" \
+    ok = (
+        (_SVG_START.match(data) and _SVG_ELEMENT.search(data, 0, 8192))
+        if kind == "svg"
         else data[:6] in _GIF_START
+    )
     if not ok:
         what = "an SVG image (<svg> markup)" if kind == "svg" else "a GIF image"
         raise NotAnImage(f"{path}: not {what}; refusing to copy it into the report")
@@ -98,13 +106,19 @@ def _summary(summary: dict[str, Any]) -> str:
     for row in rows:
         cls = "ok" if row.get("outcome") in ("ok", "success") else "bad"
         cells = [f"<td>{_cell(row.get('instance', ''))}</td>"]
-        cells += [f"<td class='{cls}'>{_cell(row[k])}</td>" if k == "outcome" else
-                  f"<td>{_cell(row.get(k, ''))}</td>" for k in keys]
+        cells += [
+            f"<td class='{cls}'>{_cell(row[k])}</td>"
+            if k == "outcome"
+            else f"<td>{_cell(row.get(k, ''))}</td>"
+            for k in keys
+        ]
         body.append("<tr>" + "".join(cells) + "</tr>")
     tally = ", ".join(f"{k}: {v}" for k, v in (summary.get("outcomes") or {}).items())
-    facts = (f"<p>{_cell(summary.get('n', len(rows)))} instance(s), seed "
-             f"{_cell(summary.get('seed'))}, {_cell(summary.get('duration'))} s simulated "
-             f"at most — {html.escape(tally)}</p>")
+    facts = (
+        f"<p>{_cell(summary.get('n', len(rows)))} instance(s), seed "
+        f"{_cell(summary.get('seed'))}, {_cell(summary.get('duration'))} s simulated "
+        f"at most — {html.escape(tally)}</p>"
+    )
     return facts + f"<table><tr>{head}</tr>{''.join(body)}</table>"
 
 
@@ -118,20 +132,33 @@ def _requirements(summary: dict[str, Any]) -> str:
     for row in rows:
         for name, v in row["requirements"].items():
             held = bool(v["satisfied"])
-            what = ("holds" if held else
-                    f"violated at t = {_cell(v.get('violated_at'))} by "
-                    f"<code>{html.escape(str(v.get('failed')))}</code>")
-            body.append(f"<tr><td>{_cell(row.get('instance', ''))}</td><td>{html.escape(name)}</td>"
-                        f"<td class='{'ok' if held else 'bad'}'>{what}</td>"
-                        f"<td>{_cell(v.get('robustness'))}</td></tr>")
-    return ("<section id='requirements'><h2>Requirements</h2><table><tr><th>instance</th>"
-            "<th>requirement</th><th>verdict</th><th>robustness</th></tr>"
-            + "".join(body) + "</table></section>")
+            what = (
+                "holds"
+                if held
+                else f"violated at t = {_cell(v.get('violated_at'))} by "
+                f"<code>{html.escape(str(v.get('failed')))}</code>"
+            )
+            body.append(
+                f"<tr><td>{_cell(row.get('instance', ''))}</td><td>{html.escape(name)}</td>"
+                f"<td class='{'ok' if held else 'bad'}'>{what}</td>"
+                f"<td>{_cell(v.get('robustness'))}</td></tr>"
+            )
+    return (
+        "<section id='requirements'><h2>Requirements</h2><table><tr><th>instance</th>"
+        "<th>requirement</th><th>verdict</th><th>robustness</th></tr>"
+        + "".join(body)
+        + "</table></section>"
+    )
 
 
-def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any],
-                 output: str | os.PathLike | None = None, instance: int = 0,
-                 animation: bool = True) -> Path:
+def write_report(
+    folder: str | os.PathLike,
+    trace: Trace,
+    summary: dict[str, Any],
+    output: str | os.PathLike | None = None,
+    instance: int = 0,
+    animation: bool = True,
+) -> Path:
     """Write ``report.html`` (or ``output``) for the run folder ``folder`` from its trace
     and summary (``trace.json``, ``summary.json``, as ``hybridteam run`` writes them). The
     state diagram and an animation already in the folder are used; the other views are
@@ -145,42 +172,67 @@ def write_report(folder: str | os.PathLike, trace: Trace, summary: dict[str, Any
 
     folder = Path(folder)
     team = html.escape(str(trace.meta.get("team", folder.name)))
-    parts = [f"<h1>{team}</h1>", f"<section id='summary'><h2>Summary</h2>"
-             f"{_summary(summary)}</section>", _requirements(summary)]
+    parts = [
+        f"<h1>{team}</h1>",
+        f"<section id='summary'><h2>Summary</h2>{_summary(summary)}</section>",
+        _requirements(summary),
+    ]
     with tempfile.TemporaryDirectory() as tmp:
         scratch = Path(tmp)
         diagram = folder / "modes.svg"
-        parts.append("<section id='diagram'><h2>State diagram</h2>" +
-                     (_figure(_image(diagram, "svg"), "svg", "state diagram")
-                      if diagram.is_file() else
-                      "<p>(no modes.svg in the folder: run without --no-views)</p>") +
-                     "</section>")
+        parts.append(
+            "<section id='diagram'><h2>State diagram</h2>"
+            + (
+                _figure(_image(diagram, "svg"), "svg", "state diagram")
+                if diagram.is_file()
+                else "<p>(no modes.svg in the folder: run without --no-views)</p>"
+            )
+            + "</section>"
+        )
         write_timeline(trace, scratch / "timeline.svg", instance=instance)
-        parts.append("<section id='timeline'><h2>Timeline</h2>" +
-                     _figure((scratch / "timeline.svg").read_bytes(), "svg", "mode timeline")
-                     + "</section>")
+        parts.append(
+            "<section id='timeline'><h2>Timeline</h2>"
+            + _figure((scratch / "timeline.svg").read_bytes(), "svg", "mode timeline")
+            + "</section>"
+        )
         write_trajectories(trace, scratch / "trajectories.svg", instance=instance)
-        parts.append("<section id='trajectories'><h2>Trajectories</h2>" +
-                     _figure((scratch / "trajectories.svg").read_bytes(), "svg",
-                             "trajectories") + "</section>")
+        parts.append(
+            "<section id='trajectories'><h2>Trajectories</h2>"
+            + _figure((scratch / "trajectories.svg").read_bytes(), "svg", "trajectories")
+            + "</section>"
+        )
         if animation:
             gif = folder / "run.gif"
-            data = (_image(gif, "gif") if gif.is_file() else
-                    write_animation(trace, scratch / "run.gif", instance=instance, fps=10,
-                                    dpi=80).read_bytes())
-            parts.append("<section id='animation'><h2>Animation</h2>" +
-                         _figure(data, "gif", "animation of the run") + "</section>")
+            data = (
+                _image(gif, "gif")
+                if gif.is_file()
+                else write_animation(
+                    trace, scratch / "run.gif", instance=instance, fps=10, dpi=80
+                ).read_bytes()
+            )
+            parts.append(
+                "<section id='animation'><h2>Animation</h2>"
+                + _figure(data, "gif", "animation of the run")
+                + "</section>"
+            )
         else:  # say so, or a reader looks for it
-            parts.append("<section id='animation'><h2>Animation</h2><p>Skipped "
-                         "(<code>--no-animation</code>); <code>hybridteam animate "
-                         "trace.json</code> draws it.</p></section>")
+            parts.append(
+                "<section id='animation'><h2>Animation</h2><p>Skipped "
+                "(<code>--no-animation</code>); <code>hybridteam animate "
+                "trace.json</code> draws it.</p></section>"
+            )
     chart = sequence_chart(trace, "mermaid", instance=instance, sockets=("control",))
-    parts.append("<section id='sequence'><h2>Message sequence chart</h2><p>Mermaid source "
-                 "(control messages; paste into a Mermaid viewer to draw it):</p>"
-                 f"<pre>{html.escape(chart)}</pre></section>")
-    page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
-            f"<title>{team} — hybridteam run</title><style>{_STYLE}</style></head><body>"
-            + "\n".join(parts) + "</body></html>\n")
+    parts.append(
+        "<section id='sequence'><h2>Message sequence chart</h2><p>Mermaid source "
+        "(control messages; paste into a Mermaid viewer to draw it):</p>"
+        f"<pre>{html.escape(chart)}</pre></section>"
+    )
+    page = (
+        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+        f"<title>{team} — hybridteam run</title><style>{_STYLE}</style></head><body>"
+        + "\n".join(parts)
+        + "</body></html>\n"
+    )
     out = Path(output) if output is not None else folder / "report.html"
     write_atomic(out, page)
     return out

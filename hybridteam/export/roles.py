@@ -29,8 +29,11 @@ from hybridteam.export.style import role_copies
 
 def role_hosts(graph: nx.MultiDiGraph) -> list[str]:
     """Modes whose children are a protocol's role states (``Transport``)."""
-    return [n for n, d in graph.nodes(data=True)
-            if any(graph.nodes[c].get("role") for c in children(graph, n))]
+    return [
+        n
+        for n, d in graph.nodes(data=True)
+        if any(graph.nodes[c].get("role") for c in children(graph, n))
+    ]
 
 
 def _trigger(data: dict) -> str:
@@ -71,8 +74,11 @@ def roles_view(graph: nx.MultiDiGraph) -> nx.MultiDiGraph:
         for u, v, d in protocol_edges:
             if role[u] == role[v]:
                 continue
-            how = [("", _trigger(d))] if u not in hide else [
-                (first, _trigger(d)) for first in reached.get(u, ["?"])]
+            how = (
+                [("", _trigger(d))]
+                if u not in hide
+                else [(first, _trigger(d)) for first in reached.get(u, ["?"])]
+            )
             have = pairs.setdefault((role[u], role[v]), [])
             have += [h for h in how if h not in have]
         summary += [(primary[a], primary[b], _label(how)) for (a, b), how in pairs.items()]
@@ -83,22 +89,50 @@ def roles_view(graph: nx.MultiDiGraph) -> nx.MultiDiGraph:
             hidden |= {agent, *modes}
     links = _protocol_links(graph, set(hosts), hidden)
     out.remove_nodes_from(hidden)
-    out.remove_edges_from([(u, v, k) for u, v, k, d in graph.edges(keys=True, data=True)
-                           if d["kind"] in ("transition", "message") and d.get("protocol")
-                           and u not in hidden and v not in hidden])
+    out.remove_edges_from(
+        [
+            (u, v, k)
+            for u, v, k, d in graph.edges(keys=True, data=True)
+            if d["kind"] in ("transition", "message")
+            and d.get("protocol")
+            and u not in hidden
+            and v not in hidden
+        ]
+    )
     for k, (u, v, label) in enumerate(summary):
-        out.add_edge(u, v, order=graph.number_of_edges() + k, kind="transition",
-                     agent=graph.nodes[u]["agent"], trigger="", after="", guard="",
-                     actions=[], priority=0, label=label, index=-1, protocol="summary")
+        out.add_edge(
+            u,
+            v,
+            order=graph.number_of_edges() + k,
+            kind="transition",
+            agent=graph.nodes[u]["agent"],
+            trigger="",
+            after="",
+            guard="",
+            actions=[],
+            priority=0,
+            label=label,
+            index=-1,
+            protocol="summary",
+        )
     for k, (u, v, label) in enumerate(links):
-        out.add_edge(u, v, order=2 * graph.number_of_edges() + k, kind="message", message=label,
-                     socket="control", label=label, protocol=label)
+        out.add_edge(
+            u,
+            v,
+            order=2 * graph.number_of_edges() + k,
+            kind="message",
+            message=label,
+            socket="control",
+            label=label,
+            protocol=label,
+        )
     _renumber(out)
     return out
 
 
-def _protocol_links(graph: nx.MultiDiGraph, hosts: set[str], hidden: set[str]
-                    ) -> list[tuple[str, str, str]]:
+def _protocol_links(
+    graph: nx.MultiDiGraph, hosts: set[str], hidden: set[str]
+) -> list[tuple[str, str, str]]:
     """One (host, host, protocol) link per pair of visible robots exchanging its messages."""
     seen: dict[frozenset, tuple[str, str, str]] = {}
     for u, v, d in edges_of(graph, "message"):

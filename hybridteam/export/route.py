@@ -41,12 +41,14 @@ def _grown_edges(rects: list[Rect], grow: float) -> np.ndarray:
     """The four sides of every rectangle grown by ``grow``: ``(4 r, 4)`` segments."""
     r = np.asarray(rects, float)
     x0, y0, x1, y1 = r[:, 0] - grow, r[:, 1] - grow, r[:, 2] + grow, r[:, 3] + grow
-    return np.concatenate([np.c_[x0, y0, x1, y0], np.c_[x1, y0, x1, y1],
-                           np.c_[x1, y1, x0, y1], np.c_[x0, y1, x0, y0]])
+    return np.concatenate(
+        [np.c_[x0, y0, x1, y0], np.c_[x1, y0, x1, y1], np.c_[x1, y1, x0, y1], np.c_[x0, y1, x0, y0]]
+    )
 
 
-def _clear_to(a: Point, ends: list[Point], rects: list[Rect], grow: float,
-              edges: np.ndarray) -> np.ndarray:
+def _clear_to(
+    a: Point, ends: list[Point], rects: list[Rect], grow: float, edges: np.ndarray
+) -> np.ndarray:
     """Whether each segment from ``a`` to one of ``ends`` stays out of every grown
     rectangle (touching its border is allowed only at a distance: the rectangles are
     grown); ``edges`` are their sides (:func:`_grown_edges`). Every segment is tested in
@@ -55,8 +57,11 @@ def _clear_to(a: Point, ends: list[Point], rects: list[Rect], grow: float,
         return np.ones(len(ends), bool)
     segs = np.array([[a[0], a[1], b[0], b[1]] for b in ends], float).reshape(-1, 4)
     crossed = segments_intersect(segs, edges).any(axis=1)
-    return ~crossed & ~inside(np.array([a]), rects, grow)[0] & \
-        ~inside(np.array(ends, float), rects, grow)
+    return (
+        ~crossed
+        & ~inside(np.array([a]), rects, grow)[0]
+        & ~inside(np.array(ends, float), rects, grow)
+    )
 
 
 def route(pa: Point, pb: Point, obstacles: list[Rect], bounds: Rect) -> list[Point] | None:
@@ -74,8 +79,11 @@ def route(pa: Point, pb: Point, obstacles: list[Rect], bounds: Rect) -> list[Poi
         return None
     graph = _grid_graph(ny_, nx_, free, (x1 - x0) / nx_, (y1 - y0) / ny_)
     # (scipy-stubs types indices as an array only; scipy documents one int as well)
-    dist, pred = dijkstra(graph, indices=start,  # type: ignore[call-overload]
-                          return_predecessors=True)
+    dist, pred = dijkstra(
+        graph,
+        indices=start,  # type: ignore[call-overload]
+        return_predecessors=True,
+    )
     if not math.isfinite(dist[goal]):
         return None
     cells = [goal]
@@ -98,8 +106,8 @@ def _grid_graph(ny: int, nx: int, free: np.ndarray, dx: float, dy: float) -> coo
     idx = np.arange(ny * nx).reshape(ny, nx)
     rows, cols, w = [], [], []
     for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        a = idx[max(0, -di):ny - max(0, di), max(0, -dj):nx - max(0, dj)]
-        b = idx[max(0, di):ny - max(0, -di) or None, max(0, dj):nx - max(0, -dj) or None]
+        a = idx[max(0, -di) : ny - max(0, di), max(0, -dj) : nx - max(0, dj)]
+        b = idx[max(0, di) : ny - max(0, -di) or None, max(0, dj) : nx - max(0, -dj) or None]
         a, b = a.ravel(), b.ravel()
         ok = free[a] & free[b]
         rows.append(a[ok])
@@ -118,9 +126,12 @@ def _straighten(path: list[Point], obstacles: list[Rect]) -> list[Point]:
     out = [path[0]]
     i = 0
     while i < len(path) - 1:
-        later = path[i + 2:]
-        seen = np.flatnonzero(_clear_to(path[i], later, obstacles, grow, edges)) \
-            if later else np.zeros(0, int)
+        later = path[i + 2 :]
+        seen = (
+            np.flatnonzero(_clear_to(path[i], later, obstacles, grow, edges))
+            if later
+            else np.zeros(0, int)
+        )
         j = i + 2 + int(seen[-1]) if seen.size else i + 1
         out.append(path[j])
         i = j
@@ -144,8 +155,7 @@ def along(points: list[Point], ts: tuple[float, ...]) -> list[tuple[Point, Point
     return out
 
 
-def rounded(points: list[Point], radius: float = 6.0
-            ) -> tuple[list[Point], list[np.uint8]]:
+def rounded(points: list[Point], radius: float = 6.0) -> tuple[list[Point], list[np.uint8]]:
     """Vertices and matplotlib Path codes of the polyline with quadratic corners."""
     from matplotlib.path import Path
 
@@ -168,8 +178,9 @@ def _clip(box: Box, toward: tuple[float, float]) -> tuple[float, float]:
     """Where the segment from the box's centre to ``toward`` leaves the box."""
     cx, cy = box.x + box.w / 2, box.y + box.h / 2
     dx, dy = toward[0] - cx, toward[1] - cy
-    t = min(box.w / 2 / abs(dx) if dx else float("inf"), box.h / 2 / abs(dy) if dy else
-            float("inf"))
+    t = min(
+        box.w / 2 / abs(dx) if dx else float("inf"), box.h / 2 / abs(dy) if dy else float("inf")
+    )
     t = min(t, 1.0)
     return cx + dx * t, cy + dy * t
 
@@ -193,20 +204,24 @@ def bezier(pa, pb, rad: float, t: float) -> tuple[float, float]:
     the chord's middle moved by rad * (-dy, dx) in these data coordinates (y points down)."""
     dx, dy = pb[0] - pa[0], pb[1] - pa[1]
     cx, cy = (pa[0] + pb[0]) / 2 - rad * dy, (pa[1] + pb[1]) / 2 + rad * dx
-    return ((1 - t) ** 2 * pa[0] + 2 * t * (1 - t) * cx + t * t * pb[0],
-            (1 - t) ** 2 * pa[1] + 2 * t * (1 - t) * cy + t * t * pb[1])
+    return (
+        (1 - t) ** 2 * pa[0] + 2 * t * (1 - t) * cx + t * t * pb[0],
+        (1 - t) ** 2 * pa[1] + 2 * t * (1 - t) * cy + t * t * pb[1],
+    )
 
 
 def unrelated(layout: Layout, u: str, v: str) -> list[Box]:
     """The boxes an edge from ``u`` to ``v`` must not cross: all but the two ends, their
     containers and what they contain."""
     related = set(layout.up[u]) | set(layout.up[v])
-    return [b for n, b in layout.boxes.items()
-            if n not in related and u not in layout.up[n] and v not in layout.up[n]]
+    return [
+        b
+        for n, b in layout.boxes.items()
+        if n not in related and u not in layout.up[n] and v not in layout.up[n]
+    ]
 
 
-def bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool
-          ) -> tuple[float, int]:
+def bend(layout: Layout, u: str, v: str, pa, pb, base: float, message: bool) -> tuple[float, int]:
     """The first curvature (from gentle to strong, either side) whose curve stays clear of
     boxes unrelated to the two ends and inside the box holding both, and how many of its
     sample points still break that (0 when none; the edge is then routed instead).

@@ -19,9 +19,11 @@ def views_skipped(team) -> str | None:
     n = len(team.agents)
     if n <= MAX_VIEW_AGENTS:
         return None
-    return (f"no views drawn: the team has {n:,} agents and views are drawn for up to "
-            f"{MAX_VIEW_AGENTS}; draw some of them with 'hybridteam timeline TRACE --agents "
-            "A,B' or 'hybridteam diagram MODEL --agent A'")
+    return (
+        f"no views drawn: the team has {n:,} agents and views are drawn for up to "
+        f"{MAX_VIEW_AGENTS}; draw some of them with 'hybridteam timeline TRACE --agents "
+        "A,B' or 'hybridteam diagram MODEL --agent A'"
+    )
 
 
 def write_run_views(team, run, out: Path) -> list[str]:

@@ -44,16 +44,22 @@ def payload_names(trace: Trace) -> list[str]:
 def planar_agents(trace: Trace) -> list[str]:
     """Agents with x and y in their state (payloads excluded: they are drawn as loads)."""
     payloads = set(payload_names(trace))
-    return [a["name"] for a in trace.meta["agents"]
-            if a["name"] not in payloads and {"x", "y"} <= set(a["state"])]
+    return [
+        a["name"]
+        for a in trace.meta["agents"]
+        if a["name"] not in payloads and {"x", "y"} <= set(a["state"])
+    ]
 
 
 def flow_agents(trace: Trace) -> list[str]:
     """Agents without a position: drawn as state against time (agents with no state at
     all, such as an operator, are not drawn)."""
     payloads = set(payload_names(trace))
-    return [a["name"] for a in trace.meta["agents"]
-            if a["name"] not in payloads and a["state"] and not {"x", "y"} <= set(a["state"])]
+    return [
+        a["name"]
+        for a in trace.meta["agents"]
+        if a["name"] not in payloads and a["state"] and not {"x", "y"} <= set(a["state"])
+    ]
 
 
 def pose(trace: Trace, name: str, instance: int) -> np.ndarray:
@@ -77,16 +83,38 @@ def draw_world(ax: Any, scene: SceneDescription) -> None:
     """Walls, obstacles and labelled regions, under everything else."""
     for region in scene.regions:
         pts = np.asarray(region.outline, float)
-        ax.add_patch(Polygon(pts, closed=True, facecolor="#F2E6B8", edgecolor="#C8B46A",
-                             alpha=0.6, zorder=0, gid="region"))
+        ax.add_patch(
+            Polygon(
+                pts,
+                closed=True,
+                facecolor="#F2E6B8",
+                edgecolor="#C8B46A",
+                alpha=0.6,
+                zorder=0,
+                gid="region",
+            )
+        )
         if region.label:
             cx, cy = pts.mean(axis=0)
-            ax.text(cx, cy, region.label, ha="center", va="center", fontsize=8,
-                    color="#7A6A2A", zorder=1, gid="region-label")
+            ax.text(
+                cx,
+                cy,
+                region.label,
+                ha="center",
+                va="center",
+                fontsize=8,
+                color="#7A6A2A",
+                zorder=1,
+                gid="region-label",
+            )
     thin = []
     for ob in scene.obstacles or ():
-        style = {"facecolor": "#9A9A9A", "edgecolor": "#555555", "zorder": 1.8,  # over the grid
-                 "gid": "obstacle"}
+        style = {
+            "facecolor": "#9A9A9A",
+            "edgecolor": "#555555",
+            "zorder": 1.8,  # over the grid
+            "gid": "obstacle",
+        }
         if isinstance(ob, CircleObstacle):
             ax.add_patch(Circle((ob.x, ob.y), ob.r, **style))
         elif isinstance(ob, WallObstacle):  # no thickness: a heavy grey stroke
@@ -94,8 +122,16 @@ def draw_world(ax: Any, scene: SceneDescription) -> None:
         else:
             ax.add_patch(Polygon(np.asarray(ob.corners, float), closed=True, **style))
     if thin:
-        ax.add_collection(LineCollection(thin, colors="#9A9A9A", linewidths=4.0, zorder=1.8,
-                                         capstyle="round", gid="obstacle-walls"))
+        ax.add_collection(
+            LineCollection(
+                thin,
+                colors="#9A9A9A",
+                linewidths=4.0,
+                zorder=1.8,
+                capstyle="round",
+                gid="obstacle-walls",
+            )
+        )
     walls = np.asarray(scene.walls, float).reshape(-1, 4)
     if len(walls):
         ax.add_collection(
@@ -109,8 +145,7 @@ def draw_world(ax: Any, scene: SceneDescription) -> None:
         )
 
 
-def draw_guides(ax: Any, scene: SceneDescription, instance: int,
-                agents: Sequence[str]) -> None:
+def draw_guides(ax: Any, scene: SceneDescription, instance: int, agents: Sequence[str]) -> None:
     """Planned paths of ``instance`` (:class:`~hybridteam.world.scene.GuidePath`), dashed
     in the agent's colour."""
     for entry in scene.paths_of(instance):
@@ -118,14 +153,28 @@ def draw_guides(ax: Any, scene: SceneDescription, instance: int,
             continue
         pts = np.asarray(entry.points, float)
         color = PALETTE[list(agents).index(entry.agent) % len(PALETTE)]
-        ax.plot(pts[:, 0], pts[:, 1], color=color, linewidth=0.9, linestyle=(0, (4, 3)),
-                alpha=0.8, zorder=3, label=f"{entry.agent} guide path",
-                gid=f"guide:{entry.agent}")
+        ax.plot(
+            pts[:, 0],
+            pts[:, 1],
+            color=color,
+            linewidth=0.9,
+            linestyle=(0, (4, 3)),
+            alpha=0.8,
+            zorder=3,
+            label=f"{entry.agent} guide path",
+            gid=f"guide:{entry.agent}",
+        )
 
 
 #: how a collision is marked, in the trajectories and the animation alike
-COLLISION_MARK: dict[str, Any] = {"marker": "*", "markersize": 13, "color": "#CC0000",
-                  "markeredgecolor": "white", "markeredgewidth": 0.8, "linestyle": "none"}
+COLLISION_MARK: dict[str, Any] = {
+    "marker": "*",
+    "markersize": 13,
+    "color": "#CC0000",
+    "markeredgecolor": "white",
+    "markeredgewidth": 0.8,
+    "linestyle": "none",
+}
 
 
 def collision_marks(trace: Trace, instance: int) -> list[tuple[float, float, float, str]]:
@@ -194,8 +243,9 @@ def payload_outline(shape: PayloadShape, x: Any, y: Any, th: Any) -> np.ndarray:
     return np.stack([cx * c - cy * s + x, cx * s + cy * c + y], -1)
 
 
-def moved(p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
-          ) -> np.ndarray:
+def moved(
+    p: np.ndarray, indices: np.ndarray, step: float, turn: float = math.radians(15.0)
+) -> np.ndarray:
     """Of the poses at ``indices``, those where the body has moved by more than ``step`` or
     turned by more than ``turn`` since the last one kept: a robot that waits 13 s while the
     team docks is drawn once, not as a pile of identical footprints."""

@@ -39,13 +39,17 @@ def agent_chart(agent: Agent, priority_rule: str = "inner_first") -> str:
     _expressible(agent)
     root = agent.root
     rule = "" if priority_rule == "inner_first" else f" ht:priority={quoteattr(priority_rule)}"
-    out = ['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<scxml xmlns="{SCXML_NS}" xmlns:ht="{HT_NS}" version="1.0" '
-           f'name={quoteattr(agent.name)}{_initial_attr(root)}{rule}>']
+    out = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        f'<scxml xmlns="{SCXML_NS}" xmlns:ht="{HT_NS}" version="1.0" '
+        f"name={quoteattr(agent.name)}{_initial_attr(root)}{rule}>",
+    ]
     if agent.variables:
         out.append("  <datamodel>")
-        out += [f"    <data id={quoteattr(n)} expr={quoteattr(_text(v))}/>"
-                for n, v in agent.variables.items()]
+        out += [
+            f"    <data id={quoteattr(n)} expr={quoteattr(_text(v))}/>"
+            for n, v in agent.variables.items()
+        ]
         out.append("  </datamodel>")
     histories = {m.name for _p, m in root.walk() if m.history != "none"}
     for child in root.children:
@@ -56,25 +60,30 @@ def agent_chart(agent: Agent, priority_rule: str = "inner_first") -> str:
 
 def _expressible(agent: Agent) -> None:
     if agent.operator:
-        raise NotExpressible(f"agent '{agent.name}' is a protocol's operator: its automaton "
-                             "belongs to the protocol file")
+        raise NotExpressible(
+            f"agent '{agent.name}' is a protocol's operator: its automaton "
+            "belongs to the protocol file"
+        )
     if agent.root.history != "none":
-        raise NotExpressible(f"agent '{agent.name}' has history on its root: an SCXML "
-                             "chart's top level has none")
+        raise NotExpressible(
+            f"agent '{agent.name}' has history on its root: an SCXML chart's top level has none"
+        )
     seen: set[str] = set()
     for path, mode in agent.root.walk():
         if mode is agent.root:
             continue
         if mode.role is not None or (mode.where and isinstance(mode.where[0], InFile)):
-            raise NotExpressible(f"agent '{agent.name}': mode '{path}' comes from a protocol "
-                                 "(its acknowledgements and streams belong to the protocol)")
+            raise NotExpressible(
+                f"agent '{agent.name}': mode '{path}' comes from a protocol "
+                "(its acknowledgements and streams belong to the protocol)"
+            )
         if mode.name in seen:
-            raise NotExpressible(f"agent '{agent.name}': two modes are named '{mode.name}' "
-                                 "(SCXML ids are unique)")
+            raise NotExpressible(
+                f"agent '{agent.name}': two modes are named '{mode.name}' (SCXML ids are unique)"
+            )
         seen.add(mode.name)
         if mode.inputs is None and mode.input_period is not None:
-            raise NotExpressible(f"agent '{agent.name}': mode '{path}' has a period "
-                                 "without inputs")
+            raise NotExpressible(f"agent '{agent.name}': mode '{path}' has a period without inputs")
 
 
 def _text(value: object) -> str:
@@ -106,28 +115,37 @@ def _mode(mode: Mode, out: list[str], pad: str, histories: set[str]) -> None:
     for var, expr in (mode.flow or {}).items():
         body.append(f"{inner}<ht:flow var={quoteattr(var)} expr={quoteattr(_text(expr))}/>")
     if mode.inputs is not None:
-        period = "" if mode.input_period is None else \
-            f" period={quoteattr(repr(float(mode.input_period)))}"
+        period = (
+            ""
+            if mode.input_period is None
+            else f" period={quoteattr(repr(float(mode.input_period)))}"
+        )
         body.append(f"{inner}<ht:inputs{period}>")
-        body += [f"{inner}  <ht:input var={quoteattr(k)} expr={quoteattr(_text(v))}/>"
-                 for k, v in mode.inputs.items()]
+        body += [
+            f"{inner}  <ht:input var={quoteattr(k)} expr={quoteattr(_text(v))}/>"
+            for k, v in mode.inputs.items()
+        ]
         body.append(f"{inner}</ht:inputs>")
     if mode.law is not None:
-        period = "" if mode.law.period is None else \
-            f" period={quoteattr(repr(float(mode.law.period)))}"
+        period = (
+            "" if mode.law.period is None else f" period={quoteattr(repr(float(mode.law.period)))}"
+        )
         body.append(f"{inner}<ht:law use={quoteattr(mode.law.name)}{period}>")
-        body += [f"{inner}  <ht:with name={quoteattr(k)} expr={quoteattr(_text(v))}/>"
-                 for k, v in mode.law.params.items()]
+        body += [
+            f"{inner}  <ht:with name={quoteattr(k)} expr={quoteattr(_text(v))}/>"
+            for k, v in mode.law.params.items()
+        ]
         body.append(f"{inner}</ht:law>")
     if mode.history != "none":
         hid = f"{mode.name}_history"
         if mode.history_default is None:
             body.append(f"{inner}<history id={quoteattr(hid)} type={quoteattr(mode.history)}/>")
         else:
-            body += [f"{inner}<history id={quoteattr(hid)} type={quoteattr(mode.history)}>",
-                     f"{inner}  <transition target="
-                     f"{quoteattr(_last(mode.history_default))}/>",
-                     f"{inner}</history>"]
+            body += [
+                f"{inner}<history id={quoteattr(hid)} type={quoteattr(mode.history)}>",
+                f"{inner}  <transition target={quoteattr(_last(mode.history_default))}/>",
+                f"{inner}</history>",
+            ]
     for key, actions in (("onentry", mode.on_entry), ("onexit", mode.on_exit)):
         if actions:
             body.append(f"{inner}<{key}>")
@@ -161,8 +179,11 @@ def _transition(tr: Transition, pad: str, histories: set[str]) -> list[str]:
         attrs += f" ht:priority={quoteattr(str(tr.priority))}"
     if not tr.actions:
         return [f"{pad}<transition{attrs}/>"]
-    return [f"{pad}<transition{attrs}>", *(_action(a, pad + "  ") for a in tr.actions),
-            f"{pad}</transition>"]
+    return [
+        f"{pad}<transition{attrs}>",
+        *(_action(a, pad + "  ") for a in tr.actions),
+        f"{pad}</transition>",
+    ]
 
 
 def _in(match: re.Match) -> str:
@@ -180,8 +201,10 @@ def _action(action: Assign | Send | Raise, pad: str) -> str:
             attrs += f" socket={quoteattr(action.socket)}"
         if not action.fields:
             return f"{pad}<ht:send {attrs}/>"
-        fields = "".join(f"<ht:field name={quoteattr(k)} expr={quoteattr(_text(v))}/>"
-                         for k, v in action.fields.items())
+        fields = "".join(
+            f"<ht:field name={quoteattr(k)} expr={quoteattr(_text(v))}/>"
+            for k, v in action.fields.items()
+        )
         return f"{pad}<ht:send {attrs}>{fields}</ht:send>"
     aug, plain = _AUG.match(action.text), _SET.match(action.text)
     if aug:

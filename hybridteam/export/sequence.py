@@ -49,8 +49,9 @@ def latency(t_send: float, t_recv: float) -> str:
     return f"+{ms:.0f} ms" if ms >= 1.0 else f"+{ms:.3g} ms"
 
 
-def arrows(trace: Trace, instance: int = 0,
-           sockets: Iterable[str] | None = ("control",)) -> list[SequenceArrow]:
+def arrows(
+    trace: Trace, instance: int = 0, sockets: Iterable[str] | None = ("control",)
+) -> list[SequenceArrow]:
     """The messages of one instance on the chosen sockets (None: all), in send order."""
     table = trace.messages
     if len(table) == 0:
@@ -104,10 +105,35 @@ def _span(names: list[str]) -> list[str]:
 
 
 # words the sequence-diagram grammars read as keywords where a participant is expected
-KEYWORDS = frozenset({"alt", "and", "as", "activate", "actor", "autonumber", "box", "break",
-                      "create", "critical", "deactivate", "destroy", "else", "end", "left",
-                      "loop", "note", "of", "opt", "over", "par", "participant", "rect",
-                      "right", "title"})
+KEYWORDS = frozenset(
+    {
+        "alt",
+        "and",
+        "as",
+        "activate",
+        "actor",
+        "autonumber",
+        "box",
+        "break",
+        "create",
+        "critical",
+        "deactivate",
+        "destroy",
+        "else",
+        "end",
+        "left",
+        "loop",
+        "note",
+        "of",
+        "opt",
+        "over",
+        "par",
+        "participant",
+        "rect",
+        "right",
+        "title",
+    }
+)
 
 
 def _ident(name: str) -> str:
@@ -127,12 +153,10 @@ def _mermaid(names: list[str], found: list[SequenceArrow]) -> str:
     lines = ["sequenceDiagram"]
     for n in names:
         ident = _ident(n)
-        lines.append(f"    participant {ident}" + (f" as {_mermaid_text(n)}" if ident != n
-                                                     else ""))
+        lines.append(f"    participant {ident}" + (f" as {_mermaid_text(n)}" if ident != n else ""))
     for a in found:
         arrow = "-x" if a.lost else "->>"
-        lines.append(f"    {_ident(a.sender)}{arrow}{_ident(a.receiver)}: "
-                     f"{_mermaid_text(a.label)}")
+        lines.append(f"    {_ident(a.sender)}{arrow}{_ident(a.receiver)}: {_mermaid_text(a.label)}")
     if not found:
         lines.append(f"    Note over {','.join(_span(names))}: no messages")
     return "\n".join(lines) + "\n"
@@ -154,8 +178,12 @@ def _plantuml(names: list[str], found: list[SequenceArrow]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def sequence_chart(trace: Trace, fmt: str = "mermaid", instance: int = 0,
-                   sockets: Iterable[str] | None = ("control",)) -> str:
+def sequence_chart(
+    trace: Trace,
+    fmt: str = "mermaid",
+    instance: int = 0,
+    sockets: Iterable[str] | None = ("control",),
+) -> str:
     """The sequence chart of one instance's messages as Mermaid or PlantUML text.
 
     ``sockets`` picks the network sockets shown (``None`` shows all): control messages
@@ -163,8 +191,10 @@ def sequence_chart(trace: Trace, fmt: str = "mermaid", instance: int = 0,
     """
     if fmt not in FORMATS:
         hint = did_you_mean(fmt, FORMATS)
-        raise ValueError(f"unknown sequence chart format {fmt!r} (known: {', '.join(FORMATS)})"
-                         + (f"; {hint}" if hint else ""))
+        raise ValueError(
+            f"unknown sequence chart format {fmt!r} (known: {', '.join(FORMATS)})"
+            + (f"; {hint}" if hint else "")
+        )
     if not 0 <= instance < max(trace.n, 1):
         raise ValueError(f"instance {instance} is out of range: the run has {trace.n}")
     found = arrows(trace, instance, sockets)

@@ -13,16 +13,35 @@ from matplotlib import patheffects
 # Okabe–Ito (colour-blind safe), then Tableau 10 and a few of ColorBrewer's Dark2 and
 # Tableau's, without near-duplicates: 24 colours before a colour is used twice
 PALETTE = (
-    "#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442",
-    "#4E79A7", "#F28E2B", "#59A14F", "#B07AA1", "#9C755F", "#76B7B2", "#EDC948",
-    "#BAB0AC", "#FF9DA7", "#7570B3", "#E7298A", "#66A61E", "#A6761D", "#17BECF",
-    "#BCBD22", "#1F3A93", "#8B0000",
+    "#0072B2",
+    "#E69F00",
+    "#009E73",
+    "#CC79A7",
+    "#56B4E9",
+    "#D55E00",
+    "#F0E442",
+    "#4E79A7",
+    "#F28E2B",
+    "#59A14F",
+    "#B07AA1",
+    "#9C755F",
+    "#76B7B2",
+    "#EDC948",
+    "#BAB0AC",
+    "#FF9DA7",
+    "#7570B3",
+    "#E7298A",
+    "#66A61E",
+    "#A6761D",
+    "#17BECF",
+    "#BCBD22",
+    "#1F3A93",
+    "#8B0000",
 )
 COPY_TINTS = (0.45, 0.7)  # how much white a protocol state's copy of a role body mixes in
 #: Final modes: muted tones, one per final mode (an Arrived and a Stuck must not look alike),
 #: still set apart from the palette's bright colours; the first is ``FINAL``
-FINALS = ("#7F7F7F", "#3B3B3B", "#A89F91", "#5F7A8A", "#8C6D62", "#6B8E6B", "#B5B5B5",
-          "#4F4F6F")
+FINALS = ("#7F7F7F", "#3B3B3B", "#A89F91", "#5F7A8A", "#8C6D62", "#6B8E6B", "#B5B5B5", "#4F4F6F")
 FINAL = FINALS[0]
 HALO = [patheffects.withStroke(linewidth=2.5, foreground="white")]  # text over drawings
 FONT = "DejaVu Sans"
@@ -76,14 +95,17 @@ def team_mode_colors(agents: Iterable[Iterable[tuple]]) -> dict[str, str]:
     for path in paths:
         for state, (original, k) in copy_of.items():
             if path == state or path.startswith(state + "."):
-                counterpart[path] = (original + path[len(state):], k)
+                counterpart[path] = (original + path[len(state) :], k)
     out = mode_colors([p for p in paths if p not in counterpart], finals)
     for path in paths:
         if path in counterpart:
             original, k = counterpart[path]
             base = out.get(original)
-            out[path] = (tint(base, COPY_TINTS[min(k, len(COPY_TINTS)) - 1]) if base else
-                         PALETTE[len(out) % len(PALETTE)])
+            out[path] = (
+                tint(base, COPY_TINTS[min(k, len(COPY_TINTS)) - 1])
+                if base
+                else PALETTE[len(out) % len(PALETTE)]
+            )
     return out
 
 

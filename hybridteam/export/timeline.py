@@ -109,9 +109,16 @@ class TimelineData:
 
     def to_json_dict(self) -> dict[str, Any]:
         """Plain lists of dicts; NaN (a lost message's receipt) becomes null."""
-        return {key: [{k: None if isinstance(v, float) and math.isnan(v) else v
-                       for k, v in asdict(x).items()} for x in getattr(self, key)]
-                for key in ("lanes", "bars", "marks", "arrows")}
+        return {
+            key: [
+                {
+                    k: None if isinstance(v, float) and math.isnan(v) else v
+                    for k, v in asdict(x).items()
+                }
+                for x in getattr(self, key)
+            ]
+            for key in ("lanes", "bars", "marks", "arrows")
+        }
 
     def to_csv(self) -> str:  # the bars: what was active where, for a spreadsheet
         out = io.StringIO()
@@ -158,9 +165,10 @@ def drawn(kind: str | None) -> bool:
 
 def team_colors(agents: list[dict[str, Any]]) -> dict[str, str]:
     """Mode colours of a trace's team (see :func:`style.team_mode_colors`)."""
-    return team_mode_colors([(m["path"], m["final"], m.get("role", ""))
-                             for m in meta.get("modes", [])]
-                            for meta in agents)
+    return team_mode_colors(
+        [(m["path"], m["final"], m.get("role", "")) for m in meta.get("modes", [])]
+        for meta in agents
+    )
 
 
 def select_agents(trace: Trace, names: list[str] | None) -> list[dict[str, Any]]:
@@ -173,8 +181,10 @@ def select_agents(trace: Trace, names: list[str] | None) -> list[dict[str, Any]]
     for name in names:
         if name not in known:
             hint = did_you_mean(name, known)
-            raise ValueError(f"no agent '{name}' in this trace (agents: {', '.join(known)})"
-                             + (f"; {hint}" if hint else ""))
+            raise ValueError(
+                f"no agent '{name}' in this trace (agents: {', '.join(known)})"
+                + (f"; {hint}" if hint else "")
+            )
     return [a for a in every if a["name"] in names]
 
 
@@ -182,8 +192,12 @@ def end_time(trace: Trace, instance: int) -> float:
     """When the instance ended: its outcome time, else the last recorded event or sample."""
     outcomes = getattr(trace, "diagnostics", trace.outcomes)
     o = outcomes[instance] if instance < len(outcomes) else {}
-    t = max([float(o.get("t") or 0.0) if isinstance(o, dict) else 0.0,
-             *pick(trace.intervals, instance)["end"].tolist()])
+    t = max(
+        [
+            float(o.get("t") or 0.0) if isinstance(o, dict) else 0.0,
+            *pick(trace.intervals, instance)["end"].tolist(),
+        ]
+    )
     t = t if t > 0 or not len(trace.sample_times) else float(trace.sample_times[-1])
     return t if t > 0 else float(trace.meta.get("duration") or 1.0)
 
@@ -192,8 +206,11 @@ def _phase_changes(intervals: Table, agent: str, window: tuple[float, float]) ->
     """Whether more than one top-level mode of ``agent`` is active within ``window``
     (``intervals``: one instance's)."""
     iv = intervals.where(agent=agent)
-    shown = ((np.asarray(iv["depth"]) == 1) & (np.asarray(iv["start"], float) <= window[1])
-             & (np.asarray(iv["end"], float) >= window[0]))
+    shown = (
+        (np.asarray(iv["depth"]) == 1)
+        & (np.asarray(iv["start"], float) <= window[1])
+        & (np.asarray(iv["end"], float) >= window[0])
+    )
     return len(set(np.asarray(iv["mode"])[shown].tolist())) > 1
 
 
@@ -205,9 +222,13 @@ def common_ancestor(a: str, b: str) -> str:
 
 
 # ---------------------------------------------------------------------- data
-def timeline_data(trace: Trace, instance: int = 0,
-                  window: tuple[float, float] | None = None,
-                  agents: list[str] | None = None, top: bool | None = None) -> TimelineData:
+def timeline_data(
+    trace: Trace,
+    instance: int = 0,
+    window: tuple[float, float] | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> TimelineData:
     """What the timeline of ``instance`` shows, optionally restricted to ``window`` and to
     some ``agents`` (in team order; colours stay those of the whole team).
 
@@ -227,13 +248,14 @@ def timeline_data(trace: Trace, instance: int = 0,
     for meta in chosen:
         modes = meta.get("modes", [])
         lane_of = mode_lanes(modes)
-        regions = sorted({r for r in lane_of.values() if r},
-                         key=[m["path"] for m in modes].index)
-        composite = any(lane_of[m["path"]] == "" and drawn(m["kind"]) and m["depth"] > 1
-                        for m in modes)
+        regions = sorted({r for r in lane_of.values() if r}, key=[m["path"] for m in modes].index)
+        composite = any(
+            lane_of[m["path"]] == "" and drawn(m["kind"]) and m["depth"] > 1 for m in modes
+        )
         if top is None:  # phases: more than one top-level mode, a final leaf aside
-            composite &= sum(m["depth"] == 1 and not (m["final"] and m["kind"] == "leaf")
-                             for m in modes) > 1
+            composite &= (
+                sum(m["depth"] == 1 and not (m["final"] and m["kind"] == "leaf") for m in modes) > 1
+            )
             if window is not None:  # a close-up: only if the phase changes within it
                 composite &= _phase_changes(iv, meta["name"], window)
         elif not top:
@@ -241,8 +263,13 @@ def timeline_data(trace: Trace, instance: int = 0,
         rows = [("", True)] * composite + [("", False)] + [(r, False) for r in regions]
         for region, is_top in rows:
             h = TOP_HEIGHT if is_top else MAIN_HEIGHT
-            label = (f"{meta['name']} (top)" if is_top else
-                     f"{meta['name']} / {region}" if region else meta["name"])
+            label = (
+                f"{meta['name']} (top)"
+                if is_top
+                else f"{meta['name']} / {region}"
+                if region
+                else meta["name"]
+            )
             index[(meta["name"], region, is_top)] = len(lanes)
             lanes.append(Lane(meta["name"], region, label, cursor - h / 2, h, is_top))
             cursor -= h + gap
@@ -263,12 +290,18 @@ def timeline_data(trace: Trace, instance: int = 0,
         mine = iv.where(agent=name)
         if window is not None:  # a close-up: only the stays it shows (numpy, not a loop)
             st, en = np.asarray(mine["start"], float), np.asarray(mine["end"], float)
-            mine = mine.filter(((st < window[1]) & (en > window[0]))
-                               | ((window[0] <= st) & (st == en) & (en <= window[1])))
+            mine = mine.filter(
+                ((st < window[1]) & (en > window[0]))
+                | ((window[0] <= st) & (st == en) & (en <= window[1]))
+            )
         mine = mine.filter(np.lexsort((mine["depth"], mine["start"])))
-        for mode, depth, start, end in zip(mine["mode"].tolist(), mine["depth"].tolist(),
-                                           mine["start"].tolist(), mine["end"].tolist(),
-                                           strict=True):
+        for mode, depth, start, end in zip(
+            mine["mode"].tolist(),
+            mine["depth"].tolist(),
+            mine["start"].tolist(),
+            mine["end"].tolist(),
+            strict=True,
+        ):
             color, label = colors.get(mode, "#BBBBBB"), mode.rsplit(".", 1)[-1]
             keys = [(name, lane_of.get(mode, ""), False)] if drawn(kinds.get(mode)) else []
             keys += [(name, "", True)] if depth == 1 and (name, "", True) in index else []
@@ -279,10 +312,17 @@ def timeline_data(trace: Trace, instance: int = 0,
         if window is not None:
             at = np.asarray(mine_tr["t"], float)
             mine_tr = mine_tr.filter((window[0] <= at) & (at <= window[1]))
-        marks += [TransitionMark(index[(name, region_of(common_ancestor(a, b), lane_regions),
-                                        False)], t, a, b)
-                  for t, a, b in zip(mine_tr["t"].tolist(), mine_tr["source"].tolist(),
-                                     mine_tr["target"].tolist(), strict=True)]
+        marks += [
+            TransitionMark(
+                index[(name, region_of(common_ancestor(a, b), lane_regions), False)], t, a, b
+            )
+            for t, a, b in zip(
+                mine_tr["t"].tolist(),
+                mine_tr["source"].tolist(),
+                mine_tr["target"].tolist(),
+                strict=True,
+            )
+        ]
         for path in kinds:  # the legend follows the agent's model order, not the run
             if (name, path) in used:
                 legend.setdefault(name, {})[path] = colors.get(path, "#BBBBBB")
@@ -300,26 +340,47 @@ def timeline_data(trace: Trace, instance: int = 0,
         # receiver drops thousands of copies, which would hide the lanes)
         sent = np.asarray(msgs["t_send"], float)
         got = np.where(gone, np.nan, np.asarray(msgs["t_recv"], float))
-        msgs = msgs.filter((((window[0] <= sent) & (sent <= window[1]))
-                            | ((window[0] <= got) & (got <= window[1])))
-                           if window is not None else gone & ~on_data)
+        msgs = msgs.filter(
+            (
+                ((window[0] <= sent) & (sent <= window[1]))
+                | ((window[0] <= got) & (got <= window[1]))
+            )
+            if window is not None
+            else gone & ~on_data
+        )
     for m in msgs:
         if m.sender not in ys or m.receiver not in ys:
             continue
         is_lost = m.status == "lost"
         t_recv = math.nan if is_lost or m.t_recv is None else float(m.t_recv)
-        arrows.append(TimelineArrow(ys[m.sender], ys[m.receiver], float(m.t_send), t_recv,
-                                    m.type, t_recv - m.t_send, is_lost, m.sender, m.receiver,
-                                    str(m.socket)))
+        arrows.append(
+            TimelineArrow(
+                ys[m.sender],
+                ys[m.receiver],
+                float(m.t_send),
+                t_recv,
+                m.type,
+                t_recv - m.t_send,
+                is_lost,
+                m.sender,
+                m.receiver,
+                str(m.socket),
+            )
+        )
     span = window if window is not None else (0.0, end_time(trace, instance))
-    return TimelineData(lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped,
-                        legend=legend, gap=gap)
+    return TimelineData(
+        lanes, bars, marks, arrows, span, window, lost=lost, dropped=dropped, legend=legend, gap=gap
+    )
 
 
 # ---------------------------------------------------------------------- drawing
-def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float] | None = None,
-                    agents: list[str] | None = None, top: bool | None = None
-                    ) -> tuple[Figure, TimelineData]:
+def timeline_figure(
+    trace: Trace,
+    instance: int = 0,
+    window: tuple[float, float] | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> tuple[Figure, TimelineData]:
     """The timeline as a matplotlib figure (Agg canvas) and the data it shows."""
     data = timeline_data(trace, instance, window, agents, top)
     extent = sum(lane.height + data.gap for lane in data.lanes)
@@ -331,8 +392,9 @@ def timeline_figure(trace: Trace, instance: int = 0, window: tuple[float, float]
     return fig, data
 
 
-def draw_timeline(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int,
-                  extra: Sequence[Any] = ()) -> None:
+def draw_timeline(
+    fig: Figure, ax: Any, data: TimelineData, trace: Trace, instance: int, extra: Sequence[Any] = ()
+) -> None:
     """Draw ``data`` on ``ax``; ``extra``: legend entries of what a caller draws on top
     (an overlay's marks), after the timeline's own."""
     t0, t1 = data.span
@@ -343,17 +405,29 @@ def draw_timeline(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instan
     per_lane = np.bincount([b.lane for b in data.bars], minlength=len(data.lanes))
     for (lane_i, color), spans in groups.items():
         lane = data.lanes[lane_i]  # white separators, unless so dense they would wash out
-        ax.broken_barh(spans, (lane.y - lane.height / 2, lane.height), facecolors=color,
-                       edgecolors="white", linewidth=0.4 if per_lane[lane_i] < 300 else 0,
-                       gid=f"bars:{lane_i}")
+        ax.broken_barh(
+            spans,
+            (lane.y - lane.height / 2, lane.height),
+            facecolors=color,
+            edgecolors="white",
+            linewidth=0.4 if per_lane[lane_i] < 300 else 0,
+            gid=f"bars:{lane_i}",
+        )
     # labels where they fit: estimate from the axes width in pixels
     px_per_s = ax.get_position().width * fig.get_figwidth() * fig.dpi / width
     draw_mode_names(ax, fig, data, px_per_s)
     if data.marks:  # ticks across the lower edge of the lane, all in one collection
-        lo = np.array([data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1
-                       for m in data.marks])
-        ax.vlines([m.t for m in data.marks], lo, lo + 0.22, colors="black", linewidth=0.7,
-                  gid="transitions")
+        lo = np.array(
+            [data.lanes[m.lane].y - data.lanes[m.lane].height / 2 - 0.1 for m in data.marks]
+        )
+        ax.vlines(
+            [m.t for m in data.marks],
+            lo,
+            lo + 0.22,
+            colors="black",
+            linewidth=0.7,
+            gid="transitions",
+        )
     draw_messages(ax, data, 7 * 0.62 * fig.dpi / 72 / px_per_s)
     violated = draw_violations(ax, trace, instance, (t0, t1))
     pad = 0.0 if data.window else 0.01 * width
@@ -367,26 +441,40 @@ def draw_timeline(fig: Figure, ax: Any, data: TimelineData, trace: Trace, instan
     ax.grid(axis="x", color="#DDDDDD", linewidth=0.6)
     ax.set_axisbelow(True)
     title = str(trace.meta.get("team", "")) + (f" — instance {instance}" if trace.n > 1 else "")
-    ax.set_title(title + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else
-                          loss_text(data)))
+    ax.set_title(
+        title
+        + (f" — {data.window[0]:g} s to {data.window[1]:g} s" if data.window else loss_text(data))
+    )
     handles, heads = legend_handles(data.legend)
     if violated:
-        handles.append(Line2D([], [], color=VIOLATION_COLOR, linestyle="--",
-                              label="requirement violated"))
+        handles.append(
+            Line2D([], [], color=VIOLATION_COLOR, linestyle="--", label="requirement violated")
+        )
     handles += extra
     if handles:
-        box = ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                        fontsize=8, frameon=False, ncol=1 + len(handles) // 30,
-                        handlelength=1.4)
+        box = ax.legend(
+            handles=handles,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            fontsize=8,
+            frameon=False,
+            ncol=1 + len(handles) // 30,
+            handlelength=1.4,
+        )
         for k in heads:
             box.get_texts()[k].set_fontweight("bold")
 
 
 # ---------------------------------------------------------------------- files
-def write_timeline(trace: Trace, path: str | os.PathLike, instance: int = 0,
-                   window: tuple[float, float] | None = None,
-                   data_path: str | os.PathLike | None = None,
-                   agents: list[str] | None = None, top: bool | None = None) -> Path:
+def write_timeline(
+    trace: Trace,
+    path: str | os.PathLike,
+    instance: int = 0,
+    window: tuple[float, float] | None = None,
+    data_path: str | os.PathLike | None = None,
+    agents: list[str] | None = None,
+    top: bool | None = None,
+) -> Path:
     """Write the timeline (.png/.svg) and, when ``data_path`` is given, its data (.csv/.json)."""
     figure_format(path)
     kind = None if data_path is None else figure_format(data_path, DATA_FORMATS)

@@ -89,8 +89,9 @@ def start_label(name: str, letter: str) -> str:
     return f"0{letter}" if letter == name.upper() else f"0{letter}: {name}"
 
 
-def collision_labels(hits: Sequence[tuple[float, float, float, str]], near: float
-                     ) -> list[tuple[float, float, str]]:
+def collision_labels(
+    hits: Sequence[tuple[float, float, float, str]], near: float
+) -> list[tuple[float, float, str]]:
     """One label per spot where collisions happened: ``(x, y, "1.8 s")``, or where several
     happened within ``near`` of the first one there (two robots clipping the same door
     jamb, seconds apart), ``"3.8 s lead, 5.8 s tail"``, since labels drawn at one spot hide
@@ -103,8 +104,16 @@ def collision_labels(hits: Sequence[tuple[float, float, float, str]], near: floa
                 break
         else:
             spots.append((x, y, [(t, who)]))
-    return [(x, y, f"{group[0][0]:.3g} s" if len(group) == 1 else
-             ", ".join(f"{t:.3g} s {who}" for t, who in group)) for x, y, group in spots]
+    return [
+        (
+            x,
+            y,
+            f"{group[0][0]:.3g} s"
+            if len(group) == 1
+            else ", ".join(f"{t:.3g} s {who}" for t, who in group),
+        )
+        for x, y, group in spots
+    ]
 
 
 START_ROW = 10.0  # points between stacked start labels (8 pt bold text)
@@ -120,16 +129,20 @@ def start_rows(ax: Any, starts: Sequence[tuple[float, float, str, str]]) -> list
     y0, y1 = ax.get_ylim()
     box = ax.get_position()
     w_in, h_in = ax.get_figure().get_size_inches()
-    per_pt = max((x1 - x0) / max(box.width * w_in * 72.0, 1.0),
-                 (y1 - y0) / max(box.height * h_in * 72.0, 1.0))  # metres per point
+    per_pt = max(
+        (x1 - x0) / max(box.width * w_in * 72.0, 1.0),
+        (y1 - y0) / max(box.height * h_in * 72.0, 1.0),
+    )  # metres per point
     placed: list[tuple[float, float, float]] = []  # left, right, top (points)
     rows = []
     for x, y, text, _color in starts:
         left = x / per_pt - 6.0
         right = left + 0.6 * 8.0 * len(text)
         row = 0
-        while any(left < r and lo < right and abs(y / per_pt - 12.0 - START_ROW * row - top)
-                  < START_ROW for lo, r, top in placed):
+        while any(
+            left < r and lo < right and abs(y / per_pt - 12.0 - START_ROW * row - top) < START_ROW
+            for lo, r, top in placed
+        ):
             row += 1
         placed.append((left, right, y / per_pt - 12.0 - START_ROW * row))
         rows.append(row)
@@ -153,8 +166,9 @@ def footprint_indices(times: np.ndarray, valid: np.ndarray, every: float) -> np.
     return np.unique(np.flatnonzero(valid)[idx])
 
 
-def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
-                 modes: Sequence[str] | None) -> list[tuple[float, int, str, str, int]]:
+def mode_changes(
+    trace: Trace, instance: int, agents: Sequence[str], modes: Sequence[str] | None
+) -> list[tuple[float, int, str, str, int]]:
     """(t, step, agent, target, number) of the numbered points, in time order.
 
     Default: when the team plays protocol roles, every change of role (a leadership change:
@@ -190,12 +204,18 @@ def mode_changes(trace: Trace, instance: int, agents: Sequence[str],
         else:
             selected = row.target in leaves[row.agent]
         if selected:
-            out.append((row.t, row.step, row.agent, row.target,
-                        role(row.agent, row.target) if by_role else None))
+            out.append(
+                (
+                    row.t,
+                    row.step,
+                    row.agent,
+                    row.target,
+                    role(row.agent, row.target) if by_role else None,
+                )
+            )
     order = {a: k for k, a in enumerate(agents)}
     if out:  # by time, step, then team order; stable, as a sort on that key would be
-        rank = np.lexsort(([order[r[2]] for r in out], [r[1] for r in out],
-                           [r[0] for r in out]))
+        rank = np.lexsort(([order[r[2]] for r in out], [r[1] for r in out], [r[0] for r in out]))
         out = [out[k] for k in rank]
     return _numbered(out) if by_role else [(*r[:4], k) for k, r in enumerate(out, 1)]
 
@@ -222,10 +242,15 @@ def _numbered(changes: list) -> list[tuple[float, int, str, str, int]]:
 
 
 # ---------------------------------------------------------------------- planar
-def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
-                modes: Sequence[str] | None,
-                limits: tuple[float, float, float, float] | None = None,
-                overlay: Callable[[Any], None] | None = None) -> None:
+def draw_planar(
+    ax: Any,
+    trace: Trace,
+    instance: int,
+    every: float | None,
+    modes: Sequence[str] | None,
+    limits: tuple[float, float, float, float] | None = None,
+    overlay: Callable[[Any], None] | None = None,
+) -> None:
     """The planar robots' paths, poses, mode changes and world on ``ax``. ``overlay``:
     what another view draws on the plane (a model's paths over a log's), called before
     the legend is made, which lists its artists that have labels after the robots."""
@@ -253,10 +278,21 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         xy = p[idx, :2]
         heading = np.c_[np.cos(p[idx, 2]), np.sin(p[idx, 2])]
         if radius:
-            ax.add_collection(EllipseCollection(
-                np.full(len(idx), 2 * radius), np.full(len(idx), 2 * radius), 0.0,
-                units="xy", offsets=xy, offset_transform=ax.transData, facecolors="none",
-                edgecolors=color, linewidths=0.8, zorder=5, gid=f"footprints:{a}"))
+            ax.add_collection(
+                EllipseCollection(
+                    np.full(len(idx), 2 * radius),
+                    np.full(len(idx), 2 * radius),
+                    0.0,
+                    units="xy",
+                    offsets=xy,
+                    offset_transform=ax.transData,
+                    facecolors="none",
+                    edgecolors=color,
+                    linewidths=0.8,
+                    zorder=5,
+                    gid=f"footprints:{a}",
+                )
+            )
             heads = np.stack([xy, xy + float(radius) * heading], 1)
             ax.add_collection(
                 LineCollection(
@@ -272,8 +308,14 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             # cannot be mistaken for a piece of path (a heading line could)
             size = 0.018 * max(extent, 1e-9)
             side = np.c_[-heading[:, 1], heading[:, 0]]
-            tri = np.stack([xy + size * heading, xy - 0.6 * size * heading + 0.55 * size * side,
-                            xy - 0.6 * size * heading - 0.55 * size * side], 1)
+            tri = np.stack(
+                [
+                    xy + size * heading,
+                    xy - 0.6 * size * heading + 0.55 * size * side,
+                    xy - 0.6 * size * heading - 0.55 * size * side,
+                ],
+                1,
+            )
             ax.add_collection(
                 PolyCollection(
                     tri,  # type: ignore[arg-type]  # an (n, 3, 2) array
@@ -301,8 +343,10 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         valid = ~np.isnan(poses[a][:, 0])
         if rows.size and valid.any():
             ts = when[rows]
-            at[rows] = np.c_[np.interp(ts, times[valid], poses[a][valid, 0]),
-                             np.interp(ts, times[valid], poses[a][valid, 1])]
+            at[rows] = np.c_[
+                np.interp(ts, times[valid], poses[a][valid, 0]),
+                np.interp(ts, times[valid], poses[a][valid, 1]),
+            ]
     placed: list[tuple[float, float]] = []
     tol = 0.015 * max(extent, 1e-9)
     crowded = False
@@ -313,21 +357,37 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
             if near > MAX_STACK:
                 continue
             crowded |= near == MAX_STACK
-            ax.annotate(f"{n}{letter[a]}" if near < MAX_STACK else "…", (x, y),
-                        xytext=(4, 4 + 9 * near), textcoords="offset points",
-                        fontsize=7.5, color="#111111", path_effects=HALO, zorder=8,
-                        gid="change")
+            ax.annotate(
+                f"{n}{letter[a]}" if near < MAX_STACK else "…",
+                (x, y),
+                xytext=(4, 4 + 9 * near),
+                textcoords="offset points",
+                fontsize=7.5,
+                color="#111111",
+                path_effects=HALO,
+                zorder=8,
+                gid="change",
+            )
     if len(at):
         ax.scatter(at[:, 0], at[:, 1], s=10, color="#111111", zorder=7, gid="changes")
     hits = collision_marks(trace, instance)
     if hits:  # over the paths and the change numbers: the thing a reader must not miss
-        ax.plot([h[1] for h in hits], [h[2] for h in hits], zorder=9, gid="collisions",
-                **COLLISION_MARK)
+        ax.plot(
+            [h[1] for h in hits], [h[2] for h in hits], zorder=9, gid="collisions", **COLLISION_MARK
+        )
         x0, x1, y0, y1 = limits or scene_extent(trace, instance)
         for x, y, text in collision_labels(hits, 0.02 * max(x1 - x0, y1 - y0)):
-            ax.annotate(text, (x, y), xytext=(6, -11), textcoords="offset points",
-                        fontsize=7.5, color=COLLISION_MARK["color"], path_effects=HALO,
-                        zorder=9, gid="collision-label")
+            ax.annotate(
+                text,
+                (x, y),
+                xytext=(6, -11),
+                textcoords="offset points",
+                fontsize=7.5,
+                color=COLLISION_MARK["color"],
+                path_effects=HALO,
+                zorder=9,
+                gid="collision-label",
+            )
     if overlay is not None:
         overlay(ax)
     x0, x1, y0, y1 = limits or scene_extent(trace, instance)
@@ -335,9 +395,18 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal", adjustable="box")  # the limits stay: the box takes the shape
     for (x, y, text, color), row in zip(starts, start_rows(ax, starts), strict=True):
-        ax.annotate(text, (x, y), xytext=(-6, -12 - START_ROW * row),
-                    textcoords="offset points", fontsize=8, fontweight="bold", color=color,
-                    path_effects=HALO, zorder=7, gid="start")
+        ax.annotate(
+            text,
+            (x, y),
+            xytext=(-6, -12 - START_ROW * row),
+            textcoords="offset points",
+            fontsize=8,
+            fontweight="bold",
+            color=color,
+            path_effects=HALO,
+            zorder=7,
+            gid="start",
+        )
     ax.grid(color="#E0E0E0", linewidth=0.6)
     unit = scene.unit
     ax.set_xlabel(f"x ({unit})" if unit else "x")
@@ -347,17 +416,22 @@ def draw_planar(ax: Any, trace: Trace, instance: int, every: float | None,
         # outside the plot, never over a path or a wall: below a wide scene, beside a tall one
         handles = _legend(ax, trace, every, bool(len(at)), bool(hits))
         if wide(limits or scene_extent(trace, instance)):  # the layout makes room below
-            ax.figure.legend(handles=handles, loc="outside lower center", fontsize=7.5,
-                             frameon=False, ncol=3)
+            ax.figure.legend(
+                handles=handles, loc="outside lower center", fontsize=7.5, frameon=False, ncol=3
+            )
         else:
-            ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                      fontsize=7.5, frameon=False)
+            ax.legend(
+                handles=handles,
+                loc="upper left",
+                bbox_to_anchor=(1.01, 1.0),
+                fontsize=7.5,
+                frameon=False,
+            )
     notes = [f"numbers shown on every {_ordinal(stride)} mode change"] if stride > 1 else []
     if crowded:
         notes.append(f"where changes crowd one spot, the first {MAX_STACK} and …")
     if notes:
-        ax.text(0.01, 0.01, "; ".join(notes), transform=ax.transAxes, fontsize=7,
-                color="#666666")
+        ax.text(0.01, 0.01, "; ".join(notes), transform=ax.transAxes, fontsize=7, color="#666666")
 
 
 def _ordinal(k: int) -> str:
@@ -378,26 +452,74 @@ def _legend(ax: Any, trace: Trace, every: float, changes: bool, hits: bool) -> l
     it."""
     handles, _ = ax.get_legend_handles_labels()
     grey = "#555555"
-    handles.append(Line2D([], [], marker="s", color=grey, linestyle="none", markersize=4,
-                          label="0X: start of robot X"))
+    handles.append(
+        Line2D(
+            [],
+            [],
+            marker="s",
+            color=grey,
+            linestyle="none",
+            markersize=4,
+            label="0X: start of robot X",
+        )
+    )
     if changes:
-        handles.append(Line2D([], [], marker="o", color="#111111", linestyle="none",
-                              markersize=3, label="nX: n-th mode change, by robot X"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker="o",
+                color="#111111",
+                linestyle="none",
+                markersize=3,
+                label="nX: n-th mode change, by robot X",
+            )
+        )
     if hits:
-        handles.append(Line2D([], [], **{**COLLISION_MARK, "markersize": 9},
-                              label="first collision of each robot or payload, its time"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                **{**COLLISION_MARK, "markersize": 9},
+                label="first collision of each robot or payload, its time",
+            )
+        )
     scene = scene_of(trace)
     sized = [a in scene.footprints for a in planar_agents(trace)]
     if any(sized):
-        handles.append(Line2D([], [], marker="o", markerfacecolor="none", color=grey,
-                              linestyle="none", markersize=7,
-                              label=f"footprint and heading, every {every:g} s"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker="o",
+                markerfacecolor="none",
+                color=grey,
+                linestyle="none",
+                markersize=7,
+                label=f"footprint and heading, every {every:g} s",
+            )
+        )
     if not all(sized):
-        handles.append(Line2D([], [], marker=">", color=grey, linestyle="none",
-                              markersize=5, label=f"pose (no footprint), every {every:g} s"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker=">",
+                color=grey,
+                linestyle="none",
+                markersize=5,
+                label=f"pose (no footprint), every {every:g} s",
+            )
+        )
     for k, name in enumerate(payload_names(trace)):
-        handles.append(Patch(facecolor=PALETTE[(k + 5) % len(PALETTE)], alpha=0.35,
-                             edgecolor="#333333", label=f"{name}, every {every:g} s"))
+        handles.append(
+            Patch(
+                facecolor=PALETTE[(k + 5) % len(PALETTE)],
+                alpha=0.35,
+                edgecolor="#333333",
+                label=f"{name}, every {every:g} s",
+            )
+        )
     if scene.obstacles:
         handles.append(Patch(facecolor="#9A9A9A", edgecolor=grey, label="obstacle"))
     if scene.walls:
@@ -422,33 +544,67 @@ def draw_flow(ax: Any, trace: Trace, instance: int, agent: str) -> None:
         for k, name in enumerate(meta["state"]):
             y = s[:, k]
             lines = [np.c_[times[a : b + 1], y[a : b + 1]] for a, b, _ in runs]
-            ax.add_collection(LineCollection(
-                lines, colors=[colors.get(mode_of[m], "#777777") for _, _, m in runs],
-                linewidths=1.4, zorder=3, linestyles=LINESTYLES[k % len(LINESTYLES)],
-                gid=f"state:{name}"))
+            ax.add_collection(
+                LineCollection(
+                    lines,
+                    colors=[colors.get(mode_of[m], "#777777") for _, _, m in runs],
+                    linewidths=1.4,
+                    zorder=3,
+                    linestyles=LINESTYLES[k % len(LINESTYLES)],
+                    gid=f"state:{name}",
+                )
+            )
         for _, _, m in runs:
             used[mode_of[m]] = colors.get(mode_of[m], "#777777")
     if len(ts):
-        ax.vlines(ts, 0, 1, transform=ax.get_xaxis_transform(), colors="#888888",
-                  linestyles="dotted", linewidth=0.7, zorder=1, gid="transitions")
+        ax.vlines(
+            ts,
+            0,
+            1,
+            transform=ax.get_xaxis_transform(),
+            colors="#888888",
+            linestyles="dotted",
+            linewidth=0.7,
+            zorder=1,
+            gid="transitions",
+        )
     ax.autoscale_view()
     ax.set_xlim(float(times[0]) if len(times) else 0.0, end_time(trace, instance))
     ax.set_ylabel(", ".join(meta["state"]))
     ax.set_title(agent, fontsize=10, loc="left")
     ax.grid(color="#E8E8E8", linewidth=0.6)
-    handles = [Line2D([], [], color=c, linewidth=2, label=m) for m, c in sorted(
-        used.items(), key=lambda mc: list(colors).index(mc[0]) if mc[0] in colors else 0)]
+    handles = [
+        Line2D([], [], color=c, linewidth=2, label=m)
+        for m, c in sorted(
+            used.items(), key=lambda mc: list(colors).index(mc[0]) if mc[0] in colors else 0
+        )
+    ]
     if len(meta["state"]) > 1:  # components differ by line style, modes by colour
-        handles += [Line2D([], [], color="#444444", linewidth=1.2, label=name,
-                           linestyle=LINESTYLES[k % len(LINESTYLES)])
-                    for k, name in enumerate(meta["state"])]
+        handles += [
+            Line2D(
+                [],
+                [],
+                color="#444444",
+                linewidth=1.2,
+                label=name,
+                linestyle=LINESTYLES[k % len(LINESTYLES)],
+            )
+            for k, name in enumerate(meta["state"])
+        ]
     if handles:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
-                  frameon=False, title="modes / state" if len(meta["state"]) > 1 else "modes")
+        ax.legend(
+            handles=handles,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            fontsize=8,
+            frameon=False,
+            title="modes / state" if len(meta["state"]) > 1 else "modes",
+        )
 
 
-def mode_runs(times: np.ndarray, s: np.ndarray, starts: np.ndarray,
-              switches: np.ndarray) -> list[tuple[int, int, int]]:
+def mode_runs(
+    times: np.ndarray, s: np.ndarray, starts: np.ndarray, switches: np.ndarray
+) -> list[tuple[int, int, int]]:
     """(first, last sample, interval) of each stretch sampled in one mode interval.
 
     A segment between two samples with a transition strictly between them is not drawn: the
@@ -458,8 +614,9 @@ def mode_runs(times: np.ndarray, s: np.ndarray, starts: np.ndarray,
     mid = (times[:-1] + times[1:]) / 2
     key = np.clip(np.searchsorted(starts, mid, side="right") - 1, 0, len(starts) - 1)
     alive = ~(np.isnan(s[:-1]).any(axis=1) | np.isnan(s[1:]).any(axis=1))
-    crossed = (np.searchsorted(switches, times[1:], side="left")
-               > np.searchsorted(switches, times[:-1], side="right"))
+    crossed = np.searchsorted(switches, times[1:], side="left") > np.searchsorted(
+        switches, times[:-1], side="right"
+    )
     key = np.where(alive & ~crossed, key, -1)
     edges = np.flatnonzero(np.diff(key)) + 1
     runs = []
@@ -470,12 +627,16 @@ def mode_runs(times: np.ndarray, s: np.ndarray, starts: np.ndarray,
 
 
 # ---------------------------------------------------------------------- figure and file
-def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = None,
-                      modes: Sequence[str] | None = None,
-                      xlim: tuple[float, float] | None = None,
-                      ylim: tuple[float, float] | None = None,
-                      size: tuple[float, float] | None = None,
-                      overlay: Callable[[Any], None] | None = None) -> Figure:
+def trajectory_figure(
+    trace: Trace,
+    instance: int = 0,
+    every: float | None = None,
+    modes: Sequence[str] | None = None,
+    xlim: tuple[float, float] | None = None,
+    ylim: tuple[float, float] | None = None,
+    size: tuple[float, float] | None = None,
+    overlay: Callable[[Any], None] | None = None,
+) -> Figure:
     """Planar agents in one equal-aspect plot; flow agents one time plot each below it.
 
     ``every``: seconds between drawn footprints (default: about ten along the run);
@@ -497,18 +658,15 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
     # the planar axes' width: the figure's, less the y labels and a legend at the side
     axes_w = width - 1.2 - (0.0 if limits is None or wide(limits) else 2.4)
     legend_h = 0.0 if limits is None or not wide(limits) else 0.55  # three rows below
-    planar_height = axes_w * float(np.clip(aspect, 0.12, 1.6)) + 0.45 + legend_h \
-        if planar else 0.0
+    planar_height = axes_w * float(np.clip(aspect, 0.12, 1.6)) + 0.45 + legend_h if planar else 0.0
     heights = ([max(planar_height, 2.0)] if planar else []) + [1.8] * len(flows)
     with rc_context({"font.family": FONT}):
-        fig = Figure(figsize=(width, size[1] if size else 0.45 + max(sum(heights), 2.0)),
-                     dpi=100)
+        fig = Figure(figsize=(width, size[1] if size else 0.45 + max(sum(heights), 2.0)), dpi=100)
         FigureCanvasAgg(fig)
         grid = fig.add_gridspec(max(len(heights), 1), 1, height_ratios=heights or [1])
         row = 0
         if planar:
-            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes, limits,
-                        overlay)
+            draw_planar(fig.add_subplot(grid[0]), trace, instance, every, modes, limits, overlay)
             row = 1
         for k, agent in enumerate(flows):
             ax = fig.add_subplot(grid[row + k])
@@ -523,8 +681,9 @@ def trajectory_figure(trace: Trace, instance: int = 0, every: float | None = Non
     return fig
 
 
-def room_below_starts(trace: Trace, instance: int, limits: tuple[float, float, float, float],
-                      axes_w: float) -> tuple[float, float, float, float]:
+def room_below_starts(
+    trace: Trace, instance: int, limits: tuple[float, float, float, float], axes_w: float
+) -> tuple[float, float, float, float]:
     """``limits`` with the bottom lowered where a start label (12 pt under its start, about
     18 pt to its lower edge) would cross the plot's lower edge, and the axis strike through
     it: robots that start on the scene's lowest line (a flat scene's). ``axes_w``: the
@@ -543,8 +702,7 @@ def room_below_starts(trace: Trace, instance: int, limits: tuple[float, float, f
     return (x0, x1, min(y0, below), y1)
 
 
-def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0,
-                       **kw: Any) -> Path:
+def write_trajectories(trace: Trace, path: str | os.PathLike, instance: int = 0, **kw: Any) -> Path:
     """Write :func:`trajectory_figure` as .png or .svg (chosen by the extension)."""
     fig = trajectory_figure(trace, instance, **kw)
     try:

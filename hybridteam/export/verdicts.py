@@ -15,8 +15,11 @@ def violations(trace: Any, instance: int) -> list[tuple[float, str, str]]:
     if instance >= len(outcomes) or not isinstance(outcomes[instance], dict):
         return []
     verdicts = outcomes[instance].get("requirements") or {}
-    found = [(float(v["violated_at"]), name, str(v.get("failed", "")))
-             for name, v in verdicts.items() if not v["satisfied"] and "violated_at" in v]
+    found = [
+        (float(v["violated_at"]), name, str(v.get("failed", "")))
+        for name, v in verdicts.items()
+        if not v["satisfied"] and "violated_at" in v
+    ]
     return sorted(found)
 
 
@@ -32,13 +35,27 @@ def draw_violations(ax: Any, trace: Any, instance: int, span: tuple[float, float
     for t, name, _failed in shown:
         level = level + 1 if t - last_t < 0.08 * width else 0
         last_t = t
-        ax.axvline(t, color=VIOLATION_COLOR, linestyle="--", linewidth=1.3, zorder=7,
-                   gid="requirement-violation",  # a white halo: visible on any bar colour
-                   path_effects=[patheffects.withStroke(linewidth=3, foreground="white")])
+        ax.axvline(
+            t,
+            color=VIOLATION_COLOR,
+            linestyle="--",
+            linewidth=1.3,
+            zorder=7,
+            gid="requirement-violation",  # a white halo: visible on any bar colour
+            path_effects=[patheffects.withStroke(linewidth=3, foreground="white")],
+        )
         right = t > t0 + 0.8 * width  # near the right edge: the label goes to the left
-        ax.text(t, 0.99 - 0.06 * (level % 4), f"{name} " if right else f" {name}",
-                transform=ax.get_xaxis_transform(), ha="right" if right else "left",
-                va="top", fontsize=7.5, color=VIOLATION_COLOR, zorder=8,
-                gid="violation-label", bbox={"boxstyle": "square,pad=0.1", "fc": "white",
-                                             "ec": "none", "alpha": 0.85})
+        ax.text(
+            t,
+            0.99 - 0.06 * (level % 4),
+            f"{name} " if right else f" {name}",
+            transform=ax.get_xaxis_transform(),
+            ha="right" if right else "left",
+            va="top",
+            fontsize=7.5,
+            color=VIOLATION_COLOR,
+            zorder=8,
+            gid="violation-label",
+            bbox={"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.85},
+        )
     return bool(shown)

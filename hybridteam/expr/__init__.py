@@ -15,5 +15,15 @@ from hybridteam.expr.language import (
     ModeTest,
 )
 
-__all__ = ["CONSTANTS", "FUNCTIONS", "Atom", "Expression", "ExpressionError", "Getter", "ModeTest",
-           "compile_assignment", "compile_expression", "free_names"]
+__all__ = [
+    "CONSTANTS",
+    "FUNCTIONS",
+    "Atom",
+    "Expression",
+    "ExpressionError",
+    "Getter",
+    "ModeTest",
+    "compile_assignment",
+    "compile_expression",
+    "free_names",
+]

@@ -58,15 +58,19 @@ class _Compiler:
         if not isinstance(source, str):
             raise ExpressionError(f"expected a string, got {type(source).__name__}")
         if len(source) > MAX_LENGTH:
-            raise ExpressionError(f"expression is too long ({len(source)} characters, at most "
-                                  f"{MAX_LENGTH})", MAX_LENGTH, len(source) - MAX_LENGTH)
+            raise ExpressionError(
+                f"expression is too long ({len(source)} characters, at most {MAX_LENGTH})",
+                MAX_LENGTH,
+                len(source) - MAX_LENGTH,
+            )
         self.source, self.symbols = source, symbols
         self.names: set[str] = set()
         self.atoms: list[Atom] = []
         self.node_atoms: dict[int, list[Atom]] = {}  # a comparison node's atoms (by id)
 
-    def error(self, message: str, start: int, end: int | None = None,
-              hint: str | None = None) -> ExpressionError:
+    def error(
+        self, message: str, start: int, end: int | None = None, hint: str | None = None
+    ) -> ExpressionError:
         start = min(max(start, 0), len(self.source))
         return ExpressionError(message, start, (end or start + 1) - start, hint)
 
@@ -87,15 +91,22 @@ class _Compiler:
         except UnicodeEncodeError as exc:
             raise self.error("invalid character", self.base + exc.start) from None
         # ast columns are UTF-8 byte offsets: map them back to characters once.
-        self.b2c = None if text.isascii() else [
-            i for i, ch in enumerate(text) for _ in ch.encode("utf-8")] + [len(text)]
+        self.b2c = (
+            None
+            if text.isascii()
+            else [i for i, ch in enumerate(text) for _ in ch.encode("utf-8")] + [len(text)]
+        )
         self.line_starts = [0] + [i + 1 for i, b in enumerate(encoded) if b == 10]
         quote = min([i for i in (text.find("'"), text.find('"')) if i >= 0] or [len(text)])
         if 0 <= text.find("#") < quote:  # a '#' after a quote may sit in a (rejected) string
             at = self.base + text.index("#")
             end = self.source.find("\n", at) % (len(self.source) + 1)  # -1: to the end
-            raise self.error("comments are not allowed in expressions", at, end,
-                             "put comments in YAML, outside the string")
+            raise self.error(
+                "comments are not allowed in expressions",
+                at,
+                end,
+                "put comments in YAML, outside the string",
+            )
         depth = 0
         for i, ch in enumerate(text[:quote]):  # paren-only nesting leaves no trace in the AST
             depth = depth + 1 if ch in "([{" else max(depth - 1, 0) if ch in ")]}" else depth
@@ -124,8 +135,11 @@ class _Compiler:
         except Exception:
             body = []
         if len(body) > 1:
-            return self.error("only one expression is allowed", self.pos(body[1])[0],
-                              hint="combine conditions with 'and'/'or'")
+            return self.error(
+                "only one expression is allowed",
+                self.pos(body[1])[0],
+                hint="combine conditions with 'and'/'or'",
+            )
         if body and isinstance(body[0], ast.Assign | ast.AugAssign):
             target = body[0].targets[0] if isinstance(body[0], ast.Assign) else body[0].target
             at = self.between(self.pos(target)[1], self.pos(body[0].value)[0])
@@ -133,21 +147,26 @@ class _Compiler:
         if body and not isinstance(body[0], ast.Expr):
             start = self.pos(body[0])[0]
             end = start + len(re.match(r"\w*", self.source[start:]).group())  # type: ignore[union-attr]  # \w* matches anywhere
-            return self.error("statements are not allowed; write one expression such as "
-                              "'x >= 5'", start, end)
+            return self.error(
+                "statements are not allowed; write one expression such as 'x >= 5'", start, end
+            )
         col = (exc.offset or 0) - 1  # 1-based characters within the (single) line
         if not 0 <= col < len(text):
             return self.error("unexpected end of expression", self.base + len(text.rstrip()))
         length = 1
         if exc.end_lineno == exc.lineno and (exc.end_offset or 0) > (exc.offset or 0):
             length = (exc.end_offset or 0) - (exc.offset or 0)
-        hint = "use '==' to compare" if text[col] == "=" and text[col + 1:col + 2] != "=" else None
+        hint = (
+            "use '==' to compare" if text[col] == "=" and text[col + 1 : col + 2] != "=" else None
+        )
         return self.error(exc.msg, self.base + col, self.base + col + length, hint)
 
     def pos(self, node: Any) -> tuple[int, int]:
         """(start, end) character offsets of `node` in the full source."""
-        return (self._char(node.lineno, node.col_offset),
-                self._char(node.end_lineno, node.end_col_offset))
+        return (
+            self._char(node.lineno, node.col_offset),
+            self._char(node.end_lineno, node.end_col_offset),
+        )
 
     def _char(self, lineno: int, col: int) -> int:
         byte = self.line_starts[min(lineno, len(self.line_starts)) - 1] + col
@@ -231,7 +250,7 @@ class _Compiler:
             for i, op in enumerate(node.ops):
                 if type(op) not in _CMPOPS:
                     at = self.between(self.pos(operands[i])[1], self.pos(operands[i + 1])[0])
-                    word = self.source[at[0]:at[1]]
+                    word = self.source[at[0] : at[1]]
                     hint = "use '==' or '!='" if word.startswith("is") else None
                     return 0, *at, f"'{word}' is not allowed", hint
             return None
@@ -245,8 +264,13 @@ class _Compiler:
             name, n = node.func.id, len(node.args)
             if name == "in_mode" and self._mode_tests():
                 if n != 1 or node.keywords or dotted_name(node.args[0]) is None:
-                    return (1, start, end, "in_mode() takes one mode name",
-                            "e.g. in_mode(Climb) or in_mode(Arm.Up)")
+                    return (
+                        1,
+                        start,
+                        end,
+                        "in_mode() takes one mode name",
+                        "e.g. in_mode(Climb) or in_mode(Arm.Up)",
+                    )
                 return None
             if name in REQUIREMENT_ONLY:
                 return 1, *self.pos(node.func), _requirement_only(name), None
@@ -255,15 +279,24 @@ class _Compiler:
                 return 1, *self.pos(node.func), f"unknown function '{name}'", hint
             spec = FUNCTIONS[name]
             if n < spec.min_args or (spec.max_args is not None and n > spec.max_args):
-                return (1, start, end, f"wrong number of arguments ({n}) in call to {name}",
-                        f"usage: {spec.usage}")
+                return (
+                    1,
+                    start,
+                    end,
+                    f"wrong number of arguments ({n}) in call to {name}",
+                    f"usage: {spec.usage}",
+                )
             return None
-        if isinstance(node, ast.Subscript) and isinstance(node.value, ast.Name) \
-                and node.value.id in REQUIREMENT_ONLY:
+        if (
+            isinstance(node, ast.Subscript)
+            and isinstance(node.value, ast.Name)
+            and node.value.id in REQUIREMENT_ONLY
+        ):
             return 0, *self.pos(node.value), _requirement_only(node.value.id), None
         if isinstance(node, ast.Attribute | ast.Subscript):
-            start, end = self._token_after(node, node.value, "." if isinstance(
-                node, ast.Attribute) else "[")
+            start, end = self._token_after(
+                node, node.value, "." if isinstance(node, ast.Attribute) else "["
+            )
         elif isinstance(node, ast.NamedExpr):
             start, end = self._token_after(node, node.target, ":=")
         elif isinstance(node, ast.IfExp):
@@ -286,8 +319,9 @@ class _Compiler:
             if isinstance(node.op, ast.Not):
                 return _apply(np.logical_not, [self.typed(node.operand, True, "'not'")], True)
             operand = self.typed(node.operand, False, "unary minus/plus")
-            return operand if isinstance(node.op, ast.UAdd) else _apply(
-                np.negative, [operand], False)
+            return (
+                operand if isinstance(node.op, ast.UAdd) else _apply(np.negative, [operand], False)
+            )
         if isinstance(node, ast.BinOp):
             chain = []
             while isinstance(node, ast.BinOp):
@@ -295,11 +329,20 @@ class _Compiler:
                 node = node.left
             first = self.typed(node, False, f"'{_BINOPS[type(chain[-1].op)][0]}'")
             ops = [_BINOPS[type(b.op)] for b in reversed(chain)]
-            return _fold_left(first, [(u, self.typed(b.right, False, f"'{sym}'")) for (sym, u), b
-                                      in zip(ops, reversed(chain), strict=True)], False)
+            return _fold_left(
+                first,
+                [
+                    (u, self.typed(b.right, False, f"'{sym}'"))
+                    for (sym, u), b in zip(ops, reversed(chain), strict=True)
+                ],
+                False,
+            )
         if isinstance(node, ast.BoolOp):
-            word, ufunc = ("'and'", np.logical_and) if isinstance(node.op, ast.And) else (
-                "'or'", np.logical_or)
+            word, ufunc = (
+                ("'and'", np.logical_and)
+                if isinstance(node.op, ast.And)
+                else ("'or'", np.logical_or)
+            )
             values = [self.typed(v, True, word) for v in node.values]
             return _fold_left(values[0], [(ufunc, v) for v in values[1:]], True)
         if isinstance(node, ast.Compare):
@@ -350,8 +393,12 @@ class _Compiler:
             start, end = self.pos(node)
             if cond:
                 text = self.source[start:end] if end - start <= 20 else "x"
-                raise self.error(f"{user} needs a condition, but this is a number", start, end,
-                                 f"compare it, e.g. '{text} > 0'")
+                raise self.error(
+                    f"{user} needs a condition, but this is a number",
+                    start,
+                    end,
+                    f"compare it, e.g. '{text} > 0'",
+                )
             raise self.error(f"{user} needs a number, but this is a condition", start, end)
         return result
 
@@ -368,24 +415,40 @@ class _Compiler:
                 hi, lo = (g, f) if sym in ("<", "<=") else (f, g)
                 less = sym in ("<", "<=")
                 fr, gr = values[i].row, values[i + 1].row
-                self.atoms.append(Atom(
-                    self._balanced(start, end), sym,
-                    lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),  # type: ignore[misc]  # default-bound lambda
-                    lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),  # type: ignore[misc]  # default-bound lambda
-                    lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(  # type: ignore[misc]  # default-bound lambda
-                        u, f(ctx), g(ctx), less),
-                    None if fr is None or gr is None else (
-                        lambda r, op=ON_FLOATS[ufunc], f=fr, g=gr, less=less:  # type: ignore[misc]  # default-bound lambda
-                        row_truth_and_margin(op, f(r), g(r), less))))
+                self.atoms.append(
+                    Atom(
+                        self._balanced(start, end),
+                        sym,
+                        lambda ctx, hi=hi, lo=lo: np.subtract(hi(ctx), lo(ctx)),  # type: ignore[misc]  # default-bound lambda
+                        lambda ctx, u=ufunc, f=f, g=g: u(f(ctx), g(ctx)),  # type: ignore[misc]  # default-bound lambda
+                        lambda ctx, u=ufunc, f=f, g=g, less=less: _truth_and_margin(  # type: ignore[misc]  # default-bound lambda
+                            u, f(ctx), g(ctx), less
+                        ),
+                        None
+                        if fr is None or gr is None
+                        else (
+                            lambda r, op=ON_FLOATS[ufunc], f=fr, g=gr, less=less: (  # type: ignore[misc]  # default-bound lambda
+                                row_truth_and_margin(op, f(r), g(r), less)
+                            )
+                        ),
+                    )
+                )
         self.node_atoms[id(node)] = self.atoms[first_atom:]
         if len(ops) == 1:
             return _apply(ops[0][1], values, True)
         if all(v.const for v in values):
             with np.errstate(all="ignore"):
-                return _const(all(u(a.value, b.value) for (_, u), a, b in
-                                  zip(ops, values, values[1:], strict=False)), True)
-        first, pairs = values[0].fn, tuple((u, v.fn) for (_, u), v in zip(ops, values[1:],
-                                                                           strict=True))
+                return _const(
+                    all(
+                        u(a.value, b.value)
+                        for (_, u), a, b in zip(ops, values, values[1:], strict=False)
+                    ),
+                    True,
+                )
+        first, pairs = (
+            values[0].fn,
+            tuple((u, v.fn) for (_, u), v in zip(ops, values[1:], strict=True)),
+        )
 
         def fn(ctx: Any) -> Any:  # each operand is evaluated once, as in Python's chains
             a, out = first(ctx), None
@@ -394,6 +457,7 @@ class _Compiler:
                 out = u(a, b) if out is None else np.logical_and(out, u(a, b))
                 a = b
             return out
+
         return _C(fn, True)
 
     def _balanced(self, start: int, end: int) -> str:
@@ -410,15 +474,24 @@ class _Compiler:
         tree = self.parse(start)
         result = self.compile(tree)
         if result.cond != condition:
-            raise self.error("must be a condition, e.g. 'x >= 5', not a number" if condition
-                             else "must be a number, not a condition", *self.pos(tree))
+            raise self.error(
+                "must be a condition, e.g. 'x >= 5', not a number"
+                if condition
+                else "must be a number, not a condition",
+                *self.pos(tree),
+            )
         return tree, result
 
 
 def _is_mode_test(node: ast.AST) -> TypeGuard[ast.Call]:
-    return isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-        and node.func.id == "in_mode" and len(node.args) == 1 and not node.keywords \
+    return (
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Name)
+        and node.func.id == "in_mode"
+        and len(node.args) == 1
+        and not node.keywords
         and dotted_name(node.args[0]) is not None
+    )
 
 
 def dotted_name(node: ast.expr) -> str | None:
@@ -434,8 +507,10 @@ def dotted_name(node: ast.expr) -> str | None:
 
 
 def _requirement_only(name: str) -> str:
-    return (f"'{name}' belongs to requirement formulas (a team's requirements:), not to "
-            "guards, invariants, inputs or flows")
+    return (
+        f"'{name}' belongs to requirement formulas (a team's requirements:), not to "
+        "guards, invariants, inputs or flows"
+    )
 
 
 def _conjuncts(node: ast.expr, node_atoms: Mapping[int, list[Atom]]) -> list[Atom]:
@@ -448,14 +523,21 @@ def _conjuncts(node: ast.expr, node_atoms: Mapping[int, list[Atom]]) -> list[Ato
     return []
 
 
-def compile_expression(source: str, symbols: Mapping[str, Getter], *,
-                       condition: bool = False) -> Expression:
+def compile_expression(
+    source: str, symbols: Mapping[str, Getter], *, condition: bool = False
+) -> Expression:
     """Compile `source` once into a vectorized callable over the engine's context."""
     comp = _Compiler(source, symbols)
     tree, result = comp.run(0, condition)
-    return Expression(source, result.fn, frozenset(comp.names), condition, tuple(comp.atoms),
-                      tuple(_conjuncts(tree, comp.node_atoms)) if condition else (),
-                      result.row)
+    return Expression(
+        source,
+        result.fn,
+        frozenset(comp.names),
+        condition,
+        tuple(comp.atoms),
+        tuple(_conjuncts(tree, comp.node_atoms)) if condition else (),
+        result.row,
+    )
 
 
 def free_names(source: str, *, condition: bool = False) -> frozenset[str]:
@@ -465,8 +547,9 @@ def free_names(source: str, *, condition: bool = False) -> frozenset[str]:
     return frozenset(comp.names)
 
 
-def compile_assignment(source: str, symbols: Mapping[str, Getter],
-                       targets: Collection[str]) -> tuple[str, Expression]:
+def compile_assignment(
+    source: str, symbols: Mapping[str, Getter], targets: Collection[str]
+) -> tuple[str, Expression]:
     """Compile ``target = expr`` or ``target op= expr`` (op in ``+ - * / % **``)."""
     comp = _Compiler(source, symbols)
     match = _ASSIGN_RE.match(source)
@@ -481,15 +564,21 @@ def compile_assignment(source: str, symbols: Mapping[str, Getter],
     if not target.isidentifier():
         raise comp.error(f"invalid assignment target '{match[1]}'", t0, t1)
     if op and op not in _AUGOPS:
-        raise comp.error(f"'{op}=' is not supported", match.start(2), match.end(2) + 1,
-                         "use =, +=, -=, *=, /=, %= or **=")
+        raise comp.error(
+            f"'{op}=' is not supported",
+            match.start(2),
+            match.end(2) + 1,
+            "use =, +=, -=, *=, /=, %= or **=",
+        )
     if target not in targets:
-        raise comp.error(f"unknown assignment target '{target}'", t0, t1,
-                         did_you_mean(target, targets))
+        raise comp.error(
+            f"unknown assignment target '{target}'", t0, t1, did_you_mean(target, targets)
+        )
     tree, rhs = comp.run(match.end(), False)
-    text = source[match.end():].strip()
+    text = source[match.end() :].strip()
     if op:  # n += 1 is n + (1): the target is read, so it must also be a symbol
         rhs = _apply(_AUGOPS[op], [comp.name(target, t0, t1), rhs], False)
-        text = f"{target} {op} " + (text if isinstance(tree, ast.Name | ast.Constant)
-                                    else f"({text})")
+        text = f"{target} {op} " + (
+            text if isinstance(tree, ast.Name | ast.Constant) else f"({text})"
+        )
     return target, Expression(text, rhs.fn, frozenset(comp.names), False, tuple(comp.atoms))

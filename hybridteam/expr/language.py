@@ -10,7 +10,6 @@ catches ``x and y`` or ``(x > 0) + 1`` before a simulation runs. Ordering compar
 exposed as :class:`Atom` objects because the engine locates events by their margins' zeros.
 """
 
-
 from __future__ import annotations
 
 import ast
@@ -34,8 +33,9 @@ _DEEP = f"expression is nested too deeply (limit {MAX_DEPTH})"
 class ExpressionError(ValueError):
     """A rejected expression; ``offset``/``length`` locate the culprit in the source string."""
 
-    def __init__(self, message: str, offset: int = 0, length: int = 1,
-                 hint: str | None = None) -> None:
+    def __init__(
+        self, message: str, offset: int = 0, length: int = 1, hint: str | None = None
+    ) -> None:
         self.message, self.offset, self.length, self.hint = message, offset, max(1, length), hint
         super().__init__(message, offset, self.length, hint)  # args make the error picklable
 
@@ -58,44 +58,94 @@ def _wrap(angle: Any) -> Any:
 
 
 _UNARY: dict[str, Callable[..., Any]]  # (numpy's functions and _wrap: no common type)
-_UNARY = {"sin": np.sin, "cos": np.cos, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos,
-          "atan": np.arctan, "sqrt": np.sqrt, "abs": np.abs, "exp": np.exp, "log": np.log,
-          "floor": np.floor, "ceil": np.ceil, "sign": np.sign, "wrap": _wrap}
-FUNCTIONS: Mapping[str, _Function] = MappingProxyType({
-    **{name: _Function(f, 1, 1, f"{name}(x)") for name, f in _UNARY.items()},
-    "atan2": _Function(np.arctan2, 2, 2, "atan2(y, x)"),
-    "hypot": _Function(np.hypot, 2, 2, "hypot(a, b)"),
-    "min": _Function(lambda *a: reduce(np.minimum, a), 2, None, "min(a, b, ...)"),
-    "max": _Function(lambda *a: reduce(np.maximum, a), 2, None, "max(a, b, ...)"),
-    "clip": _Function(lambda x, lo, hi: np.minimum(np.maximum(x, lo), hi), 3, 3,
-                      "clip(x, lo, hi)")})
+_UNARY = {
+    "sin": np.sin,
+    "cos": np.cos,
+    "tan": np.tan,
+    "asin": np.arcsin,
+    "acos": np.arccos,
+    "atan": np.arctan,
+    "sqrt": np.sqrt,
+    "abs": np.abs,
+    "exp": np.exp,
+    "log": np.log,
+    "floor": np.floor,
+    "ceil": np.ceil,
+    "sign": np.sign,
+    "wrap": _wrap,
+}
+FUNCTIONS: Mapping[str, _Function] = MappingProxyType(
+    {
+        **{name: _Function(f, 1, 1, f"{name}(x)") for name, f in _UNARY.items()},
+        "atan2": _Function(np.arctan2, 2, 2, "atan2(y, x)"),
+        "hypot": _Function(np.hypot, 2, 2, "hypot(a, b)"),
+        "min": _Function(lambda *a: reduce(np.minimum, a), 2, None, "min(a, b, ...)"),
+        "max": _Function(lambda *a: reduce(np.maximum, a), 2, None, "max(a, b, ...)"),
+        "clip": _Function(
+            lambda x, lo, hi: np.minimum(np.maximum(x, lo), hi), 3, 3, "clip(x, lo, hi)"
+        ),
+    }
+)
 CONSTANTS: Mapping[str, float] = MappingProxyType({"pi": math.pi, "inf": math.inf})
 _BOOL_NAMES = {"true": True, "false": False}
 #: names only requirement formulas know (temporal operators and mode signals)
-REQUIREMENT_ONLY = frozenset({"always", "eventually", "until", "implies", "in_mode", "in_role",
-                              "count_in_mode", "count_in_role", "received", "sent"})
+REQUIREMENT_ONLY = frozenset(
+    {
+        "always",
+        "eventually",
+        "until",
+        "implies",
+        "in_mode",
+        "in_role",
+        "count_in_mode",
+        "count_in_role",
+        "received",
+        "sent",
+    }
+)
 _FUNCTION_HINTS = {"pow": "use ** for powers", "ln": "did you mean 'log'?", "mod": "use a % b"}
 _BINOPS: dict[type, tuple[str, Any]] = {
-    ast.Add: ("+", np.add), ast.Sub: ("-", np.subtract), ast.Mult: ("*", np.multiply),
-    ast.Div: ("/", np.true_divide), ast.Mod: ("%", np.remainder),
-    ast.Pow: ("**", np.float_power)}  # float_power: int operands can neither wrap nor raise
+    ast.Add: ("+", np.add),
+    ast.Sub: ("-", np.subtract),
+    ast.Mult: ("*", np.multiply),
+    ast.Div: ("/", np.true_divide),
+    ast.Mod: ("%", np.remainder),
+    ast.Pow: ("**", np.float_power),
+}  # float_power: int operands can neither wrap nor raise
 _AUGOPS = dict(_BINOPS.values())
 _BAD_BINOPS: dict[type, tuple[str, str | None]] = {
-    ast.BitXor: ("^", "use ** for powers"), ast.BitAnd: ("&", "use 'and'/'or'"),
-    ast.BitOr: ("|", "use 'and'/'or'"), ast.LShift: ("<<", None), ast.RShift: (">>", None),
-    ast.FloorDiv: ("//", "use floor(a / b)"), ast.MatMult: ("@", None)}
+    ast.BitXor: ("^", "use ** for powers"),
+    ast.BitAnd: ("&", "use 'and'/'or'"),
+    ast.BitOr: ("|", "use 'and'/'or'"),
+    ast.LShift: ("<<", None),
+    ast.RShift: (">>", None),
+    ast.FloorDiv: ("//", "use floor(a / b)"),
+    ast.MatMult: ("@", None),
+}
 _CMPOPS: dict[type, tuple[str, Any]] = {
-    ast.Lt: ("<", np.less), ast.LtE: ("<=", np.less_equal), ast.Gt: (">", np.greater),
-    ast.GtE: (">=", np.greater_equal), ast.Eq: ("==", np.equal), ast.NotEq: ("!=", np.not_equal)}
+    ast.Lt: ("<", np.less),
+    ast.LtE: ("<=", np.less_equal),
+    ast.Gt: (">", np.greater),
+    ast.GtE: (">=", np.greater_equal),
+    ast.Eq: ("==", np.equal),
+    ast.NotEq: ("!=", np.not_equal),
+}
 _REJECTED: dict[type, str] = {
     ast.Attribute: "attribute access is not allowed",
-    ast.Subscript: "indexing with [...] is not allowed", ast.Lambda: "lambda is not allowed",
-    ast.NamedExpr: "':=' is not allowed", ast.JoinedStr: "strings are not allowed",
-    ast.IfExp: "'a if c else b' is not allowed", ast.Starred: "'*' unpacking is not allowed",
-    **dict.fromkeys((ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp),
-                    "comprehensions are not allowed"),
-    **dict.fromkeys((ast.List, ast.Tuple, ast.Set, ast.Dict),
-                    "lists, tuples, sets and dicts are not allowed")}
+    ast.Subscript: "indexing with [...] is not allowed",
+    ast.Lambda: "lambda is not allowed",
+    ast.NamedExpr: "':=' is not allowed",
+    ast.JoinedStr: "strings are not allowed",
+    ast.IfExp: "'a if c else b' is not allowed",
+    ast.Starred: "'*' unpacking is not allowed",
+    **dict.fromkeys(
+        (ast.ListComp, ast.SetComp, ast.DictComp, ast.GeneratorExp),
+        "comprehensions are not allowed",
+    ),
+    **dict.fromkeys(
+        (ast.List, ast.Tuple, ast.Set, ast.Dict), "lists, tuples, sets and dicts are not allowed"
+    ),
+}
 _IGNORED = (ast.expr_context, ast.operator, ast.boolop, ast.unaryop, ast.cmpop)
 _ASSIGN_RE = re.compile(r"\s*([^\W\d]\w*)\s*(\*\*|//|<<|>>|[-+*/%@&|^])?=(?!=)")
 _NOVALUE = object()
@@ -147,16 +197,29 @@ def _divide(a: float, b: float) -> float:
 #: The ufuncs whose Python-float counterparts give the same IEEE result (one rounding of
 #: the exact operation), so an expression built of them alone can be evaluated on one
 #: instance's floats with the bits of its array evaluation (:attr:`Atom.row`).
-ON_FLOATS: Mapping[Any, Callable[..., Any]] = MappingProxyType({
-    np.add: operator.add, np.subtract: operator.sub, np.multiply: operator.mul,
-    np.true_divide: _divide, np.negative: operator.neg, np.less: operator.lt,
-    np.less_equal: operator.le, np.greater: operator.gt, np.greater_equal: operator.ge,
-    np.equal: operator.eq, np.not_equal: operator.ne, np.logical_and: operator.and_,
-    np.logical_or: operator.or_, np.logical_not: operator.not_})
+ON_FLOATS: Mapping[Any, Callable[..., Any]] = MappingProxyType(
+    {
+        np.add: operator.add,
+        np.subtract: operator.sub,
+        np.multiply: operator.mul,
+        np.true_divide: _divide,
+        np.negative: operator.neg,
+        np.less: operator.lt,
+        np.less_equal: operator.le,
+        np.greater: operator.gt,
+        np.greater_equal: operator.ge,
+        np.equal: operator.eq,
+        np.not_equal: operator.ne,
+        np.logical_and: operator.and_,
+        np.logical_or: operator.or_,
+        np.logical_not: operator.not_,
+    }
+)
 
 
-def row_truth_and_margin(op: Callable[[float, float], bool], a: float, b: float,
-                         less: bool) -> tuple[bool, float]:
+def row_truth_and_margin(
+    op: Callable[[float, float], bool], a: float, b: float, less: bool
+) -> tuple[bool, float]:
     """:func:`_truth_and_margin` on floats."""
     return op(a, b), (b - a if less else a - b)
 
@@ -166,10 +229,16 @@ class Expression:
 
     __slots__ = ("_fn", "atoms", "conjuncts", "is_condition", "names", "row", "source")
 
-    def __init__(self, source: str, fn: Callable[[Any], Any], names: frozenset[str],
-                 is_condition: bool, atoms: tuple[Atom, ...],
-                 conjuncts: tuple[Atom, ...] = (),
-                 row: Callable[[Any], Any] | None = None) -> None:
+    def __init__(
+        self,
+        source: str,
+        fn: Callable[[Any], Any],
+        names: frozenset[str],
+        is_condition: bool,
+        atoms: tuple[Atom, ...],
+        conjuncts: tuple[Atom, ...] = (),
+        row: Callable[[Any], Any] | None = None,
+    ) -> None:
         """``conjuncts``: the atoms that are conjuncts of a condition (where one is false,
         so is the condition; a crossing search uses it to skip flips that cannot
         matter). ``row``: the expression on one instance's floats, where every part of it
@@ -217,8 +286,13 @@ class _C:
 
     __slots__ = ("cond", "fn", "row", "value")
 
-    def __init__(self, fn: Callable[[Any], Any], cond: bool, value: Any = _NOVALUE,
-                 row: Callable[[Any], float] | None = None) -> None:
+    def __init__(
+        self,
+        fn: Callable[[Any], Any],
+        cond: bool,
+        value: Any = _NOVALUE,
+        row: Callable[[Any], float] | None = None,
+    ) -> None:
         self.fn, self.cond, self.value, self.row = fn, cond, value, row
 
     @property
@@ -284,6 +358,7 @@ def _fold_left(first: _C, steps: list[tuple[Any, _C]], cond: bool) -> _C:
         for u, g in rest:
             value = u(value, g(ctx))
         return value
+
     return _C(fn, cond, row=_row_fold(first, steps))
 
 
@@ -299,4 +374,5 @@ def _row_fold(first: _C, steps: list[tuple[Any, _C]]) -> Callable[[Any], float] 
         for op, g in rest:
             value = op(value, g(r))  # type: ignore[misc]  # (no None: checked above)
         return value
+
     return row

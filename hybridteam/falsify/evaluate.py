@@ -21,9 +21,16 @@ from hybridteam.sweep.worker import run_chunk
 class Evaluator:
     """``evaluator(x, seeds) -> (robustness, outcomes)`` for a requirement of ``team``."""
 
-    def __init__(self, team: Team, requirement: str, keys: list[str], *,
-                 workers: int | None = None, scheduler: str | None = None,
-                 connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> None:
+    def __init__(
+        self,
+        team: Team,
+        requirement: str,
+        keys: list[str],
+        *,
+        workers: int | None = None,
+        scheduler: str | None = None,
+        connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+    ) -> None:
         self.team, self.requirement, self.keys = team, requirement, keys
         self.workers = workers or 1
         self.where = "in-process"
@@ -49,23 +56,30 @@ class Evaluator:
             stop = min(start + per, size)
             rows = slice(start, stop)
             k = stop - start
-            out.append(Task(Chunk(f"g{start}", 0, start, stop), [0] * k,
-                            {key: x[rows, j].copy() for j, key in enumerate(self.keys)},
-                            [int(s) for s in seeds[rows]], [0] * k, [0] * k, (), False))
+            out.append(
+                Task(
+                    Chunk(f"g{start}", 0, start, stop),
+                    [0] * k,
+                    {key: x[rows, j].copy() for j, key in enumerate(self.keys)},
+                    [int(s) for s in seeds[rows]],
+                    [0] * k,
+                    [0] * k,
+                    (),
+                    False,
+                )
+            )
         return out
 
     def __call__(self, x: np.ndarray, seeds: np.ndarray) -> tuple[np.ndarray, list[str]]:
         tasks = self.tasks(x, seeds)
         if self._client is not None:
-            futures = [self._client.submit(run_chunk, self._shared, t, pure=False)
-                       for t in tasks]
+            futures = [self._client.submit(run_chunk, self._shared, t, pure=False) for t in tasks]
             parts = self._client.gather(futures)
         elif self._pool is not None and len(tasks) > 1:
             parts = list(self._pool.map(run_chunk, [self.team] * len(tasks), tasks))
         else:
             parts = [run_chunk(self.team, t) for t in tasks]
-        rho = np.concatenate([np.asarray(p[f"req_{self.requirement}_rho"], float)
-                              for p in parts])
+        rho = np.concatenate([np.asarray(p[f"req_{self.requirement}_rho"], float) for p in parts])
         outcomes = [o for p in parts for o in p["outcome"]]
         return rho, outcomes
 

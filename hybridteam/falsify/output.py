@@ -43,8 +43,10 @@ def read_record(out: Path, key: str) -> list[Generation] | str:
     if problem is not None:  # replaced or edited: nothing of it is used
         return f"{path}: cannot resume from it: {problem[1]}"
     if data.get("format") != FORMAT or data.get("digest") != key:
-        return (f"output '{out}' holds a different search (other team, requirement, ranges, "
-                "method or seeds); use another folder")
+        return (
+            f"output '{out}' holds a different search (other team, requirement, ranges, "
+            "method or seeds); use another folder"
+        )
     return [Generation.from_json(g) for g in data.get("generations", [])]
 
 
@@ -54,9 +56,13 @@ Finite = Annotated[float, Field(allow_inf_nan=False)]
 def _robustness(value: Any) -> Any:
     """A finite number, or ``"inf"``/``"-inf"`` (a Boolean verdict, as :func:`_json`
     writes it)."""
-    ok = value in ("inf", "-inf") if isinstance(value, str) else (
-        isinstance(value, int | float) and not isinstance(value, bool)
-        and math.isfinite(value))
+    ok = (
+        value in ("inf", "-inf")
+        if isinstance(value, str)
+        else (
+            isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+        )
+    )
     if not ok:
         raise ValueError(f"expected a finite number, 'inf' or '-inf', got {value!r:.40}")
     return value
@@ -77,9 +83,11 @@ class GenerationRecord(BaseModel):
     @model_validator(mode="after")
     def _one_entry_per_candidate(self) -> GenerationRecord:
         if not len(self.x) == len(self.seeds) == len(self.robustness) == len(self.outcomes):
-            raise ValueError(f"x, seeds, robustness and outcomes have {len(self.x)}, "
-                             f"{len(self.seeds)}, {len(self.robustness)} and "
-                             f"{len(self.outcomes)} entries; expected one per candidate")
+            raise ValueError(
+                f"x, seeds, robustness and outcomes have {len(self.x)}, "
+                f"{len(self.seeds)}, {len(self.robustness)} and "
+                f"{len(self.outcomes)} entries; expected one per candidate"
+            )
         return self
 
 
@@ -98,8 +106,10 @@ class Record(BaseModel):
         for k, g in enumerate(self.generations):
             for row in g.x:
                 if len(row) != len(self.vary):
-                    raise ValueError(f"generations[{k}].x: a candidate has {len(row)} "
-                                     f"value(s), the search varies {len(self.vary)} key(s)")
+                    raise ValueError(
+                        f"generations[{k}].x: a candidate has {len(row)} "
+                        f"value(s), the search varies {len(self.vary)} key(s)"
+                    )
         return self
 
 
@@ -113,20 +123,34 @@ def replay_args(team_path: str, search: Search, i: int, out: Path) -> list[str]:
     return [*args, "-o", str(out / "replay")]
 
 
-def write_record(out: Path, key: str, settings: dict[str, Any], search: Search,
-                 extra: dict[str, Any] | None = None) -> None:
+def write_record(
+    out: Path,
+    key: str,
+    settings: dict[str, Any],
+    search: Search,
+    extra: dict[str, Any] | None = None,
+) -> None:
     x, seeds, rho, outcomes = search.flat()
     best = search.best() if len(rho) else None
     data: dict[str, Any] = {
-        "format": FORMAT, "version": VERSION, "digest": key, **settings,
+        "format": FORMAT,
+        "version": VERSION,
+        "digest": key,
+        **settings,
         "simulations": search.evaluations,
         "falsified_after": search.first_falsified(),
-        "best": None if best is None else {
+        "best": None
+        if best is None
+        else {
             "values": {v.key: float(x[best, j]) for j, v in enumerate(search.varies)},
-            "seed": int(seeds[best]), "robustness": _json(float(rho[best])),
-            "outcome": outcomes[best], "simulation": best + 1},
+            "seed": int(seeds[best]),
+            "robustness": _json(float(rho[best])),
+            "outcome": outcomes[best],
+            "simulation": best + 1,
+        },
         **(extra or {}),
-        "generations": [g.to_json() for g in search.generations]}
+        "generations": [g.to_json() for g in search.generations],
+    }
     write_atomic(out / RECORD, json.dumps(data, indent=1) + "\n")
 
 
@@ -157,26 +181,35 @@ def write_convergence(out: Path, search: Search, title: str) -> Path:
     shown = np.clip(rho, bottom, top)
     if finite.size:
         ax.plot(k[fin], finite, ".", color="#9E9E9E", markersize=4, label="each simulation")
-    for mask, y, marker, text in ((rho == np.inf, top, "^", "held by a Boolean (+inf)"),
-                                  (rho == -np.inf, bottom, "v", "broken by a Boolean (-inf)")):
+    for mask, y, marker, text in (
+        (rho == np.inf, top, "^", "held by a Boolean (+inf)"),
+        (rho == -np.inf, bottom, "v", "broken by a Boolean (-inf)"),
+    ):
         if mask.any():
-            ax.plot(k[mask], np.full(mask.sum(), y), marker, color="#9E9E9E", markersize=4,
-                    label=text)
+            ax.plot(
+                k[mask], np.full(mask.sum(), y), marker, color="#9E9E9E", markersize=4, label=text
+            )
     best = np.minimum.accumulate(shown)
     ax.step(k, best, where="post", color="#1565C0", linewidth=1.8, label="best so far")
     ax.set_xlim(0.5, max(len(rho), 1) + 0.5)
     ax.set_ylim(bottom - 0.05 * span, top + 0.05 * span)
     if not fin.all():  # name the rows where the Boolean verdicts sit
-        ticks = [t for t in ax.get_yticks() if lo - 1e-12 <= t <= hi + 1e-12] \
-            if finite.size else [0.0]
-        ax.set_yticks([bottom, *ticks, top],
-                      ["-inf", *(f"{t:g}" for t in ticks), "+inf"])
+        ticks = (
+            [t for t in ax.get_yticks() if lo - 1e-12 <= t <= hi + 1e-12] if finite.size else [0.0]
+        )
+        ax.set_yticks([bottom, *ticks, top], ["-inf", *(f"{t:g}" for t in ticks), "+inf"])
     ax.axhline(0.0, color="#C62828", linestyle="--", linewidth=1.0, label="violated below")
     first = search.first_falsified()
     if first is not None:
         ax.axvline(first, color="#C62828", linewidth=0.8, alpha=0.5)
-        ax.annotate(f"first violation: simulation {first}", (first, 0), xytext=(6, 8),
-                    textcoords="offset points", fontsize=8, color="#C62828")
+        ax.annotate(
+            f"first violation: simulation {first}",
+            (first, 0),
+            xytext=(6, 8),
+            textcoords="offset points",
+            fontsize=8,
+            color="#C62828",
+        )
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("simulations")
     ax.set_ylabel("robustness")
@@ -192,9 +225,23 @@ def command_line(args: list[str]) -> str:
     return " ".join(shlex.quote(a) for a in args)
 
 
-def settings_of(requirement: str, formula: str, varies: list[Vary], seeds: int, base_seed: int,
-                method: str, population: int, search_seed: int) -> dict[str, Any]:
-    return {"requirement": requirement, "formula": formula,
-            "vary": [{"key": v.key, "lo": v.lo, "hi": v.hi} for v in varies],
-            "seeds": seeds, "base_seed": base_seed, "method": method,
-            "population": population, "search_seed": search_seed}
+def settings_of(
+    requirement: str,
+    formula: str,
+    varies: list[Vary],
+    seeds: int,
+    base_seed: int,
+    method: str,
+    population: int,
+    search_seed: int,
+) -> dict[str, Any]:
+    return {
+        "requirement": requirement,
+        "formula": formula,
+        "vary": [{"key": v.key, "lo": v.lo, "hi": v.hi} for v in varies],
+        "seeds": seeds,
+        "base_seed": base_seed,
+        "method": method,
+        "population": population,
+        "search_seed": search_seed,
+    }

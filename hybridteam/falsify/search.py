@@ -40,22 +40,27 @@ class Vary:
 class Generation:
     """One batch of candidates and what their runs gave."""
 
-    x: np.ndarray         # (P, d) override values
-    seeds: np.ndarray     # (P,) run seeds
+    x: np.ndarray  # (P, d) override values
+    seeds: np.ndarray  # (P,) run seeds
     robustness: np.ndarray
     outcomes: list[str]
 
     def to_json(self) -> dict[str, Any]:
-        return {"x": self.x.tolist(), "seeds": self.seeds.tolist(),
-                "robustness": [_finite(r) for r in self.robustness.tolist()],
-                "outcomes": list(self.outcomes)}
+        return {
+            "x": self.x.tolist(),
+            "seeds": self.seeds.tolist(),
+            "robustness": [_finite(r) for r in self.robustness.tolist()],
+            "outcomes": list(self.outcomes),
+        }
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> Generation:
-        return cls(np.asarray(d["x"], float).reshape(len(d["seeds"]), -1),
-                   np.asarray(d["seeds"], np.int64),
-                   np.asarray([_unfinite(r) for r in d["robustness"]], float),
-                   list(d["outcomes"]))
+        return cls(
+            np.asarray(d["x"], float).reshape(len(d["seeds"]), -1),
+            np.asarray(d["seeds"], np.int64),
+            np.asarray([_unfinite(r) for r in d["robustness"]], float),
+            list(d["outcomes"]),
+        )
 
 
 def _finite(r: float) -> float | str:
@@ -80,10 +85,12 @@ class Search:
     def flat(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
         if not self.generations:
             return np.zeros((0, len(self.varies))), np.zeros(0, np.int64), np.zeros(0), []
-        return (np.concatenate([g.x for g in self.generations]),
-                np.concatenate([g.seeds for g in self.generations]),
-                np.concatenate([g.robustness for g in self.generations]),
-                [o for g in self.generations for o in g.outcomes])
+        return (
+            np.concatenate([g.x for g in self.generations]),
+            np.concatenate([g.seeds for g in self.generations]),
+            np.concatenate([g.robustness for g in self.generations]),
+            [o for g in self.generations for o in g.outcomes],
+        )
 
     def first_falsified(self) -> int | None:
         """Simulations up to and including the first violating one (None: none did)."""
@@ -110,8 +117,15 @@ class _Driver:
     """Feeds proposals to ``evaluate`` (or to the record when resuming), keeps the
     history, and stops at the budget or at the first violation."""
 
-    def __init__(self, search: Search, evaluate: Evaluate, budget: int, record: list[Generation],
-                 on_generation: Callable[[Search], None], stop_on_violation: bool) -> None:
+    def __init__(
+        self,
+        search: Search,
+        evaluate: Evaluate,
+        budget: int,
+        record: list[Generation],
+        on_generation: Callable[[Search], None],
+        stop_on_violation: bool,
+    ) -> None:
         self.search, self.evaluate, self.budget = search, evaluate, budget
         self.record, self.on_generation = record, on_generation
         self.stop_on_violation = stop_on_violation
@@ -124,8 +138,12 @@ class _Driver:
         x, seeds = x[:room], seeds[:room]
         k = len(self.search.generations)
         old = self.record[k] if k < len(self.record) else None
-        if old is not None and old.x.shape == x.shape and np.array_equal(old.x, x) \
-                and np.array_equal(old.seeds, seeds):
+        if (
+            old is not None
+            and old.x.shape == x.shape
+            and np.array_equal(old.x, x)
+            and np.array_equal(old.seeds, seeds)
+        ):
             gen = old  # resuming: this generation was simulated before
         else:
             rho, outcomes = self.evaluate(x, seeds)
@@ -133,17 +151,27 @@ class _Driver:
             self.record[k:] = []  # a different proposal: the rest of the record is stale
         self.search.generations.append(gen)
         self.on_generation(self.search)
-        if (self.stop_on_violation and (gen.robustness < 0).any()) or \
-                self.search.evaluations >= self.budget:
+        if (
+            self.stop_on_violation and (gen.robustness < 0).any()
+        ) or self.search.evaluations >= self.budget:
             raise _Stop
         return gen.robustness
 
 
-def run_search(varies: list[Vary], seeds: int, base_seed: int, evaluate: Evaluate, *,
-               budget: int, method: str = "de", population: int = 20, search_seed: int = 0,
-               record: list[Generation] | None = None,
-               on_generation: Callable[[Search], None] = lambda s: None,
-               stop_on_violation: bool = True) -> Search:
+def run_search(
+    varies: list[Vary],
+    seeds: int,
+    base_seed: int,
+    evaluate: Evaluate,
+    *,
+    budget: int,
+    method: str = "de",
+    population: int = 20,
+    search_seed: int = 0,
+    record: list[Generation] | None = None,
+    on_generation: Callable[[Search], None] = lambda s: None,
+    stop_on_violation: bool = True,
+) -> Search:
     """Search until a violation (unless told not to stop) or ``budget`` simulations.
 
     ``seeds``: how many run seeds to search (``base_seed`` .. ``base_seed + seeds - 1``);
@@ -152,8 +180,7 @@ def run_search(varies: list[Vary], seeds: int, base_seed: int, evaluate: Evaluat
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r} (methods: {', '.join(METHODS)})")
     search = Search(varies)
-    drive = _Driver(search, evaluate, budget, list(record or []), on_generation,
-                    stop_on_violation)
+    drive = _Driver(search, evaluate, budget, list(record or []), on_generation, stop_on_violation)
     try:
         if method == "random":
             _random(varies, seeds, base_seed, drive, population, search_seed)
@@ -164,8 +191,9 @@ def run_search(varies: list[Vary], seeds: int, base_seed: int, evaluate: Evaluat
     return search
 
 
-def _random(varies: list[Vary], seeds: int, base: int, drive: _Driver, population: int,
-            search_seed: int) -> None:
+def _random(
+    varies: list[Vary], seeds: int, base: int, drive: _Driver, population: int, search_seed: int
+) -> None:
     rng = np.random.default_rng(search_seed)
     lo = np.array([v.lo for v in varies])
     hi = np.array([v.hi for v in varies])
@@ -175,8 +203,9 @@ def _random(varies: list[Vary], seeds: int, base: int, drive: _Driver, populatio
         drive(x, s)
 
 
-def _differential_evolution(varies: list[Vary], seeds: int, base: int, drive: _Driver,
-                            population: int, search_seed: int) -> None:
+def _differential_evolution(
+    varies: list[Vary], seeds: int, base: int, drive: _Driver, population: int, search_seed: int
+) -> None:
     from scipy.optimize import differential_evolution
 
     bounds = [(v.lo, v.hi) for v in varies]
@@ -188,8 +217,7 @@ def _differential_evolution(varies: list[Vary], seeds: int, base: int, drive: _D
 
     def objective(z: np.ndarray) -> np.ndarray:  # z: (dims, S), the whole generation
         z = np.atleast_2d(z.T)
-        s = base + (np.rint(z[:, -1]).astype(np.int64) if seeds > 1
-                    else np.zeros(len(z), np.int64))
+        s = base + (np.rint(z[:, -1]).astype(np.int64) if seeds > 1 else np.zeros(len(z), np.int64))
         rho = drive(z[:, : len(varies)].copy(), s)
         # an infinite robustness (a Boolean verdict) gives the optimiser no slope: clip it
         return np.clip(rho, -1e300, 1e300)

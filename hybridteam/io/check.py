@@ -37,8 +37,7 @@ def mode_graph(ca: CAgent) -> nx.DiGraph:
             for r in m.children:
                 g.add_edge(m.index, r, kind="region")
     for tr in ca.transitions:
-        g.add_edges_from(((tr.source, t) for t in tr.targets or [tr.target]),
-                         kind="transition")
+        g.add_edges_from(((tr.source, t) for t in tr.targets or [tr.target]), kind="transition")
     return g
 
 
@@ -74,15 +73,25 @@ def check_team(team: Team, cteam: CTeam | None = None) -> list[ModelError]:
         # pre-order walks of the declaration and of the compiled tree visit modes alike
         where = [m.where for _, m in agent.root.walk()]
         for i in unreachable_modes(ca):
-            warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' is unreachable: "
-                                       "it is not an initial mode and no transition enters it",
-                                       at_key=True))
+            warnings.append(
+                ModelError(
+                    where[i],
+                    f"mode '{ca.modes[i].path}' is unreachable: "
+                    "it is not an initial mode and no transition enters it",
+                    at_key=True,
+                )
+            )
         if len(ca.modes) == 2:  # a single-mode agent: running forever is the point
             continue
         for i in dead_ends(ca):
             if where[i] and isinstance(where[i][0], InFile):
                 continue  # a protocol's deliberate sink (Operated: the operator decides)
-            warnings.append(ModelError(where[i], f"mode '{ca.modes[i].path}' has no way out "
-                                       "and is not marked 'final: true'", at_key=True))
+            warnings.append(
+                ModelError(
+                    where[i],
+                    f"mode '{ca.modes[i].path}' has no way out and is not marked 'final: true'",
+                    at_key=True,
+                )
+            )
     warnings += timing_warnings(team, cteam)
     return list({(w.path, str(w)): w for w in warnings}.values())  # once per place

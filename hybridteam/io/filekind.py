@@ -86,8 +86,9 @@ def detect(data: Any, kinds: Sequence[FileKind]) -> str | None:
     return None
 
 
-def kind_error(doc: Document, kind: str | None, known: Sequence[str], expected: str = ""
-               ) -> InputErrors:
+def kind_error(
+    doc: Document, kind: str | None, known: Sequence[str], expected: str = ""
+) -> InputErrors:
     """A located error for a document of no known kind, or of another kind than
     ``expected`` (``"expected a team file, got a study file"``)."""
     from hybridteam.errors import did_you_mean
@@ -96,11 +97,20 @@ def kind_error(doc: Document, kind: str | None, known: Sequence[str], expected: 
         what = f"expected a {expected} file, got a {kind} file"
     elif kind:
         hint = did_you_mean(kind, known)
-        what = f"unknown file kind '{kind}' (kinds: {', '.join(known)})" + \
-            (f"; {hint}" if hint else "")
+        what = f"unknown file kind '{kind}' (kinds: {', '.join(known)})" + (
+            f"; {hint}" if hint else ""
+        )
     else:
         what = "cannot tell what kind of file this is (expected e.g. 'team:' and 'agents:')"
     mark = doc.positions.value(("kind",)) if kind else None
-    return InputErrors([SourceError(doc.filename, mark.line if mark else 1,
-                                    mark.column if mark else 1, ("kind",) if kind else (),
-                                    what)])
+    return InputErrors(
+        [
+            SourceError(
+                doc.filename,
+                mark.line if mark else 1,
+                mark.column if mark else 1,
+                ("kind",) if kind else (),
+                what,
+            )
+        ]
+    )

@@ -30,13 +30,15 @@ def _limit(name: str, env: str, default: float) -> float:
     except ValueError:
         limit = math.nan
     if not 0 < limit < math.inf:
-        raise SourceError(name, message=f"cannot read file: {env}={text!r} must be a "
-                          "number of megabytes > 0")
+        raise SourceError(
+            name, message=f"cannot read file: {env}={text!r} must be a number of megabytes > 0"
+        )
     return limit
 
 
-def read_regular(path: str | os.PathLike[str], name: str, *, limit_mb: float, env: str,
-                 what: str) -> bytes:
+def read_regular(
+    path: str | os.PathLike[str], name: str, *, limit_mb: float, env: str, what: str
+) -> bytes:
     """The bytes of the regular file ``path`` (called ``name`` in messages), at most
     ``limit_mb`` megabytes (``env`` raises it); else a :class:`SourceError` saying why.
     ``what`` names the kind of file, plural ("model files")."""
@@ -50,8 +52,11 @@ def read_regular(path: str | os.PathLike[str], name: str, *, limit_mb: float, en
         kind = "a FIFO" if stat.S_ISFIFO(info.st_mode) else "a device or socket"
         raise SourceError(name, message=f"cannot read file: it is {kind}, not a regular file")
     limit = _limit(name, env, limit_mb)
-    too_large = SourceError(name, message=f"file is {info.st_size / 1e6:.1f} MB; {what} are "
-                            f"read up to {limit:g} MB (set {env} to read larger ones)")
+    too_large = SourceError(
+        name,
+        message=f"file is {info.st_size / 1e6:.1f} MB; {what} are "
+        f"read up to {limit:g} MB (set {env} to read larger ones)",
+    )
     if info.st_size > limit * 1e6:
         raise too_large
     try:

@@ -76,8 +76,12 @@ def _link_pair(key: str) -> tuple[str, str]:
     return sender.strip(), receiver.strip()
 
 
-def locate(err: ModelError, positions: Positions, filename: str,
-           elsewhere: Mapping[InFile, Positions] | None = None) -> SourceError:
+def locate(
+    err: ModelError,
+    positions: Positions,
+    filename: str,
+    elsewhere: Mapping[InFile, Positions] | None = None,
+) -> SourceError:
     """A :class:`ModelError` (document path + offset) as a ``file:line:col`` error.
 
     A path starting with an :class:`InFile` tag lies in that file (a protocol's), found in
@@ -85,8 +89,9 @@ def locate(err: ModelError, positions: Positions, filename: str,
     """
     if err.path and isinstance(err.path[0], InFile) and elsewhere and err.path[0] in elsewhere:
         filename, positions = str(err.path[0]), elsewhere[err.path[0]]
-        err = ModelError(err.path[1:], err.message, offset=err.offset, hint=err.hint,
-                         at_key=err.at_key)
+        err = ModelError(
+            err.path[1:], err.message, offset=err.offset, hint=err.hint, at_key=err.at_key
+        )
     mark = positions.key(err.path) if err.at_key else None
     if err.offset is not None:
         mark = positions.in_scalar(err.path, err.offset)
@@ -95,8 +100,9 @@ def locate(err: ModelError, positions: Positions, filename: str,
     if mark is None:
         _, mark = positions.nearest(err.path)
     message = err.message + (f"; {err.hint}" if err.hint else "")
-    return SourceError(filename, mark.line if mark else None, mark.column if mark else None,
-                       err.path, message)
+    return SourceError(
+        filename, mark.line if mark else None, mark.column if mark else None, err.path, message
+    )
 
 
 def locate_in_file(err: ModelError, team_file: str | os.PathLike) -> SourceError:
@@ -130,12 +136,12 @@ def _load_team(doc: Document) -> Loaded:
         cteam = compile_team(team)
         compile_requirements(cteam)
     except ModelErrors as exc:
-        raise InputErrors([locate(e, doc.positions, doc.filename, others)
-                           for e in exc.errors]) from None
+        raise InputErrors(
+            [locate(e, doc.positions, doc.filename, others) for e in exc.errors]
+        ) from None
     from hybridteam.io.check import check_team
 
-    warnings = [locate(w, doc.positions, doc.filename, others)
-                for w in check_team(team, cteam)]
+    warnings = [locate(w, doc.positions, doc.filename, others) for w in check_team(team, cteam)]
     return Loaded("team", team, warnings)
 
 
@@ -151,16 +157,21 @@ def _validated(doc: Document, schema: type[_Schema]) -> _Schema:
     try:
         return schema.model_validate(doc.data)
     except ValidationError as exc:
-        raise InputErrors(located_errors(exc, schema, doc.data, doc.positions,
-                                         doc.filename)) from None
+        raise InputErrors(
+            located_errors(exc, schema, doc.data, doc.positions, doc.filename)
+        ) from None
 
 
 #: The file kinds this package reads (collected by :mod:`hybridteam.kinds`).
 FILE_KINDS = (
     FileKind("team", lambda: TeamFile, _load_team, marks=("agents", "team")),
     FileKind("protocol", lambda: ProtocolFile, _load_protocol, marks=("protocol",)),
-    FileKind("requirements", lambda: _requirements_schema(), lambda doc: Loaded(
-        "requirements", _validated(doc, _requirements_schema())), marks=("requirements",)),
+    FileKind(
+        "requirements",
+        lambda: _requirements_schema(),
+        lambda doc: Loaded("requirements", _validated(doc, _requirements_schema())),
+        marks=("requirements",),
+    ),
 )
 
 
@@ -199,18 +210,27 @@ def build_team(doc: TeamFile, filename: str) -> Team:
 def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
     """The team, and the composer that brought in its protocols (with their errors)."""
     comp = Composer(Path(filename).resolve().parent, _mode)
-    agents = tuple(_agent(name, spec, ("agents", name), comp, set(doc.parameters))
-                   for name, spec in doc.agents.items())
+    agents = tuple(
+        _agent(name, spec, ("agents", name), comp, set(doc.parameters))
+        for name, spec in doc.agents.items()
+    )
     s = doc.simulation
     sim = Simulation(
-        duration=s.duration, seed=s.seed, sample_period=s.sample_period, rtol=s.rtol,
-        atol=s.atol, max_step=s.max_step, min_step=s.min_step, event_tol=s.event_tol,
+        duration=s.duration,
+        seed=s.seed,
+        sample_period=s.sample_period,
+        rtol=s.rtol,
+        atol=s.atol,
+        max_step=s.max_step,
+        min_step=s.min_step,
+        event_tol=s.event_tol,
         crossing_checks=s.crossing_checks,
         zeno=Zeno(s.zeno.max_steps_per_instant, s.zeno.max_transitions, s.zeno.window),
         where=("simulation",),
     )
-    scenario = tuple(ScenarioEvent(e.at, e.agent, e.raise_, ("scenario", k))
-                     for k, e in enumerate(doc.scenario))
+    scenario = tuple(
+        ScenarioEvent(e.at, e.agent, e.raise_, ("scenario", k)) for k, e in enumerate(doc.scenario)
+    )
     net = doc.network
 
     def link(spec, where) -> LinkSettings:
@@ -218,22 +238,36 @@ def compose_team(doc: TeamFile, filename: str) -> tuple[Team, Composer]:
 
     network = NetworkSpec(
         default=link(net, ("network",)),
-        links={_link_pair(key): link(spec, ("network", "links", key))
-               for key, spec in net.links.items()},
+        links={
+            _link_pair(key): link(spec, ("network", "links", key))
+            for key, spec in net.links.items()
+        },
         rate_limits={agent: dict(limits) for agent, limits in net.rate_limits.items()},
         where=("network",),
     )
-    world = tuple(WorldSpec(w.use, dict(w.with_), ("world", k))
-                  for k, w in enumerate(doc.world))
+    world = tuple(WorldSpec(w.use, dict(w.with_), ("world", k)) for k, w in enumerate(doc.world))
     robots, udp = _deploy(doc, comp)
-    team = Team(doc.team, agents, dict(doc.parameters), sim, scenario,
-                source=Path(filename).name, network=network,
-                messages=_messages(doc, comp), world=world,
-                folder=str(Path(filename).resolve().parent),
-                end=EndRule(tuple(doc.end.agents) if doc.end and doc.end.agents else None,
-                            doc.end.when if doc.end else "all", ("end",)),
-                requirements=_requirements(doc, filename, comp),
-                priority_rule=doc.semantics.priority, deploy=robots, udp=udp)
+    team = Team(
+        doc.team,
+        agents,
+        dict(doc.parameters),
+        sim,
+        scenario,
+        source=Path(filename).name,
+        network=network,
+        messages=_messages(doc, comp),
+        world=world,
+        folder=str(Path(filename).resolve().parent),
+        end=EndRule(
+            tuple(doc.end.agents) if doc.end and doc.end.agents else None,
+            doc.end.when if doc.end else "all",
+            ("end",),
+        ),
+        requirements=_requirements(doc, filename, comp),
+        priority_rule=doc.semantics.priority,
+        deploy=robots,
+        udp=udp,
+    )
     return team, comp
 
 
@@ -249,10 +283,15 @@ def _deploy(doc: TeamFile, comp: Composer) -> tuple[dict[str, PlantDeploy], UdpD
                 udp = UdpDeploy.from_mapping(config, where)
                 continue
             if name not in doc.agents:
-                comp.errors.append(ModelError(
-                    where, f"'{name}' is not an agent of the team (nor '{UDP}', the team's "
-                    "UDP addressing)", hint=did_you_mean(name, [*doc.agents, UDP]),
-                    at_key=True))
+                comp.errors.append(
+                    ModelError(
+                        where,
+                        f"'{name}' is not an agent of the team (nor '{UDP}', the team's "
+                        "UDP addressing)",
+                        hint=did_you_mean(name, [*doc.agents, UDP]),
+                        at_key=True,
+                    )
+                )
                 continue
             robot, address = agent_deploy(config, where)
         except ModelError as exc:
@@ -281,8 +320,13 @@ def _requirements(doc: TeamFile, filename: str, comp: Composer) -> tuple[Require
     seen = {r.name: r for r in out}
     for r in _entries(doc.requirements, ("requirements",)):
         if r.name in seen:
-            comp.errors.append(ModelError(r.where[:2], f"requirement '{r.name}' is also in "
-                                          f"{seen[r.name].where[0]}", at_key=True))
+            comp.errors.append(
+                ModelError(
+                    r.where[:2],
+                    f"requirement '{r.name}' is also in {seen[r.name].where[0]}",
+                    at_key=True,
+                )
+            )
         out.append(r)
     return tuple(out)
 
@@ -293,8 +337,9 @@ def _entries(entries: dict, where: DocPath) -> list[Requirement]:
         if isinstance(entry, str):
             out.append(Requirement(name, entry, None, (*where, name)))
         else:
-            out.append(Requirement(name, entry.formula, entry.description,
-                                   (*where, name, "formula")))
+            out.append(
+                Requirement(name, entry.formula, entry.description, (*where, name, "formula"))
+            )
     return out
 
 
@@ -310,9 +355,12 @@ def load_requirement_file(path: Path, where: DocPath):
     if not (data.get("kind") == "requirements" or ("kind" not in data and "requirements" in data)):
         # any other YAML mapping (a private file reached through a link, say) would be
         # reported key by key, its lines printed back: refuse it whole, quoting nothing
-        return ModelError(where, f"'{path}' is not a requirements document (expected "
-                          "'kind: requirements' and a 'requirements:' mapping of named "
-                          "formulas)")
+        return ModelError(
+            where,
+            f"'{path}' is not a requirements document (expected "
+            "'kind: requirements' and a 'requirements:' mapping of named "
+            "formulas)",
+        )
     return _validated(doc, RequirementsFile), doc.positions
 
 
@@ -322,17 +370,27 @@ def _messages(doc: TeamFile, comp: Composer) -> dict[str, MessageSpec]:
     for name, m in doc.messages.items():
         where: DocPath = ("messages", name)
         if name in out:
-            comp.errors.append(ModelError(where, f"message '{name}' is already declared by "
-                                          f"protocol '{out[name].protocol}'", at_key=True))
+            comp.errors.append(
+                ModelError(
+                    where,
+                    f"message '{name}' is already declared by protocol '{out[name].protocol}'",
+                    at_key=True,
+                )
+            )
             continue
         out[name] = message_spec(name, m, "", where)
     return out
 
 
-def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
-           team_params: set[str]) -> Agent:
-    extra: dict = {"parameters": dict(spec.parameters), "variables": dict(spec.variables),
-                   "streams": [], "initial": spec.initial}
+def _agent(
+    name: str, spec: AgentSchema, where: DocPath, comp: Composer, team_params: set[str]
+) -> Agent:
+    extra: dict = {
+        "parameters": dict(spec.parameters),
+        "variables": dict(spec.variables),
+        "streams": [],
+        "initial": spec.initial,
+    }
     preset = None
     if spec.operator is not None:
         plant = PlantSpec("none", {}, {}, where)
@@ -340,22 +398,35 @@ def _agent(name: str, spec: AgentSchema, where: DocPath, comp: Composer,
     else:
         assert spec.plant is not None and spec.modes is not None  # the schema checked
         plant, preset = _plant(spec, where, comp.errors)
-        children = tuple(_compose(n, m, (*where, "modes", n), comp, extra)
-                         for n, m in spec.modes.items())
-    root = Mode(name, children, initial=spec.initial or extra["initial"],
-                history=spec.history, where=where)
+        children = tuple(
+            _compose(n, m, (*where, "modes", n), comp, extra) for n, m in spec.modes.items()
+        )
+    root = Mode(
+        name, children, initial=spec.initial or extra["initial"], history=spec.history, where=where
+    )
     # protocol defaults yield to the team's parameters of the same name
-    params = {k: v for k, v in extra["parameters"].items()
-              if k in spec.parameters or k not in team_params}
-    return Agent(name, plant, root, params, extra["variables"], where,
-                 tuple(extra["streams"]), preset, operator=spec.operator is not None)
+    params = {
+        k: v for k, v in extra["parameters"].items() if k in spec.parameters or k not in team_params
+    }
+    return Agent(
+        name,
+        plant,
+        root,
+        params,
+        extra["variables"],
+        where,
+        tuple(extra["streams"]),
+        preset,
+        operator=spec.operator is not None,
+    )
 
 
 _OVERRIDDEN = ("sensors", "manipulator", "footprint")
 
 
-def _plant(spec: AgentSchema, where: DocPath, errors: list[ModelError]
-           ) -> tuple[PlantSpec, RobotPreset | None]:
+def _plant(
+    spec: AgentSchema, where: DocPath, errors: list[ModelError]
+) -> tuple[PlantSpec, RobotPreset | None]:
     """The agent's plant, and its robot model with the team's overrides (``model:``).
 
     The model's kind and limits become the plant's, the agent's ``plant.limits`` merged onto
@@ -373,42 +444,56 @@ def _plant(spec: AgentSchema, where: DocPath, errors: list[ModelError]
     if spec.model is None:
         return stand_in, None
     # the sections the agent wrote, even as null (which removes the model's manipulator)
-    overrides: dict[str, Any] = {k: getattr(spec, k) for k in _OVERRIDDEN
-                                 if k in spec.model_fields_set}
+    overrides: dict[str, Any] = {
+        k: getattr(spec, k) for k in _OVERRIDDEN if k in spec.model_fields_set
+    }
     if p.limits:
         overrides["plant"] = {"limits": {k: list(v) for k, v in p.limits.items()}}
     try:
         base = resolve(spec.model)
         kind = base.plant.kind
         if p.kind is not None and p.kind != kind:
-            raise ModelError(("plant", "kind"), f"robot model '{spec.model}' is a {kind}, "
-                             f"not a {p.kind}", hint="remove 'kind': it comes from the model")
+            raise ModelError(
+                ("plant", "kind"),
+                f"robot model '{spec.model}' is a {kind}, not a {p.kind}",
+                hint="remove 'kind': it comes from the model",
+            )
         for n, (lo, hi) in p.limits.items():  # located at the input, as without a model
             if n not in base.inputs:
-                raise ModelError(("plant", "limits", n), f"a {kind} plant has no input '{n}'",
-                                 hint=did_you_mean(n, base.inputs), at_key=True)
+                raise ModelError(
+                    ("plant", "limits", n),
+                    f"a {kind} plant has no input '{n}'",
+                    hint=did_you_mean(n, base.inputs),
+                    at_key=True,
+                )
             if lo > hi:
                 raise ModelError(("plant", "limits", n), f"lower limit {lo} exceeds upper {hi}")
         preset = resolve(spec.model, overrides)
     except (ModelError, ModelErrors) as exc:
         found = exc.errors if isinstance(exc, ModelErrors) else [exc]
-        errors += [ModelError((*where, *(e.path or ("model",))), e.message, hint=e.hint,
-                              at_key=e.at_key) for e in found]
+        errors += [
+            ModelError((*where, *(e.path or ("model",))), e.message, hint=e.hint, at_key=e.at_key)
+            for e in found
+        ]
         return stand_in, None
     return PlantSpec(preset.plant.kind, dict(p.state), dict(preset.plant.limits), pwhere), preset
 
 
-def _compose(name: str, spec: ModeSchema, where: DocPath, comp: Composer, extra: dict
-             ) -> Mode:
+def _compose(name: str, spec: ModeSchema, where: DocPath, comp: Composer, extra: dict) -> Mode:
     """A mode of an agent's tree; one declared with ``protocol:`` gets the role region."""
     if spec.protocol is not None:
         return comp.region(name, spec, where, extra) or _mode(
-            name, spec.model_copy(update={"protocol": None, "roles": None}), where)
+            name, spec.model_copy(update={"protocol": None, "roles": None}), where
+        )
     if not spec.modes:
         return _mode(name, spec, where)
     mode = _mode(name, spec.model_copy(update={"modes": None}), where)
-    return dataclasses.replace(mode, children=tuple(
-        _compose(n, m, (*where, "modes", n), comp, extra) for n, m in spec.modes.items()))
+    return dataclasses.replace(
+        mode,
+        children=tuple(
+            _compose(n, m, (*where, "modes", n), comp, extra) for n, m in spec.modes.items()
+        ),
+    )
 
 
 def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
@@ -418,19 +503,34 @@ def _mode(name: str, spec: ModeSchema, where: DocPath) -> Mode:
         if isinstance(spec.law, str):
             law = LawBinding(spec.law, where=(*where, "law"))
         else:
-            law = LawBinding(spec.law.use, spec.law.period, dict(spec.law.with_),
-                             where=(*where, "law"))
-    transitions = tuple(_transition(t, (*where, "transitions", k))
-                        for k, t in enumerate(spec.transitions))
-    history, history_default = (spec.history, None) if isinstance(spec.history, str) \
+            law = LawBinding(
+                spec.law.use, spec.law.period, dict(spec.law.with_), where=(*where, "law")
+            )
+    transitions = tuple(
+        _transition(t, (*where, "transitions", k)) for k, t in enumerate(spec.transitions)
+    )
+    history, history_default = (
+        (spec.history, None)
+        if isinstance(spec.history, str)
         else (spec.history.kind, spec.history.default)
+    )
     return Mode(
-        name, children, initial=spec.initial, parallel=spec.parallel, history=history,
+        name,
+        children,
+        initial=spec.initial,
+        parallel=spec.parallel,
+        history=history,
         history_default=history_default,
-        law=law, inputs=None if spec.inputs is None else dict(spec.inputs),
-        input_period=spec.period, flow=None if spec.flow is None else dict(spec.flow),
-        invariant=spec.invariant, final=spec.final, outcome=spec.outcome,
-        transitions=transitions, where=where, on_entry=_actions(spec.entry, (*where, "entry")),
+        law=law,
+        inputs=None if spec.inputs is None else dict(spec.inputs),
+        input_period=spec.period,
+        flow=None if spec.flow is None else dict(spec.flow),
+        invariant=spec.invariant,
+        final=spec.final,
+        outcome=spec.outcome,
+        transitions=transitions,
+        where=where,
+        on_entry=_actions(spec.entry, (*where, "entry")),
         on_exit=_actions(spec.exit, (*where, "exit")),
     )
 
@@ -451,6 +551,14 @@ def _actions(specs: list, where: DocPath) -> tuple[Action, ...]:
 
 def _transition(spec, where: DocPath) -> Transition:
     targets = [spec.to] if isinstance(spec.to, str) else spec.to or [None]
-    return Transition(targets[0], spec.on, spec.after, spec.guard,
-                      _actions(spec.do, (*where, "do")), spec.priority, where,
-                      more_targets=tuple(targets[1:]), local=spec.local)
+    return Transition(
+        targets[0],
+        spec.on,
+        spec.after,
+        spec.guard,
+        _actions(spec.do, (*where, "do")),
+        spec.priority,
+        where,
+        more_targets=tuple(targets[1:]),
+        local=spec.local,
+    )

@@ -76,8 +76,7 @@ def load_protocol(path: Path) -> Protocol:
     try:
         doc = ProtocolFile.model_validate(data)
     except ValidationError as exc:
-        raise ProtocolErrors(located_errors(exc, ProtocolFile, data, positions,
-                                            filename)) from None
+        raise ProtocolErrors(located_errors(exc, ProtocolFile, data, positions, filename)) from None
     return Protocol(doc, filename, positions)
 
 
@@ -97,8 +96,13 @@ class Composer:
         if reference not in self.cache:
             path = find(reference, self.base)
             if path is None:
-                self.errors.append(ModelError(where, f"unknown protocol '{reference}'",
-                                              hint=did_you_mean(reference, shipped())))
+                self.errors.append(
+                    ModelError(
+                        where,
+                        f"unknown protocol '{reference}'",
+                        hint=did_you_mean(reference, shipped()),
+                    )
+                )
                 return None
             self.cache[reference] = load_protocol(path)
         proto = self.cache[reference]
@@ -113,25 +117,29 @@ class Composer:
             return None, None
         part = getattr(proto.doc, key)
         if part is None:
-            self.errors.append(ModelError(where, f"protocol '{proto.doc.protocol}' "
-                                          f"declares no {what}"))
+            self.errors.append(
+                ModelError(where, f"protocol '{proto.doc.protocol}' declares no {what}")
+            )
             return None, None
         return proto, part
 
     # ------------------------------------------------------------------ composition
     def region(self, name: str, spec, where: DocPath, agent_extra: dict) -> Mode | None:
         """The mode ``name`` (declared with ``protocol:``) with the protocol's region."""
-        proto, region = self.section(spec.protocol, (*where, "protocol"), "region",
-                                     "role region")
+        proto, region = self.section(spec.protocol, (*where, "protocol"), "region", "role region")
         if proto is None:
             return None
         roles = spec.roles or {}
         for role in roles:
             if role not in region.roles:
-                self.errors.append(ModelError((*where, "roles", role), f"protocol "
-                                              f"'{proto.doc.protocol}' has no role '{role}'",
-                                              hint=did_you_mean(role, region.roles),
-                                              at_key=True))
+                self.errors.append(
+                    ModelError(
+                        (*where, "roles", role),
+                        f"protocol '{proto.doc.protocol}' has no role '{role}'",
+                        hint=did_you_mean(role, region.roles),
+                        at_key=True,
+                    )
+                )
         tag = proto.tag
         children = []
         for rname, rspec in region.modes.items():
@@ -143,18 +151,29 @@ class Composer:
                 continue
             bwhere: DocPath = (*where, "roles", rspec.role)
             mine = self.build_mode(rname, body, bwhere)
-            children.append(dataclasses.replace(
-                mine, transitions=own.transitions + mine.transitions, where=rwhere,
-                invariant=mine.invariant or own.invariant, final=own.final,
-                outcome=own.outcome, role=rspec.role, body=bwhere))
+            children.append(
+                dataclasses.replace(
+                    mine,
+                    transitions=own.transitions + mine.transitions,
+                    where=rwhere,
+                    invariant=mine.invariant or own.invariant,
+                    final=own.final,
+                    outcome=own.outcome,
+                    role=rspec.role,
+                    body=bwhere,
+                )
+            )
         self._add_agent_parts(proto, agent_extra, where)
-        host = self.build_mode(name, spec.model_copy(update={"protocol": None, "roles": None}),
-                               where)
-        return dataclasses.replace(host, children=tuple(children),
-                                   initial=spec.initial or region.initial)
+        host = self.build_mode(
+            name, spec.model_copy(update={"protocol": None, "roles": None}), where
+        )
+        return dataclasses.replace(
+            host, children=tuple(children), initial=spec.initial or region.initial
+        )
 
-    def operator(self, reference: str, where: DocPath, agent_extra: dict
-                 ) -> tuple[Mode, ...] | None:
+    def operator(
+        self, reference: str, where: DocPath, agent_extra: dict
+    ) -> tuple[Mode, ...] | None:
         proto, op = self.section(reference, (*where, "operator"), "operator", "operator")
         if proto is None:
             return None
@@ -162,18 +181,27 @@ class Composer:
         agent_extra["initial"] = op.initial
         _defaults(agent_extra, op.parameters, op.variables)
         self._add_agent_parts(proto, agent_extra, where, streams=False)
-        return tuple(self.build_mode(n, m, (tag, "operator", "modes", n))
-                     for n, m in op.modes.items())
+        return tuple(
+            self.build_mode(n, m, (tag, "operator", "modes", n)) for n, m in op.modes.items()
+        )
 
-    def _add_agent_parts(self, proto: Protocol, extra: dict, where: DocPath,
-                         streams: bool = True) -> None:
+    def _add_agent_parts(
+        self, proto: Protocol, extra: dict, where: DocPath, streams: bool = True
+    ) -> None:
         doc, tag = proto.doc, proto.tag
         _defaults(extra, doc.parameters, doc.variables)
         if streams:
             for j, s in enumerate(doc.streams):
-                extra["streams"].append(StreamSpec(
-                    s.message, s.rate, dict(s.fields), tuple(s.while_ or ()), s.socket,
-                    (tag, "streams", j)))
+                extra["streams"].append(
+                    StreamSpec(
+                        s.message,
+                        s.rate,
+                        dict(s.fields),
+                        tuple(s.while_ or ()),
+                        s.socket,
+                        (tag, "streams", j),
+                    )
+                )
 
     def messages(self) -> dict[str, MessageSpec]:
         """Message types of every protocol used (first declaration wins; clashes reported)."""
@@ -184,18 +212,24 @@ class Composer:
                 where: DocPath = (tag, "messages", name)
                 spec = message_spec(name, m, proto.doc.protocol, where)
                 if name in out and out[name].protocol != spec.protocol:
-                    self.errors.append(ModelError(where, f"message '{name}' is also declared "
-                                                  f"by protocol '{out[name].protocol}'",
-                                                  at_key=True))
+                    self.errors.append(
+                        ModelError(
+                            where,
+                            f"message '{name}' is also declared by protocol '{out[name].protocol}'",
+                            at_key=True,
+                        )
+                    )
                 out.setdefault(name, spec)
         return out
 
 
-def message_spec(name: str, m: MessageDeclSchema, protocol: str, where: DocPath
-                 ) -> MessageSpec:
+def message_spec(name: str, m: MessageDeclSchema, protocol: str, where: DocPath) -> MessageSpec:
     """The model of a declared message type, a protocol's or (``protocol`` "") a team's."""
-    ack = None if m.ack is None else AckPolicy(m.ack.timeout, m.ack.retries, (*where, "ack"),
-                                               m.ack.dedupe)
+    ack = (
+        None
+        if m.ack is None
+        else AckPolicy(m.ack.timeout, m.ack.retries, (*where, "ack"), m.ack.dedupe)
+    )
     return MessageSpec(name, m.socket, tuple(m.fields), ack, m.priority, protocol, where)
 
 

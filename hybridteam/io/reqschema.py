@@ -14,8 +14,9 @@ class RequirementSchema(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    formula: str = Field(description="a Signal Temporal Logic formula, e.g. "
-                         "'always(count_in_role(lead) <= 1)'")
+    formula: str = Field(
+        description="a Signal Temporal Logic formula, e.g. 'always(count_in_role(lead) <= 1)'"
+    )
     description: str | None = Field(None, description="what it means, for reports")
 
 
@@ -30,4 +31,5 @@ class RequirementsFile(BaseModel):
     kind: Literal["requirements"] = "requirements"
     description: str | None = None
     requirements: dict[str, RequirementEntry] = Field(
-        description="named temporal-logic formulas, as in a team's requirements:")
+        description="named temporal-logic formulas, as in a team's requirements:"
+    )

@@ -22,9 +22,11 @@ NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")  # \Z: '$' would let "a\n" throu
 EVENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
 
 ExprOrNumber = Annotated[float | str, Field(union_mode="left_to_right")]
-AGENT_PARAMETERS = ("numbers, or expressions of the team's parameters and of this agent's "
-                    "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated "
-                    "per run")
+AGENT_PARAMETERS = (
+    "numbers, or expressions of the team's parameters and of this agent's "
+    "parameters above (e.g. ack_timeout: 2 * latency + 0.05), re-evaluated "
+    "per run"
+)
 PositiveFloat = Annotated[float, Field(gt=0)]
 #: the coarsest ``simulation.event_tol``: crossings located more coarsely than a millisecond
 #: would move a team's transitions by whole control periods
@@ -38,8 +40,10 @@ _Name = TypeVar("_Name", bound=str | None)
 def check_names(names, what: str) -> None:
     for name in names:
         if not isinstance(name, str) or not NAME.match(name):
-            raise ValueError(f"{what} name {name!r} is not valid: use letters, digits and _, "
-                             "not starting with a digit")
+            raise ValueError(
+                f"{what} name {name!r} is not valid: use letters, digits and _, "
+                "not starting with a digit"
+            )
         if name.startswith("__"):
             raise ValueError(f"{what} name {name!r} may not start with '__'")
 
@@ -47,8 +51,10 @@ def check_names(names, what: str) -> None:
 def check_event(name: _Name, what: str) -> _Name:
     """An event's name (None: not given): names joined by dots, checked as names are."""
     if name is not None and (not isinstance(name, str) or not EVENT.match(name)):
-        raise ValueError(f"{what} name {name!r} is not valid: use letters, digits and _, "
-                         "not starting with a digit (names may be joined by dots: error.io)")
+        raise ValueError(
+            f"{what} name {name!r} is not valid: use letters, digits and _, "
+            "not starting with a digit (names may be joined by dots: error.io)"
+        )
     if isinstance(name, str) and name.startswith("__"):
         raise ValueError(f"{what} name {name!r} may not start with '__'")
     return name
@@ -58,8 +64,10 @@ def check_title(text: str, what: str) -> str:
     """A free-text name (a team's, a protocol's) without control characters: it titles
     diagrams and plots and the terminal's summary, where an escape sequence would act."""
     if printable(text) != text:
-        raise ValueError(f"{what} name {text!r} has control characters or lone "
-                         "surrogates; write it as plain text")
+        raise ValueError(
+            f"{what} name {text!r} has control characters or lone "
+            "surrogates; write it as plain text"
+        )
     return text
 
 
@@ -121,16 +129,22 @@ class TransitionSchema(Strict):
     """A guarded switch from the enclosing mode to ``to``."""
 
     to: str | Annotated[list[str], Field(min_length=1)] | None = Field(
-        None, description="target mode: a unique name or a dotted path, or a list of "
-        "targets in different parallel regions (none: an internal transition, actions only)")
+        None,
+        description="target mode: a unique name or a dotted path, or a list of "
+        "targets in different parallel regions (none: an internal transition, actions only)",
+    )
     on: str | None = Field(None, description="message type or local event that triggers it")
     after: ExprOrNumber | None = Field(None, description="seconds in the source mode")
     guard: str | None = Field(None, description="condition, e.g. 'x >= 22'")
-    do: list[ActionSchema] = Field(default_factory=list,
-                                   description="'var = expr' assignments/resets, send, raise")
+    do: list[ActionSchema] = Field(
+        default_factory=list, description="'var = expr' assignments/resets, send, raise"
+    )
     priority: int = 0
-    local: bool = Field(False, description="a transition from a composite to modes inside "
-                        "it that does not leave it (UML's local, SCXML's type='internal')")
+    local: bool = Field(
+        False,
+        description="a transition from a composite to modes inside "
+        "it that does not leave it (UML's local, SCXML's type='internal')",
+    )
     description: str | None = None
 
     @field_validator("on")
@@ -158,16 +172,21 @@ class HistorySchema(Strict):
     """History with a default: where an entry goes while nothing is remembered yet."""
 
     kind: Literal["shallow", "deep"]
-    default: str = Field(description="a descendant (name or dotted path below the mode) "
-                         "entered while nothing is remembered (instead of 'initial')")
+    default: str = Field(
+        description="a descendant (name or dotted path below the mode) "
+        "entered while nothing is remembered (instead of 'initial')"
+    )
 
 
 class ModeSchema(Strict):
     """A mode: a leaf, an OR-composite (``modes`` + ``initial``) or parallel regions."""
 
     description: str | None = None
-    initial: str | None = Field(None, description="the child (or a deeper descendant, by "
-                                "name or dotted path below this mode) entered by default")
+    initial: str | None = Field(
+        None,
+        description="the child (or a deeper descendant, by "
+        "name or dotted path below this mode) entered by default",
+    )
     history: Literal["none", "shallow", "deep"] | HistorySchema = "none"
     parallel: bool = False
     modes: dict[str, ModeSchema] | None = None
@@ -178,16 +197,21 @@ class ModeSchema(Strict):
     invariant: str | None = None
     final: bool = False
     outcome: str | None = Field(
-        None, description="a final mode's run outcome, e.g. 'success' (default: 'ok')")
+        None, description="a final mode's run outcome, e.g. 'success' (default: 'ok')"
+    )
     transitions: list[TransitionSchema] = Field(default_factory=list)
     entry: list[ActionSchema] = Field(
-        default_factory=list, description="actions each time the mode is entered (as 'do')")
+        default_factory=list, description="actions each time the mode is entered (as 'do')"
+    )
     exit: list[ActionSchema] = Field(
-        default_factory=list, description="actions each time the mode is exited (as 'do')")
+        default_factory=list, description="actions each time the mode is exited (as 'do')"
+    )
     protocol: str | None = Field(
-        None, description="a protocol (name or file) whose role region this mode becomes")
+        None, description="a protocol (name or file) whose role region this mode becomes"
+    )
     roles: dict[str, ModeSchema] | None = Field(
-        None, description="with 'protocol': what each role (e.g. lead, follow) does")
+        None, description="with 'protocol': what each role (e.g. lead, follow) does"
+    )
 
     @field_validator("roles")
     @classmethod
@@ -207,19 +231,21 @@ class ModeSchema(Strict):
     @model_validator(mode="after")
     def _period_needs_inputs(self) -> ModeSchema:
         if self.period is not None and self.inputs is None:
-            raise ValueError("'period' samples 'inputs'; this mode has no 'inputs' "
-                             "(a law takes its period in 'law: {use: ..., period: ...}')")
+            raise ValueError(
+                "'period' samples 'inputs'; this mode has no 'inputs' "
+                "(a law takes its period in 'law: {use: ..., period: ...}')"
+            )
         if self.outcome is not None and not self.final:
-            raise ValueError("'outcome' names how a run ends in this mode; it needs "
-                             "'final: true'")
+            raise ValueError("'outcome' names how a run ends in this mode; it needs 'final: true'")
         if self.outcome is not None and not self.outcome.isidentifier():
-            raise ValueError(f"'outcome' must be a name such as 'success', got "
-                             f"{self.outcome!r}")
+            raise ValueError(f"'outcome' must be a name such as 'success', got {self.outcome!r}")
         if self.roles is not None and self.protocol is None:
             raise ValueError("'roles' binds the roles of a protocol; add 'protocol: <name>'")
         if self.protocol is not None and self.modes is not None:
-            raise ValueError("a mode with 'protocol' gets its modes from the protocol's "
-                             "region; bind them with 'roles', not 'modes'")
+            raise ValueError(
+                "a mode with 'protocol' gets its modes from the protocol's "
+                "region; bind them with 'roles', not 'modes'"
+            )
         return self
 
 
@@ -229,7 +255,8 @@ class PlantSchema(Strict):
     and limits come from the model, and ``limits`` here override it input by input."""
 
     kind: Literal["unicycle", "holonomic", "flow", "none"] | None = Field(
-        None, description="required unless the agent names a robot 'model'")
+        None, description="required unless the agent names a robot 'model'"
+    )
     state: dict[str, ExprOrNumber] = Field(default_factory=dict)
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
 
@@ -245,40 +272,45 @@ class AgentSchema(Strict):
 
     description: str | None = None
     model: str | None = Field(
-        None, description="a robot model (labmate, xr4000, scout, omni): its plant kind, "
-        "limits, footprint, sensors and manipulator, overridden by the keys below")
+        None,
+        description="a robot model (labmate, xr4000, scout, omni): its plant kind, "
+        "limits, footprint, sensors and manipulator, overridden by the keys below",
+    )
     plant: PlantSchema | None = None
     # partial overrides of the model's sections, checked against it when it is resolved
     sensors: dict[str, Any] | None = Field(
-        None, description="with 'model': per-sensor overrides, e.g. {ir: {max_range: 0.6}}")
+        None, description="with 'model': per-sensor overrides, e.g. {ir: {max_range: 0.6}}"
+    )
     manipulator: dict[str, Any] | None = Field(
-        None, description="with 'model': overrides of its manipulator (null removes it)")
+        None, description="with 'model': overrides of its manipulator (null removes it)"
+    )
     footprint: dict[str, Any] | None = Field(
-        None, description="with 'model': overrides of its footprint, e.g. {radius: 0.4}")
-    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict,
-                                                description=AGENT_PARAMETERS)
+        None, description="with 'model': overrides of its footprint, e.g. {radius: 0.4}"
+    )
+    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict, description=AGENT_PARAMETERS)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     history: Literal["none", "shallow", "deep"] = "none"
     modes: dict[str, ModeSchema] | None = None
     operator: str | None = Field(
-        None, description="a protocol whose operator automaton this agent runs (no plant)")
+        None, description="a protocol whose operator automaton this agent runs (no plant)"
+    )
 
     @field_validator("plant")
     @classmethod
     def _kind_or_model(cls, v: PlantSchema | None, info: ValidationInfo) -> PlantSchema | None:
         # 'model' is declared first, so it is in info.data unless it failed on its own
         if v is not None and v.kind is None and info.data.get("model", "") is None:
-            raise ValueError("missing required key 'kind' (or give the agent a robot "
-                             "'model')")
+            raise ValueError("missing required key 'kind' (or give the agent a robot 'model')")
         return v
 
     @field_validator("sensors", "manipulator", "footprint")
     @classmethod
     def _needs_model(cls, v: Any, info: ValidationInfo) -> Any:
         if info.data.get("model", "") is None:
-            raise ValueError(f"'{info.field_name}' overrides a robot model's; add "
-                             "'model: <name>' (e.g. xr4000)")
+            raise ValueError(
+                f"'{info.field_name}' overrides a robot model's; add 'model: <name>' (e.g. xr4000)"
+            )
         return v
 
     @field_validator("parameters", "variables")
@@ -300,11 +332,12 @@ class AgentSchema(Strict):
     def _modes_or_operator(self) -> AgentSchema:
         missing = [k for k in ("plant", "modes") if getattr(self, k) is None]
         if self.operator is None and missing:
-            raise ValueError(f"missing required key '{missing[0]}' (an agent without a "
-                             "plant and modes is declared with 'operator: <protocol>')")
+            raise ValueError(
+                f"missing required key '{missing[0]}' (an agent without a "
+                "plant and modes is declared with 'operator: <protocol>')"
+            )
         if self.operator is not None and self.modes is not None:
-            raise ValueError("an operator agent gets its modes from its protocol; "
-                             "remove 'modes'")
+            raise ValueError("an operator agent gets its modes from its protocol; remove 'modes'")
         if self.operator is not None and self.model is not None:
             raise ValueError("an operator agent has no body; remove 'model'")
         return self
@@ -322,15 +355,18 @@ class SimulationSchema(Strict):
     duration: Annotated[float, Field(ge=0)] = 10.0
     seed: Annotated[int, Field(ge=0)] = 0
     sample_period: PositiveFloat | None = Field(
-        None, description="trace sampling period (default: duration/500)")
+        None, description="trace sampling period (default: duration/500)"
+    )
     rtol: PositiveFloat = 1e-10
     atol: PositiveFloat = 1e-12
     max_step: PositiveFloat | None = None
     min_step: PositiveFloat | None = Field(
-        None, description="smallest integrator step before a run ends 'stiff' "
-                          "(default: duration * 1e-6)")
+        None,
+        description="smallest integrator step before a run ends 'stiff' (default: duration * 1e-6)",
+    )
     event_tol: Annotated[float, Field(gt=0, le=MAX_EVENT_TOL)] = Field(
-        1e-12, description="seconds within which a guard's crossing is located (at most 1e-3)")
+        1e-12, description="seconds within which a guard's crossing is located (at most 1e-3)"
+    )
     crossing_checks: Annotated[int, Field(ge=0, le=32)] = 2
     zeno: ZenoSchema = Field(default_factory=ZenoSchema)
 
@@ -379,10 +415,12 @@ class NetworkSchema(LinkSchema):
     """The broadcast medium: default link settings, per-link overrides, receive limits."""
 
     links: dict[str, LinkSchema] = Field(
-        default_factory=dict, description="overrides per link, keyed 'sender->receiver'")
+        default_factory=dict, description="overrides per link, keyed 'sender->receiver'"
+    )
     rate_limits: dict[str, dict[str, PositiveFloat]] = Field(
         default_factory=dict,
-        description="messages per second a receiver processes, per socket ('*' for all)")
+        description="messages per second a receiver processes, per socket ('*' for all)",
+    )
 
     @field_validator("links")
     @classmethod
@@ -399,8 +437,10 @@ class WorldSchema(Strict):
 
     use: str = Field(description="registered name of the component")
     with_: dict[str, bool | float | str | list[Any]] = Field(
-        default_factory=dict, alias="with",
-        description="settings: numbers or expressions of team parameters, or literals")
+        default_factory=dict,
+        alias="with",
+        description="settings: numbers or expressions of team parameters, or literals",
+    )
 
 
 class AckSchema(Strict):
@@ -408,8 +448,11 @@ class AckSchema(Strict):
 
     timeout: ExprOrNumber = 0.1
     retries: ExprOrNumber = 3
-    dedupe: bool = Field(True, description="act on a message once (false: on every copy, "
-                         "a resend after a lost ack included)")
+    dedupe: bool = Field(
+        True,
+        description="act on a message once (false: on every copy, "
+        "a resend after a lost ack included)",
+    )
 
 
 class MessageDeclSchema(Strict):
@@ -437,10 +480,13 @@ class EndSchema(Strict):
     """When a run ends before its duration: ``{agents: [labmate, xr4000], when: all}``."""
 
     agents: list[str] | None = Field(
-        None, min_length=1,
-        description="agents whose final modes end the run (default: all but operators)")
+        None,
+        min_length=1,
+        description="agents whose final modes end the run (default: all but operators)",
+    )
     when: Literal["all", "any"] = Field(
-        "all", description="all: when every one of them is final; any: when the first is")
+        "all", description="all: when every one of them is final; any: when the first is"
+    )
 
     @field_validator("agents")
     @classmethod
@@ -453,9 +499,11 @@ class SemanticsSchema(Strict):
     """Choices of the discrete semantics that statechart tools make differently."""
 
     priority: Literal["outer_first", "inner_first"] = Field(
-        "outer_first", description="which of two enabled nested transitions fires: "
+        "outer_first",
+        description="which of two enabled nested transitions fires: "
         "outer_first (Stateflow's: the outer one) or inner_first (SCXML's: the inner one; "
-        "between regions, document order)")
+        "between regions, document order)",
+    )
 
 
 class TeamFile(Strict):
@@ -470,24 +518,33 @@ class TeamFile(Strict):
     scenario: list[ScenarioSchema] = Field(default_factory=list)
     network: NetworkSchema = Field(default_factory=NetworkSchema)
     world: list[WorldSchema] = Field(
-        default_factory=list, description="world components: payloads, corridors, sensors")
+        default_factory=list, description="world components: payloads, corridors, sensors"
+    )
     end: EndSchema | None = Field(None, description="when a run ends before its duration")
     semantics: SemanticsSchema = Field(default_factory=SemanticsSchema)
     messages: dict[str, MessageDeclSchema] = Field(
-        default_factory=dict, description="the team's own message types (fields, ack:, "
-        "priority); a protocol's are declared in the protocol")
+        default_factory=dict,
+        description="the team's own message types (fields, ack:, "
+        "priority); a protocol's are declared in the protocol",
+    )
     requirements_from: list[str] = Field(
-        default_factory=list, description="requirement files (kind: requirements) whose "
-        "formulas this team checks too, relative to this file")
+        default_factory=list,
+        description="requirement files (kind: requirements) whose "
+        "formulas this team checks too, relative to this file",
+    )
     requirements: dict[str, RequirementEntry] = Field(
-        default_factory=dict, description="named temporal-logic formulas checked on every "
-        "run: 'always(x <= 22.1)' or {formula: ..., description: ...}")
+        default_factory=dict,
+        description="named temporal-logic formulas checked on every "
+        "run: 'always(x <= 22.1)' or {formula: ..., description: ...}",
+    )
     deploy: dict[str, Any] = Field(
-        default_factory=dict, description="where the team runs live: per agent, its "
+        default_factory=dict,
+        description="where the team runs live: per agent, its "
         "process's UDP address and its robot over ROS 2 (hybridteam live --plant ros2): "
         "{listen: HOST:PORT, cmd_vel: /r1/cmd_vel, odom: /r1/odom, scan, frame, timeout}; "
         "and udp: {peers: [HOST:PORT, ...]} or {multicast: GROUP:PORT, interface} or "
-        "{broadcast: ADDR:PORT}; simulation ignores it")
+        "{broadcast: ADDR:PORT}; simulation ignores it",
+    )
 
     @field_validator("team")
     @classmethod
@@ -526,8 +583,9 @@ class StreamDeclSchema(Strict):
 
     message: str
     rate: ExprOrNumber = Field(description="messages per second")
-    while_: list[str] | None = Field(None, alias="while",
-                                     description="modes it is sent in (default: always)")
+    while_: list[str] | None = Field(
+        None, alias="while", description="modes it is sent in (default: always)"
+    )
     socket: str = "data"
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
@@ -582,8 +640,7 @@ class OperatorSchema(Strict):
     """The automaton of an agent with no plant (a human operator)."""
 
     description: str | None = None
-    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict,
-                                                description=AGENT_PARAMETERS)
+    parameters: dict[str, ExprOrNumber] = Field(default_factory=dict, description=AGENT_PARAMETERS)
     variables: dict[str, ExprOrNumber] = Field(default_factory=dict)
     initial: str | None = None
     modes: dict[str, ModeSchema]

@@ -48,8 +48,7 @@ _STATES = ("state", "parallel", "final")
 _REFUSED = {
     "script": "scripts are ECMAScript code, which hybridteam never runs",
     "invoke": "invoking other services is outside the subset",
-    "send": "SCXML's IO processors are outside the subset (hybridteam's own sends are "
-            "<ht:send>)",
+    "send": "SCXML's IO processors are outside the subset (hybridteam's own sends are <ht:send>)",
     "if": "conditional content is outside the subset (write guarded transitions)",
     "elseif": "conditional content is outside the subset",
     "else": "conditional content is outside the subset",
@@ -87,23 +86,36 @@ def parse(text: str, filename: str) -> Element:
         return Mark(parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
 
     def refuse(*_args: Any) -> Never:
-        raise SourceError(filename, *_at(here()), (), "a DOCTYPE or entity declaration is "
-                          "refused: an SCXML chart needs none, and entities can expand "
-                          "without bound or read other files")
+        raise SourceError(
+            filename,
+            *_at(here()),
+            (),
+            "a DOCTYPE or entity declaration is "
+            "refused: an SCXML chart needs none, and entities can expand "
+            "without bound or read other files",
+        )
 
     def start(name: str, attrs: dict[str, str]) -> None:
         ns, _, tag = name.rpartition(" ")
         if ns not in ("", SCXML_NS, HT_NS):
-            raise SourceError(filename, *_at(here()), (),
-                              f"element <{tag}> of namespace '{ns}' is outside the subset")
+            raise SourceError(
+                filename,
+                *_at(here()),
+                (),
+                f"element <{tag}> of namespace '{ns}' is outside the subset",
+            )
         plain = {}
         for key, value in attrs.items():
             a_ns, _, a_name = key.rpartition(" ")
             plain[f"ht:{a_name}" if a_ns == HT_NS else a_name] = value
         el = Element(ns or SCXML_NS, tag, plain, here())
         if len(stack) >= MAX_DEPTH:
-            raise SourceError(filename, *_at(el.mark), (), f"elements are nested more than "
-                              f"{MAX_DEPTH} deep: far beyond any chart, refused")
+            raise SourceError(
+                filename,
+                *_at(el.mark),
+                (),
+                f"elements are nested more than {MAX_DEPTH} deep: far beyond any chart, refused",
+            )
         (stack[-1].children if stack else root).append(el)
         stack.append(el)
 
@@ -123,8 +135,13 @@ def parse(text: str, filename: str) -> Element:
     try:
         parser.Parse(text, True)
     except expat.ExpatError as exc:
-        raise SourceError(filename, exc.lineno, exc.offset + 1, (),
-                          f"not well-formed XML: {expat.ErrorString(exc.code)}") from None
+        raise SourceError(
+            filename,
+            exc.lineno,
+            exc.offset + 1,
+            (),
+            f"not well-formed XML: {expat.ErrorString(exc.code)}",
+        ) from None
     if not root or root[0].tag != "scxml":
         raise SourceError(filename, 1, 1, (), "an SCXML file's root element is <scxml>")
     return root[0]
@@ -151,9 +168,11 @@ def read_chart(source: str | os.PathLike, agent: str | None = None) -> Document:
         raise InputErrors([exc]) from None
     # an SCXML chart means SCXML's priority rule (innermost first, document order),
     # unless it says it came from a team of another (ht:priority)
-    data = {"team": name, "semantics": {"priority": root.attrs.get("ht:priority",
-                                                                   "inner_first")},
-            "agents": {name: {"plant": {"kind": "none"}, **body}}}
+    data = {
+        "team": name,
+        "semantics": {"priority": root.attrs.get("ht:priority", "inner_first")},
+        "agents": {name: {"plant": {"kind": "none"}, **body}},
+    }
     reader.marks.setdefault((), Mark(1, 1))
     reader.marks[("semantics",)] = reader.marks[("semantics", "priority")] = root.mark
     for path in (("team",), ("agents",), ("agents", name), ("agents", name, "plant")):
@@ -235,27 +254,43 @@ class ChartReader:
             mode["final"] = True
         if el.tag == "parallel":
             mode["parallel"] = True
-        allowed = {"state": ("state", "parallel", "final", "history", "initial", "onentry",
-                             "onexit", "transition", "datamodel"),
-                   "parallel": ("state", "parallel", "history", "onentry", "onexit",
-                                "transition"),
-                   "final": ("onentry", "onexit")}[el.tag]
+        allowed = {
+            "state": (
+                "state",
+                "parallel",
+                "final",
+                "history",
+                "initial",
+                "onentry",
+                "onexit",
+                "transition",
+                "datamodel",
+            ),
+            "parallel": ("state", "parallel", "history", "onentry", "onexit", "transition"),
+            "final": ("onentry", "onexit"),
+        }[el.tag]
         for child in el.children:
             if child.ns == HT_NS:
                 self._extension(child, mode, path)
                 continue
             self._check(child, allowed)
             if child.tag == "datamodel":
-                raise self.fail(child, "a <datamodel> belongs to the <scxml> element (the "
-                                "agent's variables are shared by all its modes)")
+                raise self.fail(
+                    child,
+                    "a <datamodel> belongs to the <scxml> element (the "
+                    "agent's variables are shared by all its modes)",
+                )
             if child.tag in ("onentry", "onexit"):
                 key = "entry" if child.tag == "onentry" else "exit"
                 mode.setdefault(key, []).extend(
-                    self._content(child, (*path, key), len(mode.get(key, []))))
+                    self._content(child, (*path, key), len(mode.get(key, [])))
+                )
             elif child.tag == "history":
                 if "history" in mode:
-                    raise self.fail(child, "a second <history> in one state: hybridteam "
-                                    "keeps one history per mode")
+                    raise self.fail(
+                        child,
+                        "a second <history> in one state: hybridteam keeps one history per mode",
+                    )
                 mode["history"] = self._history(child, el, (*path, "history"))
         self._mode_attrs(el, mode, path)
         kids = self._modes(el, (*path, "modes"))
@@ -265,9 +300,12 @@ class ChartReader:
             if initial and not mode.get("parallel"):
                 mode["initial"] = initial
                 self.marks[(*path, "initial")] = el.mark
-        transitions = [t for child in el.children if child.ns == SCXML_NS
-                       and child.tag == "transition"
-                       for t in self._transitions(child, el, (*path, "transitions"))]
+        transitions = [
+            t
+            for child in el.children
+            if child.ns == SCXML_NS and child.tag == "transition"
+            for t in self._transitions(child, el, (*path, "transitions"))
+        ]
         for k, (tr, mark) in enumerate(transitions):
             self.marks[(*path, "transitions", k)] = mark
             for key in tr:
@@ -296,12 +334,18 @@ class ChartReader:
             if child.tag == "initial" and child.ns == SCXML_NS:
                 trs = [t for t in child.children if t.tag == "transition"]
                 if len(trs) != 1 or set(trs[0].attrs) - {"target"} or trs[0].children:
-                    raise self.fail(child, "an <initial> holds one <transition target> "
-                                    "(without content, in this subset)")
+                    raise self.fail(
+                        child,
+                        "an <initial> holds one <transition target> "
+                        "(without content, in this subset)",
+                    )
                 names = trs[0].attrs.get("target", "").split()
         if len(names) > 1:
-            raise self.fail(el, f"{el.name} names {len(names)} initial states; the subset "
-                            "takes one (a deeper one enters the regions on the way by default)")
+            raise self.fail(
+                el,
+                f"{el.name} names {len(names)} initial states; the subset "
+                "takes one (a deeper one enters the regions on the way by default)",
+            )
         if names:
             return self.ref(names[0])
         if len(kids) > 1 and el.tag != "parallel":
@@ -320,32 +364,41 @@ class ChartReader:
             return kind
         targets = default[0].attrs.get("target", "").split()
         if len(targets) != 1 or default[0].children:
-            raise self.fail(default[0], "a history's default transition names one target "
-                            "(without content, in this subset)")
+            raise self.fail(
+                default[0],
+                "a history's default transition names one target (without content, in this subset)",
+            )
         self.marks[(*path, "kind")] = self.marks[(*path, "default")] = default[0].mark
         return {"kind": kind, "default": self.ref(targets[0])}
 
     # ------------------------------------------------------------------ transitions
     def _transitions(self, el: Element, source: Element, path: tuple) -> list[tuple]:
         """One transition per event of ``event`` (or one without a trigger)."""
-        unknown = set(el.attrs) - {"event", "cond", "target", "type", "ht:after",
-                                   "ht:priority"}
+        unknown = set(el.attrs) - {"event", "cond", "target", "type", "ht:after", "ht:priority"}
         if unknown:
-            raise self.fail(el, f"attribute '{sorted(unknown)[0]}' of <transition> is "
-                            "outside the subset")
+            raise self.fail(
+                el, f"attribute '{sorted(unknown)[0]}' of <transition> is outside the subset"
+            )
         tr: dict[str, Any] = {}
         written = [self.ref(t) for t in el.attrs.get("target", "").split()]
         targets = [self.history_of.get(t, t) for t in written]
         for t, w in zip(targets, written, strict=True):
             if t == w and t in self.with_history:
-                raise self.fail(el, f"target '{t}' has a <history>: in hybridteam every "
-                                "entry of it restores, so target the history instead")
+                raise self.fail(
+                    el,
+                    f"target '{t}' has a <history>: in hybridteam every "
+                    "entry of it restores, so target the history instead",
+                )
         if targets:
             tr["to"] = targets[0] if len(targets) == 1 else targets
         if el.attrs.get("type", "external") not in ("external", "internal"):
             raise self.fail(el, "a transition's type is 'external' or 'internal'")
-        if el.attrs.get("type") == "internal" and targets and source.tag == "state" and all(
-                self._inside(t, source) for t in targets):
+        if (
+            el.attrs.get("type") == "internal"
+            and targets
+            and source.tag == "state"
+            and all(self._inside(t, source) for t in targets)
+        ):
             tr["local"] = True  # into its own children without leaving: a local one
         if "cond" in el.attrs:
             tr["guard"] = expression(el.attrs["cond"], self.ref)
@@ -367,8 +420,11 @@ class ChartReader:
         return [({"on": e.removesuffix(".*"), **tr}, el.mark) for e in events]
 
     def _inside(self, name: str, el: Element) -> bool:
-        return any(self._id(c) == name or self._inside(name, c) for c in el.children
-                   if c.ns == SCXML_NS and c.tag in _STATES)
+        return any(
+            self._id(c) == name or self._inside(name, c)
+            for c in el.children
+            if c.ns == SCXML_NS and c.tag in _STATES
+        )
 
     def _content(self, el: Element, path: tuple, start: int) -> list:
         """Executable content: assignments, raised events, hybridteam's sends."""
@@ -384,10 +440,12 @@ class ChartReader:
                 self._check(child, ("assign", "raise"))
                 if child.tag == "assign":
                     if set(child.attrs) != {"location", "expr"}:
-                        raise self.fail(child, "an <assign> takes 'location' and 'expr' "
-                                        "(in this subset)")
-                    out.append(f"{child.attrs['location']} = "
-                               f"{expression(child.attrs['expr'], self.ref)}")
+                        raise self.fail(
+                            child, "an <assign> takes 'location' and 'expr' (in this subset)"
+                        )
+                    out.append(
+                        f"{child.attrs['location']} = {expression(child.attrs['expr'], self.ref)}"
+                    )
                 else:
                     if set(child.attrs) != {"event"}:
                         raise self.fail(child, "a <raise> takes 'event'")
@@ -400,8 +458,7 @@ class ChartReader:
         for key in ("to", "socket"):
             if key in el.attrs:
                 send[key] = el.attrs[key]
-        fields = {f.attrs.get("name", ""): _value(f.attrs.get("expr", ""))
-                  for f in el.children}
+        fields = {f.attrs.get("name", ""): _value(f.attrs.get("expr", "")) for f in el.children}
         if fields:
             send["fields"] = fields
         return send
@@ -409,11 +466,15 @@ class ChartReader:
     # ------------------------------------------------------------------ extensions
     def _extension(self, el: Element, mode: dict, path: tuple) -> None:
         """A mode's hybridteam extension: its flow, inputs or law."""
-        pairs = {c.attrs.get("var", c.attrs.get("name", "")): _value(c.attrs.get("expr", ""))
-                 for c in el.children}
+        pairs = {
+            c.attrs.get("var", c.attrs.get("name", "")): _value(c.attrs.get("expr", ""))
+            for c in el.children
+        }
         if el.tag == "flow":
-            mode["flow"] = {**mode.get("flow", {}),
-                            el.attrs.get("var", ""): _value(el.attrs.get("expr", ""))}
+            mode["flow"] = {
+                **mode.get("flow", {}),
+                el.attrs.get("var", ""): _value(el.attrs.get("expr", "")),
+            }
             self.marks[(*path, "flow")] = el.mark
         elif el.tag == "inputs":
             mode["inputs"] = pairs
@@ -429,15 +490,15 @@ class ChartReader:
             mode["law"] = law
             self.marks[(*path, "law")] = el.mark
         else:
-            raise self.fail(el, f"{el.name} is not a mode's extension (ht:flow, ht:inputs, "
-                            "ht:law)")
+            raise self.fail(el, f"{el.name} is not a mode's extension (ht:flow, ht:inputs, ht:law)")
 
     # ------------------------------------------------------------------ checks
     def _check(self, el: Element, allowed: tuple[str, ...]) -> None:
         if el.ns == SCXML_NS and el.tag in allowed:
             return
-        reason = _REFUSED.get(el.tag, "outside the subset") if el.ns == SCXML_NS \
-            else "not allowed here"
+        reason = (
+            _REFUSED.get(el.tag, "outside the subset") if el.ns == SCXML_NS else "not allowed here"
+        )
         raise self.fail(el, f"{el.name} is not supported: {reason}")
 
     def _id(self, el: Element) -> str:
@@ -451,9 +512,15 @@ class ChartReader:
             name = f"s{name}"
         if given in self.names or name.startswith("__") or name in self.ids:
             other = self.ids.get(name, given)
-            raise self.fail(el, f"{el.name} id '{given}' " + (
-                "is used twice" if other == given else
-                f"reads as mode name '{name}', as '{other}' does"))
+            raise self.fail(
+                el,
+                f"{el.name} id '{given}' "
+                + (
+                    "is used twice"
+                    if other == given
+                    else f"reads as mode name '{name}', as '{other}' does"
+                ),
+            )
         self.names[given], self.ids[name] = name, given
 
     def ref(self, given: str) -> str:
@@ -463,8 +530,11 @@ class ChartReader:
     def _variable(self, el: Element) -> str:
         name = el.attrs.get("id", "")
         if not _ID.match(name) or name.startswith("__"):
-            raise self.fail(el, f"<data> id '{name}' is not a variable name (letters, "
-                            "digits and _, not starting with a digit)")
+            raise self.fail(
+                el,
+                f"<data> id '{name}' is not a variable name (letters, "
+                "digits and _, not starting with a digit)",
+            )
         return name
 
     def _number(self, el: Element) -> Any:

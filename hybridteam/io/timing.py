@@ -33,8 +33,12 @@ def _value(expr, ctx: Ctx) -> float:
 
 def _context(ca: CAgent) -> Ctx:
     """One instance of the agent at its defaults (settings read parameters only)."""
-    return Ctx(np.zeros((1, len(ca.plant.state_names))), np.zeros((1, len(ca.var_index))),
-               ca.param_defaults[None, :], np.zeros(1))
+    return Ctx(
+        np.zeros((1, len(ca.plant.state_names))),
+        np.zeros((1, len(ca.var_index))),
+        ca.param_defaults[None, :],
+        np.zeros(1),
+    )
 
 
 def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
@@ -47,8 +51,10 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
     def way(s: str, r: str) -> float:
         spec = net.links.get((s, r), net.default)
         if id(spec) not in ways:
-            ways[id(spec)] = float(evaluate_setting(spec.latency, params, 1)[0]
-                                   + evaluate_setting(spec.jitter, params, 1)[0])
+            ways[id(spec)] = float(
+                evaluate_setting(spec.latency, params, 1)[0]
+                + evaluate_setting(spec.jitter, params, 1)[0]
+            )
         return ways[id(spec)]
 
     linked: dict[str, set[str]] = {}  # the agents each agent has a link of its own with
@@ -60,8 +66,11 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
     out: list[ModelError] = []
     for agent, ca in zip(team.agents, cteam.agents, strict=True):
         ctx = _context(ca)
-        timeouts = [(name, _value(pol.timeout, ctx)) for name, pol in ca.policies.items()
-                    if pol.timeout is not None]
+        timeouts = [
+            (name, _value(pol.timeout, ctx))
+            for name, pol in ca.policies.items()
+            if pol.timeout is not None
+        ]
         if not timeouts:
             continue
         # every other agent without a link of its own with this one is reached over the
@@ -69,8 +78,10 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
         # would otherwise cost a round trip per pair)
         own = linked.get(agent.name, set())
         plain = next((o for o in agents if o != agent.name and o not in own), None)
-        others = sorted((own - {agent.name}) | ({plain} if plain else set()),
-                        key=lambda o: order.get(o, len(agents)))
+        others = sorted(
+            (own - {agent.name}) | ({plain} if plain else set()),
+            key=lambda o: order.get(o, len(agents)),
+        )
         trips = {o: way(agent.name, o) + way(o, agent.name) for o in others if o in order}
         if not trips:
             continue
@@ -80,14 +91,20 @@ def ack_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
             if timeout <= trips[worst]:
                 short.setdefault(timeout, []).append(name)
         for timeout, names in short.items():
-            out.append(ModelError(agent.where, f"agent '{agent.name}' resends "
-                                  f"{', '.join(names)} after {timeout:g} s without an "
-                                  f"acknowledgement, but a round trip to '{worst}' takes up "
-                                  f"to {trips[worst]:g} s (latency and jitter, both ways): "
-                                  "every copy would be sent again and, after its retries, "
-                                  "reported undeliverable",
-                                  hint=f"make the ack timeout longer than {trips[worst]:g} s "
-                                  f"({_suggest(team, trips[worst])})", at_key=True))
+            out.append(
+                ModelError(
+                    agent.where,
+                    f"agent '{agent.name}' resends "
+                    f"{', '.join(names)} after {timeout:g} s without an "
+                    f"acknowledgement, but a round trip to '{worst}' takes up "
+                    f"to {trips[worst]:g} s (latency and jitter, both ways): "
+                    "every copy would be sent again and, after its retries, "
+                    "reported undeliverable",
+                    hint=f"make the ack timeout longer than {trips[worst]:g} s "
+                    f"({_suggest(team, trips[worst])})",
+                    at_key=True,
+                )
+            )
     return out
 
 
@@ -95,8 +112,7 @@ def _suggest(team: Team, trip: float) -> str:
     """An ack timeout that works, as an agent parameter: an expression of the team's
     latency (and jitter) parameters when the network names them, so it follows a study."""
     net = team.network.default
-    terms = [str(s) for s in (net.latency, net.jitter)
-             if isinstance(s, str) and _NAME.match(s)]
+    terms = [str(s) for s in (net.latency, net.jitter) if isinstance(s, str) and _NAME.match(s)]
     if terms and not isinstance(net.latency, (int, float)):
         trip_text = terms[0] if len(terms) == 1 else f"({' + '.join(terms)})"
         return f"e.g. the agent's parameters: {{ack_timeout: 2 * {trip_text} + 0.05}}"
@@ -125,14 +141,20 @@ def answer_timeouts(team: Team, cteam: CTeam) -> list[ModelError]:
                         if d <= span:
                             key = (d, span, wait.after.source)
                             short.setdefault(key, []).append(
-                                f"{name} in '{ca.modes[tr.target].path}'")
+                                f"{name} in '{ca.modes[tr.target].path}'"
+                            )
         for (d, span, after), waits in short.items():
-            out.append(ModelError(
-                agent.where, f"agent '{agent.name}' waits {d:g} s (after: {after}) for an "
-                f"answer to {', '.join(dict.fromkeys(waits))}, but it resends them until "
-                f"{span:g} s (ack timeout × (retries + 1)): a message that needs its "
-                "retries is given up on before they are done",
-                hint=f"make the wait longer than {span:g} s, or resend sooner", at_key=True))
+            out.append(
+                ModelError(
+                    agent.where,
+                    f"agent '{agent.name}' waits {d:g} s (after: {after}) for an "
+                    f"answer to {', '.join(dict.fromkeys(waits))}, but it resends them until "
+                    f"{span:g} s (ack timeout × (retries + 1)): a message that needs its "
+                    "retries is given up on before they are done",
+                    hint=f"make the wait longer than {span:g} s, or resend sooner",
+                    at_key=True,
+                )
+            )
     return out
 
 
@@ -157,23 +179,39 @@ def rate_limits(team: Team, cteam: CTeam) -> list[ModelError]:
                 ctx = _context(sender)
                 for cs in sender.streams:
                     if socket in ("*", cs.socket):
-                        incoming[sender.name] = incoming.get(sender.name, 0.0) + \
-                            1.0 / _value(cs.period, ctx)
+                        incoming[sender.name] = incoming.get(sender.name, 0.0) + 1.0 / _value(
+                            cs.period, ctx
+                        )
             total = sum(incoming.values())
             if total <= float(limit) + 1e-9:
                 continue
-            jitter = max(float(evaluate_setting(net.links.get((s, receiver), net.default).jitter,
-                                         params, 1)[0]) for s in incoming)
+            jitter = max(
+                float(
+                    evaluate_setting(net.links.get((s, receiver), net.default).jitter, params, 1)[0]
+                )
+                for s in incoming
+            )
             what = ", ".join(f"{s} {r:g}" for s, r in incoming.items())
             lost = 100 * (1 - float(limit) / total)
-            text = (f"'{receiver}' takes at most {float(limit):g} {socket} messages per second "
-                    f"but streams send it {total:g} ({what}): at least {lost:.0f} % of the "
-                    "copies are dropped")
+            text = (
+                f"'{receiver}' takes at most {float(limit):g} {socket} messages per second "
+                f"but streams send it {total:g} ({what}): at least {lost:.0f} % of the "
+                "copies are dropped"
+            )
             if jitter == 0:
-                text += ("; with no jitter they arrive in the same order every period, so "
-                         "a later sender may never be heard")
-            out.append(ModelError((*net.where, "rate_limits", receiver, socket), text,
-                                  hint="raise the limit, lower the stream rate, or add "
-                                  "jitter so every sender gets through" if jitter == 0 else
-                                  None, at_key=True))
+                text += (
+                    "; with no jitter they arrive in the same order every period, so "
+                    "a later sender may never be heard"
+                )
+            out.append(
+                ModelError(
+                    (*net.where, "rate_limits", receiver, socket),
+                    text,
+                    hint="raise the limit, lower the stream rate, or add "
+                    "jitter so every sender gets through"
+                    if jitter == 0
+                    else None,
+                    at_key=True,
+                )
+            )
     return out

@@ -90,6 +90,7 @@ class _Composer(_Hooks, Reader, Scanner, Parser, Composer, BaseResolver):
 
 
 if CParser is not None:
+
     class _FastComposer(_Hooks, Composer, CParser, BaseResolver):
         """The same composer on libyaml's parser: an order of magnitude faster on large
         files. Only for documents that parse: on any error the document is parsed again
@@ -171,9 +172,13 @@ class _Builder:
         raw, tag = node.value, node.tag
         lone = LONE_SURROGATE.search(raw)
         if lone:  # "\ud800" in double quotes: no UTF-8 file, SVG or trace can hold it
-            raise self.fail(node.start_mark, path, f"U+{ord(lone.group()):04X} (a lone "
-                            "surrogate escape) cannot be written as UTF-8; names and text "
-                            "must be valid Unicode")
+            raise self.fail(
+                node.start_mark,
+                path,
+                f"U+{ord(lone.group()):04X} (a lone "
+                "surrogate escape) cannot be written as UTF-8; names and text "
+                "must be valid Unicode",
+            )
         if tag in (_PLAIN, _STD + "str"):
             return self.plain(raw, node, path) if tag == _PLAIN else raw
         kinds = {"null": type(None), "bool": bool, "int": int, "float": float}
@@ -315,8 +320,9 @@ MAX_FILE_MB = 1.0
 def _read(path: os.PathLike[str], name: str) -> bytes:
     """A model file's bytes; only regular files of a sensible size (a FIFO would block
     forever, a device or a huge file would not end either)."""
-    return read_regular(path, name, limit_mb=MAX_FILE_MB, env="HYBRIDTEAM_MAX_FILE_MB",
-                        what="model files")
+    return read_regular(
+        path, name, limit_mb=MAX_FILE_MB, env="HYBRIDTEAM_MAX_FILE_MB", what="model files"
+    )
 
 
 def read_text(path: os.PathLike[str], name: str) -> str:

@@ -87,8 +87,9 @@ class SourceError(Exception):
         on the terminal."""
         numbers = [n for n in (self.line, self.column) if n is not None] if self.line else []
         where = ":".join([self.file, *map(str, numbers)])
-        return printable(": ".join([where, *([format_path(self.path)] if self.path else []),
-                                    self.message]))
+        return printable(
+            ": ".join([where, *([format_path(self.path)] if self.path else []), self.message])
+        )
 
     def __reduce__(self) -> tuple[Any, ...]:
         # Exceptions pickle via their args; ours has keyword-ish state (multiprocessing needs it).
@@ -130,8 +131,9 @@ class Positions:
     def of_marks(cls, filename: str, text: str, marks: dict[Path, Mark]) -> Positions:
         """Positions of a document built from another format (an SCXML chart): each path
         at its mark (its key too), no scalar offsets (an error points at the element)."""
-        return cls(filename, _Lines(text),
-                   {path: _Entry(mark, mark, None) for path, mark in marks.items()})
+        return cls(
+            filename, _Lines(text), {path: _Entry(mark, mark, None) for path, mark in marks.items()}
+        )
 
     def value(self, path: Path) -> Mark | None:
         entry = self._entries.get(tuple(path))

@@ -44,11 +44,19 @@ SCRIPTED_LOSS = "loss (scripted)"
 class WallClock:
     """Run time on the wall clock, arrivals from a transport (module docstring)."""
 
-    def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
-                 time_scale: float = 1.0,
-                 stop: Callable[[], str | None] = lambda: None, *, drop: float = 0.0,
-                 delay: float = 0.0, seed: int = 0,
-                 drop_copies: Mapping[str, Collection[int]] | None = None) -> None:
+    def __init__(
+        self,
+        codec: Codec,
+        transport: Transport,
+        here: Collection[int],
+        time_scale: float = 1.0,
+        stop: Callable[[], str | None] = lambda: None,
+        *,
+        drop: float = 0.0,
+        delay: float = 0.0,
+        seed: int = 0,
+        drop_copies: Mapping[str, Collection[int]] | None = None,
+    ) -> None:
         """``stop``: asked while waiting; a reason (a signal's name) ends the run.
         ``drop``, ``delay`` and ``drop_copies`` are test aids, not a network model: each
         datagram of the team that arrives is dropped with probability ``drop`` (draws
@@ -174,15 +182,27 @@ class WallClock:
                 self.copies[dg.type] += 1
                 if self.copies[dg.type] in self.drop_copies[dg.type]:
                     self.injected["scripted"] += 1
-                    log.info("dropped copy %d of '%s' (--drop-copy)", self.copies[dg.type],
-                             dg.type)
+                    log.info("dropped copy %d of '%s' (--drop-copy)", self.copies[dg.type], dg.type)
                     # (in the trace as the simulator records a copy lost on its way, so
                     # the run shows the loss it was given, as a counterexample's run does)
                     for r in receivers:
-                        ens.network.record(0, Message(
-                            dg.sender, r, dg.seq, (dg.sent - self.wall0) * self.scale,
-                            dg.socket, dg.type, dict(dg.fields), dg.msg_id, dg.note),
-                            float("nan"), "lost", SCRIPTED_LOSS)
+                        ens.network.record(
+                            0,
+                            Message(
+                                dg.sender,
+                                r,
+                                dg.seq,
+                                (dg.sent - self.wall0) * self.scale,
+                                dg.socket,
+                                dg.type,
+                                dict(dg.fields),
+                                dg.msg_id,
+                                dg.note,
+                            ),
+                            float("nan"),
+                            "lost",
+                            SCRIPTED_LOSS,
+                        )
                     continue
             t = max((arrived - self.mono0) * self.scale, float(ens.t[0])) + self.delay
             if self.delay:
@@ -192,9 +212,22 @@ class WallClock:
             if receivers and control:
                 self._message = True
             for r in receivers:
-                ens.network.arrive(0, Message(dg.sender, r, dg.seq, t_send, dg.socket,
-                                              dg.type, dict(dg.fields), dg.msg_id, dg.note),
-                                   t, dg.rank)
+                ens.network.arrive(
+                    0,
+                    Message(
+                        dg.sender,
+                        r,
+                        dg.seq,
+                        t_send,
+                        dg.socket,
+                        dg.type,
+                        dict(dg.fields),
+                        dg.msg_id,
+                        dg.note,
+                    ),
+                    t,
+                    dg.rank,
+                )
                 self.delivered += 1
                 if control:  # (a stream's copy changes no mode: it is not a reaction)
                     self._waiting.append((t, arrived + self.delay / self.scale))
@@ -218,8 +251,11 @@ class WallClock:
         t += self.delay
         events, outcome = got
         if outcome is not None:
-            ens.finish(ens.everyone, outcome, lambda i: f"the world process concluded "
-                                                        f"'{outcome}' at t={ens.when(i)}")
+            ens.finish(
+                ens.everyone,
+                outcome,
+                lambda i: f"the world process concluded '{outcome}' at t={ens.when(i)}",
+            )
             return True
         names = [POSE] if dg.type == POSE else events
         agent = dg.sender if dg.type == POSE else dg.to
@@ -237,16 +273,26 @@ class WallClock:
 
     def record(self) -> dict:
         """What the trace's ``meta.live`` says of the clock and the wire."""
-        return {"clock": "wall", "time_scale": self.scale, "wall_start": self.wall0,
-                "datagrams": {"received": self.received, "delivered": self.delivered,
-                              "dropped": dict(sorted(self.dropped.items()))},
-                "injected": {"drop": self.drop, "delay": self.delay,
-                             "drop_copies": {k: sorted(v) for k, v in
-                                             sorted(self.drop_copies.items())},
-                             **self.injected},
-                "wall_s": time.monotonic() - self.mono0,
-                "cpu_s": time.process_time() - self.cpu0,
-                "late_ms": percentiles(self.late), "reaction_ms": percentiles(self.reaction)}
+        return {
+            "clock": "wall",
+            "time_scale": self.scale,
+            "wall_start": self.wall0,
+            "datagrams": {
+                "received": self.received,
+                "delivered": self.delivered,
+                "dropped": dict(sorted(self.dropped.items())),
+            },
+            "injected": {
+                "drop": self.drop,
+                "delay": self.delay,
+                "drop_copies": {k: sorted(v) for k, v in sorted(self.drop_copies.items())},
+                **self.injected,
+            },
+            "wall_s": time.monotonic() - self.mono0,
+            "cpu_s": time.process_time() - self.cpu0,
+            "late_ms": percentiles(self.late),
+            "reaction_ms": percentiles(self.reaction),
+        }
 
 
 def percentiles(seconds: list[float]) -> dict[str, float | int]:
@@ -254,8 +300,12 @@ def percentiles(seconds: list[float]) -> dict[str, float | int]:
     if not seconds:
         return {"count": 0}
     ms = np.asarray(seconds) * 1e3
-    return {"count": int(ms.size), "p50": float(np.percentile(ms, 50)),
-            "p99": float(np.percentile(ms, 99)), "max": float(ms.max())}
+    return {
+        "count": int(ms.size),
+        "p50": float(np.percentile(ms, 50)),
+        "p99": float(np.percentile(ms, 99)),
+        "max": float(ms.max()),
+    }
 
 
 class WireOutlet:

@@ -15,6 +15,7 @@ meets exactly the losses the counterexample names, and nothing but a loss is scr
 Nothing here reads a file: the command reads ``verify.json`` and the trace with the
 checks every file handed over gets, and hands them here.
 """
+
 from __future__ import annotations
 
 from collections.abc import Collection
@@ -48,9 +49,11 @@ class Loss:
 
     @property
     def text(self) -> str:
-        return f"{self.sender} -> {', '.join(self.receivers)}: {self.type} sent at " \
-               f"t={self.t_send:.6g} s is dropped at {', '.join(self.process)}'s process " \
-               f"(--drop-copy {self.type}:{self.copy})"
+        return (
+            f"{self.sender} -> {', '.join(self.receivers)}: {self.type} sent at "
+            f"t={self.t_send:.6g} s is dropped at {', '.join(self.process)}'s process "
+            f"(--drop-copy {self.type}:{self.copy})"
+        )
 
 
 def locate(path: str | Path) -> tuple[Path, Path, str | None]:
@@ -71,29 +74,39 @@ def check_verdict(summary: object, name: str | None, where: Path) -> None:
     error names the counterexamples there are."""
     props = summary.get("properties") if isinstance(summary, dict) else None
     if not isinstance(props, dict) or not all(isinstance(p, dict) for p in props.values()):
-        raise CounterexampleError(f"{where}: not what 'hybridteam verify' writes (no "
-                                  "'properties')")
+        raise CounterexampleError(f"{where}: not what 'hybridteam verify' writes (no 'properties')")
     found = [p for p, v in props.items() if _reproduced(v)]
     if name is None:
         folder = where.parent
         raise CounterexampleError(
             f"{folder} is verify's output folder: give one of its counterexamples ("
-            + ", ".join(str(folder / p) for p in found) + ")" if found else
-            f"{folder}: verify found no counterexample there ("
-            + ", ".join(f"{p}: {v.get('verdict')}" for p, v in props.items()) + ")")
+            + ", ".join(str(folder / p) for p in found)
+            + ")"
+            if found
+            else f"{folder}: verify found no counterexample there ("
+            + ", ".join(f"{p}: {v.get('verdict')}" for p, v in props.items())
+            + ")"
+        )
     if name not in props:
-        raise CounterexampleError(f"{where} has no property '{name}' (its properties: "
-                                  f"{', '.join(props)})")
+        raise CounterexampleError(
+            f"{where} has no property '{name}' (its properties: {', '.join(props)})"
+        )
     verdict = props[name]
     if verdict.get("verdict") != "violated":
-        raise CounterexampleError(f"'{name}' {verdict.get('verdict')} ({where}): there is "
-                                  "no counterexample to replay")
+        raise CounterexampleError(
+            f"'{name}' {verdict.get('verdict')} ({where}): there is no counterexample to replay"
+        )
     if not _reproduced(verdict):
         replay = verdict.get("replay")
-        why = "it was not replayed (--no-replay)" if not isinstance(replay, dict) else \
-            f"no run of the simulator shows it ({replay.get('verdict')})"
-        raise CounterexampleError(f"'{name}' is violated in the skeleton only ({where}): "
-                                  f"{why}, so there is no run to replay")
+        why = (
+            "it was not replayed (--no-replay)"
+            if not isinstance(replay, dict)
+            else f"no run of the simulator shows it ({replay.get('verdict')})"
+        )
+        raise CounterexampleError(
+            f"'{name}' is violated in the skeleton only ({where}): "
+            f"{why}, so there is no run to replay"
+        )
 
 
 def _reproduced(verdict: dict) -> bool:
@@ -119,7 +132,8 @@ def losses(trace: Trace, cteam: CTeam, here: Collection[str]) -> list[Loss]:
         raise CounterexampleError(
             f"a counterexample of team '{trace.meta.get('team')}' (agents "
             f"{', '.join(theirs)}), not of this team '{cteam.team.name}' (agents "
-            f"{', '.join(names)})")
+            f"{', '.join(names)})"
+        )
     streams = {cs.message for ca in cteam.agents for cs in ca.streams}
     rows = [r for r in trace.messages if r.type not in streams]
     datagrams: dict[tuple[str, int], list] = {}  # (sender, seq) -> its copies here
@@ -129,7 +143,8 @@ def losses(trace: Trace, cteam: CTeam, here: Collection[str]) -> list[Loss]:
         if key in seen:
             raise CounterexampleError(
                 f"{r.sender} -> {r.receiver}: {r.type} sent at t={r.t_send:.6g} s is "
-                "duplicated: a live run can drop a datagram, not duplicate one")
+                "duplicated: a live run can drop a datagram, not duplicate one"
+            )
         seen.add(key)
         if r.receiver in here:
             datagrams.setdefault((r.sender, int(r.seq)), []).append(r)
@@ -145,10 +160,13 @@ def losses(trace: Trace, cteam: CTeam, here: Collection[str]) -> list[Loss]:
             raise CounterexampleError(
                 f"{sender} -> {', '.join(lost)}: {kind} is lost, and reaches "
                 f"{', '.join(r.receiver for r in copies if r.receiver not in lost)} in the "
-                "same process: a process drops a datagram for all its agents")
+                "same process: a process drops a datagram for all its agents"
+            )
         if kind not in declared:
-            raise CounterexampleError(f"it loses a copy of '{kind}', a type this team "
-                                      f"does not declare (its types: {', '.join(declared)})")
+            raise CounterexampleError(
+                f"it loses a copy of '{kind}', a type this team "
+                f"does not declare (its types: {', '.join(declared)})"
+            )
         same = [(s, q, c[0].t_send) for (s, q), c in datagrams.items() if c[0].type == kind]
         tied = next(((s, q) for s, q, t in same if t == t_send and s != sender), None)
         if tied is not None:
@@ -156,10 +174,12 @@ def losses(trace: Trace, cteam: CTeam, here: Collection[str]) -> list[Loss]:
                 f"{sender} -> {', '.join(lost)}: {kind} is lost, and {tied[0]}'s '{kind}' "
                 f"to {', '.join(r.receiver for r in datagrams[tied])} was sent at the same "
                 f"moment (t={t_send:.6g} s): which of them arrives first live, and so "
-                "which copy is lost, is not defined")
+                "which copy is lost, is not defined"
+            )
         # (sent earlier, or at the same moment by the same sender, numbered before it)
-        before = sum(1 for s, q, t in same
-                     if t < t_send or (t == t_send and s == sender and q < seq))
+        before = sum(
+            1 for s, q, t in same if t < t_send or (t == t_send and s == sender and q < seq)
+        )
         out.append(Loss(sender, tuple(lost), kind, before + 1, float(t_send), process))
     return out
 

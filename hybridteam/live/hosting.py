@@ -29,14 +29,16 @@ def hosted_team(cteam: CTeam, here: Collection[str]) -> CTeam:
     names = [ca.name for ca in cteam.agents]
     for name in here:
         if name not in names:
-            raise HostingError(f"--agent '{name}' is not an agent of the team (its agents: "
-                               f"{', '.join(names)})")
+            raise HostingError(
+                f"--agent '{name}' is not an agent of the team (its agents: {', '.join(names)})"
+            )
     hosted = {names.index(name) for name in here}
     ending = [a for a in cteam.ending if a in hosted]
     team = cteam.team
     if ending != cteam.ending:  # the rule's agents here: what the outcome's message names
-        team = dataclasses.replace(team, end=dataclasses.replace(
-            team.end, agents=tuple(names[a] for a in ending)))
+        team = dataclasses.replace(
+            team, end=dataclasses.replace(team.end, agents=tuple(names[a] for a in ending))
+        )
     return dataclasses.replace(
         cteam,
         team=team,
@@ -45,7 +47,8 @@ def hosted_team(cteam: CTeam, here: Collection[str]) -> CTeam:
         ending=ending,
         # none of the end rule's agents here: the rule never holds in this process (an
         # empty "all of them" would hold at once)
-        end_any=cteam.end_any if ending else True)
+        end_any=cteam.end_any if ending else True,
+    )
 
 
 def inert(ca: CAgent) -> CAgent:
@@ -53,7 +56,15 @@ def inert(ca: CAgent) -> CAgent:
     count = len(ca.modes)
     return dataclasses.replace(
         ca,
-        modes=[dataclasses.replace(m, invariant=None, invariant_text="", outgoing=[])
-               for m in ca.modes],
-        eventless=[], triggered={}, after=[], watches=[], driver_modes=[], streams=[],
-        has_eventless=np.zeros(count, bool), has_triggered=np.zeros(count, bool))
+        modes=[
+            dataclasses.replace(m, invariant=None, invariant_text="", outgoing=[]) for m in ca.modes
+        ],
+        eventless=[],
+        triggered={},
+        after=[],
+        watches=[],
+        driver_modes=[],
+        streams=[],
+        has_eventless=np.zeros(count, bool),
+        has_triggered=np.zeros(count, bool),
+    )

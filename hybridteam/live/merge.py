@@ -95,8 +95,11 @@ def process_problem(trace: Trace) -> str | None:
         return "meta.live.digest is not the team's digest"
     for key, least in (("wall_start", -math.inf), ("time_scale", 0.0)):
         value = live.get(key)
-        if isinstance(value, bool) or not isinstance(value, int | float) or \
-                not least < value < math.inf:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not least < value < math.inf
+        ):
             return f"meta.live.{key} is not a finite number" + (" > 0" if least == 0 else "")
     ending = live.get("ending", [])
     if not (isinstance(ending, list) and all(a in names for a in ending)):
@@ -104,8 +107,7 @@ def process_problem(trace: Trace) -> str | None:
     return None
 
 
-def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
-                 align: str = "wall") -> Trace:
+def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (), align: str = "wall") -> Trace:
     """The team trace of one live run's process traces; ``ending``: the agents of the
     team's end rule (their processes' outcomes make the team's); ``align``: how their
     clocks are aligned (one of :data:`ALIGNMENTS`; module docstring)."""
@@ -120,9 +122,11 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
         if problem is not None:
             raise MergeError(problem)
     for tr in traces:
-        if tr.agents != names or \
-                tr.meta["team"] != first.meta["team"] or \
-                tr.meta["live"]["digest"] != first.meta["live"]["digest"]:
+        if (
+            tr.agents != names
+            or tr.meta["team"] != first.meta["team"]
+            or tr.meta["live"]["digest"] != first.meta["live"]["digest"]
+        ):
             raise MergeError("the traces are not the processes of one live team")
     hosts = [a for tr in traces for a in tr.meta["live"]["agents"]]
     if sorted(hosts) != sorted(set(hosts)):
@@ -134,8 +138,9 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
     # (the starts, near 2e9 s, relative to the earliest before the clocks' offsets are
     # taken: their differences are exact, an offset's microseconds are not rounded away)
     earliest = min(tr.meta["live"]["wall_start"] for tr in traces)
-    starts = [tr.meta["live"]["wall_start"] - earliest - d
-              for tr, d in zip(traces, clock, strict=True)]
+    starts = [
+        tr.meta["live"]["wall_start"] - earliest - d for tr, d in zip(traces, clock, strict=True)
+    ]
     origin = min(starts)
     wall0 = earliest + origin
     scales = [tr.meta["live"]["time_scale"] for tr in traces]
@@ -143,32 +148,51 @@ def merge_traces(traces: Sequence[Trace], ending: Sequence[str] = (),
     times = first.sample_times
     # (the world's series are the world process's: the agents' processes have none)
     world = next((tr for tr in traces if tr.meta["live"].get("world")), None)
-    samples = {k: np.full((times.size, *v.shape[1:]), np.nan)
-               for tr in traces for k, v in tr.samples.items()}
+    samples = {
+        k: np.full((times.size, *v.shape[1:]), np.nan)
+        for tr in traces
+        for k, v in tr.samples.items()
+    }
     for tr, off in zip(traces, offsets, strict=True):
         for key, values in tr.samples.items():
-            if key.split("#")[0] in tr.meta["live"]["agents"] or \
-                    (tr is world and key.split("#")[0] not in names):
+            if key.split("#")[0] in tr.meta["live"]["agents"] or (
+                tr is world and key.split("#")[0] not in names
+            ):
                 samples[key] = _resampled(tr.sample_times + off, values, times)
-    transitions = _concat([_shift(tr.transitions, off, ("t",))
-                           for tr, off in zip(traces, offsets, strict=True)], "t")
+    transitions = _concat(
+        [_shift(tr.transitions, off, ("t",)) for tr, off in zip(traces, offsets, strict=True)], "t"
+    )
     outcome = _outcome(traces, offsets, names, ending)
-    intervals = _concat([_held(_shift(tr.intervals, off, ("start", "end")),
-                               tr.outcomes[0], off, outcome["t"])
-                         for tr, off in zip(traces, offsets, strict=True)], "start")
+    intervals = _concat(
+        [
+            _held(_shift(tr.intervals, off, ("start", "end")), tr.outcomes[0], off, outcome["t"])
+            for tr, off in zip(traces, offsets, strict=True)
+        ],
+        "start",
+    )
     # a copy's send time was read on its sender's clock: moved by the sender's offset
-    clock_of = {a: d for tr, d in zip(traces, clock, strict=True)
-                for a in tr.meta["live"]["agents"]}
-    messages = _concat([_shift_messages(tr.messages, off, k * d, k, clock_of)
-                        for tr, off, d, k in zip(traces, offsets, clock, scales, strict=True)],
-                       "t_recv")
+    clock_of = {
+        a: d for tr, d in zip(traces, clock, strict=True) for a in tr.meta["live"]["agents"]
+    }
+    messages = _concat(
+        [
+            _shift_messages(tr.messages, off, k * d, k, clock_of)
+            for tr, off, d, k in zip(traces, offsets, clock, scales, strict=True)
+        ],
+        "t_recv",
+    )
     meta = {k: v for k, v in (world or first).meta.items() if k != "live"}
-    meta["live"] = {"processes": [tr.meta["live"] for tr in traces], "offsets": offsets,
-                    "wall_start": wall0, "clock_bounds": clock_bounds(traces),
-                    "align": align, "clock_reference": reference,
-                    "clock_offsets_s": clock, "clock_errors_s": errors}
-    return Trace(meta, [outcome], transitions, intervals,
-                 messages, times, samples)
+    meta["live"] = {
+        "processes": [tr.meta["live"] for tr in traces],
+        "offsets": offsets,
+        "wall_start": wall0,
+        "clock_bounds": clock_bounds(traces),
+        "align": align,
+        "clock_reference": reference,
+        "clock_offsets_s": clock,
+        "clock_errors_s": errors,
+    }
+    return Trace(meta, [outcome], transitions, intervals, messages, times, samples)
 
 
 def aligned_clocks(traces: Sequence[Trace]) -> tuple[int, list[float], list[float | None]]:
@@ -186,12 +210,16 @@ def aligned_clocks(traces: Sequence[Trace]) -> tuple[int, list[float], list[floa
     paths = [_tightest_paths(edges, k) for k in range(n)]
     reference = max(range(n), key=lambda k: (len(paths[k]), -k))
     reached = paths[reference]
-    return (reference, [reached[k][1] if k in reached else 0.0 for k in range(n)],
-            [reached[k][0] if k in reached else None for k in range(n)])
+    return (
+        reference,
+        [reached[k][1] if k in reached else 0.0 for k in range(n)],
+        [reached[k][0] if k in reached else None for k in range(n)],
+    )
 
 
-def _tightest_paths(edges: dict[int, list[tuple[int, float, float]]], start: int
-                    ) -> dict[int, tuple[float, float]]:
+def _tightest_paths(
+    edges: dict[int, list[tuple[int, float, float]]], start: int
+) -> dict[int, tuple[float, float]]:
     """Every process reachable from ``start``: ``(error, offset)`` along the path whose
     summed half-widths (``error``) are least, ``offset`` its summed midpoints (Dijkstra;
     equal errors go to the lower process index: one answer for one input)."""
@@ -220,12 +248,19 @@ def clock_bounds(traces: Sequence[Trace]) -> list[dict]:
     for ``q``'s clock minus ``p``'s. ``"wall"`` alignment assumes 0 (one machine's clock);
     across machines these say by how much its times could be off, and ``"messages"``
     alignment estimates each offset from them (module docstring)."""
-    return [{"from": traces[p].meta["live"]["agents"], "to": traces[q].meta["live"]["agents"],
-             "offset_s": [lo, hi]} for (p, q), (lo, hi) in _pair_bounds(traces).items()]
+    return [
+        {
+            "from": traces[p].meta["live"]["agents"],
+            "to": traces[q].meta["live"]["agents"],
+            "offset_s": [lo, hi],
+        }
+        for (p, q), (lo, hi) in _pair_bounds(traces).items()
+    ]
 
 
-def _pair_bounds(traces: Sequence[Trace]
-                 ) -> dict[tuple[int, int], tuple[float | None, float | None]]:
+def _pair_bounds(
+    traces: Sequence[Trace],
+) -> dict[tuple[int, int], tuple[float | None, float | None]]:
     """:func:`clock_bounds` by process index: ``{(p, q): (lo, hi)}``, ``p < q``, in order."""
     host = {a: k for k, tr in enumerate(traces) for a in tr.meta["live"]["agents"]}
     least: dict[tuple[int, int], float] = {}
@@ -233,8 +268,9 @@ def _pair_bounds(traces: Sequence[Trace]
         m = tr.messages
         ok = m["status"] == "delivered"
         scale = tr.meta["live"]["time_scale"]
-        for sender, d in zip(m["sender"][ok].tolist(), (m["t_recv"] - m["t_send"])[ok].tolist(),
-                             strict=True):
+        for sender, d in zip(
+            m["sender"][ok].tolist(), (m["t_recv"] - m["t_send"])[ok].tolist(), strict=True
+        ):
             p = host.get(sender)
             if p is not None and p != q:
                 least[(p, q)] = min(least.get((p, q), float("inf")), d / scale)
@@ -250,8 +286,11 @@ def clock_error(bounds: Sequence[dict]) -> float | None:
     their clocks: ``"wall"`` alignment takes them for one clock (offset 0), and a pair's offset lies
     in its ``offset_s``, so it is off by at most the larger end's size. The largest over
     the pairs bounded both ways; None if no pair is."""
-    ends = [max(abs(lo), abs(hi)) for lo, hi in (b["offset_s"] for b in bounds)
-            if lo is not None and hi is not None]
+    ends = [
+        max(abs(lo), abs(hi))
+        for lo, hi in (b["offset_s"] for b in bounds)
+        if lo is not None and hi is not None
+    ]
     return max(ends) if ends else None
 
 
@@ -264,8 +303,9 @@ def _held(intervals: Table, ended: dict, offset: float, end: float) -> Table:
         return intervals
     data = dict(intervals.columns)
     last: dict[tuple, int] = {}  # per agent and depth, the latest interval: the open one
-    for k, key in enumerate(zip(data["instance"].tolist(), data["agent"].tolist(),
-                                data["depth"].tolist(), strict=True)):
+    for k, key in enumerate(
+        zip(data["instance"].tolist(), data["agent"].tolist(), data["depth"].tolist(), strict=True)
+    ):
         if key not in last or data["start"][k] >= data["start"][last[key]]:
             last[key] = k
     open_ = np.zeros(len(data["end"]), bool)
@@ -281,8 +321,9 @@ def _shift(table: Table, offset: float, columns: tuple[str, ...]) -> Table:
     return Table(table.names, data)
 
 
-def _shift_messages(table: Table, offset: float, own: float, scale: float,
-                    clock_of: dict[str, float]) -> Table:
+def _shift_messages(
+    table: Table, offset: float, own: float, scale: float, clock_of: dict[str, float]
+) -> Table:
     """A process's message rows moved to the merged clock (module docstring): ``t_recv``
     by its ``offset``, ``t_send`` (its sender's clock) by ``offset`` plus its own clock's
     offset ``own`` (run seconds) minus the sender's (``clock_of``, wall seconds; 0 for a
@@ -314,14 +355,20 @@ def _resampled(at: np.ndarray, values: np.ndarray, times: np.ndarray) -> np.ndar
     return out
 
 
-def _outcome(traces: Sequence[Trace], offsets: list[float], names: list[str],
-             ending: Sequence[str]) -> dict:
-    ends = [(tr.outcomes[0], off, tr.meta["live"]["agents"])
-            for tr, off in zip(traces, offsets, strict=True)]
+def _outcome(
+    traces: Sequence[Trace], offsets: list[float], names: list[str], ending: Sequence[str]
+) -> dict:
+    ends = [
+        (tr.outcomes[0], off, tr.meta["live"]["agents"])
+        for tr, off in zip(traces, offsets, strict=True)
+    ]
     deciding = [e for e in ends if set(e[2]) & set(ending)] or ends
     deciding.sort(key=lambda e: min((names.index(a) for a in e[2]), default=len(names)))
     kind = next((o["outcome"] for o, _, _ in deciding if o["outcome"] != "ok"), "ok")
     t = max(o["t"] + off for o, off, _ in deciding)
-    parts = [f"{', '.join(agents) or 'the world'}: {o['outcome']} at t={o['t'] + off:.6g} "
-             f"({o['message']})" for o, off, agents in ends]
+    parts = [
+        f"{', '.join(agents) or 'the world'}: {o['outcome']} at t={o['t'] + off:.6g} "
+        f"({o['message']})"
+        for o, off, agents in ends
+    ]
     return {"instance": 0, "outcome": kind, "t": t, "message": "; ".join(parts)}

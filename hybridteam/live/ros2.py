@@ -106,9 +106,12 @@ def socket_qos(socket: str, ros: SimpleNamespace) -> Any:
     """The ``rclpy.qos.QoSProfile`` of a team socket: best-effort, volatile, keep-last
     :data:`SOCKET_DEPTH`."""
     q = ros.qos
-    return q.QoSProfile(history=q.HistoryPolicy.KEEP_LAST, depth=SOCKET_DEPTH[socket],
-                        reliability=q.ReliabilityPolicy.BEST_EFFORT,
-                        durability=q.DurabilityPolicy.VOLATILE)
+    return q.QoSProfile(
+        history=q.HistoryPolicy.KEEP_LAST,
+        depth=SOCKET_DEPTH[socket],
+        reliability=q.ReliabilityPolicy.BEST_EFFORT,
+        durability=q.DurabilityPolicy.VOLATILE,
+    )
 
 
 def ros_modules() -> SimpleNamespace:
@@ -120,10 +123,16 @@ def ros_modules() -> SimpleNamespace:
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import UInt8MultiArray
     except ImportError:
-        raise ImportError("the ros2 transport and plant need rclpy: "
-                          "pip install 'hybridteam[ros]'") from None
-    return SimpleNamespace(rclpy=rclpy, qos=rclpy.qos, Duration=Duration,
-                           Executor=SingleThreadedExecutor, Datagram=UInt8MultiArray)
+        raise ImportError(
+            "the ros2 transport and plant need rclpy: pip install 'hybridteam[ros]'"
+        ) from None
+    return SimpleNamespace(
+        rclpy=rclpy,
+        qos=rclpy.qos,
+        Duration=Duration,
+        Executor=SingleThreadedExecutor,
+        Datagram=UInt8MultiArray,
+    )
 
 
 _NOT_IN_NAME = re.compile(r"[^A-Za-z0-9]+")
@@ -147,10 +156,14 @@ class SpunNode:
     :meth:`close`; a context handed in is left running (its owner shuts it down).
     """
 
-    def __init__(self, name: str, namespace: str, *, domain_id: int | None = None,
-                 context: Any = None) -> None:
-        if domain_id is not None and (isinstance(domain_id, bool) or not isinstance(domain_id, int)
-                                      or not 0 <= domain_id <= 232):
+    def __init__(
+        self, name: str, namespace: str, *, domain_id: int | None = None, context: Any = None
+    ) -> None:
+        if domain_id is not None and (
+            isinstance(domain_id, bool)
+            or not isinstance(domain_id, int)
+            or not 0 <= domain_id <= 232
+        ):
             raise ValueError(f"ROS domain id must be an integer in 0..232, got {domain_id!r}")
         self.ros = ros = ros_modules()
         self._owns_context = context is None
@@ -163,15 +176,17 @@ class SpunNode:
         self._closed = False
         self._lock = threading.Lock()
         try:
-            self.node = ros.rclpy.create_node(name, namespace=namespace, context=context,
-                                              start_parameter_services=False)
+            self.node = ros.rclpy.create_node(
+                name, namespace=namespace, context=context, start_parameter_services=False
+            )
         except Exception:
             self._shutdown_context()
             raise
         self.executor = ros.Executor(context=context)
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name=f"ros2 {namespace}/{name}",
-                                        daemon=True)
+        self._thread = threading.Thread(
+            target=self._spin, name=f"ros2 {namespace}/{name}", daemon=True
+        )
         self._thread.start()
 
     def _spin(self) -> None:
@@ -208,22 +223,39 @@ class Ros2Transport:
     any of ``sockets`` is kept, with its arrival time, until :meth:`receive` takes it.
     """
 
-    def __init__(self, team: str, agent: str, sockets: Sequence[str], *,
-                 domain_id: int | None = None, namespace: str = DEFAULT_NAMESPACE,
-                 context: Any = None, max_waiting: int = MAX_WAITING) -> None:
+    def __init__(
+        self,
+        team: str,
+        agent: str,
+        sockets: Sequence[str],
+        *,
+        domain_id: int | None = None,
+        namespace: str = DEFAULT_NAMESPACE,
+        context: Any = None,
+        max_waiting: int = MAX_WAITING,
+    ) -> None:
         unknown = [s for s in sockets if s not in SOCKET_DEPTH]
         if unknown or not sockets:
-            raise ValueError(f"ros2 transport: unknown socket {unknown[0]!r}; the team's "
-                             f"sockets are {', '.join(SOCKET_DEPTH)}" if unknown else
-                             "ros2 transport: no socket to carry")
+            raise ValueError(
+                f"ros2 transport: unknown socket {unknown[0]!r}; the team's "
+                f"sockets are {', '.join(SOCKET_DEPTH)}"
+                if unknown
+                else "ros2 transport: no socket to carry"
+            )
         if not _NAMESPACE.fullmatch(namespace):
-            raise ValueError(f"ros2 transport: namespace {namespace!r} is not a ROS namespace "
-                             "(/name/name..., each name letters, digits and single "
-                             "underscores, not starting with a digit)")
+            raise ValueError(
+                f"ros2 transport: namespace {namespace!r} is not a ROS namespace "
+                "(/name/name..., each name letters, digits and single "
+                "underscores, not starting with a digit)"
+            )
         self.team, self.agent = team, agent
         self.topics = {s: f"{namespace.rstrip('/')}/{ros_name(team)}/{s}" for s in sockets}
-        self._spun = SpunNode(ros_name(agent), f"{namespace.rstrip('/')}/{ros_name(team)}",
-                              domain_id=domain_id, context=context)
+        self._spun = SpunNode(
+            ros_name(agent),
+            f"{namespace.rstrip('/')}/{ros_name(team)}",
+            domain_id=domain_id,
+            context=context,
+        )
         self._Datagram = self._spun.ros.Datagram
         self._waiting: list[tuple[bytes, float]] = []
         self._max_waiting = max_waiting
@@ -236,30 +268,39 @@ class Ros2Transport:
         try:
             self._publishers = {
                 s: node.create_publisher(self._Datagram, topic, socket_qos(s, ros))
-                for s, topic in self.topics.items()}
+                for s, topic in self.topics.items()
+            }
             self._own = self._own_gids()
             self._subscriptions = {
-                s: node.create_subscription(self._Datagram, topic, self._on_datagram,
-                                            socket_qos(s, ros))
-                for s, topic in self.topics.items()}
+                s: node.create_subscription(
+                    self._Datagram, topic, self._on_datagram, socket_qos(s, ros)
+                )
+                for s, topic in self.topics.items()
+            }
         except Exception:
             self._spun.close()
             raise
-        log.info("ros2 transport of %s on %s", node.get_fully_qualified_name(),
-                 ", ".join(self.topics.values()))
+        log.info(
+            "ros2 transport of %s on %s",
+            node.get_fully_qualified_name(),
+            ", ".join(self.topics.values()),
+        )
 
     def _own_gids(self) -> frozenset[bytes]:
         """The gids of this node's publishers, which the deliveries of its own datagrams
         carry (local entities are in the graph as soon as they are made)."""
         node = self._spun.node
-        gids = {bytes(info.endpoint_gid)
-                for topic in self.topics.values()
-                for info in node.get_publishers_info_by_topic(topic)
-                if info.node_name == node.get_name()
-                and info.node_namespace == node.get_namespace()}
+        gids = {
+            bytes(info.endpoint_gid)
+            for topic in self.topics.values()
+            for info in node.get_publishers_info_by_topic(topic)
+            if info.node_name == node.get_name() and info.node_namespace == node.get_namespace()
+        }
         if len(gids) < len(self.topics):
-            raise RuntimeError(f"ros2 transport: cannot tell this node's own publishers on "
-                               f"{', '.join(self.topics.values())} from others'")
+            raise RuntimeError(
+                f"ros2 transport: cannot tell this node's own publishers on "
+                f"{', '.join(self.topics.values())} from others'"
+            )
         return frozenset(gids)
 
     def _on_datagram(self, msg: Any, info: dict) -> None:
@@ -284,11 +325,15 @@ class Ros2Transport:
         try:
             publisher = self._publishers[socket]
         except KeyError:
-            raise ValueError(f"ros2 transport: no socket {socket!r}; this transport carries "
-                             f"{', '.join(self._publishers)}") from None
+            raise ValueError(
+                f"ros2 transport: no socket {socket!r}; this transport carries "
+                f"{', '.join(self._publishers)}"
+            ) from None
         if len(payload) > MAX_DATAGRAM:
-            raise ValueError(f"ros2 transport: a datagram of {len(payload)} bytes; at most "
-                             f"{MAX_DATAGRAM}, as over UDP")
+            raise ValueError(
+                f"ros2 transport: a datagram of {len(payload)} bytes; at most "
+                f"{MAX_DATAGRAM}, as over UDP"
+            )
         msg = self._Datagram()
         msg.data = payload
         publisher.publish(msg)
@@ -310,8 +355,13 @@ class Ros2Transport:
         writer with their readers, its reader with their writers). Discovery is asynchronous
         and each side matches on its own; until a reader has matched a writer it drops that
         writer's datagrams, so a launcher waits for this before its agents start talking."""
-        return min(self._publishers[socket].get_subscription_count(),
-                   self._subscriptions[socket].get_publisher_count()) - 1  # less our own
+        return (
+            min(
+                self._publishers[socket].get_subscription_count(),
+                self._subscriptions[socket].get_publisher_count(),
+            )
+            - 1
+        )  # less our own
 
     def close(self) -> None:
         """Stop receiving, destroy the node, shut an own rclpy context down. Idempotent."""

@@ -65,17 +65,33 @@ from hybridteam.live.ros2 import DEFAULT_NAMESPACE, SpunNode, ros_name
 from hybridteam.model.deploy import PlantDeploy
 from hybridteam.world.sensors import RangeRing
 
-__all__ = ["ROBOT_KINDS", "PlantDeploy", "PlantSilent", "Pose", "RobotPlant", "Ros2Plant",
-           "Scan", "body_velocity", "clipped_ranges", "ring_ranges", "yaw"]
+__all__ = [
+    "ROBOT_KINDS",
+    "PlantDeploy",
+    "PlantSilent",
+    "Pose",
+    "RobotPlant",
+    "Ros2Plant",
+    "Scan",
+    "body_velocity",
+    "clipped_ranges",
+    "ring_ranges",
+    "yaw",
+]
 
 log = logging.getLogger(__name__)
 
 #: law input name -> (Twist field, component)
-TWIST_FIELDS = {"v": ("linear", "x"), "vx": ("linear", "x"), "vy": ("linear", "y"),
-                "omega": ("angular", "z")}
+TWIST_FIELDS = {
+    "v": ("linear", "x"),
+    "vx": ("linear", "x"),
+    "vy": ("linear", "y"),
+    "omega": ("angular", "z"),
+}
 
 #: seconds :meth:`Ros2Plant.close` waits for reliable drivers to acknowledge the stop
 STOP_ACK_WAIT = 0.5
+
 
 class Pose(NamedTuple):
     """A robot's pose from odometry: ``stamp`` is the message's (the robot's clock, in
@@ -123,8 +139,9 @@ def clipped_ranges(ranges: Any, range_min: float, range_max: float) -> tuple[flo
 
 
 @functools.lru_cache(maxsize=64)
-def _beams_of(ring: RangeRing, angle_min: float, increment: float, count: int
-              ) -> tuple[np.ndarray, np.ndarray]:
+def _beams_of(
+    ring: RangeRing, angle_min: float, increment: float, count: int
+) -> tuple[np.ndarray, np.ndarray]:
     """For each ray of ``ring`` ``(count, rays_per_beam)``: the scan beam nearest its
     direction, and whether that beam is within half an increment of it (the scan covers
     it). A scan's geometry does not change between its messages: computed once per ring."""
@@ -140,10 +157,8 @@ def ring_ranges(scan: Scan, ring: RangeRing) -> np.ndarray:
     (module docstring, *The laser as the model's range rings*)."""
     if not scan.ranges:
         return np.full(ring.count, float(ring.max_range))
-    nearest, covered = _beams_of(ring, scan.angle_min, scan.angle_increment,
-                                 len(scan.ranges))
-    rays = np.where(covered, np.asarray(scan.ranges)[nearest] - ring.mount_radius,
-                    ring.max_range)
+    nearest, covered = _beams_of(ring, scan.angle_min, scan.angle_increment, len(scan.ranges))
+    rays = np.where(covered, np.asarray(scan.ranges)[nearest] - ring.mount_radius, ring.max_range)
     return np.clip(rays.min(axis=1), ring.min_range, ring.max_range)
 
 
@@ -181,41 +196,60 @@ class Ros2Plant:
     """One agent's robot over ROS 2 topics: :meth:`command` out, :meth:`pose` and
     :meth:`scan` in (module docstring)."""
 
-    def __init__(self, agent: str, deploy: Mapping[str, Any] | PlantDeploy, *,
-                 domain_id: int | None = None, context: Any = None,
-                 team: str | None = None) -> None:
+    def __init__(
+        self,
+        agent: str,
+        deploy: Mapping[str, Any] | PlantDeploy,
+        *,
+        domain_id: int | None = None,
+        context: Any = None,
+        team: str | None = None,
+    ) -> None:
         self.agent = agent
-        self.deploy = d = (deploy if isinstance(deploy, PlantDeploy)
-                           else PlantDeploy.from_mapping(deploy, ("deploy", agent)))
+        self.deploy = d = (
+            deploy
+            if isinstance(deploy, PlantDeploy)
+            else PlantDeploy.from_mapping(deploy, ("deploy", agent))
+        )
         self.dropped = {"frame": 0, "invalid": 0}  # odometry messages refused, by reason
         self._foreign_frames: set[str] = set()
         self._pose, self._scan = _Latest(), _Latest()
         where = DEFAULT_NAMESPACE + (f"/{ros_name(team)}" if team is not None else "")
-        self._spun = SpunNode(f"{ros_name(agent)}_plant", where, domain_id=domain_id,
-                              context=context)
+        self._spun = SpunNode(
+            f"{ros_name(agent)}_plant", where, domain_id=domain_id, context=context
+        )
         try:
             from geometry_msgs.msg import Twist
             from nav_msgs.msg import Odometry
             from sensor_msgs.msg import LaserScan
         except ImportError:
             self._spun.close()
-            raise ImportError("the ros2 plant needs the ROS 2 message packages: "
-                              "pip install 'hybridteam[ros]'") from None
+            raise ImportError(
+                "the ros2 plant needs the ROS 2 message packages: pip install 'hybridteam[ros]'"
+            ) from None
 
         self._Twist = Twist
         q = self._spun.ros.qos
-        readings = q.QoSProfile(depth=5, reliability=q.ReliabilityPolicy.BEST_EFFORT,
-                                durability=q.DurabilityPolicy.VOLATILE)
-        commands = q.QoSProfile(depth=1, reliability=q.ReliabilityPolicy.RELIABLE,
-                                durability=q.DurabilityPolicy.VOLATILE)
+        readings = q.QoSProfile(
+            depth=5,
+            reliability=q.ReliabilityPolicy.BEST_EFFORT,
+            durability=q.DurabilityPolicy.VOLATILE,
+        )
+        commands = q.QoSProfile(
+            depth=1,
+            reliability=q.ReliabilityPolicy.RELIABLE,
+            durability=q.DurabilityPolicy.VOLATILE,
+        )
         node = self._spun.node
         try:
             self._cmd = node.create_publisher(Twist, d.cmd_vel, commands)
-            self._subscriptions = [node.create_subscription(Odometry, d.odom, self._on_odom,
-                                                            readings)]
+            self._subscriptions = [
+                node.create_subscription(Odometry, d.odom, self._on_odom, readings)
+            ]
             if d.scan is not None:
                 self._subscriptions.append(
-                    node.create_subscription(LaserScan, d.scan, self._on_scan, readings))
+                    node.create_subscription(LaserScan, d.scan, self._on_scan, readings)
+                )
         except Exception:
             self._spun.close()
             raise
@@ -226,8 +260,13 @@ class Ros2Plant:
             self.dropped["frame"] += 1
             if msg.header.frame_id not in self._foreign_frames:
                 self._foreign_frames.add(msg.header.frame_id)
-                log.warning("%s: odometry on %s is in frame %r, not %r: dropped", self.agent,
-                            self.deploy.odom, msg.header.frame_id, self.deploy.frame)
+                log.warning(
+                    "%s: odometry on %s is in frame %r, not %r: dropped",
+                    self.agent,
+                    self.deploy.odom,
+                    msg.header.frame_id,
+                    self.deploy.frame,
+                )
             return
         p, o = msg.pose.pose.position, msg.pose.pose.orientation
         theta = yaw(o.x, o.y, o.z, o.w)
@@ -238,9 +277,17 @@ class Ros2Plant:
 
     def _on_scan(self, msg: Any) -> None:
         received = time.monotonic()
-        self._scan.put(Scan(clipped_ranges(msg.ranges, msg.range_min, msg.range_max),
-                            msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
-                            _seconds(msg.header.stamp), received))
+        self._scan.put(
+            Scan(
+                clipped_ranges(msg.ranges, msg.range_min, msg.range_max),
+                msg.angle_min,
+                msg.angle_increment,
+                msg.range_min,
+                msg.range_max,
+                _seconds(msg.header.stamp),
+                received,
+            )
+        )
 
     def command(self, inputs: Mapping[str, float]) -> None:
         """Publish the law's input (``v``/``omega`` or ``vx``/``vy``/``omega``) as a Twist;
@@ -250,11 +297,14 @@ class Ros2Plant:
         msg = self._Twist()
         for name, value in inputs.items():
             if name not in TWIST_FIELDS:
-                raise ValueError(f"{self.agent}: no Twist field for input {name!r}; a robot "
-                                 f"takes {', '.join(TWIST_FIELDS)}")
+                raise ValueError(
+                    f"{self.agent}: no Twist field for input {name!r}; a robot "
+                    f"takes {', '.join(TWIST_FIELDS)}"
+                )
             if not math.isfinite(value):
-                raise ValueError(f"{self.agent}: input {name} = {value} is not finite; "
-                                 "not sent to the robot")
+                raise ValueError(
+                    f"{self.agent}: input {name} = {value} is not finite; not sent to the robot"
+                )
             group, axis = TWIST_FIELDS[name]
             setattr(getattr(msg, group), axis, float(value))
         self._cmd.publish(msg)
@@ -265,12 +315,16 @@ class Ros2Plant:
         wait = self.deploy.timeout if timeout is None else timeout
         pose = self._pose.get(wait)
         if pose is None:
-            why = (f"{self.dropped['frame']} arrived in frame "
-                   f"{', '.join(map(repr, sorted(self._foreign_frames)))}, not "
-                   f"{self.deploy.frame!r}" if self.dropped["frame"] else
-                   "is the robot's driver running, on this ROS_DOMAIN_ID?")
-            raise PlantSilent(f"{self.agent}: no odometry on {self.deploy.odom} within "
-                              f"{wait:g} s; {why}")
+            why = (
+                f"{self.dropped['frame']} arrived in frame "
+                f"{', '.join(map(repr, sorted(self._foreign_frames)))}, not "
+                f"{self.deploy.frame!r}"
+                if self.dropped["frame"]
+                else "is the robot's driver running, on this ROS_DOMAIN_ID?"
+            )
+            raise PlantSilent(
+                f"{self.agent}: no odometry on {self.deploy.odom} within {wait:g} s; {why}"
+            )
         return pose
 
     def scan(self, timeout: float | None = None) -> Scan:
@@ -281,8 +335,9 @@ class Ros2Plant:
         wait = self.deploy.timeout if timeout is None else timeout
         scan = self._scan.get(wait)
         if scan is None:
-            raise PlantSilent(f"{self.agent}: no laser scan on {self.deploy.scan} within "
-                              f"{wait:g} s")
+            raise PlantSilent(
+                f"{self.agent}: no laser scan on {self.deploy.scan} within {wait:g} s"
+            )
         return scan
 
     def close(self) -> None:
@@ -331,8 +386,9 @@ class RobotPlant:
     next wait, ``stopped``, its trace complete) and the last pose stands until then.
     """
 
-    def __init__(self, robot: Ros2Plant, kind: str,
-                 on_silent: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self, robot: Ros2Plant, kind: str, on_silent: Callable[[str], None] | None = None
+    ) -> None:
         self.check(robot.agent, kind)
         self.robot, self.kind = robot, kind
         self.on_silent = on_silent
@@ -351,9 +407,11 @@ class RobotPlant:
     def check(agent: str, kind: str) -> None:
         """ValueError unless agent ``agent``'s plant ``kind`` is one a robot drives."""
         if kind not in ROBOT_KINDS:
-            raise ValueError(f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
-                             "drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
-                             "omega), as a Twist, its x, y, theta from odometry")
+            raise ValueError(
+                f"agent '{agent}' has a {kind} plant; a robot over ROS 2 "
+                "drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+                "omega), as a Twist, its x, y, theta from odometry"
+            )
 
     def command(self, inputs: np.ndarray, t: float) -> None:
         self.commands.append((t, np.array(inputs, float)))

@@ -58,16 +58,26 @@ class LiveRun:
     """One live process's run, built (the team compiled, the engine set up) apart from
     being run, so that a launcher can start every process's clock together."""
 
-    def __init__(self, team: Team, agents: Sequence[str], transport: Transport, *,
-                 transport_name: str = "udp", time_scale: float = 1.0,
-                 duration: float | None = None,
-                 stop: Callable[[], str | None] = lambda: None, drop: float = 0.0,
-                 delay: float = 0.0, seed: int = 0,
-                 drop_copies: Mapping[str, Collection[int]] | None = None,
-                 plants: Mapping[str, ExternalPlant] | None = None,
-                 plant_name: str = "sim", world: bool = False,
-                 wire_team: Team | None = None,
-                 world_timeout: float = SILENCE) -> None:
+    def __init__(
+        self,
+        team: Team,
+        agents: Sequence[str],
+        transport: Transport,
+        *,
+        transport_name: str = "udp",
+        time_scale: float = 1.0,
+        duration: float | None = None,
+        stop: Callable[[], str | None] = lambda: None,
+        drop: float = 0.0,
+        delay: float = 0.0,
+        seed: int = 0,
+        drop_copies: Mapping[str, Collection[int]] | None = None,
+        plants: Mapping[str, ExternalPlant] | None = None,
+        plant_name: str = "sim",
+        world: bool = False,
+        wire_team: Team | None = None,
+        world_timeout: float = SILENCE,
+    ) -> None:
         """The agents named ``agents`` of ``team``, over ``transport`` (the caller's to
         close); ``duration`` in run seconds (default the team's); ``stop`` is asked while
         waiting and ends the run when it gives a reason; ``drop``, ``delay``, ``seed``,
@@ -100,8 +110,17 @@ class LiveRun:
         hosted = sorted(ca.index for ca in full.agents if ca.name in agents)
         self.here = [full.agents[a].name for a in hosted]
         self.team, self.transport_name, self.time_scale = team, transport_name, time_scale
-        self.clock = WallClock(self.codec, transport, hosted, time_scale, stop, drop=drop,
-                               delay=delay, seed=seed, drop_copies=drop_copies)
+        self.clock = WallClock(
+            self.codec,
+            transport,
+            hosted,
+            time_scale,
+            stop,
+            drop=drop,
+            delay=delay,
+            seed=seed,
+            drop_copies=drop_copies,
+        )
         external = {}
         index = {ca.name: ca.index for ca in full.agents}
         for name, plant in (plants or {}).items():
@@ -114,8 +133,7 @@ class LiveRun:
         seam: dict = {}
         self.link: WorldLink | None = None
         if team.world:
-            self.link = WorldLink(self.codec, transport, hosted, host=world,
-                                  timeout=world_timeout)
+            self.link = WorldLink(self.codec, transport, hosted, host=world, timeout=world_timeout)
             self.clock.world = self.link
             if not world:  # (a silent world process stops the run as a signal does)
                 link = self.link
@@ -129,16 +147,25 @@ class LiveRun:
         try:
             # (no wall-time limit: a live run's pace is the wall clock's by design, and the
             # simulator's limit would end a deployment of more than a day as too slow)
-            self.sim = Simulator(cteam, 1, duration=duration, clock=self.clock,
-                                 max_wall=math.inf, plants=external or None, **seam)
+            self.sim = Simulator(
+                cteam,
+                1,
+                duration=duration,
+                clock=self.clock,
+                max_wall=math.inf,
+                plants=external or None,
+                **seam,
+            )
         except ValueError as exc:  # (an external plant the engine cannot drive)
             raise HostingError(str(exc)) from None
         # (what a reading may carry: the names the team's components let robots sense)
-        self.codec.senses = frozenset(name for c in self.sim.ensemble.world.components
-                                      for name in c.senses())
+        self.codec.senses = frozenset(
+            name for c in self.sim.ensemble.world.components for name in c.senses()
+        )
         if isinstance(self.sim.ensemble.world, WorldReadings):  # robots' lasers: rings
             self.sim.ensemble.world.read_lasers(
-                {a: plant for a, plant in external.items() if getattr(plant, "laser", False)})
+                {a: plant for a, plant in external.items() if getattr(plant, "laser", False)}
+            )
         self.full = full
         if self.link is not None and not world:  # (laws read this instant's world)
             self.answer_at_ticks(self.link, hosted)
@@ -149,52 +176,81 @@ class LiveRun:
         """Run until the end rule holds for the agents here, the duration passes, or
         ``stop`` gives a reason; returns the process's trace. ``start``: the wall time
         (``time.time()``) of run time 0, launch's for all its processes (default now)."""
-        log.info("%s: running %s live (time scale %g, until t=%g)", self.team.name,
-                 "the world" if self.world_process else ", ".join(self.here),
-                 self.time_scale, self.sim.ensemble.t_end)
+        log.info(
+            "%s: running %s live (time scale %g, until t=%g)",
+            self.team.name,
+            "the world" if self.world_process else ", ".join(self.here),
+            self.time_scale,
+            self.sim.ensemble.t_end,
+        )
         # run time 0 is launch's 'go' for all its processes, the world's too, so each
         # process's instants are at the same wall times as the others'
         self.clock.start(start)
-        if self.link is not None and not self.world_process and self.here \
-                and self.await_world() > ASK_AGAIN:
+        if (
+            self.link is not None
+            and not self.world_process
+            and self.here
+            and self.await_world() > ASK_AGAIN
+        ):
             # (the world process was not up yet, started by hand after this one: the run
             # starts at its first reading, not at a time zero long past)
             self.clock.start()
         trace = self.sim.run()
         world_host = self.link is not None and self.world_process
-        record = {"agents": self.here,
-                  "ending": [self.full.agents[a].name for a in self.full.ending],
-                  "transport": self.transport_name,
-                  "plant": self.plant_name, "wire": VERSION,
-                  "digest": self.codec.digest, **self.clock.record(),
-                  "sent": self.outlet.sent, "world": self.world_process,
-                  **({"world_sent": self.link.sent} if self.link is not None else {}),
-                  **(self.answers_record() if self.link is not None and not world_host
-                     else {}),
-                  **({"world_silent": self.link.silence_record()}
-                     if world_host and self.link is not None else {})}
+        record = {
+            "agents": self.here,
+            "ending": [self.full.agents[a].name for a in self.full.ending],
+            "transport": self.transport_name,
+            "plant": self.plant_name,
+            "wire": VERSION,
+            "digest": self.codec.digest,
+            **self.clock.record(),
+            "sent": self.outlet.sent,
+            "world": self.world_process,
+            **({"world_sent": self.link.sent} if self.link is not None else {}),
+            **(self.answers_record() if self.link is not None and not world_host else {}),
+            **(
+                {"world_silent": self.link.silence_record()}
+                if world_host and self.link is not None
+                else {}
+            ),
+        }
         dropped = record["datagrams"]["dropped"]
         if dropped:
-            log.warning("dropped %d datagram(s) not of this team: %s",
-                        sum(dropped.values()),
-                        ", ".join(f"{k} {v}" for k, v in dropped.items()))
-        return process_trace(trace, record, {
-            name: getattr(plant, "commands", []) for name, plant in self.robots.items()})
+            log.warning(
+                "dropped %d datagram(s) not of this team: %s",
+                sum(dropped.values()),
+                ", ".join(f"{k} {v}" for k, v in dropped.items()),
+            )
+        return process_trace(
+            trace,
+            record,
+            {name: getattr(plant, "commands", []) for name, plant in self.robots.items()},
+        )
 
     def answer_at_ticks(self, link: WorldLink, hosted: Sequence[int]) -> None:
         """Have ``link`` wait for the world process's answer at the instants where a
         hosted agent's sampled law ticks, at most :data:`~hybridteam.live.world.
         ANSWER_WAIT` of their control period (:mod:`~hybridteam.live.world`)."""
         ens = self.sim.ensemble
-        states = [ens.states[a] for a in hosted
-                  if any(d.kind == "sampled" for d in self.full.agents[a].drivers)]
+        states = [
+            ens.states[a]
+            for a in hosted
+            if any(d.kind == "sampled" for d in self.full.agents[a].drivers)
+        ]
         link.wait = ANSWER_WAIT * control_period(self.full, hosted) / self.time_scale
         # (a stream's periodic copies do not end a wait; a type also sent by transitions
         # does, as every other message)
-        sent = {act.name for ca in self.full.agents for tr in ca.transitions
-                for act in tr.actions if act.kind == "send"}
-        self.clock.streamed = frozenset(cs.message for ca in self.full.agents
-                                        for cs in ca.streams) - sent
+        sent = {
+            act.name
+            for ca in self.full.agents
+            for tr in ca.transitions
+            for act in tr.actions
+            if act.kind == "send"
+        }
+        self.clock.streamed = (
+            frozenset(cs.message for ca in self.full.agents for cs in ca.streams) - sent
+        )
         link.due = lambda: any(ens.t[0] >= st.next_tick[0] for st in states)
         link.pump = lambda done, seconds: self.clock.take_until(ens, done, seconds)
 
@@ -204,8 +260,11 @@ class LiveRun:
         time (their laws read the latest reading), how long the answers that came took."""
         link = self.link
         assert link is not None
-        return {"world_wait_ms": link.wait * 1e3, "world_late": link.late,
-                "world_answer_ms": percentiles(link.answer_s)}
+        return {
+            "world_wait_ms": link.wait * 1e3,
+            "world_late": link.late,
+            "world_answer_ms": percentiles(link.answer_s),
+        }
 
     def await_world(self) -> float:
         """Wait (at most FIRST_READING wall seconds) for the world process's first
@@ -232,9 +291,11 @@ class LiveRun:
                     self.link.send(POSE, a, WORLD_INDEX, {})
                 ask = now + ASK_AGAIN
             if now > end:
-                raise HostingError(f"no reading from the world process within "
-                                   f"{FIRST_READING:g} s: a team with world components "
-                                   "needs one ('hybridteam live TEAM.yaml --world')")
+                raise HostingError(
+                    f"no reading from the world process within "
+                    f"{FIRST_READING:g} s: a team with world components "
+                    "needs one ('hybridteam live TEAM.yaml --world')"
+                )
             if self.clock.stop() is not None:
                 break
             self.transport.wait(0.05)
@@ -266,8 +327,9 @@ def control_period(cteam: CTeam, hosted: Collection[int]) -> float:
     the team's where they sample none (an operator), :data:`DEFAULT_PERIOD` where no agent
     does."""
     for agents in ([cteam.agents[a] for a in hosted], cteam.agents):
-        periods = [d.period for ca in agents for d in ca.drivers
-                   if d.kind == "sampled" and d.period > 0]
+        periods = [
+            d.period for ca in agents for d in ca.drivers if d.kind == "sampled" and d.period > 0
+        ]
         if periods:
             return min(periods)
     return DEFAULT_PERIOD
@@ -283,8 +345,10 @@ def check_drop_copies(cteam: CTeam, drop_copies: Collection[str]) -> None:
     types = declarations(cteam)
     for name in drop_copies:
         if name not in types:
-            raise HostingError(f"--drop-copy '{name}': the team has no message type "
-                               f"'{name}' (its types: {', '.join(types)})")
+            raise HostingError(
+                f"--drop-copy '{name}': the team has no message type "
+                f"'{name}' (its types: {', '.join(types)})"
+            )
 
 
 def run_live(team: Team, agents: Sequence[str], transport: Transport, **options) -> Trace:
@@ -292,9 +356,11 @@ def run_live(team: Team, agents: Sequence[str], transport: Transport, **options)
     return LiveRun(team, agents, transport, **options).run()
 
 
-def process_trace(trace: Trace, record: dict,
-                  commands: Mapping[str, Sequence[tuple[float, np.ndarray]]] | None = None
-                  ) -> Trace:
+def process_trace(
+    trace: Trace,
+    record: dict,
+    commands: Mapping[str, Sequence[tuple[float, np.ndarray]]] | None = None,
+) -> Trace:
     """The trace kept to what the process hosting ``record['agents']`` knows; with
     ``commands`` (by agent, a robot's commands as ``(run time, inputs)``), each robot's
     series :func:`~hybridteam.trace.command_series`: at every sample time the command in
@@ -320,5 +386,6 @@ def process_trace(trace: Trace, record: dict,
         held = np.where((k >= 0)[:, None], values[np.maximum(k, 0)], np.nan)
         samples[command_series(name)] = held[:, None, :]
         meta["series"] = {**meta.get("series", {}), command_series(name): inputs[name]}
-    return Trace(meta, trace.outcomes, transitions, intervals, trace.messages,
-                 trace.sample_times, samples)
+    return Trace(
+        meta, trace.outcomes, transitions, intervals, trace.messages, trace.sample_times, samples
+    )

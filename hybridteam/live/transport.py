@@ -75,9 +75,15 @@ class UdpTransport:
     several processes of one machine listen on it together; ``peers`` are then extra
     destinations (none are needed)."""
 
-    def __init__(self, listen: Address = (LOOPBACK, 47000),
-                 peers: list[Address] | tuple[Address, ...] = (), batch: int = BATCH, *,
-                 mode: str = "unicast", interface: str = LOOPBACK) -> None:
+    def __init__(
+        self,
+        listen: Address = (LOOPBACK, 47000),
+        peers: list[Address] | tuple[Address, ...] = (),
+        batch: int = BATCH,
+        *,
+        mode: str = "unicast",
+        interface: str = LOOPBACK,
+    ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
         host, port = listen
@@ -145,23 +151,24 @@ def _join(sock: sockets.socket, group: str, interface: str) -> None:
         where = sockets.inet_aton(interface)
     except OSError:
         raise OSError(errno.EADDRNOTAVAIL, "not an IPv4 address") from None
-    sock.setsockopt(sockets.IPPROTO_IP, sockets.IP_ADD_MEMBERSHIP,
-                    sockets.inet_aton(group) + where)
+    sock.setsockopt(sockets.IPPROTO_IP, sockets.IP_ADD_MEMBERSHIP, sockets.inet_aton(group) + where)
     sock.setsockopt(sockets.IPPROTO_IP, sockets.IP_MULTICAST_IF, where)
     sock.setsockopt(sockets.IPPROTO_IP, sockets.IP_MULTICAST_LOOP, 1)
     sock.setsockopt(sockets.IPPROTO_IP, sockets.IP_MULTICAST_TTL, 1)
 
 
-def _start_error(exc: OSError, mode: str, host: str, port: int,
-                 interface: str) -> TransportError:
+def _start_error(exc: OSError, mode: str, host: str, port: int, interface: str) -> TransportError:
     """The one line for a socket that could not be set up: a taken port, an address that
     is not this machine's, an interface that cannot join the group."""
     where = f"UDP {mode} {host}:{port}" if mode != "unicast" else f"UDP port {host}:{port}"
     if exc.errno == errno.EADDRINUSE:
-        return TransportError(f"{where} is taken (another process listens there"
-                              + (" without sharing the port)" if mode != "unicast" else ")"))
+        return TransportError(
+            f"{where} is taken (another process listens there"
+            + (" without sharing the port)" if mode != "unicast" else ")")
+        )
     if mode == "multicast" and exc.errno in (errno.EADDRNOTAVAIL, errno.ENODEV, errno.EINVAL):
-        return TransportError(f"cannot join {where} on interface {interface}: "
-                              f"{exc.strerror or exc}")
+        return TransportError(
+            f"cannot join {where} on interface {interface}: {exc.strerror or exc}"
+        )
     where = f"UDP {mode} {host}:{port}" if mode != "unicast" else f"UDP {host}:{port}"
     return TransportError(f"cannot listen on {where}: {exc.strerror or exc}")

@@ -37,8 +37,23 @@ from hybridteam.engine.run.reliable import ACK
 VERSION = 3
 #: The largest datagram accepted (bytes): one message is a few hundred.
 MAX_BYTES = 8192
-KEYS = frozenset({"ht", "team", "digest", "from", "seq", "type", "to", "socket", "fields",
-                  "id", "note", "rank", "sent"})
+KEYS = frozenset(
+    {
+        "ht",
+        "team",
+        "digest",
+        "from",
+        "seq",
+        "type",
+        "to",
+        "socket",
+        "fields",
+        "id",
+        "note",
+        "rank",
+        "sent",
+    }
+)
 NOTES = frozenset({"", "retransmission", "ack"})
 #: Why a datagram was dropped: the reasons :class:`WireError` carries, in this order.
 REASONS = ("oversized", "malformed", "version", "foreign team", "forged", "replayed")
@@ -88,8 +103,9 @@ def declarations(cteam: CTeam) -> dict[str, dict[str, list[str]]]:
             sockets, fields = found.setdefault(cs.message, (set(), set()))
             sockets.add(cs.socket)
             fields.update(cs.fields)
-    return {name: {"sockets": sorted(s), "fields": sorted(f)}
-            for name, (s, f) in sorted(found.items())}
+    return {
+        name: {"sockets": sorted(s), "fields": sorted(f)} for name, (s, f) in sorted(found.items())
+    }
 
 
 def wire_mismatch(cteam: CTeam, wire: CTeam) -> str | None:
@@ -101,25 +117,27 @@ def wire_mismatch(cteam: CTeam, wire: CTeam) -> str | None:
         return f"the team is '{cteam.team.name}', the wire team '{wire.team.name}'"
     mine, theirs = [ca.name for ca in cteam.agents], [ca.name for ca in wire.agents]
     if mine != theirs:
-        return (f"the agents are {', '.join(mine)}, the wire team's "
-                f"{', '.join(theirs)}")
+        return f"the agents are {', '.join(mine)}, the wire team's {', '.join(theirs)}"
     known = declarations(wire)
     for name, decl in declarations(cteam).items():
         if name not in known:
             return f"message '{name}' is not one the wire team declares"
         if decl != known[name]:
-            return (f"message '{name}' has sockets {', '.join(decl['sockets'])} and fields "
-                    f"{', '.join(decl['fields']) or '(none)'}; the wire team's has "
-                    f"{', '.join(known[name]['sockets'])} and "
-                    f"{', '.join(known[name]['fields']) or '(none)'}")
+            return (
+                f"message '{name}' has sockets {', '.join(decl['sockets'])} and fields "
+                f"{', '.join(decl['fields']) or '(none)'}; the wire team's has "
+                f"{', '.join(known[name]['sockets'])} and "
+                f"{', '.join(known[name]['fields']) or '(none)'}"
+            )
     return None
 
 
 class Codec:
     """Encodes this team's messages and decodes (checks) datagrams that claim to be."""
 
-    def __init__(self, cteam: CTeam, senses: frozenset[str] = frozenset(),
-                 wire: CTeam | None = None) -> None:
+    def __init__(
+        self, cteam: CTeam, senses: frozenset[str] = frozenset(), wire: CTeam | None = None
+    ) -> None:
         """``senses``: the names the team's world components let a robot sense (what a
         reading may carry). ``wire``: a test aid, the team whose identity (name, agents,
         message declarations, digest) this codec speaks and accepts instead of
@@ -129,15 +147,19 @@ class Codec:
         self.team = identity.team.name
         #: what each agent's pose may carry (plant state and variables), the events each
         #: may be raised, and the names a reading may carry
-        self.pose_names = [frozenset(ca.state_index) | frozenset(ca.var_index)
-                           for ca in cteam.agents]
+        self.pose_names = [
+            frozenset(ca.state_index) | frozenset(ca.var_index) for ca in cteam.agents
+        ]
         self.events = [frozenset(ca.triggered) for ca in cteam.agents]
         self.senses = senses
         self.agents = [ca.name for ca in cteam.agents]
         self.index = {name: a for a, name in enumerate(self.agents)}
         self.messages = declarations(identity)
-        canonical = json.dumps({"agents": self.agents, "messages": self.messages},
-                               sort_keys=True, separators=(",", ":"))
+        canonical = json.dumps(
+            {"agents": self.agents, "messages": self.messages},
+            sort_keys=True,
+            separators=(",", ":"),
+        )
         self.digest = hashlib.sha256(canonical.encode()).hexdigest()[:16]
         self._sockets = {k: frozenset(v["sockets"]) for k, v in self.messages.items()}
         self._fields = {k: frozenset(v["fields"]) for k, v in self.messages.items()}
@@ -148,25 +170,59 @@ class Codec:
     def encode(self, msg: Message, rank: float, sent: float) -> bytes:
         """One datagram for ``msg`` (``msg.receiver`` -1: every other agent), sent at wall
         time ``sent``."""
-        return json.dumps({
-            "ht": VERSION, "team": self.team, "digest": self.digest,
-            "from": self.agents[msg.sender], "seq": msg.seq, "type": msg.type,
-            "to": None if msg.receiver < 0 else self.agents[msg.receiver],
-            "socket": msg.socket, "fields": msg.fields, "id": msg.msg_id, "note": msg.note,
-            "rank": rank, "sent": sent,
-        }, separators=(",", ":"), allow_nan=False).encode()
+        return json.dumps(
+            {
+                "ht": VERSION,
+                "team": self.team,
+                "digest": self.digest,
+                "from": self.agents[msg.sender],
+                "seq": msg.seq,
+                "type": msg.type,
+                "to": None if msg.receiver < 0 else self.agents[msg.receiver],
+                "socket": msg.socket,
+                "fields": msg.fields,
+                "id": msg.msg_id,
+                "note": msg.note,
+                "rank": rank,
+                "sent": sent,
+            },
+            separators=(",", ":"),
+            allow_nan=False,
+        ).encode()
 
-    def encode_world(self, kind: str, sender: int, to: int, seq: int,
-                     fields: dict[str, float], sent: float, answers: int = -1) -> bytes:
+    def encode_world(
+        self,
+        kind: str,
+        sender: int,
+        to: int,
+        seq: int,
+        fields: dict[str, float],
+        sent: float,
+        answers: int = -1,
+    ) -> bytes:
         """One datagram of a world kind: ``POSE`` from agent ``sender`` (``to`` is
         WORLD_INDEX), or ``READING`` from the world process (``sender`` WORLD_INDEX) to
         agent ``to``, answering the pose numbered ``answers`` (-1: none; its ``id``)."""
         name = {WORLD_INDEX: WORLD, **dict(enumerate(self.agents))}
-        return json.dumps({
-            "ht": VERSION, "team": self.team, "digest": self.digest, "from": name[sender],
-            "seq": seq, "type": kind, "to": name[to], "socket": "data", "fields": fields,
-            "id": answers, "note": "", "rank": 0.0, "sent": sent,
-        }, separators=(",", ":"), allow_nan=False).encode()
+        return json.dumps(
+            {
+                "ht": VERSION,
+                "team": self.team,
+                "digest": self.digest,
+                "from": name[sender],
+                "seq": seq,
+                "type": kind,
+                "to": name[to],
+                "socket": "data",
+                "fields": fields,
+                "id": answers,
+                "note": "",
+                "rank": 0.0,
+                "sent": sent,
+            },
+            separators=(",", ":"),
+            allow_nan=False,
+        ).encode()
 
     # ------------------------------------------------------------------ receiving
     def decode(self, data: bytes) -> Datagram:
@@ -177,19 +233,20 @@ class Codec:
         try:
             obj = json.loads(data.decode("utf-8"), parse_constant=_no_constant)
         except (ValueError, RecursionError) as exc:  # (UnicodeDecodeError is a ValueError)
-            raise WireError("malformed", f"not a JSON datagram ({type(exc).__name__})") \
-                from None
+            raise WireError("malformed", f"not a JSON datagram ({type(exc).__name__})") from None
         if not isinstance(obj, dict):
             raise WireError("malformed", "not a JSON object")
         if _integer(obj.get("ht")) is None or obj.get("ht") != VERSION:
-            raise WireError("version", f"wire version {_show(obj.get('ht'))}, this is "
-                                       f"{VERSION}")
+            raise WireError("version", f"wire version {_show(obj.get('ht'))}, this is {VERSION}")
         if obj.keys() != KEYS:
-            raise WireError("malformed", "keys " + ", ".join(sorted(
-                str(k) for k in obj.keys() ^ KEYS)[:4]) + " missing or not expected")
+            raise WireError(
+                "malformed",
+                "keys "
+                + ", ".join(sorted(str(k) for k in obj.keys() ^ KEYS)[:4])
+                + " missing or not expected",
+            )
         if obj["team"] != self.team or obj["digest"] != self.digest:
-            raise WireError("foreign team", f"team {_show(obj['team'])} "
-                                            f"{_show(obj['digest'])}")
+            raise WireError("foreign team", f"team {_show(obj['team'])} {_show(obj['digest'])}")
         type_ = obj["type"]
         if type_ in (POSE, READING):
             return self._decode_world(obj, type_)
@@ -215,11 +272,13 @@ class Codec:
             raise WireError("forged", f"note {_show(obj['note'])}")
         rank, sent = _number(obj["rank"], "rank"), _number(obj["sent"], "send time")
         if seq <= self.last_seq.get(sender, -1):
-            raise WireError("replayed", f"sequence number {seq} of '{self.agents[sender]}' "
-                                        "already seen")
+            raise WireError(
+                "replayed", f"sequence number {seq} of '{self.agents[sender]}' already seen"
+            )
         self.last_seq[sender] = seq
-        return Datagram(sender, to, seq, type_, obj["socket"], values, msg_id, obj["note"],
-                        rank, sent)
+        return Datagram(
+            sender, to, seq, type_, obj["socket"], values, msg_id, obj["note"], rank, sent
+        )
 
     def _decode_world(self, obj: dict, kind: str) -> Datagram:
         """A pose (an agent's, for the world process) or a reading (the world process's,
@@ -237,8 +296,13 @@ class Codec:
         if seq is None or seq < 0:
             raise WireError("forged", f"sequence number {_show(obj['seq'])}")
         answers = _integer(obj["id"])
-        if obj["socket"] != "data" or obj["note"] != "" or answers is None or answers < -1 \
-                or (kind == POSE and answers != -1):
+        if (
+            obj["socket"] != "data"
+            or obj["note"] != ""
+            or answers is None
+            or answers < -1
+            or (kind == POSE and answers != -1)
+        ):
             raise WireError("forged", f"socket, id or note of a {kind}")
         fields = obj["fields"]
         if not isinstance(fields, dict):
@@ -246,8 +310,9 @@ class Codec:
         agent = sender if kind == POSE else to
         for key in fields:
             if not self._world_field(kind, agent, key):
-                raise WireError("forged", f"field {_show(key)} of a {kind} for "
-                                          f"'{self.agents[agent]}'")
+                raise WireError(
+                    "forged", f"field {_show(key)} of a {kind} for '{self.agents[agent]}'"
+                )
         if kind == READING:
             _check_vectors(fields)
         values = {k: _number(v, f"field {k}") for k, v in fields.items()}
@@ -256,8 +321,18 @@ class Codec:
         if seq <= self.last_seq.get(key, -1):
             raise WireError("replayed", f"{kind} {seq} already seen")
         self.last_seq[key] = seq
-        return Datagram(sender, WORLD_INDEX if kind == POSE else to, seq, kind, "data",
-                        values, answers, "", rank, sent)
+        return Datagram(
+            sender,
+            WORLD_INDEX if kind == POSE else to,
+            seq,
+            kind,
+            "data",
+            values,
+            answers,
+            "",
+            rank,
+            sent,
+        )
 
     def _world_field(self, kind: str, agent: int, key: object) -> bool:
         """Whether ``key`` may be a field of a ``kind`` datagram about ``agent``."""
@@ -288,8 +363,9 @@ def _check_vectors(fields: dict) -> None:
             indices.setdefault(head, []).append(int(tail) if dot else -1)
     for name, got in indices.items():
         if sorted(got) != ([-1] if -1 in got else list(range(len(got)))):
-            raise WireError("forged", f"reading of {_show(name)} is not one number or a "
-                                      "whole vector")
+            raise WireError(
+                "forged", f"reading of {_show(name)} is not one number or a whole vector"
+            )
 
 
 def _no_constant(name: str) -> float:

@@ -69,8 +69,14 @@ ANSWER_WAIT = 0.5
 class WorldLink:
     """The world kinds' traffic of one process: what arrived, and the sending."""
 
-    def __init__(self, codec: Codec, transport: Transport, here: Collection[int],
-                 host: bool, timeout: float = SILENCE) -> None:
+    def __init__(
+        self,
+        codec: Codec,
+        transport: Transport,
+        here: Collection[int],
+        host: bool,
+        timeout: float = SILENCE,
+    ) -> None:
         """``here``: the hosted agents' indices; ``host``: this is the world process;
         ``timeout``: wall seconds of silence after which the other side is gone."""
         self.codec, self.transport = codec, transport
@@ -89,8 +95,7 @@ class WorldLink:
         #: instant with the number of the pose answered (every one at the start, -1:
         #: their first readings)
         self.poses: dict[int, dict[str, float]] = {}
-        self.pending: dict[int, int] = dict.fromkeys(range(len(codec.agents)), -1) \
-            if host else {}
+        self.pending: dict[int, int] = dict.fromkeys(range(len(codec.agents)), -1) if host else {}
         #: (agents' process) per hosted agent, the number of its last pose not answered
         #: yet; the longest wait for an instant's answers (wall seconds, 0: none), whether
         #: this instant waits (a law ticks) and what waits (:meth:`await_answers`);
@@ -110,16 +115,19 @@ class WorldLink:
         self.local: set[tuple[int, str]] = set()
         self.sent = 0
 
-    def send(self, kind: str, sender: int, to: int, fields: dict[str, float],
-             answers: int = -1) -> None:
+    def send(
+        self, kind: str, sender: int, to: int, fields: dict[str, float], answers: int = -1
+    ) -> None:
         """A pose (``sender`` an agent here) or a reading (to agent ``to``, answering its
         pose numbered ``answers``, -1: none)."""
         if kind == POSE:
             if self.asked is None:
                 self.asked = time.monotonic()
             self.unanswered[sender] = self.seq
-        self.transport.send(self.codec.encode_world(kind, sender, to, self.seq, fields,
-                                                    time.time(), answers), "data")
+        self.transport.send(
+            self.codec.encode_world(kind, sender, to, self.seq, fields, time.time(), answers),
+            "data",
+        )
         self.seq += 1
         self.sent += 1
 
@@ -200,17 +208,19 @@ class WorldLink:
         if self.late == 1:
             # (info, not a warning: on a loaded machine some answers are late in every run;
             # the count is the record)
-            log.info("the world process's answer to a pose did not come within %.1f ms: "
-                     "the laws read the latest reading (each such instant is counted in "
-                     "meta.live.world_late)", self.wait * 1e3)
+            log.info(
+                "the world process's answer to a pose did not come within %.1f ms: "
+                "the laws read the latest reading (each such instant is counted in "
+                "meta.live.world_late)",
+                self.wait * 1e3,
+            )
 
     def world_silent(self) -> str | None:
         """(agents' process) Why the run must stop, if a pose sent has gone unanswered
         for ``timeout`` wall seconds (the world process is gone, or cut off); else None."""
         if self.asked is None or time.monotonic() - self.asked <= self.timeout:
             return None
-        why = (f"the world process's silence (no reading within {self.timeout:g} s of "
-               "a pose sent)")
+        why = f"the world process's silence (no reading within {self.timeout:g} s of a pose sent)"
         log.warning("%s", why)
         return why
 
@@ -235,9 +245,12 @@ class WorldLink:
                 gap = {"agent": name, "from": since, "noticed": t, "to": None, "mono": now}
                 self.silent[a] = gap
                 self.silences.append(gap)
-                log.warning("agent '%s' silent for %g s (%s): the world holds its last "
-                            "pose", name, self.timeout, "no pose yet" if since is None
-                            else f"last pose at t={since:.3f}")
+                log.warning(
+                    "agent '%s' silent for %g s (%s): the world holds its last pose",
+                    name,
+                    self.timeout,
+                    "no pose yet" if since is None else f"last pose at t={since:.3f}",
+                )
 
     def silence_record(self) -> list[dict[str, Any]]:
         """The silences seen, for the trace's ``meta.live``."""
@@ -348,10 +361,10 @@ class WorldReadings(World):
         link = self.link
         behind = link.overdue()
         for a in link.here:
-            fields = dict(zip(access.state_names(a),
-                              access.state(a, idx)[0].tolist(), strict=True))
-            fields.update({n: float(access.variable(a, n, idx)[0])
-                           for n in access.variable_names(a)})
+            fields = dict(zip(access.state_names(a), access.state(a, idx)[0].tolist(), strict=True))
+            fields.update(
+                {n: float(access.variable(a, n, idx)[0]) for n in access.variable_names(a)}
+            )
             if fields:
                 link.send(POSE, a, WORLD_INDEX, fields)
         answered = link.await_answers(behind)
@@ -368,9 +381,13 @@ class WorldReadings(World):
         process's raising of those rules' events for them is not taken
         (:attr:`WorldLink.local`)."""
         self.lasers = dict(lasers)
-        self.laser_rules = [[rule, self.ring(rule.agent, rule.sensor), False]
-                            for c in self.components if isinstance(c, Obstacles)
-                            for rule in c.rules if rule.agent in self.lasers]
+        self.laser_rules = [
+            [rule, self.ring(rule.agent, rule.sensor), False]
+            for c in self.components
+            if isinstance(c, Obstacles)
+            for rule in c.rules
+            if rule.agent in self.lasers
+        ]
         self.link.local = {(rule.agent, rule.event) for rule, _, _ in self.laser_rules}
 
     def detect_on_lasers(self, access: EnsembleAccess, idx: np.ndarray) -> None:
@@ -416,8 +433,9 @@ class WorldReadings(World):
         return {}
 
 
-def world_seam(cls: type[WorldHost | WorldReadings], link: WorldLink
-               ) -> Callable[[Team, int, Mapping[str, np.ndarray]], World]:
+def world_seam(
+    cls: type[WorldHost | WorldReadings], link: WorldLink
+) -> Callable[[Team, int, Mapping[str, np.ndarray]], World]:
     """The engine's world seam filled with ``cls`` talking through ``link``."""
 
     def build(team: Team, n: int, params: Mapping[str, np.ndarray]) -> World:

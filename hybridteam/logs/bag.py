@@ -73,8 +73,7 @@ class _Topic:
     records: list[tuple[int, Any]] = field(default_factory=list)
 
 
-def read_bag(path: str | os.PathLike, team: Team,
-             mapping: str | os.PathLike | None = None) -> Any:
+def read_bag(path: str | os.PathLike, team: Team, mapping: str | os.PathLike | None = None) -> Any:
     """The :class:`~hybridteam.api.Run` a rosbag2 (a folder, or one ``.mcap``/``.db3``
     file) records of ``team``; topics as a ``mapping`` file names them (default: export's
     names, and the ``deploy:`` section's odometry and command topics of an agent it has).
@@ -90,8 +89,9 @@ def read_bag(path: str | os.PathLike, team: Team,
     meta, _params = team_frame(team)
     topics = None
     if mapping is not None:
-        topics = load_mapping(mapping, [a["name"] for a in meta["agents"]],
-                              list(meta.get("payloads") or []))
+        topics = load_mapping(
+            mapping, [a["name"] for a in meta["agents"]], list(meta.get("payloads") or [])
+        )
     with _BagFile(path) as bag:
         reading = _Reading(path, team, meta, bag.types, bag.read([RUN]).get(RUN), topics)
         reading.add_topics(bag.read(reading.wanted()))
@@ -122,8 +122,10 @@ class _BagFile:
         for conn in self.connections:
             if self.types.setdefault(conn.topic, conn.msgtype) != conn.msgtype:
                 self.__exit__()
-                raise LogError(f"{self.path}: topic {conn.topic} has two types, "
-                               f"{self.types[conn.topic]} and {conn.msgtype}")
+                raise LogError(
+                    f"{self.path}: topic {conn.topic} has two types, "
+                    f"{self.types[conn.topic]} and {conn.msgtype}"
+                )
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -135,8 +137,9 @@ class _BagFile:
         type this reader does not know has none)."""
         wanted = set(names) & set(self.types)
         out = {name: _Topic(name, self.types[name]) for name in wanted}
-        conns = [c for c in self.connections
-                 if c.topic in wanted and c.msgtype in self.typestore.types]
+        conns = [
+            c for c in self.connections if c.topic in wanted and c.msgtype in self.typestore.types
+        ]
         if not conns:
             return out
         where: list[Any] = [None, None]
@@ -144,7 +147,8 @@ class _BagFile:
             for conn, ns, raw in self.reader.messages(connections=conns):
                 where[:] = [conn.topic, ns]
                 out[conn.topic].records.append(
-                    (ns, self.typestore.deserialize_cdr(raw, conn.msgtype)))
+                    (ns, self.typestore.deserialize_cdr(raw, conn.msgtype))
+                )
         return out
 
     @contextmanager
@@ -156,18 +160,29 @@ class _BagFile:
         except LogError:
             raise
         except Exception as exc:  # rosbags' errors, whatever a damaged file raises in it
-            at = "" if not where or where[0] is None else \
-                f" (after topic {where[0]} at stamp {where[1]} ns)"
+            at = (
+                ""
+                if not where or where[0] is None
+                else f" (after topic {where[0]} at stamp {where[1]} ns)"
+            )
             reason = str(exc) or type(exc).__name__
-            raise LogError(f"{self.path}: not a readable rosbag2 or cut short{at}: "
-                           f"{reason}") from None
+            raise LogError(
+                f"{self.path}: not a readable rosbag2 or cut short{at}: {reason}"
+            ) from None
 
 
 class _Reading:
     """One bag read against one team (kept together: every error names the file)."""
 
-    def __init__(self, path: Path, team: Team, meta: dict[str, Any], types: dict[str, str],
-                 header: _Topic | None, topics: Topics | None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        team: Team,
+        meta: dict[str, Any],
+        types: dict[str, str],
+        header: _Topic | None,
+        topics: Topics | None,
+    ) -> None:
         self.path, self.team, self.types = path, team, types
         self.bag: dict[str, _Topic] = {}
         self.outcome: dict[str, Any] | None = None
@@ -179,8 +194,7 @@ class _Reading:
         self.meta = meta
         self.agents = [a["name"] for a in meta["agents"]]
         if topics is None:  # export's names, a deployed robot's own where it has them
-            topics = Topics.default(self.agents, list(meta.get("payloads") or []),
-                                    team.deploy)
+            topics = Topics.default(self.agents, list(meta.get("payloads") or []), team.deploy)
         else:
             self._mapped_present(topics)
         self.topics = topics
@@ -202,8 +216,7 @@ class _Reading:
         """Take in the topics read from the bag (the wanted ones); ``t0`` becomes the
         earliest stamp among them."""
         self.bag.update(bag)
-        self.t0 = min((ns for t in self.bag.values() for ns in self._stamps(t)),
-                      default=self.t0)
+        self.t0 = min((ns for t in self.bag.values() for ns in self._stamps(t)), default=self.t0)
 
     def _foreign(self, topic: str) -> str | None:
         """The agent ``X`` a topic ``/X/pose`` (any of export's kinds) names, when the team
@@ -240,10 +253,15 @@ class _Reading:
         except (ValueError, KeyError, TypeError) as exc:
             raise self.fail(RUN, ns, f"not the header of a hybridteam run ({exc})") from None
         if team_name != self.team.name or sorted(names) != sorted(
-                a["name"] for a in meta["agents"]):
-            raise self.fail(RUN, ns, f"the log records team '{team_name}' (agents "
-                            f"{', '.join(names)}), not '{self.team.name}' (agents "
-                            f"{', '.join(a['name'] for a in meta['agents'])})")
+            a["name"] for a in meta["agents"]
+        ):
+            raise self.fail(
+                RUN,
+                ns,
+                f"the log records team '{team_name}' (agents "
+                f"{', '.join(names)}), not '{self.team.name}' (agents "
+                f"{', '.join(a['name'] for a in meta['agents'])})",
+            )
         self.outcome = dict(outcome, instance=0)
         return dict(recorded, n=1)
 
@@ -255,21 +273,28 @@ class _Reading:
             agent = self._foreign(name)
             if agent is not None:
                 ns = self._stamps(topic)[0] if topic.records else None
-                raise self.fail(name, ns, f"agent '{agent}' is not in team "
-                                f"'{self.team.name}' (agents: {', '.join(self.agents)}): "
-                                "a log of another team? (--map names the topics of a log "
-                                "whose names differ)")
+                raise self.fail(
+                    name,
+                    ns,
+                    f"agent '{agent}' is not in team "
+                    f"'{self.team.name}' (agents: {', '.join(self.agents)}): "
+                    "a log of another team? (--map names the topics of a log "
+                    "whose names differ)",
+                )
 
     def _mapped_present(self, topics: Topics) -> None:
         for agent, at in topics.agents.items():
             for key, name in at.__dict__.items():
                 if name is not None and name not in self.types:
-                    raise LogError(f"{self.path}: topic {name} ({agent}'s {key} in the "
-                                   "mapping) is not in the log")
+                    raise LogError(
+                        f"{self.path}: topic {name} ({agent}'s {key} in the "
+                        "mapping) is not in the log"
+                    )
         for payload, name in topics.payloads.items():
             if name not in self.types:
-                raise LogError(f"{self.path}: topic {name} ({payload}'s pose in the "
-                               "mapping) is not in the log")
+                raise LogError(
+                    f"{self.path}: topic {name} ({payload}'s pose in the mapping) is not in the log"
+                )
 
     def _topic(self, name: str | None, kinds: tuple[str, ...]) -> _Topic | None:
         if name is None or name not in self.bag:
@@ -277,27 +302,35 @@ class _Reading:
         topic = self.bag[name]
         if topic.msgtype not in kinds:
             ns = topic.records[0][0] if topic.records else None
-            raise self.fail(name, ns, f"has type {topic.msgtype}, expected "
-                            f"{' or '.join(kinds)}")
+            raise self.fail(name, ns, f"has type {topic.msgtype}, expected {' or '.join(kinds)}")
         return topic
 
     # -- samples ---------------------------------------------------------------------------
-    def _series_of(self, topic: _Topic, names: list[str], planar: bool
-                   ) -> tuple[np.ndarray, np.ndarray]:
+    def _series_of(
+        self, topic: _Topic, names: list[str], planar: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
         """``(times, values)`` of a sampled topic; times strictly increasing."""
         stamps = self._stamps(topic)
         for k in range(1, len(stamps)):
             if stamps[k] <= stamps[k - 1]:
-                raise self.fail(topic.name, stamps[k], "stamps go back or repeat (the "
-                                f"previous one is t={self._t(stamps[k - 1]):.9g} s): "
-                                "samples must be in time order")
+                raise self.fail(
+                    topic.name,
+                    stamps[k],
+                    "stamps go back or repeat (the "
+                    f"previous one is t={self._t(stamps[k - 1]):.9g} s): "
+                    "samples must be in time order",
+                )
         rows = []
         for (_, msg), stamp_ns in zip(topic.records, stamps, strict=True):
             if topic.msgtype == ARRAY:  # labelled as export does, or unlabelled
                 labels = msg.layout.dim[0].label.split(",") if msg.layout.dim else names
                 if labels != names or len(msg.data) != len(names):
-                    raise self.fail(topic.name, stamp_ns, f"holds {','.join(labels) or '?'} "
-                                    f"({len(msg.data)} values), expected {','.join(names)}")
+                    raise self.fail(
+                        topic.name,
+                        stamp_ns,
+                        f"holds {','.join(labels) or '?'} "
+                        f"({len(msg.data)} values), expected {','.join(names)}",
+                    )
                 rows.append(np.asarray(msg.data, float))
             elif topic.msgtype == TWIST:
                 rows.append(_command(msg, names))
@@ -320,19 +353,27 @@ class _Reading:
                 continue
             planar = agent["plant"] in PLANAR and names[:3] == ["x", "y", "theta"]
             state = self._topic(at.state, SAMPLED["state"])
-            pose = (self._topic(at.pose, SAMPLED["pose"])
-                    or self._topic(at.odom, SAMPLED["odom"])) if planar else None
+            pose = (
+                (self._topic(at.pose, SAMPLED["pose"]) or self._topic(at.odom, SAMPLED["odom"]))
+                if planar
+                else None
+            )
             if state is None and pose is None:
                 if not self.mapped:
                     self._same_team()
-                wanted = [t for t in (at.state, *((at.pose, at.odom) if planar else ()))
-                          if t is not None]
+                wanted = [
+                    t for t in (at.state, *((at.pose, at.odom) if planar else ())) if t is not None
+                ]
                 if not wanted:
-                    raise LogError(f"{self.path}: the mapping names no "
-                                   f"{'state, pose or odom' if planar else 'state'} topic "
-                                   f"of agent '{name}': it has no samples")
-                raise LogError(f"{self.path}: no topic {' or '.join(wanted)} in the log: "
-                               f"agent '{name}' has no samples")
+                    raise LogError(
+                        f"{self.path}: the mapping names no "
+                        f"{'state, pose or odom' if planar else 'state'} topic "
+                        f"of agent '{name}': it has no samples"
+                    )
+                raise LogError(
+                    f"{self.path}: no topic {' or '.join(wanted)} in the log: "
+                    f"agent '{name}' has no samples"
+                )
             if state is not None:
                 found[name] = self._series_of(state, names, planar)
             else:
@@ -373,8 +414,12 @@ class _Reading:
         last = None
         for ns, msg in topic.records:
             if last is not None and ns < last:
-                raise self.fail(topic.name, ns, "stamps go back (the previous one is "
-                                f"t={self._t(last):.9g} s): messages must be in time order")
+                raise self.fail(
+                    topic.name,
+                    ns,
+                    "stamps go back (the previous one is "
+                    f"t={self._t(last):.9g} s): messages must be in time order",
+                )
             last = ns
             text = msg.data
             try:
@@ -398,39 +443,54 @@ class _Reading:
                     data = {"target": data}
                 try:
                     target = data["target"]
-                    row = {"instance": 0, "agent": name,
-                           "t": _number(data.get("t"), self._t(ns)),
-                           "step": int(data.get("step", 0)),
-                           "source": str(data.get("source", previous)), "target": target,
-                           "cause": str(data.get("cause", "log")),
-                           "guard": str(data.get("guard", "")), "_row": data.get("row")}
+                    row = {
+                        "instance": 0,
+                        "agent": name,
+                        "t": _number(data.get("t"), self._t(ns)),
+                        "step": int(data.get("step", 0)),
+                        "source": str(data.get("source", previous)),
+                        "target": target,
+                        "cause": str(data.get("cause", "log")),
+                        "guard": str(data.get("guard", "")),
+                        "_row": data.get("row"),
+                    }
                 except (KeyError, TypeError, ValueError, AttributeError) as exc:
-                    raise self.fail(topic.name, ns, f"not a mode change ({exc}): expected "
-                                    "JSON with a 'target' mode, or a mode path") from None
+                    raise self.fail(
+                        topic.name,
+                        ns,
+                        f"not a mode change ({exc}): expected "
+                        "JSON with a 'target' mode, or a mode path",
+                    ) from None
                 if target not in paths:
-                    raise self.fail(topic.name, ns, f"'{target}' is not a mode of agent "
-                                    f"'{name}'")
+                    raise self.fail(topic.name, ns, f"'{target}' is not a mode of agent '{name}'")
                 previous = target
                 rows.append(row)
         return _ordered(rows, ("t",))
 
-    def intervals(self, transitions: list[dict[str, Any]], t_end: float
-                  ) -> list[dict[str, Any]]:
+    def intervals(self, transitions: list[dict[str, Any]], t_end: float) -> list[dict[str, Any]]:
         rows = []
         for agent in self.meta["agents"]:
             name = agent["name"]
             at = self.topics.agents.get(name)
             topic = self._topic(at.stays if at else None, EVENTS["stays"])
             if topic is None:
-                rows += _stays_from(name, agent, [r for r in transitions if r["agent"] == name],
-                                    t_end)
+                rows += _stays_from(
+                    name, agent, [r for r in transitions if r["agent"] == name], t_end
+                )
                 continue
             for ns, data in self._json(topic):
                 try:
-                    rows.append({"instance": 0, "agent": name, "mode": str(data["mode"]),
-                                 "depth": int(data["depth"]),
-                                 "start": _number(data["start"], None),
-                                 "end": _number(data["end"], None), "_row": data.get("row")})
+                    rows.append(
+                        {
+                            "instance": 0,
+                            "agent": name,
+                            "mode": str(data["mode"]),
+                            "depth": int(data["depth"]),
+                            "start": _number(data["start"], None),
+                            "end": _number(data["end"], None),
+                            "_row": data.get("row"),
+                        }
+                    )
                 except (KeyError, TypeError, ValueError) as exc:
                     raise self.fail(topic.name, ns, f"not a stay in a mode ({exc})") from None
         return _ordered(rows, ("start", "depth"))
@@ -446,25 +506,37 @@ class _Reading:
             for ns, data in self._json(topic):
                 try:
                     t_recv = _number(data.get("t_recv"), math.nan, nullable=True)
-                    row = {"instance": 0, "seq": int(data.get("seq", 0)),
-                           "sender": str(data.get("sender", name)),
-                           "receiver": str(data["receiver"]),
-                           "socket": str(data.get("socket", "control")),
-                           "type": str(data["type"]),
-                           "t_send": _number(data.get("t_send"), self._t(ns)),
-                           "t_recv": t_recv,
-                           "status": str(data.get("status", "sent" if math.isnan(t_recv)
-                                                  else "delivered")),
-                           "reason": str(data.get("reason", "")),
-                           "msg_id": int(data.get("msg_id", -1)), "_row": data.get("row")}
+                    row = {
+                        "instance": 0,
+                        "seq": int(data.get("seq", 0)),
+                        "sender": str(data.get("sender", name)),
+                        "receiver": str(data["receiver"]),
+                        "socket": str(data.get("socket", "control")),
+                        "type": str(data["type"]),
+                        "t_send": _number(data.get("t_send"), self._t(ns)),
+                        "t_recv": t_recv,
+                        "status": str(
+                            data.get("status", "sent" if math.isnan(t_recv) else "delivered")
+                        ),
+                        "reason": str(data.get("reason", "")),
+                        "msg_id": int(data.get("msg_id", -1)),
+                        "_row": data.get("row"),
+                    }
                 except (KeyError, TypeError, ValueError, AttributeError) as exc:
-                    raise self.fail(topic.name, ns, f"not a team message ({exc}): expected "
-                                    "JSON with 'receiver' and 'type'") from None
+                    raise self.fail(
+                        topic.name,
+                        ns,
+                        f"not a team message ({exc}): expected JSON with 'receiver' and 'type'",
+                    ) from None
                 for role in ("sender", "receiver"):
                     if row[role] not in self.agents:
-                        raise self.fail(topic.name, ns, f"{role} '{row[role]}' is not in "
-                                        f"team '{self.team.name}' (agents: "
-                                        f"{', '.join(self.agents)})")
+                        raise self.fail(
+                            topic.name,
+                            ns,
+                            f"{role} '{row[role]}' is not in "
+                            f"team '{self.team.name}' (agents: "
+                            f"{', '.join(self.agents)})",
+                        )
                 rows.append(row)
         return _ordered(rows, ("t_send",))
 
@@ -473,8 +545,7 @@ class _Reading:
         times, found = self.samples()
         transitions = self.transitions()
         messages = self.messages()
-        ends = [*times.tolist(), *(r["t"] for r in transitions),
-                *(r["t_send"] for r in messages)]
+        ends = [*times.tolist(), *(r["t"] for r in transitions), *(r["t_send"] for r in messages)]
         t_end = max(ends, default=0.0)
         intervals = self.intervals(transitions, t_end)
         samples = {}
@@ -489,12 +560,21 @@ class _Reading:
         meta = self.meta
         if self.outcome is None:
             meta = dict(meta, duration=t_end)
-        outcome = self.outcome or {"instance": 0, "outcome": "log", "t": t_end,
-                                   "message": "imported from a rosbag2 log"}
-        run = run_type(meta, [outcome],
-                       _table(TRANSITION_COLUMNS, transitions),
-                       _table(INTERVAL_COLUMNS, intervals),
-                       _table(MESSAGE_COLUMNS, messages), times, samples)
+        outcome = self.outcome or {
+            "instance": 0,
+            "outcome": "log",
+            "t": t_end,
+            "message": "imported from a rosbag2 log",
+        }
+        run = run_type(
+            meta,
+            [outcome],
+            _table(TRANSITION_COLUMNS, transitions),
+            _table(INTERVAL_COLUMNS, intervals),
+            _table(MESSAGE_COLUMNS, messages),
+            times,
+            samples,
+        )
         problem = check_trace(run.to_dict())
         if problem is not None:
             raise LogError(f"{self.path}: the log does not make a valid trace: {problem}")
@@ -514,8 +594,7 @@ def _clock_ns(msg: Any) -> int:
 
 def _command(msg: Any, inputs: list[str]) -> np.ndarray:
     """A ``Twist`` as the plant's inputs, as export writes them."""
-    by_name = {"v": msg.linear.x, "vx": msg.linear.x, "vy": msg.linear.y,
-               "omega": msg.angular.z}
+    by_name = {"v": msg.linear.x, "vx": msg.linear.x, "vy": msg.linear.y, "omega": msg.angular.z}
     return np.array([by_name.get(n, math.nan) for n in inputs], float)
 
 
@@ -544,8 +623,9 @@ def _table(columns: tuple[str, ...], rows: list[dict[str, Any]]) -> Table:
     return Table(columns, {c: [r[c] for r in rows] for c in columns})
 
 
-def _stays_from(name: str, agent: dict[str, Any], transitions: list[dict[str, Any]],
-                t_end: float) -> list[dict[str, Any]]:
+def _stays_from(
+    name: str, agent: dict[str, Any], transitions: list[dict[str, Any]], t_end: float
+) -> list[dict[str, Any]]:
     """Stays in modes from mode changes alone: after a change to ``A.B.C`` the agent is in
     ``A``, ``A.B`` and ``A.B.C``; a stay continues while the modes entered keep it."""
     depth = {m["path"]: m["depth"] for m in agent["modes"]}
@@ -559,10 +639,28 @@ def _stays_from(name: str, agent: dict[str, Any], transitions: list[dict[str, An
         while keep < min(len(open_), len(chain)) and open_[keep][0] == chain[keep]:
             keep += 1
         for mode, start in open_[keep:]:
-            out.append({"instance": 0, "agent": name, "mode": mode, "depth": depth[mode],
-                        "start": start, "end": tr["t"], "_row": None})
+            out.append(
+                {
+                    "instance": 0,
+                    "agent": name,
+                    "mode": mode,
+                    "depth": depth[mode],
+                    "start": start,
+                    "end": tr["t"],
+                    "_row": None,
+                }
+            )
         open_ = open_[:keep] + [(p, tr["t"]) for p in chain[keep:]]
     for mode, start in open_:
-        out.append({"instance": 0, "agent": name, "mode": mode, "depth": depth[mode],
-                    "start": start, "end": t_end, "_row": None})
+        out.append(
+            {
+                "instance": 0,
+                "agent": name,
+                "mode": mode,
+                "depth": depth[mode],
+                "start": start,
+                "end": t_end,
+                "_row": None,
+            }
+        )
     return out

@@ -19,8 +19,7 @@ from hybridteam.model import Team
 from hybridteam.trace import Table
 
 VARIABLES = variables_key("")  # the suffix of an agent's variables in a run's snapshots
-VERDICT_COLUMNS = ("instance", "requirement", "satisfied", "robustness", "violated_at",
-                   "failed")
+VERDICT_COLUMNS = ("instance", "requirement", "satisfied", "robustness", "violated_at", "failed")
 
 
 def check_run(run: Any, team: Team) -> list[dict[str, dict[str, Any]]]:
@@ -42,10 +41,15 @@ def check_run(run: Any, team: Team) -> list[dict[str, dict[str, Any]]]:
             verdicts = one.check(run, params)
         except KeyError as exc:  # the discrete variables a simulation snapshots
             key = str(exc.args[0])
-            what = f"the discrete variables of agent '{key.removesuffix(VARIABLES)}'" \
-                if key.endswith(VARIABLES) else repr(key)
-            raise LogError(f"requirement {req.name}: reads {what}, which a recording does "
-                           "not have (variables are not logged)") from None
+            what = (
+                f"the discrete variables of agent '{key.removesuffix(VARIABLES)}'"
+                if key.endswith(VARIABLES)
+                else repr(key)
+            )
+            raise LogError(
+                f"requirement {req.name}: reads {what}, which a recording does "
+                "not have (variables are not logged)"
+            ) from None
         for i, v in enumerate(verdicts):
             out[i].update(v)
     return out
@@ -56,10 +60,13 @@ def verdict_table(verdicts: list[dict[str, dict[str, Any]]]) -> Table:
     rows: dict[str, list[Any]] = {c: [] for c in VERDICT_COLUMNS}
     for i, per in enumerate(verdicts):
         for name, v in per.items():
-            for column, value in (("instance", i), ("requirement", name),
-                                  ("satisfied", bool(v["satisfied"])),
-                                  ("robustness", v["robustness"]),
-                                  ("violated_at", v.get("violated_at")),
-                                  ("failed", v.get("failed"))):
+            for column, value in (
+                ("instance", i),
+                ("requirement", name),
+                ("satisfied", bool(v["satisfied"])),
+                ("robustness", v["robustness"]),
+                ("violated_at", v.get("violated_at")),
+                ("failed", v.get("failed")),
+            ):
                 rows[column].append(value)
     return Table(VERDICT_COLUMNS, rows)

@@ -87,8 +87,9 @@ def commanded_path(run: Trace, instance: int, ca: CAgent) -> CommandedPath | Non
     x = pose[first][None, :].copy()
     u = held(cmd[int(given[given <= first][-1])], bounds)
     path_t, path_xy = [float(times[first])], [x[0, :2].copy()]
-    worst = PoseDeviation(0.0, float(times[first]), (float(x[0, 0]), float(x[0, 1])),
-                          (float(x[0, 0]), float(x[0, 1])))
+    worst = PoseDeviation(
+        0.0, float(times[first]), (float(x[0, 0]), float(x[0, 1])), (float(x[0, 0]), float(x[0, 1]))
+    )
     t = float(times[first])
     for k in range(first, times.size):
         tk = float(times[k])

@@ -65,8 +65,19 @@ from hybridteam.trace import Table, Trace
 
 #: Seconds a matched transition may be early or late before it counts as a divergence
 DEFAULT_TOLERANCE = 0.1
-SUMMARY_COLUMNS = ("agent", "logged", "model", "matched", "max_shift", "max_pose_deviation",
-                   "max_replay_deviation", "diverges_at", "expected", "observed", "why")
+SUMMARY_COLUMNS = (
+    "agent",
+    "logged",
+    "model",
+    "matched",
+    "max_shift",
+    "max_pose_deviation",
+    "max_replay_deviation",
+    "diverges_at",
+    "expected",
+    "observed",
+    "why",
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,8 +93,10 @@ class Divergence:
     why: str
 
     def line(self) -> str:
-        return (f"first divergence at t={self.t:.6g} s, agent {self.agent}: the model is "
-                f"in {self.expected}, the log in {self.observed} ({self.why})")
+        return (
+            f"first divergence at t={self.t:.6g} s, agent {self.agent}: the model is "
+            f"in {self.expected}, the log in {self.observed} ({self.why})"
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,34 +157,59 @@ class Conformance:
         rows: dict[str, list[Any]] = {c: [] for c in SUMMARY_COLUMNS}
         for a in self.agents:
             d = a.divergence
-            for column, value in (("agent", a.agent), ("logged", a.logged), ("model", a.model),
-                                  ("matched", a.matched), ("max_shift", a.max_shift),
-                                  ("max_pose_deviation", a.max_pose_deviation),
-                                  ("max_replay_deviation", a.max_replay_deviation),
-                                  ("diverges_at", None if d is None else d.t),
-                                  ("expected", None if d is None else d.expected),
-                                  ("observed", None if d is None else d.observed),
-                                  ("why", None if d is None else d.why)):
+            for column, value in (
+                ("agent", a.agent),
+                ("logged", a.logged),
+                ("model", a.model),
+                ("matched", a.matched),
+                ("max_shift", a.max_shift),
+                ("max_pose_deviation", a.max_pose_deviation),
+                ("max_replay_deviation", a.max_replay_deviation),
+                ("diverges_at", None if d is None else d.t),
+                ("expected", None if d is None else d.expected),
+                ("observed", None if d is None else d.observed),
+                ("why", None if d is None else d.why),
+            ):
                 rows[column].append(value)
         return Table(SUMMARY_COLUMNS, rows)
 
     def lines(self) -> list[str]:
         """The report ``hybridteam check --conformance`` prints."""
-        head = ("agent", "transitions (log/model)", "matched", "max |shift| s",
-                "max pose deviation m",
-                "max replay deviation m")
-        body = [(a.agent, f"{a.logged}/{a.model}", str(a.matched), f"{a.max_shift:.3g}",
-                 _metres(a.max_pose_deviation), _metres(a.max_replay_deviation))
-                for a in self.agents]
+        head = (
+            "agent",
+            "transitions (log/model)",
+            "matched",
+            "max |shift| s",
+            "max pose deviation m",
+            "max replay deviation m",
+        )
+        body = [
+            (
+                a.agent,
+                f"{a.logged}/{a.model}",
+                str(a.matched),
+                f"{a.max_shift:.3g}",
+                _metres(a.max_pose_deviation),
+                _metres(a.max_replay_deviation),
+            )
+            for a in self.agents
+        ]
         widths = [max(len(r[k]) for r in (head, *body)) for k in range(len(head))]
-        out = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
-               for r in (head, *body)]
-        out += [f"{a.agent}: no pose check under commands: {a.no_pose_check}"
-                for a in self.agents if a.no_pose_check]
+        out = [
+            "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip()
+            for r in (head, *body)
+        ]
+        out += [
+            f"{a.agent}: no pose check under commands: {a.no_pose_check}"
+            for a in self.agents
+            if a.no_pose_check
+        ]
         first = self.first
         if first is None:
-            out.append(f"conformant: every agent's mode sequence is the model's, each "
-                       f"transition within {self.tolerance:g} s")
+            out.append(
+                f"conformant: every agent's mode sequence is the model's, each "
+                f"transition within {self.tolerance:g} s"
+            )
         else:
             out.append(f"DIVERGENT: {first.line()}")
         return out
@@ -237,8 +275,9 @@ class ReplayOutlet:
                 copy.fields.update(msg.fields)
 
 
-def conformance(run: Trace, team: Team, instance: int = 0,
-                tolerance: float = DEFAULT_TOLERANCE) -> Conformance:
+def conformance(
+    run: Trace, team: Team, instance: int = 0, tolerance: float = DEFAULT_TOLERANCE
+) -> Conformance:
     """Replay instance ``instance`` of ``run`` into ``team`` and compare (module
     docstring); a :class:`LogError` (one line) for a run of another team or a team a
     replay cannot run."""
@@ -247,27 +286,32 @@ def conformance(run: Trace, team: Team, instance: int = 0,
         raise LogError(f"instance {instance}: the run has instances 0..{run.n - 1}")
     period = regular_period(run.sample_times)
     if period is not None:  # the model sampled where the log is (samples change no run)
-        team = dataclasses.replace(team, simulation=dataclasses.replace(
-            team.simulation, sample_period=period))
+        team = dataclasses.replace(
+            team, simulation=dataclasses.replace(team.simulation, sample_period=period)
+        )
     full = compile_team(team)
     names = [ca.name for ca in full.agents]
     try:
         cteam = hosted_team(full, names)
     except HostingError as exc:
         raise LogError(f"cannot replay: {exc}") from None
-    cteam = dataclasses.replace(cteam, scenario=logged_scenario(run, instance, cteam.scenario,
-                                                                 names))
+    cteam = dataclasses.replace(
+        cteam, scenario=logged_scenario(run, instance, cteam.scenario, names)
+    )
     copies, waiting = logged_copies(run, instance, names, declarations(full))
     clock = ReplayClock(copies)
     end = replay_duration(run, instance)
     seed = run.meta.get("seed", team.simulation.seed)
-    sim = Simulator(cteam, 1, seed=seed if isinstance(seed, int) else seed[instance],
-                    duration=end, clock=clock)
+    sim = Simulator(
+        cteam, 1, seed=seed if isinstance(seed, int) else seed[instance], duration=end, clock=clock
+    )
     sim.ensemble.network.outlet = ReplayOutlet(waiting)
     model = sim.run()
     arrivals = copies_by_receiver(copies, names)
-    agents = [compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance,
-                            end) for ca in full.agents]
+    agents = [
+        compare_agent(run, instance, model, ca, arrivals.get(ca.name, []), tolerance, end)
+        for ca in full.agents
+    ]
     return Conformance(agents, tolerance, model, run, instance)
 
 
@@ -277,8 +321,10 @@ def check_same_team(run: Trace, team: Team) -> None:
         raise LogError(f"a run of team '{run.meta.get('team')}', not '{team.name}'")
     names = [a.name for a in team.agents]
     if run.agents != names:
-        raise LogError(f"the run's agents ({', '.join(run.agents)}) are not those of team "
-                       f"'{team.name}' ({', '.join(names)})")
+        raise LogError(
+            f"the run's agents ({', '.join(run.agents)}) are not those of team "
+            f"'{team.name}' ({', '.join(names)})"
+        )
 
 
 def regular_period(times: np.ndarray) -> float | None:
@@ -301,8 +347,9 @@ def replay_duration(run: Trace, instance: int) -> float:
     return float(run.meta["duration"])
 
 
-def logged_scenario(run: Trace, instance: int, scenario: list[tuple[float, int, str]],
-                    names: list[str]) -> list[tuple[float, int, str]]:
+def logged_scenario(
+    run: Trace, instance: int, scenario: list[tuple[float, int, str]], names: list[str]
+) -> list[tuple[float, int, str]]:
     """The team's scenario events at the times the log has them taken (module docstring)."""
     taken: dict[tuple[int, str], list[float]] = defaultdict(list)
     for k, name in enumerate(names):
@@ -320,9 +367,9 @@ def logged_scenario(run: Trace, instance: int, scenario: list[tuple[float, int, 
     return out
 
 
-def logged_copies(run: Trace, instance: int, names: list[str],
-                  types: dict[str, dict[str, list[str]]]
-                  ) -> tuple[list[tuple[float, Message]], dict[tuple[int, int], list[Message]]]:
+def logged_copies(
+    run: Trace, instance: int, names: list[str], types: dict[str, dict[str, list[str]]]
+) -> tuple[list[tuple[float, Message]], dict[tuple[int, int], list[Message]]]:
     """Every copy the log has reaching its receiver (a finite receive time), as a
     :class:`Message` in the log's order, its fields (``types``: the team's declarations)
     unknown (NaN) until the sender's model sends it; and the same copies by (sender index,
@@ -338,23 +385,36 @@ def logged_copies(run: Trace, instance: int, names: list[str],
         who = str(m["sender"][row]), str(m["receiver"][row])
         for name in who:
             if name not in index:
-                raise LogError(f"message at t={t_recv:g} s: '{name}' is not an agent of the "
-                               "team: a log of another team?")
+                raise LogError(
+                    f"message at t={t_recv:g} s: '{name}' is not an agent of the "
+                    "team: a log of another team?"
+                )
         sender, receiver = index[who[0]], index[who[1]]
         type_ = str(m["type"][row])
         note = str(m["reason"][row]) if m["status"][row] == "delivered" else ""
         # an acknowledgement whose message the model never sent acknowledges nothing
-        fields = {f: -1.0 if type_ == ACK else math.nan
-                  for f in types.get(type_, {}).get("fields", ())}
-        msg = Message(sender, receiver, int(m["seq"][row]), float(m["t_send"][row]),
-                      str(m["socket"][row]), type_, fields, int(m["msg_id"][row]), note)
+        fields = {
+            f: -1.0 if type_ == ACK else math.nan for f in types.get(type_, {}).get("fields", ())
+        }
+        msg = Message(
+            sender,
+            receiver,
+            int(m["seq"][row]),
+            float(m["t_send"][row]),
+            str(m["socket"][row]),
+            type_,
+            fields,
+            int(m["msg_id"][row]),
+            note,
+        )
         copies.append((t_recv, msg))
         waiting[(sender, msg.seq)].append(msg)
     return copies, waiting
 
 
-def copies_by_receiver(copies: list[tuple[float, Message]], names: list[str]
-                       ) -> dict[str, list[tuple[float, Message]]]:
+def copies_by_receiver(
+    copies: list[tuple[float, Message]], names: list[str]
+) -> dict[str, list[tuple[float, Message]]]:
     out: dict[str, list[tuple[float, Message]]] = defaultdict(list)
     for t, msg in copies:
         out[names[msg.receiver]].append((t, msg))
@@ -365,13 +425,27 @@ def _transitions(trace: Trace, instance: int, agent: str) -> list[tuple]:
     """``(t, source, target, cause, guard)`` of one agent's transitions, in order."""
     tr = trace.transitions
     rows = np.flatnonzero((tr["instance"] == instance) & (tr["agent"] == agent))
-    return [(float(tr["t"][k]), str(tr["source"][k]), str(tr["target"][k]),
-             str(tr["cause"][k]), str(tr["guard"][k])) for k in rows]
+    return [
+        (
+            float(tr["t"][k]),
+            str(tr["source"][k]),
+            str(tr["target"][k]),
+            str(tr["cause"][k]),
+            str(tr["guard"][k]),
+        )
+        for k in rows
+    ]
 
 
-def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
-                  arrivals: list[tuple[float, Message]], tolerance: float, end: float
-                  ) -> AgentConformance:
+def compare_agent(
+    run: Trace,
+    instance: int,
+    model: Trace,
+    ca: CAgent,
+    arrivals: list[tuple[float, Message]],
+    tolerance: float,
+    end: float,
+) -> AgentConformance:
     """One agent's mode sequence, shifts, pose deviation and first divergence; ``end``:
     when the recording ends."""
     agent = ca.name
@@ -388,8 +462,9 @@ def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
         if lg is not None and md is not None and lg[1:3] == md[1:3]:
             shift = lg[0] - md[0]
             if abs(shift) > tolerance:
-                divergence = _diverged(ca, md, lg, names, arrivals,
-                                       f"{shift:+.6g} s from the model's time")
+                divergence = _diverged(
+                    ca, md, lg, names, arrivals, f"{shift:+.6g} s from the model's time"
+                )
                 break
             shifts.append((md[0], shift, md[2]))
             continue
@@ -399,17 +474,30 @@ def compare_agent(run: Trace, instance: int, model: Trace, ca: CAgent,
         commanded, unchecked = commanded_path(run, instance, ca), ""
     except NoPoseCheck as exc:
         commanded, unchecked = None, str(exc)
-    return AgentConformance(agent, len(logged), len(expected), shifts,
-                            replay_deviation(run, instance, model, agent), divergence,
-                            commanded, unchecked)
+    return AgentConformance(
+        agent,
+        len(logged),
+        len(expected),
+        shifts,
+        replay_deviation(run, instance, model, agent),
+        divergence,
+        commanded,
+        unchecked,
+    )
 
 
 def _metres(value: float | None) -> str:
     return "-" if value is None else f"{value:.3g}"
 
 
-def _diverged(ca: CAgent, md: tuple | None, lg: tuple | None, names: list[str],
-              arrivals: list[tuple[float, Message]], note: str) -> Divergence:
+def _diverged(
+    ca: CAgent,
+    md: tuple | None,
+    lg: tuple | None,
+    names: list[str],
+    arrivals: list[tuple[float, Message]],
+    note: str,
+) -> Divergence:
     """The divergence at the earlier of the model's transition ``md`` and the log's
     ``lg`` (either may be missing): there one side has moved and the other not yet."""
     agent = ca.name
@@ -446,11 +534,15 @@ def _model_side(ca: CAgent, lg: tuple) -> str:
     transitions between the same modes on the same message or event, and their guards."""
     trigger = lg[3].split(":", 1)[1] if lg[3].startswith(("message:", "event:")) else None
     paths = [m.path for m in ca.modes]
+
     def within(path: str, mode: str) -> bool:  # a transition of a parent, into a parent
         return mode == path or mode.startswith(path + ".")
 
-    same = [tr for tr in ca.transitions if not tr.internal and
-            within(paths[tr.source], lg[1]) and within(paths[tr.target], lg[2])]
+    same = [
+        tr
+        for tr in ca.transitions
+        if not tr.internal and within(paths[tr.source], lg[1]) and within(paths[tr.target], lg[2])
+    ]
     if not same:
         return f"; the model has no transition {lg[1]} -> {lg[2]}"
     guarded = [tr.guard_text for tr in same if tr.on == trigger and tr.guard_text]
@@ -463,8 +555,7 @@ def _plain_cause(tr: tuple) -> str:
     return tr[3] + (f", guard {tr[4]}" if tr[4] else "")
 
 
-def _cause(tr: tuple, agent: str, names: list[str], arrivals: list[tuple[float, Message]]
-           ) -> str:
+def _cause(tr: tuple, agent: str, names: list[str], arrivals: list[tuple[float, Message]]) -> str:
     """A model transition with what explains it: for a message, the logged copy."""
     text = f"{tr[1] or '(start)'} -> {tr[2]} ({_plain_cause(tr)}"
     if tr[3].startswith("message:"):
@@ -472,8 +563,10 @@ def _cause(tr: tuple, agent: str, names: list[str], arrivals: list[tuple[float, 
         got = [(t, m) for t, m in arrivals if m.type == type_ and t <= tr[0]]
         if got:
             t, m = got[-1]
-            text += (f"; the log has '{type_}' from {names[m.sender]} sent at "
-                     f"t={m.t_send:.6g}, reaching {agent} at t={t:.6g}")
+            text += (
+                f"; the log has '{type_}' from {names[m.sender]} sent at "
+                f"t={m.t_send:.6g}, reaching {agent} at t={t:.6g}"
+            )
     return text + ")"
 
 
@@ -485,13 +578,18 @@ def replay_deviation(run: Trace, instance: int, model: Trace, agent: str) -> flo
     return None if worst is None else worst.distance
 
 
-def largest_replay_deviation(run: Trace, instance: int, model: Trace, agent: str
-                             ) -> PoseDeviation | None:
+def largest_replay_deviation(
+    run: Trace, instance: int, model: Trace, agent: str
+) -> PoseDeviation | None:
     """The logged sample of :func:`replay_deviation`: its time and both positions there
     (the first such sample where several are as far), for a view to mark it."""
     info = next(a for a in run.meta["agents"] if a["name"] == agent)
-    if info["plant"] not in PLANAR or info["state"][:2] != ["x", "y"] or \
-            agent not in run.samples or agent not in model.samples:
+    if (
+        info["plant"] not in PLANAR
+        or info["state"][:2] != ["x", "y"]
+        or agent not in run.samples
+        or agent not in model.samples
+    ):
         return None
     logged = run.samples[agent][:, instance, :2]
     mine = model.samples[agent][:, 0, :2]
@@ -508,6 +606,9 @@ def largest_replay_deviation(run: Trace, instance: int, model: Trace, agent: str
     distance = np.hypot(logged[ok, 0] - x, logged[ok, 1] - y)
     k = int(np.argmax(distance))
     row = np.flatnonzero(ok)[k]
-    return PoseDeviation(float(distance[k]), float(at[row]),
-                         (float(logged[row, 0]), float(logged[row, 1])),
-                         (float(x[k]), float(y[k])))
+    return PoseDeviation(
+        float(distance[k]),
+        float(at[row]),
+        (float(logged[row, 0]), float(logged[row, 1])),
+        (float(x[k]), float(y[k])),
+    )

@@ -68,8 +68,10 @@ def bag_format(path: str | os.PathLike, fmt: str | None) -> tuple[str, bool]:
         raise LogError(f"--format {fmt}: expected {' or '.join(FORMATS)}")
     if suffix in SUFFIXES:
         if fmt is not None and fmt != SUFFIXES[suffix]:
-            raise LogError(f"-o {path} says {SUFFIXES[suffix]} but --format says {fmt}; "
-                           "name the file .mcap or .db3, or a folder, or drop --format")
+            raise LogError(
+                f"-o {path} says {SUFFIXES[suffix]} but --format says {fmt}; "
+                "name the file .mcap or .db3, or a folder, or drop --format"
+            )
         return SUFFIXES[suffix], True
     return fmt or "mcap", False
 
@@ -79,8 +81,9 @@ def stamp(t: float) -> int:
     return round(t * 1e9)
 
 
-def write_bag(trace: Trace, path: str | os.PathLike, fmt: str | None = None,
-              instance: int = 0) -> Path:
+def write_bag(
+    trace: Trace, path: str | os.PathLike, fmt: str | None = None, instance: int = 0
+) -> Path:
     """Write instance ``instance`` of ``trace`` as a rosbag2 at ``path`` (see
     :func:`bag_format`); returns ``path``. A folder bag is never written over."""
     require_rosbags()
@@ -139,38 +142,48 @@ class _Messages:
     def header(self, k: int, frame: str = MAP_FRAME) -> Any:
         sec, nsec = divmod(self.ns[k], 1_000_000_000)
         return self.T["std_msgs/msg/Header"](
-            stamp=self.T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-            frame_id=frame)
+            stamp=self.T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec), frame_id=frame
+        )
 
     def string(self, data: dict) -> Any:
         return self.T[STRING](data=json.dumps(data, separators=(",", ":"), allow_nan=False))
 
     def array(self, names: list[str], values: np.ndarray) -> Any:
         T = self.T
-        dim = T["std_msgs/msg/MultiArrayDimension"](label=",".join(names), size=len(names),
-                                                    stride=len(names))
-        return T[ARRAY](layout=T["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0),
-                        data=np.asarray(values, dtype=np.float64))
+        dim = T["std_msgs/msg/MultiArrayDimension"](
+            label=",".join(names), size=len(names), stride=len(names)
+        )
+        return T[ARRAY](
+            layout=T["std_msgs/msg/MultiArrayLayout"](dim=[dim], data_offset=0),
+            data=np.asarray(values, dtype=np.float64),
+        )
 
     def vector(self, x: float, y: float, z: float = 0.0) -> Any:
         return self.T["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
 
     def quaternion(self, th: float) -> Any:
         """A rotation by ``th`` about z."""
-        return self.T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2),
-                                                      w=math.cos(th / 2))
+        return self.T["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2)
+        )
 
     def pose(self, x: float, y: float, th: float) -> Any:
         return self.T["geometry_msgs/msg/Pose"](
             position=self.T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
-            orientation=self.quaternion(th))
+            orientation=self.quaternion(th),
+        )
 
     def add_transform(self, k: int, child: str, x: float, y: float, th: float) -> None:
         """``map -> child`` at sample ``k``, sent on ``/tf`` with the others of that time."""
-        self.transforms.setdefault(k, []).append(self.T["geometry_msgs/msg/TransformStamped"](
-            header=self.header(k), child_frame_id=child,
-            transform=self.T["geometry_msgs/msg/Transform"](translation=self.vector(x, y),
-                                                            rotation=self.quaternion(th))))
+        self.transforms.setdefault(k, []).append(
+            self.T["geometry_msgs/msg/TransformStamped"](
+                header=self.header(k),
+                child_frame_id=child,
+                transform=self.T["geometry_msgs/msg/Transform"](
+                    translation=self.vector(x, y), rotation=self.quaternion(th)
+                ),
+            )
+        )
 
     # -- the bag's contents ----------------------------------------------------------------
     def records(self) -> Iterator[Record]:
@@ -189,8 +202,12 @@ class _Messages:
             if name in payloads and list(cols)[:3] == ["x", "y", "theta"]:
                 for k in have:
                     x, y, th = values[k, :3].tolist()
-                    yield payload_topic(name), self.ns[k], POSE, self.T[POSE](
-                        header=self.header(k), pose=self.pose(x, y, th))
+                    yield (
+                        payload_topic(name),
+                        self.ns[k],
+                        POSE,
+                        self.T[POSE](header=self.header(k), pose=self.pose(x, y, th)),
+                    )
                     self.add_transform(k, name, x, y, th)
         for k in sorted(self.transforms):
             yield TF, self.ns[k], TF_TYPE, self.T[TF_TYPE](transforms=self.transforms[k])
@@ -205,21 +222,47 @@ class _Messages:
         values, have = self.sampled(name)
         if names:
             for k in have:
-                yield default_topic(name, "state"), self.ns[k], ARRAY, \
-                    self.array(names, values[k])
+                yield default_topic(name, "state"), self.ns[k], ARRAY, self.array(names, values[k])
         if agent["plant"] in PLANAR and names[:3] == ["x", "y", "theta"]:
             yield from self.planar(name, values, have)
         if command_series(name) in self.run.meta.get("series", {}):
             yield from self.commands(name, agent["inputs"], default_topic(name, "cmd_vel"))
         run = self.run
-        yield from self.rows(run.transitions, name, "agent", default_topic(name, "mode"), "t",
-                             ("t", "step", "source", "target", "cause", "guard"))
-        yield from self.rows(run.intervals, name, "agent", default_topic(name, "stays"),
-                             "start", ("mode", "depth", "start", "end"))
-        yield from self.rows(run.messages, name, "sender", default_topic(name, "messages"),
-                             "t_send",
-                             ("seq", "sender", "receiver", "socket", "type", "t_send",
-                              "t_recv", "status", "reason", "msg_id"))
+        yield from self.rows(
+            run.transitions,
+            name,
+            "agent",
+            default_topic(name, "mode"),
+            "t",
+            ("t", "step", "source", "target", "cause", "guard"),
+        )
+        yield from self.rows(
+            run.intervals,
+            name,
+            "agent",
+            default_topic(name, "stays"),
+            "start",
+            ("mode", "depth", "start", "end"),
+        )
+        yield from self.rows(
+            run.messages,
+            name,
+            "sender",
+            default_topic(name, "messages"),
+            "t_send",
+            (
+                "seq",
+                "sender",
+                "receiver",
+                "socket",
+                "type",
+                "t_send",
+                "t_recv",
+                "status",
+                "reason",
+                "msg_id",
+            ),
+        )
 
     def planar(self, name: str, values: np.ndarray, have: np.ndarray) -> Iterator[Record]:
         """Pose, odometry and the ``/tf`` entry of a planar robot at each of its samples;
@@ -238,13 +281,22 @@ class _Messages:
                 vy = -math.sin(th) * dx + math.cos(th) * dy
             pose = self.pose(x, y, th)
             yield pose_topic, self.ns[k], POSE, T[POSE](header=self.header(k), pose=pose)
-            yield odom_topic, self.ns[k], ODOM, T[ODOM](
-                header=self.header(k), child_frame_id=base_frame(name),
-                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero),
-                twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                    twist=T[TWIST](linear=self.vector(vx, vy), angular=self.vector(0.0, 0.0,
-                                                                                   wz)),
-                    covariance=zero))
+            yield (
+                odom_topic,
+                self.ns[k],
+                ODOM,
+                T[ODOM](
+                    header=self.header(k),
+                    child_frame_id=base_frame(name),
+                    pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero),
+                    twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                        twist=T[TWIST](
+                            linear=self.vector(vx, vy), angular=self.vector(0.0, 0.0, wz)
+                        ),
+                        covariance=zero,
+                    ),
+                ),
+            )
             self.add_transform(k, base_frame(name), x, y, th)
 
     def commands(self, name: str, inputs: list[str], topic: str) -> Iterator[Record]:
@@ -253,12 +305,19 @@ class _Messages:
         values, have = self.sampled(command_series(name))
         for k in have:
             u = dict(zip(inputs, values[k].tolist(), strict=False))
-            yield topic, self.ns[k], TWIST, self.T[TWIST](
-                linear=self.vector(u.get("v", u.get("vx", 0.0)), u.get("vy", 0.0)),
-                angular=self.vector(0.0, 0.0, u.get("omega", 0.0)))
+            yield (
+                topic,
+                self.ns[k],
+                TWIST,
+                self.T[TWIST](
+                    linear=self.vector(u.get("v", u.get("vx", 0.0)), u.get("vy", 0.0)),
+                    angular=self.vector(0.0, 0.0, u.get("omega", 0.0)),
+                ),
+            )
 
-    def rows(self, table: Any, name: str, column: str, topic: str, time: str,
-             fields: tuple[str, ...]) -> Iterator[Record]:
+    def rows(
+        self, table: Any, name: str, column: str, topic: str, time: str, fields: tuple[str, ...]
+    ) -> Iterator[Record]:
         """The rows of ``table`` that belong to ``name``, as compact JSON in time order,
         each with its ``row`` (its place in the trace's table: import restores the order)."""
         rows = np.flatnonzero(table[column] == name).tolist()

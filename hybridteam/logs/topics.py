@@ -95,21 +95,28 @@ class Topics:
     mapped: bool = False  # from a mapping file: a named topic must be in the bag
 
     @classmethod
-    def default(cls, agents: list[str], payloads: list[str],
-                deploy: Mapping[str, PlantDeploy] | None = None) -> Topics:
+    def default(
+        cls, agents: list[str], payloads: list[str], deploy: Mapping[str, PlantDeploy] | None = None
+    ) -> Topics:
         """Export's names; an agent with ``deploy:`` settings (the team file's, which a
         live run drives its robot through) has its robot's odometry and command topics
         from them, as its robot's log records them."""
         deploy = deploy or {}
-        return cls({a: replace(AgentTopics.default(a), odom=deploy[a].odom,
-                               cmd=deploy[a].cmd_vel) if a in deploy
-                    else AgentTopics.default(a) for a in agents},
-                   {p: payload_topic(p) for p in payloads})
+        return cls(
+            {
+                a: replace(AgentTopics.default(a), odom=deploy[a].odom, cmd=deploy[a].cmd_vel)
+                if a in deploy
+                else AgentTopics.default(a)
+                for a in agents
+            },
+            {p: payload_topic(p) for p in payloads},
+        )
 
     def names(self) -> set[str]:
         """Every topic these name."""
-        return {t for at in self.agents.values() for t in at.__dict__.values()
-                if t is not None} | set(self.payloads.values())
+        return {
+            t for at in self.agents.values() for t in at.__dict__.values() if t is not None
+        } | set(self.payloads.values())
 
 
 class _AgentMapping(BaseModel):
@@ -142,19 +149,29 @@ def load_mapping(path: str | os.PathLike, agents: list[str], payloads: list[str]
     try:
         parsed = MappingFile.model_validate(doc.data)
     except ValidationError as exc:
-        raise InputErrors(located_errors(exc, MappingFile, doc.data, doc.positions,
-                                         doc.filename)) from None
+        raise InputErrors(
+            located_errors(exc, MappingFile, doc.data, doc.positions, doc.filename)
+        ) from None
     errors = []
-    for section, known, names in (("agents", agents, parsed.agents),
-                                  ("payloads", payloads, parsed.payloads)):
+    for section, known, names in (
+        ("agents", agents, parsed.agents),
+        ("payloads", payloads, parsed.payloads),
+    ):
         for name in names:
             if name not in known:
-                errors.append(doc.positions.error(
-                    (section, name), f"'{name}' is not one of the team's {section} "
-                    f"({', '.join(known) or 'none'})", at_key=True))
+                errors.append(
+                    doc.positions.error(
+                        (section, name),
+                        f"'{name}' is not one of the team's {section} "
+                        f"({', '.join(known) or 'none'})",
+                        at_key=True,
+                    )
+                )
     if errors:
         raise InputErrors(errors)
     empty = AgentTopics(*(None,) * len(AGENT_KEYS))
-    out = {a: replace(empty, **parsed.agents[a].model_dump()) if a in parsed.agents else empty
-           for a in agents}
+    out = {
+        a: replace(empty, **parsed.agents[a].model_dump()) if a in parsed.agents else empty
+        for a in agents
+    }
     return Topics(out, dict(parsed.payloads), mapped=True)

@@ -56,8 +56,12 @@ Address = tuple[str, int]
 def parse_address(text: object) -> Address:
     """``HOST:PORT`` as a socket address; ValueError saying what it must be otherwise."""
     host, sep, port = text.rpartition(":") if isinstance(text, str) else ("", "", "")
-    if not sep or not host or not (port.isascii() and port.isdigit()) \
-            or not 0 <= int(port) <= 65535:
+    if (
+        not sep
+        or not host
+        or not (port.isascii() and port.isdigit())
+        or not 0 <= int(port) <= 65535
+    ):
         raise ValueError(f"must be HOST:PORT with a port from 0 to 65535, got '{text}'")
     return host, int(port)
 
@@ -70,8 +74,10 @@ def group_problem(mode: str, host: str) -> str | None:
     except ValueError:
         return f"'{host}' is not an IPv4 address"
     if mode == "multicast" and not address.is_multicast:
-        return (f"'{host}' is not a multicast group (224.0.0.0 to 239.255.255.255; "
-                "239.x.x.x for a LAN's own)")
+        return (
+            f"'{host}' is not a multicast group (224.0.0.0 to 239.255.255.255; "
+            "239.x.x.x for a LAN's own)"
+        )
     return None
 
 
@@ -95,36 +101,52 @@ class UdpDeploy:
         ``path`` + the offending key."""
         keys = (*UDP_MODES, "interface")
         if not isinstance(config, Mapping):
-            raise ModelError(path, "expected a mapping with one of peers, multicast, "
-                                   "broadcast (and interface, with multicast)")
+            raise ModelError(
+                path,
+                "expected a mapping with one of peers, multicast, "
+                "broadcast (and interface, with multicast)",
+            )
         for key in config:
             if key not in keys:
-                raise ModelError((*path, key), f"unknown udp setting {key!r}",
-                                 hint=did_you_mean(str(key), keys), at_key=True)
+                raise ModelError(
+                    (*path, key),
+                    f"unknown udp setting {key!r}",
+                    hint=did_you_mean(str(key), keys),
+                    at_key=True,
+                )
         given = [k for k in UDP_MODES if k in config]
         if len(given) != 1:
-            raise ModelError(path, "give exactly one of peers, multicast, broadcast"
-                             + (f" (got {', '.join(given)})" if given else ""))
+            raise ModelError(
+                path,
+                "give exactly one of peers, multicast, broadcast"
+                + (f" (got {', '.join(given)})" if given else ""),
+            )
         mode = given[0]
         if "interface" in config and mode != "multicast":
-            raise ModelError((*path, "interface"), "interface is where a multicast group "
-                             "is joined: it goes with multicast only", at_key=True)
+            raise ModelError(
+                (*path, "interface"),
+                "interface is where a multicast group is joined: it goes with multicast only",
+                at_key=True,
+            )
         if mode == "peers":
             peers = config["peers"]
             if not isinstance(peers, list) or not peers:
-                raise ModelError((*path, "peers"), "expected a list of HOST:PORT addresses "
-                                 "(every process's)")
-            return cls(mode, tuple(_address(p, (*path, "peers", k))
-                                   for k, p in enumerate(peers)))
+                raise ModelError(
+                    (*path, "peers"), "expected a list of HOST:PORT addresses (every process's)"
+                )
+            return cls(mode, tuple(_address(p, (*path, "peers", k)) for k, p in enumerate(peers)))
         group = _address(config[mode], (*path, mode))
         problem = group_problem(mode, group[0])
         if problem is not None:
             raise ModelError((*path, mode), problem)
         interface = config.get("interface", LOOPBACK)
         if not isinstance(interface, str) or group_problem("interface", interface):
-            raise ModelError((*path, "interface"), "expected the IPv4 address of this "
-                             f"machine's interface (0.0.0.0: the kernel's choice), got "
-                             f"{interface!r}")
+            raise ModelError(
+                (*path, "interface"),
+                "expected the IPv4 address of this "
+                f"machine's interface (0.0.0.0: the kernel's choice), got "
+                f"{interface!r}",
+            )
         return cls(mode, group=group, interface=interface)
 
 
@@ -132,12 +154,15 @@ def agent_deploy(config: Any, path: DocPath) -> tuple[PlantDeploy | None, Addres
     """One agent's entry: its robot's settings (None if it names no topic) and its UDP
     ``listen`` address (None if not given), or a :class:`ModelError` at ``path`` + key."""
     if not isinstance(config, Mapping):
-        raise ModelError(path, "expected a mapping of listen, cmd_vel, odom, scan, frame, "
-                               "timeout")
+        raise ModelError(path, "expected a mapping of listen, cmd_vel, odom, scan, frame, timeout")
     for key in config:
         if key not in AGENT_KEYS:
-            raise ModelError((*path, key), f"unknown deploy setting {key!r}",
-                             hint=did_you_mean(str(key), AGENT_KEYS), at_key=True)
+            raise ModelError(
+                (*path, key),
+                f"unknown deploy setting {key!r}",
+                hint=did_you_mean(str(key), AGENT_KEYS),
+                at_key=True,
+            )
     listen = _address(config["listen"], (*path, "listen")) if "listen" in config else None
     robot = {k: v for k, v in config.items() if k != "listen"}
     return (PlantDeploy.from_mapping(robot, path) if robot else None), listen
@@ -168,26 +193,38 @@ class PlantDeploy:
             raise ModelError(path, "expected a mapping of cmd_vel, odom, scan, frame, timeout")
         for key in config:
             if key not in _KEYS:
-                raise ModelError((*path, key), f"unknown deploy setting {key!r}",
-                                 hint=did_you_mean(str(key), _KEYS), at_key=True)
+                raise ModelError(
+                    (*path, key),
+                    f"unknown deploy setting {key!r}",
+                    hint=did_you_mean(str(key), _KEYS),
+                    at_key=True,
+                )
         for key in ("cmd_vel", "odom"):
             if key not in config:
-                raise ModelError(path, f"missing {key!r}: the robot's "
-                                 + ("Twist command topic" if key == "cmd_vel"
-                                    else "Odometry topic"))
+                raise ModelError(
+                    path,
+                    f"missing {key!r}: the robot's "
+                    + ("Twist command topic" if key == "cmd_vel" else "Odometry topic"),
+                )
         for key in ("cmd_vel", "odom", "scan"):
             value = config.get(key)
             if key in config and not (isinstance(value, str) and _TOPIC.fullmatch(value)):
-                raise ModelError((*path, key), f"expected a topic's full name (/name/name..., "
-                                 "each name letters, digits and single underscores, not "
-                                 f"starting with a digit), got {value!r}")
+                raise ModelError(
+                    (*path, key),
+                    f"expected a topic's full name (/name/name..., "
+                    "each name letters, digits and single underscores, not "
+                    f"starting with a digit), got {value!r}",
+                )
         frame = config.get("frame", "odom")
         if not (isinstance(frame, str) and frame):
             raise ModelError((*path, "frame"), f"expected a frame name, got {frame!r}")
         timeout = config.get("timeout", 2.0)
-        if (isinstance(timeout, bool) or not isinstance(timeout, int | float)
-                or not 0 < timeout < math.inf):
-            raise ModelError((*path, "timeout"),
-                             f"expected a number of seconds > 0, got {timeout!r}")
-        return cls(config["cmd_vel"], config["odom"], config.get("scan"), frame,
-                   float(timeout))
+        if (
+            isinstance(timeout, bool)
+            or not isinstance(timeout, int | float)
+            or not 0 < timeout < math.inf
+        ):
+            raise ModelError(
+                (*path, "timeout"), f"expected a number of seconds > 0, got {timeout!r}"
+            )
+        return cls(config["cmd_vel"], config["odom"], config.get("scan"), frame, float(timeout))

@@ -178,8 +178,10 @@ class Team:
 
     def __repr__(self) -> str:
         names = ", ".join(a.name for a in self.agents)
-        return (f"<Team {self.name!r}: {len(self.agents)} agent(s) ({names}), "
-                f"{self.simulation.duration:g} s>")
+        return (
+            f"<Team {self.name!r}: {len(self.agents)} agent(s) ({names}), "
+            f"{self.simulation.duration:g} s>"
+        )
 
     def _repr_html_(self) -> str:
         """In Jupyter: the team's state diagram, drawn inline. Drawing lives above the

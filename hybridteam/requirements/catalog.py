@@ -45,13 +45,19 @@ class Catalog:
             for m in ca.modes:
                 if m.role:
                     roles.setdefault(m.role, []).append(m.index)
-            agents[ca.name] = AgentNames(list(ca.plant.state_names), list(ca.param_index),
-                                         list(ca.var_index), [m.path for m in ca.modes], roles)
+            agents[ca.name] = AgentNames(
+                list(ca.plant.state_names),
+                list(ca.param_index),
+                list(ca.var_index),
+                [m.path for m in ca.modes],
+                roles,
+            )
         messages = set(message_fields(cteam.team))
         for agent in cteam.team.agents:
             messages.update(s.message for s in agent.streams)
-        return cls(agents, list(cteam.team.parameters), {k: list(v) for k, v in series.items()},
-                   messages)
+        return cls(
+            agents, list(cteam.team.parameters), {k: list(v) for k, v in series.items()}, messages
+        )
 
     # -- bare names -----------------------------------------------------------------------
     def single(self) -> str | None:
@@ -81,8 +87,11 @@ class Catalog:
         return head in self.agents and tail in self.agents[head].variables
 
     def bare_hint(self, name: str) -> str | None:
-        owners = [a for a, n in self.agents.items()
-                  if name in n.state or name in n.params or name in n.variables]
+        owners = [
+            a
+            for a, n in self.agents.items()
+            if name in n.state or name in n.params or name in n.variables
+        ]
         if owners:
             return f"name the agent: {owners[0]}.{name}"
         return did_you_mean(name, [*self.agents, *self.team_params, "t"])
@@ -100,37 +109,51 @@ class Catalog:
             if tail in names.variables:
                 j = names.variables.index(tail)
                 return (lambda s: s.variable(head, j)), ("", None)
-            return None, (f"agent '{head}' has no state, parameter or variable '{tail}'",
-                          did_you_mean(tail, [*names.state, *names.params, *names.variables])
-                          or f"its states: {', '.join(names.state) or 'none'}")
+            return None, (
+                f"agent '{head}' has no state, parameter or variable '{tail}'",
+                did_you_mean(tail, [*names.state, *names.params, *names.variables])
+                or f"its states: {', '.join(names.state) or 'none'}",
+            )
         if head in self.series:
             cols = self.series[head]
             if tail in cols:
                 j = cols.index(tail)
                 return (lambda s: s.series(head, j)), ("", None)
-            return None, (f"series '{head}' has no column '{tail}'",
-                          f"its columns: {', '.join(cols)}")
-        return None, (f"unknown signal '{text}'",
-                      did_you_mean(head, [*self.agents, *self.series])
-                      or "write agent.state, agent.parameter or payload.column")
+            return None, (
+                f"series '{head}' has no column '{tail}'",
+                f"its columns: {', '.join(cols)}",
+            )
+        return None, (
+            f"unknown signal '{text}'",
+            did_you_mean(head, [*self.agents, *self.series])
+            or "write agent.state, agent.parameter or payload.column",
+        )
 
     # -- in_mode(...), count_in_role(...), received(...) -------------------------------------
-    def function(self, name: str, args: list[tuple[str, int, int]]
-                 ) -> tuple[Getter | None, tuple[int, int, str, str | None]]:
+    def function(
+        self, name: str, args: list[tuple[str, int, int]]
+    ) -> tuple[Getter | None, tuple[int, int, str, str | None]]:
         if len(args) == 2 or (name in ("in_mode", "in_role") and len(args) == 1):
             if len(args) == 1:
                 one = self.single()
                 if one is None:
                     _, s, e = args[0]
-                    return None, (s, e, f"{name}() needs the agent in a team of "
-                                  f"{len(self.agents)}", f"e.g. {name}({next(iter(self.agents))}"
-                                  f", {args[0][0]})")
+                    return None, (
+                        s,
+                        e,
+                        f"{name}() needs the agent in a team of {len(self.agents)}",
+                        f"e.g. {name}({next(iter(self.agents))}, {args[0][0]})",
+                    )
                 agent, rest = one, args[0]
             else:
                 (agent, s, e), rest = args[0], args[1]
                 if agent not in self.agents:
-                    return None, (s, e, f"unknown agent '{agent}'",
-                                  did_you_mean(agent, self.agents))
+                    return None, (
+                        s,
+                        e,
+                        f"unknown agent '{agent}'",
+                        did_you_mean(agent, self.agents),
+                    )
             return self._agent_function(name, agent, rest)
         return self._team_function(name, args[0])
 
@@ -144,8 +167,12 @@ class Catalog:
             return (lambda sig: sig.in_modes(agent, [idx])), (0, 0, "", None)
         if name == "in_role":
             if what not in names.roles:
-                return None, (s, e, f"agent '{agent}' has no role '{what}'",
-                              f"its roles: {', '.join(names.roles) or 'none'}")
+                return None, (
+                    s,
+                    e,
+                    f"agent '{agent}' has no role '{what}'",
+                    f"its roles: {', '.join(names.roles) or 'none'}",
+                )
             modes = names.roles[what]
             return (lambda sig: sig.in_modes(agent, modes)), (0, 0, "", None)
         return self._event(name, agent, arg)
@@ -165,15 +192,23 @@ class Catalog:
         if not found:
             kind = "mode" if name == "count_in_mode" else "role"
             return None, (s, e, f"no agent has a {kind} '{what}'", None)
-        return (lambda sig: sum(sig.in_modes(a, m).astype(float) for a, m in found.items())), \
-            (0, 0, "", None)
+        return (lambda sig: sum(sig.in_modes(a, m).astype(float) for a, m in found.items())), (
+            0,
+            0,
+            "",
+            None,
+        )
 
     def _event(self, name: str, agent: str | None, arg: tuple[str, int, int]):
         what, s, e = arg
         if what not in self.messages:
-            return None, (s, e, f"unknown message type '{what}'",
-                          did_you_mean(what, self.messages)
-                          or f"the team's messages: {', '.join(sorted(self.messages))}")
+            return None, (
+                s,
+                e,
+                f"unknown message type '{what}'",
+                did_you_mean(what, self.messages)
+                or f"the team's messages: {', '.join(sorted(self.messages))}",
+            )
         self.used_events.add(what)
         return (lambda sig: sig.event(name, agent, what)), (0, 0, "", None)
 

@@ -49,8 +49,12 @@ class RequirementSet:
             return {}
         return observers([r.formula for r in self.requirements], cteam, self.catalog)
 
-    def check(self, run: Any, params: Mapping[str, tuple[list[str], np.ndarray]],
-              snapshots: Mapping[str, Any] | None = None) -> list[dict[str, dict]]:
+    def check(
+        self,
+        run: Any,
+        params: Mapping[str, tuple[list[str], np.ndarray]],
+        snapshots: Mapping[str, Any] | None = None,
+    ) -> list[dict[str, dict]]:
         """Per instance of ``run``: ``{name: verdict}`` (see :func:`verdict`)."""
         if not self.requirements:
             return [{} for _ in range(run.n)]
@@ -97,8 +101,7 @@ def compile_requirements(cteam: Any) -> RequirementSet:
         try:
             node = compile_formula(req.formula, catalog)
         except ExpressionError as exc:
-            errors.append(ModelError(req.where, exc.message, offset=exc.offset,
-                                     hint=exc.hint))
+            errors.append(ModelError(req.where, exc.message, offset=exc.offset, hint=exc.hint))
             continue
         done.append(CompiledRequirement(req.name, node, req.formula, req.description))
     if errors:

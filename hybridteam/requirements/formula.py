@@ -35,7 +35,8 @@ SIGNAL_FUNCTIONS = {  # name: (usage, accepts an agent first, result is a condit
     "count_in_mode": ("count_in_mode(Mode.Path)", False, False),
     "count_in_role": ("count_in_role(role)", False, False),
     "received": ("received([agent,] message)", True, True),
-    "sent": ("sent([agent,] message)", True, True)}
+    "sent": ("sent([agent,] message)", True, True),
+}
 STL_NAMES = frozenset({*TEMPORAL, "implies", *SIGNAL_FUNCTIONS})
 
 
@@ -63,12 +64,16 @@ class _FormulaCompiler(_Compiler):
                     self._allowed.add(id(node))  # agent.x, box.theta
                 continue
             f = node.func
-            if isinstance(f, ast.Subscript) and isinstance(f.value, ast.Name) \
-                    and f.value.id in TEMPORAL:
+            if (
+                isinstance(f, ast.Subscript)
+                and isinstance(f.value, ast.Name)
+                and f.value.id in TEMPORAL
+            ):
                 self._allowed.update({id(f), id(f.slice)})
             if isinstance(f, ast.Name) and f.id in SIGNAL_FUNCTIONS:
-                self._allowed.update(id(a) for a in ast.walk(node) if a is not node
-                                     and isinstance(a, ast.Attribute))
+                self._allowed.update(
+                    id(a) for a in ast.walk(node) if a is not node and isinstance(a, ast.Attribute)
+                )
         super()._check(root)
 
     def _problem(self, node: Any) -> _Problem | None:
@@ -76,8 +81,13 @@ class _FormulaCompiler(_Compiler):
             return None
         if isinstance(node, ast.Call):
             f = node.func
-            name = f.value.id if isinstance(f, ast.Subscript) and isinstance(
-                f.value, ast.Name) else f.id if isinstance(f, ast.Name) else None
+            name = (
+                f.value.id
+                if isinstance(f, ast.Subscript) and isinstance(f.value, ast.Name)
+                else f.id
+                if isinstance(f, ast.Name)
+                else None
+            )
             if name in STL_NAMES:
                 return self._arity(node, name)
         return super()._problem(node)
@@ -89,28 +99,47 @@ class _FormulaCompiler(_Compiler):
         n = len(node.args)
         if name in TEMPORAL or name == "implies":
             want = TEMPORAL.get(name, 2)
-            usage = {"always": "always[a, b](phi)", "eventually": "eventually[a, b](phi)",
-                     "until": "until[a, b](phi, psi)", "implies": "implies(phi, psi)"}[name]
-            return None if n == want else (1, start, end, f"wrong number of arguments ({n}) "
-                                           f"in call to {name}", f"usage: {usage}")
+            usage = {
+                "always": "always[a, b](phi)",
+                "eventually": "eventually[a, b](phi)",
+                "until": "until[a, b](phi, psi)",
+                "implies": "implies(phi, psi)",
+            }[name]
+            return (
+                None
+                if n == want
+                else (
+                    1,
+                    start,
+                    end,
+                    f"wrong number of arguments ({n}) in call to {name}",
+                    f"usage: {usage}",
+                )
+            )
         usage, agent_first, _ = SIGNAL_FUNCTIONS[name]
         ok = n == 1 or (agent_first and n == 2)
         if ok and all(dotted_name(a) is not None for a in node.args):
             return None
         if ok:
             bad = next(a for a in node.args if dotted_name(a) is None)
-            return (1, *self.pos(bad), f"{name}() takes names, not expressions",
-                    f"usage: {usage}")
-        return 1, start, end, f"wrong number of arguments ({n}) in call to {name}", \
-            f"usage: {usage}"
+            return (1, *self.pos(bad), f"{name}() takes names, not expressions", f"usage: {usage}")
+        return (
+            1,
+            start,
+            end,
+            f"wrong number of arguments ({n}) in call to {name}",
+            f"usage: {usage}",
+        )
 
     # -- compilation ----------------------------------------------------------------------
     def compile(self, node: ast.expr) -> _C:
         if isinstance(node, ast.Compare):
             return self._compare_formula(node)
         if isinstance(node, ast.BoolOp):
-            kids = [self.cond(v, "'and'" if isinstance(node.op, ast.And) else "'or'")
-                    for v in node.values]
+            kids = [
+                self.cond(v, "'and'" if isinstance(node.op, ast.And) else "'or'")
+                for v in node.values
+            ]
             cls = N.And if isinstance(node.op, ast.And) else N.Or
             return _F(cls(self.text(node), kids))
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
@@ -152,17 +181,35 @@ class _FormulaCompiler(_Compiler):
         values = [self.typed(o, False, "a comparison") for o in operands]
         for o, v in zip(operands, values, strict=True):
             if v.const and isinstance(v.value, float) and math.isnan(v.value):  # no margin
-                raise self.error(f"'{self.text(o)}' is not a number (nan): a comparison "
-                                 "with it has no margin", *self.pos(o))
+                raise self.error(
+                    f"'{self.text(o)}' is not a number (nan): a comparison with it has no margin",
+                    *self.pos(o),
+                )
         preds: list[N.Node] = []
         for i, op in enumerate(node.ops):
             a, b = operands[i], operands[i + 1]
-            text = self._balanced(self.pos(a)[0], self.pos(b)[1]) if len(node.ops) > 1 \
+            text = (
+                self._balanced(self.pos(a)[0], self.pos(b)[1])
+                if len(node.ops) > 1
                 else self.text(node)
-            sym = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==",
-                   ast.NotEq: "!="}[type(op)]
-            preds.append(N.Predicate(text, lhs=values[i].fn, rhs=values[i + 1].fn, op=sym,
-                                     continuous=self._continuous(a, b)))
+            )
+            sym = {
+                ast.Lt: "<",
+                ast.LtE: "<=",
+                ast.Gt: ">",
+                ast.GtE: ">=",
+                ast.Eq: "==",
+                ast.NotEq: "!=",
+            }[type(op)]
+            preds.append(
+                N.Predicate(
+                    text,
+                    lhs=values[i].fn,
+                    rhs=values[i + 1].fn,
+                    op=sym,
+                    continuous=self._continuous(a, b),
+                )
+            )
         return _F(preds[0] if len(preds) == 1 else N.And(self.text(node), preds))
 
     def _continuous(self, *operands: ast.expr) -> bool:
@@ -170,12 +217,19 @@ class _FormulaCompiler(_Compiler):
         an operand counts modes or roles or reads a discrete variable (they jump at
         instants)."""
         for n in (n for o in operands for n in ast.walk(o)):
-            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) \
-                    and n.func.id in SIGNAL_FUNCTIONS:
+            if (
+                isinstance(n, ast.Call)
+                and isinstance(n.func, ast.Name)
+                and n.func.id in SIGNAL_FUNCTIONS
+            ):
                 return False
-            name = (f"{n.value.id}.{n.attr}" if isinstance(n, ast.Attribute)
-                    and isinstance(n.value, ast.Name) else n.id if isinstance(n, ast.Name)
-                    else None)
+            name = (
+                f"{n.value.id}.{n.attr}"
+                if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name)
+                else n.id
+                if isinstance(n, ast.Name)
+                else None
+            )
             if name is not None and self.catalog.is_variable(name):
                 return False
         return True
@@ -205,14 +259,21 @@ class _FormulaCompiler(_Compiler):
             value = float(c.value)
             written_inf = isinstance(e, ast.Name) and e.id == "inf"
             if not math.isfinite(value) and not written_inf:  # 1/0, 1e999: not a number
-                raise self.error(f"window bounds must be numbers; this one is {value:g}",
-                                 *self.pos(e), "an endless window is written inf, e.g. "
-                                 "always[0, inf](x < 1)")
+                raise self.error(
+                    f"window bounds must be numbers; this one is {value:g}",
+                    *self.pos(e),
+                    "an endless window is written inf, e.g. always[0, inf](x < 1)",
+                )
             bounds.append(value)
         lo, hi = bounds
         if not (math.isfinite(lo) and lo >= 0) or math.isnan(hi) or hi < lo:
-            raise self.error(f"bad window [{lo:g}, {hi:g}]" + (
-                ": its start is after its end" if hi < lo else ""), start, end, usage)
+            raise self.error(
+                f"bad window [{lo:g}, {hi:g}]"
+                + (": its start is after its end" if hi < lo else ""),
+                start,
+                end,
+                usage,
+            )
         return lo, hi
 
     def _signal(self, node: ast.Attribute) -> Any:
@@ -240,6 +301,8 @@ def compile_formula(source: str, catalog: Catalog) -> N.Node:
     tree = comp.parse(0)
     result = comp.compile(tree)
     if not result.cond:
-        raise comp.error("a requirement must be a condition, e.g. 'always(x <= 22)', not a "
-                         "number", *comp.pos(tree))
+        raise comp.error(
+            "a requirement must be a condition, e.g. 'always(x <= 22)', not a number",
+            *comp.pos(tree),
+        )
     return result.node  # type: ignore[attr-defined]  # (a condition: an _F)

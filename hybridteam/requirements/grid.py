@@ -20,8 +20,13 @@ import numpy as np
 class Grid:
     """Rows of increasing times, ``t`` of shape ``(n, W)``, padded with ``+inf``."""
 
-    def __init__(self, sample_times: np.ndarray, ends: np.ndarray,
-                 extra_instances: np.ndarray, extra_times: np.ndarray) -> None:
+    def __init__(
+        self,
+        sample_times: np.ndarray,
+        ends: np.ndarray,
+        extra_instances: np.ndarray,
+        extra_times: np.ndarray,
+    ) -> None:
         st = np.asarray(sample_times, float)
         ends = np.asarray(ends, float)
         n, s = len(ends), len(st)
@@ -32,8 +37,11 @@ class Grid:
         ok = np.isfinite(et) & (et <= ends[ei])
         ei, et = ei[ok], et[ok]
         k = np.searchsorted(st, et, "left")  # samples strictly before each extra
-        on_sample = (k < self.kept[ei]) & (st[np.minimum(k, max(s - 1, 0))] == et) \
-            if s else np.zeros(len(et), bool)
+        on_sample = (
+            (k < self.kept[ei]) & (st[np.minimum(k, max(s - 1, 0))] == et)
+            if s
+            else np.zeros(len(et), bool)
+        )
         ei, et, k = ei[~on_sample], et[~on_sample], k[~on_sample]
         order = np.lexsort((et, ei))
         ei, et, k = ei[order], et[order], k[order]
@@ -49,8 +57,9 @@ class Grid:
         self.length = self.kept + count
         width = int(self.length.max(initial=0))
         #: where sample j of row i goes; ``width`` (a spare column) for samples past its end
-        self.sample_pos = np.where(np.arange(s) < self.kept[:, None],
-                                   np.arange(s) + np.cumsum(hist, axis=1)[:, :s], width)
+        self.sample_pos = np.where(
+            np.arange(s) < self.kept[:, None], np.arange(s) + np.cumsum(hist, axis=1)[:, :s], width
+        )
         self.t = self.place(np.broadcast_to(st, (n, s)), np.inf)
         self.t[ei, ext_pos] = et
         self.shape = self.t.shape
@@ -63,9 +72,9 @@ class Grid:
         np.put_along_axis(out, self.sample_pos, samples, axis=1)
         return out[:, :-1]
 
-    def search(self, instances: np.ndarray, times: np.ndarray,
-               side: Literal["left", "right"] = "left"
-               ) -> np.ndarray:
+    def search(
+        self, instances: np.ndarray, times: np.ndarray, side: Literal["left", "right"] = "left"
+    ) -> np.ndarray:
         """Per query, ``np.searchsorted(row, time, side)`` on its instance's row."""
         inst = np.asarray(instances, np.intp)
         q = np.asarray(times, float)
@@ -76,8 +85,7 @@ class Grid:
         if self._keys is None:
             self._values = np.unique(self.ext_t)
             self._scale = len(self._values) + 1
-            self._keys = self.ext_inst * self._scale + np.searchsorted(self._values,
-                                                                       self.ext_t)
+            self._keys = self.ext_inst * self._scale + np.searchsorted(self._values, self.ext_t)
         key = inst * self._scale + np.searchsorted(self._values, q, side)
         return samples + np.searchsorted(self._keys, key, "left") - self.first[inst]
 
@@ -90,8 +98,9 @@ class Grid:
         ok[ok] = self.t[inst[ok], pos[ok]] == np.asarray(times, float)[ok]
         return np.where(ok, pos, -1)
 
-    def last_records(self, instances: np.ndarray, times: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def last_records(
+        self, instances: np.ndarray, times: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Where records ``(instance, time)`` (in the order they were taken) fall on the
         grid: ``(rows, cols, which)``, one per grid point that has any, ``which`` the
         index of the last record there (records off the grid are left out)."""

@@ -134,8 +134,7 @@ class Temporal(Node):
     def window(self, sig: Any, i: int, k: int) -> np.ndarray:
         """Grid indices of instance ``i`` inside the window of grid point ``k``."""
         t = sig.t[i]
-        return np.flatnonzero((t >= t[k] + self.lo) & (t <= t[k] + self.hi)
-                              & np.isfinite(t))
+        return np.flatnonzero((t >= t[k] + self.lo) & (t <= t[k] + self.hi) & np.isfinite(t))
 
     def _whole_run(self, sig: Any, op: Any, identity: float) -> np.ndarray | None:
         """At t = 0, a window ``[0, inf)`` is the whole run: one reduction per row (the
@@ -167,8 +166,12 @@ class Always(Temporal):
         bad = win[rho[win] < 0]
         j = int(bad[0])
         t_fail, failed = body.blame(sig, i, j)
-        if j > win[0] and np.isfinite(rho[j - 1]) and body.is_boundary_continuous() \
-                and t_fail == sig.t[i, j]:
+        if (
+            j > win[0]
+            and np.isfinite(rho[j - 1])
+            and body.is_boundary_continuous()
+            and t_fail == sig.t[i, j]
+        ):
             # a continuous margin turned negative between two grid points: where the
             # segment between them crosses zero (at t[j-1] itself on a located crossing)
             t0, t1 = sig.t[i, j - 1], sig.t[i, j]
@@ -199,8 +202,9 @@ class Until(Temporal):
     def _rho(self, sig: Any) -> np.ndarray:
         from hybridteam.requirements import robustness as R
 
-        return R.until(sig.t, self.children[0].rho(sig), self.children[1].rho(sig),
-                       self.lo, self.hi)
+        return R.until(
+            sig.t, self.children[0].rho(sig), self.children[1].rho(sig), self.lo, self.hi
+        )
 
 
 def _continuous(node: Node) -> bool:
@@ -212,4 +216,3 @@ def _continuous(node: Node) -> bool:
     if isinstance(node, Flag | Const | Temporal):
         return False
     return all(_continuous(c) for c in node.children)
-

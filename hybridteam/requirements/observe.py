@@ -57,8 +57,7 @@ class _AgentCatalog(Catalog):
 
 
 def _predicates(node: N.Node) -> list[N.Predicate]:
-    out = [node] if isinstance(node, N.Predicate) and node.continuous \
-        and node.op in _UFUNCS else []
+    out = [node] if isinstance(node, N.Predicate) and node.continuous and node.op in _UFUNCS else []
     for child in node.children:
         out += _predicates(child)
     return out
@@ -96,6 +95,7 @@ def observers(formulas: list[N.Node], cteam: Any, catalog: Catalog) -> dict[int,
                 if isinstance(twin, N.Predicate) and twin.op in _UFUNCS:
                     seen.add((ca.name, pred.source))
                     out.setdefault(ca.index, []).append(
-                        Watch(_atom(twin), 0, None, False, observer=True))
+                        Watch(_atom(twin), 0, None, False, observer=True)
+                    )
                 break
     return out

@@ -34,16 +34,19 @@ def verdict_lines(instances: Sequence[dict[str, Any]]) -> list[str]:
             if w["satisfied"]:
                 lines.append(f"requirement {name}: holds (robustness {rho})")
             elif "violated_at" not in w:  # a NaN robustness: a signal was not a number
-                lines.append(f"requirement {name}: does not hold (robustness {rho}: a value "
-                             "it compares is not a number)")
+                lines.append(
+                    f"requirement {name}: does not hold (robustness {rho}: a value "
+                    "it compares is not a number)"
+                )
             else:
-                lines.append(f"requirement {name}: VIOLATED at t={w['violated_at']:.9g} by "
-                             f"{w['failed']} (robustness {rho})")
+                lines.append(
+                    f"requirement {name}: VIOLATED at t={w['violated_at']:.9g} by "
+                    f"{w['failed']} (robustness {rho})"
+                )
             continue
         text = f"requirement {name}: holds in {held} of {len(vs)}, min robustness {rho}"
         if not w["satisfied"] and "violated_at" in w:
-            text += (f" (instance {worst}: violated at t={w['violated_at']:.9g} by "
-                     f"{w['failed']})")
+            text += f" (instance {worst}: violated at t={w['violated_at']:.9g} by {w['failed']})"
         lines.append(text)
     return lines
 
@@ -57,7 +60,8 @@ def aggregate(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, float]]:
             agg = out.setdefault(name, {"held": 0.0, "runs": 0.0, "min_robustness": math.inf})
             agg["held"] += bool(v["satisfied"])
             agg["runs"] += 1
-            agg["min_robustness"] = min(agg["min_robustness"],
-                                        robustness_value(v["robustness"]))
-    return {name: {"satisfied": a["held"] / a["runs"], "min_robustness": a["min_robustness"]}
-            for name, a in out.items()}
+            agg["min_robustness"] = min(agg["min_robustness"], robustness_value(v["robustness"]))
+    return {
+        name: {"satisfied": a["held"] / a["runs"], "min_robustness": a["min_robustness"]}
+        for name, a in out.items()
+    }

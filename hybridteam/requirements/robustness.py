@@ -43,20 +43,19 @@ _CHUNK_BYTES = 48 << 20  # working memory per chunk of rows (tables, search keys
 Reduce = np.ufunc  # np.minimum or np.maximum
 
 
-def always(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf
-           ) -> np.ndarray:
+def always(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf) -> np.ndarray:
     """Robustness of ``always[a, b] phi`` given ``rho`` = robustness of phi."""
     return _window(t, rho, a, b, np.minimum, math.inf)
 
 
-def eventually(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf
-               ) -> np.ndarray:
+def eventually(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf) -> np.ndarray:
     """Robustness of ``eventually[a, b] phi`` given ``rho`` = robustness of phi."""
     return _window(t, rho, a, b, np.maximum, -math.inf)
 
 
-def until(t: np.ndarray, rho1: np.ndarray, rho2: np.ndarray, a: float = 0.0,
-          b: float = math.inf) -> np.ndarray:
+def until(
+    t: np.ndarray, rho1: np.ndarray, rho2: np.ndarray, a: float = 0.0, b: float = math.inf
+) -> np.ndarray:
     """Robustness of ``phi until[a, b] psi`` (``rho1`` = phi's, ``rho2`` = psi's).
 
     With ``[lo, hi)`` the window's index range, ``min phi[i, j) = min(min phi[i, lo),
@@ -75,8 +74,9 @@ def until(t: np.ndarray, rho1: np.ndarray, rho2: np.ndarray, a: float = 0.0,
     return out
 
 
-def _window(t: np.ndarray, rho: np.ndarray, a: float, b: float, op: Reduce,
-            identity: float) -> np.ndarray:
+def _window(
+    t: np.ndarray, rho: np.ndarray, a: float, b: float, op: Reduce, identity: float
+) -> np.ndarray:
     a, b = _check_window(a, b)
     t, (rho,) = _check_signals(t, rho)
     lo, hi, valid = _bounds(t, a, b, rho.shape[0])
@@ -91,22 +91,23 @@ def _window(t: np.ndarray, rho: np.ndarray, a: float, b: float, op: Reduce,
     return out
 
 
-def _count_reduce(x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray, identity: float
-                  ) -> np.ndarray:
+def _count_reduce(
+    x: np.ndarray, lo: np.ndarray | None, hi: np.ndarray, identity: float
+) -> np.ndarray:
     """min (``identity`` +inf) or max (-inf) over ``x[r, lo:hi]`` when every value is
     +-inf: the window holds the other infinity iff it counts one; one prefix sum a row.
     ``lo`` None: each window starts at its own point."""
     n, k = x.shape
     counts = np.zeros((n, k + 1), np.int64)
     np.cumsum(x != identity, axis=1, out=counts[:, 1:])
-    before = counts[:, :k] if lo is None else np.take_along_axis(
-        counts, np.broadcast_to(lo, (n, k)), 1)
+    before = (
+        counts[:, :k] if lo is None else np.take_along_axis(counts, np.broadcast_to(lo, (n, k)), 1)
+    )
     decided = np.take_along_axis(counts, np.broadcast_to(hi, (n, k)), 1) > before
     return np.where(decided, -identity, identity)
 
 
-def _suffix_reduce(x: np.ndarray, lo: np.ndarray, op: Reduce, identity: float
-                   ) -> np.ndarray:
+def _suffix_reduce(x: np.ndarray, lo: np.ndarray, op: Reduce, identity: float) -> np.ndarray:
     """``op`` over ``x[r, lo:]`` per point (pads already hold ``identity``)."""
     n, k = x.shape
     suffix = np.full((n, k + 1), identity)
@@ -140,8 +141,9 @@ def _check_signals(t: np.ndarray, *rhos: np.ndarray) -> tuple[np.ndarray, list[n
     if not np.all(grid > -np.inf):
         raise ValueError("times must not be NaN or -inf")
     if np.any((grid[:, 1:] <= grid[:, :-1]) & np.isfinite(grid[:, 1:])):
-        raise ValueError("times must increase strictly along a row, padded at its end "
-                         "with +inf only")
+        raise ValueError(
+            "times must increase strictly along a row, padded at its end with +inf only"
+        )
     return t, arrays
 
 
@@ -156,8 +158,7 @@ def _chunks(n: int, row_bytes: int) -> Iterator[slice]:
         yield slice(r0, min(n, r0 + step))
 
 
-def _bounds(t: np.ndarray, a: float, b: float, n: int
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _bounds(t: np.ndarray, a: float, b: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per point, its window ``[lo, hi)`` in row indices, and the valid (non-pad) mask."""
     valid = np.isfinite(t)
     if t.ndim == 1:  # one grid for all rows: search it once
@@ -165,15 +166,21 @@ def _bounds(t: np.ndarray, a: float, b: float, n: int
         lo = np.minimum(np.searchsorted(t, t + a, "left"), length)
         hi = np.minimum(np.searchsorted(t, t + b, "right"), length)
         shape = (n, t.size)
-        return (np.broadcast_to(lo, shape), np.broadcast_to(hi, shape),
-                np.broadcast_to(valid, shape))
+        return (
+            np.broadcast_to(lo, shape),
+            np.broadcast_to(hi, shape),
+            np.broadcast_to(valid, shape),
+        )
     length = valid.sum(axis=1, keepdims=True)  # pads get empty windows [length, length)
     if a == 0:  # on a strictly increasing row, t_i's own index is where [t_i, ...) starts
         lo = np.minimum(np.arange(t.shape[1]), length)
     else:
         lo = np.minimum(_count_before(t, t + a, strict=True), length)
-    hi = (np.minimum(_count_before(t, t + b, strict=False), length) if math.isfinite(b)
-          else np.broadcast_to(length, t.shape))
+    hi = (
+        np.minimum(_count_before(t, t + b, strict=False), length)
+        if math.isfinite(b)
+        else np.broadcast_to(length, t.shape)
+    )
     return lo, hi, valid
 
 
@@ -195,8 +202,9 @@ def _count_before(t: np.ndarray, q: np.ndarray, strict: bool) -> np.ndarray:
     return out
 
 
-def _range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce,
-                  identity: float) -> np.ndarray:
+def _range_reduce(
+    x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce, identity: float
+) -> np.ndarray:
     """``op`` over ``x[r, lo:hi]`` per point (``identity`` where empty), by a sparse table:
     level ``l`` holds ``op`` over ``x[j : j + 2**l]``; a range of length ``s`` is the
     union of the two blocks of level ``floor(log2 s)`` at its two ends."""
@@ -210,7 +218,7 @@ def _range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce,
         for lv in range(1, levels):
             h = 1 << (lv - 1)
             op(table[lv - 1, :, :-h], table[lv - 1, :, h:], out=table[lv, :, :-h])
-            table[lv, :, k - h:] = table[lv - 1, :, k - h:]  # cut blocks: never queried
+            table[lv, :, k - h :] = table[lv - 1, :, k - h :]  # cut blocks: never queried
         start, stop = lo[rows], hi[rows]
         empty = stop <= start
         level = np.frexp(np.maximum(stop - start, 1))[1] - 1  # floor(log2(span)), exactly
@@ -221,8 +229,7 @@ def _range_reduce(x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce,
     return out
 
 
-def _until_from(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray
-                ) -> np.ndarray:
+def _until_from(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """``max over lo <= j < hi of min(psi_j, min phi[lo, j))`` per point, ``-inf`` where
     empty. This is ``(F_lo o ... o F_{hi-1})(-inf)`` with ``F_j(x) = max(psi_j,
     min(phi_j, x))``; maps ``x -> max(p, min(q, x))`` compose as ``(p1, q1) o (p2, q2) =
@@ -243,7 +250,7 @@ def _until_from(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray
             np.minimum(q[lv - 1, :, :-h], p[lv - 1, :, h:], out=p[lv, :, :-h])
             np.maximum(p[lv - 1, :, :-h], p[lv, :, :-h], out=p[lv, :, :-h])
             np.minimum(q[lv - 1, :, :-h], q[lv - 1, :, h:], out=q[lv, :, :-h])
-            p[lv, :, k - h:], q[lv, :, k - h:] = p[lv - 1, :, k - h:], q[lv - 1, :, k - h:]
+            p[lv, :, k - h :], q[lv, :, k - h :] = p[lv - 1, :, k - h :], q[lv - 1, :, k - h :]
         acc_p, acc_q = out[rows], np.full((m, k), np.inf)
         pos, todo = lo[rows].copy(), span[rows]
         row_base = np.arange(m)[:, None] * k

@@ -33,10 +33,13 @@ from hybridteam.requirements.grid import Grid
 class Signals:
     """Signals of ``run`` (a :class:`~hybridteam.trace.Trace`) on per-instance grids."""
 
-    def __init__(self, run: Any, params: Mapping[str, tuple[list[str], np.ndarray]],
-                 events: Iterable[str] = (),
-                 snapshots: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]] | None
-                 = None) -> None:
+    def __init__(
+        self,
+        run: Any,
+        params: Mapping[str, tuple[list[str], np.ndarray]],
+        events: Iterable[str] = (),
+        snapshots: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None,
+    ) -> None:
         self.run, self._params = run, params
         self._snaps = dict(snapshots or {})
         snap_inst, snap_t = _instants(self._snaps)
@@ -45,13 +48,28 @@ class Signals:
         self.t_end = np.array([float(o["t"]) for o in outcomes])
         tr, ms = run.transitions, run.messages
         wanted = np.isin(ms["type"], list(events)) if len(ms) else np.zeros(0, bool)
-        inst = [tr["instance"], np.arange(n), np.arange(n), snap_inst,
-                ms["instance"][wanted], ms["instance"][wanted]]
-        times = [tr["t"], np.zeros(n), self.t_end, snap_t,
-                 ms["t_send"][wanted], ms["t_recv"][wanted]]
-        self.grid = Grid(run.sample_times, self.t_end,
-                         np.concatenate([np.asarray(x, np.intp) for x in inst]),
-                         np.concatenate([np.asarray(x, float) for x in times]))
+        inst = [
+            tr["instance"],
+            np.arange(n),
+            np.arange(n),
+            snap_inst,
+            ms["instance"][wanted],
+            ms["instance"][wanted],
+        ]
+        times = [
+            tr["t"],
+            np.zeros(n),
+            self.t_end,
+            snap_t,
+            ms["t_send"][wanted],
+            ms["t_recv"][wanted],
+        ]
+        self.grid = Grid(
+            run.sample_times,
+            self.t_end,
+            np.concatenate([np.asarray(x, np.intp) for x in inst]),
+            np.concatenate([np.asarray(x, float) for x in times]),
+        )
         self.t = self.grid.t
         self.shape = self.t.shape
         self.memo: dict[Any, np.ndarray] = {}
@@ -119,11 +137,14 @@ class Signals:
         inst, start, end = iv["instance"][rows], iv["start"][rows], iv["end"][rows]
         last = end >= self.t_end[inst]  # the run's end belongs to the last stay
         lo = self.grid.search(inst, start, "left")
-        hi = np.where(last, self.grid.search(inst, end, "right"),
-                      self.grid.search(inst, end, "left"))
+        hi = np.where(
+            last, self.grid.search(inst, end, "right"), self.grid.search(inst, end, "left")
+        )
         w = self.shape[1] + 1
-        mark = (np.bincount(inst * w + lo, minlength=self.n * w)
-                - np.bincount(inst * w + hi, minlength=self.n * w)).reshape(self.n, w)
+        mark = (
+            np.bincount(inst * w + lo, minlength=self.n * w)
+            - np.bincount(inst * w + hi, minlength=self.n * w)
+        ).reshape(self.n, w)
         out = np.cumsum(mark, axis=1)[:, :-1] > 0
         self.memo[memo] = out
         return out
@@ -155,8 +176,9 @@ class Signals:
         return out
 
 
-def _instants(snaps: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
-              ) -> tuple[np.ndarray, np.ndarray]:
+def _instants(
+    snaps: Mapping[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+) -> tuple[np.ndarray, np.ndarray]:
     """(instances, times) of the snapshots (every series is taken at the same instants)."""
     for inst, t, _ in snaps.values():
         return inst, t

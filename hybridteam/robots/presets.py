@@ -52,8 +52,9 @@ class KinematicsSpec(Strict):
 
     @field_validator("limits")
     @classmethod
-    def _limits_name_inputs(cls, v: dict[str, tuple[float, float]], info: ValidationInfo
-                            ) -> dict[str, tuple[float, float]]:
+    def _limits_name_inputs(
+        cls, v: dict[str, tuple[float, float]], info: ValidationInfo
+    ) -> dict[str, tuple[float, float]]:
         kind = info.data.get("kind")
         inputs = KINEMATICS[kind]().input_names if kind in KINEMATICS else ()
         for name, (lo, hi) in v.items():
@@ -81,15 +82,18 @@ class RangeRingSpec(Strict):
     mount_radius: NonNegative | None = Field(None, description="default: on the hull")
     offset_deg: float = Field(0.0, description="first beam, from the heading, CCW")
     cone_deg: Annotated[float, Field(ge=0, lt=180)] = Field(
-        0.0, description="full beam width; 0: a single line")
+        0.0, description="full beam width; 0: a single line"
+    )
     rays_per_beam: Annotated[int, Field(ge=2)] = Field(
-        5, description="rays sampling a cone (unused when cone_deg is 0)")
+        5, description="rays sampling a cone (unused when cone_deg is 0)"
+    )
 
     @model_validator(mode="after")
     def _ranges(self) -> RangeRingSpec:
         if self.min_range >= self.max_range:
-            raise ValueError(f"min_range ({self.min_range}) must be below max_range "
-                             f"({self.max_range})")
+            raise ValueError(
+                f"min_range ({self.min_range}) must be below max_range ({self.max_range})"
+            )
         return self
 
 
@@ -115,8 +119,9 @@ class ArmSensorSpec(Strict):
     state: Annotated[list[str], Field(min_length=1)]
 
 
-Sensor = Annotated[RangeRingSpec | EncodersSpec | ContactSpec | ArmSensorSpec,
-                   Field(discriminator="kind")]
+Sensor = Annotated[
+    RangeRingSpec | EncodersSpec | ContactSpec | ArmSensorSpec, Field(discriminator="kind")
+]
 
 
 class Grasp(Strict):
@@ -163,8 +168,9 @@ class SpringLinkSpec(Grasp):
     kind: Literal["spring_link"]
 
 
-Manipulator = Annotated[CompliantArmSpec | ForkliftSpec | SpringLinkSpec,
-                        Field(discriminator="kind")]
+Manipulator = Annotated[
+    CompliantArmSpec | ForkliftSpec | SpringLinkSpec, Field(discriminator="kind")
+]
 
 
 class RobotPreset(Strict):
@@ -203,16 +209,22 @@ class RobotPreset(Strict):
             rings = [n for n, s in self.sensors.items() if isinstance(s, RangeRingSpec)]
             what = "is not a range ring" if spec is not None else "is not a sensor"
             hint = did_you_mean(name, rings) or (
-                f"its range rings: {', '.join(rings)}" if rings else "it has no range rings")
+                f"its range rings: {', '.join(rings)}" if rings else "it has no range rings"
+            )
             raise ModelError(("sensors", name), f"{name!r} {what} of this robot", hint=hint)
         cone = spec.cone_deg > 0.0
         return RangeRing(
-            count=spec.count, max_range=spec.max_range, min_range=spec.min_range,
-            mount_radius=(self.footprint.radius if spec.mount_radius is None
-                          else spec.mount_radius),
+            count=spec.count,
+            max_range=spec.max_range,
+            min_range=spec.min_range,
+            mount_radius=(
+                self.footprint.radius if spec.mount_radius is None else spec.mount_radius
+            ),
             offset=math.radians(spec.offset_deg),
             half_angle=math.radians(spec.cone_deg / 2.0) if cone else 0.0,
-            rays_per_beam=spec.rays_per_beam if cone else 1, name=name)
+            rays_per_beam=spec.rays_per_beam if cone else 1,
+            name=name,
+        )
 
     def rings(self) -> dict[str, RangeRing]:
         """Every range ring of the robot, by sensor name."""
@@ -239,12 +251,22 @@ def _documents(path: str, version: tuple[int, int]) -> dict[str, dict]:
     in the file by the same translator the team files use.
     """
     data, positions = load_yaml(Path(path), filename=path)
-    bad = [name for name in data if not isinstance(name, str) or not name.isidentifier()
-           or name.startswith("_")]
+    bad = [
+        name
+        for name in data
+        if not isinstance(name, str) or not name.isidentifier() or name.startswith("_")
+    ]
     if bad:
-        raise PresetErrors([positions.error((name,), f"robot model name {name!r} is not "
-                                            "valid: use letters, digits and _", at_key=True)
-                            for name in bad])
+        raise PresetErrors(
+            [
+                positions.error(
+                    (name,),
+                    f"robot model name {name!r} is not valid: use letters, digits and _",
+                    at_key=True,
+                )
+                for name in bad
+            ]
+        )
     fields: dict[str, Any] = {name: (RobotPreset, ...) for name in data}
     model = create_model("PresetsFile", __base__=Strict, **fields)
     try:
@@ -282,16 +304,20 @@ def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[st
         old = out.get(key)
         if value is None:
             out.pop(key, None)
-        elif isinstance(value, Mapping) and isinstance(old, Mapping) \
-                and value.get("kind", old.get("kind")) == old.get("kind"):
+        elif (
+            isinstance(value, Mapping)
+            and isinstance(old, Mapping)
+            and value.get("kind", old.get("kind")) == old.get("kind")
+        ):
             out[key] = deep_merge(out[key], value)
         else:
             out[key] = copy.deepcopy(value)
     return out
 
 
-def resolve(name: str, overrides: Mapping[str, Any] | None = None,
-            source: str | os.PathLike | None = None) -> RobotPreset:
+def resolve(
+    name: str, overrides: Mapping[str, Any] | None = None, source: str | os.PathLike | None = None
+) -> RobotPreset:
     """The preset ``name`` with a team's ``overrides`` deep-merged onto it, validated.
 
     Raises :class:`~hybridteam.errors.ModelError` (one problem) or
@@ -301,8 +327,11 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
     """
     presets = _raw(source)
     if name not in presets:
-        raise ModelError((), f"unknown robot model {name!r}",
-                         hint=did_you_mean(name, presets) or f"known: {', '.join(presets)}")
+        raise ModelError(
+            (),
+            f"unknown robot model {name!r}",
+            hint=did_you_mean(name, presets) or f"known: {', '.join(presets)}",
+        )
     overrides = {} if overrides is None else overrides
     if not isinstance(overrides, Mapping):
         raise ModelError((), f"overrides of {name!r} must be a mapping, got {overrides!r}")
@@ -313,19 +342,25 @@ def resolve(name: str, overrides: Mapping[str, Any] | None = None,
         for sensor, spec in sensors.items():
             if sensor not in known and not (isinstance(spec, Mapping) and "kind" in spec):
                 hint = did_you_mean(str(sensor), known) or "a new sensor needs its 'kind'"
-                raise ModelError(("sensors", sensor), f"{name} has no sensor {sensor!r}",
-                                 hint=hint, at_key=True)
+                raise ModelError(
+                    ("sensors", sensor), f"{name} has no sensor {sensor!r}", hint=hint, at_key=True
+                )
     arm = overrides.get("manipulator")
     if isinstance(arm, Mapping) and not base.get("manipulator") and "kind" not in arm:
-        raise ModelError(("manipulator",), f"{name} has no manipulator",
-                         hint="a new one needs its 'kind' (compliant_arm, forklift or "
-                         "spring_link), spring and limit", at_key=True)
+        raise ModelError(
+            ("manipulator",),
+            f"{name} has no manipulator",
+            hint="a new one needs its 'kind' (compliant_arm, forklift or "
+            "spring_link), spring and limit",
+            at_key=True,
+        )
     merged = deep_merge(base, overrides)
     try:
         return RobotPreset.model_validate(merged)
     except ValidationError as exc:
         _, nowhere = load_yaml("{}", filename=f"<robot model {name}>")
         found = located_errors(exc, RobotPreset, merged, nowhere, nowhere.filename)
-        errors = [ModelError(e.path, e.message, at_key=e.message.startswith("unknown key"))
-                  for e in found]
+        errors = [
+            ModelError(e.path, e.message, at_key=e.message.startswith("unknown key")) for e in found
+        ]
         raise (errors[0] if len(errors) == 1 else ModelErrors(errors)) from None

@@ -34,15 +34,17 @@ def connect(scheduler: str, timeout: float = DEFAULT_CONNECT_TIMEOUT) -> Any:
         from dask.distributed import Client
         from distributed.comm.addressing import parse_address, parse_host_port
     except ImportError:
-        raise StudyError("running on a Dask cluster needs dask.distributed: "
-                         "pip install 'hybridteam[dask]'") from None
+        raise StudyError(
+            "running on a Dask cluster needs dask.distributed: pip install 'hybridteam[dask]'"
+        ) from None
     where = f"the Dask scheduler at {scheduler!r}"
     try:
         scheme, location = parse_address(scheduler)
         host, port = parse_host_port(location) if scheme == "tcp" else (None, None)
     except (TypeError, ValueError) as exc:
-        raise StudyError(f"{where}: not an address ({exc}); expected e.g. "
-                         "tcp://HOST:8786") from None
+        raise StudyError(
+            f"{where}: not an address ({exc}); expected e.g. tcp://HOST:8786"
+        ) from None
     if host is not None and port is not None:  # (dask gives a host a port or refuses it)
         _probe(where, host, int(port), timeout)
     try:
@@ -62,14 +64,17 @@ def _probe(where: str, host: str, port: int, timeout: float) -> None:
             head = _read(sock, _LENGTH.size, deadline)
             (size,) = _LENGTH.unpack(head)
             if not 0 < size <= MAX_HANDSHAKE:
-                raise StudyError(f"{where} answers, but not as a Dask scheduler (its first "
-                                 f"bytes {head!r} are no Dask message)")
+                raise StudyError(
+                    f"{where} answers, but not as a Dask scheduler (its first "
+                    f"bytes {head!r} are no Dask message)"
+                )
             _read(sock, size, deadline)
     except EOFError:
         raise StudyError(f"{where} closed the connection without a Dask handshake") from None
     except TimeoutError:
-        raise StudyError(f"{where} did not answer as a Dask scheduler within {timeout:g} s "
-                         "(--connect-timeout S)") from None
+        raise StudyError(
+            f"{where} did not answer as a Dask scheduler within {timeout:g} s (--connect-timeout S)"
+        ) from None
     except OSError as exc:
         raise StudyError(f"cannot reach {where}: {exc.strerror or exc}") from None
 

@@ -92,18 +92,21 @@ class Plan:
         if self.chunk < 1:
             raise ValueError(f"chunk must be at least 1, got {self.chunk}")
         if run_count(study) > MAX_RUNS:  # a study built in Python skipped the file check
-            raise ValueError(f"the study asks for {run_count(study):,} runs, more than the "
-                             f"{MAX_RUNS:,} a study may plan")
+            raise ValueError(
+                f"the study asks for {run_count(study):,} runs, more than the "
+                f"{MAX_RUNS:,} a study may plan"
+            )
         self.per_setting = study.size * study.repetitions
         self.settings = _settings(study)
         self.runs = len(self.settings) * self.per_setting
         self.chunks: list[Chunk] = []
         first = 0  # a factor's settings are consecutive, so its runs are one range
-        for group, (_, settings) in enumerate(itertools.groupby(self.settings,
-                                                                lambda s: s.factor)):
+        for group, (_, settings) in enumerate(itertools.groupby(self.settings, lambda s: s.factor)):
             stop = first + len(list(settings)) * self.per_setting
-            self.chunks += [Chunk(f"{group:03d}-{p:05d}", group, a, min(a + self.chunk, stop))
-                            for p, a in enumerate(range(first, stop, self.chunk))]
+            self.chunks += [
+                Chunk(f"{group:03d}-{p:05d}", group, a, min(a + self.chunk, stop))
+                for p, a in enumerate(range(first, stop, self.chunk))
+            ]
             first = stop
         self._draws: dict[str, np.ndarray] | None = None
 
@@ -123,9 +126,15 @@ class Plan:
         ``SeedSequence(seed, spawn_key=(r,))`` *is* that child, so a chunk derives its own
         seeds without spawning everyone else's.
         """
-        return [int(np.random.SeedSequence(self.study.seed, spawn_key=(r,))
-                    .generate_state(1, np.uint64)[0] >> np.uint64(1))
-                for r in range(start, stop)]
+        return [
+            int(
+                np.random.SeedSequence(self.study.seed, spawn_key=(r,)).generate_state(
+                    1, np.uint64
+                )[0]
+                >> np.uint64(1)
+            )
+            for r in range(start, stop)
+        ]
 
     def draws(self) -> dict[str, np.ndarray]:
         """Population values (fixed, then drawn): override key -> (size,), member by member."""
@@ -143,13 +152,20 @@ class Plan:
         members = self.member(runs)
         settings = self.setting_of(runs)
         overrides = {key: values[members] for key, values in self.draws().items()}
-        mine = [dict(s.assign) for s in self.settings[settings[0]:settings[-1] + 1]]
+        mine = [dict(s.assign) for s in self.settings[settings[0] : settings[-1] + 1]]
         for key in mine[0]:  # one factor's settings: the same keys in each
             overrides.pop(key, None)
             overrides[key] = np.array([m[key] for m in mine])[settings - settings[0]]
-        return Task(chunk, settings.tolist(), overrides, self.seeds(chunk.start, chunk.stop),
-                    members.tolist(), self.repetition(runs).tolist(), self.study.metrics,
-                    self.study.accelerate)
+        return Task(
+            chunk,
+            settings.tolist(),
+            overrides,
+            self.seeds(chunk.start, chunk.stop),
+            members.tolist(),
+            self.repetition(runs).tolist(),
+            self.study.metrics,
+            self.study.accelerate,
+        )
 
 
 def spread_chunk(study: Study, workers: int) -> int:
@@ -180,11 +196,12 @@ def spread_chunk(study: Study, workers: int) -> int:
 
 
 def _settings(study: Study) -> list[Setting]:
-    axis_points = list(itertools.product(*[[(a.name, a.keys, v) for v in a.values]
-                                           for a in study.axes]))
+    axis_points = list(
+        itertools.product(*[[(a.name, a.keys, v) for v in a.values] for a in study.axes])
+    )
     factor_values: list[tuple[str, tuple[str, ...], FactorValue | None]] = [
-        (f.name, f.keys, v) for f in study.factors for v in f.values] or \
-        [(BASE, (), None)]
+        (f.name, f.keys, v) for f in study.factors for v in f.values
+    ] or [(BASE, (), None)]
     out: list[Setting] = []
     for name, keys, value in factor_values:
         for point in axis_points:
@@ -194,8 +211,11 @@ def _settings(study: Study) -> list[Setting]:
                 assign += [(k, float(v)) for k, v in zip(keys, per_key, strict=True)]
             for _, axis_keys, v in point:
                 assign += [(k, float(v)) for k in axis_keys]
-            out.append(Setting(len(out), name, value, tuple((a, float(v)) for a, _, v in point),
-                               tuple(assign)))
+            out.append(
+                Setting(
+                    len(out), name, value, tuple((a, float(v)) for a, _, v in point), tuple(assign)
+                )
+            )
     return out
 
 
@@ -203,14 +223,16 @@ def population(study: Study) -> dict[str, np.ndarray]:
     """Every member's parameters: ``population.set`` values, then the draws. Member ``i``'s
     draw ``name`` comes from its own generator, seeded ``(population.seed, i, crc32(name))``:
     independent of size and of other draws."""
-    out: dict[str, np.ndarray] = {key: np.full(study.size, float(value))
-                                  for key, value in study.fixed}
+    out: dict[str, np.ndarray] = {
+        key: np.full(study.size, float(value)) for key, value in study.fixed
+    }
     for d in study.draws:
         tag = zlib.crc32(d.name.encode("utf-8"))
         values = np.empty(study.size)
         for i in range(study.size):
             rng = np.random.default_rng(
-                np.random.SeedSequence(study.population_seed, spawn_key=(i, tag)))
+                np.random.SeedSequence(study.population_seed, spawn_key=(i, tag))
+            )
             if d.kind == "uniform":
                 values[i] = rng.uniform(d.low, d.high)
             else:

@@ -25,8 +25,7 @@ def load_results(out: Path) -> tuple[dict[str, Any], ResultTable]:
     """The study record and its table; :class:`StudyError` if the study is not finished."""
     record_path, table_path = out / "study.json", out / "results.csv"
     if not record_path.is_file():
-        raise StudyError(f"{out}: no study.json here; give the output folder of "
-                         "'hybridteam sweep'")
+        raise StudyError(f"{out}: no study.json here; give the output folder of 'hybridteam sweep'")
     try:
         record = json.loads(record_path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
@@ -34,8 +33,10 @@ def load_results(out: Path) -> tuple[dict[str, Any], ResultTable]:
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise StudyError(f"{record_path}: not a hybridteam study record")
     if not table_path.is_file() or record.get("status") != "complete":
-        raise StudyError(f"{out}: the study is not finished (no results.csv); run the same "
-                         "'hybridteam sweep' command again to resume it")
+        raise StudyError(
+            f"{out}: the study is not finished (no results.csv); run the same "
+            "'hybridteam sweep' command again to resume it"
+        )
     try:
         table = read_results(table_path)
     except (OSError, ValueError) as exc:
@@ -67,7 +68,8 @@ def plot_factor(table: ResultTable, factor: str, axes: list[str]):
     lines: dict[tuple[Any, ...], list[tuple[float, float]]] = {}
     for r in rows:
         lines.setdefault(tuple(r[a] for a in axes), []).append(
-            (where[r["value"]], r["success_rate"]))
+            (where[r["value"]], r["success_rate"])
+        )
     fig = Figure(figsize=(6.4, 4.2), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -79,8 +81,12 @@ def plot_factor(table: ResultTable, factor: str, axes: list[str]):
         # Category labels (value pairs) overlap once their total width passes the axis:
         # tilt them then, right-aligned under their ticks.
         crowded = sum(len(str(v)) for v in labels) > 60
-        ax.set_xticks(range(len(labels)), labels, rotation=35 if crowded else 0,
-                      ha="right" if crowded else "center")
+        ax.set_xticks(
+            range(len(labels)),
+            labels,
+            rotation=35 if crowded else 0,
+            ha="right" if crowded else "center",
+        )
     ax.set_xlabel(factor)
     ax.set_ylabel("success rate (%)")
     ax.set_ylim(-3, 103)
@@ -122,18 +128,25 @@ def write_report(out: str | Path) -> Path:
         return markdown_text(str(record.get(key, default)))
 
     found = record.get("versions")
-    versions = ", ".join(markdown_text(f"{k} {v}")
-                         for k, v in (found.items() if isinstance(found, dict) else ()))
+    versions = ", ".join(
+        markdown_text(f"{k} {v}") for k, v in (found.items() if isinstance(found, dict) else ())
+    )
     success = record.get("success", ["ok"])
     lines = [
-        f"# {text('name', 'study')}", "",
+        f"# {text('name', 'study')}",
+        "",
         f"Team {markdown_text(Path(str(record.get('team', '?'))).name)}, {text('runs')} runs "
         f"in {text('chunks')} chunks of at most {text('chunk')}, study seed {text('seed')}; "
         "success means outcome "
-        + " or ".join(markdown_text(str(s)) for s in (success if isinstance(success, list)
-                                                      else [success])) + ".", "",
-        "Means are over the successful runs (– when there are none).", "",
-        "## Results", "",
+        + " or ".join(
+            markdown_text(str(s)) for s in (success if isinstance(success, list) else [success])
+        )
+        + ".",
+        "",
+        "Means are over the successful runs (– when there are none).",
+        "",
+        "## Results",
+        "",
         table.to_markdown(),  # from the results read back, not the folder's results.md as is
     ]
     if plots:

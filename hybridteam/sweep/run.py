@@ -72,11 +72,19 @@ class StudyResult:
         log.warning("%s", message)
 
 
-def run_study(study: Study, out: str | Path, *, workers: int | None = None,
-              scheduler: str | None = None, client: Any = None, chunk: int | None = None,
-              progress: bool | str = False, max_chunks: int | None = None,
-              fmt: str | None = None,
-              connect_timeout: float = DEFAULT_CONNECT_TIMEOUT) -> StudyResult:
+def run_study(
+    study: Study,
+    out: str | Path,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    client: Any = None,
+    chunk: int | None = None,
+    progress: bool | str = False,
+    max_chunks: int | None = None,
+    fmt: str | None = None,
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT,
+) -> StudyResult:
     """Run ``study`` into folder ``out`` and write its table; resume if ``out`` holds part.
 
     ``connect_timeout``: seconds to reach ``scheduler`` (:func:`~.cluster.connect`).
@@ -96,17 +104,29 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     if chunk is None:
         chunk = recorded_chunk(out) or spread_chunk(study, workers or 1)
     plan = Plan(study, chunk)
-    record = {"format": FORMAT, "study": str(study.path), "team": str(study.team_path),
-              "name": study.name, "digest": study.digest, "chunk": plan.chunk,
-              "runs": plan.runs, "chunks": len(plan.chunks), "seed": study.seed,
-              "factors": [f.name for f in study.factors], "axes": [a.name for a in study.axes],
-              "metrics": list(study.metrics), "success": list(study.success)}
+    record = {
+        "format": FORMAT,
+        "study": str(study.path),
+        "team": str(study.team_path),
+        "name": study.name,
+        "digest": study.digest,
+        "chunk": plan.chunk,
+        "runs": plan.runs,
+        "chunks": len(plan.chunks),
+        "seed": study.seed,
+        "factors": [f.name for f in study.factors],
+        "axes": [a.name for a in study.axes],
+        "metrics": list(study.metrics),
+        "success": list(study.success),
+    }
     old = open_folder(out, record)
     done = finished_chunks(out) if old is not None else {}
     unknown = sorted(set(done) - {c.id for c in plan.chunks})
     if unknown:
-        raise StudyError(f"{out}: chunk file '{unknown[0]}' belongs to no chunk of this "
-                         "study; use another output folder")
+        raise StudyError(
+            f"{out}: chunk file '{unknown[0]}' belongs to no chunk of this "
+            "study; use another output folder"
+        )
     result = StudyResult(plan)
     for c in plan.chunks:  # a chunk is reused only if it verifies; else it is run again
         if c.id in done and (why := chunk_problem(done[c.id], c.size)) is not None:
@@ -116,15 +136,18 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     record["versions"] = versions()
     if old is not None and old.get("versions") not in (None, record["versions"]):
         record["earlier_versions"] = old.get("earlier_versions") or old["versions"]
-        result.warn(f"{out}: resuming with other package versions than the chunks "
-                    "already there were computed with (see study.json)")
+        result.warn(
+            f"{out}: resuming with other package versions than the chunks "
+            "already there were computed with (see study.json)"
+        )
     todo = [c for c in plan.chunks if c.id not in done]
     if max_chunks is not None:
         todo = todo[:max_chunks]
     start = time.perf_counter()
     if todo:  # connect first: a scheduler that cannot be reached leaves no folder behind
-        results, result.executor, close = _executor(study.team, plan, todo, workers,
-                                                    scheduler, client, connect_timeout)
+        results, result.executor, close = _executor(
+            study.team, plan, todo, workers, scheduler, client, connect_timeout
+        )
         bar = None
         try:
             write_record(out, {**record, "status": "running"})
@@ -156,9 +179,15 @@ def _bar(plan: Plan, done: dict[str, Path], name: str, progress: bool | str):
     return reporter(str(mode), plan.runs, name, "run", initial=finished)
 
 
-def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
-              scheduler: str | None, client: Any, connect_timeout: float
-              ) -> tuple[Results, str, Callable[[], None]]:
+def _executor(
+    team: Team,
+    plan: Plan,
+    todo: list[Chunk],
+    workers: int | None,
+    scheduler: str | None,
+    client: Any,
+    connect_timeout: float,
+) -> tuple[Results, str, Callable[[], None]]:
     """(chunk results as they finish, a description, what to call when done)."""
     tasks = (plan.task(c) for c in todo)
     if scheduler is not None or client is not None:
@@ -169,8 +198,7 @@ def _executor(team: Team, plan: Plan, todo: list[Chunk], workers: int | None,
     return _pool(team, list(tasks), workers)
 
 
-def _pool(team: Team, tasks: list[Task], workers: int
-          ) -> tuple[Results, str, Callable[[], None]]:
+def _pool(team: Team, tasks: list[Task], workers: int) -> tuple[Results, str, Callable[[], None]]:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     used = min(workers, len(tasks))
@@ -188,13 +216,15 @@ def _pool(team: Team, tasks: list[Task], workers: int
     return results(), f"{used} local processes{why}", close
 
 
-def _dask(team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any,
-          connect_timeout: float) -> tuple[Results, str, Callable[[], None]]:
+def _dask(
+    team: Team, tasks: Iterator[Task], scheduler: str | None, client: Any, connect_timeout: float
+) -> tuple[Results, str, Callable[[], None]]:
     try:
         from dask.distributed import as_completed
     except ImportError:
-        raise StudyError("running on a Dask cluster needs dask.distributed: "
-                         "pip install 'hybridteam[dask]'") from None
+        raise StudyError(
+            "running on a Dask cluster needs dask.distributed: pip install 'hybridteam[dask]'"
+        ) from None
     own = client is None
     if own:
         client = connect(str(scheduler), connect_timeout)

@@ -15,8 +15,18 @@ from pydantic import Field, ValidationInfo, field_validator, model_validator
 from hybridteam.io.schema import NAME, Strict
 
 #: Columns of the per-setting table that an axis may not be named after.
-RESERVED = ("factor", "value", "runs", "success_rate", "setting", "member", "repetition",
-            "run", "seed", "outcome")
+RESERVED = (
+    "factor",
+    "value",
+    "runs",
+    "success_rate",
+    "setting",
+    "member",
+    "repetition",
+    "run",
+    "seed",
+    "outcome",
+)
 
 Key = Annotated[str, Field(min_length=1, description="override key: agent.param or param")]
 Count = Annotated[int, Field(ge=1)]
@@ -42,9 +52,10 @@ class DrawSchema(Strict):
     def _one_distribution(self) -> DrawSchema:
         given = [k for k in ("uniform", "integers") if getattr(self, k) is not None]
         if len(given) != 1:
-            raise ValueError("give exactly one distribution: uniform: [lo, hi] or "
-                             "integers: [lo, hi]" + (f" (got {' and '.join(given)})"
-                                                    if given else ""))
+            raise ValueError(
+                "give exactly one distribution: uniform: [lo, hi] or "
+                "integers: [lo, hi]" + (f" (got {' and '.join(given)})" if given else "")
+            )
         lo, hi = getattr(self, given[0])
         if not lo <= hi:
             raise ValueError(f"{given[0]}: lo must be <= hi, got [{lo}, {hi}]")
@@ -61,8 +72,9 @@ class PopulationSchema(Strict):
 
     size: Count = 1
     seed: Seed = 0
-    set: dict[Key, float] = Field(default_factory=dict,
-                                  description="override key -> one value for every member")
+    set: dict[Key, float] = Field(
+        default_factory=dict, description="override key -> one value for every member"
+    )
     draws: dict[Key, DrawSchema] = Field(default_factory=dict)
 
 
@@ -105,34 +117,45 @@ class StudyFile(Strict):
     team: str = Field(min_length=1, description="team file, relative to the study file")
     name: str | None = Field(None, description="title of the study (default: file name)")
     duration: Annotated[float, Field(ge=0)] | None = Field(
-        None, description="simulated seconds per run (default: the team's)")
+        None, description="simulated seconds per run (default: the team's)"
+    )
     population: PopulationSchema = Field(default_factory=PopulationSchema)
     factors: dict[str, FactorSpec] = Field(
-        default_factory=dict, description="varied one at a time; none: one 'base' setting")
+        default_factory=dict, description="varied one at a time; none: one 'base' setting"
+    )
     axes: dict[str, AxisSpec] = Field(
-        default_factory=dict, description="crossed with every factor value; a column each")
+        default_factory=dict, description="crossed with every factor value; a column each"
+    )
     repetitions: Count = 1
     seed: Seed = 0
     success: list[str] = Field(default_factory=lambda: ["ok"], min_length=1)
     outcomes: list[str] = Field(
-        default_factory=list, description="outcome count columns always shown, in order")
+        default_factory=list, description="outcome count columns always shown, in order"
+    )
     metrics: list[str] = Field(
-        default_factory=list, description="per-instance summary keys averaged over successes")
+        default_factory=list, description="per-instance summary keys averaged over successes"
+    )
     chunk: Count = 500
     accelerate: bool = Field(
-        True, description="use a mode library's batch simulator when it offers one for the "
-                          "team (false: always the general engine)")
+        True,
+        description="use a mode library's batch simulator when it offers one for the "
+        "team (false: always the general engine)",
+    )
 
     @field_validator("axes")
     @classmethod
     def _axis_names(cls, axes: dict[str, object]) -> dict[str, object]:
         for name in axes:
             if not NAME.match(name):
-                raise ValueError(f"axis name {name!r} is not a valid column name: use "
-                                 "letters, digits and _, not starting with a digit")
+                raise ValueError(
+                    f"axis name {name!r} is not a valid column name: use "
+                    "letters, digits and _, not starting with a digit"
+                )
             if name in RESERVED or name.startswith("mean_"):
-                raise ValueError(f"axis name {name!r} is taken by a table column; "
-                                 "give the axis another name and its key as 'key:'")
+                raise ValueError(
+                    f"axis name {name!r} is taken by a table column; "
+                    "give the axis another name and its key as 'key:'"
+                )
         return axes
 
     @field_validator("metrics")

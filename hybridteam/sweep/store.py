@@ -44,8 +44,7 @@ def have_pyarrow() -> bool:
 def versions() -> dict[str, str]:
     """Versions of what can change results, recorded beside them."""
     out = {"python": platform.python_version()}
-    for name in ("hybridteam", "numpy", "scipy", "pydantic", "dask", "distributed",
-                 "pyarrow"):
+    for name in ("hybridteam", "numpy", "scipy", "pydantic", "dask", "distributed", "pyarrow"):
         try:
             out[name] = importlib.metadata.version(name)
         except importlib.metadata.PackageNotFoundError:
@@ -63,12 +62,16 @@ def finished_chunks(out: Path) -> dict[str, Path]:
     folder = chunk_dir(out)
     if not folder.is_dir():
         return {}
-    return {p.stem: p for p in sorted(folder.iterdir())
-            if p.suffix in (".parquet", ".csv") and not p.name.startswith(".")}
+    return {
+        p.stem: p
+        for p in sorted(folder.iterdir())
+        if p.suffix in (".parquet", ".csv") and not p.name.startswith(".")
+    }
 
 
-def write_chunk(out: Path, chunk_id: str, columns: dict[str, list[Any]],
-                fmt: str | None = None) -> Path:
+def write_chunk(
+    out: Path, chunk_id: str, columns: dict[str, list[Any]], fmt: str | None = None
+) -> Path:
     """Write one chunk's rows atomically; ``fmt`` 'parquet' or 'csv' (default: best)."""
     fmt = fmt or ("parquet" if have_pyarrow() else "csv")
     folder = chunk_dir(out)
@@ -129,8 +132,10 @@ def discard_chunk(path: Path) -> None:
 def read_chunk(path: Path) -> dict[str, list[Any]]:
     if path.suffix == ".parquet":
         if not have_pyarrow():
-            raise StudyError(f"{path}: reading Parquet chunks needs pyarrow "
-                             "(pip install pyarrow), as when they were written")
+            raise StudyError(
+                f"{path}: reading Parquet chunks needs pyarrow "
+                "(pip install pyarrow), as when they were written"
+            )
         import pyarrow.parquet as pq
 
         return pq.read_table(path).to_pydict()
@@ -165,11 +170,11 @@ def open_folder(out: Path, record: dict[str, Any]) -> dict[str, Any] | None:
         raise StudyError(f"output '{out}' exists and is not a folder")
     if not path.exists():
         if any((out / name).exists() for name in ("trace.json", "summary.json", "INCOMPLETE")):
-            raise StudyError(f"{out}: holds the outputs of 'hybridteam run'; give the study "
-                             "a folder of its own")
+            raise StudyError(
+                f"{out}: holds the outputs of 'hybridteam run'; give the study a folder of its own"
+            )
         if finished_chunks(out):
-            raise StudyError(f"{out}: holds chunk files but no study.json; use an empty "
-                             "folder")
+            raise StudyError(f"{out}: holds chunk files but no study.json; use an empty folder")
         return None
     try:
         old = json.loads(path.read_text(encoding="utf-8"))
@@ -178,12 +183,16 @@ def open_folder(out: Path, record: dict[str, Any]) -> dict[str, Any] | None:
     if not isinstance(old, dict) or old.get("format") != FORMAT:
         raise StudyError(f"{path}: not a hybridteam study record; use another output folder")
     if old.get("digest") != record["digest"]:
-        raise StudyError(f"{out}: holds results of another study (the study or team file "
-                         "changed); use another output folder, or delete this one to "
-                         "start over")
+        raise StudyError(
+            f"{out}: holds results of another study (the study or team file "
+            "changed); use another output folder, or delete this one to "
+            "start over"
+        )
     if old.get("chunk") != record["chunk"]:
-        raise StudyError(f"{out}: was run with chunk size {old.get('chunk')}, not "
-                         f"{record['chunk']}; resume with --chunk {old.get('chunk')}")
+        raise StudyError(
+            f"{out}: was run with chunk size {old.get('chunk')}, not "
+            f"{record['chunk']}; resume with --chunk {old.get('chunk')}"
+        )
     return old
 
 
@@ -198,8 +207,7 @@ def recorded_chunk(out: Path) -> int | None:
     except (OSError, ValueError):
         return None
     chunk = old.get("chunk") if isinstance(old, dict) else None
-    return chunk if isinstance(chunk, int) and not isinstance(chunk, bool) and chunk >= 1 \
-        else None
+    return chunk if isinstance(chunk, int) and not isinstance(chunk, bool) and chunk >= 1 else None
 
 
 def write_record(out: Path, record: dict[str, Any]) -> None:

@@ -95,36 +95,66 @@ def _load(document: Document) -> Study:
     source = Path(filename)
     if not isinstance(data, dict) or data.get("kind") != "study":
         mark = positions.value(("kind",)) or positions.nearest(())[1]
-        what = f"got kind {data['kind']!r}" if isinstance(data, dict) and "kind" in data \
+        what = (
+            f"got kind {data['kind']!r}"
+            if isinstance(data, dict) and "kind" in data
             else "no 'kind:' key"
-        raise InputErrors([SourceError(filename, mark.line, mark.column, ("kind",),
-                                       f"expected a study file with 'kind: study' ({what})")])
+        )
+        raise InputErrors(
+            [
+                SourceError(
+                    filename,
+                    mark.line,
+                    mark.column,
+                    ("kind",),
+                    f"expected a study file with 'kind: study' ({what})",
+                )
+            ]
+        )
     try:
         doc = StudyFile.model_validate(data)
     except ValidationError as exc:
         raise InputErrors(located_errors(exc, StudyFile, data, positions, filename)) from None
     team_path = (Path(source).resolve().parent / doc.team).resolve()
     if not team_path.is_file():
-        raise InputErrors([positions.error(("team",), f"no team file '{doc.team}' "
-                                           f"(looked for {team_path})")])
+        raise InputErrors(
+            [positions.error(("team",), f"no team file '{doc.team}' (looked for {team_path})")]
+        )
     team = load_team(team_path)  # its own errors name the team file
     if doc.duration is not None:  # the study's duration is the team's, for every executor
         team = with_duration(team, doc.duration)
     errors: list[SourceError] = []
-    draws = tuple(Draw(name, tuple(d.keys or [name]), "uniform" if d.uniform else "integers",
-                       *(d.uniform or d.integers))  # type: ignore[misc]  # (the schema gives one)
-                  for name, d in doc.population.draws.items())
-    factors = tuple(_factor(name, spec, positions, errors)
-                    for name, spec in doc.factors.items())
-    axes = tuple(Axis(name, _keys(name, spec), tuple(_axis_values(spec)))
-                 for name, spec in doc.axes.items())
+    draws = tuple(
+        Draw(
+            name,
+            tuple(d.keys or [name]),
+            "uniform" if d.uniform else "integers",
+            *(d.uniform or d.integers),
+        )  # type: ignore[misc]  # (the schema gives one)
+        for name, d in doc.population.draws.items()
+    )
+    factors = tuple(_factor(name, spec, positions, errors) for name, spec in doc.factors.items())
+    axes = tuple(
+        Axis(name, _keys(name, spec), tuple(_axis_values(spec))) for name, spec in doc.axes.items()
+    )
     study = Study(
-        path=Path(source), name=doc.name or Path(source).stem, team_path=team_path, team=team,
-        size=doc.population.size, population_seed=doc.population.seed,
-        fixed=tuple(doc.population.set.items()), draws=draws,
-        factors=factors, axes=axes, repetitions=doc.repetitions, seed=doc.seed,
-        success=tuple(doc.success), outcomes=tuple(doc.outcomes), metrics=tuple(doc.metrics),
-        chunk=doc.chunk, accelerate=doc.accelerate,
+        path=Path(source),
+        name=doc.name or Path(source).stem,
+        team_path=team_path,
+        team=team,
+        size=doc.population.size,
+        population_seed=doc.population.seed,
+        fixed=tuple(doc.population.set.items()),
+        draws=draws,
+        factors=factors,
+        axes=axes,
+        repetitions=doc.repetitions,
+        seed=doc.seed,
+        success=tuple(doc.success),
+        outcomes=tuple(doc.outcomes),
+        metrics=tuple(doc.metrics),
+        chunk=doc.chunk,
+        accelerate=doc.accelerate,
         digest=_digest(Path(source), team_path),
     )
     cteam = compile_team(study.team)
@@ -152,28 +182,35 @@ def restrict(study: Study, **keep: list[float | tuple[float, ...]]) -> Study:
     one's, like the ladder's, do not). The digest changes, so the slice's output folder
     cannot be mistaken for the study's.
     """
+
     def kept(name: str, values: tuple) -> tuple:
-        wanted = [tuple(float(x) for x in v) if isinstance(v, list | tuple) else float(v)
-                  for v in keep[name]]
+        wanted = [
+            tuple(float(x) for x in v) if isinstance(v, list | tuple) else float(v)
+            for v in keep[name]
+        ]
         have = [tuple(map(float, v)) if isinstance(v, tuple) else float(v) for v in values]
         missing = [v for v in wanted if v not in have]
         if missing:
-            raise ValueError(f"{name}: {missing[0]!r} is not one of the study's values "
-                             f"{list(values)}")
+            raise ValueError(
+                f"{name}: {missing[0]!r} is not one of the study's values {list(values)}"
+            )
         return tuple(v for v, h in zip(values, have, strict=True) if h in wanted)
 
     names = {f.name for f in study.factors} | {a.name for a in study.axes}
     unknown = sorted(set(keep) - names)
     if unknown:
-        raise ValueError(f"'{unknown[0]}' is no factor or axis of the study "
-                         f"(it has {', '.join(sorted(names))})")
+        raise ValueError(
+            f"'{unknown[0]}' is no factor or axis of the study (it has {', '.join(sorted(names))})"
+        )
     if any(not keep.get(a.name, True) for a in study.axes):
         raise ValueError("an axis needs at least one value")
-    factors = tuple(replace(f, values=kept(f.name, f.values)) if f.name in keep else f
-                    for f in study.factors)
+    factors = tuple(
+        replace(f, values=kept(f.name, f.values)) if f.name in keep else f for f in study.factors
+    )
     factors = tuple(f for f in factors if f.values)
-    axes = tuple(replace(a, values=kept(a.name, a.values)) if a.name in keep else a
-                 for a in study.axes)
+    axes = tuple(
+        replace(a, values=kept(a.name, a.values)) if a.name in keep else a for a in study.axes
+    )
     digest = hashlib.sha256((study.digest + repr(sorted(keep.items()))).encode()).hexdigest()
     return replace(study, factors=factors, axes=axes, digest=digest)
 
@@ -181,8 +218,9 @@ def restrict(study: Study, **keep: list[float | tuple[float, ...]]) -> Study:
 def with_duration(team: Team, duration: float) -> Team:
     """``team`` simulated for ``duration``, sampled as before (like ``run --duration``)."""
     sim = team.simulation
-    return replace(team, simulation=replace(sim, duration=duration,
-                                            sample_period=sim.output_period()))
+    return replace(
+        team, simulation=replace(sim, duration=duration, sample_period=sim.output_period())
+    )
 
 
 def _keys(name: str, spec: object) -> tuple[str, ...]:
@@ -198,19 +236,24 @@ def _axis_values(spec: AxisSpec) -> list[float]:
     return spec.values if isinstance(spec, AxisSchema) else spec
 
 
-def _factor(name: str, spec: FactorSpec, positions: Positions, errors: list[SourceError]
-            ) -> Factor:
+def _factor(name: str, spec: FactorSpec, positions: Positions, errors: list[SourceError]) -> Factor:
     keys = _keys(name, spec)
     raw = spec.values if isinstance(spec, FactorSchema) else spec
-    where: DocPath = ("factors", name, "values") if isinstance(spec, FactorSchema) else \
-        ("factors", name)
+    where: DocPath = (
+        ("factors", name, "values") if isinstance(spec, FactorSchema) else ("factors", name)
+    )
     values: list[FactorValue] = []
     for k, v in enumerate(raw):
         if isinstance(v, list):
             if len(v) != len(keys):
-                errors.append(positions.error((*where, k), f"a list value gives one number "
-                                              f"per key: expected {len(keys)} "
-                                              f"({', '.join(keys)}), got {len(v)}"))
+                errors.append(
+                    positions.error(
+                        (*where, k),
+                        f"a list value gives one number "
+                        f"per key: expected {len(keys)} "
+                        f"({', '.join(keys)}), got {len(v)}",
+                    )
+                )
             values.append(v[0] if len(v) == 1 else tuple(v))
         else:
             values.append(v)
@@ -222,20 +265,26 @@ def _check_overlaps(study: Study, cteam: CTeam, positions: Positions) -> list[So
     two axes, an axis and a factor, or two keys of one item — ``wait`` and ``asker.wait``
     count as the same parameter. (A factor may set a drawn or fixed parameter: that is what
     varying it means.)"""
+
     def targets(key: str) -> list[str]:
         agent, _, name = key.rpartition(".")
-        return [f"{ca.name}.{name}" for ca in cteam.agents
-                if (not agent or ca.name == agent) and name in ca.param_index]
+        return [
+            f"{ca.name}.{name}"
+            for ca in cteam.agents
+            if (not agent or ca.name == agent) and name in ca.param_index
+        ]
 
     errors: list[SourceError] = []
 
-    def claim(owners: dict[str, str], label: str, keys: tuple[str, ...], where: DocPath
-              ) -> None:
+    def claim(owners: dict[str, str], label: str, keys: tuple[str, ...], where: DocPath) -> None:
         for key in keys:
             for t in targets(key):
                 if t in owners:
-                    errors.append(positions.error(where, f"'{key}' sets {t}, which "
-                                                  f"{owners[t]} sets too", at_key=True))
+                    errors.append(
+                        positions.error(
+                            where, f"'{key}' sets {t}, which {owners[t]} sets too", at_key=True
+                        )
+                    )
                     return
             owners.update({t: label for t in targets(key)})
 
@@ -271,23 +320,34 @@ def _check_size(study: Study, positions: Positions) -> list[SourceError]:
         return []
     settings = runs // (study.size * study.repetitions)
     parts = {("repetitions",): study.repetitions, ("population", "size"): study.size}
-    where = max(parts, key=lambda k: parts[k]) if max(parts.values()) > settings else \
-        (("factors",) if study.factors else ("axes",))
-    return [positions.error(where, f"this study asks for {runs:,} runs ({settings:,} "
-                            f"settings x {study.size:,} members x {study.repetitions:,} "
-                            f"repetitions), more than the {MAX_RUNS:,} a study may plan; "
-                            "split it into several studies")]
+    where = (
+        max(parts, key=lambda k: parts[k])
+        if max(parts.values()) > settings
+        else (("factors",) if study.factors else ("axes",))
+    )
+    return [
+        positions.error(
+            where,
+            f"this study asks for {runs:,} runs ({settings:,} "
+            f"settings x {study.size:,} members x {study.repetitions:,} "
+            f"repetitions), more than the {MAX_RUNS:,} a study may plan; "
+            "split it into several studies",
+        )
+    ]
 
 
 def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[SourceError]:
     """Each override key must name a parameter of the team (the engine's own rule)."""
     uses: list[tuple[str, DocPath, bool]] = []  # key, where it is written, at a mapping key
     named: list[tuple[str, str, str | None, tuple[str, ...]]] = [
-        ("population", "set", key, (key,)) for key, _ in study.fixed]
+        ("population", "set", key, (key,)) for key, _ in study.fixed
+    ]
     named += [("population", "draws", d.name, d.keys) for d in study.draws]
-    named += [(group, item.name, None, item.keys)
-              for group, items in (("factors", study.factors), ("axes", study.axes))
-              for item in items]
+    named += [
+        (group, item.name, None, item.keys)
+        for group, items in (("factors", study.factors), ("axes", study.axes))
+        for item in items
+    ]
     for group, name, sub, keys in named:
         base: DocPath = (group, name, sub) if sub else (group, name)
         for j, key in enumerate(keys):
@@ -302,8 +362,13 @@ def _check_keys(study: Study, cteam: CTeam, positions: Positions) -> list[Source
         problem = key_problem(cteam.agents, key, cteam.team.network)
         if problem is not None:
             head, _, hint = problem.partition("; ")  # "...; did you mean 'x'?"
-            errors.append(positions.error(where, f"{head} of team '{study.team.name}'"
-                                          + (f"; {hint}" if hint else ""), at_key=at_key))
+            errors.append(
+                positions.error(
+                    where,
+                    f"{head} of team '{study.team.name}'" + (f"; {hint}" if hint else ""),
+                    at_key=at_key,
+                )
+            )
     return errors
 
 
@@ -318,10 +383,16 @@ def _check_metrics(study: Study, positions: Positions) -> list[SourceError]:
     known = [k for k, v in row.items() if k != "instance" and not isinstance(v, str)]
     from hybridteam.errors import did_you_mean
 
-    return [positions.error(("metrics", j), f"'{m}' is not a per-instance summary key of team "
-                            f"'{study.team.name}' (known: {', '.join(known)})"
-                            + (f"; {hint}" if (hint := did_you_mean(m, known)) else ""))
-            for j, m in enumerate(study.metrics) if m not in known]
+    return [
+        positions.error(
+            ("metrics", j),
+            f"'{m}' is not a per-instance summary key of team "
+            f"'{study.team.name}' (known: {', '.join(known)})"
+            + (f"; {hint}" if (hint := did_you_mean(m, known)) else ""),
+        )
+        for j, m in enumerate(study.metrics)
+        if m not in known
+    ]
 
 
 def _digest(study_path: Path, team_path: Path) -> str:
@@ -334,5 +405,4 @@ def _digest(study_path: Path, team_path: Path) -> str:
 
 
 #: Studies are a file kind (``hybridteam validate``, ``hybridteam schema study``).
-FILE_KINDS = (FileKind("study", lambda: StudyFile,
-                       lambda doc: Loaded("study", _load(doc))),)
+FILE_KINDS = (FileKind("study", lambda: StudyFile, lambda doc: Loaded("study", _load(doc))),)

@@ -44,11 +44,15 @@ class ResultTable:
         return buf.getvalue()
 
     def to_markdown(self) -> str:
-        lines = ["| " + " | ".join(_md_cell(c) for c in self.columns) + " |",
-                 "|" + "|".join("---" if c in ("factor", "value") else "---:"
-                                for c in self.columns) + "|"]
-        lines += ["| " + " | ".join(_md_cell(row[c]) for c in self.columns) + " |"
-                  for row in self.rows]
+        lines = [
+            "| " + " | ".join(_md_cell(c) for c in self.columns) + " |",
+            "|"
+            + "|".join("---" if c in ("factor", "value") else "---:" for c in self.columns)
+            + "|",
+        ]
+        lines += [
+            "| " + " | ".join(_md_cell(row[c]) for c in self.columns) + " |" for row in self.rows
+        ]
         return "\n".join(lines) + "\n"
 
 
@@ -82,9 +86,13 @@ def collect_runs(plan: Plan, out: Path) -> dict[str, list[Any]]:
 def outcome_columns(plan: Plan, seen: list[str]) -> list[str]:
     study = plan.study
     ordered = list(dict.fromkeys([*study.outcomes, *study.success]))
-    rest = sorted(set(seen) - set(ordered),
-                  key=lambda o: (ENGINE_OUTCOMES.index(o) if o in ENGINE_OUTCOMES
-                                 else len(ENGINE_OUTCOMES), o))
+    rest = sorted(
+        set(seen) - set(ordered),
+        key=lambda o: (
+            ENGINE_OUTCOMES.index(o) if o in ENGINE_OUTCOMES else len(ENGINE_OUTCOMES),
+            o,
+        ),
+    )
     return ordered + rest
 
 
@@ -101,9 +109,16 @@ def aggregate(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
     axes = [a.name for a in study.axes]
     metrics = list(study.metrics)
     reqs = requirement_names(runs)
-    columns = ["factor", "value", *axes, "runs", *names, "success_rate",
-               *[f"mean_{m}" for m in metrics],
-               *[c for r in reqs for c in (f"{r}_satisfied", f"{r}_min_robustness")]]
+    columns = [
+        "factor",
+        "value",
+        *axes,
+        "runs",
+        *names,
+        "success_rate",
+        *[f"mean_{m}" for m in metrics],
+        *[c for r in reqs for c in (f"{r}_satisfied", f"{r}_min_robustness")],
+    ]
     rows = []
     for s in plan.settings:
         mine = by_setting.get(s.index, [])
@@ -142,10 +157,10 @@ def run_table(plan: Plan, runs: dict[str, list[Any]]) -> ResultTable:
     study = plan.study
     axes = [a.name for a in study.axes]
     metrics = [f"metric_{m}" for m in study.metrics]
-    columns = ["run", "factor", "value", *axes, "member", "repetition", "seed", "outcome",
-               "t_end"]
-    names = {m: m if m.removeprefix("metric_") in columns else m.removeprefix("metric_")
-             for m in metrics}  # a metric named like a column (t_end) keeps its prefix
+    columns = ["run", "factor", "value", *axes, "member", "repetition", "seed", "outcome", "t_end"]
+    names = {
+        m: m if m.removeprefix("metric_") in columns else m.removeprefix("metric_") for m in metrics
+    }  # a metric named like a column (t_end) keeps its prefix
     columns += list(names.values())
     reqs = [c for r in requirement_names(runs) for c in (f"req_{r}_ok", f"req_{r}_rho")]
     columns += reqs

@@ -41,8 +41,11 @@ def restore_malloc() -> bool:
         return _tuned
     _tuned = False
     env = os.environ
-    if env.get("HYBRIDTEAM_KEEP_MALLOC") or not sys.platform.startswith("linux") or not any(
-            k in env for k in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_")):
+    if (
+        env.get("HYBRIDTEAM_KEEP_MALLOC")
+        or not sys.platform.startswith("linux")
+        or not any(k in env for k in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_"))
+    ):
         return _tuned
     try:
         import ctypes
@@ -50,8 +53,9 @@ def restore_malloc() -> bool:
         mallopt = ctypes.CDLL("libc.so.6").mallopt
     except (OSError, AttributeError):  # not glibc (musl): nothing to restore
         return _tuned
-    _tuned = bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_MAX)) and \
-        bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_AT))
+    _tuned = bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_MAX)) and bool(
+        mallopt(_M_TRIM_THRESHOLD, _TRIM_AT)
+    )
     return _tuned
 
 

@@ -31,8 +31,7 @@ def run_chunk(team: Team, task: Task) -> dict[str, list[Any]]:
     restore_malloc()
     chunk = task.chunk
     with profiler_paused():
-        per = summaries(team, chunk.size, task.overrides, task.seeds,
-                        accelerate=task.accelerate)
+        per = summaries(team, chunk.size, task.overrides, task.seeds, accelerate=task.accelerate)
     runs = np.arange(chunk.start, chunk.stop)
     cols: dict[str, list[Any]] = {
         "run": runs.tolist(),
@@ -57,8 +56,9 @@ def requirement_columns(per: list[dict[str, Any]]) -> dict[str, list[float]]:
     cols: dict[str, list[float]] = {}
     for name in (per[0].get("requirements") or {}) if per else ():
         cols[f"req_{name}_ok"] = [float(p["requirements"][name]["satisfied"]) for p in per]
-        cols[f"req_{name}_rho"] = [robustness_value(p["requirements"][name]["robustness"])
-                                   for p in per]
+        cols[f"req_{name}_rho"] = [
+            robustness_value(p["requirements"][name]["robustness"]) for p in per
+        ]
     return cols
 
 

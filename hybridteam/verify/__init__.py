@@ -52,8 +52,11 @@ class Report:
     @property
     def reproduced(self) -> list[Verdict]:
         """Violations whose counterexample a run of the simulator shows."""
-        return [v for v in self.violated
-                if v.prop.name in self.replays and self.replays[v.prop.name][1].reproduced]
+        return [
+            v
+            for v in self.violated
+            if v.prop.name in self.replays and self.replays[v.prop.name][1].reproduced
+        ]
 
     def path(self, v: Verdict, state: int | None = None) -> list[int]:
         """The counterexample's states: a shortest path to the violation (``state``, by
@@ -66,8 +69,13 @@ class Report:
             path = path + v.lasso[1:]
         return path
 
-    def replay(self, v: Verdict, seconds: float = 120.0, tries: int = 1000,
-               progress: Callable[[int, float], None] | None = None) -> Replay:
+    def replay(
+        self,
+        v: Verdict,
+        seconds: float = 120.0,
+        tries: int = 1000,
+        progress: Callable[[int, float], None] | None = None,
+    ) -> Replay:
         """Replay a counterexample of ``v`` in the simulator (:mod:`.replay`): the
         shortest first, then the shortest paths to the other violating states, in
         breadth-first order, skipping those that start like a path the simulator could
@@ -76,8 +84,9 @@ class Report:
         (paths tried, seconds) after each path not reproduced."""
         start = time.perf_counter()
         if self._context is None:
-            self._context = Context(self.team, self.skeleton, self.graph,
-                                    self.options.order == "fifo")
+            self._context = Context(
+                self.team, self.skeleton, self.graph, self.options.order == "fifo"
+            )
         failed: set[int] = set()  # last states of prefixes that failed (a breadth-first
         # tree's path to a state is unique, so its last state names a prefix)
         first: Replay | None = None
@@ -107,12 +116,17 @@ class Report:
         times = self.replays[v.prop.name][1].times if v.prop.name in self.replays else None
         if v.prop.kind != "response":
             return describe(self.skeleton, self.graph, self.path(v), times=times)
-        mark = (len(self.graph.path(v.state)) - 1,  # (a response property has its phi)
-                f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore[union-attr]
-                "from here on the answer never comes ---")
+        mark = (
+            len(self.graph.path(v.state)) - 1,  # (a response property has its phi)
+            f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore[union-attr]
+            "from here on the answer never comes ---",
+        )
         lines = describe(self.skeleton, self.graph, self.path(v), mark, times)
-        lines.append("     (then round this cycle again and again)" if v.loops else
-                     "     (then nothing can happen any more)")
+        lines.append(
+            "     (then round this cycle again and again)"
+            if v.loops
+            else "     (then nothing can happen any more)"
+        )
         return lines
 
     def configurations(self, v: Verdict) -> list[str]:
@@ -120,9 +134,14 @@ class Report:
         counterexample's), each in words."""
         out: list[str] = []
         for k in [v.state, *v.others]:
-            text = "; ".join(f"{ca.name} in {', '.join(m)}" for ca, m in zip(
-                self.skeleton.original.agents, leaves(self.skeleton, self.graph.states[k]),
-                strict=True))
+            text = "; ".join(
+                f"{ca.name} in {', '.join(m)}"
+                for ca, m in zip(
+                    self.skeleton.original.agents,
+                    leaves(self.skeleton, self.graph.states[k]),
+                    strict=True,
+                )
+            )
             if text not in out:
                 out.append(text)
         return out
@@ -130,31 +149,45 @@ class Report:
     def summary(self) -> dict:
         g = self.graph
         return {
-            "states": len(g.states), "transitions": g.transitions,
-            "exhaustive": g.exhaustive, "bound": g.bound, "seconds": round(g.seconds, 3),
-            "options": {"losses": self.options.losses,
-                        "duplicates": self.options.duplicates,
-                        "order": self.options.order, "max_states": self.options.max_states,
-                        "max_values": self.options.max_values,
-                        "max_memory": memory_limit(self.options.max_memory),
-                        "ack_timing": self.options.ack_timing,
-                        "timeouts": self.options.timeouts},
+            "states": len(g.states),
+            "transitions": g.transitions,
+            "exhaustive": g.exhaustive,
+            "bound": g.bound,
+            "seconds": round(g.seconds, 3),
+            "options": {
+                "losses": self.options.losses,
+                "duplicates": self.options.duplicates,
+                "order": self.options.order,
+                "max_states": self.options.max_states,
+                "max_values": self.options.max_values,
+                "max_memory": memory_limit(self.options.max_memory),
+                "ack_timing": self.options.ack_timing,
+                "timeouts": self.options.timeouts,
+            },
             "abstracted": self.skeleton.notes,
-            "properties": {v.prop.name: {
-                "kind": v.prop.kind, "formula": v.prop.text,
-                "verdict": _word(v, g.exhaustive), "message": v.message,
-                **({"counterexample": self.counterexample(v),
-                    "configurations": self.configurations(v)} if v.holds is False else {}),
-                **({"replay": self._replay_summary(v)} if v.prop.name in self.replays
-                   else {})}
-                for v in self.verdicts},
+            "properties": {
+                v.prop.name: {
+                    "kind": v.prop.kind,
+                    "formula": v.prop.text,
+                    "verdict": _word(v, g.exhaustive),
+                    "message": v.message,
+                    **(
+                        {
+                            "counterexample": self.counterexample(v),
+                            "configurations": self.configurations(v),
+                        }
+                        if v.holds is False
+                        else {}
+                    ),
+                    **({"replay": self._replay_summary(v)} if v.prop.name in self.replays else {}),
+                }
+                for v in self.verdicts
+            },
         }
-
 
     def _replay_summary(self, v: Verdict) -> dict:
         _, r, tried = self.replays[v.prop.name]
-        return {"verdict": r.verdict, "reason": r.reason, "paths_tried": tried,
-                "times": r.times}
+        return {"verdict": r.verdict, "reason": r.reason, "paths_tried": tried, "times": r.times}
 
 
 def _word(v: Verdict, exhaustive: bool) -> str:
@@ -165,8 +198,13 @@ def _word(v: Verdict, exhaustive: bool) -> str:
     return "holds" if exhaustive else "holds (bounded)"  # as the command prints it
 
 
-def verify(team, options: Options | None = None, only: list[str] | None = None,
-           progress: Progress | None = None, replay: bool = True) -> Report:
+def verify(
+    team,
+    options: Options | None = None,
+    only: list[str] | None = None,
+    progress: Progress | None = None,
+    replay: bool = True,
+) -> Report:
     """Explore ``team``'s skeleton and check its properties (``only``: these names); with
     ``replay``, replay each violation's counterexample in the simulator
     (:meth:`Report.replay`)."""

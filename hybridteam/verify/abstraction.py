@@ -71,8 +71,7 @@ class SkeletonGuard:
     ones, free comparisons read the oracle; a time-driven transition is enabled only in
     the instances that chose it (once)."""
 
-    def __init__(self, source: str, tree, oracle: Oracle, inst_col: int,
-                 code: int | None) -> None:
+    def __init__(self, source: str, tree, oracle: Oracle, inst_col: int, code: int | None) -> None:
         self.source, self.tree, self.oracle = source, tree, oracle
         self.inst_col, self.code = inst_col, code
 
@@ -122,8 +121,9 @@ def _discrete_names(ca: CAgent, abstract: set[str]) -> set[str]:
     return names | {v for v in ca.var_index if v not in abstract}
 
 
-def _message_names(on: str | None, fields: dict[str, set[str]],
-                   abstract_fields: set[tuple[str, str]]) -> set[str]:
+def _message_names(
+    on: str | None, fields: dict[str, set[str]], abstract_fields: set[tuple[str, str]]
+) -> set[str]:
     if on is None or on not in fields:
         return set()
     return {"msg_sender"} | {f"msg_{f}" for f in fields[on] if (on, f) not in abstract_fields}
@@ -143,10 +143,10 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
             # a transition's actions (which may read its message), then the modes' entry
             # and exit actions (which read no message)
             lists = [(tr.on, tr.actions) for tr in ca.transitions] + [
-                (None, acts) for m in ca.modes for acts in (m.on_entry, m.on_exit) if acts]
+                (None, acts) for m in ca.modes for acts in (m.on_entry, m.on_exit) if acts
+            ]
             for on, actions in lists:
-                known = _discrete_names(ca, abstract[a]) | _message_names(on, fields,
-                                                                          afields)
+                known = _discrete_names(ca, abstract[a]) | _message_names(on, fields, afields)
                 for act in actions:  # (an assignment has its target and expression)
                     if act.kind == "assign" and act.target[0] == "v":  # type: ignore[index]
                         name = var_name[a][act.target[1]]  # type: ignore[index]
@@ -161,8 +161,7 @@ def classify(cteam: CTeam) -> tuple[list[set[str]], set[tuple[str, str]]]:
     return abstract, afields
 
 
-def _compile_tree(source: str, syms: Mapping, known: set[str], oracle: Oracle,
-                  free: list[str]):
+def _compile_tree(source: str, syms: Mapping, known: set[str], oracle: Oracle, free: list[str]):
     """The guard's Boolean structure over its comparisons: exact ones compiled by the
     expression compiler against the agent's own symbols, free ones read from the oracle.
     Returns None when the guard is exact as a whole (the engine's own guard is kept)."""
@@ -181,6 +180,7 @@ def _compile_tree(source: str, syms: Mapping, known: set[str], oracle: Oracle,
                 for p in parts[1:]:
                     out = op(out, p(ctx, inst))
                 return out
+
             return both
         if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not):
             inner = build(node.operand)
@@ -212,15 +212,20 @@ def skeleton(cteam: CTeam, world_raises: tuple[str, ...] = ()) -> Skeleton:
         base = _discrete_names(ca, abstract[a])
         new_transitions: list[CTransition] = []
         mine: list[int] = []
-        raised = {act.name for tr in ca.transitions for act in tr.actions
-                  if act.kind == "raise"}
+        raised = {act.name for tr in ca.transitions for act in tr.actions if act.kind == "raise"}
         for tr in ca.transitions:
             known = base | _message_names(tr.on, fields, afields)
-            syms = {**ca.symbols, **message_symbols(fields.get(tr.on, set()))} \
-                if tr.on in fields else ca.symbols
+            syms = (
+                {**ca.symbols, **message_symbols(fields.get(tr.on, set()))}
+                if tr.on in fields
+                else ca.symbols
+            )
             texts: list[str] = []
-            tree = None if tr.guard is None else _compile_tree(
-                tr.guard.source, syms, known, oracle, texts)
+            tree = (
+                None
+                if tr.guard is None
+                else _compile_tree(tr.guard.source, syms, known, oracle, texts)
+            )
             free += [(a, tr.index, t) for t in texts]
             driven = tr.on is None and (tr.after is not None or tree is not None)
             if driven:
@@ -228,23 +233,49 @@ def skeleton(cteam: CTeam, world_raises: tuple[str, ...] = ()) -> Skeleton:
             if driven or tree is not None:
                 if tree is None and tr.guard is not None:
                     tree = _exact_tree(tr.guard)
-                guard = SkeletonGuard(tr.guard.source if tr.guard else "", tree, oracle,
-                                      inst_col, a * 1_000_000 + tr.index if driven else None)
+                guard = SkeletonGuard(
+                    tr.guard.source if tr.guard else "",
+                    tree,
+                    oracle,
+                    inst_col,
+                    a * 1_000_000 + tr.index if driven else None,
+                )
                 tr = dataclasses.replace(tr, guard=guard)  # type: ignore[arg-type]  # (the skeleton's stand-in)
             new_transitions.append(tr)
         triggers = {tr.on for tr in ca.transitions if tr.on is not None}
-        inputs.append({e for e in triggers if e not in messages and e not in raised
-                       and not e.endswith(UNDELIVERABLE)})
+        inputs.append(
+            {
+                e
+                for e in triggers
+                if e not in messages and e not in raised and not e.endswith(UNDELIVERABLE)
+            }
+        )
         world_events += [(a, e) for e in world_raises if e in triggers]
         timed.append(mine)
-        agents.append(dataclasses.replace(
-            ca, transitions=new_transitions, var_index={**ca.var_index, INST: inst_col},
-            init_vars=[*ca.init_vars, compile_expression("0", {})]))
+        agents.append(
+            dataclasses.replace(
+                ca,
+                transitions=new_transitions,
+                var_index={**ca.var_index, INST: inst_col},
+                init_vars=[*ca.init_vars, compile_expression("0", {})],
+            )
+        )
     explorer = dataclasses.replace(cteam, agents=agents, scenario=[])
-    sk = Skeleton(explorer, cteam, oracle,
-                  [[j for n, j in ca.var_index.items() if n not in abstract[a]]
-                   for a, ca in enumerate(cteam.agents)],
-                  [sorted(s) for s in abstract], afields, free, timed, world_events, inputs)
+    sk = Skeleton(
+        explorer,
+        cteam,
+        oracle,
+        [
+            [j for n, j in ca.var_index.items() if n not in abstract[a]]
+            for a, ca in enumerate(cteam.agents)
+        ],
+        [sorted(s) for s in abstract],
+        afields,
+        free,
+        timed,
+        world_events,
+        inputs,
+    )
     sk.notes = _notes(sk)
     return sk
 
@@ -255,17 +286,25 @@ def _notes(sk: Skeleton) -> list[str]:
     names = [ca.name for ca in sk.original.agents]
     for a, vs in enumerate(sk.abstract_vars):
         if vs:
-            out.append(f"agent '{names[a]}': variable(s) {', '.join(vs)} computed from time "
-                       "or state: abstracted")
+            out.append(
+                f"agent '{names[a]}': variable(s) {', '.join(vs)} computed from time "
+                "or state: abstracted"
+            )
     if sk.abstract_fields:
-        out.append("message fields computed from time or state: " + ", ".join(
-            sorted(f"{m}.{f}" for m, f in sk.abstract_fields)) + ": abstracted")
+        out.append(
+            "message fields computed from time or state: "
+            + ", ".join(sorted(f"{m}.{f}" for m, f in sk.abstract_fields))
+            + ": abstracted"
+        )
     for a, j, text in sk.free:
         tr = sk.original.agents[a].transitions[j]
-        out.append(f"agent '{names[a]}' {tr.text}: '{text}' reads time or state: "
-                   "both outcomes explored")
+        out.append(
+            f"agent '{names[a]}' {tr.text}: '{text}' reads time or state: both outcomes explored"
+        )
     streams = sorted({s.message for ca in sk.original.agents for s in ca.streams})
     if streams:
-        out.append(f"data stream(s) {', '.join(streams)} left out (guards that read "
-                   "stream estimates are explored both ways)")
+        out.append(
+            f"data stream(s) {', '.join(streams)} left out (guards that read "
+            "stream estimates are explored both ways)"
+        )
     return out

@@ -38,9 +38,10 @@ class Values:
         self.limit = limit
         self.seen: list[list[set[float]]] = [[set() for _ in cols] for cols in sk.discrete_vars]
         names = [{j: name for name, j in ca.var_index.items()} for ca in sk.original.agents]
-        self.names = [(ca.name, [names[a][j] for j in cols])
-                      for a, (ca, cols) in enumerate(zip(sk.original.agents, sk.discrete_vars,
-                                                         strict=True))]
+        self.names = [
+            (ca.name, [names[a][j] for j in cols])
+            for a, (ca, cols) in enumerate(zip(sk.original.agents, sk.discrete_vars, strict=True))
+        ]
 
     def add(self, a: int, block: np.ndarray) -> None:
         """Agent ``a``'s discrete variables in a batch of states (one row a state)."""
@@ -54,11 +55,13 @@ class Values:
         for (agent, names), seen in zip(self.names, self.seen, strict=True):
             for name, values in zip(names, seen, strict=True):
                 if len(values) > self.limit:
-                    return (f"variable '{name}' of agent '{agent}' took more than "
-                            f"{self.limit:,} different values ({min(values):g} to "
-                            f"{max(values):g} so far) and keeps taking new ones: it grows "
-                            "without bound, so the skeleton is infinite; bound it (a guard "
-                            "or a reset), or raise --max-values")
+                    return (
+                        f"variable '{name}' of agent '{agent}' took more than "
+                        f"{self.limit:,} different values ({min(values):g} to "
+                        f"{max(values):g} so far) and keeps taking new ones: it grows "
+                        "without bound, so the skeleton is infinite; bound it (a guard "
+                        "or a reset), or raise --max-values"
+                    )
         return None
 
 
@@ -66,8 +69,10 @@ def over_memory(resident: float | None, limit: float, states: int) -> str | None
     """The reason to stop when this process holds more than ``limit`` bytes."""
     if resident is None or resident <= limit:
         return None
-    return (f"this process reached the memory limit of {limit / 1e9:g} GB after {states:,} "
-            f"states ({resident / 1e9:.3f} GB resident; --max-memory GB raises it)")
+    return (
+        f"this process reached the memory limit of {limit / 1e9:g} GB after {states:,} "
+        f"states ({resident / 1e9:.3f} GB resident; --max-memory GB raises it)"
+    )
 
 
 def full(max_states: int) -> str:

@@ -129,8 +129,11 @@ def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
     for a, js in enumerate(sk.time_driven):
         for j in js:
             tr = agents[a].transitions[j]
-            if acts[a][tr.source] and (opts.timeouts == "any" or tr.after is None or (
-                    quiet if opts.timeouts == "long" else _settled(s, a))):
+            if acts[a][tr.source] and (
+                opts.timeouts == "any"
+                or tr.after is None
+                or (quiet if opts.timeouts == "long" else _settled(s, a))
+            ):
                 out.append(("time", a, j))
     for a, event in sk.world_events:
         ca = agents[a]
@@ -174,8 +177,11 @@ def _invisible(s: State, opts: Options, hears: list[set[str]]) -> int | None:
         return None
     seen = set(s.seen)
     for k, c in _arrivals(s, opts):
-        if c.type == ACK or (c.msg_id >= 0 and (c.receiver, c.sender, c.msg_id) in seen) \
-                or c.type not in hears[c.receiver]:
+        if (
+            c.type == ACK
+            or (c.msg_id >= 0 and (c.receiver, c.sender, c.msg_id) in seen)
+            or c.type not in hears[c.receiver]
+        ):
             return k
     return None
 
@@ -183,8 +189,9 @@ def _invisible(s: State, opts: Options, hears: list[set[str]]) -> int | None:
 def _settled(s: State, a: int) -> bool:
     """Whether agent ``a``'s own messages are settled: none of its copies but acks in
     flight, nothing of it awaiting acks."""
-    return not any(c.sender == a and c.type != ACK for c in s.inflight) and \
-        not any(e.sender == a for e in s.outbox)
+    return not any(c.sender == a and c.type != ACK for c in s.inflight) and not any(
+        e.sender == a for e in s.outbox
+    )
 
 
 def _in_flight(s: State, e) -> bool:
@@ -304,7 +311,7 @@ def _chunks(jobs, retries: list, size: int):
             chunk = []
     done = 0
     while True:
-        take = retries[done: done + size - len(chunk)]
+        take = retries[done : done + size - len(chunk)]
         done += len(take)
         chunk += take
         if not chunk:
@@ -312,4 +319,3 @@ def _chunks(jobs, retries: list, size: int):
         if len(chunk) == size or done == len(retries):
             yield chunk
             chunk = []
-

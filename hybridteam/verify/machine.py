@@ -88,8 +88,9 @@ class Result:
 class Machine:
     """Computes successors of skeleton states in batches on one engine ensemble."""
 
-    def __init__(self, sk: Skeleton, capacity: int = 1024, fifo: bool = False,
-                 raw: bool = False) -> None:
+    def __init__(
+        self, sk: Skeleton, capacity: int = 1024, fifo: bool = False, raw: bool = False
+    ) -> None:
         """``raw``: successors keep the engine's own message ids and the copies' sending
         order (no canonical form), so a replay can follow each copy along a path."""
         self.sk, self.capacity, self.fifo, self.raw = sk, capacity, fifo, raw
@@ -106,14 +107,16 @@ class Machine:
         #: where the explorer counts the discrete variables' values (:mod:`.bounds`)
         self.values: Values | None = None
         self.fields = self._fields()
-        self.hist = [np.array([m.index for m in ca.modes if self._restorable(ca, m.index)],
-                              np.intp) for ca in sk.cteam.agents]
+        self.hist = [
+            np.array([m.index for m in ca.modes if self._restorable(ca, m.index)], np.intp)
+            for ca in sk.cteam.agents
+        ]
         self.or_parent = []
         for ca in sk.cteam.agents:
-            kids = [m.index for m in ca.modes if m.parent >= 0
-                    and ca.modes[m.parent].kind == "or"]
-            self.or_parent.append((np.array(kids, np.intp),
-                                   np.array([ca.modes[k].parent for k in kids], np.intp)))
+            kids = [m.index for m in ca.modes if m.parent >= 0 and ca.modes[m.parent].kind == "or"]
+            self.or_parent.append(
+                (np.array(kids, np.intp), np.array([ca.modes[k].parent for k in kids], np.intp))
+            )
 
     # ------------------------------------------------------------------ setup
     def _fields(self) -> dict[str, list[str]]:
@@ -157,8 +160,9 @@ class Machine:
             st.deadline[:1] = -np.inf
         discrete_phase(ens, idx)
         per_out, per_seen = self._by_instance()
-        return self._read(0, State((), (), (), (), 0, 0, 0, ()), None, per_out.get(0, []),
-                          per_seen.get(0, [])).state
+        return self._read(
+            0, State((), (), (), (), 0, 0, 0, ()), None, per_out.get(0, []), per_seen.get(0, [])
+        ).state
 
     # ------------------------------------------------------------------ batches
     def _clear(self, n: int) -> None:
@@ -203,9 +207,12 @@ class Machine:
             one = np.array([i])
             if kind in ("lose", "dup"):
                 c = s.inflight[choice[1]]
-                rest = s.inflight[: choice[1]] + s.inflight[choice[1] + 1:]
-                nxt = s._replace(inflight=rest, losses=s.losses + 1) if kind == "lose" else \
-                    s._replace(inflight=(*s.inflight, c), dups=s.dups + 1)
+                rest = s.inflight[: choice[1]] + s.inflight[choice[1] + 1 :]
+                nxt = (
+                    s._replace(inflight=rest, losses=s.losses + 1)
+                    if kind == "lose"
+                    else s._replace(inflight=(*s.inflight, c), dups=s.dups + 1)
+                )
                 results[i] = Result(self._finish(nxt), False, 0)
                 continue
             engine.append(i)
@@ -213,8 +220,16 @@ class Machine:
                 c = s.inflight[choice[1]]
                 names = self.fields.get(c.type, [])
                 values = dict(c.fields)
-                msg = Message(c.sender, c.receiver, 0, 0.0, c.socket, c.type,
-                              {f: values.get(f, 0.0) for f in names}, c.msg_id)
+                msg = Message(
+                    c.sender,
+                    c.receiver,
+                    0,
+                    0.0,
+                    c.socket,
+                    c.type,
+                    {f: values.get(f, 0.0) for f in names},
+                    c.msg_id,
+                )
                 ens.queue.push_each(one, np.zeros(1), MESSAGE, c.receiver, c.type, [msg])
                 # the reliable layer reads one outbox entry (an ack) or one filter entry
                 if c.type == ACK:
@@ -238,10 +253,19 @@ class Machine:
             rows = self._agents(np.array(engine, np.intp))
             for i, agents in zip(engine, rows, strict=True):
                 s, choice, _ = jobs[i]
-                kept = s.outbox if touched[i] < 0 else \
-                    s.outbox[: touched[i]] + s.outbox[touched[i] + 1:]
-                results[i] = self._read(i, s, choice, kept + tuple(per_out.get(i, ())),
-                                        s.seen + tuple(per_seen.get(i, ())), agents)
+                kept = (
+                    s.outbox
+                    if touched[i] < 0
+                    else s.outbox[: touched[i]] + s.outbox[touched[i] + 1 :]
+                )
+                results[i] = self._read(
+                    i,
+                    s,
+                    choice,
+                    kept + tuple(per_out.get(i, ())),
+                    s.seen + tuple(per_seen.get(i, ())),
+                    agents,
+                )
         return results  # type: ignore[return-value]  # (each job got its result)
 
     def _put(self, i: int, s: State, sender: int, msg_id: int) -> int:
@@ -250,8 +274,14 @@ class Machine:
         for k, e in enumerate(s.outbox):
             if e.sender == sender and e.msg_id == msg_id:
                 self.ens.reliable.outbox[(i, sender, msg_id)] = Pending(
-                    e.type, e.socket, {f: np.array([v]) for f, v in self._all_fields(e)},
-                    set(e.waiting), e.retries_left, e.timeout, e.rank)
+                    e.type,
+                    e.socket,
+                    {f: np.array([v]) for f, v in self._all_fields(e)},
+                    set(e.waiting),
+                    e.retries_left,
+                    e.timeout,
+                    e.rank,
+                )
                 return k
         return -1
 
@@ -277,12 +307,10 @@ class Machine:
             st.v[:n] = 0.0
             if cols_v:
                 at = np.ix_(np.arange(n), np.asarray(cols_v, np.intp))
-                st.v[at] = np.array([s.agents[a][1] for s in states],
-                                    float).reshape(n, len(cols_v))
+                st.v[at] = np.array([s.agents[a][1] for s in states], float).reshape(n, len(cols_v))
             st.v[:n, self.sk.inst_col[a]] = np.arange(n)
             st.deadline[:n] = -np.inf
-            ens.reliable.next_id[a][:n] = [s.next_ids[a] if s.next_ids else 0
-                                           for s in states]
+            ens.reliable.next_id[a][:n] = [s.next_ids[a] if s.next_ids else 0 for s in states]
 
     def _all_fields(self, e: Entry):
         values = dict(e.fields)
@@ -291,10 +319,19 @@ class Machine:
     def _by_instance(self):
         per_out: dict[int, list] = {}
         for (i, snd, k), p in self.ens.reliable.outbox.items():
-            per_out.setdefault(i, []).append(Entry(
-                snd, k, p.type, p.socket, self._exact(p.type, {f: float(v[0]) for f, v in
-                                                               p.fields.items()}),
-                tuple(sorted(p.waiting)), p.retries_left, p.timeout, p.rank))
+            per_out.setdefault(i, []).append(
+                Entry(
+                    snd,
+                    k,
+                    p.type,
+                    p.socket,
+                    self._exact(p.type, {f: float(v[0]) for f, v in p.fields.items()}),
+                    tuple(sorted(p.waiting)),
+                    p.retries_left,
+                    p.timeout,
+                    p.rank,
+                )
+            )
         per_seen: dict[int, list] = {}
         for i, r, snd, k in self.ens.reliable.seen:
             per_seen.setdefault(i, []).append((r, snd, k))
@@ -325,12 +362,23 @@ class Machine:
             else:
                 values = [[]] * rows.size
             intern = self._interned
-            per_agent.append([intern.setdefault(e, e) for e in zip(
-                (r.tobytes() for r in raw), map(tuple, values), strict=True)])
+            per_agent.append(
+                [
+                    intern.setdefault(e, e)
+                    for e in zip((r.tobytes() for r in raw), map(tuple, values), strict=True)
+                ]
+            )
         return list(zip(*per_agent, strict=True))
 
-    def _read(self, i: int, parent: State, choice: tuple | None, outbox=(), seen=(),
-              agents: tuple | None = None) -> Result:
+    def _read(
+        self,
+        i: int,
+        parent: State,
+        choice: tuple | None,
+        outbox=(),
+        seen=(),
+        agents: tuple | None = None,
+    ) -> Result:
         ens = self.ens
         if agents is None:
             agents = self._agents(np.array([i]))[0]
@@ -340,15 +388,23 @@ class Machine:
         for ev in sorted(ens.queue.heaps.get(i, []), key=lambda e: e[:5]):
             if ev[1] == MESSAGE:
                 m = ev[6]
-                c = Copy(m.sender, m.receiver, m.socket, m.type, m.msg_id,
-                         self._exact(m.type, m.fields))
+                c = Copy(
+                    m.sender, m.receiver, m.socket, m.type, m.msg_id, self._exact(m.type, m.fields)
+                )
                 inflight.append(self._interned.setdefault(c, c))
         cursor = parent.cursor + (1 if choice is not None and choice[0] == "scenario" else 0)
         ids = tuple(int(n[i]) for n in ens.reliable.next_id) if self.raw else ()
-        nxt = State(agents, tuple(inflight), tuple(outbox), tuple(seen), cursor,
-                    parent.losses, parent.dups, ids)
-        return Result(self._finish(nxt), bool(ens.done[i]),
-                      int(self.sk.oracle.reads[i]))
+        nxt = State(
+            agents,
+            tuple(inflight),
+            tuple(outbox),
+            tuple(seen),
+            cursor,
+            parent.losses,
+            parent.dups,
+            ids,
+        )
+        return Result(self._finish(nxt), bool(ens.done[i]), int(self.sk.oracle.reads[i]))
 
     # ------------------------------------------------------------------ canonical form
     def _finish(self, s: State) -> State:
@@ -358,10 +414,18 @@ class Machine:
         """Drop what can no longer matter and renumber message ids per sender."""
         waiting = {(e.sender, e.msg_id): e.waiting for e in s.outbox}
         flying = {(c.sender, c.receiver, c.msg_id) for c in s.inflight if c.type != ACK}
-        seen = sorted({(r, snd, k) for r, snd, k in s.seen  # a set: the parent's entries
-                       if (snd, r, k) in flying or r in waiting.get((snd, k), ())})
-        inflight = [c for c in s.inflight if c.type != ACK or
-                    c.sender in waiting.get((c.receiver, _ack_id(c)), ())]
+        seen = sorted(
+            {
+                (r, snd, k)
+                for r, snd, k in s.seen  # a set: the parent's entries
+                if (snd, r, k) in flying or r in waiting.get((snd, k), ())
+            }
+        )
+        inflight = [
+            c
+            for c in s.inflight
+            if c.type != ACK or c.sender in waiting.get((c.receiver, _ack_id(c)), ())
+        ]
         live: dict[int, set[int]] = {}
         for c in inflight:
             if c.type == ACK:
@@ -375,8 +439,12 @@ class Machine:
         counts = tuple(len(live.get(a, ())) for a in range(len(self.cteam.agents)))
         order = _link if self.fifo else None
         if all(max(ks) == len(ks) - 1 for ks in live.values()):  # ids are 0.. already
-            return s._replace(next_ids=counts, inflight=tuple(sorted(inflight, key=order)),
-                              outbox=tuple(sorted(s.outbox)), seen=tuple(seen))
+            return s._replace(
+                next_ids=counts,
+                inflight=tuple(sorted(inflight, key=order)),
+                outbox=tuple(sorted(s.outbox)),
+                seen=tuple(seen),
+            )
         new = {a: {k: j for j, k in enumerate(sorted(ks))} for a, ks in live.items()}
         intern = self._interned
 
@@ -392,7 +460,8 @@ class Machine:
             next_ids=counts,
             inflight=tuple(sorted((copy(c) for c in inflight), key=order)),
             outbox=tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in s.outbox)),
-            seen=tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)))
+            seen=tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)),
+        )
 
 
 def _ack_id(c: Copy) -> int:

@@ -27,8 +27,9 @@ def step_text(sk: Skeleton, parent: State, choice: tuple) -> str:
         e = parent.outbox[choice[1]]
         waiting = ", ".join(names[r] for r in e.waiting)
         act = "resends it" if e.retries_left > 0 else "gives up (undeliverable)"
-        return f"{names[e.sender]}: ack timeout of {e.type} #{e.msg_id} (no ack from " \
-               f"{waiting}): {act}"
+        return (
+            f"{names[e.sender]}: ack timeout of {e.type} #{e.msg_id} (no ack from {waiting}): {act}"
+        )
     if kind == "scenario":
         _, agent, name = sk.original.scenario[parent.cursor]
         return f"scenario: {names[agent]} raises {name}"
@@ -58,14 +59,23 @@ def changes(sk: Skeleton, before: State, after: State) -> list[str]:
     return out
 
 
-def describe(sk: Skeleton, g: Graph, path: list[int], mark: tuple[int, str] | None = None,
-             times: list[float] | None = None) -> list[str]:
+def describe(
+    sk: Skeleton,
+    g: Graph,
+    path: list[int],
+    mark: tuple[int, str] | None = None,
+    times: list[float] | None = None,
+) -> list[str]:
     """One line per step (with its mode changes indented below); ``mark`` = (k, text)
     puts a line of text after step k (0: before the first); ``times``: the moments a
     replay gave the steps, shown before each."""
-    lines = ["initial: " + "; ".join(f"{ca.name} in {', '.join(modes)}" for ca, modes in
-                                     zip(sk.original.agents, leaves(sk, g.states[path[0]]),
-                                         strict=True))]
+    lines = [
+        "initial: "
+        + "; ".join(
+            f"{ca.name} in {', '.join(modes)}"
+            for ca, modes in zip(sk.original.agents, leaves(sk, g.states[path[0]]), strict=True)
+        )
+    ]
     if mark is not None and mark[0] == 0:
         lines.append(mark[1])
     for k, (a, b) in enumerate(pairwise(path), start=1):

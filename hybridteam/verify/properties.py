@@ -111,8 +111,9 @@ class States:
         a = self.names[agent]
         cols = self.sk.discrete_vars[a]
         if j not in cols:
-            raise Unsupported(f"it reads {agent}.{self._var_name(a, j)}, which is computed "
-                              "from time or state")
+            raise Unsupported(
+                f"it reads {agent}.{self._var_name(a, j)}, which is computed from time or state"
+            )
         return self._vars[a][:, cols.index(j)][:, None]
 
     def _var_name(self, a: int, j: int) -> str:
@@ -136,8 +137,14 @@ class States:
         raise Unsupported(f"it reads {kind}() message events")
 
 
-_OPS = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
-        "==": np.equal, "!=": np.not_equal}
+_OPS = {
+    "<": np.less,
+    "<=": np.less_equal,
+    ">": np.greater,
+    ">=": np.greater_equal,
+    "==": np.equal,
+    "!=": np.not_equal,
+}
 
 
 def truth(node: N.Node, sig: States) -> np.ndarray:
@@ -186,18 +193,23 @@ def properties(sk: Skeleton) -> list[Property]:
             body = f.children[0]
             if _temporal_free(body):
                 p.kind, p.phi = "invariant", body
-            elif isinstance(body, N.Implies) and _temporal_free(body.children[0]) \
-                    and isinstance(body.children[1], N.Eventually) \
-                    and _unbounded(body.children[1]) \
-                    and _temporal_free(body.children[1].children[0]):
-                p.kind, p.phi, p.psi = "response", body.children[0], \
-                    body.children[1].children[0]
+            elif (
+                isinstance(body, N.Implies)
+                and _temporal_free(body.children[0])
+                and isinstance(body.children[1], N.Eventually)
+                and _unbounded(body.children[1])
+                and _temporal_free(body.children[1].children[0])
+            ):
+                p.kind, p.phi, p.psi = "response", body.children[0], body.children[1].children[0]
         if p.kind == "skipped":
-            p.reason = "verify checks always(phi) and always(implies(phi, eventually(psi))) " \
-                       "with phi, psi free of temporal operators; timed windows need a clock"
+            p.reason = (
+                "verify checks always(phi) and always(implies(phi, eventually(psi))) "
+                "with phi, psi free of temporal operators; timed windows need a clock"
+            )
         out.append(p)
-    out.append(Property("deadlock", "deadlock", "nothing can happen while an agent waits for "
-                        "a message"))
+    out.append(
+        Property("deadlock", "deadlock", "nothing can happen while an agent waits for a message")
+    )
     return out
 
 
@@ -223,8 +235,10 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
 def truths(node: N.Node, sk: Skeleton, g: Graph) -> np.ndarray:
     """:func:`truth` in every explored state, evaluated block by block."""
     n = len(g.states)
-    return np.concatenate([truth(node, States(sk, g, slice(k, min(k + BLOCK, n))))
-                           for k in range(0, n, BLOCK)] or [np.zeros(0, bool)])
+    return np.concatenate(
+        [truth(node, States(sk, g, slice(k, min(k + BLOCK, n)))) for k in range(0, n, BLOCK)]
+        or [np.zeros(0, bool)]
+    )
 
 
 def _invariant(p: Property, ok: np.ndarray) -> Verdict:
@@ -243,9 +257,8 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
     n = len(g.states)
     indptr, indices = g.edges.csr()
     src = np.repeat(np.arange(n), np.diff(indptr))
-    keep = ~psi[src] & ~psi[indices]           # edges between psi-false states
-    sub = csr_matrix((np.ones(int(keep.sum()), np.int8), (src[keep], indices[keep])),
-                     shape=(n, n))
+    keep = ~psi[src] & ~psi[indices]  # edges between psi-false states
+    sub = csr_matrix((np.ones(int(keep.sum()), np.int8), (src[keep], indices[keep])), shape=(n, n))
     waiting = ~psi
     dead = waiting & g.terminal()
     _, label = connected_components(sub, directed=True, connection="strong")
@@ -258,8 +271,15 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
     starts = np.flatnonzero(reach & phi)
     if not starts.size:
         return Verdict(p, True)
-    return _lasso(p, g, psi, reach, set(np.flatnonzero(dead).tolist()),
-                  set(np.flatnonzero(cyclic).tolist()), int(starts[0]))
+    return _lasso(
+        p,
+        g,
+        psi,
+        reach,
+        set(np.flatnonzero(dead).tolist()),
+        set(np.flatnonzero(cyclic).tolist()),
+        int(starts[0]),
+    )
 
 
 def _reaching(sub: csr_matrix, bad: np.ndarray) -> np.ndarray:
@@ -276,8 +296,15 @@ def _reaching(sub: csr_matrix, bad: np.ndarray) -> np.ndarray:
     return reach
 
 
-def _lasso(p: Property, g: Graph, psi: np.ndarray, reach: np.ndarray, dead: set[int],
-           cyclic: set[int], start: int) -> Verdict:
+def _lasso(
+    p: Property,
+    g: Graph,
+    psi: np.ndarray,
+    reach: np.ndarray,
+    dead: set[int],
+    cyclic: set[int],
+    start: int,
+) -> Verdict:
     """The shortest psi-free path from ``start`` into a dead end or a cycle (``reach``
     holds every dead and cyclic state: the backward search starts from them)."""
     sub: nx.DiGraph[int] = nx.DiGraph()
@@ -322,10 +349,13 @@ def _deadlock(p: Property, sk: Skeleton, g: Graph) -> Verdict:
         for r in range(rows.size):
             if final[r]:
                 continue
-            waits = {ca.transitions[j].on for m in np.flatnonzero(act[r])
-                     for j in ca.modes[m].outgoing if ca.transitions[j].on}
-            if waits and not waits & (sk.inputs[a] | {e for b, e in sk.world_events
-                                                      if b == a}):
+            waits = {
+                ca.transitions[j].on
+                for m in np.flatnonzero(act[r])
+                for j in ca.modes[m].outgoing
+                if ca.transitions[j].on
+            }
+            if waits and not waits & (sk.inputs[a] | {e for b, e in sk.world_events if b == a}):
                 blocked[r] = True
     bad = rows[blocked & ~all_final & ~commanded]
     if not bad.size:

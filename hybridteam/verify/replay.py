@@ -61,8 +61,9 @@ class Replay:
 
     def lines(self) -> list[str]:
         """The path's steps with the moments the replay gave them."""
-        return [f"t={t:9.6f} s  {s.text}" for s, t in zip(self.steps[1:], self.times[1:],
-                                                           strict=False)]
+        return [
+            f"t={t:9.6f} s  {s.text}" for s, t in zip(self.steps[1:], self.times[1:], strict=False)
+        ]
 
 
 def _measured(sk: Skeleton, s: PathStep) -> bool:
@@ -91,8 +92,7 @@ class Context:
         self.timed: dict[tuple, Replay | tuple[Replayer, list[float], float]] = {}
 
 
-def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = False
-           ) -> Replay:
+def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = False) -> Replay:
     """Schedule ``path`` in time and check that the run violates property ``name``."""
     key = tuple(path)
     if key not in ctx.timed:  # two properties often share a counterexample
@@ -101,8 +101,7 @@ def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = Fa
     if isinstance(found, Replay):
         return found
     r, times, gap = found
-    return _final(r, r.steps, times, kind, name, float(ctx.team.simulation.duration),
-                  loops, gap)
+    return _final(r, r.steps, times, kind, name, float(ctx.team.simulation.duration), loops, gap)
 
 
 def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float], float]:
@@ -114,8 +113,11 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
     n = len(steps) - 1
     gap = next((g for g in GAPS if not isinstance(solve(n, bounds(sk, steps, g)), str)), 0.0)
     if not gap:  # the shortest prefix that cannot be timed: no path through it can either
-        m = next(m for m in range(1, n + 1)
-                 if isinstance(solve(m, bounds(sk, steps[: m + 1], GAPS[-1])), str))
+        m = next(
+            m
+            for m in range(1, n + 1)
+            if isinstance(solve(m, bounds(sk, steps[: m + 1], GAPS[-1])), str)
+        )
         why = solve(m, bounds(sk, steps[: m + 1], GAPS[-1]))
         return Replay(False, f"the path cannot be timed: {why}", steps, stop=m)
     base = bounds(sk, steps, gap)
@@ -124,14 +126,20 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
     measure = [k for k, s in enumerate(steps) if _measured(sk, s)]
     first, first_k = "", -1  # where the run first left the path, and how
     while True:
-        extra = [Bound(0, k, t, t, f"step {k} fires at t={t:.6g} s in the run")
-                 for k, t in fixed.items()]
-        extra += [Bound(k - 1, k, DELAYS[d], math.inf, f"step {k} waits {DELAYS[d]:g} s")
-                  for k, d in floor.items()]
+        extra = [
+            Bound(0, k, t, t, f"step {k} fires at t={t:.6g} s in the run") for k, t in fixed.items()
+        ]
+        extra += [
+            Bound(k - 1, k, DELAYS[d], math.inf, f"step {k} waits {DELAYS[d]:g} s")
+            for k, d in floor.items()
+        ]
         times = solve(n, base + extra)
         if isinstance(times, str):
-            why = first + " (and it cannot wait longer: " + times + ")" if first else \
-                f"the path cannot be timed: {times}"
+            why = (
+                first + " (and it cannot wait longer: " + times + ")"
+                if first
+                else f"the path cannot be timed: {times}"
+            )
             return Replay(False, why, steps, stop=first_k)
         times = [float(t) for t in times]
         todo = [k for k in measure if k not in fixed]
@@ -139,8 +147,14 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
             k = todo[0]
             t = r.measure(times[:k], steps[k], max(horizon, times[k - 1] + 10.0))
             if t is None:
-                return Replay(False, f"step {k} ({steps[k].text}) does not happen in the "
-                              f"run after t={times[k - 1]:.6g} s", steps, times[:k], stop=k)
+                return Replay(
+                    False,
+                    f"step {k} ({steps[k].text}) does not happen in the "
+                    f"run after t={times[k - 1]:.6g} s",
+                    steps,
+                    times[:k],
+                    stop=k,
+                )
             fixed[k] = t
             continue
         bad = r.diverges(r.run(times, times[-1] + gap / 2), times)
@@ -158,8 +172,16 @@ def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float
             del fixed[later]  # measured with the earlier schedule
 
 
-def _final(r: Replayer, steps: list[PathStep], times: list[float], kind: str, name: str,
-           horizon: float, loops: bool, gap: float) -> Replay:
+def _final(
+    r: Replayer,
+    steps: list[PathStep],
+    times: list[float],
+    kind: str,
+    name: str,
+    horizon: float,
+    loops: bool,
+    gap: float,
+) -> Replay:
     """The whole path scheduled: run on (to the end of the team's run after a dead end,
     five steps' time after a cycle or an invariant's violation) and check the property."""
     end = times[-1]
@@ -170,20 +192,50 @@ def _final(r: Replayer, steps: list[PathStep], times: list[float], kind: str, na
         later = [row for row in run.transitions if row.t > end + TOL]
         if later:
             row = later[0]
-            return Replay(False, f"the run goes on: at t={row.t:.4g} s {row.agent}: "
-                          f"{row.source} -> {row.target} ({row.cause})", steps, times, run)
+            return Replay(
+                False,
+                f"the run goes on: at t={row.t:.4g} s {row.agent}: "
+                f"{row.source} -> {row.target} ({row.cause})",
+                steps,
+                times,
+                run,
+            )
         out = run.diagnostics[0]
-        why = "" if out["outcome"] == "ok" and out["t"] >= run.meta["duration"] else \
-            f": {out['message']}"
-        return Replay(True, f"nothing happens from t={end:.6g} s to the end of the run "
-                      f"(t={out['t']:.6g} s{why})", steps, times, run)
+        why = (
+            ""
+            if out["outcome"] == "ok" and out["t"] >= run.meta["duration"]
+            else f": {out['message']}"
+        )
+        return Replay(
+            True,
+            f"nothing happens from t={end:.6g} s to the end of the run (t={out['t']:.6g} s{why})",
+            steps,
+            times,
+            run,
+        )
     verdict = run.diagnostics[0].get("requirements", {}).get(name, {})
     if verdict.get("satisfied", True):
-        return Replay(False, f"the run follows the path, but its trace satisfies {name} "
-                      f"(robustness {verdict.get('robustness')})", steps, times, run)
+        return Replay(
+            False,
+            f"the run follows the path, but its trace satisfies {name} "
+            f"(robustness {verdict.get('robustness')})",
+            steps,
+            times,
+            run,
+        )
     if kind == "response":
-        return Replay(True, f"the run's trace violates {name}: the answer has not come by "
-                      f"the end of the run (t={run.diagnostics[0]['t']:.6g} s)", steps, times,
-                      run)
-    return Replay(True, f"the run's trace violates {name} at "
-                  f"t={float(verdict.get('violated_at', end)):.6g} s", steps, times, run)
+        return Replay(
+            True,
+            f"the run's trace violates {name}: the answer has not come by "
+            f"the end of the run (t={run.diagnostics[0]['t']:.6g} s)",
+            steps,
+            times,
+            run,
+        )
+    return Replay(
+        True,
+        f"the run's trace violates {name} at t={float(verdict.get('violated_at', end)):.6g} s",
+        steps,
+        times,
+        run,
+    )

@@ -22,8 +22,7 @@ class Script:
     """A replay's network: each control copy's arrival times, by (sender, receiver, type,
     n) — the n-th copy of that type on that link; +inf: still in flight at the end."""
 
-    def __init__(self, names: list[str], streams: set[str], plan: dict[tuple, list[float]]
-                 ) -> None:
+    def __init__(self, names: list[str], streams: set[str], plan: dict[tuple, list[float]]) -> None:
         self.names, self.streams, self.plan = names, streams, plan
         self.count: Counter = Counter()
 
@@ -65,13 +64,21 @@ class Replayer:
         for key, n in self.copies.items():
             got = delivered.get(key, [])
             plan[key] = got + [math.inf] * (n - len(got) - lost[key])
-        scenario = [(t, s.agent, s.event) for s, t in zip(self.steps[1:], times[1:],
-                                                          strict=False)
-                    if s.kind == "scenario"]
+        scenario = [
+            (t, s.agent, s.event)
+            for s, t in zip(self.steps[1:], times[1:], strict=False)
+            if s.kind == "scenario"
+        ]
         cteam = dataclasses.replace(self.cteam, scenario=scenario)
         reqs = self.reqs
-        sim = Simulator(cteam, 1, seed=self.team.simulation.seed, duration=duration,
-                        snapshots=bool(reqs), observe=reqs.observers(cteam))
+        sim = Simulator(
+            cteam,
+            1,
+            seed=self.team.simulation.seed,
+            duration=duration,
+            snapshots=bool(reqs),
+            observe=reqs.observers(cteam),
+        )
         sim.ensemble.network.script = Script(self.names, self.streams, plan)
         run = Run.of(sim.run())
         if reqs:
@@ -90,17 +97,30 @@ class Replayer:
             if got != self.steps[j].active:
                 extra = sorted(f"{a} in {m}" for a, m in got - self.steps[j].active)
                 missing = sorted(f"{a} in {m}" for a, m in self.steps[j].active - got)
-                found.append((j, f"after step {j} (t={times[j]:.6g} s) the run has "
-                              f"{', '.join(extra) or 'nothing else'} where the path has "
-                              f"{', '.join(missing) or 'nothing else'}"))
+                found.append(
+                    (
+                        j,
+                        f"after step {j} (t={times[j]:.6g} s) the run has "
+                        f"{', '.join(extra) or 'nothing else'} where the path has "
+                        f"{', '.join(missing) or 'nothing else'}",
+                    )
+                )
                 break
         end = times[-1] + TOL
         for row in run.transitions:
-            if row.cause != "init" and row.t <= end and \
-                    not any(abs(row.t - t) <= TOL for t in moments):
-                found.append((_step_at(times, row.t), f"at t={row.t:.6g} s {row.agent}: "
-                              f"{row.source} -> {row.target} ({row.cause}), which the path "
-                              "does not have there"))
+            if (
+                row.cause != "init"
+                and row.t <= end
+                and not any(abs(row.t - t) <= TOL for t in moments)
+            ):
+                found.append(
+                    (
+                        _step_at(times, row.t),
+                        f"at t={row.t:.6g} s {row.agent}: "
+                        f"{row.source} -> {row.target} ({row.cause}), which the path "
+                        "does not have there",
+                    )
+                )
                 break
         found += self._sends(run, times, moments)
         return min(found) if found else None
@@ -121,17 +141,27 @@ class Replayer:
             copies.add((row.sender, row.receiver, row.seq))
             at = next((t for t in moments if abs(row.t_send - t) <= TOL), None)
             if at is None:
-                return [(_step_at(times, row.t_send), f"at t={row.t_send:.6g} s "
-                         f"{row.sender} sends {row.type} to {row.receiver}, which the path "
-                         "does not have")]
+                return [
+                    (
+                        _step_at(times, row.t_send),
+                        f"at t={row.t_send:.6g} s "
+                        f"{row.sender} sends {row.type} to {row.receiver}, which the path "
+                        "does not have",
+                    )
+                ]
             got[at][(row.sender, row.receiver, row.type)] += 1
         for t in moments:
             if got[t] != expected[t]:
                 more = ", ".join(f"{s}->{r}: {ty}" for (s, r, ty) in got[t] - expected[t])
                 less = ", ".join(f"{s}->{r}: {ty}" for (s, r, ty) in expected[t] - got[t])
-                return [(_step_at(times, t), f"at t={t:.6g} s the run sends "
-                         f"{more or 'nothing more'} where the path sends "
-                         f"{less or 'nothing more'}")]
+                return [
+                    (
+                        _step_at(times, t),
+                        f"at t={t:.6g} s the run sends "
+                        f"{more or 'nothing more'} where the path sends "
+                        f"{less or 'nothing more'}",
+                    )
+                ]
         return []
 
     def measure(self, times: list[float], step: PathStep, horizon: float) -> float | None:
@@ -142,8 +172,11 @@ class Replayer:
         for window in (1.0, 10.0, math.inf):
             end = min(times[-1] + window, horizon)
             run = self.run(times, end)
-            after = [row.t for row in run.transitions if row.agent == name and
-                     row.cause != "init" and row.t > times[-1] + TOL]
+            after = [
+                row.t
+                for row in run.transitions
+                if row.agent == name and row.cause != "init" and row.t > times[-1] + TOL
+            ]
             if after:
                 return min(after)
             if end >= horizon:
@@ -164,8 +197,9 @@ def _active_at(run, t: float) -> frozenset:
     last = float(run.diagnostics[0]["t"])
     if t < last - TOL:
         mask = (rows["start"] <= t + TOL) & (rows["end"] > t + TOL)
-        return frozenset(zip(rows["agent"][mask].tolist(), rows["mode"][mask].tolist(),
-                             strict=True))
+        return frozenset(
+            zip(rows["agent"][mask].tolist(), rows["mode"][mask].tolist(), strict=True)
+        )
     best: dict[tuple, tuple] = {}
     for k, r in enumerate(rows):
         if r.start <= t + TOL and r.end >= last - TOL:

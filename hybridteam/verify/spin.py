@@ -58,8 +58,11 @@ def missing() -> str | None:
 
 def compared(report) -> list[Verdict]:
     """The verdicts SPIN can give a second opinion on."""
-    return [v for v in report.verdicts if v.holds is not None
-            and v.prop.kind in ("invariant", "response")]
+    return [
+        v
+        for v in report.verdicts
+        if v.holds is not None and v.prop.kind in ("invariant", "response")
+    ]
 
 
 def model(report) -> tuple[str, str]:
@@ -69,8 +72,10 @@ def model(report) -> tuple[str, str]:
     g, sk = report.graph, report.skeleton
     n = len(g.states)
     indptr, indices = g.edges.csr()
-    arrays = [f"int first[{n + 1}] = {{{_list(indptr)}}};",
-              f"int succ[{max(indices.size, 1)}] = {{{_list(indices) or '0'}}};"]
+    arrays = [
+        f"int first[{n + 1}] = {{{_list(indptr)}}};",
+        f"int succ[{max(indices.size, 1)}] = {{{_list(indices) or '0'}}};",
+    ]
     declared = ["  extern int first[];", "  extern int succ[];"]
     bits, claims, sets = [], [], []
     for k, v in enumerate(compared(report)):
@@ -86,26 +91,36 @@ def model(report) -> tuple[str, str]:
             sets.append(f"now.{name} = {name}_at[now.s];")
         formula = f"[] ok{k}" if p.kind == "invariant" else f"[] (phi{k} -> <> psi{k})"
         claims.append(f"ltl p{k} {{ {formula} }}  /* {p.name} */")
-    head = (f"/* hybridteam verify: the explored skeleton of team '{sk.original.team.name}', "
-            f"{n} states, {len(g.edges)} edges */")
-    return "\n".join([
-        head,
-        "c_decl {", *declared, "}",
-        "int s = 0;", "int k = 0;", *bits,
-        "active proctype skeleton() {",
-        "  do",
-        "  :: c_expr { first[now.s] < first[now.s + 1] } ->",
-        "     atomic {",
-        "       c_code { now.k = first[now.s]; };",
-        "       do",
-        "       :: c_expr { now.k + 1 < first[now.s + 1] } -> k++",
-        "       :: true -> break",
-        "       od;",
-        "       c_code { now.s = succ[now.k]; now.k = 0; " + " ".join(sets) + " }",
-        "     }",
-        "  od",
-        "}",
-        *claims, ""]), "\n".join([head, *arrays, ""])
+    head = (
+        f"/* hybridteam verify: the explored skeleton of team '{sk.original.team.name}', "
+        f"{n} states, {len(g.edges)} edges */"
+    )
+    return "\n".join(
+        [
+            head,
+            "c_decl {",
+            *declared,
+            "}",
+            "int s = 0;",
+            "int k = 0;",
+            *bits,
+            "active proctype skeleton() {",
+            "  do",
+            "  :: c_expr { first[now.s] < first[now.s + 1] } ->",
+            "     atomic {",
+            "       c_code { now.k = first[now.s]; };",
+            "       do",
+            "       :: c_expr { now.k + 1 < first[now.s + 1] } -> k++",
+            "       :: true -> break",
+            "       od;",
+            "       c_code { now.s = succ[now.k]; now.k = 0; " + " ".join(sets) + " }",
+            "     }",
+            "  od",
+            "}",
+            *claims,
+            "",
+        ]
+    ), "\n".join([head, *arrays, ""])
 
 
 def _list(values) -> str:
@@ -119,15 +134,20 @@ def cross_check(report, folder: Path, timeout: float = 600.0) -> list[Opinion]:
     if why:
         raise RuntimeError(why)
     if not report.graph.exhaustive:
-        raise RuntimeError(f"the exploration stopped ({report.graph.bound}): SPIN would "
-                           "read the states cut off as dead ends")
+        raise RuntimeError(
+            f"the exploration stopped ({report.graph.bound}): SPIN would "
+            "read the states cut off as dead ends"
+        )
     folder.mkdir(parents=True, exist_ok=True)
     promela, arrays = model(report)
     (folder / "skeleton.pml").write_text(promela)
     (folder / "graph.c").write_text(arrays)
     _run(["spin", "-a", "skeleton.pml"], folder, timeout)
-    _run(["cc", "-O1", "-DNOREDUCE", "-DVECTORSZ=256", "-o", "pan", "pan.c", "graph.c"],
-         folder, timeout)
+    _run(
+        ["cc", "-O1", "-DNOREDUCE", "-DVECTORSZ=256", "-o", "pan", "pan.c", "graph.c"],
+        folder,
+        timeout,
+    )
     out = []
     for k, v in enumerate(compared(report)):
         text = _run(["./pan", "-a", "-m10000000", "-w24", "-N", f"p{k}"], folder, timeout)
@@ -142,8 +162,7 @@ def cross_check(report, folder: Path, timeout: float = 600.0) -> list[Opinion]:
 
 def _run(cmd: list[str], folder: Path, timeout: float) -> str:
     try:
-        done = subprocess.run(cmd, cwd=folder, capture_output=True, text=True,
-                              timeout=timeout)
+        done = subprocess.run(cmd, cwd=folder, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         raise RuntimeError(f"'{' '.join(cmd)}' took more than {timeout:.0f} s") from None
     if done.returncode != 0:

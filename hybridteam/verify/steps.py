@@ -66,15 +66,24 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[PathStep
         ident.extend(new)
         return tuple(new)
 
-    steps = [PathStep("initial", "initial", _active(sk, raw), keys(raw.inflight),
-                  _outbox(raw), _armed(m, m.armed0))]
+    steps = [
+        PathStep(
+            "initial",
+            "initial",
+            _active(sk, raw),
+            keys(raw.inflight),
+            _outbox(raw),
+            _armed(m, m.armed0),
+        )
+    ]
     sent_at = {(e.sender, e.msg_id): 0 for e in raw.outbox}
     for a, b in pairwise(path):
         choice = g.edge_choice(a, b)
         assert choice is not None, "a path follows the graph's edges"
         rc, nxt = _match(m, raw, g.states[a], choice, g.states[b])
-        step = PathStep(rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (),
-                    _outbox(nxt))
+        step = PathStep(
+            rc[0], step_text(sk, g.states[a], choice), _active(sk, nxt), (), _outbox(nxt)
+        )
         if rc[0] in ("deliver", "lose", "dup"):
             step.key = ident[rc[1]]
             if rc[0] == "dup":
@@ -91,7 +100,7 @@ def follow(sk: Skeleton, g: Graph, path: list[int], m: Machine) -> list[PathStep
             step.agent = rc[1]
             step.transition = rc[2] if rc[0] == "time" else -1
         if rc[0] not in ("lose", "dup"):
-            step.copies = keys(nxt.inflight[len(ident):])
+            step.copies = keys(nxt.inflight[len(ident) :])
             step.armed = _armed(m)
         for e in nxt.outbox:  # a new acknowledged message: its timer starts here
             if (e.sender, e.msg_id) not in sent_at:
@@ -107,8 +116,9 @@ def _active(sk: Skeleton, s: State) -> frozenset:
     out = set()
     for a, ca in enumerate(sk.original.agents):
         act = active_of(s, a, len(ca.modes))
-        out |= {(ca.name, ca.modes[k].path) for k in np.flatnonzero(act).tolist()
-                if ca.modes[k].path}  # the root is not a mode of the trace
+        out |= {
+            (ca.name, ca.modes[k].path) for k in np.flatnonzero(act).tolist() if ca.modes[k].path
+        }  # the root is not a mode of the trace
     return frozenset(out)
 
 
@@ -131,13 +141,16 @@ def _armed(m: Machine, rows: list[np.ndarray] | None = None) -> tuple:
 
 def _same(x: Copy, y: Copy) -> bool:
     """The same copy up to message ids (raw ids against canonical ones)."""
+
     def strip(c: Copy) -> tuple:
         return (*c[:4], tuple(f for f in c.fields if f[0] != "id"))
+
     return strip(x) == strip(y)
 
 
-def _match(m: Machine, raw: State, parent: State, choice: tuple, child: State
-           ) -> tuple[tuple, State]:
+def _match(
+    m: Machine, raw: State, parent: State, choice: tuple, child: State
+) -> tuple[tuple, State]:
     """The choice on the raw state whose successor is ``child`` in canonical form, and
     that successor; identical copies are tried oldest first."""
     kind = choice[0]
@@ -146,8 +159,11 @@ def _match(m: Machine, raw: State, parent: State, choice: tuple, child: State
         options = [(kind, j) for j, r in enumerate(raw.inflight) if _same(r, c)]
     elif kind == "timer":
         e = parent.outbox[choice[1]]
-        options = [("timer", j) for j, r in enumerate(raw.outbox)
-                   if r._replace(msg_id=0) == e._replace(msg_id=0)]
+        options = [
+            ("timer", j)
+            for j, r in enumerate(raw.outbox)
+            if r._replace(msg_id=0) == e._replace(msg_id=0)
+        ]
     else:
         options = [choice]
     for option in options:
@@ -157,8 +173,9 @@ def _match(m: Machine, raw: State, parent: State, choice: tuple, child: State
             r = m.run([(raw, option, tape)])[0]
             if m.canonical(r.state) == child:
                 return option, r.state
-            tapes += [tape + (False,) * (k - len(tape)) + (True,)
-                      for k in range(len(tape), r.reads)]
+            tapes += [
+                tape + (False,) * (k - len(tape)) + (True,) for k in range(len(tape), r.reads)
+            ]
     raise AssertionError(f"the path's step {choice} cannot be followed")  # a bug: say so
 
 
@@ -175,23 +192,46 @@ def bounds(sk: Skeleton, steps: list[PathStep], gap: float) -> list[Bound]:
         else:
             out.append(Bound(k - 1, k, gap, math.inf, f"step {k} comes after step {k - 1}"))
         if s.kind == "timer":
-            out.append(Bound(s.sent_at, k, s.timeout, s.timeout,
-                             f"the ack timeout at step {k} expires {s.timeout:g} s after "
-                             f"step {s.sent_at} sent the message"))
+            out.append(
+                Bound(
+                    s.sent_at,
+                    k,
+                    s.timeout,
+                    s.timeout,
+                    f"the ack timeout at step {k} expires {s.timeout:g} s after "
+                    f"step {s.sent_at} sent the message",
+                )
+            )
     for k in range(n + 1):  # timers the path does not take must not expire while armed
         for entry, timeout in steps[k].outbox.items():
-            if k and entry in steps[k - 1].outbox and not (
-                    steps[k].entry == entry and steps[k].copies):
+            if (
+                k
+                and entry in steps[k - 1].outbox
+                and not (steps[k].entry == entry and steps[k].copies)
+            ):
                 continue  # armed earlier
-            e = next((j for j in range(k + 1, n + 1) if entry not in steps[j].outbox
-                      or steps[j].entry == entry), None)
+            e = next(
+                (
+                    j
+                    for j in range(k + 1, n + 1)
+                    if entry not in steps[j].outbox or steps[j].entry == entry
+                ),
+                None,
+            )
             if e is not None and steps[e].entry == entry:
                 continue  # it expires at step e: the bound above
             what = f"{names[entry[0]]}'s message #{entry[1]} (sent at step {k})"
-            out.append(Bound(k, n if e is None else e, -math.inf, timeout - gap,
-                             f"{what} is not settled by the path's end" if e is None
-                             else f"{what} is settled at step {e}, before its ack "
-                             f"timeout ({timeout:g} s)"))
+            out.append(
+                Bound(
+                    k,
+                    n if e is None else e,
+                    -math.inf,
+                    timeout - gap,
+                    f"{what} is not settled by the path's end"
+                    if e is None
+                    else f"{what} is settled at step {e}, before its ack timeout ({timeout:g} s)",
+                )
+            )
     ca_of = sk.original.agents
     for k in range(n + 1):
         for a, j, d in steps[k].armed:
@@ -201,17 +241,37 @@ def bounds(sk: Skeleton, steps: list[PathStep], gap: float) -> list[Bound]:
                 s = steps[e]
                 if s.kind == "time" and (s.agent, s.transition) == (a, j):
                     exact = tr.guard is None
-                    out.append(Bound(k, e, d, d if exact else math.inf,
-                                     f"{names[a]}'s 'after {d:g} s' ({tr.text}) fires at "
-                                     f"step {e}, entered at step {k}"))
+                    out.append(
+                        Bound(
+                            k,
+                            e,
+                            d,
+                            d if exact else math.inf,
+                            f"{names[a]}'s 'after {d:g} s' ({tr.text}) fires at "
+                            f"step {e}, entered at step {k}",
+                        )
+                    )
                     break
                 if source not in s.active or any((b, i) == (a, j) for b, i, _ in s.armed):
-                    out.append(Bound(k, e, -math.inf, d - gap,
-                                     f"{names[a]} leaves {source[1]} (step {e}) before its "
-                                     f"'after {d:g} s' (entered at step {k})"))
+                    out.append(
+                        Bound(
+                            k,
+                            e,
+                            -math.inf,
+                            d - gap,
+                            f"{names[a]} leaves {source[1]} (step {e}) before its "
+                            f"'after {d:g} s' (entered at step {k})",
+                        )
+                    )
                     break
             else:
-                out.append(Bound(k, n, -math.inf, d - gap,
-                                 f"{names[a]}'s 'after {d:g} s' ({tr.text}) does not fire "
-                                 f"by the path's end"))
+                out.append(
+                    Bound(
+                        k,
+                        n,
+                        -math.inf,
+                        d - gap,
+                        f"{names[a]}'s 'after {d:g} s' ({tr.text}) does not fire by the path's end",
+                    )
+                )
     return out

@@ -64,7 +64,7 @@ class Keys:
         return len(self.ends)
 
     def __getitem__(self, k: int) -> bytes:
-        return bytes(self.buf[self.ends[k - 1] if k else 0: self.ends[k]])
+        return bytes(self.buf[self.ends[k - 1] if k else 0 : self.ends[k]])
 
     def get(self, key: bytes) -> int | None:
         """``key``'s number, or None."""
@@ -76,7 +76,7 @@ class Keys:
             k = slots[i]
             if k == EMPTY:
                 return None
-            if prints[k] == fp and buf[ends[k - 1] if k else 0: ends[k]] == key:
+            if prints[k] == fp and buf[ends[k - 1] if k else 0 : ends[k]] == key:
                 return k
             i = (i + 1) & mask
 
@@ -154,11 +154,12 @@ class Store:
         pos, groups = a, []
         for _ in range(3):
             count = nums[pos]
-            groups.append(tuple(values[n] for n in nums[pos + 1: pos + 1 + count]))
+            groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
             pos += 1 + count
-        cursor, losses, dups = nums[pos: pos + 3]
-        return State(agents, groups[0], groups[1], groups[2], cursor, losses, dups,
-                     tuple(nums[pos + 3:]))
+        cursor, losses, dups = nums[pos : pos + 3]
+        return State(
+            agents, groups[0], groups[1], groups[2], cursor, losses, dups, tuple(nums[pos + 3 :])
+        )
 
     def __iter__(self) -> Iterator[State]:
         return (self[k] for k in range(len(self.keys)))
@@ -199,8 +200,9 @@ class Edges:
     def freeze(self, states: int) -> None:
         src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
         order = np.argsort(src, kind="stable")  # a state's edges in the order added
-        self._dst = (np.frombuffer(self.dst, UINT)[order] if len(self.dst)
-                     else np.zeros(0, UINT)).astype(np.int64)
+        self._dst = (
+            np.frombuffer(self.dst, UINT)[order] if len(self.dst) else np.zeros(0, UINT)
+        ).astype(np.int64)
         self._how = np.frombuffer(self.how, UINT)[order] if len(self.how) else np.zeros(0, UINT)
         self._row = np.zeros(states + 1, np.int64)
         np.cumsum(np.bincount(src, minlength=states), out=self._row[1:])
@@ -213,7 +215,7 @@ class Edges:
     def successors(self, k: int) -> list[int]:
         """``k``'s successors, in the order their edges were added, each once."""
         row, dst, _ = self._ready()
-        return list(dict.fromkeys(dst[row[k]: row[k + 1]].tolist()))
+        return list(dict.fromkeys(dst[row[k] : row[k + 1]].tolist()))
 
     def out_degree(self) -> np.ndarray:
         row, _, _ = self._ready()
@@ -227,7 +229,7 @@ class Edges:
     def choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
         """The choice of edge ``a -> b`` (the first added), or ``default``."""
         row, dst, how = self._ready()
-        hits = np.flatnonzero(dst[row[a]: row[a + 1]] == b)
+        hits = np.flatnonzero(dst[row[a] : row[a + 1]] == b)
         if not hits.size:
             return default
         return self.choices.values[int(how[row[a] + hits[0]])]

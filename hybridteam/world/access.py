@@ -80,8 +80,9 @@ class WorldAccess(ABC):
         """The agent's plant state in instances ``idx``: ``(m, d)`` (a copy)."""
 
     @abstractmethod
-    def set_state(self, agent: Agent, idx: np.ndarray, values: np.ndarray,
-                  names: Sequence[str] | None = None) -> None:
+    def set_state(
+        self, agent: Agent, idx: np.ndarray, values: np.ndarray, names: Sequence[str] | None = None
+    ) -> None:
         """Place the agent: write state components ``names`` (all when None) in instances
         ``idx``. Meant for :meth:`WorldComponent.start` (initial placements); writing the
         state later bypasses the engine's crossing detection."""
@@ -106,8 +107,9 @@ class WorldAccess(ABC):
         """The agent's variable ``name`` in instances ``idx``: ``(m,)``."""
 
     @abstractmethod
-    def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
-                     values: np.ndarray | float) -> None:
+    def set_variable(
+        self, agent: Agent, name: str, idx: np.ndarray, values: np.ndarray | float
+    ) -> None:
         """Write the agent's variable ``name`` in instances ``idx`` (``values``: ``(m,)`` or
         one number), as a transition's assignment ``name = ...`` writes it: per instance,
         as a float, those instances only (ended ones are skipped). The agents' discrete
@@ -140,6 +142,6 @@ def require_variable(world: WorldAccess, agent: Agent, name: str, setting: str) 
     if name not in world.variable_names(agent):
         known = ", ".join(world.variable_names(agent)) or "none"
         who = world.agents[world.agent(agent)]
-        raise ValueError(f"{setting}: agent '{who}' has no variable '{name}' "
-                         f"(its variables: {known})")
-
+        raise ValueError(
+            f"{setting}: agent '{who}' has no variable '{name}' (its variables: {known})"
+        )

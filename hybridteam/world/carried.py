@@ -67,8 +67,11 @@ def grasp_defaults(agent: Agent | None) -> dict[str, Any]:
     arm = getattr(getattr(agent, "preset", None), "manipulator", None)
     if arm is None:
         return dict(_FREE)
-    return {"mount": [float(arm.mount[0]), float(arm.mount[1])], "spring": float(arm.spring),
-            "limit": float(arm.limit)}
+    return {
+        "mount": [float(arm.mount[0]), float(arm.mount[1])],
+        "spring": float(arm.spring),
+        "limit": float(arm.limit),
+    }
 
 
 def _unarmed(agent: Agent, grasp: Mapping[str, Any], at: tuple[Any, ...]) -> list[ModelError]:
@@ -85,11 +88,16 @@ def _unarmed(agent: Agent, grasp: Mapping[str, Any], at: tuple[Any, ...]) -> lis
     missing = [key for key in ("spring", "limit") if key not in grasp]
     if not missing:
         return []
-    return [ModelError(at, f"robot '{agent.name}' has no manipulator in its model to take "
-                       f"the grasp's {' and '.join(missing)} from",
-                       hint="give them in the grasp (spring: 400, limit: 0.1), or give the "
-                       "robot a manipulator (manipulator: {kind: spring_link, spring: 400, "
-                       "limit: 0.1})")]
+    return [
+        ModelError(
+            at,
+            f"robot '{agent.name}' has no manipulator in its model to take "
+            f"the grasp's {' and '.join(missing)} from",
+            hint="give them in the grasp (spring: 400, limit: 0.1), or give the "
+            "robot a manipulator (manipulator: {kind: spring_link, spring: 400, "
+            "limit: 0.1})",
+        )
+    ]
 
 
 @world_component("payload")
@@ -97,8 +105,13 @@ class CarriedPayload(WorldComponent):
     """A rigid box or bar held by springs at k grasps (see the module docstring)."""
 
     params: ClassVar[dict[str, Any]] = {
-        "name": "payload", "shape": "box", "width": 1.0, "depth": 0.6, "length": 1.0,
-        "grasps": [], "pose": [],
+        "name": "payload",
+        "shape": "box",
+        "width": 1.0,
+        "depth": 0.6,
+        "length": 1.0,
+        "grasps": [],
+        "pose": [],
     }
 
     @classmethod
@@ -107,41 +120,64 @@ class CarriedPayload(WorldComponent):
         grasps = values.get("grasps", [])
         problems = []
         if values.get("shape", "box") not in ("box", "bar"):
-            problems.append(ModelError(("shape",), f"expected 'box' or 'bar', got "
-                                       f"{values['shape']!r}"))
+            problems.append(
+                ModelError(("shape",), f"expected 'box' or 'bar', got {values['shape']!r}")
+            )
         pose = values.get("pose", [])
         if pose and not (isinstance(pose, list) and len(pose) == 3 and all(map(_number, pose))):
-            problems.append(ModelError(("pose",), f"expected [x, y, theta] (theta in radians), "
-                                       f"got {pose!r}"))
+            problems.append(
+                ModelError(("pose",), f"expected [x, y, theta] (theta in radians), got {pose!r}")
+            )
         if not grasps:
             problems.append(ModelError(("grasps",), "needs at least one grasp"))
         for k, g in enumerate(grasps):
             at = ("grasps", k)
             if not isinstance(g, dict) or "agent" not in g:
-                problems.append(ModelError(at, "a grasp is a mapping with 'agent' and "
-                                           f"optionally {', '.join(_GRASP_KEYS[1:])}"))
+                problems.append(
+                    ModelError(
+                        at,
+                        "a grasp is a mapping with 'agent' and "
+                        f"optionally {', '.join(_GRASP_KEYS[1:])}",
+                    )
+                )
                 continue
             for key in g:
                 if key not in _GRASP_KEYS:
-                    problems.append(ModelError((*at, key), f"a grasp has no key {key!r}",
-                                               hint=did_you_mean(str(key), _GRASP_KEYS),
-                                               at_key=True))
+                    problems.append(
+                        ModelError(
+                            (*at, key),
+                            f"a grasp has no key {key!r}",
+                            hint=did_you_mean(str(key), _GRASP_KEYS),
+                            at_key=True,
+                        )
+                    )
             if g["agent"] not in names:
-                problems.append(ModelError((*at, "agent"), f"unknown agent {g['agent']!r}",
-                                           hint=did_you_mean(str(g["agent"]), names)))
+                problems.append(
+                    ModelError(
+                        (*at, "agent"),
+                        f"unknown agent {g['agent']!r}",
+                        hint=did_you_mean(str(g["agent"]), names),
+                    )
+                )
             for key in ("point", "mount"):
                 if key in g and not _pair(g[key]):
                     problems.append(ModelError((*at, key), f"expected [x, y], got {g[key]!r}"))
             for key in ("spring", "limit"):
                 if key in g and not (_number(g[key]) and g[key] > 0):
-                    problems.append(ModelError((*at, key), f"expected a positive number, "
-                                               f"got {g[key]!r}"))
+                    problems.append(
+                        ModelError((*at, key), f"expected a positive number, got {g[key]!r}")
+                    )
             if g["agent"] in names:
                 problems += _unarmed(team.agents[names.index(g["agent"])], g, at)
-            if "engaged" in g and not (isinstance(g["engaged"], str)
-                                       and g["engaged"].isidentifier()):
-                problems.append(ModelError((*at, "engaged"), "expected the name of one of the "
-                                           f"agent's variables, got {g['engaged']!r}"))
+            if "engaged" in g and not (
+                isinstance(g["engaged"], str) and g["engaged"].isidentifier()
+            ):
+                problems.append(
+                    ModelError(
+                        (*at, "engaged"),
+                        f"expected the name of one of the agent's variables, got {g['engaged']!r}",
+                    )
+                )
         return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
@@ -152,8 +188,10 @@ class CarriedPayload(WorldComponent):
         names = [a.name for a in team.agents]
         grasps = values["grasps"]
         self.agents = [names.index(g["agent"]) for g in grasps]
-        full = [{**grasp_defaults(team.agents[a]), **g}
-                for a, g in zip(self.agents, grasps, strict=True)]
+        full = [
+            {**grasp_defaults(team.agents[a]), **g}
+            for a, g in zip(self.agents, grasps, strict=True)
+        ]
         self.body = np.array([g.get("point", [0.0, 0.0]) for g in full], float)
         self.mount = np.array([g["mount"] for g in full], float)
         self.spring = np.array([float(g["spring"]) for g in full])
@@ -161,10 +199,10 @@ class CarriedPayload(WorldComponent):
         self.engaged_by: list[str | None] = [g.get("engaged") for g in grasps]
         k = len(grasps)
         self.pose = np.full((n, 3), np.nan)
-        self.rest = np.full((n, 3), np.nan)        # where it lies when nobody holds it
+        self.rest = np.full((n, 3), np.nan)  # where it lies when nobody holds it
         self.engaged = np.ones((n, k), bool)
-        self.offset = np.full((n, k, 2), np.nan)     # world frame, robot minus grasp point
-        self.arm = np.full((n, k, 3), np.nan)        # robot frame, and relative angle
+        self.offset = np.full((n, k, 2), np.nan)  # world frame, robot minus grasp point
+        self.arm = np.full((n, k, 3), np.nan)  # robot frame, and relative angle
         self.rel0 = np.zeros((n, k))
         self.max_offset = np.zeros((n, k))
         self._one_size: bool | None = None  # whether every instance's outline is one size
@@ -173,8 +211,7 @@ class CarriedPayload(WorldComponent):
         self._halves: tuple[np.ndarray, np.ndarray] | None = None
         self._bits = 1 << np.arange(k)  # grasp j holds: bit j of an engagement code
 
-    def _robot_points(self, world: WorldAccess, idx: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
+    def _robot_points(self, world: WorldAccess, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         poses = np.empty((idx.size, len(self.agents), 3))  # (m, k, 3); np.stack's values
         for k, a in enumerate(self.agents):
             poses[:, k] = world.pose(a, idx)
@@ -219,8 +256,9 @@ class CarriedPayload(WorldComponent):
         """
         return self._settle(world, idx)[0]
 
-    def _settle(self, world: WorldAccess, idx: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _settle(
+        self, world: WorldAccess, idx: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`settle`, returning the headings, the offsets ``(m, k, 2)`` and which grasps
         hold ``(m, k)`` (what :meth:`update` checks next, without gathering them again)."""
         if idx.size == 1 and FLOAT_PATHS.on:  # a single run's instant: the same numbers
@@ -230,13 +268,12 @@ class CarriedPayload(WorldComponent):
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ self._bits
-        codes = [int(code[0])] if code.size and every(code == code[0]) else \
-            np.unique(code).tolist()
+        codes = [int(code[0])] if code.size and every(code == code[0]) else np.unique(code).tolist()
         for c in codes:
             # every row under one code (the usual case): whole arrays, not masked copies
             rows: slice | np.ndarray = slice(None) if len(codes) == 1 else code == c
             held = self._held(c)
-            if held.size == 1:      # no torque: keep the angle, follow the grasp point
+            if held.size == 1:  # no torque: keep the angle, follow the grasp point
                 (j,) = held
                 th = pose[rows, 2]
                 cs, sn = np.cos(th), np.sin(th)
@@ -245,8 +282,9 @@ class CarriedPayload(WorldComponent):
                 pose[rows, 1] = pts[rows, j, 1] - (sn * bx + cs * by)
             elif held.size > 1:
                 some_of = slice(None) if held.size == k else held  # all: views, not copies
-                eq = equilibrium(pts[rows][:, some_of], self.body[some_of],
-                                 self.spring[some_of], offsets=False)
+                eq = equilibrium(
+                    pts[rows][:, some_of], self.body[some_of], self.spring[some_of], offsets=False
+                )
                 pose[rows, 0], pose[rows, 1], pose[rows, 2] = eq.x, eq.y, eq.theta
         self.pose[idx] = pose
         self.rest[idx] = pose
@@ -273,18 +311,24 @@ class CarriedPayload(WorldComponent):
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         _, offsets, on = self._settle(world, idx)
         size = np.hypot(offsets[..., 0], offsets[..., 1])
-        self.max_offset[idx] = np.where(on, np.maximum(self.max_offset[idx], size),
-                                        self.max_offset[idx])
+        self.max_offset[idx] = np.where(
+            on, np.maximum(self.max_offset[idx], size), self.max_offset[idx]
+        )
         over = (size > self.limit) & on
         bad = over.any(axis=1)
         if some(bad):
             names = [self.team.agents[a].name for a in self.agents]
             rows = dict(zip(idx[bad].tolist(), over[bad], strict=True))
             sizes = dict(zip(idx[bad].tolist(), size[bad], strict=True))
-            world.finish(idx[bad], "link_broken", lambda i: "; ".join(
-                f"{self.values['name']} dropped: the grasp of '{names[k]}' is offset "
-                f"{sizes[i][k]:.4g} > limit {self.limit[k]:.4g}"
-                for k in np.flatnonzero(rows[i]).tolist()))
+            world.finish(
+                idx[bad],
+                "link_broken",
+                lambda i: "; ".join(
+                    f"{self.values['name']} dropped: the grasp of '{names[k]}' is offset "
+                    f"{sizes[i][k]:.4g} > limit {self.limit[k]:.4g}"
+                    for k in np.flatnonzero(rows[i]).tolist()
+                ),
+            )
 
     def senses(self) -> tuple[str, ...]:
         return ("arm", "payload")
@@ -306,8 +350,10 @@ class CarriedPayload(WorldComponent):
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
         size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
-        return {self.values["name"]: self.pose[idx],
-                f"{self.values['name']}_grasp": np.where(self.engaged[idx], size, 0.0)}
+        return {
+            self.values["name"]: self.pose[idx],
+            f"{self.values['name']}_grasp": np.where(self.engaged[idx], size, 0.0),
+        }
 
     def summary(self, i: int) -> dict[str, Any]:
         return {"max_grasp_offset": [float(v) for v in self.max_offset[i]]}
@@ -317,12 +363,16 @@ class CarriedPayload(WorldComponent):
         """Half length and half width per instance (a bar is a segment: no width)."""
         if self._halves is None:  # every instance's, once: asked at every instant
             v = self.values
-            self._halves = (v["length"] / 2.0, np.zeros(self.n)) if v["shape"] == "bar" \
+            self._halves = (
+                (v["length"] / 2.0, np.zeros(self.n))
+                if v["shape"] == "bar"
                 else (v["width"] / 2.0, v["depth"] / 2.0)
+            )
         return self._halves[0][idx], self._halves[1][idx]
 
-    def ray_hits(self, idx: np.ndarray, origins: np.ndarray, directions: np.ndarray,
-                 max_range: float) -> np.ndarray:
+    def ray_hits(
+        self, idx: np.ndarray, origins: np.ndarray, directions: np.ndarray, max_range: float
+    ) -> np.ndarray:
         """Where rays ``(m, R, 2)`` of instances ``idx`` meet the outline: ``(m, R)``.
 
         Cast in the body frame, where the outline is one set of segments for every
@@ -354,8 +404,11 @@ class CarriedPayload(WorldComponent):
         prepared for casting once per size."""
         key = (float(w), float(h))
         if key not in self._outlines:
-            self._outlines[key] = Targets.of([[-w, 0.0, w, 0.0]] if h == 0 else [
-                [-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]])
+            self._outlines[key] = Targets.of(
+                [[-w, 0.0, w, 0.0]]
+                if h == 0
+                else [[-w, -h, w, -h], [w, -h, w, h], [w, h, -w, h], [-w, h, -w, -h]]
+            )
         return self._outlines[key]
 
     def outline_distance(self, idx: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -379,20 +432,26 @@ class CarriedPayload(WorldComponent):
         if len(circles):
             c = np.asarray(circles, float)[None]
             cx, cy = _to_body(c[..., 0], c[..., 1], pose)
-            out = np.minimum(out, np.minimum.reduce(
-                np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2], 0.0), axis=1))
+            out = np.minimum(
+                out,
+                np.minimum.reduce(np.maximum(_point_box(cx, cy, hw, hd) - c[..., 2], 0.0), axis=1),
+            )
         return out
 
     def describe(self) -> SceneDescription:
         """The payload's outline, drawn at its pose series (named as the payload)."""
         v = self.values
-        shape: PayloadShape = BarShape(float(v["length"][0])) if v["shape"] == "bar" else \
-            BoxShape(float(v["width"][0]), float(v["depth"][0]))
+        shape: PayloadShape = (
+            BarShape(float(v["length"][0]))
+            if v["shape"] == "bar"
+            else BoxShape(float(v["width"][0]), float(v["depth"][0]))
+        )
         return SceneDescription(payloads={v["name"]: shape})
 
 
-def _to_body(x: np.ndarray, y: np.ndarray, pose: np.ndarray, move: bool = True
-             ) -> tuple[np.ndarray, np.ndarray]:
+def _to_body(
+    x: np.ndarray, y: np.ndarray, pose: np.ndarray, move: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
     """Points ``(m, ...)`` in the frames of ``m`` poses; with ``move`` false, vectors
     (rotated, not shifted)."""
     shape = (-1,) + (1,) * (max(np.ndim(x), np.ndim(y)) - 1)
@@ -407,8 +466,9 @@ def _point_box(x: np.ndarray, y: np.ndarray, hw: np.ndarray, hd: np.ndarray) -> 
     return np.hypot(np.maximum(np.abs(x) - hw, 0.0), np.maximum(np.abs(y) - hd, 0.0))
 
 
-def _segment_box(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
-                 hw: np.ndarray, hd: np.ndarray) -> np.ndarray:
+def _segment_box(
+    ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, hw: np.ndarray, hd: np.ndarray
+) -> np.ndarray:
     """Distance between segments ``a -> b`` and the box ``|x| <= hw, |y| <= hd``.
 
     Zero when they meet (a Liang–Barsky clip of the segment by the box's two slabs is not
@@ -433,8 +493,7 @@ def _segment_box(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
     signs = _CORNERS.reshape((2, 4) + (1,) * t0.ndim)  # (t0: the broadcast shape)
     cx, cy = signs[0] * hw, signs[1] * hd
     t = np.clip(((cx - ax) * dx + (cy - ay) * dy) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    dist = np.minimum(dist, np.minimum.reduce(np.hypot(ax + t * dx - cx, ay + t * dy - cy),
-                                              axis=0))
+    dist = np.minimum(dist, np.minimum.reduce(np.hypot(ax + t * dx - cx, ay + t * dy - cy), axis=0))
     return np.where(t0 <= t1, 0.0, dist)
 
 

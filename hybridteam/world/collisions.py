@@ -33,10 +33,10 @@ def robot_overlaps(points: np.ndarray, radius: np.ndarray) -> np.ndarray:
     ``points`` is ``(R, m, 2)``. Robots without a footprint (radius 0) collide with
     nobody: a point cannot be hit.
     """
-    d = points[:, None] - points[None, :]                          # (R, R, m, 2)
-    dist = np.hypot(d[..., 0], d[..., 1])                           # (R, R, m)
+    d = points[:, None] - points[None, :]  # (R, R, m, 2)
+    dist = np.hypot(d[..., 0], d[..., 1])  # (R, R, m)
     reach = radius[:, None] + radius[None, :]
-    overlap = (reach[..., None] - dist).transpose(2, 0, 1)          # (m, R, R)
+    overlap = (reach[..., None] - dist).transpose(2, 0, 1)  # (m, R, R)
     solid = (radius[:, None] > 0) & (radius[None, :] > 0) & _others(len(radius))
     return np.where(solid[None], overlap, -np.inf)
 
@@ -62,8 +62,7 @@ def box_sdf(points: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     return np.minimum.reduce(outside + np.minimum(np.maximum(qx, qy), 0.0), axis=1)
 
 
-def name_hit(point: np.ndarray, walls: np.ndarray, circles: np.ndarray,
-             boxes: np.ndarray) -> str:
+def name_hit(point: np.ndarray, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> str:
     """The static obstacle nearest to ``point`` (what a robot there has hit), as the team
     file lists it: ``walls[0]``, ``circles[2]``, ``boxes[1]``."""
     found: list[tuple[float, str]] = []

@@ -139,9 +139,11 @@ def world_component(name: str):
 
     def deco(cls: type[WorldComponent]) -> type[WorldComponent]:
         if "meta" in vars(cls):  # the untyped form, which nothing reads any more
-            raise TypeError(f"world component '{name}' ({cls.__qualname__}) defines meta(); "
-                            "say what the views draw with describe() returning a "
-                            "SceneDescription instead (docs/extending.md)")
+            raise TypeError(
+                f"world component '{name}' ({cls.__qualname__}) defines meta(); "
+                "say what the views draw with describe() returning a "
+                "SceneDescription instead (docs/extending.md)"
+            )
         cls.name = name
         _REGISTRY[name] = cls
         return cls

@@ -24,9 +24,14 @@ from hybridteam.world.scene import Region, SceneDescription
 _EPS = 1e-12
 
 
-def relative_pose(x: np.ndarray, y: np.ndarray, theta: np.ndarray, ref_x: np.ndarray,
-                  ref_y: np.ndarray, ref_theta: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def relative_pose(
+    x: np.ndarray,
+    y: np.ndarray,
+    theta: np.ndarray,
+    ref_x: np.ndarray,
+    ref_y: np.ndarray,
+    ref_theta: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A pose in a reference pose's frame: how far ahead of and left of the reference the
     point is, and the heading difference in [-pi, pi) (a follower's place relative to its
     leader, say)."""
@@ -45,15 +50,15 @@ def as_segments(segments: np.ndarray | list) -> np.ndarray:
     return seg
 
 
-def point_segment_distances(points: np.ndarray, segments: np.ndarray
-                            ) -> tuple[np.ndarray, np.ndarray]:
+def point_segment_distances(
+    points: np.ndarray, segments: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Distance from every point to every segment: ``(n, m)`` and closest points ``(n, m, 2)``.
 
     The closest point is the projection clamped to the segment; a degenerate segment
     (both ends equal) is treated as a point.
     """
-    dist, cx, cy = _closest(np.asarray(points, dtype=float).reshape(-1, 2),
-                            as_segments(segments))
+    dist, cx, cy = _closest(np.asarray(points, dtype=float).reshape(-1, 2), as_segments(segments))
     return dist, np.stack([cx, cy], axis=-1)
 
 
@@ -76,8 +81,9 @@ def _closest(p: np.ndarray, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     return np.sqrt(ex * ex + ey * ey), cx, cy
 
 
-def point_segment_distance(points: np.ndarray, segments: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray]:
+def point_segment_distance(
+    points: np.ndarray, segments: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Distance from each of n points to the nearest of m segments, and that closest point.
 
     Returns ``(distance (n,), closest (n, 2))``: what a robot needs to know about the
@@ -104,22 +110,27 @@ def segments_intersect(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     b = as_segments(b)[None, :, :]
     p0x, p0y, p1x, p1y = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     q0x, q0y, q1x, q1y = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    scale = (np.abs(p1x - p0x) + np.abs(p1y - p0y) + np.abs(q1x - q0x) + np.abs(q1y - q0y))
+    scale = np.abs(p1x - p0x) + np.abs(p1y - p0y) + np.abs(q1x - q0x) + np.abs(q1y - q0y)
     tol = _EPS * scale * scale
     d1 = _orient(q0x, q0y, q1x, q1y, p0x, p0y)
     d2 = _orient(q0x, q0y, q1x, q1y, p1x, p1y)
     d3 = _orient(p0x, p0y, p1x, p1y, q0x, q0y)
     d4 = _orient(p0x, p0y, p1x, p1y, q1x, q1y)
     proper = (((d1 > tol) & (d2 < -tol)) | ((d1 < -tol) & (d2 > tol))) & (
-        ((d3 > tol) & (d4 < -tol)) | ((d3 < -tol) & (d4 > tol)))
+        ((d3 > tol) & (d4 < -tol)) | ((d3 < -tol) & (d4 > tol))
+    )
 
     def on(sx0, sy0, sx1, sy1, px, py, d):
         inside_x = (np.minimum(sx0, sx1) - tol <= px) & (px <= np.maximum(sx0, sx1) + tol)
         inside_y = (np.minimum(sy0, sy1) - tol <= py) & (py <= np.maximum(sy0, sy1) + tol)
         return (np.abs(d) <= tol) & inside_x & inside_y
 
-    touching = (on(q0x, q0y, q1x, q1y, p0x, p0y, d1) | on(q0x, q0y, q1x, q1y, p1x, p1y, d2)
-                | on(p0x, p0y, p1x, p1y, q0x, q0y, d3) | on(p0x, p0y, p1x, p1y, q1x, q1y, d4))
+    touching = (
+        on(q0x, q0y, q1x, q1y, p0x, p0y, d1)
+        | on(q0x, q0y, q1x, q1y, p1x, p1y, d2)
+        | on(p0x, p0y, p1x, p1y, q0x, q0y, d3)
+        | on(p0x, p0y, p1x, p1y, q1x, q1y, d4)
+    )
     return proper | touching
 
 
@@ -191,13 +202,13 @@ class Corridor:
     width_in: float
     width_out: float
     turn: Literal["right", "left"]
-    outer_walls: np.ndarray   # (2, 4): incoming leg's outer wall, then outgoing leg's
-    inner_walls: np.ndarray   # (2, 4): incoming leg's inner wall (ends at the vertex), outgoing
-    corner: np.ndarray        # (4, 2) polygon of the corner region
+    outer_walls: np.ndarray  # (2, 4): incoming leg's outer wall, then outgoing leg's
+    inner_walls: np.ndarray  # (2, 4): incoming leg's inner wall (ends at the vertex), outgoing
+    corner: np.ndarray  # (4, 2) polygon of the corner region
     inner_vertex: np.ndarray  # (2,) where the inner walls meet
     outer_vertex: np.ndarray  # (2,) where the outer walls meet
-    entrance: np.ndarray      # (2, 2): [outer end, inner end] of the open entrance
-    exit: np.ndarray          # (2, 2): [outer end, inner end] of the open exit
+    entrance: np.ndarray  # (2, 2): [outer end, inner end] of the open entrance
+    exit: np.ndarray  # (2, 2): [outer end, inner end] of the open exit
     direction_in: np.ndarray  # (2,) unit direction of travel along the incoming leg
     direction_out: np.ndarray  # (2,) unit direction of travel along the outgoing leg
 
@@ -226,8 +237,9 @@ class Corridor:
         a = np.asarray(across, dtype=float)[..., None]
         return self.inner_vertex + a * self.width_out * self.direction_in
 
-    def leg_point(self, leg: Literal["in", "out"], along: np.ndarray | float,
-                  across: np.ndarray | float = 0.5) -> np.ndarray:
+    def leg_point(
+        self, leg: Literal["in", "out"], along: np.ndarray | float, across: np.ndarray | float = 0.5
+    ) -> np.ndarray:
         """A point ``along`` from the open end of a leg, ``across`` 0 inner .. 1 outer wall.
 
         ``leg_point("in", d)`` is on the centre line ``d`` after the entrance;
@@ -247,13 +259,19 @@ class Corridor:
         return SceneDescription(
             walls=tuple((a, b, c, d) for a, b, c, d in self.walls.tolist()),
             regions=(Region(tuple((x, y) for x, y in self.corner.tolist()), "corner"),),
-            obstacles=())
+            obstacles=(),
+        )
 
 
-def corridor_with_turn(width_in: float = 200.0, width_out: float = 200.0,
-                       outer_leg_in: float = 1200.0, outer_leg_out: float = 1200.0,
-                       inner_leg_in: float | None = None, inner_leg_out: float | None = None,
-                       turn: Literal["right", "left"] = "right") -> Corridor:
+def corridor_with_turn(
+    width_in: float = 200.0,
+    width_out: float = 200.0,
+    outer_leg_in: float = 1200.0,
+    outer_leg_out: float = 1200.0,
+    inner_leg_in: float | None = None,
+    inner_leg_out: float | None = None,
+    turn: Literal["right", "left"] = "right",
+) -> Corridor:
     """A corridor with one 90° turn; the defaults are the ladder paper's (Fig. 3).
 
     The paper gives 200 units of width, 2400 along the outer wall and 2000 along the inner
@@ -271,14 +289,13 @@ def corridor_with_turn(width_in: float = 200.0, width_out: float = 200.0,
         inner_leg_in = outer_leg_in - width_out
     if inner_leg_out is None:
         inner_leg_out = outer_leg_out - width_in
-    if min(inner_leg_in, inner_leg_out) < 0 or outer_leg_in < width_out \
-            or outer_leg_out < width_in:
+    if min(inner_leg_in, inner_leg_out) < 0 or outer_leg_in < width_out or outer_leg_out < width_in:
         raise ValueError("corridor legs are shorter than the corner they lead to")
     s = 1.0 if turn == "right" else -1.0
     # Right turn: outer wall of the incoming leg on x = 0, inner wall on x = width_in.
     ox, ix = 0.0, s * width_in
-    top = outer_leg_in                       # outer wall of the outgoing leg
-    vy = top - width_out                     # inner wall of the outgoing leg
+    top = outer_leg_in  # outer wall of the outgoing leg
+    vy = top - width_out  # inner wall of the outgoing leg
     outer_v = np.array([ox, top])
     inner_v = np.array([ix, vy])
     exit_x_outer = ox + s * outer_leg_out
@@ -287,10 +304,16 @@ def corridor_with_turn(width_in: float = 200.0, width_out: float = 200.0,
     inner = np.array([[ix, vy - inner_leg_in, ix, vy], [ix, vy, exit_x_inner, vy]])
     corner = rectangle(min(ox, ix), vy, max(ox, ix), top)
     return Corridor(
-        width_in=float(width_in), width_out=float(width_out), turn=turn,
-        outer_walls=outer, inner_walls=inner, corner=corner,
-        inner_vertex=inner_v, outer_vertex=outer_v,
+        width_in=float(width_in),
+        width_out=float(width_out),
+        turn=turn,
+        outer_walls=outer,
+        inner_walls=inner,
+        corner=corner,
+        inner_vertex=inner_v,
+        outer_vertex=outer_v,
         entrance=np.array([[ox, 0.0], [ix, vy - inner_leg_in]]),
         exit=np.array([[exit_x_outer, top], [exit_x_inner, vy]]),
-        direction_in=np.array([0.0, 1.0]), direction_out=np.array([s, 0.0]),
+        direction_in=np.array([0.0, 1.0]),
+        direction_out=np.array([s, 0.0]),
     )

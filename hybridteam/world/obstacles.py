@@ -82,8 +82,13 @@ class Obstacles(WorldComponent):
     """Walls, circles and boxes; range rings cast against them and the payloads."""
 
     params: ClassVar[dict[str, Any]] = {
-        "walls": [], "circles": [], "boxes": [], "detect": [], "radius": [],
-        "on_collision": "outcome", "clearance": False,
+        "walls": [],
+        "circles": [],
+        "boxes": [],
+        "detect": [],
+        "radius": [],
+        "on_collision": "outcome",
+        "clearance": False,
     }
     #: a door's jambs may be expressions of team parameters (a study sweeps its width)
     per_instance: ClassVar[tuple[str, ...]] = ("walls", "circles", "boxes")
@@ -91,10 +96,16 @@ class Obstacles(WorldComponent):
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
         parsed, problems = parse_settings(team, values)
-        if values.get("clearance") and not problems and not any(
-                parsed[key].shape[1] for key in ("walls", "circles", "boxes")):
-            problems.append(ModelError(("clearance",), "there is no wall, circle or box to "
-                                       "measure a clearance from"))
+        if (
+            values.get("clearance")
+            and not problems
+            and not any(parsed[key].shape[1] for key in ("walls", "circles", "boxes"))
+        ):
+            problems.append(
+                ModelError(
+                    ("clearance",), "there is no wall, circle or box to measure a clearance from"
+                )
+            )
         return problems
 
     def __init__(self, team: Team, n: int, values: Mapping[str, Any]) -> None:
@@ -102,8 +113,7 @@ class Obstacles(WorldComponent):
         parsed, problems = parse_settings(team, values, n)
         if problems:
             raise settings_error("obstacles", problems)
-        self.scenes, self.scene_of = _scenes(parsed["walls"], parsed["circles"],
-                                             parsed["boxes"])
+        self.scenes, self.scene_of = _scenes(parsed["walls"], parsed["circles"], parsed["boxes"])
         self.rules: list[Rule] = parsed["rules"]
         self.rings: dict[tuple[int, str], RangeRing] = parsed["rings"]
         # (this component's events come from its settings: its instance's, where the base
@@ -117,10 +127,13 @@ class Obstacles(WorldComponent):
             self.read_beams[key] = np.union1d(self.read_beams.get(key, rule.beams), rule.beams)
         #: per (agent, sensor): the highest threshold of its rules (readings at least that
         #: far fire none)
-        self.below = {key: max(r.below for r in self.rules if (r.agent, r.sensor) == key)
-                      for key in self.read_beams}
-        self.rule_columns = [np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams)
-                             for r in self.rules]
+        self.below = {
+            key: max(r.below for r in self.rules if (r.agent, r.sensor) == key)
+            for key in self.read_beams
+        }
+        self.rule_columns = [
+            np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams) for r in self.rules
+        ]
         #: per (agent, sensor): whether every instance its rules last read saw something
         #: within their highest threshold (a carried box before the IR): then the floor
         #: would rule out no instance and is not computed (:meth:`_rule_readings`)
@@ -136,8 +149,11 @@ class Obstacles(WorldComponent):
         #: the payloads' names, known before the start (the trace's series are declared
         #: before the components start)
         kinds = [(spec, lookup(spec.use)) for spec in team.world]
-        self.payload_names = [str(spec.values.get("name", cls.params["name"]))
-                              for spec, cls in kinds if issubclass(cls, CarriedPayload)]
+        self.payload_names = [
+            str(spec.values.get("name", cls.params["name"]))
+            for spec, cls in kinds
+            if issubclass(cls, CarriedPayload)
+        ]
         self.payloads: list[CarriedPayload] = []
         self.late: list[CarriedPayload] = []
         self.sensing: set[int] = set()  # agents with a pose, once the run has started
@@ -146,8 +162,7 @@ class Obstacles(WorldComponent):
         self.payload_clear = np.full(n, np.inf)
         # each party's first collision per instance: its text (listed under warn) and
         # where and when it happened (marked by the views, under warn and outcome)
-        self.collisions: list[dict[str, tuple[str, float, float, float]]] = [
-            {} for _ in range(n)]
+        self.collisions: list[dict[str, tuple[str, float, float, float]]] = [{} for _ in range(n)]
         #: the clearances this instant's update measured, for :meth:`sample` at the same
         #: instant: ``(idx, robot centres, payload poses, robot gaps, payload gaps)``
         self._measured: _Measured | None = None
@@ -156,8 +171,9 @@ class Obstacles(WorldComponent):
         self.world = world  # kept: sense() reads poses when a law asks
         everyone = world.components()
         mine = everyone.index(self)
-        self.payloads = [c for c in world.components(CarriedPayload)
-                         if isinstance(c, CarriedPayload)]  # (all are: typed for the reader)
+        self.payloads = [
+            c for c in world.components(CarriedPayload) if isinstance(c, CarriedPayload)
+        ]  # (all are: typed for the reader)
         # payloads listed after this component settle after it: settle them first here
         self.late = [c for c in self.payloads if everyone.index(c) > mine]
         self.sensing = {*self.planar, *(r.agent for r in self.rules)}
@@ -178,9 +194,16 @@ class Obstacles(WorldComponent):
             return None
         return self.rings.setdefault((a, sensor), preset.ring(sensor))
 
-    def read(self, a: int, ring: RangeRing, idx: np.ndarray,
-             reach: np.ndarray | None = None, beams: np.ndarray | None = None,
-             horizon: float | None = None, scene: Scene | None = None) -> np.ndarray:
+    def read(
+        self,
+        a: int,
+        ring: RangeRing,
+        idx: np.ndarray,
+        reach: np.ndarray | None = None,
+        beams: np.ndarray | None = None,
+        horizon: float | None = None,
+        scene: Scene | None = None,
+    ) -> np.ndarray:
         """Ring readings of agent ``a`` in instances ``idx`` against the static obstacles and
         every payload's outline: ``(m, count)``, or ``(m, len(beams))`` for those beams only
         (each ray is cast on its own: a beam reads the same whichever others are cast).
@@ -197,8 +220,9 @@ class Obstacles(WorldComponent):
         if scene is None and self.scene_of is not None:  # each instance its own obstacles
             out = np.empty((idx.size, ring.count if beams is None else beams.size))
             for own, rows in self._by_scene(idx):
-                out[rows] = self.read(a, ring, idx[rows], None if reach is None else
-                                      reach[rows], beams, horizon, own)
+                out[rows] = self.read(
+                    a, ring, idx[rows], None if reach is None else reach[rows], beams, horizon, own
+                )
             return out
         scene = self.scenes[0] if scene is None else scene
         poses = self._poses(a, idx)
@@ -218,8 +242,7 @@ class Obstacles(WorldComponent):
         else:
             dist = filled(origins.shape[:2], float(ring.max_range))
             if some(near):
-                dist[near] = cast_at(origins[near], directions[near], scene.targets,
-                                     ring.max_range)
+                dist[near] = cast_at(origins[near], directions[near], scene.targets, ring.max_range)
         for p in self.payloads:
             dist = np.minimum(dist, p.ray_hits(idx, origins, directions, ring.max_range))
         dist = np.minimum.reduce(dist.reshape(idx.size, count, ring.rays_per_beam), axis=2)
@@ -231,8 +254,10 @@ class Obstacles(WorldComponent):
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         ring = self.ring(agent, name) if agent in self.sensing else None
         if ring is None:
-            raise KeyError(f"obstacles: robot '{self.team.agents[agent].name}' has no range "
-                           f"ring '{name}' (from its robot model or a detect rule's ring)")
+            raise KeyError(
+                f"obstacles: robot '{self.team.agents[agent].name}' has no range "
+                f"ring '{name}' (from its robot model or a detect rule's ring)"
+            )
         return self.read(agent, ring, np.asarray(idx, np.intp))
 
     # ------------------------------------------------------------------ each instant
@@ -270,8 +295,9 @@ class Obstacles(WorldComponent):
             if some(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
 
-    def _rule_readings(self, key: tuple[int, str], idx: np.ndarray, scene: Scene,
-                       reach: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    def _rule_readings(
+        self, key: tuple[int, str], idx: np.ndarray, scene: Scene, reach: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """The beams the rules of ``key`` read, for the instances of ``idx`` where some rule
         may see something: ``(readings, rows)``, rows None for all of ``idx``. Where the
         :meth:`floor` is at least every rule's threshold no rule can fire, and what a cast
@@ -292,14 +318,14 @@ class Obstacles(WorldComponent):
                 rows = where_true(may)
                 if rows.size == 0:
                     return np.empty((0, self.read_beams[key].size)), rows
-                return self.read(a, ring, idx[rows], reach[rows], self.read_beams[key],
-                                 below, scene), rows
+                return self.read(
+                    a, ring, idx[rows], reach[rows], self.read_beams[key], below, scene
+                ), rows
         dist = self.read(a, ring, idx, reach, self.read_beams[key], below, scene)
         self.within[key] = every(np.minimum.reduce(dist, axis=1) < below)
         return dist, None
 
-    def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray
-              ) -> np.ndarray:
+    def floor(self, a: int, ring: RangeRing, idx: np.ndarray, reach: np.ndarray) -> np.ndarray:
         """A lower bound on every beam of ``ring`` on robot ``a`` in instances ``idx``,
         given its centre's clearance ``reach`` from the static obstacles: ``(m,)``.
 
@@ -313,11 +339,11 @@ class Obstacles(WorldComponent):
         for p in self.payloads:
             near = np.minimum(near, p.outline_distance(idx, pose))
         slack = _SLACK * (1.0 + np.abs(pose[:, 0]) + np.abs(pose[:, 1]) + ring.max_range)
-        return np.maximum(np.minimum(near - ring.mount_radius - slack, ring.max_range),
-                          ring.min_range)
+        return np.maximum(
+            np.minimum(near - ring.mount_radius - slack, ring.max_range), ring.min_range
+        )
 
-    def _measure(self, world: WorldAccess, idx: np.ndarray, scene: Scene
-                 ) -> dict[int, np.ndarray]:
+    def _measure(self, world: WorldAccess, idx: np.ndarray, scene: Scene) -> dict[int, np.ndarray]:
         """Running minima of the robots' and the payloads' clearances, and collisions.
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
@@ -332,8 +358,15 @@ class Obstacles(WorldComponent):
                 for k in np.flatnonzero(gap[r] < 0).tolist():
                     what = name_hit(points[r, k], scene.walls, scene.circles, scene.boxes)
                     who = self.team.agents[a].name
-                    hits.append((int(idx[k]), who, f"robot '{who}' hit {what}, its footprint "
-                                 f"overlapping it by {-gap[r, k]:.3g}", points[r, k]))
+                    hits.append(
+                        (
+                            int(idx[k]),
+                            who,
+                            f"robot '{who}' hit {what}, its footprint "
+                            f"overlapping it by {-gap[r, k]:.3g}",
+                            points[r, k],
+                        )
+                    )
             overlap = robot_overlaps(points, self.radius)
             touch = overlap > 0
             pairs = np.nonzero(np.triu(touch, 1)) if some(touch) else ()
@@ -341,21 +374,34 @@ class Obstacles(WorldComponent):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
                 r_1, r_2 = self.radius[r1], self.radius[r2]  # where the disks meet
                 contact = points[r1, k] + (points[r2, k] - points[r1, k]) * r_1 / (r_1 + r_2)
-                hits.append((int(idx[k]), " and ".join(names), f"robots '{names[0]}' and "
-                             f"'{names[1]}' collided, their footprints overlapping by "
-                             f"{overlap[k, r1, r2]:.3g}", contact))
+                hits.append(
+                    (
+                        int(idx[k]),
+                        " and ".join(names),
+                        f"robots '{names[0]}' and "
+                        f"'{names[1]}' collided, their footprints overlapping by "
+                        f"{overlap[k, r1, r2]:.3g}",
+                        contact,
+                    )
+                )
         robot_gaps = gap
         for p in self.payloads:
             gap = self._payload_gap(p, idx, scene)
             payload_gaps.append(gap)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
             for k in where_true(gap <= 0).tolist():
-                hits.append((int(idx[k]), p.values["name"],
-                             f"payload '{p.values['name']}' hit an obstacle",
-                             p.pose[idx[k], :2]))
+                hits.append(
+                    (
+                        int(idx[k]),
+                        p.values["name"],
+                        f"payload '{p.values['name']}' hit an obstacle",
+                        p.pose[idx[k], :2],
+                    )
+                )
         if self.values["clearance"] and self.scene_of is None:  # (the series sample them)
-            self._measured = _Measured(idx.copy(), points, [p.pose[idx] for p in self.payloads],
-                                       robot_gaps, payload_gaps)
+            self._measured = _Measured(
+                idx.copy(), points, [p.pose[idx] for p in self.payloads], robot_gaps, payload_gaps
+            )
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
@@ -372,8 +418,7 @@ class Obstacles(WorldComponent):
             gap = np.minimum(gap, box_sdf(pts, scene.boxes))
         return points, gap.reshape(len(self.planar), idx.size)
 
-    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str, np.ndarray]]
-                 ) -> None:
+    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str, np.ndarray]]) -> None:
         for i, who, what, (x, y) in hits:
             t = float(world.t[i])
             text = f"{what} at t={t!r}"
@@ -417,11 +462,11 @@ class Obstacles(WorldComponent):
             return measured
         robots = np.empty((idx.size, len(self.planar)))
         payloads = np.empty((idx.size, len(self.payloads)))
-        for scene, rows in [(self.scenes[0], slice(None))] if self.scene_of is None else \
-                self._by_scene(idx):
+        for scene, rows in (
+            [(self.scenes[0], slice(None))] if self.scene_of is None else self._by_scene(idx)
+        ):
             if self.planar:
-                robots[rows] = (self._centre_gaps(idx[rows], scene)[1]
-                                - self.radius[:, None]).T
+                robots[rows] = (self._centre_gaps(idx[rows], scene)[1] - self.radius[:, None]).T
             for k, p in enumerate(self.payloads):
                 payloads[rows, k] = self._payload_gap(p, idx[rows], scene)
         out = {"robot_clearance": robots} if self.planar else {}
@@ -445,8 +490,9 @@ class Obstacles(WorldComponent):
                 points[r] = self._poses(a, idx)[:, :2]
             if not _same(points, m.points):
                 return None
-        if not all(_same(p.pose[idx], pose)
-                   for p, pose in zip(self.payloads, m.payload_poses, strict=True)):
+        if not all(
+            _same(p.pose[idx], pose) for p, pose in zip(self.payloads, m.payload_poses, strict=True)
+        ):
             return None
         out = {"robot_clearance": np.ascontiguousarray(m.robot_gaps.T)} if self.planar else {}
         if self.payloads:
@@ -466,18 +512,24 @@ class Obstacles(WorldComponent):
         its other instances' differ), where each party first collided, and the robots'
         footprints."""
         scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[0])]
-        obstacles: list[Obstacle] = [WallObstacle((w[0], w[1]), (w[2], w[3]))
-                                     for w in scene.walls.tolist()]
+        obstacles: list[Obstacle] = [
+            WallObstacle((w[0], w[1]), (w[2], w[3])) for w in scene.walls.tolist()
+        ]
         obstacles += [CircleObstacle(x, y, r) for x, y, r in scene.circles.tolist()]
-        obstacles += [PolygonObstacle(tuple((x, y) for x, y in _corners(b).tolist()))
-                      for b in scene.boxes]
-        footprints = {self.team.agents[a].name: Footprint(float(r))
-                      for a, r in zip(self.planar, self.radius, strict=True) if r > 0}
-        marks = tuple(CollisionMark(i, who, t, x, y)
-                      for i, firsts in enumerate(self.collisions)
-                      for who, (_text, t, x, y) in firsts.items())
-        return SceneDescription(obstacles=tuple(obstacles), collisions=marks,
-                                footprints=footprints)
+        obstacles += [
+            PolygonObstacle(tuple((x, y) for x, y in _corners(b).tolist())) for b in scene.boxes
+        ]
+        footprints = {
+            self.team.agents[a].name: Footprint(float(r))
+            for a, r in zip(self.planar, self.radius, strict=True)
+            if r > 0
+        }
+        marks = tuple(
+            CollisionMark(i, who, t, x, y)
+            for i, firsts in enumerate(self.collisions)
+            for who, (_text, t, x, y) in firsts.items()
+        )
+        return SceneDescription(obstacles=tuple(obstacles), collisions=marks, footprints=footprints)
 
 
 class _Measured(NamedTuple):
@@ -510,19 +562,22 @@ class Scene(NamedTuple):
         return cls(walls, circles, boxes, segments, Targets.of(segments, circles))
 
 
-def _scenes(walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray
-            ) -> tuple[list[Scene], np.ndarray | None]:
+def _scenes(
+    walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray
+) -> tuple[list[Scene], np.ndarray | None]:
     """The distinct scenes of instances whose geometry is ``(n, r, size)`` arrays, and the
     scene of each instance — None when all share one (the usual case, and every single
     run's: then nothing is grouped at any instant)."""
     n = walls.shape[0]
-    flat = np.concatenate([walls.reshape(n, -1), circles.reshape(n, -1),
-                           boxes.reshape(n, -1)], axis=1)
+    flat = np.concatenate(
+        [walls.reshape(n, -1), circles.reshape(n, -1), boxes.reshape(n, -1)], axis=1
+    )
     if n <= 1 or every(flat == flat[0]):
         return [Scene.of(walls[0], circles[0], boxes[0])], None
     _, first, scene_of = np.unique(flat, axis=0, return_index=True, return_inverse=True)
-    return [Scene.of(walls[i], circles[i], boxes[i]) for i in first.tolist()], \
-        scene_of.ravel().astype(np.intp)
+    return [
+        Scene.of(walls[i], circles[i], boxes[i]) for i in first.tolist()
+    ], scene_of.ravel().astype(np.intp)
 
 
 def _footprint(agent: Agent) -> float:

@@ -31,9 +31,9 @@ from hybridteam.floatpaths import Ops
 class Equilibrium(NamedTuple):
     """Pose of n payloads and the offsets of their grasps."""
 
-    x: np.ndarray        # (n,)
-    y: np.ndarray        # (n,)
-    theta: np.ndarray    # (n,) radians, body frame to world
+    x: np.ndarray  # (n,)
+    y: np.ndarray  # (n,)
+    theta: np.ndarray  # (n,) radians, body frame to world
     offsets: np.ndarray  # (n, k, 2): robot point minus world grasp point
 
 
@@ -61,9 +61,14 @@ def _weighted_sum(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return weighted_sum([values[:, i] for i in range(k)], [weights[:, i] for i in range(k)])
 
 
-def equilibrium_pose(rx: Sequence[Any], ry: Sequence[Any], bx: Sequence[Any],
-                     by: Sequence[Any], w: Sequence[Any], ops: Ops = np
-                     ) -> tuple[Any, Any, Any, Any, Any]:
+def equilibrium_pose(
+    rx: Sequence[Any],
+    ry: Sequence[Any],
+    bx: Sequence[Any],
+    by: Sequence[Any],
+    w: Sequence[Any],
+    ops: Ops = np,
+) -> tuple[Any, Any, Any, Any, Any]:
     """:func:`equilibrium`'s pose ``(x, y, theta)`` and ``cos theta``, ``sin theta``, from
     one value per grasp of the robot points, body points and springs: ``(n,)`` columns with
     ``ops`` numpy, or one payload's floats in the float form
@@ -78,17 +83,16 @@ def equilibrium_pose(rx: Sequence[Any], ry: Sequence[Any], bx: Sequence[Any],
     bcy = weighted_sum(by, w) / total
     crx, cry = [v - rcx for v in rx], [v - rcy for v in ry]
     cbx, cby = [v - bcx for v in bx], [v - bcy for v in by]
-    dot = weighted_sum([a * b + c * d for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)],
-                       w)
-    cross = weighted_sum([a * d - c * b for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)],
-                         w)
+    dot = weighted_sum([a * b + c * d for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)], w)
+    cross = weighted_sum([a * d - c * b for a, b, c, d in zip(cbx, crx, cby, cry, strict=True)], w)
     theta = ops.arctan2(cross, dot)
     c, s = ops.cos(theta), ops.sin(theta)
     return rcx - (c * bcx - s * bcy), rcy - (s * bcx + c * bcy), theta, c, s
 
 
-def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
-                springs: np.ndarray, offsets: bool = True) -> Equilibrium:
+def equilibrium(
+    robot_points: np.ndarray, body_points: np.ndarray, springs: np.ndarray, offsets: bool = True
+) -> Equilibrium:
     """Quasi-static pose of n payloads held at k grasps by springs.
 
     ``robot_points`` is ``(n, k, 2)``; ``body_points`` is ``(k, 2)`` (one body for all) or
@@ -106,8 +110,9 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     w = np.broadcast_to(np.asarray(springs, dtype=float), (n, k))
     if some(w <= 0):
         raise ValueError("spring constants must be positive")
-    x, y, theta, c, s = equilibrium_pose(*([a[:, i] for i in range(k)] for a in (
-        r[..., 0], r[..., 1], b[..., 0], b[..., 1], w)))
+    x, y, theta, c, s = equilibrium_pose(
+        *([a[:, i] for i in range(k)] for a in (r[..., 0], r[..., 1], b[..., 0], b[..., 1], w))
+    )
     if not offsets:
         return Equilibrium(x, y, theta, np.empty((n, 0, 2)))
     gx = c[:, None] * b[..., 0] - s[:, None] * b[..., 1] + x[:, None]
@@ -117,8 +122,9 @@ def equilibrium(robot_points: np.ndarray, body_points: np.ndarray,
     return Equilibrium(x, y, theta, held)
 
 
-def world_points(x: np.ndarray, y: np.ndarray, theta: np.ndarray,
-                 body_points: np.ndarray) -> np.ndarray:
+def world_points(
+    x: np.ndarray, y: np.ndarray, theta: np.ndarray, body_points: np.ndarray
+) -> np.ndarray:
     """Body points placed at poses ``(x, y, theta)`` (each ``(n,)``): ``(n, k, 2)``."""
     b = np.asarray(body_points, dtype=float)
     c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
@@ -129,8 +135,14 @@ def world_points(x: np.ndarray, y: np.ndarray, theta: np.ndarray,
     return out
 
 
-def spring_energy(robot_points: np.ndarray, body_points: np.ndarray, springs: np.ndarray,
-                  x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> np.ndarray:
+def spring_energy(
+    robot_points: np.ndarray,
+    body_points: np.ndarray,
+    springs: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    theta: np.ndarray,
+) -> np.ndarray:
     """E(p, R) for given poses, ``(n,)``: what :func:`equilibrium` minimizes."""
     g = world_points(x, y, theta, np.broadcast_to(body_points, np.shape(robot_points)))
     d = np.asarray(robot_points, dtype=float) - g

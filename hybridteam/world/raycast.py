@@ -84,8 +84,9 @@ class _Scratch:
         got = self._views.get((rows, cols))
         if got is None:
             n = rows * cols
-            got = self._views[(rows, cols)] = [a[:n].reshape(rows, cols)
-                                               for a in (*self.floats, *self.flags)]
+            got = self._views[(rows, cols)] = [
+                a[:n].reshape(rows, cols) for a in (*self.floats, *self.flags)
+            ]
         return got
 
 
@@ -112,8 +113,14 @@ def _prepare(seg: np.ndarray) -> tuple[np.ndarray, ...]:
     return ax, ay, ex, ey, length, _ROUNDING * (np.abs(ax) + np.abs(ay) + length)
 
 
-def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
-                  seg: tuple[np.ndarray, ...], scratch: _Scratch) -> np.ndarray:
+def _segment_hits(
+    ox: np.ndarray,
+    oy: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    seg: tuple[np.ndarray, ...],
+    scratch: _Scratch,
+) -> np.ndarray:
     """Distance along each of B unit rays to the first of S segments: ``(B,)``, inf if none.
 
     With ``w`` from the ray's origin to a segment's start ``a`` and ``e`` the segment's
@@ -145,10 +152,10 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
     slack = np.multiply(size, _EPS_ALONG, out=den)
     slack += ray_mag[:, None]
     slack += mag
-    np.greater_equal(tn, np.multiply(slack, -length, out=tmp), out=hit)   # t >= 0
-    hit &= np.greater_equal(sn, np.negative(slack, out=tmp), out=test)    # s >= 0
+    np.greater_equal(tn, np.multiply(slack, -length, out=tmp), out=hit)  # t >= 0
+    hit &= np.greater_equal(sn, np.negative(slack, out=tmp), out=test)  # s >= 0
     slack += size
-    hit &= np.less_equal(sn, slack, out=test)                             # s <= 1
+    hit &= np.less_equal(sn, slack, out=test)  # s <= 1
     hit &= np.logical_not(parallel, out=test)
     # divided only where it hits (|u x e| > 0 there, and t is bounded by the geometry),
     # so no error state is needed (a context costs about 2 µs a call)
@@ -157,13 +164,13 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
     rows, cols = np.nonzero(parallel)
     if rows.size:
         pwx, pwy, pux, puy = wx[rows, cols], wy[rows, cols], ux[rows, 0], uy[rows, 0]
-        near = pwx * pux + pwy * puy                     # projection of the start
-        far = near + (ex[cols] * pux + ey[cols] * puy)   # ... and of the end
+        near = pwx * pux + pwy * puy  # projection of the start
+        far = near + (ex[cols] * pux + ey[cols] * puy)  # ... and of the end
         near, far = np.minimum(near, far), np.maximum(near, far)
         # A near-parallel segment spans _EPS_PARALLEL * length across the ray's line; a
         # point obstacle has no length, so only the rounding slack lets a ray touch it.
         slack = _EPS_PARALLEL * length[cols] + ray_mag[rows] + mag[cols]
-        off_line = np.abs(pwx * puy - pwy * pux)         # the start's distance from it
+        off_line = np.abs(pwx * puy - pwy * pux)  # the start's distance from it
         touch = (off_line <= slack) & (far >= -slack)
         dist[rows, cols] = np.where(touch, near, np.inf)
     # a start just behind the ray's origin reads 0 (np.minimum.reduce: ndarray.min's own
@@ -171,8 +178,14 @@ def _segment_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray
     return np.maximum(np.minimum.reduce(dist, axis=1), 0.0)
 
 
-def _circle_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
-                 circ: np.ndarray, scratch: _Scratch) -> np.ndarray:
+def _circle_hits(
+    ox: np.ndarray,
+    oy: np.ndarray,
+    ux: np.ndarray,
+    uy: np.ndarray,
+    circ: np.ndarray,
+    scratch: _Scratch,
+) -> np.ndarray:
     """Distance along each of B unit rays to the first of C circles: ``(B,)``, inf if none.
 
     ``circ`` is ``(C, 3)`` or ``(B, C, 3)``. The near root of ``t^2 + 2 b t + c = 0`` is
@@ -204,9 +217,13 @@ def _circle_hits(ox: np.ndarray, oy: np.ndarray, ux: np.ndarray, uy: np.ndarray,
     return np.minimum.reduce(t, axis=1)
 
 
-def cast(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray | list | None,
-         circles: np.ndarray | list | None = None,
-         max_range: float | np.ndarray = np.inf) -> np.ndarray:
+def cast(
+    origins: np.ndarray,
+    directions: np.ndarray,
+    segments: np.ndarray | list | None,
+    circles: np.ndarray | list | None = None,
+    max_range: float | np.ndarray = np.inf,
+) -> np.ndarray:
     """Distance from each ray's origin to the first segment or circle it meets: ``(m, k)``.
 
     ``origins`` and ``directions`` are ``(m, k, 2)`` (m instances of k rays; directions need
@@ -218,8 +235,9 @@ def cast(origins: np.ndarray, directions: np.ndarray, segments: np.ndarray | lis
     o = np.asarray(origins, dtype=float)
     d = np.asarray(directions, dtype=float)
     if o.ndim != 3 or o.shape[2] != 2 or d.shape != o.shape:
-        raise ValueError(f"origins and directions must both have shape (m, k, 2), got "
-                         f"{o.shape} and {d.shape}")
+        raise ValueError(
+            f"origins and directions must both have shape (m, k, 2), got {o.shape} and {d.shape}"
+        )
     return cast_at(o, d, Targets.of(segments, circles, o.shape[0]), max_range)
 
 
@@ -233,15 +251,20 @@ class Targets:
     circles: np.ndarray  # (c, 3) shared or (m, c, 3) per instance
 
     @classmethod
-    def of(cls, segments: np.ndarray | list | None, circles: np.ndarray | list | None = None,
-           m: int = 0) -> Targets:
+    def of(
+        cls,
+        segments: np.ndarray | list | None,
+        circles: np.ndarray | list | None = None,
+        m: int = 0,
+    ) -> Targets:
         """Walls and circles as :func:`cast` takes them (circles per instance: ``m``)."""
         seg = np.zeros((0, 4)) if segments is None else as_segments(segments)
         return cls(_prepare(seg), as_circles(circles, m))
 
 
-def cast_at(o: np.ndarray, d: np.ndarray, targets: Targets,
-            max_range: float | np.ndarray = np.inf) -> np.ndarray:
+def cast_at(
+    o: np.ndarray, d: np.ndarray, targets: Targets, max_range: float | np.ndarray = np.inf
+) -> np.ndarray:
     """:func:`cast` on float arrays ``(m, k, 2)`` already checked, against prepared
     ``targets``: the same distances, bit for bit."""
     m, k, _ = o.shape

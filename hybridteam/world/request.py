@@ -117,15 +117,22 @@ class AgentShape:
             return None
         ends: dict[str, str] = {}
         for tr in self.transitions:
-            if tr.source != first.path or tr.on is None or tr.guard or tr.after \
-                    or tr.actions or tr.internal:
+            if (
+                tr.source != first.path
+                or tr.on is None
+                or tr.guard
+                or tr.after
+                or tr.actions
+                or tr.internal
+            ):
                 return None
             target = self.mode(tr.target)
             if not target.final or target.kind != "leaf":
                 return None
             ends[tr.on] = target.outcome or "ok"
-        return OneLaw(first.path, first.law, first.period, self.law_params[first.path],
-                      first.bound, ends)
+        return OneLaw(
+            first.path, first.law, first.period, self.law_params[first.path], first.bound, ends
+        )
 
 
 @dataclass(frozen=True)
@@ -164,8 +171,12 @@ class BatchRequest:
         """No scenario events, no messages and no data streams: agents act only on their
         laws and on what the world tells them."""
         team = self.team
-        return not (team.scenario or team.messages or any(a.streams for a in team.agents)
-                    or any(_sends(a) for a in team.agents))
+        return not (
+            team.scenario
+            or team.messages
+            or any(a.streams for a in team.agents)
+            or any(_sends(a) for a in team.agents)
+        )
 
     def uniform(self, key: str) -> float | None:
         """A numeric setting's value if it is the same in every instance, else None."""
@@ -175,6 +186,9 @@ class BatchRequest:
 
 def _sends(agent: Agent) -> bool:
     """Whether any transition of the agent sends a message."""
-    return any(isinstance(act, Send) for _, mode in agent.root.walk()
-               for tr in mode.transitions for act in tr.actions)
-
+    return any(
+        isinstance(act, Send)
+        for _, mode in agent.root.walk()
+        for tr in mode.transitions
+        for act in tr.actions
+    )

@@ -267,28 +267,42 @@ class SceneDescription:
         payload without a shape gets :data:`DEFAULT_PAYLOAD_SHAPE`."""
         world = meta.get("world") or {}
         shapes = meta.get("payload_shapes") or {}
-        names = [p["name"] if isinstance(p, dict) else str(p)
-                 for p in meta.get("payloads") or []]
+        names = [p["name"] if isinstance(p, dict) else str(p) for p in meta.get("payloads") or []]
         regions = tuple(
-            Region(_points(r["points"]), r.get("label")) if isinstance(r, dict) else
-            Region(_points(r)) for r in world.get("regions") or [])
+            Region(_points(r["points"]), r.get("label"))
+            if isinstance(r, dict)
+            else Region(_points(r))
+            for r in world.get("regions") or []
+        )
         obstacles = world.get("obstacles")
         return cls(
-            walls=tuple((a, b, c, d) for a, b, c, d in
-                        np.asarray(world.get("walls") or [], float).reshape(-1, 4).tolist()),
+            walls=tuple(
+                (a, b, c, d)
+                for a, b, c, d in np.asarray(world.get("walls") or [], float)
+                .reshape(-1, 4)
+                .tolist()
+            ),
             regions=regions,
             obstacles=None if obstacles is None else tuple(_obstacle(o) for o in obstacles),
             units=world.get("units"),
-            paths=tuple(GuidePath(_instance(p), str(p.get("agent", "")), _points(p["points"]))
-                        for p in world.get("paths") or []),
-            collisions=tuple(CollisionMark(_instance(c), str(c["who"]), float(c["t"]),
-                                           float(c["x"]), float(c["y"]))
-                             for c in world.get("collisions") or []),
-            payloads={n: _shape(shapes[n]) if n in shapes else DEFAULT_PAYLOAD_SHAPE
-                      for n in names},
-            footprints={name: Footprint(float(foot["radius"]))
-                        for name, foot in _footprints(meta).items()
-                        if (foot or {}).get("radius")},
+            paths=tuple(
+                GuidePath(_instance(p), str(p.get("agent", "")), _points(p["points"]))
+                for p in world.get("paths") or []
+            ),
+            collisions=tuple(
+                CollisionMark(
+                    _instance(c), str(c["who"]), float(c["t"]), float(c["x"]), float(c["y"])
+                )
+                for c in world.get("collisions") or []
+            ),
+            payloads={
+                n: _shape(shapes[n]) if n in shapes else DEFAULT_PAYLOAD_SHAPE for n in names
+            },
+            footprints={
+                name: Footprint(float(foot["radius"]))
+                for name, foot in _footprints(meta).items()
+                if (foot or {}).get("radius")
+            },
         )
 
 
@@ -301,6 +315,5 @@ def _footprints(meta: Mapping[str, Any]) -> dict[str, Any]:
     """Agent name -> footprint entry: a component's ``footprints``, then those a trace
     keeps with each of its ``agents``."""
     out = dict(meta.get("footprints") or {})
-    out.update({a["name"]: a["footprint"] for a in meta.get("agents") or []
-                if "footprint" in a})
+    out.update({a["name"]: a["footprint"] for a in meta.get("agents") or [] if "footprint" in a})
     return out

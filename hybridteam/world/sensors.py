@@ -47,15 +47,19 @@ class RangeRing:
         if self.count < 1:
             raise ValueError(f"{self.name}: a ring needs at least one beam, got {self.count}")
         if not 0.0 <= self.min_range < self.max_range:
-            raise ValueError(f"{self.name}: need 0 <= min_range < max_range, got "
-                             f"{self.min_range} and {self.max_range}")
+            raise ValueError(
+                f"{self.name}: need 0 <= min_range < max_range, got "
+                f"{self.min_range} and {self.max_range}"
+            )
         if self.mount_radius < 0.0:
             raise ValueError(f"{self.name}: mount_radius must be >= 0")
         if not 0.0 <= self.half_angle < math.pi / 2:
             raise ValueError(f"{self.name}: half_angle must be in [0, pi/2) radians")
         if self.rays_per_beam < 1 or (self.half_angle > 0.0) != (self.rays_per_beam > 1):
-            raise ValueError(f"{self.name}: a cone (half_angle > 0) needs rays_per_beam >= 2, "
-                             "a single line rays_per_beam = 1")
+            raise ValueError(
+                f"{self.name}: a cone (half_angle > 0) needs rays_per_beam >= 2, "
+                "a single line rays_per_beam = 1"
+            )
 
     @property
     def angles(self) -> np.ndarray:
@@ -99,8 +103,9 @@ class RangeRing:
             got = self._beam_subsets[key] = tuple(c[:, rays] for c in self._local)
         return got
 
-    def rays(self, poses: np.ndarray, beams: np.ndarray | None = None
-             ) -> tuple[np.ndarray, np.ndarray]:
+    def rays(
+        self, poses: np.ndarray, beams: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """World origins and unit directions of every sub-ray: two ``(m, count * rays, 2)``;
         of the sub-rays of ``beams`` (beam indices, in that order) only, if given.
 
@@ -121,8 +126,12 @@ class RangeRing:
         directions[..., 1] = sin * dx + cos * dy
         return origins, directions
 
-    def read(self, poses: np.ndarray, segments: np.ndarray | list | None,
-             circles: np.ndarray | list | None = None) -> np.ndarray:
+    def read(
+        self,
+        poses: np.ndarray,
+        segments: np.ndarray | list | None,
+        circles: np.ndarray | list | None = None,
+    ) -> np.ndarray:
         """Readings of the ring on robots at ``poses`` ``(m, 3)``: ``(m, count)``.
 
         ``segments`` are the world's walls and polygon edges, ``circles`` the round
@@ -135,8 +144,11 @@ class RangeRing:
         return np.maximum(dist, self.min_range)
 
 
-def detect(readings: np.ndarray, threshold: float | np.ndarray,
-           beams: slice | np.ndarray | list[int] | None = None) -> np.ndarray:
+def detect(
+    readings: np.ndarray,
+    threshold: float | np.ndarray,
+    beams: slice | np.ndarray | list[int] | None = None,
+) -> np.ndarray:
     """Whether any of ``beams`` reads closer than ``threshold``: ``(m,)`` bool.
 
     ``threshold`` is a scalar or one value per instance ``(m,)`` (parameter studies vary
@@ -152,9 +164,12 @@ def detect(readings: np.ndarray, threshold: float | np.ndarray,
     return np.any(r < (thr[:, None] if thr.ndim == 1 else thr), axis=1)
 
 
-def clearance(poses: np.ndarray, radius: float | np.ndarray,
-              segments: np.ndarray | list | None,
-              circles: np.ndarray | list | None = None) -> np.ndarray:
+def clearance(
+    poses: np.ndarray,
+    radius: float | np.ndarray,
+    segments: np.ndarray | list | None,
+    circles: np.ndarray | list | None = None,
+) -> np.ndarray:
     """Gap between each robot's disk and the nearest obstacle: ``(m,)``, negative if overlapping.
 
     ``poses`` is ``(m, 2)`` or ``(m, 3)`` (the heading does not matter for a disk),

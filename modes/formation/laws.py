@@ -19,9 +19,19 @@ from hybridteam.library import LawContext, law
 from hybridteam.world.geometry import relative_pose
 
 
-@law("formation.follow", plants=("unicycle",),
-     params={"ahead": -1.0, "left": 0.0, "phi": 0.0, "capture": 0.0, "k_along": 1.0,
-             "k_cross": 1.0, "k_heading": 2.0})
+@law(
+    "formation.follow",
+    plants=("unicycle",),
+    params={
+        "ahead": -1.0,
+        "left": 0.0,
+        "phi": 0.0,
+        "capture": 0.0,
+        "k_along": 1.0,
+        "k_cross": 1.0,
+        "k_heading": 2.0,
+    },
+)
 def follow(ctx: LawContext) -> np.ndarray:
     """Keep station at (ahead, left, phi) in the leader's frame, from the leader's stream
     (``capture`` = 1: the station held when a new leader's first copy arrived)."""
@@ -36,11 +46,13 @@ def follow(ctx: LawContext) -> np.ndarray:
     on = ctx["capture"] > 0
     if on.any():
         here = relative_pose(x, y, th, est["x"], est["y"], lth)
-        kept = ctx.capture("station", who, dict(zip(("ahead", "left", "phi"), here,
-                                                    strict=True)), on & ok)
+        kept = ctx.capture(
+            "station", who, dict(zip(("ahead", "left", "phi"), here, strict=True)), on & ok
+        )
         use = on & np.isfinite(kept["ahead"])
-        ahead, left, phi = (np.where(use, kept[k], g) for k, g in
-                            (("ahead", ahead), ("left", left), ("phi", phi)))
+        ahead, left, phi = (
+            np.where(use, kept[k], g) for k, g in (("ahead", ahead), ("left", left), ("phi", phi))
+        )
     px = est["x"] + ahead * c - left * s
     py = est["y"] + ahead * s + left * c
     ex, ey = px - x, py - y

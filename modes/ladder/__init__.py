@@ -9,5 +9,14 @@ from . import carry, world  # noqa: F401  (registers the law and the world compo
 from .kernel import OUTCOMES, Result, simulate
 from .params import Pairs, Robot, Scenario, Settings, random_pairs, sample_run
 
-__all__ = ["OUTCOMES", "Pairs", "Result", "Robot", "Scenario", "Settings", "random_pairs",
-           "sample_run", "simulate"]
+__all__ = [
+    "OUTCOMES",
+    "Pairs",
+    "Result",
+    "Robot",
+    "Scenario",
+    "Settings",
+    "random_pairs",
+    "sample_run",
+    "simulate",
+]

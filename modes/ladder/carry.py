@@ -45,8 +45,18 @@ def carry(ctx: LawContext) -> np.ndarray:
     if (params["kr"] != 0.0).any():  # the goal heading matters only to the rotation vector
         params["goal_heading"] = ctx.sense("goal_heading")
     corridor = cast(Corridor, ctx.sense("corridor"))  # (the component senses its corridor)
-    move, nearest = law.step(own, partner, path, idx, params, corridor,
-                             window=window, frame=frame, guide=guide, correction=correction)
+    move, nearest = law.step(
+        own,
+        partner,
+        path,
+        idx,
+        params,
+        corridor,
+        window=window,
+        frame=frame,
+        guide=guide,
+        correction=correction,
+    )
     ctx.keep("nearest", nearest)
     u[:, :2] = move
     return u
@@ -62,12 +72,19 @@ def _few(ctx: LawContext, window: int) -> np.ndarray:
     row raises :class:`.law_one.Diverged` (the caller then takes the array version)."""
     partner, length, sc_partner, frame, correction = ctx.sense("period")
     _, guide, robots = _prepared(ctx, frame, window)
-    heading = ctx.sense("goal_heading").tolist() if any(r["kr"] != 0.0 for r in robots) \
-        else None
+    heading = ctx.sense("goal_heading").tolist() if any(r["kr"] != 0.0 for r in robots) else None
     u, nearest = [], []
-    for i, (robot, ell, scp, xy, pxy, k) in enumerate(zip(
-            robots, length.tolist(), sc_partner.tolist(), ctx.state.tolist(),
-            partner.tolist(), ctx.recall("nearest", 0.0).tolist(), strict=True)):
+    for i, (robot, ell, scp, xy, pxy, k) in enumerate(
+        zip(
+            robots,
+            length.tolist(),
+            sc_partner.tolist(),
+            ctx.state.tolist(),
+            partner.tolist(),
+            ctx.recall("nearest", 0.0).tolist(),
+            strict=True,
+        )
+    ):
         p = dict(robot)
         p["length"], p["sc_partner"] = ell, scp
         if heading is not None:
@@ -75,8 +92,9 @@ def _few(ctx: LawContext, window: int) -> np.ndarray:
         if not -_INDEX_RANGE < k < _INDEX_RANGE:  # (NaN too) astype's own conversion
             raise law_one.Diverged(f"kept index {k}")
         # the index kept as a float, toward zero as astype(np.int64) converts it
-        dx, dy, near = law_one.step_one((xy[0], xy[1]), tuple(pxy), guide, i, int(k), p,
-                                        frame, window, correction)
+        dx, dy, near = law_one.step_one(
+            (xy[0], xy[1]), tuple(pxy), guide, i, int(k), p, frame, window, correction
+        )
         u.append((dx, dy, 0.0))
         nearest.append(near)
     ctx.keep("nearest", nearest)
@@ -96,8 +114,9 @@ _INDEX_RANGE = 2.0**62
 _GUIDES: list[tuple] = []
 
 
-def _prepared(ctx: LawContext, frame, window: int
-              ) -> tuple[np.ndarray, law.Guide, list[dict[str, float]]]:
+def _prepared(
+    ctx: LawContext, frame, window: int
+) -> tuple[np.ndarray, law.Guide, list[dict[str, float]]]:
     """The guide paths of this robot's instances, their prepared guide, and the robot's
     parameters per instance."""
     key = (ctx.agent, ctx.instances.tobytes())

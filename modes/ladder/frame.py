@@ -30,15 +30,19 @@ class CornerFrame:
     """Origin, axes and leg widths of a corridor's corner frame."""
 
     origin: np.ndarray  # (2,) the inner vertex, world coordinates
-    axes: np.ndarray    # (2, 2) rows: unit x and y axes of the frame, world coordinates
+    axes: np.ndarray  # (2, 2) rows: unit x and y axes of the frame, world coordinates
     width_in: float
     width_out: float
 
     @classmethod
     def of(cls, corridor: Corridor) -> CornerFrame:
         axes = np.asarray(corridor.inner_normals, dtype=float)
-        return cls(np.asarray(corridor.inner_vertex, dtype=float).copy(), axes.copy(),
-                   float(corridor.width_in), float(corridor.width_out))
+        return cls(
+            np.asarray(corridor.inner_vertex, dtype=float).copy(),
+            axes.copy(),
+            float(corridor.width_in),
+            float(corridor.width_out),
+        )
 
     @cached_property
     def floats(self) -> tuple[float, float, float, float, float, float]:

@@ -29,9 +29,15 @@ def alpha_to_across(alpha: np.ndarray, width: float, inset: float) -> np.ndarray
     return (inset + a * (width - 2.0 * inset)) / width
 
 
-def control_points(corridor: Corridor, start: np.ndarray, goal: np.ndarray,
-                   alpha: np.ndarray, *, approach: float | None = None,
-                   inset: float = 0.0) -> np.ndarray:
+def control_points(
+    corridor: Corridor,
+    start: np.ndarray,
+    goal: np.ndarray,
+    alpha: np.ndarray,
+    *,
+    approach: float | None = None,
+    inset: float = 0.0,
+) -> np.ndarray:
     """Control points ``(n, K, 2)`` of n guide paths from ``start`` to ``goal`` (each (n, 2)).
 
     Order: start, [approach point], corner entry point, corner exit point,
@@ -56,8 +62,9 @@ def control_points(corridor: Corridor, start: np.ndarray, goal: np.ndarray,
     return np.stack(points, axis=1)
 
 
-def cardinal_spline(points: np.ndarray, tension: float = 0.0,
-                    per_interval: int = DENSE_PER_INTERVAL) -> np.ndarray:
+def cardinal_spline(
+    points: np.ndarray, tension: float = 0.0, per_interval: int = DENSE_PER_INTERVAL
+) -> np.ndarray:
     """Dense samples ``(n, (K-1) * per_interval + 1, 2)`` of cardinal splines through points.
 
     Hearn & Baker's form: with ``s = (1 - tension) / 2`` the tangent at P_k is
@@ -94,9 +101,17 @@ def resample(polyline: np.ndarray, count: int) -> np.ndarray:
     return out
 
 
-def guide_paths(corridor: Corridor, start: np.ndarray, goal: np.ndarray, alpha: np.ndarray,
-                *, count: int = 160, tension: float = 0.0, approach: float | None = None,
-                inset: float = 0.0) -> np.ndarray:
+def guide_paths(
+    corridor: Corridor,
+    start: np.ndarray,
+    goal: np.ndarray,
+    alpha: np.ndarray,
+    *,
+    count: int = 160,
+    tension: float = 0.0,
+    approach: float | None = None,
+    inset: float = 0.0,
+) -> np.ndarray:
     """Guide paths ``(n, count, 2)`` for n robots: spline through the control points, resampled."""
     pts = control_points(corridor, start, goal, alpha, approach=approach, inset=inset)
     return resample(cardinal_spline(pts, tension), count)

@@ -36,8 +36,28 @@ OUTCOMES = ("running", "success", "stuck", "link_broken")
 _SLACK = 1e-6
 
 _PAIR = ("length", "best", "improved_at", "outcome", "steps", "corner_steps", "cracked")
-_ROBOT = ("x", "y", "idx", "base", "gx", "gy", "path", "corner_path", "max_offset", "v_max",
-          "ahead", "share", "coef", "orsp", "olim", "kr", "radius", "margin", "hx", "hy")
+_ROBOT = (
+    "x",
+    "y",
+    "idx",
+    "base",
+    "gx",
+    "gy",
+    "path",
+    "corner_path",
+    "max_offset",
+    "v_max",
+    "ahead",
+    "share",
+    "coef",
+    "orsp",
+    "olim",
+    "kr",
+    "radius",
+    "margin",
+    "hx",
+    "hy",
+)
 
 #: Robot rows moving first and second in each period, by ``Settings.update``.
 ORDERS = {"synchronous": None, "front_first": (0, 1), "rear_first": (1, 0)}
@@ -47,40 +67,52 @@ ORDERS = {"synchronous": None, "front_first": (0, 1), "rear_first": (1, 0)}
 class Result:
     """What n runs produced; robot axes are ordered (front R1, rear R2), world coordinates."""
 
-    outcome: np.ndarray       # (n,) codes, see OUTCOMES
-    steps: np.ndarray         # (n,) control periods taken
+    outcome: np.ndarray  # (n,) codes, see OUTCOMES
+    steps: np.ndarray  # (n,) control periods taken
     corner_steps: np.ndarray  # (n,) of which with the ladder meeting the corner square
-    path: np.ndarray          # (n, 2) distance travelled by each robot
-    corner_path: np.ndarray   # (n, 2) of which while the ladder met the corner square
-    max_offset: np.ndarray    # (n, 2) largest |o_i| seen
-    position: np.ndarray      # (n, 2, 2) final robot positions
-    scene: Scene              # starts, goals, guide paths
+    path: np.ndarray  # (n, 2) distance travelled by each robot
+    corner_path: np.ndarray  # (n, 2) of which while the ladder met the corner square
+    max_offset: np.ndarray  # (n, 2) largest |o_i| seen
+    position: np.ndarray  # (n, 2, 2) final robot positions
+    scene: Scene  # starts, goals, guide paths
     trajectory: np.ndarray | None = None  # (T + 1, n, 2, 2) robot positions, if recorded
-    tips: np.ndarray | None = None        # (T + 1, n, 2, 2) ladder ends, if recorded
+    tips: np.ndarray | None = None  # (T + 1, n, 2, 2) ladder ends, if recorded
 
     @property
     def outcome_names(self) -> list[str]:
         return [OUTCOMES[int(c)] for c in self.outcome]
 
 
-def in_corner(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
-              width_in: float, width_out: float, ops: Ops = np) -> np.ndarray:
+def in_corner(
+    ax: np.ndarray,
+    ay: np.ndarray,
+    bx: np.ndarray,
+    by: np.ndarray,
+    width_in: float,
+    width_out: float,
+    ops: Ops = np,
+) -> np.ndarray:
     """Whether the ladder ``a -> b`` meets the closed corner square (frame coordinates).
 
     Separating axes: the square's two axes (bounding boxes overlap) and the ladder's normal
     (the square's centre is within its half-extent of the ladder's line). Written once over
     ``ops``: its float form is the corridor's instant's for a few rows (:mod:`.world_one`).
     """
-    overlap = ((ops.minimum(ax, bx) <= 0.0) & (ops.maximum(ax, bx) >= -width_in)
-               & (ops.minimum(ay, by) <= 0.0) & (ops.maximum(ay, by) >= -width_out))
+    overlap = (
+        (ops.minimum(ax, bx) <= 0.0)
+        & (ops.maximum(ax, bx) >= -width_in)
+        & (ops.minimum(ay, by) <= 0.0)
+        & (ops.maximum(ay, by) >= -width_out)
+    )
     dx = bx - ax
     dy = by - ay
     s = dx * (-0.5 * width_out - ay) - dy * (-0.5 * width_in - ax)
     return overlap & (abs(s) <= 0.5 * width_in * abs(dy) + 0.5 * width_out * abs(dx))
 
 
-def _initial(pairs: Pairs, start: np.ndarray, goal: np.ndarray,
-             settings: Settings) -> dict[str, np.ndarray]:
+def _initial(
+    pairs: Pairs, start: np.ndarray, goal: np.ndarray, settings: Settings
+) -> dict[str, np.ndarray]:
     """Full-size state arrays in the corner frame: robot ones ``(2, n)``, pair ones ``(n,)``."""
     n = pairs.size
     r = pairs.robot
@@ -89,28 +121,45 @@ def _initial(pairs: Pairs, start: np.ndarray, goal: np.ndarray,
     hy = goal[..., 1] - goal[::-1, :, 1]
     hn = law.norm(hx, hy)
     return {
-        "length": pairs.length.astype(float).copy(), "best": np.full(n, np.inf),
-        "improved_at": np.zeros(n, dtype=np.int64), "outcome": np.zeros(n, dtype=np.int8),
-        "steps": np.zeros(n, dtype=np.int64), "corner_steps": np.zeros(n, dtype=np.int64),
+        "length": pairs.length.astype(float).copy(),
+        "best": np.full(n, np.inf),
+        "improved_at": np.zeros(n, dtype=np.int64),
+        "outcome": np.zeros(n, dtype=np.int8),
+        "steps": np.zeros(n, dtype=np.int64),
+        "corner_steps": np.zeros(n, dtype=np.int64),
         "cracked": np.zeros(n, dtype=bool),
-        "x": start[..., 0].copy(), "y": start[..., 1].copy(),
+        "x": start[..., 0].copy(),
+        "y": start[..., 1].copy(),
         "idx": np.zeros((2, n), dtype=np.int64),
-        "base": np.arange(2 * n, dtype=np.int64).reshape(2, n) * (
-            settings.path_points + 2 * settings.window),
-        "gx": goal[..., 0].copy(), "gy": goal[..., 1].copy(),
-        "path": np.zeros((2, n)), "corner_path": np.zeros((2, n)),
-        "max_offset": np.zeros((2, n)), "v_max": r["v_max"].copy(),
+        "base": np.arange(2 * n, dtype=np.int64).reshape(2, n)
+        * (settings.path_points + 2 * settings.window),
+        "gx": goal[..., 0].copy(),
+        "gy": goal[..., 1].copy(),
+        "path": np.zeros((2, n)),
+        "corner_path": np.zeros((2, n)),
+        "max_offset": np.zeros((2, n)),
+        "v_max": r["v_max"].copy(),
         "ahead": np.maximum(r["lookahead"].astype(np.int64), 1),
         "share": sc[::-1] / (sc + sc[::-1]),
         "coef": law.correction_coefficient(r["kc"], r["olim"], r["orsp"]),
-        "orsp": r["orsp"].copy(), "olim": r["olim"].copy(), "kr": r["kr"].copy(),
-        "radius": r["radius"].copy(), "margin": r["ladder_margin"].copy(),
-        "hx": hx / hn, "hy": hy / hn,
+        "orsp": r["orsp"].copy(),
+        "olim": r["olim"].copy(),
+        "kr": r["kr"].copy(),
+        "radius": r["radius"].copy(),
+        "margin": r["ladder_margin"].copy(),
+        "hx": hx / hn,
+        "hy": hy / hn,
     }
 
 
-def simulate(pairs: Pairs, corridor: Corridor | None = None, settings: Settings | None = None,
-             *, record: bool = False, start: np.ndarray | None = None) -> Result:
+def simulate(
+    pairs: Pairs,
+    corridor: Corridor | None = None,
+    settings: Settings | None = None,
+    *,
+    record: bool = False,
+    start: np.ndarray | None = None,
+) -> Result:
     """Run every pair to success, stuck or a broken link, and collect the statistics.
 
     ``start`` ``(2, n, 2)`` (front row first) places the robots; by default they start on
@@ -132,8 +181,9 @@ def simulate(pairs: Pairs, corridor: Corridor | None = None, settings: Settings 
     work = {k: v.copy() for k, v in full.items()}
     step = 0
     while True:
-        step, live = _run(work, step, path_x, path_y, windows, frame, settings, window,
-                          last, frames, snap, act)
+        step, live = _run(
+            work, step, path_x, path_y, windows, frame, settings, window, last, frames, snap, act
+        )
         for k in _PAIR:
             full[k][act] = work[k]
         for k in _ROBOT:
@@ -147,20 +197,37 @@ def simulate(pairs: Pairs, corridor: Corridor | None = None, settings: Settings 
     position = to_world(np.stack([full["x"], full["y"]], axis=-1))
     trajectory = tips = None
     if frames is not None:
-        stacked = to_world(np.stack(frames))            # (T + 1, 2 [pos, tip], 2, n, 2)
+        stacked = to_world(np.stack(frames))  # (T + 1, 2 [pos, tip], 2, n, 2)
         trajectory = stacked[:, 0].transpose(0, 2, 1, 3).copy()
         tips = stacked[:, 1].transpose(0, 2, 1, 3).copy()
     return Result(
-        outcome=full["outcome"], steps=full["steps"], corner_steps=full["corner_steps"],
-        path=full["path"].T.copy(), corner_path=full["corner_path"].T.copy(),
-        max_offset=full["max_offset"].T.copy(), position=position.transpose(1, 0, 2).copy(),
-        scene=scene, trajectory=trajectory, tips=tips)
+        outcome=full["outcome"],
+        steps=full["steps"],
+        corner_steps=full["corner_steps"],
+        path=full["path"].T.copy(),
+        corner_path=full["corner_path"].T.copy(),
+        max_offset=full["max_offset"].T.copy(),
+        position=position.transpose(1, 0, 2).copy(),
+        scene=scene,
+        trajectory=trajectory,
+        tips=tips,
+    )
 
 
-def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.ndarray,
-         windows: tuple[np.ndarray, np.ndarray], frame: CornerFrame, settings: Settings,
-         window: int, last: int, frames: list[np.ndarray] | None, snap: np.ndarray | None,
-         act: np.ndarray) -> tuple[int, np.ndarray | None]:
+def _run(
+    work: dict[str, np.ndarray],
+    step: int,
+    path_x: np.ndarray,
+    path_y: np.ndarray,
+    windows: tuple[np.ndarray, np.ndarray],
+    frame: CornerFrame,
+    settings: Settings,
+    window: int,
+    last: int,
+    frames: list[np.ndarray] | None,
+    snap: np.ndarray | None,
+    act: np.ndarray,
+) -> tuple[int, np.ndarray | None]:
     """Step the working pairs until all have finished (returns ``(step, None)``) or enough
     have finished to compact them (returns ``(step, live mask)``). Updates in place."""
     length, best, improved_at = work["length"], work["best"], work["improved_at"]
@@ -171,8 +238,7 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
     w_in, w_out = frame.width_in, frame.width_out
     stuck_tol, arrive_tol = settings.stuck_tol, settings.arrive_tol
     stuck_window, max_steps = settings.stuck_window, settings.max_steps
-    motion = _motion_of(work, path_x, path_y, windows, frame, window, last,
-                        settings.correction)
+    motion = _motion_of(work, path_x, path_y, windows, frame, window, last, settings.correction)
     order = ORDERS[settings.update]
     m = length.size
     live = np.ones(m, dtype=bool)
@@ -231,8 +297,9 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
             np.maximum(max_offset, no1, out=max_offset)
             between = no1 > olim
             cracked |= between[0] | between[1]
-            mx1, my1, _ = motion(x1, y1, ox1, oy1, no1, x1 + ox1, y1 + oy1, dist1,
-                                 law.norm(gx - x1, gy - y1))
+            mx1, my1, _ = motion(
+                x1, y1, ox1, oy1, no1, x1 + ox1, y1 + oy1, dist1, law.norm(gx - x1, gy - y1)
+            )
             mx[second] = mx1[second]
             my[second] = my1[second]
             if dead is not None:
@@ -255,9 +322,16 @@ def _run(work: dict[str, np.ndarray], step: int, path_x: np.ndarray, path_y: np.
         step += 1
 
 
-def _motion_of(work: dict[str, np.ndarray], path_x: np.ndarray, path_y: np.ndarray,
-               windows: tuple[np.ndarray, np.ndarray], frame: CornerFrame, window: int,
-               last: int, correction: str):
+def _motion_of(
+    work: dict[str, np.ndarray],
+    path_x: np.ndarray,
+    path_y: np.ndarray,
+    windows: tuple[np.ndarray, np.ndarray],
+    frame: CornerFrame,
+    window: int,
+    last: int,
+    correction: str,
+):
     """The law for both robots of the working pairs, as a function of their positions
     (and what the judge already computed from them): ``(mx, my, nearest)``."""
     idx, base, hx, hy = work["idx"], work["base"], work["hx"], work["hy"]
@@ -274,17 +348,20 @@ def _motion_of(work: dict[str, np.ndarray], path_x: np.ndarray, path_y: np.ndarr
         tx, ty = law.target_vector(x, y, path_x, path_y, base, nearest, ahead, last, window)
         rx = ry = None
         if rotate is not None:
-            rx, ry = law.rotation_vector(x, y, x[::-1], y[::-1], dist, dgoal, hx, hy, kr,
-                                         half_length)
+            rx, ry = law.rotation_vector(
+                x, y, x[::-1], y[::-1], dist, dgoal, hx, hy, kr, half_length
+            )
         cx, cy = law.correction_vector(ox, oy, no, orsp, coef)
-        mx, my = law.combine(tx, ty, rx, ry, law.arrival_factor(dgoal, v_max), cx, cy, v_max,
-                             rotate, correction)
+        mx, my = law.combine(
+            tx, ty, rx, ry, law.arrival_factor(dgoal, v_max), cx, cy, v_max, rotate, correction
+        )
         # The wall rules, skipped where they provably change nothing: a ladder with all
         # x (or all y) below -margin is farther than that from the inside of the turn; a
         # robot farther than radius + v_max from a wall cannot reach it in one step. The
         # bounds carry a slack far above rounding, so a skip never depends on the batch.
-        if np.count_nonzero((np.maximum(ax, ax[::-1]) >= far_ladder)
-                            & (np.maximum(ay, ay[::-1]) >= far_ladder)):
+        if np.count_nonzero(
+            (np.maximum(ax, ax[::-1]) >= far_ladder) & (np.maximum(ay, ay[::-1]) >= far_ladder)
+        ):
             clear = law.ladder_clearance(ax, ay, ax[::-1], ay[::-1])
             mx, my = law.avoid_ladder_collision(mx, my, clear, margin)
         if np.count_nonzero(np.minimum(x + w_in, y + w_out) < reach):

@@ -49,8 +49,9 @@ def unit_vector(vx: Array, vy: Array, ops: Ops = np) -> tuple[Array, Array]:
     return vx / dq, vy / dq
 
 
-def spring_offsets(x: Array, y: Array, px: Array, py: Array, length: Array,
-                   share: Array, ops: Ops = np) -> tuple[Array, Array, Array]:
+def spring_offsets(
+    x: Array, y: Array, px: Array, py: Array, length: Array, share: Array, ops: Ops = np
+) -> tuple[Array, Array, Array]:
     """Offset vector ``o`` (robot centre to its ladder end) and the robots' distance D.
 
     With two grasps the ladder lies on the line through the robots, and the ends sit
@@ -74,14 +75,17 @@ def pad_paths(paths: Array, window: int) -> tuple[Array, Array]:
     tail = np.repeat(p[..., -1:, :], window, axis=-2)
     padded = np.concatenate([lead, p, tail], axis=-2)
     return np.ascontiguousarray(padded[..., 0]).ravel(), np.ascontiguousarray(
-        padded[..., 1]).ravel()
+        padded[..., 1]
+    ).ravel()
 
 
 def search_windows(path_x: Array, path_y: Array, window: int) -> tuple[Array, Array]:
     """Views of padded paths whose row ``base + i`` is points ``i - window .. i + window``."""
     size = 2 * window + 1
-    return (np.lib.stride_tricks.sliding_window_view(path_x, size),
-            np.lib.stride_tricks.sliding_window_view(path_y, size))
+    return (
+        np.lib.stride_tricks.sliding_window_view(path_x, size),
+        np.lib.stride_tricks.sliding_window_view(path_y, size),
+    )
 
 
 class Guide:
@@ -99,8 +103,15 @@ class Guide:
         self.base = np.arange(n) * (count + 2 * window)
 
 
-def nearest_on_path(x: Array, y: Array, windows: tuple[Array, Array], base: Array,
-                    idx: Array, window: int, last: int) -> Array:
+def nearest_on_path(
+    x: Array,
+    y: Array,
+    windows: tuple[Array, Array],
+    base: Array,
+    idx: Array,
+    window: int,
+    last: int,
+) -> Array:
     """Index of the guide-path point nearest the robot, searched within ``idx +- window``.
 
     ``windows`` come from :func:`search_windows`; ``base`` is where each robot's padded
@@ -116,8 +127,17 @@ def nearest_on_path(x: Array, y: Array, windows: tuple[Array, Array], base: Arra
     return np.minimum(np.maximum(idx + ex.argmin(axis=-1) - window, 0), last)
 
 
-def target_vector(x: Array, y: Array, path_x: Array, path_y: Array, base: Array,
-                  nearest: Array, ahead: Array, last: int, window: int) -> tuple[Array, Array]:
+def target_vector(
+    x: Array,
+    y: Array,
+    path_x: Array,
+    path_y: Array,
+    base: Array,
+    nearest: Array,
+    ahead: Array,
+    last: int,
+    window: int,
+) -> tuple[Array, Array]:
     """Target vector: the unit vector to the point ``ahead`` points past the nearest one.
 
     ``ahead`` is the lookahead, at least 1 so that a robot standing on a path point still
@@ -136,9 +156,19 @@ def arrival_factor(dgoal: Array, v_max: Array, ops: Ops = np) -> Array:
     return ops.minimum(dgoal / v_max, 1.0)
 
 
-def rotation_vector(x: Array, y: Array, px: Array, py: Array, dist: Array, dgoal: Array,
-                    heading_x: Array, heading_y: Array, kr: Array,
-                    half_length: Array, ops: Ops = np) -> tuple[Array, Array]:
+def rotation_vector(
+    x: Array,
+    y: Array,
+    px: Array,
+    py: Array,
+    dist: Array,
+    dgoal: Array,
+    heading_x: Array,
+    heading_y: Array,
+    kr: Array,
+    half_length: Array,
+    ops: Ops = np,
+) -> tuple[Array, Array]:
     """Rotation vector: perpendicular to the ladder, |r| = k_r * arclength / distgoal.
 
     ``arclength`` is the arc the ladder's end still has to sweep to reach the goal
@@ -160,8 +190,9 @@ def correction_coefficient(kc: Array, olim: Array, orsp: Array) -> Array:
     return np.where(gap > 0.0, kc / np.where(gap > 0.0, gap, 1.0), 0.0)
 
 
-def correction_vector(ox: Array, oy: Array, no: Array, orsp: Array,
-                      coef: Array, ops: Ops = np) -> tuple[Array, Array]:
+def correction_vector(
+    ox: Array, oy: Array, no: Array, orsp: Array, coef: Array, ops: Ops = np
+) -> tuple[Array, Array]:
     """Correction vector toward the ladder end, growing linearly once |o| passes ``orsp``.
 
     ``no`` is |o|; ``coef`` is ``k_c / (olim - orsp)``, so |c| = k_c at the offset limit.
@@ -170,9 +201,18 @@ def correction_vector(ox: Array, oy: Array, no: Array, orsp: Array,
     return k * ox, k * oy
 
 
-def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, cx: Array,
-            cy: Array, v_max: Array, rotate: Array | None,
-            correction: str = "scaled") -> tuple[Array, Array]:
+def combine(
+    tx: Array,
+    ty: Array,
+    rx: Array | None,
+    ry: Array | None,
+    g: Array,
+    cx: Array,
+    cy: Array,
+    v_max: Array,
+    rotate: Array | None,
+    correction: str = "scaled",
+) -> tuple[Array, Array]:
     """Motion vector ``v_max * CLAMP(g * unit(t + r) + c)`` (Sec. 3.2.2).
 
     Where ``rotate`` is false (k_r = 0) the target vector, already a unit vector, is used
@@ -193,10 +233,16 @@ def combine(tx: Array, ty: Array, rx: Array | None, ry: Array | None, g: Array, 
     return clamp_motion(tx, ty, g, cx, cy, v_max, correction)
 
 
-
-
-def clamp_motion(tx: Array, ty: Array, g: Array, cx: Array, cy: Array, v_max: Array,
-                 correction: str, ops: Ops = np) -> tuple[Array, Array]:
+def clamp_motion(
+    tx: Array,
+    ty: Array,
+    g: Array,
+    cx: Array,
+    cy: Array,
+    v_max: Array,
+    correction: str,
+    ops: Ops = np,
+) -> tuple[Array, Array]:
     """:func:`combine` after the rotation: the motion vector from the (unit) direction
     ``t``, clamped as the ``correction`` reading says."""
     if correction == "scaled":
@@ -230,8 +276,9 @@ def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array, ops: Ops = np) 
     db = ops.sqrt(ex * ex + ey * ey)
     ux = bx - ax
     uy = by - ay
-    t = ops.minimum(ops.maximum(-(ax * ux + ay * uy) / ops.maximum(ux * ux + uy * uy, TINY),
-                                0.0), 1.0)
+    t = ops.minimum(
+        ops.maximum(-(ax * ux + ay * uy) / ops.maximum(ux * ux + uy * uy, TINY), 0.0), 1.0
+    )
     ex, ey = ax + t * ux, ay + t * uy
     dv = ops.sqrt(ex * ex + ey * ey)
     clear = ops.minimum(ops.minimum(da, db), dv)
@@ -239,8 +286,9 @@ def ladder_clearance(ax: Array, ay: Array, bx: Array, by: Array, ops: Ops = np) 
     return ops.where(crossing, 0.0, clear)
 
 
-def avoid_ladder_collision(mx: Array, my: Array, clearance: Array,
-                           margin: Array, ops: Ops = np) -> tuple[Array, Array]:
+def avoid_ladder_collision(
+    mx: Array, my: Array, clearance: Array, margin: Array, ops: Ops = np
+) -> tuple[Array, Array]:
     """Fig. 7(b): near the inner walls, drop components toward them or away from the corner.
 
     In the incoming leg "away from the corner" is the direction into the outgoing leg's
@@ -252,8 +300,9 @@ def avoid_ladder_collision(mx: Array, my: Array, clearance: Array,
     return ops.where(near, ops.minimum(mx, 0.0), mx), ops.where(near, ops.minimum(my, 0.0), my)
 
 
-def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_in: float,
-                width_out: float) -> tuple[Array, Array]:
+def avoid_walls(
+    x: Array, y: Array, mx: Array, my: Array, radius: Array, width_in: float, width_out: float
+) -> tuple[Array, Array]:
     """Fig. 7(a): drop the component toward a wall the robot would otherwise touch.
 
     A wall is about to be hit when the step would bring the centre closer than ``radius``
@@ -265,11 +314,21 @@ def avoid_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array, width_i
     return avoid_inner_walls(x, y, mx, my, radius, inner_wall_distance(x, y))
 
 
-def avoid_outer_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      width_in: float, width_out: float, ops: Ops = np) -> tuple[Array, Array]:
+def avoid_outer_walls(
+    x: Array,
+    y: Array,
+    mx: Array,
+    my: Array,
+    radius: Array,
+    width_in: float,
+    width_out: float,
+    ops: Ops = np,
+) -> tuple[Array, Array]:
     """The outer-wall half of :func:`avoid_walls` (walls ``x = -w_in``, ``y = -w_out``)."""
-    return (ops.where((mx < 0.0) & (x + width_in + mx < radius), 0.0, mx),
-            ops.where((my < 0.0) & (y + width_out + my < radius), 0.0, my))
+    return (
+        ops.where((mx < 0.0) & (x + width_in + mx < radius), 0.0, mx),
+        ops.where((my < 0.0) & (y + width_out + my < radius), 0.0, my),
+    )
 
 
 def inner_wall_distance(x: Array, y: Array, ops: Ops = np) -> Array:
@@ -278,8 +337,9 @@ def inner_wall_distance(x: Array, y: Array, ops: Ops = np) -> Array:
     return ops.sqrt(ex * ex + ey * ey)
 
 
-def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
-                      d: Array, ops: Ops = np) -> tuple[Array, Array]:
+def avoid_inner_walls(
+    x: Array, y: Array, mx: Array, my: Array, radius: Array, d: Array, ops: Ops = np
+) -> tuple[Array, Array]:
     """The inner-wall half of :func:`avoid_walls`; ``d`` is :func:`inner_wall_distance`.
 
     The vector from the nearest inner-wall point to the centre is ``(min(x, 0), min(y, 0))``:
@@ -292,10 +352,19 @@ def avoid_inner_walls(x: Array, y: Array, mx: Array, my: Array, radius: Array,
     return mx - p * nx, my - p * ny
 
 
-def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray,
-         params: dict[str, np.ndarray], corridor: Corridor, *, window: int = 8,
-         frame: CornerFrame | None = None, guide: Guide | None = None,
-         correction: str = "scaled") -> tuple[np.ndarray, np.ndarray]:
+def step(
+    own: np.ndarray,
+    partner: np.ndarray,
+    path: np.ndarray,
+    idx: np.ndarray,
+    params: dict[str, np.ndarray],
+    corridor: Corridor,
+    *,
+    window: int = 8,
+    frame: CornerFrame | None = None,
+    guide: Guide | None = None,
+    correction: str = "scaled",
+) -> tuple[np.ndarray, np.ndarray]:
     """One control period of one robot of each of n pairs: ``(displacement (n, 2), idx)``.
 
     World coordinates: ``own``/``partner`` are ``(n, 2)`` start-of-period positions,
@@ -329,15 +398,18 @@ def step(own: np.ndarray, partner: np.ndarray, path: np.ndarray, idx: np.ndarray
     rx = ry = None
     if rotate.any():
         heading = frame.vectors_to_frame(prm["goal_heading"])
-        rx, ry = rotation_vector(x, y, px, py, dist, dgoal, heading[:, 0], heading[:, 1],
-                                 prm["kr"], 0.5 * prm["length"])
+        rx, ry = rotation_vector(
+            x, y, px, py, dist, dgoal, heading[:, 0], heading[:, 1], prm["kr"], 0.5 * prm["length"]
+        )
     else:
         rotate = None
     no = norm(ox, oy)
-    cx, cy = correction_vector(ox, oy, no, prm["orsp"],
-                               correction_coefficient(prm["kc"], prm["olim"], prm["orsp"]))
-    mx, my = combine(tx, ty, rx, ry, arrival_factor(dgoal, v_max), cx, cy, v_max, rotate,
-                     correction)
+    cx, cy = correction_vector(
+        ox, oy, no, prm["orsp"], correction_coefficient(prm["kc"], prm["olim"], prm["orsp"])
+    )
+    mx, my = combine(
+        tx, ty, rx, ry, arrival_factor(dgoal, v_max), cx, cy, v_max, rotate, correction
+    )
     clear = ladder_clearance(x + ox, y + oy, px + pox, py + poy)
     mx, my = avoid_ladder_collision(mx, my, clear, prm["ladder_margin"])
     mx, my = avoid_walls(x, y, mx, my, prm["radius"], frame.width_in, frame.width_out)

@@ -71,9 +71,17 @@ def to_world_vector(frame: CornerFrame, mx: float, my: float) -> tuple[float, fl
     return mx * a0 + my * b0, mx * a1 + my * b1
 
 
-def step_one(own: tuple[float, float], partner: tuple[float, float], guide: Guide, row: int,
-             idx: int, p: dict[str, float], frame: CornerFrame, window: int,
-             correction: str) -> tuple[float, float, int]:
+def step_one(
+    own: tuple[float, float],
+    partner: tuple[float, float],
+    guide: Guide,
+    row: int,
+    idx: int,
+    p: dict[str, float],
+    frame: CornerFrame,
+    window: int,
+    correction: str,
+) -> tuple[float, float, int]:
     """One control period of row ``row`` of ``guide``: ``(dx, dy, nearest)`` in world
     coordinates, as :func:`.law.step` computes them for that row.
 
@@ -97,23 +105,23 @@ def _step(own, partner, guide, row, idx, p, frame, window, correction):
     ox, oy, dist = spring_offsets(x, y, px, py, length, share)
     pox, poy, _ = spring_offsets(px, py, x, y, length, pshare)
     v_max = p["v_max"]
-    if not abs(p["lookahead"]) < 2.0 ** 63:  # astype(np.int64) has no number for it
+    if not abs(p["lookahead"]) < 2.0**63:  # astype(np.int64) has no number for it
         raise ValueError("lookahead out of the int64 range")
     nearest, tx, ty, dgoal = _follow(x, y, guide, row, idx, int(p["lookahead"]), window)
     if p["kr"] != 0.0:
         _, _, a0, a1, b0, b1 = frame.floats  # (frame.vectors_to_frame of the goal heading)
         hx = p["hx"] * a0 + p["hy"] * a1
         hy = p["hx"] * b0 + p["hy"] * b1
-        rx, ry = rotation_vector(x, y, px, py, dist, dgoal, hx, hy, p["kr"],
-                                 0.5 * p["length"])
+        rx, ry = rotation_vector(x, y, px, py, dist, dgoal, hx, hy, p["kr"], 0.5 * p["length"])
         tx, ty = unit_vector(tx + rx, ty + ry)
     no = norm(ox, oy)
     gap = p["olim"] - p["orsp"]
     coef = p["kc"] / gap if gap > 0.0 else 0.0  # (law.correction_coefficient)
     cx, cy = correction_vector(ox, oy, no, p["orsp"], coef)
     mx, my = clamp_motion(tx, ty, arrival_factor(dgoal, v_max), cx, cy, v_max, correction)
-    mx, my = avoid_ladder_collision(mx, my, clearance(x + ox, y + oy, px + pox, py + poy),
-                                    p["ladder_margin"])
+    mx, my = avoid_ladder_collision(
+        mx, my, clearance(x + ox, y + oy, px + pox, py + poy), p["ladder_margin"]
+    )
     mx, my = avoid_outer_walls(x, y, mx, my, p["radius"], frame.width_in, frame.width_out)
     mx, my = avoid_inner_walls(x, y, mx, my, p["radius"], inner_wall_distance(x, y))
     wx, wy = to_world_vector(frame, mx, my)

@@ -19,8 +19,18 @@ CORRECTIONS = ("scaled", "distance", "capped")
 UPDATES = ("synchronous", "front_first", "rear_first")
 
 #: Per-robot fields, in the order random populations are drawn and arrays are stacked.
-ROBOT_FIELDS = ("v_max", "lookahead", "alpha", "olim", "orsp", "kc", "kr", "sc", "radius",
-                "ladder_margin")
+ROBOT_FIELDS = (
+    "v_max",
+    "lookahead",
+    "alpha",
+    "olim",
+    "orsp",
+    "kc",
+    "kr",
+    "sc",
+    "radius",
+    "ladder_margin",
+)
 
 
 @dataclass(frozen=True)
@@ -50,19 +60,19 @@ class Robot:
 class Settings:
     """Choices the paper leaves open, shared by every pair of a batch (see README)."""
 
-    start_gap: float = 70.0      # rear robot's centre, distance from the entrance line
-    goal_gap: float = 70.0       # front robot's goal, distance before the exit line
-    path_points: int = 160       # points per guide path (the paper's 160)
-    tension: float = 0.0         # cardinal spline tension (0: Catmull-Rom)
-    approach: float | None = None   # optional centre-line control points before/after the corner
-    alpha_inset: float = 0.0     # alpha 0/1 put the corner control points this far from walls
-    window: int = 16             # nearest-point search: +- this many points around the last
-    arrive_tol: float = 0.5      # both robots within this of their goals: success
-    stuck_window: int = 200      # no progress for this many steps: stuck
-    stuck_tol: float = 1.0       # progress = the sum of goal distances drops by more than this
-    max_steps: int = 50_000      # hard stop, reported as stuck
+    start_gap: float = 70.0  # rear robot's centre, distance from the entrance line
+    goal_gap: float = 70.0  # front robot's goal, distance before the exit line
+    path_points: int = 160  # points per guide path (the paper's 160)
+    tension: float = 0.0  # cardinal spline tension (0: Catmull-Rom)
+    approach: float | None = None  # optional centre-line control points before/after the corner
+    alpha_inset: float = 0.0  # alpha 0/1 put the corner control points this far from walls
+    window: int = 16  # nearest-point search: +- this many points around the last
+    arrive_tol: float = 0.5  # both robots within this of their goals: success
+    stuck_window: int = 200  # no progress for this many steps: stuck
+    stuck_tol: float = 1.0  # progress = the sum of goal distances drops by more than this
+    max_steps: int = 50_000  # hard stop, reported as stuck
     # Readings of Section 3 where the paper admits more than one (README, "Readings"):
-    correction: str = "scaled"   # how v_max enters 3.2.2: scaled | distance | capped
+    correction: str = "scaled"  # how v_max enters 3.2.2: scaled | distance | capped
     update: str = "synchronous"  # who moves first in a step: synchronous | front_first | rear_first
 
     def check(self) -> None:
@@ -71,8 +81,9 @@ class Settings:
             raise ValueError("settings need window >= 1 and path_points >= 2")
         for name, allowed in (("correction", CORRECTIONS), ("update", UPDATES)):
             if getattr(self, name) not in allowed:
-                raise ValueError(f"unknown {name} reading '{getattr(self, name)}' "
-                                 f"(one of {', '.join(allowed)})")
+                raise ValueError(
+                    f"unknown {name} reading '{getattr(self, name)}' (one of {', '.join(allowed)})"
+                )
 
 
 @dataclass(frozen=True)
@@ -105,18 +116,29 @@ class Pairs:
         if isinstance(scenarios, Scenario):
             scenarios = [scenarios]
         length = np.array([s.length for s in scenarios], dtype=float)
-        robot = {name: np.array([[getattr(s.front, name) for s in scenarios],
-                                 [getattr(s.rear, name) for s in scenarios]], dtype=float)
-                 for name in ROBOT_FIELDS}
+        robot = {
+            name: np.array(
+                [
+                    [getattr(s.front, name) for s in scenarios],
+                    [getattr(s.rear, name) for s in scenarios],
+                ],
+                dtype=float,
+            )
+            for name in ROBOT_FIELDS
+        }
         return cls(length, robot)
 
     def check(self) -> None:
         """Raise ValueError for values the law cannot run with (one message per problem)."""
         r = self.robot
-        problems = [f"{name} must be positive" for name in ("v_max", "olim", "sc")
-                    if np.any(r[name] <= 0)]
-        problems += [f"{name} must not be negative" for name in ("orsp", "radius",
-                     "ladder_margin", "lookahead") if np.any(r[name] < 0)]
+        problems = [
+            f"{name} must be positive" for name in ("v_max", "olim", "sc") if np.any(r[name] <= 0)
+        ]
+        problems += [
+            f"{name} must not be negative"
+            for name in ("orsp", "radius", "ladder_margin", "lookahead")
+            if np.any(r[name] < 0)
+        ]
         if np.any(self.length <= 0):
             problems.append("ladder length must be positive")
         if problems:
@@ -125,21 +147,24 @@ class Pairs:
     def take(self, index) -> Pairs:
         """The pairs at ``index`` (an int, slice or index array) as a new batch."""
         idx = np.atleast_1d(np.arange(self.size)[index])
-        return Pairs(self.length[idx].copy(),
-                     {k: v[:, idx].copy() for k, v in self.robot.items()})
+        return Pairs(self.length[idx].copy(), {k: v[:, idx].copy() for k, v in self.robot.items()})
 
     def scenario(self, i: int) -> Scenario:
         """Pair ``i`` as a scenario (for the scalar reference)."""
+
         def robot(row: int) -> Robot:
-            vals: dict[str, Any] = {f.name: float(self.robot[f.name][row, i])
-                                    for f in fields(Robot)}
+            vals: dict[str, Any] = {
+                f.name: float(self.robot[f.name][row, i]) for f in fields(Robot)
+            }
             vals["lookahead"] = int(vals["lookahead"])
             return Robot(**vals)
+
         return Scenario(float(self.length[i]), robot(0), robot(1))
 
 
-def random_pairs(rng: np.random.Generator, n: int, length: float = 450.0,
-                 base: Robot | None = None) -> Pairs:
+def random_pairs(
+    rng: np.random.Generator, n: int, length: float = 450.0, base: Robot | None = None
+) -> Pairs:
     """The paper's population S (Sec. 4): n pairs of randomized, non-identical robots.
 
     orsp uniform in [0, 0.2] * olim, v_max in [0.5, 1.5], lookahead an integer in 0..20,
@@ -155,7 +180,6 @@ def random_pairs(rng: np.random.Generator, n: int, length: float = 450.0,
             v_max = rng.uniform(0.5, 1.5)
             lookahead = int(rng.integers(0, 21))
             alpha = rng.uniform(0.35, 0.9)
-            pair.append(replace(base, orsp=orsp, v_max=v_max, lookahead=lookahead,
-                                alpha=alpha))
+            pair.append(replace(base, orsp=orsp, v_max=v_max, lookahead=lookahead, alpha=alpha))
         rows.append(Scenario(length, pair[0], pair[1]))
     return Pairs.of(rows)

@@ -29,8 +29,9 @@ def _norm(x: float, y: float) -> float:
     return math.sqrt(x * x + y * y)
 
 
-def _nearest(px: list[float], py: list[float], x: float, y: float, idx: int, window: int,
-             last: int) -> int:
+def _nearest(
+    px: list[float], py: list[float], x: float, y: float, idx: int, window: int, last: int
+) -> int:
     best, best_k = math.inf, 0
     for k in range(2 * window + 1):
         j = min(max(idx - window + k, 0), last)
@@ -41,10 +42,24 @@ def _nearest(px: list[float], py: list[float], x: float, y: float, idx: int, win
     return min(max(idx + best_k - window, 0), last)
 
 
-def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], tips: list,
-            dist: float, dgoal: list[float], nearest: list[int], paths: list,
-            robots: tuple[Robot, Robot], length: float, heading: list, w_in: float,
-            w_out: float, correction: str) -> tuple[float, float]:
+def _motion(
+    i: int,
+    x: list[float],
+    y: list[float],
+    o: list,
+    no: list[float],
+    tips: list,
+    dist: float,
+    dgoal: list[float],
+    nearest: list[int],
+    paths: list,
+    robots: tuple[Robot, Robot],
+    length: float,
+    heading: list,
+    w_in: float,
+    w_out: float,
+    correction: str,
+) -> tuple[float, float]:
     """Motion vector of robot i (0 front, 1 rear) for this period, in the corner frame."""
     j = 1 - i
     rb = robots[i]
@@ -71,11 +86,11 @@ def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], ti
     cx, cy = k * o[i][0], k * o[i][1]
     # Combine and clamp (Sec. 3.2.2), with the arrival factor.
     g = min(dgoal[i] / rb.v_max, 1.0)
-    if correction == "scaled":         # the printed formula
+    if correction == "scaled":  # the printed formula
         sx, sy = g * tx + cx, g * ty + cy
         cl = max(_norm(sx, sy), 1.0)
         mx, my = rb.v_max * (sx / cl), rb.v_max * (sy / cl)
-    else:                              # c a distance per step, or v_max only a cap
+    else:  # c a distance per step, or v_max only a cap
         scale = rb.v_max if correction == "distance" else 1.0
         sx, sy = scale * (g * tx) + cx, scale * (g * ty) + cy
         cl = max(_norm(sx, sy) / rb.v_max, 1.0)
@@ -105,13 +120,14 @@ def _motion(i: int, x: list[float], y: list[float], o: list, no: list[float], ti
     return mx, my
 
 
-def _ladder(x: list[float], y: list[float], share: list[float],
-            length: float) -> tuple[list, list[float], list, float]:
+def _ladder(
+    x: list[float], y: list[float], share: list[float], length: float
+) -> tuple[list, list[float], list, float]:
     """Offset vectors, their lengths, the ladder's ends and the robots' distance (Sec. 2)."""
     o, no, tips = [], [], []
     for i in range(2):
         dx, dy = x[i] - x[1 - i], y[i] - y[1 - i]
-        dist = _norm(dx, dy)      # the same for both robots
+        dist = _norm(dx, dy)  # the same for both robots
         f = share[i] * ((length - dist) / dist)
         o.append((f * dx, f * dy))
         no.append(_norm(f * dx, f * dy))
@@ -119,19 +135,26 @@ def _ladder(x: list[float], y: list[float], share: list[float],
     return o, no, tips, dist
 
 
-def _meets_corner(a: tuple[float, float], b: tuple[float, float], w_in: float,
-                  w_out: float) -> bool:
+def _meets_corner(
+    a: tuple[float, float], b: tuple[float, float], w_in: float, w_out: float
+) -> bool:
     (ax, ay), (bx, by) = a, b
-    if not (min(ax, bx) <= 0.0 and max(ax, bx) >= -w_in
-            and min(ay, by) <= 0.0 and max(ay, by) >= -w_out):
+    if not (
+        min(ax, bx) <= 0.0 and max(ax, bx) >= -w_in and min(ay, by) <= 0.0 and max(ay, by) >= -w_out
+    ):
         return False
     dx, dy = bx - ax, by - ay
     s = dx * (-0.5 * w_out - ay) - dy * (-0.5 * w_in - ax)
     return abs(s) <= 0.5 * w_in * abs(dy) + 0.5 * w_out * abs(dx)
 
 
-def run(scenario: Scenario, corridor: Corridor | None = None,
-        settings: Settings | None = None, *, record: bool = False) -> Result:
+def run(
+    scenario: Scenario,
+    corridor: Corridor | None = None,
+    settings: Settings | None = None,
+    *,
+    record: bool = False,
+) -> Result:
     """Run one pair to success, stuck or a broken link; a :class:`Result` with n = 1."""
     corridor = corridor or corridor_with_turn()
     settings = settings or Settings()
@@ -157,7 +180,7 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
     path_len, corner_len, max_off = [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]
     best, improved_at, corner_steps, step = math.inf, 0, 0, 0
     trajectory, tip_trace = [], []
-    cracked = False      # a link broke between the two moves of a sequential step
+    cracked = False  # a link broke between the two moves of a sequential step
     while True:
         o, no, tips, dist = _ladder(x, y, share, length)
         for i in range(2):
@@ -178,11 +201,32 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
         if improved_at <= step - settings.stuck_window or step >= settings.max_steps:
             outcome = STUCK
             break
-        nearest = [_nearest(*paths[i], x[i], y[i], idx[i], settings.window,
-                            settings.path_points - 1) for i in range(2)]
-        move = [_motion(i, x, y, o, no, tips, dist, dgoal, nearest, paths, robots, length,
-                        heading, w_in, w_out, settings.correction) for i in range(2)]
-        if settings.update != "synchronous":   # the second robot sees the first one moved
+        nearest = [
+            _nearest(*paths[i], x[i], y[i], idx[i], settings.window, settings.path_points - 1)
+            for i in range(2)
+        ]
+        move = [
+            _motion(
+                i,
+                x,
+                y,
+                o,
+                no,
+                tips,
+                dist,
+                dgoal,
+                nearest,
+                paths,
+                robots,
+                length,
+                heading,
+                w_in,
+                w_out,
+                settings.correction,
+            )
+            for i in range(2)
+        ]
+        if settings.update != "synchronous":  # the second robot sees the first one moved
             first = 0 if settings.update == "front_first" else 1
             second = 1 - first
             x1, y1 = list(x), list(y)
@@ -192,9 +236,24 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
             for i in range(2):
                 max_off[i] = max(max_off[i], no1[i])
             cracked = no1[0] > robots[0].olim or no1[1] > robots[1].olim
-            move[second] = _motion(second, x1, y1, o1, no1, tips1, dist1, dgoal, nearest,
-                                   paths, robots, length, heading, w_in, w_out,
-                                   settings.correction)
+            move[second] = _motion(
+                second,
+                x1,
+                y1,
+                o1,
+                no1,
+                tips1,
+                dist1,
+                dgoal,
+                nearest,
+                paths,
+                robots,
+                length,
+                heading,
+                w_in,
+                w_out,
+                settings.correction,
+            )
         corner = _meets_corner(tips[0], tips[1], w_in, w_out)
         for i in range(2):
             moved = _norm(move[i][0], move[i][1])
@@ -208,9 +267,14 @@ def run(scenario: Scenario, corridor: Corridor | None = None,
         step += 1
     position = frame.to_world(np.array([[x[0], y[0]], [x[1], y[1]]]))
     return Result(
-        outcome=np.array([outcome], dtype=np.int8), steps=np.array([step]),
-        corner_steps=np.array([corner_steps]), path=np.array([path_len]),
-        corner_path=np.array([corner_len]), max_offset=np.array([max_off]),
-        position=position[None], scene=scene,
+        outcome=np.array([outcome], dtype=np.int8),
+        steps=np.array([step]),
+        corner_steps=np.array([corner_steps]),
+        path=np.array([path_len]),
+        corner_path=np.array([corner_len]),
+        max_offset=np.array([max_off]),
+        position=position[None],
+        scene=scene,
         trajectory=frame.to_world(np.array(trajectory))[:, None] if record else None,
-        tips=frame.to_world(np.array(tip_trace))[:, None] if record else None)
+        tips=frame.to_world(np.array(tip_trace))[:, None] if record else None,
+    )

@@ -28,8 +28,9 @@ class Scene(NamedTuple):
     paths: np.ndarray
 
 
-def placements(corridor: Corridor, length: np.ndarray, settings: Settings
-               ) -> tuple[np.ndarray, np.ndarray]:
+def placements(
+    corridor: Corridor, length: np.ndarray, settings: Settings
+) -> tuple[np.ndarray, np.ndarray]:
     """Start and goal positions ``(2, n, 2)`` of n pairs carrying ladders of ``length``."""
     length = np.asarray(length, dtype=float)
     rear_start = corridor.leg_point("in", settings.start_gap + 0.0 * length)
@@ -39,17 +40,28 @@ def placements(corridor: Corridor, length: np.ndarray, settings: Settings
     return np.stack([front_start, rear_start]), np.stack([front_goal, rear_goal])
 
 
-def build(pairs: Pairs, corridor: Corridor, settings: Settings,
-          start: np.ndarray | None = None) -> Scene:
+def build(
+    pairs: Pairs, corridor: Corridor, settings: Settings, start: np.ndarray | None = None
+) -> Scene:
     """Starts, goals and both robots' guide paths for every pair (``start`` ``(2, n, 2)``
     replaces the default placement of the robots)."""
     placed, goal = placements(corridor, pairs.length, settings)
     start = placed if start is None else np.asarray(start, dtype=float)
-    paths = np.stack([
-        guide_paths(corridor, start[r], goal[r], pairs.robot["alpha"][r],
-                    count=settings.path_points, tension=settings.tension,
-                    approach=settings.approach, inset=settings.alpha_inset)
-        for r in range(2)])
+    paths = np.stack(
+        [
+            guide_paths(
+                corridor,
+                start[r],
+                goal[r],
+                pairs.robot["alpha"][r],
+                count=settings.path_points,
+                tension=settings.tension,
+                approach=settings.approach,
+                inset=settings.alpha_inset,
+            )
+            for r in range(2)
+        ]
+    )
     return Scene(start, goal, paths)
 
 
@@ -58,8 +70,9 @@ def law_params(pairs: Pairs, scene: Scene, row: int) -> dict[str, np.ndarray]:
     r, other = pairs.robot, 1 - row
     heading = scene.goal[row] - scene.goal[other]
     heading = heading / np.hypot(heading[:, 0], heading[:, 1])[:, None]
-    out = {k: r[k][row].copy() for k in ("v_max", "lookahead", "olim", "orsp", "kc", "kr",
-                                          "sc", "radius", "ladder_margin")}
-    out.update(length=pairs.length.copy(), sc_partner=r["sc"][other].copy(),
-               goal_heading=heading)
+    out = {
+        k: r[k][row].copy()
+        for k in ("v_max", "lookahead", "olim", "orsp", "kc", "kr", "sc", "radius", "ladder_margin")
+    }
+    out.update(length=pairs.length.copy(), sc_partner=r["sc"][other].copy(), goal_heading=heading)
     return out

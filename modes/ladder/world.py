@@ -67,20 +67,35 @@ class LadderCorridor(WorldComponent):
 
     raises: ClassVar[tuple[str, ...]] = ("arrived", "stuck")
     params: ClassVar[dict[str, Any]] = {
-        "front": "R1", "rear": "R2", "turn": "right",
-        "width_in": 200.0, "width_out": 200.0, "outer_leg_in": 1200.0, "outer_leg_out": 1200.0,
-        "length": 450.0, "goal_gap": 70.0, "path_points": 160.0, "tension": 0.0,
-        "approach": 0.0, "alpha_inset": 0.0, "arrive_tol": 0.5, "stuck_window": 200.0,
-        "stuck_tol": 1.0, "clearance": False, "correction": "scaled", "update": "synchronous",
+        "front": "R1",
+        "rear": "R2",
+        "turn": "right",
+        "width_in": 200.0,
+        "width_out": 200.0,
+        "outer_leg_in": 1200.0,
+        "outer_leg_out": 1200.0,
+        "length": 450.0,
+        "goal_gap": 70.0,
+        "path_points": 160.0,
+        "tension": 0.0,
+        "approach": 0.0,
+        "alpha_inset": 0.0,
+        "arrive_tol": 0.5,
+        "stuck_window": 200.0,
+        "stuck_tol": 1.0,
+        "clearance": False,
+        "correction": "scaled",
+        "update": "synchronous",
     }
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:
         """The readings of Section 3 (``correction``, ``update``) must be known names."""
-        return [ModelError((name,), f"expected one of {', '.join(allowed)}, got "
-                           f"{values[name]!r}")
-                for name, allowed in (("correction", CORRECTIONS), ("update", UPDATES))
-                if name in values and values[name] not in allowed]
+        return [
+            ModelError((name,), f"expected one of {', '.join(allowed)}, got {values[name]!r}")
+            for name, allowed in (("correction", CORRECTIONS), ("update", UPDATES))
+            if name in values and values[name] not in allowed
+        ]
 
     @classmethod
     def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:
@@ -95,46 +110,72 @@ class LadderCorridor(WorldComponent):
         names = world.agents
         for role in ("front", "rear"):
             if v[role] not in names:
-                raise ValueError(f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
-                                 f"of the team (agents: {', '.join(names)})")
+                raise ValueError(
+                    f"ladder.corridor: {role} robot '{v[role]}' is not an agent "
+                    f"of the team (agents: {', '.join(names)})"
+                )
         self.robots = (world.agent(v["front"]), world.agent(v["rear"]))
         problems = self.check(self.team, v)  # teams built in Python skip validate
         if problems:
             raise problems[0]
         self.correction = str(v["correction"])
         if v["update"] != "synchronous":
-            raise ModelError(("update",), (
-                f"'{v['update']}' moves one robot after the other within a step, which only "
-                "the vectorized stepper does (plain ladder teams in studies and "
-                "hybridteam.api.summaries); the engine moves both robots at once"))
+            raise ModelError(
+                ("update",),
+                (
+                    f"'{v['update']}' moves one robot after the other within a step, which only "
+                    "the vectorized stepper does (plain ladder teams in studies and "
+                    "hybridteam.api.summaries); the engine moves both robots at once"
+                ),
+            )
         dims = {}
         for key in (*_CORRIDOR, "path_points", "approach", "tension", "alpha_inset"):
             if np.ptp(v[key]) != 0:
                 raise ValueError(f"ladder.corridor: '{key}' must be the same in every instance")
             dims[key] = float(v[key][0])
-        self.corridor = corridor_with_turn(dims["width_in"], dims["width_out"],
-                                           dims["outer_leg_in"], dims["outer_leg_out"],
-                                           turn=v["turn"])
+        self.corridor = corridor_with_turn(
+            dims["width_in"],
+            dims["width_out"],
+            dims["outer_leg_in"],
+            dims["outer_leg_out"],
+            turn=v["turn"],
+        )
         self.frame = CornerFrame.of(self.corridor)
         n = self.n
         length = v["length"]
-        goal = np.stack([self.corridor.leg_point("out", v["goal_gap"]),
-                         self.corridor.leg_point("out", v["goal_gap"] + length)])  # (2, n, 2)
+        goal = np.stack(
+            [
+                self.corridor.leg_point("out", v["goal_gap"]),
+                self.corridor.leg_point("out", v["goal_gap"] + length),
+            ]
+        )  # (2, n, 2)
         everyone = np.arange(n)
         start = np.stack([world.pose(a, everyone)[:, :2] for a in self.robots])
         same = np.flatnonzero((start[0] == start[1]).all(axis=1))
         if same.size:  # the springs' equilibrium divides by the robots' distance
             i = int(same[0])
-            raise ValueError(f"ladder.corridor: the front and rear robots ('{v['front']}', "
-                             f"'{v['rear']}') start at the same point "
-                             f"({start[0, i, 0]:g}, {start[0, i, 1]:g}) in instance {i}: the "
-                             "ladder between them has no direction")
+            raise ValueError(
+                f"ladder.corridor: the front and rear robots ('{v['front']}', "
+                f"'{v['rear']}') start at the same point "
+                f"({start[0, i, 0]:g}, {start[0, i, 1]:g}) in instance {i}: the "
+                "ladder between them has no direction"
+            )
         param = self._robot_params(world)
-        self.paths = np.stack([
-            guide_paths(self.corridor, start[r], goal[r], param["alpha"][r],
-                        count=int(dims["path_points"]), tension=dims["tension"],
-                        approach=dims["approach"] if dims["approach"] > 0 else None,
-                        inset=dims["alpha_inset"]) for r in range(2)])     # (2, n, P, 2)
+        self.paths = np.stack(
+            [
+                guide_paths(
+                    self.corridor,
+                    start[r],
+                    goal[r],
+                    param["alpha"][r],
+                    count=int(dims["path_points"]),
+                    tension=dims["tension"],
+                    approach=dims["approach"] if dims["approach"] > 0 else None,
+                    inset=dims["alpha_inset"],
+                )
+                for r in range(2)
+            ]
+        )  # (2, n, P, 2)
         self.goal = goal
         heading = goal - goal[::-1]
         self.heading = heading / np.hypot(heading[..., 0], heading[..., 1])[..., None]
@@ -166,8 +207,9 @@ class LadderCorridor(WorldComponent):
             rows = []
             for a in self.robots:
                 if key not in world.parameter_names(a):
-                    raise ValueError(f"ladder.corridor: robot '{world.agents[a]}' has no "
-                                     f"parameter '{key}'")
+                    raise ValueError(
+                        f"ladder.corridor: robot '{world.agents[a]}' has no parameter '{key}'"
+                    )
                 rows.append(world.parameter(a, key))
             out[key] = np.stack(rows)
         return out
@@ -176,13 +218,14 @@ class LadderCorridor(WorldComponent):
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         if idx.size <= FEW and FLOAT_PATHS.on and update_few(self, world, idx):
             return  # a single run's instant: on floats, the same bits
-        pos = np.empty((len(self.robots), idx.size, 2))                      # (2, m, 2)
+        pos = np.empty((len(self.robots), idx.size, 2))  # (2, m, 2)
         for r, a in enumerate(self.robots):
             pos[r] = world.pose(a, idx)[:, :2]
         in_frame = self.frame.to_frame(pos)
-        fx, fy = in_frame[..., 0], in_frame[..., 1]                           # (2, m) each
-        ox, oy, _ = law.spring_offsets(fx, fy, fx[::-1], fy[::-1], self.length[idx],
-                                       self.share[:, idx])
+        fx, fy = in_frame[..., 0], in_frame[..., 1]  # (2, m) each
+        ox, oy, _ = law.spring_offsets(
+            fx, fy, fx[::-1], fy[::-1], self.length[idx], self.share[:, idx]
+        )
         no = law.norm(ox, oy)
         ax, ay = fx + ox, fy + oy
         tips = np.empty((*ax.shape, 2))
@@ -200,8 +243,9 @@ class LadderCorridor(WorldComponent):
             self.steps[idx] += moved
             self.corner_steps[idx] += corner
         self.prev[:, idx] = pos
-        self.was_corner[idx] = in_corner(ax[0], ay[0], ax[1], ay[1], self.frame.width_in,
-                                         self.frame.width_out)
+        self.was_corner[idx] = in_corner(
+            ax[0], ay[0], ax[1], ay[1], self.frame.width_in, self.frame.width_out
+        )
         # the referee: a broken link, arrival, no progress
         self.max_offset[:, idx] = np.maximum(self.max_offset[:, idx], no)
         self.offset[:, idx] = no
@@ -216,8 +260,9 @@ class LadderCorridor(WorldComponent):
         self.best[idx] = np.where(better, progress, self.best[idx])
         self.improved_at[idx] = np.where(better, step, self.improved_at[idx])
         arrived = (dgoal <= self.values["arrive_tol"][idx]).all(axis=0) & ~broken
-        stuck = ~broken & ~arrived & (
-            self.improved_at[idx] <= step - self.values["stuck_window"][idx])
+        stuck = (
+            ~broken & ~arrived & (self.improved_at[idx] <= step - self.values["stuck_window"][idx])
+        )
         for event, mask in (("arrived", arrived), ("stuck", stuck)):
             if mask.any():
                 for a in self.robots:
@@ -225,10 +270,15 @@ class LadderCorridor(WorldComponent):
 
     def fail(self, world: WorldAccess, bad: np.ndarray) -> None:
         """End instances ``bad`` with outcome ``link_broken``."""
-        world.finish(bad, "link_broken", lambda i: (
-            f"a ladder link broke at step {self.steps[i]}: offsets "
-            f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
-            f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"))
+        world.finish(
+            bad,
+            "link_broken",
+            lambda i: (
+                f"a ladder link broke at step {self.steps[i]}: offsets "
+                f"{', '.join(f'{o:.3g}' for o in self._offsets(i))}, limits "
+                f"{', '.join(f'{o:.3g}' for o in self.olim[:, i])}"
+            ),
+        )
 
     def _offsets(self, i: int) -> np.ndarray:
         d = self.tips[:, i] - self.prev[:, i]
@@ -236,8 +286,17 @@ class LadderCorridor(WorldComponent):
 
     # ------------------------------------------------------------------ what robots sense
     def senses(self) -> tuple[str, ...]:
-        return ("partner", "path", "goal_heading", "length", "sc_partner", "corridor",
-                "frame", "correction", "period")
+        return (
+            "partner",
+            "path",
+            "goal_heading",
+            "length",
+            "sc_partner",
+            "corridor",
+            "frame",
+            "correction",
+            "period",
+        )
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> Any:
         if agent not in self.robots:
@@ -247,8 +306,13 @@ class LadderCorridor(WorldComponent):
         # integer and an array together four times slower; take is the faster for rows of
         # arrays, plain indexing for rows of numbers)
         if name == "period":  # what the law reads at every period, in one call
-            return (self.partner_prev[row].take(idx, 0), self.length[idx],
-                    self.partner_sc[row][idx], self.frame, self.correction)
+            return (
+                self.partner_prev[row].take(idx, 0),
+                self.length[idx],
+                self.partner_sc[row][idx],
+                self.frame,
+                self.correction,
+            )
         if name == "partner":
             return self.partner_prev[row].take(idx, 0)
         if name == "path":
@@ -293,34 +357,51 @@ class LadderCorridor(WorldComponent):
         if self.values["clearance"]:
             half = 0.5 * self.length[idx, None] * np.column_stack([np.cos(th), np.sin(th)])
             bar = np.hstack([c - half, c + half])
-            out["ladder_clearance"] = segment_segment_distances(
-                bar, self.corridor.walls).min(axis=1)[:, None]
+            out["ladder_clearance"] = segment_segment_distances(bar, self.corridor.walls).min(
+                axis=1
+            )[:, None]
         return out
 
     def _sample_one(self, i: int) -> dict[str, np.ndarray]:
         """:meth:`sample` of one instance on floats (the same operations, the same bits)."""
         (ax, ay), (bx, by) = self.tips[:, i].tolist()
         th = np.arctan2(ay - by, ax - bx)
-        row = np.array([[0.5 * (ax + bx), 0.5 * (ay + by), th, self.offset.item(0, i),
-                         self.offset.item(1, i)]])  # one array for both series
+        row = np.array(
+            [[0.5 * (ax + bx), 0.5 * (ay + by), th, self.offset.item(0, i), self.offset.item(1, i)]]
+        )  # one array for both series
         return {"ladder": row[:, :3], "ladder_offset": row[:, 3:]}
 
     def summary(self, i: int) -> dict[str, Any]:
-        return {"steps": int(self.steps[i]), "steps_in_corner": int(self.corner_steps[i]),
-                "path_length": [float(v) for v in self.path[:, i]],
-                "corner_path_length": [float(v) for v in self.corner_path[:, i]],
-                "max_offset": [float(v) for v in self.max_offset[:, i]]}
+        return {
+            "steps": int(self.steps[i]),
+            "steps_in_corner": int(self.corner_steps[i]),
+            "path_length": [float(v) for v in self.path[:, i]],
+            "corner_path_length": [float(v) for v in self.corner_path[:, i]],
+            "max_offset": [float(v) for v in self.max_offset[:, i]],
+        }
 
     def describe(self) -> SceneDescription:
         """The corridor in the paper's units (one time unit is one step), the guide
         paths of the first instances, the ladder's outline and the robots' footprints."""
         shown = min(self.n, 8)  # guide paths of the first instances, for the plots
-        paths = tuple(GuidePath(i, self.team.agents[a].name,
-                                tuple((x, y) for x, y in self.paths[r, i].round(3).tolist()))
-                      for i in range(shown) for r, a in enumerate(self.robots))
+        paths = tuple(
+            GuidePath(
+                i,
+                self.team.agents[a].name,
+                tuple((x, y) for x, y in self.paths[r, i].round(3).tolist()),
+            )
+            for i in range(shown)
+            for r, a in enumerate(self.robots)
+        )
         lengths = np.unique(self.length)
-        footprints = {self.team.agents[a].name: Footprint(float(self.radius[r, 0]))
-                      for r, a in enumerate(self.robots)}
-        return replace(self.corridor.describe(), units="units", paths=paths,
-                       payloads={"ladder": BarShape(float(lengths[0]), 6.0)},
-                       footprints=footprints)
+        footprints = {
+            self.team.agents[a].name: Footprint(float(self.radius[r, 0]))
+            for r, a in enumerate(self.robots)
+        }
+        return replace(
+            self.corridor.describe(),
+            units="units",
+            paths=paths,
+            payloads={"ladder": BarShape(float(lengths[0]), 6.0)},
+            footprints=footprints,
+        )

@@ -94,9 +94,14 @@ def constants(c: LadderCorridor, i: int) -> Constants:
     if k is None:
         v = c.values
         k = c.constants[i] = Constants(
-            float(c.length[i]), tuple(c.share[:, i].tolist()), tuple(c.olim[:, i].tolist()),
-            tuple(tuple(g) for g in c.goal[:, i].tolist()), float(v["arrive_tol"][i]),
-            float(v["stuck_tol"][i]), float(v["stuck_window"][i]))
+            float(c.length[i]),
+            tuple(c.share[:, i].tolist()),
+            tuple(c.olim[:, i].tolist()),
+            tuple(tuple(g) for g in c.goal[:, i].tolist()),
+            float(v["arrive_tol"][i]),
+            float(v["stuck_tol"][i]),
+            float(v["stuck_window"][i]),
+        )
     return k
 
 
@@ -118,8 +123,9 @@ def _statistics(c: LadderCorridor, i: int, pos: list) -> int:
     return steps
 
 
-def _referee(c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool,
-             step: int) -> tuple[bool, bool]:
+def _referee(
+    c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool, step: int
+) -> tuple[bool, bool]:
     """Progress toward the goals: (arrived, stuck) of instance ``i`` at step ``step``."""
     d = [norm(k.goal[r][0] - pos[r][0], k.goal[r][1] - pos[r][1]) for r in (0, 1)]
     progress = d[0] + d[1]
@@ -133,8 +139,9 @@ def _referee(c: LadderCorridor, i: int, k: Constants, pos: list, bad: bool,
     return came, stalled
 
 
-def _judge(c: LadderCorridor, world: WorldAccess, idx: np.ndarray, broken: list,
-           arrived: list, stuck: list) -> None:
+def _judge(
+    c: LadderCorridor, world: WorldAccess, idx: np.ndarray, broken: list, arrived: list, stuck: list
+) -> None:
     """The world calls of the array version, in its order: broken links, then events."""
     if any(broken):
         c.fail(world, idx[np.array(broken)])

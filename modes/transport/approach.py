@@ -25,9 +25,20 @@ from hybridteam.library import LawContext, law
 from .leader import stack_inputs
 
 
-@law("transport.approach", plants=("holonomic",),
-     params={"stand_off": 0.1, "k": 1.0, "speed": 0.1, "beams": 1.0, "k_lat": 0.5,
-             "k_head": 0.0, "tol": 0.005, "offset_deg": 0.0})
+@law(
+    "transport.approach",
+    plants=("holonomic",),
+    params={
+        "stand_off": 0.1,
+        "k": 1.0,
+        "speed": 0.1,
+        "beams": 1.0,
+        "k_lat": 0.5,
+        "k_head": 0.0,
+        "tol": 0.005,
+        "offset_deg": 0.0,
+    },
+)
 def approach(ctx: LawContext) -> np.ndarray:
     """Drive along the heading to ``stand_off`` from what the front IR beams see.
 
@@ -46,7 +57,7 @@ def approach(ctx: LawContext) -> np.ndarray:
     gap = np.min(sector, axis=1)
     if width > 0:
         # beam offsets > 0 are counter-clockwise of the heading: the robot's left
-        skew = sector[:, :width].mean(axis=1) - sector[:, width + 1:].mean(axis=1)
+        skew = sector[:, :width].mean(axis=1) - sector[:, width + 1 :].mean(axis=1)
     else:
         skew = np.zeros(m)
     speed = ctx["speed"]
@@ -55,8 +66,9 @@ def approach(ctx: LawContext) -> np.ndarray:
     omega = ctx["k_head"] * skew
     th = ctx["theta"]
     c, s = np.cos(th), np.sin(th)
-    u = stack_inputs(ctx, {"vx": forward * c - lateral * s, "vy": forward * s + lateral * c,
-                      "omega": omega})
+    u = stack_inputs(
+        ctx, {"vx": forward * c - lateral * s, "vy": forward * s + lateral * c, "omega": omega}
+    )
     there = np.abs(gap - ctx["stand_off"]) <= ctx["tol"]
     return np.where(there[:, None], 0.0, np.nan_to_num(u))
 
@@ -68,6 +80,8 @@ def _half_width(beams: np.ndarray, count: int) -> int:
         raise ValueError("transport.approach: 'beams' must be the same in every instance")
     width = int(values[0]) if values.size else 0
     if width < 0 or 2 * width + 1 > count:
-        raise ValueError(f"transport.approach: 'beams' = {width} does not fit a ring of "
-                         f"{count} beams (0 <= beams <= {(count - 1) // 2})")
+        raise ValueError(
+            f"transport.approach: 'beams' = {width} does not fit a ring of "
+            f"{count} beams (0 <= beams <= {(count - 1) // 2})"
+        )
     return width

@@ -47,8 +47,7 @@ def follow(ctx: LawContext) -> np.ndarray:
     """
     D = ctx["D"]
     if np.any(D == 0):
-        raise ValueError("transport.follow: D (the distance to the leader, signed) must "
-                         "not be 0")
+        raise ValueError("transport.follow: D (the distance to the leader, signed) must not be 0")
     lead = leader_estimate(ctx)
     on = ctx["capture"] > 0
     if on.any():
@@ -63,9 +62,20 @@ def follow(ctx: LawContext) -> np.ndarray:
     return np.where(lead.ok[:, None], stack_inputs(ctx, {"v": v, "omega": omega}), 0.0)
 
 
-@law("transport.follow_holonomic", plants=("holonomic",),
-     params={"D": 1.0, "phi": 0.0, "capture": 0.0, "k1": 1.0, "k2": 1.0, "k3": 1.0,
-             "k_ff": 1.0, **ARM})
+@law(
+    "transport.follow_holonomic",
+    plants=("holonomic",),
+    params={
+        "D": 1.0,
+        "phi": 0.0,
+        "capture": 0.0,
+        "k1": 1.0,
+        "k2": 1.0,
+        "k3": 1.0,
+        "k_ff": 1.0,
+        **ARM,
+    },
+)
 def follow_holonomic(ctx: LawContext) -> np.ndarray:
     """The XR4000's Follow: u = K (x^d − x) + k_ff ẋ^d + arm terms (f, g rotated, and h).
 
@@ -102,8 +112,9 @@ def follow_holonomic(ctx: LawContext) -> np.ndarray:
     return np.where(lead.ok[:, None], u, 0.0)
 
 
-def _station(ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _station(
+    ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ahead, left, phi): the follower's place and heading offset in the leader's frame —
     as given (phi from the parameters), or captured from the poses at the first copy of a
     new leader's stream where ``capture`` is set."""
@@ -112,16 +123,29 @@ def _station(ctx: LawContext, lead: LeaderState, ahead: np.ndarray, left: np.nda
     if not on.any():
         return given
     here = relative_pose(ctx["x"], ctx["y"], ctx["theta"], lead.x, lead.y, lead.theta)
-    kept = ctx.capture("station", lead.who, dict(zip(("ahead", "left", "phi"), here,
-                                                     strict=True)), on & lead.ok)
+    kept = ctx.capture(
+        "station", lead.who, dict(zip(("ahead", "left", "phi"), here, strict=True)), on & lead.ok
+    )
     use = on & np.isfinite(kept["ahead"])
-    return tuple(np.where(use, kept[k], g)  # type: ignore[return-value]  # (three names, three)
-                 for k, g in zip(("ahead", "left", "phi"), given, strict=True))
+    return tuple(
+        np.where(use, kept[k], g)  # type: ignore[return-value]  # (three names, three)
+        for k, g in zip(("ahead", "left", "phi"), given, strict=True)
+    )
 
 
-@law("transport.match", plants=("unicycle",),
-     params={"k_form": 1.0, "k_cross": 30.0, "k_heading": 8.0, "capture": 1.0,
-             "ahead": -1.0, "left": 0.0, "phi": 0.0})
+@law(
+    "transport.match",
+    plants=("unicycle",),
+    params={
+        "k_form": 1.0,
+        "k_cross": 30.0,
+        "k_heading": 8.0,
+        "capture": 1.0,
+        "ahead": -1.0,
+        "left": 0.0,
+        "phi": 0.0,
+    },
+)
 def match(ctx: LawContext) -> np.ndarray:
     """The Scout's Follow: the paper's u = (v̂_l, ω̂_l) with ``k_form`` = 0; by default it
     also closes the loop on its place in the team.
@@ -160,8 +184,7 @@ def match(ctx: LawContext) -> np.ndarray:
     vr = np.where(back, -speed, speed)
     e_th = wrap(ref - th)
     v = vr * np.cos(e_th) + k * along
-    omega = lead.omega + vr * ctx["k_cross"] * cross + np.abs(vr) * ctx["k_heading"] * \
-        np.sin(e_th)
+    omega = lead.omega + vr * ctx["k_cross"] * cross + np.abs(vr) * ctx["k_heading"] * np.sin(e_th)
     track = stack_inputs(ctx, {"v": v, "omega": omega})
     return np.where(lead.ok[:, None], np.where((k > 0)[:, None], track, copy), 0.0)
 

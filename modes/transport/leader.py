@@ -33,15 +33,15 @@ class LeaderState:
     """The leader's estimated pose and velocity, per instance (rows where ``ok`` is False
     hold zeros, never NaN, so arithmetic on them is safe and their result is discarded)."""
 
-    ok: np.ndarray      # (m,) bool: a copy from the named leader has arrived
-    who: np.ndarray     # (m,) the leader's agent index (-1: none)
+    ok: np.ndarray  # (m,) bool: a copy from the named leader has arrived
+    who: np.ndarray  # (m,) the leader's agent index (-1: none)
     x: np.ndarray
     y: np.ndarray
     theta: np.ndarray
-    v: np.ndarray       # speed along the leader's heading
-    vx: np.ndarray      # world-frame velocity
+    v: np.ndarray  # speed along the leader's heading
+    vx: np.ndarray  # world-frame velocity
     vy: np.ndarray
-    omega: np.ndarray   # turn rate
+    omega: np.ndarray  # turn rate
 
 
 def leader_estimate(ctx: LawContext) -> LeaderState:
@@ -57,8 +57,14 @@ def leader_estimate(ctx: LawContext) -> LeaderState:
     est = ctx.estimate(STREAM, sender=np.where(who >= 0, who, 0), extrapolate=True)
     fields = est.fields
     x, y, th = fields["x"], fields["y"], fields["theta"]
-    ok = (who >= 0) & est.valid & np.isfinite(est.age) & np.isfinite(x) & np.isfinite(y) \
+    ok = (
+        (who >= 0)
+        & est.valid
+        & np.isfinite(est.age)
+        & np.isfinite(x)
+        & np.isfinite(y)
         & np.isfinite(th)
+    )
     c, s = np.cos(th), np.sin(th)
     if "vx" in fields and "vy" in fields:
         vx, vy = fields["vx"], fields["vy"]

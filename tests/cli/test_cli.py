@@ -22,10 +22,22 @@ def test_run_writes_trace_tables_and_summary(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["run", THERMO, "-o", str(out), "--duration", "20"]) == 0
     names = {p.name for p in out.iterdir()}
-    assert names == {"trace.json", "modes.csv", "transitions.csv", "messages.csv",
-                     "samples.csv", "summary.json", "modes.dot", "modes.mmd", "modes.svg",
-                     "timeline.png", "timeline.svg", "trajectories.png", "trajectories.svg",
-                     "sequence.mmd"}
+    assert names == {
+        "trace.json",
+        "modes.csv",
+        "transitions.csv",
+        "messages.csv",
+        "samples.csv",
+        "summary.json",
+        "modes.dot",
+        "modes.mmd",
+        "modes.svg",
+        "timeline.png",
+        "timeline.svg",
+        "trajectories.png",
+        "trajectories.svg",
+        "sequence.mmd",
+    }
     assert (out / "timeline.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcomes"] == {"ok": 1}
@@ -45,8 +57,22 @@ def test_run_writes_trace_tables_and_summary(tmp_path, capsys):
 
 def test_run_ensemble_with_per_instance_overrides(tmp_path):
     out = tmp_path / "ens"
-    assert main(["run", THERMO, "-o", str(out), "--duration", "10", "--quiet",
-                 "--set", "thermostat.K=0.1,0.2,0.3"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                THERMO,
+                "-o",
+                str(out),
+                "--duration",
+                "10",
+                "--quiet",
+                "--set",
+                "thermostat.K=0.1,0.2,0.3",
+            ]
+        )
+        == 0
+    )
     run = Run.load(out / "trace.json")
     assert run.n == 3
     first = [run.instance(i).transitions["t"][1] for i in range(3)]
@@ -54,15 +80,18 @@ def test_run_ensemble_with_per_instance_overrides(tmp_path):
         assert abs(got - math.log(11 / 8) / K) < 1e-8
 
 
-@pytest.mark.parametrize("args, words", [
-    (["-n", "0"], "-n must be at least 1"),
-    (["--duration", "-1"], "--duration must be a finite number >= 0"),
-    (["--set", "thermostat.K"], "expected KEY=VALUE"),
-    (["--set", "thermostat.K=abc"], "values must be numbers"),
-    (["--set", "thermostat.Q=1"], "names no parameter"),
-    (["-n", "2", "--set", "thermostat.K=1,2,3"], "3 values for an ensemble of 2"),
-    (["--seed", "-3"], "--seed must be >= 0"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["-n", "0"], "-n must be at least 1"),
+        (["--duration", "-1"], "--duration must be a finite number >= 0"),
+        (["--set", "thermostat.K"], "expected KEY=VALUE"),
+        (["--set", "thermostat.K=abc"], "values must be numbers"),
+        (["--set", "thermostat.Q=1"], "names no parameter"),
+        (["-n", "2", "--set", "thermostat.K=1,2,3"], "3 values for an ensemble of 2"),
+        (["--seed", "-3"], "--seed must be >= 0"),
+    ],
+)
 def test_run_refuses_bad_arguments(tmp_path, capsys, args, words):
     out = tmp_path / "o"
     assert main(["run", THERMO, "-o", str(out), *args]) == 2
@@ -122,21 +151,37 @@ def test_pip_install_into_a_fresh_venv_works_from_any_directory(tmp_path):
     py = env_dir / "bin" / "python"
     (inner,) = (env_dir / "lib").glob("python*/site-packages")
     (inner / "outer.pth").write_text("\n".join(site.getsitepackages()) + "\n")
-    pip = subprocess.run([str(py), "-m", "pip", "install", "--no-deps", "-q", str(ROOT)],
-                         capture_output=True, text=True)
+    pip = subprocess.run(
+        [str(py), "-m", "pip", "install", "--no-deps", "-q", str(ROOT)],
+        capture_output=True,
+        text=True,
+    )
     assert pip.returncode == 0, pip.stderr
     work = tmp_path / "elsewhere"
     work.mkdir()
     (work / "model.yaml").write_text((EXAMPLES / "automata" / "thermostat.yaml").read_text())
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     cli = env_dir / "bin" / "hybridteam"
-    done = subprocess.run([str(cli), "run", "model.yaml", "-o", "out", "--duration", "5"],
-                          cwd=work, capture_output=True, text=True, env=env)
+    done = subprocess.run(
+        [str(cli), "run", "model.yaml", "-o", "out", "--duration", "5"],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert done.returncode == 0, done.stderr
     assert (work / "out" / "summary.json").exists()
-    where = subprocess.run([str(py), "-c", "import hybridteam, hybridteam.modes, "
-                            "hybridteam.protocols; print(hybridteam.__file__)"],
-                           cwd=work, capture_output=True, text=True, env=env)
+    where = subprocess.run(
+        [
+            str(py),
+            "-c",
+            "import hybridteam, hybridteam.modes, hybridteam.protocols; print(hybridteam.__file__)",
+        ],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert where.returncode == 0, where.stderr
     assert str(env_dir) in where.stdout  # the installed copy, not the checkout
 
@@ -144,8 +189,14 @@ def test_pip_install_into_a_fresh_venv_works_from_any_directory(tmp_path):
 def test_run_without_views_writes_only_the_trace(tmp_path):
     out = tmp_path / "plain"
     assert main(["run", THERMO, "-o", str(out), "--duration", "5", "--quiet", "--no-views"]) == 0
-    assert {p.name for p in out.iterdir()} == {"trace.json", "modes.csv", "transitions.csv",
-                                               "messages.csv", "samples.csv", "summary.json"}
+    assert {p.name for p in out.iterdir()} == {
+        "trace.json",
+        "modes.csv",
+        "transitions.csv",
+        "messages.csv",
+        "samples.csv",
+        "summary.json",
+    }
 
 
 RELAY = str(EXAMPLES / "automata" / "relay.yaml")
@@ -164,8 +215,22 @@ def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     assert capsys.readouterr().out == f"wrote {tmp_path / 'd.svg'}\n"
     assert main(["diagram", RELAY, "-f", "mermaid"]) == 0
     assert capsys.readouterr().out.startswith("stateDiagram-v2")
-    assert main(["timeline", str(relay_trace), "--window", "4.9", "5.1", "-o",
-                 str(tmp_path / "t.svg"), "--data", str(tmp_path / "t.json")]) == 0
+    assert (
+        main(
+            [
+                "timeline",
+                str(relay_trace),
+                "--window",
+                "4.9",
+                "5.1",
+                "-o",
+                str(tmp_path / "t.svg"),
+                "--data",
+                str(tmp_path / "t.json"),
+            ]
+        )
+        == 0
+    )
     data = json.loads((tmp_path / "t.json").read_text())
     assert [(a["t_send"], a["type"]) for a in data["arrows"]] == [(5.0, "baton")]
     assert main(["plot", str(relay_trace), "-o", str(tmp_path / "p.png")]) == 0
@@ -177,35 +242,45 @@ def test_view_commands_write_their_files(tmp_path, relay_trace, capsys):
     # every command that writes a file says so, one line each
     assert main(["diagram", RELAY, "-o", str(tmp_path / "d.pdf")]) == 0
     assert main(["sequence", str(relay_trace), "-o", str(tmp_path / "s.mmd")]) == 0
-    assert capsys.readouterr().out.splitlines() == [f"wrote {tmp_path / 'd.pdf'}",
-                                                    f"wrote {tmp_path / 's.mmd'}"]
+    assert capsys.readouterr().out.splitlines() == [
+        f"wrote {tmp_path / 'd.pdf'}",
+        f"wrote {tmp_path / 's.mmd'}",
+    ]
 
 
-@pytest.mark.parametrize("args, words", [
-    (["diagram", RELAY, "-f", "dott"], "did you mean 'dot'"),
-    (["diagram", RELAY, "-f", "png"], "needs -o FILE"),
-    (["timeline", "{trace}", "-o", "x.jpg"], "written as .png or .svg"),
-    (["plot", "{trace}", "-f", "svg", "-o", "x.png"], "says png but --format says svg"),
-    (["timeline", "{trace}", "--window", "5", "1"], "T0 must be < T1"),
-    (["timeline", "{trace}", "--instance", "3"], "instances 0..0"),
-    (["plot", "{missing}"], "no such file"),
-    (["plot", "{notjson}"], "not a JSON file"),
-    (["plot", "{notrace}"], "not a valid hybridteam trace: format: Field required"),
-    (["animate", "{trace}", "-o", "a.avi"], ".gif or .mp4"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["diagram", RELAY, "-f", "dott"], "did you mean 'dot'"),
+        (["diagram", RELAY, "-f", "png"], "needs -o FILE"),
+        (["timeline", "{trace}", "-o", "x.jpg"], "written as .png or .svg"),
+        (["plot", "{trace}", "-f", "svg", "-o", "x.png"], "says png but --format says svg"),
+        (["timeline", "{trace}", "--window", "5", "1"], "T0 must be < T1"),
+        (["timeline", "{trace}", "--instance", "3"], "instances 0..0"),
+        (["plot", "{missing}"], "no such file"),
+        (["plot", "{notjson}"], "not a JSON file"),
+        (["plot", "{notrace}"], "not a valid hybridteam trace: format: Field required"),
+        (["animate", "{trace}", "-o", "a.avi"], ".gif or .mp4"),
+    ],
+)
 def test_view_commands_refuse_bad_arguments(tmp_path, relay_trace, capsys, args, words):
     (tmp_path / "bad.json").write_text("{nope")
     (tmp_path / "other.json").write_text('{"hello": 1}')
-    subst = {"{trace}": str(relay_trace), "{missing}": str(tmp_path / "none.json"),
-             "{notjson}": str(tmp_path / "bad.json"), "{notrace}": str(tmp_path / "other.json")}
+    subst = {
+        "{trace}": str(relay_trace),
+        "{missing}": str(tmp_path / "none.json"),
+        "{notjson}": str(tmp_path / "bad.json"),
+        "{notrace}": str(tmp_path / "other.json"),
+    }
     argv = [subst.get(a, a) for a in args]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
 
 
-def test_views_write_vector_pdf_and_never_dot_text_under_another_name(tmp_path, relay_trace,
-                                                                       capsys):
+def test_views_write_vector_pdf_and_never_dot_text_under_another_name(
+    tmp_path, relay_trace, capsys
+):
     """A paper wants PDF; a file named .pdf must be one. The same figure gives the same
     bytes (no dates stamped in)."""
     first, second = tmp_path / "a.pdf", tmp_path / "b.pdf"
@@ -230,8 +305,12 @@ def test_progress_is_reported_in_lines_when_not_on_a_terminal(tmp_path, capsys, 
     clock = iter(range(0, 1000))  # each reading one second later
     monkeypatch.setattr(progress.time, "perf_counter", lambda: float(next(clock)))
     out = tmp_path / "ball"
-    assert main(["run", str(EXAMPLES / "automata" / "bouncing_ball.yaml"), "-o", str(out),
-                 "--no-views"]) == 0
+    assert (
+        main(
+            ["run", str(EXAMPLES / "automata" / "bouncing_ball.yaml"), "-o", str(out), "--no-views"]
+        )
+        == 0
+    )
     captured = capsys.readouterr()
     lines = [x for x in captured.err.splitlines() if x.startswith("hybridteam: bouncing")]
     assert lines and all("% simulated, " in x for x in lines)
@@ -247,12 +326,16 @@ def test_every_view_writes_a_valid_pdf(tmp_path, relay_trace, capsys):
     """Papers need vector PDF: the diagram, the timeline (whole and close-up) and the
     trajectories each write one with a PDF header and at least one page."""
     assert main(["plot", str(relay_trace), "-f", "pdf", "-o", str(tmp_path / "f.pdf")]) == 0
-    outs = {"diagram": ["diagram", RELAY], "timeline": ["timeline", str(relay_trace)],
-            "close-up": ["timeline", str(relay_trace), "--window", "4.9", "5.1"],
-            "plot": ["plot", str(relay_trace)]}
+    outs = {
+        "diagram": ["diagram", RELAY],
+        "timeline": ["timeline", str(relay_trace)],
+        "close-up": ["timeline", str(relay_trace), "--window", "4.9", "5.1"],
+        "plot": ["plot", str(relay_trace)],
+    }
     for name, args in outs.items():
         path = tmp_path / f"{name}.pdf"
         assert main([*args, "-o", str(path)]) == 0, name
         data = path.read_bytes()
-        assert data[:5] == b"%PDF-" and b"/Type /Page" in data and data.rstrip().endswith(
-            b"%%EOF"), name
+        assert (
+            data[:5] == b"%PDF-" and b"/Type /Page" in data and data.rstrip().endswith(b"%%EOF")
+        ), name

@@ -14,8 +14,9 @@ from hybridteam.dynamics import rk
 
 def _f(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     """A nonlinear, time-dependent field with coupled components (d = 2)."""
-    return np.stack([np.sin(3 * x[:, 1]) + t * x[:, 0] ** 2,
-                     -np.cos(x[:, 0]) - 0.5 * x[:, 1]], axis=1)
+    return np.stack(
+        [np.sin(3 * x[:, 1]) + t * x[:, 0] ** 2, -np.cos(x[:, 0]) - 0.5 * x[:, 1]], axis=1
+    )
 
 
 def _seq(coefs: np.ndarray, k: np.ndarray) -> np.ndarray:
@@ -71,7 +72,7 @@ def test_running_sums_give_the_textbook_step_bit_for_bit():
     assert np.array_equal(got._coefficients(), coefficients)
     # each instance is its own: the same row stepped alone gives the same bits
     for i in (0, 4, 8):
-        alone = rk.step(_f, t[i:i + 1], x[i:i + 1], h[i:i + 1], 1e-10, 1e-12)
+        alone = rk.step(_f, t[i : i + 1], x[i : i + 1], h[i : i + 1], 1e-10, 1e-12)
         assert np.array_equal(alone.x1[0], x1[i]) and alone.err[0] == err[i]
 
 
@@ -82,7 +83,7 @@ def test_a_step_without_its_error_estimate_lands_on_the_same_state():
     bare = rk.step(_f, t, x, h, 1e-10, 1e-12, estimate=False)
     assert bare.err is None
     assert np.array_equal(bare.x1, full.x1)
-    assert np.array_equal(bare.k[:rk.N_STAGES], full.k[:rk.N_STAGES])
+    assert np.array_equal(bare.k[: rk.N_STAGES], full.k[: rk.N_STAGES])
     theta = np.linspace(0.1, 0.9, 4)
     assert np.array_equal(bare.dense(theta), full.dense(theta))
     # the derivative at the new state is computed when the dense output first needs it
@@ -94,8 +95,9 @@ def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit(monkeypat
     Python floats; they must be the array loop's bits (ends of the step included)."""
     rng = np.random.default_rng(8)
     m = 3
-    s = rk.step(_f, rng.uniform(0, 1, m), rng.normal(size=(m, 2)), rng.uniform(0.01, 0.3, m),
-                1e-10, 1e-12)
+    s = rk.step(
+        _f, rng.uniform(0, 1, m), rng.normal(size=(m, 2)), rng.uniform(0.01, 0.3, m), 1e-10, 1e-12
+    )
     queries = []
     for _ in range(300):
         every_row = rng.uniform() < 0.2  # rows None: one theta per instance
@@ -115,20 +117,23 @@ def test_steps_of_linear_decay_converge_at_the_method_s_order():
     """x' = -2x from 1: the step's local error is O(h^9) and the dense output's O(h^8), so
     halving h divides them by about 512 and 256 (at least 2^8.5 and 2^7.5 here); at
     h = 0.05 the step is exact to round-off."""
+
     def errors(h: float) -> tuple[float, float]:
-        s = rk.step(lambda t, x: -2.0 * x, np.zeros(1), np.ones((1, 1)), np.full(1, h),
-                    1e-10, 1e-12)
-        return (abs(s.x1[0, 0] - math.exp(-2 * h)),
-                abs(s.dense(np.full(1, 0.5))[0, 0] - math.exp(-h)))
+        s = rk.step(
+            lambda t, x: -2.0 * x, np.zeros(1), np.ones((1, 1)), np.full(1, h), 1e-10, 1e-12
+        )
+        return (
+            abs(s.x1[0, 0] - math.exp(-2 * h)),
+            abs(s.dense(np.full(1, 0.5))[0, 0] - math.exp(-h)),
+        )
 
     (s4, d4), (s2, d2), (s1, d1) = errors(0.4), errors(0.2), errors(0.1)
-    assert s4 / s2 > 2 ** 8.5 and s2 / s1 > 2 ** 8.5
-    assert d4 / d2 > 2 ** 7.5 and d2 / d1 > 2 ** 7.5
+    assert s4 / s2 > 2**8.5 and s2 / s1 > 2**8.5
+    assert d4 / d2 > 2**7.5 and d2 / d1 > 2**7.5
     assert errors(0.05)[0] < 1e-15
 
 
-def test_a_flow_reading_time_in_mode_gets_it_and_one_that_does_not_is_unchanged(
-        team_from_yaml):
+def test_a_flow_reading_time_in_mode_gets_it_and_one_that_does_not_is_unchanged(team_from_yaml):
     """B is entered at t = 1 with x = 1 and flows x' = t_in_mode, so x(3) = 1 + 2^2/2 = 3
     (reading t instead would give 1 + (9 - 1)/2 = 5); y' = 1 in both modes, so y(3) = 3."""
     team = team_from_yaml("""

@@ -11,10 +11,16 @@ from hybridteam.arrays import all_finite, distinct, gather, sinc
 
 
 @settings(max_examples=150, deadline=None)
-@given(n=st.integers(1, 40), width=st.integers(0, 4), depth=st.integers(1, 3),
-       picks=st.lists(st.integers(-40, 39), max_size=30), seed=st.integers(0, 2**32 - 1))
-def test_gather_equals_fancy_indexing(n: int, width: int, depth: int, picks: list[int],
-                                      seed: int) -> None:
+@given(
+    n=st.integers(1, 40),
+    width=st.integers(0, 4),
+    depth=st.integers(1, 3),
+    picks=st.lists(st.integers(-40, 39), max_size=30),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_gather_equals_fancy_indexing(
+    n: int, width: int, depth: int, picks: list[int], seed: int
+) -> None:
     shape = (n,) + (width,) * (depth - 1)
     a = np.random.default_rng(seed).normal(size=shape)
     idx = np.array([p % n - (n if p < 0 else 0) for p in picks], np.intp)
@@ -40,8 +46,14 @@ def test_gather_reads_a_transposed_view_and_refuses_rows_out_of_range() -> None:
 
 
 @settings(max_examples=150, deadline=None)
-@given(values=st.lists(st.one_of(st.floats(), st.sampled_from([np.inf, -np.inf, np.nan, 0.0])),
-                       min_size=0, max_size=30), width=st.integers(1, 3))
+@given(
+    values=st.lists(
+        st.one_of(st.floats(), st.sampled_from([np.inf, -np.inf, np.nan, 0.0])),
+        min_size=0,
+        max_size=30,
+    ),
+    width=st.integers(1, 3),
+)
 def test_all_finite_equals_isfinite_all(values: list[float], width: int) -> None:
     """On floats for a few numbers (a single run's), on arrays beyond: the same answer."""
     x = np.array(values[: len(values) // width * width], float).reshape(-1, width)
@@ -58,8 +70,13 @@ def test_distinct_equals_unique(values: list[int]) -> None:
 
 
 @settings(max_examples=150, deadline=None)
-@given(values=st.lists(st.one_of(st.floats(), st.sampled_from([0.0, -0.0, 1e-300, np.inf])),
-                       min_size=1, max_size=20))
+@given(
+    values=st.lists(
+        st.one_of(st.floats(), st.sampled_from([0.0, -0.0, 1e-300, np.inf])),
+        min_size=1,
+        max_size=20,
+    )
+)
 def test_sinc_equals_numpys_bit_for_bit(values: list[float]) -> None:
     """The dead reckoning's arc factor, written out without np.sinc's wrapper."""
     x = np.array(values, float)

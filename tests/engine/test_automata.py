@@ -39,8 +39,7 @@ def test_ball_ends_zeno_at_the_zeno_time():
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "bouncing_ball.yaml"))
     zeno_time = 2.558633965586
     v1 = math.sqrt(2 * G * H0)
-    assert zeno_time == pytest.approx(math.sqrt(2 * H0 / G) + 2 * v1 / G * E / (1 - E),
-                                      abs=1e-12)
+    assert zeno_time == pytest.approx(math.sqrt(2 * H0 / G) + 2 * v1 / G * E / (1 - E), abs=1e-12)
     assert run.outcome == "zeno"
     assert abs(run.diagnostics[0]["t"] - zeno_time) < 1e-6
     msg = run.message
@@ -93,12 +92,27 @@ def test_unicycle_square_corners_are_exact():
     assert "final" in run.message
     tr = run.transitions
     np.testing.assert_allclose(tr["t"], [0, 1, 5, 7, 11, 13, 17, 19, 23, 25], atol=1e-12)
-    assert list(tr["target"]) == ["Wait", "Drive", "Turn", "Drive", "Turn", "Drive", "Turn",
-                                  "Drive", "Turn", "Done"]
+    assert list(tr["target"]) == [
+        "Wait",
+        "Drive",
+        "Turn",
+        "Drive",
+        "Turn",
+        "Drive",
+        "Turn",
+        "Drive",
+        "Turn",
+        "Done",
+    ]
     t = run.sample_times
     xs = run.samples["robot"][:, 0]
-    for when, (x, y, th) in {5: (2, 0, 0), 11: (2, 2, math.pi / 2), 17: (0, 2, math.pi),
-                             23: (0, 0, 1.5 * math.pi), 25: (0, 0, 2 * math.pi)}.items():
+    for when, (x, y, th) in {
+        5: (2, 0, 0),
+        11: (2, 2, math.pi / 2),
+        17: (0, 2, math.pi),
+        23: (0, 0, 1.5 * math.pi),
+        25: (0, 0, 2 * math.pi),
+    }.items():
         k = int(np.argmin(np.abs(t - when)))
         np.testing.assert_allclose(xs[k], [x, y, th], atol=1e-12)
 
@@ -254,8 +268,7 @@ def test_balls_dropped_from_several_heights_equal_single_runs_and_the_closed_for
     phases, so apexes, bounces and impacts share sub-intervals in other ways)."""
     team = ht.load(EXAMPLES / "automata" / "bouncing_ball.yaml")
     heights = [1.0, 0.37, 2.2, 0.81, 1.5]
-    ens = ht.simulate(team, n=len(heights), overrides={"ball.h0": np.array(heights)},
-                      duration=3.0)
+    ens = ht.simulate(team, n=len(heights), overrides={"ball.h0": np.array(heights)}, duration=3.0)
     for i, h0 in enumerate(heights):
         one = ht.simulate(team, overrides={"ball.h0": np.array([h0])}, duration=3.0)
         mine = ens.transitions.filter(ens.transitions["instance"] == i)

@@ -41,8 +41,7 @@ simulation: {{duration: 1.0, sample_period: 0.25, crossing_checks: {checks}}}
 
 @pytest.mark.parametrize("checks", [0, 2])
 @pytest.mark.parametrize("still_state", ["w: 7.0", "w: 7.0, z: 3.0"])
-def test_an_agent_keeps_its_state_when_another_one_crosses(team_from_yaml, checks,
-                                                           still_state):
+def test_an_agent_keeps_its_state_when_another_one_crosses(team_from_yaml, checks, still_state):
     run = ht.simulate(team_from_yaml(TEAM.format(checks=checks, still_state=still_state)))
     (stop,) = run.transitions.filter(run.transitions["target"] == "Stop")
     assert stop.t == pytest.approx(0.5, abs=1e-9)
@@ -50,5 +49,4 @@ def test_an_agent_keeps_its_state_when_another_one_crosses(team_from_yaml, check
     np.testing.assert_array_equal(still[:, 0], 7.0)  # w never changes
     if still.shape[1] == 2:
         np.testing.assert_array_equal(still[:, 1], 3.0)
-    np.testing.assert_allclose(run.samples["mover"][:, 0, 0], [0.0, 0.25, 0.5, 0.5, 0.5],
-                               atol=1e-9)
+    np.testing.assert_allclose(run.samples["mover"][:, 0, 0], [0.0, 0.25, 0.5, 0.5, 0.5], atol=1e-9)

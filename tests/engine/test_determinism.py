@@ -25,8 +25,12 @@ def test_same_model_and_seed_give_byte_identical_trace(tmp_path):
 
 
 def test_json_round_trip_is_exact(tmp_path):
-    run = ht.simulate(ht.load(EXAMPLES / "automata" / "thermostat.yaml"), duration=40.0,
-                      n=3, overrides={"thermostat.K": [0.1, 0.12, 0.15]})
+    run = ht.simulate(
+        ht.load(EXAMPLES / "automata" / "thermostat.yaml"),
+        duration=40.0,
+        n=3,
+        overrides={"thermostat.K": [0.1, 0.12, 0.15]},
+    )
     text = run.to_json(tmp_path / "trace.json")
     back = ht.Run.load(tmp_path / "trace.json")
     assert back.to_json() == text
@@ -44,8 +48,9 @@ def _compare(single: ht.Run, member: ht.Run) -> None:
     assert list(a["step"]) == list(b["step"])
     np.testing.assert_allclose(a["t"], b["t"], rtol=0, atol=1e-12)
     for agent in single.samples:
-        np.testing.assert_allclose(single.samples[agent], member.samples[agent], rtol=0,
-                                   atol=1e-12, equal_nan=True)
+        np.testing.assert_allclose(
+            single.samples[agent], member.samples[agent], rtol=0, atol=1e-12, equal_nan=True
+        )
 
 
 def test_ensemble_of_flows_equals_single_runs():
@@ -53,12 +58,14 @@ def test_ensemble_of_flows_equals_single_runs():
     rng = np.random.default_rng(7)
     K = rng.uniform(0.05, 0.3, N)
     high = rng.uniform(21.0, 24.0, N)
-    ens = ht.simulate(team, n=N, duration=30.0,
-                      overrides={"thermostat.K": K, "thermostat.high": high})
+    ens = ht.simulate(
+        team, n=N, duration=30.0, overrides={"thermostat.K": K, "thermostat.high": high}
+    )
     assert len(set(ens.outcomes)) == 1
     for i in range(N):
-        single = ht.simulate(team, duration=30.0,
-                             overrides={"thermostat.K": K[i], "thermostat.high": high[i]})
+        single = ht.simulate(
+            team, duration=30.0, overrides={"thermostat.K": K[i], "thermostat.high": high[i]}
+        )
         _compare(single, ens.instance(i))
 
 

@@ -62,8 +62,9 @@ def test_a_team_with_an_operator_ends_when_its_robots_arrive(team_from_yaml):
     assert times["xr4000"] == pytest.approx(5.0, abs=1e-9)
     assert run.outcome == "success"
     assert run.diagnostics[0]["t"] == max(times.values()) < 20.0
-    assert run.message == ("every agent reached a final mode (operators are not waited for: "
-                           "'operator')")
+    assert run.message == (
+        "every agent reached a final mode (operators are not waited for: 'operator')"
+    )
 
 
 def test_the_end_rule_names_the_agents_that_matter(team_from_yaml):
@@ -78,16 +79,21 @@ def test_the_end_rule_names_the_agents_that_matter(team_from_yaml):
 def test_an_end_rule_naming_no_agent_is_a_located_error(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
 
-    with pytest.raises(InputErrors, match=r"team.yaml:36:16: end.agents\[0\]: unknown agent "
-                                          r"'xr400'; did you mean 'xr4000'\?"):
+    with pytest.raises(
+        InputErrors,
+        match=r"team.yaml:36:16: end.agents\[0\]: unknown agent "
+        r"'xr400'; did you mean 'xr4000'\?",
+    ):
         team_from_yaml(TEAM + "end: {agents: [xr400]}\n")
 
 
 def test_a_robot_outside_the_protocol_validates(team_from_yaml):
     """A team robot that is no member of the role-assignment protocol used to fail with 21
     errors inside the shipped protocol file; now it simply takes no part."""
-    scout = ("  scout:\n    plant: {kind: unicycle, state: {x: -2.0, y: 0.0, theta: 0.0}}\n"
-             "    modes: {Idle: {}}\n  operator:\n")
+    scout = (
+        "  scout:\n    plant: {kind: unicycle, state: {x: -2.0, y: 0.0, theta: 0.0}}\n"
+        "    modes: {Idle: {}}\n  operator:\n"
+    )
     team = team_from_yaml(TEAM.replace("  operator:\n", scout))
     run = ht.simulate(team)
     assert run.outcome == "ok"  # the scout has no final mode: the run goes to its end
@@ -96,15 +102,18 @@ def test_a_robot_outside_the_protocol_validates(team_from_yaml):
 def test_a_non_member_that_sends_a_protocol_message_is_told_what_it_lacks(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
 
-    scout = ("  scout:\n    plant: {kind: unicycle, state: {x: -2.0, y: 0.0, theta: 0.0}}\n"
-             "    modes:\n      Idle:\n        transitions: [{to: Idle, on: go, do: [{send: "
-             "request, to: xr4000}]}]\n  operator:\n")
+    scout = (
+        "  scout:\n    plant: {kind: unicycle, state: {x: -2.0, y: 0.0, theta: 0.0}}\n"
+        "    modes:\n      Idle:\n        transitions: [{to: Idle, on: go, do: [{send: "
+        "request, to: xr4000}]}]\n  operator:\n"
+    )
     with pytest.raises(InputErrors) as exc:
         team_from_yaml(TEAM.replace("  operator:\n", scout))
     messages = [str(e) for e in exc.value.errors]
     assert len(messages) == 3
-    assert all(":34:5: agents.scout: agent 'scout' sends 'request', whose " in m
-               for m in messages)
-    assert "priority cannot be evaluated for it: unknown name 'priority'; give the agent " \
-           "that parameter (parameters:), or make it a member of the protocol that declares " \
-           "'request' (role_assignment)" in messages[0]
+    assert all(":34:5: agents.scout: agent 'scout' sends 'request', whose " in m for m in messages)
+    assert (
+        "priority cannot be evaluated for it: unknown name 'priority'; give the agent "
+        "that parameter (parameters:), or make it a member of the protocol that declares "
+        "'request' (role_assignment)" in messages[0]
+    )

@@ -21,15 +21,18 @@ BALL = Path(__file__).parents[2] / "examples" / "automata" / "bouncing_ball.yaml
 SYMS = {name: (lambda ctx: 0.0) for name in ("h", "v", "x")}
 
 
-@pytest.mark.parametrize(("source", "conjuncts"), [
-    ("h <= 0 and v < 0", ["h <= 0", "v < 0"]),
-    ("h <= 0", ["h <= 0"]),
-    ("h <= 0 or v < 0", []),                       # either may hold alone
-    ("not (h <= 0) and v < 0", ["v < 0"]),         # h <= 0 false makes the guard true
-    ("(h <= 0 or x > 1) and v < 0", ["v < 0"]),
-    ("(h <= 0 and x > 1) and 0 < v < 2", ["h <= 0", "x > 1", "0 < v", "v < 2"]),
-    ("h == 0 and v < 0", ["v < 0"]),               # an equality is no atom
-])
+@pytest.mark.parametrize(
+    ("source", "conjuncts"),
+    [
+        ("h <= 0 and v < 0", ["h <= 0", "v < 0"]),
+        ("h <= 0", ["h <= 0"]),
+        ("h <= 0 or v < 0", []),  # either may hold alone
+        ("not (h <= 0) and v < 0", ["v < 0"]),  # h <= 0 false makes the guard true
+        ("(h <= 0 or x > 1) and v < 0", ["v < 0"]),
+        ("(h <= 0 and x > 1) and 0 < v < 2", ["h <= 0", "x > 1", "0 < v", "v < 2"]),
+        ("h == 0 and v < 0", ["v < 0"]),  # an equality is no atom
+    ],
+)
 def test_the_conjuncts_of_a_condition(source, conjuncts):
     expr = compile_expression(source, SYMS, condition=True)
     assert [a.source for a in expr.conjuncts] == conjuncts
@@ -41,8 +44,12 @@ def _run(team, monkeypatch, skip: bool, n: int = 1):
     located."""
     with monkeypatch.context() as m:
         m.setattr(search, "SKIP_FOREGONE", skip)
-        run = ht.simulate(team, n=n, seed=list(range(n)) if n > 1 else None,
-                          overrides={"ball.e": [0.7, 0.75, 0.8, 0.85][:n]} if n > 1 else None)
+        run = ht.simulate(
+            team,
+            n=n,
+            seed=list(range(n)) if n > 1 else None,
+            overrides={"ball.e": [0.7, 0.75, 0.8, 0.85][:n]} if n > 1 else None,
+        )
     return run, run.costs.located
 
 
@@ -88,8 +95,7 @@ def test_conjuncts_turning_true_are_still_located(team_from_yaml, monkeypatch):
     assert fewer == located_all == 2
 
 
-def test_no_flip_is_skipped_while_another_watched_atom_is_not_searched(team_from_yaml,
-                                                                      monkeypatch):
+def test_no_flip_is_skipped_while_another_watched_atom_is_not_searched(team_from_yaml, monkeypatch):
     """A second transition out of the ball's mode watches ``h > 100``, which never flips:
     a skipped flip could no longer reveal a flip of it that the sub-interval's ends hide,
     so nothing is skipped, and the run is located as before."""

@@ -7,8 +7,11 @@ import hybridteam as ht
 
 def steps(run: ht.Run, agent: str | None = None) -> list[tuple[float, int, str, str]]:
     tr = run.transitions
-    rows = [(round(r.t, 9), r.step, r.source, r.target) for r in tr
-            if r.cause != "init" and (agent is None or r.agent == agent)]
+    rows = [
+        (round(r.t, 9), r.step, r.source, r.target)
+        for r in tr
+        if r.cause != "init" and (agent is None or r.agent == agent)
+    ]
     return rows
 
 
@@ -87,7 +90,7 @@ def test_shallow_history_restores_the_child_not_the_grandchild(team_from_yaml):
         (1.0, 0, "Work.A", "Work.B"),
         (2.0, 0, "Work.B.B1", "Work.B.B2"),
         (2.5, 0, "Work", "Break"),
-        (3.5, 0, "Break", "Work"),        # re-enters Work.B (history), then B's initial B1
+        (3.5, 0, "Break", "Work"),  # re-enters Work.B (history), then B's initial B1
         (4.5, 0, "Work.B.B1", "Work.B.B2"),
     ]
     leaves = [r.mode for r in run.intervals if r.start == 3.5 and r.depth == 3]
@@ -100,7 +103,7 @@ def test_deep_history_restores_the_whole_configuration(team_from_yaml):
         (1.0, 0, "Work.A", "Work.B"),
         (2.0, 0, "Work.B.B1", "Work.B.B2"),
         (2.5, 0, "Work", "Break"),
-        (3.5, 0, "Break", "Work"),        # straight back into Work.B.B2
+        (3.5, 0, "Break", "Work"),  # straight back into Work.B.B2
     ]
     leaves = [r.mode for r in run.intervals if r.start == 3.5 and r.depth == 3]
     assert leaves == ["Work.B.B2"]
@@ -109,8 +112,11 @@ def test_deep_history_restores_the_whole_configuration(team_from_yaml):
 
 def test_no_history_enters_initial_children(team_from_yaml):
     run = ht.simulate(team_from_yaml(HISTORY.format(kind="none")))
-    assert steps(run)[3:] == [(3.5, 0, "Break", "Work"), (4.5, 0, "Work.A", "Work.B"),
-                              (5.5, 0, "Work.B.B1", "Work.B.B2")]
+    assert steps(run)[3:] == [
+        (3.5, 0, "Break", "Work"),
+        (4.5, 0, "Work.A", "Work.B"),
+        (5.5, 0, "Work.B.B1", "Work.B.B2"),
+    ]
 
 
 def test_parallel_regions_step_together_and_outer_exit_leaves_both(team_from_yaml):
@@ -221,8 +227,10 @@ def test_messages_and_local_events_in_superdense_time(team_from_yaml):
     ]
     assert run.outcome == "ok"
     msgs = [(m.sender, m.receiver, m.type, m.t_send, m.t_recv, m.status) for m in run.messages]
-    assert msgs == [("a", "b", "ping", 1.0, 1.0, "delivered"),
-                    ("b", "a", "pong", 1.0, 1.0, "delivered")]
+    assert msgs == [
+        ("a", "b", "ping", 1.0, 1.0, "delivered"),
+        ("b", "a", "pong", 1.0, 1.0, "delivered"),
+    ]
 
 
 #: a asks b (who waits only for go) at 0.5 s, then waits for a grant that never comes

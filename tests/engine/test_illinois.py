@@ -14,17 +14,27 @@ def _cubic(root: np.ndarray, slope: np.ndarray, curve: np.ndarray, flat: np.ndar
     """``ev`` of the atom ``m(t) > 0`` with ``m(t) = slope (t - root) + curve (t - root)^2
     + flat (t - root)^3``, per row: one root in the brackets drawn below (``slope`` > 0 and
     the other terms too small to add one), so its crossing is known."""
+
     def ev(pos: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         d = tau - root[pos]
         margin = slope[pos] * d + curve[pos] * d * d + flat[pos] * d * d * d
         return margin > 0, margin
+
     return ev
 
 
 problems = st.lists(
-    st.tuples(st.floats(0.0, 10.0), st.floats(1e-6, 5.0), st.floats(0.0, 0.99),
-              st.floats(-0.2, 0.2), st.floats(-0.1, 0.1), st.sampled_from([1e-12, 1e-9, 1e-6])),
-    min_size=1, max_size=5)
+    st.tuples(
+        st.floats(0.0, 10.0),
+        st.floats(1e-6, 5.0),
+        st.floats(0.0, 0.99),
+        st.floats(-0.2, 0.2),
+        st.floats(-0.1, 0.1),
+        st.sampled_from([1e-12, 1e-9, 1e-6]),
+    ),
+    min_size=1,
+    max_size=5,
+)
 
 
 def _coefficients(rows) -> tuple[np.ndarray, np.ndarray]:
@@ -37,8 +47,7 @@ def _coefficients(rows) -> tuple[np.ndarray, np.ndarray]:
 def _problem(rows):
     """The drawn brackets as ``(ev, lo, hi, truth0, tol, root)``: a cubic's crossing in
     each, original truth false at ``lo``."""
-    start, span, where, _, _, tol = (np.array(c, dtype=float) for c in zip(*rows,
-                                                                           strict=True))
+    start, span, where, _, _, tol = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
     lo, hi = start, start + span
     root = lo + where * span
     ev = _cubic(root, np.ones_like(lo), *_coefficients(rows))
@@ -48,8 +57,14 @@ def _problem(rows):
 def _alone(ev, i: int, lo, hi, truth0, tol, **options) -> tuple[float, float]:
     """Bracket ``i`` narrowed on its own (the evaluator still sees its row ``i``)."""
     with np.errstate(all="ignore"):  # as the run is: secants through equal margins are NaN
-        a, b = illinois(lambda p, t: ev(np.full(p.size, i), t), lo[i:i + 1].copy(),
-                        hi[i:i + 1].copy(), truth0[i:i + 1], tol[i:i + 1], **options)
+        a, b = illinois(
+            lambda p, t: ev(np.full(p.size, i), t),
+            lo[i : i + 1].copy(),
+            hi[i : i + 1].copy(),
+            truth0[i : i + 1],
+            tol[i : i + 1],
+            **options,
+        )
     return a[0], b[0]
 
 
@@ -72,10 +87,12 @@ def test_one_bracket_evaluated_on_floats_gives_the_same_bits(rows) -> None:
     ev, lo, hi, truth0, tol, root = _problem(rows)
     slope, curve, flat = 1.0, *(c.tolist() for c in _coefficients(rows))
     for i in range(lo.size):
+
         def one(tau: float, i=i) -> tuple[bool, float]:
             d = tau - float(root[i])
             margin = slope * d + curve[i] * d * d + flat[i] * d * d * d
             return margin > 0, margin
+
         fast = _alone(ev, i, lo, hi, truth0, tol, one=one)
         slow = _alone(ev, i, lo, hi, truth0, tol, scalar=False)
         assert np.array(fast).tobytes() == np.array(slow).tobytes()

@@ -39,8 +39,7 @@ simulation: {{duration: 2.0{zeno}}}
 
 def chorus(make, cap=None, go_from=None):
     """``go_from``: that sender sends ``go`` instead, which ``r`` waits for."""
-    senders = "".join(SENDER.format(k=k, what="go" if k == go_from else "hello")
-                      for k in range(6))
+    senders = "".join(SENDER.format(k=k, what="go" if k == go_from else "hello") for k in range(6))
     zeno = "" if cap is None else f", zeno: {{max_steps_per_instant: {cap}}}"
     return make(TEAM.format(senders=senders, zeno=zeno))
 
@@ -49,8 +48,10 @@ def rows(run, i=0):
     """Instance ``i``'s message rows, in the trace's order (reprs: NaN equals NaN)."""
     m = run.messages
     keep = m["instance"] == i
-    return [repr(tuple(m[c][keep].tolist())) for c in ("sender", "receiver", "t_send",
-                                                       "t_recv", "status", "reason")]
+    return [
+        repr(tuple(m[c][keep].tolist()))
+        for c in ("sender", "receiver", "t_send", "t_recv", "status", "reason")
+    ]
 
 
 def ends(run):
@@ -66,7 +67,7 @@ def test_a_single_run_takes_the_copies_as_an_ensemble_member_does(team_from_yaml
     for i in range(6):
         assert rows(many, i) == rows(single)
     delivered = np.sum(single.messages["status"] == "delivered")
-    (outcome, t_end, _), = ends(single)
+    ((outcome, t_end, _),) = ends(single)
     assert t_end == 1.0 + 0.03
     if cap is None:  # every copy delivered at 1.03 s; then nothing is pending: deadlock
         assert (delivered, outcome) == (6, "deadlock")

@@ -40,15 +40,16 @@ def _go(team_from_yaml, latency: float, guard: str) -> tuple[float, int]:
 
     run = ht.simulate(team_from_yaml(TEAM.format(latency=latency, guard=guard)))
     tr = run.transitions
-    rows = [(float(t), int(k)) for t, k, who, to in
-            zip(tr["t"], tr["step"], tr["agent"], tr["target"], strict=True)
-            if who == "b" and to == "Go"]
+    rows = [
+        (float(t), int(k))
+        for t, k, who, to in zip(tr["t"], tr["step"], tr["agent"], tr["target"], strict=True)
+        if who == "b" and to == "Go"
+    ]
     assert len(rows) == 1
     return rows[0]
 
 
-def test_an_urgent_guard_on_a_stream_estimate_fires_when_the_first_copy_arrives(
-        team_from_yaml):
+def test_an_urgent_guard_on_a_stream_estimate_fires_when_the_first_copy_arrives(team_from_yaml):
     """`a` streams its pose (x = 1) from t = 0; the copy takes the link's latency, so `b`'s
     guard `est_state_x > 0.5` holds from t = latency: it fires then, in the micro-step
     after the one that consumed the copy — not at b's next law tick (0.05 s)."""
@@ -84,7 +85,8 @@ simulation: {duration: 5.0, sample_period: 0.5}
 
 
 def test_held_inputs_keep_their_values_and_inputs_of_time_or_variables_are_resampled(
-        team_from_yaml):
+    team_from_yaml,
+):
     """Only inputs of parameters alone are held between ticks. Ramp's omega (time and a
     variable) is sampled at every tick t_j = 0.5 j: the heading after 5 s is the sum of
     0.5 (0.1 t_j + 0.2 k_j), k_j the re-entries at or before t_j (2 s and 4 s): 1.125 + 0.8.

@@ -66,8 +66,10 @@ def test_handover_takes_one_latency_each_way(team_from_yaml, d):
     assert t_b - t_a == pytest.approx(d, abs=1e-12)
     assert t_c - t_b == pytest.approx(d, abs=1e-12)
     msgs = [(m.sender, m.receiver, m.type, m.t_send, m.t_recv, m.status) for m in run.messages]
-    assert msgs == [("follower", "leader", "request", 1.0, 1.0 + d, "delivered"),
-                    ("leader", "follower", "grant", t_b, t_b + d, "delivered")]
+    assert msgs == [
+        ("follower", "leader", "request", 1.0, 1.0 + d, "delivered"),
+        ("leader", "follower", "grant", t_b, t_b + d, "delivered"),
+    ]
     assert run.outcome == "ok"
 
 
@@ -116,8 +118,9 @@ simulation: {{duration: {duration}}}
 
 
 def beacon(team_from_yaml, period=0.01, jitter=0.0, loss=0.0, limits="{}", duration=10.0):
-    return team_from_yaml(BEACON.format(period=period, jitter=jitter, loss=loss, limits=limits,
-                                        duration=duration))
+    return team_from_yaml(
+        BEACON.format(period=period, jitter=jitter, loss=loss, limits=limits, duration=duration)
+    )
 
 
 def test_jitter_is_uniform_on_top_of_the_latency(team_from_yaml):
@@ -159,8 +162,7 @@ def test_receiver_limited_to_8_hz_drops_the_excess_of_a_20_hz_stream(team_from_y
     m = run.messages.filter(run.messages["reason"] != "run ended")
     kept = m.where(status="delivered")["t_recv"]
     dropped = m.where(reason="rate limit")
-    assert len(kept) + len(dropped) == len(m) == sends - len(run.messages.where(
-        reason="run ended"))
+    assert len(kept) + len(dropped) == len(m) == sends - len(run.messages.where(reason="run ended"))
     assert np.all(np.diff(kept) >= 1 / 8 - 1e-9)
     # each drop arrived while the receiver was still busy with the last accepted message
     for t in dropped["t_recv"]:
@@ -196,7 +198,8 @@ def test_ensemble_over_loss_rates_equals_single_runs(team_from_yaml):
 def test_network_errors_are_located(team_from_yaml):
     bad = HANDSHAKE.format(d=0.03, loss=0.0, priority=2).replace(
         "network: {latency: d, loss: p_loss}",
-        "network: {latency: dd, loss: p_loss, links: {'leader->folower': {loss: 0.5}}}")
+        "network: {latency: dd, loss: p_loss, links: {'leader->folower': {loss: 0.5}}}",
+    )
     with pytest.raises(InputErrors) as err:
         team_from_yaml(bad)
     text = str(err.value)
@@ -206,7 +209,8 @@ def test_network_errors_are_located(team_from_yaml):
 
 def test_reply_needs_a_triggering_message(team_from_yaml):
     bad = HANDSHAKE.format(d=0.03, loss=0.0, priority=2).replace(
-        "{send: request, to: leader,", "{send: request, to: sender,")
+        "{send: request, to: leader,", "{send: request, to: sender,"
+    )
     with pytest.raises(InputErrors, match="'to: sender' replies to the sender"):
         team_from_yaml(bad)
 
@@ -251,14 +255,17 @@ def test_a_team_declares_its_own_acknowledged_message(team_from_yaml):
     run = ht.simulate(team_from_yaml(PING.replace("{loss}", "0.0")))
     tr = run.transitions.where(agent="b")
     assert [(t, g) for t, g in zip(tr["t"], tr["target"], strict=True)][-1] == (
-        pytest.approx(1.02), "Heard")
+        pytest.approx(1.02),
+        "Heard",
+    )
     assert sorted(run.messages["type"].tolist()) == ["ack", "ping"]
 
 
 # ------------------------------------------------------------ network settings as overrides
 def _messages_equal(a, b) -> bool:
     return list(a.messages["status"]) == list(b.messages["status"]) and np.array_equal(
-        a.messages["t_recv"], b.messages["t_recv"], equal_nan=True)
+        a.messages["t_recv"], b.messages["t_recv"], equal_nan=True
+    )
 
 
 def test_network_settings_are_override_keys(team_from_yaml, tmp_path):
@@ -266,13 +273,13 @@ def test_network_settings_are_override_keys(team_from_yaml, tmp_path):
     is the run of the same file saying ``jitter: 0``, and the other instance of the
     ensemble is the file's own run."""
     text = BEACON.format(period=0.05, jitter=0, loss=0, limits="{}", duration=2.0).replace(
-        "loss: p", "loss: 0.2")
+        "loss: p", "loss: 0.2"
+    )
     jittery = team_from_yaml(text.replace("jitter: j", "jitter: 0.05"), "jittery.yaml")
     calm = team_from_yaml(text.replace("jitter: j", "jitter: 0"), "calm.yaml")
     own, still = ht.simulate(jittery, seed=3), ht.simulate(calm, seed=3)
     assert not _messages_equal(own, still)  # the jitter matters in this team
-    assert _messages_equal(ht.simulate(jittery, seed=3, overrides={"network.jitter": 0}),
-                           still)
+    assert _messages_equal(ht.simulate(jittery, seed=3, overrides={"network.jitter": 0}), still)
     both = ht.simulate(jittery, n=2, seed=3, overrides={"network.jitter": [0.0, 0.05]})
     assert _messages_equal(both.instance(0), still) and _messages_equal(both.instance(1), own)
     sure = ht.simulate(jittery, seed=3, overrides={"network.loss": 0}).messages
@@ -281,8 +288,23 @@ def test_network_settings_are_override_keys(team_from_yaml, tmp_path):
     from hybridteam.cli import main
 
     out = tmp_path / "out"
-    assert main(["run", str(tmp_path / "jittery.yaml"), "-o", str(out), "--seed", "3",
-                 "--quiet", "--no-views", "--set", "network.jitter=0"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(tmp_path / "jittery.yaml"),
+                "-o",
+                str(out),
+                "--seed",
+                "3",
+                "--quiet",
+                "--no-views",
+                "--set",
+                "network.jitter=0",
+            ]
+        )
+        == 0
+    )
     assert _messages_equal(ht.Run.load(out / "trace.json"), still)
 
 
@@ -290,26 +312,43 @@ def test_a_declared_links_settings_are_override_keys(team_from_yaml):
     """A link the team declares: ``network.links.beacon->listener.latency`` (no jitter:
     every copy takes exactly that long); a link it does not declare is no key."""
     text = BEACON.format(period=0.25, jitter=0, loss=0, limits="{}", duration=2.0).replace(
-        "  rate_limits:", '  links: {"beacon -> listener": {latency: 0.3}}\n  rate_limits:')
+        "  rate_limits:", '  links: {"beacon -> listener": {latency: 0.3}}\n  rate_limits:'
+    )
     team = team_from_yaml(text)
-    m = ht.simulate(team, overrides={"network.links.beacon->listener.latency": 0.2}
-                    ).messages.where(status="delivered")
+    m = ht.simulate(team, overrides={"network.links.beacon->listener.latency": 0.2}).messages.where(
+        status="delivered"
+    )
     assert len(m) == 7 and np.allclose(m["t_recv"] - m["t_send"], 0.2, rtol=0, atol=1e-12)
-    with pytest.raises(ValueError, match=r"override 'network.links.listener->beacon.latency' "
-                       r"names no network setting; did you mean "
-                       r"'network.links.beacon->listener.latency'\?"):
+    with pytest.raises(
+        ValueError,
+        match=r"override 'network.links.listener->beacon.latency' "
+        r"names no network setting; did you mean "
+        r"'network.links.beacon->listener.latency'\?",
+    ):
         ht.simulate(team, overrides={"network.links.listener->beacon.latency": 0.2})
 
 
-@pytest.mark.parametrize(("key", "value", "words"), [
-    ("network.jiter", 0.0, "override 'network.jiter' names no network setting; did you mean "
-     "'network.jitter'?"),
-    ("network.loss", 1.5, "override 'network.loss' is 1.5 in instance 0; it must be a number "
-     "in [0, 1]"),
-    ("network.latency", -0.1, "override 'network.latency' is -0.1 in instance 0; it must be "
-     "a number >= 0"),
-    ("jitter", 0.0, "override 'jitter' names no parameter; did you mean 'network.jitter'?"),
-])
+@pytest.mark.parametrize(
+    ("key", "value", "words"),
+    [
+        (
+            "network.jiter",
+            0.0,
+            "override 'network.jiter' names no network setting; did you mean 'network.jitter'?",
+        ),
+        (
+            "network.loss",
+            1.5,
+            "override 'network.loss' is 1.5 in instance 0; it must be a number in [0, 1]",
+        ),
+        (
+            "network.latency",
+            -0.1,
+            "override 'network.latency' is -0.1 in instance 0; it must be a number >= 0",
+        ),
+        ("jitter", 0.0, "override 'jitter' names no parameter; did you mean 'network.jitter'?"),
+    ],
+)
 def test_bad_network_overrides_say_why(team_from_yaml, key, value, words):
     team = beacon(team_from_yaml, duration=0.1)
     with pytest.raises(ValueError) as err:

@@ -26,23 +26,30 @@ arithmetic = st.recursive(
     names | numbers,
     lambda inner: st.one_of(
         st.tuples(inner, st.sampled_from(["+", "-", "*", "/"]), inner).map(
-            lambda p: f"({p[0]} {p[1]} {p[2]})"),
+            lambda p: f"({p[0]} {p[1]} {p[2]})"
+        ),
         inner.map(lambda e: f"-{e}"),
-        st.lists(inner, min_size=3, max_size=4).map(" - ".join)),  # a chain: one fold
-    max_leaves=8)
-values = st.sampled_from([0.0, -0.0, 1.0, -2.5, 1e-310, 3e300, -3e300, np.inf, -np.inf,
-                          np.nan, 0.1, 7.0])
+        st.lists(inner, min_size=3, max_size=4).map(" - ".join),
+    ),  # a chain: one fold
+    max_leaves=8,
+)
+values = st.sampled_from(
+    [0.0, -0.0, 1.0, -2.5, 1e-310, 3e300, -3e300, np.inf, -np.inf, np.nan, 0.1, 7.0]
+)
 
 
 @settings(max_examples=300, deadline=None)
-@given(arithmetic, st.sampled_from(["<", "<=", ">", ">="]), arithmetic,
-       st.lists(values, min_size=6, max_size=6))
+@given(
+    arithmetic,
+    st.sampled_from(["<", "<=", ">", ">="]),
+    arithmetic,
+    st.lists(values, min_size=6, max_size=6),
+)
 def test_an_atom_on_floats_gives_the_bits_of_its_array_evaluation(lhs, op, rhs, vals):
     (atom,) = compile_expression(f"{lhs} {op} {rhs}", SYMS, condition=True).atoms
     assert atom.row is not None
     x, y, n, k, t, t_in = vals
-    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]),
-              np.array([t_in]))
+    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]), np.array([t_in]))
     with np.errstate(all="ignore"):
         truth, margin = atom.truth_and_margin(ctx)
         r_truth, r_margin = atom.row(Row([x, y], [n], [k], t, t_in))
@@ -56,10 +63,15 @@ def test_an_atom_on_floats_gives_the_bits_of_its_array_evaluation(lhs, op, rhs, 
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.tuples(arithmetic, st.sampled_from(["<", "<=", ">", ">=", "==", "!="]),
-                          arithmetic), min_size=1, max_size=4),
-       st.lists(st.sampled_from(["and", "or", "and not"]), min_size=3, max_size=3),
-       st.lists(values, min_size=6, max_size=6))
+@given(
+    st.lists(
+        st.tuples(arithmetic, st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), arithmetic),
+        min_size=1,
+        max_size=4,
+    ),
+    st.lists(st.sampled_from(["and", "or", "and not"]), min_size=3, max_size=3),
+    st.lists(values, min_size=6, max_size=6),
+)
 def test_a_condition_on_floats_gives_its_array_truth(comparisons, words, vals):
     """Guards and invariants (comparisons joined by and, or, not; ``true``) on floats,
     as a crossing search judges a flip's guard."""
@@ -70,16 +82,16 @@ def test_a_condition_on_floats_gives_its_array_truth(comparisons, words, vals):
     expr = compile_expression(f"true and ({source})", SYMS, condition=True)
     assert expr.row is not None
     x, y, n, k, t, t_in = vals
-    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]),
-              np.array([t_in]))
+    ctx = Ctx(np.array([[x, y]]), np.array([[n]]), np.array([[k]]), np.array([t]), np.array([t_in]))
     with np.errstate(all="ignore"):
         expected = bool(np.asarray(expr(ctx)).reshape(-1)[0])
     got = expr.row(Row([x, y], [n], [k], t, t_in))
     assert type(got) is bool and got == expected
 
 
-@pytest.mark.parametrize("source", ["sin(x) < 1", "x ** 2 < 1", "x % 2 < 1", "abs(x) < 1",
-                                    "max(x, y) < 1"])
+@pytest.mark.parametrize(
+    "source", ["sin(x) < 1", "x ** 2 < 1", "x % 2 < 1", "abs(x) < 1", "max(x, y) < 1"]
+)
 def test_atoms_with_other_operations_have_no_float_form(source):
     """Functions, powers and remainders may round differently on floats than numpy's
     array loops do: they keep the array evaluation."""
@@ -111,9 +123,15 @@ simulation: {duration: 6.0, sample_period: 0.5}
 """
 
 
-@pytest.mark.parametrize(("name", "duration"), [("bouncing_ball.yaml", 3.0),
-                                                ("thermostat.yaml", 60.0),
-                                                ("water_tanks.yaml", None), ("swing", None)])
+@pytest.mark.parametrize(
+    ("name", "duration"),
+    [
+        ("bouncing_ball.yaml", 3.0),
+        ("thermostat.yaml", 60.0),
+        ("water_tanks.yaml", None),
+        ("swing", None),
+    ],
+)
 def test_the_float_search_changes_no_bit_of_a_run(team_from_yaml, name, duration):
     """A single run's search on floats (checkpoints, dense search, judgement) against the
     same search on one-element arrays (the public switch off): byte-identical traces.

@@ -10,13 +10,19 @@ from hybridteam.engine.run.schedule import FEW, earliest
 
 #: times as the engine schedules them, and the values where numpy's rules show: ties of
 #: zeros of both signs, infinities, NaN
-TIMES = st.one_of(st.sampled_from([0.0, -0.0, np.inf, np.nan, 0.1, 0.30000000000000004]),
-                  st.floats(-1e3, 1e3, allow_nan=False), st.floats(allow_nan=True))
+TIMES = st.one_of(
+    st.sampled_from([0.0, -0.0, np.inf, np.nan, 0.1, 0.30000000000000004]),
+    st.floats(-1e3, 1e3, allow_nan=False),
+    st.floats(allow_nan=True),
+)
 
 
 def by_numpy(instants: np.ndarray, n_at: int) -> tuple[np.ndarray, ...]:
-    return (np.minimum.reduce(instants, axis=0), np.fmin.reduce(instants[:n_at], axis=0),
-            np.fmin.reduce(instants[n_at:], axis=0))
+    return (
+        np.minimum.reduce(instants, axis=0),
+        np.fmin.reduce(instants[:n_at], axis=0),
+        np.fmin.reduce(instants[n_at:], axis=0),
+    )
 
 
 @settings(max_examples=300, deadline=None)
@@ -42,8 +48,10 @@ def test_a_signed_zero_tie_never_reaches_the_clock() -> None:
     """Either zero as the earliest instant gives the clock's own zero as the step's end,
     as the simulator takes it: ``np.maximum(first, t)``."""
     t = np.zeros(2)
-    for instants in (np.array([[0.0, -0.0], [-0.0, 0.0], [1.0, 1.0]]),
-                     np.array([[-0.0, -0.0], [-0.0, -0.0], [1.0, 1.0]])):
+    for instants in (
+        np.array([[0.0, -0.0], [-0.0, 0.0], [1.0, 1.0]]),
+        np.array([[-0.0, -0.0], [-0.0, -0.0], [1.0, 1.0]]),
+    ):
         first = earliest(instants, 2)[0]
         t1 = np.maximum(first, t)
         assert t1.tobytes() == t.tobytes()

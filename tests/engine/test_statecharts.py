@@ -14,8 +14,9 @@ import hybridteam as ht
 
 
 def steps(run: ht.Run) -> list[tuple[float, int, str, str]]:
-    return [(round(r.t, 9), r.step, r.source, r.target) for r in run.transitions
-            if r.cause != "init"]
+    return [
+        (round(r.t, 9), r.step, r.source, r.target) for r in run.transitions if r.cause != "init"
+    ]
 
 
 def leaves_from(run: ht.Run, t: float) -> list[str]:
@@ -62,16 +63,22 @@ PARALLEL_HISTORY = """
 """
 
 
-@pytest.mark.parametrize(("kind", "back"), [
-    ("none", ["P.R1.a", "P.R2.c"]),
-    ("shallow", ["P.R1.b.b1", "P.R2.d"]),   # each region's child, b's initial below it
-    ("deep", ["P.R1.b.b2", "P.R2.d"]),      # the whole configuration
-])
+@pytest.mark.parametrize(
+    ("kind", "back"),
+    [
+        ("none", ["P.R1.a", "P.R2.c"]),
+        ("shallow", ["P.R1.b.b1", "P.R2.d"]),  # each region's child, b's initial below it
+        ("deep", ["P.R1.b.b2", "P.R2.d"]),  # the whole configuration
+    ],
+)
 def test_history_on_a_parallel_mode_restores_its_regions(team_from_yaml, kind, back):
     run = ht.simulate(team_from_yaml(PARALLEL_HISTORY.format(kind=kind)))
     assert steps(run)[:4] == [
-        (1.0, 0, "P.R1.a", "P.R1.b"), (1.0, 0, "P.R2.c", "P.R2.d"),
-        (1.25, 0, "P.R1.b.b1", "P.R1.b.b2"), (1.5, 0, "P", "Out")]
+        (1.0, 0, "P.R1.a", "P.R1.b"),
+        (1.0, 0, "P.R2.c", "P.R2.d"),
+        (1.25, 0, "P.R1.b.b1", "P.R1.b.b2"),
+        (1.5, 0, "P", "Out"),
+    ]
     assert steps(run)[4] == (2.5, 0, "Out", "P")
     assert leaves_from(run, 2.5) == back
 
@@ -102,8 +109,12 @@ def test_a_transition_without_target_on_a_region_runs_in_place(team_from_yaml):
         simulation: {duration: 3}
     """)
     run = ht.simulate(team)
-    assert steps(run) == [(0.5, 0, "P.R1", "P.R1"), (1.0, 0, "P.R1.a", "P.R1.b"),
-                          (2.0, 0, "P.R1", "P.R1"), (2.0, 1, "P.R2.c", "P.R2.d")]
+    assert steps(run) == [
+        (0.5, 0, "P.R1", "P.R1"),
+        (1.0, 0, "P.R1.a", "P.R1.b"),
+        (2.0, 0, "P.R1", "P.R1"),
+        (2.0, 1, "P.R2.c", "P.R2.d"),
+    ]
     # (R2 moved at 2: n reached 2.) R1's child b was not left by the second ping: one
     # interval of it, from 1 to the end of the run
     assert [(r.start, r.end) for r in run.intervals if r.mode == "P.R1.b"] == [(1.0, 2.0)]
@@ -168,8 +179,10 @@ REGION_SELF = """
 """
 
 
-@pytest.mark.parametrize(("target", "back"), [
-    ("R1", ["P.R1.a", "P.R2.c"]), ("R1.b", ["P.R1.b", "P.R2.c"]), ("R2.d", ["P.R1.a", "P.R2.d"])])
+@pytest.mark.parametrize(
+    ("target", "back"),
+    [("R1", ["P.R1.a", "P.R2.c"]), ("R1.b", ["P.R1.b", "P.R2.c"]), ("R2.d", ["P.R1.a", "P.R2.d"])],
+)
 def test_a_region_to_itself_leaves_and_reenters_every_region(team_from_yaml, target, back):
     """The transition's domain is the parallel mode P: both regions are left and entered
     again (R2 by default), P itself stays active (one interval of it, to the end)."""
@@ -181,8 +194,7 @@ def test_a_region_to_itself_leaves_and_reenters_every_region(team_from_yaml, tar
     assert [(r.start, r.end) for r in run.intervals if r.mode == "P"] == [(0.0, 2.0)]
 
 
-def test_a_parallel_domain_runs_its_regions_exit_and_entry_actions_not_its_own(
-        team_from_yaml):
+def test_a_parallel_domain_runs_its_regions_exit_and_entry_actions_not_its_own(team_from_yaml):
     """SCION's more-parallel/test10b: x counts P's and a's entries and exits; a -> a
     leaves and re-enters a, not P: x = 2 (entering P, a), then 4."""
     team = team_from_yaml("""
@@ -208,7 +220,6 @@ def test_a_parallel_domain_runs_its_regions_exit_and_entry_actions_not_its_own(
     run = ht.simulate(team)
     assert steps(run) == [(1.0, 0, "P.a", "P.a")]
     assert counter(run) == 4.0
-
 
 
 def test_entry_and_exit_actions_run_in_statechart_order(team_from_yaml):
@@ -314,32 +325,45 @@ IN_MODE = """
 """
 
 
-@pytest.mark.parametrize(("guard", "when"), [
-    ("in_mode(R1.b)", 1.5), ("in_mode(b)", 1.5), ("not in_mode(P.R1.b)", 0.5),
-    ("in_mode(R1) and n == 0", 0.5)])
+@pytest.mark.parametrize(
+    ("guard", "when"),
+    [
+        ("in_mode(R1.b)", 1.5),
+        ("in_mode(b)", 1.5),
+        ("not in_mode(P.R1.b)", 0.5),
+        ("in_mode(R1) and n == 0", 0.5),
+    ],
+)
 def test_in_mode_reads_the_agents_own_configuration(team_from_yaml, guard, when):
     run = ht.simulate(team_from_yaml(IN_MODE.format(guard=guard)))
     assert (when, 0, "P.R2.c", "P.R2.d") in steps(run)
     assert len([s for s in steps(run) if s[2] == "P.R2.c"]) == 1
 
 
-@pytest.mark.parametrize(("guard", "message"), [
-    ("in_mode(R1.x)", "agent 'a' has no mode 'R1.x'"),
-    ("in_mode(other.b)", "agent 'a' has no mode 'other.b'"),
-    ("in_mode(b, c)", r"in_mode\(\) takes one mode name"),
-    ("in_mode(1)", r"in_mode\(\) takes one mode name"),
-    ("in_mode(b) + 1 > 0", "'\\+' needs a number, but this is a condition")])
+@pytest.mark.parametrize(
+    ("guard", "message"),
+    [
+        ("in_mode(R1.x)", "agent 'a' has no mode 'R1.x'"),
+        ("in_mode(other.b)", "agent 'a' has no mode 'other.b'"),
+        ("in_mode(b, c)", r"in_mode\(\) takes one mode name"),
+        ("in_mode(1)", r"in_mode\(\) takes one mode name"),
+        ("in_mode(b) + 1 > 0", "'\\+' needs a number, but this is a condition"),
+    ],
+)
 def test_in_mode_with_a_wrong_argument_is_a_located_error(team_from_yaml, guard, message):
     from hybridteam.io.filekind import InputErrors
+
     with pytest.raises(InputErrors, match=r"team\.yaml:19:\d+: .*guard: " + message):
         team_from_yaml(IN_MODE.format(guard=guard))
 
 
 def test_in_mode_stays_out_of_flows(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
+
     with pytest.raises(InputErrors, match="belongs to requirement formulas"):
-        team_from_yaml(IN_MODE.format(guard="n == 0").replace(
-            "b: {}", "b: {flow: {n: in_mode(a)}}"))
+        team_from_yaml(
+            IN_MODE.format(guard="n == 0").replace("b: {}", "b: {flow: {n: in_mode(a)}}")
+        )
 
 
 DOOR = """
@@ -373,8 +397,7 @@ def test_diagrams_show_entry_and_exit_actions(team_from_yaml):
     graph = diagram_graph(team_from_yaml(DOOR))
     node = graph.nodes
     assert node["door/Closed"]["behaviour"] == ["entry / raise locked"]
-    assert node["door/Open"]["behaviour"] == ["entry / opened = opened + 1",
-                                              "exit / send closed"]
+    assert node["door/Open"]["behaviour"] == ["entry / opened = opened + 1", "exit / send closed"]
     assert node["door/Open.Still"]["behaviour"] == []
     dot = render(graph, "dot")
     assert 'label="Closed\\nentry / raise locked"' in dot
@@ -412,6 +435,7 @@ def test_the_built_in_image_draws_actions_inside_their_boxes(team_from_yaml):
 
 def _title_width(layout, name: str) -> float:
     from hybridteam.export.layout import NAME_PT, _text_width
+
     return _text_width([name], NAME_PT)
 
 
@@ -443,30 +467,41 @@ DEEP_INITIAL = """
 """
 
 
-@pytest.mark.parametrize(("initial", "start"), [
-    ("A", ["S.A.a1"]), ("a2", ["S.A.a2"]), ("A.a2", ["S.A.a2"]),
-    ("x2", ["S.P.R1.x2", "S.P.R2.y1"]), ("P.R2.y2", ["S.P.R1.x1", "S.P.R2.y2"])])
+@pytest.mark.parametrize(
+    ("initial", "start"),
+    [
+        ("A", ["S.A.a1"]),
+        ("a2", ["S.A.a2"]),
+        ("A.a2", ["S.A.a2"]),
+        ("x2", ["S.P.R1.x2", "S.P.R2.y1"]),
+        ("P.R2.y2", ["S.P.R1.x1", "S.P.R2.y2"]),
+    ],
+)
 def test_initial_may_name_a_deeper_descendant(team_from_yaml, initial, start):
     """The way down is entered, a parallel mode on it enters its other regions by default;
     re-entering S by a transition takes the same way."""
-    run = ht.simulate(team_from_yaml(DEEP_INITIAL.format(top="S", initial=initial,
-                                                         history="")))
+    run = ht.simulate(team_from_yaml(DEEP_INITIAL.format(top="S", initial=initial, history="")))
     assert leaves_from(run, 0.0) == start
     assert leaves_from(run, 3.0) == start
 
 
-@pytest.mark.parametrize(("history", "back"), [
-    # nothing remembered yet at t=0 (S was never left): the history default; at t=3 S's
-    # remembered child A is restored, and below it A's initial a1 (shallow history)
-    ("history: {kind: shallow, default: a2}", ["S.A.a1"]),
-    ("history: {kind: deep, default: a2}", ["S.A.a2"]),
-    ("history: shallow", ["S.A.a1"])])
-def test_a_history_default_is_entered_while_nothing_is_remembered(team_from_yaml, history,
-                                                                  back):
-    team = team_from_yaml(DEEP_INITIAL.format(top="Out", initial="P", history=history)
-                          .replace("{at: 2, agent: a, raise: leave}",
-                                   "{at: 0.5, agent: a, raise: back}, "
-                                   "{at: 2, agent: a, raise: leave}"))
+@pytest.mark.parametrize(
+    ("history", "back"),
+    [
+        # nothing remembered yet at t=0 (S was never left): the history default; at t=3 S's
+        # remembered child A is restored, and below it A's initial a1 (shallow history)
+        ("history: {kind: shallow, default: a2}", ["S.A.a1"]),
+        ("history: {kind: deep, default: a2}", ["S.A.a2"]),
+        ("history: shallow", ["S.A.a1"]),
+    ],
+)
+def test_a_history_default_is_entered_while_nothing_is_remembered(team_from_yaml, history, back):
+    team = team_from_yaml(
+        DEEP_INITIAL.format(top="Out", initial="P", history=history).replace(
+            "{at: 2, agent: a, raise: leave}",
+            "{at: 0.5, agent: a, raise: back}, {at: 2, agent: a, raise: leave}",
+        )
+    )
     run = ht.simulate(team)
     first = ["S.P.R1.x1", "S.P.R2.y1"] if history == "history: shallow" else ["S.A.a2"]
     assert leaves_from(run, 0.5) == first
@@ -506,13 +541,18 @@ def test_several_targets_enter_one_mode_in_each_region(team_from_yaml):
     assert counter(run) == 312.0  # the transition's action, then entries in document order
 
 
-@pytest.mark.parametrize(("to", "message"), [
-    ("[R1.x2, R1.x1]", "targets 'P.R1.x2' and 'P.R1.x1' are not in different regions"),
-    ("[P, R1.x1]", "targets 'P' and 'P.R1.x1' are not in different regions"),
-    ("[R1.x2, nowhere]", "unknown mode 'nowhere'"),
-    ("[]", "at least 1 item")])
+@pytest.mark.parametrize(
+    ("to", "message"),
+    [
+        ("[R1.x2, R1.x1]", "targets 'P.R1.x2' and 'P.R1.x1' are not in different regions"),
+        ("[P, R1.x1]", "targets 'P' and 'P.R1.x1' are not in different regions"),
+        ("[R1.x2, nowhere]", "unknown mode 'nowhere'"),
+        ("[]", "at least 1 item"),
+    ],
+)
 def test_several_targets_in_one_region_are_refused(team_from_yaml, to, message):
     from hybridteam.io.filekind import InputErrors
+
     with pytest.raises(InputErrors, match=message):
         team_from_yaml(f"""
             team: bad_fork
@@ -530,25 +570,37 @@ def test_several_targets_in_one_region_are_refused(team_from_yaml, to, message):
         """)
 
 
-@pytest.mark.parametrize(("key", "value", "message"), [
-    ("initial", "Out", "unknown initial mode 'Out'"),
-    ("initial", "zz", "unknown initial mode 'zz'"),
-    ("history", "{kind: deep, default: y9}", "unknown history default 'y9'")])
-def test_an_initial_or_history_default_outside_the_mode_is_refused(team_from_yaml, key, value,
-                                                                  message):
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("initial", "Out", "unknown initial mode 'Out'"),
+        ("initial", "zz", "unknown initial mode 'zz'"),
+        ("history", "{kind: deep, default: y9}", "unknown history default 'y9'"),
+    ],
+)
+def test_an_initial_or_history_default_outside_the_mode_is_refused(
+    team_from_yaml, key, value, message
+):
     from hybridteam.io.filekind import InputErrors
+
     text = DEEP_INITIAL.format(top="S", initial="A", history="")
-    text = text.replace("initial: A\n", f"{key}: {value}\n" + (
-        "            initial: A\n" if key == "history" else ""))
+    text = text.replace(
+        "initial: A\n",
+        f"{key}: {value}\n" + ("            initial: A\n" if key == "history" else ""),
+    )
     with pytest.raises(InputErrors, match=message):
         team_from_yaml(text)
 
 
 def test_a_history_default_on_a_parallel_mode_is_refused(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
+
     text = PARALLEL_HISTORY.format(kind="{kind: shallow, default: R1.b}")
-    with pytest.raises(InputErrors, match=r"team\.yaml:10:43: .*history\.default: a history "
-                       "default .*give it to a region"):
+    with pytest.raises(
+        InputErrors,
+        match=r"team\.yaml:10:43: .*history\.default: a history "
+        "default .*give it to a region",
+    ):
         team_from_yaml(text)
 
 
@@ -569,8 +621,10 @@ def test_a_transition_with_several_targets_is_drawn_to_each(team_from_yaml):
                   R1: {initial: x1, modes: {x1: {}, x2: {}}}
                   R2: {initial: y1, modes: {y1: {}, y2: {}}}
     """)
-    assert [(u, v, d["label"]) for u, v, d in edges_of(diagram_graph(team), "transition")] \
-        == [("a/Idle", "a/P.R1.x2", "go"), ("a/Idle", "a/P.R2.y2", "go")]
+    assert [(u, v, d["label"]) for u, v, d in edges_of(diagram_graph(team), "transition")] == [
+        ("a/Idle", "a/P.R1.x2", "go"),
+        ("a/Idle", "a/P.R2.y2", "go"),
+    ]
 
 
 NESTED_EVENT = """
@@ -593,16 +647,21 @@ NESTED_EVENT = """
 """
 
 
-@pytest.mark.parametrize(("semantics", "outer", "fired", "n"), [
-    ("", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
-    ("semantics: {priority: outer_first}", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
-    ("semantics: {priority: inner_first}", "to: T, ", [(1.0, 0, "S.a", "S.b")], 2.0),
-    # without a target the outer one exits nothing: outer first, both fire (outer's action
-    # first); inner first, the inner one is chosen for the active leaf, as in SCXML
-    ("", "", [(1.0, 0, "S", "S"), (1.0, 0, "S.a", "S.b")], 12.0),
-    ("semantics: {priority: inner_first}", "", [(1.0, 0, "S.a", "S.b")], 2.0)])
-def test_the_priority_rule_picks_outer_or_inner_transitions(team_from_yaml, semantics, outer,
-                                                           fired, n):
+@pytest.mark.parametrize(
+    ("semantics", "outer", "fired", "n"),
+    [
+        ("", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
+        ("semantics: {priority: outer_first}", "to: T, ", [(1.0, 0, "S", "T")], 1.0),
+        ("semantics: {priority: inner_first}", "to: T, ", [(1.0, 0, "S.a", "S.b")], 2.0),
+        # without a target the outer one exits nothing: outer first, both fire (outer's action
+        # first); inner first, the inner one is chosen for the active leaf, as in SCXML
+        ("", "", [(1.0, 0, "S", "S"), (1.0, 0, "S.a", "S.b")], 12.0),
+        ("semantics: {priority: inner_first}", "", [(1.0, 0, "S.a", "S.b")], 2.0),
+    ],
+)
+def test_the_priority_rule_picks_outer_or_inner_transitions(
+    team_from_yaml, semantics, outer, fired, n
+):
     run = ht.simulate(team_from_yaml(NESTED_EVENT.format(semantics=semantics, outer=outer)))
     assert steps(run) == fired
     assert counter(run) == n
@@ -626,8 +685,10 @@ def test_inner_first_lets_the_inner_urgent_transition_go_before_the_outer(team_f
               Other: {final: true}
     """)
     # the inner one at (1, 0); Outer's delay, counted from 0, still holds at (1, 1)
-    assert steps(ht.simulate(team)) == [(1.0, 0, "Outer.Inner1", "Outer.Inner2"),
-                                        (1.0, 1, "Outer", "Other")]
+    assert steps(ht.simulate(team)) == [
+        (1.0, 0, "Outer.Inner1", "Outer.Inner2"),
+        (1.0, 1, "Outer", "Other"),
+    ]
 
 
 REGIONS_RACE = """
@@ -660,26 +721,38 @@ DEEP_X = "{initial: a1, modes: {a1: {transitions: [{to: X, on: go}]}}}"
 DEEP_Y = "{initial: c1, modes: {c1: {transitions: [{to: Y, on: go}]}}}"
 
 
-@pytest.mark.parametrize(("rule", "r1", "r2", "winner"), [
-    # both leave P: one fires. Outer first: the shallower source; at equal depth the
-    # region written first. Inner first: the region written first (SCXML's document order:
-    # neither source is inside the other), whatever the depths.
-    ("outer_first", LEAF_X, LEAF_Y, "X"), ("outer_first", DEEP_X, LEAF_Y, "Y"),
-    ("outer_first", LEAF_X, DEEP_Y, "X"),
-    ("inner_first", LEAF_X, LEAF_Y, "X"), ("inner_first", DEEP_X, LEAF_Y, "X"),
-    ("inner_first", LEAF_X, DEEP_Y, "X")])
+@pytest.mark.parametrize(
+    ("rule", "r1", "r2", "winner"),
+    [
+        # both leave P: one fires. Outer first: the shallower source; at equal depth the
+        # region written first. Inner first: the region written first (SCXML's document order:
+        # neither source is inside the other), whatever the depths.
+        ("outer_first", LEAF_X, LEAF_Y, "X"),
+        ("outer_first", DEEP_X, LEAF_Y, "Y"),
+        ("outer_first", LEAF_X, DEEP_Y, "X"),
+        ("inner_first", LEAF_X, LEAF_Y, "X"),
+        ("inner_first", DEEP_X, LEAF_Y, "X"),
+        ("inner_first", LEAF_X, DEEP_Y, "X"),
+    ],
+)
 def test_between_regions_the_rules_differ_only_in_depth(team_from_yaml, rule, r1, r2, winner):
-    run = ht.simulate(team_from_yaml(REGIONS_RACE.format(
-        semantics=f"semantics: {{priority: {rule}}}", r1=r1, r2=r2)))
+    run = ht.simulate(
+        team_from_yaml(
+            REGIONS_RACE.format(semantics=f"semantics: {{priority: {rule}}}", r1=r1, r2=r2)
+        )
+    )
     assert [s[3] for s in steps(run)] == [winner]
 
 
 def test_an_unknown_priority_rule_is_a_located_error(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
-    with pytest.raises(InputErrors, match=r"team\.yaml:3:\d+: semantics\.priority: .*"
-                       "expected one of 'outer_first', 'inner_first', got 'scxml'"):
-        team_from_yaml(NESTED_EVENT.format(semantics="semantics: {priority: scxml}",
-                                           outer=""))
+
+    with pytest.raises(
+        InputErrors,
+        match=r"team\.yaml:3:\d+: semantics\.priority: .*"
+        "expected one of 'outer_first', 'inner_first', got 'scxml'",
+    ):
+        team_from_yaml(NESTED_EVENT.format(semantics="semantics: {priority: scxml}", outer=""))
 
 
 def test_a_transition_on_an_event_name_is_woken_by_its_dotted_descendants(team_from_yaml):
@@ -704,8 +777,7 @@ def test_a_transition_on_an_event_name_is_woken_by_its_dotted_descendants(team_f
         simulation: {duration: 6}
     """)
     # at 2 'foo' is not foo.bar; at 4 'foobar' is not foo.*; at 5 'foo.barn' is
-    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C"),
-                                        (5.0, 0, "C", "D")]
+    assert steps(ht.simulate(team)) == [(1.0, 0, "A", "B"), (3.0, 0, "B", "C"), (5.0, 0, "C", "D")]
 
 
 LOCAL = """
@@ -728,12 +800,16 @@ LOCAL = """
 """
 
 
-@pytest.mark.parametrize(("local", "n", "s_intervals"), [
-    # external: a1 (3), S (2) exit; S (1), a2 (4) enter
-    # (the run ends at 1: nothing is left to wait for)
-    ("", 13214.0, [(0.0, 1.0), (1.0, 1.0)]),
-    # local: S is neither left nor entered: a1 exits (3), a2 enters (4)
-    (", local: true", 134.0, [(0.0, 1.0)])])
+@pytest.mark.parametrize(
+    ("local", "n", "s_intervals"),
+    [
+        # external: a1 (3), S (2) exit; S (1), a2 (4) enter
+        # (the run ends at 1: nothing is left to wait for)
+        ("", 13214.0, [(0.0, 1.0), (1.0, 1.0)]),
+        # local: S is neither left nor entered: a1 exits (3), a2 enters (4)
+        (", local: true", 134.0, [(0.0, 1.0)]),
+    ],
+)
 def test_a_local_transition_stays_in_its_source(team_from_yaml, local, n, s_intervals):
     run = ht.simulate(team_from_yaml(LOCAL.format(local=local)))
     assert steps(run) == [(1.0, 0, "S", "S.a2")]
@@ -743,9 +819,13 @@ def test_a_local_transition_stays_in_its_source(team_from_yaml, local, n, s_inte
 
 def test_a_local_transition_must_target_inside_its_source(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
+
     text = LOCAL.format(local=", local: true").replace("to: a2", "to: S")
-    with pytest.raises(InputErrors, match=r"team\.yaml:12:\d+: .*local: a local transition "
-                       "stays inside its source: its targets must be modes inside 'S'"):
+    with pytest.raises(
+        InputErrors,
+        match=r"team\.yaml:12:\d+: .*local: a local transition "
+        "stays inside its source: its targets must be modes inside 'S'",
+    ):
         team_from_yaml(text)
 
 

@@ -97,9 +97,11 @@ def expected(team: ht.Team):
     parents, kinds = {}, {}
     trans: Counter = Counter()
     for agent in cteam.agents:
+
         def mid(i, agent=agent):
             path = agent.modes[i].path
             return f"{agent.name}/{path}" if path else agent.name
+
         for m in agent.modes[1:]:
             parents[mid(m.index)] = mid(m.parent)
             kinds[mid(m.index)] = m.kind
@@ -119,23 +121,32 @@ def sid(node: str) -> str:
 def test_graph_of_relay_has_modes_transitions_and_messages():
     g = diagram_graph(ht.load(EXAMPLES / "automata" / "relay.yaml"))
     assert g.graph["name"] == "relay"
-    assert g.nodes["runner"] == {"kind": "agent", "label": "runner", "plant": "unicycle",
-                                 "history": "none"}
+    assert g.nodes["runner"] == {
+        "kind": "agent",
+        "label": "runner",
+        "plant": "unicycle",
+        "history": "none",
+    }
     run = g.nodes["runner/Run"]
     assert run["initial"] and run["mode_kind"] == "leaf" and not run["region"]
     assert run["dynamics"] == "inputs: v = speed, omega = 0 @10 Hz"
     assert g.nodes["runner/Done"]["final"] and g.nodes["runner/Done"]["color"] == FINAL
     # one colour per mode path across the team: different modes never share a colour
-    colours = [g.nodes[n]["color"] for n in ("runner/Run", "runner/Wait", "anchor/Ready",
-                                             "anchor/Arc")]
+    colours = [
+        g.nodes[n]["color"] for n in ("runner/Run", "runner/Wait", "anchor/Ready", "anchor/Arc")
+    ]
     assert len(set(colours)) == 4 and FINAL not in colours
     trans = [(u, v, d["label"], d["actions"]) for u, v, d in edges_of(g, "transition")]
     assert trans == [
         ("runner/Run", "runner/Wait", "[x >= handover] / send baton", ["send baton -> anchor"]),
         ("runner/Wait", "runner/Done", "done", []),
         ("anchor/Ready", "anchor/Arc", "baton", []),
-        ("anchor/Arc", "anchor/Done", "after((pi / 2) * radius / speed) / send done",
-         ["send done -> runner"]),
+        (
+            "anchor/Arc",
+            "anchor/Done",
+            "after((pi / 2) * radius / speed) / send done",
+            ["send done -> runner"],
+        ),
     ]
     msgs = [(u, v, d["message"]) for u, v, d in edges_of(g, "message")]
     assert msgs == [("runner/Run", "anchor/Ready", "baton"), ("anchor/Arc", "runner/Wait", "done")]
@@ -145,21 +156,33 @@ def test_graph_of_nested_model_has_hierarchy_attributes(nested):
     g = diagram_graph(nested)
     n = g.nodes
     keys = ("mode_kind", "history", "initial", "region", "depth")
-    assert {m: tuple(n[f"carrier/{m}"][k] for k in keys) for m in (
-        "Work", "Work.Dock", "Work.Transport", "Work.Transport.Drive", "Work.Transport.Talk",
-        "Work.Transport.Drive.Fwd", "Work.Transport.Drive.Back")} == {
+    assert {
+        m: tuple(n[f"carrier/{m}"][k] for k in keys)
+        for m in (
+            "Work",
+            "Work.Dock",
+            "Work.Transport",
+            "Work.Transport.Drive",
+            "Work.Transport.Talk",
+            "Work.Transport.Drive.Fwd",
+            "Work.Transport.Drive.Back",
+        )
+    } == {
         "Work": ("or", "deep", True, False, 1),
         "Work.Dock": ("or", "none", True, False, 2),
         "Work.Transport": ("and", "none", False, False, 2),  # parallel: no initial
         "Work.Transport.Drive": ("or", "none", False, True, 3),  # regions
         "Work.Transport.Talk": ("or", "shallow", False, True, 3),
         "Work.Transport.Drive.Fwd": ("leaf", "none", True, False, 4),
-        "Work.Transport.Drive.Back": ("leaf", "none", False, False, 4)}
+        "Work.Transport.Drive.Back": ("leaf", "none", False, False, 4),
+    }
     approach = n["carrier/Work.Dock.Approach"]
     assert (approach["dynamics"], approach["invariant"]) == ("flow: c' = 1", "c <= 3")
     contains = [(u, v) for u, v, _ in edges_of(g, "contains")]
-    assert {("carrier/Work.Transport", "carrier/Work.Transport.Talk"),
-            ("carrier", "carrier/Work")} <= set(contains)
+    assert {
+        ("carrier/Work.Transport", "carrier/Work.Transport.Talk"),
+        ("carrier", "carrier/Work"),
+    } <= set(contains)
     latch = next(d for u, _, d in edges_of(g, "transition") if u == "carrier/Work.Dock.Approach")
     assert latch["guard"] == "c >= 2" and latch["actions"] == ["c = 0", "raise go"]
     assert latch["label"] == "[c >= 2] / c = 0; raise go"
@@ -201,7 +224,7 @@ def parse_dot(text: str):
         for child in sub.get_subgraphs():
             name = _unq(child.get_name())
             assert name.startswith("cluster_")
-            mode = name[len("cluster_"):]
+            mode = name[len("cluster_") :]
             if owner is not None:
                 parents[mode] = owner
             visit(child, mode)
@@ -231,8 +254,10 @@ def test_dot_of_every_example_has_exactly_its_modes_and_transitions(path: Path):
     assert leaves == {m for m, k in kinds.items() if k == "leaf"}
     assert edges["transition"] == trans
     if path.stem == "relay":  # dashed (checked in parse_dot) and labelled with the type
-        assert set(edges["message"]) == {("runner/Run", "anchor/Ready", "baton"),
-                                         ("anchor/Arc", "runner/Wait", "done")}
+        assert set(edges["message"]) == {
+            ("runner/Run", "anchor/Ready", "baton"),
+            ("anchor/Arc", "runner/Wait", "done"),
+        }
 
 
 def test_dot_nesting_regions_and_initials(nested):
@@ -249,15 +274,19 @@ def test_dot_nesting_regions_and_initials(nested):
     (dot,) = pydot.graph_from_dot_data(text)
     (defaults,) = dot.get_node("graph")
     assert _unq(defaults.get_attributes()["compound"]) == "true"
-    assert re.search(r'subgraph "cluster_carrier/Work.Transport.Talk" \{\s*graph \[label="Talk '
-                     r'\(H\)", style="rounded,dashed"', text)
+    assert re.search(
+        r'subgraph "cluster_carrier/Work.Transport.Talk" \{\s*graph \[label="Talk '
+        r'\(H\)", style="rounded,dashed"',
+        text,
+    )
 
 
 def test_dot_quotes_awkward_labels():
     g = diagram_graph(ht.load(EXAMPLES / "automata" / "thermostat.yaml"))
     awkward = 'x "quoted" <tag> & \\back; a.b'
-    u, v, k = next((u, v, k) for u, v, k, d in g.edges(keys=True, data=True)
-                   if d["kind"] == "transition")
+    u, v, k = next(
+        (u, v, k) for u, v, k, d in g.edges(keys=True, data=True) if d["kind"] == "transition"
+    )
     g.edges[u, v, k]["label"] = awkward
     g.nodes["thermostat/Heat"]["dynamics"] = awkward
     (dot,) = pydot.graph_from_dot_data(render(g, "dot"))
@@ -288,8 +317,10 @@ def parse_states(text: str, divider: str, message_arrow: str):
     relations: list[tuple[str | None, str, str, str]] = []
     messages: list[tuple[str, str, str]] = []
     state = re.compile(r'state "([^"]*)" as (\w+)( #[0-9A-Fa-f]{6})?( \{)?$')
-    link = re.compile(r"(\[\*\]|\w+) (-->|" + re.escape(message_arrow) + r") (\[\*\]|\w+)"
-                      r"(?: : (.*))?$")
+    link = re.compile(
+        r"(\[\*\]|\w+) (-->|" + re.escape(message_arrow) + r") (\[\*\]|\w+)"
+        r"(?: : (.*))?$"
+    )
     for ln in lines:
         if (m := state.match(ln)) is not None:
             parents[m.group(2)] = stack[-1] if stack else None
@@ -307,8 +338,11 @@ def parse_states(text: str, divider: str, message_arrow: str):
             else:
                 messages.append((a, b, label.removesuffix(" (message)")))
         else:
-            assert re.match(r"(stateDiagram-v2|%%|'|classDef|class |@startuml|@enduml|hide |"
-                            r"skinparam |title |\w+ : )", ln), ln
+            assert re.match(
+                r"(stateDiagram-v2|%%|'|classDef|class |@startuml|@enduml|hide |"
+                r"skinparam |title |\w+ : )",
+                ln,
+            ), ln
     assert not stack, "unbalanced {"
     return parents, relations, messages
 
@@ -318,21 +352,27 @@ def check_state_text(team: ht.Team, text: str, divider: str, message_arrow: str)
     got_parents, relations, messages = parse_states(text, divider, message_arrow)
     agents = [a.name for a in team.agents]
     assert {k: v for k, v in got_parents.items() if k not in agents} == {
-        sid(m): sid(p) for m, p in parents.items()}
+        sid(m): sid(p) for m, p in parents.items()
+    }
     assert all(got_parents[a] is None for a in agents)
     got = Counter((a, b) for _, a, b, _ in relations if "[*]" not in (a, b))
     assert got == Counter({(sid(a), sid(b)): n for (a, b), n in trans.items()})
     initials = {(blk, b) for blk, a, b, _ in relations if a == "[*]"}
-    want = {(sid(p), sid(m)) for m, p in parents.items()
-            if kinds.get(p) != "and" and diagram_graph(team).nodes[m]["initial"]}
+    want = {
+        (sid(p), sid(m))
+        for m, p in parents.items()
+        if kinds.get(p) != "and" and diagram_graph(team).nodes[m]["initial"]
+    }
     assert initials == want
     g = diagram_graph(team)
     assert {(a, b, m) for a, b, m in messages} == {
-        (sid(u), sid(v), d["message"]) for u, v, d in edges_of(g, "message")}
+        (sid(u), sid(v), d["message"]) for u, v, d in edges_of(g, "message")
+    }
 
 
-@pytest.mark.parametrize("fmt, divider, arrow", [("mermaid", "--", "-->"),
-                                                 ("plantuml", "||", "-[dashed]->")])
+@pytest.mark.parametrize(
+    "fmt, divider, arrow", [("mermaid", "--", "-->"), ("plantuml", "||", "-[dashed]->")]
+)
 def test_state_languages_for_every_model(models, fmt, divider, arrow):
     for team in models:
         text = render(diagram_graph(team), fmt)
@@ -351,14 +391,18 @@ def test_regions_are_separated_in_both_languages(nested):
     g = diagram_graph(nested)
     for fmt, divider in (("mermaid", "--"), ("plantuml", "||")):
         text = render(g, fmt)
-        block = text[text.index("as carrier__Work__Transport {"):]
-        drive, talk = block.index("carrier__Work__Transport__Drive {"), block.index(
-            "carrier__Work__Transport__Talk {")
+        block = text[text.index("as carrier__Work__Transport {") :]
+        drive, talk = (
+            block.index("carrier__Work__Transport__Drive {"),
+            block.index("carrier__Work__Transport__Talk {"),
+        )
         assert f"\n{' ' * 16}{divider}\n" in block[drive:talk]
         assert '"Work (H*)"' in text and '"Talk (H)"' in text
     # PlantUML cannot link into a concurrent region from outside: the parallel mode stands in
-    assert ("carrier__Break --> carrier__Work__Transport : resume (to Work.Transport.Drive.Back)"
-            in render(g, "plantuml"))
+    assert (
+        "carrier__Break --> carrier__Work__Transport : resume (to Work.Transport.Drive.Back)"
+        in render(g, "plantuml")
+    )
 
 
 # ------------------------------------------------------------------ determinism, registry
@@ -467,9 +511,12 @@ def test_built_in_full_diagram_has_no_overlapping_text(name):
     renderer = fig.canvas.get_renderer()
     texts = [t for t in fig.axes[0].texts if t.get_text().strip()]
     boxes = [t.get_window_extent(renderer) for t in texts]
-    clash = [(texts[i].get_text()[:30], texts[j].get_text()[:30])
-             for i in range(len(boxes)) for j in range(i + 1, len(boxes))
-             if boxes[i].overlaps(boxes[j])]
+    clash = [
+        (texts[i].get_text()[:30], texts[j].get_text()[:30])
+        for i in range(len(boxes))
+        for j in range(i + 1, len(boxes))
+        if boxes[i].overlaps(boxes[j])
+    ]
     assert clash == []
     assert any(t.get_gid() == "edge-label" for t in texts)
 
@@ -489,8 +536,7 @@ def test_many_message_links_become_labelled_stubs_at_their_senders():
     stubs = [e for e in edges if e.message]
     groups = {(u, d["message"]) for u, _v, d in messages}
     assert len(stubs) == len(groups)
-    assert all(abs(e.pb[0] - e.pa[0]) == pytest.approx(18.0) and e.pb[1] == e.pa[1]
-               for e in stubs)
+    assert all(abs(e.pb[0] - e.pa[0]) == pytest.approx(18.0) and e.pb[1] == e.pa[1] for e in stubs)
     texts = [" ".join(e.lines) for e in stubs] + notes
     assert any("ready → xr4000" in t for t in texts)
     relay = diagram_graph(ht.load(EXAMPLES / "automata" / "relay.yaml"))
@@ -508,8 +554,15 @@ def _drawn_points(edge, n: int = 240) -> np.ndarray:
     return np.array([bezier(edge.pa, edge.pb, edge.rad, t) for t in ts])
 
 
-@pytest.mark.parametrize("path", ["transport/experiment1.yaml", "transport/experiment2.yaml",
-                                  "transport/experiment3.yaml", "protocols/handover.yaml"])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "transport/experiment1.yaml",
+        "transport/experiment2.yaml",
+        "transport/experiment3.yaml",
+        "protocols/handover.yaml",
+    ],
+)
 def test_built_in_full_diagram_has_no_edge_through_a_mode(path):
     """No edge of the built-in full diagram passes through a mode box other than its two
     ends, their containers and what they hold, nor leaves the composite holding both ends
@@ -528,8 +581,7 @@ def test_built_in_full_diagram_has_no_edge_through_a_mode(path):
     for (u, v, _d), edge in zip(drawn, edges, strict=False):
         if edge.loop:
             continue
-        boxes = [(b.x + 1, b.y + 1, b.x + b.w - 1, b.y + b.h - 1)
-                 for b in unrelated(layout, u, v)]
+        boxes = [(b.x + 1, b.y + 1, b.x + b.w - 1, b.y + b.h - 1) for b in unrelated(layout, u, v)]
         points = _drawn_points(edge)
         if inside(points, boxes).any():
             through.append((u, v))
@@ -547,9 +599,12 @@ def test_a_route_goes_around_a_box_in_its_way():
     path = route((0.0, 40.0), (100.0, 40.0), [box], (0.0, -20.0, 100.0, 120.0))
     assert path is not None and path[0] == (0.0, 40.0) and path[-1] == (100.0, 40.0)
     seg = np.linspace(0, 1, 50)[:, None]
-    points = np.concatenate([np.asarray(a) + seg * (np.asarray(b) - np.asarray(a))
-                             for a, b in itertools.pairwise(path)])
+    points = np.concatenate(
+        [np.asarray(a) + seg * (np.asarray(b) - np.asarray(a)) for a, b in itertools.pairwise(path)]
+    )
     assert not inside(points, [box], MARGIN - 1.0).any()
     assert len(path) <= 8  # pulled straight: two bends a corner, not a 5 pt staircase
-    assert route((0.0, 40.0), (100.0, 40.0), [(30.0, -30.0, 70.0, 130.0)],
-                 (0.0, -20.0, 100.0, 120.0)) is None  # a wall across the bounds
+    assert (
+        route((0.0, 40.0), (100.0, 40.0), [(30.0, -30.0, 70.0, 130.0)], (0.0, -20.0, 100.0, 120.0))
+        is None
+    )  # a wall across the bounds

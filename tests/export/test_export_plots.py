@@ -64,8 +64,7 @@ def test_relay_paths_start_labels_and_numbered_mode_changes():
     end_x = runner_x[~np.isnan(runner_x)][-1]
     samples = run.samples["runner"][:, 0, 0]
     assert end_x == samples[~np.isnan(samples)][-1] == pytest.approx(5.0, abs=1e-9)
-    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: anchor",
-                                                                       "0R: runner"]
+    assert sorted(t.get_text() for t in by_gid(ax.texts, "start")) == ["0A: anchor", "0R: runner"]
     numbers = [t.get_text() for t in by_gid(ax.texts, "change")]
     leaf_changes = [r for r in run.transitions if r.cause != "init"]  # all modes are leaves
     assert len(numbers) == len(leaf_changes) == 4
@@ -111,8 +110,9 @@ def test_a_zeno_pile_up_of_changes_keeps_its_labels_on_the_plot(team_from_yaml):
     assert [t.get_text() for t in labels].count("…") >= 1
     assert len(labels) < 40
     (note,) = [t.get_text() for t in ax.texts if t.get_text().startswith("numbers shown")]
-    assert note == ("numbers shown on every 2nd mode change; where changes crowd one spot, "
-                    "the first 3 and …")
+    assert note == (
+        "numbers shown on every 2nd mode change; where changes crowd one spot, the first 3 and …"
+    )
 
 
 SCOUTS = """
@@ -137,8 +137,7 @@ def test_start_labels_name_the_robot_where_initials_clash(team_from_yaml):
     run = ht.simulate(team_from_yaml(SCOUTS))
     (ax,) = trajectory_figure(run).axes
     starts = {t.get_text(): tuple(t.xy) for t in by_gid(ax.texts, "start")}
-    assert starts == {"0X: xr4000": (0.0, 0.0), "0S: scout1": (0.0, 1.0),
-                      "0SC: scout2": (0.0, 2.0)}
+    assert starts == {"0X: xr4000": (0.0, 0.0), "0S: scout1": (0.0, 1.0), "0SC: scout2": (0.0, 2.0)}
 
 
 def test_robots_starting_on_the_lower_edge_get_room_for_their_start_labels():
@@ -177,30 +176,72 @@ def synthetic_trace() -> Trace:
     b = np.c_[times * 0.5, np.ones(n), np.zeros(n)]
     bar = np.c_[times * 0.5, np.full(n, 0.5), np.full(n, np.pi / 2)]
     b[90:] = np.nan  # robot b's instance part ends early
-    modes = [{"path": "Carry", "depth": 1, "kind": "leaf", "final": False},
-             {"path": "Stop", "depth": 1, "kind": "leaf", "final": True}]
-    agents = [{"name": name, "plant": "holonomic", "state": ["x", "y", "theta"],
-               "inputs": ["vx", "vy", "omega"], "modes": modes,
-               "footprint": {"radius": 0.2}} for name in ("alpha", "beta")]
-    meta = {"team": "carry", "n": 1, "seed": 0, "duration": 10.0, "agents": agents,
-            "payloads": ["bar"], "payload_shapes": {"bar": {"kind": "bar", "length": 1.4}},
-            "world": {"walls": [[-1, -1, 6, -1], [-1, 2, 6, 2], [-1, -1, -1, 2]],
-                      "obstacles": [{"kind": "circle", "x": 3, "y": -0.5, "r": 0.2},
-                                    {"kind": "polygon", "points": [[4, 1.6], [5, 1.6], [5, 2]]}],
-                      "regions": [{"points": [[5, 0], [6, 0], [6, 1], [5, 1]],
-                                   "label": "corner"}]}}
-    transitions = Table(TRANSITION_COLUMNS, {
-        "instance": [0, 0, 0, 0], "agent": ["alpha", "beta", "beta", "alpha"],
-        "t": [0.0, 0.0, 8.9, 10.0], "step": [0, 0, 0, 0], "source": ["", "", "Carry", "Carry"],
-        "target": ["Carry", "Carry", "Stop", "Stop"], "cause": ["init", "init", "guard", "after"],
-        "guard": ["", "", "", ""]})
-    intervals = Table(INTERVAL_COLUMNS, {
-        "instance": [0] * 4, "agent": ["alpha", "beta", "beta", "alpha"],
-        "mode": ["Carry", "Carry", "Stop", "Stop"], "depth": [1] * 4,
-        "start": [0.0, 0.0, 8.9, 10.0], "end": [10.0, 8.9, 8.9, 10.0]})
+    modes = [
+        {"path": "Carry", "depth": 1, "kind": "leaf", "final": False},
+        {"path": "Stop", "depth": 1, "kind": "leaf", "final": True},
+    ]
+    agents = [
+        {
+            "name": name,
+            "plant": "holonomic",
+            "state": ["x", "y", "theta"],
+            "inputs": ["vx", "vy", "omega"],
+            "modes": modes,
+            "footprint": {"radius": 0.2},
+        }
+        for name in ("alpha", "beta")
+    ]
+    meta = {
+        "team": "carry",
+        "n": 1,
+        "seed": 0,
+        "duration": 10.0,
+        "agents": agents,
+        "payloads": ["bar"],
+        "payload_shapes": {"bar": {"kind": "bar", "length": 1.4}},
+        "world": {
+            "walls": [[-1, -1, 6, -1], [-1, 2, 6, 2], [-1, -1, -1, 2]],
+            "obstacles": [
+                {"kind": "circle", "x": 3, "y": -0.5, "r": 0.2},
+                {"kind": "polygon", "points": [[4, 1.6], [5, 1.6], [5, 2]]},
+            ],
+            "regions": [{"points": [[5, 0], [6, 0], [6, 1], [5, 1]], "label": "corner"}],
+        },
+    }
+    transitions = Table(
+        TRANSITION_COLUMNS,
+        {
+            "instance": [0, 0, 0, 0],
+            "agent": ["alpha", "beta", "beta", "alpha"],
+            "t": [0.0, 0.0, 8.9, 10.0],
+            "step": [0, 0, 0, 0],
+            "source": ["", "", "Carry", "Carry"],
+            "target": ["Carry", "Carry", "Stop", "Stop"],
+            "cause": ["init", "init", "guard", "after"],
+            "guard": ["", "", "", ""],
+        },
+    )
+    intervals = Table(
+        INTERVAL_COLUMNS,
+        {
+            "instance": [0] * 4,
+            "agent": ["alpha", "beta", "beta", "alpha"],
+            "mode": ["Carry", "Carry", "Stop", "Stop"],
+            "depth": [1] * 4,
+            "start": [0.0, 0.0, 8.9, 10.0],
+            "end": [10.0, 8.9, 8.9, 10.0],
+        },
+    )
     outcomes = [{"instance": 0, "outcome": "ok", "t": 10.0, "message": ""}]
-    return Trace(meta, outcomes, transitions, intervals, Table(MESSAGE_COLUMNS), times,
-                 {"alpha": a[:, None, :], "beta": b[:, None, :], "bar": bar[:, None, :]})
+    return Trace(
+        meta,
+        outcomes,
+        transitions,
+        intervals,
+        Table(MESSAGE_COLUMNS),
+        times,
+        {"alpha": a[:, None, :], "beta": b[:, None, :], "bar": bar[:, None, :]},
+    )
 
 
 def test_world_payload_and_footprints_are_drawn(tmp_path):
@@ -319,8 +360,7 @@ def test_a_long_corridor_fills_the_plot(team_from_yaml):
     assert ax.get_aspect() == 1.0
     (legend,) = fig.legends  # a wide scene: the legend goes below the plot
     labels = [t.get_text() for t in legend.get_texts()]
-    assert labels == ["r", "0X: start of robot X", "footprint and heading, every 5 s",
-                      "obstacle"]
+    assert labels == ["r", "0X: start of robot X", "footprint and heading, every 5 s", "obstacle"]
 
 
 def test_plot_limits_and_size_are_the_users(team_from_yaml, tmp_path, capsys):
@@ -330,8 +370,26 @@ def test_plot_limits_and_size_are_the_users(team_from_yaml, tmp_path, capsys):
     trace = tmp_path / "trace.json"
     trace.write_text(run.to_json())
     out = tmp_path / "p.png"
-    assert main(["plot", str(trace), "-o", str(out), "--xlim", "8", "12", "--ylim", "-2", "2",
-                 "--size", "6", "4"]) == 0
+    assert (
+        main(
+            [
+                "plot",
+                str(trace),
+                "-o",
+                str(out),
+                "--xlim",
+                "8",
+                "12",
+                "--ylim",
+                "-2",
+                "2",
+                "--size",
+                "6",
+                "4",
+            ]
+        )
+        == 0
+    )
     assert imread(out).shape[:2] == (400, 600)
     fig = trajectory_figure(run, xlim=(8, 12), ylim=(-2, 2))
     assert fig.axes[0].get_xlim() == (8, 12) and fig.axes[0].get_ylim() == (-2, 2)
@@ -347,8 +405,26 @@ def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
     trace = tmp_path / "trace.json"
     trace.write_text(run.to_json())
     gif = tmp_path / "a.gif"
-    assert main(["animate", str(trace), "-o", str(gif), "--size", "6", "3", "--dpi", "50",
-                 "--fps", "5", "--speed", "2"]) == 0
+    assert (
+        main(
+            [
+                "animate",
+                str(trace),
+                "-o",
+                str(gif),
+                "--size",
+                "6",
+                "3",
+                "--dpi",
+                "50",
+                "--fps",
+                "5",
+                "--speed",
+                "2",
+            ]
+        )
+        == 0
+    )
     with Image.open(gif) as im:
         assert im.size == (300, 150)
         assert im.n_frames == 10  # 4 s at 2x is 2 s of playback at 5 frames a second
@@ -361,8 +437,7 @@ def test_animation_size_and_dpi_are_the_users(team_from_yaml, tmp_path, capsys):
 CRASH = COLLISION_TEAM.replace("on_collision: {mode}", "on_collision: warn")
 
 
-def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml,
-                                                                        tmp_path):
+def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml, tmp_path):
     """Robot a drives at 1 m/s into the wall x = 2 (b kept away at y = 5): its 0.25 m disk
     first overlaps the wall at the tick t = 1.8 s, at x = 1.8. The run goes on through the
     wall; the trajectories mark that spot with its time, the animation from 1.8 s on, and
@@ -440,11 +515,14 @@ def test_start_labels_of_robots_side_by_side_do_not_overprint(team_from_yaml):
     renderer = fig.canvas.get_renderer()
     fig.draw_without_rendering()
     labels = by_gid(ax.texts, "start")
-    assert sorted(t.get_text().split(": ")[1] for t in labels) == \
-        ["scout_front", "scout_rear", "xr4000"]
+    assert sorted(t.get_text().split(": ")[1] for t in labels) == [
+        "scout_front",
+        "scout_rear",
+        "xr4000",
+    ]
     boxes = [t.get_window_extent(renderer) for t in labels]
     for i, a in enumerate(boxes):
-        for b in boxes[i + 1:]:
+        for b in boxes[i + 1 :]:
             assert not a.overlaps(b), (a, b)
 
 
@@ -484,5 +562,8 @@ def test_collisions_at_one_spot_share_one_label(team_from_yaml):
 def test_collision_labels_group_by_distance():
     hits = [(1.0, 0.0, 0.0, "a"), (2.0, 0.05, 0.0, "b"), (3.0, 1.0, 0.0, "c")]
     assert collision_labels(hits, 0.1) == [(0.0, 0.0, "1 s a, 2 s b"), (1.0, 0.0, "3 s")]
-    assert collision_labels(hits, 0.01) == [(0.0, 0.0, "1 s"), (0.05, 0.0, "2 s"),
-                                            (1.0, 0.0, "3 s")]
+    assert collision_labels(hits, 0.01) == [
+        (0.0, 0.0, "1 s"),
+        (0.05, 0.0, "2 s"),
+        (1.0, 0.0, "3 s"),
+    ]

@@ -31,9 +31,15 @@ def views():
 def test_one_state_per_role_with_its_body(views):
     full, roles = views
     transport = sorted(n for n in roles if n.startswith("xr4000/Transport"))
-    assert transport == ["xr4000/Transport", "xr4000/Transport.Follow", "xr4000/Transport.Lead",
-                         "xr4000/Transport.Lead.Hold", "xr4000/Transport.Lead.Pass",
-                         "xr4000/Transport.Lead.Sidestep", "xr4000/Transport.Operated"]
+    assert transport == [
+        "xr4000/Transport",
+        "xr4000/Transport.Follow",
+        "xr4000/Transport.Lead",
+        "xr4000/Transport.Lead.Hold",
+        "xr4000/Transport.Lead.Pass",
+        "xr4000/Transport.Lead.Sidestep",
+        "xr4000/Transport.Operated",
+    ]
     assert "labmate/Transport.Lead.Curve" in roles
     assert not any("Offering" in n or "Requesting" in n or "Accepting" in n for n in roles)
     assert "operator" not in roles and "operator/Standby" not in roles  # protocol-only agent
@@ -43,8 +49,11 @@ def test_one_state_per_role_with_its_body(views):
 
 def test_role_changes_are_one_edge_per_pair_labelled_by_handshakes(views):
     _, roles = views
-    edges = {(u, v): d["label"] for u, v, d in edges_of(roles, "transition")
-             if d["protocol"] and u.startswith("labmate/")}
+    edges = {
+        (u, v): d["label"]
+        for u, v, d in edges_of(roles, "transition")
+        if d["protocol"] and u.startswith("labmate/")
+    }
     t = "labmate/Transport."
     assert edges == {
         (t + "Follow", t + "Lead"): "want_lead … grant, offer … confirm",
@@ -61,20 +70,22 @@ def test_own_transitions_stay_and_body_copies_go(views):
     # (the full diagram has it on Follow, Requesting and Accepting, the body's three copies)
     loops = [e for e in own if "obstacle_detected" in e[2]]
     assert [(u, v) for u, v, _ in loops] == [("xr4000/Transport.Follow",) * 2]
-    assert sum("obstacle_detected" in d["label"]
-               for _, _, d in edges_of(full, "transition")) == 3
+    assert sum("obstacle_detected" in d["label"] for _, _, d in edges_of(full, "transition")) == 3
     assert ("xr4000/Transport.Lead.Sidestep", "xr4000/Transport.Lead.Pass", "after(4)") in own
 
 
 def test_protocol_messages_become_one_link_per_pair_of_robots(views):
     full, roles = views
     messages = [(u, v, d["label"]) for u, v, d in edges_of(roles, "message")]
-    assert messages == [("xr4000/Dock.Lift", "labmate/Dock.Idle", "docked"),
-                        ("labmate/Dock.Align", "xr4000/Dock.Wait", "ready"),
-                        ("xr4000/Transport", "labmate/Transport", "role_assignment ⇄")]
+    assert messages == [
+        ("xr4000/Dock.Lift", "labmate/Dock.Idle", "docked"),
+        ("labmate/Dock.Align", "xr4000/Dock.Wait", "ready"),
+        ("xr4000/Transport", "labmate/Transport", "role_assignment ⇄"),
+    ]
     assert len(edges_of(full, "message")) > 20
-    assert [d["order"] for *_, d in sorted(roles.edges(data=True), key=lambda e: e[2]["order"])
-            ] == list(range(roles.number_of_edges()))
+    assert [
+        d["order"] for *_, d in sorted(roles.edges(data=True), key=lambda e: e[2]["order"])
+    ] == list(range(roles.number_of_edges()))
 
 
 def test_a_team_without_protocols_is_drawn_as_it_is():
@@ -90,8 +101,20 @@ def test_cli_detail_and_run_views(tmp_path):
     assert main(["diagram", str(EXPERIMENT2), "--detail", "full", "-o", str(out)]) == 0
     assert "Requesting" in out.read_text()
     run_out = tmp_path / "run"
-    assert main(["run", str(EXAMPLES / "protocols" / "handover.yaml"), "-o", str(run_out),
-                 "--quiet", "--duration", "1"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(EXAMPLES / "protocols" / "handover.yaml"),
+                "-o",
+                str(run_out),
+                "--quiet",
+                "--duration",
+                "1",
+            ]
+        )
+        == 0
+    )
     assert "Requesting" in (run_out / "modes-full.svg").read_text()
     assert "Requesting" not in (run_out / "modes.svg").read_text()
 
@@ -99,11 +122,20 @@ def test_cli_detail_and_run_views(tmp_path):
 def test_protocol_copies_are_tints_of_their_role_and_24_modes_get_24_colours():
     from hybridteam.export.style import PALETTE, team_mode_colors
 
-    colors = team_mode_colors([[
-        ("T", False, ""), ("T.Lead", False, "lead"), ("T.Lead.A", False, ""),
-        ("T.Offering", False, "lead"), ("T.Offering.A", False, ""),
-        ("T.Follow", False, "follow"), ("T.Requesting", False, "follow"),
-        ("T.Accepting", False, "follow")]])
+    colors = team_mode_colors(
+        [
+            [
+                ("T", False, ""),
+                ("T.Lead", False, "lead"),
+                ("T.Lead.A", False, ""),
+                ("T.Offering", False, "lead"),
+                ("T.Offering.A", False, ""),
+                ("T.Follow", False, "follow"),
+                ("T.Requesting", False, "follow"),
+                ("T.Accepting", False, "follow"),
+            ]
+        ]
+    )
     assert [colors[p] for p in ("T", "T.Lead", "T.Lead.A", "T.Follow")] == list(PALETTE[:4])
     # 45 % white on #009E73 (0, 158, 115) -> (115, 202, 178); 70 % on #CC79A7 -> (240, 215, 229)
     assert colors["T.Offering.A"] == "#73CAB2"
@@ -140,7 +172,6 @@ def test_two_robots_that_fit_a_page_stay_side_by_side():
     """The hand-over's two robots (396 and 404 pt, 80 pt apart: 880 pt) fit one row."""
     from hybridteam.export.layout import PANEL_GAP, Layout
 
-    layout = Layout(roles_view(diagram_graph(ht.load(EXAMPLES / "protocols" /
-                                                     "handover.yaml"))))
+    layout = Layout(roles_view(diagram_graph(ht.load(EXAMPLES / "protocols" / "handover.yaml"))))
     first, second = layout.panels
     assert first.y == second.y and second.x == first.x + first.w + first.loop + PANEL_GAP

@@ -42,8 +42,10 @@ def test_relay_chart_in_mermaid(relay_run):
     assert lines[0] == "sequenceDiagram"
     assert lines.index("    participant runner") < lines.index("    participant anchor")
     found = arrows(text, MERMAID_ARROW)
-    assert [(a, arrow, b) for a, arrow, b, _ in found] == [("runner", "->>", "anchor"),
-                                                          ("anchor", "->>", "runner")]
+    assert [(a, arrow, b) for a, arrow, b, _ in found] == [
+        ("runner", "->>", "anchor"),
+        ("anchor", "->>", "runner"),
+    ]
     assert found[0][3] == "baton @ 5.000 s" and found[1][3].startswith("done @ 8.142 s")
     times = [send_time(label) for *_, label in found]
     assert times == sorted(times)
@@ -69,17 +71,33 @@ def synthetic(n: int = 2) -> Trace:
         (1, 0, "b", "a", "control", "other", 0.1, 0.1, "delivered", "", -1),
     ]
     data = {c: [r[k] for r in rows] for k, c in enumerate(MESSAGE_COLUMNS)}
-    meta = {"team": "synthetic", "n": n, "seed": 0, "duration": 3.0,
-            "agents": [{"name": "a", "state": []}, {"name": "b", "state": []}]}
-    return Trace(meta, [{"outcome": "ok"}] * n, Table(TRANSITION_COLUMNS), Table(INTERVAL_COLUMNS),
-                 Table(MESSAGE_COLUMNS, data), np.zeros(0), {})
+    meta = {
+        "team": "synthetic",
+        "n": n,
+        "seed": 0,
+        "duration": 3.0,
+        "agents": [{"name": "a", "state": []}, {"name": "b", "state": []}],
+    }
+    return Trace(
+        meta,
+        [{"outcome": "ok"}] * n,
+        Table(TRANSITION_COLUMNS),
+        Table(INTERVAL_COLUMNS),
+        Table(MESSAGE_COLUMNS, data),
+        np.zeros(0),
+        {},
+    )
 
 
 def test_synthetic_chart_marks_loss_retransmission_and_latency():
     text = sequence_chart(synthetic())
     found = arrows(text, MERMAID_ARROW)
     assert [(a, arrow, b) for a, arrow, b, _ in found] == [
-        ("a", "->>", "b"), ("a", "-x", "b"), ("a", "->>", "b"), ("b", "->>", "a")]
+        ("a", "->>", "b"),
+        ("a", "-x", "b"),
+        ("a", "->>", "b"),
+        ("b", "->>", "a"),
+    ]
     first, lost, again, ack = (label for *_, label in found)
     assert first == "req @ 1.000 s (+30 ms)"
     assert lost.startswith("req @ 2.000 s") and "dropped by link" in lost
@@ -108,8 +126,12 @@ def test_sockets_and_instances_select_messages():
 def test_empty_chart_is_still_valid():
     trace = synthetic()
     mermaid = sequence_chart(trace, sockets=("nothing",))
-    assert mermaid.splitlines() == ["sequenceDiagram", "    participant a", "    participant b",
-                                    "    Note over a,b: no messages"]
+    assert mermaid.splitlines() == [
+        "sequenceDiagram",
+        "    participant a",
+        "    participant b",
+        "    Note over a,b: no messages",
+    ]
     plantuml = sequence_chart(trace, "plantuml", sockets=("nothing",))
     assert "note over a, b : no messages" in plantuml and plantuml.rstrip().endswith("@enduml")
 
@@ -128,11 +150,17 @@ def test_a_lost_retransmission_says_so_once():
     (retransmission)``; a lost ack's bracketed note is its type, already named."""
     trace = synthetic()  # rows: an ack, then req at 1.0, 2.0 and 2.5 s, then others
     msgs = trace.messages
-    msgs.columns["status"] = np.array(["lost", "delivered", "lost", "lost", "delivered",
-                                       "delivered"], dtype=object)
-    msgs.columns["reason"] = np.array(["loss (ack)", "", "dropped by link",
-                                       "loss (retransmission)", "", ""], dtype=object)
+    msgs.columns["status"] = np.array(
+        ["lost", "delivered", "lost", "lost", "delivered", "delivered"], dtype=object
+    )
+    msgs.columns["reason"] = np.array(
+        ["loss (ack)", "", "dropped by link", "loss (retransmission)", "", ""], dtype=object
+    )
     msgs.columns["t_recv"] = np.array([math.nan, 1.03, math.nan, math.nan, 0.5, 0.1])
     labels = [label for *_, label in arrows(sequence_chart(trace), MERMAID_ARROW)]
-    assert labels == ["req @ 1.000 s (+30 ms)", "req @ 2.000 s (lost: dropped by link)",
-                      "req @ 2.500 s (retransmission, lost: loss)", "ack @ 2.600 s (lost: loss)"]
+    assert labels == [
+        "req @ 1.000 s (+30 ms)",
+        "req @ 2.000 s (lost: dropped by link)",
+        "req @ 2.500 s (retransmission, lost: loss)",
+        "ack @ 2.600 s (lost: loss)",
+    ]

@@ -98,7 +98,12 @@ def test_every_example_writes_a_timeline_png_svg_and_close_up(example, tmp_path)
     assert set(data) == {"lanes", "bars", "marks", "arrows"}
     assert len(data["marks"]) == len(run.transitions)
     assert sorted(p.name for p in tmp_path.iterdir()) == [
-        "close.png", "t.csv", "t.json", "t.png", "t.svg"]  # no temporary files left
+        "close.png",
+        "t.csv",
+        "t.json",
+        "t.png",
+        "t.svg",
+    ]  # no temporary files left
 
 
 def test_unicycle_square_bars_and_ticks_follow_the_transitions():
@@ -138,17 +143,27 @@ def test_parallel_regions_get_one_lane_each_with_their_intervals(team_from_yaml)
     run = ht.simulate(team_from_yaml(REGIONS))
     data = timeline_data(run)
     assert [(lane.agent, lane.region) for lane in data.lanes] == [
-        ("a", ""), ("a", "Both.Left"), ("a", "Both.Right")]
-    per_lane = {k: sorted((b.mode, b.start, b.end) for b in data.bars if b.lane == k)
-                for k in range(3)}
+        ("a", ""),
+        ("a", "Both.Left"),
+        ("a", "Both.Right"),
+    ]
+    per_lane = {
+        k: sorted((b.mode, b.start, b.end) for b in data.bars if b.lane == k) for k in range(3)
+    }
     assert per_lane[0] == [("Both", 0.0, 3.2), ("Stop", 3.2, 3.2)]
-    assert per_lane[1] == [("Both.Left.L1", 0.0, 1.0), ("Both.Left.L1", 2.0, 3.0),
-                           ("Both.Left.L2", 1.0, 2.0), ("Both.Left.L2", 3.0, 3.2)]
-    assert per_lane[2] == [("Both.Right.R1", 0.0, 1.0), ("Both.Right.R2", 1.0, 1.5),
-                           ("Both.Right.R3", 1.5, 3.2)]
+    assert per_lane[1] == [
+        ("Both.Left.L1", 0.0, 1.0),
+        ("Both.Left.L1", 2.0, 3.0),
+        ("Both.Left.L2", 1.0, 2.0),
+        ("Both.Left.L2", 3.0, 3.2),
+    ]
+    assert per_lane[2] == [
+        ("Both.Right.R1", 0.0, 1.0),
+        ("Both.Right.R2", 1.0, 1.5),
+        ("Both.Right.R3", 1.5, 3.2),
+    ]
     marks = sorted((m.lane, m.t) for m in data.marks)
-    assert marks == [(0, 3.2), (1, 0.0), (1, 1.0), (1, 2.0), (1, 3.0), (2, 0.0), (2, 1.0),
-                     (2, 1.5)]
+    assert marks == [(0, 3.2), (1, 0.0), (1, 1.0), (1, 2.0), (1, 3.0), (2, 0.0), (2, 1.0), (2, 1.5)]
     # lanes are stacked top to bottom without overlap
     ys = [lane.y for lane in data.lanes]
     assert ys == sorted(ys, reverse=True) and min(np.diff(ys)) <= -0.8
@@ -162,8 +177,12 @@ def test_composite_modes_add_a_top_row_with_the_top_level_modes(team_from_yaml):
     top = [(b.mode, b.start, b.end) for b in data.bars if b.lane == 0]
     main = [(b.mode, b.start, b.end) for b in data.bars if b.lane == 1]
     assert top == [("Dock", 0.0, 3.0), ("Transport", 3.0, 5.0), ("Dock", 5.0, 7.5)]
-    assert main[:4] == [("Dock.A", 0.0, 1.0), ("Dock.D", 1.0, 2.5), ("Dock.W", 2.5, 3.0),
-                        ("Transport", 3.0, 5.0)]
+    assert main[:4] == [
+        ("Dock.A", 0.0, 1.0),
+        ("Dock.D", 1.0, 2.5),
+        ("Dock.W", 2.5, 3.0),
+        ("Transport", 3.0, 5.0),
+    ]
     assert all(m.lane == 1 for m in data.marks)  # ticks on the leaf lane
 
 
@@ -178,8 +197,10 @@ def test_close_up_draws_message_arrows_at_send_and_receipt_times_with_latency():
     assert len(arrows) == 2
     got = sorted((a.xyann, a.xy) for a in arrows)
     sends = run.messages["t_send"]
-    expected = [((sends[0], y["runner"]), (sends[0] + 0.030, y["anchor"])),
-                ((sends[1], y["anchor"]), (sends[1] + 0.120, y["runner"]))]
+    expected = [
+        ((sends[0], y["runner"]), (sends[0] + 0.030, y["anchor"])),
+        ((sends[1], y["anchor"]), (sends[1] + 0.120, y["runner"])),
+    ]
     for (start, end), (start_x, end_x) in zip(got, expected, strict=True):
         np.testing.assert_allclose(start, start_x, atol=1e-9, rtol=0)
         np.testing.assert_allclose(end, end_x, atol=1e-9, rtol=0)
@@ -212,10 +233,20 @@ def test_a_lost_message_is_a_red_x_at_its_send_time(tmp_path):
     write_timeline(run, tmp_path / "t.png", data_path=tmp_path / "t.json")
     arrows = json.loads((tmp_path / "t.json").read_text())["arrows"]
     anchor_y = next(lane.y for lane in data.lanes if lane.agent == "anchor")  # no close-up
-    assert arrows == [{"y_send": anchor_y, "y_recv": data.arrows[0].y_recv,
-                       "t_send": msgs["t_send"][1], "t_recv": None, "type": "done",
-                       "latency": None, "lost": True, "sender": "anchor",
-                       "receiver": "runner", "socket": "control"}]
+    assert arrows == [
+        {
+            "y_send": anchor_y,
+            "y_recv": data.arrows[0].y_recv,
+            "t_send": msgs["t_send"][1],
+            "t_recv": None,
+            "type": "done",
+            "latency": None,
+            "lost": True,
+            "sender": "anchor",
+            "receiver": "runner",
+            "socket": "control",
+        }
+    ]
 
 
 def test_agents_picks_lanes_and_keeps_the_team_colours(tmp_path, capsys):
@@ -238,8 +269,7 @@ def test_agents_picks_lanes_and_keeps_the_team_colours(tmp_path, capsys):
 def test_window_keeps_only_what_overlaps_it():
     run = ht.simulate(ht.load(EXAMPLES / "automata" / "unicycle_square.yaml"))
     data = timeline_data(run, window=(6.0, 12.0))
-    assert [(b.mode, b.start) for b in data.bars] == [("Turn", 5.0), ("Drive", 7.0),
-                                                      ("Turn", 11.0)]
+    assert [(b.mode, b.start) for b in data.bars] == [("Turn", 5.0), ("Drive", 7.0), ("Turn", 11.0)]
     assert [m.t for m in data.marks] == [7.0, 11.0]
 
 
@@ -249,7 +279,8 @@ def test_ensemble_instance_and_bad_extensions(tmp_path):
     one = timeline_data(run, instance=1)
     alone = timeline_data(run.instance(1))
     assert [(b.mode, b.start, b.end) for b in one.bars] == [
-        (b.mode, b.start, b.end) for b in alone.bars]
+        (b.mode, b.start, b.end) for b in alone.bars
+    ]
     with pytest.raises(ValueError, match="unsupported format"):
         write_timeline(run, tmp_path / "t.jpg")
     with pytest.raises(ValueError, match="unsupported format"):
@@ -299,17 +330,20 @@ def test_the_legend_is_grouped_by_robot_with_short_names(team_from_yaml):
     suffix — Lead.Curve and Offering.Curve stay apart, Follow is just Follow."""
     from hybridteam.export.legend import short_names
 
-    assert short_names(["Transport.Lead.Curve", "Transport.Offering.Curve",
-                        "Transport.Follow"]) == {
-        "Transport.Lead.Curve": "Lead.Curve", "Transport.Offering.Curve": "Offering.Curve",
-        "Transport.Follow": "Follow"}
+    assert short_names(
+        ["Transport.Lead.Curve", "Transport.Offering.Curve", "Transport.Follow"]
+    ) == {
+        "Transport.Lead.Curve": "Lead.Curve",
+        "Transport.Offering.Curve": "Offering.Curve",
+        "Transport.Follow": "Follow",
+    }
     run = ht.simulate(ht.load(EXAMPLES / "protocols" / "handover.yaml"))
     fig, _ = timeline_figure(run)
     texts = fig.axes[0].get_legend().get_texts()
     labels = [t.get_text() for t in texts]
     bold = [t.get_text() for t in texts if t.get_fontweight() == "bold"]
     assert bold == ["xr4000", "labmate", "operator"]
-    assert labels[:labels.index("labmate")] == ["xr4000", "Lead", "Follow"]
+    assert labels[: labels.index("labmate")] == ["xr4000", "Lead", "Follow"]
     assert "Transport.Lead" not in labels
 
 
@@ -334,7 +368,11 @@ def test_a_mode_entered_and_left_at_once_is_not_in_the_legend(team_from_yaml):
     where the run ended, and stays in."""
     run = ht.simulate(team_from_yaml(BLINK))
     assert [(r.mode, r.start, r.end) for r in run.intervals] == [
-        ("Wait", 0.0, 1.0), ("Pass", 1.0, 1.0), ("Hold", 1.0, 3.0), ("Done", 3.0, 3.0)]
+        ("Wait", 0.0, 1.0),
+        ("Pass", 1.0, 1.0),
+        ("Hold", 1.0, 3.0),
+        ("Done", 3.0, 3.0),
+    ]
     fig, data = timeline_figure(run)
     legend = fig.axes[0].get_legend()
     assert [t.get_text() for t in legend.get_texts()] == ["Wait", "Hold", "Done"]
@@ -346,8 +384,9 @@ def jittery_handover(team_from_yaml):
     3 s, a resignation at 5 s: offer, accept, confirm and announce, each acknowledged."""
     text = (EXAMPLES / "protocols" / "handover.yaml").read_text()
     text = text.replace("  latency: 0.03\n", "  latency: 0.08\n  jitter: 0.01\n")
-    text = text.replace("raise: want_lead}\n", "raise: want_lead}\n"
-                        "  - {at: 5.0, agent: labmate, raise: resign}\n")
+    text = text.replace(
+        "raise: want_lead}\n", "raise: want_lead}\n  - {at: 5.0, agent: labmate, raise: resign}\n"
+    )
     assert "jitter" in text and "resign" in text
     return ht.simulate(team_from_yaml(text))
 
@@ -364,8 +403,7 @@ def test_nearly_parallel_arrows_share_one_label_content_first():
     back = TimelineArrow(-1.0, 0.0, 5.0, 5.085, "offer", 0.085, False)
     later = TimelineArrow(0.0, -1.0, 5.02, 5.101, "ack", 0.081, False)
     found = bundles([ack, accept, back, later], tolerance=0.005)
-    assert [b.text() for b in found] == ["accept + ack +80–82 ms", "offer +85 ms",
-                                         "ack +81 ms"]
+    assert [b.text() for b in found] == ["accept + ack +80–82 ms", "offer +85 ms", "ack +81 ms"]
     assert found[0].arrows == [ack, accept]
 
 
@@ -375,11 +413,12 @@ def test_labels_claim_spots_new_kinds_first_then_repeats_then_acks():
     from hybridteam.export.arrows import bundles, label_order
     from hybridteam.export.timeline import TimelineArrow
 
-    sent = [TimelineArrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
-            for t, kind in ((1.0, "ack"), (2.0, "offer"), (3.0, "offer"), (4.0, "accept"))]
+    sent = [
+        TimelineArrow(0.0, -1.0, t, t + 0.08, kind, 0.08, False)
+        for t, kind in ((1.0, "ack"), (2.0, "offer"), (3.0, "offer"), (4.0, "accept"))
+    ]
     order = [(b.types, new) for b, new in label_order(bundles(sent, 0.01))]
-    assert order == [(["offer"], True), (["accept"], True), (["offer"], False),
-                     (["ack"], True)]
+    assert order == [(["offer"], True), (["accept"], True), (["offer"], False), (["ack"], True)]
 
 
 def test_every_message_kind_of_a_jittery_hand_over_is_labelled(team_from_yaml):
@@ -389,8 +428,11 @@ def test_every_message_kind_of_a_jittery_hand_over_is_labelled(team_from_yaml):
     run = jittery_handover(team_from_yaml)
     window = (4.95, 5.6)
     msgs = run.messages
-    sent = (msgs["socket"].astype(str) == "control") & (msgs["t_send"] >= window[0]) & (
-        msgs["t_send"] <= window[1])
+    sent = (
+        (msgs["socket"].astype(str) == "control")
+        & (msgs["t_send"] >= window[0])
+        & (msgs["t_send"] <= window[1])
+    )
     kinds = set(msgs["type"][sent].tolist())
     assert kinds == {"offer", "accept", "confirm", "announce", "ack"}
     fig, data = timeline_figure(run, window=window)
@@ -401,7 +443,7 @@ def test_every_message_kind_of_a_jittery_hand_over_is_labelled(team_from_yaml):
     assert named == kinds
     boxes = [t.get_window_extent(renderer) for t in labels]
     for i, a in enumerate(boxes):
-        for b in boxes[i + 1:]:
+        for b in boxes[i + 1 :]:
             assert not a.overlaps(b)
     bands = [(lane.y - lane.height / 2, lane.y + lane.height / 2) for lane in data.lanes]
     for t in labels:

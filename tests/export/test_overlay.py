@@ -49,8 +49,11 @@ def drawn_bars(ax, lane: int) -> list[tuple[float, float]]:
 
 def intervals(trace: Trace, agent: str, modes: set[str]) -> list[tuple[float, float]]:
     iv = trace.intervals.where(agent=agent)
-    return sorted((float(s), float(e)) for m, s, e in
-                  zip(iv["mode"], iv["start"], iv["end"], strict=True) if m in modes)
+    return sorted(
+        (float(s), float(e))
+        for m, s, e in zip(iv["mode"], iv["start"], iv["end"], strict=True)
+        if m in modes
+    )
 
 
 def test_the_timeline_draws_the_logs_and_the_models_bars_and_the_first_divergence(mutated):
@@ -62,25 +65,31 @@ def test_the_timeline_draws_the_logs_and_the_models_bars_and_the_first_divergenc
     fig, data = overlay_timeline_figure(result)
     ax = fig.axes[0]
     labels = [t.get_text() for t in ax.get_yticklabels()]
-    assert labels == [f"{a} — {side}" for a in ("xr4000", "labmate", "operator")
-                      for side in ("log", "model")]
+    assert labels == [
+        f"{a} — {side}" for a in ("xr4000", "labmate", "operator") for side in ("log", "model")
+    ]
     log_lane, model_lane = labels.index("labmate — log"), labels.index("labmate — model")
-    leaves = {"Transport.Follow", "Transport.Lead", "Transport.Accepting",
-              "Transport.Operated"}
+    leaves = {"Transport.Follow", "Transport.Lead", "Transport.Accepting", "Transport.Operated"}
     for lane, trace in ((log_lane, run), (model_lane, result.model)):
         # zero-length stays are drawn as a sliver of 0.2 % of the span: compare the starts
         want = intervals(trace, "labmate", leaves)
         got = drawn_bars(ax, lane)
         assert [s for s, _ in got] == pytest.approx([s for s, _ in want], abs=1e-9)
         assert [e for _, e in got] == pytest.approx(
-            [max(e, s + 0.002 * data.span[1]) for s, e in want], abs=1e-9)
-    seen = {lane: [(b.mode, b.start) for b in data.bars if b.lane == lane]
-            for lane in (log_lane, model_lane)}
-    assert seen[log_lane][:2] == [("Transport.Follow", 0.0),
-                                  ("Transport.Lead", pytest.approx(OFFER_ARRIVES, abs=1e-12))]
+            [max(e, s + 0.002 * data.span[1]) for s, e in want], abs=1e-9
+        )
+    seen = {
+        lane: [(b.mode, b.start) for b in data.bars if b.lane == lane]
+        for lane in (log_lane, model_lane)
+    }
+    assert seen[log_lane][:2] == [
+        ("Transport.Follow", 0.0),
+        ("Transport.Lead", pytest.approx(OFFER_ARRIVES, abs=1e-12)),
+    ]
     assert seen[model_lane][:2] == [
-        ("Transport.Follow", 0.0), ("Transport.Accepting", pytest.approx(OFFER_ARRIVES,
-                                                                         abs=1e-12))]
+        ("Transport.Follow", 0.0),
+        ("Transport.Accepting", pytest.approx(OFFER_ARRIVES, abs=1e-12)),
+    ]
     (line,) = [a for a in ax.lines if a.get_gid() == "divergence"]
     assert list(line.get_xdata()) == pytest.approx([OFFER_ARRIVES] * 2, abs=1e-12)
     lanes = (data.lanes[log_lane], data.lanes[model_lane])
@@ -114,8 +123,15 @@ def test_the_plot_draws_the_models_path_and_the_largest_deviation(tmp_path):
     team, run = square_log(tmp_path)
     samples = {k: v.copy() for k, v in run.samples.items()}
     samples["robot"][15, 0, 1] += 0.2
-    run = Trace(run.meta, run.diagnostics, run.transitions, run.intervals, run.messages,
-                run.sample_times, samples)
+    run = Trace(
+        run.meta,
+        run.diagnostics,
+        run.transitions,
+        run.intervals,
+        run.messages,
+        run.sample_times,
+        samples,
+    )
     fig = overlay_plot_figure(conformance(run, team))
     ax = fig.axes[0]
     (model,) = [a for a in ax.lines if a.get_gid() == "model-path:robot"]
@@ -125,22 +141,24 @@ def test_the_plot_draws_the_models_path_and_the_largest_deviation(tmp_path):
     assert model.get_linestyle() != logged.get_linestyle()
     assert model.get_color() == logged.get_color()
     (mark,) = [a for a in ax.lines if a.get_gid() == "deviation:robot"]
-    assert mark.get_xydata() == pytest.approx(np.array([[0.75, 0.2], [0.75, 0.0]]),
-                                              abs=1e-9)
+    assert mark.get_xydata() == pytest.approx(np.array([[0.75, 0.2], [0.75, 0.0]]), abs=1e-9)
     (label,) = [t for t in ax.texts if t.get_gid() == "deviation-label:robot"]
     assert label.get_text() == "0.2 m at t=1.5 s"
     legend = ax.get_legend() or fig.legends[0]
     texts = [t.get_text() for t in legend.get_texts()]
-    assert texts[:5] == ["robot", "robot (model)", "robot (under logged commands)",
-                         "largest deviation, log to model",
-                         "largest deviation, log to logged commands"]
+    assert texts[:5] == [
+        "robot",
+        "robot (model)",
+        "robot (under logged commands)",
+        "largest deviation, log to model",
+        "largest deviation, log to logged commands",
+    ]
     (plant,) = [a for a in ax.lines if a.get_gid() == "commanded-path:robot"]
     assert np.max(np.abs(plant.get_xydata() - square)) <= 1e-9
     assert plant.get_color() == logged.get_color()
     assert plant.get_linestyle() != logged.get_linestyle()
     (mark,) = [a for a in ax.lines if a.get_gid() == "commanded-deviation:robot"]
-    assert mark.get_xydata() == pytest.approx(np.array([[0.75, 0.2], [0.75, 0.0]]),
-                                              abs=1e-9)
+    assert mark.get_xydata() == pytest.approx(np.array([[0.75, 0.2], [0.75, 0.0]]), abs=1e-9)
     (below,) = [t for t in ax.texts if t.get_gid() == "commanded-deviation-label:robot"]
     assert below.get_text() == "0.2 m at t=1.5 s"
     assert below.xyann[1] < 0 < label.xyann[1]  # the two labels do not overlap
@@ -154,8 +172,9 @@ def test_no_deviation_no_mark(tmp_path):
     result = conformance(run, team)
     worst = result.deviation("robot")
     assert worst is not None and worst.distance <= 1e-9
-    marks = [a for a in overlay_plot_figure(result).axes[0].lines
-             if a.get_gid() == "deviation:robot"]
+    marks = [
+        a for a in overlay_plot_figure(result).axes[0].lines if a.get_gid() == "deviation:robot"
+    ]
     assert len(marks) == (worst.distance > 0)
 
 
@@ -192,8 +211,7 @@ def test_the_plot_draws_the_plant_under_the_logged_commands_apart_from_the_model
     (label,) = [t for t in ax.texts if t.get_gid() == "commanded-deviation-label:robot"]
     assert label.get_text() == "0.0495 m at t=" + label.get_text().split("t=")[1]
     (replay,) = [a for a in ax.lines if a.get_gid() == "deviation:robot"]
-    assert replay.get_xydata() == pytest.approx(np.array([[0.515, 0.985], [2.0, 0.0]]),
-                                                abs=1e-9)
+    assert replay.get_xydata() == pytest.approx(np.array([[0.515, 0.985], [2.0, 0.0]]), abs=1e-9)
     x_lo, x_hi = ax.get_xlim()
     y_lo, y_hi = ax.get_ylim()
     assert x_lo <= 0.0 and x_hi >= 2.0 and y_lo <= 0.0 and y_hi >= 0.985
@@ -218,8 +236,21 @@ def test_views_against_a_rosbag2_with_a_mapping(tmp_path, capsys):
     """A robot's bag read through its mapping file, as ``check`` reads it."""
     square_log(tmp_path)  # writes square.yaml, map.yaml and the bag
     out = tmp_path / "t.png"
-    assert main(["timeline", str(tmp_path / "bag"), "--against", str(tmp_path / "square.yaml"),
-                 "--map", str(tmp_path / "map.yaml"), "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "timeline",
+                str(tmp_path / "bag"),
+                "--against",
+                str(tmp_path / "square.yaml"),
+                "--map",
+                str(tmp_path / "map.yaml"),
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert out.stat().st_size > 0
 
 
@@ -229,13 +260,16 @@ def _one_line(capsys) -> str:
     return err
 
 
-@pytest.mark.parametrize("extra, says", [
-    (["--map", "m.yaml"], "--map goes with --against"),
-    (["--tolerance", "0.5"], "--tolerance goes with --against"),
-    (["--against", "TEAM", "--tolerance", "-1"], "--tolerance -1: a number of seconds >= 0"),
-    (["--against", "TEAM", "--tolerance", "nan"], "--tolerance nan"),
-    (["--against", "TEAM", "--data", "d.csv"], "--data"),
-])
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        (["--map", "m.yaml"], "--map goes with --against"),
+        (["--tolerance", "0.5"], "--tolerance goes with --against"),
+        (["--against", "TEAM", "--tolerance", "-1"], "--tolerance -1: a number of seconds >= 0"),
+        (["--against", "TEAM", "--tolerance", "nan"], "--tolerance nan"),
+        (["--against", "TEAM", "--data", "d.csv"], "--data"),
+    ],
+)
 def test_bad_arguments_are_one_line_and_exit_2(mutated, tmp_path, capsys, extra, says):
     resign, trace, _run, _result = mutated
     extra = [str(resign) if e == "TEAM" else e for e in extra]

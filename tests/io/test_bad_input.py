@@ -36,8 +36,11 @@ CORPUS = {
     "negative_duration.yaml": (20, "simulation.duration", "must be >= 0, got -5"),
     "zero_sample_period.yaml": (21, "simulation.sample_period", "must be > 0"),
     "unknown_plant_kind.yaml": (5, "plant.kind", "did you mean 'flow'"),
-    "unknown_target_mode.yaml": (14, "transitions[0].to",
-                                 "unknown mode 'Col'; did you mean 'Cool'"),
+    "unknown_target_mode.yaml": (
+        14,
+        "transitions[0].to",
+        "unknown mode 'Col'; did you mean 'Cool'",
+    ),
     "unknown_law.yaml": (10, "law", "unknown law 'constnt'; did you mean 'constant'"),
     "unknown_name_in_guard.yaml": (14, "transitions[0].guard", "unknown name 'xx'"),
     "guard_syntax_error.yaml": (14, "transitions[0].guard", "end of expression"),
@@ -59,15 +62,19 @@ CORPUS = {
     "bad_agent_name.yaml": (3, "agents", "'my thermostat' is not valid"),
     "no_initial_among_children.yaml": (4, "agents.thermostat.initial", "no 'initial'"),
     "law_and_flow_together.yaml": (16, "modes.Cool", "declares both"),
-    "law_parameter_shadows_state.yaml": (13, "law.with.x",
-                                         "binding parameter 'x' of law 'constant' has the "
-                                         "name of a state"),
+    "law_parameter_shadows_state.yaml": (
+        13,
+        "law.with.x",
+        "binding parameter 'x' of law 'constant' has the name of a state",
+    ),
     "period_without_inputs.yaml": (16, "modes.Cool", "'period' samples 'inputs'"),
-    "message_declared_twice.yaml": (4, "messages.request",
-                                    "already declared by protocol 'role_assignment'"),
+    "message_declared_twice.yaml": (
+        4,
+        "messages.request",
+        "already declared by protocol 'role_assignment'",
+    ),
     "deploy_unknown_agent.yaml": (22, "deploy.thermo", "did you mean 'thermostat'"),
-    "deploy_relative_topic.yaml": (24, "deploy.thermostat.odom",
-                                   "expected a topic's full name"),
+    "deploy_relative_topic.yaml": (24, "deploy.thermostat.odom", "expected a topic's full name"),
     "deploy_unknown_setting.yaml": (25, "deploy.thermostat.frmae", "did you mean 'frame'"),
 }
 
@@ -121,14 +128,29 @@ def test_dangerous_guard_never_runs(tmp_path, monkeypatch, capsys):
 
 def test_cli_process_prints_no_traceback(tmp_path):
     """As a real process: exit 2 and the message, for a YAML error and an argument error."""
-    for args in (["validate", str(BAD / "binary_garbage.yaml")],
-                 ["run", str(EXAMPLES / "automata" / "thermostat.yaml"), "-o",
-                  str(tmp_path / "o"), "-n", "0"],
-                 ["run", str(EXAMPLES / "automata" / "thermostat.yaml"), "-o",
-                  str(tmp_path / "o"), "--set", "thermostat.KK=1"],
-                 ["frobnicate"]):
-        proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", *args],
-                              capture_output=True, text=True)
+    for args in (
+        ["validate", str(BAD / "binary_garbage.yaml")],
+        [
+            "run",
+            str(EXAMPLES / "automata" / "thermostat.yaml"),
+            "-o",
+            str(tmp_path / "o"),
+            "-n",
+            "0",
+        ],
+        [
+            "run",
+            str(EXAMPLES / "automata" / "thermostat.yaml"),
+            "-o",
+            str(tmp_path / "o"),
+            "--set",
+            "thermostat.KK=1",
+        ],
+        ["frobnicate"],
+    ):
+        proc = subprocess.run(
+            [sys.executable, "-m", "hybridteam.cli", *args], capture_output=True, text=True
+        )
         assert proc.returncode == 2, (args, proc.stderr)
         assert "Traceback" not in proc.stderr and proc.stderr.strip()
     assert not (tmp_path / "o").exists()
@@ -150,9 +172,31 @@ def test_mutated_files_never_raise_uncaught(tmp_path_factory, text, data):
         elif op == "delete" and raw:
             del raw[pos : pos + data.draw(st.integers(1, 8))]
         elif op == "insert":
-            raw[pos:pos] = data.draw(st.sampled_from(
-                [b":", b"-", b" ", b"\n", b"{", b"]", b"'", b"__", b"x", b"1e9", b"!!python",
-                 b"&a", b"*a", b"\t", b"\x00", b"and", b"(", b"**", b"nan"]))
+            raw[pos:pos] = data.draw(
+                st.sampled_from(
+                    [
+                        b":",
+                        b"-",
+                        b" ",
+                        b"\n",
+                        b"{",
+                        b"]",
+                        b"'",
+                        b"__",
+                        b"x",
+                        b"1e9",
+                        b"!!python",
+                        b"&a",
+                        b"*a",
+                        b"\t",
+                        b"\x00",
+                        b"and",
+                        b"(",
+                        b"**",
+                        b"nan",
+                    ]
+                )
+            )
         elif op == "dup":
             end = min(len(raw), pos + data.draw(st.integers(1, 40)))
             raw[pos:pos] = raw[pos:end]

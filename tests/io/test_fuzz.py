@@ -30,11 +30,37 @@ SOURCES = {
     "protocol": ROOT / "protocols" / "role_assignment.yaml",
     "study": ROOT / "tests" / "fixtures" / "sweep" / "study.yaml",
 }
-VALUES = [None, "", 0, -1, 1e300, -1e-300, "x", "1/0", "sqrt(-1)", "nan", "inf", True, [],
-          {}, [1, 2], {"a": 1}, "a" * 300, 10**30, "t > ", "Cool", "agents", 0.5]
-SETTINGS = settings(max_examples=40, deadline=None, derandomize=True, database=None,
-                    suppress_health_check=[HealthCheck.too_slow,
-                                           HealthCheck.function_scoped_fixture])
+VALUES = [
+    None,
+    "",
+    0,
+    -1,
+    1e300,
+    -1e-300,
+    "x",
+    "1/0",
+    "sqrt(-1)",
+    "nan",
+    "inf",
+    True,
+    [],
+    {},
+    [1, 2],
+    {"a": 1},
+    "a" * 300,
+    10**30,
+    "t > ",
+    "Cool",
+    "agents",
+    0.5,
+]
+SETTINGS = settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 
 
 def paths(data: Any, prefix: tuple = ()) -> list[tuple]:
@@ -96,8 +122,7 @@ def run_cli(argv: list[str]) -> int:
 @pytest.mark.parametrize("kind", sorted(SOURCES))
 @SETTINGS
 @given(data=st.data())
-def test_mutated_files_validate_and_run_or_are_refused(kind, data, tmp_path_factory,
-                                                       capsys):
+def test_mutated_files_validate_and_run_or_are_refused(kind, data, tmp_path_factory, capsys):
     folder = tmp_path_factory.mktemp(kind)
     original = yaml.safe_load(SOURCES[kind].read_text())
     if kind == "study":  # its team, beside it
@@ -109,8 +134,18 @@ def test_mutated_files_validate_and_run_or_are_refused(kind, data, tmp_path_fact
     code = run_cli(["validate", str(path)])
     assert code in (0, 2)
     if code == 0 and kind in ("team", "flow"):
-        code = run_cli(["run", str(path), "-o", str(folder / "out"), "--duration", "0.5",
-                        "--no-views", "--quiet"])
+        code = run_cli(
+            [
+                "run",
+                str(path),
+                "-o",
+                str(folder / "out"),
+                "--duration",
+                "0.5",
+                "--no-views",
+                "--quiet",
+            ]
+        )
         assert code in (0, 2)
     assert "Traceback" not in capsys.readouterr().err
 
@@ -118,8 +153,21 @@ def test_mutated_files_validate_and_run_or_are_refused(kind, data, tmp_path_fact
 @pytest.fixture(scope="module")
 def trace(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("trace")
-    assert main(["run", str(SOURCES["team"]), "-o", str(folder), "--no-views", "--quiet",
-                 "--duration", "4"]) == 0
+    assert (
+        main(
+            [
+                "run",
+                str(SOURCES["team"]),
+                "-o",
+                str(folder),
+                "--no-views",
+                "--quiet",
+                "--duration",
+                "4",
+            ]
+        )
+        == 0
+    )
     return json.loads((folder / "trace.json").read_text())
 
 
@@ -129,8 +177,10 @@ def test_mutated_traces_draw_or_are_refused(trace, data, tmp_path_factory, capsy
     folder = tmp_path_factory.mktemp("views")
     path = folder / "trace.json"
     path.write_text(json.dumps(mutate(trace, data.draw)))
-    for argv in (["timeline", str(path), "-o", str(folder / "t.png")],
-                 ["sequence", str(path)],
-                 ["plot", str(path), "-o", str(folder / "p.png")]):
+    for argv in (
+        ["timeline", str(path), "-o", str(folder / "t.png")],
+        ["sequence", str(path)],
+        ["plot", str(path), "-o", str(folder / "p.png")],
+    ):
         assert run_cli(argv) in (0, 2)
     assert "Traceback" not in capsys.readouterr().err

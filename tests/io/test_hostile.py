@@ -37,8 +37,11 @@ def test_a_team_name_cannot_inject_lines_into_text_exports(team_from_yaml, fmt, 
     carriage return, which a terminal acts on (it overwrites the line), is refused where the
     name is written."""
     if brk == "\\r":
-        with pytest.raises(InputErrors, match=r"team\.yaml:2:7: team: team name .* has "
-                           "control characters"):
+        with pytest.raises(
+            InputErrors,
+            match=r"team\.yaml:2:7: team: team name .* has "
+            "control characters",
+        ):
             team_from_yaml(TWO_MODES.format(name=f'"evil{brk}    Injected --> Other"'))
         return
     evil = team_from_yaml(TWO_MODES.format(name=f'"evil{brk}    Injected --> Other"'))
@@ -66,16 +69,19 @@ simulation: {{duration: 2.0}}
 """
 
 
-@pytest.mark.parametrize(("flow", "outcome", "words"), [
-    ("1/(x-1)", "numerical_error", "the derivative of state 'x' is inf (flow x: 1/(x-1))"),
-    ("sqrt(-x)", "numerical_error", "the derivative of state 'x' is nan (flow x: sqrt(-x))"),
-    ("exp(1000*x)", "numerical_error", "the derivative of state 'x' is inf"),
-    ("log(x-1)", "numerical_error", "the derivative of state 'x' is -inf"),
-    ("1e6*sin(1e6*t)", "stiff", "step size fell to"),
-    ("-1e9*x", "stiff", "below 2e-06 s (flow x: -1e9*x)"),
-    ("x*x", "stiff", "step size fell to"),            # blows up at t = 1
-    ("1/(1-t)", "stiff", "step size fell to"),
-])
+@pytest.mark.parametrize(
+    ("flow", "outcome", "words"),
+    [
+        ("1/(x-1)", "numerical_error", "the derivative of state 'x' is inf (flow x: 1/(x-1))"),
+        ("sqrt(-x)", "numerical_error", "the derivative of state 'x' is nan (flow x: sqrt(-x))"),
+        ("exp(1000*x)", "numerical_error", "the derivative of state 'x' is inf"),
+        ("log(x-1)", "numerical_error", "the derivative of state 'x' is -inf"),
+        ("1e6*sin(1e6*t)", "stiff", "step size fell to"),
+        ("-1e9*x", "stiff", "below 2e-06 s (flow x: -1e9*x)"),
+        ("x*x", "stiff", "step size fell to"),  # blows up at t = 1
+        ("1/(1-t)", "stiff", "step size fell to"),
+    ],
+)
 def test_numerical_failure_is_an_outcome_not_a_hang(team_from_yaml, flow, outcome, words):
     run = ht.simulate(team_from_yaml(FLOW.format(flow=flow)))
     assert run.outcome == outcome
@@ -118,18 +124,17 @@ def test_an_input_that_is_not_a_number_ends_the_run(team_from_yaml):
     run = ht.simulate(team)
     assert run.outcome == "numerical_error"
     assert run.diagnostics[0]["t"] == 1.0
-    assert run.message == ("agent 'r' in mode 'Go' at t=1.0: input 'v' is inf (inputs: v: "
-                           "1/(1-t), omega: 0.0)")
+    assert run.message == (
+        "agent 'r' in mode 'Go' at t=1.0: input 'v' is inf (inputs: v: 1/(1-t), omega: 0.0)"
+    )
 
 
 def test_min_step_lets_a_model_ask_for_smaller_steps(team_from_yaml):
     """A stiff transient (rate 1e7 /s, fading in about a millisecond) needs steps of a few
     1e-7 s, below the default floor of 1e-6 of the duration; with min_step it runs, and
     x relaxes to 2."""
-    text = FLOW.format(flow="-1e7*exp(-1000*t)*(x-2)").replace("duration: 2.0",
-                                                                "duration: 1.0")
+    text = FLOW.format(flow="-1e7*exp(-1000*t)*(x-2)").replace("duration: 2.0", "duration: 1.0")
     assert ht.simulate(team_from_yaml(text)).outcome == "stiff"
-    ok = ht.simulate(team_from_yaml(text.replace("duration: 1.0",
-                                                 "duration: 1.0, min_step: 1e-9")))
+    ok = ht.simulate(team_from_yaml(text.replace("duration: 1.0", "duration: 1.0, min_step: 1e-9")))
     assert ok.outcome == "ok"
     assert ok.samples["a"][-1, 0, 0] == pytest.approx(2.0, abs=1e-9)

@@ -26,8 +26,7 @@ from hybridteam.io.scxml import ChartReader, parse
 from hybridteam.model import Agent, EndRule, Mode, PlantSpec, ScenarioEvent, Transition, Zeno
 
 VERSION = "2.0.16"  # the version .ci/run installs
-CACHE = Path(os.environ.get("HYBRIDTEAM_SCION")
-             or Path.home() / ".cache" / "hybridteam-scion")
+CACHE = Path(os.environ.get("HYBRIDTEAM_SCION") or Path.home() / ".cache" / "hybridteam-scion")
 FIXTURES = CACHE / "node_modules" / "@scion-scxml" / "test-framework" / "test"
 
 #: Families outside the subset, with why.
@@ -42,7 +41,7 @@ OUT_OF_SCOPE = {
     "if-else": "<if>: executable content outside the core subset",
     "error": "error.execution events, raised by failing ECMAScript",
     "w3c-ecma": "the W3C suite in the ECMAScript datamodel: IO processors (<send>), "
-                "_event, done events, <invoke>",
+    "_event, done events, <invoke>",
 }
 
 #: Fixtures of in-scope families that the subset cannot express, with why (the reader's
@@ -68,15 +67,21 @@ NOT_EXPRESSED = {
 COUNTS = (111, 97, 97)
 
 #: Keeps a fixture's run going to its end (its delay is never reached).
-CLOCK = Agent("clock", PlantSpec("none", {}), Mode(
-    "clock", (Mode("Idle", transitions=(Transition("Idle", after=1e6),)),), initial="Idle"))
+CLOCK = Agent(
+    "clock",
+    PlantSpec("none", {}),
+    Mode("clock", (Mode("Idle", transitions=(Transition("Idle", after=1e6),)),), initial="Idle"),
+)
 
 
 def fixtures() -> list[Path]:
     if not FIXTURES.is_dir():
         return []
-    return sorted(p for p in FIXTURES.glob("*/*.scxml")
-                  if p.parent.name not in OUT_OF_SCOPE and p.with_suffix(".json").exists())
+    return sorted(
+        p
+        for p in FIXTURES.glob("*/*.scxml")
+        if p.parent.name not in OUT_OF_SCOPE and p.with_suffix(".json").exists()
+    )
 
 
 def run_fixture(path: Path) -> tuple[list[list[str]], list[list[str]]]:
@@ -88,29 +93,39 @@ def run_fixture(path: Path) -> tuple[list[list[str]], list[list[str]]]:
     reader.agent(parse(path.read_text(), str(path)), ())
     agent = team.agents[0]
     team = dataclasses.replace(
-        team, agents=(agent, CLOCK), end=EndRule(("clock",)),
-        scenario=tuple(ScenarioEvent(float(k + 1), agent.name, e)
-                       for k, e in enumerate(events)),
+        team,
+        agents=(agent, CLOCK),
+        end=EndRule(("clock",)),
+        scenario=tuple(ScenarioEvent(float(k + 1), agent.name, e) for k, e in enumerate(events)),
         # eventless loops of a hundred steps at one instant are a fixture's point here
-        simulation=dataclasses.replace(team.simulation, duration=len(events) + 0.5,
-                                       zeno=Zeno(10_000, 10_000, 1e-6)))
+        simulation=dataclasses.replace(
+            team.simulation, duration=len(events) + 0.5, zeno=Zeno(10_000, 10_000, 1e-6)
+        ),
+    )
     run = ht.simulate(team)
 
     def configuration(t: float) -> list[str]:
-        modes = {r.mode for r in run.intervals
-                 if r.agent == agent.name and r.start <= t < r.end}
-        return sorted(reader.ids[m.rsplit(".", 1)[-1]] for m in modes
-                      if not any(o.startswith(m + ".") for o in modes))
+        modes = {r.mode for r in run.intervals if r.agent == agent.name and r.start <= t < r.end}
+        return sorted(
+            reader.ids[m.rsplit(".", 1)[-1]]
+            for m in modes
+            if not any(o.startswith(m + ".") for o in modes)
+        )
 
     got = [configuration(float(k)) for k in range(len(events) + 1)]
     want = [sorted(spec["initialConfiguration"])] + [
-        sorted(e["nextConfiguration"]) for e in spec.get("events", [])]
+        sorted(e["nextConfiguration"]) for e in spec.get("events", [])
+    ]
     return got, want
 
 
-@pytest.mark.skipif(not FIXTURES.is_dir(), reason=(
-    f"the SCION fixtures are not installed in {CACHE}: .ci/run installs "
-    f"@scion-scxml/test-framework@{VERSION} there with npm (none on this machine?)"))
+@pytest.mark.skipif(
+    not FIXTURES.is_dir(),
+    reason=(
+        f"the SCION fixtures are not installed in {CACHE}: .ci/run installs "
+        f"@scion-scxml/test-framework@{VERSION} there with npm (none on this machine?)"
+    ),
+)
 def test_every_scion_fixture_in_scope_passes_under_the_scxml_rule():
     expressed, passing, failures = 0, 0, []
     unexpressed: dict[str, str] = {}

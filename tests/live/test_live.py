@@ -57,9 +57,12 @@ def processes():
     started: list[subprocess.Popen] = []
 
     def start(*args: str) -> subprocess.Popen:
-        proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", *args],
-                                stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "hybridteam.cli", "live", *args],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         started.append(proc)
         return proc
 
@@ -90,8 +93,10 @@ def start_together(*procs: subprocess.Popen) -> None:
         assert proc.stdout is not None
         ready, _, _ = select.select([proc.stdout], [], [], TIMEOUT)
         line = proc.stdout.readline() if ready else b""
-        assert line.startswith(b"ready "), (line, proc.stderr.read() if proc.poll() is not
-                                            None else b"")
+        assert line.startswith(b"ready "), (
+            line,
+            proc.stderr.read() if proc.poll() is not None else b"",
+        )
     now = time.time()
     for proc in procs:
         assert proc.stdin is not None
@@ -118,16 +123,23 @@ def simulated() -> dict[str, list[tuple[str, str, str]]]:
 
 def hostile(codec: Codec) -> list[bytes]:
     """Datagrams of no genuine sender: malformed, oversized, foreign, forged."""
-    genuine = json.loads(codec.encode(Message(0, 1, 10**6, 1.0, "control", "request",
-                                              {"need": 2.0}), 0.0, time.time()))
-    return [b"{not json", b" " * (MAX_BYTES + 1),
-            json.dumps({**genuine, "team": "another team"}).encode(),
-            json.dumps({**genuine, "ht": 2}).encode(),
-            json.dumps({**genuine, "from": "intruder"}).encode()]
+    genuine = json.loads(
+        codec.encode(
+            Message(0, 1, 10**6, 1.0, "control", "request", {"need": 2.0}), 0.0, time.time()
+        )
+    )
+    return [
+        b"{not json",
+        b" " * (MAX_BYTES + 1),
+        json.dumps({**genuine, "team": "another team"}).encode(),
+        json.dumps({**genuine, "ht": 2}).encode(),
+        json.dumps({**genuine, "from": "intruder"}).encode(),
+    ]
 
 
 def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagrams(
-        tmp_path, processes, udp):
+    tmp_path, processes, udp
+):
     """Requester and granter in two processes over loopback (4x the wall clock), their
     clocks started together (``--ready``, then ``go``: the granter's 1.5 wall seconds run
     from the requester's start, not from its own, however late the other came up): each
@@ -137,15 +149,36 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     sniffer = udp()  # a peer of the requester: sees its datagrams, to replay one
     bad = hostile(Codec(compile_team(ht.load(TEAM))))  # (ready before the run starts)
     ports = {"requester": free_port(), "granter": free_port()}
-    granter = processes(str(TEAM), "--agent", "granter", "--listen",
-                        f"{LOCAL}:{ports['granter']}", "--peer",
-                        f"{LOCAL}:{ports['requester']}", "--time-scale", "4", "--ready",
-                        "-o", str(tmp_path / "granter"))
-    requester = processes(str(TEAM), "--agent", "requester", "--listen",
-                          f"{LOCAL}:{ports['requester']}", "--peer",
-                          f"{LOCAL}:{ports['granter']}", "--peer",
-                          f"{LOCAL}:{sniffer.getsockname()[1]}", "--time-scale", "4",
-                          "--ready", "-o", str(tmp_path / "requester"))
+    granter = processes(
+        str(TEAM),
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{ports['granter']}",
+        "--peer",
+        f"{LOCAL}:{ports['requester']}",
+        "--time-scale",
+        "4",
+        "--ready",
+        "-o",
+        str(tmp_path / "granter"),
+    )
+    requester = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--listen",
+        f"{LOCAL}:{ports['requester']}",
+        "--peer",
+        f"{LOCAL}:{ports['granter']}",
+        "--peer",
+        f"{LOCAL}:{sniffer.getsockname()[1]}",
+        "--time-scale",
+        "4",
+        "--ready",
+        "-o",
+        str(tmp_path / "requester"),
+    )
     start_together(granter, requester)
     ready, _, _ = select.select([sniffer], [], [], TIMEOUT)
     assert ready, "the requester sent nothing"
@@ -182,13 +215,20 @@ def test_two_processes_shake_hands_as_the_simulation_does_despite_hostile_datagr
     assert granter_msgs["msg_id"].tolist() == [-1, 0]  # 'done' is acknowledged
 
 
-@pytest.mark.parametrize(("said", "start"), [
-    ("go\n", None), ("go 1000.25\n", 1000.25), ("go   1000.25  \n", 1000.25),
-    ("", "stdin did not say 'go'"), ("start\n", "stdin did not say 'go'"),
-    ("go 1000 1\n", "stdin did not say 'go'"),
-    ("go 939.75\n", "'go 939.75' is no wall time within 60 s of now"),
-    ("go nan\n", "'go nan' is no wall time"), ("go soon\n", "'go soon' is no wall time"),
-])
+@pytest.mark.parametrize(
+    ("said", "start"),
+    [
+        ("go\n", None),
+        ("go 1000.25\n", 1000.25),
+        ("go   1000.25  \n", 1000.25),
+        ("", "stdin did not say 'go'"),
+        ("start\n", "stdin did not say 'go'"),
+        ("go 1000 1\n", "stdin did not say 'go'"),
+        ("go 939.75\n", "'go 939.75' is no wall time within 60 s of now"),
+        ("go nan\n", "'go nan' is no wall time"),
+        ("go soon\n", "'go soon' is no wall time"),
+    ],
+)
 def test_the_start_a_ready_process_is_given(monkeypatch, said, start):
     """``--ready``'s ``go`` (the clock starts when it is read) or ``go WALL`` (run time 0
     at that wall time, launch's for every process; within START_TIMEOUT, 60 s, of now,
@@ -219,8 +259,19 @@ def test_a_clock_started_at_a_past_wall_time_is_that_far_into_its_run():
 
 def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):
     port = free_port()
-    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{port}", "--time-scale", "4", "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{port}",
+        "--time-scale",
+        "4",
+        "-o",
+        str(tmp_path / "both"),
+    )
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == simulated()
@@ -235,8 +286,17 @@ def test_agents_sharing_a_process_talk_through_the_socket(tmp_path, processes):
 def test_sigint_stops_the_run_with_its_trace_complete(tmp_path, processes):
     """The granter alone waits for a request that never comes: SIGINT ends it cleanly,
     and its trace says so."""
-    proc = processes(str(TEAM), "--agent", "granter", "--listen", f"{LOCAL}:{free_port()}",
-                     "--duration", "1000", "-o", str(tmp_path / "g"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--duration",
+        "1000",
+        "-o",
+        str(tmp_path / "g"),
+    )
     wait_running(proc)
     proc.send_signal(signal.SIGINT)
     finish(proc)
@@ -271,9 +331,27 @@ def test_a_sigterm_while_the_folder_is_written_waits_for_it(tmp_path, monkeypatc
     monkeypatch.setattr(live_cli, "write_folder", write_signalled)
     previous = signal.signal(signal.SIGTERM, caller)
     try:
-        assert main(["live", str(TEAM), "--agent", "requester", "--agent", "granter",
-                     "--listen", f"{LOCAL}:0", "--time-scale", "8", "--duration", "0.5",
-                     "-o", str(tmp_path / "both")]) == 0
+        assert (
+            main(
+                [
+                    "live",
+                    str(TEAM),
+                    "--agent",
+                    "requester",
+                    "--agent",
+                    "granter",
+                    "--listen",
+                    f"{LOCAL}:0",
+                    "--time-scale",
+                    "8",
+                    "--duration",
+                    "0.5",
+                    "-o",
+                    str(tmp_path / "both"),
+                ]
+            )
+            == 0
+        )
         assert signal.getsignal(signal.SIGTERM) is caller
     finally:
         signal.signal(signal.SIGTERM, previous)
@@ -283,22 +361,36 @@ def test_a_sigterm_while_the_folder_is_written_waits_for_it(tmp_path, monkeypatc
 
 def test_a_taken_port_is_one_line_and_nothing_written(tmp_path, processes, udp):
     taken = udp()
-    proc = processes(str(TEAM), "--agent", "granter", "--listen",
-                     f"{LOCAL}:{taken.getsockname()[1]}", "-o", str(tmp_path / "g"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{taken.getsockname()[1]}",
+        "-o",
+        str(tmp_path / "g"),
+    )
     _, err = proc.communicate(timeout=TIMEOUT)
     assert proc.returncode == 2
-    assert err.decode().strip() == (f"hybridteam: error: UDP port {LOCAL}:"
-                                     f"{taken.getsockname()[1]} is taken (another process "
-                                     "listens there)")
+    assert err.decode().strip() == (
+        f"hybridteam: error: UDP port {LOCAL}:"
+        f"{taken.getsockname()[1]} is taken (another process "
+        "listens there)"
+    )
     assert not (tmp_path / "g").exists()
 
 
-@pytest.mark.parametrize(("args", "message"), [
-    (["--agent", "nobody"], "--agent 'nobody' is not an agent of the team (its agents: "
-                            "requester, granter)"),
-    (["--agent", "granter", "--listen", "localhost"], "--listen must be HOST:PORT"),
-    (["--agent", "granter", "--time-scale", "0"], "--time-scale must be a finite number > 0"),
-])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ["--agent", "nobody"],
+            "--agent 'nobody' is not an agent of the team (its agents: requester, granter)",
+        ),
+        (["--agent", "granter", "--listen", "localhost"], "--listen must be HOST:PORT"),
+        (["--agent", "granter", "--time-scale", "0"], "--time-scale must be a finite number > 0"),
+    ],
+)
 def test_bad_arguments_are_one_line(tmp_path, processes, args, message):
     if "--listen" not in args:
         args = [*args, "--listen", f"{LOCAL}:{free_port()}"]
@@ -315,9 +407,21 @@ def test_launch_runs_every_agent_and_merges_their_traces(tmp_path):
     has every agent's transitions of ``hybridteam run``, in the same order, and is a trace
     the views read."""
     out = tmp_path / "launch"
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(TEAM),
-                           "--time-scale", "4", "-o", str(out)],
-                          capture_output=True, timeout=TIMEOUT * 2)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            str(TEAM),
+            "--time-scale",
+            "4",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        timeout=TIMEOUT * 2,
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     data = json.loads((out / "trace.json").read_text())
     assert check_trace(data) is None
@@ -326,11 +430,11 @@ def test_launch_runs_every_agent_and_merges_their_traces(tmp_path):
     # the team's order of transitions too: the causal chain crosses the processes (the
     # initial modes are entered at each process's start, in whichever order they began)
     sim = ht.simulate(ht.load(TEAM))
-    assert [(r.agent, r.target) for r in merged.transitions if r.cause != "init"] == \
-        [(r.agent, r.target) for r in sim.transitions if r.cause != "init"]
+    assert [(r.agent, r.target) for r in merged.transitions if r.cause != "init"] == [
+        (r.agent, r.target) for r in sim.transitions if r.cause != "init"
+    ]
     assert merged.outcomes[0]["outcome"] == "ok"
-    assert [p["agents"] for p in merged.meta["live"]["processes"]] == [["requester"],
-                                                                        ["granter"]]
+    assert [p["agents"] for p in merged.meta["live"]["processes"]] == [["requester"], ["granter"]]
     for agent in ("requester", "granter"):
         assert (out / "agents" / agent / "trace.json").exists()
 
@@ -346,25 +450,44 @@ def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
     trace has the two survivors and says which process left none, and why."""
     psutil = pytest.importorskip("psutil", reason="finds launch's child processes")
     muted = tmp_path / "muted.yaml"
-    muted.write_text(HANDOVER.read_text().replace(
-        "  latency: 0.03\n", "  latency: 0.03\n  links:\n    xr4000 -> labmate: {loss: 1}\n"
-        "    xr4000 -> operator: {loss: 1}\n"))
+    muted.write_text(
+        HANDOVER.read_text().replace(
+            "  latency: 0.03\n",
+            "  latency: 0.03\n  links:\n    xr4000 -> labmate: {loss: 1}\n"
+            "    xr4000 -> operator: {loss: 1}\n",
+        )
+    )
     expected = mode_sequences(ht.simulate(ht.load(muted), duration=4.0))
-    assert expected["labmate"][-1] == ("Transport.Requesting", "Transport.Operated",
-                                       "event:request_undeliverable")
+    assert expected["labmate"][-1] == (
+        "Transport.Requesting",
+        "Transport.Operated",
+        "event:request_undeliverable",
+    )
     out = tmp_path / "launch"
-    launch = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "launch",
-                               str(HANDOVER), "--time-scale", "4", "--duration", "4",
-                               "-o", str(out)],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    launch = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            str(HANDOVER),
+            "--time-scale",
+            "4",
+            "--duration",
+            "4",
+            "-o",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     try:
         log = out / "agents" / "xr4000" / "live.log"
         end = time.monotonic() + TIMEOUT
         while not (log.exists() and b"live (time scale" in log.read_bytes()):
             assert time.monotonic() < end and launch.poll() is None
             time.sleep(0.01)
-        (victim,) = [c for c in psutil.Process(launch.pid).children()
-                     if "xr4000" in c.cmdline()]
+        (victim,) = [c for c in psutil.Process(launch.pid).children() if "xr4000" in c.cmdline()]
         victim.send_signal(signal.SIGKILL)
         _, err = launch.communicate(timeout=TIMEOUT)
     finally:
@@ -381,8 +504,9 @@ def test_a_killed_teammate_is_met_as_the_protocol_says(tmp_path):
     # operated once its request's copy and 3 resends, 0.1 s apart, went unacknowledged
     # (t >= 3.4: a resend is never early), and within the answer timeout (1 s) plus one
     # control period (0.05 s) of asking
-    (t_operated,) = [r.t for r in merged.transitions
-                     if r.agent == "labmate" and r.target == "Transport.Operated"]
+    (t_operated,) = [
+        r.t for r in merged.transitions if r.agent == "labmate" and r.target == "Transport.Operated"
+    ]
     assert 3.0 + 4 * 0.1 - 1e-9 <= t_operated <= 3.0 + 1.0 + 0.05
 
 
@@ -391,29 +515,60 @@ def test_injected_loss_drops_what_arrives(tmp_path, processes):
     the granter listens, as the simulator has it with every copy lost; every datagram the
     process sent came back to its socket and was dropped there, and counted."""
     lossy = tmp_path / "lossy.yaml"
-    lossy.write_text(TEAM.read_text().replace("  latency: 0.01\n",
-                                              "  latency: 0.01\n  loss: 1\n"))
+    lossy.write_text(TEAM.read_text().replace("  latency: 0.01\n", "  latency: 0.01\n  loss: 1\n"))
     expected = mode_sequences(ht.simulate(ht.load(lossy)))
     assert expected["requester"][-1][1] == "Asking"
-    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--duration", "2",
-                     "--drop", "1", "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--time-scale",
+        "8",
+        "--duration",
+        "2",
+        "--drop",
+        "1",
+        "-o",
+        str(tmp_path / "both"),
+    )
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == expected
     live = trace.meta["live"]
     assert live["sent"] == 1  # the request
-    assert live["injected"] == {"drop": 1.0, "delay": 0.0, "drop_copies": {}, "dropped": 1,
-                                "delayed": 0, "scripted": 0}
+    assert live["injected"] == {
+        "drop": 1.0,
+        "delay": 0.0,
+        "drop_copies": {},
+        "dropped": 1,
+        "delayed": 0,
+        "scripted": 0,
+    }
     assert len(trace.messages) == 0
 
 
 def test_injected_delay_holds_each_arrival(tmp_path, processes):
     """``--delay 0.25``: each copy reaches its agent at least 0.25 run seconds after it
     was sent; the handshake is the simulator's all the same."""
-    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "--time-scale", "4", "--delay", "0.25",
-                     "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--time-scale",
+        "4",
+        "--delay",
+        "0.25",
+        "-o",
+        str(tmp_path / "both"),
+    )
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == simulated()
@@ -425,25 +580,42 @@ def test_injected_delay_holds_each_arrival(tmp_path, processes):
     assert trace.meta["live"]["injected"]["delayed"] == 3
 
 
-def test_a_value_out_of_range_during_the_run_is_located_and_nothing_written(tmp_path,
-                                                                           processes):
+def test_a_value_out_of_range_during_the_run_is_located_and_nothing_written(tmp_path, processes):
     """A delay that turns out negative as the run goes (the grant sets it): one line at
     its place in the file, exit status 2, no folder; as ``hybridteam run`` says it."""
     team = tmp_path / "negative.yaml"
-    team.write_text(TEAM.read_text().replace(
-        "    plant: {kind: flow, state: {x: 0}}\n    initial: Idle",
-        "    plant: {kind: flow, state: {x: 0}}\n    variables: {wait: 0.5}\n"
-        "    initial: Idle").replace(
-        'guard: "msg_amount >= 2"}', 'guard: "msg_amount >= 2", do: ["wait = msg_amount - 3"]}'
-    ).replace("Finished, after: 0.5,", "Finished, after: wait,"))
-    proc = processes(str(team), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--log-level", "warning",
-                     "-o", str(tmp_path / "out"))
+    team.write_text(
+        TEAM.read_text()
+        .replace(
+            "    plant: {kind: flow, state: {x: 0}}\n    initial: Idle",
+            "    plant: {kind: flow, state: {x: 0}}\n    variables: {wait: 0.5}\n    initial: Idle",
+        )
+        .replace(
+            'guard: "msg_amount >= 2"}', 'guard: "msg_amount >= 2", do: ["wait = msg_amount - 3"]}'
+        )
+        .replace("Finished, after: 0.5,", "Finished, after: wait,")
+    )
+    proc = processes(
+        str(team),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--time-scale",
+        "8",
+        "--log-level",
+        "warning",
+        "-o",
+        str(tmp_path / "out"),
+    )
     _, err = proc.communicate(timeout=TIMEOUT)
     assert proc.returncode == 2
     assert err.decode().strip().splitlines() == [
         f"{team}:16:53: agents.requester.modes.Granted.transitions[0].after: the delay "
-        "'wait' is -1.0 in instance 0; it must be a number >= 0"]
+        "'wait' is -1.0 in instance 0; it must be a number >= 0"
+    ]
     assert not (tmp_path / "out").exists()
 
 
@@ -452,14 +624,30 @@ def test_a_scripted_loss_of_a_plain_grant_strands_the_requester(tmp_path, proces
     good, as the simulator has it with the granter's copies lost (where it concludes a
     deadlock: live, a copy may still come, so the run goes to its end)."""
     lost = tmp_path / "lost.yaml"
-    lost.write_text(TEAM.read_text().replace(
-        "  latency: 0.01\n",
-        "  latency: 0.01\n  links:\n    granter -> requester: {loss: 1}\n"))
+    lost.write_text(
+        TEAM.read_text().replace(
+            "  latency: 0.01\n", "  latency: 0.01\n  links:\n    granter -> requester: {loss: 1}\n"
+        )
+    )
     sim = ht.simulate(ht.load(lost))
     assert sim.outcome == "deadlock"
-    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "--time-scale", "8", "--duration", "3",
-                     "--drop-copy", "grant", "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--time-scale",
+        "8",
+        "--duration",
+        "3",
+        "--drop-copy",
+        "grant",
+        "-o",
+        str(tmp_path / "both"),
+    )
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == mode_sequences(sim)
@@ -468,20 +656,34 @@ def test_a_scripted_loss_of_a_plain_grant_strands_the_requester(tmp_path, proces
     # the grant is in the trace as the copy lost on its way (as a replay shows its loss)
     assert trace.messages["type"].tolist() == ["request", "grant"]
     grant = trace.messages.where(type="grant")
-    assert (grant["status"].tolist(), grant["reason"].tolist()) == (
-        ["lost"], ["loss (scripted)"])
+    assert (grant["status"].tolist(), grant["reason"].tolist()) == (["lost"], ["loss (scripted)"])
 
 
 def test_an_acknowledged_grant_survives_the_same_loss(tmp_path, processes):
     """The same loss with 'grant' acknowledged: its retransmission gets through, and the
     handshake ends as the simulator's does without loss."""
     acked = tmp_path / "acked.yaml"
-    acked.write_text(TEAM.read_text().replace(
-        "messages:\n", "messages:\n  grant: {ack: {timeout: 0.2, retries: 3}}\n"))
+    acked.write_text(
+        TEAM.read_text().replace(
+            "messages:\n", "messages:\n  grant: {ack: {timeout: 0.2, retries: 3}}\n"
+        )
+    )
     expected = mode_sequences(ht.simulate(ht.load(acked)))
-    proc = processes(str(acked), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "--time-scale", "4", "--drop-copy", "grant",
-                     "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(acked),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "--time-scale",
+        "4",
+        "--drop-copy",
+        "grant",
+        "-o",
+        str(tmp_path / "both"),
+    )
     finish(proc)
     trace = Trace.load(tmp_path / "both" / "trace.json")
     assert mode_sequences(trace) == expected
@@ -498,8 +700,17 @@ def test_a_paused_process_takes_its_instants_late_and_says_so(tmp_path, processe
     """The process is stopped (SIGSTOP) from about 0.2 s to 1.4 s of the wall clock, over
     the requester's first instant (1.0): it takes that instant late, by more than 0.3 s,
     the record says so, and the handshake still ends as the simulator's."""
-    proc = processes(str(TEAM), "--agent", "requester", "--agent", "granter", "--listen",
-                     f"{LOCAL}:{free_port()}", "-o", str(tmp_path / "both"))
+    proc = processes(
+        str(TEAM),
+        "--agent",
+        "requester",
+        "--agent",
+        "granter",
+        "--listen",
+        f"{LOCAL}:{free_port()}",
+        "-o",
+        str(tmp_path / "both"),
+    )
     wait_running(proc)
     time.sleep(0.2)
     proc.send_signal(signal.SIGSTOP)

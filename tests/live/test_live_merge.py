@@ -17,31 +17,60 @@ from hybridteam.cli.live import alignment_text
 from hybridteam.live.merge import MergeError, clock_error, merge_traces
 from hybridteam.trace import INTERVAL_COLUMNS, MESSAGE_COLUMNS, TRANSITION_COLUMNS, Table, Trace
 
-AGENTS = [{"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []}
-          for n in ("a", "b")]
+AGENTS = [
+    {"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []} for n in ("a", "b")
+]
 
 
-def process(agent: str, wall_start: float, transitions: list[tuple], x: list[float],
-            outcome: str = "ok", t_end: float = 2.0) -> Trace:
+def process(
+    agent: str,
+    wall_start: float,
+    transitions: list[tuple],
+    x: list[float],
+    outcome: str = "ok",
+    t_end: float = 2.0,
+) -> Trace:
     """One process's trace hosting ``agent`` (scale 2): its transitions ``(t, target)``,
     its agent's samples ``x`` at 0, 1, 2 (the other agent's NaN)."""
     rows = {c: [] for c in TRANSITION_COLUMNS}
     for t, target in transitions:
-        for c, v in zip(TRANSITION_COLUMNS, (0, agent, t, 0, "", target, "init", ""),
-                        strict=True):
+        for c, v in zip(TRANSITION_COLUMNS, (0, agent, t, 0, "", target, "init", ""), strict=True):
             rows[c].append(v)
     samples = {n: np.full((3, 1, 1), np.nan) for n in ("a", "b")}
     samples[agent] = np.array(x, float).reshape(3, 1, 1)
-    meta = {"team": "t", "n": 1, "seed": 0, "duration": 2.0, "agents": AGENTS,
-            "live": {"agents": [agent], "digest": "d", "wall_start": wall_start,
-                     "time_scale": 2.0}}
-    messages = Table(MESSAGE_COLUMNS, {
-        "instance": [0], "seq": [0], "sender": ["a" if agent == "b" else "b"],
-        "receiver": [agent], "socket": ["control"], "type": ["m"], "t_send": [0.5],
-        "t_recv": [0.75], "status": ["delivered"], "reason": [""], "msg_id": [-1]})
-    return Trace(meta, [{"instance": 0, "outcome": outcome, "t": t_end, "message": ""}],
-                 Table(TRANSITION_COLUMNS, rows), Table(INTERVAL_COLUMNS), messages,
-                 np.array([0.0, 1.0, 2.0]), samples)
+    meta = {
+        "team": "t",
+        "n": 1,
+        "seed": 0,
+        "duration": 2.0,
+        "agents": AGENTS,
+        "live": {"agents": [agent], "digest": "d", "wall_start": wall_start, "time_scale": 2.0},
+    }
+    messages = Table(
+        MESSAGE_COLUMNS,
+        {
+            "instance": [0],
+            "seq": [0],
+            "sender": ["a" if agent == "b" else "b"],
+            "receiver": [agent],
+            "socket": ["control"],
+            "type": ["m"],
+            "t_send": [0.5],
+            "t_recv": [0.75],
+            "status": ["delivered"],
+            "reason": [""],
+            "msg_id": [-1],
+        },
+    )
+    return Trace(
+        meta,
+        [{"instance": 0, "outcome": outcome, "t": t_end, "message": ""}],
+        Table(TRANSITION_COLUMNS, rows),
+        Table(INTERVAL_COLUMNS),
+        messages,
+        np.array([0.0, 1.0, 2.0]),
+        samples,
+    )
 
 
 def test_times_move_to_the_first_process_clock():
@@ -52,9 +81,14 @@ def test_times_move_to_the_first_process_clock():
     b = process("b", 100.5, [(0.0, "B0"), (0.25, "B1")], [5.0, 7.0, 9.0], t_end=1.5)
     merged = merge_traces([b, a], ending=["a", "b"])
     assert merged.meta["live"]["offsets"] == [1.0, 0.0]
-    assert list(zip(merged.transitions["agent"], merged.transitions["t"],
-                    merged.transitions["target"], strict=True)) == [
-        ("a", 0.0, "A0"), ("b", 1.0, "B0"), ("b", 1.25, "B1"), ("a", 1.5, "A1")]
+    assert list(
+        zip(
+            merged.transitions["agent"],
+            merged.transitions["t"],
+            merged.transitions["target"],
+            strict=True,
+        )
+    ) == [("a", 0.0, "A0"), ("b", 1.0, "B0"), ("b", 1.25, "B1"), ("a", 1.5, "A1")]
     assert merged.messages["t_send"].tolist() == [0.5, 1.5]  # a's copy, then b's
     assert merged.messages["t_recv"].tolist() == [0.75, 1.75]
     np.testing.assert_array_equal(merged.samples["a"][:, 0, 0], [0.0, 10.0, 20.0])
@@ -70,19 +104,20 @@ def test_messages_bound_how_far_apart_the_clocks_are():
     a = process("a", 100.0, [], [0, 0, 0])
     b = process("b", 100.5, [], [0, 0, 0])
     assert merge_traces([a, b]).meta["live"]["clock_bounds"] == [
-        {"from": ["a"], "to": ["b"], "offset_s": [-0.125, 0.125]}]
+        {"from": ["a"], "to": ["b"], "offset_s": [-0.125, 0.125]}
+    ]
     b.messages.columns["t_recv"][:] = 1.5  # b's copy from a: 1.0 run s, 0.5 wall s
     a.messages.columns["status"][:] = "lost"  # and a received nothing from b
     assert merge_traces([a, b]).meta["live"]["clock_bounds"] == [
-        {"from": ["a"], "to": ["b"], "offset_s": [None, 0.5]}]
+        {"from": ["a"], "to": ["b"], "offset_s": [None, 0.5]}
+    ]
 
 
 def test_the_merge_s_clock_error_is_the_widest_bound_both_ways():
     """Offsets within [-0.125, 0.125] and [0.2, 0.3] (0 is not even in it: the merge's
     one clock is off by 0.2 to 0.3 s there): at most 0.3 s; a pair bounded one way only
     bounds nothing."""
-    bounds = [{"offset_s": [-0.125, 0.125]}, {"offset_s": [None, 0.5]},
-              {"offset_s": [0.2, 0.3]}]
+    bounds = [{"offset_s": [-0.125, 0.125]}, {"offset_s": [None, 0.5]}, {"offset_s": [0.2, 0.3]}]
     assert clock_error(bounds) == 0.3
     assert clock_error(bounds[1:2]) is None
     assert clock_error([]) is None
@@ -109,12 +144,25 @@ def world_process(wall_start: float, box: list[float], outcome: str = "ok") -> T
     """The world process's trace (no agent here, scale 2): the world's series ``box`` at
     0, 1, 2, its meta the world's (what views draw), every agent's samples NaN."""
     tr = process("a", wall_start, [], [np.nan] * 3, outcome=outcome)
-    samples = {"a": np.full((3, 1, 1), np.nan), "b": np.full((3, 1, 1), np.nan),
-               "box": np.array(box, float).reshape(3, 1, 1)}
-    meta = {**tr.meta, "obstacles": {"circles": [[0.0, 0.0, 1.0]]},
-            "live": {**tr.meta["live"], "agents": [], "world": True}}
-    return Trace(meta, tr.outcomes, tr.transitions, tr.intervals,
-                 tr.messages.filter(np.zeros(1, bool)), tr.sample_times, samples)
+    samples = {
+        "a": np.full((3, 1, 1), np.nan),
+        "b": np.full((3, 1, 1), np.nan),
+        "box": np.array(box, float).reshape(3, 1, 1),
+    }
+    meta = {
+        **tr.meta,
+        "obstacles": {"circles": [[0.0, 0.0, 1.0]]},
+        "live": {**tr.meta["live"], "agents": [], "world": True},
+    }
+    return Trace(
+        meta,
+        tr.outcomes,
+        tr.transitions,
+        tr.intervals,
+        tr.messages.filter(np.zeros(1, bool)),
+        tr.sample_times,
+        samples,
+    )
 
 
 def test_the_world_series_and_meta_come_from_the_world_process():
@@ -145,9 +193,14 @@ def test_a_run_whose_end_rule_processes_left_no_trace_merges_with_the_world_proc
 K = 2.0  # the time scale of every process below
 
 
-def on_machine(agent: str, agents: list[str], start: float, clock: float,
-               transitions: list[tuple[float, str]],
-               received: list[tuple[str, float, float, float]]) -> Trace:
+def on_machine(
+    agent: str,
+    agents: list[str],
+    start: float,
+    clock: float,
+    transitions: list[tuple[float, str]],
+    received: list[tuple[str, float, float, float]],
+) -> Trace:
     """The trace of a process hosting ``agent`` whose wall clock reads true time ``T`` as
     ``T + clock``, started at true time ``start`` (so it recorded ``start + clock``), at
     time scale K, as the live clock records: a transition ``(T, target)`` at run time
@@ -157,25 +210,46 @@ def on_machine(agent: str, agents: list[str], start: float, clock: float,
     process's own run clock, ``K (T_send + latency - start)``."""
     rows = {c: [] for c in TRANSITION_COLUMNS}
     for t, target in transitions:
-        for c, v in zip(TRANSITION_COLUMNS,
-                        (0, agent, K * (t - start), 0, "", target, "init", ""), strict=True):
+        for c, v in zip(
+            TRANSITION_COLUMNS, (0, agent, K * (t - start), 0, "", target, "init", ""), strict=True
+        ):
             rows[c].append(v)
     n = len(received)
-    messages = Table(MESSAGE_COLUMNS, {
-        "instance": [0] * n, "seq": list(range(n)), "sender": [r[0] for r in received],
-        "receiver": [agent] * n, "socket": ["control"] * n, "type": ["m"] * n,
-        "t_send": [K * (ts + c - (start + clock)) for _, ts, c, _ in received],
-        "t_recv": [K * (ts + lat - start) for _, ts, _, lat in received],
-        "status": ["delivered"] * n, "reason": [""] * n, "msg_id": [-1] * n})
-    spec = [{"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []}
-            for n in agents]
-    meta = {"team": "t", "n": 1, "seed": 0, "duration": 2.0, "agents": spec,
-            "live": {"agents": [agent], "digest": "d", "wall_start": start + clock,
-                     "time_scale": K}}
+    messages = Table(
+        MESSAGE_COLUMNS,
+        {
+            "instance": [0] * n,
+            "seq": list(range(n)),
+            "sender": [r[0] for r in received],
+            "receiver": [agent] * n,
+            "socket": ["control"] * n,
+            "type": ["m"] * n,
+            "t_send": [K * (ts + c - (start + clock)) for _, ts, c, _ in received],
+            "t_recv": [K * (ts + lat - start) for _, ts, _, lat in received],
+            "status": ["delivered"] * n,
+            "reason": [""] * n,
+            "msg_id": [-1] * n,
+        },
+    )
+    spec = [{"name": n, "plant": "flow", "state": ["x"], "inputs": [], "modes": []} for n in agents]
+    meta = {
+        "team": "t",
+        "n": 1,
+        "seed": 0,
+        "duration": 2.0,
+        "agents": spec,
+        "live": {"agents": [agent], "digest": "d", "wall_start": start + clock, "time_scale": K},
+    }
     samples = {n: np.full((3, 1, 1), np.nan) for n in agents}
-    return Trace(meta, [{"instance": 0, "outcome": "ok", "t": 1.0, "message": ""}],
-                 Table(TRANSITION_COLUMNS, rows), Table(INTERVAL_COLUMNS), messages,
-                 np.array([0.0, 1.0, 2.0]), samples)
+    return Trace(
+        meta,
+        [{"instance": 0, "outcome": "ok", "t": 1.0, "message": ""}],
+        Table(TRANSITION_COLUMNS, rows),
+        Table(INTERVAL_COLUMNS),
+        messages,
+        np.array([0.0, 1.0, 2.0]),
+        samples,
+    )
 
 
 # True clocks: a's reads +0.3 s, b's -0.2 s (b's clock is 0.5 s behind a's), c's +0.1 s.
@@ -184,14 +258,25 @@ CLOCK = {"a": 0.3, "b": -0.2, "c": 0.1}
 START = {"a": 100.0, "b": 100.5, "c": 100.2}
 
 
-def pair(agents: list[str], links: dict[tuple[str, str], float],
-         transitions: dict[str, list[tuple[float, str]]]) -> list[Trace]:
+def pair(
+    agents: list[str],
+    links: dict[tuple[str, str], float],
+    transitions: dict[str, list[tuple[float, str]]],
+) -> list[Trace]:
     """One process per agent; ``links[(p, q)]``: the latency of the one copy p sent to q,
     at true time 101.0 (a), 101.2 (b) or 101.3 (c)."""
     sent = {"a": 101.0, "b": 101.2, "c": 101.3}
-    return [on_machine(q, agents, START[q], CLOCK[q], transitions.get(q, []),
-                       [(p, sent[p], CLOCK[p], lat) for (p, r), lat in links.items() if r == q])
-            for q in agents]
+    return [
+        on_machine(
+            q,
+            agents,
+            START[q],
+            CLOCK[q],
+            transitions.get(q, []),
+            [(p, sent[p], CLOCK[p], lat) for (p, r), lat in links.items() if r == q],
+        )
+        for q in agents
+    ]
 
 
 def test_with_latencies_alike_both_ways_the_messages_give_the_clocks_exactly():
@@ -200,8 +285,11 @@ def test_with_latencies_alike_both_ways_the_messages_give_the_clocks_exactly():
     truth), error bound 0.05. b's transition at true 101.5 merges at 2 (101.5 - 100) = 3.0,
     a copy's send and arrival at their true times (one wall clock would put b's
     transition at 2 (101.5 - 0.2 - 100.3) = 2.0, a whole K 0.5 early)."""
-    traces = pair(["a", "b"], {("a", "b"): 0.05, ("b", "a"): 0.05},
-                  {"a": [(100.5, "A1")], "b": [(101.5, "B1")]})
+    traces = pair(
+        ["a", "b"],
+        {("a", "b"): 0.05, ("b", "a"): 0.05},
+        {"a": [(100.5, "A1")], "b": [(101.5, "B1")]},
+    )
     merged = merge_traces(traces, align="messages")
     live = merged.meta["live"]
     assert live["align"] == "messages" and live["clock_reference"] == 0
@@ -223,8 +311,7 @@ def test_with_latencies_unlike_the_estimate_is_off_by_half_their_difference():
     -0.52 (0.02 off: half the latencies' difference), bound 0.04 (half their sum). b's
     times move 2 x 0.02 = 0.04 run s late, within the stated 2 x 0.04; a copy b sent is
     read on b's clock, so its send time is as late, whoever recorded it."""
-    traces = pair(["a", "b"], {("a", "b"): 0.02, ("b", "a"): 0.06},
-                  {"b": [(101.5, "B1")]})
+    traces = pair(["a", "b"], {("a", "b"): 0.02, ("b", "a"): 0.06}, {"b": [(101.5, "B1")]})
     merged = merge_traces(traces, align="messages")
     live = merged.meta["live"]
     assert live["clock_bounds"][0]["offset_s"] == pytest.approx([-0.56, -0.48], abs=1e-12)
@@ -246,8 +333,9 @@ def test_a_chain_of_processes_sums_the_pairs_estimates_along_the_tightest_path()
     links = {("a", "b"): 0.02, ("b", "a"): 0.06, ("b", "c"): 0.01, ("c", "b"): 0.03}
     transitions = {"c": [(101.0, "C1")]}
     for extra in ({}, {("a", "c"): 0.2, ("c", "a"): 0.2}):
-        merged = merge_traces(pair(["a", "b", "c"], {**links, **extra}, transitions),
-                              align="messages")
+        merged = merge_traces(
+            pair(["a", "b", "c"], {**links, **extra}, transitions), align="messages"
+        )
         live = merged.meta["live"]
         assert live["clock_offsets_s"] == pytest.approx([0.0, -0.52, -0.23], abs=1e-12)
         assert live["clock_errors_s"] == pytest.approx([0.0, 0.04, 0.06], abs=1e-12)
@@ -262,8 +350,7 @@ def test_a_process_not_bounded_both_ways_keeps_its_wall_clock_and_an_unknown_err
     reading of them: b's copy (sent at true 101.2, 0.01 s on its way) at 2 x (101.21 +
     0.1 - 100.3) = 2.02 (truth 2.42); its send time, read on b's clock, is moved by b's
     estimate: 2.44 (truth 2.4)."""
-    traces = pair(["a", "b", "c"],
-                  {("a", "b"): 0.02, ("b", "a"): 0.06, ("b", "c"): 0.01}, {})
+    traces = pair(["a", "b", "c"], {("a", "b"): 0.02, ("b", "a"): 0.06, ("b", "c"): 0.01}, {})
     merged = merge_traces([traces[2], traces[0], traces[1]], align="messages")
     live = merged.meta["live"]
     assert live["clock_reference"] == 1
@@ -276,7 +363,8 @@ def test_a_process_not_bounded_both_ways_keeps_its_wall_clock_and_an_unknown_err
     # what hybridteam merge says of it
     assert alignment_text(live) == (
         "on a's clock, the others' aligned by their messages within 0.04 s, c not (no "
-        "messages both ways: wall clock taken, error unknown) (meta.live.clock_errors_s)")
+        "messages both ways: wall clock taken, error unknown) (meta.live.clock_errors_s)"
+    )
 
 
 def test_bounds_that_contradict_each_other_bound_nothing():
@@ -296,8 +384,9 @@ HANDSHAKE = Path(__file__).parents[1] / "fixtures" / "live" / "handshake.yaml"
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "hybridteam.cli", *args],
-                          capture_output=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "hybridteam.cli", *args], capture_output=True, timeout=120
+    )
 
 
 @pytest.fixture(scope="module")
@@ -314,33 +403,46 @@ def test_merging_a_launch_s_folders_gives_the_launch_s_own_trace(launched, tmp_p
     as launch aligns them: the merged trace and summary are the launch's, key for key
     (launch merges through the same code)."""
     agents = launched / "agents"
-    done = cli("merge", str(agents / "granter"), str(agents / "requester" / "trace.json"),
-               "--align", "wall", "-o", str(tmp_path / "m"))
+    done = cli(
+        "merge",
+        str(agents / "granter"),
+        str(agents / "requester" / "trace.json"),
+        "--align",
+        "wall",
+        "-o",
+        str(tmp_path / "m"),
+    )
     assert done.returncode == 0, done.stderr.decode()
     line = done.stderr.decode().strip()
     assert line.startswith("live handshake: ok at t=") and "\n" not in line
-    bounds = json.loads((tmp_path / "m" / "trace.json").read_text())["meta"]["live"][
-        "clock_bounds"]
+    bounds = json.loads((tmp_path / "m" / "trace.json").read_text())["meta"]["live"]["clock_bounds"]
     lo, hi = bounds[0]["offset_s"]  # (request and grant crossed both ways)
     assert f"within {max(abs(lo), abs(hi)):.3g} s (meta.live.clock_bounds)" in line
     for name in ("trace.json", "summary.json"):
-        assert json.loads((tmp_path / "m" / name).read_text()) == \
-            json.loads((launched / name).read_text()), name
+        assert json.loads((tmp_path / "m" / name).read_text()) == json.loads(
+            (launched / name).read_text()
+        ), name
     # the end rule came from the processes' records: each process knows the team's
-    assert Trace.load(agents / "granter" / "trace.json").meta["live"]["ending"] == \
-        ["requester", "granter"]
+    assert Trace.load(agents / "granter" / "trace.json").meta["live"]["ending"] == [
+        "requester",
+        "granter",
+    ]
 
 
-def test_a_launch_s_folders_aligned_by_their_messages_agree_with_its_one_clock(
-        launched, tmp_path):
+def test_a_launch_s_folders_aligned_by_their_messages_agree_with_its_one_clock(launched, tmp_path):
     """On one machine the wall clocks are one, so the launch's offsets are exact: aligned
     by their messages (merge's default), the granter's clock is estimated within the
     bound the line and meta.live state, and its rows move by no more than K times it.
     (On one machine, every copy's receive minus send time is its latency, which is not
     negative, so the truth, 0, is in every pair's bounds: the estimate, their midpoint,
     is within their half-width of it however loaded the machine.)"""
-    done = cli("merge", str(launched / "agents" / "requester"),
-               str(launched / "agents" / "granter"), "-o", str(tmp_path / "m"))
+    done = cli(
+        "merge",
+        str(launched / "agents" / "requester"),
+        str(launched / "agents" / "granter"),
+        "-o",
+        str(tmp_path / "m"),
+    )
     assert done.returncode == 0, done.stderr.decode()
     live = Trace.load(tmp_path / "m" / "trace.json").meta["live"]
     wall = Trace.load(launched / "trace.json").meta["live"]
@@ -348,12 +450,15 @@ def test_a_launch_s_folders_aligned_by_their_messages_agree_with_its_one_clock(
     assert live["clock_reference"] == 0  # the requester's process, the team's first
     d, error, scale = live["clock_offsets_s"][1], live["clock_errors_s"][1], 4.0
     assert error is not None and abs(d) <= error
-    moved = (live["offsets"][1] - live["offsets"][0]) - \
-        (wall["offsets"][1] - wall["offsets"][0])
+    moved = (live["offsets"][1] - live["offsets"][0]) - (wall["offsets"][1] - wall["offsets"][0])
     assert moved == pytest.approx(-scale * d, abs=1e-9)
     line = done.stderr.decode().strip()
-    assert "\n" not in line and f"on requester's clock, the others' aligned by their " \
-        f"messages within {error:.3g} s (meta.live.clock_errors_s)" in line
+    assert (
+        "\n" not in line
+        and f"on requester's clock, the others' aligned by their "
+        f"messages within {error:.3g} s (meta.live.clock_errors_s)"
+        in line
+    )
 
 
 def test_a_merge_missing_a_process_says_which(launched, tmp_path):
@@ -374,28 +479,51 @@ def edited(launched: Path, tmp_path: Path, change) -> str:
     return str(path)
 
 
-@pytest.mark.parametrize(("make", "message"), [
-    (lambda d, t: [str(t / "nowhere")], "nowhere: no such file"),
-    (lambda d, t: [str(t)], "trace.json: no such file"),
-    (lambda d, t: [str(d / "agents" / "granter"), str(d / "agents" / "granter")],
-     "granter: given twice"),
-    (lambda d, t: [edited(d, t, lambda j: j["meta"].pop("live"))],
-     "edited.json: not a live process's trace (no meta.live)"),
-    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(wall_start="noon"))],
-     "edited.json: meta.live.wall_start is not a finite number"),
-    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(time_scale=0))],
-     "edited.json: meta.live.time_scale is not a finite number > 0"),
-    (lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(agents=["intruder"]))],
-     "edited.json: meta.live.agents is not a list of the team's agents"),
-    (lambda d, t: [str(d / "agents" / "granter"),
-                   edited(d, t, lambda j: j["meta"]["live"].update(digest="0" * 16))],
-     "cannot merge: the traces are not the processes of one live team"),
-    (lambda d, t: [str(d / "agents" / "granter"),
-                   edited(d, t, lambda j: j["meta"]["live"].update(agents=["granter"]))],
-     "cannot merge: an agent is hosted by two of the processes"),
-    (lambda d, t: [str(d / "agents" / "granter"), str(t / "out")],
-     "is the output's own trace (-o"),
-])
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda d, t: [str(t / "nowhere")], "nowhere: no such file"),
+        (lambda d, t: [str(t)], "trace.json: no such file"),
+        (
+            lambda d, t: [str(d / "agents" / "granter"), str(d / "agents" / "granter")],
+            "granter: given twice",
+        ),
+        (
+            lambda d, t: [edited(d, t, lambda j: j["meta"].pop("live"))],
+            "edited.json: not a live process's trace (no meta.live)",
+        ),
+        (
+            lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(wall_start="noon"))],
+            "edited.json: meta.live.wall_start is not a finite number",
+        ),
+        (
+            lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(time_scale=0))],
+            "edited.json: meta.live.time_scale is not a finite number > 0",
+        ),
+        (
+            lambda d, t: [edited(d, t, lambda j: j["meta"]["live"].update(agents=["intruder"]))],
+            "edited.json: meta.live.agents is not a list of the team's agents",
+        ),
+        (
+            lambda d, t: [
+                str(d / "agents" / "granter"),
+                edited(d, t, lambda j: j["meta"]["live"].update(digest="0" * 16)),
+            ],
+            "cannot merge: the traces are not the processes of one live team",
+        ),
+        (
+            lambda d, t: [
+                str(d / "agents" / "granter"),
+                edited(d, t, lambda j: j["meta"]["live"].update(agents=["granter"])),
+            ],
+            "cannot merge: an agent is hosted by two of the processes",
+        ),
+        (
+            lambda d, t: [str(d / "agents" / "granter"), str(t / "out")],
+            "is the output's own trace (-o",
+        ),
+    ],
+)
 def test_bad_merge_input_is_one_line_and_nothing_written(launched, tmp_path, make, message):
     (tmp_path / "out").mkdir()
     if message.startswith("is the output"):
@@ -412,12 +540,20 @@ def test_bad_merge_input_is_one_line_and_nothing_written(launched, tmp_path, mak
 def with_intervals(tr: Trace, rows: list[tuple[str, float, float]]) -> Trace:
     """``tr`` with its agent's mode intervals ``(mode, start, end)``, all at depth 1."""
     agent = tr.meta["live"]["agents"][0]
-    table = Table(INTERVAL_COLUMNS, {
-        "instance": [0] * len(rows), "agent": [agent] * len(rows),
-        "mode": [m for m, _, _ in rows], "depth": [1] * len(rows),
-        "start": [s for _, s, _ in rows], "end": [e for _, _, e in rows]})
-    return Trace(tr.meta, tr.outcomes, tr.transitions, table, tr.messages,
-                 tr.sample_times, tr.samples)
+    table = Table(
+        INTERVAL_COLUMNS,
+        {
+            "instance": [0] * len(rows),
+            "agent": [agent] * len(rows),
+            "mode": [m for m, _, _ in rows],
+            "depth": [1] * len(rows),
+            "start": [s for _, s, _ in rows],
+            "end": [e for _, _, e in rows],
+        },
+    )
+    return Trace(
+        tr.meta, tr.outcomes, tr.transitions, table, tr.messages, tr.sample_times, tr.samples
+    )
 
 
 def test_a_final_mode_reached_early_is_held_to_the_teams_end():
@@ -426,15 +562,21 @@ def test_a_final_mode_reached_early_is_held_to_the_teams_end():
     in the team's trace Parked lasts to 2.0, as in a simulation (a final mode is never
     left), while Go, which ended at 1.5 by a transition, keeps its end. A process
     stopped (not by the end rule) keeps its intervals as recorded."""
-    a = with_intervals(process("a", 100.0, [], [0.0, 1.0, 2.0], t_end=1.5),
-                       [("Go", 0.0, 1.5), ("Parked", 1.5, 1.5)])
-    b = with_intervals(process("b", 100.0, [], [0.0, 1.0, 2.0], t_end=2.0),
-                       [("Wait", 0.0, 2.0)])
+    a = with_intervals(
+        process("a", 100.0, [], [0.0, 1.0, 2.0], t_end=1.5),
+        [("Go", 0.0, 1.5), ("Parked", 1.5, 1.5)],
+    )
+    b = with_intervals(process("b", 100.0, [], [0.0, 1.0, 2.0], t_end=2.0), [("Wait", 0.0, 2.0)])
     merged = merge_traces([a, b], ending=["a", "b"])
-    ends = {m: e for m, e in zip(merged.intervals["mode"].tolist(),
-                                 merged.intervals["end"].tolist(), strict=True)}
+    ends = {
+        m: e
+        for m, e in zip(
+            merged.intervals["mode"].tolist(), merged.intervals["end"].tolist(), strict=True
+        )
+    }
     assert ends == {"Go": 1.5, "Parked": 2.0, "Wait": 2.0}
-    stopped = with_intervals(process("a", 100.0, [], [0.0, 1.0, 2.0], outcome="stopped",
-                                     t_end=1.5), [("Go", 0.0, 1.5)])
+    stopped = with_intervals(
+        process("a", 100.0, [], [0.0, 1.0, 2.0], outcome="stopped", t_end=1.5), [("Go", 0.0, 1.5)]
+    )
     merged = merge_traces([stopped, b], ending=["b"])
     assert merged.intervals.where(agent="a")["end"].tolist() == [1.5]

@@ -33,8 +33,10 @@ class ScriptedRobot:
 
 
 def stops(trace) -> list[tuple[float, str]]:
-    return [(float(t), s) for t, s in zip(trace.transitions["t"], trace.transitions["target"],
-                                          strict=True)]
+    return [
+        (float(t), s)
+        for t, s in zip(trace.transitions["t"], trace.transitions["target"], strict=True)
+    ]
 
 
 def test_the_integrated_plant_is_the_default():
@@ -102,10 +104,11 @@ def test_the_deploy_section_is_read_and_simulation_ignores_it(team_from_yaml):
     from hybridteam.model.deploy import PlantDeploy
 
     team = ht.load(TEAM)
-    assert team.deploy == {"robot": PlantDeploy("/drive/robot/cmd_vel", "/drive/robot/odom",
-                                                None, "odom", 2.0)}
+    assert team.deploy == {
+        "robot": PlantDeploy("/drive/robot/cmd_vel", "/drive/robot/odom", None, "odom", 2.0)
+    }
     text = TEAM.read_text()
-    bare = team_from_yaml(text[:text.index("\ndeploy:")])
+    bare = team_from_yaml(text[: text.index("\ndeploy:")])
     assert bare.deploy == {}
     with_deploy = Simulator(compile_team(team), 1).run()
     without = Simulator(compile_team(bare), 1).run()
@@ -113,16 +116,28 @@ def test_the_deploy_section_is_read_and_simulation_ignores_it(team_from_yaml):
     assert stops(with_deploy) == stops(without)
 
 
-@pytest.mark.parametrize(("deploy", "args", "message"), [
-    (False, [], "--plant ros2: agent 'robot' has no entry in the team file's deploy: "
-                "section (its robot's cmd_vel and odom topics)"),
-    (True, ["--time-scale", "2"], "--plant ros2: a robot moves on the wall clock; "
-                                  "--time-scale must be 1, got 2"),
-    (True, [], "--plant ros2: the ros2 transport and plant need rclpy: "
-               "pip install 'hybridteam[ros]'"),
-])
-def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy, args,
-                                          message):
+@pytest.mark.parametrize(
+    ("deploy", "args", "message"),
+    [
+        (
+            False,
+            [],
+            "--plant ros2: agent 'robot' has no entry in the team file's deploy: "
+            "section (its robot's cmd_vel and odom topics)",
+        ),
+        (
+            True,
+            ["--time-scale", "2"],
+            "--plant ros2: a robot moves on the wall clock; --time-scale must be 1, got 2",
+        ),
+        (
+            True,
+            [],
+            "--plant ros2: the ros2 transport and plant need rclpy: pip install 'hybridteam[ros]'",
+        ),
+    ],
+)
+def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy, args, message):
     """Each before any run or file: one line, exit 2 (rclpy made unimportable here, so
     the last holds wherever the test runs)."""
     import sys
@@ -132,10 +147,23 @@ def test_plant_ros2_refusals_are_one_line(tmp_path, capsys, monkeypatch, deploy,
     monkeypatch.setitem(sys.modules, "rclpy", None)
     text = TEAM.read_text()
     team = tmp_path / "drive.yaml"
-    team.write_text(text if deploy else text[:text.index("\ndeploy:")] + "\n")
+    team.write_text(text if deploy else text[: text.index("\ndeploy:")] + "\n")
     out = tmp_path / "out"
-    status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
-                   "127.0.0.1:0", "-o", str(out), *args])
+    status = main(
+        [
+            "live",
+            str(team),
+            "--agent",
+            "robot",
+            "--plant",
+            "ros2",
+            "--listen",
+            "127.0.0.1:0",
+            "-o",
+            str(out),
+            *args,
+        ]
+    )
     assert status == 2
     assert capsys.readouterr().err.strip().splitlines() == [f"hybridteam: error: {message}"]
     assert not out.exists()
@@ -152,10 +180,10 @@ def test_a_holonomic_command_is_turned_into_the_body_frame_by_hand():
     assert body_velocity(0.5, -0.2, 0.0) == (0.5, -0.2)
     assert body_velocity(1.0, 0.0, math.pi / 2) == pytest.approx((0.0, -1.0), abs=1e-15)
     assert body_velocity(0.0, 1.0, math.pi / 2) == pytest.approx((1.0, 0.0), abs=1e-15)
-    assert body_velocity(2.0, 1.0, math.atan2(3, 4)) == pytest.approx((2.2, -0.4),
-                                                                       abs=1e-15)
+    assert body_velocity(2.0, 1.0, math.atan2(3, 4)) == pytest.approx((2.2, -0.4), abs=1e-15)
     assert body_velocity(1.0, 0.0, math.radians(30)) == pytest.approx(
-        (math.sqrt(3) / 2, -0.5), abs=1e-15)
+        (math.sqrt(3) / 2, -0.5), abs=1e-15
+    )
 
 
 class Commanded:
@@ -193,8 +221,9 @@ def test_a_holonomic_agent_is_driven_in_its_body_frame():
     plant.command(np.array([0.3, 0.4, 0.0]), 0.1)
     assert [sorted(c) for c in robot.sent] == [["omega", "vx", "vy"]] * 2
     assert [[c["vx"], c["vy"], c["omega"]] for c in robot.sent] == [
-        pytest.approx([0.0, -0.5, 0.25], abs=1e-15), pytest.approx([0.4, -0.3, 0.0],
-                                                                   abs=1e-15)]
+        pytest.approx([0.0, -0.5, 0.25], abs=1e-15),
+        pytest.approx([0.4, -0.3, 0.0], abs=1e-15),
+    ]
     unicycle = Commanded(math.pi / 2)
     RobotPlant(unicycle, "unicycle").command(np.array([0.5, 0.25]), 0.0)
     assert unicycle.sent == [{"v": 0.5, "omega": 0.25}]
@@ -217,13 +246,27 @@ simulation: {duration: 1.0}
 deploy:
   robot: {cmd_vel: /robot/cmd_vel, odom: /robot/odom}
 """)
-    status = main(["live", str(team), "--agent", "robot", "--plant", "ros2", "--listen",
-                   "127.0.0.1:0", "-o", str(tmp_path / "out")])
+    status = main(
+        [
+            "live",
+            str(team),
+            "--agent",
+            "robot",
+            "--plant",
+            "ros2",
+            "--listen",
+            "127.0.0.1:0",
+            "-o",
+            str(tmp_path / "out"),
+        ]
+    )
     assert status == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["hybridteam: error: --plant ros2: agent 'robot' has a flow plant; a robot "
-                   "over ROS 2 drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
-                   "omega), as a Twist, its x, y, theta from odometry"]
+    assert err == [
+        "hybridteam: error: --plant ros2: agent 'robot' has a flow plant; a robot "
+        "over ROS 2 drives a unicycle agent (v, omega) or a holonomic one (vx, vy, "
+        "omega), as a Twist, its x, y, theta from odometry"
+    ]
     assert not (tmp_path / "out").exists()
 
 
@@ -250,10 +293,16 @@ def test_launch_passes_the_plant_to_the_robots_processes(tmp_path):
     from hybridteam.cli.live import WORLD_PROCESS, launched_robots, process_command
 
     team_file = tmp_path / "e2.yaml"
-    team_file.write_text(EXPERIMENT2.read_text().replace(  # (its requirements: not here)
-        "requirements_from: [requirements.yaml]\n", "").replace(
-        "\nsimulation:", "\ndeploy:\n  labmate: {cmd_vel: /labmate/cmd_vel, "
-        "odom: /labmate/odom}\n\nsimulation:"))
+    team_file.write_text(
+        EXPERIMENT2.read_text()
+        .replace(  # (its requirements: not here)
+            "requirements_from: [requirements.yaml]\n", ""
+        )
+        .replace(
+            "\nsimulation:",
+            "\ndeploy:\n  labmate: {cmd_vel: /labmate/cmd_vel, odom: /labmate/odom}\n\nsimulation:",
+        )
+    )
     team = ht.load(team_file)
     hosts = ["xr4000", "labmate", "operator", WORLD_PROCESS]
     ports = [47001, 47002, 47003, 47004]
@@ -261,29 +310,45 @@ def test_launch_passes_the_plant_to_the_robots_processes(tmp_path):
     def commands(*argv: str, domain=None) -> dict[str, list[str]]:
         args = launch_args(str(team_file), "-o", str(tmp_path / "out"), *argv)
         robots = launched_robots(args, team)
-        return {name: process_command(args, name, k, ports, domain, tmp_path / name, robots)
-                for k, name in enumerate(hosts)}
+        return {
+            name: process_command(args, name, k, ports, domain, tmp_path / name, robots)
+            for k, name in enumerate(hosts)
+        }
 
     def option(command: list[str], flag: str) -> list[str]:
         return [command[i + 1] for i, a in enumerate(command) if a == flag]
 
     udp = commands("--plant", "ros2")
     assert {n: option(c, "--plant") for n, c in udp.items()} == {
-        "xr4000": [], "labmate": ["ros2"], "operator": [], WORLD_PROCESS: []}
+        "xr4000": [],
+        "labmate": ["ros2"],
+        "operator": [],
+        WORLD_PROCESS: [],
+    }
     assert all(option(c, "--domain-id") == [] for c in udp.values())
     assert option(udp["labmate"], "--listen") == ["127.0.0.1:47002"]
-    assert option(udp["labmate"], "--peer") == ["127.0.0.1:47001", "127.0.0.1:47003",
-                                                "127.0.0.1:47004"]
+    assert option(udp["labmate"], "--peer") == [
+        "127.0.0.1:47001",
+        "127.0.0.1:47003",
+        "127.0.0.1:47004",
+    ]
     assert option(udp["labmate"], "--time-scale") == ["1.0"]
     # a domain given: the robot's process drives there; the others talk over UDP
     udp7 = commands("--plant", "ros2", domain=7)
     assert {n: option(c, "--domain-id") for n, c in udp7.items()} == {
-        "xr4000": [], "labmate": ["7"], "operator": [], WORLD_PROCESS: []}
+        "xr4000": [],
+        "labmate": ["7"],
+        "operator": [],
+        WORLD_PROCESS: [],
+    }
     ros = commands("--plant", "ros2", "--transport", "ros2", domain=7)
-    assert all(option(c, "--domain-id") == ["7"] and option(c, "--ros-peers") == ["3"]
-               for c in ros.values())
+    assert all(
+        option(c, "--domain-id") == ["7"] and option(c, "--ros-peers") == ["3"]
+        for c in ros.values()
+    )
     assert {n: option(c, "--plant") for n, c in ros.items()} == {
-        n: option(c, "--plant") for n, c in udp.items()}
+        n: option(c, "--plant") for n, c in udp.items()
+    }
     # without --plant ros2 nobody drives a robot, deploy: or not
     assert all(option(c, "--plant") == [] for c in commands().values())
 
@@ -296,18 +361,28 @@ def test_launch_domain_is_the_robots_unless_given():
     assert 1 <= launch_domain(launch_args("t.yaml", "-o", "o"), []) <= 100
 
 
-@pytest.mark.parametrize(("deploy", "args", "message"), [
-    (True, ["--time-scale", "4"], "--plant ros2: a robot moves on the wall clock; "
-                                  "--time-scale must be 1, got 4"),
-    (False, [], "--plant ros2: the team file's deploy: section names no agent's robot "
-                "(its cmd_vel and odom topics)"),
-])
+@pytest.mark.parametrize(
+    ("deploy", "args", "message"),
+    [
+        (
+            True,
+            ["--time-scale", "4"],
+            "--plant ros2: a robot moves on the wall clock; --time-scale must be 1, got 4",
+        ),
+        (
+            False,
+            [],
+            "--plant ros2: the team file's deploy: section names no agent's robot "
+            "(its cmd_vel and odom topics)",
+        ),
+    ],
+)
 def test_launch_plant_ros2_refusals_are_one_line(tmp_path, capsys, deploy, args, message):
     from hybridteam.cli import main
 
     text = TEAM.read_text()
     team = tmp_path / "drive.yaml"
-    team.write_text(text if deploy else text[:text.index("\ndeploy:")] + "\n")
+    team.write_text(text if deploy else text[: text.index("\ndeploy:")] + "\n")
     out = tmp_path / "out"
     status = main(["launch", str(team), "--plant", "ros2", "-o", str(out), *args])
     assert status == 2
@@ -336,8 +411,22 @@ def test_a_sigterm_while_the_folder_is_written_is_the_live_process_s(tmp_path, m
 
     monkeypatch.setattr(live, "write_folder", sigterm_then_write)
     try:
-        status = main(["live", str(TEAM), "--agent", "robot", "--listen", "127.0.0.1:0",
-                       "--duration", "0.1", "--time-scale", "10", "-o", str(tmp_path / "o")])
+        status = main(
+            [
+                "live",
+                str(TEAM),
+                "--agent",
+                "robot",
+                "--listen",
+                "127.0.0.1:0",
+                "--duration",
+                "0.1",
+                "--time-scale",
+                "10",
+                "-o",
+                str(tmp_path / "o"),
+            ]
+        )
         assert status == 0
         assert caller == []  # (the live process's handler took it)
         assert (tmp_path / "o" / "summary.json").exists()
@@ -389,8 +478,7 @@ class ScannedRobot:
         from hybridteam.live.ros2_plant import Scan, ring_ranges
 
         ahead = 1.0 if self.t < 0.42 else 0.4
-        return ring_ranges(Scan((ahead, 3.0, 3.0, 3.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0,
-                                0.0), ring)
+        return ring_ranges(Scan((ahead, 3.0, 3.0, 3.0), 0.0, math.pi / 2, 0.0, 8.0, 0.0, 0.0), ring)
 
 
 def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
@@ -406,10 +494,26 @@ def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
     transport = UdpTransport(("127.0.0.1", 0))
     world = UdpTransport(("127.0.0.1", 0), [transport.address])
     try:
-        live = LiveRun(team, ["robot"], transport, duration=1.0, time_scale=5,
-                       plants={"robot": ScannedRobot()}, plant_name="ros2")
-        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
-            **{f"ir.{k}": 0.1 for k in range(4)}, "event.near": 1.0}, 0.0), "data")
+        live = LiveRun(
+            team,
+            ["robot"],
+            transport,
+            duration=1.0,
+            time_scale=5,
+            plants={"robot": ScannedRobot()},
+            plant_name="ros2",
+        )
+        world.send(
+            live.codec.encode_world(
+                READING,
+                WORLD_INDEX,
+                0,
+                0,
+                {**{f"ir.{k}": 0.1 for k in range(4)}, "event.near": 1.0},
+                0.0,
+            ),
+            "data",
+        )
         trace = live.run()
     finally:
         transport.close()

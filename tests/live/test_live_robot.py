@@ -28,14 +28,17 @@ TEAM = ROOT / "tests" / "fixtures" / "live" / "drive.yaml"
 DOMAIN = 1 + (os.getpid() + 50) % 100  # (not test_live_ros2's: its own domain)
 ODOM_PERIOD = 0.02  # the fake robot's: 50 Hz
 CONTROL_PERIOD = 0.1  # the team's law period (drive.yaml)
+
+
 class UnicycleRobot:
     """A robot's driver: every ``ODOM_PERIOD`` s it moves its unicycle under the last
     Twist received (exactly: an arc at constant v, omega) and publishes its pose as
     Odometry in frame ``odom``. Keeps every Twist with its ``time.time()`` of arrival and
     every published pose ``(x, y, theta, time.time())``."""
 
-    def __init__(self, ros, ns: str, scan: dict | None = None, *, theta: float = 0.0,
-                 holonomic: bool = False) -> None:
+    def __init__(
+        self, ros, ns: str, scan: dict | None = None, *, theta: float = 0.0, holonomic: bool = False
+    ) -> None:
         """``scan``: LaserScan fields it publishes on ``ns/scan`` with every pose;
         ``theta``: its heading at the start; ``holonomic``: a base that also moves
         sideways (the Twist's linear.y, kept in ``lateral``), for a heading fixed while
@@ -121,17 +124,39 @@ def team_file(tmp_path, ns: str, timeout: float) -> Path:
     """drive.yaml, its deploy: entry for the robot at ``ns``."""
     text = TEAM.read_text()
     team = tmp_path / "drive.yaml"
-    team.write_text(text[:text.index("\ndeploy:")] + "\ndeploy:\n  robot: {cmd_vel: "
-                    f"{ns}/cmd_vel, odom: {ns}/odom, timeout: {timeout}}}\n")
+    team.write_text(
+        text[: text.index("\ndeploy:")] + "\ndeploy:\n  robot: {cmd_vel: "
+        f"{ns}/cmd_vel, odom: {ns}/odom, timeout: {timeout}}}\n"
+    )
     return team
 
 
 def run_live(team: Path, out: Path) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "hybridteam.cli", "live", str(team), "--agent", "robot",
-         "--plant", "ros2", "--transport", "udp", "--listen", "127.0.0.1:0",
-         "--domain-id", str(DOMAIN), "-o", str(out)],
-        cwd=ROOT, capture_output=True, text=True, timeout=60)
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "live",
+            str(team),
+            "--agent",
+            "robot",
+            "--plant",
+            "ros2",
+            "--transport",
+            "udp",
+            "--listen",
+            "127.0.0.1:0",
+            "--domain-id",
+            str(DOMAIN),
+            "-o",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
@@ -155,9 +180,11 @@ def test_an_agent_drives_a_robot_over_ros2_to_its_final_mode(ros, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcome"] == "ok" and summary["live"]["plant"] == "ros2"
     trace = Trace.load(out / "trace.json")
-    fired = [float(t) for t, target in zip(trace.transitions["t"],
-                                           trace.transitions["target"], strict=True)
-             if target == "Stopped"]
+    fired = [
+        float(t)
+        for t, target in zip(trace.transitions["t"], trace.transitions["target"], strict=True)
+        if target == "Stopped"
+    ]
     assert len(fired) == 1
     live = trace.meta["live"]
     fired_wall = live["wall_start"] + fired[0]
@@ -232,9 +259,24 @@ def test_launch_drives_the_deployed_robot(ros, tmp_path):
     out = tmp_path / "out"
     try:
         done = subprocess.run(
-            [sys.executable, "-m", "hybridteam.cli", "launch", str(team), "--plant", "ros2",
-             "--domain-id", str(DOMAIN), "-o", str(out)],
-            cwd=ROOT, capture_output=True, text=True, timeout=60)
+            [
+                sys.executable,
+                "-m",
+                "hybridteam.cli",
+                "launch",
+                str(team),
+                "--plant",
+                "ros2",
+                "--domain-id",
+                str(DOMAIN),
+                "-o",
+                str(out),
+            ],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         time.sleep(0.1)  # (as above: the stop's Twist logged)
     finally:
         robot.close()
@@ -253,9 +295,12 @@ def test_a_holonomic_agent_drives_its_robot_in_the_world_frame(ros, tmp_path):
     it would move along +y and never reach x = 1."""
     ns = f"/{ros_name(f't{os.getpid()}_omni')}/robot"
     team = team_file(tmp_path, ns, 5.0)
-    team.write_text(team.read_text().replace("kind: unicycle", "kind: holonomic").replace(
-        "{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}").replace(
-        "{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}"))
+    team.write_text(
+        team.read_text()
+        .replace("kind: unicycle", "kind: holonomic")
+        .replace("{v: 0.5, omega: 0}", "{vx: 0.5, vy: 0, omega: 0}")
+        .replace("{v: 0, omega: 0}", "{vx: 0, vy: 0, omega: 0}")
+    )
     robot = UnicycleRobot(ros, ns, theta=math.pi / 2, holonomic=True)
     out = tmp_path / "out"
     try:
@@ -321,19 +366,36 @@ def test_a_robots_laser_is_what_its_law_reads_of_its_ring(ros, tmp_path):
     path = tmp_path / "laser.yaml"
     path.write_text(LASER_TEAM.replace("NS", ns))
     team = ht.load(path)
-    robot = UnicycleRobot(ros, ns, scan={
-        "angle_min": 0.0, "angle_increment": math.pi / 4, "range_min": 0.05,
-        "range_max": 8.0, "ranges": [1.0, 2.0, math.inf, 0.1, 3.0, 4.0, 0.1, 1.5]})
+    robot = UnicycleRobot(
+        ros,
+        ns,
+        scan={
+            "angle_min": 0.0,
+            "angle_increment": math.pi / 4,
+            "range_min": 0.05,
+            "range_max": 8.0,
+            "ranges": [1.0, 2.0, math.inf, 0.1, 3.0, 4.0, 0.1, 1.5],
+        },
+    )
     transport = UdpTransport(("127.0.0.1", 0))
     world = UdpTransport(("127.0.0.1", 0), [transport.address])
     laser = Ros2Plant("robot", team.deploy["robot"], domain_id=DOMAIN, team=team.name)
     try:
         laser.pose(5.0)
         laser.scan(5.0)
-        live = LiveRun(team, ["robot"], transport, plants={
-            "robot": RobotPlant(laser, "unicycle")}, plant_name="ros2")
-        world.send(live.codec.encode_world(READING, WORLD_INDEX, 0, 0, {
-            f"ir.{k}": 1.0 for k in range(4)}, 0.0), "data")
+        live = LiveRun(
+            team,
+            ["robot"],
+            transport,
+            plants={"robot": RobotPlant(laser, "unicycle")},
+            plant_name="ros2",
+        )
+        world.send(
+            live.codec.encode_world(
+                READING, WORLD_INDEX, 0, 0, {f"ir.{k}": 1.0 for k in range(4)}, 0.0
+            ),
+            "data",
+        )
         trace = live.run()
     finally:
         laser.close()

@@ -36,6 +36,8 @@ from hybridteam.world.sensors import RangeRing
 pytestmark = pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning")
 
 DOMAIN = 1 + os.getpid() % 100  # 1..100: valid ROS domain ids on Linux
+
+
 @pytest.fixture
 def team(request):
     return f"t{os.getpid()}_{request.node.name}"
@@ -67,6 +69,7 @@ def pair(team, sockets=("data", "control")):
 
 
 # -- names, quaternions, ranges, settings: no ROS needed ------------------------------------
+
 
 def test_names_fold_to_ros_tokens():
     assert ros_name("Experiment 2: ladder") == "Experiment_2_ladder"
@@ -107,21 +110,23 @@ def test_a_laser_scan_read_as_a_range_ring_by_hand():
     # 8 beams every 45 degrees from 0: the ring's (0, 90, 180, 270) are beams 0, 2, 4, 6
     full = scan_of([1.0, 2.0, 4.0, 0.1, 3.0, 4.0, 0.1, 1.5], 0.0, math.pi / 4)
     assert ring_ranges(full, ring).tolist() == pytest.approx(
-        [1.0 - 0.2, 2.5, 2.5, 0.04])  # 4.0 - 0.2 and 3.0 - 0.2 past 2.5; 0.1 - 0.2 below 0.04
+        [1.0 - 0.2, 2.5, 2.5, 0.04]
+    )  # 4.0 - 0.2 and 3.0 - 0.2 past 2.5; 0.1 - 0.2 below 0.04
     # a front laser (-45, 0, 45 degrees): the ring's sides and back are not covered
     front = scan_of([0.5, 0.3, 0.9], -math.pi / 4, math.pi / 4)
     assert ring_ranges(front, RangeRing(count=4, max_range=2.0)).tolist() == pytest.approx(
-        [0.3, 2.0, 2.0, 2.0])
+        [0.3, 2.0, 2.0, 2.0]
+    )
     # clockwise beams (a negative increment): 180, 90, 0, -90 degrees
     clockwise = scan_of([1.0, 2.0, 3.0, 4.0], math.pi, -math.pi / 2)
-    assert ring_ranges(clockwise, RangeRing(count=4, max_range=10.0)).tolist() == \
-        pytest.approx([3.0, 2.0, 1.0, 4.0])
+    assert ring_ranges(clockwise, RangeRing(count=4, max_range=10.0)).tolist() == pytest.approx(
+        [3.0, 2.0, 1.0, 4.0]
+    )
     # a sonar cone (rays at -0.3, 0, 0.3 rad) over beams every 0.1 rad from -0.5: beams
     # 2, 5 and 8; it reads the nearest echo, less its mount radius
     ranges = [5.0] * 11
     ranges[2], ranges[5], ranges[8] = 0.7, 1.2, 0.9
-    cone = RangeRing(count=1, max_range=3.0, mount_radius=0.1, half_angle=0.3,
-                     rays_per_beam=3)
+    cone = RangeRing(count=1, max_range=3.0, mount_radius=0.1, half_angle=0.3, rays_per_beam=3)
     assert ring_ranges(scan_of(ranges, -0.5, 0.1), cone).tolist() == pytest.approx([0.6])
     assert ring_ranges(scan_of([], 0.0, 0.1), ring).tolist() == [2.5] * 4  # nothing seen
 
@@ -174,8 +179,13 @@ def test_a_robots_laser_answers_its_rings_and_the_world_process_the_rest(team_fr
     link = WorldLink(Codec(cteam, frozenset({"ir"})), Sent(), [0, 1], host=False)
     world = Simulator(cteam, 1, world=world_seam(WorldReadings, link)).ensemble.world
     for a in (0, 1):
-        link.take(link.codec.decode(link.codec.encode_world(
-            READING, WORLD_INDEX, a, a, {f"ir.{k}": 1.5 + a for k in range(4)}, 1.0)))
+        link.take(
+            link.codec.decode(
+                link.codec.encode_world(
+                    READING, WORLD_INDEX, a, a, {f"ir.{k}": 1.5 + a for k in range(4)}, 1.0
+                )
+            )
+        )
     # a laser every 90 degrees from 0: 0.5, 3, 0.9, 0.25
     world.read_lasers({0: Laser(scan_of([0.5, 3.0, 0.9, 0.25], 0.0, math.pi / 2))})
     idx = np.array([0])
@@ -231,11 +241,14 @@ def test_without_rclpy_one_error_says_what_to_install(monkeypatch):
 
 # -- the transport over ROS 2 ---------------------------------------------------------------
 
+
 def test_two_transports_exchange_datagrams_but_not_their_own(ros, team):
     a, b = pair(team)
     try:
-        assert a.topics == {"data": f"/hybridteam/{ros_name(team)}/data",
-                            "control": f"/hybridteam/{ros_name(team)}/control"}
+        assert a.topics == {
+            "data": f"/hybridteam/{ros_name(team)}/data",
+            "control": f"/hybridteam/{ros_name(team)}/control",
+        }
         sent = time.monotonic()
         a.send(b"\x00stream\xff", "data")
         a.send(b"control\x00", "control")
@@ -269,8 +282,12 @@ with Ros2Transport(team, "echo", ["control"], domain_id=domain) as echo:
 
 
 def test_agents_in_two_processes_hear_each_other(ros, team):
-    proc = subprocess.Popen([sys.executable, "-c", ECHO, team, str(DOMAIN)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", ECHO, team, str(DOMAIN)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     a = Ros2Transport(team, "a", ["control"], domain_id=DOMAIN)
     try:
         assert proc.stdout.readline() == "ready\n"
@@ -337,10 +354,13 @@ def test_each_socket_has_its_documented_qos(ros, team):
         for socket, depth in (("data", 64), ("control", 64)):
             assert SOCKET_DEPTH[socket] == depth
             topic = a.topics[socket]
+
             # what the graph announces to every other participant
             def ends(topic=topic):
-                return [*observer.get_publishers_info_by_topic(topic),
-                        *observer.get_subscriptions_info_by_topic(topic)]
+                return [
+                    *observer.get_publishers_info_by_topic(topic),
+                    *observer.get_subscriptions_info_by_topic(topic),
+                ]
 
             assert until(lambda ends=ends: len(ends()) == 2), "no discovery"
             for end in ends():
@@ -429,6 +449,7 @@ def test_ctrl_c_is_the_runtimes_and_leaves_the_transport_open(ros, team):
 
 # -- the robot plant against a fake robot ---------------------------------------------------
 
+
 class FakeRobot:
     """A robot driver in the test: publishes Odometry and LaserScan every 10 ms, records
     the Twists it is sent."""
@@ -503,7 +524,9 @@ def test_plant_reads_the_robots_pose_and_scan_and_drives_it(ros, team):
         plant.command({"vx": 0.3, "vy": -0.2, "omega": 0.1})
         assert until(lambda: len(robot.twists) == 2)
         assert [twist(t) for t in robot.twists] == [
-            (0.5, 0.0, 0.0, 0.0, 0.0, -0.25), (0.3, -0.2, 0.0, 0.0, 0.0, 0.1)]
+            (0.5, 0.0, 0.0, 0.0, 0.0, -0.25),
+            (0.3, -0.2, 0.0, 0.0, 0.0, 0.1),
+        ]
         for bad in ({"v": math.nan}, {"speed": 1.0}, {"v": 1.0, "vy": 1.0}):
             with pytest.raises(ValueError):
                 plant.command(bad)
@@ -522,8 +545,10 @@ def test_plant_says_when_no_odometry_arrives(ros, team):
     ns = f"/{ros_name(team)}/scout1"
     with Ros2Plant("scout1", deploy(ns, timeout=0.2), domain_id=DOMAIN) as plant:
         t0 = time.monotonic()
-        with pytest.raises(PlantSilent, match=f"no odometry on {ns}/odom within 0.2 s; is the "
-                                              "robot's driver running"):
+        with pytest.raises(
+            PlantSilent,
+            match=f"no odometry on {ns}/odom within 0.2 s; is the robot's driver running",
+        ):
             plant.pose()
         assert time.monotonic() - t0 >= 0.2
     # odometry in another frame than the deploy setting's is no pose: dropped, and said
@@ -537,8 +562,9 @@ def test_plant_says_when_no_odometry_arrives(ros, team):
         robot.close()
 
 
-HANDSHAKE = os.path.join(os.path.dirname(os.path.dirname(__file__)), "fixtures", "live",
-                         "handshake.yaml")
+HANDSHAKE = os.path.join(
+    os.path.dirname(os.path.dirname(__file__)), "fixtures", "live", "handshake.yaml"
+)
 
 
 def test_launch_over_ros2_shakes_hands_as_the_simulation_does(ros, tmp_path):
@@ -549,17 +575,33 @@ def test_launch_over_ros2_shakes_hands_as_the_simulation_does(ros, tmp_path):
     from hybridteam.trace import Trace
 
     out = tmp_path / "launch"
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", HANDSHAKE,
-                           "--transport", "ros2", "--time-scale", "4", "-o", str(out)],
-                          capture_output=True, timeout=180)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            HANDSHAKE,
+            "--transport",
+            "ros2",
+            "--time-scale",
+            "4",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        timeout=180,
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     merged = Trace.load(out / "trace.json")
     sim = ht.simulate(ht.load(HANDSHAKE))
     for agent in ("requester", "granter"):
-        assert [(r.source, r.target, r.cause) for r in merged.transitions if r.agent == agent] \
-            == [(r.source, r.target, r.cause) for r in sim.transitions if r.agent == agent]
-    assert [(r.agent, r.target) for r in merged.transitions if r.cause != "init"] == \
-        [(r.agent, r.target) for r in sim.transitions if r.cause != "init"]
+        assert [(r.source, r.target, r.cause) for r in merged.transitions if r.agent == agent] == [
+            (r.source, r.target, r.cause) for r in sim.transitions if r.agent == agent
+        ]
+    assert [(r.agent, r.target) for r in merged.transitions if r.cause != "init"] == [
+        (r.agent, r.target) for r in sim.transitions if r.cause != "init"
+    ]
     assert merged.outcomes[0]["outcome"] == "ok"
     assert {p["transport"] for p in merged.meta["live"]["processes"]} == {"ros2"}
 
@@ -577,11 +619,16 @@ def test_experiment2_launched_over_ros2_hands_over_as_the_simulation_does(ros, t
     from tests.live.test_live_world import EXPERIMENT2, launched_as_simulated
 
     if importlib.util.find_spec("hybridteam.protocols") is None:
-        pytest.skip("hybridteam's shipped protocols (experiment 2 uses one) are not "
-                    "importable: hybridteam is not installed in this interpreter "
-                    "(pip install -e .)")
-    launched_as_simulated(tmp_path / "launch", ht.load(EXPERIMENT2),
-                          ["--transport", "ros2", "--domain-id", str(101 + os.getpid() % 100)])
+        pytest.skip(
+            "hybridteam's shipped protocols (experiment 2 uses one) are not "
+            "importable: hybridteam is not installed in this interpreter "
+            "(pip install -e .)"
+        )
+    launched_as_simulated(
+        tmp_path / "launch",
+        ht.load(EXPERIMENT2),
+        ["--transport", "ros2", "--domain-id", str(101 + os.getpid() % 100)],
+    )
     merged = json.loads((tmp_path / "launch" / "summary.json").read_text())
     processes = merged["live"]["processes"]
     assert {p["transport"] for p in processes} == {"ros2"}
@@ -595,14 +642,17 @@ def test_a_process_stopped_after_writing_its_folder_left_its_trace(tmp_path):
     counts. One killed before it wrote, or that exited with an error, left none."""
     from hybridteam.cli.live import left_no_trace
 
-    for name, files in {"done": ("trace.json", "summary.json", "live.log"),
-                        "cut": ("trace.json", "live.log"), "broke": ("live.log",)}.items():
+    for name, files in {
+        "done": ("trace.json", "summary.json", "live.log"),
+        "cut": ("trace.json", "live.log"),
+        "broke": ("live.log",),
+    }.items():
         (tmp_path / name).mkdir()
         for f in files:
             (tmp_path / name / f).write_text("{}" if f.endswith(".json") else "boom\n")
-    assert left_no_trace({"done": -signal.SIGTERM, "cut": -signal.SIGTERM, "broke": 2},
-                         tmp_path) == {"cut": "killed by SIGTERM",
-                                       "broke": "exit status 2: boom"}
+    assert left_no_trace(
+        {"done": -signal.SIGTERM, "cut": -signal.SIGTERM, "broke": 2}, tmp_path
+    ) == {"cut": "killed by SIGTERM", "broke": "exit status 2: boom"}
 
 
 def test_waiting_for_teammates_that_never_come_is_one_line(monkeypatch):
@@ -616,7 +666,10 @@ def test_waiting_for_teammates_that_never_come_is_one_line(monkeypatch):
             return 0
 
     monkeypatch.setattr(live, "START_TIMEOUT", 0.05)
-    with pytest.raises(UsageError, match=r"^--ros-peers 2: only 0 found within 0.05 s "
-                       r"\(same --domain-id\?\)$"):
+    with pytest.raises(
+        UsageError,
+        match=r"^--ros-peers 2: only 0 found within 0.05 s "
+        r"\(same --domain-id\?\)$",
+    ):
         live.wait_for_peers(Alone(), 2)
     live.wait_for_peers(Alone(), 0)  # nobody to wait for: at once

@@ -54,23 +54,42 @@ def test_arrivals_and_sends_go_through_the_seams():
     """A request arriving at 1.25 is answered at 1.25 with the grant the model says
     (amount = need); the acknowledged 'done' at 2.0 is acknowledged and ends the run."""
     outlet = Collect()
-    sim, clock = granter_alone([
-        (1.25, Message(REQUESTER, GRANTER, 0, 1.0, "control", "request", {"need": 3.0})),
-        (2.0, Message(REQUESTER, GRANTER, 1, 1.75, "control", "done", {}, msg_id=0)),
-    ], outlet)
+    sim, clock = granter_alone(
+        [
+            (1.25, Message(REQUESTER, GRANTER, 0, 1.0, "control", "request", {"need": 3.0})),
+            (2.0, Message(REQUESTER, GRANTER, 1, 1.75, "control", "done", {}, msg_id=0)),
+        ],
+        outlet,
+    )
     trace = sim.run()
-    assert [(r.t, r.source, r.target, r.cause) for r in trace.transitions
-            if r.agent == "granter"] == [(0.0, "", "Listening", "init"),
-                                         (1.25, "Listening", "Granting", "message:request"),
-                                         (2.0, "Granting", "Closed", "message:done")]
+    assert [
+        (r.t, r.source, r.target, r.cause) for r in trace.transitions if r.agent == "granter"
+    ] == [
+        (0.0, "", "Listening", "init"),
+        (1.25, "Listening", "Granting", "message:request"),
+        (2.0, "Granting", "Closed", "message:done"),
+    ]
     (grant, rank), (ack, _) = outlet.sent
-    assert (grant.sender, grant.receiver, grant.type, grant.fields, grant.t_send, rank) == \
-        (GRANTER, REQUESTER, "grant", {"amount": 3.0}, 1.25, 0.0)
-    assert (ack.receiver, ack.type, ack.fields, ack.note, ack.t_send) == \
-        (REQUESTER, "ack", {"id": 0.0}, "ack", 2.0)
+    assert (grant.sender, grant.receiver, grant.type, grant.fields, grant.t_send, rank) == (
+        GRANTER,
+        REQUESTER,
+        "grant",
+        {"amount": 3.0},
+        1.25,
+        0.0,
+    )
+    assert (ack.receiver, ack.type, ack.fields, ack.note, ack.t_send) == (
+        REQUESTER,
+        "ack",
+        {"id": 0.0},
+        "ack",
+        2.0,
+    )
     m = trace.messages
     assert list(zip(m["type"], m["t_send"], m["t_recv"], m["status"], strict=True)) == [
-        ("request", 1.0, 1.25, "delivered"), ("done", 1.75, 2.0, "delivered")]
+        ("request", 1.0, 1.25, "delivered"),
+        ("done", 1.75, 2.0, "delivered"),
+    ]
     assert trace.outcomes[0]["outcome"] == "ok" and trace.outcomes[0]["t"] == 2.0
     assert trace.outcomes[0]["message"] == "'granter' reached a final mode (the end rule)"
     assert clock.asked >= 3  # asked before every step
@@ -82,8 +101,11 @@ def test_no_deadlock_is_concluded_while_datagrams_may_arrive():
     would call that a deadlock; live, the copy may still arrive, so the run goes on to
     its end (6 s) when, as here, it never does."""
     outlet = Collect()
-    sim = Simulator(hosted_team(compile_team(ht.load(TEAM)), ["requester", "granter"]), 1,
-                    clock=ScriptedClock([]))
+    sim = Simulator(
+        hosted_team(compile_team(ht.load(TEAM)), ["requester", "granter"]),
+        1,
+        clock=ScriptedClock([]),
+    )
     sim.ensemble.network.outlet = outlet
     trace = sim.run()
     assert [m.type for m, _ in outlet.sent] == ["request"]
@@ -140,8 +162,10 @@ def test_an_agent_without_streams_reads_a_remote_agent_s_stream(tmp_path, team_f
     (tmp_path / "beacon.yaml").write_text(BEACON)
     team = team_from_yaml(WATCHED)
     cteam = hosted_team(compile_team(team), ["s"])
-    pings = [(0.05 + 0.1 * k, Message(0, -1, k, 0.1 * k, "data", "ping", {"x": 0.1 * k}))
-             for k in range(10)]
+    pings = [
+        (0.05 + 0.1 * k, Message(0, -1, k, 0.1 * k, "data", "ping", {"x": 0.1 * k}))
+        for k in range(10)
+    ]
     for _, msg in pings:
         msg.receiver = 1
     sim = Simulator(cteam, 1, clock=ScriptedClock(pings))

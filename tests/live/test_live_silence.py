@@ -36,11 +36,31 @@ def test_an_agent_whose_world_process_falls_silent_stops_with_its_trace(tmp_path
     world = UdpTransport(("127.0.0.1", 0))
     port = free_port()  # (the process's)
     out = tmp_path / "labmate"
-    proc = subprocess.Popen([sys.executable, "-m", "hybridteam.cli", "live", str(EXPERIMENT2),
-                             "--agent", "labmate", "--listen", f"127.0.0.1:{port}", "--peer",
-                             f"127.0.0.1:{world.address[1]}", "--world-timeout",
-                             "0.5", "--time-scale", "5", "--duration", "200", "-o", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "live",
+            str(EXPERIMENT2),
+            "--agent",
+            "labmate",
+            "--listen",
+            f"127.0.0.1:{port}",
+            "--peer",
+            f"127.0.0.1:{world.address[1]}",
+            "--world-timeout",
+            "0.5",
+            "--time-scale",
+            "5",
+            "--duration",
+            "200",
+            "-o",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     try:
         # its first reading, sent until it arrives (the process binds its port first)
         codec = Codec(compile_team(ht.load(EXPERIMENT2)))
@@ -48,8 +68,17 @@ def test_an_agent_whose_world_process_falls_silent_stops_with_its_trace(tmp_path
         end, seq, poses = time.monotonic() + TIMEOUT, 0, 0
         while proc.poll() is None and time.monotonic() < end:
             if not poses:
-                world.send(codec.encode_world(READING, WORLD_INDEX, LABMATE, seq, {
-                    "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0}, time.time()), "data")
+                world.send(
+                    codec.encode_world(
+                        READING,
+                        WORLD_INDEX,
+                        LABMATE,
+                        seq,
+                        {"arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0},
+                        time.time(),
+                    ),
+                    "data",
+                )
                 seq += 1
             if world.wait(0.1):
                 poses += sum(codec.decode(d).type == POSE for d, _ in world.receive())
@@ -73,8 +102,10 @@ def test_an_agent_whose_world_process_falls_silent_stops_with_its_trace(tmp_path
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcome"] == "stopped"
     assert stdout == b""
-    assert f"labmate stopped at t={outcome['t']:.6g}: stopped by {why}" in \
-        stderr.decode().strip().splitlines()[-1]
+    assert (
+        f"labmate stopped at t={outcome['t']:.6g}: stopped by {why}"
+        in stderr.decode().strip().splitlines()[-1]
+    )
 
 
 class FakeTime:
@@ -92,7 +123,8 @@ class FakeTime:
 
 
 def test_the_world_process_holds_a_silent_agent_s_last_pose_and_records_the_silence(
-        cteam, monkeypatch, caplog):
+    cteam, monkeypatch, caplog
+):
     """Timeout 1 s. t=1: poses of the XR4000 and the Labmate (the operator sends none).
     0.6 s later, t=2: the Labmate's alone; nobody silent yet. 0.6 s later, t=3: the
     Labmate's again; the XR4000 (1.2 s since its pose) and the operator (1.2 s since the
@@ -107,8 +139,13 @@ def test_the_world_process_holds_a_silent_agent_s_last_pose_and_records_the_sile
     seq = {XR4000: 0, LABMATE: 0}
 
     def pose(agent: int, x: float) -> None:
-        link.take(codec.decode(codec.encode_world(POSE, agent, WORLD_INDEX, seq[agent],
-                                                  {"x": x, "y": 0.0, "theta": 0.0}, 0.0)))
+        link.take(
+            codec.decode(
+                codec.encode_world(
+                    POSE, agent, WORLD_INDEX, seq[agent], {"x": x, "y": 0.0, "theta": 0.0}, 0.0
+                )
+            )
+        )
         seq[agent] += 1
 
     def instant(t: float) -> None:
@@ -128,20 +165,22 @@ def test_the_world_process_holds_a_silent_agent_s_last_pose_and_records_the_sile
     instant(3.0)
     assert link.silence_record() == [
         {"agent": "xr4000", "from": 1.0, "noticed": 3.0, "to": None},
-        {"agent": "operator", "from": None, "noticed": 3.0, "to": None}]
+        {"agent": "operator", "from": None, "noticed": 3.0, "to": None},
+    ]
     assert sim.access.state(XR4000, idx)[0].tolist() == [2.0, 0.0, 0.0]  # held
     assert sim.access.state(LABMATE, idx)[0].tolist() == [-1.2, 0.0, 0.0]
     warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert warned == ["agent 'xr4000' silent for 1 s (last pose at t=1.000): the world "
-                      "holds its last pose",
-                      "agent 'operator' silent for 1 s (no pose yet): the world holds its "
-                      "last pose"]
+    assert warned == [
+        "agent 'xr4000' silent for 1 s (last pose at t=1.000): the world holds its last pose",
+        "agent 'operator' silent for 1 s (no pose yet): the world holds its last pose",
+    ]
     clock.now += 0.1
     pose(XR4000, 2.5)
     instant(4.0)
     assert link.silence_record() == [
         {"agent": "xr4000", "from": 1.0, "noticed": 3.0, "to": 4.0},
-        {"agent": "operator", "from": None, "noticed": 3.0, "to": None}]
+        {"agent": "operator", "from": None, "noticed": 3.0, "to": None},
+    ]
     assert sim.access.state(XR4000, idx)[0].tolist() == [2.5, 0.0, 0.0]
 
 
@@ -150,12 +189,16 @@ def test_a_world_process_that_hears_no_agent_records_every_silence(team):
     its trace's meta.live (the run goes on to its duration)."""
     transport = UdpTransport(("127.0.0.1", 0))
     try:
-        trace = LiveRun(team, [], transport, world=True, duration=1.0, time_scale=1,
-                        world_timeout=0.2).run()
+        trace = LiveRun(
+            team, [], transport, world=True, duration=1.0, time_scale=1, world_timeout=0.2
+        ).run()
     finally:
         transport.close()
     assert trace.outcomes[0]["outcome"] == "ok"
     silent = trace.meta["live"]["world_silent"]
     assert [(s["agent"], s["from"], s["to"]) for s in silent] == [
-        ("xr4000", None, None), ("labmate", None, None), ("operator", None, None)]
+        ("xr4000", None, None),
+        ("labmate", None, None),
+        ("operator", None, None),
+    ]
     assert all(0.2 <= s["noticed"] <= 1.0 for s in silent)

@@ -120,17 +120,31 @@ def test_a_group_port_held_without_sharing_is_one_line(transports):
         holder.bind(("", port))  # (every address, not sharing: as a foreign program may)
         with pytest.raises(TransportError) as err:
             transports((GROUP, port), mode="multicast")
-    assert str(err.value) == (f"UDP multicast {GROUP}:{port} is taken (another process "
-                              "listens there without sharing the port)")
+    assert str(err.value) == (
+        f"UDP multicast {GROUP}:{port} is taken (another process "
+        "listens there without sharing the port)"
+    )
 
 
-@pytest.mark.parametrize(("mode", "host", "interface", "message"), [
-    ("multicast", "10.1.2.3", LOCAL, "UDP multicast: '10.1.2.3' is not a multicast group"),
-    ("multicast", "robots.local", LOCAL, "UDP multicast: 'robots.local' is not an IPv4 address"),
-    ("broadcast", "::1", LOCAL, "UDP broadcast: '::1' is not an IPv4 address"),
-    ("multicast", GROUP, "eth9", f"cannot join UDP multicast {GROUP}:0 on interface eth9: "
-                                 "not an IPv4 address"),
-])
+@pytest.mark.parametrize(
+    ("mode", "host", "interface", "message"),
+    [
+        ("multicast", "10.1.2.3", LOCAL, "UDP multicast: '10.1.2.3' is not a multicast group"),
+        (
+            "multicast",
+            "robots.local",
+            LOCAL,
+            "UDP multicast: 'robots.local' is not an IPv4 address",
+        ),
+        ("broadcast", "::1", LOCAL, "UDP broadcast: '::1' is not an IPv4 address"),
+        (
+            "multicast",
+            GROUP,
+            "eth9",
+            f"cannot join UDP multicast {GROUP}:0 on interface eth9: not an IPv4 address",
+        ),
+    ],
+)
 def test_a_bad_group_or_interface_is_one_line(transports, mode, host, interface, message):
     with pytest.raises(TransportError) as err:
         transports((host, 0), mode=mode, interface=interface)

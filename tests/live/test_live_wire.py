@@ -28,8 +28,13 @@ def cteam():
 def request(codec: Codec, number: int = 0, /, **change) -> bytes:
     """A genuine 'request' of the requester with sequence number ``number``, then
     ``change`` written over its keys (``seq=`` among them: a key, not the number)."""
-    data = json.loads(codec.encode(Message(REQUESTER, GRANTER, number, 1.0, "control",
-                                           "request", {"need": 2.0}), -0.0, 1.5e9))
+    data = json.loads(
+        codec.encode(
+            Message(REQUESTER, GRANTER, number, 1.0, "control", "request", {"need": 2.0}),
+            -0.0,
+            1.5e9,
+        )
+    )
     data.update(change)
     return json.dumps(data).encode()
 
@@ -48,9 +53,18 @@ def test_a_datagram_round_trips(cteam):
     codec = Codec(cteam)
     msg = Message(GRANTER, -1, 7, 2.0, "control", "ack", {"id": 3.0}, -1, "ack")
     dg = codec.decode(codec.encode(msg, 0.0, 1234.5))
-    assert (dg.sender, dg.to, dg.seq, dg.type, dg.socket, dg.fields, dg.msg_id, dg.note,
-            dg.rank, dg.sent) == (GRANTER, -1, 7, "ack", "control", {"id": 3.0}, -1, "ack",
-                                  0.0, 1234.5)
+    assert (
+        dg.sender,
+        dg.to,
+        dg.seq,
+        dg.type,
+        dg.socket,
+        dg.fields,
+        dg.msg_id,
+        dg.note,
+        dg.rank,
+        dg.sent,
+    ) == (GRANTER, -1, 7, "ack", "control", {"id": 3.0}, -1, "ack", 0.0, 1234.5)
     assert set(json.loads(codec.encode(msg, 0.0, 1.0))) == KEYS
 
 
@@ -64,30 +78,33 @@ def test_a_replayed_sequence_number_is_refused(cteam):
     assert codec.decode(request(codec, 5)).seq == 5  # later numbers still pass
 
 
-@pytest.mark.parametrize(("change", "reason"), [
-    ({"ht": 2}, "version"),  # the version before this one
-    ({"ht": 4}, "version"),
-    ({"ht": True}, "version"),  # a bool is not a version number
-    ({"team": "another team"}, "foreign team"),
-    ({"digest": "0" * 16}, "foreign team"),  # same name, other message declarations
-    ({"from": "intruder"}, "forged"),
-    ({"to": "nobody"}, "forged"),
-    ({"to": "requester"}, "forged"),  # to its own sender
-    ({"type": "launch"}, "forged"),  # a type the team does not declare
-    ({"socket": "data"}, "forged"),  # 'request' is sent on control only
-    ({"socket": ["control"]}, "forged"),
-    ({"fields": {"need": "__import__('os')"}}, "forged"),  # a field that is not a number
-    ({"fields": {"need": True}}, "forged"),
-    ({"fields": {"need": 10 ** 400}}, "forged"),  # beyond any float
-    ({"fields": {"speed": 1.0}}, "forged"),  # a field 'request' does not declare
-    ({"seq": -1}, "forged"),
-    ({"seq": 1.0}, "forged"),
-    ({"id": -2}, "forged"),
-    ({"note": "reboot"}, "forged"),
-    ({"note": {}}, "forged"),
-    ({"sent": "yesterday"}, "forged"),
-    ({"extra": 1}, "malformed"),
-])
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"ht": 2}, "version"),  # the version before this one
+        ({"ht": 4}, "version"),
+        ({"ht": True}, "version"),  # a bool is not a version number
+        ({"team": "another team"}, "foreign team"),
+        ({"digest": "0" * 16}, "foreign team"),  # same name, other message declarations
+        ({"from": "intruder"}, "forged"),
+        ({"to": "nobody"}, "forged"),
+        ({"to": "requester"}, "forged"),  # to its own sender
+        ({"type": "launch"}, "forged"),  # a type the team does not declare
+        ({"socket": "data"}, "forged"),  # 'request' is sent on control only
+        ({"socket": ["control"]}, "forged"),
+        ({"fields": {"need": "__import__('os')"}}, "forged"),  # a field that is not a number
+        ({"fields": {"need": True}}, "forged"),
+        ({"fields": {"need": 10**400}}, "forged"),  # beyond any float
+        ({"fields": {"speed": 1.0}}, "forged"),  # a field 'request' does not declare
+        ({"seq": -1}, "forged"),
+        ({"seq": 1.0}, "forged"),
+        ({"id": -2}, "forged"),
+        ({"note": "reboot"}, "forged"),
+        ({"note": {}}, "forged"),
+        ({"sent": "yesterday"}, "forged"),
+        ({"extra": 1}, "malformed"),
+    ],
+)
 def test_a_datagram_not_of_this_team_is_refused_with_its_reason(cteam, change, reason):
     codec = Codec(cteam)
     with pytest.raises(WireError) as err:
@@ -96,16 +113,19 @@ def test_a_datagram_not_of_this_team_is_refused_with_its_reason(cteam, change, r
     assert codec.last_seq == {}  # a refused datagram leaves the sequence numbers alone
 
 
-@pytest.mark.parametrize(("data", "reason"), [
-    (b"", "malformed"),
-    (b"\xff\xfe", "malformed"),
-    (b"[1, 2]", "malformed"),
-    (b'{"ht": 3}', "malformed"),
-    (b'{"ht": NaN}', "malformed"),
-    (b"[" * 5000 + b"]" * 5000, "oversized"),
-    (b"[" * 4000 + b"]" * 4000, "malformed"),  # deeper than the parser recurses
-    (b" " * (MAX_BYTES + 1), "oversized"),
-])
+@pytest.mark.parametrize(
+    ("data", "reason"),
+    [
+        (b"", "malformed"),
+        (b"\xff\xfe", "malformed"),
+        (b"[1, 2]", "malformed"),
+        (b'{"ht": 3}', "malformed"),
+        (b'{"ht": NaN}', "malformed"),
+        (b"[" * 5000 + b"]" * 5000, "oversized"),
+        (b"[" * 4000 + b"]" * 4000, "malformed"),  # deeper than the parser recurses
+        (b" " * (MAX_BYTES + 1), "oversized"),
+    ],
+)
 def test_bytes_that_are_no_datagram_are_refused(cteam, data, reason):
     with pytest.raises(WireError) as err:
         Codec(cteam).decode(data)
@@ -128,9 +148,11 @@ def test_missing_and_non_finite_values_are_refused(cteam):
 
 json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
-    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner,
-                                                                 max_size=4),
-    max_leaves=12)
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4)
+    ),
+    max_leaves=12,
+)
 
 
 @settings(max_examples=300, deadline=None)

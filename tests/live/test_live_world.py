@@ -62,30 +62,44 @@ def codec_of(cteam) -> Codec:
 # ---------------------------------------------------------------------- the wire
 def test_world_datagrams_round_trip(cteam):
     codec = codec_of(cteam)
-    pose = codec.decode(codec.encode_world(POSE, XR4000, WORLD_INDEX, 0,
-                                           {"x": 1.0, "y": 2.0, "theta": 0.5,
-                                            "holding": 1.0}, 10.0))
+    pose = codec.decode(
+        codec.encode_world(
+            POSE, XR4000, WORLD_INDEX, 0, {"x": 1.0, "y": 2.0, "theta": 0.5, "holding": 1.0}, 10.0
+        )
+    )
     assert (pose.sender, pose.to, pose.type, pose.fields) == (
-        XR4000, WORLD_INDEX, POSE, {"x": 1.0, "y": 2.0, "theta": 0.5, "holding": 1.0})
-    reading = codec.decode(codec.encode_world(READING, WORLD_INDEX, XR4000, 0,
-                                              {"ir.0": 0.2, "event.at_box": 1.0}, 10.0))
+        XR4000,
+        WORLD_INDEX,
+        POSE,
+        {"x": 1.0, "y": 2.0, "theta": 0.5, "holding": 1.0},
+    )
+    reading = codec.decode(
+        codec.encode_world(
+            READING, WORLD_INDEX, XR4000, 0, {"ir.0": 0.2, "event.at_box": 1.0}, 10.0
+        )
+    )
     assert (reading.sender, reading.to, reading.fields) == (
-        WORLD_INDEX, XR4000, {"ir.0": 0.2, "event.at_box": 1.0})
+        WORLD_INDEX,
+        XR4000,
+        {"ir.0": 0.2, "event.at_box": 1.0},
+    )
     # poses and readings are numbered apart from the sender's messages
-    assert codec.decode(codec.encode_world(POSE, XR4000, WORLD_INDEX, 1, {"x": 0.0},
-                                           10.0)).seq == 1
+    assert codec.decode(codec.encode_world(POSE, XR4000, WORLD_INDEX, 1, {"x": 0.0}, 10.0)).seq == 1
 
 
-@pytest.mark.parametrize(("kind", "sender", "to", "fields", "reason"), [
-    (POSE, XR4000, WORLD_INDEX, {"v": 1.0}, "forged"),  # the XR4000 is holonomic: no v
-    (POSE, XR4000, WORLD_INDEX, {"leader": float("nan")}, None),  # (not encodable)
-    (READING, WORLD_INDEX, LABMATE, {"event.at_box": 1.0}, "forged"),  # not its event
-    (READING, WORLD_INDEX, XR4000, {"lidar.0": 1.0}, "forged"),  # no component's sense
-    (READING, WORLD_INDEX, XR4000, {"ir.x": 1.0}, "forged"),
-    (READING, WORLD_INDEX, XR4000, {"ir.\u00b2": 1.0}, "forged"),  # (a digit, not 0-9)
-    (READING, WORLD_INDEX, XR4000, {"ir.0": 1.0, "ir.2": 1.0}, "forged"),  # ir.1 missing
-    (READING, WORLD_INDEX, XR4000, {"ir": 1.0, "ir.0": 1.0}, "forged"),
-])
+@pytest.mark.parametrize(
+    ("kind", "sender", "to", "fields", "reason"),
+    [
+        (POSE, XR4000, WORLD_INDEX, {"v": 1.0}, "forged"),  # the XR4000 is holonomic: no v
+        (POSE, XR4000, WORLD_INDEX, {"leader": float("nan")}, None),  # (not encodable)
+        (READING, WORLD_INDEX, LABMATE, {"event.at_box": 1.0}, "forged"),  # not its event
+        (READING, WORLD_INDEX, XR4000, {"lidar.0": 1.0}, "forged"),  # no component's sense
+        (READING, WORLD_INDEX, XR4000, {"ir.x": 1.0}, "forged"),
+        (READING, WORLD_INDEX, XR4000, {"ir.\u00b2": 1.0}, "forged"),  # (a digit, not 0-9)
+        (READING, WORLD_INDEX, XR4000, {"ir.0": 1.0, "ir.2": 1.0}, "forged"),  # ir.1 missing
+        (READING, WORLD_INDEX, XR4000, {"ir": 1.0, "ir.0": 1.0}, "forged"),
+    ],
+)
 def test_world_datagrams_are_checked_field_by_field(cteam, kind, sender, to, fields, reason):
     codec = codec_of(cteam)
     if reason is None:
@@ -102,10 +116,16 @@ def test_a_reading_names_the_pose_it_answers_and_a_pose_names_none(cteam):
     asked for it); a pose answers nothing."""
     codec = codec_of(cteam)
     for answers in (-1, 0, 41):
-        assert codec.decode(codec.encode_world(READING, WORLD_INDEX, XR4000, answers + 1,
-                                               {}, 1.0, answers)).msg_id == answers
-    for kind, sender, to, answers in ((READING, WORLD_INDEX, XR4000, -2),
-                                      (POSE, XR4000, WORLD_INDEX, 3)):
+        assert (
+            codec.decode(
+                codec.encode_world(READING, WORLD_INDEX, XR4000, answers + 1, {}, 1.0, answers)
+            ).msg_id
+            == answers
+        )
+    for kind, sender, to, answers in (
+        (READING, WORLD_INDEX, XR4000, -2),
+        (POSE, XR4000, WORLD_INDEX, 3),
+    ):
         with pytest.raises(WireError) as err:
             codec.decode(codec.encode_world(kind, sender, to, 50, {}, 1.0, answers))
         assert err.value.reason == "forged"
@@ -134,8 +154,9 @@ def host(cteam):
     return sim, link, transport
 
 
-def readings(codec: Codec, transport: Sent, answers: dict[int, int] | None = None
-             ) -> dict[int, dict[str, float]]:
+def readings(
+    codec: Codec, transport: Sent, answers: dict[int, int] | None = None
+) -> dict[int, dict[str, float]]:
     """The readings sent, by agent; ``answers`` gets the pose number each answers."""
     out = {}
     for payload in transport.payloads:
@@ -154,8 +175,10 @@ def test_the_world_process_runs_the_payload_on_the_poses_received(cteam):
     sim, link, transport = host(cteam)
     world, idx = sim.ensemble.world, np.array([0])
     x0, y0, th0 = 2.4, 0.0, np.pi
-    link.poses = {XR4000: {"x": x0, "y": y0, "theta": th0, "holding": 1.0},
-                  LABMATE: {"holding": 0.0}}
+    link.poses = {
+        XR4000: {"x": x0, "y": y0, "theta": th0, "holding": 1.0},
+        LABMATE: {"holding": 0.0},
+    }
     world.update(sim.access, idx)
     answers: dict[int, int] = {}
     first = readings(link.codec, transport, answers)
@@ -179,9 +202,16 @@ def test_an_agent_process_senses_the_latest_reading_and_sends_its_pose(cteam):
     link = WorldLink(codec_of(cteam), transport, [LABMATE], host=False)
     sim = Simulator(cteam, 1, world=world_seam(WorldReadings, link))
     world, idx = sim.ensemble.world, np.array([0])
-    reading = link.codec.decode(link.codec.encode_world(
-        READING, WORLD_INDEX, LABMATE, 0, {"arm.2": 0.3, "arm.0": 0.1, "arm.1": -0.2,
-                                           "event.docked": 1.0}, 1.0))
+    reading = link.codec.decode(
+        link.codec.encode_world(
+            READING,
+            WORLD_INDEX,
+            LABMATE,
+            0,
+            {"arm.2": 0.3, "arm.0": 0.1, "arm.1": -0.2, "event.docked": 1.0},
+            1.0,
+        )
+    )
     assert link.take(reading) == (["docked"], None)
     assert world.sense(LABMATE, idx, "arm").tolist() == [[0.1, -0.2, 0.3]]
     with pytest.raises(KeyError, match="no reading of 'ir'"):
@@ -193,17 +223,23 @@ def test_an_agent_process_senses_the_latest_reading_and_sends_its_pose(cteam):
     assert (pose.type, pose.sender) == (POSE, LABMATE)
     # its plant state and every variable (the components read 'holding')
     assert {k: pose.fields[k] for k in ("x", "y", "theta", "holding")} == {
-        "x": 1.0, "y": 2.0, "theta": 0.5, "holding": 1.0}
-    assert set(pose.fields) == {"x", "y", "theta",
-                                *sim.access.variable_names(LABMATE)}
+        "x": 1.0,
+        "y": 2.0,
+        "theta": 0.5,
+        "holding": 1.0,
+    }
+    assert set(pose.fields) == {"x", "y", "theta", *sim.access.variable_names(LABMATE)}
 
 
 def test_an_agent_with_no_world_process_is_one_line(team, monkeypatch):
     monkeypatch.setattr(live_run, "FIRST_READING", 0.2)
     transport = UdpTransport(("127.0.0.1", 0))
     try:
-        with pytest.raises(HostingError, match=r"no reading from the world process within "
-                                               r"0\.2 s"):
+        with pytest.raises(
+            HostingError,
+            match=r"no reading from the world process within "
+            r"0\.2 s",
+        ):
             LiveRun(team, ["labmate"], transport).run()
     finally:
         transport.close()
@@ -233,8 +269,17 @@ def test_an_agent_whose_first_reading_was_lost_asks_again(team, cteam, monkeypat
                 dg = codec.decode(data)
                 if dg.type == POSE and dg.sender == LABMATE:
                     asks.append(dg.fields)
-                    world.send(live.codec.encode_world(READING, WORLD_INDEX, LABMATE, 0, {
-                        "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0}, 0.0), "data")
+                    world.send(
+                        live.codec.encode_world(
+                            READING,
+                            WORLD_INDEX,
+                            LABMATE,
+                            0,
+                            {"arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0},
+                            0.0,
+                        ),
+                        "data",
+                    )
 
     thread = threading.Thread(target=stand_in)
     thread.start()
@@ -257,8 +302,13 @@ class StandIn:
 
     BEAMS = 8
 
-    def __init__(self, live: LiveRun, world: UdpTransport,
-                 answer: Callable[[dict[str, float]], bool], first: float) -> None:
+    def __init__(
+        self,
+        live: LiveRun,
+        world: UdpTransport,
+        answer: Callable[[dict[str, float]], bool],
+        first: float,
+    ) -> None:
         self.live, self.world, self.answer, self.first = live, world, answer, first
         self.done = threading.Event()
         self.thread = threading.Thread(target=self.serve)
@@ -275,14 +325,24 @@ class StandIn:
                 if dg.fields and not self.answer(dg.fields):
                     continue
                 x = dg.fields.get("x", self.first)
-                self.world.send(self.live.codec.encode_world(
-                    READING, WORLD_INDEX, XR4000, self.sent,
-                    {f"ir.{k}": x for k in range(self.BEAMS)}, 0.0, dg.seq), "data")
+                self.world.send(
+                    self.live.codec.encode_world(
+                        READING,
+                        WORLD_INDEX,
+                        XR4000,
+                        self.sent,
+                        {f"ir.{k}": x for k in range(self.BEAMS)},
+                        0.0,
+                        dg.seq,
+                    ),
+                    "data",
+                )
                 self.sent += 1
 
 
-def xr4000_reading(team, answer: Callable[[dict[str, float]], bool], first: float,
-                   monkeypatch) -> tuple[LiveRun, list[tuple[float, float, float]]]:
+def xr4000_reading(
+    team, answer: Callable[[dict[str, float]], bool], first: float, monkeypatch
+) -> tuple[LiveRun, list[tuple[float, float, float]]]:
     """The XR4000's process (in this one; experiment 2, its Approach law, which reads its
     IR ring at every tick and drives it along x) against a :class:`StandIn` world, for 0.5
     run seconds at time scale 5. Returns the run and, for each reading of the ring by the
@@ -299,8 +359,9 @@ def xr4000_reading(team, answer: Callable[[dict[str, float]], bool], first: floa
     def spy(agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         values = sense(agent, idx, name)
         if name == "ir":
-            read.append((float(ens.t[0]), float(values[0, 0]),
-                         float(ens.states[XR4000].x[0, column])))
+            read.append(
+                (float(ens.t[0]), float(values[0, 0]), float(ens.states[XR4000].x[0, column]))
+            )
         return values
 
     monkeypatch.setattr(ens.world, "sense", spy)
@@ -335,8 +396,7 @@ def test_a_law_reads_the_worlds_answer_to_its_own_instants_pose(team, monkeypatc
     assert record["world_answer_ms"]["count"] == len(ticks) - live.link.late
 
 
-def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, monkeypatch,
-                                                                         caplog):
+def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, monkeypatch, caplog):
     """A stand-in world that answers the first ask and no pose after: every tick's
     answer is late; each is counted and the laws read the latest reading (the first,
     x 2.0); one logged line says so. The first tick waits its bound, the later ones do not
@@ -354,8 +414,7 @@ def test_a_late_answer_leaves_the_latest_reading_counted_and_logged_once(team, m
 
 
 @pytest.mark.parametrize(("message", "ends"), [("ready", True), ("state", False)])
-def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team, message,
-                                                                           ends):
+def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team, message, ends):
     """While the XR4000's process waits for the world's answer, the Labmate's 'ready'
     (a control message: its reply must not be held for the world) ends the wait at once,
     queued for the next instant; a copy of the 'state' stream (20 Hz from each teammate)
@@ -364,10 +423,16 @@ def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team,
     labmate = UdpTransport(("127.0.0.1", 0), [transport.address])
     try:
         live = LiveRun(team, ["xr4000"], transport, duration=1.0)
-        socket, fields = {"ready": ("control", {}), "state": ("data", dict.fromkeys(
-            ("omega", "theta", "v", "vx", "vy", "x", "y"), 0.0))}[message]
-        labmate.send(live.codec.encode(Message(LABMATE, XR4000, 0, 0.0, socket, message,
-                                               fields), 0.0, time.time()), socket)
+        socket, fields = {
+            "ready": ("control", {}),
+            "state": ("data", dict.fromkeys(("omega", "theta", "v", "vx", "vy", "x", "y"), 0.0)),
+        }[message]
+        labmate.send(
+            live.codec.encode(
+                Message(LABMATE, XR4000, 0, 0.0, socket, message, fields), 0.0, time.time()
+            ),
+            socket,
+        )
         bound = 0.3 if ends else 0.1
         start = time.monotonic()
         live.clock.take_until(live.sim.ensemble, lambda: False, bound)
@@ -379,17 +444,39 @@ def test_a_message_ends_the_wait_for_the_world_and_a_streams_copy_does_not(team,
     assert (took < bound) if ends else (took >= bound)
 
 
-@pytest.mark.parametrize(("team_file", "args", "message"), [
-    (EXPERIMENT2, ["--world", "--agent", "labmate"], "give the agents this process runs "
-                                                     "(--agent NAME) or --world, not both"),
-    (HANDSHAKE, ["--world"], "--world: this team declares no world components"),
-    (EXPERIMENT2, ["--world", "--plant", "ros2"], "--world hosts no agent: --plant is for "
-                                                  "the agents' processes"),
-])
+@pytest.mark.parametrize(
+    ("team_file", "args", "message"),
+    [
+        (
+            EXPERIMENT2,
+            ["--world", "--agent", "labmate"],
+            "give the agents this process runs (--agent NAME) or --world, not both",
+        ),
+        (HANDSHAKE, ["--world"], "--world: this team declares no world components"),
+        (
+            EXPERIMENT2,
+            ["--world", "--plant", "ros2"],
+            "--world hosts no agent: --plant is for the agents' processes",
+        ),
+    ],
+)
 def test_world_process_arguments_are_one_line(tmp_path, team_file, args, message):
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "live", str(team_file),
-                           *args, "--listen", "127.0.0.1:0", "-o", str(tmp_path / "out")],
-                          capture_output=True, timeout=TIMEOUT)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "live",
+            str(team_file),
+            *args,
+            "--listen",
+            "127.0.0.1:0",
+            "-o",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        timeout=TIMEOUT,
+    )
     assert proc.returncode == 2
     lines = proc.stderr.decode().strip().splitlines()
     assert len(lines) == 1 and message in lines[0], lines
@@ -409,9 +496,22 @@ def launched_as_simulated(out: Path, team, options: list[str]) -> None:
     to the latency measured in this run, and every transition (the hand-overs among them)
     is within two control periods (0.05 s) of the simulated one; every requirement's
     verdict on the live run is the simulated run's."""
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch",
-                           str(EXPERIMENT2), "--time-scale", "4", *options, "-o", str(out)],
-                          capture_output=True, timeout=TIMEOUT * 3)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            str(EXPERIMENT2),
+            "--time-scale",
+            "4",
+            *options,
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        timeout=TIMEOUT * 3,
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     data = json.loads((out / "trace.json").read_text())
     assert check_trace(data) is None
@@ -431,10 +531,15 @@ def launched_as_simulated(out: Path, team, options: list[str]) -> None:
     # the runs agree, as above, each verdict is the simulated run's
     from hybridteam.logs.check import check_run
 
-    verdicts = [{name: v["satisfied"] for name, v in check_run(run, team)[0].items()}
-                for run in (live, sim)]
+    verdicts = [
+        {name: v["satisfied"] for name, v in check_run(run, team)[0].items()} for run in (live, sim)
+    ]
     assert verdicts[0] == verdicts[1] and set(verdicts[0]) == {
-        "box_carried", "steady_grasps", "one_leader", "no_takeover"}, verdicts
+        "box_carried",
+        "steady_grasps",
+        "one_leader",
+        "no_takeover",
+    }, verdicts
     # the box's pose is the world process's record, carried into the team's trace
     box = live.samples["box"]
     assert np.isfinite(box[: np.searchsorted(live.sample_times, 40.0)]).all()
@@ -448,8 +553,17 @@ def agent_process_given(team, cteam, fields: dict[str, float]) -> Trace:
     world = UdpTransport(("127.0.0.1", 0), [transport.address])
     try:
         live = LiveRun(team, ["labmate"], transport, duration=0.5, time_scale=5)
-        world.send(live.codec.encode_world(READING, WORLD_INDEX, LABMATE, 0, {
-            "arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0, **fields}, 0.0), "data")
+        world.send(
+            live.codec.encode_world(
+                READING,
+                WORLD_INDEX,
+                LABMATE,
+                0,
+                {"arm.0": 0.0, "arm.1": 0.0, "arm.2": 0.0, **fields},
+                0.0,
+            ),
+            "data",
+        )
         return live.run()
     finally:
         transport.close()
@@ -469,6 +583,5 @@ def test_an_event_in_a_reading_is_raised_in_its_agent_at_its_arrival(team, cteam
 def test_an_outcome_in_a_reading_ends_the_agents_run(team, cteam):
     trace = agent_process_given(team, cteam, {"outcome.link_broken": 1.0})
     outcome = trace.outcomes[0]
-    assert (outcome["outcome"], outcome["t"]) == ("link_broken", pytest.approx(0.0,
-                                                                               abs=1e-9))
+    assert (outcome["outcome"], outcome["t"]) == ("link_broken", pytest.approx(0.0, abs=1e-9))
     assert "the world process concluded 'link_broken'" in outcome["message"]

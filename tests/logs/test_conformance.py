@@ -36,11 +36,17 @@ def handover() -> tuple[ht.Team, Trace]:
     return team, ht.simulate(team)
 
 
-def edited(run: Trace, transitions: Table | None = None, messages: Table | None = None
-           ) -> Trace:
+def edited(run: Trace, transitions: Table | None = None, messages: Table | None = None) -> Trace:
     """``run`` with its transition or message table replaced (a hand-edited log)."""
-    return Trace(run.meta, run.diagnostics, transitions or run.transitions, run.intervals,
-                 messages or run.messages, run.sample_times, run.samples)
+    return Trace(
+        run.meta,
+        run.diagnostics,
+        transitions or run.transitions,
+        run.intervals,
+        messages or run.messages,
+        run.sample_times,
+        run.samples,
+    )
 
 
 def test_a_simulated_run_conforms_to_its_own_team(handover):
@@ -54,8 +60,11 @@ def test_a_simulated_run_conforms_to_its_own_team(handover):
     assert result.conformant and result.first is None
     by = {a.agent: a for a in result.agents}
     # init + Lead -> Follow; init + Requesting + Lead; the operator's init
-    assert {a: (c.logged, c.model, c.matched) for a, c in by.items()} == \
-        {"xr4000": (2, 2, 2), "labmate": (3, 3, 3), "operator": (1, 1, 1)}
+    assert {a: (c.logged, c.model, c.matched) for a, c in by.items()} == {
+        "xr4000": (2, 2, 2),
+        "labmate": (3, 3, 3),
+        "operator": (1, 1, 1),
+    }
     assert all(s == 0.0 for a in result.agents for _, s, _ in a.shifts)
     assert by["xr4000"].max_replay_deviation == 0.0
     assert by["labmate"].max_replay_deviation == 0.0
@@ -63,12 +72,13 @@ def test_a_simulated_run_conforms_to_its_own_team(handover):
     assert [(a.agent, a.max_pose_deviation, a.no_pose_check) for a in result.agents] == [
         ("xr4000", None, "the log has no commands for it"),
         ("labmate", None, "the log has no commands for it"),
-        ("operator", None, "")]  # no plant: nothing to drive, nothing to say
+        ("operator", None, ""),
+    ]  # no plant: nothing to drive, nothing to say
     lines = result.lines()
-    assert lines[-3:-1] == ["xr4000: no pose check under commands: the log has no "
-                            "commands for it",
-                            "labmate: no pose check under commands: the log has no "
-                            "commands for it"]
+    assert lines[-3:-1] == [
+        "xr4000: no pose check under commands: the log has no commands for it",
+        "labmate: no pose check under commands: the log has no commands for it",
+    ]
     got, want = result.model.messages, run.messages
     arrived = np.isfinite(want["t_recv"])
     for column in ("sender", "receiver", "type", "t_recv", "status"):
@@ -80,8 +90,10 @@ def test_a_removed_transition_diverges_at_that_agent_and_time(handover, capsys, 
     says reached it, takes the lead at the grant's arrival; the log stays Requesting."""
     team, run = handover
     tr = run.transitions
-    mutated = edited(run, transitions=tr.filter(~((tr["agent"] == "labmate") &
-                                                  (tr["target"] == "Transport.Lead"))))
+    mutated = edited(
+        run,
+        transitions=tr.filter(~((tr["agent"] == "labmate") & (tr["target"] == "Transport.Lead"))),
+    )
     result = conformance(mutated, team)
     first = result.first
     assert first is not None and first.agent == "labmate"
@@ -94,8 +106,10 @@ def test_a_removed_transition_diverges_at_that_agent_and_time(handover, capsys, 
     mutated.to_json(path)
     assert main(["check", str(path), "--team", str(HANDOVER), "--conformance"]) == 1
     out = capsys.readouterr().out.splitlines()
-    assert out[-1].startswith("DIVERGENT: first divergence at t=3.06 s, agent labmate: the "
-                              "model is in Transport.Lead, the log in Transport.Requesting")
+    assert out[-1].startswith(
+        "DIVERGENT: first divergence at t=3.06 s, agent labmate: the "
+        "model is in Transport.Lead, the log in Transport.Requesting"
+    )
 
 
 def test_a_later_receive_time_diverges_where_the_log_moved(handover):
@@ -110,11 +124,14 @@ def test_a_later_receive_time_diverges_where_the_log_moved(handover):
     assert first is not None and first.agent == "labmate"
     assert first.t == pytest.approx(GRANTED, abs=1e-12)
     assert (first.expected, first.observed) == ("Transport.Requesting", "Transport.Lead")
-    assert "the log's transition Transport.Requesting -> Transport.Lead (message:grant)" in \
-        first.why
+    assert (
+        "the log's transition Transport.Requesting -> Transport.Lead (message:grant)" in first.why
+    )
     labmate = next(a for a in result.agents if a.agent == "labmate")
-    assert [target for _, _, target in labmate.shifts] == ["Transport.Follow",
-                                                          "Transport.Requesting"]
+    assert [target for _, _, target in labmate.shifts] == [
+        "Transport.Follow",
+        "Transport.Requesting",
+    ]
 
 
 def test_a_paused_agent_shows_the_shift_at_the_transitions_after_the_pause(handover):
@@ -130,10 +147,11 @@ def test_a_paused_agent_shows_the_shift_at_the_transitions_after_the_pause(hando
     assert lenient.conformant
     labmate = next(a for a in lenient.agents if a.agent == "labmate")
     assert [(target, s) for _, s, target in labmate.shifts] == [
-        ("Transport.Follow", 0.0), ("Transport.Requesting", 0.0),
-        ("Transport.Lead", pytest.approx(2.0, abs=1e-12))]
-    assert all(s == 0.0 for a in lenient.agents if a.agent != "labmate"
-               for _, s, _ in a.shifts)
+        ("Transport.Follow", 0.0),
+        ("Transport.Requesting", 0.0),
+        ("Transport.Lead", pytest.approx(2.0, abs=1e-12)),
+    ]
+    assert all(s == 0.0 for a in lenient.agents if a.agent != "labmate" for _, s, _ in a.shifts)
     strict = conformance(paused, team).first
     assert strict is not None and strict.agent == "labmate"
     assert strict.t == pytest.approx(GRANTED, abs=1e-12)  # the model's time: the log is late
@@ -150,16 +168,31 @@ def test_a_live_run_conforms_to_its_team(tmp_path, capsys):
     at the logged arrival itself, as the live engine was (shift 0, to 1e-9 s of float
     rounding). The offsets themselves are the processes' start jitter: milliseconds."""
     out = tmp_path / "launch"
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(HANDSHAKE),
-                           "--time-scale", "4", "-o", str(out)],
-                          capture_output=True, timeout=TIMEOUT)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            str(HANDSHAKE),
+            "--time-scale",
+            "4",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        timeout=TIMEOUT,
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     trace = Trace.load(out / "trace.json")
     result = conformance(trace, ht.load(HANDSHAKE))
     assert result.conformant, result.lines()
     live = trace.meta["live"]
-    offset = {agent: off for p, off in zip(live["processes"], live["offsets"], strict=True)
-              for agent in p["agents"]}
+    offset = {
+        agent: off
+        for p, off in zip(live["processes"], live["offsets"], strict=True)
+        for agent in p["agents"]
+    }
     logged = {a: [r.cause for r in trace.transitions if r.agent == a] for a in offset}
     for agent in result.agents:
         causes = logged[agent.agent]
@@ -168,8 +201,7 @@ def test_a_live_run_conforms_to_its_team(tmp_path, capsys):
         for k, (_, shift, _) in enumerate(agent.shifts):
             want = offset[agent.agent] if k < first_message else 0.0
             assert abs(shift - want) <= 1e-9, (agent.agent, k, shift, want)
-    assert main(["check", str(out / "trace.json"), "--team", str(HANDSHAKE),
-                 "--conformance"]) == 0
+    assert main(["check", str(out / "trace.json"), "--team", str(HANDSHAKE), "--conformance"]) == 0
     assert capsys.readouterr().out.splitlines()[-1].startswith("conformant:")
 
 
@@ -196,20 +228,35 @@ def test_a_trace_of_another_team_is_one_line_and_exit_2(handover, tmp_path, caps
     captured = capsys.readouterr()
     assert captured.out == ""
     assert captured.err.strip().splitlines() == [
-        f"hybridteam: error: {path}: a run of team 'handover', not 'live handshake'"]
-    renamed = Trace({**run.meta, "team": "live handshake"}, run.diagnostics, run.transitions,
-                    run.intervals, run.messages, run.sample_times, run.samples)
-    with pytest.raises(LogError, match=r"^the run's agents \(xr4000, labmate, operator\) "
-                       r"are not those of team 'live handshake' \(requester, granter\)$"):
+        f"hybridteam: error: {path}: a run of team 'handover', not 'live handshake'"
+    ]
+    renamed = Trace(
+        {**run.meta, "team": "live handshake"},
+        run.diagnostics,
+        run.transitions,
+        run.intervals,
+        run.messages,
+        run.sample_times,
+        run.samples,
+    )
+    with pytest.raises(
+        LogError,
+        match=r"^the run's agents \(xr4000, labmate, operator\) "
+        r"are not those of team 'live handshake' \(requester, granter\)$",
+    ):
         conformance(renamed, ht.load(HANDSHAKE))
     m = dict(run.messages.columns)
     m["sender"] = np.where(m["sender"] == "labmate", "intruder", m["sender"])
-    with pytest.raises(LogError, match=r"^message at t=0.03 s: 'intruder' is not an agent of "
-                       r"the team: a log of another team\?$"):
+    with pytest.raises(
+        LogError,
+        match=r"^message at t=0.03 s: 'intruder' is not an agent of "
+        r"the team: a log of another team\?$",
+    ):
         conformance(edited(run, messages=Table(run.messages.names, m)), team)
     assert main(["check", str(path), "--team", str(HANDOVER), "--tolerance", "1"]) == 2
-    assert "--tolerance 1.0: a number of seconds >= 0, with --conformance" in \
-        capsys.readouterr().err
+    assert (
+        "--tolerance 1.0: a number of seconds >= 0, with --conformance" in capsys.readouterr().err
+    )
 
 
 def test_the_python_table(handover):
@@ -252,13 +299,19 @@ def square_log(tmp_path: Path, drop: int | None = None) -> tuple[ht.Team, Trace]
     run = ht.Run.from_bag(write_square_bag(tmp_path / "bag"), team, tmp_path / "map.yaml")
     if drop is not None:
         keep = np.arange(run.sample_times.size) != drop
-        run = Trace(run.meta, run.diagnostics, run.transitions, run.intervals, run.messages,
-                    run.sample_times[keep], {k: v[keep] for k, v in run.samples.items()})
+        run = Trace(
+            run.meta,
+            run.diagnostics,
+            run.transitions,
+            run.intervals,
+            run.messages,
+            run.sample_times[keep],
+            {k: v[keep] for k, v in run.samples.items()},
+        )
     return team, run
 
 
-def test_a_hand_made_square_log_conforms_with_the_pose_deviation_of_its_closed_form(
-        tmp_path):
+def test_a_hand_made_square_log_conforms_with_the_pose_deviation_of_its_closed_form(tmp_path):
     """The square's log against the team describing it (timed Drive and Turn modes, the
     model driven by its own inputs): every mode change at the model's time, exactly (the
     log's stamps are k/10 s; the model's after: 2 and 1 s add up to the same floats). The
@@ -281,6 +334,7 @@ def test_a_hand_made_square_log_conforms_with_the_pose_deviation_of_its_closed_f
     path = result.agents[0].commanded
     assert path.t.tolist() == run.sample_times.tolist()  # a step to every logged time
     from tests.logs.test_logs import square_pose
+
     assert np.max(np.abs(path.xy - [square_pose(k)[:2] for k in range(121)])) <= 1e-9
 
 
@@ -320,8 +374,14 @@ UNICYCLE = {"kind": "unicycle", "inputs": "{v: 0.5, omega: 0}"}
 HOLONOMIC = {"kind": "holonomic", "inputs": "{vx: 0.5, vy: 0, omega: 0}"}
 
 
-def commanded_log(tmp_path: Path, pose, command, end: float = 4.0, limits: str = "",
-                  plant: dict[str, str] = UNICYCLE) -> tuple[ht.Team, Trace]:
+def commanded_log(
+    tmp_path: Path,
+    pose,
+    command,
+    end: float = 4.0,
+    limits: str = "",
+    plant: dict[str, str] = UNICYCLE,
+) -> tuple[ht.Team, Trace]:
     """A hand-made log of a robot of :data:`STRAIGHT_TEAM`: its pose ``pose(t)`` (x, y,
     theta) and the command it was given ``command(t)`` (the plant's inputs: v, omega or
     vx, vy, omega), both logged at t = k H from 0 to ``end``; its mode is the team's (the
@@ -331,12 +391,15 @@ def commanded_log(tmp_path: Path, pose, command, end: float = 4.0, limits: str =
     team = ht.load(path)
     run = ht.simulate(team)
     times = np.arange(round(end / H) + 1) * H
-    samples = {"robot": np.array([pose(t) for t in times], float)[:, None, :],
-               "robot.cmd": np.array([command(t) for t in times], float)[:, None, :]}
+    samples = {
+        "robot": np.array([pose(t) for t in times], float)[:, None, :],
+        "robot.cmd": np.array([command(t) for t in times], float)[:, None, :],
+    }
     inputs = next(a["inputs"] for a in run.meta["agents"] if a["name"] == "robot")
     meta = {**run.meta, "series": {**run.meta.get("series", {}), "robot.cmd": list(inputs)}}
-    return team, Trace(meta, run.diagnostics, run.transitions, run.intervals, run.messages,
-                       times, samples)
+    return team, Trace(
+        meta, run.diagnostics, run.transitions, run.intervals, run.messages, times, samples
+    )
 
 
 def test_a_circle_driven_as_commanded_has_no_pose_deviation(tmp_path):
@@ -357,7 +420,8 @@ def test_a_circle_driven_as_commanded_has_no_pose_deviation(tmp_path):
     (robot,) = result.agents
     assert robot.max_pose_deviation <= 1e-12
     assert robot.max_replay_deviation == pytest.approx(
-        np.hypot(radius * np.sin(2.0) - 4.0, radius * (1 - np.cos(2.0))), abs=1e-9)
+        np.hypot(radius * np.sin(2.0) - 4.0, radius * (1 - np.cos(2.0))), abs=1e-9
+    )
     assert result.replay_deviation("robot").t == pytest.approx(8.0, abs=1e-12)
 
 
@@ -405,8 +469,7 @@ def test_a_slipping_robot_deviates_by_the_speed_it_lost(tmp_path):
     (1.6, 0) commanded. The replay, driven by the model's own 0.5 m/s, is
     (0.5 - 0.36) * 4 = 0.56 m off there: the other question."""
     u = 0.4
-    team, run = commanded_log(tmp_path, lambda t: (0.9 * u * t, 0.0, 0.0),
-                              lambda t: (u, 0.0))
+    team, run = commanded_log(tmp_path, lambda t: (0.9 * u * t, 0.0, 0.0), lambda t: (u, 0.0))
     result = conformance(run, team)
     worst = result.deviation("robot")
     assert worst.distance == pytest.approx(0.1 * u * 4.0, abs=1e-12)
@@ -421,11 +484,13 @@ def test_a_holonomic_base_drifting_sideways_deviates_by_its_drift(tmp_path):
     4 s: where its poses are the closed form (0.3 t, 0.4 t, 0.5 t) the deviation is float
     rounding; where it makes only half the commanded vy (y = 0.2 t) it is 0.2 t, largest
     at the end, 0.8 m, from (1.2, 0.8) logged to (1.2, 1.6) commanded."""
-    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.4 * t, 0.5 * t),
-                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    team, run = commanded_log(
+        tmp_path, lambda t: (0.3 * t, 0.4 * t, 0.5 * t), lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC
+    )
     assert conformance(run, team).agents[0].max_pose_deviation <= 1e-12
-    team, run = commanded_log(tmp_path, lambda t: (0.3 * t, 0.2 * t, 0.5 * t),
-                              lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC)
+    team, run = commanded_log(
+        tmp_path, lambda t: (0.3 * t, 0.2 * t, 0.5 * t), lambda t: (0.3, 0.4, 0.5), plant=HOLONOMIC
+    )
     worst = conformance(run, team).deviation("robot")
     assert worst.distance == pytest.approx(0.8, abs=1e-12)
     assert worst.t == pytest.approx(4.0, abs=1e-12)
@@ -437,8 +502,12 @@ def test_commands_beyond_the_limits_are_saturated_as_the_model_saturates_them(tm
     """The plant's ``limits: {v: [-0.5, 0.5]}`` and a log commanding 0.6 m/s of a robot
     moving at 0.5 m/s (its driver clips as the model does): the plant under the commands
     moves at 0.5 m/s too, no deviation; unclipped it would be 0.1 m/s * 4 s = 0.4 m off."""
-    team, run = commanded_log(tmp_path, lambda t: (V * t, 0.0, 0.0), lambda t: (0.6, 0.0),
-                              limits="\n      limits: {v: [-0.5, 0.5]}")
+    team, run = commanded_log(
+        tmp_path,
+        lambda t: (V * t, 0.0, 0.0),
+        lambda t: (0.6, 0.0),
+        limits="\n      limits: {v: [-0.5, 0.5]}",
+    )
     assert conformance(run, team).agents[0].max_pose_deviation <= 1e-12
 
 
@@ -447,16 +516,24 @@ def test_a_log_without_commands_says_the_pose_check_was_not_possible(tmp_path, c
     says the check under commands was not possible; the replay's deviation is still
     reported and ``check --conformance`` exits as the mode comparison says (0)."""
     team, run = commanded_log(tmp_path, lambda t: (V * t, 0.0, 0.0), lambda t: (V, 0.0))
-    bare = Trace({**run.meta, "series": {}}, run.outcomes, run.transitions, run.intervals,
-                 run.messages, run.sample_times, {"robot": run.samples["robot"]})
+    bare = Trace(
+        {**run.meta, "series": {}},
+        run.outcomes,
+        run.transitions,
+        run.intervals,
+        run.messages,
+        run.sample_times,
+        {"robot": run.samples["robot"]},
+    )
     (robot,) = conformance(bare, team).agents
     assert (robot.max_pose_deviation, robot.no_pose_check) == (
-        None, "the log has no commands for it")
+        None,
+        "the log has no commands for it",
+    )
     assert robot.max_replay_deviation <= 1e-12
     path = tmp_path / "bare.json"
     bare.to_json(path)
-    assert main(["check", str(path), "--team", str(tmp_path / "team.yaml"),
-                 "--conformance"]) == 0
+    assert main(["check", str(path), "--team", str(tmp_path / "team.yaml"), "--conformance"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].split("  ")[-2:] == ["max pose deviation m", "max replay deviation m"]
     assert out[1].split()[-2] == "-"
@@ -466,10 +543,22 @@ def test_a_log_without_commands_says_the_pose_check_was_not_possible(tmp_path, c
     late = {"robot": run.samples["robot"].copy(), "robot.cmd": run.samples["robot.cmd"].copy()}
     late["robot"][-1] = np.nan
     late["robot.cmd"][:-1] = np.nan
-    (robot,) = conformance(Trace(run.meta, run.outcomes, run.transitions, run.intervals,
-                                 run.messages, run.sample_times, late), team).agents
+    (robot,) = conformance(
+        Trace(
+            run.meta,
+            run.outcomes,
+            run.transitions,
+            run.intervals,
+            run.messages,
+            run.sample_times,
+            late,
+        ),
+        team,
+    ).agents
     assert (robot.max_pose_deviation, robot.no_pose_check) == (
-        None, "the log has no pose of it once commands are given")
+        None,
+        "the log has no pose of it once commands are given",
+    )
 
 
 def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:
@@ -477,18 +566,28 @@ def mutated_handover(tmp_path: Path) -> tuple[Path, Path]:
     (``resign.yaml``), and the same team running a mutated role-assignment protocol, an
     offer taken as leadership without waiting for the confirmation (``mutant.yaml``)."""
     original = (ROOT / "protocols" / "role_assignment.yaml").read_text()
-    taken = ("        - to: Accepting\n          on: offer\n"
-             "          do: [{send: accept, to: sender}]\n")
+    taken = (
+        "        - to: Accepting\n          on: offer\n          do: [{send: accept, to: sender}]\n"
+    )
     assert taken in original
-    (tmp_path / "mutated.yaml").write_text(original.replace(taken, (
-        "        - to: Lead\n          on: offer\n          do: [leader = -1, last_change "
-        "= t, {send: announce, fields: {old: msg_sender}}]\n")))
-    team_text = HANDOVER.read_text().replace("{at: 3.0, agent: labmate, raise: want_lead}",
-                                             "{at: 3.0, agent: xr4000, raise: resign}")
+    (tmp_path / "mutated.yaml").write_text(
+        original.replace(
+            taken,
+            (
+                "        - to: Lead\n          on: offer\n          do: [leader = -1, last_change "
+                "= t, {send: announce, fields: {old: msg_sender}}]\n"
+            ),
+        )
+    )
+    team_text = HANDOVER.read_text().replace(
+        "{at: 3.0, agent: labmate, raise: want_lead}", "{at: 3.0, agent: xr4000, raise: resign}"
+    )
     (tmp_path / "resign.yaml").write_text(team_text)
     (tmp_path / "mutant.yaml").write_text(
-        team_text.replace("protocol: role_assignment", "protocol: ./mutated.yaml")
-        .replace("operator: role_assignment", "operator: ./mutated.yaml"))
+        team_text.replace("protocol: role_assignment", "protocol: ./mutated.yaml").replace(
+            "operator: role_assignment", "operator: ./mutated.yaml"
+        )
+    )
     return tmp_path / "resign.yaml", tmp_path / "mutant.yaml"
 
 
@@ -507,14 +606,14 @@ def test_a_mutated_protocol_diverges_at_the_agents_first_offer(tmp_path):
     assert first.t == pytest.approx(3.0 + 0.03, abs=1e-12)
     # both leave Follow at that instant: the log's mode is where it went instead
     assert (first.expected, first.observed) == ("Transport.Accepting", "Transport.Lead")
-    assert "message:offer; the log has 'offer' from xr4000 sent at t=3, reaching labmate" \
-        in first.why
+    assert (
+        "message:offer; the log has 'offer' from xr4000 sent at t=3, reaching labmate" in first.why
+    )
     assert "the log's next is Transport.Follow -> Transport.Lead" in first.why
     assert next(a for a in result.agents if a.agent == "xr4000").divergence is None
 
 
-def test_a_live_agent_running_a_mutated_protocol_diverges_at_its_first_offer(tmp_path,
-                                                                             capsys):
+def test_a_live_agent_running_a_mutated_protocol_diverges_at_its_first_offer(tmp_path, capsys):
     """The acceptance's live run: ``launch`` of the resigning handover team with the
     Labmate's process running the mutated protocol (``--agent-team``), speaking the
     team's wire (``live --wire-team``). Checked against the team, the first divergence
@@ -526,23 +625,42 @@ def test_a_live_agent_running_a_mutated_protocol_diverges_at_its_first_offer(tmp
     within the default 0.1 s tolerance for offsets up to 100 ms, a loaded machine's."""
     resign, mutant = mutated_handover(tmp_path)
     out = tmp_path / "live"
-    proc = subprocess.run([sys.executable, "-m", "hybridteam.cli", "launch", str(resign),
-                           "--agent-team", f"labmate={mutant}", "--duration", "4",
-                           "-o", str(out)], capture_output=True, timeout=TIMEOUT)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybridteam.cli",
+            "launch",
+            str(resign),
+            "--agent-team",
+            f"labmate={mutant}",
+            "--duration",
+            "4",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        timeout=TIMEOUT,
+    )
     assert proc.returncode == 0, proc.stderr.decode()
     merged = out / "trace.json"
     trace = Trace.load(merged)
     assert not trace.meta["live"]["missing"], proc.stderr.decode()  # every process's trace
-    offers = [r for r in trace.messages if r.type == "offer" and r.receiver == "labmate"
-              and r.status == "delivered"]
+    offers = [
+        r
+        for r in trace.messages
+        if r.type == "offer" and r.receiver == "labmate" and r.status == "delivered"
+    ]
     arrival = min(r.t_recv for r in offers)
     assert main(["check", str(merged), "--team", str(resign), "--conformance"]) == 1
     last = capsys.readouterr().out.splitlines()[-1]
-    assert last.startswith(f"DIVERGENT: first divergence at t={arrival:.6g} s, agent "
-                           "labmate: the model is in Transport.Accepting, the log in "
-                           "Transport.Lead (the model's transition Transport.Follow -> "
-                           "Transport.Accepting (message:offer; the log has 'offer' from "
-                           "xr4000"), last
+    assert last.startswith(
+        f"DIVERGENT: first divergence at t={arrival:.6g} s, agent "
+        "labmate: the model is in Transport.Accepting, the log in "
+        "Transport.Lead (the model's transition Transport.Follow -> "
+        "Transport.Accepting (message:offer; the log has 'offer' from "
+        "xr4000"
+    ), last
     assert "the log's next is Transport.Follow -> Transport.Lead" in last
     first = conformance(trace, ht.load(resign)).first
     assert (first.agent, first.t) == ("labmate", arrival)
@@ -554,23 +672,36 @@ def test_a_wire_team_that_is_not_the_same_team_is_refused(tmp_path, capsys):
     ``launch --agent-team`` refuses it before starting a process."""
     resign, mutant = mutated_handover(tmp_path)
     (tmp_path / "other_protocol.yaml").write_text(
-        (tmp_path / "mutated.yaml").read_text().replace("send: announce", "send: announce2"))
+        (tmp_path / "mutated.yaml").read_text().replace("send: announce", "send: announce2")
+    )
     other = tmp_path / "other.yaml"
     other.write_text(mutant.read_text().replace("./mutated.yaml", "./other_protocol.yaml"))
     out = tmp_path / "out"
-    code = main(["live", str(other), "--agent", "labmate", "--wire-team", str(resign),
-                 "--listen", "127.0.0.1:0", "-o", str(out)])
+    code = main(
+        [
+            "live",
+            str(other),
+            "--agent",
+            "labmate",
+            "--wire-team",
+            str(resign),
+            "--listen",
+            "127.0.0.1:0",
+            "-o",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1, err
     assert err.endswith("--wire-team: message 'announce2' is not one the wire team declares")
     assert not out.exists()
     renamed = tmp_path / "renamed.yaml"
     renamed.write_text(mutant.read_text().replace("team: handover", "team: handover2"))
-    code = main(["launch", str(resign), "--agent-team", f"labmate={renamed}", "-o",
-                 str(out)])
+    code = main(["launch", str(resign), "--agent-team", f"labmate={renamed}", "-o", str(out)])
     err = capsys.readouterr().err.strip()
-    assert code == 2 and err == (f"hybridteam: error: --agent-team labmate={renamed}: the "
-                                 "team is 'handover2', the wire team 'handover'"), err
-    assert main(["launch", str(resign), "--agent-team", "labmat=x.yaml", "-o",
-                 str(out)]) == 2
+    assert code == 2 and err == (
+        f"hybridteam: error: --agent-team labmate={renamed}: the "
+        "team is 'handover2', the wire team 'handover'"
+    ), err
+    assert main(["launch", str(resign), "--agent-team", "labmat=x.yaml", "-o", str(out)]) == 2
     assert "no agent 'labmat' in the team" in capsys.readouterr().err

@@ -110,28 +110,31 @@ def test_experiment2_bag_has_the_documented_topics_and_values(tmp_path):
         raw = {}
         for conn, ns, data in reader.messages():
             raw.setdefault(conn.topic, []).append((ns, TS.deserialize_cdr(data, conn.msgtype)))
-    expected = {"/hybridteam/run": "std_msgs/msg/String", "/clock": "rosgraph_msgs/msg/Clock",
-                "/tf": "tf2_msgs/msg/TFMessage",
-                "/payloads/box/pose": "geometry_msgs/msg/PoseStamped",
-                "/hybridteam/series/box": "std_msgs/msg/Float64MultiArray",
-                "/hybridteam/series/box_grasp": "std_msgs/msg/Float64MultiArray"}
+    expected = {
+        "/hybridteam/run": "std_msgs/msg/String",
+        "/clock": "rosgraph_msgs/msg/Clock",
+        "/tf": "tf2_msgs/msg/TFMessage",
+        "/payloads/box/pose": "geometry_msgs/msg/PoseStamped",
+        "/hybridteam/series/box": "std_msgs/msg/Float64MultiArray",
+        "/hybridteam/series/box_grasp": "std_msgs/msg/Float64MultiArray",
+    }
     for robot in ("labmate", "xr4000"):
-        expected |= {f"/{robot}/state": "std_msgs/msg/Float64MultiArray",
-                     f"/{robot}/pose": "geometry_msgs/msg/PoseStamped",
-                     f"/{robot}/odom": "nav_msgs/msg/Odometry",
-                     f"/{robot}/mode": "std_msgs/msg/String",
-                     f"/{robot}/stays": "std_msgs/msg/String",
-                     f"/{robot}/messages": "std_msgs/msg/String"}
+        expected |= {
+            f"/{robot}/state": "std_msgs/msg/Float64MultiArray",
+            f"/{robot}/pose": "geometry_msgs/msg/PoseStamped",
+            f"/{robot}/odom": "nav_msgs/msg/Odometry",
+            f"/{robot}/mode": "std_msgs/msg/String",
+            f"/{robot}/stays": "std_msgs/msg/String",
+            f"/{robot}/messages": "std_msgs/msg/String",
+        }
     # the operator has no state and sends nothing in 2 s: its modes only
-    expected |= {"/operator/mode": "std_msgs/msg/String",
-                 "/operator/stays": "std_msgs/msg/String"}
+    expected |= {"/operator/mode": "std_msgs/msg/String", "/operator/stays": "std_msgs/msg/String"}
     assert topics == expected
     # the labmate's first pose is the team file's initial pose, (-0.03, 0.02, 0.04) ...
     ns, first = raw["/labmate/pose"][0]
     assert ns == 0 and first.header.stamp.sec == 0 and first.header.frame_id == "map"
     assert (first.pose.position.x, first.pose.position.y) == (-0.03, 0.02)
-    assert (first.pose.orientation.z, first.pose.orientation.w) == (math.sin(0.02),
-                                                                    math.cos(0.02))
+    assert (first.pose.orientation.z, first.pose.orientation.w) == (math.sin(0.02), math.cos(0.02))
     # ... and at t = 1 s (sample 20 at 0.05 s) the pose is the trace's, its yaw theta
     ns, pose = raw["/labmate/pose"][20]
     x, y, th = run.samples["labmate"][20, 0].tolist()
@@ -148,15 +151,18 @@ def test_experiment2_bag_has_the_documented_topics_and_values(tmp_path):
     assert odom.twist.twist.linear.x == pytest.approx(forward, rel=1e-12, abs=1e-12)
     _, tf = raw["/tf"][20]
     frames = {(t.header.frame_id, t.child_frame_id) for t in tf.transforms}
-    assert frames == {("map", "labmate/base_link"), ("map", "xr4000/base_link"),
-                      ("map", "box")}
+    assert frames == {("map", "labmate/base_link"), ("map", "xr4000/base_link"), ("map", "box")}
     # the first team message the xr4000 sent, as the trace has it
     first_sent = next(r for r in run.messages if r.sender == "xr4000")
     import json
 
     data = json.loads(raw["/xr4000/messages"][0][1].data)
     assert (data["receiver"], data["type"], data["t_send"], data["t_recv"]) == (
-        first_sent.receiver, first_sent.type, first_sent.t_send, first_sent.t_recv)
+        first_sent.receiver,
+        first_sent.type,
+        first_sent.t_send,
+        first_sent.t_recv,
+    )
 
 
 # ---------------------------------------------------------------------- a robot's log
@@ -216,8 +222,13 @@ def square_pose(k: int) -> tuple[float, float, float, float, float]:
 CHANGES = {30 * i: "Drive" for i in range(4)} | {30 * i + 20: "Turn" for i in range(4)}
 
 
-def write_square_bag(path: Path, pose_topic: str = "/amcl_pose", swap: int | None = None,
-                     modes_topic: str = "/fsm", changes: dict[int, str] = CHANGES) -> Path:
+def write_square_bag(
+    path: Path,
+    pose_topic: str = "/amcl_pose",
+    swap: int | None = None,
+    modes_topic: str = "/fsm",
+    changes: dict[int, str] = CHANGES,
+) -> Path:
     """A hand-made log: poses (header stamps) and commands at 10 Hz for 12 s, the mode at
     each change; ``swap``: two poses' header stamps out of order (the bag's own receive
     stamps stay in order, as a recorder's do)."""
@@ -232,21 +243,30 @@ def write_square_bag(path: Path, pose_topic: str = "/amcl_pose", swap: int | Non
         for k, ns in enumerate(received):
             x, y, th, v, om = square_pose(k)
             if k in changes:
-                w.write(mode_c, ns, TS.serialize_cdr(T["std_msgs/msg/String"](
-                    data=changes[k]), "std_msgs/msg/String"))
+                w.write(
+                    mode_c,
+                    ns,
+                    TS.serialize_cdr(
+                        T["std_msgs/msg/String"](data=changes[k]), "std_msgs/msg/String"
+                    ),
+                )
             sec, nsec = divmod(stamps[k], 1_000_000_000)
             msg = T["geometry_msgs/msg/PoseStamped"](
                 header=T["std_msgs/msg/Header"](
-                    stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-                    frame_id="odom"),
+                    stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec), frame_id="odom"
+                ),
                 pose=T["geometry_msgs/msg/Pose"](
                     position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
                     orientation=T["geometry_msgs/msg/Quaternion"](
-                        x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2))))
+                        x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2)
+                    ),
+                ),
+            )
             w.write(pose_c, ns, TS.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped"))
             twist = T["geometry_msgs/msg/Twist"](
                 linear=T["geometry_msgs/msg/Vector3"](x=v, y=0.0, z=0.0),
-                angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om))
+                angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om),
+            )
             w.write(cmd_c, ns, TS.serialize_cdr(twist, "geometry_msgs/msg/Twist"))
     return path
 
@@ -277,7 +297,10 @@ def test_a_hand_made_log_imports_as_samples_modes_and_commands(square):
     assert tr["target"].tolist() == ["Drive", "Turn"] * 4
     stays = run.intervals
     assert [(r.mode, r.start, r.end) for r in stays][:3] == [
-        ("Drive", 0.0, 2.0), ("Turn", 2.0, 3.0), ("Drive", 3.0, 5.0)]
+        ("Drive", 0.0, 2.0),
+        ("Turn", 2.0, 3.0),
+        ("Drive", 3.0, 5.0),
+    ]
     assert (stays["mode"][-1], stays["end"][-1]) == ("Turn", 12.0)
     # an imported log exported and imported again is the same trace, commands included
     team = ht.load(team_file)
@@ -303,28 +326,39 @@ def write_deployed_bag(path: Path) -> Path:
             ns = START_NS + k * 100_000_000
             x, y, th, v, om = square_pose(k)
             if k in CHANGES:
-                w.write(mode_c, ns, TS.serialize_cdr(T["std_msgs/msg/String"](
-                    data=CHANGES[k]), "std_msgs/msg/String"))
+                w.write(
+                    mode_c,
+                    ns,
+                    TS.serialize_cdr(
+                        T["std_msgs/msg/String"](data=CHANGES[k]), "std_msgs/msg/String"
+                    ),
+                )
             sec, nsec = divmod(ns, 1_000_000_000)
             zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
             odom = T["nav_msgs/msg/Odometry"](
                 header=T["std_msgs/msg/Header"](
-                    stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-                    frame_id="odom"),
+                    stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec), frame_id="odom"
+                ),
                 child_frame_id="base_link",
                 pose=T["geometry_msgs/msg/PoseWithCovariance"](
                     pose=T["geometry_msgs/msg/Pose"](
                         position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
                         orientation=T["geometry_msgs/msg/Quaternion"](
-                            x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2))),
-                    covariance=np.zeros(36)),
+                            x=0.0, y=0.0, z=math.sin(th / 2), w=math.cos(th / 2)
+                        ),
+                    ),
+                    covariance=np.zeros(36),
+                ),
                 twist=T["geometry_msgs/msg/TwistWithCovariance"](
                     twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
-                    covariance=np.zeros(36)))
+                    covariance=np.zeros(36),
+                ),
+            )
             w.write(odom_c, ns, TS.serialize_cdr(odom, "nav_msgs/msg/Odometry"))
             twist = T["geometry_msgs/msg/Twist"](
                 linear=T["geometry_msgs/msg/Vector3"](x=v, y=0.0, z=0.0),
-                angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om))
+                angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om),
+            )
             w.write(cmd_c, ns, TS.serialize_cdr(twist, "geometry_msgs/msg/Twist"))
     return path
 
@@ -382,8 +416,12 @@ def test_check_command_on_a_log_and_on_its_trace(square, tmp_path, capsys):
     assert out[1] == "requirement margin: holds (robustness 0.1)"
     assert out[2] == "requirement short: VIOLATED at t=1.8 by x <= 0.9 (robustness -0.1)"
     trace = tmp_path / "trace.json"
-    assert main(["import", str(bag), "--team", str(team_file), "--map", str(mapping),
-                 "-o", str(trace)]) == 0
+    assert (
+        main(
+            ["import", str(bag), "--team", str(team_file), "--map", str(mapping), "-o", str(trace)]
+        )
+        == 0
+    )
     capsys.readouterr()
     assert main(["check", str(trace), "--team", str(team_file)]) == 1
     assert capsys.readouterr().out.splitlines() == out
@@ -392,13 +430,16 @@ def test_check_command_on_a_log_and_on_its_trace(square, tmp_path, capsys):
 def test_check_command_on_a_run_that_holds(tmp_path, capsys):
     """The same verdict lines as `run` prints, exit 0 when every requirement holds."""
     out = tmp_path / "run"
-    assert main(["run", str(EXPERIMENT2), "-o", str(out), "--duration", "2", "--no-views",
-                 "--quiet"]) == 0
+    assert (
+        main(["run", str(EXPERIMENT2), "-o", str(out), "--duration", "2", "--no-views", "--quiet"])
+        == 0
+    )
     assert main(["export", str(out), "-o", str(tmp_path / "run.mcap")]) == 0
     capsys.readouterr()
     assert main(["check", str(tmp_path / "run.mcap"), "--team", str(EXPERIMENT2)]) == 0
     lines = capsys.readouterr().out.splitlines()
     from hybridteam.requirements.report import verdict_lines
+
     summary = ht.Run.load(out / "trace.json").to_dict()["outcomes"]
     assert lines == verdict_lines(summary)
 
@@ -407,14 +448,17 @@ def test_check_refuses_a_requirement_on_variables(tmp_path, capsys):
     """A recording has no discrete variables: a requirement reading one is refused."""
     text = (EXAMPLES / "automata" / "unicycle_square.yaml").read_text()
     team_file = tmp_path / "square.yaml"
-    team_file.write_text(text.replace("simulation:", "requirements:\n  few_sides: "
-                                      "always(sides <= 4)\nsimulation:"))
+    team_file.write_text(
+        text.replace("simulation:", "requirements:\n  few_sides: always(sides <= 4)\nsimulation:")
+    )
     team = ht.load(team_file)
     bag = ht.simulate(team, duration=1.0).to_bag(tmp_path / "run.mcap")
     err = _one_line_error(capsys, main(["check", str(bag), "--team", str(team_file)]))
-    assert err == (f"hybridteam: error: {bag}: requirement few_sides: reads the discrete "
-                   "variables of agent 'robot', which a recording does not have (variables are not "
-                   "logged)")
+    assert err == (
+        f"hybridteam: error: {bag}: requirement few_sides: reads the discrete "
+        "variables of agent 'robot', which a recording does not have (variables are not "
+        "logged)"
+    )
 
 
 # ---------------------------------------------------------------------- bad input
@@ -429,18 +473,23 @@ def test_a_bag_of_another_team(square, tmp_path, capsys):
     team_file, _mapping, _bag = square
     e2 = ht.simulate(ht.load(EXPERIMENT2), duration=0.5).to_bag(tmp_path / "e2.mcap")
     out = tmp_path / "t.json"
-    err = _one_line_error(capsys, main(["import", str(e2), "--team", str(team_file),
-                                        "-o", str(out)]))
+    err = _one_line_error(
+        capsys, main(["import", str(e2), "--team", str(team_file), "-o", str(out)])
+    )
     assert err.startswith(f"hybridteam: error: {e2}: topic /hybridteam/run at t=0 s: ")
     assert "team 'experiment2'" in err and "not 'square-log'" in err
     assert not out.exists()
     # a robot's log with export's names, of an agent the team does not have
-    robot = write_square_bag(tmp_path / "robot_bag", pose_topic="/robot/pose",
-                             modes_topic="/robot/mode")
-    err = _one_line_error(capsys, main(["import", str(robot), "--team", str(EXPERIMENT2),
-                                        "-o", str(out)]))
-    assert f"{robot}: topic /robot/mode at t=0 s: agent 'robot' is not in team " \
-        "'experiment2'" in err or f"{robot}: topic /robot/pose at t=0 s: agent 'robot'" in err
+    robot = write_square_bag(
+        tmp_path / "robot_bag", pose_topic="/robot/pose", modes_topic="/robot/mode"
+    )
+    err = _one_line_error(
+        capsys, main(["import", str(robot), "--team", str(EXPERIMENT2), "-o", str(out)])
+    )
+    assert (
+        f"{robot}: topic /robot/mode at t=0 s: agent 'robot' is not in team 'experiment2'" in err
+        or f"{robot}: topic /robot/pose at t=0 s: agent 'robot'" in err
+    )
     assert not out.exists()
 
 
@@ -448,19 +497,28 @@ def test_other_topics_of_a_log_of_this_team_are_left_alone(square, tmp_path):
     """A topic named like an agent's (``/camera/state``) is another team's only when the
     team's own agents have no samples: a log of this team may hold more."""
     team_file, _mapping, _bag = square
-    bag = write_square_bag(tmp_path / "robot_bag", pose_topic="/robot/pose",
-                           modes_topic="/robot/mode")
+    bag = write_square_bag(
+        tmp_path / "robot_bag", pose_topic="/robot/pose", modes_topic="/robot/mode"
+    )
     with Writer(tmp_path / "with_camera", version=9) as w:
         with Reader(bag) as r:
-            conns = {c.topic: w.add_connection(c.topic, c.msgtype, typestore=TS)
-                     for c in r.connections}
+            conns = {
+                c.topic: w.add_connection(c.topic, c.msgtype, typestore=TS) for c in r.connections
+            }
             for conn, ns, data in r.messages():
                 w.write(conns[conn.topic], ns, data)
-        cam = w.add_connection("/camera/state", "std_msgs/msg/Float64MultiArray",
-                               typestore=TS)
-        w.write(cam, START_NS, TS.serialize_cdr(T["std_msgs/msg/Float64MultiArray"](
-            layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
-            data=np.zeros(2)), "std_msgs/msg/Float64MultiArray"))
+        cam = w.add_connection("/camera/state", "std_msgs/msg/Float64MultiArray", typestore=TS)
+        w.write(
+            cam,
+            START_NS,
+            TS.serialize_cdr(
+                T["std_msgs/msg/Float64MultiArray"](
+                    layout=T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0),
+                    data=np.zeros(2),
+                ),
+                "std_msgs/msg/Float64MultiArray",
+            ),
+        )
     run = ht.Run.from_bag(tmp_path / "with_camera", ht.load(team_file))
     assert len(run.sample_times) == 121 and len(run.transitions) == 8
 
@@ -469,15 +527,21 @@ def test_a_missing_topic(square, tmp_path, capsys):
     team_file, mapping, bag = square
     out = tmp_path / "t.json"
     mapping.write_text(MAPPING.replace("/fsm", "/fsm2"))
-    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
-                                        "--map", str(mapping), "-o", str(out)]))
-    assert err == (f"hybridteam: error: {bag}: topic /fsm2 (robot's modes in the mapping) "
-                   "is not in the log")
+    err = _one_line_error(
+        capsys,
+        main(["import", str(bag), "--team", str(team_file), "--map", str(mapping), "-o", str(out)]),
+    )
+    assert err == (
+        f"hybridteam: error: {bag}: topic /fsm2 (robot's modes in the mapping) is not in the log"
+    )
     # without a mapping: export's names, and the log has no pose of the robot under them
-    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
-                                        "-o", str(out)]))
-    assert err == (f"hybridteam: error: {bag}: no topic /robot/state or /robot/pose or "
-                   "/robot/odom in the log: agent 'robot' has no samples")
+    err = _one_line_error(
+        capsys, main(["import", str(bag), "--team", str(team_file), "-o", str(out)])
+    )
+    assert err == (
+        f"hybridteam: error: {bag}: no topic /robot/state or /robot/pose or "
+        "/robot/odom in the log: agent 'robot' has no samples"
+    )
     assert not out.exists()
 
 
@@ -485,10 +549,13 @@ def test_a_mapping_naming_an_agent_the_team_lacks(square, tmp_path, capsys):
     team_file, mapping, bag = square
     mapping.write_text(MAPPING + "  robbot:\n    pose: /x\n")
     out = tmp_path / "t.json"
-    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
-                                        "--map", str(mapping), "-o", str(out)]))
-    assert err == (f"{mapping}:6:3: agents.robbot: 'robbot' is not one of the team's "
-                   "agents (robot)")
+    err = _one_line_error(
+        capsys,
+        main(["import", str(bag), "--team", str(team_file), "--map", str(mapping), "-o", str(out)]),
+    )
+    assert err == (
+        f"{mapping}:6:3: agents.robbot: 'robbot' is not one of the team's agents (robot)"
+    )
     assert not out.exists()
 
 
@@ -496,10 +563,14 @@ def test_stamps_that_go_back(square, tmp_path, capsys):
     team_file, mapping, _bag = square
     bag = write_square_bag(tmp_path / "swapped", swap=50)  # 5.1 s logged before 5.0 s
     out = tmp_path / "t.json"
-    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
-                                        "--map", str(mapping), "-o", str(out)]))
-    assert err.startswith(f"hybridteam: error: {bag}: topic /amcl_pose at t=5 s: stamps go "
-                          "back or repeat (the previous one is t=5.1 s)")
+    err = _one_line_error(
+        capsys,
+        main(["import", str(bag), "--team", str(team_file), "--map", str(mapping), "-o", str(out)]),
+    )
+    assert err.startswith(
+        f"hybridteam: error: {bag}: topic /amcl_pose at t=5 s: stamps go "
+        "back or repeat (the previous one is t=5.1 s)"
+    )
     assert not out.exists()
 
 
@@ -507,18 +578,27 @@ def test_messages_that_are_not_what_their_topic_holds(square, tmp_path, capsys):
     team_file, mapping, bag = square
     out = tmp_path / "t.json"
     mapping.write_text(MAPPING.replace("pose: /amcl_pose", "pose: /cmd_vel"))
-    err = _one_line_error(capsys, main(["import", str(bag), "--team", str(team_file),
-                                        "--map", str(mapping), "-o", str(out)]))
-    assert err == (f"hybridteam: error: {bag}: topic /cmd_vel at t=0 s: has type "
-                   "geometry_msgs/msg/Twist, expected geometry_msgs/msg/PoseStamped or "
-                   "nav_msgs/msg/Odometry")
+    err = _one_line_error(
+        capsys,
+        main(["import", str(bag), "--team", str(team_file), "--map", str(mapping), "-o", str(out)]),
+    )
+    assert err == (
+        f"hybridteam: error: {bag}: topic /cmd_vel at t=0 s: has type "
+        "geometry_msgs/msg/Twist, expected geometry_msgs/msg/PoseStamped or "
+        "nav_msgs/msg/Odometry"
+    )
     # a mode the team does not have, logged at t = 2 s (where the robot starts turning)
     spun = write_square_bag(tmp_path / "spun", changes=CHANGES | {20: "Spin"})
     mapping.write_text(MAPPING)
-    err = _one_line_error(capsys, main(["import", str(spun), "--team", str(team_file),
-                                        "--map", str(mapping), "-o", str(out)]))
-    assert err == (f"hybridteam: error: {spun}: topic /fsm at t=2 s: 'Spin' is not a mode "
-                   "of agent 'robot'")
+    err = _one_line_error(
+        capsys,
+        main(
+            ["import", str(spun), "--team", str(team_file), "--map", str(mapping), "-o", str(out)]
+        ),
+    )
+    assert err == (
+        f"hybridteam: error: {spun}: topic /fsm at t=2 s: 'Spin' is not a mode of agent 'robot'"
+    )
     assert not out.exists()
 
 
@@ -528,8 +608,9 @@ def test_a_truncated_bag(tmp_path, capsys):
     data = path.read_bytes()
     path.write_bytes(data[: len(data) // 2])
     out = tmp_path / "t.json"
-    err = _one_line_error(capsys, main(["import", str(path), "--team", str(EXPERIMENT2),
-                                        "-o", str(out)]))
+    err = _one_line_error(
+        capsys, main(["import", str(path), "--team", str(EXPERIMENT2), "-o", str(out)])
+    )
     assert err.startswith(f"hybridteam: error: {path}: not a readable rosbag2 or cut short")
     assert not out.exists()
     err = _one_line_error(capsys, main(["check", str(path), "--team", str(EXPERIMENT2)]))
@@ -538,8 +619,12 @@ def test_a_truncated_bag(tmp_path, capsys):
 
 def test_export_leaves_nothing_when_writing_fails(tmp_path, capsys, monkeypatch):
     out = tmp_path / "run"
-    assert main(["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views",
-                 "--quiet"]) == 0
+    assert (
+        main(
+            ["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views", "--quiet"]
+        )
+        == 0
+    )
     calls = []
 
     def failing(self, connection, timestamp, data):
@@ -557,28 +642,37 @@ def test_export_leaves_nothing_when_writing_fails(tmp_path, capsys, monkeypatch)
 
 def test_export_arguments(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views",
-                 "--quiet"]) == 0
+    assert (
+        main(
+            ["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views", "--quiet"]
+        )
+        == 0
+    )
     bag = tmp_path / "run.db3"
-    err = _one_line_error(capsys, main(["export", str(out), "-o", str(bag),
-                                        "--format", "mcap"]))
-    assert err == (f"hybridteam: error: -o {bag} says sqlite3 but --format says mcap; name "
-                   "the file .mcap or .db3, or a folder, or drop --format")
-    err = _one_line_error(capsys, main(["export", str(out), "-o", str(bag),
-                                        "--instance", "3"]))
+    err = _one_line_error(capsys, main(["export", str(out), "-o", str(bag), "--format", "mcap"]))
+    assert err == (
+        f"hybridteam: error: -o {bag} says sqlite3 but --format says mcap; name "
+        "the file .mcap or .db3, or a folder, or drop --format"
+    )
+    err = _one_line_error(capsys, main(["export", str(out), "-o", str(bag), "--instance", "3"]))
     assert err == "hybridteam: error: --instance 3: the trace has instances 0..0"
     assert not bag.exists()
 
 
 def test_without_rosbags_one_line_says_how_to_install(tmp_path, capsys, monkeypatch):
     out = tmp_path / "run"
-    assert main(["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views",
-                 "--quiet"]) == 0
+    assert (
+        main(
+            ["run", str(EXPERIMENT2), "-o", str(out), "--duration", "0.5", "--no-views", "--quiet"]
+        )
+        == 0
+    )
     monkeypatch.setitem(sys.modules, "rosbags.rosbag2", None)  # import fails
     err = _one_line_error(capsys, main(["export", str(out), "-o", str(tmp_path / "r.mcap")]))
     assert err == "hybridteam: error: this needs rosbags: pip install 'hybridteam[logs]'"
-    err = _one_line_error(capsys, main(["check", str(tmp_path / "r.mcap"), "--team",
-                                        str(EXPERIMENT2)]))
+    err = _one_line_error(
+        capsys, main(["check", str(tmp_path / "r.mcap"), "--team", str(EXPERIMENT2)])
+    )
     assert err == "hybridteam: error: this needs rosbags: pip install 'hybridteam[logs]'"
     assert not (tmp_path / "r.mcap").exists()
 
@@ -587,8 +681,11 @@ def _same(ours, theirs, where: str) -> None:
     """Field by field: a message as rosbags read it against ROS 2's own class's reading."""
     fields = getattr(ours, "__dataclass_fields__", None)
     if fields is None:  # a value: numbers exactly, arrays element by element
-        if isinstance(ours, np.ndarray) or isinstance(theirs, list | tuple) or \
-                type(theirs).__name__ == "array":
+        if (
+            isinstance(ours, np.ndarray)
+            or isinstance(theirs, list | tuple)
+            or type(theirs).__name__ == "array"
+        ):
             assert list(np.asarray(ours).tolist()) == list(theirs), where
         else:
             assert ours == theirs, where
@@ -613,8 +710,9 @@ def test_ros2s_own_message_classes_read_the_exported_bag(tmp_path):
     the wheels do not ship (tf2_msgs) are left to rosbags and named here."""
     import importlib
 
-    pytest.importorskip("rclpy", reason="ROS 2's message classes come with hybridteam[ros]",
-                        exc_type=ImportError)
+    pytest.importorskip(
+        "rclpy", reason="ROS 2's message classes come with hybridteam[ros]", exc_type=ImportError
+    )
     from rclpy.serialization import deserialize_message
 
     run = ht.simulate(ht.load(EXPERIMENT2), duration=1.0)
@@ -628,10 +726,15 @@ def test_ros2s_own_message_classes_read_the_exported_bag(tmp_path):
             except ModuleNotFoundError:
                 absent.add(conn.msgtype)
                 continue
-            _same(TS.deserialize_cdr(data, conn.msgtype), deserialize_message(data, cls),
-                  conn.topic)
+            _same(
+                TS.deserialize_cdr(data, conn.msgtype), deserialize_message(data, cls), conn.topic
+            )
             checked.add(conn.msgtype)
-    assert checked == {"std_msgs/msg/String", "rosgraph_msgs/msg/Clock",
-                       "geometry_msgs/msg/PoseStamped", "nav_msgs/msg/Odometry",
-                       "std_msgs/msg/Float64MultiArray"}
+    assert checked == {
+        "std_msgs/msg/String",
+        "rosgraph_msgs/msg/Clock",
+        "geometry_msgs/msg/PoseStamped",
+        "nav_msgs/msg/Odometry",
+        "std_msgs/msg/Float64MultiArray",
+    }
     assert absent <= {"tf2_msgs/msg/TFMessage"}

@@ -31,8 +31,10 @@ def test_it_validates_without_warnings(capsys):
 def test_it_ends_in_success_when_the_leader_arrives():
     run = ht.simulate(ht.load(TEAM))
     row = run.summary()["instances"][0]
-    assert (row["outcome"], row["message"]) == \
-        ("success", "'labmate' reached a final mode (the end rule)")
+    assert (row["outcome"], row["message"]) == (
+        "success",
+        "'labmate' reached a final mode (the end rule)",
+    )
     assert row["t_end"] == pytest.approx(20.0, abs=1e-9)
     # clearances, by hand: the Labmate passes the post (r 0.1 at y = 0.9) at y = 0, its
     # radius 0.35: 0.45; the XR4000 ends at x = -0.3, 1.14 m from the post: 0.71; the
@@ -40,7 +42,7 @@ def test_it_ends_in_success_when_the_leader_arrives():
     # (half-depth 0.25) ends under the post: 0.9 - 0.25 - 0.1 = 0.55
     lab, xr, scout = row["min_clearance"]
     assert lab == pytest.approx(0.45, abs=1e-9)
-    assert xr == pytest.approx((0.7 ** 2 + 0.9 ** 2) ** 0.5 - 0.1 - 0.33, abs=1e-6)
+    assert xr == pytest.approx((0.7**2 + 0.9**2) ** 0.5 - 0.1 - 0.33, abs=1e-6)
     assert scout == pytest.approx(0.4, abs=1e-6)
     assert row["payload_clearance"] == pytest.approx(0.55, abs=1e-9)
     assert max(row["max_grasp_offset"]) < 0.01  # held: the limits are 0.10 and 0.05
@@ -49,7 +51,8 @@ def test_it_ends_in_success_when_the_leader_arrives():
 def test_it_ends_in_collision_when_a_wall_is_moved_into_its_path(team_from_yaml):
     text = TEAM.read_text().replace(
         "walls: [[-4.0, -1.3, 4.0, -1.3], [-4.0, 1.3, 4.0, 1.3]]",
-        "walls: [[-4.0, -1.3, 4.0, -1.3], [-4.0, 1.3, 4.0, 1.3], [-1.5, -1.3, -1.5, 1.3]]")
+        "walls: [[-4.0, -1.3, 4.0, -1.3], [-4.0, 1.3, 4.0, 1.3], [-1.5, -1.3, -1.5, 1.3]]",
+    )
     run = ht.simulate(team_from_yaml(text))
     row = run.summary()["instances"][0]
     assert row["outcome"] == "collision"

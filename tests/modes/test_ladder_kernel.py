@@ -32,8 +32,14 @@ from hybridteam.world import (
 CORRIDOR = corridor_with_turn()
 
 #: Section 4, Fig. 8: steps, steps in the corner, path lengths, in-corner path lengths.
-PAPER = {"steps": 855, "corner steps": 378, "path R1": 1592.86, "path R2": 1595.63,
-         "corner path R1": 640.975, "corner path R2": 641.939}
+PAPER = {
+    "steps": 855,
+    "corner steps": 378,
+    "path R1": 1592.86,
+    "path R2": 1595.63,
+    "corner path R1": 640.975,
+    "corner path R2": 641.939,
+}
 
 
 def assert_safe(result, pairs):
@@ -56,9 +62,14 @@ def test_sample_run_reproduces_the_paper():
     pairs = Pairs.of(sample_run())
     r = simulate(pairs, record=True)
     assert r.outcome_names == ["success"]
-    ours = {"steps": r.steps[0], "corner steps": r.corner_steps[0],
-            "path R1": r.path[0, 0], "path R2": r.path[0, 1],
-            "corner path R1": r.corner_path[0, 0], "corner path R2": r.corner_path[0, 1]}
+    ours = {
+        "steps": r.steps[0],
+        "corner steps": r.corner_steps[0],
+        "path R1": r.path[0, 0],
+        "path R2": r.path[0, 1],
+        "corner path R1": r.corner_path[0, 0],
+        "corner path R2": r.corner_path[0, 1],
+    }
     print("\nSection 4 sample run       paper       ours   deviation")
     for key, paper in PAPER.items():
         dev = 100.0 * (ours[key] - paper) / paper
@@ -89,7 +100,8 @@ def test_ladder_beyond_the_physical_limit_never_succeeds():
     sample = sample_run()
     f, b = sample.front, sample.rear
     limit = longest_ladder(200, 200, max(f.radius, b.radius)) + two_grasp_slack(
-        f.olim, b.olim, f.sc, b.sc)
+        f.olim, b.olim, f.sc, b.sc
+    )
     lengths = [limit + 1.0, limit + 30.0]
     pairs = Pairs.of([replace(sample, length=L) for L in lengths])
     r = simulate(pairs, record=True)
@@ -115,19 +127,29 @@ def test_ensemble_equals_single_runs_exactly():
     """100 random pairs (the paper's population S) in one batch = 100 runs of one pair."""
     pairs = random_pairs(np.random.default_rng(2024), 100, length=450.0)
     batch = simulate(pairs)
-    assert len(set(batch.outcome.tolist())) == 3        # successes, stuck and broken links
+    assert len(set(batch.outcome.tolist())) == 3  # successes, stuck and broken links
     for i in range(100):
         one = simulate(pairs.take(i))
-        for name in ("outcome", "steps", "corner_steps", "path", "corner_path", "max_offset",
-                     "position"):
+        for name in (
+            "outcome",
+            "steps",
+            "corner_steps",
+            "path",
+            "corner_path",
+            "max_offset",
+            "position",
+        ):
             assert np.array_equal(getattr(batch, name)[i], getattr(one, name)[0]), (i, name)
 
 
 def _reference_cases():
     sample = sample_run()
     pop = random_pairs(np.random.default_rng(11), 3, length=400.0)
-    spin = replace(sample, front=replace(sample.front, kr=1.0),
-                   rear=replace(sample.rear, kr=0.5, orsp=3.0, lookahead=0))
+    spin = replace(
+        sample,
+        front=replace(sample.front, kr=1.0),
+        rear=replace(sample.rear, kr=0.5, orsp=3.0, lookahead=0),
+    )
     return [sample, spin, *[pop.scenario(i) for i in range(3)]]
 
 
@@ -140,8 +162,9 @@ def test_kernel_agrees_with_the_scalar_reference():
         assert ref.steps[0] == batch.steps[i]
         assert ref.corner_steps[0] == batch.corner_steps[i]
         steps = ref.steps[0] + 1
-        np.testing.assert_allclose(ref.trajectory[:, 0], batch.trajectory[:steps, i],
-                                   rtol=0, atol=1e-9)
+        np.testing.assert_allclose(
+            ref.trajectory[:, 0], batch.trajectory[:steps, i], rtol=0, atol=1e-9
+        )
         np.testing.assert_allclose(ref.tips[:, 0], batch.tips[:steps, i], rtol=0, atol=1e-9)
         np.testing.assert_allclose(ref.path[0], batch.path[i], rtol=1e-12)
         np.testing.assert_allclose(ref.corner_path[0], batch.corner_path[i], rtol=1e-12)
@@ -177,13 +200,20 @@ def test_law_step_is_the_kernels_law_per_robot():
             np.testing.assert_array_equal(tracked, nearest)
             prev = np.concatenate([[0], tracked[:-1]])
             for t in range(0, r.steps[i], 37):
-                one = {k: v[i:i + 1] for k, v in prm.items()}
-                move, idx = law.step(traj[t:t + 1, row], traj[t:t + 1, 1 - row],
-                                     path[None], prev[t:t + 1], one, CORRIDOR,
-                                     window=settings.window)
+                one = {k: v[i : i + 1] for k, v in prm.items()}
+                move, idx = law.step(
+                    traj[t : t + 1, row],
+                    traj[t : t + 1, 1 - row],
+                    path[None],
+                    prev[t : t + 1],
+                    one,
+                    CORRIDOR,
+                    window=settings.window,
+                )
                 assert idx[0] == tracked[t]
-                np.testing.assert_allclose(move[0], traj[t + 1, row] - traj[t, row],
-                                           rtol=0, atol=1e-9)
+                np.testing.assert_allclose(
+                    move[0], traj[t + 1, row] - traj[t, row], rtol=0, atol=1e-9
+                )
 
 
 def test_guide_paths():
@@ -198,12 +228,14 @@ def test_guide_paths():
     # bends (a chord is shorter than its arc), by well under 1 %.
     gaps = np.hypot(*np.diff(paths, axis=1).transpose(2, 0, 1))
     assert np.all(gaps >= 0.99 * gaps.max(axis=1, keepdims=True))
+
     # A larger alpha takes a more outer route: it crosses the corner's entry edge nearer
     # the outer wall (x = 0) and its exit edge nearer the outer wall (y = 1200).
     def crossing(path, axis, level):
         k = np.flatnonzero(np.diff(np.sign(path[:, axis] - level)))[0]
         s = (level - path[k, axis]) / (path[k + 1, axis] - path[k, axis])
         return path[k, 1 - axis] + s * (path[k + 1, 1 - axis] - path[k, 1 - axis])
+
     assert crossing(paths[1], 1, 1000.0) < crossing(paths[0], 1, 1000.0)
     assert crossing(paths[1], 0, 200.0) > crossing(paths[0], 0, 200.0)
     # Each path is computed on its own.

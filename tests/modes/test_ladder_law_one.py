@@ -39,19 +39,25 @@ def random_rows(rng: np.random.Generator, n: int, count: int, window: int):
     ties are), partners a ladder's length away, random paths and parameters."""
     own = rng.uniform(-250.0, 650.0, (n, 2)) @ FRAME.axes + FRAME.origin
     on_axis = rng.random(n) < 0.3
-    own[on_axis] = FRAME.to_world(np.c_[np.zeros(on_axis.sum()),
-                                        rng.uniform(-250, 650, on_axis.sum())])
+    own[on_axis] = FRAME.to_world(
+        np.c_[np.zeros(on_axis.sum()), rng.uniform(-250, 650, on_axis.sum())]
+    )
     angle = rng.uniform(0, 2 * np.pi, n)
     reach = rng.uniform(380.0, 520.0, n)
     partner = own + reach[:, None] * np.c_[np.cos(angle), np.sin(angle)]
     path = own[:, None, :] + np.cumsum(rng.normal(0.0, 8.0, (n, count, 2)), axis=1)
     params = {
-        "length": rng.choice([450.0, 485.0], n), "v_max": rng.uniform(0.5, 2.0, n),
-        "lookahead": rng.integers(0, 21, n).astype(float), "olim": rng.uniform(5, 15, n),
-        "orsp": rng.uniform(0.0, 20.0, n), "kc": rng.uniform(0.0, 2.0, n),
+        "length": rng.choice([450.0, 485.0], n),
+        "v_max": rng.uniform(0.5, 2.0, n),
+        "lookahead": rng.integers(0, 21, n).astype(float),
+        "olim": rng.uniform(5, 15, n),
+        "orsp": rng.uniform(0.0, 20.0, n),
+        "kc": rng.uniform(0.0, 2.0, n),
         "kr": np.where(rng.random(n) < 0.5, 0.0, rng.uniform(0.1, 2.0, n)),
-        "sc": rng.uniform(0.5, 1.5, n), "sc_partner": rng.uniform(0.5, 1.5, n),
-        "radius": rng.uniform(10.0, 40.0, n), "ladder_margin": rng.uniform(0.0, 30.0, n),
+        "sc": rng.uniform(0.5, 1.5, n),
+        "sc_partner": rng.uniform(0.5, 1.5, n),
+        "radius": rng.uniform(10.0, 40.0, n),
+        "ladder_margin": rng.uniform(0.0, 30.0, n),
     }
     heading = rng.normal(size=(n, 2))
     params["goal_heading"] = heading / np.hypot(*heading.T)[:, None]
@@ -60,21 +66,44 @@ def random_rows(rng: np.random.Generator, n: int, count: int, window: int):
 
 
 @settings(max_examples=200, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 4), window=st.integers(1, 16),
-       correction=st.sampled_from(["scaled", "distance", "capped"]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 4),
+    window=st.integers(1, 16),
+    correction=st.sampled_from(["scaled", "distance", "capped"]),
+)
 def test_step_one_gives_the_array_laws_bits(seed, n, window, correction):
     rng = np.random.default_rng(seed)
     own, partner, path, idx, params = random_rows(rng, n, 40, window)
     guide = law.Guide(path, FRAME, window)
     with np.errstate(all="ignore"):
-        move, nearest = law.step(own, partner, path, idx, params, CORRIDOR, window=window,
-                                 frame=FRAME, guide=guide, correction=correction)
+        move, nearest = law.step(
+            own,
+            partner,
+            path,
+            idx,
+            params,
+            CORRIDOR,
+            window=window,
+            frame=FRAME,
+            guide=guide,
+            correction=correction,
+        )
     for i in range(n):
         p = {k: float(v[i]) for k, v in params.items() if k != "goal_heading"}
         p["hx"], p["hy"] = params["goal_heading"][i].tolist()
         try:
-            dx, dy, k = law_one.step_one(tuple(own[i]), tuple(partner[i]), guide, i,
-                                         int(idx[i]), p, FRAME, window, correction)
+            dx, dy, k = law_one.step_one(
+                tuple(own[i]),
+                tuple(partner[i]),
+                guide,
+                i,
+                int(idx[i]),
+                p,
+                FRAME,
+                window,
+                correction,
+            )
         except law_one.Diverged:
             # numpy divided by zero: a robot centre inside the turn's inside (in the wall)
             x, y = FRAME.to_frame(own[i])
@@ -96,6 +125,7 @@ def test_ties_follow_numpy():
 @given(st.lists(st.floats(-300, 300).map(lambda v: round(v, 1)), min_size=4, max_size=4))
 def test_in_corner_twin(c):
     from hybridteam.modes.ladder.kernel import in_corner as array_in_corner
+
     expected = array_in_corner(*(np.array([v]) for v in c), FRAME.width_in, FRAME.width_out)
     assert in_corner(*c, FRAME.width_in, FRAME.width_out) == bool(expected[0])
 
@@ -122,8 +152,11 @@ def test_engine_runs_are_the_same_without_the_twins(tmp_path, case):
         n, over, duration = 1, None, 300
     else:  # still going, stuck (too slow to make progress), a broken link
         team, n = _variant(tmp_path, "ensemble", correction="distance"), 3
-        over = {"R1.v_max": [2.0, 0.004, 2.0], "R2.v_max": [2.0, 0.004, 2.0],
-                "R1.olim": [10.0, 10.0, 0.5]}
+        over = {
+            "R1.v_max": [2.0, 0.004, 2.0],
+            "R2.v_max": [2.0, 0.004, 2.0],
+            "R1.olim": [10.0, 10.0, 0.5],
+        }
         duration = 300
     assert n <= min(carry.FEW, world.FEW) and FLOAT_PATHS.on  # (the twins' size)
     runs = [simulate(team, n=n, seed=3, overrides=over, duration=duration)]
@@ -162,6 +195,7 @@ def test_the_corridor_twin_declines_coinciding_robots_and_changes_nothing():
 
 def test_robots_starting_at_one_point_are_refused_at_the_corridor(tmp_path, capsys):
     from hybridteam.cli import main
+
     path = tmp_path / "together.yaml"
     path.write_text(SAMPLE.read_text().replace("y: start_gap + length", "y: start_gap"))
     assert main(["run", str(path), "-o", str(tmp_path / "out")]) == 2

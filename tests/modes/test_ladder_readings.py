@@ -45,16 +45,18 @@ def _offset_after(scenario: Scenario, settings: Settings, step: int) -> float:
 #   scaled:   v_f (1 - k) = v_s          ->  |o| = olim (1 - v_s / v_f)
 #   distance: v_f - k = v_s              ->  |o| = olim (v_f - v_s)
 #   capped:   min(1 - k, v_f) = v_s      ->  |o| = olim (1 - v_s)      (v_s <= 1)
-@pytest.mark.parametrize(("correction", "speeds", "offset"), [
-    ("scaled", (1.0, 0.5), 5.0),
-    ("scaled", (1.5, 0.75), 5.0),       # the printed formula depends on the ratio only
-    ("distance", (1.0, 0.5), 5.0),
-    ("distance", (1.5, 0.75), 7.5),     # ... this reading on the difference
-    ("capped", (1.5, 0.75), 2.5),
-    ("scaled", (1.0, 1.0), 0.0),
-])
-def test_steady_offset_in_a_straight_leg_is_the_hand_computed_one(correction, speeds,
-                                                                   offset):
+@pytest.mark.parametrize(
+    ("correction", "speeds", "offset"),
+    [
+        ("scaled", (1.0, 0.5), 5.0),
+        ("scaled", (1.5, 0.75), 5.0),  # the printed formula depends on the ratio only
+        ("distance", (1.0, 0.5), 5.0),
+        ("distance", (1.5, 0.75), 7.5),  # ... this reading on the difference
+        ("capped", (1.5, 0.75), 2.5),
+        ("scaled", (1.0, 1.0), 0.0),
+    ],
+)
+def test_steady_offset_in_a_straight_leg_is_the_hand_computed_one(correction, speeds, offset):
     got = _offset_after(_straight(*speeds), Settings(correction=correction), 350)
     assert got == pytest.approx(offset, abs=0.02)
 
@@ -69,13 +71,18 @@ def test_sequential_update_steady_offset(update, offset):
     assert got == pytest.approx(offset, abs=0.02)
 
 
-@pytest.mark.parametrize("settings", [Settings(correction="distance"),
-                                      Settings(correction="capped"),
-                                      Settings(update="front_first"),
-                                      Settings(update="rear_first", correction="distance")])
+@pytest.mark.parametrize(
+    "settings",
+    [
+        Settings(correction="distance"),
+        Settings(correction="capped"),
+        Settings(update="front_first"),
+        Settings(update="rear_first", correction="distance"),
+    ],
+)
 def test_stepper_equals_the_reference_under_each_reading(settings):
     pairs = random_pairs(np.random.default_rng(7), 6, length=420.0)
-    pairs.robot["v_max"][:, :3] = [[1.5] * 3, [0.75] * 3]   # speed differences, both ways
+    pairs.robot["v_max"][:, :3] = [[1.5] * 3, [0.75] * 3]  # speed differences, both ways
     pairs.robot["v_max"][:, 3:] = [[0.75] * 3, [1.5] * 3]
     batch = kernel(pairs, settings=settings)
     outcomes = set()
@@ -100,8 +107,9 @@ def test_sequential_update_breaks_a_link_between_the_two_moves():
     scenario = Scenario(240.0, robot, robot)
     start = np.array([[[100.0, 70.0 + 240.0 + 2 * 9.8]], [[100.0, 70.0]]])
     sync = kernel(Pairs.of(scenario), settings=Settings(), start=start, record=True)
-    seq = kernel(Pairs.of(scenario), settings=Settings(update="front_first"), start=start,
-                 record=True)
+    seq = kernel(
+        Pairs.of(scenario), settings=Settings(update="front_first"), start=start, record=True
+    )
     # Both end the first step at the same state, offsets 9.43 (to 1e-3: the spline toward
     # the corner's exit point bends the path a little, so the target is not quite along it).
     for r in (sync, seq):
@@ -117,14 +125,16 @@ def test_readings_are_checked(tmp_path, capsys):
         kernel(Pairs.of(_straight(1.0, 1.0)), settings=Settings(correction="scale"))
     text = SAMPLE.read_text()
     bad = tmp_path / "bad.yaml"
-    bad.write_text(text.replace("      goal_gap: 70 ", "      update: rear_frist\n"
-                                "      goal_gap: 70 ", 1))
+    bad.write_text(
+        text.replace("      goal_gap: 70 ", "      update: rear_frist\n      goal_gap: 70 ", 1)
+    )
     assert main(["validate", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"{bad}:19:") and "with.update: expected one of synchronous" in err
     seq = tmp_path / "seq.yaml"
-    seq.write_text(text.replace("      goal_gap: 70 ", "      update: rear_first\n"
-                                "      goal_gap: 70 ", 1))
+    seq.write_text(
+        text.replace("      goal_gap: 70 ", "      update: rear_first\n      goal_gap: 70 ", 1)
+    )
     assert main(["run", str(seq), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"{seq}:19:") and "with.update: 'rear_first' moves one robot" in err
@@ -138,8 +148,11 @@ def test_engine_runs_the_distance_reading_as_the_stepper_does(tmp_path):
     from hybridteam.api import load, simulate
 
     team = tmp_path / "distance.yaml"
-    team.write_text(SAMPLE.read_text().replace("      goal_gap: 70 ", "      correction: "
-                                               "distance\n      goal_gap: 70 ", 1))
+    team.write_text(
+        SAMPLE.read_text().replace(
+            "      goal_gap: 70 ", "      correction: distance\n      goal_gap: 70 ", 1
+        )
+    )
     row = simulate(load(team)).summary()["instances"][0]
     k = kernel(Pairs.of(sample_run()), settings=Settings(correction="distance"))
     printed = kernel(Pairs.of(sample_run()))
@@ -154,10 +167,12 @@ def test_an_error_found_when_the_run_starts_is_located(tmp_path, capsys):
     then); the message still names the file and the component's line."""
     text = SAMPLE.read_text()
     head, rest = text.split("requirements:", 1)
-    bad = tmp_path / "bad.yaml"   # no requirements (they would name R2's offset first)
-    bad.write_text(head.replace("      rear: R2", "      rear: R3") + "simulation:"
-                   + rest.split("simulation:", 1)[1])
+    bad = tmp_path / "bad.yaml"  # no requirements (they would name R2's offset first)
+    bad.write_text(
+        head.replace("      rear: R2", "      rear: R3")
+        + "simulation:"
+        + rest.split("simulation:", 1)[1]
+    )
     assert main(["run", str(bad), "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"{bad}:14:") and "world[0]: ladder.corridor: rear robot 'R3'" in err
-

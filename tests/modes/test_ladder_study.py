@@ -22,11 +22,9 @@ LADDER = Path(__file__).resolve().parents[2] / "examples" / "ladder"
 FACTORS = ("lookahead", "alpha", "kc", "orsp", "kr", "speed", "springs")
 
 
-def rows_at_480(tmp_path: Path, name: str, factor: str, values: list[float]
-                ) -> dict[str, dict]:
+def rows_at_480(tmp_path: Path, name: str, factor: str, values: list[float]) -> dict[str, dict]:
     """The study's result rows at ladder length 480, by factor value label."""
-    study = restrict(load_study(LADDER / f"{name}.yaml"), **{factor: values},
-                     ladder_length=[480])
+    study = restrict(load_study(LADDER / f"{name}.yaml"), **{factor: values}, ladder_length=[480])
     result = run_study(study, tmp_path / name)
     assert result.complete
     return {row["value"]: row for row in result.table.rows}
@@ -57,10 +55,14 @@ def test_weak_correction_breaks_links(tmp_path):
 
 
 def _speed_rows_at_240(tmp_path: Path, correction: str) -> dict[str, dict]:
-    study = restrict(load_study(LADDER / "speed.yaml"),
-                     v_max=[(1.5, 1.5), (1.5, 0.75), (0.75, 1.5)], ladder_length=[240])
-    world = tuple(replace(w, values={**w.values, "correction": correction})
-                  for w in study.team.world)
+    study = restrict(
+        load_study(LADDER / "speed.yaml"),
+        v_max=[(1.5, 1.5), (1.5, 0.75), (0.75, 1.5)],
+        ladder_length=[240],
+    )
+    world = tuple(
+        replace(w, values={**w.values, "correction": correction}) for w in study.team.world
+    )
     study = replace(study, team=replace(study.team, world=world))
     result = run_study(study, tmp_path / correction)
     assert result.complete
@@ -92,9 +94,25 @@ def test_the_study_files_share_population_s_and_lengths():
     studies = [load_study(LADDER / f"{name}.yaml") for name in (*FACTORS, "all")]
     first = studies[0]
     for s in studies:
-        assert (s.size, s.population_seed, s.fixed, s.draws, s.axes, s.success, s.outcomes,
-                s.metrics) == (first.size, first.population_seed, first.fixed, first.draws,
-                               first.axes, first.success, first.outcomes, first.metrics)
+        assert (
+            s.size,
+            s.population_seed,
+            s.fixed,
+            s.draws,
+            s.axes,
+            s.success,
+            s.outcomes,
+            s.metrics,
+        ) == (
+            first.size,
+            first.population_seed,
+            first.fixed,
+            first.draws,
+            first.axes,
+            first.success,
+            first.outcomes,
+            first.metrics,
+        )
     assert [f for s in studies[:-1] for f in s.factors] == list(studies[-1].factors)
     assert first.size == 100 and dict(first.fixed) == {"kc": 1.0, "sc": 1.0, "kr": 0.0}
     assert first.axes[0].values == (240, 300, 360, 420, 480)

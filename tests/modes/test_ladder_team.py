@@ -22,8 +22,12 @@ from hybridteam.cli import main
 from hybridteam.world import corridor_with_turn, point_segment_distances, segments_intersect
 
 SAMPLE = Path(__file__).resolve().parents[2] / "examples" / "ladder" / "sample.yaml"
-PAPER = {"steps": 855, "steps_in_corner": 378, "path_length": (1592.86, 1595.63),
-         "corner_path_length": (640.975, 641.939)}
+PAPER = {
+    "steps": 855,
+    "steps_in_corner": 378,
+    "path_length": (1592.86, 1595.63),
+    "corner_path_length": (640.975, 641.939),
+}
 LISTS = ("path_length", "corner_path_length", "max_offset")
 
 
@@ -110,9 +114,10 @@ def test_engine_ensemble_equals_the_batch_stepper_instance_by_instance():
 
 
 def test_batch_path_declines_teams_it_does_not_compute(tmp_path):
-    text = SAMPLE.read_text().replace("          - {to: Stuck, on: stuck}",
-                                      "          - {to: Stuck, on: stuck}\n"
-                                      "          - {to: Stuck, guard: t > 5000}")
+    text = SAMPLE.read_text().replace(
+        "          - {to: Stuck, on: stuck}",
+        "          - {to: Stuck, on: stuck}\n          - {to: Stuck, guard: t > 5000}",
+    )
     path = tmp_path / "guarded.yaml"
     path.write_text(text)
     from hybridteam.engine.compile.compiler import compile_team
@@ -131,22 +136,32 @@ def test_cli_run_prints_statistics_and_writes_summary(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     row = summary["instances"][0]
     assert row["outcome"] == "success"
-    assert {"steps", "steps_in_corner", "path_length", "corner_path_length",
-            "max_offset"} <= set(row)
+    assert {"steps", "steps_in_corner", "path_length", "corner_path_length", "max_offset"} <= set(
+        row
+    )
     assert len(row["path_length"]) == 2
     assert (out / "trajectories.png").stat().st_size > 10_000
     header = (out / "samples.csv").read_text().splitlines()[0]
     assert "ladder.x" in header
 
 
-@pytest.mark.parametrize(("old", "new", "message"), [
-    ("use: ladder.corridor", "use: ladder.corrdor",
-     "unknown world component 'ladder.corrdor'; did you mean 'ladder.corridor'"),
-    ("goal_gap: 70 ", "goal_gapp: 70 ", "'ladder.corridor' has no setting 'goal_gapp'"),
-    ("length: length", "length: lenght", "unknown name 'lenght'"),
-    ("      Stuck: {final: true, outcome: stuck}", "      Stuck: {outcome: stuck}",
-     "needs 'final: true'"),
-])
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (
+            "use: ladder.corridor",
+            "use: ladder.corrdor",
+            "unknown world component 'ladder.corrdor'; did you mean 'ladder.corridor'",
+        ),
+        ("goal_gap: 70 ", "goal_gapp: 70 ", "'ladder.corridor' has no setting 'goal_gapp'"),
+        ("length: length", "length: lenght", "unknown name 'lenght'"),
+        (
+            "      Stuck: {final: true, outcome: stuck}",
+            "      Stuck: {outcome: stuck}",
+            "needs 'final: true'",
+        ),
+    ],
+)
 def test_bad_world_input_is_located(tmp_path, capsys, old, new, message):
     text = SAMPLE.read_text()
     assert old in text

@@ -26,10 +26,15 @@ class StubContext:
 
 def test_rows_without_a_usable_copy_read_zeros_and_infinities_read_finite():
     big = np.finfo(float).max
-    fields = {"x": np.array([1.0, 2.0, np.nan]), "y": np.array([3.0, 4.0, 5.0]),
-              "theta": np.array([0.5, 0.0, 0.0]), "v": np.array([0.2, 0.3, 0.4]),
-              "vx": np.array([np.inf, 0.1, 0.1]), "vy": np.array([-np.inf, 0.0, 0.0]),
-              "omega": np.array([0.1, 0.0, 0.0])}
+    fields = {
+        "x": np.array([1.0, 2.0, np.nan]),
+        "y": np.array([3.0, 4.0, 5.0]),
+        "theta": np.array([0.5, 0.0, 0.0]),
+        "v": np.array([0.2, 0.3, 0.4]),
+        "vx": np.array([np.inf, 0.1, 0.1]),
+        "vy": np.array([-np.inf, 0.0, 0.0]),
+        "omega": np.array([0.1, 0.0, 0.0]),
+    }
     # row 0: usable (infinite velocity -> the largest finite numbers, as nan_to_num gives);
     # row 1: no leader (-1); row 2: a copy with a NaN x is not usable
     lead = leader_estimate(StubContext([1, -1, 1], fields, np.array([0.1, 0.1, 0.1])))

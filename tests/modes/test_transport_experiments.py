@@ -28,14 +28,17 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "transport"
 #: takes the leadership back (36.23 s: docking, 14.74 s out, the Labmate's 8 s reversal and
 #: four 30 ms hand-over legs); experiment 2 the Labmate's 10 s curve and 10 s straight after
 #: the XR4000's detour; experiment 3 the Labmate's 12 s curve and 20 s straight.
-END = {"experiment1": ("xr4000", 50.23), "experiment2": ("labmate", 47.8),
-       "experiment3": ("labmate", 69.5126549097842)}
+END = {
+    "experiment1": ("xr4000", 50.23),
+    "experiment2": ("labmate", 47.8),
+    "experiment3": ("labmate", 69.5126549097842),
+}
 
 #: Per experiment: who leads first, then who takes the lead at each numbered change.
 LEADERSHIP = {
     "experiment1": ("xr4000", ["labmate", "xr4000"]),  # Fig. 7: 1X resigns, 2X gets it back
     "experiment2": ("labmate", ["xr4000", "labmate"]),  # Fig. 8: 1X requests, 2X returns
-    "experiment3": ("labmate", ["scout", "labmate"]),   # Fig. 11: 1S requests, 2S returns
+    "experiment3": ("labmate", ["scout", "labmate"]),  # Fig. 11: 1S requests, 2S returns
 }
 
 
@@ -66,14 +69,19 @@ def test_ends_in_success_with_the_box_held_and_clear_of_obstacles(experiment):
     assert run.outcome == "success", run.message
     who, when = END[name]
     assert run.message == f"'{who}' reached a final mode (the end rule)"
-    stop = [t for t, a, tg in zip(run.transitions["t"], run.transitions["agent"],
-                                  run.transitions["target"], strict=True)
-            if a == who and tg.endswith("Lead.Stop")]
+    stop = [
+        t
+        for t, a, tg in zip(
+            run.transitions["t"], run.transitions["agent"], run.transitions["target"], strict=True
+        )
+        if a == who and tg.endswith("Lead.Stop")
+    ]
     assert stop == [pytest.approx(when, abs=1e-9)]
     assert run.summary()["instances"][0]["t_end"] == pytest.approx(when, abs=1e-9)
     row = run.summary()["instances"][0]
-    grasps = [g["agent"] for g in next(w for w in team.world if w.use == "payload")
-              .values["grasps"]]
+    grasps = [
+        g["agent"] for g in next(w for w in team.world if w.use == "payload").values["grasps"]
+    ]
     limits = [team.agent(a).preset.manipulator.limit for a in grasps]
     assert np.all(np.array(row["max_grasp_offset"]) < np.array(limits)), name
     assert min(row["min_clearance"]) > 0.0, name
@@ -84,8 +92,11 @@ def test_leadership_changes_as_in_the_paper(experiment):
     name, _team, run = experiment
     first, then = LEADERSHIP[name]
     inits = run.transitions
-    start = {a: t for a, t, c in zip(inits["agent"], inits["target"], inits["cause"],
-                                     strict=True) if c == "init"}
+    start = {
+        a: t
+        for a, t, c in zip(inits["agent"], inits["target"], inits["cause"], strict=True)
+        if c == "init"
+    }
     assert start[first].startswith(("Transport.Lead", "Dock"))
     assert leaders_in_order(run) == then, name
 
@@ -109,8 +120,7 @@ def test_experiment2_timeline_reproduces_fig10():
     # the drawn close-up (two robots): the request; the grant and the request's ack on one
     # arrow t_b -> t_c; at t_c the announce and the grant's ack; one label per arrow, the
     # message named before the ack, and the 20 Hz pose stream faint and unlabelled
-    fig, data = timeline_figure(run, window=(t_a - 0.02, t_c + 0.02),
-                                agents=["xr4000", "labmate"])
+    fig, data = timeline_figure(run, window=(t_a - 0.02, t_c + 0.02), agents=["xr4000", "labmate"])
     assert [lane.agent for lane in data.lanes if not lane.top] == ["xr4000", "labmate"]
     texts = fig.axes[0].texts
     labels = sorted(t.get_text() for t in texts if t.get_gid() == "message-label")
@@ -151,8 +161,11 @@ def test_trajectories_fit_the_scene_and_explain_their_marks(experiment):
     box = run.samples["box"][:, 0, :2]
     pts += [box - 0.48, box + 0.48]  # the box's half diagonal: hypot(0.4, 0.25) = 0.47
     for ob in run.meta["world"]["obstacles"]:  # circles: [x, y, r] in the team file
-        pts.append(np.array([[ob["x"] - ob["r"], ob["y"] - ob["r"]],
-                             [ob["x"] + ob["r"], ob["y"] + ob["r"]]]))
+        pts.append(
+            np.array(
+                [[ob["x"] - ob["r"], ob["y"] - ob["r"]], [ob["x"] + ob["r"], ob["y"] + ob["r"]]]
+            )
+        )
     xy = np.concatenate(pts)
     xy = xy[np.isfinite(xy).all(axis=1)]
     span = xy.max(axis=0) - xy.min(axis=0)
@@ -168,8 +181,12 @@ def test_trajectories_fit_the_scene_and_explain_their_marks(experiment):
 
 
 def _overlaps(boxes) -> list[tuple[int, int]]:
-    return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
-            if boxes[i].overlaps(boxes[j])]
+    return [
+        (i, j)
+        for i in range(len(boxes))
+        for j in range(i + 1, len(boxes))
+        if boxes[i].overlaps(boxes[j])
+    ]
 
 
 def test_experiment2_animation_shows_the_box_in_every_frame_and_no_label_overlaps():
@@ -203,16 +220,25 @@ def test_close_ups_of_every_hand_over_have_no_overlapping_text(experiment):
     all drawn, none over another."""
     name, _team, run = experiment
     m = run.messages
-    control = [(t, s, r) for t, s, r, k, ty in zip(m["t_send"], m["sender"], m["receiver"],
-                                                    m["socket"], m["type"], strict=True)
-               if k == "control" and ty in ("request", "offer")]
+    control = [
+        (t, s, r)
+        for t, s, r, k, ty in zip(
+            m["t_send"], m["sender"], m["receiver"], m["socket"], m["type"], strict=True
+        )
+        if k == "control" and ty in ("request", "offer")
+    ]
     t0, sender, receiver = control[0]
-    fig, _data = timeline_figure(run, window=(t0 - 0.02, t0 + 0.15),
-                                 agents=[a for a in run.agents if a in (sender, receiver)])
+    fig, _data = timeline_figure(
+        run,
+        window=(t0 - 0.02, t0 + 0.15),
+        agents=[a for a in run.agents if a in (sender, receiver)],
+    )
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     texts = [x for x in fig.axes[0].texts if x.get_visible() and x.get_text()]
     assert {x.get_gid() for x in texts} >= {"mode-label", "message-label"}, name
     boxes = [x.get_window_extent(renderer) for x in texts]
-    assert not _overlaps(boxes), (name, [(texts[i].get_text(), texts[j].get_text())
-                                         for i, j in _overlaps(boxes)])
+    assert not _overlaps(boxes), (
+        name,
+        [(texts[i].get_text(), texts[j].get_text()) for i, j in _overlaps(boxes)],
+    )

@@ -28,13 +28,27 @@ T = 0.05  # every law's period, and the sample period
 
 
 # ----------------------------------------------------------------------------- team helpers
-def robot(kind: str, pose: tuple[float, float, float], lead: dict, follow: dict,
-          initial: str = "Follow", leader: str | None = None) -> dict:
+def robot(
+    kind: str,
+    pose: tuple[float, float, float],
+    lead: dict,
+    follow: dict,
+    initial: str = "Follow",
+    leader: str | None = None,
+) -> dict:
     spec: dict[str, Any] = {
-        "plant": {"kind": kind, "state": dict(zip(("x", "y", "theta"), map(float, pose),
-                                                    strict=True))},
-        "modes": {"Transport": {"protocol": "role_assignment", "initial": initial,
-                                "roles": {"lead": lead, "follow": follow}}}}
+        "plant": {
+            "kind": kind,
+            "state": dict(zip(("x", "y", "theta"), map(float, pose), strict=True)),
+        },
+        "modes": {
+            "Transport": {
+                "protocol": "role_assignment",
+                "initial": initial,
+                "roles": {"lead": lead, "follow": follow},
+            }
+        },
+    }
     if leader is not None:
         spec["variables"] = {"leader": f"id_{leader}"}
     return spec
@@ -48,13 +62,22 @@ def uses(name: str, **params: float) -> dict:
     return {"law": {"use": name, "period": T, "with": {k: float(v) for k, v in params.items()}}}
 
 
-def team_text(agents: dict, *, latency: float = 0.0, duration: float = 2.0,
-              world: list | None = None, scenario: list | None = None) -> str:
+def team_text(
+    agents: dict,
+    *,
+    latency: float = 0.0,
+    duration: float = 2.0,
+    world: list | None = None,
+    scenario: list | None = None,
+) -> str:
     roles = any("Transport" in a["modes"] for a in agents.values())
     operator = {"operator": {"operator": "role_assignment"}} if roles else {}
-    doc: dict[str, Any] = {"team": "transport-test", "network": {"latency": latency},
-                           "agents": {**agents, **operator},
-                           "simulation": {"duration": duration, "sample_period": T}}
+    doc: dict[str, Any] = {
+        "team": "transport-test",
+        "network": {"latency": latency},
+        "agents": {**agents, **operator},
+        "simulation": {"duration": duration, "sample_period": T},
+    }
     if world:
         doc["world"] = world
     if scenario:
@@ -131,38 +154,67 @@ def test_the_library_is_registered_through_its_entry_point():
 
     eps = {ep.name: ep.value for ep in metadata.entry_points(group="hybridteam.libraries")}
     assert eps.get("transport") == "hybridteam.modes.transport"
-    assert {"transport.follow", "transport.follow_holonomic", "transport.match",
-            "transport.dock_arm", "transport.approach"} <= set(registered())
+    assert {
+        "transport.follow",
+        "transport.follow_holonomic",
+        "transport.match",
+        "transport.dock_arm",
+        "transport.approach",
+    } <= set(registered())
 
 
 # ----------------------------------------------------------------------------- (1) follow
 def test_follow_behind_a_straight_leader_copies_its_heading_and_speed(team_from_yaml):
     """No arm, same heading: u1 = v̂_l cos 0 = v, u2 = 0 — the follower drives like the
     leader from the first copy (sent and, with no latency, used at t = 0)."""
-    run = run_team(team_from_yaml, {
-        "xr4000": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
-                        initial="Lead"),
-        "labmate": robot("unicycle", (0, 0, 0), held(v=0, omega=0),
-                         uses("transport.follow", D=1.0), leader="xr4000")})
+    run = run_team(
+        team_from_yaml,
+        {
+            "xr4000": robot(
+                "unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0), initial="Lead"
+            ),
+            "labmate": robot(
+                "unicycle",
+                (0, 0, 0),
+                held(v=0, omega=0),
+                uses("transport.follow", D=1.0),
+                leader="xr4000",
+            ),
+        },
+    )
     t, lab, xr = run.sample_times, poses(run, "labmate"), poses(run, "xr4000")
     np.testing.assert_allclose(lab[:, 0], 0.3 * t, atol=1e-12)
     np.testing.assert_allclose(lab[:, 1:], 0.0, atol=1e-12)
     np.testing.assert_allclose(xr[:, 0] - lab[:, 0], 1.0, atol=1e-12)
 
 
-@pytest.mark.parametrize(("D", "v"), [(1.0, 0.3), (-1.0, -0.3)],
-                         ids=["leader-ahead-driving-forward", "leader-behind-backing"])
+@pytest.mark.parametrize(
+    ("D", "v"),
+    [(1.0, 0.3), (-1.0, -0.3)],
+    ids=["leader-ahead-driving-forward", "leader-behind-backing"],
+)
 def test_follow_heading_term_turns_toward_the_leaders_heading(team_from_yaml, D, v):
     """Heading error 0.2 rad: u2 = (v̂_l/D) sin(θ̂_l − θ) < 0 turns the follower back when
     the leader pulls (v/D > 0), whether it is ahead (D > 0) or behind (D < 0)."""
-    run = run_team(team_from_yaml, {
-        "xr4000": robot("unicycle", (D, 0, 0), held(v=v, omega=0), held(v=0, omega=0),
-                        initial="Lead"),
-        "labmate": robot("unicycle", (0, 0, 0.2), held(v=0, omega=0),
-                         uses("transport.follow", D=D), leader="xr4000")})
+    run = run_team(
+        team_from_yaml,
+        {
+            "xr4000": robot(
+                "unicycle", (D, 0, 0), held(v=v, omega=0), held(v=0, omega=0), initial="Lead"
+            ),
+            "labmate": robot(
+                "unicycle",
+                (0, 0, 0.2),
+                held(v=0, omega=0),
+                uses("transport.follow", D=D),
+                leader="xr4000",
+            ),
+        },
+    )
     lab = poses(run, "labmate")
-    ref = unicycle_path((0, 0, 0.2), lambda p: (v * np.cos(-p[2]), v / D * np.sin(-p[2])),
-                        len(lab) - 1)
+    ref = unicycle_path(
+        (0, 0, 0.2), lambda p: (v * np.cos(-p[2]), v / D * np.sin(-p[2])), len(lab) - 1
+    )
     np.testing.assert_allclose(lab, ref, atol=1e-9)
     assert np.all(np.diff(lab[:, 2]) < 0) and 0 < lab[-1, 2] < 0.2
 
@@ -177,12 +229,23 @@ def test_holonomic_follow_error_decays_exponentially_despite_latency(team_from_y
     th_l, v, D, k = 0.3, 0.3, 1.0, np.array([1.0, 2.0, 1.5])
     xd0 = np.array([D * np.cos(th_l), D * np.sin(th_l), th_l])
     start = xd0 - np.array([0.4, -0.3, 0.5])
-    run = run_team(team_from_yaml, {
-        "labmate": robot("unicycle", (0, 0, th_l), held(v=v, omega=0), held(v=0, omega=0),
-                         initial="Lead"),
-        "xr4000": robot("holonomic", tuple(start), held(vx=0, vy=0, omega=0),
-                        uses("transport.follow_holonomic", D=D, k1=k[0], k2=k[1], k3=k[2]),
-                        leader="labmate")}, latency=0.03, duration=3.0)
+    run = run_team(
+        team_from_yaml,
+        {
+            "labmate": robot(
+                "unicycle", (0, 0, th_l), held(v=v, omega=0), held(v=0, omega=0), initial="Lead"
+            ),
+            "xr4000": robot(
+                "holonomic",
+                tuple(start),
+                held(vx=0, vy=0, omega=0),
+                uses("transport.follow_holonomic", D=D, k1=k[0], k2=k[1], k3=k[2]),
+                leader="labmate",
+            ),
+        },
+        latency=0.03,
+        duration=3.0,
+    )
     t, xr = run.sample_times, poses(run, "xr4000")
     np.testing.assert_allclose(xr[t <= 0.05 + 1e-9], [start, start], atol=1e-15)
     xd = xd0 + np.outer(t, [v * np.cos(th_l), v * np.sin(th_l), 0.0])
@@ -203,12 +266,22 @@ def test_holonomic_feed_forward_tracks_a_turning_leader(team_from_yaml, k_ff, bo
     (only the hold over each period lags); the paper's pure P law (k_ff = 0) lags by about
     |ẋ^d| / k."""
     v, w, D = 0.3, 0.3, 1.0
-    run = run_team(team_from_yaml, {
-        "labmate": robot("unicycle", (0, 0, 0), held(v=v, omega=w), held(v=0, omega=0),
-                         initial="Lead"),
-        "xr4000": robot("holonomic", (D, 0, 0), held(vx=0, vy=0, omega=0),
-                        uses("transport.follow_holonomic", D=D, k_ff=k_ff),
-                        leader="labmate")}, duration=4.0)
+    run = run_team(
+        team_from_yaml,
+        {
+            "labmate": robot(
+                "unicycle", (0, 0, 0), held(v=v, omega=w), held(v=0, omega=0), initial="Lead"
+            ),
+            "xr4000": robot(
+                "holonomic",
+                (D, 0, 0),
+                held(vx=0, vy=0, omega=0),
+                uses("transport.follow_holonomic", D=D, k_ff=k_ff),
+                leader="labmate",
+            ),
+        },
+        duration=4.0,
+    )
     lab, xr = poses(run, "labmate"), poses(run, "xr4000")
     xd = lab[:, :2] + D * np.c_[np.cos(lab[:, 2]), np.sin(lab[:, 2])]
     lag = np.hypot(*(xd - xr[:, :2]).T)
@@ -225,11 +298,22 @@ def test_holonomic_feed_forward_tracks_a_turning_leader(team_from_yaml, k_ff, bo
 def test_match_reproduces_the_leaders_speed_and_turn_rate(team_from_yaml, latency):
     """u = (v̂_l, ω̂_l): from the tick that sees the first copy (t0), the Scout runs the
     leader's inputs, so its path from its start is the leader's from its own, t0 later."""
-    run = run_team(team_from_yaml, {
-        "labmate": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0.2), held(v=0, omega=0),
-                         initial="Lead"),
-        "scout": robot("unicycle", (0, 0.5, 0), held(v=0, omega=0),
-                       uses("transport.match", k_form=0), leader="labmate")}, latency=latency)
+    run = run_team(
+        team_from_yaml,
+        {
+            "labmate": robot(
+                "unicycle", (1, 0, 0), held(v=0.3, omega=0.2), held(v=0, omega=0), initial="Lead"
+            ),
+            "scout": robot(
+                "unicycle",
+                (0, 0.5, 0),
+                held(v=0, omega=0),
+                uses("transport.match", k_form=0),
+                leader="labmate",
+            ),
+        },
+        latency=latency,
+    )
     lab, scout = poses(run, "labmate"), poses(run, "scout")
     lag = int(np.ceil(latency / T - 1e-9))
     np.testing.assert_allclose(scout[: lag + 1], scout[:1].repeat(lag + 1, 0), atol=1e-15)
@@ -240,13 +324,24 @@ def test_match_reproduces_the_leaders_speed_and_turn_rate(team_from_yaml, latenc
 def test_match_formation_term_is_on_by_default_and_off_at_k_form_0(team_from_yaml):
     """The Scout starts 0.3 m off its station (one metre behind the leader; capture off):
     with k_form 0 (the paper's copy) the offset stays; by default it shrinks."""
+
     def gap(**params: float) -> np.ndarray:
-        run = run_team(team_from_yaml, {
-            "labmate": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
-                             initial="Lead"),
-            "scout": robot("unicycle", (-0.3, 0, 0), held(v=0, omega=0),
-                           uses("transport.match", capture=0, ahead=-1.0, **params),
-                           leader="labmate")}, duration=3.0)
+        run = run_team(
+            team_from_yaml,
+            {
+                "labmate": robot(
+                    "unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0), initial="Lead"
+                ),
+                "scout": robot(
+                    "unicycle",
+                    (-0.3, 0, 0),
+                    held(v=0, omega=0),
+                    uses("transport.match", capture=0, ahead=-1.0, **params),
+                    leader="labmate",
+                ),
+            },
+            duration=3.0,
+        )
         return poses(run, "labmate")[:, 0] - 1.0 - poses(run, "scout")[:, 0]
 
     np.testing.assert_allclose(gap(k_form=0.0), 0.3, atol=1e-12)
@@ -259,17 +354,19 @@ def _switching_team(follow: dict) -> dict:
     until t = 2 s, when its ``leader`` becomes B (as a role change would make it)."""
     follower = robot("unicycle", (0, 0.5, 0), held(v=0, omega=0), follow, leader="a")
     follower["modes"]["Transport"]["roles"]["follow"]["transitions"] = [
-        {"on": "switch", "do": ["leader = id_b"]}]
-    return {"a": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
-                       initial="Lead"),
-            "b": robot("unicycle", (1, 2, 0), held(v=0.3, omega=0), held(v=0, omega=0),
-                       initial="Lead"),
-            "scout": follower}
+        {"on": "switch", "do": ["leader = id_b"]}
+    ]
+    return {
+        "a": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0), initial="Lead"),
+        "b": robot("unicycle", (1, 2, 0), held(v=0.3, omega=0), held(v=0, omega=0), initial="Lead"),
+        "scout": follower,
+    }
 
 
 @pytest.mark.parametrize("name", ["transport.match", "formation.follow"])
 def test_a_capturing_follower_keeps_its_place_in_the_team_when_the_leader_changes(
-        team_from_yaml, name):
+    team_from_yaml, name
+):
     """With ``capture`` the follower holds the place it had when a leader's first copy
     arrived — 1 m behind A and 0.5 m to its left, 1.5 m to B's right — so the change of
     leader at t = 2 s changes nothing: it drives on at y = 0.5, 1 m behind the leaders.
@@ -288,16 +385,26 @@ def test_a_follower_captures_again_when_it_follows_the_same_leader_anew(team_fro
     """The Scout holds 1 m behind A, pauses from t = 2 s to 3 s (another mode: it stands
     while A drives on 0.3 m) and follows A again: it holds the new place, 1.3 m behind,
     rather than closing up to where it was before."""
-    scout = robot("unicycle", (0, 0, 0), held(v=0, omega=0),
-                  uses("transport.match", capture=1), leader="a")
+    scout = robot(
+        "unicycle", (0, 0, 0), held(v=0, omega=0), uses("transport.match", capture=1), leader="a"
+    )
     scout["initial"] = "Transport"
     scout["modes"]["Transport"]["transitions"] = [{"to": "Pause", "on": "pause"}]
-    scout["modes"]["Pause"] = {**held(v=0, omega=0),
-                               "transitions": [{"to": "Transport", "after": 1.0}]}
-    run = run_team(team_from_yaml, {
-        "a": robot("unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0),
-                   initial="Lead"), "scout": scout},
-        duration=6.0, scenario=[{"at": 2.0, "agent": "scout", "raise": "pause"}])
+    scout["modes"]["Pause"] = {
+        **held(v=0, omega=0),
+        "transitions": [{"to": "Transport", "after": 1.0}],
+    }
+    run = run_team(
+        team_from_yaml,
+        {
+            "a": robot(
+                "unicycle", (1, 0, 0), held(v=0.3, omega=0), held(v=0, omega=0), initial="Lead"
+            ),
+            "scout": scout,
+        },
+        duration=6.0,
+        scenario=[{"at": 2.0, "agent": "scout", "raise": "pause"}],
+    )
     t = run.sample_times
     gap = poses(run, "a")[:, 0] - poses(run, "scout")[:, 0]
     np.testing.assert_allclose(gap[(t > 0) & (t <= 2.0)], 1.0, atol=1e-9)
@@ -308,13 +415,28 @@ def test_follow_with_capture_uses_the_link_it_has_to_its_leader(team_from_yaml):
     """``capture`` replaces D by the leader's distance along the robot's heading when the
     first copy arrives: a Labmate 3 m behind a turning leader, told D = 1, then moves
     exactly as with D = 3 (the rigid link it actually has)."""
+
     def labmate(**params: float) -> np.ndarray:
-        run = run_team(team_from_yaml, {
-            "lead": robot("unicycle", (3, 0, 0), held(v=0.3, omega=0.2), held(v=0, omega=0),
-                          initial="Lead"),
-            "labmate": robot("unicycle", (0, 0, 0), held(v=0, omega=0),
-                             uses("transport.follow", **params), leader="lead")},
-            duration=4.0)
+        run = run_team(
+            team_from_yaml,
+            {
+                "lead": robot(
+                    "unicycle",
+                    (3, 0, 0),
+                    held(v=0.3, omega=0.2),
+                    held(v=0, omega=0),
+                    initial="Lead",
+                ),
+                "labmate": robot(
+                    "unicycle",
+                    (0, 0, 0),
+                    held(v=0, omega=0),
+                    uses("transport.follow", **params),
+                    leader="lead",
+                ),
+            },
+            duration=4.0,
+        )
         return poses(run, "labmate")
 
     captured, told = labmate(D=1.0, capture=1), labmate(D=3.0)
@@ -326,11 +448,16 @@ def test_follow_with_capture_uses_the_link_it_has_to_its_leader(team_from_yaml):
 def test_dock_arm_commands_the_restoring_input_for_a_constant_offset(team_from_yaml):
     """x_a = 0.05 (mount ahead of the grasp), y_a = 0.02 (left of it), θ_a = 0.01: with the
     default gains u1 = −x_a (back up), u2 = −y_a + θ_a = −0.01 (turn right)."""
-    run = run_team(team_from_yaml, {
-        "labmate": {"plant": {"kind": "unicycle", "state": {"x": 0, "y": 0, "theta": 0}},
-                    "modes": {"Dock": uses("transport.dock_arm")}}},
-        world=[{"use": "tests.transport_arm", "with": {"x_a": 0.05, "y_a": 0.02,
-                                                       "theta_a": 0.01}}])
+    run = run_team(
+        team_from_yaml,
+        {
+            "labmate": {
+                "plant": {"kind": "unicycle", "state": {"x": 0, "y": 0, "theta": 0}},
+                "modes": {"Dock": uses("transport.dock_arm")},
+            }
+        },
+        world=[{"use": "tests.transport_arm", "with": {"x_a": 0.05, "y_a": 0.02, "theta_a": 0.01}}],
+    )
     lab = poses(run, "labmate")
     ref = unicycle_path((0, 0, 0), lambda p: (-0.05, -0.01), len(lab) - 1)
     np.testing.assert_allclose(lab, ref, atol=1e-12)
@@ -342,17 +469,37 @@ def test_dock_arm_closes_a_real_grasp_offset_at_the_spring_shared_rate(team_from
     stretched by s0 = 0.08. The Labmate's grasp takes w = 3/4 of the stretch, so its arm
     reads x_a = −w s (robot frame, facing −x) and u1 = −x_a = w s closes it: s_n = s0 (1 − wT)^n."""
     s0, w = 0.08, 0.75
-    run = run_team(team_from_yaml, {
-        "xr4000": {"plant": {"kind": "holonomic", "state": {"x": 0, "y": 0, "theta": 0}},
-                   "modes": {"Hold": held(vx=0, vy=0, omega=0)}},
-        "labmate": {"plant": {"kind": "unicycle",
-                              "state": {"x": 1 + s0, "y": 0, "theta": float(np.pi)}},
-                    "modes": {"Dock": uses("transport.dock_arm")}}},
-        world=[{"use": "payload", "with": {"name": "bar", "shape": "bar", "length": 1.0,
-                                           "grasps": [{"agent": "xr4000", "point": [-0.5, 0],
-                                                       "spring": 3},
-                                                      {"agent": "labmate", "point": [0.5, 0],
-                                                       "spring": 1}]}}], duration=3.0)
+    run = run_team(
+        team_from_yaml,
+        {
+            "xr4000": {
+                "plant": {"kind": "holonomic", "state": {"x": 0, "y": 0, "theta": 0}},
+                "modes": {"Hold": held(vx=0, vy=0, omega=0)},
+            },
+            "labmate": {
+                "plant": {
+                    "kind": "unicycle",
+                    "state": {"x": 1 + s0, "y": 0, "theta": float(np.pi)},
+                },
+                "modes": {"Dock": uses("transport.dock_arm")},
+            },
+        },
+        world=[
+            {
+                "use": "payload",
+                "with": {
+                    "name": "bar",
+                    "shape": "bar",
+                    "length": 1.0,
+                    "grasps": [
+                        {"agent": "xr4000", "point": [-0.5, 0], "spring": 3},
+                        {"agent": "labmate", "point": [0.5, 0], "spring": 1},
+                    ],
+                },
+            }
+        ],
+        duration=3.0,
+    )
     s = poses(run, "labmate")[:, 0] - 1.0
     n = np.arange(len(s))
     np.testing.assert_allclose(s, s0 * (1 - w * T) ** n, atol=1e-9)
@@ -376,20 +523,29 @@ def _has_obstacles() -> bool:
 
 WALL_AHEAD = {
     "stand-in": ({"use": "tests.transport_wall"}, False),
-    "obstacles": ({"use": "obstacles", "with": {"walls": [[1, -5, 1, 5]]}}, True)}
+    "obstacles": ({"use": "obstacles", "with": {"walls": [[1, -5, 1, 5]]}}, True),
+}
 
 
-@pytest.mark.parametrize("world", [
-    "stand-in", pytest.param("obstacles", marks=pytest.mark.skipif(
-        not _has_obstacles(), reason="the obstacles component is not installed"))])
+@pytest.mark.parametrize(
+    "world",
+    [
+        "stand-in",
+        pytest.param(
+            "obstacles",
+            marks=pytest.mark.skipif(
+                not _has_obstacles(), reason="the obstacles component is not installed"
+            ),
+        ),
+    ],
+)
 def test_approach_stops_at_stand_off_from_a_wall(team_from_yaml, world):
     """A wall 1 m ahead is 0.67 m from the hull, beyond the IR's 0.5 m: the XR4000 comes on
     at `speed` (0.1) until the gap is 0.2, then at k (gap − 0.1) held over T, and stops
     within `tol` of the stand-off, for good. The same with the test's stand-in ring and
     with the framework's obstacles component and the XR4000 preset's ring."""
     component, model = WALL_AHEAD[world]
-    run = run_team(team_from_yaml, {"xr4000": xr_approach(model)}, duration=8.0,
-                   world=[component])
+    run = run_team(team_from_yaml, {"xr4000": xr_approach(model)}, duration=8.0, world=[component])
     xr = poses(run, "xr4000")
     gap, ref, stop = 0.67, [0.0], None
     for n in range(len(xr) - 1):
@@ -411,9 +567,14 @@ def test_approach_stops_at_stand_off_from_a_wall(team_from_yaml, world):
 def test_approach_slides_toward_an_edge_seen_on_the_left(team_from_yaml):
     """Only the left half of the front sector sees the box (its edge at y = 0.02): the front
     and right beams read 0.5, the +15° beam less, so the XR4000 slides left (and ahead)."""
-    run = run_team(team_from_yaml, {"xr4000": xr_approach()}, duration=0.1,
-                   world=[{"use": "tests.transport_wall",
-                           "with": {"x0": 0.6, "y0": 0.02, "x1": 0.6, "y1": 2.0}}])
+    run = run_team(
+        team_from_yaml,
+        {"xr4000": xr_approach()},
+        duration=0.1,
+        world=[
+            {"use": "tests.transport_wall", "with": {"x0": 0.6, "y0": 0.02, "x1": 0.6, "y1": 2.0}}
+        ],
+    )
     xr = poses(run, "xr4000")
     a = np.radians(15)
     left = (0.6 - 0.33 * np.cos(a)) / np.cos(a)
@@ -423,10 +584,14 @@ def test_approach_slides_toward_an_edge_seen_on_the_left(team_from_yaml):
 
 
 # ----------------------------------------------------------------------------- lead plans
-PLAN = {"initial": "Back", "modes": {
-    "Back": {**held(v=-0.1, omega=0), "transitions": [{"to": "Turn", "after": 4}]},
-    "Turn": {**held(v=-0.1, omega=0.2), "transitions": [{"to": "Stop", "after": 2}]},
-    "Stop": held(v=0, omega=0)}}
+PLAN = {
+    "initial": "Back",
+    "modes": {
+        "Back": {**held(v=-0.1, omega=0), "transitions": [{"to": "Turn", "after": 4}]},
+        "Turn": {**held(v=-0.1, omega=0.2), "transitions": [{"to": "Stop", "after": 2}]},
+        "Stop": held(v=0, omega=0),
+    },
+}
 
 
 def test_a_lead_role_can_be_a_composite_plan_entered_on_a_handover(team_from_yaml):
@@ -435,27 +600,54 @@ def test_a_lead_role_can_be_a_composite_plan_entered_on_a_handover(team_from_yam
     following, keeps its place D ahead on the Labmate's heading, and the Scout copies the
     Labmate's motion (the paper's law, k_form = 0), ending with its heading."""
     D = 1.0
-    run = run_team(team_from_yaml, {
-        "xr4000": robot("holonomic", (D, 0, 0), held(vx=0.1, vy=0, omega=0),
-                        uses("transport.follow_holonomic", D=D), initial="Lead"),
-        "labmate": robot("unicycle", (0, 0, 0), PLAN, uses("transport.follow", D=D),
-                         leader="xr4000"),
-        "scout": robot("unicycle", (0, -1, 0), held(v=0, omega=0),
-                       uses("transport.match", k_form=0), leader="labmate")},
-        latency=0.03, duration=11.0, scenario=[{"at": 1.0, "agent": "labmate",
-                                               "raise": "want_lead"}])
+    run = run_team(
+        team_from_yaml,
+        {
+            "xr4000": robot(
+                "holonomic",
+                (D, 0, 0),
+                held(vx=0.1, vy=0, omega=0),
+                uses("transport.follow_holonomic", D=D),
+                initial="Lead",
+            ),
+            "labmate": robot(
+                "unicycle", (0, 0, 0), PLAN, uses("transport.follow", D=D), leader="xr4000"
+            ),
+            "scout": robot(
+                "unicycle",
+                (0, -1, 0),
+                held(v=0, omega=0),
+                uses("transport.match", k_form=0),
+                leader="labmate",
+            ),
+        },
+        latency=0.03,
+        duration=11.0,
+        scenario=[{"at": 1.0, "agent": "labmate", "raise": "want_lead"}],
+    )
     tr = run.transitions.where(agent="labmate")
-    moves = [(round(float(t), 9), s, g) for t, s, g in zip(tr["t"], tr["source"],
-                                                            tr["target"], strict=True) if s]
-    assert moves == [(1.0, "Transport.Follow", "Transport.Requesting"),
-                     (1.06, "Transport.Requesting", "Transport.Lead"),
-                     (5.06, "Transport.Lead.Back", "Transport.Lead.Turn"),
-                     (7.06, "Transport.Lead.Turn", "Transport.Lead.Stop")]
+    moves = [
+        (round(float(t), 9), s, g)
+        for t, s, g in zip(tr["t"], tr["source"], tr["target"], strict=True)
+        if s
+    ]
+    assert moves == [
+        (1.0, "Transport.Follow", "Transport.Requesting"),
+        (1.06, "Transport.Requesting", "Transport.Lead"),
+        (5.06, "Transport.Lead.Back", "Transport.Lead.Turn"),
+        (7.06, "Transport.Lead.Turn", "Transport.Lead.Stop"),
+    ]
     iv = run.intervals.where(agent="labmate")
-    leaves = [(str(m), round(float(a), 9)) for m, a in zip(iv["mode"], iv["start"],
-                                                           strict=True) if "Lead." in m]
-    assert leaves == [("Transport.Lead.Back", 1.06), ("Transport.Lead.Turn", 5.06),
-                      ("Transport.Lead.Stop", 7.06)]
+    leaves = [
+        (str(m), round(float(a), 9))
+        for m, a in zip(iv["mode"], iv["start"], strict=True)
+        if "Lead." in m
+    ]
+    assert leaves == [
+        ("Transport.Lead.Back", 1.06),
+        ("Transport.Lead.Turn", 5.06),
+        ("Transport.Lead.Stop", 7.06),
+    ]
     t, lab, xr = run.sample_times, poses(run, "labmate"), poses(run, "xr4000")
     i, j = (int(np.argmin(abs(t - s))) for s in (1.1, 5.0))
     # Back: straight on its heading at 0.1 m/s backwards
@@ -498,8 +690,9 @@ def test_labmate_follows_an_xr4000_that_faces_it(team_from_yaml):
     assert max(stats["max_grasp_offset"]) < 0.02
     t, lab = run.sample_times, poses(run, "labmate")
     i = int(np.argmin(abs(t - 9.0)))
-    np.testing.assert_allclose(np.hypot(*(lab[-1, :2] - lab[i, :2])), 0.1 * (t[-1] - t[i]),
-                               rtol=0.01)
+    np.testing.assert_allclose(
+        np.hypot(*(lab[-1, :2] - lab[i, :2])), 0.1 * (t[-1] - t[i]), rtol=0.01
+    )
     # a pulling leader keeps the heading term at rest: the Labmate turns only by the few
     # mrad its arm's θ_a feedback settles the box by
     np.testing.assert_allclose(lab[i:, 2], lab[i, 2], atol=5e-3)

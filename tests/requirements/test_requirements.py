@@ -41,17 +41,21 @@ def test_band_holds_with_the_margin_to_the_switching_points(team_from_yaml):
 
 
 def test_tightened_band_fails_at_the_closed_form_crossing(team_from_yaml):
-    run = simulate(thermostat(team_from_yaml, """
+    run = simulate(
+        thermostat(
+            team_from_yaml,
+            """
         upper: always(x <= 21.9)
         lower: always(x >= 18.1)
-    """))
+    """,
+        )
+    )
     up, low = verdicts(run)["upper"], verdicts(run)["lower"]
     assert up["satisfied"] is False and up["failed"] == "x <= 21.9"
     assert up["violated_at"] == pytest.approx(math.log(11 / 8.1) / K, abs=1e-8)
     assert up["robustness"] == pytest.approx(-0.1, abs=1e-9)
     # cooling from 22 reaches 18.1 after ln(22/18.1)/K
-    assert low["violated_at"] == pytest.approx(FIRST_SWITCH + math.log(22 / 18.1) / K,
-                                               abs=1e-8)
+    assert low["violated_at"] == pytest.approx(FIRST_SWITCH + math.log(22 / 18.1) / K, abs=1e-8)
     assert low["robustness"] == pytest.approx(-0.1, abs=1e-9)
 
 
@@ -61,16 +65,22 @@ def test_each_instance_of_an_ensemble_has_its_own_crossing(team_from_yaml):
     run = simulate(team, n=3, overrides={"thermostat.K": ks})
     for i, k in enumerate(ks):
         assert verdicts(run, i)["upper"]["violated_at"] == pytest.approx(
-            math.log(11 / 8.1) / k, abs=1e-8)
+            math.log(11 / 8.1) / k, abs=1e-8
+        )
 
 
 def test_windows_read_the_state_at_known_points(team_from_yaml):
     # on [0, 2] the heater alone acts: x(t) = 30 - 11 exp(-K t), increasing
-    run = simulate(thermostat(team_from_yaml, """
+    run = simulate(
+        thermostat(
+            team_from_yaml,
+            """
         soon: eventually[0, 2](x >= 20.5)
         early: always[0, 2](x <= 20)
         late: eventually[1, 2](x <= 19.5)
-    """))
+    """,
+        )
+    )
     v = verdicts(run)
     x2 = 30 - 11 * math.exp(-K * 2)
     assert v["soon"]["robustness"] == pytest.approx(x2 - 20.5, abs=1e-9)
@@ -83,12 +93,17 @@ def test_windows_read_the_state_at_known_points(team_from_yaml):
 
 
 def test_modes_are_boolean_signals_that_switch_at_transitions(team_from_yaml):
-    run = simulate(thermostat(team_from_yaml, """
+    run = simulate(
+        thermostat(
+            team_from_yaml,
+            """
         heating: always(in_mode(Heat))
         cools: eventually[0, 5](in_mode(thermostat, Cool))
         one: always(count_in_mode(Heat) + count_in_mode(Cool) == 1)
         until_hot: until(in_mode(Heat), x >= 21.99)
-    """))
+    """,
+        )
+    )
     v = verdicts(run)
     assert v["heating"]["satisfied"] is False
     assert v["heating"]["violated_at"] == pytest.approx(FIRST_SWITCH, abs=1e-9)
@@ -122,13 +137,16 @@ def test_messages_and_roles_on_the_handover(tmp_path):
     from hybridteam import load
 
     path = tmp_path / "handover.yaml"
-    path.write_text((EXAMPLES / "protocols" / "handover.yaml").read_text() + """
+    path.write_text(
+        (EXAMPLES / "protocols" / "handover.yaml").read_text()
+        + """
 requirements:
   one_leader: always(count_in_role(lead) <= 1)
   answered: always(implies(sent(labmate, request), eventually[0, 0.1](received(labmate, grant))))
   quick: always(implies(sent(labmate, request), eventually[0, 0.05](received(grant))))
   leads_later: eventually[3, 4](in_role(labmate, lead))
-""")
+"""
+    )
     v = verdicts(simulate(load(path)))
     assert v["one_leader"] == {"satisfied": True, "robustness": 0.0}  # 1 - 1 leader
     assert v["answered"]["satisfied"] is True
@@ -160,8 +178,11 @@ def test_bad_requirements_are_located_errors(tmp_path, capsys, line, words):
 
 def test_a_temporal_operator_in_a_guard_is_a_located_error(tmp_path, capsys):
     path = tmp_path / "team.yaml"
-    path.write_text(THERMOSTAT.replace("guard: x >= high", "guard: always(x >= high)")
-                    .replace("requirements:\n", ""))
+    path.write_text(
+        THERMOSTAT.replace("guard: x >= high", "guard: always(x >= high)").replace(
+            "requirements:\n", ""
+        )
+    )
     with pytest.raises(InputErrors) as info:
         from hybridteam import load
 
@@ -190,9 +211,10 @@ def test_a_discrete_variable_is_read_after_each_instant():
     from hybridteam.model import Requirement
 
     ball = load(EXAMPLES / "automata" / "bouncing_ball.yaml")
-    reqs = (Requirement("few", "always(bounces <= 3)", None, ("requirements", "few")),
-            Requirement("counted", "eventually(ball.bounces >= 10)", None,
-                        ("requirements", "counted")))
+    reqs = (
+        Requirement("few", "always(bounces <= 3)", None, ("requirements", "few")),
+        Requirement("counted", "eventually(ball.bounces >= 10)", None, ("requirements", "counted")),
+    )
     run = simulate(dataclasses.replace(ball, requirements=reqs), duration=2.0)
     g, e, v1 = 9.81, 0.7, math.sqrt(2 * 9.81)
     impacts = [math.sqrt(2 / g)]
@@ -216,9 +238,9 @@ def test_a_study_tables_satisfaction_and_minimum_robustness(tmp_path):
     from hybridteam.sweep.run import run_study
     from hybridteam.sweep.study import load_study
 
-    (tmp_path / "thermostat.yaml").write_text(
-        THERMOSTAT + "  upper: always(x <= 22.1)\n")
-    (tmp_path / "study.yaml").write_text(textwrap.dedent("""\
+    (tmp_path / "thermostat.yaml").write_text(THERMOSTAT + "  upper: always(x <= 22.1)\n")
+    (tmp_path / "study.yaml").write_text(
+        textwrap.dedent("""\
         kind: study
         team: thermostat.yaml
         duration: 10.0
@@ -226,7 +248,8 @@ def test_a_study_tables_satisfaction_and_minimum_robustness(tmp_path):
         factors:
           thermostat.high: [21.0, 22.05, 22.3]
         repetitions: 2
-        """))
+        """)
+    )
     result = run_study(load_study(tmp_path / "study.yaml"), tmp_path / "out")
     rows = {float(r["value"]): r for r in result.table.rows}
     for high, want_ok in ((21.0, 1.0), (22.05, 1.0), (22.3, 0.0)):
@@ -257,4 +280,5 @@ def test_the_timeline_marks_a_violation_at_its_time(team_from_yaml, tmp_path):
     assert any(t.get_text().strip() == "tight" for t in ax.texts)
     legend = ax.get_legend()
     assert legend is not None and "requirement violated" in [
-        t.get_text() for t in legend.get_texts()]
+        t.get_text() for t in legend.get_texts()
+    ]

@@ -82,8 +82,9 @@ def test_until_by_hand():
     low = row([1, 2, 4, 1, 5])
     assert R.until(t, low, psi, 2, 3)[0, 0] == 1
     # infinities pass through min/max untouched: psi only at t = 2 (7), phi always true
-    assert R.until(t, row([INF] * 5), row([-INF, -INF, 7, -INF, -INF]), 0, 2).tolist() \
-        == [[7, 7, 7, -INF, -INF]]
+    assert R.until(t, row([INF] * 5), row([-INF, -INF, 7, -INF, -INF]), 0, 2).tolist() == [
+        [7, 7, 7, -INF, -INF]
+    ]
 
 
 def test_a_sine_on_nine_points_to_1e_12():
@@ -132,7 +133,7 @@ def test_padded_rows_match_their_unpadded_grids():
     for a, b in ((0, 1), (0.5, 2), (1, INF), (0, 0)):
         both = (R.always(t, rho, a, b), R.eventually(t, rho, a, b), R.until(t, rho, psi, a, b))
         for r, size in ((0, 5), (1, 3)):
-            g, p, q = t[r, :size], rho[r:r + 1, :size], psi[r:r + 1, :size]
+            g, p, q = t[r, :size], rho[r : r + 1, :size], psi[r : r + 1, :size]
             alone = (R.always(g, p, a, b), R.eventually(g, p, a, b), R.until(g, p, q, a, b))
             for got, want in zip(both, alone, strict=True):
                 assert got[r, :size].tolist() == want[0].tolist()
@@ -150,11 +151,14 @@ def test_each_row_has_its_own_grid():
     # a shared (K,) grid, padded or not, is the same as that grid on every row
     for grid in (t[1], np.array([0.0, 0.5, 1.0, INF])):
         for op in (R.always, R.eventually):
-            assert np.array_equal(op(grid, rho, 0.5, 1), op(np.tile(grid, (2, 1)), rho, 0.5, 1),
-                                  equal_nan=True)
-        assert np.array_equal(R.until(grid, rho, 2.5 - rho, 0.5, 1),
-                              R.until(np.tile(grid, (2, 1)), rho, 2.5 - rho, 0.5, 1),
-                              equal_nan=True)
+            assert np.array_equal(
+                op(grid, rho, 0.5, 1), op(np.tile(grid, (2, 1)), rho, 0.5, 1), equal_nan=True
+            )
+        assert np.array_equal(
+            R.until(grid, rho, 2.5 - rho, 0.5, 1),
+            R.until(np.tile(grid, (2, 1)), rho, 2.5 - rho, 0.5, 1),
+            equal_nan=True,
+        )
 
 
 def test_empty_ensembles_and_grids_keep_their_shape():
@@ -175,8 +179,7 @@ def _brute(t: np.ndarray, phi: np.ndarray, psi: np.ndarray, a: float, b: float) 
             win = [j for j in range(len(g)) if g[i] + a <= g[j] <= g[i] + b]
             out["always"][r, i] = min((phi[r, j] for j in win), default=INF)
             out["eventually"][r, i] = max((phi[r, j] for j in win), default=-INF)
-            out["until"][r, i] = max((min([psi[r, j], *phi[r, i:j]]) for j in win),
-                                     default=-INF)
+            out["until"][r, i] = max((min([psi[r, j], *phi[r, i:j]]) for j in win), default=-INF)
     return out
 
 
@@ -187,7 +190,7 @@ def test_irregular_padded_grids_against_the_definitions(monkeypatch):
         n, k = 5, int(rng.integers(1, 70))
         t = np.cumsum(rng.choice([0.25, 0.5, 1.0, 3.0], (n, k)), axis=1)
         for r in range(n):
-            t[r, int(rng.integers(1, k + 1)):] = INF
+            t[r, int(rng.integers(1, k + 1)) :] = INF
         values = [-2.0, -1.0, 0.0, 1.5, INF, -INF] if case % 2 else [INF, -INF]  # Boolean
         phi, psi = (rng.choice(values, (n, k)) for _ in "ab")
         a = float(rng.choice([0.0, 0.25, 1.0, 2.0]))
@@ -208,13 +211,19 @@ def _formulas(period: float, depth: int) -> st.SearchStrategy:
         return atoms
     sub = _formulas(period, depth - 1)
     # b up to 12 periods: windows reach past the end of short traces (K >= 5)
-    window = st.one_of(st.none(), st.tuples(st.integers(0, 6), st.integers(0, 6)).map(
-        lambda aw: (aw[0] * period, (aw[0] + aw[1]) * period)))
+    window = st.one_of(
+        st.none(),
+        st.tuples(st.integers(0, 6), st.integers(0, 6)).map(
+            lambda aw: (aw[0] * period, (aw[0] + aw[1]) * period)
+        ),
+    )
     return st.one_of(
-        atoms, st.tuples(st.just("not"), sub),
+        atoms,
+        st.tuples(st.just("not"), sub),
         st.tuples(st.sampled_from(["and", "or"]), sub, sub),
         st.tuples(st.sampled_from(["always", "eventually"]), window, sub),
-        st.tuples(st.just("until"), window, sub, sub))
+        st.tuples(st.just("until"), window, sub, sub),
+    )
 
 
 def _text(f: tuple) -> str:
@@ -254,8 +263,9 @@ def test_random_formulas_agree_with_rtamt(data):
     rtamt = pytest.importorskip("rtamt")
     period = data.draw(st.sampled_from([1.0, 0.5]))
     k = data.draw(st.integers(5, 40))
-    value = st.one_of(st.integers(-200, 200).map(lambda v: v / 100),
-                      st.floats(-2, 2).map(lambda v: round(v, 3)))
+    value = st.one_of(
+        st.integers(-200, 200).map(lambda v: v / 100), st.floats(-2, 2).map(lambda v: round(v, 3))
+    )
     values = st.lists(value, min_size=k, max_size=k)
     x, y = np.array(data.draw(values)), np.array(data.draw(values))
     formula = data.draw(_formulas(period, 3))
@@ -283,12 +293,16 @@ def test_random_formulas_agree_with_rtamt(data):
 
 
 # --------------------------------------------------------------------- bad arguments
-@pytest.mark.parametrize("a, b", [(3, 1), (-1, 2), (math.nan, 1), (0, math.nan),
-                                  (INF, INF), ("x", 1)])
+@pytest.mark.parametrize(
+    "a, b", [(3, 1), (-1, 2), (math.nan, 1), (0, math.nan), (INF, INF), ("x", 1)]
+)
 def test_bad_windows_are_refused(a, b):
     t, rho = np.arange(3.0), np.zeros((1, 3))
-    for call in (lambda: R.always(t, rho, a, b), lambda: R.eventually(t, rho, a, b),
-                 lambda: R.until(t, rho, rho, a, b)):
+    for call in (
+        lambda: R.always(t, rho, a, b),
+        lambda: R.eventually(t, rho, a, b),
+        lambda: R.until(t, rho, rho, a, b),
+    ):
         with pytest.raises(ValueError, match="bad window"):
             call()
 
@@ -303,8 +317,12 @@ def test_bad_shapes_and_grids_are_refused():
         R.eventually(np.arange(3.0), np.zeros(3), 0, 1)
     with pytest.raises(ValueError, match="differ"):
         R.until(np.arange(3.0), rho, np.zeros((1, 3)), 0, 1)
-    for grid, why in (([0.0, np.nan, 2.0], "NaN"), ([0.0, -INF, 2.0], "NaN"),
-                      ([0.0, 2.0, 1.0], "increase"), ([0.0, 1.0, 1.0], "increase"),
-                      ([0.0, INF, 2.0], "increase")):
+    for grid, why in (
+        ([0.0, np.nan, 2.0], "NaN"),
+        ([0.0, -INF, 2.0], "NaN"),
+        ([0.0, 2.0, 1.0], "increase"),
+        ([0.0, 1.0, 1.0], "increase"),
+        ([0.0, INF, 2.0], "increase"),
+    ):
         with pytest.raises(ValueError, match=why):
             R.always(np.array(grid), rho, 0, 1)

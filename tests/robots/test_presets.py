@@ -75,14 +75,16 @@ def test_the_scout_and_the_omni_robot():
     assert omni.plant.kind == "holonomic" and omni.plant.limits == {}
     assert omni.bounds() == ([-math.inf] * 3, [math.inf] * 3)
     from hybridteam.modes.ladder.params import Robot  # the ladder library's defaults
+
     assert omni.footprint.radius == Robot().radius
     assert (omni.manipulator.spring, omni.manipulator.limit) == (Robot().sc, Robot().olim)
 
 
 def test_an_override_changes_one_leaf_and_keeps_the_rest():
     base = load_presets()["xr4000"]
-    tuned = resolve("xr4000", {"sensors": {"ir": {"max_range": 0.6}},
-                               "plant": {"limits": {"vx": [-0.3, 0.3]}}})
+    tuned = resolve(
+        "xr4000", {"sensors": {"ir": {"max_range": 0.6}}, "plant": {"limits": {"vx": [-0.3, 0.3]}}}
+    )
     assert tuned.ring("ir").max_range == 0.6
     assert tuned.plant.limits == {**base.plant.limits, "vx": (-0.3, 0.3)}
     want = base.model_dump()
@@ -95,18 +97,21 @@ def test_an_override_changes_one_leaf_and_keeps_the_rest():
 def test_overrides_remove_replace_and_add():
     lab = resolve("labmate", {"manipulator": None})
     assert lab.manipulator is None
-    scout = resolve("scout", {"sensors": {"bumper": None,
-                                          "ir": {"kind": "range_ring", "count": 8,
-                                                 "max_range": 0.4}}})
+    scout = resolve(
+        "scout",
+        {"sensors": {"bumper": None, "ir": {"kind": "range_ring", "count": 8, "max_range": 0.4}}},
+    )
     assert sorted(scout.sensors) == ["encoders", "ir", "sonar"]
     assert scout.ring("ir").mount_radius == scout.footprint.radius
-    swapped = resolve("labmate", {"manipulator": {"kind": "spring_link", "spring": 2.0,
-                                                  "limit": 0.2}})
+    swapped = resolve(
+        "labmate", {"manipulator": {"kind": "spring_link", "spring": 2.0, "limit": 0.2}}
+    )
     assert swapped.manipulator.kind == "spring_link" and swapped.manipulator.mount == (0, 0)
     bigger = resolve("xr4000", {"footprint": {"radius": 0.4}})
     assert bigger.ring("sonar").mount_radius == 0.4  # rings sit on the hull
-    assert deep_merge({"a": {"b": 1, "c": [1, 2]}, "d": 1}, {"a": {"c": [3]}, "d": None}) \
-        == {"a": {"b": 1, "c": [3]}}
+    assert deep_merge({"a": {"b": 1, "c": [1, 2]}, "d": 1}, {"a": {"c": [3]}, "d": None}) == {
+        "a": {"b": 1, "c": [3]}
+    }
 
 
 def test_unknown_model_sensor_and_field_are_named():
@@ -117,8 +122,7 @@ def test_unknown_model_sensor_and_field_are_named():
     with pytest.raises(ModelError, match="xr4000 has no sensor 'irr'; did you mean 'ir'") as exc:
         resolve("xr4000", {"sensors": {"irr": {"max_range": 1.0}}})
     assert exc.value.path == ("sensors", "irr")
-    with pytest.raises(ModelError, match="unknown key 'max_rang'; did you mean 'max_range'") \
-            as exc:
+    with pytest.raises(ModelError, match="unknown key 'max_rang'; did you mean 'max_range'") as exc:
         resolve("xr4000", {"sensors": {"ir": {"max_rang": 0.6}}})
     assert exc.value.path == ("sensors", "ir", "max_rang")
     with pytest.raises(ModelError, match="holonomic has no input 'v'"):
@@ -134,16 +138,20 @@ def test_unknown_model_sensor_and_field_are_named():
 
 def test_a_broken_presets_file_is_reported_with_lines(tmp_path):
     path = tmp_path / "robots.yaml"
-    path.write_text(textwrap.dedent("""\
+    path.write_text(
+        textwrap.dedent("""\
         tiny:
           plant: {kind: unicycle}
           footprint: {radius: 0.1}
           sensors:
             sonar: {kind: range_ring, count: 8, max_range: 3, cone_deg: 25, rays_per_bem: 3}
-        """))
+        """)
+    )
     with pytest.raises(PresetErrors) as exc:
         load_presets(path)
-    assert str(exc.value) == (f"{path}:5:69: tiny.sensors.sonar.rays_per_bem: unknown key "
-                              "'rays_per_bem'; did you mean 'rays_per_beam'?")
+    assert str(exc.value) == (
+        f"{path}:5:69: tiny.sensors.sonar.rays_per_bem: unknown key "
+        "'rays_per_bem'; did you mean 'rays_per_beam'?"
+    )
     path.write_text(path.read_text().replace("rays_per_bem", "rays_per_beam"))
     assert resolve("tiny", source=path).ring("sonar").rays_per_beam == 3

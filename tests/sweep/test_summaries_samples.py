@@ -22,11 +22,14 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 COUNTS = {"message", "transitions", "messages"}
 
 
-@pytest.mark.parametrize("name, duration", [
-    ("automata/thermostat.yaml", None),
-    ("ladder/sample.yaml", None),
-    ("transport/experiment1.yaml", 20.0),
-])
+@pytest.mark.parametrize(
+    "name, duration",
+    [
+        ("automata/thermostat.yaml", None),
+        ("ladder/sample.yaml", None),
+        ("transport/experiment1.yaml", 20.0),
+    ],
+)
 def test_a_run_without_samples_is_the_run_with_them(name, duration):
     team = load(EXAMPLES / name)
     cteam = compile_team(team)

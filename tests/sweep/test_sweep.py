@@ -107,11 +107,15 @@ def test_plan_orders_runs_seeds_and_members(study):
     # settings but never across factors
     assert [c.size for c in plan.chunks] == [3] * 16 + [3] * 10 + [2]
     assert [c.group for c in plan.chunks] == [0] * 16 + [1] * 11
-    assert all({plan.settings[s].factor for s in plan.setting_of(np.arange(c.start, c.stop))}
-               == {("p_loss", "latency")[c.group]} for c in plan.chunks)
+    assert all(
+        {plan.settings[s].factor for s in plan.setting_of(np.arange(c.start, c.stop))}
+        == {("p_loss", "latency")[c.group]}
+        for c in plan.chunks
+    )
     children = np.random.SeedSequence(study.seed).spawn(plan.runs)
-    assert plan.seeds(0, plan.runs) == [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1))
-                                        for c in children]
+    assert plan.seeds(0, plan.runs) == [
+        int(c.generate_state(1, np.uint64)[0] >> np.uint64(1)) for c in children
+    ]
     task = plan.task(plan.chunks[1])  # runs 3, 4, 5: members 1, 2, 2; repetitions 1, 0, 1
     assert task.members == [1, 2, 2] and task.repetitions == [1, 0, 1]
     np.testing.assert_array_equal(task.overrides["d"], plan.draws()["d"][[1, 2, 2]])
@@ -134,13 +138,18 @@ def test_members_do_not_depend_on_the_population_size(study):
 
 
 def test_population_set_fixes_parameters_a_factor_may_vary(tmp_path):
-    path = _study(tmp_path, """\
+    path = _study(
+        tmp_path,
+        """\
         population: {size: 3, set: {d: 0.02, asker.wait: 2}}
         factors: {wait: [1]}
-        """)
+        """,
+    )
     plan = Plan(load_study(path))
     assert {k: v.tolist() for k, v in plan.draws().items()} == {
-        "d": [0.02] * 3, "asker.wait": [2.0] * 3}
+        "d": [0.02] * 3,
+        "asker.wait": [2.0] * 3,
+    }
     overrides = plan.task(plan.chunks[0]).overrides
     assert list(overrides) == ["d", "asker.wait", "wait"]  # in order: the factor's 1 wins
     assert overrides["wait"].tolist() == [1.0] * 3
@@ -152,8 +161,10 @@ def test_restrict_keeps_some_values_and_the_population(study):
     part = restrict(study, p_loss=[0.3], wait_time=[1])
     plan, full = Plan(part), Plan(study)
     assert [(s.factor, s.label, s.axes) for s in plan.settings] == [
-        ("p_loss", "0.3", (("wait_time", 1.0),)), ("latency", "0.01", (("wait_time", 1.0),)),
-        ("latency", "0.2", (("wait_time", 1.0),))]
+        ("p_loss", "0.3", (("wait_time", 1.0),)),
+        ("latency", "0.01", (("wait_time", 1.0),)),
+        ("latency", "0.2", (("wait_time", 1.0),)),
+    ]
     assert all(np.array_equal(plan.draws()[k], v) for k, v in full.draws().items())
     assert part.digest != study.digest
     assert {s.factor for s in Plan(restrict(study, latency=[])).settings} == {"p_loss"}
@@ -179,14 +190,27 @@ def test_local_pool_gives_the_same_table(study, reference, tmp_path):
 
 def test_dask_cluster_gives_the_same_table(study, reference, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         with distributed.Client(cluster) as client:
             result = run_study(study, tmp_path / "client", client=client, chunk=5)
             assert result.executor.startswith("Dask at ")
         # the command line connects to a scheduler by address
-        assert main(["sweep", str(STUDY), "-o", str(tmp_path / "cli"), "--scheduler",
-                     cluster.scheduler_address, "--quiet"]) == 0
+        assert (
+            main(
+                [
+                    "sweep",
+                    str(STUDY),
+                    "-o",
+                    str(tmp_path / "cli"),
+                    "--scheduler",
+                    cluster.scheduler_address,
+                    "--quiet",
+                ]
+            )
+            == 0
+        )
     for out in ("client", "cli"):
         assert (tmp_path / out / "results.csv").read_bytes() == reference[1]
 
@@ -204,18 +228,20 @@ def test_parquet_and_csv_chunks_give_the_same_table(study, reference, tmp_path):
     assert (tmp_path / "results.csv").read_bytes() == reference[1]
 
 
-@pytest.mark.parametrize(("workers", "chunk"), [
-    (1, 500),  # one process: the study's size
-    (2, 4),    # 8 runs: two chunks of 4
-    (3, 3),    # ceil(8 / 3): chunks of 3, 3 and 2
-    (5, 1),    # ceil(8 / 5) = 2 makes only four chunks; one run each makes eight
-    (16, 1),   # more workers than runs: a run per chunk
-])
+@pytest.mark.parametrize(
+    ("workers", "chunk"),
+    [
+        (1, 500),  # one process: the study's size
+        (2, 4),  # 8 runs: two chunks of 4
+        (3, 3),  # ceil(8 / 3): chunks of 3, 3 and 2
+        (5, 1),  # ceil(8 / 5) = 2 makes only four chunks; one run each makes eight
+        (16, 1),  # more workers than runs: a run per chunk
+    ],
+)
 def test_workers_asked_for_get_chunks_of_a_small_study(tmp_path, workers, chunk):
     from hybridteam.sweep.plan import spread_chunk
 
-    study = load_study(_study(tmp_path, "population: {size: 4}\n"
-                              "factors:\n  p_loss: [0.0, 0.3]\n"))
+    study = load_study(_study(tmp_path, "population: {size: 4}\nfactors:\n  p_loss: [0.0, 0.3]\n"))
     assert (study.chunk, Plan(study).runs) == (500, 8)
     assert spread_chunk(study, workers) == chunk
     assert len(Plan(study, chunk).chunks) >= min(workers, 8)
@@ -235,39 +261,49 @@ def test_a_study_cut_finely_enough_keeps_its_chunk_size(study):
 def test_sweep_with_workers_uses_them_on_a_small_study(tmp_path, capsys):
     """--workers 2 on 8 runs of one factor: two chunks on two processes, the same table as
     in this process; resuming without --workers keeps the folder's chunk size."""
-    path = _study(tmp_path, "duration: 3.0\npopulation: {size: 4}\n"
-                  "factors:\n  p_loss: [0.0, 0.3]\n")
+    path = _study(
+        tmp_path, "duration: 3.0\npopulation: {size: 4}\nfactors:\n  p_loss: [0.0, 0.3]\n"
+    )
     assert main(["sweep", str(path), "-o", str(tmp_path / "pool"), "--workers", "2"]) == 0
     assert "8 runs in 2 chunks (2 computed, 2 local processes)" in capsys.readouterr().out
     assert json.loads((tmp_path / "pool" / "study.json").read_text())["chunk"] == 4
     run_study(load_study(path), tmp_path / "alone")
-    assert (tmp_path / "pool" / "results.csv").read_bytes() == \
-        (tmp_path / "alone" / "results.csv").read_bytes()
+    assert (tmp_path / "pool" / "results.csv").read_bytes() == (
+        tmp_path / "alone" / "results.csv"
+    ).read_bytes()
     half = run_study(load_study(path), tmp_path / "half", workers=2, max_chunks=1)
     assert half.plan.chunk == 4 and not half.complete
     rest = run_study(load_study(path), tmp_path / "half")
-    assert rest.plan.chunk == 4 and rest.reused == half.computed and rest.executor == \
-        "in-process"
-    assert (tmp_path / "half" / "results.csv").read_bytes() == \
-        (tmp_path / "alone" / "results.csv").read_bytes()
+    assert rest.plan.chunk == 4 and rest.reused == half.computed and rest.executor == "in-process"
+    assert (tmp_path / "half" / "results.csv").read_bytes() == (
+        tmp_path / "alone" / "results.csv"
+    ).read_bytes()
     # a --chunk that makes one chunk: the output says why the workers were not used
-    assert main(["sweep", str(path), "-o", str(tmp_path / "one"), "--workers", "2",
-                 "--chunk", "8"]) == 0
+    assert (
+        main(["sweep", str(path), "-o", str(tmp_path / "one"), "--workers", "2", "--chunk", "8"])
+        == 0
+    )
     assert "(1 computed, in-process: one chunk to compute)" in capsys.readouterr().out
 
 
 def test_a_factor_may_set_a_network_setting(tmp_path, capsys):
     """``network.loss`` as a factor's key: the handshake always completes at loss 0 and
     never at loss 1 (both messages must arrive); a misspelt setting is located."""
-    path = _study(tmp_path, "population: {size: 2}\n"
-                  "factors:\n  loss: {key: network.loss, values: [0.0, 1.0]}\n")
+    path = _study(
+        tmp_path,
+        "population: {size: 2}\nfactors:\n  loss: {key: network.loss, values: [0.0, 1.0]}\n",
+    )
     table = run_study(load_study(path), tmp_path / "out").table
-    assert [(r["value"], r["runs"], r["success_rate"]) for r in table.rows] == \
-        [("0", 2, 1.0), ("1", 2, 0.0)]
+    assert [(r["value"], r["runs"], r["success_rate"]) for r in table.rows] == [
+        ("0", 2, 1.0),
+        ("1", 2, 0.0),
+    ]
     path.write_text(path.read_text().replace("network.loss", "network.los"))
     assert main(["validate", str(path)]) == 2
-    assert f"{path}:5:15: factors.loss.key: override 'network.los' names no network " \
+    assert (
+        f"{path}:5:15: factors.loss.key: override 'network.los' names no network "
         "setting of team 'handshake'; did you mean 'network.loss'?" in capsys.readouterr().err
+    )
 
 
 # ------------------------------------------------------------------ resuming
@@ -303,7 +339,8 @@ def test_a_damaged_chunk_is_computed_again_on_resume(study, reference, tmp_path,
     else:  # one row of three, with a checksum made to match
         victim.write_text("\n".join(text.splitlines()[:2]) + "\n")
         victim.with_name(victim.name + ".sha256").write_text(
-            hashlib.sha256(victim.read_bytes()).hexdigest() + "\n")
+            hashlib.sha256(victim.read_bytes()).hexdigest() + "\n"
+        )
     result = run_study(study, tmp_path, chunk=3, fmt="csv")
     assert victim.stem in result.computed and victim.stem not in result.reused
     (warning,) = [w for w in result.warnings if victim.name in w]
@@ -312,7 +349,8 @@ def test_a_damaged_chunk_is_computed_again_on_resume(study, reference, tmp_path,
 
 
 def test_a_resume_warning_goes_through_logging_and_the_cli_prints_it_once(
-        study, tmp_path, caplog, capsys):
+    study, tmp_path, caplog, capsys
+):
     """The library says it computes a damaged chunk again through its module logger (a
     program sees it in its logging, not only in ``Outcome.warnings``); the command line
     prints the same warning once, as its own ``hybridteam: warning:`` line."""
@@ -334,8 +372,7 @@ def test_a_resume_warning_goes_through_logging_and_the_cli_prints_it_once(
 
     victim = damaged(tmp_path / "cli")
     capsys.readouterr()
-    assert main(["sweep", str(STUDY), "-o", str(tmp_path / "cli"), "--chunk", "3",
-                 "--quiet"]) == 0
+    assert main(["sweep", str(STUDY), "-o", str(tmp_path / "cli"), "--chunk", "3", "--quiet"]) == 0
     err = capsys.readouterr().err
     assert err.count("hybridteam: warning:") == 1, err
     assert f"hybridteam: warning: {victim}: " in err
@@ -361,30 +398,60 @@ def _study(tmp_path, body: str):
     return path
 
 
-@pytest.mark.parametrize(("body", "where", "message"), [
-    ("repetitons: 2\n", "3:1: repetitons", "unknown key 'repetitons'; did you mean "
-     "'repetitions'?"),
-    ("factors:\n  p_los: [0.1]\n", "4:3: factors.p_los", "override 'p_los' names no "
-     "parameter of team 'handshake'; did you mean 'p_loss'?"),
-    ("axes:\n  loss: {key: asker.dd, values: [0.1]}\n", "4:15: axes.loss.key",
-     "did you mean 'asker.d'?"),
-    ("population:\n  draws:\n    d: {uniform: [2, 1]}\n", "5:8: population.draws.d",
-     "lo must be <= hi"),
-    ("factors:\n  v: {keys: [asker.d, granter.d], values: [[0.1, 0.2, 0.3]]}\n",
-     "4:44: factors.v.values[0]", "expected 2 (asker.d, granter.d), got 3"),
-    ("metrics: [t_ned]\n", "3:11: metrics[0]", "did you mean 't_end'?"),
-    ("axes:\n  runs: [1, 2]\n", "4:3: axes", "axis name 'runs' is taken"),
-    ("axes:\n  d: [0.1]\nfactors:\n  d: [0.2]\n", "6:3: factors.d",
-     "'d' sets asker.d, which axis 'd' sets too"),
-    ("axes:\n  start: {key: wait, values: [1]}\nfactors:\n  w: {key: granter.wait, "
-     "values: [2]}\n", "6:3: factors.w", "'granter.wait' sets granter.wait, which axis "
-     "'start' sets too"),
-    ("chunk: 0\n", "3:8: chunk", "must be >= 1"),
-    ("population:\n  set: {wiat: 1}\n", "4:9: population.set.wiat", "override 'wiat' names "
-     "no parameter of team 'handshake'; did you mean 'wait'?"),
-    ("population:\n  set: {d: 0.02}\n  draws:\n    d: {uniform: [0.01, 0.05]}\n",
-     "6:5: population.draws.d", "'d' sets asker.d, which population.set 'd' sets too"),
-])
+@pytest.mark.parametrize(
+    ("body", "where", "message"),
+    [
+        (
+            "repetitons: 2\n",
+            "3:1: repetitons",
+            "unknown key 'repetitons'; did you mean 'repetitions'?",
+        ),
+        (
+            "factors:\n  p_los: [0.1]\n",
+            "4:3: factors.p_los",
+            "override 'p_los' names no parameter of team 'handshake'; did you mean 'p_loss'?",
+        ),
+        (
+            "axes:\n  loss: {key: asker.dd, values: [0.1]}\n",
+            "4:15: axes.loss.key",
+            "did you mean 'asker.d'?",
+        ),
+        (
+            "population:\n  draws:\n    d: {uniform: [2, 1]}\n",
+            "5:8: population.draws.d",
+            "lo must be <= hi",
+        ),
+        (
+            "factors:\n  v: {keys: [asker.d, granter.d], values: [[0.1, 0.2, 0.3]]}\n",
+            "4:44: factors.v.values[0]",
+            "expected 2 (asker.d, granter.d), got 3",
+        ),
+        ("metrics: [t_ned]\n", "3:11: metrics[0]", "did you mean 't_end'?"),
+        ("axes:\n  runs: [1, 2]\n", "4:3: axes", "axis name 'runs' is taken"),
+        (
+            "axes:\n  d: [0.1]\nfactors:\n  d: [0.2]\n",
+            "6:3: factors.d",
+            "'d' sets asker.d, which axis 'd' sets too",
+        ),
+        (
+            "axes:\n  start: {key: wait, values: [1]}\nfactors:\n  w: {key: granter.wait, "
+            "values: [2]}\n",
+            "6:3: factors.w",
+            "'granter.wait' sets granter.wait, which axis 'start' sets too",
+        ),
+        ("chunk: 0\n", "3:8: chunk", "must be >= 1"),
+        (
+            "population:\n  set: {wiat: 1}\n",
+            "4:9: population.set.wiat",
+            "override 'wiat' names no parameter of team 'handshake'; did you mean 'wait'?",
+        ),
+        (
+            "population:\n  set: {d: 0.02}\n  draws:\n    d: {uniform: [0.01, 0.05]}\n",
+            "6:5: population.draws.d",
+            "'d' sets asker.d, which population.set 'd' sets too",
+        ),
+    ],
+)
 def test_bad_study_files_name_file_line_and_field(tmp_path, capsys, body, where, message):
     path = _study(tmp_path, body)
     assert main(["sweep", str(path), "-o", str(tmp_path / "out")]) == 2
@@ -414,24 +481,46 @@ def test_bad_arguments_exit_2(tmp_path, capsys):
 
 # ------------------------------------------------------------------ table and report
 def test_aggregation_by_hand(tmp_path):
-    path = _study(tmp_path, """\
+    path = _study(
+        tmp_path,
+        """\
         population: {size: 2}
         factors: {p_loss: [0.1, 0.2]}
         success: [ok]
         outcomes: [ok, stuck]
         metrics: [t_end]
-        """)
+        """,
+    )
     plan = Plan(load_study(path))
-    runs = {"run": [3, 0, 1, 2],  # any order: the table is by setting
-            "outcome": ["deadlock", "ok", "ok", "zeno"],
-            "metric_t_end": [9.0, metric_value([1, 2, 3]), math.nan, 5.0]}
+    runs = {
+        "run": [3, 0, 1, 2],  # any order: the table is by setting
+        "outcome": ["deadlock", "ok", "ok", "zeno"],
+        "metric_t_end": [9.0, metric_value([1, 2, 3]), math.nan, 5.0],
+    }
     table = aggregate(plan, runs)
-    assert table.columns == ["factor", "value", "runs", "ok", "stuck", "zeno", "deadlock",
-                             "success_rate", "mean_t_end"]
+    assert table.columns == [
+        "factor",
+        "value",
+        "runs",
+        "ok",
+        "stuck",
+        "zeno",
+        "deadlock",
+        "success_rate",
+        "mean_t_end",
+    ]
     first, second = table.rows
-    assert first == {"factor": "p_loss", "value": "0.1", "runs": 2, "ok": 2, "stuck": 0,
-                     "zeno": 0, "deadlock": 0, "success_rate": 1.0,
-                     "mean_t_end": 2.0}  # a list averaged over its elements; NaN left out
+    assert first == {
+        "factor": "p_loss",
+        "value": "0.1",
+        "runs": 2,
+        "ok": 2,
+        "stuck": 0,
+        "zeno": 0,
+        "deadlock": 0,
+        "success_rate": 1.0,
+        "mean_t_end": 2.0,
+    }  # a list averaged over its elements; NaN left out
     assert second["runs"] == 2 and second["zeno"] == 1 and second["deadlock"] == 1
     assert second["success_rate"] == 0.0 and math.isnan(second["mean_t_end"])
     assert table.to_csv().splitlines()[2] == "p_loss,0.2,2,0,0,1,1,0.0,nan"
@@ -473,16 +562,19 @@ def test_validate_and_schema_know_study_files(tmp_path, capsys):
     assert '"population"' in schema and '"factors"' in schema
 
 
-def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, capsys,
-                                                 monkeypatch):
+def test_sweep_progress_lines_without_a_terminal(study, reference, tmp_path, capsys, monkeypatch):
     """A study run from a script or CI says how far it is, in lines, with an estimate
     (the clock here ticks a second per reading, so the two-second grace is soon over)."""
     from hybridteam import progress
 
     clock = iter(range(0, 10_000))
     monkeypatch.setattr(progress.time, "perf_counter", lambda: float(next(clock)))
-    assert main(["sweep", str(STUDY), "-o", str(tmp_path / "out"), "--chunk", "9",
-                 "--progress", "log"]) == 0
+    assert (
+        main(
+            ["sweep", str(STUDY), "-o", str(tmp_path / "out"), "--chunk", "9", "--progress", "log"]
+        )
+        == 0
+    )
     lines = [x for x in capsys.readouterr().err.splitlines() if "runs (" in x]
     total = reference[0].plan.runs
     assert lines[-1].startswith(f"hybridteam: {study.name}: {total:,}/{total:,} runs (100%)")

@@ -20,11 +20,19 @@ def test_a_worker_restores_glibc_malloc_thresholds_only_where_they_were_set():
     code = "from hybridteam.sweep.tuning import restore_malloc as r; print(r(), r())"
 
     def tuned(**env: str) -> str:
-        clean = {k: v for k, v in os.environ.items()
-                 if k not in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_",
-                              "HYBRIDTEAM_KEEP_MALLOC")}
-        done = subprocess.run([sys.executable, "-c", code], env={**clean, **env},
-                              capture_output=True, text=True, check=True)
+        clean = {
+            k: v
+            for k, v in os.environ.items()
+            if k
+            not in ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_", "HYBRIDTEAM_KEEP_MALLOC")
+        }
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            env={**clean, **env},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         return done.stdout.strip()
 
     assert tuned() == "False False"
@@ -78,9 +86,12 @@ def _inside_and_after() -> tuple[bool, bool, bool]:
 
 def test_a_dask_worker_pauses_its_profiler_for_a_chunk_and_resumes_it():
     distributed = pytest.importorskip("dask.distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         paused, inside, after = client.submit(_inside_and_after, pure=False).result()
     assert (paused, inside, after) == (True, False, True)
 

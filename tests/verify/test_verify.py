@@ -27,18 +27,20 @@ SCENARIO = {
 NO_OPERATOR = "  no_operator: always(not in_mode(operator, Command))\n"
 
 
-def roles_team(tmp_path: Path, events: str, protocol: str = PROTOCOL, extra: str = "",
-               without_c: bool = False):
+def roles_team(
+    tmp_path: Path, events: str, protocol: str = PROTOCOL, extra: str = "", without_c: bool = False
+):
     """The example's three robots and operator (``without_c``: two robots) with a
     (mutated) protocol beside them, the scenario's events ``events`` (a subset of 'bca')
     and extra requirements."""
     text = ROLES.replace("protocol: role_assignment", "protocol: mutant.yaml").replace(
-        "operator: role_assignment", "operator: mutant.yaml")
+        "operator: role_assignment", "operator: mutant.yaml"
+    )
     if without_c:
-        text = text[:text.index("  c:\n")] + text[text.index("  operator:\n"):]
-        text = text[:text.index("  c_answered:")] + text[text.index("simulation:"):]
+        text = text[: text.index("  c:\n")] + text[text.index("  operator:\n") :]
+        text = text[: text.index("  c_answered:")] + text[text.index("simulation:") :]
     head, rest = text.split("scenario:\n", 1)
-    reqs = rest[rest.index("requirements:\n"):]
+    reqs = rest[rest.index("requirements:\n") :]
     text = head + "scenario:\n" + "".join(SCENARIO[e] for e in events) + reqs
     text = text.replace("requirements:\n", "requirements:\n" + extra)
     (tmp_path / "mutant.yaml").write_text(protocol)
@@ -78,8 +80,10 @@ def together(run, mode: str) -> set[str]:
 def final_modes(report, v) -> dict[str, list[str]]:
     """Each agent's active leaves in the violating state."""
     sk = report.skeleton
-    return {ca.name: m for ca, m in zip(sk.original.agents,
-                                        leaves(sk, report.graph.states[v.state]), strict=True)}
+    return {
+        ca.name: m
+        for ca, m in zip(sk.original.agents, leaves(sk, report.graph.states[v.state]), strict=True)
+    }
 
 
 def test_the_role_protocol_holds_with_a_request_and_a_lost_copy(tmp_path):
@@ -91,12 +95,15 @@ def test_the_role_protocol_holds_with_a_request_and_a_lost_copy(tmp_path):
     for s in report.graph.states:
         assert len(set(s.seen)) == len(s.seen) and m.canonical(s) == s
     assert {n: v.holds for n, v in verdicts(report).items()} == {
-        "one_leader": True, "b_answered": True, "c_answered": True, "deadlock": True}
+        "one_leader": True,
+        "b_answered": True,
+        "c_answered": True,
+        "deadlock": True,
+    }
 
 
 def test_three_requests_and_a_resignation_hold_without_losses():
-    report = verify(load(ROOT / "examples" / "protocols" / "roles_verify.yaml"),
-                    Options(losses=0))
+    report = verify(load(ROOT / "examples" / "protocols" / "roles_verify.yaml"), Options(losses=0))
     assert report.graph.exhaustive and len(report.graph.states) > 10_000
     assert all(v.holds for v in report.verdicts)
 
@@ -132,7 +139,8 @@ def test_mutant_requester_leads_when_it_asks(tmp_path):
     assert v.holds is False
     assert report.counterexample(v)[1:] == [  # replayed a millisecond into the run
         "  1. t=0.001000 s  scenario: b raises want_lead",
-        "       b: Transport.Follow -> Transport.Lead"]
+        "       b: Transport.Follow -> Transport.Lead",
+    ]
     run = replayed(report, "one_leader")
     assert together(run, "Transport.Lead") == {"a", "b"}
     assert [r.t for r in run.transitions if r.cause == "event:want_lead"] == [0.001]
@@ -140,16 +148,16 @@ def test_mutant_requester_leads_when_it_asks(tmp_path):
 
 def test_mutant_offer_confirmed_to_every_acceptor(tmp_path):
     reject = "        - {on: accept, do: [{send: reject, to: sender}]}"
-    bad = mutate(reject, reject.replace("reject", "confirm", 1).replace(
-        "{send: reject", "{send: confirm"))
+    bad = mutate(
+        reject, reject.replace("reject", "confirm", 1).replace("{send: reject", "{send: confirm")
+    )
     report = verify(roles_team(tmp_path, "a", bad), Options(losses=0))
     v = verdicts(report)["one_leader"]
     assert v.holds is False
     modes = final_modes(report, v)
     assert modes["b"] == modes["c"] == ["Transport.Lead"]
     text = "\n".join(report.counterexample(v))
-    assert text.count("confirm #") >= 2 and "a -> operator: offer" not in text.split(
-        "confirm")[-1]
+    assert text.count("confirm #") >= 2 and "a -> operator: offer" not in text.split("confirm")[-1]
     assert together(replayed(report, "one_leader"), "Transport.Lead") == {"b", "c"}
 
 
@@ -164,8 +172,10 @@ def test_mutant_min_hold_deny_removed(tmp_path):
     good = verify(roles_team(tmp_path, "bc", extra=NO_OPERATOR), opts)
     assert verdicts(good)["no_operator"].holds is True
     # with timeouts that exceed only each robot's own exchanges the mistake shows as well
-    own = verify(roles_team(tmp_path, "bc", mutate(deny, "        - to: Offering"),
-                            extra=NO_OPERATOR), Options(losses=0, timeouts="own"))
+    own = verify(
+        roles_team(tmp_path, "bc", mutate(deny, "        - to: Offering"), extra=NO_OPERATOR),
+        Options(losses=0, timeouts="own"),
+    )
     assert verdicts(own)["no_operator"].holds is False
     replayed(own, "no_operator")
     report = verify(roles_team(tmp_path, "bc", bad, extra=NO_OPERATOR), opts)
@@ -186,8 +196,10 @@ def test_mutant_min_hold_deny_removed(tmp_path):
     assert operated and granted
     # the answer timeout (1 s) expired after the request had been ignored: exactly then
     request = max(r.t_recv for r in ms if r.type == "request" and r.status == "delivered")
-    assert operated[0].t >= request and [r.target for r in run.transitions
-                                         if r.agent == "operator"][-1] == "Command"
+    assert (
+        operated[0].t >= request
+        and [r.target for r in run.transitions if r.agent == "operator"][-1] == "Command"
+    )
 
 
 def test_mutant_duplicate_suppression_off(tmp_path):
@@ -195,13 +207,17 @@ def test_mutant_duplicate_suppression_off(tmp_path):
     gets a confirm, the copy a reject. Whichever arrives first at the acceptor decides:
     a reject first and nobody leads, a confirm after it is ignored — leadership lost for
     good without the operator. With dedupe the copy is withheld and this cannot happen."""
-    restored = ("  leadership_restored: always(implies(count_in_role(lead) == 0, eventually("
-                "count_in_role(lead) == 1 or in_mode(operator, Command))))\n")
+    restored = (
+        "  leadership_restored: always(implies(count_in_role(lead) == 0, eventually("
+        "count_in_role(lead) == 1 or in_mode(operator, Command))))\n"
+    )
     opts = Options(losses=1)
     good = verify(roles_team(tmp_path, "a", extra=restored, without_c=True), opts)
     assert verdicts(good)["leadership_restored"].holds is True
-    bad = mutate("  accept: {ack: {timeout: ack_timeout, retries: ack_retries}}",
-                 "  accept: {ack: {timeout: ack_timeout, retries: ack_retries, dedupe: false}}")
+    bad = mutate(
+        "  accept: {ack: {timeout: ack_timeout, retries: ack_retries}}",
+        "  accept: {ack: {timeout: ack_timeout, retries: ack_retries, dedupe: false}}",
+    )
     report = verify(roles_team(tmp_path, "a", bad, extra=restored, without_c=True), opts)
     v = verdicts(report)["leadership_restored"]
     assert v.holds is False
@@ -219,8 +235,10 @@ def test_mutant_duplicate_suppression_off(tmp_path):
     assert "Command" not in {r.mode for r in run.modes if r.agent == "operator"}
     # the same mistake through a network that duplicates a copy (no loss): the replay
     # delivers the one accept twice, same sequence number, no retransmission
-    dup = verify(roles_team(tmp_path, "a", bad, extra=restored, without_c=True),
-                 Options(losses=0, duplicates=1))
+    dup = verify(
+        roles_team(tmp_path, "a", bad, extra=restored, without_c=True),
+        Options(losses=0, duplicates=1),
+    )
     run = replayed(dup, "leadership_restored")
     accepts = [r for r in run.messages if r.type == "accept" and r.status == "delivered"]
     assert len(accepts) == 2 and accepts[0].seq == accepts[1].seq
@@ -229,11 +247,15 @@ def test_mutant_duplicate_suppression_off(tmp_path):
 
 # -- the docking handshake --------------------------------------------------------------
 
+
 def docking(tmp_path: Path, acknowledged: bool):
     text = (ROOT / "examples" / "transport" / "experiment2.yaml").read_text()
-    text = text.replace("requirements_from: [requirements.yaml]\n", "requirements:\n"
-                        "  carried: always(implies(in_mode(xr4000, Dock.Wait), "
-                        "eventually(in_mode(xr4000, Transport))))\n")
+    text = text.replace(
+        "requirements_from: [requirements.yaml]\n",
+        "requirements:\n"
+        "  carried: always(implies(in_mode(xr4000, Dock.Wait), "
+        "eventually(in_mode(xr4000, Transport))))\n",
+    )
     if not acknowledged:
         text = text.replace(", ack: {timeout: ack_timeout, retries: 10}}", "}")
     path = tmp_path / "experiment2.yaml"
@@ -246,8 +268,9 @@ def test_plain_datagram_handshake_deadlocks_when_ready_is_lost(tmp_path):
     v = verdicts(report)["deadlock"]
     assert v.holds is False
     configs = report.configurations(v)
-    assert "xr4000 in Dock.Wait; labmate in Transport.Lead.Stop; operator in Standby" in \
-        configs  # the sweep's failure: the Labmate led off, the XR4000 waits
+    assert (
+        "xr4000 in Dock.Wait; labmate in Transport.Lead.Stop; operator in Standby" in configs
+    )  # the sweep's failure: the Labmate led off, the XR4000 waits
     carried = verdicts(report)["carried"]
     assert carried.holds is False
     text = "\n".join(report.counterexample(carried))
@@ -258,8 +281,9 @@ def test_plain_datagram_handshake_deadlocks_when_ready_is_lost(tmp_path):
     assert lost == [("xr4000", "docked")]
     wait = [r for r in run.modes if r.agent == "xr4000" and r.mode == "Dock.Wait"]
     assert len(wait) == 1 and wait[0].end == run.meta["duration"] == 55.0
-    assert replayed(report, "carried").diagnostics[0]["requirements"]["carried"][
-        "satisfied"] is False
+    assert (
+        replayed(report, "carried").diagnostics[0]["requirements"]["carried"]["satisfied"] is False
+    )
 
 
 def test_acknowledged_handshake_survives_a_loss(tmp_path):
@@ -270,6 +294,7 @@ def test_acknowledged_handshake_survives_a_loss(tmp_path):
 
 # -- the explorer and the simulator agree -----------------------------------------------
 
+
 def test_every_simulated_configuration_is_explored(tmp_path):
     """Lossy simulations of the three-robot team with one request (1 copy in 10 lost):
     every joint mode configuration the engine passes through is a state of the skeleton
@@ -278,24 +303,30 @@ def test_every_simulated_configuration_is_explored(tmp_path):
     team = roles_team(tmp_path, "b")
     text = (tmp_path / "team.yaml").read_text()
     path = tmp_path / "lossy.yaml"
-    path.write_text(text.replace("simulation:\n", "network: {latency: 0.03, loss: 0.1}\n"
-                                 "simulation:\n"))
+    path.write_text(
+        text.replace("simulation:\n", "network: {latency: 0.03, loss: 0.1}\nsimulation:\n")
+    )
     lossy = load(path)
     run = simulate(lossy, seed=list(range(12)), n=12)
     ms = run.messages
     worst = 0
     paths: list[list[tuple]] = []
     for i in range(12):
-        lost = int(np.sum((ms["instance"] == i) & (ms["status"] == "lost")
-                          & (ms["reason"] != "run ended") & (ms["type"] != "state")))
+        lost = int(
+            np.sum(
+                (ms["instance"] == i)
+                & (ms["status"] == "lost")
+                & (ms["reason"] != "run ended")
+                & (ms["type"] != "state")
+            )
+        )
         if lost > 1:
             continue
         worst = max(worst, lost)
         paths.append(_configurations(run, i))
     assert len(paths) > 3 and worst == 1  # runs with a lost control message among them
     report = verify(team, Options(losses=worst))
-    explored = {tuple(tuple(m) for m in leaves(report.skeleton, s))
-                for s in report.graph.states}
+    explored = {tuple(tuple(m) for m in leaves(report.skeleton, s)) for s in report.graph.states}
     for seq in paths:
         assert set(seq) <= explored
 
@@ -308,13 +339,17 @@ def _configurations(run, i: int) -> list[tuple]:
     times = sorted(set(iv["start"][rows].tolist()))
     out = []
     for t in times:
-        here = rows & (iv["start"] <= t) & ((iv["end"] > t) | (iv["end"] == iv["end"][rows]
-                                                               .max()) & (iv["end"] >= t))
+        here = (
+            rows
+            & (iv["start"] <= t)
+            & ((iv["end"] > t) | (iv["end"] == iv["end"][rows].max()) & (iv["end"] >= t))
+        )
         config = []
         for name in names:
             sel = here & (iv["agent"] == name)
-            config.append(tuple(sorted(str(m) for m in iv["mode"][sel]
-                                       if m in _leaf_paths(run, name))))
+            config.append(
+                tuple(sorted(str(m) for m in iv["mode"][sel] if m in _leaf_paths(run, name)))
+            )
         out.append(tuple(config))
     return out
 
@@ -327,25 +362,50 @@ def _leaf_paths(run, agent: str) -> set[str]:
 
 # -- command line -------------------------------------------------------------------------
 
+
 def test_cli_exit_codes_and_output(tmp_path, capsys):
     team = roles_team(tmp_path, "b")
     del team
     out = tmp_path / "out"
-    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "0", "-o", str(out),
-                 "--progress", "none"]) == 0
+    assert (
+        main(
+            [
+                "verify",
+                str(tmp_path / "team.yaml"),
+                "--losses",
+                "0",
+                "-o",
+                str(out),
+                "--progress",
+                "none",
+            ]
+        )
+        == 0
+    )
     summary = json.loads((out / "verify.json").read_text())
     assert summary["exhaustive"] and summary["properties"]["one_leader"]["verdict"] == "holds"
     printed = capsys.readouterr().out
     assert "one_leader: holds" in printed and "deadlock: holds" in printed
     bad = mutate(REQUEST, REQUEST.replace("to: Requesting", "to: Lead"))
     (tmp_path / "mutant.yaml").write_text(bad)
-    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "0", "-o", str(out),
-                 "--progress", "none"]) == 1
+    assert (
+        main(
+            [
+                "verify",
+                str(tmp_path / "team.yaml"),
+                "--losses",
+                "0",
+                "-o",
+                str(out),
+                "--progress",
+                "none",
+            ]
+        )
+        == 1
+    )
     assert "one_leader: VIOLATED" in capsys.readouterr().out
-    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "-1", "-o",
-                 str(out)]) == 2
-    assert main(["verify", str(tmp_path / "team.yaml"), "-p", "one_ledaer", "-o",
-                 str(out)]) == 2
+    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "-1", "-o", str(out)]) == 2
+    assert main(["verify", str(tmp_path / "team.yaml"), "-p", "one_ledaer", "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "--losses must be 0 or more" in err and "did you mean" in err.lower()
 
@@ -365,8 +425,10 @@ def test_a_bounded_exploration_has_no_false_dead_ends():
     """States whose successors the bound refused are not dead ends: the response
     properties and deadlock stay unviolated (they hold exhaustively with no losses, and
     a bound cannot create a violation)."""
-    report = verify(load(ROOT / "examples" / "protocols" / "roles_verify.yaml"),
-                    Options(losses=1, max_states=3000))
+    report = verify(
+        load(ROOT / "examples" / "protocols" / "roles_verify.yaml"),
+        Options(losses=1, max_states=3000),
+    )
     assert not report.graph.exhaustive and report.graph.cut
     assert not report.violated
     assert report.summary()["properties"]["one_leader"]["verdict"] == "holds (bounded)"
@@ -403,18 +465,18 @@ def test_a_path_the_simulator_cannot_follow_is_spurious(tmp_path, capsys):
     assert v.holds is False
     _, r, tried = report.replays["stays_near"]
     assert not r.reproduced and r.verdict == "spurious (abstraction)" and tried == 1
-    assert r.reason == "step 1 (robot: Drive -> Far ('x > 100')) does not happen in the " \
+    assert (
+        r.reason == "step 1 (robot: Drive -> Far ('x > 100')) does not happen in the "
         "run after t=0 s"
+    )
     out = tmp_path / "out"
     assert main(["verify", str(path), "-o", str(out), "--progress", "none"]) == 3
     printed = capsys.readouterr().out
     assert "replayed in the simulator: SPURIOUS (ABSTRACTION): step 1" in printed
     summary = json.loads((out / "verify.json").read_text())
-    assert summary["properties"]["stays_near"]["replay"]["verdict"] == \
-        "spurious (abstraction)"
+    assert summary["properties"]["stays_near"]["replay"]["verdict"] == "spurious (abstraction)"
     assert not (out / "stays_near").exists()
-    assert main(["verify", str(path), "-o", str(out), "--progress", "none",
-                 "--no-replay"]) == 1
+    assert main(["verify", str(path), "-o", str(out), "--progress", "none", "--no-replay"]) == 1
 
 
 def test_a_replay_is_deterministic_and_written_as_a_run(tmp_path, capsys):
@@ -429,8 +491,21 @@ def test_a_replay_is_deterministic_and_written_as_a_run(tmp_path, capsys):
     two = verify(team, Options(losses=0))
     assert replayed(one, "one_leader").to_json() == replayed(two, "one_leader").to_json()
     out = tmp_path / "out"
-    assert main(["verify", str(tmp_path / "team.yaml"), "--losses", "0", "-o", str(out),
-                 "--progress", "none"]) == 1
+    assert (
+        main(
+            [
+                "verify",
+                str(tmp_path / "team.yaml"),
+                "--losses",
+                "0",
+                "-o",
+                str(out),
+                "--progress",
+                "none",
+            ]
+        )
+        == 1
+    )
     assert "REPRODUCED" in capsys.readouterr().out
     trace = Trace.load(out / "one_leader" / "trace.json")
     assert together(trace, "Transport.Lead") == {"b", "c"}
@@ -500,5 +575,6 @@ def test_a_lost_go_replays_to_the_engines_own_deadlock(tmp_path):
     _, r, _ = report.replays["deadlock"]
     assert abs(r.times[-1] - 8.0) < 1e-6 and r.times[1] == 2.0
     assert run.diagnostics[0]["outcome"] == "deadlock"
-    assert [(m.sender, m.type) for m in run.messages if m.reason == "loss (replay)"] == \
-        [("leader", "go")]
+    assert [(m.sender, m.type) for m in run.messages if m.reason == "loss (replay)"] == [
+        ("leader", "go")
+    ]

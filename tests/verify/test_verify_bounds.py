@@ -52,17 +52,27 @@ simulation: {duration: 10}
 
 def roles(k: int) -> str:
     """A role team of ``k`` robots (one leader) and the operator, with a request."""
-    robot = ("  {name}:\n    plant: {{kind: unicycle, state: {{x: {x}, y: 0, theta: 0}}}}\n"
-             "{var}    modes:\n      Transport:\n        protocol: role_assignment\n"
-             "        initial: {initial}\n        roles:\n"
-             "          lead: {{inputs: {{v: 0.1, omega: 0}}}}\n"
-             "          follow: {{inputs: {{v: 0.1, omega: 0}}}}\n")
-    agents = "".join(robot.format(name=f"r{i}", x=-i, initial="Lead" if i == 0 else "Follow",
-                                  var="" if i == 0 else "    variables: {leader: id_r0}\n")
-                     for i in range(k))
-    return (f"team: roles{k}\nagents:\n{agents}  operator:\n    operator: role_assignment\n"
-            "scenario:\n  - {at: 1.0, agent: r1, raise: want_lead}\nsimulation:\n"
-            "  duration: 2.0\n")
+    robot = (
+        "  {name}:\n    plant: {{kind: unicycle, state: {{x: {x}, y: 0, theta: 0}}}}\n"
+        "{var}    modes:\n      Transport:\n        protocol: role_assignment\n"
+        "        initial: {initial}\n        roles:\n"
+        "          lead: {{inputs: {{v: 0.1, omega: 0}}}}\n"
+        "          follow: {{inputs: {{v: 0.1, omega: 0}}}}\n"
+    )
+    agents = "".join(
+        robot.format(
+            name=f"r{i}",
+            x=-i,
+            initial="Lead" if i == 0 else "Follow",
+            var="" if i == 0 else "    variables: {leader: id_r0}\n",
+        )
+        for i in range(k)
+    )
+    return (
+        f"team: roles{k}\nagents:\n{agents}  operator:\n    operator: role_assignment\n"
+        "scenario:\n  - {at: 1.0, agent: r1, raise: want_lead}\nsimulation:\n"
+        "  duration: 2.0\n"
+    )
 
 
 def team_of(tmp_path: Path, text: str, name: str = "team.yaml"):
@@ -80,7 +90,8 @@ def test_two_unbounded_counters_stop_at_the_value_bound_naming_the_variable(tmp_
     assert len(g.states) == 66
     assert not g.exhaustive
     assert g.bound is not None and g.bound.startswith(
-        "variable 'n' of agent 'a' took more than 10 different values (0 to 10 so far)")
+        "variable 'n' of agent 'a' took more than 10 different values (0 to 10 so far)"
+    )
     assert len(g.cut) == 11  # the last level's states: unknown successors, not dead ends
     assert not g.terminal()[sorted(g.cut)].any()
     assert report.summary()["bound"] == g.bound
@@ -93,19 +104,21 @@ def test_a_counter_bounded_by_a_guard_is_explored_to_its_end(tmp_path):
 
 
 def test_a_counter_on_the_command_line_ends_with_the_variable_named(tmp_path, capsys):
-    (tmp_path / "team.yaml").write_text(COUNTERS.split("  b:\n")[0]
-                                        + "simulation: {duration: 10}\n")
+    (tmp_path / "team.yaml").write_text(
+        COUNTERS.split("  b:\n")[0] + "simulation: {duration: 10}\n"
+    )
     out = tmp_path / "out"
-    assert main(["verify", str(tmp_path / "team.yaml"), "-o", str(out), "--progress",
-                 "log"]) == 0
+    assert main(["verify", str(tmp_path / "team.yaml"), "-o", str(out), "--progress", "log"]) == 0
     printed, progress = capsys.readouterr()
     # the progress stream says so as soon as exploring stops (before any replay)
     assert "hybridteam: verify: stopped: variable 'n' of agent 'a'" in progress
     # the default bound: 257 values 0..256, one state each
     assert "skeleton of 257 states" in printed
     assert "bounded: not exhaustive" in printed
-    assert "  stopped: variable 'n' of agent 'a' took more than 256 different values " \
-           "(0 to 256 so far)" in printed
+    assert (
+        "  stopped: variable 'n' of agent 'a' took more than 256 different values "
+        "(0 to 256 so far)" in printed
+    )
     assert "deadlock: holds (bounded)" in printed
     summary = json.loads((out / "verify.json").read_text())
     assert summary["bound"].startswith("variable 'n' of agent 'a'")
@@ -140,8 +153,16 @@ def test_a_big_team_is_taken_in_batches_that_fit_half_the_memory_limit(tmp_path)
 
 def test_a_team_whose_one_state_does_not_fit_is_refused_with_the_estimate(tmp_path, capsys):
     (tmp_path / "team.yaml").write_text(roles(60))
-    code = main(["verify", str(tmp_path / "team.yaml"), "-o", str(tmp_path / "out"),
-                 "--max-memory", "0.0002"])
+    code = main(
+        [
+            "verify",
+            str(tmp_path / "team.yaml"),
+            "-o",
+            str(tmp_path / "out"),
+            "--max-memory",
+            "0.0002",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2
     # the inbox (61 agents, 8 numbers per sender) and the Zeno rings (100 transition times
@@ -156,12 +177,13 @@ def test_a_team_whose_one_state_does_not_fit_is_refused_with_the_estimate(tmp_pa
 
 def test_a_process_past_the_memory_limit_stops_and_says_so(tmp_path, monkeypatch):
     # the resident size is the system's; here it reads 5 GB from the first batch on
-    monkeypatch.setattr(sys.modules["hybridteam.verify.explore"], "resident_bytes",
-                        lambda: 5e9)
+    monkeypatch.setattr(sys.modules["hybridteam.verify.explore"], "resident_bytes", lambda: 5e9)
     report = verify(team_of(tmp_path, COUNTERS), Options(max_memory=4e9), replay=False)
     g = report.graph
-    assert g.bound == "this process reached the memory limit of 4 GB after 3 states " \
-                      "(5.000 GB resident; --max-memory GB raises it)"
+    assert (
+        g.bound == "this process reached the memory limit of 4 GB after 3 states "
+        "(5.000 GB resident; --max-memory GB raises it)"
+    )
     assert len(g.states) == 3 and not g.exhaustive
     assert g.cut == {0, 1, 2}  # the first level and its successors: none is a dead end
     assert not g.terminal().any()
@@ -169,11 +191,14 @@ def test_a_process_past_the_memory_limit_stops_and_says_so(tmp_path, monkeypatch
 
 def test_bad_bounds_are_usage_errors(tmp_path, capsys):
     (tmp_path / "team.yaml").write_text(BOUNDED)
-    for flag, value, words in (("--max-values", "0", "--max-values must be at least 1"),
-                               ("--max-memory", "nan", "--max-memory must be a finite "
-                                                       "number > 0, got nan")):
-        assert main(["verify", str(tmp_path / "team.yaml"), "-o", str(tmp_path / "o"),
-                     flag, value]) == 2
+    for flag, value, words in (
+        ("--max-values", "0", "--max-values must be at least 1"),
+        ("--max-memory", "nan", "--max-memory must be a finite number > 0, got nan"),
+    ):
+        assert (
+            main(["verify", str(tmp_path / "team.yaml"), "-o", str(tmp_path / "o"), flag, value])
+            == 2
+        )
         assert words in capsys.readouterr().err
 
 
@@ -183,8 +208,7 @@ def test_the_300_robot_team_runs_within_the_memory_limit(tmp_path, monkeypatch):
     # The resident-memory watch reads the whole process, here pytest's with every module an
     # earlier test loaded (over 1 GB in the full suite): it is tested on its own below, and
     # left out here, where the batch's size is the point
-    monkeypatch.setattr(sys.modules["hybridteam.verify.explore"], "resident_bytes",
-                        lambda: None)
+    monkeypatch.setattr(sys.modules["hybridteam.verify.explore"], "resident_bytes", lambda: None)
     team = team_of(tmp_path, roles(300))
     report = verify(team, Options(max_memory=1e9, max_states=2), replay=False)
     g = report.graph

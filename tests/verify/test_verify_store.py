@@ -18,21 +18,34 @@ from tests.verify.test_verify import roles_team
 def test_keys_are_numbered_in_order_and_found_after_the_table_grows():
     rng = random.Random(5)
     keys = Keys()
-    words = list(dict.fromkeys(bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40)))
-                               for _ in range(5000)))
+    words = list(
+        dict.fromkeys(
+            bytes(rng.randrange(256) for _ in range(rng.randrange(1, 40))) for _ in range(5000)
+        )
+    )
     for k, w in enumerate(words):
         assert keys.get(w) is None
         assert keys.add(w) == k
-    assert keys.mask + 1 >= 2 * len(words)            # it grew from 1,024 slots
+    assert keys.mask + 1 >= 2 * len(words)  # it grew from 1,024 slots
     assert all(keys.get(w) == k and keys[k] == w for k, w in enumerate(words))
     assert keys.get(b"not a key at all, longer than any") is None
 
 
 def test_states_decode_to_what_was_stored():
     copy = Copy(0, 1, "control", "request", 0, (("priority", 2.0),))
-    states = [State(((b"\x01\x00", (1.0,)), (b"\x00\x01", ())), (copy, copy), (), ((1, 0, 0),),
-                    1, 0, 0, (1, 0)),
-              State(((b"\x01\x00", (1.0,)), (b"\x01\x01", ())), (), (), (), 2, 1, 0, (0, 0))]
+    states = [
+        State(
+            ((b"\x01\x00", (1.0,)), (b"\x00\x01", ())),
+            (copy, copy),
+            (),
+            ((1, 0, 0),),
+            1,
+            0,
+            0,
+            (1, 0),
+        ),
+        State(((b"\x01\x00", (1.0,)), (b"\x01\x01", ())), (), (), (), 2, 1, 0, (0, 0)),
+    ]
     store = Store(agents=2)
     for s in states:
         key, k = store.find(s)
@@ -48,7 +61,7 @@ def test_states_decode_to_what_was_stored():
 
 def test_many_parts_switch_the_keys_to_four_byte_numbers():
     store = Store(agents=1)
-    for v in range(70_000):   # more distinct agent parts than two bytes can number
+    for v in range(70_000):  # more distinct agent parts than two bytes can number
         key, k = store.find(State(((b"\x01", (float(v),)),), (), (), (), 0, 0, 0, (0,)))
         if k is None:
             store.add(key)
@@ -74,11 +87,10 @@ def test_verdicts_do_not_depend_on_the_evaluation_block(tmp_path, monkeypatch):
     extra = "  b_never_asks: always(not in_mode(b, Requesting))\n"
     team = roles_team(tmp_path, "ba", extra=extra, without_c=True)
     whole = verify(team, Options(losses=1), replay=False)
-    monkeypatch.setattr(importlib.import_module("hybridteam.verify.properties"), "BLOCK",
-                        1000)
+    monkeypatch.setattr(importlib.import_module("hybridteam.verify.properties"), "BLOCK", 1000)
     blocks = verify(team, Options(losses=1), replay=False)
     assert len(whole.graph.states) > 10_000
     got = [(v.prop.name, v.holds, v.state, v.others) for v in blocks.verdicts]
     assert got == [(v.prop.name, v.holds, v.state, v.others) for v in whole.verdicts]
     asks = next(v for v in whole.verdicts if v.prop.name == "b_never_asks")
-    assert asks.holds is False and max(asks.others) > 1000   # violations beyond one block
+    assert asks.holds is False and max(asks.others) > 1000  # violations beyond one block

@@ -50,15 +50,17 @@ BOX_GAP = 1.0 - 0.5 / math.sqrt(2.0)
 
 
 def scene(team_from_yaml, clearance: bool = True, requirements: str = REQUIREMENTS):
-    return team_from_yaml(SCENE.format(
-        clearance="      clearance: true" if clearance else "", requirements=requirements))
+    return team_from_yaml(
+        SCENE.format(
+            clearance="      clearance: true" if clearance else "", requirements=requirements
+        )
+    )
 
 
 def test_the_series_are_the_hand_computed_clearances(team_from_yaml):
     run = ht.simulate(scene(team_from_yaml))
     t = run.sample_times
-    np.testing.assert_allclose(run.samples["robot_clearance"][:, 0, 0], 1.8 - 0.1 * t,
-                               atol=1e-12)
+    np.testing.assert_allclose(run.samples["robot_clearance"][:, 0, 0], 1.8 - 0.1 * t, atol=1e-12)
     np.testing.assert_allclose(run.samples["payload_clearance"][:, 0, 0], BOX_GAP, atol=1e-12)
     assert run.meta["series"]["robot_clearance"] == ["A"]
     assert run.meta["series"]["payload_clearance"] == ["box"]
@@ -71,7 +73,7 @@ def test_requirements_on_them_hold_or_fail_by_the_hand_computed_margins(team_fro
     robot = verdicts["robot_clear"]
     assert not robot["satisfied"]
     assert robot["robustness"] == pytest.approx(1.3 - 1.5, abs=1e-12)  # at the end, t = 5
-    assert robot["violated_at"] == pytest.approx(3.0, abs=1e-9)        # 1.8 - 0.1 t = 1.5
+    assert robot["violated_at"] == pytest.approx(3.0, abs=1e-9)  # 1.8 - 0.1 t = 1.5
 
 
 def test_an_ensemble_instance_equals_its_single_run(team_from_yaml):
@@ -83,7 +85,8 @@ def test_an_ensemble_instance_equals_its_single_run(team_from_yaml):
 
 
 def test_without_the_setting_there_is_no_series_and_a_requirement_on_it_is_refused(
-        team_from_yaml, tmp_path, capsys):
+    team_from_yaml, tmp_path, capsys
+):
     run = ht.simulate(scene(team_from_yaml, clearance=False, requirements=""))
     assert "robot_clearance" not in run.samples and "payload_clearance" not in run.samples
     path = tmp_path / "off.yaml"
@@ -94,21 +97,26 @@ def test_without_the_setting_there_is_no_series_and_a_requirement_on_it_is_refus
 
 def test_clearance_with_nothing_to_measure_from_is_a_located_error(tmp_path, capsys):
     path = tmp_path / "empty.yaml"
-    path.write_text(SCENE.format(clearance="      clearance: true", requirements="")
-                    .replace("walls: [[2, -2, 2, 1]]", "walls: []"))
+    path.write_text(
+        SCENE.format(clearance="      clearance: true", requirements="").replace(
+            "walls: [[2, -2, 2, 1]]", "walls: []"
+        )
+    )
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"{path}:20:18: world[1].with.clearance: there is no wall, circle "
-                          "or box to measure a clearance from"), err
+    assert err.startswith(
+        f"{path}:20:18: world[1].with.clearance: there is no wall, circle "
+        "or box to measure a clearance from"
+    ), err
 
 
 # ---------------------------------------------------------------------- swept obstacles
-SWEPT = SCENE.replace("walls: [[2, -2, 2, 1]]", 'walls: [[wall_x, -2, "wall_x", 1]]') \
-    .replace("team: clear\n", "team: clear\nparameters: {{wall_x: 2.0}}\n")
+SWEPT = SCENE.replace("walls: [[2, -2, 2, 1]]", 'walls: [[wall_x, -2, "wall_x", 1]]').replace(
+    "team: clear\n", "team: clear\nparameters: {{wall_x: 2.0}}\n"
+)
 
 
-def test_a_wall_may_be_an_expression_of_team_parameters_and_an_ensemble_sweeps_it(
-        team_from_yaml):
+def test_a_wall_may_be_an_expression_of_team_parameters_and_an_ensemble_sweeps_it(team_from_yaml):
     """Instance k has its wall at x = wall_x[k]: each instance's clearances are the hand
     computed ones for its wall, and equal its single run's bit for bit."""
     team = team_from_yaml(SWEPT.format(clearance="      clearance: true", requirements=""))
@@ -116,10 +124,12 @@ def test_a_wall_may_be_an_expression_of_team_parameters_and_an_ensemble_sweeps_i
     run = ht.simulate(team, n=3, overrides={"wall_x": walls})
     t = run.sample_times
     for k, x in enumerate(walls):
-        np.testing.assert_allclose(run.samples["robot_clearance"][:, k, 0],
-                                   x - 0.2 - 0.1 * t, atol=1e-12)
-        np.testing.assert_allclose(run.samples["payload_clearance"][:, k, 0],
-                                   BOX_GAP + (x - 2.0), atol=1e-12)
+        np.testing.assert_allclose(
+            run.samples["robot_clearance"][:, k, 0], x - 0.2 - 0.1 * t, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            run.samples["payload_clearance"][:, k, 0], BOX_GAP + (x - 2.0), atol=1e-12
+        )
         one = ht.simulate(team, overrides={"wall_x": [x]})
         for key in ("robot_clearance", "payload_clearance", "A", "box"):
             np.testing.assert_array_equal(run.samples[key][:, k], one.samples[key][:, 0])
@@ -128,17 +138,18 @@ def test_a_wall_may_be_an_expression_of_team_parameters_and_an_ensemble_sweeps_i
 
 def test_a_bad_expression_in_a_wall_is_located_where_it_is_written(tmp_path, capsys):
     path = tmp_path / "bad.yaml"
-    path.write_text(SWEPT.format(clearance="", requirements="")
-                    .replace('"wall_x", 1]]', '"wall_y", 1]]'))
+    path.write_text(
+        SWEPT.format(clearance="", requirements="").replace('"wall_x", 1]]', '"wall_y", 1]]')
+    )
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"{path}:19:29: world[1].with.walls[0][2]: unknown name "
-                          "'wall_y'"), err
+    assert err.startswith(f"{path}:19:29: world[1].with.walls[0][2]: unknown name 'wall_y'"), err
 
 
 def test_an_expression_of_a_circle_radius_is_checked_once_it_has_a_value(team_from_yaml):
     text = SWEPT.format(clearance="", requirements="").replace(
-        "radius: [[A, 0.2]]", 'radius: [[A, 0.2]]\n      circles: [[5, 5, "wall_x - 2"]]')
+        "radius: [[A, 0.2]]", 'radius: [[A, 0.2]]\n      circles: [[5, 5, "wall_x - 2"]]'
+    )
     with pytest.raises(ValueError, match=r"circles\[0\]: a circle's radius must be positive"):
         ht.simulate(team_from_yaml(text))
 
@@ -148,18 +159,32 @@ def test_a_study_over_the_wall_tabulates_the_requirements_on_the_series(tmp_path
     that less 0.6."""
     import csv
 
-    (tmp_path / "team.yaml").write_text(SWEPT.format(clearance="      clearance: true",
-                                                     requirements=REQUIREMENTS))
-    (tmp_path / "study.yaml").write_text("kind: study\nteam: team.yaml\n"
-                                         "factors: {wall_x: [1.9, 2.2]}\n")
-    assert main(["sweep", str(tmp_path / "study.yaml"), "-o", str(tmp_path / "out"),
-                 "--progress", "none"]) == 0
+    (tmp_path / "team.yaml").write_text(
+        SWEPT.format(clearance="      clearance: true", requirements=REQUIREMENTS)
+    )
+    (tmp_path / "study.yaml").write_text(
+        "kind: study\nteam: team.yaml\nfactors: {wall_x: [1.9, 2.2]}\n"
+    )
+    assert (
+        main(
+            [
+                "sweep",
+                str(tmp_path / "study.yaml"),
+                "-o",
+                str(tmp_path / "out"),
+                "--progress",
+                "none",
+            ]
+        )
+        == 0
+    )
     with open(tmp_path / "out" / "results.csv") as f:
         rows = list(csv.DictReader(f))
     assert [float(r["box_clear_satisfied"]) for r in rows] == [0.0, 1.0]
     for row, x in zip(rows, (1.9, 2.2), strict=True):
         assert float(row["box_clear_min_robustness"]) == pytest.approx(
-            BOX_GAP + (x - 2.0) - 0.6, abs=1e-12)
+            BOX_GAP + (x - 2.0) - 0.6, abs=1e-12
+        )
 
 
 # ---------------------------------------------------------------------- measured once
@@ -169,6 +194,7 @@ def test_an_instant_measures_the_payload_gap_once(team_from_yaml, monkeypatch):
     hand-computed ones."""
     from hybridteam.world.carried import CarriedPayload
     from hybridteam.world.obstacles import Obstacles
+
     calls = {"update": 0, "gap": 0}
     update, gap = Obstacles.update, CarriedPayload.gap
 
@@ -194,16 +220,22 @@ def test_a_reset_between_the_update_and_the_sample_is_measured_afresh(team_from_
     line between the instants t = 0.9 (1.8 - 0.09 = 1.71) and t = 1 (0.8). Had the sample
     at t = 1 kept the update's 1.7, the crossing would lie between t = 1 and the next
     instant, t = 1.1."""
-    text = SCENE.format(clearance="      clearance: true", requirements="""\
+    text = SCENE.format(
+        clearance="      clearance: true",
+        requirements="""\
 requirements:
-  robot_clear: always(robot_clearance.A > 0.9)""").replace(
+  robot_clear: always(robot_clearance.A > 0.9)""",
+    ).replace(
         "    modes:\n      Go: {{inputs: {{vx: 0.1, vy: 0, omega: 0}}, period: 0.1}}".format(),
         "    initial: Go\n    modes:\n      Go: {inputs: {vx: 0.1, vy: 0, omega: 0}, period: 0.1,\n"
         "           transitions: [{to: Stay, after: 1.0, do: [x = 1.0]}]}\n"
-        "      Stay: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}")
-    verdict = ht.simulate(team_from_yaml(text)).summary()["instances"][0][
-        "requirements"]["robot_clear"]
+        "      Stay: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}",
+    )
+    verdict = ht.simulate(team_from_yaml(text)).summary()["instances"][0]["requirements"][
+        "robot_clear"
+    ]
     assert not verdict["satisfied"]
-    assert verdict["violated_at"] == pytest.approx(0.9 + 0.1 * (1.71 - 0.9) / (1.71 - 0.8),
-                                                   abs=1e-9)
+    assert verdict["violated_at"] == pytest.approx(
+        0.9 + 0.1 * (1.71 - 0.9) / (1.71 - 0.8), abs=1e-9
+    )
     assert verdict["robustness"] == pytest.approx(0.8 - 0.9, abs=1e-12)

@@ -29,8 +29,9 @@ simulation: {{duration: 4.0}}
 """
 
 
-def team(team_from_yaml, mode: str = "outcome", b_y: float = 5.0,
-         walls: str = "[[2.0, -1.0, 2.0, 1.0]]"):
+def team(
+    team_from_yaml, mode: str = "outcome", b_y: float = 5.0, walls: str = "[[2.0, -1.0, 2.0, 1.0]]"
+):
     return team_from_yaml(TEAM.format(mode=mode, b_y=b_y, walls=walls))
 
 
@@ -40,8 +41,9 @@ def test_robots_that_meet_collide(team_from_yaml):
     run = ht.simulate(team(team_from_yaml, b_y=0.0, walls="[]"))
     assert run.outcome == "collision"
     assert run.diagnostics[0]["t"] == pytest.approx(1.3, abs=1e-12)
-    assert run.message.startswith("robots 'a' and 'b' collided, their footprints "
-                                  "overlapping by 0.1 at t=1.3")
+    assert run.message.startswith(
+        "robots 'a' and 'b' collided, their footprints overlapping by 0.1 at t=1.3"
+    )
 
 
 def test_a_robot_that_drives_into_a_wall_collides(team_from_yaml):
@@ -50,8 +52,9 @@ def test_a_robot_that_drives_into_a_wall_collides(team_from_yaml):
     run = ht.simulate(team(team_from_yaml))
     assert run.outcome == "collision"
     assert run.diagnostics[0]["t"] == pytest.approx(1.8, abs=1e-12)
-    assert run.message.startswith("robot 'a' hit walls[0], its footprint overlapping it by "
-                                  "0.05 at t=1.8")
+    assert run.message.startswith(
+        "robot 'a' hit walls[0], its footprint overlapping it by 0.05 at t=1.8"
+    )
 
 
 def test_warn_lists_collisions_and_ignore_keeps_only_clearances(team_from_yaml):
@@ -70,21 +73,28 @@ def test_where_and_when_each_first_collision_was_is_kept_for_the_views(team_from
     (1.8, 0): recorded under warn and under outcome, not under ignore."""
     for mode in ("warn", "outcome"):
         (mark,) = ht.simulate(team(team_from_yaml, mode)).meta["world"]["collisions"]
-        assert mark == {"instance": 0, "who": "a", "t": pytest.approx(1.8, abs=1e-12),
-                        "x": pytest.approx(1.8, abs=1e-12), "y": 0.0}
+        assert mark == {
+            "instance": 0,
+            "who": "a",
+            "t": pytest.approx(1.8, abs=1e-12),
+            "x": pytest.approx(1.8, abs=1e-12),
+            "y": 0.0,
+        }
     assert "collisions" not in ht.simulate(team(team_from_yaml, "ignore")).meta["world"]
 
 
 def test_an_unknown_collision_mode_is_a_located_error(team_from_yaml):
     from hybridteam.io.filekind import InputErrors
 
-    with pytest.raises(InputErrors, match=r"world\[0\].with.on_collision: expected one of "
-                                          r"outcome, warn, ignore, got 'stopp'"):
+    with pytest.raises(
+        InputErrors,
+        match=r"world\[0\].with.on_collision: expected one of "
+        r"outcome, warn, ignore, got 'stopp'",
+    ):
         team(team_from_yaml, "stopp")
 
 
-def test_the_terminal_says_none_where_a_warned_run_had_no_collision(tmp_path, monkeypatch,
-                                                                    capsys):
+def test_the_terminal_says_none_where_a_warned_run_had_no_collision(tmp_path, monkeypatch, capsys):
     """Under ``on_collision: warn`` the summary line ended in a bare 'collisions ' when
     nothing was hit; it says 'collisions none'."""
     from hybridteam.cli import main

@@ -29,8 +29,9 @@ def test_it_validates_without_warnings(capsys):
 
 def test_the_beam_clears_the_door_and_a_narrower_door_violates_the_requirement():
     run = ht.simulate(ht.load(TEAM), n=2, duration=14.0, overrides={"door": [1.2, 0.85]})
-    wide, narrow = (row["requirements"]["beam_clear_of_walls"]
-                    for row in run.summary()["instances"])
+    wide, narrow = (
+        row["requirements"]["beam_clear_of_walls"] for row in run.summary()["instances"]
+    )
     assert wide["satisfied"] and wide["robustness"] == pytest.approx(0.15, abs=1e-3)
     assert not narrow["satisfied"]
     assert narrow["robustness"] == pytest.approx(-0.025, abs=1e-3)

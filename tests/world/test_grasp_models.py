@@ -55,9 +55,11 @@ def test_a_scout_grasp_without_spring_and_limit_is_a_located_error(tmp_path, cap
     assert out == "" and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1, err
     # line 22 holds the Scout's grasp, column 11 its mapping
-    assert err.startswith(f"{path}:22:11: world[0].with.grasps[1]: robot 'scout' has no "
-                          "manipulator in its model to take the grasp's spring and limit "
-                          "from; give them in the grasp"), err
+    assert err.startswith(
+        f"{path}:22:11: world[0].with.grasps[1]: robot 'scout' has no "
+        "manipulator in its model to take the grasp's spring and limit "
+        "from; give them in the grasp"
+    ), err
     assert "manipulator: {kind: spring_link" in err
 
 
@@ -91,14 +93,16 @@ def test_a_scout_given_a_manipulator_lends_it_to_the_grasp(tmp_path):
     assert o["outcome"] == "link_broken" and abs(o["t"] - 1.3) < 1e-9
 
 
-def test_a_manipulator_override_without_kind_on_a_scout_says_a_new_one_needs_it(tmp_path,
-                                                                              capsys):
-    path = write(tmp_path, scout_extra="manipulator: {spring: 3}",
-                 scout_grasp=", spring: 1, limit: 1")
+def test_a_manipulator_override_without_kind_on_a_scout_says_a_new_one_needs_it(tmp_path, capsys):
+    path = write(
+        tmp_path, scout_extra="manipulator: {spring: 3}", scout_grasp=", spring: 1, limit: 1"
+    )
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"{path}:11:5: agents.scout.manipulator: scout has no manipulator; "
-                          "a new one needs its 'kind'"), err
+    assert err.startswith(
+        f"{path}:11:5: agents.scout.manipulator: scout has no manipulator; "
+        "a new one needs its 'kind'"
+    ), err
 
 
 def test_a_robot_without_a_model_keeps_the_free_grasp(team_from_yaml):

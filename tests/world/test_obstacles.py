@@ -40,8 +40,10 @@ def started_ir_wall(n: int) -> tuple[Simulator, Obstacles]:
 
 def with_preset(team, **models):
     """``team`` with robot models attached to the named agents (as ``model:`` would)."""
-    agents = tuple(dataclasses.replace(a, preset=resolve(models[a.name]))
-                   if a.name in models else a for a in team.agents)
+    agents = tuple(
+        dataclasses.replace(a, preset=resolve(models[a.name])) if a.name in models else a
+        for a in team.agents
+    )
     return dataclasses.replace(team, agents=agents)
 
 
@@ -54,7 +56,11 @@ def variant(tmp_path, text: str, name: str = "team.yaml"):
 def ir_wall_with_payload(name: str, width: float, depth: float, pose: list[float]) -> str:
     """The IR wall fixture's text with a resting payload (its grasp, by a robot B standing
     far away at (5, 5), is not engaged)."""
-    return IR_WALL.read_text().replace("world:\n", f"""world:
+    return (
+        IR_WALL.read_text()
+        .replace(
+            "world:\n",
+            f"""world:
   - use: payload
     with:
       name: {name}
@@ -62,11 +68,18 @@ def ir_wall_with_payload(name: str, width: float, depth: float, pose: list[float
       depth: {depth}
       pose: {pose}
       grasps: [{{agent: B, point: [0, 0], engaged: holding}}]
-""", 1).replace("simulation:", """  B:
+""",
+            1,
+        )
+        .replace(
+            "simulation:",
+            """  B:
     plant: {kind: holonomic, state: {x: 5, y: 5, theta: 0}}
     variables: {holding: 0}
     modes: {Wait: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}}
-simulation:""")
+simulation:""",
+        )
+    )
 
 
 def test_readings_against_a_wall_a_post_and_a_box_turn_with_the_robot():
@@ -94,8 +107,7 @@ def test_detection_is_raised_once_at_the_first_tick_past_the_threshold():
     assert abs(x[-1] - 1.45) < 1e-9
 
 
-def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor(
-        monkeypatch):
+def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor(monkeypatch):
     """Once every instance's rule beams read below the threshold, the floor (which could
     rule out none) is not computed until a reading is beyond it again (issue 48: the
     XR4000's IR on the box it carries). The verdicts are the hand-computed ones: R stops
@@ -150,11 +162,15 @@ def test_payload_clearance_is_zero_when_it_overlaps_an_obstacle():
 
     hw, hd = np.array([1.0]), np.array([0.5])
     # through the box, ends outside: 0; beside it: 0.5; off a corner along the diagonal
-    cases = [((-3, 0, 3, 0), 0.0), ((-3, 1, 3, 1), 0.5), ((2, 1.5, 3, 2.5), math.sqrt(2)),
-             ((0.2, 0.1, 0.3, 0.2), 0.0), ((1.5, -3, 1.5, 3), 0.5)]
+    cases = [
+        ((-3, 0, 3, 0), 0.0),
+        ((-3, 1, 3, 1), 0.5),
+        ((2, 1.5, 3, 2.5), math.sqrt(2)),
+        ((0.2, 0.1, 0.3, 0.2), 0.0),
+        ((1.5, -3, 1.5, 3), 0.5),
+    ]
     for (ax, ay, bx, by), want in cases:
-        got = _segment_box(np.array([ax]), np.array([ay]), np.array([bx]), np.array([by]),
-                           hw, hd)
+        got = _segment_box(np.array([ax]), np.array([ay]), np.array([bx]), np.array([by]), hw, hd)
         assert abs(got[0] - want) < 1e-12, (ax, ay, bx, by)
 
 
@@ -170,7 +186,9 @@ def ir_keep(ctx: LawContext) -> np.ndarray:
 def test_a_robot_model_gives_the_ring_and_the_footprint(tmp_path):
     """An XR4000 (IR: 24 beams on its 0.33 hull, 0.5 range) facing a wall 0.6 ahead: beam
     0 reads 0.6 - 0.33, beam 1 (15 degrees) 0.6 / cos 15 - 0.33, beam 12 nothing."""
-    team = variant(tmp_path, """
+    team = variant(
+        tmp_path,
+        """
 kind: team
 team: xr
 world:
@@ -189,7 +207,8 @@ agents:
         transitions: [{to: Seen, on: near}]
       Seen: {law: {use: tests.ir_keep, period: 0.1}}
 simulation: {duration: 1}
-""")
+""",
+    )
     sim = run_sim(team, duration=1.0)
     # in range from the start: reported at the first instant
     (row,) = [r for r in sim.rec.tables()[0] if r.cause == "event:near"]
@@ -205,11 +224,15 @@ simulation: {duration: 1}
 
 def test_sector_picks_the_beams_whose_axis_falls_in_it(tmp_path):
     team = with_preset(load(IR_WALL), R="xr4000")
-    values = {**Obstacles.params, "detect": [
-        {"agent": "R", "sensor": "ir", "sector": [-45, 45], "below": 0.3, "raise": "near"},
-        {"agent": "R", "sensor": "ir", "sector": [90, 120], "below": 0.3, "raise": "side"}]}
+    values = {
+        **Obstacles.params,
+        "detect": [
+            {"agent": "R", "sensor": "ir", "sector": [-45, 45], "below": 0.3, "raise": "near"},
+            {"agent": "R", "sensor": "ir", "sector": [90, 120], "below": 0.3, "raise": "side"},
+        ],
+    }
     comp = Obstacles(team, 1, values)
-    assert comp.rules[0].beams.tolist() == [0, 1, 2, 3, 21, 22, 23]   # 15-degree beams
+    assert comp.rules[0].beams.tolist() == [0, 1, 2, 3, 21, 22, 23]  # 15-degree beams
     assert comp.rules[1].beams.tolist() == [6, 7, 8]
     assert comp.raises == ("near", "side")
 
@@ -217,20 +240,22 @@ def test_sector_picks_the_beams_whose_axis_falls_in_it(tmp_path):
 RING = "          ring: {count: 4, max_range: 2.0, mount_radius: 0.3}\n"
 
 
-@pytest.mark.parametrize(("old", "new", "where", "message"), [
-    ("- agent: R", "- agent: Q", "detect[0].agent", "unknown agent 'Q'"),
-    ("sensor: ir", "sensor: 7", "detect[0].sensor", "expected a sensor name"),
-    ("below: 0.255", "below: 3", "detect[0].below", "expected a range in (0, max_range = 2]"),
-    ("beams: [0]", "beams: [4]", "detect[0].beams", "expected beam indices 0..3"),
-    ("beams: [0]", "sector: [30, 60]", "detect[0].sector", "no beam of 'ir' points within"),
-    ("raise: obstacle_detected", "rise: x", "detect[0]", "a rule needs raise"),
-    ("walls: [[2, -1, 2, 1]]", "walls: [[2, -1, 2]]", "walls[0]", "expected [x0, y0, x1, y1]"),
-    ("radius: [[R, 0.3]]", "radius: [[S, 0.3]]", "radius[0][0]", "unknown agent 'S'"),
-    ("radius: [[R, 0.3]]", "radius: [[R, -1]]", "radius[0]", "expected [agent, radius >= 0]"),
-    (RING, "", "detect[0].sensor", "agent 'R' has no robot model to take 'ir' from"),
-])
-def test_bad_settings_are_located_errors_naming_the_setting(tmp_path, old, new, where,
-                                                            message):
+@pytest.mark.parametrize(
+    ("old", "new", "where", "message"),
+    [
+        ("- agent: R", "- agent: Q", "detect[0].agent", "unknown agent 'Q'"),
+        ("sensor: ir", "sensor: 7", "detect[0].sensor", "expected a sensor name"),
+        ("below: 0.255", "below: 3", "detect[0].below", "expected a range in (0, max_range = 2]"),
+        ("beams: [0]", "beams: [4]", "detect[0].beams", "expected beam indices 0..3"),
+        ("beams: [0]", "sector: [30, 60]", "detect[0].sector", "no beam of 'ir' points within"),
+        ("raise: obstacle_detected", "rise: x", "detect[0]", "a rule needs raise"),
+        ("walls: [[2, -1, 2, 1]]", "walls: [[2, -1, 2]]", "walls[0]", "expected [x0, y0, x1, y1]"),
+        ("radius: [[R, 0.3]]", "radius: [[S, 0.3]]", "radius[0][0]", "unknown agent 'S'"),
+        ("radius: [[R, 0.3]]", "radius: [[R, -1]]", "radius[0]", "expected [agent, radius >= 0]"),
+        (RING, "", "detect[0].sensor", "agent 'R' has no robot model to take 'ir' from"),
+    ],
+)
+def test_bad_settings_are_located_errors_naming_the_setting(tmp_path, old, new, where, message):
     text = IR_WALL.read_text()
     assert old in text
     with pytest.raises(InputErrors) as exc:
@@ -241,10 +266,15 @@ def test_bad_settings_are_located_errors_naming_the_setting(tmp_path, old, new, 
 
 def test_python_built_teams_get_the_same_messages_as_value_errors():
     team = with_preset(load(IR_WALL), R="xr4000")
-    values = {**Obstacles.params, "detect": [
-        {"agent": "R", "sensor": "lidar", "below": 0.3, "raise": "near"}]}
-    with pytest.raises(ValueError, match=r"obstacles: detect\[0\]\.sensor: agent 'R': "
-                                         r"'lidar' is not a sensor of this robot"):
+    values = {
+        **Obstacles.params,
+        "detect": [{"agent": "R", "sensor": "lidar", "below": 0.3, "raise": "near"}],
+    }
+    with pytest.raises(
+        ValueError,
+        match=r"obstacles: detect\[0\]\.sensor: agent 'R': "
+        r"'lidar' is not a sensor of this robot",
+    ):
         Obstacles(team, 1, values)
 
 
@@ -255,13 +285,15 @@ def test_obstacles_are_drawn_as_grey_shapes_in_the_trajectory_plot():
     world = run.meta["world"]
     assert world["obstacles"][0] == {"kind": "wall", "points": [[2.0, -1.0], [2.0, 1.0]]}
     assert world["obstacles"][1] == {"kind": "circle", "x": 0.0, "y": 1.5, "r": 0.5}
-    np.testing.assert_allclose(world["obstacles"][2]["points"],
-                               [[-0.5, -1.5], [0.5, -1.5], [0.5, -1.1], [-0.5, -1.1]])
+    np.testing.assert_allclose(
+        world["obstacles"][2]["points"], [[-0.5, -1.5], [0.5, -1.5], [0.5, -1.1], [-0.5, -1.1]]
+    )
     assert run.meta["agents"][0]["footprint"] == {"radius": 0.3}
     ax = trajectory_figure(run).axes[0]
     shapes = [p for p in ax.patches if p.get_gid() == "obstacle"]
-    assert len(shapes) == 2 and all(p.get_facecolor()[:3] == shapes[0].get_facecolor()[:3]
-                                    for p in shapes)
+    assert len(shapes) == 2 and all(
+        p.get_facecolor()[:3] == shapes[0].get_facecolor()[:3] for p in shapes
+    )
     (walls,) = [c for c in ax.collections if c.get_gid() == "obstacle-walls"]
     np.testing.assert_allclose(walls.get_segments()[0], [[2, -1], [2, 1]])
 
@@ -305,8 +337,7 @@ def test_a_rule_reads_only_its_beams_and_they_read_as_in_the_whole_ring():
     st.x[:, 2] = rng.uniform(-math.pi, math.pi, n)
     idx = np.arange(n)
     line = obs.rings[(0, "ir")]
-    cone = RangeRing(count=8, max_range=2.0, mount_radius=0.3, half_angle=0.2,
-                     rays_per_beam=3)
+    cone = RangeRing(count=8, max_range=2.0, mount_radius=0.3, half_angle=0.2, rays_per_beam=3)
     for ring in (line, cone):
         whole = obs.read(0, ring, idx)
         assert (whole < ring.max_range).any() and (whole == ring.max_range).any()
@@ -315,12 +346,12 @@ def test_a_rule_reads_only_its_beams_and_they_read_as_in_the_whole_ring():
             np.testing.assert_array_equal(obs.read(0, ring, idx, beams=beams), whole[:, beams])
     # the rules' own bookkeeping: each rule's columns among its ring's beams read
     for rule, columns in zip(obs.rules, obs.rule_columns, strict=True):
-        np.testing.assert_array_equal(obs.read_beams[(rule.agent, rule.sensor)][columns],
-                                      rule.beams)
+        np.testing.assert_array_equal(
+            obs.read_beams[(rule.agent, rule.sensor)][columns], rule.beams
+        )
 
 
-def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_fire(
-        tmp_path):
+def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_fire(tmp_path):
     """A rule casts only where the floor (centre clearance from the static scene and from
     every payload's outline, less the hull) is below its threshold. The floor must bound
     every beam of the whole ring from below, and the rule's instances must see what casting
@@ -328,9 +359,11 @@ def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_
     are not cast against: those beams read no nearer than the threshold). Poses at random
     around a wall, a post, a box and a resting payload turned 30 degrees, some on the
     payload itself."""
-    text = ir_wall_with_payload("crate", 0.6, 0.3, [-1.5, -0.5, 0.5235987755982988]
-                                ).replace("below: 0.255", "below: 0.6").replace(
-                                    "beams: [0]", "beams: [0, 1]")
+    text = (
+        ir_wall_with_payload("crate", 0.6, 0.3, [-1.5, -0.5, 0.5235987755982988])
+        .replace("below: 0.255", "below: 0.6")
+        .replace("beams: [0]", "beams: [0, 1]")
+    )
     n = 4000
     sim = Simulator(compile_team(variant(tmp_path, text)), n, duration=0.0)
     sim.run()
@@ -351,8 +384,7 @@ def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_
     assert rows is not None and n / 10 < rows.size < n * 9 / 10  # both ways were taken
     (rule,) = obs.rules
     exact = whole[rows][:, obs.read_beams[key]]
-    np.testing.assert_array_equal(np.minimum(readings, rule.below),
-                                  np.minimum(exact, rule.below))
+    np.testing.assert_array_equal(np.minimum(readings, rule.below), np.minimum(exact, rule.below))
     assert (readings != exact).any()  # some static obstacle was beyond the threshold
     skipped = np.setdiff1d(idx, rows)
     assert (whole[skipped][:, rule.beams].min(axis=1) >= rule.below).all()

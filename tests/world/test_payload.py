@@ -17,9 +17,15 @@ from hybridteam.world.payload import (
 )
 
 
-@pytest.mark.parametrize(("length", "dist", "sc1", "sc2"), [
-    (450.0, 460.0, 0.8, 1.0), (450.0, 440.0, 0.8, 1.0), (100.0, 130.0, 1.0, 1.0),
-    (300.0, 295.0, 2.5, 0.5)])
+@pytest.mark.parametrize(
+    ("length", "dist", "sc1", "sc2"),
+    [
+        (450.0, 460.0, 0.8, 1.0),
+        (450.0, 440.0, 0.8, 1.0),
+        (100.0, 130.0, 1.0, 1.0),
+        (300.0, 295.0, 2.5, 0.5),
+    ],
+)
 def test_bar_offsets_follow_the_paper(length, dist, sc1, sc2):
     """|o1| = sc2 / (sc1 + sc2) * |D - l|, along the robots' line (ladder paper, Sec. 2)."""
     rng = np.random.default_rng(0)
@@ -53,12 +59,19 @@ def test_equilibrium_is_the_numeric_minimum(k):
     eq = equilibrium(robots, body, springs)
     energy = spring_energy(robots, body, springs, eq.x, eq.y, eq.theta)
     for i in range(n):
+
         def f(v, i=i):
-            return spring_energy(robots[i:i + 1], body[i:i + 1], springs[i:i + 1],
-                                 v[0:1], v[1:2], v[2:3])[0]
-        best = min((minimize(f, [shift[i, 0], shift[i, 1], t0], method="BFGS",
-                             options={"gtol": 1e-10}) for t0 in (theta0[i], theta0[i] + 3)),
-                   key=lambda r: r.fun)
+            return spring_energy(
+                robots[i : i + 1], body[i : i + 1], springs[i : i + 1], v[0:1], v[1:2], v[2:3]
+            )[0]
+
+        best = min(
+            (
+                minimize(f, [shift[i, 0], shift[i, 1], t0], method="BFGS", options={"gtol": 1e-10})
+                for t0 in (theta0[i], theta0[i] + 3)
+            ),
+            key=lambda r: r.fun,
+        )
         assert energy[i] == pytest.approx(best.fun, rel=1e-7, abs=1e-9)
         assert (eq.x[i], eq.y[i]) == pytest.approx((best.x[0], best.x[1]), abs=1e-4)
         assert math.cos(eq.theta[i] - best.x[2]) == pytest.approx(1.0, abs=1e-9)
@@ -74,7 +87,7 @@ def test_equilibrium_is_batch_independent_and_broadcasts():
     springs = rng.uniform(0.5, 2.0, (37, 3))
     eq = equilibrium(robots, body, springs)
     for i in range(0, 37, 4):
-        one = equilibrium(robots[i:i + 1], body, springs[i:i + 1])
+        one = equilibrium(robots[i : i + 1], body, springs[i : i + 1])
         for a, b in zip(eq, one, strict=True):
             assert np.array_equal(a[i], b[0])
     per_instance = equilibrium(robots, np.broadcast_to(body, (37, 3, 2)), springs)
@@ -88,8 +101,9 @@ def test_equilibrium_is_batch_independent_and_broadcasts():
     for a, b in zip(eq[:3], bare[:3], strict=True):
         np.testing.assert_array_equal(a, b)
     assert bare.offsets.shape == (37, 0, 2)
-    np.testing.assert_array_equal(robots - world_points(bare.x, bare.y, bare.theta, body),
-                                  eq.offsets)
+    np.testing.assert_array_equal(
+        robots - world_points(bare.x, bare.y, bare.theta, body), eq.offsets
+    )
 
 
 def test_equilibrium_rejects_bad_input():

@@ -46,11 +46,15 @@ def arm_probe(ctx: LawContext) -> np.ndarray:
 
 def test_arm_reads_the_offset_in_the_robot_frame(tmp_path):
     """A robot turned by 90 degrees reads a world-x stretch as its own -y."""
-    text = FIXTURE.read_text().replace(
-        "state: {x: 0, y: 0, theta: 0}", "state: {x: 0, y: 0, theta: 1.5707963267948966}"
-    ).replace("Hold: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}",
-              "Hold: {law: {use: tests.arm_probe, period: 0.5}}").replace(
-        "duration: 10", "duration: 1")
+    text = (
+        FIXTURE.read_text()
+        .replace("state: {x: 0, y: 0, theta: 0}", "state: {x: 0, y: 0, theta: 1.5707963267948966}")
+        .replace(
+            "Hold: {inputs: {vx: 0, vy: 0, omega: 0}, period: 0.1}",
+            "Hold: {law: {use: tests.arm_probe, period: 0.5}}",
+        )
+        .replace("duration: 10", "duration: 1")
+    )
     path = tmp_path / "probe.yaml"
     path.write_text(text)
     run = simulate(load(path))
@@ -89,24 +93,29 @@ def test_arms_read_their_offsets_before_they_hold_anything():
     run.run()
     sim = run.ensemble
     # at t = 1: A is 0.1 past the box's right end, B 0.5 short of its left end
-    np.testing.assert_allclose(sim.world.sense(0, np.arange(1), "arm"), [[0.1, 0.0, 0.0]],
-                               atol=1e-12)
-    np.testing.assert_allclose(sim.world.sense(1, np.arange(1), "arm"), [[-0.5, 0.0, 0.0]],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        sim.world.sense(0, np.arange(1), "arm"), [[0.1, 0.0, 0.0]], atol=1e-12
+    )
+    np.testing.assert_allclose(
+        sim.world.sense(1, np.arange(1), "arm"), [[-0.5, 0.0, 0.0]], atol=1e-12
+    )
     np.testing.assert_allclose(sim.world.sense(1, np.arange(1), "payload"), [[1.0, 0.0, 0.0]])
 
 
 def xr4000_bar(tmp_path, grasp_b: str = "{agent: B, point: [-1, 0]}"):
     """The bar pull with both robots XR4000s and grasps that say only where they hold."""
-    text = FIXTURE.read_text().replace(
-        "{agent: A, point: [1, 0], spring: 1, limit: 0.31}", "{agent: A, point: [1, 0]}"
-    ).replace("{agent: B, point: [-1, 0], spring: 3, limit: 0.31}", grasp_b)
+    text = (
+        FIXTURE.read_text()
+        .replace("{agent: A, point: [1, 0], spring: 1, limit: 0.31}", "{agent: A, point: [1, 0]}")
+        .replace("{agent: B, point: [-1, 0], spring: 3, limit: 0.31}", grasp_b)
+    )
     path = tmp_path / "xr_bar.yaml"
     path.write_text(text)
     team = load(path)
     preset = resolve("xr4000")
-    return dataclasses.replace(team, agents=tuple(dataclasses.replace(a, preset=preset)
-                                                  for a in team.agents))
+    return dataclasses.replace(
+        team, agents=tuple(dataclasses.replace(a, preset=preset) for a in team.agents)
+    )
 
 
 def test_grasps_default_to_the_robot_models_manipulator(tmp_path):
@@ -114,8 +123,9 @@ def test_grasps_default_to_the_robot_models_manipulator(tmp_path):
     2 apart (the bar's length); A pulls at 0.1 and equal springs share the stretch, so
     each offset is 0.05 t: past the limit after 1 s, reported at the next tick."""
     team = xr4000_bar(tmp_path)
-    comp = CarriedPayload(team, 1, {**CarriedPayload.params,
-                                    "grasps": team.world[0].values["grasps"]})
+    comp = CarriedPayload(
+        team, 1, {**CarriedPayload.params, "grasps": team.world[0].values["grasps"]}
+    )
     np.testing.assert_allclose(comp.mount, [[0.45, 0.0], [0.45, 0.0]])
     np.testing.assert_allclose(comp.spring, [5000.0, 5000.0])
     np.testing.assert_allclose(comp.limit, [0.05, 0.05])
@@ -126,20 +136,25 @@ def test_grasps_default_to_the_robot_models_manipulator(tmp_path):
 
 def test_explicit_grasp_keys_win_over_the_model(tmp_path):
     team = xr4000_bar(tmp_path, "{agent: B, point: [-1, 0], spring: 2, mount: [0, 0.1]}")
-    comp = CarriedPayload(team, 1, {**CarriedPayload.params,
-                                    "grasps": team.world[0].values["grasps"]})
+    comp = CarriedPayload(
+        team, 1, {**CarriedPayload.params, "grasps": team.world[0].values["grasps"]}
+    )
     np.testing.assert_allclose(comp.mount, [[0.45, 0.0], [0.0, 0.1]])
     np.testing.assert_allclose(comp.spring, [5000.0, 2.0])
     np.testing.assert_allclose(comp.limit, [0.05, 0.05])
 
 
 def test_an_engaged_grasp_must_name_a_variable_of_its_agent(tmp_path):
-    text = PICKUP.read_text().replace("point: [1, 0], spring: 1, engaged: holding",
-                                      "point: [1, 0], spring: 1, engaged: hodling")
+    text = PICKUP.read_text().replace(
+        "point: [1, 0], spring: 1, engaged: holding", "point: [1, 0], spring: 1, engaged: hodling"
+    )
     path = tmp_path / "typo.yaml"
     path.write_text(text)
-    with pytest.raises(ValueError, match=r"payload: grasps\[0\]\.engaged: agent 'A' has no "
-                                         r"variable 'hodling' \(its variables: holding\)"):
+    with pytest.raises(
+        ValueError,
+        match=r"payload: grasps\[0\]\.engaged: agent 'A' has no "
+        r"variable 'hodling' \(its variables: holding\)",
+    ):
         simulate(load(path))
 
 
@@ -173,8 +188,9 @@ agents:
 """
 
 
-@pytest.fixture(scope="module", params=["", ", engaged: holding"],
-                ids=["C always holds", "C engages"])
+@pytest.fixture(
+    scope="module", params=["", ", engaged: holding"], ids=["C always holds", "C engages"]
+)
 def three_grasps(tmp_path_factory, request):
     path = tmp_path_factory.mktemp("settle") / "three.yaml"
     path.write_text(THREE_GRASPS.replace("GRASP_C", request.param))
@@ -186,8 +202,9 @@ def three_grasps(tmp_path_factory, request):
 _KEPT = ("pose", "rest", "engaged", "offset", "arm")
 
 
-@settings(max_examples=150, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(st.data())
 def test_one_instance_settles_on_floats_to_the_array_versions_bits(three_grasps, data):
     """A single run settles its payload on Python floats (settle_one), an ensemble on
@@ -199,14 +216,11 @@ def test_one_instance_settles_on_floats_to_the_array_versions_bits(three_grasps,
     ens, world = sim.ensemble, sim.access
     coords = st.floats(-50, 50, allow_nan=False)
     for s in ens.states:
-        s.x[:, :3] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
-                                        max_size=4))
+        s.x[:, :3] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4, max_size=4))
     for s in ens.states:
         s.v[:, 0] = data.draw(st.lists(st.sampled_from([0.0, 1.0]), min_size=4, max_size=4))
-    box.rest[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
-                                     max_size=4))
-    box.rel0[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4,
-                                     max_size=4))
+    box.rest[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4, max_size=4))
+    box.rel0[:] = data.draw(st.lists(st.tuples(coords, coords, coords), min_size=4, max_size=4))
     before = {k: getattr(box, k).copy() for k in _KEPT}
     together = box.settle(world, np.arange(4))  # (more than one: the array version)
     kept = {k: getattr(box, k).copy() for k in _KEPT}
@@ -214,7 +228,7 @@ def test_one_instance_settles_on_floats_to_the_array_versions_bits(three_grasps,
         getattr(box, k)[:] = before[k]
     for i in range(4):
         alone = box.settle(world, np.array([i]))
-        assert alone.shape == together[i:i + 1].shape
-        assert alone.tobytes() == together[i:i + 1].tobytes()
+        assert alone.shape == together[i : i + 1].shape
+        assert alone.tobytes() == together[i : i + 1].tobytes()
     for k in _KEPT:
         assert getattr(box, k).tobytes() == kept[k].tobytes(), k

@@ -58,22 +58,22 @@ def test_a_beam_into_a_corner_does_not_slip_between_the_walls():
 
 
 def test_rays_parallel_to_walls():
-    wall = np.array([[0.0, 1.0, 5.0, 1.0]])          # y = 1, x in [0, 5]
-    assert cast1(-3.0, 0.0, 1.0, 0.0, wall) == math.inf            # parallel, off its line
-    assert cast1(-3.0, 1.0, 1.0, 0.0, wall) == 3.0                 # collinear: its near end
-    assert cast1(8.0, 1.0, -2.0, 0.0, wall) == 3.0                 # from the other side
-    assert cast1(6.0, 1.0, 1.0, 0.0, wall) == math.inf             # collinear, behind
-    assert cast1(2.0, 1.0, 1.0, 0.0, wall) == 0.0                  # starting on it
-    assert cast1(-1.0, 0.0, 1.0, 0.0, ROOM) == 4.0                 # room: along two walls
-    assert cast1(-2.0, 0.0, 0.0, 1.0, ROOM) == 0.0                 # on a wall, along it
+    wall = np.array([[0.0, 1.0, 5.0, 1.0]])  # y = 1, x in [0, 5]
+    assert cast1(-3.0, 0.0, 1.0, 0.0, wall) == math.inf  # parallel, off its line
+    assert cast1(-3.0, 1.0, 1.0, 0.0, wall) == 3.0  # collinear: its near end
+    assert cast1(8.0, 1.0, -2.0, 0.0, wall) == 3.0  # from the other side
+    assert cast1(6.0, 1.0, 1.0, 0.0, wall) == math.inf  # collinear, behind
+    assert cast1(2.0, 1.0, 1.0, 0.0, wall) == 0.0  # starting on it
+    assert cast1(-1.0, 0.0, 1.0, 0.0, ROOM) == 4.0  # room: along two walls
+    assert cast1(-2.0, 0.0, 0.0, 1.0, ROOM) == 0.0  # on a wall, along it
 
 
 def test_rays_starting_on_a_segment_read_zero():
     wall = np.array([[0.0, 0.0, 2.0, 2.0]])
     assert cast1(1.0, 1.0, 1.0, 0.0, wall) == 0.0
     assert cast1(1.0, 1.0, -1.0, 0.0, wall) == 0.0
-    assert cast1(0.0, 0.0, 0.0, -1.0, wall) == 0.0                 # on its end point
-    assert cast1(2.0, 0.0, 0.0, 1.0, wall) == pytest.approx(2.0)   # meets it at its far end
+    assert cast1(0.0, 0.0, 0.0, -1.0, wall) == 0.0  # on its end point
+    assert cast1(2.0, 0.0, 0.0, 1.0, wall) == pytest.approx(2.0)  # meets it at its far end
 
 
 def test_zero_length_segments_are_points():
@@ -91,7 +91,7 @@ def test_a_circle_is_hit_at_its_analytic_chord():
     assert cast1(0.0, 0.0, 1.0, 0.0, circles=[[5.0, 2.0, 2.0]]) == pytest.approx(5.0)  # tangent
     assert cast1(0.0, 0.0, 1.0, 0.0, circles=[[5.0, 2.5, 2.0]]) == math.inf
     assert cast1(0.0, 0.0, 1.0, 0.0, circles=[[-5.0, 0.0, 2.0]]) == math.inf  # behind
-    assert cast1(0.0, 0.0, 1.0, 0.0, circles=[[0.5, 0.0, 2.0]]) == 0.0        # inside it
+    assert cast1(0.0, 0.0, 1.0, 0.0, circles=[[0.5, 0.0, 2.0]]) == 0.0  # inside it
     assert cast1(0.0, 0.0, 3.0, 4.0, circles=[[6.0, 8.0, 5.0]]) == pytest.approx(5.0)
     # The nearer of a wall and a circle wins.
     assert cast1(0.0, 0.0, 1.0, 0.0, ROOM, [[2.0, 0.0, 0.5]]) == pytest.approx(1.5)
@@ -101,9 +101,13 @@ def test_a_circle_is_hit_at_its_analytic_chord():
 def test_per_instance_circles_and_nan_rows():
     origins = np.zeros((3, 1, 2))
     directions = np.tile([1.0, 0.0], (3, 1, 1))
-    circles = np.array([[[2.0, 0.0, 1.0], [np.nan] * 3],
-                        [[4.0, 0.0, 1.0], [3.0, 0.0, 0.5]],
-                        [[np.nan] * 3, [np.nan] * 3]])
+    circles = np.array(
+        [
+            [[2.0, 0.0, 1.0], [np.nan] * 3],
+            [[4.0, 0.0, 1.0], [3.0, 0.0, 0.5]],
+            [[np.nan] * 3, [np.nan] * 3],
+        ]
+    )
     out = cast(origins, directions, None, circles, max_range=10.0)
     assert out[:, 0].tolist() == [1.0, 2.5, 10.0]
 
@@ -112,7 +116,7 @@ def test_polygon_obstacle_is_its_edges():
     box = polygon_edges(rectangle(1.0, -0.5, 2.0, 0.5))
     assert box.shape == (4, 4)
     assert cast1(0.0, 0.0, 1.0, 0.0, box) == 1.0
-    assert cast1(1.5, 0.0, 1.0, 0.0, box) == pytest.approx(0.5)    # from inside: far face
+    assert cast1(1.5, 0.0, 1.0, 0.0, box) == pytest.approx(0.5)  # from inside: far face
 
 
 def test_readings_are_clipped_to_the_sensor_range():
@@ -139,8 +143,7 @@ def test_cone_reading_is_the_minimum_over_its_sub_rays():
     expected = along - math.sqrt(0.1**2 - off**2)
     assert cone.read(pose, None, post)[0, 0] == pytest.approx(expected, rel=1e-12)
     # And against any world: the beam reads the minimum of its five rays cast one by one.
-    ring = RangeRing(count=16, max_range=5.0, mount_radius=0.2, half_angle=half,
-                     rays_per_beam=5)
+    ring = RangeRing(count=16, max_range=5.0, mount_radius=0.2, half_angle=half, rays_per_beam=5)
     poses = np.array([[0.3, 0.4, 0.7], [-1.0, 2.0, -2.0]])
     circles = [[1.0, 1.0, 0.3], [-1.5, 3.0, 0.2]]
     origins, directions = ring.rays(poses)
@@ -152,20 +155,30 @@ def test_a_batch_of_poses_equals_single_calls_bit_for_bit():
     rng = np.random.default_rng(7)
     walls = np.concatenate([ROOM, rng.uniform(-2.0, 3.0, (40, 4))])
     circles = rng.uniform(-1.0, 3.0, (257, 5, 3)) * [1.0, 1.0, 0.1]
-    poses = np.column_stack([rng.uniform(-2.0, 3.0, 257), rng.uniform(-1.0, 4.0, 257),
-                             rng.uniform(-7.0, 7.0, 257)])
-    ring = RangeRing(count=24, max_range=5.0, min_range=0.1, mount_radius=0.33,
-                     half_angle=math.radians(12.5), rays_per_beam=3)
+    poses = np.column_stack(
+        [rng.uniform(-2.0, 3.0, 257), rng.uniform(-1.0, 4.0, 257), rng.uniform(-7.0, 7.0, 257)]
+    )
+    ring = RangeRing(
+        count=24,
+        max_range=5.0,
+        min_range=0.1,
+        mount_radius=0.33,
+        half_angle=math.radians(12.5),
+        rays_per_beam=3,
+    )
     batch = ring.read(poses, walls, circles)
-    singles = np.concatenate([ring.read(poses[i:i + 1], walls, circles[i:i + 1])
-                              for i in range(len(poses))])
+    singles = np.concatenate(
+        [ring.read(poses[i : i + 1], walls, circles[i : i + 1]) for i in range(len(poses))]
+    )
     np.testing.assert_array_equal(batch, singles)
     gap = clearance(poses, 0.33, walls, circles)
     np.testing.assert_array_equal(
-        gap, [clearance(poses[i:i + 1], 0.33, walls, circles[i:i + 1])[0] for i in range(257)])
+        gap, [clearance(poses[i : i + 1], 0.33, walls, circles[i : i + 1])[0] for i in range(257)]
+    )
 
 
 # --- property: never see through a wall, and every hit is on a wall ------------------------
+
 
 def _exact_hit(o, d, seg) -> tuple[Fraction, float] | None:
     """First point of ``seg`` on the ray, exactly: ray parameter (units of |d|) and the sine
@@ -176,8 +189,9 @@ def _exact_hit(o, d, seg) -> tuple[Fraction, float] | None:
     den = dx * ey - dy * ex
     if den != 0:
         t, s = (wx * ey - wy * ex) / den, (wx * dy - wy * dx) / den
-        sine = abs(float(den)) / (math.hypot(float(dx), float(dy))
-                                  * math.hypot(float(ex), float(ey)))
+        sine = abs(float(den)) / (
+            math.hypot(float(dx), float(dy)) * math.hypot(float(ex), float(ey))
+        )
         return (t, sine) if t >= 0 and 0 <= s <= 1 else None
     if wx * dy - wy * dx != 0:
         return None  # parallel, off the line
@@ -186,25 +200,31 @@ def _exact_hit(o, d, seg) -> tuple[Fraction, float] | None:
     return (max(min(ta, tb), Fraction(0)), 0.0) if max(ta, tb) >= 0 else None
 
 
-coord = st.one_of(st.integers(-5, 5).map(float),
-                  st.floats(-10.0, 10.0, allow_nan=False, allow_subnormal=False))
-segment = st.one_of(st.tuples(coord, coord, coord, coord),
-                    st.tuples(coord, coord).map(lambda p: (*p, *p)))  # zero length
+coord = st.one_of(
+    st.integers(-5, 5).map(float), st.floats(-10.0, 10.0, allow_nan=False, allow_subnormal=False)
+)
+segment = st.one_of(
+    st.tuples(coord, coord, coord, coord), st.tuples(coord, coord).map(lambda p: (*p, *p))
+)  # zero length
 direction = st.tuples(coord, coord).filter(lambda d: math.hypot(*d) > 1e-3)
 aim = st.integers(0, 11)  # at a segment's end point: corners, grazing and collinear rays
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(segment, min_size=1, max_size=6),
-       st.lists(st.tuples(coord, coord, st.one_of(direction, aim)), min_size=1, max_size=4))
+@given(
+    st.lists(segment, min_size=1, max_size=6),
+    st.lists(st.tuples(coord, coord, st.one_of(direction, aim)), min_size=1, max_size=4),
+)
 @example([(0.0, 0.0, 0.0, 8.595081661836888e-306)], [(2.0, 5.0, 0)])  # aimed at a tiny wall
-@example([(0.0, 6.411170972520673e-08, 1.0, 3.0)], [(0.0, 0.0, 1)])   # grazing its whole length
+@example([(0.0, 6.411170972520673e-08, 1.0, 3.0)], [(0.0, 0.0, 1)])  # grazing its whole length
 @example([(0.0, 0.0, 4.0, 0.0), (4.0, 0.0, 4.0, 4.0)], [(2.0, 2.0, 2)])  # into a corner
 def test_reading_never_passes_a_wall_and_hits_lie_on_walls(segments, rays):
     segs = np.array(segments, dtype=float)
     ends = segs.reshape(-1, 2)
-    rays = [(ox, oy, d if isinstance(d, tuple) else tuple(ends[d % len(ends)] - (ox, oy)))
-            for ox, oy, d in rays]
+    rays = [
+        (ox, oy, d if isinstance(d, tuple) else tuple(ends[d % len(ends)] - (ox, oy)))
+        for ox, oy, d in rays
+    ]
     rays = [r for r in rays if math.hypot(*r[2]) > 1e-3] or [(0.0, 0.0, (1.0, 0.0))]
     origins = np.array([[r[0], r[1]] for r in rays])[None]
     directions = np.array([r[2] for r in rays])[None]
@@ -228,6 +248,7 @@ def test_reading_never_passes_a_wall_and_hits_lie_on_walls(segments, rays):
 
 
 # --- thresholds, sectors, clearance, validation -------------------------------------------
+
 
 def test_detect_fires_when_selected_beams_see_closer_than_the_threshold():
     readings = np.array([[0.4, 2.0, 2.0, 2.0], [2.0, 2.0, 0.3, 2.0], [0.6, 2.0, 2.0, 2.0]])
@@ -256,18 +277,22 @@ def test_clearance_of_disks_from_walls_and_circles():
     assert clearance(poses[:1], np.array([1.5]), ROOM)[0] == pytest.approx(-0.5)
     assert clearance(poses, 0.3, None).tolist() == [math.inf] * 3
     per_instance = np.array([[[0.0, 0.5, 0.1]], [[np.nan] * 3], [[9.0, 9.0, 1.0]]])
-    np.testing.assert_allclose(clearance(poses, 0.0, None, per_instance),
-                               [0.4, math.inf, math.hypot(9.0, 8.0) - 1.0])
+    np.testing.assert_allclose(
+        clearance(poses, 0.0, None, per_instance), [0.4, math.inf, math.hypot(9.0, 8.0) - 1.0]
+    )
 
 
-@pytest.mark.parametrize("kwargs", [
-    {"count": 0, "max_range": 1.0},
-    {"count": 4, "max_range": 1.0, "min_range": 1.0},
-    {"count": 4, "max_range": 1.0, "mount_radius": -0.1},
-    {"count": 4, "max_range": 1.0, "half_angle": 0.2},
-    {"count": 4, "max_range": 1.0, "rays_per_beam": 3},
-    {"count": 4, "max_range": 1.0, "half_angle": 2.0, "rays_per_beam": 3},
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"count": 0, "max_range": 1.0},
+        {"count": 4, "max_range": 1.0, "min_range": 1.0},
+        {"count": 4, "max_range": 1.0, "mount_radius": -0.1},
+        {"count": 4, "max_range": 1.0, "half_angle": 0.2},
+        {"count": 4, "max_range": 1.0, "rays_per_beam": 3},
+        {"count": 4, "max_range": 1.0, "half_angle": 2.0, "rays_per_beam": 3},
+    ],
+)
 def test_bad_rings_are_refused(kwargs):
     with pytest.raises(ValueError):
         RangeRing(**kwargs)
@@ -312,8 +337,12 @@ def test_a_cast_reads_nothing_a_previous_cast_of_the_same_shape_left_behind():
     assert np.any(after < 5.0) and np.any(after == 5.0)  # some rays hit, some read max
 
 
-@given(st.lists(st.integers(0, 15), min_size=1, max_size=16, unique=True),
-       st.floats(-50, 50), st.floats(-50, 50), st.floats(-10, 10))
+@given(
+    st.lists(st.integers(0, 15), min_size=1, max_size=16, unique=True),
+    st.floats(-50, 50),
+    st.floats(-50, 50),
+    st.floats(-10, 10),
+)
 @settings(max_examples=100, deadline=None)
 def test_the_rays_of_some_beams_are_those_beams_rays(beams, x, y, theta):
     """Casting only the beams a rule reads gives those beams' rays of the whole ring, bit

@@ -48,11 +48,10 @@ def test_point_segment_distance_matches_dense_sampling():
 def test_point_segment_distance_simple_cases():
     walls = np.array([[0, 0, 10, 0], [0, 0, 0, 10], [5, 5, 5, 5]], dtype=float)
     d, c = point_segment_distances([[3, 4], [-3, -4], [5, 6]], walls)
-    np.testing.assert_allclose(d, [[4, 3, math.hypot(2, 1)], [5, 5, math.hypot(8, 9)],
-                                   [6, 5, 1]])
+    np.testing.assert_allclose(d, [[4, 3, math.hypot(2, 1)], [5, 5, math.hypot(8, 9)], [6, 5, 1]])
     np.testing.assert_allclose(c[0, 0], [3, 0])
-    np.testing.assert_allclose(c[1, 1], [0, 0])          # clamped to the end point
-    np.testing.assert_allclose(c[2, 2], [5, 5])          # degenerate segment is a point
+    np.testing.assert_allclose(c[1, 1], [0, 0])  # clamped to the end point
+    np.testing.assert_allclose(c[2, 2], [5, 5])  # degenerate segment is a point
 
 
 def test_point_segment_distance_is_batch_independent():
@@ -61,18 +60,21 @@ def test_point_segment_distance_is_batch_independent():
     walls = corridor_with_turn().walls
     d, _ = point_segment_distances(pts, walls)
     for i in range(0, 57, 5):
-        assert np.array_equal(point_segment_distances(pts[i:i + 1], walls)[0][0], d[i])
+        assert np.array_equal(point_segment_distances(pts[i : i + 1], walls)[0][0], d[i])
 
 
-@pytest.mark.parametrize(("a", "b", "expected"), [
-    ([0, 0, 2, 2], [0, 2, 2, 0], True),          # proper crossing
-    ([0, 0, 1, 1], [1, 1, 2, 0], True),          # shared end point
-    ([0, 0, 2, 0], [1, 0, 1, 5], True),          # T: end on the interior
-    ([0, 0, 2, 0], [1, 0.001, 1, 5], False),     # just short
-    ([0, 0, 2, 0], [1, 0, 3, 0], True),          # collinear overlap
-    ([0, 0, 1, 0], [2, 0, 3, 0], False),         # collinear, disjoint
-    ([0, 0, 2, 0], [0, 1, 2, 1], False),         # parallel
-])
+@pytest.mark.parametrize(
+    ("a", "b", "expected"),
+    [
+        ([0, 0, 2, 2], [0, 2, 2, 0], True),  # proper crossing
+        ([0, 0, 1, 1], [1, 1, 2, 0], True),  # shared end point
+        ([0, 0, 2, 0], [1, 0, 1, 5], True),  # T: end on the interior
+        ([0, 0, 2, 0], [1, 0.001, 1, 5], False),  # just short
+        ([0, 0, 2, 0], [1, 0, 3, 0], True),  # collinear overlap
+        ([0, 0, 1, 0], [2, 0, 3, 0], False),  # collinear, disjoint
+        ([0, 0, 2, 0], [0, 1, 2, 1], False),  # parallel
+    ],
+)
 def test_segments_intersect_cases(a, b, expected):
     assert segments_intersect([a], [b])[0, 0] == expected
     assert segments_intersect([b], [a])[0, 0] == expected
@@ -109,19 +111,23 @@ def test_points_in_polygon_concave_and_boundary():
 
 def test_segments_intersect_polygon():
     square = corridor_with_turn().corner
-    segs = [[-50, 900, 300, 1300],      # crosses the square, both ends outside
-            [50, 1050, 60, 1060],       # inside
-            [300, 0, 300, 900],         # outside
-            [200, 1200, 400, 1400]]     # touches a corner
+    segs = [
+        [-50, 900, 300, 1300],  # crosses the square, both ends outside
+        [50, 1050, 60, 1060],  # inside
+        [300, 0, 300, 900],  # outside
+        [200, 1200, 400, 1400],
+    ]  # touches a corner
     assert segments_intersect_polygon(segs, square).tolist() == [True, True, False, True]
 
 
 def test_default_corridor_is_the_papers():
     c = corridor_with_turn()
-    outer = np.hypot(c.outer_walls[:, 2] - c.outer_walls[:, 0],
-                     c.outer_walls[:, 3] - c.outer_walls[:, 1])
-    inner = np.hypot(c.inner_walls[:, 2] - c.inner_walls[:, 0],
-                     c.inner_walls[:, 3] - c.inner_walls[:, 1])
+    outer = np.hypot(
+        c.outer_walls[:, 2] - c.outer_walls[:, 0], c.outer_walls[:, 3] - c.outer_walls[:, 1]
+    )
+    inner = np.hypot(
+        c.inner_walls[:, 2] - c.inner_walls[:, 0], c.inner_walls[:, 3] - c.inner_walls[:, 1]
+    )
     assert outer.sum() == 2400 and inner.sum() == 2000
     assert c.width_in == c.width_out == 200 and c.turn == "right"
     x0, y0 = c.corner.min(axis=0)
@@ -144,8 +150,9 @@ def test_default_corridor_is_the_papers():
 
 def test_corridor_points_and_left_turn():
     c = corridor_with_turn()
-    np.testing.assert_allclose(c.corner_entry_point([0.0, 0.65, 1.0]),
-                               [[200, 1000], [70, 1000], [0, 1000]])
+    np.testing.assert_allclose(
+        c.corner_entry_point([0.0, 0.65, 1.0]), [[200, 1000], [70, 1000], [0, 1000]]
+    )
     np.testing.assert_allclose(c.corner_exit_point(0.8), [200, 1160])
     np.testing.assert_allclose(c.leg_point("in", 70.0), [100, 70])
     np.testing.assert_allclose(c.leg_point("out", 70.0), [1130, 1100])
@@ -180,18 +187,23 @@ def _numeric_limit(wa, wb, r):
     leg b's at y = wb - r; a chord at angle phi to leg a (the y axis) meets them at the
     distances below, computed from the lines, not from the closed form.
     """
+
     def chord(phi):
-        d = np.array([math.sin(phi), math.cos(phi)])   # direction, leg a along +y
-        to_a = (wa - r) / d[0]                          # back along -d to x = -(wa - r)
-        to_b = (wb - r) / d[1]                          # forward along +d to y = wb - r
+        d = np.array([math.sin(phi), math.cos(phi)])  # direction, leg a along +y
+        to_a = (wa - r) / d[0]  # back along -d to x = -(wa - r)
+        to_b = (wb - r) / d[1]  # forward along +d to y = wb - r
         return to_a + to_b
-    res = minimize_scalar(chord, bounds=(1e-6, math.pi / 2 - 1e-6), method="bounded",
-                          options={"xatol": 1e-12})
+
+    res = minimize_scalar(
+        chord, bounds=(1e-6, math.pi / 2 - 1e-6), method="bounded", options={"xatol": 1e-12}
+    )
     return res.fun, res.x
 
 
-@pytest.mark.parametrize(("wa", "wb", "r"), [(200, 200, 0), (200, 200, 26), (200, 200, 28),
-                                              (150, 300, 20), (300, 120, 10)])
+@pytest.mark.parametrize(
+    ("wa", "wb", "r"),
+    [(200, 200, 0), (200, 200, 26), (200, 200, 28), (150, 300, 20), (300, 120, 10)],
+)
 def test_longest_ladder_matches_numeric_minimum(wa, wb, r):
     length, phi = _numeric_limit(wa, wb, r)
     assert longest_ladder(wa, wb, r) == pytest.approx(length, rel=1e-9)
@@ -218,9 +230,12 @@ def test_segment_distances_are_each_ends_own(n, m, seed):
     if seed % 3 == 0:
         a[0, 2:] = a[0, :2]  # a degenerate segment
     got = segment_segment_distances(a, b)
-    ends = [point_segment_distances(a[:, 0:2], b)[0], point_segment_distances(a[:, 2:4], b)[0],
-            point_segment_distances(b[:, 0:2], a)[0].T,
-            point_segment_distances(b[:, 2:4], a)[0].T]
+    ends = [
+        point_segment_distances(a[:, 0:2], b)[0],
+        point_segment_distances(a[:, 2:4], b)[0],
+        point_segment_distances(b[:, 0:2], a)[0].T,
+        point_segment_distances(b[:, 2:4], a)[0].T,
+    ]
     dist = np.minimum(np.minimum(ends[0], ends[1]), np.minimum(ends[2], ends[3]))
     expected = np.where(segments_intersect(a, b), 0.0, dist)
     assert got.tobytes() == expected.tobytes()

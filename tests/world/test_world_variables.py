@@ -23,12 +23,15 @@ class Battery(WorldComponent):
     """``battery`` = its value at the start - rate * t, written at every instant; with
     ``only`` >= 0, in that instance alone."""
 
-    params: ClassVar[dict[str, Any]] = {"robot": "rover", "rate": 0.1, "only": -1.0,
-                                        "variable": "battery"}
+    params: ClassVar[dict[str, Any]] = {
+        "robot": "rover",
+        "rate": 0.1,
+        "only": -1.0,
+        "variable": "battery",
+    }
 
     def start(self, world: WorldAccess) -> None:
-        self.full = world.variable(self.values["robot"], self.values["variable"],
-                                   np.arange(self.n))
+        self.full = world.variable(self.values["robot"], self.values["variable"], np.arange(self.n))
 
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         only = int(self.values["only"][0])
@@ -64,7 +67,8 @@ def team(team_from_yaml, extra: str = ""):
 
 
 def test_the_guard_on_a_written_variable_fires_at_the_first_instant_past_the_crossing(
-        team_from_yaml):
+    team_from_yaml,
+):
     run = ht.simulate(team(team_from_yaml))
     (d,) = run.diagnostics
     assert d["outcome"] == "low_battery"
@@ -97,9 +101,15 @@ class NanBattery(Battery):
 
 def test_a_variable_that_is_not_a_finite_number_or_unknown_is_refused(team_from_yaml):
     nan = team_from_yaml(TEAM.format(extra="").replace("tests.battery", "tests.nan_battery"))
-    with pytest.raises(ValueError, match=r"set_variable: 'rover.battery' would be nan in "
-                                         r"instance 0"):
+    with pytest.raises(
+        ValueError,
+        match=r"set_variable: 'rover.battery' would be nan in "
+        r"instance 0",
+    ):
         ht.simulate(nan)
-    with pytest.raises(ValueError, match=r"agent 'rover' has no variable 'batery'.*did you "
-                                         r"mean 'battery'"):
+    with pytest.raises(
+        ValueError,
+        match=r"agent 'rover' has no variable 'batery'.*did you "
+        r"mean 'battery'",
+    ):
         ht.simulate(team(team_from_yaml, ", variable: batery"))

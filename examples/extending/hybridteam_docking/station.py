@@ -55,8 +55,11 @@ class Station(WorldComponent):
             problems.append(ModelError(("robots",), "list the robots that seek the dock"))
         for k, name in enumerate(robots):
             if name not in names:
-                problems.append(ModelError(("robots", k), f"unknown agent {name!r} "
-                                           f"(agents: {', '.join(names)})"))
+                problems.append(
+                    ModelError(
+                        ("robots", k), f"unknown agent {name!r} (agents: {', '.join(names)})"
+                    )
+                )
         radius = values.get("radius", 0.1)
         if isinstance(radius, int | float) and not radius > 0:
             problems.append(ModelError(("radius",), f"must be positive, got {radius!r}"))
@@ -102,8 +105,10 @@ class Station(WorldComponent):
     def describe(self) -> SceneDescription:
         """The dock's circle, drawn as a labelled region."""
         x, y, r = (float(self.values[k][0]) for k in ("x", "y", "radius"))
-        ring = tuple((x + r * math.cos(a), y + r * math.sin(a))
-                     for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False))
+        ring = tuple(
+            (x + r * math.cos(a), y + r * math.sin(a))
+            for a in np.linspace(0.0, 2 * math.pi, 24, endpoint=False)
+        )
         return SceneDescription(regions=(Region(ring, "dock"),))
 
     # ------------------------------------------------------------------ fast path
@@ -117,22 +122,32 @@ class Station(WorldComponent):
 
 
 def _stats(when: np.ndarray, closest: np.ndarray) -> dict[str, Any]:
-    return {"dock_time": [None if math.isnan(t) else float(t) for t in when],
-            "closest": [float(d) for d in closest]}
+    return {
+        "dock_time": [None if math.isnan(t) else float(t) for t in when],
+        "closest": [float(d) for d in closest],
+    }
 
 
 def _plain(request: BatchRequest) -> tuple[float, str] | None:
     """(control period, outcome of docking) if the team is one the fast path computes."""
     robots = list(request.settings["robots"])
-    if request.components != ("docking.station",) or not request.quiet \
-            or sorted(robots) != sorted(a.name for a in request.agents):
+    if (
+        request.components != ("docking.station",)
+        or not request.quiet
+        or sorted(robots) != sorted(a.name for a in request.agents)
+    ):
         return None
     periods, outcomes = set(), set()
     for name in robots:
         shape = request.agent(name)
         plan = shape.one_law()
-        if plan is None or shape.plant != "holonomic" or plan.law != "docking.seek" \
-                or plan.period <= 0 or set(plan.ends) != {EVENT}:
+        if (
+            plan is None
+            or shape.plant != "holonomic"
+            or plan.law != "docking.seek"
+            or plan.period <= 0
+            or set(plan.ends) != {EVENT}
+        ):
             return None
         periods.add(plan.period)
         outcomes.add(plan.ends[EVENT])
@@ -178,5 +193,12 @@ def _simulate(request: BatchRequest, period: float, outcome: str) -> list[dict[s
         t_next = min(k * period, request.duration)
         pos = pos + u * (t_next - t)
         t = t_next
-    return [{"instance": i, "outcome": result[i], "t_end": float(ends[i]),
-             **_stats(when[i], closest[i])} for i in range(n)]
+    return [
+        {
+            "instance": i,
+            "outcome": result[i],
+            "t_end": float(ends[i]),
+            **_stats(when[i], closest[i]),
+        }
+        for i in range(n)
+    ]

@@ -46,10 +46,19 @@ class Ctx:
 
     __slots__ = ("_since", "_t_in", "e", "m", "p", "q", "t", "u", "v", "w", "x")
 
-    def __init__(self, x: np.ndarray, v: np.ndarray, p: np.ndarray, t: np.ndarray,
-                 t_in: np.ndarray | None = None, m: dict[str, np.ndarray] | None = None,
-                 e=None, w=None, since: tuple[np.ndarray, np.ndarray | slice] | None = None,
-                 q: tuple[np.ndarray, np.ndarray | slice] | None = None) -> None:
+    def __init__(
+        self,
+        x: np.ndarray,
+        v: np.ndarray,
+        p: np.ndarray,
+        t: np.ndarray,
+        t_in: np.ndarray | None = None,
+        m: dict[str, np.ndarray] | None = None,
+        e=None,
+        w=None,
+        since: tuple[np.ndarray, np.ndarray | slice] | None = None,
+        q: tuple[np.ndarray, np.ndarray | slice] | None = None,
+    ) -> None:
         """``since``: instead of ``t_in``, the entry times it is computed from when first
         read, ``(column, rows)``: ``t - column[rows]``. A law or an ``inputs:``
         expression rarely reads the time in its mode, and computing it costs two numpy
@@ -116,8 +125,9 @@ class Row:
 
     __slots__ = ("p", "t", "t_in", "v", "x")
 
-    def __init__(self, x: list[float], v: list[float], p: list[float], t: float,
-                 t_in: float) -> None:
+    def __init__(
+        self, x: list[float], v: list[float], p: list[float], t: float, t_in: float
+    ) -> None:
         self.x, self.v, self.p, self.t, self.t_in = x, v, p, t, t_in
 
 
@@ -337,8 +347,13 @@ class CAgent:
         found = self.prefixed.get(event)
         if found is None:
             parts = event.split(".")
-            found = sorted({j for k in range(1, len(parts) + 1)
-                            for j in self.triggered.get(".".join(parts[:k]), [])})
+            found = sorted(
+                {
+                    j
+                    for k in range(1, len(parts) + 1)
+                    for j in self.triggered.get(".".join(parts[:k]), [])
+                }
+            )
             self.prefixed[event] = found
         return found
 
@@ -409,8 +424,16 @@ class CAgent:
         return x, v
 
     def law_context(self, ctx: Ctx, driver: Driver) -> LawContext:
-        return LawContext(ctx, driver.params, self.name, self.state_index, self.var_index,
-                          self.param_index, self.plant.input_names, driver.tables)
+        return LawContext(
+            ctx,
+            driver.params,
+            self.name,
+            self.state_index,
+            self.var_index,
+            self.param_index,
+            self.plant.input_names,
+            driver.tables,
+        )
 
 
 @dataclass

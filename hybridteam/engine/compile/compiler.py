@@ -94,25 +94,34 @@ class _Names:
     derived: tuple[tuple[int, Expression], ...]  # (column, expression) of derived ones
 
 
-def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | None,
-           col: Collector) -> _Names:
+def _names(
+    agent: Agent, team_params: dict[str, float], extra_symbols: dict | None, col: Collector
+) -> _Names:
     try:
         plant = make_plant(agent.plant.kind, tuple(agent.plant.state))
     except KeyError:
-        col.fail((*agent.plant.where, "kind"), f"unknown plant kind '{agent.plant.kind}'",
-                 did_you_mean(agent.plant.kind, ["unicycle", "holonomic", "flow", "none"]))
+        col.fail(
+            (*agent.plant.where, "kind"),
+            f"unknown plant kind '{agent.plant.kind}'",
+            did_you_mean(agent.plant.kind, ["unicycle", "holonomic", "flow", "none"]),
+        )
         raise ModelErrors(col.errors) from None
     state_index = {n: j for j, n in enumerate(plant.state_names)}
     var_index = {n: j for j, n in enumerate(agent.variables)}
     parameters = {**team_params, **agent.parameters}
     param_index = {n: j for j, n in enumerate(parameters)}
     seen: dict[str, str] = {}
-    for kind, names in (("state", state_index), ("variable", var_index),
-                        ("parameter", agent.parameters)):
+    for kind, names in (
+        ("state", state_index),
+        ("variable", var_index),
+        ("parameter", agent.parameters),
+    ):
         for n in names:
             if n in RESERVED or n.startswith("__"):
-                col.fail((*agent.where, kind if kind != "state" else "plant", n),
-                         f"'{n}' is a reserved name")
+                col.fail(
+                    (*agent.where, kind if kind != "state" else "plant", n),
+                    f"'{n}' is a reserved name",
+                )
             elif n in seen and not (seen[n] == "parameter" and kind == "parameter"):
                 col.fail((*agent.where, n), f"name '{n}' is both a {seen[n]} and a {kind}")
             seen[n] = kind
@@ -121,14 +130,26 @@ def _names(agent: Agent, team_params: dict[str, float], extra_symbols: dict | No
     extra = extra_symbols or {}
     param_syms = ChainMap(symbols({}, {}, param_index), extra)
     defaults, derived = _derived(agent, parameters, param_index, param_syms, col)
-    return _Names(plant, state_index, var_index, parameters, param_index,
-                  ChainMap(symbols(state_index, var_index, param_index), extra),
-                  param_syms, defaults, derived)
+    return _Names(
+        plant,
+        state_index,
+        var_index,
+        parameters,
+        param_index,
+        ChainMap(symbols(state_index, var_index, param_index), extra),
+        param_syms,
+        defaults,
+        derived,
+    )
 
 
-def _derived(agent: Agent, parameters: dict[str, float | str], param_index: dict[str, int],
-             param_syms: Mapping, col: Collector
-             ) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
+def _derived(
+    agent: Agent,
+    parameters: dict[str, float | str],
+    param_index: dict[str, int],
+    param_syms: Mapping,
+    col: Collector,
+) -> tuple[np.ndarray, tuple[tuple[int, Expression], ...]]:
     """Default values of every parameter, and the agent's parameters written as
     expressions (``ack_timeout: 2 * latency + 0.05``).
 
@@ -148,9 +169,12 @@ def _derived(agent: Agent, parameters: dict[str, float | str], param_index: dict
             expr = col.expr(value, param_syms, where)
             later = sorted((expr.names - readable) & set(parameters)) if expr else []
             if later:
-                col.fail(where, f"parameter '{name}' reads '{later[0]}', which is not "
-                         "declared above it", "a parameter may read the team's parameters "
-                         "and the agent's own parameters declared before it")
+                col.fail(
+                    where,
+                    f"parameter '{name}' reads '{later[0]}', which is not declared above it",
+                    "a parameter may read the team's parameters "
+                    "and the agent's own parameters declared before it",
+                )
             elif expr is not None:
                 values[0, j] = float(np.asarray(expr(ctx), float).reshape(-1)[0])
                 derived.append((j, expr))
@@ -160,25 +184,36 @@ def _derived(agent: Agent, parameters: dict[str, float | str], param_index: dict
     return values[0], tuple(derived)
 
 
-def _initial_values(agent: Agent, names: _Names, col: Collector
-                    ) -> tuple[list[Expression], list[Expression], np.ndarray, np.ndarray]:
+def _initial_values(
+    agent: Agent, names: _Names, col: Collector
+) -> tuple[list[Expression], list[Expression], np.ndarray, np.ndarray]:
     """Initial state and variable expressions, and the inputs' lower and upper limits."""
     plant, where = names.plant, agent.plant.where
     missing = [n for n in plant.state_names if n not in agent.plant.state]
     if plant.kind != "flow" and (missing or set(agent.plant.state) - set(plant.state_names)):
         for n in sorted(set(agent.plant.state) - set(plant.state_names)):
-            col.fail((*where, "state", n), f"a {plant.kind} plant has no state '{n}'",
-                     f"its state is {', '.join(plant.state_names)}")
-    init_state = [col.expr(agent.plant.state.get(n, 0.0), names.param_syms,
-                           (*where, "state", n)) for n in plant.state_names]
-    init_vars = [col.expr(v, names.param_syms, (*agent.where, "variables", n))
-                 for n, v in agent.variables.items()]
+            col.fail(
+                (*where, "state", n),
+                f"a {plant.kind} plant has no state '{n}'",
+                f"its state is {', '.join(plant.state_names)}",
+            )
+    init_state = [
+        col.expr(agent.plant.state.get(n, 0.0), names.param_syms, (*where, "state", n))
+        for n in plant.state_names
+    ]
+    init_vars = [
+        col.expr(v, names.param_syms, (*agent.where, "variables", n))
+        for n, v in agent.variables.items()
+    ]
     lower = np.full(len(plant.input_names), -np.inf)
     upper = np.full(len(plant.input_names), np.inf)
     for n, (lo, hi) in agent.plant.limits.items():
         if n not in plant.input_names:
-            col.fail((*where, "limits", n), f"a {plant.kind} plant has no input '{n}'",
-                     did_you_mean(n, plant.input_names))
+            col.fail(
+                (*where, "limits", n),
+                f"a {plant.kind} plant has no input '{n}'",
+                did_you_mean(n, plant.input_names),
+            )
             continue
         if lo > hi:
             col.fail((*where, "limits", n), f"lower limit {lo} exceeds upper {hi}")
@@ -186,9 +221,14 @@ def _initial_values(agent: Agent, names: _Names, col: Collector
     return init_state, init_vars, lower, upper  # type: ignore[return-value]  # (None only beside an error in col)
 
 
-def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[int, list[int]],
-           names: _Names, col: Collector, folder: str | None
-           ) -> tuple[list[CMode], list[Driver]]:
+def _modes(
+    agent: Agent,
+    flat: list[tuple[str, Mode, int, int]],
+    children: dict[int, list[int]],
+    names: _Names,
+    col: Collector,
+    folder: str | None,
+) -> tuple[list[CMode], list[Driver]]:
     """The mode tree in pre-order with initial children, drivers and invariants."""
     modes: list[CMode] = []
     drivers: list[Driver] = [Driver("zero", -1)]
@@ -202,42 +242,75 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
             kids = [c.name for c in mode.children]
             init_name = mode.initial or (kids[0] if len(kids) == 1 else None)
             if init_name is None:
-                col.fail((*at, "initial"), f"mode '{path or agent.name}' has "
-                         f"{len(kids)} children and no 'initial'")
+                col.fail(
+                    (*at, "initial"),
+                    f"mode '{path or agent.name}' has {len(kids)} children and no 'initial'",
+                )
             elif init_name in kids:
                 initial = children[idx][kids.index(init_name)]
             else:
-                deeper[idx] = _descendant(init_name, idx, flat, (*at, "initial"),
-                                          "initial mode", col)
+                deeper[idx] = _descendant(
+                    init_name, idx, flat, (*at, "initial"), "initial mode", col
+                )
             if mode.history_default is not None:
                 history_default[idx] = _descendant(
-                    mode.history_default, idx, flat, (*mode.where, "history", "default"),
-                    "history default", col)
+                    mode.history_default,
+                    idx,
+                    flat,
+                    (*mode.where, "history", "default"),
+                    "history default",
+                    col,
+                )
         elif mode.initial is not None and kind == "and":
-            col.fail((*at, "initial"), "a parallel mode enters all its regions; "
-                     "it has no 'initial'")
+            col.fail(
+                (*at, "initial"), "a parallel mode enters all its regions; it has no 'initial'"
+            )
         if mode.history_default is not None and kind != "or":
-            col.fail((*mode.where, "history", "default"), "a history default is where a "
-                     "composite enters one of its children while nothing is remembered; "
-                     + ("a parallel mode enters all its regions: give it to a region"
-                        if kind == "and" else "this mode has no children"))
-        driver = compile_driver(mode, idx, names.plant, names.syms, col, names.parameters,
-                                folder, names.variables)
+            col.fail(
+                (*mode.where, "history", "default"),
+                "a history default is where a "
+                "composite enters one of its children while nothing is remembered; "
+                + (
+                    "a parallel mode enters all its regions: give it to a region"
+                    if kind == "and"
+                    else "this mode has no children"
+                ),
+            )
+        driver = compile_driver(
+            mode, idx, names.plant, names.syms, col, names.parameters, folder, names.variables
+        )
         if driver is not None:
             drivers.append(driver)
         inv = None
         if mode.invariant is not None:
-            inv = col.expr(mode.invariant, names.syms, (*mode.where, "invariant"),
-                           condition=True)
-        modes.append(CMode(idx, mode.name, path, parent, depth, kind, children[idx], initial,
-                           mode.history, mode.final, len(drivers) - 1 if driver else -1, inv,
-                           str(mode.invariant or ""), role=mode.role))
+            inv = col.expr(mode.invariant, names.syms, (*mode.where, "invariant"), condition=True)
+        modes.append(
+            CMode(
+                idx,
+                mode.name,
+                path,
+                parent,
+                depth,
+                kind,
+                children[idx],
+                initial,
+                mode.history,
+                mode.final,
+                len(drivers) - 1 if driver else -1,
+                inv,
+                str(mode.invariant or ""),
+                role=mode.role,
+            )
+        )
         if mode.final and mode.children:
             col.fail((*mode.where, "final"), "only leaf modes can be final")
         if kind == "leaf" and mode.history != "none":
-            col.fail((*mode.where, "history"), f"mode '{path or agent.name}' has no modes to "
-                     "remember: 'history' restores a composite mode's last active child; "
-                     "remove it, or give the mode 'modes'")
+            col.fail(
+                (*mode.where, "history"),
+                f"mode '{path or agent.name}' has no modes to "
+                "remember: 'history' restores a composite mode's last active child; "
+                "remove it, or give the mode 'modes'",
+            )
     for m in modes:
         target = deeper.get(m.index, m.initial)
         if target >= 0:
@@ -257,8 +330,12 @@ def _modes(agent: Agent, flat: list[tuple[str, Mode, int, int]], children: dict[
 def _check_delays(transitions: list[CTransition], names: _Names, col: Collector) -> None:
     """``after:`` delays of parameters alone, checked on the agent's own values as entering
     the mode checks them (a delay reading the state or the time is checked there only)."""
-    ctx = Ctx(np.zeros((1, len(names.state))), np.zeros((1, len(names.variables))),
-              names.defaults[None, :], np.zeros(1))
+    ctx = Ctx(
+        np.zeros((1, len(names.state))),
+        np.zeros((1, len(names.variables))),
+        names.defaults[None, :],
+        np.zeros(1),
+    )
     for ct in transitions:
         if ct.after is None or not ct.after.names <= names.param_index.keys():
             continue
@@ -268,45 +345,89 @@ def _check_delays(transitions: list[CTransition], names: _Names, col: Collector)
             col.errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
 
 
-def _descendant(name: str, idx: int, flat: list[tuple[str, Mode, int, int]],
-                where: tuple, what: str, col: Collector) -> int:
+def _descendant(
+    name: str,
+    idx: int,
+    flat: list[tuple[str, Mode, int, int]],
+    where: tuple,
+    what: str,
+    col: Collector,
+) -> int:
     """The descendant of mode ``idx`` that ``name`` names (a unique name or a dotted path
     below the mode), -1 with an error collected if none or several do."""
     path = flat[idx][0]
     prefix = f"{path}." if path else ""
-    below = [p[len(prefix):] if i != idx and p.startswith(prefix) else ""
-             for i, (p, _m, _q, _d) in enumerate(flat)]
+    below = [
+        p[len(prefix) :] if i != idx and p.startswith(prefix) else ""
+        for i, (p, _m, _q, _d) in enumerate(flat)
+    ]
     found, matches = resolve_mode(name, below)
     if found is None:
-        col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its "
-                 "dotted path" if matches else f"unknown {what} '{name}'",
-                 None if matches else did_you_mean(
-                     name, [p.rsplit(".", 1)[-1] for p in below if p] + [p for p in below if p]))
+        col.fail(
+            where,
+            f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its dotted path"
+            if matches
+            else f"unknown {what} '{name}'",
+            None
+            if matches
+            else did_you_mean(
+                name, [p.rsplit(".", 1)[-1] for p in below if p] + [p for p in below if p]
+            ),
+        )
         return -1
     return found
 
 
-def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
-                  agent_names: list[str],
-                  message_fields: dict[str, set[str]] | None = None,
-                  team: Team | None = None, extra_symbols: dict | None = None) -> CAgent:
+def compile_agent(
+    agent: Agent,
+    index: int,
+    team_params: dict[str, float],
+    agent_names: list[str],
+    message_fields: dict[str, set[str]] | None = None,
+    team: Team | None = None,
+    extra_symbols: dict | None = None,
+) -> CAgent:
     """One agent, compiled; :class:`ModelErrors` with every problem found."""
     col = Collector()
     names = _names(agent, team_params, extra_symbols, col)
     init_state, init_vars, lower, upper = _initial_values(agent, names, col)
     flat, children = _flatten(agent.root)
     paths = [p for p, _, _, _ in flat]
-    modes, drivers = _modes(agent, flat, children, names, col,
-                            team.folder if team is not None else None)
-    transitions = compile_transitions(flat, modes, paths, names.syms, names.state,
-                                      names.variables, agent_names, agent.name,
-                                      message_fields, col, inner_first=team is not None
-                                      and team.priority_rule == "inner_first")
+    modes, drivers = _modes(
+        agent, flat, children, names, col, team.folder if team is not None else None
+    )
+    transitions = compile_transitions(
+        flat,
+        modes,
+        paths,
+        names.syms,
+        names.state,
+        names.variables,
+        agent_names,
+        agent.name,
+        message_fields,
+        col,
+        inner_first=team is not None and team.priority_rule == "inner_first",
+    )
     for (_p, mode, _q, _d), cm in zip(flat, modes, strict=True):
-        cm.on_entry = compile_actions(mode.on_entry, (*mode.where, "entry"), names.syms,
-                                      names.state, names.variables, agent_names, col)
-        cm.on_exit = compile_actions(mode.on_exit, (*mode.where, "exit"), names.syms,
-                                     names.state, names.variables, agent_names, col)
+        cm.on_entry = compile_actions(
+            mode.on_entry,
+            (*mode.where, "entry"),
+            names.syms,
+            names.state,
+            names.variables,
+            agent_names,
+            col,
+        )
+        cm.on_exit = compile_actions(
+            mode.on_exit,
+            (*mode.where, "exit"),
+            names.syms,
+            names.state,
+            names.variables,
+            agent_names,
+            col,
+        )
     _check_delays(transitions, names, col)
     if col.errors:
         raise ModelErrors(col.errors)
@@ -315,20 +436,32 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
     for ct in transitions:
         (has_triggered if ct.on else has_eventless)[ct.source] = True
     ca = CAgent(
-        index=index, name=agent.name, plant=names.plant, modes=modes, transitions=transitions,
-        drivers=drivers, state_index=names.state, var_index=names.variables,
+        index=index,
+        name=agent.name,
+        plant=names.plant,
+        modes=modes,
+        transitions=transitions,
+        drivers=drivers,
+        state_index=names.state,
+        var_index=names.variables,
         param_index=names.param_index,
-        param_defaults=names.defaults, derived_params=names.derived,
+        param_defaults=names.defaults,
+        derived_params=names.derived,
         transition_sources=np.array([ct.source for ct in transitions], np.intp),
         symbols=names.syms,
-        init_state=init_state, init_vars=init_vars, lower=lower, upper=upper,
+        init_state=init_state,
+        init_vars=init_vars,
+        lower=lower,
+        upper=upper,
         watches=watches(modes, transitions, CONTINUOUS_NAMES | frozenset(names.state)),
         eventless=[ct.index for ct in transitions if ct.on is None],
         triggered=group_triggered(transitions),
         after=[ct.index for ct in transitions if ct.after is not None],
-        driver_modes=sorted((m.index for m in modes if m.driver >= 0),
-                            key=lambda i: -modes[i].depth),
-        has_eventless=has_eventless, has_triggered=has_triggered,
+        driver_modes=sorted(
+            (m.index for m in modes if m.driver >= 0), key=lambda i: -modes[i].depth
+        ),
+        has_eventless=has_eventless,
+        has_triggered=has_triggered,
         final=np.array([m.final for m in modes], bool),
         outcome=[mode.outcome for _p, mode, _q, _d in flat],
         leaves=np.array([m.index for m in modes if m.kind == "leaf"], dtype=np.intp),
@@ -346,8 +479,7 @@ def compile_agent(agent: Agent, index: int, team_params: dict[str, float],
 
 def compile_team(team: Team) -> CTeam:
     """Compile every agent; raise :class:`ModelErrors` with all problems found."""
-    errors: list[ModelError] = (check_network(team) + check_messages(team)
-                                + check_world(team))
+    errors: list[ModelError] = check_network(team) + check_messages(team) + check_world(team)
     fields = message_fields(team)
     extra = team_symbols(team)
     agents: list[CAgent] = []
@@ -360,8 +492,13 @@ def compile_team(team: Team) -> CTeam:
     scenario = []
     for ev in team.scenario:
         if ev.agent not in names:
-            errors.append(ModelError((*ev.where, "agent"), f"unknown agent '{ev.agent}'",
-                                     hint=did_you_mean(ev.agent, names)))
+            errors.append(
+                ModelError(
+                    (*ev.where, "agent"),
+                    f"unknown agent '{ev.agent}'",
+                    hint=did_you_mean(ev.agent, names),
+                )
+            )
             continue
         scenario.append((float(ev.at), names.index(ev.agent), ev.event))
     ending = _ending(team, names, errors)
@@ -381,8 +518,13 @@ def _ending(team: Team, names: list[str], errors: list[ModelError]) -> list[int]
     out = []
     for k, name in enumerate(team.end.agents):
         if name not in names:
-            errors.append(ModelError((*team.end.where, "agents", k), f"unknown agent '{name}'",
-                                     hint=did_you_mean(name, names)))
+            errors.append(
+                ModelError(
+                    (*team.end.where, "agents", k),
+                    f"unknown agent '{name}'",
+                    hint=did_you_mean(name, names),
+                )
+            )
         else:
             out.append(names.index(name))
     return out

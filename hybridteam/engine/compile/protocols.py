@@ -48,8 +48,11 @@ def check_messages(team: Team) -> list[ModelError]:
     """Sends of undeclared message fields, reserved names, and sockets that disagree."""
     errors: list[ModelError] = []
     if "ack" in team.messages:
-        errors.append(ModelError(team.messages["ack"].where, "'ack' is reserved for "
-                                 "acknowledgements", at_key=True))
+        errors.append(
+            ModelError(
+                team.messages["ack"].where, "'ack' is reserved for acknowledgements", at_key=True
+            )
+        )
     for agent in team.agents:
         for _, mode in agent.root.walk():
             for tr in mode.transitions:
@@ -61,18 +64,27 @@ def check_messages(team: Team) -> list[ModelError]:
                         continue
                     for f in act.fields:
                         if f not in spec.fields:
-                            errors.append(ModelError(
-                                (*act.where, "fields", f),
-                                f"message '{spec.name}' has no field '{f}'",
-                                hint=did_you_mean(f, spec.fields), at_key=True))
+                            errors.append(
+                                ModelError(
+                                    (*act.where, "fields", f),
+                                    f"message '{spec.name}' has no field '{f}'",
+                                    hint=did_you_mean(f, spec.fields),
+                                    at_key=True,
+                                )
+                            )
     return errors
 
 
 def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: Collector) -> None:
     """Give a compiled agent its message policies and its streams."""
     agent = team.agents[ca.index]
-    sends = {act.message for _, mode in agent.root.walk() for tr in mode.transitions
-             for act in tr.actions if isinstance(act, Send)}
+    sends = {
+        act.message
+        for _, mode in agent.root.walk()
+        for tr in mode.transitions
+        for act in tr.actions
+        if isinstance(act, Send)
+    }
     for name, spec in team.messages.items():
         if name not in sends:  # how a message is sent matters only to its senders
             continue
@@ -87,25 +99,42 @@ def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: 
             pol.dedupe = spec.ack.dedupe
         ca.policies[name] = pol
         for err in own.errors:
-            what = {"timeout": "ack timeout", "retries": "ack retries"}.get(
-                str(err.path[-1]), str(err.path[-1])) if err.path else "policy"
-            col.fail(agent.where, f"agent '{ca.name}' sends '{name}', whose {what} cannot be "
-                     f"evaluated for it: {err.message}", "give the agent that parameter "
-                     f"(parameters:), or make it a member of the protocol that declares "
-                     f"'{name}'" + (f" ({spec.protocol})" if spec.protocol else ""))
-    usyms = ChainMap({**velocity_symbols(ca.plant),
-                      **{f"u_{n}": (lambda c, j=j: c.u[:, j])
-                         for j, n in enumerate(ca.plant.input_names)}}, syms)
+            what = (
+                {"timeout": "ack timeout", "retries": "ack retries"}.get(
+                    str(err.path[-1]), str(err.path[-1])
+                )
+                if err.path
+                else "policy"
+            )
+            col.fail(
+                agent.where,
+                f"agent '{ca.name}' sends '{name}', whose {what} cannot be "
+                f"evaluated for it: {err.message}",
+                "give the agent that parameter "
+                f"(parameters:), or make it a member of the protocol that declares "
+                f"'{name}'" + (f" ({spec.protocol})" if spec.protocol else ""),
+            )
+    usyms = ChainMap(
+        {
+            **velocity_symbols(ca.plant),
+            **{f"u_{n}": (lambda c, j=j: c.u[:, j]) for j, n in enumerate(ca.plant.input_names)},
+        },
+        syms,
+    )
     for s in agent.streams:
         modes = []
         for k, name in enumerate(s.while_):
             m, matches = resolve_mode(name, paths)
             if m is None:
-                col.fail((*s.where, "while", k), f"unknown mode '{name}' in agent "
-                         f"'{ca.name}'" if not matches else
-                         f"mode name '{name}' is ambiguous: {', '.join(matches)}",
-                         None if matches else did_you_mean(name, [p.rsplit('.', 1)[-1]
-                                                                  for p in paths if p]))
+                col.fail(
+                    (*s.where, "while", k),
+                    f"unknown mode '{name}' in agent '{ca.name}'"
+                    if not matches
+                    else f"mode name '{name}' is ambiguous: {', '.join(matches)}",
+                    None
+                    if matches
+                    else did_you_mean(name, [p.rsplit(".", 1)[-1] for p in paths if p]),
+                )
                 continue
             modes.append(m)
         rate = col.expr(s.rate, syms, (*s.where, "rate"))
@@ -113,9 +142,18 @@ def attach(ca: CAgent, team: Team, syms: MutableMapping, paths: list[str], col: 
         fields = {f: e for f, e in given.items() if e is not None}
         if rate is None or len(fields) < len(given):
             continue
-        ca.streams.append(CStream(s.message, s.socket, _reciprocal(rate), fields,
-                                  modes, where=s.where, rate_text=str(s.rate),
-                                  fixed_rate=rate.names <= ca.param_index.keys()))
+        ca.streams.append(
+            CStream(
+                s.message,
+                s.socket,
+                _reciprocal(rate),
+                fields,
+                modes,
+                where=s.where,
+                rate_text=str(s.rate),
+                fixed_rate=rate.names <= ca.param_index.keys(),
+            )
+        )
 
 
 VELOCITY_NAMES = ("vel_x", "vel_y", "vel_theta", "vel_forward")
@@ -132,8 +170,10 @@ def velocity_symbols(plant: Plant) -> dict:
     operators) or without a planar pose report zero.
     """
     if not plant.input_names or not {"x", "y", "theta"} <= set(plant.state_names):
+
         def zero(c):
             return np.zeros(c.x.shape[0])
+
         return dict.fromkeys(VELOCITY_NAMES, zero)
     ix, iy, ith = (plant.state_names.index(n) for n in ("x", "y", "theta"))
 
@@ -141,13 +181,16 @@ def velocity_symbols(plant: Plant) -> dict:
         d, th = plant.derivative(c.x, c.u), c.x[:, ith]
         return d[:, ix] * np.cos(th) + d[:, iy] * np.sin(th)
 
-    return {"vel_x": lambda c: plant.derivative(c.x, c.u)[:, ix],
-            "vel_y": lambda c: plant.derivative(c.x, c.u)[:, iy],
-            "vel_theta": lambda c: plant.derivative(c.x, c.u)[:, ith],
-            "vel_forward": forward}
+    return {
+        "vel_x": lambda c: plant.derivative(c.x, c.u)[:, ix],
+        "vel_y": lambda c: plant.derivative(c.x, c.u)[:, iy],
+        "vel_theta": lambda c: plant.derivative(c.x, c.u)[:, ith],
+        "vel_forward": forward,
+    }
 
 
 def _reciprocal(rate):
     def period(ctx):
         return 1.0 / rate(ctx)
+
     return period

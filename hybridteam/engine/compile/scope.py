@@ -34,8 +34,9 @@ class Collector:
             self._seen.add(key)
             self.errors.append(err)
 
-    def expr(self, text: str | float, symbols, where: DocPath, *, condition: bool = False
-             ) -> Expression | None:
+    def expr(
+        self, text: str | float, symbols, where: DocPath, *, condition: bool = False
+    ) -> Expression | None:
         try:
             return compile_expression(str(text), symbols, condition=condition)
         except ExpressionError as exc:
@@ -46,8 +47,9 @@ class Collector:
         self.add(ModelError(where, message, hint=hint))
 
 
-def symbols(state: dict[str, int], variables: dict[str, int], params: dict[str, int]
-            ) -> dict[str, Reader]:
+def symbols(
+    state: dict[str, int], variables: dict[str, int], params: dict[str, int]
+) -> dict[str, Reader]:
     """The readers of ``t``, ``t_in_mode`` and the agent's state, variables and parameters by
     column. The lambdas bind their column as a default argument (a closure over the loop
     variable would read the last column), which mypy cannot infer: hence the ignores."""
@@ -73,8 +75,9 @@ def message_symbols(fields: set[str]) -> dict:
     return syms
 
 
-def resolve_mode(name: str, paths: list[str], near: str | None = None
-                 ) -> tuple[int | None, list[str]]:
+def resolve_mode(
+    name: str, paths: list[str], near: str | None = None
+) -> tuple[int | None, list[str]]:
     """Index of the mode called ``name`` (a unique name or dotted-path suffix), and matches.
 
     Of several matches, the one sharing the longest enclosing scope with ``near`` (the
@@ -83,12 +86,14 @@ def resolve_mode(name: str, paths: list[str], near: str | None = None
     """
     matches = [i for i, p in enumerate(paths) if p and (p == name or p.endswith("." + name))]
     if len(matches) > 1 and near is not None:
+
         def scope(i: int) -> int:
             a, b = paths[i].split(".")[:-1], near.split(".")
             k = 0
             while k < min(len(a), len(b)) and a[k] == b[k]:
                 k += 1
             return k
+
         best = max(scope(i) for i in matches)
         nearest = [i for i in matches if scope(i) == best]
         if len(nearest) == 1:

@@ -33,14 +33,14 @@ def default_parameters(team: Team) -> dict[str, np.ndarray]:
     return {name: np.array([float(v)]) for name, v in team.parameters.items()}
 
 
-def evaluate_setting(text: str | float, team_params: dict[str, np.ndarray], n: int
-                     ) -> np.ndarray:
+def evaluate_setting(text: str | float, team_params: dict[str, np.ndarray], n: int) -> np.ndarray:
     """A link setting per instance (numbers broadcast; expressions over team parameters)."""
     if not isinstance(text, str):
         return np.full(n, float(text))
     symbols = {name: (lambda c, v=v: v) for name, v in team_params.items()}
-    return np.broadcast_to(np.asarray(compile_expression(text, symbols)(None), dtype=float),
-                           (n,)).copy()
+    return np.broadcast_to(
+        np.asarray(compile_expression(text, symbols)(None), dtype=float), (n,)
+    ).copy()
 
 
 def check_network(team: Team) -> list[ModelError]:
@@ -51,24 +51,41 @@ def check_network(team: Team) -> list[ModelError]:
     for (sender, receiver), link in net.links.items():
         for who in (sender, receiver):
             if who not in names:
-                errors.append(ModelError(link.where, f"unknown agent '{who}' in link",
-                                         hint=did_you_mean(who, names), at_key=True))
+                errors.append(
+                    ModelError(
+                        link.where,
+                        f"unknown agent '{who}' in link",
+                        hint=did_you_mean(who, names),
+                        at_key=True,
+                    )
+                )
     for agent in net.rate_limits:
         if agent not in names:
-            errors.append(ModelError((*net.where, "rate_limits", agent),
-                                     f"unknown agent '{agent}'", hint=did_you_mean(agent, names),
-                                     at_key=True))
+            errors.append(
+                ModelError(
+                    (*net.where, "rate_limits", agent),
+                    f"unknown agent '{agent}'",
+                    hint=did_you_mean(agent, names),
+                    at_key=True,
+                )
+            )
     defaults = default_parameters(team)
     for link in [net.default, *net.links.values()]:
         for what in ("latency", "jitter", "loss"):
             text = getattr(link, what)
             try:  # the team's own values must give a sensible setting (studies may not)
-                require(evaluate_setting(text, defaults, 1), (*link.where, what),
-                        f"the link's {what}", str(text), low=0.0,
-                        high=1.0 if what == "loss" else np.inf)
+                require(
+                    evaluate_setting(text, defaults, 1),
+                    (*link.where, what),
+                    f"the link's {what}",
+                    str(text),
+                    low=0.0,
+                    high=1.0 if what == "loss" else np.inf,
+                )
             except ExpressionError as exc:
-                errors.append(ModelError((*link.where, what), exc.message,
-                                         offset=exc.offset, hint=exc.hint))
+                errors.append(
+                    ModelError((*link.where, what), exc.message, offset=exc.offset, hint=exc.hint)
+                )
             except ModelError as exc:
                 errors.append(ModelError(exc.path, exc.message.replace(" in instance 0", "")))
     return errors
@@ -83,44 +100,61 @@ def check_world(team: Team) -> list[ModelError]:
             cls = lookup(spec.use)
         except KeyError:
             note = broken_note()
-            errors.append(ModelError((*spec.where, "use"), f"unknown world component "
-                                     f"'{spec.use}'" + (f" ({note})" if note else ""),
-                                     hint=did_you_mean(spec.use, registered())))
+            errors.append(
+                ModelError(
+                    (*spec.where, "use"),
+                    f"unknown world component '{spec.use}'" + (f" ({note})" if note else ""),
+                    hint=did_you_mean(spec.use, registered()),
+                )
+            )
             continue
         before = len(errors)
         for key, value in spec.values.items():
             where = (*spec.where, "with", key)
             if key not in cls.params:
-                errors.append(ModelError(where, f"'{spec.use}' has no setting '{key}'",
-                                         hint=did_you_mean(key, list(cls.params)), at_key=True))
+                errors.append(
+                    ModelError(
+                        where,
+                        f"'{spec.use}' has no setting '{key}'",
+                        hint=did_you_mean(key, list(cls.params)),
+                        at_key=True,
+                    )
+                )
                 continue
             default = cls.params[key]
             if key in cls.per_instance and isinstance(value, list):
-                errors += [ModelError((*where, *at), exc.message, offset=exc.offset,
-                                      hint=exc.hint)
-                           for at, exc in _nested_errors(value, symbols)]
+                errors += [
+                    ModelError((*where, *at), exc.message, offset=exc.offset, hint=exc.hint)
+                    for at, exc in _nested_errors(value, symbols)
+                ]
             if _numeric(default):
                 if isinstance(value, str):
                     try:
                         compile_expression(value, symbols)
                     except ExpressionError as exc:
-                        errors.append(ModelError(where, exc.message, offset=exc.offset,
-                                                 hint=exc.hint))
+                        errors.append(
+                            ModelError(where, exc.message, offset=exc.offset, hint=exc.hint)
+                        )
                 elif not _numeric(value):
-                    errors.append(ModelError(where, f"expected a number or an expression, "
-                                             f"got {value!r}"))
+                    errors.append(
+                        ModelError(where, f"expected a number or an expression, got {value!r}")
+                    )
             elif type(value) is not type(default):
                 kind = {bool: "true or false", str: "a string", list: "a list"}.get(
-                    type(default), f"a {type(default).__name__}")
+                    type(default), f"a {type(default).__name__}"
+                )
                 errors.append(ModelError(where, f"expected {kind}, got {value!r}"))
         if len(errors) == before:  # the component's own checks, on well-typed settings
-            errors += [ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint,
-                                  at_key=e.at_key) for e in cls.check(team, spec.values)]
+            errors += [
+                ModelError((*spec.where, "with", *e.path), e.message, hint=e.hint, at_key=e.at_key)
+                for e in cls.check(team, spec.values)
+            ]
     return errors
 
 
-def _nested_errors(value: Any, symbols: Mapping[str, Any], at: tuple[int, ...] = ()
-                   ) -> list[tuple[tuple[int, ...], ExpressionError]]:
+def _nested_errors(
+    value: Any, symbols: Mapping[str, Any], at: tuple[int, ...] = ()
+) -> list[tuple[tuple[int, ...], ExpressionError]]:
     """Expressions inside a list setting that do not compile, with their places in it."""
     if isinstance(value, str):
         try:
@@ -138,9 +172,13 @@ def _numeric(value: Any) -> bool:
     return isinstance(value, float | int) and not isinstance(value, bool)
 
 
-def component_values(cls: type[WorldComponent], given: Mapping[str, Any],
-                     team_params: Mapping[str, np.ndarray], n: int,
-                     where: DocPath = ()) -> dict[str, Any]:
+def component_values(
+    cls: type[WorldComponent],
+    given: Mapping[str, Any],
+    team_params: Mapping[str, np.ndarray],
+    n: int,
+    where: DocPath = (),
+) -> dict[str, Any]:
     """Settings with defaults filled in; numeric ones as (n,) arrays, one per instance,
     each a finite number (a ModelError at ``where`` + ``with.<key>`` otherwise)."""
     symbols = {k: (lambda c, v=v: v) for k, v in team_params.items()}
@@ -164,8 +202,9 @@ def _nested_values(value: Any, symbols: Mapping[str, Any], n: int, where: DocPat
     """A list setting with every expression inside it evaluated per instance: ``(n,)``
     arrays where the file has text, the literal numbers and everything else as they are."""
     if isinstance(value, str):
-        got = np.broadcast_to(np.asarray(compile_expression(value, symbols)(None), float),
-                              (n,)).copy()
+        got = np.broadcast_to(
+            np.asarray(compile_expression(value, symbols)(None), float), (n,)
+        ).copy()
         return require(got, where, "the expression", value)
     if isinstance(value, list):
         return [_nested_values(v, symbols, n, (*where, k)) for k, v in enumerate(value)]

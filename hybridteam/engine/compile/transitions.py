@@ -38,11 +38,19 @@ from hybridteam.expr import (
 from hybridteam.model import Action, Assign, Mode, Raise, Send, Transition
 
 
-def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMode],
-                        paths: list[str], syms: Mapping, state_index: dict[str, int],
-                        var_index: dict[str, int], agent_names: list[str], agent_name: str,
-                        message_fields: dict[str, set[str]] | None,
-                        col: Collector, inner_first: bool = False) -> list[CTransition]:
+def compile_transitions(
+    flat: list[tuple[str, Mode, int, int]],
+    modes: list[CMode],
+    paths: list[str],
+    syms: Mapping,
+    state_index: dict[str, int],
+    var_index: dict[str, int],
+    agent_names: list[str],
+    agent_name: str,
+    message_fields: dict[str, set[str]] | None,
+    col: Collector,
+    inner_first: bool = False,
+) -> list[CTransition]:
     """Every transition of an agent, in precedence order: higher ``priority`` first, then
     outer before inner (``inner_first``: inner before outer, SCXML's rule), then
     declaration order; with conflicts, ``after`` slots, the modes' ``outgoing`` lists and
@@ -60,8 +68,9 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
             tsyms: Mapping = syms
             if tr.on is not None and message_fields and tr.on in message_fields:
                 tsyms = ChainMap(message_symbols(message_fields[tr.on]), syms)
-            ct = _compile_transition(tr, idx, modes, paths, tsyms, state_index, var_index,
-                                     agent_names, agent_name, col)
+            ct = _compile_transition(
+                tr, idx, modes, paths, tsyms, state_index, var_index, agent_names, agent_name, col
+            )
             if ct is not None:
                 ct.declared = len(decl)
                 level = (int(modes[idx].subtree[-1]), -depth) if inner_first else (depth, 0)
@@ -72,17 +81,29 @@ def compile_transitions(flat: list[tuple[str, Mode, int, int]], modes: list[CMod
         ct.index = order
         transitions.append(ct)
     after_slot = 0
-    exits = [frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
-             - ({ct.exit_root} if ct.exit_inside else set()) for ct in transitions]
-    inside = [frozenset(modes[ct.source].subtree.tolist()) for ct in transitions] \
-        if inner_first else None
+    exits = [
+        frozenset(() if ct.internal else modes[ct.exit_root].subtree.tolist())
+        - ({ct.exit_root} if ct.exit_inside else set())
+        for ct in transitions
+    ]
+    inside = (
+        [frozenset(modes[ct.source].subtree.tolist()) for ct in transitions]
+        if inner_first
+        else None
+    )
     for ct in transitions:
         ct.conflicts = np.array(
-            [o.index for o in transitions[: ct.index]
-             if conflict(ct, exits[ct.index], o, exits[o.index])
-             or (inside is not None and (o.source in inside[ct.index]
-                                         or ct.source in inside[o.index]))],
-            dtype=np.intp)
+            [
+                o.index
+                for o in transitions[: ct.index]
+                if conflict(ct, exits[ct.index], o, exits[o.index])
+                or (
+                    inside is not None
+                    and (o.source in inside[ct.index] or ct.source in inside[o.index])
+                )
+            ],
+            dtype=np.intp,
+        )
         modes[ct.source].outgoing.append(ct.index)
         if ct.after is not None:
             ct.after_slot = after_slot
@@ -96,31 +117,36 @@ def mode_test(paths: list[str], agent_name: str) -> ModeTest:
     """``in_mode(Name)`` in a guard: whether a mode of the same agent is active, named as a
     transition's target is (a unique name or a dotted path). Another agent's modes are not
     readable: agents learn of each other through messages."""
+
     def resolve(name: str):
         m, matches = resolve_mode(name, paths)
         if m is None:
             if matches:
-                raise ExpressionError(f"mode name '{name}' is ambiguous: "
-                                      f"{', '.join(matches)}; write its dotted path")
+                raise ExpressionError(
+                    f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its dotted path"
+                )
             raise ExpressionError(
-                f"agent '{agent_name}' has no mode '{name}'", hint=did_you_mean(
-                    name, [p.rsplit('.', 1)[-1] for p in paths if p] + [p for p in paths if p])
+                f"agent '{agent_name}' has no mode '{name}'",
+                hint=did_you_mean(
+                    name, [p.rsplit(".", 1)[-1] for p in paths if p] + [p for p in paths if p]
+                )
                 or "in_mode reads the agent's own modes; another agent's are known only "
-                "through its messages")
+                "through its messages",
+            )
         return lambda c, m=m: c.in_mode(m)
 
     return ModeTest(resolve)
 
 
-def conflict(a: CTransition, exit_a: frozenset[int], b: CTransition,
-              exit_b: frozenset[int]) -> bool:
+def conflict(
+    a: CTransition, exit_a: frozenset[int], b: CTransition, exit_b: frozenset[int]
+) -> bool:
     """Whether ``a`` and ``b`` cannot both fire in one micro-step (the one of higher
     precedence blocks the other): they are declared on the same mode (at most one
     transition per source), their exit sets overlap, or one exits the other's source. A
     transition without a target exits nothing, so it is blocked only by a transition that
     leaves its source (or one on the same source), never by one elsewhere inside it."""
-    return (a.source == b.source or bool(exit_a & exit_b) or a.source in exit_b
-            or b.source in exit_a)
+    return a.source == b.source or bool(exit_a & exit_b) or a.source in exit_b or b.source in exit_a
 
 
 def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransition]) -> None:
@@ -154,12 +180,16 @@ def _role_carry(ct: CTransition, modes: list[CMode], transitions: list[CTransiti
     ct.carry_map = mapping
     for a in np.flatnonzero(mapping[:-1] >= 0).tolist():
         b = int(mapping[a])
-        timed = {transitions[j].origin: transitions[j].after_slot
-                 for j in modes[b].outgoing if transitions[j].after is not None}
-        ct.carry_timers += [(b, transitions[j].after_slot, timed[transitions[j].origin])
-                            for j in modes[a].outgoing
-                            if transitions[j].after is not None
-                            and transitions[j].origin in timed]
+        timed = {
+            transitions[j].origin: transitions[j].after_slot
+            for j in modes[b].outgoing
+            if transitions[j].after is not None
+        }
+        ct.carry_timers += [
+            (b, transitions[j].after_slot, timed[transitions[j].origin])
+            for j in modes[a].outgoing
+            if transitions[j].after is not None and transitions[j].origin in timed
+        ]
 
 
 def group_triggered(transitions: list[CTransition]) -> dict[str, list[int]]:
@@ -220,16 +250,28 @@ def _apart(modes: list[CMode], targets: list[int], tr: Transition, col: Collecto
             chain_a, chain_b = _ancestors(modes, a), _ancestors(modes, b)
             common = next(m for m in chain_a if m in chain_b)
             if common in (a, b) or modes[common].kind != "and":
-                col.fail((*tr.where, "to", k), f"targets '{modes[a].path}' and "
-                         f"'{modes[b].path}' are not in different regions of a parallel "
-                         "mode; a transition enters one mode per region")
+                col.fail(
+                    (*tr.where, "to", k),
+                    f"targets '{modes[a].path}' and "
+                    f"'{modes[b].path}' are not in different regions of a parallel "
+                    "mode; a transition enters one mode per region",
+                )
                 return False
     return True
 
 
-def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: list[str], syms,
-                        state_index, var_index, agent_names, agent_name: str,
-                        col: Collector) -> CTransition | None:
+def _compile_transition(
+    tr: Transition,
+    src: int,
+    modes: list[CMode],
+    paths: list[str],
+    syms,
+    state_index,
+    var_index,
+    agent_names,
+    agent_name: str,
+    col: Collector,
+) -> CTransition | None:
     internal = tr.target is None
     if internal and src == 0:
         col.fail(tr.where, "an internal transition (no 'to') needs a mode, not the agent root")
@@ -240,22 +282,32 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         tgt, matches = resolve_mode(name, paths, paths[src])
         if tgt is None:
             if matches:
-                col.fail(where, f"mode name '{name}' is ambiguous: {', '.join(matches)}; "
-                         "write its dotted path")
+                col.fail(
+                    where,
+                    f"mode name '{name}' is ambiguous: {', '.join(matches)}; write its dotted path",
+                )
             else:
-                col.fail(where, f"unknown mode '{name}'",
-                         did_you_mean(name, [p.rsplit('.', 1)[-1] for p in paths if p]
-                                      + [p for p in paths if p]))
+                col.fail(
+                    where,
+                    f"unknown mode '{name}'",
+                    did_you_mean(
+                        name, [p.rsplit(".", 1)[-1] for p in paths if p] + [p for p in paths if p]
+                    ),
+                )
             return None
         targets.append(tgt)
     if not _apart(modes, targets, tr, col):
         return None
     tgt = targets[0] if targets else src
     exit_root, entry_path, entry, inside = src, [src], None, False
-    if tr.local and (internal or not all(
-            t != src and src in _ancestors(modes, t) for t in targets)):
-        col.fail((*tr.where, "local"), "a local transition stays inside its source: its "
-                 f"targets must be modes inside '{modes[src].path}'")
+    if tr.local and (
+        internal or not all(t != src and src in _ancestors(modes, t) for t in targets)
+    ):
+        col.fail(
+            (*tr.where, "local"),
+            "a local transition stays inside its source: its "
+            f"targets must be modes inside '{modes[src].path}'",
+        )
         return None
     if not internal:
         common = src if tr.local else domain(modes, [src, *targets])
@@ -266,8 +318,9 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
         entry_path = list(reversed(anc_t[: anc_t.index(common)]))
         if tr.local or modes[common].kind == "and":  # the domain stays; below it is left
             exit_root, inside = common, True
-            entry = dataclasses.replace(entry_to(modes, modes[common].parent, targets),
-                                        active_first=True)
+            entry = dataclasses.replace(
+                entry_to(modes, modes[common].parent, targets), active_first=True
+            )
         else:
             exit_root = anc_s[anc_s.index(common) - 1]
             entry = entry_to(modes, common, targets)
@@ -277,21 +330,41 @@ def _compile_transition(tr: Transition, src: int, modes: list[CMode], paths: lis
     after = None
     if tr.after is not None:
         after = col.expr(tr.after, syms, (*tr.where, "after"))
-    actions = compile_actions(tr.actions, (*tr.where, "do"), syms, state_index, var_index,
-                              agent_names, col)
+    actions = compile_actions(
+        tr.actions, (*tr.where, "do"), syms, state_index, var_index, agent_names, col
+    )
     return CTransition(
-        index=-1, source=src, target=tgt, exit_root=exit_root, entry_path=entry_path,
-        entry=entry, targets=targets, exit_inside=inside,
-        on=tr.on, after=after, guard=guard, actions=actions, priority=tr.priority,
-        depth=modes[src].depth, text=f"{modes[src].path or agent_name} -> "
+        index=-1,
+        source=src,
+        target=tgt,
+        exit_root=exit_root,
+        entry_path=entry_path,
+        entry=entry,
+        targets=targets,
+        exit_inside=inside,
+        on=tr.on,
+        after=after,
+        guard=guard,
+        actions=actions,
+        priority=tr.priority,
+        depth=modes[src].depth,
+        text=f"{modes[src].path or agent_name} -> "
         f"{', '.join(modes[t].path for t in targets) or modes[src].path}",
-        guard_text=str(tr.guard or ""), internal=internal, origin=tuple(tr.where),
+        guard_text=str(tr.guard or ""),
+        internal=internal,
+        origin=tuple(tr.where),
     )
 
 
-def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: Mapping,
-                    state_index: dict[str, int], var_index: dict[str, int],
-                    agent_names: list[str], col: Collector) -> list[CAction]:
+def compile_actions(
+    declared: tuple[Action, ...],
+    where: DocPath,
+    syms: Mapping,
+    state_index: dict[str, int],
+    var_index: dict[str, int],
+    agent_names: list[str],
+    col: Collector,
+) -> list[CAction]:
     """A transition's ``do:`` list, or a mode's ``entry:`` or ``exit:`` list (``where``):
     assignments (to variables or plant state: a reset), raised local events and sends."""
     actions: list[CAction] = []
@@ -305,9 +378,14 @@ def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: Mapping,
                 lhs = act.text.split("=")[0].strip(" +-*/%")
                 if lhs in syms and lhs not in targets:
                     what = "time" if lhs in CONTINUOUS_NAMES else "a parameter"
-                    col.add(ModelError(awhere, f"'{lhs}' is {what} and cannot be "
-                                       "assigned; assign variables or plant state",
-                                       offset=exc.offset))
+                    col.add(
+                        ModelError(
+                            awhere,
+                            f"'{lhs}' is {what} and cannot be "
+                            "assigned; assign variables or plant state",
+                            offset=exc.offset,
+                        )
+                    )
                 else:
                     col.add(ModelError(awhere, exc.message, offset=exc.offset, hint=exc.hint))
                 continue
@@ -322,16 +400,20 @@ def compile_actions(declared: tuple[Action, ...], where: DocPath, syms: Mapping,
     return actions
 
 
-def _compile_send(act: Send, awhere: tuple, syms: Mapping, agent_names: list[str],
-                  col: Collector) -> CAction | None:
+def _compile_send(
+    act: Send, awhere: tuple, syms: Mapping, agent_names: list[str], col: Collector
+) -> CAction | None:
     """A ``send`` action: to everyone, to a named agent, back to the triggering message's
     sender, or to an agent index given by an expression (negative: everyone)."""
     to, to_expr = None, None
     if act.to == "sender":
         if "msg_sender" not in syms:
-            col.fail((*awhere, "to"), "'to: sender' replies to the sender of the "
-                     "message that triggered the transition; this transition has "
-                     "no triggering message ('on:' a message type)")
+            col.fail(
+                (*awhere, "to"),
+                "'to: sender' replies to the sender of the "
+                "message that triggered the transition; this transition has "
+                "no triggering message ('on:' a message type)",
+            )
             return None
         to = REPLY
     elif act.to is not None and act.to in agent_names:
@@ -340,22 +422,25 @@ def _compile_send(act: Send, awhere: tuple, syms: Mapping, agent_names: list[str
         try:
             to_expr = compile_expression(act.to, syms)
         except ExpressionError as exc:
-            col.fail((*awhere, "to"), f"unknown agent '{act.to}'" if
-                     act.to.isidentifier() else exc.message,
-                     did_you_mean(act.to, agent_names) if act.to.isidentifier()
-                     else exc.hint)
+            col.fail(
+                (*awhere, "to"),
+                f"unknown agent '{act.to}'" if act.to.isidentifier() else exc.message,
+                did_you_mean(act.to, agent_names) if act.to.isidentifier() else exc.hint,
+            )
             return None
     fields = {}
     for fname, text in act.fields.items():
         e = col.expr(text, syms, (*awhere, "fields", fname))
         if e is not None:
             fields[fname] = e
-    return CAction("send", name=act.message, to=to, socket=act.socket, fields=fields,
-                   to_expr=to_expr)
+    return CAction(
+        "send", name=act.message, to=to, socket=act.socket, fields=fields, to_expr=to_expr
+    )
 
 
-def watches(modes: list[CMode], transitions: list[CTransition],
-             dynamic: frozenset[str]) -> list[Watch]:
+def watches(
+    modes: list[CMode], transitions: list[CTransition], dynamic: frozenset[str]
+) -> list[Watch]:
     """Atoms to locate during flow: those of urgent guards and invariants that mention state
     or time (an atom over variables and parameters only cannot change while time flows)."""
     found: list[Watch] = []
@@ -365,8 +450,11 @@ def watches(modes: list[CMode], transitions: list[CTransition],
             return
         for atom in expr.atoms:
             if free_names(atom.source, condition=True) & dynamic:
-                found.append(Watch(atom, mode, expr, invariant,
-                                   conjunct=any(atom is c for c in expr.conjuncts)))
+                found.append(
+                    Watch(
+                        atom, mode, expr, invariant, conjunct=any(atom is c for c in expr.conjuncts)
+                    )
+                )
 
     for ct in transitions:
         if ct.on is None:

@@ -23,9 +23,17 @@ if TYPE_CHECKING:
     from hybridteam.engine.compile.compiled import CTransition, Ctx
 
 
-def require(values: np.ndarray, where: DocPath, what: str, source: str, *,
-            low: float = -np.inf, high: float = np.inf, open_low: bool = False,
-            instances: np.ndarray | None = None) -> np.ndarray:
+def require(
+    values: np.ndarray,
+    where: DocPath,
+    what: str,
+    source: str,
+    *,
+    low: float = -np.inf,
+    high: float = np.inf,
+    open_low: bool = False,
+    instances: np.ndarray | None = None,
+) -> np.ndarray:
     """``values`` if every one is a finite number in ``[low, high]`` (``(low, high]`` with
     ``open_low``); else a :class:`ModelError` at ``where`` naming the first bad instance.
     ``instances`` are the instance numbers of the values (default ``0..m-1``)."""
@@ -36,9 +44,11 @@ def require(values: np.ndarray, where: DocPath, what: str, source: str, *,
     k = int(np.flatnonzero(~np.broadcast_to(ok, v.shape).ravel())[0])
     bad = float(v.ravel()[k])
     i = k if instances is None else int(np.asarray(instances).ravel()[k])
-    bound = {(True, True): "any number", (True, False): f"a number <= {high:g}",
-             (False, True): f"a number {'>' if open_low else '>='} {low:g}"}.get(
-        (low == -np.inf, high == np.inf), f"a number in [{low:g}, {high:g}]")
+    bound = {
+        (True, True): "any number",
+        (True, False): f"a number <= {high:g}",
+        (False, True): f"a number {'>' if open_low else '>='} {low:g}",
+    }.get((low == -np.inf, high == np.inf), f"a number in [{low:g}, {high:g}]")
     text = f"'{source}' " if source and source != repr(bad) else ""
     raise ModelError(where, f"{what} {text}is {bad} in instance {i}; it must be {bound}")
 
@@ -48,6 +58,11 @@ def transition_delay(tr: CTransition, ctx: Ctx, instances: np.ndarray) -> np.nda
     each): a :class:`ModelError` unless each is a finite number >= 0. Entering the mode
     checks it per instance; validation checks a delay of parameters alone on the team's
     own values with this same check, so ``validate`` refuses what ``run`` refuses."""
-    return require(spread(tr.after(ctx), instances.shape),  # type: ignore[misc]  # (called for after: only)
-                   (*tr.origin, "after"), "the delay", tr.after.source,  # type: ignore[union-attr]  # (ditto)
-                   low=0.0, instances=instances)
+    return require(
+        spread(tr.after(ctx), instances.shape),  # type: ignore[misc]  # (called for after: only)
+        (*tr.origin, "after"),
+        "the delay",
+        tr.after.source,  # type: ignore[union-attr]  # (ditto)
+        low=0.0,
+        instances=instances,
+    )

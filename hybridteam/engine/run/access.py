@@ -32,9 +32,15 @@ class EnsembleAccess(WorldAccess):
         self._pose_cols: list[tuple[int, int, int | None] | None] = []
         for ca in ens.cteam.agents:
             names = ca.plant.state_names
-            self._pose_cols.append((names.index("x"), names.index("y"),
-                                    names.index("theta") if "theta" in names else None)
-                                   if "x" in names and "y" in names else None)
+            self._pose_cols.append(
+                (
+                    names.index("x"),
+                    names.index("y"),
+                    names.index("theta") if "theta" in names else None,
+                )
+                if "x" in names and "y" in names
+                else None
+            )
         self._raised: list[np.ndarray] = []
 
     # ------------------------------------------------------------------ time and runs
@@ -83,8 +89,10 @@ class EnsembleAccess(WorldAccess):
         if name in self._index:
             return self._index[name]
         hint = did_you_mean(str(name), self.agents)
-        raise ValueError(f"unknown agent '{name}' (agents: {', '.join(self.agents)})"
-                         + (f"; {hint}" if hint else ""))
+        raise ValueError(
+            f"unknown agent '{name}' (agents: {', '.join(self.agents)})"
+            + (f"; {hint}" if hint else "")
+        )
 
     def state_names(self, agent: Agent) -> tuple[str, ...]:
         return tuple(self._ens.cteam.agents[self.agent(agent)].plant.state_names)
@@ -92,12 +100,16 @@ class EnsembleAccess(WorldAccess):
     def state(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
         return self._ens.states[self.agent(agent)].x[idx].copy()
 
-    def set_state(self, agent: Agent, idx: np.ndarray, values: np.ndarray,
-                  names: Sequence[str] | None = None) -> None:
+    def set_state(
+        self, agent: Agent, idx: np.ndarray, values: np.ndarray, names: Sequence[str] | None = None
+    ) -> None:
         a = self.agent(agent)
         st = self._ens.states[a]
-        cols = list(range(st.x.shape[1])) if names is None else \
-            [self._column(a, st.ca.state_index, n, "state") for n in names]
+        cols = (
+            list(range(st.x.shape[1]))
+            if names is None
+            else [self._column(a, st.ca.state_index, n, "state") for n in names]
+        )
         st.x[np.ix_(np.asarray(idx, np.intp), np.asarray(cols, np.intp))] = values
         self._ens.reconfigured[idx] = True  # watched truths are read afresh there
 
@@ -108,8 +120,10 @@ class EnsembleAccess(WorldAccess):
         a = self.agent(agent)
         cols = self._pose_cols[a]
         if cols is None:
-            raise ValueError(f"agent '{self.agents[a]}' has no position: its plant state is "
-                             f"{', '.join(self.state_names(a)) or 'empty'} (no x and y)")
+            raise ValueError(
+                f"agent '{self.agents[a]}' has no position: its plant state is "
+                f"{', '.join(self.state_names(a)) or 'empty'} (no x and y)"
+            )
         x, y, th = cols
         s = self._ens.states[a].x
         if cols == (0, 1, 2):  # a unicycle's or a holonomic base's state: one gather
@@ -128,8 +142,9 @@ class EnsembleAccess(WorldAccess):
         st = self._ens.states[a]
         return st.v[:, self._column(a, st.ca.var_index, name, "variable")][idx]
 
-    def set_variable(self, agent: Agent, name: str, idx: np.ndarray,
-                     values: np.ndarray | float) -> None:
+    def set_variable(
+        self, agent: Agent, name: str, idx: np.ndarray, values: np.ndarray | float
+    ) -> None:
         """What :func:`~hybridteam.engine.run.discrete.fire` does for an assignment: the rows'
         values as floats, and the instances marked changed and reconfigured (their watched
         truths are read afresh); they are remembered with the raised events, so their
@@ -144,8 +159,10 @@ class EnsembleAccess(WorldAccess):
             idx, value = idx[live], value[live]
         if not every(np.isfinite(value)):
             k = int(np.flatnonzero(~np.isfinite(value))[0])
-            raise ValueError(f"set_variable: '{self.agents[a]}.{name}' would be {value[k]} "
-                             f"in instance {int(idx[k])}; a variable is a finite number")
+            raise ValueError(
+                f"set_variable: '{self.agents[a]}.{name}' would be {value[k]} "
+                f"in instance {int(idx[k])}; a variable is a finite number"
+            )
         if idx.size:
             st.v[:, col][idx] = value
             self._ens.changed[idx] = True
@@ -165,8 +182,10 @@ class EnsembleAccess(WorldAccess):
         if name in index:
             return index[name]
         hint = did_you_mean(name, index)
-        raise ValueError(f"agent '{self.agents[a]}' has no {what} '{name}' (its {what}s: "
-                         f"{', '.join(index) or 'none'})" + (f"; {hint}" if hint else ""))
+        raise ValueError(
+            f"agent '{self.agents[a]}' has no {what} '{name}' (its {what}s: "
+            f"{', '.join(index) or 'none'})" + (f"; {hint}" if hint else "")
+        )
 
     # ------------------------------------------------------------------ the world
     def components(self, kind: type | str | None = None) -> list[WorldComponent]:

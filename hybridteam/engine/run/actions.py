@@ -25,8 +25,15 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.state import AgentState
 
 
-def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction],
-                sub: np.ndarray, ctx: Ctx, msg: dict[str, np.ndarray] | None) -> None:
+def run_actions(
+    ens: Ensemble,
+    ag: CAgent,
+    st: AgentState,
+    actions: list[CAction],
+    sub: np.ndarray,
+    ctx: Ctx,
+    msg: dict[str, np.ndarray] | None,
+) -> None:
     """Run ``actions`` in instances ``sub`` (``ctx``: their context, kept up to date by
     the assignments; ``msg``: the triggering message's fields, if any)."""
     for act in actions:
@@ -45,8 +52,9 @@ def run_actions(ens: Ensemble, ag: CAgent, st: AgentState, actions: list[CAction
             _send(ens, ag, act, sub, ctx, msg)
 
 
-def exit_actions(ens: Ensemble, ag: CAgent, st: AgentState, root: int,
-                 sub: np.ndarray, inside: bool = False) -> None:
+def exit_actions(
+    ens: Ensemble, ag: CAgent, st: AgentState, root: int, sub: np.ndarray, inside: bool = False
+) -> None:
     """The exit actions of the active modes of ``root``'s subtree (about to be exited;
     ``inside``: below ``root`` only), innermost first."""
     modes = ag.modes[root].subtree[1:] if inside else ag.modes[root].subtree
@@ -67,8 +75,14 @@ def entry_actions(ens: Ensemble, ag: CAgent, st: AgentState, m: int, sub: np.nda
         run_actions(ens, ag, st, mode.on_entry, sub, st.ctx(sub, ens.t[sub], m), None)
 
 
-def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
-          msg: dict[str, np.ndarray] | None) -> None:
+def _send(
+    ens: Ensemble,
+    ag: CAgent,
+    act: CAction,
+    sub: np.ndarray,
+    ctx: Ctx,
+    msg: dict[str, np.ndarray] | None,
+) -> None:
     """A ``send`` action: plain datagrams, or through the acknowledged layer when the
     message type's protocol asks for acks; priority ranks same-instant arrivals."""
     fields = {k: spread(e(ctx), sub.shape).copy() for k, e in act.fields.items()}
@@ -84,14 +98,23 @@ def _send(ens: Ensemble, ag: CAgent, act: CAction, sub: np.ndarray, ctx: Ctx,
     if policy is not None and policy.acknowledged:
         wait, tries = policy.timeout, policy.retries
         assert wait is not None and tries is not None  # (an acknowledged message's policy)
-        timeout = require(np.broadcast_to(wait(ctx), sub.shape),
-                          (*policy.where, "timeout"), "the ack timeout",
-                          wait.source, low=0.0, open_low=True, instances=sub)
-        retries = require(np.broadcast_to(tries(ctx), sub.shape),
-                          (*policy.where, "retries"), "the number of retries",
-                          tries.source, low=0.0, instances=sub)
-        ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries,
-                          rank)
+        timeout = require(
+            np.broadcast_to(wait(ctx), sub.shape),
+            (*policy.where, "timeout"),
+            "the ack timeout",
+            wait.source,
+            low=0.0,
+            open_low=True,
+            instances=sub,
+        )
+        retries = require(
+            np.broadcast_to(tries(ctx), sub.shape),
+            (*policy.where, "retries"),
+            "the number of retries",
+            tries.source,
+            low=0.0,
+            instances=sub,
+        )
+        ens.reliable.send(sub, ag.index, to, act.socket, act.name, fields, timeout, retries, rank)
     else:
-        ens.network.send(sub, ens.t[sub], ag.index, to, act.socket, act.name, fields,
-                         rank=rank)
+        ens.network.send(sub, ens.t[sub], ag.index, to, act.socket, act.name, fields, rank=rank)

@@ -30,8 +30,9 @@ def offers_batch(cls: type[WorldComponent]) -> bool:
     return getattr(cls.batch, "__func__", None) is not base
 
 
-def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
-               seed: int | Sequence[int]) -> list[dict[str, Any]] | None:
+def batch_rows(
+    cteam: CTeam, n: int, overrides: Mapping[str, Any], seed: int | Sequence[int]
+) -> list[dict[str, Any]] | None:
     """Rows from the first world component whose fast path accepts the team, else None."""
     classes = [lookup(spec.use) for spec in cteam.team.world]
     if not any(offers_batch(cls) for cls in classes):
@@ -41,17 +42,24 @@ def batch_rows(cteam: CTeam, n: int, overrides: Mapping[str, Any],
     mats = parameter_matrices(cteam.agents, n, overrides)
     shapes = tuple(_shape(ca, p, n) for ca, p in zip(cteam.agents, mats, strict=True))
     first = cteam.agents[0] if cteam.agents else None
-    team_params = {k: mats[0][:, first.param_index[k]].copy()
-                   for k in cteam.team.parameters} if first is not None else {}
+    team_params = (
+        {k: mats[0][:, first.param_index[k]].copy() for k in cteam.team.parameters}
+        if first is not None
+        else {}
+    )
     for k, (cls, spec) in enumerate(zip(classes, cteam.team.world, strict=True)):
         if not offers_batch(cls):
             continue
         request = BatchRequest(
-            team=cteam.team, n=n, seed=seed_value(seed, n),
-            duration=float(cteam.team.simulation.duration), component=k,
+            team=cteam.team,
+            n=n,
+            seed=seed_value(seed, n),
+            duration=float(cteam.team.simulation.duration),
+            component=k,
             settings=component_values(cls, spec.values, team_params, n, spec.where),
             agents=shapes,
-            team_params=team_params)
+            team_params=team_params,
+        )
         rows = cls.batch(request)
         if rows is not None:
             return rows
@@ -68,27 +76,53 @@ def _shape(ca: CAgent, p: np.ndarray, n: int) -> AgentShape:
         law = spec.name if spec is not None else None
         if drv is not None and spec is not None:
             values = {k: np.full(n, float(v)) for k, v in spec.params.items()}
-            values.update({k: np.broadcast_to(np.asarray(e(start), float), (n,)).copy()
-                           for k, e in drv.params.items()})
+            values.update(
+                {
+                    k: np.broadcast_to(np.asarray(e(start), float), (n,)).copy()
+                    for k, e in drv.params.items()
+                }
+            )
             law_params[m.path] = values
-        modes.append(ModeShape(
-            path=m.path, kind=m.kind, parent=ca.modes[m.parent].path if m.parent >= 0 else None,
-            initial=ca.modes[m.initial].path if m.initial >= 0 else None, final=m.final,
-            outcome=ca.outcome[m.index], law=law,
-            period=float(drv.period) if drv is not None else 0.0,
-            bound=tuple(drv.params) if drv is not None else (),
-            inputs=drv is not None and drv.inputs is not None,
-            flow=drv is not None and drv.kind == "flow", invariant=m.invariant_text))
-    transitions = tuple(TransitionShape(
-        source=ca.modes[tr.source].path, target=ca.modes[tr.target].path, on=tr.on,
-        guard=tr.guard_text, after=tr.after is not None, actions=len(tr.actions),
-        internal=tr.internal) for tr in ca.transitions)
+        modes.append(
+            ModeShape(
+                path=m.path,
+                kind=m.kind,
+                parent=ca.modes[m.parent].path if m.parent >= 0 else None,
+                initial=ca.modes[m.initial].path if m.initial >= 0 else None,
+                final=m.final,
+                outcome=ca.outcome[m.index],
+                law=law,
+                period=float(drv.period) if drv is not None else 0.0,
+                bound=tuple(drv.params) if drv is not None else (),
+                inputs=drv is not None and drv.inputs is not None,
+                flow=drv is not None and drv.kind == "flow",
+                invariant=m.invariant_text,
+            )
+        )
+    transitions = tuple(
+        TransitionShape(
+            source=ca.modes[tr.source].path,
+            target=ca.modes[tr.target].path,
+            on=tr.on,
+            guard=tr.guard_text,
+            after=tr.after is not None,
+            actions=len(tr.actions),
+            internal=tr.internal,
+        )
+        for tr in ca.transitions
+    )
     names = ca.plant.input_names
     return AgentShape(
-        name=ca.name, index=ca.index, plant=ca.plant.kind,
-        state_names=tuple(ca.plant.state_names), input_names=tuple(names),
+        name=ca.name,
+        index=ca.index,
+        plant=ca.plant.kind,
+        state_names=tuple(ca.plant.state_names),
+        input_names=tuple(names),
         limits={k: (float(ca.lower[j]), float(ca.upper[j])) for j, k in enumerate(names)},
         params={k: p[:, j].copy() for k, j in ca.param_index.items()},
         initial={k: x0[:, j].copy() for j, k in enumerate(ca.plant.state_names)},
-        variables=tuple(ca.var_index), modes=tuple(modes), transitions=transitions,
-        law_params=law_params)
+        variables=tuple(ca.var_index),
+        modes=tuple(modes),
+        transitions=transitions,
+        law_params=law_params,
+    )

@@ -58,8 +58,7 @@ def memory_limit(max_memory: float | None = None) -> float:
     except ValueError:
         limit = math.nan
     if not 0 < limit < math.inf:  # a typo must not become no limit, nor a traceback
-        raise ResourceError(f"HYBRIDTEAM_MAX_MEMORY_GB={env!r} must be a number of "
-                            "gigabytes > 0")
+        raise ResourceError(f"HYBRIDTEAM_MAX_MEMORY_GB={env!r} must be a number of gigabytes > 0")
     return limit * 1e9
 
 
@@ -81,8 +80,9 @@ def resident_bytes() -> float | None:
 WRITE_ROW_BYTES, WRITE_VALUE_BYTES = 400, 100
 
 
-def memory_estimate(cteam: CTeam, n: int, t_end: float, dt: float, written: bool = False
-                    ) -> tuple[float, float]:
+def memory_estimate(
+    cteam: CTeam, n: int, t_end: float, dt: float, written: bool = False
+) -> tuple[float, float]:
     """``(bytes, samples)``: memory of a run (the sampled trace dominates; per-instance
     arrays of every agent and mode count too, each agent's ring of its last
     ``zeno.max_transitions`` transition times, and each agent's stream inbox, which holds
@@ -95,17 +95,26 @@ def memory_estimate(cteam: CTeam, n: int, t_end: float, dt: float, written: bool
     per_instance = _inbox_values(cteam)
     for ca in cteam.agents:
         m = len(ca.modes)
-        per_instance += (len(ca.plant.state_names) * 2 + len(ca.plant.input_names)
-                         + len(ca.var_index) + len(ca.param_index) + 4 * m
-                         + len(ca.after) + 2 * len(ca.watches) + 40 + ring)
+        per_instance += (
+            len(ca.plant.state_names) * 2
+            + len(ca.plant.input_names)
+            + len(ca.var_index)
+            + len(ca.param_index)
+            + 4 * m
+            + len(ca.after)
+            + 2 * len(ca.watches)
+            + 40
+            + ring
+        )
     nbytes = 8.0 * n * (samples * values + per_instance)
     if written:
         nbytes += n * samples * (WRITE_ROW_BYTES + WRITE_VALUE_BYTES * values)
     return nbytes, float(samples)
 
 
-def instances_within(cteam: CTeam, wanted: int, max_memory: float, what: str,
-                     share: float = 1.0) -> int:
+def instances_within(
+    cteam: CTeam, wanted: int, max_memory: float, what: str, share: float = 1.0
+) -> int:
     """How many instances of ``cteam`` (at most ``wanted``) fit in ``share`` of
     ``max_memory`` bytes, by :func:`memory_estimate` of a zero-length run; ResourceError,
     naming ``what`` needs them, if not even one does. A search that loads its candidates
@@ -119,7 +128,8 @@ def instances_within(cteam: CTeam, wanted: int, max_memory: float, what: str,
             f"{what} would need about {_size(one)} of memory for the engine's arrays of a "
             f"single instance of this team ({len(cteam.agents):,} agents; stream inboxes "
             f"grow with the square of the agents), more than {part}the limit of "
-            f"{_size(max_memory)}: raise the limit (--max-memory GB)")
+            f"{_size(max_memory)}: raise the limit (--max-memory GB)"
+        )
     return max(1, min(wanted, int(room // one)))
 
 
@@ -132,14 +142,21 @@ def _inbox_values(cteam: CTeam) -> int:
 
 def _fastest_period(cteam: CTeam) -> float:
     """The shortest control period of any sampled law or ``inputs:`` (inf if none)."""
-    periods = [d.period for ca in cteam.agents for d in ca.drivers
-               if d.kind == "sampled" and d.period > 0]
+    periods = [
+        d.period for ca in cteam.agents for d in ca.drivers if d.kind == "sampled" and d.period > 0
+    ]
     return min(periods, default=math.inf)
 
 
-def check_budget(cteam: CTeam, n: int, t_end: float, dt: float,
-                 max_memory: float | None = None, max_periods: float | None = None,
-                 written: bool = False) -> None:
+def check_budget(
+    cteam: CTeam,
+    n: int,
+    t_end: float,
+    dt: float,
+    max_memory: float | None = None,
+    max_periods: float | None = None,
+    written: bool = False,
+) -> None:
     """ResourceError if the run would need more memory or control periods than allowed
     (``written``: counting the writing of its trace, see :func:`memory_estimate`)."""
     max_memory = memory_limit(max_memory)
@@ -149,24 +166,29 @@ def check_budget(cteam: CTeam, n: int, t_end: float, dt: float,
     if nbytes > max_memory:
         ring = cteam.team.simulation.zeno.max_transitions
         if 8.0 * n * len(cteam.agents) * ring > nbytes / 2:  # the Zeno check's rings
-            what = (f"{n:,} instance(s) of {len(cteam.agents):,} agent(s) remembering their "
-                    f"last {ring:,} transition times (simulation.zeno.max_transitions)")
+            what = (
+                f"{n:,} instance(s) of {len(cteam.agents):,} agent(s) remembering their "
+                f"last {ring:,} transition times (simulation.zeno.max_transitions)"
+            )
             lower = "lower simulation.zeno.max_transitions, shorten the ensemble"
         else:
-            what = (f"{samples:,.0f} output samples of {n:,} instance(s), every {dt:g} s over "
-                    f"{t_end:g} s" + (", written as trace.json and samples.csv"
-                                      if written else ""))
+            what = (
+                f"{samples:,.0f} output samples of {n:,} instance(s), every {dt:g} s over "
+                f"{t_end:g} s" + (", written as trace.json and samples.csv" if written else "")
+            )
             lower = "raise simulation.sample_period, shorten the run or the ensemble"
         raise ResourceError(
             f"this run would need about {_size(nbytes)} of memory ({what}), more than the "
-            f"limit of {_size(max_memory)}: {lower}, or raise the limit (--max-memory GB)")
+            f"limit of {_size(max_memory)}: {lower}, or raise the limit (--max-memory GB)"
+        )
     fastest = _fastest_period(cteam)
     periods = t_end / fastest
     if periods > max_periods:
         raise ResourceError(
             f"this run would take about {periods:.3g} control periods per instance (a "
             f"{fastest:g} s law over {t_end:g} s), more than the limit of {max_periods:.3g}: "
-            "shorten the run, or raise the limit (--max-periods N)")
+            "shorten the run, or raise the limit (--max-periods N)"
+        )
 
 
 class Pace:
@@ -189,14 +211,19 @@ class Pace:
                 f"this run would take about {_duration(projected)} of wall time at its pace "
                 f"({fraction:.2g} of {self.t_end:g} simulated seconds in {elapsed:.1f} s), "
                 f"more than the limit of {_duration(self.max_wall)}: shorten the run, or "
-                "raise the limit (--max-wall HOURS)")
+                "raise the limit (--max-wall HOURS)"
+            )
 
 
 def _duration(seconds: float) -> str:
     if not math.isfinite(seconds):
         return "forever"
-    for unit, scale in (("years", 365.25 * 86400), ("days", 86400), ("hours", 3600),
-                        ("minutes", 60)):
+    for unit, scale in (
+        ("years", 365.25 * 86400),
+        ("days", 86400),
+        ("hours", 3600),
+        ("minutes", 60),
+    ):
         if seconds >= scale:
             value = f"{seconds / scale:.3g}"
             return f"{value} {unit if value != '1' else unit[:-1]}"

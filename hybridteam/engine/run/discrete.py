@@ -64,20 +64,23 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                 msg = None
                 if kind == TIMER:
                     live = ~ens.done[inst]
-                    ens.reliable.on_timer(inst[live], agent,
-                                          [p for (_, p), ok in zip(members, live, strict=True)
-                                           if ok])
+                    ens.reliable.on_timer(
+                        inst[live],
+                        agent,
+                        [p for (_, p), ok in zip(members, live, strict=True) if ok],
+                    )
                     continue
                 # an event nobody waits for is dropped, as in statecharts
                 waiting = ag.waiting(name)
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
-                    keep = ens.network.receive(inst, ens.t[inst], payloads,
-                                               screen=ens.screen) & ~ens.done[inst]
+                    keep = (
+                        ens.network.receive(inst, ens.t[inst], payloads, screen=ens.screen)
+                        & ~ens.done[inst]
+                    )
                     inst = inst[keep]
                     if waiting:
-                        msg = message_fields([p for p, k in zip(payloads, keep, strict=True)
-                                              if k])
+                        msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
                     elif not recheck and len(members) <= FEW_INERT:
                         inert += [i for i, _ in members]
                 else:
@@ -92,9 +95,14 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
         ens.micro[stepped] += 1
         over = stepped[ens.micro[stepped] >= ens.settings.zeno.max_steps_per_instant]
         if over.size:
-            ens.finish(over, "zeno", lambda i: (
-                f"{ens.settings.zeno.max_steps_per_instant} discrete steps at "
-                f"t={ens.when(i)} without time advancing; last: {ens.last_step_text(i)}"))
+            ens.finish(
+                over,
+                "zeno",
+                lambda i: (
+                    f"{ens.settings.zeno.max_steps_per_instant} discrete steps at "
+                    f"t={ens.when(i)} without time advancing; last: {ens.last_step_text(i)}"
+                ),
+            )
         active = stepped[~ens.done[stepped]]
         if not recheck and active.size:
             # a quiet instance with no event left due would only find that out next round
@@ -136,8 +144,10 @@ def _more_inert(ens: Ensemble, i: int) -> None:
 
 def message_fields(messages: list) -> dict[str, np.ndarray]:
     """The triggering messages' fields as arrays over the instances receiving them."""
-    out = {"sender": np.array([m.sender for m in messages], float),
-           "t_send": np.array([m.t_send for m in messages], float)}
+    out = {
+        "sender": np.array([m.sender for m in messages], float),
+        "t_send": np.array([m.t_send for m in messages], float),
+    }
     for name in messages[0].fields if messages else ():
         out[name] = np.array([m.fields.get(name, np.nan) for m in messages], float)
     return out
@@ -147,9 +157,15 @@ def _rows(msg: dict[str, np.ndarray] | None, rows: np.ndarray) -> dict[str, np.n
     return None if msg is None else {k: v[rows] for k, v in msg.items()}
 
 
-def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
-                    candidates: list[int], cause: str | None,
-                    msg: dict[str, np.ndarray] | None = None) -> np.ndarray:
+def select_and_fire(
+    ens: Ensemble,
+    ag: CAgent,
+    st: AgentState,
+    idx: np.ndarray,
+    candidates: list[int],
+    cause: str | None,
+    msg: dict[str, np.ndarray] | None = None,
+) -> np.ndarray:
     """Fire, in each instance of ``idx``, the enabled candidates that are not pre-empted.
 
     ``msg`` holds the fields of the message being dispatched (aligned with ``idx``).
@@ -192,8 +208,15 @@ def select_and_fire(ens: Ensemble, ag: CAgent, st: AgentState, idx: np.ndarray,
     return fired
 
 
-def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
-         cause: str, msg: dict[str, np.ndarray] | None = None) -> None:
+def fire(
+    ens: Ensemble,
+    ag: CAgent,
+    st: AgentState,
+    j: int,
+    sub: np.ndarray,
+    cause: str,
+    msg: dict[str, np.ndarray] | None = None,
+) -> None:
     """Exit (innermost first, with the modes' exit actions), act, enter (outermost first,
     with their entry actions) — for transition ``j`` in instances ``sub``."""
     tr = ag.transitions[j]
@@ -202,8 +225,7 @@ def fire(ens: Ensemble, ag: CAgent, st: AgentState, j: int, sub: np.ndarray,
             exit_actions(ens, ag, st, tr.exit_root, sub, tr.exit_inside)
         st.exit(tr.exit_root, sub, ens.t, ens.rec, tr.exit_inside)
     if tr.actions:
-        run_actions(ens, ag, st, tr.actions, sub, st.ctx(sub, ens.t[sub], tr.source, msg),
-                    msg)
+        run_actions(ens, ag, st, tr.actions, sub, st.ctx(sub, ens.t[sub], tr.source, msg), msg)
     if not tr.internal:
         for a, b in tr.carry:  # same role: the body resumes (see compiler._role_carry)
             st.last[:, b][sub] = tr.carry_map[st.last[:, a][sub]]  # type: ignore[index]
@@ -227,6 +249,11 @@ def _zeno_window(ens: Ensemble, ag: CAgent, st: AgentState, sub: np.ndarray) -> 
     bad = sub[(ens.t[sub] - old) <= ens.settings.zeno.window]
     if bad.size:
         z = ens.settings.zeno
-        ens.finish(bad, "zeno", lambda i: (
-            f"agent '{ag.name}' took {z.max_transitions + 1} transitions within {z.window:g} s "
-            f"up to t={ens.when(i)}; last: {ens.last_step_text(i)}"))
+        ens.finish(
+            bad,
+            "zeno",
+            lambda i: (
+                f"agent '{ag.name}' took {z.max_transitions + 1} transitions within {z.window:g} s "
+                f"up to t={ens.when(i)}; last: {ens.last_step_text(i)}"
+            ),
+        )

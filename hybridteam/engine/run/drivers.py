@@ -40,7 +40,6 @@ def evaluate_driver(ca: CAgent, drv: Driver, ctx: Ctx) -> np.ndarray:
     return u if bounds is None else saturate(u, *bounds)
 
 
-
 def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
     """The law's inputs, shape-checked. A law that fails or returns the wrong shape is a
     :class:`ModelError` at its binding, with what went wrong (``HYBRIDTEAM_DEBUG=1``
@@ -52,13 +51,18 @@ def _call_law(ca: CAgent, drv: Driver, ctx: Ctx, m: int) -> np.ndarray:
         if os.environ.get("HYBRIDTEAM_DEBUG"):
             raise
         detail = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        raise ModelError((*drv.where, "use"), f"law '{name}' of agent '{ca.name}' failed: "
-                         f"{type(exc).__name__}: {detail}") from exc
+        raise ModelError(
+            (*drv.where, "use"),
+            f"law '{name}' of agent '{ca.name}' failed: {type(exc).__name__}: {detail}",
+        ) from exc
     expected = (m, len(ca.plant.input_names))
     if u.shape != expected:
-        raise ModelError((*drv.where, "use"), f"law '{name}' of agent '{ca.name}' returned "
-                         f"shape {u.shape}, expected {expected} (inputs "
-                         f"{', '.join(ca.plant.input_names)})")
+        raise ModelError(
+            (*drv.where, "use"),
+            f"law '{name}' of agent '{ca.name}' returned "
+            f"shape {u.shape}, expected {expected} (inputs "
+            f"{', '.join(ca.plant.input_names)})",
+        )
     return u
 
 
@@ -86,8 +90,17 @@ def derivative(ens: Ensemble, a: int, idx: np.ndarray) -> rk.Derivative:
                 # (a fixed flow reads no state and no time: evaluated without them)
                 value = expr(Ctx(None, v_g, p_g, None)) if fixed else None  # type: ignore[arg-type]
                 flows.append((j, None if fixed else expr, value))
-        groups.append((D, sel, v_g, p_g, entered,
-                       None if st.inbox is None else st.inbox.view(idx[sel]), flows))
+        groups.append(
+            (
+                D,
+                sel,
+                v_g,
+                p_g,
+                entered,
+                None if st.inbox is None else st.inbox.view(idx[sel]),
+                flows,
+            )
+        )
     whole = len(groups) == 1 and isinstance(groups[0][1], slice)
 
     def f(tt: np.ndarray, xx: np.ndarray) -> np.ndarray:

@@ -56,10 +56,17 @@ class Ensemble:
     ``sample_times``, ``out_k`` (next sample per instance), ``rec``.
     """
 
-    def __init__(self, cteam: CTeam, n: int, seed: int | Sequence[int], t_end: float,
-                 overrides: Mapping[str, float | Sequence[float]],
-                 samples: bool = True, sample_instants: bool = False,
-                 world: Callable[..., World] = World) -> None:
+    def __init__(
+        self,
+        cteam: CTeam,
+        n: int,
+        seed: int | Sequence[int],
+        t_end: float,
+        overrides: Mapping[str, float | Sequence[float]],
+        samples: bool = True,
+        sample_instants: bool = False,
+        world: Callable[..., World] = World,
+    ) -> None:
         """``sample_instants``: the output samples are scheduled instants too (a step ends
         at each), for an agent whose state is read, not integrated (:mod:`.plant`): a
         sample inside a step would be read off an arc the engine does not have.
@@ -90,7 +97,8 @@ class Ensemble:
         #: without final modes (the end rule then holds nowhere, when some agent ends runs)
         #: nor without triggered transitions (a deadlock is someone waiting for an event)
         self.may_end_early = (not cteam.end_any and not cteam.ending) or any(
-            some(ca.final_leaves) or some(ca.has_triggered) for ca in cteam.agents)
+            some(ca.final_leaves) or some(ca.has_triggered) for ca in cteam.agents
+        )
         #: whether some agent's eventless guard can change truth without a transition
         self.urgent_volatile = any(st.urgent_volatile for st in self.states)
         self.h_rk = np.full(n, np.nan)
@@ -102,8 +110,9 @@ class Ensemble:
         self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
         self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]
         # (no samples: none is ever due, and the trace has none)
-        self.sample_times = output_times(t_end, self.settings.output_period()) if samples \
-            else np.zeros(0)
+        self.sample_times = (
+            output_times(t_end, self.settings.output_period()) if samples else np.zeros(0)
+        )
         self.sample_after = np.append(self.sample_times, np.inf)
         self.out_k = np.zeros(n, np.intp)
         self.next_out = np.full(n, self.sample_after[0])
@@ -111,11 +120,15 @@ class Ensemble:
         self.costs = Costs()  # what the crossing search did, read after the run
         self.queue = EventQueue(n, cteam.scenario)
         overrides, medium = split_overrides(cteam.agents, overrides)
-        apply_overrides([st.ca for st in self.states], [st.p for st in self.states], n,
-                        overrides, cteam.team.network)
+        apply_overrides(
+            [st.ca for st in self.states],
+            [st.p for st in self.states],
+            n,
+            overrides,
+            cteam.team.network,
+        )
         params = self.team_params()
-        self.network = Network(cteam.team, n, self.seed, params, self.queue, self.rec,
-                               medium)
+        self.network = Network(cteam.team, n, self.seed, params, self.queue, self.rec, medium)
         self.reliable = Reliable(self)
         self.streams = Streams(self, [ca.streams for ca in cteam.agents])
         self.world = world(cteam.team, n, params)
@@ -142,14 +155,14 @@ class Ensemble:
         costs its dispatch, about 1 µs, for one number)."""
         k = len(self.states)
         rows = np.empty((3 + 2 * k + sample_instants, self.n))
-        rows[0], rows[1], rows[2:2 + k] = self.queue.next, self.t_end, np.inf
+        rows[0], rows[1], rows[2 : 2 + k] = self.queue.next, self.t_end, np.inf
         rows[2 + k] = self.streams.next
         for a, st in enumerate(self.states):
             rows[3 + k + a] = st.next_tick
         self.instants = rows
-        self.instants_at, self.instants_tick = rows[:2 + k], rows[2 + k:]
+        self.instants_at, self.instants_tick = rows[: 2 + k], rows[2 + k :]
         self.queue.next, self.streams.next = rows[0], rows[2 + k]
-        self.timer = list(rows[2:2 + k])
+        self.timer = list(rows[2 : 2 + k])
         for a, st in enumerate(self.states):
             st.next_tick = rows[3 + k + a]
         if sample_instants:
@@ -159,8 +172,9 @@ class Ensemble:
     def team_params(self) -> dict[str, np.ndarray]:
         """Team parameters per instance (after overrides), as every agent sees them."""
         st = self.states[0]
-        return {name: st.p[:, st.ca.param_index[name]].copy()
-                for name in self.cteam.team.parameters}
+        return {
+            name: st.p[:, st.ca.param_index[name]].copy() for name in self.cteam.team.parameters
+        }
 
     def screen(self, i: int, msg: Message, t: float) -> str | None:
         """The protocol layer's look at each copy that got through the medium: acks and
@@ -182,8 +196,12 @@ class Ensemble:
         for i in idx.tolist():
             if not self.done[i]:
                 self.done[i] = True
-                self.outcomes[i] = {"instance": i, "outcome": kind, "t": float(self.t[i]),
-                                    "message": message(i)}
+                self.outcomes[i] = {
+                    "instance": i,
+                    "outcome": kind,
+                    "t": float(self.t[i]),
+                    "message": message(i),
+                }
 
     def when(self, i: int) -> str:
         """Instance ``i``'s current time, printed exactly (shortest round-trip digits)."""

@@ -36,58 +36,74 @@ class EventQueue:
 
     def _refresh(self, idx: np.ndarray) -> None:
         scn = self.scn_t[self.cursor[idx]]
-        heads = np.array([self.heaps[i][0][0] if self.heaps.get(i) else np.inf
-                          for i in idx.tolist()]) if self.heaps else np.full(idx.size, np.inf)
+        heads = (
+            np.array([self.heaps[i][0][0] if self.heaps.get(i) else np.inf for i in idx.tolist()])
+            if self.heaps
+            else np.full(idx.size, np.inf)
+        )
         self.next[idx] = np.minimum(scn, heads)
 
-    def push(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
-             payload: Any = None) -> np.ndarray:
+    def push(
+        self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str, payload: Any = None
+    ) -> np.ndarray:
         """Queue one event per instance in ``idx`` at times ``t``; returns their seq numbers."""
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
-        for i, ti, s in zip(idx.tolist(), spread(t, idx.shape).tolist(),
-                            seqs.tolist(), strict=True):
+        for i, ti, s in zip(
+            idx.tolist(), spread(t, idx.shape).tolist(), seqs.tolist(), strict=True
+        ):
             heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, 0.0, agent, s, name, payload))
         self.next[idx] = np.minimum(self.next[idx], t)
         return seqs
 
-    def push_each(self, idx: np.ndarray, t: np.ndarray, kind: int, agent: int, name: str,
-                  payloads: Sequence[Any], rank: np.ndarray | float = 0.0) -> None:
+    def push_each(
+        self,
+        idx: np.ndarray,
+        t: np.ndarray,
+        kind: int,
+        agent: int,
+        name: str,
+        payloads: Sequence[Any],
+        rank: np.ndarray | float = 0.0,
+    ) -> None:
         """Queue one event per instance in ``idx``, each with its own payload (and rank)."""
         if idx.size == 1:  # a single run's or one instance's event: no broadcasting
             i = int(idx[0])
             s = int(self.seq[i])
             self.seq[i] = s + 1
             ti = float(np.asarray(t).reshape(-1)[0])
-            heapq.heappush(self.heaps.setdefault(i, []), (
-                ti, kind, float(np.asarray(rank).reshape(-1)[0]), agent, s, name,
-                payloads[0]))
+            heapq.heappush(
+                self.heaps.setdefault(i, []),
+                (ti, kind, float(np.asarray(rank).reshape(-1)[0]), agent, s, name, payloads[0]),
+            )
             if ti < self.next[i]:
                 self.next[i] = ti
             return
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
         ranks = spread(np.asarray(rank, float), idx.shape).tolist()
-        for i, ti, r, s, payload in zip(idx.tolist(), spread(t, idx.shape).tolist(),
-                                        ranks, seqs.tolist(), payloads, strict=True):
-            heapq.heappush(self.heaps.setdefault(i, []),
-                           (ti, kind, r, agent, s, name, payload))
+        for i, ti, r, s, payload in zip(
+            idx.tolist(), spread(t, idx.shape).tolist(), ranks, seqs.tolist(), payloads, strict=True
+        ):
+            heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, r, agent, s, name, payload))
         np.minimum.at(self.next, idx, t)
 
     def pending_messages(self) -> list[tuple[int, Any]]:
         """(instance, payload) of every message still queued, in instance order."""
         out = []
         for i in sorted(self.heaps):
-            out += [(i, e[6]) for e in sorted(self.heaps[i], key=lambda e: e[:5])
-                    if e[1] == MESSAGE]
+            out += [
+                (i, e[6]) for e in sorted(self.heaps[i], key=lambda e: e[:5]) if e[1] == MESSAGE
+            ]
         return out
 
     def pending(self, idx: np.ndarray) -> np.ndarray:
         """Whether anything is still queued (now or later) for each instance."""
         return np.isfinite(self.next[idx])
 
-    def pop_due(self, idx: np.ndarray, t: np.ndarray
-                ) -> dict[tuple[int, int, str], list[tuple[int, Any]]]:
+    def pop_due(
+        self, idx: np.ndarray, t: np.ndarray
+    ) -> dict[tuple[int, int, str], list[tuple[int, Any]]]:
         """Pop the first due event of each instance in ``idx``; group them by
         (kind, agent, name) so each group is dispatched as one vectorized step. Members are
         (instance, payload) pairs."""
@@ -113,13 +129,17 @@ class EventQueue:
         heap = self.heaps.get(i)
         scn = self.scenario[c] if c < len(self.scenario) else None
         head = heap[0] if heap else None
-        if scn is not None and scn[0] <= t and (
-                head is None or (scn[0], SCENARIO, 0.0, scn[1]) <= head[:4]):
+        if (
+            scn is not None
+            and scn[0] <= t
+            and (head is None or (scn[0], SCENARIO, 0.0, scn[1]) <= head[:4])
+        ):
             return scn, None
         return None, head
 
-    def pop_message(self, i: int, t: float, inert: Callable[[int, str], bool]
-                    ) -> tuple[int, Any] | None:
+    def pop_message(
+        self, i: int, t: float, inert: Callable[[int, str], bool]
+    ) -> tuple[int, Any] | None:
         """Pop instance ``i``'s first due event if it is a message for which ``inert(agent,
         type)`` holds: ``(agent, payload)``, else None (nothing is popped). The event
         :meth:`pop_due` would pop next for ``i``, by the same rule."""

@@ -62,12 +62,30 @@ class Message:
     datagram); ``note`` is recorded as the copy's reason (``retransmission``, ``ack``).
     """
 
-    __slots__ = ("fields", "msg_id", "note", "receiver", "sender", "seq", "socket", "t_send",
-                 "type")
+    __slots__ = (
+        "fields",
+        "msg_id",
+        "note",
+        "receiver",
+        "sender",
+        "seq",
+        "socket",
+        "t_send",
+        "type",
+    )
 
-    def __init__(self, sender: int, receiver: int, seq: int, t_send: float, socket: str,
-                 type_: str, fields: dict[str, float], msg_id: int = -1,
-                 note: str = "") -> None:
+    def __init__(
+        self,
+        sender: int,
+        receiver: int,
+        seq: int,
+        t_send: float,
+        socket: str,
+        type_: str,
+        fields: dict[str, float],
+        msg_id: int = -1,
+        note: str = "",
+    ) -> None:
         self.sender, self.receiver, self.seq, self.t_send = sender, receiver, seq, t_send
         self.socket, self.type, self.fields = socket, type_, fields
         self.msg_id, self.note = msg_id, note
@@ -87,9 +105,16 @@ class Outlet(Protocol):
 class Network:
     """The medium of one simulation: per-link arrays over the ensemble, and counters."""
 
-    def __init__(self, team: Team, n: int, seed: int | Sequence[int],
-                 team_params: dict[str, np.ndarray], queue, recorder: Recorder,
-                 settings: Mapping[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        team: Team,
+        n: int,
+        seed: int | Sequence[int],
+        team_params: dict[str, np.ndarray],
+        queue,
+        recorder: Recorder,
+        settings: Mapping[str, Any] | None = None,
+    ) -> None:
         """``settings``: network override keys (``network.jitter``, ...) and their values,
         which replace what the team's ``network:`` block says (ValueError for a bad one)."""
         errors = check_network(team)
@@ -108,7 +133,9 @@ class Network:
         self.default = _link(net.default, team_params, n, given.get(None, {}))
         self.links: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {
             (index[s], index[r]): _link(spec, team_params, n, given.get((s, r), {}))
-            for (s, r), spec in net.links.items() if s != r}
+            for (s, r), spec in net.links.items()
+            if s != r
+        }
         self.limits: dict[tuple[int, str], float] = {}
         for agent, per_socket in net.rate_limits.items():
             for socket, rate in per_socket.items():
@@ -123,10 +150,20 @@ class Network:
         self.outlet: Outlet | None = None
 
     # ------------------------------------------------------------------ sending
-    def send(self, idx: np.ndarray, t: np.ndarray, sender: int, to: int | np.ndarray | None,
-             socket: str, type_: str, fields: dict[str, np.ndarray], *,
-             msg_id: np.ndarray | None = None, note: str = "",
-             rank: np.ndarray | None = None) -> None:
+    def send(
+        self,
+        idx: np.ndarray,
+        t: np.ndarray,
+        sender: int,
+        to: int | np.ndarray | None,
+        socket: str,
+        type_: str,
+        fields: dict[str, np.ndarray],
+        *,
+        msg_id: np.ndarray | None = None,
+        note: str = "",
+        rank: np.ndarray | None = None,
+    ) -> None:
         """Broadcast (``to`` None), or address one agent (an index, or one per instance;
         a negative index broadcasts). ``rank`` orders same-instant arrivals (lower first)."""
         seq = self.count[sender][idx].copy()
@@ -134,80 +171,147 @@ class Network:
         ids = filled(idx.size, -1, np.int64) if msg_id is None else msg_id
         if self.outlet is not None:
             target = int(to[0]) if isinstance(to, np.ndarray) else -1 if to is None else to
-            self.outlet.send(Message(sender, max(target, -1), int(seq[0]), float(t[0]),
-                                     socket, type_, {f: float(v[0]) for f, v in fields.items()},
-                                     int(ids[0]), note),
-                             0.0 if rank is None else float(rank[0]))
+            self.outlet.send(
+                Message(
+                    sender,
+                    max(target, -1),
+                    int(seq[0]),
+                    float(t[0]),
+                    socket,
+                    type_,
+                    {f: float(v[0]) for f, v in fields.items()},
+                    int(ids[0]),
+                    note,
+                ),
+                0.0 if rank is None else float(rank[0]),
+            )
             return
         if self.script is not None and type_ not in self.script.streams:
-            self._scripted(t, sender, to, socket, type_, fields, int(seq[0]), int(ids[0]),
-                           note, 0.0 if rank is None else float(rank[0]))
+            self._scripted(
+                t,
+                sender,
+                to,
+                socket,
+                type_,
+                fields,
+                int(seq[0]),
+                int(ids[0]),
+                note,
+                0.0 if rank is None else float(rank[0]),
+            )
             return
         if idx.size == 1:
             self._send_one(idx, t, sender, to, socket, type_, fields, seq, ids, note, rank)
             return
         if to is None:
-            receivers = [(r, filled(idx.size, True, bool)) for r in range(len(self.names))
-                         if r != sender]
+            receivers = [
+                (r, filled(idx.size, True, bool)) for r in range(len(self.names)) if r != sender
+            ]
         elif isinstance(to, np.ndarray):
-            receivers = [(r, (to == r) | (to < 0)) for r in range(len(self.names))
-                         if r != sender]
+            receivers = [(r, (to == r) | (to < 0)) for r in range(len(self.names)) if r != sender]
         else:
             receivers = [(to, filled(idx.size, True, bool))]
         for r, mine in receivers:
             if not some(mine):
                 continue
             inst, ts, k, ids_r = idx[mine], t[mine], seq[mine], ids[mine]
-            latency, jitter, loss = (a[inst] for a in self.links.get((sender, r),
-                                                                      self.default))
+            latency, jitter, loss = (a[inst] for a in self.links.get((sender, r), self.default))
             key = self.keys[inst]
             # a draw is a pure function of (key, link, counter): where the link cannot lose
             # or delay a copy its outcome is known without hashing (lost: u < 0 is false;
             # jitter 0 * u is 0 for every u in [0, 1)), so the draws are skipped
-            lost = uniform(key, sender, r, k, LOSS) < loss if some(loss) else \
-                np.zeros(inst.size, bool)
-            u_jit = uniform(key, sender, r, k, JITTER) if some(jitter) else \
-                np.zeros(inst.size)
+            lost = (
+                uniform(key, sender, r, k, LOSS) < loss if some(loss) else np.zeros(inst.size, bool)
+            )
+            u_jit = uniform(key, sender, r, k, JITTER) if some(jitter) else np.zeros(inst.size)
             t_recv = ts + latency + jitter * u_jit
             if some(lost):
-                self.rec.message(inst[lost], k[lost], sender, r, socket, type_, ts[lost],
-                                 np.full(int(lost.sum()), np.nan), "lost",
-                                 "loss" + (f" ({note})" if note else ""), ids_r[lost])
+                self.rec.message(
+                    inst[lost],
+                    k[lost],
+                    sender,
+                    r,
+                    socket,
+                    type_,
+                    ts[lost],
+                    np.full(int(lost.sum()), np.nan),
+                    "lost",
+                    "loss" + (f" ({note})" if note else ""),
+                    ids_r[lost],
+                )
             ok = ~lost
             if some(ok):
                 values = {f: v[mine][ok].tolist() for f, v in fields.items()}
-                payloads = [Message(sender, r, kj, tj, socket, type_,
-                                    {f: vs[j] for f, vs in values.items()}, idj, note)
-                            for j, (kj, tj, idj) in enumerate(zip(
-                                k[ok].tolist(), ts[ok].tolist(), ids_r[ok].tolist(),
-                                strict=True))]
-                self.queue.push_each(inst[ok], t_recv[ok], MESSAGE, r, type_, payloads,
-                                     rank=0.0 if rank is None else rank[mine][ok])
+                payloads = [
+                    Message(
+                        sender,
+                        r,
+                        kj,
+                        tj,
+                        socket,
+                        type_,
+                        {f: vs[j] for f, vs in values.items()},
+                        idj,
+                        note,
+                    )
+                    for j, (kj, tj, idj) in enumerate(
+                        zip(k[ok].tolist(), ts[ok].tolist(), ids_r[ok].tolist(), strict=True)
+                    )
+                ]
+                self.queue.push_each(
+                    inst[ok],
+                    t_recv[ok],
+                    MESSAGE,
+                    r,
+                    type_,
+                    payloads,
+                    rank=0.0 if rank is None else rank[mine][ok],
+                )
 
-    def _send_one(self, idx: np.ndarray, t: np.ndarray, sender: int, to, socket: str,
-                  type_: str, fields: dict[str, np.ndarray], seq: np.ndarray,
-                  ids: np.ndarray, note: str, rank: np.ndarray | None) -> None:
+    def _send_one(
+        self,
+        idx: np.ndarray,
+        t: np.ndarray,
+        sender: int,
+        to,
+        socket: str,
+        type_: str,
+        fields: dict[str, np.ndarray],
+        seq: np.ndarray,
+        ids: np.ndarray,
+        note: str,
+        rank: np.ndarray | None,
+    ) -> None:
         """:meth:`send` for one instance (a single run's every message): the same draws and
         arithmetic on scalars, without the masks and broadcasts an ensemble needs."""
         i = int(idx[0])
         ts = float(t[0]) if np.ndim(t) else float(t)
         values = {f: v[0].item() for f, v in fields.items()}
-        key = self.keys[i: i + 1]
+        key = self.keys[i : i + 1]
         k = seq[:1]
         r_rank = 0.0 if rank is None else float(rank[0])
         for r in self._receivers_of_one(sender, to):
-            latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r),
-                                                                      self.default))
+            latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r), self.default))
             if loss > 0.0 and uniform(key, sender, r, k, LOSS)[0] < loss:
-                self.rec.message(idx, k, sender, r, socket, type_, np.array([ts]),
-                                 np.array([np.nan]), "lost",
-                                 "loss" + (f" ({note})" if note else ""), ids[:1])
+                self.rec.message(
+                    idx,
+                    k,
+                    sender,
+                    r,
+                    socket,
+                    type_,
+                    np.array([ts]),
+                    np.array([np.nan]),
+                    "lost",
+                    "loss" + (f" ({note})" if note else ""),
+                    ids[:1],
+                )
                 continue
             u = float(uniform(key, sender, r, k, JITTER)[0]) if jitter > 0.0 else 0.0
-            msg = Message(sender, r, int(k[0]), ts, socket, type_, dict(values), int(ids[0]),
-                          note)
-            self.queue.push_each(idx, np.array([ts + latency + jitter * u]), MESSAGE, r,
-                                 type_, [msg], rank=r_rank)
+            msg = Message(sender, r, int(k[0]), ts, socket, type_, dict(values), int(ids[0]), note)
+            self.queue.push_each(
+                idx, np.array([ts + latency + jitter * u]), MESSAGE, r, type_, [msg], rank=r_rank
+            )
 
     def _receivers_of_one(self, sender: int, to) -> list[int]:
         """The receivers of a send in one instance (``to`` as :meth:`send` takes it)."""
@@ -216,9 +320,19 @@ class Network:
             return [r for r in range(len(self.names)) if r != sender]
         return [target]
 
-    def _scripted(self, t: np.ndarray, sender: int, to, socket: str, type_: str,
-                  fields: dict[str, np.ndarray], seq: int, msg_id: int, note: str,
-                  rank: float) -> None:
+    def _scripted(
+        self,
+        t: np.ndarray,
+        sender: int,
+        to,
+        socket: str,
+        type_: str,
+        fields: dict[str, np.ndarray],
+        seq: int,
+        msg_id: int,
+        note: str,
+        rank: float,
+    ) -> None:
         """A send in a replay (one instance): each copy arrives at the times the script
         gives it (several for a duplicated copy, +inf: still in flight when the run ends),
         or is lost when it gives none."""
@@ -227,26 +341,41 @@ class Network:
         for r in self._receivers_of_one(sender, to):
             times = self.script.arrivals(sender, r, type_)
             if not times:
-                self.rec.message(one, np.array([seq]), sender, r, socket, type_, t[:1],
-                                 np.array([np.nan]), "lost", "loss (replay)",
-                                 np.array([msg_id]))
+                self.rec.message(
+                    one,
+                    np.array([seq]),
+                    sender,
+                    r,
+                    socket,
+                    type_,
+                    t[:1],
+                    np.array([np.nan]),
+                    "lost",
+                    "loss (replay)",
+                    np.array([msg_id]),
+                )
             for when in times:
-                msg = Message(sender, r, seq, float(t[0]), socket, type_, dict(values), msg_id,
-                              note)
-                self.queue.push_each(one, np.array([when]), MESSAGE, r, type_, [msg],
-                                     rank=rank)
+                msg = Message(
+                    sender, r, seq, float(t[0]), socket, type_, dict(values), msg_id, note
+                )
+                self.queue.push_each(one, np.array([when]), MESSAGE, r, type_, [msg], rank=rank)
 
     # ------------------------------------------------------------------ receiving
     def arrive(self, i: int, msg: Message, t: float, rank: float = 0.0) -> None:
         """A copy that came from outside the run (a live run's transport) reaches
         ``msg.receiver`` of instance ``i`` at time ``t``: queued as a message event, to be
         received (rate limits, the protocol's screen, the record) as a simulated one is."""
-        self.queue.push_each(np.array([i]), np.array([t]), MESSAGE, msg.receiver, msg.type,
-                             [msg], rank=rank)
+        self.queue.push_each(
+            np.array([i]), np.array([t]), MESSAGE, msg.receiver, msg.type, [msg], rank=rank
+        )
 
-    def receive(self, inst: np.ndarray, t: np.ndarray, messages: list[Message],
-                screen: Callable[[int, Message, float], str | None] | None = None
-                ) -> np.ndarray:
+    def receive(
+        self,
+        inst: np.ndarray,
+        t: np.ndarray,
+        messages: list[Message],
+        screen: Callable[[int, Message, float], str | None] | None = None,
+    ) -> np.ndarray:
         """Arrivals at their receivers: apply rate limits, record; returns which are kept.
 
         Arrivals are processed in time order, so a receiver busy with the previous message
@@ -267,8 +396,11 @@ class Network:
             else:
                 last[i] = t[j]
         for j, msg in enumerate(messages):
-            status, reason = ("delivered", msg.note) if keep[j] else \
-                ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
+            status, reason = (
+                ("delivered", msg.note)
+                if keep[j]
+                else ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
+            )
             if keep[j] and screen is not None:
                 withheld = screen(int(inst[j]), msg, float(t[j]))
                 if withheld is not None:
@@ -279,8 +411,19 @@ class Network:
 
     def record(self, i: int, msg: Message, t_recv: float, status: str, reason: str) -> None:
         """One copy's row in the trace's message table."""
-        self.rec.message_row(i, msg.seq, msg.sender, msg.receiver, msg.socket, msg.type,
-                             msg.t_send, t_recv, status, reason, msg.msg_id)
+        self.rec.message_row(
+            i,
+            msg.seq,
+            msg.sender,
+            msg.receiver,
+            msg.socket,
+            msg.type,
+            msg.t_send,
+            t_recv,
+            status,
+            reason,
+            msg.msg_id,
+        )
 
     def close(self, pending: list[tuple[int, Any]]) -> None:
         """Copies still in flight when the run ends: recorded as lost, reason 'run ended'."""
@@ -288,20 +431,27 @@ class Network:
             self.record(i, msg, np.nan, "lost", "run ended")
 
 
-def _link(spec, team_params: dict[str, np.ndarray], n: int,
-          given: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _link(
+    spec, team_params: dict[str, np.ndarray], n: int, given: Mapping[str, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A link's latency, jitter and loss per instance (``given``: overridden ones), each
     checked for its range."""
     return tuple(  # type: ignore[return-value]  # (three names, three arrays)
-        given[what] if what in given else
-        require(evaluate_setting(getattr(spec, what), team_params, n), (*spec.where, what),
-                f"the link's {what}", str(getattr(spec, what)), low=0.0,
-                high=1.0 if what == "loss" else np.inf)
-        for what in LINK_SETTINGS)
+        given[what]
+        if what in given
+        else require(
+            evaluate_setting(getattr(spec, what), team_params, n),
+            (*spec.where, what),
+            f"the link's {what}",
+            str(getattr(spec, what)),
+            low=0.0,
+            high=1.0 if what == "loss" else np.inf,
+        )
+        for what in LINK_SETTINGS
+    )
 
 
-def _given(team: Team, settings: Mapping[str, Any], n: int
-           ) -> dict[Link, dict[str, np.ndarray]]:
+def _given(team: Team, settings: Mapping[str, Any], n: int) -> dict[Link, dict[str, np.ndarray]]:
     """Overridden settings per link, each ``n`` values checked for its range; ValueError
     names a key that is no setting, or a value out of range, as an override (not at the
     file's line, which it replaces)."""
@@ -313,8 +463,9 @@ def _given(team: Team, settings: Mapping[str, Any], n: int
         link, what = targets[key]
         values = np.broadcast_to(override_values(key, value, n), (n,)).copy()
         try:
-            require(values, (), f"override '{key}'", "", low=0.0,
-                    high=1.0 if what == "loss" else np.inf)
+            require(
+                values, (), f"override '{key}'", "", low=0.0, high=1.0 if what == "loss" else np.inf
+            )
         except ModelError as exc:
             raise ValueError(exc.message) from None
         out.setdefault(link, {})[what] = values

@@ -49,25 +49,33 @@ def _driver_text(ens: Ensemble, a: int, i: int, column: int | None) -> str:
     names = st.ca.plant.state_names
     if drv.kind == "flow" and drv.flow is not None:
         cols = [column] if column is not None else range(len(names))
-        return "flow " + ", ".join(f"{names[c]}: {e.source if (e := drv.flow[c]) else '0'}"
-                                   for c in cols)
+        return "flow " + ", ".join(
+            f"{names[c]}: {e.source if (e := drv.flow[c]) else '0'}" for c in cols
+        )
     if drv.law is not None:
         return f"law '{drv.law.name}'"
     if drv.inputs is not None:
-        return "inputs: " + ", ".join(f"{n}: {e.source}" for n, e in
-                                       zip(st.ca.plant.input_names, drv.inputs, strict=True))
+        return "inputs: " + ", ".join(
+            f"{n}: {e.source}" for n, e in zip(st.ca.plant.input_names, drv.inputs, strict=True)
+        )
     return drv.kind
 
 
-def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
-                       t1: np.ndarray, x_end: list[np.ndarray], steps: list[AgentStep]
-                       ) -> None:
+def stop_broken_states(
+    ens: Ensemble,
+    idx: np.ndarray,
+    sel: slice | np.ndarray,
+    t1: np.ndarray,
+    x_end: list[np.ndarray],
+    steps: list[AgentStep],
+) -> None:
     """End with ``numerical_error`` the instances where a flow's derivative at the step's
     start, or the state a step produced, is not a finite number; they stay at the step's
     start (their last finite state). Runge–Kutta results that are not finite were already
     rejected (a smaller step may do), so what is left here is beyond any step size."""
     if all(all_finite(xe) for xe in x_end) and not any(
-            s.start_bad is not None and some(s.start_bad) for s in steps):
+        s.start_bad is not None and some(s.start_bad) for s in steps
+    ):
         return  # the usual case, in a few reductions
     accepted = ens.h[sel] > 0
     bad = np.zeros(idx.size, bool)
@@ -76,8 +84,9 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
         start = step.start_bad if step.start_bad is not None else np.zeros(idx.size, bool)
         rows = ~bad & (start | (accepted & ~np.isfinite(x_end[a]).all(axis=1)))
         for r in np.flatnonzero(rows).tolist():
-            _report_state(ens, a, int(idx[r]), step, r, x_end[a][r], float(t1[idx[r]]),
-                          bool(start[r]))
+            _report_state(
+                ens, a, int(idx[r]), step, r, x_end[a][r], float(t1[idx[r]]), bool(start[r])
+            )
         bad |= rows
     if some(bad):
         back = idx[bad]
@@ -87,8 +96,16 @@ def stop_broken_states(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray,
             x_end[a][bad] = steps[a].x0[bad]
 
 
-def _report_state(ens: Ensemble, a: int, i: int, step: AgentStep, r: int, x: np.ndarray,
-                  t_to: float, at_start: bool) -> None:
+def _report_state(
+    ens: Ensemble,
+    a: int,
+    i: int,
+    step: AgentStep,
+    r: int,
+    x: np.ndarray,
+    t_to: float,
+    at_start: bool,
+) -> None:
     names = ens.states[a].ca.plant.state_names
     if at_start:
         assert step.rk_step is not None and step.rk_pos is not None
@@ -98,31 +115,43 @@ def _report_state(ens: Ensemble, a: int, i: int, step: AgentStep, r: int, x: np.
     else:
         col = int(np.flatnonzero(~np.isfinite(x))[0])
         what = f"state '{names[col]}' became {x[col]} in the step to t={t_to!r}"
-    ens.finish(np.array([i]), "numerical_error", lambda i: (
-        f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
-        f"t={ens.when(i)}: {what} ({_driver_text(ens, a, i, col)})"))
+    ens.finish(
+        np.array([i]),
+        "numerical_error",
+        lambda i: (
+            f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
+            f"t={ens.when(i)}: {what} ({_driver_text(ens, a, i, col)})"
+        ),
+    )
 
 
-def stop_collapsed_steps(ens: Ensemble, idx: np.ndarray, steps: list[AgentStep],
-                         rows: np.ndarray) -> np.ndarray:
+def stop_collapsed_steps(
+    ens: Ensemble, idx: np.ndarray, steps: list[AgentStep], rows: np.ndarray
+) -> np.ndarray:
     """End with ``stiff`` the instances among ``idx[rows]`` whose Runge–Kutta step size
     fell below the floor (or stopped being a number); the agent named is the one with the
     largest error estimate. Returns the rows ended."""
     failed = rows[~(ens.h_rk[idx[rows]] >= step_floor(ens, ens.t[idx[rows]]))]
     for r in failed.tolist():
         i = int(idx[r])
-        errs = [-1.0 if s.err is None else float(np.nan_to_num(s.err[r], nan=np.inf))
-                for s in steps]
+        errs = [
+            -1.0 if s.err is None else float(np.nan_to_num(s.err[r], nan=np.inf)) for s in steps
+        ]
         a = int(np.argmax(errs))
         size = float(ens.h_rk[i])
-        limit = float(step_floor(ens, ens.t[i:i + 1])[0])
-        ens.finish(np.array([i]), "stiff", lambda i, a=a, size=size, limit=limit: (  # type: ignore[misc]  # default-bound lambda
-            f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
-            f"t={ens.when(i)}: the integrator's step size fell to {size:.3g} s, below "
-            f"{limit:.3g} s ({_driver_text(ens, a, i, None)}): the flow changes too fast for "
-            f"a run of {ens.t_end:g} s (it is stiff, oscillates, or blows up, or the run is "
-            "far longer than its time scale); simulation.min_step sets the smallest step "
-            "allowed"))
+        limit = float(step_floor(ens, ens.t[i : i + 1])[0])
+        ens.finish(
+            np.array([i]),
+            "stiff",
+            lambda i, a=a, size=size, limit=limit: (  # type: ignore[misc]  # default-bound lambda
+                f"agent '{ens.cteam.agents[a].name}' in mode '{_leaf(ens, a, i)}' at "
+                f"t={ens.when(i)}: the integrator's step size fell to {size:.3g} s, below "
+                f"{limit:.3g} s ({_driver_text(ens, a, i, None)}): the flow changes too fast for "
+                f"a run of {ens.t_end:g} s (it is stiff, oscillates, or blows up, or the run is "
+                "far longer than its time scale); simulation.min_step sets the smallest step "
+                "allowed"
+            ),
+        )
     return failed
 
 
@@ -134,6 +163,11 @@ def stop_broken_inputs(ens: Ensemble, a: int, rows: np.ndarray, u: np.ndarray) -
         i = int(rows[k])
         col = int(np.flatnonzero(~np.isfinite(u[k]))[0])
         value = u[k, col]
-        ens.finish(np.array([i]), "numerical_error", lambda i, col=col, value=value: (  # type: ignore[misc]  # default-bound lambda
-            f"agent '{ca.name}' in mode '{_leaf(ens, a, i)}' at t={ens.when(i)}: input "
-            f"'{ca.plant.input_names[col]}' is {value} ({_driver_text(ens, a, i, None)})"))
+        ens.finish(
+            np.array([i]),
+            "numerical_error",
+            lambda i, col=col, value=value: (  # type: ignore[misc]  # default-bound lambda
+                f"agent '{ca.name}' in mode '{_leaf(ens, a, i)}' at t={ens.when(i)}: input "
+                f"'{ca.plant.input_names[col]}' is {value} ({_driver_text(ens, a, i, None)})"
+            ),
+        )

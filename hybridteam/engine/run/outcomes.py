@@ -23,8 +23,7 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.ensemble import Ensemble
 
 
-def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = None
-                    ) -> None:
+def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = None) -> None:
     """Invariants (``stuck``), the end rule (a final mode's outcome, else ``ok``), nothing
     can happen (``deadlock``), for the instances ``idx`` where something happened.
 
@@ -46,9 +45,14 @@ def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = 
             ok = spread(m.invariant(st.ctx(sel, ens.t[sel], m.index)), sel.shape)
             bad = sel[~ok]
             if bad.size:
-                ens.finish(bad, "stuck", lambda i, ca=ca, m=m: (  # type: ignore[misc]  # default-bound lambda
-                    f"agent '{ca.name}' in mode '{m.path}' at t={ens.when(i)}: invariant "
-                    f"'{m.invariant_text}' is false and no transition out is enabled"))
+                ens.finish(
+                    bad,
+                    "stuck",
+                    lambda i, ca=ca, m=m: (  # type: ignore[misc]  # default-bound lambda
+                        f"agent '{ca.name}' in mode '{m.path}' at t={ens.when(i)}: invariant "
+                        f"'{m.invariant_text}' is false and no transition out is enabled"
+                    ),
+                )
     if not ens.may_end_early:
         return
     idx = idx[~ens.done[idx]]
@@ -96,7 +100,6 @@ def check_instances(ens: Ensemble, idx: np.ndarray, config: np.ndarray | None = 
         ens.finish(stalled, "deadlock", lambda i: deadlock_text(ens, i))
 
 
-
 def _end_text(ens: Ensemble) -> str:
     cteam = ens.cteam
     if len(cteam.ending) == len(cteam.agents) and not cteam.end_any:
@@ -106,10 +109,16 @@ def _end_text(ens: Ensemble) -> str:
         return f"every agent reached a final mode (operators are not waited for: {ops})"
     names = ", ".join(f"'{cteam.agents[a].name}'" for a in cteam.ending)
     if cteam.end_any:
-        return f"one of {names} reached a final mode" if len(cteam.ending) > 1 else \
-            f"{names} reached a final mode"
-    return f"{names} reached final modes (the end rule)" if len(cteam.ending) > 1 else \
-        f"{names} reached a final mode (the end rule)"
+        return (
+            f"one of {names} reached a final mode"
+            if len(cteam.ending) > 1
+            else f"{names} reached a final mode"
+        )
+    return (
+        f"{names} reached final modes (the end rule)"
+        if len(cteam.ending) > 1
+        else f"{names} reached a final mode (the end rule)"
+    )
 
 
 def final_outcomes(ens: Ensemble, idx: np.ndarray) -> dict[str, np.ndarray]:
@@ -131,10 +140,17 @@ def deadlock_text(ens: Ensemble, i: int) -> str:
     parts = []
     for st in ens.states:
         ca = st.ca
-        waits = sorted({on for m in ca.modes if st.active[i, m.index]
-                        for j in m.outgoing if (on := ca.transitions[j].on)})
+        waits = sorted(
+            {
+                on
+                for m in ca.modes
+                if st.active[i, m.index]
+                for j in m.outgoing
+                if (on := ca.transitions[j].on)
+            }
+        )
         if waits:
-            parts.append(f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for "
-                         f"{', '.join(waits)}")
+            parts.append(
+                f"agent '{ca.name}' in {', '.join(st.leaf_paths(i))} waits for {', '.join(waits)}"
+            )
     return f"nothing pending at t={ens.when(i)}: " + "; ".join(parts)
-

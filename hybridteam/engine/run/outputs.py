@@ -17,8 +17,9 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.ensemble import Ensemble
 
 
-def interpolate_samples(ens: Ensemble, idx: np.ndarray, t1: np.ndarray,
-                        steps: list[AgentStep]) -> None:
+def interpolate_samples(
+    ens: Ensemble, idx: np.ndarray, t1: np.ndarray, steps: list[AgentStep]
+) -> None:
     """Record output samples that fall strictly inside this step, without stopping there.
 
     Outputs do not constrain the integrator: flows are read off the step's dense
@@ -33,8 +34,9 @@ def interpolate_samples(ens: Ensemble, idx: np.ndarray, t1: np.ndarray,
     last = np.searchsorted(ens.sample_times, t1, side="left")  # samples < t1
     count = np.maximum(last - first, 0)
     rows = np.repeat(np.arange(idx.size), count)
-    k = np.repeat(first, count) + (np.arange(rows.size) - np.repeat(np.cumsum(count) - count,
-                                                                     count))
+    k = np.repeat(first, count) + (
+        np.arange(rows.size) - np.repeat(np.cumsum(count) - count, count)
+    )
     due = idx[rows]
     tau = ens.sample_times[k] - ens.t0[due]
     for a, st in enumerate(ens.states):
@@ -45,18 +47,25 @@ def interpolate_samples(ens: Ensemble, idx: np.ndarray, t1: np.ndarray,
     ens.next_out[moved] = ens.sample_after[ens.out_k[moved]]
 
 
-def record_samples(ens: Ensemble, idx: np.ndarray,
-                   taken: tuple[np.ndarray, dict[str, np.ndarray]] | None) -> None:
+def record_samples(
+    ens: Ensemble, idx: np.ndarray, taken: tuple[np.ndarray, dict[str, np.ndarray]] | None
+) -> None:
     """Record the output samples due at the current time of instances ``idx``, after the
     instant's discrete steps. ``taken``: the world's series as this instant's snapshot
     read them, ``(instances, values)`` (None: none), the same values for the same
     instances."""
-    due = where_true(ens.t >= ens.next_out) if idx.size == ens.n else \
-        idx[ens.t[idx] >= ens.next_out[idx]]
+    due = (
+        where_true(ens.t >= ens.next_out)
+        if idx.size == ens.n
+        else idx[ens.t[idx] >= ens.next_out[idx]]
+    )
     if due.size == 0:
         return
-    world = taken[1] if taken is not None and taken[0].shape == due.shape \
-        and every(taken[0] == due) else ens.world.sample(due)
+    world = (
+        taken[1]
+        if taken is not None and taken[0].shape == due.shape and every(taken[0] == due)
+        else ens.world.sample(due)
+    )
     if due.size == 1:  # a single run's sample: its row by Python ints, no index arrays
         i = due.item(0)
         k = ens.out_k.item(i)

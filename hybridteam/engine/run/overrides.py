@@ -27,17 +27,22 @@ NETWORK = "network."  # the prefix of the network's override keys
 Link = tuple[str, str] | None  # (sender, receiver), or None: the default link
 
 
-def parameter_matrices(agents: Sequence[CAgent], n: int,
-                       overrides: Mapping[str, float | Sequence[float]]) -> list[np.ndarray]:
+def parameter_matrices(
+    agents: Sequence[CAgent], n: int, overrides: Mapping[str, float | Sequence[float]]
+) -> list[np.ndarray]:
     """One ``(n, P)`` parameter matrix per agent, defaults tiled, then overrides applied."""
     mats = [np.tile(ca.param_defaults, (n, 1)) for ca in agents]
     apply_overrides(agents, mats, n, overrides)
     return mats
 
 
-def apply_overrides(agents: Sequence[CAgent], mats: Sequence[np.ndarray], n: int,
-                    overrides: Mapping[str, float | Sequence[float]],
-                    network: NetworkSpec | None = None) -> None:
+def apply_overrides(
+    agents: Sequence[CAgent],
+    mats: Sequence[np.ndarray],
+    n: int,
+    overrides: Mapping[str, float | Sequence[float]],
+    network: NetworkSpec | None = None,
+) -> None:
     """Write ``overrides`` into the agents' ``(n, P)`` matrices; ValueError names a bad key
     (with the team's ``network``, its settings are among the keys it suggests).
 
@@ -71,22 +76,25 @@ def override_values(key: str, value: Any, n: int) -> np.ndarray:
     not."""
     values = np.asarray(value, dtype=float)
     if values.ndim > 1 or (values.ndim == 1 and values.size != n):
-        raise ValueError(f"override '{key}': expected a number or {n} values, "
-                         f"got shape {values.shape}")
+        raise ValueError(
+            f"override '{key}': expected a number or {n} values, got shape {values.shape}"
+        )
     if not np.isfinite(values).all():
         bad = np.flatnonzero(~np.isfinite(np.atleast_1d(values)))[0]
-        raise ValueError(f"override '{key}': {np.atleast_1d(values)[bad]} (instance "
-                         f"{bad}) is not a finite number")
+        raise ValueError(
+            f"override '{key}': {np.atleast_1d(values)[bad]} (instance "
+            f"{bad}) is not a finite number"
+        )
     return values
 
 
 def network_targets(network: NetworkSpec) -> dict[str, tuple[Link, str]]:
     """Each network override key and the link and setting it replaces."""
-    out: dict[str, tuple[Link, str]] = {f"{NETWORK}{what}": (None, what)
-                                         for what in LINK_SETTINGS}
+    out: dict[str, tuple[Link, str]] = {f"{NETWORK}{what}": (None, what) for what in LINK_SETTINGS}
     for link in network.links:
-        out.update({f"{NETWORK}links.{link[0]}->{link[1]}.{what}": (link, what)
-                    for what in LINK_SETTINGS})
+        out.update(
+            {f"{NETWORK}links.{link[0]}->{link[1]}.{what}": (link, what) for what in LINK_SETTINGS}
+        )
     return out
 
 
@@ -96,15 +104,17 @@ def sets_network(agents: Sequence[CAgent], key: str) -> bool:
     return key.startswith(NETWORK) and not any(ca.name == "network" for ca in agents)
 
 
-def split_overrides(agents: Sequence[CAgent], overrides: Mapping[str, Any]
-                    ) -> tuple[dict[str, Any], dict[str, Any]]:
+def split_overrides(
+    agents: Sequence[CAgent], overrides: Mapping[str, Any]
+) -> tuple[dict[str, Any], dict[str, Any]]:
     """(the agents' parameter overrides, the network's setting overrides)."""
     medium = {k: v for k, v in overrides.items() if sets_network(agents, k)}
     return {k: v for k, v in overrides.items() if k not in medium}, medium
 
 
-def key_problem(agents: Sequence[CAgent], key: str, network: NetworkSpec | None = None
-                ) -> str | None:
+def key_problem(
+    agents: Sequence[CAgent], key: str, network: NetworkSpec | None = None
+) -> str | None:
     """Why ``key`` names no parameter of the agents (``"override 'x' names no parameter;
     did you mean 'speed'?"``) nor, given the team's ``network``, a network setting; or
     None when it names one."""
@@ -112,13 +122,19 @@ def key_problem(agents: Sequence[CAgent], key: str, network: NetworkSpec | None 
     if targets and sets_network(agents, key):
         if key in targets:
             return None
-        return f"override '{key}' names no network setting" + \
-            (f"; {hint}" if (hint := did_you_mean(key, list(targets))) else
-             f" (settings: {', '.join(targets)})")
+        return f"override '{key}' names no network setting" + (
+            f"; {hint}"
+            if (hint := did_you_mean(key, list(targets)))
+            else f" (settings: {', '.join(targets)})"
+        )
     agent, _, name = key.rpartition(".")
     if any((not agent or ca.name == agent) and name in ca.param_index for ca in agents):
         return None
-    known = sorted({f"{ca.name}.{p}" for ca in agents for p in ca.param_index}
-                   | {p for ca in agents for p in ca.param_index} | set(targets))
-    return f"override '{key}' names no parameter" + \
-        (f"; {hint}" if (hint := did_you_mean(key, known)) else "")
+    known = sorted(
+        {f"{ca.name}.{p}" for ca in agents for p in ca.param_index}
+        | {p for ca in agents for p in ca.param_index}
+        | set(targets)
+    )
+    return f"override '{key}' names no parameter" + (
+        f"; {hint}" if (hint := did_you_mean(key, known)) else ""
+    )

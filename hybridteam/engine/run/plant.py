@@ -59,5 +59,7 @@ def check_external(cteam: CTeam, plants: Mapping[int, ExternalPlant]) -> None:
             raise ValueError(f"plants: no agent {a} in the team")
         ca = cteam.agents[a]
         if ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers):
-            raise ValueError(f"agent '{ca.name}': an external plant takes held inputs; "
-                             "its flow or continuous law would need the plant integrated")
+            raise ValueError(
+                f"agent '{ca.name}': an external plant takes held inputs; "
+                "its flow or continuous law would need the plant integrated"
+            )

@@ -26,14 +26,13 @@ import numpy as np
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
-_TO_UNIT = 2.0 ** -53
+_TO_UNIT = 2.0**-53
 
 
 def component_key(seed: int, component: str) -> np.uint64:
     """The key of a named component: ``SeedSequence(seed)`` spawned at a stable index."""
     index = zlib.crc32(component.encode("utf-8"))
-    state = np.random.SeedSequence(entropy=seed, spawn_key=(index,)).generate_state(
-        2, np.uint64)
+    state = np.random.SeedSequence(entropy=seed, spawn_key=(index,)).generate_state(2, np.uint64)
     return np.uint64(state[0] ^ (state[1] << np.uint64(1)))
 
 
@@ -49,8 +48,10 @@ def seed_value(seed: int | Sequence[int] | np.ndarray, n: int) -> int | list[int
         return int(seed)
     values = np.asarray(seed)
     if values.ndim != 1 or values.size != n:
-        raise ValueError(f"seed: expected one integer or {n} integers (one per instance), "
-                         f"got shape {values.shape}")
+        raise ValueError(
+            f"seed: expected one integer or {n} integers (one per instance), "
+            f"got shape {values.shape}"
+        )
     out = []
     for s in values.tolist():
         if not isinstance(s, numbers.Integral) or isinstance(s, bool) or s < 0:

@@ -32,8 +32,10 @@ class Recorder:
         self._intervals: list[tuple] = []
         self._messages: list[tuple] = []
         self.sample_times = sample_times
-        self.samples = {a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
-                        for a in cteam.agents}
+        self.samples = {
+            a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
+            for a in cteam.agents
+        }
         #: None, or (instances, t, {series: values}) at every instant (``snapshots=True``)
         self.snapshots: list[tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]] | None = None
 
@@ -43,41 +45,109 @@ class Recorder:
             self.samples[name] = np.full((len(self.sample_times), self.n, len(columns)), np.nan)
 
     # the engine calls these with index arrays ------------------------------------------
-    def transition(self, agent: int, index: int, instances: np.ndarray, t: np.ndarray,
-                   step: np.ndarray, cause: str) -> None:
+    def transition(
+        self,
+        agent: int,
+        index: int,
+        instances: np.ndarray,
+        t: np.ndarray,
+        step: np.ndarray,
+        cause: str,
+    ) -> None:
         self._transitions.append((agent, index, instances.copy(), t.copy(), step.copy(), cause))
 
     def initial(self, agent: int, mode: int, instances: np.ndarray, t: np.ndarray) -> None:
-        self._transitions.append((agent, -1 - mode, instances.copy(), t.copy(),
-                                  np.zeros(len(instances), np.int64), "init"))
+        self._transitions.append(
+            (
+                agent,
+                -1 - mode,
+                instances.copy(),
+                t.copy(),
+                np.zeros(len(instances), np.int64),
+                "init",
+            )
+        )
 
-    def interval(self, agent: int, mode: int, instances: np.ndarray, start: np.ndarray,
-                 end: np.ndarray) -> None:
+    def interval(
+        self, agent: int, mode: int, instances: np.ndarray, start: np.ndarray, end: np.ndarray
+    ) -> None:
         self._intervals.append((agent, mode, instances.copy(), start.copy(), end.copy()))
 
-    def message(self, instances: np.ndarray, seq: np.ndarray, sender: int, receiver: int,
-                socket: str, kind: str, t_send: np.ndarray, t_recv: np.ndarray, status: str,
-                reason: str = "", msg_id: np.ndarray | None = None) -> None:
+    def message(
+        self,
+        instances: np.ndarray,
+        seq: np.ndarray,
+        sender: int,
+        receiver: int,
+        socket: str,
+        kind: str,
+        t_send: np.ndarray,
+        t_recv: np.ndarray,
+        status: str,
+        reason: str = "",
+        msg_id: np.ndarray | None = None,
+    ) -> None:
         """One row per copy. ``msg_id`` identifies an acknowledged message across its
         retransmissions (-1 for plain datagrams)."""
         ids = np.full(len(instances), -1, np.int64) if msg_id is None else msg_id.copy()
-        self._messages.append((instances.copy(), seq.copy(), sender, receiver, socket, kind,
-                               t_send.copy(), t_recv.copy(), status, reason, ids))
+        self._messages.append(
+            (
+                instances.copy(),
+                seq.copy(),
+                sender,
+                receiver,
+                socket,
+                kind,
+                t_send.copy(),
+                t_recv.copy(),
+                status,
+                reason,
+                ids,
+            )
+        )
 
-    def message_row(self, i: int, seq: int, sender: int, receiver: int, socket: str,
-                    kind: str, t_send: float, t_recv: float, status: str, reason: str,
-                    msg_id: int) -> None:
+    def message_row(
+        self,
+        i: int,
+        seq: int,
+        sender: int,
+        receiver: int,
+        socket: str,
+        kind: str,
+        t_send: float,
+        t_recv: float,
+        status: str,
+        reason: str,
+        msg_id: int,
+    ) -> None:
         """:meth:`message` for one copy, from plain numbers: every arrival is recorded
         alone, and five one-element arrays cost more than the rest of its receipt."""
-        self._messages.append(([i], [seq], sender, receiver, socket, kind, [t_send],
-                               [t_recv], status, reason, [msg_id]))
+        self._messages.append(
+            (
+                [i],
+                [seq],
+                sender,
+                receiver,
+                socket,
+                kind,
+                [t_send],
+                [t_recv],
+                status,
+                reason,
+                [msg_id],
+            )
+        )
 
-    def snapshot(self, instances: np.ndarray, t: np.ndarray,
-                 values: dict[str, np.ndarray]) -> None:
+    def snapshot(self, instances: np.ndarray, t: np.ndarray, values: dict[str, np.ndarray]) -> None:
         assert self.snapshots is not None
         if instances.size and values:
-            self.snapshots.append((instances.copy(), t.copy(),
-                                   {k: np.array(v, dtype=float) for k, v in values.items()}))
+            self.snapshots.append(
+                (
+                    instances.copy(),
+                    t.copy(),
+                    {k: np.array(v, dtype=float) for k, v in values.items()},
+                )
+            )
 
     def merged_snapshots(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per series: (instances, times, values), in the order they were taken."""
@@ -85,10 +155,14 @@ class Recorder:
         for inst, t, values in self.snapshots or []:
             for name, v in values.items():
                 out.setdefault(name, []).append((inst, t, v.reshape(len(inst), -1)))
-        return {name: (np.concatenate([p[0] for p in parts]),
-                       np.concatenate([p[1] for p in parts]),
-                       np.concatenate([p[2] for p in parts]))
-                for name, parts in out.items()}
+        return {
+            name: (
+                np.concatenate([p[0] for p in parts]),
+                np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]),
+            )
+            for name, parts in out.items()
+        }
 
     def sample(self, k: np.ndarray, instances: np.ndarray, agent: str, x: np.ndarray) -> None:
         if k.size == 1:  # a single run's sample: no masks
@@ -112,8 +186,11 @@ class Recorder:
                 source, target, guard = "", ca.modes[-1 - index].path, ""
             else:
                 tr = ca.transitions[index]
-                source, target, guard = ca.modes[tr.source].path, ca.modes[tr.target].path, \
-                    tr.guard_text
+                source, target, guard = (
+                    ca.modes[tr.source].path,
+                    ca.modes[tr.target].path,
+                    tr.guard_text,
+                )
             k = len(inst)
             cols["instance"].append(inst)
             cols["agent"].append([ca.name] * k)
@@ -171,8 +248,18 @@ def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
         return Table(names)
     flat = {}
     for name, chunks in cols.items():
-        if name in ("instance", "t", "step", "depth", "start", "end", "seq", "t_send", "t_recv",
-                    "msg_id"):
+        if name in (
+            "instance",
+            "t",
+            "step",
+            "depth",
+            "start",
+            "end",
+            "seq",
+            "t_send",
+            "t_recv",
+            "msg_id",
+        ):
             flat[name] = np.concatenate([np.asarray(c) for c in chunks])
         else:
             flat[name] = np.array([v for c in chunks for v in c], dtype=object)
@@ -180,8 +267,9 @@ def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
     return Table(names, {n: c[order] for n, c in flat.items()})
 
 
-def trace_meta(cteam: CTeam, n: int, seed: int | list[int], t_end: float,
-               world: World) -> dict[str, Any]:
+def trace_meta(
+    cteam: CTeam, n: int, seed: int | list[int], t_end: float, world: World
+) -> dict[str, Any]:
     """The trace's ``meta``: the team's agents and modes, and what the world components
     tell the views (walls, payloads, robot footprints, extra sample series)."""
     meta: dict[str, Any] = {
@@ -189,15 +277,26 @@ def trace_meta(cteam: CTeam, n: int, seed: int | list[int], t_end: float,
         "n": n,
         "seed": seed,
         "duration": t_end,
-        "agents": [{
-            "name": ca.name,
-            "plant": ca.plant.kind,
-            "state": list(ca.plant.state_names),
-            "inputs": list(ca.plant.input_names),
-            "modes": [{"path": m.path, "depth": m.depth, "kind": m.kind, "final": m.final,
-                       **({"role": m.role} if m.role else {})}
-                      for m in ca.modes if m.index],
-        } for ca in cteam.agents],
+        "agents": [
+            {
+                "name": ca.name,
+                "plant": ca.plant.kind,
+                "state": list(ca.plant.state_names),
+                "inputs": list(ca.plant.input_names),
+                "modes": [
+                    {
+                        "path": m.path,
+                        "depth": m.depth,
+                        "kind": m.kind,
+                        "final": m.final,
+                        **({"role": m.role} if m.role else {}),
+                    }
+                    for m in ca.modes
+                    if m.index
+                ],
+            }
+            for ca in cteam.agents
+        ],
     }
     extra = world.meta()
     footprints = extra.pop("footprints", {})

@@ -50,9 +50,18 @@ class Reliable:
         self.outbox: dict[tuple[int, int, int], Pending] = {}  # (instance, sender, id)
         self.seen: set[tuple[int, int, int, int]] = set()  # (instance, receiver, sender, id)
 
-    def send(self, idx: np.ndarray, sender: int, to: int | np.ndarray | None, socket: str,
-             type_: str, fields: dict[str, np.ndarray], timeout: np.ndarray,
-             retries: np.ndarray, rank: np.ndarray | None) -> None:
+    def send(
+        self,
+        idx: np.ndarray,
+        sender: int,
+        to: int | np.ndarray | None,
+        socket: str,
+        type_: str,
+        fields: dict[str, np.ndarray],
+        timeout: np.ndarray,
+        retries: np.ndarray,
+        rank: np.ndarray | None,
+    ) -> None:
         """Send an acknowledged message from ``sender`` in instances ``idx``."""
         ens = self.ens
         ids = self.next_id[sender][idx].copy()
@@ -69,12 +78,18 @@ class Reliable:
             tgt = int(targets[j])
             waiting = {tgt} if tgt >= 0 else {r for r in range(count) if r != sender}
             self.outbox[(i, sender, int(ids[j]))] = Pending(
-                type_, socket, {f: v[j : j + 1].copy() for f, v in fields.items()}, waiting,
-                int(retries[j]), float(timeout[j]), float(ranks[j]))
-        ens.network.send(idx, ens.t[idx], sender, to, socket, type_, fields, msg_id=ids,
-                         rank=rank)
-        ens.queue.push_each(idx, ens.t[idx] + timeout, TIMER, sender, "retransmit",
-                            [int(k) for k in ids])
+                type_,
+                socket,
+                {f: v[j : j + 1].copy() for f, v in fields.items()},
+                waiting,
+                int(retries[j]),
+                float(timeout[j]),
+                float(ranks[j]),
+            )
+        ens.network.send(idx, ens.t[idx], sender, to, socket, type_, fields, msg_id=ids, rank=rank)
+        ens.queue.push_each(
+            idx, ens.t[idx] + timeout, TIMER, sender, "retransmit", [int(k) for k in ids]
+        )
 
     def on_timer(self, inst: np.ndarray, sender: int, ids: list[int]) -> None:
         """An ack timeout: resend to whoever has not acknowledged, or give up."""
@@ -90,11 +105,19 @@ class Reliable:
                 continue
             entry.retries_left -= 1
             for r in sorted(entry.waiting):
-                ens.network.send(one, ens.t[one], sender, r, entry.socket, entry.type,
-                                 entry.fields, msg_id=np.array([k]), note="retransmission",
-                                 rank=np.array([entry.rank]))
-            ens.queue.push_each(one, ens.t[one] + entry.timeout, TIMER, sender, "retransmit",
-                                [k])
+                ens.network.send(
+                    one,
+                    ens.t[one],
+                    sender,
+                    r,
+                    entry.socket,
+                    entry.type,
+                    entry.fields,
+                    msg_id=np.array([k]),
+                    note="retransmission",
+                    rank=np.array([entry.rank]),
+                )
+            ens.queue.push_each(one, ens.t[one] + entry.timeout, TIMER, sender, "retransmit", [k])
 
     def screen(self, i: int, msg: Message, t: float) -> str | None:
         """Called for each copy that reached its receiver: acknowledge, filter duplicates.
@@ -113,8 +136,16 @@ class Reliable:
         if msg.msg_id < 0:
             return None
         one = np.array([i])
-        ens.network.send(one, np.array([t]), msg.receiver, msg.sender, msg.socket, ACK,
-                         {"id": np.array([float(msg.msg_id)])}, note="ack")
+        ens.network.send(
+            one,
+            np.array([t]),
+            msg.receiver,
+            msg.sender,
+            msg.socket,
+            ACK,
+            {"id": np.array([float(msg.msg_id)])},
+            note="ack",
+        )
         key4 = (i, msg.receiver, msg.sender, msg.msg_id)
         if not ens.cteam.agents[msg.sender].policies[msg.type].dedupe:
             return None

@@ -25,14 +25,16 @@ import numpy as np
 FEW = 4
 
 
-def earliest(instants: np.ndarray, n_at: int
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def earliest(instants: np.ndarray, n_at: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(first, first_at, first_tick)`` per instance (column) of ``instants``:
     ``np.minimum.reduce`` over every row, and ``np.fmin.reduce`` over the first ``n_at``
     rows and over the others (a NaN source is skipped: no time reaches it)."""
     if instants.shape[1] > FEW:
-        return (np.minimum.reduce(instants, axis=0), np.fmin.reduce(instants[:n_at], axis=0),
-                np.fmin.reduce(instants[n_at:], axis=0))
+        return (
+            np.minimum.reduce(instants, axis=0),
+            np.fmin.reduce(instants[:n_at], axis=0),
+            np.fmin.reduce(instants[n_at:], axis=0),
+        )
     first, first_at, first_tick = [], [], []
     for col in instants.T.tolist():
         first.append(_minimum(col))

@@ -48,18 +48,27 @@ Progress = Callable[[float], None]
 class Simulator:
     """Runs an :class:`Ensemble` of ``n`` instances of ``cteam`` to the end of the run."""
 
-    def __init__(self, cteam: CTeam, n: int = 1, *, seed: int | Sequence[int] = 0,
-                 duration: float | None = None,
-                 overrides: Mapping[str, float | Sequence[float]] | None = None,
-                 progress: Progress | None = None, max_memory: float | None = None,
-                 max_periods: float | None = None, max_wall: float | None = None,
-                 snapshots: bool = False,
-                 observe: Mapping[int, Sequence[Watch]] | None = None,
-                 samples: bool = True, written: bool = False,
-                 clock: Clock | None = None,
-                 plants: Mapping[int, ExternalPlant] | None = None,
-                 world: Callable[..., World] = World, sample_instants: bool = False
-                 ) -> None:
+    def __init__(
+        self,
+        cteam: CTeam,
+        n: int = 1,
+        *,
+        seed: int | Sequence[int] = 0,
+        duration: float | None = None,
+        overrides: Mapping[str, float | Sequence[float]] | None = None,
+        progress: Progress | None = None,
+        max_memory: float | None = None,
+        max_periods: float | None = None,
+        max_wall: float | None = None,
+        snapshots: bool = False,
+        observe: Mapping[int, Sequence[Watch]] | None = None,
+        samples: bool = True,
+        written: bool = False,
+        clock: Clock | None = None,
+        plants: Mapping[int, ExternalPlant] | None = None,
+        world: Callable[..., World] = World,
+        sample_instants: bool = False,
+    ) -> None:
         """``snapshots``: also keep every agent's state and the world's series at every
         instant the run stops at (events, crossings, law ticks), exact where samples are
         interpolated (:attr:`Recorder.snapshots`); requirement checks read them.
@@ -85,19 +94,31 @@ class Simulator:
         t_end = float(duration if duration is not None else cteam.team.simulation.duration)
         if not 0 <= t_end < math.inf:
             raise ValueError(f"duration must be a finite number >= 0, got {t_end}")
-        check_budget(cteam, n, t_end, cteam.team.simulation.output_period(), max_memory,
-                     max_periods, written)
+        check_budget(
+            cteam, n, t_end, cteam.team.simulation.output_period(), max_memory, max_periods, written
+        )
         if plants:
             if n != 1:
                 raise ValueError(f"external plants drive a single run, not n={n}")
             check_external(cteam, plants)
         if observe:
-            cteam = dataclasses.replace(cteam, agents=[
-                dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
-                for ca in cteam.agents])
-        self.ensemble = Ensemble(cteam, n, seed, t_end, overrides or {}, samples,
-                                 sample_instants=bool(plants) or sample_instants,
-                                 world=world)
+            cteam = dataclasses.replace(
+                cteam,
+                agents=[
+                    dataclasses.replace(ca, watches=[*ca.watches, *observe.get(ca.index, ())])
+                    for ca in cteam.agents
+                ],
+            )
+        self.ensemble = Ensemble(
+            cteam,
+            n,
+            seed,
+            t_end,
+            overrides or {},
+            samples,
+            sample_instants=bool(plants) or sample_instants,
+            world=world,
+        )
         if snapshots:
             self.ensemble.rec.snapshots = []
         self.max_wall = max_wall
@@ -106,8 +127,9 @@ class Simulator:
         self.plants = dict(plants) if plants else None
         #: whether any agent can ever be integrated (a flow plant, or an integrated law):
         #: else no step is limited by error control, and it ends at the next instant due
-        self.may_flow = any(ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers)
-                            for ca in cteam.agents)
+        self.may_flow = any(
+            ca.plant.kind == "flow" or any(d.needs_rk for d in ca.drivers) for ca in cteam.agents
+        )
         #: whether any agent watches a guard or invariant atom: else no step is searched
         #: for crossings (a law-only team like the ladder's)
         self.may_cross = any(st.ca.watches for st in self.ensemble.states)
@@ -145,8 +167,7 @@ class Simulator:
                 self._step()
                 steps += 1
                 if self.progress is not None or steps % 64 == 0:
-                    frac = float(np.min(np.where(ens.done, ens.t_end, ens.t))) / \
-                        (ens.t_end or 1.0)
+                    frac = float(np.min(np.where(ens.done, ens.t_end, ens.t))) / (ens.t_end or 1.0)
                     if steps % 64 == 0:
                         pace.check(frac)
                     if self.progress is not None and frac - last_report >= 0.01:
@@ -176,9 +197,13 @@ class Simulator:
         record_samples(ens, everyone, self._world_snapshot)
         self._world_snapshot = None
 
-    def _instant(self, idx: np.ndarray, entering: bool = False,
-                 crossed: np.ndarray | None = None,
-                 discrete: np.ndarray | None = None) -> None:
+    def _instant(
+        self,
+        idx: np.ndarray,
+        entering: bool = False,
+        crossed: np.ndarray | None = None,
+        discrete: np.ndarray | None = None,
+    ) -> None:
         """Discrete phase at the current time of instances ``idx``, then bookkeeping.
 
         ``discrete`` (default: all of ``idx``) are the instances that may take transitions:
@@ -192,8 +217,9 @@ class Simulator:
         # only law ticks or stream copies reached, and no component that could raise an
         # event or move a state: nothing fires, no mode, variable or state changes, so no
         # instance is marked changed or reconfigured (their flags are not read)
-        ticks_only = not entering and discrete is not None and discrete.size == 0 \
-            and not ens.world.any
+        ticks_only = (
+            not entering and discrete is not None and discrete.size == 0 and not ens.world.any
+        )
         if not entering and not ticks_only:
             instances = slice(None) if idx.size == ens.n else idx  # a slice writes faster
             ens.changed[instances] = False
@@ -208,8 +234,11 @@ class Simulator:
         discrete_phase(ens, discrete)
         if ens.rec.snapshots is not None:
             ens.rec.snapshot(idx, ens.t[idx], {st.ca.name: st.x[idx] for st in ens.states})
-            ens.rec.snapshot(idx, ens.t[idx], {variables_key(st.ca.name): st.v[idx]
-                                               for st in ens.states if st.v.shape[1]})
+            ens.rec.snapshot(
+                idx,
+                ens.t[idx],
+                {variables_key(st.ca.name): st.v[idx] for st in ens.states if st.v.shape[1]},
+            )
             world = ens.world.sample(idx)
             ens.rec.snapshot(idx, ens.t[idx], world)
             self._world_snapshot = (idx, world)
@@ -219,13 +248,27 @@ class Simulator:
         # no transition fired and no event was consumed where nothing was due to fire
         # (``discrete`` is empty): nothing changed there
         quiet = not entering and discrete.size == 0
-        changed = live if entering else NO_INDEX if quiet else \
-            where_true(ens.changed) if whole else live[ens.changed[live]]
+        changed = (
+            live
+            if entering
+            else NO_INDEX
+            if quiet
+            else where_true(ens.changed)
+            if whole
+            else live[ens.changed[live]]
+        )
         # an event consumed without a transition changes no mode, variable or state: what
         # depends on those is refreshed only where the configuration changed (a component
         # may have moved a state)
-        config = live if entering else NO_INDEX if ticks_only else \
-            where_true(ens.reconfigured) if whole else live[ens.reconfigured[live]]
+        config = (
+            live
+            if entering
+            else NO_INDEX
+            if ticks_only
+            else where_true(ens.reconfigured)
+            if whole
+            else live[ens.reconfigured[live]]
+        )
         for a, st in enumerate(ens.states):
             if live.size and st.after_slots.size:
                 # the earliest deadline ahead changes only with the configuration or once
@@ -234,8 +277,11 @@ class Simulator:
                 if quiet:
                     due = config
                 else:
-                    due = where_true(ens.t >= ens.timer[a]) if whole else \
-                        live[ens.t[live] >= ens.timer[a][live]]
+                    due = (
+                        where_true(ens.t >= ens.timer[a])
+                        if whole
+                        else live[ens.t[live] >= ens.timer[a][live]]
+                    )
                     due = union(due, config)
                 if due.size:
                     ens.timer[a][due] = st.next_timer(due, ens.t[due])
@@ -245,8 +291,7 @@ class Simulator:
                     st.rk[config] = True
             fresh = changed if st.watch_estimates else config
             if st.ca.watches and fresh.size:
-                st.truth[:, fresh] = watch_truth(ens, a, fresh, gather(st.x, fresh),
-                                                 ens.t[fresh])
+                st.truth[:, fresh] = watch_truth(ens, a, fresh, gather(st.x, fresh), ens.t[fresh])
             # changed, not config: a law whose mode was entered at this instant samples
             # again when a copy arrives later in the instant (it may read the copy)
             sample_laws(ens, a, live, changed)
@@ -298,8 +343,9 @@ class Simulator:
         ens.t = t1
         self._arrive(idx, sel, tn, crossing, end_truths, full, reach, sampling)
 
-    def _step_end(self, full: bool
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    def _step_end(
+        self, full: bool
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray]]:
         """Where each instance's step ends: its next scheduled instant, or sooner where an
         agent flows and the error control asks for a shorter step. Returns ``(t1, any_rk,
         limited, reach)``: whether some agent of the instance flows, whether its step size
@@ -326,9 +372,14 @@ class Simulator:
         t1 = np.maximum(t1, t) if full else np.where(ens.done, t, np.maximum(t1, t))
         return t1, any_rk, limited, (first_at, first_tick)
 
-    def _locate(self, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
-                x_end: list[np.ndarray], steps: list[AgentStep]
-                ) -> tuple[np.ndarray | None, list[np.ndarray | None]]:
+    def _locate(
+        self,
+        idx: np.ndarray,
+        sel: slice | np.ndarray,
+        t1: np.ndarray,
+        x_end: list[np.ndarray],
+        steps: list[AgentStep],
+    ) -> tuple[np.ndarray | None, list[np.ndarray | None]]:
         """Stop instances at their first located guard or invariant crossing inside the
         step: ``t1`` and ``x_end`` move back to it. Returns which rows crossed (None: none
         was searched for) and each agent's atom truths at the step's end (valid where
@@ -337,8 +388,7 @@ class Simulator:
         accepted = ens.h[sel] > 0 if self.may_cross else None  # (else: no atom to search)
         if accepted is None or not some(accepted):
             return None, [None] * len(ens.states)
-        tau, end_truths, searched = find_crossings(ens, idx, x_end, steps,
-                                                   self.plants or ())
+        tau, end_truths, searched = find_crossings(ens, idx, x_end, steps, self.plants or ())
         if tau is None:  # no atom flipped inside the step: nothing was searched
             return None, end_truths
         crossing = np.isfinite(tau) & accepted
@@ -346,14 +396,22 @@ class Simulator:
             rows = where_true(crossing)
             for a in range(len(ens.states)):
                 seg = searched.get(a)  # its search has the states at its trial points
-                x_end[a][rows] = seg.true_state(rows, tau[rows]) if seg is not None else \
-                    state_at(ens, a, idx[rows], tau[rows], steps[a], rows=rows)
+                x_end[a][rows] = (
+                    seg.true_state(rows, tau[rows])
+                    if seg is not None
+                    else state_at(ens, a, idx[rows], tau[rows], steps[a], rows=rows)
+                )
             t1[idx[rows]] = ens.t[idx[rows]] + tau[rows]
         return crossing, end_truths
 
-    def _read_plants(self, idx: np.ndarray, t1: np.ndarray, x_end: list[np.ndarray],
-                     crossing: np.ndarray | None, end_truths: list[np.ndarray | None]
-                     ) -> np.ndarray | None:
+    def _read_plants(
+        self,
+        idx: np.ndarray,
+        t1: np.ndarray,
+        x_end: list[np.ndarray],
+        crossing: np.ndarray | None,
+        end_truths: list[np.ndarray | None],
+    ) -> np.ndarray | None:
         """Poses in: each external plant's state at the step's end replaces the
         integrated one in ``x_end``, and its watched atoms are sampled there (:mod:`.plant`;
         the search skipped them): a flip of a watched atom is a crossing at the step's
@@ -368,15 +426,22 @@ class Simulator:
                 continue
             truth = watch_truth(ens, a, idx, x_end[a], t1[idx])
             end_truths[a] = truth
-            flipped = np.logical_or.reduce((truth != st.truth[:, idx]) & st.watched[:, idx],
-                                           axis=0)
+            flipped = np.logical_or.reduce((truth != st.truth[:, idx]) & st.watched[:, idx], axis=0)
             if some(flipped):
                 crossing = flipped if crossing is None else crossing | flipped
         return crossing
 
-    def _arrive(self, idx: np.ndarray, sel: slice | np.ndarray, tn: np.ndarray,
-                crossing: np.ndarray | None, end_truths: list[np.ndarray | None],
-                full: bool, reach: tuple[np.ndarray, np.ndarray], sampling: bool) -> None:
+    def _arrive(
+        self,
+        idx: np.ndarray,
+        sel: slice | np.ndarray,
+        tn: np.ndarray,
+        crossing: np.ndarray | None,
+        end_truths: list[np.ndarray | None],
+        full: bool,
+        reach: tuple[np.ndarray, np.ndarray],
+        sampling: bool,
+    ) -> None:
         """After the step: refresh watched truths, run the instants the step reached
         (events, deadlines, crossings, law ticks), record samples, end finished runs.
         ``reach``: the earliest ``at`` and ``tick`` instants of every instance;
@@ -404,8 +469,7 @@ class Simulator:
                 else:
                     st.truth[:, idx[plain]] = truths[:, plain]
             if st.ca.watches and moved.size:
-                st.truth[:, moved] = watch_truth(ens, a, moved, gather(st.x, moved),
-                                                 ens.t[moved])
+                st.truth[:, moved] = watch_truth(ens, a, moved, gather(st.x, moved), ens.t[moved])
         events = idx[at | tick]
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
@@ -427,11 +491,15 @@ class Simulator:
         ens.network.close(ens.queue.pending_messages())
         transitions, intervals, messages = ens.rec.tables()
         meta = trace_meta(ens.cteam, ens.n, ens.seed, ens.t_end, ens.world)
-        outcomes = [o if o is not None else {"instance": i, "outcome": "ok",
-                                             "t": float(ens.t[i]), "message": ""}
-                    for i, o in enumerate(ens.outcomes)]
+        outcomes = [
+            o
+            if o is not None
+            else {"instance": i, "outcome": "ok", "t": float(ens.t[i]), "message": ""}
+            for i, o in enumerate(ens.outcomes)
+        ]
         if ens.world.any:
             for i, o in enumerate(outcomes):
                 o["stats"] = ens.world.summary(i)
-        return Trace(meta, outcomes, transitions, intervals, messages, ens.sample_times,
-                     ens.rec.samples)
+        return Trace(
+            meta, outcomes, transitions, intervals, messages, ens.sample_times, ens.rec.samples
+        )

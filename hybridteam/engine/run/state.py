@@ -55,8 +55,9 @@ class AgentState:
         self.watched = np.zeros((len(ca.watches), n), bool)  # refreshed on mode changes
         #: whether a watched atom may read stream estimates (``est_*``), which a message
         #: changes without any transition: its truths are then refreshed after every event
-        self.watch_estimates = any(_reads_estimates(w.atom if w.owner is None else w.owner)
-                                   for w in ca.watches)
+        self.watch_estimates = any(
+            _reads_estimates(w.atom if w.owner is None else w.owner) for w in ca.watches
+        )
         #: whether an urgent guard may change its answer while no transition fires (see
         #: discrete_phase): it reads stream estimates, or it is not a plain expression (the
         #: verifier's skeleton answers free comparisons from its oracle)
@@ -71,9 +72,15 @@ class AgentState:
         #: instances when it runs on all of them (most ticks), without building it
         self.everyone = everyone
 
-    def ctx(self, idx: np.ndarray | slice, t: np.ndarray, owner: int | None = None,
-            m: dict[str, np.ndarray] | None = None, law: bool = False,
-            lazy: bool = False) -> Ctx:
+    def ctx(
+        self,
+        idx: np.ndarray | slice,
+        t: np.ndarray,
+        owner: int | None = None,
+        m: dict[str, np.ndarray] | None = None,
+        law: bool = False,
+        lazy: bool = False,
+    ) -> Ctx:
         """Evaluation context for instances ``idx`` (``t`` and ``m`` already restricted);
         with the agent's world view only for a ``law`` (no expression reads one). ``lazy``:
         the time in the mode is computed where it is read (:class:`.Ctx`'s ``since``), for
@@ -84,14 +91,24 @@ class AgentState:
         since = (self.entry[:, owner], idx) if timed and lazy else None
         t_in = t - self.entry[:, owner][idx] if timed and not lazy else None
         e = self.inbox.view(idx) if self.inbox is not None else None
-        w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) \
-            if law else None
-        return Ctx(gather(self.x, idx), gather(self.v, idx), gather(self.p, idx), t, t_in, m,
-                   e, w, since, (self.active, idx))
+        w = AgentView(self.world, self.ca.index, idx, self.memory, self.everyone) if law else None
+        return Ctx(
+            gather(self.x, idx),
+            gather(self.v, idx),
+            gather(self.p, idx),
+            t,
+            t_in,
+            m,
+            e,
+            w,
+            since,
+            (self.active, idx),
+        )
 
     # ----------------------------------------------------------------- configuration
-    def exit(self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder,
-             inside: bool = False) -> None:
+    def exit(
+        self, root: int, idx: np.ndarray, t: np.ndarray, rec: Recorder, inside: bool = False
+    ) -> None:
         """Exit the subtree of ``root`` in instances ``idx`` (``t`` is the global time
         array); ``inside``: only below ``root`` (a domain that stays active)."""
         ca = self.ca
@@ -121,8 +138,9 @@ class AgentState:
                 delay = transition_delay(tr, self.ctx(idx, t[idx]), idx)
                 self.deadline[:, tr.after_slot][idx] = t[idx] + delay
 
-    def enter_default(self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False,
-                      restore: bool = False) -> None:
+    def enter_default(
+        self, m: int, idx: np.ndarray, t: np.ndarray, deep: bool = False, restore: bool = False
+    ) -> None:
         """Complete the entry of an already-activated mode: initial children, or history
         (``deep``: the whole remembered configuration below; ``restore``: this mode's own
         remembered child, as a shallow history of a parallel parent asks)."""
@@ -135,8 +153,9 @@ class AgentState:
             # (shallow: each region's active child; deep: everything below)
             for r in mode.children:
                 self.activate(r, idx, t)
-                self.enter_default(r, idx, t, deep or mode.history == "deep",
-                                   restore or mode.history == "shallow")
+                self.enter_default(
+                    r, idx, t, deep or mode.history == "deep", restore or mode.history == "shallow"
+                )
         elif mode.kind == "or":
             restore = restore or deep or mode.history != "none"
             deeper = deep or mode.history == "deep"
@@ -164,8 +183,9 @@ class AgentState:
             self.activate(entry.first, idx, t)
         self._enter_below(entry.first, entry, idx, t, deep)
 
-    def _enter_below(self, m: int, entry: Entry, idx: np.ndarray, t: np.ndarray,
-                     deep: bool) -> None:
+    def _enter_below(
+        self, m: int, entry: Entry, idx: np.ndarray, t: np.ndarray, deep: bool
+    ) -> None:
         if m in entry.targets:
             self.enter_default(m, idx, t, deep)
             return

@@ -45,8 +45,14 @@ class AgentStep:
     start_bad: np.ndarray | None = None
 
 
-def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
-              h: np.ndarray, err: np.ndarray | None) -> tuple[np.ndarray, AgentStep]:
+def take_step(
+    ens: Ensemble,
+    a: int,
+    idx: np.ndarray,
+    sel: slice | np.ndarray,
+    h: np.ndarray,
+    err: np.ndarray | None,
+) -> tuple[np.ndarray, AgentStep]:
     """Agent ``a``'s states at the end of the step for instances ``idx`` (``sel`` selects
     them: a slice when all are live), and its step record; RK error estimates are folded
     into ``err`` (the largest over agents decides acceptance; NaN counts as largest; None
@@ -62,14 +68,16 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
         xe[ex] = st.ca.plant.propagate(x0[ex], u[ex], h[ex])
     r = where_true(is_rk)
     sub = idx[r]
-    s = rk.step(derivative(ens, a, sub), ens.t[sub], x0[r], h[r], ens.settings.rtol,
-                ens.settings.atol)
+    s = rk.step(
+        derivative(ens, a, sub), ens.t[sub], x0[r], h[r], ens.settings.rtol, ens.settings.atol
+    )
     xe[r] = s.x1
     mine = np.zeros(idx.size)
     s_err = s.err
     assert s_err is not None, "rk.step estimates its error unless told not to"
-    mine[r] = np.where(np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s_err),
-                       s_err, np.inf)
+    mine[r] = np.where(
+        np.logical_and.reduce(np.isfinite(s.x1), axis=1) & ~np.isnan(s_err), s_err, np.inf
+    )
     assert err is not None, "a flowing row in a team the simulator found no flow in"
     np.maximum(err, mine, out=err)
     start_bad = np.zeros(idx.size, bool)
@@ -80,8 +88,16 @@ def take_step(ens: Ensemble, a: int, idx: np.ndarray, sel: slice | np.ndarray,
     return xe, step
 
 
-def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: AgentStep, *,
-             dense: bool = False, rows: np.ndarray | None = None) -> np.ndarray:
+def state_at(
+    ens: Ensemble,
+    a: int,
+    idx: np.ndarray,
+    tau: np.ndarray,
+    step: AgentStep,
+    *,
+    dense: bool = False,
+    rows: np.ndarray | None = None,
+) -> np.ndarray:
     """Agent ``a``'s state ``tau`` after the step start, for instances ``idx``.
 
     ``rows`` are the positions of ``idx`` in the step's arrays (all when None). Flowing
@@ -106,8 +122,15 @@ def state_at(ens: Ensemble, a: int, idx: np.ndarray, tau: np.ndarray, step: Agen
         out[r] = _dense(step, rows[r], tau[r])
     else:
         sub = idx[r]
-        s = rk.step(derivative(ens, a, sub), ens.t0[sub], x0[r], tau[r], ens.settings.rtol,
-                    ens.settings.atol, estimate=False)
+        s = rk.step(
+            derivative(ens, a, sub),
+            ens.t0[sub],
+            x0[r],
+            tau[r],
+            ens.settings.rtol,
+            ens.settings.atol,
+            estimate=False,
+        )
         ens.costs.true_steps += 1
         out[r] = s.x1
     return out

@@ -20,9 +20,17 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.step import AgentStep
 
 
-def control_step_size(ens: Ensemble, idx: np.ndarray, sel: slice | np.ndarray, t1: np.ndarray,
-                       any_rk: np.ndarray, limited: np.ndarray, err: np.ndarray,
-                       x_end: list[np.ndarray], steps: list[AgentStep]) -> None:
+def control_step_size(
+    ens: Ensemble,
+    idx: np.ndarray,
+    sel: slice | np.ndarray,
+    t1: np.ndarray,
+    any_rk: np.ndarray,
+    limited: np.ndarray,
+    err: np.ndarray,
+    x_end: list[np.ndarray],
+    steps: list[AgentStep],
+) -> None:
     """Runge–Kutta error control: a rejected step is taken back (the instance stays
     where it was, ``h`` = 0) and retried smaller; an accepted step that the error
     control limited proposes the next size. A step size that collapses ends the
@@ -61,9 +69,14 @@ def initial_step_sizes(ens: Ensemble, idx: np.ndarray) -> None:
         if rows.size == 0:
             continue
         sub = idx[rows]
-        h0 = rk.initial_step_size(derivative(ens, a, sub), ens.t[sub], st.x[sub],
-                                  ens.settings.rtol, ens.settings.atol,
-                                  min(ens.max_step, ens.t_end or 1.0))
+        h0 = rk.initial_step_size(
+            derivative(ens, a, sub),
+            ens.t[sub],
+            st.x[sub],
+            ens.settings.rtol,
+            ens.settings.atol,
+            min(ens.max_step, ens.t_end or 1.0),
+        )
         # a derivative that is not a number gives no estimate: take the smallest
         # step, whose first stage reports it (numerical_error)
         h0 = np.where(h0 > 0, h0, step_floor(ens, ens.t[sub]))

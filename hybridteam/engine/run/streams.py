@@ -149,8 +149,7 @@ class Streams:
                     send = t >= due[idx]
                 else:
                     assert active is not None  # (None only when steady)
-                    on = active[:, cs.modes].any(axis=1) if cs.modes else \
-                        np.ones(idx.size, bool)
+                    on = active[:, cs.modes].any(axis=1) if cs.modes else np.ones(idx.size, bool)
                     was = np.isfinite(due[idx])
                     due[idx[~on]] = np.inf
                     start = on & ~was
@@ -187,8 +186,15 @@ class Streams:
         kept = self.periods[a][s]
         period = kept[sub]
         if not cs.fixed_rate or some(np.isnan(period)):
-            period = require(spread(cs.period(ctx), sub.shape), (*cs.where, "rate"),
-                             "1 / rate", cs.rate_text, low=0.0, open_low=True, instances=sub)
+            period = require(
+                spread(cs.period(ctx), sub.shape),
+                (*cs.where, "rate"),
+                "1 / rate",
+                cs.rate_text,
+                low=0.0,
+                open_low=True,
+                instances=sub,
+            )
             new = ~(period == kept[sub])  # (NaN: the first copy)
             if some(new):
                 moved = sub[new]

@@ -34,8 +34,9 @@ class World:
         self.specs = team.world
         for spec in team.world:
             cls = lookup(spec.use)
-            self.components.append(cls(team, n, component_values(cls, spec.values,
-                                                                 team_params, n, spec.where)))
+            self.components.append(
+                cls(team, n, component_values(cls, spec.values, team_params, n, spec.where))
+            )
         #: which component answers each name a robot senses (the first that lists it),
         #: learnt at the first reading: a law reads several at every tick
         self._senses: dict[str, WorldComponent] = {}
@@ -56,8 +57,9 @@ class World:
             try:
                 c.start(access)
             except ModelError as exc:  # its path is inside the component's settings
-                raise ModelError((*spec.where, "with", *exc.path), exc.message,
-                                 hint=exc.hint, at_key=exc.at_key) from None
+                raise ModelError(
+                    (*spec.where, "with", *exc.path), exc.message, hint=exc.hint, at_key=exc.at_key
+                ) from None
             except ValueError as exc:
                 raise ModelError(spec.where, str(exc)) from None
 
@@ -85,9 +87,14 @@ class World:
                 self._senses[name] = c
                 return c.sense(agent, idx, name)
         known = sorted({s for c in self.components for s in c.senses()})
-        raise KeyError(f"no world component lets a robot sense '{name}'"
-                       + (f" (known: {', '.join(known)})" if known else
-                          " (the team declares no 'world:' components)"))
+        raise KeyError(
+            f"no world component lets a robot sense '{name}'"
+            + (
+                f" (known: {', '.join(known)})"
+                if known
+                else " (the team declares no 'world:' components)"
+            )
+        )
 
     def sample_series(self) -> dict[str, tuple[str, ...]]:
         return {k: v for c in self.components for k, v in c.sample_series().items()}
@@ -119,8 +126,14 @@ class AgentView:
 
     __slots__ = ("_instances", "agent", "everyone", "idx", "memory", "n", "world")
 
-    def __init__(self, world: World | None, agent: int, idx: np.ndarray | slice,
-                 memory: dict[str, np.ndarray], everyone: np.ndarray) -> None:
+    def __init__(
+        self,
+        world: World | None,
+        agent: int,
+        idx: np.ndarray | slice,
+        memory: dict[str, np.ndarray],
+        everyone: np.ndarray,
+    ) -> None:
         """``everyone``: every instance's index (read-only), the agent state's."""
         self.world, self.agent, self.idx, self.memory = world, agent, idx, memory
         self.everyone, self.n = everyone, everyone.size
@@ -138,8 +151,10 @@ class AgentView:
 
     def sense(self, name: str) -> np.ndarray:
         if self.world is None:
-            raise KeyError(f"no world component lets a robot sense '{name}' (the team "
-                           "declares no 'world:' components)")
+            raise KeyError(
+                f"no world component lets a robot sense '{name}' (the team "
+                "declares no 'world:' components)"
+            )
         return self.world.sense(self.agent, self.instances(), name)
 
     def recall(self, name: str, initial: float) -> np.ndarray:

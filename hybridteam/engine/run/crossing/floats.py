@@ -53,8 +53,7 @@ class DenseRow:
 def truths_one(st: AgentState, sub: int, x: list[float], t: float) -> np.ndarray:
     """Every watched atom's truth for instance ``sub`` at state ``x`` and time ``t``, as
     ``search.watch_truth`` gives them for one row: ``(atoms, 1)``."""
-    return np.array(_truths(st, context_row(st, sub, x, t), st.entry[sub].tolist()),
-                    bool)[:, None]
+    return np.array(_truths(st, context_row(st, sub, x, t), st.entry[sub].tolist()), bool)[:, None]
 
 
 def _truths(st: AgentState, row: Row, entry: list[float]) -> list[bool]:
@@ -62,9 +61,17 @@ def _truths(st: AgentState, row: Row, entry: list[float]) -> list[bool]:
     return [w.atom.row(_at(row, entry[w.mode]))[0] for w in st.ca.watches]  # type: ignore[misc]  # (row_watches: all have one)
 
 
-def check_truths_one(st: AgentState, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
-                     thetas: np.ndarray, start: np.ndarray, h: np.ndarray, t0: np.ndarray,
-                     t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def check_truths_one(
+    st: AgentState,
+    idx: np.ndarray,
+    x_end: np.ndarray,
+    step: AgentStep,
+    thetas: np.ndarray,
+    start: np.ndarray,
+    h: np.ndarray,
+    t0: np.ndarray,
+    t1: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``crossing._check_truths`` for a single run's one flowing row whose atoms all have a
     float form: the checkpoints' states off the dense output row by row, and every atom's truth
     there and at the end, on Python floats. The operations of the array version (``tau =
@@ -97,8 +104,9 @@ def _at(row: Row, entered: float) -> Row:
     return row
 
 
-def relevant_one(st: AgentState, idx: np.ndarray, keep: np.ndarray,
-                 points: list[tuple[np.ndarray, np.ndarray]]) -> None:
+def relevant_one(
+    st: AgentState, idx: np.ndarray, keep: np.ndarray, points: list[tuple[np.ndarray, np.ndarray]]
+) -> None:
     """``crossing._relevant`` for a single run whose guards and invariants have float forms:
     the same judgements (a lone flip matters where its guard is true, its invariant false,
     at the end of its sub-interval) on Python floats."""
@@ -113,8 +121,11 @@ def relevant_one(st: AgentState, idx: np.ndarray, keep: np.ndarray,
         for w, watch in enumerate(watches):
             if not flipped[w] or watch.observer:
                 continue
-            if any(flipped[v] for v, other in enumerate(watches)
-                   if v != w and other.owner is watch.owner):
+            if any(
+                flipped[v]
+                for v, other in enumerate(watches)
+                if v != w and other.owner is watch.owner
+            ):
                 continue
             if not read:
                 row.x, read = x[0].tolist(), True

@@ -37,10 +37,18 @@ OneEvaluator = Callable[[float], tuple[bool, float]]
 on Python floats, giving the bits ``ev`` gives (see ``segment.Segment.dense_one``)."""
 
 
-def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
-             tol: np.ndarray, m_lo: np.ndarray | None = None, m_hi: np.ndarray | None = None,
-             *, scalar: bool = True, one: OneEvaluator | None = None
-             ) -> tuple[np.ndarray, np.ndarray]:
+def illinois(
+    ev: Evaluator,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    truth0: np.ndarray,
+    tol: np.ndarray,
+    m_lo: np.ndarray | None = None,
+    m_hi: np.ndarray | None = None,
+    *,
+    scalar: bool = True,
+    one: OneEvaluator | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Narrow ``[lo, hi]`` (original truth at lo, flipped at hi) to ``tol``; return it
     (``lo`` and ``hi`` are updated in place).
 
@@ -55,8 +63,7 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
     """
     size = lo.size
     if one is not None and size == 1 and m_lo is None and scalar:
-        lo[0], hi[0] = illinois_one(one, float(lo[0]), float(hi[0]), bool(truth0[0]),
-                                    float(tol[0]))
+        lo[0], hi[0] = illinois_one(one, float(lo[0]), float(hi[0]), bool(truth0[0]), float(tol[0]))
         return lo, hi
     everyone = np.arange(size)
     if m_lo is None or some(np.isnan(m_lo)):
@@ -65,7 +72,7 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         m_hi = np.empty(size) if m_hi is None else m_hi
         # both ends in one evaluation (rows are independent: the same values as two)
         ends = ev(np.concatenate([need, need]), np.concatenate([lo[need], hi[need]]))[1]
-        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size:]
+        m_lo[need], m_hi[need] = ends[: need.size], ends[need.size :]
     ma, mb = m_lo, m_hi
     assert mb is not None
     kept = np.zeros(size, np.int8)  # +1: hi survived last round, -1: lo survived
@@ -83,13 +90,24 @@ def illinois(ev: Evaluator, lo: np.ndarray, hi: np.ndarray, truth0: np.ndarray,
         c = _trial(np, a_, b_, fa, fb, tol[k], slow[k])
         tc, mc = ev(open_, c)
         lo[k], hi[k], ma[k], mb[k], kept[k], slow[k] = _update(
-            np, a_, b_, fa, fb, c, tc == truth0[k], mc, kept[k], slow[k])
+            np, a_, b_, fa, fb, c, tc == truth0[k], mc, kept[k], slow[k]
+        )
     return lo, hi
 
 
-def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                ma: np.ndarray, mb: np.ndarray, truth0: np.ndarray, tol: np.ndarray,
-                kept: np.ndarray, slow: np.ndarray, rounds: int) -> None:
+def _finish_few(
+    ev: Evaluator,
+    brackets: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    ma: np.ndarray,
+    mb: np.ndarray,
+    truth0: np.ndarray,
+    tol: np.ndarray,
+    kept: np.ndarray,
+    slow: np.ndarray,
+    rounds: int,
+) -> None:
     """The rounds of :func:`illinois` for the open ``brackets`` (a few of them), each on
     Python floats, at most ``rounds`` of them; writes their final ends into ``lo`` and
     ``hi``. The trial points of one round are evaluated in one call, as the array round
@@ -107,13 +125,12 @@ def _finish_few(ev: Evaluator, brackets: np.ndarray, lo: np.ndarray, hi: np.ndar
         going = [j for j in going if b_s[j] - a_s[j] > tls[j]]
         if not going:
             break
-        cs = [_trial_on_floats(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j])
-              for j in going]
+        cs = [_trial_on_floats(a_s[j], b_s[j], fa_s[j], fb_s[j], tls[j], sl_s[j]) for j in going]
         tc, mc_ = ev(np.array([rows[j] for j in going]), np.array(cs))
         for j, c, tcj, mc in zip(going, cs, tc.tolist(), mc_.tolist(), strict=True):
             a_s[j], b_s[j], fa_s[j], fb_s[j], survived_s[j], sl_s[j] = _update_on_floats(
-                a_s[j], b_s[j], fa_s[j], fb_s[j], c, tcj == t0s[j], mc, survived_s[j],
-                sl_s[j])
+                a_s[j], b_s[j], fa_s[j], fb_s[j], c, tcj == t0s[j], mc, survived_s[j], sl_s[j]
+            )
     lo[brackets], hi[brackets] = a_s, b_s
 
 
@@ -126,8 +143,18 @@ def _trial(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, tol: Any, slow: Any) -> A
     return ops.minimum(ops.maximum(c, a + 0.5 * tol), b - 0.5 * tol)
 
 
-def _update(ops: Ops, a: Any, b: Any, fa: Any, fb: Any, c: Any, to_lo: Any, mc: Any,
-            survived: Any, slow: Any) -> tuple[Any, Any, Any, Any, Any, Any]:
+def _update(
+    ops: Ops,
+    a: Any,
+    b: Any,
+    fa: Any,
+    fb: Any,
+    c: Any,
+    to_lo: Any,
+    mc: Any,
+    survived: Any,
+    slow: Any,
+) -> tuple[Any, Any, Any, Any, Any, Any]:
     """The brackets after their trial points ``c`` (margins ``mc``; ``to_lo``: ``c`` has
     the original truth and becomes the new lo): their ends, the ends' values, which end
     survived (+1 hi, -1 lo) and how many rounds in a row failed to halve each bracket.
@@ -154,8 +181,9 @@ _trial_on_floats = float_form(_trial)
 _update_on_floats = float_form(_update)
 
 
-def illinois_one(one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: float
-                 ) -> tuple[float, float]:
+def illinois_one(
+    one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: float
+) -> tuple[float, float]:
     """:func:`illinois` for one bracket, on Python floats throughout (a single run's
     search: the array set-up of :func:`illinois` costs more than its rounds). The float
     form of the same rounds, so the same bits (``tests/engine/test_illinois.py``)."""
@@ -166,6 +194,7 @@ def illinois_one(one: OneEvaluator, lo: float, hi: float, truth0: bool, tol: flo
             break
         c = _trial_on_floats(lo, hi, fa, fb, tol, slow)
         tc, mc = one(c)
-        lo, hi, fa, fb, survived, slow = _update_on_floats(lo, hi, fa, fb, c, tc == truth0,
-                                                           mc, survived, slow)
+        lo, hi, fa, fb, survived, slow = _update_on_floats(
+            lo, hi, fa, fb, c, tc == truth0, mc, survived, slow
+        )
     return lo, hi

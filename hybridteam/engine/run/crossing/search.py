@@ -43,8 +43,9 @@ if TYPE_CHECKING:
 SKIP_FOREGONE = True
 
 
-def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
-                t: np.ndarray, full: bool = False) -> np.ndarray:
+def watch_truth(
+    ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray, t: np.ndarray, full: bool = False
+) -> np.ndarray:
     """Truth of every watched atom of agent ``a`` at state ``x`` (rows) for instances idx
     (``full``: they are every instance, in order, so gathers can be views)."""
     st = ens.states[a]
@@ -63,9 +64,13 @@ def watch_truth(ens: Ensemble, a: int, idx: np.ndarray, x: np.ndarray,
     return out
 
 
-def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
-                   steps: list[AgentStep], sampled: Container[int] = ()
-                   ) -> tuple[np.ndarray | None, list[np.ndarray | None], dict[int, Segment]]:
+def find_crossings(
+    ens: Ensemble,
+    idx: np.ndarray,
+    x_end: list[np.ndarray],
+    steps: list[AgentStep],
+    sampled: Container[int] = (),
+) -> tuple[np.ndarray | None, list[np.ndarray | None], dict[int, Segment]]:
     """Earliest located crossing time (relative to the step start) per instance of ``idx``.
 
     ``x_end[a]`` is agent ``a``'s state at the end of the step for those instances.
@@ -99,9 +104,9 @@ def find_crossings(ens: Ensemble, idx: np.ndarray, x_end: list[np.ndarray],
     return best, end_truths, searched
 
 
-def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: AgentStep,
-           thetas: np.ndarray
-           ) -> tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
+def _flips(
+    ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: AgentStep, thetas: np.ndarray
+) -> tuple[np.ndarray | None, tuple[np.ndarray, np.ndarray] | None]:
     """Agent ``a``'s atom truths at the step's end, and — where some watched atom flipped
     in a way that can matter — which sub-intervals of the step it flipped in and the truths
     at their ends: ``(relevant (K, nw, m), truths (K + 1, nw, m))``, else None.
@@ -142,8 +147,9 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
         x_checks: np.ndarray | None = None
         t_checks: np.ndarray | None = None
     else:
-        all_truths, x_checks, t_checks = _check_truths(ens, a, idx, x_end, step, thetas,
-                                                       pos, part, start, h, t0, t1)
+        all_truths, x_checks, t_checks = _check_truths(
+            ens, a, idx, x_end, step, thetas, pos, part, start, h, t0, t1
+        )
         end = all_truths[-1]
     flips = all_truths[1:] != all_truths[:-1]  # (K, nw, m)
     flips &= watched
@@ -163,10 +169,20 @@ def _flips(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray, step: Agen
     return end, (_relevant(ens, a, idx, flips, points), all_truths)
 
 
-def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
-                  step: AgentStep, thetas: np.ndarray, pos: np.ndarray, part: bool,
-                  start: np.ndarray, h: np.ndarray, t0: np.ndarray, t1: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _check_truths(
+    ens: Ensemble,
+    a: int,
+    idx: np.ndarray,
+    x_end: np.ndarray,
+    step: AgentStep,
+    thetas: np.ndarray,
+    pos: np.ndarray,
+    part: bool,
+    start: np.ndarray,
+    h: np.ndarray,
+    t0: np.ndarray,
+    t1: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Atom truths at the step's start (``start``), its interior checkpoints and its end:
     ``(K + 1, nw, m)``, with the checkpoints' states and times (rows ``pos`` of each, in
     checkpoint order). The checkpoints and the end are evaluated in one batch: rows are
@@ -174,8 +190,13 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     atoms instead of two (at a single run's size each array operation costs its dispatch,
     about 1 µs, for one number). Rows not in ``pos`` keep their start truths."""
     k, checks = pos.size, thetas.size - 2
-    if idx.size == 1 and ens.states[a].ca.row_watches and step.rk_step is not None \
-            and step.rk[0] and FLOAT_PATHS.on:
+    if (
+        idx.size == 1
+        and ens.states[a].ca.row_watches
+        and step.rk_step is not None
+        and step.rk[0]
+        and FLOAT_PATHS.on
+    ):
         return check_truths_one(ens.states[a], idx, x_end, step, thetas, start, h, t0, t1)
     rows = np.concatenate([pos] * checks)
     tau = thetas[1:-1].repeat(k) * h[rows]
@@ -186,8 +207,7 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     xs[:n_ck], xs[n_ck:] = x_checks, x_end[pos] if part else x_end
     ts = np.empty(n_ck + k)
     ts[:n_ck], ts[n_ck:] = t_checks, t1[pos] if part else t1
-    truths = watch_truth(ens, a, np.concatenate([idx[pos] if part else idx] * (checks + 1)),
-                         xs, ts)
+    truths = watch_truth(ens, a, np.concatenate([idx[pos] if part else idx] * (checks + 1)), xs, ts)
     nw = truths.shape[0]
     out = np.empty((checks + 2, nw, idx.size), bool)
     out[0] = start
@@ -199,9 +219,17 @@ def _check_truths(ens: Ensemble, a: int, idx: np.ndarray, x_end: np.ndarray,
     return out, x_checks, t_checks
 
 
-def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.ndarray,
-            relevant: np.ndarray, truths: np.ndarray, best: np.ndarray, best_lo: np.ndarray
-            ) -> Segment | None:
+def _search(
+    ens: Ensemble,
+    a: int,
+    idx: np.ndarray,
+    step: AgentStep,
+    thetas: np.ndarray,
+    relevant: np.ndarray,
+    truths: np.ndarray,
+    best: np.ndarray,
+    best_lo: np.ndarray,
+) -> Segment | None:
     """Locate agent ``a``'s relevant flips, lowering ``best`` (the earliest crossing per
     instance over all agents so far) and ``best_lo`` (the bracket's lower end) in place.
     Returns the segment searched on (its true states), or None if nothing was searched.
@@ -217,8 +245,10 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
     has = np.logical_or.reduce(relevant, axis=0)
     # atoms in order of their first sub-interval: the earliest crossing is found first and
     # later atoms only need one probe to show they do not cross before it
-    order = sorted(range(relevant.shape[1]),
-                   key=lambda w: float(first[w][has[w]].min()) if some(has[w]) else 9.0)
+    order = sorted(
+        range(relevant.shape[1]),
+        key=lambda w: float(first[w][has[w]].min()) if some(has[w]) else 9.0,
+    )
     # (atom, rows, sub-interval, bracket start or None for the sub-interval's, its truth)
     todo: deque = deque()
     for w in order:
@@ -230,18 +260,27 @@ def _search(ens: Ensemble, a: int, idx: np.ndarray, step: AgentStep, thetas: np.
         w, cand, k, lo, truth_lo = todo.popleft()
         if seg is None:
             seg = Segment(ens, a, idx, step)
-        dropped = _locate_atom(seg, w, cand, k, lo, truth_lo, thetas, relevant, truths, best,
-                               best_lo)
+        dropped = _locate_atom(
+            seg, w, cand, k, lo, truth_lo, thetas, relevant, truths, best, best_lo
+        )
         if dropped is not None:
             _search_on(ens, a, seg, w, *dropped, relevant, truths, todo)
     return seg
 
 
-def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
-                 lo: np.ndarray | None, truth_lo: np.ndarray | None, thetas: np.ndarray,
-                 relevant: np.ndarray, truths: np.ndarray, best: np.ndarray,
-                 best_lo: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+def _locate_atom(
+    seg: Segment,
+    w: int,
+    cand: np.ndarray,
+    k: np.ndarray,
+    lo: np.ndarray | None,
+    truth_lo: np.ndarray | None,
+    thetas: np.ndarray,
+    relevant: np.ndarray,
+    truths: np.ndarray,
+    best: np.ndarray,
+    best_lo: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Locate atom ``w``'s first flip in sub-interval ``k`` of each row of ``cand`` (from
     ``lo``, with truth ``truth_lo`` there; None: from the sub-interval's start), lowering
     ``best`` and ``best_lo`` where it is earlier and matters. Returns the rows where it did
@@ -271,8 +310,11 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
         cand, k, lo, hi, truth_lo = cand[keep], k[keep], lo[keep], hi[keep], truth_lo[keep]
         if cand.size == 0:
             return None
-    skip = _foregone(seg, w, cand, k, truth_lo, relevant) \
-        if SKIP_FOREGONE and from_start and not judged else None
+    skip = (
+        _foregone(seg, w, cand, k, truth_lo, relevant)
+        if SKIP_FOREGONE and from_start and not judged
+        else None
+    )
     costs = seg.ens.costs
     if judged:
         costs.located += cand.size
@@ -285,8 +327,9 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
         go = where_true(~skip)
         costs.located += go.size
         if go.size:
-            tau_lo[go], tau[go], matters[go], past[go] = seg.judge(w, cand[go], lo[go],
-                                                                   hi[go], truth_lo[go])
+            tau_lo[go], tau[go], matters[go], past[go] = seg.judge(
+                w, cand[go], lo[go], hi[go], truth_lo[go]
+            )
     else:
         costs.located += cand.size
         tau_lo, tau, matters, past = seg.judge(w, cand, lo, hi, truth_lo)
@@ -299,8 +342,14 @@ def _locate_atom(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray,
     return cand[~matters], k[~matters], tau[~matters], past[~matters]
 
 
-def _foregone(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray, truth_lo: np.ndarray,
-              relevant: np.ndarray) -> np.ndarray | None:
+def _foregone(
+    seg: Segment,
+    w: int,
+    cand: np.ndarray,
+    k: np.ndarray,
+    truth_lo: np.ndarray,
+    relevant: np.ndarray,
+) -> np.ndarray | None:
     """Rows of ``cand`` whose flip of atom ``w`` in sub-interval ``k`` need not be located:
     what locating it would lead to is already known.
 
@@ -324,9 +373,19 @@ def _foregone(seg: Segment, w: int, cand: np.ndarray, k: np.ndarray, truth_lo: n
     return truth_lo & np.logical_and.reduce(others, axis=1)
 
 
-def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k: np.ndarray,
-               tau: np.ndarray, past: np.ndarray, relevant: np.ndarray, truths: np.ndarray,
-               todo: deque) -> None:
+def _search_on(
+    ens: Ensemble,
+    a: int,
+    seg: Segment,
+    w: int,
+    rows: np.ndarray,
+    k: np.ndarray,
+    tau: np.ndarray,
+    past: np.ndarray,
+    relevant: np.ndarray,
+    truths: np.ndarray,
+    todo: deque,
+) -> None:
     """Queue what is left to search past atom ``w``'s crossings at ``tau`` that did not
     matter (rows ``rows``, in their sub-intervals ``k``, states ``past`` there), as
     :func:`_search` describes.
@@ -359,8 +418,13 @@ def _search_on(ens: Ensemble, a: int, seg: Segment, w: int, rows: np.ndarray, k:
             todo.append((v, rows[ahead], k[ahead], tau[ahead], now[v, ahead]))
 
 
-def _relevant(ens: Ensemble, a: int, idx: np.ndarray, flips: np.ndarray,
-              points: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+def _relevant(
+    ens: Ensemble,
+    a: int,
+    idx: np.ndarray,
+    flips: np.ndarray,
+    points: list[tuple[np.ndarray, np.ndarray]],
+) -> np.ndarray:
     """Keep only flips that can matter, so a run does not stop at every one of them.
 
     If atom ``w`` is the only atom of its guard (invariant) that flipped inside a

@@ -27,14 +27,21 @@ if TYPE_CHECKING:
     from hybridteam.engine.run.state import AgentState
 
 
-def owner_matters(st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.ndarray
-                  ) -> np.ndarray:
+def owner_matters(
+    st: AgentState, w: int, sub: np.ndarray, x: np.ndarray, t: np.ndarray
+) -> np.ndarray:
     """Whether the guard that atom ``w`` of ``st``'s agent belongs to is true (its
     invariant false) at states ``x`` and times ``t`` of instances ``sub``: where a flip of
     the atom there can matter."""
     watch = st.ca.watches[w]
-    ctx = Ctx(x, gather(st.v, sub), gather(st.p, sub), t, t - st.entry[:, watch.mode][sub],
-              q=(st.active, sub))
+    ctx = Ctx(
+        x,
+        gather(st.v, sub),
+        gather(st.p, sub),
+        t,
+        t - st.entry[:, watch.mode][sub],
+        q=(st.active, sub),
+    )
     assert watch.owner is not None  # (a requirement's observer has none and is not judged)
     value = spread(watch.owner(ctx), sub.shape)
     return ~value if watch.invariant else value
@@ -52,8 +59,9 @@ class Segment:
         self.ens, self.a, self.idx, self.step = ens, a, idx, step
         self.st = ens.states[a]
         self.t0, self.h = ens.t0[idx], ens.h[idx]
-        self.tol = np.maximum(ens.settings.event_tol,
-                              4 * np.finfo(float).eps * np.abs(self.t0 + self.h))
+        self.tol = np.maximum(
+            ens.settings.event_tol, 4 * np.finfo(float).eps * np.abs(self.t0 + self.h)
+        )
         self.has_rk = some(step.rk)
         self.true_states: dict[tuple[int, float], np.ndarray] = {}
 
@@ -96,8 +104,15 @@ class Segment:
             key = fp.tobytes()
             if key not in derivs:
                 derivs[key] = derivative(ens, a, sub[fp])
-            step = rk.step(derivs[key], t0[fp], x0[fp], tau[flow],
-                           ens.settings.rtol, ens.settings.atol, estimate=False)
+            step = rk.step(
+                derivs[key],
+                t0[fp],
+                x0[fp],
+                tau[flow],
+                ens.settings.rtol,
+                ens.settings.atol,
+                estimate=False,
+            )
             ens.costs.true_steps += 1
             out[flow] = step.x1
             for r, tt, x in zip(rows[fp].tolist(), tau[flow].tolist(), step.x1, strict=True):
@@ -124,11 +139,16 @@ class Segment:
         watch = self.st.ca.watches[w]
         s = self.step.rk_step
         pos = self.step.rk_pos  # (set with rk_step)
-        if rows.size != 1 or watch.atom.row is None or s is None or pos is None \
-                or not self.step.rk[rows[0]] or not FLOAT_PATHS.on:
+        if (
+            rows.size != 1
+            or watch.atom.row is None
+            or s is None
+            or pos is None
+            or not self.step.rk[rows[0]]
+            or not FLOAT_PATHS.on
+        ):
             return None
-        return _One(self, watch, s, int(pos[rows[0]]),
-                    int(rows[0]))
+        return _One(self, watch, s, int(pos[rows[0]]), int(rows[0]))
 
     def dense_one(self, w: int, rows: np.ndarray) -> OneEvaluator | None:
         """``one(tau) -> (truth, margin)`` of atom ``w`` on the dense output, on Python
@@ -154,15 +174,15 @@ class Segment:
         watch = self.st.ca.watches[w]
         if watch.observer or watch.owner is None:
             return np.ones(rows.size, bool)
-        return owner_matters(self.st, w, self.idx[rows], self.true_state(rows, tau),
-                             self.t0[rows] + tau)
+        return owner_matters(
+            self.st, w, self.idx[rows], self.true_state(rows, tau), self.t0[rows] + tau
+        )
 
     def true_state(self, rows: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The state ``tau`` after the step start for ``rows`` (as accurate as a step), from
         the trial points' states where the search computed it; the others are computed and
         kept."""
-        known = [self.true_states.get(key) for key in zip(rows.tolist(), tau.tolist(),
-                                                          strict=True)]
+        known = [self.true_states.get(key) for key in zip(rows.tolist(), tau.tolist(), strict=True)]
         miss = np.array([x is None for x in known], bool)
         out = np.empty((rows.size, self.step.x0.shape[1]))
         for i in where_true(~miss).tolist():
@@ -171,14 +191,13 @@ class Segment:
             r = rows[miss]
             x = state_at(self.ens, self.a, self.idx[r], tau[miss], self.step, rows=r)
             out[miss] = x
-            for key, xi in zip(zip(r.tolist(), tau[miss].tolist(), strict=True), x,
-                               strict=True):
+            for key, xi in zip(zip(r.tolist(), tau[miss].tolist(), strict=True), x, strict=True):
                 self.true_states[key] = xi
         return out
 
-    def judge(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-              truth_lo: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def judge(
+        self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray, truth_lo: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Locate atom ``w``'s crossing for ``rows`` where it matters: ``(tau_lo, tau,
         matters, x)``, with ``x`` the state just past each crossing that does not matter
         (where the search goes on from; NaN where it matters).
@@ -195,8 +214,12 @@ class Segment:
         located directly. Rows are independent: each gets what it gets alone.
         """
         watch = self.st.ca.watches[w]
-        if rows.size == 1 and not watch.observer and watch.owner is not None \
-                and watch.owner.row is not None:
+        if (
+            rows.size == 1
+            and not watch.observer
+            and watch.owner is not None
+            and watch.owner.row is not None
+        ):
             one = self._one(w, rows)
             if one is not None:
                 return self._judge_one(one, w, rows, lo, hi, truth_lo)
@@ -216,8 +239,14 @@ class Segment:
         if fl.size == 0:
             return tau_lo, tau, matters, x
         r = rows[fl]
-        d_lo, d_hi = illinois(self.evaluator(w, r, dense=True), lo[fl].copy(), hi[fl].copy(),
-                              truth_lo[fl], self.tol[r], one=self.dense_one(w, r))
+        d_lo, d_hi = illinois(
+            self.evaluator(w, r, dense=True),
+            lo[fl].copy(),
+            hi[fl].copy(),
+            truth_lo[fl],
+            self.tol[r],
+            one=self.dense_one(w, r),
+        )
         x_d = dense_reader(self.step, r)(d_hi)
         on_dense = owner_matters(self.st, w, self.idx[r], x_d, self.t0[r] + d_hi)
         out = where_true(~on_dense)  # judged on the dense output: not located further
@@ -226,43 +255,58 @@ class Segment:
         go = where_true(on_dense)
         if go.size:
             at = fl[go]
-            tau_lo[at], tau[at] = self.locate(w, rows[at], lo[at], hi[at], truth_lo[at],
-                                              on_dense=(d_lo[go], d_hi[go]))
+            tau_lo[at], tau[at] = self.locate(
+                w, rows[at], lo[at], hi[at], truth_lo[at], on_dense=(d_lo[go], d_hi[go])
+            )
             matters[at] = self.matters(w, rows[at], tau[at])
             self._fill_true(x, at, rows, tau, matters)
         return tau_lo, tau, matters, x
 
-    def _judge_one(self, one: _One, w: int, rows: np.ndarray, lo: np.ndarray,
-                   hi: np.ndarray, truth_lo: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _judge_one(
+        self,
+        one: _One,
+        w: int,
+        rows: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        truth_lo: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`judge` for a single run's one flowing candidate whose atom and guard (or
         invariant) have float forms: the dense search and the judgement on floats, the
         same operations as the array version's on the same doubles (the same bits)."""
-        a, b = illinois_one(one.atom, float(lo[0]), float(hi[0]), bool(truth_lo[0]),
-                            float(self.tol[rows[0]]))
+        a, b = illinois_one(
+            one.atom, float(lo[0]), float(hi[0]), bool(truth_lo[0]), float(self.tol[rows[0]])
+        )
         row = one.at_tau(b)
         watch = one.watch
         if bool(watch.owner.row(row)) == watch.invariant:  # does not matter on the dense output
             return np.array([a]), np.array([b]), np.zeros(1, bool), np.array([row.x], float)
-        tau_lo, tau = self.locate(w, rows, lo, hi, truth_lo,
-                                  on_dense=(np.array([a]), np.array([b])))
+        tau_lo, tau = self.locate(
+            w, rows, lo, hi, truth_lo, on_dense=(np.array([a]), np.array([b]))
+        )
         matters = self.matters(w, rows, tau)
         x = np.full((1, self.step.x0.shape[1]), np.nan)
         self._fill_true(x, np.zeros(1, np.intp), rows, tau, matters)
         return tau_lo, tau, matters, x
 
-    def _fill_true(self, x: np.ndarray, at: np.ndarray, rows: np.ndarray, tau: np.ndarray,
-                   matters: np.ndarray) -> None:
+    def _fill_true(
+        self, x: np.ndarray, at: np.ndarray, rows: np.ndarray, tau: np.ndarray, matters: np.ndarray
+    ) -> None:
         """Fill ``x[at]`` with the true states ``tau`` after the start where the located
         crossing does not matter (the trial points computed them)."""
         need = at[~matters[at]]
         if need.size:
             x[need] = self.true_state(rows[need], tau[need])
 
-    def locate(self, w: int, rows: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-               truth_lo: np.ndarray,
-               on_dense: tuple[np.ndarray, np.ndarray] | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def locate(
+        self,
+        w: int,
+        rows: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        truth_lo: np.ndarray,
+        on_dense: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Final bracket ``(lo, hi)`` of atom ``w``'s crossing, on the exact flow.
 
         Kinematic plants are searched directly on their closed form. For Runge–Kutta
@@ -287,8 +331,11 @@ class Segment:
         dense = self.evaluator(w, rows, dense=True) if one is None else _unused
         n = rows.size
         everyone = np.arange(n)
-        g_lo, g = on_dense if on_dense is not None else illinois(
-            dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
+        g_lo, g = (
+            on_dense
+            if on_dense is not None
+            else illinois(dense, lo.copy(), hi.copy(), truth_lo, tol, one=one)
+        )
         mid = 0.5 * (g_lo + g)
         # half a tolerance either side of a guess, less the rounding of guess -/+ width: a
         # bracket that confirms is then at most tol wide, final without another true step
@@ -301,11 +348,15 @@ class Segment:
             _, t_a, t_b = tt.tolist()
             if t_a == truth_lo[0] and t_b != truth_lo[0] and not b_[0] - a_[0] > tol[0]:
                 return a_, b_
-        ok = (tt[n: 2 * n] == truth_lo) & (tt[2 * n:] != truth_lo)
+        ok = (tt[n : 2 * n] == truth_lo) & (tt[2 * n :] != truth_lo)
         new_lo, new_hi = span_lo.copy(), span_hi.copy()
         m_lo, m_hi = filled(n, np.nan), filled(n, np.nan)
-        new_lo[ok], new_hi[ok], m_lo[ok], m_hi[ok] = a_[ok], b_[ok], mm[n: 2 * n][ok], \
-            mm[2 * n:][ok]
+        new_lo[ok], new_hi[ok], m_lo[ok], m_hi[ok] = (
+            a_[ok],
+            b_[ok],
+            mm[n : 2 * n][ok],
+            mm[2 * n :][ok],
+        )
         todo = where_true(~ok)
         if todo.size == 0:
             return illinois(exact, new_lo, new_hi, truth_lo, tol, m_lo=m_lo, m_hi=m_hi)
@@ -325,7 +376,7 @@ class Segment:
             a_ = np.maximum(span_lo[todo], guess[todo] - width[todo])
             b_ = np.minimum(span_hi[todo], guess[todo] + width[todo])
             tt, mm = exact(np.concatenate([todo, todo]), np.concatenate([a_, b_]))  # one step
-            ta, tb, ma, mb = tt[: todo.size], tt[todo.size:], mm[: todo.size], mm[todo.size:]
+            ta, tb, ma, mb = tt[: todo.size], tt[todo.size :], mm[: todo.size], mm[todo.size :]
             ok = (ta == truth_lo[todo]) & (tb != truth_lo[todo])
             sel = todo[ok]
             new_lo[sel], new_hi[sel], m_lo[sel], m_hi[sel] = a_[ok], b_[ok], ma[ok], mb[ok]
