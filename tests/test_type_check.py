@@ -44,8 +44,11 @@ def _run_lines() -> list[list[str]]:
     """The commands of ``.ci/run``, each split into its ``&&`` parts."""
     text = (ROOT / ".ci" / "run").read_text()
     lines = [line.strip() for line in text.splitlines()]
-    return [[part.strip() for part in line.split("&&")] for line in lines
-            if line and not line.startswith("#")]
+    return [
+        [part.strip() for part in line.split("&&")]
+        for line in lines
+        if line and not line.startswith("#")
+    ]
 
 
 def test_ci_runs_exactly_the_configured_mypy_before_the_tests():
@@ -53,8 +56,11 @@ def test_ci_runs_exactly_the_configured_mypy_before_the_tests():
     assert "mypy" in commands  # no arguments: the files and settings are pyproject's
     assert commands.index("mypy") < commands.index("python -m pytest")
     # the checker and its stubs come with the extra CI installs before running it
-    test_extra = " ".join(tomllib.loads((ROOT / "pyproject.toml").read_text())
-                          ["project"]["optional-dependencies"]["test"])
+    test_extra = " ".join(
+        tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"][
+            "test"
+        ]
+    )
     assert "mypy" in test_extra and "types-PyYAML" in test_extra
 
 
@@ -66,3 +72,15 @@ def test_pre_commit_runs_the_three_checks_with_the_installed_tools():
     assert all(h["language"] == "system" for h in hooks.values())
     # mypy checks what pyproject names, not just the files of a commit
     assert hooks["mypy"]["pass_filenames"] is False
+
+
+def test_ci_checks_the_format_with_the_pinned_formatter():
+    """``ruff format --check .`` runs in ``.ci/run`` before the tests, with the ruff that
+    ``[test]`` pins to one minor version (another version formats differently)."""
+    commands = [part for line in _run_lines() for part in line]
+    assert "ruff format --check ." in commands
+    assert commands.index("ruff format --check .") < commands.index("python -m pytest")
+    test_extra = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]["test"]
+    assert any(r.startswith("ruff>=0.17") and "<0.18" in r for r in test_extra)
