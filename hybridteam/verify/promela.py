@@ -1,0 +1,611 @@
+"""An independent second explorer: the skeleton's *rules* as Promela, explored by SPIN.
+
+:mod:`.spin` hands SPIN the graph our explorer built, so SPIN cannot notice a successor
+the explorer missed. Here SPIN gets the rules instead and explores the protocol on its
+own; the two explorations are then compared (:func:`compare`).
+
+**What is shared and what is not.** The export reads the *compiled* team (modes, the
+precedence order of transitions, their conflict sets, entry and exit sets, parameter
+values and initial variables) and the skeleton's classification of what is exact and what
+is abstracted (:mod:`.abstraction`). It does not use :class:`~.machine.Machine` or the
+engine's discrete phase: the run-time semantics — which transitions an event wakes, which
+of them fire (:func:`~hybridteam.engine.run.discrete.select_and_fire`), exit then actions
+then entry, where a send goes, the explorer's choices — is written again in Promela.
+
+**The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
+discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
+arrive next, as ``--order any`` has it); an agent's step takes one copy addressed to it
+and dispatches it as the engine does (the transitions on its type, in precedence order,
+each enabled one firing unless an earlier chosen one conflicts with it). A ``network``
+proctype loses or duplicates a copy within the budgets (``--losses``, ``--duplicates``),
+a ``scenario`` proctype raises the scenario's events in order, and a time-driven
+transition (``after:``, or a guard that reads time or state) may fire whenever its source
+is active (``--timeouts any``: no clock needed). A free comparison (one that reads time or
+state) is a nondeterministic truth value: each step is written once per assignment of the
+free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
+step is enabled only when it changes the state.
+
+**How the configurations are collected (soundly).** Every step ends with a ``printf`` of
+the projected configuration (per agent its active modes as bits); pan compiled with
+``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no partial-order
+reduction; ``spin -o2``: SPIN would otherwise keep variables it judges write-only —
+mode bits read only by the prints — out of the state vector, merging states that differ
+in them), in which every transition out of every reachable state is executed once, so
+every reachable state but the initial one is printed as some step's target, and nothing
+unreachable is: the printed set is exactly the reachable projected configurations (the
+initial one is printed by ``init`` before any agent starts). A ``watcher`` proctype waits
+on ``timeout`` (true exactly when no other statement is executable: a dead end) and
+prints the dead end's configuration and whether it is a deadlock by the definition of
+:mod:`.properties` (written here as a predicate over the mode bits).
+
+**Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
+and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
+equal configuration sets decide equally every invariant that reads only modes.
+
+**Scope.** A feature this module cannot translate exactly refuses the model with one line
+naming it (:class:`Unsupported`) rather than exporting an approximation: acknowledged
+messages, ``raise`` actions, entry and exit actions, history, role carry-over, urgent
+transitions with exact guards, world events, time-driven transitions back into their own
+mode, non-integer values, ``--order fifo`` and ``--timeouts own|long``.
+"""
+
+from __future__ import annotations
+
+import ast
+import itertools
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hybridteam.engine.compile.compiled import REPLY, CAgent, Entry
+from hybridteam.engine.compile.compiler import message_fields
+from hybridteam.expr.compiler import free_names
+from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
+from hybridteam.verify.spin import _run, missing
+
+#: slots for copies in flight (a send beyond them is reported, never dropped silently)
+SLOTS = 8
+#: free comparisons one step may read (each doubles the step's options)
+MAX_FREE = 6
+
+
+class Unsupported(Exception):
+    """The model uses a feature the export does not translate exactly (one line)."""
+
+
+@dataclass
+class Exploration:
+    """What one explorer found: projected configurations, dead ends, the deadlock verdict."""
+
+    configurations: set[str]
+    dead_ends: set[str]
+    deadlock: bool  # True: no deadlock (the property holds)
+
+
+@dataclass
+class Comparison:
+    ours: Exploration
+    spin: Exploration
+    notes: list[str] = field(default_factory=list)
+
+    def differences(self) -> list[str]:
+        """Each way the explorations differ, in words (empty: they agree)."""
+        out = []
+        for what, a, b in (("configurations", self.ours.configurations,
+                            self.spin.configurations),
+                           ("dead-end configurations", self.ours.dead_ends,
+                            self.spin.dead_ends)):
+            if a - b:
+                out.append(f"{len(a - b)} {what} only ours reaches, e.g. {min(a - b)}")
+            if b - a:
+                out.append(f"{len(b - a)} {what} only SPIN reaches, e.g. {min(b - a)}")
+        if self.ours.deadlock != self.spin.deadlock:
+            out.append(f"deadlock: ours {_word(self.ours.deadlock)}, SPIN "
+                       f"{_word(self.spin.deadlock)}")
+        return out
+
+
+def _word(holds: bool) -> str:
+    return "holds" if holds else "violated"
+
+
+# ---------------------------------------------------------------------------- the export
+
+class _Agent:
+    """One agent's names in the model and its translation helpers."""
+
+    def __init__(self, sk: Skeleton, a: int, params: np.ndarray, init: np.ndarray) -> None:
+        self.sk, self.a = sk, a
+        self.ca: CAgent = sk.original.agents[a]
+        ca = self.ca
+        self.name = ca.name
+        self.vars = {n: j for n, j in ca.var_index.items() if j in sk.discrete_vars[a]}
+        self.var_name = {j: f"v{a}_{j}" for j in self.vars.values()}
+        self.consts: dict[str, int] = {}
+        for n, j in ca.param_index.items():
+            self.consts[n] = params[j]
+        for n in ca.symbols:
+            if n.startswith("id_"):
+                self.consts[n] = next(b for b, o in enumerate(sk.original.agents)
+                                      if o.name == n[3:])
+        self.init = {j: init[j] for j in self.vars.values()}
+        self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
+
+    def bit(self, m: int) -> str:
+        return f"m{self.a}_{m}"
+
+
+def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
+           drop: tuple[int, int] | None = None) -> str:
+    """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
+    out one (agent, transition) — only to show that the comparison catches a wrong model."""
+    team = sk.original
+    fields = {k: sorted(v) for k, v in message_fields(team.team).items()}
+    exact = {t: [f for f in fs if (t, f) not in sk.abstract_fields] for t, fs in fields.items()}
+    types = sorted(fields)
+    nf = max([len(v) for v in exact.values()] + [1])
+    from hybridteam.engine.run.ensemble import Ensemble
+
+    ens = Ensemble(team, 1, 0, 1.0, {})  # parameters and initial values, as a run has them
+    agents = []
+    for a, st in enumerate(ens.states):
+        _, v = st.ca.initial_values(st.p[:1])
+        agents.append(_Agent(sk, a, _ints(st.p[0], f"agent '{st.ca.name}': a parameter"),
+                             np.asarray(v[0])))
+    for ag in agents:
+        _refuse(sk, ag)
+        for j in ag.vars.values():
+            ag.init[j] = _int(ag.init[j], f"agent '{ag.name}': an initial variable")
+    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop)
+    lines = [f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
+             f"#define SLOTS {slots}",
+             "typedef Copy { byte used; byte snd; byte rcv; byte typ; "
+             + " ".join(f"int f{k};" for k in range(nf)) + " }",
+             "Copy fl[SLOTS];", "byte losses = 0;", "byte dups = 0;", "bit overflow = 0;",
+             "hidden byte sl;", "hidden byte r_snd;", "hidden byte r_typ;",
+             *[f"hidden int r_f{k};" for k in range(nf)]]
+    for ag in agents:
+        on = _default_config(ag.ca)
+        lines += [f"bit {ag.bit(m)} = {int(m in on)};" for m in range(len(ag.ca.modes))]
+        lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
+        lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
+    lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
+    config = _config_print(agents)
+    for ag in agents:
+        lines += ctx.agent_proc(ag, config)
+    lines += ctx.network_proc(losses, duplicates, config)
+    lines += ctx.scenario_proc(config)
+    lines += ["proctype watcher() {", "  timeout -> d_step { " + _print(
+        "T", agents, " %d", _deadlock_expr(sk, agents)) + " }", "}"]
+    runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
+    lines += ["init {", "  atomic { " + config + f" {runs} run network(); run scenario(); "
+              "run watcher(); }", "}", ""]
+    return "\n".join(lines)
+
+
+def _ints(values, what: str) -> np.ndarray:
+    """Parameter values: whole numbers as ints, others None (refused where read)."""
+    return np.array([int(v) if np.isfinite(v) and float(v).is_integer() else None
+                     for v in values], dtype=object)
+
+
+def _int(v, what: str) -> int:
+    v = float(v)
+    if not v.is_integer():
+        raise Unsupported(f"{what} is not a whole number ({v:g})")
+    return int(v)
+
+
+def _refuse(sk: Skeleton, ag: _Agent) -> None:
+    """One line naming the first feature of ``ag`` the export does not translate."""
+    ca, who = ag.ca, f"agent '{ag.name}'"
+    for m in ca.modes:
+        if m.history != "none":
+            raise Unsupported(f"{who}: mode {m.path or m.name} has history")
+        if m.on_entry or m.on_exit:
+            raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
+    for name, policy in ca.policies.items():
+        if policy.acknowledged:
+            raise Unsupported(f"{who}: message '{name}' is acknowledged (ack:)")
+    if any(e for b, e in sk.world_events if b == ag.a):
+        raise Unsupported(f"{who}: world events")
+    timed = set(sk.time_driven[ag.a])
+    for tr in ca.transitions:
+        where = f"{who} {tr.text}"
+        if tr.carry:
+            raise Unsupported(f"{where}: a role body carried over")
+        if any(act.kind == "raise" for act in tr.actions):
+            raise Unsupported(f"{where}: a raise action")
+        if tr.on is None and tr.index not in timed:
+            raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
+        if tr.index in timed and (tr.internal or _above(ca, tr.target, tr.source)
+                                  or _above(ca, tr.source, tr.target)):
+            raise Unsupported(f"{where}: a time-driven transition back into its own mode")
+        for act in tr.actions:
+            if act.kind == "send" and act.socket != "control":
+                raise Unsupported(f"{where}: a send on socket '{act.socket}'")
+
+
+def _above(ca: CAgent, m: int, n: int) -> bool:
+    """Whether mode ``m`` is ``n`` or one of its ancestors."""
+    while n >= 0:
+        if n == m:
+            return True
+        n = ca.modes[n].parent
+    return False
+
+
+def _entered(ca: CAgent, entry: Entry, out: set[int]) -> None:
+    """The modes ``entry`` activates (no history: refused), as AgentState.enter has it."""
+    if not entry.active_first:
+        out.add(entry.first)
+    _below(ca, entry.first, entry, out)
+
+
+def _below(ca: CAgent, m: int, entry: Entry, out: set[int]) -> None:
+    if m in entry.targets:
+        _default(ca, m, out)
+        return
+    for c in ca.modes[m].children:
+        if c in entry.marks:
+            out.add(c)
+            _below(ca, c, entry, out)
+        elif ca.modes[m].kind == "and":
+            out.add(c)
+            _default(ca, c, out)
+
+
+def _default(ca: CAgent, m: int, out: set[int]) -> None:
+    mode = ca.modes[m]
+    if mode.kind == "and":
+        for r in mode.children:
+            out.add(r)
+            _default(ca, r, out)
+    elif mode.kind == "or":
+        _entered(ca, mode.default, out)  # type: ignore[arg-type]
+
+
+def _default_config(ca: CAgent) -> set[int]:
+    out = {0}
+    _default(ca, 0, out)
+    return out
+
+
+def _exited(ca: CAgent, tr) -> list[int]:
+    sub = ca.modes[tr.exit_root].subtree
+    return [int(m) for m in (sub[1:] if tr.exit_inside else sub)]
+
+
+def _config_print(agents: list[_Agent]) -> str:
+    """The step's closing print: the projected configuration, and whether a send found
+    no free slot (then the comparison is refused, not made on a truncated model)."""
+    return _print("C", agents, " %d", "overflow")
+
+
+def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str:
+    fmt = "|".join("%d" * len(ag.ca.modes) for ag in agents)
+    args = ", ".join(ag.bit(m) for ag in agents for m in range(len(ag.ca.modes)))
+    return f'printf("{tag} {fmt}{fmt_more}\\n", {args}, {args_more});'
+
+
+class _Ctx:
+    """Translation of guards, actions and steps (one model's worth of names)."""
+
+    def __init__(self, sk, agents, fields, exact, types, slots, drop) -> None:
+        self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
+        self.types, self.slots, self.drop = types, slots, drop
+
+    # -- expressions
+    def expr(self, ag: _Agent, source: str, on: str | None, free: list[str] | None = None,
+             condition: bool = False) -> str:
+        """``source`` in Promela; with ``free`` (a guard), comparisons that read abstracted
+        names become free bits ``FREE<k>`` appended to ``free``."""
+        known = ag.known | _message_names(on, self.fields, self.sk.abstract_fields)
+        text = source.strip()
+        node = ast.parse(text, mode="eval").body
+
+        def go(n) -> str:
+            if free is not None and not isinstance(n, (ast.BoolOp, ast.UnaryOp)):
+                seg = ast.get_source_segment(text, n) or text
+                if not free_names(seg, condition=True) <= known:
+                    free.append(seg)
+                    return f"FREE{len(free) - 1}"
+            if isinstance(n, ast.BoolOp):
+                op = " && " if isinstance(n.op, ast.And) else " || "
+                return "(" + op.join(go(v) for v in n.values) + ")"
+            if isinstance(n, ast.UnaryOp):
+                if isinstance(n.op, ast.Not):
+                    return f"(!{go(n.operand)})"
+                if isinstance(n.op, ast.USub):
+                    return f"(-{go(n.operand)})"
+            if isinstance(n, ast.Compare) and len(n.ops) == 1:
+                ops = {ast.Eq: "==", ast.NotEq: "!=", ast.Lt: "<", ast.LtE: "<=",
+                       ast.Gt: ">", ast.GtE: ">="}
+                op = ops.get(type(n.ops[0]))
+                if op:
+                    return f"({go(n.left)} {op} {go(n.comparators[0])})"
+            if isinstance(n, ast.BinOp):
+                ops = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*"}
+                op = ops.get(type(n.op))
+                if op:
+                    return f"({go(n.left)} {op} {go(n.right)})"
+            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)) \
+                    and not isinstance(n.value, bool):
+                return str(_int(n.value, f"agent '{ag.name}': '{text}'"))
+            if isinstance(n, ast.Constant) and isinstance(n.value, bool):
+                return str(int(n.value))
+            if isinstance(n, ast.Name):
+                return self.name(ag, n.id, on, text)
+            raise Unsupported(f"agent '{ag.name}': '{text}': "
+                              f"{ast.get_source_segment(text, n) or text} is not translated")
+
+        return go(node)
+
+    def name(self, ag: _Agent, name: str, on: str | None, text: str) -> str:
+        if name in ag.vars:
+            return ag.var_name[ag.vars[name]]
+        if name == "msg_sender" and on is not None:
+            return "r_snd"
+        if name.startswith("msg_") and on in self.exact and name[4:] in self.exact[on]:
+            return f"r_f{self.exact[on].index(name[4:])}"
+        if name in ag.consts:
+            c = ag.consts[name]
+            if isinstance(c, int):
+                return str(c)
+        raise Unsupported(f"agent '{ag.name}': '{text}' reads '{name}', which is not "
+                          "translated")
+
+    # -- one transition
+    def guard(self, ag: _Agent, tr, free: list[str]) -> str:
+        cond = ag.bit(tr.source)
+        if tr.guard is not None:
+            cond += " && " + self.expr(ag, tr.guard.source, tr.on, free, True)
+        return cond
+
+    def fire(self, ag: _Agent, tr) -> list[str]:
+        """Exit (the exit set), actions, entry (the entry set), as engine.run.discrete.fire."""
+        out = []
+        if not tr.internal:
+            out += [f"{ag.bit(m)} = 0;" for m in _exited(ag.ca, tr)]
+        for act in tr.actions:
+            if act.kind == "assign":
+                kind, j = act.target
+                if kind == "v" and j in ag.var_name:
+                    out.append(f"{ag.var_name[j]} = "
+                               f"{self.expr(ag, act.expr.source, tr.on)};")
+            elif act.kind == "send":
+                out += self.send(ag, act, tr.on)
+        if not tr.internal:
+            on: set[int] = set()
+            _entered(ag.ca, tr.entry, on)  # type: ignore[arg-type]
+            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)]
+        return out
+
+    def send(self, ag: _Agent, act, on: str | None) -> list[str]:
+        """A plain datagram to its receivers (as engine.run.network.send picks them)."""
+        typ = self.types.index(act.name)
+        values = [self.expr(ag, act.fields[f].source, on) if f in act.fields else "0"
+                  for f in self.exact.get(act.name, [])]
+        n = len(self.agents)
+        others = [r for r in range(n) if r != ag.a]
+        if act.to_expr is not None:
+            to = self.expr(ag, act.to_expr.source, on)
+            pairs = [(f"(({to}) == {r} || ({to}) < 0)", r) for r in others]
+        elif act.to == REPLY:
+            pairs = [("1", r) for r in others] if on is None else \
+                [(f"r_snd == {r}", r) for r in others]
+        elif act.to is None:
+            pairs = [("1", r) for r in others]
+        else:
+            pairs = [("1", int(act.to))]
+        out = []
+        for cond, r in pairs:
+            put = [f"fl[sl].used = 1; fl[sl].snd = {ag.a}; fl[sl].rcv = {r}; "
+                   f"fl[sl].typ = {typ};"] + [f"fl[sl].f{k} = {v};"
+                                              for k, v in enumerate(values)]
+            out.append(f"if :: {cond} -> sl = 0; do :: sl < SLOTS && fl[sl].used -> sl++ "
+                       ":: else -> break od; if :: sl == SLOTS -> overflow = 1 :: else -> "
+                       + " ".join(put) + " fi; sl = 0 :: else -> skip fi;")
+        return out
+
+    def dispatch(self, ag: _Agent, event: str, on: str | None, bits: dict[str, int],
+                 free: list[str]) -> list[str]:
+        """select_and_fire for the transitions ``event`` wakes: enabled ones (in precedence
+        order) fire unless an earlier chosen one conflicts; guards are read before any
+        fires. ``free`` collects the free comparisons read (FREE<k> placeholders)."""
+        cands = [j for j in ag.ca.waiting(event)
+                 if self.drop != (ag.a, j)]
+        out = []
+        for j in sorted(cands):
+            tr = ag.ca.transitions[j]
+            c = f"c{ag.a}_{j}"
+            cond = self.guard(ag, tr, free)
+            block = [f"c{ag.a}_{k}" for k in tr.conflicts.tolist() if k in cands and k < j]
+            out.append(f"{c} = ({cond})" + "".join(f" && !{b}" for b in block) + ";")
+        for j in sorted(cands):
+            tr = ag.ca.transitions[j]
+            out.append(f"if :: c{ag.a}_{j} -> " + " ".join(self.fire(ag, tr))
+                       + " :: else -> skip fi;")
+        out += [f"c{ag.a}_{j} = 0;" for j in sorted(cands)]
+        return out
+
+    # -- processes
+    def agent_proc(self, ag: _Agent, config: str) -> list[str]:
+        out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
+        for t, name in enumerate(self.types):
+            free: list[str] = []
+            body = self.dispatch(ag, name, name, {}, free)
+            for bits in _assignments(free, ag.name):
+                for k in range(self.slots):
+                    read = (f"r_snd = fl[{k}].snd; " + " ".join(
+                        f"r_f{i} = fl[{k}].f{i};" for i in range(len(self.exact[name])))
+                        + f" {_clear(k, self.exact)}")
+                    code = _subst(" ".join(body), bits)
+                    out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
+                               f"fl[{k}].typ == {t} -> {read} {code} {_reset(self.exact)}"
+                               " }; " + config + " }")
+        for j in self.sk.time_driven[ag.a]:
+            if self.drop == (ag.a, j):
+                continue
+            tr = ag.ca.transitions[j]
+            free = []
+            cond = self.guard(ag, tr, free)
+            for bits in _assignments(free, ag.name):
+                out.append(f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
+                           + " ".join(self.fire(ag, tr)) + " }; " + config + " }")
+        out += ["  od", "}"]
+        return out
+
+    def network_proc(self, losses: int, duplicates: int, config: str) -> list[str]:
+        out = ["proctype network() {", "end:", "  do"]
+        for k in range(self.slots):
+            if losses:
+                out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && losses < {losses} -> "
+                           f"{_clear(k, self.exact)} losses++ }}; " + config + " }")
+            if duplicates:
+                copy = " ".join(f"fl[sl].{f} = fl[{k}].{f};" for f in
+                                ["used", "snd", "rcv", "typ"] + [
+                                    f"f{i}" for i in range(_nf(self.exact))])
+                out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> sl = 0; "
+                           "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
+                           f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
+                           "dups++ }; " + config + " }")
+        if not losses and not duplicates:
+            out.append("  :: false")
+        out += ["  od", "}"]
+        return out
+
+    def scenario_proc(self, config: str) -> list[str]:
+        out = ["proctype scenario() {"]
+        for _, a, name in self.sk.original.scenario:
+            ag = self.agents[a]
+            free: list[str] = []
+            body = self.dispatch(ag, name, None, {}, free)
+            options = [f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; {config} }}"
+                       for bits in _assignments(free, ag.name)]
+            out += ["  if", *options, "  fi;"]
+        out += ["  skip", "}"]
+        return out
+
+
+def _nf(exact: dict) -> int:
+    return max([len(v) for v in exact.values()] + [1])
+
+
+def _clear(k: int, exact: dict) -> str:
+    return (f"fl[{k}].used = 0; fl[{k}].snd = 0; fl[{k}].rcv = 0; fl[{k}].typ = 0; "
+            + " ".join(f"fl[{k}].f{i} = 0;" for i in range(_nf(exact))))
+
+
+def _reset(exact: dict) -> str:
+    return "r_snd = 0; " + " ".join(f"r_f{i} = 0;" for i in range(_nf(exact)))
+
+
+def _assignments(free: list[str], who: str) -> list[dict[int, int]]:
+    if len(free) > MAX_FREE:
+        raise Unsupported(f"agent '{who}': more than {MAX_FREE} free comparisons in one step")
+    return [dict(enumerate(bits)) for bits in itertools.product((0, 1), repeat=len(free))]
+
+
+def _subst(code: str, bits: dict[int, int]) -> str:
+    return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
+
+
+def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
+    """The deadlock predicate of :func:`.properties._deadlock` over the mode bits."""
+    team = sk.original.team
+    blocked, finals, commanded = [], [], []
+    for ag in agents:
+        ca, a = ag.ca, ag.a
+        leaves = [int(m) for m in ca.leaves]
+        final = " && ".join(f"(!{ag.bit(m)} || {int(ca.final[m])})" for m in leaves) or "1"
+        if team.agents[a].operator:
+            on = set()
+            m = 0
+            while True:
+                on.add(m)
+                if ca.modes[m].kind != "or":
+                    break
+                m = ca.modes[m].initial
+            commanded.append(" || ".join(f"({ag.bit(m)} != {int(m in on)})" for m in leaves)
+                             or "0")
+            continue
+        finals.append(f"({final})")
+        inputs = sk.inputs[a] | {e for b, e in sk.world_events if b == a}
+        waits = [m for m in range(len(ca.modes))
+                 if any(ca.transitions[j].on for j in ca.modes[m].outgoing)]
+        heard = [m for m in waits if any(ca.transitions[j].on in inputs
+                                         for j in ca.modes[m].outgoing)]
+        w = " || ".join(ag.bit(m) for m in waits) or "0"
+        h = " || ".join(ag.bit(m) for m in heard) or "0"
+        blocked.append(f"(!({final}) && ({w}) && !({h}))")
+    return (f"(({' || '.join(blocked) or '0'}) && !({' && '.join(finals) or '1'}) && "
+            f"!({' || '.join(commanded) or '0'}))")
+
+
+# ---------------------------------------------------------------------------- comparing
+
+def ours(report) -> Exploration:
+    """Our explorer's projected configurations, dead ends and deadlock verdict."""
+    sk, g = report.skeleton, report.graph
+    sizes = [len(ca.modes) for ca in sk.cteam.agents]
+
+    def config(s) -> str:
+        return "|".join("".join(str(b) for b in s.agents[a][0][:n])
+                        for a, n in enumerate(sizes))
+
+    configs = [config(s) for s in g.states]
+    dead = {configs[k] for k in np.flatnonzero(g.terminal()).tolist()}
+    holds = next(v.holds for v in report.verdicts if v.prop.name == "deadlock")
+    return Exploration(set(configs), dead, bool(holds))
+
+
+def check(report, opts) -> None:
+    """Refuse (:class:`Unsupported`) what the comparison cannot take."""
+    if opts.order != "any":
+        raise Unsupported(f"--order {opts.order} (the export has --order any)")
+    if opts.timeouts != "any":
+        raise Unsupported(f"--timeouts {opts.timeouts} (the export has --timeouts any)")
+    if not report.graph.exhaustive:
+        raise Unsupported(f"our exploration stopped ({report.graph.bound})")
+    if not any(v.prop.name == "deadlock" for v in report.verdicts):
+        raise Unsupported("the deadlock property is not among the checked ones")
+
+
+def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
+    """Compile and run SPIN's exhaustive search on ``promela``; its exploration."""
+    why = missing()
+    if why:
+        raise RuntimeError(why)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "rules.pml").write_text(promela)
+    _run(["spin", "-o2", "-a", "rules.pml"], folder, timeout)
+    _run(["cc", "-O1", "-DPRINTF", "-DNOREDUCE", "-DSAFETY", "-DVECTORSZ=4096", "-o", "pan",
+          "pan.c"], folder, timeout)
+    text = _run(["./pan", "-E", "-m10000000"], folder, timeout)
+    (folder / "pan.out").write_text(text)
+    if "depth too small" in text or "errors: 0" not in text:
+        raise RuntimeError("SPIN's search did not complete (see pan.out)")
+    configs, dead, bad, over = set(), set(), False, False
+    for line in text.splitlines():
+        tag, _, rest = line.partition(" ")
+        if tag in ("C", "T") and rest:
+            c, flag = rest.split()
+            if tag == "C":
+                configs.add(c)
+                over |= flag == "1"
+            else:
+                dead.add(c)
+                bad |= flag == "1"
+    if over:
+        raise RuntimeError(f"more copies in flight than the model's {SLOTS} slots")
+    return Exploration(configs, dead, not bad)
+
+
+def compare(report, opts, folder: Path, drop: tuple[int, int] | None = None) -> Comparison:
+    """Export ``report``'s team's rules, let SPIN explore them, compare with ours."""
+    check(report, opts)
+    promela = export(report.skeleton, opts.losses, opts.duplicates, drop=drop)
+    return Comparison(ours(report), run_spin(promela, folder))
