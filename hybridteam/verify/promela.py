@@ -306,20 +306,23 @@ class _Ctx:
         text = source.strip()
         node = ast.parse(text, mode="eval").body
 
-        def go(n) -> str:
-            if free is not None and not isinstance(n, (ast.BoolOp, ast.UnaryOp)):
-                seg = ast.get_source_segment(text, n) or text
-                if not free_names(seg, condition=True) <= known:
-                    free.append(seg)
-                    return f"FREE{len(free) - 1}"
+        def cond(n) -> str:  # the guard's Boolean structure over its comparisons
             if isinstance(n, ast.BoolOp):
                 op = " && " if isinstance(n.op, ast.And) else " || "
-                return "(" + op.join(go(v) for v in n.values) + ")"
+                return "(" + op.join(cond(v) for v in n.values) + ")"
+            if isinstance(n, ast.UnaryOp) and isinstance(n.op, ast.Not):
+                return f"(!{cond(n.operand)})"
+            seg = ast.get_source_segment(text, n) or text
+            if free is not None and not free_names(seg, condition=True) <= known:
+                free.append(seg)
+                return f"FREE{len(free) - 1}"
+            return go(n)
+
+        def go(n) -> str:
+            if isinstance(n, (ast.BoolOp, ast.UnaryOp)) and not isinstance(n.op, ast.USub):
+                return cond(n)
             if isinstance(n, ast.UnaryOp):
-                if isinstance(n.op, ast.Not):
-                    return f"(!{go(n.operand)})"
-                if isinstance(n.op, ast.USub):
-                    return f"(-{go(n.operand)})"
+                return f"(-{go(n.operand)})"
             if isinstance(n, ast.Compare) and len(n.ops) == 1:
                 ops = {ast.Eq: "==", ast.NotEq: "!=", ast.Lt: "<", ast.LtE: "<=",
                        ast.Gt: ">", ast.GtE: ">="}
@@ -331,17 +334,16 @@ class _Ctx:
                 op = ops.get(type(n.op))
                 if op:
                     return f"({go(n.left)} {op} {go(n.right)})"
-            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)) \
-                    and not isinstance(n.value, bool):
-                return str(_int(n.value, f"agent '{ag.name}': '{text}'"))
             if isinstance(n, ast.Constant) and isinstance(n.value, bool):
                 return str(int(n.value))
+            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
+                return str(_int(n.value, f"agent '{ag.name}': '{text}'"))
             if isinstance(n, ast.Name):
                 return self.name(ag, n.id, on, text)
             raise Unsupported(f"agent '{ag.name}': '{text}': "
                               f"{ast.get_source_segment(text, n) or text} is not translated")
 
-        return go(node)
+        return cond(node) if free is not None else go(node)
 
     def name(self, ag: _Agent, name: str, on: str | None, text: str) -> str:
         if name in ag.vars:
@@ -468,7 +470,8 @@ class _Ctx:
                 copy = " ".join(f"fl[sl].{f} = fl[{k}].{f};" for f in
                                 ["used", "snd", "rcv", "typ"] + [
                                     f"f{i}" for i in range(_nf(self.exact))])
-                out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> sl = 0; "
+                out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> "
+                           "sl = 0; "
                            "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
                            f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
                            "dups++ }; " + config + " }")
@@ -483,8 +486,8 @@ class _Ctx:
             ag = self.agents[a]
             free: list[str] = []
             body = self.dispatch(ag, name, None, {}, free)
-            options = [f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; {config} }}"
-                       for bits in _assignments(free, ag.name)]
+            options = [f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; "
+                       f"{config} }}" for bits in _assignments(free, ag.name)]
             out += ["  if", *options, "  fi;"]
         out += ["  skip", "}"]
         return out
@@ -604,8 +607,17 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
     return Exploration(configs, dead, not bad)
 
 
-def compare(report, opts, folder: Path, drop: tuple[int, int] | None = None) -> Comparison:
-    """Export ``report``'s team's rules, let SPIN explore them, compare with ours."""
+def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
+    """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
+    anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
-    promela = export(report.skeleton, opts.losses, opts.duplicates, drop=drop)
+    return export(report.skeleton, opts.losses, opts.duplicates, drop=drop)
+
+
+def compare(report, opts, folder: Path, drop: tuple[int, int] | None = None,
+            promela: str | None = None) -> Comparison:
+    """Export ``report``'s team's rules (or take ``promela``, from :func:`prepare`), let
+    SPIN explore them in ``folder`` (``rules.pml``, ``pan.out``), compare with ours."""
+    if promela is None:
+        promela = prepare(report, opts, drop)
     return Comparison(ours(report), run_spin(promela, folder))
