@@ -220,12 +220,32 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
             raise Unsupported(f"{where}: a raise action")
         if tr.on is None and tr.index not in timed:
             raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
-        if tr.index in timed and (tr.internal or _above(ca, tr.target, tr.source)
-                                  or _above(ca, tr.source, tr.target)):
+        if tr.index in timed and not _in_place(ca, tr) and (
+                _above(ca, tr.target, tr.source) or _above(ca, tr.source, tr.target)):
             raise Unsupported(f"{where}: a time-driven transition back into its own mode")
+        if tr.index in timed and _in_place(ca, tr) and not _sends(tr):
+            assigned: set[int] = set()
+            for act in tr.actions:
+                if act.kind != "assign" or act.target[0] != "v":
+                    continue
+                reads = {ag.vars[n] for n in act.expr.names if n in ag.vars}
+                if reads & assigned:
+                    raise Unsupported(f"{where}: a time-driven transition in place whose "
+                                      "assignments read each other")
+                assigned.add(act.target[1])
         for act in tr.actions:
             if act.kind == "send" and act.socket != "control":
                 raise Unsupported(f"{where}: a send on socket '{act.socket}'")
+
+
+def _in_place(ca: CAgent, tr) -> bool:
+    """A transition that leaves the configuration as it is: targetless, or from a leaf
+    back into it."""
+    return tr.internal or (tr.source == tr.target and ca.modes[tr.source].kind == "leaf")
+
+
+def _sends(tr) -> bool:
+    return any(act.kind == "send" for act in tr.actions)
 
 
 def _above(ca: CAgent, m: int, n: int) -> bool:
@@ -453,12 +473,25 @@ class _Ctx:
                 continue
             tr = ag.ca.transitions[j]
             free = []
-            cond = self.guard(ag, tr, free)
+            cond = self.guard(ag, tr, free) + self.changes(ag, tr)
             for bits in _assignments(free, ag.name):
                 out.append(f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
                            + " ".join(self.fire(ag, tr)) + " }; " + config + " }")
         out += ["  od", "}"]
         return out
+
+    def changes(self, ag: _Agent, tr) -> str:
+        """For a time-driven transition in place without sends: the condition that it
+        changes a variable (our explorer keeps no self-loop, so a step that changes
+        nothing must not be enabled either, or SPIN's ``timeout`` would miss a dead end).
+        Its assignments read none of each other's targets (else refused), so each new
+        value is the expression on the state before the step."""
+        if not _in_place(ag.ca, tr) or _sends(tr):
+            return ""
+        parts = [f"({self.expr(ag, act.expr.source, tr.on)}) != {ag.var_name[act.target[1]]}"
+                 for act in tr.actions if act.kind == "assign" and act.target[0] == "v"
+                 and act.target[1] in ag.var_name]
+        return " && (" + (" || ".join(parts) or "0") + ")"
 
     def network_proc(self, losses: int, duplicates: int, config: str) -> list[str]:
         out = ["proctype network() {", "end:", "  do"]

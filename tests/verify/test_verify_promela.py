@@ -14,6 +14,7 @@ from hybridteam import load
 from hybridteam.cli import main
 from hybridteam.verify import Options, promela, spin, verify
 from tests.verify.test_verify import GO, roles_team
+from tests.verify.test_verify_bounds import BOUNDED
 
 needs_spin = pytest.mark.skipif(spin.missing() is not None,
                                 reason=f"SPIN cannot run here: {spin.missing()}")
@@ -117,6 +118,20 @@ def test_pingpong_agrees_with_losses_and_duplicates(tmp_path, losses, duplicates
     assert c.differences() == []
     # b answered and waits for a ping that never comes: a deadlock in both
     assert c.spin.deadlock is c.ours.deadlock is False
+
+
+# a timeout in place that sets a flag: after the first expiry it changes nothing (our
+# explorer keeps no self-loop, so that state is a dead end; SPIN must find it too)
+ONCE = BOUNDED.replace("guard: n < 5, do: [n = n + 1]", "do: [n = 1]")
+
+
+@needs_spin
+@pytest.mark.parametrize("text", [BOUNDED, ONCE], ids=["bounded", "once"])
+def test_timeouts_in_place_agree_on_the_dead_end(tmp_path, text):
+    c = compared(tmp_path, text, Options(losses=0))
+    assert c.ours.configurations == c.spin.configurations == {"11"}  # root and A
+    assert c.ours.dead_ends == c.spin.dead_ends == {"11"}  # n = 5, or n = 1
+    assert c.ours.deadlock is c.spin.deadlock is True  # a timeout is no message awaited
 
 
 @needs_spin
