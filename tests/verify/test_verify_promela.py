@@ -7,6 +7,7 @@ message are tested everywhere."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -132,6 +133,63 @@ def test_timeouts_in_place_agree_on_the_dead_end(tmp_path, text):
     assert c.ours.configurations == c.spin.configurations == {"11"}  # root and A
     assert c.ours.dead_ends == c.spin.dead_ends == {"11"}  # n = 5, or n = 1
     assert c.ours.deadlock is c.spin.deadlock is True  # a timeout is no message awaited
+
+
+PARALLEL = """team: par
+agents:
+  s:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Wait
+    modes:
+      Wait:
+        transitions:
+          - {to: Sent, after: 1.0, do: [{send: go, to: r}]}
+      Sent: {}
+  r:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    initial: Both
+    modes:
+      Both:
+        parallel: true
+        modes:
+          Left:
+            initial: L0
+            modes:
+              L0:
+                transitions: [{to: L1, on: go}]
+              L1: {}
+          Right:
+            initial: R0
+            modes:
+              R0:
+                transitions: [{to: R1, on: go}]
+              R1: {}
+simulation: {duration: 5}
+"""
+
+
+@needs_spin
+def test_one_message_steps_both_regions_of_a_parallel_mode(tmp_path):
+    """go wakes a transition in each region of r's parallel mode; both fire (no conflict).
+    By hand (s: root, Wait, Sent | r: root, Both, Left, L0, L1, Right, R0, R1): waiting
+    with L0 and R0; sent with go in flight (or lost); arrived: L1 and R1 together."""
+    c = compared(tmp_path, PARALLEL, Options(losses=1, duplicates=1))
+    assert c.ours.configurations == c.spin.configurations == {
+        "110|11110110", "101|11110110", "101|11101101"}
+    assert c.differences() == []
+
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "automata"
+
+
+@needs_spin
+@pytest.mark.parametrize("name", ["relay", "thermostat", "thermostat_chatter",
+                                  "unicycle_square", "water_tanks"])
+def test_the_examples_it_translates_agree(tmp_path, name):
+    opts = Options(losses=1, duplicates=1)
+    report = verify(load(EXAMPLES / f"{name}.yaml"), opts, replay=False)
+    c = promela.compare(report, opts, tmp_path / "spin-rules")
+    assert c.ours.configurations and c.differences() == []
 
 
 @needs_spin
