@@ -12,6 +12,17 @@ engine's discrete phase: the run-time semantics — which transitions an event w
 of them fire (:func:`~hybridteam.engine.run.discrete.select_and_fire`), exit then actions
 then entry, where a send goes, the explorer's choices — is written again in Promela.
 
+**The acknowledged layer** (``ack:``) is written again after
+:mod:`hybridteam.engine.run.reliable`: a send takes the sender's next id and leaves an
+outbox entry waiting for each receiver's ack; an arriving copy with an id is answered with
+an ack and, where the sender's policy filters duplicates, withheld when its (receiver,
+sender, id) was seen; an ack clears its receiver from the entry; a retransmission timer
+(only once no copy of the message nor an ack of it flies, as ``--ack-timing bounded``
+has it) resends to the receivers still waiting or, out of retries, drops the entry and
+raises ``<type>_undeliverable`` at the sender. Ids, outbox and filter entries are not
+renumbered or pruned as our canonical form does: SPIN's states are more, its
+configurations the same.
+
 **The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
 discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
 arrive next, as ``--order any`` has it); an agent's step takes one copy addressed to it
@@ -25,14 +36,17 @@ state) is a nondeterministic truth value: each step is written once per assignme
 free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
 step is enabled only when it changes the state.
 
-**How the configurations are collected (soundly).** Every step ends with a ``printf`` of
-the projected configuration (per agent its active modes as bits); pan compiled with
+**How the configurations are collected (soundly).** Every step that fires a transition ends
+with a ``printf`` of the projected configuration (per agent its active modes as bits); a
+step that fires none (a loss, an ack, a withheld copy) leaves the configuration as it was,
+so every reachable state's configuration is the initial one or that of a printed step's
+target. pan compiled with
 ``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no partial-order
 reduction; ``spin -o2``: SPIN would otherwise keep variables it judges write-only —
 mode bits read only by the prints — out of the state vector, merging states that differ
 in them), in which every transition out of every reachable state is executed once, so
-every reachable state but the initial one is printed as some step's target, and nothing
-unreachable is: the printed set is exactly the reachable projected configurations (the
+every such step out of a reachable state prints, and nothing unreachable does: the
+printed set is exactly the reachable projected configurations (the
 initial one is printed by ``init`` before any agent starts). A ``watcher`` proctype waits
 on ``timeout`` (true exactly when no other statement is executable: a dead end) and
 prints the dead end's configuration and whether it is a deadlock by the definition of
@@ -43,10 +57,12 @@ and response verdicts are not re-decided here (the graph export of :mod:`.spin` 
 equal configuration sets decide equally every invariant that reads only modes.
 
 **Scope.** A feature this module cannot translate exactly refuses the model with one line
-naming it (:class:`Unsupported`) rather than exporting an approximation: acknowledged
-messages, ``raise`` actions, entry and exit actions, history, role carry-over, urgent
-transitions with exact guards, world events, time-driven transitions back into their own
-mode, non-integer values, ``--order fifo`` and ``--timeouts own|long``.
+naming it (:class:`Unsupported`) rather than exporting an approximation: ``raise``
+actions, entry and exit actions, history, role carry-over, urgent transitions with exact
+guards, world events, time-driven transitions back into their own mode (other than a leaf
+into itself, or targetless), non-integer values, ``--order fifo`` and
+``--timeouts own|long``. A model that outgrows the slots (copies in flight, outbox and
+filter entries, ids) is reported, not compared.
 """
 
 from __future__ import annotations
@@ -67,6 +83,11 @@ from hybridteam.verify.spin import _run, missing
 
 #: slots for copies in flight (a send beyond them is reported, never dropped silently)
 SLOTS = 8
+#: outbox entries (acknowledged messages awaiting acks) and duplicate-filter entries
+OUTBOX = 8
+SEEN = 16
+#: message ids one agent may hand out (the acknowledged layer's per-sender counter)
+MAX_IDS = 200
 #: free comparisons one step may read (each doubles the step's options)
 MAX_FREE = 6
 
@@ -138,7 +159,7 @@ class _Agent:
 
 
 def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
-           drop: tuple[int, int] | None = None) -> str:
+           drop: tuple[int, int] | None = None, ack_timing: str = "bounded") -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
     out one (agent, transition) — only to show that the comparison catches a wrong model."""
     team = sk.original
@@ -158,13 +179,21 @@ def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
         _refuse(sk, ag)
         for j in ag.vars.values():
             ag.init[j] = _int(ag.init[j], f"agent '{ag.name}': an initial variable")
-    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop)
+    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop, ack_timing == "bounded")
     lines = [f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
              f"#define SLOTS {slots}",
-             "typedef Copy { byte used; byte snd; byte rcv; byte typ; "
+             f"#define OUTBOX {OUTBOX}", f"#define SEEN {SEEN}",
+             f"#define ACK_T {len(types)}",
+             "typedef Copy { byte used; byte snd; byte rcv; byte typ; int mid; "
              + " ".join(f"int f{k};" for k in range(nf)) + " }",
-             "Copy fl[SLOTS];", "byte losses = 0;", "byte dups = 0;", "bit overflow = 0;",
-             "hidden byte sl;", "hidden byte r_snd;", "hidden byte r_typ;",
+             "typedef Out { byte used; byte snd; int mid; byte typ; byte wait; byte left; "
+             + " ".join(f"int f{k};" for k in range(nf)) + " }",
+             "typedef Seen { byte used; byte rcv; byte snd; int mid }",
+             "Copy fl[SLOTS];", "Out ob[OUTBOX];", "Seen sn[SEEN];",
+             f"byte nid[{len(agents)}];",
+             "byte losses = 0;", "byte dups = 0;", "bit overflow = 0;", "bit moved = 0;",
+             "hidden byte sl;", "hidden byte so;", "hidden byte r_snd;", "hidden int r_mid;",
+             "hidden byte held;", "hidden byte r_typ;", "hidden int s_mid;",
              *[f"hidden int r_f{k};" for k in range(nf)]]
     for ag in agents:
         on = _default_config(ag.ca)
@@ -172,7 +201,8 @@ def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
         lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
         lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
     lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
-    config = _config_print(agents)
+    first = _config_print(agents)
+    config = f"if :: moved -> {first} moved = 0 :: else -> skip fi"
     for ag in agents:
         lines += ctx.agent_proc(ag, config)
     lines += ctx.network_proc(losses, duplicates, config)
@@ -180,7 +210,7 @@ def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
     lines += ["proctype watcher() {", "  timeout -> d_step { " + _print(
         "T", agents, " %d", _deadlock_expr(sk, agents)) + " }", "}"]
     runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
-    lines += ["init {", "  atomic { " + config + f" {runs} run network(); run scenario(); "
+    lines += ["init {", "  atomic { " + first + f" {runs} run network(); run scenario(); "
               "run watcher(); }", "}", ""]
     return "\n".join(lines)
 
@@ -206,9 +236,6 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
             raise Unsupported(f"{who}: mode {m.path or m.name} has history")
         if m.on_entry or m.on_exit:
             raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
-    for name, policy in ca.policies.items():
-        if policy.acknowledged:
-            raise Unsupported(f"{who}: message '{name}' is acknowledged (ack:)")
     if any(e for b, e in sk.world_events if b == ag.a):
         raise Unsupported(f"{who}: world events")
     timed = set(sk.time_driven[ag.a])
@@ -313,9 +340,9 @@ def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str
 class _Ctx:
     """Translation of guards, actions and steps (one model's worth of names)."""
 
-    def __init__(self, sk, agents, fields, exact, types, slots, drop) -> None:
+    def __init__(self, sk, agents, fields, exact, types, slots, drop, bounded) -> None:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
-        self.types, self.slots, self.drop = types, slots, drop
+        self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
 
     # -- expressions
     def expr(self, ag: _Agent, source: str, on: str | None, free: list[str] | None = None,
@@ -402,34 +429,51 @@ class _Ctx:
         if not tr.internal:
             on: set[int] = set()
             _entered(ag.ca, tr.entry, on)  # type: ignore[arg-type]
-            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)]
+            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)] + ["moved = 1;"]
         return out
 
     def send(self, ag: _Agent, act, on: str | None) -> list[str]:
-        """A plain datagram to its receivers (as engine.run.network.send picks them)."""
+        """A send: a datagram to each receiver (as engine.run.network.send picks them),
+        through the acknowledged layer (engine.run.reliable.send: a fresh id, an outbox
+        entry waiting for the receivers' acks) when the type's policy asks for acks."""
         typ = self.types.index(act.name)
         values = [self.expr(ag, act.fields[f].source, on) if f in act.fields else "0"
                   for f in self.exact.get(act.name, [])]
         n = len(self.agents)
         others = [r for r in range(n) if r != ag.a]
+        everyone = sum(1 << r for r in others)
+        to = None
         if act.to_expr is not None:
             to = self.expr(ag, act.to_expr.source, on)
+        elif act.to == REPLY and on is not None:
+            to = "r_snd"
+        if to is not None:
             pairs = [(f"(({to}) == {r} || ({to}) < 0)", r) for r in others]
-        elif act.to == REPLY:
-            pairs = [("1", r) for r in others] if on is None else \
-                [(f"r_snd == {r}", r) for r in others]
-        elif act.to is None:
+            wait = f"(({to}) < 0 -> {everyone} : (1 << ({to})))"
+        elif act.to is None or act.to == REPLY:
             pairs = [("1", r) for r in others]
+            wait = str(everyone)
         else:
             pairs = [("1", int(act.to))]
+            wait = str(1 << int(act.to))
+        policy = ag.ca.policies.get(act.name)
         out = []
+        mid = "-1"
+        if policy is not None and policy.acknowledged:
+            retries = self.expr(ag, policy.retries.source, None)  # type: ignore[union-attr]
+            put = [f"ob[so].used = 1; ob[so].snd = {ag.a}; ob[so].mid = nid[{ag.a}]; "
+                   f"ob[so].typ = {typ}; ob[so].wait = {wait}; ob[so].left = {retries};"] + [
+                f"ob[so].f{k} = {v};" for k, v in enumerate(values)]
+            out.append(f"if :: nid[{ag.a}] >= {MAX_IDS} -> overflow = 1 :: else -> skip fi; "
+                       "so = 0; do :: so < OUTBOX && ob[so].used -> so++ :: else -> break od; "
+                       "if :: so == OUTBOX -> overflow = 1 :: else -> " + " ".join(put)
+                       + f" fi; so = 0; s_mid = nid[{ag.a}]; nid[{ag.a}]++;")
+            mid = "s_mid"
         for cond, r in pairs:
-            put = [f"fl[sl].used = 1; fl[sl].snd = {ag.a}; fl[sl].rcv = {r}; "
-                   f"fl[sl].typ = {typ};"] + [f"fl[sl].f{k} = {v};"
-                                              for k, v in enumerate(values)]
-            out.append(f"if :: {cond} -> sl = 0; do :: sl < SLOTS && fl[sl].used -> sl++ "
-                       ":: else -> break od; if :: sl == SLOTS -> overflow = 1 :: else -> "
-                       + " ".join(put) + " fi; sl = 0 :: else -> skip fi;")
+            out.append(f"if :: {cond} -> {_put(str(ag.a), str(r), str(typ), mid, values)} "
+                       ":: else -> skip fi;")
+        if mid != "-1":
+            out.append("s_mid = 0;")
         return out
 
     def dispatch(self, ag: _Agent, event: str, on: str | None, bits: dict[str, int],
@@ -458,16 +502,28 @@ class _Ctx:
         out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
         for t, name in enumerate(self.types):
             free: list[str] = []
-            body = self.dispatch(ag, name, name, {}, free)
+            body = " ".join(self.dispatch(ag, name, name, {}, free))
+            screen = self.screen(ag, name)
             for bits in _assignments(free, ag.name):
                 for k in range(self.slots):
-                    read = (f"r_snd = fl[{k}].snd; " + " ".join(
+                    read = (f"r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; " + " ".join(
                         f"r_f{i} = fl[{k}].f{i};" for i in range(len(self.exact[name])))
                         + f" {_clear(k, self.exact)}")
-                    code = _subst(" ".join(body), bits)
-                    out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
-                               f"fl[{k}].typ == {t} -> {read} {code} {_reset(self.exact)}"
-                               " }; " + config + " }")
+                    code = _subst(body, bits)
+                    out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == "
+                               f"{ag.a} && fl[{k}].typ == {t} -> {read} {screen} "
+                               f"if :: !held -> {code} :: else -> skip fi; "
+                               f"{_reset(self.exact)} }}; {config} }}")
+        for k in range(self.slots):  # an ack arrives (engine.run.reliable.screen)
+            out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
+                       f"fl[{k}].typ == ACK_T -> r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
+                       f"{_clear(k, self.exact)} so = 0; do :: so < OUTBOX -> if :: "
+                       f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
+                       "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
+                       f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
+                       f"so++ :: else -> break od; so = 0; {_reset(self.exact)} }}; "
+                       f"{config} }}")
+        out += self.timers(ag, config)
         for j in self.sk.time_driven[ag.a]:
             if self.drop == (ag.a, j):
                 continue
@@ -478,6 +534,65 @@ class _Ctx:
                 out.append(f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
                            + " ".join(self.fire(ag, tr)) + " }; " + config + " }")
         out += ["  od", "}"]
+        return out
+
+    def screen(self, ag: _Agent, name: str) -> str:
+        """The acknowledged layer's look at an arriving copy (engine.run.reliable.screen):
+        an ack back for an acknowledged one, and, where its sender's policy filters
+        duplicates, ``held`` when the (receiver, sender, id) was seen before."""
+        dedupe = [b for b, o in enumerate(self.agents)
+                  if (p := o.ca.policies.get(name)) is not None and p.acknowledged
+                  and p.dedupe]
+        if not any((p := o.ca.policies.get(name)) is not None and p.acknowledged
+                   for o in self.agents):
+            return "held = 0;"
+        ack = _put(str(ag.a), "r_snd", "ACK_T", "r_mid", [])
+        out = f"held = 0; if :: r_mid >= 0 -> {ack} :: else -> skip fi;"
+        if dedupe:
+            filt = " || ".join(f"r_snd == {b}" for b in dedupe)
+            out += (f" if :: r_mid >= 0 && ({filt}) -> so = 0; do :: so < SEEN -> if :: "
+                    f"sn[so].used && sn[so].rcv == {ag.a} && sn[so].snd == r_snd && "
+                    "sn[so].mid == r_mid -> held = 1 :: else -> skip fi; so++ "
+                    ":: else -> break od; if :: !held -> so = 0; do :: so < SEEN && "
+                    "sn[so].used -> so++ :: else -> break od; if :: so == SEEN -> "
+                    f"overflow = 1 :: else -> sn[so].used = 1; sn[so].rcv = {ag.a}; "
+                    "sn[so].snd = r_snd; sn[so].mid = r_mid fi :: else -> skip fi; so = 0 "
+                    ":: else -> skip fi;")
+        return out
+
+    def timers(self, ag: _Agent, config: str) -> list[str]:
+        """Retransmission timers of ``ag``'s outbox entries (engine.run.reliable.on_timer):
+        with ``--ack-timing bounded`` only once no copy of the message nor an ack of it
+        flies; resend to each receiver still waiting, or, out of retries, drop the entry
+        and raise ``<type>_undeliverable`` at the sender."""
+        if not any(p.acknowledged for p in ag.ca.policies.values()):
+            return []
+        out = []
+        acked = [t for t, name in enumerate(self.types)
+                 if (p := ag.ca.policies.get(name)) is not None and p.acknowledged]
+        for o in range(OUTBOX):
+            e = f"ob[{o}]"
+            cond = f"{e}.used && {e}.snd == {ag.a}"
+            if self.bounded:
+                cond += " && !(" + " || ".join(
+                    f"(fl[{k}].used && fl[{k}].mid == {e}.mid && ((fl[{k}].typ != ACK_T && "
+                    f"fl[{k}].snd == {ag.a}) || (fl[{k}].typ == ACK_T && fl[{k}].rcv == "
+                    f"{ag.a})))" for k in range(self.slots)) + ")"
+            values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
+            resend = " ".join(
+                f"if :: {e}.wait & {1 << r} -> "
+                f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
+                for r in range(len(self.agents)) if r != ag.a)
+            out.append(f"  :: atomic {{ d_step {{ {cond} && {e}.left > 0 -> {e}.left--; "
+                       f"{resend} }}; {config} }}")
+            for t in acked:
+                free: list[str] = []
+                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None,
+                                              {}, free))
+                for bits in _assignments(free, ag.name):
+                    out.append(f"  :: atomic {{ d_step {{ {cond} && {e}.left == 0 && "
+                               f"{e}.typ == {t} -> {_clear_out(str(o), self.exact)} "
+                               f"{_subst(body, bits)} }}; {config} }}")
         return out
 
     def changes(self, ag: _Agent, tr) -> str:
@@ -501,7 +616,7 @@ class _Ctx:
                            f"{_clear(k, self.exact)} losses++ }}; " + config + " }")
             if duplicates:
                 copy = " ".join(f"fl[sl].{f} = fl[{k}].{f};" for f in
-                                ["used", "snd", "rcv", "typ"] + [
+                                ["used", "snd", "rcv", "typ", "mid"] + [
                                     f"f{i}" for i in range(_nf(self.exact))])
                 out.append(f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> "
                            "sl = 0; "
@@ -526,17 +641,32 @@ class _Ctx:
         return out
 
 
+def _put(snd: str, rcv: str, typ: str, mid: str, values: list[str]) -> str:
+    """A copy into the first free slot (overflow flagged when there is none)."""
+    put = [f"fl[sl].used = 1; fl[sl].snd = {snd}; fl[sl].rcv = {rcv}; fl[sl].typ = {typ}; "
+           f"fl[sl].mid = {mid};"] + [f"fl[sl].f{k} = {v};" for k, v in enumerate(values)]
+    return ("sl = 0; do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
+            "if :: sl == SLOTS -> overflow = 1 :: else -> " + " ".join(put) + " fi; sl = 0;")
+
+
 def _nf(exact: dict) -> int:
     return max([len(v) for v in exact.values()] + [1])
 
 
 def _clear(k: int, exact: dict) -> str:
     return (f"fl[{k}].used = 0; fl[{k}].snd = 0; fl[{k}].rcv = 0; fl[{k}].typ = 0; "
+            f"fl[{k}].mid = 0; "
             + " ".join(f"fl[{k}].f{i} = 0;" for i in range(_nf(exact))))
 
 
+def _clear_out(o: str, exact: dict) -> str:
+    return (f"ob[{o}].used = 0; ob[{o}].snd = 0; ob[{o}].mid = 0; ob[{o}].typ = 0; "
+            f"ob[{o}].wait = 0; ob[{o}].left = 0; "
+            + " ".join(f"ob[{o}].f{i} = 0;" for i in range(_nf(exact))))
+
+
 def _reset(exact: dict) -> str:
-    return "r_snd = 0; " + " ".join(f"r_f{i} = 0;" for i in range(_nf(exact)))
+    return "r_snd = 0; r_mid = 0; held = 0; " + " ".join(f"r_f{i} = 0;" for i in range(_nf(exact)))
 
 
 def _assignments(free: list[str], who: str) -> list[dict[int, int]]:
@@ -636,7 +766,8 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
                 dead.add(c)
                 bad |= flag == "1"
     if over:
-        raise RuntimeError(f"more copies in flight than the model's {SLOTS} slots")
+        raise RuntimeError(f"the model's slots overflowed ({SLOTS} copies in flight, "
+                           f"{OUTBOX} outbox entries, {SEEN} filter entries, {MAX_IDS} ids)")
     return Exploration(configs, dead, not bad)
 
 
@@ -644,7 +775,8 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
     """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
     anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
-    return export(report.skeleton, opts.losses, opts.duplicates, drop=drop)
+    return export(report.skeleton, opts.losses, opts.duplicates, drop=drop,
+                  ack_timing=opts.ack_timing)
 
 
 def compare(report, opts, folder: Path, drop: tuple[int, int] | None = None,

@@ -14,7 +14,7 @@ import pytest
 from hybridteam import load
 from hybridteam.cli import main
 from hybridteam.verify import Options, promela, spin, verify
-from tests.verify.test_verify import GO, roles_team
+from tests.verify.test_verify import GO, REQUEST, mutate, roles_team
 from tests.verify.test_verify_bounds import BOUNDED
 
 needs_spin = pytest.mark.skipif(spin.missing() is not None,
@@ -179,6 +179,55 @@ def test_one_message_steps_both_regions_of_a_parallel_mode(tmp_path):
     assert c.differences() == []
 
 
+def acked_go(retries: int) -> str:
+    return GO.replace("agents:\n", "messages:\n  go: {ack: {timeout: 0.1, retries: "
+                      f"{retries}}}}}\nagents:\n", 1)
+
+
+@needs_spin
+@pytest.mark.parametrize("retries,losses,deadlock", [
+    (0, 1, False),  # the one copy lost: go_undeliverable, the follower waits for ever
+    (1, 1, True),  # a lost go, or a lost ack (the copy resent is filtered), is resent
+    (1, 2, False),  # both copies lost
+])
+def test_the_acknowledged_layer_agrees(tmp_path, retries, losses, deadlock):
+    """The acknowledged go: resends, duplicate filter, acks lost too, undeliverable. The
+    configurations are GO's five (the follower drives once a copy arrives); the lost go's
+    dead end (leader Done, follower Wait) is there exactly when every copy may be lost."""
+    c = compared(tmp_path, acked_go(retries), Options(losses=losses, duplicates=1))
+    assert c.ours.configurations == c.spin.configurations == {
+        "1100|1100", "1010|1100", "1001|1100", "1010|1010", "1001|1010"}
+    assert c.ours.deadlock is c.spin.deadlock is deadlock
+    assert c.spin.dead_ends == c.ours.dead_ends == (
+        {"1001|1010"} if deadlock else {"1001|1010", "1001|1100"})
+    assert c.differences() == []
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_role_protocol_and_a_mutant_agree(tmp_path):
+    """Two robots and the operator, a request, no loss: the protocol (acknowledged, guards
+    over discrete variables and a free min-hold guard, broadcasts) and the mutant whose
+    requester leads when it asks (SPIN's unreduced search takes minutes on a loaded
+    machine)."""
+    opts = Options(losses=0)
+    for protocol in (None, mutate(REQUEST, REQUEST.replace("to: Requesting", "to: Lead"))):
+        kw = {} if protocol is None else {"protocol": protocol}
+        report = verify(roles_team(tmp_path, "b", without_c=True, **kw), opts, replay=False)
+        c = promela.compare(report, opts, tmp_path / "spin-rules")
+        assert c.spin.configurations and c.differences() == []
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_role_protocol_with_a_loss_agrees(tmp_path):
+    """As above with one loss (SPIN's unreduced search: millions of states, minutes)."""
+    opts = Options(losses=1)
+    report = verify(roles_team(tmp_path, "b", without_c=True), opts, replay=False)
+    c = promela.compare(report, opts, tmp_path / "spin-rules")
+    assert c.differences() == []
+
+
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "automata"
 
 
@@ -217,11 +266,13 @@ def test_the_export_is_promela_spin_compiles(tmp_path):
     assert c.differences() == []
 
 
-def test_acknowledged_messages_are_refused_with_one_line(tmp_path):
-    report = verify(roles_team(tmp_path, "b", without_c=True), Options(losses=0),
-                    replay=False)
-    with pytest.raises(promela.Unsupported, match=r"^agent 'a': message '\w+' is "
-                       r"acknowledged \(ack:\)$"):
+RAISES = GO.replace("{to: Drive, on: go}", "{to: Drive, on: go, do: [{raise: moving}]}")
+
+
+def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
+    report = verify(team(tmp_path, RAISES, "raises"), Options(losses=0), replay=False)
+    with pytest.raises(promela.Unsupported, match=r"^agent 'follower' Wait -> Drive: a "
+                       r"raise action$"):
         promela.prepare(report, Options(losses=0))
 
 
@@ -258,10 +309,12 @@ def test_cli_spin_rules_without_spin_is_one_line_exit_2(tmp_path, capsys, monkey
     assert not (tmp_path / "o").exists()
 
 
-def test_cli_spin_rules_refuses_an_acknowledged_model_before_writing(tmp_path, capsys):
-    roles_team(tmp_path, "b", without_c=True)
-    code = main(["verify", str(tmp_path / "team.yaml"), "--losses", "0", "--spin-rules",
+def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, capsys):
+    (tmp_path / "raises.yaml").write_text(RAISES)
+    code = main(["verify", str(tmp_path / "raises.yaml"), "--losses", "0", "--spin-rules",
                  "-o", str(tmp_path / "o"), "--progress", "none"])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "not translated" in err[0] and "ack" in err[0]
+    assert code == 2 and len(err) == 1
+    assert "--spin-rules: not translated: agent 'follower' Wait -> Drive: a raise action" \
+        in err[0]
     assert not (tmp_path / "o").exists()
