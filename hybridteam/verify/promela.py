@@ -75,7 +75,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hybridteam.engine.compile.compiled import REPLY, CAgent, Entry
+from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.engine.compile.compiler import message_fields
 from hybridteam.expr.compiler import free_names
 from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
@@ -284,14 +284,14 @@ def _above(ca: CAgent, m: int, n: int) -> bool:
     return False
 
 
-def _entered(ca: CAgent, entry: Entry, out: set[int]) -> None:
+def _entered(ca: CAgent, entry, out: set[int]) -> None:
     """The modes ``entry`` activates (no history: refused), as AgentState.enter has it."""
     if not entry.active_first:
         out.add(entry.first)
     _below(ca, entry.first, entry, out)
 
 
-def _below(ca: CAgent, m: int, entry: Entry, out: set[int]) -> None:
+def _below(ca: CAgent, m: int, entry, out: set[int]) -> None:
     if m in entry.targets:
         _default(ca, m, out)
         return
@@ -445,12 +445,12 @@ class _Ctx:
         to = None
         if act.to_expr is not None:
             to = self.expr(ag, act.to_expr.source, on)
-        elif act.to == REPLY and on is not None:
+        elif _reply(act) and on is not None:
             to = "r_snd"
         if to is not None:
             pairs = [(f"(({to}) == {r} || ({to}) < 0)", r) for r in others]
             wait = f"(({to}) < 0 -> {everyone} : (1 << ({to})))"
-        elif act.to is None or act.to == REPLY:
+        elif act.to is None or _reply(act):
             pairs = [("1", r) for r in others]
             wait = str(everyone)
         else:
@@ -639,6 +639,12 @@ class _Ctx:
             out += ["  if", *options, "  fi;"]
         out += ["  skip", "}"]
         return out
+
+
+def _reply(act) -> bool:
+    """``to: sender``: the compiled team marks it with a negative agent index (no agent
+    has one)."""
+    return act.to is not None and act.to < 0
 
 
 def _put(snd: str, rcv: str, typ: str, mid: str, values: list[str]) -> str:
