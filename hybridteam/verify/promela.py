@@ -70,7 +70,7 @@ from __future__ import annotations
 import ast
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -109,7 +109,6 @@ class Exploration:
 class Comparison:
     ours: Exploration
     spin: Exploration
-    notes: list[str] = field(default_factory=list)
 
     def differences(self) -> list[str]:
         """Each way the explorations differ, in words (empty: they agree)."""
@@ -476,8 +475,7 @@ class _Ctx:
             out.append("s_mid = 0;")
         return out
 
-    def dispatch(self, ag: _Agent, event: str, on: str | None, bits: dict[str, int],
-                 free: list[str]) -> list[str]:
+    def dispatch(self, ag: _Agent, event: str, on: str | None, free: list[str]) -> list[str]:
         """select_and_fire for the transitions ``event`` wakes: enabled ones (in precedence
         order) fire unless an earlier chosen one conflicts; guards are read before any
         fires. ``free`` collects the free comparisons read (FREE<k> placeholders)."""
@@ -502,7 +500,7 @@ class _Ctx:
         out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
         for t, name in enumerate(self.types):
             free: list[str] = []
-            body = " ".join(self.dispatch(ag, name, name, {}, free))
+            body = " ".join(self.dispatch(ag, name, name, free))
             screen = self.screen(ag, name)
             for bits in _assignments(free, ag.name):
                 for k in range(self.slots):
@@ -587,8 +585,7 @@ class _Ctx:
                        f"{resend} }}; {config} }}")
             for t in acked:
                 free: list[str] = []
-                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None,
-                                              {}, free))
+                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free))
                 for bits in _assignments(free, ag.name):
                     out.append(f"  :: atomic {{ d_step {{ {cond} && {e}.left == 0 && "
                                f"{e}.typ == {t} -> {_clear_out(str(o), self.exact)} "
@@ -633,7 +630,7 @@ class _Ctx:
         for _, a, name in self.sk.original.scenario:
             ag = self.agents[a]
             free: list[str] = []
-            body = self.dispatch(ag, name, None, {}, free)
+            body = self.dispatch(ag, name, None, free)
             options = [f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; "
                        f"{config} }}" for bits in _assignments(free, ag.name)]
             out += ["  if", *options, "  fi;"]
