@@ -201,7 +201,7 @@ def export(sk: Skeleton, losses: int, duplicates: int, slots: int = SLOTS,
         lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
     lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
     first = _config_print(agents)
-    config = f"if :: moved -> {first} moved = 0 :: else -> skip fi"
+    config = f"if :: moved || overflow -> {first} moved = 0 :: else -> skip fi"
     for ag in agents:
         lines += ctx.agent_proc(ag, config)
     lines += ctx.network_proc(losses, duplicates, config)

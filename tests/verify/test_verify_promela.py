@@ -318,3 +318,14 @@ def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, 
     assert "--spin-rules: not translated: agent 'follower' Wait -> Drive: a raise action" \
         in err[0]
     assert not (tmp_path / "o").exists()
+
+
+@needs_spin
+def test_a_model_that_outgrows_the_slots_is_reported_not_compared(tmp_path):
+    """One slot for copies in flight: the go and its duplicate need two, so the model
+    cannot hold every behaviour; SPIN's run says so instead of comparing."""
+    opts = Options(losses=0, duplicates=2)
+    report = verify(team(tmp_path, acked_go(1), "team"), opts, replay=False)
+    text = promela.export(report.skeleton, 0, 2, slots=1)
+    with pytest.raises(RuntimeError, match="slots overflowed"):
+        promela.run_spin(text, tmp_path / "x")
