@@ -36,21 +36,20 @@ state) is a nondeterministic truth value: each step is written once per assignme
 free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
 step is enabled only when it changes the state.
 
-**How the configurations are collected (soundly).** Every step that fires a transition ends
-with a ``printf`` of the projected configuration (per agent its active modes as bits); a
-step that fires none (a loss, an ack, a withheld copy) leaves the configuration as it was,
-so every reachable state's configuration is the initial one or that of a printed step's
-target. pan compiled with
-``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no partial-order
-reduction; ``spin -o2``: SPIN would otherwise keep variables it judges write-only —
-mode bits read only by the prints — out of the state vector, merging states that differ
-in them), in which every transition out of every reachable state is executed once, so
-every such step out of a reachable state prints, and nothing unreachable does: the
-printed set is exactly the reachable projected configurations (the
-initial one is printed by ``init`` before any agent starts). A ``watcher`` proctype waits
-on ``timeout`` (true exactly when no other statement is executable: a dead end) and
-prints the dead end's configuration and whether it is a deadlock by the definition of
-:mod:`.properties` (written here as a predicate over the mode bits).
+**How the configurations are collected (soundly).** Every step that fires a transition
+(or overflows a slot) ends with a ``printf`` of the projected configuration (per agent
+its active modes as bits); a step that fires none (a loss, an ack, a withheld copy)
+leaves the configuration as it was, so every reachable state's configuration is the
+initial one (printed by ``init`` before any agent starts) or that of a printed step's
+target. pan compiled with ``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search
+(no bitstate, no partial-order reduction) in which every transition out of every
+reachable state is executed once, so every such step prints, and nothing unreachable
+does: the printed set is exactly the reachable projected configurations. ``spin -o2``:
+SPIN would otherwise keep variables it judges write-only (mode bits read only by the
+prints) out of the state vector, merging states that differ in them. A ``watcher``
+proctype waits on ``timeout`` (true exactly when no other statement is executable: a
+dead end) and prints the dead end's configuration and whether it is a deadlock by the
+definition of :mod:`.properties` (written here as a predicate over the mode bits).
 
 **Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
 and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
