@@ -11,7 +11,8 @@ sequence chart), one the simulator cannot follow is reported as spurious, with t
 Writes ``OUT/verify.json``. Exit status: 0 when every property checked holds, 1 on a
 violation a run reproduces (or any violation with ``--no-replay``), 2 on bad input, 3 when
 the only violations are spurious (the skeleton's, not the simulator's), 4 when ``--spin``
-was asked and SPIN's verdict differs from ours on some property.
+was asked and SPIN's verdict differs from ours on some property, or ``--spin-rules`` was
+asked and SPIN's own exploration of the team's rules differs from ours.
 """
 
 from __future__ import annotations
@@ -131,6 +132,16 @@ def register(sub) -> dict:
         "response property on it; needs 'spin' and a C compiler (skipped "
         "with a note otherwise); exit 4 if SPIN disagrees with a verdict",
     )
+    ve.add_argument(
+        "--spin-rules",
+        action="store_true",
+        help="an independent second explorer: export the team's rules (not the "
+        "explored graph) to Promela (OUT/spin-rules/rules.pml), let SPIN "
+        "explore them and compare the reachable mode configurations, dead "
+        "ends and the deadlock verdict with ours; needs 'spin' and a C "
+        "compiler; exit 4 if they differ, 2 for a model it does not "
+        "translate (docs/verify.md)",
+    )
     ve.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     ve.add_argument(
         "--progress",
@@ -151,6 +162,12 @@ def _check(args) -> None:
         raise UsageError(f"--max-values must be at least 1, got {args.max_values}")
     if args.max_memory is not None and not 0 < args.max_memory < math.inf:
         raise UsageError(f"--max-memory must be a finite number > 0, got {args.max_memory}")
+    if args.spin_rules:
+        from hybridteam.verify import spin
+
+        why = spin.missing()
+        if why:
+            raise UsageError(f"--spin-rules: {why}")
 
 
 def cmd_verify(args) -> int:
@@ -183,6 +200,7 @@ def cmd_verify(args) -> int:
             f"--property: '{exc.name}' is not a property of {args.team} (its "
             f"properties: {', '.join(exc.known)})" + (f"; {hint}" if hint else "")
         ) from None
+    rules = _rules(report, opts) if args.spin_rules else None
     if report.graph.bound is not None and args.progress != "none":  # before the replays
         print(f"hybridteam: verify: stopped: {report.graph.bound}", file=sys.stderr, flush=True)
     if not args.no_replay:
@@ -206,6 +224,9 @@ def cmd_verify(args) -> int:
     disagree = False
     if args.spin:
         summary["spin"], disagree = _spin(report, out)
+    if rules is not None:
+        summary["spin_rules"], differ = _spin_rules(report, opts, rules, out)
+        disagree |= differ
     write_atomic(out / "verify.json", json.dumps(summary, indent=1) + "\n")
     print(f"wrote {out / 'verify.json'}")
     if disagree:
@@ -235,6 +256,44 @@ def _spin(report, out) -> tuple[dict, bool]:
             for o in opinions
         },
         any(o.spin is not None and not o.agrees for o in opinions),
+    )
+
+
+def _rules(report, opts) -> str:
+    """The Promela rules of the team, or a usage error naming what is not translated."""
+    from hybridteam.verify import promela
+
+    try:
+        return promela.prepare(report, opts)
+    except promela.Unsupported as exc:
+        raise UsageError(f"--spin-rules: not translated: {exc}") from None
+
+
+def _spin_rules(report, opts, rules: str, out) -> tuple[dict, bool]:
+    """Both explorers' configuration counts and deadlock verdicts, and where they differ."""
+    from hybridteam.verify import promela
+
+    try:
+        c = promela.compare(report, opts, out / "spin-rules", promela=rules)
+    except RuntimeError as exc:
+        print(f"spin-rules: failed: {exc}")
+        return {"failed": str(exc)}, True
+    diff = c.differences()
+    for who, e in (("ours", c.ours), ("SPIN", c.spin)):
+        print(
+            f"spin-rules: {who}: {len(e.configurations)} mode configurations, "
+            f"{len(e.dead_ends)} at dead ends, deadlock "
+            f"{'holds' if e.deadlock else 'violated'}"
+        )
+    print("spin-rules: " + ("the explorers agree" if not diff else "DIFFER: " + "; ".join(diff)))
+    return (
+        {
+            "ours": len(c.ours.configurations),
+            "spin": len(c.spin.configurations),
+            "deadlock": {"ours": c.ours.deadlock, "spin": c.spin.deadlock},
+            "differences": diff,
+        },
+        bool(diff),
     )
 
 

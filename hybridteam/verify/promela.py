@@ -1,0 +1,919 @@
+"""An independent second explorer: the skeleton's *rules* as Promela, explored by SPIN.
+
+:mod:`.spin` hands SPIN the graph our explorer built, so SPIN cannot notice a successor
+the explorer missed. Here SPIN gets the rules instead and explores the protocol on its
+own; the two explorations are then compared (:func:`compare`).
+
+**What is shared and what is not.** The export reads the *compiled* team (modes, the
+precedence order of transitions, their conflict sets, entry and exit sets, parameter
+values and initial variables) and the skeleton's classification of what is exact and what
+is abstracted (:mod:`.abstraction`). It does not use :class:`~.machine.Machine` or the
+engine's discrete phase: the run-time semantics — which transitions an event wakes, which
+of them fire (:func:`~hybridteam.engine.run.discrete.select_and_fire`), exit then actions
+then entry, where a send goes, the explorer's choices — is written again in Promela.
+
+**The acknowledged layer** (``ack:``) is written again after
+:mod:`hybridteam.engine.run.reliable`: a send takes the sender's next id and leaves an
+outbox entry waiting for each receiver's ack; an arriving copy with an id is answered with
+an ack and, where the sender's policy filters duplicates, withheld when its (receiver,
+sender, id) was seen; an ack clears its receiver from the entry; a retransmission timer
+(only once no copy of the message nor an ack of it flies, as ``--ack-timing bounded``
+has it) resends to the receivers still waiting or, out of retries, drops the entry and
+raises ``<type>_undeliverable`` at the sender. Ids, outbox and filter entries are not
+renumbered or pruned as our canonical form does: SPIN's states are more, its
+configurations the same.
+
+**The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
+discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
+arrive next, as ``--order any`` has it); an agent's step takes one copy addressed to it
+and dispatches it as the engine does (the transitions on its type, in precedence order,
+each enabled one firing unless an earlier chosen one conflicts with it). A ``network``
+proctype loses or duplicates a copy within the budgets (``--losses``, ``--duplicates``),
+a ``scenario`` proctype raises the scenario's events in order, and a time-driven
+transition (``after:``, or a guard that reads time or state) may fire whenever its source
+is active (``--timeouts any``: no clock needed). A free comparison (one that reads time or
+state) is a nondeterministic truth value: each step is written once per assignment of the
+free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
+step is enabled only when it changes the state.
+
+**How the configurations are collected (soundly).** Every step that fires a transition
+(or overflows a slot) ends with a ``printf`` of the projected configuration (per agent
+its active modes as bits); a step that fires none (a loss, an ack, a withheld copy)
+leaves the configuration as it was, so every reachable state's configuration is the
+initial one (printed by ``init`` before any agent starts) or that of a printed step's
+target. pan compiled with ``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search
+(no bitstate, no partial-order reduction) in which every transition out of every
+reachable state is executed once, so every such step prints, and nothing unreachable
+does: the printed set is exactly the reachable projected configurations. ``spin -o2``:
+SPIN would otherwise keep variables it judges write-only (mode bits read only by the
+prints) out of the state vector, merging states that differ in them. A ``watcher``
+proctype waits on ``timeout`` (true exactly when no other statement is executable: a
+dead end) and prints the dead end's configuration and whether it is a deadlock by the
+definition of :mod:`.properties` (written here as a predicate over the mode bits).
+
+**Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
+and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
+equal configuration sets decide equally every invariant that reads only modes.
+
+**Scope.** A feature this module cannot translate exactly refuses the model with one line
+naming it (:class:`Unsupported`) rather than exporting an approximation: ``raise``
+actions, entry and exit actions, history, role carry-over, urgent transitions with exact
+guards, world events, time-driven transitions back into their own mode (other than a leaf
+into itself, or targetless), non-integer values, ``--order fifo`` and
+``--timeouts own|long``. A model that outgrows the slots (copies in flight, outbox and
+filter entries, ids) is reported, not compared.
+"""
+
+from __future__ import annotations
+
+import ast
+import itertools
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hybridteam.engine.compile.compiled import CAgent
+from hybridteam.engine.compile.compiler import message_fields
+from hybridteam.expr.compiler import free_names
+from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
+from hybridteam.verify.spin import _run, missing
+
+#: slots for copies in flight (a send beyond them is reported, never dropped silently)
+SLOTS = 8
+#: outbox entries (acknowledged messages awaiting acks) and duplicate-filter entries
+OUTBOX = 8
+SEEN = 16
+#: message ids one agent may hand out (the acknowledged layer's per-sender counter)
+MAX_IDS = 200
+#: free comparisons one step may read (each doubles the step's options)
+MAX_FREE = 6
+
+
+class Unsupported(Exception):
+    """The model uses a feature the export does not translate exactly (one line)."""
+
+
+@dataclass
+class Exploration:
+    """What one explorer found: projected configurations, dead ends, the deadlock verdict."""
+
+    configurations: set[str]
+    dead_ends: set[str]
+    deadlock: bool  # True: no deadlock (the property holds)
+
+
+@dataclass
+class Comparison:
+    ours: Exploration
+    spin: Exploration
+
+    def differences(self) -> list[str]:
+        """Each way the explorations differ, in words (empty: they agree)."""
+        out = []
+        for what, a, b in (
+            ("configurations", self.ours.configurations, self.spin.configurations),
+            ("dead-end configurations", self.ours.dead_ends, self.spin.dead_ends),
+        ):
+            if a - b:
+                out.append(f"{len(a - b)} {what} only ours reaches, e.g. {min(a - b)}")
+            if b - a:
+                out.append(f"{len(b - a)} {what} only SPIN reaches, e.g. {min(b - a)}")
+        if self.ours.deadlock != self.spin.deadlock:
+            out.append(
+                f"deadlock: ours {_word(self.ours.deadlock)}, SPIN {_word(self.spin.deadlock)}"
+            )
+        return out
+
+
+def _word(holds: bool) -> str:
+    return "holds" if holds else "violated"
+
+
+# ---------------------------------------------------------------------------- the export
+
+
+class _Agent:
+    """One agent's names in the model and its translation helpers."""
+
+    def __init__(self, sk: Skeleton, a: int, params: np.ndarray, init: np.ndarray) -> None:
+        self.sk, self.a = sk, a
+        self.ca: CAgent = sk.original.agents[a]
+        ca = self.ca
+        self.name = ca.name
+        self.vars = {n: j for n, j in ca.var_index.items() if j in sk.discrete_vars[a]}
+        self.var_name = {j: f"v{a}_{j}" for j in self.vars.values()}
+        self.consts: dict[str, int] = {}
+        for n, j in ca.param_index.items():
+            self.consts[n] = params[j]
+        for n in ca.symbols:
+            if n.startswith("id_"):
+                self.consts[n] = next(
+                    b for b, o in enumerate(sk.original.agents) if o.name == n[3:]
+                )
+        self.init = {j: init[j] for j in self.vars.values()}
+        self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
+
+    def bit(self, m: int) -> str:
+        return f"m{self.a}_{m}"
+
+
+def export(
+    sk: Skeleton,
+    losses: int,
+    duplicates: int,
+    slots: int = SLOTS,
+    drop: tuple[int, int] | None = None,
+    ack_timing: str = "bounded",
+) -> str:
+    """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
+    out one (agent, transition) — only to show that the comparison catches a wrong model."""
+    team = sk.original
+    fields = {k: sorted(v) for k, v in message_fields(team.team).items()}
+    exact = {t: [f for f in fs if (t, f) not in sk.abstract_fields] for t, fs in fields.items()}
+    types = sorted(fields)
+    nf = max([len(v) for v in exact.values()] + [1])
+    from hybridteam.engine.run.ensemble import Ensemble
+
+    ens = Ensemble(team, 1, 0, 1.0, {})  # parameters and initial values, as a run has them
+    agents = []
+    for a, st in enumerate(ens.states):
+        _, v = st.ca.initial_values(st.p[:1])
+        agents.append(
+            _Agent(sk, a, _ints(st.p[0], f"agent '{st.ca.name}': a parameter"), np.asarray(v[0]))
+        )
+    for ag in agents:
+        _refuse(sk, ag)
+        for j in ag.vars.values():
+            ag.init[j] = _int(ag.init[j], f"agent '{ag.name}': an initial variable")
+    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop, ack_timing == "bounded")
+    lines = [
+        f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
+        f"#define SLOTS {slots}",
+        f"#define OUTBOX {OUTBOX}",
+        f"#define SEEN {SEEN}",
+        f"#define ACK_T {len(types)}",
+        "typedef Copy { byte used; byte snd; byte rcv; byte typ; int mid; "
+        + " ".join(f"int f{k};" for k in range(nf))
+        + " }",
+        "typedef Out { byte used; byte snd; int mid; byte typ; byte wait; byte left; "
+        + " ".join(f"int f{k};" for k in range(nf))
+        + " }",
+        "typedef Seen { byte used; byte rcv; byte snd; int mid }",
+        "Copy fl[SLOTS];",
+        "Out ob[OUTBOX];",
+        "Seen sn[SEEN];",
+        f"byte nid[{len(agents)}];",
+        "byte losses = 0;",
+        "byte dups = 0;",
+        "bit overflow = 0;",
+        "bit moved = 0;",
+        "hidden byte sl;",
+        "hidden byte so;",
+        "hidden byte r_snd;",
+        "hidden int r_mid;",
+        "hidden byte held;",
+        "hidden byte r_typ;",
+        "hidden int s_mid;",
+        *[f"hidden int r_f{k};" for k in range(nf)],
+    ]
+    for ag in agents:
+        on = _default_config(ag.ca)
+        lines += [f"bit {ag.bit(m)} = {int(m in on)};" for m in range(len(ag.ca.modes))]
+        lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
+        lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
+    lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
+    first = _config_print(agents)
+    config = f"if :: moved || overflow -> {first} moved = 0 :: else -> skip fi"
+    for ag in agents:
+        lines += ctx.agent_proc(ag, config)
+    lines += ctx.network_proc(losses, duplicates, config)
+    lines += ctx.scenario_proc(config)
+    lines += [
+        "proctype watcher() {",
+        "  timeout -> d_step { " + _print("T", agents, " %d", _deadlock_expr(sk, agents)) + " }",
+        "}",
+    ]
+    runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
+    lines += [
+        "init {",
+        "  atomic { " + first + f" {runs} run network(); run scenario(); run watcher(); }}",
+        "}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _ints(values, what: str) -> np.ndarray:
+    """Parameter values: whole numbers as ints, others None (refused where read)."""
+    return np.array(
+        [int(v) if np.isfinite(v) and float(v).is_integer() else None for v in values], dtype=object
+    )
+
+
+def _int(v, what: str) -> int:
+    v = float(v)
+    if not v.is_integer():
+        raise Unsupported(f"{what} is not a whole number ({v:g})")
+    return int(v)
+
+
+def _refuse(sk: Skeleton, ag: _Agent) -> None:
+    """One line naming the first feature of ``ag`` the export does not translate."""
+    ca, who = ag.ca, f"agent '{ag.name}'"
+    for m in ca.modes:
+        if m.history != "none":
+            raise Unsupported(f"{who}: mode {m.path or m.name} has history")
+        if m.on_entry or m.on_exit:
+            raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
+    if any(e for b, e in sk.world_events if b == ag.a):
+        raise Unsupported(f"{who}: world events")
+    timed = set(sk.time_driven[ag.a])
+    for tr in ca.transitions:
+        where = f"{who} {tr.text}"
+        if tr.carry:
+            raise Unsupported(f"{where}: a role body carried over")
+        if any(act.kind == "raise" for act in tr.actions):
+            raise Unsupported(f"{where}: a raise action")
+        if tr.on is None and tr.index not in timed:
+            raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
+        if (
+            tr.index in timed
+            and not _in_place(ca, tr)
+            and (_above(ca, tr.target, tr.source) or _above(ca, tr.source, tr.target))
+        ):
+            raise Unsupported(f"{where}: a time-driven transition back into its own mode")
+        if tr.index in timed and _in_place(ca, tr) and not _sends(tr):
+            assigned: set[int] = set()
+            for act in tr.actions:
+                if act.kind != "assign" or act.target is None or act.target[0] != "v":
+                    continue
+                assert act.expr is not None  # (an assignment has its expression)
+                reads = {ag.vars[n] for n in act.expr.names if n in ag.vars}
+                if reads & assigned:
+                    raise Unsupported(
+                        f"{where}: a time-driven transition in place whose "
+                        "assignments read each other"
+                    )
+                assigned.add(act.target[1])
+        for act in tr.actions:
+            if act.kind == "send" and act.socket != "control":
+                raise Unsupported(f"{where}: a send on socket '{act.socket}'")
+
+
+def _in_place(ca: CAgent, tr) -> bool:
+    """A transition that leaves the configuration as it is: targetless, or from a leaf
+    back into it."""
+    return tr.internal or (tr.source == tr.target and ca.modes[tr.source].kind == "leaf")
+
+
+def _sends(tr) -> bool:
+    return any(act.kind == "send" for act in tr.actions)
+
+
+def _above(ca: CAgent, m: int, n: int) -> bool:
+    """Whether mode ``m`` is ``n`` or one of its ancestors."""
+    while n >= 0:
+        if n == m:
+            return True
+        n = ca.modes[n].parent
+    return False
+
+
+def _entered(ca: CAgent, entry, out: set[int]) -> None:
+    """The modes ``entry`` activates (no history: refused), as AgentState.enter has it."""
+    if not entry.active_first:
+        out.add(entry.first)
+    _below(ca, entry.first, entry, out)
+
+
+def _below(ca: CAgent, m: int, entry, out: set[int]) -> None:
+    if m in entry.targets:
+        _default(ca, m, out)
+        return
+    for c in ca.modes[m].children:
+        if c in entry.marks:
+            out.add(c)
+            _below(ca, c, entry, out)
+        elif ca.modes[m].kind == "and":
+            out.add(c)
+            _default(ca, c, out)
+
+
+def _default(ca: CAgent, m: int, out: set[int]) -> None:
+    mode = ca.modes[m]
+    if mode.kind == "and":
+        for r in mode.children:
+            out.add(r)
+            _default(ca, r, out)
+    elif mode.kind == "or":
+        _entered(ca, mode.default, out)
+
+
+def _default_config(ca: CAgent) -> set[int]:
+    out = {0}
+    _default(ca, 0, out)
+    return out
+
+
+def _exited(ca: CAgent, tr) -> list[int]:
+    sub = ca.modes[tr.exit_root].subtree
+    return [int(m) for m in (sub[1:] if tr.exit_inside else sub)]
+
+
+def _config_print(agents: list[_Agent]) -> str:
+    """The step's closing print: the projected configuration, and whether a send found
+    no free slot (then the comparison is refused, not made on a truncated model)."""
+    return _print("C", agents, " %d", "overflow")
+
+
+def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str:
+    fmt = "|".join("%d" * len(ag.ca.modes) for ag in agents)
+    args = ", ".join(ag.bit(m) for ag in agents for m in range(len(ag.ca.modes)))
+    return f'printf("{tag} {fmt}{fmt_more}\\n", {args}, {args_more});'
+
+
+class _Ctx:
+    """Translation of guards, actions and steps (one model's worth of names)."""
+
+    def __init__(self, sk, agents, fields, exact, types, slots, drop, bounded) -> None:
+        self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
+        self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
+
+    # -- expressions
+    def expr(
+        self,
+        ag: _Agent,
+        source: str,
+        on: str | None,
+        free: list[str] | None = None,
+        condition: bool = False,
+    ) -> str:
+        """``source`` in Promela; with ``free`` (a guard), comparisons that read abstracted
+        names become free bits ``FREE<k>`` appended to ``free``."""
+        known = ag.known | _message_names(on, self.fields, self.sk.abstract_fields)
+        text = source.strip()
+        node = ast.parse(text, mode="eval").body
+
+        def cond(n) -> str:  # the guard's Boolean structure over its comparisons
+            if isinstance(n, ast.BoolOp):
+                op = " && " if isinstance(n.op, ast.And) else " || "
+                return "(" + op.join(cond(v) for v in n.values) + ")"
+            if isinstance(n, ast.UnaryOp) and isinstance(n.op, ast.Not):
+                return f"(!{cond(n.operand)})"
+            seg = ast.get_source_segment(text, n) or text
+            if free is not None and not free_names(seg, condition=True) <= known:
+                free.append(seg)
+                return f"FREE{len(free) - 1}"
+            return go(n)
+
+        def go(n) -> str:
+            if isinstance(n, (ast.BoolOp, ast.UnaryOp)) and not isinstance(n.op, ast.USub):
+                return cond(n)
+            if isinstance(n, ast.UnaryOp):
+                return f"(-{go(n.operand)})"
+            if isinstance(n, ast.Compare) and len(n.ops) == 1:
+                compare: dict[type[ast.cmpop], str] = {
+                    ast.Eq: "==",
+                    ast.NotEq: "!=",
+                    ast.Lt: "<",
+                    ast.LtE: "<=",
+                    ast.Gt: ">",
+                    ast.GtE: ">=",
+                }
+                op = compare.get(type(n.ops[0]))
+                if op:
+                    return f"({go(n.left)} {op} {go(n.comparators[0])})"
+            if isinstance(n, ast.BinOp):
+                arith: dict[type[ast.operator], str] = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*"}
+                op = arith.get(type(n.op))
+                if op:
+                    return f"({go(n.left)} {op} {go(n.right)})"
+            if isinstance(n, ast.Constant) and isinstance(n.value, bool):
+                return str(int(n.value))
+            if isinstance(n, ast.Constant) and isinstance(n.value, (int, float)):
+                return str(_int(n.value, f"agent '{ag.name}': '{text}'"))
+            if isinstance(n, ast.Name):
+                return self.name(ag, n.id, on, text)
+            raise Unsupported(
+                f"agent '{ag.name}': '{text}': "
+                f"{ast.get_source_segment(text, n) or text} is not translated"
+            )
+
+        return cond(node) if free is not None else go(node)
+
+    def name(self, ag: _Agent, name: str, on: str | None, text: str) -> str:
+        if name in ag.vars:
+            return ag.var_name[ag.vars[name]]
+        if name == "msg_sender" and on is not None:
+            return "r_snd"
+        if name.startswith("msg_") and on in self.exact and name[4:] in self.exact[on]:
+            return f"r_f{self.exact[on].index(name[4:])}"
+        if name in ag.consts:
+            c = ag.consts[name]
+            if isinstance(c, int):
+                return str(c)
+        raise Unsupported(f"agent '{ag.name}': '{text}' reads '{name}', which is not translated")
+
+    # -- one transition
+    def guard(self, ag: _Agent, tr, free: list[str]) -> str:
+        cond = ag.bit(tr.source)
+        if tr.guard is not None:
+            cond += " && " + self.expr(ag, tr.guard.source, tr.on, free, True)
+        return cond
+
+    def fire(self, ag: _Agent, tr) -> list[str]:
+        """Exit (the exit set), actions, entry (the entry set), as engine.run.discrete.fire."""
+        out = []
+        if not tr.internal:
+            out += [f"{ag.bit(m)} = 0;" for m in _exited(ag.ca, tr)]
+        for act in tr.actions:
+            if act.kind == "assign":
+                kind, j = act.target
+                if kind == "v" and j in ag.var_name:
+                    out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, tr.on)};")
+            elif act.kind == "send":
+                out += self.send(ag, act, tr.on)
+        if not tr.internal:
+            on: set[int] = set()
+            _entered(ag.ca, tr.entry, on)
+            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)] + ["moved = 1;"]
+        return out
+
+    def send(self, ag: _Agent, act, on: str | None) -> list[str]:
+        """A send: a datagram to each receiver (as engine.run.network.send picks them),
+        through the acknowledged layer (engine.run.reliable.send: a fresh id, an outbox
+        entry waiting for the receivers' acks) when the type's policy asks for acks."""
+        typ = self.types.index(act.name)
+        values = [
+            self.expr(ag, act.fields[f].source, on) if f in act.fields else "0"
+            for f in self.exact.get(act.name, [])
+        ]
+        n = len(self.agents)
+        others = [r for r in range(n) if r != ag.a]
+        everyone = sum(1 << r for r in others)
+        to = None
+        if act.to_expr is not None:
+            to = self.expr(ag, act.to_expr.source, on)
+        elif _reply(act) and on is not None:
+            to = "r_snd"
+        if to is not None:
+            pairs = [(f"(({to}) == {r} || ({to}) < 0)", r) for r in others]
+            wait = f"(({to}) < 0 -> {everyone} : (1 << ({to})))"
+        elif act.to is None or _reply(act):
+            pairs = [("1", r) for r in others]
+            wait = str(everyone)
+        else:
+            pairs = [("1", int(act.to))]
+            wait = str(1 << int(act.to))
+        policy = ag.ca.policies.get(act.name)
+        out = []
+        mid = "-1"
+        if policy is not None and policy.acknowledged:
+            retries = self.expr(ag, policy.retries.source, None)  # type: ignore[union-attr]
+            put = [
+                f"ob[so].used = 1; ob[so].snd = {ag.a}; ob[so].mid = nid[{ag.a}]; "
+                f"ob[so].typ = {typ}; ob[so].wait = {wait}; ob[so].left = {retries};"
+            ] + [f"ob[so].f{k} = {v};" for k, v in enumerate(values)]
+            out.append(
+                f"if :: nid[{ag.a}] >= {MAX_IDS} -> overflow = 1 :: else -> skip fi; "
+                "so = 0; do :: so < OUTBOX && ob[so].used -> so++ :: else -> break od; "
+                "if :: so == OUTBOX -> overflow = 1 :: else -> "
+                + " ".join(put)
+                + f" fi; so = 0; s_mid = nid[{ag.a}]; nid[{ag.a}]++;"
+            )
+            mid = "s_mid"
+        for cond, r in pairs:
+            out.append(
+                f"if :: {cond} -> {_put(str(ag.a), str(r), str(typ), mid, values)} "
+                ":: else -> skip fi;"
+            )
+        if mid != "-1":
+            out.append("s_mid = 0;")
+        return out
+
+    def dispatch(self, ag: _Agent, event: str, on: str | None, free: list[str]) -> list[str]:
+        """select_and_fire for the transitions ``event`` wakes: enabled ones (in precedence
+        order) fire unless an earlier chosen one conflicts; guards are read before any
+        fires. ``free`` collects the free comparisons read (FREE<k> placeholders)."""
+        cands = [j for j in ag.ca.waiting(event) if self.drop != (ag.a, j)]
+        out = []
+        for j in sorted(cands):
+            tr = ag.ca.transitions[j]
+            c = f"c{ag.a}_{j}"
+            cond = self.guard(ag, tr, free)
+            block = [f"c{ag.a}_{k}" for k in tr.conflicts.tolist() if k in cands and k < j]
+            out.append(f"{c} = ({cond})" + "".join(f" && !{b}" for b in block) + ";")
+        for j in sorted(cands):
+            tr = ag.ca.transitions[j]
+            out.append(
+                f"if :: c{ag.a}_{j} -> " + " ".join(self.fire(ag, tr)) + " :: else -> skip fi;"
+            )
+        out += [f"c{ag.a}_{j} = 0;" for j in sorted(cands)]
+        return out
+
+    # -- processes
+    def agent_proc(self, ag: _Agent, config: str) -> list[str]:
+        out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
+        for t, name in enumerate(self.types):
+            free: list[str] = []
+            body = " ".join(self.dispatch(ag, name, name, free))
+            screen = self.screen(ag, name)
+            for bits in _assignments(free, ag.name):
+                for k in range(self.slots):
+                    read = (
+                        f"r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
+                        + " ".join(f"r_f{i} = fl[{k}].f{i};" for i in range(len(self.exact[name])))
+                        + f" {_clear(k, self.exact)}"
+                    )
+                    code = _subst(body, bits)
+                    out.append(
+                        f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == "
+                        f"{ag.a} && fl[{k}].typ == {t} -> {read} {screen} "
+                        f"if :: !held -> {code} :: else -> skip fi; "
+                        f"{_reset(self.exact)} }}; {config} }}"
+                    )
+        for k in range(self.slots):  # an ack arrives (engine.run.reliable.screen)
+            out.append(
+                f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
+                f"fl[{k}].typ == ACK_T -> r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
+                f"{_clear(k, self.exact)} so = 0; do :: so < OUTBOX -> if :: "
+                f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
+                "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
+                f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
+                f"so++ :: else -> break od; so = 0; {_reset(self.exact)} }}; "
+                f"{config} }}"
+            )
+        out += self.timers(ag, config)
+        for j in self.sk.time_driven[ag.a]:
+            if self.drop == (ag.a, j):
+                continue
+            tr = ag.ca.transitions[j]
+            free = []
+            cond = self.guard(ag, tr, free) + self.changes(ag, tr)
+            for bits in _assignments(free, ag.name):
+                out.append(
+                    f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
+                    + " ".join(self.fire(ag, tr))
+                    + " }; "
+                    + config
+                    + " }"
+                )
+        out += ["  od", "}"]
+        return out
+
+    def screen(self, ag: _Agent, name: str) -> str:
+        """The acknowledged layer's look at an arriving copy (engine.run.reliable.screen):
+        an ack back for an acknowledged one, and, where its sender's policy filters
+        duplicates, ``held`` when the (receiver, sender, id) was seen before."""
+        dedupe = [
+            b
+            for b, o in enumerate(self.agents)
+            if (p := o.ca.policies.get(name)) is not None and p.acknowledged and p.dedupe
+        ]
+        if not any(
+            (p := o.ca.policies.get(name)) is not None and p.acknowledged for o in self.agents
+        ):
+            return "held = 0;"
+        ack = _put(str(ag.a), "r_snd", "ACK_T", "r_mid", [])
+        out = f"held = 0; if :: r_mid >= 0 -> {ack} :: else -> skip fi;"
+        if dedupe:
+            filt = " || ".join(f"r_snd == {b}" for b in dedupe)
+            out += (
+                f" if :: r_mid >= 0 && ({filt}) -> so = 0; do :: so < SEEN -> if :: "
+                f"sn[so].used && sn[so].rcv == {ag.a} && sn[so].snd == r_snd && "
+                "sn[so].mid == r_mid -> held = 1 :: else -> skip fi; so++ "
+                ":: else -> break od; if :: !held -> so = 0; do :: so < SEEN && "
+                "sn[so].used -> so++ :: else -> break od; if :: so == SEEN -> "
+                f"overflow = 1 :: else -> sn[so].used = 1; sn[so].rcv = {ag.a}; "
+                "sn[so].snd = r_snd; sn[so].mid = r_mid fi :: else -> skip fi; so = 0 "
+                ":: else -> skip fi;"
+            )
+        return out
+
+    def timers(self, ag: _Agent, config: str) -> list[str]:
+        """Retransmission timers of ``ag``'s outbox entries (engine.run.reliable.on_timer):
+        with ``--ack-timing bounded`` only once no copy of the message nor an ack of it
+        flies; resend to each receiver still waiting, or, out of retries, drop the entry
+        and raise ``<type>_undeliverable`` at the sender."""
+        if not any(p.acknowledged for p in ag.ca.policies.values()):
+            return []
+        out = []
+        acked = [
+            t
+            for t, name in enumerate(self.types)
+            if (p := ag.ca.policies.get(name)) is not None and p.acknowledged
+        ]
+        for o in range(OUTBOX):
+            e = f"ob[{o}]"
+            cond = f"{e}.used && {e}.snd == {ag.a}"
+            if self.bounded:
+                cond += (
+                    " && !("
+                    + " || ".join(
+                        f"(fl[{k}].used && fl[{k}].mid == {e}.mid && ((fl[{k}].typ != ACK_T && "
+                        f"fl[{k}].snd == {ag.a}) || (fl[{k}].typ == ACK_T && fl[{k}].rcv == "
+                        f"{ag.a})))"
+                        for k in range(self.slots)
+                    )
+                    + ")"
+                )
+            values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
+            resend = " ".join(
+                f"if :: {e}.wait & {1 << r} -> "
+                f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
+                for r in range(len(self.agents))
+                if r != ag.a
+            )
+            out.append(
+                f"  :: atomic {{ d_step {{ {cond} && {e}.left > 0 -> {e}.left--; "
+                f"{resend} }}; {config} }}"
+            )
+            for t in acked:
+                free: list[str] = []
+                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free))
+                for bits in _assignments(free, ag.name):
+                    out.append(
+                        f"  :: atomic {{ d_step {{ {cond} && {e}.left == 0 && "
+                        f"{e}.typ == {t} -> {_clear_out(str(o), self.exact)} "
+                        f"{_subst(body, bits)} }}; {config} }}"
+                    )
+        return out
+
+    def changes(self, ag: _Agent, tr) -> str:
+        """For a time-driven transition in place without sends: the condition that it
+        changes a variable (our explorer keeps no self-loop, so a step that changes
+        nothing must not be enabled either, or SPIN's ``timeout`` would miss a dead end).
+        Its assignments read none of each other's targets (else refused), so each new
+        value is the expression on the state before the step."""
+        if not _in_place(ag.ca, tr) or _sends(tr):
+            return ""
+        parts = [
+            f"({self.expr(ag, act.expr.source, tr.on)}) != {ag.var_name[act.target[1]]}"
+            for act in tr.actions
+            if act.kind == "assign" and act.target[0] == "v" and act.target[1] in ag.var_name
+        ]
+        return " && (" + (" || ".join(parts) or "0") + ")"
+
+    def network_proc(self, losses: int, duplicates: int, config: str) -> list[str]:
+        out = ["proctype network() {", "end:", "  do"]
+        for k in range(self.slots):
+            if losses:
+                out.append(
+                    f"  :: atomic {{ d_step {{ fl[{k}].used && losses < {losses} -> "
+                    f"{_clear(k, self.exact)} losses++ }}; " + config + " }"
+                )
+            if duplicates:
+                copy = " ".join(
+                    f"fl[sl].{f} = fl[{k}].{f};"
+                    for f in ["used", "snd", "rcv", "typ", "mid"]
+                    + [f"f{i}" for i in range(_nf(self.exact))]
+                )
+                out.append(
+                    f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> "
+                    "sl = 0; "
+                    "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
+                    f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
+                    "dups++ }; " + config + " }"
+                )
+        if not losses and not duplicates:
+            out.append("  :: false")
+        out += ["  od", "}"]
+        return out
+
+    def scenario_proc(self, config: str) -> list[str]:
+        out = ["proctype scenario() {"]
+        for _, a, name in self.sk.original.scenario:
+            ag = self.agents[a]
+            free: list[str] = []
+            body = self.dispatch(ag, name, None, free)
+            options = [
+                f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; {config} }}"
+                for bits in _assignments(free, ag.name)
+            ]
+            out += ["  if", *options, "  fi;"]
+        out += ["  skip", "}"]
+        return out
+
+
+def _reply(act) -> bool:
+    """``to: sender``: the compiled team marks it with a negative agent index (no agent
+    has one)."""
+    return act.to is not None and act.to < 0
+
+
+def _put(snd: str, rcv: str, typ: str, mid: str, values: list[str]) -> str:
+    """A copy into the first free slot (overflow flagged when there is none)."""
+    put = [
+        f"fl[sl].used = 1; fl[sl].snd = {snd}; fl[sl].rcv = {rcv}; fl[sl].typ = {typ}; "
+        f"fl[sl].mid = {mid};"
+    ] + [f"fl[sl].f{k} = {v};" for k, v in enumerate(values)]
+    return (
+        "sl = 0; do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
+        "if :: sl == SLOTS -> overflow = 1 :: else -> " + " ".join(put) + " fi; sl = 0;"
+    )
+
+
+def _nf(exact: dict) -> int:
+    return max([len(v) for v in exact.values()] + [1])
+
+
+def _clear(k: int, exact: dict) -> str:
+    return (
+        f"fl[{k}].used = 0; fl[{k}].snd = 0; fl[{k}].rcv = 0; fl[{k}].typ = 0; "
+        f"fl[{k}].mid = 0; " + " ".join(f"fl[{k}].f{i} = 0;" for i in range(_nf(exact)))
+    )
+
+
+def _clear_out(o: str, exact: dict) -> str:
+    return (
+        f"ob[{o}].used = 0; ob[{o}].snd = 0; ob[{o}].mid = 0; ob[{o}].typ = 0; "
+        f"ob[{o}].wait = 0; ob[{o}].left = 0; "
+        + " ".join(f"ob[{o}].f{i} = 0;" for i in range(_nf(exact)))
+    )
+
+
+def _reset(exact: dict) -> str:
+    return "r_snd = 0; r_mid = 0; held = 0; " + " ".join(f"r_f{i} = 0;" for i in range(_nf(exact)))
+
+
+def _assignments(free: list[str], who: str) -> list[dict[int, int]]:
+    if len(free) > MAX_FREE:
+        raise Unsupported(f"agent '{who}': more than {MAX_FREE} free comparisons in one step")
+    return [dict(enumerate(bits)) for bits in itertools.product((0, 1), repeat=len(free))]
+
+
+def _subst(code: str, bits: dict[int, int]) -> str:
+    return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
+
+
+def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
+    """The deadlock predicate of :func:`.properties._deadlock` over the mode bits."""
+    team = sk.original.team
+    blocked, finals, commanded = [], [], []
+    for ag in agents:
+        ca, a = ag.ca, ag.a
+        leaves = [int(m) for m in ca.leaves]
+        final = " && ".join(f"(!{ag.bit(m)} || {int(ca.final[m])})" for m in leaves) or "1"
+        if team.agents[a].operator:
+            on = set()
+            m = 0
+            while True:
+                on.add(m)
+                if ca.modes[m].kind != "or":
+                    break
+                m = ca.modes[m].initial
+            commanded.append(" || ".join(f"({ag.bit(m)} != {int(m in on)})" for m in leaves) or "0")
+            continue
+        finals.append(f"({final})")
+        inputs = sk.inputs[a] | {e for b, e in sk.world_events if b == a}
+        waits = [
+            m
+            for m in range(len(ca.modes))
+            if any(ca.transitions[j].on for j in ca.modes[m].outgoing)
+        ]
+        heard = [
+            m for m in waits if any(ca.transitions[j].on in inputs for j in ca.modes[m].outgoing)
+        ]
+        w = " || ".join(ag.bit(m) for m in waits) or "0"
+        h = " || ".join(ag.bit(m) for m in heard) or "0"
+        blocked.append(f"(!({final}) && ({w}) && !({h}))")
+    return (
+        f"(({' || '.join(blocked) or '0'}) && !({' && '.join(finals) or '1'}) && "
+        f"!({' || '.join(commanded) or '0'}))"
+    )
+
+
+# ---------------------------------------------------------------------------- comparing
+
+
+def ours(report) -> Exploration:
+    """Our explorer's projected configurations, dead ends and deadlock verdict."""
+    sk, g = report.skeleton, report.graph
+    sizes = [len(ca.modes) for ca in sk.cteam.agents]
+
+    def config(s) -> str:
+        return "|".join("".join(str(b) for b in s.agents[a][0][:n]) for a, n in enumerate(sizes))
+
+    configs = [config(s) for s in g.states]
+    dead = {configs[k] for k in np.flatnonzero(g.terminal()).tolist()}
+    holds = next(v.holds for v in report.verdicts if v.prop.name == "deadlock")
+    return Exploration(set(configs), dead, bool(holds))
+
+
+def check(report, opts) -> None:
+    """Refuse (:class:`Unsupported`) what the comparison cannot take."""
+    if opts.order != "any":
+        raise Unsupported(f"--order {opts.order} (the export has --order any)")
+    if opts.timeouts != "any":
+        raise Unsupported(f"--timeouts {opts.timeouts} (the export has --timeouts any)")
+    if not report.graph.exhaustive:
+        raise Unsupported(f"our exploration stopped ({report.graph.bound})")
+    if not any(v.prop.name == "deadlock" for v in report.verdicts):
+        raise Unsupported("the deadlock property is not among the checked ones")
+
+
+def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
+    """Compile and run SPIN's exhaustive search on ``promela``; its exploration."""
+    why = missing()
+    if why:
+        raise RuntimeError(why)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "rules.pml").write_text(promela)
+    _run(["spin", "-o2", "-a", "rules.pml"], folder, timeout)
+    _run(
+        [
+            "cc",
+            "-O1",
+            "-DPRINTF",
+            "-DNOREDUCE",
+            "-DSAFETY",
+            "-DVECTORSZ=4096",
+            "-o",
+            "pan",
+            "pan.c",
+        ],
+        folder,
+        timeout,
+    )
+    text = _run(["./pan", "-E", "-m10000000"], folder, timeout)
+    (folder / "pan.out").write_text(text)
+    if "depth too small" in text or "errors: 0" not in text:
+        raise RuntimeError("SPIN's search did not complete (see pan.out)")
+    configs, dead, bad, over = set(), set(), False, False
+    for line in text.splitlines():
+        tag, _, rest = line.partition(" ")
+        if tag in ("C", "T") and rest:
+            c, flag = rest.split()
+            if tag == "C":
+                configs.add(c)
+                over |= flag == "1"
+            else:
+                dead.add(c)
+                bad |= flag == "1"
+    if over:
+        raise RuntimeError(
+            f"the model's slots overflowed ({SLOTS} copies in flight, "
+            f"{OUTBOX} outbox entries, {SEEN} filter entries, {MAX_IDS} ids)"
+        )
+    return Exploration(configs, dead, not bad)
+
+
+def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
+    """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
+    anything is written, so a refused model leaves nothing behind."""
+    check(report, opts)
+    return export(
+        report.skeleton, opts.losses, opts.duplicates, drop=drop, ack_timing=opts.ack_timing
+    )
+
+
+def compare(
+    report, opts, folder: Path, drop: tuple[int, int] | None = None, promela: str | None = None
+) -> Comparison:
+    """Export ``report``'s team's rules (or take ``promela``, from :func:`prepare`), let
+    SPIN explore them in ``folder`` (``rules.pml``, ``pan.out``), compare with ours."""
+    if promela is None:
+        promela = prepare(report, opts, drop)
+    return Comparison(ours(report), run_spin(promela, folder))
