@@ -51,7 +51,7 @@ from hybridteam.logs.topics import (
     payload_topic,
     series_topic,
 )
-from hybridteam.trace import Trace, command_series
+from hybridteam.trace import MESSAGE_COLUMNS, Trace, command_series
 
 #: ``-o`` names and the storage they mean: one MCAP or SQLite file, or a bag folder.
 SUFFIXES = {".mcap": "mcap", ".db3": "sqlite3"}
@@ -250,18 +250,7 @@ class _Messages:
             "sender",
             default_topic(name, "messages"),
             "t_send",
-            (
-                "seq",
-                "sender",
-                "receiver",
-                "socket",
-                "type",
-                "t_send",
-                "t_recv",
-                "status",
-                "reason",
-                "msg_id",
-            ),
+            MESSAGE_COLUMNS[1:],  # (all but the instance: one instance a bag)
         )
 
     def planar(self, name: str, values: np.ndarray, have: np.ndarray) -> Iterator[Record]:
