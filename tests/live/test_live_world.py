@@ -489,6 +489,10 @@ def test_experiment2_launched_live_hands_over_as_the_simulation_does(tmp_path, t
     launched_as_simulated(tmp_path / "launch", team, [])
 
 
+#: Experiment 2's acknowledged messages' resend delay (its protocol's ack_timeout), s
+ACK_TIMEOUT = 0.1
+
+
 def launched_as_simulated(out: Path, team, options: list[str], time_scale: int = 4) -> None:
     """The issue's acceptance: the world process, three robots' and the operator's
     processes (``launch`` with ``options``, e.g. a transport) at ``time_scale`` end
@@ -521,12 +525,42 @@ def launched_as_simulated(out: Path, team, options: list[str], time_scale: int =
     latency = float(np.median(delivered["t_recv"] - delivered["t_send"]))
     assert 0 <= latency < 0.02  # (on this machine, in run seconds: 5 ms of wall time at 4)
     sim = ht.simulate(team, overrides={"network.latency": latency})
+    # a copy the transport itself lost (best-effort ROS 2 topics can, loopback UDP did not
+    # here): its message arrives as a retransmission (the acknowledged layer's, one ack
+    # timeout, 0.1 s, later) with no earlier copy of its id, and what follows it is as
+    # late. The simulation has no such loss: the bound grows by one ack timeout for each,
+    # from its first send on; and there are at most two in a run
+    first: dict[tuple, str] = {}
+    for sender, msg_id, reason in zip(
+        delivered["sender"].tolist(),
+        delivered["msg_id"].tolist(),
+        delivered["reason"].tolist(),
+        strict=True,
+    ):
+        if msg_id >= 0:
+            first.setdefault((sender, msg_id), reason)
+    resent = sorted(
+        t - ACK_TIMEOUT
+        for t, sender, msg_id, reason in zip(
+            delivered["t_send"].tolist(),
+            delivered["sender"].tolist(),
+            delivered["msg_id"].tolist(),
+            delivered["reason"].tolist(),
+            strict=True,
+        )
+        if reason == "retransmission" and first[(sender, msg_id)] == "retransmission"
+    )
+    assert len(set(resent)) <= 2, resent
     for agent in ("xr4000", "labmate", "operator"):
         ours = live.transitions.where(agent=agent)
         theirs = sim.transitions.where(agent=agent)
         assert ours["target"].tolist() == theirs["target"].tolist(), agent
         assert ours["cause"].tolist() == theirs["cause"].tolist(), agent
-        assert np.abs(ours["t"] - theirs["t"]).max() <= 2 * 0.05, agent
+        # (a loss counts for a transition it may precede by up to the bound: the resend's
+        # send time, less one ack timeout, is its first send's plus the outlet's delay)
+        losses = np.searchsorted(np.unique(resent), theirs["t"] + 2 * 0.05, side="right")
+        bound = 2 * 0.05 + ACK_TIMEOUT * losses
+        assert (np.abs(ours["t"] - theirs["t"]) <= bound + 1e-9).all(), (agent, resent)
     # the requirements (issue 45's acceptance: a live run checked against its team): where
     # the runs agree, each verdict is the simulated run's. They agree on the modes (above)
     # and on the box held (the run ended success, no grasp past its limit): one_leader,
