@@ -129,7 +129,7 @@ class LiveRun:
             external[index[name]] = plant
         self.plant_name = plant_name
         #: the robots' plants by agent name: their commands go into the trace
-        self.robots = {name: plant for name, plant in (plants or {}).items()}
+        self.robots = dict(plants or {})
         seam: dict = {}
         self.link: WorldLink | None = None
         if team.world:

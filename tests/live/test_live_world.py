@@ -530,26 +530,20 @@ def launched_as_simulated(out: Path, team, options: list[str], time_scale: int =
     # timeout, 0.1 s, later) with no earlier copy of its id, and what follows it is as
     # late. The simulation has no such loss: the bound grows by one ack timeout for each,
     # from its first send on; and there are at most two in a run
-    first: dict[tuple, str] = {}
-    for sender, msg_id, reason in zip(
+    seen: set[tuple] = set()  # (sender, receiver, id): the copies in arrival order
+    resent = []
+    for t, sender, receiver, msg_id, reason in zip(
+        delivered["t_send"].tolist(),
         delivered["sender"].tolist(),
+        delivered["receiver"].tolist(),
         delivered["msg_id"].tolist(),
         delivered["reason"].tolist(),
         strict=True,
     ):
-        if msg_id >= 0:
-            first.setdefault((sender, msg_id), reason)
-    resent = sorted(
-        t - ACK_TIMEOUT
-        for t, sender, msg_id, reason in zip(
-            delivered["t_send"].tolist(),
-            delivered["sender"].tolist(),
-            delivered["msg_id"].tolist(),
-            delivered["reason"].tolist(),
-            strict=True,
-        )
-        if reason == "retransmission" and first[(sender, msg_id)] == "retransmission"
-    )
+        if msg_id >= 0 and (sender, receiver, msg_id) not in seen:
+            seen.add((sender, receiver, msg_id))
+            if reason == "retransmission":
+                resent.append(t - ACK_TIMEOUT)
     assert len(set(resent)) <= 2, resent
     for agent in ("xr4000", "labmate", "operator"):
         ours = live.transitions.where(agent=agent)
