@@ -100,6 +100,32 @@ class Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
+def add_workers(parser) -> None:
+    """``--workers N`` or ``--scheduler ADDRESS`` (one of them), then ``--connect-timeout``:
+    where a study's runs go (``sweep``, ``falsify``)."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local worker processes (default 1: this process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs hybridteam[dask])",
+    )
+    add_connect_timeout(parser)
+
+
+def check_workers(workers: int | None) -> None:
+    """UsageError unless ``--workers`` is absent or at least 1."""
+    if workers is not None and workers < 1:
+        raise UsageError(f"--workers must be at least 1, got {workers}")
+
+
 def add_connect_timeout(parser) -> None:
     """``--connect-timeout S`` beside ``--scheduler`` (``sweep``, ``falsify``)."""
     from hybridteam.sweep.cluster import DEFAULT_CONNECT_TIMEOUT

@@ -20,8 +20,9 @@ from hybridteam.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
-    add_connect_timeout,
+    add_workers,
     check_connect_timeout,
+    check_workers,
     load_team_or_report,
     output_folder,
     write_run_folder,
@@ -91,21 +92,7 @@ def register(sub) -> dict:
         action="store_true",
         help="use the whole budget, not stopping at the first violation",
     )
-    where = fa.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="local worker processes (default 1: this process)",
-    )
-    where.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="a Dask distributed cluster, e.g. tcp://host:8786",
-    )
-    add_connect_timeout(fa)
+    add_workers(fa)
     fa.add_argument("--no-replay", action="store_true", help="do not write OUT/replay")
     fa.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
     fa.add_argument(
@@ -157,8 +144,7 @@ def _check(args: argparse.Namespace, team, varies) -> None:
     ):
         if value < least:
             raise UsageError(f"{flag} must be at least {least}, got {value}")
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f"--workers must be at least 1, got {args.workers}")
+    check_workers(args.workers)
     check_connect_timeout(args.connect_timeout)
     _check_generation(team, args.population)
     names = [r.name for r in team.requirements]

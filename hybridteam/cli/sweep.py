@@ -16,8 +16,9 @@ from hybridteam.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     UsageError,
-    add_connect_timeout,
+    add_workers,
     check_connect_timeout,
+    check_workers,
     output_folder,
     print_errors,
 )
@@ -29,21 +30,7 @@ def register(sub) -> dict:
     sw = sub.add_parser("sweep", help="run a parameter study (resumes an interrupted one)")
     sw.add_argument("study", metavar="STUDY.yaml")
     sw.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder")
-    where = sw.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="local worker processes (default 1: this process)",
-    )
-    where.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="run on a Dask distributed cluster, e.g. tcp://host:8786 (needs hybridteam[dask])",
-    )
-    add_connect_timeout(sw)
+    add_workers(sw)
     sw.add_argument(
         "--chunk",
         type=int,
@@ -94,8 +81,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from hybridteam.sweep.store import StudyError
     from hybridteam.sweep.study import load_study
 
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f"--workers must be at least 1, got {args.workers}")
+    check_workers(args.workers)
     if args.chunk is not None and args.chunk < 1:
         raise UsageError(f"--chunk must be at least 1, got {args.chunk}")
     check_connect_timeout(args.connect_timeout)
