@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from hybridteam.engine.run.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
 from hybridteam.verify.explore import Graph, Options, Progress, explore
-from hybridteam.verify.paths import describe, leaves
+from hybridteam.verify.paths import agent_leaves, describe
 from hybridteam.verify.properties import Verdict, check, properties
 from hybridteam.verify.replay import Context, Replay
 from hybridteam.verify.replay import replay as replay_path
@@ -138,7 +138,7 @@ class Report:
                 f"{ca.name} in {', '.join(m)}"
                 for ca, m in zip(
                     self.skeleton.original.agents,
-                    leaves(self.skeleton, self.graph.states[k]),
+                    agent_leaves(self.skeleton, self.graph.states.agents_of(k)),
                     strict=True,
                 )
             )
@@ -152,6 +152,8 @@ class Report:
             "states": len(g.states),
             "transitions": g.transitions,
             "exhaustive": g.exhaustive,
+            "search": "partial" if g.coverage is not None else "exact",
+            **({"coverage": g.coverage.summary()} if g.coverage is not None else {}),
             "bound": g.bound,
             "seconds": round(g.seconds, 3),
             "options": {
@@ -163,13 +165,23 @@ class Report:
                 "max_memory": memory_limit(self.options.max_memory),
                 "ack_timing": self.options.ack_timing,
                 "timeouts": self.options.timeouts,
+                "storage": self.options.storage,
+                "jobs": self.options.jobs,
+                **(
+                    {
+                        "bitstate_mb": self.options.bitstate_mb,
+                        "hash_functions": self.options.hash_functions,
+                    }
+                    if self.options.storage == "bitstate"
+                    else {}
+                ),
             },
             "abstracted": self.skeleton.notes,
             "properties": {
                 v.prop.name: {
                     "kind": v.prop.kind,
                     "formula": v.prop.text,
-                    "verdict": _word(v, g.exhaustive),
+                    "verdict": word(v, g),
                     "message": v.message,
                     **(
                         {
@@ -190,12 +202,20 @@ class Report:
         return {"verdict": r.verdict, "reason": r.reason, "paths_tried": tried, "times": r.times}
 
 
-def _word(v: Verdict, exhaustive: bool) -> str:
+def word(v: Verdict, g: Graph) -> str:
+    """A verdict in words: a property that held in a search that was not exhaustive says
+    how it was not (a bound stopped it, or the search was partial)."""
     if v.holds is None:
         return "not checked"
     if v.holds is False:
         return "violated"  # in the skeleton; the replay says whether a run shows it
-    return "holds" if exhaustive else "holds (bounded)"  # as the command prints it
+    if g.exhaustive:
+        return "holds"
+    return (
+        "holds (partial search)"
+        if g.coverage is not None and g.bound is None
+        else ("holds (bounded)")
+    )
 
 
 def verify(

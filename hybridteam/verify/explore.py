@@ -8,7 +8,9 @@ declares, or fire a time-driven transition. A choice that makes a free compariso
 is tried with every answer. Successors come from the engine in batches
 (:class:`~.machine.Machine`); states are stored compactly and found again by their key
 (:mod:`.store`), so each is expanded once, and the graph (edges without self-loops) is
-kept for the liveness checks.
+kept for the liveness checks. With ``storage`` "hashcompact" or "bitstate" only hashes of
+the visited states are kept (:mod:`.storage`, a partial search); with ``jobs`` > 1 the
+successors are computed by a pool of processes (:mod:`.pool`), the graph unchanged.
 """
 
 from __future__ import annotations
@@ -27,6 +29,15 @@ from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, State
+from hybridteam.verify.pool import Pool
+from hybridteam.verify.storage import (
+    DEFAULT_BITSTATE_MB,
+    DEFAULT_HASH_FUNCTIONS,
+    Coverage,
+    PartialStore,
+    Trail,
+    visited_set,
+)
 from hybridteam.verify.store import Edges, Store
 
 
@@ -52,6 +63,12 @@ class Options:
     max_memory: float | None = None
     #: distinct values a discrete variable may take before the skeleton is judged infinite
     max_values: int = DEFAULT_MAX_VALUES
+    #: "exact": every state kept (exhaustive); "hashcompact" or "bitstate": only hashes of
+    #: the visited states, a partial search (:mod:`.storage`)
+    storage: str = "exact"
+    bitstate_mb: float = DEFAULT_BITSTATE_MB  # the bit array's size with "bitstate"
+    hash_functions: int = DEFAULT_HASH_FUNCTIONS  # bits set per state with "bitstate"
+    jobs: int = 1  # processes computing successors (:mod:`.pool`)
 
 
 @dataclass
@@ -60,9 +77,9 @@ class Graph:
     (each state's parent; the choice that first reached it is the edge's, from the
     parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
-    states: Store
+    states: Store | PartialStore
     parent: array
-    edges: Edges
+    edges: Edges | Trail
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
     exhaustive: bool = True
@@ -70,6 +87,7 @@ class Graph:
     batch: int = 0  # states and choices the engine took at a time
     seconds: float = 0.0
     transitions: int = 0
+    coverage: Coverage | None = None  # a partial search's estimate (None: exact storage)
 
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""
@@ -223,16 +241,62 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
             gc.enable()
 
 
+def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine:
+    """The successor function (each worker of a pool builds its own)."""
+    return Machine(sk, capacity, fifo=opts.order == "fifo")
+
+
 def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
-    # the engine's arrays take at most half the limit; the states, the rest (bounds.py)
-    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5)
-    m = Machine(sk, batch, fifo=opts.order == "fifo")
+    # the engine's arrays take at most half the limit, shared by the workers; the
+    # states, the rest (bounds.py)
+    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5 / opts.jobs)
+    # with a pool, this process's machine only gives the initial state and the choices
+    m = machine(sk, opts, batch if opts.jobs == 1 else 1)
     m.values = values = Values(sk, opts.max_values)
-    store = Store(len(sk.cteam.agents))
-    g = Graph(store, array("I", [NONE]), Edges(), batch=batch)
+    parent = array("I", [NONE])
+    store: Store | PartialStore
+    if opts.storage == "exact":
+        store, edges = Store(len(sk.cteam.agents)), Edges()
+    else:
+        visited = visited_set(opts.storage, opts.bitstate_mb, opts.hash_functions)
+        store, edges = PartialStore(len(sk.cteam.agents), visited), Trail(parent)
+        store.trail, store.successor = edges, _again(m)
+    g = Graph(store, parent, edges, batch=batch)
     store.add(store.find(m.initial())[0])
+    if opts.jobs > 1:
+        with Pool(lambda: machine(sk, opts, batch), opts.jobs) as pool:
+            _levels(sk, opts, m, g, values, pool, limit, start, progress)
+    else:
+        _levels(sk, opts, m, g, values, None, limit, start, progress)
+    g.edges.freeze(len(store))
+    if isinstance(store, PartialStore):
+        store.advance([])
+        g.coverage = store.visited.coverage(len(store))
+        g.exhaustive = False
+    g.seconds = time.perf_counter() - start
+    return g
+
+
+def _again(m: Machine) -> Callable[[State, tuple, tuple], State]:
+    """A state computed again from its parent, its choice and its tape."""
+    return lambda s, choice, tape: m.run([(s, choice, tape)])[0].state
+
+
+def _levels(
+    sk: Skeleton,
+    opts: Options,
+    m: Machine,
+    g: Graph,
+    values: Values,
+    pool: Pool | None,
+    limit: float,
+    start: float,
+    progress: Progress | None,
+) -> None:
+    """The breadth-first search, level by level, from the initial state in ``g``."""
+    store, batch = g.states, g.batch
     frontier = [0]
     depth = 0
     last = start
@@ -240,8 +304,15 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
-        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, batch):
-            results = m.run([(state, ch, tape) for _, state, ch, tape in chunk])
+        jobs = _jobs(m, sk, store, frontier, opts)
+        done = (
+            ((chunk, m.run([job[1:] for job in chunk])) for chunk in _chunks(jobs, retries, batch))
+            if pool is None
+            else pool.in_order(_chunks(jobs, [], batch), retries, batch)
+        )
+        for chunk, results in done:
+            if pool is not None:  # the workers' machines did not count the values
+                _count_values(values, sk, results)
             for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
                 for k in range(len(tape), r.reads):  # the other answers still to try
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
@@ -256,10 +327,10 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
                     tid = store.add(key)
                     g.parent.append(sid)
                     nxt.append(tid)
-                if r.zeno:
+                if r.zeno and tid >= 0:
                     g.zeno.add(tid)
                 if tid != sid:
-                    g.edges.add(sid, tid, ch)
+                    g.edges.add(sid, tid, ch, tape)
             now = time.perf_counter()
             if progress is not None and now - last >= 1.0:
                 progress(len(store), len(nxt), depth, now - start)
@@ -273,12 +344,19 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
             if stop is not None:
                 stopped = _stop(g, stop, nxt)
         frontier = nxt
+        store.advance(frontier)
         depth += 1
-    g.edges.freeze(len(store))
-    g.seconds = time.perf_counter() - start
     if progress is not None:
-        progress(len(store), 0, depth, g.seconds)
-    return g
+        progress(len(store), 0, depth, time.perf_counter() - start)
+
+
+def _count_values(values: Values, sk: Skeleton, results: list) -> None:
+    """Count the discrete variables' values of ``results`` (:mod:`.bounds`), as the
+    machine does for the states it computes."""
+    for a, cols in enumerate(sk.discrete_vars):
+        if cols:
+            block = np.array([r.state.agents[a][1] for r in results], float)
+            values.add(a, block.reshape(len(results), len(cols)))
 
 
 def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:

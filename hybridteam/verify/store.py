@@ -106,6 +106,19 @@ class Keys:
             self._place(fp, k)
 
 
+def state_key(parts: Parts, s: State) -> bytes:
+    """``s`` as the bytes of its parts' numbers (layout: :class:`Store`)."""
+    of = parts.of
+    nums = [of(p) for p in s.agents]
+    for group in (s.inflight, s.outbox, s.seen):
+        nums.append(len(group))
+        nums += [of(p) for p in group]
+    nums += (s.cursor, s.losses, s.dups, *s.next_ids)
+    if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
+        return b"H" + array("H", nums).tobytes()
+    return b"I" + array("I", nums).tobytes()
+
+
 class Store:
     """States by number: each kept once as the bytes of its parts' numbers.
 
@@ -123,15 +136,7 @@ class Store:
         return len(self.keys)
 
     def key(self, s: State) -> bytes:
-        of = self.parts.of
-        nums = [of(p) for p in s.agents]
-        for group in (s.inflight, s.outbox, s.seen):
-            nums.append(len(group))
-            nums += [of(p) for p in group]
-        nums += (s.cursor, s.losses, s.dups, *s.next_ids)
-        if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
-            return b"H" + array("H", nums).tobytes()
-        return b"I" + array("I", nums).tobytes()
+        return state_key(self.parts, s)
 
     def find(self, s: State) -> tuple[bytes, int | None]:
         """``s``'s key and its number, or None if it is not stored."""
@@ -143,6 +148,15 @@ class Store:
         k = self.keys.add(key)
         self.agent_parts.extend(_numbers(key)[: self.agents].tolist())
         return k
+
+    def advance(self, frontier: list[int]) -> None:
+        """The explorer's next level is ``frontier`` (the exact store keeps every state:
+        nothing to let go; :class:`~.storage.PartialStore` lets older ones go)."""
+
+    def agents_of(self, k: int) -> tuple:
+        """State ``k``'s agents (modes and discrete variables) without decoding the rest."""
+        values = self.parts.values
+        return tuple(values[n] for n in self.agent_parts[k * self.agents : (k + 1) * self.agents])
 
     def __getitem__(self, k: int) -> State:
         if not -len(self.keys) <= k < len(self.keys):
@@ -191,7 +205,9 @@ class Edges:
     def __len__(self) -> int:
         return len(self.src)
 
-    def add(self, a: int, b: int, choice: tuple) -> None:
+    def add(self, a: int, b: int, choice: tuple, tape: tuple = ()) -> None:
+        """Edge ``a -> b`` by ``choice`` (``tape``, the free comparisons' answers, is not
+        kept: the states are, and a step is matched again from them)."""
         self.src.append(a)
         self.dst.append(b)
         self.how.append(self.choices.of(choice))

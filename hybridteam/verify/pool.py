@@ -1,0 +1,92 @@
+"""Successors on several cores: a pool of worker processes, each with its own machine.
+
+Computing a successor (the engine's discrete phase on a batch of instances) is nearly all
+of an exploration's time; storing and numbering states is a small part. So the explorer
+keeps the store, the graph and the BFS order in its own process and hands chunks of jobs
+``(state, choice, tape)`` to the workers, several chunks ahead, and takes the results
+back *in the order the jobs were made*. The states are then numbered, the edges added
+and the free comparisons' retries queued exactly as one process does: the graph — state
+numbers, parents, edges, verdicts and counterexamples — is the same, bit for bit, for
+any number of jobs. (Partitioning the states between owner processes would spread the
+store too, but make the numbering depend on how the exchanges interleave; on a few cores
+the store is not what limits.)
+
+Each worker is forked with the skeleton and builds its machine once (``make``): the
+successor function is whatever the explorer's factory builds, through its
+``run(jobs) -> results`` seam. Workers ignore Ctrl-C; the explorer's process receives
+it, and on it or on any error the pool is terminated and its processes joined before the
+exception goes on (:meth:`Pool.__exit__`): no worker outlives the check.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from collections import deque
+from collections.abc import Callable, Iterator
+from typing import Any, Protocol
+
+#: The machine of this worker process (built once, by :func:`_start`).
+_machine: Any = None
+
+
+class Successors(Protocol):
+    """What a worker computes with: the explorer's machine's seam."""
+
+    def run(self, jobs: list[tuple]) -> list: ...
+
+
+def _start(make: Callable[[], Successors]) -> None:
+    global _machine
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the explorer's process handles Ctrl-C
+    _machine = make()
+
+
+def _run(jobs: list[tuple]) -> list:
+    return _machine.run(jobs)
+
+
+class Pool:
+    """``workers`` forked processes computing successors; a context manager that always
+    ends them (joined on success, terminated on an error or Ctrl-C)."""
+
+    def __init__(self, make: Callable[[], Successors], workers: int) -> None:
+        self.workers = workers
+        # fork: the skeleton and the machine factory reach the workers without pickling
+        self._pool = multiprocessing.get_context("fork").Pool(workers, _start, (make,))
+
+    def __enter__(self) -> Pool:
+        return self
+
+    def __exit__(self, kind, value, tb) -> None:
+        if kind is None:
+            self._pool.close()
+        else:
+            self._pool.terminate()
+        self._pool.join()
+
+    def pids(self) -> list[int]:
+        """The workers' process ids."""
+        return [p.pid for p in self._pool._pool if p.pid is not None]  # type: ignore[attr-defined]
+
+    def in_order(self, level: Iterator[list], retries: list, size: int) -> Iterator[tuple]:
+        """``(chunk, results)`` of the level's chunks, then of chunks of ``retries`` (which
+        the caller extends while it takes the results), in that order; up to two chunks
+        a worker are being computed meanwhile. A chunk's items are ``(tag, *job)``: the
+        workers get the jobs, the tags (the explorer's state numbers) stay here."""
+        pending: deque = deque()
+        done = 0
+        while True:
+            while len(pending) < 2 * self.workers:
+                chunk = next(level, None)
+                if chunk is None:
+                    chunk = retries[done : done + size]
+                    done += len(chunk)
+                    if not chunk:
+                        break
+                jobs = [item[1:] for item in chunk]
+                pending.append((chunk, self._pool.apply_async(_run, (jobs,))))
+            if not pending:
+                return
+            chunk, result = pending.popleft()
+            yield chunk, result.get()
