@@ -21,7 +21,7 @@ from hybridteam.verify.properties import Verdict, check, properties
 from hybridteam.verify.replay import Context, Replay
 from hybridteam.verify.replay import replay as replay_path
 
-__all__ = ["Options", "Report", "UnknownProperty", "verify"]
+__all__ = ["NotInPartialSearch", "Options", "Report", "UnknownProperty", "verify"]
 
 
 class UnknownProperty(ValueError):
@@ -30,6 +30,18 @@ class UnknownProperty(ValueError):
     def __init__(self, name: str, known: list[str]) -> None:
         super().__init__(name)
         self.name, self.known = name, known
+
+
+class NotInPartialSearch(ValueError):
+    """``only`` names a response, which a partial search cannot check (checked before
+    exploring)."""
+
+    def __init__(self, name: str, storage: str) -> None:
+        super().__init__(
+            f"'{name}' is a response (phi leads to psi): it needs the whole state graph, "
+            f"which --storage {storage} (a partial search) does not keep; a partial search "
+            "checks invariants and deadlock (use --storage exact for responses)"
+        )
 
 
 @dataclass
@@ -247,6 +259,10 @@ def verify(
         if unknown:
             raise UnknownProperty(unknown[0], known)
         props = [p for p in props if p.name in only]
+        if opts.storage != "exact":
+            for p in props:
+                if p.kind == "response":
+                    raise NotInPartialSearch(p.name, opts.storage)
     g = explore(sk, opts, progress)
     report = Report(sk, g, check(props, sk, g), opts, team=team)
     if replay:

@@ -215,9 +215,8 @@ def properties(sk: Skeleton) -> list[Property]:
 
 #: Why a partial search leaves responses unchecked.
 PARTIAL_LIVENESS = (
-    "not checked: a response needs the whole state graph (its cycles), which a partial "
-    "search does not keep; a partial search checks invariants and deadlock (use "
-    "--storage exact)"
+    "partial search: a response needs the whole state graph (its cycles), which a "
+    "partial search does not keep; it checks invariants and deadlock (use --storage exact)"
 )
 
 
