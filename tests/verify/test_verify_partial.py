@@ -110,16 +110,14 @@ CONFIRM_ALL = mutate(
     "        - {on: accept, do: [{send: reject, to: sender}]}",
     "        - {on: accept, do: [{send: confirm, to: sender}]}",
 )
+DENY = "        - on: request\n          do: [{send: deny, to: sender}]\n        - to: Offering"
 SAFETY_MUTANTS = {  # the invariant counterexamples of test_verify.py
     "leader_stays_lead": ("b", BAD_GRANT, "", Options(losses=0), "one_leader"),
     "requester_leads": ("b", BAD_REQUEST, "", Options(losses=0), "one_leader"),
     "offer_confirmed_to_all": ("a", CONFIRM_ALL, "", Options(losses=0), "one_leader"),
     "operator_called_on_own_timeouts": (
         "bc",
-        mutate(
-            "        - on: request\n          do: [{send: deny, to: sender}]\n        - to: Offering",
-            "        - to: Offering",
-        ),
+        mutate(DENY, "        - to: Offering"),
         NO_OPERATOR,
         Options(losses=0, timeouts="own"),
         "no_operator",
