@@ -257,12 +257,14 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     m.values = values = Values(sk, opts.max_values)
     parent = array("I", [NONE])
     store: Store | PartialStore
+    edges: Edges | Trail
     if opts.storage == "exact":
         store, edges = Store(len(sk.cteam.agents)), Edges()
     else:
         visited = visited_set(opts.storage, opts.bitstate_mb, opts.hash_functions)
-        store, edges = PartialStore(len(sk.cteam.agents), visited), Trail(parent)
-        store.trail, store.successor = edges, _again(m)
+        trail = Trail(parent)
+        store, edges = PartialStore(len(sk.cteam.agents), visited), trail
+        store.trail, store.successor = trail, _again(m)
     g = Graph(store, parent, edges, batch=batch)
     store.add(store.find(m.initial())[0])
     if opts.jobs > 1:
@@ -369,7 +371,7 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     return True
 
 
-def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
+def _jobs(m: Machine, sk: Skeleton, store: Store | PartialStore, frontier: list[int], opts: Options):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
     is decoded once, and only the states of the chunk at work are held decoded."""
     for sid in frontier:
