@@ -65,10 +65,6 @@ class Pool:
             self._pool.terminate()
         self._pool.join()
 
-    def pids(self) -> list[int]:
-        """The workers' process ids."""
-        return [p.pid for p in self._pool._pool if p.pid is not None]  # type: ignore[attr-defined]
-
     def in_order(self, level: Iterator[list], retries: list, size: int) -> Iterator[tuple]:
         """``(chunk, results)`` of the level's chunks, then of chunks of ``retries`` (which
         the caller extends while it takes the results), in that order; up to two chunks
