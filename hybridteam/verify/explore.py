@@ -118,6 +118,9 @@ class Graph:
         return out
 
 
+#: The fewest jobs a worker of a pool is given at a time (an engine call has a fixed cost).
+MIN_CHUNK = 256
+
 #: ``Graph.parent`` of the initial state.
 NONE = 0xFFFFFFFF
 
@@ -307,11 +310,14 @@ def _levels(
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
         jobs = _jobs(m, sk, store, frontier, opts)
-        done = (
-            ((chunk, m.run([job[1:] for job in chunk])) for chunk in _chunks(jobs, retries, batch))
-            if pool is None
-            else pool.in_order(_chunks(jobs, [], batch), retries, batch)
-        )
+        if pool is None:
+            done = (
+                (chunk, m.run([job[1:] for job in chunk]))
+                for chunk in _chunks(jobs, retries, batch)
+            )
+        else:  # chunks small enough that a level keeps every worker busy
+            size = min(batch, max(MIN_CHUNK, len(frontier) // pool.workers))
+            done = pool.in_order(_chunks(jobs, [], size), retries, size)
         for chunk, results in done:
             if pool is not None:  # the workers' machines did not count the values
                 _count_values(values, sk, results)
@@ -371,7 +377,9 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     return True
 
 
-def _jobs(m: Machine, sk: Skeleton, store: Store | PartialStore, frontier: list[int], opts: Options):
+def _jobs(
+    m: Machine, sk: Skeleton, store: Store | PartialStore, frontier: list[int], opts: Options
+):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
     is decoded once, and only the states of the chunk at work are held decoded."""
     for sid in frontier:
