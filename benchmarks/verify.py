@@ -18,8 +18,8 @@ growth during the check per state explored.
 told), alternating, twice each, and prints the speedup (the best time of one against the
 best of the other, in this invocation: on a machine others use too, the ratio is what
 carries over, not the seconds; the CPU seconds, the check's process and its workers
-together, say what the pool costs beyond one process). ``--compare storage`` runs each check with every storage
-mode and prints their states, time and peak memory side by side.
+together, say what the pool costs beyond one process). ``--compare storage`` runs each
+check with every storage mode and prints their states, time and peak memory side by side.
 """
 
 from __future__ import annotations
