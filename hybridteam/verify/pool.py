@@ -15,12 +15,16 @@ Each worker is forked with the skeleton and builds its machine once (``make``): 
 successor function is whatever the explorer's factory builds, through its
 ``run(jobs) -> results`` seam. Workers ignore Ctrl-C; the explorer's process receives
 it, and on it or on any error the pool is terminated and its processes joined before the
-exception goes on (:meth:`Pool.__exit__`): no worker outlives the check.
+exception goes on (:meth:`Pool.__exit__`): no worker outlives the check. A worker that
+dies (killed, out of memory) takes its chunk with it, and ``multiprocessing`` would wait
+for that chunk forever: while waiting, the pool checks every second that each worker it
+started is alive, and ends the check with :class:`WorkerDied` if one is not.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 from collections import deque
 from collections.abc import Callable, Iterator
@@ -36,10 +40,23 @@ class Successors(Protocol):
     def run(self, jobs: list[tuple]) -> list: ...
 
 
-def _start(make: Callable[[], Successors]) -> None:
+class WorkerDied(RuntimeError):
+    """A worker process ended while the check needed it."""
+
+
+def _start(make: Callable[[], Successors], started) -> None:
     global _machine
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the explorer's process handles Ctrl-C
+    started.put(os.getpid())
     _machine = make()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 def _run(jobs: list[tuple]) -> list:
@@ -52,8 +69,11 @@ class Pool:
 
     def __init__(self, make: Callable[[], Successors], workers: int) -> None:
         self.workers = workers
+        ctx = multiprocessing.get_context("fork")
+        self._started = ctx.SimpleQueue()  # each worker's process id, as it starts
+        self._pids: set[int] = set()
         # fork: the skeleton and the machine factory reach the workers without pickling
-        self._pool = multiprocessing.get_context("fork").Pool(workers, _start, (make,))
+        self._pool = ctx.Pool(workers, _start, (make, self._started))
 
     def __enter__(self) -> Pool:
         return self
@@ -64,6 +84,7 @@ class Pool:
         else:
             self._pool.terminate()
         self._pool.join()
+        self._started.close()
 
     def in_order(self, level: Iterator[list], retries: list, size: int) -> Iterator[tuple]:
         """``(chunk, results)`` of the level's chunks, then of chunks of ``retries`` (which
@@ -85,4 +106,19 @@ class Pool:
             if not pending:
                 return
             chunk, result = pending.popleft()
-            yield chunk, result.get()
+            yield chunk, self._wait(result)
+
+    def _wait(self, result) -> list:
+        """``result``'s value, checking every second that no worker has died."""
+        while True:
+            try:
+                return result.get(timeout=1.0)
+            except multiprocessing.TimeoutError:
+                while not self._started.empty():
+                    self._pids.add(self._started.get())
+                dead = sorted(p for p in self._pids if not _alive(p))
+                if dead:
+                    raise WorkerDied(
+                        f"worker process {dead[0]} of verify --jobs {self.workers} ended "
+                        "while it computed successors (killed, or out of memory?)"
+                    ) from None

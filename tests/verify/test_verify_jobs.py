@@ -19,6 +19,7 @@ import pytest
 from hybridteam.cli.common import EXIT_INTERRUPTED
 from hybridteam.verify import Options, verify
 from hybridteam.verify.machine import Machine
+from hybridteam.verify.pool import WorkerDied
 from tests.verify.test_verify import REQUEST, docking, mutate, roles_team, verdicts
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,6 +95,26 @@ def test_an_error_in_a_worker_ends_the_pool(tmp_path, monkeypatch):
     workers = {int(p) for p in pids.read_text().split()}
     assert workers and os.getpid() not in workers  # it failed in the workers
     assert not multiprocessing.active_children()
+    assert not [p for p in workers if _alive(p)]
+
+
+def test_a_worker_killed_ends_the_check(tmp_path, monkeypatch):
+    """A worker killed (as the system's out-of-memory killer would) ends the check with
+    one error within seconds, instead of waiting forever for its chunk."""
+    pids = tmp_path / "pids"
+
+    def killed(self, jobs):
+        with pids.open("a") as f:
+            f.write(f"{os.getpid()}\n")
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    monkeypatch.setattr(Machine, "run", killed)
+    start = time.monotonic()
+    with pytest.raises(WorkerDied, match=r"worker process \d+ of verify --jobs 2 ended"):
+        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2), replay=False)
+    assert time.monotonic() - start < 60  # (a check every second; a loaded machine)
+    workers = {int(p) for p in pids.read_text().split()}
+    assert workers and not multiprocessing.active_children()
     assert not [p for p in workers if _alive(p)]
 
 
