@@ -204,6 +204,16 @@ def _check(args) -> None:
                 raise UsageError(f"{flag} applies to --storage bitstate, not {args.storage}")
     if args.bitstate_mb is not None and not 0 < args.bitstate_mb <= 1e6:
         raise UsageError(f"--bitstate-mb must be a number of MB > 0, got {args.bitstate_mb}")
+    if args.storage == "bitstate":
+        from hybridteam.engine.run.budget import memory_limit
+
+        limit = memory_limit(None if args.max_memory is None else args.max_memory * 1e9)
+        mb = DEFAULT_BITSTATE_MB if args.bitstate_mb is None else args.bitstate_mb
+        if mb * 2**20 > limit / 2:
+            raise UsageError(
+                f"--bitstate-mb {mb:g}: the bit array would take more than half of the "
+                f"memory limit of {limit / 1e9:g} GB (--max-memory raises it)"
+            )
     if args.hash_functions is not None and not 1 <= args.hash_functions <= 32:
         raise UsageError(f"--hash-functions must be 1 to 32, got {args.hash_functions}")
     if args.storage != "exact":

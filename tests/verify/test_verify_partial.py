@@ -178,6 +178,11 @@ def test_responses_are_refused_in_a_partial_search(tmp_path, capsys):
         (["--storage", "bitstate", "--bitstate-mb", "0"], "--bitstate-mb must be"),
         (["--storage", "bitstate", "--bitstate-mb", "nan"], "--bitstate-mb must be"),
         (["--storage", "bitstate", "--hash-functions", "0"], "--hash-functions must be 1 to 32"),
+        (
+            ["--storage", "bitstate", "--bitstate-mb", "1024", "--max-memory", "1"],
+            "--bitstate-mb 1024: the bit array would take more than half of the memory "
+            "limit of 1 GB",
+        ),
         (["--bitstate-mb", "8"], "--bitstate-mb applies to --storage bitstate, not exact"),
         (["--storage", "hashcompact", "--hash-functions", "2"], "applies to --storage bitstate"),
         (["--storage", "hashcompact", "--spin"], "--spin compares a whole exploration"),
