@@ -18,7 +18,7 @@ from __future__ import annotations
 import gc
 import time
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import overload
 
@@ -310,6 +310,7 @@ def _levels(
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
         jobs = _jobs(m, sk, store, frontier, opts)
+        done: Iterator[tuple]
         if pool is None:
             done = (
                 (chunk, m.run([job[1:] for job in chunk]))
