@@ -223,11 +223,9 @@ def word(v: Verdict, g: Graph) -> str:
         return "violated"  # in the skeleton; the replay says whether a run shows it
     if g.exhaustive:
         return "holds"
-    return (
-        "holds (partial search)"
-        if g.coverage is not None and g.bound is None
-        else ("holds (bounded)")
-    )
+    if g.coverage is None:
+        return "holds (bounded)"
+    return "holds (partial search)" if g.bound is None else "holds (partial search, bounded)"
 
 
 def verify(
