@@ -21,7 +21,8 @@ its successors may be missed too; the verdicts say so, with the estimate. What i
 per state is what the checks and the counterexamples need and not the state itself: its
 parent and the choice that reached it (:class:`Trail`), and its agents' parts (the modes
 and discrete variables the invariants and ``deadlock`` read, a few numbers a state).
-Whole states are held only for the two BFS levels at work; a state on a counterexample
+The states of the two BFS levels at work are held as their keys (the exact store's
+compact form, :func:`~.store.state_key`); a state on a counterexample
 is computed again from the initial state along its path of choices (as SPIN follows its
 trail), with the explorer's own successor function.
 """
@@ -38,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybridteam.verify.machine import State
-from hybridteam.verify.store import Parts, state_key
+from hybridteam.verify.store import Parts, decode, state_key
 
 #: The storage modes; "exact" is :class:`~.store.Store`.
 STORAGES = ("exact", "hashcompact", "bitstate")
@@ -265,16 +266,17 @@ CACHE = 4096
 
 class PartialStore:
     """States by number, as :class:`~.store.Store` answers for them, with only hashes of
-    the visited ones: the states of the BFS levels at work are held whole, older ones
-    are computed again along their path (:meth:`__getitem__`)."""
+    the visited ones: the states of the BFS levels at work are held as their keys (as
+    the exact store holds every state), older ones are computed again along their path
+    (:meth:`__getitem__`)."""
 
     def __init__(self, agents: int, visited: Visited) -> None:
         self.agents = agents
         self.visited = visited
         self.parts = Parts()  # numbers of states' parts, for keys and agent entries
         self.agent_parts = array("I")
-        self.held: dict[int, State] = {}  # the current and the next level, whole
-        self.numbers: dict[bytes, int] = {}  # their keys
+        self.held: dict[int, bytes] = {}  # the current and the next level: their keys
+        self.numbers: dict[bytes, int] = {}  # and their numbers by key
         self.count = 0
         self._last: tuple[bytes, tuple[int, int], State] | None = None
         self._root: State | None = None
@@ -305,17 +307,17 @@ class PartialStore:
         self.count += 1
         self.visited.add(d)
         self.agent_parts.extend(self.parts.of(p) for p in s.agents)
-        self.held[k] = s
+        self.held[k] = key
         self.numbers[key] = k
         if k == 0:
             self._root = s
         return k
 
     def advance(self, frontier: list[int]) -> None:
-        """The next level is ``frontier``: states before it are no longer held whole."""
+        """The next level is ``frontier``: states before it are no longer held."""
         keep = set(frontier)
-        self.held = {k: s for k, s in self.held.items() if k in keep}
-        self.numbers = {key: k for key, k in self.numbers.items() if k in keep}
+        self.held = {k: key for k, key in self.held.items() if k in keep}
+        self.numbers = {key: k for k, key in self.held.items()}
 
     def agents_of(self, k: int) -> tuple:
         """State ``k``'s agents (modes and discrete variables), from what is kept."""
@@ -327,7 +329,7 @@ class PartialStore:
             raise IndexError(k)
         k %= len(self)
         if k in self.held:
-            return self.held[k]
+            return decode(self.parts, self.agents, self.held[k])
         if k == 0 and self._root is not None:
             return self._root
         if k in self._cache:

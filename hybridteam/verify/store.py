@@ -161,22 +161,32 @@ class Store:
     def __getitem__(self, k: int) -> State:
         if not -len(self.keys) <= k < len(self.keys):
             raise IndexError(k)
-        nums = _numbers(self.keys[k % len(self.keys)])
-        values = self.parts.values
-        a = self.agents
-        agents = tuple(values[n] for n in nums[:a])
-        pos, groups = a, []
-        for _ in range(3):
-            count = nums[pos]
-            groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
-            pos += 1 + count
-        cursor, losses, dups = nums[pos : pos + 3]
-        return State(
-            agents, groups[0], groups[1], groups[2], cursor, losses, dups, tuple(nums[pos + 3 :])
-        )
+        return decode(self.parts, self.agents, self.keys[k % len(self.keys)])
 
     def __iter__(self) -> Iterator[State]:
         return (self[k] for k in range(len(self.keys)))
+
+
+def decode(parts: Parts, agents: int, key: bytes) -> State:
+    """The state of ``key`` (:func:`state_key`) for a team of ``agents`` agents."""
+    nums = _numbers(key)
+    values = parts.values
+    pos, groups = agents, []
+    for _ in range(3):
+        count = nums[pos]
+        groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
+        pos += 1 + count
+    cursor, losses, dups = nums[pos : pos + 3]
+    return State(
+        tuple(values[n] for n in nums[:agents]),
+        groups[0],
+        groups[1],
+        groups[2],
+        cursor,
+        losses,
+        dups,
+        tuple(nums[pos + 3 :]),
+    )
 
 
 def _numbers(key: bytes) -> array:
