@@ -250,6 +250,8 @@ def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine:
 
 
 def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
+    if opts.jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
     # the engine's arrays take at most half the limit, shared by the workers; the

@@ -203,7 +203,16 @@ Visited = HashCompact | Bitstate
 
 
 def visited_set(storage: str, bitstate_mb: float, hash_functions: int) -> Visited:
-    return HashCompact() if storage == "hashcompact" else Bitstate(bitstate_mb, hash_functions)
+    """The visited set of a partial search of kind ``storage``."""
+    if storage == "hashcompact":
+        return HashCompact()
+    if storage == "bitstate" and bitstate_mb > 0 and hash_functions >= 1:
+        return Bitstate(bitstate_mb, hash_functions)
+    raise ValueError(
+        f"no partial storage {storage!r} with {bitstate_mb:g} MB and {hash_functions} "
+        f"hash functions (storage: one of {', '.join(STORAGES)}; MB > 0; 1 hash function "
+        "or more)"
+    )
 
 
 class Trail:

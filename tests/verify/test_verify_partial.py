@@ -215,3 +215,17 @@ def test_cli_says_partial_with_its_coverage(tmp_path, capsys):
     assert cov["hash_functions"] == 3 and cov["hash_factor"] == 64 * 2**23 / summary["states"]
     assert summary["options"]["storage"] == "bitstate" and summary["options"]["bitstate_mb"] == 64
     assert np.isclose(cov["expected_omissions"], omissions(summary["states"], 64 * 2**23, 3))
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        (Options(storage="hash"), "no partial storage 'hash'"),
+        (Options(storage="bitstate", bitstate_mb=0), "with 0 MB"),
+        (Options(storage="bitstate", hash_functions=0), "and 0 hash functions"),
+        (Options(jobs=0), "jobs must be at least 1, got 0"),
+    ],
+)
+def test_the_api_refuses_bad_storage_and_jobs(tmp_path, options, words):
+    with pytest.raises(ValueError, match=words):
+        verify(roles_team(tmp_path, "b"), options, replay=False)
