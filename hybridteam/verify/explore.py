@@ -38,7 +38,7 @@ from hybridteam.verify.storage import (
     Trail,
     visited_set,
 )
-from hybridteam.verify.store import Edges, Store
+from hybridteam.verify.store import Edges, Renumber, Store, key_numbers
 
 
 @dataclass
@@ -304,6 +304,7 @@ def _levels(
 ) -> None:
     """The breadth-first search, level by level, from the initial state in ``g``."""
     store, batch = g.states, g.batch
+    renumber = Renumber(store.parts, len(sk.cteam.agents))
     frontier = [0]
     depth = 0
     last = start
@@ -314,21 +315,18 @@ def _levels(
         jobs = _jobs(m, sk, store, frontier, opts)
         done: Iterator[tuple]
         if pool is None:
-            done = (
-                (chunk, m.run([job[1:] for job in chunk]))
-                for chunk in _chunks(jobs, retries, batch)
-            )
+            done = _here(m, store, _chunks(jobs, retries, batch))
         else:  # chunks small enough that a level keeps every worker busy
             size = min(batch, max(MIN_CHUNK, len(frontier) // pool.workers))
-            done = pool.in_order(_chunks(jobs, [], size), retries, size)
+            done = pool.in_order(_chunks(jobs, [], size), retries, size, renumber)
         for chunk, results in done:
             if pool is not None:  # the workers' machines did not count the values
-                _count_values(values, sk, results)
-            for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
-                for k in range(len(tape), r.reads):  # the other answers still to try
+                _count_values(values, sk, store, [key for key, _, _ in results])
+            for (sid, state, ch, tape), (key, zeno, reads) in zip(chunk, results, strict=True):
+                for k in range(len(tape), reads):  # the other answers still to try
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
-                key, tid = store.find(r.state)
+                tid = store.number(key)
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
@@ -338,7 +336,7 @@ def _levels(
                     tid = store.add(key)
                     g.parent.append(sid)
                     nxt.append(tid)
-                if r.zeno and tid >= 0:
+                if zeno and tid >= 0:
                     g.zeno.add(tid)
                 if tid != sid:
                     g.edges.add(sid, tid, ch, tape)
@@ -361,13 +359,25 @@ def _levels(
         progress(len(store), 0, depth, time.perf_counter() - start)
 
 
-def _count_values(values: Values, sk: Skeleton, results: list) -> None:
-    """Count the discrete variables' values of ``results`` (:mod:`.bounds`), as the
-    machine does for the states it computes."""
+def _here(m: Machine, store: Store | PartialStore, chunks: Iterator[list]) -> Iterator[tuple]:
+    """``(chunk, results)`` computed in this process: each job's successor as
+    ``(key, zeno, reads)``, as a pool gives them (:meth:`.pool.Pool.in_order`)."""
+    for chunk in chunks:
+        results = m.run([job[1:] for job in chunk])
+        yield chunk, [(store.key(r.state), r.zeno, r.reads) for r in results]
+
+
+def _count_values(
+    values: Values, sk: Skeleton, store: Store | PartialStore, keys: list[bytes]
+) -> None:
+    """Count the discrete variables' values of the states of ``keys`` (:mod:`.bounds`),
+    as the machine does for the states it computes."""
+    parts, count = store.parts.values, len(sk.discrete_vars)
+    rows = [key_numbers(key)[:count] for key in keys]
     for a, cols in enumerate(sk.discrete_vars):
         if cols:
-            block = np.array([r.state.agents[a][1] for r in results], float)
-            values.add(a, block.reshape(len(results), len(cols)))
+            block = np.array([parts[row[a]][1] for row in rows], float)
+            values.add(a, block.reshape(len(keys), len(cols)))
 
 
 def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:

@@ -1,11 +1,14 @@
 """Successors on several cores: a pool of worker processes, each with its own machine.
 
-Computing a successor (the engine's discrete phase on a batch of instances) is nearly all
-of an exploration's time; storing and numbering states is a small part. So the explorer
-keeps the store, the graph and the BFS order in its own process and hands chunks of jobs
+Computing a successor (the engine's discrete phase on a batch of instances) is most of an
+exploration's time; storing and numbering states is a smaller part. So the explorer keeps
+the store, the graph and the BFS order in its own process and hands chunks of jobs
 ``(state, choice, tape)`` to the workers, several chunks ahead, and takes the results
-back *in the order the jobs were made*. The states are then numbered, the edges added
-and the free comparisons' retries queued exactly as one process does: the graph — state
+back *in the order the jobs were made*. A worker sends each successor as its key in its
+own part numbers (:func:`~.store.state_key`; a few bytes, not the state's objects) with
+the parts it numbered since its last chunk, and the explorer renumbers the keys into its
+own (:class:`~.store.Renumber`). The states are then numbered, the edges added and the
+free comparisons' retries queued exactly as one process does: the graph — state
 numbers, parents, edges, verdicts and counterexamples — is the same, bit for bit, for
 any number of jobs. (Partitioning the states between owner processes would spread the
 store too, but make the numbering depend on how the exchanges interleave; on a few cores
@@ -30,8 +33,13 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import Any, Protocol
 
+from hybridteam.verify.store import Parts, Renumber, state_key
+
 #: The machine of this worker process (built once, by :func:`_start`).
 _machine: Any = None
+#: This worker's part numbers, and how many of them it has sent.
+_parts = Parts()
+_sent = 0
 
 
 class Successors(Protocol):
@@ -59,8 +67,14 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _run(jobs: list[tuple]) -> list:
-    return _machine.run(jobs)
+def _run(jobs: list[tuple]) -> tuple[int, list, list[tuple[bytes, bool, int]]]:
+    """This worker's id, the parts it numbered since its last chunk, and each job's
+    successor as ``(key, zeno, reads)``."""
+    global _sent
+    out = [(state_key(_parts, r.state), r.zeno, r.reads) for r in _machine.run(jobs)]
+    new = _parts.values[_sent:]
+    _sent = len(_parts.values)
+    return os.getpid(), new, out
 
 
 class Pool:
@@ -86,11 +100,14 @@ class Pool:
         self._pool.join()
         self._started.close()
 
-    def in_order(self, level: Iterator[list], retries: list, size: int) -> Iterator[tuple]:
+    def in_order(
+        self, level: Iterator[list], retries: list, size: int, renumber: Renumber
+    ) -> Iterator[tuple]:
         """``(chunk, results)`` of the level's chunks, then of chunks of ``retries`` (which
         the caller extends while it takes the results), in that order; up to two chunks
         a worker are being computed meanwhile. A chunk's items are ``(tag, *job)``: the
-        workers get the jobs, the tags (the explorer's state numbers) stay here."""
+        workers get the jobs, the tags (the explorer's state numbers) stay here. The
+        results are ``(key, zeno, reads)``, keys in ``renumber``'s part numbers."""
         pending: deque = deque()
         done = 0
         while True:
@@ -106,7 +123,9 @@ class Pool:
             if not pending:
                 return
             chunk, result = pending.popleft()
-            yield chunk, self._wait(result)
+            source, new, out = self._wait(result)
+            renumber.learn(source, new)
+            yield chunk, [(renumber.key(source, key), zeno, reads) for key, zeno, reads in out]
 
     def _wait(self, result) -> list:
         """``result``'s value, checking every second that no worker has died."""

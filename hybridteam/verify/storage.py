@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybridteam.verify.machine import State
-from hybridteam.verify.store import Parts, decode, state_key
+from hybridteam.verify.store import Parts, decode, key_numbers, state_key
 
 #: The storage modes; "exact" is :class:`~.store.Store`.
 STORAGES = ("exact", "hashcompact", "bitstate")
@@ -287,8 +287,8 @@ class PartialStore:
         self.held: dict[int, bytes] = {}  # the current and the next level: their keys
         self.numbers: dict[bytes, int] = {}  # and their numbers by key
         self.count = 0
-        self._last: tuple[bytes, tuple[int, int], State] | None = None
-        self._root: State | None = None
+        self._last: tuple[bytes, tuple[int, int]] | None = None  # number()'s, for add()
+        self._root: bytes | None = None  # the initial state's key
         self._cache: OrderedDict[int, State] = OrderedDict()
         #: (state, choice, tape) -> successor: set by the explorer, to compute a state again
         self.successor: Callable[[State, tuple, tuple], State] | None = None
@@ -297,29 +297,36 @@ class PartialStore:
     def __len__(self) -> int:
         return self.count
 
+    def key(self, s: State) -> bytes:
+        return state_key(self.parts, s)
+
     def find(self, s: State) -> tuple[bytes, int | None]:
-        """``s``'s key and its number (:data:`SEEN` when it was visited but its number is
-        not kept), or None if it is new."""
-        key = state_key(self.parts, s)
+        """``s``'s key and its number (:meth:`number`)."""
+        key = self.key(s)
+        return key, self.number(key)
+
+    def number(self, key: bytes) -> int | None:
+        """The number of the state of ``key``, :data:`SEEN` when it was visited but its
+        number is not kept, or None if it is new."""
         k = self.numbers.get(key)
         if k is not None:
-            return key, k
+            return k
         d = digest(key)
-        self._last = (key, d, s)
-        return key, (SEEN if self.visited.contains(d) else None)
+        self._last = (key, d)
+        return SEEN if self.visited.contains(d) else None
 
     def add(self, key: bytes) -> int:
-        """Store the state of ``key`` (the last one :meth:`find` was asked); its number."""
-        assert self._last is not None and self._last[0] == key, "add follows find"
-        _, d, s = self._last
+        """Store the state of ``key`` (the last one :meth:`number` was asked); its
+        number."""
+        assert self._last is not None and self._last[0] == key, "add follows number"
         k = self.count
         self.count += 1
-        self.visited.add(d)
-        self.agent_parts.extend(self.parts.of(p) for p in s.agents)
+        self.visited.add(self._last[1])
+        self.agent_parts.extend(key_numbers(key)[: self.agents].tolist())
         self.held[k] = key
         self.numbers[key] = k
         if k == 0:
-            self._root = s
+            self._root = key
         return k
 
     def advance(self, frontier: list[int]) -> None:
@@ -340,7 +347,7 @@ class PartialStore:
         if k in self.held:
             return decode(self.parts, self.agents, self.held[k])
         if k == 0 and self._root is not None:
-            return self._root
+            return decode(self.parts, self.agents, self._root)
         if k in self._cache:
             self._cache.move_to_end(k)
             return self._cache[k]

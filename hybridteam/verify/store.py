@@ -114,9 +114,46 @@ def state_key(parts: Parts, s: State) -> bytes:
         nums.append(len(group))
         nums += [of(p) for p in group]
     nums += (s.cursor, s.losses, s.dups, *s.next_ids)
+    return _pack(nums)
+
+
+def _pack(nums: list[int]) -> bytes:
     if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
         return b"H" + array("H", nums).tobytes()
     return b"I" + array("I", nums).tobytes()
+
+
+class Renumber:
+    """Keys made in other processes (each with its own :class:`Parts`), in this process's
+    part numbers. A source sends the values of the parts it numbered since it last sent
+    (:meth:`learn`), with its keys; a part gets its number here when a key first reads
+    it, in the key's order — the order :func:`state_key` numbers them in — so keys read
+    in the order one process would have made them are numbered as that process would."""
+
+    def __init__(self, parts: Parts, agents: int) -> None:
+        self.parts, self.agents = parts, agents
+        self.values: dict[int, list] = {}  # source -> its parts' values by its numbers
+        self.tables: dict[int, list[int]] = {}  # source -> its numbers' here (-1: none yet)
+
+    def learn(self, source: int, new: list) -> None:
+        self.values.setdefault(source, []).extend(new)
+        self.tables.setdefault(source, []).extend([-1] * len(new))
+
+    def key(self, source: int, key: bytes) -> bytes:
+        values, table, of = self.values[source], self.tables[source], self.parts.of
+        nums = key_numbers(key).tolist()
+        at = list(range(self.agents))  # where the part numbers are (the rest: counts)
+        pos = self.agents
+        for _ in range(3):
+            at += range(pos + 1, pos + 1 + nums[pos])
+            pos += 1 + nums[pos]
+        for i in at:
+            n = nums[i]
+            t = table[n]
+            if t < 0:
+                t = table[n] = of(values[n])
+            nums[i] = t
+        return _pack(nums)
 
 
 class Store:
@@ -143,10 +180,14 @@ class Store:
         key = self.key(s)
         return key, self.keys.get(key)
 
+    def number(self, key: bytes) -> int | None:
+        """The number of the state of ``key``, or None if it is not stored."""
+        return self.keys.get(key)
+
     def add(self, key: bytes) -> int:
         """Store the state of ``key`` (from :meth:`find`); its new number."""
         k = self.keys.add(key)
-        self.agent_parts.extend(_numbers(key)[: self.agents].tolist())
+        self.agent_parts.extend(key_numbers(key)[: self.agents].tolist())
         return k
 
     def advance(self, frontier: list[int]) -> None:
@@ -169,7 +210,7 @@ class Store:
 
 def decode(parts: Parts, agents: int, key: bytes) -> State:
     """The state of ``key`` (:func:`state_key`) for a team of ``agents`` agents."""
-    nums = _numbers(key)
+    nums = key_numbers(key)
     values = parts.values
     pos, groups = agents, []
     for _ in range(3):
@@ -189,7 +230,7 @@ def decode(parts: Parts, agents: int, key: bytes) -> State:
     )
 
 
-def _numbers(key: bytes) -> array:
+def key_numbers(key: bytes) -> array:
     """A key's numbers (its first byte names their width)."""
     nums = array(chr(key[0]))
     nums.frombytes(key[1:])

@@ -18,8 +18,9 @@ import pytest
 
 from hybridteam.cli.common import EXIT_INTERRUPTED
 from hybridteam.verify import Options, verify
-from hybridteam.verify.machine import Machine
+from hybridteam.verify.machine import Copy, Machine, State
 from hybridteam.verify.pool import WorkerDied
+from hybridteam.verify.store import Parts, Renumber, decode, state_key
 from tests.verify.test_verify import REQUEST, docking, mutate, roles_team, verdicts
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -175,3 +176,31 @@ def test_ctrl_c_ends_the_pool_and_writes_nothing(tmp_path):
     assert err.strip().splitlines() == ["hybridteam: interrupted; nothing written"]
     assert not [p for p in workers if _alive(p)]
     assert not (out / "verify.json").exists()
+
+
+def test_keys_from_other_processes_are_renumbered_as_made_here():
+    """Two workers number parts each in their own order; their keys, read in the order
+    one process would have made them, get the numbers that process gives."""
+    copy = Copy(0, 1, "control", "request", 0, (("priority", 2.0),))
+    ack = Copy(1, 0, "control", "__ack__", -1, (("id", 0.0),))
+    states = [
+        State(((b"\x01\x00", (1.0,)), (b"\x00\x01", ())), (copy,), (), (), 1, 0, 0, ()),
+        State(((b"\x01\x00", (2.0,)), (b"\x00\x01", ())), (ack, copy), (), ((1, 0, 0),), 2, 1, 0),
+        State(((b"\x01\x00", (2.0,)), (b"\x01\x01", ())), (), (), ((1, 0, 0),), 3, 1, 0, ()),
+    ]
+    here = Parts()
+    expected = [state_key(here, s) for s in states]
+    a, b = Parts(), Parts()
+    state_key(b, states[2])  # worker b has numbered other parts first
+    mine = Parts()
+    renumber = Renumber(mine, agents=2)
+    made = [(1, state_key(a, states[0]), a), (2, state_key(b, states[1]), b)]
+    made.append((1, state_key(a, states[2]), a))
+    sent = {1: 0, 2: 0}
+    got = []
+    for source, key, parts in made:
+        renumber.learn(source, parts.values[sent[source] :])
+        sent[source] = len(parts.values)
+        got.append(renumber.key(source, key))
+    assert got == expected and mine.values == here.values
+    assert [decode(mine, 2, k) for k in got] == states
