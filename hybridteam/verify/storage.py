@@ -70,6 +70,12 @@ class Coverage:
     hash_functions: int | None = None
 
     @property
+    def any_omission(self) -> float:
+        """The probability that at least one state was omitted (omissions as rare
+        independent events: Poisson, ``1 - exp(-expected omissions)``)."""
+        return -math.expm1(-self.expected_omissions)
+
+    @property
     def coverage(self) -> float:
         """The estimated share of the states reached that were explored (omitted states'
         own successors are not counted: an estimate, as SPIN's)."""
@@ -95,6 +101,7 @@ class Coverage:
             "partial": True,
             "states": self.states,
             "expected_omissions": self.expected_omissions,
+            "probability_of_an_omission": self.any_omission,
             "estimated_coverage": self.coverage,
             "visited_bytes": self.bytes,
             **(

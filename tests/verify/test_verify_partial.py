@@ -44,7 +44,10 @@ def test_hashcompact_finds_every_hash_after_the_table_grows():
     assert all(table.contains(digest(k)) for k in keys)
     assert not any(table.contains(digest(k)) for k in _keys(3000, 2))
     # the expected omissions: each of n states meets each earlier hash w.p. 2**-64
-    assert table.coverage(3000).expected_omissions == 3000 * 2999 / 2**65
+    c = table.coverage(3000)
+    assert c.expected_omissions == 3000 * 2999 / 2**65
+    # the chance of any: 1 - (1 - 2**-64)**(pairs), to first order the expectation
+    assert c.any_omission == pytest.approx(3000 * 2999 / 2**65, rel=1e-6)
 
 
 def test_bitstate_omission_estimate_is_the_bloom_filter_closed_form():
@@ -101,6 +104,7 @@ def test_a_small_bit_array_omits_states_and_says_so(tmp_path):
     assert c is not None and c.states == len(r.graph.states) < len(exact.graph.states)
     assert c.hash_factor == 4096 / c.states and c.hash_factor < 4
     assert c.expected_omissions > 1 and c.coverage < 0.99
+    assert c.any_omission == pytest.approx(1 - math.exp(-c.expected_omissions), rel=1e-12)
     assert "PARTIAL search (bitstate" in c.words() and "expected omissions" in c.words()
 
 
