@@ -351,6 +351,32 @@ class PartialStore:
         if not -len(self) <= k < len(self):
             raise IndexError(k)
         k %= len(self)
+        known = self._known(k)
+        if known is not None:
+            return known
+        assert self.successor is not None and self.trail is not None, "set by the explorer"
+        # up the BFS tree to a state held, cached or the initial one, then down again
+        # (a loop, not a recursion: a path may be long)
+        path = [k]
+        while (s := self._known(self.trail.parent[path[-1]])) is None:
+            path.append(self.trail.parent[path[-1]])
+        for j in reversed(path):
+            choice, tape = self.trail.way(j)
+            s = self.successor(s, choice, tape)
+            if s.agents != self.agents_of(j) or not self.visited.contains(
+                digest(state_key(self.parts, s))
+            ):
+                raise RuntimeError(
+                    f"state {j} computed again differs from the one explored: the successor "
+                    "function is not deterministic"
+                )
+            self._cache[j] = s
+            if len(self._cache) > CACHE:
+                self._cache.popitem(last=False)
+        return s
+
+    def _known(self, k: int) -> State | None:
+        """State ``k`` if it is held, cached or the initial one, else None."""
         if k in self.held:
             return decode(self.parts, self.agents, self.held[k])
         if k == 0 and self._root is not None:
@@ -358,21 +384,7 @@ class PartialStore:
         if k in self._cache:
             self._cache.move_to_end(k)
             return self._cache[k]
-        assert self.successor is not None and self.trail is not None, "set by the explorer"
-        parent = self[self.trail.parent[k]]
-        choice, tape = self.trail.way(k)
-        s = self.successor(parent, choice, tape)
-        if s.agents != self.agents_of(k) or not self.visited.contains(
-            digest(state_key(self.parts, s))
-        ):
-            raise RuntimeError(
-                f"state {k} computed again differs from the one explored: the successor "
-                "function is not deterministic"
-            )
-        self._cache[k] = s
-        if len(self._cache) > CACHE:
-            self._cache.popitem(last=False)
-        return s
+        return None
 
     def __iter__(self):
         return (self[k] for k in range(len(self)))
