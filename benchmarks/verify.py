@@ -12,6 +12,14 @@ growth during the check per state explored.
 
     python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
         [--scenario all|request|resign] [--timeouts any|own|long]
+        [--storage exact|hashcompact|bitstate] [--jobs N] [--compare jobs|storage]
+
+``--compare jobs`` times each check with ``--jobs 1`` and with ``--jobs N`` (2 unless
+told), alternating, twice each, and prints the speedup (the best time of one against the
+best of the other, in this invocation: on a machine others use too, the ratio is what
+carries over, not the seconds; the CPU seconds, the check's process and its workers
+together, say what the pool costs beyond one process). ``--compare storage`` runs each
+check with every storage mode and prints their states, time and peak memory side by side.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ from pathlib import Path
 
 from hybridteam import load
 from hybridteam.verify import Options, verify
+from hybridteam.verify.storage import STORAGES
 
 NAMES = "abcdefgh"
 
@@ -76,7 +85,13 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> str:
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
         r = verify(
             team,
-            Options(losses=losses, max_states=args.max_states, timeouts=args.timeouts),
+            Options(
+                losses=losses,
+                max_states=args.max_states,
+                timeouts=args.timeouts,
+                storage=args.storage,
+                jobs=args.jobs,
+            ),
             replay=False,
         )
     g = r.graph
@@ -84,7 +99,13 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> str:
     word = (
         ("VIOLATED: " + ", ".join(bad))
         if bad
-        else ("all hold" if g.exhaustive else "none violated (bounded)")
+        else (
+            "all hold"
+            if g.exhaustive
+            else "none violated (partial)"
+            if g.coverage is not None and g.bound is None
+            else "none violated (bounded)"
+        )
     )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return (
@@ -101,10 +122,16 @@ def main() -> None:
     ap.add_argument("--max-states", type=int, default=1_000_000)
     ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
     ap.add_argument("--timeouts", choices=("any", "own", "long"), default="any")
+    ap.add_argument("--storage", choices=STORAGES, default="exact")
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--compare", choices=("jobs", "storage"), default=None)
     ap.add_argument("--one", type=int, nargs=2, help=argparse.SUPPRESS)  # robots, losses
     args = ap.parse_args()
     if args.one:
         print(one(*args.one, args), flush=True)
+        return
+    if args.compare:
+        compare(args)
         return
     print(
         f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
@@ -125,6 +152,60 @@ def main() -> None:
             subprocess.run(
                 [sys.executable, __file__, "--one", str(robots), str(losses), *rest], check=True
             )
+
+
+def _cpu() -> float:
+    """CPU seconds of this process's finished children (and theirs: a check's workers)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def compare(args: argparse.Namespace) -> None:
+    """Each check with ``--jobs 1`` against ``--jobs N`` (alternating, twice each), or
+    with each storage mode: seconds, and the ratio to the first of them."""
+    base = [
+        sys.executable,
+        __file__,
+        "--max-states",
+        str(args.max_states),
+        "--scenario",
+        args.scenario,
+        "--timeouts",
+        args.timeouts,
+    ]
+    if args.compare == "jobs":
+        jobs = args.jobs if args.jobs > 1 else 2
+        variants = [["--jobs", "1"], ["--jobs", str(jobs)]] * 2
+    else:
+        variants = [["--storage", s] for s in STORAGES]
+    print(f"{'variant':>22} {'seconds':>8} {'ratio':>6} {'CPU s':>6}  row", flush=True)
+    for robots in args.robots:
+        for losses in args.losses:
+            best: dict[str, float] = {}
+            for variant in variants:
+                before = _cpu()
+                row = subprocess.run(
+                    [*base, *variant, "--one", str(robots), str(losses)],
+                    check=True,
+                    capture_output=True,
+                    text=True,
+                ).stdout.strip()
+                cpu = _cpu() - before  # the check's process and its workers
+                name = " ".join(variant)
+                seconds = float(row.split()[4])
+                best[name] = min(seconds, best.get(name, seconds))
+                first = best[" ".join(variants[0])]
+                print(
+                    f"{name:>22} {seconds:>8.1f} {first / seconds:>6.2f} {cpu:>6.1f}  {row}",
+                    flush=True,
+                )
+            if args.compare == "jobs":
+                one_, many = (best[" ".join(v)] for v in variants[:2])
+                print(
+                    f"robots {robots}, losses {losses}: --jobs {jobs} is {one_ / many:.2f}x "
+                    f"--jobs 1 (best of two each: {one_:.1f} s against {many:.1f} s)",
+                    flush=True,
+                )
 
 
 if __name__ == "__main__":

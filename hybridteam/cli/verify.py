@@ -31,6 +31,7 @@ from hybridteam.cli.common import (
 )
 from hybridteam.progress import MODES
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES
+from hybridteam.verify.storage import DEFAULT_BITSTATE_MB, DEFAULT_HASH_FUNCTIONS, STORAGES
 
 EXIT_VIOLATED = 1
 EXIT_SPURIOUS = 3
@@ -122,6 +123,38 @@ def register(sub) -> dict:
         f"skeleton infinite (default {DEFAULT_MAX_VALUES})",
     )
     ve.add_argument(
+        "--storage",
+        choices=STORAGES,
+        default="exact",
+        help="exact: keep every state (exhaustive; default); hashcompact: a 64-bit hash "
+        "per state; bitstate: a few bits per state in a fixed bit array (--bitstate-mb). "
+        "hashcompact and bitstate are PARTIAL searches (a state whose hash meets another's "
+        "is not explored), reported with their estimated coverage; they check invariants "
+        "and deadlock, not responses (docs/verify.md)",
+    )
+    ve.add_argument(
+        "--bitstate-mb",
+        type=float,
+        default=None,
+        metavar="MB",
+        help=f"the bit array of --storage bitstate, in MB (default {DEFAULT_BITSTATE_MB:g})",
+    )
+    ve.add_argument(
+        "--hash-functions",
+        type=int,
+        default=None,
+        metavar="K",
+        help=f"bits set per state with --storage bitstate (default {DEFAULT_HASH_FUNCTIONS})",
+    )
+    ve.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="processes computing successors (default 1); the states, edges and verdicts "
+        "are the same for any N",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -162,6 +195,34 @@ def _check(args) -> None:
         raise UsageError(f"--max-values must be at least 1, got {args.max_values}")
     if args.max_memory is not None and not 0 < args.max_memory < math.inf:
         raise UsageError(f"--max-memory must be a finite number > 0, got {args.max_memory}")
+    if args.jobs < 1:
+        raise UsageError(f"--jobs must be at least 1, got {args.jobs}")
+    if args.storage != "bitstate":
+        for name in ("bitstate_mb", "hash_functions"):
+            if getattr(args, name) is not None:
+                flag = "--" + name.replace("_", "-")
+                raise UsageError(f"{flag} applies to --storage bitstate, not {args.storage}")
+    if args.bitstate_mb is not None and not 0 < args.bitstate_mb <= 1e6:
+        raise UsageError(f"--bitstate-mb must be a number of MB > 0, got {args.bitstate_mb}")
+    if args.storage == "bitstate":
+        from hybridteam.engine.run.budget import memory_limit
+
+        limit = memory_limit(None if args.max_memory is None else args.max_memory * 1e9)
+        mb = DEFAULT_BITSTATE_MB if args.bitstate_mb is None else args.bitstate_mb
+        if mb * 2**20 > limit / 2:
+            raise UsageError(
+                f"--bitstate-mb {mb:g}: the bit array would take more than half of the "
+                f"memory limit of {limit / 1e9:g} GB (--max-memory raises it)"
+            )
+    if args.hash_functions is not None and not 1 <= args.hash_functions <= 32:
+        raise UsageError(f"--hash-functions must be 1 to 32, got {args.hash_functions}")
+    if args.storage != "exact":
+        for flag in ("spin", "spin_rules"):
+            if getattr(args, flag):
+                raise UsageError(
+                    f"--{flag.replace('_', '-')} compares a whole exploration: it needs "
+                    f"--storage exact, not {args.storage} (a partial search)"
+                )
     if args.spin_rules:
         from hybridteam.verify import spin
 
@@ -173,7 +234,7 @@ def _check(args) -> None:
 def cmd_verify(args) -> int:
     from hybridteam.engine.run.budget import ResourceError
     from hybridteam.errors import did_you_mean
-    from hybridteam.verify import Options, UnknownProperty, verify
+    from hybridteam.verify import NotInPartialSearch, Options, UnknownProperty, verify
 
     _check(args)
     out = output_folder(args.output)
@@ -189,11 +250,19 @@ def cmd_verify(args) -> int:
         timeouts=args.timeouts,
         max_values=args.max_values,
         max_memory=None if args.max_memory is None else args.max_memory * 1e9,
+        storage=args.storage,
+        bitstate_mb=DEFAULT_BITSTATE_MB if args.bitstate_mb is None else args.bitstate_mb,
+        hash_functions=(
+            DEFAULT_HASH_FUNCTIONS if args.hash_functions is None else args.hash_functions
+        ),
+        jobs=args.jobs,
     )
     try:
         report = verify(team, opts, args.property, _progress(args.progress), replay=False)
     except ResourceError as exc:  # refused before anything was allocated
         raise UsageError(str(exc)) from None
+    except NotInPartialSearch as exc:
+        raise UsageError(f"--property: {exc}") from None
     except UnknownProperty as exc:
         hint = did_you_mean(exc.name, exc.known)
         raise UsageError(
@@ -361,11 +430,20 @@ def _replay_progress(name: str, mode: str):
     return show
 
 
+def _search(g) -> str:
+    """How complete the exploration was, in words."""
+    if g.coverage is not None:
+        return g.coverage.words()
+    return "exhaustive" if g.exhaustive else "bounded: not exhaustive"
+
+
 def _print(report, path: str, files: dict[str, list[str]]) -> None:
+    from hybridteam.verify import word as verdict_word
+
     g = report.graph
     print(
         f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
-        f"{g.seconds:.1f} s ({'exhaustive' if g.exhaustive else 'bounded: not exhaustive'};"
+        f"{g.seconds:.1f} s ({_search(g)};"
         f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
         f"order {report.options.order})"
     )
@@ -374,11 +452,7 @@ def _print(report, path: str, files: dict[str, list[str]]) -> None:
     for note in report.skeleton.notes:
         print(f"  abstracted: {note}")
     for v in report.verdicts:
-        word = {
-            None: "NOT CHECKED",
-            True: "holds" if g.exhaustive else "holds (bounded)",
-            False: "VIOLATED",
-        }[v.holds]
+        word = {None: "NOT CHECKED", True: verdict_word(v, g), False: "VIOLATED"}[v.holds]
         print(f"{v.prop.name}: {word}" + (f" ({v.message})" if v.message else ""))
         if v.holds is False:
             if v.prop.name in report.replays:

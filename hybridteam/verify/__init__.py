@@ -16,12 +16,12 @@ from dataclasses import dataclass, field
 from hybridteam.engine.run.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
 from hybridteam.verify.explore import Graph, Options, Progress, explore
-from hybridteam.verify.paths import describe, leaves
+from hybridteam.verify.paths import agent_leaves, describe
 from hybridteam.verify.properties import Verdict, check, properties
 from hybridteam.verify.replay import Context, Replay
 from hybridteam.verify.replay import replay as replay_path
 
-__all__ = ["Options", "Report", "UnknownProperty", "verify"]
+__all__ = ["NotInPartialSearch", "Options", "Report", "UnknownProperty", "verify"]
 
 
 class UnknownProperty(ValueError):
@@ -30,6 +30,18 @@ class UnknownProperty(ValueError):
     def __init__(self, name: str, known: list[str]) -> None:
         super().__init__(name)
         self.name, self.known = name, known
+
+
+class NotInPartialSearch(ValueError):
+    """``only`` names a response, which a partial search cannot check (checked before
+    exploring)."""
+
+    def __init__(self, name: str, storage: str) -> None:
+        super().__init__(
+            f"'{name}' is a response (phi leads to psi): it needs the whole state graph, "
+            f"which --storage {storage} (a partial search) does not keep; a partial search "
+            "checks invariants and deadlock (use --storage exact for responses)"
+        )
 
 
 @dataclass
@@ -138,7 +150,7 @@ class Report:
                 f"{ca.name} in {', '.join(m)}"
                 for ca, m in zip(
                     self.skeleton.original.agents,
-                    leaves(self.skeleton, self.graph.states[k]),
+                    agent_leaves(self.skeleton, self.graph.states.agents_of(k)),
                     strict=True,
                 )
             )
@@ -152,6 +164,8 @@ class Report:
             "states": len(g.states),
             "transitions": g.transitions,
             "exhaustive": g.exhaustive,
+            "search": "partial" if g.coverage is not None else "exact",
+            **({"coverage": g.coverage.summary()} if g.coverage is not None else {}),
             "bound": g.bound,
             "seconds": round(g.seconds, 3),
             "options": {
@@ -163,13 +177,23 @@ class Report:
                 "max_memory": memory_limit(self.options.max_memory),
                 "ack_timing": self.options.ack_timing,
                 "timeouts": self.options.timeouts,
+                "storage": self.options.storage,
+                "jobs": self.options.jobs,
+                **(
+                    {
+                        "bitstate_mb": self.options.bitstate_mb,
+                        "hash_functions": self.options.hash_functions,
+                    }
+                    if self.options.storage == "bitstate"
+                    else {}
+                ),
             },
             "abstracted": self.skeleton.notes,
             "properties": {
                 v.prop.name: {
                     "kind": v.prop.kind,
                     "formula": v.prop.text,
-                    "verdict": _word(v, g.exhaustive),
+                    "verdict": word(v, g),
                     "message": v.message,
                     **(
                         {
@@ -190,12 +214,18 @@ class Report:
         return {"verdict": r.verdict, "reason": r.reason, "paths_tried": tried, "times": r.times}
 
 
-def _word(v: Verdict, exhaustive: bool) -> str:
+def word(v: Verdict, g: Graph) -> str:
+    """A verdict in words: a property that held in a search that was not exhaustive says
+    how it was not (a bound stopped it, or the search was partial)."""
     if v.holds is None:
         return "not checked"
     if v.holds is False:
         return "violated"  # in the skeleton; the replay says whether a run shows it
-    return "holds" if exhaustive else "holds (bounded)"  # as the command prints it
+    if g.exhaustive:
+        return "holds"
+    if g.coverage is None:
+        return "holds (bounded)"
+    return "holds (partial search)" if g.bound is None else "holds (partial search, bounded)"
 
 
 def verify(
@@ -227,6 +257,10 @@ def verify(
         if unknown:
             raise UnknownProperty(unknown[0], known)
         props = [p for p in props if p.name in only]
+        if opts.storage != "exact":
+            for p in props:
+                if p.kind == "response":
+                    raise NotInPartialSearch(p.name, opts.storage)
     g = explore(sk, opts, progress)
     report = Report(sk, g, check(props, sk, g), opts, team=team)
     if replay:

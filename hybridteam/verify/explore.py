@@ -8,7 +8,9 @@ declares, or fire a time-driven transition. A choice that makes a free compariso
 is tried with every answer. Successors come from the engine in batches
 (:class:`~.machine.Machine`); states are stored compactly and found again by their key
 (:mod:`.store`), so each is expanded once, and the graph (edges without self-loops) is
-kept for the liveness checks.
+kept for the liveness checks. With ``storage`` "hashcompact" or "bitstate" only hashes of
+the visited states are kept (:mod:`.storage`, a partial search); with ``jobs`` > 1 the
+successors are computed by a pool of processes (:mod:`.pool`), the graph unchanged.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import gc
 import time
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import overload
 
@@ -27,7 +29,16 @@ from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, State
-from hybridteam.verify.store import Edges, Store
+from hybridteam.verify.pool import Pool
+from hybridteam.verify.storage import (
+    DEFAULT_BITSTATE_MB,
+    DEFAULT_HASH_FUNCTIONS,
+    Coverage,
+    PartialStore,
+    Trail,
+    visited_set,
+)
+from hybridteam.verify.store import Edges, Renumber, Store, key_numbers
 
 
 @dataclass
@@ -52,6 +63,12 @@ class Options:
     max_memory: float | None = None
     #: distinct values a discrete variable may take before the skeleton is judged infinite
     max_values: int = DEFAULT_MAX_VALUES
+    #: "exact": every state kept (exhaustive); "hashcompact" or "bitstate": only hashes of
+    #: the visited states, a partial search (:mod:`.storage`)
+    storage: str = "exact"
+    bitstate_mb: float = DEFAULT_BITSTATE_MB  # the bit array's size with "bitstate"
+    hash_functions: int = DEFAULT_HASH_FUNCTIONS  # bits set per state with "bitstate"
+    jobs: int = 1  # processes computing successors (:mod:`.pool`)
 
 
 @dataclass
@@ -60,9 +77,9 @@ class Graph:
     (each state's parent; the choice that first reached it is the edge's, from the
     parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
-    states: Store
+    states: Store | PartialStore
     parent: array
-    edges: Edges
+    edges: Edges | Trail
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
     exhaustive: bool = True
@@ -70,6 +87,7 @@ class Graph:
     batch: int = 0  # states and choices the engine took at a time
     seconds: float = 0.0
     transitions: int = 0
+    coverage: Coverage | None = None  # a partial search's estimate (None: exact storage)
 
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""
@@ -99,6 +117,9 @@ class Graph:
         out[list(self.cut)] = False
         return out
 
+
+#: The fewest jobs a worker of a pool is given at a time (an engine call has a fixed cost).
+MIN_CHUNK = 256
 
 #: ``Graph.parent`` of the initial state.
 NONE = 0xFFFFFFFF
@@ -223,16 +244,67 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
             gc.enable()
 
 
+def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine:
+    """The successor function (each worker of a pool builds its own)."""
+    return Machine(sk, capacity, fifo=opts.order == "fifo")
+
+
 def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
+    if opts.jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
-    # the engine's arrays take at most half the limit; the states, the rest (bounds.py)
-    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5)
-    m = Machine(sk, batch, fifo=opts.order == "fifo")
+    # the engine's arrays take at most half the limit, shared by the workers; the
+    # states, the rest (bounds.py)
+    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5 / opts.jobs)
+    # with a pool, this process's machine only gives the initial state and the choices
+    m = machine(sk, opts, batch if opts.jobs == 1 else 1)
     m.values = values = Values(sk, opts.max_values)
-    store = Store(len(sk.cteam.agents))
-    g = Graph(store, array("I", [NONE]), Edges(), batch=batch)
+    parent = array("I", [NONE])
+    store: Store | PartialStore
+    edges: Edges | Trail
+    if opts.storage == "exact":
+        store, edges = Store(len(sk.cteam.agents)), Edges()
+    else:
+        visited = visited_set(opts.storage, opts.bitstate_mb, opts.hash_functions)
+        trail = Trail(parent)
+        store, edges = PartialStore(len(sk.cteam.agents), visited), trail
+        store.trail, store.successor = trail, _again(m)
+    g = Graph(store, parent, edges, batch=batch)
     store.add(store.find(m.initial())[0])
+    if opts.jobs > 1:
+        with Pool(lambda: machine(sk, opts, batch), opts.jobs) as pool:
+            _levels(sk, opts, m, g, values, pool, limit, start, progress)
+    else:
+        _levels(sk, opts, m, g, values, None, limit, start, progress)
+    g.edges.freeze(len(store))
+    if isinstance(store, PartialStore):
+        store.advance([])
+        g.coverage = store.visited.coverage(len(store))
+        g.exhaustive = False
+    g.seconds = time.perf_counter() - start
+    return g
+
+
+def _again(m: Machine) -> Callable[[State, tuple, tuple], State]:
+    """A state computed again from its parent, its choice and its tape."""
+    return lambda s, choice, tape: m.run([(s, choice, tape)])[0].state
+
+
+def _levels(
+    sk: Skeleton,
+    opts: Options,
+    m: Machine,
+    g: Graph,
+    values: Values,
+    pool: Pool | None,
+    limit: float,
+    start: float,
+    progress: Progress | None,
+) -> None:
+    """The breadth-first search, level by level, from the initial state in ``g``."""
+    store, batch = g.states, g.batch
+    renumber = Renumber(store.parts, len(sk.cteam.agents))
     frontier = [0]
     depth = 0
     last = start
@@ -240,13 +312,21 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
-        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, batch):
-            results = m.run([(state, ch, tape) for _, state, ch, tape in chunk])
-            for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
-                for k in range(len(tape), r.reads):  # the other answers still to try
+        jobs = _jobs(m, sk, store, frontier, opts)
+        done: Iterator[tuple]
+        if pool is None:
+            done = _here(m, store, _chunks(jobs, retries, batch))
+        else:  # chunks small enough that a level keeps every worker busy
+            size = min(batch, max(MIN_CHUNK, len(frontier) // pool.workers))
+            done = pool.in_order(_chunks(jobs, [], size), retries, size, renumber)
+        for chunk, results in done:
+            if pool is not None:  # the workers' machines did not count the values
+                _count_values(values, sk, store, [key for key, _, _ in results])
+            for (sid, state, ch, tape), (key, zeno, reads) in zip(chunk, results, strict=True):
+                for k in range(len(tape), reads):  # the other answers still to try
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
-                key, tid = store.find(r.state)
+                tid = store.number(key)
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
@@ -256,10 +336,10 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
                     tid = store.add(key)
                     g.parent.append(sid)
                     nxt.append(tid)
-                if r.zeno:
+                if zeno and tid >= 0:
                     g.zeno.add(tid)
                 if tid != sid:
-                    g.edges.add(sid, tid, ch)
+                    g.edges.add(sid, tid, ch, tape)
             now = time.perf_counter()
             if progress is not None and now - last >= 1.0:
                 progress(len(store), len(nxt), depth, now - start)
@@ -273,12 +353,31 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
             if stop is not None:
                 stopped = _stop(g, stop, nxt)
         frontier = nxt
+        store.advance(frontier)
         depth += 1
-    g.edges.freeze(len(store))
-    g.seconds = time.perf_counter() - start
     if progress is not None:
-        progress(len(store), 0, depth, g.seconds)
-    return g
+        progress(len(store), 0, depth, time.perf_counter() - start)
+
+
+def _here(m: Machine, store: Store | PartialStore, chunks: Iterator[list]) -> Iterator[tuple]:
+    """``(chunk, results)`` computed in this process: each job's successor as
+    ``(key, zeno, reads)``, as a pool gives them (:meth:`.pool.Pool.in_order`)."""
+    for chunk in chunks:
+        results = m.run([job[1:] for job in chunk])
+        yield chunk, [(store.key(r.state), r.zeno, r.reads) for r in results]
+
+
+def _count_values(
+    values: Values, sk: Skeleton, store: Store | PartialStore, keys: list[bytes]
+) -> None:
+    """Count the discrete variables' values of the states of ``keys`` (:mod:`.bounds`),
+    as the machine does for the states it computes."""
+    parts, count = store.parts.values, len(sk.discrete_vars)
+    rows = [key_numbers(key)[:count] for key in keys]
+    for a, cols in enumerate(sk.discrete_vars):
+        if cols:
+            block = np.array([parts[row[a]][1] for row in rows], float)
+            values.add(a, block.reshape(len(keys), len(cols)))
 
 
 def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
@@ -291,7 +390,9 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     return True
 
 
-def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
+def _jobs(
+    m: Machine, sk: Skeleton, store: Store | PartialStore, frontier: list[int], opts: Options
+):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
     is decoded once, and only the states of the chunk at work are held decoded."""
     for sid in frontier:

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from itertools import pairwise
 
+import numpy as np
+
 from hybridteam.verify.abstraction import Skeleton
-from hybridteam.verify.explore import Graph, active_of
+from hybridteam.verify.explore import Graph
 from hybridteam.verify.machine import State
 
 
@@ -43,9 +45,14 @@ def step_text(sk: Skeleton, parent: State, choice: tuple) -> str:
 
 
 def leaves(sk: Skeleton, s: State) -> list[list[str]]:
+    return agent_leaves(sk, s.agents)
+
+
+def agent_leaves(sk: Skeleton, agents: tuple) -> list[list[str]]:
+    """Each agent's active leaf modes, from a state's agents entry alone."""
     out = []
-    for a, ca in enumerate(sk.original.agents):
-        act = active_of(s, a, len(ca.modes))
+    for ca, (config, _) in zip(sk.original.agents, agents, strict=True):
+        act = np.frombuffer(config[: len(ca.modes)], np.uint8).astype(bool)
         out.append([ca.modes[m].path for m in ca.leaves.tolist() if act[m]])
     return out
 

@@ -213,6 +213,13 @@ def properties(sk: Skeleton) -> list[Property]:
     return out
 
 
+#: Why a partial search leaves responses unchecked.
+PARTIAL_LIVENESS = (
+    "partial search: a response needs the whole state graph (its cycles), which a "
+    "partial search does not keep; it checks invariants and deadlock (use --storage exact)"
+)
+
+
 def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     out = []
     for p in props:
@@ -220,6 +227,8 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
             if p.kind == "invariant":
                 assert p.phi is not None  # (an invariant has its formula)
                 out.append(_invariant(p, truths(p.phi, sk, g)))
+            elif p.kind == "response" and g.coverage is not None:
+                out.append(Verdict(p, None, message=PARTIAL_LIVENESS))
             elif p.kind == "response":
                 assert p.phi is not None and p.psi is not None  # (a response has both)
                 out.append(_response(p, g, truths(p.phi, sk, g), truths(p.psi, sk, g)))

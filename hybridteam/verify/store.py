@@ -106,6 +106,56 @@ class Keys:
             self._place(fp, k)
 
 
+def state_key(parts: Parts, s: State) -> bytes:
+    """``s`` as the bytes of its parts' numbers (layout: :class:`Store`)."""
+    of = parts.of
+    nums = [of(p) for p in s.agents]
+    for group in (s.inflight, s.outbox, s.seen):
+        nums.append(len(group))
+        nums += [of(p) for p in group]
+    nums += (s.cursor, s.losses, s.dups, *s.next_ids)
+    return _pack(nums)
+
+
+def _pack(nums: list[int]) -> bytes:
+    if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
+        return b"H" + array("H", nums).tobytes()
+    return b"I" + array("I", nums).tobytes()
+
+
+class Renumber:
+    """Keys made in other processes (each with its own :class:`Parts`), in this process's
+    part numbers. A source sends the values of the parts it numbered since it last sent
+    (:meth:`learn`), with its keys; a part gets its number here when a key first reads
+    it, in the key's order — the order :func:`state_key` numbers them in — so keys read
+    in the order one process would have made them are numbered as that process would."""
+
+    def __init__(self, parts: Parts, agents: int) -> None:
+        self.parts, self.agents = parts, agents
+        self.values: dict[int, list] = {}  # source -> its parts' values by its numbers
+        self.tables: dict[int, list[int]] = {}  # source -> its numbers' here (-1: none yet)
+
+    def learn(self, source: int, new: list) -> None:
+        self.values.setdefault(source, []).extend(new)
+        self.tables.setdefault(source, []).extend([-1] * len(new))
+
+    def key(self, source: int, key: bytes) -> bytes:
+        values, table, of = self.values[source], self.tables[source], self.parts.of
+        nums = key_numbers(key).tolist()
+        at = list(range(self.agents))  # where the part numbers are (the rest: counts)
+        pos = self.agents
+        for _ in range(3):
+            at += range(pos + 1, pos + 1 + nums[pos])
+            pos += 1 + nums[pos]
+        for i in at:
+            n = nums[i]
+            t = table[n]
+            if t < 0:
+                t = table[n] = of(values[n])
+            nums[i] = t
+        return _pack(nums)
+
+
 class Store:
     """States by number: each kept once as the bytes of its parts' numbers.
 
@@ -123,49 +173,64 @@ class Store:
         return len(self.keys)
 
     def key(self, s: State) -> bytes:
-        of = self.parts.of
-        nums = [of(p) for p in s.agents]
-        for group in (s.inflight, s.outbox, s.seen):
-            nums.append(len(group))
-            nums += [of(p) for p in group]
-        nums += (s.cursor, s.losses, s.dups, *s.next_ids)
-        if max(nums) < 0xFFFF:  # two bytes a number while parts are few (the usual case)
-            return b"H" + array("H", nums).tobytes()
-        return b"I" + array("I", nums).tobytes()
+        return state_key(self.parts, s)
 
     def find(self, s: State) -> tuple[bytes, int | None]:
         """``s``'s key and its number, or None if it is not stored."""
         key = self.key(s)
         return key, self.keys.get(key)
 
+    def number(self, key: bytes) -> int | None:
+        """The number of the state of ``key``, or None if it is not stored."""
+        return self.keys.get(key)
+
     def add(self, key: bytes) -> int:
         """Store the state of ``key`` (from :meth:`find`); its new number."""
         k = self.keys.add(key)
-        self.agent_parts.extend(_numbers(key)[: self.agents].tolist())
+        self.agent_parts.extend(key_numbers(key)[: self.agents].tolist())
         return k
+
+    def advance(self, frontier: list[int]) -> None:
+        """The explorer's next level is ``frontier`` (the exact store keeps every state:
+        nothing to let go; :class:`~.storage.PartialStore` lets older ones go)."""
+
+    def agents_of(self, k: int) -> tuple:
+        """State ``k``'s agents (modes and discrete variables) without decoding the rest."""
+        values = self.parts.values
+        return tuple(values[n] for n in self.agent_parts[k * self.agents : (k + 1) * self.agents])
 
     def __getitem__(self, k: int) -> State:
         if not -len(self.keys) <= k < len(self.keys):
             raise IndexError(k)
-        nums = _numbers(self.keys[k % len(self.keys)])
-        values = self.parts.values
-        a = self.agents
-        agents = tuple(values[n] for n in nums[:a])
-        pos, groups = a, []
-        for _ in range(3):
-            count = nums[pos]
-            groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
-            pos += 1 + count
-        cursor, losses, dups = nums[pos : pos + 3]
-        return State(
-            agents, groups[0], groups[1], groups[2], cursor, losses, dups, tuple(nums[pos + 3 :])
-        )
+        return decode(self.parts, self.agents, self.keys[k % len(self.keys)])
 
     def __iter__(self) -> Iterator[State]:
         return (self[k] for k in range(len(self.keys)))
 
 
-def _numbers(key: bytes) -> array:
+def decode(parts: Parts, agents: int, key: bytes) -> State:
+    """The state of ``key`` (:func:`state_key`) for a team of ``agents`` agents."""
+    nums = key_numbers(key)
+    values = parts.values
+    pos, groups = agents, []
+    for _ in range(3):
+        count = nums[pos]
+        groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
+        pos += 1 + count
+    cursor, losses, dups = nums[pos : pos + 3]
+    return State(
+        tuple(values[n] for n in nums[:agents]),
+        groups[0],
+        groups[1],
+        groups[2],
+        cursor,
+        losses,
+        dups,
+        tuple(nums[pos + 3 :]),
+    )
+
+
+def key_numbers(key: bytes) -> array:
     """A key's numbers (its first byte names their width)."""
     nums = array(chr(key[0]))
     nums.frombytes(key[1:])
@@ -191,7 +256,9 @@ class Edges:
     def __len__(self) -> int:
         return len(self.src)
 
-    def add(self, a: int, b: int, choice: tuple) -> None:
+    def add(self, a: int, b: int, choice: tuple, tape: tuple = ()) -> None:
+        """Edge ``a -> b`` by ``choice`` (``tape``, the free comparisons' answers, is not
+        kept: the states are, and a step is matched again from them)."""
         self.src.append(a)
         self.dst.append(b)
         self.how.append(self.choices.of(choice))
