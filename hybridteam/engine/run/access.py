@@ -80,6 +80,13 @@ class EnsembleAccess(WorldAccess):
         self._raised.clear()
         return out
 
+    def sensing(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
+        """Law ticks due now (``t >= next_tick``, the comparison the laws' sampling makes
+        just after the world), and every instant where no tick is scheduled: before the
+        first sampling and under a law with no period (``next_tick`` infinite)."""
+        tick = self._ens.states[self.agent(agent)].next_tick[idx]
+        return (self._ens.t[idx] >= tick) | (tick == np.inf)
+
     # ------------------------------------------------------------------ agents
     def agent(self, name: Agent) -> int:
         if isinstance(name, int | np.integer) and not isinstance(name, bool):
