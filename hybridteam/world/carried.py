@@ -310,13 +310,13 @@ class CarriedPayload(WorldComponent):
         """Settle the instances of ``idx`` not yet settled at their current time.
 
         The payload is settled when something reads it — its carriers' sensing instants
-        (:meth:`update`), a law sensing ``arm`` or ``payload``, the trace's samples, the
-        ``obstacles`` component casting rays at its outline — never at an instant where
-        nobody reads it (a stream copy arriving). Settling is a function of the carriers'
-        poses, the engagement and where it rests, which it leaves where it settled, so
-        settling later on demand gives what settling at every instant would have given,
-        except that a single grasp keeps the angle of the last settling (not of the last
-        instant) when the others let go."""
+        (:meth:`update`), a law sensing ``arm`` or ``payload``, the ``obstacles``
+        component casting rays at its outline — never at an instant where nobody reads it
+        (a stream copy arriving; its series hold the last settling, :meth:`sample`).
+        Settling is a function of the carriers' poses, the engagement and where it rests,
+        which it leaves where it settled, so settling later on demand gives what settling
+        at every instant would have given, except that a single grasp keeps the angle of
+        the last settling (not of the last instant) when the others let go."""
         t = world.t[idx]
         stale = self.settled_t[idx] != t
         if not some(stale):
@@ -392,7 +392,8 @@ class CarriedPayload(WorldComponent):
         return {self.values["name"]: ("x", "y", "theta"), f"{self.values['name']}_grasp": cols}
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
-        self.current(self.world, idx)
+        """The pose and grasp offsets as last settled (at a carrier's sensing instant, or
+        where something read them): an arrival between ticks settles nothing."""
         size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
         return {
             self.values["name"]: self.pose[idx],

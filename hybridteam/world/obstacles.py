@@ -38,7 +38,7 @@ per planar robot in the team's order: the gap between its footprint disk and the
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
 obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
-series, at every instant, for requirements (:meth:`Obstacles.sample_series`).
+series for requirements, holding between those instants (:meth:`Obstacles.sample`).
 """
 
 from __future__ import annotations
@@ -172,6 +172,12 @@ class Obstacles(WorldComponent):
         #: the clearances this instant's update measured, for :meth:`sample` at the same
         #: instant: ``(idx, robot centres, payload poses, robot gaps, payload gaps)``
         self._measured: _Measured | None = None
+        #: with ``clearance: true``, the series as last measured, robot by robot ``(R, n)``
+        #: and payload by payload ``(P, n)``, and when (:meth:`sample` between readings)
+        self.robot_gap = np.full((len(self.planar), n), np.nan)
+        self.robot_t = np.full((len(self.planar), n), np.nan)
+        self.payload_gap = np.full((len(self.payload_names), n), np.nan)
+        self.payload_t = np.full((len(self.payload_names), n), np.nan)
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -451,13 +457,41 @@ class Obstacles(WorldComponent):
                         p.pose[idx[k], :2],
                     )
                 )
-        if self.values["clearance"] and self.scene_of is None:  # (the series sample them)
-            self._measured = _Measured(
-                idx.copy(), points, [p.pose[idx] for p in self.payloads], robot_gaps, payload_gaps
-            )
+        if self.values["clearance"]:  # (the series sample them)
+            self._hold(world.t[idx], idx, sensing, robot_gaps, payload_gaps)
+            if self.scene_of is None:
+                self._measured = _Measured(
+                    idx.copy(),
+                    points,
+                    [p.pose[idx] for p in self.payloads],
+                    robot_gaps,
+                    payload_gaps,
+                )
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
+
+    def _hold(
+        self,
+        t: np.ndarray,
+        idx: np.ndarray,
+        sensing: dict[int, np.ndarray] | None,
+        robot_gaps: np.ndarray,
+        payload_gaps: list[np.ndarray],
+    ) -> None:
+        """Keep the gaps just measured as the series' values (and when), each where its
+        robot senses (a payload's: one of its carriers), until the next reading."""
+        for r, a in enumerate(self.planar):
+            own: slice | np.ndarray = slice(None) if sensing is None else sensing[a]
+            self.robot_gap[r, idx[own]], self.robot_t[r, idx[own]] = robot_gaps[r][own], t[own]
+        for k, (p, gap) in enumerate(zip(self.payloads, payload_gaps, strict=True)):
+            carried: slice | np.ndarray = slice(None)
+            if sensing is not None:
+                carried = np.logical_or.reduce([sensing[a] for a in p.agents])
+            self.payload_gap[k, idx[carried]], self.payload_t[k, idx[carried]] = (
+                gap[carried],
+                t[carried],
+            )
 
     def _centre_gaps(self, idx: np.ndarray, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         """The planar robots' centres ``(R, m, 2)`` in instances ``idx`` and each centre's
@@ -492,7 +526,7 @@ class Obstacles(WorldComponent):
         """With ``clearance: true``: ``robot_clearance``, a column per planar robot (its
         footprint's gap to the nearest static obstacle, negative when overlapping), and
         ``payload_clearance``, a column per payload (its outline's gap, 0 when touching) —
-        the instants' values of what ``min_clearance`` and ``payload_clearance`` summarise,
+        the readings of what ``min_clearance`` and ``payload_clearance`` summarise,
         as series requirements read (``always(payload_clearance.beam > 0.05)``). Off by
         default: the trace and every snapshot would carry them for runs that never read
         them."""
@@ -506,10 +540,32 @@ class Obstacles(WorldComponent):
         return out
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
-        """The :meth:`sample_series` at the current state of instances ``idx``: the robots'
-        poses as they are now, the payloads where they last settled (as their pose series)."""
+        """The :meth:`sample_series` of instances ``idx``, as read at the robots' (the
+        payloads' carriers') last sensing instants: between them a series holds, as the
+        statistics do (an arrival between ticks costs no measuring). At a sensing instant
+        the gaps are those of the current state — the robots' poses as they are now (the
+        discrete phase may have moved one), the payloads where they last settled."""
         if not self.values["clearance"]:
             return {}
+        t = self.world.t[idx]
+        fresh_r, fresh_p = self.robot_t[:, idx] == t, self.payload_t[:, idx] == t
+        robots = np.ascontiguousarray(self.robot_gap[:, idx].T)
+        payloads = np.ascontiguousarray(self.payload_gap[:, idx].T)
+        fresh = np.logical_or.reduce(fresh_r, axis=0) | np.logical_or.reduce(fresh_p, axis=0)
+        if some(fresh):
+            rows = slice(None) if every(fresh) else where_true(fresh)
+            now = self._gaps_now(idx[rows])
+            if self.planar:
+                robots[rows] = np.where(fresh_r.T[rows], now["robot_clearance"], robots[rows])
+            if self.payloads:
+                payloads[rows] = np.where(fresh_p.T[rows], now["payload_clearance"], payloads[rows])
+        out = {"robot_clearance": robots} if self.planar else {}
+        if self.payloads:
+            out["payload_clearance"] = payloads
+        return out
+
+    def _gaps_now(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The series' gaps at the current state of instances ``idx``."""
         measured = self._measured_at(idx)
         if measured is not None:
             return measured

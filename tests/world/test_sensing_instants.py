@@ -128,3 +128,44 @@ def test_a_payload_settles_only_where_it_is_read(tmp_path, monkeypatch):
     np.testing.assert_allclose(ticks, np.round(ticks), atol=1e-6)
     # the start, then once at each tick 0, 0.1, ..., 4.2
     assert len(times) - alone == 1 + 43
+
+
+CLEARANCE = """\
+team: clear
+agents:
+  A:
+    plant: {kind: holonomic, state: {x: 0, y: -1.5, theta: 0}}
+    modes:
+      Go: {inputs: {vx: 0.1, vy: 0, omega: 0}, period: 0.3}
+world:
+  - use: obstacles
+    with:
+      walls: [[2, -2, 2, 1]]
+      radius: [[A, 0.2]]
+      clearance: true
+requirements:
+  robot_clear: always(robot_clearance.A > 1.0)
+simulation: {duration: 4.95, sample_period: 0.5}
+"""
+
+
+def test_a_clearance_series_holds_its_robots_last_reading_between_its_ticks(tmp_path):
+    """A's footprint is 1.8 - 0.1 t from the wall; it ticks every 0.3 s, so the series
+    reads 1.8 - 0.1 * 0.3 floor(t / 0.3) — at the samples every 0.5 s (off its grid) and
+    at the end, 4.95, where it still holds the tick 4.8's 1.32: the requirement's
+    robustness is 0.32 with or without P's pings (read at every instant it was
+    1.8 - 0.495 - 1, and each arrival added a value)."""
+    alone, traffic = run_both(tmp_path, CLEARANCE)
+    for run in (alone, traffic):
+        t = run.sample_times
+        held = 1.8 - 0.1 * 0.3 * np.floor(t / 0.3 + 1e-9)
+        column = run.meta["series"]["robot_clearance"].index("A")
+        got = run.samples["robot_clearance"][:, 0, column]
+        read = ~np.isnan(got)  # (a sample inside a step, at no instant, has no world series)
+        np.testing.assert_allclose(got[read], held[read], atol=1e-12)
+        verdict = run.summary()["instances"][0]["requirements"]["robot_clear"]
+        assert verdict["satisfied"] and abs(verdict["robustness"] - 0.32) < 1e-9
+        assert abs(run._outcomes[0]["stats"]["min_clearance"][-1] - 1.32) < 1e-9
+    # P's timer makes 0.5 an instant: A's series there holds its tick 0.3's 1.77
+    got = traffic.samples["robot_clearance"][1, 0, column]
+    assert abs(got - 1.77) < 1e-12
