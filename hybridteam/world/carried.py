@@ -190,6 +190,7 @@ class CarriedPayload(WorldComponent):
         names = [a.name for a in team.agents]
         grasps = values["grasps"]
         self.agents = [names.index(g["agent"]) for g in grasps]
+        self.carriers = list(dict.fromkeys(self.agents))  # each robot once
         full = [
             {**grasp_defaults(team.agents[a]), **g}
             for a, g in zip(self.agents, grasps, strict=True)
@@ -336,8 +337,8 @@ class CarriedPayload(WorldComponent):
     def carriers_sensing(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """The instances of ``idx`` at a sensing instant of some carrier (a robot holding
         a grasp, engaged or not): where the grasps are judged."""
-        sensing = world.sensing(self.agents[0], idx)
-        for a in dict.fromkeys(self.agents[1:]):
+        sensing = world.sensing(self.carriers[0], idx)
+        for a in self.carriers[1:]:
             sensing = sensing | world.sensing(a, idx)
         return idx if every(sensing) else idx[sensing]
 

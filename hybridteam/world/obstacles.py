@@ -278,13 +278,18 @@ class Obstacles(WorldComponent):
         (:meth:`WorldAccess.sensing`): each robot's rules and clearance where it senses,
         each payload's clearance where one of its carriers does. An instant where none
         senses (a stream copy arriving between ticks) costs the test of that alone."""
-        sensing = {a: world.sensing(a, idx) for a in self.judged}
-        anyone = np.zeros(idx.size, bool)
-        for own in sensing.values():
-            anyone |= own
-        if not some(anyone):
+        if not self.judged:  # (no robot with a pose, no rule, no payload: nothing to judge)
             return
-        if not every(anyone):
+        sensing = {a: world.sensing(a, idx) for a in self.judged}
+        if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools)
+            if not any(own.item(0) for own in sensing.values()):
+                return
+            anyone = None
+        else:
+            anyone = np.logical_or.reduce(list(sensing.values()), axis=0)
+            if not some(anyone):
+                return
+        if anyone is not None and not every(anyone):
             idx = idx[anyone]
             sensing = {a: own[anyone] for a, own in sensing.items()}
         for p in self.payloads:  # its outline where it is now (settled once an instant)
