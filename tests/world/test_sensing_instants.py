@@ -169,3 +169,22 @@ def test_a_clearance_series_holds_its_robots_last_reading_between_its_ticks(tmp_
     # P's timer makes 0.5 an instant: A's series there holds its tick 0.3's 1.77
     got = traffic.samples["robot_clearance"][1, 0, column]
     assert abs(got - 1.77) < 1e-12
+
+
+def test_an_ensemble_whose_instances_hear_copies_at_different_instants_equals_its_runs(tmp_path):
+    """Two instances of the IR wall with P's pings over links of 0.07 and 0.03 s: their
+    arrival instants differ (each instant runs only its instance), their detections do
+    not (14.5, R's tick), and each equals its single run."""
+    path = tmp_path / "traffic.yaml"
+    path.write_text((FIXTURES / "ir_wall.yaml").read_text().replace("agents:\n", TRAFFIC, 1))
+    team = load(path)
+    latencies = [0.07, 0.03]
+    both = simulate(team, n=2, overrides={"network.latency": latencies})
+    for i, latency in enumerate(latencies):
+        one = simulate(team, overrides={"network.latency": latency})
+        mine = [r for r in both.transitions if r.instance == i]
+        assert [(r.agent, r.t, r.target) for r in mine] == [
+            (r.agent, r.t, r.target) for r in one.transitions
+        ]
+        assert fired(one, "event:obstacle_detected") == [pytest.approx(14.5, abs=1e-9)]
+        assert both._outcomes[i]["stats"] == one._outcomes[0]["stats"]
