@@ -13,7 +13,12 @@ With ``--base PATH`` (the source tree of an older commit, e.g. ``git archive REV
 first on its import path, in the same invocation: the repeats alternate between the two
 codes (ABBA, as ``transport.py`` does), and the speed-ups are ratios on one machine.
 
+With ``--profile NAME`` it profiles that team instead (cProfile, one run after a warm-up,
+under each tree): its instants, Python calls per instant, the top functions by own time,
+and the world components' share — the profile that says where an instant's cost goes.
+
     python benchmarks/teams.py [--base PATH] [--repeats N] [--only doorway]
+    python benchmarks/teams.py --profile experiment3 [--base PATH]
 """
 
 from __future__ import annotations
@@ -64,6 +69,33 @@ for path in sys.argv[3:]:
 print(json.dumps(out))
 """
 
+#: The timer's imports, then one profiled run of the team file ``sys.argv[3]``.
+PROFILER = (
+    TIMER.split("out = {}")[0]
+    + """
+import cProfile, io, pstats
+team = ht.load(sys.argv[3])
+ht.simulate(team, duration=1.0)  # warm
+profile = cProfile.Profile()
+profile.enable()
+run = ht.simulate(team)
+profile.disable()
+stats = pstats.Stats(profile)
+instants = sum(v[1] for k, v in stats.stats.items() if k[2] == "_instant")
+calls = sum(v[1] for v in stats.stats.values())
+world = max(
+    (v[3] for k, v in stats.stats.items() if k[0].endswith("run/world.py") and k[2] == "update"),
+    default=0.0,
+)
+print(f"t_end {run.summary()['instances'][0]['t_end']:.2f} s; {instants} instants; "
+      f"{calls / instants:.0f} calls per instant; {stats.total_tt:.2f} s profiled, "
+      f"the world components' update {world:.2f} s ({world / stats.total_tt:.0%})")
+text = io.StringIO()
+pstats.Stats(profile, stream=text).sort_stats("tottime").print_stats(12)
+print(chr(10).join(x for x in text.getvalue().splitlines() if "(" in x or "ncalls" in x))
+"""
+)
+
 
 def timed(base: str, files: list[Path], repeats: int) -> dict[str, list[float]]:
     """Best-of-``repeats`` wall time and end time of each file, under ``base`` ('' for this
@@ -76,6 +108,18 @@ def timed(base: str, files: list[Path], repeats: int) -> dict[str, list[float]]:
         cwd="/",
     )
     return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def profiled(base: str, path: Path) -> str:
+    """The profile summary of one run of ``path`` under ``base`` ('' for this tree)."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROFILER, base, "1", str(path)],
+        check=True,
+        text=True,
+        capture_output=True,
+        cwd="/",
+    )
+    return done.stdout
 
 
 def team_files(folder: Path) -> dict[str, Path]:
@@ -99,9 +143,16 @@ def main() -> None:
     ap.add_argument("--base", metavar="PATH", help="also time the source tree at PATH")
     ap.add_argument("--repeats", type=int, default=1, help="best of N runs (default 1)")
     ap.add_argument("--only", choices=NAMES, action="append", help="teams to run")
+    ap.add_argument("--profile", choices=NAMES, help="profile this team instead of timing")
     args = ap.parse_args()
     names = args.only or NAMES
     base = str(Path(args.base).resolve()) if args.base else ""
+    if args.profile:
+        with tempfile.TemporaryDirectory() as tmp:
+            path = team_files(Path(tmp))[args.profile]
+            for label, tree in [("base", base)] * bool(base) + [("this tree", "")]:
+                print(f"== {args.profile}, {label}:\n{profiled(tree, path)}")
+        return
     now: dict[str, list[float]] = {}
     before: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -327,6 +327,12 @@ class _Told:
         self.outcome = outcome
         self._access.finish(idx, outcome, message)
 
+    def sensing(self, agent: Any, idx: np.ndarray) -> np.ndarray:
+        """Every instant: the world process runs on the poses the agents send from their
+        own processes (at their ticks) and answers what they ask for, so each of its
+        instants is one of a robot's sensing instants; its own clocks tick nothing."""
+        return np.ones(len(idx), bool)
+
     def __getattr__(self, name: str) -> Any:
         return getattr(self._access, name)
 

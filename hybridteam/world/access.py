@@ -66,6 +66,17 @@ class WorldAccess(ABC):
         time; the engine runs their discrete phase at this instant. List the event in the
         component's ``raises`` so an agent waiting for it is not declared deadlocked."""
 
+    @abstractmethod
+    def sensing(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
+        """Whether the current time of each instance of ``idx`` is one of the agent's
+        sensing instants: ``(m,)`` bool. A robot samples its sensors as its controller
+        does, at its law's ticks (the control period's grid), not whenever a message
+        happens to arrive somewhere in the team; the first instant of the run, and every
+        instant of a robot with no control period (no law, or a continuous one), are
+        sensing instants too. What a component judges from a robot's readings (a detect
+        rule's edge, a grasp's break, a clearance) it judges at that robot's sensing
+        instants, so unrelated traffic cannot move it (docs/design.md, *Semantics*)."""
+
     # ------------------------------------------------------------------ agents
     @abstractmethod
     def agent(self, name: Agent) -> int:

@@ -3,8 +3,8 @@
 Each grasp joins a point mounted on a robot (``mount``, robot frame) to a point of the
 payload (``point``, body frame) by a spring (``spring``), and breaks past its offset
 ``limit``; a robot with a manipulator in its robot model (``model: xr4000``) lends its
-grasp's ``mount``, ``spring`` and ``limit`` to the keys the grasp leaves out. At every
-instant the payload settles where the springs of the *engaged* grasps balance
+grasp's ``mount``, ``spring`` and ``limit`` to the keys the grasp leaves out. Where it is
+read the payload settles where the springs of the *engaged* grasps balance
 (:func:`~hybridteam.world.payload.equilibrium`, a weighted Procrustes fit), and each
 robot's arm or force sensor reads its grasp's offset in the robot's frame plus the angle
 of the payload relative to the robot, counted from the start: the architecture paper's
@@ -23,8 +23,10 @@ The payload's outline (a box, or a bar as a segment) is an obstacle to the range
 of the ``obstacles`` component, which asks it where rays meet it and how far it is from
 the static obstacles (:meth:`CarriedPayload.ray_hits`, :meth:`CarriedPayload.gap`).
 
-Grasps are checked at the run's instants (law ticks, events), not located between them:
-a break is reported at the first instant past the limit, at most one law period late.
+Grasps are judged at their carriers' sensing instants (:meth:`WorldAccess.sensing`: the
+law ticks), not located between them: a break is reported at the first such tick past the
+limit, at most one law period late, whatever other traffic the team has. The payload
+settles only where something reads it (:meth:`CarriedPayload.current`).
 """
 
 from __future__ import annotations
@@ -188,6 +190,7 @@ class CarriedPayload(WorldComponent):
         names = [a.name for a in team.agents]
         grasps = values["grasps"]
         self.agents = [names.index(g["agent"]) for g in grasps]
+        self.carriers = list(dict.fromkeys(self.agents))  # each robot once
         full = [
             {**grasp_defaults(team.agents[a]), **g}
             for a, g in zip(self.agents, grasps, strict=True)
@@ -205,6 +208,9 @@ class CarriedPayload(WorldComponent):
         self.arm = np.full((n, k, 3), np.nan)  # robot frame, and relative angle
         self.rel0 = np.zeros((n, k))
         self.max_offset = np.zeros((n, k))
+        #: the time each instance last settled (NaN: not yet): a payload settles at most
+        #: once an instant, when first read (:meth:`current`)
+        self.settled_t = np.full(n, np.nan)
         self._one_size: bool | None = None  # whether every instance's outline is one size
         self._outlines: dict[tuple[float, float], Targets] = {}
         self._held_by_code: dict[int, np.ndarray] = {}
@@ -223,6 +229,7 @@ class CarriedPayload(WorldComponent):
         return pts, poses[..., 2]
 
     def start(self, world: WorldAccess) -> None:
+        self.world = world  # kept: sense() and sample() settle what they read
         for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True)):
             if name is not None:
                 require_variable(world, a, name, f"payload: grasps[{k}].engaged")
@@ -300,6 +307,25 @@ class CarriedPayload(WorldComponent):
         self.arm[idx] = arm
         return heading, offsets, on
 
+    def current(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """Settle the instances of ``idx`` not yet settled at their current time.
+
+        The payload is settled when something reads it — its carriers' sensing instants
+        (:meth:`update`), a law sensing ``arm`` or ``payload``, the ``obstacles``
+        component casting rays at its outline — never at an instant where nobody reads it
+        (a stream copy arriving; its series hold the last settling, :meth:`sample`).
+        Settling is a function of the carriers' poses, the engagement and where it rests,
+        which it leaves where it settled, so settling later on demand gives what settling
+        at every instant would have given, except that a single grasp keeps the angle of
+        the last settling (not of the last instant) when the others let go."""
+        t = world.t[idx]
+        stale = self.settled_t[idx] != t
+        if not some(stale):
+            return
+        rows = idx if every(stale) else idx[stale]
+        self._settle(world, rows)
+        self.settled_t[rows] = t[stale]
+
     def _held(self, code: int) -> np.ndarray:
         """Indices of the grasps that hold under engagement ``code`` (bit k: grasp k),
         kept: there are a handful of codes, and each instant asks for one."""
@@ -308,8 +334,25 @@ class CarriedPayload(WorldComponent):
             self._held_by_code[code] = np.flatnonzero(bits)
         return self._held_by_code[code]
 
+    def carriers_sensing(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
+        """The instances of ``idx`` at a sensing instant of some carrier (a robot holding
+        a grasp, engaged or not): where the grasps are judged."""
+        sensing = world.sensing(self.carriers[0], idx)
+        for a in self.carriers[1:]:
+            sensing = sensing | world.sensing(a, idx)
+        return idx if every(sensing) else idx[sensing]
+
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """Settle and judge the grasps at the carriers' sensing instants (a break is seen
+        at the first such instant past the limit); elsewhere nothing (a reader settles what
+        it reads, :meth:`current`)."""
+        idx = self.carriers_sensing(world, idx)
+        if idx.size == 0:
+            return
+        # settled afresh even where already settled at this time: a state written since
+        # at the same time (a live world process's received pose) is seen
         _, offsets, on = self._settle(world, idx)
+        self.settled_t[idx] = world.t[idx]
         size = np.hypot(offsets[..., 0], offsets[..., 1])
         self.max_offset[idx] = np.where(
             on, np.maximum(self.max_offset[idx], size), self.max_offset[idx]
@@ -334,6 +377,7 @@ class CarriedPayload(WorldComponent):
         return ("arm", "payload")
 
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
+        self.current(self.world, idx)
         if name == "payload":
             return self.pose[idx]
         if agent not in self.agents:
@@ -349,6 +393,8 @@ class CarriedPayload(WorldComponent):
         return {self.values["name"]: ("x", "y", "theta"), f"{self.values['name']}_grasp": cols}
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The pose and grasp offsets as last settled (at a carrier's sensing instant, or
+        where something read them): an arrival between ticks settles nothing."""
         size = np.hypot(self.offset[idx, :, 0], self.offset[idx, :, 1])
         return {
             self.values["name"]: self.pose[idx],

@@ -8,6 +8,10 @@ found through the ``hybridteam.libraries`` entry points, like laws.
 
 The engine calls a component at every instant of every instance, *before* the agents'
 laws are sampled, so a law sees what the component worked out from the current state.
+What it judges from a robot's sensors it should judge at that robot's sensing instants
+(``world.sensing(agent, idx)``: its law ticks), so that a message arriving between two
+other robots changes nothing it reports, and an instant where nobody senses costs it
+next to nothing (the built-in ``obstacles`` and ``payload`` components do so).
 It hands the component a :class:`~hybridteam.world.access.WorldAccess`, never itself:
 through it ``update`` reads poses, variables and parameters, ends instances
 (``world.finish(idx, "link_broken", ...)``) and raises local events in agents

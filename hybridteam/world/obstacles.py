@@ -4,7 +4,8 @@ The architecture paper's robots react to what their rings see: the XR4000's infr
 detects an obstacle ahead while it carries a box, the Scout's sonar detects one, and the
 XR4000's Dock approaches the box guided by its IR. This component holds the world's
 static obstacles — walls (segments), circles, and boxes (rectangles, four walls each) —
-and, at every instant, casts the range rings of the robots that need them
+and, at the sensing instants of the robots that need them (their law ticks:
+:meth:`~hybridteam.world.access.WorldAccess.sensing`), casts their range rings
 (:class:`~hybridteam.world.sensors.RangeRing`) against those obstacles *and* the outline
 of every ``payload`` component's payload (a resting box is what the Dock's IR approaches).
 
@@ -22,19 +23,22 @@ A rule ``{agent, sensor, beams | sector, below, raise}`` raises the local event 
 in ``agent`` when the nearest of its beams drops below ``below`` — on the rising edge
 only, per instance, so a robot standing by a wall is told once; before the run nothing
 counts as seen, so an obstacle already in range is reported at the first instant. Like
-payload breaks, readings are taken at the run's instants (law ticks, events), so a
-detection is reported at the first instant past the crossing, at most one period late.
+payload breaks, a rule reads at its robot's sensing instants, so a detection is reported
+at the robot's first tick past the crossing, at most one period late, and a message
+arriving between other robots' ticks moves nothing; an instant where no robot this
+component judges senses costs it that test alone.
 Laws read a ring with ``ctx.sense("ir")``: ``(m, count)`` ranges, ``max_range`` where
 nothing is seen. Ring geometry comes from the robot's model (``model: xr4000``) or, for
 robots declared without one, from the rule (``ring:`` with :class:`RangeRing`'s
 arguments).
 
-Statistics, per instance, minimized over the run's instants: ``min_clearance`` (one entry
+Statistics, per instance, minimized over the robots' sensing instants (a payload's: its
+carriers'): ``min_clearance`` (one entry
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
 obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
-series, at every instant, for requirements (:meth:`Obstacles.sample_series`).
+series for requirements, holding between those instants (:meth:`Obstacles.sample`).
 """
 
 from __future__ import annotations
@@ -155,8 +159,10 @@ class Obstacles(WorldComponent):
             if issubclass(cls, CarriedPayload)
         ]
         self.payloads: list[CarriedPayload] = []
-        self.late: list[CarriedPayload] = []
         self.sensing: set[int] = set()  # agents with a pose, once the run has started
+        #: the agents whose sensing instants this component judges at: the planar robots
+        #: (clearances, collisions), the rules' robots and the payloads' carriers
+        self.judged: list[int] = []
         self.near = np.zeros((len(self.rules), n), bool)
         self.min_clear = np.full((len(self.planar), n), np.inf)
         self.payload_clear = np.full(n, np.inf)
@@ -166,17 +172,20 @@ class Obstacles(WorldComponent):
         #: the clearances this instant's update measured, for :meth:`sample` at the same
         #: instant: ``(idx, robot centres, payload poses, robot gaps, payload gaps)``
         self._measured: _Measured | None = None
+        #: with ``clearance: true``, the series as last measured, robot by robot ``(R, n)``
+        #: and payload by payload ``(P, n)``, and when (:meth:`sample` between readings)
+        self.robot_gap = np.full((len(self.planar), n), np.nan)
+        self.robot_t = np.full((len(self.planar), n), np.nan)
+        self.payload_gap = np.full((len(self.payload_names), n), np.nan)
+        self.payload_t = np.full((len(self.payload_names), n), np.nan)
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
-        everyone = world.components()
-        mine = everyone.index(self)
         self.payloads = [
             c for c in world.components(CarriedPayload) if isinstance(c, CarriedPayload)
         ]  # (all are: typed for the reader)
-        # payloads listed after this component settle after it: settle them first here
-        self.late = [c for c in self.payloads if everyone.index(c) > mine]
         self.sensing = {*self.planar, *(r.agent for r in self.rules)}
+        self.judged = sorted({*self.sensing, *(a for p in self.payloads for a in p.agents)})
         for a in self.sensing:
             world.pose(a, np.arange(0))  # a plant without x and y fails now, not mid-run
 
@@ -258,17 +267,38 @@ class Obstacles(WorldComponent):
                 f"obstacles: robot '{self.team.agents[agent].name}' has no range "
                 f"ring '{name}' (from its robot model or a detect rule's ring)"
             )
-        return self.read(agent, ring, np.asarray(idx, np.intp))
+        idx = np.asarray(idx, np.intp)
+        for p in self.payloads:  # (its outline is seen where it is now)
+            p.current(self.world, idx)
+        return self.read(agent, ring, idx)
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
-        for p in self.late:
-            p.settle(world, idx)
+        """Judge the instances of ``idx`` where some robot this component judges senses
+        (:meth:`WorldAccess.sensing`): each robot's rules and clearance where it senses,
+        each payload's clearance where one of its carriers does. An instant where none
+        senses (a stream copy arriving between ticks) costs the test of that alone."""
+        if not self.judged:  # (no robot with a pose, no rule, no payload: nothing to judge)
+            return
+        sensing = {a: world.sensing(a, idx) for a in self.judged}
+        if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools)
+            if not any(own.item(0) for own in sensing.values()):
+                return
+            anyone = None
+        else:
+            anyone = np.logical_or.reduce(list(sensing.values()), axis=0)
+            if not some(anyone):
+                return
+        if anyone is not None and not every(anyone):
+            idx = idx[anyone]
+            sensing = {a: own[anyone] for a, own in sensing.items()}
+        for p in self.payloads:  # its outline where it is now (settled once an instant)
+            p.current(world, idx)
         if self.scene_of is None:
-            self._update(world, idx, self.scenes[0])
+            self._update(world, idx, self.scenes[0], sensing)
         else:
             for scene, rows in self._by_scene(idx):
-                self._update(world, idx[rows], scene)
+                self._update(world, idx[rows], scene, {a: own[rows] for a, own in sensing.items()})
 
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
@@ -277,9 +307,16 @@ class Obstacles(WorldComponent):
         codes = self.scene_of[idx]
         return [(self.scenes[c], where_true(codes == c)) for c in np.unique(codes).tolist()]
 
-    def _update(self, world: WorldAccess, idx: np.ndarray, scene: Scene) -> None:
-        """:meth:`update` of instances ``idx``, which share ``scene``."""
-        reach = self._measure(world, idx, scene)
+    def _update(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        scene: Scene,
+        sensing: dict[int, np.ndarray] | None = None,
+    ) -> None:
+        """:meth:`update` of instances ``idx``, which share ``scene``; ``sensing``: per
+        judged agent, whether it senses in each of them (None: every one in all)."""
+        reach = self._measure(world, idx, scene, sensing)
         readings: dict[tuple[int, str], tuple[np.ndarray, np.ndarray | None]] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
@@ -290,6 +327,10 @@ class Obstacles(WorldComponent):
             if rows is not None:  # the others read no nearer than any rule's threshold
                 near, seen = np.zeros(idx.size, bool), near
                 near[rows] = seen
+            own = None if sensing is None else sensing[rule.agent]
+            if own is not None and not every(own):  # where its robot does not sense,
+                # what it saw last stands
+                near = np.where(own, near, self.near[r, idx])
             rising = near & ~self.near[r, idx]
             self.near[r, idx] = near
             if some(rising):
@@ -343,9 +384,17 @@ class Obstacles(WorldComponent):
             np.minimum(near - ring.mount_radius - slack, ring.max_range), ring.min_range
         )
 
-    def _measure(self, world: WorldAccess, idx: np.ndarray, scene: Scene) -> dict[int, np.ndarray]:
-        """Running minima of the robots' and the payloads' clearances, and collisions.
-        Returns each planar robot's centre clearance from the static obstacles ``(m,)``."""
+    def _measure(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        scene: Scene,
+        sensing: dict[int, np.ndarray] | None = None,
+    ) -> dict[int, np.ndarray]:
+        """Running minima of the robots' and the payloads' clearances, and collisions, each
+        where its robot (a pair: either robot; a payload: one of its carriers) senses.
+        Returns each planar robot's centre clearance from the static obstacles ``(m,)``.
+        ``sensing``: as :meth:`_update`'s (None: every robot senses in every instance)."""
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
         points, gap, payload_gaps = np.empty((0, idx.size, 2)), np.empty((0, idx.size)), []
@@ -353,9 +402,16 @@ class Obstacles(WorldComponent):
             points, gap = self._centre_gaps(idx, scene)
             reach = dict(zip(self.planar, gap, strict=True))
             gap = gap - self.radius[:, None]
-            self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], gap)
-            for r, a in enumerate(self.planar) if some(gap < 0) else ():
-                for k in np.flatnonzero(gap[r] < 0).tolist():
+            own = (
+                np.ones(gap.shape, bool)
+                if sensing is None
+                else np.array([sensing[a] for a in self.planar])
+            )  # (R, m)
+            everyone = every(own)
+            judged = gap if everyone else np.where(own, gap, np.inf)
+            self.min_clear[:, idx] = np.minimum(self.min_clear[:, idx], judged)
+            for r, a in enumerate(self.planar) if some(judged < 0) else ():
+                for k in np.flatnonzero(judged[r] < 0).tolist():
                     what = name_hit(points[r, k], scene.walls, scene.circles, scene.boxes)
                     who = self.team.agents[a].name
                     hits.append(
@@ -369,6 +425,8 @@ class Obstacles(WorldComponent):
                     )
             overlap = robot_overlaps(points, self.radius)
             touch = overlap > 0
+            if not everyone:  # (m, R, R): where either robot of the pair senses
+                touch &= own.T[:, :, None] | own.T[:, None, :]
             pairs = np.nonzero(np.triu(touch, 1)) if some(touch) else ()
             for k, r1, r2 in zip(*pairs, strict=True):
                 names = [self.team.agents[self.planar[r]].name for r in (r1, r2)]
@@ -388,8 +446,14 @@ class Obstacles(WorldComponent):
         for p in self.payloads:
             gap = self._payload_gap(p, idx, scene)
             payload_gaps.append(gap)
-            self.payload_clear[idx] = np.minimum(self.payload_clear[idx], gap)
-            for k in where_true(gap <= 0).tolist():
+            carried = None
+            if sensing is not None:  # where one of its carriers senses
+                carried = sensing[p.agents[0]]
+                for a in p.agents[1:]:
+                    carried = carried | sensing[a]
+            judged = gap if carried is None or every(carried) else np.where(carried, gap, np.inf)
+            self.payload_clear[idx] = np.minimum(self.payload_clear[idx], judged)
+            for k in where_true(judged <= 0).tolist():
                 hits.append(
                     (
                         int(idx[k]),
@@ -398,13 +462,41 @@ class Obstacles(WorldComponent):
                         p.pose[idx[k], :2],
                     )
                 )
-        if self.values["clearance"] and self.scene_of is None:  # (the series sample them)
-            self._measured = _Measured(
-                idx.copy(), points, [p.pose[idx] for p in self.payloads], robot_gaps, payload_gaps
-            )
+        if self.values["clearance"]:  # (the series sample them)
+            self._hold(world.t[idx], idx, sensing, robot_gaps, payload_gaps)
+            if self.scene_of is None:
+                self._measured = _Measured(
+                    idx.copy(),
+                    points,
+                    [p.pose[idx] for p in self.payloads],
+                    robot_gaps,
+                    payload_gaps,
+                )
         if hits and self.values["on_collision"] != "ignore":
             self._collide(world, hits)
         return reach
+
+    def _hold(
+        self,
+        t: np.ndarray,
+        idx: np.ndarray,
+        sensing: dict[int, np.ndarray] | None,
+        robot_gaps: np.ndarray,
+        payload_gaps: list[np.ndarray],
+    ) -> None:
+        """Keep the gaps just measured as the series' values (and when), each where its
+        robot senses (a payload's: one of its carriers), until the next reading."""
+        for r, a in enumerate(self.planar):
+            own: slice | np.ndarray = slice(None) if sensing is None else sensing[a]
+            self.robot_gap[r, idx[own]], self.robot_t[r, idx[own]] = robot_gaps[r][own], t[own]
+        for k, (p, gap) in enumerate(zip(self.payloads, payload_gaps, strict=True)):
+            carried: slice | np.ndarray = slice(None)
+            if sensing is not None:
+                carried = np.logical_or.reduce([sensing[a] for a in p.agents])
+            self.payload_gap[k, idx[carried]], self.payload_t[k, idx[carried]] = (
+                gap[carried],
+                t[carried],
+            )
 
     def _centre_gaps(self, idx: np.ndarray, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         """The planar robots' centres ``(R, m, 2)`` in instances ``idx`` and each centre's
@@ -439,7 +531,7 @@ class Obstacles(WorldComponent):
         """With ``clearance: true``: ``robot_clearance``, a column per planar robot (its
         footprint's gap to the nearest static obstacle, negative when overlapping), and
         ``payload_clearance``, a column per payload (its outline's gap, 0 when touching) —
-        the instants' values of what ``min_clearance`` and ``payload_clearance`` summarise,
+        the readings of what ``min_clearance`` and ``payload_clearance`` summarise,
         as series requirements read (``always(payload_clearance.beam > 0.05)``). Off by
         default: the trace and every snapshot would carry them for runs that never read
         them."""
@@ -453,10 +545,32 @@ class Obstacles(WorldComponent):
         return out
 
     def sample(self, idx: np.ndarray) -> dict[str, np.ndarray]:
-        """The :meth:`sample_series` at the current state of instances ``idx``: the robots'
-        poses as they are now, the payloads where they last settled (as their pose series)."""
+        """The :meth:`sample_series` of instances ``idx``, as read at the robots' (the
+        payloads' carriers') last sensing instants: between them a series holds, as the
+        statistics do (an arrival between ticks costs no measuring). At a sensing instant
+        the gaps are those of the current state — the robots' poses as they are now (the
+        discrete phase may have moved one), the payloads where they last settled."""
         if not self.values["clearance"]:
             return {}
+        t = self.world.t[idx]
+        fresh_r, fresh_p = self.robot_t[:, idx] == t, self.payload_t[:, idx] == t
+        robots = np.ascontiguousarray(self.robot_gap[:, idx].T)
+        payloads = np.ascontiguousarray(self.payload_gap[:, idx].T)
+        fresh = np.logical_or.reduce(fresh_r, axis=0) | np.logical_or.reduce(fresh_p, axis=0)
+        if some(fresh):
+            rows = slice(None) if every(fresh) else where_true(fresh)
+            now = self._gaps_now(idx[rows])
+            if self.planar:
+                robots[rows] = np.where(fresh_r.T[rows], now["robot_clearance"], robots[rows])
+            if self.payloads:
+                payloads[rows] = np.where(fresh_p.T[rows], now["payload_clearance"], payloads[rows])
+        out = {"robot_clearance": robots} if self.planar else {}
+        if self.payloads:
+            out["payload_clearance"] = payloads
+        return out
+
+    def _gaps_now(self, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The series' gaps at the current state of instances ``idx``."""
         measured = self._measured_at(idx)
         if measured is not None:
             return measured

@@ -390,5 +390,5 @@ def test_no_beam_reads_nearer_than_the_floor_and_rules_skip_only_where_none_can_
     assert (whole[skipped][:, rule.beams].min(axis=1) >= rule.below).all()
     # and each instance's rule state after an update is what casting everywhere says
     obs.near[:] = False
-    obs.update(sim.access, idx)
+    obs._update(sim.access, idx, obs.scenes[0])  # (as at a sensing instant of the robot)
     np.testing.assert_array_equal(obs.near[0], whole[:, rule.beams].min(axis=1) < rule.below)

@@ -9,6 +9,7 @@ engine knows whose discrete phase must run without the component having to say.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,6 +20,10 @@ from hybridteam.engine.run.events import LOCAL
 from hybridteam.errors import did_you_mean
 from hybridteam.world.access import Agent, Message, WorldAccess
 from hybridteam.world.component import WorldComponent
+
+#: :meth:`EnsembleAccess.sensing`'s answers for one instance (read-only: shared)
+_YES, _NO = np.ones(1, bool), np.zeros(1, bool)
+_YES.flags.writeable = _NO.flags.writeable = False
 
 
 class EnsembleAccess(WorldAccess):
@@ -79,6 +84,23 @@ class EnsembleAccess(WorldAccess):
         out = np.unique(np.concatenate(self._raised))
         self._raised.clear()
         return out
+
+    def sensing(self, agent: Agent, idx: np.ndarray) -> np.ndarray:
+        """Law ticks due now (``t >= next_tick``, the comparison the laws' sampling makes
+        just after the world), and every instant where no tick is scheduled: before the
+        first sampling and under a law with no period (``next_tick`` infinite).
+
+        Asked by every component at every instant, mostly where only a copy arrived: a
+        single instance's answer is compared on Python floats (the same comparison) and
+        is one of two shared read-only rows."""
+        a = agent if type(agent) is int and 0 <= agent < len(self.agents) else self.agent(agent)
+        next_tick = self._ens.states[a].next_tick
+        if idx.size == 1:
+            i = idx.item(0)
+            tick = next_tick.item(i)
+            return _YES if self._ens.t.item(i) >= tick or tick == math.inf else _NO
+        tick = next_tick[idx]
+        return (self._ens.t[idx] >= tick) | (tick == np.inf)
 
     # ------------------------------------------------------------------ agents
     def agent(self, name: Agent) -> int:
