@@ -122,6 +122,14 @@ def register(sub) -> dict:
         f"skeleton infinite (default {DEFAULT_MAX_VALUES})",
     )
     ve.add_argument(
+        "--symmetry",
+        choices=("on", "off"),
+        default="on",
+        help="on: agents interchangeable where the properties allow it are explored "
+        "once per arrangement, and the states counted are representatives (default); "
+        "off: every state (docs/verify.md)",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -188,6 +196,8 @@ def cmd_verify(args) -> int:
         ack_timing=args.ack_timing,
         timeouts=args.timeouts,
         max_values=args.max_values,
+        # SPIN's own exploration is compared state by state: it needs every state
+        symmetry="off" if args.spin_rules else args.symmetry,
         max_memory=None if args.max_memory is None else args.max_memory * 1e9,
     )
     try:
@@ -371,6 +381,9 @@ def _print(report, path: str, files: dict[str, list[str]]) -> None:
     )
     if g.bound is not None:
         print(f"  stopped: {g.bound}")
+    if report.symmetry is not None and report.symmetry.active:
+        names = [ca.name for ca in report.skeleton.original.agents]
+        print(f"  symmetry: {report.symmetry.describe(names)}: states counted up to it")
     for note in report.skeleton.notes:
         print(f"  abstracted: {note}")
     for v in report.verdicts:

@@ -52,6 +52,9 @@ class Options:
     max_memory: float | None = None
     #: distinct values a discrete variable may take before the skeleton is judged infinite
     max_values: int = DEFAULT_MAX_VALUES
+    #: "on": agents interchangeable where the properties allow it are explored once per
+    #: arrangement (:mod:`.symmetry`; states counted are representatives); "off": not
+    symmetry: str = "on"
 
 
 @dataclass
@@ -206,10 +209,16 @@ def _in_flight(s: State, e) -> bool:
 
 
 Progress = Callable[[int, int, int, float], None]  # states, frontier, depth, seconds
+#: A state's representative under a reduction of equivalent states (:mod:`.symmetry`)
+Reduce = Callable[[State], State]
 
 
-def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Graph:
-    """Every state reachable in the skeleton (up to ``opts.max_states``).
+def explore(
+    sk: Skeleton, opts: Options, progress: Progress | None = None, reduce: Reduce | None = None
+) -> Graph:
+    """Every state reachable in the skeleton (up to ``opts.max_states``); with ``reduce``,
+    one representative per class of equivalent states (each state is replaced by
+    ``reduce(state)`` once computed).
 
     Python's cycle collector is off meanwhile: it would walk the millions of state tuples
     again and again (nearly half the time at 400,000 states), and exploring makes no
@@ -217,13 +226,15 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
     was = gc.isenabled()
     gc.disable()
     try:
-        return _explore(sk, opts, progress)
+        return _explore(sk, opts, progress, reduce)
     finally:
         if was:
             gc.enable()
 
 
-def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
+def _explore(
+    sk: Skeleton, opts: Options, progress: Progress | None, reduce: Reduce | None
+) -> Graph:
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
     # the engine's arrays take at most half the limit; the states, the rest (bounds.py)
@@ -232,7 +243,8 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     m.values = values = Values(sk, opts.max_values)
     store = Store(len(sk.cteam.agents))
     g = Graph(store, array("I", [NONE]), Edges(), batch=batch)
-    store.add(store.find(m.initial())[0])
+    initial = m.initial()
+    store.add(store.find(initial if reduce is None else reduce(initial))[0])
     frontier = [0]
     depth = 0
     last = start
@@ -246,7 +258,7 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
                 for k in range(len(tape), r.reads):  # the other answers still to try
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
-                key, tid = store.find(r.state)
+                key, tid = store.find(r.state if reduce is None else reduce(r.state))
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
