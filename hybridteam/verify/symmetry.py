@@ -36,6 +36,7 @@ from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import pairwise, permutations, product
+from math import factorial
 from typing import Any
 
 from hybridteam.engine.compile.compiled import CAgent
@@ -49,8 +50,8 @@ from hybridteam.verify.store import Edges, Store
 #: A permutation of agents: ``p[a]`` is where agent ``a``'s part goes.
 Perm = tuple[int, ...]
 
-#: Groups larger than this are not enumerated (each state would try every element).
-MAX_GROUP = 5040
+#: Orders of agents with equal parts tried per state, at most (:meth:`Symmetry.reduce`).
+MAX_TIES = 720
 
 
 @dataclass
@@ -62,52 +63,91 @@ class Symmetry:
     scenario: list[int]  # the agent of each scenario entry
     fifo: bool = False
     reason: str = ""  # why there is no reduction (empty when there is one)
-    _groups: dict[int, list[Perm]] = field(default_factory=dict, repr=False)
+    _free: dict[int, list[tuple[int, ...]]] = field(default_factory=dict, repr=False)
 
     @property
     def active(self) -> bool:
         """Whether some permutation besides the identity is allowed."""
         return bool(self.classes)
 
-    def group(self, cursor: int) -> list[Perm]:
-        """Every allowed permutation (the identity first) once ``cursor`` scenario entries
-        are raised: the classes' agents the remaining entries name stay fixed."""
-        found = self._groups.get(cursor)
+    def free(self, cursor: int) -> list[tuple[int, ...]]:
+        """The classes once ``cursor`` scenario entries are raised, without the agents the
+        remaining entries name (those stay fixed)."""
+        found = self._free.get(cursor)
         if found is None:
             named = set(self.scenario[cursor:])
-            free = [tuple(a for a in c if a not in named) for c in self.classes]
-            free = [c for c in free if len(c) > 1]
-            found = []
-            for images in product(*(permutations(c) for c in free)):
-                p = list(range(self.agents))
-                for c, img in zip(free, images, strict=True):
-                    for a, b in zip(c, img, strict=True):
-                        p[a] = b
-                found.append(tuple(p))
-            self._groups[cursor] = found
+            found = [tuple(a for a in c if a not in named) for c in self.classes]
+            found = self._free[cursor] = [c for c in found if len(c) > 1]
         return found
+
+    def group(self, cursor: int) -> list[Perm]:
+        """Every allowed permutation (the identity first) once ``cursor`` scenario entries
+        are raised."""
+        free = self.free(cursor)
+        return [_perm(self.agents, free, images) for images in product(*map(permutations, free))]
 
     def representative(self, s: State) -> State:
         """The least state (a total order on states' tuples) among ``s``'s permutations."""
         return self.reduce(s)[0]
 
     def reduce(self, s: State) -> tuple[State, Perm]:
-        """``s``'s representative and a permutation that maps ``s`` to it."""
-        group = self.group(s.cursor)
-        best, how = s, group[0]
-        for p in group[1:]:
+        """``s``'s representative and a permutation that maps ``s`` to it.
+
+        The agents' parts come first in a state's tuple, so the least permutation puts
+        each class's parts in ascending order; only agents with equal parts (the same
+        modes and variables) are left to order, by the rest of the state. Where more than
+        :data:`MAX_TIES` orders would remain, the agents' own order among equals is kept:
+        a state of the class, not always the least (sound, less reduced)."""
+        free = self.free(s.cursor)
+        if not free:
+            return s, tuple(range(self.agents))
+        blocks: list[tuple[tuple[int, ...], tuple[int, ...]]] = []  # (agents, positions)
+        count = 1
+        for c in free:
+            ranked = sorted(c, key=lambda a: s.agents[a])  # stable: equal parts by index
+            k = 0
+            while k < len(ranked):
+                j = k + 1
+                while j < len(ranked) and s.agents[ranked[j]] == s.agents[ranked[k]]:
+                    j += 1
+                blocks.append((tuple(ranked[k:j]), c[k:j]))
+                count *= factorial(j - k)
+                k = j
+        ways = [
+            permutations(positions) if count <= MAX_TIES else [positions] for _, positions in blocks
+        ]
+        best: State | None = None
+        how: Perm = ()
+        for images in product(*ways):
+            p = _perm(self.agents, [agents for agents, _ in blocks], images)
             t = permute(s, p, self.fifo)
-            if t < best:
+            if best is None or t < best:
                 best, how = t, p
+        assert best is not None  # (one arrangement at least)
         return best, how
+
+    def size(self, cursor: int) -> int:
+        """How many permutations are allowed once ``cursor`` scenario entries are raised."""
+        n = 1
+        for c in self.free(cursor):
+            n *= factorial(len(c))
+        return n
 
     def describe(self, names: list[str]) -> str:
         """The classes in words."""
         if not self.active:
             return f"none ({self.reason})"
-        size = len(self.group(0))
         classes = "; ".join(", ".join(names[a] for a in c) for c in self.classes)
-        return f"interchangeable agents {classes} ({size} permutations at the start)"
+        return f"interchangeable agents {classes} ({self.size(0)} permutations at the start)"
+
+
+def _perm(n: int, sources: list[tuple[int, ...]], images: tuple) -> Perm:
+    """The permutation of ``n`` agents moving each ``sources[i][k]`` to ``images[i][k]``."""
+    p = list(range(n))
+    for c, img in zip(sources, images, strict=True):
+        for a, b in zip(c, img, strict=True):
+            p[a] = b
+    return tuple(p)
 
 
 def permute(s: State, p: Perm, fifo: bool = False) -> State:
@@ -177,11 +217,7 @@ def symmetry(sk: Skeleton, props: list[Property], fifo: bool = False) -> Symmetr
     if not classes:
         none.reason = "no two agents are interchangeable where the properties allow it"
         return none
-    sym = Symmetry(n, classes, scenario, fifo)
-    if max(len(sym.group(c)) for c in range(len(scenario) + 1)) > MAX_GROUP:
-        none.reason = f"more than {MAX_GROUP} permutations"
-        return none
-    return sym
+    return Symmetry(n, classes, scenario, fifo)
 
 
 def _actions(ca: CAgent) -> Iterator[Any]:

@@ -3,6 +3,7 @@ arrangement, with the same verdicts and counterexamples as the full exploration.
 
 from __future__ import annotations
 
+import importlib
 from itertools import pairwise, permutations
 from pathlib import Path
 
@@ -199,3 +200,19 @@ def _compiled(team):
     from hybridteam.engine.compile.compiler import compile_team
 
     return compile_team(team)
+
+
+def test_too_many_ties_keep_a_sound_arrangement(tmp_path, monkeypatch):
+    """With orders among equal agents not tried (the cap at 1), states are sorted by
+    their parts only: a member of the class, not always the least — more states than
+    the canonical reduction, fewer than none, the same verdicts."""
+    module = importlib.import_module("hybridteam.verify.symmetry")
+
+    team = ask_team(tmp_path)
+    canonical = verify(team, Options(losses=0), replay=False)
+    full = verify(team, Options(losses=0, symmetry="off"), replay=False)
+    monkeypatch.setattr(module, "MAX_TIES", 1)
+    capped = verify(team, Options(losses=0), replay=False)
+    assert len(canonical.graph.states) == 21 and len(full.graph.states) == 65
+    assert 21 < len(capped.graph.states) < 65
+    assert [v.holds for v in capped.verdicts] == [v.holds for v in full.verdicts]
