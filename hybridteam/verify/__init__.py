@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from hybridteam.engine.run.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
+from hybridteam.verify.ample import ample
 from hybridteam.verify.explore import Graph, Options, Progress, explore
 from hybridteam.verify.machine import Machine
 from hybridteam.verify.paths import describe, leaves
@@ -179,6 +180,7 @@ class Report:
                 "ack_timing": self.options.ack_timing,
                 "timeouts": self.options.timeouts,
                 "symmetry": self.options.symmetry,
+                "por": self.options.por,
             },
             "symmetry": None
             if self.symmetry is None
@@ -247,7 +249,14 @@ def verify(
             raise UnknownProperty(unknown[0], known)
         props = [p for p in props if p.name in only]
     sym = symmetry(sk, props, opts.order == "fifo") if opts.symmetry == "on" else None
-    g = explore(sk, opts, progress, sym.representative if sym is not None and sym.active else None)
+    por = ample(sk, props, opts) if opts.por == "ample" else None
+    g = explore(
+        sk,
+        opts,
+        progress,
+        sym.representative if sym is not None and sym.active else None,
+        None if por is None else por.choose,
+    )
     report = Report(sk, g, check(props, sk, g), opts, team=team, symmetry=sym)
     if replay:
         for v in report.violated:

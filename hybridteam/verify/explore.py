@@ -55,6 +55,10 @@ class Options:
     #: "on": agents interchangeable where the properties allow it are explored once per
     #: arrangement (:mod:`.symmetry`; states counted are representatives); "off": not
     symmetry: str = "on"
+    #: "basic": a copy no mode can see is explored alone first (:func:`_invisible`);
+    #: "ample": also one copy to a receiver nothing else can reach, where no property
+    #: reads the receiver (:mod:`.ample`)
+    por: str = "basic"
 
 
 @dataclass
@@ -211,14 +215,22 @@ def _in_flight(s: State, e) -> bool:
 Progress = Callable[[int, int, int, float], None]  # states, frontier, depth, seconds
 #: A state's representative under a reduction of equivalent states (:mod:`.symmetry`)
 Reduce = Callable[[State], State]
+#: An ample subset of a state's choices, or None (:mod:`.ample`)
+Choose = Callable[[State, list[tuple]], list[tuple] | None]
 
 
 def explore(
-    sk: Skeleton, opts: Options, progress: Progress | None = None, reduce: Reduce | None = None
+    sk: Skeleton,
+    opts: Options,
+    progress: Progress | None = None,
+    reduce: Reduce | None = None,
+    choose: Choose | None = None,
 ) -> Graph:
     """Every state reachable in the skeleton (up to ``opts.max_states``); with ``reduce``,
     one representative per class of equivalent states (each state is replaced by
-    ``reduce(state)`` once computed).
+    ``reduce(state)`` once computed); with ``choose``, a state is expanded by the subset
+    of its choices ``choose`` picks, and fully once one of those leads to a state already
+    stored (the cycle proviso: every cycle of the graph then has a fully expanded state).
 
     Python's cycle collector is off meanwhile: it would walk the millions of state tuples
     again and again (nearly half the time at 400,000 states), and exploring makes no
@@ -226,14 +238,18 @@ def explore(
     was = gc.isenabled()
     gc.disable()
     try:
-        return _explore(sk, opts, progress, reduce)
+        return _explore(sk, opts, progress, reduce, choose)
     finally:
         if was:
             gc.enable()
 
 
 def _explore(
-    sk: Skeleton, opts: Options, progress: Progress | None, reduce: Reduce | None
+    sk: Skeleton,
+    opts: Options,
+    progress: Progress | None,
+    reduce: Reduce | None,
+    choose: Choose | None,
 ) -> Graph:
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
@@ -252,13 +268,17 @@ def _explore(
     while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
-        for chunk in _chunks(_jobs(m, sk, store, frontier, opts), retries, batch):
+        put_off: dict[int, list[tuple]] = {}  # state -> the choices an ample set left out
+        jobs = _jobs(m, sk, store, frontier, opts, choose, put_off)
+        for chunk in _chunks(jobs, retries, batch):
             results = m.run([(state, ch, tape) for _, state, ch, tape in chunk])
             for (sid, state, ch, tape), r in zip(chunk, results, strict=True):
                 for k in range(len(tape), r.reads):  # the other answers still to try
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
                 key, tid = store.find(r.state if reduce is None else reduce(r.state))
+                if tid is not None and sid in put_off:  # the cycle proviso: expand fully
+                    retries += [(sid, state, c, ()) for c in put_off.pop(sid)]
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
@@ -303,12 +323,27 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     return True
 
 
-def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
+def _jobs(
+    m: Machine,
+    sk: Skeleton,
+    store: Store,
+    frontier: list[int],
+    opts: Options,
+    choose: Choose | None = None,
+    put_off: dict[int, list[tuple]] | None = None,
+):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
-    is decoded once, and only the states of the chunk at work are held decoded."""
+    is decoded once, and only the states of the chunk at work are held decoded. With
+    ``choose``, the choices an ample subset leaves out go to ``put_off``."""
     for sid in frontier:
         state = store[sid]
-        for ch in choices(m, sk, state, opts):
+        todo = choices(m, sk, state, opts)
+        if choose is not None and put_off is not None:
+            subset = choose(state, todo)
+            if subset is not None:
+                put_off[sid] = [c for c in todo if c not in subset]
+                todo = subset
+        for ch in todo:
             yield sid, state, ch, ()
 
 

@@ -9,10 +9,11 @@ instead of up to ``n!`` times, and every verdict is the same (the quotient is bi
 the full skeleton for properties the permutations leave unchanged).
 
 Agents are interchangeable when their compiled skeletons are the same up to their names
-(modes, transitions, guards, actions, variables, ack policies, whether an operator, the
-world events they get) and the parameters their discrete logic reads are equal (plant
-state, streams and laws are abstracted away, so their parameters may differ). The group
-is the permutations of interchangeable agents that fix every agent
+(modes, transitions, guards, actions, variables, ack policies, whether an operator or one
+whose final modes end a run, the world events they get) and the parameters their discrete
+logic reads are equal (plant state, streams and laws are abstracted away, so their
+parameters may differ). The group is the permutations of interchangeable agents that fix
+every agent
 
 - a checked property names (``in_mode(b, ...)`` pins ``b``; ``count_in_role`` and
   ``deadlock`` name none),
@@ -309,6 +310,7 @@ def _signature(sk: Skeleton, a: int) -> tuple:
         params,
         policies,
         bool(sk.original.team.agents[a].operator),
+        a in sk.original.ending,  # its final modes end a run
         tuple(sorted(sk.inputs[a])),
         tuple(sorted(e for b, e in sk.world_events if b == a)),
         tuple(sk.time_driven[a]),
