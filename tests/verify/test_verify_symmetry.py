@@ -11,7 +11,7 @@ import pytest
 
 from hybridteam import load
 from hybridteam.cli import main
-from hybridteam.verify import Options, verify
+from hybridteam.verify import Options, promela, spin, verify
 from hybridteam.verify.abstraction import skeleton
 from hybridteam.verify.explore import choices
 from hybridteam.verify.machine import Machine
@@ -216,3 +216,24 @@ def test_too_many_ties_keep_a_sound_arrangement(tmp_path, monkeypatch):
     assert len(canonical.graph.states) == 21 and len(full.graph.states) == 65
     assert 21 < len(capped.graph.states) < 65
     assert [v.holds for v in capped.verdicts] == [v.holds for v in full.verdicts]
+
+
+@pytest.mark.skipif(spin.missing() is not None, reason=f"SPIN cannot run here: {spin.missing()}")
+def test_spin_on_the_rules_agrees_with_the_states_representatives_stand_for(tmp_path):
+    """SPIN explores the rules without symmetry; our representatives, each expanded to
+    the arrangements it stands for, reach the same configurations and dead ends."""
+    team = ask_team(tmp_path)
+    opts = Options(losses=1)
+    report = verify(team, opts, replay=False)
+    assert len(report.graph.states) == 41  # representatives
+    c = promela.compare(report, opts, tmp_path / "spin-rules")
+    assert not c.differences()
+    assert c.ours.configurations == c.spin.configurations and not c.ours.deadlock
+    # one loss: go lost (a follower idle for ever) or ask/grant lost (one asking)
+    assert len(c.ours.dead_ends) >= 2
+
+
+def test_ample_sets_are_not_compared_with_spin(tmp_path):
+    report = verify(ask_team(tmp_path), Options(losses=0, por="ample"), replay=False)
+    with pytest.raises(promela.Unsupported, match="--por ample"):
+        promela.check(report, report.options)
