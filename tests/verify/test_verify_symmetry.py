@@ -4,6 +4,7 @@ arrangement, with the same verdicts and counterexamples as the full exploration.
 from __future__ import annotations
 
 import importlib
+import json
 from itertools import pairwise, permutations
 from pathlib import Path
 
@@ -177,6 +178,9 @@ def test_cli_symmetry_option(tmp_path, capsys):
     # the others, after the one state before the boss broadcasts: 1 + 4**3 = 65 states;
     # up to symmetry, a multiset of three stages out of four: 1 + C(6, 3) = 21
     assert "skeleton of 21 states" in on
+    summary = json.loads((tmp_path / "a" / "verify.json").read_text())
+    assert summary["states"] == 21 and summary["options"]["symmetry"] == "on"
+    assert summary["symmetry"].startswith("interchangeable agents f1, f2, f3")
     assert main([*args, "--symmetry", "off", "-o", str(tmp_path / "b")]) == 1
     off = capsys.readouterr().out
     assert "symmetry:" not in off and "skeleton of 65 states" in off
