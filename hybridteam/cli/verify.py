@@ -155,6 +155,23 @@ def register(sub) -> dict:
         "are the same for any N",
     )
     ve.add_argument(
+        "--symmetry",
+        choices=("on", "off"),
+        default="on",
+        help="on: agents interchangeable where the properties allow it are explored "
+        "once per arrangement, and the states counted are representatives (default); "
+        "off: every state (docs/verify.md)",
+    )
+    ve.add_argument(
+        "--por",
+        choices=("basic", "ample"),
+        default="basic",
+        help="partial-order reduction. basic: a copy no mode can see is explored "
+        "alone first (default); ample: also, from each state, only the choices of "
+        "one agent nothing else can reach while no property reads it (needs "
+        "--ack-timing bounded, --timeouts any, --order any; docs/verify.md)",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -223,6 +240,17 @@ def _check(args) -> None:
                     f"--{flag.replace('_', '-')} compares a whole exploration: it needs "
                     f"--storage exact, not {args.storage} (a partial search)"
                 )
+    if args.por == "ample":
+        clash = [
+            f"--{name.replace('_', '-')} {getattr(args, name)}"
+            for name, needed in (("ack_timing", "bounded"), ("timeouts", "any"), ("order", "any"))
+            if getattr(args, name) != needed
+        ]
+        if clash:
+            raise UsageError(
+                f"--por ample needs --ack-timing bounded, --timeouts any and --order any "
+                f"(arrivals then change only their receiver), got {', '.join(clash)}"
+            )
     if args.spin_rules:
         from hybridteam.verify import spin
 
@@ -249,6 +277,10 @@ def cmd_verify(args) -> int:
         ack_timing=args.ack_timing,
         timeouts=args.timeouts,
         max_values=args.max_values,
+        # SPIN's own exploration is compared configuration by configuration: it needs
+        # every reachable state
+        symmetry="off" if args.spin_rules else args.symmetry,
+        por="basic" if args.spin_rules else args.por,
         max_memory=None if args.max_memory is None else args.max_memory * 1e9,
         storage=args.storage,
         bitstate_mb=DEFAULT_BITSTATE_MB if args.bitstate_mb is None else args.bitstate_mb,
@@ -449,6 +481,11 @@ def _print(report, path: str, files: dict[str, list[str]]) -> None:
     )
     if g.bound is not None:
         print(f"  stopped: {g.bound}")
+    if report.symmetry is not None and report.symmetry.active:
+        names = [ca.name for ca in report.skeleton.original.agents]
+        print(f"  symmetry: {report.symmetry.describe(names)}: states counted up to it")
+    if report.options.por == "ample":
+        print("  partial-order reduction: ample sets (--por ample): states counted are kept ones")
     for note in report.skeleton.notes:
         print(f"  abstracted: {note}")
     for v in report.verdicts:

@@ -15,11 +15,14 @@ from dataclasses import dataclass, field
 
 from hybridteam.engine.run.budget import memory_limit
 from hybridteam.verify.abstraction import Skeleton, skeleton
+from hybridteam.verify.ample import ample
 from hybridteam.verify.explore import Graph, Options, Progress, explore
+from hybridteam.verify.machine import Machine
 from hybridteam.verify.paths import agent_leaves, describe
 from hybridteam.verify.properties import Verdict, check, properties
 from hybridteam.verify.replay import Context, Replay
 from hybridteam.verify.replay import replay as replay_path
+from hybridteam.verify.symmetry import Symmetry, lift, symmetry
 
 __all__ = ["NotInPartialSearch", "Options", "Report", "UnknownProperty", "verify"]
 
@@ -54,7 +57,20 @@ class Report:
     team: object = None
     #: property name -> (the violating state shown, its replay, candidates tried)
     replays: dict[str, tuple[int, Replay, int]] = field(default_factory=dict)
+    #: the symmetry the exploration was reduced by (None: ``--symmetry off``)
+    symmetry: Symmetry | None = None
     _context: Context | None = None
+    _lifter: Machine | None = None
+
+    def concrete(self, path: list[int]) -> tuple[Graph, list[int]]:
+        """The team's own states along ``path`` (of :attr:`graph`), as a graph and a path
+        in it: ``path`` itself unless the graph holds symmetry representatives, whose path
+        is mapped back step by step (:func:`~.symmetry.lift`)."""
+        if self.symmetry is None or not self.symmetry.active:
+            return self.graph, path
+        if self._lifter is None:
+            self._lifter = Machine(self.skeleton, 1, fifo=self.options.order == "fifo")
+        return lift(self.symmetry, self._lifter, self.graph, path)
 
     @property
     def violated(self) -> list[Verdict]:
@@ -97,7 +113,7 @@ class Report:
         start = time.perf_counter()
         if self._context is None:
             self._context = Context(
-                self.team, self.skeleton, self.graph, self.options.order == "fifo"
+                self.team, self.skeleton, self.graph, self.options.order == "fifo", self.concrete
             )
         failed: set[int] = set()  # last states of prefixes that failed (a breadth-first
         # tree's path to a state is unique, so its last state names a prefix)
@@ -127,13 +143,13 @@ class Report:
         """The counterexample in words, each step at the moment its replay gave it."""
         times = self.replays[v.prop.name][1].times if v.prop.name in self.replays else None
         if v.prop.kind != "response":
-            return describe(self.skeleton, self.graph, self.path(v), times=times)
+            return describe(self.skeleton, *self.concrete(self.path(v)), times=times)
         mark = (
             len(self.graph.path(v.state)) - 1,  # (a response property has its phi)
             f"     --- {v.prop.name}: '{v.prop.phi.source}' holds here; "  # type: ignore[union-attr]
             "from here on the answer never comes ---",
         )
-        lines = describe(self.skeleton, self.graph, self.path(v), mark, times)
+        lines = describe(self.skeleton, *self.concrete(self.path(v)), mark, times)
         lines.append(
             "     (then round this cycle again and again)"
             if v.loops
@@ -187,7 +203,12 @@ class Report:
                     if self.options.storage == "bitstate"
                     else {}
                 ),
+                "symmetry": self.options.symmetry,
+                "por": self.options.por,
             },
+            "symmetry": None
+            if self.symmetry is None
+            else self.symmetry.describe([ca.name for ca in self.skeleton.original.agents]),
             "abstracted": self.skeleton.notes,
             "properties": {
                 v.prop.name: {
@@ -261,8 +282,16 @@ def verify(
             for p in props:
                 if p.kind == "response":
                     raise NotInPartialSearch(p.name, opts.storage)
-    g = explore(sk, opts, progress)
-    report = Report(sk, g, check(props, sk, g), opts, team=team)
+    sym = symmetry(sk, props, opts.order == "fifo") if opts.symmetry == "on" else None
+    por = ample(sk, props, opts) if opts.por == "ample" else None
+    g = explore(
+        sk,
+        opts,
+        progress,
+        sym.representative if sym is not None and sym.active else None,
+        None if por is None else por.choose,
+    )
+    report = Report(sk, g, check(props, sk, g), opts, team=team, symmetry=sym)
     if replay:
         for v in report.violated:
             report.replay(v)

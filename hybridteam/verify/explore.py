@@ -28,8 +28,8 @@ from hybridteam.engine.run.budget import instances_within, memory_limit, residen
 from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
-from hybridteam.verify.machine import Machine, State
-from hybridteam.verify.pool import Pool
+from hybridteam.verify.machine import Machine, Result, State
+from hybridteam.verify.pool import Pool, Successors
 from hybridteam.verify.storage import (
     DEFAULT_BITSTATE_MB,
     DEFAULT_HASH_FUNCTIONS,
@@ -69,6 +69,13 @@ class Options:
     bitstate_mb: float = DEFAULT_BITSTATE_MB  # the bit array's size with "bitstate"
     hash_functions: int = DEFAULT_HASH_FUNCTIONS  # bits set per state with "bitstate"
     jobs: int = 1  # processes computing successors (:mod:`.pool`)
+    #: "on": agents interchangeable where the properties allow it are explored once per
+    #: arrangement (:mod:`.symmetry`; states counted are representatives); "off": not
+    symmetry: str = "on"
+    #: "basic": a copy no mode can see is explored alone first (:func:`_invisible`);
+    #: "ample": also one copy to a receiver nothing else can reach, where no property
+    #: reads the receiver (:mod:`.ample`)
+    por: str = "basic"
 
 
 @dataclass
@@ -227,10 +234,24 @@ def _in_flight(s: State, e) -> bool:
 
 
 Progress = Callable[[int, int, int, float], None]  # states, frontier, depth, seconds
+#: A state's representative under a reduction of equivalent states (:mod:`.symmetry`)
+Reduce = Callable[[State], State]
+#: An ample subset of a state's choices, or None (:mod:`.ample`)
+Choose = Callable[[State, list[tuple]], list[tuple] | None]
 
 
-def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Graph:
-    """Every state reachable in the skeleton (up to ``opts.max_states``).
+def explore(
+    sk: Skeleton,
+    opts: Options,
+    progress: Progress | None = None,
+    reduce: Reduce | None = None,
+    choose: Choose | None = None,
+) -> Graph:
+    """Every state reachable in the skeleton (up to ``opts.max_states``); with ``reduce``,
+    one representative per class of equivalent states (each state is replaced by
+    ``reduce(state)`` once computed); with ``choose``, a state is expanded by the subset
+    of its choices ``choose`` picks, and fully once one of those leads to a state already
+    stored (the cycle proviso: every cycle of the graph then has a fully expanded state).
 
     Python's cycle collector is off meanwhile: it would walk the millions of state tuples
     again and again (nearly half the time at 400,000 states), and exploring makes no
@@ -238,7 +259,7 @@ def explore(sk: Skeleton, opts: Options, progress: Progress | None = None) -> Gr
     was = gc.isenabled()
     gc.disable()
     try:
-        return _explore(sk, opts, progress)
+        return _explore(sk, opts, progress, reduce, choose)
     finally:
         if was:
             gc.enable()
@@ -249,7 +270,28 @@ def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine:
     return Machine(sk, capacity, fifo=opts.order == "fifo")
 
 
-def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
+class _Reduced:
+    """A machine whose successors are replaced by their representatives (``reduce``)."""
+
+    def __init__(self, m: Machine, reduce: Reduce) -> None:
+        self.m, self.reduce = m, reduce
+
+    def run(self, jobs: list[tuple]) -> list[Result]:
+        return [Result(self.reduce(r.state), r.zeno, r.reads) for r in self.m.run(jobs)]
+
+
+def reduced(m: Machine, reduce: Reduce | None) -> Successors:
+    """``m``, or ``m`` with each successor replaced by ``reduce(successor)``."""
+    return m if reduce is None else _Reduced(m, reduce)
+
+
+def _explore(
+    sk: Skeleton,
+    opts: Options,
+    progress: Progress | None,
+    reduce: Reduce | None,
+    choose: Choose | None,
+) -> Graph:
     if opts.jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
     start = time.perf_counter()
@@ -260,6 +302,7 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     # with a pool, this process's machine only gives the initial state and the choices
     m = machine(sk, opts, batch if opts.jobs == 1 else 1)
     m.values = values = Values(sk, opts.max_values)
+    succ = reduced(m, reduce)
     parent = array("I", [NONE])
     store: Store | PartialStore
     edges: Edges | Trail
@@ -269,14 +312,15 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
         visited = visited_set(opts.storage, opts.bitstate_mb, opts.hash_functions)
         trail = Trail(parent)
         store, edges = PartialStore(len(sk.cteam.agents), visited), trail
-        store.trail, store.successor = trail, _again(m)
+        store.trail, store.successor = trail, _again(succ)
     g = Graph(store, parent, edges, batch=batch)
-    store.add(store.find(m.initial())[0])
+    initial = m.initial()
+    store.add(store.find(initial if reduce is None else reduce(initial))[0])
     if opts.jobs > 1:
-        with Pool(lambda: machine(sk, opts, batch), opts.jobs) as pool:
-            _levels(sk, opts, m, g, values, pool, limit, start, progress)
+        with Pool(lambda: reduced(machine(sk, opts, batch), reduce), opts.jobs) as pool:
+            _levels(sk, opts, m, succ, g, values, pool, limit, start, progress, choose)
     else:
-        _levels(sk, opts, m, g, values, None, limit, start, progress)
+        _levels(sk, opts, m, succ, g, values, None, limit, start, progress, choose)
     g.edges.freeze(len(store))
     if isinstance(store, PartialStore):
         store.advance([])
@@ -286,21 +330,23 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     return g
 
 
-def _again(m: Machine) -> Callable[[State, tuple, tuple], State]:
+def _again(succ: Successors) -> Callable[[State, tuple, tuple], State]:
     """A state computed again from its parent, its choice and its tape."""
-    return lambda s, choice, tape: m.run([(s, choice, tape)])[0].state
+    return lambda s, choice, tape: succ.run([(s, choice, tape)])[0].state
 
 
 def _levels(
     sk: Skeleton,
     opts: Options,
     m: Machine,
+    succ: Successors,
     g: Graph,
     values: Values,
     pool: Pool | None,
     limit: float,
     start: float,
     progress: Progress | None,
+    choose: Choose | None,
 ) -> None:
     """The breadth-first search, level by level, from the initial state in ``g``."""
     store, batch = g.states, g.batch
@@ -312,10 +358,11 @@ def _levels(
     while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
-        jobs = _jobs(m, sk, store, frontier, opts)
+        put_off: dict[int, list[tuple]] = {}  # state -> the choices an ample set left out
+        jobs = _jobs(m, sk, store, frontier, opts, choose, put_off)
         done: Iterator[tuple]
         if pool is None:
-            done = _here(m, store, _chunks(jobs, retries, batch))
+            done = _here(succ, store, _chunks(jobs, retries, batch))
         else:  # chunks small enough that a level keeps every worker busy
             size = min(batch, max(MIN_CHUNK, len(frontier) // pool.workers))
             done = pool.in_order(_chunks(jobs, [], size), retries, size, renumber)
@@ -327,6 +374,8 @@ def _levels(
                     retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
                 g.transitions += 1
                 tid = store.number(key)
+                if tid is not None and sid in put_off:  # the cycle proviso: expand fully
+                    retries += [(sid, state, c, ()) for c in put_off.pop(sid)]
                 if tid is None:
                     if len(store) >= opts.max_states:
                         g.exhaustive = False
@@ -359,7 +408,7 @@ def _levels(
         progress(len(store), 0, depth, time.perf_counter() - start)
 
 
-def _here(m: Machine, store: Store | PartialStore, chunks: Iterator[list]) -> Iterator[tuple]:
+def _here(m: Successors, store: Store | PartialStore, chunks: Iterator[list]) -> Iterator[tuple]:
     """``(chunk, results)`` computed in this process: each job's successor as
     ``(key, zeno, reads)``, as a pool gives them (:meth:`.pool.Pool.in_order`)."""
     for chunk in chunks:
@@ -391,13 +440,26 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
 
 
 def _jobs(
-    m: Machine, sk: Skeleton, store: Store | PartialStore, frontier: list[int], opts: Options
+    m: Machine,
+    sk: Skeleton,
+    store: Store | PartialStore,
+    frontier: list[int],
+    opts: Options,
+    choose: Choose | None = None,
+    put_off: dict[int, list[tuple]] | None = None,
 ):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
-    is decoded once, and only the states of the chunk at work are held decoded."""
+    is decoded once, and only the states of the chunk at work are held decoded. With
+    ``choose``, the choices an ample subset leaves out go to ``put_off``."""
     for sid in frontier:
         state = store[sid]
-        for ch in choices(m, sk, state, opts):
+        todo = choices(m, sk, state, opts)
+        if choose is not None and put_off is not None:
+            subset = choose(state, todo)
+            if subset is not None:
+                put_off[sid] = [c for c in todo if c not in subset]
+                todo = subset
+        for ch in todo:
             yield sid, state, ch, ()
 
 

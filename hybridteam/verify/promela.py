@@ -79,6 +79,7 @@ from hybridteam.engine.compile.compiler import message_fields
 from hybridteam.expr.compiler import free_names
 from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
 from hybridteam.verify.spin import _run, missing
+from hybridteam.verify.symmetry import permute
 
 #: slots for copies in flight (a send beyond them is reported, never dropped silently)
 SLOTS = 8
@@ -836,10 +837,18 @@ def ours(report) -> Exploration:
     def config(s) -> str:
         return "|".join("".join(str(b) for b in s.agents[a][0][:n]) for a, n in enumerate(sizes))
 
-    configs = [config(s) for s in g.states]
-    dead = {configs[k] for k in np.flatnonzero(g.terminal()).tolist()}
+    sym = report.symmetry if report.symmetry is not None and report.symmetry.active else None
+
+    def configs_of(s) -> set[str]:
+        """``s``'s configuration, and under symmetry those of every state it stands for."""
+        if sym is None:
+            return {config(s)}
+        return {config(permute(s, p)) for p in sym.group(s.cursor)}
+
+    configs = [configs_of(s) for s in g.states]
+    dead = set().union(*(configs[k] for k in np.flatnonzero(g.terminal()).tolist()))
     holds = next(v.holds for v in report.verdicts if v.prop.name == "deadlock")
-    return Exploration(set(configs), dead, bool(holds))
+    return Exploration(set().union(*configs), dead, bool(holds))
 
 
 def check(report, opts) -> None:
@@ -850,6 +859,8 @@ def check(report, opts) -> None:
         raise Unsupported(f"--timeouts {opts.timeouts} (the export has --timeouts any)")
     if not report.graph.exhaustive:
         raise Unsupported(f"our exploration stopped ({report.graph.bound})")
+    if report.options.por != "basic":
+        raise Unsupported(f"--por {report.options.por} (it leaves reachable states out)")
     if not any(v.prop.name == "deadlock" for v in report.verdicts):
         raise Unsupported("the deadlock property is not among the checked ones")
 

@@ -28,6 +28,7 @@ timing, and the replay says at which step and why.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hybridteam.verify.abstraction import Skeleton
@@ -80,11 +81,21 @@ class Context:
     """What every replay of one report shares: the team and its requirements, compiled,
     and a raw machine."""
 
-    def __init__(self, team, sk: Skeleton, g: Graph, fifo: bool) -> None:
+    def __init__(
+        self,
+        team,
+        sk: Skeleton,
+        g: Graph,
+        fifo: bool,
+        concrete: Callable[[list[int]], tuple[Graph, list[int]]] | None = None,
+    ) -> None:
+        """``concrete``: the team's own states along a path of ``g`` (a graph and the path
+        in it), where ``g`` holds representatives of states (:mod:`.symmetry`)."""
         from hybridteam.engine.compile.compiler import compile_team
         from hybridteam.requirements.check import compile_requirements
 
         self.team, self.sk, self.g = team, sk, g
+        self.concrete = concrete or (lambda path: (g, path))
         self.cteam = compile_team(team)
         self.requirements = compile_requirements(self.cteam)
         self.machine = Machine(sk, 1, fifo=fifo, raw=True)
@@ -107,7 +118,7 @@ def replay(ctx: Context, path: list[int], kind: str, name: str, loops: bool = Fa
 def _timed(ctx: Context, path: list[int]) -> Replay | tuple[Replayer, list[float], float]:
     """The moments at which the run follows ``path``, or why it cannot."""
     team, sk = ctx.team, ctx.sk
-    steps = follow(sk, ctx.g, path, ctx.machine)
+    steps = follow(sk, *ctx.concrete(path), ctx.machine)
     r = Replayer(team, ctx.cteam, ctx.requirements, steps)
     horizon = float(team.simulation.duration)
     n = len(steps) - 1
