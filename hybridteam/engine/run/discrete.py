@@ -129,7 +129,6 @@ def _more_inert(ens: Ensemble, i: int) -> None:
     """
     limit = ens.settings.zeno.max_steps_per_instant
     t = float(ens.t[i])
-    one = np.array([i])
     agents = ens.cteam.agents
     taken = 0
     # (the round that consumed the first one counts its micro-step: taken + 1 of them)
@@ -137,7 +136,7 @@ def _more_inert(ens: Ensemble, i: int) -> None:
         got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].waiting(name))
         if got is None:
             break
-        ens.network.receive(one, ens.t[one], [got[1]], screen=ens.screen)
+        ens.network.receive_one(i, t, got[1], screen=ens.screen)
         taken += 1
     ens.micro[i] += taken
 

@@ -148,6 +148,8 @@ class EventQueue:
         scn, head = self._first(i, t)
         if scn is not None or head is None or head[1] != MESSAGE or not inert(head[3], head[5]):
             return None
-        ev = heapq.heappop(self.heaps[i])
-        self._refresh(np.array([i]))
+        heap = self.heaps[i]
+        ev = heapq.heappop(heap)
+        # (_refresh for one instance, on floats: the same least of two times)
+        self.next[i] = min(float(self.scn_t[self.cursor[i]]), heap[0][0] if heap else np.inf)
         return ev[3], ev[6]

@@ -384,29 +384,40 @@ class Network:
         receiver's modes, returning the reason (an acknowledgement, a duplicate).
         """
         keep = filled(inst.size, True, bool)
-        for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
-            key = (msg.receiver, msg.socket)
-            if key not in self.limits:
-                key = (msg.receiver, "*")
-                if key not in self.limits:
-                    continue
+        for j, (i, ti, msg) in enumerate(zip(inst.tolist(), t.tolist(), messages, strict=True)):
+            keep[j] = self.receive_one(i, ti, msg, screen)
+        return keep
+
+    def receive_one(
+        self,
+        i: int,
+        t: float,
+        msg: Message,
+        screen: Callable[[int, Message, float], str | None] | None = None,
+    ) -> bool:
+        """:meth:`receive` for one copy, on plain numbers (a stream's every copy is
+        received alone): whether it is kept."""
+        key = (msg.receiver, msg.socket)
+        if key not in self.limits:
+            key = (msg.receiver, "*")
+        keep = True
+        if key in self.limits:
             last = self.last_accept.setdefault(key, np.full(self.n, -np.inf))
-            if t[j] - last[i] < 1.0 / self.limits[key] - 1e-12:
-                keep[j] = False
+            if t - last[i] < 1.0 / self.limits[key] - 1e-12:
+                keep = False
             else:
-                last[i] = t[j]
-        for j, msg in enumerate(messages):
-            status, reason = (
-                ("delivered", msg.note)
-                if keep[j]
-                else ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
-            )
-            if keep[j] and screen is not None:
-                withheld = screen(int(inst[j]), msg, float(t[j]))
-                if withheld is not None:
-                    keep[j] = False
-                    reason = withheld
-            self.record(int(inst[j]), msg, float(t[j]), status, reason)
+                last[i] = t
+        status, reason = (
+            ("delivered", msg.note)
+            if keep
+            else ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
+        )
+        if keep and screen is not None:
+            withheld = screen(i, msg, t)
+            if withheld is not None:
+                keep = False
+                reason = withheld
+        self.record(i, msg, t, status, reason)
         return keep
 
     def record(self, i: int, msg: Message, t_recv: float, status: str, reason: str) -> None:
