@@ -309,9 +309,7 @@ class Network:
                 continue
             u = float(uniform(key, sender, r, k, JITTER)[0]) if jitter > 0.0 else 0.0
             msg = Message(sender, r, int(k[0]), ts, socket, type_, dict(values), int(ids[0]), note)
-            self.queue.push_each(
-                idx, np.array([ts + latency + jitter * u]), MESSAGE, r, type_, [msg], rank=r_rank
-            )
+            self.queue.push_one(i, ts + latency + jitter * u, MESSAGE, r, type_, msg, r_rank)
 
     def _receivers_of_one(self, sender: int, to) -> list[int]:
         """The receivers of a send in one instance (``to`` as :meth:`send` takes it)."""
