@@ -72,6 +72,14 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                     continue
                 # an event nobody waits for is dropped, as in statecharts
                 waiting = ag.waiting(name)
+                if kind == MESSAGE and not waiting:
+                    # its receipt (rate limit, the protocol's screen, the record) is all it
+                    # does: no transition waits for it (a stream copy's usual case)
+                    for i, p in members:
+                        ens.network.receive_one(i, float(ens.t[i]), p, screen=ens.screen)
+                    if not recheck and len(members) <= FEW_INERT:
+                        inert += [i for i, _ in members]
+                    continue
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
                     keep = (
@@ -79,10 +87,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                         & ~ens.done[inst]
                     )
                     inst = inst[keep]
-                    if waiting:
-                        msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
-                    elif not recheck and len(members) <= FEW_INERT:
-                        inert += [i for i, _ in members]
+                    msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
                 else:
                     inst = inst[~ens.done[inst]]
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
