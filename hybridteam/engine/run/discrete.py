@@ -132,13 +132,19 @@ def _more_inert(ens: Ensemble, i: int) -> None:
     the count stops where the Zeno limit would end the instance. A streaming team's
     arrival instants (a copy from each teammate at once) take one round, not one per copy.
     """
-    limit = ens.settings.zeno.max_steps_per_instant
+    if ens.done[i]:  # (a receipt ends no instance: checked once)
+        return
     t = float(ens.t[i])
     agents = ens.cteam.agents
-    taken = 0
+
+    def inert(a: int, name: str) -> bool:
+        return not agents[a].waiting(name)
+
     # (the round that consumed the first one counts its micro-step: taken + 1 of them)
-    while int(ens.micro[i]) + taken + 1 < limit and not ens.done[i]:
-        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].waiting(name))
+    room = ens.settings.zeno.max_steps_per_instant - int(ens.micro[i]) - 1
+    taken = 0
+    while taken < room:
+        got = ens.queue.pop_message(i, t, inert)
         if got is None:
             break
         ens.network.receive_one(i, t, got[1], screen=ens.screen)
