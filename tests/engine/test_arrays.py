@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hybridteam.arrays import all_finite, distinct, gather, sinc
+from hybridteam.arrays import all_finite, distinct, gather, sinc, union
 
 
 @settings(max_examples=150, deadline=None)
@@ -82,3 +82,15 @@ def test_sinc_equals_numpys_bit_for_bit(values: list[float]) -> None:
     x = np.array(values, float)
     with np.errstate(all="ignore"):
         assert sinc(x).tobytes() == np.sinc(x).tobytes()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    a=st.sets(st.integers(0, 2000), max_size=300),
+    b=st.sets(st.integers(0, 2000), max_size=300),
+)
+def test_union_equals_union1d(a: set[int], b: set[int]) -> None:
+    """Few indices or many (an ensemble's, marked in a mask), the same sorted indices."""
+    left, right = (np.array(sorted(s), np.intp) for s in (a, b))
+    got, want = union(left, right), np.union1d(left, right)
+    assert got.dtype == want.dtype and got.tolist() == want.tolist() == sorted(a | b)

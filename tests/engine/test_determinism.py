@@ -149,3 +149,24 @@ def test_members_leaving_a_guarded_mode_at_different_times_equal_single_runs(tea
     exact = 2.0 / turn * np.arcsin(3.0 * turn / (2.0 * speed))
     assert len(set(np.round(exact, 1))) == 9  # they leave at nine different times
     np.testing.assert_allclose(left, exact, rtol=0, atol=1e-9)
+
+
+def test_ensemble_message_table_equals_single_runs():
+    """An ensemble records a send's copies as arrays, a single run copy by copy
+    (:meth:`Recorder.message_row`): both give the same rows, in the same order, with
+    their lost, delivered and acknowledged copies."""
+    team = ht.load(EXAMPLES / "protocols" / "handover.yaml")
+    loss, jitter = [0.0, 0.3, 0.6], [0.0, 0.01, 0.02]
+    ens = ht.simulate(
+        team, n=3, seed=[5, 6, 7], overrides={"network.loss": loss, "network.jitter": jitter}
+    )
+    for i in range(3):
+        single = ht.simulate(
+            team, seed=5 + i, overrides={"network.loss": loss[i], "network.jitter": jitter[i]}
+        )
+        mine, theirs = single.messages, ens.instance(i).messages
+        lost_on_links = any(str(r).startswith("loss") for r in mine["reason"])
+        assert len(mine) > 100 and lost_on_links == (i > 0)
+        for name in mine.names:
+            assert mine[name].dtype == theirs[name].dtype, name
+            np.testing.assert_array_equal(mine[name], theirs[name], err_msg=name)

@@ -72,6 +72,14 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                     continue
                 # an event nobody waits for is dropped, as in statecharts
                 waiting = ag.waiting(name)
+                if kind == MESSAGE and not waiting:
+                    # its receipt (rate limit, the protocol's screen, the record) is all it
+                    # does: no transition waits for it (a stream copy's usual case)
+                    for i, p in members:
+                        ens.network.receive_one(i, float(ens.t[i]), p, screen=ens.screen)
+                    if not recheck and len(members) <= FEW_INERT:
+                        inert += [i for i, _ in members]
+                    continue
                 if kind == MESSAGE:
                     payloads = [p for _, p in members]
                     keep = (
@@ -79,10 +87,7 @@ def discrete_phase(ens: Ensemble, idx: np.ndarray) -> None:
                         & ~ens.done[inst]
                     )
                     inst = inst[keep]
-                    if waiting:
-                        msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
-                    elif not recheck and len(members) <= FEW_INERT:
-                        inert += [i for i, _ in members]
+                    msg = message_fields([p for p, k in zip(payloads, keep, strict=True) if k])
                 else:
                     inst = inst[~ens.done[inst]]
                 cause = f"{'message' if kind == MESSAGE else 'event'}:{name}"
@@ -127,17 +132,22 @@ def _more_inert(ens: Ensemble, i: int) -> None:
     the count stops where the Zeno limit would end the instance. A streaming team's
     arrival instants (a copy from each teammate at once) take one round, not one per copy.
     """
-    limit = ens.settings.zeno.max_steps_per_instant
+    if ens.done[i]:  # (a receipt ends no instance: checked once)
+        return
     t = float(ens.t[i])
-    one = np.array([i])
     agents = ens.cteam.agents
-    taken = 0
+
+    def inert(a: int, name: str) -> bool:
+        return not agents[a].waiting(name)
+
     # (the round that consumed the first one counts its micro-step: taken + 1 of them)
-    while int(ens.micro[i]) + taken + 1 < limit and not ens.done[i]:
-        got = ens.queue.pop_message(i, t, lambda a, name: not agents[a].waiting(name))
+    room = ens.settings.zeno.max_steps_per_instant - int(ens.micro[i]) - 1
+    taken = 0
+    while taken < room:
+        got = ens.queue.pop_message(i, t, inert)
         if got is None:
             break
-        ens.network.receive(one, ens.t[one], [got[1]], screen=ens.screen)
+        ens.network.receive_one(i, t, got[1], screen=ens.screen)
         taken += 1
     ens.micro[i] += taken
 

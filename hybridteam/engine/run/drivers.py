@@ -163,6 +163,12 @@ def sample_laws(ens: Ensemble, a: int, live: np.ndarray, changed: np.ndarray) ->
         due = np.zeros(ens.n, bool)
         due[live] = t_all[live] >= st.next_tick[live]
     fresh: np.ndarray | None = None
+    if changed.size and st.single_driver >= 0 and not some(due):
+        # no tick: under one sampled law everywhere, only an instance whose law's mode
+        # was entered at this instant samples (a message arrival's instant: none)
+        D = ca.drivers[st.single_driver]
+        if D.kind == "sampled" and not some(st.entry[changed, D.owner] == t_all[changed]):
+            return
     if changed.size:
         fresh = np.zeros(ens.n, bool)
         fresh[changed] = True

@@ -68,16 +68,15 @@ class EventQueue:
     ) -> None:
         """Queue one event per instance in ``idx``, each with its own payload (and rank)."""
         if idx.size == 1:  # a single run's or one instance's event: no broadcasting
-            i = int(idx[0])
-            s = int(self.seq[i])
-            self.seq[i] = s + 1
-            ti = float(np.asarray(t).reshape(-1)[0])
-            heapq.heappush(
-                self.heaps.setdefault(i, []),
-                (ti, kind, float(np.asarray(rank).reshape(-1)[0]), agent, s, name, payloads[0]),
+            self.push_one(
+                int(idx[0]),
+                float(np.asarray(t).reshape(-1)[0]),
+                kind,
+                agent,
+                name,
+                payloads[0],
+                float(np.asarray(rank).reshape(-1)[0]),
             )
-            if ti < self.next[i]:
-                self.next[i] = ti
             return
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
@@ -87,6 +86,16 @@ class EventQueue:
         ):
             heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, r, agent, s, name, payload))
         np.minimum.at(self.next, idx, t)
+
+    def push_one(
+        self, i: int, t: float, kind: int, agent: int, name: str, payload: Any, rank: float = 0.0
+    ) -> None:
+        """:meth:`push_each` for one instance, on plain numbers (a single run's sends)."""
+        s = int(self.seq[i])
+        self.seq[i] = s + 1
+        heapq.heappush(self.heaps.setdefault(i, []), (t, kind, rank, agent, s, name, payload))
+        if t < self.next[i]:
+            self.next[i] = t
 
     def pending_messages(self) -> list[tuple[int, Any]]:
         """(instance, payload) of every message still queued, in instance order."""
@@ -148,6 +157,8 @@ class EventQueue:
         scn, head = self._first(i, t)
         if scn is not None or head is None or head[1] != MESSAGE or not inert(head[3], head[5]):
             return None
-        ev = heapq.heappop(self.heaps[i])
-        self._refresh(np.array([i]))
+        heap = self.heaps[i]
+        ev = heapq.heappop(heap)
+        # (_refresh for one instance, on floats: the same least of two times)
+        self.next[i] = min(float(self.scn_t[self.cursor[i]]), heap[0][0] if heap else np.inf)
         return ev[3], ev[6]

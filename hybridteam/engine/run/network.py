@@ -166,6 +166,29 @@ class Network:
     ) -> None:
         """Broadcast (``to`` None), or address one agent (an index, or one per instance;
         a negative index broadcasts). ``rank`` orders same-instant arrivals (lower first)."""
+        if (
+            idx.size == 1
+            and self.outlet is None
+            and (self.script is None or type_ in self.script.streams)
+        ):
+            i = int(idx[0])
+            count = self.count[sender]
+            seq_i = int(count[i])
+            count[i] = seq_i + 1
+            self._send_one(
+                i,
+                float(t[0]) if np.ndim(t) else float(t),
+                sender,
+                to,
+                socket,
+                type_,
+                fields,
+                seq_i,
+                -1 if msg_id is None else int(msg_id[0]),
+                note,
+                0.0 if rank is None else float(rank[0]),
+            )
+            return
         seq = self.count[sender][idx].copy()
         self.count[sender][idx] += 1
         ids = filled(idx.size, -1, np.int64) if msg_id is None else msg_id
@@ -199,9 +222,6 @@ class Network:
                 note,
                 0.0 if rank is None else float(rank[0]),
             )
-            return
-        if idx.size == 1:
-            self._send_one(idx, t, sender, to, socket, type_, fields, seq, ids, note, rank)
             return
         if to is None:
             receivers = [
@@ -270,31 +290,29 @@ class Network:
 
     def _send_one(
         self,
-        idx: np.ndarray,
-        t: np.ndarray,
+        i: int,
+        ts: float,
         sender: int,
         to,
         socket: str,
         type_: str,
         fields: dict[str, np.ndarray],
-        seq: np.ndarray,
-        ids: np.ndarray,
+        seq: int,
+        msg_id: int,
         note: str,
-        rank: np.ndarray | None,
+        rank: float,
     ) -> None:
-        """:meth:`send` for one instance (a single run's every message): the same draws and
-        arithmetic on scalars, without the masks and broadcasts an ensemble needs."""
-        i = int(idx[0])
-        ts = float(t[0]) if np.ndim(t) else float(t)
+        """:meth:`send` for one instance ``i`` (a single run's every message): the same
+        draws and arithmetic on scalars, without the masks and broadcasts an ensemble
+        needs (arrays only for the draws, which hash them)."""
         values = {f: v[0].item() for f, v in fields.items()}
         key = self.keys[i : i + 1]
-        k = seq[:1]
-        r_rank = 0.0 if rank is None else float(rank[0])
+        k = np.array([seq], np.int64)
         for r in self._receivers_of_one(sender, to):
             latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r), self.default))
             if loss > 0.0 and uniform(key, sender, r, k, LOSS)[0] < loss:
                 self.rec.message(
-                    idx,
+                    np.array([i]),
                     k,
                     sender,
                     r,
@@ -304,14 +322,12 @@ class Network:
                     np.array([np.nan]),
                     "lost",
                     "loss" + (f" ({note})" if note else ""),
-                    ids[:1],
+                    np.array([msg_id], np.int64),
                 )
                 continue
             u = float(uniform(key, sender, r, k, JITTER)[0]) if jitter > 0.0 else 0.0
-            msg = Message(sender, r, int(k[0]), ts, socket, type_, dict(values), int(ids[0]), note)
-            self.queue.push_each(
-                idx, np.array([ts + latency + jitter * u]), MESSAGE, r, type_, [msg], rank=r_rank
-            )
+            msg = Message(sender, r, seq, ts, socket, type_, dict(values), msg_id, note)
+            self.queue.push_one(i, ts + latency + jitter * u, MESSAGE, r, type_, msg, rank)
 
     def _receivers_of_one(self, sender: int, to) -> list[int]:
         """The receivers of a send in one instance (``to`` as :meth:`send` takes it)."""
@@ -384,29 +400,40 @@ class Network:
         receiver's modes, returning the reason (an acknowledgement, a duplicate).
         """
         keep = filled(inst.size, True, bool)
-        for j, (i, msg) in enumerate(zip(inst.tolist(), messages, strict=True)):
-            key = (msg.receiver, msg.socket)
-            if key not in self.limits:
-                key = (msg.receiver, "*")
-                if key not in self.limits:
-                    continue
+        for j, (i, ti, msg) in enumerate(zip(inst.tolist(), t.tolist(), messages, strict=True)):
+            keep[j] = self.receive_one(i, ti, msg, screen)
+        return keep
+
+    def receive_one(
+        self,
+        i: int,
+        t: float,
+        msg: Message,
+        screen: Callable[[int, Message, float], str | None] | None = None,
+    ) -> bool:
+        """:meth:`receive` for one copy, on plain numbers (a stream's every copy is
+        received alone): whether it is kept."""
+        key = (msg.receiver, msg.socket)
+        if key not in self.limits:
+            key = (msg.receiver, "*")
+        keep = True
+        if key in self.limits:
             last = self.last_accept.setdefault(key, np.full(self.n, -np.inf))
-            if t[j] - last[i] < 1.0 / self.limits[key] - 1e-12:
-                keep[j] = False
+            if t - last[i] < 1.0 / self.limits[key] - 1e-12:
+                keep = False
             else:
-                last[i] = t[j]
-        for j, msg in enumerate(messages):
-            status, reason = (
-                ("delivered", msg.note)
-                if keep[j]
-                else ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
-            )
-            if keep[j] and screen is not None:
-                withheld = screen(int(inst[j]), msg, float(t[j]))
-                if withheld is not None:
-                    keep[j] = False
-                    reason = withheld
-            self.record(int(inst[j]), msg, float(t[j]), status, reason)
+                last[i] = t
+        status, reason = (
+            ("delivered", msg.note)
+            if keep
+            else ("lost", "rate limit" + (f" ({msg.note})" if msg.note else ""))
+        )
+        if keep and screen is not None:
+            withheld = screen(i, msg, t)
+            if withheld is not None:
+                keep = False
+                reason = withheld
+        self.record(i, msg, t, status, reason)
         return keep
 
     def record(self, i: int, msg: Message, t_recv: float, status: str, reason: str) -> None:

@@ -7,6 +7,7 @@ rows come out in the order it produced them, whatever its neighbours did.
 
 from __future__ import annotations
 
+from itertools import chain
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -30,7 +31,9 @@ class Recorder:
         self.n = n
         self._transitions: list[tuple] = []
         self._intervals: list[tuple] = []
+        #: one tuple per message copy, in the order of :data:`MESSAGE_COLUMNS`
         self._messages: list[tuple] = []
+        self._names = [a.name for a in cteam.agents]
         self.sample_times = sample_times
         self.samples = {
             a.name: np.full((len(sample_times), n, len(a.plant.state_names)), np.nan)
@@ -89,20 +92,23 @@ class Recorder:
     ) -> None:
         """One row per copy. ``msg_id`` identifies an acknowledged message across its
         retransmissions (-1 for plain datagrams)."""
-        ids = np.full(len(instances), -1, np.int64) if msg_id is None else msg_id.copy()
-        self._messages.append(
-            (
-                instances.copy(),
-                seq.copy(),
-                sender,
-                receiver,
-                socket,
-                kind,
-                t_send.copy(),
-                t_recv.copy(),
-                status,
-                reason,
+        k = len(instances)
+        ids = [-1] * k if msg_id is None else msg_id.tolist()
+        names = self._names
+        self._messages.extend(
+            zip(
+                instances.tolist(),
+                seq.tolist(),
+                [names[sender]] * k,
+                [names[receiver]] * k,
+                [socket] * k,
+                [kind] * k,
+                t_send.tolist(),
+                t_recv.tolist(),
+                [status] * k,
+                [reason] * k,
                 ids,
+                strict=True,
             )
         )
 
@@ -121,20 +127,21 @@ class Recorder:
         msg_id: int,
     ) -> None:
         """:meth:`message` for one copy, from plain numbers: every arrival is recorded
-        alone, and five one-element arrays cost more than the rest of its receipt."""
+        alone, and arrays for one copy cost more than the rest of its receipt."""
+        names = self._names
         self._messages.append(
             (
-                [i],
-                [seq],
-                sender,
-                receiver,
+                i,
+                seq,
+                names[sender],
+                names[receiver],
                 socket,
                 kind,
-                [t_send],
-                [t_recv],
+                t_send,
+                t_recv,
                 status,
                 reason,
-                [msg_id],
+                msg_id,
             )
         )
 
@@ -217,22 +224,12 @@ class Recorder:
         return _sorted(INTERVAL_COLUMNS, cols)
 
     def _message_table(self) -> Table:
-        cols: dict[str, list[Any]] = {c: [] for c in MESSAGE_COLUMNS}
-        names = [a.name for a in self.cteam.agents]
-        for inst, seq, snd, rcv, socket, kind, ts, tr, status, reason, ids in self._messages:
-            k = len(inst)
-            cols["instance"].append(inst)
-            cols["seq"].append(seq)
-            cols["sender"].append([names[snd]] * k)
-            cols["receiver"].append([names[rcv]] * k)
-            cols["socket"].append([socket] * k)
-            cols["type"].append([kind] * k)
-            cols["t_send"].append(ts)
-            cols["t_recv"].append(tr)
-            cols["status"].append([status] * k)
-            cols["reason"].append([reason] * k)
-            cols["msg_id"].append(ids)
-        return _sorted(MESSAGE_COLUMNS, cols)
+        # the rows are kept as tuples, in the order recorded: one transposition makes the
+        # columns (a chunk of arrays per copy cost a seventh of a streaming run to flatten)
+        if not self._messages:
+            return Table(MESSAGE_COLUMNS)
+        columns = zip(MESSAGE_COLUMNS, zip(*self._messages, strict=True), strict=True)
+        return _sorted(MESSAGE_COLUMNS, {c: [values] for c, values in columns})
 
     def tables(self) -> tuple[Table, Table, Table]:
         return self._transition_table(), self._interval_table(), self._message_table()
@@ -241,6 +238,11 @@ class Recorder:
 def variables_key(agent: str) -> str:
     """The snapshot series of an agent's discrete variables ('#' is in no model name)."""
     return f"{agent}#variables"
+
+
+def _plain(chunk: Any) -> list:
+    """A chunk of a numeric column as a list of Python numbers."""
+    return chunk.tolist() if isinstance(chunk, np.ndarray) else chunk
 
 
 def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
@@ -260,9 +262,12 @@ def _sorted(names: tuple[str, ...], cols: dict[str, list[Any]]) -> Table:
             "t_recv",
             "msg_id",
         ):
-            flat[name] = np.concatenate([np.asarray(c) for c in chunks])
+            # one list of Python numbers, then one array: a message's row is recorded
+            # alone (:meth:`Recorder.message_row`), and an array per one-number chunk cost
+            # a seventh of a streaming run; the numbers, and their promotion, are the same
+            flat[name] = np.array(list(chain.from_iterable(map(_plain, chunks))))
         else:
-            flat[name] = np.array([v for c in chunks for v in c], dtype=object)
+            flat[name] = np.array(list(chain.from_iterable(chunks)), dtype=object)
     order = np.argsort(flat["instance"], kind="stable")
     return Table(names, {n: c[order] for n, c in flat.items()})
 

@@ -40,16 +40,18 @@ class Inbox:
 
     def deliver(self, i: int, msg: Message) -> None:
         """Keep a copy if it is newer (by send time) than the one held from its sender."""
-        t = msg.type
-        if msg.t_send <= self.sent[t][i, msg.sender]:
+        t, sender, t_send = msg.type, msg.sender, msg.t_send
+        sent = self.sent[t]
+        if t_send <= sent[i, sender]:
             return  # an older copy overtaken by a newer one (jitter): ignore it
-        self.sent[t][i, msg.sender] = msg.t_send
-        row = self.values[t][i, msg.sender]
-        for f, j in self.index[t].items():
-            row[j] = msg.fields.get(f, np.nan)
-        latest = self.latest[t][i]
-        if latest < 0 or msg.t_send >= self.sent[t][i, latest]:
-            self.latest[t][i] = msg.sender
+        sent[i, sender] = t_send
+        # (one write of the whole row: this is every stream copy's cost)
+        get = msg.fields.get
+        self.values[t][i, sender] = [get(f, np.nan) for f in self.fields[t]]
+        latest = self.latest[t]
+        held = latest[i]
+        if held < 0 or t_send >= sent[i, held]:
+            latest[i] = sender
 
     def view(self, idx: np.ndarray | slice) -> InboxView:
         return InboxView(self, idx)
@@ -138,6 +140,11 @@ class Streams:
             return
         t = ens.t[idx]
         steady = config is not None and config.size == 0
+        if steady and not some(self.next[idx] <= t):
+            # no mode entered or left, and no copy due (``next`` is the earliest ``due``,
+            # which only this method moves): nothing is sent, nothing is rescheduled —
+            # a message arrival's instant, or a law's tick between copies
+            return
         for a, mine in enumerate(self.streams):
             if not mine:
                 continue
