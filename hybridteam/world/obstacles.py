@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -75,6 +76,26 @@ if TYPE_CHECKING:
 #: Rounding allowance (relative to coordinates and range) of the test that lets a reading
 #: skip casting against static obstacles beyond the ring's range (``Obstacles.read``)
 _SLACK = 1e-9
+
+
+@dataclass
+class ObstacleWork:
+    """What an :class:`Obstacles` component computed over a run, all instances together.
+
+    Counters in the way :class:`~hybridteam.engine.run.costs.Costs` counts the crossing
+    search's work: a test asserts how much work a case takes by reading them after the run
+    (``component.work``), not by wrapping the component's methods, so a refactor that
+    keeps the work keeps the counts. No result depends on them; each is one integer
+    addition per call.
+    """
+
+    #: Instants updated (:meth:`Obstacles.update` calls, every instance of one at once).
+    updates: int = 0
+    #: Lower bounds on a ring's readings computed (:meth:`Obstacles.floor` calls).
+    floors: int = 0
+    #: Ring readings cast (:meth:`Obstacles.read` calls, one per scene where instances'
+    #: obstacles differ, plus the call that groups them).
+    reads: int = 0
 
 
 @world_component("obstacles")
@@ -166,6 +187,8 @@ class Obstacles(WorldComponent):
         #: the clearances this instant's update measured, for :meth:`sample` at the same
         #: instant: ``(idx, robot centres, payload poses, robot gaps, payload gaps)``
         self._measured: _Measured | None = None
+        #: the work done so far (:class:`ObstacleWork`), read after the run
+        self.work = ObstacleWork()
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -217,6 +240,7 @@ class Obstacles(WorldComponent):
         are all beyond it read as if there were none, which answers that question alike.
         ``scene``: the obstacles every instance of ``idx`` has (None: each its own).
         """
+        self.work.reads += 1
         if scene is None and self.scene_of is not None:  # each instance its own obstacles
             out = np.empty((idx.size, ring.count if beams is None else beams.size))
             for own, rows in self._by_scene(idx):
@@ -262,6 +286,7 @@ class Obstacles(WorldComponent):
 
     # ------------------------------------------------------------------ each instant
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
+        self.work.updates += 1
         for p in self.late:
             p.settle(world, idx)
         if self.scene_of is None:
@@ -334,6 +359,7 @@ class Obstacles(WorldComponent):
         distance to its outline minus that (less a rounding allowance); readings are then
         clipped to ``[min_range, max_range]``.
         """
+        self.work.floors += 1
         pose = self._poses(a, idx)
         near = reach
         for p in self.payloads:
