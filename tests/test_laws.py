@@ -207,13 +207,12 @@ def test_libraries_are_found_through_entry_points(monkeypatch):
         assert group == "hybridteam.libraries"
         return [FakeEntryPoint()]
 
+    assert "thirdparty.spin" not in laws.registered()
     monkeypatch.setattr(metadata, "entry_points", entry_points)
-    monkeypatch.setattr(discovery, "_LOADED", False)
-    monkeypatch.setattr(discovery, "_BROKEN", {})
-    monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
-    assert "thirdparty.spin" not in laws._REGISTRY
-    assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
-    assert "thirdparty.spin" in laws.registered()
+    with discovery.isolated():
+        assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
+        assert "thirdparty.spin" in laws.registered()
+    assert "thirdparty.spin" not in laws.registered()  # (the process's laws as before)
 
 
 def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp_path):
@@ -228,28 +227,26 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
             import conveyors_missing_dependency  # noqa: F401
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [BrokenEntryPoint()])
-    monkeypatch.setattr(discovery, "_LOADED", False)
-    monkeypatch.setattr(discovery, "_BROKEN", {})
-    with pytest.raises(laws.LawNotFound) as exc:
-        laws.resolve("conveyor.belt")
-    assert str(exc.value) == (
-        "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
-        "(conveyors.laws: ModuleNotFoundError: No module named "
-        "'conveyors_missing_dependency'))"
-    )
-    text = (
+    path = tmp_path / "t.yaml"
+    path.write_text(
         "team: t\nagents:\n  a:\n    plant: {kind: unicycle, state: {x: 0, y: 0, "
         "theta: 0}}\n    modes: {M: {}}\nworld:\n  - {use: conveyor.belt}\n"
     )
-    path = tmp_path / "t.yaml"
-    path.write_text(text)
-    with pytest.raises(
-        InputErrors,
-        match=r"t.yaml:7:11: world\[0\].use: unknown world component "
-        r"'conveyor.belt' \(mode library 'conveyors' failed to import "
-        r"\(conveyors.laws: ModuleNotFoundError",
-    ):
-        ht.load(path)
+    with discovery.isolated():
+        with pytest.raises(laws.LawNotFound) as exc:
+            laws.resolve("conveyor.belt")
+        assert str(exc.value) == (
+            "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
+            "(conveyors.laws: ModuleNotFoundError: No module named "
+            "'conveyors_missing_dependency'))"
+        )
+        with pytest.raises(
+            InputErrors,
+            match=r"t.yaml:7:11: world\[0\].use: unknown world component "
+            r"'conveyor.belt' \(mode library 'conveyors' failed to import "
+            r"\(conveyors.laws: ModuleNotFoundError",
+        ):
+            ht.load(path)
 
 
 def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, tmp_path):
