@@ -14,15 +14,16 @@ documented setting instead of patching the engine's or a library's private names
 
 It covers the crossing search's float forms (its checkpoints' truths, the dense bracket
 and the judgement of a flip, :attr:`hybridteam.expr.Atom.row`), the last few brackets of
-:func:`~hybridteam.engine.run.crossing.illinois.illinois`, a carried payload's settling
-and the ladder library's law and corridor instant. A hot path reads one attribute
+:func:`~hybridteam.engine.run.crossing.illinois.illinois`, a few rows' unicycle arcs and
+dense-output reads (:mod:`hybridteam.dynamics`), a carried payload's settling and the
+ladder library's law and corridor instant. A hot path reads one attribute
 (:attr:`FloatPaths.on`), which costs about as much as a local comparison.
 
 :func:`float_form` makes a float path from the array version's own source, where the
 algorithm is written once over an operations namespace ``ops`` (numpy for arrays): the
 second copy is generated, not written. Made so: the Illinois rounds of the crossing
-search, a payload's spring equilibrium, and the ladder library's law after its
-nearest-point search and its corridor's corner test.
+search, a unicycle's arc, a payload's spring equilibrium, and the ladder library's law
+after its nearest-point search and its corridor's corner test.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hybridteam.arrays import sinc, spread
-from hybridteam.discovery import broken_note, load_libraries
+from hybridteam.discovery import broken_note, load_libraries, registry
 from hybridteam.lawrefs import RefusedReference, import_model_module, is_beside
 
 
@@ -412,7 +412,7 @@ class LawSpec:
         return " ".join(self.doc.split("\n\n", 1)[0].split())
 
 
-_REGISTRY: dict[str, LawSpec] = {}
+_REGISTRY: dict[str, LawSpec] = registry()
 
 
 def law(

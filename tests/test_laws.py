@@ -17,6 +17,7 @@ from hybridteam import discovery, laws
 from hybridteam.dynamics.plants import FEW_ARCS, Holonomic, Unicycle
 from hybridteam.engine.run.drivers import next_ticks
 from hybridteam.errors import ModelError
+from hybridteam.floatpaths import FLOAT_PATHS
 from hybridteam.io.filekind import InputErrors
 
 
@@ -50,22 +51,18 @@ def test_unicycle_arc_is_exact_for_any_step():
     )
 )
 def test_a_few_rows_arcs_on_floats_have_the_array_versions_bits(rows):
-    """A few rows (a single run's step) are moved on Python floats; with enough copies
-    they take the array path. Both must give the same bits, also for zero turn rates,
+    """A few rows (a single run's step) are moved on Python floats; with the float paths
+    off they take the array path. Both must give the same bits, also for zero turn rates,
     zero steps, inf and NaN."""
     p = Unicycle()
     vals = np.array(rows)
     x, u, h = vals[:, :3], vals[:, 3:5], np.abs(vals[:, 5])
-    pad = FEW_ARCS + 1  # enough extra rows for the array path
     with np.errstate(all="ignore"):
         few = p.propagate(x, u, h)
-        many = p.propagate(
-            np.vstack([x, np.repeat(x[:1], pad, axis=0)]),
-            np.vstack([u, np.repeat(u[:1], pad, axis=0)]),
-            np.concatenate([h, np.repeat(h[:1], pad)]),
-        )
+        with FLOAT_PATHS.off():
+            arrays = p.propagate(x, u, h)
     assert few.shape == x.shape
-    assert few.tobytes() == many[: len(rows)].tobytes()
+    assert few.tobytes() == arrays.tobytes()
     # one step for every row (a number, as callers may pass it) moves them alike
     with np.errstate(all="ignore"):
         one_h = p.propagate(x, u, float(h[0]))
@@ -210,13 +207,12 @@ def test_libraries_are_found_through_entry_points(monkeypatch):
         assert group == "hybridteam.libraries"
         return [FakeEntryPoint()]
 
+    assert "thirdparty.spin" not in laws.registered()
     monkeypatch.setattr(metadata, "entry_points", entry_points)
-    monkeypatch.setattr(discovery, "_LOADED", False)
-    monkeypatch.setattr(discovery, "_BROKEN", {})
-    monkeypatch.setattr(laws, "_REGISTRY", dict(laws._REGISTRY))
-    assert "thirdparty.spin" not in laws._REGISTRY
-    assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
-    assert "thirdparty.spin" in laws.registered()
+    with discovery.isolated():
+        assert laws.resolve("thirdparty.spin").plants == ("unicycle",)
+        assert "thirdparty.spin" in laws.registered()
+    assert "thirdparty.spin" not in laws.registered()  # (the process's laws as before)
 
 
 def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp_path):
@@ -231,28 +227,26 @@ def test_a_library_that_fails_to_import_is_named_with_its_error(monkeypatch, tmp
             import conveyors_missing_dependency  # noqa: F401
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [BrokenEntryPoint()])
-    monkeypatch.setattr(discovery, "_LOADED", False)
-    monkeypatch.setattr(discovery, "_BROKEN", {})
-    with pytest.raises(laws.LawNotFound) as exc:
-        laws.resolve("conveyor.belt")
-    assert str(exc.value) == (
-        "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
-        "(conveyors.laws: ModuleNotFoundError: No module named "
-        "'conveyors_missing_dependency'))"
-    )
-    text = (
+    path = tmp_path / "t.yaml"
+    path.write_text(
         "team: t\nagents:\n  a:\n    plant: {kind: unicycle, state: {x: 0, y: 0, "
         "theta: 0}}\n    modes: {M: {}}\nworld:\n  - {use: conveyor.belt}\n"
     )
-    path = tmp_path / "t.yaml"
-    path.write_text(text)
-    with pytest.raises(
-        InputErrors,
-        match=r"t.yaml:7:11: world\[0\].use: unknown world component "
-        r"'conveyor.belt' \(mode library 'conveyors' failed to import "
-        r"\(conveyors.laws: ModuleNotFoundError",
-    ):
-        ht.load(path)
+    with discovery.isolated():
+        with pytest.raises(laws.LawNotFound) as exc:
+            laws.resolve("conveyor.belt")
+        assert str(exc.value) == (
+            "unknown law 'conveyor.belt' (mode library 'conveyors' failed to import "
+            "(conveyors.laws: ModuleNotFoundError: No module named "
+            "'conveyors_missing_dependency'))"
+        )
+        with pytest.raises(
+            InputErrors,
+            match=r"t.yaml:7:11: world\[0\].use: unknown world component "
+            r"'conveyor.belt' \(mode library 'conveyors' failed to import "
+            r"\(conveyors.laws: ModuleNotFoundError",
+        ):
+            ht.load(path)
 
 
 def test_names_a_law_reads_are_checked_at_validation(team_from_yaml, userlaws, tmp_path):

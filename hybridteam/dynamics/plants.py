@@ -13,10 +13,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from hybridteam.arrays import filled
+from hybridteam.floatpaths import FLOAT_PATHS, Ops, float_form
 
 
 @dataclass(frozen=True)
@@ -58,43 +59,51 @@ class Unicycle(Plant):
         point for any nonzero ``a`` (for tiny ``a``, ``sin(a)`` rounds to ``a`` itself) and is
         set to its limit 1 at ``a = 0``, so there is no branch on small turn rates.
         """
-        if x.shape[0] <= FEW_ARCS:
+        if x.shape[0] <= FEW_ARCS and FLOAT_PATHS.on:
             return _arcs_few(x, u, h)
-        v, w, th = u[:, 0], u[:, 1], x[:, 2]
-        half = 0.5 * w * h
-        ratio = filled(half.shape[0], 1.0)  # the limit, kept where half is 0: no division
-        np.divide(np.sin(half), half, out=ratio, where=half != 0)  # there, so no error state
-        chord = v * h * ratio
-        mid = th + half
         out = np.empty_like(x)
-        out[:, 0] = x[:, 0] + chord * np.cos(mid)
-        out[:, 1] = x[:, 1] + chord * np.sin(mid)
-        out[:, 2] = th + w * h
+        out[:, 0], out[:, 1], out[:, 2] = arc(x[:, 0], x[:, 1], x[:, 2], u[:, 0], u[:, 1], h)
         return out
 
 
+def arc(px: Any, py: Any, th: Any, v: Any, w: Any, h: Any, ops: Ops = np) -> tuple[Any, Any, Any]:
+    """The pose after driving at ``v`` turning at ``w`` for ``h`` from ``(px, py, th)``
+    (:meth:`Unicycle.propagate`), written once over ``ops``: numpy's arrays (one element
+    per row), and the float form :func:`_arc_on_floats` made from this source.
+
+    The ratio ``sin(a)/a`` is divided only where ``a`` is nonzero (its divisor 1 elsewhere,
+    so the arrays need no error state) and is its limit 1 at 0.
+    """
+    half = 0.5 * w * h
+    turning = half != 0
+    ratio = ops.where(turning, ops.true_divide(ops.sin(half), ops.where(turning, half, 1.0)), 1.0)
+    chord = v * h * ratio
+    mid = th + half
+    return px + chord * ops.cos(mid), py + chord * ops.sin(mid), th + w * h
+
+
+_arc_on_floats = float_form(arc)
+
 #: up to this many rows, :meth:`Unicycle.propagate` runs on Python floats (:func:`_arcs_few`)
+#: while the float paths are on (:data:`hybridteam.floatpaths.FLOAT_PATHS`)
 FEW_ARCS = 8
 
 
 def _arcs_few(x: np.ndarray, u: np.ndarray, h: np.ndarray) -> np.ndarray:
     """:meth:`Unicycle.propagate` for a few rows (a single run's step, or its crossing
-    checks), on Python floats.
+    checks): :func:`arc`'s float form row by row.
 
     The array version makes about twenty numpy calls, each costing its dispatch (about
-    1 µs) whatever the number of rows. Here the same IEEE operations run in the same order
-    on floats, and the sines and cosines are numpy's own (``np.sin`` of a float runs the
-    array loop), so each row has the array version's bits.
+    1 µs) whatever the number of rows; on floats the same IEEE operations run in the same
+    order, and the sines and cosines are numpy's own, so each row has the array version's
+    bits.
     """
     steps = np.asarray(h, dtype=float)  # one step for every row, or one per row
     hs = steps.tolist() if steps.ndim else [float(steps)] * x.shape[0]
-    out = []
-    for (px, py, th), (v, w), hh in zip(x.tolist(), u.tolist(), hs, strict=True):
-        half = 0.5 * w * hh
-        ratio = float(np.sin(half)) / half if half != 0 else 1.0
-        chord = v * hh * ratio
-        mid = th + half
-        out.append([px + chord * float(np.cos(mid)), py + chord * float(np.sin(mid)), th + w * hh])
+    out = [
+        _arc_on_floats(px, py, th, v, w, hh)
+        for (px, py, th), (v, w), hh in zip(x.tolist(), u.tolist(), hs, strict=True)
+    ]
     return np.array(out, dtype=float).reshape(-1, 3)
 
 

@@ -9,6 +9,7 @@ which key is wrong. ``hybridteam schema`` prints these models as JSON Schema for
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
@@ -80,6 +81,32 @@ def check_name(name: _Name, what: str) -> _Name:
     return name
 
 
+def named(
+    *fields: str,
+    what: str,
+    rule: Callable[[Any, str], object] = check_name,
+    empty: str | None = None,
+) -> Any:
+    """The validator of the name fields ``fields`` of a schema (assigned in its class body:
+    ``_agent_name = named("to", what="agent")``): each value, unless not given (None),
+    checked by ``rule`` as a ``what`` name — one name (:func:`check_name`, the default), an
+    event's (:func:`check_event`), a title (:func:`check_title`), or the keys or items of a
+    mapping or list (:func:`check_names`). ``empty``: the message refusing an empty one.
+
+    One definition for every field that names something, so each says what it names the
+    same way and a new rule is written once."""
+
+    def validate(cls: type[BaseModel], v: Any) -> Any:
+        if v is None:
+            return v
+        if empty is not None and not v:
+            raise ValueError(empty)
+        rule(v, what)
+        return v
+
+    return field_validator(*fields)(classmethod(validate))
+
+
 class Strict(BaseModel):
     """Unknown keys are errors, and so are NaN and infinite numbers: no setting of a file
     means anything with them (leave a limit out to have none)."""
@@ -95,20 +122,9 @@ class SendSchema(Strict):
     socket: str = Field("control", description="socket name, e.g. control or data")
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
-    @field_validator("send")
-    @classmethod
-    def _message_name(cls, v: str) -> str:
-        return check_name(v, "message")
-
-    @field_validator("to")
-    @classmethod
-    def _agent_name(cls, v: str | None) -> str | None:
-        return check_name(v, "agent")
-
-    @field_validator("socket")
-    @classmethod
-    def _socket_name(cls, v: str) -> str:
-        return check_name(v, "socket")
+    _message_name = named("send", what="message")
+    _agent_name = named("to", what="agent")
+    _socket_name = named("socket", what="socket")
 
 
 class RaiseSchema(Strict):
@@ -116,10 +132,7 @@ class RaiseSchema(Strict):
 
     raise_: str = Field(alias="raise", description="event name")
 
-    @field_validator("raise_")
-    @classmethod
-    def _event_name(cls, v: str) -> str:
-        return check_event(v, "event")
+    _event_name = named("raise_", what="event", rule=check_event)
 
 
 ActionSchema = Annotated[str | SendSchema | RaiseSchema, Field(union_mode="left_to_right")]
@@ -147,10 +160,7 @@ class TransitionSchema(Strict):
     )
     description: str | None = None
 
-    @field_validator("on")
-    @classmethod
-    def _trigger_name(cls, v: str | None) -> str | None:
-        return check_event(v, "message or event")
+    _trigger_name = named("on", what="message or event", rule=check_event)
 
     @field_validator("after")
     @classmethod
@@ -213,20 +223,13 @@ class ModeSchema(Strict):
         None, description="with 'protocol': what each role (e.g. lead, follow) does"
     )
 
-    @field_validator("roles")
-    @classmethod
-    def _role_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
-        check_names(v or (), "role")
-        return v
-
-    @field_validator("modes")
-    @classmethod
-    def _mode_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
-        if v is not None:
-            if not v:
-                raise ValueError("'modes' is empty; remove it or declare a mode")
-            check_names(v, "mode")
-        return v
+    _role_names = named("roles", what="role", rule=check_names)
+    _mode_names = named(
+        "modes",
+        what="mode",
+        rule=check_names,
+        empty="'modes' is empty; remove it or declare a mode",
+    )
 
     @model_validator(mode="after")
     def _period_needs_inputs(self) -> ModeSchema:
@@ -260,11 +263,7 @@ class PlantSchema(Strict):
     state: dict[str, ExprOrNumber] = Field(default_factory=dict)
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
 
-    @field_validator("state")
-    @classmethod
-    def _state_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "state")
-        return v
+    _state_names = named("state", what="state", rule=check_names)
 
 
 class AgentSchema(Strict):
@@ -313,20 +312,10 @@ class AgentSchema(Strict):
             )
         return v
 
-    @field_validator("parameters", "variables")
-    @classmethod
-    def _names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "parameter/variable")
-        return v
-
-    @field_validator("modes")
-    @classmethod
-    def _mode_names(cls, v: dict[str, Any] | None) -> dict[str, Any] | None:
-        if v is not None:
-            if not v:
-                raise ValueError("an agent needs at least one mode")
-            check_names(v, "mode")
-        return v
+    _names = named("parameters", "variables", what="parameter/variable", rule=check_names)
+    _mode_names = named(
+        "modes", what="mode", rule=check_names, empty="an agent needs at least one mode"
+    )
 
     @model_validator(mode="after")
     def _modes_or_operator(self) -> AgentSchema:
@@ -378,15 +367,8 @@ class ScenarioSchema(Strict):
     agent: str
     raise_: str = Field(alias="raise")
 
-    @field_validator("agent")
-    @classmethod
-    def _agent_name(cls, v: str) -> str:
-        return check_name(v, "agent")
-
-    @field_validator("raise_")
-    @classmethod
-    def _event_name(cls, v: str) -> str:
-        return check_event(v, "event")
+    _agent_name = named("agent", what="agent")
+    _event_name = named("raise_", what="event", rule=check_event)
 
 
 class LinkSchema(Strict):
@@ -464,16 +446,8 @@ class MessageDeclSchema(Strict):
     ack: AckSchema | None = None
     priority: ExprOrNumber = Field(0.0, description="higher first among same-instant arrivals")
 
-    @field_validator("socket")
-    @classmethod
-    def _socket_name(cls, v: str) -> str:
-        return check_name(v, "socket")
-
-    @field_validator("fields")
-    @classmethod
-    def _field_names(cls, v: list[str]) -> list[str]:
-        check_names(v, "field")
-        return v
+    _socket_name = named("socket", what="socket")
+    _field_names = named("fields", what="field", rule=check_names)
 
 
 class EndSchema(Strict):
@@ -488,11 +462,7 @@ class EndSchema(Strict):
         "all", description="all: when every one of them is final; any: when the first is"
     )
 
-    @field_validator("agents")
-    @classmethod
-    def _agent_names(cls, v: list[str] | None) -> list[str] | None:
-        check_names(v or (), "agent")
-        return v
+    _agent_names = named("agents", what="agent", rule=check_names)
 
 
 class SemanticsSchema(Strict):
@@ -546,36 +516,13 @@ class TeamFile(Strict):
         "{broadcast: ADDR:PORT}; simulation ignores it",
     )
 
-    @field_validator("team")
-    @classmethod
-    def _team_name(cls, v: str) -> str:
-        return check_title(v, "team")
-
-    @field_validator("agents")
-    @classmethod
-    def _agent_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        if not v:
-            raise ValueError("a team needs at least one agent")
-        check_names(v, "agent")
-        return v
-
-    @field_validator("parameters")
-    @classmethod
-    def _param_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "parameter")
-        return v
-
-    @field_validator("requirements")
-    @classmethod
-    def _requirement_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "requirement")
-        return v
-
-    @field_validator("messages")
-    @classmethod
-    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "message")
-        return v
+    _team_name = named("team", what="team", rule=check_title)
+    _agent_names = named(
+        "agents", what="agent", rule=check_names, empty="a team needs at least one agent"
+    )
+    _param_names = named("parameters", what="parameter", rule=check_names)
+    _requirement_names = named("requirements", what="requirement", rule=check_names)
+    _message_names = named("messages", what="message", rule=check_names)
 
 
 class StreamDeclSchema(Strict):
@@ -589,21 +536,9 @@ class StreamDeclSchema(Strict):
     socket: str = "data"
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
-    @field_validator("message")
-    @classmethod
-    def _message_name(cls, v: str) -> str:
-        return check_name(v, "message")
-
-    @field_validator("while_")
-    @classmethod
-    def _mode_names(cls, v: list[str] | None) -> list[str] | None:
-        check_names(v or (), "mode")
-        return v
-
-    @field_validator("socket")
-    @classmethod
-    def _socket_name(cls, v: str) -> str:
-        return check_name(v, "socket")
+    _message_name = named("message", what="message")
+    _mode_names = named("while_", what="mode", rule=check_names)
+    _socket_name = named("socket", what="socket")
 
 
 class RegionModeSchema(ModeSchema):
@@ -612,10 +547,7 @@ class RegionModeSchema(ModeSchema):
 
     role: str | None = None
 
-    @field_validator("role")
-    @classmethod
-    def _role_name(cls, v: str | None) -> str | None:
-        return check_name(v, "role")
+    _role_name = named("role", what="role")
 
 
 class RegionSchema(Strict):
@@ -623,17 +555,8 @@ class RegionSchema(Strict):
     initial: str | None = None
     modes: dict[str, RegionModeSchema]
 
-    @field_validator("roles")
-    @classmethod
-    def _role_names(cls, v: list[str]) -> list[str]:
-        check_names(v, "role")
-        return v
-
-    @field_validator("modes")
-    @classmethod
-    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "mode")
-        return v
+    _role_names = named("roles", what="role", rule=check_names)
+    _mode_names = named("modes", what="mode", rule=check_names)
 
 
 class OperatorSchema(Strict):
@@ -645,17 +568,8 @@ class OperatorSchema(Strict):
     initial: str | None = None
     modes: dict[str, ModeSchema]
 
-    @field_validator("parameters", "variables")
-    @classmethod
-    def _names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "parameter/variable")
-        return v
-
-    @field_validator("modes")
-    @classmethod
-    def _mode_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "mode")
-        return v
+    _names = named("parameters", "variables", what="parameter/variable", rule=check_names)
+    _mode_names = named("modes", what="mode", rule=check_names)
 
 
 class ProtocolFile(Strict):
@@ -671,13 +585,5 @@ class ProtocolFile(Strict):
     region: RegionSchema | None = None
     operator: OperatorSchema | None = None
 
-    @field_validator("protocol")
-    @classmethod
-    def _protocol_name(cls, v: str) -> str:
-        return check_title(v, "protocol")
-
-    @field_validator("messages")
-    @classmethod
-    def _message_names(cls, v: dict[str, Any]) -> dict[str, Any]:
-        check_names(v, "message")
-        return v
+    _protocol_name = named("protocol", what="protocol", rule=check_title)
+    _message_names = named("messages", what="message", rule=check_names)

@@ -28,7 +28,8 @@ window is an index range found by one exact search. min and max are idempotent, 
 sparse table answers any range with two overlapping power-of-two blocks. until composes
 the maps ``x -> max(psi_j, min(phi_j, x))``, which is associative but not idempotent:
 its table is walked in disjoint blocks (binary lifting), ``O(log span)`` per point for
-any ``b``. Tables are built per chunk of rows so memory stays near ``_CHUNK_BYTES``.
+any ``b``. Tables are built per chunk of rows so memory stays near ``chunk_bytes``
+(:data:`CHUNK_BYTES` unless a caller says otherwise).
 """
 
 from __future__ import annotations
@@ -38,23 +39,46 @@ from collections.abc import Iterator
 
 import numpy as np
 
-_CHUNK_BYTES = 48 << 20  # working memory per chunk of rows (tables, search keys)
+#: Working memory per chunk of rows (tables, search keys), the operators' default
+#: ``chunk_bytes``: the results do not depend on it, only how many rows a table holds.
+CHUNK_BYTES = 48 << 20
 
 Reduce = np.ufunc  # np.minimum or np.maximum
 
 
-def always(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf) -> np.ndarray:
-    """Robustness of ``always[a, b] phi`` given ``rho`` = robustness of phi."""
-    return _window(t, rho, a, b, np.minimum, math.inf)
+def always(
+    t: np.ndarray,
+    rho: np.ndarray,
+    a: float = 0.0,
+    b: float = math.inf,
+    *,
+    chunk_bytes: int = CHUNK_BYTES,
+) -> np.ndarray:
+    """Robustness of ``always[a, b] phi`` given ``rho`` = robustness of phi (tables built
+    ``chunk_bytes`` of rows at a time)."""
+    return _window(t, rho, a, b, np.minimum, math.inf, chunk_bytes)
 
 
-def eventually(t: np.ndarray, rho: np.ndarray, a: float = 0.0, b: float = math.inf) -> np.ndarray:
+def eventually(
+    t: np.ndarray,
+    rho: np.ndarray,
+    a: float = 0.0,
+    b: float = math.inf,
+    *,
+    chunk_bytes: int = CHUNK_BYTES,
+) -> np.ndarray:
     """Robustness of ``eventually[a, b] phi`` given ``rho`` = robustness of phi."""
-    return _window(t, rho, a, b, np.maximum, -math.inf)
+    return _window(t, rho, a, b, np.maximum, -math.inf, chunk_bytes)
 
 
 def until(
-    t: np.ndarray, rho1: np.ndarray, rho2: np.ndarray, a: float = 0.0, b: float = math.inf
+    t: np.ndarray,
+    rho1: np.ndarray,
+    rho2: np.ndarray,
+    a: float = 0.0,
+    b: float = math.inf,
+    *,
+    chunk_bytes: int = CHUNK_BYTES,
 ) -> np.ndarray:
     """Robustness of ``phi until[a, b] psi`` (``rho1`` = phi's, ``rho2`` = psi's).
 
@@ -64,29 +88,35 @@ def until(
     """
     a, b = _check_window(a, b)
     t, (phi, psi) = _check_signals(t, rho1, rho2)
-    lo, hi, valid = _bounds(t, a, b, phi.shape[0])
+    lo, hi, valid = _bounds(t, a, b, phi.shape[0], chunk_bytes)
     phi, psi = _blank(phi, valid, math.inf), _blank(psi, valid, -math.inf)
-    out = _until_from(phi, psi, lo, hi)
+    out = _until_from(phi, psi, lo, hi, chunk_bytes)
     if a > 0:
         start = np.broadcast_to(np.arange(phi.shape[1]), phi.shape)
-        np.minimum(out, _range_reduce(phi, start, lo, np.minimum, math.inf), out=out)
+        np.minimum(out, _range_reduce(phi, start, lo, np.minimum, math.inf, chunk_bytes), out=out)
     out[~valid] = np.nan
     return out
 
 
 def _window(
-    t: np.ndarray, rho: np.ndarray, a: float, b: float, op: Reduce, identity: float
+    t: np.ndarray,
+    rho: np.ndarray,
+    a: float,
+    b: float,
+    op: Reduce,
+    identity: float,
+    chunk_bytes: int,
 ) -> np.ndarray:
     a, b = _check_window(a, b)
     t, (rho,) = _check_signals(t, rho)
-    lo, hi, valid = _bounds(t, a, b, rho.shape[0])
+    lo, hi, valid = _bounds(t, a, b, rho.shape[0], chunk_bytes)
     x = _blank(rho, valid, identity)
     if np.isinf(x).all():  # a Boolean signal (+-inf): count the deciding values instead
         out = _count_reduce(x, None if a == 0 else lo, hi, identity)
     elif math.isinf(b):  # every window runs to the row's end: one suffix scan, O(K) a row
         out = _suffix_reduce(x, lo, op, identity)
     else:
-        out = _range_reduce(x, lo, hi, op, identity)
+        out = _range_reduce(x, lo, hi, op, identity, chunk_bytes)
     out[~valid] = np.nan
     return out
 
@@ -152,13 +182,15 @@ def _blank(x: np.ndarray, valid: np.ndarray, identity: float) -> np.ndarray:
     return x if valid.all() else np.where(valid, x, identity)
 
 
-def _chunks(n: int, row_bytes: int) -> Iterator[slice]:
-    step = max(1, _CHUNK_BYTES // max(1, row_bytes))
+def _chunks(n: int, row_bytes: int, chunk_bytes: int) -> Iterator[slice]:
+    step = max(1, chunk_bytes // max(1, row_bytes))
     for r0 in range(0, n, step):
         yield slice(r0, min(n, r0 + step))
 
 
-def _bounds(t: np.ndarray, a: float, b: float, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _bounds(
+    t: np.ndarray, a: float, b: float, n: int, chunk_bytes: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per point, its window ``[lo, hi)`` in row indices, and the valid (non-pad) mask."""
     valid = np.isfinite(t)
     if t.ndim == 1:  # one grid for all rows: search it once
@@ -175,16 +207,16 @@ def _bounds(t: np.ndarray, a: float, b: float, n: int) -> tuple[np.ndarray, np.n
     if a == 0:  # on a strictly increasing row, t_i's own index is where [t_i, ...) starts
         lo = np.minimum(np.arange(t.shape[1]), length)
     else:
-        lo = np.minimum(_count_before(t, t + a, strict=True), length)
+        lo = np.minimum(_count_before(t, t + a, True, chunk_bytes), length)
     hi = (
-        np.minimum(_count_before(t, t + b, strict=False), length)
+        np.minimum(_count_before(t, t + b, False, chunk_bytes), length)
         if math.isfinite(b)
         else np.broadcast_to(length, t.shape)
     )
     return lo, hi, valid
 
 
-def _count_before(t: np.ndarray, q: np.ndarray, strict: bool) -> np.ndarray:
+def _count_before(t: np.ndarray, q: np.ndarray, strict: bool, chunk_bytes: int) -> np.ndarray:
     """Per row, how many ``t_j`` are ``< q_i`` (strict) or ``<= q_i``: a row-wise
     ``searchsorted`` without a loop over rows. Both rows are sorted, so a stable argsort
     of their concatenation is one merge (timsort finds the two runs); query ``i`` lands
@@ -192,7 +224,7 @@ def _count_before(t: np.ndarray, q: np.ndarray, strict: bool) -> np.ndarray:
     flat search with a float offset per row, which would round nearby times together."""
     n, k = t.shape
     out = np.empty((n, k), np.intp)
-    for rows in _chunks(n, 64 * k):
+    for rows in _chunks(n, 64 * k, chunk_bytes):
         m = rows.stop - rows.start
         halves = [q[rows], t[rows]] if strict else [t[rows], q[rows]]
         order = np.argsort(np.concatenate(halves, axis=1), axis=1, kind="stable")
@@ -203,7 +235,7 @@ def _count_before(t: np.ndarray, q: np.ndarray, strict: bool) -> np.ndarray:
 
 
 def _range_reduce(
-    x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce, identity: float
+    x: np.ndarray, lo: np.ndarray, hi: np.ndarray, op: Reduce, identity: float, chunk_bytes: int
 ) -> np.ndarray:
     """``op`` over ``x[r, lo:hi]`` per point (``identity`` where empty), by a sparse table:
     level ``l`` holds ``op`` over ``x[j : j + 2**l]``; a range of length ``s`` is the
@@ -211,7 +243,7 @@ def _range_reduce(
     n, k = x.shape
     out = np.full((n, k), identity)
     levels = int((hi - lo).max(initial=0)).bit_length()
-    for rows in _chunks(n, 8 * levels * k) if levels else ():
+    for rows in _chunks(n, 8 * levels * k, chunk_bytes) if levels else ():
         m = rows.stop - rows.start
         table = np.empty((levels, m, k))
         table[0] = x[rows]
@@ -229,7 +261,9 @@ def _range_reduce(
     return out
 
 
-def _until_from(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def _until_from(
+    phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray, chunk_bytes: int
+) -> np.ndarray:
     """``max over lo <= j < hi of min(psi_j, min phi[lo, j))`` per point, ``-inf`` where
     empty. This is ``(F_lo o ... o F_{hi-1})(-inf)`` with ``F_j(x) = max(psi_j,
     min(phi_j, x))``; maps ``x -> max(p, min(q, x))`` compose as ``(p1, q1) o (p2, q2) =
@@ -241,7 +275,7 @@ def _until_from(phi: np.ndarray, psi: np.ndarray, lo: np.ndarray, hi: np.ndarray
     levels = int(span.max(initial=0)).bit_length()
     if levels == 0:
         return out
-    for rows in _chunks(n, 16 * levels * k):
+    for rows in _chunks(n, 16 * levels * k, chunk_bytes):
         m = rows.stop - rows.start
         p, q = np.empty((levels, m, k)), np.empty((levels, m, k))
         p[0], q[0] = psi[rows], phi[rows]

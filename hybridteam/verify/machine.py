@@ -172,8 +172,7 @@ class Machine:
         ens.outcomes = [None] * ens.n
         ens.micro[:] = 0
         ens.changed[:] = False
-        for ring in ens.zeno_ring:
-            ring[:] = -np.inf
+        ens.zeno.clear()
         q = ens.queue
         q.heaps.clear()
         q.seq[:] = 0

@@ -66,8 +66,9 @@ class Verdict:
 
 #: Every state (:class:`States` rows).
 _ALL = slice(None)
-#: States whose signals are spread at once when formulas are evaluated: the arrays of
-#: a block, not of millions of states, are held at a time.
+#: States whose signals are spread at once when formulas are evaluated (the default
+#: ``block`` of :func:`check` and :func:`truths`): the arrays of a block, not of millions
+#: of states, are held at a time. The verdicts do not depend on it.
 BLOCK = 1 << 20
 
 
@@ -220,18 +221,22 @@ PARTIAL_LIVENESS = (
 )
 
 
-def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
+def check(props: list[Property], sk: Skeleton, g: Graph, block: int = BLOCK) -> list[Verdict]:
+    """Each property's verdict over the explored graph, its formulas evaluated ``block``
+    states at a time."""
     out = []
     for p in props:
         try:
             if p.kind == "invariant":
                 assert p.phi is not None  # (an invariant has its formula)
-                out.append(_invariant(p, truths(p.phi, sk, g)))
+                out.append(_invariant(p, truths(p.phi, sk, g, block)))
             elif p.kind == "response" and g.coverage is not None:
                 out.append(Verdict(p, None, message=PARTIAL_LIVENESS))
             elif p.kind == "response":
                 assert p.phi is not None and p.psi is not None  # (a response has both)
-                out.append(_response(p, g, truths(p.phi, sk, g), truths(p.psi, sk, g)))
+                out.append(
+                    _response(p, g, truths(p.phi, sk, g, block), truths(p.psi, sk, g, block))
+                )
             elif p.kind == "deadlock":
                 out.append(_deadlock(p, sk, g))
             else:
@@ -241,11 +246,11 @@ def check(props: list[Property], sk: Skeleton, g: Graph) -> list[Verdict]:
     return out
 
 
-def truths(node: N.Node, sk: Skeleton, g: Graph) -> np.ndarray:
-    """:func:`truth` in every explored state, evaluated block by block."""
+def truths(node: N.Node, sk: Skeleton, g: Graph, block: int = BLOCK) -> np.ndarray:
+    """:func:`truth` in every explored state, evaluated ``block`` states at a time."""
     n = len(g.states)
     return np.concatenate(
-        [truth(node, States(sk, g, slice(k, min(k + BLOCK, n)))) for k in range(0, n, BLOCK)]
+        [truth(node, States(sk, g, slice(k, min(k + block, n)))) for k in range(0, n, block)]
         or [np.zeros(0, bool)]
     )
 

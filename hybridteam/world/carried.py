@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -100,6 +101,16 @@ def _unarmed(agent: Agent, grasp: Mapping[str, Any], at: tuple[Any, ...]) -> lis
             "limit: 0.1})",
         )
     ]
+
+
+@dataclass
+class PayloadWork:
+    """What a :class:`CarriedPayload` computed over a run, all instances together: read
+    after the run (``component.work``), as :class:`~hybridteam.world.obstacles.ObstacleWork`
+    is, instead of wrapping the component's methods. No result depends on it."""
+
+    #: Gaps measured from the outline to obstacles (:meth:`CarriedPayload.gap` calls).
+    gaps: int = 0
 
 
 @world_component("payload")
@@ -216,6 +227,8 @@ class CarriedPayload(WorldComponent):
         self._held_by_code: dict[int, np.ndarray] = {}
         self._halves: tuple[np.ndarray, np.ndarray] | None = None
         self._bits = 1 << np.arange(k)  # grasp j holds: bit j of an engagement code
+        #: the work done so far (:class:`PayloadWork`), read after the run
+        self.work = PayloadWork()
 
     def _robot_points(self, world: WorldAccess, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         poses = np.empty((idx.size, len(self.agents), 3))  # (m, k, 3); np.stack's values
@@ -467,6 +480,7 @@ class CarriedPayload(WorldComponent):
     def gap(self, idx: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
         """Distance from the outline to the nearest of ``segments`` ``(s, 4)`` and
         ``circles`` ``(c, 3)``: ``(m,)``, 0 where they meet or overlap, inf if none."""
+        self.work.gaps += 1
         pose = self.pose[idx]
         hw, hd = (h[:, None] for h in self.half_extents(idx))
         out = filled(idx.size, np.inf)

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from hybridteam.discovery import load_libraries
+from hybridteam.discovery import load_libraries, registry
 from hybridteam.errors import ModelError
 from hybridteam.world.scene import SceneDescription
 
@@ -135,7 +135,7 @@ def settings_error(component: str, problems: Sequence[ModelError]) -> ValueError
     return ValueError(f"{component}: " + "; ".join(str(p) for p in problems))
 
 
-_REGISTRY: dict[str, type[WorldComponent]] = {}
+_REGISTRY: dict[str, type[WorldComponent]] = registry()
 
 
 def world_component(name: str):
@@ -171,6 +171,10 @@ def registered() -> list[str]:
 
 def _builtins() -> None:
     """The framework's own components (a carried payload, static obstacles and the range
-    sensors that see them) register on first use."""
-    import hybridteam.world.carried
-    import hybridteam.world.obstacles  # noqa: F401
+    sensors that see them) register on first use, and again should a registry have been
+    restored to before it (:func:`hybridteam.discovery.isolated`)."""
+    from hybridteam.world.carried import CarriedPayload
+    from hybridteam.world.obstacles import Obstacles
+
+    for cls in (CarriedPayload, Obstacles):
+        _REGISTRY.setdefault(cls.name, cls)

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
@@ -79,6 +80,26 @@ if TYPE_CHECKING:
 #: Rounding allowance (relative to coordinates and range) of the test that lets a reading
 #: skip casting against static obstacles beyond the ring's range (``Obstacles.read``)
 _SLACK = 1e-9
+
+
+@dataclass
+class ObstacleWork:
+    """What an :class:`Obstacles` component computed over a run, all instances together.
+
+    Counters in the way :class:`~hybridteam.engine.run.costs.Costs` counts the crossing
+    search's work: a test asserts how much work a case takes by reading them after the run
+    (``component.work``), not by wrapping the component's methods, so a refactor that
+    keeps the work keeps the counts. No result depends on them; each is one integer
+    addition per call.
+    """
+
+    #: Instants updated (:meth:`Obstacles.update` calls, every instance of one at once).
+    updates: int = 0
+    #: Lower bounds on a ring's readings computed (:meth:`Obstacles.floor` calls).
+    floors: int = 0
+    #: Ring readings cast (:meth:`Obstacles.read` calls, one per scene where instances'
+    #: obstacles differ, plus the call that groups them).
+    reads: int = 0
 
 
 @world_component("obstacles")
@@ -178,6 +199,8 @@ class Obstacles(WorldComponent):
         self.robot_t = np.full((len(self.planar), n), np.nan)
         self.payload_gap = np.full((len(self.payload_names), n), np.nan)
         self.payload_t = np.full((len(self.payload_names), n), np.nan)
+        #: the work done so far (:class:`ObstacleWork`), read after the run
+        self.work = ObstacleWork()
 
     def start(self, world: WorldAccess) -> None:
         self.world = world  # kept: sense() reads poses when a law asks
@@ -226,6 +249,7 @@ class Obstacles(WorldComponent):
         are all beyond it read as if there were none, which answers that question alike.
         ``scene``: the obstacles every instance of ``idx`` has (None: each its own).
         """
+        self.work.reads += 1
         if scene is None and self.scene_of is not None:  # each instance its own obstacles
             out = np.empty((idx.size, ring.count if beams is None else beams.size))
             for own, rows in self._by_scene(idx):
@@ -292,6 +316,7 @@ class Obstacles(WorldComponent):
         if anyone is not None and not every(anyone):
             idx = idx[anyone]
             sensing = {a: own[anyone] for a, own in sensing.items()}
+        self.work.updates += 1
         for p in self.payloads:  # its outline where it is now (settled once an instant)
             p.current(world, idx)
         if self.scene_of is None:
@@ -375,6 +400,7 @@ class Obstacles(WorldComponent):
         distance to its outline minus that (less a rounding allowance); readings are then
         clipped to ``[min_range, max_range]``.
         """
+        self.work.floors += 1
         pose = self._poses(a, idx)
         near = reach
         for p in self.payloads:

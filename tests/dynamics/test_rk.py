@@ -10,6 +10,7 @@ import numpy as np
 
 import hybridteam as ht
 from hybridteam.dynamics import rk
+from hybridteam.floatpaths import FLOAT_PATHS
 
 
 def _f(t: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -90,9 +91,10 @@ def test_a_step_without_its_error_estimate_lands_on_the_same_state():
     assert np.array_equal(bare.k, full.k)
 
 
-def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit(monkeypatch):
+def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit():
     """A single run's search reads one or two states off the dense output, computed on
-    Python floats; they must be the array loop's bits (ends of the step included)."""
+    Python floats; they must be the array loop's bits (ends of the step included). With
+    the float paths off every query goes through the array loop."""
     rng = np.random.default_rng(8)
     m = 3
     s = rk.step(
@@ -106,9 +108,10 @@ def test_a_few_dense_values_on_floats_equal_the_array_loop_bit_for_bit(monkeypat
         theta[rng.uniform(size=k) < 0.2] = 0.0
         theta[rng.uniform(size=k) < 0.2] = 1.0
         queries.append((theta, None if every_row else rng.integers(0, m, k)))
+    assert all(theta.size * 2 <= rk.SMALL_DENSE for theta, _ in queries)  # (floats while on)
     small = [s.dense(theta, rows) for theta, rows in queries]
-    monkeypatch.setattr(rk, "SMALL_DENSE", 0)  # every query through the array loop
-    big = [s.dense(theta, rows) for theta, rows in queries]
+    with FLOAT_PATHS.off():
+        big = [s.dense(theta, rows) for theta, rows in queries]
     for a, b in zip(small, big, strict=True):
         assert a.shape == b.shape and a.tobytes() == b.tobytes()
 

@@ -1066,22 +1066,21 @@ def test_a_library_that_exits_at_import_ends_no_unrelated_command(tmp_path, monk
             raise SystemExit(7)
 
     monkeypatch.setattr(metadata, "entry_points", lambda group: [Exits()])
-    monkeypatch.setattr(discovery, "_LOADED", False)
-    monkeypatch.setattr(discovery, "_BROKEN", {})
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "team.yaml").write_text(robot())
-    assert main(["run", "team.yaml", "-o", "out", "--quiet", "--no-views"]) == 0
-    assert main(["laws"]) == 0
-    assert (
-        "mode library 'quitter' failed to import (quitter.laws: SystemExit: 7)"
-        in capsys.readouterr().err
-    )
-    (tmp_path / "team.yaml").write_text(robot("law: {use: quit.law}"))
-    assert main(["validate", "team.yaml"]) == 2
-    assert (
-        "team.yaml:6:23: agents.r.modes.Go.law.use: unknown law 'quit.law' (mode library "
-        "'quitter' failed to import (quitter.laws: SystemExit: 7))" in capsys.readouterr().err
-    )
+    with discovery.isolated():
+        monkeypatch.chdir(tmp_path)
+        (tmp_path / "team.yaml").write_text(robot())
+        assert main(["run", "team.yaml", "-o", "out", "--quiet", "--no-views"]) == 0
+        assert main(["laws"]) == 0
+        assert (
+            "mode library 'quitter' failed to import (quitter.laws: SystemExit: 7)"
+            in capsys.readouterr().err
+        )
+        (tmp_path / "team.yaml").write_text(robot("law: {use: quit.law}"))
+        assert main(["validate", "team.yaml"]) == 2
+        assert (
+            "team.yaml:6:23: agents.r.modes.Go.law.use: unknown law 'quit.law' (mode library "
+            "'quitter' failed to import (quitter.laws: SystemExit: 7))" in capsys.readouterr().err
+        )
 
 
 @pytest.mark.parametrize("value", ["lots", "nan", "-1"])

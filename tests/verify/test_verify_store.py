@@ -4,13 +4,13 @@ many states are evaluated at once."""
 
 from __future__ import annotations
 
-import importlib
 import random
 
 import pytest
 
 from hybridteam.verify import Options, verify
 from hybridteam.verify.machine import Copy, State
+from hybridteam.verify.properties import check
 from hybridteam.verify.store import Edges, Keys, Store
 from tests.verify.test_verify import roles_team
 
@@ -81,16 +81,16 @@ def test_edges_keep_the_first_choice_between_two_states():
     assert e.out_degree().tolist() == [3, 1, 0]
 
 
-def test_verdicts_do_not_depend_on_the_evaluation_block(tmp_path, monkeypatch):
+def test_verdicts_do_not_depend_on_the_evaluation_block(tmp_path):
     """Two robots, one loss (12,783 states): the same verdicts, violating states and
     others when formulas are evaluated a thousand states at a time."""
     extra = "  b_never_asks: always(not in_mode(b, Requesting))\n"
     team = roles_team(tmp_path, "ba", extra=extra, without_c=True)
     whole = verify(team, Options(losses=1), replay=False)
-    monkeypatch.setattr(importlib.import_module("hybridteam.verify.properties"), "BLOCK", 1000)
-    blocks = verify(team, Options(losses=1), replay=False)
+    props = [v.prop for v in whole.verdicts]
+    blocks = check(props, whole.skeleton, whole.graph, block=1000)
     assert len(whole.graph.states) > 10_000
-    got = [(v.prop.name, v.holds, v.state, v.others) for v in blocks.verdicts]
+    got = [(v.prop.name, v.holds, v.state, v.others) for v in blocks]
     assert got == [(v.prop.name, v.holds, v.state, v.others) for v in whole.verdicts]
     asks = next(v for v in whole.verdicts if v.prop.name == "b_never_asks")
     assert asks.holds is False and max(asks.others) > 1000  # violations beyond one block

@@ -16,7 +16,7 @@ from hybridteam.engine.run.simulator import Simulator
 from hybridteam.io.loader import InputErrors
 from hybridteam.laws import LawContext, law
 from hybridteam.robots import resolve
-from hybridteam.world.obstacles import Obstacles
+from hybridteam.world.obstacles import Obstacles, ObstacleWork
 
 FIXTURES = Path(__file__).parents[1] / "fixtures" / "world"
 IR_WALL = FIXTURES / "ir_wall.yaml"
@@ -107,33 +107,29 @@ def test_detection_is_raised_once_at_the_first_tick_past_the_threshold():
     assert abs(x[-1] - 1.45) < 1e-9
 
 
-def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor(monkeypatch):
+def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor():
     """Once every instance's rule beams read below the threshold, the floor (which could
     rule out none) is not computed until a reading is beyond it again (issue 48: the
     XR4000's IR on the box it carries). The verdicts are the hand-computed ones: R stops
     at the tick 14.5 with beam 0 at 2 - 1.45 - 0.3 = 0.25 < 0.255, and standing there it
     is told once. Before that the floor prunes every instant: the centre is at least
-    0.555 from every obstacle (0.255 + the hull) until x = 1.445, t = 14.45."""
-    floor, reads, asked = Obstacles.floor, Obstacles.read, []
+    0.555 from every obstacle (0.255 + the hull) until x = 1.445, t = 14.45. The work is
+    read off the component's counters after runs that stop at ticks (every 0.1 s: a run
+    that stops between ticks has an instant at its end the whole run does not have)."""
 
-    def timed_floor(self, a, ring, idx, reach):
-        asked.append(("floor", float(self.world.t[idx[0]])))
-        return floor(self, a, ring, idx, reach)
+    def work(duration: float) -> ObstacleWork:
+        ens = run_sim(load(IR_WALL), duration=duration)
+        (obs,) = [c for c in ens.world.components if isinstance(c, Obstacles)]
+        return obs.work
 
-    def timed_read(self, a, ring, idx, *args):
-        asked.append(("read", float(self.world.t[idx[0]])))
-        return reads(self, a, ring, idx, *args)
-
-    monkeypatch.setattr(Obstacles, "floor", timed_floor)
-    monkeypatch.setattr(Obstacles, "read", timed_read)
     run = simulate(load(IR_WALL))
     fired = [row for row in run.transitions if row.cause == "event:obstacle_detected"]
     assert len(fired) == 1 and abs(fired[0].t - 14.5) < 1e-9
-    floors = [t for what, t in asked if what == "floor"]
-    first_read = min(t for what, t in asked if what == "read")
-    assert 14.45 < first_read <= 14.5 + 1e-9
-    assert len(floors) > 100 and max(floors) == first_read  # not once after it
-    assert sum(t > 15.0 for what, t in asked if what == "read") >= 40  # still read
+    pruned, first_read, later, whole = work(14.4), work(14.5), work(15.0), work(20.0)
+    assert pruned.reads == 0 and first_read.reads >= 1  # first read at the tick 14.5
+    assert pruned.floors > 100 and first_read.floors == pruned.floors + 1  # (its instant's)
+    assert whole.floors == first_read.floors  # not once after it
+    assert whole.reads - later.reads >= 40  # still read
 
 
 def test_a_resting_payload_is_an_obstacle_and_its_clearance_is_measured(tmp_path):

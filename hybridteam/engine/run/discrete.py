@@ -251,12 +251,7 @@ def fire(
 
 def _zeno_window(ens: Ensemble, ag: CAgent, st: AgentState, sub: np.ndarray) -> None:
     """Too many transitions of one agent within a short window: a Zeno run, stop it."""
-    ring, ptr = ens.zeno_ring[ag.index], ens.zeno_ptr[ag.index]
-    pos = ptr[sub]
-    old = ring[sub, pos]
-    ring[sub, pos] = ens.t[sub]
-    ptr[sub] = (pos + 1) % ring.shape[1]
-    bad = sub[(ens.t[sub] - old) <= ens.settings.zeno.window]
+    bad = ens.zeno.fired(ag.index, sub, ens.t[sub])
     if bad.size:
         z = ens.settings.zeno
         ens.finish(

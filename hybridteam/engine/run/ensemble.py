@@ -24,6 +24,7 @@ from hybridteam.engine.run.actions import entry_actions
 from hybridteam.engine.run.costs import Costs
 from hybridteam.engine.run.events import EventQueue
 from hybridteam.engine.run.network import Message, Network
+from hybridteam.engine.run.outputs import OutputSampling, output_times
 from hybridteam.engine.run.overrides import apply_overrides, split_overrides
 from hybridteam.engine.run.randomness import seed_value
 from hybridteam.engine.run.record import Recorder
@@ -31,15 +32,7 @@ from hybridteam.engine.run.reliable import Reliable
 from hybridteam.engine.run.state import AgentState
 from hybridteam.engine.run.streams import Inbox, Streams
 from hybridteam.engine.run.world import World
-
-
-def output_times(t_end: float, dt: float) -> np.ndarray:
-    """Output sample times ``0, dt, 2 dt, ...`` up to ``t_end``, which is always included."""
-    k = int(np.floor(t_end / dt + 1e-9)) + 1
-    times = np.arange(k) * dt
-    if times[-1] < t_end - 1e-12 * max(1.0, t_end):
-        times = np.append(times, t_end)
-    return times
+from hybridteam.engine.run.zeno import ZenoWindow
 
 
 class Ensemble:
@@ -51,9 +44,10 @@ class Ensemble:
     this instant: an event was consumed or a transition fired), ``reconfigured`` (a
     transition fired, or a world component set the state: what the drivers, watched
     truths, timers and streams depend on), ``micro`` (superdense index), ``last_fired``
-    (for Zeno messages), ``timer[a]`` (agent ``a``'s next ``after:`` deadline), the Zeno
-    rings, ``instants`` (every source of scheduled instants, one row each). Outputs:
-    ``sample_times``, ``out_k`` (next sample per instance), ``rec``.
+    (for Zeno messages), ``timer[a]`` (agent ``a``'s next ``after:`` deadline), ``zeno``
+    (each agent's latest transition times, :class:`~.zeno.ZenoWindow`), ``instants``
+    (every source of scheduled instants, one row each). Outputs: ``sampling`` (the sample
+    grid and each instance's next sample, :class:`~.outputs.OutputSampling`), ``rec``.
     """
 
     def __init__(
@@ -106,17 +100,13 @@ class Ensemble:
         checks = self.settings.crossing_checks
         #: where in a step atoms are checked for flips, as fractions of it (both ends too)
         self.thetas = np.array([0.0, *((k + 1) / (checks + 1) for k in range(checks)), 1.0])
-        zk = self.settings.zeno.max_transitions
-        self.zeno_ring = [np.full((n, zk), -np.inf) for _ in cteam.agents]
-        self.zeno_ptr = [np.zeros(n, np.intp) for _ in cteam.agents]
+        z = self.settings.zeno
+        self.zeno = ZenoWindow(n, len(cteam.agents), z.max_transitions, z.window)
         # (no samples: none is ever due, and the trace has none)
-        self.sample_times = (
-            output_times(t_end, self.settings.output_period()) if samples else np.zeros(0)
+        self.sampling = OutputSampling(
+            output_times(t_end, self.settings.output_period()) if samples else np.zeros(0), n
         )
-        self.sample_after = np.append(self.sample_times, np.inf)
-        self.out_k = np.zeros(n, np.intp)
-        self.next_out = np.full(n, self.sample_after[0])
-        self.rec = Recorder(cteam, n, self.sample_times)
+        self.rec = Recorder(cteam, n, self.sampling.times)
         self.costs = Costs()  # what the crossing search did, read after the run
         self.queue = EventQueue(n, cteam.scenario)
         overrides, medium = split_overrides(cteam.agents, overrides)
@@ -166,8 +156,8 @@ class Ensemble:
         for a, st in enumerate(self.states):
             st.next_tick = rows[3 + k + a]
         if sample_instants:
-            rows[-1] = self.next_out
-            self.next_out = rows[-1]
+            rows[-1] = self.sampling.next
+            self.sampling.next = rows[-1]
 
     def team_params(self) -> dict[str, np.ndarray]:
         """Team parameters per instance (after overrides), as every agent sees them."""

@@ -33,7 +33,6 @@ from hybridteam.engine.run.drivers import sample_laws
 from hybridteam.engine.run.ensemble import Ensemble
 from hybridteam.engine.run.numerics import stop_broken_states
 from hybridteam.engine.run.outcomes import check_instances
-from hybridteam.engine.run.outputs import interpolate_samples, record_samples
 from hybridteam.engine.run.plant import ExternalPlant, check_external
 from hybridteam.engine.run.record import trace_meta, variables_key
 from hybridteam.engine.run.schedule import earliest
@@ -194,7 +193,7 @@ class Simulator:
                     ens.rec.initial(ca.index, leaf, sel, ens.t[sel])
         ens.changed[:] = True
         self._instant(everyone, entering=True)
-        record_samples(ens, everyone, self._world_snapshot)
+        ens.sampling.record(ens, everyone, self._world_snapshot)
         self._world_snapshot = None
 
     def _instant(
@@ -332,9 +331,9 @@ class Simulator:
         tn = t1[sel]
         # an output sample is due inside the step or at its end (after the instant, which
         # moves no clock and no sample): else neither looks for one
-        sampling = some((ens.next_out if full else ens.next_out[idx]) <= tn)
+        sampling = some((ens.sampling.next if full else ens.sampling.next[idx]) <= tn)
         if sampling:
-            interpolate_samples(ens, idx, tn, steps)
+            ens.sampling.interpolate(ens, idx, tn, steps)
         for a, st in enumerate(ens.states):
             if full:
                 st.x = x_end[a]
@@ -474,7 +473,7 @@ class Simulator:
         if events.size:
             self._instant(events, crossed=moved, discrete=idx[at])
         if sampling:
-            record_samples(ens, idx, self._world_snapshot)
+            ens.sampling.record(ens, idx, self._world_snapshot)
         # (a snapshot is read by the samples right after its instant, never later)
         self._world_snapshot = None
         if not some(ending):  # (the discrete phase moves no clock: ens.t[sel] is tn)
@@ -501,5 +500,5 @@ class Simulator:
             for i, o in enumerate(outcomes):
                 o["stats"] = ens.world.summary(i)
         return Trace(
-            meta, outcomes, transitions, intervals, messages, ens.sample_times, ens.rec.samples
+            meta, outcomes, transitions, intervals, messages, ens.sampling.times, ens.rec.samples
         )
