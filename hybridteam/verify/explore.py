@@ -27,6 +27,7 @@ from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, State
+from hybridteam.verify.reactions import Reactions
 from hybridteam.verify.store import Edges, Store
 
 
@@ -52,6 +53,9 @@ class Options:
     max_memory: float | None = None
     #: distinct values a discrete variable may take before the skeleton is judged infinite
     max_values: int = DEFAULT_MAX_VALUES
+    #: successors from the engine alone, one load and read-back each (:class:`~.machine.Machine`),
+    #: instead of the reaction tables it fills (:class:`~.reactions.Reactions`, the default)
+    reference: bool = False
 
 
 @dataclass
@@ -108,7 +112,7 @@ def active_of(s: State, a: int, modes: int) -> np.ndarray:
     return np.frombuffer(s.agents[a][0][:modes], np.uint8).astype(bool)
 
 
-def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
+def choices(m: Machine | Reactions, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
     quiet = _invisible(s, opts, sk.hears)
     if quiet is not None:  # an ample set: only what can happen to that copy
         return _fates(s, opts, quiet)
@@ -228,7 +232,8 @@ def _explore(sk: Skeleton, opts: Options, progress: Progress | None) -> Graph:
     limit = memory_limit(opts.max_memory)
     # the engine's arrays take at most half the limit; the states, the rest (bounds.py)
     batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5)
-    m = Machine(sk, batch, fifo=opts.order == "fifo")
+    fifo = opts.order == "fifo"
+    m = Machine(sk, batch, fifo=fifo) if opts.reference else Reactions(sk, batch, fifo=fifo)
     m.values = values = Values(sk, opts.max_values)
     store = Store(len(sk.cteam.agents))
     g = Graph(store, array("I", [NONE]), Edges(), batch=batch)
@@ -291,7 +296,7 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     return True
 
 
-def _jobs(m: Machine, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
+def _jobs(m: Machine | Reactions, sk: Skeleton, store: Store, frontier: list[int], opts: Options):
     """A level's jobs ``(state number, state, choice, tape)``, state by state: each state
     is decoded once, and only the states of the chunk at work are held decoded."""
     for sid in frontier:
