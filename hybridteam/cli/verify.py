@@ -122,6 +122,12 @@ def register(sub) -> dict:
         f"skeleton infinite (default {DEFAULT_MAX_VALUES})",
     )
     ve.add_argument(
+        "--reference",
+        action="store_true",
+        help="compute every successor with the engine (load, run, read back) instead "
+        "of the reaction tables it fills: the same exploration, slower; a cross-check",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -188,6 +194,7 @@ def cmd_verify(args) -> int:
         ack_timing=args.ack_timing,
         timeouts=args.timeouts,
         max_values=args.max_values,
+        reference=args.reference,
         max_memory=None if args.max_memory is None else args.max_memory * 1e9,
     )
     try:

@@ -139,19 +139,19 @@ class Reactions:
         if misses:
             self.misses += len(misses)
             got = self.engine.run([jobs[i] for i, _, _, _ in misses])
-            for (i, key, a, k_in), res in zip(misses, got, strict=True):
+            for (i, entry, a, k_in), res in zip(misses, got, strict=True):
                 s, choice, _ = jobs[i]
                 succ = canonical(res.state)
                 if not res.zeno:
                     self._settle(res.state.agents)
-                if key is not None:
+                if entry is not None:
                     r = self._reaction(s, choice, a, k_in, res)
                     if canonical(self._compose(s, choice, a, k_in, r)) != succ:
                         raise RuntimeError(  # a bug, not a model's fault: say so, loudly
                             f"reaction table: {choice} on agent {a} does not reproduce "
                             "the engine's successor"
                         )
-                    table[key] = r
+                    table[entry] = r
                 results[i] = Result(succ, res.zeno, res.reads)
         return results  # type: ignore[return-value]  # (each job got its result)
 
@@ -212,9 +212,7 @@ class Reactions:
             else:
                 raise RuntimeError(f"reaction table: {choice} made an outbox entry {e}")
         added = set(raw.seen) - set(s.seen)
-        if added and (
-            choice[0] != "deliver" or added != {(a, s.inflight[choice[1]].sender, k_in)}
-        ):
+        if added and (choice[0] != "deliver" or added != {(a, s.inflight[choice[1]].sender, k_in)}):
             raise RuntimeError(f"reaction table: {choice} filtered {added}")
         return Reaction(
             raw.agents[a], tuple(copies), kept, tuple(entries), bool(added), res.zeno, res.reads
@@ -247,7 +245,7 @@ class Reactions:
         seen = s.seen
         if r.filtered:
             seen = (*seen, (a, sender, k_in))
-        agents = s.agents[:a] + (r.part,) + s.agents[a + 1 :]
+        agents = (*s.agents[:a], r.part, *s.agents[a + 1 :])
         cursor = s.cursor + (kind == "scenario")
         return State(
             agents, tuple(inflight), tuple(outbox), seen, cursor, s.losses, s.dups, s.next_ids
