@@ -151,8 +151,8 @@ def test_the_examples(path, opts):
 
 
 # A kick sends b round an urgent loop that never ends (exact guards, no trigger): the
-# phase is cut short as Zeno with b still able to step. a's time-driven toggles came
-# before from states where b was quiescent, so their table entries say b does nothing; in
+# phase is cut short as Zeno with b still able to step. a's time-driven toggles (Q, R)
+# came before from states where b was quiescent, so their table entries say b does nothing; in
 # the Zeno state the engine steps b too. Such a state is expanded by the engine.
 ZENO = """team: zeno
 agents:
@@ -163,7 +163,9 @@ agents:
       P:
         transitions: [{to: Q, after: 1.0, do: [{send: kick, to: b}]}]
       Q:
-        transitions: [{to: P, after: 1.0}]
+        transitions: [{to: R, after: 1.0}]
+      R:
+        transitions: [{to: Q, after: 1.0}]
   b:
     plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
     variables: {n: 0}
