@@ -216,8 +216,8 @@ def compare(args: argparse.Namespace) -> None:
             states, seconds = got
             line += (
                 f"; SPIN: {states:,} states in {seconds:.1f} s = {states / seconds:,.0f} "
-                f"states/s; ours/SPIN {rate / (states / seconds):.2f}x states/s, "
-                f"{seconds / ours['seconds']:.2f}x to the verdict"
+                f"states/s; ours/SPIN {rate / (states / seconds):.2f}x states/s, and "
+                f"{seconds / ours['seconds']:.2f}x SPIN's speed to the verdict"
             )
         print(line, flush=True)
 
