@@ -11,8 +11,21 @@ check runs in a process of its own, so "peak MB" is that check's; "B/state" is t
 growth during the check per state explored.
 
     python benchmarks/verify.py [--max-states 1000000] [--robots 2 3 4] [--losses 0 1]
-        [--scenario all|request|resign] [--timeouts any|own|long]
-        [--storage exact|hashcompact|bitstate] [--jobs N] [--compare jobs|storage]
+        [--scenario all|request|resign] [--timeouts any|own|long] [--reference]
+        [--storage exact|hashcompact|bitstate] [--jobs N]
+
+``--compare successors`` (or ``--compare`` alone) instead times the same checks three ways
+in one invocation: the reaction tables (the default successor function), the reference
+explorer (the engine for every successor, ``--reference``) and SPIN exploring the
+protocol's rules (the Promela export of :mod:`hybridteam.verify.promela`, compiled without
+printing), and prints states per second and the ratios tables/reference and ours/SPIN.
+SPIN's states are not ours (it keeps ids, outboxes and filters unrenumbered and has no
+partial-order reduction here), so both the rates and the times to the verdict are printed;
+SPIN runs only on the checks whose exploration is exhaustive (its rules have no state
+bound).
+
+    python benchmarks/verify.py --compare [--checks 2:0:all 3:0:all 2:1:all 3:2:resign]
+        [--spin-on 2:0:all] [--max-states N]
 
 ``--compare jobs`` times each check with ``--jobs 1`` and with ``--jobs N`` (2 unless
 told), alternating, twice each, and prints the speedup (the best time of one against the
@@ -25,6 +38,8 @@ check with every storage mode and prints their states, time and peak memory side
 from __future__ import annotations
 
 import argparse
+import json
+import re
 import resource
 import subprocess
 import sys
@@ -32,7 +47,7 @@ import tempfile
 from pathlib import Path
 
 from hybridteam import load
-from hybridteam.verify import Options, verify
+from hybridteam.verify import Options, promela, spin, verify
 from hybridteam.verify.storage import STORAGES
 
 NAMES = "abcdefgh"
@@ -76,25 +91,27 @@ def team_text(robots: int, scenario: str = "all") -> str:
     return "\n".join(lines) + "\n"
 
 
-def one(robots: int, losses: int, args: argparse.Namespace) -> str:
-    """One check, in this process: its table row (peak memory is this process's)."""
+def one(robots: int, losses: int, args: argparse.Namespace) -> dict:
+    """One check, in this process (peak memory is this process's): its figures."""
+    opts = Options(
+        losses=losses,
+        max_states=args.max_states,
+        timeouts=args.timeouts,
+        reference=args.reference,
+        storage=args.storage,
+        jobs=args.jobs,
+    )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"roles_{robots}.yaml"
         path.write_text(team_text(robots, args.scenario))
         team = load(path)
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
-        r = verify(
-            team,
-            Options(
-                losses=losses,
-                max_states=args.max_states,
-                timeouts=args.timeouts,
-                storage=args.storage,
-                jobs=args.jobs,
-            ),
-            replay=False,
-        )
-    g = r.graph
+        r = verify(team, opts, replay=False)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        g = r.graph
+        rules = None
+        if args.rules and g.exhaustive and args.timeouts == "any":
+            rules = promela.export(r.skeleton, losses, 0, ack_timing=opts.ack_timing)
     bad = [v.prop.name for v in r.violated]
     word = (
         ("VIOLATED: " + ", ".join(bad))
@@ -107,51 +124,120 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> str:
             else "none violated (bounded)"
         )
     )
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {
+        "states": len(g.states),
+        "steps": g.transitions,
+        "seconds": g.seconds,
+        "peak": peak,
+        "per_state": (peak - base) * 1048576 / len(g.states),
+        "verdict": word,
+        "rules": rules,
+    }
+
+
+def row(robots: int, losses: int, f: dict) -> str:
     return (
-        f"{robots:>6} {losses:>6} {len(g.states):>10,} {g.transitions:>10,} "
-        f"{g.seconds:>8.1f} {len(g.states) / g.seconds:>9,.0f} {peak:>8,.0f} "
-        f"{(peak - base) * 1048576 / len(g.states):>8,.0f}  {word}"
+        f"{robots:>6} {losses:>6} {f['states']:>10,} {f['steps']:>10,} "
+        f"{f['seconds']:>8.1f} {f['states'] / f['seconds']:>9,.0f} {f['peak']:>8,.0f} "
+        f"{f['per_state']:>8,.0f}  {f['verdict']}"
     )
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4])
-    ap.add_argument("--losses", type=int, nargs="+", default=[0, 1])
-    ap.add_argument("--max-states", type=int, default=1_000_000)
-    ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
-    ap.add_argument("--timeouts", choices=("any", "own", "long"), default="any")
-    ap.add_argument("--storage", choices=STORAGES, default="exact")
-    ap.add_argument("--jobs", type=int, default=1)
-    ap.add_argument("--compare", choices=("jobs", "storage"), default=None)
-    ap.add_argument("--one", type=int, nargs=2, help=argparse.SUPPRESS)  # robots, losses
-    args = ap.parse_args()
-    if args.one:
-        print(one(*args.one, args), flush=True)
-        return
-    if args.compare:
-        compare(args)
-        return
+def spin_rate(rules: str, timeout: float) -> tuple[int, float] | str:
+    """SPIN's exhaustive search of ``rules``: (states stored, seconds of search), or why
+    there is none. Compiled as :func:`~hybridteam.verify.promela.run_spin` does but
+    without ``-DPRINTF`` (printing each step would slow SPIN down)."""
+    why = spin.missing()
+    if why:
+        return why
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "rules.pml").write_text(rules)
+        steps = [
+            ["spin", "-o2", "-a", "rules.pml"],
+            [
+                "cc",
+                "-O1",
+                "-DNOREDUCE",
+                "-DSAFETY",
+                "-DVECTORSZ=4096",
+                "-DMEMLIM=3000",  # MB: stop rather than take the shared machine's memory
+                "-o",
+                "pan",
+                "pan.c",
+            ],
+            ["./pan", "-E", "-m10000000"],
+        ]
+        try:
+            for cmd in steps:
+                done = subprocess.run(
+                    cmd, cwd=tmp, capture_output=True, text=True, timeout=timeout, check=True
+                )
+        except subprocess.TimeoutExpired:
+            return f"over {timeout:g} s"
+        except subprocess.CalledProcessError as exc:
+            return f"{exc.cmd[0]} failed"
+    text = done.stdout
+    states = re.search(r"([0-9.e+]+) states, stored", text)
+    seconds = re.search(r"elapsed time ([0-9.e+]+) seconds", text)
+    if "errors: 0" not in text or states is None or seconds is None:
+        return "search incomplete"
+    return int(float(states.group(1))), max(float(seconds.group(1)), 1e-3)
+
+
+def compare(args: argparse.Namespace) -> None:
+    """Tables, reference and SPIN on each check, in this one invocation."""
     print(
-        f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
-        f"{'states/s':>9} {'peak MB':>8} {'B/state':>8}  verdict",
+        f"{'check':>14} {'explorer':>9} {'states':>10} {'seconds':>8} {'states/s':>9} "
+        f"{'peak MB':>8} {'B/state':>8}  verdict",
         flush=True,
     )
-    # each check in a process of its own, so its peak memory is its own
-    rest = [
-        "--max-states",
-        str(args.max_states),
-        "--scenario",
-        args.scenario,
-        "--timeouts",
-        args.timeouts,
-    ]
-    for robots in args.robots:
-        for losses in args.losses:
-            subprocess.run(
-                [sys.executable, __file__, "--one", str(robots), str(losses), *rest], check=True
+    for check in args.checks:
+        robots, losses, scenario = check.split(":")
+        rest = ["--max-states", str(args.max_states), "--scenario", scenario]
+        rest += ["--timeouts", args.timeouts, "--json"]
+        figures = {}
+        for who, extra in (("tables", ["--rules"]), ("reference", ["--reference"])):
+            out = subprocess.run(
+                [sys.executable, __file__, "--one", robots, losses, *rest, *extra],
+                check=True,
+                capture_output=True,
+                text=True,
+            ).stdout
+            f = figures[who] = json.loads(out)
+            print(
+                f"{check:>14} {who:>9} {f['states']:>10,} {f['seconds']:>8.1f} "
+                f"{f['states'] / f['seconds']:>9,.0f} {f['peak']:>8,.0f} "
+                f"{f['per_state']:>8,.0f}  {f['verdict']}",
+                flush=True,
             )
+        ours, ref = figures["tables"], figures["reference"]
+        same = (ours["states"], ours["steps"], ours["verdict"]) == (
+            ref["states"],
+            ref["steps"],
+            ref["verdict"],
+        )
+        rate = ours["states"] / ours["seconds"]
+        line = (
+            f"{check:>14} tables/reference: {rate / (ref['states'] / ref['seconds']):.1f}x "
+            f"states/s ({'same states, steps and verdicts' if same else 'DIFFERENT'})"
+        )
+        got = (
+            "not asked (--spin-on)"
+            if check not in args.spin_on
+            else spin_rate(ours["rules"], args.spin_timeout)
+            if ours["rules"]
+            else "bounded"
+        )
+        if isinstance(got, str):
+            line += f"; SPIN: {got}"
+        else:
+            states, seconds = got
+            line += (
+                f"; SPIN: {states:,} states in {seconds:.1f} s = {states / seconds:,.0f} "
+                f"states/s; ours/SPIN {rate / (states / seconds):.2f}x states/s, and "
+                f"{seconds / ours['seconds']:.2f}x SPIN's speed to the verdict"
+            )
+        print(line, flush=True)
 
 
 def _cpu() -> float:
@@ -160,7 +246,7 @@ def _cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def compare(args: argparse.Namespace) -> None:
+def compare_runs(args: argparse.Namespace) -> None:
     """Each check with ``--jobs 1`` against ``--jobs N`` (alternating, twice each), or
     with each storage mode: seconds, and the ratio to the first of them."""
     base = [
@@ -206,6 +292,73 @@ def compare(args: argparse.Namespace) -> None:
                     f"--jobs 1 (best of two each: {one_:.1f} s against {many:.1f} s)",
                     flush=True,
                 )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4])
+    ap.add_argument("--losses", type=int, nargs="+", default=[0, 1])
+    ap.add_argument("--max-states", type=int, default=1_000_000)
+    ap.add_argument("--scenario", choices=("all", "request", "resign"), default="all")
+    ap.add_argument("--timeouts", choices=("any", "own", "long"), default="any")
+    ap.add_argument("--reference", action="store_true", help="the engine for every successor")
+    ap.add_argument("--storage", choices=STORAGES, default="exact")
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument(
+        "--compare",
+        nargs="?",
+        const="successors",
+        choices=("successors", "jobs", "storage"),
+        default=None,
+        help="successors: tables vs reference vs SPIN; jobs: --jobs 1 vs N; storage: each mode",
+    )
+    ap.add_argument(
+        "--checks",
+        nargs="+",
+        default=["2:0:all", "3:0:all", "2:1:all", "3:2:resign"],
+        help="ROBOTS:LOSSES:SCENARIO of each --compare check",
+    )
+    ap.add_argument(
+        "--spin-on",
+        nargs="*",
+        default=["2:0:all"],
+        help="the checks SPIN explores too (its unreduced search grows fast)",
+    )
+    ap.add_argument("--spin-timeout", type=float, default=600.0)
+    ap.add_argument("--one", type=int, nargs=2, help=argparse.SUPPRESS)  # robots, losses
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--rules", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        f = one(*args.one, args)
+        print(json.dumps(f) if args.json else row(*args.one, f), flush=True)
+        return
+    if args.compare == "successors":
+        compare(args)
+        return
+    if args.compare:
+        compare_runs(args)
+        return
+    print(
+        f"{'robots':>6} {'losses':>6} {'states':>10} {'steps':>10} {'seconds':>8} "
+        f"{'states/s':>9} {'peak MB':>8} {'B/state':>8}  verdict",
+        flush=True,
+    )
+    # each check in a process of its own, so its peak memory is its own
+    rest = [
+        "--max-states",
+        str(args.max_states),
+        "--scenario",
+        args.scenario,
+        "--timeouts",
+        args.timeouts,
+        *(["--reference"] if args.reference else []),
+    ]
+    for robots in args.robots:
+        for losses in args.losses:
+            subprocess.run(
+                [sys.executable, __file__, "--one", str(robots), str(losses), *rest], check=True
+            )
 
 
 if __name__ == "__main__":

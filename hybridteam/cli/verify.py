@@ -172,6 +172,12 @@ def register(sub) -> dict:
         "--ack-timing bounded, --timeouts any, --order any; docs/verify.md)",
     )
     ve.add_argument(
+        "--reference",
+        action="store_true",
+        help="compute every successor with the engine (load, run, read back) instead "
+        "of the reaction tables it fills: the same exploration, slower; a cross-check",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -281,6 +287,7 @@ def cmd_verify(args) -> int:
         # every reachable state
         symmetry="off" if args.spin_rules else args.symmetry,
         por="basic" if args.spin_rules else args.por,
+        reference=args.reference,
         max_memory=None if args.max_memory is None else args.max_memory * 1e9,
         storage=args.storage,
         bitstate_mb=DEFAULT_BITSTATE_MB if args.bitstate_mb is None else args.bitstate_mb,

@@ -83,7 +83,13 @@ class SkeletonGuard:
             if not ok.any():
                 return ok
         if self.tree is not None:
+            before = self.oracle.reads[inst]  # (a copy)
             value = np.broadcast_to(self.tree(ctx, inst), inst.shape)
+            if self.code is not None:
+                # the tree is evaluated for every instance of the batch in the source mode;
+                # only the ones that chose the transition have read their tapes (so an
+                # instance's reads never depend on what its batch neighbours chose)
+                self.oracle.reads[inst[~ok]] = before[~ok]
             ok = ok & value
         if self.code is not None:
             self.oracle.chosen[inst[ok]] = -1

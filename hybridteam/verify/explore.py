@@ -30,6 +30,7 @@ from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
 from hybridteam.verify.machine import Machine, Result, State
 from hybridteam.verify.pool import Pool, Successors
+from hybridteam.verify.reactions import Reactions
 from hybridteam.verify.storage import (
     DEFAULT_BITSTATE_MB,
     DEFAULT_HASH_FUNCTIONS,
@@ -76,6 +77,9 @@ class Options:
     #: "ample": also one copy to a receiver nothing else can reach, where no property
     #: reads the receiver (:mod:`.ample`)
     por: str = "basic"
+    #: successors from the engine alone, one load and read-back each (:class:`~.machine.Machine`),
+    #: instead of the reaction tables it fills (:class:`~.reactions.Reactions`, the default)
+    reference: bool = False
 
 
 @dataclass
@@ -136,7 +140,7 @@ def active_of(s: State, a: int, modes: int) -> np.ndarray:
     return np.frombuffer(s.agents[a][0][:modes], np.uint8).astype(bool)
 
 
-def choices(m: Machine, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
+def choices(m: Machine | Reactions, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
     quiet = _invisible(s, opts, sk.hears)
     if quiet is not None:  # an ample set: only what can happen to that copy
         return _fates(s, opts, quiet)
@@ -265,22 +269,26 @@ def explore(
             gc.enable()
 
 
-def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine:
-    """The successor function (each worker of a pool builds its own)."""
-    return Machine(sk, capacity, fifo=opts.order == "fifo")
+def machine(sk: Skeleton, opts: Options, capacity: int) -> Machine | Reactions:
+    """The successor function (each worker of a pool builds its own): the reaction tables,
+    or with ``opts.reference`` the engine for every successor."""
+    fifo = opts.order == "fifo"
+    return (
+        Machine(sk, capacity, fifo=fifo) if opts.reference else Reactions(sk, capacity, fifo=fifo)
+    )
 
 
 class _Reduced:
     """A machine whose successors are replaced by their representatives (``reduce``)."""
 
-    def __init__(self, m: Machine, reduce: Reduce) -> None:
+    def __init__(self, m: Machine | Reactions, reduce: Reduce) -> None:
         self.m, self.reduce = m, reduce
 
     def run(self, jobs: list[tuple]) -> list[Result]:
         return [Result(self.reduce(r.state), r.zeno, r.reads) for r in self.m.run(jobs)]
 
 
-def reduced(m: Machine, reduce: Reduce | None) -> Successors:
+def reduced(m: Machine | Reactions, reduce: Reduce | None) -> Successors:
     """``m``, or ``m`` with each successor replaced by ``reduce(successor)``."""
     return m if reduce is None else _Reduced(m, reduce)
 
@@ -338,7 +346,7 @@ def _again(succ: Successors) -> Callable[[State, tuple, tuple], State]:
 def _levels(
     sk: Skeleton,
     opts: Options,
-    m: Machine,
+    m: Machine | Reactions,
     succ: Successors,
     g: Graph,
     values: Values,
@@ -440,7 +448,7 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
 
 
 def _jobs(
-    m: Machine,
+    m: Machine | Reactions,
     sk: Skeleton,
     store: Store | PartialStore,
     frontier: list[int],

@@ -438,11 +438,15 @@ class Machine:
         counts = tuple(len(live.get(a, ())) for a in range(len(self.cteam.agents)))
         order = _link if self.fifo else None
         if all(max(ks) == len(ks) - 1 for ks in live.values()):  # ids are 0.. already
-            return s._replace(
-                next_ids=counts,
-                inflight=tuple(sorted(inflight, key=order)),
-                outbox=tuple(sorted(s.outbox)),
-                seen=tuple(seen),
+            return State(
+                s.agents,
+                tuple(sorted(inflight, key=order)),
+                tuple(sorted(s.outbox)),
+                tuple(seen),
+                s.cursor,
+                s.losses,
+                s.dups,
+                counts,
             )
         new = {a: {k: j for j, k in enumerate(sorted(ks))} for a, ks in live.items()}
         intern = self._interned
@@ -455,11 +459,15 @@ class Machine:
             return intern.setdefault(c, c)
 
         # in fifo order per-link order matters, not the interleaving of links (stable sort)
-        return s._replace(
-            next_ids=counts,
-            inflight=tuple(sorted((copy(c) for c in inflight), key=order)),
-            outbox=tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in s.outbox)),
-            seen=tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)),
+        return State(
+            s.agents,
+            tuple(sorted((copy(c) for c in inflight), key=order)),
+            tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in s.outbox)),
+            tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)),
+            s.cursor,
+            s.losses,
+            s.dups,
+            counts,
         )
 
 

@@ -108,11 +108,18 @@ class Keys:
 
 def state_key(parts: Parts, s: State) -> bytes:
     """``s`` as the bytes of its parts' numbers (layout: :class:`Store`)."""
-    of = parts.of
-    nums = [of(p) for p in s.agents]
-    for group in (s.inflight, s.outbox, s.seen):
-        nums.append(len(group))
-        nums += [of(p) for p in group]
+    # (Parts.of written out: a call per part is a fifth of the key's time)
+    number, values = parts.number, parts.values
+    nums: list[int] = []
+    for group in (s.agents, s.inflight, s.outbox, s.seen):
+        if nums:  # the groups after the agents are counted
+            nums.append(len(group))
+        for p in group:
+            k = number.get(p)
+            if k is None:
+                k = number[p] = len(values)
+                values.append(p)
+            nums.append(k)
     nums += (s.cursor, s.losses, s.dups, *s.next_ids)
     return _pack(nums)
 
