@@ -89,6 +89,8 @@ SEEN = 16
 MAX_IDS = 200
 #: free comparisons one step may read (each doubles the step's options)
 MAX_FREE = 6
+#: events one step may raise (the queue of raised events, drained within the step)
+RAISED = 8
 
 
 class Unsupported(Exception):
@@ -166,6 +168,8 @@ def export(
     slots: int = SLOTS,
     drop: tuple[int, int] | None = None,
     ack_timing: str = "bounded",
+    order: str = "any",
+    timeouts: str = "any",
 ) -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
     out one (agent, transition) — only to show that the comparison catches a wrong model."""
@@ -187,7 +191,18 @@ def export(
         _refuse(sk, ag)
         for j in ag.vars.values():
             ag.init[j] = _int(ag.init[j], f"agent '{ag.name}': an initial variable")
-    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop, ack_timing == "bounded")
+    ctx = _Ctx(
+        sk,
+        agents,
+        fields,
+        exact,
+        types,
+        slots,
+        drop,
+        ack_timing == "bounded",
+        order == "fifo",
+        timeouts,
+    )
     lines = [
         f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
         f"#define SLOTS {slots}",
@@ -217,6 +232,12 @@ def export(
         "hidden byte r_typ;",
         "hidden int s_mid;",
         *[f"hidden int r_f{k};" for k in range(nf)],
+        "byte sk = 0;",
+        *[f"bit fr{k} = 0;" for k in range(MAX_FREE)],
+        f"hidden byte rq[{RAISED}];",
+        "hidden byte nr;",
+        "hidden byte ri;",
+        *_settle(slots, nf, ctx.fifo),
     ]
     for ag in agents:
         on = _default_config(ag.ca)
@@ -224,6 +245,7 @@ def export(
         lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
         lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
     lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
+    lines += [f"/* raised event {k}: {e} */" for k, (_, e) in enumerate(ctx.events)]
     first = _config_print(agents)
     config = f"if :: moved || overflow -> {first} moved = 0 :: else -> skip fi"
     for ag in agents:
@@ -267,15 +289,11 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
             raise Unsupported(f"{who}: mode {m.path or m.name} has history")
         if m.on_entry or m.on_exit:
             raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
-    if any(e for b, e in sk.world_events if b == ag.a):
-        raise Unsupported(f"{who}: world events")
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
         if tr.carry:
             raise Unsupported(f"{where}: a role body carried over")
-        if any(act.kind == "raise" for act in tr.actions):
-            raise Unsupported(f"{where}: a raise action")
         if tr.on is None and tr.index not in timed:
             raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
         if (
@@ -377,9 +395,13 @@ def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str
 class _Ctx:
     """Translation of guards, actions and steps (one model's worth of names)."""
 
-    def __init__(self, sk, agents, fields, exact, types, slots, drop, bounded) -> None:
+    def __init__(
+        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts
+    ) -> None:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
         self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
+        self.fifo, self.timeouts = fifo, timeouts
+        self.events = self.raised_events()
 
     # -- expressions
     def expr(
@@ -475,6 +497,11 @@ class _Ctx:
                     out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, tr.on)};")
             elif act.kind == "send":
                 out += self.send(ag, act, tr.on)
+            elif act.kind == "raise":  # queued, dispatched after this step's firings
+                k = self.events.index((ag.a, act.name))
+                out.append(
+                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
+                )
         if not tr.internal:
             on: set[int] = set()
             _entered(ag.ca, tr.entry, on)
@@ -554,54 +581,149 @@ class _Ctx:
         return out
 
     # -- processes
+    def arrives(self, k: int) -> str:
+        """Whether the copy in slot ``k`` may arrive (or be lost, or duplicated) next: any
+        copy (``--order any``), or in fifo order the oldest on its link — the slots are
+        kept sorted stably by link (``settle``), so that is the first of its link."""
+        if not self.fifo or k == 0:
+            return f"fl[{k}].used"
+        return f"fl[{k}].used && (fl[{k - 1}].snd != fl[{k}].snd || fl[{k - 1}].rcv != fl[{k}].rcv)"
+
+    def choose(self, free: list[str], who: str) -> str:
+        """Nondeterministic values of the free comparisons a step reads (bits ``fr<k>``,
+        set inside the step's atomic sequence before its ``d_step``)."""
+        if len(free) > MAX_FREE:
+            raise Unsupported(f"agent '{who}': more than {MAX_FREE} free comparisons in one step")
+        return " ".join(f"if :: fr{k} = 1 :: skip fi;" for k in range(len(free)))
+
+    def tail(self) -> str:
+        """What closes every step: the events its transitions raised, dispatched in order
+        (each a micro-step of the same instant, as the engine's queue has them), the
+        choice bits cleared, and the containers brought to their canonical order."""
+        return (
+            self.drain()
+            + " sk = 0; "
+            + " ".join(f"fr{k} = 0;" for k in range(MAX_FREE))
+            + " settle();"
+        )
+
+    def raised_events(self) -> list[tuple[int, str]]:
+        """(agent, event) of every ``raise`` action: numbered in the raised-event queue."""
+        out: list[tuple[int, str]] = []
+        for ag in self.agents:
+            for tr in ag.ca.transitions:
+                for act in tr.actions:
+                    if act.kind == "raise" and (ag.a, act.name) not in out:
+                        out.append((ag.a, act.name))
+        return out
+
+    def drain(self) -> str:
+        """Dispatch the raised events in queue order until none is left (an event raised
+        meanwhile joins the queue's end; a queue that outgrows ``RAISED`` is an overflow)."""
+        if not self.events:
+            return ""
+        options = []
+        for k, (a, name) in enumerate(self.events):
+            ag = self.agents[a]
+            free: list[str] = []
+            body = " ".join(self.dispatch(ag, name, None, free))
+            if free:
+                raise Unsupported(
+                    f"agent '{ag.name}': the raised event '{name}' wakes a guard that "
+                    "reads time or state"
+                )
+            options.append(f":: rq[ri] == {k} -> {body or 'skip'}")
+        return (
+            " ri = 0; do :: ri < nr -> if "
+            + " ".join(options)
+            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break od; nr = 0; ri = 0;"
+        )
+
     def agent_proc(self, ag: _Agent, config: str) -> list[str]:
         out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
+        # a copy arrives: one option picks the slot (one of those addressed to this agent),
+        # the next dispatches it by type; the dispatch is written once per type, not once
+        # per slot, which keeps the model (and the C compiler's work) small
+        pick = " ".join(
+            f":: {self.arrives(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
+        )
+        branches = []
         for t, name in enumerate(self.types):
             free: list[str] = []
-            body = " ".join(self.dispatch(ag, name, name, free))
-            screen = self.screen(ag, name)
-            for bits in _assignments(free, ag.name):
-                for k in range(self.slots):
-                    read = (
-                        f"r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
-                        + " ".join(f"r_f{i} = fl[{k}].f{i};" for i in range(len(self.exact[name])))
-                        + f" {_clear(k, self.exact)}"
-                    )
-                    code = _subst(body, bits)
-                    out.append(
-                        f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == "
-                        f"{ag.a} && fl[{k}].typ == {t} -> {read} {screen} "
-                        f"if :: !held -> {code} :: else -> skip fi; "
-                        f"{_reset(self.exact)} }}; {config} }}"
-                    )
-        for k in range(self.slots):  # an ack arrives (engine.run.reliable.screen)
-            out.append(
-                f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
-                f"fl[{k}].typ == ACK_T -> r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
-                f"{_clear(k, self.exact)} so = 0; do :: so < OUTBOX -> if :: "
-                f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
-                "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
-                f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
-                f"so++ :: else -> break od; so = 0; {_reset(self.exact)} }}; "
-                f"{config} }}"
+            body = _subst(" ".join(self.dispatch(ag, name, name, free)), None)
+            read = (
+                "r_snd = fl[sk].snd; r_mid = fl[sk].mid; "
+                + " ".join(f"r_f{i} = fl[sk].f{i};" for i in range(len(self.exact[name])))
+                + f" {_clear('sk', self.exact)}"
             )
+            branches.append(
+                f":: fl[sk].typ == {t} -> {self.choose(free, ag.name)} d_step {{ {read} "
+                f"{self.screen(ag, name)} if :: !held -> {body or 'skip'} :: else -> skip fi; "
+                f"{_reset(self.exact)} {self.tail()} }}"
+            )
+        # an ack arrives (engine.run.reliable.screen)
+        branches.append(
+            ":: fl[sk].typ == ACK_T -> d_step { r_snd = fl[sk].snd; r_mid = fl[sk].mid; "
+            f"{_clear('sk', self.exact)} so = 0; do :: so < OUTBOX -> if :: "
+            f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
+            "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
+            f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
+            f"so++ :: else -> break od; so = 0; {_reset(self.exact)} {self.tail()} }}"
+        )
+        out.append(f"  :: atomic {{ if {pick} fi; if {' '.join(branches)} fi; {config} }}")
         out += self.timers(ag, config)
         for j in self.sk.time_driven[ag.a]:
             if self.drop == (ag.a, j):
                 continue
             tr = ag.ca.transitions[j]
             free = []
-            cond = self.guard(ag, tr, free) + self.changes(ag, tr)
+            cond = self.guard(ag, tr, free) + self.changes(ag, tr) + self.waits(ag, tr)
             for bits in _assignments(free, ag.name):
                 out.append(
                     f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
-                    + " ".join(self.fire(ag, tr))
-                    + " }; "
+                    + _subst(" ".join(self.fire(ag, tr)), bits)
+                    + f" {self.tail()} }}; "
                     + config
                     + " }"
                 )
+        for b, event in self.sk.world_events:
+            if b != ag.a:
+                continue
+            # a world event (a sensor's, a component's) may be raised at any moment; only
+            # where it fires a transition (our explorer keeps no step that changes nothing)
+            cands = [j for j in ag.ca.waiting(event) if self.drop != (ag.a, j)]
+            free = []
+            body = " ".join(self.dispatch(ag, event, None, free))
+            check: list[str] = []
+            enabled = " || ".join(
+                self.guard(ag, ag.ca.transitions[j], check) for j in sorted(cands)
+            )
+            assert check == free  # (the same guards, read in the same order)
+            for bits in _assignments(free, ag.name):
+                out.append(
+                    f"  :: atomic {{ d_step {{ ({_subst(enabled or '0', bits)}) -> "
+                    f"{_subst(body, bits)} {self.tail()} }}; {config} }}"
+                )
         out += ["  od", "}"]
         return out
+
+    def waits(self, ag: _Agent, tr) -> str:
+        """The timing assumption on an ``after:`` timeout (``--timeouts``, as
+        explore.choices has it): ``long``, only once nothing is in flight nor awaits an
+        ack; ``own``, only once none of the agent's copies but acks flies and nothing of
+        it awaits an ack."""
+        if self.timeouts == "any" or tr.after is None:
+            return ""
+        if self.timeouts == "long":
+            busy = [f"fl[{k}].used" for k in range(self.slots)]
+            busy += [f"ob[{o}].used" for o in range(OUTBOX)]
+        else:
+            busy = [
+                f"(fl[{k}].used && fl[{k}].snd == {ag.a} && fl[{k}].typ != ACK_T)"
+                for k in range(self.slots)
+            ]
+            busy += [f"(ob[{o}].used && ob[{o}].snd == {ag.a})" for o in range(OUTBOX)]
+        return " && !(" + " || ".join(busy) + ")"
 
     def screen(self, ag: _Agent, name: str) -> str:
         """The acknowledged layer's look at an arriving copy (engine.run.reliable.screen):
@@ -636,15 +758,16 @@ class _Ctx:
         """Retransmission timers of ``ag``'s outbox entries (engine.run.reliable.on_timer):
         with ``--ack-timing bounded`` only once no copy of the message nor an ack of it
         flies; resend to each receiver still waiting, or, out of retries, drop the entry
-        and raise ``<type>_undeliverable`` at the sender."""
+        and raise ``<type>_undeliverable`` at the sender. One option picks the entry, the
+        next what its timer does (written once, not once per entry)."""
         if not any(p.acknowledged for p in ag.ca.policies.values()):
             return []
-        out = []
         acked = [
             t
             for t, name in enumerate(self.types)
             if (p := ag.ca.policies.get(name)) is not None and p.acknowledged
         ]
+        picks = []
         for o in range(OUTBOX):
             e = f"ob[{o}]"
             cond = f"{e}.used && {e}.snd == {ag.a}"
@@ -659,27 +782,26 @@ class _Ctx:
                     )
                     + ")"
                 )
-            values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
-            resend = " ".join(
-                f"if :: {e}.wait & {1 << r} -> "
-                f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
-                for r in range(len(self.agents))
-                if r != ag.a
+            picks.append(f":: {cond} -> sk = {o}")
+        e = "ob[sk]"
+        values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
+        resend = " ".join(
+            f"if :: {e}.wait & {1 << r} -> "
+            f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
+            for r in range(len(self.agents))
+            if r != ag.a
+        )
+        branches = [f":: {e}.left > 0 -> d_step {{ {e}.left--; {resend} {self.tail()} }}"]
+        for t in acked:
+            free: list[str] = []
+            body = _subst(
+                " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free)), None
             )
-            out.append(
-                f"  :: atomic {{ d_step {{ {cond} && {e}.left > 0 -> {e}.left--; "
-                f"{resend} }}; {config} }}"
+            branches.append(
+                f":: {e}.left == 0 && {e}.typ == {t} -> {self.choose(free, ag.name)} "
+                f"d_step {{ {_clear_out('sk', self.exact)} {body} {self.tail()} }}"
             )
-            for t in acked:
-                free: list[str] = []
-                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free))
-                for bits in _assignments(free, ag.name):
-                    out.append(
-                        f"  :: atomic {{ d_step {{ {cond} && {e}.left == 0 && "
-                        f"{e}.typ == {t} -> {_clear_out(str(o), self.exact)} "
-                        f"{_subst(body, bits)} }}; {config} }}"
-                    )
-        return out
+        return [f"  :: atomic {{ if {' '.join(picks)} fi; if {' '.join(branches)} fi; {config} }}"]
 
     def changes(self, ag: _Agent, tr) -> str:
         """For a time-driven transition in place without sends: the condition that it
@@ -701,8 +823,8 @@ class _Ctx:
         for k in range(self.slots):
             if losses:
                 out.append(
-                    f"  :: atomic {{ d_step {{ fl[{k}].used && losses < {losses} -> "
-                    f"{_clear(k, self.exact)} losses++ }}; " + config + " }"
+                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && losses < {losses} -> "
+                    f"{_clear(k, self.exact)} losses++; settle() }}; " + config + " }"
                 )
             if duplicates:
                 copy = " ".join(
@@ -711,11 +833,11 @@ class _Ctx:
                     + [f"f{i}" for i in range(_nf(self.exact))]
                 )
                 out.append(
-                    f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> "
+                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && dups < {duplicates} -> "
                     "sl = 0; "
                     "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
                     f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
-                    "dups++ }; " + config + " }"
+                    "dups++; settle() }; " + config + " }"
                 )
         if not losses and not duplicates:
             out.append("  :: false")
@@ -727,9 +849,10 @@ class _Ctx:
         for _, a, name in self.sk.original.scenario:
             ag = self.agents[a]
             free: list[str] = []
-            body = self.dispatch(ag, name, None, free)
+            body = " ".join(self.dispatch(ag, name, None, free))
             options = [
-                f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; {config} }}"
+                f"  :: atomic {{ d_step {{ true -> {_subst(body, bits)} {self.tail()} }}; "
+                f"{config} }}"
                 for bits in _assignments(free, ag.name)
             ]
             out += ["  if", *options, "  fi;"]
@@ -759,7 +882,7 @@ def _nf(exact: dict) -> int:
     return max([len(v) for v in exact.values()] + [1])
 
 
-def _clear(k: int, exact: dict) -> str:
+def _clear(k: int | str, exact: dict) -> str:
     return (
         f"fl[{k}].used = 0; fl[{k}].snd = 0; fl[{k}].rcv = 0; fl[{k}].typ = 0; "
         f"fl[{k}].mid = 0; " + " ".join(f"fl[{k}].f{i} = 0;" for i in range(_nf(exact)))
@@ -784,8 +907,44 @@ def _assignments(free: list[str], who: str) -> list[dict[int, int]]:
     return [dict(enumerate(bits)) for bits in itertools.product((0, 1), repeat=len(free))]
 
 
-def _subst(code: str, bits: dict[int, int]) -> str:
+def _subst(code: str, bits: dict[int, int] | None) -> str:
+    """The free comparisons' placeholders as the values ``bits`` (a step written once per
+    assignment), or as the bits ``fr<k>`` chosen before the step (``None``)."""
+    if bits is None:
+        return re.sub(r"FREE(\d+)", r"fr\1", code)
     return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
+
+
+def _settle(slots: int, nf: int, fifo: bool) -> list[str]:
+    """``settle()``, which ends every step: the copies in flight, the outbox and the
+    duplicate filter sorted (used entries first), so that states that differ only in
+    which slot holds what are one state for SPIN, as our canonical form makes them one —
+    the projected configurations are the same either way, SPIN just meets fewer states.
+    Bubble sort, which is stable: in fifo order the copies are sorted by link only, so
+    each link's copies stay in sending order (the oldest first), as ours keeps them.
+    Written once in C (a ``c_code`` function called from each step's ``d_step``), so the
+    model's text and the verifier's compilation do not grow with every step."""
+    copy = ["snd", "rcv", "typ", "mid"] + [f"f{i}" for i in range(nf)]
+    lines = ["c_code {"]
+    for arr, size, struct, key in (
+        ("fl", slots, "Copy", ["snd", "rcv"] if fifo else copy),
+        ("ob", OUTBOX, "Out", ["snd", "mid"]),
+        ("sn", SEEN, "Seen", ["rcv", "snd", "mid"]),
+    ):
+        cmp = " ".join(f"if (a->{f} != b->{f}) return a->{f} > b->{f};" for f in key)
+        lines += [
+            f"  static int later_{arr}(struct {struct} *a, struct {struct} *b) {{",
+            f"    if (a->used != b->used) return b->used; if (!a->used) return 0; {cmp} return 0;",
+            "  }",
+            f"  static void sort_{arr}(void) {{",
+            f"    int i, j; struct {struct} t;",
+            f"    for (i = 0; i + 1 < {size}; i++) for (j = 0; j + 1 < {size} - i; j++)",
+            f"      if (later_{arr}(&now.{arr}[j], &now.{arr}[j + 1])) "
+            f"{{ t = now.{arr}[j]; now.{arr}[j] = now.{arr}[j + 1]; now.{arr}[j + 1] = t; }}",
+            "  }",
+        ]
+    lines += ["}", "inline settle() { c_code { sort_fl(); sort_ob(); sort_sn(); } }"]
+    return lines
 
 
 def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
@@ -844,10 +1003,6 @@ def ours(report) -> Exploration:
 
 def check(report, opts) -> None:
     """Refuse (:class:`Unsupported`) what the comparison cannot take."""
-    if opts.order != "any":
-        raise Unsupported(f"--order {opts.order} (the export has --order any)")
-    if opts.timeouts != "any":
-        raise Unsupported(f"--timeouts {opts.timeouts} (the export has --timeouts any)")
     if not report.graph.exhaustive:
         raise Unsupported(f"our exploration stopped ({report.graph.bound})")
     if not any(v.prop.name == "deadlock" for v in report.verdicts):
@@ -905,7 +1060,13 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
     anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
     return export(
-        report.skeleton, opts.losses, opts.duplicates, drop=drop, ack_timing=opts.ack_timing
+        report.skeleton,
+        opts.losses,
+        opts.duplicates,
+        drop=drop,
+        ack_timing=opts.ack_timing,
+        order=opts.order,
+        timeouts=opts.timeouts,
     )
 
 

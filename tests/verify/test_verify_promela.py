@@ -292,23 +292,23 @@ def test_the_export_is_promela_spin_compiles(tmp_path):
     assert c.differences() == []
 
 
-RAISES = GO.replace("{to: Drive, on: go}", "{to: Drive, on: go, do: [{raise: moving}]}")
+# an entry action (not translated): the follower counts its drives as it enters Drive
+ENTRY = GO.replace(
+    "        inputs: {v: 0.5, omega: 0}\n      Done:\n        final: true\nsimulation",
+    "        inputs: {v: 0.5, omega: 0}\n        entry: [drives = drives + 1]\n"
+    "      Done:\n        final: true\nsimulation",
+).replace(
+    "    plant: {kind: unicycle, state: {x: -1",
+    "    variables: {drives: 0}\n    plant: {kind: unicycle, state: {x: -1",
+)
 
 
 def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
-    report = verify(team(tmp_path, RAISES, "raises"), Options(losses=0), replay=False)
+    report = verify(team(tmp_path, ENTRY, "entry"), Options(losses=0), replay=False)
     with pytest.raises(
-        promela.Unsupported,
-        match=r"^agent 'follower' Wait -> Drive: a "
-        r"raise action$",
+        promela.Unsupported, match=r"^agent 'follower': mode Drive has entry or exit actions$"
     ):
         promela.prepare(report, Options(losses=0))
-
-
-def test_timing_assumptions_are_refused(tmp_path):
-    report = verify(team(tmp_path, GO, "go"), Options(losses=0, timeouts="long"), replay=False)
-    with pytest.raises(promela.Unsupported, match="--timeouts long"):
-        promela.prepare(report, Options(losses=0, timeouts="long"))
 
 
 @needs_spin
@@ -359,11 +359,11 @@ def test_cli_spin_rules_without_spin_is_one_line_exit_2(tmp_path, capsys, monkey
 
 
 def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, capsys):
-    (tmp_path / "raises.yaml").write_text(RAISES)
+    (tmp_path / "entry.yaml").write_text(ENTRY)
     code = main(
         [
             "verify",
-            str(tmp_path / "raises.yaml"),
+            str(tmp_path / "entry.yaml"),
             "--losses",
             "0",
             "--spin-rules",
@@ -375,7 +375,10 @@ def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, 
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
-    assert "--spin-rules: not translated: agent 'follower' Wait -> Drive: a raise action" in err[0]
+    assert (
+        "--spin-rules: not translated: agent 'follower': mode Drive has entry or exit actions"
+        in err[0]
+    )
     assert not (tmp_path / "o").exists()
 
 
