@@ -166,6 +166,8 @@ def export(
     losses: int,
     duplicates: int,
     slots: int = SLOTS,
+    outbox: int = OUTBOX,
+    seen: int = SEEN,
     drop: tuple[int, int] | None = None,
     ack_timing: str = "bounded",
     order: str = "any",
@@ -203,11 +205,12 @@ def export(
         order == "fifo",
         timeouts,
     )
+    ctx.outbox = outbox
     lines = [
         f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
         f"#define SLOTS {slots}",
-        f"#define OUTBOX {OUTBOX}",
-        f"#define SEEN {SEEN}",
+        f"#define OUTBOX {outbox}",
+        f"#define SEEN {seen}",
         f"#define ACK_T {len(types)}",
         "typedef Copy { byte used; byte snd; byte rcv; byte typ; int mid; "
         + " ".join(f"int f{k};" for k in range(nf))
@@ -237,7 +240,8 @@ def export(
         f"hidden byte rq[{RAISED}];",
         "hidden byte nr;",
         "hidden byte ri;",
-        *_settle(slots, nf, ctx.fifo),
+        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types)),
+        *_note(agents),
     ]
     for ag in agents:
         on = _default_config(ag.ca)
@@ -382,8 +386,50 @@ def _exited(ca: CAgent, tr) -> list[int]:
 
 def _config_print(agents: list[_Agent]) -> str:
     """The step's closing print: the projected configuration, and whether a send found
-    no free slot (then the comparison is refused, not made on a truncated model)."""
-    return _print("C", agents, " %d", "overflow")
+    no free slot (then the comparison is refused, not made on a truncated model); each
+    distinct line once (``note``)."""
+    return "c_code { note(now.overflow); };"
+
+
+def _note(agents: list[_Agent]) -> list[str]:
+    """``note``: print a configuration line unless it was printed before (a C hash set of
+    the lines, outside SPIN's state), so the output holds one line per configuration
+    rather than one per transition SPIN executes — the printed set is the same."""
+    bits = [f"now.{ag.bit(m)}" for ag in agents for m in range(len(ag.ca.modes))]
+    size = len(bits) + len(agents) + 8
+    put, k = [], 2
+    for ag in agents:
+        if ag.a:
+            put.append(f"b[{k}] = '|';")
+            k += 1
+        for m in range(len(ag.ca.modes)):
+            put.append(f"b[{k}] = '0' + now.{ag.bit(m)};")
+            k += 1
+    return [
+        "c_code {",
+        "  static char **lines_seen; static unsigned long lines_n, lines_cap;",
+        "  static void note(int overflow) {",
+        f"    char b[{size}]; unsigned long h = 14695981039346656037UL, i; char *c;",
+        "    b[0] = 'C'; b[1] = ' '; " + " ".join(put),
+        f"    b[{k}] = ' '; b[{k + 1}] = '0' + (overflow != 0); b[{k + 2}] = 0;",
+        "    if (2 * (lines_n + 1) > lines_cap) {  /* grow: rehash into twice the room */",
+        "      unsigned long cap = lines_cap ? 2 * lines_cap : 1024, j;",
+        "      char **t = (char **) calloc(cap, sizeof(char *));",
+        "      for (j = 0; j < lines_cap; j++) if (lines_seen[j]) {",
+        "        unsigned long g = 14695981039346656037UL; for (c = lines_seen[j]; *c; c++) "
+        "g = (g ^ (unsigned char) *c) * 1099511628211UL;",
+        "        for (i = g % cap; t[i]; i = (i + 1) % cap); t[i] = lines_seen[j];",
+        "      }",
+        "      free(lines_seen); lines_seen = t; lines_cap = cap;",
+        "    }",
+        "    for (c = b; *c; c++) h = (h ^ (unsigned char) *c) * 1099511628211UL;",
+        "    for (i = h % lines_cap; lines_seen[i]; i = (i + 1) % lines_cap)",
+        "      if (strcmp(lines_seen[i], b) == 0) return;",
+        "    lines_seen[i] = strdup(b); lines_n++;",
+        '    printf("%s\\n", b);',
+        "  }",
+        "}",
+    ]
 
 
 def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str:
@@ -401,6 +447,7 @@ class _Ctx:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
         self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
         self.fifo, self.timeouts = fifo, timeouts
+        self.outbox = OUTBOX  # (export sets the model's size)
         self.events = self.raised_events()
 
     # -- expressions
@@ -716,13 +763,13 @@ class _Ctx:
             return ""
         if self.timeouts == "long":
             busy = [f"fl[{k}].used" for k in range(self.slots)]
-            busy += [f"ob[{o}].used" for o in range(OUTBOX)]
+            busy += [f"ob[{o}].used" for o in range(self.outbox)]
         else:
             busy = [
                 f"(fl[{k}].used && fl[{k}].snd == {ag.a} && fl[{k}].typ != ACK_T)"
                 for k in range(self.slots)
             ]
-            busy += [f"(ob[{o}].used && ob[{o}].snd == {ag.a})" for o in range(OUTBOX)]
+            busy += [f"(ob[{o}].used && ob[{o}].snd == {ag.a})" for o in range(self.outbox)]
         return " && !(" + " || ".join(busy) + ")"
 
     def screen(self, ag: _Agent, name: str) -> str:
@@ -768,7 +815,7 @@ class _Ctx:
             if (p := ag.ca.policies.get(name)) is not None and p.acknowledged
         ]
         picks = []
-        for o in range(OUTBOX):
+        for o in range(self.outbox):
             e = f"ob[{o}]"
             cond = f"{e}.used && {e}.snd == {ag.a}"
             if self.bounded:
@@ -915,21 +962,74 @@ def _subst(code: str, bits: dict[int, int] | None) -> str:
     return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
 
 
-def _settle(slots: int, nf: int, fifo: bool) -> list[str]:
-    """``settle()``, which ends every step: the copies in flight, the outbox and the
-    duplicate filter sorted (used entries first), so that states that differ only in
-    which slot holds what are one state for SPIN, as our canonical form makes them one —
-    the projected configurations are the same either way, SPIN just meets fewer states.
-    Bubble sort, which is stable: in fifo order the copies are sorted by link only, so
-    each link's copies stay in sending order (the oldest first), as ours keeps them.
-    Written once in C (a ``c_code`` function called from each step's ``d_step``), so the
-    model's text and the verifier's compilation do not grow with every step."""
+def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int) -> list[str]:
+    """``settle()``, which ends every step: our canonical form (:meth:`.Machine.canonical`)
+    written again in C, so that states that differ only in bookkeeping are one state for
+    SPIN as they are for us — the projected configurations are the same either way, SPIN
+    just meets fewer states. An ack that no outbox entry waits for and a filter entry
+    that no copy can match again are dropped (each could only be consumed without effect
+    later); each sender's live message ids are renumbered 0.. in order and its next id is
+    their count; the copies in flight, the outbox and the filter are sorted (used entries
+    first). Bubble sort, which is stable: in fifo order the copies are sorted by link
+    only, so each link's copies stay in sending order (the oldest first), as ours keeps
+    them. Written once in C (a ``c_code`` function called from each step's ``d_step``),
+    so the model's text and the verifier's compilation do not grow with every step."""
     copy = ["snd", "rcv", "typ", "mid"] + [f"f{i}" for i in range(nf)]
-    lines = ["c_code {"]
+    slots, outbox, seen = sizes
+    lines = [
+        "c_code {",
+        "  static int waits(int snd, int mid, int rcv) {  /* an outbox entry waits for rcv */",
+        "    int o;",
+        f"    for (o = 0; o < {outbox}; o++) if (now.ob[o].used && now.ob[o].snd == snd && "
+        "now.ob[o].mid == mid && (now.ob[o].wait & (1 << rcv))) return 1;",
+        "    return 0;",
+        "  }",
+        "  static void prune(void) {",
+        "    int k, e, live;",
+        f"    for (k = 0; k < {slots}; k++) if (now.fl[k].used && now.fl[k].typ == {ack} && "
+        "!waits(now.fl[k].rcv, now.fl[k].mid, now.fl[k].snd)) "
+        "memset(&now.fl[k], 0, sizeof(now.fl[k]));",
+        f"    for (e = 0; e < {seen}; e++) if (now.sn[e].used) {{",
+        "      live = waits(now.sn[e].snd, now.sn[e].mid, now.sn[e].rcv);",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && now.fl[k].typ != {ack} && "
+        "now.fl[k].snd == now.sn[e].snd && now.fl[k].rcv == now.sn[e].rcv && "
+        "now.fl[k].mid == now.sn[e].mid) live = 1;",
+        "      if (!live) memset(&now.sn[e], 0, sizeof(now.sn[e]));",
+        "    }",
+        "  }",
+        "  static int idx(int *ids, int n, int mid) {",
+        "    int i; for (i = 0; i < n; i++) if (ids[i] == mid) return i; return -1;",
+        "  }",
+        "  static void renumber(void) {",
+        f"    int a, k, n, i, j, t, ids[{slots + outbox + seen}];",
+        f"    for (a = 0; a < {agents}; a++) {{",
+        "      n = 0;",
+        "#define LIVE(m) if ((m) >= 0 && idx(ids, n, (m)) < 0) ids[n++] = (m)",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && ((now.fl[k].typ != {ack} "
+        f"&& now.fl[k].snd == a) || (now.fl[k].typ == {ack} && now.fl[k].rcv == a))) "
+        "LIVE(now.fl[k].mid);",
+        f"      for (k = 0; k < {outbox}; k++) if (now.ob[k].used && now.ob[k].snd == a) "
+        "LIVE(now.ob[k].mid);",
+        f"      for (k = 0; k < {seen}; k++) if (now.sn[k].used && now.sn[k].snd == a) "
+        "LIVE(now.sn[k].mid);",
+        "#undef LIVE",
+        "      for (i = 0; i < n; i++) for (j = i + 1; j < n; j++) "
+        "if (ids[j] < ids[i]) { t = ids[i]; ids[i] = ids[j]; ids[j] = t; }",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && ((now.fl[k].typ != {ack} "
+        f"&& now.fl[k].snd == a) || (now.fl[k].typ == {ack} && now.fl[k].rcv == a)) && "
+        "now.fl[k].mid >= 0) now.fl[k].mid = idx(ids, n, now.fl[k].mid);",
+        f"      for (k = 0; k < {outbox}; k++) if (now.ob[k].used && now.ob[k].snd == a) "
+        "now.ob[k].mid = idx(ids, n, now.ob[k].mid);",
+        f"      for (k = 0; k < {seen}; k++) if (now.sn[k].used && now.sn[k].snd == a) "
+        "now.sn[k].mid = idx(ids, n, now.sn[k].mid);",
+        "      now.nid[a] = n;",
+        "    }",
+        "  }",
+    ]
     for arr, size, struct, key in (
         ("fl", slots, "Copy", ["snd", "rcv"] if fifo else copy),
-        ("ob", OUTBOX, "Out", ["snd", "mid"]),
-        ("sn", SEEN, "Seen", ["rcv", "snd", "mid"]),
+        ("ob", outbox, "Out", ["snd", "mid"]),
+        ("sn", seen, "Seen", ["rcv", "snd", "mid"]),
     ):
         cmp = " ".join(f"if (a->{f} != b->{f}) return a->{f} > b->{f};" for f in key)
         lines += [
@@ -943,7 +1043,10 @@ def _settle(slots: int, nf: int, fifo: bool) -> list[str]:
             f"{{ t = now.{arr}[j]; now.{arr}[j] = now.{arr}[j + 1]; now.{arr}[j + 1] = t; }}",
             "  }",
         ]
-    lines += ["}", "inline settle() { c_code { sort_fl(); sort_ob(); sort_sn(); } }"]
+    lines += [
+        "}",
+        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); } }",
+    ]
     return lines
 
 
@@ -1032,7 +1135,7 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
         folder,
         timeout,
     )
-    text = _run(["./pan", "-E", "-m10000000"], folder, timeout)
+    text = _run(["./pan", "-E", "-m1000000"], folder, timeout)
     (folder / "pan.out").write_text(text)
     if "depth too small" in text or "errors: 0" not in text:
         raise RuntimeError("SPIN's search did not complete (see pan.out)")
@@ -1049,8 +1152,8 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
                 bad |= flag == "1"
     if over:
         raise RuntimeError(
-            f"the model's slots overflowed ({SLOTS} copies in flight, "
-            f"{OUTBOX} outbox entries, {SEEN} filter entries, {MAX_IDS} ids)"
+            "the model's slots overflowed (copies in flight, outbox or filter entries "
+            f"beyond the sizes in rules.pml, or more than {MAX_IDS} ids)"
         )
     return Exploration(configs, dead, not bad)
 
@@ -1059,10 +1162,17 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
     """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
     anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
+    states = report.graph.states
     return export(
         report.skeleton,
         opts.losses,
         opts.duplicates,
+        # twice the room our exploration needed: ours delivers an ack or a withheld copy
+        # before anything else (a partial-order reduction), SPIN lets them pile up; more
+        # than that is an overflow, reported, never a truncated comparison
+        slots=max([SLOTS, *(2 * len(s.inflight) for s in states)]),
+        outbox=max([OUTBOX, *(2 * len(s.outbox) for s in states)]),
+        seen=max([SEEN, *(2 * len(s.seen) for s in states)]),
         drop=drop,
         ack_timing=opts.ack_timing,
         order=opts.order,

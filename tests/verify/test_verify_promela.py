@@ -14,8 +14,18 @@ import pytest
 from hybridteam import load
 from hybridteam.cli import main
 from hybridteam.verify import Options, promela, spin, verify
-from tests.verify.test_verify import GO, REQUEST, mutate, roles_team
-from tests.verify.test_verify_bounds import BOUNDED
+from tests.verify.test_verify import (
+    FAR,
+    GO,
+    GRANT,
+    NO_OPERATOR,
+    PROTOCOL,
+    REQUEST,
+    docking,
+    mutate,
+    roles_team,
+)
+from tests.verify.test_verify_bounds import BOUNDED, roles
 
 needs_spin = pytest.mark.skipif(
     spin.missing() is not None, reason=f"SPIN cannot run here: {spin.missing()}"
@@ -391,3 +401,231 @@ def test_a_model_that_outgrows_the_slots_is_reported_not_compared(tmp_path):
     text = promela.export(report.skeleton, 0, 2, slots=1)
     with pytest.raises(RuntimeError, match="slots overflowed"):
         promela.run_spin(text, tmp_path / "x")
+
+
+# -- every verify test model and mutant (tests/verify/test_verify.py) ------------------
+
+STAYS = mutate(GRANT, GRANT.replace("        - to: Follow\n          on:", "        - on:"))
+LEADS = mutate(REQUEST, REQUEST.replace("to: Requesting", "to: Lead"))
+_REJECT = "        - {on: accept, do: [{send: reject, to: sender}]}"
+CONFIRMS = mutate(
+    _REJECT, _REJECT.replace("reject", "confirm", 1).replace("{send: reject", "{send: confirm")
+)
+_DENY = "        - on: request\n          do: [{send: deny, to: sender}]\n        - to: Offering"
+NO_DENY = mutate(_DENY, "        - to: Offering")
+NO_DEDUPE = mutate(
+    "  accept: {ack: {timeout: ack_timeout, retries: ack_retries}}",
+    "  accept: {ack: {timeout: ack_timeout, retries: ack_retries, dedupe: false}}",
+)
+
+
+def modes_of(report, config: str) -> list[set[str]]:
+    """Per agent, the paths of the active modes a configuration line names (its bits in
+    mode order, agents separated by '|')."""
+    agents = report.skeleton.original.agents
+    return [
+        {ca.modes[m].path for m, b in enumerate(bits) if b == "1" and ca.modes[m].path}
+        for ca, bits in zip(agents, config.split("|"), strict=True)
+    ]
+
+
+def leaders(report, config: str) -> int:
+    """How many robots are in the lead role (Transport.Lead or Transport.Offering): the
+    one_leader invariant read off a configuration, independently of our verdict."""
+    return sum(
+        bool(ms & {"Transport.Lead", "Transport.Offering"}) for ms in modes_of(report, config)
+    )
+
+
+def commanded(report, config: str) -> bool:
+    """Whether the operator has taken command: no_operator read off a configuration."""
+    return any("Command" in ms for ms in modes_of(report, config))
+
+
+def verdict(report, name: str) -> bool | None:
+    return next(v.holds for v in report.verdicts if v.prop.name == name)
+
+
+def agreed(tmp_path, team, opts: Options):
+    report = verify(team, opts, replay=False)
+    c = promela.compare(report, opts, tmp_path / "spin-rules")
+    assert c.ours.configurations and c.differences() == []
+    return report, c
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_one_leader_mutants_are_violated_in_both(tmp_path):
+    """The leader-stays-Lead and requester-leads mutants (two robots and the operator, a
+    request): both explorers reach the same configurations, among them one with two
+    leaders; the correct protocol reaches none. (The offer-confirmed mutant needs three
+    robots and a resignation: SPIN's unreduced search is for the benchmark.)"""
+    for protocol, holds in ((PROTOCOL, True), (STAYS, False), (LEADS, False)):
+        team = roles_team(tmp_path, "b", protocol, without_c=True)
+        report, c = agreed(tmp_path, team, Options(losses=0))
+        assert verdict(report, "one_leader") is holds
+        assert all(leaders(report, k) <= 1 for k in c.spin.configurations) is holds
+
+
+@needs_spin
+@pytest.mark.slow
+def test_fifo_order_agrees_and_finds_the_mutant(tmp_path):
+    """Per-link order (the slots sorted stably by link, only each link's oldest copy may
+    arrive, be lost or duplicated): the leader-stays-Lead mutant with a loss in fifo
+    order, two leaders in both."""
+    team = roles_team(tmp_path, "b", STAYS, without_c=True)
+    report, c = agreed(tmp_path, team, Options(losses=1, order="fifo"))
+    assert verdict(report, "one_leader") is False
+    assert max(leaders(report, k) for k in c.spin.configurations) == 2
+
+
+@needs_spin
+@pytest.mark.slow
+@pytest.mark.parametrize("timeouts,called", [("any", True), ("own", True), ("long", False)])
+def test_timing_assumptions_agree(tmp_path, timeouts, called):
+    """b asks a for the lead, no loss. Its answer timeout may expire before the grant
+    arrives with --timeouts any, and with own (the grant is a's message, not b's): then
+    b calls the operator. With long only once the network is quiet, when the grant has
+    arrived: the operator is never called, in either explorer."""
+    team = roles_team(tmp_path, "b", extra=NO_OPERATOR, without_c=True)
+    report, c = agreed(tmp_path, team, Options(losses=0, timeouts=timeouts))
+    assert verdict(report, "no_operator") is not called
+    assert any(commanded(report, k) for k in c.spin.configurations) is called
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_min_hold_mutant_calls_the_operator_in_both(tmp_path):
+    """The min-hold deny removed, two requests, --timeouts long: the ignored request's
+    answer timeout calls the operator though nothing was lost, in both explorers."""
+    team = roles_team(tmp_path, "bc", NO_DENY, extra=NO_OPERATOR)
+    report, c = agreed(tmp_path, team, Options(losses=0, timeouts="long"))
+    assert verdict(report, "no_operator") is False
+    assert any(commanded(report, k) for k in c.spin.configurations)
+
+
+@needs_spin
+def test_the_duplicate_suppression_mutant_agrees(tmp_path):
+    """dedupe off, a resignation, one duplicate: the copies the filter no longer withholds
+    reach the same configurations in both (its violated property is a response property,
+    which --spin re-decides, test_verify_spin.py)."""
+    team = roles_team(tmp_path, "a", NO_DEDUPE, without_c=True)
+    agreed(tmp_path, team, Options(losses=0, duplicates=1))
+
+
+@needs_spin
+def test_the_remaining_test_models_agree(tmp_path):
+    """FAR (a guard over the plant: free), the counter bounded by a guard, and the
+    two-robot role team of test_verify_bounds."""
+    for text, name in ((FAR, "far"), (BOUNDED, "bounded"), (roles(2), "roles2")):
+        agreed(tmp_path, team(tmp_path, text, name), Options(losses=0))
+
+
+# s raises two events in one action list: the queue is first in, first out, so arm
+# (Armed -> Fired, sending go) comes before done (Fired -> Done); the other order would
+# leave s in Idle (Armed -> Idle on done, then arm unheard)
+RAISING = """team: raising
+agents:
+  s:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Idle
+    modes:
+      Idle:
+        transitions:
+          - {to: Armed, on: start, do: [{raise: arm}, {raise: done}]}
+      Armed:
+        transitions:
+          - {to: Fired, on: arm, do: [{send: go, to: r}]}
+          - {to: Idle, on: done}
+      Fired:
+        transitions: [{to: Done, on: done}]
+      Done: {final: true}
+  r:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    initial: Wait
+    modes:
+      Wait:
+        transitions: [{to: Got, on: go}]
+      Got: {}
+scenario:
+  - {at: 1.0, agent: s, raise: start}
+simulation: {duration: 5}
+"""
+
+
+@needs_spin
+@pytest.mark.parametrize("losses", [0, 1])
+def test_raised_events_are_dispatched_in_order_within_the_step(tmp_path, losses):
+    """By hand (s: root, Idle, Armed, Fired, Done | r: root, Wait, Got): the scenario's
+    start takes s to Done in one step (Armed and Fired are passed within it), go flies;
+    it arrives (r Got) or, with a loss, r waits for ever (a deadlock)."""
+    c = compared(tmp_path, RAISING, Options(losses=losses))
+    assert c.ours.configurations == c.spin.configurations == {"11000|110", "10001|110", "10001|101"}
+    lost = {"10001|110"} if losses else set()
+    assert c.ours.dead_ends == c.spin.dead_ends == {"10001|101"} | lost
+    assert c.ours.deadlock is c.spin.deadlock is (not losses)
+
+
+# a world event (an IR beam's obstacle_detected) may come at any moment in Drive; the
+# transition it wakes raises stopped, which R's Stop region takes at once, telling O
+SENSING = """team: sensing
+world:
+  - use: obstacles
+    with:
+      walls: [[2, -1, 2, 1]]
+      radius: [[R, 0.3]]
+      detect:
+        - agent: R
+          sensor: ir
+          beams: [0]
+          below: 0.255
+          raise: obstacle_detected
+          ring: {count: 4, max_range: 2.0, mount_radius: 0.3}
+agents:
+  R:
+    plant: {kind: holonomic, state: {x: 0, y: 0, theta: 0}}
+    initial: Drive
+    modes:
+      Drive:
+        inputs: {vx: 0.1, vy: 0, omega: 0}
+        period: 0.1
+        transitions:
+          - {to: Stop, on: obstacle_detected, do: [{raise: stopped}]}
+      Stop:
+        initial: Brake
+        modes:
+          Brake:
+            transitions: [{to: Still, on: stopped, do: [{send: halt, to: O}]}]
+          Still: {}
+  O:
+    plant: {kind: unicycle, state: {x: -1, y: 0, theta: 0}}
+    initial: Run
+    modes:
+      Run:
+        transitions: [{to: Halted, on: halt}]
+      Halted: {}
+simulation: {duration: 20, sample_period: 0.1}
+"""
+
+
+@needs_spin
+def test_a_world_event_and_what_it_raises_agree(tmp_path):
+    """By hand (R: root, Drive, Stop, Stop.Brake, Stop.Still | O: root, Run, Halted): the
+    beam fires in Drive; R passes Brake within the step and ends in Still with halt in
+    flight; halt arrives, or is lost (O waits for ever). In Stop the beam wakes nothing
+    (no step, so the dead ends are the same in both)."""
+    c = compared(tmp_path, SENSING, Options(losses=1))
+    assert c.ours.configurations == c.spin.configurations == {"11000|110", "10101|110", "10101|101"}
+    assert c.ours.dead_ends == c.spin.dead_ends == {"10101|110", "10101|101"}
+    assert c.ours.deadlock is c.spin.deadlock is False
+
+
+def test_the_docking_handshake_is_refused_naming_its_role_carry_over(tmp_path):
+    """What is still not translated (a role body carried over, history) is refused in
+    one line before anything is written."""
+    report = verify(docking(tmp_path, acknowledged=True), Options(losses=0), replay=False)
+    with pytest.raises(
+        promela.Unsupported,
+        match=r"^agent 'xr4000' Transport\.Lead -> Transport\.Offering: a role body carried over$",
+    ):
+        promela.prepare(report, Options(losses=0))
