@@ -19,49 +19,59 @@ an ack and, where the sender's policy filters duplicates, withheld when its (rec
 sender, id) was seen; an ack clears its receiver from the entry; a retransmission timer
 (only once no copy of the message nor an ack of it flies, as ``--ack-timing bounded``
 has it) resends to the receivers still waiting or, out of retries, drops the entry and
-raises ``<type>_undeliverable`` at the sender. Ids, outbox and filter entries are not
-renumbered or pruned as our canonical form does: SPIN's states are more, its
-configurations the same.
+raises ``<type>_undeliverable`` at the sender. Every step ends with ``settle()``, our
+canonical form (:meth:`.Machine.canonical`) written again in C: acks nobody waits for and
+filter entries no copy can match again dropped, ids renumbered per sender, the slots
+sorted — stably by link in fifo order — so SPIN meets one state where we do (it still
+meets more: ours delivers an ack or a withheld copy first, a partial-order reduction).
 
 **The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
 discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
-arrive next, as ``--order any`` has it); an agent's step takes one copy addressed to it
-and dispatches it as the engine does (the transitions on its type, in precedence order,
-each enabled one firing unless an earlier chosen one conflicts with it). A ``network``
-proctype loses or duplicates a copy within the budgets (``--losses``, ``--duplicates``),
-a ``scenario`` proctype raises the scenario's events in order, and a time-driven
-transition (``after:``, or a guard that reads time or state) may fire whenever its source
-is active (``--timeouts any``: no clock needed). A free comparison (one that reads time or
-state) is a nondeterministic truth value: each step is written once per assignment of the
-free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
-step is enabled only when it changes the state.
+arrive next, as ``--order any`` has it, or in fifo order the oldest of its link); an
+agent's step picks one copy addressed to it and dispatches it by type as the engine does
+(the transitions on its type, in precedence order, each enabled one firing unless an
+earlier chosen one conflicts with it) — the pick and the free comparisons' values are
+chosen inside the step's atomic sequence before its ``d_step`` (SPIN stores no state
+inside an atomic sequence), so each dispatch is written once, not once per slot. A
+``raise`` queues its event; the queue is dispatched in order within the step, as the
+engine's micro-steps of one instant. A ``network`` proctype loses or duplicates a copy
+within the budgets (``--losses``, ``--duplicates``), a ``scenario`` proctype raises the
+scenario's events in order, a world event may come whenever it fires a transition, and a
+time-driven transition (``after:``, or a guard that reads time or state) may fire
+whenever its source is active (``--timeouts any``: no clock needed; ``own``: once the
+agent's own messages are settled; ``long``: once the network is quiet). A free
+comparison (one that reads time or state) is a nondeterministic truth value; a step
+that may change nothing (a time-driven transition, a world event) is written once per
+assignment of the free comparisons it reads, a ``d_step`` whose condition includes the
+guard, so it is enabled only when it changes the state.
 
 **How the configurations are collected (soundly).** Every step that fires a transition
-(or overflows a slot) ends with a ``printf`` of the projected configuration (per agent
-its active modes as bits); a step that fires none (a loss, an ack, a withheld copy)
-leaves the configuration as it was, so every reachable state's configuration is the
-initial one (printed by ``init`` before any agent starts) or that of a printed step's
-target. pan compiled with ``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search
-(no bitstate, no partial-order reduction) in which every transition out of every
-reachable state is executed once, so every such step prints, and nothing unreachable
-does: the printed set is exactly the reachable projected configurations. ``spin -o2``:
-SPIN would otherwise keep variables it judges write-only (mode bits read only by the
-prints) out of the state vector, merging states that differ in them. A ``watcher``
-proctype waits on ``timeout`` (true exactly when no other statement is executable: a
-dead end) and prints the dead end's configuration and whether it is a deadlock by the
-definition of :mod:`.properties` (written here as a predicate over the mode bits).
+(or overflows a slot) ends with a print of the projected configuration (per agent its
+active modes as bits; each distinct line once, a C hash set outside SPIN's state); a
+step that fires none (a loss, an ack, a withheld copy) leaves the configuration as it
+was, so every reachable state's configuration is the initial one (printed by ``init``
+before any agent starts) or that of a printed step's target. pan compiled with
+``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no
+partial-order reduction) in which every transition out of every reachable state is
+executed once, so every such step prints, and nothing unreachable does: the printed set
+is exactly the reachable projected configurations. ``spin -o2``: SPIN would otherwise
+keep variables it judges write-only (mode bits read only by the prints) out of the state
+vector, merging states that differ in them. A ``watcher`` proctype waits on ``timeout``
+(true exactly when no other statement is executable: a dead end) and prints the dead
+end's configuration and whether it is a deadlock by the definition of :mod:`.properties`
+(written here as a predicate over the mode bits).
 
 **Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
 and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
 equal configuration sets decide equally every invariant that reads only modes.
 
 **Scope.** A feature this module cannot translate exactly refuses the model with one line
-naming it (:class:`Unsupported`) rather than exporting an approximation: ``raise``
-actions, entry and exit actions, history, role carry-over, urgent transitions with exact
-guards, world events, time-driven transitions back into their own mode (other than a leaf
-into itself, or targetless), non-integer values, ``--order fifo`` and
-``--timeouts own|long``. A model that outgrows the slots (copies in flight, outbox and
-filter entries, ids) is reported, not compared.
+naming it (:class:`Unsupported`) rather than exporting an approximation: entry and exit
+actions, history, role carry-over, urgent transitions with exact guards, time-driven
+transitions back into their own mode (other than a leaf into itself, or targetless), a
+raised event that wakes a guard reading time or state, non-integer values. A model that
+outgrows the slots (copies in flight, outbox and filter entries, raised events, ids) is
+reported, not compared; :func:`prepare` gives it twice the room our exploration needed.
 """
 
 from __future__ import annotations
@@ -87,6 +97,8 @@ OUTBOX = 8
 SEEN = 16
 #: message ids one agent may hand out (the acknowledged layer's per-sender counter)
 MAX_IDS = 200
+#: below this many states of ours, SPIN's search is short: its verifier compiled unoptimized
+SMALL = 500
 #: free comparisons one step may read (each doubles the step's options)
 MAX_FREE = 6
 #: events one step may raise (the queue of raised events, drained within the step)
@@ -1112,8 +1124,12 @@ def check(report, opts) -> None:
         raise Unsupported("the deadlock property is not among the checked ones")
 
 
-def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
-    """Compile and run SPIN's exhaustive search on ``promela``; its exploration."""
+def run_spin(
+    promela: str, folder: Path, timeout: float = 600.0, optimize: bool = True
+) -> Exploration:
+    """Compile and run SPIN's exhaustive search on ``promela``; its exploration.
+    ``optimize``: compile the verifier with ``-O1`` (three times the compiler's work of
+    ``-O0``, which a small model's short search never earns back)."""
     why = missing()
     if why:
         raise RuntimeError(why)
@@ -1123,7 +1139,7 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
     _run(
         [
             "cc",
-            "-O1",
+            "-O1" if optimize else "-O0",
             "-DPRINTF",
             "-DNOREDUCE",
             "-DSAFETY",
@@ -1187,4 +1203,5 @@ def compare(
     SPIN explore them in ``folder`` (``rules.pml``, ``pan.out``), compare with ours."""
     if promela is None:
         promela = prepare(report, opts, drop)
-    return Comparison(ours(report), run_spin(promela, folder))
+    big = len(report.graph.states) >= SMALL
+    return Comparison(ours(report), run_spin(promela, folder, optimize=big))
