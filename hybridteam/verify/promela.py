@@ -167,10 +167,19 @@ class _Agent:
                     b for b, o in enumerate(sk.original.agents) if o.name == n[3:]
                 )
         self.init = {j: init[j] for j in self.vars.values()}
+        #: 'or' modes whose last active child is kept (``h<a>_<m>``, -1: none), as
+        #: AgentState.last: every one of an agent that has history or a role carry-over
+        restores = any(m.history != "none" for m in ca.modes) or any(
+            tr.carry for tr in ca.transitions
+        )
+        self.hist = [m.index for m in ca.modes if m.kind == "or"] if restores else []
         self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
 
     def bit(self, m: int) -> str:
         return f"m{self.a}_{m}"
+
+    def last(self, m: int) -> str:
+        return f"h{self.a}_{m}"
 
 
 def export(
@@ -259,6 +268,7 @@ def export(
         on = _default_config(ag.ca)
         lines += [f"bit {ag.bit(m)} = {int(m in on)};" for m in range(len(ag.ca.modes))]
         lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
+        lines += [f"short {ag.last(m)} = -1;" for m in ag.hist]
         lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
     lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
     lines += [f"/* raised event {k}: {e} */" for k, (_, e) in enumerate(ctx.events)]
@@ -301,15 +311,11 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
     """One line naming the first feature of ``ag`` the export does not translate."""
     ca, who = ag.ca, f"agent '{ag.name}'"
     for m in ca.modes:
-        if m.history != "none":
-            raise Unsupported(f"{who}: mode {m.path or m.name} has history")
         if m.on_entry or m.on_exit:
             raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
-        if tr.carry:
-            raise Unsupported(f"{where}: a role body carried over")
         if tr.on is None and tr.index not in timed:
             raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
         if (
@@ -389,6 +395,74 @@ def _default_config(ca: CAgent) -> set[int]:
     out = {0}
     _default(ca, 0, out)
     return out
+
+
+def _remember(ag: _Agent, m: int) -> str:
+    """Exiting 'or' mode ``m``: its active child becomes its last (AgentState.exit)."""
+    kids = " ".join(
+        f":: {ag.bit(m)} && {ag.bit(c)} -> {ag.last(m)} = {c}" for c in ag.ca.modes[m].children
+    )
+    return f"if {kids} :: else -> skip fi;"
+
+
+def _carried(ag: _Agent, a: int, b: int, mapping) -> str:
+    """A role carry-over: mode ``b`` (in the target's copy of the body) remembers the copy
+    of what ``a`` remembered (``last[b] = carry_map[last[a]]``, unset stays unset)."""
+    kids = " ".join(
+        f":: {ag.last(a)} == {c} -> {ag.last(b)} = {int(mapping[c])}"
+        for c in ag.ca.modes[a].children
+    )
+    return f"if {kids} :: else -> {ag.last(b)} = -1 fi;"
+
+
+def _enter(ag: _Agent, entry, deep: bool) -> list[str]:
+    """Entering as ``entry`` says (AgentState.enter): its first mode, down through its
+    marked modes to its targets, which complete their entry — by history, read at run
+    time from the ``h`` variables, where a mode has one (or ``deep``, a carry-over)."""
+    out = [] if entry.active_first else [f"{ag.bit(entry.first)} = 1;"]
+    return out + _enter_below(ag, entry.first, entry, deep)
+
+
+def _enter_below(ag: _Agent, m: int, entry, deep: bool) -> list[str]:
+    if m in entry.targets:
+        return _enter_default(ag, m, deep, False)
+    out = []
+    for c in ag.ca.modes[m].children:
+        if c in entry.marks:
+            out += [f"{ag.bit(c)} = 1;", *_enter_below(ag, c, entry, deep)]
+        elif ag.ca.modes[m].kind == "and":
+            out += [f"{ag.bit(c)} = 1;", *_enter_default(ag, c, False, False)]
+    return out
+
+
+def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
+    """AgentState.enter_default: initial children, or the remembered ones."""
+    mode = ag.ca.modes[m]
+    out: list[str] = []
+    if mode.kind == "and":
+        for r in mode.children:
+            out += [f"{ag.bit(r)} = 1;"]
+            out += _enter_default(
+                ag, r, deep or mode.history == "deep", restore or mode.history == "shallow"
+            )
+        return out
+    if mode.kind != "or":
+        return out
+    deeper = deep or mode.history == "deep"
+    if not (restore or deep or mode.history != "none"):
+        return _enter(ag, mode.default, False)
+    fresh = mode.history_default or mode.default
+    assert fresh is not None  # (an 'or' mode has its default entry)
+    if fresh.targets == {mode.initial}:  # nothing remembered: the initial child
+        unset = [f"{ag.bit(mode.initial)} = 1;", *_enter_default(ag, mode.initial, deeper, False)]
+    else:
+        unset = _enter(ag, fresh, False)
+    options = [
+        f":: {ag.last(m)} == {c} -> "
+        + " ".join([f"{ag.bit(c)} = 1;", *_enter_default(ag, c, deeper, False)])
+        for c in mode.children
+    ]
+    return ["if " + " ".join(options) + " :: else -> " + (" ".join(unset) or "skip") + " fi;"]
 
 
 def _exited(ca: CAgent, tr) -> list[int]:
@@ -548,7 +622,9 @@ class _Ctx:
         """Exit (the exit set), actions, entry (the entry set), as engine.run.discrete.fire."""
         out = []
         if not tr.internal:
-            out += [f"{ag.bit(m)} = 0;" for m in _exited(ag.ca, tr)]
+            exited = _exited(ag.ca, tr)
+            out += [_remember(ag, m) for m in exited if m in ag.hist]
+            out += [f"{ag.bit(m)} = 0;" for m in exited]
         for act in tr.actions:
             if act.kind == "assign":
                 kind, j = act.target
@@ -562,9 +638,9 @@ class _Ctx:
                     f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
                 )
         if not tr.internal:
-            on: set[int] = set()
-            _entered(ag.ca, tr.entry, on)
-            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)] + ["moved = 1;"]
+            for a, b in tr.carry:  # same role: the body resumes (compiler._role_carry)
+                out.append(_carried(ag, a, b, tr.carry_map))
+            out += [*_enter(ag, tr.entry, bool(tr.carry)), "moved = 1;"]
         return out
 
     def send(self, ag: _Agent, act, on: str | None) -> list[str]:
