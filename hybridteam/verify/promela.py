@@ -34,7 +34,9 @@ earlier chosen one conflicts with it) — the pick and the free comparisons' val
 chosen inside the step's atomic sequence before its ``d_step`` (SPIN stores no state
 inside an atomic sequence), so each dispatch is written once, not once per slot. A
 ``raise`` queues its event; the queue is dispatched in order within the step, as the
-engine's micro-steps of one instant. A ``network`` proctype loses or duplicates a copy
+engine's micro-steps of one instant. Where an agent has history or a role carry-over,
+each of its 'or' modes keeps its last child (``h<a>_<m>``, AgentState.last) and an entry
+reads it at run time. A ``network`` proctype loses or duplicates a copy
 within the budgets (``--losses``, ``--duplicates``), a ``scenario`` proctype raises the
 scenario's events in order, a world event may come whenever it fires a transition, and a
 time-driven transition (``after:``, or a guard that reads time or state) may fire
@@ -65,13 +67,13 @@ end's configuration and whether it is a deadlock by the definition of :mod:`.pro
 and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
 equal configuration sets decide equally every invariant that reads only modes.
 
-**Scope.** A feature this module cannot translate exactly refuses the model with one line
-naming it (:class:`Unsupported`) rather than exporting an approximation: entry and exit
-actions, history, role carry-over, urgent transitions with exact guards, time-driven
-transitions back into their own mode (other than a leaf into itself, or targetless), a
-raised event that wakes a guard reading time or state, non-integer values. A model that
-outgrows the slots (copies in flight, outbox and filter entries, raised events, ids) is
-reported, not compared; :func:`prepare` gives it twice the room our exploration needed.
+**Scope.** A feature this module cannot translate exactly refuses the model with one
+line naming it (:class:`Unsupported`) rather than exporting an approximation: entry and
+exit actions, urgent transitions with exact guards, time-driven transitions back into
+their own mode (other than a leaf into itself, or targetless), a raised event that wakes
+a guard reading time or state, non-integer values. A model that outgrows the slots
+(copies in flight, outbox and filter entries, raised events, ids) is reported, not
+compared; :func:`prepare` gives it twice the room our exploration needed.
 """
 
 from __future__ import annotations
