@@ -19,49 +19,61 @@ an ack and, where the sender's policy filters duplicates, withheld when its (rec
 sender, id) was seen; an ack clears its receiver from the entry; a retransmission timer
 (only once no copy of the message nor an ack of it flies, as ``--ack-timing bounded``
 has it) resends to the receivers still waiting or, out of retries, drops the entry and
-raises ``<type>_undeliverable`` at the sender. Ids, outbox and filter entries are not
-renumbered or pruned as our canonical form does: SPIN's states are more, its
-configurations the same.
+raises ``<type>_undeliverable`` at the sender. Every step ends with ``settle()``, our
+canonical form (:meth:`.Machine.canonical`) written again in C: acks nobody waits for and
+filter entries no copy can match again dropped, ids renumbered per sender, the slots
+sorted — stably by link in fifo order — so SPIN meets one state where we do (it still
+meets more: ours delivers an ack or a withheld copy first, a partial-order reduction).
 
 **The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
 discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
-arrive next, as ``--order any`` has it); an agent's step takes one copy addressed to it
-and dispatches it as the engine does (the transitions on its type, in precedence order,
-each enabled one firing unless an earlier chosen one conflicts with it). A ``network``
-proctype loses or duplicates a copy within the budgets (``--losses``, ``--duplicates``),
-a ``scenario`` proctype raises the scenario's events in order, and a time-driven
-transition (``after:``, or a guard that reads time or state) may fire whenever its source
-is active (``--timeouts any``: no clock needed). A free comparison (one that reads time or
-state) is a nondeterministic truth value: each step is written once per assignment of the
-free comparisons it may read, each a ``d_step`` whose condition includes the guard, so a
-step is enabled only when it changes the state.
+arrive next, as ``--order any`` has it, or in fifo order the oldest of its link); an
+agent's step picks one copy addressed to it and dispatches it by type as the engine does
+(the transitions on its type, in precedence order, each enabled one firing unless an
+earlier chosen one conflicts with it) — the pick and the free comparisons' values are
+chosen inside the step's atomic sequence before its ``d_step`` (SPIN stores no state
+inside an atomic sequence), so each dispatch is written once, not once per slot. A
+``raise`` queues its event; the queue is dispatched in order within the step, as the
+engine's micro-steps of one instant. Where an agent has history or a role carry-over,
+each of its 'or' modes keeps its last child (``h<a>_<m>``, AgentState.last) and an entry
+reads it at run time. A ``network`` proctype loses or duplicates a copy
+within the budgets (``--losses``, ``--duplicates``), a ``scenario`` proctype raises the
+scenario's events in order, a world event may come whenever it fires a transition, and a
+time-driven transition (``after:``, or a guard that reads time or state) may fire
+whenever its source is active (``--timeouts any``: no clock needed; ``own``: once the
+agent's own messages are settled; ``long``: once the network is quiet). A free
+comparison (one that reads time or state) is a nondeterministic truth value; a step
+that may change nothing (a time-driven transition, a world event) is written once per
+assignment of the free comparisons it reads, a ``d_step`` whose condition includes the
+guard, so it is enabled only when it changes the state.
 
 **How the configurations are collected (soundly).** Every step that fires a transition
-(or overflows a slot) ends with a ``printf`` of the projected configuration (per agent
-its active modes as bits); a step that fires none (a loss, an ack, a withheld copy)
-leaves the configuration as it was, so every reachable state's configuration is the
-initial one (printed by ``init`` before any agent starts) or that of a printed step's
-target. pan compiled with ``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search
-(no bitstate, no partial-order reduction) in which every transition out of every
-reachable state is executed once, so every such step prints, and nothing unreachable
-does: the printed set is exactly the reachable projected configurations. ``spin -o2``:
-SPIN would otherwise keep variables it judges write-only (mode bits read only by the
-prints) out of the state vector, merging states that differ in them. A ``watcher``
-proctype waits on ``timeout`` (true exactly when no other statement is executable: a
-dead end) and prints the dead end's configuration and whether it is a deadlock by the
-definition of :mod:`.properties` (written here as a predicate over the mode bits).
+(or overflows a slot) ends with a print of the projected configuration (per agent its
+active modes as bits; each distinct line once, a C hash set outside SPIN's state); a
+step that fires none (a loss, an ack, a withheld copy) leaves the configuration as it
+was, so every reachable state's configuration is the initial one (printed by ``init``
+before any agent starts) or that of a printed step's target. pan compiled with
+``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no
+partial-order reduction) in which every transition out of every reachable state is
+executed once, so every such step prints, and nothing unreachable does: the printed set
+is exactly the reachable projected configurations. ``spin -o2``: SPIN would otherwise
+keep variables it judges write-only (mode bits read only by the prints) out of the state
+vector, merging states that differ in them. A ``watcher`` proctype waits on ``timeout``
+(true exactly when no other statement is executable: a dead end) and prints the dead
+end's configuration and whether it is a deadlock by the definition of :mod:`.properties`
+(written here as a predicate over the mode bits).
 
 **Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
 and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
 equal configuration sets decide equally every invariant that reads only modes.
 
-**Scope.** A feature this module cannot translate exactly refuses the model with one line
-naming it (:class:`Unsupported`) rather than exporting an approximation: ``raise``
-actions, entry and exit actions, history, role carry-over, urgent transitions with exact
-guards, world events, time-driven transitions back into their own mode (other than a leaf
-into itself, or targetless), non-integer values, ``--order fifo`` and
-``--timeouts own|long``. A model that outgrows the slots (copies in flight, outbox and
-filter entries, ids) is reported, not compared.
+**Scope.** A feature this module cannot translate exactly refuses the model with one
+line naming it (:class:`Unsupported`) rather than exporting an approximation: entry and
+exit actions, urgent transitions with exact guards, time-driven transitions back into
+their own mode (other than a leaf into itself, or targetless), a raised event that wakes
+a guard reading time or state, non-integer values. A model that outgrows the slots
+(copies in flight, outbox and filter entries, raised events, ids) is reported, not
+compared; :func:`prepare` gives it twice the room our exploration needed.
 """
 
 from __future__ import annotations
@@ -88,8 +100,12 @@ OUTBOX = 8
 SEEN = 16
 #: message ids one agent may hand out (the acknowledged layer's per-sender counter)
 MAX_IDS = 200
+#: below this many states of ours, SPIN's search is short: its verifier compiled unoptimized
+SMALL = 500
 #: free comparisons one step may read (each doubles the step's options)
 MAX_FREE = 6
+#: events one step may raise (the queue of raised events, drained within the step)
+RAISED = 8
 
 
 class Unsupported(Exception):
@@ -154,10 +170,19 @@ class _Agent:
                     b for b, o in enumerate(sk.original.agents) if o.name == n[3:]
                 )
         self.init = {j: init[j] for j in self.vars.values()}
+        #: 'or' modes whose last active child is kept (``h<a>_<m>``, -1: none), as
+        #: AgentState.last: every one of an agent that has history or a role carry-over
+        restores = any(m.history != "none" for m in ca.modes) or any(
+            tr.carry for tr in ca.transitions
+        )
+        self.hist = [m.index for m in ca.modes if m.kind == "or"] if restores else []
         self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
 
     def bit(self, m: int) -> str:
         return f"m{self.a}_{m}"
+
+    def last(self, m: int) -> str:
+        return f"h{self.a}_{m}"
 
 
 def export(
@@ -165,8 +190,12 @@ def export(
     losses: int,
     duplicates: int,
     slots: int = SLOTS,
+    outbox: int = OUTBOX,
+    seen: int = SEEN,
     drop: tuple[int, int] | None = None,
     ack_timing: str = "bounded",
+    order: str = "any",
+    timeouts: str = "any",
 ) -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
     out one (agent, transition) — only to show that the comparison catches a wrong model."""
@@ -188,12 +217,24 @@ def export(
         _refuse(sk, ag)
         for j in ag.vars.values():
             ag.init[j] = _int(ag.init[j], f"agent '{ag.name}': an initial variable")
-    ctx = _Ctx(sk, agents, fields, exact, types, slots, drop, ack_timing == "bounded")
+    ctx = _Ctx(
+        sk,
+        agents,
+        fields,
+        exact,
+        types,
+        slots,
+        drop,
+        ack_timing == "bounded",
+        order == "fifo",
+        timeouts,
+    )
+    ctx.outbox = outbox
     lines = [
         f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
         f"#define SLOTS {slots}",
-        f"#define OUTBOX {OUTBOX}",
-        f"#define SEEN {SEEN}",
+        f"#define OUTBOX {outbox}",
+        f"#define SEEN {seen}",
         f"#define ACK_T {len(types)}",
         "typedef Copy { byte used; byte snd; byte rcv; byte typ; int mid; "
         + " ".join(f"int f{k};" for k in range(nf))
@@ -218,13 +259,22 @@ def export(
         "hidden byte r_typ;",
         "hidden int s_mid;",
         *[f"hidden int r_f{k};" for k in range(nf)],
+        "byte sk = 0;",
+        *[f"bit fr{k} = 0;" for k in range(MAX_FREE)],
+        f"hidden byte rq[{RAISED}];",
+        "hidden byte nr;",
+        "hidden byte ri;",
+        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types)),
+        *_note(agents),
     ]
     for ag in agents:
         on = _default_config(ag.ca)
         lines += [f"bit {ag.bit(m)} = {int(m in on)};" for m in range(len(ag.ca.modes))]
         lines += [f"int {ag.var_name[j]} = {ag.init[j]};" for j in ag.vars.values()]
+        lines += [f"short {ag.last(m)} = -1;" for m in ag.hist]
         lines += [f"hidden byte c{ag.a}_{j};" for j in range(len(ag.ca.transitions))]
     lines += [f"/* message type {k}: {t} */" for k, t in enumerate(types)]
+    lines += [f"/* raised event {k}: {e} */" for k, (_, e) in enumerate(ctx.events)]
     first = _config_print(agents)
     config = f"if :: moved || overflow -> {first} moved = 0 :: else -> skip fi"
     for ag in agents:
@@ -264,19 +314,11 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
     """One line naming the first feature of ``ag`` the export does not translate."""
     ca, who = ag.ca, f"agent '{ag.name}'"
     for m in ca.modes:
-        if m.history != "none":
-            raise Unsupported(f"{who}: mode {m.path or m.name} has history")
         if m.on_entry or m.on_exit:
             raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
-    if any(e for b, e in sk.world_events if b == ag.a):
-        raise Unsupported(f"{who}: world events")
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
-        if tr.carry:
-            raise Unsupported(f"{where}: a role body carried over")
-        if any(act.kind == "raise" for act in tr.actions):
-            raise Unsupported(f"{where}: a raise action")
         if tr.on is None and tr.index not in timed:
             raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
         if (
@@ -358,6 +400,74 @@ def _default_config(ca: CAgent) -> set[int]:
     return out
 
 
+def _remember(ag: _Agent, m: int) -> str:
+    """Exiting 'or' mode ``m``: its active child becomes its last (AgentState.exit)."""
+    kids = " ".join(
+        f":: {ag.bit(m)} && {ag.bit(c)} -> {ag.last(m)} = {c}" for c in ag.ca.modes[m].children
+    )
+    return f"if {kids} :: else -> skip fi;"
+
+
+def _carried(ag: _Agent, a: int, b: int, mapping) -> str:
+    """A role carry-over: mode ``b`` (in the target's copy of the body) remembers the copy
+    of what ``a`` remembered (``last[b] = carry_map[last[a]]``, unset stays unset)."""
+    kids = " ".join(
+        f":: {ag.last(a)} == {c} -> {ag.last(b)} = {int(mapping[c])}"
+        for c in ag.ca.modes[a].children
+    )
+    return f"if {kids} :: else -> {ag.last(b)} = -1 fi;"
+
+
+def _enter(ag: _Agent, entry, deep: bool) -> list[str]:
+    """Entering as ``entry`` says (AgentState.enter): its first mode, down through its
+    marked modes to its targets, which complete their entry — by history, read at run
+    time from the ``h`` variables, where a mode has one (or ``deep``, a carry-over)."""
+    out = [] if entry.active_first else [f"{ag.bit(entry.first)} = 1;"]
+    return out + _enter_below(ag, entry.first, entry, deep)
+
+
+def _enter_below(ag: _Agent, m: int, entry, deep: bool) -> list[str]:
+    if m in entry.targets:
+        return _enter_default(ag, m, deep, False)
+    out = []
+    for c in ag.ca.modes[m].children:
+        if c in entry.marks:
+            out += [f"{ag.bit(c)} = 1;", *_enter_below(ag, c, entry, deep)]
+        elif ag.ca.modes[m].kind == "and":
+            out += [f"{ag.bit(c)} = 1;", *_enter_default(ag, c, False, False)]
+    return out
+
+
+def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
+    """AgentState.enter_default: initial children, or the remembered ones."""
+    mode = ag.ca.modes[m]
+    out: list[str] = []
+    if mode.kind == "and":
+        for r in mode.children:
+            out += [f"{ag.bit(r)} = 1;"]
+            out += _enter_default(
+                ag, r, deep or mode.history == "deep", restore or mode.history == "shallow"
+            )
+        return out
+    if mode.kind != "or":
+        return out
+    deeper = deep or mode.history == "deep"
+    if not (restore or deep or mode.history != "none"):
+        return _enter(ag, mode.default, False)
+    fresh = mode.history_default or mode.default
+    assert fresh is not None  # (an 'or' mode has its default entry)
+    if fresh.targets == {mode.initial}:  # nothing remembered: the initial child
+        unset = [f"{ag.bit(mode.initial)} = 1;", *_enter_default(ag, mode.initial, deeper, False)]
+    else:
+        unset = _enter(ag, fresh, False)
+    options = [
+        f":: {ag.last(m)} == {c} -> "
+        + " ".join([f"{ag.bit(c)} = 1;", *_enter_default(ag, c, deeper, False)])
+        for c in mode.children
+    ]
+    return ["if " + " ".join(options) + " :: else -> " + (" ".join(unset) or "skip") + " fi;"]
+
+
 def _exited(ca: CAgent, tr) -> list[int]:
     sub = ca.modes[tr.exit_root].subtree
     return [int(m) for m in (sub[1:] if tr.exit_inside else sub)]
@@ -365,8 +475,50 @@ def _exited(ca: CAgent, tr) -> list[int]:
 
 def _config_print(agents: list[_Agent]) -> str:
     """The step's closing print: the projected configuration, and whether a send found
-    no free slot (then the comparison is refused, not made on a truncated model)."""
-    return _print("C", agents, " %d", "overflow")
+    no free slot (then the comparison is refused, not made on a truncated model); each
+    distinct line once (``note``)."""
+    return "c_code { note(now.overflow); };"
+
+
+def _note(agents: list[_Agent]) -> list[str]:
+    """``note``: print a configuration line unless it was printed before (a C hash set of
+    the lines, outside SPIN's state), so the output holds one line per configuration
+    rather than one per transition SPIN executes — the printed set is the same."""
+    bits = [f"now.{ag.bit(m)}" for ag in agents for m in range(len(ag.ca.modes))]
+    size = len(bits) + len(agents) + 8
+    put, k = [], 2
+    for ag in agents:
+        if ag.a:
+            put.append(f"b[{k}] = '|';")
+            k += 1
+        for m in range(len(ag.ca.modes)):
+            put.append(f"b[{k}] = '0' + now.{ag.bit(m)};")
+            k += 1
+    return [
+        "c_code {",
+        "  static char **lines_seen; static unsigned long lines_n, lines_cap;",
+        "  static void note(int overflow) {",
+        f"    char b[{size}]; unsigned long h = 14695981039346656037UL, i; char *c;",
+        "    b[0] = 'C'; b[1] = ' '; " + " ".join(put),
+        f"    b[{k}] = ' '; b[{k + 1}] = '0' + (overflow != 0); b[{k + 2}] = 0;",
+        "    if (2 * (lines_n + 1) > lines_cap) {  /* grow: rehash into twice the room */",
+        "      unsigned long cap = lines_cap ? 2 * lines_cap : 1024, j;",
+        "      char **t = (char **) calloc(cap, sizeof(char *));",
+        "      for (j = 0; j < lines_cap; j++) if (lines_seen[j]) {",
+        "        unsigned long g = 14695981039346656037UL; for (c = lines_seen[j]; *c; c++) "
+        "g = (g ^ (unsigned char) *c) * 1099511628211UL;",
+        "        for (i = g % cap; t[i]; i = (i + 1) % cap); t[i] = lines_seen[j];",
+        "      }",
+        "      free(lines_seen); lines_seen = t; lines_cap = cap;",
+        "    }",
+        "    for (c = b; *c; c++) h = (h ^ (unsigned char) *c) * 1099511628211UL;",
+        "    for (i = h % lines_cap; lines_seen[i]; i = (i + 1) % lines_cap)",
+        "      if (strcmp(lines_seen[i], b) == 0) return;",
+        "    lines_seen[i] = strdup(b); lines_n++;",
+        '    printf("%s\\n", b);',
+        "  }",
+        "}",
+    ]
 
 
 def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str:
@@ -378,9 +530,14 @@ def _print(tag: str, agents: list[_Agent], fmt_more: str, args_more: str) -> str
 class _Ctx:
     """Translation of guards, actions and steps (one model's worth of names)."""
 
-    def __init__(self, sk, agents, fields, exact, types, slots, drop, bounded) -> None:
+    def __init__(
+        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts
+    ) -> None:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
         self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
+        self.fifo, self.timeouts = fifo, timeouts
+        self.outbox = OUTBOX  # (export sets the model's size)
+        self.events = self.raised_events()
 
     # -- expressions
     def expr(
@@ -468,7 +625,9 @@ class _Ctx:
         """Exit (the exit set), actions, entry (the entry set), as engine.run.discrete.fire."""
         out = []
         if not tr.internal:
-            out += [f"{ag.bit(m)} = 0;" for m in _exited(ag.ca, tr)]
+            exited = _exited(ag.ca, tr)
+            out += [_remember(ag, m) for m in exited if m in ag.hist]
+            out += [f"{ag.bit(m)} = 0;" for m in exited]
         for act in tr.actions:
             if act.kind == "assign":
                 kind, j = act.target
@@ -476,10 +635,15 @@ class _Ctx:
                     out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, tr.on)};")
             elif act.kind == "send":
                 out += self.send(ag, act, tr.on)
+            elif act.kind == "raise":  # queued, dispatched after this step's firings
+                k = self.events.index((ag.a, act.name))
+                out.append(
+                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
+                )
         if not tr.internal:
-            on: set[int] = set()
-            _entered(ag.ca, tr.entry, on)
-            out += [f"{ag.bit(m)} = 1;" for m in sorted(on)] + ["moved = 1;"]
+            for a, b in tr.carry:  # same role: the body resumes (compiler._role_carry)
+                out.append(_carried(ag, a, b, tr.carry_map))
+            out += [*_enter(ag, tr.entry, bool(tr.carry)), "moved = 1;"]
         return out
 
     def send(self, ag: _Agent, act, on: str | None) -> list[str]:
@@ -555,54 +719,149 @@ class _Ctx:
         return out
 
     # -- processes
+    def arrives(self, k: int) -> str:
+        """Whether the copy in slot ``k`` may arrive (or be lost, or duplicated) next: any
+        copy (``--order any``), or in fifo order the oldest on its link — the slots are
+        kept sorted stably by link (``settle``), so that is the first of its link."""
+        if not self.fifo or k == 0:
+            return f"fl[{k}].used"
+        return f"fl[{k}].used && (fl[{k - 1}].snd != fl[{k}].snd || fl[{k - 1}].rcv != fl[{k}].rcv)"
+
+    def choose(self, free: list[str], who: str) -> str:
+        """Nondeterministic values of the free comparisons a step reads (bits ``fr<k>``,
+        set inside the step's atomic sequence before its ``d_step``)."""
+        if len(free) > MAX_FREE:
+            raise Unsupported(f"agent '{who}': more than {MAX_FREE} free comparisons in one step")
+        return " ".join(f"if :: fr{k} = 1 :: skip fi;" for k in range(len(free)))
+
+    def tail(self) -> str:
+        """What closes every step: the events its transitions raised, dispatched in order
+        (each a micro-step of the same instant, as the engine's queue has them), the
+        choice bits cleared, and the containers brought to their canonical order."""
+        return (
+            self.drain()
+            + " sk = 0; "
+            + " ".join(f"fr{k} = 0;" for k in range(MAX_FREE))
+            + " settle();"
+        )
+
+    def raised_events(self) -> list[tuple[int, str]]:
+        """(agent, event) of every ``raise`` action: numbered in the raised-event queue."""
+        out: list[tuple[int, str]] = []
+        for ag in self.agents:
+            for tr in ag.ca.transitions:
+                for act in tr.actions:
+                    if act.kind == "raise" and (ag.a, act.name) not in out:
+                        out.append((ag.a, act.name))
+        return out
+
+    def drain(self) -> str:
+        """Dispatch the raised events in queue order until none is left (an event raised
+        meanwhile joins the queue's end; a queue that outgrows ``RAISED`` is an overflow)."""
+        if not self.events:
+            return ""
+        options = []
+        for k, (a, name) in enumerate(self.events):
+            ag = self.agents[a]
+            free: list[str] = []
+            body = " ".join(self.dispatch(ag, name, None, free))
+            if free:
+                raise Unsupported(
+                    f"agent '{ag.name}': the raised event '{name}' wakes a guard that "
+                    "reads time or state"
+                )
+            options.append(f":: rq[ri] == {k} -> {body or 'skip'}")
+        return (
+            " ri = 0; do :: ri < nr -> if "
+            + " ".join(options)
+            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break od; nr = 0; ri = 0;"
+        )
+
     def agent_proc(self, ag: _Agent, config: str) -> list[str]:
         out = [f"proctype agent_{ag.a}() {{  /* {ag.name} */", "end:", "  do"]
+        # a copy arrives: one option picks the slot (one of those addressed to this agent),
+        # the next dispatches it by type; the dispatch is written once per type, not once
+        # per slot, which keeps the model (and the C compiler's work) small
+        pick = " ".join(
+            f":: {self.arrives(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
+        )
+        branches = []
         for t, name in enumerate(self.types):
             free: list[str] = []
-            body = " ".join(self.dispatch(ag, name, name, free))
-            screen = self.screen(ag, name)
-            for bits in _assignments(free, ag.name):
-                for k in range(self.slots):
-                    read = (
-                        f"r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
-                        + " ".join(f"r_f{i} = fl[{k}].f{i};" for i in range(len(self.exact[name])))
-                        + f" {_clear(k, self.exact)}"
-                    )
-                    code = _subst(body, bits)
-                    out.append(
-                        f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == "
-                        f"{ag.a} && fl[{k}].typ == {t} -> {read} {screen} "
-                        f"if :: !held -> {code} :: else -> skip fi; "
-                        f"{_reset(self.exact)} }}; {config} }}"
-                    )
-        for k in range(self.slots):  # an ack arrives (engine.run.reliable.screen)
-            out.append(
-                f"  :: atomic {{ d_step {{ fl[{k}].used && fl[{k}].rcv == {ag.a} && "
-                f"fl[{k}].typ == ACK_T -> r_snd = fl[{k}].snd; r_mid = fl[{k}].mid; "
-                f"{_clear(k, self.exact)} so = 0; do :: so < OUTBOX -> if :: "
-                f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
-                "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
-                f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
-                f"so++ :: else -> break od; so = 0; {_reset(self.exact)} }}; "
-                f"{config} }}"
+            body = _subst(" ".join(self.dispatch(ag, name, name, free)), None)
+            read = (
+                "r_snd = fl[sk].snd; r_mid = fl[sk].mid; "
+                + " ".join(f"r_f{i} = fl[sk].f{i};" for i in range(len(self.exact[name])))
+                + f" {_clear('sk', self.exact)}"
             )
+            branches.append(
+                f":: fl[sk].typ == {t} -> {self.choose(free, ag.name)} d_step {{ {read} "
+                f"{self.screen(ag, name)} if :: !held -> {body or 'skip'} :: else -> skip fi; "
+                f"{_reset(self.exact)} {self.tail()} }}"
+            )
+        # an ack arrives (engine.run.reliable.screen)
+        branches.append(
+            ":: fl[sk].typ == ACK_T -> d_step { r_snd = fl[sk].snd; r_mid = fl[sk].mid; "
+            f"{_clear('sk', self.exact)} so = 0; do :: so < OUTBOX -> if :: "
+            f"ob[so].used && ob[so].snd == {ag.a} && ob[so].mid == r_mid -> "
+            "ob[so].wait = ob[so].wait & ~(1 << r_snd); if :: ob[so].wait == 0 -> "
+            f"{_clear_out('so', self.exact)} :: else -> skip fi :: else -> skip fi; "
+            f"so++ :: else -> break od; so = 0; {_reset(self.exact)} {self.tail()} }}"
+        )
+        out.append(f"  :: atomic {{ if {pick} fi; if {' '.join(branches)} fi; {config} }}")
         out += self.timers(ag, config)
         for j in self.sk.time_driven[ag.a]:
             if self.drop == (ag.a, j):
                 continue
             tr = ag.ca.transitions[j]
             free = []
-            cond = self.guard(ag, tr, free) + self.changes(ag, tr)
+            cond = self.guard(ag, tr, free) + self.changes(ag, tr) + self.waits(ag, tr)
             for bits in _assignments(free, ag.name):
                 out.append(
                     f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
-                    + " ".join(self.fire(ag, tr))
-                    + " }; "
+                    + _subst(" ".join(self.fire(ag, tr)), bits)
+                    + f" {self.tail()} }}; "
                     + config
                     + " }"
                 )
+        for b, event in self.sk.world_events:
+            if b != ag.a:
+                continue
+            # a world event (a sensor's, a component's) may be raised at any moment; only
+            # where it fires a transition (our explorer keeps no step that changes nothing)
+            cands = [j for j in ag.ca.waiting(event) if self.drop != (ag.a, j)]
+            free = []
+            body = " ".join(self.dispatch(ag, event, None, free))
+            check: list[str] = []
+            enabled = " || ".join(
+                self.guard(ag, ag.ca.transitions[j], check) for j in sorted(cands)
+            )
+            assert check == free  # (the same guards, read in the same order)
+            for bits in _assignments(free, ag.name):
+                out.append(
+                    f"  :: atomic {{ d_step {{ ({_subst(enabled or '0', bits)}) -> "
+                    f"{_subst(body, bits)} {self.tail()} }}; {config} }}"
+                )
         out += ["  od", "}"]
         return out
+
+    def waits(self, ag: _Agent, tr) -> str:
+        """The timing assumption on an ``after:`` timeout (``--timeouts``, as
+        explore.choices has it): ``long``, only once nothing is in flight nor awaits an
+        ack; ``own``, only once none of the agent's copies but acks flies and nothing of
+        it awaits an ack."""
+        if self.timeouts == "any" or tr.after is None:
+            return ""
+        if self.timeouts == "long":
+            busy = [f"fl[{k}].used" for k in range(self.slots)]
+            busy += [f"ob[{o}].used" for o in range(self.outbox)]
+        else:
+            busy = [
+                f"(fl[{k}].used && fl[{k}].snd == {ag.a} && fl[{k}].typ != ACK_T)"
+                for k in range(self.slots)
+            ]
+            busy += [f"(ob[{o}].used && ob[{o}].snd == {ag.a})" for o in range(self.outbox)]
+        return " && !(" + " || ".join(busy) + ")"
 
     def screen(self, ag: _Agent, name: str) -> str:
         """The acknowledged layer's look at an arriving copy (engine.run.reliable.screen):
@@ -637,16 +896,17 @@ class _Ctx:
         """Retransmission timers of ``ag``'s outbox entries (engine.run.reliable.on_timer):
         with ``--ack-timing bounded`` only once no copy of the message nor an ack of it
         flies; resend to each receiver still waiting, or, out of retries, drop the entry
-        and raise ``<type>_undeliverable`` at the sender."""
+        and raise ``<type>_undeliverable`` at the sender. One option picks the entry, the
+        next what its timer does (written once, not once per entry)."""
         if not any(p.acknowledged for p in ag.ca.policies.values()):
             return []
-        out = []
         acked = [
             t
             for t, name in enumerate(self.types)
             if (p := ag.ca.policies.get(name)) is not None and p.acknowledged
         ]
-        for o in range(OUTBOX):
+        picks = []
+        for o in range(self.outbox):
             e = f"ob[{o}]"
             cond = f"{e}.used && {e}.snd == {ag.a}"
             if self.bounded:
@@ -660,27 +920,26 @@ class _Ctx:
                     )
                     + ")"
                 )
-            values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
-            resend = " ".join(
-                f"if :: {e}.wait & {1 << r} -> "
-                f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
-                for r in range(len(self.agents))
-                if r != ag.a
+            picks.append(f":: {cond} -> sk = {o}")
+        e = "ob[sk]"
+        values = [f"{e}.f{i}" for i in range(_nf(self.exact))]
+        resend = " ".join(
+            f"if :: {e}.wait & {1 << r} -> "
+            f"{_put(str(ag.a), str(r), f'{e}.typ', f'{e}.mid', values)} :: else -> skip fi;"
+            for r in range(len(self.agents))
+            if r != ag.a
+        )
+        branches = [f":: {e}.left > 0 -> d_step {{ {e}.left--; {resend} {self.tail()} }}"]
+        for t in acked:
+            free: list[str] = []
+            body = _subst(
+                " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free)), None
             )
-            out.append(
-                f"  :: atomic {{ d_step {{ {cond} && {e}.left > 0 -> {e}.left--; "
-                f"{resend} }}; {config} }}"
+            branches.append(
+                f":: {e}.left == 0 && {e}.typ == {t} -> {self.choose(free, ag.name)} "
+                f"d_step {{ {_clear_out('sk', self.exact)} {body} {self.tail()} }}"
             )
-            for t in acked:
-                free: list[str] = []
-                body = " ".join(self.dispatch(ag, f"{self.types[t]}_undeliverable", None, free))
-                for bits in _assignments(free, ag.name):
-                    out.append(
-                        f"  :: atomic {{ d_step {{ {cond} && {e}.left == 0 && "
-                        f"{e}.typ == {t} -> {_clear_out(str(o), self.exact)} "
-                        f"{_subst(body, bits)} }}; {config} }}"
-                    )
-        return out
+        return [f"  :: atomic {{ if {' '.join(picks)} fi; if {' '.join(branches)} fi; {config} }}"]
 
     def changes(self, ag: _Agent, tr) -> str:
         """For a time-driven transition in place without sends: the condition that it
@@ -702,8 +961,8 @@ class _Ctx:
         for k in range(self.slots):
             if losses:
                 out.append(
-                    f"  :: atomic {{ d_step {{ fl[{k}].used && losses < {losses} -> "
-                    f"{_clear(k, self.exact)} losses++ }}; " + config + " }"
+                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && losses < {losses} -> "
+                    f"{_clear(k, self.exact)} losses++; settle() }}; " + config + " }"
                 )
             if duplicates:
                 copy = " ".join(
@@ -712,11 +971,11 @@ class _Ctx:
                     + [f"f{i}" for i in range(_nf(self.exact))]
                 )
                 out.append(
-                    f"  :: atomic {{ d_step {{ fl[{k}].used && dups < {duplicates} -> "
+                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && dups < {duplicates} -> "
                     "sl = 0; "
                     "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
                     f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
-                    "dups++ }; " + config + " }"
+                    "dups++; settle() }; " + config + " }"
                 )
         if not losses and not duplicates:
             out.append("  :: false")
@@ -728,9 +987,10 @@ class _Ctx:
         for _, a, name in self.sk.original.scenario:
             ag = self.agents[a]
             free: list[str] = []
-            body = self.dispatch(ag, name, None, free)
+            body = " ".join(self.dispatch(ag, name, None, free))
             options = [
-                f"  :: atomic {{ d_step {{ true -> {_subst(' '.join(body), bits)} }}; {config} }}"
+                f"  :: atomic {{ d_step {{ true -> {_subst(body, bits)} {self.tail()} }}; "
+                f"{config} }}"
                 for bits in _assignments(free, ag.name)
             ]
             out += ["  if", *options, "  fi;"]
@@ -760,7 +1020,7 @@ def _nf(exact: dict) -> int:
     return max([len(v) for v in exact.values()] + [1])
 
 
-def _clear(k: int, exact: dict) -> str:
+def _clear(k: int | str, exact: dict) -> str:
     return (
         f"fl[{k}].used = 0; fl[{k}].snd = 0; fl[{k}].rcv = 0; fl[{k}].typ = 0; "
         f"fl[{k}].mid = 0; " + " ".join(f"fl[{k}].f{i} = 0;" for i in range(_nf(exact)))
@@ -785,8 +1045,100 @@ def _assignments(free: list[str], who: str) -> list[dict[int, int]]:
     return [dict(enumerate(bits)) for bits in itertools.product((0, 1), repeat=len(free))]
 
 
-def _subst(code: str, bits: dict[int, int]) -> str:
+def _subst(code: str, bits: dict[int, int] | None) -> str:
+    """The free comparisons' placeholders as the values ``bits`` (a step written once per
+    assignment), or as the bits ``fr<k>`` chosen before the step (``None``)."""
+    if bits is None:
+        return re.sub(r"FREE(\d+)", r"fr\1", code)
     return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
+
+
+def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int) -> list[str]:
+    """``settle()``, which ends every step: our canonical form (:meth:`.Machine.canonical`)
+    written again in C, so that states that differ only in bookkeeping are one state for
+    SPIN as they are for us — the projected configurations are the same either way, SPIN
+    just meets fewer states. An ack that no outbox entry waits for and a filter entry
+    that no copy can match again are dropped (each could only be consumed without effect
+    later); each sender's live message ids are renumbered 0.. in order and its next id is
+    their count; the copies in flight, the outbox and the filter are sorted (used entries
+    first). Bubble sort, which is stable: in fifo order the copies are sorted by link
+    only, so each link's copies stay in sending order (the oldest first), as ours keeps
+    them. Written once in C (a ``c_code`` function called from each step's ``d_step``),
+    so the model's text and the verifier's compilation do not grow with every step."""
+    copy = ["snd", "rcv", "typ", "mid"] + [f"f{i}" for i in range(nf)]
+    slots, outbox, seen = sizes
+    lines = [
+        "c_code {",
+        "  static int waits(int snd, int mid, int rcv) {  /* an outbox entry waits for rcv */",
+        "    int o;",
+        f"    for (o = 0; o < {outbox}; o++) if (now.ob[o].used && now.ob[o].snd == snd && "
+        "now.ob[o].mid == mid && (now.ob[o].wait & (1 << rcv))) return 1;",
+        "    return 0;",
+        "  }",
+        "  static void prune(void) {",
+        "    int k, e, live;",
+        f"    for (k = 0; k < {slots}; k++) if (now.fl[k].used && now.fl[k].typ == {ack} && "
+        "!waits(now.fl[k].rcv, now.fl[k].mid, now.fl[k].snd)) "
+        "memset(&now.fl[k], 0, sizeof(now.fl[k]));",
+        f"    for (e = 0; e < {seen}; e++) if (now.sn[e].used) {{",
+        "      live = waits(now.sn[e].snd, now.sn[e].mid, now.sn[e].rcv);",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && now.fl[k].typ != {ack} && "
+        "now.fl[k].snd == now.sn[e].snd && now.fl[k].rcv == now.sn[e].rcv && "
+        "now.fl[k].mid == now.sn[e].mid) live = 1;",
+        "      if (!live) memset(&now.sn[e], 0, sizeof(now.sn[e]));",
+        "    }",
+        "  }",
+        "  static int idx(int *ids, int n, int mid) {",
+        "    int i; for (i = 0; i < n; i++) if (ids[i] == mid) return i; return -1;",
+        "  }",
+        "  static void renumber(void) {",
+        f"    int a, k, n, i, j, t, ids[{slots + outbox + seen}];",
+        f"    for (a = 0; a < {agents}; a++) {{",
+        "      n = 0;",
+        "#define LIVE(m) if ((m) >= 0 && idx(ids, n, (m)) < 0) ids[n++] = (m)",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && ((now.fl[k].typ != {ack} "
+        f"&& now.fl[k].snd == a) || (now.fl[k].typ == {ack} && now.fl[k].rcv == a))) "
+        "LIVE(now.fl[k].mid);",
+        f"      for (k = 0; k < {outbox}; k++) if (now.ob[k].used && now.ob[k].snd == a) "
+        "LIVE(now.ob[k].mid);",
+        f"      for (k = 0; k < {seen}; k++) if (now.sn[k].used && now.sn[k].snd == a) "
+        "LIVE(now.sn[k].mid);",
+        "#undef LIVE",
+        "      for (i = 0; i < n; i++) for (j = i + 1; j < n; j++) "
+        "if (ids[j] < ids[i]) { t = ids[i]; ids[i] = ids[j]; ids[j] = t; }",
+        f"      for (k = 0; k < {slots}; k++) if (now.fl[k].used && ((now.fl[k].typ != {ack} "
+        f"&& now.fl[k].snd == a) || (now.fl[k].typ == {ack} && now.fl[k].rcv == a)) && "
+        "now.fl[k].mid >= 0) now.fl[k].mid = idx(ids, n, now.fl[k].mid);",
+        f"      for (k = 0; k < {outbox}; k++) if (now.ob[k].used && now.ob[k].snd == a) "
+        "now.ob[k].mid = idx(ids, n, now.ob[k].mid);",
+        f"      for (k = 0; k < {seen}; k++) if (now.sn[k].used && now.sn[k].snd == a) "
+        "now.sn[k].mid = idx(ids, n, now.sn[k].mid);",
+        "      now.nid[a] = n;",
+        "    }",
+        "  }",
+    ]
+    for arr, size, struct, key in (
+        ("fl", slots, "Copy", ["snd", "rcv"] if fifo else copy),
+        ("ob", outbox, "Out", ["snd", "mid"]),
+        ("sn", seen, "Seen", ["rcv", "snd", "mid"]),
+    ):
+        cmp = " ".join(f"if (a->{f} != b->{f}) return a->{f} > b->{f};" for f in key)
+        lines += [
+            f"  static int later_{arr}(struct {struct} *a, struct {struct} *b) {{",
+            f"    if (a->used != b->used) return b->used; if (!a->used) return 0; {cmp} return 0;",
+            "  }",
+            f"  static void sort_{arr}(void) {{",
+            f"    int i, j; struct {struct} t;",
+            f"    for (i = 0; i + 1 < {size}; i++) for (j = 0; j + 1 < {size} - i; j++)",
+            f"      if (later_{arr}(&now.{arr}[j], &now.{arr}[j + 1])) "
+            f"{{ t = now.{arr}[j]; now.{arr}[j] = now.{arr}[j + 1]; now.{arr}[j + 1] = t; }}",
+            "  }",
+        ]
+    lines += [
+        "}",
+        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); } }",
+    ]
+    return lines
 
 
 def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
@@ -853,10 +1205,6 @@ def ours(report) -> Exploration:
 
 def check(report, opts) -> None:
     """Refuse (:class:`Unsupported`) what the comparison cannot take."""
-    if opts.order != "any":
-        raise Unsupported(f"--order {opts.order} (the export has --order any)")
-    if opts.timeouts != "any":
-        raise Unsupported(f"--timeouts {opts.timeouts} (the export has --timeouts any)")
     if not report.graph.exhaustive:
         raise Unsupported(f"our exploration stopped ({report.graph.bound})")
     if report.options.por != "basic":
@@ -865,8 +1213,12 @@ def check(report, opts) -> None:
         raise Unsupported("the deadlock property is not among the checked ones")
 
 
-def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
-    """Compile and run SPIN's exhaustive search on ``promela``; its exploration."""
+def run_spin(
+    promela: str, folder: Path, timeout: float = 600.0, optimize: bool = True
+) -> Exploration:
+    """Compile and run SPIN's exhaustive search on ``promela``; its exploration.
+    ``optimize``: compile the verifier with ``-O1`` (three times the compiler's work of
+    ``-O0``, which a small model's short search never earns back)."""
     why = missing()
     if why:
         raise RuntimeError(why)
@@ -876,7 +1228,7 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
     _run(
         [
             "cc",
-            "-O1",
+            "-O1" if optimize else "-O0",
             "-DPRINTF",
             "-DNOREDUCE",
             "-DSAFETY",
@@ -888,7 +1240,7 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
         folder,
         timeout,
     )
-    text = _run(["./pan", "-E", "-m10000000"], folder, timeout)
+    text = _run(["./pan", "-E", "-m1000000"], folder, timeout)
     (folder / "pan.out").write_text(text)
     if "depth too small" in text or "errors: 0" not in text:
         raise RuntimeError("SPIN's search did not complete (see pan.out)")
@@ -905,8 +1257,8 @@ def run_spin(promela: str, folder: Path, timeout: float = 600.0) -> Exploration:
                 bad |= flag == "1"
     if over:
         raise RuntimeError(
-            f"the model's slots overflowed ({SLOTS} copies in flight, "
-            f"{OUTBOX} outbox entries, {SEEN} filter entries, {MAX_IDS} ids)"
+            "the model's slots overflowed (copies in flight, outbox or filter entries "
+            f"beyond the sizes in rules.pml, or more than {MAX_IDS} ids)"
         )
     return Exploration(configs, dead, not bad)
 
@@ -915,8 +1267,21 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
     """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
     anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
+    states = report.graph.states
     return export(
-        report.skeleton, opts.losses, opts.duplicates, drop=drop, ack_timing=opts.ack_timing
+        report.skeleton,
+        opts.losses,
+        opts.duplicates,
+        # twice the room our exploration needed: ours delivers an ack or a withheld copy
+        # before anything else (a partial-order reduction), SPIN lets them pile up; more
+        # than that is an overflow, reported, never a truncated comparison
+        slots=max([SLOTS, *(2 * len(s.inflight) for s in states)]),
+        outbox=max([OUTBOX, *(2 * len(s.outbox) for s in states)]),
+        seen=max([SEEN, *(2 * len(s.seen) for s in states)]),
+        drop=drop,
+        ack_timing=opts.ack_timing,
+        order=opts.order,
+        timeouts=opts.timeouts,
     )
 
 
@@ -927,4 +1292,5 @@ def compare(
     SPIN explore them in ``folder`` (``rules.pml``, ``pan.out``), compare with ours."""
     if promela is None:
         promela = prepare(report, opts, drop)
-    return Comparison(ours(report), run_spin(promela, folder))
+    big = len(report.graph.states) >= SMALL
+    return Comparison(ours(report), run_spin(promela, folder, optimize=big))
