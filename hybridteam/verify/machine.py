@@ -41,7 +41,7 @@ class Copy(NamedTuple):
     fields: tuple  # ((name, value), ...) of the exact fields
 
 
-class Entry(NamedTuple):
+class OutboxEntry(NamedTuple):
     """An acknowledged message waiting for acks (the reliable layer's outbox)."""
 
     sender: int
@@ -58,7 +58,7 @@ class Entry(NamedTuple):
 class State(NamedTuple):
     agents: tuple  # per agent: (configuration bytes, discrete variable values)
     inflight: tuple  # Copy, in sending order
-    outbox: tuple  # Entry, sorted
+    outbox: tuple  # OutboxEntry, sorted
     seen: tuple  # (receiver, sender, id), sorted
     cursor: int  # scenario entries raised so far
     losses: int
@@ -311,7 +311,7 @@ class Machine:
             st.deadline[:n] = -np.inf
             ens.reliable.next_id[a][:n] = [s.next_ids[a] if s.next_ids else 0 for s in states]
 
-    def _all_fields(self, e: Entry):
+    def _all_fields(self, e: OutboxEntry):
         values = dict(e.fields)
         return [(f, values.get(f, 0.0)) for f in self.fields.get(e.type, [])]
 
@@ -319,7 +319,7 @@ class Machine:
         per_out: dict[int, list] = {}
         for (i, snd, k), p in self.ens.reliable.outbox.items():
             per_out.setdefault(i, []).append(
-                Entry(
+                OutboxEntry(
                     snd,
                     k,
                     p.type,

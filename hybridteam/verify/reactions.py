@@ -42,7 +42,7 @@ from typing import NamedTuple
 from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import Values
-from hybridteam.verify.machine import Copy, Entry, Machine, Result, State
+from hybridteam.verify.machine import Copy, Machine, OutboxEntry, Result, State
 
 #: How a sent copy's message id is rebuilt: no id (a plain message), the choice's input id
 #: (a retransmission's, or the id an ack acknowledges), or the agent's next id plus an offset.
@@ -54,8 +54,8 @@ class Reaction(NamedTuple):
 
     part: tuple  # the agent's new (configuration bytes, discrete variables)
     copies: tuple  # (template Copy, how its id is rebuilt, offset), in sending order
-    kept: Entry | None  # the input outbox entry as it is after (its id is the input id)
-    entries: tuple  # (template Entry, offset): new outbox entries, ids after the next id
+    kept: OutboxEntry | None  # the input outbox entry as it is after (its id is the input id)
+    entries: tuple  # (template OutboxEntry, offset): new outbox entries, ids after the next id
     filtered: bool  # the receiver's filter now holds the arriving copy's id
     zeno: bool
     reads: int
@@ -252,11 +252,11 @@ class Reactions:
         )
 
 
-def _sans_id(e: Entry | None) -> Entry | None:
+def _sans_id(e: OutboxEntry | None) -> OutboxEntry | None:
     return None if e is None else e._replace(msg_id=-1)
 
 
-def _entry_of(s: State, sender: int, msg_id: int) -> Entry | None:
+def _entry_of(s: State, sender: int, msg_id: int) -> OutboxEntry | None:
     for e in s.outbox:
         if e.sender == sender and e.msg_id == msg_id:
             return e

@@ -1,8 +1,8 @@
 """Partial-search storage: visited states as hashes, for state spaces beyond memory.
 
-The exact store (:mod:`.store`) keeps every state, so a check is exhaustive but its size is
-bounded by memory. Like SPIN, the explorer can instead remember only a hash of each
-visited state (``--storage``):
+The exact store (:mod:`hybridteam.verify.store`) keeps every state, so a check is
+exhaustive but its size is bounded by memory. Like SPIN, the explorer can instead remember
+only a hash of each visited state (``--storage``):
 
 - **hashcompact**: a 64-bit hash per state in an open-addressing table (8 bytes a slot, at
   most half full). Two states with the same hash are taken for one, and the second is not

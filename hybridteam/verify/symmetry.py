@@ -44,7 +44,7 @@ from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.expr import Expression
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.explore import NONE, Graph
-from hybridteam.verify.machine import Copy, Entry, Machine, State, _link
+from hybridteam.verify.machine import Copy, Machine, OutboxEntry, State, _link
 from hybridteam.verify.properties import Property
 from hybridteam.verify.store import Edges, Store
 
@@ -374,7 +374,7 @@ def _choice(choice: tuple, rep: State, back: Perm, concrete: State) -> tuple:
         moved = c._replace(sender=back[c.sender], receiver=back[c.receiver])
         return (kind, concrete.inflight.index(moved))
     if kind == "timer":
-        e: Entry = rep.outbox[choice[1]]
+        e: OutboxEntry = rep.outbox[choice[1]]
         entry = e._replace(sender=back[e.sender], waiting=tuple(sorted(back[w] for w in e.waiting)))
         return ("timer", concrete.outbox.index(entry))
     if kind in ("time", "world"):
