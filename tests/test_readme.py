@@ -42,7 +42,7 @@ def test_quick_start_makes_a_virtual_environment_first():
     )
     ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
     assert blocks[2] == ci == "pip install -e '.[test]' && python -m pytest"
-    assert "about 4 minutes on a 2-core machine" in " ".join(quick.split())
+    assert "about 8 minutes on a 2-core machine" in " ".join(quick.split())
 
 
 def test_run_modes_is_described_as_the_interval_table():
