@@ -13,11 +13,20 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
-from hybridteam.floatpaths import FLOAT_PATHS, Ops, float_form
+from hybridteam.arrays import every, some
+from hybridteam.floatpaths import FLOAT_PATHS, ON_FLOATS, Ops, float_form
+
+#: The operations :func:`arc` is written over for arrays: numpy's, and whether any or every
+#: row of a mask is true (:func:`~hybridteam.arrays.some`, :func:`~hybridteam.arrays.every`),
+#: which its float form reads as the one truth it has.
+ARRAYS = SimpleNamespace(
+    sin=np.sin, cos=np.cos, where=np.where, true_divide=np.true_divide, some=some, every=every
+)
 
 
 @dataclass(frozen=True)
@@ -66,23 +75,35 @@ class Unicycle(Plant):
         return out
 
 
-def arc(px: Any, py: Any, th: Any, v: Any, w: Any, h: Any, ops: Ops = np) -> tuple[Any, Any, Any]:
+def arc(
+    px: Any, py: Any, th: Any, v: Any, w: Any, h: Any, ops: Ops = ARRAYS
+) -> tuple[Any, Any, Any]:
     """The pose after driving at ``v`` turning at ``w`` for ``h`` from ``(px, py, th)``
-    (:meth:`Unicycle.propagate`), written once over ``ops``: numpy's arrays (one element
-    per row), and the float form :func:`_arc_on_floats` made from this source.
+    (:meth:`Unicycle.propagate`), written once over ``ops``: :data:`ARRAYS` (numpy, one
+    element per row), and the float form :func:`_arc_on_floats` made from this source.
 
     The ratio ``sin(a)/a`` is divided only where ``a`` is nonzero (its divisor 1 elsewhere,
-    so the arrays need no error state) and is its limit 1 at 0.
+    so the arrays need no error state) and is its limit 1 at 0. Where no row turns (a
+    straight drive: every ``a`` zero) the ratio is 1 throughout, and ``chord * 1`` is
+    ``chord`` bit for bit: the sine and the selections are skipped, a third of the arc's
+    cost. Where every row turns the selections keep every quotient and are skipped too;
+    each row still gets the same operations on the same doubles.
     """
     half = 0.5 * w * h
+    chord = v * h
     turning = half != 0
-    ratio = ops.where(turning, ops.true_divide(ops.sin(half), ops.where(turning, half, 1.0)), 1.0)
-    chord = v * h * ratio
+    if ops.some(turning):
+        ratio = ops.sin(half)
+        if ops.every(turning):
+            ratio = ops.true_divide(ratio, half)
+        else:
+            ratio = ops.where(turning, ops.true_divide(ratio, ops.where(turning, half, 1.0)), 1.0)
+        chord = chord * ratio
     mid = th + half
     return px + chord * ops.cos(mid), py + chord * ops.sin(mid), th + w * h
 
 
-_arc_on_floats = float_form(arc)
+_arc_on_floats = float_form(arc, {**ON_FLOATS, "some": bool, "every": bool})
 
 #: up to this many rows, :meth:`Unicycle.propagate` runs on Python floats (:func:`_arcs_few`)
 #: while the float paths are on (:data:`hybridteam.floatpaths.FLOAT_PATHS`)
