@@ -4,7 +4,9 @@ the work a straight drive skips (the ratio ``sin(a)/a`` is 1 where no row turns)
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 
@@ -16,8 +18,8 @@ def _counting() -> tuple[SimpleNamespace, dict[str, int]]:
     """:data:`ARRAYS` with a count of each operation's calls."""
     calls: dict[str, int] = {}
 
-    def counted(name: str, fn):  # type: ignore[no-untyped-def]
-        def call(*args):  # type: ignore[no-untyped-def]
+    def counted(name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
             calls[name] = calls.get(name, 0) + 1
             return fn(*args)
 
