@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from hybridteam.dynamics.plants import ARRAYS, Unicycle, _arc_on_floats, arc
+from hybridteam.dynamics.plants import ARRAYS, Unchanged, Unicycle, _arc_on_floats, arc
 from hybridteam.floatpaths import FLOAT_PATHS
 
 
@@ -36,14 +36,14 @@ def test_straight_rows_skip_the_ratio_and_land_where_the_line_ends() -> None:
     # heading 0: x advances by v h exactly, y and the heading stay
     assert x.tolist() == [2.0, -2.25] and y.tolist() == [2.0, 0.5] and t.tolist() == [0.0, 0.0]
     # only the mid-arc heading's cosine and sine: no sin(a), no selection, no quotient
-    assert calls.get("sin") == 1 and calls.get("cos") == 1
+    assert "sin" not in calls and calls.get("sin_heading") == calls.get("cos_heading") == 1
     assert "where" not in calls and "true_divide" not in calls
 
 
 def test_turning_rows_select_only_when_some_row_goes_straight() -> None:
     ops, calls = _counting()
     arc(*(np.array([0.0, 0.0]),) * 3, np.ones(2), np.array([1.0, 2.0]), np.full(2, 0.1), ops)
-    assert calls.get("sin") == 2 and calls.get("true_divide") == 1 and "where" not in calls
+    assert calls.get("sin") == 1 and calls.get("true_divide") == 1 and "where" not in calls
     ops, calls = _counting()
     arc(*(np.array([0.0, 0.0]),) * 3, np.ones(2), np.array([1.0, 0.0]), np.full(2, 0.1), ops)
     assert calls.get("where") == 2
@@ -78,3 +78,38 @@ def test_quarter_circle_and_the_forms_agree_bit_for_bit() -> None:
     assert mixed.tobytes() == expect.tobytes() == few.tobytes()
     assert straight.tobytes() == expect[::3].tobytes()
     assert turning.tobytes() == expect[2::3].tobytes()
+
+
+def test_unchanged_headings_are_not_computed_again_and_give_numpy_bits() -> None:
+    seen: list[int] = []
+
+    def cos(a: np.ndarray) -> np.ndarray:
+        seen.append(a.size)
+        return np.cos(a)
+
+    fn = Unchanged(cos)
+    first = np.array([0.0, 1.0, 2.0, 3.0])
+    assert fn(first).tobytes() == np.cos(first).tobytes() and seen == [4]
+    assert fn(first.copy()).tobytes() == np.cos(first).tobytes() and seen == [4]  # none again
+    # one heading moved, and +0.0 became -0.0 (equal as numbers, not as bits): those two
+    moved = np.array([-0.0, 1.0, 2.5, 3.0])
+    assert fn(moved).tobytes() == np.cos(moved).tobytes() and seen == [4, 2]
+    # another shape is remembered apart; most changed: all computed at once
+    assert fn(np.ones(3)).tobytes() == np.cos(np.ones(3)).tobytes() and seen == [4, 2, 3]
+    assert fn(moved + 1.0).tobytes() == np.cos(moved + 1.0).tobytes() and seen == [4, 2, 3, 4]
+    assert not fn(moved + 1.0).flags.writeable  # (what it keeps cannot be written through)
+
+
+def test_a_straight_drive_repeated_gives_the_fresh_arcs_bits() -> None:
+    rng = np.random.default_rng(3)
+    m = 30
+    x = rng.normal(size=(m, 3))
+    x[0, 2] = -0.0
+    u = np.column_stack([rng.uniform(0.1, 1.0, m), np.zeros(m)])
+    u[::4, 1] = 0.7  # some rows turn
+    h = np.full(m, 0.1)
+    plant = Unicycle()
+    for _ in range(4):
+        nxt = plant.propagate(x, u, h)
+        assert nxt.tobytes() == Unicycle().propagate(x, u, h).tobytes()  # (a fresh plant)
+        x = nxt
