@@ -59,7 +59,8 @@ def watch_truth(
     for w, watch in enumerate(st.ca.watches):
         if watch.mode != mode:
             mode = watch.mode
-            ctx = Ctx(x, v, p, t, t - st.entry[:, mode][sel])
+            # (its time in the mode computed where an atom reads it: most do not)
+            ctx = Ctx(x, v, p, t, since=(st.entry[:, mode], sel))
         out[w] = watch.atom.truth(ctx)  # assignment broadcasts scalars
     return out
 
@@ -129,7 +130,7 @@ def _flips(
     if not some(watched):
         return None, None
     m = idx.size
-    h, t0 = ens.h[idx], ens.t0[idx]
+    h, t0 = ens.h[sel], ens.t0[sel]  # (views while every instance is live: read only)
     t1 = t0 + h
     start = st.truth[:, sel]
     pos = where_true(np.logical_or.reduce(watched, axis=0))  # rows with some atom watched

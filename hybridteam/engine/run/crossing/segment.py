@@ -90,7 +90,7 @@ class Segment:
 
         def state(pos: np.ndarray, tau: np.ndarray) -> np.ndarray:
             if not any_rk:
-                return plant.propagate(x0[pos], u[pos], tau)
+                return plant.propagate(gather(x0, pos), gather(u, pos), tau)
             if dense:
                 if flowing is not None:
                     return flowing(tau, None if alone and pos.size == 1 else pos)
