@@ -350,6 +350,8 @@ class CarriedPayload(WorldComponent):
     def carriers_sensing(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """The instances of ``idx`` at a sensing instant of some carrier (a robot holding
         a grasp, engaged or not): where the grasps are judged."""
+        if idx.size == 1:  # (a single run's instant, on bools: most are arrivals)
+            return idx if any(world.sensing(a, idx).item(0) for a in self.carriers) else idx[:0]
         sensing = world.sensing(self.carriers[0], idx)
         for a in self.carriers[1:]:
             sensing = sensing | world.sensing(a, idx)

@@ -304,12 +304,14 @@ class Obstacles(WorldComponent):
         senses (a stream copy arriving between ticks) costs the test of that alone."""
         if not self.judged:  # (no robot with a pose, no rule, no payload: nothing to judge)
             return
-        sensing = {a: world.sensing(a, idx) for a in self.judged}
-        if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools)
-            if not any(own.item(0) for own in sensing.values()):
+        if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools,
+            # before anything is gathered: most instants are arrivals nobody senses at)
+            if not any(world.sensing(a, idx).item(0) for a in self.judged):
                 return
             anyone = None
+            sensing = {a: world.sensing(a, idx) for a in self.judged}
         else:
+            sensing = {a: world.sensing(a, idx) for a in self.judged}
             anyone = np.logical_or.reduce(list(sensing.values()), axis=0)
             if not some(anyone):
                 return
