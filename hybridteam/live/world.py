@@ -400,9 +400,14 @@ class WorldReadings(World):
         """The detect rules of the robots with a laser, on what the laser reads as the
         rule's ring, as the obstacles component runs them on its ray casting: the rule's
         event raised when the nearest of its beams drops below its threshold (on the
-        rising edge; nothing counts as seen before the first instant)."""
+        rising edge; nothing counts as seen before the first instant), read at the
+        robot's sensing instants only (:meth:`~hybridteam.world.access.WorldAccess.sensing`:
+        its law ticks), as in a simulation: a message arriving between two ticks reads no
+        laser, and what the rule saw at the last tick stands (docs/world.md)."""
         for entry in self.laser_rules:
             rule, ring, seen = entry
+            if not access.sensing(rule.agent, idx)[0]:
+                continue
             ranges = self.lasers[rule.agent].ranges(ring)
             near = bool(detect(ranges[None, :], rule.below, rule.beams)[0])
             if near and not seen:

@@ -484,7 +484,7 @@ class ScannedRobot:
 def test_a_robots_detect_rules_read_its_laser(team_from_yaml):
     """The rule 'front beam below 0.3 raises near' runs in the robot's process on its
     laser: near is raised at the first instant its laser reads 0.2 ahead (run time 0.5,
-    the first control tick or sample past 0.42), and the world process's raising of near
+    the first control tick past 0.42), and the world process's raising of near
     at the start (its model says otherwise) is not taken."""
     from hybridteam.live.run import LiveRun
     from hybridteam.live.transport import UdpTransport
