@@ -132,9 +132,6 @@ class Graph:
 #: The fewest jobs a worker of a pool is given at a time (an engine call has a fixed cost).
 MIN_CHUNK = 256
 
-#: Network parts whose choices :func:`choices` remembers, at most.
-CHOICES_MEMO = 1 << 16
-
 #: ``Graph.parent`` of the initial state.
 NONE = 0xFFFFFFFF
 
@@ -144,59 +141,33 @@ def active_of(s: State, a: int, modes: int) -> np.ndarray:
 
 
 def choices(m: Machine | Reactions, sk: Skeleton, s: State, opts: Options) -> list[tuple]:
-    ample, out, quiet, settled = _network(m.net_choices, sk, s, opts)
-    if ample:  # an ample set: only what can happen to that copy
-        return list(out)
-    out = list(out)
+    quiet = _invisible(s, opts, sk.hears)
+    if quiet is not None:  # an ample set: only what can happen to that copy
+        return _fates(s, opts, quiet)
+    out: list[tuple] = []
+    tried: set = set()
+    for k, c in _arrivals(s, opts):
+        if c not in tried:  # identical copies have identical successors
+            tried.add(c)
+            out += _fates(s, opts, k)
+    for k, e in enumerate(s.outbox):
+        if opts.ack_timing == "any" or not _in_flight(s, e):
+            out.append(("timer", k))
     if s.cursor < len(m.scenario):
         out.append(("scenario",))
     local = [_local(m.local_choices, sk, a, part) for a, part in enumerate(s.agents)]
+    quiet = not s.inflight and not s.outbox
     for a, (timed, _) in enumerate(local):
         for j, untimed in timed:
             if (
                 opts.timeouts == "any"
                 or untimed
-                or (quiet if opts.timeouts == "long" else settled[a])
+                or (quiet if opts.timeouts == "long" else _settled(s, a))
             ):
                 out.append(("time", a, j))
     for a, event in sk.world_events:
         if event in local[a][1]:
             out.append(("world", a, event))
-    return out
-
-
-def _network(cache: dict, sk: Skeleton, s: State, opts: Options) -> tuple:
-    """What ``s``'s network part (copies, outbox, filters) and its loss and duplicate
-    counts allow: ``(ample, choices, quiet, settled)`` — whether ``choices`` are an ample
-    set (the fates of one invisible copy), else the arrivals' fates and the timers;
-    whether nothing is in flight nor unacknowledged; per agent, whether its own messages
-    are settled. Many states share a network part (decoded, its objects: :func:`~.store.decode`),
-    so each is worked out once, keyed on the objects' identities (each entry holds the
-    objects its key names, so their ids stay theirs; a bounded memo, emptied when full)."""
-    key = (id(s.inflight), id(s.outbox), id(s.seen), s.losses, s.dups, id(opts))
-    got = cache.get(key)
-    if got is not None:
-        return got[4]
-    out: tuple[bool, tuple, bool, tuple]
-    one = _invisible(s, opts, sk.hears)
-    if one is not None:
-        out = (True, tuple(_fates(s, opts, one)), False, ())
-    else:
-        fates: list[tuple] = []
-        tried: set = set()
-        for k, c in _arrivals(s, opts):
-            if c not in tried:  # identical copies have identical successors
-                tried.add(c)
-                fates += _fates(s, opts, k)
-        for k, e in enumerate(s.outbox):
-            if opts.ack_timing == "any" or not _in_flight(s, e):
-                fates.append(("timer", k))
-        quiet = not s.inflight and not s.outbox
-        settled = tuple(_settled(s, a) for a in range(len(s.agents)))
-        out = (False, tuple(fates), quiet, settled)
-    if len(cache) >= CHOICES_MEMO:
-        cache.clear()
-    cache[key] = (s.inflight, s.outbox, s.seen, opts, out)
     return out
 
 

@@ -104,10 +104,8 @@ class Machine:
         ens.network.limits = {}
         self.ens = ens
         self._interned: dict = {}  # one object per distinct agent entry and copy
-        #: what each agent part enables, and each network part (:func:`~.explore.choices`'
-        #: memos)
+        #: what each agent part enables (:func:`~.explore.choices`' memo)
         self.local_choices: dict[tuple, tuple] = {}
-        self.net_choices: dict[tuple, tuple] = {}
         #: where the explorer counts the discrete variables' values (:mod:`.bounds`)
         self.values: Values | None = None
         self.fields = self._fields()

@@ -44,9 +44,6 @@ from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import Values
 from hybridteam.verify.machine import Copy, Machine, OutboxEntry, Result, State
 
-#: Entries of :meth:`Reactions._successor`'s memo, at most (a few hundred bytes each).
-SUCCESSOR_MEMO = 1 << 17
-
 #: How a sent copy's message id is rebuilt: no id (a plain message), the choice's input id
 #: (a retransmission's, or the id an ack acknowledges), or the agent's next id plus an offset.
 NO_ID, INPUT_ID, NEW_ID = 0, 1, 2
@@ -80,19 +77,11 @@ class Reactions:
         self.settled: list[set] = [set() for _ in sk.cteam.agents]
         self.hits = 0
         self.misses = 0
-        #: (network part's objects, choice, reaction, next id) -> the successor's network
-        #: part (:meth:`_successor`)
-        self._nets: dict[tuple, tuple] = {}
 
     @property
     def local_choices(self) -> dict[tuple, tuple]:
         """What each agent part enables (:func:`~.explore.choices`' memo)."""
         return self.engine.local_choices
-
-    @property
-    def net_choices(self) -> dict[tuple, tuple]:
-        """What each network part allows (:func:`~.explore.choices`' memo)."""
-        return self.engine.net_choices
 
     @property
     def values(self) -> Values | None:
@@ -151,7 +140,7 @@ class Reactions:
             self.hits += 1
             if not r.zeno:
                 self.settled[a].add(r.part)
-            results[i] = Result(self._successor(s, choice, a, k_in, r), r.zeno, r.reads)
+            results[i] = Result(canonical(self._compose(s, choice, a, k_in, r)), r.zeno, r.reads)
         if misses:
             self.misses += len(misses)
             got = self.engine.run([jobs[i] for i, _, _, _ in misses])
@@ -232,38 +221,6 @@ class Reactions:
             raise RuntimeError(f"reaction table: {choice} filtered {added}")
         return Reaction(
             raw.agents[a], tuple(copies), kept, tuple(entries), bool(added), res.zeno, res.reads
-        )
-
-    def _successor(self, s: State, choice: tuple, a: int, k_in: int, r: Reaction) -> State:
-        """The canonical form of ``s`` after reaction ``r``.
-
-        The successor's network part (copies, outbox, filters, id counters) is a function
-        of the parent's network part, the choice and the reaction alone (the reaction
-        names its agent; ``k_in`` comes from the network part and the choice, and the
-        agent's next id is one of the parent's counters), and many states share a network
-        part (decoded, they share its objects: :func:`~.store.decode`). So it is composed
-        and put in canonical form once per (network part, choice, reaction), keyed on the
-        objects' identities: each entry holds the objects its key names, so no other
-        object can take their ids while it is kept (a bounded memo, emptied when full)."""
-        base = s.next_ids[a]
-        key = (id(s.inflight), id(s.outbox), id(s.seen), choice, id(r), base)
-        hit = self._nets.get(key)
-        if hit is None:
-            nxt = self.engine.canonical(self._compose(s, choice, a, k_in, r))
-            if len(self._nets) >= SUCCESSOR_MEMO:
-                self._nets.clear()
-            self._nets[key] = (s.inflight, s.outbox, s.seen, r, nxt)
-            return nxt
-        net = hit[4]
-        return State(
-            (*s.agents[:a], r.part, *s.agents[a + 1 :]),
-            net.inflight,
-            net.outbox,
-            net.seen,
-            s.cursor + (choice[0] == "scenario"),
-            s.losses,
-            s.dups,
-            net.next_ids,
         )
 
     def _compose(self, s: State, choice: tuple, a: int, k_in: int, r: Reaction) -> State:

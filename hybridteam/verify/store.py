@@ -24,21 +24,13 @@ UINT = np.dtype(f"u{array('I').itemsize}")
 
 
 class Parts:
-    """Distinct hashable values, numbered in order of first appearance.
+    """Distinct hashable values, numbered in order of first appearance."""
 
-    ``nets`` remembers the numbers of whole network parts (:func:`state_key`) and
-    ``decoded`` the network parts of those numbers (:func:`decode`): far fewer of them
-    occur than states, and one look-up replaces one per copy, outbox entry and seen id
-    (bounded memos, emptied when full; a number, once given, never changes)."""
-
-    __slots__ = ("decoded", "net_ids", "nets", "number", "values")
+    __slots__ = ("number", "values")
 
     def __init__(self) -> None:
         self.number: dict = {}
         self.values: list = []
-        self.nets: dict[tuple, tuple] = {}
-        self.decoded: dict[tuple, tuple] = {}
-        self.net_ids: dict[tuple, tuple] = {}  # the objects' ids -> (*objects, numbers)
 
     def of(self, value) -> int:
         k = self.number.get(value)
@@ -114,48 +106,20 @@ class Keys:
             self._place(fp, k)
 
 
-#: Network parts whose numbers :attr:`Parts.nets` remembers, at most.
-NETS_MEMO = 1 << 16
-
-
 def state_key(parts: Parts, s: State) -> bytes:
     """``s`` as the bytes of its parts' numbers (layout: :class:`Store`)."""
     # (Parts.of written out: a call per part is a fifth of the key's time)
     number, values = parts.number, parts.values
     nums: list[int] = []
-    for p in s.agents:
-        k = number.get(p)
-        if k is None:
-            k = number[p] = len(values)
-            values.append(p)
-        nums.append(k)
-    # the same network part's objects recur (:meth:`~.reactions.Reactions._successor`):
-    # looked up by identity first (each entry holds its objects: their ids stay theirs)
-    ids = (id(s.inflight), id(s.outbox), id(s.seen))
-    same = parts.net_ids.get(ids)
-    if same is not None:
-        nums += same[3]
-        nums += (s.cursor, s.losses, s.dups, *s.next_ids)
-        return _pack(nums)
-    net = (s.inflight, s.outbox, s.seen)
-    tail = parts.nets.get(net)
-    if tail is None:  # each group counted, then its parts (numbered in this order)
-        out: list[int] = []
-        for group in net:
-            out.append(len(group))
-            for p in group:
-                k = number.get(p)
-                if k is None:
-                    k = number[p] = len(values)
-                    values.append(p)
-                out.append(k)
-        if len(parts.nets) >= NETS_MEMO:
-            parts.nets.clear()
-        tail = parts.nets[net] = tuple(out)
-    if len(parts.net_ids) >= NETS_MEMO:
-        parts.net_ids.clear()
-    parts.net_ids[ids] = (*net, tail)
-    nums += tail
+    for group in (s.agents, s.inflight, s.outbox, s.seen):
+        if nums:  # the groups after the agents are counted
+            nums.append(len(group))
+        for p in group:
+            k = number.get(p)
+            if k is None:
+                k = number[p] = len(values)
+                values.append(p)
+            nums.append(k)
     nums += (s.cursor, s.losses, s.dups, *s.next_ids)
     return _pack(nums)
 
@@ -255,27 +219,17 @@ def decode(parts: Parts, agents: int, key: bytes) -> State:
     """The state of ``key`` (:func:`state_key`) for a team of ``agents`` agents."""
     nums = key_numbers(key)
     values = parts.values
-    pos = agents
+    pos, groups = agents, []
     for _ in range(3):
-        pos += 1 + nums[pos]
-    width = nums.itemsize
-    tail = (key[0], key[1 + agents * width : 1 + pos * width])  # the network part's numbers
-    net = parts.decoded.get(tail)
-    if net is None:
-        groups, at = [], agents
-        for _ in range(3):
-            count = nums[at]
-            groups.append(tuple(values[n] for n in nums[at + 1 : at + 1 + count]))
-            at += 1 + count
-        if len(parts.decoded) >= NETS_MEMO:
-            parts.decoded.clear()
-        net = parts.decoded[tail] = tuple(groups)
+        count = nums[pos]
+        groups.append(tuple(values[n] for n in nums[pos + 1 : pos + 1 + count]))
+        pos += 1 + count
     cursor, losses, dups = nums[pos : pos + 3]
     return State(
         tuple(values[n] for n in nums[:agents]),
-        net[0],
-        net[1],
-        net[2],
+        groups[0],
+        groups[1],
+        groups[2],
         cursor,
         losses,
         dups,

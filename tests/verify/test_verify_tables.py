@@ -6,7 +6,6 @@ the verdicts and the counterexamples (their paths, step by step) are the same to
 
 from __future__ import annotations
 
-import importlib
 import re
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import pytest
 from hybridteam import load
 from hybridteam.cli import main
 from hybridteam.engine.compile.compiler import compile_team
-from hybridteam.verify import Options, reactions, store, verify
+from hybridteam.verify import Options, verify
 from hybridteam.verify.abstraction import skeleton
 from hybridteam.verify.explore import Graph, choices
 from hybridteam.verify.machine import Machine
@@ -241,43 +240,3 @@ def test_cli_reference_prints_the_same_verdicts(tmp_path, capsys):
         return [re.sub(r"[0-9.]+ s\b", "", line) for line in out.splitlines() if "/s" not in line]
 
     assert untimed(ours) == untimed(ref)
-
-
-def test_the_memos_change_no_graph(tmp_path, monkeypatch):
-    """Network parts' canonical forms, their numbers, their decoded objects, their
-    choices and the successors' network parts are remembered (bounded memos, emptied
-    when full): emptied at every entry they give the same graph, verdicts and
-    counterexamples as when they keep everything."""
-    team = roles_team(tmp_path, "a", NO_DEDUPE, extra=RESTORED, without_c=True)
-    kept = verify(team, Options(losses=1), replay=False)
-    monkeypatch.setattr(store, "NETS_MEMO", 1)
-    monkeypatch.setattr(reactions, "SUCCESSOR_MEMO", 1)
-    # (the package's name explore is the function: the module from sys.modules)
-    monkeypatch.setattr(importlib.import_module("hybridteam.verify.explore"), "CHOICES_MEMO", 1)
-    emptied = verify(team, Options(losses=1), replay=False)
-    same_graph(kept.graph, emptied.graph)
-    assert any(not v.holds for v in kept.verdicts)
-    for v, w in zip(kept.violated, emptied.violated, strict=True):
-        assert kept.counterexample(v) == emptied.counterexample(w)
-
-
-def test_states_with_one_network_part_share_its_objects(tmp_path):
-    """Decoded states with equal network parts (copies, outbox, filters) hold the same
-    objects, and the successors composed from them too: what lets the choices, the
-    successors' network parts and their numbers be looked up by identity rather than
-    hashed again per state."""
-    team = roles_team(tmp_path, "b")
-    graph = verify(team, Options(losses=1), replay=False).graph
-    states = graph.states
-    first: dict[tuple, int] = {}
-    pairs = 0
-    for k in range(len(states)):
-        s = states[k]
-        net = (s.inflight, s.outbox, s.seen)
-        if net in first and s.inflight:
-            t = states[first[net]]
-            assert (t.inflight, t.outbox, t.seen) == net
-            assert t.inflight is s.inflight and t.outbox is s.outbox and t.seen is s.seen
-            pairs += 1
-        first.setdefault(net, k)
-    assert pairs  # (states of one network part occur)
