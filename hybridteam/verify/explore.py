@@ -175,7 +175,8 @@ def _local(cache: dict, sk: Skeleton, a: int, part: tuple) -> tuple:
     """What agent ``a``'s part enables, whatever the rest of the state: its time-driven
     transitions ``(j, untimed)`` (``untimed``: no ``after:``) whose source is active, and
     the world events some active mode waits for. Few distinct parts occur, each in many
-    states, so each is worked out once (``cache``: the successor function's)."""
+    states (the store numbers each once), so each is worked out once (``cache``: the
+    successor function's; an entry a part)."""
     got = cache.get((a, part))
     if got is None:
         ca = sk.cteam.agents[a]
