@@ -155,23 +155,44 @@ def choices(m: Machine | Reactions, sk: Skeleton, s: State, opts: Options) -> li
             out.append(("timer", k))
     if s.cursor < len(m.scenario):
         out.append(("scenario",))
-    agents = sk.cteam.agents
-    acts = [active_of(s, a, len(ca.modes)) for a, ca in enumerate(agents)]
+    local = [_local(m.local_choices, sk, a, part) for a, part in enumerate(s.agents)]
     quiet = not s.inflight and not s.outbox
-    for a, js in enumerate(sk.time_driven):
-        for j in js:
-            tr = agents[a].transitions[j]
-            if acts[a][tr.source] and (
+    for a, (timed, _) in enumerate(local):
+        for j, untimed in timed:
+            if (
                 opts.timeouts == "any"
-                or tr.after is None
+                or untimed
                 or (quiet if opts.timeouts == "long" else _settled(s, a))
             ):
                 out.append(("time", a, j))
     for a, event in sk.world_events:
-        ca = agents[a]
-        if any(acts[a][ca.transitions[j].source] for j in ca.waiting(event)):
+        if event in local[a][1]:
             out.append(("world", a, event))
     return out
+
+
+def _local(cache: dict, sk: Skeleton, a: int, part: tuple) -> tuple:
+    """What agent ``a``'s part enables, whatever the rest of the state: its time-driven
+    transitions ``(j, untimed)`` (``untimed``: no ``after:``) whose source is active, and
+    the world events some active mode waits for. Few distinct parts occur, each in many
+    states (the store numbers each once), so each is worked out once (``cache``: the
+    successor function's; an entry a part)."""
+    got = cache.get((a, part))
+    if got is None:
+        ca = sk.cteam.agents[a]
+        act = np.frombuffer(part[0][: len(ca.modes)], np.uint8).astype(bool)
+        timed = tuple(
+            (j, ca.transitions[j].after is None)
+            for j in sk.time_driven[a]
+            if act[ca.transitions[j].source]
+        )
+        events = frozenset(
+            event
+            for b, event in sk.world_events
+            if b == a and any(act[ca.transitions[j].source] for j in ca.waiting(event))
+        )
+        got = cache[(a, part)] = (timed, events)
+    return got
 
 
 def _arrivals(s: State, opts: Options):

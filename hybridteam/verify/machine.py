@@ -104,6 +104,8 @@ class Machine:
         ens.network.limits = {}
         self.ens = ens
         self._interned: dict = {}  # one object per distinct agent entry and copy
+        #: what each agent part enables (:func:`~.explore.choices`' memo)
+        self.local_choices: dict[tuple, tuple] = {}
         #: where the explorer counts the discrete variables' values (:mod:`.bounds`)
         self.values: Values | None = None
         self.fields = self._fields()
@@ -410,38 +412,65 @@ class Machine:
         return s if self.raw else self.canonical(s)
 
     def canonical(self, s: State) -> State:
-        """Drop what can no longer matter and renumber message ids per sender."""
-        waiting = {(e.sender, e.msg_id): e.waiting for e in s.outbox}
-        flying = {(c.sender, c.receiver, c.msg_id) for c in s.inflight if c.type != ACK}
-        seen = sorted(
-            {
-                (r, snd, k)
-                for r, snd, k in s.seen  # a set: the parent's entries
-                if (snd, r, k) in flying or r in waiting.get((snd, k), ())
-            }
-        )
-        inflight = [
-            c
-            for c in s.inflight
-            if c.type != ACK or c.sender in waiting.get((c.receiver, _ack_id(c)), ())
-        ]
+        """Drop what can no longer matter and renumber message ids per sender.
+
+        Every successor passes here, so it is one pass over the copies that unpacks each
+        (a named tuple's attribute reads, and a comprehension per question, cost more)."""
+        outbox = s.outbox
+        waiting = {(e[0], e[1]): e[5] for e in outbox} if outbox else {}
         live: dict[int, set[int]] = {}
-        for c in inflight:
-            if c.type == ACK:
-                live.setdefault(c.receiver, set()).add(_ack_id(c))
-            elif c.msg_id >= 0:
-                live.setdefault(c.sender, set()).add(c.msg_id)
-        for e in s.outbox:
-            live.setdefault(e.sender, set()).add(e.msg_id)
-        for _, snd, k in seen:
-            live.setdefault(snd, set()).add(k)
-        counts = tuple(len(live.get(a, ())) for a in range(len(self.cteam.agents)))
+        flying = set()
+        inflight = []
+        for c in s.inflight:
+            snd, rcv, _, typ, k, fields = c
+            if typ == ACK:
+                k = int(fields[0][1])
+                if snd not in waiting.get((rcv, k), ()):
+                    continue  # no outbox entry waits for it any more
+                owner = rcv
+            else:
+                flying.add((snd, rcv, k))
+                if k < 0:
+                    inflight.append(c)
+                    continue
+                owner = snd
+            inflight.append(c)
+            ids = live.get(owner)
+            if ids is None:
+                live[owner] = {k}
+            else:
+                ids.add(k)
+        for e in outbox:
+            ids = live.get(e[0])
+            if ids is None:
+                live[e[0]] = {e[1]}
+            else:
+                ids.add(e[1])
+        seen = []
+        if s.seen:  # (a set: the parent's entries)
+            seen = sorted(
+                {
+                    t
+                    for t in s.seen
+                    if (t[1], t[0], t[2]) in flying or t[0] in waiting.get((t[1], t[2]), ())
+                }
+            )
+            for _, snd, k in seen:
+                ids = live.get(snd)
+                if ids is None:
+                    live[snd] = {k}
+                else:
+                    ids.add(k)
+        counts = tuple(len(live[a]) if a in live else 0 for a in range(len(self.cteam.agents)))
         order = _link if self.fifo else None
-        if all(max(ks) == len(ks) - 1 for ks in live.values()):  # ids are 0.. already
+        for ks in live.values():
+            if max(ks) != len(ks) - 1:
+                break
+        else:  # ids are 0.. already
             return State(
                 s.agents,
                 tuple(sorted(inflight, key=order)),
-                tuple(sorted(s.outbox)),
+                tuple(sorted(outbox)),
                 tuple(seen),
                 s.cursor,
                 s.losses,
@@ -462,7 +491,7 @@ class Machine:
         return State(
             s.agents,
             tuple(sorted((copy(c) for c in inflight), key=order)),
-            tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in s.outbox)),
+            tuple(sorted(e._replace(msg_id=new[e.sender][e.msg_id]) for e in outbox)),
             tuple(sorted((r, snd, new[snd][k]) for r, snd, k in seen)),
             s.cursor,
             s.losses,

@@ -79,6 +79,11 @@ class Reactions:
         self.misses = 0
 
     @property
+    def local_choices(self) -> dict[tuple, tuple]:
+        """What each agent part enables (:func:`~.explore.choices`' memo)."""
+        return self.engine.local_choices
+
+    @property
     def values(self) -> Values | None:
         return self.engine.values
 
