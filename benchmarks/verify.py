@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import resource
 import subprocess
@@ -246,12 +247,9 @@ def _cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def compare_runs(args: argparse.Namespace) -> None:
-    """Each check with ``--jobs 1`` against ``--jobs N`` (alternating, twice each), or
-    with each storage mode: seconds, and the ratio to the first of them."""
-    base = [
-        sys.executable,
-        __file__,
+def _check_args(args: argparse.Namespace) -> list[str]:
+    """The options every check's own process is given: its bound, scenario and timeouts."""
+    return [
         "--max-states",
         str(args.max_states),
         "--scenario",
@@ -259,6 +257,12 @@ def compare_runs(args: argparse.Namespace) -> None:
         "--timeouts",
         args.timeouts,
     ]
+
+
+def compare_runs(args: argparse.Namespace) -> None:
+    """Each check with ``--jobs 1`` against ``--jobs N`` (alternating, twice each), or
+    with each storage mode: seconds, and the ratio to the first of them."""
+    base = [sys.executable, __file__, *_check_args(args)]
     if args.compare == "jobs":
         jobs = args.jobs if args.jobs > 1 else 2
         variants = [["--jobs", "1"], ["--jobs", str(jobs)]] * 2
@@ -281,8 +285,9 @@ def compare_runs(args: argparse.Namespace) -> None:
                 seconds = float(row.split()[4])
                 best[name] = min(seconds, best.get(name, seconds))
                 first = best[" ".join(variants[0])]
+                ratio = first / seconds if seconds else math.nan  # (under 0.05 s: too short)
                 print(
-                    f"{name:>22} {seconds:>8.1f} {first / seconds:>6.2f} {cpu:>6.1f}  {row}",
+                    f"{name:>22} {seconds:>8.1f} {ratio:>6.2f} {cpu:>6.1f}  {row}",
                     flush=True,
                 )
             if args.compare == "jobs":
@@ -346,13 +351,9 @@ def main() -> None:
     )
     # each check in a process of its own, so its peak memory is its own
     rest = [
-        "--max-states",
-        str(args.max_states),
-        "--scenario",
-        args.scenario,
-        "--timeouts",
-        args.timeouts,
+        *_check_args(args),
         *(["--reference"] if args.reference else []),
+        *("--storage", args.storage, "--jobs", str(args.jobs)),
     ]
     for robots in args.robots:
         for losses in args.losses:
