@@ -126,3 +126,13 @@ def test_copies_in_flight_when_the_streams_stop_are_instants_again(tmp_path):
     (end,) = run.summary()["instances"]
     assert end["outcome"] == "deadlock"
     assert end["t_end"] == 4 * 0.1 + 0.25
+
+
+def test_a_copy_without_latency_is_read_at_its_send_instant(tmp_path):
+    """With no latency a copy arrives within the instant it is sent at, where a law whose
+    mode was entered then samples again: s enters Go at 0.2 s and reads the copy r sends
+    at 0.2 s (x = 0.1), not the one of 0.1 s. At its later ticks k * 0.1 the laws sample
+    before the streams send, so s reads the copy of the tick before: speeds 0.10, 0.10,
+    0.15, ..., 0.40 over [0.2, 1.0], so s ends 0.1 * (0.1 + 0.05 * (2 + ... + 8)) m on."""
+    run = ht.simulate(chase(tmp_path, latency=0.0, jitter=0.0))
+    assert run.samples["s"][-1, 0, 0] == pytest.approx(0.1 * (0.1 + 0.05 * 35), abs=1e-12)

@@ -34,7 +34,9 @@ class EventQueue:
         self.next = np.full(n, np.inf)
         #: message events no instant needs (:mod:`.quiet`): ``(receiving agent, type)``
         #: pairs whose copies are held apart, out of ``next``, while ``holding`` (per
-        #: instance); empty unless the simulator asks (a live run, a verifier never do)
+        #: instance) — but a copy that arrives as it is sent, within its send's instant
+        #: (where a law whose mode was entered then samples again); empty unless the
+        #: simulator asks (a live run, a verifier never do)
         self.quiet: frozenset[tuple[int, str]] = frozenset()
         self.holding = np.ones(n, bool)
         #: the held copies per instance (a heap of queue entries, the same tuples), and
@@ -96,7 +98,7 @@ class EventQueue:
         if kind == MESSAGE and (agent, name) in self.quiet:
             for i, ti, r, s, payload in entries:
                 entry = (ti, kind, r, agent, s, name, payload)
-                if self.holding[i]:
+                if self.holding[i] and ti > payload.t_send:
                     self._hold(i, entry)
                 else:
                     heapq.heappush(self.heaps.setdefault(i, []), entry)
@@ -114,7 +116,13 @@ class EventQueue:
         s = int(self.seq[i])
         self.seq[i] = s + 1
         entry = (t, kind, rank, agent, s, name, payload)
-        if kind == MESSAGE and self.quiet and (agent, name) in self.quiet and self.holding[i]:
+        if (
+            kind == MESSAGE
+            and self.quiet
+            and (agent, name) in self.quiet
+            and self.holding[i]
+            and t > payload.t_send
+        ):
             self._hold(i, entry)
             return
         heapq.heappush(self.heaps.setdefault(i, []), entry)
@@ -168,7 +176,8 @@ class EventQueue:
     def pending(self, idx: np.ndarray) -> np.ndarray:
         """Whether anything is still queued (now or later) for each instance, held copies
         included."""
-        return np.isfinite(self.next[idx]) | np.isfinite(self.held_next[idx])
+        queued = np.isfinite(self.next[idx])
+        return queued | np.isfinite(self.held_next[idx]) if self.held else queued
 
     def pop_due(
         self, idx: np.ndarray, t: np.ndarray

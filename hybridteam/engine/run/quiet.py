@@ -16,6 +16,8 @@ receiver's next law tick. A copy is *quiet* when, for its receiver and its type:
   (``WorldComponent.sensing_instants_only``), and while some robot the world may judge
   senses at every instant (no control period: ``next_tick`` infinite) the instance holds
   nothing (its copies' arrivals are sensing instants for that robot);
+- it arrives after the instant it is sent at (a copy without latency arrives within its
+  send's instant, where a law whose mode was entered then samples again and reads it);
 - something else keeps the instance from a deadlock (a running stream, or a component
   that raises events): the last copy in flight of a stalled team is where its deadlock is
   found, so while nothing streams the copies are instants again.
