@@ -159,7 +159,9 @@ class Simulator:
         pace = Pace(ens.t_end, self.max_wall)
         with np.errstate(all="ignore"):
             net = ens.network  # (a live run's outlet and a replay's script are set by now)
-            if self.clock is self.plants is net.outlet is net.script is None:
+            simulated = getattr(self.clock, "simulated_time", False)  # (a log's replay)
+            medium = (self.clock is net.outlet is None) or simulated
+            if medium and self.plants is net.script is None:
                 quiet = QuietCopies(ens)
                 self.quiet = quiet if quiet.any else None
             self._initialize()
