@@ -29,6 +29,7 @@ encoded as one datagram, :mod:`hybridteam.live.wire`, on a transport).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -313,18 +314,18 @@ class Network:
             latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r), self.default))
             copy = mix_one(mix_one(by_sender, r), seq) if loss > 0.0 or jitter > 0.0 else 0
             if loss > 0.0 and unit(mix_one(copy, LOSS)) < loss:
-                self.rec.message(
-                    np.array([i]),
-                    np.array([seq], np.int64),
+                self.rec.message_row(
+                    i,
+                    seq,
                     sender,
                     r,
                     socket,
                     type_,
-                    np.array([ts]),
-                    np.array([np.nan]),
+                    ts,
+                    math.nan,
                     "lost",
                     "loss" + (f" ({note})" if note else ""),
-                    np.array([msg_id], np.int64),
+                    msg_id,
                 )
                 continue
             u = unit(mix_one(copy, JITTER)) if jitter > 0.0 else 0.0
