@@ -244,7 +244,9 @@ class Conformance:
 class ReplayClock:
     """The engine's clock seam on simulated time: before the first step it queues every
     copy the log records as received, at its receive time; then the loop runs as a
-    simulation's does (no waiting)."""
+    simulation's does (no waiting), quiet stream copies held as a simulation holds them."""
+
+    simulated_time = True
 
     def __init__(self, copies: list[tuple[float, Message]]) -> None:
         self.copies = copies

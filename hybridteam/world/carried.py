@@ -126,6 +126,7 @@ class CarriedPayload(WorldComponent):
         "grasps": [],
         "pose": [],
     }
+    sensing_instants_only: ClassVar[bool] = True
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:

@@ -57,6 +57,11 @@ class WorldComponent:
     #: numbers written as numbers stay plain floats. ``hybridteam validate`` checks the
     #: expressions where they are written.
     per_instance: ClassVar[tuple[str, ...]] = ()
+    #: Whether ``update`` judges robots only at their sensing instants
+    #: (``world.sensing``) and does nothing an instant where none senses would miss: the
+    #: engine may then hold a stream copy that changes nothing else between two of them
+    #: rather than make its arrival an instant (``engine/run/quiet.py``).
+    sensing_instants_only: ClassVar[bool] = False
 
     @classmethod
     def batch(cls, request: BatchRequest) -> list[dict[str, Any]] | None:

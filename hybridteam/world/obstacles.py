@@ -117,6 +117,7 @@ class Obstacles(WorldComponent):
     }
     #: a door's jambs may be expressions of team parameters (a study sweeps its width)
     per_instance: ClassVar[tuple[str, ...]] = ("walls", "circles", "boxes")
+    sensing_instants_only: ClassVar[bool] = True
 
     @classmethod
     def check(cls, team: Team, values: Mapping[str, Any]) -> list[ModelError]:

@@ -15,7 +15,11 @@ until that instant is due, put whatever arrived meanwhile on the event queue at 
 arrival time (:meth:`.network.Network.arrive`, never earlier than the ensemble's present,
 so the step ends there), or end the run (:meth:`.ensemble.Ensemble.finish`). It must not
 move the ensemble's time itself: the step does. The live implementation is
-:class:`hybridteam.live.clock.WallClock` (``hybridteam/live/clock.py``).
+:class:`hybridteam.live.clock.WallClock` (``hybridteam/live/clock.py``). A clock on
+simulated time that queues copies as a simulation's medium would (a log's replay,
+:class:`hybridteam.logs.conformance.ReplayClock`) says so with ``simulated_time = True``:
+the run then holds quiet stream copies as a simulation does (:mod:`.quiet`), so a
+simulated run's replay takes the simulation's steps.
 """
 
 from __future__ import annotations

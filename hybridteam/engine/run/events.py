@@ -32,6 +32,17 @@ class EventQueue:
         self.heaps: dict[int, list[tuple]] = {}
         self.seq = np.zeros(n, np.int64)
         self.next = np.full(n, np.inf)
+        #: message events no instant needs (:mod:`.quiet`): ``(receiving agent, type)``
+        #: pairs whose copies are held apart, out of ``next``, while ``holding`` (per
+        #: instance) — but a copy that arrives as it is sent, within its send's instant
+        #: (where a law whose mode was entered then samples again); empty unless the
+        #: simulator asks (a live run, a verifier never do)
+        self.quiet: frozenset[tuple[int, str]] = frozenset()
+        self.holding = np.ones(n, bool)
+        #: the held copies per instance (a heap of queue entries, the same tuples), and
+        #: each instance's earliest (inf: none)
+        self.held: dict[int, list[tuple]] = {}
+        self.held_next = np.full(n, np.inf)
         self._refresh(np.arange(n))
 
     def _refresh(self, idx: np.ndarray) -> None:
@@ -81,9 +92,20 @@ class EventQueue:
         seqs = self.seq[idx].copy()
         self.seq[idx] += 1
         ranks = spread(np.asarray(rank, float), idx.shape).tolist()
-        for i, ti, r, s, payload in zip(
+        entries = zip(
             idx.tolist(), spread(t, idx.shape).tolist(), ranks, seqs.tolist(), payloads, strict=True
-        ):
+        )
+        if kind == MESSAGE and (agent, name) in self.quiet:
+            for i, ti, r, s, payload in entries:
+                entry = (ti, kind, r, agent, s, name, payload)
+                if self.holding[i] and ti > payload.t_send:
+                    self._hold(i, entry)
+                else:
+                    heapq.heappush(self.heaps.setdefault(i, []), entry)
+                    if ti < self.next[i]:
+                        self.next[i] = ti
+            return
+        for i, ti, r, s, payload in entries:
             heapq.heappush(self.heaps.setdefault(i, []), (ti, kind, r, agent, s, name, payload))
         np.minimum.at(self.next, idx, t)
 
@@ -93,22 +115,69 @@ class EventQueue:
         """:meth:`push_each` for one instance, on plain numbers (a single run's sends)."""
         s = int(self.seq[i])
         self.seq[i] = s + 1
-        heapq.heappush(self.heaps.setdefault(i, []), (t, kind, rank, agent, s, name, payload))
+        entry = (t, kind, rank, agent, s, name, payload)
+        if (
+            kind == MESSAGE
+            and self.quiet
+            and (agent, name) in self.quiet
+            and self.holding[i]
+            and t > payload.t_send
+        ):
+            self._hold(i, entry)
+            return
+        heapq.heappush(self.heaps.setdefault(i, []), entry)
         if t < self.next[i]:
             self.next[i] = t
+
+    # ------------------------------------------------------------------ quiet copies
+    def _hold(self, i: int, entry: tuple) -> None:
+        """Keep a quiet copy apart: no step ends at it (it is not in ``next``)."""
+        heapq.heappush(self.held.setdefault(i, []), entry)
+        if entry[0] < self.held_next[i]:
+            self.held_next[i] = entry[0]
+
+    def take_held(self, i: int, t: float) -> list[tuple]:
+        """Instance ``i``'s held copies that arrived before ``t``, in the queue's order (to
+        be received now, at their own times); those arriving at ``t`` itself join the
+        queue, where the instant's discrete phase takes them in order with its other
+        events (``next`` then says so)."""
+        heap = self.held.get(i)
+        out: list[tuple] = []
+        while heap and heap[0][0] <= t:
+            entry = heapq.heappop(heap)
+            if entry[0] < t:
+                out.append(entry)
+            else:
+                heapq.heappush(self.heaps.setdefault(i, []), entry)
+                if t < self.next[i]:
+                    self.next[i] = t
+        self.held_next[i] = heap[0][0] if heap else np.inf
+        return out
+
+    def wake(self, i: int) -> None:
+        """Stop holding instance ``i``'s copies: those held join the queue (each arrival is
+        an instant again), and later ones are queued as they are sent."""
+        self.holding[i] = False
+        heap = self.held.pop(i, None)
+        self.held_next[i] = np.inf
+        for entry in heap or ():
+            heapq.heappush(self.heaps.setdefault(i, []), entry)
+            if entry[0] < self.next[i]:
+                self.next[i] = entry[0]
 
     def pending_messages(self) -> list[tuple[int, Any]]:
         """(instance, payload) of every message still queued, in instance order."""
         out = []
-        for i in sorted(self.heaps):
-            out += [
-                (i, e[6]) for e in sorted(self.heaps[i], key=lambda e: e[:5]) if e[1] == MESSAGE
-            ]
+        for i in sorted(self.heaps.keys() | self.held.keys()):
+            events = self.heaps.get(i, []) + self.held.get(i, [])
+            out += [(i, e[6]) for e in sorted(events, key=lambda e: e[:5]) if e[1] == MESSAGE]
         return out
 
     def pending(self, idx: np.ndarray) -> np.ndarray:
-        """Whether anything is still queued (now or later) for each instance."""
-        return np.isfinite(self.next[idx])
+        """Whether anything is still queued (now or later) for each instance, held copies
+        included."""
+        queued = np.isfinite(self.next[idx])
+        return queued | np.isfinite(self.held_next[idx]) if self.held else queued
 
     def pop_due(
         self, idx: np.ndarray, t: np.ndarray

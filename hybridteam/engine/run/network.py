@@ -29,6 +29,7 @@ encoded as one datagram, :mod:`hybridteam.live.wire`, on a transport).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -45,7 +46,7 @@ from hybridteam.engine.run.overrides import (
     network_targets,
     override_values,
 )
-from hybridteam.engine.run.randomness import instance_keys, uniform
+from hybridteam.engine.run.randomness import instance_keys, mix_one, uniform, unit
 from hybridteam.errors import ModelError, ModelErrors
 from hybridteam.model import Team
 
@@ -304,28 +305,30 @@ class Network:
     ) -> None:
         """:meth:`send` for one instance ``i`` (a single run's every message): the same
         draws and arithmetic on scalars, without the masks and broadcasts an ensemble
-        needs (arrays only for the draws, which hash them)."""
+        needs; the draws hashed on ints (:func:`.randomness.mix_one`, the same bits)."""
         values = {f: v[0].item() for f, v in fields.items()}
-        key = self.keys[i : i + 1]
-        k = np.array([seq], np.int64)
+        # the draws of uniform(key, sender, r, seq, LOSS or JITTER), hashed on ints: the
+        # key and sender's step is every receiver's
+        by_sender = mix_one(int(self.keys[i]), sender)
         for r in self._receivers_of_one(sender, to):
             latency, jitter, loss = (float(a[i]) for a in self.links.get((sender, r), self.default))
-            if loss > 0.0 and uniform(key, sender, r, k, LOSS)[0] < loss:
-                self.rec.message(
-                    np.array([i]),
-                    k,
+            copy = mix_one(mix_one(by_sender, r), seq) if loss > 0.0 or jitter > 0.0 else 0
+            if loss > 0.0 and unit(mix_one(copy, LOSS)) < loss:
+                self.rec.message_row(
+                    i,
+                    seq,
                     sender,
                     r,
                     socket,
                     type_,
-                    np.array([ts]),
-                    np.array([np.nan]),
+                    ts,
+                    math.nan,
                     "lost",
                     "loss" + (f" ({note})" if note else ""),
-                    np.array([msg_id], np.int64),
+                    msg_id,
                 )
                 continue
-            u = float(uniform(key, sender, r, k, JITTER)[0]) if jitter > 0.0 else 0.0
+            u = unit(mix_one(copy, JITTER)) if jitter > 0.0 else 0.0
             msg = Message(sender, r, seq, ts, socket, type_, dict(values), msg_id, note)
             self.queue.push_one(i, ts + latency + jitter * u, MESSAGE, r, type_, msg, rank)
 

@@ -34,6 +34,7 @@ from hybridteam.engine.run.ensemble import Ensemble
 from hybridteam.engine.run.numerics import stop_broken_states
 from hybridteam.engine.run.outcomes import check_instances
 from hybridteam.engine.run.plant import ExternalPlant, check_external
+from hybridteam.engine.run.quiet import QuietCopies
 from hybridteam.engine.run.record import trace_meta, variables_key
 from hybridteam.engine.run.schedule import earliest
 from hybridteam.engine.run.step import AgentStep, state_at, take_step
@@ -142,6 +143,9 @@ class Simulator:
         #: has for its flowing rows
         self._no_rows = np.zeros(self.ensemble.n, bool)
         self._no_rows.flags.writeable = False
+        #: stream copies held rather than made instants (:mod:`.quiet`), from the run's
+        #: start: None in a live run or a replay, or where no copy can be quiet
+        self.quiet: QuietCopies | None = None
 
     @property
     def costs(self) -> Costs:
@@ -154,6 +158,12 @@ class Simulator:
         ens = self.ensemble
         pace = Pace(ens.t_end, self.max_wall)
         with np.errstate(all="ignore"):
+            net = ens.network  # (a live run's outlet and a replay's script are set by now)
+            simulated = getattr(self.clock, "simulated_time", False)  # (a log's replay)
+            medium = (self.clock is net.outlet is None) or simulated
+            if medium and self.plants is net.script is None:
+                quiet = QuietCopies(ens)
+                self.quiet = quiet if quiet.any else None
             self._initialize()
             last_report = -1.0
             steps = 0
@@ -213,6 +223,10 @@ class Simulator:
         happened (a transition, an event, a located crossing).
         """
         ens = self.ensemble
+        if self.quiet is not None:  # held copies that arrived since the last instant
+            now = self.quiet.receive(idx)
+            if now.size and discrete is not None:
+                discrete = union(discrete, now)
         # only law ticks or stream copies reached, and no component that could raise an
         # event or move a state: nothing fires, no mode, variable or state changes, so no
         # instance is marked changed or reconfigured (their flags are not read)
@@ -300,6 +314,8 @@ class Simulator:
             for a, plant in self.plants.items():
                 plant.command(ens.states[a].u[0].copy(), t)
         ens.streams.update(live, config)
+        if self.quiet is not None and config.size:
+            self.quiet.refresh(config)
         if crossed is not None and crossed.size:
             changed = union(changed, crossed[~ens.done[crossed]])
         check_instances(ens, changed, None if entering else config)
@@ -485,6 +501,8 @@ class Simulator:
     def _close(self) -> Trace:
         ens = self.ensemble
         everyone = np.arange(ens.n)
+        if self.quiet is not None:
+            self.quiet.close()
         for st in ens.states:
             st.exit(0, everyone, ens.t, ens.rec)
         ens.network.close(ens.queue.pending_messages())

@@ -56,7 +56,7 @@ class AgentState:
         #: whether a watched atom may read stream estimates (``est_*``), which a message
         #: changes without any transition: its truths are then refreshed after every event
         self.watch_estimates = any(
-            _reads_estimates(w.atom if w.owner is None else w.owner) for w in ca.watches
+            reads_estimates(w.atom if w.owner is None else w.owner) for w in ca.watches
         )
         #: whether an urgent guard may change its answer while no transition fires (see
         #: discrete_phase): it reads stream estimates, or it is not a plain expression (the
@@ -238,10 +238,10 @@ def _volatile(guard) -> bool:
     it reads stream estimates, or it is not a compiled expression (no ``names``)."""
     if guard is None:
         return False
-    return getattr(guard, "names", None) is None or _reads_estimates(guard)
+    return getattr(guard, "names", None) is None or reads_estimates(guard)
 
 
-def _reads_estimates(expr) -> bool:
+def reads_estimates(expr) -> bool:
     """Whether an expression (its names) or an atom (its text, a superset) reads stream
     estimates (``est_*``), which a copy's arrival changes."""
     names = getattr(expr, "names", None)
