@@ -196,9 +196,12 @@ def export(
     ack_timing: str = "bounded",
     order: str = "any",
     timeouts: str = "any",
+    reduce: bool = True,
 ) -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
-    out one (agent, transition) — only to show that the comparison catches a wrong model."""
+    out one (agent, transition) — only to show that the comparison catches a wrong model.
+    ``reduce``: an invisible copy's fates first (:func:`_first_invisible`; with
+    ``--ack-timing bounded`` only), else SPIN explores every interleaving."""
     team = sk.original
     fields = {k: sorted(v) for k, v in message_fields(team.team).items()}
     exact = {t: [f for f in fs if (t, f) not in sk.abstract_fields] for t, fs in fields.items()}
@@ -228,6 +231,7 @@ def export(
         ack_timing == "bounded",
         order == "fifo",
         timeouts,
+        reduce and ack_timing == "bounded",
     )
     ctx.outbox = outbox
     lines = [
@@ -251,6 +255,7 @@ def export(
         "byte dups = 0;",
         "bit overflow = 0;",
         "bit moved = 0;",
+        "byte inv = 0;",
         "hidden byte sl;",
         "hidden byte so;",
         "hidden byte r_snd;",
@@ -264,6 +269,7 @@ def export(
         f"hidden byte rq[{RAISED}];",
         "hidden byte nr;",
         "hidden byte ri;",
+        *_first_invisible(agents, types, slots, seen, ctx.fifo, ctx.reduce),
         *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types)),
         *_note(agents),
     ]
@@ -531,11 +537,11 @@ class _Ctx:
     """Translation of guards, actions and steps (one model's worth of names)."""
 
     def __init__(
-        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts
+        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts, reduce
     ) -> None:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
         self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
-        self.fifo, self.timeouts = fifo, timeouts
+        self.fifo, self.timeouts, self.reduce = fifo, timeouts, reduce
         self.outbox = OUTBOX  # (export sets the model's size)
         self.events = self.raised_events()
 
@@ -727,6 +733,18 @@ class _Ctx:
             return f"fl[{k}].used"
         return f"fl[{k}].used && (fl[{k - 1}].snd != fl[{k}].snd || fl[{k - 1}].rcv != fl[{k}].rcv)"
 
+    def fate(self, k: int) -> str:
+        """``arrives(k)``, and where an invisible copy flies only if it is that copy
+        (:func:`_first_invisible`): what may happen to the copy in slot ``k`` next."""
+        if not self.reduce:
+            return self.arrives(k)
+        return f"{self.arrives(k)} && (inv == 0 || inv == {k + 1})"
+
+    def visible(self) -> str:
+        """The condition of every step that is not a copy's fate: no invisible copy flies
+        (``1`` without the reduction)."""
+        return "inv == 0" if self.reduce else "1"
+
     def choose(self, free: list[str], who: str) -> str:
         """Nondeterministic values of the free comparisons a step reads (bits ``fr<k>``,
         set inside the step's atomic sequence before its ``d_step``)."""
@@ -783,7 +801,7 @@ class _Ctx:
         # the next dispatches it by type; the dispatch is written once per type, not once
         # per slot, which keeps the model (and the C compiler's work) small
         pick = " ".join(
-            f":: {self.arrives(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
+            f":: {self.fate(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
         )
         branches = []
         for t, name in enumerate(self.types):
@@ -815,7 +833,12 @@ class _Ctx:
                 continue
             tr = ag.ca.transitions[j]
             free = []
-            cond = self.guard(ag, tr, free) + self.changes(ag, tr) + self.waits(ag, tr)
+            cond = (
+                f"{self.visible()} && "
+                + self.guard(ag, tr, free)
+                + self.changes(ag, tr)
+                + self.waits(ag, tr)
+            )
             for bits in _assignments(free, ag.name):
                 out.append(
                     f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
@@ -839,7 +862,8 @@ class _Ctx:
             assert check == free  # (the same guards, read in the same order)
             for bits in _assignments(free, ag.name):
                 out.append(
-                    f"  :: atomic {{ d_step {{ ({_subst(enabled or '0', bits)}) -> "
+                    f"  :: atomic {{ d_step {{ {self.visible()} && "
+                    f"({_subst(enabled or '0', bits)}) -> "
                     f"{_subst(body, bits)} {self.tail()} }}; {config} }}"
                 )
         out += ["  od", "}"]
@@ -908,7 +932,7 @@ class _Ctx:
         picks = []
         for o in range(self.outbox):
             e = f"ob[{o}]"
-            cond = f"{e}.used && {e}.snd == {ag.a}"
+            cond = f"{self.visible()} && {e}.used && {e}.snd == {ag.a}"
             if self.bounded:
                 cond += (
                     " && !("
@@ -961,7 +985,7 @@ class _Ctx:
         for k in range(self.slots):
             if losses:
                 out.append(
-                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && losses < {losses} -> "
+                    f"  :: atomic {{ d_step {{ {self.fate(k)} && losses < {losses} -> "
                     f"{_clear(k, self.exact)} losses++; settle() }}; " + config + " }"
                 )
             if duplicates:
@@ -971,7 +995,7 @@ class _Ctx:
                     + [f"f{i}" for i in range(_nf(self.exact))]
                 )
                 out.append(
-                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && dups < {duplicates} -> "
+                    f"  :: atomic {{ d_step {{ {self.fate(k)} && dups < {duplicates} -> "
                     "sl = 0; "
                     "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
                     f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
@@ -989,7 +1013,8 @@ class _Ctx:
             free: list[str] = []
             body = " ".join(self.dispatch(ag, name, None, free))
             options = [
-                f"  :: atomic {{ d_step {{ true -> {_subst(body, bits)} {self.tail()} }}; "
+                f"  :: atomic {{ d_step {{ {self.visible()} -> {_subst(body, bits)} "
+                f"{self.tail()} }}; "
                 f"{config} }}"
                 for bits in _assignments(free, ag.name)
             ]
@@ -1136,9 +1161,66 @@ def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: 
         ]
     lines += [
         "}",
-        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); } }",
+        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); "
+        "now.inv = first_invisible(); } }",
     ]
     return lines
+
+
+def _first_invisible(
+    agents: list[_Agent], types: list[str], slots: int, seen: int, fifo: bool, reduce: bool
+) -> list[str]:
+    """``first_invisible()``, which ``settle()`` stores in ``inv``: one more than the slot
+    of the first copy that may arrive next and that no mode sees arrive — an ack, a copy
+    the receiver's duplicate filter withholds (its (receiver, sender, id) is in the
+    filter), or a copy of a type no transition of the receiver is woken by — else 0.
+
+    While ``inv`` is set, only that copy's fates (arrival, loss, duplication) are enabled:
+    every other step of the model — another copy's fate, a timer, a timeout, a world or
+    scenario event — is guarded by ``inv == 0``. This is the partial-order reduction of
+    our explorer (``explore._invisible``), written again from the model's own data, and it
+    keeps what is compared for the same reasons: such an arrival changes no mode and no
+    variable, only the network's bookkeeping (an ack clears a wait bit, a withheld copy
+    is answered with an ack), so it commutes with every other step; no step it could
+    disable exists — a retransmission timer of the message it belongs to cannot expire
+    while it flies (``--ack-timing bounded``, the only timing under which the reduction is
+    made), and it enables, never disables, a timeout waiting for a quiet network; so
+    every path of the unreduced model reaches the same configurations, and the same
+    states without successors, with this copy's fate moved first. No cycle is made of
+    such steps alone (each consumes a copy or spends a budget), so none is postponed for
+    ever. SPIN's printed configurations and its ``timeout`` dead ends are therefore the
+    unreduced ones; the acks and withheld copies that would otherwise pile up and
+    interleave with everything (a million states and more for the docking handshake)
+    are taken one at a time. The copy chosen need not be the one ours chooses (the
+    argument holds for any of them), so SPIN's state count may differ from ours."""
+    if not reduce:
+        return []
+    heard = ", ".join(
+        "{" + ", ".join(str(int(bool(ag.ca.waiting(t)))) for t in types) + "}" for ag in agents
+    )
+    oldest = (
+        "if (k > 0 && now.fl[k - 1].snd == now.fl[k].snd && now.fl[k - 1].rcv == "
+        "now.fl[k].rcv) continue;"
+        if fifo
+        else ""
+    )
+    return [
+        "c_code {",
+        f"  static const unsigned char heard[{len(agents)}][{max(len(types), 1)}] = {{{heard}}};",
+        "  static int first_invisible(void) {",
+        "    int k, e;",
+        f"    for (k = 0; k < {slots}; k++) {{",
+        f"      if (!now.fl[k].used) continue; {oldest}",
+        f"      if (now.fl[k].typ == {len(types)} || !heard[now.fl[k].rcv][now.fl[k].typ]) "
+        "return k + 1;",
+        f"      if (now.fl[k].mid >= 0) for (e = 0; e < {seen}; e++) if (now.sn[e].used && "
+        "now.sn[e].rcv == now.fl[k].rcv && now.sn[e].snd == now.fl[k].snd && "
+        "now.sn[e].mid == now.fl[k].mid) return k + 1;",
+        "    }",
+        "    return 0;",
+        "  }",
+        "}",
+    ]
 
 
 def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
