@@ -81,7 +81,7 @@ from __future__ import annotations
 import ast
 import itertools
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -89,6 +89,7 @@ import numpy as np
 from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.engine.compile.compiler import message_fields
 from hybridteam.expr.compiler import free_names
+from hybridteam.requirements import nodes as N
 from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
 from hybridteam.verify.spin import _run, missing
 from hybridteam.verify.symmetry import permute
@@ -114,11 +115,16 @@ class Unsupported(Exception):
 
 @dataclass
 class Exploration:
-    """What one explorer found: projected configurations, dead ends, the deadlock verdict."""
+    """What one explorer found: projected configurations, dead ends, the deadlock verdict,
+    and the invariant and response verdicts it decided (name: holds)."""
 
     configurations: set[str]
     dead_ends: set[str]
     deadlock: bool  # True: no deadlock (the property holds)
+    verdicts: dict[str, bool] = field(default_factory=dict)
+    states: int = 0  # states stored (SPIN's count includes its atomic sequences' inner ones)
+    #: properties not decided, with the reason (SPIN: a formula the export cannot translate)
+    undecided: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -141,6 +147,9 @@ class Comparison:
             out.append(
                 f"deadlock: ours {_word(self.ours.deadlock)}, SPIN {_word(self.spin.deadlock)}"
             )
+        for name, holds in self.spin.verdicts.items():
+            if name in self.ours.verdicts and self.ours.verdicts[name] != holds:
+                out.append(f"{name}: ours {_word(self.ours.verdicts[name])}, SPIN {_word(holds)}")
         return out
 
 
@@ -197,11 +206,14 @@ def export(
     order: str = "any",
     timeouts: str = "any",
     reduce: bool = True,
+    props: list | None = None,
 ) -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
     out one (agent, transition) — only to show that the comparison catches a wrong model.
     ``reduce``: an invisible copy's fates first (:func:`_first_invisible`; with
-    ``--ack-timing bounded`` only), else SPIN explores every interleaving."""
+    ``--ack-timing bounded`` only), else SPIN explores every interleaving. ``props``: the
+    invariant and response properties (:class:`~.properties.Property`) written as LTL
+    claims ``p<k>`` (:func:`claims`)."""
     team = sk.original
     fields = {k: sorted(v) for k, v in message_fields(team.team).items()}
     exact = {t: [f for f in fs if (t, f) not in sk.abstract_fields] for t, fs in fields.items()}
@@ -297,9 +309,9 @@ def export(
         "init {",
         "  atomic { " + first + f" {runs} run network(); run scenario(); run watcher(); }}",
         "}",
-        "",
     ]
-    return "\n".join(lines)
+    lines += _claim_lines(agents, props or [])
+    return "\n".join([*lines, ""])
 
 
 def _ints(values, what: str) -> np.ndarray:
@@ -1260,6 +1272,145 @@ def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
     )
 
 
+# ---------------------------------------------------------------------------- properties
+
+
+class _Term:
+    """A signal of a formula as a Promela expression: what a formula's getters and the
+    expression compiler's numpy operations build when they read :class:`_Signals`
+    instead of arrays (``__array_ufunc__`` takes the operations the compiler applies)."""
+
+    __array_priority__ = 1000
+    OPS = {"add": "+", "subtract": "-", "multiply": "*"}
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def astype(self, _dtype) -> _Term:  # count_in_role sums its Booleans as floats
+        return self
+
+    def __add__(self, other) -> _Term:
+        return _Term(f"({self.text} + {_operand(other)})")
+
+    def __radd__(self, other) -> _Term:
+        return _Term(f"({_operand(other)} + {self.text})")
+
+    def __array_ufunc__(self, ufunc, method: str, *inputs, **kwargs) -> _Term:
+        if method == "__call__" and ufunc.__name__ in self.OPS and len(inputs) == 2:
+            op = self.OPS[ufunc.__name__]
+            return _Term(f"({_operand(inputs[0])} {op} {_operand(inputs[1])})")
+        if method == "__call__" and ufunc.__name__ == "negative":
+            return _Term(f"(-{_operand(inputs[0])})")
+        raise Unsupported(f"it applies {ufunc.__name__}, which is not translated")
+
+
+def _operand(v) -> str:
+    """A term's text, or a constant's (whole numbers only: the model's values are ints)."""
+    if isinstance(v, _Term):
+        return v.text
+    if isinstance(v, np.ndarray) and v.size == 1:
+        v = v.item()
+    return str(_int(v, "a formula's constant"))
+
+
+class _Signals:
+    """What a formula reads, as Promela: modes are the mode bits, a discrete variable its
+    int, a parameter its value; time, plant states, series and message events are not in
+    the model (as :class:`~.properties.States` refuses them for our explorer)."""
+
+    shape = (1, 1)
+
+    def __init__(self, agents: list[_Agent]) -> None:
+        self.agents = {ag.name: ag for ag in agents}
+        self.memo: dict = {}
+
+    @property
+    def t(self):
+        raise Unsupported("it reads time")
+
+    def in_modes(self, agent: str, modes: list[int]) -> _Term:
+        ag = self.agents[agent]
+        return _Term("(" + " || ".join(ag.bit(m) for m in modes) + ")")
+
+    def variable(self, agent: str, j: int) -> _Term:
+        ag = self.agents[agent]
+        if j not in ag.var_name:
+            raise Unsupported(f"it reads a variable of {agent} computed from time or state")
+        return _Term(ag.var_name[j])
+
+    def param(self, agent: str, name: str) -> _Term:
+        return _Term(_operand(self.agents[agent].consts.get(name)))
+
+    def team_param(self, name: str) -> _Term:
+        return self.param(next(iter(self.agents)), name)
+
+    def state(self, agent: str, j: int):
+        raise Unsupported(f"it reads {agent}'s plant state")
+
+    def series(self, name: str, j: int):
+        raise Unsupported(f"it reads the world series '{name}'")
+
+    def event(self, kind: str, agent: str | None, message: str):
+        raise Unsupported(f"it reads {kind}() message events")
+
+
+def _formula(node: N.Node, sig: _Signals) -> str:
+    """A temporal-free formula as a Promela condition (as :func:`.properties.truth` reads
+    it: exact, a strict comparison false at its boundary)."""
+    if isinstance(node, N.Const):
+        return str(int(bool(node.value)))
+    if isinstance(node, N.Flag):
+        return f"({_operand(node.get(sig))})"  # type: ignore[misc]
+    if isinstance(node, N.Predicate):
+        lhs, rhs = node.lhs(sig), node.rhs(sig)  # type: ignore[misc]
+        return f"({_operand(lhs)} {node.op} {_operand(rhs)})"
+    if isinstance(node, N.Not):
+        return f"(!{_formula(node.children[0], sig)})"
+    if isinstance(node, (N.And, N.Or)):
+        op = " && " if isinstance(node, N.And) else " || "
+        return "(" + op.join(_formula(c, sig) for c in node.children) + ")"
+    if isinstance(node, N.Implies):
+        a, b = (_formula(c, sig) for c in node.children)
+        return f"(!{a} || {b})"
+    raise Unsupported("it has a temporal operator inside")
+
+
+def _claim(p, agents: list[_Agent]) -> str:
+    """Property ``p``'s LTL formula over the model's variables (raises Unsupported)."""
+    sig = _Signals(agents)
+    if p.kind == "invariant":
+        return f"[] {_formula(p.phi, sig)}"
+    return f"[] ({_formula(p.phi, sig)} -> <> {_formula(p.psi, sig)})"
+
+
+def _claim_lines(agents: list[_Agent], props: list) -> list[str]:
+    """An ``ltl p<k>`` block per invariant and response property that translates (``k``
+    its position in ``props``, as :func:`claims` numbers them)."""
+    out = []
+    for k, p in enumerate(props):
+        if p.kind in ("invariant", "response"):
+            try:
+                out.append(f"ltl p{k} {{ {_claim(p, agents)} }}  /* {p.name} */")
+            except Unsupported as exc:
+                out.append(f"/* not decided: p{k} ({p.name}): {exc} */")
+    return out
+
+
+def claims(promela: str, props: list) -> tuple[dict[str, str], dict[str, str]]:
+    """The LTL claims of an exported model (claim name: property name) and the invariant
+    and response properties it has none for (property name: why)."""
+    names, why = {}, {}
+    for k, p in enumerate(props):
+        if p.kind not in ("invariant", "response"):
+            continue
+        if f"ltl p{k} {{" in promela:
+            names[f"p{k}"] = p.name
+        else:
+            found = re.search(rf"/\* not decided: p{k} \(.*?\): (.*) \*/", promela)
+            why[p.name] = found.group(1) if found else "not in the model"
+    return names, why
+
+
 # ---------------------------------------------------------------------------- comparing
 
 
@@ -1282,7 +1433,17 @@ def ours(report) -> Exploration:
     configs = [configs_of(s) for s in g.states]
     dead = set().union(*(configs[k] for k in np.flatnonzero(g.terminal()).tolist()))
     holds = next(v.holds for v in report.verdicts if v.prop.name == "deadlock")
-    return Exploration(set().union(*configs), dead, bool(holds))
+    verdicts = {
+        v.prop.name: bool(v.holds)
+        for v in report.verdicts
+        if v.prop.kind in ("invariant", "response") and v.holds is not None
+    }
+    undecided = {
+        v.prop.name: v.message
+        for v in report.verdicts
+        if v.prop.kind in ("invariant", "response") and v.holds is None
+    }
+    return Exploration(set().union(*configs), dead, bool(holds), verdicts, len(g.states), undecided)
 
 
 def check(report, opts) -> None:
@@ -1296,11 +1457,17 @@ def check(report, opts) -> None:
 
 
 def run_spin(
-    promela: str, folder: Path, timeout: float = 600.0, optimize: bool = True
+    promela: str,
+    folder: Path,
+    timeout: float = 600.0,
+    optimize: bool = True,
+    props: list | None = None,
 ) -> Exploration:
     """Compile and run SPIN's exhaustive search on ``promela``; its exploration.
     ``optimize``: compile the verifier with ``-O1`` (three times the compiler's work of
-    ``-O0``, which a small model's short search never earns back)."""
+    ``-O0``, which a small model's short search never earns back). ``props``: the
+    properties the model was exported with; each LTL claim of it is decided by a second
+    verifier (:func:`_decide`)."""
     why = missing()
     if why:
         raise RuntimeError(why)
@@ -1314,6 +1481,7 @@ def run_spin(
             "-DPRINTF",
             "-DNOREDUCE",
             "-DSAFETY",
+            "-DNOCLAIM",
             "-DVECTORSZ=4096",
             "-o",
             "pan",
@@ -1342,7 +1510,35 @@ def run_spin(
             "the model's slots overflowed (copies in flight, outbox or filter entries "
             f"beyond the sizes in rules.pml, or more than {MAX_IDS} ids)"
         )
-    return Exploration(configs, dead, not bad)
+    stored = re.search(r"(\d+) states, stored", text)
+    names, undecided = claims(promela, props or [])
+    verdicts = _decide(folder, names, timeout) if names else {}
+    return Exploration(
+        configs, dead, not bad, verdicts, int(stored.group(1)) if stored else 0, undecided
+    )
+
+
+def _decide(folder: Path, names: dict[str, str], timeout: float) -> dict[str, bool]:
+    """Each LTL claim decided by SPIN on the rules (property name: holds): the verifier
+    compiled with the claims (no ``-DSAFETY``: a response needs acceptance cycles, SPIN's
+    nested depth-first search, ``-a``), one search per claim (``-N``). A path that ends
+    is a dead end, which SPIN's LTL semantics extends by stuttering: a response whose
+    psi never comes before a dead end is violated, as ours reads it. The reduction of
+    :func:`_first_invisible` keeps every such verdict: the formulas read modes and
+    discrete variables, which an invisible copy's fate never changes, and every cycle of
+    the reduced model passes a state where every step is explored (each invisible fate
+    consumes a copy or a budget), the cycle condition of a partial-order reduction that
+    keeps LTL without next. Compiled ``-O0``: the searches are as short as the first."""
+    _run(["cc", "-O0", "-DNOREDUCE", "-DVECTORSZ=4096", "-o", "pan_ltl", "pan.c"], folder, timeout)
+    out = {}
+    for claim, name in names.items():
+        text = _run(["./pan_ltl", "-a", "-m1000000", "-N", claim], folder, timeout)
+        (folder / f"{claim}.out").write_text(text)
+        errors = re.search(r"errors: (\d+)", text)
+        if errors is None or "depth too small" in text:
+            raise RuntimeError(f"SPIN's search of {name} did not complete (see {claim}.out)")
+        out[name] = errors.group(1) == "0"
+    return out
 
 
 def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
@@ -1364,6 +1560,7 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
         ack_timing=opts.ack_timing,
         order=opts.order,
         timeouts=opts.timeouts,
+        props=[v.prop for v in report.verdicts],
     )
 
 
@@ -1375,4 +1572,5 @@ def compare(
     if promela is None:
         promela = prepare(report, opts, drop)
     big = len(report.graph.states) >= SMALL
-    return Comparison(ours(report), run_spin(promela, folder, optimize=big))
+    props = [v.prop for v in report.verdicts]
+    return Comparison(ours(report), run_spin(promela, folder, optimize=big, props=props))
