@@ -298,16 +298,18 @@ def export(
     for ag in agents:
         lines += ctx.agent_proc(ag, config)
     lines += ctx.network_proc(losses, duplicates, config)
-    lines += ctx.scenario_proc(config)
+    scenario = ctx.scenario_proc(config)
+    lines += scenario
     lines += [
         "proctype watcher() {",
         "  timeout -> d_step { " + _print("T", agents, " %d", _deadlock_expr(sk, agents)) + " }",
         "}",
     ]
     runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
+    scenario = " run scenario();" if scenario else ""
     lines += [
         "init {",
-        "  atomic { " + first + f" {runs} run network(); run scenario(); run watcher(); }}",
+        "  atomic { " + first + f" {runs} run network();{scenario} run watcher(); }}",
         "}",
     ]
     lines += _claim_lines(agents, props or [])
@@ -1031,8 +1033,12 @@ class _Ctx:
                 for bits in _assignments(free, ag.name)
             ]
             out += ["  if", *options, "  fi;"]
-        out += ["  skip", "}"]
-        return out
+        if len(out) == 1:
+            return []  # no scenario: no process (its one step would double every state)
+        # the last event's step ends the process: a statement after it would be one more
+        # state (its program counter) after every state the rest of the run reaches
+        out[-1] = "  fi"
+        return [*out, "}"]
 
 
 def _reply(act) -> bool:
