@@ -282,7 +282,7 @@ def export(
         "hidden byte nr;",
         "hidden byte ri;",
         *_first_invisible(agents, types, slots, seen, ctx.fifo, ctx.reduce),
-        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types)),
+        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types), ctx.reduce),
         *_note(agents),
     ]
     for ag in agents:
@@ -1096,7 +1096,9 @@ def _subst(code: str, bits: dict[int, int] | None) -> str:
     return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
 
 
-def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int) -> list[str]:
+def _settle(
+    sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int, reduce: bool
+) -> list[str]:
     """``settle()``, which ends every step: our canonical form (:meth:`.Machine.canonical`)
     written again in C, so that states that differ only in bookkeeping are one state for
     SPIN as they are for us — the projected configurations are the same either way, SPIN
@@ -1180,7 +1182,8 @@ def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: 
     lines += [
         "}",
         "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); "
-        "now.inv = first_invisible(); } }",
+        + ("now.inv = first_invisible(); " if reduce else "")
+        + "} }",
     ]
     return lines
 
