@@ -790,3 +790,31 @@ def test_three_requests_and_a_resignation_agree(tmp_path):
     team = load(ROOT / "examples" / "protocols" / "roles_verify.yaml")
     _, c = agreed(tmp_path, team, Options(losses=0))
     assert c.spin.verdicts == {"one_leader": True, "b_answered": True, "c_answered": True}
+
+
+@needs_spin
+def test_cli_spin_rules_prints_spins_verdicts(tmp_path, capsys):
+    (tmp_path / "go.yaml").write_text(GO_PROPS)
+    code = main(
+        [
+            "verify",
+            str(tmp_path / "go.yaml"),
+            "--losses",
+            "1",
+            "--spin-rules",
+            "--no-replay",
+            "-o",
+            str(tmp_path / "o"),
+            "--progress",
+            "none",
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 1  # violations, agreed on
+    assert "spin-rules: follows: SPIN violated on the rules" in out
+    assert "spin-rules: one_driving: SPIN violated on the rules" in out
+    assert "spin-rules: near: not decided by SPIN: it reads leader's plant state" in out
+    assert "spin-rules: the explorers agree" in out
+    data = json.loads((tmp_path / "o" / "verify.json").read_text())["spin_rules"]
+    assert data["verdicts"]["follows"] == {"ours": False, "spin": False}
+    assert data["states"]["spin"] > 0
