@@ -92,6 +92,7 @@ import itertools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -309,16 +310,16 @@ def export(
     lines += ctx.network_proc(losses, duplicates, config)
     scenario = ctx.scenario_proc(config)
     lines += scenario
+    start_scenario = " run scenario();" if scenario else ""
     lines += [
         "proctype watcher() {",
         "  timeout -> d_step { " + _print("T", agents, " %d", _deadlock_expr(sk, agents)) + " }",
         "}",
     ]
     runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
-    scenario = " run scenario();" if scenario else ""
     lines += [
         "init {",
-        "  atomic { " + first + f" {runs} run network();{scenario} run watcher(); }}",
+        "  atomic { " + first + f" {runs} run network();{start_scenario} run watcher(); }}",
         "}",
     ]
     lines += _claim_lines(agents, props or [])
@@ -1299,7 +1300,7 @@ class _Term:
     instead of arrays (``__array_ufunc__`` takes the operations the compiler applies)."""
 
     __array_priority__ = 1000
-    OPS = {"add": "+", "subtract": "-", "multiply": "*"}
+    OPS: ClassVar[dict[str, str]] = {"add": "+", "subtract": "-", "multiply": "*"}
 
     def __init__(self, text: str) -> None:
         self.text = text
@@ -1515,7 +1516,9 @@ def run_spin(
         folder,
         timeout,
     )
-    text = _run(["./pan", "-E", "-m1000000", *(["-N", "explore"] if names else [])], folder, timeout)
+    text = _run(
+        ["./pan", "-E", "-m1000000", *(["-N", "explore"] if names else [])], folder, timeout
+    )
     (folder / "pan.out").write_text(text)
     if "depth too small" in text or "errors: 0" not in text:
         raise RuntimeError("SPIN's search did not complete (see pan.out)")

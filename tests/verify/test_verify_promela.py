@@ -656,11 +656,12 @@ def test_history_restores_the_child_left(tmp_path, history, end):
 def test_the_docking_handshake_agrees(tmp_path):
     """Experiment 2's docking handshake (plain datagrams, no loss): world events (the IR
     ring's at_box and obstacle_detected), raise actions (want_lead, resign), history and
-    the role body carried over from Lead to Offering (1,085,451 SPIN states without the
-    invisible-copy rule, about 1,600 with it, as ours; with a loss:
-    test_the_plain_docking_handshake_with_a_loss_deadlocks_in_both). By hand: the XR4000 resigns as its Pass phase ends (Pass -> Hold raises
-    resign), so it offers the lead holding still — the body carried over, in
-    Offering.Hold, never restarted in Offering.Sidestep."""
+    the role body carried over from Lead to Offering (542,742 SPIN states without the
+    invisible-copy rule, 1,605 with it, ours 1,547; with a loss:
+    test_the_plain_docking_handshake_with_a_loss_deadlocks_in_both). By hand: the XR4000
+    resigns as its Pass phase ends (Pass -> Hold raises resign), so it offers the lead
+    holding still — the body carried over, in Offering.Hold, never restarted in
+    Offering.Sidestep."""
     report, c = agreed(tmp_path, docking(tmp_path, acknowledged=False), Options(losses=0))
     xr = [modes_of(report, k)[0] for k in c.spin.configurations]
     assert any("Transport.Offering.Hold" in ms for ms in xr)
