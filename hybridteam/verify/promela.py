@@ -196,12 +196,19 @@ class _Agent:
         )
         self.hist = [m.index for m in ca.modes if m.kind == "or"] if restores else []
         self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
+        #: per mode with entry actions, their Promela (filled by the export's context)
+        self.entry_code: dict[int, list[str]] = {}
 
     def bit(self, m: int) -> str:
         return f"m{self.a}_{m}"
 
     def last(self, m: int) -> str:
         return f"h{self.a}_{m}"
+
+    def activate(self, m: int) -> list[str]:
+        """Mode ``m`` becomes active, and its entry actions run at once, before anything
+        below it is entered (AgentState.activate calls them there: outermost first)."""
+        return [f"{self.bit(m)} = 1;", *self.entry_code.get(m, [])]
 
 
 def export(
@@ -256,6 +263,10 @@ def export(
         reduce and ack_timing == "bounded",
     )
     ctx.outbox = outbox
+    for ag in agents:
+        ag.entry_code = {
+            m.index: ctx.actions(ag, m.on_entry, None) for m in ag.ca.modes if m.on_entry
+        }
     lines = [
         f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
         f"#define SLOTS {slots}",
@@ -277,6 +288,7 @@ def export(
         "byte dups = 0;",
         "bit overflow = 0;",
         "bit moved = 0;",
+        "bit started = 0;",
         "byte inv = 0;",
         "hidden byte sl;",
         "hidden byte so;",
@@ -319,11 +331,27 @@ def export(
     runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
     lines += [
         "init {",
-        "  atomic { " + first + f" {runs} run network();{start_scenario} run watcher(); }}",
+        "  atomic { "
+        + _initial_entry(ctx, agents)
+        + first
+        + f" moved = 0; started = 1; {runs} run network();{start_scenario} run watcher(); }}",
         "}",
     ]
     lines += _claim_lines(agents, props or [])
     return "\n".join([*lines, ""])
+
+
+def _initial_entry(ctx: _Ctx, agents: list[_Agent]) -> str:
+    """The initial configuration's entry actions, as the simulator's start runs them:
+    agent by agent, the root activated and its default entry completed (each mode's
+    entry actions as it is activated, outermost first), then the events they raised
+    dispatched and the containers settled — all before the first state. The mode bits
+    are set to the initial configuration already; setting them again changes nothing."""
+    code = []
+    for ag in agents:
+        if ag.entry_code:
+            code += [*ag.entry_code.get(0, []), *_enter_default(ag, 0, False, False)]
+    return " ".join(code) + " " + ctx.tail() + " " if code else ""
 
 
 def _ints(values, what: str) -> np.ndarray:
@@ -344,8 +372,9 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
     """One line naming the first feature of ``ag`` the export does not translate."""
     ca, who = ag.ca, f"agent '{ag.name}'"
     for m in ca.modes:
-        if m.on_entry or m.on_exit:
-            raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
+        for act in [*m.on_entry, *m.on_exit]:
+            if act.kind == "send" and act.socket != "control":
+                raise Unsupported(f"{who}: mode {m.path}: a send on socket '{act.socket}'")
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
@@ -357,6 +386,16 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
             and (_above(ca, tr.target, tr.source) or _above(ca, tr.source, tr.target))
         ):
             raise Unsupported(f"{where}: a time-driven transition back into its own mode")
+        if (
+            tr.index in timed
+            and not tr.internal
+            and _in_place(ca, tr)
+            and (ca.modes[tr.source].on_entry or ca.modes[tr.source].on_exit)
+        ):
+            raise Unsupported(
+                f"{where}: a time-driven transition in place through a mode with entry or "
+                "exit actions"
+            )
         if tr.index in timed and _in_place(ca, tr) and not _sends(tr):
             assigned: set[int] = set()
             for act in tr.actions:
@@ -452,7 +491,7 @@ def _enter(ag: _Agent, entry, deep: bool) -> list[str]:
     """Entering as ``entry`` says (AgentState.enter): its first mode, down through its
     marked modes to its targets, which complete their entry — by history, read at run
     time from the ``h`` variables, where a mode has one (or ``deep``, a carry-over)."""
-    out = [] if entry.active_first else [f"{ag.bit(entry.first)} = 1;"]
+    out = [] if entry.active_first else ag.activate(entry.first)
     return out + _enter_below(ag, entry.first, entry, deep)
 
 
@@ -462,9 +501,9 @@ def _enter_below(ag: _Agent, m: int, entry, deep: bool) -> list[str]:
     out = []
     for c in ag.ca.modes[m].children:
         if c in entry.marks:
-            out += [f"{ag.bit(c)} = 1;", *_enter_below(ag, c, entry, deep)]
+            out += [*ag.activate(c), *_enter_below(ag, c, entry, deep)]
         elif ag.ca.modes[m].kind == "and":
-            out += [f"{ag.bit(c)} = 1;", *_enter_default(ag, c, False, False)]
+            out += [*ag.activate(c), *_enter_default(ag, c, False, False)]
     return out
 
 
@@ -474,7 +513,7 @@ def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
     out: list[str] = []
     if mode.kind == "and":
         for r in mode.children:
-            out += [f"{ag.bit(r)} = 1;"]
+            out += ag.activate(r)
             out += _enter_default(
                 ag, r, deep or mode.history == "deep", restore or mode.history == "shallow"
             )
@@ -487,12 +526,12 @@ def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
     fresh = mode.history_default or mode.default
     assert fresh is not None  # (an 'or' mode has its default entry)
     if fresh.targets == {mode.initial}:  # nothing remembered: the initial child
-        unset = [f"{ag.bit(mode.initial)} = 1;", *_enter_default(ag, mode.initial, deeper, False)]
+        unset = [*ag.activate(mode.initial), *_enter_default(ag, mode.initial, deeper, False)]
     else:
         unset = _enter(ag, fresh, False)
     options = [
         f":: {ag.last(m)} == {c} -> "
-        + " ".join([f"{ag.bit(c)} = 1;", *_enter_default(ag, c, deeper, False)])
+        + " ".join([*ag.activate(c), *_enter_default(ag, c, deeper, False)])
         for c in mode.children
     ]
     return ["if " + " ".join(options) + " :: else -> " + (" ".join(unset) or "skip") + " fi;"]
@@ -656,24 +695,36 @@ class _Ctx:
         out = []
         if not tr.internal:
             exited = _exited(ag.ca, tr)
+            for m in exited[::-1]:  # exit actions of the active ones, innermost first
+                if ag.ca.modes[m].on_exit:
+                    code = " ".join(self.actions(ag, ag.ca.modes[m].on_exit, None))
+                    out.append(f"if :: {ag.bit(m)} -> {code} :: else -> skip fi;")
             out += [_remember(ag, m) for m in exited if m in ag.hist]
             out += [f"{ag.bit(m)} = 0;" for m in exited]
-        for act in tr.actions:
-            if act.kind == "assign":
-                kind, j = act.target
-                if kind == "v" and j in ag.var_name:
-                    out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, tr.on)};")
-            elif act.kind == "send":
-                out += self.send(ag, act, tr.on)
-            elif act.kind == "raise":  # queued, dispatched after this step's firings
-                k = self.events.index((ag.a, act.name))
-                out.append(
-                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
-                )
+        out += self.actions(ag, tr.actions, tr.on)
         if not tr.internal:
             for a, b in tr.carry:  # same role: the body resumes (compiler._role_carry)
                 out.append(_carried(ag, a, b, tr.carry_map))
             out += [*_enter(ag, tr.entry, bool(tr.carry)), "moved = 1;"]
+        return out
+
+    def actions(self, ag: _Agent, actions, on: str | None) -> list[str]:
+        """An action list in order (engine.run.actions.run_actions): assignments to the
+        discrete variables (sequential), sends, raises (queued, dispatched after the
+        step's firings). ``on``: the triggering message, None in entry and exit lists."""
+        out = []
+        for act in actions:
+            if act.kind == "assign":
+                kind, j = act.target
+                if kind == "v" and j in ag.var_name:
+                    out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, on)};")
+            elif act.kind == "send":
+                out += self.send(ag, act, on)
+            elif act.kind == "raise":
+                k = self.events.index((ag.a, act.name))
+                out.append(
+                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
+                )
         return out
 
     def send(self, ag: _Agent, act, on: str | None) -> list[str]:
@@ -791,8 +842,10 @@ class _Ctx:
         """(agent, event) of every ``raise`` action: numbered in the raised-event queue."""
         out: list[tuple[int, str]] = []
         for ag in self.agents:
-            for tr in ag.ca.transitions:
-                for act in tr.actions:
+            lists = [tr.actions for tr in ag.ca.transitions]
+            lists += [m.on_entry for m in ag.ca.modes] + [m.on_exit for m in ag.ca.modes]
+            for actions in lists:
+                for act in actions:
                     if act.kind == "raise" and (ag.a, act.name) not in out:
                         out.append((ag.a, act.name))
         return out
@@ -1395,11 +1448,13 @@ def _formula(node: N.Node, sig: _Signals) -> str:
 
 
 def _claim(p, agents: list[_Agent]) -> str:
-    """Property ``p``'s LTL formula over the model's variables (raises Unsupported)."""
+    """Property ``p``'s LTL formula over the model's variables (raises Unsupported), read
+    from the state ``init`` starts the processes in (``started``): SPIN's first state is
+    the one before, without the initial configuration's entry actions."""
     sig = _Signals(agents)
     if p.kind == "invariant":
-        return f"[] {_formula(p.phi, sig)}"
-    return f"[] ({_formula(p.phi, sig)} -> <> {_formula(p.psi, sig)})"
+        return f"[] (!started || {_formula(p.phi, sig)})"
+    return f"[] ((started && {_formula(p.phi, sig)}) -> <> {_formula(p.psi, sig)})"
 
 
 def _claim_lines(agents: list[_Agent], props: list) -> list[str]:

@@ -7,6 +7,7 @@ message are tested everywhere."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -289,22 +290,22 @@ def test_the_export_is_promela_spin_compiles(tmp_path):
     assert c.differences() == []
 
 
-# an entry action (not translated): the follower counts its drives as it enters Drive
-ENTRY = GO.replace(
-    "        inputs: {v: 0.5, omega: 0}\n      Done:\n        final: true\nsimulation",
-    "        inputs: {v: 0.5, omega: 0}\n        entry: [drives = drives + 1]\n"
-    "      Done:\n        final: true\nsimulation",
+# an urgent transition with an exact guard (not translated): the follower, once it has
+# driven, is done at once
+URGENT = GO.replace(
+    "          - {to: Drive, on: go}\n      Drive:\n        inputs: {v: 0.5, omega: 0}\n",
+    "          - {to: Drive, on: go, do: [drives = 1]}\n      Drive:\n"
+    "        inputs: {v: 0.5, omega: 0}\n        transitions: [{to: Done, guard: drives > 0}]\n",
 ).replace(
     "    plant: {kind: unicycle, state: {x: -1",
     "    variables: {drives: 0}\n    plant: {kind: unicycle, state: {x: -1",
 )
+NOT_TRANSLATED = "agent 'follower' Drive -> Done: an urgent transition (exact guard, no trigger)"
 
 
 def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
-    report = verify(team(tmp_path, ENTRY, "entry"), Options(losses=0), replay=False)
-    with pytest.raises(
-        promela.Unsupported, match=r"^agent 'follower': mode Drive has entry or exit actions$"
-    ):
+    report = verify(team(tmp_path, URGENT, "urgent"), Options(losses=0), replay=False)
+    with pytest.raises(promela.Unsupported, match=rf"^{re.escape(NOT_TRANSLATED)}$"):
         promela.prepare(report, Options(losses=0))
 
 
@@ -356,11 +357,11 @@ def test_cli_spin_rules_without_spin_is_one_line_exit_2(tmp_path, capsys, monkey
 
 
 def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, capsys):
-    (tmp_path / "entry.yaml").write_text(ENTRY)
+    (tmp_path / "urgent.yaml").write_text(URGENT)
     code = main(
         [
             "verify",
-            str(tmp_path / "entry.yaml"),
+            str(tmp_path / "urgent.yaml"),
             "--losses",
             "0",
             "--spin-rules",
@@ -372,10 +373,7 @@ def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, 
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
-    assert (
-        "--spin-rules: not translated: agent 'follower': mode Drive has entry or exit actions"
-        in err[0]
-    )
+    assert f"--spin-rules: not translated: {NOT_TRANSLATED}" in err[0]
     assert not (tmp_path / "o").exists()
 
 
@@ -819,3 +817,86 @@ def test_cli_spin_rules_prints_spins_verdicts(tmp_path, capsys):
     data = json.loads((tmp_path / "o" / "verify.json").read_text())["spin_rules"]
     assert data["verdicts"]["follows"] == {"ours": False, "spin": False}
     assert data["states"]["spin"] > 0
+
+
+# Entry and exit actions: the leader's exit from Wait sends go and counts it (sent = 1),
+# then the transition's own action multiplies (sent = 10: exit actions run before the
+# transition's, 1 the other way round); the follower's Wait is entered at the start
+# (drives = 100: the initial configuration's entry actions run), go's action sets
+# drives = 5, then Drive's entry adds one (6) and raises started, which takes it to Done
+# in the same step (its guard drives == 6 needs the transition's action before the entry:
+# else drives would be 5 and the follower would stay in Drive).
+ENTRY_EXIT = """team: entryexit
+agents:
+  leader:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {sent: 0}
+    initial: Wait
+    modes:
+      Wait:
+        inputs: {v: 0, omega: 0}
+        exit: [{send: go, to: follower}, sent = sent + 1]
+        transitions:
+          - {to: Drive, after: 2.0, do: [sent = sent * 10]}
+      Drive:
+        inputs: {v: 0.5, omega: 0}
+        transitions:
+          - {to: Done, guard: x > 3}
+      Done:
+        final: true
+  follower:
+    plant: {kind: unicycle, state: {x: -1, y: 0, theta: 0}}
+    variables: {drives: 0}
+    initial: Wait
+    modes:
+      Wait:
+        entry: [drives = 100]
+        transitions:
+          - {to: Drive, on: go, do: [drives = 5]}
+      Drive:
+        entry: [drives = drives + 1, {raise: started}]
+        transitions:
+          - {to: Done, on: started, guard: drives == 6}
+      Done:
+        final: true
+simulation: {duration: 20}
+requirements:
+  never_sent: always(leader.sent == 0)
+  exit_then_do: always(leader.sent == 0 or leader.sent == 10)
+  do_then_entry: always(follower.drives == 100 or follower.drives == 6)
+"""
+
+
+@needs_spin
+@pytest.mark.parametrize("losses", [0, 1])
+def test_entry_and_exit_actions_agree_with_the_order_by_hand(tmp_path, losses):
+    """By hand (bits per agent: root, Wait, Drive, Done): the leader waits, drives (go in
+    flight), is done; the follower waits, or is done once go arrives — never seen in
+    Drive, which started leaves within the step. A lost go leaves the follower waiting
+    for a message that never comes: the deadlock (go is a message, though only an exit
+    action sends it). The verdicts read the order of the actions."""
+    c = compared(tmp_path, ENTRY_EXIT, Options(losses=losses))
+    assert (
+        c.ours.configurations
+        == c.spin.configurations
+        == {"1100|1100", "1010|1100", "1010|1001", "1001|1100", "1001|1001"}
+    )
+    lost = {"1001|1100"} if losses else set()
+    assert c.ours.dead_ends == c.spin.dead_ends == {"1001|1001"} | lost
+    assert c.ours.deadlock is c.spin.deadlock is (not losses)
+    assert (
+        c.ours.verdicts
+        == c.spin.verdicts
+        == {"never_sent": False, "exit_then_do": True, "do_then_entry": True}
+    )
+    assert c.differences() == []
+
+
+def test_verify_hears_a_message_only_an_exit_action_sends(tmp_path):
+    """Ours alone (no SPIN needed): go, sent only by the leader's exit action, is a message
+    to verify's skeleton, and started, raised only by the follower's entry action, is its
+    own event — neither is an input from outside — so a lost go is a deadlock (the
+    follower waits for a message that never comes), as by hand."""
+    report = verify(team(tmp_path, ENTRY_EXIT, "team"), Options(losses=1), replay=False)
+    assert report.skeleton.inputs == [set(), set()]
+    assert verdict(report, "deadlock") is False
