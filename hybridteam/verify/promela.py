@@ -77,10 +77,13 @@ that reads time, plant states, series or message events is left undecided with t
 reason, as ours leaves it unchecked.
 
 **Scope.** A feature this module cannot translate exactly refuses the model with one
-line naming it (:class:`Unsupported`) rather than exporting an approximation: entry and
-exit actions, urgent transitions with exact guards, time-driven transitions back into
-their own mode (other than a leaf into itself, or targetless), a raised event that wakes
-a guard reading time or state, non-integer values. A model that outgrows the slots
+line naming it (:class:`Unsupported`) rather than exporting an approximation: urgent
+transitions with exact guards, time-driven transitions back into their own mode (other
+than a leaf into itself without entry or exit actions, or targetless), a raised event
+that wakes a guard reading time or state, non-integer values. Entry and exit actions
+are translated where the engine runs them (exit actions of the active modes left,
+innermost first, before the transition's own; entry actions as each mode is activated,
+outermost first; the initial configuration's at the start, :func:`_initial_entry`). A model that outgrows the slots
 (copies in flight, outbox and filter entries, raised events, ids) is reported, not
 compared; :func:`prepare` gives it twice the room our exploration needed.
 """
