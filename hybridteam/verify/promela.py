@@ -83,9 +83,11 @@ than a leaf into itself without entry or exit actions, or targetless), a raised 
 that wakes a guard reading time or state, non-integer values. Entry and exit actions
 are translated where the engine runs them (exit actions of the active modes left,
 innermost first, before the transition's own; entry actions as each mode is activated,
-outermost first; the initial configuration's at the start, :func:`_initial_entry`). A model that outgrows the slots
-(copies in flight, outbox and filter entries, raised events, ids) is reported, not
-compared; :func:`prepare` gives it twice the room our exploration needed.
+outermost first; the initial configuration's at the start, :func:`_initial_entry`). A
+model that outgrows the slots (copies in flight, outbox and filter entries, raised
+events, ids) is reported, not compared; :func:`prepare` gives it twice the room our
+exploration needed (an export sized by hand may not: the three-robot example needs 11
+slots for copies in flight, and with the default 8 the model overflows).
 """
 
 from __future__ import annotations

@@ -900,3 +900,48 @@ def test_verify_hears_a_message_only_an_exit_action_sends(tmp_path):
     report = verify(team(tmp_path, ENTRY_EXIT, "team"), Options(losses=1), replay=False)
     assert report.skeleton.inputs == [set(), set()]
     assert verdict(report, "deadlock") is False
+
+
+# A rally that never ends: a serves when started, then a and b return the ball for ever
+# (each a leaf back into itself, sending it back). a never rests again: a response
+# violated by a cycle alone (the ball always flies, so no dead end) without loss, and
+# with a lost ball by a dead end as well.
+RALLY = """team: rally
+agents:
+  a:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Rest
+    modes:
+      Rest:
+        transitions:
+          - {to: Rally, on: start, do: [{send: ball, to: b}]}
+      Rally:
+        transitions:
+          - {to: Rally, on: ball, do: [{send: ball, to: b}]}
+  b:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    initial: Rally
+    modes:
+      Rally:
+        transitions:
+          - {to: Rally, on: ball, do: [{send: ball, to: a}]}
+scenario:
+  - {at: 1.0, agent: a, raise: start}
+simulation: {duration: 10}
+requirements:
+  rests_again: always(implies(in_mode(a, Rally), eventually(in_mode(a, Rest))))
+  keeps_playing: always(implies(in_mode(a, Rally), eventually(in_mode(b, Rally))))
+"""
+
+
+@needs_spin
+@pytest.mark.parametrize("losses", [0, 1])
+def test_a_response_violated_by_a_cycle_is_found_by_both(tmp_path, losses):
+    """By hand (a: root, Rest, Rally | b: root, Rally): two configurations; without loss
+    no dead end, so rests_again fails only through the rally's cycle (SPIN: an acceptance
+    cycle); keeps_playing holds (b is always in Rally)."""
+    c = compared(tmp_path, RALLY, Options(losses=losses))
+    assert c.ours.configurations == c.spin.configurations == {"110|11", "101|11"}
+    assert c.ours.dead_ends == c.spin.dead_ends == ({"101|11"} if losses else set())
+    assert c.ours.verdicts == c.spin.verdicts == {"rests_again": False, "keeps_playing": True}
+    assert c.differences() == []
