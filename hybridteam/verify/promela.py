@@ -137,7 +137,9 @@ class Exploration:
     dead_ends: set[str]
     deadlock: bool  # True: no deadlock (the property holds)
     verdicts: dict[str, bool] = field(default_factory=dict)
-    states: int = 0  # states stored (SPIN's count includes its atomic sequences' inner ones)
+    #: states stored (SPIN's: a few more than ours, among them its state before ``init``
+    #: starts the processes and one after the watcher's step at each dead end)
+    states: int = 0
     #: properties not decided, with the reason (SPIN: a formula the export cannot translate)
     undecided: dict[str, str] = field(default_factory=dict)
 
@@ -701,8 +703,8 @@ class _Ctx:
         if not tr.internal:
             exited = _exited(ag.ca, tr)
             for m in exited[::-1]:  # exit actions of the active ones, innermost first
-                if ag.ca.modes[m].on_exit:
-                    code = " ".join(self.actions(ag, ag.ca.modes[m].on_exit, None))
+                code = " ".join(self.actions(ag, ag.ca.modes[m].on_exit, None))
+                if code:
                     out.append(f"if :: {ag.bit(m)} -> {code} :: else -> skip fi;")
             out += [_remember(ag, m) for m in exited if m in ag.hist]
             out += [f"{ag.bit(m)} = 0;" for m in exited]
