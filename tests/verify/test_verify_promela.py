@@ -945,3 +945,51 @@ def test_a_response_violated_by_a_cycle_is_found_by_both(tmp_path, losses):
     assert c.ours.dead_ends == c.spin.dead_ends == ({"101|11"} if losses else set())
     assert c.ours.verdicts == c.spin.verdicts == {"rests_again": False, "keeps_playing": True}
     assert c.differences() == []
+
+
+# Statechart order (tests/engine/test_statecharts.py's digits, a discrete counter here):
+# entering P appends P 1, R1 2, a 3, R2 4, c 5 (outermost first, regions in document
+# order); leaving it appends c 8, R2 9, a 6, R1 7, P 0 (innermost first, regions in
+# reverse): n = 12345, then 1234589670 (within Promela's 32-bit int)
+ORDER = """team: order
+agents:
+  a:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {n: 0}
+    initial: Q
+    modes:
+      P:
+        parallel: true
+        entry: ["n = n * 10 + 1"]
+        exit: ["n = n * 10"]
+        transitions: [{to: Q, on: back}]
+        modes:
+          R1:
+            initial: a
+            entry: ["n = n * 10 + 2"]
+            exit: ["n = n * 10 + 7"]
+            modes:
+              a: {entry: ["n = n * 10 + 3"], exit: ["n = n * 10 + 6"]}
+          R2:
+            initial: c
+            entry: ["n = n * 10 + 4"]
+            exit: ["n = n * 10 + 9"]
+            modes:
+              c: {entry: ["n = n * 10 + 5"], exit: ["n = n * 10 + 8"]}
+      Q: {transitions: [{to: P, on: go}]}
+scenario: [{at: 1, agent: a, raise: go}, {at: 2, agent: a, raise: back}]
+simulation: {duration: 3}
+requirements:
+  in_order: always(a.n == 0 or a.n == 12345 or a.n == 1234589670)
+  entered: always(implies(in_mode(a, P), a.n == 12345))
+"""
+
+
+@needs_spin
+def test_entry_and_exit_order_through_parallel_regions_agrees(tmp_path):
+    """By hand (bits: root, P, R1, a, R2, c, Q): Q, then P with both regions, then Q
+    again; the counter's values read the order of every entry and exit action."""
+    c = compared(tmp_path, ORDER, Options(losses=0))
+    assert c.ours.configurations == c.spin.configurations == {"1000001", "1111110"}
+    assert c.ours.verdicts == c.spin.verdicts == {"in_order": True, "entered": True}
+    assert c.differences() == []
