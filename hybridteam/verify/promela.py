@@ -1368,6 +1368,12 @@ class _Term:
     def astype(self, _dtype) -> _Term:  # count_in_role sums its Booleans as floats
         return self
 
+    def __bool__(self) -> bool:  # a choice made on a signal's value (np.where, and, or)
+        raise Unsupported("it decides on a value while it is computed")
+
+    def __float__(self) -> float:
+        raise Unsupported("it converts a signal to a number")
+
     def __add__(self, other) -> _Term:
         return _Term(f"({self.text} + {_operand(other)})")
 
@@ -1380,15 +1386,26 @@ class _Term:
             return _Term(f"({_operand(inputs[0])} {op} {_operand(inputs[1])})")
         if method == "__call__" and ufunc.__name__ == "negative":
             return _Term(f"(-{_operand(inputs[0])})")
+        # branch-free (a comparison is 0 or 1): SPIN's LTL parser reads '->' as implication
+        if method == "__call__" and ufunc.__name__ == "absolute":
+            x = _operand(inputs[0])
+            return _Term(f"(({x}) * (1 - 2 * (({x}) < 0)))")
+        if method == "__call__" and ufunc.__name__ in ("minimum", "maximum") and len(inputs) == 2:
+            a, b = (_operand(v) for v in inputs)
+            op = "<" if ufunc.__name__ == "minimum" else ">"
+            return _Term(f"(({b}) + (({a}) - ({b})) * (({a}) {op} ({b})))")
+        # (a division is not an int's: not translated)
         raise Unsupported(f"it applies {ufunc.__name__}, which is not translated")
 
 
 def _operand(v) -> str:
     """A term's text, or a constant's (whole numbers only: the model's values are ints)."""
-    if isinstance(v, _Term):
-        return v.text
     if isinstance(v, np.ndarray) and v.size == 1:
         v = v.item()
+    if isinstance(v, _Term):
+        return v.text
+    if not isinstance(v, (int, float, np.integer, np.floating)):
+        raise Unsupported(f"it computes a {type(v).__name__}")
     return str(_int(v, "a formula's constant"))
 
 
@@ -1418,7 +1435,10 @@ class _Signals:
         return _Term(ag.var_name[j])
 
     def param(self, agent: str, name: str) -> _Term:
-        return _Term(_operand(self.agents[agent].consts.get(name)))
+        value = self.agents[agent].consts.get(name)
+        if value is None:
+            raise Unsupported(f"it reads {agent}.{name}, which is not a whole number")
+        return _Term(_operand(value))
 
     def team_param(self, name: str) -> _Term:
         return self.param(next(iter(self.agents)), name)

@@ -709,7 +709,9 @@ PINGPONG_PROPS = PINGPONG.replace(
     "simulation: {duration: 10}\n",
     "simulation: {duration: 10}\nrequirements:\n"
     "  never_counted: always(a.n <= 0)\n"
-    "  counted_once: always(a.n <= 1)\n",
+    "  counted_once: always(a.n <= 1)\n"
+    "  in_range: always(abs(a.n - 3) >= 2 and max(a.n, 0) == min(a.n, 5) and -a.n <= 0)\n"
+    "  halved: always(a.n / 2 < 1)\n",
 )
 
 
@@ -731,9 +733,13 @@ def test_invariants_and_responses_are_decided_on_the_rules(tmp_path, losses, fol
 @needs_spin
 def test_an_invariant_over_a_discrete_variable_is_decided(tmp_path):
     """By hand: a's n becomes 1 when b's pong (k = 0) arrives in Wait; no second pong can
-    arrive in Wait (a is in Got, or back in Idle for good), even with a duplicate."""
+    arrive in Wait (a is in Got, or back in Idle for good), even with a duplicate. So n is
+    0 or 1 (in_range: |n - 3| >= 2, max and min agree on n, -n <= 0); a division is not an int's
+    and SPIN leaves it undecided (ours decides it on its floats)."""
     c = compared(tmp_path, PINGPONG_PROPS, Options(losses=1, duplicates=1))
-    assert c.spin.verdicts == c.ours.verdicts == {"never_counted": False, "counted_once": True}
+    assert c.spin.verdicts == {"never_counted": False, "counted_once": True, "in_range": True}
+    assert c.ours.verdicts == {**c.spin.verdicts, "halved": True}
+    assert c.spin.undecided == {"halved": "it applies divide, which is not translated"}
     assert c.differences() == []
 
 
