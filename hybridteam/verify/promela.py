@@ -37,7 +37,8 @@ earlier chosen one conflicts with it) — the pick and the free comparisons' val
 chosen inside the step's atomic sequence before its ``d_step`` (SPIN stores no state
 inside an atomic sequence), so each dispatch is written once, not once per slot. A
 ``raise`` queues its event; the queue is dispatched in order within the step, as the
-engine's micro-steps of one instant. Where an agent has history or a role carry-over,
+engine's micro-steps of one instant, an enabled urgent transition (no trigger, an exact
+guard) taking its micro-step before the next event. Where an agent has history or a role carry-over,
 each of its 'or' modes keeps its last child (``h<a>_<m>``, AgentState.last) and an entry
 reads it at run time. A ``network`` proctype loses or duplicates a copy
 within the budgets (``--losses``, ``--duplicates``), a ``scenario`` proctype raises the
@@ -77,10 +78,11 @@ that reads time, plant states, series or message events is left undecided with t
 reason, as ours leaves it unchecked.
 
 **Scope.** A feature this module cannot translate exactly refuses the model with one
-line naming it (:class:`Unsupported`) rather than exporting an approximation: urgent
-transitions with exact guards, time-driven transitions back into their own mode (other
-than a leaf into itself without entry or exit actions, or targetless), a raised event
-that wakes a guard reading time or state, non-integer values. Entry and exit actions
+line naming it (:class:`Unsupported`) rather than exporting an approximation:
+time-driven transitions back into their own mode (other than a leaf into itself without
+entry or exit actions, or targetless), a raised event that wakes a guard reading time or
+state, non-integer values. Urgent transitions (no trigger, an exact guard) are taken as
+the engine's discrete phase takes them (:meth:`_Ctx.drain`). Entry and exit actions
 are translated where the engine runs them (exit actions of the active modes left,
 innermost first, before the transition's own; entry actions as each mode is activated,
 outermost first; the initial configuration's at the start, :func:`_initial_entry`). A
@@ -122,6 +124,8 @@ SMALL = 500
 MAX_FREE = 6
 #: events one step may raise (the queue of raised events, drained within the step)
 RAISED = 8
+#: urgent micro-steps one step may take (more: a Zeno cycle, reported as an overflow)
+MICRO = 32
 
 
 class Unsupported(Exception):
@@ -310,6 +314,7 @@ def export(
         f"hidden byte rq[{RAISED}];",
         "hidden byte nr;",
         "hidden byte ri;",
+        "hidden byte mi;",
         *_first_invisible(agents, types, slots, seen, ctx.fifo, ctx.reduce),
         *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types), ctx.reduce),
         *_note(agents),
@@ -358,7 +363,9 @@ def _initial_entry(ctx: _Ctx, agents: list[_Agent]) -> str:
     for ag in agents:
         if ag.entry_code:
             code += [*ag.entry_code.get(0, []), *_enter_default(ag, 0, False, False)]
-    return " ".join(code) + " " + ctx.tail() + " " if code else ""
+    if code or any(ctx.urgent(ag) for ag in agents):  # (urgent ones may fire at once)
+        return " ".join(code) + " " + ctx.tail() + " "
+    return ""
 
 
 def _ints(values, what: str) -> np.ndarray:
@@ -385,8 +392,6 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
-        if tr.on is None and tr.index not in timed:
-            raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
         if (
             tr.index in timed
             and not _in_place(ca, tr)
@@ -857,10 +862,47 @@ class _Ctx:
                         out.append((ag.a, act.name))
         return out
 
+    def urgent(self, ag: _Agent) -> list[int]:
+        """``ag``'s urgent transitions: no trigger, not time-driven (an exact guard, or
+        none), in precedence order."""
+        timed = set(self.sk.time_driven[ag.a])
+        return [
+            j
+            for j, tr in enumerate(ag.ca.transitions)
+            if tr.on is None and j not in timed and self.drop != (ag.a, j)
+        ]
+
+    def micro_step(self) -> tuple[str, str]:
+        """(whether some urgent transition is enabled, the micro-step in which every
+        agent takes its enabled ones): engine.run.discrete.discrete_phase takes such a
+        micro-step before any pending event, select_and_fire over the agent's urgent
+        transitions (guards read before any fires, an earlier chosen one blocking a
+        conflicting later one)."""
+        enabled, choose, fire = [], [], []
+        for ag in self.agents:
+            cands = self.urgent(ag)
+            for j in cands:
+                tr = ag.ca.transitions[j]
+                free: list[str] = []
+                cond = self.guard(ag, tr, free)
+                assert not free  # (a guard that reads time or state makes it time-driven)
+                enabled.append(f"({cond})")
+                block = [f"c{ag.a}_{k}" for k in tr.conflicts.tolist() if k in cands and k < j]
+                choose.append(f"c{ag.a}_{j} = ({cond})" + "".join(f" && !{b}" for b in block) + ";")
+                fire.append(
+                    f"if :: c{ag.a}_{j} -> " + " ".join(self.fire(ag, tr)) + " :: else -> skip fi;"
+                )
+                fire.append(f"c{ag.a}_{j} = 0;")
+        return " || ".join(enabled), " ".join(choose + fire)
+
     def drain(self) -> str:
-        """Dispatch the raised events in queue order until none is left (an event raised
-        meanwhile joins the queue's end; a queue that outgrows ``RAISED`` is an overflow)."""
-        if not self.events:
+        """The rest of the instant, in micro-steps as the engine takes them: while some
+        urgent transition is enabled, every agent takes its enabled ones; else the first
+        raised event in the queue is dispatched (an event raised meanwhile joins the
+        queue's end); until neither is left. A queue that outgrows ``RAISED``, or more
+        than ``MICRO`` urgent micro-steps (a Zeno cycle), is an overflow."""
+        enabled, micro = self.micro_step()
+        if not self.events and not enabled:
             return ""
         options = []
         for k, (a, name) in enumerate(self.events):
@@ -873,10 +915,16 @@ class _Ctx:
                     "reads time or state"
                 )
             options.append(f":: rq[ri] == {k} -> {body or 'skip'}")
-        return (
-            " ri = 0; do :: ri < nr -> if "
+        event = (
+            "if :: ri < nr -> if "
             + " ".join(options)
-            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break od; nr = 0; ri = 0;"
+            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break fi"
+        )
+        if not enabled:
+            return f" ri = 0; do :: true -> {event} od; nr = 0; ri = 0;"
+        return (
+            f" ri = 0; mi = 0; do :: ({enabled}) -> if :: mi >= {MICRO} -> overflow = 1; "
+            f"break :: else -> {micro} mi++ fi :: else -> {event} od; nr = 0; ri = 0; mi = 0;"
         )
 
     def agent_proc(self, ag: _Agent, config: str) -> list[str]:
@@ -1618,7 +1666,8 @@ def run_spin(
     if over:
         raise RuntimeError(
             "the model's slots overflowed (copies in flight, outbox or filter entries "
-            f"beyond the sizes in rules.pml, or more than {MAX_IDS} ids)"
+            f"beyond the sizes in rules.pml, more than {MAX_IDS} ids, {RAISED} raised events "
+            f"or {MICRO} urgent micro-steps in one step)"
         )
     stored = re.search(r"(\d+) states, stored", text)
     verdicts = _decide(folder, names, timeout)

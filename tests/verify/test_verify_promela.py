@@ -290,21 +290,19 @@ def test_the_export_is_promela_spin_compiles(tmp_path):
     assert c.differences() == []
 
 
-# an urgent transition with an exact guard (not translated): the follower, once it has
-# driven, is done at once
-URGENT = GO.replace(
+# a raised event that wakes a guard over the plant (not translated): the follower, once
+# go arrives, checks where it is
+RAISED_FREE = GO.replace(
     "          - {to: Drive, on: go}\n      Drive:\n        inputs: {v: 0.5, omega: 0}\n",
-    "          - {to: Drive, on: go, do: [drives = 1]}\n      Drive:\n"
-    "        inputs: {v: 0.5, omega: 0}\n        transitions: [{to: Done, guard: drives > 0}]\n",
-).replace(
-    "    plant: {kind: unicycle, state: {x: -1",
-    "    variables: {drives: 0}\n    plant: {kind: unicycle, state: {x: -1",
+    "          - {to: Drive, on: go, do: [{raise: check}]}\n      Drive:\n"
+    "        inputs: {v: 0.5, omega: 0}\n"
+    "        transitions: [{to: Done, on: check, guard: x > 0}]\n",
 )
-NOT_TRANSLATED = "agent 'follower' Drive -> Done: an urgent transition (exact guard, no trigger)"
+NOT_TRANSLATED = "agent 'follower': the raised event 'check' wakes a guard that reads time or state"
 
 
 def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
-    report = verify(team(tmp_path, URGENT, "urgent"), Options(losses=0), replay=False)
+    report = verify(team(tmp_path, RAISED_FREE, "raised"), Options(losses=0), replay=False)
     with pytest.raises(promela.Unsupported, match=rf"^{re.escape(NOT_TRANSLATED)}$"):
         promela.prepare(report, Options(losses=0))
 
@@ -357,11 +355,11 @@ def test_cli_spin_rules_without_spin_is_one_line_exit_2(tmp_path, capsys, monkey
 
 
 def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, capsys):
-    (tmp_path / "urgent.yaml").write_text(URGENT)
+    (tmp_path / "raised.yaml").write_text(RAISED_FREE)
     code = main(
         [
             "verify",
-            str(tmp_path / "urgent.yaml"),
+            str(tmp_path / "raised.yaml"),
             "--losses",
             "0",
             "--spin-rules",
@@ -999,3 +997,63 @@ def test_entry_and_exit_order_through_parallel_regions_agrees(tmp_path):
     assert c.ours.configurations == c.spin.configurations == {"1000001", "1111110"}
     assert c.ours.verdicts == c.spin.verdicts == {"in_order": True, "entered": True}
     assert c.differences() == []
+
+
+# Urgent transitions (no trigger, an exact guard), as the engine's discrete phase takes
+# them: before any pending event, every agent its enabled ones. Boot is left at the first
+# instant (n = 0: to Idle, n = 1); start takes Idle to A (n = 2) and raises ping; A's
+# urgent transitions go before the queued ping: to B (n = 3), the second (to X) blocked by
+# the first, which precedes it on the same mode; ping then finds s in B: C. Dispatching
+# ping first would reach X, skipping the first instant would leave s in Boot.
+URGENT = """team: urgent
+agents:
+  s:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {n: 0}
+    initial: Boot
+    modes:
+      Boot:
+        transitions:
+          - {to: Idle, guard: n == 0, do: [n = 1]}
+      Idle:
+        transitions:
+          - {to: A, on: start, do: [n = 2, {raise: ping}]}
+      A:
+        transitions:
+          - {to: B, guard: n == 2, do: [n = 3]}
+          - {to: X, guard: n >= 2}
+          - {to: X, on: ping}
+      B:
+        transitions:
+          - {to: C, on: ping, guard: n == 3}
+      C: {final: true}
+      X: {final: true}
+scenario:
+  - {at: 1.0, agent: s, raise: start}
+simulation: {duration: 3}
+requirements:
+  never_x: always(not in_mode(s, X))
+  settled: always(s.n == 1 or s.n == 3)
+"""
+
+
+@needs_spin
+def test_urgent_transitions_fire_before_pending_events_in_both(tmp_path):
+    """By hand (bits: root, Boot, Idle, A, B, C, X): Idle, then C, its one dead end; X
+    never; n is 1 or 3 in every state (2 only within the step)."""
+    c = compared(tmp_path, URGENT, Options(losses=0))
+    assert c.ours.configurations == c.spin.configurations == {"1010000", "1000010"}
+    assert c.ours.dead_ends == c.spin.dead_ends == {"1000010"}
+    assert c.ours.verdicts == c.spin.verdicts == {"never_x": True, "settled": True}
+    assert c.differences() == []
+
+
+@needs_spin
+def test_a_zeno_cycle_of_urgent_transitions_is_reported_not_compared(tmp_path):
+    """Two urgent transitions that take each other's mode for ever: the step never ends,
+    which the model reports (as an overflow) instead of comparing."""
+    zeno = URGENT.replace("          - {to: C, on: ping, guard: n == 3}", "          - {to: A}")
+    zeno = zeno.replace("          - {to: B, guard: n == 2, do: [n = 3]}", "          - {to: B}")
+    report = verify(team(tmp_path, zeno, "team"), Options(losses=0), replay=False)
+    with pytest.raises(RuntimeError, match="urgent micro-steps"):
+        promela.compare(report, Options(losses=0), tmp_path / "x")
