@@ -378,7 +378,8 @@ def _rules(report, opts) -> str:
 
 
 def _spin_rules(report, opts, rules: str, out) -> tuple[dict, bool]:
-    """Both explorers' configuration counts and deadlock verdicts, and where they differ."""
+    """Both explorers' configuration counts and deadlock verdicts, SPIN's verdicts on the
+    invariants and responses it decided on the rules, and where they differ."""
     from hybridteam.verify import promela
 
     try:
@@ -393,12 +394,20 @@ def _spin_rules(report, opts, rules: str, out) -> tuple[dict, bool]:
             f"{len(e.dead_ends)} at dead ends, deadlock "
             f"{'holds' if e.deadlock else 'violated'}"
         )
+    for name, holds in c.spin.verdicts.items():
+        print(f"spin-rules: {name}: SPIN {'holds' if holds else 'violated'} on the rules")
+    for name, why in c.spin.undecided.items():
+        print(f"spin-rules: {name}: not decided by SPIN: {why}")
     print("spin-rules: " + ("the explorers agree" if not diff else "DIFFER: " + "; ".join(diff)))
     return (
         {
             "ours": len(c.ours.configurations),
             "spin": len(c.spin.configurations),
             "deadlock": {"ours": c.ours.deadlock, "spin": c.spin.deadlock},
+            "verdicts": {
+                n: {"ours": c.ours.verdicts.get(n), "spin": h} for n, h in c.spin.verdicts.items()
+            },
+            "states": {"ours": c.ours.states, "spin": c.spin.states},
             "differences": diff,
         },
         bool(diff),

@@ -218,7 +218,14 @@ def skeleton(cteam: CTeam, world_raises: tuple[str, ...] = ()) -> Skeleton:
         base = _discrete_names(ca, abstract[a])
         new_transitions: list[CTransition] = []
         mine: list[int] = []
-        raised = {act.name for tr in ca.transitions for act in tr.actions if act.kind == "raise"}
+        raised = {  # by its transitions and by its modes' entry and exit actions
+            act.name
+            for actions in [tr.actions for tr in ca.transitions]
+            + [m.on_entry for m in ca.modes]
+            + [m.on_exit for m in ca.modes]
+            for act in actions
+            if act.kind == "raise"
+        }
         for tr in ca.transitions:
             known = base | _message_names(tr.on, fields, afields)
             syms = (

@@ -22,8 +22,11 @@ has it) resends to the receivers still waiting or, out of retries, drops the ent
 raises ``<type>_undeliverable`` at the sender. Every step ends with ``settle()``, our
 canonical form (:meth:`.Machine.canonical`) written again in C: acks nobody waits for and
 filter entries no copy can match again dropped, ids renumbered per sender, the slots
-sorted — stably by link in fifo order — so SPIN meets one state where we do (it still
-meets more: ours delivers an ack or a withheld copy first, a partial-order reduction).
+sorted — stably by link in fifo order — so SPIN meets one state where we do. Like ours,
+the model delivers a copy no mode sees (an ack, a withheld copy) before anything else, a
+partial-order reduction written again from the model's own data (:func:`_first_invisible`);
+without it the acks interleave with everything and SPIN met over a million states on
+the docking handshake, where ours met 1,547 (now about 1,600 for SPIN as well).
 
 **The model.** Each agent is a proctype; its active modes are bits ``m<a>_<k>``, its
 discrete variables ints. Copies in flight are an array of slots (a bag: any copy may
@@ -34,7 +37,8 @@ earlier chosen one conflicts with it) — the pick and the free comparisons' val
 chosen inside the step's atomic sequence before its ``d_step`` (SPIN stores no state
 inside an atomic sequence), so each dispatch is written once, not once per slot. A
 ``raise`` queues its event; the queue is dispatched in order within the step, as the
-engine's micro-steps of one instant. Where an agent has history or a role carry-over,
+engine's micro-steps of one instant, an enabled urgent transition (no trigger, an exact
+guard) taking its micro-step before the next event. Where an agent has history or a role carry-over,
 each of its 'or' modes keeps its last child (``h<a>_<m>``, AgentState.last) and an entry
 reads it at run time. A ``network`` proctype loses or duplicates a copy
 within the budgets (``--losses``, ``--duplicates``), a ``scenario`` proctype raises the
@@ -53,27 +57,39 @@ active modes as bits; each distinct line once, a C hash set outside SPIN's state
 step that fires none (a loss, an ack, a withheld copy) leaves the configuration as it
 was, so every reachable state's configuration is the initial one (printed by ``init``
 before any agent starts) or that of a printed step's target. pan compiled with
-``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, no
-partial-order reduction) in which every transition out of every reachable state is
-executed once, so every such step prints, and nothing unreachable does: the printed set
-is exactly the reachable projected configurations. ``spin -o2``: SPIN would otherwise
+``-DPRINTF -DNOREDUCE`` runs an exhaustive depth-first search (no bitstate, none of
+SPIN's own partial-order reduction) in which every transition out of every reachable
+state of the model is executed once, so every such step prints, and nothing unreachable
+does: the printed set is exactly the model's reachable projected configurations, which
+the invisible-copy rule keeps those of every interleaving (:func:`_first_invisible`
+says why). ``spin -o2``: SPIN would otherwise
 keep variables it judges write-only (mode bits read only by the prints) out of the state
 vector, merging states that differ in them. A ``watcher`` proctype waits on ``timeout``
 (true exactly when no other statement is executable: a dead end) and prints the dead
 end's configuration and whether it is a deadlock by the definition of :mod:`.properties`
 (written here as a predicate over the mode bits).
 
-**Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Invariant
-and response verdicts are not re-decided here (the graph export of :mod:`.spin` does that);
-equal configuration sets decide equally every invariant that reads only modes.
+**Verdicts compared.** ``deadlock``: SPIN's dead ends classified, against ours. Each
+invariant and response property whose formulas read only modes, discrete variables and
+parameters becomes an LTL claim over the model's variables (the formula's own getters
+read :class:`_Signals`, which answers with Promela expressions), decided by SPIN's nested
+depth-first search on the rules (:func:`_decide`) and compared with our verdict; one
+that reads time, plant states, series or message events is left undecided with the
+reason, as ours leaves it unchecked.
 
 **Scope.** A feature this module cannot translate exactly refuses the model with one
-line naming it (:class:`Unsupported`) rather than exporting an approximation: entry and
-exit actions, urgent transitions with exact guards, time-driven transitions back into
-their own mode (other than a leaf into itself, or targetless), a raised event that wakes
-a guard reading time or state, non-integer values. A model that outgrows the slots
-(copies in flight, outbox and filter entries, raised events, ids) is reported, not
-compared; :func:`prepare` gives it twice the room our exploration needed.
+line naming it (:class:`Unsupported`) rather than exporting an approximation:
+time-driven transitions back into their own mode (other than a leaf into itself without
+entry or exit actions, or targetless), a raised event that wakes a guard reading time or
+state, non-integer values. Urgent transitions (no trigger, an exact guard) are taken as
+the engine's discrete phase takes them (:meth:`_Ctx.drain`). Entry and exit actions
+are translated where the engine runs them (exit actions of the active modes left,
+innermost first, before the transition's own; entry actions as each mode is activated,
+outermost first; the initial configuration's at the start, :func:`_initial_entry`). A
+model that outgrows the slots (copies in flight, outbox and filter entries, raised
+events, ids) is reported, not compared; :func:`prepare` gives it twice the room our
+exploration needed (an export sized by hand may not: the three-robot example needs 11
+slots for copies in flight, and with the default 8 the model overflows).
 """
 
 from __future__ import annotations
@@ -81,14 +97,16 @@ from __future__ import annotations
 import ast
 import itertools
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.engine.compile.compiler import message_fields
 from hybridteam.expr.compiler import free_names
+from hybridteam.requirements import nodes as N
 from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
 from hybridteam.verify.spin import _run, missing
 from hybridteam.verify.symmetry import permute
@@ -106,6 +124,8 @@ SMALL = 500
 MAX_FREE = 6
 #: events one step may raise (the queue of raised events, drained within the step)
 RAISED = 8
+#: urgent micro-steps one step may take (more: a Zeno cycle, reported as an overflow)
+MICRO = 32
 
 
 class Unsupported(Exception):
@@ -114,11 +134,18 @@ class Unsupported(Exception):
 
 @dataclass
 class Exploration:
-    """What one explorer found: projected configurations, dead ends, the deadlock verdict."""
+    """What one explorer found: projected configurations, dead ends, the deadlock verdict,
+    and the invariant and response verdicts it decided (name: holds)."""
 
     configurations: set[str]
     dead_ends: set[str]
     deadlock: bool  # True: no deadlock (the property holds)
+    verdicts: dict[str, bool] = field(default_factory=dict)
+    #: states stored (SPIN's: a few more than ours, among them its state before ``init``
+    #: starts the processes and one after the watcher's step at each dead end)
+    states: int = 0
+    #: properties not decided, with the reason (SPIN: a formula the export cannot translate)
+    undecided: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -141,6 +168,9 @@ class Comparison:
             out.append(
                 f"deadlock: ours {_word(self.ours.deadlock)}, SPIN {_word(self.spin.deadlock)}"
             )
+        for name, holds in self.spin.verdicts.items():
+            if name in self.ours.verdicts and self.ours.verdicts[name] != holds:
+                out.append(f"{name}: ours {_word(self.ours.verdicts[name])}, SPIN {_word(holds)}")
         return out
 
 
@@ -177,12 +207,19 @@ class _Agent:
         )
         self.hist = [m.index for m in ca.modes if m.kind == "or"] if restores else []
         self.known = _discrete_names(ca, set(sk.abstract_vars[a]))
+        #: per mode with entry actions, their Promela (filled by the export's context)
+        self.entry_code: dict[int, list[str]] = {}
 
     def bit(self, m: int) -> str:
         return f"m{self.a}_{m}"
 
     def last(self, m: int) -> str:
         return f"h{self.a}_{m}"
+
+    def activate(self, m: int) -> list[str]:
+        """Mode ``m`` becomes active, and its entry actions run at once, before anything
+        below it is entered (AgentState.activate calls them there: outermost first)."""
+        return [f"{self.bit(m)} = 1;", *self.entry_code.get(m, [])]
 
 
 def export(
@@ -196,9 +233,15 @@ def export(
     ack_timing: str = "bounded",
     order: str = "any",
     timeouts: str = "any",
+    reduce: bool = True,
+    props: list | None = None,
 ) -> str:
     """The Promela model of ``sk``'s rules (raises :class:`Unsupported`). ``drop``: leave
-    out one (agent, transition) — only to show that the comparison catches a wrong model."""
+    out one (agent, transition) — only to show that the comparison catches a wrong model.
+    ``reduce``: an invisible copy's fates first (:func:`_first_invisible`; with
+    ``--ack-timing bounded`` only), else SPIN explores every interleaving. ``props``: the
+    invariant and response properties (:class:`~.properties.Property`) written as LTL
+    claims ``p<k>`` (:func:`claims`)."""
     team = sk.original
     fields = {k: sorted(v) for k, v in message_fields(team.team).items()}
     exact = {t: [f for f in fs if (t, f) not in sk.abstract_fields] for t, fs in fields.items()}
@@ -228,8 +271,13 @@ def export(
         ack_timing == "bounded",
         order == "fifo",
         timeouts,
+        reduce and ack_timing == "bounded",
     )
     ctx.outbox = outbox
+    for ag in agents:
+        ag.entry_code = {
+            m.index: ctx.actions(ag, m.on_entry, None) for m in ag.ca.modes if m.on_entry
+        }
     lines = [
         f"/* hybridteam verify --spin-rules: the rules of team '{team.team.name}' */",
         f"#define SLOTS {slots}",
@@ -251,6 +299,8 @@ def export(
         "byte dups = 0;",
         "bit overflow = 0;",
         "bit moved = 0;",
+        "bit started = 0;",
+        "byte inv = 0;",
         "hidden byte sl;",
         "hidden byte so;",
         "hidden byte r_snd;",
@@ -264,7 +314,9 @@ def export(
         f"hidden byte rq[{RAISED}];",
         "hidden byte nr;",
         "hidden byte ri;",
-        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types)),
+        "hidden byte mi;",
+        *_first_invisible(agents, types, slots, seen, ctx.fifo, ctx.reduce),
+        *_settle((slots, outbox, seen), nf, ctx.fifo, len(agents), len(types), ctx.reduce),
         *_note(agents),
     ]
     for ag in agents:
@@ -280,7 +332,9 @@ def export(
     for ag in agents:
         lines += ctx.agent_proc(ag, config)
     lines += ctx.network_proc(losses, duplicates, config)
-    lines += ctx.scenario_proc(config)
+    scenario = ctx.scenario_proc(config)
+    lines += scenario
+    start_scenario = " run scenario();" if scenario else ""
     lines += [
         "proctype watcher() {",
         "  timeout -> d_step { " + _print("T", agents, " %d", _deadlock_expr(sk, agents)) + " }",
@@ -289,11 +343,29 @@ def export(
     runs = " ".join(f"run agent_{ag.a}();" for ag in agents)
     lines += [
         "init {",
-        "  atomic { " + first + f" {runs} run network(); run scenario(); run watcher(); }}",
+        "  atomic { "
+        + _initial_entry(ctx, agents)
+        + first
+        + f" moved = 0; started = 1; {runs} run network();{start_scenario} run watcher(); }}",
         "}",
-        "",
     ]
-    return "\n".join(lines)
+    lines += _claim_lines(agents, props or [])
+    return "\n".join([*lines, ""])
+
+
+def _initial_entry(ctx: _Ctx, agents: list[_Agent]) -> str:
+    """The initial configuration's entry actions, as the simulator's start runs them:
+    agent by agent, the root activated and its default entry completed (each mode's
+    entry actions as it is activated, outermost first), then the events they raised
+    dispatched and the containers settled — all before the first state. The mode bits
+    are set to the initial configuration already; setting them again changes nothing."""
+    code = []
+    for ag in agents:
+        if ag.entry_code:
+            code += [*ag.entry_code.get(0, []), *_enter_default(ag, 0, False, False)]
+    if code or any(ctx.urgent(ag) for ag in agents):  # (urgent ones may fire at once)
+        return " ".join(code) + " " + ctx.tail() + " "
+    return ""
 
 
 def _ints(values, what: str) -> np.ndarray:
@@ -314,19 +386,28 @@ def _refuse(sk: Skeleton, ag: _Agent) -> None:
     """One line naming the first feature of ``ag`` the export does not translate."""
     ca, who = ag.ca, f"agent '{ag.name}'"
     for m in ca.modes:
-        if m.on_entry or m.on_exit:
-            raise Unsupported(f"{who}: mode {m.path or m.name} has entry or exit actions")
+        for act in [*m.on_entry, *m.on_exit]:
+            if act.kind == "send" and act.socket != "control":
+                raise Unsupported(f"{who}: mode {m.path}: a send on socket '{act.socket}'")
     timed = set(sk.time_driven[ag.a])
     for tr in ca.transitions:
         where = f"{who} {tr.text}"
-        if tr.on is None and tr.index not in timed:
-            raise Unsupported(f"{where}: an urgent transition (exact guard, no trigger)")
         if (
             tr.index in timed
             and not _in_place(ca, tr)
             and (_above(ca, tr.target, tr.source) or _above(ca, tr.source, tr.target))
         ):
             raise Unsupported(f"{where}: a time-driven transition back into its own mode")
+        if (
+            tr.index in timed
+            and not tr.internal
+            and _in_place(ca, tr)
+            and (ca.modes[tr.source].on_entry or ca.modes[tr.source].on_exit)
+        ):
+            raise Unsupported(
+                f"{where}: a time-driven transition in place through a mode with entry or "
+                "exit actions"
+            )
         if tr.index in timed and _in_place(ca, tr) and not _sends(tr):
             assigned: set[int] = set()
             for act in tr.actions:
@@ -422,7 +503,7 @@ def _enter(ag: _Agent, entry, deep: bool) -> list[str]:
     """Entering as ``entry`` says (AgentState.enter): its first mode, down through its
     marked modes to its targets, which complete their entry — by history, read at run
     time from the ``h`` variables, where a mode has one (or ``deep``, a carry-over)."""
-    out = [] if entry.active_first else [f"{ag.bit(entry.first)} = 1;"]
+    out = [] if entry.active_first else ag.activate(entry.first)
     return out + _enter_below(ag, entry.first, entry, deep)
 
 
@@ -432,9 +513,9 @@ def _enter_below(ag: _Agent, m: int, entry, deep: bool) -> list[str]:
     out = []
     for c in ag.ca.modes[m].children:
         if c in entry.marks:
-            out += [f"{ag.bit(c)} = 1;", *_enter_below(ag, c, entry, deep)]
+            out += [*ag.activate(c), *_enter_below(ag, c, entry, deep)]
         elif ag.ca.modes[m].kind == "and":
-            out += [f"{ag.bit(c)} = 1;", *_enter_default(ag, c, False, False)]
+            out += [*ag.activate(c), *_enter_default(ag, c, False, False)]
     return out
 
 
@@ -444,7 +525,7 @@ def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
     out: list[str] = []
     if mode.kind == "and":
         for r in mode.children:
-            out += [f"{ag.bit(r)} = 1;"]
+            out += ag.activate(r)
             out += _enter_default(
                 ag, r, deep or mode.history == "deep", restore or mode.history == "shallow"
             )
@@ -457,12 +538,12 @@ def _enter_default(ag: _Agent, m: int, deep: bool, restore: bool) -> list[str]:
     fresh = mode.history_default or mode.default
     assert fresh is not None  # (an 'or' mode has its default entry)
     if fresh.targets == {mode.initial}:  # nothing remembered: the initial child
-        unset = [f"{ag.bit(mode.initial)} = 1;", *_enter_default(ag, mode.initial, deeper, False)]
+        unset = [*ag.activate(mode.initial), *_enter_default(ag, mode.initial, deeper, False)]
     else:
         unset = _enter(ag, fresh, False)
     options = [
         f":: {ag.last(m)} == {c} -> "
-        + " ".join([f"{ag.bit(c)} = 1;", *_enter_default(ag, c, deeper, False)])
+        + " ".join([*ag.activate(c), *_enter_default(ag, c, deeper, False)])
         for c in mode.children
     ]
     return ["if " + " ".join(options) + " :: else -> " + (" ".join(unset) or "skip") + " fi;"]
@@ -531,11 +612,11 @@ class _Ctx:
     """Translation of guards, actions and steps (one model's worth of names)."""
 
     def __init__(
-        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts
+        self, sk, agents, fields, exact, types, slots, drop, bounded, fifo, timeouts, reduce
     ) -> None:
         self.sk, self.agents, self.fields, self.exact = sk, agents, fields, exact
         self.types, self.slots, self.drop, self.bounded = types, slots, drop, bounded
-        self.fifo, self.timeouts = fifo, timeouts
+        self.fifo, self.timeouts, self.reduce = fifo, timeouts, reduce
         self.outbox = OUTBOX  # (export sets the model's size)
         self.events = self.raised_events()
 
@@ -626,24 +707,36 @@ class _Ctx:
         out = []
         if not tr.internal:
             exited = _exited(ag.ca, tr)
+            for m in exited[::-1]:  # exit actions of the active ones, innermost first
+                code = " ".join(self.actions(ag, ag.ca.modes[m].on_exit, None))
+                if code:
+                    out.append(f"if :: {ag.bit(m)} -> {code} :: else -> skip fi;")
             out += [_remember(ag, m) for m in exited if m in ag.hist]
             out += [f"{ag.bit(m)} = 0;" for m in exited]
-        for act in tr.actions:
-            if act.kind == "assign":
-                kind, j = act.target
-                if kind == "v" and j in ag.var_name:
-                    out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, tr.on)};")
-            elif act.kind == "send":
-                out += self.send(ag, act, tr.on)
-            elif act.kind == "raise":  # queued, dispatched after this step's firings
-                k = self.events.index((ag.a, act.name))
-                out.append(
-                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
-                )
+        out += self.actions(ag, tr.actions, tr.on)
         if not tr.internal:
             for a, b in tr.carry:  # same role: the body resumes (compiler._role_carry)
                 out.append(_carried(ag, a, b, tr.carry_map))
             out += [*_enter(ag, tr.entry, bool(tr.carry)), "moved = 1;"]
+        return out
+
+    def actions(self, ag: _Agent, actions, on: str | None) -> list[str]:
+        """An action list in order (engine.run.actions.run_actions): assignments to the
+        discrete variables (sequential), sends, raises (queued, dispatched after the
+        step's firings). ``on``: the triggering message, None in entry and exit lists."""
+        out = []
+        for act in actions:
+            if act.kind == "assign":
+                kind, j = act.target
+                if kind == "v" and j in ag.var_name:
+                    out.append(f"{ag.var_name[j]} = {self.expr(ag, act.expr.source, on)};")
+            elif act.kind == "send":
+                out += self.send(ag, act, on)
+            elif act.kind == "raise":
+                k = self.events.index((ag.a, act.name))
+                out.append(
+                    f"if :: nr >= {RAISED} -> overflow = 1 :: else -> rq[nr] = {k}; nr++ fi;"
+                )
         return out
 
     def send(self, ag: _Agent, act, on: str | None) -> list[str]:
@@ -727,6 +820,18 @@ class _Ctx:
             return f"fl[{k}].used"
         return f"fl[{k}].used && (fl[{k - 1}].snd != fl[{k}].snd || fl[{k - 1}].rcv != fl[{k}].rcv)"
 
+    def fate(self, k: int) -> str:
+        """``arrives(k)``, and where an invisible copy flies only if it is that copy
+        (:func:`_first_invisible`): what may happen to the copy in slot ``k`` next."""
+        if not self.reduce:
+            return self.arrives(k)
+        return f"{self.arrives(k)} && (inv == 0 || inv == {k + 1})"
+
+    def visible(self) -> str:
+        """The condition of every step that is not a copy's fate: no invisible copy flies
+        (``1`` without the reduction)."""
+        return "inv == 0" if self.reduce else "1"
+
     def choose(self, free: list[str], who: str) -> str:
         """Nondeterministic values of the free comparisons a step reads (bits ``fr<k>``,
         set inside the step's atomic sequence before its ``d_step``)."""
@@ -749,16 +854,55 @@ class _Ctx:
         """(agent, event) of every ``raise`` action: numbered in the raised-event queue."""
         out: list[tuple[int, str]] = []
         for ag in self.agents:
-            for tr in ag.ca.transitions:
-                for act in tr.actions:
+            lists = [tr.actions for tr in ag.ca.transitions]
+            lists += [m.on_entry for m in ag.ca.modes] + [m.on_exit for m in ag.ca.modes]
+            for actions in lists:
+                for act in actions:
                     if act.kind == "raise" and (ag.a, act.name) not in out:
                         out.append((ag.a, act.name))
         return out
 
+    def urgent(self, ag: _Agent) -> list[int]:
+        """``ag``'s urgent transitions: no trigger, not time-driven (an exact guard, or
+        none), in precedence order."""
+        timed = set(self.sk.time_driven[ag.a])
+        return [
+            j
+            for j, tr in enumerate(ag.ca.transitions)
+            if tr.on is None and j not in timed and self.drop != (ag.a, j)
+        ]
+
+    def micro_step(self) -> tuple[str, str]:
+        """(whether some urgent transition is enabled, the micro-step in which every
+        agent takes its enabled ones): engine.run.discrete.discrete_phase takes such a
+        micro-step before any pending event, select_and_fire over the agent's urgent
+        transitions (guards read before any fires, an earlier chosen one blocking a
+        conflicting later one)."""
+        enabled, choose, fire = [], [], []
+        for ag in self.agents:
+            cands = self.urgent(ag)
+            for j in cands:
+                tr = ag.ca.transitions[j]
+                free: list[str] = []
+                cond = self.guard(ag, tr, free)
+                assert not free  # (a guard that reads time or state makes it time-driven)
+                enabled.append(f"({cond})")
+                block = [f"c{ag.a}_{k}" for k in tr.conflicts.tolist() if k in cands and k < j]
+                choose.append(f"c{ag.a}_{j} = ({cond})" + "".join(f" && !{b}" for b in block) + ";")
+                fire.append(
+                    f"if :: c{ag.a}_{j} -> " + " ".join(self.fire(ag, tr)) + " :: else -> skip fi;"
+                )
+                fire.append(f"c{ag.a}_{j} = 0;")
+        return " || ".join(enabled), " ".join(choose + fire)
+
     def drain(self) -> str:
-        """Dispatch the raised events in queue order until none is left (an event raised
-        meanwhile joins the queue's end; a queue that outgrows ``RAISED`` is an overflow)."""
-        if not self.events:
+        """The rest of the instant, in micro-steps as the engine takes them: while some
+        urgent transition is enabled, every agent takes its enabled ones; else the first
+        raised event in the queue is dispatched (an event raised meanwhile joins the
+        queue's end); until neither is left. A queue that outgrows ``RAISED``, or more
+        than ``MICRO`` urgent micro-steps (a Zeno cycle), is an overflow."""
+        enabled, micro = self.micro_step()
+        if not self.events and not enabled:
             return ""
         options = []
         for k, (a, name) in enumerate(self.events):
@@ -771,10 +915,16 @@ class _Ctx:
                     "reads time or state"
                 )
             options.append(f":: rq[ri] == {k} -> {body or 'skip'}")
-        return (
-            " ri = 0; do :: ri < nr -> if "
+        event = (
+            "if :: ri < nr -> if "
             + " ".join(options)
-            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break od; nr = 0; ri = 0;"
+            + " :: else -> skip fi; rq[ri] = 0; ri++ :: else -> break fi"
+        )
+        if not enabled:
+            return f" ri = 0; do :: true -> {event} od; nr = 0; ri = 0;"
+        return (
+            f" ri = 0; mi = 0; do :: ({enabled}) -> if :: mi >= {MICRO} -> overflow = 1; "
+            f"break :: else -> {micro} mi++ fi :: else -> {event} od; nr = 0; ri = 0; mi = 0;"
         )
 
     def agent_proc(self, ag: _Agent, config: str) -> list[str]:
@@ -783,7 +933,7 @@ class _Ctx:
         # the next dispatches it by type; the dispatch is written once per type, not once
         # per slot, which keeps the model (and the C compiler's work) small
         pick = " ".join(
-            f":: {self.arrives(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
+            f":: {self.fate(k)} && fl[{k}].rcv == {ag.a} -> sk = {k}" for k in range(self.slots)
         )
         branches = []
         for t, name in enumerate(self.types):
@@ -815,7 +965,12 @@ class _Ctx:
                 continue
             tr = ag.ca.transitions[j]
             free = []
-            cond = self.guard(ag, tr, free) + self.changes(ag, tr) + self.waits(ag, tr)
+            cond = (
+                f"{self.visible()} && "
+                + self.guard(ag, tr, free)
+                + self.changes(ag, tr)
+                + self.waits(ag, tr)
+            )
             for bits in _assignments(free, ag.name):
                 out.append(
                     f"  :: atomic {{ d_step {{ {_subst(cond, bits)} -> "
@@ -839,7 +994,8 @@ class _Ctx:
             assert check == free  # (the same guards, read in the same order)
             for bits in _assignments(free, ag.name):
                 out.append(
-                    f"  :: atomic {{ d_step {{ ({_subst(enabled or '0', bits)}) -> "
+                    f"  :: atomic {{ d_step {{ {self.visible()} && "
+                    f"({_subst(enabled or '0', bits)}) -> "
                     f"{_subst(body, bits)} {self.tail()} }}; {config} }}"
                 )
         out += ["  od", "}"]
@@ -908,7 +1064,7 @@ class _Ctx:
         picks = []
         for o in range(self.outbox):
             e = f"ob[{o}]"
-            cond = f"{e}.used && {e}.snd == {ag.a}"
+            cond = f"{self.visible()} && {e}.used && {e}.snd == {ag.a}"
             if self.bounded:
                 cond += (
                     " && !("
@@ -961,7 +1117,7 @@ class _Ctx:
         for k in range(self.slots):
             if losses:
                 out.append(
-                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && losses < {losses} -> "
+                    f"  :: atomic {{ d_step {{ {self.fate(k)} && losses < {losses} -> "
                     f"{_clear(k, self.exact)} losses++; settle() }}; " + config + " }"
                 )
             if duplicates:
@@ -971,7 +1127,7 @@ class _Ctx:
                     + [f"f{i}" for i in range(_nf(self.exact))]
                 )
                 out.append(
-                    f"  :: atomic {{ d_step {{ {self.arrives(k)} && dups < {duplicates} -> "
+                    f"  :: atomic {{ d_step {{ {self.fate(k)} && dups < {duplicates} -> "
                     "sl = 0; "
                     "do :: sl < SLOTS && fl[sl].used -> sl++ :: else -> break od; "
                     f"if :: sl == SLOTS -> overflow = 1 :: else -> {copy} fi; sl = 0; "
@@ -989,13 +1145,18 @@ class _Ctx:
             free: list[str] = []
             body = " ".join(self.dispatch(ag, name, None, free))
             options = [
-                f"  :: atomic {{ d_step {{ true -> {_subst(body, bits)} {self.tail()} }}; "
+                f"  :: atomic {{ d_step {{ {self.visible()} -> {_subst(body, bits)} "
+                f"{self.tail()} }}; "
                 f"{config} }}"
                 for bits in _assignments(free, ag.name)
             ]
             out += ["  if", *options, "  fi;"]
-        out += ["  skip", "}"]
-        return out
+        if len(out) == 1:
+            return []  # no scenario: no process (its one step would double every state)
+        # the last event's step ends the process: a statement after it would be one more
+        # state (its program counter) after every state the rest of the run reaches
+        out[-1] = "  fi"
+        return [*out, "}"]
 
 
 def _reply(act) -> bool:
@@ -1053,7 +1214,9 @@ def _subst(code: str, bits: dict[int, int] | None) -> str:
     return re.sub(r"FREE(\d+)", lambda m: str(bits[int(m.group(1))]), code)
 
 
-def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int) -> list[str]:
+def _settle(
+    sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: int, reduce: bool
+) -> list[str]:
     """``settle()``, which ends every step: our canonical form (:meth:`.Machine.canonical`)
     written again in C, so that states that differ only in bookkeeping are one state for
     SPIN as they are for us — the projected configurations are the same either way, SPIN
@@ -1136,9 +1299,67 @@ def _settle(sizes: tuple[int, int, int], nf: int, fifo: bool, agents: int, ack: 
         ]
     lines += [
         "}",
-        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); } }",
+        "inline settle() { c_code { prune(); renumber(); sort_fl(); sort_ob(); sort_sn(); "
+        + ("now.inv = first_invisible(); " if reduce else "")
+        + "} }",
     ]
     return lines
+
+
+def _first_invisible(
+    agents: list[_Agent], types: list[str], slots: int, seen: int, fifo: bool, reduce: bool
+) -> list[str]:
+    """``first_invisible()``, which ``settle()`` stores in ``inv``: one more than the slot
+    of the first copy that may arrive next and that no mode sees arrive — an ack, a copy
+    the receiver's duplicate filter withholds (its (receiver, sender, id) is in the
+    filter), or a copy of a type no transition of the receiver is woken by — else 0.
+
+    While ``inv`` is set, only that copy's fates (arrival, loss, duplication) are enabled:
+    every other step of the model — another copy's fate, a timer, a timeout, a world or
+    scenario event — is guarded by ``inv == 0``. This is the partial-order reduction of
+    our explorer (``explore._invisible``), written again from the model's own data, and it
+    keeps what is compared for the same reasons: such an arrival changes no mode and no
+    variable, only the network's bookkeeping (an ack clears a wait bit, a withheld copy
+    is answered with an ack), so it commutes with every other step; no step it could
+    disable exists — a retransmission timer of the message it belongs to cannot expire
+    while it flies (``--ack-timing bounded``, the only timing under which the reduction is
+    made), and it enables, never disables, a timeout waiting for a quiet network; so
+    every path of the unreduced model reaches the same configurations, and the same
+    states without successors, with this copy's fate moved first. No cycle is made of
+    such steps alone (each consumes a copy or spends a budget), so none is postponed for
+    ever. SPIN's printed configurations and its ``timeout`` dead ends are therefore the
+    unreduced ones; the acks and withheld copies that would otherwise pile up and
+    interleave with everything (a million states and more for the docking handshake)
+    are taken one at a time. The copy chosen need not be the one ours chooses (the
+    argument holds for any of them), so SPIN's state count may differ from ours."""
+    if not reduce:
+        return []
+    heard = ", ".join(
+        "{" + ", ".join(str(int(bool(ag.ca.waiting(t)))) for t in types) + "}" for ag in agents
+    )
+    oldest = (
+        "if (k > 0 && now.fl[k - 1].snd == now.fl[k].snd && now.fl[k - 1].rcv == "
+        "now.fl[k].rcv) continue;"
+        if fifo
+        else ""
+    )
+    return [
+        "c_code {",
+        f"  static const unsigned char heard[{len(agents)}][{max(len(types), 1)}] = {{{heard}}};",
+        "  static int first_invisible(void) {",
+        "    int k, e;",
+        f"    for (k = 0; k < {slots}; k++) {{",
+        f"      if (!now.fl[k].used) continue; {oldest}",
+        f"      if (now.fl[k].typ == {len(types)} || !heard[now.fl[k].rcv][now.fl[k].typ]) "
+        "return k + 1;",
+        f"      if (now.fl[k].mid >= 0) for (e = 0; e < {seen}; e++) if (now.sn[e].used && "
+        "now.sn[e].rcv == now.fl[k].rcv && now.sn[e].snd == now.fl[k].snd && "
+        "now.sn[e].mid == now.fl[k].mid) return k + 1;",
+        "    }",
+        "    return 0;",
+        "  }",
+        "}",
+    ]
 
 
 def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
@@ -1178,6 +1399,167 @@ def _deadlock_expr(sk: Skeleton, agents: list[_Agent]) -> str:
     )
 
 
+# ---------------------------------------------------------------------------- properties
+
+
+class _Term:
+    """A signal of a formula as a Promela expression: what a formula's getters and the
+    expression compiler's numpy operations build when they read :class:`_Signals`
+    instead of arrays (``__array_ufunc__`` takes the operations the compiler applies)."""
+
+    __array_priority__ = 1000
+    OPS: ClassVar[dict[str, str]] = {"add": "+", "subtract": "-", "multiply": "*"}
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def astype(self, _dtype) -> _Term:  # count_in_role sums its Booleans as floats
+        return self
+
+    def __bool__(self) -> bool:  # a choice made on a signal's value (np.where, and, or)
+        raise Unsupported("it decides on a value while it is computed")
+
+    def __float__(self) -> float:
+        raise Unsupported("it converts a signal to a number")
+
+    def __add__(self, other) -> _Term:
+        return _Term(f"({self.text} + {_operand(other)})")
+
+    def __radd__(self, other) -> _Term:
+        return _Term(f"({_operand(other)} + {self.text})")
+
+    def __array_ufunc__(self, ufunc, method: str, *inputs, **kwargs) -> _Term:
+        if method == "__call__" and ufunc.__name__ in self.OPS and len(inputs) == 2:
+            op = self.OPS[ufunc.__name__]
+            return _Term(f"({_operand(inputs[0])} {op} {_operand(inputs[1])})")
+        if method == "__call__" and ufunc.__name__ == "negative":
+            return _Term(f"(-{_operand(inputs[0])})")
+        # branch-free (a comparison is 0 or 1): SPIN's LTL parser reads '->' as implication
+        if method == "__call__" and ufunc.__name__ == "absolute":
+            x = _operand(inputs[0])
+            return _Term(f"(({x}) * (1 - 2 * (({x}) < 0)))")
+        if method == "__call__" and ufunc.__name__ in ("minimum", "maximum") and len(inputs) == 2:
+            a, b = (_operand(v) for v in inputs)
+            op = "<" if ufunc.__name__ == "minimum" else ">"
+            return _Term(f"(({b}) + (({a}) - ({b})) * (({a}) {op} ({b})))")
+        # (a division is not an int's: not translated)
+        raise Unsupported(f"it applies {ufunc.__name__}, which is not translated")
+
+
+def _operand(v) -> str:
+    """A term's text, or a constant's (whole numbers only: the model's values are ints)."""
+    if isinstance(v, np.ndarray) and v.size == 1:
+        v = v.item()
+    if isinstance(v, _Term):
+        return v.text
+    if not isinstance(v, (int, float, np.integer, np.floating)):
+        raise Unsupported(f"it computes a {type(v).__name__}")
+    return str(_int(v, "a formula's constant"))
+
+
+class _Signals:
+    """What a formula reads, as Promela: modes are the mode bits, a discrete variable its
+    int, a parameter its value; time, plant states, series and message events are not in
+    the model (as :class:`~.properties.States` refuses them for our explorer)."""
+
+    shape = (1, 1)
+
+    def __init__(self, agents: list[_Agent]) -> None:
+        self.agents = {ag.name: ag for ag in agents}
+        self.memo: dict = {}
+
+    @property
+    def t(self):
+        raise Unsupported("it reads time")
+
+    def in_modes(self, agent: str, modes: list[int]) -> _Term:
+        ag = self.agents[agent]
+        return _Term("(" + " || ".join(ag.bit(m) for m in modes) + ")")
+
+    def variable(self, agent: str, j: int) -> _Term:
+        ag = self.agents[agent]
+        if j not in ag.var_name:
+            raise Unsupported(f"it reads a variable of {agent} computed from time or state")
+        return _Term(ag.var_name[j])
+
+    def param(self, agent: str, name: str) -> _Term:
+        value = self.agents[agent].consts.get(name)
+        if value is None:
+            raise Unsupported(f"it reads {agent}.{name}, which is not a whole number")
+        return _Term(_operand(value))
+
+    def team_param(self, name: str) -> _Term:
+        return self.param(next(iter(self.agents)), name)
+
+    def state(self, agent: str, j: int):
+        raise Unsupported(f"it reads {agent}'s plant state")
+
+    def series(self, name: str, j: int):
+        raise Unsupported(f"it reads the world series '{name}'")
+
+    def event(self, kind: str, agent: str | None, message: str):
+        raise Unsupported(f"it reads {kind}() message events")
+
+
+def _formula(node: N.Node, sig: _Signals) -> str:
+    """A temporal-free formula as a Promela condition (as :func:`.properties.truth` reads
+    it: exact, a strict comparison false at its boundary)."""
+    if isinstance(node, N.Const):
+        return str(int(bool(node.value)))
+    if isinstance(node, N.Flag):
+        return f"({_operand(node.get(sig))})"  # type: ignore[misc]
+    if isinstance(node, N.Predicate):
+        lhs, rhs = node.lhs(sig), node.rhs(sig)  # type: ignore[misc]
+        return f"({_operand(lhs)} {node.op} {_operand(rhs)})"
+    if isinstance(node, N.Not):
+        return f"(!{_formula(node.children[0], sig)})"
+    if isinstance(node, (N.And, N.Or)):
+        op = " && " if isinstance(node, N.And) else " || "
+        return "(" + op.join(_formula(c, sig) for c in node.children) + ")"
+    if isinstance(node, N.Implies):
+        a, b = (_formula(c, sig) for c in node.children)
+        return f"(!{a} || {b})"
+    raise Unsupported("it has a temporal operator inside")
+
+
+def _claim(p, agents: list[_Agent]) -> str:
+    """Property ``p``'s LTL formula over the model's variables (raises Unsupported), read
+    from the state ``init`` starts the processes in (``started``): SPIN's first state is
+    the one before, without the initial configuration's entry actions."""
+    sig = _Signals(agents)
+    if p.kind == "invariant":
+        return f"[] (!started || {_formula(p.phi, sig)})"
+    return f"[] ((started && {_formula(p.phi, sig)}) -> <> {_formula(p.psi, sig)})"
+
+
+def _claim_lines(agents: list[_Agent], props: list) -> list[str]:
+    """An ``ltl p<k>`` block per invariant and response property that translates (``k``
+    its position in ``props``, as :func:`claims` numbers them)."""
+    out = []
+    for k, p in enumerate(props):
+        if p.kind in ("invariant", "response"):
+            try:
+                out.append(f"ltl p{k} {{ {_claim(p, agents)} }}  /* {p.name} */")
+            except Unsupported as exc:
+                out.append(f"/* not decided: p{k} ({p.name}): {exc} */")
+    return out
+
+
+def claims(promela: str, props: list) -> tuple[dict[str, str], dict[str, str]]:
+    """The LTL claims of an exported model (claim name: property name) and the invariant
+    and response properties it has none for (property name: why)."""
+    names, why = {}, {}
+    for k, p in enumerate(props):
+        if p.kind not in ("invariant", "response"):
+            continue
+        if f"ltl p{k} {{" in promela:
+            names[f"p{k}"] = p.name
+        else:
+            found = re.search(rf"/\* not decided: p{k} \(.*?\): (.*) \*/", promela)
+            why[p.name] = found.group(1) if found else "not in the model"
+    return names, why
+
+
 # ---------------------------------------------------------------------------- comparing
 
 
@@ -1200,7 +1582,17 @@ def ours(report) -> Exploration:
     configs = [configs_of(s) for s in g.states]
     dead = set().union(*(configs[k] for k in np.flatnonzero(g.terminal()).tolist()))
     holds = next(v.holds for v in report.verdicts if v.prop.name == "deadlock")
-    return Exploration(set().union(*configs), dead, bool(holds))
+    verdicts = {
+        v.prop.name: bool(v.holds)
+        for v in report.verdicts
+        if v.prop.kind in ("invariant", "response") and v.holds is not None
+    }
+    undecided = {
+        v.prop.name: v.message
+        for v in report.verdicts
+        if v.prop.kind in ("invariant", "response") and v.holds is None
+    }
+    return Exploration(set().union(*configs), dead, bool(holds), verdicts, len(g.states), undecided)
 
 
 def check(report, opts) -> None:
@@ -1214,15 +1606,29 @@ def check(report, opts) -> None:
 
 
 def run_spin(
-    promela: str, folder: Path, timeout: float = 600.0, optimize: bool = True
+    promela: str,
+    folder: Path,
+    timeout: float = 600.0,
+    optimize: bool = True,
+    props: list | None = None,
 ) -> Exploration:
     """Compile and run SPIN's exhaustive search on ``promela``; its exploration.
     ``optimize``: compile the verifier with ``-O1`` (three times the compiler's work of
-    ``-O0``, which a small model's short search never earns back)."""
+    ``-O0``, which a small model's short search never earns back). ``props``: the
+    properties the model was exported with; each LTL claim of it is decided by the same
+    verifier (:func:`_decide`).
+
+    A model with claims is compiled once for both: without ``-DSAFETY`` (acceptance
+    cycles need it off), the exploration run under the claim ``explore`` (a single state
+    that accepts nothing and allows every step, so SPIN's search is the model's own, state
+    for state), each property's run under its claim."""
     why = missing()
     if why:
         raise RuntimeError(why)
     folder.mkdir(parents=True, exist_ok=True)
+    names, undecided = claims(promela, props or [])
+    if names:
+        promela += "never explore {  /* no claim: the exploration itself */\n  do :: true od\n}\n"
     (folder / "rules.pml").write_text(promela)
     _run(["spin", "-o2", "-a", "rules.pml"], folder, timeout)
     _run(
@@ -1231,7 +1637,7 @@ def run_spin(
             "-O1" if optimize else "-O0",
             "-DPRINTF",
             "-DNOREDUCE",
-            "-DSAFETY",
+            *([] if names else ["-DSAFETY"]),
             "-DVECTORSZ=4096",
             "-o",
             "pan",
@@ -1240,7 +1646,9 @@ def run_spin(
         folder,
         timeout,
     )
-    text = _run(["./pan", "-E", "-m1000000"], folder, timeout)
+    text = _run(
+        ["./pan", "-E", "-m1000000", *(["-N", "explore"] if names else [])], folder, timeout
+    )
     (folder / "pan.out").write_text(text)
     if "depth too small" in text or "errors: 0" not in text:
         raise RuntimeError("SPIN's search did not complete (see pan.out)")
@@ -1258,9 +1666,36 @@ def run_spin(
     if over:
         raise RuntimeError(
             "the model's slots overflowed (copies in flight, outbox or filter entries "
-            f"beyond the sizes in rules.pml, or more than {MAX_IDS} ids)"
+            f"beyond the sizes in rules.pml, more than {MAX_IDS} ids, {RAISED} raised events "
+            f"or {MICRO} urgent micro-steps in one step)"
         )
-    return Exploration(configs, dead, not bad)
+    stored = re.search(r"(\d+) states, stored", text)
+    verdicts = _decide(folder, names, timeout)
+    return Exploration(
+        configs, dead, not bad, verdicts, int(stored.group(1)) if stored else 0, undecided
+    )
+
+
+def _decide(folder: Path, names: dict[str, str], timeout: float) -> dict[str, bool]:
+    """Each LTL claim decided by SPIN on the rules (property name: holds): one search
+    per claim (``-N``) for acceptance cycles (``-a``, SPIN's nested depth-first search,
+    which decides invariants and responses alike). A path that ends
+    is a dead end, which SPIN's LTL semantics extends by stuttering: a response whose
+    psi never comes before a dead end is violated, as ours reads it. The reduction of
+    :func:`_first_invisible` keeps every such verdict: the formulas read modes and
+    discrete variables, which an invisible copy's fate never changes, and every cycle of
+    the reduced model passes a state where every step is explored (each invisible fate
+    consumes a copy or a budget), the cycle condition of a partial-order reduction that
+    keeps LTL without next."""
+    out = {}
+    for claim, name in names.items():
+        text = _run(["./pan", "-a", "-m1000000", "-N", claim], folder, timeout)
+        (folder / f"{claim}.out").write_text(text)
+        errors = re.search(r"errors: (\d+)", text)
+        if errors is None or "depth too small" in text:
+            raise RuntimeError(f"SPIN's search of {name} did not complete (see {claim}.out)")
+        out[name] = errors.group(1) == "0"
+    return out
 
 
 def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
@@ -1282,6 +1717,7 @@ def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
         ack_timing=opts.ack_timing,
         order=opts.order,
         timeouts=opts.timeouts,
+        props=[v.prop for v in report.verdicts],
     )
 
 
@@ -1293,4 +1729,5 @@ def compare(
     if promela is None:
         promela = prepare(report, opts, drop)
     big = len(report.graph.states) >= SMALL
-    return Comparison(ours(report), run_spin(promela, folder, optimize=big))
+    props = [v.prop for v in report.verdicts]
+    return Comparison(ours(report), run_spin(promela, folder, optimize=big, props=props))

@@ -7,6 +7,7 @@ message are tested everywhere."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,7 @@ from tests.verify.test_verify import (
     NO_OPERATOR,
     PROTOCOL,
     REQUEST,
+    ROOT,
     docking,
     mutate,
     roles_team,
@@ -240,7 +242,8 @@ def test_the_acknowledged_layer_agrees(tmp_path, retries, losses, deadlock):
 @needs_spin
 @pytest.mark.slow
 def test_the_role_protocol_with_a_loss_agrees(tmp_path):
-    """As above with one loss (SPIN's unreduced search: millions of states, minutes)."""
+    """As above with one loss (SPIN's unreduced search met 5.7 million states before the
+    canonical form and the invisible-copy rule; now about as many as ours, 858)."""
     opts = Options(losses=1)
     report = verify(roles_team(tmp_path, "b", without_c=True), opts, replay=False)
     c = promela.compare(report, opts, tmp_path / "spin-rules")
@@ -287,22 +290,20 @@ def test_the_export_is_promela_spin_compiles(tmp_path):
     assert c.differences() == []
 
 
-# an entry action (not translated): the follower counts its drives as it enters Drive
-ENTRY = GO.replace(
-    "        inputs: {v: 0.5, omega: 0}\n      Done:\n        final: true\nsimulation",
-    "        inputs: {v: 0.5, omega: 0}\n        entry: [drives = drives + 1]\n"
-    "      Done:\n        final: true\nsimulation",
-).replace(
-    "    plant: {kind: unicycle, state: {x: -1",
-    "    variables: {drives: 0}\n    plant: {kind: unicycle, state: {x: -1",
+# a raised event that wakes a guard over the plant (not translated): the follower, once
+# go arrives, checks where it is
+RAISED_FREE = GO.replace(
+    "          - {to: Drive, on: go}\n      Drive:\n        inputs: {v: 0.5, omega: 0}\n",
+    "          - {to: Drive, on: go, do: [{raise: check}]}\n      Drive:\n"
+    "        inputs: {v: 0.5, omega: 0}\n"
+    "        transitions: [{to: Done, on: check, guard: x > 0}]\n",
 )
+NOT_TRANSLATED = "agent 'follower': the raised event 'check' wakes a guard that reads time or state"
 
 
 def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
-    report = verify(team(tmp_path, ENTRY, "entry"), Options(losses=0), replay=False)
-    with pytest.raises(
-        promela.Unsupported, match=r"^agent 'follower': mode Drive has entry or exit actions$"
-    ):
+    report = verify(team(tmp_path, RAISED_FREE, "raised"), Options(losses=0), replay=False)
+    with pytest.raises(promela.Unsupported, match=rf"^{re.escape(NOT_TRANSLATED)}$"):
         promela.prepare(report, Options(losses=0))
 
 
@@ -354,11 +355,11 @@ def test_cli_spin_rules_without_spin_is_one_line_exit_2(tmp_path, capsys, monkey
 
 
 def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, capsys):
-    (tmp_path / "entry.yaml").write_text(ENTRY)
+    (tmp_path / "raised.yaml").write_text(RAISED_FREE)
     code = main(
         [
             "verify",
-            str(tmp_path / "entry.yaml"),
+            str(tmp_path / "raised.yaml"),
             "--losses",
             "0",
             "--spin-rules",
@@ -370,10 +371,7 @@ def test_cli_spin_rules_refuses_a_model_not_translated_before_writing(tmp_path, 
     )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
-    assert (
-        "--spin-rules: not translated: agent 'follower': mode Drive has entry or exit actions"
-        in err[0]
-    )
+    assert f"--spin-rules: not translated: {NOT_TRANSLATED}" in err[0]
     assert not (tmp_path / "o").exists()
 
 
@@ -397,6 +395,14 @@ NO_DENY = mutate(_DENY, "        - to: Offering")
 NO_DEDUPE = mutate(
     "  accept: {ack: {timeout: ack_timeout, retries: ack_retries}}",
     "  accept: {ack: {timeout: ack_timeout, retries: ack_retries, dedupe: false}}",
+)
+OFFER = mutate(
+    "        - {on: accept, do: [{send: reject, to: sender}]}",
+    "        - {on: accept, do: [{send: confirm, to: sender}]}",
+)
+RESTORED = (
+    "  leadership_restored: always(implies(count_in_role(lead) == 0, eventually("
+    "count_in_role(lead) == 1 or in_mode(operator, Command))))\n"
 )
 
 
@@ -439,8 +445,8 @@ def agreed(tmp_path, team, opts: Options):
 def test_the_one_leader_mutants_are_violated_in_both(tmp_path):
     """The leader-stays-Lead and requester-leads mutants (two robots and the operator, a
     request): both explorers reach the same configurations, among them one with two
-    leaders; the correct protocol reaches none. (The offer-confirmed mutant needs three robots
-    and a resignation: SPIN's unreduced search of it takes minutes, not in the tests.)"""
+    leaders; the correct protocol reaches none. (The offer-confirmed mutant, three robots
+    and a resignation: test_the_offer_confirmed_mutant_agrees.)"""
     for protocol, holds in ((PROTOCOL, True), (STAYS, False), (LEADS, False)):
         team = roles_team(tmp_path, "b", protocol, without_c=True)
         report, c = agreed(tmp_path, team, Options(losses=0))
@@ -488,10 +494,13 @@ def test_the_min_hold_mutant_calls_the_operator_in_both(tmp_path):
 @pytest.mark.slow
 def test_the_duplicate_suppression_mutant_agrees(tmp_path):
     """dedupe off, a resignation, one loss: the resent accept the filter no longer
-    withholds reaches the same configurations in both (its violated property is a
-    response property, which --spin re-decides: test_verify_spin.py)."""
-    team = roles_team(tmp_path, "a", NO_DEDUPE, without_c=True)
-    agreed(tmp_path, team, Options(losses=1))
+    withholds reaches the same configurations in both, and SPIN finds on the rules the
+    response property it violates (leadership lost for good without the operator: the
+    copy's reject decides), which the protocol with the filter keeps."""
+    for protocol, restored in ((NO_DEDUPE, False), (PROTOCOL, True)):
+        team = roles_team(tmp_path, "a", protocol, extra=RESTORED, without_c=True)
+        _, c = agreed(tmp_path, team, Options(losses=1))
+        assert c.spin.verdicts["leadership_restored"] is restored
 
 
 @needs_spin
@@ -643,12 +652,408 @@ def test_history_restores_the_child_left(tmp_path, history, end):
 def test_the_docking_handshake_agrees(tmp_path):
     """Experiment 2's docking handshake (plain datagrams, no loss): world events (the IR
     ring's at_box and obstacle_detected), raise actions (want_lead, resign), history and
-    the role body carried over from Lead to Offering (SPIN's unreduced search: about a
-    million states; with a loss, as test_verify.py checks it, many more: for the
-    benchmark). By hand: the XR4000 resigns as its Pass phase ends (Pass -> Hold raises
-    resign), so it offers the lead holding still — the body carried over, in
-    Offering.Hold, never restarted in Offering.Sidestep."""
+    the role body carried over from Lead to Offering (542,742 SPIN states without the
+    invisible-copy rule, 1,605 with it, ours 1,547; with a loss:
+    test_the_plain_docking_handshake_with_a_loss_deadlocks_in_both). By hand: the XR4000
+    resigns as its Pass phase ends (Pass -> Hold raises resign), so it offers the lead
+    holding still — the body carried over, in Offering.Hold, never restarted in
+    Offering.Sidestep."""
     report, c = agreed(tmp_path, docking(tmp_path, acknowledged=False), Options(losses=0))
     xr = [modes_of(report, k)[0] for k in c.spin.configurations]
     assert any("Transport.Offering.Hold" in ms for ms in xr)
     assert not any("Transport.Offering.Sidestep" in ms for ms in xr)
+
+
+# -- the reduction, and the properties decided on the rules ----------------------------
+
+
+@needs_spin
+def test_the_invisible_copy_first_rule_keeps_what_is_compared(tmp_path):
+    """The acknowledged go with a resend, a loss and a duplicate: acks and withheld copies
+    fly beside everything else. SPIN with the rule (an invisible copy's fates first)
+    reaches the same configurations, dead ends and verdicts as SPIN without it, in fewer
+    states; and the model with the rule computes ``inv`` in settle and guards the other
+    steps with it."""
+    opts = Options(losses=1, duplicates=1)
+    report = verify(team(tmp_path, acked_go(1), "team"), opts, replay=False)
+    props = [v.prop for v in report.verdicts]
+    kw = dict(slots=8, outbox=8, seen=16, props=props)
+    reduced = promela.export(report.skeleton, 1, 1, **kw)
+    full = promela.export(report.skeleton, 1, 1, reduce=False, **kw)
+    assert "now.inv = first_invisible();" in reduced and "inv == 0" in reduced
+    assert "first_invisible" not in full and "inv == 0" not in full
+    a = promela.run_spin(reduced, tmp_path / "reduced", props=props)
+    b = promela.run_spin(full, tmp_path / "full", props=props)
+    assert a.configurations == b.configurations == promela.ours(report).configurations
+    assert a.dead_ends == b.dead_ends and a.deadlock is b.deadlock is True
+    assert a.states < b.states
+    # with --ack-timing any a timer may expire while its ack flies: no reduction
+    loose = promela.export(report.skeleton, 1, 1, ack_timing="any", **kw)
+    assert "first_invisible" not in loose
+
+
+# GO with properties: the follower drives once the leader does (a response), both drive
+# at once (an invariant, violated: the go arrives before the leader's x > 3), the leader
+# stays near (reads the plant: decided by neither explorer)
+GO_PROPS = GO.replace(
+    "simulation: {duration: 20}\n",
+    "simulation: {duration: 20}\nrequirements:\n"
+    "  follows: always(implies(in_mode(leader, Drive), eventually(in_mode(follower, Drive))))\n"
+    "  one_driving: always(count_in_mode(Drive) <= 1)\n"
+    "  near: always(leader.x < 10)\n",
+)
+# PINGPONG with invariants over a's counter n: one pong at most ever arrives in Wait
+PINGPONG_PROPS = PINGPONG.replace(
+    "simulation: {duration: 10}\n",
+    "simulation: {duration: 10}\nrequirements:\n"
+    "  never_counted: always(a.n <= 0)\n"
+    "  counted_once: always(a.n <= 1)\n"
+    "  in_range: always(abs(a.n - 3) >= 2 and max(a.n, 0) == min(a.n, 5) and -a.n <= 0)\n"
+    "  halved: always(a.n / 2 < 1)\n",
+)
+
+
+@needs_spin
+@pytest.mark.parametrize("losses,follows", [(0, True), (1, False)])
+def test_invariants_and_responses_are_decided_on_the_rules(tmp_path, losses, follows):
+    """By hand: without loss the go always arrives (no dead end holds a copy in flight),
+    so a driving leader is followed; with a loss the leader drives on to Done and the
+    follower waits for ever (a dead end where psi never comes, which SPIN's LTL semantics
+    extends by stuttering). Both drive at once in either case. ``near`` reads the plant:
+    neither explorer decides it, and SPIN says why."""
+    c = compared(tmp_path, GO_PROPS, Options(losses=losses))
+    assert c.spin.verdicts == c.ours.verdicts == {"follows": follows, "one_driving": False}
+    assert c.spin.undecided == {"near": "it reads leader's plant state"}
+    assert "near" in c.ours.undecided
+    assert c.differences() == []
+
+
+@needs_spin
+def test_an_invariant_over_a_discrete_variable_is_decided(tmp_path):
+    """By hand: a's n becomes 1 when b's pong (k = 0) arrives in Wait; no second pong can
+    arrive in Wait (a is in Got, or back in Idle for good), even with a duplicate. So n is
+    0 or 1 (in_range: |n - 3| >= 2, max and min agree on n, -n <= 0); a division is not an int's
+    and SPIN leaves it undecided (ours decides it on its floats)."""
+    c = compared(tmp_path, PINGPONG_PROPS, Options(losses=1, duplicates=1))
+    assert c.spin.verdicts == {"never_counted": False, "counted_once": True, "in_range": True}
+    assert c.ours.verdicts == {**c.spin.verdicts, "halved": True}
+    assert c.spin.undecided == {"halved": "it applies divide, which is not translated"}
+    assert c.differences() == []
+
+
+@needs_spin
+def test_a_wrong_verdict_is_caught(tmp_path):
+    """The comparison reads SPIN's verdicts: ours said otherwise, it differs."""
+    opts = Options(losses=1)
+    report = verify(team(tmp_path, GO_PROPS, "team"), opts, replay=False)
+    c = promela.compare(report, opts, tmp_path / "spin-rules")
+    c.ours.verdicts["follows"] = True
+    assert c.differences() == ["follows: ours holds, SPIN violated"]
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_offer_confirmed_mutant_agrees(tmp_path):
+    """Three robots and the operator, a resigns: the offer confirmed to every acceptor
+    makes b and c lead together, in both explorers (SPIN's configurations read
+    independently of our verdict); b's and c's requests need none (they hold)."""
+    report, c = agreed(tmp_path, roles_team(tmp_path, "a", OFFER), Options(losses=0))
+    assert c.spin.verdicts == {"one_leader": False, "b_answered": True, "c_answered": True}
+    two = [modes_of(report, k) for k in c.spin.configurations if leaders(report, k) == 2]
+    assert any({"Transport.Lead"} <= b and {"Transport.Lead"} <= c for _, b, c, _ in two)
+
+
+@needs_spin
+@pytest.mark.slow
+@pytest.mark.parametrize("losses", [0, 1])
+def test_the_acknowledged_docking_handshake_agrees(tmp_path, losses):
+    """Experiment 2's handshake acknowledged: with or without a lost copy, the XR4000
+    waiting in Dock.Wait is always carried off (carried holds) and nothing deadlocks."""
+    _, c = agreed(tmp_path, docking(tmp_path, acknowledged=True), Options(losses=losses))
+    assert c.spin.verdicts == {"carried": True} and c.spin.deadlock is True
+
+
+@needs_spin
+@pytest.mark.slow
+def test_the_plain_docking_handshake_with_a_loss_deadlocks_in_both(tmp_path):
+    """Plain datagrams, one loss: SPIN reaches the sweep's failure on its own — a dead
+    end with the XR4000 in Dock.Wait while the Labmate leads off (Transport.Lead.Stop),
+    a deadlock — and finds carried violated."""
+    report, c = agreed(tmp_path, docking(tmp_path, acknowledged=False), Options(losses=1))
+    assert c.spin.deadlock is False and c.spin.verdicts == {"carried": False}
+    stuck = [modes_of(report, k) for k in c.spin.dead_ends]
+    assert any("Dock.Wait" in xr and "Transport.Lead.Stop" in lab for xr, lab, _ in stuck)
+
+
+@needs_spin
+@pytest.mark.slow
+def test_three_requests_and_a_resignation_agree(tmp_path):
+    """The whole example (three robots, three requests, a resignation, no loss): the same
+    configurations, and every property holds in both."""
+    team = load(ROOT / "examples" / "protocols" / "roles_verify.yaml")
+    _, c = agreed(tmp_path, team, Options(losses=0))
+    assert c.spin.verdicts == {"one_leader": True, "b_answered": True, "c_answered": True}
+
+
+@needs_spin
+def test_cli_spin_rules_prints_spins_verdicts(tmp_path, capsys):
+    (tmp_path / "go.yaml").write_text(GO_PROPS)
+    code = main(
+        [
+            "verify",
+            str(tmp_path / "go.yaml"),
+            "--losses",
+            "1",
+            "--spin-rules",
+            "--no-replay",
+            "-o",
+            str(tmp_path / "o"),
+            "--progress",
+            "none",
+        ]
+    )
+    out = capsys.readouterr().out
+    assert code == 1  # violations, agreed on
+    assert "spin-rules: follows: SPIN violated on the rules" in out
+    assert "spin-rules: one_driving: SPIN violated on the rules" in out
+    assert "spin-rules: near: not decided by SPIN: it reads leader's plant state" in out
+    assert "spin-rules: the explorers agree" in out
+    data = json.loads((tmp_path / "o" / "verify.json").read_text())["spin_rules"]
+    assert data["verdicts"]["follows"] == {"ours": False, "spin": False}
+    assert data["states"]["spin"] > 0
+
+
+# Entry and exit actions: the leader's exit from Wait sends go and counts it (sent = 1),
+# then the transition's own action multiplies (sent = 10: exit actions run before the
+# transition's, 1 the other way round); the follower's Wait is entered at the start
+# (drives = 100: the initial configuration's entry actions run), go's action sets
+# drives = 5, then Drive's entry adds one (6) and raises started, which takes it to Done
+# in the same step (its guard drives == 6 needs the transition's action before the entry:
+# else drives would be 5 and the follower would stay in Drive).
+ENTRY_EXIT = """team: entryexit
+agents:
+  leader:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {sent: 0}
+    initial: Wait
+    modes:
+      Wait:
+        inputs: {v: 0, omega: 0}
+        exit: [{send: go, to: follower}, sent = sent + 1]
+        transitions:
+          - {to: Drive, after: 2.0, do: [sent = sent * 10]}
+      Drive:
+        inputs: {v: 0.5, omega: 0}
+        transitions:
+          - {to: Done, guard: x > 3}
+      Done:
+        final: true
+  follower:
+    plant: {kind: unicycle, state: {x: -1, y: 0, theta: 0}}
+    variables: {drives: 0}
+    initial: Wait
+    modes:
+      Wait:
+        entry: [drives = 100]
+        transitions:
+          - {to: Drive, on: go, do: [drives = 5]}
+      Drive:
+        entry: [drives = drives + 1, {raise: started}]
+        transitions:
+          - {to: Done, on: started, guard: drives == 6}
+      Done:
+        final: true
+simulation: {duration: 20}
+requirements:
+  never_sent: always(leader.sent == 0)
+  exit_then_do: always(leader.sent == 0 or leader.sent == 10)
+  do_then_entry: always(follower.drives == 100 or follower.drives == 6)
+"""
+
+
+@needs_spin
+@pytest.mark.parametrize("losses", [0, 1])
+def test_entry_and_exit_actions_agree_with_the_order_by_hand(tmp_path, losses):
+    """By hand (bits per agent: root, Wait, Drive, Done): the leader waits, drives (go in
+    flight), is done; the follower waits, or is done once go arrives — never seen in
+    Drive, which started leaves within the step. A lost go leaves the follower waiting
+    for a message that never comes: the deadlock (go is a message, though only an exit
+    action sends it). The verdicts read the order of the actions."""
+    c = compared(tmp_path, ENTRY_EXIT, Options(losses=losses))
+    assert (
+        c.ours.configurations
+        == c.spin.configurations
+        == {"1100|1100", "1010|1100", "1010|1001", "1001|1100", "1001|1001"}
+    )
+    lost = {"1001|1100"} if losses else set()
+    assert c.ours.dead_ends == c.spin.dead_ends == {"1001|1001"} | lost
+    assert c.ours.deadlock is c.spin.deadlock is (not losses)
+    assert (
+        c.ours.verdicts
+        == c.spin.verdicts
+        == {"never_sent": False, "exit_then_do": True, "do_then_entry": True}
+    )
+    assert c.differences() == []
+
+
+def test_verify_hears_a_message_only_an_exit_action_sends(tmp_path):
+    """Ours alone (no SPIN needed): go, sent only by the leader's exit action, is a message
+    to verify's skeleton, and started, raised only by the follower's entry action, is its
+    own event — neither is an input from outside — so a lost go is a deadlock (the
+    follower waits for a message that never comes), as by hand."""
+    report = verify(team(tmp_path, ENTRY_EXIT, "team"), Options(losses=1), replay=False)
+    assert report.skeleton.inputs == [set(), set()]
+    assert verdict(report, "deadlock") is False
+
+
+# A rally that never ends: a serves when started, then a and b return the ball for ever
+# (each a leaf back into itself, sending it back). a never rests again: a response
+# violated by a cycle alone (the ball always flies, so no dead end) without loss, and
+# with a lost ball by a dead end as well.
+RALLY = """team: rally
+agents:
+  a:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Rest
+    modes:
+      Rest:
+        transitions:
+          - {to: Rally, on: start, do: [{send: ball, to: b}]}
+      Rally:
+        transitions:
+          - {to: Rally, on: ball, do: [{send: ball, to: b}]}
+  b:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    initial: Rally
+    modes:
+      Rally:
+        transitions:
+          - {to: Rally, on: ball, do: [{send: ball, to: a}]}
+scenario:
+  - {at: 1.0, agent: a, raise: start}
+simulation: {duration: 10}
+requirements:
+  rests_again: always(implies(in_mode(a, Rally), eventually(in_mode(a, Rest))))
+  keeps_playing: always(implies(in_mode(a, Rally), eventually(in_mode(b, Rally))))
+"""
+
+
+@needs_spin
+@pytest.mark.parametrize("losses", [0, 1])
+def test_a_response_violated_by_a_cycle_is_found_by_both(tmp_path, losses):
+    """By hand (a: root, Rest, Rally | b: root, Rally): two configurations; without loss
+    no dead end, so rests_again fails only through the rally's cycle (SPIN: an acceptance
+    cycle); keeps_playing holds (b is always in Rally)."""
+    c = compared(tmp_path, RALLY, Options(losses=losses))
+    assert c.ours.configurations == c.spin.configurations == {"110|11", "101|11"}
+    assert c.ours.dead_ends == c.spin.dead_ends == ({"101|11"} if losses else set())
+    assert c.ours.verdicts == c.spin.verdicts == {"rests_again": False, "keeps_playing": True}
+    assert c.differences() == []
+
+
+# Statechart order (tests/engine/test_statecharts.py's digits, a discrete counter here):
+# entering P appends P 1, R1 2, a 3, R2 4, c 5 (outermost first, regions in document
+# order); leaving it appends c 8, R2 9, a 6, R1 7, P 0 (innermost first, regions in
+# reverse): n = 12345, then 1234589670 (within Promela's 32-bit int)
+ORDER = """team: order
+agents:
+  a:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {n: 0}
+    initial: Q
+    modes:
+      P:
+        parallel: true
+        entry: ["n = n * 10 + 1"]
+        exit: ["n = n * 10"]
+        transitions: [{to: Q, on: back}]
+        modes:
+          R1:
+            initial: a
+            entry: ["n = n * 10 + 2"]
+            exit: ["n = n * 10 + 7"]
+            modes:
+              a: {entry: ["n = n * 10 + 3"], exit: ["n = n * 10 + 6"]}
+          R2:
+            initial: c
+            entry: ["n = n * 10 + 4"]
+            exit: ["n = n * 10 + 9"]
+            modes:
+              c: {entry: ["n = n * 10 + 5"], exit: ["n = n * 10 + 8"]}
+      Q: {transitions: [{to: P, on: go}]}
+scenario: [{at: 1, agent: a, raise: go}, {at: 2, agent: a, raise: back}]
+simulation: {duration: 3}
+requirements:
+  in_order: always(a.n == 0 or a.n == 12345 or a.n == 1234589670)
+  entered: always(implies(in_mode(a, P), a.n == 12345))
+"""
+
+
+@needs_spin
+def test_entry_and_exit_order_through_parallel_regions_agrees(tmp_path):
+    """By hand (bits: root, P, R1, a, R2, c, Q): Q, then P with both regions, then Q
+    again; the counter's values read the order of every entry and exit action."""
+    c = compared(tmp_path, ORDER, Options(losses=0))
+    assert c.ours.configurations == c.spin.configurations == {"1000001", "1111110"}
+    assert c.ours.verdicts == c.spin.verdicts == {"in_order": True, "entered": True}
+    assert c.differences() == []
+
+
+# Urgent transitions (no trigger, an exact guard), as the engine's discrete phase takes
+# them: before any pending event, every agent its enabled ones. Boot is left at the first
+# instant (n = 0: to Idle, n = 1); start takes Idle to A (n = 2) and raises ping; A's
+# urgent transitions go before the queued ping: to B (n = 3), the second (to X) blocked by
+# the first, which precedes it on the same mode; ping then finds s in B: C. Dispatching
+# ping first would reach X, skipping the first instant would leave s in Boot.
+URGENT = """team: urgent
+agents:
+  s:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    variables: {n: 0}
+    initial: Boot
+    modes:
+      Boot:
+        transitions:
+          - {to: Idle, guard: n == 0, do: [n = 1]}
+      Idle:
+        transitions:
+          - {to: A, on: start, do: [n = 2, {raise: ping}]}
+      A:
+        transitions:
+          - {to: B, guard: n == 2, do: [n = 3]}
+          - {to: X, guard: n >= 2}
+          - {to: X, on: ping}
+      B:
+        transitions:
+          - {to: C, on: ping, guard: n == 3}
+      C: {final: true}
+      X: {final: true}
+scenario:
+  - {at: 1.0, agent: s, raise: start}
+simulation: {duration: 3}
+requirements:
+  never_x: always(not in_mode(s, X))
+  settled: always(s.n == 1 or s.n == 3)
+"""
+
+
+@needs_spin
+def test_urgent_transitions_fire_before_pending_events_in_both(tmp_path):
+    """By hand (bits: root, Boot, Idle, A, B, C, X): Idle, then C, its one dead end; X
+    never; n is 1 or 3 in every state (2 only within the step)."""
+    c = compared(tmp_path, URGENT, Options(losses=0))
+    assert c.ours.configurations == c.spin.configurations == {"1010000", "1000010"}
+    assert c.ours.dead_ends == c.spin.dead_ends == {"1000010"}
+    assert c.ours.verdicts == c.spin.verdicts == {"never_x": True, "settled": True}
+    assert c.differences() == []
+
+
+@needs_spin
+def test_a_zeno_cycle_of_urgent_transitions_is_reported_not_compared(tmp_path):
+    """Two urgent transitions that take each other's mode for ever: the step never ends,
+    which the model reports (as an overflow) instead of comparing."""
+    zeno = URGENT.replace("          - {to: C, on: ping, guard: n == 3}", "          - {to: A}")
+    zeno = zeno.replace("          - {to: B, guard: n == 2, do: [n = 3]}", "          - {to: B}")
+    report = verify(team(tmp_path, zeno, "team"), Options(losses=0), replay=False)
+    with pytest.raises(RuntimeError, match="urgent micro-steps"):
+        promela.compare(report, Options(losses=0), tmp_path / "x")

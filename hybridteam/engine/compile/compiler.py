@@ -47,12 +47,14 @@ __all__ = ["compile_agent", "compile_team", "message_fields", "resolve_mode"]
 
 
 def message_fields(team: Team) -> dict[str, set[str]]:
-    """The fields sent with each message type anywhere in the team (the receivers' view)."""
+    """The fields sent with each message type anywhere in the team (the receivers' view):
+    by transitions' actions and by modes' entry and exit actions."""
     out: dict[str, set[str]] = {name: set(spec.fields) for name, spec in team.messages.items()}
     for agent in team.agents:
         for _, mode in agent.root.walk():
-            for tr in mode.transitions:
-                for act in tr.actions:
+            lists = [tr.actions for tr in mode.transitions] + [mode.on_entry, mode.on_exit]
+            for actions in lists:
+                for act in actions:
                     if isinstance(act, Send):
                         out.setdefault(act.message, set()).update(act.fields)
     return out
