@@ -63,6 +63,7 @@ from hybridteam.world.component import (
     settings_error,
     world_component,
 )
+from hybridteam.world.measure_one import measure_one
 from hybridteam.world.obstacle_settings import Rule, parse_settings, planar
 from hybridteam.world.raycast import Targets, cast_at
 from hybridteam.world.scene import (
@@ -561,7 +562,20 @@ class Obstacles(WorldComponent):
         """Running minima of the robots' and the payloads' clearances, and collisions, each
         where its robot (a pair: either robot; a payload: one of its carriers) senses.
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``.
-        ``sensing``: as :meth:`_update`'s (None: every robot senses in every instance)."""
+        ``sensing``: as :meth:`_update`'s (None: every robot senses in every instance).
+
+        A single run's instant in a scene of circles (posts) takes :func:`measure_one`, on
+        floats, unless a gap shows a collision."""
+        if (
+            idx.size == 1
+            and FLOAT_PATHS.on
+            and not self.values["clearance"]
+            and not len(scene.segments)
+            and not len(scene.boxes)
+        ):
+            reach = measure_one(self, world, idx, scene, sensing)
+            if reach is not None:
+                return reach
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
         points, gap, payload_gaps = np.empty((0, idx.size, 2)), np.empty((0, idx.size)), []
