@@ -573,9 +573,9 @@ class Obstacles(WorldComponent):
             and not len(scene.segments)
             and not len(scene.boxes)
         ):
-            reach = measure_one(self, world, idx, scene, sensing)
-            if reach is not None:
-                return reach
+            on_floats = measure_one(self, world, idx, scene, sensing)
+            if on_floats is not None:
+                return on_floats
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
         points, gap, payload_gaps = np.empty((0, idx.size, 2)), np.empty((0, idx.size)), []
