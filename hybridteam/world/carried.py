@@ -357,10 +357,6 @@ class CarriedPayload(WorldComponent):
             sensing = sensing | world.sensing(a, idx)
         return idx if every(sensing) else idx[sensing]
 
-    def judged_agents(self) -> tuple[int, ...]:
-        """The carriers (:meth:`update` acts at their ticks alone)."""
-        return tuple(self.carriers)
-
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         """Settle and judge the grasps at the carriers' sensing instants (a break is seen
         at the first such instant past the limit); elsewhere nothing (a reader settles what

@@ -102,13 +102,6 @@ class WorldComponent:
         instances, raise events, update what robots sense (through ``world``). Returns None,
         or the instances where it raised events (the engine reads either)."""
 
-    def judged_agents(self) -> tuple[int, ...] | None:
-        """The agents at whose sensing instants alone :meth:`update` does anything
-        (:meth:`WorldAccess.sensing`), once started; None (the default): it may act at any
-        instant. Where every component names them, a single run's instant at which none of
-        those agents senses (a stream copy arriving between ticks) calls no component."""
-        return None
-
     def sense(self, agent: int, idx: np.ndarray, name: str) -> np.ndarray:
         """What agent ``agent`` senses as ``name`` in instances ``idx`` (for its law)."""
         raise KeyError(name)

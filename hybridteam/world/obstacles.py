@@ -320,10 +320,6 @@ class Obstacles(WorldComponent):
         return self.read(agent, ring, idx)
 
     # ------------------------------------------------------------------ each instant
-    def judged_agents(self) -> tuple[int, ...]:
-        """The robots this component judges (:meth:`update` acts at their ticks alone)."""
-        return tuple(self.judged)
-
     def update(self, world: WorldAccess, idx: np.ndarray) -> None:
         """Judge the instances of ``idx`` where some robot this component judges senses
         (:meth:`WorldAccess.sensing`): each robot's rules and clearance where it senses,

@@ -13,7 +13,6 @@ from one period to the next, such as how far along its guide path it is).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from itertools import chain
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -41,11 +40,6 @@ class World:
         #: which component answers each name a robot senses (the first that lists it),
         #: learnt at the first reading: a law reads several at every tick
         self._senses: dict[str, WorldComponent] = {}
-        #: the agents whose sensing instants alone make any component act, where every
-        #: component names them (:meth:`WorldComponent.judged_agents`; None: some component
-        #: acts at any instant), learnt at the first update (the components have started)
-        self._judged: tuple[int, ...] | None = None
-        self._judged_known = False
 
     @property
     def any(self) -> bool:
@@ -72,19 +66,6 @@ class World:
     def update(self, access: EnsembleAccess, idx: np.ndarray) -> np.ndarray:
         """Run every component on the live instances of ``idx``; returns the instances
         where events were raised (through the access, or returned by ``update``)."""
-        if not self._judged_known:
-            named = [c.judged_agents() for c in self.components]
-            every_one = [a for a in named if a is not None]
-            if len(every_one) == len(named):
-                self._judged = tuple(sorted({*chain.from_iterable(every_one)}))
-            self._judged_known = True
-        judged = self._judged
-        if (
-            judged is not None
-            and idx.size == 1
-            and not any(access.sensing(a, idx).item(0) for a in judged)
-        ):  # (a single run's instant between every judged robot's ticks: nobody acts)
-            return access.take_raised()
         raised: list[np.ndarray] = []
         for c in self.components:
             live = access.live(idx)
