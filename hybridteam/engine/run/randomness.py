@@ -89,9 +89,6 @@ def bits(key: np.uint64 | np.ndarray, *counters: np.ndarray | int) -> np.ndarray
     ``key`` may be one key or an array of keys, one per element (per-instance seeds): the
     hash is elementwise, so an element's bits depend only on its own key and counters.
     """
-    one = _one(key, counters)
-    if one is not None:
-        return np.array([one], np.uint64)
     with np.errstate(over="ignore"):
         z = np.asarray(key, dtype=np.uint64)
         for c in counters:
@@ -102,39 +99,4 @@ def bits(key: np.uint64 | np.ndarray, *counters: np.ndarray | int) -> np.ndarray
 
 def uniform(key: np.uint64 | np.ndarray, *counters: np.ndarray | int) -> np.ndarray:
     """Uniform draws in [0, 1) with 53 random bits, one per element of the counters."""
-    one = _one(key, counters)
-    if one is not None:  # (b >> 11 < 2**53 is a float exactly; the product is exact)
-        return np.array([(one >> 11) * _TO_UNIT])
     return (bits(key, *counters) >> np.uint64(11)).astype(np.float64) * _TO_UNIT
-
-
-_MASK = (1 << 64) - 1
-_GOLDEN_INT, _M1_INT, _M2_INT = int(_GOLDEN), int(_M1), int(_M2)
-
-
-def _one(key: np.uint64 | np.ndarray, counters: tuple[np.ndarray | int, ...]) -> int | None:
-    """:func:`bits` of a single element on Python integers, or None where the draw is not
-    one element (one key of shape ``(1,)``, every counter an integer or an integer array of
-    shape ``(1,)``).
-
-    A single run draws one element per message (its loss and its jitter): on numpy scalars
-    each of the hash's dozen operations costs a call and a temporary, about 20 µs a draw,
-    a tenth of experiment 3's run. The same arithmetic modulo 2**64 (SplitMix64 is defined
-    on 64-bit words; numpy's uint64 wraps, here the mask does), so the same bits.
-    """
-    if type(key) is not np.ndarray or key.shape != (1,) or key.dtype != np.uint64:
-        return None
-    z = int(key[0])
-    for c in counters:
-        if type(c) is int:
-            value = c
-        elif type(c) is np.ndarray and c.shape == (1,) and c.dtype.kind in "iu":
-            value = int(c[0])
-        else:
-            return None
-        # (value + 1) & _MASK is astype(uint64)'s wrap of a negative int64, plus one
-        z = (z + _GOLDEN_INT * ((value + 1) & _MASK)) & _MASK
-        z = ((z ^ (z >> 30)) * _M1_INT) & _MASK
-        z = ((z ^ (z >> 27)) * _M2_INT) & _MASK
-        z ^= z >> 31
-    return z
