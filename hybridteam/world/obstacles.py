@@ -408,6 +408,8 @@ class Obstacles(WorldComponent):
                 out = {r: _NO for r in self.key_rules[key]}  # (no beam may read below: cheaper)
             else:
                 out = self._sighted(key, idx, scene, reach.item(0))
+                if out is not None:  # (a beam below a threshold: the floor rules out none)
+                    self.within[key] = any(v is _YES for v in out.values())
         if out is None:
             dist, rows = self._rule_readings(key, idx, scene, reach)
             out = {}
