@@ -15,8 +15,12 @@ documented setting instead of patching the engine's or a library's private names
 It covers the crossing search's float forms (its checkpoints' truths, the dense bracket
 and the judgement of a flip, :attr:`hybridteam.expr.Atom.row`), the last few brackets of
 :func:`~hybridteam.engine.run.crossing.illinois.illinois`, a few rows' unicycle arcs and
-dense-output reads (:mod:`hybridteam.dynamics`), a carried payload's settling and the
-ladder library's law and corridor instant. A hot path reads one attribute
+dense-output reads (:mod:`hybridteam.dynamics`), a carried payload's settling, the
+clearances in a scene of posts (:mod:`hybridteam.world.measure_one`), a law's
+dead reckoning of a stream copy (:mod:`hybridteam.laws`), the transport library's leader
+estimate and the ladder library's law and corridor instant; and a single run's shortcuts
+to a detect rule's verdicts (:mod:`hybridteam.world.sight`: off, every rule reads its cast
+beams). A hot path reads one attribute
 (:attr:`FloatPaths.on`), which costs about as much as a local comparison.
 
 :func:`float_form` makes a float path from the array version's own source, where the

@@ -427,3 +427,54 @@ def test_a_constant_binding_parameter_is_evaluated_once_per_size():
     for _ in range(2):
         laws.LawContext(ctx, counted, "r", {}, {}, {"a": 0}, (), tables)["window"]
     assert len(calls) == 2
+
+
+_FIELD = st.floats(allow_nan=True, allow_infinity=True, width=64)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.lists(_FIELD, min_size=8, max_size=8),
+    st.sets(st.sampled_from(["v", "vx", "vy", "omega"])),
+    st.booleans(),
+)
+def test_a_single_rows_dead_reckoning_on_floats_has_the_array_versions_bits(values, carried, along):
+    """A single run's tick dead-reckons its one copy on Python floats (``estimate``); the
+    array version is what an ensemble and the float paths off take. Same bits for every
+    form of copy (arc, line, both: along the heading or not), also for NaN, inf, zero turn
+    rates and copies never received (infinite age)."""
+    x, y, th, v, vx, vy, omega, age = values
+    if along:  # a unicycle's copy: its world velocity along its heading
+        with np.errstate(all="ignore"):
+            vx, vy = float(v * np.cos(th)), float(v * np.sin(th))
+    given_ = {"v": v, "vx": vx, "vy": vy, "omega": omega}
+    f = {"x": x, "y": y, "theta": th} | {k: given_[k] for k in carried}
+    rows = {k: np.array([a]) for k, a in f.items()}
+    ages = np.array([age])
+    with np.errstate(all="ignore"):
+        one = laws._dead_reckon_one(rows, age)
+        arrays = laws._dead_reckon(rows, np.where(np.isfinite(ages), ages, 0.0))
+    assert one.keys() == arrays.keys()
+    for k in arrays:
+        assert one[k].shape == (1,) and one[k].tobytes() == arrays[k].tobytes(), k
+
+
+def test_a_single_rows_dead_reckoning_is_the_arc_and_the_line():
+    """Closed forms on the float path: a quarter turn of radius 1 (v = 1, omega = pi/2 for
+    one second) ends at (1, 1) heading pi/2; a holonomic copy moves on its line."""
+    arc = laws._dead_reckon_one(
+        {
+            k: np.array([a])
+            for k, a in dict(x=0.0, y=0.0, theta=0.0, v=1.0, omega=math.pi / 2).items()
+        },
+        1.0,  # one second: radius v / omega = 2 / pi
+    )
+    np.testing.assert_allclose([arc["x"][0], arc["y"][0]], [2 / math.pi, 2 / math.pi], atol=1e-15)
+    assert arc["theta"][0] == pytest.approx(math.pi / 2, abs=1e-15)
+    line = laws._dead_reckon_one(
+        {k: np.array([a]) for k, a in dict(x=1.0, y=2.0, theta=0.3, vx=0.5, vy=-0.25).items()},
+        2.0,
+    )
+    assert (line["x"][0], line["y"][0], line["theta"][0]) == (2.0, 1.5, 0.3)
+    never = laws._dead_reckon_one({k: np.array([1.0]) for k in ("x", "y", "theta", "v")}, math.inf)
+    assert (never["x"][0], never["y"][0], never["theta"][0]) == (1.0, 1.0, 1.0)  # age 0

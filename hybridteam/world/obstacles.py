@@ -52,6 +52,8 @@ import numpy as np
 
 from hybridteam.arrays import every, filled, some, where_true
 from hybridteam.errors import ModelError
+from hybridteam.floatpaths import FLOAT_PATHS
+from hybridteam.world import sight
 from hybridteam.world.access import WorldAccess
 from hybridteam.world.carried import CarriedPayload
 from hybridteam.world.collisions import box_sdf, name_hit, robot_overlaps
@@ -61,6 +63,7 @@ from hybridteam.world.component import (
     settings_error,
     world_component,
 )
+from hybridteam.world.measure_one import measure_one
 from hybridteam.world.obstacle_settings import Rule, parse_settings, planar
 from hybridteam.world.raycast import Targets, cast_at
 from hybridteam.world.scene import (
@@ -100,6 +103,15 @@ class ObstacleWork:
     #: Ring readings cast (:meth:`Obstacles.read` calls, one per scene where instances'
     #: obstacles differ, plus the call that groups them).
     reads: int = 0
+    #: A ring's rule verdicts on the payloads proved by bounds without casting
+    #: (:mod:`hybridteam.world.sight`), those kept from an earlier proof, and the casts
+    #: of the static obstacles alone that completed them.
+    proved: int = 0
+    kept: int = 0
+    statics: int = 0
+    #: A single run's verdicts reused where the ring's robot and every payload stood
+    #: still since the last ones.
+    still: int = 0
 
 
 @world_component("obstacles")
@@ -160,6 +172,17 @@ class Obstacles(WorldComponent):
         self.rule_columns = [
             np.searchsorted(self.read_beams[(r.agent, r.sensor)], r.beams) for r in self.rules
         ]
+        #: per (agent, sensor): its rules' indices
+        self.key_rules = {
+            key: [r for r, rule in enumerate(self.rules) if (rule.agent, rule.sensor) == key]
+            for key in self.read_beams
+        }
+        #: per (agent, sensor), a single run's verdicts proved by bounds and where the ring
+        #: was relative to each payload then (:meth:`_sighted`)
+        self.sighted: dict[tuple[int, str], _Sighted] = {}
+        #: per (agent, sensor), a single run's last verdicts and the poses they were made at
+        #: (:meth:`_verdicts`)
+        self.still: dict[tuple[int, str], _Still] = {}
         #: per (agent, sensor): whether every instance its rules last read saw something
         #: within their highest threshold (a carried box before the IR): then the floor
         #: would rule out no instance and is not computed (:meth:`_rule_readings`)
@@ -345,16 +368,12 @@ class Obstacles(WorldComponent):
         """:meth:`update` of instances ``idx``, which share ``scene``; ``sensing``: per
         judged agent, whether it senses in each of them (None: every one in all)."""
         reach = self._measure(world, idx, scene, sensing)
-        readings: dict[tuple[int, str], tuple[np.ndarray, np.ndarray | None]] = {}
+        verdicts: dict[tuple[int, str], dict[int, np.ndarray]] = {}
         for r, rule in enumerate(self.rules):
             key = (rule.agent, rule.sensor)
-            if key not in readings:
-                readings[key] = self._rule_readings(key, idx, scene, reach.get(rule.agent))
-            dist, rows = readings[key]
-            near = np.minimum.reduce(dist[:, self.rule_columns[r]], axis=1) < rule.below
-            if rows is not None:  # the others read no nearer than any rule's threshold
-                near, seen = np.zeros(idx.size, bool), near
-                near[rows] = seen
+            if key not in verdicts:
+                verdicts[key] = self._verdicts(key, idx, scene, reach.get(rule.agent))
+            near = verdicts[key][r]
             own = None if sensing is None else sensing[rule.agent]
             if own is not None and not every(own):  # where its robot does not sense,
                 # what it saw last stands
@@ -363,6 +382,129 @@ class Obstacles(WorldComponent):
             self.near[r, idx] = near
             if some(rising):
                 world.raise_event(idx[rising], rule.agent, rule.event)
+
+    def _verdicts(
+        self, key: tuple[int, str], idx: np.ndarray, scene: Scene, reach: np.ndarray | None
+    ) -> dict[int, np.ndarray]:
+        """Whether each rule of ``key`` sees something below its threshold in the instances
+        of ``idx``: rule index -> ``(m,)`` bool, read from the cast beams.
+
+        A single run's instant takes two shortcuts with the same verdicts: where the ring's
+        robot and every payload stand where they stood at its last verdicts, bit for bit
+        (a robot waiting while its forks lift a box), those (they are a function of these
+        poses and the static scene); else, unless the floor rules every beam out, the bounds
+        of :meth:`_sighted`, where they settle every rule."""
+        single = idx.size == 1 and FLOAT_PATHS.on
+        if single:
+            i, poses = idx.item(0), self._poses(key[0], idx).tobytes()
+            poses += b"".join(p.pose[idx].tobytes() for p in self.payloads)
+            still = self.still.get(key)
+            if still is not None and still.instance == i and still.poses == poses:
+                self.work.still += 1
+                return still.verdicts
+        out = None
+        if single and self.payloads and reach is not None:
+            a, ring, below = key[0], self.rings[key], self.below[key]
+            if not self.within.get(key, False) and every(self.floor(a, ring, idx, reach) >= below):
+                out = {r: _NO for r in self.key_rules[key]}  # (no beam may read below: cheaper)
+            else:
+                out = self._sighted(key, idx, scene, reach.item(0))
+                if out is not None:  # (a beam below a threshold: the floor rules out none)
+                    self.within[key] = any(v is _YES for v in out.values())
+        if out is None:
+            dist, rows = self._rule_readings(key, idx, scene, reach)
+            out = {}
+            for r in self.key_rules[key]:
+                cols, threshold = self.rule_columns[r], self.rules[r].below
+                near = np.minimum.reduce(dist[:, cols], axis=1) < threshold
+                if rows is not None:  # the others read no nearer than any rule's threshold
+                    near, seen = np.zeros(idx.size, bool), near
+                    near[rows] = seen
+                out[r] = near
+        if single:
+            self.still[key] = _Still(i, poses, out)
+        return out
+
+    def _sighted(
+        self, key: tuple[int, str], idx: np.ndarray, scene: Scene, reach: float
+    ) -> dict[int, np.ndarray] | None:
+        """The verdicts of ``key``'s rules in a single run's instance ``idx`` without
+        casting at the payloads (each a box): what the ring reads of them is bounded
+        (:meth:`_payload_verdicts`), and the static obstacles, where one may be within the
+        rules' reach (``reach``: the robot's centre clearance), are cast alone. None where
+        the bounds leave a rule open (a bar, a beam within the margin of a threshold, a
+        sensor inside a box): the rules read the cast beams.
+
+        A rule whose beams surely read a payload below its threshold sees something; one
+        whose beams surely read every payload at or beyond it sees what the static
+        obstacles give (nothing, beyond its reach): the verdicts the cast beams give."""
+        a, ring, below = key[0], self.rings[key], self.below[key]
+        poses = self._poses(a, idx)
+        pose = poses[0].tolist()
+        boxes = []
+        for p in self.payloads:
+            hw, hd = (float(h[0]) for h in p.half_extents(idx))
+            if not hd > 0.0:  # a bar: a segment has no inside to prove a hit by
+                return None
+            boxes.append((sight.relative_pose(pose, p.pose[idx[0]].tolist()), hw, hd))
+        seen = self._payload_verdicts(key, idx.item(0), boxes)
+        slack = _SLACK * (1.0 + abs(pose[0]) + abs(pose[1]) + ring.max_range)
+        if seen is None or reach - ring.mount_radius > below + slack:
+            return seen  # (open, or no static obstacle within any rule's threshold)
+        beams = self.read_beams[key]
+        origins, directions = ring.rays(poses, beams)
+        self.work.statics += 1
+        static = cast_at(origins, directions, scene.targets, ring.max_range)
+        static = np.minimum.reduce(static.reshape(beams.size, ring.rays_per_beam), axis=1)
+        out = {}
+        for r, payload in seen.items():
+            threshold = self.rules[r].below
+            near = payload is _YES or (
+                ring.min_range < threshold and some(static[self.rule_columns[r]] < threshold)
+            )
+            out[r] = _YES if near else _NO
+        return out
+
+    def _payload_verdicts(
+        self, key: tuple[int, str], i: int, boxes: list[tuple[sight.Pose, float, float]]
+    ) -> dict[int, np.ndarray] | None:
+        """Per rule of ``key``, in instance ``i``: ``_YES`` where its beams surely read a
+        payload below its threshold, ``_NO`` where they surely read every payload at or
+        beyond it; None if a rule is neither (:func:`~hybridteam.world.sight.box_reading_bounds`
+        of each payload, ``boxes``: the ring's robot in its frame, its half extents).
+
+        Verdicts proved at an earlier instant are kept while the ring has moved less than
+        :func:`~hybridteam.world.sight.kept_for` relative to every payload since: what a
+        carried box costs its carrier's ticks is then a comparison on floats."""
+        ring, below = self.rings[key], self.below[key]
+        kept = self.sighted.get(key)
+        if kept is not None and kept.instance == i:
+            reach = ring.mount_radius + below
+            if all(
+                sight.motion(was, now, reach) <= sight.kept_for(hw, hd)
+                for was, (now, hw, hd) in zip(kept.poses, boxes, strict=True)
+            ):
+                self.work.kept += 1
+                return kept.verdicts
+        beams = self.read_beams[key]
+        lower, upper = np.full(beams.size, np.inf), np.full(beams.size, np.inf)
+        for rel, hw, hd in boxes:
+            low, high = sight.box_reading_bounds(ring, beams, rel, hw, hd)
+            lower, upper = np.minimum(lower, low), np.minimum(upper, high)
+        out = {}
+        margin = min(sight.kept_for(hw, hd) for _, hw, hd in boxes)  # (what keeping needs)
+        for r in self.key_rules[key]:
+            cols, threshold = self.rule_columns[r], self.rules[r].below
+            if ring.min_range < threshold and some(upper[cols] < threshold - margin):
+                out[r] = _YES
+            elif threshold <= ring.max_range and every(lower[cols] >= threshold):
+                out[r] = _NO
+            else:  # within the margin of its threshold: cast
+                self.sighted.pop(key, None)
+                return None
+        self.sighted[key] = _Sighted(i, [rel for rel, _, _ in boxes], out)
+        self.work.proved += 1
+        return out
 
     def _rule_readings(
         self, key: tuple[int, str], idx: np.ndarray, scene: Scene, reach: np.ndarray | None
@@ -423,7 +565,20 @@ class Obstacles(WorldComponent):
         """Running minima of the robots' and the payloads' clearances, and collisions, each
         where its robot (a pair: either robot; a payload: one of its carriers) senses.
         Returns each planar robot's centre clearance from the static obstacles ``(m,)``.
-        ``sensing``: as :meth:`_update`'s (None: every robot senses in every instance)."""
+        ``sensing``: as :meth:`_update`'s (None: every robot senses in every instance).
+
+        A single run's instant in a scene of circles (posts) takes :func:`measure_one`, on
+        floats, unless a gap shows a collision."""
+        if (
+            idx.size == 1
+            and FLOAT_PATHS.on
+            and not self.values["clearance"]
+            and not len(scene.segments)
+            and not len(scene.boxes)
+        ):
+            on_floats = measure_one(self, world, idx, scene, sensing)
+            if on_floats is not None:
+                return on_floats
         hits: list[tuple[int, str, str, np.ndarray]] = []  # (instance, who, what, where)
         reach: dict[int, np.ndarray] = {}
         points, gap, payload_gaps = np.empty((0, idx.size, 2)), np.empty((0, idx.size)), []
@@ -673,6 +828,31 @@ class Obstacles(WorldComponent):
             for who, (_text, t, x, y) in firsts.items()
         )
         return SceneDescription(obstacles=tuple(obstacles), collisions=marks, footprints=footprints)
+
+
+class _Sighted(NamedTuple):
+    """Verdicts a ring's rules got from bounds (``Obstacles.sighted``): in instance
+    ``instance``, with the ring's robot at ``poses`` in each payload's frame (in the
+    component's payload order), ``verdicts`` per rule index (read-only rows)."""
+
+    instance: int
+    poses: list[sight.Pose]
+    verdicts: dict[int, np.ndarray]
+
+
+class _Still(NamedTuple):
+    """A ring's last verdicts in a single run (``Obstacles.still``): in instance
+    ``instance``, with its robot's pose and every payload's as ``poses`` (their bytes),
+    ``verdicts`` per rule index."""
+
+    instance: int
+    poses: bytes
+    verdicts: dict[int, np.ndarray]
+
+
+#: A single instance's verdicts (read-only: shared by every instant that keeps them)
+_YES, _NO = np.ones(1, bool), np.zeros(1, bool)
+_YES.flags.writeable = _NO.flags.writeable = False
 
 
 class _Measured(NamedTuple):

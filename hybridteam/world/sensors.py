@@ -103,6 +103,12 @@ class RangeRing:
             got = self._beam_subsets[key] = tuple(c[:, rays] for c in self._local)
         return got
 
+    def local_rays(self, beams: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """Every sub-ray's mount point and unit direction in the robot frame (of ``beams``
+        only, if given): ``lx, ly, dx, dy``, ``(1, R)`` each, kept by the ring (not to be
+        written)."""
+        return self._local if beams is None else self._local_of(beams)
+
     def rays(
         self, poses: np.ndarray, beams: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray]:

@@ -17,12 +17,13 @@ guards. They live here once:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from hybridteam.library import LawContext
+from hybridteam.library import FLOAT_PATHS, LawContext
 
 #: The data stream of the role-assignment protocol that carries a robot's pose and velocity.
 STREAM = "state"
@@ -53,6 +54,8 @@ def leader_estimate(ctx: LawContext) -> LeaderState:
     heading, so a law written for one works with a unicycle or a holonomic leader.
     """
     leader = ctx.get("leader", -1.0)
+    if ctx.size == 1 and FLOAT_PATHS.on and not leader.item(0) >= 2.0**52:
+        return _leader_one(ctx, leader.item(0))
     who = np.where(np.isfinite(leader) & (leader >= 0), np.rint(leader), -1).astype(np.intp)
     est = ctx.estimate(STREAM, sender=np.where(who >= 0, who, 0), extrapolate=True)
     fields = est.fields
@@ -83,6 +86,48 @@ def leader_estimate(ctx: LawContext) -> LeaderState:
     if not np.isfinite(out).all():  # (the usual case is finite: no nan_to_num's cost)
         out = np.where(ok, np.nan_to_num(raw), 0.0)
     return LeaderState(ok, who, *out)
+
+
+def _leader_one(ctx: LawContext, leader: float) -> LeaderState:
+    """:func:`leader_estimate` of one row (a single run's tick) on Python floats: the same
+    operations on each number (``np.cos``, ``np.sin`` themselves; the cleaning is
+    ``nan_to_num``'s), at about a third of the cost on arrays of one. A ``leader`` of 2**52
+    or more (no agent index) takes the array version, whose integer conversion it is."""
+    who = round(leader) if math.isfinite(leader) and leader >= 0 else -1  # (rint: to even)
+    est = ctx.estimate(STREAM, sender=np.array([max(who, 0)], np.intp), extrapolate=True)
+    fields = est.fields
+    x, y, th = fields["x"].item(0), fields["y"].item(0), fields["theta"].item(0)
+    ok = (
+        who >= 0
+        and bool(est.valid[0])
+        and math.isfinite(est.age.item(0))
+        and math.isfinite(x)
+        and math.isfinite(y)
+        and math.isfinite(th)
+    )
+    c, s = float(np.cos(th)), float(np.sin(th))
+    if "vx" in fields and "vy" in fields:
+        vx, vy = fields["vx"].item(0), fields["vy"].item(0)
+        v = fields["v"].item(0) if "v" in fields else vx * c + vy * s
+    else:
+        v = fields["v"].item(0) if "v" in fields else 0.0
+        vx, vy = v * c, v * s
+    omega = fields["omega"].item(0) if "omega" in fields else 0.0
+    values = [x, y, th, v, vx, vy, omega] if ok else [0.0] * 7
+    if not all(map(math.isfinite, values)):  # nan_to_num's numbers
+        values = [_finite(a) for a in values]
+    out = np.array(values)[:, None]  # seven rows of one, as the array version's
+    return LeaderState(np.array([ok]), np.array([who], np.intp), *out)
+
+
+def _finite(a: float) -> float:
+    """``np.nan_to_num`` of one float: 0 for NaN, the largest finite float for infinity."""
+    if a != a:
+        return 0.0
+    return a if math.isfinite(a) else math.copysign(_BIG, a)
+
+
+_BIG = float(np.finfo(float).max)
 
 
 def arm_reading(ctx: LawContext) -> np.ndarray:

@@ -113,7 +113,8 @@ def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor
     XR4000's IR on the box it carries). The verdicts are the hand-computed ones: R stops
     at the tick 14.5 with beam 0 at 2 - 1.45 - 0.3 = 0.25 < 0.255, and standing there it
     is told once. Before that the floor prunes every instant: the centre is at least
-    0.555 from every obstacle (0.255 + the hull) until x = 1.445, t = 14.45. The work is
+    0.555 from every obstacle (0.255 + the hull) until x = 1.445, t = 14.45; once R stands
+    still, its verdicts are the last ones (nothing they depend on moved). The work is
     read off the component's counters after runs that stop at ticks (every 0.1 s: a run
     that stops between ticks has an instant at its end the whole run does not have)."""
 
@@ -129,7 +130,8 @@ def test_a_ring_that_keeps_seeing_something_within_the_threshold_skips_the_floor
     assert pruned.reads == 0 and first_read.reads >= 1  # first read at the tick 14.5
     assert pruned.floors > 100 and first_read.floors == pruned.floors + 1  # (its instant's)
     assert whole.floors == first_read.floors  # not once after it
-    assert whole.reads - later.reads >= 40  # still read
+    # standing still from then on (Stop): its last verdicts stand, read once
+    assert whole.reads == later.reads and whole.still - later.still >= 40
 
 
 def test_a_resting_payload_is_an_obstacle_and_its_clearance_is_measured(tmp_path):
