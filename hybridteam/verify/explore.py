@@ -28,6 +28,7 @@ from hybridteam.engine.run.budget import instances_within, memory_limit, residen
 from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
+from hybridteam.verify.kernel import chosen, explore_packed
 from hybridteam.verify.machine import Machine, Result, State
 from hybridteam.verify.pool import Pool, Successors
 from hybridteam.verify.reactions import Reactions
@@ -80,6 +81,10 @@ class Options:
     #: successors from the engine alone, one load and read-back each (:class:`~.machine.Machine`),
     #: instead of the reaction tables it fills (:class:`~.reactions.Reactions`, the default)
     reference: bool = False
+    #: "auto": the compiled loop (:mod:`.kernel`) where numba is importable and the other
+    #: options allow it (exact storage, one process, no reduction, the reaction tables);
+    #: "on": the same, and an error without numba; "off": the Python loop
+    kernel: str = "auto"
 
 
 @dataclass
@@ -99,6 +104,8 @@ class Graph:
     seconds: float = 0.0
     transitions: int = 0
     coverage: Coverage | None = None  # a partial search's estimate (None: exact storage)
+    explorer: str = "python"  # which loop explored, in words (:func:`.kernel.chosen`)
+    compile_seconds: float = 0.0  # the compiled loop's first call (compiling or loading it)
 
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""
@@ -343,6 +350,13 @@ def _explore(
         store, edges = PartialStore(len(sk.cteam.agents), visited), trail
         store.trail, store.successor = trail, _again(succ)
     g = Graph(store, parent, edges, batch=batch)
+    use, g.explorer = chosen(opts, reduce is not None or choose is not None)
+    if use:
+        assert isinstance(m, Reactions)
+        explore_packed(sk, opts, m, g, values, limit, start, progress)
+        g.edges.freeze(len(g.states))
+        g.seconds = time.perf_counter() - start
+        return g
     initial = m.initial()
     store.add(store.find(initial if reduce is None else reduce(initial))[0])
     if opts.jobs > 1:
