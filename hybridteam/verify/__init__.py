@@ -184,6 +184,7 @@ class Report:
             **({"coverage": g.coverage.summary()} if g.coverage is not None else {}),
             "bound": g.bound,
             "seconds": round(g.seconds, 3),
+            "explorer": g.explorer,
             "options": {
                 "losses": self.options.losses,
                 "duplicates": self.options.duplicates,
@@ -195,6 +196,7 @@ class Report:
                 "timeouts": self.options.timeouts,
                 "storage": self.options.storage,
                 "jobs": self.options.jobs,
+                "kernel": self.options.kernel,
                 **(
                     {
                         "bitstate_mb": self.options.bitstate_mb,
