@@ -265,30 +265,31 @@ class Packing:
 
     # ------------------------------------------------------------------ the loop's arrays
     def tables(self) -> tuple:
-        """The arrays :func:`.kernel_core.choices` and ``successor`` read (rebuilt when
-        something new was numbered: templates' sort ranks change as new ones arrive)."""
+        """The arrays :func:`.kernel_core.level` reads (rebuilt when something new was
+        numbered: templates' sort ranks change as new ones arrive): per copy template its
+        kind, sender, receiver, whether the receiver hears it, and its ranks (sender to
+        type, fields, link); per entry template its sender, waiting mask and rank; per
+        part where its time-driven transitions start and how many, those transitions
+        (index, untimed), which world events it waits for; the world events' agents; the
+        scenario's agents."""
         from hybridteam.verify.explore import _local
 
         sk, tv, ev = self.sk, self.template_values, self.entry_values
         key_rank = _ranks([(t[1], t[2], t[3], t[4]) for t in tv])
         field_rank = _ranks([t[5] for t in tv])
         link_rank = _ranks([(t[1], t[2], t[3]) for t in tv])
-        copies = (
-            np.array([t[0] for t in tv] or [0], np.int64),
-            np.array([t[1] for t in tv] or [0], np.int64),
-            np.array([t[2] for t in tv] or [0], np.int64),
-            np.array([t[4] in self.hears[t[2]] for t in tv] or [0], np.uint8),
-            key_rank,
-            field_rank,
-            link_rank,
-        )
+        copies = np.zeros((7, max(1, len(tv))), np.int64)
+        for t, (kind, snd, rcv, _, type_, _) in enumerate(tv):
+            copies[:4, t] = (kind, snd, rcv, type_ in self.hears[rcv])
+        copies[4, : len(tv)] = key_rank[: len(tv)]
+        copies[5, : len(tv)] = field_rank[: len(tv)]
+        copies[6, : len(tv)] = link_rank[: len(tv)]
         rest = _ranks([(e.type, e.socket, e.fields, e.waiting, e.retries_left, e.timeout, e.rank)
                        for e in ev])
-        entries = (
-            np.array([e.sender for e in ev] or [0], np.int64),
-            np.array([sum(1 << b for b in e.waiting) for e in ev] or [0], np.int64),
-            rest,
-        )
+        entries = np.zeros((3, max(1, len(ev))), np.int64)
+        for k, e in enumerate(ev):
+            entries[:2, k] = (e.sender, sum(1 << b for b in e.waiting))
+        entries[2, : len(ev)] = rest[: len(ev)]
         t0, tn, tj, tu = [], [], [], []
         world = np.zeros((max(1, len(self.values)), max(1, len(sk.world_events))), np.uint8)
         for p, (a, part) in enumerate(zip(self.part_agent, self.values, strict=True)):
@@ -300,17 +301,12 @@ class Packing:
                 tu.append(untimed)
             for w, (b, event) in enumerate(sk.world_events):
                 world[p, w] = b == a and event in events
-        local = (
-            np.array(t0 or [0], np.int64),
-            np.array(tn or [0], np.int64),
-            np.array(tj or [0], np.int64),
-            np.array(tu or [0], np.uint8),
-            world,
-            np.array([a for a, _ in sk.world_events], np.int64),
-        )
+        starts = np.array([t0 or [0], tn or [0]], np.int64)
+        flat = np.array([tj or [0], tu or [0]], np.int64)
+        agents = np.array([a for a, _ in sk.world_events], np.int64)
         scen = np.array([a for _, a, _ in self.scenario] or [0], np.int64)
         self.dirty = False
-        return copies, entries, local, scen
+        return copies, entries, starts, flat, world, agents, scen
 
 
 def _ranks(values: list) -> np.ndarray:
@@ -415,14 +411,16 @@ class Table:
             for r in range(len(self.keys)):
                 place_reaction(rk, slots, r)
 
-            def i64(xs: list[int]) -> np.ndarray:
-                return np.array(xs or [0], np.int64)
+            def rows(*columns: list[int]) -> np.ndarray:
+                return np.array([c or [0] for c in columns], np.int64)
 
             self.arrays = (
-                rk, slots, i64(self.part), i64(self.zeno), i64(self.reads), i64(self.c0),
-                i64(self.cn), i64(self.c_tmpl), i64(self.c_how), i64(self.c_off),
-                i64(self.kept), i64(self.e0), i64(self.en), i64(self.e_tmpl), i64(self.e_off),
-                i64(self.filtered),
+                rk,
+                slots,
+                rows(self.part, self.zeno, self.reads, self.c0, self.cn, self.kept, self.e0,
+                     self.en, self.filtered),
+                rows(self.c_tmpl, self.c_how, self.c_off),
+                rows(self.e_tmpl, self.e_off),
             )
         return self.arrays
 
@@ -455,7 +453,7 @@ class PackedStore:
         self.pk, self.lay = pk, lay
         self.rows = np.zeros((1024, lay.width), np.uint16)
         self.n = 0
-        self.slots = np.full(2048, -1, np.int64)
+        self.slots = np.full(2048, -1, np.int32)
         self.parts = pk  # ``parts.values``: agent parts by number
 
     def __len__(self) -> int:
@@ -488,7 +486,7 @@ class PackedStore:
             grown[: self.n] = self.rows[: self.n]
             self.rows = grown
         if 2 * need > self.slots.size:
-            self.slots = np.full(_pow2(2 * need), -1, np.int64)
+            self.slots = np.full(_pow2(2 * need), -1, np.int32)
             self._rehash()
 
     def _rehash(self) -> None:
@@ -547,8 +545,8 @@ def explore_packed(
     tb: tuple | None = None
     first = True
     none = np.zeros(0, np.int64)
+    pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
     while lo < hi:
-        pre: dict[int, tuple[State, bool, int]] = {}
         misses = np.zeros((MISSES, 4), np.int64)
         while True:  # dry passes until the tables answer every job of the level
             table.sync()
@@ -564,18 +562,13 @@ def explore_packed(
             settled = _settled(pk, m)
             t0 = time.perf_counter()
             status, jobs, _, _, _, _, nm = kc.level(
-                store.rows, store.n, lo, hi, store.slots, store.lay.array(), tb, table.array(),
+                store.rows, store.n, lo, hi, store.slots, store.lay.array(), *tb, *table.array(),
                 opt, settled, pre_ord, pre_rows, pre_res, False, opts.max_states,
                 parent, none, none, none, none, none, misses,
             )
             if first:
                 g.compile_seconds = time.perf_counter() - t0
                 first = False
-            if status == kc.OVERFLOW:
-                store.relayout(store.lay.wider(), store.rows.dtype)
-                continue
-            if status == kc.TOO_MANY_IDS:
-                raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
             if nm == 0:
                 break
             _fill(m, pk, store, misses[:nm], pre, g.batch)
@@ -591,10 +584,15 @@ def explore_packed(
         zeno = np.zeros(jobs, np.int64)
         cut = np.zeros(jobs, np.int64)
         status, done, n, ne, nz, nx, _ = kc.level(
-            store.rows, store.n, lo, hi, store.slots, store.lay.array(), tb, table.array(),
+            store.rows, store.n, lo, hi, store.slots, store.lay.array(), *tb, *table.array(),
             opt, settled, pre_ord, pre_rows, pre_res, True, opts.max_states,
             parent, e_src, e_dst, e_how, zeno, cut, misses,
         )
+        if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
+            store.relayout(store.lay.wider(), store.rows.dtype)
+            continue
+        if status == kc.TOO_MANY_IDS:
+            raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
         if status != kc.OK or done != jobs:
             raise RuntimeError(f"kernel: the level did not apply as its dry pass said ({status})")
         g.transitions += jobs
@@ -608,6 +606,7 @@ def explore_packed(
             g.cut.update(cut[:nx].tolist())
         lo, hi = hi, n
         store.n = n
+        pre = {}
         depth += 1
         now = time.perf_counter()
         if progress is not None:

@@ -122,51 +122,44 @@ def _rank(mask: np.uint64, k: int) -> int:
     return _popcount(mask & ((np.uint64(1) << np.uint64(k)) - np.uint64(1)))
 
 
-class _State:
-    """(documentation only) A decoded state in the loop's scratch arrays ``st``:
-    st[0]: nc, no, ns, cursor, losses, dups; parts in ``ag``, next ids in ``nid``; copies
-    ``ct``/``ci``; entries ``et``/``ei``; seen ``sr``/``ss``/``sk``."""
-
-
 @njit(cache=True)
-def decode(row, lay, ag, nid, ct, ci, et, ei, sr, ss, sk, head) -> None:
+def decode(row, lay, D, head) -> None:
     """Unpack ``row`` (layout ``lay``: agents, copy slots, entry slots, seen slots) into
-    the scratch arrays; ``head``: copies, entries, seen, cursor, losses, dups."""
+    ``D``'s rows: 0 the agents' parts, 1 their next ids, 2-3 the copies' templates and
+    ids, 4-5 the entries' templates and ids, 6-8 the seen triples (receiver, sender,
+    id); ``head``: copies, entries, seen, cursor, losses, dups."""
     na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
     for a in range(na):
-        ag[a] = row[a]
+        D[0, a] = row[a]
     p = na
     nc = int(row[p])
     for i in range(nc):
         v = int(row[p + 1 + i])
-        ct[i], ci[i] = v // IDS, v % IDS
+        D[2, i], D[3, i] = v // IDS, v % IDS
     p += 1 + cs
     no = int(row[p])
     for i in range(no):
         v = int(row[p + 1 + i])
-        et[i], ei[i] = v // IDS, v % IDS
+        D[4, i], D[5, i] = v // IDS, v % IDS
     p += 1 + os_
     ns = int(row[p])
     for i in range(ns):
         v = int(row[p + 1 + i])
-        sk[i] = v % IDS
+        D[8, i] = v % IDS
         v //= IDS
-        ss[i] = v % na
-        sr[i] = v // na
+        D[7, i] = v % na
+        D[6, i] = v // na
     p += 1 + ss_
     head[0], head[1], head[2] = nc, no, ns
     head[3], head[4], head[5] = row[p], row[p + 1], row[p + 2]
     for a in range(na):
-        nid[a] = row[p + 3 + a]
+        D[1, a] = row[p + 3 + a]
 
 
 @njit(cache=True)
-def choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, out) -> int:
+def choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, out) -> int:
     """The choice codes of a decoded state into ``out``, in the order of
     :func:`~.explore.choices`; their number."""
-    (t_kind, t_snd, t_rcv, t_heard, t_key, t_field, t_link) = tb[0]
-    (e_snd, e_wait, e_rest) = tb[1]
-    (p_t0, p_tn, timed_j, timed_untimed, p_world, world_agent) = tb[2]
     fifo, bounded, timeouts, max_losses, max_dups, nscen = (
         opt[0],
         opt[1],
@@ -184,18 +177,18 @@ def choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, out) -> int:
         if fifo:
             first = True
             for j in range(k):
-                if t_link[ct[j]] == t_link[ct[k]]:
+                if TT[6, D[2, j]] == TT[6, D[2, k]]:
                     first = False
                     break
             if not first:
                 continue
         if bounded and quiet < 0:
-            t = ct[k]
-            if t_kind[t] == ACK_COPY or t_heard[t] == 0:
+            t = D[2, k]
+            if TT[0, t] == ACK_COPY or TT[3, t] == 0:
                 quiet = k
-            elif t_kind[t] == WITH_ID:
+            elif TT[0, t] == WITH_ID:
                 for j in range(ns):
-                    if sr[j] == t_rcv[t] and ss[j] == t_snd[t] and sk[j] == ci[k]:
+                    if D[6, j] == TT[2, t] and D[7, j] == TT[1, t] and D[8, j] == D[3, k]:
                         quiet = k
                         break
     if quiet >= 0:  # a copy no mode sees: only its fates
@@ -212,18 +205,18 @@ def choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, out) -> int:
         if fifo:
             first = True
             for j in range(k):
-                if t_link[ct[j]] == t_link[ct[k]]:
+                if TT[6, D[2, j]] == TT[6, D[2, k]]:
                     first = False
                     break
             if not first:
                 continue
         again = False  # an identical copy among the arrivals before it
         for j in range(k):
-            if ct[j] == ct[k] and ci[j] == ci[k]:
+            if D[2, j] == D[2, k] and D[3, j] == D[3, k]:
                 if fifo:
                     firstj = True
                     for i in range(j):
-                        if t_link[ct[i]] == t_link[ct[j]]:
+                        if TT[6, D[2, i]] == TT[6, D[2, j]]:
                             firstj = False
                             break
                     if not firstj:
@@ -241,16 +234,16 @@ def choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, out) -> int:
             out[n] = choice_code(DUP, k, 0)
             n += 1
     for k in range(no):
-        snd, mid = e_snd[et[k]], ei[k]
+        snd, mid = EN[0, D[4, k]], D[5, k]
         flying = False
         if bounded:
             for j in range(nc):
-                t = ct[j]
-                if t_kind[t] == ACK_COPY:
-                    if t_rcv[t] == snd and ci[j] == mid:
+                t = D[2, j]
+                if TT[0, t] == ACK_COPY:
+                    if TT[2, t] == snd and D[3, j] == mid:
                         flying = True
                         break
-                elif t_kind[t] == WITH_ID and t_snd[t] == snd and ci[j] == mid:
+                elif TT[0, t] == WITH_ID and TT[1, t] == snd and D[3, j] == mid:
                     flying = True
                     break
         if not flying:
@@ -261,157 +254,155 @@ def choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, out) -> int:
         n += 1
     net_quiet = nc == 0 and no == 0
     for a in range(na):
-        p = ag[a]
-        if p_tn[p] == 0:
+        p = D[0, a]
+        if PT[1, p] == 0:
             continue
         settled = True
         if timeouts == 1:
             for j in range(nc):
-                t = ct[j]
-                if t_snd[t] == a and t_kind[t] != ACK_COPY:
+                t = D[2, j]
+                if TT[1, t] == a and TT[0, t] != ACK_COPY:
                     settled = False
                     break
             for j in range(no):
-                if e_snd[et[j]] == a:
+                if EN[0, D[4, j]] == a:
                     settled = False
                     break
-        for i in range(p_t0[p], p_t0[p] + p_tn[p]):
+        for i in range(PT[0, p], PT[0, p] + PT[1, p]):
             if timeouts == 2:
                 ok = net_quiet
             else:
                 ok = settled
-            if timeouts == 0 or timed_untimed[i] != 0 or ok:
-                out[n] = choice_code(TIME, a, timed_j[i])
+            if timeouts == 0 or TJ[1, i] != 0 or ok:
+                out[n] = choice_code(TIME, a, TJ[0, i])
                 n += 1
-    for w in range(world_agent.size):
-        if p_world[ag[world_agent[w]], w] != 0:
-            out[n] = choice_code(WORLD, world_agent[w], w)
+    for w in range(WA.size):
+        if PW[D[0, WA[w]], w] != 0:
+            out[n] = choice_code(WORLD, WA[w], w)
             n += 1
     return n
 
 
 @njit(cache=True)
-def canonical(lay, tb, fifo, nc, ct, ci, no, et, ei, ns, sr, ss, sk, nid, cnt) -> int:
+def canonical(lay, TT, EN, fifo, nc, D, no, ns, cnt, live) -> int:
     """:meth:`~.machine.Machine.canonical` in place on the scratch arrays: drop the acks
     no entry waits for and the filter entries no copy can match, renumber ids per sender,
     sort. ``cnt`` gets the new lengths (copies, entries, seen); returns OK or
     TOO_MANY_IDS."""
-    (t_kind, t_snd, t_rcv, t_heard, t_key, t_field, t_link) = tb[0]
-    (e_snd, e_wait, e_rest) = tb[1]
     na = lay[0]
-    live = np.zeros(na, np.uint64)
+    live[:] = 0
     one = np.uint64(1)
     m = 0
     for i in range(nc):
-        t, k = ct[i], ci[i]
+        t, k = D[2, i], D[3, i]
         if k >= IDS:
             return TOO_MANY_IDS
-        if t_kind[t] == ACK_COPY:
-            snd, rcv = t_snd[t], t_rcv[t]
+        if TT[0, t] == ACK_COPY:
+            snd, rcv = TT[1, t], TT[2, t]
             waits = False
             for j in range(no):
-                if e_snd[et[j]] == rcv and ei[j] == k and ((e_wait[et[j]] >> snd) & 1) != 0:
+                if EN[0, D[4, j]] == rcv and D[5, j] == k and ((EN[1, D[4, j]] >> snd) & 1) != 0:
                     waits = True
                     break
             if not waits:
                 continue
             live[rcv] |= one << np.uint64(k)
-        elif t_kind[t] == WITH_ID:
-            live[t_snd[t]] |= one << np.uint64(k)
-        ct[m], ci[m] = t, k
+        elif TT[0, t] == WITH_ID:
+            live[TT[1, t]] |= one << np.uint64(k)
+        D[2, m], D[3, m] = t, k
         m += 1
     nc = m
     for j in range(no):
-        if ei[j] >= IDS:
+        if D[5, j] >= IDS:
             return TOO_MANY_IDS
-        live[e_snd[et[j]]] |= one << np.uint64(ei[j])
+        live[EN[0, D[4, j]]] |= one << np.uint64(D[5, j])
     m = 0
     for i in range(ns):
-        r, s, k = sr[i], ss[i], sk[i]
+        r, s, k = D[6, i], D[7, i], D[8, i]
         keep = False
         for j in range(nc):
-            t = ct[j]
-            if t_kind[t] == WITH_ID and t_snd[t] == s and t_rcv[t] == r and ci[j] == k:
+            t = D[2, j]
+            if TT[0, t] == WITH_ID and TT[1, t] == s and TT[2, t] == r and D[3, j] == k:
                 keep = True
                 break
         if not keep:
             for j in range(no):
-                if e_snd[et[j]] == s and ei[j] == k and ((e_wait[et[j]] >> r) & 1) != 0:
+                if EN[0, D[4, j]] == s and D[5, j] == k and ((EN[1, D[4, j]] >> r) & 1) != 0:
                     keep = True
                     break
         if keep:
             dupe = False
             for j in range(m):
-                if sr[j] == r and ss[j] == s and sk[j] == k:
+                if D[6, j] == r and D[7, j] == s and D[8, j] == k:
                     dupe = True
                     break
             if not dupe:
-                sr[m], ss[m], sk[m] = r, s, k
+                D[6, m], D[7, m], D[8, m] = r, s, k
                 m += 1
                 live[s] |= one << np.uint64(k)
     ns = m
     for a in range(na):
-        nid[a] = _popcount(live[a])
+        D[1, a] = _popcount(live[a])
     # renumber
     for i in range(nc):
-        t = ct[i]
-        if t_kind[t] == ACK_COPY:
-            ci[i] = _rank(live[t_rcv[t]], ci[i])
-        elif t_kind[t] == WITH_ID:
-            ci[i] = _rank(live[t_snd[t]], ci[i])
+        t = D[2, i]
+        if TT[0, t] == ACK_COPY:
+            D[3, i] = _rank(live[TT[2, t]], D[3, i])
+        elif TT[0, t] == WITH_ID:
+            D[3, i] = _rank(live[TT[1, t]], D[3, i])
     for j in range(no):
-        ei[j] = _rank(live[e_snd[et[j]]], ei[j])
+        D[5, j] = _rank(live[EN[0, D[4, j]]], D[5, j])
     for i in range(ns):
-        sk[i] = _rank(live[ss[i]], sk[i])
+        D[8, i] = _rank(live[D[7, i]], D[8, i])
     # sort the copies: by the Copy tuple, or (fifo) stably by link
     for i in range(1, nc):
-        t, k = ct[i], ci[i]
+        t, k = D[2, i], D[3, i]
         if fifo:
-            key = t_link[t]
-        elif t_kind[t] == ACK_COPY:
-            key = (t_key[t] << 32) | k
-        elif t_kind[t] == WITH_ID:
-            key = (t_key[t] << 32) | ((k + 1) << 24) | t_field[t]
+            key = TT[6, t]
+        elif TT[0, t] == ACK_COPY:
+            key = (TT[4, t] << 32) | k
+        elif TT[0, t] == WITH_ID:
+            key = (TT[4, t] << 32) | ((k + 1) << 24) | TT[5, t]
         else:
-            key = (t_key[t] << 32) | t_field[t]
+            key = (TT[4, t] << 32) | TT[5, t]
         j = i - 1
         while j >= 0:
-            u, v = ct[j], ci[j]
+            u, v = D[2, j], D[3, j]
             if fifo:
-                kj = t_link[u]
-            elif t_kind[u] == ACK_COPY:
-                kj = (t_key[u] << 32) | v
-            elif t_kind[u] == WITH_ID:
-                kj = (t_key[u] << 32) | ((v + 1) << 24) | t_field[u]
+                kj = TT[6, u]
+            elif TT[0, u] == ACK_COPY:
+                kj = (TT[4, u] << 32) | v
+            elif TT[0, u] == WITH_ID:
+                kj = (TT[4, u] << 32) | ((v + 1) << 24) | TT[5, u]
             else:
-                kj = (t_key[u] << 32) | t_field[u]
+                kj = (TT[4, u] << 32) | TT[5, u]
             if kj <= key:
                 break
-            ct[j + 1], ci[j + 1] = u, v
+            D[2, j + 1], D[3, j + 1] = u, v
             j -= 1
-        ct[j + 1], ci[j + 1] = t, k
+        D[2, j + 1], D[3, j + 1] = t, k
     for i in range(1, no):
-        t, k = et[i], ei[i]
-        key = (e_snd[t] << 48) | (k << 40) | e_rest[t]
+        t, k = D[4, i], D[5, i]
+        key = (EN[0, t] << 48) | (k << 40) | EN[2, t]
         j = i - 1
-        while j >= 0 and ((e_snd[et[j]] << 48) | (ei[j] << 40) | e_rest[et[j]]) > key:
-            et[j + 1], ei[j + 1] = et[j], ei[j]
+        while j >= 0 and ((EN[0, D[4, j]] << 48) | (D[5, j] << 40) | EN[2, D[4, j]]) > key:
+            D[4, j + 1], D[5, j + 1] = D[4, j], D[5, j]
             j -= 1
-        et[j + 1], ei[j + 1] = t, k
+        D[4, j + 1], D[5, j + 1] = t, k
     for i in range(1, ns):
-        r, s, k = sr[i], ss[i], sk[i]
+        r, s, k = D[6, i], D[7, i], D[8, i]
         key = (r * na + s) * IDS + k
         j = i - 1
-        while j >= 0 and (sr[j] * na + ss[j]) * IDS + sk[j] > key:
-            sr[j + 1], ss[j + 1], sk[j + 1] = sr[j], ss[j], sk[j]
+        while j >= 0 and (D[6, j] * na + D[7, j]) * IDS + D[8, j] > key:
+            D[6, j + 1], D[7, j + 1], D[8, j + 1] = D[6, j], D[7, j], D[8, j]
             j -= 1
-        sr[j + 1], ss[j + 1], sk[j + 1] = r, s, k
+        D[6, j + 1], D[7, j + 1], D[8, j + 1] = r, s, k
     cnt[0], cnt[1], cnt[2] = nc, no, ns
     return OK
 
 
 @njit(cache=True)
-def encode(lay, out, ag, nid, nc, ct, ci, no, et, ei, ns, sr, ss, sk, cur, los, dup) -> int:
+def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
     """Pack a canonical state into ``out`` (zeroed first); OVERFLOW when a group does not
     fit its slots."""
     na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
@@ -419,102 +410,98 @@ def encode(lay, out, ag, nid, nc, ct, ci, no, et, ei, ns, sr, ss, sk, cur, los, 
         return OVERFLOW
     out[:] = 0
     for a in range(na):
-        out[a] = ag[a]
+        out[a] = D[0, a]
     p = na
     out[p] = nc
     for i in range(nc):
-        out[p + 1 + i] = ct[i] * IDS + ci[i]
+        out[p + 1 + i] = D[2, i] * IDS + D[3, i]
     p += 1 + cs
     out[p] = no
     for i in range(no):
-        out[p + 1 + i] = et[i] * IDS + ei[i]
+        out[p + 1 + i] = D[4, i] * IDS + D[5, i]
     p += 1 + os_
     out[p] = ns
     for i in range(ns):
-        out[p + 1 + i] = (sr[i] * na + ss[i]) * IDS + sk[i]
+        out[p + 1 + i] = (D[6, i] * na + D[7, i]) * IDS + D[8, i]
     p += 1 + ss_
     out[p], out[p + 1], out[p + 2] = cur, los, dup
     for a in range(na):
-        out[p + 3 + a] = nid[a]
+        out[p + 3 + a] = D[1, a]
     return OK
 
 
 @njit(cache=True)
-def successor(lay, tb, rt, opt, settled, code, tape, ag, nid, ct, ci, et, ei, sr, ss, sk, head,
-              w_ag, w_ct, w_ci, w_et, w_ei, w_sr, w_ss, w_sk, w_nid, cnt, out, res) -> int:
+def successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, code, tape, D, head, Wk, cnt,
+              live, out, res, dry) -> int:
     """The successor of the decoded state by choice ``code`` with oracle tape ``tape``
     into ``out``; ``res`` gets (zeno, reads). MISS when the reaction is not in the table
-    (or the state is not settled), OVERFLOW when it does not fit the layout."""
-    (t_kind, t_snd, t_rcv, t_heard, t_key, t_field, t_link) = tb[0]
-    (e_snd, e_wait, e_rest) = tb[1]
-    scen_agent = tb[3]
-    (rk, rslots, r_part, r_zeno, r_reads, r_c0, r_cn, rc_tmpl, rc_how, rc_off, r_kept,
-     r_e0, r_en, re_tmpl, re_off, r_filtered) = rt
+    (or the state is not settled), OVERFLOW when it does not fit the layout. ``dry``:
+    only whether the tables answer, and the reads (``out`` is not written)."""
     fifo = opt[0]
     na = lay[0]
     nc, no, ns, cur, los, dup = head[0], head[1], head[2], head[3], head[4], head[5]
     kind, x, y = code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF
     for a in range(na):
-        w_ag[a] = ag[a]
+        Wk[0, a] = D[0, a]
     m = 0
     for i in range(nc):
-        w_ct[m], w_ci[m] = ct[i], ci[i]
+        Wk[2, m], Wk[3, m] = D[2, i], D[3, i]
         m += 1
     for j in range(no):
-        w_et[j], w_ei[j] = et[j], ei[j]
+        Wk[4, j], Wk[5, j] = D[4, j], D[5, j]
     for j in range(ns):
-        w_sr[j], w_ss[j], w_sk[j] = sr[j], ss[j], sk[j]
+        Wk[6, j], Wk[7, j], Wk[8, j] = D[6, j], D[7, j], D[8, j]
     res[0], res[1] = 0, 0
+    if dry and (kind == LOSE or kind == DUP):
+        return OK
     if kind == LOSE or kind == DUP:
         if kind == LOSE:
             for i in range(x, nc - 1):
-                w_ct[i], w_ci[i] = w_ct[i + 1], w_ci[i + 1]
+                Wk[2, i], Wk[3, i] = Wk[2, i + 1], Wk[3, i + 1]
             m = nc - 1
             los += 1
         else:
-            w_ct[nc], w_ci[nc] = ct[x], ci[x]
+            Wk[2, nc], Wk[3, nc] = D[2, x], D[3, x]
             m = nc + 1
             dup += 1
-        got = canonical(lay, tb, fifo, m, w_ct, w_ci, no, w_et, w_ei, ns, w_sr, w_ss, w_sk,
-                        w_nid, cnt)
+        got = canonical(lay, TT, EN, fifo, m, Wk, no, ns, cnt, live)
         if got != OK:
             return got
-        return encode(lay, out, w_ag, w_nid, cnt[0], w_ct, w_ci, cnt[1], w_et, w_ei, cnt[2],
-                      w_sr, w_ss, w_sk, cur, los, dup)
+        return encode(lay, out, Wk, cnt[0], cnt[1], cnt[2], cur, los, dup)
     for a in range(na):
-        if settled[ag[a]] == 0:
+        if settled[D[0, a]] == 0:
             return MISS
     touched = -1
     k_in = -1
     sender = -1
     if kind == DELIVER:
-        t = ct[x]
-        a = t_rcv[t]
-        sender = t_snd[t]
-        if t_kind[t] == ACK_COPY:
-            k_in = ci[x]
+        t = D[2, x]
+        a = TT[2, t]
+        sender = TT[1, t]
+        if TT[0, t] == ACK_COPY:
+            k_in = D[3, x]
             etm = -1
             for j in range(no):
-                if e_snd[et[j]] == a and ei[j] == k_in:
-                    touched, etm = j, et[j]
+                if EN[0, D[4, j]] == a and D[5, j] == k_in:
+                    touched, etm = j, D[4, j]
                     break
             inkey = choice_code(1, t, etm + 1)
         else:
             held = 0
-            if t_kind[t] == WITH_ID:
-                k_in = ci[x]
+            if TT[0, t] == WITH_ID:
+                k_in = D[3, x]
                 for j in range(ns):
-                    if sr[j] == a and ss[j] == sender and sk[j] == k_in:
+                    if D[6, j] == a and D[7, j] == sender and D[8, j] == k_in:
                         held = 1
                         break
             inkey = choice_code(0, t, held)
     elif kind == TIMER:
-        a = e_snd[et[x]]
-        k_in = ei[x]
+        a = EN[0, D[4, x]]
+        k_in = D[5, x]
         touched = x
-        inkey = choice_code(2, et[x], 0)
+        inkey = choice_code(2, D[4, x], 0)
     elif kind == SCENARIO:
-        a = scen_agent[cur]
+        a = SA[cur]
         inkey = choice_code(3, cur, 0)
     elif kind == TIME:
         a = x
@@ -522,58 +509,60 @@ def successor(lay, tb, rt, opt, settled, code, tape, ag, nid, ct, ci, et, ei, sr
     else:
         a = x
         inkey = choice_code(5, y, 0)
-    r = find_reaction(rk, rslots, inkey, ag[a], tape)
+    r = find_reaction(RK, RS, inkey, D[0, a], tape)
     if r < 0:
         return MISS
-    base = nid[a]
+    if dry:
+        res[0], res[1] = RR[1, r], RR[2, r]
+        return OK
+    base = D[1, a]
     if kind == DELIVER:
         for i in range(x, nc - 1):
-            w_ct[i], w_ci[i] = w_ct[i + 1], w_ci[i + 1]
+            Wk[2, i], Wk[3, i] = Wk[2, i + 1], Wk[3, i + 1]
         m = nc - 1
-    for i in range(r_c0[r], r_c0[r] + r_cn[r]):
-        t = rc_tmpl[i]
+    for i in range(RR[3, r], RR[3, r] + RR[4, r]):
+        t = RC[0, i]
         if m >= ROOM:
             return OVERFLOW
-        w_ct[m] = t
-        if t_kind[t] == PLAIN:
-            w_ci[m] = 0
-        elif t_kind[t] == ACK_COPY or rc_how[i] == INPUT_ID:
-            w_ci[m] = k_in
+        Wk[2, m] = t
+        if TT[0, t] == PLAIN:
+            Wk[3, m] = 0
+        elif TT[0, t] == ACK_COPY or RC[1, i] == INPUT_ID:
+            Wk[3, m] = k_in
         else:
-            w_ci[m] = base + rc_off[i]
+            Wk[3, m] = base + RC[2, i]
         m += 1
     mo = no
     if touched >= 0:
         for j in range(touched, no - 1):
-            w_et[j], w_ei[j] = w_et[j + 1], w_ei[j + 1]
+            Wk[4, j], Wk[5, j] = Wk[4, j + 1], Wk[5, j + 1]
         mo = no - 1
-        if r_kept[r] >= 0:
-            w_et[mo], w_ei[mo] = r_kept[r], k_in
+        if RR[5, r] >= 0:
+            Wk[4, mo], Wk[5, mo] = RR[5, r], k_in
             mo += 1
-    for i in range(r_e0[r], r_e0[r] + r_en[r]):
+    for i in range(RR[6, r], RR[6, r] + RR[7, r]):
         if mo >= ROOM:
             return OVERFLOW
-        w_et[mo], w_ei[mo] = re_tmpl[i], base + re_off[i]
+        Wk[4, mo], Wk[5, mo] = RE[0, i], base + RE[1, i]
         mo += 1
     ms = ns
-    if r_filtered[r] != 0:
-        w_sr[ms], w_ss[ms], w_sk[ms] = a, sender, k_in
+    if RR[8, r] != 0:
+        Wk[6, ms], Wk[7, ms], Wk[8, ms] = a, sender, k_in
         ms += 1
-    w_ag[a] = r_part[r]
+    Wk[0, a] = RR[0, r]
     if kind == SCENARIO:
         cur += 1
-    res[0], res[1] = r_zeno[r], r_reads[r]
-    got = canonical(lay, tb, fifo, m, w_ct, w_ci, mo, w_et, w_ei, ms, w_sr, w_ss, w_sk, w_nid,
-                    cnt)
+    res[0], res[1] = RR[1, r], RR[2, r]
+    got = canonical(lay, TT, EN, fifo, m, Wk, mo, ms, cnt, live)
     if got != OK:
         return got
-    return encode(lay, out, w_ag, w_nid, cnt[0], w_ct, w_ci, cnt[1], w_et, w_ei, cnt[2],
-                  w_sr, w_ss, w_sk, cur, los, dup)
+    return encode(lay, out, Wk, cnt[0], cnt[1], cnt[2], cur, los, dup)
 
 
 @njit(cache=True)
-def level(rows, n, lo, hi, slots, lay, tb, rt, opt, settled, pre_ord, pre_rows, pre_res,
-          apply, max_states, new_parent, e_src, e_dst, e_how, zeno, cut, misses):
+def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, RC, RE, opt,
+          settled, pre_ord, pre_rows, pre_res, apply, max_states, new_parent, e_src, e_dst, e_how,
+          zeno, cut, misses):
     """One breadth-first level: the jobs of states ``lo..hi-1`` in the order of
     :func:`~.explore._jobs`, then the free comparisons' retries in the order of
     :func:`~.explore._chunks`. A job numbered in ``pre_ord`` takes its successor from
@@ -586,27 +575,12 @@ def level(rows, n, lo, hi, slots, lay, tb, rt, opt, settled, pre_ord, pre_rows, 
     states. Returns (status, jobs, new n, edges, zeno, cut, misses)."""
     na = lay[0]
     w = rows.shape[1]
-    ag = np.zeros(na, np.int64)
-    nid = np.zeros(na, np.int64)
-    w_ag = np.zeros(na, np.int64)
-    w_nid = np.zeros(na, np.int64)
-    ct = np.zeros(ROOM, np.int64)
-    ci = np.zeros(ROOM, np.int64)
-    et = np.zeros(ROOM, np.int64)
-    ei = np.zeros(ROOM, np.int64)
-    sr = np.zeros(ROOM, np.int64)
-    ss = np.zeros(ROOM, np.int64)
-    sk = np.zeros(ROOM, np.int64)
-    w_ct = np.zeros(ROOM, np.int64)
-    w_ci = np.zeros(ROOM, np.int64)
-    w_et = np.zeros(ROOM, np.int64)
-    w_ei = np.zeros(ROOM, np.int64)
-    w_sr = np.zeros(ROOM, np.int64)
-    w_ss = np.zeros(ROOM, np.int64)
-    w_sk = np.zeros(ROOM, np.int64)
+    D = np.zeros((9, ROOM), np.int64)  # the state at work, decoded (rows: see decode)
+    Wk = np.zeros((9, ROOM), np.int64)  # its successor, composed
     head = np.zeros(6, np.int64)
     cnt = np.zeros(3, np.int64)
     res = np.zeros(2, np.int64)
+    live = np.zeros(na, np.uint64)
     codes = np.zeros(4 * ROOM, np.int64)
     out = np.zeros(w, rows.dtype)
     q_sid = [np.int64(0)]
@@ -632,9 +606,9 @@ def level(rows, n, lo, hi, slots, lay, tb, rt, opt, settled, pre_ord, pre_rows, 
         # the next job: the level's, then the queued retries
         if sid < hi:
             if ci_at == 0:
-                decode(rows[sid], lay, ag, nid, ct, ci, et, ei, sr, ss, sk, head)
+                decode(rows[sid], lay, D, head)
                 decoded = sid
-                nchoice = choices(lay, tb, opt, ag, ct, ci, et, ei, sr, ss, sk, head, codes)
+                nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
             if ci_at >= nchoice:
                 sid += 1
                 ci_at = 0
@@ -645,7 +619,7 @@ def level(rows, n, lo, hi, slots, lay, tb, rt, opt, settled, pre_ord, pre_rows, 
             j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
             qi += 1
             if decoded != j_sid:
-                decode(rows[j_sid], lay, ag, nid, ct, ci, et, ei, sr, ss, sk, head)
+                decode(rows[j_sid], lay, D, head)
                 decoded = j_sid
         else:
             break
@@ -656,9 +630,8 @@ def level(rows, n, lo, hi, slots, lay, tb, rt, opt, settled, pre_ord, pre_rows, 
             res[0], res[1] = pre_res[pre, 0], pre_res[pre, 1]
             got = OK
         else:
-            got = successor(lay, tb, rt, opt, settled, j_code, j_tape, ag, nid, ct, ci, et, ei,
-                            sr, ss, sk, head, w_ag, w_ct, w_ci, w_et, w_ei, w_sr, w_ss, w_sk,
-                            w_nid, cnt, out, res)
+            got = successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, j_code, j_tape, D,
+                            head, Wk, cnt, live, out, res, not apply)
         ordinal += 1
         if got == OVERFLOW or got == TOO_MANY_IDS:
             return got, ordinal, n, ne, nz, nx, nm
