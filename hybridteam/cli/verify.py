@@ -224,14 +224,14 @@ def _check(args) -> None:
 
         if not numba_available():
             raise UsageError("--kernel on: numba is not installed: pip install 'hybridteam[fast]'")
-        for refused, why in (
+        for refused, option in (
             (args.reference, "--reference"),
             (args.storage != "exact", f"--storage {args.storage}"),
             (args.jobs != 1, "--jobs"),
             (args.por == "ample", "--por ample"),
         ):
             if refused:
-                raise UsageError(f"--kernel on: the compiled loop does not serve {why}")
+                raise UsageError(f"--kernel on: the compiled loop does not serve {option}")
     for name in ("losses", "duplicates"):
         if getattr(args, name) < 0:
             raise UsageError(f"--{name} must be 0 or more, got {getattr(args, name)}")

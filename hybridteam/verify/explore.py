@@ -28,7 +28,7 @@ from hybridteam.engine.run.budget import instances_within, memory_limit, residen
 from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
-from hybridteam.verify.kernel import chosen, explore_packed
+from hybridteam.verify.kernel import PackedStore, chosen, explore_packed
 from hybridteam.verify.machine import Machine, Result, State
 from hybridteam.verify.pool import Pool, Successors
 from hybridteam.verify.reactions import Reactions
@@ -93,7 +93,7 @@ class Graph:
     (each state's parent; the choice that first reached it is the edge's, from the
     parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
-    states: Store | PartialStore
+    states: Store | PartialStore | PackedStore
     parent: array
     edges: Edges | Trail
     zeno: set[int] = field(default_factory=set)
@@ -350,7 +350,7 @@ def _explore(
         store, edges = PartialStore(len(sk.cteam.agents), visited), trail
         store.trail, store.successor = trail, _again(succ)
     g = Graph(store, parent, edges, batch=batch)
-    use, g.explorer = chosen(opts, reduce is not None or choose is not None)
+    use, g.explorer = chosen(opts, reduce is not None or choose is not None, len(sk.cteam.agents))
     if use:
         assert isinstance(m, Reactions)
         explore_packed(sk, opts, m, g, values, limit, start, progress)
@@ -393,6 +393,7 @@ def _levels(
 ) -> None:
     """The breadth-first search, level by level, from the initial state in ``g``."""
     store, batch = g.states, g.batch
+    assert not isinstance(store, PackedStore)  # (the compiled loop has levels of its own)
     renumber = Renumber(store.parts, len(sk.cteam.agents))
     frontier = [0]
     depth = 0

@@ -25,7 +25,6 @@ from __future__ import annotations
 import os
 import time
 from array import array
-from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -66,8 +65,9 @@ def numba_available() -> bool:
     return True
 
 
-def unavailable_reason(opts: Options, reduced: bool) -> str | None:
-    """Why the options keep the compiled loop out (None: they allow it)."""
+def unavailable_reason(opts: Options, reduced: bool, agents: int = 0) -> str | None:
+    """Why the options (or a team of ``agents`` agents) keep the compiled loop out
+    (None: they allow it)."""
     if opts.reference:
         return "--reference computes every successor with the engine"
     if opts.storage != "exact":
@@ -76,10 +76,14 @@ def unavailable_reason(opts: Options, reduced: bool) -> str | None:
         return "--jobs uses the process pool"
     if reduced:
         return "symmetry or ample-set reduction is on"
+    if opts.losses > 0xFFFF or opts.duplicates > 0xFFFF:
+        return "the bounds exceed the packed rows' counters"
+    if agents > 0xFF:
+        return "more than 255 agents (an edge's choice keeps an agent in 8 bits)"
     return None
 
 
-def chosen(opts: Options, reduced: bool) -> tuple[bool, str]:
+def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
     """Whether to explore with the compiled loop (``opts.kernel``), and which loop
     explores, in words (verify's first line says it). Raises ValueError for
     ``kernel="on"`` without numba or with options it does not serve."""
@@ -87,7 +91,7 @@ def chosen(opts: Options, reduced: bool) -> tuple[bool, str]:
         raise ValueError(f"kernel must be auto, on or off, got {opts.kernel!r}")
     if opts.kernel == "off":
         return False, "python loop (--kernel off)"
-    reason = unavailable_reason(opts, reduced)
+    reason = unavailable_reason(opts, reduced, agents)
     if reason is None and not numba_available():
         reason = "numba is not installed: pip install 'hybridteam[fast]'"
         if opts.kernel == "on":
@@ -134,8 +138,11 @@ class Layout:
         a = self.agents
         out[:, :a] = rows[:, :a]
         src, dst = a, a
-        for old_n, new_n in ((self.copies, new.copies), (self.entries, new.entries),
-                             (self.seen, new.seen)):
+        for old_n, new_n in (
+            (self.copies, new.copies),
+            (self.entries, new.entries),
+            (self.seen, new.seen),
+        ):
             out[:, dst : dst + 1 + old_n] = rows[:, src : src + 1 + old_n]
             src, dst = src + 1 + old_n, dst + 1 + new_n
         out[:, dst:] = rows[:, src:]
@@ -246,12 +253,18 @@ class Packing:
             for v in nums[p + 1 : p + 1 + nums[p]]
         )
         p += 1 + lay.entries
-        seen = tuple(
-            (v // IDS // a, v // IDS % a, v % IDS) for v in nums[p + 1 : p + 1 + nums[p]]
-        )
+        seen = tuple((v // IDS // a, v // IDS % a, v % IDS) for v in nums[p + 1 : p + 1 + nums[p]])
         p += 1 + lay.seen
-        return State(agents, inflight, outbox, seen, nums[p], nums[p + 1], nums[p + 2],
-                     tuple(nums[p + 3 : p + 3 + a]))
+        return State(
+            agents,
+            inflight,
+            outbox,
+            seen,
+            nums[p],
+            nums[p + 1],
+            nums[p + 2],
+            tuple(nums[p + 3 : p + 3 + a]),
+        )
 
     def fits16(self) -> bool:
         """Whether every number a row holds fits two bytes."""
@@ -284,13 +297,17 @@ class Packing:
         copies[4, : len(tv)] = key_rank[: len(tv)]
         copies[5, : len(tv)] = field_rank[: len(tv)]
         copies[6, : len(tv)] = link_rank[: len(tv)]
-        rest = _ranks([(e.type, e.socket, e.fields, e.waiting, e.retries_left, e.timeout, e.rank)
-                       for e in ev])
+        rest = _ranks(
+            [(e.type, e.socket, e.fields, e.waiting, e.retries_left, e.timeout, e.rank) for e in ev]
+        )
         entries = np.zeros((3, max(1, len(ev))), np.int64)
         for k, e in enumerate(ev):
             entries[:2, k] = (e.sender, sum(1 << b for b in e.waiting))
         entries[2, : len(ev)] = rest[: len(ev)]
-        t0, tn, tj, tu = [], [], [], []
+        t0: list[int] = []
+        tn: list[int] = []
+        tj: list[int] = []
+        tu: list[int] = []
         world = np.zeros((max(1, len(self.values)), max(1, len(sk.world_events))), np.uint8)
         for p, (a, part) in enumerate(zip(self.part_agent, self.values, strict=True)):
             timed, events = _local(self.m.local_choices, sk, a, part)
@@ -368,7 +385,9 @@ class Table:
             inkeys = [_code(2, pk.entry(key[2]), 0)]
         elif kind == "scenario":
             a, name = key[1], key[2]
-            inkeys = [_code(3, c, 0) for c, (_, b, n) in enumerate(pk.scenario) if (b, n) == (a, name)]
+            inkeys = [
+                _code(3, c, 0) for c, (_, b, n) in enumerate(pk.scenario) if (b, n) == (a, name)
+            ]
         elif kind == "time":
             a = key[1]
             inkeys = [_code(4, a, key[2])]
@@ -417,8 +436,17 @@ class Table:
             self.arrays = (
                 rk,
                 slots,
-                rows(self.part, self.zeno, self.reads, self.c0, self.cn, self.kept, self.e0,
-                     self.en, self.filtered),
+                rows(
+                    self.part,
+                    self.zeno,
+                    self.reads,
+                    self.c0,
+                    self.cn,
+                    self.kept,
+                    self.e0,
+                    self.en,
+                    self.filtered,
+                ),
                 rows(self.c_tmpl, self.c_how, self.c_off),
                 rows(self.e_tmpl, self.e_off),
             )
@@ -481,11 +509,10 @@ class PackedStore:
     def reserve(self, more: int) -> None:
         """Room for ``more`` rows, and a table at most half full with them."""
         need = self.n + more
-        if need > self.rows.shape[0]:
-            grown = np.zeros((max(need, 2 * self.rows.shape[0]), self.lay.width), self.rows.dtype)
-            grown[: self.n] = self.rows[: self.n]
-            self.rows = grown
-        if 2 * need > self.slots.size:
+        if need > self.rows.shape[0]:  # (in place where the allocator can: no second copy)
+            grown = max(need, self.rows.shape[0] * 5 // 4)
+            self.rows.resize((grown, self.lay.width), refcheck=False)
+        if 10 * need > 7 * self.slots.size:  # at most 70 % full
             self.slots = np.full(_pow2(2 * need), -1, np.int32)
             self._rehash()
 
@@ -533,13 +560,18 @@ def explore_packed(
     fifo = opts.order == "fifo"
     timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
     opt = np.array(
-        [fifo, opts.ack_timing == "bounded", timeouts, opts.losses, opts.duplicates,
-         len(m.scenario)],
+        [
+            fifo,
+            opts.ack_timing == "bounded",
+            timeouts,
+            opts.losses,
+            opts.duplicates,
+            len(m.scenario),
+        ],
         np.int64,
     )
-    src: list[np.ndarray] = []
-    dst: list[np.ndarray] = []
-    how: list[np.ndarray] = []
+    edges = Edges()
+    known: dict[int, int] = {}  # an edge's choice code -> its number in ``edges.choices``
     lo, hi = 0, 1
     depth = 0
     tb: tuple | None = None
@@ -561,10 +593,29 @@ def explore_packed(
                 tb = pk.tables()
             settled = _settled(pk, m)
             t0 = time.perf_counter()
-            status, jobs, _, _, _, _, nm = kc.level(
-                store.rows, store.n, lo, hi, store.slots, store.lay.array(), *tb, *table.array(),
-                opt, settled, pre_ord, pre_rows, pre_res, False, opts.max_states,
-                parent, none, none, none, none, none, misses,
+            status, jobs, _, _, _, _, nm = kc.level(  # type: ignore[call-arg]
+                store.rows,
+                store.n,
+                lo,
+                hi,
+                store.slots,
+                store.lay.array(),
+                *tb,
+                *table.array(),
+                opt,
+                settled,
+                pre_ord,
+                pre_rows,
+                pre_res,
+                False,
+                opts.max_states,
+                parent,
+                none,
+                none,
+                none,
+                none,
+                none,
+                misses,
             )
             if first:
                 g.compile_seconds = time.perf_counter() - t0
@@ -576,17 +627,36 @@ def explore_packed(
         store.reserve(jobs)
         if parent.size < store.n + jobs:
             parent = np.concatenate(
-                [parent, np.full(max(parent.size, jobs), 0xFFFFFFFF, np.uint32)]
+                [parent, np.full(max(parent.size // 2, jobs), 0xFFFFFFFF, np.uint32)]
             )
-        e_src = np.zeros(jobs, np.int64)
-        e_dst = np.zeros(jobs, np.int64)
-        e_how = np.zeros(jobs, np.int64)
-        zeno = np.zeros(jobs, np.int64)
-        cut = np.zeros(jobs, np.int64)
-        status, done, n, ne, nz, nx, _ = kc.level(
-            store.rows, store.n, lo, hi, store.slots, store.lay.array(), *tb, *table.array(),
-            opt, settled, pre_ord, pre_rows, pre_res, True, opts.max_states,
-            parent, e_src, e_dst, e_how, zeno, cut, misses,
+        e_src = np.zeros(jobs, np.uint32)
+        e_dst = np.zeros(jobs, np.uint32)
+        e_how = np.zeros(jobs, np.uint32)
+        zeno = np.zeros(jobs, np.uint32)
+        cut = np.zeros(jobs, np.uint32)
+        status, done, n, ne, nz, nx, _ = kc.level(  # type: ignore[call-arg]
+            store.rows,
+            store.n,
+            lo,
+            hi,
+            store.slots,
+            store.lay.array(),
+            *tb,
+            *table.array(),
+            opt,
+            settled,
+            pre_ord,
+            pre_rows,
+            pre_res,
+            True,
+            opts.max_states,
+            parent,
+            e_src,
+            e_dst,
+            e_how,
+            zeno,
+            cut,
+            misses,
         )
         if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
             store.relayout(store.lay.wider(), store.rows.dtype)
@@ -596,9 +666,8 @@ def explore_packed(
         if status != kc.OK or done != jobs:
             raise RuntimeError(f"kernel: the level did not apply as its dry pass said ({status})")
         g.transitions += jobs
-        src.append(e_src[:ne].astype(np.uint32))
-        dst.append(e_dst[:ne].astype(np.uint32))
-        how.append(e_how[:ne])
+        _add_edges(sk, edges, known, e_src[:ne], e_dst[:ne], e_how[:ne])
+        del e_src, e_dst, e_how
         g.zeno.update(zeno[:nz].tolist())
         if nx:
             g.exhaustive = False
@@ -624,8 +693,7 @@ def explore_packed(
     g.states = store
     g.parent = array("I")
     g.parent.frombytes(parent[: store.n].tobytes())
-    g.edges = _edges(sk, src, dst, how)
-    g.nbytes = store.nbytes() + parent[: store.n].nbytes + 12 * len(g.edges)
+    g.edges = edges
 
 
 def _stop(g: Graph, reason: str, unexpanded: range) -> None:
@@ -637,8 +705,7 @@ def _stop(g: Graph, reason: str, unexpanded: range) -> None:
 def _settled(pk: Packing, m: Reactions) -> np.ndarray:
     """Per part number: whether the engine left it settled (:class:`~.reactions.Reactions`)."""
     return np.array(
-        [part in m.settled[a] for a, part in zip(pk.part_agent, pk.values, strict=True)]
-        or [False],
+        [part in m.settled[a] for a, part in zip(pk.part_agent, pk.values, strict=True)] or [False],
         np.uint8,
     )
 
@@ -657,8 +724,9 @@ def _pre(pk: Packing, store: PackedStore, pre: dict) -> tuple:
     return np.array(keys, np.int64), rows, res
 
 
-def _fill(m: Reactions, pk: Packing, store: PackedStore, misses: np.ndarray, pre: dict,
-          batch: int) -> None:
+def _fill(
+    m: Reactions, pk: Packing, store: PackedStore, misses: np.ndarray, pre: dict, batch: int
+) -> None:
     """Compute the jobs the loop could not (the engine, through the reaction tables)."""
     jobs = []
     states: dict[int, State] = {}
@@ -666,16 +734,22 @@ def _fill(m: Reactions, pk: Packing, store: PackedStore, misses: np.ndarray, pre
         s = states.get(sid)
         if s is None:
             s = states[sid] = store[sid]
-        jobs.append((ordinal, s, _choice(pk.sk, code), _untape(tape)))
+        jobs.append(
+            (
+                ordinal,
+                s,
+                _choice(pk.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF),
+                _untape(tape),
+            )
+        )
     for i in range(0, len(jobs), batch):
         chunk = jobs[i : i + batch]
         for (ordinal, _, _, _), r in zip(chunk, m.run([j[1:] for j in chunk]), strict=True):
             pre[ordinal] = (r.state, r.zeno, r.reads)
 
 
-def _choice(sk: Skeleton, code: int) -> tuple:
-    """A choice code as the explorer's choice tuple."""
-    kind, x, y = code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF
+def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
+    """A choice (kind, x, y) as the explorer's choice tuple."""
     word = KINDS[kind]
     if word in ("deliver", "lose", "dup", "timer"):
         return (word, x)
@@ -686,18 +760,23 @@ def _choice(sk: Skeleton, code: int) -> tuple:
     return ("world", x, sk.world_events[y][1])
 
 
-def _edges(sk: Skeleton, src: list, dst: list, how: list) -> Edges:
-    """The edges as :class:`~.store.Edges` (choices numbered in order of first use)."""
-    edges = Edges()
-    s = np.concatenate(src) if src else np.zeros(0, np.uint32)
-    d = np.concatenate(dst) if dst else np.zeros(0, np.uint32)
-    h = np.concatenate(how) if how else np.zeros(0, np.int64)
-    edges.src.frombytes(s.astype(UINT).tobytes())
-    edges.dst.frombytes(d.astype(UINT).tobytes())
-    codes, first, inverse = np.unique(h, return_index=True, return_inverse=True)
-    number = np.zeros(codes.size, UINT)
-
+def _add_edges(
+    sk: Skeleton,
+    edges: Edges,
+    known: dict[int, int],
+    src: np.ndarray,
+    dst: np.ndarray,
+    how: np.ndarray,
+) -> None:
+    """Append a level's edges to ``edges``, their choices numbered as
+    :meth:`~.store.Edges.add` numbers them (in order of first use)."""
+    edges.src.frombytes(src.astype(UINT).tobytes())
+    edges.dst.frombytes(dst.astype(UINT).tobytes())
+    codes, first, inverse = np.unique(how, return_index=True, return_inverse=True)
     for u in np.argsort(first, kind="stable").tolist():
-        number[u] = edges.choices.of(_choice(sk, int(codes[u])))
-    edges.how.frombytes(number[inverse].astype(UINT).tobytes())
-    return edges
+        code = int(codes[u])
+        if code not in known:
+            choice = _choice(sk, code >> 28, (code >> 20) & 0xFF, code & 0xFFFFF)
+            known[code] = edges.choices.of(choice)
+    number = np.array([known[int(c)] for c in codes.tolist()], UINT)
+    edges.how.frombytes(number[inverse].tobytes())

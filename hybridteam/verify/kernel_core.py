@@ -56,14 +56,14 @@ def find_row(rows: np.ndarray, slots: np.ndarray, row: np.ndarray) -> tuple[int,
     while True:
         k = slots[i]
         if k < 0:
-            return -1, i
+            return -1, int(i)
         same = True
         for j in range(w):
             if rows[k, j] != row[j]:
                 same = False
                 break
         if same:
-            return k, -1
+            return int(k), -1
         i = (i + 1) & mask
 
 
@@ -431,8 +431,38 @@ def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
 
 
 @njit(cache=True)
-def successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, code, tape, D, head, Wk, cnt,
-              live, out, res, dry) -> int:
+def _copy(D, Wk, na, nc, no, ns) -> None:
+    """The decoded state into the successor's rows, to be changed there."""
+    Wk[0, :na] = D[0, :na]
+    Wk[2:4, :nc] = D[2:4, :nc]
+    Wk[4:6, :no] = D[4:6, :no]
+    Wk[6:9, :ns] = D[6:9, :ns]
+
+
+@njit(cache=True)
+def successor(
+    lay,
+    TT,
+    EN,
+    SA,
+    RK,
+    RS,
+    RR,
+    RC,
+    RE,
+    opt,
+    settled,
+    code,
+    tape,
+    D,
+    head,
+    Wk,
+    cnt,
+    live,
+    out,
+    res,
+    dry,
+) -> int:
     """The successor of the decoded state by choice ``code`` with oracle tape ``tape``
     into ``out``; ``res`` gets (zeno, reads). MISS when the reaction is not in the table
     (or the state is not settled), OVERFLOW when it does not fit the layout. ``dry``:
@@ -441,20 +471,11 @@ def successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, code, tape, D, 
     na = lay[0]
     nc, no, ns, cur, los, dup = head[0], head[1], head[2], head[3], head[4], head[5]
     kind, x, y = code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF
-    for a in range(na):
-        Wk[0, a] = D[0, a]
-    m = 0
-    for i in range(nc):
-        Wk[2, m], Wk[3, m] = D[2, i], D[3, i]
-        m += 1
-    for j in range(no):
-        Wk[4, j], Wk[5, j] = D[4, j], D[5, j]
-    for j in range(ns):
-        Wk[6, j], Wk[7, j], Wk[8, j] = D[6, j], D[7, j], D[8, j]
     res[0], res[1] = 0, 0
-    if dry and (kind == LOSE or kind == DUP):
-        return OK
-    if kind == LOSE or kind == DUP:
+    if LOSE <= kind <= DUP:
+        if dry:
+            return OK
+        _copy(D, Wk, na, nc, no, ns)
         if kind == LOSE:
             for i in range(x, nc - 1):
                 Wk[2, i], Wk[3, i] = Wk[2, i + 1], Wk[3, i + 1]
@@ -515,6 +536,8 @@ def successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, code, tape, D, 
     if dry:
         res[0], res[1] = RR[1, r], RR[2, r]
         return OK
+    _copy(D, Wk, na, nc, no, ns)
+    m = nc
     base = D[1, a]
     if kind == DELIVER:
         for i in range(x, nc - 1):
@@ -560,9 +583,40 @@ def successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, code, tape, D, 
 
 
 @njit(cache=True)
-def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, RC, RE, opt,
-          settled, pre_ord, pre_rows, pre_res, apply, max_states, new_parent, e_src, e_dst, e_how,
-          zeno, cut, misses):
+def level(
+    rows,
+    n,
+    lo,
+    hi,
+    slots,
+    lay,
+    TT,
+    EN,
+    PT,
+    TJ,
+    PW,
+    WA,
+    SA,
+    RK,
+    RS,
+    RR,
+    RC,
+    RE,
+    opt,
+    settled,
+    pre_ord,
+    pre_rows,
+    pre_res,
+    apply,
+    max_states,
+    new_parent,
+    e_src,
+    e_dst,
+    e_how,
+    zeno,
+    cut,
+    misses,
+):
     """One breadth-first level: the jobs of states ``lo..hi-1`` in the order of
     :func:`~.explore._jobs`, then the free comparisons' retries in the order of
     :func:`~.explore._chunks`. A job numbered in ``pre_ord`` takes its successor from
@@ -571,8 +625,9 @@ def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, R
     ``apply`` False (a dry pass): only find the jobs the tables cannot answer, into
     ``misses`` (ordinal, state, choice, tape); after the first miss no further retry is
     queued (its position would depend on the miss's reads). ``apply`` True: number the
-    new states (appended to ``rows`` from ``n``), record parents, edges, Zeno and cut
-    states. Returns (status, jobs, new n, edges, zeno, cut, misses)."""
+    new states (appended to ``rows`` from ``n``), record parents, edges (their choices
+    in 32 bits: kind, x below 256, y), Zeno and cut states. Returns (status, jobs, new
+    n, edges, zeno, cut, misses)."""
     na = lay[0]
     w = rows.shape[1]
     D = np.zeros((9, ROOM), np.int64)  # the state at work, decoded (rows: see decode)
@@ -583,9 +638,9 @@ def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, R
     live = np.zeros(na, np.uint64)
     codes = np.zeros(4 * ROOM, np.int64)
     out = np.zeros(w, rows.dtype)
-    q_sid = [np.int64(0)]
-    q_code = [np.int64(0)]
-    q_tape = [np.int64(0)]
+    q_sid = [0]
+    q_code = [0]
+    q_tape = [0]
     q_sid.pop()
     q_code.pop()
     q_tape.pop()
@@ -613,7 +668,7 @@ def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, R
                 sid += 1
                 ci_at = 0
                 continue
-            j_sid, j_code, j_tape = sid, codes[ci_at], 1
+            j_sid, j_code, j_tape = sid, int(codes[ci_at]), 1
             ci_at += 1
         elif qi < len(q_sid):
             j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
@@ -630,10 +685,31 @@ def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, R
             res[0], res[1] = pre_res[pre, 0], pre_res[pre, 1]
             got = OK
         else:
-            got = successor(lay, TT, EN, SA, RK, RS, RR, RC, RE, opt, settled, j_code, j_tape, D,
-                            head, Wk, cnt, live, out, res, not apply)
+            got = successor(
+                lay,
+                TT,
+                EN,
+                SA,
+                RK,
+                RS,
+                RR,
+                RC,
+                RE,
+                opt,
+                settled,
+                j_code,
+                j_tape,
+                D,
+                head,
+                Wk,
+                cnt,
+                live,
+                out,
+                res,
+                not apply,
+            )
         ordinal += 1
-        if got == OVERFLOW or got == TOO_MANY_IDS:
+        if got >= OVERFLOW:  # (or TOO_MANY_IDS)
             return got, ordinal, n, ne, nz, nx, nm
         if got == MISS:
             if apply:
@@ -671,6 +747,9 @@ def level(rows, n, lo, hi, slots, lay, TT, EN, PT, TJ, PW, WA, SA, RK, RS, RR, R
             zeno[nz] = k
             nz += 1
         if k != j_sid:
-            e_src[ne], e_dst[ne], e_how[ne] = j_sid, k, j_code
+            e_src[ne], e_dst[ne] = j_sid, k
+            e_how[ne] = (
+                ((j_code >> 40) << 28) | (((j_code >> 20) & 0xFF) << 20) | (j_code & 0xFFFFF)
+            )
             ne += 1
     return status, ordinal, n, ne, nz, nx, nm
