@@ -21,6 +21,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 
 from hybridteam.cli.common import (
     EXIT_OK,
@@ -320,10 +321,15 @@ def cmd_verify(args) -> int:
         jobs=args.jobs,
         kernel=args.kernel,
     )
-    if args.progress != "none" and args.kernel != "off":
-        _kernel_note(opts)
     try:
-        report = verify(team, opts, args.property, _progress(args.progress), replay=False)
+        report = verify(
+            team,
+            opts,
+            args.property,
+            _progress(args.progress),
+            replay=False,
+            note=_note(args.progress),
+        )
     except ResourceError as exc:  # refused before anything was allocated
         raise UsageError(str(exc)) from None
     except NotInPartialSearch as exc:
@@ -467,18 +473,12 @@ def _progress(mode: str):
     return show
 
 
-def _kernel_note(opts) -> None:
-    """Say that the compiled loop is about to be used: its first call on a machine
-    compiles it (seconds, before any progress line), later runs load it."""
-    from hybridteam.verify.kernel import numba_available, unavailable_reason
-
-    if unavailable_reason(opts, False) is None and numba_available():
-        print(
-            "hybridteam: verify: compiled kernel: compiling it on this machine's first run "
-            "(cached for later runs)",
-            file=sys.stderr,
-            flush=True,
-        )
+def _note(mode: str) -> Callable[[str], None] | None:
+    """A line on stderr for what the explorer says before it starts (the compiled loop
+    being compiled)."""
+    if mode == "none":
+        return None
+    return lambda text: print(f"hybridteam: verify: {text}", file=sys.stderr, flush=True)
 
 
 def _memory() -> str:

@@ -278,6 +278,7 @@ def explore(
     progress: Progress | None = None,
     reduce: Reduce | None = None,
     choose: Choose | None = None,
+    note: Callable[[str], None] | None = None,
 ) -> Graph:
     """Every state reachable in the skeleton (up to ``opts.max_states``); with ``reduce``,
     one representative per class of equivalent states (each state is replaced by
@@ -291,7 +292,7 @@ def explore(
     was = gc.isenabled()
     gc.disable()
     try:
-        return _explore(sk, opts, progress, reduce, choose)
+        return _explore(sk, opts, progress, reduce, choose, note)
     finally:
         if was:
             gc.enable()
@@ -327,6 +328,7 @@ def _explore(
     progress: Progress | None,
     reduce: Reduce | None,
     choose: Choose | None,
+    note: Callable[[str], None] | None = None,
 ) -> Graph:
     if opts.jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
@@ -353,7 +355,7 @@ def _explore(
     use, g.explorer = chosen(opts, reduce is not None or choose is not None, len(sk.cteam.agents))
     if use:
         assert isinstance(m, Reactions)
-        explore_packed(sk, opts, m, g, values, limit, start, progress)
+        explore_packed(sk, opts, m, g, values, limit, start, progress, note)
         g.edges.freeze(len(g.states))
         g.seconds = time.perf_counter() - start
         return g

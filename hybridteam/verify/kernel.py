@@ -25,6 +25,7 @@ from __future__ import annotations
 import os
 import time
 from array import array
+from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -90,7 +91,7 @@ def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
     if opts.kernel not in ("auto", "on", "off"):
         raise ValueError(f"kernel must be auto, on or off, got {opts.kernel!r}")
     if opts.kernel == "off":
-        return False, "python loop (--kernel off)"
+        return False, "python loop: --kernel off"
     reason = unavailable_reason(opts, reduced, agents)
     if reason is None and not numba_available():
         reason = "numba is not installed: pip install 'hybridteam[fast]'"
@@ -99,7 +100,7 @@ def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
     if reason is not None:
         if opts.kernel == "on" and not reduced:
             raise ValueError(f"--kernel on: {reason}")
-        return False, f"python loop ({reason})"
+        return False, f"python loop: {reason}"
     return True, "compiled kernel"
 
 
@@ -539,11 +540,15 @@ def explore_packed(
     limit: float,
     start: float,
     progress: Progress | None,
+    note: Callable[[str], None] | None = None,
 ) -> None:
     """:func:`~.explore._levels` for the packed store: fills ``g`` (its ``states``
     become a :class:`PackedStore`, its edges an :class:`~.store.Edges`)."""
-    cache_dir()
+    where = cache_dir()
     from hybridteam.verify import kernel_core as kc
+
+    if note is not None and not kc.level.signatures:  # (not yet loaded in this process)
+        note(f"compiled kernel: loading it from {where}, or compiling it there (first run)")
 
     pk = Packing(sk, m)
     table = Table(pk)

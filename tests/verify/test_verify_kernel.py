@@ -7,6 +7,7 @@ too; and without numba ``--kernel auto`` takes the Python loop and says so."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -17,7 +18,7 @@ from hybridteam.verify import Options, verify
 from hybridteam.verify.explore import Graph
 from hybridteam.verify.kernel import numba_available
 from tests.verify.test_verify import GO, docking, roles_team
-from tests.verify.test_verify_bounds import BOUNDED, COUNTERS
+from tests.verify.test_verify_bounds import BOUNDED, COUNTERS, team_of
 from tests.verify.test_verify_promela import PARALLEL, PINGPONG, acked_go
 from tests.verify.test_verify_tables import (
     CONFIRMS,
@@ -178,7 +179,7 @@ def test_without_numba_auto_takes_the_python_loop_and_says_so(tmp_path, monkeypa
     monkeypatch.setenv("HYBRIDTEAM_NUMBA", "0")
     assert main(args) == 0
     slow = capsys.readouterr().out.splitlines()[0]
-    assert "python loop (numba is not installed" in slow
+    assert "python loop: numba is not installed" in slow
     assert fast.split(" states")[0] == slow.split(" states")[0]  # the same count
     assert main([*args, "--kernel", "on"]) == 2
     assert "--kernel on: numba is not installed" in capsys.readouterr().err
@@ -187,6 +188,21 @@ def test_without_numba_auto_takes_the_python_loop_and_says_so(tmp_path, monkeypa
 def test_options_the_loop_does_not_serve_take_the_python_loop(tmp_path):
     team = roles_team(tmp_path, "b")
     g = verify(team, Options(losses=0, jobs=2), replay=False).graph
-    assert g.explorer == "python loop (--jobs uses the process pool)"
+    assert g.explorer == "python loop: --jobs uses the process pool"
     with pytest.raises(ValueError, match="--kernel on: --storage bitstate"):
         verify(team, Options(losses=0, storage="bitstate", kernel="on"), replay=False)
+
+
+def test_past_the_memory_limit_the_compiled_loop_stops_after_the_level(tmp_path, monkeypatch):
+    """The compiled loop reads the resident size after each level (a level is applied
+    whole): the first level's successors are cut, its state is expanded."""
+    monkeypatch.setattr(sys.modules["hybridteam.verify.kernel"], "resident_bytes", lambda: 5e9)
+    opts = Options(max_memory=4e9, kernel="on")
+    g = verify(team_of(tmp_path, COUNTERS), opts, replay=False).graph
+    assert g.bound == (
+        "this process reached the memory limit of 4 GB after 3 states "
+        "(5.000 GB resident; --max-memory GB raises it)"
+    )
+    assert len(g.states) == 3 and not g.exhaustive
+    assert g.cut == {1, 2} and g.succ(0) == [1, 2]
+    assert not g.terminal().any()
