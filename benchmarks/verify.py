@@ -49,6 +49,7 @@ from pathlib import Path
 
 from hybridteam import load
 from hybridteam.verify import Options, promela, spin, verify
+from hybridteam.verify.kernel import numba_available
 from hybridteam.verify.storage import STORAGES
 
 NAMES = "abcdefgh"
@@ -107,6 +108,8 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> dict:
         path = Path(tmp) / f"roles_{robots}.yaml"
         path.write_text(team_text(robots, args.scenario))
         team = load(path)
+        if args.kernel != "off" and numba_available():  # (numba itself: a fixed ~100 MB)
+            import hybridteam.verify.kernel_core  # noqa: F401
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
         r = verify(team, opts, replay=False)
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
