@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 import time
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -46,6 +46,8 @@ if TYPE_CHECKING:
 
 #: Message ids per template in a row's numbers (:data:`.kernel_core.IDS`).
 IDS = 64
+#: The most copies (or entries) a state may hold (:data:`.kernel_core.ROOM`).
+ROOM = 256
 #: Choice kinds (:mod:`.kernel_core`), and their words in a choice tuple.
 KINDS = ("deliver", "lose", "dup", "timer", "scenario", "time", "world")
 #: Copy templates' kinds: a plain message, an acknowledged one (an id), an ack.
@@ -129,9 +131,16 @@ class Layout:
     def array(self) -> np.ndarray:
         return np.array([self.agents, self.copies, self.entries, self.seen], np.int64)
 
-    def wider(self) -> Layout:
-        grow = lambda k: k + max(2, k // 2)  # noqa: E731
-        return Layout(self.agents, grow(self.copies), grow(self.entries), grow(self.seen))
+    def fit(self, need: tuple[int, int, int]) -> Layout:
+        """This layout with room for ``need`` (copies, entries, seen)."""
+        if max(need) > ROOM:
+            raise RuntimeError(f"kernel: a state with more than {ROOM} copies or entries")
+        return Layout(
+            self.agents,
+            max(self.copies, need[0]),
+            max(self.entries, need[1]),
+            max(self.seen, need[2]),
+        )
 
     def widen(self, rows: np.ndarray, new: Layout) -> np.ndarray:
         """``rows`` in layout ``new`` (each group at its new place)."""
@@ -555,8 +564,8 @@ def explore_packed(
     lay = Layout(pk.agents)
     store = PackedStore(pk, lay)
     initial = m.initial()
-    while not pk.pack(initial, store.lay, store.rows[0]):
-        store.relayout(store.lay.wider(), store.rows.dtype)
+    store.relayout(store.lay.fit(_counts(initial)), store.rows.dtype)
+    pk.pack(initial, store.lay, store.rows[0])
     kc.rehash(store.rows, 0, store.slots)
     _, slot = kc.find_row(store.rows, store.slots, store.rows[0])
     store.slots[slot] = 0
@@ -581,16 +590,17 @@ def explore_packed(
     depth = 0
     tb: tuple | None = None
     first = True
-    none = np.zeros(0, np.int64)
+    none = np.zeros(0, np.uint32)
+    need = np.zeros(3, np.int64)  # the group counts of a successor that outgrew the layout
     pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
     while lo < hi:
         misses = np.zeros((MISSES, 4), np.int64)
         while True:  # dry passes until the tables answer every job of the level
             table.sync()
+            lay = store.lay.fit(_most(s for s, _, _ in pre.values()))
+            if lay != store.lay:  # a successor computed in Python outgrew the layout
+                store.relayout(lay, store.rows.dtype)
             pre_ord, pre_rows, pre_res = _pre(pk, store, pre)
-            if pre_rows is None:  # a computed successor outgrew the layout
-                store.relayout(store.lay.wider(), store.rows.dtype)
-                continue
             if store.rows.dtype == np.uint16 and not pk.fits16():
                 store.relayout(store.lay, np.uint32)
                 continue
@@ -621,6 +631,7 @@ def explore_packed(
                 none,
                 none,
                 misses,
+                need,
             )
             if first:
                 g.compile_seconds = time.perf_counter() - t0
@@ -662,9 +673,11 @@ def explore_packed(
             zeno,
             cut,
             misses,
+            need,
         )
         if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
-            store.relayout(store.lay.wider(), store.rows.dtype)
+            c, e, k = need.tolist()
+            store.relayout(store.lay.fit((c, e, k)), store.rows.dtype)
             continue
         if status == kc.TOO_MANY_IDS:
             raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
@@ -715,16 +728,32 @@ def _settled(pk: Packing, m: Reactions) -> np.ndarray:
     )
 
 
+def _counts(s: State) -> tuple[int, int, int]:
+    return len(s.inflight), len(s.outbox), len(s.seen)
+
+
+def _most(states: Iterable[State]) -> tuple[int, int, int]:
+    """The most copies, entries and seen triples any of ``states`` holds."""
+    copies = entries = seen = 0
+    for s in states:
+        copies, entries, seen = (
+            max(copies, len(s.inflight)),
+            max(entries, len(s.outbox)),
+            max(seen, len(s.seen)),
+        )
+    return copies, entries, seen
+
+
 def _pre(pk: Packing, store: PackedStore, pre: dict) -> tuple:
-    """The successors Python computed this level, as the loop reads them (rows None when
-    one does not fit the layout)."""
+    """The successors Python computed this level, as the loop reads them (each fits the
+    layout)."""
     keys = sorted(pre)
     rows = np.zeros((len(keys), store.lay.width), store.rows.dtype)
     res = np.zeros((len(keys), 2), np.int64)
     for i, k in enumerate(keys):
         s, zeno, reads = pre[k]
         if not pk.pack(s, store.lay, rows[i]):
-            return None, None, None
+            raise RuntimeError("kernel: a computed successor does not fit the layout")
         res[i] = (zeno, reads)
     return np.array(keys, np.int64), rows, res
 

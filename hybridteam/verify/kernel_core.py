@@ -406,7 +406,7 @@ def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
     """Pack a canonical state into ``out`` (zeroed first); OVERFLOW when a group does not
     fit its slots."""
     na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
-    if nc > cs or no > os_ or ns > ss_:
+    if nc > cs or no > os_ or ns > ss_:  # (the counts are in ``cnt``)
         return OVERFLOW
     out[:] = 0
     for a in range(na):
@@ -545,7 +545,8 @@ def successor(
         m = nc - 1
     for i in range(RR[3, r], RR[3, r] + RR[4, r]):
         t = RC[0, i]
-        if m >= ROOM:
+        if m >= ROOM:  # (beyond any layout: the caller stops)
+            cnt[0], cnt[1], cnt[2] = ROOM + 1, 0, 0
             return OVERFLOW
         Wk[2, m] = t
         if TT[0, t] == PLAIN:
@@ -565,6 +566,7 @@ def successor(
             mo += 1
     for i in range(RR[6, r], RR[6, r] + RR[7, r]):
         if mo >= ROOM:
+            cnt[0], cnt[1], cnt[2] = 0, ROOM + 1, 0
             return OVERFLOW
         Wk[4, mo], Wk[5, mo] = RE[0, i], base + RE[1, i]
         mo += 1
@@ -616,6 +618,7 @@ def level(
     zeno,
     cut,
     misses,
+    need,
 ):
     """One breadth-first level: the jobs of states ``lo..hi-1`` in the order of
     :func:`~.explore._jobs`, then the free comparisons' retries in the order of
@@ -709,7 +712,8 @@ def level(
                 not apply,
             )
         ordinal += 1
-        if got >= OVERFLOW:  # (or TOO_MANY_IDS)
+        if got >= OVERFLOW:  # (or TOO_MANY_IDS): ``need`` gets the group counts
+            need[0], need[1], need[2] = cnt[0], cnt[1], cnt[2]
             return got, ordinal, n, ne, nz, nx, nm
         if got == MISS:
             if apply:
