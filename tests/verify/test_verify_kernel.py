@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hybridteam import load
@@ -206,3 +207,22 @@ def test_past_the_memory_limit_the_compiled_loop_stops_after_the_level(tmp_path,
     assert len(g.states) == 3 and not g.exhaustive
     assert g.cut == {1, 2} and g.succ(0) == [1, 2]
     assert not g.terminal().any()
+
+
+def test_rows_widened_and_made_32_bit_keep_every_state_and_its_number(tmp_path):
+    """A group that outgrows its slots, or a number beyond 16 bits, re-lays the rows out:
+    every state decodes as before and is found again at its own number."""
+    from hybridteam.verify.kernel import Layout
+    from hybridteam.verify.kernel_core import find_row
+
+    g = verify(roles_team(tmp_path, "b"), Options(losses=1, kernel="on"), replay=False).graph
+    store = g.states
+    before = list(store)
+    lay = store.lay
+    assert store.rows.dtype == np.uint16
+    store.relayout(Layout(lay.agents, lay.copies + 3, lay.entries + 1, lay.seen + 2), np.uint32)
+    assert store.rows.dtype == np.uint32 and store.lay.width == lay.width + 6
+    assert list(store) == before
+    assert [find_row(store.rows, store.slots, store.rows[k])[0] for k in range(len(store))] == (
+        list(range(len(store)))
+    )
