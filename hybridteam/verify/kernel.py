@@ -493,6 +493,7 @@ class PackedStore:
         self.n = 0
         self.slots = np.full(2048, -1, np.int32)
         self.parts = pk  # ``parts.values``: agent parts by number
+        self._agent_parts: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.n
@@ -510,7 +511,11 @@ class PackedStore:
 
     @property
     def agent_parts(self) -> np.ndarray:
-        return np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
+        """Each state's agent part numbers (made once exploring is done: the checks read
+        them block by block)."""
+        if self._agent_parts is None or len(self._agent_parts) != self.n * self.pk.agents:
+            self._agent_parts = np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
+        return self._agent_parts
 
     def nbytes(self) -> int:
         """The rows and the table, as allocated."""
@@ -584,7 +589,7 @@ def explore_packed(
         ],
         np.int64,
     )
-    edges = Edges()
+    edges = PackedEdges()
     known: dict[int, int] = {}  # an edge's choice code -> its number in ``edges.choices``
     lo, hi = 0, 1
     depth = 0
@@ -792,6 +797,23 @@ def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
     if word == "time":
         return ("time", x, y)
     return ("world", x, sk.world_events[y][1])
+
+
+class PackedEdges(Edges):
+    """:class:`~.store.Edges` whose sparse-row view is made by a counting sort into 32-bit
+    arrays (no 64-bit argsort of every edge): at tens of millions of edges the freeze is
+    the check's peak of memory."""
+
+    def freeze(self, states: int) -> None:
+        from hybridteam.verify.kernel_core import sparse_rows
+
+        src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
+        dst = np.frombuffer(self.dst, UINT) if len(self.dst) else np.zeros(0, UINT)
+        how = np.frombuffer(self.how, UINT) if len(self.how) else np.zeros(0, UINT)
+        self._row = np.zeros(states + 1, np.int64)
+        self._dst = np.zeros(len(dst), UINT)  # (32-bit: the Python loop keeps 64)
+        self._how = np.zeros(len(how), UINT)
+        sparse_rows(src, dst, how, self._row, self._dst, self._how)
 
 
 def _add_edges(

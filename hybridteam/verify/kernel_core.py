@@ -757,3 +757,19 @@ def level(
             )
             ne += 1
     return status, ordinal, n, ne, nz, nx, nm
+
+
+@njit(cache=True)
+def sparse_rows(src, dst, how, row, out_dst, out_how) -> None:
+    """The edges' sparse-row view (``row``: n + 1 offsets), each state's edges in the
+    order added: a counting sort by source."""
+    for k in range(src.size):
+        row[src[k] + 1] += 1
+    for k in range(1, row.size):
+        row[k] += row[k - 1]
+    at = row[:-1].copy()
+    for k in range(src.size):
+        j = at[src[k]]
+        out_dst[j] = dst[k]
+        out_how[j] = how[k]
+        at[src[k]] = j + 1
