@@ -115,18 +115,19 @@ def cache_dir() -> str:
 
 @dataclass
 class Layout:
-    """Where a row keeps what: ``agents`` part numbers, then a count and ``copies`` slots,
-    a count and ``entries`` slots, a count and ``seen`` slots, then cursor, losses,
-    duplicates and ``agents`` next ids. Slots beyond a count are 0."""
+    """Where a row keeps what: ``agents`` part numbers, then ``copies`` slots, ``entries``
+    slots and ``seen`` slots (each number plus one, 0 an empty slot), then cursor, losses
+    and duplicates. The next ids are not kept: a canonical state's are the counts of the
+    ids its agents have in use (:func:`.kernel_core.decode`)."""
 
     agents: int
-    copies: int = 4
-    entries: int = 2
-    seen: int = 2
+    copies: int = 0
+    entries: int = 0
+    seen: int = 0
 
     @property
     def width(self) -> int:
-        return 2 * self.agents + self.copies + self.entries + self.seen + 6
+        return self.agents + self.copies + self.entries + self.seen + 3
 
     def array(self) -> np.ndarray:
         return np.array([self.agents, self.copies, self.entries, self.seen], np.int64)
@@ -145,16 +146,15 @@ class Layout:
     def widen(self, rows: np.ndarray, new: Layout) -> np.ndarray:
         """``rows`` in layout ``new`` (each group at its new place)."""
         out = np.zeros((rows.shape[0], new.width), rows.dtype)
-        a = self.agents
-        out[:, :a] = rows[:, :a]
-        src, dst = a, a
+        src = dst = self.agents
+        out[:, :src] = rows[:, :src]
         for old_n, new_n in (
             (self.copies, new.copies),
             (self.entries, new.entries),
             (self.seen, new.seen),
         ):
-            out[:, dst : dst + 1 + old_n] = rows[:, src : src + 1 + old_n]
-            src, dst = src + 1 + old_n, dst + 1 + new_n
+            out[:, dst : dst + old_n] = rows[:, src : src + old_n]
+            src, dst = src + old_n, dst + new_n
         out[:, dst:] = rows[:, src:]
         return out
 
@@ -229,52 +229,63 @@ class Packing:
         """Write canonical state ``s`` into ``out``; False when it does not fit ``lay``."""
         if len(s.inflight) > lay.copies or len(s.outbox) > lay.entries or len(s.seen) > lay.seen:
             return False
+        if s.next_ids != self._ids(s):
+            raise RuntimeError(f"kernel: a state that is not canonical: {s}")
         out[:] = 0
         a = self.agents
         for b, part in enumerate(s.agents):
             out[b] = self.part(b, part)
         p = a
-        out[p] = len(s.inflight)
         for i, c in enumerate(s.inflight):
             t, k = self.copy(c)
-            out[p + 1 + i] = t * IDS + k
-        p += 1 + lay.copies
-        out[p] = len(s.outbox)
+            out[p + i] = t * IDS + k + 1
+        p += lay.copies
         for i, e in enumerate(s.outbox):
-            out[p + 1 + i] = self.entry(e) * IDS + e.msg_id
-        p += 1 + lay.entries
-        out[p] = len(s.seen)
+            out[p + i] = self.entry(e) * IDS + e.msg_id + 1
+        p += lay.entries
         for i, (r, snd, k) in enumerate(s.seen):
-            out[p + 1 + i] = (r * a + snd) * IDS + k
-        p += 1 + lay.seen
+            out[p + i] = (r * a + snd) * IDS + k + 1
+        p += lay.seen
         out[p : p + 3] = (s.cursor, s.losses, s.dups)
-        out[p + 3 : p + 3 + a] = s.next_ids
         return True
 
     def unpack(self, row: np.ndarray, lay: Layout) -> State:
+        """The state of ``row``; its next ids are the counts of its ids in use per agent
+        (as :meth:`~.machine.Machine.canonical` counts them)."""
         nums = row.tolist()
         a = self.agents
         agents = tuple(self.values[n] for n in nums[:a])
         p = a
-        inflight = tuple(self.copy_of(v // IDS, v % IDS) for v in nums[p + 1 : p + 1 + nums[p]])
-        p += 1 + lay.copies
+        codes = [v - 1 for v in nums[p : p + lay.copies] if v]
+        inflight = tuple(self.copy_of(v // IDS, v % IDS) for v in codes)
+        p += lay.copies
         outbox = tuple(
             self.entry_values[v // IDS]._replace(msg_id=v % IDS)
-            for v in nums[p + 1 : p + 1 + nums[p]]
+            for v in (v - 1 for v in nums[p : p + lay.entries] if v)
         )
-        p += 1 + lay.entries
-        seen = tuple((v // IDS // a, v // IDS % a, v % IDS) for v in nums[p + 1 : p + 1 + nums[p]])
-        p += 1 + lay.seen
-        return State(
-            agents,
-            inflight,
-            outbox,
-            seen,
-            nums[p],
-            nums[p + 1],
-            nums[p + 2],
-            tuple(nums[p + 3 : p + 3 + a]),
+        p += lay.entries
+        seen = tuple(
+            (v // IDS // a, v // IDS % a, v % IDS)
+            for v in (v - 1 for v in nums[p : p + lay.seen] if v)
         )
+        p += lay.seen
+        s = State(agents, inflight, outbox, seen, nums[p], nums[p + 1], nums[p + 2])
+        return s._replace(next_ids=self._ids(s))
+
+    def _ids(self, s: State) -> tuple:
+        """Per agent, how many of its message ids ``s`` has in use (a canonical state's
+        next ids: its ids are 0..n-1)."""
+        live: list[set[int]] = [set() for _ in range(self.agents)]
+        for c in s.inflight:
+            if c.type == ACK:
+                live[c.receiver].add(int(c.fields[0][1]))
+            elif c.msg_id >= 0:
+                live[c.sender].add(c.msg_id)
+        for e in s.outbox:
+            live[e.sender].add(e.msg_id)
+        for _, snd, k in s.seen:
+            live[snd].add(k)
+        return tuple(len(ids) for ids in live)
 
     def fits16(self) -> bool:
         """Whether every number a row holds fits two bytes."""

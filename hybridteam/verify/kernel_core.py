@@ -3,7 +3,7 @@
 A state is one row of small unsigned integers (layout: :class:`~.kernel.Layout`): each
 agent's part number, the copies in flight (``template * IDS + id``), the outbox entries
 (``template * IDS + id``), the seen triples (``(receiver * agents + sender) * IDS + id``),
-then cursor, losses, duplicates and the agents' next ids. Templates, parts and reactions
+each plus one (0: an empty slot), then cursor, losses and duplicates. Templates, parts and reactions
 are numbered by the Python side (:mod:`.kernel`), which also fills whatever the loop does
 not know (a reaction the engine has not computed, a state whose parts are not settled):
 this module only follows the rules of :func:`~.explore.choices`,
@@ -123,37 +123,51 @@ def _rank(mask: np.uint64, k: int) -> int:
 
 
 @njit(cache=True)
-def decode(row, lay, D, head) -> None:
-    """Unpack ``row`` (layout ``lay``: agents, copy slots, entry slots, seen slots) into
-    ``D``'s rows: 0 the agents' parts, 1 their next ids, 2-3 the copies' templates and
-    ids, 4-5 the entries' templates and ids, 6-8 the seen triples (receiver, sender,
-    id); ``head``: copies, entries, seen, cursor, losses, dups."""
+def decode(row, lay, TT, EN, D, head, live) -> None:
+    """Unpack ``row`` (layout ``lay``: agents, copy slots, entry slots, seen slots, each
+    number stored plus one, 0 an empty slot) into ``D``'s rows: 0 the agents' parts, 1
+    their next ids, 2-3 the copies' templates and ids, 4-5 the entries' templates and
+    ids, 6-8 the seen triples (receiver, sender, id); ``head``: copies, entries, seen,
+    cursor, losses, dups. A canonical state's next ids are not stored: an agent's is the
+    number of its ids in use (they are 0..n-1)."""
     na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
+    live[:] = 0
+    one = np.uint64(1)
     for a in range(na):
         D[0, a] = row[a]
     p = na
-    nc = int(row[p])
-    for i in range(nc):
-        v = int(row[p + 1 + i])
-        D[2, i], D[3, i] = v // IDS, v % IDS
-    p += 1 + cs
-    no = int(row[p])
-    for i in range(no):
-        v = int(row[p + 1 + i])
-        D[4, i], D[5, i] = v // IDS, v % IDS
-    p += 1 + os_
-    ns = int(row[p])
-    for i in range(ns):
-        v = int(row[p + 1 + i])
-        D[8, i] = v % IDS
+    nc = 0
+    while nc < cs and row[p + nc] != 0:
+        v = int(row[p + nc]) - 1
+        t, k = v // IDS, v % IDS
+        D[2, nc], D[3, nc] = t, k
+        if TT[0, t] == ACK_COPY:
+            live[TT[2, t]] |= one << np.uint64(k)
+        elif TT[0, t] == WITH_ID:
+            live[TT[1, t]] |= one << np.uint64(k)
+        nc += 1
+    p += cs
+    no = 0
+    while no < os_ and row[p + no] != 0:
+        v = int(row[p + no]) - 1
+        t, k = v // IDS, v % IDS
+        D[4, no], D[5, no] = t, k
+        live[EN[0, t]] |= one << np.uint64(k)
+        no += 1
+    p += os_
+    ns = 0
+    while ns < ss_ and row[p + ns] != 0:
+        v = int(row[p + ns]) - 1
+        k = v % IDS
         v //= IDS
-        D[7, i] = v % na
-        D[6, i] = v // na
-    p += 1 + ss_
+        D[8, ns], D[7, ns], D[6, ns] = k, v % na, v // na
+        live[v % na] |= one << np.uint64(k)
+        ns += 1
+    p += ss_
     head[0], head[1], head[2] = nc, no, ns
     head[3], head[4], head[5] = row[p], row[p + 1], row[p + 2]
     for a in range(na):
-        D[1, a] = row[p + 3 + a]
+        D[1, a] = _popcount(live[a])
 
 
 @njit(cache=True)
@@ -403,8 +417,8 @@ def canonical(lay, TT, EN, fifo, nc, D, no, ns, cnt, live) -> int:
 
 @njit(cache=True)
 def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
-    """Pack a canonical state into ``out`` (zeroed first); OVERFLOW when a group does not
-    fit its slots."""
+    """Pack a canonical state into ``out`` (the layout of :func:`decode`); OVERFLOW when
+    a group does not fit its slots."""
     na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
     if nc > cs or no > os_ or ns > ss_:  # (the counts are in ``cnt``)
         return OVERFLOW
@@ -412,21 +426,16 @@ def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
     for a in range(na):
         out[a] = D[0, a]
     p = na
-    out[p] = nc
     for i in range(nc):
-        out[p + 1 + i] = D[2, i] * IDS + D[3, i]
-    p += 1 + cs
-    out[p] = no
+        out[p + i] = D[2, i] * IDS + D[3, i] + 1
+    p += cs
     for i in range(no):
-        out[p + 1 + i] = D[4, i] * IDS + D[5, i]
-    p += 1 + os_
-    out[p] = ns
+        out[p + i] = D[4, i] * IDS + D[5, i] + 1
+    p += os_
     for i in range(ns):
-        out[p + 1 + i] = (D[6, i] * na + D[7, i]) * IDS + D[8, i]
-    p += 1 + ss_
+        out[p + i] = (D[6, i] * na + D[7, i]) * IDS + D[8, i] + 1
+    p += ss_
     out[p], out[p + 1], out[p + 2] = cur, los, dup
-    for a in range(na):
-        out[p + 3 + a] = D[1, a]
     return OK
 
 
@@ -664,7 +673,7 @@ def level(
         # the next job: the level's, then the queued retries
         if sid < hi:
             if ci_at == 0:
-                decode(rows[sid], lay, D, head)
+                decode(rows[sid], lay, TT, EN, D, head, live)
                 decoded = sid
                 nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
             if ci_at >= nchoice:
@@ -677,7 +686,7 @@ def level(
             j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
             qi += 1
             if decoded != j_sid:
-                decode(rows[j_sid], lay, D, head)
+                decode(rows[j_sid], lay, TT, EN, D, head, live)
                 decoded = j_sid
         else:
             break
