@@ -108,8 +108,9 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> dict:
         path = Path(tmp) / f"roles_{robots}.yaml"
         path.write_text(team_text(robots, args.scenario))
         team = load(path)
-        if args.kernel != "off" and numba_available():  # (numba itself: a fixed ~100 MB)
-            import hybridteam.verify.kernel_core  # noqa: F401
+        if args.kernel != "off" and numba_available():
+            # numba and the compiled loop it loads take a fixed ~100 MB: in before the base
+            verify(team, Options(losses=0, max_states=100, kernel=args.kernel), replay=False)
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
         r = verify(team, opts, replay=False)
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
