@@ -105,7 +105,6 @@ class Graph:
     transitions: int = 0
     coverage: Coverage | None = None  # a partial search's estimate (None: exact storage)
     explorer: str = "python"  # which loop explored, in words (:func:`.kernel.chosen`)
-    compile_seconds: float = 0.0  # the compiled loop's first call (compiling or loading it)
 
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""

@@ -528,10 +528,6 @@ class PackedStore:
             self._agent_parts = np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
         return self._agent_parts
 
-    def nbytes(self) -> int:
-        """The rows and the table, as allocated."""
-        return self.rows.nbytes + self.slots.nbytes
-
     def reserve(self, more: int) -> None:
         """Room for ``more`` rows, and a table at most half full with them."""
         need = self.n + more
@@ -605,7 +601,6 @@ def explore_packed(
     lo, hi = 0, 1
     depth = 0
     tb: tuple | None = None
-    first = True
     none = np.zeros(0, np.uint32)
     need = np.zeros(3, np.int64)  # the group counts of a successor that outgrew the layout
     pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
@@ -623,7 +618,6 @@ def explore_packed(
             if pk.dirty or tb is None:
                 tb = pk.tables()
             settled = _settled(pk, m)
-            t0 = time.perf_counter()
             status, jobs, _, _, _, _, nm = kc.level(  # type: ignore[call-arg]
                 store.rows,
                 store.n,
@@ -649,9 +643,6 @@ def explore_packed(
                 misses,
                 need,
             )
-            if first:
-                g.compile_seconds = time.perf_counter() - t0
-                first = False
             if nm == 0:
                 break
             _fill(m, pk, store, misses[:nm], pre, g.batch)
