@@ -68,7 +68,7 @@ def numba_available() -> bool:
     return True
 
 
-def unavailable_reason(opts: Options, reduced: bool, agents: int = 0) -> str | None:
+def unavailable_reason(opts: Options, agents: int = 0) -> str | None:
     """Why the options (or a team of ``agents`` agents) keep the compiled loop out
     (None: they allow it)."""
     if opts.reference:
@@ -77,8 +77,6 @@ def unavailable_reason(opts: Options, reduced: bool, agents: int = 0) -> str | N
         return f"--storage {opts.storage} is a partial search"
     if opts.jobs != 1:
         return "--jobs uses the process pool"
-    if reduced:
-        return "symmetry or ample-set reduction is on"
     if opts.losses > 0xFFFF or opts.duplicates > 0xFFFF:
         return "the bounds exceed the packed rows' counters"
     if agents > 0xFF:
@@ -88,20 +86,21 @@ def unavailable_reason(opts: Options, reduced: bool, agents: int = 0) -> str | N
 
 def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
     """Whether to explore with the compiled loop (``opts.kernel``), and which loop
-    explores, in words (verify's first line says it). Raises ValueError for
-    ``kernel="on"`` without numba or with options it does not serve."""
+    explores, in words (verify's first line says it). ``reduced``: a symmetry or ample-set
+    reduction is in effect (the Python loop explores it, ``on`` or not). Raises ValueError
+    for ``kernel="on"`` without numba or with options it does not serve."""
     if opts.kernel not in ("auto", "on", "off"):
         raise ValueError(f"kernel must be auto, on or off, got {opts.kernel!r}")
     if opts.kernel == "off":
         return False, "python loop: --kernel off"
-    reason = unavailable_reason(opts, reduced, agents)
+    reason = unavailable_reason(opts, agents)
     if reason is None and not numba_available():
         reason = "numba is not installed: pip install 'hybridteam[fast]'"
-        if opts.kernel == "on":
-            raise ValueError(f"--kernel on: {reason}")
+    if reason is not None and opts.kernel == "on":
+        raise ValueError(f"--kernel on: {reason}")
+    if reason is None and reduced:
+        reason = "symmetry or ample-set reduction is on"
     if reason is not None:
-        if opts.kernel == "on" and not reduced:
-            raise ValueError(f"--kernel on: {reason}")
         return False, f"python loop: {reason}"
     return True, "compiled kernel"
 

@@ -21,6 +21,7 @@ from hybridteam.verify.kernel import numba_available
 from tests.verify.test_verify import GO, docking, roles_team
 from tests.verify.test_verify_bounds import BOUNDED, COUNTERS, team_of
 from tests.verify.test_verify_promela import PARALLEL, PINGPONG, acked_go
+from tests.verify.test_verify_symmetry import ask_team
 from tests.verify.test_verify_tables import (
     CONFIRMS,
     LEADS,
@@ -192,6 +193,14 @@ def test_options_the_loop_does_not_serve_take_the_python_loop(tmp_path):
     assert g.explorer == "python loop: --jobs uses the process pool"
     with pytest.raises(ValueError, match="--kernel on: --storage bitstate"):
         verify(team, Options(losses=0, storage="bitstate", kernel="on"), replay=False)
+    # three interchangeable followers: symmetry in effect, explored by the Python loop
+    # (with --kernel on too), the same counts as before (test_verify_symmetry.py)
+    followers = ask_team(tmp_path)
+    for kernel in ("auto", "on"):
+        report = verify(followers, Options(losses=0, kernel=kernel), replay=False)
+        assert report.symmetry is not None and report.symmetry.active
+        assert report.graph.explorer == "python loop: symmetry or ample-set reduction is on"
+        assert len(report.graph.states) == 21
 
 
 def test_past_the_memory_limit_the_compiled_loop_stops_after_the_level(tmp_path, monkeypatch):
