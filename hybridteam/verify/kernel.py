@@ -534,13 +534,21 @@ class PackedStore:
             grown = max(need, self.rows.shape[0] * 5 // 4)
             self.rows.resize((grown, self.lay.width), refcheck=False)
         if 10 * need > 7 * self.slots.size:  # at most 70 % full
-            self.slots = np.full(_pow2(2 * need), -1, np.int32)
-            self._rehash()
+            self._rehash(_pow2(2 * need))
 
-    def _rehash(self) -> None:
+    def seal(self) -> None:
+        """Exploring is done: the rows shrink to the states they hold and the table goes
+        (states are only read by number from now on), before the checks take their
+        arrays."""
+        self.rows.resize((max(self.n, 1), self.lay.width), refcheck=False)
+        self.slots = np.zeros(0, np.int32)
+
+    def _rehash(self, size: int = 0) -> None:
+        """The table built again, of ``size`` slots or more (a sealed store has none)."""
         from hybridteam.verify.kernel_core import rehash
 
-        self.slots[:] = -1
+        self.slots = np.zeros(0, np.int32)  # (the old one goes first)
+        self.slots = np.full(max(size, _pow2(2 * self.n)), -1, np.int32)
         rehash(self.rows, self.n, self.slots)
 
     def relayout(self, lay: Layout, dtype: Any) -> None:
@@ -714,6 +722,7 @@ def explore_packed(
             break
     if progress is not None:
         progress(store.n, 0, depth, time.perf_counter() - start)
+    store.seal()
     g.states = store
     g.parent = array("I")
     g.parent.frombytes(parent[: store.n].tobytes())
