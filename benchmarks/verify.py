@@ -49,6 +49,7 @@ from pathlib import Path
 
 from hybridteam import load
 from hybridteam.verify import Options, promela, spin, verify
+from hybridteam.verify.kernel import numba_available
 from hybridteam.verify.storage import STORAGES
 
 NAMES = "abcdefgh"
@@ -101,11 +102,15 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> dict:
         reference=args.reference,
         storage=args.storage,
         jobs=args.jobs,
+        kernel=args.kernel,
     )
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"roles_{robots}.yaml"
         path.write_text(team_text(robots, args.scenario))
         team = load(path)
+        if args.kernel != "off" and numba_available():
+            # numba and the compiled loop it loads take a fixed ~100 MB: in before the base
+            verify(team, Options(losses=0, max_states=100, kernel=args.kernel), replay=False)
         base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # before checking
         r = verify(team, opts, replay=False)
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -133,6 +138,7 @@ def one(robots: int, losses: int, args: argparse.Namespace) -> dict:
         "per_state": (peak - base) * 1048576 / len(g.states),
         "verdict": word,
         "rules": rules,
+        "explorer": g.explorer,
     }
 
 
@@ -197,7 +203,12 @@ def compare(args: argparse.Namespace) -> None:
         rest = ["--max-states", str(args.max_states), "--scenario", scenario]
         rest += ["--timeouts", args.timeouts, "--json"]
         figures = {}
-        for who, extra in (("tables", ["--rules"]), ("reference", ["--reference"])):
+        explorers = [
+            ("kernel", ["--kernel", "on", "--rules"]),
+            ("tables", ["--kernel", "off"]),
+            *([] if args.no_reference else [("reference", ["--reference"])]),
+        ]
+        for who, extra in explorers:
             out = subprocess.run(
                 [sys.executable, __file__, "--one", robots, losses, *rest, *extra],
                 check=True,
@@ -211,17 +222,21 @@ def compare(args: argparse.Namespace) -> None:
                 f"{f['per_state']:>8,.0f}  {f['verdict']}",
                 flush=True,
             )
-        ours, ref = figures["tables"], figures["reference"]
-        same = (ours["states"], ours["steps"], ours["verdict"]) == (
-            ref["states"],
-            ref["steps"],
-            ref["verdict"],
-        )
+        ours = figures["kernel"]
         rate = ours["states"] / ours["seconds"]
-        line = (
-            f"{check:>14} tables/reference: {rate / (ref['states'] / ref['seconds']):.1f}x "
-            f"states/s ({'same states, steps and verdicts' if same else 'DIFFERENT'})"
-        )
+        line = f"{check:>14}"
+        for who in list(figures)[1:]:
+            ref = figures[who]
+            same = (ours["states"], ours["steps"], ours["verdict"]) == (
+                ref["states"],
+                ref["steps"],
+                ref["verdict"],
+            )
+            line += (
+                f" kernel/{who}: {rate / (ref['states'] / ref['seconds']):.1f}x states/s, "
+                f"{ours['per_state'] / max(ref['per_state'], 1):.2f}x B/state "
+                f"({'same states, steps and verdicts' if same else 'DIFFERENT'});"
+            )
         got = (
             "not asked (--spin-on)"
             if check not in args.spin_on
@@ -230,11 +245,11 @@ def compare(args: argparse.Namespace) -> None:
             else "bounded"
         )
         if isinstance(got, str):
-            line += f"; SPIN: {got}"
+            line += f" SPIN: {got}"
         else:
             states, seconds = got
             line += (
-                f"; SPIN: {states:,} states in {seconds:.1f} s = {states / seconds:,.0f} "
+                f" SPIN: {states:,} states in {seconds:.1f} s = {states / seconds:,.0f} "
                 f"states/s; ours/SPIN {rate / (states / seconds):.2f}x states/s, and "
                 f"{seconds / ours['seconds']:.2f}x SPIN's speed to the verdict"
             )
@@ -310,6 +325,9 @@ def main() -> None:
     ap.add_argument("--storage", choices=STORAGES, default="exact")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument(
+        "--kernel", choices=("auto", "on", "off"), default="auto", help="the compiled loop"
+    )
+    ap.add_argument(
         "--compare",
         nargs="?",
         const="successors",
@@ -330,6 +348,9 @@ def main() -> None:
         help="the checks SPIN explores too (its unreduced search grows fast)",
     )
     ap.add_argument("--spin-timeout", type=float, default=600.0)
+    ap.add_argument(
+        "--no-reference", action="store_true", help="--compare without the reference explorer"
+    )
     ap.add_argument("--one", type=int, nargs=2, help=argparse.SUPPRESS)  # robots, losses
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--rules", action="store_true", help=argparse.SUPPRESS)
@@ -353,7 +374,7 @@ def main() -> None:
     rest = [
         *_check_args(args),
         *(["--reference"] if args.reference else []),
-        *("--storage", args.storage, "--jobs", str(args.jobs)),
+        *("--storage", args.storage, "--jobs", str(args.jobs), "--kernel", args.kernel),
     ]
     for robots in args.robots:
         for losses in args.losses:

@@ -21,6 +21,7 @@ import json
 import math
 import sys
 import time
+from collections.abc import Callable
 
 from hybridteam.cli.common import (
     EXIT_OK,
@@ -178,6 +179,16 @@ def register(sub) -> dict:
         "of the reaction tables it fills: the same exploration, slower; a cross-check",
     )
     ve.add_argument(
+        "--kernel",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="auto: explore with the compiled loop (numba, the extra hybridteam[fast]) "
+        "where it is installed and the options allow it (exact storage, one job, no "
+        "symmetry or ample reduction, not --reference), else in Python (default); on: "
+        "the same, and an error without numba; off: in Python. The same states, edges "
+        "and verdicts either way (docs/verify.md)",
+    )
+    ve.add_argument(
         "--no-replay", action="store_true", help="do not replay counterexamples in the simulator"
     )
     ve.add_argument(
@@ -209,6 +220,19 @@ def register(sub) -> dict:
 
 
 def _check(args) -> None:
+    if args.kernel == "on":
+        from hybridteam.verify.kernel import numba_available
+
+        if not numba_available():
+            raise UsageError("--kernel on: numba is not installed: pip install 'hybridteam[fast]'")
+        for refused, option in (
+            (args.reference, "--reference"),
+            (args.storage != "exact", f"--storage {args.storage}"),
+            (args.jobs != 1, "--jobs"),
+            (args.por == "ample", "--por ample"),
+        ):
+            if refused:
+                raise UsageError(f"--kernel on: the compiled loop does not serve {option}")
     for name in ("losses", "duplicates"):
         if getattr(args, name) < 0:
             raise UsageError(f"--{name} must be 0 or more, got {getattr(args, name)}")
@@ -295,9 +319,17 @@ def cmd_verify(args) -> int:
             DEFAULT_HASH_FUNCTIONS if args.hash_functions is None else args.hash_functions
         ),
         jobs=args.jobs,
+        kernel=args.kernel,
     )
     try:
-        report = verify(team, opts, args.property, _progress(args.progress), replay=False)
+        report = verify(
+            team,
+            opts,
+            args.property,
+            _progress(args.progress),
+            replay=False,
+            note=_note(args.progress),
+        )
     except ResourceError as exc:  # refused before anything was allocated
         raise UsageError(str(exc)) from None
     except NotInPartialSearch as exc:
@@ -450,6 +482,14 @@ def _progress(mode: str):
     return show
 
 
+def _note(mode: str) -> Callable[[str], None] | None:
+    """A line on stderr for what the explorer says before it starts (the compiled loop
+    being compiled)."""
+    if mode == "none":
+        return None
+    return lambda text: print(f"hybridteam: verify: {text}", file=sys.stderr, flush=True)
+
+
 def _memory() -> str:
     """``, 1.2 GB in memory`` (this process's resident size), where the system tells it:
     a long check's memory is what decides whether it can finish."""
@@ -493,7 +533,7 @@ def _print(report, path: str, files: dict[str, list[str]]) -> None:
         f"{path}: skeleton of {len(g.states):,} states, {g.transitions:,} steps, "
         f"{g.seconds:.1f} s ({_search(g)};"
         f" losses <= {report.options.losses}, duplicates <= {report.options.duplicates}, "
-        f"order {report.options.order})"
+        f"order {report.options.order}; {g.explorer})"
     )
     if g.bound is not None:
         print(f"  stopped: {g.bound}")

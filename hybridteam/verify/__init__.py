@@ -184,6 +184,7 @@ class Report:
             **({"coverage": g.coverage.summary()} if g.coverage is not None else {}),
             "bound": g.bound,
             "seconds": round(g.seconds, 3),
+            "explorer": g.explorer,
             "options": {
                 "losses": self.options.losses,
                 "duplicates": self.options.duplicates,
@@ -195,6 +196,7 @@ class Report:
                 "timeouts": self.options.timeouts,
                 "storage": self.options.storage,
                 "jobs": self.options.jobs,
+                "kernel": self.options.kernel,
                 **(
                     {
                         "bitstate_mb": self.options.bitstate_mb,
@@ -255,10 +257,11 @@ def verify(
     only: list[str] | None = None,
     progress: Progress | None = None,
     replay: bool = True,
+    note: Callable[[str], None] | None = None,
 ) -> Report:
     """Explore ``team``'s skeleton and check its properties (``only``: these names); with
     ``replay``, replay each violation's counterexample in the simulator
-    (:meth:`Report.replay`)."""
+    (:meth:`Report.replay`); ``note`` gets what the explorer says before it starts."""
     import numpy as np
 
     from hybridteam.engine.compile.compiler import compile_team
@@ -290,6 +293,7 @@ def verify(
         progress,
         sym.representative if sym is not None and sym.active else None,
         None if por is None else por.choose,
+        note,
     )
     report = Report(sk, g, check(props, sk, g), opts, team=team, symmetry=sym)
     if replay:

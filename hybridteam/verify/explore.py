@@ -28,6 +28,7 @@ from hybridteam.engine.run.budget import instances_within, memory_limit, residen
 from hybridteam.engine.run.reliable import ACK
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import DEFAULT_MAX_VALUES, Values, full, over_memory
+from hybridteam.verify.kernel import PackedStore, chosen, explore_packed
 from hybridteam.verify.machine import Machine, Result, State
 from hybridteam.verify.pool import Pool, Successors
 from hybridteam.verify.reactions import Reactions
@@ -80,6 +81,10 @@ class Options:
     #: successors from the engine alone, one load and read-back each (:class:`~.machine.Machine`),
     #: instead of the reaction tables it fills (:class:`~.reactions.Reactions`, the default)
     reference: bool = False
+    #: "auto": the compiled loop (:mod:`.kernel`) where numba is importable and the other
+    #: options allow it (exact storage, one process, no reduction, the reaction tables);
+    #: "on": the same, and an error without numba; "off": the Python loop
+    kernel: str = "auto"
 
 
 @dataclass
@@ -88,7 +93,7 @@ class Graph:
     (each state's parent; the choice that first reached it is the edge's, from the
     parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
-    states: Store | PartialStore
+    states: Store | PartialStore | PackedStore
     parent: array
     edges: Edges | Trail
     zeno: set[int] = field(default_factory=set)
@@ -99,6 +104,7 @@ class Graph:
     seconds: float = 0.0
     transitions: int = 0
     coverage: Coverage | None = None  # a partial search's estimate (None: exact storage)
+    explorer: str = "python"  # which loop explored, in words (:func:`.kernel.chosen`)
 
     def path(self, k: int) -> list[int]:
         """State indices from the initial state to ``k`` (a shortest path)."""
@@ -271,6 +277,7 @@ def explore(
     progress: Progress | None = None,
     reduce: Reduce | None = None,
     choose: Choose | None = None,
+    note: Callable[[str], None] | None = None,
 ) -> Graph:
     """Every state reachable in the skeleton (up to ``opts.max_states``); with ``reduce``,
     one representative per class of equivalent states (each state is replaced by
@@ -284,7 +291,7 @@ def explore(
     was = gc.isenabled()
     gc.disable()
     try:
-        return _explore(sk, opts, progress, reduce, choose)
+        return _explore(sk, opts, progress, reduce, choose, note)
     finally:
         if was:
             gc.enable()
@@ -320,6 +327,7 @@ def _explore(
     progress: Progress | None,
     reduce: Reduce | None,
     choose: Choose | None,
+    note: Callable[[str], None] | None = None,
 ) -> Graph:
     if opts.jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
@@ -343,6 +351,13 @@ def _explore(
         store, edges = PartialStore(len(sk.cteam.agents), visited), trail
         store.trail, store.successor = trail, _again(succ)
     g = Graph(store, parent, edges, batch=batch)
+    use, g.explorer = chosen(opts, reduce is not None or choose is not None, len(sk.cteam.agents))
+    if use:
+        assert isinstance(m, Reactions)
+        explore_packed(sk, opts, m, g, values, limit, start, progress, note)
+        g.edges.freeze(len(g.states))
+        g.seconds = time.perf_counter() - start
+        return g
     initial = m.initial()
     store.add(store.find(initial if reduce is None else reduce(initial))[0])
     if opts.jobs > 1:
@@ -379,6 +394,7 @@ def _levels(
 ) -> None:
     """The breadth-first search, level by level, from the initial state in ``g``."""
     store, batch = g.states, g.batch
+    assert not isinstance(store, PackedStore)  # (the compiled loop has levels of its own)
     renumber = Renumber(store.parts, len(sk.cteam.agents))
     frontier = [0]
     depth = 0

@@ -178,7 +178,10 @@ def test_a_team_whose_one_state_does_not_fit_is_refused_with_the_estimate(tmp_pa
 def test_a_process_past_the_memory_limit_stops_and_says_so(tmp_path, monkeypatch):
     # the resident size is the system's; here it reads 5 GB from the first batch on
     monkeypatch.setattr(sys.modules["hybridteam.verify.explore"], "resident_bytes", lambda: 5e9)
-    report = verify(team_of(tmp_path, COUNTERS), Options(max_memory=4e9), replay=False)
+    # (the Python loop, which checks after each batch; the compiled one after each level:
+    # tests/verify/test_verify_kernel.py)
+    opts = Options(max_memory=4e9, kernel="off")
+    report = verify(team_of(tmp_path, COUNTERS), opts, replay=False)
     g = report.graph
     assert (
         g.bound == "this process reached the memory limit of 4 GB after 3 states "

@@ -1,0 +1,848 @@
+"""The packed explorer: the common case of :func:`~.explore.explore` in a compiled loop.
+
+Exact storage, one process, no symmetry or ample-set reduction, the reaction tables: there
+each successor is a table lookup, a composition and the canonical form, which Python does
+at about 30,000 states a second. Here a state is one fixed-width row of small unsigned
+integers in a growing numpy array (:class:`Layout`), the visited set an open-addressing
+table of row numbers, and a breadth-first level is expanded by :func:`.kernel_core.level`
+(numba): the same choices in the same order, the same reactions, the same canonical form,
+the same numbering, so the graph is the Python path's, state for state and edge for edge.
+
+What the loop does not know it leaves to Python, level by level: a first (dry) pass lists
+the jobs the tables cannot answer — a reaction the engine has not computed, a state whose
+parts are not all settled (a Zeno phase's) — and :class:`~.reactions.Reactions` computes
+them as it always does (the engine, the checks of each new table entry); then the loop
+applies the level. The Python path's functions stay the reference semantics:
+``tests/verify/test_verify_kernel.py`` compares the two graphs on every verify test model.
+
+numba is an optional dependency (``pip install hybridteam[fast]``); without it, or with
+``HYBRIDTEAM_NUMBA=0`` (the public switch the tests use), ``--kernel auto`` explores in
+Python and says so.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from array import array
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from itertools import islice
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hybridteam.engine.run.budget import resident_bytes
+from hybridteam.engine.run.reliable import ACK
+from hybridteam.verify.abstraction import Skeleton
+from hybridteam.verify.bounds import Values, full, over_memory
+from hybridteam.verify.machine import Copy, OutboxEntry, State
+from hybridteam.verify.reactions import INPUT_ID, NEW_ID, NO_ID, Reactions
+from hybridteam.verify.store import UINT, Edges
+
+if TYPE_CHECKING:
+    from hybridteam.verify.explore import Graph, Options, Progress
+
+#: Message ids per template in a row's numbers (:data:`.kernel_core.IDS`).
+IDS = 64
+#: The most copies (or entries) a state may hold (:data:`.kernel_core.ROOM`).
+ROOM = 256
+#: Choice kinds (:mod:`.kernel_core`), and their words in a choice tuple.
+KINDS = ("deliver", "lose", "dup", "timer", "scenario", "time", "world")
+#: Copy templates' kinds: a plain message, an acknowledged one (an id), an ack.
+PLAIN, WITH_ID, ACK_COPY = 0, 1, 2
+#: Jobs the dry pass lists at a time for Python to compute.
+MISSES = 4096
+
+
+def numba_available() -> bool:
+    """Whether the compiled loop can run: numba importable and not switched off with
+    ``HYBRIDTEAM_NUMBA=0`` (how a test, or a user, takes the Python path under ``auto``)."""
+    if os.environ.get("HYBRIDTEAM_NUMBA", "1") == "0":
+        return False
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def unavailable_reason(opts: Options, agents: int = 0) -> str | None:
+    """Why the options (or a team of ``agents`` agents) keep the compiled loop out
+    (None: they allow it)."""
+    if opts.reference:
+        return "--reference computes every successor with the engine"
+    if opts.storage != "exact":
+        return f"--storage {opts.storage} is a partial search"
+    if opts.jobs != 1:
+        return "--jobs uses the process pool"
+    if opts.losses > 0xFFFF or opts.duplicates > 0xFFFF:
+        return "the bounds exceed the packed rows' counters"
+    if agents > 0xFF:
+        return "more than 255 agents (an edge's choice keeps an agent in 8 bits)"
+    return None
+
+
+def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
+    """Whether to explore with the compiled loop (``opts.kernel``), and which loop
+    explores, in words (verify's first line says it). ``reduced``: a symmetry or ample-set
+    reduction is in effect (the Python loop explores it, ``on`` or not). Raises ValueError
+    for ``kernel="on"`` without numba or with options it does not serve."""
+    if opts.kernel not in ("auto", "on", "off"):
+        raise ValueError(f"kernel must be auto, on or off, got {opts.kernel!r}")
+    if opts.kernel == "off":
+        return False, "python loop: --kernel off"
+    reason = unavailable_reason(opts, agents)
+    if reason is None and not numba_available():
+        reason = "numba is not installed: pip install 'hybridteam[fast]'"
+    if reason is not None and opts.kernel == "on":
+        raise ValueError(f"--kernel on: {reason}")
+    if reason is None and reduced:
+        reason = "symmetry or ample-set reduction is on"
+    if reason is not None:
+        return False, f"python loop: {reason}"
+    return True, "compiled kernel"
+
+
+def cache_dir() -> str:
+    """Where numba keeps the compiled loop between runs: ``NUMBA_CACHE_DIR`` if set,
+    else the user's cache folder (the package's own folder may not be writable)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(base) / "hybridteam" / "numba"))
+
+
+@dataclass
+class Layout:
+    """Where a row keeps what: ``agents`` part numbers, then ``copies`` slots, ``entries``
+    slots and ``seen`` slots (each number plus one, 0 an empty slot), then cursor, losses
+    and duplicates. The next ids are not kept: a canonical state's are the counts of the
+    ids its agents have in use (:func:`.kernel_core.decode`)."""
+
+    agents: int
+    copies: int = 0
+    entries: int = 0
+    seen: int = 0
+
+    @property
+    def width(self) -> int:
+        return self.agents + self.copies + self.entries + self.seen + 3
+
+    def array(self) -> np.ndarray:
+        return np.array([self.agents, self.copies, self.entries, self.seen], np.int64)
+
+    def fit(self, need: tuple[int, int, int]) -> Layout:
+        """This layout with room for ``need`` (copies, entries, seen)."""
+        if max(need) > ROOM:
+            raise RuntimeError(f"kernel: a state with more than {ROOM} copies or entries")
+        return Layout(
+            self.agents,
+            max(self.copies, need[0]),
+            max(self.entries, need[1]),
+            max(self.seen, need[2]),
+        )
+
+    def widen(self, rows: np.ndarray, new: Layout) -> np.ndarray:
+        """``rows`` in layout ``new`` (each group at its new place)."""
+        out = np.zeros((rows.shape[0], new.width), rows.dtype)
+        src = dst = self.agents
+        out[:, :src] = rows[:, :src]
+        for old_n, new_n in (
+            (self.copies, new.copies),
+            (self.entries, new.entries),
+            (self.seen, new.seen),
+        ):
+            out[:, dst : dst + old_n] = rows[:, src : src + old_n]
+            src, dst = src + old_n, dst + new_n
+        out[:, dst:] = rows[:, src:]
+        return out
+
+
+class Packing:
+    """The numbers a row is made of: agent parts, copy templates, outbox-entry templates,
+    and the arrays the loop reads about them (rebuilt when something new is numbered)."""
+
+    def __init__(self, sk: Skeleton, m: Reactions) -> None:
+        self.sk, self.m = sk, m
+        self.agents = len(sk.cteam.agents)
+        self.part_number: dict[tuple, int] = {}
+        self.values: list[tuple] = []  # part number -> the agent's part
+        self.part_agent: list[int] = []
+        self.templates: dict[tuple, int] = {}
+        self.template_values: list[tuple] = []
+        self.entry_number: dict[tuple, int] = {}
+        self.entry_values: list[OutboxEntry] = []
+        self.hears = sk.hears
+        self.scenario = m.scenario
+        self.dirty = True
+
+    # ------------------------------------------------------------------ numbering
+    def part(self, a: int, part: tuple) -> int:
+        k = self.part_number.get((a, part))
+        if k is None:
+            k = self.part_number[(a, part)] = len(self.values)
+            self.values.append(part)
+            self.part_agent.append(a)
+            self.dirty = True
+        return k
+
+    def template(self, t: tuple) -> int:
+        k = self.templates.get(t)
+        if k is None:
+            k = self.templates[t] = len(self.template_values)
+            self.template_values.append(t)
+            self.dirty = True
+        return k
+
+    def entry(self, e: OutboxEntry) -> int:
+        """An outbox entry's template (the entry with msg_id -1)."""
+        e = e._replace(msg_id=-1)
+        k = self.entry_number.get(e)
+        if k is None:
+            k = self.entry_number[e] = len(self.entry_values)
+            self.entry_values.append(e)
+            self.dirty = True
+        return k
+
+    def copy(self, c: Copy) -> tuple[int, int]:
+        """A copy as (template, id)."""
+        if c.type == ACK:
+            if c.msg_id != -1 or len(c.fields) != 1:
+                raise RuntimeError(f"kernel: an ack copy it cannot pack: {c}")
+            t = (ACK_COPY, c.sender, c.receiver, c.socket, ACK, ())
+            return self.template(t), int(c.fields[0][1])
+        if c.msg_id >= 0:
+            return self.template((WITH_ID, c.sender, c.receiver, c.socket, c.type, c.fields)), (
+                c.msg_id
+            )
+        return self.template((PLAIN, c.sender, c.receiver, c.socket, c.type, c.fields)), 0
+
+    def copy_of(self, t: int, k: int) -> Copy:
+        kind, snd, rcv, socket, type_, fields = self.template_values[t]
+        if kind == ACK_COPY:
+            return Copy(snd, rcv, socket, ACK, -1, (("id", float(k)),))
+        return Copy(snd, rcv, socket, type_, k if kind == WITH_ID else -1, fields)
+
+    # ------------------------------------------------------------------ rows
+    def pack(self, s: State, lay: Layout, out: np.ndarray) -> bool:
+        """Write canonical state ``s`` into ``out``; False when it does not fit ``lay``."""
+        if len(s.inflight) > lay.copies or len(s.outbox) > lay.entries or len(s.seen) > lay.seen:
+            return False
+        if s.next_ids != self._ids(s):
+            raise RuntimeError(f"kernel: a state that is not canonical: {s}")
+        out[:] = 0
+        a = self.agents
+        for b, part in enumerate(s.agents):
+            out[b] = self.part(b, part)
+        p = a
+        for i, c in enumerate(s.inflight):
+            t, k = self.copy(c)
+            out[p + i] = t * IDS + k + 1
+        p += lay.copies
+        for i, e in enumerate(s.outbox):
+            out[p + i] = self.entry(e) * IDS + e.msg_id + 1
+        p += lay.entries
+        for i, (r, snd, k) in enumerate(s.seen):
+            out[p + i] = (r * a + snd) * IDS + k + 1
+        p += lay.seen
+        out[p : p + 3] = (s.cursor, s.losses, s.dups)
+        return True
+
+    def unpack(self, row: np.ndarray, lay: Layout) -> State:
+        """The state of ``row``; its next ids are the counts of its ids in use per agent
+        (as :meth:`~.machine.Machine.canonical` counts them)."""
+        nums = row.tolist()
+        a = self.agents
+        agents = tuple(self.values[n] for n in nums[:a])
+        p = a
+        codes = [v - 1 for v in nums[p : p + lay.copies] if v]
+        inflight = tuple(self.copy_of(v // IDS, v % IDS) for v in codes)
+        p += lay.copies
+        outbox = tuple(
+            self.entry_values[v // IDS]._replace(msg_id=v % IDS)
+            for v in (v - 1 for v in nums[p : p + lay.entries] if v)
+        )
+        p += lay.entries
+        seen = tuple(
+            (v // IDS // a, v // IDS % a, v % IDS)
+            for v in (v - 1 for v in nums[p : p + lay.seen] if v)
+        )
+        p += lay.seen
+        s = State(agents, inflight, outbox, seen, nums[p], nums[p + 1], nums[p + 2])
+        return s._replace(next_ids=self._ids(s))
+
+    def _ids(self, s: State) -> tuple:
+        """Per agent, how many of its message ids ``s`` has in use (a canonical state's
+        next ids: its ids are 0..n-1)."""
+        live: list[set[int]] = [set() for _ in range(self.agents)]
+        for c in s.inflight:
+            if c.type == ACK:
+                live[c.receiver].add(int(c.fields[0][1]))
+            elif c.msg_id >= 0:
+                live[c.sender].add(c.msg_id)
+        for e in s.outbox:
+            live[e.sender].add(e.msg_id)
+        for _, snd, k in s.seen:
+            live[snd].add(k)
+        return tuple(len(ids) for ids in live)
+
+    def fits16(self) -> bool:
+        """Whether every number a row holds fits two bytes."""
+        return (
+            len(self.template_values) < 0xFFFF // IDS
+            and len(self.entry_values) < 0xFFFF // IDS
+            and len(self.values) < 0xFFFF
+            and self.agents * self.agents * IDS < 0xFFFF
+            and len(self.scenario) < 0xFFFF
+        )
+
+    # ------------------------------------------------------------------ the loop's arrays
+    def tables(self) -> tuple:
+        """The arrays :func:`.kernel_core.level` reads (rebuilt when something new was
+        numbered: templates' sort ranks change as new ones arrive): per copy template its
+        kind, sender, receiver, whether the receiver hears it, and its ranks (sender to
+        type, fields, link); per entry template its sender, waiting mask and rank; per
+        part where its time-driven transitions start and how many, those transitions
+        (index, untimed), which world events it waits for; the world events' agents; the
+        scenario's agents."""
+        from hybridteam.verify.explore import _local
+
+        sk, tv, ev = self.sk, self.template_values, self.entry_values
+        key_rank = _ranks([(t[1], t[2], t[3], t[4]) for t in tv])
+        field_rank = _ranks([t[5] for t in tv])
+        link_rank = _ranks([(t[1], t[2], t[3]) for t in tv])
+        copies = np.zeros((7, max(1, len(tv))), np.int64)
+        for t, (kind, snd, rcv, _, type_, _) in enumerate(tv):
+            copies[:4, t] = (kind, snd, rcv, type_ in self.hears[rcv])
+        copies[4, : len(tv)] = key_rank[: len(tv)]
+        copies[5, : len(tv)] = field_rank[: len(tv)]
+        copies[6, : len(tv)] = link_rank[: len(tv)]
+        rest = _ranks(
+            [(e.type, e.socket, e.fields, e.waiting, e.retries_left, e.timeout, e.rank) for e in ev]
+        )
+        entries = np.zeros((3, max(1, len(ev))), np.int64)
+        for k, e in enumerate(ev):
+            entries[:2, k] = (e.sender, sum(1 << b for b in e.waiting))
+        entries[2, : len(ev)] = rest[: len(ev)]
+        t0: list[int] = []
+        tn: list[int] = []
+        tj: list[int] = []
+        tu: list[int] = []
+        world = np.zeros((max(1, len(self.values)), max(1, len(sk.world_events))), np.uint8)
+        for p, (a, part) in enumerate(zip(self.part_agent, self.values, strict=True)):
+            timed, events = _local(self.m.local_choices, sk, a, part)
+            t0.append(len(tj))
+            tn.append(len(timed))
+            for j, untimed in timed:
+                tj.append(j)
+                tu.append(untimed)
+            for w, (b, event) in enumerate(sk.world_events):
+                world[p, w] = b == a and event in events
+        starts = np.array([t0 or [0], tn or [0]], np.int64)
+        flat = np.array([tj or [0], tu or [0]], np.int64)
+        agents = np.array([a for a, _ in sk.world_events], np.int64)
+        scen = np.array([a for _, a, _ in self.scenario] or [0], np.int64)
+        self.dirty = False
+        return copies, entries, starts, flat, world, agents, scen
+
+
+def _ranks(values: list) -> np.ndarray:
+    """Each value's rank among the distinct ``values`` in Python's order."""
+    order = {v: k for k, v in enumerate(sorted(set(values)))}
+    return np.array([order[v] for v in values] or [0], np.int64)
+
+
+class Table:
+    """The reaction tables as the loop reads them: a key row (input, part, tape) per
+    kernel key, and per reaction its new part, Zeno flag, reads, copies, kept entry,
+    new entries and filter flag (:class:`~.reactions.Reaction`, numbered)."""
+
+    def __init__(self, pk: Packing) -> None:
+        self.pk = pk
+        self.synced = 0
+        self.keys: list[tuple[int, int, int, int]] = []
+        self.part: list[int] = []
+        self.zeno: list[int] = []
+        self.reads: list[int] = []
+        self.c0: list[int] = []
+        self.cn: list[int] = []
+        self.c_tmpl: list[int] = []
+        self.c_how: list[int] = []
+        self.c_off: list[int] = []
+        self.kept: list[int] = []
+        self.e0: list[int] = []
+        self.en: list[int] = []
+        self.e_tmpl: list[int] = []
+        self.e_off: list[int] = []
+        self.filtered: list[int] = []
+        self.arrays: tuple | None = None
+
+    def sync(self) -> bool:
+        """Number the entries the engine added since last time; whether any were."""
+        table = self.pk.m.table
+        if len(table) == self.synced:
+            return False
+        for key, r in islice(table.items(), self.synced, None):
+            self._add(key, r)
+        self.synced = len(table)
+        self.arrays = None
+        return True
+
+    def _add(self, key: tuple, r) -> None:
+        pk = self.pk
+        kind = key[0]
+        part, tape = key[-2], _tape(key[-1])
+        if kind == "deliver":
+            _, a, snd, socket, type_, fields, has_id, held = key[:8]
+            t = pk.template((WITH_ID if has_id else PLAIN, snd, a, socket, type_, fields))
+            inkeys = [_code(0, t, int(held))]
+        elif kind == ACK:
+            _, a, snd, socket, e = key[:5]
+            t = pk.template((ACK_COPY, snd, a, socket, ACK, ()))
+            inkeys = [_code(1, t, 0 if e is None else pk.entry(e) + 1)]
+        elif kind == "timer":
+            a = key[1]
+            inkeys = [_code(2, pk.entry(key[2]), 0)]
+        elif kind == "scenario":
+            a, name = key[1], key[2]
+            inkeys = [
+                _code(3, c, 0) for c, (_, b, n) in enumerate(pk.scenario) if (b, n) == (a, name)
+            ]
+        elif kind == "time":
+            a = key[1]
+            inkeys = [_code(4, a, key[2])]
+        else:  # world
+            a = key[1]
+            inkeys = [
+                _code(5, w, 0) for w, ev in enumerate(pk.sk.world_events) if ev == (a, key[2])
+            ]
+        n = len(self.part)
+        p = pk.part(a, part)
+        self.keys += [(k, p, tape, n) for k in inkeys]
+        self.part.append(pk.part(a, r.part))
+        self.zeno.append(int(r.zeno))
+        self.reads.append(r.reads)
+        self.c0.append(len(self.c_tmpl))
+        self.cn.append(len(r.copies))
+        for c, how, off in r.copies:
+            if c.type == ACK:
+                t = pk.template((ACK_COPY, c.sender, c.receiver, c.socket, ACK, ()))
+            else:
+                kind_c = PLAIN if how == NO_ID else WITH_ID
+                t = pk.template((kind_c, c.sender, c.receiver, c.socket, c.type, c.fields))
+            self.c_tmpl.append(t)
+            self.c_how.append({NO_ID: 0, INPUT_ID: 1, NEW_ID: 2}[how])
+            self.c_off.append(off)
+        self.kept.append(-1 if r.kept is None else pk.entry(r.kept))
+        self.e0.append(len(self.e_tmpl))
+        self.en.append(len(r.entries))
+        for e, off in r.entries:
+            self.e_tmpl.append(pk.entry(e))
+            self.e_off.append(off)
+        self.filtered.append(int(r.filtered))
+
+    def array(self) -> tuple:
+        if self.arrays is None:
+            from hybridteam.verify.kernel_core import place_reaction
+
+            rk = np.array(self.keys or [(-1, -1, -1, -1)], np.int64)
+            slots = np.full(_pow2(2 * len(self.keys) + 2), -1, np.int64)
+            for r in range(len(self.keys)):
+                place_reaction(rk, slots, r)
+
+            def rows(*columns: list[int]) -> np.ndarray:
+                return np.array([c or [0] for c in columns], np.int64)
+
+            self.arrays = (
+                rk,
+                slots,
+                rows(
+                    self.part,
+                    self.zeno,
+                    self.reads,
+                    self.c0,
+                    self.cn,
+                    self.kept,
+                    self.e0,
+                    self.en,
+                    self.filtered,
+                ),
+                rows(self.c_tmpl, self.c_how, self.c_off),
+                rows(self.e_tmpl, self.e_off),
+            )
+        return self.arrays
+
+
+def _code(kind: int, x: int, y: int) -> int:
+    return (kind << 40) | (x << 20) | y
+
+
+def _tape(tape: tuple) -> int:
+    """A tape of answers as one number: a leading 1, then the answers (bit i: answer i)."""
+    return (1 << len(tape)) | sum(1 << i for i, b in enumerate(tape) if b)
+
+
+def _untape(code: int) -> tuple:
+    n = code.bit_length() - 1
+    return tuple(bool(code >> i & 1) for i in range(n))
+
+
+def _pow2(n: int) -> int:
+    return 1 << max(4, (n - 1).bit_length())
+
+
+class PackedStore:
+    """The explored states as rows (:class:`Layout`), found again through an
+    open-addressing table of row numbers; ``store[k]`` decodes state ``k``. Answers what
+    properties, counterexamples and replays ask of :class:`~.store.Store`: ``len``,
+    ``store[k]``, ``agents_of(k)``, ``agent_parts`` and ``parts.values``."""
+
+    def __init__(self, pk: Packing, lay: Layout) -> None:
+        self.pk, self.lay = pk, lay
+        self.rows = np.zeros((1024, lay.width), np.uint16)
+        self.n = 0
+        self.slots = np.full(2048, -1, np.int32)
+        self.parts = pk  # ``parts.values``: agent parts by number
+        self._agent_parts: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, k: int) -> State:
+        if not -self.n <= k < self.n:
+            raise IndexError(k)
+        return self.pk.unpack(self.rows[k % self.n], self.lay)
+
+    def __iter__(self):
+        return (self[k] for k in range(self.n))
+
+    def agents_of(self, k: int) -> tuple:
+        return tuple(self.pk.values[p] for p in self.rows[k, : self.pk.agents].tolist())
+
+    @property
+    def agent_parts(self) -> np.ndarray:
+        """Each state's agent part numbers (made once exploring is done: the checks read
+        them block by block)."""
+        if self._agent_parts is None or len(self._agent_parts) != self.n * self.pk.agents:
+            self._agent_parts = np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
+        return self._agent_parts
+
+    def reserve(self, more: int) -> None:
+        """Room for ``more`` rows, and a table at most half full with them."""
+        need = self.n + more
+        if need > self.rows.shape[0]:  # (in place where the allocator can: no second copy)
+            grown = max(need, self.rows.shape[0] * 5 // 4)
+            self.rows.resize((grown, self.lay.width), refcheck=False)
+        if 10 * need > 7 * self.slots.size:  # at most 70 % full
+            self._rehash(_pow2(2 * need))
+
+    def seal(self) -> None:
+        """Exploring is done: the rows shrink to the states they hold and the table goes
+        (states are only read by number from now on), before the checks take their
+        arrays."""
+        self.rows.resize((max(self.n, 1), self.lay.width), refcheck=False)
+        self.slots = np.zeros(0, np.int32)
+
+    def _rehash(self, size: int = 0) -> None:
+        """The table built again, of ``size`` slots or more (a sealed store has none)."""
+        from hybridteam.verify.kernel_core import rehash
+
+        self.slots = np.zeros(0, np.int32)  # (the old one goes first)
+        self.slots = np.full(max(size, _pow2(2 * self.n)), -1, np.int32)
+        rehash(self.rows, self.n, self.slots)
+
+    def relayout(self, lay: Layout, dtype: Any) -> None:
+        """Rows in a wider layout or a wider integer type (a count or a number outgrew
+        them); the table is built again."""
+        rows = self.lay.widen(self.rows, lay).astype(dtype)
+        self.rows, self.lay = rows, lay
+        self._rehash()
+
+
+def explore_packed(
+    sk: Skeleton,
+    opts: Options,
+    m: Reactions,
+    g: Graph,
+    values: Values,
+    limit: float,
+    start: float,
+    progress: Progress | None,
+    note: Callable[[str], None] | None = None,
+) -> None:
+    """:func:`~.explore._levels` for the packed store: fills ``g`` (its ``states``
+    become a :class:`PackedStore`, its edges an :class:`~.store.Edges`)."""
+    where = cache_dir()
+    from hybridteam.verify import kernel_core as kc
+
+    if note is not None and not kc.level.signatures:  # (not yet loaded in this process)
+        note(f"compiled kernel: loading it from {where}, or compiling it there (first run)")
+
+    pk = Packing(sk, m)
+    table = Table(pk)
+    lay = Layout(pk.agents)
+    store = PackedStore(pk, lay)
+    initial = m.initial()
+    store.relayout(store.lay.fit(_counts(initial)), store.rows.dtype)
+    pk.pack(initial, store.lay, store.rows[0])
+    kc.rehash(store.rows, 0, store.slots)
+    _, slot = kc.find_row(store.rows, store.slots, store.rows[0])
+    store.slots[slot] = 0
+    store.n = 1
+    parent = np.full(1024, 0xFFFFFFFF, np.uint32)
+    fifo = opts.order == "fifo"
+    timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
+    opt = np.array(
+        [
+            fifo,
+            opts.ack_timing == "bounded",
+            timeouts,
+            opts.losses,
+            opts.duplicates,
+            len(m.scenario),
+        ],
+        np.int64,
+    )
+    edges = PackedEdges()
+    known: dict[int, int] = {}  # an edge's choice code -> its number in ``edges.choices``
+    lo, hi = 0, 1
+    depth = 0
+    tb: tuple | None = None
+    none = np.zeros(0, np.uint32)
+    need = np.zeros(3, np.int64)  # the group counts of a successor that outgrew the layout
+    pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
+    while lo < hi:
+        misses = np.zeros((MISSES, 4), np.int64)
+        while True:  # dry passes until the tables answer every job of the level
+            table.sync()
+            lay = store.lay.fit(_most(s for s, _, _ in pre.values()))
+            if lay != store.lay:  # a successor computed in Python outgrew the layout
+                store.relayout(lay, store.rows.dtype)
+            pre_ord, pre_rows, pre_res = _pre(pk, store, pre)
+            if store.rows.dtype == np.uint16 and not pk.fits16():
+                store.relayout(store.lay, np.uint32)
+                continue
+            if pk.dirty or tb is None:
+                tb = pk.tables()
+            settled = _settled(pk, m)
+            status, jobs, _, _, _, _, nm = kc.level(  # type: ignore[call-arg]
+                store.rows,
+                store.n,
+                lo,
+                hi,
+                store.slots,
+                store.lay.array(),
+                *tb,
+                *table.array(),
+                opt,
+                settled,
+                pre_ord,
+                pre_rows,
+                pre_res,
+                False,
+                opts.max_states,
+                parent,
+                none,
+                none,
+                none,
+                none,
+                none,
+                misses,
+                need,
+            )
+            if nm == 0:
+                break
+            _fill(m, pk, store, misses[:nm], pre, g.batch)
+        # the level, applied
+        store.reserve(jobs)
+        if parent.size < store.n + jobs:
+            parent = np.concatenate(
+                [parent, np.full(max(parent.size // 2, jobs), 0xFFFFFFFF, np.uint32)]
+            )
+        e_src = np.zeros(jobs, np.uint32)
+        e_dst = np.zeros(jobs, np.uint32)
+        e_how = np.zeros(jobs, np.uint32)
+        zeno = np.zeros(jobs, np.uint32)
+        cut = np.zeros(jobs, np.uint32)
+        status, done, n, ne, nz, nx, _ = kc.level(  # type: ignore[call-arg]
+            store.rows,
+            store.n,
+            lo,
+            hi,
+            store.slots,
+            store.lay.array(),
+            *tb,
+            *table.array(),
+            opt,
+            settled,
+            pre_ord,
+            pre_rows,
+            pre_res,
+            True,
+            opts.max_states,
+            parent,
+            e_src,
+            e_dst,
+            e_how,
+            zeno,
+            cut,
+            misses,
+            need,
+        )
+        if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
+            c, e, k = need.tolist()
+            store.relayout(store.lay.fit((c, e, k)), store.rows.dtype)
+            continue
+        if status == kc.TOO_MANY_IDS:
+            raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
+        if status != kc.OK or done != jobs:
+            raise RuntimeError(f"kernel: the level did not apply as its dry pass said ({status})")
+        g.transitions += jobs
+        _add_edges(sk, edges, known, e_src[:ne], e_dst[:ne], e_how[:ne])
+        del e_src, e_dst, e_how
+        g.zeno.update(zeno[:nz].tolist())
+        if nx:
+            g.exhaustive = False
+            g.bound = g.bound or full(opts.max_states)
+            g.cut.update(cut[:nx].tolist())
+        lo, hi = hi, n
+        store.n = n
+        pre = {}
+        depth += 1
+        now = time.perf_counter()
+        if progress is not None:
+            progress(store.n, hi - lo, depth, now - start)
+        stop = over_memory(resident_bytes(), limit, store.n)
+        if stop is not None:
+            _stop(g, stop, range(lo, hi))
+            break
+        stop = values.grown()
+        if stop is not None:
+            _stop(g, stop, range(lo, hi))
+            break
+    if progress is not None:
+        progress(store.n, 0, depth, time.perf_counter() - start)
+    store.seal()
+    g.states = store
+    g.parent = array("I")
+    g.parent.frombytes(parent[: store.n].tobytes())
+    g.edges = edges
+
+
+def _stop(g: Graph, reason: str, unexpanded: range) -> None:
+    g.exhaustive = False
+    g.bound = reason if g.bound is None else f"{g.bound}; {reason}"
+    g.cut.update(unexpanded)
+
+
+def _settled(pk: Packing, m: Reactions) -> np.ndarray:
+    """Per part number: whether the engine left it settled (:class:`~.reactions.Reactions`)."""
+    return np.array(
+        [part in m.settled[a] for a, part in zip(pk.part_agent, pk.values, strict=True)] or [False],
+        np.uint8,
+    )
+
+
+def _counts(s: State) -> tuple[int, int, int]:
+    return len(s.inflight), len(s.outbox), len(s.seen)
+
+
+def _most(states: Iterable[State]) -> tuple[int, int, int]:
+    """The most copies, entries and seen triples any of ``states`` holds."""
+    copies = entries = seen = 0
+    for s in states:
+        copies, entries, seen = (
+            max(copies, len(s.inflight)),
+            max(entries, len(s.outbox)),
+            max(seen, len(s.seen)),
+        )
+    return copies, entries, seen
+
+
+def _pre(pk: Packing, store: PackedStore, pre: dict) -> tuple:
+    """The successors Python computed this level, as the loop reads them (each fits the
+    layout)."""
+    keys = sorted(pre)
+    rows = np.zeros((len(keys), store.lay.width), store.rows.dtype)
+    res = np.zeros((len(keys), 2), np.int64)
+    for i, k in enumerate(keys):
+        s, zeno, reads = pre[k]
+        if not pk.pack(s, store.lay, rows[i]):
+            raise RuntimeError("kernel: a computed successor does not fit the layout")
+        res[i] = (zeno, reads)
+    return np.array(keys, np.int64), rows, res
+
+
+def _fill(
+    m: Reactions, pk: Packing, store: PackedStore, misses: np.ndarray, pre: dict, batch: int
+) -> None:
+    """Compute the jobs the loop could not (the engine, through the reaction tables)."""
+    jobs = []
+    states: dict[int, State] = {}
+    for ordinal, sid, code, tape in misses.tolist():
+        s = states.get(sid)
+        if s is None:
+            s = states[sid] = store[sid]
+        jobs.append(
+            (
+                ordinal,
+                s,
+                _choice(pk.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF),
+                _untape(tape),
+            )
+        )
+    for i in range(0, len(jobs), batch):
+        chunk = jobs[i : i + batch]
+        for (ordinal, _, _, _), r in zip(chunk, m.run([j[1:] for j in chunk]), strict=True):
+            pre[ordinal] = (r.state, r.zeno, r.reads)
+
+
+def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
+    """A choice (kind, x, y) as the explorer's choice tuple."""
+    word = KINDS[kind]
+    if word in ("deliver", "lose", "dup", "timer"):
+        return (word, x)
+    if word == "scenario":
+        return ("scenario",)
+    if word == "time":
+        return ("time", x, y)
+    return ("world", x, sk.world_events[y][1])
+
+
+class PackedEdges(Edges):
+    """:class:`~.store.Edges` whose sparse-row view is made by a counting sort into 32-bit
+    arrays (no 64-bit argsort of every edge): at tens of millions of edges the freeze is
+    the check's peak of memory."""
+
+    def freeze(self, states: int) -> None:
+        from hybridteam.verify.kernel_core import sparse_rows
+
+        src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
+        dst = np.frombuffer(self.dst, UINT) if len(self.dst) else np.zeros(0, UINT)
+        how = np.frombuffer(self.how, UINT) if len(self.how) else np.zeros(0, UINT)
+        self._row = np.zeros(states + 1, np.int64)
+        self._dst = np.zeros(len(dst), UINT)  # (32-bit: the Python loop keeps 64)
+        self._how = np.zeros(len(how), UINT)
+        sparse_rows(src, dst, how, self._row, self._dst, self._how)
+
+
+def _add_edges(
+    sk: Skeleton,
+    edges: Edges,
+    known: dict[int, int],
+    src: np.ndarray,
+    dst: np.ndarray,
+    how: np.ndarray,
+) -> None:
+    """Append a level's edges to ``edges``, their choices numbered as
+    :meth:`~.store.Edges.add` numbers them (in order of first use)."""
+    edges.src.frombytes(src.astype(UINT).tobytes())
+    edges.dst.frombytes(dst.astype(UINT).tobytes())
+    codes, first, inverse = np.unique(how, return_index=True, return_inverse=True)
+    for u in np.argsort(first, kind="stable").tolist():
+        code = int(codes[u])
+        if code not in known:
+            choice = _choice(sk, code >> 28, (code >> 20) & 0xFF, code & 0xFFFFF)
+            known[code] = edges.choices.of(choice)
+    number = np.array([known[int(c)] for c in codes.tolist()], UINT)
+    edges.how.frombytes(number[inverse].tobytes())

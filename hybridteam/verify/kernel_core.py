@@ -1,0 +1,784 @@
+"""The compiled loop of the packed explorer (:mod:`.kernel`): numba functions over rows.
+
+A state is one row of small unsigned integers (layout: :class:`~.kernel.Layout`): each
+agent's part number, the copies in flight (``template * IDS + id``), the outbox entries
+(``template * IDS + id``), the seen triples (``(receiver * agents + sender) * IDS + id``),
+each plus one (0: an empty slot), then cursor, losses and duplicates. Templates, parts and reactions
+are numbered by the Python side (:mod:`.kernel`), which also fills whatever the loop does
+not know (a reaction the engine has not computed, a state whose parts are not settled):
+this module only follows the rules of :func:`~.explore.choices`,
+:meth:`~.reactions.Reactions._compose` and :meth:`~.machine.Machine.canonical`, which stay
+the reference semantics (``tests/verify/test_verify_kernel.py`` compares the graphs).
+
+Every function is compiled once and cached on disk (``cache=True``): the first run of a
+machine pays a few seconds of compilation, later runs load it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: Message ids per template (ids are renumbered 0.. per sender: a bit each in a uint64).
+IDS = 64
+#: Choice kinds, in a choice code's bits 40 and up (x: bits 20-39, y: bits 0-19).
+DELIVER, LOSE, DUP, TIMER, SCENARIO, TIME, WORLD = range(7)
+#: Copy templates' kinds: a plain message (no id), an acknowledged one (an id), an ack.
+PLAIN, WITH_ID, ACK_COPY = 0, 1, 2
+#: A sent copy's id: none, the choice's input id, the agent's next id plus an offset.
+NO_ID, INPUT_ID, NEW_ID = 0, 1, 2
+#: What a job or a pass ended with: done, a successor the tables do not know, a group
+#: wider than the layout's slots, a message id beyond :data:`IDS`.
+OK, MISS, OVERFLOW, TOO_MANY_IDS = 0, 1, 2, 3
+#: Scratch room for a state's copies, entries and seen triples while it is composed.
+ROOM = 256
+
+
+@njit(cache=True)
+def choice_code(kind: int, x: int, y: int) -> int:
+    return (kind << 40) | (x << 20) | y
+
+
+@njit(cache=True)
+def row_hash(row: np.ndarray) -> np.uint64:
+    h = np.uint64(1469598103934665603)
+    for v in row:
+        h = (h ^ np.uint64(v)) * np.uint64(1099511628211)
+    return h ^ (h >> np.uint64(29))
+
+
+@njit(cache=True)
+def find_row(rows: np.ndarray, slots: np.ndarray, row: np.ndarray) -> tuple[int, int]:
+    """``(number, -1)`` of a stored row equal to ``row``, or ``(-1, slot)`` where it goes."""
+    mask = slots.size - 1
+    i = np.int64(row_hash(row) & np.uint64(mask))
+    w = row.size
+    while True:
+        k = slots[i]
+        if k < 0:
+            return -1, int(i)
+        same = True
+        for j in range(w):
+            if rows[k, j] != row[j]:
+                same = False
+                break
+        if same:
+            return int(k), -1
+        i = (i + 1) & mask
+
+
+@njit(cache=True)
+def rehash(rows: np.ndarray, n: int, slots: np.ndarray) -> None:
+    """Place rows ``0..n-1`` in an empty table ``slots``."""
+    mask = slots.size - 1
+    for k in range(n):
+        i = np.int64(row_hash(rows[k]) & np.uint64(mask))
+        while slots[i] >= 0:
+            i = (i + 1) & mask
+        slots[i] = k
+
+
+@njit(cache=True)
+def find_reaction(rk: np.ndarray, rslots: np.ndarray, inkey: int, part: int, tape: int) -> int:
+    """The reaction numbered for ``(input, part, tape)``, or -1 (an open-addressing table
+    over the rows of ``rk``: input key, part, tape, reaction)."""
+    mask = rslots.size - 1
+    h = np.uint64(inkey) * np.uint64(0x9E3779B97F4A7C15)
+    h = (h ^ np.uint64(part)) * np.uint64(0xBF58476D1CE4E5B9)
+    h = (h ^ np.uint64(tape)) * np.uint64(0x94D049BB133111EB)
+    i = np.int64((h ^ (h >> np.uint64(31))) & np.uint64(mask))
+    while True:
+        r = rslots[i]
+        if r < 0:
+            return -1
+        if rk[r, 0] == inkey and rk[r, 1] == part and rk[r, 2] == tape:
+            return rk[r, 3]
+        i = (i + 1) & mask
+
+
+@njit(cache=True)
+def place_reaction(rk: np.ndarray, rslots: np.ndarray, r: int) -> None:
+    mask = rslots.size - 1
+    h = np.uint64(rk[r, 0]) * np.uint64(0x9E3779B97F4A7C15)
+    h = (h ^ np.uint64(rk[r, 1])) * np.uint64(0xBF58476D1CE4E5B9)
+    h = (h ^ np.uint64(rk[r, 2])) * np.uint64(0x94D049BB133111EB)
+    i = np.int64((h ^ (h >> np.uint64(31))) & np.uint64(mask))
+    while rslots[i] >= 0:
+        i = (i + 1) & mask
+    rslots[i] = r
+
+
+@njit(cache=True)
+def _popcount(x: np.uint64) -> int:
+    n = 0
+    while x:
+        x &= x - np.uint64(1)
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def _rank(mask: np.uint64, k: int) -> int:
+    return _popcount(mask & ((np.uint64(1) << np.uint64(k)) - np.uint64(1)))
+
+
+@njit(cache=True)
+def decode(row, lay, TT, EN, D, head, live) -> None:
+    """Unpack ``row`` (layout ``lay``: agents, copy slots, entry slots, seen slots, each
+    number stored plus one, 0 an empty slot) into ``D``'s rows: 0 the agents' parts, 1
+    their next ids, 2-3 the copies' templates and ids, 4-5 the entries' templates and
+    ids, 6-8 the seen triples (receiver, sender, id); ``head``: copies, entries, seen,
+    cursor, losses, dups. A canonical state's next ids are not stored: an agent's is the
+    number of its ids in use (they are 0..n-1)."""
+    na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
+    live[:] = 0
+    one = np.uint64(1)
+    for a in range(na):
+        D[0, a] = row[a]
+    p = na
+    nc = 0
+    while nc < cs and row[p + nc] != 0:
+        v = int(row[p + nc]) - 1
+        t, k = v // IDS, v % IDS
+        D[2, nc], D[3, nc] = t, k
+        if TT[0, t] == ACK_COPY:
+            live[TT[2, t]] |= one << np.uint64(k)
+        elif TT[0, t] == WITH_ID:
+            live[TT[1, t]] |= one << np.uint64(k)
+        nc += 1
+    p += cs
+    no = 0
+    while no < os_ and row[p + no] != 0:
+        v = int(row[p + no]) - 1
+        t, k = v // IDS, v % IDS
+        D[4, no], D[5, no] = t, k
+        live[EN[0, t]] |= one << np.uint64(k)
+        no += 1
+    p += os_
+    ns = 0
+    while ns < ss_ and row[p + ns] != 0:
+        v = int(row[p + ns]) - 1
+        k = v % IDS
+        v //= IDS
+        D[8, ns], D[7, ns], D[6, ns] = k, v % na, v // na
+        live[v % na] |= one << np.uint64(k)
+        ns += 1
+    p += ss_
+    head[0], head[1], head[2] = nc, no, ns
+    head[3], head[4], head[5] = row[p], row[p + 1], row[p + 2]
+    for a in range(na):
+        D[1, a] = _popcount(live[a])
+
+
+@njit(cache=True)
+def choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, out) -> int:
+    """The choice codes of a decoded state into ``out``, in the order of
+    :func:`~.explore.choices`; their number."""
+    fifo, bounded, timeouts, max_losses, max_dups, nscen = (
+        opt[0],
+        opt[1],
+        opt[2],
+        opt[3],
+        opt[4],
+        opt[5],
+    )
+    na = lay[0]
+    nc, no, ns, cur, los, dup = head[0], head[1], head[2], head[3], head[4], head[5]
+    n = 0
+    # the arrivals: all copies, or the first on each link (fifo)
+    quiet = -1
+    for k in range(nc):
+        if fifo:
+            first = True
+            for j in range(k):
+                if TT[6, D[2, j]] == TT[6, D[2, k]]:
+                    first = False
+                    break
+            if not first:
+                continue
+        if bounded and quiet < 0:
+            t = D[2, k]
+            if TT[0, t] == ACK_COPY or TT[3, t] == 0:
+                quiet = k
+            elif TT[0, t] == WITH_ID:
+                for j in range(ns):
+                    if D[6, j] == TT[2, t] and D[7, j] == TT[1, t] and D[8, j] == D[3, k]:
+                        quiet = k
+                        break
+    if quiet >= 0:  # a copy no mode sees: only its fates
+        out[n] = choice_code(DELIVER, quiet, 0)
+        n += 1
+        if los < max_losses:
+            out[n] = choice_code(LOSE, quiet, 0)
+            n += 1
+        if dup < max_dups:
+            out[n] = choice_code(DUP, quiet, 0)
+            n += 1
+        return n
+    for k in range(nc):
+        if fifo:
+            first = True
+            for j in range(k):
+                if TT[6, D[2, j]] == TT[6, D[2, k]]:
+                    first = False
+                    break
+            if not first:
+                continue
+        again = False  # an identical copy among the arrivals before it
+        for j in range(k):
+            if D[2, j] == D[2, k] and D[3, j] == D[3, k]:
+                if fifo:
+                    firstj = True
+                    for i in range(j):
+                        if TT[6, D[2, i]] == TT[6, D[2, j]]:
+                            firstj = False
+                            break
+                    if not firstj:
+                        continue
+                again = True
+                break
+        if again:
+            continue
+        out[n] = choice_code(DELIVER, k, 0)
+        n += 1
+        if los < max_losses:
+            out[n] = choice_code(LOSE, k, 0)
+            n += 1
+        if dup < max_dups:
+            out[n] = choice_code(DUP, k, 0)
+            n += 1
+    for k in range(no):
+        snd, mid = EN[0, D[4, k]], D[5, k]
+        flying = False
+        if bounded:
+            for j in range(nc):
+                t = D[2, j]
+                if TT[0, t] == ACK_COPY:
+                    if TT[2, t] == snd and D[3, j] == mid:
+                        flying = True
+                        break
+                elif TT[0, t] == WITH_ID and TT[1, t] == snd and D[3, j] == mid:
+                    flying = True
+                    break
+        if not flying:
+            out[n] = choice_code(TIMER, k, 0)
+            n += 1
+    if cur < nscen:
+        out[n] = choice_code(SCENARIO, 0, 0)
+        n += 1
+    net_quiet = nc == 0 and no == 0
+    for a in range(na):
+        p = D[0, a]
+        if PT[1, p] == 0:
+            continue
+        settled = True
+        if timeouts == 1:
+            for j in range(nc):
+                t = D[2, j]
+                if TT[1, t] == a and TT[0, t] != ACK_COPY:
+                    settled = False
+                    break
+            for j in range(no):
+                if EN[0, D[4, j]] == a:
+                    settled = False
+                    break
+        for i in range(PT[0, p], PT[0, p] + PT[1, p]):
+            if timeouts == 2:
+                ok = net_quiet
+            else:
+                ok = settled
+            if timeouts == 0 or TJ[1, i] != 0 or ok:
+                out[n] = choice_code(TIME, a, TJ[0, i])
+                n += 1
+    for w in range(WA.size):
+        if PW[D[0, WA[w]], w] != 0:
+            out[n] = choice_code(WORLD, WA[w], w)
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def canonical(lay, TT, EN, fifo, nc, D, no, ns, cnt, live) -> int:
+    """:meth:`~.machine.Machine.canonical` in place on the scratch arrays: drop the acks
+    no entry waits for and the filter entries no copy can match, renumber ids per sender,
+    sort. ``cnt`` gets the new lengths (copies, entries, seen); returns OK or
+    TOO_MANY_IDS."""
+    na = lay[0]
+    live[:] = 0
+    one = np.uint64(1)
+    m = 0
+    for i in range(nc):
+        t, k = D[2, i], D[3, i]
+        if k >= IDS:
+            return TOO_MANY_IDS
+        if TT[0, t] == ACK_COPY:
+            snd, rcv = TT[1, t], TT[2, t]
+            waits = False
+            for j in range(no):
+                if EN[0, D[4, j]] == rcv and D[5, j] == k and ((EN[1, D[4, j]] >> snd) & 1) != 0:
+                    waits = True
+                    break
+            if not waits:
+                continue
+            live[rcv] |= one << np.uint64(k)
+        elif TT[0, t] == WITH_ID:
+            live[TT[1, t]] |= one << np.uint64(k)
+        D[2, m], D[3, m] = t, k
+        m += 1
+    nc = m
+    for j in range(no):
+        if D[5, j] >= IDS:
+            return TOO_MANY_IDS
+        live[EN[0, D[4, j]]] |= one << np.uint64(D[5, j])
+    m = 0
+    for i in range(ns):
+        r, s, k = D[6, i], D[7, i], D[8, i]
+        keep = False
+        for j in range(nc):
+            t = D[2, j]
+            if TT[0, t] == WITH_ID and TT[1, t] == s and TT[2, t] == r and D[3, j] == k:
+                keep = True
+                break
+        if not keep:
+            for j in range(no):
+                if EN[0, D[4, j]] == s and D[5, j] == k and ((EN[1, D[4, j]] >> r) & 1) != 0:
+                    keep = True
+                    break
+        if keep:
+            dupe = False
+            for j in range(m):
+                if D[6, j] == r and D[7, j] == s and D[8, j] == k:
+                    dupe = True
+                    break
+            if not dupe:
+                D[6, m], D[7, m], D[8, m] = r, s, k
+                m += 1
+                live[s] |= one << np.uint64(k)
+    ns = m
+    for a in range(na):
+        D[1, a] = _popcount(live[a])
+    # renumber
+    for i in range(nc):
+        t = D[2, i]
+        if TT[0, t] == ACK_COPY:
+            D[3, i] = _rank(live[TT[2, t]], D[3, i])
+        elif TT[0, t] == WITH_ID:
+            D[3, i] = _rank(live[TT[1, t]], D[3, i])
+    for j in range(no):
+        D[5, j] = _rank(live[EN[0, D[4, j]]], D[5, j])
+    for i in range(ns):
+        D[8, i] = _rank(live[D[7, i]], D[8, i])
+    # sort the copies: by the Copy tuple, or (fifo) stably by link
+    for i in range(1, nc):
+        t, k = D[2, i], D[3, i]
+        if fifo:
+            key = TT[6, t]
+        elif TT[0, t] == ACK_COPY:
+            key = (TT[4, t] << 32) | k
+        elif TT[0, t] == WITH_ID:
+            key = (TT[4, t] << 32) | ((k + 1) << 24) | TT[5, t]
+        else:
+            key = (TT[4, t] << 32) | TT[5, t]
+        j = i - 1
+        while j >= 0:
+            u, v = D[2, j], D[3, j]
+            if fifo:
+                kj = TT[6, u]
+            elif TT[0, u] == ACK_COPY:
+                kj = (TT[4, u] << 32) | v
+            elif TT[0, u] == WITH_ID:
+                kj = (TT[4, u] << 32) | ((v + 1) << 24) | TT[5, u]
+            else:
+                kj = (TT[4, u] << 32) | TT[5, u]
+            if kj <= key:
+                break
+            D[2, j + 1], D[3, j + 1] = u, v
+            j -= 1
+        D[2, j + 1], D[3, j + 1] = t, k
+    for i in range(1, no):
+        t, k = D[4, i], D[5, i]
+        key = (EN[0, t] << 48) | (k << 40) | EN[2, t]
+        j = i - 1
+        while j >= 0 and ((EN[0, D[4, j]] << 48) | (D[5, j] << 40) | EN[2, D[4, j]]) > key:
+            D[4, j + 1], D[5, j + 1] = D[4, j], D[5, j]
+            j -= 1
+        D[4, j + 1], D[5, j + 1] = t, k
+    for i in range(1, ns):
+        r, s, k = D[6, i], D[7, i], D[8, i]
+        key = (r * na + s) * IDS + k
+        j = i - 1
+        while j >= 0 and (D[6, j] * na + D[7, j]) * IDS + D[8, j] > key:
+            D[6, j + 1], D[7, j + 1], D[8, j + 1] = D[6, j], D[7, j], D[8, j]
+            j -= 1
+        D[6, j + 1], D[7, j + 1], D[8, j + 1] = r, s, k
+    cnt[0], cnt[1], cnt[2] = nc, no, ns
+    return OK
+
+
+@njit(cache=True)
+def encode(lay, out, D, nc, no, ns, cur, los, dup) -> int:
+    """Pack a canonical state into ``out`` (the layout of :func:`decode`); OVERFLOW when
+    a group does not fit its slots."""
+    na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
+    if nc > cs or no > os_ or ns > ss_:  # (the counts are in ``cnt``)
+        return OVERFLOW
+    out[:] = 0
+    for a in range(na):
+        out[a] = D[0, a]
+    p = na
+    for i in range(nc):
+        out[p + i] = D[2, i] * IDS + D[3, i] + 1
+    p += cs
+    for i in range(no):
+        out[p + i] = D[4, i] * IDS + D[5, i] + 1
+    p += os_
+    for i in range(ns):
+        out[p + i] = (D[6, i] * na + D[7, i]) * IDS + D[8, i] + 1
+    p += ss_
+    out[p], out[p + 1], out[p + 2] = cur, los, dup
+    return OK
+
+
+@njit(cache=True)
+def _copy(D, Wk, na, nc, no, ns) -> None:
+    """The decoded state into the successor's rows, to be changed there."""
+    Wk[0, :na] = D[0, :na]
+    Wk[2:4, :nc] = D[2:4, :nc]
+    Wk[4:6, :no] = D[4:6, :no]
+    Wk[6:9, :ns] = D[6:9, :ns]
+
+
+@njit(cache=True)
+def successor(
+    lay,
+    TT,
+    EN,
+    SA,
+    RK,
+    RS,
+    RR,
+    RC,
+    RE,
+    opt,
+    settled,
+    code,
+    tape,
+    D,
+    head,
+    Wk,
+    cnt,
+    live,
+    out,
+    res,
+    dry,
+) -> int:
+    """The successor of the decoded state by choice ``code`` with oracle tape ``tape``
+    into ``out``; ``res`` gets (zeno, reads). MISS when the reaction is not in the table
+    (or the state is not settled), OVERFLOW when it does not fit the layout. ``dry``:
+    only whether the tables answer, and the reads (``out`` is not written)."""
+    fifo = opt[0]
+    na = lay[0]
+    nc, no, ns, cur, los, dup = head[0], head[1], head[2], head[3], head[4], head[5]
+    kind, x, y = code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF
+    res[0], res[1] = 0, 0
+    if LOSE <= kind <= DUP:
+        if dry:
+            return OK
+        _copy(D, Wk, na, nc, no, ns)
+        if kind == LOSE:
+            for i in range(x, nc - 1):
+                Wk[2, i], Wk[3, i] = Wk[2, i + 1], Wk[3, i + 1]
+            m = nc - 1
+            los += 1
+        else:
+            Wk[2, nc], Wk[3, nc] = D[2, x], D[3, x]
+            m = nc + 1
+            dup += 1
+        got = canonical(lay, TT, EN, fifo, m, Wk, no, ns, cnt, live)
+        if got != OK:
+            return got
+        return encode(lay, out, Wk, cnt[0], cnt[1], cnt[2], cur, los, dup)
+    for a in range(na):
+        if settled[D[0, a]] == 0:
+            return MISS
+    touched = -1
+    k_in = -1
+    sender = -1
+    if kind == DELIVER:
+        t = D[2, x]
+        a = TT[2, t]
+        sender = TT[1, t]
+        if TT[0, t] == ACK_COPY:
+            k_in = D[3, x]
+            etm = -1
+            for j in range(no):
+                if EN[0, D[4, j]] == a and D[5, j] == k_in:
+                    touched, etm = j, D[4, j]
+                    break
+            inkey = choice_code(1, t, etm + 1)
+        else:
+            held = 0
+            if TT[0, t] == WITH_ID:
+                k_in = D[3, x]
+                for j in range(ns):
+                    if D[6, j] == a and D[7, j] == sender and D[8, j] == k_in:
+                        held = 1
+                        break
+            inkey = choice_code(0, t, held)
+    elif kind == TIMER:
+        a = EN[0, D[4, x]]
+        k_in = D[5, x]
+        touched = x
+        inkey = choice_code(2, D[4, x], 0)
+    elif kind == SCENARIO:
+        a = SA[cur]
+        inkey = choice_code(3, cur, 0)
+    elif kind == TIME:
+        a = x
+        inkey = choice_code(4, x, y)
+    else:
+        a = x
+        inkey = choice_code(5, y, 0)
+    r = find_reaction(RK, RS, inkey, D[0, a], tape)
+    if r < 0:
+        return MISS
+    if dry:
+        res[0], res[1] = RR[1, r], RR[2, r]
+        return OK
+    _copy(D, Wk, na, nc, no, ns)
+    m = nc
+    base = D[1, a]
+    if kind == DELIVER:
+        for i in range(x, nc - 1):
+            Wk[2, i], Wk[3, i] = Wk[2, i + 1], Wk[3, i + 1]
+        m = nc - 1
+    for i in range(RR[3, r], RR[3, r] + RR[4, r]):
+        t = RC[0, i]
+        if m >= ROOM:  # (beyond any layout: the caller stops)
+            cnt[0], cnt[1], cnt[2] = ROOM + 1, 0, 0
+            return OVERFLOW
+        Wk[2, m] = t
+        if TT[0, t] == PLAIN:
+            Wk[3, m] = 0
+        elif TT[0, t] == ACK_COPY or RC[1, i] == INPUT_ID:
+            Wk[3, m] = k_in
+        else:
+            Wk[3, m] = base + RC[2, i]
+        m += 1
+    mo = no
+    if touched >= 0:
+        for j in range(touched, no - 1):
+            Wk[4, j], Wk[5, j] = Wk[4, j + 1], Wk[5, j + 1]
+        mo = no - 1
+        if RR[5, r] >= 0:
+            Wk[4, mo], Wk[5, mo] = RR[5, r], k_in
+            mo += 1
+    for i in range(RR[6, r], RR[6, r] + RR[7, r]):
+        if mo >= ROOM:
+            cnt[0], cnt[1], cnt[2] = 0, ROOM + 1, 0
+            return OVERFLOW
+        Wk[4, mo], Wk[5, mo] = RE[0, i], base + RE[1, i]
+        mo += 1
+    ms = ns
+    if RR[8, r] != 0:
+        Wk[6, ms], Wk[7, ms], Wk[8, ms] = a, sender, k_in
+        ms += 1
+    Wk[0, a] = RR[0, r]
+    if kind == SCENARIO:
+        cur += 1
+    res[0], res[1] = RR[1, r], RR[2, r]
+    got = canonical(lay, TT, EN, fifo, m, Wk, mo, ms, cnt, live)
+    if got != OK:
+        return got
+    return encode(lay, out, Wk, cnt[0], cnt[1], cnt[2], cur, los, dup)
+
+
+@njit(cache=True)
+def level(
+    rows,
+    n,
+    lo,
+    hi,
+    slots,
+    lay,
+    TT,
+    EN,
+    PT,
+    TJ,
+    PW,
+    WA,
+    SA,
+    RK,
+    RS,
+    RR,
+    RC,
+    RE,
+    opt,
+    settled,
+    pre_ord,
+    pre_rows,
+    pre_res,
+    apply,
+    max_states,
+    new_parent,
+    e_src,
+    e_dst,
+    e_how,
+    zeno,
+    cut,
+    misses,
+    need,
+):
+    """One breadth-first level: the jobs of states ``lo..hi-1`` in the order of
+    :func:`~.explore._jobs`, then the free comparisons' retries in the order of
+    :func:`~.explore._chunks`. A job numbered in ``pre_ord`` takes its successor from
+    ``pre_rows``/``pre_res`` (computed in Python), any other from the tables.
+
+    ``apply`` False (a dry pass): only find the jobs the tables cannot answer, into
+    ``misses`` (ordinal, state, choice, tape); after the first miss no further retry is
+    queued (its position would depend on the miss's reads). ``apply`` True: number the
+    new states (appended to ``rows`` from ``n``), record parents, edges (their choices
+    in 32 bits: kind, x below 256, y), Zeno and cut states. Returns (status, jobs, new
+    n, edges, zeno, cut, misses)."""
+    na = lay[0]
+    w = rows.shape[1]
+    D = np.zeros((9, ROOM), np.int64)  # the state at work, decoded (rows: see decode)
+    Wk = np.zeros((9, ROOM), np.int64)  # its successor, composed
+    head = np.zeros(6, np.int64)
+    cnt = np.zeros(3, np.int64)
+    res = np.zeros(2, np.int64)
+    live = np.zeros(na, np.uint64)
+    codes = np.zeros(4 * ROOM, np.int64)
+    out = np.zeros(w, rows.dtype)
+    q_sid = [0]
+    q_code = [0]
+    q_tape = [0]
+    q_sid.pop()
+    q_code.pop()
+    q_tape.pop()
+    ordinal = 0
+    pre = 0
+    ne = 0
+    nz = 0
+    nx = 0
+    nm = 0
+    frozen = False
+    sid = lo
+    nchoice = 0
+    ci_at = 0
+    qi = 0
+    decoded = -1
+    status = OK
+    while True:
+        # the next job: the level's, then the queued retries
+        if sid < hi:
+            if ci_at == 0:
+                decode(rows[sid], lay, TT, EN, D, head, live)
+                decoded = sid
+                nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
+            if ci_at >= nchoice:
+                sid += 1
+                ci_at = 0
+                continue
+            j_sid, j_code, j_tape = sid, int(codes[ci_at]), 1
+            ci_at += 1
+        elif qi < len(q_sid):
+            j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
+            qi += 1
+            if decoded != j_sid:
+                decode(rows[j_sid], lay, TT, EN, D, head, live)
+                decoded = j_sid
+        else:
+            break
+        while pre < pre_ord.size and pre_ord[pre] < ordinal:
+            pre += 1
+        if pre < pre_ord.size and pre_ord[pre] == ordinal:
+            out[:] = pre_rows[pre]
+            res[0], res[1] = pre_res[pre, 0], pre_res[pre, 1]
+            got = OK
+        else:
+            got = successor(
+                lay,
+                TT,
+                EN,
+                SA,
+                RK,
+                RS,
+                RR,
+                RC,
+                RE,
+                opt,
+                settled,
+                j_code,
+                j_tape,
+                D,
+                head,
+                Wk,
+                cnt,
+                live,
+                out,
+                res,
+                not apply,
+            )
+        ordinal += 1
+        if got >= OVERFLOW:  # (or TOO_MANY_IDS): ``need`` gets the group counts
+            need[0], need[1], need[2] = cnt[0], cnt[1], cnt[2]
+            return got, ordinal, n, ne, nz, nx, nm
+        if got == MISS:
+            if apply:
+                return MISS, ordinal, n, ne, nz, nx, nm
+            if nm < misses.shape[0]:
+                misses[nm, 0], misses[nm, 1] = ordinal - 1, j_sid
+                misses[nm, 2], misses[nm, 3] = j_code, j_tape
+                nm += 1
+            frozen = True
+            continue
+        # the other answers of the free comparisons it read, after the level's jobs
+        length = 0
+        while (j_tape >> (length + 1)) != 0:
+            length += 1
+        if not frozen:
+            bits = j_tape & ((1 << length) - 1)
+            for k in range(length, res[1]):
+                q_sid.append(j_sid)
+                q_code.append(j_code)
+                q_tape.append((1 << (k + 1)) | bits | (1 << k))
+        if not apply:
+            continue
+        k, slot = find_row(rows, slots, out)
+        if k < 0:
+            if n >= max_states:
+                cut[nx] = j_sid
+                nx += 1
+                continue
+            rows[n] = out
+            slots[slot] = n
+            new_parent[n] = j_sid
+            k = n
+            n += 1
+        if res[0] != 0:
+            zeno[nz] = k
+            nz += 1
+        if k != j_sid:
+            e_src[ne], e_dst[ne] = j_sid, k
+            e_how[ne] = (
+                ((j_code >> 40) << 28) | (((j_code >> 20) & 0xFF) << 20) | (j_code & 0xFFFFF)
+            )
+            ne += 1
+    return status, ordinal, n, ne, nz, nx, nm
+
+
+@njit(cache=True)
+def sparse_rows(src, dst, how, row, out_dst, out_how) -> None:
+    """The edges' sparse-row view (``row``: n + 1 offsets), each state's edges in the
+    order added: a counting sort by source."""
+    for k in range(src.size):
+        row[src[k] + 1] += 1
+    for k in range(1, row.size):
+        row[k] += row[k - 1]
+    at = row[:-1].copy()
+    for k in range(src.size):
+        j = at[src[k]]
+        out_dst[j] = dst[k]
+        out_how[j] = how[k]
+        at[src[k]] = j + 1

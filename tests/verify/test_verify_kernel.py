@@ -1,0 +1,237 @@
+"""The compiled loop (:mod:`hybridteam.verify.kernel`, ``--kernel on``) against the Python
+loop (``--kernel off``), which stays the reference semantics: on every verify test model,
+mutant and example of ``tests/verify/`` the two explorations are the same graph — the same
+states in the same order, the same BFS tree, the same edges with the same choices, the
+same Zeno and cut states and bound — so the verdicts and the counterexamples are the same
+too; and without numba ``--kernel auto`` takes the Python loop and says so."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hybridteam import load
+from hybridteam.cli import main
+from hybridteam.verify import Options, verify
+from hybridteam.verify.explore import Graph
+from hybridteam.verify.kernel import numba_available
+from tests.verify.test_verify import GO, docking, roles_team
+from tests.verify.test_verify_bounds import BOUNDED, COUNTERS, team_of
+from tests.verify.test_verify_promela import PARALLEL, PINGPONG, acked_go
+from tests.verify.test_verify_symmetry import ask_team
+from tests.verify.test_verify_tables import (
+    CONFIRMS,
+    LEADS,
+    NO_DEDUPE,
+    NO_DENY,
+    RESTORED,
+    STAYS,
+    ZENO,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+
+pytestmark = pytest.mark.skipif(not numba_available(), reason="numba is not installed")
+
+
+def same_graph(a: Graph, b: Graph) -> None:
+    assert len(a.states) == len(b.states)
+    assert list(a.states) == list(b.states)
+    assert [a.states.agents_of(k) for k in range(len(a.states))] == [
+        b.states.agents_of(k) for k in range(len(b.states))
+    ]
+    assert list(a.parent) == list(b.parent)
+    assert a.transitions == b.transitions
+    assert (list(a.edges.src), list(a.edges.dst)) == (list(b.edges.src), list(b.edges.dst))
+    assert [a.edges.choices.values[h] for h in a.edges.how] == [
+        b.edges.choices.values[h] for h in b.edges.how
+    ]
+    assert (a.zeno, a.cut, a.exhaustive, a.bound) == (b.zeno, b.cut, b.exhaustive, b.bound)
+
+
+def both(team, **kw) -> None:
+    """Explore ``team`` with the compiled loop and with the Python loop: the same graph,
+    verdicts and counterexamples."""
+    ours = verify(team, Options(kernel="on", symmetry="off", **kw), replay=False)
+    ref = verify(team, Options(kernel="off", symmetry="off", **kw), replay=False)
+    assert ours.graph.explorer == "compiled kernel"
+    assert ref.graph.explorer.startswith("python")
+    assert len(ours.graph.states) > 1
+    same_graph(ours.graph, ref.graph)
+    assert [(v.prop.name, v.holds, v.state, v.lasso) for v in ours.verdicts] == [
+        (v.prop.name, v.holds, v.state, v.lasso) for v in ref.verdicts
+    ]
+    for v, w in zip(ours.violated, ref.violated, strict=True):
+        assert ours.path(v) == ref.path(w)
+        assert ours.counterexample(v) == ref.counterexample(w)
+
+
+@pytest.mark.parametrize(
+    "events,protocol,extra,without_c,opts",
+    [
+        ("b", None, "", False, {"losses": 1}),
+        ("b", None, "", False, {"losses": 1, "order": "fifo"}),
+        ("b", None, "", True, {"losses": 1, "ack_timing": "any", "max_states": 3000}),
+        ("b", STAYS, "", False, {"losses": 0}),
+        ("b", STAYS, "", False, {"losses": 1, "order": "fifo"}),
+        ("b", LEADS, "", False, {"losses": 0}),
+        ("a", CONFIRMS, "", False, {"losses": 0}),
+        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "long"}),
+        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "own"}),
+        ("a", NO_DEDUPE, RESTORED, True, {"losses": 1}),
+        ("a", NO_DEDUPE, RESTORED, True, {"losses": 0, "duplicates": 1}),
+        ("a", None, RESTORED, True, {"losses": 1}),
+        ("b", None, "", False, {"losses": 2, "max_states": 5000}),
+    ],
+    ids=[
+        "roles",
+        "roles-fifo",
+        "roles-ack-any",
+        "stays-lead",
+        "stays-lead-fifo",
+        "leads-when-asking",
+        "confirms-all",
+        "no-deny-long",
+        "no-deny-own",
+        "no-dedupe",
+        "no-dedupe-duplicated",
+        "restored",
+        "roles-cut",
+    ],
+)
+def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, without_c, opts):
+    if extra == "no_operator":
+        extra = "  no_operator: always(not in_mode(operator, Command))\n"
+    kw = {} if protocol is None else {"protocol": protocol}
+    both(roles_team(tmp_path, events, extra=extra, without_c=without_c, **kw), **opts)
+
+
+@pytest.mark.parametrize("acknowledged", [False, True])
+def test_the_docking_handshake(tmp_path, acknowledged):
+    both(docking(tmp_path, acknowledged), losses=1)
+
+
+@pytest.mark.parametrize(
+    "text,opts",
+    [
+        (PINGPONG, {"losses": 1, "duplicates": 1}),
+        (PARALLEL, {"losses": 1, "duplicates": 1}),
+        (GO, {"losses": 1}),
+        (acked_go(1), {"losses": 1, "duplicates": 1}),
+        (acked_go(0), {"losses": 1}),
+        (acked_go(1), {"losses": 1, "order": "fifo", "timeouts": "own"}),
+        (BOUNDED, {"losses": 0}),
+        (COUNTERS, {"max_values": 10}),  # stops at the value bound: at the same level
+        (ZENO, {"losses": 0}),  # a Zeno state: expanded by the engine in both
+    ],
+    ids=[
+        "pingpong",
+        "parallel",
+        "go",
+        "acked-go",
+        "acked-go-no-retry",
+        "acked-go-fifo-own",
+        "bounded",
+        "counters",
+        "zeno",
+    ],
+)
+def test_the_small_models(tmp_path, text, opts):
+    path = tmp_path / "team.yaml"
+    path.write_text(text)
+    both(load(path), **opts)
+
+
+@pytest.mark.parametrize(
+    "path,opts",
+    [
+        ("protocols/roles_verify.yaml", {"losses": 1, "max_states": 4000}),
+        ("protocols/handover.yaml", {"losses": 1}),
+        ("automata/relay.yaml", {}),
+        ("automata/thermostat.yaml", {}),
+        ("automata/thermostat_chatter.yaml", {}),
+        ("automata/unicycle_square.yaml", {}),
+        ("automata/water_tanks.yaml", {}),
+    ],
+)
+def test_the_examples(path, opts):
+    both(load(ROOT / "examples" / path), **opts)
+
+
+def test_a_zeno_state_is_in_the_graph(tmp_path):
+    path = tmp_path / "zeno.yaml"
+    path.write_text(ZENO)
+    report = verify(load(path), Options(losses=0, kernel="on"), replay=False)
+    assert report.graph.zeno
+
+
+def test_without_numba_auto_takes_the_python_loop_and_says_so(tmp_path, monkeypatch, capsys):
+    """``HYBRIDTEAM_NUMBA=0`` is what a machine without numba looks like to verify: auto
+    explores in Python (the same graph) and the first line says why; ``--kernel on`` is
+    refused with the reason (exit 2)."""
+    roles_team(tmp_path, "b")
+    team = str(tmp_path / "team.yaml")
+    args = ["verify", team, "--losses", "0", "--no-replay", "-o", str(tmp_path / "out")]
+    assert main(args) == 0
+    fast = capsys.readouterr().out.splitlines()[0]
+    assert "compiled kernel" in fast
+    monkeypatch.setenv("HYBRIDTEAM_NUMBA", "0")
+    assert main(args) == 0
+    slow = capsys.readouterr().out.splitlines()[0]
+    assert "python loop: numba is not installed" in slow
+    assert fast.split(" states")[0] == slow.split(" states")[0]  # the same count
+    assert main([*args, "--kernel", "on"]) == 2
+    assert "--kernel on: numba is not installed" in capsys.readouterr().err
+
+
+def test_options_the_loop_does_not_serve_take_the_python_loop(tmp_path):
+    team = roles_team(tmp_path, "b")
+    g = verify(team, Options(losses=0, jobs=2), replay=False).graph
+    assert g.explorer == "python loop: --jobs uses the process pool"
+    with pytest.raises(ValueError, match="--kernel on: --storage bitstate"):
+        verify(team, Options(losses=0, storage="bitstate", kernel="on"), replay=False)
+    # three interchangeable followers: symmetry in effect, explored by the Python loop
+    # (with --kernel on too), the same counts as before (test_verify_symmetry.py)
+    followers = ask_team(tmp_path)
+    for kernel in ("auto", "on"):
+        report = verify(followers, Options(losses=0, kernel=kernel), replay=False)
+        assert report.symmetry is not None and report.symmetry.active
+        assert report.graph.explorer == "python loop: symmetry or ample-set reduction is on"
+        assert len(report.graph.states) == 21
+
+
+def test_past_the_memory_limit_the_compiled_loop_stops_after_the_level(tmp_path, monkeypatch):
+    """The compiled loop reads the resident size after each level (a level is applied
+    whole): the first level's successors are cut, its state is expanded."""
+    monkeypatch.setattr(sys.modules["hybridteam.verify.kernel"], "resident_bytes", lambda: 5e9)
+    opts = Options(max_memory=4e9, kernel="on")
+    g = verify(team_of(tmp_path, COUNTERS), opts, replay=False).graph
+    assert g.bound == (
+        "this process reached the memory limit of 4 GB after 3 states "
+        "(5.000 GB resident; --max-memory GB raises it)"
+    )
+    assert len(g.states) == 3 and not g.exhaustive
+    assert g.cut == {1, 2} and g.succ(0) == [1, 2]
+    assert not g.terminal().any()
+
+
+def test_rows_widened_and_made_32_bit_keep_every_state_and_its_number(tmp_path):
+    """A group that outgrows its slots, or a number beyond 16 bits, re-lays the rows out:
+    every state decodes as before and is found again at its own number."""
+    from hybridteam.verify.kernel import Layout
+    from hybridteam.verify.kernel_core import find_row
+
+    g = verify(roles_team(tmp_path, "b"), Options(losses=1, kernel="on"), replay=False).graph
+    store = g.states
+    before = list(store)
+    lay = store.lay
+    assert store.rows.dtype == np.uint16
+    store.relayout(Layout(lay.agents, lay.copies + 3, lay.entries + 1, lay.seen + 2), np.uint32)
+    assert store.rows.dtype == np.uint32 and store.lay.width == lay.width + 6
+    assert list(store) == before
+    assert [find_row(store.rows, store.slots, store.rows[k])[0] for k in range(len(store))] == (
+        list(range(len(store)))
+    )
