@@ -97,6 +97,7 @@ from __future__ import annotations
 import ast
 import itertools
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -108,6 +109,7 @@ from hybridteam.engine.compile.compiler import message_fields
 from hybridteam.expr.compiler import free_names
 from hybridteam.requirements import nodes as N
 from hybridteam.verify.abstraction import Skeleton, _discrete_names, _message_names
+from hybridteam.verify.machine import State
 from hybridteam.verify.spin import _run, missing
 from hybridteam.verify.symmetry import permute
 
@@ -1698,21 +1700,28 @@ def _decide(folder: Path, names: dict[str, str], timeout: float) -> dict[str, bo
     return out
 
 
+def room(states: Iterable[State]) -> dict[str, int]:
+    """The export's array sizes for a team whose explored states are ``states``: twice the
+    room our exploration needed (ours delivers an ack or a withheld copy before anything
+    else, a partial-order reduction; SPIN without it lets them pile up); more than that is
+    an overflow, reported, never a truncated comparison."""
+    slots, outbox, seen = SLOTS, OUTBOX, SEEN
+    for s in states:
+        slots = max(slots, 2 * len(s.inflight))
+        outbox = max(outbox, 2 * len(s.outbox))
+        seen = max(seen, 2 * len(s.seen))
+    return {"slots": slots, "outbox": outbox, "seen": seen}
+
+
 def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
     """The Promela model of ``report``'s team (raises :class:`Unsupported`): made before
     anything is written, so a refused model leaves nothing behind."""
     check(report, opts)
-    states = report.graph.states
     return export(
         report.skeleton,
         opts.losses,
         opts.duplicates,
-        # twice the room our exploration needed: ours delivers an ack or a withheld copy
-        # before anything else (a partial-order reduction), SPIN lets them pile up; more
-        # than that is an overflow, reported, never a truncated comparison
-        slots=max([SLOTS, *(2 * len(s.inflight) for s in states)]),
-        outbox=max([OUTBOX, *(2 * len(s.outbox) for s in states)]),
-        seen=max([SEEN, *(2 * len(s.seen) for s in states)]),
+        **room(report.graph.states),
         drop=drop,
         ack_timing=opts.ack_timing,
         order=opts.order,
