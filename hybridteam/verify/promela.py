@@ -100,7 +100,7 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, TypedDict
 
 import numpy as np
 
@@ -1700,7 +1700,15 @@ def _decide(folder: Path, names: dict[str, str], timeout: float) -> dict[str, bo
     return out
 
 
-def room(states: Iterable[State]) -> dict[str, int]:
+class Room(TypedDict):
+    """The export's array sizes (:func:`export`'s ``slots``, ``outbox``, ``seen``)."""
+
+    slots: int
+    outbox: int
+    seen: int
+
+
+def room(states: Iterable[State]) -> Room:
     """The export's array sizes for a team whose explored states are ``states``: twice the
     room our exploration needed (ours delivers an ack or a withheld copy before anything
     else, a partial-order reduction; SPIN without it lets them pile up); more than that is
@@ -1710,7 +1718,7 @@ def room(states: Iterable[State]) -> dict[str, int]:
         slots = max(slots, 2 * len(s.inflight))
         outbox = max(outbox, 2 * len(s.outbox))
         seen = max(seen, 2 * len(s.seen))
-    return {"slots": slots, "outbox": outbox, "seen": seen}
+    return Room(slots=slots, outbox=outbox, seen=seen)
 
 
 def prepare(report, opts, drop: tuple[int, int] | None = None) -> str:
