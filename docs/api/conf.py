@@ -33,7 +33,8 @@ autosummary_generate = True
 autodoc_default_options = {"members": True, "show-inheritance": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
-#: optional dependencies of optional packages (ROS 2, rosbag2, Dask, pandas, STL oracle):
+#: optional dependencies of optional packages (ROS 2, rosbag2, Dask, pandas, STL oracle,
+#: the compiled exploration loop):
 #: the reference documents those modules whether or not the extras are installed
 autodoc_mock_imports = [
     "rclpy",
@@ -46,6 +47,7 @@ autodoc_mock_imports = [
     "distributed",
     "pandas",
     "rtamt",
+    "numba",
 ]
 html_theme = "alabaster"
 autosummary_context = {"reexports": Reexports()}
