@@ -14,6 +14,7 @@ from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
+from hybridteam.engine.run.reliable import ACK
 from hybridteam.errors import printable
 from hybridteam.io.reqschema import RequirementEntry
 
@@ -47,6 +48,26 @@ def check_names(names, what: str) -> None:
             )
         if name.startswith("__"):
             raise ValueError(f"{what} name {name!r} may not start with '__'")
+
+
+def check_messages(names, what: str) -> None:
+    """Message type names (the keys or items of ``names``), checked as names are, and never
+    the acknowledged layer's own type: its acks travel as ``ack`` copies, so a team's own
+    ``ack`` would be taken for one (and answered by no one)."""
+    check_names(names, what)
+    for name in names:
+        if name == ACK:
+            raise ValueError(
+                f"{what} name {ACK!r} is the acknowledged layer's own message type "
+                "(its acknowledgements); name yours differently, e.g. 'reply'"
+            )
+
+
+def check_message(name: _Name, what: str) -> _Name:
+    """One message type name (None: not given), as :func:`check_messages` checks them."""
+    if name is not None:
+        check_messages([name], what)
+    return name
 
 
 def check_event(name: _Name, what: str) -> _Name:
@@ -122,7 +143,7 @@ class SendSchema(Strict):
     socket: str = Field("control", description="socket name, e.g. control or data")
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
-    _message_name = named("send", what="message")
+    _message_name = named("send", what="message", rule=check_message)
     _agent_name = named("to", what="agent")
     _socket_name = named("socket", what="socket")
 
@@ -522,7 +543,7 @@ class TeamFile(Strict):
     )
     _param_names = named("parameters", what="parameter", rule=check_names)
     _requirement_names = named("requirements", what="requirement", rule=check_names)
-    _message_names = named("messages", what="message", rule=check_names)
+    _message_names = named("messages", what="message", rule=check_messages)
 
 
 class StreamDeclSchema(Strict):
@@ -536,7 +557,7 @@ class StreamDeclSchema(Strict):
     socket: str = "data"
     fields: dict[str, ExprOrNumber] = Field(default_factory=dict)
 
-    _message_name = named("message", what="message")
+    _message_name = named("message", what="message", rule=check_message)
     _mode_names = named("while_", what="mode", rule=check_names)
     _socket_name = named("socket", what="socket")
 
@@ -586,4 +607,4 @@ class ProtocolFile(Strict):
     operator: OperatorSchema | None = None
 
     _protocol_name = named("protocol", what="protocol", rule=check_title)
-    _message_names = named("messages", what="message", rule=check_names)
+    _message_names = named("messages", what="message", rule=check_messages)

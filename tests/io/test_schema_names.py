@@ -13,6 +13,7 @@ from hybridteam.io import schema as S
 BAD = "1x"  # starts with a digit
 INVALID = "is not valid: use letters, digits and _, not starting with a digit"
 AGENT = {"plant": {"kind": "flow"}, "modes": {"M": {}}}
+RESERVED = "message name 'ack' is the acknowledged layer's own message type"
 
 #: (schema, document, the field's location, what the message says), one per named field
 CASES: list[tuple[type[BaseModel], dict[str, Any], tuple[str, ...], str]] = [
@@ -68,6 +69,16 @@ CASES: list[tuple[type[BaseModel], dict[str, Any], tuple[str, ...], str]] = [
     (S.OperatorSchema, {"modes": {}, "parameters": {BAD: 0}}, ("parameters",), "parameter/"),
     (S.ProtocolFile, {"protocol": "p\x07"}, ("protocol",), "protocol name 'p\\x07' has control"),
     (S.ProtocolFile, {"protocol": "p", "messages": {BAD: {}}}, ("messages",), "message name"),
+    # the acknowledged layer's own type: a team's "ack" would be taken for an acknowledgement
+    (S.SendSchema, {"send": "ack"}, ("send",), RESERVED),
+    (S.StreamDeclSchema, {"message": "ack", "rate": 1}, ("message",), RESERVED),
+    (S.ProtocolFile, {"protocol": "p", "messages": {"ack": {}}}, ("messages",), RESERVED),
+    (
+        S.TeamFile,
+        {"team": "t", "agents": {"a": AGENT}, "messages": {"ack": {}}},
+        ("messages",),
+        RESERVED,
+    ),
 ]
 
 
@@ -103,3 +114,45 @@ def test_every_name_field_is_checked_here():
     by_alias = {"raise": "raise_", "while": "while_"}
     cased = {(schema.__name__, by_alias.get(loc[0], loc[0])) for schema, _, loc, _ in CASES}
     assert validated and validated <= cased, validated - cased
+
+
+PING = """\
+team: ping
+agents:
+  asker:
+    plant: {kind: unicycle, state: {x: 0, y: 0, theta: 0}}
+    initial: Idle
+    modes:
+      Idle:
+        transitions:
+          - {to: Done, after: 1.0, do: [{send: req, to: answerer}]}
+      Done: {final: true}
+  answerer:
+    plant: {kind: unicycle, state: {x: 1, y: 0, theta: 0}}
+    modes:
+      Wait:
+        transitions:
+          - {to: Wait, on: req, do: [{send: ack, to: sender}]}
+simulation: {duration: 2.0}
+"""
+
+
+def test_a_team_answering_with_its_own_ack_is_refused_where_it_sends_it(tmp_path, capsys):
+    """A newcomer's reply named ``ack`` crashed the run (the reliable layer read it as an
+    acknowledgement without an id): now ``run`` and ``verify`` refuse the file, naming the
+    line and column of the send, exit 2, and write nothing."""
+    from hybridteam.cli import main
+
+    team = tmp_path / "ping.yaml"
+    team.write_text(PING)
+    for argv in (
+        ["run", str(team), "-o", str(tmp_path / "r")],
+        ["verify", str(team), "-o", str(tmp_path / "v")],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"{team}:16:45:" in err and RESERVED in err and "Traceback" not in err
+        assert not (tmp_path / argv[3].rsplit("/", 1)[-1]).exists()
+    ok = tmp_path / "reply.yaml"
+    ok.write_text(PING.replace("send: ack", "send: reply"))
+    assert main(["run", str(ok), "-o", str(tmp_path / "ok")]) == 0
