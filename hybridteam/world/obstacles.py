@@ -76,6 +76,7 @@ from hybridteam.world.scene import (
     WallObstacle,
 )
 from hybridteam.world.sensors import RangeRing, clearance
+from hybridteam.world.swept import Piece, first_contact, holds_between_instants, least_gap, piece
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -190,6 +191,21 @@ class Obstacles(WorldComponent):
         self.planar = [a for a, agent in enumerate(team.agents) if planar(agent)]
         given = parsed["radius"]
         self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
+        #: the planar robots judged over their motion between instants (:meth:`_sweep`),
+        #: as (row in ``planar``, agent, unicycle?): kinematic plants under held inputs
+        self.swept = [
+            (r, a, team.agents[a].plant.kind == "unicycle")
+            for r, a in enumerate(self.planar)
+            if team.agents[a].plant.kind in ("unicycle", "holonomic")
+            and holds_between_instants(team.agents[a].root)
+        ]
+        #: per swept robot: its pose at each instance's last instant and when ``(R, n, 3)``,
+        #: ``(n,)``; the least gap over its motion since it last sensed ``(R, n)``, and
+        #: its first contact then, per (row, instance): ``(t, x, y, what, overlap)``
+        self.last_pose = np.full((len(self.planar), n, 3), np.nan)
+        self.last_t = np.full(n, np.nan)
+        self.swept_gap = np.full((len(self.planar), n), np.inf)
+        self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
             preset = getattr(agent, "preset", None)
@@ -328,6 +344,8 @@ class Obstacles(WorldComponent):
         senses (a stream copy arriving between ticks) costs the test of that alone."""
         if not self.judged:  # (no robot with a pose, no rule, no payload: nothing to judge)
             return
+        if self.swept:  # (every instant: each ends one piece of held motion)
+            self._sweep(world, idx)
         if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools,
             # before anything is gathered: most instants are arrivals nobody senses at)
             if not any(world.sensing(a, idx).item(0) for a in self.judged):
@@ -343,6 +361,8 @@ class Obstacles(WorldComponent):
             idx = idx[anyone]
             sensing = {a: own[anyone] for a, own in sensing.items()}
         self.work.updates += 1
+        if self.swept:
+            self._fold(world, idx, sensing)
         for p in self.payloads:  # its outline where it is now (settled once an instant)
             p.current(world, idx)
         if self.scene_of is None:
@@ -350,6 +370,103 @@ class Obstacles(WorldComponent):
         else:
             for scene, rows in self._by_scene(idx):
                 self._update(world, idx[rows], scene, {a: own[rows] for a, own in sensing.items()})
+
+    def _sweep(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """End each swept robot's piece of motion at this instant (:mod:`.swept`): where it
+        may have come nearer than its least gap so far, or touched something, its least gap
+        over the piece, exactly, and its first contact; kept until it senses (:meth:`_fold`).
+
+        A piece ``L`` long ending ``g`` from every obstacle comes no nearer than ``g - L``:
+        where that is past both the least gap so far and contact, the piece is not looked at
+        (most instants, once a robot's nearest approach is behind it)."""
+        t = world.t[idx]
+        began = self.last_t[idx]
+        self.last_t[idx] = t
+        for r, a, turning in self.swept:
+            poses = self._poses(a, idx)
+            was = self.last_pose[r, idx]
+            self.last_pose[r, idx] = poses
+            moved = (t > began) & np.any(poses != was, axis=1)  # (nan: the first instant)
+            if not some(moved):
+                continue
+            rows = where_true(moved)
+            gone = _path_length(was[rows], poses[rows], turning)
+            end = self._end_gaps(idx[rows], poses[rows])
+            low = end - gone - self.radius[r]
+            least = np.minimum(self.min_clear[r, idx[rows]], self.swept_gap[r, idx[rows]])
+            look = (low < least) | (low <= 0.0)
+            for k in where_true(look).tolist():
+                i = int(idx[rows[k]])
+                path = piece(
+                    float(began[rows[k]]),
+                    was[rows[k]].tolist(),
+                    float(t[rows[k]]),
+                    poses[rows[k]].tolist(),
+                    turning,
+                )
+                if path is not None:
+                    self._judge_piece(r, i, path)
+
+    def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """Each centre's distance to the nearest circle's edge or segment of its scene
+        (a box by its edges: the bound :meth:`_sweep` needs outside every box)."""
+        if self.scene_of is None:
+            scene = self.scenes[0]
+            return clearance(poses, 0.0, scene.segments, scene.circles)
+        out = np.empty(idx.size)
+        for scene, rows in self._by_scene(idx):
+            out[rows] = clearance(poses[rows], 0.0, scene.segments, scene.circles)
+        return out
+
+    def _judge_piece(self, r: int, i: int, path: Piece) -> None:
+        """Robot row ``r``'s least gap over ``path`` in instance ``i``, and its first
+        contact if the footprint touches something on the way."""
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
+        radius = float(self.radius[r])
+        distance, s = least_gap(path, scene.circle_list, scene.segment_list)
+        gap = distance - radius
+        if gap < self.swept_gap[r, i]:
+            self.swept_gap[r, i] = gap
+        if gap < 0.0:
+            contact = first_contact(path, radius, scene.circle_list, scene.segment_list)
+            s = s if contact is None else contact
+            x, y = path.at(s)
+            first = self.swept_hit.get((r, i))
+            if first is None:
+                what = name_hit(np.array([x, y]), scene.walls, scene.circles, scene.boxes)
+                self.swept_hit[(r, i)] = (path.time(s), x, y, what, -gap)
+            elif -gap > first[4]:  # (the deepest overlap since it last sensed)
+                self.swept_hit[(r, i)] = (*first[:4], -gap)
+
+    def _fold(
+        self, world: WorldAccess, idx: np.ndarray, sensing: dict[int, np.ndarray] | None
+    ) -> None:
+        """Where a swept robot senses, take its least gap over its motion since it last
+        sensed into ``min_clear``, and report a contact on the way (at its time)."""
+        hits: list[tuple[int, str, str, np.ndarray]] = []
+        times: list[float] = []
+        for r, a, _ in self.swept:
+            own = idx if sensing is None else idx[sensing[a]]
+            if own.size == 0:
+                continue
+            self.min_clear[r, own] = np.minimum(self.min_clear[r, own], self.swept_gap[r, own])
+            self.swept_gap[r, own] = np.inf
+            if not self.swept_hit:
+                continue
+            who = self.team.agents[a].name
+            for i in own.tolist():
+                hit = self.swept_hit.pop((r, i), None)
+                if hit is not None:
+                    t, x, y, what, depth = hit
+                    tick = float(world.t[i])
+                    text = (
+                        f"robot '{who}' hit {what} (its footprint overlapping it by up to "
+                        f"{depth:.3g} by its tick at t={tick!r}), first touching it"
+                    )
+                    hits.append((i, who, text, np.array([x, y])))
+                    times.append(t)
+        if hits and self.values["on_collision"] != "ignore":
+            self._collide(world, hits, times)
 
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
@@ -694,9 +811,16 @@ class Obstacles(WorldComponent):
             gap = np.minimum(gap, box_sdf(pts, scene.boxes))
         return points, gap.reshape(len(self.planar), idx.size)
 
-    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str, np.ndarray]]) -> None:
-        for i, who, what, (x, y) in hits:
-            t = float(world.t[i])
+    def _collide(
+        self,
+        world: WorldAccess,
+        hits: list[tuple[int, str, str, np.ndarray]],
+        times: list[float] | None = None,
+    ) -> None:
+        """Record and act on ``hits`` (instance, who, what, where), at this instant or at
+        ``times`` (a contact between instants, found by :meth:`_sweep`)."""
+        for k, (i, who, what, (x, y)) in enumerate(hits):
+            t = float(world.t[i]) if times is None else times[k]
             text = f"{what} at t={t!r}"
             self.collisions[i].setdefault(who, (text, t, float(x), float(y)))
             if self.values["on_collision"] == "outcome":
@@ -878,11 +1002,22 @@ class Scene(NamedTuple):
     boxes: np.ndarray
     segments: np.ndarray
     targets: Targets
+    #: circles and segments as Python floats (the swept test's: :mod:`.swept`)
+    circle_list: list[tuple[float, float, float]]
+    segment_list: list[tuple[float, float, float, float]]
 
     @classmethod
     def of(cls, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> Scene:
         segments = np.concatenate([walls, _box_edges(boxes)])
-        return cls(walls, circles, boxes, segments, Targets.of(segments, circles))
+        return cls(
+            walls,
+            circles,
+            boxes,
+            segments,
+            Targets.of(segments, circles),
+            [(x, y, r) for x, y, r in circles.tolist()],
+            [(x0, y0, x1, y1) for x0, y0, x1, y1 in segments.tolist()],
+        )
 
 
 def _scenes(
@@ -901,6 +1036,20 @@ def _scenes(
     return [
         Scene.of(walls[i], circles[i], boxes[i]) for i in first.tolist()
     ], scene_of.ravel().astype(np.intp)
+
+
+def _path_length(was: np.ndarray, now: np.ndarray, turning: bool) -> np.ndarray:
+    """The length of each held-input path from poses ``was`` to ``now`` ``(m, 3)``: the
+    chord, times ``(turn / 2) / sin(turn / 2)`` along an arc (a turn of half a revolution
+    or more: inf, the bound then rules nothing out)."""
+    chord = np.hypot(now[:, 0] - was[:, 0], now[:, 1] - was[:, 1])
+    if not turning:
+        return chord
+    half = 0.5 * np.abs(now[:, 2] - was[:, 2])
+    ratio = np.where(half >= 0.5 * np.pi, np.inf, 1.0)
+    arc = (half > 0.0) & (half < 0.5 * np.pi)
+    ratio[arc] = half[arc] / np.sin(half[arc])
+    return chord * ratio
 
 
 def _footprint(agent: Agent) -> float:
