@@ -33,7 +33,8 @@ robots declared without one, from the rule (``ring:`` with :class:`RangeRing`'s
 arguments).
 
 Statistics, per instance, minimized over the robots' sensing instants (a payload's: its
-carriers'): ``min_clearance`` (one entry
+carriers') and, for a robot under a held input, over its motion between instants too
+(:mod:`hybridteam.world.swept`, exact closed forms): ``min_clearance`` (one entry
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
@@ -76,7 +77,14 @@ from hybridteam.world.scene import (
     WallObstacle,
 )
 from hybridteam.world.sensors import RangeRing, clearance
-from hybridteam.world.swept import Piece, first_contact, holds_between_instants, least_gap, piece
+from hybridteam.world.swept import (
+    Piece,
+    first_contact,
+    holds_between_instants,
+    least_gap,
+    piece,
+    point_gap,
+)
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -204,6 +212,9 @@ class Obstacles(WorldComponent):
         #: its first contact then, per (row, instance): ``(t, x, y, what, overlap)``
         self.last_pose = np.full((len(self.planar), n, 3), np.nan)
         self.last_t = np.full(n, np.nan)
+        self.last_gap = np.full((len(self.planar), n), np.nan)  # (at ``last_pose``)
+        #: a single run's: per swept row, its last pose and that pose's gap, as floats
+        self.last_one: dict[int, tuple[list[float], float]] = {}
         self.swept_gap = np.full((len(self.planar), n), np.inf)
         self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
         names = {s for _, s in self.rings}
@@ -376,27 +387,31 @@ class Obstacles(WorldComponent):
         may have come nearer than its least gap so far, or touched something, its least gap
         over the piece, exactly, and its first contact; kept until it senses (:meth:`_fold`).
 
-        A piece ``L`` long ending ``g`` from every obstacle comes no nearer than ``g - L``:
-        where that is past both the least gap so far and contact, the piece is not looked at
-        (most instants, once a robot's nearest approach is behind it)."""
+        The centre's gap to the obstacles changes no faster than it moves, so a piece ``L``
+        long whose ends are ``g0`` and ``g1`` from them comes no nearer than
+        ``(g0 + g1 - L) / 2``: where that is past both the least gap so far and contact, the
+        piece is not looked at (nearly every instant: a robot driving at an obstacle gets
+        nearest at the end of the piece, which that bound is). A single run's instant
+        takes this on Python floats (:meth:`_sweep_one`)."""
+        if self.last_t.size == 1:
+            self._sweep_one(world, idx)
+            return
         t = world.t[idx]
         began = self.last_t[idx]
         self.last_t[idx] = t
         for r, a, turning in self.swept:
             poses = self._poses(a, idx)
-            was = self.last_pose[r, idx]
-            self.last_pose[r, idx] = poses
+            was, gap0 = self.last_pose[r, idx], self.last_gap[r, idx]
+            gap1 = self._end_gaps(idx, poses)
+            self.last_pose[r, idx], self.last_gap[r, idx] = poses, gap1
             moved = (t > began) & np.any(poses != was, axis=1)  # (nan: the first instant)
             if not some(moved):
                 continue
             rows = where_true(moved)
             gone = _path_length(was[rows], poses[rows], turning)
-            end = self._end_gaps(idx[rows], poses[rows])
-            low = end - gone - self.radius[r]
+            low = 0.5 * (gap0[rows] + gap1[rows] - gone) - self.radius[r]
             least = np.minimum(self.min_clear[r, idx[rows]], self.swept_gap[r, idx[rows]])
-            look = (low < least) | (low <= 0.0)
-            for k in where_true(look).tolist():
-                i = int(idx[rows[k]])
+            for k in where_true((low < least) | (low <= 0.0)).tolist():
                 path = piece(
                     float(began[rows[k]]),
                     was[rows[k]].tolist(),
@@ -405,11 +420,39 @@ class Obstacles(WorldComponent):
                     turning,
                 )
                 if path is not None:
-                    self._judge_piece(r, i, path)
+                    self._judge_piece(r, int(idx[rows[k]]), path)
+
+    def _sweep_one(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """:meth:`_sweep` of a single run's instant, on Python floats: the same bound and
+        the same pieces (a few numpy calls an instant would cost more than the test)."""
+        t = world.t.item(0)
+        began = self.last_t.item(0)
+        self.last_t[0] = t
+        scene = self.scenes[0]
+        for r, a, turning in self.swept:
+            pose = self._poses(a, idx)[0].tolist()
+            was = self.last_one.get(r)
+            gap1 = point_gap(pose[0], pose[1], scene.circle_list, scene.segment_list)
+            self.last_one[r] = (pose, gap1)
+            if was is None or not t > began or was[0] == pose:
+                continue
+            (x0, y0, th0), gap0 = was
+            gone = math.hypot(pose[0] - x0, pose[1] - y0)
+            half = 0.5 * abs(pose[2] - th0) if turning else 0.0
+            if half >= 0.5 * math.pi:
+                gone = math.inf
+            elif half > 0.0:
+                gone *= half / math.sin(half)
+            low = 0.5 * (gap0 + gap1 - gone) - self.radius.item(r)
+            least = min(self.min_clear.item(r, 0), self.swept_gap.item(r, 0))
+            if low < least or low <= 0.0:
+                path = piece(began, was[0], t, pose, turning)
+                if path is not None:
+                    self._judge_piece(r, 0, path)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
-        (a box by its edges: the bound :meth:`_sweep` needs outside every box)."""
+        (a box by its edges: outside every box, its signed distance; :meth:`_sweep`)."""
         if self.scene_of is None:
             scene = self.scenes[0]
             return clearance(poses, 0.0, scene.segments, scene.circles)
@@ -445,6 +488,13 @@ class Obstacles(WorldComponent):
         sensed into ``min_clear``, and report a contact on the way (at its time)."""
         hits: list[tuple[int, str, str, np.ndarray]] = []
         times: list[float] = []
+        if self.last_t.size == 1 and not self.swept_hit:  # (a single run: on floats)
+            for r, a, _ in self.swept:
+                gap = self.swept_gap.item(r, 0)
+                if gap < math.inf and (sensing is None or sensing[a].item(0)):
+                    self.min_clear[r, 0] = min(self.min_clear.item(r, 0), gap)
+                    self.swept_gap[r, 0] = math.inf
+            return
         for r, a, _ in self.swept:
             own = idx if sensing is None else idx[sensing[a]]
             if own.size == 0:

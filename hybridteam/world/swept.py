@@ -16,9 +16,9 @@ The path is rebuilt from the poses at the two instants (:func:`piece`): the head
 change fixes the arc's angle, the chord its radius and centre, so nothing but the poses is
 needed (no inputs, no plant) — which is why the robot must have moved under one held input
 in between (:func:`holds_between_instants` says where a robot's model guarantees it).
-A turn of half a revolution or more between two instants has no unique arc through its
-ends from the poses alone (the heading is read modulo nothing, but the chord of a whole
-turn is zero); such a piece is judged at its ends only (``exact`` False).
+A turn of half a revolution or more between two instants is not rebuilt (near a whole
+turn the chord, and with it the radius, is lost in rounding): :func:`piece` gives None
+and such a piece is judged at its ends only, as before.
 
 Everything here is on Python floats: the component asks only where a cheap bound cannot
 rule a piece out (a piece of length ``L`` ending ``g`` from everything comes no nearer
@@ -255,6 +255,22 @@ def least_gap(
     return best
 
 
+def point_gap(
+    x: float,
+    y: float,
+    circles: Iterable[tuple[float, float, float]],
+    segments: Iterable[tuple[float, float, float, float]],
+) -> float:
+    """The distance from ``(x, y)`` to the nearest circle's edge (negative inside) or
+    segment; inf with none."""
+    out = math.inf
+    for qx, qy, r in circles:
+        out = min(out, math.hypot(x - qx, y - qy) - r)
+    for seg in segments:
+        out = min(out, _point_segment(x, y, seg))
+    return out
+
+
 def holds_between_instants(root: Mode) -> bool:
     """Whether an agent with mode tree ``root`` moves under one held input between any
     two instants, its pose changed by nothing but that motion: every mode's law sampled
@@ -266,8 +282,11 @@ def holds_between_instants(root: Mode) -> bool:
         mode = modes.pop()
         if mode.flow is not None or (mode.law is not None and mode.law.period is None):
             return False
-        held = mode.inputs is None or mode.input_period is not None
-        if not held and not all(isinstance(v, int | float) for v in mode.inputs.values()):
+        inputs = mode.inputs or {}
+        held = mode.input_period is not None or all(
+            isinstance(v, int | float) for v in inputs.values()
+        )
+        if not held:
             return False  # (constant inputs are held; expressions follow the state)
         actions = [*mode.on_entry, *mode.on_exit, *(a for t in mode.transitions for a in t.actions)]
         for action in actions:
