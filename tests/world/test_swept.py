@@ -198,3 +198,34 @@ def test_random_pieces_agree_with_dense_samples_of_the_true_motion():
             assert contact is not None
             assert _gap_at(path, circles, segments, contact) == pytest.approx(reach, abs=1e-9)
             assert contact <= next(t for t, d in zip(samples, dense, strict=True) if d <= reach)
+
+
+BACK_AND_FORTH = """
+team: reversing
+agents:
+  r:
+    plant: {kind: holonomic, state: {x: 0, y: 0, theta: 0}}
+    initial: Out
+    modes:
+      Out:
+        inputs: {vx: 1.0, vy: 0, omega: 0}
+        period: 1.0
+        transitions: [{to: Back, after: 0.5}]
+      Back: {inputs: {vx: -1.0, vy: 0, omega: 0}, period: 1.0}
+world:
+  - use: obstacles
+    with:
+      circles: [[1.5, 0.0, 0.25]]
+      radius: [[r, 0.25]]
+simulation: {duration: 1.0}
+"""
+
+
+def test_an_input_changed_between_ticks_ends_a_piece_there(team_from_yaml):
+    """Out at 1 m/s towards a post at x = 1.5, back from t = 0.5 (a mode entered between
+    the ticks 0 and 1, where the law samples again): nearest at x = 0.5, 1 - 0.25 - 0.25
+    = 0.5 from the post; both ticks find the robot at x = 0, 1.5 - 0.5 = 1.0. One arc
+    through the ticks' poses would see nothing of the trip; the pieces end at instants."""
+    run = ht.simulate(team_from_yaml(BACK_AND_FORTH))
+    assert run.outcome == "ok"
+    assert run.diagnostics[0]["stats"]["min_clearance"] == pytest.approx([0.5], abs=1e-12)
