@@ -245,12 +245,20 @@ def least_gap(
     segments: Iterable[tuple[float, float, float, float]],
 ) -> tuple[float, float]:
     """The least distance from the piece's path to the circles' edges (negative inside
-    one) and the segments, and the fraction where it is reached: ``(inf, 0)`` with none."""
+    one) and the segments, and the fraction where it is reached: ``(inf, 0)`` with none.
+
+    An obstacle farther from the piece's end than the best so far plus the piece's length
+    cannot come nearer (the path is no longer than that): it is not looked at."""
     best = (math.inf, 0.0)
+    reach = p.length
     for qx, qy, r in circles:
+        if math.hypot(p.x1 - qx, p.y1 - qy) - r - reach > best[0]:
+            continue
         d, s = point_distance(p, qx, qy)
         best = min(best, (d - r, s))
     for seg in segments:
+        if _point_segment(p.x1, p.y1, seg) - reach > best[0]:
+            continue
         best = min(best, segment_distance(p, seg))
     return best
 
