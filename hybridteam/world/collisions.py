@@ -13,9 +13,11 @@ gaps it already keeps statistics of; an overlap is a collision, handled by its
   under ``outcome``) for the views to mark;
 - ``ignore``: only the clearance statistics.
 
-Like every judgment of a world component it is made at the run's instants (law ticks,
-events), so a collision is seen at most one control period late, and a robot fast enough
-to cross a thin wall between two instants is not seen at all.
+Like every judgment of a world component it is reported at the robot's sensing
+instants (its law ticks), at most one control period late; a robot's footprint against
+the static obstacles is judged over its motion between instants too
+(:mod:`hybridteam.world.swept`), so one fast enough to cross a thin wall between two
+ticks collides, at its first contact.
 """
 
 from __future__ import annotations

@@ -33,7 +33,8 @@ robots declared without one, from the rule (``ring:`` with :class:`RangeRing`'s
 arguments).
 
 Statistics, per instance, minimized over the robots' sensing instants (a payload's: its
-carriers'): ``min_clearance`` (one entry
+carriers') and, for a robot under a held input, over its motion between instants too
+(:mod:`hybridteam.world.swept`, exact closed forms): ``min_clearance`` (one entry
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
@@ -76,6 +77,14 @@ from hybridteam.world.scene import (
     WallObstacle,
 )
 from hybridteam.world.sensors import RangeRing, clearance
+from hybridteam.world.swept import (
+    Piece,
+    first_contact,
+    holds_between_instants,
+    least_gap,
+    piece,
+    point_gap,
+)
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -190,6 +199,24 @@ class Obstacles(WorldComponent):
         self.planar = [a for a, agent in enumerate(team.agents) if planar(agent)]
         given = parsed["radius"]
         self.radius = np.array([given.get(a, _footprint(team.agents[a])) for a in self.planar])
+        #: the planar robots judged over their motion between instants (:meth:`_sweep`),
+        #: as (row in ``planar``, agent, unicycle?): kinematic plants under held inputs
+        self.swept = [
+            (r, a, team.agents[a].plant.kind == "unicycle")
+            for r, a in enumerate(self.planar)
+            if team.agents[a].plant.kind in ("unicycle", "holonomic")
+            and holds_between_instants(team.agents[a].root)
+        ]
+        #: per swept robot: its pose at each instance's last instant and when ``(R, n, 3)``,
+        #: ``(n,)``; the least gap over its motion since it last sensed ``(R, n)``, and
+        #: its first contact then, per (row, instance): ``(t, x, y, what, overlap)``
+        self.last_pose = np.full((len(self.planar), n, 3), np.nan)
+        self.last_t = np.full(n, np.nan)
+        self.last_gap = np.full((len(self.planar), n), np.nan)  # (at ``last_pose``)
+        #: a single run's: per swept row, its last pose and that pose's gap, as floats
+        self.last_one: dict[int, tuple[list[float], float]] = {}
+        self.swept_gap = np.full((len(self.planar), n), np.inf)
+        self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
             preset = getattr(agent, "preset", None)
@@ -328,6 +355,8 @@ class Obstacles(WorldComponent):
         senses (a stream copy arriving between ticks) costs the test of that alone."""
         if not self.judged:  # (no robot with a pose, no rule, no payload: nothing to judge)
             return
+        if self.swept:  # (every instant: each ends one piece of held motion)
+            self._sweep(world, idx)
         if idx.size == 1:  # (a single run's instant: whether anyone senses, on bools,
             # before anything is gathered: most instants are arrivals nobody senses at)
             if not any(world.sensing(a, idx).item(0) for a in self.judged):
@@ -343,6 +372,8 @@ class Obstacles(WorldComponent):
             idx = idx[anyone]
             sensing = {a: own[anyone] for a, own in sensing.items()}
         self.work.updates += 1
+        if self.swept:
+            self._fold(world, idx, sensing)
         for p in self.payloads:  # its outline where it is now (settled once an instant)
             p.current(world, idx)
         if self.scene_of is None:
@@ -350,6 +381,142 @@ class Obstacles(WorldComponent):
         else:
             for scene, rows in self._by_scene(idx):
                 self._update(world, idx[rows], scene, {a: own[rows] for a, own in sensing.items()})
+
+    def _sweep(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """End each swept robot's piece of motion at this instant (:mod:`.swept`): where it
+        may have come nearer than its least gap so far, or touched something, its least gap
+        over the piece, exactly, and its first contact; kept until it senses (:meth:`_fold`).
+
+        The centre's gap to the obstacles changes no faster than it moves, so a piece ``L``
+        long whose ends are ``g0`` and ``g1`` from them comes no nearer than
+        ``(g0 + g1 - L) / 2``: where that is past both the least gap so far and contact, the
+        piece is not looked at (nearly every instant: a robot driving at an obstacle gets
+        nearest at the end of the piece, which that bound is). A single run's instant
+        takes this on Python floats (:meth:`_sweep_one`)."""
+        if self.last_t.size == 1:
+            self._sweep_one(world, idx)
+            return
+        t = world.t[idx]
+        began = self.last_t[idx]
+        self.last_t[idx] = t
+        for r, a, turning in self.swept:
+            poses = self._poses(a, idx)
+            was, gap0 = self.last_pose[r, idx], self.last_gap[r, idx]
+            gap1 = self._end_gaps(idx, poses)
+            self.last_pose[r, idx], self.last_gap[r, idx] = poses, gap1
+            moved = (t > began) & np.any(poses != was, axis=1)  # (nan: the first instant)
+            if not some(moved):
+                continue
+            rows = where_true(moved)
+            gone = _path_length(was[rows], poses[rows], turning)
+            low = 0.5 * (gap0[rows] + gap1[rows] - gone) - self.radius[r]
+            least = np.minimum(self.min_clear[r, idx[rows]], self.swept_gap[r, idx[rows]])
+            for k in where_true((low < least) | (low <= 0.0)).tolist():
+                path = piece(
+                    float(began[rows[k]]),
+                    was[rows[k]].tolist(),
+                    float(t[rows[k]]),
+                    poses[rows[k]].tolist(),
+                    turning,
+                )
+                if path is not None:
+                    self._judge_piece(r, int(idx[rows[k]]), path)
+
+    def _sweep_one(self, world: WorldAccess, idx: np.ndarray) -> None:
+        """:meth:`_sweep` of a single run's instant, on Python floats: the same bound and
+        the same pieces (a few numpy calls an instant would cost more than the test)."""
+        t = world.t.item(0)
+        began = self.last_t.item(0)
+        self.last_t[0] = t
+        scene = self.scenes[0]
+        for r, a, turning in self.swept:
+            pose = self._poses(a, idx)[0].tolist()
+            was = self.last_one.get(r)
+            gap1 = point_gap(pose[0], pose[1], scene.circle_list, scene.segment_list)
+            self.last_one[r] = (pose, gap1)
+            if was is None or not t > began or was[0] == pose:
+                continue
+            (x0, y0, th0), gap0 = was
+            gone = math.hypot(pose[0] - x0, pose[1] - y0)
+            half = 0.5 * abs(pose[2] - th0) if turning else 0.0
+            if half >= 0.5 * math.pi:
+                gone = math.inf
+            elif half > 0.0:
+                gone *= half / math.sin(half)
+            low = 0.5 * (gap0 + gap1 - gone) - self.radius.item(r)
+            least = min(self.min_clear.item(r, 0), self.swept_gap.item(r, 0))
+            if low < least or low <= 0.0:
+                path = piece(began, was[0], t, pose, turning)
+                if path is not None:
+                    self._judge_piece(r, 0, path)
+
+    def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """Each centre's distance to the nearest circle's edge or segment of its scene
+        (a box by its edges: outside every box, its signed distance; :meth:`_sweep`)."""
+        if self.scene_of is None:
+            scene = self.scenes[0]
+            return clearance(poses, 0.0, scene.segments, scene.circles)
+        out = np.empty(idx.size)
+        for scene, rows in self._by_scene(idx):
+            out[rows] = clearance(poses[rows], 0.0, scene.segments, scene.circles)
+        return out
+
+    def _judge_piece(self, r: int, i: int, path: Piece) -> None:
+        """Robot row ``r``'s least gap over ``path`` in instance ``i``, and its first
+        contact if the footprint touches something on the way."""
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
+        radius = float(self.radius[r])
+        distance, s = least_gap(path, scene.circle_list, scene.segment_list)
+        gap = distance - radius
+        if gap < self.swept_gap[r, i]:
+            self.swept_gap[r, i] = gap
+        if gap < 0.0:
+            contact = first_contact(path, radius, scene.circle_list, scene.segment_list)
+            s = s if contact is None else contact
+            x, y = path.at(s)
+            first = self.swept_hit.get((r, i))
+            if first is None:
+                what = name_hit(np.array([x, y]), scene.walls, scene.circles, scene.boxes)
+                self.swept_hit[(r, i)] = (path.time(s), x, y, what, -gap)
+            elif -gap > first[4]:  # (the deepest overlap since it last sensed)
+                self.swept_hit[(r, i)] = (*first[:4], -gap)
+
+    def _fold(
+        self, world: WorldAccess, idx: np.ndarray, sensing: dict[int, np.ndarray] | None
+    ) -> None:
+        """Where a swept robot senses, take its least gap over its motion since it last
+        sensed into ``min_clear``, and report a contact on the way (at its time)."""
+        hits: list[tuple[int, str, str, np.ndarray]] = []
+        times: list[float] = []
+        if self.last_t.size == 1 and not self.swept_hit:  # (a single run: on floats)
+            for r, a, _ in self.swept:
+                gap = self.swept_gap.item(r, 0)
+                if gap < math.inf and (sensing is None or sensing[a].item(0)):
+                    self.min_clear[r, 0] = min(self.min_clear.item(r, 0), gap)
+                    self.swept_gap[r, 0] = math.inf
+            return
+        for r, a, _ in self.swept:
+            own = idx if sensing is None else idx[sensing[a]]
+            if own.size == 0:
+                continue
+            self.min_clear[r, own] = np.minimum(self.min_clear[r, own], self.swept_gap[r, own])
+            self.swept_gap[r, own] = np.inf
+            if not self.swept_hit:
+                continue
+            who = self.team.agents[a].name
+            for i in own.tolist():
+                hit = self.swept_hit.pop((r, i), None)
+                if hit is not None:
+                    t, x, y, what, depth = hit
+                    tick = float(world.t[i])
+                    text = (
+                        f"robot '{who}' hit {what} (its footprint overlapping it by up to "
+                        f"{depth:.3g} by its tick at t={tick!r}), first touching it"
+                    )
+                    hits.append((i, who, text, np.array([x, y])))
+                    times.append(t)
+        if hits and self.values["on_collision"] != "ignore":
+            self._collide(world, hits, times)
 
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
@@ -694,9 +861,16 @@ class Obstacles(WorldComponent):
             gap = np.minimum(gap, box_sdf(pts, scene.boxes))
         return points, gap.reshape(len(self.planar), idx.size)
 
-    def _collide(self, world: WorldAccess, hits: list[tuple[int, str, str, np.ndarray]]) -> None:
-        for i, who, what, (x, y) in hits:
-            t = float(world.t[i])
+    def _collide(
+        self,
+        world: WorldAccess,
+        hits: list[tuple[int, str, str, np.ndarray]],
+        times: list[float] | None = None,
+    ) -> None:
+        """Record and act on ``hits`` (instance, who, what, where), at this instant or at
+        ``times`` (a contact between instants, found by :meth:`_sweep`)."""
+        for k, (i, who, what, (x, y)) in enumerate(hits):
+            t = float(world.t[i]) if times is None else times[k]
             text = f"{what} at t={t!r}"
             self.collisions[i].setdefault(who, (text, t, float(x), float(y)))
             if self.values["on_collision"] == "outcome":
@@ -878,11 +1052,22 @@ class Scene(NamedTuple):
     boxes: np.ndarray
     segments: np.ndarray
     targets: Targets
+    #: circles and segments as Python floats (the swept test's: :mod:`.swept`)
+    circle_list: list[tuple[float, float, float]]
+    segment_list: list[tuple[float, float, float, float]]
 
     @classmethod
     def of(cls, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> Scene:
         segments = np.concatenate([walls, _box_edges(boxes)])
-        return cls(walls, circles, boxes, segments, Targets.of(segments, circles))
+        return cls(
+            walls,
+            circles,
+            boxes,
+            segments,
+            Targets.of(segments, circles),
+            [(x, y, r) for x, y, r in circles.tolist()],
+            [(x0, y0, x1, y1) for x0, y0, x1, y1 in segments.tolist()],
+        )
 
 
 def _scenes(
@@ -901,6 +1086,20 @@ def _scenes(
     return [
         Scene.of(walls[i], circles[i], boxes[i]) for i in first.tolist()
     ], scene_of.ravel().astype(np.intp)
+
+
+def _path_length(was: np.ndarray, now: np.ndarray, turning: bool) -> np.ndarray:
+    """The length of each held-input path from poses ``was`` to ``now`` ``(m, 3)``: the
+    chord, times ``(turn / 2) / sin(turn / 2)`` along an arc (a turn of half a revolution
+    or more: inf, the bound then rules nothing out)."""
+    chord = np.hypot(now[:, 0] - was[:, 0], now[:, 1] - was[:, 1])
+    if not turning:
+        return chord
+    half = 0.5 * np.abs(now[:, 2] - was[:, 2])
+    ratio = np.where(half >= 0.5 * np.pi, np.inf, 1.0)
+    arc = (half > 0.0) & (half < 0.5 * np.pi)
+    ratio[arc] = half[arc] / np.sin(half[arc])
+    return chord * ratio
 
 
 def _footprint(agent: Agent) -> float:

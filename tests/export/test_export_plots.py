@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import math
 import re
 import xml.etree.ElementTree as ET
 
@@ -439,27 +440,28 @@ CRASH = COLLISION_TEAM.replace("on_collision: {mode}", "on_collision: warn")
 
 def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from_yaml, tmp_path):
     """Robot a drives at 1 m/s into the wall x = 2 (b kept away at y = 5): its 0.25 m disk
-    first overlaps the wall at the tick t = 1.8 s, at x = 1.8. The run goes on through the
-    wall; the trajectories mark that spot with its time, the animation from 1.8 s on, and
-    the report shows the trajectories with the mark."""
+    first touches the wall at t = 1.75 s, at x = 1.75 (between its ticks: the swept test,
+    docs/world.md). The run goes on through the wall; the trajectories mark that spot with
+    its time, the animation from 1.75 s on, and the report shows the trajectories with the
+    mark."""
     from hybridteam.export.report import write_report
 
     run = ht.simulate(team_from_yaml(CRASH.format(b_y=5.0, walls="[[2.0, -1.0, 2.0, 1.0]]")))
     assert run.outcome == "ok" and len(run.diagnostics[0]["stats"]["collisions"]) == 1
     (ax,) = trajectory_figure(run).axes
     (mark,) = by_gid(ax.lines, "collisions")
-    np.testing.assert_allclose(mark.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(mark.get_xydata(), [[1.75, 0.0]], atol=1e-12)
     (label,) = by_gid(ax.texts, "collision-label")
-    assert label.get_text() == "1.8 s" and label.xy == pytest.approx((1.8, 0.0), abs=1e-12)
+    assert label.get_text() == "1.75 s" and label.xy == pytest.approx((1.75, 0.0), abs=1e-12)
     box = ax.get_legend() or ax.get_figure().legends[0]  # beside a tall scene, below a wide
     legend = [t.get_text() for t in box.get_texts()]
     assert "first collision of each robot or payload, its time" in legend
     _fig, update, _trails, moving = animate._build(run, 0)
     (crash,) = [a for a in moving if a.get_gid() == "collisions"]
-    update(1.75)
+    update(1.7)
     assert len(crash.get_xydata()) == 0
-    update(1.85)
-    np.testing.assert_allclose(crash.get_xydata(), [[1.8, 0.0]], atol=1e-12)
+    update(1.8)
+    np.testing.assert_allclose(crash.get_xydata(), [[1.75, 0.0]], atol=1e-12)
     page = write_report(tmp_path, run, run.summary(), animation=False).read_text("utf-8")
     figure = page.split("<section id='trajectories'>", 1)[1].split("</section>", 1)[0]
     uri = re.search(r"src='data:image/svg\+xml;base64,([^']+)'", figure)
@@ -547,16 +549,17 @@ GATE = """
 
 def test_collisions_at_one_spot_share_one_label(team_from_yaml):
     """Two 0.2 m robots, 1 m apart on y = 0, drive at 0.5 m/s through a 0.3 m gap: each
-    first overlaps the jamb (2, 0.15) at the tick where it is at x = 1.9 (distance
-    hypot(0.1, 0.15) = 0.180 < 0.2): the lead at 3.8 s, the tail at 5.8 s, both at
-    (1.9, 0). Two labels there hid each other (only '5.8 s' could be read); one label
+    first touches the jamb (2, 0.15) where its centre is 0.2 from it, at x = 2 -
+    sqrt(0.2^2 - 0.15^2) = 1.8677 (between ticks: the swept test): the lead at 3.735 s,
+    the tail at 5.735 s, both at (1.8677, 0). Two labels there hid each other; one label
     names both."""
     run = ht.simulate(team_from_yaml(GATE))
     (ax,) = trajectory_figure(run).axes
     (mark,) = by_gid(ax.lines, "collisions")
-    np.testing.assert_allclose(mark.get_xydata(), [[1.9, 0.0], [1.9, 0.0]], atol=1e-9)
+    x = 2 - math.sqrt(0.2**2 - 0.15**2)
+    np.testing.assert_allclose(mark.get_xydata(), [[x, 0.0], [x, 0.0]], atol=1e-9)
     (label,) = by_gid(ax.texts, "collision-label")
-    assert label.get_text() == "3.8 s lead, 5.8 s tail"
+    assert label.get_text() == "3.74 s lead, 5.74 s tail"
 
 
 def test_collision_labels_group_by_distance():

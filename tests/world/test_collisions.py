@@ -48,20 +48,21 @@ def test_robots_that_meet_collide(team_from_yaml):
 
 def test_a_robot_that_drives_into_a_wall_collides(team_from_yaml):
     """Robot b is kept out of the way (y = 5); robot a's disk reaches the wall at x = 2
-    when x = 1.75, first overlapping it at the tick t = 1.8 s (by 0.05 m)."""
+    when x = 1.75: it first touches it at t = 1.75 s, between its ticks (the swept test),
+    and is seen at the tick t = 1.8 s, overlapping it by 0.05 m."""
     run = ht.simulate(team(team_from_yaml))
     assert run.outcome == "collision"
     assert run.diagnostics[0]["t"] == pytest.approx(1.8, abs=1e-12)
-    assert run.message.startswith(
-        "robot 'a' hit walls[0], its footprint overlapping it by 0.05 at t=1.8"
-    )
+    prefix = "robot 'a' hit walls[0] (its footprint overlapping it by up to 0.05 by its tick at t="
+    assert run.message.startswith(prefix)
+    assert run.message.endswith("), first touching it at t=1.75")
 
 
 def test_warn_lists_collisions_and_ignore_keeps_only_clearances(team_from_yaml):
     warned = ht.simulate(team(team_from_yaml, "warn"))
     assert warned.outcome == "ok" and warned.diagnostics[0]["t"] == 4.0
     (first,) = warned.diagnostics[0]["stats"]["collisions"]
-    assert first.startswith("robot 'a' hit walls[0]") and first.endswith("at t=1.8")
+    assert first.startswith("robot 'a' hit walls[0]") and first.endswith("at t=1.75")
     ignored = ht.simulate(team(team_from_yaml, "ignore"))
     assert ignored.outcome == "ok"
     assert "collisions" not in ignored.diagnostics[0]["stats"]
@@ -69,15 +70,16 @@ def test_warn_lists_collisions_and_ignore_keeps_only_clearances(team_from_yaml):
 
 
 def test_where_and_when_each_first_collision_was_is_kept_for_the_views(team_from_yaml):
-    """Robot a's disk first overlaps the wall at the tick t = 1.8 s, its centre at
-    (1.8, 0): recorded under warn and under outcome, not under ignore."""
+    """Robot a's disk first touches the wall at t = 1.75 s, its centre at (1.75, 0)
+    (between its ticks 1.7 and 1.8): recorded under warn and under outcome, not under
+    ignore."""
     for mode in ("warn", "outcome"):
         (mark,) = ht.simulate(team(team_from_yaml, mode)).meta["world"]["collisions"]
         assert mark == {
             "instance": 0,
             "who": "a",
-            "t": pytest.approx(1.8, abs=1e-12),
-            "x": pytest.approx(1.8, abs=1e-12),
+            "t": pytest.approx(1.75, abs=1e-12),
+            "x": pytest.approx(1.75, abs=1e-12),
             "y": 0.0,
         }
     assert "collisions" not in ht.simulate(team(team_from_yaml, "ignore")).meta["world"]

@@ -93,8 +93,9 @@ def test_a_grasp_breaks_at_its_carriers_tick_not_at_an_arrival(tmp_path):
 
 def test_a_collision_is_seen_at_the_robots_tick(tmp_path):
     """IR wall with R at 0.3 and its rule on the beam behind (it never fires): R's
-    footprint (0.3) meets the wall on x = 2 when 0.3 t = 1.7, t* = 5.667; seen at the
-    tick 5.7, overlapping by 0.3 * 5.7 - 1.7 = 0.01 — not at the copy arriving at 5.67."""
+    footprint (0.3) meets the wall on x = 2 when 0.3 t = 1.7, t* = 5.667 (the first
+    contact, found over the motion between ticks); seen at the tick 5.7, overlapping by
+    0.3 * 5.7 - 1.7 = 0.01 — not at the copy arriving at 5.67."""
     text = (
         (FIXTURES / "ir_wall.yaml")
         .read_text()
@@ -107,7 +108,9 @@ def test_a_collision_is_seen_at_the_robots_tick(tmp_path):
     for run in (alone, traffic):
         out = run._outcomes[0]
         assert out["outcome"] == "collision" and abs(out["t"] - 5.7) < 1e-9
-        assert "overlapping it by 0.01" in out["message"]
+        assert "overlapping it by up to 0.01 by its tick at t=5.7" in out["message"]
+        contact = float(out["message"].rsplit("first touching it at t=", 1)[1])
+        assert contact == pytest.approx(1.7 / 0.3, abs=1e-9)
 
 
 def test_a_payload_settles_only_where_it_is_read(tmp_path, monkeypatch):
