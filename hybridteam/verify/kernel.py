@@ -503,7 +503,6 @@ class PackedStore:
         self.n = 0
         self.slots = np.full(2048, -1, np.int32)
         self.parts = pk  # ``parts.values``: agent parts by number
-        self._agent_parts: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.n
@@ -521,11 +520,9 @@ class PackedStore:
 
     @property
     def agent_parts(self) -> np.ndarray:
-        """Each state's agent part numbers (made once exploring is done: the checks read
-        them block by block)."""
-        if self._agent_parts is None or len(self._agent_parts) != self.n * self.pk.agents:
-            self._agent_parts = np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
-        return self._agent_parts
+        """Each state's agent part numbers ``(states, agents)``: a view of the rows' first
+        columns, not a copy (the checks read them block by block)."""
+        return self.rows[: self.n, : self.pk.agents]
 
     def reserve(self, more: int) -> None:
         """Room for ``more`` rows, and a table at most half full with them."""
@@ -810,20 +807,38 @@ def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
 
 
 class PackedEdges(Edges):
-    """:class:`~.store.Edges` whose sparse-row view is made by a counting sort into 32-bit
-    arrays (no 64-bit argsort of every edge): at tens of millions of edges the freeze is
-    the check's peak of memory."""
+    """:class:`~.store.Edges` whose sparse-row view holds the edges once: a counting sort
+    by source into 32-bit arrays (the Python loop's destinations are 64-bit), each added
+    array going as soon as its sorted copy is made, and the sources last (the row offsets
+    say them). At tens of millions of edges the edges are most of what the checks hold."""
+
+    def __len__(self) -> int:
+        return len(self.dst) if self._dst is None else len(self._dst)
 
     def freeze(self, states: int) -> None:
-        from hybridteam.verify.kernel_core import sparse_rows
+        """The sparse-row view, once (the added arrays go: another call keeps the view)."""
+        from hybridteam.verify.kernel_core import by_source, row_offsets
 
-        src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
-        dst = np.frombuffer(self.dst, UINT) if len(self.dst) else np.zeros(0, UINT)
-        how = np.frombuffer(self.how, UINT) if len(self.how) else np.zeros(0, UINT)
-        self._row = np.zeros(states + 1, np.int64)
-        self._dst = np.zeros(len(dst), UINT)  # (32-bit: the Python loop keeps 64)
-        self._how = np.zeros(len(how), UINT)
-        sparse_rows(src, dst, how, self._row, self._dst, self._how)
+        if self._row is not None:
+            return
+        src = _uints(self.src)
+        # 32-bit offsets while they fit: the checks' sparse arrays take them as they are
+        row = np.zeros(states + 1, np.int32 if src.size < 2**31 else np.int64)
+        row_offsets(src, row)
+        self._dst = np.zeros(src.size, UINT)
+        by_source(src, row, _uints(self.dst), self._dst)
+        self.dst = array("I")
+        self._how = np.zeros(src.size, UINT)
+        by_source(src, row, _uints(self.how), self._how)
+        self.how = array("I")
+        del src
+        self.src = array("I")
+        self._row = row
+
+
+def _uints(a: array) -> np.ndarray:
+    """An ``array("I")``'s numbers, not copied."""
+    return np.frombuffer(a, UINT) if len(a) else np.zeros(0, UINT)
 
 
 def _add_edges(
