@@ -24,6 +24,7 @@ trees (:mod:`hybridteam.requirements.nodes`) on the states' modes and discrete v
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -316,27 +317,36 @@ def _reverse(g: Graph, free: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
     return back, out
 
 
-def _psi_free(g: Graph, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _psi_free(g: Graph, free: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.ndarray]:
     """``(indptr, indices)`` of the edges between ``free`` states (duplicates possible),
-    in the narrowest index type that holds them (int32 below 2**31 edges)."""
+    in the narrowest index type that holds them (int32 below 2**31 edges). The edges are
+    sifted ``block`` states at a time, twice (count, then place): no array over every
+    edge but the result."""
     indptr, indices = g.edges.csr()
-    keep = np.repeat(free, np.diff(indptr))  # the source is free
-    keep &= free[indices]  # and so is the destination
-    wide = np.int64 if indices.size >= 2**31 or len(free) >= 2**31 else np.int32
-    kept = np.zeros(keep.size + 1, wide)  # kept edges before each edge
-    np.cumsum(keep, dtype=wide, out=kept[1:])
-    sub_indptr = kept[indptr]
-    del kept
-    sub_indices = indices[keep]
-    if sub_indices.dtype != wide:
-        # (the packed store's 32-bit unsigned numbers, below 2**31: the same bits)
-        sub_indices = (
-            sub_indices.view(wide)
-            if sub_indices.dtype.itemsize == np.dtype(wide).itemsize
-            and sub_indices.dtype.kind == "u"
-            else sub_indices.astype(wide)
-        )
+    n = len(free)
+    wide = np.int64 if indices.size >= 2**31 or n >= 2**31 else np.int32
+    sub_indptr = np.zeros(n + 1, wide)
+    for a, b, lo, keep in _sifted(indptr, indices, free, block):
+        before = np.zeros(keep.size + 1, wide)  # kept edges before each of the block's
+        np.cumsum(keep, dtype=wide, out=before[1:])
+        sub_indptr[a + 1 : b + 1] = before[indptr[a + 1 : b + 1] - lo] + sub_indptr[a]
+    sub_indices = np.zeros(int(sub_indptr[-1]), wide)
+    for a, b, lo, keep in _sifted(indptr, indices, free, block):
+        sub_indices[sub_indptr[a] : sub_indptr[b]] = indices[lo : lo + keep.size][keep]
     return sub_indptr, sub_indices
+
+
+def _sifted(
+    indptr: np.ndarray, indices: np.ndarray, free: np.ndarray, block: int
+) -> Iterator[tuple[int, int, int, np.ndarray]]:
+    """Per ``block`` states ``a..b``: their first edge's number and which of their edges
+    join two free states."""
+    for a in range(0, len(free), block):
+        b = min(a + block, len(free))
+        lo, hi = int(indptr[a]), int(indptr[b])
+        keep = np.repeat(free[a:b], np.diff(indptr[a : b + 1]))  # the source is free
+        keep &= free[indices[lo:hi]]  # and so is the destination
+        yield a, b, lo, keep
 
 
 def _reaching(back: csr_matrix, out: np.ndarray, free: np.ndarray, dead: np.ndarray) -> np.ndarray:

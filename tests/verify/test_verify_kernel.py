@@ -114,15 +114,17 @@ def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, wi
 
 
 def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
-    """What the compiled loop leaves for the checks is held once: the edges only in their
-    sparse-row view (the added sources, destinations and choices are gone, the offsets
-    are 32-bit), and the agents' part numbers a view of the stored rows."""
+    """What the compiled loop leaves for the checks is held once: the edges as added are
+    their sparse-row view (no sources, no sorted copy; 32-bit offsets), and the agents'
+    part numbers are a view of the stored rows."""
     g = verify(roles_team(tmp_path, "b"), Options(kernel="on", losses=1), replay=False).graph
     assert g.explorer == "compiled kernel"
     edges, store = g.edges, g.states
-    assert (len(edges.src), len(edges.dst), len(edges.how)) == (0, 0, 0)
     row, dst, how = edges.view()
-    assert row.dtype == np.int32 and len(edges) == dst.size == how.size == row[-1] > 0
+    assert len(edges.src) == 0 and row.dtype == np.int32
+    assert len(edges) == dst.size == how.size == row[-1] > 0
+    assert np.shares_memory(dst, np.frombuffer(edges.dst, np.uint32))
+    assert np.shares_memory(how, np.frombuffer(edges.how, np.uint32))
     assert np.shares_memory(store.agent_parts, store.rows)
     assert store.agent_parts.shape == (len(store), 4)  # (three robots and the operator)
 

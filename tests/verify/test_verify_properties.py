@@ -84,3 +84,14 @@ def test_states_that_lead_only_to_peeled_states_are_peeled_and_others_remain():
     assert P._response(RESPONSE, g, flags(6, 5), flags(6, 2)).holds is True
     v = P._response(RESPONSE, g, flags(6, 0, 5), flags(6, 2))
     assert (v.holds, v.state, v.lasso, v.loops) == (False, 0, [0, 3, 4], True)
+
+
+@pytest.mark.parametrize("block", [1, 2, 3, 1 << 20])
+def test_the_psi_free_subgraph_is_the_same_whatever_the_block(block):
+    # free: 0, 1, 3, 4; edges among them, in each state's order: 0->1, 0->1, 1->3, 3->4,
+    # 4->0 (2 and 5 are not free: their edges, and the edges into them, go)
+    g = graph(6, [(0, 1), (0, 2), (0, 1), (1, 3), (2, 3), (3, 5), (3, 4), (4, 0), (5, 0)])
+    indptr, indices = P._psi_free(g, ~flags(6, 2, 5), block)
+    assert indptr.dtype == indices.dtype == np.int32
+    assert indptr.tolist() == [0, 2, 3, 3, 4, 5, 5]
+    assert indices.tolist() == [1, 1, 3, 4, 0]
