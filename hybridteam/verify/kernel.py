@@ -503,7 +503,6 @@ class PackedStore:
         self.n = 0
         self.slots = np.full(2048, -1, np.int32)
         self.parts = pk  # ``parts.values``: agent parts by number
-        self._agent_parts: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.n
@@ -521,11 +520,9 @@ class PackedStore:
 
     @property
     def agent_parts(self) -> np.ndarray:
-        """Each state's agent part numbers (made once exploring is done: the checks read
-        them block by block)."""
-        if self._agent_parts is None or len(self._agent_parts) != self.n * self.pk.agents:
-            self._agent_parts = np.ascontiguousarray(self.rows[: self.n, : self.pk.agents], UINT)
-        return self._agent_parts
+        """Each state's agent part numbers ``(states, agents)``: a view of the rows' first
+        columns, not a copy (the checks read them block by block)."""
+        return self.rows[: self.n, : self.pk.agents]
 
     def reserve(self, more: int) -> None:
         """Room for ``more`` rows, and a table at most half full with them."""
@@ -698,7 +695,7 @@ def explore_packed(
         if status != kc.OK or done != jobs:
             raise RuntimeError(f"kernel: the level did not apply as its dry pass said ({status})")
         g.transitions += jobs
-        _add_edges(sk, edges, known, e_src[:ne], e_dst[:ne], e_how[:ne])
+        _add_edges(sk, edges, known, (lo, hi), e_src[:ne], e_dst[:ne], e_how[:ne])
         del e_src, e_dst, e_how
         g.zeno.update(zeno[:nz].tolist())
         if nx:
@@ -810,34 +807,73 @@ def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
 
 
 class PackedEdges(Edges):
-    """:class:`~.store.Edges` whose sparse-row view is made by a counting sort into 32-bit
-    arrays (no 64-bit argsort of every edge): at tens of millions of edges the freeze is
-    the check's peak of memory."""
+    """:class:`~.store.Edges` kept in sparse-row order as they come, so that freezing
+    copies nothing: a level expands states ``lo..hi`` and its edges are placed by source
+    (a counting sort, each state's in the order added) before they are appended, which
+    puts every edge after those of earlier states. Instead of a source an edge, each
+    expanded state's edge count is kept. At tens of millions of edges the edges are most
+    of what exploring and the checks hold: 8 bytes an edge and 4 a state (the Python
+    loop's :class:`~.store.Edges`: 12 an edge, and a sorted copy when frozen)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.degree = array("I")  # the edges of each state expanded so far
+
+    def __len__(self) -> int:
+        return len(self.dst)
+
+    def add_level(
+        self, lo: int, hi: int, src: np.ndarray, dst: np.ndarray, how: np.ndarray
+    ) -> None:
+        """Append the edges of the level that expanded states ``lo..hi`` (``how``: the
+        choices' numbers in :attr:`choices`), in the order the loop made them."""
+        from hybridteam.verify.kernel_core import by_source, row_offsets
+
+        if src.size and not lo <= int(src.min()) <= int(src.max()) < hi:
+            raise RuntimeError(f"kernel: a level's edge leaves from outside states {lo}..{hi}")
+        rel = src.astype(np.int64) - lo
+        row = np.zeros(hi - lo + 1, np.int64)
+        row_offsets(rel, row)
+        for values, out in ((dst, self.dst), (how, self.how)):
+            placed = np.zeros(rel.size, UINT)
+            by_source(rel, row, values.astype(UINT, copy=False), placed)
+            out.frombytes(placed.tobytes())  # (a level's, not all of them)
+        self.degree.frombytes(np.diff(row).astype(UINT).tobytes())
 
     def freeze(self, states: int) -> None:
-        from hybridteam.verify.kernel_core import sparse_rows
+        """The sparse-row view: the edges as they are, and the offsets summed from the
+        counts (states never expanded, beyond a bound, have none)."""
+        if self._row is not None:
+            return
+        degree = _uints(self.degree)
+        # 32-bit offsets while they fit: the checks' sparse arrays take them as they are
+        row = np.zeros(states + 1, np.int32 if len(self.dst) < 2**31 else np.int64)
+        row[1 : degree.size + 1] = degree
+        np.cumsum(row, out=row)
+        del degree
+        self.degree = array("I")
+        if row[-1] != len(self.dst):
+            raise RuntimeError("kernel: the edge counts do not add up to the edges")
+        self._row, self._dst, self._how = row, _uints(self.dst), _uints(self.how)
 
-        src = np.frombuffer(self.src, UINT) if len(self.src) else np.zeros(0, UINT)
-        dst = np.frombuffer(self.dst, UINT) if len(self.dst) else np.zeros(0, UINT)
-        how = np.frombuffer(self.how, UINT) if len(self.how) else np.zeros(0, UINT)
-        self._row = np.zeros(states + 1, np.int64)
-        self._dst = np.zeros(len(dst), UINT)  # (32-bit: the Python loop keeps 64)
-        self._how = np.zeros(len(how), UINT)
-        sparse_rows(src, dst, how, self._row, self._dst, self._how)
+
+def _uints(a: array) -> np.ndarray:
+    """An ``array("I")``'s numbers, not copied."""
+    return np.frombuffer(a, UINT) if len(a) else np.zeros(0, UINT)
 
 
 def _add_edges(
     sk: Skeleton,
-    edges: Edges,
+    edges: PackedEdges,
     known: dict[int, int],
+    level: tuple[int, int],
     src: np.ndarray,
     dst: np.ndarray,
     how: np.ndarray,
 ) -> None:
-    """Append a level's edges to ``edges``, their choices numbered as
-    :meth:`~.store.Edges.add` numbers them (in order of first use)."""
-    edges.src.frombytes(src.astype(UINT).tobytes())
-    edges.dst.frombytes(dst.astype(UINT).tobytes())
+    """Append the edges of the level that expanded states ``level`` (lo, hi) to
+    ``edges``, their choices numbered as :meth:`~.store.Edges.add` numbers them (in
+    order of first use, in the order the loop made them)."""
     codes, first, inverse = np.unique(how, return_index=True, return_inverse=True)
     for u in np.argsort(first, kind="stable").tolist():
         code = int(codes[u])
@@ -845,4 +881,4 @@ def _add_edges(
             choice = _choice(sk, code >> 28, (code >> 20) & 0xFF, code & 0xFFFFF)
             known[code] = edges.choices.of(choice)
     number = np.array([known[int(c)] for c in codes.tolist()], UINT)
-    edges.how.frombytes(number[inverse].tobytes())
+    edges.add_level(*level, src, dst, number[inverse])

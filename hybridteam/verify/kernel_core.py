@@ -769,16 +769,21 @@ def level(
 
 
 @njit(cache=True)
-def sparse_rows(src, dst, how, row, out_dst, out_how) -> None:
-    """The edges' sparse-row view (``row``: n + 1 offsets), each state's edges in the
-    order added: a counting sort by source."""
+def row_offsets(src, row) -> None:
+    """The edges' sparse-row offsets (``row``: n + 1, zeros): a count of each state's
+    edges, summed."""
     for k in range(src.size):
         row[src[k] + 1] += 1
     for k in range(1, row.size):
         row[k] += row[k - 1]
+
+
+@njit(cache=True)
+def by_source(src, row, values, out) -> None:
+    """``values`` (one per edge) in sparse-row order (``row``: :func:`row_offsets`), each
+    state's in the order added: the placing pass of a counting sort by source."""
     at = row[:-1].copy()
     for k in range(src.size):
         j = at[src[k]]
-        out_dst[j] = dst[k]
-        out_how[j] = how[k]
+        out[j] = values[k]
         at[src[k]] = j + 1

@@ -24,6 +24,7 @@ trees (:mod:`hybridteam.requirements.nodes`) on the states' modes and discrete v
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -77,36 +78,46 @@ class States:
 
     def __init__(self, sk: Skeleton, g: Graph, rows: slice | np.ndarray = _ALL) -> None:
         """Explored states' (``rows``: these) active modes and discrete variables, per
-        agent: from the few distinct agent parts the store keeps, spread over the states."""
+        agent: from the few distinct agent parts the store keeps, spread over the states
+        when a formula first reads that agent (an agent no formula reads costs nothing)."""
         self.sk = sk
         count = len(sk.cteam.agents)
-        nums = np.frombuffer(g.states.agent_parts, UINT).reshape(len(g.states), count)[rows]
-        n = nums.shape[0]
-        self.shape = (n, 1)
+        parts = g.states.agent_parts  # (the packed store's: a view of its rows)
+        if not isinstance(parts, np.ndarray):
+            parts = np.frombuffer(parts, UINT)
+        self._nums = parts.reshape(len(g.states), count)[rows]
+        self.shape = (self._nums.shape[0], 1)
         self.memo: dict = {}
-        self._active = []
-        self._vars = []
-        values = g.states.parts.values
-        for a, ca in enumerate(sk.cteam.agents):
-            m = len(ca.modes)
-            used, inverse = np.unique(nums[:, a], return_inverse=True)
-            act = np.array([np.frombuffer(values[u][0][:m], np.uint8) for u in used.tolist()])
-            self._active.append(act.astype(bool).reshape(used.size, m)[inverse])
-            cols = sk.discrete_vars[a]
-            var = np.array([values[u][1] for u in used.tolist()], float)
-            self._vars.append(var.reshape(used.size, len(cols))[inverse])
+        self._values = g.states.parts.values
+        self._agents: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.names = {ca.name: a for a, ca in enumerate(sk.cteam.agents)}
+
+    def _agent(self, a: int) -> tuple[np.ndarray, np.ndarray]:
+        """Agent ``a``'s active modes ``(states, modes)`` and discrete variables
+        ``(states, kept columns)``, made at the first read."""
+        if a not in self._agents:
+            m = len(self.sk.cteam.agents[a].modes)
+            values = self._values
+            used, inverse = np.unique(self._nums[:, a], return_inverse=True)
+            act = np.array([np.frombuffer(values[u][0][:m], np.uint8) for u in used.tolist()])
+            cols = self.sk.discrete_vars[a]
+            var = np.array([values[u][1] for u in used.tolist()], float)
+            self._agents[a] = (
+                act.astype(bool).reshape(used.size, m)[inverse],
+                var.reshape(used.size, len(cols))[inverse],
+            )
+        return self._agents[a]
 
     @property
     def t(self):
         raise Unsupported("it reads time")
 
     def in_modes(self, agent: str, modes: list[int]) -> np.ndarray:
-        return np.logical_or.reduce(self._active[self.names[agent]][:, modes], axis=1)[:, None]
+        return np.logical_or.reduce(self.active(self.names[agent])[:, modes], axis=1)[:, None]
 
     def active(self, a: int) -> np.ndarray:
         """Agent ``a``'s active modes in each state ``(states, modes)``, as booleans."""
-        return self._active[a]
+        return self._agent(a)[0]
 
     def variable(self, agent: str, j: int) -> np.ndarray:
         a = self.names[agent]
@@ -115,7 +126,7 @@ class States:
             raise Unsupported(
                 f"it reads {agent}.{self._var_name(a, j)}, which is computed from time or state"
             )
-        return self._vars[a][:, cols.index(j)][:, None]
+        return self._agent(a)[1][:, cols.index(j)][:, None]
 
     def _var_name(self, a: int, j: int) -> str:
         return next(n for n, k in self.sk.original.agents[a].var_index.items() if k == j)
@@ -265,26 +276,24 @@ def _invariant(p: Property, ok: np.ndarray) -> Verdict:
 def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdict:
     """phi leads to psi: no phi state starts a psi-free path into a dead end or a cycle.
 
-    The whole graph is searched with sparse arrays (scipy: strongly connected components,
-    then what reaches a bad state); only a violation's lasso is traced with networkx, on
-    the states that reach a bad one."""
-    n = len(g.states)
-    indptr, indices = g.edges.csr()
-    src = np.repeat(np.arange(n), np.diff(indptr))
-    keep = ~psi[src] & ~psi[indices]  # edges between psi-false states
-    sub = csr_matrix((np.ones(int(keep.sum()), np.int8), (src[keep], indices[keep])), shape=(n, n))
+    The whole graph is searched with sparse arrays (the psi-free subgraph's reverse, then
+    what reaches a dead end or a cycle); only a violation's lasso is traced with networkx,
+    on the states that reach a bad one. The arrays over every edge are the check's peak of
+    memory: the subgraph is cut from the edges' own sparse-row view in 32-bit indices, and
+    a property that holds needs no strongly connected components (scipy's take a float64
+    copy of every edge), only the reverse graph."""
     waiting = ~psi
     dead = waiting & g.terminal()
-    _, label = connected_components(sub, directed=True, connection="strong")
-    size = np.bincount(label, minlength=1)
-    cyclic = waiting & (size[label] > 1)
-    bad = dead | cyclic
-    if not bad.any():
-        return Verdict(p, True)
-    reach = _reaching(sub, bad)
+    back, out = _reverse(g, waiting)
+    reach = _reaching(back, out, waiting, dead)
     starts = np.flatnonzero(reach & phi)
     if not starts.size:
         return Verdict(p, True)
+    # a violation: which states lie on a psi-free cycle (those that reach one do too)
+    _, label = connected_components(back, directed=True, connection="strong")
+    del back
+    size = np.bincount(label, minlength=1)
+    cyclic = waiting & (size[label] > 1)
     return _lasso(
         p,
         g,
@@ -296,18 +305,66 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
     )
 
 
-def _reaching(sub: csr_matrix, bad: np.ndarray) -> np.ndarray:
-    """The states with a path in ``sub`` to a ``bad`` one (those included)."""
-    reach = bad.copy()
-    back = sub.T.tocsr()
-    frontier = np.flatnonzero(bad)
+def _reverse(g: Graph, free: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
+    """The subgraph of the edges between ``free`` states, reversed (row k: the sources of
+    k's edges, duplicates possible), and each state's out-degree in the subgraph."""
+    n = len(free)
+    indptr, indices = _psi_free(g, free)
+    out = np.diff(indptr)
+    marks = np.ones(indices.size, np.int8)
+    # csc's columns are the reverse's rows: its transpose is the reverse, not a copy
+    back = csr_matrix((marks, indices, indptr), shape=(n, n), copy=False).tocsc().T
+    return back, out
+
+
+def _psi_free(g: Graph, free: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """``(indptr, indices)`` of the edges between ``free`` states (duplicates possible),
+    in the narrowest index type that holds them (int32 below 2**31 edges). The edges are
+    sifted ``block`` states at a time, twice (count, then place): no array over every
+    edge but the result."""
+    indptr, indices = g.edges.csr()
+    n = len(free)
+    wide = np.int64 if indices.size >= 2**31 or n >= 2**31 else np.int32
+    sub_indptr = np.zeros(n + 1, wide)
+    for a, b, lo, keep in _sifted(indptr, indices, free, block):
+        before = np.zeros(keep.size + 1, wide)  # kept edges before each of the block's
+        np.cumsum(keep, dtype=wide, out=before[1:])
+        sub_indptr[a + 1 : b + 1] = before[indptr[a + 1 : b + 1] - lo] + sub_indptr[a]
+    sub_indices = np.zeros(int(sub_indptr[-1]), wide)
+    for a, b, lo, keep in _sifted(indptr, indices, free, block):
+        sub_indices[sub_indptr[a] : sub_indptr[b]] = indices[lo : lo + keep.size][keep]
+    return sub_indptr, sub_indices
+
+
+def _sifted(
+    indptr: np.ndarray, indices: np.ndarray, free: np.ndarray, block: int
+) -> Iterator[tuple[int, int, int, np.ndarray]]:
+    """Per ``block`` states ``a..b``: their first edge's number and which of their edges
+    join two free states."""
+    for a in range(0, len(free), block):
+        b = min(a + block, len(free))
+        lo, hi = int(indptr[a]), int(indptr[b])
+        keep = np.repeat(free[a:b], np.diff(indptr[a : b + 1]))  # the source is free
+        keep &= free[indices[lo:hi]]  # and so is the destination
+        yield a, b, lo, keep
+
+
+def _reaching(back: csr_matrix, out: np.ndarray, free: np.ndarray, dead: np.ndarray) -> np.ndarray:
+    """The ``free`` states with a path among free states to a ``dead`` one or into a
+    cycle (those included). The others are peeled off backwards: a free state that is not
+    dead and has no free successor left cannot reach either, nor can a state all of whose
+    free successors were peeled (``out``, the free out-degrees, counts them down; ``back``:
+    the free subgraph's reverse). What remains has a successor that remains, or is dead:
+    following those it meets a dead end or comes round a cycle."""
+    out = out.copy()
+    gone = free & (out == 0) & ~dead
+    frontier = np.flatnonzero(gone)
     while frontier.size:
-        rows = back[frontier]
-        new = np.unique(rows.indices)
-        new = new[~reach[new]]
-        reach[new] = True
-        frontier = new
-    return reach
+        preds, times = np.unique(back[frontier].indices, return_counts=True)
+        out[preds] -= times.astype(out.dtype)
+        frontier = preds[out[preds] == 0]
+        gone[frontier] = True
+    return free & ~gone
 
 
 def _lasso(

@@ -281,6 +281,11 @@ class Edges:
         self._row = np.zeros(states + 1, np.int64)
         np.cumsum(np.bincount(src, minlength=states), out=self._row[1:])
 
+    def view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The sparse-row view: each state's edges ``row[k]:row[k + 1]``, their
+        destinations and their choices' numbers (in ``choices``), in the order added."""
+        return self._ready()
+
     def _ready(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._row is None or self._dst is None or self._how is None:  # (set together)
             raise RuntimeError("edges are not frozen (call freeze after exploring)")

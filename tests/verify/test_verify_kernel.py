@@ -45,9 +45,13 @@ def same_graph(a: Graph, b: Graph) -> None:
     ]
     assert list(a.parent) == list(b.parent)
     assert a.transitions == b.transitions
-    assert (list(a.edges.src), list(a.edges.dst)) == (list(b.edges.src), list(b.edges.dst))
-    assert [a.edges.choices.values[h] for h in a.edges.how] == [
-        b.edges.choices.values[h] for h in b.edges.how
+    # the edges as the checks read them (the compiled loop keeps only this view: each
+    # state's edges in the order added)
+    (row_a, dst_a, how_a), (row_b, dst_b, how_b) = a.edges.view(), b.edges.view()
+    assert len(a.edges) == len(b.edges)
+    assert (row_a.tolist(), dst_a.tolist()) == (row_b.tolist(), dst_b.tolist())
+    assert [a.edges.choices.values[h] for h in how_a.tolist()] == [
+        b.edges.choices.values[h] for h in how_b.tolist()
     ]
     assert (a.zeno, a.cut, a.exhaustive, a.bound) == (b.zeno, b.cut, b.exhaustive, b.bound)
 
@@ -107,6 +111,22 @@ def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, wi
         extra = "  no_operator: always(not in_mode(operator, Command))\n"
     kw = {} if protocol is None else {"protocol": protocol}
     both(roles_team(tmp_path, events, extra=extra, without_c=without_c, **kw), **opts)
+
+
+def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
+    """What the compiled loop leaves for the checks is held once: the edges as added are
+    their sparse-row view (no sources, no sorted copy; 32-bit offsets), and the agents'
+    part numbers are a view of the stored rows."""
+    g = verify(roles_team(tmp_path, "b"), Options(kernel="on", losses=1), replay=False).graph
+    assert g.explorer == "compiled kernel"
+    edges, store = g.edges, g.states
+    row, dst, how = edges.view()
+    assert len(edges.src) == 0 and row.dtype == np.int32
+    assert len(edges) == dst.size == how.size == row[-1] > 0
+    assert np.shares_memory(dst, np.frombuffer(edges.dst, np.uint32))
+    assert np.shares_memory(how, np.frombuffer(edges.how, np.uint32))
+    assert np.shares_memory(store.agent_parts, store.rows)
+    assert store.agent_parts.shape == (len(store), 4)  # (three robots and the operator)
 
 
 @pytest.mark.parametrize("acknowledged", [False, True])
