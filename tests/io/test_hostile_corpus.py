@@ -1150,7 +1150,10 @@ def test_verify_of_an_unbounded_counter_ends_naming_the_variable(tmp_path, monke
     (tmp_path / "team.yaml").write_text(COUNTER)
     monkeypatch.chdir(tmp_path)
     old = signal.signal(signal.SIGALRM, _alarm)
-    signal.alarm(5)  # without the bound: one new state per level, about 40 minutes
+    # without the bound: one new state per level, about 40 minutes. A minute, not less:
+    # with numba installed the compiled loop's first compilation on a fresh machine
+    # (about 16 s, more under load) can fall in this test, the first to verify
+    signal.alarm(60)
     try:
         code = main(["verify", "team.yaml", "-o", "vout", "--progress", "none"])
     finally:
