@@ -22,15 +22,7 @@ from tests.verify.test_verify import GO, docking, roles_team
 from tests.verify.test_verify_bounds import BOUNDED, COUNTERS, team_of
 from tests.verify.test_verify_promela import PARALLEL, PINGPONG, acked_go
 from tests.verify.test_verify_symmetry import ask_team
-from tests.verify.test_verify_tables import (
-    CONFIRMS,
-    LEADS,
-    NO_DEDUPE,
-    NO_DENY,
-    RESTORED,
-    STAYS,
-    ZENO,
-)
+from tests.verify.test_verify_tables import ROLE_CASES, ROLE_IDS, ZENO
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -75,36 +67,8 @@ def both(team, **kw) -> None:
 
 @pytest.mark.parametrize(
     "events,protocol,extra,without_c,opts",
-    [
-        ("b", None, "", False, {"losses": 1}),
-        ("b", None, "", False, {"losses": 1, "order": "fifo"}),
-        ("b", None, "", True, {"losses": 1, "ack_timing": "any", "max_states": 3000}),
-        ("b", STAYS, "", False, {"losses": 0}),
-        ("b", STAYS, "", False, {"losses": 1, "order": "fifo"}),
-        ("b", LEADS, "", False, {"losses": 0}),
-        ("a", CONFIRMS, "", False, {"losses": 0}),
-        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "long"}),
-        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "own"}),
-        ("a", NO_DEDUPE, RESTORED, True, {"losses": 1}),
-        ("a", NO_DEDUPE, RESTORED, True, {"losses": 0, "duplicates": 1}),
-        ("a", None, RESTORED, True, {"losses": 1}),
-        ("b", None, "", False, {"losses": 2, "max_states": 5000}),
-    ],
-    ids=[
-        "roles",
-        "roles-fifo",
-        "roles-ack-any",
-        "stays-lead",
-        "stays-lead-fifo",
-        "leads-when-asking",
-        "confirms-all",
-        "no-deny-long",
-        "no-deny-own",
-        "no-dedupe",
-        "no-dedupe-duplicated",
-        "restored",
-        "roles-cut",
-    ],
+    [*ROLE_CASES, ("b", None, "", False, {"losses": 2, "max_states": 5000})],
+    ids=[*ROLE_IDS, "roles-cut"],
 )
 def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, without_c, opts):
     if extra == "no_operator":

@@ -73,37 +73,40 @@ RESTORED = (
 )
 
 
-@pytest.mark.parametrize(
-    "events,protocol,extra,without_c,opts",
-    [
-        ("b", None, "", False, {"losses": 1}),
-        ("b", None, "", False, {"losses": 1, "order": "fifo"}),
-        ("b", None, "", True, {"losses": 1, "ack_timing": "any", "max_states": 3000}),
-        ("b", STAYS, "", False, {"losses": 0}),
-        ("b", STAYS, "", False, {"losses": 1, "order": "fifo"}),
-        ("b", LEADS, "", False, {"losses": 0}),
-        ("a", CONFIRMS, "", False, {"losses": 0}),
-        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "long"}),
-        ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "own"}),
-        ("a", NO_DEDUPE, RESTORED, True, {"losses": 1}),
-        ("a", NO_DEDUPE, RESTORED, True, {"losses": 0, "duplicates": 1}),
-        ("a", None, RESTORED, True, {"losses": 1}),
-    ],
-    ids=[
-        "roles",
-        "roles-fifo",
-        "roles-ack-any",
-        "stays-lead",
-        "stays-lead-fifo",
-        "leads-when-asking",
-        "confirms-all",
-        "no-deny-long",
-        "no-deny-own",
-        "no-dedupe",
-        "no-dedupe-duplicated",
-        "restored",
-    ],
-)
+#: (scenario events, protocol text, extra requirements, without agent c, options) of the
+#: role protocol and its mutants, with their ids (test_verify_kernel compares its loop on
+#: the same models)
+ROLE_CASES = [
+    ("b", None, "", False, {"losses": 1}),
+    ("b", None, "", False, {"losses": 1, "order": "fifo"}),
+    ("b", None, "", True, {"losses": 1, "ack_timing": "any", "max_states": 3000}),
+    ("b", STAYS, "", False, {"losses": 0}),
+    ("b", STAYS, "", False, {"losses": 1, "order": "fifo"}),
+    ("b", LEADS, "", False, {"losses": 0}),
+    ("a", CONFIRMS, "", False, {"losses": 0}),
+    ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "long"}),
+    ("bc", NO_DENY, "no_operator", False, {"losses": 0, "timeouts": "own"}),
+    ("a", NO_DEDUPE, RESTORED, True, {"losses": 1}),
+    ("a", NO_DEDUPE, RESTORED, True, {"losses": 0, "duplicates": 1}),
+    ("a", None, RESTORED, True, {"losses": 1}),
+]
+ROLE_IDS = [
+    "roles",
+    "roles-fifo",
+    "roles-ack-any",
+    "stays-lead",
+    "stays-lead-fifo",
+    "leads-when-asking",
+    "confirms-all",
+    "no-deny-long",
+    "no-deny-own",
+    "no-dedupe",
+    "no-dedupe-duplicated",
+    "restored",
+]
+
+
+@pytest.mark.parametrize("events,protocol,extra,without_c,opts", ROLE_CASES, ids=ROLE_IDS)
 def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, without_c, opts):
     if extra == "no_operator":
         extra = "  no_operator: always(not in_mode(operator, Command))\n"
