@@ -511,7 +511,7 @@ class Obstacles(WorldComponent):
                     tick = float(world.t[i])
                     text = (
                         f"robot '{who}' hit {what} (its footprint overlapping it by up to "
-                        f"{depth:.3g} by its tick at t={tick!r}), first touching it"
+                        f"{depth:.3g} by its tick at t={tick:.10g}), first touching it"
                     )
                     hits.append((i, who, text, np.array([x, y])))
                     times.append(t)
