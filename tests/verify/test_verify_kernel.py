@@ -18,11 +18,18 @@ from hybridteam.cli import main
 from hybridteam.verify import Options, verify
 from hybridteam.verify.explore import Graph
 from hybridteam.verify.kernel import numba_available
-from tests.verify.test_verify import GO, docking, roles_team
-from tests.verify.test_verify_bounds import BOUNDED, COUNTERS, team_of
-from tests.verify.test_verify_promela import PARALLEL, PINGPONG, acked_go
+from tests.verify.test_verify import docking, roles_team
+from tests.verify.test_verify_bounds import COUNTERS, team_of
+from tests.verify.test_verify_promela import acked_go
 from tests.verify.test_verify_symmetry import ask_team
-from tests.verify.test_verify_tables import ROLE_CASES, ROLE_IDS, ZENO
+from tests.verify.test_verify_tables import (
+    EXAMPLES,
+    ROLE_CASES,
+    ROLE_IDS,
+    SMALL_CASES,
+    SMALL_IDS,
+    ZENO,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -101,27 +108,11 @@ def test_the_docking_handshake(tmp_path, acknowledged):
 @pytest.mark.parametrize(
     "text,opts",
     [
-        (PINGPONG, {"losses": 1, "duplicates": 1}),
-        (PARALLEL, {"losses": 1, "duplicates": 1}),
-        (GO, {"losses": 1}),
-        (acked_go(1), {"losses": 1, "duplicates": 1}),
-        (acked_go(0), {"losses": 1}),
+        *SMALL_CASES,
         (acked_go(1), {"losses": 1, "order": "fifo", "timeouts": "own"}),
-        (BOUNDED, {"losses": 0}),
-        (COUNTERS, {"max_values": 10}),  # stops at the value bound: at the same level
         (ZENO, {"losses": 0}),  # a Zeno state: expanded by the engine in both
     ],
-    ids=[
-        "pingpong",
-        "parallel",
-        "go",
-        "acked-go",
-        "acked-go-no-retry",
-        "acked-go-fifo-own",
-        "bounded",
-        "counters",
-        "zeno",
-    ],
+    ids=[*SMALL_IDS, "acked-go-fifo-own", "zeno"],
 )
 def test_the_small_models(tmp_path, text, opts):
     path = tmp_path / "team.yaml"
@@ -129,18 +120,7 @@ def test_the_small_models(tmp_path, text, opts):
     both(load(path), **opts)
 
 
-@pytest.mark.parametrize(
-    "path,opts",
-    [
-        ("protocols/roles_verify.yaml", {"losses": 1, "max_states": 4000}),
-        ("protocols/handover.yaml", {"losses": 1}),
-        ("automata/relay.yaml", {}),
-        ("automata/thermostat.yaml", {}),
-        ("automata/thermostat_chatter.yaml", {}),
-        ("automata/unicycle_square.yaml", {}),
-        ("automata/water_tanks.yaml", {}),
-    ],
-)
+@pytest.mark.parametrize("path,opts", EXAMPLES)
 def test_the_examples(path, opts):
     both(load(ROOT / "examples" / path), **opts)
 

@@ -119,37 +119,40 @@ def test_the_docking_handshake(tmp_path, acknowledged):
     both(docking(tmp_path, acknowledged), losses=1)
 
 
-@pytest.mark.parametrize(
-    "text,opts",
-    [
-        (PINGPONG, {"losses": 1, "duplicates": 1}),
-        (PARALLEL, {"losses": 1, "duplicates": 1}),
-        (GO, {"losses": 1}),
-        (acked_go(1), {"losses": 1, "duplicates": 1}),
-        (acked_go(0), {"losses": 1}),
-        (BOUNDED, {"losses": 0}),
-        (COUNTERS, {"max_values": 10}),  # stops at the value bound: at the same level
-    ],
-    ids=["pingpong", "parallel", "go", "acked-go", "acked-go-no-retry", "bounded", "counters"],
-)
+#: (team text, options) of the small verify test models, with their ids (test_verify_kernel
+#: compares its loop on the same models)
+SMALL_CASES = [
+    (PINGPONG, {"losses": 1, "duplicates": 1}),
+    (PARALLEL, {"losses": 1, "duplicates": 1}),
+    (GO, {"losses": 1}),
+    (acked_go(1), {"losses": 1, "duplicates": 1}),
+    (acked_go(0), {"losses": 1}),
+    (BOUNDED, {"losses": 0}),
+    (COUNTERS, {"max_values": 10}),  # stops at the value bound: at the same level
+]
+SMALL_IDS = ["pingpong", "parallel", "go", "acked-go", "acked-go-no-retry", "bounded", "counters"]
+
+
+@pytest.mark.parametrize("text,opts", SMALL_CASES, ids=SMALL_IDS)
 def test_the_small_models(tmp_path, text, opts):
     path = tmp_path / "team.yaml"
     path.write_text(text)
     both(load(path), **opts)
 
 
-@pytest.mark.parametrize(
-    "path,opts",
-    [
-        ("protocols/roles_verify.yaml", {"losses": 1, "max_states": 4000}),
-        ("protocols/handover.yaml", {"losses": 1}),
-        ("automata/relay.yaml", {}),
-        ("automata/thermostat.yaml", {}),
-        ("automata/thermostat_chatter.yaml", {}),
-        ("automata/unicycle_square.yaml", {}),
-        ("automata/water_tanks.yaml", {}),
-    ],
-)
+#: (example under examples/, options) that verify explores (test_verify_kernel too)
+EXAMPLES = [
+    ("protocols/roles_verify.yaml", {"losses": 1, "max_states": 4000}),
+    ("protocols/handover.yaml", {"losses": 1}),
+    ("automata/relay.yaml", {}),
+    ("automata/thermostat.yaml", {}),
+    ("automata/thermostat_chatter.yaml", {}),
+    ("automata/unicycle_square.yaml", {}),
+    ("automata/water_tanks.yaml", {}),
+]
+
+
+@pytest.mark.parametrize("path,opts", EXAMPLES)
 def test_the_examples(path, opts):
     both(load(ROOT / "examples" / path), **opts)
 
