@@ -608,6 +608,35 @@ def explore_packed(
     none = np.zeros(0, np.uint32)
     need = np.zeros(3, np.int64)  # the group counts of a successor that outgrew the layout
     pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
+
+    def level(apply: bool, *outs: np.ndarray) -> tuple[int, ...]:
+        """One pass of the compiled loop over the level ``lo..hi``: a dry pass
+        (``apply`` False: it only counts the jobs and collects the misses) or the level
+        applied, its edges, Zeno and cut states into ``outs``; the rest of its arguments,
+        the same for both, as they stand at the call."""
+        assert tb is not None  # (the tables are built before the first pass)
+        return kc.level(  # type: ignore[call-arg]
+            store.rows,
+            store.n,
+            lo,
+            hi,
+            store.slots,
+            store.lay.array(),
+            *tb,
+            *table.array(),
+            opt,
+            settled,
+            pre_ord,
+            pre_rows,
+            pre_res,
+            apply,
+            opts.max_states,
+            parent,
+            *outs,
+            misses,
+            need,
+        )
+
     while lo < hi:
         misses = np.zeros((MISSES, 4), np.int64)
         while True:  # dry passes until the tables answer every job of the level
@@ -622,31 +651,7 @@ def explore_packed(
             if pk.dirty or tb is None:
                 tb = pk.tables()
             settled = _settled(pk, m)
-            status, jobs, _, _, _, _, nm = kc.level(  # type: ignore[call-arg]
-                store.rows,
-                store.n,
-                lo,
-                hi,
-                store.slots,
-                store.lay.array(),
-                *tb,
-                *table.array(),
-                opt,
-                settled,
-                pre_ord,
-                pre_rows,
-                pre_res,
-                False,
-                opts.max_states,
-                parent,
-                none,
-                none,
-                none,
-                none,
-                none,
-                misses,
-                need,
-            )
+            status, jobs, _, _, _, _, nm = level(False, none, none, none, none, none)
             if nm == 0:
                 break
             _fill(m, pk, store, misses[:nm], pre, g.batch)
@@ -661,31 +666,7 @@ def explore_packed(
         e_how = np.zeros(jobs, np.uint32)
         zeno = np.zeros(jobs, np.uint32)
         cut = np.zeros(jobs, np.uint32)
-        status, done, n, ne, nz, nx, _ = kc.level(  # type: ignore[call-arg]
-            store.rows,
-            store.n,
-            lo,
-            hi,
-            store.slots,
-            store.lay.array(),
-            *tb,
-            *table.array(),
-            opt,
-            settled,
-            pre_ord,
-            pre_rows,
-            pre_res,
-            True,
-            opts.max_states,
-            parent,
-            e_src,
-            e_dst,
-            e_how,
-            zeno,
-            cut,
-            misses,
-            need,
-        )
+        status, done, n, ne, nz, nx, _ = level(True, e_src, e_dst, e_how, zeno, cut)
         if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
             c, e, k = need.tolist()
             store.relayout(store.lay.fit((c, e, k)), store.rows.dtype)
