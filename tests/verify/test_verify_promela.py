@@ -307,9 +307,10 @@ def test_a_feature_not_translated_is_refused_with_one_line(tmp_path):
         promela.prepare(report, Options(losses=0))
 
 
-@needs_spin
-def test_cli_spin_rules_prints_both_explorers(tmp_path, capsys):
-    (tmp_path / "go.yaml").write_text(GO)
+def spin_rules_cli(tmp_path, capsys, text: str) -> tuple[int, str]:
+    """``verify --losses 1 --spin-rules --no-replay`` of the team ``text`` (written to
+    ``go.yaml``, the results in ``o/``): its exit code and what it printed."""
+    (tmp_path / "go.yaml").write_text(text)
     code = main(
         [
             "verify",
@@ -324,7 +325,12 @@ def test_cli_spin_rules_prints_both_explorers(tmp_path, capsys):
             "none",
         ]
     )
-    out = capsys.readouterr().out
+    return code, capsys.readouterr().out
+
+
+@needs_spin
+def test_cli_spin_rules_prints_both_explorers(tmp_path, capsys):
+    code, out = spin_rules_cli(tmp_path, capsys, GO)
     assert code == 1  # the deadlock (not replayed)
     assert "spin-rules: ours: 5 mode configurations, 2 at dead ends, deadlock violated" in out
     assert "spin-rules: SPIN: 5 mode configurations, 2 at dead ends, deadlock violated" in out
@@ -797,22 +803,7 @@ def test_three_requests_and_a_resignation_agree(tmp_path):
 
 @needs_spin
 def test_cli_spin_rules_prints_spins_verdicts(tmp_path, capsys):
-    (tmp_path / "go.yaml").write_text(GO_PROPS)
-    code = main(
-        [
-            "verify",
-            str(tmp_path / "go.yaml"),
-            "--losses",
-            "1",
-            "--spin-rules",
-            "--no-replay",
-            "-o",
-            str(tmp_path / "o"),
-            "--progress",
-            "none",
-        ]
-    )
-    out = capsys.readouterr().out
+    code, out = spin_rules_cli(tmp_path, capsys, GO_PROPS)
     assert code == 1  # violations, agreed on
     assert "spin-rules: follows: SPIN violated on the rules" in out
     assert "spin-rules: one_driving: SPIN violated on the rules" in out
