@@ -38,7 +38,9 @@ carriers') and, for a robot under a held input, over its motion between instants
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
-obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
+obstacles, 0 when they touch or overlap). Two robots under held inputs are judged against
+each other over their motion between instants too (:mod:`hybridteam.world.swept_pair`:
+a collision, at its first contact). With ``clearance: true`` the same gaps are also
 series for requirements, holding between those instants (:meth:`Obstacles.sample`).
 """
 
@@ -82,9 +84,11 @@ from hybridteam.world.swept import (
     first_contact,
     holds_between_instants,
     least_gap,
+    path_length,
     piece,
     point_gap,
 )
+from hybridteam.world.swept_pair import first_touch, least_separation, may_touch
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -207,6 +211,7 @@ class Obstacles(WorldComponent):
             if team.agents[a].plant.kind in ("unicycle", "holonomic")
             and holds_between_instants(team.agents[a].root)
         ]
+        self._turning = {r: turning for r, _, turning in self.swept}
         #: per swept robot: its pose at each instance's last instant and when ``(R, n, 3)``,
         #: ``(n,)``; the least gap over its motion since it last sensed ``(R, n)``, and
         #: its first contact then, per (row, instance): ``(t, x, y, what, overlap)``
@@ -217,6 +222,12 @@ class Obstacles(WorldComponent):
         self.last_one: dict[int, tuple[list[float], float]] = {}
         self.swept_gap = np.full((len(self.planar), n), np.inf)
         self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
+        #: the pairs of swept robots with footprints, judged against each other over their
+        #: motion too (:mod:`.swept_pair`): (row, row); and each pair's first contact since
+        #: either last sensed, per (row, row, instance): ``(t, x, y, overlap)``
+        footed = [r for r, _, _ in self.swept if self.radius[r] > 0]
+        self.swept_pairs = [(r1, r2) for k, r1 in enumerate(footed) for r2 in footed[k + 1 :]]
+        self.pair_hit: dict[tuple[int, int, int], tuple[float, float, float, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
             preset = getattr(agent, "preset", None)
@@ -399,11 +410,13 @@ class Obstacles(WorldComponent):
         t = world.t[idx]
         began = self.last_t[idx]
         self.last_t[idx] = t
+        ends: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for r, a, turning in self.swept:
             poses = self._poses(a, idx)
             was, gap0 = self.last_pose[r, idx], self.last_gap[r, idx]
             gap1 = self._end_gaps(idx, poses)
             self.last_pose[r, idx], self.last_gap[r, idx] = poses, gap1
+            ends[r] = (was, poses)
             moved = (t > began) & np.any(poses != was, axis=1)  # (nan: the first instant)
             if not some(moved):
                 continue
@@ -421,6 +434,16 @@ class Obstacles(WorldComponent):
                 )
                 if path is not None:
                     self._judge_piece(r, int(idx[rows[k]]), path)
+        for r1, r2 in self.swept_pairs:  # (nan before the first instant: never near)
+            (was1, now1), (was2, now2) = ends[r1], ends[r2]
+            d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
+            d1 = np.hypot(now1[:, 0] - now2[:, 0], now1[:, 1] - now2[:, 1])
+            length = _path_length(was1, now1, self._turning[r1])
+            length = length + _path_length(was2, now2, self._turning[r2])
+            low = 0.5 * (d0 + d1 - length) - (self.radius[r1] + self.radius[r2])
+            for k in where_true((t > began) & (low <= 0.0)).tolist():
+                ends_k = (was1[k].tolist(), now1[k].tolist(), was2[k].tolist(), now2[k].tolist())
+                self._judge_pair(r1, r2, int(idx[k]), float(began[k]), float(t[k]), *ends_k)
 
     def _sweep_one(self, world: WorldAccess, idx: np.ndarray) -> None:
         """:meth:`_sweep` of a single run's instant, on Python floats: the same bound and
@@ -429,26 +452,33 @@ class Obstacles(WorldComponent):
         began = self.last_t.item(0)
         self.last_t[0] = t
         scene = self.scenes[0]
+        ends: dict[int, tuple[list[float], list[float]]] = {}
         for r, a, turning in self.swept:
             pose = self._poses(a, idx)[0].tolist()
             was = self.last_one.get(r)
             gap1 = point_gap(pose[0], pose[1], scene.circle_list, scene.segment_list)
             self.last_one[r] = (pose, gap1)
-            if was is None or not t > began or was[0] == pose:
+            if was is None or not t > began:
                 continue
-            (x0, y0, th0), gap0 = was
-            gone = math.hypot(pose[0] - x0, pose[1] - y0)
-            half = 0.5 * abs(pose[2] - th0) if turning else 0.0
-            if half >= 0.5 * math.pi:
-                gone = math.inf
-            elif half > 0.0:
-                gone *= half / math.sin(half)
+            ends[r] = (was[0], pose)
+            if was[0] == pose:
+                continue
+            gap0 = was[1]
+            gone = path_length(was[0], pose, turning)
             low = 0.5 * (gap0 + gap1 - gone) - self.radius.item(r)
             least = min(self.min_clear.item(r, 0), self.swept_gap.item(r, 0))
             if low < least or low <= 0.0:
                 path = piece(began, was[0], t, pose, turning)
                 if path is not None:
                     self._judge_piece(r, 0, path)
+        for r1, r2 in self.swept_pairs if ends else ():
+            (was1, now1), (was2, now2) = ends[r1], ends[r2]
+            length = path_length(was1, now1, self._turning[r1])
+            length += path_length(was2, now2, self._turning[r2])
+            d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
+            d1 = math.hypot(now1[0] - now2[0], now1[1] - now2[1])
+            if may_touch(d0, d1, length, self.radius.item(r1) + self.radius.item(r2)):
+                self._judge_pair(r1, r2, 0, began, t, was1, now1, was2, now2)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
@@ -481,6 +511,43 @@ class Obstacles(WorldComponent):
             elif -gap > first[4]:  # (the deepest overlap since it last sensed)
                 self.swept_hit[(r, i)] = (*first[:4], -gap)
 
+    def _judge_pair(
+        self,
+        r1: int,
+        r2: int,
+        i: int,
+        t0: float,
+        t1: float,
+        *poses: list[float],
+    ) -> None:
+        """Robot rows ``r1`` and ``r2`` against each other over their motion from ``t0`` to
+        ``t1`` in instance ``i`` (``poses``: each one's pose at both ends): their first
+        contact and deepest overlap, if their footprints touch on the way; a pair with a
+        turn not rebuilt (:func:`.piece` None) is left to the instants."""
+        was1, now1, was2, now2 = poses
+        pa = piece(t0, was1, t1, now1, self._turning[r1])
+        pb = piece(t0, was2, t1, now2, self._turning[r2])
+        if pa is None or pb is None:
+            return
+        ra, rb = self.radius.item(r1), self.radius.item(r2)
+        least, s = least_separation(pa, pb)
+        if not least < ra + rb:
+            return
+        s = first_touch(pa, pb, ra + rb, s)
+        (xa, ya), (xb, yb) = pa.at(s), pb.at(s)
+        share = ra / (ra + rb)  # (where the disks meet, as at an instant)
+        depth = ra + rb - least
+        first = self.pair_hit.get((r1, r2, i))
+        if first is None:
+            self.pair_hit[(r1, r2, i)] = (
+                pa.time(s),
+                xa + (xb - xa) * share,
+                ya + (yb - ya) * share,
+                depth,
+            )
+        elif depth > first[3]:  # (the deepest overlap since either last sensed)
+            self.pair_hit[(r1, r2, i)] = (*first[:3], depth)
+
     def _fold(
         self, world: WorldAccess, idx: np.ndarray, sensing: dict[int, np.ndarray] | None
     ) -> None:
@@ -488,7 +555,7 @@ class Obstacles(WorldComponent):
         sensed into ``min_clear``, and report a contact on the way (at its time)."""
         hits: list[tuple[int, str, str, np.ndarray]] = []
         times: list[float] = []
-        if self.last_t.size == 1 and not self.swept_hit:  # (a single run: on floats)
+        if self.last_t.size == 1 and not self.swept_hit and not self.pair_hit:  # (on floats)
             for r, a, _ in self.swept:
                 gap = self.swept_gap.item(r, 0)
                 if gap < math.inf and (sensing is None or sensing[a].item(0)):
@@ -515,8 +582,39 @@ class Obstacles(WorldComponent):
                     )
                     hits.append((i, who, text, np.array([x, y])))
                     times.append(t)
+        if self.pair_hit:
+            self._fold_pairs(world, idx, sensing, hits, times)
         if hits and self.values["on_collision"] != "ignore":
-            self._collide(world, hits, times)
+            order = sorted(range(len(hits)), key=times.__getitem__)  # (the first contact first)
+            self._collide(world, [hits[k] for k in order], [times[k] for k in order])
+
+    def _fold_pairs(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        sensing: dict[int, np.ndarray] | None,
+        hits: list[tuple[int, str, str, np.ndarray]],
+        times: list[float],
+    ) -> None:
+        """Report each pair's contact between instants (:meth:`_judge_pair`) where either
+        of its robots senses in ``idx``, as a collision at its first contact's time."""
+        for (r1, r2, i), (t, x, y, depth) in list(self.pair_hit.items()):
+            rows = where_true(idx == i)
+            if rows.size == 0:
+                continue
+            a1, a2 = self.planar[r1], self.planar[r2]
+            k = rows.item(0)
+            if sensing is not None and not (sensing[a1].item(k) or sensing[a2].item(k)):
+                continue
+            del self.pair_hit[(r1, r2, i)]
+            names = [self.team.agents[a].name for a in (a1, a2)]
+            text = (
+                f"robots '{names[0]}' and '{names[1]}' collided (their footprints "
+                f"overlapping by up to {depth:.3g} by the tick at t={float(world.t[i]):.10g}), "
+                "first touching"
+            )
+            hits.append((i, " and ".join(names), text, np.array([x, y])))
+            times.append(t)
 
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for

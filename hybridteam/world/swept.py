@@ -97,6 +97,19 @@ def piece(
     return Piece(t0, t1, x0, y0, x1, y1, ox, oy, radius, math.atan2(y0 - oy, x0 - ox), turn)
 
 
+def path_length(pose0: list[float], pose1: list[float], turning: bool) -> float:
+    """The length of the held-input path from ``pose0`` (x, y, theta) to ``pose1``: the
+    chord, times ``(turn / 2) / sin(turn / 2)`` along an arc; inf for a turn of half a
+    revolution or more (no bound), as :func:`piece` rebuilds none."""
+    gone = math.hypot(pose1[0] - pose0[0], pose1[1] - pose0[1])
+    half = 0.5 * abs(pose1[2] - pose0[2]) if turning else 0.0
+    if half >= 0.5 * math.pi:
+        return math.inf
+    if half > 0.0:
+        gone *= half / math.sin(half)
+    return gone
+
+
 def _within(p: Piece, phi: float) -> float | None:
     """The fraction of arc ``p`` where its angle is ``phi`` (modulo a turn), or None."""
     delta = (phi - p.phi0) % math.tau if p.turn > 0 else (p.phi0 - phi) % math.tau
