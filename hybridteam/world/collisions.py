@@ -19,7 +19,8 @@ the static obstacles is judged over its motion between instants too
 (:mod:`hybridteam.world.swept`), so one fast enough to cross a thin wall between two
 ticks collides, at its first contact; two such robots are judged against each other over
 it too (:mod:`hybridteam.world.swept_pair`), so robots crossing each other's paths between
-ticks collide.
+ticks collide, and so is a payload held by one grasp of such a robot
+(:mod:`hybridteam.world.swept_payload`).
 """
 
 from __future__ import annotations
