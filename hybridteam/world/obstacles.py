@@ -232,9 +232,12 @@ class Obstacles(WorldComponent):
         self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
         #: the pairs of swept robots with footprints, judged against each other over their
         #: motion too (:mod:`.swept_pair`): (row, row); and each pair's first contact since
-        #: either last sensed, per (row, row, instance): ``(t, x, y, overlap)``
-        footed = [r for r, _, _ in self.swept if self.radius[r] > 0]
-        self.swept_pairs = [(r1, r2) for k, r1 in enumerate(footed) for r2 in footed[k + 1 :]]
+        #: either last sensed, per (row, row, instance): ``(t, x, y, overlap)``; with each
+        #: pair, the sum of their radii
+        footed = [(r, self.radius.item(r)) for r, _, _ in self.swept if self.radius[r] > 0]
+        self.swept_pairs = [
+            (r1, r2, f1 + f2) for k, (r1, f1) in enumerate(footed) for r2, f2 in footed[k + 1 :]
+        ]
         self.pair_hit: dict[tuple[int, int, int], tuple[float, float, float, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
@@ -464,13 +467,13 @@ class Obstacles(WorldComponent):
             for k in where_true((t > began) & ((low < least) | (low <= 0.0))).tolist():
                 i, t0, t1 = int(idx[k]), float(began[k]), float(t[k])
                 self._judge_carried(world, c, i, t0, t1, was[k].tolist(), now[k].tolist())
-        for r1, r2 in self.swept_pairs:
+        for r1, r2, reach in self.swept_pairs:
             (was1, now1, _, _), (was2, now2, _, _) = ends[r1], ends[r2]
             d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
             d1 = np.hypot(now1[:, 0] - now2[:, 0], now1[:, 1] - now2[:, 1])
             length = _path_length(was1, now1, self._turning[r1])
             length = length + _path_length(was2, now2, self._turning[r2])
-            low = 0.5 * (d0 + d1 - length) - (self.radius[r1] + self.radius[r2])
+            low = 0.5 * (d0 + d1 - length) - reach
             for k in where_true((t > began) & (low <= 0.0)).tolist():
                 ends_k = (was1[k].tolist(), now1[k].tolist(), was2[k].tolist(), now2[k].tolist())
                 self._judge_pair(r1, r2, int(idx[k]), float(began[k]), float(t[k]), *ends_k)
@@ -509,11 +512,11 @@ class Obstacles(WorldComponent):
             low = 0.5 * (gap0 + gap1 - gone) - c.near.item(0)
             if low < min(self.payload_clear.item(0), self.payload_swept.item(c.k, 0)) or low <= 0:
                 self._judge_carried(world, c, 0, began, t, first, last)
-        for r1, r2 in self.swept_pairs if ends else ():
+        for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
             d1 = math.hypot(now1[0] - now2[0], now1[1] - now2[1])
-            if may_touch(d0, d1, gone1 + gone2, self.radius.item(r1) + self.radius.item(r2)):
+            if may_touch(d0, d1, gone1 + gone2, reach):
                 self._judge_pair(r1, r2, 0, began, t, was1, now1, was2, now2)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:

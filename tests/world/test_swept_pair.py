@@ -198,3 +198,19 @@ def test_warn_lists_a_contact_between_ticks_and_goes_on(team_from_yaml):
     (first,) = warned.diagnostics[0]["stats"]["collisions"]
     assert first.startswith("robots 'a' and 'b' collided (their footprints overlapping")
     assert float(first.rsplit("at t=", 1)[1]) == pytest.approx(CONTACT, abs=1e-12)
+
+
+def test_the_first_contact_between_ticks_is_the_one_reported(team_from_yaml):
+    """Robot a also reaches a wall at x = 1.5 (its disk at t = 1.4) between the same ticks
+    0.8 and 1.6 as the crossing (t = 0.859): the run's message is the crossing's, the
+    earlier contact, though robots against walls are judged before pairs; warn lists
+    both, each at its own contact."""
+    walled = CROSSING.replace("radius:", "walls: [[1.5, -0.5, 1.5, 0.5]]\n      radius:")
+    run = ht.simulate(team_from_yaml(walled.format(mode="outcome")))
+    assert run.outcome == "collision" and run.diagnostics[0]["t"] == pytest.approx(1.6)
+    assert run.message.startswith("robots 'a' and 'b' collided")
+    assert float(run.message.rsplit("at t=", 1)[1]) == pytest.approx(CONTACT, abs=1e-12)
+    warned = ht.simulate(team_from_yaml(walled.format(mode="warn")))
+    pair, wall = warned.diagnostics[0]["stats"]["collisions"]
+    assert pair.startswith("robots 'a' and 'b'") and wall.startswith("robot 'a' hit walls[0]")
+    assert float(wall.rsplit("at t=", 1)[1]) == pytest.approx(1.4, abs=1e-12)
