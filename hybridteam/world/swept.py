@@ -17,8 +17,11 @@ change fixes the arc's angle, the chord its radius and centre, so nothing but th
 needed (no inputs, no plant) — which is why the robot must have moved under one held input
 in between (:func:`holds_between_instants` says where a robot's model guarantees it).
 A turn of half a revolution or more between two instants is not rebuilt (near a whole
-turn the chord, and with it the radius, is lost in rounding): :func:`piece` gives None
-and such a piece is judged at its ends only, as before.
+turn the chord, and with it the radius, is lost in rounding; and a live robot's heading
+is its odometry's yaw, wrapped, so a small turn across the wrap reads as nearly a whole
+one: a turn ``T`` and ``T - 2 pi`` through the same two poses are the two complementary
+arcs of one circle, which the poses cannot tell apart): :func:`piece` gives None and such
+a piece is judged at its ends only, as before.
 
 Everything here is on Python floats: the component asks only where a cheap bound cannot
 rule a piece out (a piece of length ``L`` ending ``g`` from everything comes no nearer
@@ -200,7 +203,7 @@ def _arc_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[floa
     return [s for s in found if s is not None]
 
 
-def _line_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[float]:
+def line_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[float]:
     """Fractions of segment ``p`` at distance ``reach`` from ``(qx, qy)`` (a quadratic)."""
     dx, dy = p.x1 - p.x0, p.y1 - p.y0
     fx, fy = p.x0 - qx, p.y0 - qy
@@ -226,7 +229,7 @@ def first_contact(
     Called where the piece is known to touch something (its least gap is at most 0), so
     the start is free: the first root is the first contact."""
     found: list[float] = []
-    roots = _arc_circle_roots if p.radius else _line_circle_roots
+    roots = _arc_circle_roots if p.radius else line_circle_roots
     for qx, qy, r in circles:
         found += roots(p, qx, qy, reach + r)
     for seg in segments:

@@ -37,7 +37,7 @@ from __future__ import annotations
 import heapq
 import math
 
-from hybridteam.world.swept import Piece, _line_circle_roots, point_distance
+from hybridteam.world.swept import Piece, line_circle_roots, point_distance
 
 #: Absolute tolerance (m) of an arc pair's least separation: the value returned is attained
 #: and at most this above the true least one.
@@ -125,7 +125,7 @@ def first_touch(pa: Piece, pb: Piece, reach: float, before: float = 1.0) -> floa
     if math.hypot(*d) <= reach:
         return 0.0
     if not pa.radius and not pb.radius:
-        roots = _line_circle_roots(_relative_segment(pa, pb), 0.0, 0.0, reach)
+        roots = line_circle_roots(_relative_segment(pa, pb), 0.0, 0.0, reach)
         return min(roots, default=before)
     bend = _bend(pa) + _bend(pb)
     speed = pa.length + pb.length
