@@ -459,6 +459,7 @@ class Obstacles(WorldComponent):
                 )
                 if path is not None:
                     self._judge_piece(r, int(idx[rows[k]]), path)
+        sole: dict[tuple[int, int], int | None] = {}  # (payload, instance): its sole grasp
         for c in self.carried:  # (nan before the first instant: never near)
             was, now, gap0, gap1 = ends[c.row]
             length = _path_length(was, now, self._turning[c.row])
@@ -466,7 +467,10 @@ class Obstacles(WorldComponent):
             least = np.minimum(self.payload_clear[idx], self.payload_swept[c.k, idx])
             for k in where_true((t > began) & ((low < least) | (low <= 0.0))).tolist():
                 i, t0, t1 = int(idx[k]), float(began[k]), float(t[k])
-                self._judge_carried(world, c, i, t0, t1, was[k].tolist(), now[k].tolist())
+                if (c.k, i) not in sole:
+                    sole[(c.k, i)] = c.payload.sole_grasp(world, idx[k : k + 1])
+                if sole[(c.k, i)] == c.grasp:
+                    self._judge_carried(c, i, t0, t1, was[k].tolist(), now[k].tolist())
         for r1, r2, reach in self.swept_pairs:
             (was1, now1, _, _), (was2, now2, _, _) = ends[r1], ends[r2]
             d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
@@ -505,13 +509,17 @@ class Obstacles(WorldComponent):
                 path = piece(began, was[0], t, pose, turning)
                 if path is not None:
                     self._judge_piece(r, 0, path)
+        sole: dict[int, int | None] = {}  # payload: its sole grasp, once asked
         for c in self.carried if ends else ():
             first, last, gap0, gap1, gone = ends[c.row]
             if not gone:  # (its carrier stood still: so did it)
                 continue
             low = 0.5 * (gap0 + gap1 - gone) - c.near.item(0)
             if low < min(self.payload_clear.item(0), self.payload_swept.item(c.k, 0)) or low <= 0:
-                self._judge_carried(world, c, 0, began, t, first, last)
+                if c.k not in sole:
+                    sole[c.k] = c.payload.sole_grasp(world, idx)
+                if sole[c.k] == c.grasp:
+                    self._judge_carried(c, 0, began, t, first, last)
         for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
@@ -589,7 +597,6 @@ class Obstacles(WorldComponent):
 
     def _judge_carried(
         self,
-        world: WorldAccess,
         c: _Carried,
         i: int,
         t0: float,
@@ -599,12 +606,11 @@ class Obstacles(WorldComponent):
     ) -> None:
         """Payload ``c.k`` over its carrier's motion from ``t0`` to ``t1`` in instance ``i``
         (the carrier's poses ``was`` and ``now``), where grasp ``c.grasp`` alone holds (the
-        engagement of (t0, t1]: the world runs before the discrete phase): it translates
-        with the mount point, at the angle it keeps (:mod:`.swept_payload`); its least gap,
-        and its first contact if it touches something."""
+        caller asks: the engagement of (t0, t1], the world running before the discrete
+        phase): it translates with the mount point, at the angle it keeps
+        (:mod:`.swept_payload`); its least gap, and its first contact if it touches
+        something."""
         p, at = c.payload, np.array([i])
-        if not p.holds_alone(world, at, c.grasp):
-            return
         motion = carry(t0, was, t1, now, c.mount, self._turning[c.row])
         if motion is None:
             return
