@@ -22,6 +22,7 @@ from hybridteam.world.swept_pair import (
     GAP_TOLERANCE,
     first_touch,
     least_separation,
+    may_touch,
 )
 
 #: robot a's and b's first touch, and where: the midpoint of their centres then
@@ -142,7 +143,8 @@ def test_random_pairs_agree_with_dense_samples_of_the_true_motion():
     segments): the least separation is attained, below every one of 2001 samples (to its
     tolerance) and within its tolerance of the samples' local minima refined by a golden
     section search; the first touch is within its tolerance of contact, and no sample
-    before it is within reach."""
+    before it is within reach. The end-gap bound that rules pairs out
+    (:func:`may_touch`) never rules out a reach the pair comes within."""
     rng = np.random.default_rng(48)
     samples = np.linspace(0.0, 1.0, 2001).tolist()
     for n in range(120):
@@ -158,6 +160,7 @@ def test_random_pairs_agree_with_dense_samples_of_the_true_motion():
             if dense[k] <= dense[max(k - 1, 0)] and dense[k] <= dense[min(k + 1, 2000)]
         )
         assert least == pytest.approx(refined, abs=GAP_TOLERANCE)
+        assert may_touch(dense[0], dense[-1], pa.length + pb.length, least)
         reach = 0.5 * (dense[0] + least)
         if dense[0] > reach > least:
             touch = first_touch(pa, pb, reach, s)

@@ -222,3 +222,47 @@ def test_random_carries_agree_with_dense_samples_of_the_true_motion():
             assert _gaps_at(mount_at, [contact], *args)[0] == pytest.approx(0.0, abs=1e-9)
             assert contact <= next(t for t, d in zip(samples, dense, strict=True) if d == 0.0)
     assert touched > 10  # (contacts were drawn)
+
+
+HELPED = """
+team: helped
+agents:
+  r:
+    plant: {{kind: unicycle, state: {{x: 0, y: 0, theta: 0}}}}
+    variables: {{holding: 1}}
+    modes: {{Go: {{inputs: {{v: 1.0, omega: 1.0}}, period: {period!r}}}}}
+  helper:
+    plant: {{kind: unicycle, state: {{x: -3, y: -3, theta: 0}}}}
+    variables: {{helping: {helping}}}
+    modes: {{Wait: {{inputs: {{v: 0.0, omega: 0.0}}, period: {period!r}}}}}
+world:
+  - use: payload
+    with:
+      name: box
+      width: 0.4
+      depth: 0.2
+      pose: [0.2, 0.0, 0.0]
+      grasps:
+        - {{agent: r, point: [-0.2, 0.0], engaged: holding}}
+        - {{agent: helper, point: [0.2, 0.0], engaged: helping}}
+  - use: obstacles
+    with:
+      circles: [[1.8, 1.0, 0.25]]
+simulation: {{duration: 3.0}}
+"""
+
+
+def test_a_grasp_alone_among_others_that_let_go_carries_the_payload_over_its_motion(
+    team_from_yaml,
+):
+    """The box has a second grasp, the parked helper's, engaged by its variable
+    ``helping``: at 0 robot r's grasp alone holds, the box moves as in the one-grasp team
+    and its least gap is the one between ticks, 0.15; at 1 both hold, the springs'
+    equilibrium has no closed form over the motion, and the box is judged at the ticks
+    only (its clearance is then no longer 0.15: the box hangs between the two robots)."""
+    alone = team_from_yaml(HELPED.format(period=PERIOD, helping=0))
+    stats = ht.simulate(alone).diagnostics[0]["stats"]
+    assert stats["payload_clearance"] == pytest.approx(0.15, abs=1e-12)
+    both = team_from_yaml(HELPED.format(period=PERIOD, helping=1))
+    stats = ht.simulate(both).diagnostics[0]["stats"]
+    assert stats["payload_clearance"] > 0.2
