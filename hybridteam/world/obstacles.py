@@ -233,11 +233,14 @@ class Obstacles(WorldComponent):
         #: the pairs of swept robots with footprints, judged against each other over their
         #: motion too (:mod:`.swept_pair`): (row, row); and each pair's first contact since
         #: either last sensed, per (row, row, instance): ``(t, x, y, overlap)``; with each
-        #: pair, the sum of their radii
+        #: pair, the sum of their radii. None under ``on_collision: ignore``: a pair's
+        #: contact is a collision and nothing else (no statistic)
         footed = [(r, self.radius.item(r)) for r, _, _ in self.swept if self.radius[r] > 0]
         self.swept_pairs = [
             (r1, r2, f1 + f2) for k, (r1, f1) in enumerate(footed) for r2, f2 in footed[k + 1 :]
         ]
+        if self.values["on_collision"] == "ignore":
+            self.swept_pairs = []
         self.pair_hit: dict[tuple[int, int, int], tuple[float, float, float, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
@@ -570,14 +573,21 @@ class Obstacles(WorldComponent):
         """Robot rows ``r1`` and ``r2`` against each other over their motion from ``t0`` to
         ``t1`` in instance ``i`` (``poses``: each one's pose at both ends): their first
         contact and deepest overlap, if their footprints touch on the way; a pair with a
-        turn not rebuilt (:func:`.piece` None) is left to the instants."""
+        turn not rebuilt (:func:`.piece` None) is left to the instants, and so is a pair
+        whose collision is already recorded (only a pair's first is: warned robots that
+        stay overlapping cost nothing more)."""
+        who = (
+            f"{self.team.agents[self.planar[r1]].name} and {self.team.agents[self.planar[r2]].name}"
+        )
+        if who in self.collisions[i]:
+            return
         was1, now1, was2, now2 = poses
         pa = piece(t0, was1, t1, now1, self._turning[r1])
         pb = piece(t0, was2, t1, now2, self._turning[r2])
         if pa is None or pb is None:
             return
         ra, rb = self.radius.item(r1), self.radius.item(r2)
-        least, s = least_separation(pa, pb)
+        least, s = least_separation(pa, pb, ra + rb)
         if not least < ra + rb:
             return
         s = first_touch(pa, pb, ra + rb, s)

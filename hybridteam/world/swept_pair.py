@@ -88,10 +88,14 @@ def _chord_nearest(da: tuple[float, float], db: tuple[float, float]) -> tuple[fl
     return math.hypot(da[0] + u * ex, da[1] + u * ey), u
 
 
-def least_separation(pa: Piece, pb: Piece) -> tuple[float, float]:
+def least_separation(pa: Piece, pb: Piece, below: float = math.inf) -> tuple[float, float]:
     """The least distance between the centres moving on ``pa`` and ``pb`` (the same
     interval) and the fraction where it is reached: exact for two segments, else attained
-    and within :data:`GAP_TOLERANCE` of the least (module docstring)."""
+    and within :data:`GAP_TOLERANCE` of the least (module docstring) where that is below
+    ``below``; where it is not, an attained distance, and none below ``below`` less the
+    tolerance. (Parts of the motion that stay ``below`` apart are not refined: two robots
+    turning side by side at a constant distance would otherwise be bisected to the
+    tolerance all along.)"""
     if not pa.radius and not pb.radius:
         return point_distance(_relative_segment(pa, pb), 0.0, 0.0)
     bend = _bend(pa) + _bend(pb)
@@ -111,7 +115,7 @@ def least_separation(pa: Piece, pb: Piece) -> tuple[float, float]:
             s = lo + u * h
             best = min(best, (math.hypot(*_separation(pa, pb, s)), s))
             bound = near - bend * h * h / 8.0
-            if bound < best[0] - GAP_TOLERANCE:
+            if bound < best[0] - GAP_TOLERANCE and bound < below:
                 heapq.heappush(heap, (bound, lo, hi, dlo, dhi))
     return best
 

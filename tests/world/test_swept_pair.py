@@ -217,3 +217,28 @@ def test_the_first_contact_between_ticks_is_the_one_reported(team_from_yaml):
     pair, wall = warned.diagnostics[0]["stats"]["collisions"]
     assert pair.startswith("robots 'a' and 'b'") and wall.startswith("robot 'a' hit walls[0]")
     assert float(wall.rsplit("at t=", 1)[1]) == pytest.approx(1.4, abs=1e-12)
+
+
+def test_robots_turning_side_by_side_apart_are_not_bisected_to_the_tolerance(monkeypatch):
+    """Two robots on concentric arcs (radii 1 and 1.5 about the origin) turning together
+    by 1 rad stay 0.5 apart all along: with disks reaching 0.4 no part of the motion can
+    come within reach, and the least separation is settled in a few dozen evaluations
+    (bisecting the flat bottom to 1e-9 m takes some 17,000: the chord bound's error
+    2.5 h^2 / 8 must fall below it, the cost when no reach is given)."""
+    from hybridteam.world import swept_pair
+
+    inner = Piece(0.0, 1.0, 1.0, 0.0, math.cos(1), math.sin(1), 0.0, 0.0, 1.0, 0.0, 1.0)
+    end = (1.5 * math.cos(1), 1.5 * math.sin(1))
+    outer = Piece(0.0, 1.0, 1.5, 0.0, *end, 0.0, 0.0, 1.5, 0.0, 1.0)
+    calls = []
+    counted = swept_pair._separation
+
+    def counting(pa: Piece, pb: Piece, s: float) -> tuple[float, float]:
+        calls.append(s)
+        return counted(pa, pb, s)
+
+    monkeypatch.setattr(swept_pair, "_separation", counting)
+    least, _ = least_separation(inner, outer, 0.4)
+    assert least == pytest.approx(0.5, abs=1e-15) and len(calls) < 50
+    least, _ = least_separation(inner, outer)
+    assert least == pytest.approx(0.5, abs=1e-15)
