@@ -18,8 +18,8 @@ so it is bounded instead, with a stated tolerance rather than by sampling more:
   (:func:`least_separation`) is a branch and bound on that bound: the interval with the
   lowest bound is split until the least distance found (an attained one) is within
   :data:`GAP_TOLERANCE` of the lowest bound left (parts that cannot come within the
-  contact distance are not split: only a contact's depth needs the tolerance). The bound's error shrinks with ``h^2``,
-  so a minimum takes about a dozen halvings.
+  contact distance are not split: only a contact's depth needs the tolerance). The
+  bound's error shrinks with ``h^2``, so a minimum takes about a dozen halvings.
 - ``f = |D|`` has ``f'' >= -K`` (``f + K s^2 / 2`` is convex), so
   ``f(s + tau) >= f(s) + tau f'(s) - K tau^2 / 2``: advancing ``s`` to that parabola's first
   reach of the contact distance (or by ``(f - reach) / (La + Lb)``, the Lipschitz step,
