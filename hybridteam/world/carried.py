@@ -265,6 +265,18 @@ class CarriedPayload(WorldComponent):
                 on[:, k] = world.variable(self.agents[k], name, idx) > 0.5
         return on
 
+    def sole_grasp(self, world: WorldAccess, idx: np.ndarray) -> int | None:
+        """The grasp that alone holds in the one instance ``idx``, None where none or
+        several do (the swept payload's question, :mod:`~hybridteam.world.swept_payload`;
+        on floats)."""
+        sole = None
+        for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True)):
+            if name is None or world.variable(a, name, idx).item(0) > 0.5:
+                if sole is not None:
+                    return None
+                sole = k
+        return sole
+
     def settle(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """Pose, offsets and arm readings of instances ``idx`` from the current state;
         returns the robots' headings ``(m, k)`` (the start counts the arms' angles from them).

@@ -17,7 +17,10 @@ Like every judgment of a world component it is reported at the robot's sensing
 instants (its law ticks), at most one control period late; a robot's footprint against
 the static obstacles is judged over its motion between instants too
 (:mod:`hybridteam.world.swept`), so one fast enough to cross a thin wall between two
-ticks collides, at its first contact.
+ticks collides, at its first contact; two such robots are judged against each other over
+it too (:mod:`hybridteam.world.swept_pair`), so robots crossing each other's paths between
+ticks collide, and so is a payload held by one grasp of such a robot
+(:mod:`hybridteam.world.swept_payload`).
 """
 
 from __future__ import annotations

@@ -38,7 +38,11 @@ carriers') and, for a robot under a held input, over its motion between instants
 per planar robot in the team's order: the gap between its footprint disk and the nearest
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
-obstacles, 0 when they touch or overlap). With ``clearance: true`` the same gaps are also
+obstacles, 0 when they touch or overlap; a payload held by one grasp of a robot under a
+held input over its motion between instants too, :mod:`hybridteam.world.swept_payload`).
+Two robots under held inputs are judged against each other over their motion between
+instants too (:mod:`hybridteam.world.swept_pair`: a collision, at its first contact).
+With ``clearance: true`` the same gaps are also
 series for requirements, holding between those instants (:meth:`Obstacles.sample`).
 """
 
@@ -82,8 +86,16 @@ from hybridteam.world.swept import (
     first_contact,
     holds_between_instants,
     least_gap,
+    path_length,
     piece,
     point_gap,
+)
+from hybridteam.world.swept_pair import first_touch, least_separation, may_touch
+from hybridteam.world.swept_payload import (
+    carry,
+    outline,
+    payload_first_contact,
+    payload_least_gap,
 )
 
 if TYPE_CHECKING:
@@ -207,6 +219,7 @@ class Obstacles(WorldComponent):
             if team.agents[a].plant.kind in ("unicycle", "holonomic")
             and holds_between_instants(team.agents[a].root)
         ]
+        self._turning = {r: turning for r, _, turning in self.swept}
         #: per swept robot: its pose at each instance's last instant and when ``(R, n, 3)``,
         #: ``(n,)``; the least gap over its motion since it last sensed ``(R, n)``, and
         #: its first contact then, per (row, instance): ``(t, x, y, what, overlap)``
@@ -217,6 +230,18 @@ class Obstacles(WorldComponent):
         self.last_one: dict[int, tuple[list[float], float]] = {}
         self.swept_gap = np.full((len(self.planar), n), np.inf)
         self.swept_hit: dict[tuple[int, int], tuple[float, float, float, str, float]] = {}
+        #: the pairs of swept robots with footprints, judged against each other over their
+        #: motion too (:mod:`.swept_pair`): (row, row); and each pair's first contact since
+        #: either last sensed, per (row, row, instance): ``(t, x, y, overlap)``; with each
+        #: pair, the sum of their radii. None under ``on_collision: ignore``: a pair's
+        #: contact is a collision and nothing else (no statistic)
+        footed = [(r, self.radius.item(r)) for r, _, _ in self.swept if self.radius[r] > 0]
+        self.swept_pairs = [
+            (r1, r2, f1 + f2) for k, (r1, f1) in enumerate(footed) for r2, f2 in footed[k + 1 :]
+        ]
+        if self.values["on_collision"] == "ignore":
+            self.swept_pairs = []
+        self.pair_hit: dict[tuple[int, int, int], tuple[float, float, float, float]] = {}
         names = {s for _, s in self.rings}
         for agent in team.agents:
             preset = getattr(agent, "preset", None)
@@ -260,6 +285,20 @@ class Obstacles(WorldComponent):
         ]  # (all are: typed for the reader)
         self.sensing = {*self.planar, *(r.agent for r in self.rules)}
         self.judged = sorted({*self.sensing, *(a for p in self.payloads for a in p.agents)})
+        #: the grasps whose robot is swept, per payload: where that grasp alone holds,
+        #: the payload is judged over its motion between instants (:mod:`.swept_payload`);
+        #: not one beside a grasp that always holds (no ``engaged:``)
+        row_of = {a: r for r, a, _ in self.swept}
+        self.carried = [
+            _Carried.of(k, p, j, row_of[a])
+            for k, p in enumerate(self.payloads)
+            for j, a in enumerate(p.agents)
+            if a in row_of and all(by is not None for g, by in enumerate(p.engaged_by) if g != j)
+        ]
+        #: per payload: its least gap over its motion since a carrier last sensed ``(P, n)``,
+        #: and its first contact then, per (payload, instance): ``(t, x, y)``
+        self.payload_swept = np.full((len(self.payloads), self.n), np.inf)
+        self.payload_hit: dict[tuple[int, int], tuple[float, float, float]] = {}
         for a in self.sensing:
             world.pose(a, np.arange(0))  # a plant without x and y fails now, not mid-run
 
@@ -399,11 +438,13 @@ class Obstacles(WorldComponent):
         t = world.t[idx]
         began = self.last_t[idx]
         self.last_t[idx] = t
+        ends: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         for r, a, turning in self.swept:
             poses = self._poses(a, idx)
             was, gap0 = self.last_pose[r, idx], self.last_gap[r, idx]
             gap1 = self._end_gaps(idx, poses)
             self.last_pose[r, idx], self.last_gap[r, idx] = poses, gap1
+            ends[r] = (was, poses, gap0, gap1)
             moved = (t > began) & np.any(poses != was, axis=1)  # (nan: the first instant)
             if not some(moved):
                 continue
@@ -421,6 +462,28 @@ class Obstacles(WorldComponent):
                 )
                 if path is not None:
                     self._judge_piece(r, int(idx[rows[k]]), path)
+        sole: dict[tuple[int, int], int | None] = {}  # (payload, instance): its sole grasp
+        for c in self.carried:  # (nan before the first instant: never near)
+            was, now, gap0, gap1 = ends[c.row]
+            length = _path_length(was, now, self._turning[c.row])
+            low = 0.5 * (gap0 + gap1 - length) - c.near[idx]
+            least = np.minimum(self.payload_clear[idx], self.payload_swept[c.k, idx])
+            for k in where_true((t > began) & ((low < least) | (low <= 0.0))).tolist():
+                i, t0, t1 = int(idx[k]), float(began[k]), float(t[k])
+                if (c.k, i) not in sole:
+                    sole[(c.k, i)] = c.payload.sole_grasp(world, idx[k : k + 1])
+                if sole[(c.k, i)] == c.grasp:
+                    self._judge_carried(c, i, t0, t1, was[k].tolist(), now[k].tolist())
+        for r1, r2, reach in self.swept_pairs:
+            (was1, now1, _, _), (was2, now2, _, _) = ends[r1], ends[r2]
+            d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
+            d1 = np.hypot(now1[:, 0] - now2[:, 0], now1[:, 1] - now2[:, 1])
+            length = _path_length(was1, now1, self._turning[r1])
+            length = length + _path_length(was2, now2, self._turning[r2])
+            low = 0.5 * (d0 + d1 - length) - reach
+            for k in where_true((t > began) & (low <= 0.0)).tolist():
+                ends_k = (was1[k].tolist(), now1[k].tolist(), was2[k].tolist(), now2[k].tolist())
+                self._judge_pair(r1, r2, int(idx[k]), float(began[k]), float(t[k]), *ends_k)
 
     def _sweep_one(self, world: WorldAccess, idx: np.ndarray) -> None:
         """:meth:`_sweep` of a single run's instant, on Python floats: the same bound and
@@ -429,26 +492,43 @@ class Obstacles(WorldComponent):
         began = self.last_t.item(0)
         self.last_t[0] = t
         scene = self.scenes[0]
+        ends: dict[int, tuple[list[float], list[float], float, float, float]] = {}
         for r, a, turning in self.swept:
             pose = self._poses(a, idx)[0].tolist()
             was = self.last_one.get(r)
             gap1 = point_gap(pose[0], pose[1], scene.circle_list, scene.segment_list)
             self.last_one[r] = (pose, gap1)
-            if was is None or not t > began or was[0] == pose:
+            if was is None or not t > began:
                 continue
-            (x0, y0, th0), gap0 = was
-            gone = math.hypot(pose[0] - x0, pose[1] - y0)
-            half = 0.5 * abs(pose[2] - th0) if turning else 0.0
-            if half >= 0.5 * math.pi:
-                gone = math.inf
-            elif half > 0.0:
-                gone *= half / math.sin(half)
+            gap0 = was[1]
+            if was[0] == pose:
+                ends[r] = (pose, pose, gap0, gap1, 0.0)
+                continue
+            gone = path_length(was[0], pose, turning)
+            ends[r] = (was[0], pose, gap0, gap1, gone)
             low = 0.5 * (gap0 + gap1 - gone) - self.radius.item(r)
             least = min(self.min_clear.item(r, 0), self.swept_gap.item(r, 0))
             if low < least or low <= 0.0:
                 path = piece(began, was[0], t, pose, turning)
                 if path is not None:
                     self._judge_piece(r, 0, path)
+        sole: dict[int, int | None] = {}  # payload: its sole grasp, once asked
+        for c in self.carried if ends else ():
+            first, last, gap0, gap1, gone = ends[c.row]
+            if not gone:  # (its carrier stood still: so did it)
+                continue
+            low = 0.5 * (gap0 + gap1 - gone) - c.near.item(0)
+            if low < min(self.payload_clear.item(0), self.payload_swept.item(c.k, 0)) or low <= 0:
+                if c.k not in sole:
+                    sole[c.k] = c.payload.sole_grasp(world, idx)
+                if sole[c.k] == c.grasp:
+                    self._judge_carried(c, 0, began, t, first, last)
+        for r1, r2, reach in self.swept_pairs if ends else ():
+            (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
+            d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
+            d1 = math.hypot(now1[0] - now2[0], now1[1] - now2[1])
+            if may_touch(d0, d1, gone1 + gone2, reach):
+                self._judge_pair(r1, r2, 0, began, t, was1, now1, was2, now2)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
@@ -481,6 +561,86 @@ class Obstacles(WorldComponent):
             elif -gap > first[4]:  # (the deepest overlap since it last sensed)
                 self.swept_hit[(r, i)] = (*first[:4], -gap)
 
+    def _judge_pair(
+        self,
+        r1: int,
+        r2: int,
+        i: int,
+        t0: float,
+        t1: float,
+        *poses: list[float],
+    ) -> None:
+        """Robot rows ``r1`` and ``r2`` against each other over their motion from ``t0`` to
+        ``t1`` in instance ``i`` (``poses``: each one's pose at both ends): their first
+        contact and deepest overlap, if their footprints touch on the way; a pair with a
+        turn not rebuilt (:func:`.piece` None) is left to the instants, and so is a pair
+        whose collision is already recorded (only a pair's first is: warned robots that
+        stay overlapping cost nothing more)."""
+        who = (
+            f"{self.team.agents[self.planar[r1]].name} and {self.team.agents[self.planar[r2]].name}"
+        )
+        if who in self.collisions[i]:
+            return
+        was1, now1, was2, now2 = poses
+        pa = piece(t0, was1, t1, now1, self._turning[r1])
+        pb = piece(t0, was2, t1, now2, self._turning[r2])
+        if pa is None or pb is None:
+            return
+        ra, rb = self.radius.item(r1), self.radius.item(r2)
+        least, s = least_separation(pa, pb, ra + rb)
+        if not least < ra + rb:
+            return
+        s = first_touch(pa, pb, ra + rb, s)
+        (xa, ya), (xb, yb) = pa.at(s), pb.at(s)
+        share = ra / (ra + rb)  # (where the disks meet, as at an instant)
+        depth = ra + rb - least
+        first = self.pair_hit.get((r1, r2, i))
+        if first is None:
+            self.pair_hit[(r1, r2, i)] = (
+                pa.time(s),
+                xa + (xb - xa) * share,
+                ya + (yb - ya) * share,
+                depth,
+            )
+        elif depth > first[3]:  # (the deepest overlap since either last sensed)
+            self.pair_hit[(r1, r2, i)] = (*first[:3], depth)
+
+    def _judge_carried(
+        self,
+        c: _Carried,
+        i: int,
+        t0: float,
+        t1: float,
+        was: list[float],
+        now: list[float],
+    ) -> None:
+        """Payload ``c.k`` over its carrier's motion from ``t0`` to ``t1`` in instance ``i``
+        (the carrier's poses ``was`` and ``now``), where grasp ``c.grasp`` alone holds (the
+        caller asks: the engagement of (t0, t1], the world running before the discrete
+        phase): it translates with the mount point, at the angle it keeps
+        (:mod:`.swept_payload`); its least gap, and its first contact if it touches
+        something."""
+        p, at = c.payload, np.array([i])
+        motion = carry(t0, was, t1, now, c.mount, self._turning[c.row])
+        if motion is None:
+            return
+        theta = p.rest.item(i, 2)  # (one grasp keeps the angle: settling leaves it)
+        cs, sn = math.cos(theta), math.sin(theta)
+        bx, by = c.body
+        ox, oy = motion.mx - (cs * bx - sn * by), motion.my - (sn * bx + cs * by)
+        hw, hd = (h.item(0) for h in p.half_extents(at))
+        corners, edges = outline(ox, oy, theta, hw, hd)
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
+        circles, segments = scene.circle_list, scene.segment_list
+        gap, s = payload_least_gap(motion, corners, edges, circles, segments)
+        if gap < self.payload_swept[c.k, i]:
+            self.payload_swept[c.k, i] = gap
+        if gap <= 0.0 and (c.k, i) not in self.payload_hit:
+            contact = payload_first_contact(motion, corners, edges, circles, segments)
+            s = s if contact is None else contact
+            x, y = motion.moving(ox, oy).at(s)
+            self.payload_hit[(c.k, i)] = (motion.t0 + s * (motion.t1 - motion.t0), x, y)
+
     def _fold(
         self, world: WorldAccess, idx: np.ndarray, sensing: dict[int, np.ndarray] | None
     ) -> None:
@@ -488,12 +648,19 @@ class Obstacles(WorldComponent):
         sensed into ``min_clear``, and report a contact on the way (at its time)."""
         hits: list[tuple[int, str, str, np.ndarray]] = []
         times: list[float] = []
-        if self.last_t.size == 1 and not self.swept_hit:  # (a single run: on floats)
-            for r, a, _ in self.swept:
+        if self.last_t.size == 1 and not (self.swept_hit or self.pair_hit or self.payload_hit):
+            for r, a, _ in self.swept:  # (a single run: on floats)
                 gap = self.swept_gap.item(r, 0)
                 if gap < math.inf and (sensing is None or sensing[a].item(0)):
                     self.min_clear[r, 0] = min(self.min_clear.item(r, 0), gap)
                     self.swept_gap[r, 0] = math.inf
+            for k, p in enumerate(self.payloads if self.carried else ()):
+                gap = self.payload_swept.item(k, 0)
+                if gap < math.inf and (
+                    sensing is None or any(sensing[a].item(0) for a in p.agents)
+                ):
+                    self.payload_clear[0] = min(self.payload_clear.item(0), gap)
+                    self.payload_swept[k, 0] = math.inf
             return
         for r, a, _ in self.swept:
             own = idx if sensing is None else idx[sensing[a]]
@@ -515,8 +682,73 @@ class Obstacles(WorldComponent):
                     )
                     hits.append((i, who, text, np.array([x, y])))
                     times.append(t)
+        if self.carried:
+            self._fold_payloads(world, idx, sensing, hits, times)
+        if self.pair_hit:
+            self._fold_pairs(world, idx, sensing, hits, times)
         if hits and self.values["on_collision"] != "ignore":
-            self._collide(world, hits, times)
+            order = sorted(range(len(hits)), key=times.__getitem__)  # (the first contact first)
+            self._collide(world, [hits[k] for k in order], [times[k] for k in order])
+
+    def _fold_payloads(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        sensing: dict[int, np.ndarray] | None,
+        hits: list[tuple[int, str, str, np.ndarray]],
+        times: list[float],
+    ) -> None:
+        """Where a carrier of a payload senses, take the payload's least gap over its
+        motion since into ``payload_clear``, and report a contact on the way (at its
+        time)."""
+        for k, p in enumerate(self.payloads):
+            own = idx
+            if sensing is not None:
+                own = idx[np.logical_or.reduce([sensing[a] for a in p.agents])]
+            if own.size == 0:
+                continue
+            self.payload_clear[own] = np.minimum(
+                self.payload_clear[own], self.payload_swept[k, own]
+            )
+            self.payload_swept[k, own] = np.inf
+            for i in own.tolist() if self.payload_hit else ():
+                hit = self.payload_hit.pop((k, i), None)
+                if hit is not None:
+                    name = p.values["name"]
+                    text = (
+                        f"payload '{name}' hit an obstacle (by its carriers' tick at "
+                        f"t={float(world.t[i]):.10g}), first touching it"
+                    )
+                    hits.append((i, name, text, np.array(hit[1:])))
+                    times.append(hit[0])
+
+    def _fold_pairs(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        sensing: dict[int, np.ndarray] | None,
+        hits: list[tuple[int, str, str, np.ndarray]],
+        times: list[float],
+    ) -> None:
+        """Report each pair's contact between instants (:meth:`_judge_pair`) where either
+        of its robots senses in ``idx``, as a collision at its first contact's time."""
+        for (r1, r2, i), (t, x, y, depth) in list(self.pair_hit.items()):
+            rows = where_true(idx == i)
+            if rows.size == 0:
+                continue
+            a1, a2 = self.planar[r1], self.planar[r2]
+            k = rows.item(0)
+            if sensing is not None and not (sensing[a1].item(k) or sensing[a2].item(k)):
+                continue
+            del self.pair_hit[(r1, r2, i)]
+            names = [self.team.agents[a].name for a in (a1, a2)]
+            text = (
+                f"robots '{names[0]}' and '{names[1]}' collided (their footprints "
+                f"overlapping by up to {depth:.3g} by the tick at t={float(world.t[i]):.10g}), "
+                "first touching"
+            )
+            hits.append((i, " and ".join(names), text, np.array([x, y])))
+            times.append(t)
 
     def _by_scene(self, idx: np.ndarray) -> list[tuple[Scene, np.ndarray]]:
         """The instances of ``idx`` grouped by their scene: ``(scene, rows of idx)``, for
@@ -1002,6 +1234,28 @@ class Obstacles(WorldComponent):
             for who, (_text, t, x, y) in firsts.items()
         )
         return SceneDescription(obstacles=tuple(obstacles), collisions=marks, footprints=footprints)
+
+
+class _Carried(NamedTuple):
+    """A grasp of payload ``k`` (``payload``, its grasp ``grasp``) whose robot is swept
+    (``row`` in ``Obstacles.planar``): its ``mount`` (robot frame) and ``body`` point."""
+
+    k: int
+    payload: CarriedPayload
+    grasp: int
+    row: int
+    mount: tuple[float, float]
+    body: tuple[float, float]
+    #: per instance: how far from the robot's centre the payload reaches ``(n,)`` (the
+    #: mount's offset, and the body point's farthest corner): what rules a piece out
+    near: np.ndarray
+
+    @classmethod
+    def of(cls, k: int, payload: CarriedPayload, grasp: int, row: int) -> _Carried:
+        mount, body = payload.mount[grasp].tolist(), payload.body[grasp].tolist()
+        hw, hd = payload.half_extents(np.arange(payload.n))
+        near = np.hypot(hw + abs(body[0]), hd + abs(body[1])) + math.hypot(*mount)
+        return cls(k, payload, grasp, row, (mount[0], mount[1]), (body[0], body[1]), near)
 
 
 class _Sighted(NamedTuple):

@@ -17,8 +17,11 @@ change fixes the arc's angle, the chord its radius and centre, so nothing but th
 needed (no inputs, no plant) — which is why the robot must have moved under one held input
 in between (:func:`holds_between_instants` says where a robot's model guarantees it).
 A turn of half a revolution or more between two instants is not rebuilt (near a whole
-turn the chord, and with it the radius, is lost in rounding): :func:`piece` gives None
-and such a piece is judged at its ends only, as before.
+turn the chord, and with it the radius, is lost in rounding; and a live robot's heading
+is its odometry's yaw, wrapped, so a small turn across the wrap reads as nearly a whole
+one: a turn ``T`` and ``T - 2 pi`` through the same two poses are the two complementary
+arcs of one circle, which the poses cannot tell apart): :func:`piece` gives None and such
+a piece is judged at its ends only, as before.
 
 Everything here is on Python floats: the component asks only where a cheap bound cannot
 rule a piece out (a piece of length ``L`` ending ``g`` from everything comes no nearer
@@ -95,6 +98,19 @@ def piece(
     ox, oy = 0.5 * (x0 + x1) - off * cy, 0.5 * (y0 + y1) + off * cx
     radius = chord / (2.0 * abs(math.sin(0.5 * turn)))
     return Piece(t0, t1, x0, y0, x1, y1, ox, oy, radius, math.atan2(y0 - oy, x0 - ox), turn)
+
+
+def path_length(pose0: list[float], pose1: list[float], turning: bool) -> float:
+    """The length of the held-input path from ``pose0`` (x, y, theta) to ``pose1``: the
+    chord, times ``(turn / 2) / sin(turn / 2)`` along an arc; inf for a turn of half a
+    revolution or more (no bound), as :func:`piece` rebuilds none."""
+    gone = math.hypot(pose1[0] - pose0[0], pose1[1] - pose0[1])
+    half = 0.5 * abs(pose1[2] - pose0[2]) if turning else 0.0
+    if half >= 0.5 * math.pi:
+        return math.inf
+    if half > 0.0:
+        gone *= half / math.sin(half)
+    return gone
 
 
 def _within(p: Piece, phi: float) -> float | None:
@@ -187,7 +203,7 @@ def _arc_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[floa
     return [s for s in found if s is not None]
 
 
-def _line_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[float]:
+def line_circle_roots(p: Piece, qx: float, qy: float, reach: float) -> list[float]:
     """Fractions of segment ``p`` at distance ``reach`` from ``(qx, qy)`` (a quadratic)."""
     dx, dy = p.x1 - p.x0, p.y1 - p.y0
     fx, fy = p.x0 - qx, p.y0 - qy
@@ -213,7 +229,7 @@ def first_contact(
     Called where the piece is known to touch something (its least gap is at most 0), so
     the start is free: the first root is the first contact."""
     found: list[float] = []
-    roots = _arc_circle_roots if p.radius else _line_circle_roots
+    roots = _arc_circle_roots if p.radius else line_circle_roots
     for qx, qy, r in circles:
         found += roots(p, qx, qy, reach + r)
     for seg in segments:

@@ -469,13 +469,14 @@ def test_collisions_under_warn_are_marked_where_and_when_they_happened(team_from
 
 
 def test_two_robots_that_meet_are_marked_where_their_disks_touch(team_from_yaml):
-    """Head on from 3 m apart at 1 m/s each, 0.25 m disks: at the first tick after they
-    touch, t = 1.3 s, a is at x = 1.3 and b at 1.7; the mark is between them, at 1.5."""
+    """Head on from 3 m apart at 1 m/s each, 0.25 m disks: they first touch between two
+    ticks (the swept pair test), at t = 1.25 s, a at x = 1.25 and b at 1.75; the mark is
+    between them, at 1.5."""
     run = ht.simulate(team_from_yaml(CRASH.format(b_y=0.0, walls="[]")))
     (ax,) = trajectory_figure(run).axes
     (mark,) = by_gid(ax.lines, "collisions")
     np.testing.assert_allclose(mark.get_xydata(), [[1.5, 0.0]], atol=1e-12)
-    assert [t.get_text() for t in by_gid(ax.texts, "collision-label")] == ["1.3 s"]
+    assert [t.get_text() for t in by_gid(ax.texts, "collision-label")] == ["1.25 s"]
 
 
 def test_marks_that_appear_mid_run_keep_their_colour_in_a_gif():

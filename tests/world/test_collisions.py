@@ -36,14 +36,17 @@ def team(
 
 
 def test_robots_that_meet_collide(team_from_yaml):
-    """Head on, closing at 2 m/s from 3 m apart: the 0.25 m disks touch at t = 1.25 s; the
-    first instant after, t = 1.3 s, they overlap by 0.1 m."""
+    """Head on, closing at 2 m/s from 3 m apart: the 0.25 m disks touch at t = 1.25 s,
+    between two ticks (the swept pair test); the first tick after, t = 1.3 s, sees them
+    overlapping by 0.1 m."""
     run = ht.simulate(team(team_from_yaml, b_y=0.0, walls="[]"))
     assert run.outcome == "collision"
     assert run.diagnostics[0]["t"] == pytest.approx(1.3, abs=1e-12)
     assert run.message.startswith(
-        "robots 'a' and 'b' collided, their footprints overlapping by 0.1 at t=1.3"
+        "robots 'a' and 'b' collided (their footprints overlapping by up to 0.1 by the tick "
+        "at t=1.3), first touching at t="
     )
+    assert float(run.message.rsplit("at t=", 1)[1]) == pytest.approx(1.25, abs=1e-12)
 
 
 def test_a_robot_that_drives_into_a_wall_collides(team_from_yaml):
