@@ -3,8 +3,10 @@
 Exact storage, one process, no symmetry or ample-set reduction, the reaction tables: there
 each successor is a table lookup, a composition and the canonical form, which Python does
 at about 30,000 states a second. Here a state is one fixed-width row of small unsigned
-integers in a growing numpy array (:class:`Layout`), the visited set an open-addressing
-table of row numbers, and a breadth-first level is expanded by :func:`.kernel_core.level`
+integers (:class:`Layout`), stored collapsed: each of its groups (agents, copies, entries,
+seen) numbered once in a table of its own, the state a few bytes of group numbers
+(:class:`PackedStore`), the visited set an open-addressing table of state numbers; a
+breadth-first level is expanded by :func:`.kernel_core.level`
 (numba): the same choices in the same order, the same reactions, the same canonical form,
 the same numbering, so the graph is the Python path's, state for state and edge for edge.
 
@@ -27,6 +29,7 @@ import time
 from array import array
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from functools import partial
 from itertools import islice
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -39,7 +42,7 @@ from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.bounds import Values, full, over_memory
 from hybridteam.verify.machine import Copy, OutboxEntry, State
 from hybridteam.verify.reactions import INPUT_ID, NEW_ID, NO_ID, Reactions
-from hybridteam.verify.store import UINT, Edges
+from hybridteam.verify.store import UINT, Edges, Grouped
 
 if TYPE_CHECKING:
     from hybridteam.verify.explore import Graph, Options, Progress
@@ -48,6 +51,8 @@ if TYPE_CHECKING:
 IDS = 64
 #: The most copies (or entries) a state may hold (:data:`.kernel_core.ROOM`).
 ROOM = 256
+#: A stored state's collapsed groups (:data:`.kernel_core.GROUPS`, :class:`PackedStore`).
+GROUPS = 4
 #: Choice kinds (:mod:`.kernel_core`), and their words in a choice tuple.
 KINDS = ("deliver", "lose", "dup", "timer", "scenario", "time", "world")
 #: Copy templates' kinds: a plain message, an acknowledged one (an id), an ack.
@@ -492,17 +497,37 @@ def _pow2(n: int) -> int:
 
 
 class PackedStore:
-    """The explored states as rows (:class:`Layout`), found again through an
-    open-addressing table of row numbers; ``store[k]`` decodes state ``k``. Answers what
-    properties, counterexamples and replays ask of :class:`~.store.Store`: ``len``,
-    ``store[k]``, ``agents_of(k)``, ``agent_parts`` and ``parts.values``."""
+    """The explored states, collapsed (SPIN's COLLAPSE idea): a state's row
+    (:class:`Layout`) is cut into groups — the agents' parts, the copies, the entries,
+    the seen triples with the counters — and each group's distinct sub-rows are kept
+    once, in a table of their own found again through an open-addressing table; a state
+    is its groups' numbers, each in as few bytes as its group needs (a key), found again
+    through an open-addressing table of state numbers. The groups repeat: three robots
+    with one loss have 2.4 million states but 156 agent tuples and about 200,000 copy
+    and entry tuples each, so a state takes 9 bytes instead of a 58-byte row. The
+    canonical row is what is interned, so a state's identity, and with it the numbering,
+    is the row's. ``store[k]`` decodes state ``k``; answers what properties,
+    counterexamples and replays ask of :class:`~.store.Store`: ``len``, ``store[k]``,
+    ``agents_of(k)``, ``agent_parts`` and ``parts.values``."""
 
     def __init__(self, pk: Packing, lay: Layout) -> None:
         self.pk, self.lay = pk, lay
-        self.rows = np.zeros((1024, lay.width), np.uint16)
+        self.dtype: Any = np.dtype(np.uint16)
+        self.widths = np.ones(GROUPS, np.int64)  # each group number's bytes in a key
+        self.keys = np.zeros((1024, GROUPS), np.uint8)
         self.n = 0
         self.slots = np.full(2048, -1, np.int32)
+        bounds = self.bounds
+        self.groups = [np.zeros((16, bounds[g + 1] - bounds[g]), self.dtype) for g in range(GROUPS)]
+        self.group_slots = [np.full(32, -1, np.int32) for _ in range(GROUPS)]
+        self.counts = np.zeros(GROUPS, np.int64)
         self.parts = pk  # ``parts.values``: agent parts by number
+
+    @property
+    def bounds(self) -> list[int]:
+        """Where each group's columns start in a row, and the row's end."""
+        lay = self.lay
+        return list(np.cumsum([0, lay.agents, lay.copies, lay.entries, lay.seen + 3]))
 
     def __len__(self) -> int:
         return self.n
@@ -510,50 +535,150 @@ class PackedStore:
     def __getitem__(self, k: int) -> State:
         if not -self.n <= k < self.n:
             raise IndexError(k)
-        return self.pk.unpack(self.rows[k % self.n], self.lay)
+        return self.pk.unpack(self.row(k % self.n), self.lay)
 
     def __iter__(self):
         return (self[k] for k in range(self.n))
 
+    def numbers(self, g: int, rows: slice | np.ndarray) -> np.ndarray:
+        """Group ``g``'s numbers of the states ``rows`` (from their keys' bytes)."""
+        at = int(self.widths[:g].sum())
+        out = np.zeros(self.keys[rows, 0].shape, np.int64)
+        for i in range(int(self.widths[g])):
+            out |= self.keys[rows, at + i].astype(np.int64) << (8 * i)
+        return out
+
+    def row(self, k: int) -> np.ndarray:
+        """State ``k``'s row, its groups' sub-rows side by side."""
+        return np.concatenate(
+            [self.groups[g][self.numbers(g, np.array([k]))[0]] for g in range(GROUPS)]
+        )
+
     def agents_of(self, k: int) -> tuple:
-        return tuple(self.pk.values[p] for p in self.rows[k, : self.pk.agents].tolist())
+        parts = self.groups[0][self.numbers(0, np.array([k]))[0]]
+        return tuple(self.pk.values[p] for p in parts.tolist())
 
     @property
-    def agent_parts(self) -> np.ndarray:
-        """Each state's agent part numbers ``(states, agents)``: a view of the rows' first
-        columns, not a copy (the checks read them block by block)."""
-        return self.rows[: self.n, : self.pk.agents]
+    def agent_parts(self) -> Grouped:
+        """Each state's agent part numbers, as its agents group's number and that group's
+        table (the checks read them block by block: no column of every state)."""
+        return Grouped(partial(self.numbers, 0), self.groups[0][: self.counts[0]], self.n)
+
+    def add(self, row: np.ndarray) -> int:
+        """The number of the state whose row is ``row``, stored if it is new."""
+        from hybridteam.verify.kernel_core import grow, intern
+
+        self.reserve(1)
+        if not self.group_slots[0].size:  # (sealed: the lookup tables went)
+            self._regroup()
+        while True:
+            k, got = intern(
+                self.keys,
+                self.n,
+                self.slots,
+                tuple(self.groups),
+                tuple(self.group_slots),
+                self.counts,
+                np.array(self.bounds, np.int64),
+                np.concatenate([[0], np.cumsum(self.widths)[:-1]]).astype(np.int64),
+                self.widths,
+                row,
+                np.zeros(GROUPS, np.int64),
+                np.zeros(self.keys.shape[1], np.uint8),
+                True,
+                row,
+                np.full(GROUPS, -1, np.int64),
+            )
+            if k >= -1:
+                self.n += got
+                return k
+            if k == -2:
+                self.widen_key(got)
+            else:
+                groups, slots = grow(tuple(self.groups), tuple(self.group_slots), self.counts, got)
+                self.groups, self.group_slots = list(groups), list(slots)
 
     def reserve(self, more: int) -> None:
-        """Room for ``more`` rows, and a table at most half full with them."""
+        """Room for ``more`` keys, and a table at most half full with them (the groups'
+        tables grow as the loop fills them)."""
         need = self.n + more
-        if need > self.rows.shape[0]:  # (in place where the allocator can: no second copy)
-            grown = max(need, self.rows.shape[0] * 5 // 4)
-            self.rows.resize((grown, self.lay.width), refcheck=False)
+        if need > self.keys.shape[0]:  # (in place where the allocator can: no second copy)
+            grown = max(need, self.keys.shape[0] * 5 // 4)
+            self.keys.resize((grown, self.keys.shape[1]), refcheck=False)
         if 10 * need > 7 * self.slots.size:  # at most 70 % full
             self._rehash(_pow2(2 * need))
 
     def seal(self) -> None:
-        """Exploring is done: the rows shrink to the states they hold and the table goes
-        (states are only read by number from now on), before the checks take their
-        arrays."""
-        self.rows.resize((max(self.n, 1), self.lay.width), refcheck=False)
+        """Exploring is done: the keys and the groups' tables shrink to what they hold
+        and the lookup tables go (states are only read by number from now on), before
+        the checks take their arrays."""
+        self.keys.resize((max(self.n, 1), self.keys.shape[1]), refcheck=False)
         self.slots = np.zeros(0, np.int32)
+        for g in range(GROUPS):
+            self.groups[g] = self.groups[g][: max(int(self.counts[g]), 1)].copy()
+            self.group_slots[g] = np.zeros(0, np.int32)
 
     def _rehash(self, size: int = 0) -> None:
-        """The table built again, of ``size`` slots or more (a sealed store has none)."""
+        """The table of states built again, of ``size`` slots or more."""
         from hybridteam.verify.kernel_core import rehash
 
         self.slots = np.zeros(0, np.int32)  # (the old one goes first)
         self.slots = np.full(max(size, _pow2(2 * self.n)), -1, np.int32)
-        rehash(self.rows, self.n, self.slots)
+        rehash(self.keys, self.n, self.slots)
+
+    def rollback(self, counts: np.ndarray) -> None:
+        """The store as it was before a level whose pass was abandoned (it is applied
+        again): the states beyond ``n`` leave the table, the sub-rows beyond ``counts``
+        their groups."""
+        from hybridteam.verify.kernel_core import regroup
+
+        self._rehash(self.slots.size)
+        self.counts[:] = counts
+        for g in range(GROUPS):
+            self.groups[g][counts[g] :] = 0
+        regroup(tuple(self.groups), tuple(self.group_slots), self.counts)
+
+    def widen_key(self, g: int) -> None:
+        """One more byte for group ``g``'s numbers in every key (the group outgrew its
+        bytes); the table of states is built again."""
+        if self.widths[g] >= 4:
+            raise RuntimeError("kernel: more than 2**32 distinct sub-rows in a group")
+        at = int(self.widths[: g + 1].sum())
+        keys = np.zeros((self.keys.shape[0], self.keys.shape[1] + 1), np.uint8)
+        keys[:, :at] = self.keys[:, :at]
+        keys[:, at + 1 :] = self.keys[:, at:]
+        self.keys = keys
+        self.widths[g] += 1
+        self._rehash(self.slots.size)  # (as large as the level reserved)
 
     def relayout(self, lay: Layout, dtype: Any) -> None:
         """Rows in a wider layout or a wider integer type (a count or a number outgrew
-        them); the table is built again."""
-        rows = self.lay.widen(self.rows, lay).astype(dtype)
-        self.rows, self.lay = rows, lay
-        self._rehash()
+        them): each group's table widened; the keys, and the states' numbers, stay."""
+        old = self.bounds
+        wide = np.zeros((max(int(self.counts.max()), 1), self.lay.width), self.dtype)
+        rows = [np.zeros(0)] * GROUPS
+        for g in range(GROUPS):  # (each group through the layout's widening, alone)
+            wide[:] = 0
+            c = int(self.counts[g])
+            wide[:c, old[g] : old[g + 1]] = self.groups[g][:c]
+            rows[g] = self.lay.widen(wide, lay)
+        self.lay, self.dtype = lay, np.dtype(dtype)
+        new = self.bounds
+        tables = []
+        for g in range(GROUPS):
+            c = int(self.counts[g])
+            table = np.zeros((max(self.groups[g].shape[0], 16), new[g + 1] - new[g]), self.dtype)
+            table[:c] = rows[g][:c, new[g] : new[g + 1]]
+            tables.append(table)
+        self.groups = tables
+        self._regroup()
+
+    def _regroup(self) -> None:
+        """The groups' lookup tables built again (at most half full)."""
+        from hybridteam.verify.kernel_core import regroup
+
+        self.group_slots = [np.full(_pow2(2 * max(int(c), 16)), -1, np.int32) for c in self.counts]
+        regroup(tuple(self.groups), tuple(self.group_slots), self.counts)
 
 
 def explore_packed(
@@ -580,12 +705,10 @@ def explore_packed(
     lay = Layout(pk.agents)
     store = PackedStore(pk, lay)
     initial = m.initial()
-    store.relayout(store.lay.fit(_counts(initial)), store.rows.dtype)
-    pk.pack(initial, store.lay, store.rows[0])
-    kc.rehash(store.rows, 0, store.slots)
-    _, slot = kc.find_row(store.rows, store.slots, store.rows[0])
-    store.slots[slot] = 0
-    store.n = 1
+    store.relayout(store.lay.fit(_counts(initial)), store.dtype)
+    first = np.zeros(store.lay.width, store.dtype)
+    pk.pack(initial, store.lay, first)
+    store.add(first)
     parent = np.full(1024, 0xFFFFFFFF, np.uint32)
     fifo = opts.order == "fifo"
     timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
@@ -613,14 +736,19 @@ def explore_packed(
         """One pass of the compiled loop over the level ``lo..hi``: a dry pass
         (``apply`` False: it only counts the jobs and collects the misses) or the level
         applied, its edges, Zeno and cut states into ``outs``; the rest of its arguments,
-        the same for both, as they stand at the call."""
+        the same for both, as they stand at the call. The groups' tables it grew go back
+        to the store."""
         assert tb is not None  # (the tables are built before the first pass)
-        return kc.level(  # type: ignore[call-arg]
-            store.rows,
+        *got, groups, slots = kc.level(  # type: ignore[call-arg]
+            store.keys,
             store.n,
             lo,
             hi,
             store.slots,
+            tuple(store.groups),
+            tuple(store.group_slots),
+            store.counts,
+            store.widths,
             store.lay.array(),
             *tb,
             *table.array(),
@@ -636,6 +764,8 @@ def explore_packed(
             misses,
             need,
         )
+        store.groups, store.group_slots = list(groups), list(slots)
+        return tuple(got)
 
     while lo < hi:
         misses = np.zeros((MISSES, 4), np.int64)
@@ -643,9 +773,9 @@ def explore_packed(
             table.sync()
             lay = store.lay.fit(_most(s for s, _, _ in pre.values()))
             if lay != store.lay:  # a successor computed in Python outgrew the layout
-                store.relayout(lay, store.rows.dtype)
+                store.relayout(lay, store.dtype)
             pre_ord, pre_rows, pre_res = _pre(pk, store, pre)
-            if store.rows.dtype == np.uint16 and not pk.fits16():
+            if store.dtype == np.uint16 and not pk.fits16():
                 store.relayout(store.lay, np.uint32)
                 continue
             if pk.dirty or tb is None:
@@ -666,10 +796,16 @@ def explore_packed(
         e_how = np.zeros(jobs, np.uint32)
         zeno = np.zeros(jobs, np.uint32)
         cut = np.zeros(jobs, np.uint32)
+        counts = store.counts.copy()
         status, done, n, ne, nz, nx, _ = level(True, e_src, e_dst, e_how, zeno, cut)
+        while status == kc.GROUP_FULL:  # a group outgrew its bytes in the keys: again
+            store.rollback(counts)  # (from the groups it started with)
+            store.widen_key(int(need[0]))
+            status, done, n, ne, nz, nx, _ = level(True, e_src, e_dst, e_how, zeno, cut)
         if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
+            store.rollback(counts)
             c, e, k = need.tolist()
-            store.relayout(store.lay.fit((c, e, k)), store.rows.dtype)
+            store.relayout(store.lay.fit((c, e, k)), store.dtype)
             continue
         if status == kc.TOO_MANY_IDS:
             raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
@@ -741,7 +877,7 @@ def _pre(pk: Packing, store: PackedStore, pre: dict) -> tuple:
     """The successors Python computed this level, as the loop reads them (each fits the
     layout)."""
     keys = sorted(pre)
-    rows = np.zeros((len(keys), store.lay.width), store.rows.dtype)
+    rows = np.zeros((len(keys), store.lay.width), store.dtype)
     res = np.zeros((len(keys), 2), np.int64)
     for i, k in enumerate(keys):
         s, zeno, reads = pre[k]

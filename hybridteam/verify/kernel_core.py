@@ -3,7 +3,10 @@
 A state is one row of small unsigned integers (layout: :class:`~.kernel.Layout`): each
 agent's part number, the copies in flight (``template * IDS + id``), the outbox entries
 (``template * IDS + id``), the seen triples (``(receiver * agents + sender) * IDS + id``),
-each plus one (0: an empty slot), then cursor, losses and duplicates. Templates, parts and reactions
+each plus one (0: an empty slot), then cursor, losses and duplicates. A stored state is
+that row collapsed (:class:`~.kernel.PackedStore`): its :data:`GROUPS` groups' numbers in
+a key of a few bytes, each group's distinct sub-rows in a table of their own
+(:func:`intern`, :func:`expand`). Templates, parts and reactions
 are numbered by the Python side (:mod:`.kernel`), which also fills whatever the loop does
 not know (a reaction the engine has not computed, a state whose parts are not settled):
 this module only follows the rules of :func:`~.explore.choices`,
@@ -28,10 +31,13 @@ PLAIN, WITH_ID, ACK_COPY = 0, 1, 2
 #: A sent copy's id: none, the choice's input id, the agent's next id plus an offset.
 NO_ID, INPUT_ID, NEW_ID = 0, 1, 2
 #: What a job or a pass ended with: done, a successor the tables do not know, a group
-#: wider than the layout's slots, a message id beyond :data:`IDS`.
-OK, MISS, OVERFLOW, TOO_MANY_IDS = 0, 1, 2, 3
+#: wider than the layout's slots, a message id beyond :data:`IDS`, a collapsed group with
+#: more sub-rows than its bytes in a key can number.
+OK, MISS, OVERFLOW, TOO_MANY_IDS, GROUP_FULL = 0, 1, 2, 3, 4
 #: Scratch room for a state's copies, entries and seen triples while it is composed.
 ROOM = 256
+#: A stored state's collapsed groups (:func:`group_bounds`).
+GROUPS = 4
 
 
 @njit(cache=True)
@@ -76,6 +82,150 @@ def rehash(rows: np.ndarray, n: int, slots: np.ndarray) -> None:
         while slots[i] >= 0:
             i = (i + 1) & mask
         slots[i] = k
+
+
+@njit(cache=True)
+def group_bounds(lay) -> np.ndarray:
+    """Where a row's collapsed groups start and end (:data:`GROUPS` + 1 columns): the
+    agents' parts, the copies, the entries, and the seen triples with the counters."""
+    na, cs, os_, ss_ = lay[0], lay[1], lay[2], lay[3]
+    return np.array([0, na, na + cs, na + cs + os_, na + cs + os_ + ss_ + 3], np.int64)
+
+
+@njit(cache=True, inline="always")
+def key_number(key, at, width) -> int:
+    """The group number kept in ``width`` bytes of ``key`` from ``at`` (little-endian)."""
+    v = 0
+    for i in range(width):
+        v |= int(key[at + i]) << (8 * i)
+    return v
+
+
+@njit(cache=True, inline="always")
+def expand(key, GT, gb, koff, kw, row, nums) -> None:
+    """The wide row of a stored state: each group's sub-row, from its number in ``key``
+    (into ``nums``)."""
+    for g in range(GROUPS):
+        table = GT[g]
+        k = key_number(key, koff[g], kw[g])
+        nums[g] = k
+        for j in range(gb[g], gb[g + 1]):
+            row[j] = table[k, j - gb[g]]
+
+
+@njit(cache=True, inline="always")
+def find_sub(table, slots, row, lo, hi) -> tuple[int, int]:
+    """:func:`find_row` for the sub-row ``row[lo:hi]`` in a group's table (the same hash
+    as :func:`row_hash` of a table row, without a slice of ``row``)."""
+    h = np.uint64(1469598103934665603)
+    for j in range(lo, hi):
+        h = (h ^ np.uint64(row[j])) * np.uint64(1099511628211)
+    h = h ^ (h >> np.uint64(29))
+    mask = slots.size - 1
+    i = np.int64(h & np.uint64(mask))
+    while True:
+        k = slots[i]
+        if k < 0:
+            return -1, int(i)
+        same = True
+        for j in range(lo, hi):
+            if table[k, j - lo] != row[j]:
+                same = False
+                break
+        if same:
+            return int(k), -1
+        i = (i + 1) & mask
+
+
+@njit(cache=True)
+def _put(arrays, g, a):
+    """The tuple ``arrays`` with ``a`` in place ``g`` (a group's grown table)."""
+    if g == 0:
+        return (a, arrays[1], arrays[2], arrays[3])
+    if g == 1:
+        return (arrays[0], a, arrays[2], arrays[3])
+    if g == 2:
+        return (arrays[0], arrays[1], a, arrays[3])
+    return (arrays[0], arrays[1], arrays[2], a)
+
+
+@njit(cache=True, inline="always")
+def intern(
+    keys, n, slots, GT, GS, counts, gb, koff, kw, row, gi, key, room, prev, pn
+) -> tuple[int, int]:
+    """The number of the state whose wide row is ``row``: ``(k, 0)`` when stored; else,
+    with ``room``, its groups numbered (each new sub-row appended to its group's table)
+    and it stored as state ``n``: ``(n, 1)``; without room ``(-1, 0)``; ``(-2, g)`` when
+    group ``g`` has more sub-rows than its bytes in a key can number (nothing stored:
+    the caller widens the keys and applies the level again); ``(-3, g)`` when group
+    ``g``'s tables are full (the caller grows them, :func:`grow`, and asks again).
+    ``prev``: the row of the state it succeeds, its groups' numbers ``pn`` (-1: none): a
+    group a step left as it was is not looked up (most steps change one or two)."""
+    fresh = False
+    for g in range(GROUPS):
+        if pn[g] >= 0:
+            same = True
+            for j in range(gb[g], gb[g + 1]):
+                if row[j] != prev[j]:
+                    same = False
+                    break
+            if same:
+                gi[g] = pn[g]
+                continue
+        i, _ = find_sub(GT[g], GS[g], row, gb[g], gb[g + 1])
+        gi[g] = i
+        if i < 0:
+            fresh = True  # (a sub-row never seen: a state never seen)
+    if fresh:
+        if not room:
+            return -1, 0
+        for g in range(GROUPS):
+            if gi[g] >= 0:
+                continue
+            c = counts[g]
+            if c >> (8 * kw[g]) != 0:
+                return -2, g
+            table, places = GT[g], GS[g]
+            if c >= table.shape[0] or 10 * (c + 1) > 7 * places.size:
+                return -3, g
+            for j in range(gb[g], gb[g + 1]):
+                table[c, j - gb[g]] = row[j]
+            _, s = find_sub(table, places, row, gb[g], gb[g + 1])
+            places[s] = c
+            counts[g] = c + 1
+            gi[g] = c
+    for g in range(GROUPS):
+        v = gi[g]
+        for i in range(kw[g]):
+            key[koff[g] + i] = (v >> (8 * i)) & 0xFF
+    k, s = find_row(keys, slots, key)
+    if k >= 0:
+        return k, 0
+    if not room:
+        return -1, 0
+    keys[n] = key
+    slots[s] = n
+    return n, 1
+
+
+@njit(cache=True)
+def grow(GT, GS, counts, g):
+    """Group ``g``'s tables twice the size (its sub-rows, and their lookup table at most
+    half full): the tuples with the new ones."""
+    c = counts[g]
+    table = np.zeros((2 * GT[g].shape[0], GT[g].shape[1]), GT[g].dtype)
+    table[:c] = GT[g][:c]
+    places = np.full(2 * GS[g].size, -1, GS[g].dtype)
+    rehash(table, c, places)
+    return _put(GT, g, table), _put(GS, g, places)
+
+
+@njit(cache=True)
+def regroup(GT, GS, counts) -> None:
+    """Each group's table of sub-row numbers built again over its first ``counts``."""
+    for g in range(GROUPS):
+        GS[g][:] = -1
+        rehash(GT[g], counts[g], GS[g])
 
 
 @njit(cache=True)
@@ -595,11 +745,15 @@ def successor(
 
 @njit(cache=True)
 def level(
-    rows,
+    keys,
     n,
     lo,
     hi,
     slots,
+    GT,
+    GS,
+    counts,
+    kw,
     lay,
     TT,
     EN,
@@ -637,11 +791,21 @@ def level(
     ``apply`` False (a dry pass): only find the jobs the tables cannot answer, into
     ``misses`` (ordinal, state, choice, tape); after the first miss no further retry is
     queued (its position would depend on the miss's reads). ``apply`` True: number the
-    new states (appended to ``rows`` from ``n``), record parents, edges (their choices
-    in 32 bits: kind, x below 256, y), Zeno and cut states. Returns (status, jobs, new
-    n, edges, zeno, cut, misses)."""
+    new states (their keys appended to ``keys`` from ``n``, :func:`intern`), record
+    parents, edges (their choices in 32 bits: kind, x below 256, y), Zeno and cut
+    states. Returns (status, jobs, new n, edges, zeno, cut, misses, the groups' tables,
+    their lookup tables: :func:`grow` grows them); GROUP_FULL leaves the group in
+    ``need[0]``."""
     na = lay[0]
-    w = rows.shape[1]
+    gb = group_bounds(lay)
+    w = gb[GROUPS]
+    koff = np.zeros(GROUPS, np.int64)
+    for g in range(1, GROUPS):
+        koff[g] = koff[g - 1] + kw[g - 1]
+    gi = np.zeros(GROUPS, np.int64)
+    pn = np.zeros(GROUPS, np.int64)  # the state at work's groups' numbers
+    key = np.zeros(keys.shape[1], keys.dtype)
+    wide = np.zeros(w, GT[0].dtype)  # the state at work's row
     D = np.zeros((9, ROOM), np.int64)  # the state at work, decoded (rows: see decode)
     Wk = np.zeros((9, ROOM), np.int64)  # its successor, composed
     head = np.zeros(6, np.int64)
@@ -649,7 +813,7 @@ def level(
     res = np.zeros(2, np.int64)
     live = np.zeros(na, np.uint64)
     codes = np.zeros(4 * ROOM, np.int64)
-    out = np.zeros(w, rows.dtype)
+    out = np.zeros(w, GT[0].dtype)
     q_sid = [0]
     q_code = [0]
     q_tape = [0]
@@ -673,7 +837,8 @@ def level(
         # the next job: the level's, then the queued retries
         if sid < hi:
             if ci_at == 0:
-                decode(rows[sid], lay, TT, EN, D, head, live)
+                expand(keys[sid], GT, gb, koff, kw, wide, pn)
+                decode(wide, lay, TT, EN, D, head, live)
                 decoded = sid
                 nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
             if ci_at >= nchoice:
@@ -686,7 +851,8 @@ def level(
             j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
             qi += 1
             if decoded != j_sid:
-                decode(rows[j_sid], lay, TT, EN, D, head, live)
+                expand(keys[j_sid], GT, gb, koff, kw, wide, pn)
+                decode(wide, lay, TT, EN, D, head, live)
                 decoded = j_sid
         else:
             break
@@ -723,10 +889,10 @@ def level(
         ordinal += 1
         if got >= OVERFLOW:  # (or TOO_MANY_IDS): ``need`` gets the group counts
             need[0], need[1], need[2] = cnt[0], cnt[1], cnt[2]
-            return got, ordinal, n, ne, nz, nx, nm
+            return got, ordinal, n, ne, nz, nx, nm, GT, GS
         if got == MISS:
             if apply:
-                return MISS, ordinal, n, ne, nz, nx, nm
+                return MISS, ordinal, n, ne, nz, nx, nm, GT, GS
             if nm < misses.shape[0]:
                 misses[nm, 0], misses[nm, 1] = ordinal - 1, j_sid
                 misses[nm, 2], misses[nm, 3] = j_code, j_tape
@@ -745,16 +911,23 @@ def level(
                 q_tape.append((1 << (k + 1)) | bits | (1 << k))
         if not apply:
             continue
-        k, slot = find_row(rows, slots, out)
+        k, fresh = intern(
+            keys, n, slots, GT, GS, counts, gb, koff, kw, out, gi, key, n < max_states, wide, pn
+        )
+        while k == -3:  # (a group's tables full: grown here, the level needs no bound)
+            GT, GS = grow(GT, GS, counts, fresh)
+            k, fresh = intern(
+                keys, n, slots, GT, GS, counts, gb, koff, kw, out, gi, key, n < max_states, wide, pn
+            )
+        if k == -2:
+            need[0] = fresh
+            return GROUP_FULL, ordinal, n, ne, nz, nx, nm, GT, GS
         if k < 0:
-            if n >= max_states:
-                cut[nx] = j_sid
-                nx += 1
-                continue
-            rows[n] = out
-            slots[slot] = n
+            cut[nx] = j_sid
+            nx += 1
+            continue
+        if fresh:
             new_parent[n] = j_sid
-            k = n
             n += 1
         if res[0] != 0:
             zeno[nz] = k
@@ -765,7 +938,7 @@ def level(
                 ((j_code >> 40) << 28) | (((j_code >> 20) & 0xFF) << 20) | (j_code & 0xFFFFF)
             )
             ne += 1
-    return status, ordinal, n, ne, nz, nx, nm
+    return status, ordinal, n, ne, nz, nx, nm, GT, GS
 
 
 @njit(cache=True)

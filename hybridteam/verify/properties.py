@@ -37,7 +37,7 @@ from hybridteam.requirements import nodes as N
 from hybridteam.requirements.check import compile_requirements
 from hybridteam.verify.abstraction import Skeleton
 from hybridteam.verify.explore import Graph
-from hybridteam.verify.store import UINT
+from hybridteam.verify.store import UINT, Grouped
 
 
 class Unsupported(Exception):
@@ -82,10 +82,12 @@ class States:
         when a formula first reads that agent (an agent no formula reads costs nothing)."""
         self.sk = sk
         count = len(sk.cteam.agents)
-        parts = g.states.agent_parts  # (the packed store's: a view of its rows)
-        if not isinstance(parts, np.ndarray):
-            parts = np.frombuffer(parts, UINT)
-        self._nums = parts.reshape(len(g.states), count)[rows]
+        parts = g.states.agent_parts
+        if isinstance(parts, Grouped):  # (the packed store's: made for these rows only)
+            self._nums = parts[rows]
+        else:
+            flat = parts if isinstance(parts, np.ndarray) else np.frombuffer(parts, UINT)
+            self._nums = flat.reshape(len(g.states), count)[rows]
         self.shape = (self._nums.shape[0], 1)
         self.memo: dict = {}
         self._values = g.states.parts.values

@@ -13,7 +13,7 @@ built once exploring is done.
 from __future__ import annotations
 
 from array import array
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -242,6 +242,24 @@ def key_numbers(key: bytes) -> array:
     nums = array(chr(key[0]))
     nums.frombytes(key[1:])
     return nums
+
+
+class Grouped:
+    """Each state's agent part numbers kept collapsed (the packed store's): a number per
+    state into a table of the distinct tuples. ``grouped[rows]`` is the states ``rows``'
+    part numbers ``(len(rows), agents)``, made for those rows only (the checks read them
+    block by block)."""
+
+    def __init__(
+        self, number: Callable[[slice | np.ndarray], np.ndarray], table: np.ndarray, n: int
+    ) -> None:
+        self.number, self.table, self.n = number, table, n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, rows: slice | np.ndarray) -> np.ndarray:
+        return self.table[self.number(rows)]
 
 
 class Edges:

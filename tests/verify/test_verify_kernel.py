@@ -18,6 +18,7 @@ from hybridteam.cli import main
 from hybridteam.verify import Options, verify
 from hybridteam.verify.explore import Graph
 from hybridteam.verify.kernel import numba_available
+from hybridteam.verify.store import Grouped
 from tests.verify.test_verify import docking, roles_team
 from tests.verify.test_verify_bounds import COUNTERS, team_of
 from tests.verify.test_verify_promela import acked_go
@@ -87,7 +88,8 @@ def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, wi
 def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
     """What the compiled loop leaves for the checks is held once: the edges as added are
     their sparse-row view (no sources, no sorted copy; 32-bit offsets), and the agents'
-    part numbers are a view of the stored rows."""
+    part numbers are each state's agents group number into the distinct agent tuples,
+    spread for the rows a check reads only."""
     g = verify(roles_team(tmp_path, "b"), Options(kernel="on", losses=1), replay=False).graph
     assert g.explorer == "compiled kernel"
     edges, store = g.edges, g.states
@@ -96,8 +98,14 @@ def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
     assert len(edges) == dst.size == how.size == row[-1] > 0
     assert np.shares_memory(dst, np.frombuffer(edges.dst, np.uint32))
     assert np.shares_memory(how, np.frombuffer(edges.how, np.uint32))
-    assert np.shares_memory(store.agent_parts, store.rows)
-    assert store.agent_parts.shape == (len(store), 4)  # (three robots and the operator)
+    parts = store.agent_parts
+    assert isinstance(parts, Grouped) and len(parts) == len(store)
+    distinct = {s.agents for s in store}
+    assert parts.table.shape == (len(distinct), 4)  # (three robots and the operator)
+    block = [5, 17, len(store) - 1]
+    assert [tuple(store.parts.values[p] for p in r) for r in parts[np.array(block)].tolist()] == [
+        store[k].agents for k in block
+    ]
 
 
 @pytest.mark.parametrize("acknowledged", [False, True])
@@ -183,19 +191,38 @@ def test_past_the_memory_limit_the_compiled_loop_stops_after_the_level(tmp_path,
 
 
 def test_rows_widened_and_made_32_bit_keep_every_state_and_its_number(tmp_path):
-    """A group that outgrows its slots, or a number beyond 16 bits, re-lays the rows out:
-    every state decodes as before and is found again at its own number."""
+    """A group that outgrows its slots, or a number beyond 16 bits, re-lays the groups'
+    sub-rows out: every state decodes as before, keeps its key and is found again at its
+    own number."""
     from hybridteam.verify.kernel import Layout
-    from hybridteam.verify.kernel_core import find_row
 
     g = verify(roles_team(tmp_path, "b"), Options(losses=1, kernel="on"), replay=False).graph
     store = g.states
     before = list(store)
+    keys = store.keys.copy()
     lay = store.lay
-    assert store.rows.dtype == np.uint16
+    assert store.dtype == np.uint16
     store.relayout(Layout(lay.agents, lay.copies + 3, lay.entries + 1, lay.seen + 2), np.uint32)
-    assert store.rows.dtype == np.uint32 and store.lay.width == lay.width + 6
+    assert store.dtype == np.uint32 and store.lay.width == lay.width + 6
+    assert [t.dtype for t in store.groups] == [np.uint32] * 4
+    assert [t.shape[1] for t in store.groups] == [4, lay.copies + 3, lay.entries + 1, lay.seen + 5]
+    assert list(store) == before and np.array_equal(store.keys, keys)
+    assert [store.add(store.row(k)) for k in range(len(store))] == list(range(len(store)))
+    assert len(store) == len(before)
+
+
+def test_a_group_past_its_key_bytes_takes_one_more_and_keeps_every_state(tmp_path):
+    """A group's numbers take one byte in a key while it has at most 256 sub-rows (the
+    copies here have more: the loop widened them); one more byte keeps every state at its
+    number, its sub-rows found from the wider keys."""
+    g = verify(roles_team(tmp_path, "b"), Options(losses=1, kernel="on"), replay=False).graph
+    store = g.states
+    assert store.counts.tolist()[1] > 256 and store.widths.tolist()[1] == 2
+    assert store.counts.tolist()[0] <= 256 and store.widths.tolist()[0] == 1
+    before = list(store)
+    copies = store.numbers(1, slice(None))
+    store.widen_key(1)
+    assert store.widths.tolist()[1] == 3 and store.keys.shape[1] == int(store.widths.sum())
+    assert np.array_equal(store.numbers(1, slice(None)), copies)
     assert list(store) == before
-    assert [find_row(store.rows, store.slots, store.rows[k])[0] for k in range(len(store))] == (
-        list(range(len(store)))
-    )
+    assert [store.add(store.row(k)) for k in range(len(store))] == list(range(len(store)))
