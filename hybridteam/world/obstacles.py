@@ -97,6 +97,7 @@ from hybridteam.world.swept_payload import (
     payload_first_contact,
     payload_least_gap,
 )
+from hybridteam.world.swept_settled import GAP_TOLERANCE, SettledCarry, State, grip
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -295,9 +296,31 @@ class Obstacles(WorldComponent):
             for j, a in enumerate(p.agents)
             if a in row_of and all(by is not None for g, by in enumerate(p.engaged_by) if g != j)
         ]
+        #: the payloads whose robots hold two or more grasps judged over their motion
+        #: between instants where those grasps hold (:mod:`.swept_settled`): ``(k,
+        #: payload, each grasp's swept row or None)``
+        self.settled = [
+            (k, p, [row_of.get(a) for a in p.agents])
+            for k, p in enumerate(self.payloads)
+            if sum(a in row_of for a in p.agents) >= 2
+        ]
         #: per payload: its least gap over its motion since a carrier last sensed ``(P, n)``,
         #: and its first contact then, per (payload, instance): ``(t, x, y)``
         self.payload_swept = np.full((len(self.payloads), self.n), np.inf)
+        #: per (payload, instance) judged over its motion with two or more grasps: the
+        #: last piece's end (which grasps held, their robots' poses) and the payload there,
+        #: where the next piece starts if nothing changed between (:meth:`_judge_settled`)
+        self.settled_end: dict[tuple[int, int], tuple[Any, State]] = {}
+        #: per such (payload, instance): which grasps held when it was last judged, its
+        #: gap at that piece's end, and how far it may have moved since
+        #: (:meth:`_settled_piece`); and the pieces kept for the summary
+        self.settled_ref: dict[tuple[int, int], tuple[tuple[int, ...], float, float]] = {}
+        self.settled_pending: dict[tuple[int, int], list[Any]] = {}
+        #: per such (payload, instance): when its last piece ended and which grasps held
+        #: over it, and its last gap measured, when, and under which grasps
+        #: (:meth:`note_settled_gap`)
+        self.settled_last: dict[tuple[int, int], tuple[float, tuple[int, ...]]] = {}
+        self.settled_seen: dict[tuple[int, int], tuple[float, float, Any]] = {}
         self.payload_hit: dict[tuple[int, int], tuple[float, float, float]] = {}
         for a in self.sensing:
             world.pose(a, np.arange(0))  # a plant without x and y fails now, not mid-run
@@ -474,6 +497,8 @@ class Obstacles(WorldComponent):
                     sole[(c.k, i)] = c.payload.sole_grasp(world, idx[k : k + 1])
                 if sole[(c.k, i)] == c.grasp:
                     self._judge_carried(c, i, t0, t1, was[k].tolist(), now[k].tolist())
+        for k, p, grasp_rows in self.settled:
+            self._sweep_settled(world, idx, k, p, grasp_rows, ends, began)
         for r1, r2, reach in self.swept_pairs:
             (was1, now1, _, _), (was2, now2, _, _) = ends[r1], ends[r2]
             d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
@@ -523,12 +548,254 @@ class Obstacles(WorldComponent):
                     sole[c.k] = c.payload.sole_grasp(world, idx)
                 if sole[c.k] == c.grasp:
                     self._judge_carried(c, 0, began, t, first, last)
+        for k, p, grasp_rows in self.settled if ends else ():
+            held = p.holding(world, idx)
+            own = [r for r in (grasp_rows[j] for j in held) if r is not None and r in ends]
+            if len(held) < 2 or len(own) < len(held):
+                continue
+            moves = [ends[r] for r in own]
+            if all(m[0] == m[1] for m in moves):  # (its carriers stood still: so did it)
+                continue
+            self._settled_piece(k, p, 0, began, t, held, own, [(m[0], m[1]) for m in moves])
         for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
             d1 = math.hypot(now1[0] - now2[0], now1[1] - now2[1])
             if may_touch(d0, d1, gone1 + gone2, reach):
                 self._judge_pair(r1, r2, 0, began, t, was1, now1, was2, now2)
+
+    def _settled_piece(
+        self,
+        k: int,
+        p: CarriedPayload,
+        i: int,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+    ) -> None:
+        """Payload ``k`` held by grasps ``held`` (their robots' rows, and each robot's
+        poses at ``t0`` and ``t1``) over one piece in instance ``i``: judged now where it
+        may touch something (:meth:`_judge_settled`), kept for the summary where it may
+        only come nearer than its least gap so far (:meth:`_pending_settled`), dropped
+        where it can do neither.
+
+        Two cheap bounds, on floats. Every point of the outline is within ``rho`` (its
+        farthest corner from the body centroid) of the robot points' weighted centroid
+        (:mod:`.swept_settled`), which moves no faster than their weighted mean speed
+        ``c``: the gap is at least the centroid's point gap over the piece, bounded as a
+        robot's (:meth:`_sweep`), less ``rho``. And no point moves farther over the piece
+        than ``c + rho |theta'|`` (``|theta'| <= |z'| / |z|``, the springs' fit): the gap
+        is at least the gap where the payload was last judged less what it has moved
+        since."""
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
+        total = speed = lever = rx0 = ry0 = rx1 = ry1 = bcx = bcy = 0.0
+        points, speeds = [], []
+        for j, r, (was, now) in zip(held, rows, ends, strict=True):
+            w = p.spring.item(j)
+            mx, my = p.mount[j].tolist()
+            pair = []
+            for x, y, th in (was, now):
+                c, sn = math.cos(th), math.sin(th)
+                pair.append((x + c * mx - sn * my, y + sn * mx + c * my))
+            points.append(pair)
+            total += w
+            rx0, ry0 = rx0 + w * pair[0][0], ry0 + w * pair[0][1]
+            rx1, ry1 = rx1 + w * pair[1][0], ry1 + w * pair[1][1]
+            turned = abs(now[2] - was[2]) * math.hypot(mx, my)
+            speeds.append(path_length(was, now, self._turning[r]) + turned)
+            speed += w * speeds[-1]
+            bcx, bcy = bcx + w * p.body.item(j, 0), bcy + w * p.body.item(j, 1)
+        rx0, ry0, rx1, ry1 = rx0 / total, ry0 / total, rx1 / total, ry1 / total
+        bcx, bcy, drift = bcx / total, bcy / total, speed / total
+        z0x = z0y = z1x = z1y = 0.0
+        for j, (first, last), v in zip(held, points, speeds, strict=True):
+            w = p.spring.item(j)
+            cx, cy = p.body.item(j, 0) - bcx, p.body.item(j, 1) - bcy
+            ax, ay = first[0] - rx0, first[1] - ry0
+            bx, by = last[0] - rx1, last[1] - ry1
+            z0x, z0y = z0x + w * (cx * ax + cy * ay), z0y + w * (cx * ay - cy * ax)
+            z1x, z1y = z1x + w * (cx * bx + cy * by), z1y + w * (cx * by - cy * bx)
+            lever += w * math.hypot(cx, cy) * v
+        circles, segments = scene.circle_list, scene.segment_list
+        hw, hd = (h.item(0) for h in p.half_extents(np.array([i])))
+        rho = math.hypot(hw + abs(bcx), hd + abs(bcy))
+        gap0 = point_gap(rx0, ry0, circles, segments)
+        gap1 = point_gap(rx1, ry1, circles, segments)
+        low = 0.5 * (gap0 + gap1 - drift) - rho
+        zmin = 0.5 * (math.hypot(z0x, z0y) + math.hypot(z1x, z1y) - lever)
+        step = drift + rho * lever / zmin if zmin > 0.0 else math.inf
+        ref = self.settled_ref.get((k, i))
+        if ref is not None and ref[0] == tuple(held):
+            ref = (ref[0], ref[1], ref[2] + step)
+            low = max(low, ref[1] - ref[2])
+        else:
+            ref = None
+        least = min(self.payload_clear.item(i), self.payload_swept.item(k, i))
+        if low <= 0.0:
+            end = self._judge_settled(k, p, i, t0, t1, held, rows, ends, scene)
+            ref = None if end is None else (tuple(held), end, 0.0)
+        elif low < least - GAP_TOLERANCE:
+            pending = self.settled_pending.setdefault((k, i), [])
+            pending.append((low, step, (k, p, i, t0, t1, held, rows, ends, scene)))
+            if len(pending) > 64:  # (those the least so far has overtaken go)
+                pending[:] = [q for q in pending if q[0] < least - GAP_TOLERANCE]
+        self.settled_last[(k, i)] = (t1, tuple(held))
+        if ref is None:
+            self.settled_ref.pop((k, i), None)
+        else:
+            self.settled_ref[(k, i)] = ref
+
+    def note_settled_gap(self, k: int, i: int, t: float, gap: float) -> None:
+        """Payload ``k``'s gap in instance ``i`` measured at time ``t`` (a carrier's
+        sensing instant): where the piece that ends here was kept (:meth:`_settled_piece`)
+        and its start was measured too, under the same grasps, its gap is at least the two
+        ends' mean less half its motion bound (the gap moves no faster than that): a piece
+        that leaves no room below the least gap so far goes."""
+        last = self.settled_last.get((k, i))
+        held = last[1] if last is not None and last[0] == t else None
+        seen = self.settled_seen.get((k, i))
+        self.settled_seen[(k, i)] = (t, gap, held)
+        pending = self.settled_pending.get((k, i))
+        if not pending or seen is None or held is None:
+            return
+        low, step, args = pending[-1]
+        if args[4] != t or args[3] != seen[0] or seen[2] != held:
+            return
+        low = max(low, 0.5 * (seen[1] + gap - step))
+        if low < self.payload_clear.item(i) - GAP_TOLERANCE:
+            pending[-1] = (low, step, args)
+        else:
+            pending.pop()
+
+    def _pending_settled(self, i: int) -> None:
+        """Judge instance ``i``'s kept pieces (:meth:`_settled_piece`) that may come nearer
+        than the least gap so far, in time order (one piece's end is the next one's
+        start: :meth:`_judge_settled` keeps it), into ``payload_clear``."""
+        for k in range(len(self.payloads)):
+            for low, _, args in self.settled_pending.pop((k, i), []):
+                if low < self.payload_clear.item(i) - GAP_TOLERANCE:
+                    _, p, _, t0, t1, held, rows, ends, scene = args
+                    below = self.payload_clear.item(i)
+                    self._judge_settled(k, p, i, t0, t1, held, rows, ends, scene, below)
+
+    def _sweep_settled(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        k: int,
+        p: CarriedPayload,
+        rows: list[int | None],
+        ends: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+        began: np.ndarray,
+    ) -> None:
+        """:meth:`_settled_piece` over the instances ``idx`` of an ensemble (their pieces
+        began at ``began``) where the first of its bounds, on arrays, leaves room below the
+        least gap so far or for a contact."""
+        t = world.t[idx]
+        on = p.engagement(world, idx)
+        usable = (t > began) & (on.sum(axis=1) >= 2)
+        for j, r in enumerate(rows):
+            if r is None:
+                usable &= ~on[:, j]
+        if not some(usable):
+            return
+        m = idx.size
+        total, speed = np.zeros(m), np.zeros(m)
+        r0, r1, bc = np.zeros((m, 2)), np.zeros((m, 2)), np.zeros((m, 2))
+        moved = np.zeros(m, bool)
+        for j, r in enumerate(rows):
+            if r is None:
+                continue
+            was, now = ends[r][0], ends[r][1]
+            mx, my = p.mount[j].tolist()
+            w = np.where(on[:, j], p.spring[j], 0.0)
+            for point, pose in ((r0, was), (r1, now)):
+                c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+                point[:, 0] += w * (pose[:, 0] + c * mx - sn * my)
+                point[:, 1] += w * (pose[:, 1] + sn * mx + c * my)
+            gone = _path_length(was, now, self._turning[r])
+            gone = gone + np.abs(now[:, 2] - was[:, 2]) * math.hypot(mx, my)
+            speed += np.where(on[:, j], p.spring[j] * gone, 0.0)
+            total += w
+            bc += w[:, None] * p.body[j]
+            moved |= on[:, j] & np.any(now != was, axis=1)
+        usable &= moved
+        share = 1.0 / np.where(usable, total, 1.0)
+        gap0 = self._end_gaps(idx, r0 * share[:, None])
+        gap1 = self._end_gaps(idx, r1 * share[:, None])
+        hw, hd = p.half_extents(idx)
+        rho = np.hypot(hw + np.abs(bc[:, 0] * share), hd + np.abs(bc[:, 1] * share))
+        low = 0.5 * (gap0 + gap1 - speed * share) - rho
+        least = np.minimum(self.payload_clear[idx], self.payload_swept[k, idx])
+        for q in where_true(usable & ((low < least - GAP_TOLERANCE) | (low <= 0.0))).tolist():
+            held = where_true(on[q]).tolist()
+            own = [r for r in (rows[j] for j in held) if r is not None]
+            ends_q = [(ends[r][0][q].tolist(), ends[r][1][q].tolist()) for r in own]
+            i = int(idx[q])
+            self._settled_piece(k, p, i, float(began[q]), float(t[q]), held, own, ends_q)
+
+    def _judge_settled(
+        self,
+        k: int,
+        p: CarriedPayload,
+        i: int,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+        scene: Scene,
+        below: float | None = None,
+    ) -> float | None:
+        """Payload ``k`` held by grasps ``held`` (their robots' rows, and each robot's
+        poses at ``t0`` and ``t1``) over the motion in instance ``i``
+        (:mod:`.swept_settled`): its least gap, and its first contact if it touches
+        something; left to the instants where a robot's motion is not rebuilt or the
+        bounds do not hold (None). With ``below`` (a kept piece, judged for the summary:
+        it cannot touch) the gap goes straight into ``payload_clear``. Returns the gap
+        at the end (where the next piece's bound starts from)."""
+        grips = []
+        for j, r, (was, now) in zip(held, rows, ends, strict=True):
+            mount, body = p.mount[j].tolist(), p.body[j].tolist()
+            one = grip(
+                t0,
+                was,
+                t1,
+                now,
+                self._turning[r],
+                (mount[0], mount[1]),
+                (body[0], body[1]),
+                p.spring.item(j),
+            )
+            if one is None:
+                return None
+            grips.append(one)
+        hw, hd = (h.item(0) for h in p.half_extents(np.array([i])))
+        start = (tuple(held), tuple(tuple(was) for was, _ in ends))
+        kept = self.settled_end.get((k, i))
+        first = kept[1] if kept is not None and kept[0] == start else None
+        motion = SettledCarry(grips, hw, hd, scene.circle_list, scene.segment_list, first)
+        end = (tuple(held), tuple(tuple(now) for _, now in ends))
+        if below is not None:
+            found = motion.least_gap(below)
+            self.settled_end[(k, i)] = (end, motion.last)
+            if found is not None:
+                self.payload_clear[i] = min(self.payload_clear.item(i), found[0])
+            return None
+        found = motion.least_gap(min(self.payload_clear.item(i), self.payload_swept.item(k, i)))
+        self.settled_end[(k, i)] = (end, motion.last)
+        if found is None:
+            return None
+        gap, s = found
+        if gap < self.payload_swept[k, i]:
+            self.payload_swept[k, i] = gap
+        if gap <= 0.0 and (k, i) not in self.payload_hit:
+            s = motion.first_contact(s)
+            x, y, _ = motion.state(s).pose
+            self.payload_hit[(k, i)] = (t0 + s * (t1 - t0), x, y)
+        return max(motion.last.gap, 0.0)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
@@ -654,7 +921,7 @@ class Obstacles(WorldComponent):
                 if gap < math.inf and (sensing is None or sensing[a].item(0)):
                     self.min_clear[r, 0] = min(self.min_clear.item(r, 0), gap)
                     self.swept_gap[r, 0] = math.inf
-            for k, p in enumerate(self.payloads if self.carried else ()):
+            for k, p in enumerate(self.payloads if self.carried or self.settled else ()):
                 gap = self.payload_swept.item(k, 0)
                 if gap < math.inf and (
                     sensing is None or any(sensing[a].item(0) for a in p.agents)
@@ -682,7 +949,7 @@ class Obstacles(WorldComponent):
                     )
                     hits.append((i, who, text, np.array([x, y])))
                     times.append(t)
-        if self.carried:
+        if self.carried or self.settled:
             self._fold_payloads(world, idx, sensing, hits, times)
         if self.pair_hit:
             self._fold_pairs(world, idx, sensing, hits, times)
@@ -1036,6 +1303,11 @@ class Obstacles(WorldComponent):
                     carried = carried | sensing[a]
             judged = gap if carried is None or every(carried) else np.where(carried, gap, np.inf)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], judged)
+            if self.settled_last:
+                k = self.payloads.index(p)
+                for q in where_true(judged < math.inf).tolist():
+                    i = int(idx[q])
+                    self.note_settled_gap(k, i, world.t.item(i), judged.item(q))
             for k in where_true(judged <= 0).tolist():
                 hits.append(
                     (
@@ -1204,6 +1476,8 @@ class Obstacles(WorldComponent):
         return out
 
     def summary(self, i: int) -> dict[str, Any]:
+        if self.settled_pending:
+            self._pending_settled(i)
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":
             out["collisions"] = [text for text, *_ in self.collisions[i].values()]
