@@ -169,7 +169,8 @@ def test_random_carries_agree_with_dense_samples_of_the_settled_pose(seed):
         carriers, grips = _random_carry(rng)
         hw, hd = rng.uniform(0.2, 0.8), rng.choice((0.0, rng.uniform(0.1, 0.4)))
         circles = [(rng.uniform(-2, 2), rng.uniform(-1, 4), rng.uniform(0.05, 0.4))]
-        segments = [(rng.uniform(-2, 2), rng.uniform(-1, 4), rng.uniform(-2, 2), rng.uniform(-1, 4))]
+        ends = (rng.uniform(-2, 2), rng.uniform(-1, 4), rng.uniform(-2, 2), rng.uniform(-1, 4))
+        segments = [ends]
         motion = SettledCarry(grips, hw, hd, circles, segments)
         found = motion.least_gap()
         assert found is not None
