@@ -39,7 +39,8 @@ per planar robot in the team's order: the gap between its footprint disk and the
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
 obstacles, 0 when they touch or overlap; a payload held by one grasp of a robot under a
-held input over its motion between instants too, :mod:`hybridteam.world.swept_payload`).
+held input over its motion between instants too, :mod:`hybridteam.world.swept_payload`;
+by two or more, certified bounds, :mod:`hybridteam.world.swept_settled`).
 Two robots under held inputs are judged against each other over their motion between
 instants too (:mod:`hybridteam.world.swept_pair`: a collision, at its first contact).
 With ``clearance: true`` the same gaps are also
@@ -311,10 +312,17 @@ class Obstacles(WorldComponent):
         #: last piece's end (which grasps held, their robots' poses) and the payload there,
         #: where the next piece starts if nothing changed between (:meth:`_judge_settled`)
         self.settled_end: dict[tuple[int, int], tuple[Any, State]] = {}
-        #: per such (payload, instance): which grasps held when it was last judged, its
-        #: gap at that piece's end, and how far it may have moved since
-        #: (:meth:`_settled_piece`); and the pieces kept for the summary
-        self.settled_ref: dict[tuple[int, int], tuple[tuple[int, ...], float, float]] = {}
+        #: per payload and instance ``(P, n)``: which grasps held when it was last judged
+        #: (-1: since forgotten), its gap at that piece's end, and how far it may have
+        #: moved since (:meth:`_settled_piece`); and the pieces kept for the summary
+        n_payloads = len(self.payloads)
+        self.settled_code = np.full((n_payloads, self.n), -1)  # (a bit per holding grasp)
+        self.settled_gap = np.full((n_payloads, self.n), np.nan)
+        self.settled_moved = np.zeros((n_payloads, self.n))
+        #: a single run's: per (payload, grasps held), what its bounds need (:class:`_Fit`),
+        #: and per payload the last piece's end and the centroid there
+        self._settled_fit: dict[tuple[int, tuple[int, ...]], _Fit] = {}
+        self.settled_prev: dict[int, tuple[Any, tuple[float, float, float, float]]] = {}
         self.settled_pending: dict[tuple[int, int], list[Any]] = {}
         #: per such (payload, instance): when its last piece ended and which grasps held
         #: over it, and its last gap measured, when, and under which grasps
@@ -552,11 +560,12 @@ class Obstacles(WorldComponent):
             held = p.holding(world, idx)
             own = [r for r in (grasp_rows[j] for j in held) if r is not None and r in ends]
             if len(held) < 2 or len(own) < len(held):
+                self.settled_code[k, 0] = -1  # (moved otherwise: its reference is gone)
                 continue
             moves = [ends[r] for r in own]
             if all(m[0] == m[1] for m in moves):  # (its carriers stood still: so did it)
                 continue
-            self._settled_piece(k, p, 0, began, t, held, own, [(m[0], m[1]) for m in moves])
+            self._settled_piece(k, p, began, t, held, own, [(m[0], m[1]) for m in moves])
         for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
@@ -568,84 +577,90 @@ class Obstacles(WorldComponent):
         self,
         k: int,
         p: CarriedPayload,
-        i: int,
         t0: float,
         t1: float,
         held: list[int],
         rows: list[int],
         ends: list[tuple[list[float], list[float]]],
     ) -> None:
-        """Payload ``k`` held by grasps ``held`` (their robots' rows, and each robot's
-        poses at ``t0`` and ``t1``) over one piece in instance ``i``: judged now where it
-        may touch something (:meth:`_judge_settled`), kept for the summary where it may
-        only come nearer than its least gap so far (:meth:`_pending_settled`), dropped
-        where it can do neither.
+        """A single run's payload ``k`` held by grasps ``held`` (their robots' rows, and
+        each robot's poses at ``t0`` and ``t1``) over one piece: judged now where it may
+        touch something (:meth:`_judge_settled`), kept for the summary where it may only
+        come nearer than its least gap so far (:meth:`_pending_settled`), dropped where
+        it can do neither.
 
         Two cheap bounds, on floats. Every point of the outline is within ``rho`` (its
         farthest corner from the body centroid) of the robot points' weighted centroid
         (:mod:`.swept_settled`), which moves no faster than their weighted mean speed
         ``c``: the gap is at least the centroid's point gap over the piece, bounded as a
-        robot's (:meth:`_sweep`), less ``rho``. And no point moves farther over the piece
-        than ``c + rho |theta'|`` (``|theta'| <= |z'| / |z|``, the springs' fit): the gap
-        is at least the gap where the payload was last judged less what it has moved
-        since."""
-        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
-        total = speed = lever = rx0 = ry0 = rx1 = ry1 = bcx = bcy = 0.0
-        points, speeds = [], []
-        for j, r, (was, now) in zip(held, rows, ends, strict=True):
-            w = p.spring.item(j)
-            mx, my = p.mount[j].tolist()
-            pair = []
-            for x, y, th in (was, now):
-                c, sn = math.cos(th), math.sin(th)
-                pair.append((x + c * mx - sn * my, y + sn * mx + c * my))
-            points.append(pair)
-            total += w
-            rx0, ry0 = rx0 + w * pair[0][0], ry0 + w * pair[0][1]
-            rx1, ry1 = rx1 + w * pair[1][0], ry1 + w * pair[1][1]
-            turned = abs(now[2] - was[2]) * math.hypot(mx, my)
-            speeds.append(path_length(was, now, self._turning[r]) + turned)
-            speed += w * speeds[-1]
-            bcx, bcy = bcx + w * p.body.item(j, 0), bcy + w * p.body.item(j, 1)
-        rx0, ry0, rx1, ry1 = rx0 / total, ry0 / total, rx1 / total, ry1 / total
-        bcx, bcy, drift = bcx / total, bcy / total, speed / total
-        z0x = z0y = z1x = z1y = 0.0
-        for j, (first, last), v in zip(held, points, speeds, strict=True):
-            w = p.spring.item(j)
-            cx, cy = p.body.item(j, 0) - bcx, p.body.item(j, 1) - bcy
-            ax, ay = first[0] - rx0, first[1] - ry0
-            bx, by = last[0] - rx1, last[1] - ry1
-            z0x, z0y = z0x + w * (cx * ax + cy * ay), z0y + w * (cx * ay - cy * ax)
-            z1x, z1y = z1x + w * (cx * bx + cy * by), z1y + w * (cx * by - cy * bx)
-            lever += w * math.hypot(cx, cy) * v
+        robot's (:meth:`_sweep`), less ``rho``. Where that leaves room, the second: no
+        point moves farther over the piece than ``c + rho |theta'|`` (``|theta'| <= |z'|
+        / |z|``, the springs' fit), so the gap is at least the gap where the payload was
+        last judged less what it has moved since. A piece's end is the next one's start:
+        what it computed there is kept (``settled_prev``)."""
+        key = tuple(held)
+        fit = self._settled_fit.get((k, key))
+        if fit is None:
+            fit = self._settled_fit[(k, key)] = _Fit.of(p, held)
+        scene = self.scenes[0]
         circles, segments = scene.circle_list, scene.segment_list
-        hw, hd = (h.item(0) for h in p.half_extents(np.array([i])))
-        rho = math.hypot(hw + abs(bcx), hd + abs(bcy))
-        gap0 = point_gap(rx0, ry0, circles, segments)
-        gap1 = point_gap(rx1, ry1, circles, segments)
-        low = 0.5 * (gap0 + gap1 - drift) - rho
-        zmin = 0.5 * (math.hypot(z0x, z0y) + math.hypot(z1x, z1y) - lever)
-        step = drift + rho * lever / zmin if zmin > 0.0 else math.inf
-        ref = self.settled_ref.get((k, i))
-        if ref is not None and ref[0] == tuple(held):
-            ref = (ref[0], ref[1], ref[2] + step)
-            low = max(low, ref[1] - ref[2])
+        kept = self.settled_prev.get(k)
+        start = tuple(tuple(was) for was, _ in ends)
+        first = kept[1] if kept is not None and kept[0] == (key, start) else None
+        if first is None:
+            first = fit.centroid([was for was, _ in ends], circles, segments)
+        last = fit.centroid([now for _, now in ends], circles, segments)
+        self.settled_prev[k] = ((key, tuple(tuple(now) for _, now in ends)), last)
+        speeds = [
+            path_length(was, now, self._turning[r]) + abs(now[2] - was[2]) * norm
+            for (was, now), r, norm in zip(ends, rows, fit.reach, strict=True)
+        ]
+        drift = math.fsum(w * v for w, v in zip(fit.springs, speeds, strict=True)) / fit.total
+        low = 0.5 * (first[3] + last[3] - drift) - fit.rho
+        lever = math.fsum(m * v for m, v in zip(fit.levers, speeds, strict=True))
+        zmin = 0.5 * (first[2] + last[2] - lever)
+        step = drift + fit.rho * lever / zmin if zmin > 0.0 else math.inf
+        if self.settled_code.item(k, 0) == fit.code:
+            self.settled_moved[k, 0] += step
+            low = max(low, self.settled_gap.item(k, 0) - self.settled_moved.item(k, 0))
         else:
-            ref = None
+            self.settled_code[k, 0] = -1
+        least = min(self.payload_clear.item(0), self.payload_swept.item(k, 0))
+        if low <= 0.0 or low < least - GAP_TOLERANCE:
+            self._settled_decide(k, p, 0, t0, t1, held, rows, ends, low, step)
+
+    def _settled_decide(
+        self,
+        k: int,
+        p: CarriedPayload,
+        i: int,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+        low: float,
+        step: float,
+    ) -> None:
+        """:meth:`_settled_piece`'s verdict on a piece whose gap is at least ``low`` and
+        whose points move at most ``step``: judged now where it may touch (the payload's
+        gap at its end is where the next pieces' second bound starts), kept where it may
+        only come nearer than the least gap so far."""
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
         least = min(self.payload_clear.item(i), self.payload_swept.item(k, i))
         if low <= 0.0:
             end = self._judge_settled(k, p, i, t0, t1, held, rows, ends, scene)
-            ref = None if end is None else (tuple(held), end, 0.0)
+            if end is None:
+                self.settled_code[k, i] = -1
+            else:
+                self.settled_code[k, i] = sum(1 << j for j in held)
+                self.settled_gap[k, i], self.settled_moved[k, i] = end, 0.0
         elif low < least - GAP_TOLERANCE:
             pending = self.settled_pending.setdefault((k, i), [])
             pending.append((low, step, (k, p, i, t0, t1, held, rows, ends, scene)))
             if len(pending) > 64:  # (those the least so far has overtaken go)
                 pending[:] = [q for q in pending if q[0] < least - GAP_TOLERANCE]
         self.settled_last[(k, i)] = (t1, tuple(held))
-        if ref is None:
-            self.settled_ref.pop((k, i), None)
-        else:
-            self.settled_ref[(k, i)] = ref
 
     def note_settled_gap(self, k: int, i: int, t: float, gap: float) -> None:
         """Payload ``k``'s gap in instance ``i`` measured at time ``t`` (a carrier's
@@ -691,50 +706,79 @@ class Obstacles(WorldComponent):
         began: np.ndarray,
     ) -> None:
         """:meth:`_settled_piece` over the instances ``idx`` of an ensemble (their pieces
-        began at ``began``) where the first of its bounds, on arrays, leaves room below the
-        least gap so far or for a contact."""
+        began at ``began``), on arrays: both bounds, and the verdict
+        (:meth:`_settled_decide`) where they leave room below the least gap so far or for
+        a contact."""
         t = world.t[idx]
         on = p.engagement(world, idx)
-        usable = (t > began) & (on.sum(axis=1) >= 2)
+        after = t > began
+        usable = after & (on.sum(axis=1) >= 2)
         for j, r in enumerate(rows):
             if r is None:
                 usable &= ~on[:, j]
+        self.settled_code[k, idx[after & ~usable]] = -1  # (moved otherwise: forgotten)
         if not some(usable):
             return
         m = idx.size
         total, speed = np.zeros(m), np.zeros(m)
         r0, r1, bc = np.zeros((m, 2)), np.zeros((m, 2)), np.zeros((m, 2))
         moved = np.zeros(m, bool)
+        points, speeds, weights = {}, {}, {}
         for j, r in enumerate(rows):
             if r is None:
                 continue
             was, now = ends[r][0], ends[r][1]
             mx, my = p.mount[j].tolist()
             w = np.where(on[:, j], p.spring[j], 0.0)
+            pair = []
             for point, pose in ((r0, was), (r1, now)):
                 c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
-                point[:, 0] += w * (pose[:, 0] + c * mx - sn * my)
-                point[:, 1] += w * (pose[:, 1] + sn * mx + c * my)
+                px, py = pose[:, 0] + c * mx - sn * my, pose[:, 1] + sn * mx + c * my
+                point[:, 0] += w * px
+                point[:, 1] += w * py
+                pair.append((px, py))
             gone = _path_length(was, now, self._turning[r])
             gone = gone + np.abs(now[:, 2] - was[:, 2]) * math.hypot(mx, my)
             speed += np.where(on[:, j], p.spring[j] * gone, 0.0)
             total += w
             bc += w[:, None] * p.body[j]
             moved |= on[:, j] & np.any(now != was, axis=1)
+            points[j], speeds[j], weights[j] = pair, gone, w
         usable &= moved
         share = 1.0 / np.where(usable, total, 1.0)
-        gap0 = self._end_gaps(idx, r0 * share[:, None])
-        gap1 = self._end_gaps(idx, r1 * share[:, None])
+        r0, r1, bc = r0 * share[:, None], r1 * share[:, None], bc * share[:, None]
+        z0, z1, lever = np.zeros((m, 2)), np.zeros((m, 2)), np.zeros(m)
+        for j, ((x0, y0), (x1, y1)) in points.items():
+            w = weights[j]
+            cx, cy = p.body[j, 0] - bc[:, 0], p.body[j, 1] - bc[:, 1]
+            for z, (x, y), centre in ((z0, (x0, y0), r0), (z1, (x1, y1), r1)):
+                ax, ay = x - centre[:, 0], y - centre[:, 1]
+                z[:, 0] += w * (cx * ax + cy * ay)
+                z[:, 1] += w * (cx * ay - cy * ax)
+            lever += np.where(on[:, j], w * np.hypot(cx, cy) * speeds[j], 0.0)
+        gap0, gap1 = self._end_gaps(idx, r0), self._end_gaps(idx, r1)
         hw, hd = p.half_extents(idx)
-        rho = np.hypot(hw + np.abs(bc[:, 0] * share), hd + np.abs(bc[:, 1] * share))
-        low = 0.5 * (gap0 + gap1 - speed * share) - rho
+        rho = np.hypot(hw + np.abs(bc[:, 0]), hd + np.abs(bc[:, 1]))
+        drift = speed * share
+        low = 0.5 * (gap0 + gap1 - drift) - rho
+        zmin = 0.5 * (np.hypot(z0[:, 0], z0[:, 1]) + np.hypot(z1[:, 0], z1[:, 1]) - lever)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(zmin > 0.0, drift + rho * lever / zmin, np.inf)
+        code = on @ (1 << np.arange(on.shape[1]))
+        known = usable & (self.settled_code[k, idx] == code)
+        self.settled_code[k, idx[usable & ~known]] = -1
+        if some(known):
+            rows_known = idx[known]
+            self.settled_moved[k, rows_known] += step[known]
+            since = self.settled_gap[k, rows_known] - self.settled_moved[k, rows_known]
+            low[known] = np.maximum(low[known], since)
         least = np.minimum(self.payload_clear[idx], self.payload_swept[k, idx])
         for q in where_true(usable & ((low < least - GAP_TOLERANCE) | (low <= 0.0))).tolist():
             held = where_true(on[q]).tolist()
             own = [r for r in (rows[j] for j in held) if r is not None]
             ends_q = [(ends[r][0][q].tolist(), ends[r][1][q].tolist()) for r in own]
-            i = int(idx[q])
-            self._settled_piece(k, p, i, float(began[q]), float(t[q]), held, own, ends_q)
+            t0, t1 = float(began[q]), float(t[q])
+            self._settled_decide(k, p, int(idx[q]), t0, t1, held, own, ends_q, low[q], step[q])
 
     def _judge_settled(
         self,
@@ -795,7 +839,7 @@ class Obstacles(WorldComponent):
             s = motion.first_contact(s)
             x, y, _ = motion.state(s).pose
             self.payload_hit[(k, i)] = (t0 + s * (t1 - t0), x, y)
-        return max(motion.last.gap, 0.0)
+        return 0.0 if gap <= 0.0 else max(motion.last.gap, 0.0)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
@@ -1530,6 +1574,64 @@ class _Carried(NamedTuple):
         hw, hd = payload.half_extents(np.arange(payload.n))
         near = np.hypot(hw + abs(body[0]), hd + abs(body[1])) + math.hypot(*mount)
         return cls(k, payload, grasp, row, (mount[0], mount[1]), (body[0], body[1]), near)
+
+
+class _Fit(NamedTuple):
+    """What a single run's bounds on a payload held by grasps ``held`` need, once
+    (``Obstacles._settled_piece``): the grasps' springs, mounts, their mounts' distances
+    from the robots' centres (``reach``), the body centroid ``bc``, the grasps' levers
+    ``w |b - bc|``, the outline's farthest corner from ``bc`` (``rho``), and the
+    engagement code."""
+
+    springs: list[float]
+    mounts: list[tuple[float, float]]
+    reach: list[float]
+    centred: list[tuple[float, float]]
+    levers: list[float]
+    total: float
+    rho: float
+    code: int
+
+    @classmethod
+    def of(cls, p: CarriedPayload, held: list[int]) -> _Fit:
+        springs = [p.spring.item(j) for j in held]
+        mounts = [(p.mount.item(j, 0), p.mount.item(j, 1)) for j in held]
+        body = [(p.body.item(j, 0), p.body.item(j, 1)) for j in held]
+        total = math.fsum(springs)
+        bcx = math.fsum(w * b[0] for w, b in zip(springs, body, strict=True)) / total
+        bcy = math.fsum(w * b[1] for w, b in zip(springs, body, strict=True)) / total
+        centred = [(b[0] - bcx, b[1] - bcy) for b in body]
+        hw, hd = (h.item(0) for h in p.half_extents(np.zeros(1, int)))
+        return cls(
+            springs,
+            mounts,
+            [math.hypot(*m) for m in mounts],
+            centred,
+            [w * math.hypot(*c) for w, c in zip(springs, centred, strict=True)],
+            total,
+            math.hypot(hw + abs(bcx), hd + abs(bcy)),
+            sum(1 << j for j in held),
+        )
+
+    def centroid(
+        self,
+        poses: list[list[float]],
+        circles: list[tuple[float, float, float]],
+        segments: list[tuple[float, float, float, float]],
+    ) -> tuple[float, float, float, float]:
+        """The robot points' weighted centroid at robot poses ``poses``, ``|z|`` there
+        (:mod:`.swept_settled`) and the centroid's point gap to the obstacles."""
+        points = []
+        for (x, y, th), (mx, my) in zip(poses, self.mounts, strict=True):
+            c, sn = math.cos(th), math.sin(th)
+            points.append((x + c * mx - sn * my, y + sn * mx + c * my))
+        rx = math.fsum(w * q[0] for w, q in zip(self.springs, points, strict=True)) / self.total
+        ry = math.fsum(w * q[1] for w, q in zip(self.springs, points, strict=True)) / self.total
+        zx = zy = 0.0
+        for w, (cx, cy), (qx, qy) in zip(self.springs, self.centred, points, strict=True):
+            zx += w * (cx * (qx - rx) + cy * (qy - ry))
+            zy += w * (cx * (qy - ry) - cy * (qx - rx))
+        return rx, ry, math.hypot(zx, zy), point_gap(rx, ry, circles, segments)
 
 
 class _Sighted(NamedTuple):
