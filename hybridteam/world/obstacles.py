@@ -98,7 +98,7 @@ from hybridteam.world.swept_payload import (
     payload_first_contact,
     payload_least_gap,
 )
-from hybridteam.world.swept_settled import GAP_TOLERANCE, SettledCarry, State, grip
+from hybridteam.world.swept_settled import GAP_TOLERANCE, Frame, SettledCarry, State, grip
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -320,9 +320,13 @@ class Obstacles(WorldComponent):
         self.settled_gap = np.full((n_payloads, self.n), np.nan)
         self.settled_moved = np.zeros((n_payloads, self.n))
         #: a single run's: per (payload, grasps held), what its bounds need (:class:`_Fit`),
-        #: and per payload the last piece's end and the centroid there
+        #: and per payload the last piece's end, the centroid there (None: not computed)
+        #: and a lower bound on its point gap
         self._settled_fit: dict[tuple[int, tuple[int, ...]], _Fit] = {}
-        self.settled_prev: dict[int, tuple[Any, tuple[float, float, float, float]]] = {}
+        #: per (payload, grasps held, scene, half extents): what its pieces share
+        self._settled_frames: dict[tuple[Any, ...], Frame] = {}
+        self.settled_prev: dict[int, tuple[Any, tuple[float, float, float, float] | None, float]]
+        self.settled_prev = {}
         self.settled_pending: dict[tuple[int, int], list[Any]] = {}
         #: per such (payload, instance): when its last piece ended and which grasps held
         #: over it, and its last gap measured, when, and under which grasps
@@ -604,20 +608,29 @@ class Obstacles(WorldComponent):
             fit = self._settled_fit[(k, key)] = _Fit.of(p, held)
         scene = self.scenes[0]
         circles, segments = scene.circle_list, scene.segment_list
-        kept = self.settled_prev.get(k)
-        start = tuple(tuple(was) for was, _ in ends)
-        first = kept[1] if kept is not None and kept[0] == (key, start) else None
-        if first is None:
-            first = fit.centroid([was for was, _ in ends], circles, segments)
-        last = fit.centroid([now for _, now in ends], circles, segments)
-        self.settled_prev[k] = ((key, tuple(tuple(now) for _, now in ends)), last)
         speeds = [
             path_length(was, now, self._turning[r]) + abs(now[2] - was[2]) * norm
             for (was, now), r, norm in zip(ends, rows, fit.reach, strict=True)
         ]
-        drift = math.fsum(w * v for w, v in zip(fit.springs, speeds, strict=True)) / fit.total
+        drift = sum(w * v for w, v in zip(fit.springs, speeds, strict=True)) / fit.total
+        kept = self.settled_prev.get(k)
+        start = tuple(tuple(was) for was, _ in ends)
+        end = (key, tuple(tuple(now) for _, now in ends))
+        least = min(self.payload_clear.item(0), self.payload_swept.item(k, 0))
+        known = kept is not None and kept[0] == (key, start)
+        if known and kept is not None:  # (far: the centroid's gap bounded from the last)
+            far = kept[2] - drift
+            if far - fit.rho > 0.0 and far - fit.rho >= least - GAP_TOLERANCE:
+                self.settled_prev[k] = (end, None, far)
+                self.settled_code[k, 0] = -1  # (not followed: its reference is gone)
+                return
+        first = kept[1] if known and kept is not None else None
+        if first is None:
+            first = fit.centroid([was for was, _ in ends], circles, segments)
+        last = fit.centroid([now for _, now in ends], circles, segments)
+        self.settled_prev[k] = (end, last, last[3])
         low = 0.5 * (first[3] + last[3] - drift) - fit.rho
-        lever = math.fsum(m * v for m, v in zip(fit.levers, speeds, strict=True))
+        lever = sum(m * v for m, v in zip(fit.levers, speeds, strict=True))
         zmin = 0.5 * (first[2] + last[2] - lever)
         step = drift + fit.rho * lever / zmin if zmin > 0.0 else math.inf
         if self.settled_code.item(k, 0) == fit.code:
@@ -625,7 +638,6 @@ class Obstacles(WorldComponent):
             low = max(low, self.settled_gap.item(k, 0) - self.settled_moved.item(k, 0))
         else:
             self.settled_code[k, 0] = -1
-        least = min(self.payload_clear.item(0), self.payload_swept.item(k, 0))
         if low <= 0.0 or low < least - GAP_TOLERANCE:
             self._settled_decide(k, p, 0, t0, t1, held, rows, ends, low, step)
 
@@ -820,10 +832,14 @@ class Obstacles(WorldComponent):
         start = (tuple(held), tuple(tuple(was) for was, _ in ends))
         kept = self.settled_end.get((k, i))
         first = kept[1] if kept is not None and kept[0] == start else None
-        motion = SettledCarry(grips, hw, hd, scene.circle_list, scene.segment_list, first)
+        at = (k, tuple(held), id(scene), hw, hd)
+        frame = self._settled_frames.get(at)
+        circles, segments = scene.circle_list, scene.segment_list
+        motion = SettledCarry(grips, hw, hd, circles, segments, first, frame)
+        self._settled_frames[at] = motion.frame
         end = (tuple(held), tuple(tuple(now) for _, now in ends))
-        if below is not None:
-            found = motion.least_gap(below)
+        if below is not None:  # (kept for the summary: it starts clear)
+            found = motion.least_gap(below, apart=True)
             self.settled_end[(k, i)] = (end, motion.last)
             if found is not None:
                 self.payload_clear[i] = min(self.payload_clear.item(i), found[0])
@@ -1625,8 +1641,8 @@ class _Fit(NamedTuple):
         for (x, y, th), (mx, my) in zip(poses, self.mounts, strict=True):
             c, sn = math.cos(th), math.sin(th)
             points.append((x + c * mx - sn * my, y + sn * mx + c * my))
-        rx = math.fsum(w * q[0] for w, q in zip(self.springs, points, strict=True)) / self.total
-        ry = math.fsum(w * q[1] for w, q in zip(self.springs, points, strict=True)) / self.total
+        rx = sum(w * q[0] for w, q in zip(self.springs, points, strict=True)) / self.total
+        ry = sum(w * q[1] for w, q in zip(self.springs, points, strict=True)) / self.total
         zx = zy = 0.0
         for w, (cx, cy), (qx, qy) in zip(self.springs, self.centred, points, strict=True):
             zx += w * (cx * (qx - rx) + cy * (qy - ry))

@@ -143,8 +143,9 @@ def grip(
 
 class State(NamedTuple):
     """The settled payload at fraction ``s``: its corners (world), the obstacles' vertices
-    in its frame, ``|z|`` and the vertices' distances to the robot points' centroid, and
-    ``F`` (the least feature distance: the gap while apart)."""
+    in its frame, ``|z|`` and the vertices' distances to the robot points' centroid, each
+    feature's distance (the corners' to the obstacles, then the vertices' to the edges)
+    and ``F``, their least (the gap while apart)."""
 
     s: float
     pose: tuple[float, float, float]
@@ -152,7 +153,56 @@ class State(NamedTuple):
     vertices: list[Point]
     z: float
     spans: list[float]
+    distances: list[float]
     gap: float
+
+
+class Frame(NamedTuple):
+    """What a :class:`SettledCarry` needs that does not change from piece to piece while
+    the same grasps hold the same payload among the same obstacles: the grasps' body
+    points and springs, their total, the body points about their weighted centroid and
+    each one's lever ``w |cb|``, the outline's corners and edges in the payload's frame
+    and the corners' distances from the centroid (``arms``), and the obstacles with their
+    vertices (``fixed``: posts' centres with their radii, walls' ends with 0)."""
+
+    body: list[Point]
+    springs: list[float]
+    total: float
+    centred: list[Point]
+    levers: list[float]
+    local: list[Point]
+    edges: list[Segment]
+    arms: list[float]
+    circles: list[tuple[float, float, float]]
+    segments: list[Segment]
+    fixed: list[tuple[float, float, float]]
+    half_width: float
+    half_depth: float
+
+    @classmethod
+    def of(
+        cls,
+        body: list[Point],
+        springs: list[float],
+        half_width: float,
+        half_depth: float,
+        circles: list[tuple[float, float, float]],
+        segments: list[Segment],
+    ) -> Frame:
+        total = math.fsum(springs)
+        bcx = math.fsum(w * b[0] for w, b in zip(springs, body, strict=True)) / total
+        bcy = math.fsum(w * b[1] for w, b in zip(springs, body, strict=True)) / total
+        centred = [(b[0] - bcx, b[1] - bcy) for b in body]
+        levers = [w * math.hypot(*cb) for w, cb in zip(springs, centred, strict=True)]
+        local, edges = outline(0.0, 0.0, 0.0, half_width, half_depth)
+        arms = [math.hypot(u - bcx, v - bcy) for u, v in local]
+        fixed = [(x, y, r) for x, y, r in circles]
+        for ax, ay, bx, by in segments:
+            fixed += [(ax, ay, 0.0), (bx, by, 0.0)]
+        return cls(
+            body, springs, total, centred, levers, local, edges, arms, circles, segments,
+            fixed, half_width, half_depth,
+        )  # fmt: skip
 
 
 class SettledCarry:
@@ -168,23 +218,24 @@ class SettledCarry:
         circles: list[tuple[float, float, float]],
         segments: list[Segment],
         first: State | None = None,
+        frame: Frame | None = None,
     ) -> None:
         self.grips = list(grips)
-        self.circles, self.segments = circles, segments
-        self.body = [g.body for g in self.grips]
-        self.springs = [g.spring for g in self.grips]
-        total = math.fsum(self.springs)
-        self.total = total
-        bcx = math.fsum(w * b[0] for w, b in zip(self.springs, self.body, strict=True)) / total
-        bcy = math.fsum(w * b[1] for w, b in zip(self.springs, self.body, strict=True)) / total
-        self.centred = [(b[0] - bcx, b[1] - bcy) for b in self.body]
-        self.bc = (bcx, bcy)
-        lever = [w * math.hypot(*cb) for w, cb in zip(self.springs, self.centred, strict=True)]
+        if frame is None:
+            body, springs = [g.body for g in self.grips], [g.spring for g in self.grips]
+            frame = Frame.of(body, springs, half_width, half_depth, circles, segments)
+        #: what does not change from piece to piece (a caller may keep it for the next)
+        self.frame = frame
+        self.circles, self.segments = frame.circles, frame.segments
+        self.body, self.springs, self.total = frame.body, frame.springs, frame.total
+        self.centred, self.local, self.edges = frame.centred, frame.local, frame.edges
+        self.arms, self.fixed = frame.arms, frame.fixed
+        self.half_width, self.half_depth = frame.half_width, frame.half_depth
+        total, lever = frame.total, frame.levers
         #: bounds per unit s: the centroid's speed and acceleration, |z'| and |z''|
-        self.drift = math.fsum(w * g.speed for w, g in zip(self.springs, self.grips, strict=True))
-        self.drift /= total
-        self.sway = math.fsum(w * g.bend for w, g in zip(self.springs, self.grips, strict=True))
-        self.sway /= total
+        speeds, bends = [g.speed for g in self.grips], [g.bend for g in self.grips]
+        self.drift = math.fsum(w * v for w, v in zip(self.springs, speeds, strict=True)) / total
+        self.sway = math.fsum(w * a for w, a in zip(self.springs, bends, strict=True)) / total
         # |z'| <= sum_i w_i |cb_i| |r_i' - rc'| too (sum_i w_i cb_i = 0), and r_i' - rc'
         # drifts from its start by at most the two accelerations: grasps moving alike
         # (a translation) turn the payload at no rate
@@ -192,17 +243,10 @@ class SettledCarry:
         ux = math.fsum(w * v[0] for w, v in zip(self.springs, starts, strict=True)) / total
         uy = math.fsum(w * v[1] for w, v in zip(self.springs, starts, strict=True)) / total
         self.dz = math.fsum(
-            m * min(g.speed, math.hypot(v[0] - ux, v[1] - uy) + g.bend + self.sway)
-            for m, g, v in zip(lever, self.grips, starts, strict=True)
+            m * min(speed, math.hypot(v[0] - ux, v[1] - uy) + bend + self.sway)
+            for m, speed, bend, v in zip(lever, speeds, bends, starts, strict=True)
         )
-        self.ddz = math.fsum(m * g.bend for m, g in zip(lever, self.grips, strict=True))
-        self.half_width, self.half_depth = half_width, half_depth
-        self.local, self.edges = outline(0.0, 0.0, 0.0, half_width, half_depth)
-        #: the corners' distances from the body centroid
-        self.arms = [math.hypot(u - bcx, v - bcy) for u, v in self.local]
-        self.fixed = [(x, y, r) for x, y, r in circles]
-        for ax, ay, bx, by in segments:
-            self.fixed += [(ax, ay, 0.0), (bx, by, 0.0)]
+        self.ddz = math.fsum(m * a for m, a in zip(lever, bends, strict=True))
         #: the payload at the start: ``first`` where the caller kept the previous piece's
         #: end (the same robot points, springs and obstacles: the same numbers)
         self.first = self.state(0.0) if first is None else first._replace(s=0.0)
@@ -233,13 +277,12 @@ class SettledCarry:
             dx, dy = qx - x, qy - y
             vertices.append((c * dx + sn * dy, -sn * dx + c * dy))
         spans = [math.hypot(qx - rcx, qy - rcy) for qx, qy, _ in self.fixed]
-        gap = min(
-            (point_gap(px, py, self.circles, self.segments) for px, py in corners),
-            default=math.inf,
-        )
+        distances = [point_gap(px, py, self.circles, self.segments) for px, py in corners]
         for (vx, vy), (_, _, r) in zip(vertices, self.fixed, strict=True):
-            gap = min(gap, point_gap(vx, vy, (), self.edges) - r)
-        return State(s, (x, y, theta), corners, vertices, math.hypot(dot, cross), spans, gap)
+            distances.append(point_gap(vx, vy, (), self.edges) - r)
+        gap = min(distances, default=math.inf)
+        z = math.hypot(dot, cross)
+        return State(s, (x, y, theta), corners, vertices, z, spans, distances, gap)
 
     def lower(self, a: State, b: State) -> float:
         """A lower bound on ``F`` over ``[a.s, b.s]`` (-inf where ``|z|`` has none)."""
@@ -250,19 +293,32 @@ class SettledCarry:
         rate = self.dz / zmin
         turning = self.ddz / zmin + 2.0 * rate * rate  # |theta''| + theta'^2
         shrink = h * h / 8.0
-        out = math.inf
+        # each feature: its chord's ends, its bend allowance, and its distance at both ends
+        # less half the chord (no nearer in between, the chord being that long): the
+        # chord's exact distance only where that leaves it below the least so far
+        features = []
         for arm, p, q in zip(self.arms, a.corners, b.corners, strict=True):
-            chord = Piece(0.0, 0.0, p[0], p[1], q[0], q[1])
-            near = least_gap(chord, self.circles, self.segments)[0]
-            out = min(out, near - (self.sway + turning * arm) * shrink)
-        for (_, _, r), p, q, sa, sb in zip(
-            self.fixed, a.vertices, b.vertices, a.spans, b.spans, strict=True
+            features.append((p, q, (self.sway + turning * arm) * shrink, 0.0, -1))
+        for k, ((_, _, r), p, q, sa, sb) in enumerate(
+            zip(self.fixed, a.vertices, b.vertices, a.spans, b.spans, strict=True)
         ):
             span = 0.5 * (sa + sb + h * self.drift)  # (|V - rc| on the part)
             bend = self.sway + 2.0 * rate * self.drift + turning * span
+            features.append((p, q, bend * shrink, r, k))
+        rough = []
+        for (p, q, allow, _, _), da, db in zip(features, a.distances, b.distances, strict=True):
+            rough.append(0.5 * (da + db - math.hypot(q[0] - p[0], q[1] - p[1])) - allow)
+        out = math.inf
+        ranked = sorted(zip(rough, features, strict=True), key=lambda f: f[0])
+        for low, (p, q, allow, r, k) in ranked:
+            if not low < out:
+                break
             chord = Piece(0.0, 0.0, p[0], p[1], q[0], q[1])
-            near = min(segment_distance(chord, edge)[0] for edge in self.edges)
-            out = min(out, near - r - bend * shrink)
+            if k < 0:
+                near = least_gap(chord, self.circles, self.segments)[0]
+            else:
+                near = min(segment_distance(chord, edge)[0] for edge in self.edges) - r
+            out = min(out, near - allow)
         return out
 
     def overlapping_at_start(self) -> bool:
@@ -271,12 +327,13 @@ class SettledCarry:
         _, edges = outline(*self.first.pose, self.half_width, self.half_depth)
         return overlapping(edges, self.circles, self.segments)
 
-    def least_gap(self, below: float = math.inf) -> tuple[float, float] | None:
+    def least_gap(self, below: float = math.inf, apart: bool = False) -> tuple[float, float] | None:
         """The least gap over the piece (0 where they meet) and the fraction where it is
         reached: attained, and within :data:`GAP_TOLERANCE` of the least where that is
         below ``below`` less the tolerance (elsewhere: none is). None where
-        the orientation's rate has no bound (module docstring)."""
-        if self.overlapping_at_start():
+        the orientation's rate has no bound (module docstring). With ``apart`` the caller
+        knows the outline starts clear of the obstacles (no overlap to check)."""
+        if not apart and self.overlapping_at_start():
             return 0.0, 0.0
         first, last = self.first, self.last
         best = min((first.gap, 0.0), (last.gap, 1.0))
