@@ -15,9 +15,10 @@ with stated tolerances rather than by sampling more:
 - ``sum_i w_i cb_i = 0``, so ``z = sum_i w_i conj(cb_i) r_i``: ``|z'| <= sum_i w_i |cb_i|
   v_i`` and ``|z''| <= sum_i w_i |cb_i| a_i`` (``v_i``, ``a_i``: bounds on the robot
   point's speed and acceleration per unit ``s``), ``|rc'| <= sum_i w_i v_i / W`` and
-  ``|rc''| <= sum_i w_i a_i / W``. On ``[a, b]``, ``|z| >= (|z(a)| + |z(b)| - h |z'|max)
-  / 2``, so the angle's rates are bounded: ``|theta'| <= |z'| / |z|``, ``|theta''| <=
-  |z''| / |z| + (|z'| / |z|)^2``.
+  ``|rc''| <= sum_i w_i a_i / W``; and ``|z'| <= sum_i w_i |cb_i| |r_i' - rc'|`` (the
+  same sum), so grasps moving alike turn the payload at no rate. On ``[a, b]``,
+  ``|z| >= (|z(a)| + |z(b)| - h |z'|max) / 2``, so the angle's rates are bounded:
+  ``|theta'| <= |z'| / |z|``, ``|theta''| <= |z''| / |z| + (|z'| / |z|)^2``.
 - A corner ``q`` of the outline is at ``rc + R(theta) (q - bc)``; an obstacle's vertex
   ``V`` (a post's centre, a wall's end) is at ``R(-theta) (V - rc) + bc`` in the payload's
   frame. Both have bounded second derivatives from the rates above, so on ``[a, b]``
@@ -30,9 +31,12 @@ with stated tolerances rather than by sampling more:
   found (attained) is within :data:`GAP_TOLERANCE` of the least (parts that cannot come
   below a given level are not refined; a contact ends the search: its depth is not
   wanted). :meth:`SettledCarry.first_contact` splits from the start, leftmost first,
-  discarding parts whose bound is positive: no contact comes before the fraction it
-  returns, and it is within :data:`CONTACT_TOLERANCE` (m) of contact or within
-  :data:`FRACTION_TOLERANCE` (of the piece) of a part that may touch.
+  discarding parts whose bound stays above :data:`CONTACT_TOLERANCE`: no part before
+  the fraction it returns comes within that of contact, and it is within it of contact
+  or within :data:`FRACTION_TOLERANCE` (of the piece) of a part that may be. A wall's
+  distance is not signed (a corner crossing a wall takes ``F`` to 0 and up again), so a
+  least ``F`` within :data:`GAP_TOLERANCE` of 0 is settled by that search: a contact,
+  or none.
 
 ``F`` equals the gap while the outline and the obstacles are apart, and the two start
 apart (:func:`~.swept_payload.overlapping` checks the start): to overlap later they first
@@ -55,7 +59,9 @@ from hybridteam.world.swept import Piece, least_gap, piece, point_gap, segment_d
 from hybridteam.world.swept_payload import Point, Segment, outline, overlapping
 
 #: Absolute tolerance (m) of the least gap: the value returned is attained and at most this
-#: above the least one.
+#: above the least one. (A payload riding at its least gap so far, a beam sliding past a
+#: wall's end, must be bounded to the tolerance on every piece: 1e-6 m takes one chord
+#: bound per piece where 1e-9 m took dozens of splits.)
 GAP_TOLERANCE = 1e-6
 #: Absolute tolerance (m) of the first contact: the gap there is at most this.
 CONTACT_TOLERANCE = 1e-10
