@@ -240,19 +240,19 @@ class SettledCarry:
         total, lever = frame.total, frame.levers
         #: bounds per unit s: the centroid's speed and acceleration, |z'| and |z''|
         speeds, bends = [g.speed for g in self.grips], [g.bend for g in self.grips]
-        self.drift = math.fsum(w * v for w, v in zip(self.springs, speeds, strict=True)) / total
-        self.sway = math.fsum(w * a for w, a in zip(self.springs, bends, strict=True)) / total
+        self.drift = sum(w * v for w, v in zip(self.springs, speeds, strict=True)) / total
+        self.sway = sum(w * a for w, a in zip(self.springs, bends, strict=True)) / total
         # |z'| <= sum_i w_i |cb_i| |r_i' - rc'| too (sum_i w_i cb_i = 0), and r_i' - rc'
         # drifts from its start by at most the two accelerations: grasps moving alike
         # (a translation) turn the payload at no rate
         starts = [g.velocity(0.0) for g in self.grips]
-        ux = math.fsum(w * v[0] for w, v in zip(self.springs, starts, strict=True)) / total
-        uy = math.fsum(w * v[1] for w, v in zip(self.springs, starts, strict=True)) / total
-        self.dz = math.fsum(
+        ux = sum(w * v[0] for w, v in zip(self.springs, starts, strict=True)) / total
+        uy = sum(w * v[1] for w, v in zip(self.springs, starts, strict=True)) / total
+        self.dz = sum(
             m * min(speed, math.hypot(v[0] - ux, v[1] - uy) + bend + self.sway)
             for m, speed, bend, v in zip(lever, speeds, bends, starts, strict=True)
         )
-        self.ddz = math.fsum(m * a for m, a in zip(lever, bends, strict=True))
+        self.ddz = sum(m * a for m, a in zip(lever, bends, strict=True))
         #: the payload at the start: ``first`` where the caller kept the previous piece's
         #: end (the same robot points, springs and obstacles: the same numbers)
         self.first = self.state(0.0) if first is None else first._replace(s=0.0)
@@ -270,8 +270,8 @@ class SettledCarry:
         pts = [g.at(s) for g in self.grips]
         x, y, theta = equilibrium_one(pts, self.body, self.springs)
         w, total = self.springs, self.total
-        rcx = math.fsum(wi * p[0] for wi, p in zip(w, pts, strict=True)) / total
-        rcy = math.fsum(wi * p[1] for wi, p in zip(w, pts, strict=True)) / total
+        rcx = sum(wi * p[0] for wi, p in zip(w, pts, strict=True)) / total
+        rcy = sum(wi * p[1] for wi, p in zip(w, pts, strict=True)) / total
         dot = cross = 0.0
         for wi, (cx, cy), (px, py) in zip(w, self.centred, pts, strict=True):
             dot += wi * (cx * (px - rcx) + cy * (py - rcy))
