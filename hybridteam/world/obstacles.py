@@ -325,9 +325,9 @@ class Obstacles(WorldComponent):
         self._settled_fit: dict[tuple[int, tuple[int, ...]], _Fit] = {}
         #: per (payload, grasps held, scene, half extents): what its pieces share
         self._settled_frames: dict[tuple[Any, ...], Frame] = {}
-        self.settled_prev: dict[int, tuple[Any, tuple[float, float, float, float] | None, float]]
-        self.settled_prev = {}
+        self.settled_prev: dict[int, tuple[_Fit, list[list[float]], Any, float]] = {}
         self.settled_pending: dict[tuple[int, int], list[Any]] = {}
+        self._settled_room: dict[tuple[int, int], int] = {}
         #: per such (payload, instance): when its last piece ended and which grasps held
         #: over it, and its last gap measured, when, and under which grasps
         #: (:meth:`note_settled_gap`)
@@ -606,31 +606,38 @@ class Obstacles(WorldComponent):
         fit = self._settled_fit.get((k, key))
         if fit is None:
             fit = self._settled_fit[(k, key)] = _Fit.of(p, held)
-        scene = self.scenes[0]
-        circles, segments = scene.circle_list, scene.segment_list
-        speeds = [
-            path_length(was, now, self._turning[r]) + abs(now[2] - was[2]) * norm
-            for (was, now), r, norm in zip(ends, rows, fit.reach, strict=True)
-        ]
-        drift = sum(w * v for w, v in zip(fit.springs, speeds, strict=True)) / fit.total
+        turning = self._turning
+        speeds = []
+        drift = 0.0
+        for (was, now), r, norm, w in zip(ends, rows, fit.reach, fit.springs, strict=True):
+            v = path_length(was, now, turning[r]) + abs(now[2] - was[2]) * norm
+            speeds.append(v)
+            drift += w * v
+        drift /= fit.total
         kept = self.settled_prev.get(k)
-        start = tuple(tuple(was) for was, _ in ends)
-        end = (key, tuple(tuple(now) for _, now in ends))
-        least = min(self.payload_clear.item(0), self.payload_swept.item(k, 0))
-        known = kept is not None and kept[0] == (key, start)
-        if known and kept is not None:  # (far: the centroid's gap bounded from the last)
-            far = kept[2] - drift
+        starts = [was for was, _ in ends]
+        stops = [now for _, now in ends]
+        clear, swept = self.payload_clear.item(0), self.payload_swept.item(k, 0)
+        least = clear if clear < swept else swept
+        # (the last piece's end where this one starts: the same grasps at the same poses)
+        if kept is not None and not (kept[0] is fit and kept[1] == starts):
+            kept = None
+        if kept is not None:  # (far: the centroid's gap bounded from the last)
+            far = kept[3] - drift
             if far - fit.rho > 0.0 and far - fit.rho >= least - GAP_TOLERANCE:
-                self.settled_prev[k] = (end, None, far)
+                self.settled_prev[k] = (fit, stops, None, far)
                 self.settled_code[k, 0] = -1  # (not followed: its reference is gone)
                 return
-        first = kept[1] if known and kept is not None else None
+        first = None if kept is None else kept[2]
+        scene = self.scenes[0]
         if first is None:
-            first = fit.centroid([was for was, _ in ends], circles, segments)
-        last = fit.centroid([now for _, now in ends], circles, segments)
-        self.settled_prev[k] = (end, last, last[3])
+            first = fit.centroid(starts, scene.circle_list, scene.segment_list)
+        last = fit.centroid(stops, scene.circle_list, scene.segment_list)
+        self.settled_prev[k] = (fit, stops, last, last[3])
         low = 0.5 * (first[3] + last[3] - drift) - fit.rho
-        lever = sum(m * v for m, v in zip(fit.levers, speeds, strict=True))
+        lever = 0.0
+        for m, v in zip(fit.levers, speeds, strict=True):
+            lever += m * v
         zmin = 0.5 * (first[2] + last[2] - lever)
         step = drift + fit.rho * lever / zmin if zmin > 0.0 else math.inf
         if self.settled_code.item(k, 0) == fit.code:
@@ -670,8 +677,11 @@ class Obstacles(WorldComponent):
         elif low < least - GAP_TOLERANCE:
             pending = self.settled_pending.setdefault((k, i), [])
             pending.append((low, step, (k, p, i, t0, t1, held, rows, ends, scene)))
-            if len(pending) > 64:  # (those the least so far has overtaken go)
+            if len(pending) > self._settled_room.get((k, i), 64):
+                # (those the least so far has overtaken go; when the rest fills twice
+                # the room again: amortized, not a pass over every kept piece per piece)
                 pending[:] = [q for q in pending if q[0] < least - GAP_TOLERANCE]
+                self._settled_room[(k, i)] = max(64, 2 * len(pending))
         self.settled_last[(k, i)] = (t1, tuple(held))
 
     def note_settled_gap(self, k: int, i: int, t: float, gap: float) -> None:
@@ -1353,7 +1363,7 @@ class Obstacles(WorldComponent):
                     )
                 )
         robot_gaps = gap
-        for p in self.payloads:
+        for kp, p in enumerate(self.payloads):
             gap = self._payload_gap(p, idx, scene)
             payload_gaps.append(gap)
             carried = None
@@ -1363,11 +1373,14 @@ class Obstacles(WorldComponent):
                     carried = carried | sensing[a]
             judged = gap if carried is None or every(carried) else np.where(carried, gap, np.inf)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], judged)
-            if self.settled_last:
-                k = self.payloads.index(p)
+            if self.settled_last and idx.size == 1:  # (a single run: on floats)
+                if judged.item(0) < math.inf:
+                    i = idx.item(0)
+                    self.note_settled_gap(kp, i, world.t.item(i), judged.item(0))
+            elif self.settled_last:
                 for q in where_true(judged < math.inf).tolist():
                     i = int(idx[q])
-                    self.note_settled_gap(k, i, world.t.item(i), judged.item(q))
+                    self.note_settled_gap(kp, i, world.t.item(i), judged.item(q))
             for k in where_true(judged <= 0).tolist():
                 hits.append(
                     (
