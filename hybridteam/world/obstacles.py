@@ -562,14 +562,20 @@ class Obstacles(WorldComponent):
                     self._judge_carried(c, 0, began, t, first, last)
         for k, p, grasp_rows in self.settled if ends else ():
             held = p.holding(world, idx)
-            own = [r for r in (grasp_rows[j] for j in held) if r is not None and r in ends]
+            own, moves, moved = [], [], False
+            for j in held:
+                row = grasp_rows[j]
+                if row is None or row not in ends:
+                    break
+                start, stop = ends[row][0], ends[row][1]
+                own.append(row)
+                moves.append((start, stop))
+                moved = moved or start != stop
             if len(held) < 2 or len(own) < len(held):
                 self.settled_code[k, 0] = -1  # (moved otherwise: its reference is gone)
                 continue
-            moves = [ends[r] for r in own]
-            if all(m[0] == m[1] for m in moves):  # (its carriers stood still: so did it)
-                continue
-            self._settled_piece(k, p, began, t, held, own, [(m[0], m[1]) for m in moves])
+            if moved:  # (else its carriers stood still: so did it)
+                self._settled_piece(k, p, began, t, held, own, moves)
         for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
@@ -1651,11 +1657,15 @@ class _Fit(NamedTuple):
         """The robot points' weighted centroid at robot poses ``poses``, ``|z|`` there
         (:mod:`.swept_settled`) and the centroid's point gap to the obstacles."""
         points = []
-        for (x, y, th), (mx, my) in zip(poses, self.mounts, strict=True):
+        rx = ry = 0.0
+        for (x, y, th), (mx, my), w in zip(poses, self.mounts, self.springs, strict=True):
             c, sn = math.cos(th), math.sin(th)
-            points.append((x + c * mx - sn * my, y + sn * mx + c * my))
-        rx = sum(w * q[0] for w, q in zip(self.springs, points, strict=True)) / self.total
-        ry = sum(w * q[1] for w, q in zip(self.springs, points, strict=True)) / self.total
+            qx, qy = x + c * mx - sn * my, y + sn * mx + c * my
+            points.append((qx, qy))
+            rx += w * qx
+            ry += w * qy
+        rx /= self.total
+        ry /= self.total
         zx = zy = 0.0
         for w, (cx, cy), (qx, qy) in zip(self.springs, self.centred, points, strict=True):
             zx += w * (cx * (qx - rx) + cy * (qy - ry))
