@@ -313,7 +313,7 @@ class Obstacles(WorldComponent):
         #: where the next piece starts if nothing changed between (:meth:`_judge_settled`)
         self.settled_end: dict[tuple[int, int], tuple[Any, State]] = {}
         #: per payload and instance ``(P, n)``: which grasps held when it was last judged
-        #: (-1: since forgotten), its gap at that piece's end, and how far it may have
+        #: or measured (-1: since forgotten), its gap at that piece's end, and how far it may have
         #: moved since (:meth:`_settled_piece`); and the pieces kept for the summary
         n_payloads = len(self.payloads)
         self.settled_code = np.full((n_payloads, self.n), -1)  # (a bit per holding grasp)
@@ -606,12 +606,15 @@ class Obstacles(WorldComponent):
         robot's (:meth:`_sweep`), less ``rho``. Where that leaves room, the second: no
         point moves farther over the piece than ``c + rho |theta'|`` (``|theta'| <= |z'|
         / |z|``, the springs' fit), so the gap is at least the gap where the payload was
-        last judged less what it has moved since. A piece's end is the next one's start:
+        last judged or measured (a carrier's tick at a piece's end,
+        :meth:`note_settled_gap`) less what it has moved since. A piece's end is the next
+        one's start:
         what it computed there is kept (``settled_prev``)."""
         key = tuple(held)
         fit = self._settled_fit.get((k, key))
         if fit is None:
             fit = self._settled_fit[(k, key)] = _Fit.of(p, held)
+        self.settled_last[(k, 0)] = (t1, key)  # (a gap measured at t1 restarts the bound)
         turning = self._turning
         speeds = []
         drift = 0.0
@@ -695,11 +698,16 @@ class Obstacles(WorldComponent):
         sensing instant): where the piece that ends here was kept (:meth:`_settled_piece`)
         and its start was measured too, under the same grasps, its gap is at least the two
         ends' mean less half its motion bound (the gap moves no faster than that): a piece
-        that leaves no room below the least gap so far goes."""
+        that leaves no room below the least gap so far goes. And where a piece ends here,
+        the gap measured is where the next pieces' second bound starts (it is the gap
+        there, exactly: no judged piece's end is nearer the truth)."""
         last = self.settled_last.get((k, i))
         held = last[1] if last is not None and last[0] == t else None
         seen = self.settled_seen.get((k, i))
         self.settled_seen[(k, i)] = (t, gap, held)
+        if held is not None:
+            self.settled_code[k, i] = sum(1 << j for j in held)
+            self.settled_gap[k, i], self.settled_moved[k, i] = gap, 0.0
         pending = self.settled_pending.get((k, i))
         if not pending or seen is None or held is None:
             return

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import random
+from typing import Any
 
 import numpy as np
 import pytest
@@ -247,3 +248,53 @@ def test_a_box_carried_by_two_robots_through_a_post_between_ticks_collides(team_
     assert (mark["who"], mark["x"], mark["y"]) == ("box", pytest.approx(contact), 0.0)
     ensemble = ht.simulate(team, n=2)
     assert [d["message"] for d in ensemble.diagnostics] == [run.message] * 2
+
+
+ALONG_A_WALL = """
+team: along_a_wall
+agents:
+  a:
+    plant: {kind: unicycle, state: {x: 0, y: 1, theta: 0}}
+    modes: {Go: {inputs: {v: 1.0, omega: 0.0}, period: 0.1}}
+  b:
+    plant: {kind: unicycle, state: {x: 0, y: -1, theta: 0}}
+    modes: {Go: {inputs: {v: 1.0, omega: 0.0}, period: 0.1}}
+world:
+  - use: payload
+    with:
+      name: box
+      width: 1.6
+      depth: 1.0
+      grasps: [{agent: a, point: [0.0, 0.5]}, {agent: b, point: [0.0, -0.5]}]
+  - use: obstacles
+    with:
+      walls: [[-5, 0.85, 5, 0.85]]
+simulation: {duration: 1.5}
+"""
+
+
+def test_a_gap_measured_at_the_carriers_ticks_restarts_the_bound(team_from_yaml, monkeypatch):
+    """A 1.6 x 1.0 box carried at 1 m/s parallel to a wall 0.35 above its top edge, ticks
+    every 0.1 s: its gap is 0.35 throughout. The centroid's bound is no help (the centroid
+    is 0.85 from the wall, the farthest corner hypot(0.8, 0.5) = 0.943 from it), and a
+    piece's points move up to about 0.2 (0.1 along, the rest the bound on turning), so a
+    bound started from the last judged piece's end runs out every other piece, which was
+    then judged for a contact at once (before: those from t = 0, 0.2, ..., 1.4, 8 of 15).
+    The gap measured at each tick restarts it: 0.35 - 0.2 > 0, only the first piece (no
+    gap measured before it) is judged for a contact while running, and the summary still
+    finds 0.35."""
+    from hybridteam.world import obstacles
+
+    contacts = []
+    judge = obstacles.Obstacles._judge_settled
+
+    def counted(self: obstacles.Obstacles, *args: Any) -> float | None:
+        if len(args) == 9:  # (no ``below``: judged at once, for a contact)
+            contacts.append(args[3])
+        return judge(self, *args)
+
+    monkeypatch.setattr(obstacles.Obstacles, "_judge_settled", counted)
+    run = ht.simulate(team_from_yaml(ALONG_A_WALL))
+    assert run.outcome == "ok"
+    assert run.diagnostics[0]["stats"]["payload_clearance"] == pytest.approx(0.35, abs=1e-9)
+    assert contacts == [0.0]  # (the first piece: no gap measured before it)
