@@ -328,6 +328,7 @@ class Obstacles(WorldComponent):
         self.settled_prev: dict[int, tuple[_Fit, list[list[float]], Any, float]] = {}
         self.settled_pending: dict[tuple[int, int], list[Any]] = {}
         self._settled_room: dict[tuple[int, int], int] = {}
+        self._settled_shape: dict[tuple[int, int], tuple[list[Any], tuple[float, ...]]] = {}
         #: per such (payload, instance): when its last piece ended and which grasps held
         #: over it, and its last gap measured, when, and under which grasps
         #: (:meth:`note_settled_gap`)
@@ -836,23 +837,22 @@ class Obstacles(WorldComponent):
         bounds do not hold (None). With ``below`` (a kept piece, judged for the summary:
         it cannot touch) the gap goes straight into ``payload_clear``. Returns the gap
         at the end (where the next piece's bound starts from)."""
+        shape = self._settled_shape.get((k, i))
+        if shape is None:  # (its grasps and extents as floats, once)
+            grasps = [
+                ((p.mount.item(j, 0), p.mount.item(j, 1)), (p.body.item(j, 0), p.body.item(j, 1)))
+                for j in range(len(p.agents))
+            ]
+            halves = tuple(h.item(0) for h in p.half_extents(np.array([i])))
+            shape = self._settled_shape[(k, i)] = (grasps, halves)
         grips = []
         for j, r, (was, now) in zip(held, rows, ends, strict=True):
-            mount, body = p.mount[j].tolist(), p.body[j].tolist()
-            one = grip(
-                t0,
-                was,
-                t1,
-                now,
-                self._turning[r],
-                (mount[0], mount[1]),
-                (body[0], body[1]),
-                p.spring.item(j),
-            )
+            mount, body = shape[0][j]
+            one = grip(t0, was, t1, now, self._turning[r], mount, body, p.spring.item(j))
             if one is None:
                 return None
             grips.append(one)
-        hw, hd = (h.item(0) for h in p.half_extents(np.array([i])))
+        hw, hd = shape[1]
         start = (tuple(held), tuple(tuple(was) for was, _ in ends))
         kept = self.settled_end.get((k, i))
         first = kept[1] if kept is not None and kept[0] == start else None
