@@ -257,8 +257,9 @@ class CarriedPayload(WorldComponent):
         self.rel0[:] = self.pose[:, 2:3] - heading
         self.arm[..., 2] = 0.0
 
-    def _engagement(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
-        """Which grasps hold in instances ``idx``: ``(m, k)`` bool."""
+    def engagement(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
+        """Which grasps hold in instances ``idx``: ``(m, k)`` bool (also the swept settled
+        payload's question over an ensemble, :mod:`~hybridteam.world.obstacles`)."""
         on = filled((idx.size, len(self.agents)), True, bool)
         for k, name in enumerate(self.engaged_by):
             if name is not None:
@@ -276,6 +277,15 @@ class CarriedPayload(WorldComponent):
                     return None
                 sole = k
         return sole
+
+    def holding(self, world: WorldAccess, idx: np.ndarray) -> list[int]:
+        """The grasps that hold in the one instance ``idx`` (the swept settled payload's
+        question, :mod:`~hybridteam.world.swept_settled`; on floats)."""
+        return [
+            k
+            for k, (a, name) in enumerate(zip(self.agents, self.engaged_by, strict=True))
+            if name is None or world.variable(a, name, idx).item(0) > 0.5
+        ]
 
     def settle(self, world: WorldAccess, idx: np.ndarray) -> np.ndarray:
         """Pose, offsets and arm readings of instances ``idx`` from the current state;
@@ -297,7 +307,7 @@ class CarriedPayload(WorldComponent):
         if idx.size == 1 and FLOAT_PATHS.on:  # a single run's instant: the same numbers
             return settle_one(self, world, idx)
         pts, heading = self._robot_points(world, idx)
-        on = self._engagement(world, idx)
+        on = self.engagement(world, idx)
         pose = self.rest[idx]
         k = len(self.agents)
         code = on @ self._bits

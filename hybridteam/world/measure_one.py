@@ -99,8 +99,10 @@ def measure_one(
         payload.append(gap)
     for r, j in enumerate(judged):
         obs.min_clear[r, i] = _min(obs.min_clear[r, i].item(), j)
-    for gap in payload:
+    for k, gap in enumerate(payload):
         obs.payload_clear[i] = _min(obs.payload_clear[i].item(), gap)
+        if obs.settled_last and gap < math.inf:
+            obs.note_settled_gap(k, i, world.t.item(i), gap)
     for p in measured:  # (its counter: a gap measured)
         p.work.gaps += 1
     return {a: np.array([g]) for a, g in zip(robots, centre, strict=True)}

@@ -39,7 +39,8 @@ per planar robot in the team's order: the gap between its footprint disk and the
 static obstacle, negative when overlapping; a robot with no footprint radius is a point)
 and ``payload_clearance`` (the gap between any payload's outline and the static
 obstacles, 0 when they touch or overlap; a payload held by one grasp of a robot under a
-held input over its motion between instants too, :mod:`hybridteam.world.swept_payload`).
+held input over its motion between instants too, :mod:`hybridteam.world.swept_payload`;
+by two or more, certified bounds, :mod:`hybridteam.world.swept_settled`).
 Two robots under held inputs are judged against each other over their motion between
 instants too (:mod:`hybridteam.world.swept_pair`: a collision, at its first contact).
 With ``clearance: true`` the same gaps are also
@@ -97,6 +98,7 @@ from hybridteam.world.swept_payload import (
     payload_first_contact,
     payload_least_gap,
 )
+from hybridteam.world.swept_settled import GAP_TOLERANCE, Frame, SettledCarry, State, grip
 
 if TYPE_CHECKING:
     from hybridteam.model import Agent, Team
@@ -295,9 +297,43 @@ class Obstacles(WorldComponent):
             for j, a in enumerate(p.agents)
             if a in row_of and all(by is not None for g, by in enumerate(p.engaged_by) if g != j)
         ]
+        #: the payloads whose robots hold two or more grasps judged over their motion
+        #: between instants where those grasps hold (:mod:`.swept_settled`): ``(k,
+        #: payload, each grasp's swept row or None)``
+        self.settled = [
+            (k, p, [row_of.get(a) for a in p.agents])
+            for k, p in enumerate(self.payloads)
+            if sum(a in row_of for a in p.agents) >= 2
+        ]
         #: per payload: its least gap over its motion since a carrier last sensed ``(P, n)``,
         #: and its first contact then, per (payload, instance): ``(t, x, y)``
         self.payload_swept = np.full((len(self.payloads), self.n), np.inf)
+        #: per (payload, instance) judged over its motion with two or more grasps: the
+        #: last piece's end (which grasps held, their robots' poses) and the payload there,
+        #: where the next piece starts if nothing changed between (:meth:`_judge_settled`)
+        self.settled_end: dict[tuple[int, int], tuple[Any, State]] = {}
+        #: per payload and instance ``(P, n)``: which grasps held when it was last judged
+        #: or measured (-1: since forgotten), its gap at that piece's end, and how far it may have
+        #: moved since (:meth:`_settled_piece`); and the pieces kept for the summary
+        n_payloads = len(self.payloads)
+        self.settled_code = np.full((n_payloads, self.n), -1)  # (a bit per holding grasp)
+        self.settled_gap = np.full((n_payloads, self.n), np.nan)
+        self.settled_moved = np.zeros((n_payloads, self.n))
+        #: a single run's: per (payload, grasps held), what its bounds need (:class:`_Fit`),
+        #: and per payload the last piece's end, the centroid there (None: not computed)
+        #: and a lower bound on its point gap
+        self._settled_fit: dict[tuple[int, tuple[int, ...]], _Fit] = {}
+        #: per (payload, grasps held, scene, half extents): what its pieces share
+        self._settled_frames: dict[tuple[Any, ...], Frame] = {}
+        self.settled_prev: dict[int, tuple[_Fit, list[list[float]], Any, float]] = {}
+        self.settled_pending: dict[tuple[int, int], list[Any]] = {}
+        self._settled_room: dict[tuple[int, int], int] = {}
+        self._settled_shape: dict[tuple[int, int], tuple[list[Any], tuple[float, ...]]] = {}
+        #: per such (payload, instance): when its last piece ended and which grasps held
+        #: over it, and its last gap measured, when, and under which grasps
+        #: (:meth:`note_settled_gap`)
+        self.settled_last: dict[tuple[int, int], tuple[float, tuple[int, ...]]] = {}
+        self.settled_seen: dict[tuple[int, int], tuple[float, float, Any]] = {}
         self.payload_hit: dict[tuple[int, int], tuple[float, float, float]] = {}
         for a in self.sensing:
             world.pose(a, np.arange(0))  # a plant without x and y fails now, not mid-run
@@ -474,6 +510,8 @@ class Obstacles(WorldComponent):
                     sole[(c.k, i)] = c.payload.sole_grasp(world, idx[k : k + 1])
                 if sole[(c.k, i)] == c.grasp:
                     self._judge_carried(c, i, t0, t1, was[k].tolist(), now[k].tolist())
+        for k, p, grasp_rows in self.settled:
+            self._sweep_settled(world, idx, k, p, grasp_rows, ends, began)
         for r1, r2, reach in self.swept_pairs:
             (was1, now1, _, _), (was2, now2, _, _) = ends[r1], ends[r2]
             d0 = np.hypot(was1[:, 0] - was2[:, 0], was1[:, 1] - was2[:, 1])
@@ -523,12 +561,325 @@ class Obstacles(WorldComponent):
                     sole[c.k] = c.payload.sole_grasp(world, idx)
                 if sole[c.k] == c.grasp:
                     self._judge_carried(c, 0, began, t, first, last)
+        for k, p, grasp_rows in self.settled if ends else ():
+            held = p.holding(world, idx)
+            own, moves, moved = [], [], False
+            for j in held:
+                row = grasp_rows[j]
+                if row is None or row not in ends:
+                    break
+                start, stop = ends[row][0], ends[row][1]
+                own.append(row)
+                moves.append((start, stop))
+                moved = moved or start != stop
+            if len(held) < 2 or len(own) < len(held):
+                self.settled_code[k, 0] = -1  # (moved otherwise: its reference is gone)
+                continue
+            if moved:  # (else its carriers stood still: so did it)
+                self._settled_piece(k, p, began, t, held, own, moves)
         for r1, r2, reach in self.swept_pairs if ends else ():
             (was1, now1, _, _, gone1), (was2, now2, _, _, gone2) = ends[r1], ends[r2]
             d0 = math.hypot(was1[0] - was2[0], was1[1] - was2[1])
             d1 = math.hypot(now1[0] - now2[0], now1[1] - now2[1])
             if may_touch(d0, d1, gone1 + gone2, reach):
                 self._judge_pair(r1, r2, 0, began, t, was1, now1, was2, now2)
+
+    def _settled_piece(
+        self,
+        k: int,
+        p: CarriedPayload,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+    ) -> None:
+        """A single run's payload ``k`` held by grasps ``held`` (their robots' rows, and
+        each robot's poses at ``t0`` and ``t1``) over one piece: judged now where it may
+        touch something (:meth:`_judge_settled`), kept for the summary where it may only
+        come nearer than its least gap so far (:meth:`_pending_settled`), dropped where
+        it can do neither.
+
+        Two cheap bounds, on floats. Every point of the outline is within ``rho`` (its
+        farthest corner from the body centroid) of the robot points' weighted centroid
+        (:mod:`.swept_settled`), which moves no faster than their weighted mean speed
+        ``c``: the gap is at least the centroid's point gap over the piece, bounded as a
+        robot's (:meth:`_sweep`), less ``rho``. Where that leaves room, the second: no
+        point moves farther over the piece than ``c + rho |theta'|`` (``|theta'| <= |z'|
+        / |z|``, the springs' fit), so the gap is at least the gap where the payload was
+        last judged or measured (a carrier's tick at a piece's end,
+        :meth:`note_settled_gap`) less what it has moved since. A piece's end is the next
+        one's start:
+        what it computed there is kept (``settled_prev``)."""
+        key = tuple(held)
+        fit = self._settled_fit.get((k, key))
+        if fit is None:
+            fit = self._settled_fit[(k, key)] = _Fit.of(p, held)
+        self.settled_last[(k, 0)] = (t1, key)  # (a gap measured at t1 restarts the bound)
+        turning = self._turning
+        speeds = []
+        drift = 0.0
+        for (was, now), r, norm, w in zip(ends, rows, fit.reach, fit.springs, strict=True):
+            v = path_length(was, now, turning[r]) + abs(now[2] - was[2]) * norm
+            speeds.append(v)
+            drift += w * v
+        drift /= fit.total
+        kept = self.settled_prev.get(k)
+        starts = [was for was, _ in ends]
+        stops = [now for _, now in ends]
+        clear, swept = self.payload_clear.item(0), self.payload_swept.item(k, 0)
+        least = clear if clear < swept else swept
+        # (the last piece's end where this one starts: the same grasps at the same poses)
+        if kept is not None and not (kept[0] is fit and kept[1] == starts):
+            kept = None
+        if kept is not None:  # (far: the centroid's gap bounded from the last)
+            far = kept[3] - drift
+            if far - fit.rho > 0.0 and far - fit.rho >= least - GAP_TOLERANCE:
+                self.settled_prev[k] = (fit, stops, None, far)
+                self.settled_code[k, 0] = -1  # (not followed: its reference is gone)
+                return
+        first = None if kept is None else kept[2]
+        scene = self.scenes[0]
+        if first is None:
+            first = fit.centroid(starts, scene.circle_list, scene.segment_list)
+        last = fit.centroid(stops, scene.circle_list, scene.segment_list)
+        self.settled_prev[k] = (fit, stops, last, last[3])
+        low = 0.5 * (first[3] + last[3] - drift) - fit.rho
+        lever = 0.0
+        for m, v in zip(fit.levers, speeds, strict=True):
+            lever += m * v
+        zmin = 0.5 * (first[2] + last[2] - lever)
+        step = drift + fit.rho * lever / zmin if zmin > 0.0 else math.inf
+        if self.settled_code.item(k, 0) == fit.code:
+            self.settled_moved[k, 0] += step
+            low = max(low, self.settled_gap.item(k, 0) - self.settled_moved.item(k, 0))
+        else:
+            self.settled_code[k, 0] = -1
+        if low <= 0.0 or low < least - GAP_TOLERANCE:
+            self._settled_decide(k, p, 0, t0, t1, held, rows, ends, low, step)
+
+    def _settled_decide(
+        self,
+        k: int,
+        p: CarriedPayload,
+        i: int,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+        low: float,
+        step: float,
+    ) -> None:
+        """:meth:`_settled_piece`'s verdict on a piece whose gap is at least ``low`` and
+        whose points move at most ``step``: judged now where it may touch (the payload's
+        gap at its end is where the next pieces' second bound starts), kept where it may
+        only come nearer than the least gap so far."""
+        scene = self.scenes[0 if self.scene_of is None else int(self.scene_of[i])]
+        least = min(self.payload_clear.item(i), self.payload_swept.item(k, i))
+        if low <= 0.0:
+            end = self._judge_settled(k, p, i, t0, t1, held, rows, ends, scene)
+            if end is None:
+                self.settled_code[k, i] = -1
+            else:
+                self.settled_code[k, i] = sum(1 << j for j in held)
+                self.settled_gap[k, i], self.settled_moved[k, i] = end, 0.0
+        elif low < least - GAP_TOLERANCE:
+            pending = self.settled_pending.setdefault((k, i), [])
+            pending.append((low, step, (k, p, i, t0, t1, held, rows, ends, scene)))
+            if len(pending) > self._settled_room.get((k, i), 64):
+                # (those the least so far has overtaken go; when the rest fills twice
+                # the room again: amortized, not a pass over every kept piece per piece)
+                pending[:] = [q for q in pending if q[0] < least - GAP_TOLERANCE]
+                self._settled_room[(k, i)] = max(64, 2 * len(pending))
+        self.settled_last[(k, i)] = (t1, tuple(held))
+
+    def note_settled_gap(self, k: int, i: int, t: float, gap: float) -> None:
+        """Payload ``k``'s gap in instance ``i`` measured at time ``t`` (a carrier's
+        sensing instant): where the piece that ends here was kept (:meth:`_settled_piece`)
+        and its start was measured too, under the same grasps, its gap is at least the two
+        ends' mean less half its motion bound (the gap moves no faster than that): a piece
+        that leaves no room below the least gap so far goes. And where a piece ends here,
+        the gap measured is where the next pieces' second bound starts (it is the gap
+        there, exactly: no judged piece's end is nearer the truth)."""
+        last = self.settled_last.get((k, i))
+        held = last[1] if last is not None and last[0] == t else None
+        seen = self.settled_seen.get((k, i))
+        self.settled_seen[(k, i)] = (t, gap, held)
+        if held is not None:
+            self.settled_code[k, i] = sum(1 << j for j in held)
+            self.settled_gap[k, i], self.settled_moved[k, i] = gap, 0.0
+        pending = self.settled_pending.get((k, i))
+        if not pending or seen is None or held is None:
+            return
+        low, step, args = pending[-1]
+        if args[4] != t or args[3] != seen[0] or seen[2] != held:
+            return
+        low = max(low, 0.5 * (seen[1] + gap - step))
+        if low < self.payload_clear.item(i) - GAP_TOLERANCE:
+            pending[-1] = (low, step, args)
+        else:
+            pending.pop()
+
+    def _pending_settled(self, i: int) -> None:
+        """Judge instance ``i``'s kept pieces (:meth:`_settled_piece`) that may come nearer
+        than the least gap so far, in time order (one piece's end is the next one's
+        start: :meth:`_judge_settled` keeps it), into ``payload_clear``."""
+        for k in range(len(self.payloads)):
+            for low, _, args in self.settled_pending.pop((k, i), []):
+                if low < self.payload_clear.item(i) - GAP_TOLERANCE:
+                    _, p, _, t0, t1, held, rows, ends, scene = args
+                    below = self.payload_clear.item(i)
+                    self._judge_settled(k, p, i, t0, t1, held, rows, ends, scene, below)
+
+    def _sweep_settled(
+        self,
+        world: WorldAccess,
+        idx: np.ndarray,
+        k: int,
+        p: CarriedPayload,
+        rows: list[int | None],
+        ends: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]],
+        began: np.ndarray,
+    ) -> None:
+        """:meth:`_settled_piece` over the instances ``idx`` of an ensemble (their pieces
+        began at ``began``), on arrays: both bounds, and the verdict
+        (:meth:`_settled_decide`) where they leave room below the least gap so far or for
+        a contact."""
+        t = world.t[idx]
+        on = p.engagement(world, idx)
+        after = t > began
+        usable = after & (on.sum(axis=1) >= 2)
+        for j, r in enumerate(rows):
+            if r is None:
+                usable &= ~on[:, j]
+        self.settled_code[k, idx[after & ~usable]] = -1  # (moved otherwise: forgotten)
+        if not some(usable):
+            return
+        m = idx.size
+        total, speed = np.zeros(m), np.zeros(m)
+        r0, r1, bc = np.zeros((m, 2)), np.zeros((m, 2)), np.zeros((m, 2))
+        moved = np.zeros(m, bool)
+        points, speeds, weights = {}, {}, {}
+        for j, r in enumerate(rows):
+            if r is None:
+                continue
+            was, now = ends[r][0], ends[r][1]
+            mx, my = p.mount[j].tolist()
+            w = np.where(on[:, j], p.spring[j], 0.0)
+            pair = []
+            for point, pose in ((r0, was), (r1, now)):
+                c, sn = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+                px, py = pose[:, 0] + c * mx - sn * my, pose[:, 1] + sn * mx + c * my
+                point[:, 0] += w * px
+                point[:, 1] += w * py
+                pair.append((px, py))
+            gone = _path_length(was, now, self._turning[r])
+            gone = gone + np.abs(now[:, 2] - was[:, 2]) * math.hypot(mx, my)
+            speed += np.where(on[:, j], p.spring[j] * gone, 0.0)
+            total += w
+            bc += w[:, None] * p.body[j]
+            moved |= on[:, j] & np.any(now != was, axis=1)
+            points[j], speeds[j], weights[j] = pair, gone, w
+        usable &= moved
+        share = 1.0 / np.where(usable, total, 1.0)
+        r0, r1, bc = r0 * share[:, None], r1 * share[:, None], bc * share[:, None]
+        z0, z1, lever = np.zeros((m, 2)), np.zeros((m, 2)), np.zeros(m)
+        for j, ((x0, y0), (x1, y1)) in points.items():
+            w = weights[j]
+            cx, cy = p.body[j, 0] - bc[:, 0], p.body[j, 1] - bc[:, 1]
+            for z, (x, y), centre in ((z0, (x0, y0), r0), (z1, (x1, y1), r1)):
+                ax, ay = x - centre[:, 0], y - centre[:, 1]
+                z[:, 0] += w * (cx * ax + cy * ay)
+                z[:, 1] += w * (cx * ay - cy * ax)
+            lever += np.where(on[:, j], w * np.hypot(cx, cy) * speeds[j], 0.0)
+        gap0, gap1 = self._end_gaps(idx, r0), self._end_gaps(idx, r1)
+        hw, hd = p.half_extents(idx)
+        rho = np.hypot(hw + np.abs(bc[:, 0]), hd + np.abs(bc[:, 1]))
+        drift = speed * share
+        low = 0.5 * (gap0 + gap1 - drift) - rho
+        zmin = 0.5 * (np.hypot(z0[:, 0], z0[:, 1]) + np.hypot(z1[:, 0], z1[:, 1]) - lever)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = np.where(zmin > 0.0, drift + rho * lever / zmin, np.inf)
+        code = on @ (1 << np.arange(on.shape[1]))
+        known = usable & (self.settled_code[k, idx] == code)
+        self.settled_code[k, idx[usable & ~known]] = -1
+        if some(known):
+            rows_known = idx[known]
+            self.settled_moved[k, rows_known] += step[known]
+            since = self.settled_gap[k, rows_known] - self.settled_moved[k, rows_known]
+            low[known] = np.maximum(low[known], since)
+        least = np.minimum(self.payload_clear[idx], self.payload_swept[k, idx])
+        for q in where_true(usable & ((low < least - GAP_TOLERANCE) | (low <= 0.0))).tolist():
+            held = where_true(on[q]).tolist()
+            own = [r for r in (rows[j] for j in held) if r is not None]
+            ends_q = [(ends[r][0][q].tolist(), ends[r][1][q].tolist()) for r in own]
+            t0, t1 = float(began[q]), float(t[q])
+            self._settled_decide(k, p, int(idx[q]), t0, t1, held, own, ends_q, low[q], step[q])
+
+    def _judge_settled(
+        self,
+        k: int,
+        p: CarriedPayload,
+        i: int,
+        t0: float,
+        t1: float,
+        held: list[int],
+        rows: list[int],
+        ends: list[tuple[list[float], list[float]]],
+        scene: Scene,
+        below: float | None = None,
+    ) -> float | None:
+        """Payload ``k`` held by grasps ``held`` (their robots' rows, and each robot's
+        poses at ``t0`` and ``t1``) over the motion in instance ``i``
+        (:mod:`.swept_settled`): its least gap, and its first contact if it touches
+        something; left to the instants where a robot's motion is not rebuilt or the
+        bounds do not hold (None). With ``below`` (a kept piece, judged for the summary:
+        it cannot touch) the gap goes straight into ``payload_clear``. Returns the gap
+        at the end (where the next piece's bound starts from)."""
+        shape = self._settled_shape.get((k, i))
+        if shape is None:  # (its grasps and extents as floats, once)
+            grasps = [
+                ((p.mount.item(j, 0), p.mount.item(j, 1)), (p.body.item(j, 0), p.body.item(j, 1)))
+                for j in range(len(p.agents))
+            ]
+            halves = tuple(h.item(0) for h in p.half_extents(np.array([i])))
+            shape = self._settled_shape[(k, i)] = (grasps, halves)
+        grips = []
+        for j, r, (was, now) in zip(held, rows, ends, strict=True):
+            mount, body = shape[0][j]
+            one = grip(t0, was, t1, now, self._turning[r], mount, body, p.spring.item(j))
+            if one is None:
+                return None
+            grips.append(one)
+        hw, hd = shape[1]
+        start = (tuple(held), tuple(tuple(was) for was, _ in ends))
+        kept = self.settled_end.get((k, i))
+        first = kept[1] if kept is not None and kept[0] == start else None
+        at = (k, tuple(held), id(scene), hw, hd)
+        frame = self._settled_frames.get(at)
+        circles, segments = scene.circle_list, scene.segment_list
+        motion = SettledCarry(grips, hw, hd, circles, segments, first, frame)
+        self._settled_frames[at] = motion.frame
+        end = (tuple(held), tuple(tuple(now) for _, now in ends))
+        if below is not None:  # (kept for the summary: it starts clear)
+            found = motion.least_gap(below, apart=True)
+            self.settled_end[(k, i)] = (end, motion.last)
+            if found is not None:
+                self.payload_clear[i] = min(self.payload_clear.item(i), found[0])
+            return None
+        found = motion.least_gap(min(self.payload_clear.item(i), self.payload_swept.item(k, i)))
+        self.settled_end[(k, i)] = (end, motion.last)
+        if found is None:
+            return None
+        gap, s = found
+        if gap < self.payload_swept[k, i]:
+            self.payload_swept[k, i] = gap
+        if gap <= 0.0 and (k, i) not in self.payload_hit:
+            s = motion.first_contact(s)
+            x, y, _ = motion.state(s).pose
+            self.payload_hit[(k, i)] = (t0 + s * (t1 - t0), x, y)
+        return 0.0 if gap <= 0.0 else max(motion.last.gap, 0.0)
 
     def _end_gaps(self, idx: np.ndarray, poses: np.ndarray) -> np.ndarray:
         """Each centre's distance to the nearest circle's edge or segment of its scene
@@ -654,7 +1005,7 @@ class Obstacles(WorldComponent):
                 if gap < math.inf and (sensing is None or sensing[a].item(0)):
                     self.min_clear[r, 0] = min(self.min_clear.item(r, 0), gap)
                     self.swept_gap[r, 0] = math.inf
-            for k, p in enumerate(self.payloads if self.carried else ()):
+            for k, p in enumerate(self.payloads if self.carried or self.settled else ()):
                 gap = self.payload_swept.item(k, 0)
                 if gap < math.inf and (
                     sensing is None or any(sensing[a].item(0) for a in p.agents)
@@ -682,7 +1033,7 @@ class Obstacles(WorldComponent):
                     )
                     hits.append((i, who, text, np.array([x, y])))
                     times.append(t)
-        if self.carried:
+        if self.carried or self.settled:
             self._fold_payloads(world, idx, sensing, hits, times)
         if self.pair_hit:
             self._fold_pairs(world, idx, sensing, hits, times)
@@ -1026,7 +1377,7 @@ class Obstacles(WorldComponent):
                     )
                 )
         robot_gaps = gap
-        for p in self.payloads:
+        for kp, p in enumerate(self.payloads):
             gap = self._payload_gap(p, idx, scene)
             payload_gaps.append(gap)
             carried = None
@@ -1036,6 +1387,14 @@ class Obstacles(WorldComponent):
                     carried = carried | sensing[a]
             judged = gap if carried is None or every(carried) else np.where(carried, gap, np.inf)
             self.payload_clear[idx] = np.minimum(self.payload_clear[idx], judged)
+            if self.settled_last and idx.size == 1:  # (a single run: on floats)
+                if judged.item(0) < math.inf:
+                    i = idx.item(0)
+                    self.note_settled_gap(kp, i, world.t.item(i), judged.item(0))
+            elif self.settled_last:
+                for q in where_true(judged < math.inf).tolist():
+                    i = int(idx[q])
+                    self.note_settled_gap(kp, i, world.t.item(i), judged.item(q))
             for k in where_true(judged <= 0).tolist():
                 hits.append(
                     (
@@ -1204,6 +1563,8 @@ class Obstacles(WorldComponent):
         return out
 
     def summary(self, i: int) -> dict[str, Any]:
+        if self.settled_pending:
+            self._pending_settled(i)
         out: dict[str, Any] = {"min_clearance": [_finite(v) for v in self.min_clear[:, i]]}
         if self.values["on_collision"] == "warn":
             out["collisions"] = [text for text, *_ in self.collisions[i].values()]
@@ -1256,6 +1617,68 @@ class _Carried(NamedTuple):
         hw, hd = payload.half_extents(np.arange(payload.n))
         near = np.hypot(hw + abs(body[0]), hd + abs(body[1])) + math.hypot(*mount)
         return cls(k, payload, grasp, row, (mount[0], mount[1]), (body[0], body[1]), near)
+
+
+class _Fit(NamedTuple):
+    """What a single run's bounds on a payload held by grasps ``held`` need, once
+    (``Obstacles._settled_piece``): the grasps' springs, mounts, their mounts' distances
+    from the robots' centres (``reach``), the body centroid ``bc``, the grasps' levers
+    ``w |b - bc|``, the outline's farthest corner from ``bc`` (``rho``), and the
+    engagement code."""
+
+    springs: list[float]
+    mounts: list[tuple[float, float]]
+    reach: list[float]
+    centred: list[tuple[float, float]]
+    levers: list[float]
+    total: float
+    rho: float
+    code: int
+
+    @classmethod
+    def of(cls, p: CarriedPayload, held: list[int]) -> _Fit:
+        springs = [p.spring.item(j) for j in held]
+        mounts = [(p.mount.item(j, 0), p.mount.item(j, 1)) for j in held]
+        body = [(p.body.item(j, 0), p.body.item(j, 1)) for j in held]
+        total = math.fsum(springs)
+        bcx = math.fsum(w * b[0] for w, b in zip(springs, body, strict=True)) / total
+        bcy = math.fsum(w * b[1] for w, b in zip(springs, body, strict=True)) / total
+        centred = [(b[0] - bcx, b[1] - bcy) for b in body]
+        hw, hd = (h.item(0) for h in p.half_extents(np.zeros(1, int)))
+        return cls(
+            springs,
+            mounts,
+            [math.hypot(*m) for m in mounts],
+            centred,
+            [w * math.hypot(*c) for w, c in zip(springs, centred, strict=True)],
+            total,
+            math.hypot(hw + abs(bcx), hd + abs(bcy)),
+            sum(1 << j for j in held),
+        )
+
+    def centroid(
+        self,
+        poses: list[list[float]],
+        circles: list[tuple[float, float, float]],
+        segments: list[tuple[float, float, float, float]],
+    ) -> tuple[float, float, float, float]:
+        """The robot points' weighted centroid at robot poses ``poses``, ``|z|`` there
+        (:mod:`.swept_settled`) and the centroid's point gap to the obstacles."""
+        points = []
+        rx = ry = 0.0
+        for (x, y, th), (mx, my), w in zip(poses, self.mounts, self.springs, strict=True):
+            c, sn = math.cos(th), math.sin(th)
+            qx, qy = x + c * mx - sn * my, y + sn * mx + c * my
+            points.append((qx, qy))
+            rx += w * qx
+            ry += w * qy
+        rx /= self.total
+        ry /= self.total
+        zx = zy = 0.0
+        for w, (cx, cy), (qx, qy) in zip(self.springs, self.centred, points, strict=True):
+            zx += w * (cx * (qx - rx) + cy * (qy - ry))
+            zy += w * (cx * (qy - ry) - cy * (qx - rx))
+        return rx, ry, math.hypot(zx, zy), point_gap(rx, ry, circles, segments)
 
 
 class _Sighted(NamedTuple):

@@ -18,8 +18,8 @@ Exact where the carrier's motion is rebuilt (:func:`carry`): a unicycle under a 
 turning by less than half a revolution, or a holonomic base that does not turn or carries
 the grasp at its centre (a holonomic base turning while it translates moves an off-centre
 mount on no arc). Two or more engaged grasps settle at the springs' equilibrium, whose
-angle has no closed form over the motion: those payloads are judged at their carriers'
-sensing instants only.
+angle has no closed form over the motion: those payloads are bounded instead
+(:mod:`.swept_settled`).
 """
 
 from __future__ import annotations
