@@ -56,21 +56,7 @@ def row_hash(row: np.ndarray) -> np.uint64:
 @njit(cache=True)
 def find_row(rows: np.ndarray, slots: np.ndarray, row: np.ndarray) -> tuple[int, int]:
     """``(number, -1)`` of a stored row equal to ``row``, or ``(-1, slot)`` where it goes."""
-    mask = slots.size - 1
-    i = np.int64(row_hash(row) & np.uint64(mask))
-    w = row.size
-    while True:
-        k = slots[i]
-        if k < 0:
-            return -1, int(i)
-        same = True
-        for j in range(w):
-            if rows[k, j] != row[j]:
-                same = False
-                break
-        if same:
-            return int(k), -1
-        i = (i + 1) & mask
+    return find_sub(rows, slots, row, 0, row.size)
 
 
 @njit(cache=True)
@@ -115,8 +101,9 @@ def expand(key, GT, gb, koff, kw, row, nums) -> None:
 
 @njit(cache=True, inline="always")
 def find_sub(table, slots, row, lo, hi) -> tuple[int, int]:
-    """:func:`find_row` for the sub-row ``row[lo:hi]`` in a group's table (the same hash
-    as :func:`row_hash` of a table row, without a slice of ``row``)."""
+    """``(number, -1)`` of the stored row of ``table`` equal to the sub-row ``row[lo:hi]``,
+    or ``(-1, slot)`` where it goes (the same hash as :func:`row_hash` of a table row,
+    without a slice of ``row``; :func:`find_row` is the whole row's case)."""
     h = np.uint64(1469598103934665603)
     for j in range(lo, hi):
         h = (h ^ np.uint64(row[j])) * np.uint64(1099511628211)
