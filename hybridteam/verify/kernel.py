@@ -526,8 +526,9 @@ class PackedStore:
     @property
     def bounds(self) -> list[int]:
         """Where each group's columns start in a row, and the row's end."""
-        lay = self.lay
-        return list(np.cumsum([0, lay.agents, lay.copies, lay.entries, lay.seen + 3]))
+        from hybridteam.verify.kernel_core import group_bounds
+
+        return group_bounds(self.lay.array()).tolist()
 
     def __len__(self) -> int:
         return self.n
@@ -566,7 +567,7 @@ class PackedStore:
 
     def add(self, row: np.ndarray) -> int:
         """The number of the state whose row is ``row``, stored if it is new."""
-        from hybridteam.verify.kernel_core import grow, intern
+        from hybridteam.verify.kernel_core import grow, intern, key_offsets
 
         self.reserve(1)
         if not self.group_slots[0].size:  # (sealed: the lookup tables went)
@@ -580,7 +581,7 @@ class PackedStore:
                 tuple(self.group_slots),
                 self.counts,
                 np.array(self.bounds, np.int64),
-                np.concatenate([[0], np.cumsum(self.widths)[:-1]]).astype(np.int64),
+                key_offsets(self.widths),
                 self.widths,
                 row,
                 np.zeros(GROUPS, np.int64),

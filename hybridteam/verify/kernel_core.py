@@ -78,6 +78,15 @@ def group_bounds(lay) -> np.ndarray:
     return np.array([0, na, na + cs, na + cs + os_, na + cs + os_ + ss_ + 3], np.int64)
 
 
+@njit(cache=True)
+def key_offsets(kw) -> np.ndarray:
+    """Where each group's number starts in a key, from the groups' widths in bytes."""
+    koff = np.zeros(GROUPS, np.int64)
+    for g in range(1, GROUPS):
+        koff[g] = koff[g - 1] + kw[g - 1]
+    return koff
+
+
 @njit(cache=True, inline="always")
 def key_number(key, at, width) -> int:
     """The group number kept in ``width`` bytes of ``key`` from ``at`` (little-endian)."""
@@ -786,9 +795,7 @@ def level(
     na = lay[0]
     gb = group_bounds(lay)
     w = gb[GROUPS]
-    koff = np.zeros(GROUPS, np.int64)
-    for g in range(1, GROUPS):
-        koff[g] = koff[g - 1] + kw[g - 1]
+    koff = key_offsets(kw)
     gi = np.zeros(GROUPS, np.int64)
     pn = np.zeros(GROUPS, np.int64)  # the state at work's groups' numbers
     key = np.zeros(keys.shape[1], keys.dtype)
@@ -898,14 +905,13 @@ def level(
                 q_tape.append((1 << (k + 1)) | bits | (1 << k))
         if not apply:
             continue
-        k, fresh = intern(
-            keys, n, slots, GT, GS, counts, gb, koff, kw, out, gi, key, n < max_states, wide, pn
-        )
-        while k == -3:  # (a group's tables full: grown here, the level needs no bound)
-            GT, GS = grow(GT, GS, counts, fresh)
+        while True:  # (a group's tables full, -3: grown here, the level needs no bound)
             k, fresh = intern(
                 keys, n, slots, GT, GS, counts, gb, koff, kw, out, gi, key, n < max_states, wide, pn
             )
+            if k != -3:
+                break
+            GT, GS = grow(GT, GS, counts, fresh)
         if k == -2:
             need[0] = fresh
             return GROUP_FULL, ordinal, n, ne, nz, nx, nm, GT, GS
