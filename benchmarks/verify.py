@@ -30,8 +30,10 @@ rules have no state bound).
     python benchmarks/verify.py --compare [--checks 2:0:all 3:0:all 2:1:all 3:2:resign]
         [--spin-on 2:0:all] [--max-states N]
 
-``--compare jobs`` times each check with ``--jobs 1`` and with ``--jobs N`` (2 unless
-told), alternating, twice each, and prints the speedup (the best time of one against the
+``--compare successors`` with ``--jobs N`` gives the compiled loop N threads (the other
+explorers one process each). ``--compare jobs`` times each check with ``--jobs 1`` and
+with ``--jobs N`` (2 unless told; the compiled loop's threads where numba is installed,
+else the Python loop's worker processes), alternating, twice each, and prints the speedup (the best time of one against the
 best of the other, in this invocation: on a machine others use too, the ratio is what
 carries over, not the seconds; the CPU seconds, the check's process and its workers
 together, say what the pool costs beyond one process). ``--compare storage`` runs each
@@ -210,7 +212,7 @@ def compare(args: argparse.Namespace) -> None:
         rest += ["--timeouts", args.timeouts, "--json"]
         figures = {}
         explorers = [
-            ("kernel", ["--kernel", "on", "--rules"]),
+            ("kernel", ["--kernel", "on", "--rules", "--jobs", str(args.jobs)]),
             ("tables", ["--kernel", "off"]),
             *([] if args.no_reference else [("reference", ["--reference"])]),
         ]

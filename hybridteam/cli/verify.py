@@ -152,8 +152,9 @@ def register(sub) -> dict:
         type=int,
         default=1,
         metavar="N",
-        help="processes computing successors (default 1); the states, edges and verdicts "
-        "are the same for any N",
+        help="cores computing successors (default 1): threads of the compiled loop, or "
+        "worker processes of the Python loop; the states, edges and verdicts are the same "
+        "for any N",
     )
     ve.add_argument(
         "--symmetry",
@@ -228,7 +229,6 @@ def _check(args) -> None:
         for refused, option in (
             (args.reference, "--reference"),
             (args.storage != "exact", f"--storage {args.storage}"),
-            (args.jobs != 1, "--jobs"),
             (args.por == "ample", "--por ample"),
         ):
             if refused:

@@ -333,11 +333,15 @@ def _explore(
         raise ValueError(f"jobs must be at least 1, got {opts.jobs}")
     start = time.perf_counter()
     limit = memory_limit(opts.max_memory)
+    use, explorer = chosen(opts, reduce is not None or choose is not None, len(sk.cteam.agents))
+    # the compiled loop's threads share this process's machine; a pool's workers each
+    # have their own
+    workers = 1 if use else opts.jobs
     # the engine's arrays take at most half the limit, shared by the workers; the
     # states, the rest (bounds.py)
-    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5 / opts.jobs)
+    batch = instances_within(sk.cteam, opts.batch, limit, "verify", share=0.5 / workers)
     # with a pool, this process's machine only gives the initial state and the choices
-    m = machine(sk, opts, batch if opts.jobs == 1 else 1)
+    m = machine(sk, opts, batch if workers == 1 else 1)
     m.values = values = Values(sk, opts.max_values)
     succ = reduced(m, reduce)
     parent = array("I", [NONE])
@@ -350,8 +354,7 @@ def _explore(
         trail = Trail(parent)
         store, edges = PartialStore(len(sk.cteam.agents), visited), trail
         store.trail, store.successor = trail, _again(succ)
-    g = Graph(store, parent, edges, batch=batch)
-    use, g.explorer = chosen(opts, reduce is not None or choose is not None, len(sk.cteam.agents))
+    g = Graph(store, parent, edges, batch=batch, explorer=explorer)
     if use:
         assert isinstance(m, Reactions)
         explore_packed(sk, opts, m, g, values, limit, start, progress, note)

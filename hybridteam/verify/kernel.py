@@ -28,6 +28,7 @@ import os
 import time
 from array import array
 from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import partial
 from itertools import islice
@@ -57,8 +58,6 @@ GROUPS = 4
 KINDS = ("deliver", "lose", "dup", "timer", "scenario", "time", "world")
 #: Copy templates' kinds: a plain message, an acknowledged one (an id), an ack.
 PLAIN, WITH_ID, ACK_COPY = 0, 1, 2
-#: Jobs the dry pass lists at a time for Python to compute.
-MISSES = 4096
 
 
 def numba_available() -> bool:
@@ -80,8 +79,6 @@ def unavailable_reason(opts: Options, agents: int = 0) -> str | None:
         return "--reference computes every successor with the engine"
     if opts.storage != "exact":
         return f"--storage {opts.storage} is a partial search"
-    if opts.jobs != 1:
-        return "--jobs uses the process pool"
     if opts.losses > 0xFFFF or opts.duplicates > 0xFFFF:
         return "the bounds exceed the packed rows' counters"
     if agents > 0xFF:
@@ -107,7 +104,7 @@ def chosen(opts: Options, reduced: bool, agents: int) -> tuple[bool, str]:
         reason = "symmetry or ample-set reduction is on"
     if reason is not None:
         return False, f"python loop: {reason}"
-    return True, "compiled kernel"
+    return True, "compiled kernel" + (f", {opts.jobs} threads" if opts.jobs > 1 else "")
 
 
 def cache_dir() -> str:
@@ -627,18 +624,6 @@ class PackedStore:
         self.slots = np.full(max(size, _pow2(2 * self.n)), -1, np.int32)
         rehash(self.keys, self.n, self.slots)
 
-    def rollback(self, counts: np.ndarray) -> None:
-        """The store as it was before a level whose pass was abandoned (it is applied
-        again): the states beyond ``n`` leave the table, the sub-rows beyond ``counts``
-        their groups."""
-        from hybridteam.verify.kernel_core import regroup
-
-        self._rehash(self.slots.size)
-        self.counts[:] = counts
-        for g in range(GROUPS):
-            self.groups[g][counts[g] :] = 0
-        regroup(tuple(self.groups), tuple(self.group_slots), self.counts)
-
     def widen_key(self, g: int) -> None:
         """One more byte for group ``g``'s numbers in every key (the group outgrew its
         bytes); the table of states is built again."""
@@ -694,154 +679,353 @@ def explore_packed(
     note: Callable[[str], None] | None = None,
 ) -> None:
     """:func:`~.explore._levels` for the packed store: fills ``g`` (its ``states``
-    become a :class:`PackedStore`, its edges an :class:`~.store.Edges`)."""
+    become a :class:`PackedStore`, its edges an :class:`~.store.Edges`), with
+    ``opts.jobs`` threads computing successors."""
     where = cache_dir()
     from hybridteam.verify import kernel_core as kc
 
-    if note is not None and not kc.level.signatures:  # (not yet loaded in this process)
+    if note is not None and not kc.commit.signatures:  # (not yet loaded in this process)
         note(f"compiled kernel: loading it from {where}, or compiling it there (first run)")
+    if opts.jobs == 1:
+        _Explorer(sk, opts, m, g, None).run(values, limit, start, progress)
+        return
+    with ThreadPoolExecutor(opts.jobs, thread_name_prefix="verify") as pool:
+        _Explorer(sk, opts, m, g, pool).run(values, limit, start, progress)
 
-    pk = Packing(sk, m)
-    table = Table(pk)
-    lay = Layout(pk.agents)
-    store = PackedStore(pk, lay)
-    initial = m.initial()
-    store.relayout(store.lay.fit(_counts(initial)), store.dtype)
-    first = np.zeros(store.lay.width, store.dtype)
-    pk.pack(initial, store.lay, first)
-    store.add(first)
-    parent = np.full(1024, 0xFFFFFFFF, np.uint32)
-    fifo = opts.order == "fifo"
-    timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
-    opt = np.array(
-        [
-            fifo,
-            opts.ack_timing == "bounded",
-            timeouts,
-            opts.losses,
-            opts.duplicates,
-            len(m.scenario),
-        ],
-        np.int64,
-    )
-    edges = PackedEdges()
-    known: dict[int, int] = {}  # an edge's choice code -> its number in ``edges.choices``
-    lo, hi = 0, 1
-    depth = 0
-    tb: tuple | None = None
-    none = np.zeros(0, np.uint32)
-    need = np.zeros(3, np.int64)  # the group counts of a successor that outgrew the layout
-    pre: dict[int, tuple[State, bool, int]] = {}  # the level's jobs Python computed
 
-    def level(apply: bool, *outs: np.ndarray) -> tuple[int, ...]:
-        """One pass of the compiled loop over the level ``lo..hi``: a dry pass
-        (``apply`` False: it only counts the jobs and collects the misses) or the level
-        applied, its edges, Zeno and cut states into ``outs``; the rest of its arguments,
-        the same for both, as they stand at the call. The groups' tables it grew go back
-        to the store."""
-        assert tb is not None  # (the tables are built before the first pass)
-        *got, groups, slots = kc.level(  # type: ignore[call-arg]
-            store.keys,
-            store.n,
-            lo,
-            hi,
-            store.slots,
-            tuple(store.groups),
-            tuple(store.group_slots),
-            store.counts,
-            store.widths,
-            store.lay.array(),
-            *tb,
-            *table.array(),
-            opt,
-            settled,
-            pre_ord,
-            pre_rows,
-            pre_res,
-            apply,
-            opts.max_states,
-            parent,
-            *outs,
-            misses,
-            need,
+#: States a chunk of a level takes at a time (shared by the threads), and queued retries.
+CHUNK = 32768
+#: Below this many states a chunk is not shared (a thread's start costs more).
+SHARED = 2048
+
+
+@dataclass
+class _Part:
+    """One thread's share of a chunk: the jobs of states ``lo..hi-1`` (``main``) or the
+    queued retries ``lo..hi-1``; the arrays phase A reads, as they stood when the share
+    was cut (``args``: phase B may append to the store meanwhile, never move what phase
+    A reads), and its layout; its output (:func:`.kernel_core.successors`): ``count``
+    jobs in ``job`` and ``rows``."""
+
+    main: bool
+    lo: int
+    hi: int
+    buffer: tuple[int, int]  # (which of the two chunks in the making, which share)
+    args: tuple
+    lay: Layout
+    job: np.ndarray
+    rows: np.ndarray
+    count: int = 0
+
+
+class _Explorer:
+    """The breadth-first levels of the compiled loop. A level is taken a chunk at a time,
+    each in two phases: the successors of the chunk's jobs (phase A: it writes nothing
+    shared), then their numbering in the order one thread would take them (phase B,
+    :func:`.kernel_core.commit`: the store, parents, edges, the queue of retries). Phase
+    B stops where it cannot go on: a job the tables did not answer (Python computes it,
+    :meth:`_fill`), a successor wider than the layout, an array full; that is fixed and
+    phase B goes on from that job. So the graph is the one-threaded loop's, state for
+    state, with any number of threads.
+
+    With a ``pool``, phase A of a level's first chunk is shared by its threads, and
+    while phase B numbers a chunk, a thread computes the next chunk's successors (phase
+    B is as long as phase A, and one thread's: the two cores are both busy). Phase B
+    only appends to the store's arrays meanwhile; what would move them (a larger key
+    array) waits for that thread (:meth:`_quiet`)."""
+
+    def __init__(
+        self, sk: Skeleton, opts: Options, m: Reactions, g: Graph, pool: ThreadPoolExecutor | None
+    ) -> None:
+        self.sk, self.opts, self.m, self.g, self.pool = sk, opts, m, g, pool
+        self.threads = opts.jobs if pool is not None else 1
+        self.pk = Packing(sk, m)
+        self.table = Table(self.pk)
+        self.store = PackedStore(self.pk, Layout(self.pk.agents))
+        initial = m.initial()
+        self.store.relayout(self.store.lay.fit(_counts(initial)), self.store.dtype)
+        first = np.zeros(self.store.lay.width, self.store.dtype)
+        self.pk.pack(initial, self.store.lay, first)
+        self.store.add(first)
+        self.parent = np.full(1024, 0xFFFFFFFF, np.uint32)
+        timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
+        self.opt = np.array(
+            [
+                opts.order == "fifo",
+                opts.ack_timing == "bounded",
+                timeouts,
+                opts.losses,
+                opts.duplicates,
+                len(m.scenario),
+            ],
+            np.int64,
         )
-        store.groups, store.group_slots = list(groups), list(slots)
-        return tuple(got)
+        self.tb: tuple = ()
+        self.settled = np.zeros(1, np.uint8)
+        self.edges = PackedEdges(partial(first_choices, sk, opts, m, self.store))
+        # each share's output, by (which of the two chunks in the making, which share)
+        self.shares: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self.pending: Future | None = None  # the next chunk's phase A, on a thread
+        # this level's: edges, Zeno and cut states, queued retries; (states, edges, Zeno,
+        # cut, queued, next job, a full group) for phase B
+        self.e_src, self.e_dst = np.zeros(1024, np.uint32), np.zeros(1024, np.uint32)
+        self.zeno = np.zeros(1024, np.uint32)
+        self.cut = np.zeros(1024, np.uint32)
+        self.queue = np.zeros((3, 1024), np.int64)
+        self.st = np.zeros(8, np.int64)  # (and the jobs taken, for the count)
 
-    while lo < hi:
-        misses = np.zeros((MISSES, 4), np.int64)
-        while True:  # dry passes until the tables answer every job of the level
-            table.sync()
-            lay = store.lay.fit(_most(s for s, _, _ in pre.values()))
-            if lay != store.lay:  # a successor computed in Python outgrew the layout
-                store.relayout(lay, store.dtype)
-            pre_ord, pre_rows, pre_res = _pre(pk, store, pre)
-            if store.dtype == np.uint16 and not pk.fits16():
-                store.relayout(store.lay, np.uint32)
-                continue
-            if pk.dirty or tb is None:
-                tb = pk.tables()
-            settled = _settled(pk, m)
-            status, jobs, _, _, _, _, nm = level(False, none, none, none, none, none)
-            if nm == 0:
+    def run(self, values: Values, limit: float, start: float, progress: Progress | None) -> None:
+        g, store, opts = self.g, self.store, self.opts
+        lo, hi = 0, 1
+        depth = 0
+        while lo < hi:
+            self._level(lo, hi)
+            ne, nz, nx = (int(v) for v in self.st[1:4])
+            g.transitions += int(self.st[7])
+            self.edges.add_level(lo, hi, self.e_src[:ne], self.e_dst[:ne])
+            g.zeno.update(self.zeno[:nz].tolist())
+            if nx:
+                g.exhaustive = False
+                g.bound = g.bound or full(opts.max_states)
+                g.cut.update(self.cut[:nx].tolist())
+            lo, hi = hi, store.n
+            depth += 1
+            if progress is not None:
+                progress(store.n, hi - lo, depth, time.perf_counter() - start)
+            stop = over_memory(resident_bytes(), limit, store.n)
+            if stop is None:
+                stop = values.grown()
+            if stop is not None:
+                _stop(g, stop, range(lo, hi))
                 break
-            _fill(m, pk, store, misses[:nm], pre, g.batch)
-        # the level, applied
-        store.reserve(jobs)
-        if parent.size < store.n + jobs:
-            parent = np.concatenate(
-                [parent, np.full(max(parent.size // 2, jobs), 0xFFFFFFFF, np.uint32)]
-            )
-        e_src = np.zeros(jobs, np.uint32)
-        e_dst = np.zeros(jobs, np.uint32)
-        e_how = np.zeros(jobs, np.uint32)
-        zeno = np.zeros(jobs, np.uint32)
-        cut = np.zeros(jobs, np.uint32)
-        counts = store.counts.copy()
-        status, done, n, ne, nz, nx, _ = level(True, e_src, e_dst, e_how, zeno, cut)
-        while status == kc.GROUP_FULL:  # a group outgrew its bytes in the keys: again
-            store.rollback(counts)  # (from the groups it started with)
-            store.widen_key(int(need[0]))
-            status, done, n, ne, nz, nx, _ = level(True, e_src, e_dst, e_how, zeno, cut)
-        if status == kc.OVERFLOW:  # a successor outgrew the layout: the level again
-            store.rollback(counts)
-            c, e, k = need.tolist()
-            store.relayout(store.lay.fit((c, e, k)), store.dtype)
-            continue
-        if status == kc.TOO_MANY_IDS:
-            raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
-        if status != kc.OK or done != jobs:
-            raise RuntimeError(f"kernel: the level did not apply as its dry pass said ({status})")
-        g.transitions += jobs
-        _add_edges(sk, edges, known, (lo, hi), e_src[:ne], e_dst[:ne], e_how[:ne])
-        del e_src, e_dst, e_how
-        g.zeno.update(zeno[:nz].tolist())
-        if nx:
-            g.exhaustive = False
-            g.bound = g.bound or full(opts.max_states)
-            g.cut.update(cut[:nx].tolist())
-        lo, hi = hi, n
-        store.n = n
-        pre = {}
-        depth += 1
-        now = time.perf_counter()
         if progress is not None:
-            progress(store.n, hi - lo, depth, now - start)
-        stop = over_memory(resident_bytes(), limit, store.n)
-        if stop is not None:
-            _stop(g, stop, range(lo, hi))
-            break
-        stop = values.grown()
-        if stop is not None:
-            _stop(g, stop, range(lo, hi))
-            break
-    if progress is not None:
-        progress(store.n, 0, depth, time.perf_counter() - start)
-    store.seal()
-    g.states = store
-    g.parent = array("I")
-    g.parent.frombytes(parent[: store.n].tobytes())
-    g.edges = edges
+            progress(store.n, 0, depth, time.perf_counter() - start)
+        store.seal()
+        g.states = store
+        g.parent = array("I")
+        g.parent.frombytes(self.parent[: store.n].tobytes())
+        g.edges = self.edges
+
+    # ------------------------------------------------------------------ a level
+    def _level(self, lo: int, hi: int) -> None:
+        """Expand states ``lo..hi-1``: their jobs, then the retries they queue."""
+        store = self.store
+        store.reserve(hi - lo)
+        self.st[:] = 0
+        self.st[0] = store.n
+        self._grow_level(2 * (hi - lo))
+        chunks = [(a, min(hi, a + CHUNK)) for a in range(lo, hi, CHUNK)]
+        for c, (a, b) in enumerate(chunks):
+            if self.pending is None:
+                self._prepare()
+                parts = self._phase_a(self._split(True, a, b, c % 2, self.threads))
+            else:
+                parts = self.pending.result()
+                self.pending = None
+            if self.pool is not None and c + 1 < len(chunks):
+                self._prepare()
+                after = self._split(True, *chunks[c + 1], (c + 1) % 2, 1)
+                self.pending = self.pool.submit(self._phase_a, after)
+            self._commit_all(parts)
+        done = 0
+        while done < self.st[4]:  # the retries the level queued, a chunk at a time
+            self._prepare()
+            parts = self._split(False, done, min(int(self.st[4]), done + CHUNK), 0, self.threads)
+            done = parts[-1].hi
+            self._commit_all(self._phase_a(parts))
+        store.n = int(self.st[0])
+
+    def _grow_level(self, edges: int) -> None:
+        """The level's arrays, at least ``edges`` long for its edges."""
+        if self.e_dst.size < edges:
+            self.e_src = np.zeros(edges, np.uint32)
+            self.e_dst = np.zeros(edges, np.uint32)
+
+    def _prepare(self) -> None:
+        """The tables as the loop reads them, with whatever Python numbered since."""
+        self.table.sync()
+        if self.store.dtype == np.uint16 and not self.pk.fits16():
+            self.store.relayout(self.store.lay, np.uint32)
+        if self.pk.dirty or not self.tb:
+            self.tb = self.pk.tables()
+        self.settled = _settled(self.pk, self.m)
+
+    def _split(self, main: bool, lo: int, hi: int, which: int, threads: int) -> list[_Part]:
+        """Jobs ``lo..hi-1`` (states' or queued), one share per thread (one below
+        :data:`SHARED` jobs); ``which``: the chunk's buffers (0 or 1)."""
+        from hybridteam.verify.kernel_core import JOB_COLUMNS
+
+        store = self.store
+        shares = threads if hi - lo >= SHARED else 1
+        width, dtype = store.lay.width, store.dtype
+        args = (
+            store.keys,
+            tuple(store.groups),
+            store.widths.copy(),
+            store.lay.array(),
+            *self.tb,
+            *self.table.array(),
+            self.opt,
+            self.settled,
+        )
+        cuts = [lo + (hi - lo) * t // shares for t in range(shares + 1)]
+        parts = []
+        for t in range(shares):
+            job, rows = self.shares.get((which, t), (np.zeros((0, 0), np.int64), None))
+            want = 2 * (cuts[t + 1] - cuts[t]) + 64 if main else cuts[t + 1] - cuts[t]
+            if rows is None or job.shape[0] < want or rows.shape[1] != width or rows.dtype != dtype:
+                size = max(want, job.shape[0])
+                job = np.zeros((size, JOB_COLUMNS), np.int64)
+                rows = np.zeros((size, width), dtype)
+                self.shares[(which, t)] = (job, rows)
+            parts.append(_Part(main, cuts[t], cuts[t + 1], (which, t), args, store.lay, job, rows))
+        return parts
+
+    def _phase_a(self, parts: list[_Part]) -> list[_Part]:
+        """Phase A of a chunk's shares (each on a thread of the pool, if there is one)."""
+        if self.pool is None or len(parts) == 1:
+            for part in parts:
+                self._successors(part)
+        else:
+            for f in [self.pool.submit(self._successors, part) for part in parts]:
+                f.result()
+        return parts
+
+    def _successors(self, part: _Part) -> None:
+        """Phase A of one share (from the arrays as they stood when it was cut): its
+        output grows as it fills."""
+        from hybridteam.verify.kernel_core import successors
+
+        at = np.zeros(3, np.int64)
+        lo, ci = part.lo, 0
+        queue = self.queue
+        while not successors(  # type: ignore[call-arg]
+            *part.args, lo, part.hi, ci, queue, part.main, part.job, part.rows, at
+        ):
+            lo, ci = int(at[1]), int(at[2])
+            part.job = _grown(part.job, 2 * part.job.shape[0])
+            part.rows = _grown(part.rows, 2 * part.rows.shape[0])
+            self.shares[part.buffer] = (part.job, part.rows)
+        part.count = int(at[0])
+
+    def _quiet(self) -> None:
+        """Wait for the next chunk's phase A, if one is under way (before the store's
+        arrays move)."""
+        if self.pending is not None:
+            self.pending.result()
+
+    def _commit_all(self, parts: list[_Part]) -> None:
+        for k, part in enumerate(parts):
+            store = self.store
+            if part.lay != store.lay or part.rows.dtype != store.dtype:  # (widened since)
+                part.rows = part.lay.widen(part.rows[: part.count], store.lay).astype(store.dtype)
+                part.lay = store.lay
+            self._commit(parts, k)
+            self.st[7] += part.count
+
+    def _commit(self, parts: list[_Part], k: int) -> None:
+        """Phase B of share ``k``, from its first job to its last."""
+        from hybridteam.verify import kernel_core as kc
+
+        store, st, part = self.store, self.st, parts[k]
+        st[5] = 0
+        while True:
+            status, groups, slots = kc.commit(
+                store.keys,
+                store.slots,
+                tuple(store.groups),
+                tuple(store.group_slots),
+                store.counts,
+                store.widths,
+                store.lay.array(),
+                part.job,
+                part.rows,
+                part.count,
+                self.opts.max_states,
+                self.parent,
+                self.e_src,
+                self.e_dst,
+                self.zeno,
+                self.cut,
+                self.queue,
+                st,
+            )
+            store.groups, store.group_slots = list(groups), list(slots)
+            store.n = int(st[0])
+            if status == kc.OK:
+                return
+            if status == kc.FULL:
+                self._room()
+            elif status == kc.GROUP_FULL:  # a group outgrew its bytes in the keys
+                store.widen_key(int(st[6]))
+            elif status in (kc.MISS, kc.OVERFLOW):
+                self._fill(parts, k, int(st[5]))
+            else:
+                raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
+
+    def _room(self) -> None:
+        """Whichever of phase B's arrays is full, grown (the store's by a level's worth)."""
+        n, ne, nz, nx, nq = (int(v) for v in self.st[:5])
+        store = self.store
+        self._quiet()  # (a larger key array may move)
+        store.reserve(max(1024, n // 8))
+        if n >= self.parent.size:
+            self.parent = _grown(self.parent, self.parent.size * 3 // 2 + 1024, 0xFFFFFFFF)
+        if ne >= self.e_dst.size:
+            size = self.e_dst.size * 3 // 2 + 1024
+            self.e_src = _grown(self.e_src, size)
+            self.e_dst = _grown(self.e_dst, size)
+        if nz >= self.zeno.size:
+            self.zeno = _grown(self.zeno, 2 * self.zeno.size)
+        if nx >= self.cut.size:
+            self.cut = _grown(self.cut, 2 * self.cut.size)
+        if nq + 64 > self.queue.shape[1]:
+            queue = np.zeros((3, 2 * self.queue.shape[1]), np.int64)
+            queue[:, :nq] = self.queue[:, :nq]
+            self.queue = queue
+
+    def _fill(self, parts: list[_Part], k: int, first: int) -> None:
+        """The jobs of share ``k`` from ``first`` that phase A could not take (a reaction
+        the tables do not hold, a part not settled, a successor wider than the layout),
+        computed by Python (the engine, through the reaction tables) into the share's
+        output; the layout widened if one needs it (every share's rows with it)."""
+        from hybridteam.verify import kernel_core as kc
+
+        part, store = parts[k], self.store
+        status = part.job[first : part.count, 3]
+        todo = (np.flatnonzero((status == kc.MISS) | (status == kc.OVERFLOW)) + first).tolist()
+        states: dict[int, State] = {}
+        jobs = []
+        for i in todo:
+            sid, code, tape = (int(v) for v in part.job[i, :3])
+            s = states.get(sid)
+            if s is None:
+                s = states[sid] = store[sid]
+            choice = _choice(self.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF)
+            jobs.append((s, choice, _untape(tape)))
+        results = []
+        for i in range(0, len(jobs), self.g.batch):
+            results += self.m.run(jobs[i : i + self.g.batch])
+        lay = store.lay.fit(_most(r.state for r in results))
+        rows = np.zeros((len(todo), lay.width), np.int64)
+        for j, r in enumerate(results):
+            self.pk.pack(r.state, lay, rows[j])
+        dtype = store.dtype if self.pk.fits16() else np.dtype(np.uint32)
+        if lay != store.lay or dtype != store.dtype:
+            store.relayout(lay, dtype)
+            for p in parts[k:]:
+                p.rows = p.lay.widen(p.rows[: p.count], lay).astype(dtype)
+                p.lay = lay
+        for j, (i, r) in enumerate(zip(todo, results, strict=True)):
+            part.rows[i] = rows[j]
+            part.job[i, 3:6] = (kc.OK, int(r.zeno), r.reads)
+
+
+def _grown(a: np.ndarray, size: int, fill: int = 0) -> np.ndarray:
+    """``a`` in a longer array (its first axis ``size``), the rest ``fill``."""
+    out = np.full((size, *a.shape[1:]), fill, a.dtype)
+    out[: a.shape[0]] = a
+    return out
 
 
 def _stop(g: Graph, reason: str, unexpanded: range) -> None:
@@ -874,44 +1058,6 @@ def _most(states: Iterable[State]) -> tuple[int, int, int]:
     return copies, entries, seen
 
 
-def _pre(pk: Packing, store: PackedStore, pre: dict) -> tuple:
-    """The successors Python computed this level, as the loop reads them (each fits the
-    layout)."""
-    keys = sorted(pre)
-    rows = np.zeros((len(keys), store.lay.width), store.dtype)
-    res = np.zeros((len(keys), 2), np.int64)
-    for i, k in enumerate(keys):
-        s, zeno, reads = pre[k]
-        if not pk.pack(s, store.lay, rows[i]):
-            raise RuntimeError("kernel: a computed successor does not fit the layout")
-        res[i] = (zeno, reads)
-    return np.array(keys, np.int64), rows, res
-
-
-def _fill(
-    m: Reactions, pk: Packing, store: PackedStore, misses: np.ndarray, pre: dict, batch: int
-) -> None:
-    """Compute the jobs the loop could not (the engine, through the reaction tables)."""
-    jobs = []
-    states: dict[int, State] = {}
-    for ordinal, sid, code, tape in misses.tolist():
-        s = states.get(sid)
-        if s is None:
-            s = states[sid] = store[sid]
-        jobs.append(
-            (
-                ordinal,
-                s,
-                _choice(pk.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF),
-                _untape(tape),
-            )
-        )
-    for i in range(0, len(jobs), batch):
-        chunk = jobs[i : i + batch]
-        for (ordinal, _, _, _), r in zip(chunk, m.run([j[1:] for j in chunk]), strict=True):
-            pre[ordinal] = (r.state, r.zeno, r.reads)
-
-
 def _choice(sk: Skeleton, kind: int, x: int, y: int) -> tuple:
     """A choice (kind, x, y) as the explorer's choice tuple."""
     word = KINDS[kind]
@@ -929,22 +1075,27 @@ class PackedEdges(Edges):
     copies nothing: a level expands states ``lo..hi`` and its edges are placed by source
     (a counting sort, each state's in the order added) before they are appended, which
     puts every edge after those of earlier states. Instead of a source an edge, each
-    expanded state's edge count is kept. At tens of millions of edges the edges are most
-    of what exploring and the checks hold: 8 bytes an edge and 4 a state (the Python
-    loop's :class:`~.store.Edges`: 12 an edge, and a sorted copy when frozen)."""
+    expanded state's edge count is kept (two bytes while every count fits them). An
+    edge's choice is not kept: only a path's edges need it (a counterexample, a replay),
+    so :meth:`choice` works it out again from the edge's states (:func:`first_choices`:
+    the first of the source's jobs, in the order the loop takes them, whose successor is
+    the destination). At hundreds of millions of edges the edges are most of what exploring
+    and the checks hold: 4 bytes an edge and 2 a state (the Python loop's
+    :class:`~.store.Edges`: 12 an edge, and a sorted copy when frozen)."""
 
-    def __init__(self) -> None:
+    def __init__(self, first_choices: Callable[[int, list[int]], dict[int, tuple]]) -> None:
         super().__init__()
-        self.degree = array("I")  # the edges of each state expanded so far
+        self.first_choices = first_choices
+        self._of = -1  # the last state asked, and its edges' choices
+        self._firsts: dict[int, tuple] = {}
+        self.degree = array("H")  # the edges of each state expanded so far
 
     def __len__(self) -> int:
         return len(self.dst)
 
-    def add_level(
-        self, lo: int, hi: int, src: np.ndarray, dst: np.ndarray, how: np.ndarray
-    ) -> None:
-        """Append the edges of the level that expanded states ``lo..hi`` (``how``: the
-        choices' numbers in :attr:`choices`), in the order the loop made them."""
+    def add_level(self, lo: int, hi: int, src: np.ndarray, dst: np.ndarray) -> None:
+        """Append the edges of the level that expanded states ``lo..hi``, in the order
+        the loop made them."""
         from hybridteam.verify.kernel_core import by_source, row_offsets
 
         if src.size and not lo <= int(src.min()) <= int(src.max()) < hi:
@@ -952,51 +1103,71 @@ class PackedEdges(Edges):
         rel = src.astype(np.int64) - lo
         row = np.zeros(hi - lo + 1, np.int64)
         row_offsets(rel, row)
-        for values, out in ((dst, self.dst), (how, self.how)):
-            placed = np.zeros(rel.size, UINT)
-            by_source(rel, row, values.astype(UINT, copy=False), placed)
-            out.frombytes(placed.tobytes())  # (a level's, not all of them)
-        self.degree.frombytes(np.diff(row).astype(UINT).tobytes())
+        placed = np.zeros(rel.size, UINT)
+        by_source(rel, row, dst.astype(UINT, copy=False), placed)
+        del rel
+        self.dst.frombytes(placed.tobytes())  # (a level's, not all of them)
+        degree = np.diff(row)
+        if self.degree.typecode == "H" and degree.size and int(degree.max()) > 0xFFFF:
+            self.degree = array("I", self.degree)
+        self.degree.frombytes(degree.astype(self.degree.typecode).tobytes())
 
     def freeze(self, states: int) -> None:
         """The sparse-row view: the edges as they are, and the offsets summed from the
         counts (states never expanded, beyond a bound, have none)."""
         if self._row is not None:
             return
-        degree = _uints(self.degree)
+        degree = np.frombuffer(self.degree, self.degree.typecode) if len(self.degree) else None
         # 32-bit offsets while they fit: the checks' sparse arrays take them as they are
         row = np.zeros(states + 1, np.int32 if len(self.dst) < 2**31 else np.int64)
-        row[1 : degree.size + 1] = degree
+        if degree is not None:
+            row[1 : degree.size + 1] = degree
         np.cumsum(row, out=row)
         del degree
-        self.degree = array("I")
+        self.degree = array("H")
         if row[-1] != len(self.dst):
             raise RuntimeError("kernel: the edge counts do not add up to the edges")
-        self._row, self._dst, self._how = row, _uints(self.dst), _uints(self.how)
+        self._row, self._dst = row, _uints(self.dst)
+
+    def choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
+        """The choice of edge ``a -> b`` (the first the loop took), or ``default``."""
+        row, dst, _ = self._ready()
+        if not (dst[row[a] : row[a + 1]] == b).any():
+            return default
+        if self._of != a:  # (a path asks state by state: its edges' choices at once)
+            self._of, self._firsts = a, self.first_choices(a, dst[row[a] : row[a + 1]].tolist())
+        if b not in self._firsts:
+            raise RuntimeError(f"kernel: no choice of state {a} leads to state {b}")
+        return self._firsts[b]
+
+
+def first_choices(
+    sk: Skeleton, opts: Options, m: Reactions, states: PackedStore, a: int, ends: list[int]
+) -> dict[int, tuple]:
+    """For each of the states ``ends``, the first choice of state ``a`` that leads there,
+    in the order the loop takes ``a``'s jobs (its choices, then the free comparisons'
+    other answers each asks for, in the order asked: :func:`~.explore._chunks` keeps one
+    state's jobs in that order), computed by the Python loop's successor function."""
+    from hybridteam.verify.explore import choices
+
+    s = states[a]
+    number = {states[b]: b for b in ends}
+    firsts: dict[int, tuple] = {}
+    jobs: list[tuple[tuple, tuple]] = [(ch, ()) for ch in choices(m, sk, s, opts)]
+    done = 0
+    while done < len(jobs) and len(firsts) < len(number):
+        batch = jobs[done : done + m.capacity]
+        done += len(batch)
+        for (ch, tape), r in zip(batch, m.run([(s, ch, tape) for ch, tape in batch]), strict=True):
+            jobs += [
+                (ch, tape + (False,) * (k - len(tape)) + (True,)) for k in range(len(tape), r.reads)
+            ]
+            b = number.get(r.state)
+            if b is not None and b not in firsts:
+                firsts[b] = ch
+    return firsts
 
 
 def _uints(a: array) -> np.ndarray:
     """An ``array("I")``'s numbers, not copied."""
     return np.frombuffer(a, UINT) if len(a) else np.zeros(0, UINT)
-
-
-def _add_edges(
-    sk: Skeleton,
-    edges: PackedEdges,
-    known: dict[int, int],
-    level: tuple[int, int],
-    src: np.ndarray,
-    dst: np.ndarray,
-    how: np.ndarray,
-) -> None:
-    """Append the edges of the level that expanded states ``level`` (lo, hi) to
-    ``edges``, their choices numbered as :meth:`~.store.Edges.add` numbers them (in
-    order of first use, in the order the loop made them)."""
-    codes, first, inverse = np.unique(how, return_index=True, return_inverse=True)
-    for u in np.argsort(first, kind="stable").tolist():
-        code = int(codes[u])
-        if code not in known:
-            choice = _choice(sk, code >> 28, (code >> 20) & 0xFF, code & 0xFFFFF)
-            known[code] = edges.choices.of(choice)
-    number = np.array([known[int(c)] for c in codes.tolist()], UINT)
-    edges.add_level(*level, src, dst, number[inverse])

@@ -32,8 +32,8 @@ PLAIN, WITH_ID, ACK_COPY = 0, 1, 2
 NO_ID, INPUT_ID, NEW_ID = 0, 1, 2
 #: What a job or a pass ended with: done, a successor the tables do not know, a group
 #: wider than the layout's slots, a message id beyond :data:`IDS`, a collapsed group with
-#: more sub-rows than its bytes in a key can number.
-OK, MISS, OVERFLOW, TOO_MANY_IDS, GROUP_FULL = 0, 1, 2, 3, 4
+#: more sub-rows than its bytes in a key can number, an array of :func:`commit` full.
+OK, MISS, OVERFLOW, TOO_MANY_IDS, GROUP_FULL, FULL = 0, 1, 2, 3, 4, 5
 #: Scratch room for a state's copies, entries and seen triples while it is composed.
 ROOM = 256
 #: A stored state's collapsed groups (:func:`group_bounds`).
@@ -616,20 +616,16 @@ def successor(
     live,
     out,
     res,
-    dry,
 ) -> int:
     """The successor of the decoded state by choice ``code`` with oracle tape ``tape``
     into ``out``; ``res`` gets (zeno, reads). MISS when the reaction is not in the table
-    (or the state is not settled), OVERFLOW when it does not fit the layout. ``dry``:
-    only whether the tables answer, and the reads (``out`` is not written)."""
+    (or the state is not settled), OVERFLOW when it does not fit the layout."""
     fifo = opt[0]
     na = lay[0]
     nc, no, ns, cur, los, dup = head[0], head[1], head[2], head[3], head[4], head[5]
     kind, x, y = code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF
     res[0], res[1] = 0, 0
     if LOSE <= kind <= DUP:
-        if dry:
-            return OK
         _copy(D, Wk, na, nc, no, ns)
         if kind == LOSE:
             for i in range(x, nc - 1):
@@ -688,9 +684,6 @@ def successor(
     r = find_reaction(RK, RS, inkey, D[0, a], tape)
     if r < 0:
         return MISS
-    if dry:
-        res[0], res[1] = RR[1, r], RR[2, r]
-        return OK
     _copy(D, Wk, na, nc, no, ns)
     m = nc
     base = D[1, a]
@@ -739,16 +732,18 @@ def successor(
     return encode(lay, out, Wk, cnt[0], cnt[1], cnt[2], cur, los, dup)
 
 
-@njit(cache=True)
-def level(
+#: A job's columns in the phase-A output (:func:`successors`): its state, choice, tape,
+#: status, Zeno flag, reads, and the group counts of a successor that outgrew the layout.
+JOB_COLUMNS = 9
+#: The most free comparisons one step reads (a tape is an int64: a leading bit, then the
+#: answers); :func:`commit` keeps this much room in the queue of retries.
+MAX_READS = 62
+
+
+@njit(cache=True, nogil=True)
+def successors(
     keys,
-    n,
-    lo,
-    hi,
-    slots,
     GT,
-    GS,
-    counts,
     kw,
     lay,
     TT,
@@ -765,173 +760,209 @@ def level(
     RE,
     opt,
     settled,
-    pre_ord,
-    pre_rows,
-    pre_res,
-    apply,
-    max_states,
-    new_parent,
-    e_src,
-    e_dst,
-    e_how,
-    zeno,
-    cut,
-    misses,
-    need,
+    lo,
+    hi,
+    ci,
+    queue,
+    main,
+    out_job,
+    out_rows,
+    at,
 ):
-    """One breadth-first level: the jobs of states ``lo..hi-1`` in the order of
-    :func:`~.explore._jobs`, then the free comparisons' retries in the order of
-    :func:`~.explore._chunks`. A job numbered in ``pre_ord`` takes its successor from
-    ``pre_rows``/``pre_res`` (computed in Python), any other from the tables.
-
-    ``apply`` False (a dry pass): only find the jobs the tables cannot answer, into
-    ``misses`` (ordinal, state, choice, tape); after the first miss no further retry is
-    queued (its position would depend on the miss's reads). ``apply`` True: number the
-    new states (their keys appended to ``keys`` from ``n``, :func:`intern`), record
-    parents, edges (their choices in 32 bits: kind, x below 256, y), Zeno and cut
-    states. Returns (status, jobs, new n, edges, zeno, cut, misses, the groups' tables,
-    their lookup tables: :func:`grow` grows them); GROUP_FULL leaves the group in
-    ``need[0]``."""
+    """Phase A of a chunk: the successors of jobs, into ``out_job`` (per job its state,
+    choice, tape, status, Zeno flag, reads, and on OVERFLOW the group counts) and
+    ``out_rows`` (the successor's row), from ``at[0]`` on. ``main``: the jobs of states
+    ``lo..hi-1``, every choice in the order of :func:`choices`, from choice ``ci`` of
+    state ``lo``; else the queued retries ``queue[:, lo:hi]`` (state, choice, tape).
+    Nothing shared is written (no store, no table): two threads run this on two halves
+    of a chunk at once (``nogil``). Returns True when done; False when the output is
+    full, ``at`` then says where to go on: (jobs written, state or queue place, choice)."""
     na = lay[0]
     gb = group_bounds(lay)
     w = gb[GROUPS]
     koff = key_offsets(kw)
-    gi = np.zeros(GROUPS, np.int64)
-    pn = np.zeros(GROUPS, np.int64)  # the state at work's groups' numbers
-    key = np.zeros(keys.shape[1], keys.dtype)
-    wide = np.zeros(w, GT[0].dtype)  # the state at work's row
-    D = np.zeros((9, ROOM), np.int64)  # the state at work, decoded (rows: see decode)
-    Wk = np.zeros((9, ROOM), np.int64)  # its successor, composed
+    pn = np.zeros(GROUPS, np.int64)
+    wide = np.zeros(w, GT[0].dtype)
+    D = np.zeros((9, ROOM), np.int64)
+    Wk = np.zeros((9, ROOM), np.int64)
     head = np.zeros(6, np.int64)
     cnt = np.zeros(3, np.int64)
     res = np.zeros(2, np.int64)
     live = np.zeros(na, np.uint64)
     codes = np.zeros(4 * ROOM, np.int64)
-    out = np.zeros(w, GT[0].dtype)
-    q_sid = [0]
-    q_code = [0]
-    q_tape = [0]
-    q_sid.pop()
-    q_code.pop()
-    q_tape.pop()
-    ordinal = 0
-    pre = 0
-    ne = 0
-    nz = 0
-    nx = 0
-    nm = 0
-    frozen = False
-    sid = lo
-    nchoice = 0
-    ci_at = 0
-    qi = 0
+    m = at[0]
+    cap = out_job.shape[0]
     decoded = -1
-    status = OK
-    while True:
-        # the next job: the level's, then the queued retries
-        if sid < hi:
-            if ci_at == 0:
+    nchoice = 0
+    k = lo
+    while k < hi:
+        if main:
+            sid = k
+            if decoded != sid:
                 expand(keys[sid], GT, gb, koff, kw, wide, pn)
                 decode(wide, lay, TT, EN, D, head, live)
                 decoded = sid
                 nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
-            if ci_at >= nchoice:
-                sid += 1
-                ci_at = 0
+            if ci >= nchoice:
+                k += 1
+                ci = 0
                 continue
-            j_sid, j_code, j_tape = sid, int(codes[ci_at]), 1
-            ci_at += 1
-        elif qi < len(q_sid):
-            j_sid, j_code, j_tape = q_sid[qi], q_code[qi], q_tape[qi]
-            qi += 1
-            if decoded != j_sid:
-                expand(keys[j_sid], GT, gb, koff, kw, wide, pn)
+            code, tape = int(codes[ci]), 1
+        else:
+            sid, code, tape = queue[0, k], queue[1, k], queue[2, k]
+            if decoded != sid:
+                expand(keys[sid], GT, gb, koff, kw, wide, pn)
                 decode(wide, lay, TT, EN, D, head, live)
-                decoded = j_sid
+                decoded = sid
+        if m >= cap:
+            at[0], at[1], at[2] = m, k, ci
+            return False
+        got = successor(
+            lay,
+            TT,
+            EN,
+            SA,
+            RK,
+            RS,
+            RR,
+            RC,
+            RE,
+            opt,
+            settled,
+            code,
+            tape,
+            D,
+            head,
+            Wk,
+            cnt,
+            live,
+            out_rows[m],
+            res,
+        )
+        out_job[m, 0], out_job[m, 1], out_job[m, 2] = sid, code, tape
+        out_job[m, 3], out_job[m, 4], out_job[m, 5] = got, res[0], res[1]
+        out_job[m, 6], out_job[m, 7], out_job[m, 8] = cnt[0], cnt[1], cnt[2]
+        m += 1
+        if main:
+            ci += 1
         else:
+            k += 1
+    at[0], at[1], at[2] = m, hi, 0
+    return True
+
+
+@njit(cache=True, nogil=True)
+def commit(
+    keys,
+    slots,
+    GT,
+    GS,
+    counts,
+    kw,
+    lay,
+    out_job,
+    out_rows,
+    jobs,
+    max_states,
+    parent,
+    e_src,
+    e_dst,
+    zeno,
+    cut,
+    queue,
+    st,
+):
+    """Phase B of a chunk: its jobs ``st[5]..jobs-1`` in order, as one thread would take
+    them: each successor numbered (:func:`intern`, new states' keys appended from
+    ``st[0]``), its parent, edge (source and destination: an edge's choice is worked out
+    again when a path needs it, :class:`~.kernel.PackedEdges`), Zeno flag or cut
+    recorded, and its free comparisons' other answers queued after the level's jobs
+    (the order of :func:`~.explore._chunks`). ``st``: (states, edges, Zeno, cut, queued,
+    next job), updated as it goes. Stops at a job it cannot take: its status (MISS,
+    OVERFLOW, TOO_MANY_IDS from phase A; GROUP_FULL, the group in ``st[6]``; FULL, an
+    array here is full), ``st[5]`` that job; OK when every job is taken. Returns the
+    status and the groups' tables (:func:`grow` grows them)."""
+    gb = group_bounds(lay)
+    w = gb[GROUPS]
+    koff = key_offsets(kw)
+    gi = np.zeros(GROUPS, np.int64)
+    pn = np.zeros(GROUPS, np.int64)
+    key = np.zeros(keys.shape[1], keys.dtype)
+    prev = np.zeros(w, GT[0].dtype)
+    n, ne, nz, nx, nq = st[0], st[1], st[2], st[3], st[4]
+    last = -1
+    status = OK
+    i = st[5]
+    while i < jobs:
+        if (
+            n >= keys.shape[0]
+            or 10 * (n + 1) > 7 * slots.size
+            or n >= parent.size
+            or ne >= e_dst.size
+            or nz >= zeno.size
+            or nx >= cut.size
+            or nq + MAX_READS > queue.shape[1]
+        ):
+            status = FULL
             break
-        while pre < pre_ord.size and pre_ord[pre] < ordinal:
-            pre += 1
-        if pre < pre_ord.size and pre_ord[pre] == ordinal:
-            out[:] = pre_rows[pre]
-            res[0], res[1] = pre_res[pre, 0], pre_res[pre, 1]
-            got = OK
-        else:
-            got = successor(
-                lay,
-                TT,
-                EN,
-                SA,
-                RK,
-                RS,
-                RR,
-                RC,
-                RE,
-                opt,
-                settled,
-                j_code,
-                j_tape,
-                D,
-                head,
-                Wk,
-                cnt,
-                live,
-                out,
-                res,
-                not apply,
-            )
-        ordinal += 1
-        if got >= OVERFLOW:  # (or TOO_MANY_IDS): ``need`` gets the group counts
-            need[0], need[1], need[2] = cnt[0], cnt[1], cnt[2]
-            return got, ordinal, n, ne, nz, nx, nm, GT, GS
-        if got == MISS:
-            if apply:
-                return MISS, ordinal, n, ne, nz, nx, nm, GT, GS
-            if nm < misses.shape[0]:
-                misses[nm, 0], misses[nm, 1] = ordinal - 1, j_sid
-                misses[nm, 2], misses[nm, 3] = j_code, j_tape
-                nm += 1
-            frozen = True
-            continue
-        # the other answers of the free comparisons it read, after the level's jobs
-        length = 0
-        while (j_tape >> (length + 1)) != 0:
-            length += 1
-        if not frozen:
-            bits = j_tape & ((1 << length) - 1)
-            for k in range(length, res[1]):
-                q_sid.append(j_sid)
-                q_code.append(j_code)
-                q_tape.append((1 << (k + 1)) | bits | (1 << k))
-        if not apply:
-            continue
-        while True:  # (a group's tables full, -3: grown here, the level needs no bound)
+        got = out_job[i, 3]
+        if got != OK:
+            status = got
+            break
+        sid, code, tape, reads = out_job[i, 0], out_job[i, 1], out_job[i, 2], out_job[i, 5]
+        if sid != last:
+            expand(keys[sid], GT, gb, koff, kw, prev, pn)
+            last = sid
+        row = out_rows[i]
+        while True:  # (a group's tables full, -3: grown here)
             k, fresh = intern(
-                keys, n, slots, GT, GS, counts, gb, koff, kw, out, gi, key, n < max_states, wide, pn
+                keys,
+                n,
+                slots,
+                GT,
+                GS,
+                counts,
+                gb,
+                koff,
+                kw,
+                row,
+                gi,
+                key,
+                n < max_states,
+                prev,
+                pn,
             )
             if k != -3:
                 break
             GT, GS = grow(GT, GS, counts, fresh)
         if k == -2:
-            need[0] = fresh
-            return GROUP_FULL, ordinal, n, ne, nz, nx, nm, GT, GS
+            st[6] = fresh
+            status = GROUP_FULL
+            break
+        length = 0
+        while (tape >> (length + 1)) != 0:
+            length += 1
+        bits = tape & ((1 << length) - 1)
+        for j in range(length, reads):  # the other answers of the comparisons it read
+            queue[0, nq], queue[1, nq] = sid, code
+            queue[2, nq] = (1 << (j + 1)) | bits | (1 << j)
+            nq += 1
+        i += 1
         if k < 0:
-            cut[nx] = j_sid
+            cut[nx] = sid
             nx += 1
             continue
         if fresh:
-            new_parent[n] = j_sid
+            parent[n] = sid
             n += 1
-        if res[0] != 0:
+        if out_job[i - 1, 4] != 0:
             zeno[nz] = k
             nz += 1
-        if k != j_sid:
-            e_src[ne], e_dst[ne] = j_sid, k
-            e_how[ne] = (
-                ((j_code >> 40) << 28) | (((j_code >> 20) & 0xFF) << 20) | (j_code & 0xFFFFF)
-            )
+        if k != sid:
+            e_src[ne], e_dst[ne] = sid, k
             ne += 1
-    return status, ordinal, n, ne, nz, nx, nm, GT, GS
+    st[0], st[1], st[2], st[3], st[4], st[5] = n, ne, nz, nx, nq, i
+    return status, GT, GS
 
 
 @njit(cache=True)

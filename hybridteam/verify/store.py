@@ -299,13 +299,14 @@ class Edges:
         self._row = np.zeros(states + 1, np.int64)
         np.cumsum(np.bincount(src, minlength=states), out=self._row[1:])
 
-    def view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """The sparse-row view: each state's edges ``row[k]:row[k + 1]``, their
         destinations and their choices' numbers (in ``choices``), in the order added."""
         return self._ready()
 
-    def _ready(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._row is None or self._dst is None or self._how is None:  # (set together)
+    def _ready(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The sparse-row view (the choices' numbers None where they are not kept)."""
+        if self._row is None or self._dst is None:  # (set together)
             raise RuntimeError("edges are not frozen (call freeze after exploring)")
         return self._row, self._dst, self._how
 
@@ -329,4 +330,5 @@ class Edges:
         hits = np.flatnonzero(dst[row[a] : row[a + 1]] == b)
         if not hits.size:
             return default
+        assert how is not None  # (kept by these edges)
         return self.choices.values[int(how[row[a] + hits[0]])]

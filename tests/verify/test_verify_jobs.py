@@ -1,7 +1,8 @@
-"""``--jobs N``: successors computed by a pool of processes give the same graph as one
-process — the same states in the same order, the same edges, parents, verdicts and
-replayed counterexamples — and the pool's processes end with the check, on an error in a
-worker and on Ctrl-C alike."""
+"""``--jobs N`` in the Python loop (``--kernel off``; the compiled loop's threads are
+``tests/verify/test_verify_kernel.py``'s): successors computed by a pool of processes
+give the same graph as one process — the same states in the same order, the same edges,
+parents, verdicts and replayed counterexamples — and the pool's processes end with the
+check, on an error in a worker and on Ctrl-C alike."""
 
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from hybridteam.verify.machine import Copy, Machine, State
 from hybridteam.verify.pool import WorkerDied
 from hybridteam.verify.store import Parts, Renumber, decode, state_key
 from tests.verify.test_verify import REQUEST, docking, mutate, roles_team, verdicts
+from tests.verify.test_verify_kernel import edge_choices
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -34,12 +36,10 @@ def _same_graph(one, two) -> None:
     assert list(a.parent) == list(b.parent)
     assert len(a.edges) == len(b.edges)
     # the edges as the checks read them (one job may take the compiled loop, which
-    # keeps only this view: each state's edges in the order added)
-    (row_a, dst_a, how_a), (row_b, dst_b, how_b) = a.edges.view(), b.edges.view()
+    # keeps only this view: each state's edges in the order added), and their choices
+    (row_a, dst_a, _), (row_b, dst_b, _) = a.edges.view(), b.edges.view()
     assert np.array_equal(row_a, row_b) and np.array_equal(dst_a, dst_b)
-    assert [a.edges.choices.values[k] for k in how_a.tolist()] == [
-        b.edges.choices.values[k] for k in how_b.tolist()
-    ]
+    assert edge_choices(a) == edge_choices(b)
     assert a.zeno == b.zeno and a.cut == b.cut and a.exhaustive == b.exhaustive
     assert [(v.prop.name, v.holds, v.state, v.others, v.lasso) for v in one.verdicts] == [
         (v.prop.name, v.holds, v.state, v.others, v.lasso) for v in two.verdicts
@@ -51,7 +51,7 @@ def test_two_jobs_explore_the_same_graph_as_one(tmp_path):
     outcomes are tried, so the retries of free comparisons are exercised too)."""
     team = roles_team(tmp_path, "b")
     one = verify(team, Options(losses=1), replay=False)
-    two = verify(team, Options(losses=1, jobs=2, batch=64), replay=False)
+    two = verify(team, Options(losses=1, jobs=2, batch=64, kernel="off"), replay=False)
     assert len(one.graph.states) == 2275  # (several chunks a level with batch 64)
     _same_graph(one, two)
     assert all(v.holds for v in two.verdicts)
@@ -60,7 +60,7 @@ def test_two_jobs_explore_the_same_graph_as_one(tmp_path):
 def test_two_jobs_find_and_replay_the_same_counterexample(tmp_path):
     team = roles_team(tmp_path, "b", mutate(REQUEST, REQUEST.replace("to: Requesting", "to: Lead")))
     one = verify(team, Options(losses=0))
-    two = verify(team, Options(losses=0, jobs=2))
+    two = verify(team, Options(losses=0, jobs=2, kernel="off"))
     _same_graph(one, two)
     v1, v2 = verdicts(one)["one_leader"], verdicts(two)["one_leader"]
     assert v2.holds is False and two.counterexample(v2) == one.counterexample(v1)
@@ -72,7 +72,7 @@ def test_two_jobs_on_the_docking_handshake(tmp_path):
     team = docking(tmp_path, acknowledged=False)
     _same_graph(
         verify(team, Options(losses=1), replay=False),
-        verify(team, Options(losses=1, jobs=2), replay=False),
+        verify(team, Options(losses=1, jobs=2, kernel="off"), replay=False),
     )
 
 
@@ -94,7 +94,7 @@ def test_an_error_in_a_worker_ends_the_pool(tmp_path, monkeypatch):
 
     monkeypatch.setattr(Machine, "run", broken)
     with pytest.raises(RuntimeError, match="a broken successor function"):
-        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2), replay=False)
+        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2, kernel="off"), replay=False)
     workers = {int(p) for p in pids.read_text().split()}
     assert workers and os.getpid() not in workers  # it failed in the workers
     assert not multiprocessing.active_children()
@@ -114,7 +114,7 @@ def test_a_worker_killed_ends_the_check(tmp_path, monkeypatch):
     monkeypatch.setattr(Machine, "run", killed)
     start = time.monotonic()
     with pytest.raises(WorkerDied, match=r"worker process \d+ of verify --jobs 2 ended"):
-        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2), replay=False)
+        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2, kernel="off"), replay=False)
     assert time.monotonic() - start < 60  # (a check every second; a loaded machine)
     workers = {int(p) for p in pids.read_text().split()}
     assert workers and not multiprocessing.active_children()
@@ -150,6 +150,8 @@ def test_ctrl_c_ends_the_pool_and_writes_nothing(tmp_path):
             "0",
             "--jobs",
             "2",
+            "--kernel",
+            "off",
             "-o",
             str(out),
             "--progress",

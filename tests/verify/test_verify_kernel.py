@@ -8,6 +8,7 @@ too; and without numba ``--kernel auto`` takes the Python loop and says so."""
 from __future__ import annotations
 
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ import pytest
 
 from hybridteam import load
 from hybridteam.cli import main
-from hybridteam.verify import Options, verify
+from hybridteam.verify import Options, kernel, verify
 from hybridteam.verify.explore import Graph
 from hybridteam.verify.kernel import numba_available
 from hybridteam.verify.store import Grouped
@@ -46,14 +47,21 @@ def same_graph(a: Graph, b: Graph) -> None:
     assert list(a.parent) == list(b.parent)
     assert a.transitions == b.transitions
     # the edges as the checks read them (the compiled loop keeps only this view: each
-    # state's edges in the order added)
-    (row_a, dst_a, how_a), (row_b, dst_b, how_b) = a.edges.view(), b.edges.view()
+    # state's edges in the order added), and every edge's choice (the compiled loop's
+    # worked out again from its states)
+    (row_a, dst_a, _), (row_b, dst_b, _) = a.edges.view(), b.edges.view()
     assert len(a.edges) == len(b.edges)
     assert (row_a.tolist(), dst_a.tolist()) == (row_b.tolist(), dst_b.tolist())
-    assert [a.edges.choices.values[h] for h in how_a.tolist()] == [
-        b.edges.choices.values[h] for h in how_b.tolist()
-    ]
+    assert edge_choices(a) == edge_choices(b)
     assert (a.zeno, a.cut, a.exhaustive, a.bound) == (b.zeno, b.cut, b.exhaustive, b.bound)
+
+
+def edge_choices(g: Graph) -> list[tuple | None]:
+    """Each edge's choice, state by state in the order added."""
+    row, dst, _ = g.edges.view()
+    return [
+        g.edge_choice(k, int(b)) for k in range(len(g.states)) for b in dst[row[k] : row[k + 1]]
+    ]
 
 
 def both(team, **kw) -> None:
@@ -71,6 +79,14 @@ def both(team, **kw) -> None:
     for v, w in zip(ours.violated, ref.violated, strict=True):
         assert ours.path(v) == ref.path(w)
         assert ours.counterexample(v) == ref.counterexample(w)
+    # two threads, each level cut in chunks of 64 states shared from two states on (the
+    # chunks' seams, the shares' and the queued retries' are all met on these models)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(kernel, "CHUNK", 64)
+        mp.setattr(kernel, "SHARED", 2)
+        two = verify(team, Options(kernel="on", symmetry="off", jobs=2, **kw), replay=False)
+    assert two.graph.explorer == "compiled kernel, 2 threads"
+    same_graph(two.graph, ours.graph)
 
 
 @pytest.mark.parametrize(
@@ -87,17 +103,17 @@ def test_the_role_protocol_and_its_mutants(tmp_path, events, protocol, extra, wi
 
 def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
     """What the compiled loop leaves for the checks is held once: the edges as added are
-    their sparse-row view (no sources, no sorted copy; 32-bit offsets), and the agents'
-    part numbers are each state's agents group number into the distinct agent tuples,
-    spread for the rows a check reads only."""
+    their sparse-row view (no sources, no choices, no sorted copy; 32-bit offsets), and
+    the agents' part numbers are each state's agents group number into the distinct
+    agent tuples, spread for the rows a check reads only."""
     g = verify(roles_team(tmp_path, "b"), Options(kernel="on", losses=1), replay=False).graph
     assert g.explorer == "compiled kernel"
     edges, store = g.edges, g.states
     row, dst, how = edges.view()
     assert len(edges.src) == 0 and row.dtype == np.int32
-    assert len(edges) == dst.size == how.size == row[-1] > 0
+    assert len(edges) == dst.size == row[-1] > 0
     assert np.shares_memory(dst, np.frombuffer(edges.dst, np.uint32))
-    assert np.shares_memory(how, np.frombuffer(edges.how, np.uint32))
+    assert how is None and len(edges.how) == 0  # (worked out again for a path's edges)
     parts = store.agent_parts
     assert isinstance(parts, Grouped) and len(parts) == len(store)
     distinct = {s.agents for s in store}
@@ -161,15 +177,18 @@ def test_without_numba_auto_takes_the_python_loop_and_says_so(tmp_path, monkeypa
 
 def test_options_the_loop_does_not_serve_take_the_python_loop(tmp_path):
     team = roles_team(tmp_path, "b")
+    # --jobs: the compiled loop's threads; the Python loop's process pool with --kernel off
     g = verify(team, Options(losses=0, jobs=2), replay=False).graph
-    assert g.explorer == "python loop: --jobs uses the process pool"
+    assert g.explorer == "compiled kernel, 2 threads"
+    g = verify(team, Options(losses=0, jobs=2, kernel="off"), replay=False).graph
+    assert g.explorer == "python loop: --kernel off"
     with pytest.raises(ValueError, match="--kernel on: --storage bitstate"):
         verify(team, Options(losses=0, storage="bitstate", kernel="on"), replay=False)
     # three interchangeable followers: symmetry in effect, explored by the Python loop
     # (with --kernel on too), the same counts as before (test_verify_symmetry.py)
     followers = ask_team(tmp_path)
-    for kernel in ("auto", "on"):
-        report = verify(followers, Options(losses=0, kernel=kernel), replay=False)
+    for which in ("auto", "on"):
+        report = verify(followers, Options(losses=0, kernel=which), replay=False)
         assert report.symmetry is not None and report.symmetry.active
         assert report.graph.explorer == "python loop: symmetry or ample-set reduction is on"
         assert len(report.graph.states) == 21
@@ -226,3 +245,24 @@ def test_a_group_past_its_key_bytes_takes_one_more_and_keeps_every_state(tmp_pat
     assert np.array_equal(store.numbers(1, slice(None)), copies)
     assert list(store) == before
     assert [store.add(store.row(k)) for k in range(len(store))] == list(range(len(store)))
+
+
+def test_an_interrupted_check_leaves_no_thread_behind(tmp_path, monkeypatch):
+    """Ctrl-C while a thread computes the next chunk's successors: the check ends, and
+    the threads with it (the pool waits for the chunk at work, then goes)."""
+    taken: list[int] = []
+    real = kernel._Explorer._commit_all
+
+    def interrupted(self, parts):
+        taken.append(len(parts))
+        if self.pending is not None and len(taken) > 10:  # (a thread at the next chunk)
+            raise KeyboardInterrupt
+        return real(self, parts)
+
+    monkeypatch.setattr(kernel._Explorer, "_commit_all", interrupted)
+    monkeypatch.setattr(kernel, "CHUNK", 64)
+    monkeypatch.setattr(kernel, "SHARED", 2)
+    with pytest.raises(KeyboardInterrupt):
+        verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2, kernel="on"), replay=False)
+    assert len(taken) > 10
+    assert not [t for t in threading.enumerate() if t.name.startswith("verify")]
