@@ -33,10 +33,11 @@ rules have no state bound).
 ``--compare successors`` with ``--jobs N`` gives the compiled loop N threads (the other
 explorers one process each). ``--compare jobs`` times each check with ``--jobs 1`` and
 with ``--jobs N`` (2 unless told; the compiled loop's threads where numba is installed,
-else the Python loop's worker processes), alternating, twice each, and prints the speedup (the best time of one against the
-best of the other, in this invocation: on a machine others use too, the ratio is what
-carries over, not the seconds; the CPU seconds, the check's process and its workers
-together, say what the pool costs beyond one process). ``--compare storage`` runs each
+else the Python loop's worker processes), alternating, twice each, and prints the
+speedup (the best time of one against the best of the other, in this invocation: on a
+machine others use too, the ratio is what carries over, not the seconds; the CPU seconds,
+the check's process and its workers together, say what the threads or the pool cost
+beyond one process). ``--compare storage`` runs each
 check with every storage mode and prints their states, time and peak memory side by side.
 """
 

@@ -94,7 +94,7 @@ class Graph:
     parent), the edges (:class:`~.store.Edges`, no self-loops), Zeno and cut states."""
 
     states: Store | PartialStore | PackedStore
-    parent: array
+    parent: array | np.ndarray  # (the compiled loop's: mapped from a file past a size)
     edges: Edges | Trail
     zeno: set[int] = field(default_factory=set)
     cut: set[int] = field(default_factory=set)  # states with a successor refused (the bound)
@@ -403,6 +403,8 @@ def _levels(
     depth = 0
     last = start
     stopped = False
+    parents = g.parent
+    assert isinstance(parents, array)  # (this loop's: in memory)
     while frontier and not stopped:
         nxt: list[int] = []
         retries: list[tuple] = []  # free comparisons' other answers, after the level's jobs
@@ -431,7 +433,7 @@ def _levels(
                         g.cut.add(sid)  # not a dead end: its successors are unknown
                         continue
                     tid = store.add(key)
-                    g.parent.append(sid)
+                    parents.append(sid)
                     nxt.append(tid)
                 if zeno and tid >= 0:
                     g.zeno.add(tid)

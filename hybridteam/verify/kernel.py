@@ -25,6 +25,7 @@ Python and says so.
 from __future__ import annotations
 
 import os
+import tempfile
 import time
 from array import array
 from collections.abc import Callable, Iterable
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 from functools import partial
 from itertools import islice
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -601,7 +602,7 @@ class PackedStore:
         tables grow as the loop fills them)."""
         need = self.n + more
         if need > self.keys.shape[0]:  # (in place where the allocator can: no second copy)
-            grown = max(need, self.keys.shape[0] * 5 // 4)
+            grown = max(need, self.keys.shape[0] + self.keys.shape[0] // 16)
             self.keys.resize((grown, self.keys.shape[1]), refcheck=False)
         if 10 * need > 7 * self.slots.size:  # at most 70 % full
             self._rehash(_pow2(2 * need))
@@ -747,7 +748,7 @@ class _Explorer:
         first = np.zeros(self.store.lay.width, self.store.dtype)
         self.pk.pack(initial, self.store.lay, first)
         self.store.add(first)
-        self.parent = np.full(1024, 0xFFFFFFFF, np.uint32)
+        self.parent = np.full(1024, 0xFFFFFFFF, np.uint32)  # a level's, from ``st[8]``
         timeouts = {"any": 0, "own": 1, "long": 2}[opts.timeouts]
         self.opt = np.array(
             [
@@ -772,7 +773,9 @@ class _Explorer:
         self.zeno = np.zeros(1024, np.uint32)
         self.cut = np.zeros(1024, np.uint32)
         self.queue = np.zeros((3, 1024), np.int64)
-        self.st = np.zeros(8, np.int64)  # (and the jobs taken, for the count)
+        # (and the jobs taken, for the count; the state of ``parent[0]``)
+        self.st = np.zeros(9, np.int64)
+        self.parents = Column()  # each state's, from the levels done
 
     def run(self, values: Values, limit: float, start: float, progress: Progress | None) -> None:
         g, store, opts = self.g, self.store, self.opts
@@ -802,8 +805,7 @@ class _Explorer:
             progress(store.n, 0, depth, time.perf_counter() - start)
         store.seal()
         g.states = store
-        g.parent = array("I")
-        g.parent.frombytes(self.parent[: store.n].tobytes())
+        g.parent = self.parents.view()
         g.edges = self.edges
 
     # ------------------------------------------------------------------ a level
@@ -811,7 +813,7 @@ class _Explorer:
         """Expand states ``lo..hi-1``: their jobs, then the retries they queue."""
         store = self.store
         store.reserve(hi - lo)
-        self.st[:] = 0
+        self.st[:8] = 0
         self.st[0] = store.n
         self._grow_level(2 * (hi - lo))
         chunks = [(a, min(hi, a + CHUNK)) for a in range(lo, hi, CHUNK)]
@@ -834,6 +836,8 @@ class _Explorer:
             done = parts[-1].hi
             self._commit_all(self._phase_a(parts))
         store.n = int(self.st[0])
+        self.parents.append(self.parent[: store.n - int(self.st[8])])
+        self.st[8] = store.n
 
     def _grow_level(self, edges: int) -> None:
         """The level's arrays, at least ``edges`` long for its edges."""
@@ -969,7 +973,7 @@ class _Explorer:
         store = self.store
         self._quiet()  # (a larger key array may move)
         store.reserve(max(1024, n // 8))
-        if n >= self.parent.size:
+        if n - int(self.st[8]) >= self.parent.size:
             self.parent = _grown(self.parent, self.parent.size * 3 // 2 + 1024, 0xFFFFFFFF)
         if ne >= self.e_dst.size:
             size = self.e_dst.size * 3 // 2 + 1024
@@ -1086,12 +1090,13 @@ class PackedEdges(Edges):
     def __init__(self, first_choices: Callable[[int, list[int]], dict[int, tuple]]) -> None:
         super().__init__()
         self.first_choices = first_choices
+        self.column = Column()  # the destinations (in memory, or spilled to a file)
         self._of = -1  # the last state asked, and its edges' choices
         self._firsts: dict[int, tuple] = {}
         self.degree = array("H")  # the edges of each state expanded so far
 
     def __len__(self) -> int:
-        return len(self.dst)
+        return len(self.column)
 
     def add_level(self, lo: int, hi: int, src: np.ndarray, dst: np.ndarray) -> None:
         """Append the edges of the level that expanded states ``lo..hi``, in the order
@@ -1106,7 +1111,7 @@ class PackedEdges(Edges):
         placed = np.zeros(rel.size, UINT)
         by_source(rel, row, dst.astype(UINT, copy=False), placed)
         del rel
-        self.dst.frombytes(placed.tobytes())  # (a level's, not all of them)
+        self.column.append(placed)
         degree = np.diff(row)
         if self.degree.typecode == "H" and degree.size and int(degree.max()) > 0xFFFF:
             self.degree = array("I", self.degree)
@@ -1119,15 +1124,15 @@ class PackedEdges(Edges):
             return
         degree = np.frombuffer(self.degree, self.degree.typecode) if len(self.degree) else None
         # 32-bit offsets while they fit: the checks' sparse arrays take them as they are
-        row = np.zeros(states + 1, np.int32 if len(self.dst) < 2**31 else np.int64)
+        row = np.zeros(states + 1, np.int32 if len(self.column) < 2**31 else np.int64)
         if degree is not None:
             row[1 : degree.size + 1] = degree
         np.cumsum(row, out=row)
         del degree
         self.degree = array("H")
-        if row[-1] != len(self.dst):
+        if row[-1] != len(self.column):
             raise RuntimeError("kernel: the edge counts do not add up to the edges")
-        self._row, self._dst = row, _uints(self.dst)
+        self._row, self._dst = row, self.column.view()
 
     def choice(self, a: int, b: int, default: tuple | None = None) -> tuple | None:
         """The choice of edge ``a -> b`` (the first the loop took), or ``default``."""
@@ -1168,6 +1173,45 @@ def first_choices(
     return firsts
 
 
-def _uints(a: array) -> np.ndarray:
-    """An ``array("I")``'s numbers, not copied."""
-    return np.frombuffer(a, UINT) if len(a) else np.zeros(0, UINT)
+#: A :class:`Column` past this many bytes moves to a temporary file.
+SPILL = 1 << 30
+
+
+class Column:
+    """An append-only column of 32-bit numbers (an edge's destination, a state's parent):
+    in memory up to :data:`SPILL` bytes, then in an unnamed temporary file (in ``TMPDIR``,
+    gone with the process), written a level at a time and read back mapped
+    (:meth:`view`). Beyond a few hundred million states these columns are a third of
+    what a check holds, and only a path (its parents, its edges' choices) and the checks'
+    block-by-block passes read them: the system keeps in memory what it has room for."""
+
+    def __init__(self) -> None:
+        self.memory = array("I")
+        self.file: IO[bytes] | None = None
+        self.n = 0
+
+    def __len__(self) -> int:
+        return self.n
+
+    def append(self, values: np.ndarray) -> None:
+        values = values.astype(UINT, copy=False)
+        if self.file is None and 4 * (self.n + values.size) > SPILL:
+            # (open as long as the column: closed with it, when the graph goes)
+            self.file = tempfile.TemporaryFile(prefix="hybridteam-verify-")  # noqa: SIM115
+            self.file.write(memoryview(self.memory).cast("B"))
+            self.memory = array("I")
+        raw = memoryview(np.ascontiguousarray(values)).cast("B")  # (not copied)
+        if self.file is not None:
+            self.file.write(raw)
+        else:
+            self.memory.frombytes(raw)
+        self.n += values.size
+
+    def view(self) -> np.ndarray:
+        """The numbers, not copied (a read-only map of the file once spilled)."""
+        if not self.n:
+            return np.zeros(0, UINT)
+        if self.file is None:
+            return np.frombuffer(self.memory, UINT)
+        self.file.flush()
+        return np.memmap(self.file, UINT, "r", shape=(self.n,))

@@ -206,13 +206,20 @@ def intern(
 
 @njit(cache=True)
 def grow(GT, GS, counts, g):
-    """Group ``g``'s tables twice the size (its sub-rows, and their lookup table at most
-    half full): the tuples with the new ones."""
+    """Group ``g``'s tables grown: its table of sub-rows by a quarter when it is full (a
+    few groups hold tens of millions of sub-rows: doubling would leave half of that
+    unused), their lookup table twice the size when it is 70 % full: the tuples with the
+    new ones."""
     c = counts[g]
-    table = np.zeros((2 * GT[g].shape[0], GT[g].shape[1]), GT[g].dtype)
-    table[:c] = GT[g][:c]
-    places = np.full(2 * GS[g].size, -1, GS[g].dtype)
-    rehash(table, c, places)
+    table, places = GT[g], GS[g]
+    if c >= table.shape[0]:
+        table = np.zeros(
+            (table.shape[0] + max(table.shape[0] // 4, 16), table.shape[1]), table.dtype
+        )
+        table[:c] = GT[g][:c]
+    if 10 * (c + 1) > 7 * places.size:
+        places = np.full(2 * places.size, -1, places.dtype)
+        rehash(table, c, places)
     return _put(GT, g, table), _put(GS, g, places)
 
 
@@ -878,9 +885,10 @@ def commit(
     again when a path needs it, :class:`~.kernel.PackedEdges`), Zeno flag or cut
     recorded, and its free comparisons' other answers queued after the level's jobs
     (the order of :func:`~.explore._chunks`). ``st``: (states, edges, Zeno, cut, queued,
-    next job), updated as it goes. Stops at a job it cannot take: its status (MISS,
-    OVERFLOW, TOO_MANY_IDS from phase A; GROUP_FULL, the group in ``st[6]``; FULL, an
-    array here is full), ``st[5]`` that job; OK when every job is taken. Returns the
+    next job, ...), updated as it goes; ``parent[k]`` is state ``st[8] + k``'s. Stops at
+    a job it cannot take: its status (MISS, OVERFLOW, TOO_MANY_IDS from phase A;
+    GROUP_FULL, the group in ``st[6]``; FULL, an array here is full), ``st[5]`` that job;
+    OK when every job is taken. Returns the
     status and the groups' tables (:func:`grow` grows them)."""
     gb = group_bounds(lay)
     w = gb[GROUPS]
@@ -897,7 +905,7 @@ def commit(
         if (
             n >= keys.shape[0]
             or 10 * (n + 1) > 7 * slots.size
-            or n >= parent.size
+            or n - st[8] >= parent.size
             or ne >= e_dst.size
             or nz >= zeno.size
             or nx >= cut.size
@@ -953,7 +961,7 @@ def commit(
             nx += 1
             continue
         if fresh:
-            parent[n] = sid
+            parent[n - st[8]] = sid
             n += 1
         if out_job[i - 1, 4] != 0:
             zeno[nz] = k

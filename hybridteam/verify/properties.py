@@ -286,11 +286,23 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
     copy of every edge), only the reverse graph."""
     waiting = ~psi
     dead = waiting & g.terminal()
-    back, out = _reverse(g, waiting)
-    reach = _reaching(back, out, waiting, dead)
-    starts = np.flatnonzero(reach & phi)
-    if not starts.size:
-        return Verdict(p, True)
+    if compiled():  # (the same peeling in the memory of the reverse alone: peel.py)
+        from hybridteam.verify.peel import reaching
+
+        row, dst = g.edges.csr()
+        reach, (rev_ptr, rev_idx) = reaching(row, dst, waiting, dead)
+        starts = np.flatnonzero(reach & phi)
+        if not starts.size:
+            return Verdict(p, True)
+        n = len(waiting)
+        marks = np.ones(rev_idx.size, np.int8)
+        back = csr_matrix((marks, rev_idx, rev_ptr), shape=(n, n), copy=False)
+    else:
+        back, out = _reverse(g, waiting)
+        reach = _reaching(back, out, waiting, dead)
+        starts = np.flatnonzero(reach & phi)
+        if not starts.size:
+            return Verdict(p, True)
     # a violation: which states lie on a psi-free cycle (those that reach one do too)
     _, label = connected_components(back, directed=True, connection="strong")
     del back
@@ -305,6 +317,14 @@ def _response(p: Property, g: Graph, phi: np.ndarray, psi: np.ndarray) -> Verdic
         set(np.flatnonzero(cyclic).tolist()),
         int(starts[0]),
     )
+
+
+def compiled() -> bool:
+    """Whether responses are peeled by the compiled loop (:mod:`.peel`): where numba is
+    importable and not switched off (``HYBRIDTEAM_NUMBA=0``, as for exploring)."""
+    from hybridteam.verify.kernel import numba_available
+
+    return numba_available()
 
 
 def _reverse(g: Graph, free: np.ndarray) -> tuple[csr_matrix, np.ndarray]:

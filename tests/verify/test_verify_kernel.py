@@ -20,7 +20,7 @@ from hybridteam.verify import Options, kernel, verify
 from hybridteam.verify.explore import Graph
 from hybridteam.verify.kernel import numba_available
 from hybridteam.verify.store import Grouped
-from tests.verify.test_verify import docking, roles_team
+from tests.verify.test_verify import REQUEST, docking, mutate, roles_team
 from tests.verify.test_verify_bounds import COUNTERS, team_of
 from tests.verify.test_verify_promela import acked_go
 from tests.verify.test_verify_symmetry import ask_team
@@ -112,7 +112,7 @@ def test_the_checks_read_the_explored_states_and_edges_without_copies(tmp_path):
     row, dst, how = edges.view()
     assert len(edges.src) == 0 and row.dtype == np.int32
     assert len(edges) == dst.size == row[-1] > 0
-    assert np.shares_memory(dst, np.frombuffer(edges.dst, np.uint32))
+    assert np.shares_memory(dst, np.frombuffer(edges.column.memory, np.uint32))
     assert how is None and len(edges.how) == 0  # (worked out again for a path's edges)
     parts = store.agent_parts
     assert isinstance(parts, Grouped) and len(parts) == len(store)
@@ -266,3 +266,20 @@ def test_an_interrupted_check_leaves_no_thread_behind(tmp_path, monkeypatch):
         verify(roles_team(tmp_path, "b"), Options(losses=1, jobs=2, kernel="on"), replay=False)
     assert len(taken) > 10
     assert not [t for t in threading.enumerate() if t.name.startswith("verify")]
+
+
+def test_edges_and_parents_past_the_spill_size_are_read_from_a_file(tmp_path, monkeypatch):
+    """Past :data:`~hybridteam.verify.kernel.SPILL` bytes the edges' destinations and
+    the parents go to a temporary file and are read back mapped: the same graph,
+    verdicts and counterexample (a request answered by taking the lead at once)."""
+    team = roles_team(tmp_path, "b", mutate(REQUEST, REQUEST.replace("to: Requesting", "to: Lead")))
+    here = verify(team, Options(kernel="on", losses=1), replay=False)
+    monkeypatch.setattr(kernel, "SPILL", 64)
+    spilled = verify(team, Options(kernel="on", losses=1), replay=False)
+    g = spilled.graph
+    assert isinstance(g.parent, np.memmap) and isinstance(g.edges.view()[1], np.memmap)
+    assert len(g.states) > 64 // 4 and len(g.edges) > 64 // 4
+    same_graph(g, here.graph)
+    bad = [v for v in spilled.verdicts if not v.holds]
+    assert [v.prop.name for v in bad] == ["one_leader"]
+    assert spilled.counterexample(bad[0]) == here.counterexample(here.violated[0])
