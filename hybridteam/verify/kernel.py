@@ -1200,7 +1200,7 @@ class Column:
             self.file = tempfile.TemporaryFile(prefix="hybridteam-verify-")  # noqa: SIM115
             self.file.write(memoryview(self.memory).cast("B"))
             self.memory = array("I")
-        raw = memoryview(np.ascontiguousarray(values)).cast("B")  # (not copied)
+        raw = np.ascontiguousarray(values).data.cast("B")  # (not copied)
         if self.file is not None:
             self.file.write(raw)
         else:

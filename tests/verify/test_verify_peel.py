@@ -34,7 +34,14 @@ def test_a_graph_worked_out_by_hand():
     rev_ptr, rev_idx, out = reverse(row, dst, free)
     assert out.tolist() == [0, 1, 1, 1, 0, 1, 0, 0]  # (edges to free states from free ones)
     assert [rev_idx[rev_ptr[v] : rev_ptr[v + 1]].tolist() for v in range(8)] == [
-        [], [2], [1], [], [3], [], [5], []
+        [],
+        [2],
+        [1],
+        [],
+        [3],
+        [],
+        [5],
+        [],
     ]
     reach, _ = reaching(row, dst, free, dead)
     assert np.flatnonzero(reach).tolist() == [1, 2, 3, 4]
