@@ -547,6 +547,13 @@ class PackedStore:
             out |= self.keys[rows, at + i].astype(np.int64) << (8 * i)
         return out
 
+    def states(self, numbers: list[int]) -> dict[int, State]:
+        """The states ``numbers``, decoded together (a level's jobs Python computes:
+        the groups' numbers read once for all of them)."""
+        at = np.array(numbers, np.int64)
+        rows = np.concatenate([self.groups[g][self.numbers(g, at)] for g in range(GROUPS)], axis=1)
+        return {k: self.pk.unpack(row, self.lay) for k, row in zip(numbers, rows, strict=True)}
+
     def row(self, k: int) -> np.ndarray:
         """State ``k``'s row, its groups' sub-rows side by side."""
         return np.concatenate(
@@ -997,16 +1004,17 @@ class _Explorer:
 
         part, store = parts[k], self.store
         status = part.job[first : part.count, 3]
-        todo = (np.flatnonzero((status == kc.MISS) | (status == kc.OVERFLOW)) + first).tolist()
-        states: dict[int, State] = {}
-        jobs = []
-        for i in todo:
-            sid, code, tape = (int(v) for v in part.job[i, :3])
-            s = states.get(sid)
-            if s is None:
-                s = states[sid] = store[sid]
-            choice = _choice(self.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF)
-            jobs.append((s, choice, _untape(tape)))
+        todo = np.flatnonzero((status == kc.MISS) | (status == kc.OVERFLOW)) + first
+        asked = part.job[todo, :3].tolist()
+        states = store.states(sorted({sid for sid, _, _ in asked}))
+        jobs = [
+            (
+                states[sid],
+                _choice(self.sk, code >> 40, (code >> 20) & 0xFFFFF, code & 0xFFFFF),
+                _untape(tape),
+            )
+            for sid, code, tape in asked
+        ]
         results = []
         for i in range(0, len(jobs), self.g.batch):
             results += self.m.run(jobs[i : i + self.g.batch])
@@ -1020,7 +1028,7 @@ class _Explorer:
             for p in parts[k:]:
                 p.rows = p.lay.widen(p.rows[: p.count], lay).astype(dtype)
                 p.lay = lay
-        for j, (i, r) in enumerate(zip(todo, results, strict=True)):
+        for j, (i, r) in enumerate(zip(todo.tolist(), results, strict=True)):
             part.rows[i] = rows[j]
             part.job[i, 3:6] = (kc.OK, int(r.zeno), r.reads)
 
