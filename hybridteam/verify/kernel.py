@@ -774,13 +774,13 @@ class _Explorer:
         # each share's output, by (which of the two chunks in the making, which share)
         self.shares: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
         self.pending: Future | None = None  # the next chunk's phase A, on a thread
-        # this level's: edges, Zeno and cut states, queued retries; (states, edges, Zeno,
-        # cut, queued, next job, a full group) for phase B
+        # this level's edges, Zeno and cut states, queued retries
         self.e_src, self.e_dst = np.zeros(1024, np.uint32), np.zeros(1024, np.uint32)
         self.zeno = np.zeros(1024, np.uint32)
         self.cut = np.zeros(1024, np.uint32)
         self.queue = np.zeros((3, 1024), np.int64)
-        # (and the jobs taken, for the count; the state of ``parent[0]``)
+        # phase B's counts: states, edges, Zeno, cut, queued, next job, a full group; the
+        # level's jobs taken; the state of ``parent[0]``
         self.st = np.zeros(9, np.int64)
         self.parents = Column()  # each state's, from the levels done
 
