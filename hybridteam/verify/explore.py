@@ -130,11 +130,7 @@ class Graph:
     def terminal(self) -> np.ndarray:
         """Which states are dead ends: no successor, and none refused by the bound (a cut
         state's successors are unknown, not absent)."""
-        if isinstance(self.edges, Edges):  # (no array of out-degrees: 2.4 GB at 600 million)
-            row, _ = self.edges.csr()
-            out = row[1:] == row[:-1]
-        else:
-            out = self.edges.out_degree() == 0
+        out = self.edges.dead_ends()
         out[list(self.cut)] = False
         return out
 
@@ -430,8 +426,7 @@ def _levels(
             if pool is not None:  # the workers' machines did not count the values
                 _count_values(values, sk, store, [key for key, _, _ in results])
             for (sid, state, ch, tape), (key, zeno, reads) in zip(chunk, results, strict=True):
-                for k in range(len(tape), reads):  # the other answers still to try
-                    retries.append((sid, state, ch, tape + (False,) * (k - len(tape)) + (True,)))
+                retries += [(sid, state, ch, other) for other in other_answers(tape, reads)]
                 g.transitions += 1
                 tid = store.number(key)
                 if tid is not None and sid in put_off:  # the cycle proviso: expand fully
@@ -497,6 +492,14 @@ def _stop(g: Graph, reason: str, *unexpanded: list[int]) -> bool:
     for states in unexpanded:
         g.cut.update(states)
     return True
+
+
+def other_answers(tape: tuple, reads: int) -> list[tuple]:
+    """The tapes still to try after a step that answered ``tape`` and read ``reads`` free
+    comparisons: each later comparison answered True, those before it as ``tape`` did
+    (or False past its end) — so every combination of answers is tried once, in the
+    order all the explorers, paths and replays share."""
+    return [tape + (False,) * (k - len(tape)) + (True,) for k in range(len(tape), reads)]
 
 
 def _jobs(

@@ -1,20 +1,22 @@
 """The packed explorer: the common case of :func:`~.explore.explore` in a compiled loop.
 
-Exact storage, one process, no symmetry or ample-set reduction, the reaction tables: there
-each successor is a table lookup, a composition and the canonical form, which Python does
-at about 30,000 states a second. Here a state is one fixed-width row of small unsigned
+Exact storage, no symmetry or ample-set reduction, the reaction tables: there each
+successor is a table lookup, a composition and the canonical form, which Python does at
+about 30,000 states a second. Here a state is one fixed-width row of small unsigned
 integers (:class:`Layout`), stored collapsed: each of its groups (agents, copies, entries,
 seen) numbered once in a table of its own, the state a few bytes of group numbers
 (:class:`PackedStore`), the visited set an open-addressing table of state numbers; a
-breadth-first level is expanded by :func:`.kernel_core.level`
-(numba): the same choices in the same order, the same reactions, the same canonical form,
-the same numbering, so the graph is the Python path's, state for state and edge for edge.
+breadth-first level is expanded a chunk at a time (:class:`_Explorer`), its successors
+computed by :func:`.kernel_core.successors` and numbered by :func:`.kernel_core.commit`
+(numba, on ``--jobs`` threads): the same choices in the same order, the same reactions,
+the same canonical form, the same numbering, so the graph is the Python path's, state for
+state and edge for edge.
 
-What the loop does not know it leaves to Python, level by level: a first (dry) pass lists
-the jobs the tables cannot answer — a reaction the engine has not computed, a state whose
-parts are not all settled (a Zeno phase's) — and :class:`~.reactions.Reactions` computes
-them as it always does (the engine, the checks of each new table entry); then the loop
-applies the level. The Python path's functions stay the reference semantics:
+What the loop does not know it leaves to Python, job by job: numbering stops at a job the
+tables cannot answer — a reaction the engine has not computed, a state whose parts are
+not all settled (a Zeno phase's) — :class:`~.reactions.Reactions` computes it as it always
+does (the engine, the checks of each new table entry), and numbering goes on from that
+job. The Python path's functions stay the reference semantics:
 ``tests/verify/test_verify_kernel.py`` compares the two graphs on every verify test model.
 
 numba is an optional dependency (``pip install hybridteam[fast]``); without it, or with
@@ -548,17 +550,18 @@ class PackedStore:
         return out
 
     def states(self, numbers: list[int]) -> dict[int, State]:
-        """The states ``numbers``, decoded together (a level's jobs Python computes:
-        the groups' numbers read once for all of them)."""
-        at = np.array(numbers, np.int64)
-        rows = np.concatenate([self.groups[g][self.numbers(g, at)] for g in range(GROUPS)], axis=1)
+        """The states ``numbers``, decoded together (the groups' numbers read once for
+        all of them)."""
+        rows = self.rows(np.array(numbers, np.int64))
         return {k: self.pk.unpack(row, self.lay) for k, row in zip(numbers, rows, strict=True)}
 
+    def rows(self, at: np.ndarray) -> np.ndarray:
+        """The rows of states ``at``, each its groups' sub-rows side by side."""
+        return np.concatenate([self.groups[g][self.numbers(g, at)] for g in range(GROUPS)], axis=1)
+
     def row(self, k: int) -> np.ndarray:
-        """State ``k``'s row, its groups' sub-rows side by side."""
-        return np.concatenate(
-            [self.groups[g][self.numbers(g, np.array([k]))[0]] for g in range(GROUPS)]
-        )
+        """State ``k``'s row."""
+        return self.rows(np.array([k]))[0]
 
     def agents_of(self, k: int) -> tuple:
         parts = self.groups[0][self.numbers(0, np.array([k]))[0]]
@@ -724,6 +727,13 @@ class _Part:
     job: np.ndarray
     rows: np.ndarray
     count: int = 0
+
+    def fit(self, lay: Layout, dtype: Any) -> None:
+        """Its rows in the store's layout and integer type, if either changed since phase
+        A computed them."""
+        if lay != self.lay or self.rows.dtype != dtype:
+            self.rows = self.lay.widen(self.rows[: self.count], lay).astype(dtype)
+            self.lay = lay
 
 
 class _Explorer:
@@ -926,19 +936,16 @@ class _Explorer:
             self.pending.result()
 
     def _commit_all(self, parts: list[_Part]) -> None:
-        for k, part in enumerate(parts):
-            store = self.store
-            if part.lay != store.lay or part.rows.dtype != store.dtype:  # (widened since)
-                part.rows = part.lay.widen(part.rows[: part.count], store.lay).astype(store.dtype)
-                part.lay = store.lay
-            self._commit(parts, k)
+        for part in parts:
+            part.fit(self.store.lay, self.store.dtype)  # (widened while it waited)
+            self._commit(part)
             self.st[7] += part.count
 
-    def _commit(self, parts: list[_Part], k: int) -> None:
-        """Phase B of share ``k``, from its first job to its last."""
+    def _commit(self, part: _Part) -> None:
+        """Phase B of a share, from its first job to its last."""
         from hybridteam.verify import kernel_core as kc
 
-        store, st, part = self.store, self.st, parts[k]
+        store, st = self.store, self.st
         st[5] = 0
         while True:
             status, groups, slots = kc.commit(
@@ -970,12 +977,14 @@ class _Explorer:
             elif status == kc.GROUP_FULL:  # a group outgrew its bytes in the keys
                 store.widen_key(int(st[6]))
             elif status in (kc.MISS, kc.OVERFLOW):
-                self._fill(parts, k, int(st[5]))
+                self._fill(part, int(st[5]))
             else:
                 raise RuntimeError(f"kernel: more than {IDS} message ids of one agent at once")
 
     def _room(self) -> None:
         """Whichever of phase B's arrays is full, grown (the store's by a level's worth)."""
+        from hybridteam.verify.kernel_core import MAX_READS
+
         n, ne, nz, nx, nq = (int(v) for v in self.st[:5])
         store = self.store
         self._quiet()  # (a larger key array may move)
@@ -990,19 +999,20 @@ class _Explorer:
             self.zeno = _grown(self.zeno, 2 * self.zeno.size)
         if nx >= self.cut.size:
             self.cut = _grown(self.cut, 2 * self.cut.size)
-        if nq + 64 > self.queue.shape[1]:
+        if nq + MAX_READS > self.queue.shape[1]:
             queue = np.zeros((3, 2 * self.queue.shape[1]), np.int64)
             queue[:, :nq] = self.queue[:, :nq]
             self.queue = queue
 
-    def _fill(self, parts: list[_Part], k: int, first: int) -> None:
-        """The jobs of share ``k`` from ``first`` that phase A could not take (a reaction
-        the tables do not hold, a part not settled, a successor wider than the layout),
+    def _fill(self, part: _Part, first: int) -> None:
+        """The jobs of a share from ``first`` that phase A could not take (a reaction the
+        tables do not hold, a part not settled, a successor wider than the layout),
         computed by Python (the engine, through the reaction tables) into the share's
-        output; the layout widened if one needs it (every share's rows with it)."""
+        output; the layout widened if one needs it (the share's rows with it; the other
+        shares' before their phase B, :meth:`_commit_all`)."""
         from hybridteam.verify import kernel_core as kc
 
-        part, store = parts[k], self.store
+        store = self.store
         status = part.job[first : part.count, 3]
         todo = np.flatnonzero((status == kc.MISS) | (status == kc.OVERFLOW)) + first
         asked = part.job[todo, :3].tolist()
@@ -1025,9 +1035,7 @@ class _Explorer:
         dtype = store.dtype if self.pk.fits16() else np.dtype(np.uint32)
         if lay != store.lay or dtype != store.dtype:
             store.relayout(lay, dtype)
-            for p in parts[k:]:
-                p.rows = p.lay.widen(p.rows[: p.count], lay).astype(dtype)
-                p.lay = lay
+            part.fit(lay, dtype)
         for j, (i, r) in enumerate(zip(todo.tolist(), results, strict=True)):
             part.rows[i] = rows[j]
             part.job[i, 3:6] = (kc.OK, int(r.zeno), r.reads)
@@ -1161,10 +1169,11 @@ def first_choices(
     in the order the loop takes ``a``'s jobs (its choices, then the free comparisons'
     other answers each asks for, in the order asked: :func:`~.explore._chunks` keeps one
     state's jobs in that order), computed by the Python loop's successor function."""
-    from hybridteam.verify.explore import choices
+    from hybridteam.verify.explore import choices, other_answers
 
-    s = states[a]
-    number = {states[b]: b for b in ends}
+    decoded = states.states([a, *ends])
+    s = decoded[a]
+    number = {decoded[b]: b for b in ends}
     firsts: dict[int, tuple] = {}
     jobs: list[tuple[tuple, tuple]] = [(ch, ()) for ch in choices(m, sk, s, opts)]
     done = 0
@@ -1172,9 +1181,7 @@ def first_choices(
         batch = jobs[done : done + m.capacity]
         done += len(batch)
         for (ch, tape), r in zip(batch, m.run([(s, ch, tape) for ch, tape in batch]), strict=True):
-            jobs += [
-                (ch, tape + (False,) * (k - len(tape)) + (True,)) for k in range(len(tape), r.reads)
-            ]
+            jobs += [(ch, other) for other in other_answers(tape, r.reads)]
             b = number.get(r.state)
             if b is not None and b not in firsts:
                 firsts[b] = ch

@@ -152,8 +152,9 @@ def intern(
     """The number of the state whose wide row is ``row``: ``(k, 0)`` when stored; else,
     with ``room``, its groups numbered (each new sub-row appended to its group's table)
     and it stored as state ``n``: ``(n, 1)``; without room ``(-1, 0)``; ``(-2, g)`` when
-    group ``g`` has more sub-rows than its bytes in a key can number (nothing stored:
-    the caller widens the keys and applies the level again); ``(-3, g)`` when group
+    group ``g`` has more sub-rows than its bytes in a key can number (the state not
+    stored, sub-rows of the groups before it perhaps: the caller widens the keys and
+    asks again, which finds those); ``(-3, g)`` when group
     ``g``'s tables are full (the caller grows them, :func:`grow`, and asks again).
     ``prev``: the row of the state it succeeds, its groups' numbers ``pn`` (-1: none): a
     group a step left as it was is not looked up (most steps change one or two)."""
@@ -740,8 +741,9 @@ def successor(
 
 
 #: A job's columns in the phase-A output (:func:`successors`): its state, choice, tape,
-#: status, Zeno flag, reads, and the group counts of a successor that outgrew the layout.
-JOB_COLUMNS = 9
+#: status, Zeno flag and reads (a successor that outgrew the layout is computed again in
+#: Python, and the layout fitted to it there).
+JOB_COLUMNS = 6
 #: The most free comparisons one step reads (a tape is an int64: a leading bit, then the
 #: answers); :func:`commit` keeps this much room in the queue of retries.
 MAX_READS = 62
@@ -777,7 +779,7 @@ def successors(
     at,
 ):
     """Phase A of a chunk: the successors of jobs, into ``out_job`` (per job its state,
-    choice, tape, status, Zeno flag, reads, and on OVERFLOW the group counts) and
+    choice, tape, status, Zeno flag and reads) and
     ``out_rows`` (the successor's row), from ``at[0]`` on. ``main``: the jobs of states
     ``lo..hi-1``, every choice in the order of :func:`choices`, from choice ``ci`` of
     state ``lo``; else the queued retries ``queue[:, lo:hi]`` (state, choice, tape).
@@ -803,24 +805,21 @@ def successors(
     nchoice = 0
     k = lo
     while k < hi:
-        if main:
-            sid = k
-            if decoded != sid:
-                expand(keys[sid], GT, gb, koff, kw, wide, pn)
-                decode(wide, lay, TT, EN, D, head, live)
-                decoded = sid
+        sid = k if main else queue[0, k]
+        if decoded != sid:
+            expand(keys[sid], GT, gb, koff, kw, wide, pn)
+            decode(wide, lay, TT, EN, D, head, live)
+            decoded = sid
+            if main:
                 nchoice = choices(lay, TT, EN, PT, TJ, PW, WA, opt, D, head, codes)
-            if ci >= nchoice:
-                k += 1
-                ci = 0
-                continue
+        if not main:
+            code, tape = queue[1, k], queue[2, k]
+        elif ci < nchoice:
             code, tape = int(codes[ci]), 1
         else:
-            sid, code, tape = queue[0, k], queue[1, k], queue[2, k]
-            if decoded != sid:
-                expand(keys[sid], GT, gb, koff, kw, wide, pn)
-                decode(wide, lay, TT, EN, D, head, live)
-                decoded = sid
+            k += 1
+            ci = 0
+            continue
         if m >= cap:
             at[0], at[1], at[2] = m, k, ci
             return False
@@ -848,7 +847,6 @@ def successors(
         )
         out_job[m, 0], out_job[m, 1], out_job[m, 2] = sid, code, tape
         out_job[m, 3], out_job[m, 4], out_job[m, 5] = got, res[0], res[1]
-        out_job[m, 6], out_job[m, 7], out_job[m, 8] = cnt[0], cnt[1], cnt[2]
         m += 1
         if main:
             ci += 1
@@ -888,8 +886,8 @@ def commit(
     next job, ...), updated as it goes; ``parent[k]`` is state ``st[8] + k``'s. Stops at
     a job it cannot take: its status (MISS, OVERFLOW, TOO_MANY_IDS from phase A;
     GROUP_FULL, the group in ``st[6]``; FULL, an array here is full), ``st[5]`` that job;
-    OK when every job is taken. Returns the
-    status and the groups' tables (:func:`grow` grows them)."""
+    OK when every job is taken. Returns the status and the groups' tables (:func:`grow`
+    grows them)."""
     gb = group_bounds(lay)
     w = gb[GROUPS]
     koff = key_offsets(kw)

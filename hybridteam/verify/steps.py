@@ -17,7 +17,7 @@ from itertools import pairwise
 import numpy as np
 
 from hybridteam.verify.abstraction import Skeleton
-from hybridteam.verify.explore import Graph, active_of
+from hybridteam.verify.explore import Graph, active_of, other_answers
 from hybridteam.verify.machine import Copy, Machine, State
 from hybridteam.verify.paths import step_text
 from hybridteam.verify.schedule import Bound
@@ -173,9 +173,7 @@ def _match(
             r = m.run([(raw, option, tape)])[0]
             if m.canonical(r.state) == child:
                 return option, r.state
-            tapes += [
-                tape + (False,) * (k - len(tape)) + (True,) for k in range(len(tape), r.reads)
-            ]
+            tapes += other_answers(tape, r.reads)
     raise AssertionError(f"the path's step {choice} cannot be followed")  # a bug: say so
 
 

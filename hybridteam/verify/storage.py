@@ -258,6 +258,10 @@ class Trail:
             raise RuntimeError("the trail is not frozen (call freeze after exploring)")
         return self._degree
 
+    def dead_ends(self) -> np.ndarray:
+        """Which states no edge leaves."""
+        return self.out_degree() == 0
+
     def way(self, k: int) -> tuple[tuple, tuple]:
         """The (choice, tape) that first reached state ``k`` from its parent."""
         return self.steps.values[self.how[k]]

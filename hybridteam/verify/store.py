@@ -319,6 +319,12 @@ class Edges:
         row, _, _ = self._ready()
         return np.diff(row)
 
+    def dead_ends(self) -> np.ndarray:
+        """Which states no edge leaves (no array of out-degrees: at 600 million states
+        that would be 2.4 GB)."""
+        row, _, _ = self._ready()
+        return row[1:] == row[:-1]
+
     def csr(self) -> tuple[np.ndarray, np.ndarray]:
         """``(indptr, indices)`` of the successor lists (duplicates possible)."""
         row, dst, _ = self._ready()

@@ -43,7 +43,7 @@ from typing import Any
 from hybridteam.engine.compile.compiled import CAgent
 from hybridteam.expr import Expression
 from hybridteam.verify.abstraction import Skeleton
-from hybridteam.verify.explore import NONE, Graph
+from hybridteam.verify.explore import NONE, Graph, other_answers
 from hybridteam.verify.machine import Copy, Machine, OutboxEntry, State, _link
 from hybridteam.verify.properties import Property
 from hybridteam.verify.store import Edges, Store
@@ -362,7 +362,7 @@ def _step(sym: Symmetry, m: Machine, ra: State, choice: tuple, rb: State) -> tup
         rep, pi = sym.reduce(r.state)
         if rep == rb:
             return r.state, pi
-        tapes += [tape + (False,) * (k - len(tape)) + (True,) for k in range(len(tape), r.reads)]
+        tapes += other_answers(tape, r.reads)
     raise AssertionError(f"the step {choice} does not lead to its edge's state")  # a bug
 
 
